@@ -1,0 +1,18 @@
+//! softrod-core: Cosserat-rod models of soft pneumatic multi-chamber actuators.
+//!
+//! Pure Rust, no Python. A [`spec::DesignSpec`] (SI units) is validated and compiled into a
+//! [`rod::Rod`]; [`statics::solve`] finds its static equilibrium under chamber pressures,
+//! gravity and loads by shooting with an exact (dual-number) Jacobian;
+//! [`batch::solve_batch`] does many in parallel.
+
+pub mod batch;
+pub mod error;
+pub mod ode;
+pub mod rod;
+pub mod section;
+pub mod spec;
+pub mod statics;
+
+pub use error::{Result, SoftrodError};
+pub use rod::Rod;
+pub use spec::DesignSpec;

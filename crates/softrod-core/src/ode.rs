@@ -1,0 +1,261 @@
+//! The static Cosserat rod ODE (DESIGN.md section 2-3; paper 001 eqs. 1-4 with the pressure
+//! moved into the constitutive law as in paper 002 eqs. 6-7) and its fixed-step RK4
+//! integration from base to tip.
+//!
+//! State y = (r, R, n, m): centreline, rotation [d1 d2 d3] (row-major), total internal
+//! force and moment in the world frame. Strains from the linear law with pressure:
+//!   v = K_se^-1 (R^T n + P e3) + v*,            P = sum_k p_k A_k,
+//!   u = K_bt^-1 (R^T m + sum_k p_k A_k (y_k, -x_k, 0)) + u*,
+//! since n_m = n - n_p with n_p = -P d3 and m_m = m - m_p with
+//! m_p = -sum_k rho_k x (p_k A_k d3). Then r' = R v, R' = R u^, n' = -f, m' = -r' x n - l.
+//!
+//! Everything is generic over the scalar `D` of the state (f64, or dual numbers for exact
+//! Jacobians) and the scalar `C` of the coefficients (f64, or dual numbers when derivatives
+//! with respect to pressures or parameters are wanted).
+
+use crate::rod::Rod;
+use num_dual::DualNum;
+use std::ops::{Add, Mul, Neg};
+
+/// Scalar of the coefficients (f64, or a dual number for parameter derivatives).
+pub trait Coeff: Copy + Neg<Output = Self> {}
+impl<C: Copy + Neg<Output = C>> Coeff for C {}
+
+/// Scalar of the state.
+pub trait StateScalar<C>: DualNum<Primitive = f64> + Copy + From<C> + Mul<C, Output = Self> + Add<C, Output = Self> {}
+impl<C, D> StateScalar<C> for D where D: DualNum<Primitive = f64> + Copy + From<C> + Mul<C, Output = D> + Add<C, Output = D> {}
+
+/// Rod state at one arc length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct State<D> {
+    pub r: [D; 3],
+    pub rot: [[D; 3]; 3],
+    pub n: [D; 3],
+    pub m: [D; 3],
+}
+
+/// Per-solve coefficients of one section: compliances, strain shifts from pressure, loads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Coeffs<C> {
+    pub c_se: [C; 3],
+    pub c_bt: [[C; 3]; 3],
+    /// v* plus the pressure shift K_se^-1 P e3 (body frame).
+    pub v_shift: [C; 3],
+    /// u* plus the pressure shift K_bt^-1 M_p (body frame).
+    pub u_shift: [C; 3],
+    /// Line force f (world), N/m: weight plus user loads.
+    pub f: [C; 3],
+    /// Line moment l (world), N m/m.
+    pub l: [C; 3],
+}
+
+/// The loads of one solve, in SI and world frame. `load_factor` scales all of them
+/// (pressures, gravity, tip and line loads) for continuation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loads {
+    pub pressures: Vec<f64>,
+    pub tip_force: [f64; 3],
+    pub tip_moment: [f64; 3],
+}
+
+#[inline(always)]
+fn cross<D: DualNum<Primitive = f64> + Copy>(a: &[D; 3], b: &[D; 3]) -> [D; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+impl Coeffs<f64> {
+    /// Coefficients of section `i` under `pressures` (already scaled) and gravity `g`.
+    pub fn build(rod: &Rod, i: usize, pressures: &[f64], g: &[f64; 3], factor: f64) -> Self {
+        let s = &rod.sections[i];
+        let mut force = 0.0; // sum p_k A_k
+        let mut mp = [0.0; 3]; // sum p_k A_k (y_k, -x_k, 0)
+        for c in &s.chambers {
+            let pa = factor * pressures[c.channel] * c.area;
+            force += pa;
+            mp[0] += pa * c.centroid[1];
+            mp[1] -= pa * c.centroid[0];
+        }
+        let mut u_shift = [0.0; 3];
+        for (a, row) in u_shift.iter_mut().zip(&s.c_bt) {
+            *a = row[0] * mp[0] + row[1] * mp[1] + row[2] * mp[2];
+        }
+        let mut f = [0.0; 3];
+        let mut l = [0.0; 3];
+        for k in 0..3 {
+            f[k] = factor * (s.line_mass * g[k] + s.line_force[k]);
+            l[k] = factor * s.line_moment[k];
+        }
+        Coeffs {
+            c_se: s.c_se,
+            c_bt: s.c_bt,
+            v_shift: [0.0, 0.0, 1.0 + s.c_se[2] * force],
+            u_shift,
+            f,
+            l,
+        }
+    }
+}
+
+impl<D: DualNum<Primitive = f64> + Copy> State<D> {
+    #[inline(always)]
+    fn axpy(&self, h: f64, k: &State<D>) -> State<D> {
+        let mut y = *self;
+        for i in 0..3 {
+            y.r[i] += k.r[i] * h;
+            y.n[i] += k.n[i] * h;
+            y.m[i] += k.m[i] * h;
+            for j in 0..3 {
+                y.rot[i][j] += k.rot[i][j] * h;
+            }
+        }
+        y
+    }
+
+    /// Director d_j (column j of R).
+    #[inline(always)]
+    pub fn director(&self, j: usize) -> [D; 3] {
+        [self.rot[0][j], self.rot[1][j], self.rot[2][j]]
+    }
+
+    /// Value part (drops derivatives).
+    pub fn re(&self) -> State<f64> {
+        State {
+            r: self.r.map(|x| x.re()),
+            rot: self.rot.map(|row| row.map(|x| x.re())),
+            n: self.n.map(|x| x.re()),
+            m: self.m.map(|x| x.re()),
+        }
+    }
+}
+
+/// Body-frame strains (v, u) from the state through the linear law with pressure.
+#[inline(always)]
+pub fn strains<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> ([D; 3], [D; 3]) {
+    let rt = |w: &[D; 3]| -> [D; 3] {
+        let mut o = [w[0] * y.rot[0][0] + w[1] * y.rot[1][0] + w[2] * y.rot[2][0]; 3];
+        o[1] = w[0] * y.rot[0][1] + w[1] * y.rot[1][1] + w[2] * y.rot[2][1];
+        o[2] = w[0] * y.rot[0][2] + w[1] * y.rot[1][2] + w[2] * y.rot[2][2];
+        o
+    };
+    let nb = rt(&y.n);
+    let mb = rt(&y.m);
+    let v = [
+        nb[0] * c.c_se[0] + c.v_shift[0],
+        nb[1] * c.c_se[1] + c.v_shift[1],
+        nb[2] * c.c_se[2] + c.v_shift[2],
+    ];
+    let mut u = [mb[0]; 3];
+    for i in 0..3 {
+        u[i] = mb[0] * c.c_bt[i][0] + mb[1] * c.c_bt[i][1] + mb[2] * c.c_bt[i][2] + c.u_shift[i];
+    }
+    (v, u)
+}
+
+/// dy/ds for an elastic section.
+#[inline(always)]
+fn rhs<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> State<D> {
+    let (v, u) = strains(y, c);
+    let rot = &y.rot;
+    let mut dr = [v[0]; 3];
+    for i in 0..3 {
+        dr[i] = rot[i][0] * v[0] + rot[i][1] * v[1] + rot[i][2] * v[2];
+    }
+    // R u^ column by column: [u3 d2 - u2 d3, u1 d3 - u3 d1, u2 d1 - u1 d2].
+    let mut drot = *rot;
+    for i in 0..3 {
+        let (a, b, e) = (rot[i][0], rot[i][1], rot[i][2]);
+        drot[i][0] = b * u[2] - e * u[1];
+        drot[i][1] = e * u[0] - a * u[2];
+        drot[i][2] = a * u[1] - b * u[0];
+    }
+    let zero = D::from(0.0);
+    let dn = [zero + neg(c.f[0]), zero + neg(c.f[1]), zero + neg(c.f[2])];
+    let rxn = cross(&dr, &y.n);
+    let dm = [
+        -rxn[0] + neg(c.l[0]),
+        -rxn[1] + neg(c.l[1]),
+        -rxn[2] + neg(c.l[2]),
+    ];
+    State { r: dr, rot: drot, n: dn, m: dm }
+}
+
+#[inline(always)]
+fn neg<C: Coeff>(x: C) -> C {
+    -x
+}
+
+/// One classical RK4 step of length h.
+#[inline(always)]
+fn rk4_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, h: f64) -> State<D>
+{
+    let k1 = rhs(y, c);
+    let k2 = rhs(&y.axpy(0.5 * h, &k1), c);
+    let k3 = rhs(&y.axpy(0.5 * h, &k2), c);
+    let k4 = rhs(&y.axpy(h, &k3), c);
+    let mut out = *y;
+    let w = h / 6.0;
+    for i in 0..3 {
+        out.r[i] += (k1.r[i] + (k2.r[i] + k3.r[i]) * 2.0 + k4.r[i]) * w;
+        out.n[i] += (k1.n[i] + (k2.n[i] + k3.n[i]) * 2.0 + k4.n[i]) * w;
+        out.m[i] += (k1.m[i] + (k2.m[i] + k3.m[i]) * 2.0 + k4.m[i]) * w;
+        for j in 0..3 {
+            out.rot[i][j] += (k1.rot[i][j] + (k2.rot[i][j] + k3.rot[i][j]) * 2.0 + k4.rot[i][j]) * w;
+        }
+    }
+    out
+}
+
+/// Exact transfer through a rigid section of length L with constant line loads:
+/// v = e3, u = 0, so r' = d3 is constant and n, m integrate in closed form.
+fn rigid_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, len: f64) -> State<D>
+{
+    let t = y.director(2);
+    let mut out = *y;
+    let zero = D::from(0.0);
+    let f = [zero + c.f[0], zero + c.f[1], zero + c.f[2]];
+    let txn = cross(&t, &y.n);
+    let txf = cross(&t, &f);
+    for i in 0..3 {
+        out.r[i] += t[i] * len;
+        out.n[i] -= f[i] * len;
+        // m(L) = m0 - L t x n0 + (L^2/2) t x f - L l
+        out.m[i] = out.m[i] - txn[i] * len + txf[i] * (0.5 * len * len) + (zero + neg(c.l[i])) * len;
+    }
+    out
+}
+
+/// A node visited by the integrator: section index, arc length, state.
+pub type Visitor<'a, D> = &'a mut dyn FnMut(usize, f64, &State<D>);
+
+/// Integrate from the base state through all sections; `visit` sees every node
+/// (the base, then the end of every step).
+pub fn integrate<C: Coeff, D: StateScalar<C>>(
+    rod: &Rod,
+    coeffs: &[Coeffs<C>],
+    y0: State<D>,
+    mut visit: Option<Visitor<'_, D>>,
+) -> State<D>
+{
+    let mut y = y0;
+    if let Some(v) = visit.as_mut() {
+        v(0, 0.0, &y);
+    }
+    for (i, (sec, c)) in rod.sections.iter().zip(coeffs).enumerate() {
+        let h = sec.length / sec.steps as f64;
+        for k in 0..sec.steps {
+            y = if sec.rigid {
+                rigid_step(&y, c, sec.length)
+            } else {
+                rk4_step(&y, c, h)
+            };
+            if let Some(v) = visit.as_mut() {
+                v(i, sec.s_start + h * (k + 1) as f64, &y);
+            }
+        }
+    }
+    y
+}

@@ -1,0 +1,465 @@
+//! The design in SI units, as the Python layer hands it over (or as Rust users build it).
+//! `DesignSpec::validate` checks every rule a design must satisfy and names the offending
+//! field; `crate::rod::Rod::new` only accepts validated specs.
+
+use crate::error::{Result, SoftrodError};
+use serde::{Deserialize, Serialize};
+
+/// One standard atmosphere in Pa: the lowest meaningful gauge pressure is -1 atm (vacuum).
+pub const ATMOSPHERE: f64 = 101_325.0;
+
+/// Linear elastic material, SI units.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Young's modulus E in Pa.
+    pub youngs_modulus: f64,
+    /// Shear modulus G in Pa.
+    pub shear_modulus: f64,
+    /// Mass density in kg/m^3.
+    pub density: f64,
+}
+
+/// A pressure chamber running the full length of its section, sealed at both ends.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChamberSpec {
+    /// Effective pressurised area in m^2.
+    pub area: f64,
+    /// Radius in m of the circular hole it leaves in the material (for A_m and I);
+    /// `None` means a circle of the same area.
+    #[serde(default)]
+    pub radius: Option<f64>,
+    /// Centroid distance from the centreline in m.
+    pub distance: f64,
+    /// Centroid angle from d1 towards d2 in rad.
+    pub angle: f64,
+    /// Pressure channel index.
+    pub channel: usize,
+}
+
+impl ChamberSpec {
+    /// Radius of the hole in the cross-section.
+    pub fn hole_radius(&self) -> f64 {
+        self.radius
+            .unwrap_or_else(|| (self.area / std::f64::consts::PI).sqrt())
+    }
+    /// Centroid in body coordinates (d1, d2).
+    pub fn centroid(&self) -> [f64; 2] {
+        [
+            self.distance * self.angle.cos(),
+            self.distance * self.angle.sin(),
+        ]
+    }
+}
+
+/// Stiffnesses given directly instead of from geometry (paper 004 style). Any value left
+/// out is computed from the geometry and material.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StiffnessSpec {
+    /// Extensional stiffness EA in N.
+    #[serde(default)]
+    pub ea: Option<f64>,
+    /// Shear stiffness GA in N.
+    #[serde(default)]
+    pub ga: Option<f64>,
+    /// Bending stiffness about d1, E I_11, in N m^2.
+    #[serde(default)]
+    pub ei1: Option<f64>,
+    /// Bending stiffness about d2, E I_22, in N m^2.
+    #[serde(default)]
+    pub ei2: Option<f64>,
+    /// Torsional stiffness GJ in N m^2.
+    #[serde(default)]
+    pub gj: Option<f64>,
+}
+
+fn one() -> f64 {
+    1.0
+}
+fn default_steps() -> usize {
+    16
+}
+
+/// One section of the chain from base to tip.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SectionSpec {
+    pub name: String,
+    /// Reference length in m.
+    pub length: f64,
+    /// A stiff part that only carries mass: its pose is carried straight through.
+    #[serde(default)]
+    pub rigid: bool,
+    /// Outer radius in m (needed unless every stiffness and the mass are given).
+    #[serde(default)]
+    pub outer_radius: Option<f64>,
+    /// Central bore radius in m.
+    #[serde(default)]
+    pub bore_radius: f64,
+    #[serde(default)]
+    pub material: Option<MaterialSpec>,
+    /// Total mass of the section in kg; overrides density * A_m * length.
+    #[serde(default)]
+    pub mass: Option<f64>,
+    #[serde(default = "one")]
+    pub c_s: f64,
+    #[serde(default = "one")]
+    pub c_e: f64,
+    #[serde(default = "one")]
+    pub c_b: f64,
+    #[serde(default = "one")]
+    pub c_t: f64,
+    #[serde(default)]
+    pub stiffness: StiffnessSpec,
+    #[serde(default)]
+    pub chambers: Vec<ChamberSpec>,
+    /// Fixed RK4 steps in this section.
+    #[serde(default = "default_steps")]
+    pub steps: usize,
+}
+
+/// Base pose and gravity.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MountingSpec {
+    /// Base position in the world frame, m.
+    #[serde(default)]
+    pub base_position: [f64; 3],
+    /// Base rotation as rows of the matrix [d1 d2 d3] (columns are the directors in world
+    /// coordinates).
+    pub base_rotation: [[f64; 3]; 3],
+    /// Gravity vector in the world frame, m/s^2.
+    pub gravity: [f64; 3],
+}
+
+/// Rigid tip body and dead tip loads (world frame).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TipSpec {
+    /// Mass of a rigid body fixed to the tip, kg.
+    #[serde(default)]
+    pub mass: f64,
+    /// Its centre of mass in the tip frame (d1, d2, d3), m.
+    #[serde(default)]
+    pub com_offset: [f64; 3],
+    /// Dead force at the tip, world frame, N.
+    #[serde(default)]
+    pub force: [f64; 3],
+    /// Dead moment at the tip, world frame, N m.
+    #[serde(default)]
+    pub moment: [f64; 3],
+}
+
+/// Distributed dead line load on one section, world frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LineLoadSpec {
+    pub section: usize,
+    /// Force per unit reference length, N/m.
+    #[serde(default)]
+    pub force_per_length: [f64; 3],
+    /// Moment per unit reference length, N m/m.
+    #[serde(default)]
+    pub moment_per_length: [f64; 3],
+}
+
+/// A complete design in SI units.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DesignSpec {
+    pub name: String,
+    pub mounting: MountingSpec,
+    pub sections: Vec<SectionSpec>,
+    #[serde(default)]
+    pub tip: TipSpec,
+    #[serde(default)]
+    pub loads: Vec<LineLoadSpec>,
+}
+
+fn finite(field: &str, x: f64) -> Result<()> {
+    if x.is_finite() {
+        Ok(())
+    } else {
+        Err(SoftrodError::invalid(field, x, "must be a finite number"))
+    }
+}
+
+fn positive(field: &str, x: f64) -> Result<()> {
+    finite(field, x)?;
+    if x > 0.0 {
+        Ok(())
+    } else {
+        Err(SoftrodError::invalid(field, x, "must be > 0"))
+    }
+}
+
+fn non_negative(field: &str, x: f64) -> Result<()> {
+    finite(field, x)?;
+    if x >= 0.0 {
+        Ok(())
+    } else {
+        Err(SoftrodError::invalid(field, x, "must be >= 0"))
+    }
+}
+
+fn finite3(field: &str, v: &[f64; 3]) -> Result<()> {
+    for (i, x) in v.iter().enumerate() {
+        finite(&format!("{field}[{i}]"), *x)?;
+    }
+    Ok(())
+}
+
+/// Relative slack in the geometric containment checks, so that a chamber drawn exactly
+/// tangent to the outer wall is accepted despite round-off in unit conversion.
+const GEOMETRY_SLACK: f64 = 1e-9;
+
+impl MaterialSpec {
+    fn validate(&self, field: &str) -> Result<()> {
+        positive(&format!("{field}.E"), self.youngs_modulus)?;
+        positive(&format!("{field}.G"), self.shear_modulus)?;
+        positive(&format!("{field}.density"), self.density)?;
+        // nu = E/(2G) - 1 must lie in (-1, 0.5] for a stable isotropic solid.
+        let nu = self.youngs_modulus / (2.0 * self.shear_modulus) - 1.0;
+        if !(nu > -1.0 && nu <= 0.5 + 1e-12) {
+            return Err(SoftrodError::invalid(
+                format!("{field}.poisson"),
+                format!("{nu:.6}"),
+                "Poisson's ratio E/(2G) - 1 must lie in (-1, 0.5]",
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl SectionSpec {
+    fn validate(&self, i: usize) -> Result<()> {
+        let f = |k: &str| format!("sections[{i}].{k}");
+        if self.name.trim().is_empty() {
+            return Err(SoftrodError::invalid(f("name"), "''", "must not be empty"));
+        }
+        positive(&f("length"), self.length)?;
+        non_negative(&f("bore_radius"), self.bore_radius)?;
+        for (k, c) in [("c_s", self.c_s), ("c_e", self.c_e), ("c_b", self.c_b), ("c_t", self.c_t)] {
+            positive(&f(k), c)?;
+        }
+        if self.steps == 0 || self.steps > 100_000 {
+            return Err(SoftrodError::invalid(f("steps"), self.steps, "must be in 1..=100000"));
+        }
+        if let Some(m) = self.mass {
+            non_negative(&f("mass"), m)?;
+        }
+        if let Some(mat) = &self.material {
+            mat.validate(&f("material"))?;
+        }
+        let st = &self.stiffness;
+        for (k, v) in [("EA", st.ea), ("GA", st.ga), ("EI1", st.ei1), ("EI2", st.ei2), ("GJ", st.gj)] {
+            if let Some(v) = v {
+                positive(&f(k), v)?;
+            }
+        }
+        if let Some(ro) = self.outer_radius {
+            positive(&f("outer_radius"), ro)?;
+            if self.bore_radius >= ro {
+                return Err(SoftrodError::invalid(
+                    f("bore_radius"),
+                    self.bore_radius,
+                    format!("must be smaller than outer_radius = {ro}"),
+                ));
+            }
+        }
+        if self.rigid && !self.chambers.is_empty() {
+            return Err(SoftrodError::invalid(
+                f("chambers"),
+                self.chambers.len(),
+                "a rigid section cannot hold pressure chambers (make it elastic or move the chambers)",
+            ));
+        }
+        // What must be known to build the section: its weight, and (if elastic) all five
+        // stiffnesses, from geometry + material or given directly.
+        let all_stiffness_given = st.ea.is_some()
+            && st.ga.is_some()
+            && st.ei1.is_some()
+            && st.ei2.is_some()
+            && st.gj.is_some();
+        let has_geometry = self.outer_radius.is_some() && self.material.is_some();
+        if !self.rigid && !has_geometry && !all_stiffness_given {
+            return Err(SoftrodError::invalid(
+                f("outer_radius"),
+                "missing",
+                "an elastic section needs outer_radius and material, or all of EA, GA, EI1, EI2, GJ",
+            ));
+        }
+        if self.mass.is_none() && !has_geometry {
+            return Err(SoftrodError::invalid(
+                f("mass"),
+                "missing",
+                "give mass, or outer_radius and material so the weight can be computed",
+            ));
+        }
+        for (k, c) in self.chambers.iter().enumerate() {
+            let g = |key: &str| format!("sections[{i}].chambers[{k}].{key}");
+            positive(&g("area"), c.area)?;
+            if let Some(r) = c.radius {
+                positive(&g("radius"), r)?;
+            }
+            non_negative(&g("distance"), c.distance)?;
+            finite(&g("angle"), c.angle)?;
+            let r = c.hole_radius();
+            if let Some(ro) = self.outer_radius {
+                if c.distance + r > ro * (1.0 + GEOMETRY_SLACK) {
+                    return Err(SoftrodError::invalid(
+                        g("distance"),
+                        c.distance,
+                        format!(
+                            "chamber lies outside the section: distance + radius = {:.6e} m exceeds outer_radius = {ro:.6e} m",
+                            c.distance + r
+                        ),
+                    ));
+                }
+            }
+            if self.bore_radius > 0.0 && c.distance - r < self.bore_radius * (1.0 - GEOMETRY_SLACK) {
+                return Err(SoftrodError::invalid(
+                    g("distance"),
+                    c.distance,
+                    format!(
+                        "chamber overlaps the bore: distance - radius = {:.6e} m is less than bore_radius = {:.6e} m",
+                        c.distance - r,
+                        self.bore_radius
+                    ),
+                ));
+            }
+            for (j, o) in self.chambers.iter().enumerate().take(k) {
+                let (a, b) = (c.centroid(), o.centroid());
+                let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
+                let min = r + o.hole_radius();
+                if d < min * (1.0 - GEOMETRY_SLACK) {
+                    return Err(SoftrodError::invalid(
+                        g("angle"),
+                        c.angle,
+                        format!(
+                            "chamber overlaps chambers[{j}]: centre distance {d:.6e} m is less than the sum of radii {min:.6e} m"
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl DesignSpec {
+    /// Number of pressure channels: one past the largest channel index.
+    pub fn n_channels(&self) -> usize {
+        self.sections
+            .iter()
+            .flat_map(|s| s.chambers.iter().map(|c| c.channel + 1))
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Total reference length in m.
+    pub fn length(&self) -> f64 {
+        self.sections.iter().map(|s| s.length).sum()
+    }
+
+    /// Check every rule; the first broken one is reported with its field path.
+    pub fn validate(&self) -> Result<()> {
+        if self.sections.is_empty() {
+            return Err(SoftrodError::invalid("sections", "[]", "a design needs at least one section"));
+        }
+        finite3("mounting.base_position", &self.mounting.base_position)?;
+        finite3("mounting.gravity", &self.mounting.gravity)?;
+        let r = &self.mounting.base_rotation;
+        for (i, row) in r.iter().enumerate() {
+            finite3(&format!("mounting.base_rotation[{i}]"), row)?;
+        }
+        // Orthonormal with det +1, to 1e-9 (a rotation typed with 10 digits passes).
+        for i in 0..3 {
+            for j in 0..3 {
+                let dot: f64 = (0..3).map(|k| r[k][i] * r[k][j]).sum();
+                let want = if i == j { 1.0 } else { 0.0 };
+                if (dot - want).abs() > 1e-9 {
+                    return Err(SoftrodError::invalid(
+                        "mounting.base_rotation",
+                        format!("{r:?}"),
+                        "must be a rotation matrix (orthonormal columns, determinant +1)",
+                    ));
+                }
+            }
+        }
+        let det = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
+            - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+            + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
+        if det < 0.0 {
+            return Err(SoftrodError::invalid(
+                "mounting.base_rotation",
+                format!("{r:?}"),
+                "must be a proper rotation (determinant +1, not a reflection)",
+            ));
+        }
+        for (i, s) in self.sections.iter().enumerate() {
+            s.validate(i)?;
+            if self.sections[..i].iter().any(|o| o.name == s.name) {
+                return Err(SoftrodError::invalid(
+                    format!("sections[{i}].name"),
+                    &s.name,
+                    "section names must be unique",
+                ));
+            }
+        }
+        non_negative("tip.mass", self.tip.mass)?;
+        finite3("tip.com_offset", &self.tip.com_offset)?;
+        finite3("tip.force", &self.tip.force)?;
+        finite3("tip.moment", &self.tip.moment)?;
+        for (k, l) in self.loads.iter().enumerate() {
+            if l.section >= self.sections.len() {
+                return Err(SoftrodError::invalid(
+                    format!("loads[{k}].section"),
+                    l.section,
+                    format!("must name one of the {} sections", self.sections.len()),
+                ));
+            }
+            finite3(&format!("loads[{k}].force_per_length"), &l.force_per_length)?;
+            finite3(&format!("loads[{k}].moment_per_length"), &l.moment_per_length)?;
+        }
+        let n = self.n_channels();
+        let mut used = vec![false; n];
+        for s in &self.sections {
+            for c in &s.chambers {
+                used[c.channel] = true;
+            }
+        }
+        if let Some(missing) = used.iter().position(|u| !u) {
+            return Err(SoftrodError::invalid(
+                "chambers.channel",
+                missing,
+                format!("channel indices must be contiguous from 0: channel {missing} is unused but {} channels are declared", n),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Check a pressure vector against the design: right length, finite, above vacuum.
+pub fn validate_pressures(pressures: &[f64], n_channels: usize) -> Result<()> {
+    if pressures.len() != n_channels {
+        return Err(SoftrodError::invalid(
+            "pressures",
+            format!("{} values", pressures.len()),
+            format!("the design has {n_channels} pressure channels; give one gauge pressure (Pa) per channel"),
+        ));
+    }
+    for (i, &p) in pressures.iter().enumerate() {
+        finite(&format!("pressures[{i}]"), p)?;
+        if p < -ATMOSPHERE {
+            return Err(SoftrodError::invalid(
+                format!("pressures[{i}]"),
+                p,
+                "gauge pressure must be >= -101325 Pa (-1 atm, a perfect vacuum)",
+            ));
+        }
+    }
+    Ok(())
+}
