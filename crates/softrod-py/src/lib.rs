@@ -1,1 +1,210 @@
-//! placeholder
+//! Thin PyO3 binding of softrod-core, built by maturin as `softrod._core`.
+//! It converts types, maps errors to the exception classes of `softrod.errors`, and
+//! releases the GIL for long calls. No physics lives here.
+
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use softrod_core::batch::solve_batch;
+use softrod_core::ode::Loads;
+use softrod_core::statics::{self, SolverOptions};
+use softrod_core::{DesignSpec, Rod, SoftrodError};
+
+/// Which exception class a core `InvalidParameter` becomes.
+#[derive(Clone, Copy)]
+enum Context {
+    Design,
+    Input,
+}
+
+fn to_py_err(py: Python<'_>, err: SoftrodError, ctx: Context) -> PyErr {
+    let build = || -> PyResult<PyErr> {
+        let errors = py.import("softrod.errors")?;
+        let msg = err.to_string();
+        Ok(match err {
+            SoftrodError::InvalidParameter { field, value, rule } => {
+                let cls = errors.getattr(match ctx {
+                    Context::Design => "DesignError",
+                    Context::Input => "InputError",
+                })?;
+                PyErr::from_value(cls.call1((msg, field, value, rule))?)
+            }
+            SoftrodError::NotConverged { iterations, residual, load_factor, reason } => {
+                let cls = errors.getattr("ConvergenceError")?;
+                PyErr::from_value(cls.call1((msg, iterations, residual, load_factor, reason))?)
+            }
+        })
+    };
+    build().unwrap_or_else(|e| e)
+}
+
+/// A validated, compiled design (immutable).
+#[pyclass(name = "Rod", module = "softrod._core", frozen)]
+struct PyRod {
+    rod: Rod,
+}
+
+fn options(tol: f64, max_iter: usize, continuation: bool, max_load_steps: usize) -> SolverOptions {
+    SolverOptions { tol, max_iter, continuation, max_load_steps }
+}
+
+fn array2<'py>(py: Python<'py>, rows: &[[f64; 3]]) -> PyResult<Bound<'py, PyAny>> {
+    let flat: Vec<f64> = rows.iter().flatten().copied().collect();
+    Ok(PyArray1::from_vec(py, flat).reshape([rows.len(), 3])?.into_any())
+}
+
+fn array3<'py>(py: Python<'py>, mats: &[[[f64; 3]; 3]]) -> PyResult<Bound<'py, PyAny>> {
+    let flat: Vec<f64> = mats.iter().flatten().flatten().copied().collect();
+    Ok(PyArray1::from_vec(py, flat).reshape([mats.len(), 3, 3])?.into_any())
+}
+
+#[pymethods]
+impl PyRod {
+    /// Build from the JSON text of a `DesignSpec` (SI units).
+    #[new]
+    fn new(py: Python<'_>, spec_json: &str) -> PyResult<Self> {
+        let spec: DesignSpec = serde_json::from_str(spec_json).map_err(|e| {
+            to_py_err(py, SoftrodError::invalid("design", "(JSON)", e.to_string()), Context::Design)
+        })?;
+        let rod = Rod::new(spec).map_err(|e| to_py_err(py, e, Context::Design))?;
+        Ok(PyRod { rod })
+    }
+
+    #[getter]
+    fn n_channels(&self) -> usize {
+        self.rod.n_channels
+    }
+
+    /// Total reference length, m.
+    #[getter]
+    fn length(&self) -> f64 {
+        self.rod.length
+    }
+
+    /// Mass of the rod without the tip body, kg.
+    #[getter]
+    fn mass(&self) -> f64 {
+        self.rod.mass()
+    }
+
+    /// Per-section compiled properties (SI) as a list of dicts.
+    fn sections<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        self.rod
+            .sections
+            .iter()
+            .map(|s| {
+                let d = PyDict::new(py);
+                d.set_item("name", &s.name)?;
+                d.set_item("length", s.length)?;
+                d.set_item("s_start", s.s_start)?;
+                d.set_item("steps", s.steps)?;
+                d.set_item("rigid", s.rigid)?;
+                d.set_item("k_se", s.k_se.to_vec())?;
+                d.set_item("k_bt", s.k_bt.iter().map(|r| r.to_vec()).collect::<Vec<_>>())?;
+                d.set_item("line_mass", s.line_mass)?;
+                d.set_item(
+                    "chambers",
+                    s.chambers.iter().map(|c| (c.area, c.centroid[0], c.centroid[1], c.channel)).collect::<Vec<_>>(),
+                )?;
+                Ok(d)
+            })
+            .collect()
+    }
+
+    /// Solve one static equilibrium; returns a dict of numpy arrays (SI).
+    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200))]
+    #[allow(clippy::too_many_arguments)]
+    fn solve<'py>(
+        &self,
+        py: Python<'py>,
+        pressures: Vec<f64>,
+        tip_force: [f64; 3],
+        tip_moment: [f64; 3],
+        guess: Option<[f64; 6]>,
+        tol: f64,
+        max_iter: usize,
+        continuation: bool,
+        max_load_steps: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let loads = Loads { pressures, tip_force, tip_moment };
+        let opts = options(tol, max_iter, continuation, max_load_steps);
+        let rod = &self.rod;
+        let result = py.detach(|| {
+            statics::solve(rod, &loads, guess.as_ref(), &opts).map(|sol| {
+                let sh = statics::shape(rod, &loads, &sol);
+                (sol, sh)
+            })
+        });
+        let (sol, sh) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
+        let d = PyDict::new(py);
+        d.set_item("s", PyArray1::from_vec(py, sh.s))?;
+        d.set_item("section", PyArray1::from_vec(py, sh.section.iter().map(|&i| i as i64).collect()))?;
+        d.set_item("position", array2(py, &sh.position)?)?;
+        d.set_item("rotation", array3(py, &sh.rotation)?)?;
+        d.set_item("force", array2(py, &sh.force)?)?;
+        d.set_item("moment", array2(py, &sh.moment)?)?;
+        d.set_item("v", array2(py, &sh.v)?)?;
+        d.set_item("u", array2(py, &sh.u)?)?;
+        d.set_item("x", sol.x.to_vec())?;
+        d.set_item("iterations", sol.iterations)?;
+        d.set_item("residual", sol.residual)?;
+        d.set_item("load_steps", sol.load_steps)?;
+        Ok(d)
+    }
+
+    /// Solve every row of an (m, channels) pressure array in parallel (GIL released).
+    #[pyo3(signature = (pressures, tip_force, tip_moment, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200))]
+    #[allow(clippy::too_many_arguments)]
+    fn solve_batch<'py>(
+        &self,
+        py: Python<'py>,
+        pressures: PyReadonlyArray2<'py, f64>,
+        tip_force: [f64; 3],
+        tip_moment: [f64; 3],
+        threads: usize,
+        tol: f64,
+        max_iter: usize,
+        continuation: bool,
+        max_load_steps: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let shape = pressures.as_array().shape().to_vec();
+        if shape[1] != self.rod.n_channels {
+            return Err(to_py_err(
+                py,
+                SoftrodError::invalid(
+                    "pressures",
+                    format!("shape {shape:?}"),
+                    format!("must have {} columns, one per pressure channel", self.rod.n_channels),
+                ),
+                Context::Input,
+            ));
+        }
+        // Copy into owned Rust data before releasing the GIL.
+        let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
+        let opts = options(tol, max_iter, continuation, max_load_steps);
+        let rod = &self.rod;
+        let rows = py
+            .detach(|| solve_batch(rod, &flat, tip_force, tip_moment, &opts, threads))
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
+        let d = PyDict::new(py);
+        let tp: Vec<[f64; 3]> = rows.iter().map(|r| r.tip_position).collect();
+        let tr: Vec<[[f64; 3]; 3]> = rows.iter().map(|r| r.tip_rotation).collect();
+        let bf: Vec<[f64; 3]> = rows.iter().map(|r| r.base_force).collect();
+        let bm: Vec<[f64; 3]> = rows.iter().map(|r| r.base_moment).collect();
+        d.set_item("tip_position", array2(py, &tp)?)?;
+        d.set_item("tip_rotation", array3(py, &tr)?)?;
+        d.set_item("base_force", array2(py, &bf)?)?;
+        d.set_item("base_moment", array2(py, &bm)?)?;
+        d.set_item("converged", PyArray1::from_vec(py, rows.iter().map(|r| r.converged).collect()))?;
+        d.set_item("iterations", PyArray1::from_vec(py, rows.iter().map(|r| r.iterations as i64).collect()))?;
+        d.set_item("residual", PyArray1::from_vec(py, rows.iter().map(|r| r.residual).collect()))?;
+        Ok(d)
+    }
+}
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyRod>()?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,384 @@
+"""Design files: TOML with units -> validated, SI ``Design`` backed by the Rust core.
+
+The schema is documented in docs/design-format.md. Unknown keys are errors. Geometry rules
+(chambers inside the section, no overlaps, Poisson ratio range, ...) are checked by the Rust
+core so that Rust users get them too; this module checks structure and units.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import _core
+from .errors import DesignError, design_error
+from .units import number, to_si, vector_to_si
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+PACKAGE_DIR = Path(__file__).resolve().parent
+DEFAULT_STEPS = 16
+
+_SCHEMA: dict[str, set[str]] = {
+    "": {"design", "mounting", "materials", "sections", "tip", "loads", "numerics"},
+    "design": {"name", "citation", "description", "assumptions"},
+    "mounting": {"orientation", "roll", "base_position", "gravity", "base_rotation"},
+    "material": {"E", "poisson", "G", "density", "source", "notes"},
+    "section": {
+        "name", "length", "material", "outer_radius", "bore_radius", "rigid", "mass",
+        "c_s", "c_e", "c_b", "c_t", "EA", "GA", "EI", "EI1", "EI2", "GJ", "chambers", "steps",
+    },
+    "chamber": {"radius", "area", "distance", "angle", "channel"},
+    "tip": {"mass", "com_offset", "force", "moment"},
+    "load": {"section", "force_per_length", "moment_per_length"},
+    "numerics": {"steps_per_section"},
+}
+
+_ORIENTATIONS = {
+    # Columns are d1, d2, d3 in world coordinates (rows of the matrix below are world axes).
+    "upright": np.eye(3),
+    "hanging": np.diag([1.0, -1.0, -1.0]),
+    "horizontal": np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]]),
+}
+
+
+def designs_dir() -> Path:
+    """Folder of the bundled design files."""
+    return PACKAGE_DIR / "designs"
+
+
+def bundled_designs() -> list[str]:
+    """Names of the bundled designs (usable in ``load_design``)."""
+    return sorted(p.stem for p in designs_dir().glob("*.toml"))
+
+
+def _check_keys(table: Any, kind: str, where: str) -> dict:
+    if not isinstance(table, Mapping):
+        raise design_error(where or "design", type(table).__name__, "must be a table")
+    unknown = sorted(set(table) - _SCHEMA[kind])
+    if unknown:
+        allowed = ", ".join(sorted(_SCHEMA[kind]))
+        raise design_error(
+            f"{where}.{unknown[0]}" if where else unknown[0],
+            table[unknown[0]],
+            f"unknown key (allowed here: {allowed})",
+        )
+    return dict(table)
+
+
+def _require(table: Mapping, key: str, where: str) -> Any:
+    if key not in table:
+        raise design_error(f"{where}.{key}" if where else key, "missing", "is required")
+    return table[key]
+
+
+def _integer(value: Any, field: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise design_error(field, value, f"must be an integer >= {minimum}")
+    return int(value)
+
+
+def _library() -> dict:
+    with open(PACKAGE_DIR / "data" / "materials.toml", "rb") as fh:
+        return tomllib.load(fh)
+
+
+def _material(name: str, inline: Mapping, field: str) -> dict:
+    if name in inline:
+        table, where = inline[name], f"materials.{name}"
+    else:
+        lib = _library()
+        if name not in lib:
+            known = ", ".join(sorted(set(inline) | set(lib)))
+            raise design_error(field, name, f"unknown material (known: {known})")
+        table, where = lib[name], f"library material {name}"
+    table = _check_keys(table, "material", where)
+    e = to_si(_require(table, "E", where), "pressure", f"{where}.E")
+    if "G" in table and "poisson" in table:
+        raise design_error(f"{where}.G", table["G"], "give either G or poisson, not both")
+    if "G" in table:
+        g = to_si(table["G"], "pressure", f"{where}.G")
+    else:
+        nu = number(_require(table, "poisson", where), f"{where}.poisson")
+        if not -1.0 < nu <= 0.5:
+            raise design_error(f"{where}.poisson", nu, "Poisson's ratio must lie in (-1, 0.5]")
+        g = e / (2.0 * (1.0 + nu))
+    rho = to_si(_require(table, "density", where), "density", f"{where}.density")
+    return {"youngs_modulus": e, "shear_modulus": g, "density": rho}
+
+
+def _base_rotation(mount: Mapping) -> list[list[float]]:
+    if "base_rotation" in mount:
+        if "orientation" in mount or "roll" in mount:
+            raise design_error(
+                "mounting.base_rotation", mount["base_rotation"],
+                "give either base_rotation or orientation/roll, not both",
+            )
+        rot = mount["base_rotation"]
+        if not (isinstance(rot, list) and len(rot) == 3 and all(
+                isinstance(r, list) and len(r) == 3 for r in rot)):
+            raise design_error("mounting.base_rotation", rot, "must be a 3x3 matrix (list of rows)")
+        return [[number(x, f"mounting.base_rotation[{i}][{j}]") for j, x in enumerate(r)]
+                for i, r in enumerate(rot)]
+    orientation = mount.get("orientation", "upright")
+    if orientation not in _ORIENTATIONS:
+        raise design_error(
+            "mounting.orientation", orientation,
+            f"must be one of {', '.join(sorted(_ORIENTATIONS))} (or give base_rotation)",
+        )
+    roll = to_si(mount.get("roll", 0.0), "angle", "mounting.roll")
+    c, s = math.cos(roll), math.sin(roll)
+    rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return (_ORIENTATIONS[orientation] @ rz).tolist()
+
+
+def _section(sec: Any, i: int, materials: Mapping, default_steps: int) -> dict:
+    where = f"sections[{i}]"
+    sec = _check_keys(sec, "section", where)
+    name = _require(sec, "name", where)
+    if not isinstance(name, str):
+        raise design_error(f"{where}.name", name, "must be a string")
+    out: dict[str, Any] = {
+        "name": name,
+        "length": to_si(_require(sec, "length", where), "length", f"{where}.length"),
+        "rigid": bool(sec.get("rigid", False)),
+        "bore_radius": to_si(sec.get("bore_radius", 0.0), "length", f"{where}.bore_radius"),
+        "steps": _integer(sec.get("steps", default_steps), f"{where}.steps", 1),
+    }
+    if not isinstance(sec.get("rigid", False), bool):
+        raise design_error(f"{where}.rigid", sec["rigid"], "must be true or false")
+    if "outer_radius" in sec:
+        out["outer_radius"] = to_si(sec["outer_radius"], "length", f"{where}.outer_radius")
+    if "material" in sec:
+        if not isinstance(sec["material"], str):
+            raise design_error(f"{where}.material", sec["material"], "must be a material name")
+        out["material"] = _material(sec["material"], materials, f"{where}.material")
+    if "mass" in sec:
+        out["mass"] = to_si(sec["mass"], "mass", f"{where}.mass")
+    for k in ("c_s", "c_e", "c_b", "c_t"):
+        if k in sec:
+            out[k] = number(sec[k], f"{where}.{k}")
+    stiff: dict[str, float] = {}
+    if "EA" in sec:
+        stiff["ea"] = to_si(sec["EA"], "force", f"{where}.EA")
+    if "GA" in sec:
+        stiff["ga"] = to_si(sec["GA"], "force", f"{where}.GA")
+    if "EI" in sec:
+        if "EI1" in sec or "EI2" in sec:
+            raise design_error(f"{where}.EI", sec["EI"], "give EI or EI1/EI2, not both")
+        stiff["ei1"] = stiff["ei2"] = to_si(sec["EI"], "stiffness_bending", f"{where}.EI")
+    for k in ("EI1", "EI2", "GJ"):
+        if k in sec:
+            stiff[k.lower()] = to_si(sec[k], "stiffness_bending", f"{where}.{k}")
+    out["stiffness"] = stiff
+    chambers = sec.get("chambers", [])
+    if not isinstance(chambers, list):
+        raise design_error(f"{where}.chambers", chambers, "must be an array of tables")
+    out["chambers"] = [_chamber(c, f"{where}.chambers[{k}]") for k, c in enumerate(chambers)]
+    return out
+
+
+def _chamber(ch: Any, where: str) -> dict:
+    ch = _check_keys(ch, "chamber", where)
+    radius = to_si(ch["radius"], "length", f"{where}.radius") if "radius" in ch else None
+    if "area" in ch:
+        area = to_si(ch["area"], "area", f"{where}.area")
+    elif radius is not None:
+        area = math.pi * radius**2
+    else:
+        raise design_error(f"{where}.radius", "missing", "give radius or area")
+    return {
+        "area": area,
+        "radius": radius,
+        "distance": to_si(_require(ch, "distance", where), "length", f"{where}.distance"),
+        "angle": to_si(_require(ch, "angle", where), "angle", f"{where}.angle"),
+        "channel": _integer(_require(ch, "channel", where), f"{where}.channel", 0),
+    }
+
+
+def _to_spec(doc: Mapping) -> dict:
+    """Structure and units: TOML document -> SI spec for the Rust core."""
+    doc = _check_keys(doc, "", "")
+    meta = _check_keys(_require(doc, "design", ""), "design", "design")
+    for k in ("name", "citation"):
+        if not isinstance(_require(meta, k, "design"), str) or not meta[k].strip():
+            raise design_error(f"design.{k}", meta[k], "must be a non-empty string")
+    mount = _check_keys(doc.get("mounting", {}), "mounting", "mounting")
+    numerics = _check_keys(doc.get("numerics", {}), "numerics", "numerics")
+    steps = _integer(numerics.get("steps_per_section", DEFAULT_STEPS),
+                     "numerics.steps_per_section", 1)
+    materials = doc.get("materials", {})
+    if not isinstance(materials, Mapping):
+        raise design_error("materials", materials, "must be a table of materials")
+    sections = _require(doc, "sections", "")
+    if not isinstance(sections, list) or not sections:
+        raise design_error("sections", sections, "must be a non-empty array of tables")
+    secs = [_section(s, i, materials, steps) for i, s in enumerate(sections)]
+    names = [s["name"] for s in secs]
+    tip = _check_keys(doc.get("tip", {}), "tip", "tip")
+    loads = doc.get("loads", [])
+    if not isinstance(loads, list):
+        raise design_error("loads", loads, "must be an array of tables")
+    load_specs = []
+    for k, ld in enumerate(loads):
+        ld = _check_keys(ld, "load", f"loads[{k}]")
+        sec_name = _require(ld, "section", f"loads[{k}]")
+        if sec_name not in names:
+            raise design_error(f"loads[{k}].section", sec_name,
+                               f"must name a section ({', '.join(names)})")
+        load_specs.append({
+            "section": names.index(sec_name),
+            "force_per_length": vector_to_si(ld.get("force_per_length", [0, 0, 0]),
+                                             "force_per_length", f"loads[{k}].force_per_length"),
+            "moment_per_length": vector_to_si(ld.get("moment_per_length", [0, 0, 0]),
+                                              "force", f"loads[{k}].moment_per_length"),
+        })
+    g = to_si(mount.get("gravity", 9.81), "acceleration", "mounting.gravity")
+    if g < 0:
+        raise design_error("mounting.gravity", mount["gravity"],
+                           "is a magnitude (>= 0); gravity always points along -z of the world")
+    return {
+        "name": meta["name"],
+        "mounting": {
+            "base_position": vector_to_si(mount.get("base_position", [0, 0, 0]), "length",
+                                          "mounting.base_position"),
+            "base_rotation": _base_rotation(mount),
+            "gravity": [0.0, 0.0, -g],
+        },
+        "sections": secs,
+        "tip": {
+            "mass": to_si(tip.get("mass", 0.0), "mass", "tip.mass"),
+            "com_offset": vector_to_si(tip.get("com_offset", [0, 0, 0]), "length",
+                                       "tip.com_offset"),
+            "force": vector_to_si(tip.get("force", [0, 0, 0]), "force", "tip.force"),
+            "moment": vector_to_si(tip.get("moment", [0, 0, 0]), "moment", "tip.moment"),
+        },
+        "loads": load_specs,
+    }
+
+
+@dataclass(frozen=True)
+class Design:
+    """A validated design (immutable). All numbers are SI.
+
+    ``spec`` is the SI description handed to the Rust core; ``document`` the parsed file
+    (units as written). Use :func:`load_design` to make one.
+    """
+
+    name: str
+    citation: str
+    description: str
+    assumptions: tuple[str, ...]
+    spec: dict
+    document: dict
+    source: Path | None = None
+    _rod: Any = field(default=None, repr=False, compare=False)
+
+    @property
+    def n_channels(self) -> int:
+        """Number of pressure channels (inputs)."""
+        return self._rod.n_channels
+
+    @property
+    def length(self) -> float:
+        """Reference length in m."""
+        return self._rod.length
+
+    @property
+    def mass(self) -> float:
+        """Mass of the rod without the tip body, kg."""
+        return self._rod.mass
+
+    @property
+    def tip_mass(self) -> float:
+        """Mass of the rigid tip body, kg."""
+        return self.spec["tip"]["mass"]
+
+    def sections(self) -> list[dict]:
+        """Compiled section properties (SI): stiffness matrices, line mass, chambers."""
+        return self._rod.sections()
+
+    def replace(self, changes: Mapping[str, Any]) -> Design:
+        """A copy with some document entries changed, e.g.
+        ``{"sections[1].c_b": 1.2, "tip.mass": "10 g"}``; validated like a new file."""
+        doc = copy.deepcopy(self.document)
+        for path, value in changes.items():
+            _set_path(doc, path, value)
+        return _build(doc, self.source)
+
+
+def _set_path(doc: dict, path: str, value: Any) -> None:
+    parts: list[Any] = []
+    for token in path.replace("]", "").split("."):
+        name, *idx = token.split("[")
+        parts.append(name)
+        parts.extend(int(i) for i in idx)
+    target: Any = doc
+    try:
+        for p in parts[:-1]:
+            target = target[p]
+    except (KeyError, IndexError, TypeError):
+        raise design_error(path, value, "no such entry in the design") from None
+    target[parts[-1]] = value
+
+
+def _build(doc: dict, source: Path | None) -> Design:
+    spec = _to_spec(doc)
+    rod = _core.Rod(json.dumps(spec))
+    meta = doc["design"]
+    assumptions = meta.get("assumptions", [])
+    if not isinstance(assumptions, list) or not all(isinstance(a, str) for a in assumptions):
+        raise design_error("design.assumptions", assumptions, "must be a list of strings")
+    return Design(
+        name=meta["name"],
+        citation=meta["citation"],
+        description=str(meta.get("description", "")),
+        assumptions=tuple(assumptions),
+        spec=spec,
+        document=doc,
+        source=source,
+        _rod=rod,
+    )
+
+
+def load_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
+    """Load and validate a design.
+
+    ``design`` is a path to a TOML file, the name of a bundled design (see
+    :func:`bundled_designs`), a mapping with the same structure as the file, or a Design.
+    Raises :class:`DesignError` naming the field, the value and the rule.
+    """
+    if isinstance(design, Design):
+        return design
+    if isinstance(design, Mapping):
+        return _build(copy.deepcopy(dict(design)), None)
+    if not isinstance(design, (str, Path)):
+        raise design_error("design", type(design).__name__,
+                           "must be a path, a bundled design name, a mapping or a Design")
+    path = Path(design)
+    if not path.exists() and path.suffix == "" and (designs_dir() / f"{design}.toml").exists():
+        path = designs_dir() / f"{design}.toml"
+    if not path.exists():
+        raise design_error("design", str(design),
+                           f"no such file (bundled designs: {', '.join(bundled_designs())})")
+    try:
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise DesignError(f"{path}: not valid TOML: {exc}", str(path), "", str(exc)) from None
+    try:
+        return _build(doc, path)
+    except DesignError as exc:
+        exc.args = (f"{path.name}: {exc.args[0]}",)
+        raise
