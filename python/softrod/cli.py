@@ -1,5 +1,482 @@
-"""Command line interface (placeholder until the CLI module lands)."""
+"""``softrod`` command line: solve one equilibrium, sweep a pressure grid, run the demo.
+
+Units at the boundary: pressures and loads are read with pint ("30kPa", "0.3bar", "-1 N");
+a bare number is SI (Pa, N, N m). Outputs state their units (table headers, JSON keys,
+column names such as ``x_mm``).
+
+Exit codes: 0 success; 2 bad design, input or output path (also click's usage errors);
+3 the solver did not converge. Errors print one red line ``error: <message>`` on stderr.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import time
+from pathlib import Path
+
+import click
+import numpy as np
+from rich.console import Console
+from rich.padding import Padding
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    ProgressColumn,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+from rich.table import Table
+from rich.text import Text
+
+from . import __version__
+from .design import Design, bundled_designs, load_design
+from .errors import ConvergenceError, DesignError, InputError, design_error
+from .io import check_table_path, write_table
+from .statics import StaticSolution, solve_statics, solve_statics_batch
+from .units import registry, to_si
+
+MAX_SWEEP_ROWS = 10_000_000  # larger grids are refused (memory, and hours of compute)
+SWEEP_CHUNK = 512  # rows per batch call: the progress bar advances per chunk
+ATM = 101_325.0  # Pa; gauge pressures below -1 atm are impossible
+DEMO_DESIGN = "spa_three_chamber_130mm"
+DEMO_CASES_KPA = [(0, 0, 0), (35, 0, 0), (70, 0, 0), (70, 70, 0), (70, 70, 70)]
+DEMO_SWEEP = (0.0, 70e3, 7)  # Pa, Pa, points per channel: a 7^3 grid
 
 
-def main():  # pragma: no cover
-    raise SystemExit("softrod CLI not built yet")
+# --------------------------------------------------------------------------- helpers
+
+
+def _stdout() -> Console:
+    # Made per call so that it writes to the current sys.stdout (click's test runner swaps it).
+    return Console(highlight=False)
+
+
+def _fail(message: str, code: int) -> None:
+    line = " ".join(str(message).split())  # one line, whatever the message contains
+    err = Console(stderr=True, highlight=False, soft_wrap=True)
+    err.print(Text(f"error: {line}", style="bold red"))
+    raise click.exceptions.Exit(code)
+
+
+def _handle_errors(func):
+    """Turn softrod's exceptions into one red line and an exit code, never a traceback."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        try:
+            return func(*args, **kwargs)
+        except ConvergenceError as exc:
+            _fail(exc, 3)
+        except DesignError as exc:  # includes InputError
+            _fail(exc, 2)
+        except OSError as exc:
+            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            _fail(f"{exc.strerror or exc}{where}", 2)
+
+    return wrapper
+
+
+def _is_bare(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _parse_quantities(items: list[str], kind: str, fields: list[str]) -> list[float]:
+    """SI values of quantity strings, with one shorthand and one safety rule.
+
+    - If only the last item carries a unit, it applies to every item ("0,0,-1 N",
+      "10,20,30kPa", and in grids "0:70kPa").
+    - Otherwise every item stands alone and a bare number is SI; but a non-zero bare number
+      next to items with units ("30kPa,5,0") is refused as ambiguous (5 Pa or 5 kPa?).
+    """
+    items = [t.strip() for t in items]
+    for t, f in zip(items, fields, strict=True):
+        if not t:
+            raise design_error(f, t, f"is empty: give a {kind} such as '30kPa'", InputError)
+    bare = [_is_bare(t) for t in items]
+    if len(items) > 1 and not bare[-1] and all(bare[:-1]):
+        try:
+            unit = registry().Quantity(items[-1]).units
+        except Exception:  # an unreadable last item: to_si below names it
+            unit = None
+        if unit is not None:
+            items = [f"{t} {unit}" if b else t for t, b in zip(items, bare, strict=True)]
+    elif not all(bare):
+        for t, b, f in zip(items, bare, fields, strict=True):
+            if b and float(t) != 0.0:
+                raise design_error(
+                    f, t,
+                    "bare number next to values with units is ambiguous: give it a unit "
+                    "(a unit on the last item alone applies to all items)",
+                    InputError,
+                )
+    return [to_si(t, kind, f, InputError) for t, f in zip(items, fields, strict=True)]
+
+
+def _parse_vector(text: str, kind: str, option: str, count: int) -> list[float]:
+    items = text.split(",")
+    if len(items) != count:
+        raise design_error(option, text, f"give {count} comma-separated {kind} values",
+                           InputError)
+    return _parse_quantities(items, kind, [f"{option}[{i}]" for i in range(count)])
+
+
+def _parse_pressures(text: str | None, design: Design) -> list[float]:
+    n = design.n_channels
+    if text is None:
+        return [0.0] * n
+    items = text.split(",")
+    if len(items) != n:
+        raise design_error(
+            "--pressure", text,
+            f"design {design.name} has {n} pressure channel{'s' if n != 1 else ''}; give {n} "
+            "comma-separated gauge pressures, e.g. " + ",".join(["30kPa"] + ["0"] * (n - 1)),
+            InputError,
+        )
+    values = _parse_quantities(items, "pressure", [f"--pressure[{i}]" for i in range(n)])
+    for i, p in enumerate(values):
+        if p < -ATM:
+            raise design_error(f"--pressure[{i}]", items[i].strip(),
+                               "gauge pressure must be >= -1 atm (-101325 Pa)", InputError)
+    return values
+
+
+def _parse_grid(text: str, option: str = "--grid") -> np.ndarray:
+    """START:STOP:COUNT -> COUNT evenly spaced pressures in Pa (both ends included)."""
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise design_error(option, text, "must read START:STOP:COUNT, e.g. 0:70kPa:21",
+                           InputError)
+    start, stop = _parse_quantities(parts[:2], "pressure",
+                                    [f"{option}.start", f"{option}.stop"])
+    try:
+        count = int(parts[2])
+    except ValueError:
+        count = 0
+    if count < 1:
+        raise design_error(f"{option}.count", parts[2], "must be an integer >= 1", InputError)
+    if count == 1 and start != stop:
+        raise design_error(f"{option}.count", parts[2],
+                           "COUNT = 1 needs START = STOP (or give COUNT >= 2)", InputError)
+    for name, value, raw in ((f"{option}.start", start, parts[0]),
+                             (f"{option}.stop", stop, parts[1])):
+        if value < -ATM:
+            raise design_error(name, raw.strip(), "gauge pressure must be >= -1 atm (-101325 Pa)",
+                               InputError)
+    return np.linspace(start, stop, count)
+
+
+def _full_factorial(axes: list[np.ndarray]) -> np.ndarray:
+    """All combinations, channel 0 slowest and the last channel fastest (C order)."""
+    mesh = np.meshgrid(*axes, indexing="ij")
+    return np.stack([m.ravel() for m in mesh], axis=1)
+
+
+def _fmt(x: float, digits: int) -> str:
+    # round first, then + 0.0 turns the -0.0 of tiny negative values into 0.0
+    return f"{round(float(x), digits) + 0.0:.{digits}f}"
+
+
+def _fmt_vec(v, scale: float = 1.0, digits: int = 3) -> str:
+    return "(" + ", ".join(_fmt(x * scale, digits) for x in v) + ")"
+
+
+def _fmt_kpa(pressures) -> str:
+    return ", ".join(f"{p / 1e3:g}" for p in pressures)
+
+
+def _lateral(sol: StaticSolution) -> float:
+    """Tip distance from the base tangent line (the straight reference axis), m."""
+    d = sol.tip_position - sol.position[0]
+    t0 = sol.rotation[0][:, 2]
+    return float(np.linalg.norm(d - np.dot(d, t0) * t0))
+
+
+def _pyplot():
+    # The CLI only writes files, never opens windows: the non-interactive Agg backend works
+    # with and without a display. Selected here, never when the library is imported.
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _write_shape_plot(solutions, path: Path, title: str | None = None) -> Path:
+    plt = _pyplot()
+    from .plotting import plot_shape, save_figure
+
+    fig = plot_shape(solutions, title=title)
+    try:
+        return save_figure(fig, path)
+    finally:
+        plt.close(fig)
+
+
+class _RateColumn(ProgressColumn):
+    """Rows per second of a progress task."""
+
+    def render(self, task) -> Text:
+        speed = task.finished_speed or task.speed
+        return Text("-- rows/s" if speed is None else f"{speed:,.0f} rows/s", style="cyan")
+
+
+def _run_sweep(design: Design, pressures: np.ndarray, threads: int, chunk: int,
+               console: Console, label: str) -> tuple[dict[str, np.ndarray], float]:
+    """Solve every row in chunks under a progress bar; return (results, wall time s)."""
+    m = len(pressures)
+    tips = np.empty((m, 3))
+    converged = np.empty(m, dtype=bool)
+    iterations = np.empty(m, dtype=np.int64)
+    columns = (
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        _RateColumn(),
+        TextColumn("elapsed"),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+    )
+    t0 = time.perf_counter()
+    with Progress(*columns, console=console) as progress:
+        task = progress.add_task(label, total=m)
+        for lo in range(0, m, chunk):
+            hi = min(lo + chunk, m)
+            out = solve_statics_batch(design, pressures[lo:hi], threads=threads)
+            tips[lo:hi] = out.tip_position
+            converged[lo:hi] = out.converged
+            iterations[lo:hi] = out.iterations
+            progress.advance(task, hi - lo)
+    wall = time.perf_counter() - t0
+    return {"tip_position": tips, "converged": converged, "iterations": iterations}, wall
+
+
+def _sweep_frame(pressures: np.ndarray, res: dict[str, np.ndarray]):
+    import pandas as pd
+
+    cols: dict[str, np.ndarray] = {}
+    for k in range(pressures.shape[1]):
+        cols[f"p{k + 1}_Pa"] = pressures[:, k]
+    tips_mm = res["tip_position"] * 1e3
+    cols["x_mm"], cols["y_mm"], cols["z_mm"] = tips_mm[:, 0], tips_mm[:, 1], tips_mm[:, 2]
+    cols["converged"] = res["converged"]
+    cols["iterations"] = res["iterations"]
+    return pd.DataFrame(cols)
+
+
+# --------------------------------------------------------------------------- commands
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, "--version", prog_name="softrod",
+                      message="%(prog)s %(version)s")
+def main():
+    """softrod: Cosserat-rod models of soft pneumatic actuators.
+
+    DESIGN arguments are a TOML file or the name of a bundled design (see `softrod designs`).
+    Quantities take units ("30kPa", "0.3bar", "-1 N"); a bare number is SI.
+    Exit codes: 0 ok, 2 bad design or input, 3 no convergence.
+    """
+
+
+@main.command()
+@click.argument("design")
+@click.option("--pressure", "-p", metavar="P1,P2,...",
+              help="Gauge pressure per channel, comma-separated, e.g. 30kPa,0,0 or 0.3bar,0,0. "
+                   "A bare number is Pa; a unit on the last item alone applies to all. "
+                   "Default: 0 on every channel.")
+@click.option("--tip-force", metavar="FX,FY,FZ",
+              help='Dead tip force in the world frame, e.g. "0,0,-1 N" (replaces the design\'s).')
+@click.option("--tip-moment", metavar="MX,MY,MZ",
+              help='Dead tip moment in the world frame, e.g. "0,5,0 N*mm".')
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON object with SI values.")
+@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the 3-D shape figure here (format from the suffix: .png, .pdf, .svg).")
+@_handle_errors
+def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
+    """Static shape of DESIGN under the given chamber pressures."""
+    d = load_design(design)
+    p = _parse_pressures(pressure, d)
+    tf = None if tip_force is None else _parse_vector(tip_force, "force", "--tip-force", 3)
+    tm = None if tip_moment is None else _parse_vector(tip_moment, "moment", "--tip-moment", 3)
+    t0 = time.perf_counter()
+    sol = solve_statics(d, p, tip_force=tf, tip_moment=tm)
+    elapsed = time.perf_counter() - t0
+
+    if as_json:
+        out = {
+            "design": d.name,
+            "pressures_Pa": [float(x) for x in p],
+            "tip_position_m": sol.tip_position.tolist(),
+            "tip_rotation": sol.tip_rotation.tolist(),
+            "base_force_N": sol.base_force.tolist(),
+            "base_moment_Nm": sol.base_moment.tolist(),
+            "converged": bool(sol.converged),
+            "iterations": int(sol.iterations),
+            "residual": float(sol.residual),
+            "shape": {"s_m": sol.s.tolist(), "position_m": sol.position.tolist()},
+        }
+        click.echo(json.dumps(out, indent=2))
+    else:
+        table = Table(title=f"{d.name}: static equilibrium", title_justify="left")
+        table.add_column("quantity")
+        table.add_column("value", justify="right")
+        table.add_column("unit")
+        table.add_row("pressures", _fmt_kpa(p), "kPa")
+        table.add_row("tip position (x, y, z)", _fmt_vec(sol.tip_position, 1e3, 3), "mm")
+        table.add_row("tip tangent d3", _fmt_vec(sol.tip_rotation[:, 2], 1.0, 4), "-")
+        table.add_row("base force", _fmt_vec(sol.base_force, 1.0, 4), "N")
+        table.add_row("base moment", _fmt_vec(sol.base_moment, 1e3, 3), "N mm")
+        table.add_row("converged", "yes" if sol.converged else "no", "")
+        table.add_row("iterations", f"{sol.iterations}", "")
+        table.add_row("residual (scaled)", f"{sol.residual:.2e}", "")
+        table.add_row("solve time", f"{elapsed * 1e6:,.0f}", "us")
+        _stdout().print(table)
+
+    if plot_path is not None:
+        written = _write_shape_plot([sol], plot_path)
+        # Keep stdout pure JSON with --json: say where the figure went on stderr instead.
+        Console(stderr=as_json, highlight=False).print(f"wrote {written}")
+
+
+@main.command()
+@click.argument("design")
+@click.option("--grid", "grids", multiple=True, required=True, metavar="START:STOP:COUNT",
+              help="Pressures per channel, e.g. 0:70kPa:21 (a unit on STOP alone applies to "
+                   "both ends). Give it once for every channel, or once per channel.")
+@click.option("--out", "out", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="Output table, .csv or .parquet (written whole or not at all).")
+@click.option("--threads", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Worker threads (0 = all cores).")
+@_handle_errors
+def sweep(design, grids, out, threads):
+    """Tip positions over a full-factorial pressure grid of DESIGN.
+
+    Rows run with channel 1 slowest and the last channel fastest, so consecutive rows are
+    neighbours (warm starts). Columns: p1_Pa, p2_Pa, ..., x_mm, y_mm, z_mm, converged,
+    iterations.
+    """
+    d = load_design(design)
+    n = d.n_channels
+    out = check_table_path(out)
+    if len(grids) == 1:
+        axes = [_parse_grid(grids[0])] * n
+    elif len(grids) == n:
+        axes = [_parse_grid(g, f"--grid[{k}]") for k, g in enumerate(grids)]
+    else:
+        raise design_error("--grid", list(grids),
+                           f"give one --grid for all {n} channels or one per channel "
+                           f"({n}), not {len(grids)}", InputError)
+    rows = math.prod(len(a) for a in axes)
+    if rows > MAX_SWEEP_ROWS:
+        raise design_error("--grid", list(grids),
+                           f"the grid has {rows:,} rows; the limit is {MAX_SWEEP_ROWS:,} "
+                           "(use fewer points per channel)", InputError)
+    pressures = _full_factorial(axes)
+    console = _stdout()
+    res, wall = _run_sweep(d, pressures, threads, SWEEP_CHUNK, console, f"sweep {d.name}")
+    write_table(_sweep_frame(pressures, res), out)
+    n_ok = int(res["converged"].sum())
+    style = "green" if n_ok == rows else "yellow"
+    console.print(
+        f"{rows:,} rows, [{style}]{n_ok:,} converged[/{style}], wall time {wall:.2f} s, "
+        f"{rows / wall:,.0f} solves/s"
+    )
+    console.print(Text(f"wrote {out}"))
+
+
+@main.command()
+@click.option("--out-dir", default="softrod-demo", show_default=True,
+              type=click.Path(file_okay=False, path_type=Path),
+              help="Folder for shapes.png and tips.csv (created if needed).")
+@_handle_errors
+def demo(out_dir):
+    """Solve the bundled three-chamber actuator at a few pressures, plot, and sweep."""
+    import pandas as pd
+
+    console = _stdout()
+    d = load_design(DEMO_DESIGN)
+    console.print(f"[bold]{d.name}[/bold]: {d.length * 1e3:.0f} mm, {d.n_channels} chambers, "
+                  f"hanging under gravity")
+    console.print(Text(d.citation, style="dim"))
+
+    solutions, rows = [], []
+    for case in DEMO_CASES_KPA:
+        p = [1e3 * x for x in case]
+        t0 = time.perf_counter()
+        sol = solve_statics(d, p)
+        dt = time.perf_counter() - t0
+        solutions.append(sol)
+        tip = sol.tip_position * 1e3
+        rows.append({
+            **{f"p{k + 1}_kPa": float(case[k]) for k in range(len(case))},
+            "x_mm": tip[0], "y_mm": tip[1], "z_mm": tip[2],
+            "lateral_mm": _lateral(sol) * 1e3,
+            "iterations": int(sol.iterations),
+            "solve_time_us": round(dt * 1e6, 1),
+        })
+
+    table = Table(title="tip positions (world frame; base at the origin, hanging along -z)",
+                  title_justify="left")
+    for name in ("p1\nkPa", "p2\nkPa", "p3\nkPa", "tip x\nmm", "tip y\nmm", "tip z\nmm",
+                 "lateral\nmm", "iter-\nations", "solve\ntime µs"):
+        table.add_column(name, justify="right")
+    for r in rows:
+        table.add_row(f"{r['p1_kPa']:g}", f"{r['p2_kPa']:g}", f"{r['p3_kPa']:g}",
+                      _fmt(r["x_mm"], 2), _fmt(r["y_mm"], 2), _fmt(r["z_mm"], 2),
+                      _fmt(r["lateral_mm"], 2), f"{r['iterations']}",
+                      f"{r['solve_time_us']:,.0f}")
+    console.print(table)
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    shapes = _write_shape_plot(solutions, out_dir / "shapes.png",
+                               title=f"{d.name}: static shapes")
+    tips = write_table(pd.DataFrame(rows), out_dir / "tips.csv")
+
+    start, stop, count = DEMO_SWEEP
+    grid = _full_factorial([np.linspace(start, stop, count)] * d.n_channels)
+    # One chunk per plane of the cube, so the bar moves even on this small grid.
+    res, wall = _run_sweep(d, grid, 0, count * count, console,
+                           f"sweep {count}^{d.n_channels}")
+    n_ok = int(res["converged"].sum())
+    # The demo design hangs from the origin along -z: lateral reach is the distance from z.
+    lateral = np.hypot(res["tip_position"][:, 0], res["tip_position"][:, 1]) * 1e3
+    console.print(f"sweep of {len(grid)} pressure combinations, {start / 1e3:g}-{stop / 1e3:g} "
+                  f"kPa per chamber: {n_ok} converged")
+    console.print(f"  {wall * 1e3:.0f} ms, [bold]{len(grid) / wall:,.0f} solves/s[/bold]; "
+                  f"lateral reach up to {np.nanmax(lateral):.1f} mm")
+    console.print(Text(f"wrote {shapes}"))
+    console.print(Text(f"wrote {tips}"))
+
+
+@main.command()
+@_handle_errors
+def designs():
+    """List the bundled designs with their channel count and citation."""
+    console = _stdout()
+    console.print(Text("bundled designs (use the name as DESIGN):", style="bold"))
+    for name in bundled_designs():
+        try:
+            d = load_design(name)
+        except DesignError as exc:
+            console.print(Text(name, style="bold"), Text(f"cannot load: {exc}", style="red"))
+            continue
+        n = d.n_channels
+        console.print(Text.assemble(
+            (name, "bold cyan"),
+            f"  {n} channel{'s' if n != 1 else ''}, {d.length * 1e3:.1f} mm",
+        ))
+        console.print(Padding(Text(d.citation, style="dim"), (0, 0, 0, 4)))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -64,7 +64,9 @@ def to_si(value: object, kind: str, field: str, cls: type[DesignError] = DesignE
         if not isinstance(q, pint.Quantity):
             x = float(q)
         else:
-            want = DIMENSIONS[kind]
+            # Compare dimensionality objects, not their strings: pint orders the base
+            # dimensions of a string by its own rules (N prints "[mass] * [length] / ...").
+            want = ureg.get_dimensionality(SI_UNIT[kind]) if kind != "angle" else None
             have = str(q.dimensionality)
             if kind == "angle":
                 if not q.dimensionless:
@@ -75,7 +77,7 @@ def to_si(value: object, kind: str, field: str, cls: type[DesignError] = DesignE
             else:
                 if q.dimensionless:
                     x = float(q.magnitude)  # a bare number in a string: SI
-                elif have != want:
+                elif q.dimensionality != want:
                     raise design_error(
                         field,
                         value,

@@ -56,11 +56,13 @@ pub fn solve_batch(
     for r in 0..rows {
         rod.check_pressures(&pressures[r * nc..(r + 1) * nc])
             .map_err(|e| match e {
-                SoftrodError::InvalidParameter { field, value, rule } => SoftrodError::InvalidParameter {
-                    field: format!("row {r}: {field}"),
-                    value,
-                    rule,
-                },
+                SoftrodError::InvalidParameter { field, value, rule } => {
+                    SoftrodError::InvalidParameter {
+                        field: format!("row {r}: {field}"),
+                        value,
+                        rule,
+                    }
+                }
                 other => other,
             })?;
     }
@@ -70,37 +72,43 @@ pub fn solve_batch(
         // Enough chunks to balance load, few enough that warm starts dominate.
         let chunk = rows.div_ceil(8 * n_threads).max(1);
         let mut out = vec![BatchRow::failed(0, f64::NAN); rows];
-        out.par_chunks_mut(chunk).enumerate().for_each(|(ci, slot)| {
-            let mut guess: Option<[f64; 6]> = None;
-            for (k, row) in slot.iter_mut().enumerate() {
-                let r = ci * chunk + k;
-                let loads = Loads {
-                    pressures: pressures[r * nc..(r + 1) * nc].to_vec(),
-                    tip_force,
-                    tip_moment,
-                };
-                let mut attempt = solve(rod, &loads, guess.as_ref(), opts);
-                if attempt.is_err() && guess.is_some() {
-                    attempt = solve(rod, &loads, None, opts); // cold retry
-                }
-                *row = match attempt {
-                    Ok(sol) => {
-                        guess = Some(sol.x);
-                        BatchRow {
-                            converged: true,
-                            tip_position: sol.tip.r,
-                            tip_rotation: sol.tip.rot,
-                            base_force: sol.base_force,
-                            base_moment: sol.base_moment,
-                            iterations: sol.iterations,
-                            residual: sol.residual,
-                        }
+        out.par_chunks_mut(chunk)
+            .enumerate()
+            .for_each(|(ci, slot)| {
+                let mut guess: Option<[f64; 3]> = None;
+                for (k, row) in slot.iter_mut().enumerate() {
+                    let r = ci * chunk + k;
+                    let loads = Loads {
+                        pressures: pressures[r * nc..(r + 1) * nc].to_vec(),
+                        tip_force,
+                        tip_moment,
+                    };
+                    let mut attempt = solve(rod, &loads, guess.as_ref(), opts);
+                    if attempt.is_err() && guess.is_some() {
+                        attempt = solve(rod, &loads, None, opts); // cold retry
                     }
-                    Err(SoftrodError::NotConverged { iterations, residual, .. }) => BatchRow::failed(iterations, residual),
-                    Err(_) => BatchRow::failed(0, f64::NAN),
-                };
-            }
-        });
+                    *row = match attempt {
+                        Ok(sol) => {
+                            guess = Some(sol.x);
+                            BatchRow {
+                                converged: true,
+                                tip_position: sol.tip.r,
+                                tip_rotation: sol.tip.rot,
+                                base_force: sol.base_force,
+                                base_moment: sol.base_moment,
+                                iterations: sol.iterations,
+                                residual: sol.residual,
+                            }
+                        }
+                        Err(SoftrodError::NotConverged {
+                            iterations,
+                            residual,
+                            ..
+                        }) => BatchRow::failed(iterations, residual),
+                        Err(_) => BatchRow::failed(0, f64::NAN),
+                    };
+                }
+            });
         out
     };
     if threads == 0 {
@@ -109,7 +117,9 @@ pub fn solve_batch(
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
-            .map_err(|e| SoftrodError::invalid("threads", threads, format!("cannot build thread pool: {e}")))?;
+            .map_err(|e| {
+                SoftrodError::invalid("threads", threads, format!("cannot build thread pool: {e}"))
+            })?;
         Ok(pool.install(run))
     }
 }

@@ -27,7 +27,11 @@ pub enum SoftrodError {
 }
 
 impl SoftrodError {
-    pub fn invalid(field: impl Into<String>, value: impl ToString, rule: impl Into<String>) -> Self {
+    pub fn invalid(
+        field: impl Into<String>,
+        value: impl ToString,
+        rule: impl Into<String>,
+    ) -> Self {
         SoftrodError::InvalidParameter {
             field: field.into(),
             value: value.to_string(),

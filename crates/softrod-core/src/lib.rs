@@ -7,6 +7,7 @@
 
 pub mod batch;
 pub mod error;
+pub mod jet;
 pub mod ode;
 pub mod rod;
 pub mod section;

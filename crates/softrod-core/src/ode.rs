@@ -13,8 +13,8 @@
 //! Jacobians) and the scalar `C` of the coefficients (f64, or dual numbers when derivatives
 //! with respect to pressures or parameters are wanted).
 
+use crate::jet::RodScalar;
 use crate::rod::Rod;
-use num_dual::DualNum;
 use std::ops::{Add, Mul, Neg};
 
 /// Scalar of the coefficients (f64, or a dual number for parameter derivatives).
@@ -22,8 +22,14 @@ pub trait Coeff: Copy + Neg<Output = Self> {}
 impl<C: Copy + Neg<Output = C>> Coeff for C {}
 
 /// Scalar of the state.
-pub trait StateScalar<C>: DualNum<Primitive = f64> + Copy + From<C> + Mul<C, Output = Self> + Add<C, Output = Self> {}
-impl<C, D> StateScalar<C> for D where D: DualNum<Primitive = f64> + Copy + From<C> + Mul<C, Output = D> + Add<C, Output = D> {}
+pub trait StateScalar<C>:
+    RodScalar + From<C> + Mul<C, Output = Self> + Add<C, Output = Self>
+{
+}
+impl<C, D> StateScalar<C> for D where
+    D: RodScalar + From<C> + Mul<C, Output = D> + Add<C, Output = D>
+{
+}
 
 /// Rod state at one arc length.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -59,7 +65,7 @@ pub struct Loads {
 }
 
 #[inline(always)]
-fn cross<D: DualNum<Primitive = f64> + Copy>(a: &[D; 3], b: &[D; 3]) -> [D; 3] {
+fn cross<D: RodScalar>(a: &[D; 3], b: &[D; 3]) -> [D; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
@@ -100,7 +106,7 @@ impl Coeffs<f64> {
     }
 }
 
-impl<D: DualNum<Primitive = f64> + Copy> State<D> {
+impl<D: RodScalar> State<D> {
     #[inline(always)]
     fn axpy(&self, h: f64, k: &State<D>) -> State<D> {
         let mut y = *self;
@@ -124,10 +130,10 @@ impl<D: DualNum<Primitive = f64> + Copy> State<D> {
     /// Value part (drops derivatives).
     pub fn re(&self) -> State<f64> {
         State {
-            r: self.r.map(|x| x.re()),
-            rot: self.rot.map(|row| row.map(|x| x.re())),
-            n: self.n.map(|x| x.re()),
-            m: self.m.map(|x| x.re()),
+            r: self.r.map(|x| x.value()),
+            rot: self.rot.map(|row| row.map(|x| x.value())),
+            n: self.n.map(|x| x.value()),
+            m: self.m.map(|x| x.value()),
         }
     }
 }
@@ -180,7 +186,12 @@ fn rhs<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> State<D> {
         -rxn[1] + neg(c.l[1]),
         -rxn[2] + neg(c.l[2]),
     ];
-    State { r: dr, rot: drot, n: dn, m: dm }
+    State {
+        r: dr,
+        rot: drot,
+        n: dn,
+        m: dm,
+    }
 }
 
 #[inline(always)]
@@ -190,8 +201,7 @@ fn neg<C: Coeff>(x: C) -> C {
 
 /// One classical RK4 step of length h.
 #[inline(always)]
-fn rk4_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, h: f64) -> State<D>
-{
+fn rk4_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, h: f64) -> State<D> {
     let k1 = rhs(y, c);
     let k2 = rhs(&y.axpy(0.5 * h, &k1), c);
     let k3 = rhs(&y.axpy(0.5 * h, &k2), c);
@@ -203,7 +213,8 @@ fn rk4_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, h: f64) ->
         out.n[i] += (k1.n[i] + (k2.n[i] + k3.n[i]) * 2.0 + k4.n[i]) * w;
         out.m[i] += (k1.m[i] + (k2.m[i] + k3.m[i]) * 2.0 + k4.m[i]) * w;
         for j in 0..3 {
-            out.rot[i][j] += (k1.rot[i][j] + (k2.rot[i][j] + k3.rot[i][j]) * 2.0 + k4.rot[i][j]) * w;
+            out.rot[i][j] +=
+                (k1.rot[i][j] + (k2.rot[i][j] + k3.rot[i][j]) * 2.0 + k4.rot[i][j]) * w;
         }
     }
     out
@@ -211,8 +222,7 @@ fn rk4_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, h: f64) ->
 
 /// Exact transfer through a rigid section of length L with constant line loads:
 /// v = e3, u = 0, so r' = d3 is constant and n, m integrate in closed form.
-fn rigid_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, len: f64) -> State<D>
-{
+fn rigid_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, len: f64) -> State<D> {
     let t = y.director(2);
     let mut out = *y;
     let zero = D::from(0.0);
@@ -223,7 +233,8 @@ fn rigid_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, len: f64
         out.r[i] += t[i] * len;
         out.n[i] -= f[i] * len;
         // m(L) = m0 - L t x n0 + (L^2/2) t x f - L l
-        out.m[i] = out.m[i] - txn[i] * len + txf[i] * (0.5 * len * len) + (zero + neg(c.l[i])) * len;
+        out.m[i] =
+            out.m[i] - txn[i] * len + txf[i] * (0.5 * len * len) + (zero + neg(c.l[i])) * len;
     }
     out
 }
@@ -238,8 +249,7 @@ pub fn integrate<C: Coeff, D: StateScalar<C>>(
     coeffs: &[Coeffs<C>],
     y0: State<D>,
     mut visit: Option<Visitor<'_, D>>,
-) -> State<D>
-{
+) -> State<D> {
     let mut y = y0;
     if let Some(v) = visit.as_mut() {
         v(0, 0.0, &y);

@@ -96,17 +96,29 @@ impl Rod {
                 }
             };
             let st = &s.stiffness;
-            let ea = st.ea.unwrap_or_else(|| geo(&|c, m| m.youngs_modulus * c.area));
-            let ga = st.ga.unwrap_or_else(|| geo(&|c, m| m.shear_modulus * c.area));
-            let ei1 = st.ei1.unwrap_or_else(|| geo(&|c, m| m.youngs_modulus * c.i11));
-            let ei2 = st.ei2.unwrap_or_else(|| geo(&|c, m| m.youngs_modulus * c.i22));
+            let ea = st
+                .ea
+                .unwrap_or_else(|| geo(&|c, m| m.youngs_modulus * c.area));
+            let ga = st
+                .ga
+                .unwrap_or_else(|| geo(&|c, m| m.shear_modulus * c.area));
+            let ei1 = st
+                .ei1
+                .unwrap_or_else(|| geo(&|c, m| m.youngs_modulus * c.i11));
+            let ei2 = st
+                .ei2
+                .unwrap_or_else(|| geo(&|c, m| m.youngs_modulus * c.i22));
             // The coupling term comes from the geometry only (direct stiffnesses describe
             // principal axes); zero when the section has no geometry.
             let ei12 = match (&cs, &mat) {
-                (Some(c), Some(m)) if st.ei1.is_none() && st.ei2.is_none() => m.youngs_modulus * c.i12,
+                (Some(c), Some(m)) if st.ei1.is_none() && st.ei2.is_none() => {
+                    m.youngs_modulus * c.i12
+                }
                 _ => 0.0,
             };
-            let gj = st.gj.unwrap_or_else(|| geo(&|c, m| m.shear_modulus * c.polar()));
+            let gj = st
+                .gj
+                .unwrap_or_else(|| geo(&|c, m| m.shear_modulus * c.polar()));
             let k_se = [s.c_s * ga, s.c_s * ga, s.c_e * ea];
             let k_bt = [
                 [s.c_b * ei1, s.c_b * ei12, 0.0],
@@ -170,7 +182,11 @@ impl Rod {
             .filter(|s| !s.rigid)
             .map(|s| s.k_bt[0][0].min(s.k_bt[1][1]))
             .fold(f64::INFINITY, f64::min);
-        let force_scale = if ei_min.is_finite() { ei_min / (length * length) } else { 1.0 };
+        let force_scale = if ei_min.is_finite() {
+            ei_min / (length * length)
+        } else {
+            1.0
+        };
         Ok(Rod {
             n_channels: spec.n_channels(),
             length,

@@ -241,11 +241,20 @@ impl SectionSpec {
         }
         positive(&f("length"), self.length)?;
         non_negative(&f("bore_radius"), self.bore_radius)?;
-        for (k, c) in [("c_s", self.c_s), ("c_e", self.c_e), ("c_b", self.c_b), ("c_t", self.c_t)] {
+        for (k, c) in [
+            ("c_s", self.c_s),
+            ("c_e", self.c_e),
+            ("c_b", self.c_b),
+            ("c_t", self.c_t),
+        ] {
             positive(&f(k), c)?;
         }
         if self.steps == 0 || self.steps > 100_000 {
-            return Err(SoftrodError::invalid(f("steps"), self.steps, "must be in 1..=100000"));
+            return Err(SoftrodError::invalid(
+                f("steps"),
+                self.steps,
+                "must be in 1..=100000",
+            ));
         }
         if let Some(m) = self.mass {
             non_negative(&f("mass"), m)?;
@@ -254,7 +263,13 @@ impl SectionSpec {
             mat.validate(&f("material"))?;
         }
         let st = &self.stiffness;
-        for (k, v) in [("EA", st.ea), ("GA", st.ga), ("EI1", st.ei1), ("EI2", st.ei2), ("GJ", st.gj)] {
+        for (k, v) in [
+            ("EA", st.ea),
+            ("GA", st.ga),
+            ("EI1", st.ei1),
+            ("EI2", st.ei2),
+            ("GJ", st.gj),
+        ] {
             if let Some(v) = v {
                 positive(&f(k), v)?;
             }
@@ -319,7 +334,8 @@ impl SectionSpec {
                     ));
                 }
             }
-            if self.bore_radius > 0.0 && c.distance - r < self.bore_radius * (1.0 - GEOMETRY_SLACK) {
+            if self.bore_radius > 0.0 && c.distance - r < self.bore_radius * (1.0 - GEOMETRY_SLACK)
+            {
                 return Err(SoftrodError::invalid(
                     g("distance"),
                     c.distance,
@@ -367,7 +383,11 @@ impl DesignSpec {
     /// Check every rule; the first broken one is reported with its field path.
     pub fn validate(&self) -> Result<()> {
         if self.sections.is_empty() {
-            return Err(SoftrodError::invalid("sections", "[]", "a design needs at least one section"));
+            return Err(SoftrodError::invalid(
+                "sections",
+                "[]",
+                "a design needs at least one section",
+            ));
         }
         finite3("mounting.base_position", &self.mounting.base_position)?;
         finite3("mounting.gravity", &self.mounting.gravity)?;
@@ -422,7 +442,10 @@ impl DesignSpec {
                 ));
             }
             finite3(&format!("loads[{k}].force_per_length"), &l.force_per_length)?;
-            finite3(&format!("loads[{k}].moment_per_length"), &l.moment_per_length)?;
+            finite3(
+                &format!("loads[{k}].moment_per_length"),
+                &l.moment_per_length,
+            )?;
         }
         let n = self.n_channels();
         let mut used = vec![false; n];

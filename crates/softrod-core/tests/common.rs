@@ -2,14 +2,26 @@
 #![allow(dead_code)]
 
 use softrod_core::ode::Loads;
-use softrod_core::spec::{ChamberSpec, DesignSpec, MaterialSpec, MountingSpec, SectionSpec, StiffnessSpec, TipSpec};
+use softrod_core::spec::{
+    ChamberSpec, DesignSpec, MaterialSpec, MountingSpec, SectionSpec, StiffnessSpec, TipSpec,
+};
 
 pub const IDENTITY: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 /// Horizontal mounting: d3 = +x_world, d1 = +z_world, d2 = d3 x d1 = -y_world.
 pub const HORIZONTAL: [[f64; 3]; 3] = [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]];
 
 /// A uniform elastic section with stiffnesses given directly.
-pub fn direct_section(name: &str, length: f64, ea: f64, ga: f64, ei: f64, gj: f64, mass: f64, steps: usize) -> SectionSpec {
+#[allow(clippy::too_many_arguments)] // mirrors the section's own fields
+pub fn direct_section(
+    name: &str,
+    length: f64,
+    ea: f64,
+    ga: f64,
+    ei: f64,
+    gj: f64,
+    mass: f64,
+    steps: usize,
+) -> SectionSpec {
     SectionSpec {
         name: name.into(),
         length,
@@ -22,7 +34,13 @@ pub fn direct_section(name: &str, length: f64, ea: f64, ga: f64, ei: f64, gj: f6
         c_e: 1.0,
         c_b: 1.0,
         c_t: 1.0,
-        stiffness: StiffnessSpec { ea: Some(ea), ga: Some(ga), ei1: Some(ei), ei2: Some(ei), gj: Some(gj) },
+        stiffness: StiffnessSpec {
+            ea: Some(ea),
+            ga: Some(ga),
+            ei1: Some(ei),
+            ei2: Some(ei),
+            gj: Some(gj),
+        },
         chambers: vec![],
         steps,
     }
@@ -31,7 +49,11 @@ pub fn direct_section(name: &str, length: f64, ea: f64, ga: f64, ei: f64, gj: f6
 pub fn design(sections: Vec<SectionSpec>, rotation: [[f64; 3]; 3], g: f64) -> DesignSpec {
     DesignSpec {
         name: "test".into(),
-        mounting: MountingSpec { base_position: [0.0; 3], base_rotation: rotation, gravity: [0.0, 0.0, -g] },
+        mounting: MountingSpec {
+            base_position: [0.0; 3],
+            base_rotation: rotation,
+            gravity: [0.0, 0.0, -g],
+        },
         sections,
         tip: TipSpec::default(),
         loads: vec![],
@@ -39,7 +61,11 @@ pub fn design(sections: Vec<SectionSpec>, rotation: [[f64; 3]; 3], g: f64) -> De
 }
 
 pub fn loads(p: &[f64]) -> Loads {
-    Loads { pressures: p.to_vec(), tip_force: [0.0; 3], tip_moment: [0.0; 3] }
+    Loads {
+        pressures: p.to_vec(),
+        tip_force: [0.0; 3],
+        tip_moment: [0.0; 3],
+    }
 }
 
 pub fn chamber(radius: f64, distance: f64, angle_deg: f64, channel: usize) -> ChamberSpec {
@@ -54,19 +80,34 @@ pub fn chamber(radius: f64, distance: f64, angle_deg: f64, channel: usize) -> Ch
 
 /// Read a validation CSV from ../shared/validation (comment lines start with '#').
 pub fn validation_table(name: &str) -> Vec<Vec<f64>> {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/validation").join(name);
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/validation")
+        .join(name);
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
     text.lines()
         .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
         .skip(1) // header
-        .map(|l| l.split(',').map(|v| v.trim().parse::<f64>().unwrap()).collect())
+        .map(|l| {
+            l.split(',')
+                .map(|v| v.trim().parse::<f64>().unwrap())
+                .collect()
+        })
         .collect()
 }
 
 /// Ecoflex 00-50 (paper 002, Table II): E = 0.08 MPa, G = 0.027 MPa, 1070 kg/m^3.
-pub const ECOFLEX: MaterialSpec = MaterialSpec { youngs_modulus: 80e3, shear_modulus: 27e3, density: 1070.0 };
+pub const ECOFLEX: MaterialSpec = MaterialSpec {
+    youngs_modulus: 80e3,
+    shear_modulus: 27e3,
+    density: 1070.0,
+};
 /// Dragon Skin 30 (paper 002, Table II): E = 0.6 MPa, G = 0.2 MPa, 1080 kg/m^3.
-pub const DRAGON_SKIN: MaterialSpec = MaterialSpec { youngs_modulus: 600e3, shear_modulus: 200e3, density: 1080.0 };
+pub const DRAGON_SKIN: MaterialSpec = MaterialSpec {
+    youngs_modulus: 600e3,
+    shear_modulus: 200e3,
+    density: 1080.0,
+};
 
 /// Paper 002, Table I: outer radius, bore radius, chamber radius, chamber centroid distance,
 /// cap lengths d^a, d^c and body length l, all in m.
@@ -128,7 +169,11 @@ pub fn rigid_section(name: &str, length: f64, mass: f64) -> SectionSpec {
 
 /// Paper 002's three chambers (r_p at rho_p) at the given angles in degrees, channels 0, 1, 2.
 pub fn p002_chambers(angles_deg: [f64; 3]) -> Vec<ChamberSpec> {
-    angles_deg.iter().enumerate().map(|(k, &a)| chamber(P002_RP, P002_RHO, a, k)).collect()
+    angles_deg
+        .iter()
+        .enumerate()
+        .map(|(k, &a)| chamber(P002_RP, P002_RHO, a, k))
+        .collect()
 }
 
 /// Paper 002's actuator: Dragon Skin cap (d^a) / Ecoflex body with three chambers at 90, 210
@@ -136,9 +181,33 @@ pub fn p002_chambers(angles_deg: [f64; 3]) -> Vec<ChamberSpec> {
 pub fn p002_actuator(rotation: [[f64; 3]; 3], g: f64, steps: usize) -> DesignSpec {
     design(
         vec![
-            geometry_section("cap_a", P002_CAP_A, P002_RO, P002_RI, DRAGON_SKIN, vec![], steps),
-            geometry_section("body", P002_BODY, P002_RO, P002_RI, ECOFLEX, p002_chambers([90.0, 210.0, 330.0]), steps),
-            geometry_section("cap_c", P002_CAP_C, P002_RO, P002_RI, DRAGON_SKIN, vec![], steps),
+            geometry_section(
+                "cap_a",
+                P002_CAP_A,
+                P002_RO,
+                P002_RI,
+                DRAGON_SKIN,
+                vec![],
+                steps,
+            ),
+            geometry_section(
+                "body",
+                P002_BODY,
+                P002_RO,
+                P002_RI,
+                ECOFLEX,
+                p002_chambers([90.0, 210.0, 330.0]),
+                steps,
+            ),
+            geometry_section(
+                "cap_c",
+                P002_CAP_C,
+                P002_RO,
+                P002_RI,
+                DRAGON_SKIN,
+                vec![],
+                steps,
+            ),
         ],
         rotation,
         g,
@@ -163,8 +232,11 @@ pub fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 pub struct Lcg(pub u64);
 
 impl Lcg {
-    pub fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    pub fn uniform(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
     }
 }

@@ -75,7 +75,17 @@ fn k_bt_hand(sec: &SectionSpec) -> Matrix3<f64> {
     let m = sec.material.unwrap();
     let (_, i11, i22, i12) = table_iii(sec.outer_radius.unwrap(), sec.bore_radius, &sec.chambers);
     let e = m.youngs_modulus;
-    Matrix3::new(e * i11, e * i12, 0.0, e * i12, e * i22, 0.0, 0.0, 0.0, m.shear_modulus * (i11 + i22))
+    Matrix3::new(
+        e * i11,
+        e * i12,
+        0.0,
+        e * i12,
+        e * i22,
+        0.0,
+        0.0,
+        0.0,
+        m.shear_modulus * (i11 + i22),
+    )
 }
 
 /// Pressure moment sum_k p_k A_k (y_k, -x_k, 0) and force sum_k p_k A_k.
@@ -101,7 +111,13 @@ fn expected_strains(sec: &SectionSpec, p: &[f64]) -> (Vector3<f64>, f64) {
 
 /// Pose after arc length s of constant body strains u (u3 = 0) and v = v3 e3 from `r0`, `rot0`:
 /// R = R0 exp(s u^), r = r0 + R0 v3 (e3 sin(ks)/k + (a x e3)(1 - cos ks)/k), a = u/k.
-fn arc(r0: Vector3<f64>, rot0: Matrix3<f64>, u: Vector3<f64>, v3: f64, s: f64) -> (Vector3<f64>, Matrix3<f64>) {
+fn arc(
+    r0: Vector3<f64>,
+    rot0: Matrix3<f64>,
+    u: Vector3<f64>,
+    v3: f64,
+    s: f64,
+) -> (Vector3<f64>, Matrix3<f64>) {
     let k = u.norm();
     let a = u / k;
     let e3 = Vector3::z();
@@ -121,7 +137,15 @@ fn vec3(a: &[f64; 3]) -> Vector3<f64> {
 
 /// Paper 002's body section alone, chambers at 90/210/330 deg.
 fn body(steps: usize) -> SectionSpec {
-    geometry_section("body", P002_BODY, P002_RO, P002_RI, ECOFLEX, p002_chambers([90.0, 210.0, 330.0]), steps)
+    geometry_section(
+        "body",
+        P002_BODY,
+        P002_RO,
+        P002_RI,
+        ECOFLEX,
+        p002_chambers([90.0, 210.0, 330.0]),
+        steps,
+    )
 }
 
 #[test]
@@ -133,15 +157,41 @@ fn paper_002_cross_section_matches_table_iii() {
     // Three chambers 120 deg apart: sum of rho_perp^2 over the chambers is 3/2 rho_p^2 about
     // either axis, so I_11 = I_22 = pi/4 (r_o^4 - r_i^4) - 3 pi/4 r_p^4 - 3/2 rho_p^2 A_p.
     let ap = PI * P002_RP.powi(2);
-    let i = PI / 4.0 * (P002_RO.powi(4) - P002_RI.powi(4)) - 3.0 * PI / 4.0 * P002_RP.powi(4) - 1.5 * P002_RHO.powi(2) * ap;
-    assert!((cs.area - am).abs() < GEOMETRY_TOL * am, "A_m {} vs {am}", cs.area);
-    assert!((cs.i11 - i).abs() < GEOMETRY_TOL * i, "I_11 {} vs {i}", cs.i11);
-    assert!((cs.i22 - i).abs() < GEOMETRY_TOL * i, "I_22 {} vs {i}", cs.i22);
-    assert!(cs.i12.abs() < GEOMETRY_TOL * i, "I_12 {} should vanish", cs.i12);
+    let i = PI / 4.0 * (P002_RO.powi(4) - P002_RI.powi(4))
+        - 3.0 * PI / 4.0 * P002_RP.powi(4)
+        - 1.5 * P002_RHO.powi(2) * ap;
+    assert!(
+        (cs.area - am).abs() < GEOMETRY_TOL * am,
+        "A_m {} vs {am}",
+        cs.area
+    );
+    assert!(
+        (cs.i11 - i).abs() < GEOMETRY_TOL * i,
+        "I_11 {} vs {i}",
+        cs.i11
+    );
+    assert!(
+        (cs.i22 - i).abs() < GEOMETRY_TOL * i,
+        "I_22 {} vs {i}",
+        cs.i22
+    );
+    assert!(
+        cs.i12.abs() < GEOMETRY_TOL * i,
+        "I_12 {} should vanish",
+        cs.i12
+    );
     // The numbers themselves (mm^2, mm^4), as a regression anchor: pi * 357.2325 mm^2 and
     // 135 964.55 mm^4, to the digits given.
-    assert!((cs.area * 1e6 - 1122.2790).abs() < 1e-4, "A_m = {} mm^2", cs.area * 1e6);
-    assert!((cs.i11 * 1e12 - 135_964.55).abs() < 1e-2, "I = {} mm^4", cs.i11 * 1e12);
+    assert!(
+        (cs.area * 1e6 - 1122.2790).abs() < 1e-4,
+        "A_m = {} mm^2",
+        cs.area * 1e6
+    );
+    assert!(
+        (cs.i11 * 1e12 - 135_964.55).abs() < 1e-2,
+        "I = {} mm^4",
+        cs.i11 * 1e12
+    );
     // and the compiled stiffnesses: EA, GA, EI, GJ = G (I_11 + I_22)
     let rod = Rod::new(design(vec![sec], IDENTITY, 0.0)).unwrap();
     let s = &rod.sections[0];
@@ -155,7 +205,10 @@ fn paper_002_cross_section_matches_table_iii() {
         (s.k_bt[2][2], g * 2.0 * i),
     ];
     for (k, (got, want)) in checks.iter().enumerate() {
-        assert!((got - want).abs() < GEOMETRY_TOL * want, "stiffness {k}: {got} vs {want}");
+        assert!(
+            (got - want).abs() < GEOMETRY_TOL * want,
+            "stiffness {k}: {got} vs {want}"
+        );
     }
     assert!(s.k_bt[0][1].abs() < GEOMETRY_TOL * e * i && s.k_bt[1][0] == s.k_bt[0][1]);
     // weight from the density
@@ -172,20 +225,34 @@ fn check_single_section_arc(sec: &SectionSpec, p: &[f64]) {
     assert_eq!(sh.s.len(), sec.steps + 1);
     for (i, s) in sh.s.iter().enumerate() {
         let du = (vec3(&sh.u[i]) - u).norm();
-        assert!(du <= STRAIN_TOL * u.norm(), "p = {p:?}, s = {s}: u = {:?}, want {u}", sh.u[i]);
+        assert!(
+            du <= STRAIN_TOL * u.norm(),
+            "p = {p:?}, s = {s}: u = {:?}, want {u}",
+            sh.u[i]
+        );
         let v = sh.v[i];
         assert!(v[0].abs() <= STRAIN_TOL * (v3 - 1.0) && v[1].abs() <= STRAIN_TOL * (v3 - 1.0));
-        assert!((v[2] - v3).abs() <= STRAIN_TOL * (v3 - 1.0), "s = {s}: v3 = {} want {v3}", v[2]);
+        assert!(
+            (v[2] - v3).abs() <= STRAIN_TOL * (v3 - 1.0),
+            "s = {s}: v3 = {} want {v3}",
+            v[2]
+        );
     }
     let h = sec.length / sec.steps as f64;
     let tol = arc_tol(u.norm(), h);
     for (i, s) in sh.s.iter().enumerate() {
         let (r, rot) = arc(Vector3::zeros(), Matrix3::identity(), u, v3, *s);
         let e = (vec3(&sh.position[i]) - r).norm() / sec.length;
-        assert!(e < tol, "p = {p:?}, s = {s}: position off the arc by {e:.2e} L, bound {tol:.2e}");
+        assert!(
+            e < tol,
+            "p = {p:?}, s = {s}: position off the arc by {e:.2e} L, bound {tol:.2e}"
+        );
         let e = (mat(&sh.rotation[i]) - rot).norm();
         let rtol = rot_tol(u.norm(), h, *s);
-        assert!(e < rtol, "p = {p:?}, s = {s}: rotation off the arc by {e:.2e}, bound {rtol:.2e}");
+        assert!(
+            e < rtol,
+            "p = {p:?}, s = {s}: rotation off the arc by {e:.2e}, bound {rtol:.2e}"
+        );
     }
 }
 
@@ -196,10 +263,19 @@ fn pressurised_chamber_gives_constant_curvature_and_stretch() {
     let p = [60e3, 0.0, 0.0];
     check_single_section_arc(&sec, &p);
     let (u, _) = expected_strains(&sec, &p);
-    assert!(u[0] > 0.0 && u[1].abs() < STRAIN_TOL * u[0] && u[2] == 0.0, "u = {u}");
+    assert!(
+        u[0] > 0.0 && u[1].abs() < STRAIN_TOL * u[0] && u[2] == 0.0,
+        "u = {u}"
+    );
     let rod = Rod::new(design(vec![sec.clone()], IDENTITY, 0.0)).unwrap();
-    let tip = solve(&rod, &loads(&p), None, &SolverOptions::default()).unwrap().tip.r;
-    assert!(tip[1] < -0.1 * sec.length && tip[0].abs() < SYMMETRY_TOL * sec.length, "tip {tip:?}");
+    let tip = solve(&rod, &loads(&p), None, &SolverOptions::default())
+        .unwrap()
+        .tip
+        .r;
+    assert!(
+        tip[1] < -0.1 * sec.length && tip[0].abs() < SYMMETRY_TOL * sec.length,
+        "tip {tip:?}"
+    );
     // two chambers at different pressures: a bend in a general direction, still an arc;
     // and a strong bend (kappa L = 2 rad)
     check_single_section_arc(&sec, &[0.0, 45e3, 20e3]);
@@ -217,8 +293,16 @@ fn equal_pressures_in_symmetric_chambers_only_extend() {
     let (am, ..) = table_iii(P002_RO, P002_RI, &sec.chambers);
     let stretch = 1.0 + 3.0 * p * PI * P002_RP.powi(2) / (ECOFLEX.youngs_modulus * am);
     let r = sol.tip.r;
-    assert!(r[0].abs() < SYMMETRY_TOL * sec.length && r[1].abs() < SYMMETRY_TOL * sec.length, "tip {r:?}");
-    assert!((r[2] - stretch * sec.length).abs() < SYMMETRY_TOL * sec.length, "tip z {} vs {}", r[2], stretch * sec.length);
+    assert!(
+        r[0].abs() < SYMMETRY_TOL * sec.length && r[1].abs() < SYMMETRY_TOL * sec.length,
+        "tip {r:?}"
+    );
+    assert!(
+        (r[2] - stretch * sec.length).abs() < SYMMETRY_TOL * sec.length,
+        "tip z {} vs {}",
+        r[2],
+        stretch * sec.length
+    );
     assert!((mat(&sol.tip.rot) - Matrix3::identity()).norm() < SYMMETRY_TOL);
 }
 
@@ -226,8 +310,13 @@ fn equal_pressures_in_symmetric_chambers_only_extend() {
 fn offset_chambers_couple_the_bending_axes() {
     // Two chambers at 0 and 60 deg (centres 12 mm apart, 10.3 mm needed): I_11 != I_22
     // and a product of area sum_k x_k y_k A_k != 0.
-    let chambers = vec![chamber(P002_RP, P002_RHO, 0.0, 0), chamber(P002_RP, P002_RHO, 60.0, 1)];
-    let sec = geometry_section("body", P002_BODY, P002_RO, P002_RI, ECOFLEX, chambers, STEPS);
+    let chambers = vec![
+        chamber(P002_RP, P002_RHO, 0.0, 0),
+        chamber(P002_RP, P002_RHO, 60.0, 1),
+    ];
+    let sec = geometry_section(
+        "body", P002_BODY, P002_RO, P002_RI, ECOFLEX, chambers, STEPS,
+    );
     let rod = Rod::new(design(vec![sec.clone()], IDENTITY, 0.0)).unwrap();
     let k = rod.sections[0].k_bt;
     let e = ECOFLEX.youngs_modulus;
@@ -240,12 +329,20 @@ fn offset_chambers_couple_the_bending_axes() {
         })
         .sum();
     assert!(sum_xya > 0.0);
-    assert!((k[0][1] - e * sum_xya).abs() < GEOMETRY_TOL * e * sum_xya, "K_12 = {} vs {}", k[0][1], e * sum_xya);
+    assert!(
+        (k[0][1] - e * sum_xya).abs() < GEOMETRY_TOL * e * sum_xya,
+        "K_12 = {} vs {}",
+        k[0][1],
+        e * sum_xya
+    );
     assert_eq!(k[1][0], k[0][1]);
     let hand = k_bt_hand(&sec);
     for i in 0..3 {
         for j in 0..3 {
-            assert!((k[i][j] - hand[(i, j)]).abs() < GEOMETRY_TOL * hand.norm(), "K_bt[{i}][{j}]");
+            assert!(
+                (k[i][j] - hand[(i, j)]).abs() < GEOMETRY_TOL * hand.norm(),
+                "K_bt[{i}][{j}]"
+            );
         }
     }
     for p in [[50e3, 0.0], [0.0, 50e3], [30e3, 50e3]] {
@@ -257,7 +354,10 @@ fn offset_chambers_couple_the_bending_axes() {
         diag[(0, 1)] = 0.0;
         diag[(1, 0)] = 0.0;
         let u_uncoupled = diag.try_inverse().unwrap() * mp;
-        assert!((u - u_uncoupled).norm() > 0.01 * u.norm(), "p = {p:?}: coupling has no effect?");
+        assert!(
+            (u - u_uncoupled).norm() > 0.01 * u.norm(),
+            "p = {p:?}: coupling has no effect?"
+        );
     }
 }
 
@@ -277,13 +377,24 @@ fn chamber_offset_bends_under_equal_pressures() {
             c
         })
         .collect();
-    let sec = geometry_section("body", P002_BODY, P002_RO, P002_RI, ECOFLEX, chambers, STEPS);
+    let sec = geometry_section(
+        "body", P002_BODY, P002_RO, P002_RI, ECOFLEX, chambers, STEPS,
+    );
     let p = 40e3;
     let (mp, _) = pressure_load(&sec, &[p; 3]);
     let ap = PI * P002_RP.powi(2);
     let want = Vector3::new(3.0 * p * ap * off[1], -3.0 * p * ap * off[0], 0.0);
-    assert!((mp - want).norm() < GEOMETRY_TOL * want.norm(), "M_p = {mp} vs {want}");
-    assert!(Rod::new(design(vec![sec.clone()], IDENTITY, 0.0)).unwrap().sections[0].k_bt[0][1] != 0.0);
+    assert!(
+        (mp - want).norm() < GEOMETRY_TOL * want.norm(),
+        "M_p = {mp} vs {want}"
+    );
+    assert!(
+        Rod::new(design(vec![sec.clone()], IDENTITY, 0.0))
+            .unwrap()
+            .sections[0]
+            .k_bt[0][1]
+            != 0.0
+    );
     check_single_section_arc(&sec, &[p; 3]);
 }
 
@@ -303,10 +414,22 @@ fn caps_stay_straight_and_body_bends_in_three_section_actuator() {
         let (sec, s) = (sh.section[i], sh.s[i]);
         // Total force and moment: the pressure is internal, so nothing is transmitted,
         // on either side of each junction.
-        assert!(norm(&sh.force[i]) <= ZERO_WRENCH_TOL * scale / P002_RHO, "s = {s}: n = {:?}", sh.force[i]);
-        assert!(norm(&sh.moment[i]) <= ZERO_WRENCH_TOL * scale, "s = {s}: m = {:?}", sh.moment[i]);
+        assert!(
+            norm(&sh.force[i]) <= ZERO_WRENCH_TOL * scale / P002_RHO,
+            "s = {s}: n = {:?}",
+            sh.force[i]
+        );
+        assert!(
+            norm(&sh.moment[i]) <= ZERO_WRENCH_TOL * scale,
+            "s = {s}: m = {:?}",
+            sh.moment[i]
+        );
         if sec == 1 {
-            assert!((vec3(&sh.u[i]) - u).norm() <= STRAIN_TOL * u.norm(), "body s = {s}: u = {:?}", sh.u[i]);
+            assert!(
+                (vec3(&sh.u[i]) - u).norm() <= STRAIN_TOL * u.norm(),
+                "body s = {s}: u = {:?}",
+                sh.u[i]
+            );
             assert!((sh.v[i][2] - v3).abs() <= STRAIN_TOL * (v3 - 1.0));
             // the material moment K_bt u carries the pressure moment: M_p = K_bt u
             let km = k_bt_hand(body) * vec3(&sh.u[i]);
@@ -325,7 +448,11 @@ fn caps_stay_straight_and_body_bends_in_three_section_actuator() {
     let h = P002_BODY / STEPS as f64;
     let rtol = rot_tol(u.norm(), h, P002_BODY);
     let tol = arc_tol(u.norm(), h) * P002_BODY + rtol * P002_CAP_C;
-    assert!((vec3(&sol.tip.r) - tip).norm() < tol, "tip {:?} vs {tip}", sol.tip.r);
+    assert!(
+        (vec3(&sol.tip.r) - tip).norm() < tol,
+        "tip {:?} vs {tip}",
+        sol.tip.r
+    );
     assert!((mat(&sol.tip.rot) - rot2).norm() < rtol);
     // the cap nodes themselves
     for i in 0..sh.s.len() {
@@ -334,7 +461,11 @@ fn caps_stay_straight_and_body_bends_in_three_section_actuator() {
             2 => r2 + rot2.column(2) * (sh.s[i] - P002_CAP_A - P002_BODY),
             _ => continue,
         };
-        assert!((vec3(&sh.position[i]) - want).norm() < tol, "s = {}", sh.s[i]);
+        assert!(
+            (vec3(&sh.position[i]) - want).norm() < tol,
+            "s = {}",
+            sh.s[i]
+        );
     }
 }
 
@@ -357,11 +488,19 @@ fn three_section_actuator_balances_its_weight() {
     // here, the weight being 1.5 N): the tip force is zero to ~1e-10 N.
     const FORCE_TOL: f64 = 1e-9;
     let mass_beyond = |s: f64| -> f64 {
-        rod.sections.iter().map(|sec| sec.line_mass * ((sec.s_start + sec.length) - s.max(sec.s_start)).max(0.0)).sum()
+        rod.sections
+            .iter()
+            .map(|sec| sec.line_mass * ((sec.s_start + sec.length) - s.max(sec.s_start)).max(0.0))
+            .sum()
     };
     for i in 0..sh.s.len() {
         let want = [0.0, 0.0, -g * mass_beyond(sh.s[i])];
-        assert!(dist(&sh.force[i], &want) < FORCE_TOL * weight, "s = {}: n = {:?} want {want:?}", sh.s[i], sh.force[i]);
+        assert!(
+            dist(&sh.force[i], &want) < FORCE_TOL * weight,
+            "s = {}: n = {:?} want {want:?}",
+            sh.s[i],
+            sh.force[i]
+        );
     }
     // Base moment = int (r - r0) x f ds (m' = -r' x n, n(L) = m(L) = 0, r0 = 0), by
     // composite Simpson over each section's nodes (64 steps, even). Measured: Simpson's
@@ -370,16 +509,27 @@ fn three_section_actuator_balances_its_weight() {
     let mut total = Vector3::zeros();
     let mut start = 0;
     for (k, sec) in rod.sections.iter().enumerate() {
-        let idx: Vec<usize> = std::iter::once(start).chain((0..sh.s.len()).filter(|&i| sh.section[i] == k && i > 0)).collect();
+        let idx: Vec<usize> = std::iter::once(start)
+            .chain((0..sh.s.len()).filter(|&i| sh.section[i] == k && i > 0))
+            .collect();
         let h = sec.length / sec.steps as f64;
         let f = Vector3::new(0.0, 0.0, -g * sec.line_mass);
         for (j, &i) in idx.iter().enumerate() {
-            let w = if j == 0 || j == idx.len() - 1 { 1.0 } else if j % 2 == 1 { 4.0 } else { 2.0 };
+            let w = if j == 0 || j == idx.len() - 1 {
+                1.0
+            } else if j % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            };
             total += vec3(&sh.position[i]).cross(&f) * (w * h / 3.0);
         }
         start = *idx.last().unwrap();
     }
     let base = vec3(&sol.base_moment);
     assert!(base.norm() > 0.01 * weight * spec.length());
-    assert!((base - total).norm() < MOMENT_QUADRATURE_TOL * base.norm(), "base moment {base} vs int r x f {total}");
+    assert!(
+        (base - total).norm() < MOMENT_QUADRATURE_TOL * base.norm(),
+        "base moment {base} vs int r x f {total}"
+    );
 }

@@ -38,11 +38,18 @@ const EI: f64 = 1.0;
 /// A horizontal cantilever (d3 = +x, d1 = +z), gravity off, massless unless `mass` given.
 fn cantilever(steps: usize, mass: f64, g: f64) -> softrod_core::DesignSpec {
     let k = STIFF * EI / (L * L);
-    design(vec![direct_section("beam", L, k, k, EI, EI, mass, steps)], HORIZONTAL, g)
+    design(
+        vec![direct_section("beam", L, k, k, EI, EI, mass, steps)],
+        HORIZONTAL,
+        g,
+    )
 }
 
 fn opts() -> SolverOptions {
-    SolverOptions { tol: SOLVER_TOL, ..Default::default() }
+    SolverOptions {
+        tol: SOLVER_TOL,
+        ..Default::default()
+    }
 }
 
 /// (tip_x / L, deflection / L, tip angle) of a horizontal cantilever bending towards -z.
@@ -68,9 +75,15 @@ fn tip_load_matches_elastica() {
         let [x, d, phi] = tip_load_measures(alpha, STEPS);
         let got = [d, 1.0 - x, phi];
         let want = [deflection, shortening, angle];
-        for (name, g, w) in [("deflection", got[0], want[0]), ("shortening", got[1], want[1]), ("angle", got[2], want[2])]
-        {
-            assert!((g - w).abs() < TABLE_TOL, "alpha = {alpha}: {name} {g:.10} vs table {w:.10}");
+        for (name, g, w) in [
+            ("deflection", got[0], want[0]),
+            ("shortening", got[1], want[1]),
+            ("angle", got[2], want[2]),
+        ] {
+            assert!(
+                (g - w).abs() < TABLE_TOL,
+                "alpha = {alpha}: {name} {g:.10} vs table {w:.10}"
+            );
         }
     }
 }
@@ -85,7 +98,11 @@ fn distributed_measures(lambda: f64, steps: usize, by_gravity: bool) -> [f64; 3]
         tip_measures(&rod, &ld)
     } else {
         let mut spec = cantilever(steps, 0.0, 0.0);
-        spec.loads = vec![LineLoadSpec { section: 0, force_per_length: [0.0, 0.0, -q], moment_per_length: [0.0; 3] }];
+        spec.loads = vec![LineLoadSpec {
+            section: 0,
+            force_per_length: [0.0, 0.0, -q],
+            moment_per_length: [0.0; 3],
+        }];
         tip_measures(&Rod::new(spec).unwrap(), &ld)
     }
 }
@@ -119,7 +136,17 @@ fn step_count_resolves_the_tables() {
     let c = distributed_measures(10.0, STEPS, false);
     let d = distributed_measures(10.0, 2 * STEPS, false);
     for k in 0..3 {
-        assert!((a[k] - b[k]).abs() < STEP_DOUBLING_TOL, "tip load, measure {k}: {} vs {}", a[k], b[k]);
-        assert!((c[k] - d[k]).abs() < STEP_DOUBLING_TOL, "line load, measure {k}: {} vs {}", c[k], d[k]);
+        assert!(
+            (a[k] - b[k]).abs() < STEP_DOUBLING_TOL,
+            "tip load, measure {k}: {} vs {}",
+            a[k],
+            b[k]
+        );
+        assert!(
+            (c[k] - d[k]).abs() < STEP_DOUBLING_TOL,
+            "line load, measure {k}: {} vs {}",
+            c[k],
+            d[k]
+        );
     }
 }

@@ -29,7 +29,12 @@ fn to_py_err(py: Python<'_>, err: SoftrodError, ctx: Context) -> PyErr {
                 })?;
                 PyErr::from_value(cls.call1((msg, field, value, rule))?)
             }
-            SoftrodError::NotConverged { iterations, residual, load_factor, reason } => {
+            SoftrodError::NotConverged {
+                iterations,
+                residual,
+                load_factor,
+                reason,
+            } => {
                 let cls = errors.getattr("ConvergenceError")?;
                 PyErr::from_value(cls.call1((msg, iterations, residual, load_factor, reason))?)
             }
@@ -45,17 +50,26 @@ struct PyRod {
 }
 
 fn options(tol: f64, max_iter: usize, continuation: bool, max_load_steps: usize) -> SolverOptions {
-    SolverOptions { tol, max_iter, continuation, max_load_steps }
+    SolverOptions {
+        tol,
+        max_iter,
+        continuation,
+        max_load_steps,
+    }
 }
 
 fn array2<'py>(py: Python<'py>, rows: &[[f64; 3]]) -> PyResult<Bound<'py, PyAny>> {
     let flat: Vec<f64> = rows.iter().flatten().copied().collect();
-    Ok(PyArray1::from_vec(py, flat).reshape([rows.len(), 3])?.into_any())
+    Ok(PyArray1::from_vec(py, flat)
+        .reshape([rows.len(), 3])?
+        .into_any())
 }
 
 fn array3<'py>(py: Python<'py>, mats: &[[[f64; 3]; 3]]) -> PyResult<Bound<'py, PyAny>> {
     let flat: Vec<f64> = mats.iter().flatten().flatten().copied().collect();
-    Ok(PyArray1::from_vec(py, flat).reshape([mats.len(), 3, 3])?.into_any())
+    Ok(PyArray1::from_vec(py, flat)
+        .reshape([mats.len(), 3, 3])?
+        .into_any())
 }
 
 #[pymethods]
@@ -64,7 +78,11 @@ impl PyRod {
     #[new]
     fn new(py: Python<'_>, spec_json: &str) -> PyResult<Self> {
         let spec: DesignSpec = serde_json::from_str(spec_json).map_err(|e| {
-            to_py_err(py, SoftrodError::invalid("design", "(JSON)", e.to_string()), Context::Design)
+            to_py_err(
+                py,
+                SoftrodError::invalid("design", "(JSON)", e.to_string()),
+                Context::Design,
+            )
         })?;
         let rod = Rod::new(spec).map_err(|e| to_py_err(py, e, Context::Design))?;
         Ok(PyRod { rod })
@@ -100,11 +118,17 @@ impl PyRod {
                 d.set_item("steps", s.steps)?;
                 d.set_item("rigid", s.rigid)?;
                 d.set_item("k_se", s.k_se.to_vec())?;
-                d.set_item("k_bt", s.k_bt.iter().map(|r| r.to_vec()).collect::<Vec<_>>())?;
+                d.set_item(
+                    "k_bt",
+                    s.k_bt.iter().map(|r| r.to_vec()).collect::<Vec<_>>(),
+                )?;
                 d.set_item("line_mass", s.line_mass)?;
                 d.set_item(
                     "chambers",
-                    s.chambers.iter().map(|c| (c.area, c.centroid[0], c.centroid[1], c.channel)).collect::<Vec<_>>(),
+                    s.chambers
+                        .iter()
+                        .map(|c| (c.area, c.centroid[0], c.centroid[1], c.channel))
+                        .collect::<Vec<_>>(),
                 )?;
                 Ok(d)
             })
@@ -120,13 +144,17 @@ impl PyRod {
         pressures: Vec<f64>,
         tip_force: [f64; 3],
         tip_moment: [f64; 3],
-        guess: Option<[f64; 6]>,
+        guess: Option<[f64; 3]>,
         tol: f64,
         max_iter: usize,
         continuation: bool,
         max_load_steps: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let loads = Loads { pressures, tip_force, tip_moment };
+        let loads = Loads {
+            pressures,
+            tip_force,
+            tip_moment,
+        };
         let opts = options(tol, max_iter, continuation, max_load_steps);
         let rod = &self.rod;
         let result = py.detach(|| {
@@ -138,7 +166,10 @@ impl PyRod {
         let (sol, sh) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
         let d = PyDict::new(py);
         d.set_item("s", PyArray1::from_vec(py, sh.s))?;
-        d.set_item("section", PyArray1::from_vec(py, sh.section.iter().map(|&i| i as i64).collect()))?;
+        d.set_item(
+            "section",
+            PyArray1::from_vec(py, sh.section.iter().map(|&i| i as i64).collect()),
+        )?;
         d.set_item("position", array2(py, &sh.position)?)?;
         d.set_item("rotation", array3(py, &sh.rotation)?)?;
         d.set_item("force", array2(py, &sh.force)?)?;
@@ -174,7 +205,10 @@ impl PyRod {
                 SoftrodError::invalid(
                     "pressures",
                     format!("shape {shape:?}"),
-                    format!("must have {} columns, one per pressure channel", self.rod.n_channels),
+                    format!(
+                        "must have {} columns, one per pressure channel",
+                        self.rod.n_channels
+                    ),
                 ),
                 Context::Input,
             ));
@@ -195,9 +229,18 @@ impl PyRod {
         d.set_item("tip_rotation", array3(py, &tr)?)?;
         d.set_item("base_force", array2(py, &bf)?)?;
         d.set_item("base_moment", array2(py, &bm)?)?;
-        d.set_item("converged", PyArray1::from_vec(py, rows.iter().map(|r| r.converged).collect()))?;
-        d.set_item("iterations", PyArray1::from_vec(py, rows.iter().map(|r| r.iterations as i64).collect()))?;
-        d.set_item("residual", PyArray1::from_vec(py, rows.iter().map(|r| r.residual).collect()))?;
+        d.set_item(
+            "converged",
+            PyArray1::from_vec(py, rows.iter().map(|r| r.converged).collect()),
+        )?;
+        d.set_item(
+            "iterations",
+            PyArray1::from_vec(py, rows.iter().map(|r| r.iterations as i64).collect()),
+        )?;
+        d.set_item(
+            "residual",
+            PyArray1::from_vec(py, rows.iter().map(|r| r.residual).collect()),
+        )?;
         Ok(d)
     }
 }

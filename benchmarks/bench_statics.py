@@ -1,0 +1,456 @@
+"""Statics benchmark of softrod against scipy's solve_bvp (a script, not a test).
+
+    python benchmarks/bench_statics.py            # full run, writes benchmarks/results/statics.json
+    python benchmarks/bench_statics.py --quick    # smoke run (< 20 s), writes statics_quick.json
+
+For the design ``spa_three_chamber_130mm`` (paper 001's actuator, 0-70 kPa per chamber):
+1. discretisation: tip error of softrod at several steps_per_section against a reference 16x
+   finer than the design's setting, as a fraction of the length, at demanding pressures; the
+   smallest setting meeting 1e-6 L is used for all timings;
+2. the same accuracy criterion picks the tolerance of the solve_bvp baseline
+   (benchmarks/baseline_bvp.py);
+3. single cold solves (``solve_statics`` without ``initial``), median over many repetitions,
+   and the same solve through the binding directly (``design._rod.solve``) without the Python
+   wrapper's validation and result object;
+4. the 21^3 = 9261-point sweep 0-70 kPa with ``solve_statics_batch(threads=0)``;
+5. the baseline per cold solve, and the sweep time extrapolated from it.
+All times are medians of wall-clock times (time.perf_counter_ns) with the garbage collector off.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+import scipy
+import softrod
+from softrod.design import DEFAULT_STEPS
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+import baseline_bvp  # noqa: E402  (sibling module of this script)
+
+DESIGN = "spa_three_chamber_130mm"
+KPA = 1e3
+ACCURACY = 1e-6  # target: tip error <= 1e-6 of the length
+REFINE = 16  # the reference is 16x finer than the design's steps_per_section
+# Demanding cases of the paper's range: 70 kPa on one chamber, on two.
+DEMANDING = [(70.0, 0.0, 0.0), (0.0, 0.0, 70.0), (70.0, 70.0, 0.0), (0.0, 70.0, 70.0)]
+# Representative pressures for single solves (kPa): rest, one/two/three chambers, mixed.
+REPRESENTATIVE = [
+    (0.0, 0.0, 0.0),
+    (35.0, 0.0, 0.0),
+    (70.0, 0.0, 0.0),
+    (70.0, 70.0, 0.0),
+    (20.0, 45.0, 70.0),
+    (70.0, 35.0, 10.0),
+    (70.0, 70.0, 70.0),
+]
+STEP_CANDIDATES = [2, 3, 4, 5, 6, 7, 8, 10, 12, 16, 24, 32]
+TOL_CANDIDATES = [1e-3, 1e-4, 1e-5, 1e-6]
+BVP_NODES = 20  # initial mesh nodes per section (60 over the three sections)
+TARGETS = {"single_cold_solve_s": 50e-6, "sweep_s": 0.3, "speedup_vs_baseline": 100.0}
+
+
+def kpa(p) -> list[float]:
+    return [x * KPA for x in p]
+
+
+def with_steps(design, steps: int):
+    return design.replace({"numerics.steps_per_section": steps})
+
+
+def tip_error(design, steps: int, reference: dict) -> float:
+    """Worst tip error over DEMANDING at ``steps``, as a fraction of the length."""
+    d = with_steps(design, steps)
+    errs = [
+        np.linalg.norm(softrod.solve_statics(d, kpa(p)).tip_position - reference[p])
+        for p in DEMANDING
+    ]
+    return max(errs) / design.length
+
+
+def timed(fn, reps: int) -> list[float]:
+    """Wall-clock seconds of ``reps`` calls of fn(), GC off."""
+    out = []
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for _ in range(reps):
+            t0 = time.perf_counter_ns()
+            fn()
+            out.append((time.perf_counter_ns() - t0) * 1e-9)
+    finally:
+        if enabled:
+            gc.enable()
+    return out
+
+
+def median(xs) -> float:
+    return float(statistics.median(xs))
+
+
+def fmt_t(seconds: float) -> str:
+    if seconds < 1e-3:
+        return f"{seconds * 1e6:.1f} us"
+    if seconds < 1.0:
+        return f"{seconds * 1e3:.2f} ms"
+    return f"{seconds:.3f} s"
+
+
+def machine() -> dict:
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"],
+            cwd=HERE,
+            capture_output=True,
+            text=True,
+            timeout=5,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        commit = ""
+    return {
+        "cpu_count": os.cpu_count(),
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "softrod": softrod.__version__,
+        "git_commit": commit,
+        "load_average_before": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
+    }
+
+
+def write_json(path: Path, data: dict) -> None:
+    """Atomic write: temporary file in the same folder, then rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump(data, fh, indent=2)
+            fh.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def run(quick: bool) -> dict:
+    t_start = time.perf_counter()
+    base = softrod.load_design(DESIGN)
+    length = base.length
+    design_steps = base.document.get("numerics", {}).get("steps_per_section", DEFAULT_STEPS)
+    info = machine()
+    print(
+        f"softrod statics benchmark: {DESIGN} (L = {length * 1e3:.1f} mm, "
+        f"{base.n_channels} channels), {'quick' if quick else 'full'} mode"
+    )
+    print(
+        f"machine: {info['cpu_count']} CPUs, {info['platform']}, Python {info['python']}, "
+        f"numpy {info['numpy']}, scipy {info['scipy']}, softrod {info['softrod']} "
+        f"({info['git_commit']}), load average {info['load_average_before']}"
+    )
+
+    # 1. Discretisation study --------------------------------------------------------------
+    ref_steps = REFINE * design_steps
+    ref_design = with_steps(base, ref_steps)
+    reference = {p: softrod.solve_statics(ref_design, kpa(p)).tip_position for p in DEMANDING}
+    study = {n: tip_error(base, n, reference) for n in STEP_CANDIDATES if n < ref_steps}
+    meeting = [n for n, e in study.items() if e <= ACCURACY]
+    steps = min(meeting) if meeting else ref_steps
+    # The reference itself, checked by the independent solver at a tight tolerance.
+    ref_check = (
+        max(
+            np.linalg.norm(
+                baseline_bvp.solve_bvp_tip(base, kpa(p), nodes=BVP_NODES, tol=1e-8)[0]
+                - reference[p]
+            )
+            for p in DEMANDING[: 2 if quick else None]
+        )
+        / length
+    )
+    print(
+        f"\n[1] discretisation: worst tip error over {len(DEMANDING)} demanding cases "
+        f"(70 kPa on one / two chambers) vs {ref_steps} steps/section, fraction of L"
+    )
+    print("    steps/section " + " ".join(f"{n:>8d}" for n in study))
+    print("    error / L     " + " ".join(f"{e:8.1e}" for e in study.values()))
+    print(
+        f"    design setting {design_steps}: {study.get(design_steps, float('nan')):.1e} L; "
+        f"smallest meeting {ACCURACY:.0e} L: {steps} steps/section (used for all timings)"
+    )
+    print(f"    reference checked against solve_bvp (tol 1e-8): agree to {ref_check:.1e} L")
+    design = with_steps(base, steps)
+
+    # 2. Baseline tolerance by the same criterion ------------------------------------------
+    tol_study = {}
+    for tol in TOL_CANDIDATES:
+        errs = [
+            np.linalg.norm(
+                baseline_bvp.solve_bvp_tip(base, kpa(p), nodes=BVP_NODES, tol=tol)[0] - reference[p]
+            )
+            for p in DEMANDING
+        ]
+        tol_study[tol] = max(errs) / length
+    tol_ok = [t for t, e in tol_study.items() if e <= ACCURACY]
+    bvp_tol = max(tol_ok) if tol_ok else min(TOL_CANDIDATES)
+    print(
+        f"\n[2] solve_bvp baseline ({BVP_NODES} initial nodes per section, exact Jacobians): "
+        "worst tip error vs the reference"
+    )
+    print("    tol           " + " ".join(f"{t:8.0e}" for t in tol_study))
+    print("    error / L     " + " ".join(f"{e:8.1e}" for e in tol_study.values()))
+    print(f"    largest tol meeting {ACCURACY:.0e} L: {bvp_tol:.0e}")
+
+    # 3. Single cold solves ---------------------------------------------------------------
+    reps = 30 if quick else 300
+    warm = 5 if quick else 50
+    rod = design._rod
+    opts = softrod.SolverOptions().as_kwargs()
+    tip = design.spec["tip"]
+    tf = [float(x) for x in tip["force"]]
+    tm = [float(x) for x in tip["moment"]]
+    single = {}
+    for p in REPRESENTATIVE:
+        pp = kpa(p)
+        sol = softrod.solve_statics(design, pp)
+        api = lambda pp=pp: softrod.solve_statics(design, pp)  # noqa: E731
+        core = lambda pp=pp: rod.solve(pp, tf, tm, guess=None, **opts)  # noqa: E731
+        timed(api, warm)
+        timed(core, warm)
+        single[p] = {
+            "api_s": median(timed(api, reps)),
+            "binding_s": median(timed(core, reps)),
+            "iterations": int(sol.iterations),
+            "load_steps": int(sol.load_steps),
+            "tip_mm": (sol.tip_position * 1e3).round(4).tolist(),
+        }
+    api_all = median([v["api_s"] for v in single.values()])
+    core_all = median([v["binding_s"] for v in single.values()])
+    default_api = None
+    if steps != design_steps:
+        d16 = base
+        timed(lambda: softrod.solve_statics(d16, kpa(DEMANDING[0])), warm)
+        default_api = median(
+            [
+                median(timed(lambda p=p: softrod.solve_statics(d16, kpa(p)), max(reps // 3, 10)))
+                for p in REPRESENTATIVE
+            ]
+        )
+
+    # 4. Sweep ----------------------------------------------------------------------------
+    grid = np.linspace(0.0, 70.0 * KPA, 21)
+    pressures = np.stack(np.meshgrid(grid, grid, grid, indexing="ij"), axis=-1).reshape(-1, 3)
+    runs = 1 if quick else 7
+    softrod.solve_statics_batch(design, pressures[:200], threads=0)  # warm-up (thread pool)
+    sweep_times = []
+    converged = None
+    for _ in range(runs):
+        t0 = time.perf_counter_ns()
+        batch = softrod.solve_statics_batch(design, pressures, threads=0)
+        sweep_times.append((time.perf_counter_ns() - t0) * 1e-9)
+        converged = int(np.count_nonzero(batch.converged))
+    sweep = median(sweep_times)
+
+    # 5. Baseline ---------------------------------------------------------------------------
+    b_reps = 2 if quick else 15
+    b_cases = REPRESENTATIVE[1:4] if quick else REPRESENTATIVE
+    base_stats = {}
+    agree = 0.0
+    for p in b_cases:
+        pp = kpa(p)
+        res = baseline_bvp.solve_bvp_full(base, pp, nodes=BVP_NODES, tol=bvp_tol)
+        tip = softrod.solve_statics(design, pp).tip_position
+        agree = max(agree, float(np.linalg.norm(res.tip_position - tip)) / length)
+        times = timed(
+            lambda pp=pp: baseline_bvp.solve_bvp_tip(base, pp, nodes=BVP_NODES, tol=bvp_tol), b_reps
+        )
+        base_stats[p] = {
+            "time_s": median(times),
+            "success": res.success,
+            "nfev": res.nfev,
+            "final_nodes": res.nodes,
+        }
+    bvp_single = median([v["time_s"] for v in base_stats.values()])
+    bvp_fd = None
+    if not quick:
+        fd_times = [
+            median(
+                timed(
+                    lambda p=p: baseline_bvp.solve_bvp_tip(
+                        base, kpa(p), nodes=BVP_NODES, tol=bvp_tol, exact_jacobian=False
+                    ),
+                    3,
+                )
+            )
+            for p in b_cases
+        ]
+        bvp_fd = median(fd_times)
+    bvp_sweep = bvp_single * len(pressures)
+
+    ratio_single = bvp_single / api_all
+    ratio_sweep = bvp_sweep / sweep
+    checks = {
+        "single_cold_solve": api_all <= TARGETS["single_cold_solve_s"],
+        "sweep": sweep <= TARGETS["sweep_s"],
+        "speedup_single": ratio_single >= TARGETS["speedup_vs_baseline"],
+        "speedup_sweep": ratio_sweep >= TARGETS["speedup_vs_baseline"],
+    }
+
+    # Table --------------------------------------------------------------------------------
+    def ok(flag: bool) -> str:
+        return "met" if flag else "MISSED"
+
+    print(f"\n[3] single cold solve, steps/section = {steps}, median of {reps} per pressure")
+    print(
+        f"    {'pressures kPa':<20} {'solve_statics':>14} {'_rod.solve':>12} {'Newton it':>9} "
+        f"{'loads':>5}  tip mm"
+    )
+    for p, v in single.items():
+        print(
+            f"    {str(p):<20} {fmt_t(v['api_s']):>14} {fmt_t(v['binding_s']):>12} "
+            f"{v['iterations']:>9d} {v['load_steps']:>5d}  {v['tip_mm']}"
+        )
+    print(f"\n[4] baseline solve_bvp, tol {bvp_tol:.0e}, median of {b_reps} per pressure")
+    for p, v in base_stats.items():
+        print(
+            f"    {str(p):<20} {fmt_t(v['time_s']):>14}  success={v['success']} "
+            f"rhs evaluations={v['nfev']} final nodes={v['final_nodes']}"
+        )
+    print(
+        f"    tip agreement softrod ({steps} steps) vs baseline (tol {bvp_tol:.0e}): {agree:.1e} L"
+    )
+
+    w = 44
+    print("\n" + "=" * 96)
+    print(f"{'quantity':<{w}} {'softrod':>12} {'solve_bvp':>12} {'ratio':>8}  target")
+    print("-" * 96)
+    print(
+        f"{'single cold solve, solve_statics (median)':<{w}} {fmt_t(api_all):>12} "
+        f"{fmt_t(bvp_single):>12} {ratio_single:>7.0f}x  "
+        f"<= 50 us: {ok(checks['single_cold_solve'])}"
+        f"; >= 100x: {ok(checks['speedup_single'])}"
+    )
+    print(
+        f"{'single cold solve, _rod.solve (binding only)':<{w}} {fmt_t(core_all):>12} "
+        f"{'':>12} {bvp_single / core_all:>7.0f}x"
+    )
+    if default_api is not None:
+        print(
+            f"{f'single cold solve at design steps ({design_steps})':<{w}} "
+            f"{fmt_t(default_api):>12} {'':>12} {bvp_single / default_api:>7.0f}x"
+        )
+    if bvp_fd is not None:
+        print(
+            f"{'baseline with finite-difference Jacobians':<{w}} {'':>12} {fmt_t(bvp_fd):>12} "
+            f"{bvp_fd / api_all:>7.0f}x"
+        )
+    print(
+        f"{'sweep 21^3 = 9261 points (threads=0)':<{w}} {fmt_t(sweep):>12} "
+        f"{fmt_t(bvp_sweep) + '*':>12} {ratio_sweep:>7.0f}x  <= 0.3 s: {ok(checks['sweep'])}"
+        f"; >= 100x: {ok(checks['speedup_sweep'])}"
+    )
+    print(f"{'  converged':<{w}} {f'{converged}/{len(pressures)}':>12}")
+    print("-" * 96)
+    print(
+        f"* extrapolated: baseline median cold solve x {len(pressures)}, one core; softrod's "
+        f"sweep uses all {os.cpu_count()} cores and warm-starts along rows."
+    )
+    print(
+        f"settings: steps/section {steps} (tip error {study[steps]:.1e} L; design file: "
+        f"{design_steps}), Newton tol {opts['tol']:.0e}; solve_bvp tol {bvp_tol:.0e}, "
+        f"{BVP_NODES} nodes/section, exact Jacobians; medians of {reps} (single), {runs} "
+        f"(sweep), {b_reps} (baseline) runs"
+    )
+    print(
+        f"machine: {info['cpu_count']} CPUs, {info['platform']}; load average now "
+        f"{list(os.getloadavg()) if hasattr(os, 'getloadavg') else None}"
+    )
+    print("=" * 96)
+
+    info["load_average_after"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
+    return {
+        "benchmark": "statics",
+        "design": DESIGN,
+        "mode": "quick" if quick else "full",
+        "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "machine": info,
+        "units": "seconds; errors as a fraction of the length",
+        "discretisation": {
+            "accuracy_target": ACCURACY,
+            "reference_steps_per_section": ref_steps,
+            "demanding_pressures_kPa": [list(p) for p in DEMANDING],
+            "worst_tip_error_by_steps": {str(n): e for n, e in study.items()},
+            "design_steps_per_section": design_steps,
+            "chosen_steps_per_section": steps,
+            "reference_vs_solve_bvp_tol_1e-8": ref_check,
+        },
+        "baseline_settings": {
+            "solver": "scipy.integrate.solve_bvp",
+            "nodes_per_section": BVP_NODES,
+            "worst_tip_error_by_tol": {f"{t:.0e}": e for t, e in tol_study.items()},
+            "chosen_tol": bvp_tol,
+            "exact_jacobians": True,
+            "tip_agreement_with_softrod": agree,
+        },
+        "single_cold_solve": {
+            "repetitions_per_pressure": reps,
+            "per_pressure_kPa": {str(p): v for p, v in single.items()},
+            "median_api_s": api_all,
+            "median_binding_s": core_all,
+            "median_api_at_design_steps_s": default_api,
+        },
+        "sweep": {
+            "points": len(pressures),
+            "runs": runs,
+            "threads": 0,
+            "median_s": sweep,
+            "times_s": sweep_times,
+            "converged": converged,
+        },
+        "baseline": {
+            "repetitions_per_pressure": b_reps,
+            "per_pressure_kPa": {str(p): v for p, v in base_stats.items()},
+            "median_single_s": bvp_single,
+            "median_single_finite_difference_jacobian_s": bvp_fd,
+            "sweep_extrapolated_s": bvp_sweep,
+        },
+        "ratios": {"single": ratio_single, "sweep": ratio_sweep},
+        "targets": TARGETS,
+        "targets_met": checks,
+        "wall_time_s": time.perf_counter() - t_start,
+    }
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="smoke run (< 20 s)")
+    parser.add_argument(
+        "--output",
+        type=Path,
+        default=None,
+        help="JSON file (default benchmarks/results/statics.json, "
+        "or statics_quick.json with --quick)",
+    )
+    args = parser.parse_args(argv)
+    result = run(args.quick)
+    out = args.output or HERE / "results" / ("statics_quick.json" if args.quick else "statics.json")
+    write_json(out, result)
+    print(f"results written to {out} ({result['wall_time_s']:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,43 @@
+//! Time the pieces of one static solve (used while optimising; `cargo run --release --example profile_solve`).
+use softrod_core::ode::Loads;
+use softrod_core::statics::{residual, residual_and_jacobian, solve, SolverOptions};
+use softrod_core::{DesignSpec, Rod};
+use std::time::Instant;
+
+fn main() {
+    let path = std::env::args()
+        .nth(1)
+        .expect("usage: profile_solve SPEC.json");
+    let spec: DesignSpec = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let rod = Rod::new(spec).unwrap();
+    let loads = Loads {
+        pressures: vec![70e3, 35e3, 0.0],
+        tip_force: [0.0; 3],
+        tip_moment: [0.0; 3],
+    };
+    let opts = SolverOptions::default();
+    let sol = solve(&rod, &loads, None, &opts).unwrap();
+    let n = 2000;
+    let t = Instant::now();
+    for _ in 0..n {
+        std::hint::black_box(residual(&rod, &loads, &sol.x));
+    }
+    let f64_pass = t.elapsed().as_secs_f64() / n as f64;
+    let t = Instant::now();
+    for _ in 0..n {
+        std::hint::black_box(residual_and_jacobian(&rod, &loads, &sol.x));
+    }
+    let dual_pass = t.elapsed().as_secs_f64() / n as f64;
+    let t = Instant::now();
+    let mut it = 0;
+    for _ in 0..n {
+        it = std::hint::black_box(solve(&rod, &loads, None, &opts).unwrap()).iterations;
+    }
+    let cold = t.elapsed().as_secs_f64() / n as f64;
+    println!(
+        "f64 pass {:.2} us, dual pass {:.2} us, cold solve {:.2} us ({it} iterations)",
+        f64_pass * 1e6,
+        dual_pass * 1e6,
+        cold * 1e6
+    );
+}
