@@ -102,17 +102,15 @@ def _parse_quantities(items: list[str], kind: str, fields: list[str]) -> list[fl
             raise design_error(f, t, f"is empty: give a {kind} such as '30kPa'", InputError)
     bare = [_is_bare(t) for t in items]
     if len(items) > 1 and not bare[-1] and all(bare[:-1]):
-        try:
-            unit = registry().Quantity(items[-1]).units
-        except Exception:  # an unreadable last item: to_si below names it
-            unit = None
-        if unit is not None:
-            items = [f"{t} {unit}" if b else t for t, b in zip(items, bare, strict=True)]
+        to_si(items[-1], kind, fields[-1], InputError)  # a bad unit is named where it was given
+        unit = registry().Quantity(items[-1]).units
+        items = [f"{t} {unit}" if b else t for t, b in zip(items, bare, strict=True)]
     elif not all(bare):
         for t, b, f in zip(items, bare, fields, strict=True):
             if b and float(t) != 0.0:
                 raise design_error(
-                    f, t,
+                    f,
+                    t,
                     "bare number next to values with units is ambiguous: give it a unit "
                     "(a unit on the last item alone applies to all items)",
                     InputError,
@@ -123,8 +121,7 @@ def _parse_quantities(items: list[str], kind: str, fields: list[str]) -> list[fl
 def _parse_vector(text: str, kind: str, option: str, count: int) -> list[float]:
     items = text.split(",")
     if len(items) != count:
-        raise design_error(option, text, f"give {count} comma-separated {kind} values",
-                           InputError)
+        raise design_error(option, text, f"give {count} comma-separated {kind} values", InputError)
     return _parse_quantities(items, kind, [f"{option}[{i}]" for i in range(count)])
 
 
@@ -135,7 +132,8 @@ def _parse_pressures(text: str | None, design: Design) -> list[float]:
     items = text.split(",")
     if len(items) != n:
         raise design_error(
-            "--pressure", text,
+            "--pressure",
+            text,
             f"design {design.name} has {n} pressure channel{'s' if n != 1 else ''}; give {n} "
             "comma-separated gauge pressures, e.g. " + ",".join(["30kPa"] + ["0"] * (n - 1)),
             InputError,
@@ -143,8 +141,12 @@ def _parse_pressures(text: str | None, design: Design) -> list[float]:
     values = _parse_quantities(items, "pressure", [f"--pressure[{i}]" for i in range(n)])
     for i, p in enumerate(values):
         if p < -ATM:
-            raise design_error(f"--pressure[{i}]", items[i].strip(),
-                               "gauge pressure must be >= -1 atm (-101325 Pa)", InputError)
+            raise design_error(
+                f"--pressure[{i}]",
+                items[i].strip(),
+                "gauge pressure must be >= -1 atm (-101325 Pa)",
+                InputError,
+            )
     return values
 
 
@@ -152,10 +154,8 @@ def _parse_grid(text: str, option: str = "--grid") -> np.ndarray:
     """START:STOP:COUNT -> COUNT evenly spaced pressures in Pa (both ends included)."""
     parts = text.split(":")
     if len(parts) != 3:
-        raise design_error(option, text, "must read START:STOP:COUNT, e.g. 0:70kPa:21",
-                           InputError)
-    start, stop = _parse_quantities(parts[:2], "pressure",
-                                    [f"{option}.start", f"{option}.stop"])
+        raise design_error(option, text, "must read START:STOP:COUNT, e.g. 0:70kPa:21", InputError)
+    start, stop = _parse_quantities(parts[:2], "pressure", [f"{option}.start", f"{option}.stop"])
     try:
         count = int(parts[2])
     except ValueError:
@@ -163,13 +163,20 @@ def _parse_grid(text: str, option: str = "--grid") -> np.ndarray:
     if count < 1:
         raise design_error(f"{option}.count", parts[2], "must be an integer >= 1", InputError)
     if count == 1 and start != stop:
-        raise design_error(f"{option}.count", parts[2],
-                           "COUNT = 1 needs START = STOP (or give COUNT >= 2)", InputError)
-    for name, value, raw in ((f"{option}.start", start, parts[0]),
-                             (f"{option}.stop", stop, parts[1])):
+        raise design_error(
+            f"{option}.count",
+            parts[2],
+            "COUNT = 1 needs START = STOP (or give COUNT >= 2)",
+            InputError,
+        )
+    for name, value, raw in (
+        (f"{option}.start", start, parts[0]),
+        (f"{option}.stop", stop, parts[1]),
+    ):
         if value < -ATM:
-            raise design_error(name, raw.strip(), "gauge pressure must be >= -1 atm (-101325 Pa)",
-                               InputError)
+            raise design_error(
+                name, raw.strip(), "gauge pressure must be >= -1 atm (-101325 Pa)", InputError
+            )
     return np.linspace(start, stop, count)
 
 
@@ -199,6 +206,14 @@ def _lateral(sol: StaticSolution) -> float:
     return float(np.linalg.norm(d - np.dot(d, t0) * t0))
 
 
+def _for_option(check, path: Path, option: str) -> Path:
+    """Run a path check; name the command-line option in the error instead of 'path'."""
+    try:
+        return check(path)
+    except InputError as exc:
+        raise design_error(option, str(path), exc.rule, InputError) from None
+
+
 def _pyplot():
     # The CLI only writes files, never opens windows: the non-interactive Agg backend works
     # with and without a display. Selected here, never when the library is imported.
@@ -225,23 +240,27 @@ class _RateColumn(ProgressColumn):
     """Rows per second of a progress task."""
 
     def render(self, task) -> Text:
-        speed = task.finished_speed or task.speed
-        return Text("-- rows/s" if speed is None else f"{speed:,.0f} rows/s", style="cyan")
+        # The mean rate since the start: steadier than rich's windowed estimate, and defined
+        # after a single advance (a sweep of one chunk).
+        elapsed = task.elapsed
+        if not elapsed or not task.completed:
+            return Text("-- rows/s", style="cyan")
+        return Text(f"{task.completed / elapsed:,.0f} rows/s", style="cyan")
 
 
-def _run_sweep(design: Design, pressures: np.ndarray, threads: int, chunk: int,
-               console: Console, label: str) -> tuple[dict[str, np.ndarray], float]:
+def _run_sweep(
+    design: Design, pressures: np.ndarray, threads: int, chunk: int, console: Console, label: str
+) -> tuple[dict[str, np.ndarray], float]:
     """Solve every row in chunks under a progress bar; return (results, wall time s)."""
     m = len(pressures)
     tips = np.empty((m, 3))
     converged = np.empty(m, dtype=bool)
     iterations = np.empty(m, dtype=np.int64)
-    columns = (
+    columns = (  # fits in 80 columns
         TextColumn("[bold]{task.description}"),
-        BarColumn(),
+        BarColumn(bar_width=24),
         MofNCompleteColumn(),
         _RateColumn(),
-        TextColumn("elapsed"),
         TimeElapsedColumn(),
         TextColumn("ETA"),
         TimeRemainingColumn(),
@@ -277,8 +296,7 @@ def _sweep_frame(pressures: np.ndarray, res: dict[str, np.ndarray]):
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(__version__, "--version", prog_name="softrod",
-                      message="%(prog)s %(version)s")
+@click.version_option(__version__, "--version", prog_name="softrod", message="%(prog)s %(version)s")
 def main():
     """softrod: Cosserat-rod models of soft pneumatic actuators.
 
@@ -290,21 +308,39 @@ def main():
 
 @main.command()
 @click.argument("design")
-@click.option("--pressure", "-p", metavar="P1,P2,...",
-              help="Gauge pressure per channel, comma-separated, e.g. 30kPa,0,0 or 0.3bar,0,0. "
-                   "A bare number is Pa; a unit on the last item alone applies to all. "
-                   "Default: 0 on every channel.")
-@click.option("--tip-force", metavar="FX,FY,FZ",
-              help='Dead tip force in the world frame, e.g. "0,0,-1 N" (replaces the design\'s).')
-@click.option("--tip-moment", metavar="MX,MY,MZ",
-              help='Dead tip moment in the world frame, e.g. "0,5,0 N*mm".')
+@click.option(
+    "--pressure",
+    "-p",
+    metavar="P1,P2,...",
+    help="Gauge pressure per channel, comma-separated, e.g. 30kPa,0,0 or 0.3bar,0,0. "
+    "A bare number is Pa; a unit on the last item alone applies to all. "
+    "Default: 0 on every channel.",
+)
+@click.option(
+    "--tip-force",
+    metavar="FX,FY,FZ",
+    help='Dead tip force in the world frame, e.g. "0,0,-1 N" (replaces the design\'s).',
+)
+@click.option(
+    "--tip-moment",
+    metavar="MX,MY,MZ",
+    help='Dead tip moment in the world frame, e.g. "0,5,0 N*mm".',
+)
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object with SI values.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the 3-D shape figure here (format from the suffix: .png, .pdf, .svg).")
+@click.option(
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the 3-D shape figure here (format from the suffix: .png, .pdf, .svg).",
+)
 @_handle_errors
 def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
     """Static shape of DESIGN under the given chamber pressures."""
     d = load_design(design)
+    if plot_path is not None:
+        from .plotting import check_figure_path
+
+        _for_option(check_figure_path, plot_path, "--plot")
     p = _parse_pressures(pressure, d)
     tf = None if tip_force is None else _parse_vector(tip_force, "force", "--tip-force", 3)
     tm = None if tip_moment is None else _parse_vector(tip_moment, "moment", "--tip-moment", 3)
@@ -345,18 +381,34 @@ def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
     if plot_path is not None:
         written = _write_shape_plot([sol], plot_path)
         # Keep stdout pure JSON with --json: say where the figure went on stderr instead.
-        Console(stderr=as_json, highlight=False).print(f"wrote {written}")
+        Console(stderr=as_json, highlight=False).print(Text(f"wrote {written}"), soft_wrap=True)
 
 
 @main.command()
 @click.argument("design")
-@click.option("--grid", "grids", multiple=True, required=True, metavar="START:STOP:COUNT",
-              help="Pressures per channel, e.g. 0:70kPa:21 (a unit on STOP alone applies to "
-                   "both ends). Give it once for every channel, or once per channel.")
-@click.option("--out", "out", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="Output table, .csv or .parquet (written whole or not at all).")
-@click.option("--threads", default=0, show_default=True, type=click.IntRange(min=0),
-              help="Worker threads (0 = all cores).")
+@click.option(
+    "--grid",
+    "grids",
+    multiple=True,
+    required=True,
+    metavar="START:STOP:COUNT",
+    help="Pressures per channel, e.g. 0:70kPa:21 (a unit on STOP alone applies to "
+    "both ends). Give it once for every channel, or once per channel.",
+)
+@click.option(
+    "--out",
+    "out",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Output table, .csv or .parquet (written whole or not at all).",
+)
+@click.option(
+    "--threads",
+    default=0,
+    show_default=True,
+    type=click.IntRange(min=0),
+    help="Worker threads (0 = all cores).",
+)
 @_handle_errors
 def sweep(design, grids, out, threads):
     """Tip positions over a full-factorial pressure grid of DESIGN.
@@ -367,23 +419,38 @@ def sweep(design, grids, out, threads):
     """
     d = load_design(design)
     n = d.n_channels
-    out = check_table_path(out)
+    if n == 0:
+        raise design_error(
+            "design",
+            d.name,
+            "has no pressure channels: nothing to sweep (use `softrod solve`)",
+            InputError,
+        )
+    out = _for_option(check_table_path, out, "--out")
     if len(grids) == 1:
         axes = [_parse_grid(grids[0])] * n
     elif len(grids) == n:
         axes = [_parse_grid(g, f"--grid[{k}]") for k, g in enumerate(grids)]
     else:
-        raise design_error("--grid", list(grids),
-                           f"give one --grid for all {n} channels or one per channel "
-                           f"({n}), not {len(grids)}", InputError)
+        raise design_error(
+            "--grid",
+            list(grids),
+            f"give one --grid for all {n} channels or one per channel ({n}), not {len(grids)}",
+            InputError,
+        )
     rows = math.prod(len(a) for a in axes)
     if rows > MAX_SWEEP_ROWS:
-        raise design_error("--grid", list(grids),
-                           f"the grid has {rows:,} rows; the limit is {MAX_SWEEP_ROWS:,} "
-                           "(use fewer points per channel)", InputError)
+        raise design_error(
+            "--grid",
+            list(grids),
+            f"the grid has {rows:,} rows; the limit is {MAX_SWEEP_ROWS:,} "
+            "(use fewer points per channel)",
+            InputError,
+        )
     pressures = _full_factorial(axes)
     console = _stdout()
-    res, wall = _run_sweep(d, pressures, threads, SWEEP_CHUNK, console, f"sweep {d.name}")
+    console.print(Text(f"{d.name}: {rows:,} rows ({' x '.join(str(len(a)) for a in axes)})"))
+    res, wall = _run_sweep(d, pressures, threads, SWEEP_CHUNK, console, "sweep")
     write_table(_sweep_frame(pressures, res), out)
     n_ok = int(res["converged"].sum())
     style = "green" if n_ok == rows else "yellow"
@@ -391,22 +458,31 @@ def sweep(design, grids, out, threads):
         f"{rows:,} rows, [{style}]{n_ok:,} converged[/{style}], wall time {wall:.2f} s, "
         f"{rows / wall:,.0f} solves/s"
     )
-    console.print(Text(f"wrote {out}"))
+    console.print(Text(f"wrote {out}"), soft_wrap=True)
 
 
 @main.command()
-@click.option("--out-dir", default="softrod-demo", show_default=True,
-              type=click.Path(file_okay=False, path_type=Path),
-              help="Folder for shapes.png and tips.csv (created if needed).")
+@click.option(
+    "--out-dir",
+    default="softrod-demo",
+    show_default=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Folder for shapes.png and tips.csv (created if needed).",
+)
 @_handle_errors
 def demo(out_dir):
-    """Solve the bundled three-chamber actuator at a few pressures, plot, and sweep."""
+    """Tour: solve, plot and sweep the bundled three-chamber actuator (a few seconds).
+
+    Writes shapes.png (all shapes in one 3-D figure) and tips.csv to --out-dir.
+    """
     import pandas as pd
 
     console = _stdout()
     d = load_design(DEMO_DESIGN)
-    console.print(f"[bold]{d.name}[/bold]: {d.length * 1e3:.0f} mm, {d.n_channels} chambers, "
-                  f"hanging under gravity")
+    console.print(
+        f"[bold]{d.name}[/bold]: {d.length * 1e3:.0f} mm, {d.n_channels} chambers, "
+        f"hanging under gravity"
+    )
     console.print(Text(d.citation, style="dim"))
 
     solutions, rows = [], []
@@ -417,45 +493,68 @@ def demo(out_dir):
         dt = time.perf_counter() - t0
         solutions.append(sol)
         tip = sol.tip_position * 1e3
-        rows.append({
-            **{f"p{k + 1}_kPa": float(case[k]) for k in range(len(case))},
-            "x_mm": tip[0], "y_mm": tip[1], "z_mm": tip[2],
-            "lateral_mm": _lateral(sol) * 1e3,
-            "iterations": int(sol.iterations),
-            "solve_time_us": round(dt * 1e6, 1),
-        })
+        rows.append(
+            {
+                **{f"p{k + 1}_kPa": float(case[k]) for k in range(len(case))},
+                "x_mm": tip[0],
+                "y_mm": tip[1],
+                "z_mm": tip[2],
+                "lateral_mm": _lateral(sol) * 1e3,
+                "iterations": int(sol.iterations),
+                "solve_time_us": round(dt * 1e6, 1),
+            }
+        )
 
-    table = Table(title="tip positions (world frame; base at the origin, hanging along -z)",
-                  title_justify="left")
-    for name in ("p1\nkPa", "p2\nkPa", "p3\nkPa", "tip x\nmm", "tip y\nmm", "tip z\nmm",
-                 "lateral\nmm", "iter-\nations", "solve\ntime µs"):
+    table = Table(
+        title="tip positions (world frame; base at the origin, hanging along -z)",
+        title_justify="left",
+    )
+    for name in (
+        "p1\nkPa",
+        "p2\nkPa",
+        "p3\nkPa",
+        "tip x\nmm",
+        "tip y\nmm",
+        "tip z\nmm",
+        "lateral\nmm",
+        "iter-\nations",
+        "solve\ntime µs",
+    ):
         table.add_column(name, justify="right")
     for r in rows:
-        table.add_row(f"{r['p1_kPa']:g}", f"{r['p2_kPa']:g}", f"{r['p3_kPa']:g}",
-                      _fmt(r["x_mm"], 2), _fmt(r["y_mm"], 2), _fmt(r["z_mm"], 2),
-                      _fmt(r["lateral_mm"], 2), f"{r['iterations']}",
-                      f"{r['solve_time_us']:,.0f}")
+        table.add_row(
+            f"{r['p1_kPa']:g}",
+            f"{r['p2_kPa']:g}",
+            f"{r['p3_kPa']:g}",
+            _fmt(r["x_mm"], 2),
+            _fmt(r["y_mm"], 2),
+            _fmt(r["z_mm"], 2),
+            _fmt(r["lateral_mm"], 2),
+            f"{r['iterations']}",
+            f"{r['solve_time_us']:,.0f}",
+        )
     console.print(table)
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    shapes = _write_shape_plot(solutions, out_dir / "shapes.png",
-                               title=f"{d.name}: static shapes")
+    shapes = _write_shape_plot(solutions, out_dir / "shapes.png", title=f"{d.name}: static shapes")
     tips = write_table(pd.DataFrame(rows), out_dir / "tips.csv")
 
     start, stop, count = DEMO_SWEEP
     grid = _full_factorial([np.linspace(start, stop, count)] * d.n_channels)
-    # One chunk per plane of the cube, so the bar moves even on this small grid.
-    res, wall = _run_sweep(d, grid, 0, count * count, console,
-                           f"sweep {count}^{d.n_channels}")
+    res, wall = _run_sweep(d, grid, 0, SWEEP_CHUNK, console, f"sweep {count}^{d.n_channels}")
     n_ok = int(res["converged"].sum())
     # The demo design hangs from the origin along -z: lateral reach is the distance from z.
     lateral = np.hypot(res["tip_position"][:, 0], res["tip_position"][:, 1]) * 1e3
-    console.print(f"sweep of {len(grid)} pressure combinations, {start / 1e3:g}-{stop / 1e3:g} "
-                  f"kPa per chamber: {n_ok} converged")
-    console.print(f"  {wall * 1e3:.0f} ms, [bold]{len(grid) / wall:,.0f} solves/s[/bold]; "
-                  f"lateral reach up to {np.nanmax(lateral):.1f} mm")
-    console.print(Text(f"wrote {shapes}"))
-    console.print(Text(f"wrote {tips}"))
+    console.print(
+        f"sweep of {len(grid)} pressure combinations, {start / 1e3:g}-{stop / 1e3:g} "
+        f"kPa per chamber: {n_ok} converged"
+    )
+    console.print(
+        f"  {wall * 1e3:.0f} ms, [bold]{len(grid) / wall:,.0f} solves/s[/bold]; "
+        f"lateral reach up to {np.nanmax(lateral):.1f} mm"
+    )
+    console.print(Text(f"wrote {shapes}"), soft_wrap=True)
+    console.print(Text(f"wrote {tips}"), soft_wrap=True)
 
 
 @main.command()
@@ -471,10 +570,12 @@ def designs():
             console.print(Text(name, style="bold"), Text(f"cannot load: {exc}", style="red"))
             continue
         n = d.n_channels
-        console.print(Text.assemble(
-            (name, "bold cyan"),
-            f"  {n} channel{'s' if n != 1 else ''}, {d.length * 1e3:.1f} mm",
-        ))
+        console.print(
+            Text.assemble(
+                (name, "bold cyan"),
+                f"  {n} channel{'s' if n != 1 else ''}, {d.length * 1e3:.1f} mm",
+            )
+        )
         console.print(Padding(Text(d.citation, style="dim"), (0, 0, 0, 4)))
 
 

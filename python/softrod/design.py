@@ -36,8 +36,25 @@ _SCHEMA: dict[str, set[str]] = {
     "mounting": {"orientation", "roll", "base_position", "gravity", "base_rotation"},
     "material": {"E", "poisson", "G", "density", "source", "notes"},
     "section": {
-        "name", "length", "material", "outer_radius", "bore_radius", "rigid", "mass",
-        "c_s", "c_e", "c_b", "c_t", "EA", "GA", "EI", "EI1", "EI2", "GJ", "chambers", "steps",
+        "name",
+        "length",
+        "material",
+        "outer_radius",
+        "bore_radius",
+        "rigid",
+        "mass",
+        "c_s",
+        "c_e",
+        "c_b",
+        "c_t",
+        "EA",
+        "GA",
+        "EI",
+        "EI1",
+        "EI2",
+        "GJ",
+        "chambers",
+        "steps",
     },
     "chamber": {"radius", "area", "distance", "angle", "channel"},
     "tip": {"mass", "com_offset", "force", "moment"},
@@ -122,19 +139,26 @@ def _base_rotation(mount: Mapping) -> list[list[float]]:
     if "base_rotation" in mount:
         if "orientation" in mount or "roll" in mount:
             raise design_error(
-                "mounting.base_rotation", mount["base_rotation"],
+                "mounting.base_rotation",
+                mount["base_rotation"],
                 "give either base_rotation or orientation/roll, not both",
             )
         rot = mount["base_rotation"]
-        if not (isinstance(rot, list) and len(rot) == 3 and all(
-                isinstance(r, list) and len(r) == 3 for r in rot)):
+        if not (
+            isinstance(rot, list)
+            and len(rot) == 3
+            and all(isinstance(r, list) and len(r) == 3 for r in rot)
+        ):
             raise design_error("mounting.base_rotation", rot, "must be a 3x3 matrix (list of rows)")
-        return [[number(x, f"mounting.base_rotation[{i}][{j}]") for j, x in enumerate(r)]
-                for i, r in enumerate(rot)]
+        return [
+            [number(x, f"mounting.base_rotation[{i}][{j}]") for j, x in enumerate(r)]
+            for i, r in enumerate(rot)
+        ]
     orientation = mount.get("orientation", "upright")
     if orientation not in _ORIENTATIONS:
         raise design_error(
-            "mounting.orientation", orientation,
+            "mounting.orientation",
+            orientation,
             f"must be one of {', '.join(sorted(_ORIENTATIONS))} (or give base_rotation)",
         )
     roll = to_si(mount.get("roll", 0.0), "angle", "mounting.roll")
@@ -216,8 +240,9 @@ def _to_spec(doc: Mapping) -> dict:
             raise design_error(f"design.{k}", meta[k], "must be a non-empty string")
     mount = _check_keys(doc.get("mounting", {}), "mounting", "mounting")
     numerics = _check_keys(doc.get("numerics", {}), "numerics", "numerics")
-    steps = _integer(numerics.get("steps_per_section", DEFAULT_STEPS),
-                     "numerics.steps_per_section", 1)
+    steps = _integer(
+        numerics.get("steps_per_section", DEFAULT_STEPS), "numerics.steps_per_section", 1
+    )
     materials = doc.get("materials", {})
     if not isinstance(materials, Mapping):
         raise design_error("materials", materials, "must be a table of materials")
@@ -235,32 +260,44 @@ def _to_spec(doc: Mapping) -> dict:
         ld = _check_keys(ld, "load", f"loads[{k}]")
         sec_name = _require(ld, "section", f"loads[{k}]")
         if sec_name not in names:
-            raise design_error(f"loads[{k}].section", sec_name,
-                               f"must name a section ({', '.join(names)})")
-        load_specs.append({
-            "section": names.index(sec_name),
-            "force_per_length": vector_to_si(ld.get("force_per_length", [0, 0, 0]),
-                                             "force_per_length", f"loads[{k}].force_per_length"),
-            "moment_per_length": vector_to_si(ld.get("moment_per_length", [0, 0, 0]),
-                                              "force", f"loads[{k}].moment_per_length"),
-        })
+            raise design_error(
+                f"loads[{k}].section", sec_name, f"must name a section ({', '.join(names)})"
+            )
+        load_specs.append(
+            {
+                "section": names.index(sec_name),
+                "force_per_length": vector_to_si(
+                    ld.get("force_per_length", [0, 0, 0]),
+                    "force_per_length",
+                    f"loads[{k}].force_per_length",
+                ),
+                "moment_per_length": vector_to_si(
+                    ld.get("moment_per_length", [0, 0, 0]), "force", f"loads[{k}].moment_per_length"
+                ),
+            }
+        )
     g = to_si(mount.get("gravity", 9.81), "acceleration", "mounting.gravity")
     if g < 0:
-        raise design_error("mounting.gravity", mount["gravity"],
-                           "is a magnitude (>= 0); gravity always points along -z of the world")
+        raise design_error(
+            "mounting.gravity",
+            mount["gravity"],
+            "is a magnitude (>= 0); gravity always points along -z of the world",
+        )
     return {
         "name": meta["name"],
         "mounting": {
-            "base_position": vector_to_si(mount.get("base_position", [0, 0, 0]), "length",
-                                          "mounting.base_position"),
+            "base_position": vector_to_si(
+                mount.get("base_position", [0, 0, 0]), "length", "mounting.base_position"
+            ),
             "base_rotation": _base_rotation(mount),
             "gravity": [0.0, 0.0, -g],
         },
         "sections": secs,
         "tip": {
             "mass": to_si(tip.get("mass", 0.0), "mass", "tip.mass"),
-            "com_offset": vector_to_si(tip.get("com_offset", [0, 0, 0]), "length",
-                                       "tip.com_offset"),
+            "com_offset": vector_to_si(
+                tip.get("com_offset", [0, 0, 0]), "length", "tip.com_offset"
+            ),
             "force": vector_to_si(tip.get("force", [0, 0, 0]), "force", "tip.force"),
             "moment": vector_to_si(tip.get("moment", [0, 0, 0]), "moment", "tip.moment"),
         },
@@ -364,14 +401,18 @@ def load_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
     if isinstance(design, Mapping):
         return _build(copy.deepcopy(dict(design)), None)
     if not isinstance(design, (str, Path)):
-        raise design_error("design", type(design).__name__,
-                           "must be a path, a bundled design name, a mapping or a Design")
+        raise design_error(
+            "design",
+            type(design).__name__,
+            "must be a path, a bundled design name, a mapping or a Design",
+        )
     path = Path(design)
     if not path.exists() and path.suffix == "" and (designs_dir() / f"{design}.toml").exists():
         path = designs_dir() / f"{design}.toml"
     if not path.exists():
-        raise design_error("design", str(design),
-                           f"no such file (bundled designs: {', '.join(bundled_designs())})")
+        raise design_error(
+            "design", str(design), f"no such file (bundled designs: {', '.join(bundled_designs())})"
+        )
     try:
         with open(path, "rb") as fh:
             doc = tomllib.load(fh)

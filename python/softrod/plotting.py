@@ -96,6 +96,7 @@ def plot_shape(solutions, *, ax=None, title: str | None = None, show_frames: boo
     """
     import matplotlib as mpl
     from matplotlib.lines import Line2D
+    from matplotlib.ticker import MaxNLocator
 
     sols = _as_list(solutions)
     if ax is None:
@@ -104,8 +105,9 @@ def plot_shape(solutions, *, ax=None, title: str | None = None, show_frames: boo
         fig = plt.figure(figsize=(7.0, 6.5))
         ax = fig.add_subplot(projection="3d")
     elif not hasattr(ax, "zaxis"):
-        raise design_error("ax", type(ax).__name__, "must be a 3-D Axes (projection='3d')",
-                           InputError)
+        raise design_error(
+            "ax", type(ax).__name__, "must be a 3-D Axes (projection='3d')", InputError
+        )
     fig = ax.figure
 
     colours = mpl.rcParams["axes.prop_cycle"].by_key().get("color", ["C0"])
@@ -118,8 +120,9 @@ def plot_shape(solutions, *, ax=None, title: str | None = None, show_frames: boo
         label = pressure_label(sol.pressures)
         pos = np.asarray(sol.position, dtype=float) * 1e3
         if not sol.converged or not np.all(np.isfinite(pos)):
-            handles.append(Line2D([], [], color=colour, linestyle=":",
-                                  label=f"{label} (not converged)"))
+            handles.append(
+                Line2D([], [], color=colour, linestyle=":", label=f"{label} (not converged)")
+            )
             continue
         drawn.append(pos)
         for idx, kind in _spans(sol):
@@ -131,10 +134,18 @@ def plot_shape(solutions, *, ax=None, title: str | None = None, show_frames: boo
                 style = _RIGID if kind == "rigid" else _PASSIVE
             ax.plot(seg[:, 0], seg[:, 1], seg[:, 2], **style)
         ax.scatter(*pos[0], marker="s", s=40, color="black", depthshade=False)
-        ax.scatter(*pos[-1], marker="o", s=36, color=colour, edgecolors="black",
-                   depthshade=False)
-        handles.append(Line2D([], [], color=colour, linewidth=_CHAMBER_WIDTH, marker="o",
-                              markeredgecolor="black", label=label))
+        ax.scatter(*pos[-1], marker="o", s=36, color=colour, edgecolors="black", depthshade=False)
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color=colour,
+                linewidth=_CHAMBER_WIDTH,
+                marker="o",
+                markeredgecolor="black",
+                label=label,
+            )
+        )
         if show_frames:
             _draw_frames(ax, pos, np.asarray(sol.rotation, dtype=float))
 
@@ -149,9 +160,11 @@ def plot_shape(solutions, *, ax=None, title: str | None = None, show_frames: boo
         for name, c in zip(("d1", "d2", "d3"), _FRAME_COLOURS, strict=True):
             handles.append(Line2D([], [], color=c, linewidth=1.0, label=name))
     ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):  # short axes get crowded ticks otherwise
+        axis.set_major_locator(MaxNLocator(nbins=5))
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")
-    ax.set_zlabel("z (mm)")
+    ax.set_zlabel("z (mm)", labelpad=10)
     if title is None:
         names = sorted({s.design.name for s in sols})
         title = ", ".join(names)
@@ -166,8 +179,38 @@ def _draw_frames(ax, pos_mm: np.ndarray, rot: np.ndarray) -> None:
     for j, colour in enumerate(_FRAME_COLOURS):
         d = rot[nodes, :, j]  # column j of R is d_{j+1} in world coordinates
         p = pos_mm[nodes]
-        ax.quiver(p[:, 0], p[:, 1], p[:, 2], d[:, 0], d[:, 1], d[:, 2], length=length,
-                  color=colour, linewidth=1.0, arrow_length_ratio=0.2)
+        ax.quiver(
+            p[:, 0],
+            p[:, 1],
+            p[:, 2],
+            d[:, 0],
+            d[:, 1],
+            d[:, 2],
+            length=length,
+            color=colour,
+            linewidth=1.0,
+            arrow_length_ratio=0.2,
+        )
+
+
+def check_figure_path(path: str | os.PathLike) -> Path:
+    """The path as a Path if matplotlib can write its suffix as a figure, else InputError.
+
+    Call it before a computation whose figure is to be saved, so a typo fails at once.
+    """
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    path = Path(path)
+    supported = FigureCanvasBase.get_supported_filetypes()
+    if path.suffix.lower().lstrip(".") not in supported:
+        raise design_error(
+            "path",
+            str(path),
+            f"unknown figure format {path.suffix or '(no suffix)'!r}: the file name must end in "
+            f"one of {', '.join('.' + k for k in sorted(supported))}",
+            InputError,
+        )
+    return path
 
 
 def save_figure(fig, path: str | os.PathLike) -> Path:
@@ -181,18 +224,9 @@ def save_figure(fig, path: str | os.PathLike) -> Path:
     if not isinstance(fig, Figure):
         fig = getattr(fig, "figure", None)
         if not isinstance(fig, Figure):
-            raise design_error("fig", type(fig).__name__, "must be a matplotlib Figure",
-                               InputError)
-    path = Path(path)
+            raise design_error("fig", type(fig).__name__, "must be a matplotlib Figure", InputError)
+    path = check_figure_path(path)
     fmt = path.suffix.lower().lstrip(".")
-    supported = fig.canvas.get_supported_filetypes()
-    if fmt not in supported:
-        raise design_error(
-            "path", str(path),
-            f"unknown figure format {path.suffix or '(no suffix)'!r}: the file name must end in "
-            f"one of {', '.join('.' + k for k in sorted(supported))}",
-            InputError,
-        )
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format=fmt, dpi=150, bbox_inches="tight")
     return path

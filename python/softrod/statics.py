@@ -39,8 +39,12 @@ class SolverOptions:
                 raise design_error(name, v, "must be an integer >= 1", InputError)
 
     def as_kwargs(self) -> dict:
-        return {"tol": float(self.tol), "max_iter": self.max_iter,
-                "continuation": self.continuation, "max_load_steps": self.max_load_steps}
+        return {
+            "tol": float(self.tol),
+            "max_iter": self.max_iter,
+            "continuation": self.continuation,
+            "max_load_steps": self.max_load_steps,
+        }
 
 
 @dataclass(frozen=True)
@@ -118,13 +122,17 @@ def _pressures(design: Design, pressures) -> list[float]:
     try:
         values = list(pressures)
     except TypeError:
-        raise design_error("pressures", pressures, "must be a sequence of gauge pressures (Pa)",
-                           InputError) from None
+        raise design_error(
+            "pressures", pressures, "must be a sequence of gauge pressures (Pa)", InputError
+        ) from None
     if len(values) != design.n_channels:
         raise design_error(
-            "pressures", values,
+            "pressures",
+            values,
             f"the design has {design.n_channels} pressure channels; give one gauge pressure per "
-            "channel", InputError)
+            "channel",
+            InputError,
+        )
     return [to_si(p, "pressure", f"pressures[{i}]", InputError) for i, p in enumerate(values)]
 
 
@@ -176,16 +184,39 @@ def solve_statics(
             raise
         nan3 = np.full((1, 3), np.nan)
         return StaticSolution(
-            design=design, pressures=np.array(p), s=np.array([np.nan]), section=np.array([-1]),
-            position=nan3, rotation=np.full((1, 3, 3), np.nan), force=nan3, moment=nan3,
-            v=nan3, u=nan3, converged=False, iterations=exc.iterations, residual=exc.residual,
-            load_steps=0, shooting_unknowns=np.full(6, np.nan))
+            design=design,
+            pressures=np.array(p),
+            s=np.array([np.nan]),
+            section=np.array([-1]),
+            position=nan3,
+            rotation=np.full((1, 3, 3), np.nan),
+            force=nan3,
+            moment=nan3,
+            v=nan3,
+            u=nan3,
+            converged=False,
+            iterations=exc.iterations,
+            residual=exc.residual,
+            load_steps=0,
+            shooting_unknowns=np.full(6, np.nan),
+        )
     return StaticSolution(
-        design=design, pressures=np.array(p), s=out["s"], section=out["section"],
-        position=out["position"], rotation=out["rotation"], force=out["force"],
-        moment=out["moment"], v=out["v"], u=out["u"], converged=True,
-        iterations=out["iterations"], residual=out["residual"], load_steps=out["load_steps"],
-        shooting_unknowns=np.array(out["x"]))
+        design=design,
+        pressures=np.array(p),
+        s=out["s"],
+        section=out["section"],
+        position=out["position"],
+        rotation=out["rotation"],
+        force=out["force"],
+        moment=out["moment"],
+        v=out["v"],
+        u=out["u"],
+        converged=True,
+        iterations=out["iterations"],
+        residual=out["residual"],
+        load_steps=out["load_steps"],
+        shooting_unknowns=np.array(out["x"]),
+    )
 
 
 def solve_statics_batch(
@@ -208,15 +239,20 @@ def solve_statics_batch(
     if arr.ndim == 1 and design.n_channels == 1:
         arr = arr[:, None]
     if arr.ndim != 2 or arr.shape[1] != design.n_channels:
-        raise design_error("pressures", f"shape {arr.shape}",
-                           f"must be an (m, {design.n_channels}) array of gauge pressures (Pa)",
-                           InputError)
+        raise design_error(
+            "pressures",
+            f"shape {arr.shape}",
+            f"must be an (m, {design.n_channels}) array of gauge pressures (Pa)",
+            InputError,
+        )
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 0:
-        raise design_error("threads", threads, "must be an integer >= 0 (0 = all cores)",
-                           InputError)
+        raise design_error(
+            "threads", threads, "must be an integer >= 0 (0 = all cores)", InputError
+        )
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
-    out = design._rod.solve_batch(np.ascontiguousarray(arr), tf, tm, threads=threads,
-                                  **_options(options).as_kwargs())
+    out = design._rod.solve_batch(
+        np.ascontiguousarray(arr), tf, tm, threads=threads, **_options(options).as_kwargs()
+    )
     return BatchSolution(pressures=arr, **out)

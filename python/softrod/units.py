@@ -81,7 +81,8 @@ def to_si(value: object, kind: str, field: str, cls: type[DesignError] = DesignE
                     raise design_error(
                         field,
                         value,
-                        f"wrong unit: must be a {kind} (like '{SI_UNIT[kind]}'), got dimension {have}",
+                        f"wrong unit: must be a {kind} (like '{SI_UNIT[kind]}'), "
+                        f"got dimension {have}",
                         cls,
                     )
                 else:

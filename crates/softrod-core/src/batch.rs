@@ -45,7 +45,7 @@ pub fn solve_batch(
 ) -> Result<Vec<BatchRow>> {
     opts.validate()?;
     let nc = rod.n_channels;
-    let rows = if nc == 0 { 0 } else { pressures.len() / nc };
+    let rows = pressures.len().checked_div(nc).unwrap_or(0);
     if nc == 0 || pressures.len() % nc != 0 {
         return Err(SoftrodError::invalid(
             "pressures",

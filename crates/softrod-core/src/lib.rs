@@ -5,6 +5,9 @@
 //! gravity and loads by shooting with an exact (dual-number) Jacobian;
 //! [`batch::solve_batch`] does many in parallel.
 
+// Index loops over 3-vectors read like the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
 pub mod batch;
 pub mod error;
 pub mod jet;

@@ -55,13 +55,27 @@ pub struct Coeffs<C> {
     pub l: [C; 3],
 }
 
-/// The loads of one solve, in SI and world frame. `load_factor` scales all of them
-/// (pressures, gravity, tip and line loads) for continuation.
+/// The per-solve loads, SI, world frame. The solver scales all of them (and gravity) by a
+/// load factor during continuation. `tip_force` and `tip_moment` are the dead tip loads of
+/// this solve: [`Loads::from_design`] takes them from the design's `[tip]`; set them to
+/// override it. Gravity, line loads and the tip body always come from the design.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Loads {
+    /// Gauge pressure per channel, Pa.
     pub pressures: Vec<f64>,
     pub tip_force: [f64; 3],
     pub tip_moment: [f64; 3],
+}
+
+impl Loads {
+    /// The design's own tip loads with the given pressures.
+    pub fn from_design(rod: &Rod, pressures: Vec<f64>) -> Self {
+        Loads {
+            pressures,
+            tip_force: rod.spec.tip.force,
+            tip_moment: rod.spec.tip.moment,
+        }
+    }
 }
 
 #[inline(always)]

@@ -14,8 +14,8 @@ use softrod_core::Rod;
 use std::f64::consts::PI;
 
 /// Strains are compared relative to their own size: they are formed by a handful of
-/// products and sums of quantities known to ~1e-16, so 1e-10 leaves room for the
-/// conditioning of K_bt (about 10 for these sections) and nothing else.
+/// products and sums of quantities known to ~1e-16, and K_bt is well conditioned here
+/// (eigenvalues within a factor 2), so 1e-10 is round-off with a wide margin.
 const STRAIN_TOL: f64 = 1e-10;
 /// Section properties computed two ways (section.rs and the hand formulas here) agree to
 /// round-off: the terms differ by up to 1e4 in size (r_o^4 vs r_i^4), so 1e-12 relative.
@@ -33,6 +33,15 @@ const RK4_ROT_COEFF: f64 = 0.02;
 /// Round-off floor for positions relative to L (and for rotation matrix entries).
 const ROUNDOFF: f64 = 1e-14;
 
+/// "No bending": residual lateral motion under symmetric pressure is round-off only
+/// (the chamber angles 90/210/330 deg are not exact in binary).
+const SYMMETRY_TOL: f64 = 1e-12;
+/// Total force and moment where none is applied: exactly zero, since the solver starts
+/// from (and accepts) the straight guess x = 0; allow round-off of the pressure terms.
+const ZERO_WRENCH_TOL: f64 = 1e-14;
+/// Default RK4 steps per section (SectionSpec's serde default).
+const STEPS: usize = 16;
+
 /// Position tolerance relative to L for an arc of curvature `kappa` integrated with step `h`.
 fn arc_tol(kappa: f64, h: f64) -> f64 {
     RK4_ARC_COEFF * (kappa * h).powi(4) + ROUNDOFF
@@ -42,14 +51,6 @@ fn arc_tol(kappa: f64, h: f64) -> f64 {
 fn rot_tol(kappa: f64, h: f64, s: f64) -> f64 {
     RK4_ROT_COEFF * kappa * s * (kappa * h).powi(4) + ROUNDOFF
 }
-/// "No bending": residual lateral motion under symmetric pressure is round-off only
-/// (the chamber angles 90/210/330 deg are not exact in binary).
-const SYMMETRY_TOL: f64 = 1e-12;
-/// Total force and moment where none is applied: exactly zero, since the solver starts
-/// from (and accepts) the straight guess x = 0; allow round-off of the pressure terms.
-const ZERO_WRENCH_TOL: f64 = 1e-14;
-/// Default RK4 steps per section (SectionSpec's serde default).
-const STEPS: usize = 16;
 
 /// Hand formulas of paper 002, Table III (with its typos corrected, see section.rs):
 /// returns (A_m, I_11 = int y^2, I_22 = int x^2, I_12 = sum_k x_k y_k A_k).
@@ -435,8 +436,19 @@ fn caps_stay_straight_and_body_bends_in_three_section_actuator() {
             let km = k_bt_hand(body) * vec3(&sh.u[i]);
             assert!((km - mp).norm() <= STRAIN_TOL * scale);
         } else {
-            assert_eq!(sh.u[i], [0.0; 3], "cap s = {s} must stay straight");
-            assert_eq!(sh.v[i], [0.0, 0.0, 1.0], "cap s = {s} must not stretch");
+            // no chambers, no wrench: the caps stay straight and unstretched
+            let du = norm(&sh.u[i]);
+            let dv = dist(&sh.v[i], &[0.0, 0.0, 1.0]);
+            assert!(
+                du <= STRAIN_TOL * u.norm(),
+                "cap s = {s} must stay straight: u = {:?}",
+                sh.u[i]
+            );
+            assert!(
+                dv <= STRAIN_TOL * (v3 - 1.0),
+                "cap s = {s} must not stretch: v = {:?}",
+                sh.v[i]
+            );
         }
     }
     // Pose: straight cap, arc, straight cap along the body's end tangent.

@@ -1,0 +1,255 @@
+"""The ``softrod`` command line, driven through click's CliRunner."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import softrod
+from click.testing import CliRunner
+from softrod import ConvergenceError, solve_statics, solve_statics_batch
+from softrod.cli import main
+
+pytestmark = pytest.mark.fast  # the whole module runs in seconds
+
+SPA = "spa_three_chamber_130mm"
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture
+def run():
+    runner = CliRunner()
+
+    def invoke(*args):
+        return runner.invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+    return invoke
+
+
+def assert_clean_error(result, code: int, *fragments: str):
+    assert result.exit_code == code, result.output
+    err = result.stderr
+    assert err.startswith("error: "), err
+    assert len(err.strip().splitlines()) == 1, err  # one line, never a traceback
+    assert "Traceback" not in result.output
+    for f in fragments:
+        assert f in err, (f, err)
+
+
+def test_version(run):
+    result = run("--version")
+    assert result.exit_code == 0
+    assert result.output.strip() == f"softrod {softrod.__version__}"
+
+
+def test_solve_table(run):
+    result = run("solve", SPA, "--pressure", "30kPa,0,0")
+    assert result.exit_code == 0, result.output
+    out = result.stdout
+    for text in (
+        "tip position",
+        "tip tangent",
+        "base force",
+        "base moment",
+        "iterations",
+        "residual",
+        "mm",
+        "N mm",
+    ):
+        assert text in out
+    tip_mm = solve_statics(SPA, [30e3, 0, 0]).tip_position * 1e3
+    assert f"{tip_mm[1]:.3f}" in out and f"{tip_mm[2]:.3f}" in out
+
+
+def test_solve_json_equals_api(run):
+    result = run("solve", SPA, "--pressure", "0.3bar,0,0", "--tip-force", "0,0,-1 N", "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert set(data) == {
+        "design",
+        "pressures_Pa",
+        "tip_position_m",
+        "tip_rotation",
+        "base_force_N",
+        "base_moment_Nm",
+        "converged",
+        "iterations",
+        "residual",
+        "shape",
+    }
+    api = solve_statics(SPA, [30e3, 0, 0], tip_force=[0, 0, -1])
+    assert data["design"] == SPA and data["converged"] is True
+    # 1e-9 Pa: "0.3bar" converts to 30000 Pa up to round-off.
+    np.testing.assert_allclose(data["pressures_Pa"], [30e3, 0, 0], rtol=0, atol=1e-9)
+    # Same inputs, same deterministic solve, and JSON floats round-trip exactly; 1e-12 m
+    # only allows for the last bit of the bar -> Pa conversion.
+    np.testing.assert_allclose(data["tip_position_m"], api.tip_position, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(data["tip_rotation"], api.tip_rotation, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(data["base_force_N"], api.base_force, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(data["base_moment_Nm"], api.base_moment, rtol=0, atol=1e-12)
+    assert data["iterations"] == api.iterations
+    np.testing.assert_allclose(data["shape"]["s_m"], api.s, rtol=0, atol=0)
+    np.testing.assert_allclose(data["shape"]["position_m"], api.position, rtol=0, atol=1e-12)
+
+
+def test_solve_plot_writes_png(run, tmp_path):
+    path = tmp_path / "shape.png"
+    result = run("solve", SPA, "--pressure", "50kPa,0,20kPa", "--plot", path)
+    assert result.exit_code == 0, result.output
+    assert path.read_bytes()[:8] == PNG_SIGNATURE
+    assert list(tmp_path.iterdir()) == [path]  # the temporary file was moved, not left
+
+
+def test_solve_json_with_plot_keeps_stdout_json(run, tmp_path):
+    path = tmp_path / "shape.svg"
+    result = run("solve", SPA, "--json", "--plot", path)
+    assert result.exit_code == 0
+    json.loads(result.stdout)  # the "wrote ..." note went to stderr
+    assert "wrote" in result.stderr and path.read_text().lstrip().startswith("<?xml")
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_sweep_writes_table(run, tmp_path, suffix):
+    out = tmp_path / f"workspace{suffix}"
+    result = run("sweep", SPA, "--grid", "0:60kPa:3", "--out", out, "--threads", 1)
+    assert result.exit_code == 0, result.output
+    assert "27 rows" in result.stdout and "solves/s" in result.stdout
+    df = pd.read_csv(out) if suffix == ".csv" else pd.read_parquet(out)
+    assert list(df.columns) == [
+        "p1_Pa",
+        "p2_Pa",
+        "p3_Pa",
+        "x_mm",
+        "y_mm",
+        "z_mm",
+        "converged",
+        "iterations",
+    ]
+    assert len(df) == 27
+    assert df["converged"].all()
+    # Channel 1 slowest, last channel fastest.
+    np.testing.assert_array_equal(df["p3_Pa"][:3], [0.0, 30e3, 60e3])
+    np.testing.assert_array_equal(df["p1_Pa"][:9], 0.0)
+    np.testing.assert_array_equal(df["p1_Pa"][18:], 60e3)
+    p = df.loc[14, ["p1_Pa", "p2_Pa", "p3_Pa"]].to_numpy(dtype=float)
+    tip_mm = solve_statics(SPA, p).tip_position * 1e3
+    # 1e-6 mm = 1e-9 m: sweep rows warm-start (see test_batch_equals_single); the CSV keeps
+    # full float precision.
+    np.testing.assert_allclose(
+        df.loc[14, ["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=float), tip_mm, rtol=0, atol=1e-6
+    )
+
+
+def test_sweep_grid_per_channel(run, tmp_path):
+    out = tmp_path / "w.csv"
+    result = run(
+        "sweep",
+        SPA,
+        "--grid",
+        "0:20kPa:3",
+        "--grid",
+        "0.1:0.2bar:2",
+        "--grid",
+        "5kPa:5kPa:1",
+        "--out",
+        out,
+    )
+    assert result.exit_code == 0, result.output
+    df = pd.read_csv(out)
+    assert len(df) == 6
+    # 1e-9 Pa: bar -> Pa round-off.
+    np.testing.assert_allclose(sorted(set(df["p2_Pa"])), [10e3, 20e3], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(df["p3_Pa"], 5e3)
+    batch = solve_statics_batch(SPA, df[["p1_Pa", "p2_Pa", "p3_Pa"]].to_numpy())
+    np.testing.assert_allclose(
+        df[["x_mm", "y_mm", "z_mm"]], batch.tip_position * 1e3, rtol=0, atol=1e-6
+    )  # 1e-6 mm: chunking changes warm starts
+
+
+@pytest.mark.parametrize(
+    ("args", "fragments"),
+    [
+        (["--grid", "0:70kPa:1000"], ["--grid", "10,000,000"]),  # 1e9 rows, refused at once
+        (["--grid", "0:70kPa"], ["--grid", "START:STOP:COUNT"]),
+        (["--grid", "0:70kPa:0"], ["--grid.count"]),
+        (["--grid", "0:1m:3"], ["--grid.stop"]),
+        (["--grid", "0:1:3", "--grid", "0:1:3"], ["--grid", "one per channel"]),
+    ],
+    ids=["too-big", "no-count", "zero-count", "wrong-unit", "two-grids-three-channels"],
+)
+def test_sweep_bad_grid(run, tmp_path, args, fragments):
+    out = tmp_path / "w.csv"
+    result = run("sweep", SPA, *args, "--out", out)
+    assert_clean_error(result, 2, *fragments)
+    assert not out.exists()
+
+
+def test_sweep_unknown_suffix(run, tmp_path):
+    result = run("sweep", SPA, "--grid", "0:1kPa:2", "--out", tmp_path / "w.xlsx")
+    assert_clean_error(result, 2, "--out", ".csv", ".parquet")
+
+
+@pytest.mark.parametrize(
+    ("pressure", "fragments"),
+    [
+        ("30kPa,abc,0", ["--pressure[1]", "abc"]),
+        ("30kPa,0", ["--pressure", "3 pressure channels"]),
+        ("30kPa,5,0", ["--pressure[1]", "ambiguous"]),
+        ("-2bar,0,0", ["--pressure[0]", "-1 atm"]),
+        ("30mm,0,0", ["--pressure[0]", "pressure"]),
+    ],
+    ids=["unreadable", "count", "ambiguous", "below-vacuum", "wrong-unit"],
+)
+def test_solve_bad_pressure_exits_2(run, pressure, fragments):
+    assert_clean_error(run("solve", SPA, "--pressure", pressure), 2, *fragments)
+
+
+def test_unit_on_last_item_applies_to_all(run):
+    a = json.loads(run("solve", SPA, "-p", "10,20,30kPa", "--json").stdout)
+    b = json.loads(run("solve", SPA, "-p", "10kPa,20kPa,30kPa", "--json").stdout)
+    assert a["pressures_Pa"] == b["pressures_Pa"] == [10e3, 20e3, 30e3]
+
+
+def test_bad_design_exits_2(run, tmp_path):
+    assert_clean_error(run("solve", "no_such_design"), 2, "design", SPA)
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[design\n")
+    assert_clean_error(run("solve", bad), 2, "not valid TOML")
+
+
+def test_convergence_failure_exits_3(run, monkeypatch):
+    def fail(*args, **kwargs):
+        raise ConvergenceError(
+            "static solve did not converge after 25 iterations", iterations=25, residual=1e-3
+        )
+
+    monkeypatch.setattr("softrod.cli.solve_statics", fail)
+    assert_clean_error(run("solve", SPA, "-p", "70kPa,0,0"), 3, "did not converge")
+
+
+def test_demo_writes_files(run, tmp_path):
+    out_dir = tmp_path / "demo"
+    result = run("demo", "--out-dir", out_dir)
+    assert result.exit_code == 0, result.output
+    shapes, tips = out_dir / "shapes.png", out_dir / "tips.csv"
+    assert shapes.read_bytes()[:8] == PNG_SIGNATURE
+    df = pd.read_csv(tips)
+    assert len(df) == 5
+    assert {"p1_kPa", "x_mm", "y_mm", "z_mm", "lateral_mm", "solve_time_us"} <= set(df.columns)
+    # Pressurising chamber 1 bends the actuator sideways, more at 70 than at 35 kPa;
+    # equal pressure on all three only stretches it (1e-6 mm: round-off of a symmetric case).
+    lateral = df["lateral_mm"].to_numpy()
+    assert lateral[0] == pytest.approx(0.0, abs=1e-6)
+    assert 0 < lateral[1] < lateral[2]
+    assert lateral[4] == pytest.approx(0.0, abs=1e-6)
+    assert df["z_mm"][4] < df["z_mm"][0] < 0  # hangs down and stretches
+    assert str(shapes) in result.stdout and str(tips) in result.stdout
+    assert "solves/s" in result.stdout
+
+
+def test_designs_lists_all(run):
+    result = run("designs")
+    assert result.exit_code == 0
+    for name in softrod.bundled_designs():
+        assert name in result.stdout
+    assert "3 channels" in result.stdout

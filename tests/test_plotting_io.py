@@ -1,0 +1,92 @@
+"""Shape plots and atomic table/figure writers."""
+
+import os
+
+import matplotlib
+import numpy as np
+import pandas as pd
+import pytest
+from softrod import InputError, SolverOptions, load_design, solve_statics
+from softrod.io import write_table
+from softrod.plotting import plot_shape, save_figure
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+pytestmark = pytest.mark.fast  # the whole module runs in seconds
+
+
+@pytest.fixture(autouse=True)
+def close_figures():
+    yield
+    plt.close("all")
+
+
+def test_write_table_round_trip(tmp_path):
+    df = pd.DataFrame({"p1_Pa": [0.0, 1e3], "x_mm": [1.5, -2.0], "converged": [True, False]})
+    for name in ("t.csv", "t.parquet"):
+        path = write_table(df, tmp_path / name)
+        back = pd.read_csv(path) if name.endswith(".csv") else pd.read_parquet(path)
+        pd.testing.assert_frame_equal(back, df)
+    # Written like an ordinary file (not the owner-only mode of a temporary file).
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (tmp_path / "t.csv").stat().st_mode & 0o777 == 0o666 & ~umask
+
+
+def test_write_table_unknown_suffix(tmp_path):
+    path = tmp_path / "t.xlsx"
+    with pytest.raises(InputError) as info:
+        write_table(pd.DataFrame({"a": [1]}), path)
+    assert str(path) in str(info.value)
+    assert ".csv" in str(info.value) and ".parquet" in str(info.value)
+    assert not path.exists()
+
+
+def test_write_table_is_all_or_nothing(tmp_path):
+    path = tmp_path / "t.parquet"
+    write_table(pd.DataFrame({"a": [1.0]}), path)
+    before = path.read_bytes()
+    bad = pd.DataFrame({"a": [object()]})  # Parquet cannot store an arbitrary object
+    with pytest.raises(Exception):  # noqa: B017 - pyarrow's error type is its own business
+        write_table(bad, path)
+    assert path.read_bytes() == before  # the old file is untouched
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.parquet"]  # no temp file left
+
+
+def test_plot_shape_many_solutions_with_frames(tmp_path):
+    d = load_design("modular_two_module")  # has rigid parts, chambered and passive spans
+    sols = [solve_statics(d, p) for p in ([0, 0, 0], [60e3, 0, 0], [60e3, 60e3, 0])]
+    failed = solve_statics(
+        "spa_three_chamber_134mm_horizontal",
+        [60e3, 0, 0],
+        options=SolverOptions(max_iter=1, continuation=False),
+        check=False,
+    )
+    fig = plot_shape([*sols, failed], title="test", show_frames=True)
+    ax = fig.axes[0]
+    assert ax.get_xlabel() == "x (mm)" and ax.get_zlabel() == "z (mm)"
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "p = (60, 60, 0) kPa" in labels
+    assert "p = (60, 0, 0) kPa (not converged)" in labels
+    assert "rigid part" in labels and "base" in labels
+    # Equal scale: the box aspect is proportional to the axis limits.
+    spans = np.array([np.ptp(ax.get_xlim()), np.ptp(ax.get_ylim()), np.ptp(ax.get_zlim())])
+    aspect = np.array(ax.get_box_aspect())
+    np.testing.assert_allclose(aspect / aspect.max(), spans / spans.max(), rtol=1e-9)
+    path = save_figure(fig, tmp_path / "shapes.pdf")
+    assert path.read_bytes()[:5] == b"%PDF-"
+
+
+def test_plot_shape_into_given_axes_and_errors(tmp_path):
+    sol = solve_statics("spa_three_chamber_130mm", [30e3, 0, 0])
+    fig = plt.figure()
+    ax = fig.add_subplot(projection="3d")
+    assert plot_shape(sol, ax=ax) is fig
+    with pytest.raises(InputError):
+        plot_shape(sol, ax=plt.figure().add_subplot())  # a 2-D Axes
+    with pytest.raises(InputError):
+        plot_shape([])
+    with pytest.raises(InputError) as info:
+        save_figure(fig, tmp_path / "shape.unknown")
+    assert info.value.field == "path"
