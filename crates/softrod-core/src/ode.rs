@@ -222,6 +222,7 @@ fn rk4_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, h: f64) ->
     let k4 = rhs(&y.axpy(h, &k3), c);
     let mut out = *y;
     let w = h / 6.0;
+    // (R is re-projected onto SO(3) below.)
     for i in 0..3 {
         out.r[i] += (k1.r[i] + (k2.r[i] + k3.r[i]) * 2.0 + k4.r[i]) * w;
         out.n[i] += (k1.n[i] + (k2.n[i] + k3.n[i]) * 2.0 + k4.n[i]) * w;
@@ -231,7 +232,25 @@ fn rk4_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, h: f64) ->
                 (k1.rot[i][j] + (k2.rot[i][j] + k3.rot[i][j]) * 2.0 + k4.rot[i][j]) * w;
         }
     }
+    out.rot = reproject(&out.rot);
     out
+}
+
+/// One Newton-Schulz step R <- R (3I - R^T R) / 2 back towards SO(3). RK4 on the nine
+/// entries of R leaves R^T R - I at the size of the step's truncation error, O(h^5); one
+/// step squares that, so rotations stay orthonormal to round-off, and positions, forces
+/// and the exact Jacobian (this is generic code) all see the same R.
+#[inline(always)]
+fn reproject<D: RodScalar>(r: &[[D; 3]; 3]) -> [[D; 3]; 3] {
+    let s: [[D; 3]; 3] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| r[0][i] * r[0][j] + r[1][i] * r[1][j] + r[2][i] * r[2][j])
+    });
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            let t = |k: usize| if k == j { -s[k][j] + 3.0 } else { -s[k][j] };
+            (r[i][0] * t(0) + r[i][1] * t(1) + r[i][2] * t(2)) * 0.5
+        })
+    })
 }
 
 /// Exact transfer through a rigid section of length L with constant line loads:

@@ -325,27 +325,6 @@ impl<'a> Problem<'a> {
     }
 }
 
-/// Project an RK4-integrated rotation back onto SO(3). Plain RK4 on the nine entries of R
-/// leaves R^T R - I at the level of the discretisation error (up to ~1e-6 at coarse steps);
-/// two Newton-Schulz steps R <- R (3I - R^T R)/2 square that error each time. Used on outputs
-/// only, so the shooting iterations keep their cost; positions are unaffected.
-pub fn orthonormalize(r: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut m = *r;
-    for _ in 0..2 {
-        let s: [[f64; 3]; 3] = std::array::from_fn(|i| {
-            std::array::from_fn(|j| (0..3).map(|k| m[k][i] * m[k][j]).sum())
-        });
-        m = std::array::from_fn(|i| {
-            std::array::from_fn(|j| {
-                0.5 * (0..3)
-                    .map(|k| m[i][k] * (if k == j { 3.0 } else { 0.0 } - s[k][j]))
-                    .sum::<f64>()
-            })
-        });
-    }
-    m
-}
-
 fn finish(
     p: &Problem,
     x: [f64; 3],
@@ -354,8 +333,7 @@ fn finish(
     load_steps: usize,
 ) -> Solution {
     let y0 = p.base_state(&x);
-    let mut tip = integrate(p.rod, &p.coeffs, y0, None);
-    tip.rot = orthonormalize(&tip.rot);
+    let tip = integrate(p.rod, &p.coeffs, y0, None);
     Solution {
         x,
         base_force: y0.n,
@@ -478,7 +456,7 @@ pub fn shape(rod: &Rod, loads: &Loads, sol: &Solution) -> Shape {
         out.s.push(s);
         out.section.push(i);
         out.position.push(y.r);
-        out.rotation.push(orthonormalize(&y.rot));
+        out.rotation.push(y.rot);
         out.force.push(y.n);
         out.moment.push(y.m);
         out.v.push(v);
