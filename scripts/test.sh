@@ -10,7 +10,7 @@ echo "== installing softrod with its test extra (builds the Rust core)"
 "$PY" -m pip install --quiet --disable-pip-version-check -e ".[test]"
 echo "== format and lint"
 cargo fmt --all --check
-"$PY" -m ruff check python tests benchmarks examples
+"$PY" -m ruff check python tests benchmarks
 echo "== Rust tests"
 cargo test -p softrod-core --quiet
 echo "== Python tests"
