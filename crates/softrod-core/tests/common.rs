@@ -78,10 +78,11 @@ pub fn chamber(radius: f64, distance: f64, angle_deg: f64, channel: usize) -> Ch
     }
 }
 
-/// Read a validation CSV from ../shared/validation (comment lines start with '#').
+/// Read a validation CSV from tests/data (a copy of the project's shared validation set, so
+/// the tests run from a fresh clone; comment lines start with '#').
 pub fn validation_table(name: &str) -> Vec<Vec<f64>> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/validation")
+        .join("tests/data")
         .join(name);
     let text = std::fs::read_to_string(&path)
         .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));

@@ -1,5 +1,5 @@
 //! Closed-form results every linear Cosserat rod must reproduce
-//! (../shared/validation/README.md).
+//! (tests/data (copied from the shared validation set)/README.md).
 
 mod common;
 use common::*;

@@ -1,4 +1,4 @@
-//! Large-deflection cantilevers against the published tables in ../shared/validation:
+//! Large-deflection cantilevers against the published tables in tests/data (copied from the shared validation set):
 //! the elastica under a dead tip load (elliptic-integral closed form) and under a dead
 //! distributed load.
 //!
