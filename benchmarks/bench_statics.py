@@ -4,9 +4,10 @@
     python benchmarks/bench_statics.py --quick    # smoke run (< 20 s), writes statics_quick.json
 
 For the design ``spa_three_chamber_130mm`` (paper 001's actuator, 0-70 kPa per chamber):
-1. discretisation: tip error of softrod at several steps_per_section against a reference 16x
-   finer than the design's setting, as a fraction of the length, at demanding pressures; the
-   smallest setting meeting 1e-6 L is used for all timings;
+1. discretisation: tip error of softrod at several step lengths (``numerics.step_length``:
+   every section gets ceil(length / h) RK4 steps) against a reference with h = 0.25 mm, as a
+   fraction of the length, at demanding pressures; the largest h meeting 1e-6 L is used for
+   all timings;
 2. the same accuracy criterion picks the tolerance of the solve_bvp baseline
    (benchmarks/baseline_bvp.py);
 3. single cold solves (``solve_statics`` without ``initial``), median over many repetitions,
@@ -35,7 +36,6 @@ from pathlib import Path
 import numpy as np
 import scipy
 import softrod
-from softrod.design import DEFAULT_STEPS
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -44,7 +44,7 @@ import baseline_bvp  # noqa: E402  (sibling module of this script)
 DESIGN = "spa_three_chamber_130mm"
 KPA = 1e3
 ACCURACY = 1e-6  # target: tip error <= 1e-6 of the length
-REFINE = 16  # the reference is 16x finer than the design's steps_per_section
+REFERENCE_STEP_MM = 0.25  # reference step length; RK4 error ~ h^4 puts it ~1e-13 L
 # Demanding cases of the paper's range: 70 kPa on one chamber, on two.
 DEMANDING = [(70.0, 0.0, 0.0), (0.0, 0.0, 70.0), (70.0, 70.0, 0.0), (0.0, 70.0, 70.0)]
 # Representative pressures for single solves (kPa): rest, one/two/three chambers, mixed.
@@ -58,7 +58,7 @@ REPRESENTATIVE = [
     (70.0, 70.0, 70.0),
 ]
 CHECKED = DEMANDING + [p for p in REPRESENTATIVE if p not in DEMANDING]
-STEP_CANDIDATES = [2, 3, 4, 5, 6, 7, 8, 10, 12, 16, 24, 32]
+STEP_CANDIDATES_MM = [22.0, 16.0, 13.0, 11.0, 10.0, 9.0, 8.0, 6.0, 5.0, 4.0, 3.0]
 TOL_CANDIDATES = [1e-3, 1e-4, 1e-5, 1e-6]
 BVP_NODES = 20  # initial mesh nodes per section (60 over the three sections)
 TARGETS = {"single_cold_solve_s": 50e-6, "sweep_s": 0.3, "speedup_vs_baseline": 100.0}
@@ -68,8 +68,13 @@ def kpa(p) -> list[float]:
     return [x * KPA for x in p]
 
 
-def with_steps(design, steps: int):
-    return design.replace({"numerics.steps_per_section": steps})
+def with_step_length(design, h_mm: float):
+    """The design with numerics.step_length = h_mm (replaces its [numerics] table)."""
+    return design.replace({"numerics": {"step_length": f"{h_mm} mm"}})
+
+
+def steps_of(design) -> list[int]:
+    return [int(s["steps"]) for s in design.spec["sections"]]
 
 
 def timed(fn, reps: int) -> list[float]:
@@ -146,7 +151,7 @@ def run(quick: bool) -> dict:
     t_start = time.perf_counter()
     base = softrod.load_design(DESIGN)
     length = base.length
-    design_steps = base.document.get("numerics", {}).get("steps_per_section", DEFAULT_STEPS)
+    design_steps = steps_of(base)
     info = machine()
     print(
         f"softrod statics benchmark: {DESIGN} (L = {length * 1e3:.1f} mm, "
@@ -161,21 +166,25 @@ def run(quick: bool) -> dict:
     # 1. Discretisation study --------------------------------------------------------------
     # Errors on the demanding cases (shown) and on all cases timed below; the accuracy
     # criterion applies to all of them, for softrod's steps and the baseline's tol alike.
-    ref_steps = REFINE * design_steps
-    ref_design = with_steps(base, ref_steps)
+    ref_design = with_step_length(base, REFERENCE_STEP_MM)
+    ref_steps = steps_of(ref_design)
     reference = {p: softrod.solve_statics(ref_design, kpa(p)).tip_position for p in CHECKED}
 
     def worst(tips: dict, cases) -> float:
         return max(float(np.linalg.norm(tips[p] - reference[p])) for p in cases) / length
 
     study = {}
-    for n in STEP_CANDIDATES:
-        if n < ref_steps:
-            d = with_steps(base, n)
-            tips = {p: softrod.solve_statics(d, kpa(p)).tip_position for p in CHECKED}
-            study[n] = (worst(tips, DEMANDING), worst(tips, CHECKED))
-    meeting = [n for n, e in study.items() if e[1] <= ACCURACY]
-    steps = min(meeting) if meeting else ref_steps
+    for h in STEP_CANDIDATES_MM:
+        d = with_step_length(base, h)
+        tips = {p: softrod.solve_statics(d, kpa(p)).tip_position for p in CHECKED}
+        study[h] = (worst(tips, DEMANDING), worst(tips, CHECKED), steps_of(d))
+    tips = {p: softrod.solve_statics(base, kpa(p)).tip_position for p in CHECKED}
+    design_err = worst(tips, CHECKED)
+    meeting = [h for h, e in study.items() if e[1] <= ACCURACY]
+    step_mm = max(meeting) if meeting else REFERENCE_STEP_MM
+    design = with_step_length(base, step_mm)
+    steps = steps_of(design)
+    chosen_err = study[step_mm][1] if step_mm in study else 0.0
     # The reference itself, checked by the independent solver at a tight tolerance.
     ref_check = worst(
         {
@@ -185,19 +194,19 @@ def run(quick: bool) -> dict:
         DEMANDING[: 2 if quick else None],
     )
     print(
-        f"\n[1] discretisation: worst tip error vs {ref_steps} steps/section ({REFINE}x the "
-        "design's), fraction of L"
+        f"\n[1] discretisation: worst tip error vs step length {REFERENCE_STEP_MM} mm "
+        f"(steps per section {ref_steps}), fraction of L"
     )
-    print(row("steps/section", [f"{n:>8d}" for n in study]))
+    print(row("step length mm", [f"{h:>8g}" for h in study]))
+    print(row("steps per section", [f"{'/'.join(map(str, e[2])):>8}" for e in study.values()]))
     print(row(f"{len(DEMANDING)} demanding cases", [f"{e[0]:8.1e}" for e in study.values()]))
     print(row(f"all {len(CHECKED)} cases", [f"{e[1]:8.1e}" for e in study.values()]))
     print("    (demanding: 70 kPa on one chamber, on two; all: plus the timed pressures)")
     print(
-        f"    design setting {design_steps}: {study[design_steps][1]:.1e} L; smallest meeting "
-        f"{ACCURACY:.0e} L: {steps} steps/section (used for all timings)"
+        f"    design file's setting (steps {design_steps}): {design_err:.1e} L; largest step "
+        f"meeting {ACCURACY:.0e} L: {step_mm:g} mm, steps {steps} (used for all timings)"
     )
     print(f"    reference checked against solve_bvp (tol 1e-8): agree to {ref_check:.1e} L")
-    design = with_steps(base, steps)
 
     # 2. Baseline tolerance by the same criterion ------------------------------------------
     tol_study = {}
@@ -317,7 +326,10 @@ def run(quick: bool) -> dict:
     def ok(flag: bool) -> str:
         return "met" if flag else "MISSED"
 
-    print(f"\n[3] single cold solve, steps/section = {steps}, median of {reps} per pressure")
+    print(
+        f"\n[3] single cold solve, step {step_mm:g} mm (steps {steps}), median of {reps} per "
+        "pressure"
+    )
     print(
         f"    {'pressures kPa':<20} {'solve_statics':>14} {'_rod.solve':>12} {'Newton it':>9} "
         f"{'loads':>5}  tip mm"
@@ -334,7 +346,8 @@ def run(quick: bool) -> dict:
             f"rhs evaluations={v['nfev']} final nodes={v['final_nodes']}"
         )
     print(
-        f"    tip agreement softrod ({steps} steps) vs baseline (tol {bvp_tol:.0e}): {agree:.1e} L"
+        f"    tip agreement softrod (step {step_mm:g} mm) vs baseline (tol {bvp_tol:.0e}): "
+        f"{agree:.1e} L"
     )
 
     w = 44
@@ -353,7 +366,7 @@ def run(quick: bool) -> dict:
     )
     if default_api is not None:
         print(
-            f"{f'single cold solve at design steps ({design_steps})':<{w}} "
+            f"{'single cold solve at the design file steps':<{w}} "
             f"{fmt_t(default_api):>12} {'':>12} {bvp_single / default_api:>7.0f}x"
         )
     if bvp_fd is not None:
@@ -373,8 +386,8 @@ def run(quick: bool) -> dict:
         f"sweep uses all {os.cpu_count()} cores and warm-starts along rows."
     )
     print(
-        f"settings: steps/section {steps} (tip error {study[steps][1]:.1e} L; design file: "
-        f"{design_steps}), Newton tol {opts['tol']:.0e}; solve_bvp tol {bvp_tol:.0e}, "
+        f"settings: step {step_mm:g} mm, steps {steps} (tip error {chosen_err:.1e} L; design "
+        f"file: steps {design_steps}), Newton tol {opts['tol']:.0e}; solve_bvp tol {bvp_tol:.0e}, "
         f"{BVP_NODES} nodes/section, exact Jacobians; medians of {reps} (single), {runs} "
         f"(sweep), {b_reps} (baseline) runs"
     )
@@ -394,12 +407,17 @@ def run(quick: bool) -> dict:
         "units": "seconds; errors as a fraction of the length",
         "discretisation": {
             "accuracy_target": ACCURACY,
-            "reference_steps_per_section": ref_steps,
+            "reference_step_length_mm": REFERENCE_STEP_MM,
+            "reference_steps": ref_steps,
             "demanding_pressures_kPa": [list(p) for p in DEMANDING],
             "checked_pressures_kPa": [list(p) for p in CHECKED],
-            "worst_tip_error_by_steps_demanding_all": {str(n): e for n, e in study.items()},
-            "design_steps_per_section": design_steps,
-            "chosen_steps_per_section": steps,
+            "worst_tip_error_by_step_mm_demanding_all_steps": {
+                f"{h:g}": list(e) for h, e in study.items()
+            },
+            "design_file_steps": design_steps,
+            "design_file_error": design_err,
+            "chosen_step_length_mm": step_mm,
+            "chosen_steps": steps,
             "reference_vs_solve_bvp_tol_1e-8": ref_check,
         },
         "baseline_settings": {

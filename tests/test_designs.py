@@ -121,3 +121,25 @@ def test_load_design_accepts_path_and_design():
     d = load_design(path)
     assert load_design(str(path)).spec == d.spec
     assert load_design(d) is d
+
+
+@pytest.mark.parametrize(
+    ("step", "expected"),
+    [("13 mm", [1, 9, 1]), ("5 mm", [2, 22, 2]), ("110 mm", [1, 1, 1]), ("0.011 m", [1, 10, 1])],
+)
+def test_step_length_sets_steps_per_section(step, expected):
+    # Each section gets ceil(length / step) steps; 110 mm / 11 mm is exactly 10, not 11.
+    d = load_design(SPA).replace({"numerics": {"step_length": step}})
+    assert [s["steps"] for s in d.spec["sections"]] == expected
+
+
+def test_step_length_rejects_bad_values():
+    base = load_design(SPA)
+    for bad in ("0 mm", "-1 mm", "5 kPa"):
+        with pytest.raises(softrod.DesignError, match="numerics.step_length"):
+            base.replace({"numerics": {"step_length": bad}})
+
+
+def test_section_steps_override_step_length():
+    d = load_design(SPA).replace({"numerics": {"step_length": "5 mm"}, "sections[1].steps": 4})
+    assert [s["steps"] for s in d.spec["sections"]] == [2, 4, 2]

@@ -92,6 +92,9 @@ DESIGN_CASES = [
     ("inf-mm", f"{BODY}.outer_radius", "inf mm", f"{BODY}.outer_radius"),
     ("unknown-material", f"{BODY}.material", "unobtainium", f"{BODY}.material"),
     ("unknown-orientation", "mounting.orientation", "sideways", "mounting.orientation"),
+    # The design sets steps_per_section, so any step_length also breaks "not both".
+    ("step-length-and-steps", "numerics.step_length", "5 mm", "numerics.step_length"),
+    ("zero-steps", "numerics.steps_per_section", 0, "numerics.steps_per_section"),
 ]
 
 

@@ -59,7 +59,7 @@ _SCHEMA: dict[str, set[str]] = {
     "chamber": {"radius", "area", "distance", "angle", "channel"},
     "tip": {"mass", "com_offset", "force", "moment"},
     "load": {"section", "force_per_length", "moment_per_length"},
-    "numerics": {"steps_per_section"},
+    "numerics": {"steps_per_section", "step_length"},
 }
 
 _ORIENTATIONS = {
@@ -167,18 +167,27 @@ def _base_rotation(mount: Mapping) -> list[list[float]]:
     return (_ORIENTATIONS[orientation] @ rz).tolist()
 
 
-def _section(sec: Any, i: int, materials: Mapping, default_steps: int) -> dict:
+def _section(sec: Any, i: int, materials: Mapping, numerics: tuple[str, float]) -> dict:
     where = f"sections[{i}]"
     sec = _check_keys(sec, "section", where)
     name = _require(sec, "name", where)
     if not isinstance(name, str):
         raise design_error(f"{where}.name", name, "must be a string")
+    length = to_si(_require(sec, "length", where), "length", f"{where}.length")
+    mode, value = numerics
+    if "steps" in sec:
+        steps = _integer(sec["steps"], f"{where}.steps", 1)
+    elif mode == "step_length" and math.isfinite(length) and length > 0:
+        # Steps of at most step_length (a tiny relative slack keeps 110 mm / 11 mm at 10).
+        steps = max(1, math.ceil(length / value * (1.0 - 1e-12)))
+    else:
+        steps = int(value)
     out: dict[str, Any] = {
         "name": name,
-        "length": to_si(_require(sec, "length", where), "length", f"{where}.length"),
+        "length": length,
         "rigid": bool(sec.get("rigid", False)),
         "bore_radius": to_si(sec.get("bore_radius", 0.0), "length", f"{where}.bore_radius"),
-        "steps": _integer(sec.get("steps", default_steps), f"{where}.steps", 1),
+        "steps": steps,
     }
     if not isinstance(sec.get("rigid", False), bool):
         raise design_error(f"{where}.rigid", sec["rigid"], "must be true or false")
@@ -231,6 +240,23 @@ def _chamber(ch: Any, where: str) -> dict:
     }
 
 
+def _numerics(numerics: Mapping) -> tuple[str, float]:
+    """The discretisation rule: ("steps_per_section", n) or ("step_length", h in m)."""
+    if "steps_per_section" in numerics and "step_length" in numerics:
+        raise design_error(
+            "numerics.step_length",
+            numerics["step_length"],
+            "give steps_per_section or step_length, not both",
+        )
+    if "step_length" in numerics:
+        h = to_si(numerics["step_length"], "length", "numerics.step_length")
+        if not (math.isfinite(h) and h > 0):
+            raise design_error("numerics.step_length", numerics["step_length"], "must be > 0")
+        return ("step_length", h)
+    n = numerics.get("steps_per_section", DEFAULT_STEPS)
+    return ("steps_per_section", _integer(n, "numerics.steps_per_section", 1))
+
+
 def _to_spec(doc: Mapping) -> dict:
     """Structure and units: TOML document -> SI spec for the Rust core."""
     doc = _check_keys(doc, "", "")
@@ -240,9 +266,7 @@ def _to_spec(doc: Mapping) -> dict:
             raise design_error(f"design.{k}", meta[k], "must be a non-empty string")
     mount = _check_keys(doc.get("mounting", {}), "mounting", "mounting")
     numerics = _check_keys(doc.get("numerics", {}), "numerics", "numerics")
-    steps = _integer(
-        numerics.get("steps_per_section", DEFAULT_STEPS), "numerics.steps_per_section", 1
-    )
+    steps = _numerics(numerics)
     materials = doc.get("materials", {})
     if not isinstance(materials, Mapping):
         raise design_error("materials", materials, "must be a table of materials")
