@@ -55,7 +55,21 @@ _SCHEMA: dict[str, set[str]] = {
         "GJ",
         "chambers",
         "steps",
+        "law",
+        "partition",
     },
+    "law": {
+        "axial",
+        "alpha",
+        "axial_force",
+        "axial_stiffness",
+        "chamber_offset",
+        "c_p",
+        "p_ref",
+        "stretch_bending",
+        "stiffness_map",
+    },
+    "partition": {"j", "E_I", "r_I", "E_II", "r_II", "E_III"},
     "chamber": {"radius", "area", "distance", "angle", "channel"},
     "tip": {"mass", "com_offset", "force", "moment"},
     "load": {"section", "force_per_length", "moment_per_length"},
@@ -215,11 +229,79 @@ def _section(sec: Any, i: int, materials: Mapping, numerics: tuple[str, float]) 
         if k in sec:
             stiff[k.lower()] = to_si(sec[k], "stiffness_bending", f"{where}.{k}")
     out["stiffness"] = stiff
+    if "law" in sec:
+        out["law"] = _law(sec["law"], f"{where}.law")
+    if "partition" in sec:
+        out["partition"] = _partition(sec["partition"], f"{where}.partition")
     chambers = sec.get("chambers", [])
     if not isinstance(chambers, list):
         raise design_error(f"{where}.chambers", chambers, "must be an array of tables")
     out["chambers"] = [_chamber(c, f"{where}.chambers[{k}]") for k, c in enumerate(chambers)]
     return out
+
+
+_AXIAL_LAWS = ("linear", "ogden", "table")
+
+
+def _law(law: Any, where: str) -> dict:
+    """[sections.law]: the refinements of the linear law (docs/laws.md)."""
+    law = _check_keys(law, "law", where)
+    kind = law.get("axial", "linear")
+    if kind not in _AXIAL_LAWS:
+        raise design_error(f"{where}.axial", kind, f"must be one of {', '.join(_AXIAL_LAWS)}")
+    out: dict[str, Any] = {}
+    if kind == "ogden":
+        out["axial"] = {
+            "kind": "ogden",
+            "alpha": number(_require(law, "alpha", where), f"{where}.alpha"),
+        }
+    elif "alpha" in law:
+        raise design_error(f"{where}.alpha", law["alpha"], 'is only used with axial = "ogden"')
+    if kind == "table":
+        force = _require(law, "axial_force", where)
+        stiff = _require(law, "axial_stiffness", where)
+        for key, value in (("axial_force", force), ("axial_stiffness", stiff)):
+            if isinstance(value, str) or not isinstance(value, list):
+                raise design_error(f"{where}.{key}", value, "must be an array of forces")
+        out["axial"] = {
+            "kind": "table",
+            "force": vector_to_si(force, "force", f"{where}.axial_force", length=None),
+            "stiffness": vector_to_si(stiff, "force", f"{where}.axial_stiffness", length=None),
+        }
+    else:
+        for key in ("axial_force", "axial_stiffness"):
+            if key in law:
+                raise design_error(f"{where}.{key}", law[key], 'is only used with axial = "table"')
+    if kind == "linear":
+        out["axial"] = {"kind": "linear"}
+    if "chamber_offset" in law:
+        out["chamber_offset"] = vector_to_si(
+            law["chamber_offset"], "length", f"{where}.chamber_offset", length=2
+        )
+    if "c_p" in law or "p_ref" in law:
+        out["swelling"] = {
+            "c_p": number(_require(law, "c_p", where), f"{where}.c_p"),
+            "p_ref": to_si(_require(law, "p_ref", where), "pressure", f"{where}.p_ref"),
+        }
+    for key in ("stretch_bending", "stiffness_map"):
+        if key in law:
+            if not isinstance(law[key], bool):
+                raise design_error(f"{where}.{key}", law[key], "must be true or false")
+            out[key] = law[key]
+    return out
+
+
+def _partition(part: Any, where: str) -> dict:
+    """[sections.partition]: paper 004's partitioned cross-section (eqs. 13-15, 23, 29)."""
+    part = _check_keys(part, "partition", where)
+    return {
+        "j": _integer(_require(part, "j", where), f"{where}.j", 1),
+        "e_i": to_si(_require(part, "E_I", where), "force", f"{where}.E_I"),
+        "r_i": to_si(_require(part, "r_I", where), "length", f"{where}.r_I"),
+        "e_ii": to_si(part.get("E_II", 0.0), "force", f"{where}.E_II"),
+        "r_ii": to_si(part.get("r_II", 0.0), "length", f"{where}.r_II"),
+        "e_iii": to_si(part.get("E_III", 0.0), "force", f"{where}.E_III"),
+    }
 
 
 def _chamber(ch: Any, where: str) -> dict:

@@ -94,10 +94,17 @@ def to_si(value: object, kind: str, field: str, cls: type[DesignError] = DesignE
     return x
 
 
-def vector_to_si(value: object, kind: str, field: str, cls: type[DesignError] = DesignError):
-    """A 3-vector of quantities."""
-    if not isinstance(value, (list, tuple)) or len(value) != 3:
-        raise design_error(field, value, f"must be a list of 3 {kind} values", cls)
+def vector_to_si(
+    value: object,
+    kind: str,
+    field: str,
+    cls: type[DesignError] = DesignError,
+    length: int | None = 3,
+):
+    """A list of quantities: ``length`` of them (3 by default), or any number if None."""
+    if not isinstance(value, (list, tuple)) or (length is not None and len(value) != length):
+        count = "" if length is None else f"{length} "
+        raise design_error(field, value, f"must be a list of {count}{kind} values", cls)
     return [to_si(v, kind, f"{field}[{i}]", cls) for i, v in enumerate(value)]
 
 

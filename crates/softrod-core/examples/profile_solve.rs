@@ -14,6 +14,7 @@ fn main() {
         pressures: vec![70e3, 35e3, 0.0],
         tip_force: [0.0; 3],
         tip_moment: [0.0; 3],
+        stiffness_scale: [1.0; 3],
     };
     let opts = SolverOptions::default();
     let sol = solve(&rod, &loads, None, &opts).unwrap();

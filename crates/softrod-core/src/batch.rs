@@ -34,12 +34,14 @@ impl BatchRow {
 /// Solve for every row of `pressures` (row-major, `n_channels` per row). Rows are split
 /// into contiguous chunks; inside a chunk each solve starts from the previous row's
 /// solution, so ordered sweeps (grids, ramps) converge in few iterations. `threads = 0`
-/// uses all cores.
+/// uses all cores. `stiffness_scale`, when given, holds sigma (3 per row, row-major) for
+/// the sections with a stiffness map.
 pub fn solve_batch(
     rod: &Rod,
     pressures: &[f64],
     tip_force: [f64; 3],
     tip_moment: [f64; 3],
+    stiffness_scale: Option<&[f64]>,
     opts: &SolverOptions,
     threads: usize,
 ) -> Result<Vec<BatchRow>> {
@@ -53,8 +55,23 @@ pub fn solve_batch(
             format!("must be an (m, {nc}) array: one gauge pressure per channel per row"),
         ));
     }
+    if let Some(s) = stiffness_scale {
+        if s.len() != 3 * rows {
+            return Err(SoftrodError::invalid(
+                "stiffness_scale",
+                format!("{} values", s.len()),
+                format!("must be an ({rows}, 3) array: sigma for every pressure row"),
+            ));
+        }
+    }
+    let sigma = |r: usize| -> [f64; 3] {
+        match stiffness_scale {
+            Some(s) => [s[3 * r], s[3 * r + 1], s[3 * r + 2]],
+            None => [1.0; 3],
+        }
+    };
     for r in 0..rows {
-        rod.check_pressures(&pressures[r * nc..(r + 1) * nc])
+        rod.check_loads(&pressures[r * nc..(r + 1) * nc], &sigma(r))
             .map_err(|e| match e {
                 SoftrodError::InvalidParameter { field, value, rule } => {
                     SoftrodError::InvalidParameter {
@@ -82,6 +99,7 @@ pub fn solve_batch(
                         pressures: pressures[r * nc..(r + 1) * nc].to_vec(),
                         tip_force,
                         tip_moment,
+                        stiffness_scale: sigma(r),
                     };
                     let mut attempt = solve(rod, &loads, guess.as_ref(), opts);
                     if attempt.is_err() && guess.is_some() {

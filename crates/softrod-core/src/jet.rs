@@ -139,6 +139,10 @@ pub trait RodScalar:
 {
     /// The value (derivatives dropped).
     fn value(&self) -> f64;
+    /// 1 / self.
+    fn recip(self) -> Self;
+    /// Square root.
+    fn sqrt(self) -> Self;
 }
 
 impl<const N: usize> RodScalar for Jet<N> {
@@ -146,12 +150,38 @@ impl<const N: usize> RodScalar for Jet<N> {
     fn value(&self) -> f64 {
         self.re
     }
+    #[inline(always)]
+    fn recip(self) -> Self {
+        let r = 1.0 / self.re;
+        let d = -r * r;
+        Jet {
+            re: r,
+            eps: self.eps.map(|e| e * d),
+        }
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        let r = self.re.sqrt();
+        let d = 0.5 / r;
+        Jet {
+            re: r,
+            eps: self.eps.map(|e| e * d),
+        }
+    }
 }
 
 impl<T: num_dual::DualNum<Primitive = f64> + Copy> RodScalar for T {
     #[inline(always)]
     fn value(&self) -> f64 {
         self.re()
+    }
+    #[inline(always)]
+    fn recip(self) -> Self {
+        num_dual::DualNum::recip(&self)
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        num_dual::DualNum::sqrt(&self)
     }
 }
 

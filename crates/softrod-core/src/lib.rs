@@ -11,6 +11,7 @@
 pub mod batch;
 pub mod error;
 pub mod jet;
+pub mod law;
 pub mod ode;
 pub mod rod;
 pub mod section;

@@ -14,8 +14,11 @@
 //! with respect to pressures or parameters are wanted).
 
 use crate::jet::RodScalar;
-use crate::rod::Rod;
+use crate::law::{ogden_from_stretch, ogden_initial_stretch, AxialTable};
+use crate::rod::{inverse3, stiffness_matrices, AxialLaw, Rod};
+use crate::section::CrossSection;
 use std::ops::{Add, Mul, Neg};
+use std::sync::Arc;
 
 /// Scalar of the coefficients (f64, or a dual number for parameter derivatives).
 pub trait Coeff: Copy + Neg<Output = Self> {}
@@ -38,10 +41,24 @@ pub struct State<D> {
     pub rot: [[D; 3]; 3],
     pub n: [D; 3],
     pub m: [D; 3],
+    /// Carried law states: (lambda, lambda^alpha) in an Ogden section, unused elsewhere.
+    pub aux: [D; 2],
+}
+
+/// Axial law of one solve (stiffnesses after swelling and the stiffness map).
+#[derive(Debug, Clone, PartialEq)]
+pub enum AxialCoeffs {
+    /// v = C_se n_m + e3 (folded into c_se and v_shift).
+    Linear,
+    /// Paper 002 eq. 16 with k_e = c_e EA (N), exponent alpha, shear stiffness k_s (N).
+    /// The stretch is carried in `State::aux` (see `crate::law`).
+    Ogden { k_e: f64, alpha: f64, k_s: f64 },
+    /// v3 = 1 + F / (scale EA(F)); shear linear through c_se.
+    Table { table: Arc<AxialTable>, scale: f64 },
 }
 
 /// Per-solve coefficients of one section: compliances, strain shifts from pressure, loads.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Coeffs<C> {
     pub c_se: [C; 3],
     pub c_bt: [[C; 3]; 3],
@@ -53,6 +70,11 @@ pub struct Coeffs<C> {
     pub f: [C; 3],
     /// Line moment l (world), N m/m.
     pub l: [C; 3],
+    /// Pressure force P = sum_k p_k A_k, N (n_m = n + P d3).
+    pub p_force: C,
+    pub axial: AxialCoeffs,
+    /// Bending stiffness times the local stretch v3 (paper 004 eq. 29).
+    pub stretch_bending: bool,
 }
 
 /// The per-solve loads, SI, world frame. The solver scales all of them (and gravity) by a
@@ -65,6 +87,9 @@ pub struct Loads {
     pub pressures: Vec<f64>,
     pub tip_force: [f64; 3],
     pub tip_moment: [f64; 3],
+    /// Stiffness scaling sigma = (sigma_ext, sigma_bend_1, sigma_bend_2) of this solve for
+    /// the sections with `law.stiffness_map` (paper 001 eq. 13); not ramped by continuation.
+    pub stiffness_scale: [f64; 3],
 }
 
 impl Loads {
@@ -74,6 +99,7 @@ impl Loads {
             pressures,
             tip_force: rod.spec.tip.force,
             tip_moment: rod.spec.tip.moment,
+            stiffness_scale: [1.0; 3],
         }
     }
 }
@@ -87,20 +113,77 @@ fn cross<D: RodScalar>(a: &[D; 3], b: &[D; 3]) -> [D; 3] {
     ]
 }
 
+/// Factor by which chamber radii grow at the (scaled) pressures: 1 + c_p p / p_ref
+/// (paper 002 eq. 22), one per chamber of section `i`.
+pub fn swelling_factors(rod: &Rod, i: usize, pressures: &[f64], factor: f64) -> Vec<f64> {
+    let s = &rod.sections[i];
+    s.chambers
+        .iter()
+        .map(|c| match s.law.swelling {
+            Some(sw) => 1.0 + sw.c_p * factor * pressures[c.channel] / sw.p_ref,
+            None => 1.0,
+        })
+        .collect()
+}
+
 impl Coeffs<f64> {
-    /// Coefficients of section `i` under `pressures` (already scaled) and gravity `g`.
-    pub fn build(rod: &Rod, i: usize, pressures: &[f64], g: &[f64; 3], factor: f64) -> Self {
+    /// Coefficients of section `i` under `pressures` and gravity `g`, both scaled by the
+    /// load factor, with the stiffness scale `sigma` (used where the section is mapped).
+    pub fn build(
+        rod: &Rod,
+        i: usize,
+        pressures: &[f64],
+        g: &[f64; 3],
+        factor: f64,
+        sigma: &[f64; 3],
+    ) -> Self {
         let s = &rod.sections[i];
+        let law = &s.law;
+        let swell = swelling_factors(rod, i, pressures, factor);
+        let (mut k_se, mut k_bt) = (s.k_se, s.k_bt);
+        let mut changed = false;
+        if let (Some(_), Some(geo)) = (law.swelling, &law.geometry) {
+            // Swollen chambers remove more material: A_m and I at this pressure.
+            let cs = CrossSection::from_holes(
+                geo.outer_radius,
+                geo.bore_radius,
+                s.chambers
+                    .iter()
+                    .zip(&swell)
+                    .map(|(c, w)| (c.hole_radius * w, c.centroid)),
+            );
+            (k_se, k_bt) = stiffness_matrices(&law.given, Some((&cs, &geo.material)), law.factors);
+            changed = true;
+        }
+        if law.stiffness_map {
+            let [se, s1, s2] = *sigma;
+            k_se[2] *= se;
+            k_bt[0][0] *= s1;
+            k_bt[1][1] *= s2;
+            // The coupling scales with the geometric mean, which keeps K_bt positive definite.
+            let c = (s1 * s2).sqrt();
+            k_bt[0][1] *= c;
+            k_bt[1][0] *= c;
+            changed = true;
+        }
+        let (c_se, c_bt) = if changed && !s.rigid {
+            (
+                k_se.map(|k| 1.0 / k),
+                inverse3(&k_bt).unwrap_or([[f64::NAN; 3]; 3]),
+            )
+        } else {
+            (s.c_se, s.c_bt)
+        };
         let mut force = 0.0; // sum p_k A_k
         let mut mp = [0.0; 3]; // sum p_k A_k (y_k, -x_k, 0)
-        for c in &s.chambers {
-            let pa = factor * pressures[c.channel] * c.area;
+        for (c, w) in s.chambers.iter().zip(&swell) {
+            let pa = factor * pressures[c.channel] * c.area * w * w;
             force += pa;
             mp[0] += pa * c.centroid[1];
             mp[1] -= pa * c.centroid[0];
         }
         let mut u_shift = [0.0; 3];
-        for (a, row) in u_shift.iter_mut().zip(&s.c_bt) {
+        for (a, row) in u_shift.iter_mut().zip(&c_bt) {
             *a = row[0] * mp[0] + row[1] * mp[1] + row[2] * mp[2];
         }
         let mut f = [0.0; 3];
@@ -109,13 +192,28 @@ impl Coeffs<f64> {
             f[k] = factor * (s.line_mass * g[k] + s.line_force[k]);
             l[k] = factor * s.line_moment[k];
         }
+        let axial = match &law.axial {
+            AxialLaw::Linear => AxialCoeffs::Linear,
+            AxialLaw::Ogden { alpha } => AxialCoeffs::Ogden {
+                k_e: k_se[2],
+                alpha: *alpha,
+                k_s: k_se[0],
+            },
+            AxialLaw::Table(table) => AxialCoeffs::Table {
+                table: table.clone(),
+                scale: law.factors[1] * if law.stiffness_map { sigma[0] } else { 1.0 },
+            },
+        };
         Coeffs {
-            c_se: s.c_se,
-            c_bt: s.c_bt,
-            v_shift: [0.0, 0.0, 1.0 + s.c_se[2] * force],
+            c_se,
+            c_bt,
+            v_shift: [0.0, 0.0, 1.0 + c_se[2] * force],
             u_shift,
             f,
             l,
+            p_force: force,
+            axial,
+            stretch_bending: law.stretch_bending,
         }
     }
 }
@@ -132,6 +230,8 @@ impl<D: RodScalar> State<D> {
                 y.rot[i][j] += k.rot[i][j] * h;
             }
         }
+        y.aux[0] += k.aux[0] * h;
+        y.aux[1] += k.aux[1] * h;
         y
     }
 
@@ -148,13 +248,21 @@ impl<D: RodScalar> State<D> {
             rot: self.rot.map(|row| row.map(|x| x.value())),
             n: self.n.map(|x| x.value()),
             m: self.m.map(|x| x.value()),
+            aux: self.aux.map(|x| x.value()),
         }
     }
 }
 
-/// Body-frame strains (v, u) from the state through the linear law with pressure.
+/// Body-frame strains (v, u) from the state through the section's law with pressure.
 #[inline(always)]
 pub fn strains<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> ([D; 3], [D; 3]) {
+    let (v, u, _) = law_strains(y, c);
+    (v, u)
+}
+
+/// Strains, and for an Ogden section the rate of the carried stretch lambda (else zero).
+#[inline(always)]
+fn law_strains<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> ([D; 3], [D; 3], D) {
     let rt = |w: &[D; 3]| -> [D; 3] {
         let mut o = [w[0] * y.rot[0][0] + w[1] * y.rot[1][0] + w[2] * y.rot[2][0]; 3];
         o[1] = w[0] * y.rot[0][1] + w[1] * y.rot[1][1] + w[2] * y.rot[2][1];
@@ -163,22 +271,59 @@ pub fn strains<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> ([D;
     };
     let nb = rt(&y.n);
     let mb = rt(&y.m);
-    let v = [
-        nb[0] * c.c_se[0] + c.v_shift[0],
-        nb[1] * c.c_se[1] + c.v_shift[1],
-        nb[2] * c.c_se[2] + c.v_shift[2],
-    ];
+    let mut grad = None;
+    let v = match &c.axial {
+        AxialCoeffs::Linear => [
+            nb[0] * c.c_se[0] + c.v_shift[0],
+            nb[1] * c.c_se[1] + c.v_shift[1],
+            nb[2] * c.c_se[2] + c.v_shift[2],
+        ],
+        // Material force n_m = n + P d3 (the pressure part of the total force removed).
+        AxialCoeffs::Ogden { k_e, alpha, k_s } => {
+            let nm = [nb[0], nb[1], nb[2] + c.p_force];
+            let (v, g) = ogden_from_stretch(*k_e, *alpha, *k_s, y.aux[0], y.aux[1], &nm);
+            grad = Some(g);
+            v
+        }
+        AxialCoeffs::Table { table, scale } => {
+            let f = nb[2] + c.p_force;
+            let ea = table.eval(f) * *scale;
+            [
+                nb[0] * c.c_se[0] + c.v_shift[0],
+                nb[1] * c.c_se[1] + c.v_shift[1],
+                f * ea.recip() + 1.0,
+            ]
+        }
+    };
     let mut u = [mb[0]; 3];
     for i in 0..3 {
         u[i] = mb[0] * c.c_bt[i][0] + mb[1] * c.c_bt[i][1] + mb[2] * c.c_bt[i][2] + c.u_shift[i];
     }
-    (v, u)
+    if c.stretch_bending {
+        // K_bend(v3) = v3 K_bend (paper 004 eq. 29 with L_c/L_c0 = v3): bending curvatures
+        // divide by v3; K_bt is block diagonal, so torsion is unaffected.
+        let r = v[2].recip();
+        u[0] = u[0] * r;
+        u[1] = u[1] * r;
+    }
+    let zero = D::from(0.0);
+    let dlam = match grad {
+        // d n_m/ds in the body frame = R^T n' - u x (R^T n) = -R^T f - u x n_b.
+        Some(g) => {
+            let f = [zero + c.f[0], zero + c.f[1], zero + c.f[2]];
+            let fb = rt(&f);
+            let uxn = cross(&u, &nb);
+            g[0] * (-fb[0] - uxn[0]) + g[1] * (-fb[1] - uxn[1]) + g[2] * (-fb[2] - uxn[2])
+        }
+        None => zero,
+    };
+    (v, u, dlam)
 }
 
 /// dy/ds for an elastic section.
 #[inline(always)]
 fn rhs<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> State<D> {
-    let (v, u) = strains(y, c);
+    let (v, u, dlam) = law_strains(y, c);
     let rot = &y.rot;
     let mut dr = [v[0]; 3];
     for i in 0..3 {
@@ -200,11 +345,17 @@ fn rhs<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> State<D> {
         -rxn[1] + neg(c.l[1]),
         -rxn[2] + neg(c.l[2]),
     ];
+    // d(lambda^alpha)/ds = alpha lambda^alpha / lambda * d lambda/ds (Ogden sections).
+    let dla = match &c.axial {
+        AxialCoeffs::Ogden { alpha, .. } => dlam * y.aux[1] * y.aux[0].recip() * *alpha,
+        _ => zero,
+    };
     State {
         r: dr,
         rot: drot,
         n: dn,
         m: dm,
+        aux: [dlam, dla],
     }
 }
 
@@ -231,6 +382,9 @@ fn rk4_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, h: f64) ->
             out.rot[i][j] +=
                 (k1.rot[i][j] + (k2.rot[i][j] + k3.rot[i][j]) * 2.0 + k4.rot[i][j]) * w;
         }
+    }
+    for i in 0..2 {
+        out.aux[i] += (k1.aux[i] + (k2.aux[i] + k3.aux[i]) * 2.0 + k4.aux[i]) * w;
     }
     out.rot = reproject(&out.rot);
     out
@@ -272,6 +426,25 @@ fn rigid_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, len: f64
     out
 }
 
+/// (lambda, lambda^alpha) at the start of an Ogden section: the law solved for the material
+/// force there (see `crate::law`).
+fn initial_stretch<C: Coeff, D: StateScalar<C>>(
+    y: &State<D>,
+    p_force: C,
+    k_e: f64,
+    alpha: f64,
+    k_s: f64,
+) -> [D; 2] {
+    let d = |j: usize| y.director(j);
+    let dot = |a: &[D; 3], b: &[D; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let nm = [
+        dot(&d(0), &y.n),
+        dot(&d(1), &y.n),
+        dot(&d(2), &y.n) + p_force,
+    ];
+    ogden_initial_stretch(k_e, alpha, k_s, &nm)
+}
+
 /// A node visited by the integrator: section index, arc length, state.
 pub type Visitor<'a, D> = &'a mut dyn FnMut(usize, f64, &State<D>);
 
@@ -288,6 +461,9 @@ pub fn integrate<C: Coeff, D: StateScalar<C>>(
         v(0, 0.0, &y);
     }
     for (i, (sec, c)) in rod.sections.iter().zip(coeffs).enumerate() {
+        if let AxialCoeffs::Ogden { k_e, alpha, k_s } = &c.axial {
+            y.aux = initial_stretch(&y, c.p_force, *k_e, *alpha, *k_s);
+        }
         let h = sec.length / sec.steps as f64;
         for k in 0..sec.steps {
             y = if sec.rigid {

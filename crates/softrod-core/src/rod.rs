@@ -2,15 +2,133 @@
 //! weight and chamber data (all SI), ready for the integrator.
 
 use crate::error::{Result, SoftrodError};
+use crate::law::AxialTable;
 use crate::section::CrossSection;
-use crate::spec::{validate_pressures, DesignSpec};
+use crate::spec::{
+    validate_pressures, AxialSpec, DesignSpec, MaterialSpec, SectionSpec, StiffnessSpec,
+    SwellingSpec,
+};
+use std::sync::Arc;
 
-/// A chamber as the constitutive law sees it: pressurised area and centroid (d1, d2).
+/// A chamber as the constitutive law sees it: pressurised area, hole radius and centroid
+/// (d1, d2, including the section's chamber offset).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Chamber {
     pub area: f64,
+    pub hole_radius: f64,
     pub centroid: [f64; 2],
     pub channel: usize,
+}
+
+/// Axial law of a compiled section (see `crate::law`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum AxialLaw {
+    Linear,
+    Ogden { alpha: f64 },
+    Table(Arc<AxialTable>),
+}
+
+/// What a section needs to recompute its stiffness when its chambers swell
+/// (paper 002 eq. 22 changes A_m and I, hence eqs. 17, 19, 20).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Geometry {
+    pub outer_radius: f64,
+    pub bore_radius: f64,
+    pub material: MaterialSpec,
+}
+
+/// The constitutive refinements of a compiled section.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SectionLaw {
+    pub axial: AxialLaw,
+    /// Bending stiffness times the local stretch v3 (paper 004 eq. 29).
+    pub stretch_bending: bool,
+    /// EA, EI_1, EI_2 scaled by the per-solve factors sigma (paper 001 eq. 13).
+    pub stiffness_map: bool,
+    pub swelling: Option<SwellingSpec>,
+    /// Geometry and the directly given stiffnesses, for swelling.
+    pub geometry: Option<Geometry>,
+    pub given: StiffnessSpec,
+    /// Correction factors c_s, c_e, c_b, c_t.
+    pub factors: [f64; 4],
+}
+
+impl SectionLaw {
+    pub fn is_linear(&self) -> bool {
+        matches!(self.axial, AxialLaw::Linear)
+            && !self.stretch_bending
+            && !self.stiffness_map
+            && self.swelling.is_none()
+    }
+}
+
+/// K_se diagonal and K_bt of a section from directly given stiffnesses, or else from the
+/// cross-section and material, times the correction factors (paper 002 eqs. 17, 19, 20).
+pub fn stiffness_matrices(
+    given: &StiffnessSpec,
+    geo: Option<(&CrossSection, &MaterialSpec)>,
+    [c_s, c_e, c_b, c_t]: [f64; 4],
+) -> ([f64; 3], [[f64; 3]; 3]) {
+    let from = |f: &dyn Fn(&CrossSection, &MaterialSpec) -> f64| -> f64 {
+        match geo {
+            Some((c, m)) => f(c, m),
+            None => f64::NAN, // unreachable for validated elastic sections
+        }
+    };
+    let ea = given
+        .ea
+        .unwrap_or_else(|| from(&|c, m| m.youngs_modulus * c.area));
+    let ga = given
+        .ga
+        .unwrap_or_else(|| from(&|c, m| m.shear_modulus * c.area));
+    let ei1 = given
+        .ei1
+        .unwrap_or_else(|| from(&|c, m| m.youngs_modulus * c.i11));
+    let ei2 = given
+        .ei2
+        .unwrap_or_else(|| from(&|c, m| m.youngs_modulus * c.i22));
+    // The coupling term comes from the geometry only (direct stiffnesses describe
+    // principal axes); zero when the section has no geometry.
+    let ei12 = match geo {
+        Some((c, m)) if given.ei1.is_none() && given.ei2.is_none() => m.youngs_modulus * c.i12,
+        _ => 0.0,
+    };
+    let gj = given
+        .gj
+        .unwrap_or_else(|| from(&|c, m| m.shear_modulus * c.polar()));
+    (
+        [c_s * ga, c_s * ga, c_e * ea],
+        [
+            [c_b * ei1, c_b * ei12, 0.0],
+            [c_b * ei12, c_b * ei2, 0.0],
+            [0.0, 0.0, c_t * gj],
+        ],
+    )
+}
+
+fn compile_law(s: &SectionSpec) -> SectionLaw {
+    SectionLaw {
+        axial: match &s.law.axial {
+            AxialSpec::Linear => AxialLaw::Linear,
+            AxialSpec::Ogden { alpha } => AxialLaw::Ogden { alpha: *alpha },
+            AxialSpec::Table { force, stiffness } => {
+                AxialLaw::Table(Arc::new(AxialTable::new(force, stiffness)))
+            }
+        },
+        stretch_bending: s.stretch_bending(),
+        stiffness_map: s.law.stiffness_map,
+        swelling: s.law.swelling,
+        geometry: match (s.outer_radius, s.material) {
+            (Some(outer_radius), Some(material)) => Some(Geometry {
+                outer_radius,
+                bore_radius: s.bore_radius,
+                material,
+            }),
+            _ => None,
+        },
+        given: s.given_stiffness(),
+        factors: [s.c_s, s.c_e, s.c_b, s.c_t],
+    }
 }
 
 /// One compiled section.
@@ -36,6 +154,7 @@ pub struct Section {
     pub chambers: Vec<Chamber>,
     /// Arc length at the start of the section, m.
     pub s_start: f64,
+    pub law: SectionLaw,
 }
 
 /// A validated, compiled design. Immutable: solves never change it.
@@ -53,7 +172,8 @@ pub struct Rod {
     pub force_scale: f64,
 }
 
-fn inverse3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+/// Inverse of a 3x3 matrix with positive determinant, else None.
+pub fn inverse3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
     let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
         - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
         + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
@@ -88,43 +208,12 @@ impl Rod {
                     ));
                 }
             }
-            let mat = s.material;
-            let geo = |f: &dyn Fn(&CrossSection, &crate::spec::MaterialSpec) -> f64| -> f64 {
-                match (&cs, &mat) {
-                    (Some(cs), Some(m)) => f(cs, m),
-                    _ => f64::NAN, // unreachable for validated elastic sections
-                }
-            };
-            let st = &s.stiffness;
-            let ea = st
-                .ea
-                .unwrap_or_else(|| geo(&|c, m| m.youngs_modulus * c.area));
-            let ga = st
-                .ga
-                .unwrap_or_else(|| geo(&|c, m| m.shear_modulus * c.area));
-            let ei1 = st
-                .ei1
-                .unwrap_or_else(|| geo(&|c, m| m.youngs_modulus * c.i11));
-            let ei2 = st
-                .ei2
-                .unwrap_or_else(|| geo(&|c, m| m.youngs_modulus * c.i22));
-            // The coupling term comes from the geometry only (direct stiffnesses describe
-            // principal axes); zero when the section has no geometry.
-            let ei12 = match (&cs, &mat) {
-                (Some(c), Some(m)) if st.ei1.is_none() && st.ei2.is_none() => {
-                    m.youngs_modulus * c.i12
-                }
-                _ => 0.0,
-            };
-            let gj = st
-                .gj
-                .unwrap_or_else(|| geo(&|c, m| m.shear_modulus * c.polar()));
-            let k_se = [s.c_s * ga, s.c_s * ga, s.c_e * ea];
-            let k_bt = [
-                [s.c_b * ei1, s.c_b * ei12, 0.0],
-                [s.c_b * ei12, s.c_b * ei2, 0.0],
-                [0.0, 0.0, s.c_t * gj],
-            ];
+            let law = compile_law(s);
+            let (k_se, k_bt) = stiffness_matrices(
+                &law.given,
+                cs.as_ref().zip(s.material.as_ref()),
+                law.factors,
+            );
             let (c_se, c_bt) = if s.rigid {
                 ([0.0; 3], [[0.0; 3]; 3])
             } else {
@@ -137,9 +226,11 @@ impl Rod {
                 })?;
                 ([1.0 / k_se[0], 1.0 / k_se[1], 1.0 / k_se[2]], c_bt)
             };
-            let line_mass = match s.mass {
-                Some(m) => m / s.length,
-                None => geo(&|c, m| m.density * c.area),
+            // Gravity acts on the referential area A_m,0 (paper 002 eq. 27): no swelling.
+            let line_mass = match (s.mass, &cs, &s.material) {
+                (Some(m), _, _) => m / s.length,
+                (None, Some(c), Some(m)) => m.density * c.area,
+                _ => f64::NAN, // unreachable for validated sections
             };
             let mut line_force = [0.0; 3];
             let mut line_moment = [0.0; 3];
@@ -152,9 +243,11 @@ impl Rod {
             let chambers = s
                 .chambers
                 .iter()
-                .map(|c| Chamber {
+                .enumerate()
+                .map(|(k, c)| Chamber {
                     area: c.area,
-                    centroid: c.centroid(),
+                    hole_radius: c.hole_radius(),
+                    centroid: s.chamber_centroid(k),
                     channel: c.channel,
                 })
                 .collect();
@@ -172,6 +265,7 @@ impl Rod {
                 line_moment,
                 chambers,
                 s_start,
+                law,
             });
             s_start += s.length;
         }
@@ -206,5 +300,61 @@ impl Rod {
 
     pub fn check_pressures(&self, pressures: &[f64]) -> Result<()> {
         validate_pressures(pressures, self.n_channels)
+    }
+
+    /// Check a solve's pressures and stiffness scale against the design: the pressures
+    /// (see `validate_pressures`), sigma finite and > 0, and swollen chambers (paper 002
+    /// eq. 22) with a positive radius that leave material in the section. Radii are
+    /// linear in the load factor, so checking the full load covers the ramp.
+    pub fn check_loads(&self, pressures: &[f64], sigma: &[f64; 3]) -> Result<()> {
+        self.check_pressures(pressures)?;
+        for (k, s) in sigma.iter().enumerate() {
+            if !(s.is_finite() && *s > 0.0) {
+                return Err(SoftrodError::invalid(
+                    format!("stiffness_scale[{k}]"),
+                    s,
+                    "stiffness scaling factors must be finite and > 0",
+                ));
+            }
+        }
+        for (i, s) in self.sections.iter().enumerate() {
+            let Some(sw) = s.law.swelling else { continue };
+            let w = crate::ode::swelling_factors(self, i, pressures, 1.0);
+            for (k, (c, f)) in s.chambers.iter().zip(&w).enumerate() {
+                if f.is_nan() || *f <= 0.0 {
+                    return Err(SoftrodError::invalid(
+                        format!("pressures[{}]", c.channel),
+                        pressures[c.channel],
+                        format!(
+                            "shrinks sections[{i}].chambers[{k}] to radius factor 1 + c_p p / p_ref = {f:.4} <= 0 (c_p = {}, p_ref = {} Pa)",
+                            sw.c_p, sw.p_ref
+                        ),
+                    ));
+                }
+            }
+            if let Some(geo) = &s.law.geometry {
+                let cs = CrossSection::from_holes(
+                    geo.outer_radius,
+                    geo.bore_radius,
+                    s.chambers
+                        .iter()
+                        .zip(&w)
+                        .map(|(c, f)| (c.hole_radius * f, c.centroid)),
+                );
+                let (_, k_bt) =
+                    stiffness_matrices(&s.law.given, Some((&cs, &geo.material)), s.law.factors);
+                if !(cs.area > 0.0 && inverse3(&k_bt).is_some()) {
+                    return Err(SoftrodError::invalid(
+                        "pressures",
+                        format!("{pressures:?}"),
+                        format!(
+                            "swells the chambers of sections[{i}] until no material is left (A_m = {:.3e} m^2); lower c_p or the pressure",
+                            cs.area
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 }

@@ -26,20 +26,32 @@ pub struct CrossSection {
 }
 
 impl CrossSection {
-    /// Outer disc minus bore minus chamber holes.
+    /// Outer disc minus bore minus chamber holes (centroids include the chamber offset).
     pub fn from_spec(s: &SectionSpec, outer_radius: f64) -> Self {
+        Self::from_holes(
+            outer_radius,
+            s.bore_radius,
+            s.chambers
+                .iter()
+                .enumerate()
+                .map(|(k, c)| (c.hole_radius(), s.chamber_centroid(k))),
+        )
+    }
+
+    /// Outer disc of radius `outer` minus a central bore minus circular holes
+    /// (radius, centroid (x, y)).
+    pub fn from_holes(outer: f64, bore: f64, holes: impl Iterator<Item = (f64, [f64; 2])>) -> Self {
         let disc = |r: f64| (PI * r * r, PI / 4.0 * r.powi(4));
-        let (ao, io) = disc(outer_radius);
-        let (ai, ii) = disc(s.bore_radius);
+        let (ao, io) = disc(outer);
+        let (ai, ii) = disc(bore);
         let mut cs = CrossSection {
             area: ao - ai,
             i11: io - ii,
             i22: io - ii,
             i12: 0.0,
         };
-        for c in &s.chambers {
-            let (a, i0) = disc(c.hole_radius());
-            let [x, y] = c.centroid();
+        for (r, [x, y]) in holes {
+            let (a, i0) = disc(r);
             cs.area -= a;
             cs.i11 -= i0 + y * y * a;
             cs.i22 -= i0 + x * x * a;

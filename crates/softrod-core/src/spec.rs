@@ -118,6 +118,96 @@ pub struct SectionSpec {
     /// Fixed RK4 steps in this section.
     #[serde(default = "default_steps")]
     pub steps: usize,
+    /// Refinements of the linear law (paper 002 eqs. 16-22, paper 004 eq. 29, paper 001
+    /// eq. 13); the default is the plain linear law.
+    #[serde(default)]
+    pub law: LawSpec,
+    /// Paper 004's partitioned cross-section: gives EA and EI and makes the bending
+    /// stiffness grow with the stretch.
+    #[serde(default)]
+    pub partition: Option<PartitionSpec>,
+}
+
+/// Axial (stretch) law of a section.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum AxialSpec {
+    /// n_m3 = k_e (v3 - 1), k_e = c_e EA.
+    #[default]
+    Linear,
+    /// Ogden-type energy of paper 002 eq. 16 in the stretch lambda = |v|, with k_e = c_e EA
+    /// (eq. 17) and exponent alpha.
+    Ogden { alpha: f64 },
+    /// A force-dependent extensional stiffness EA(F) (paper 004 Sec. 3.1), F the material
+    /// axial force: monotone cubic interpolation of the table, constant beyond its ends.
+    Table {
+        force: Vec<f64>,
+        stiffness: Vec<f64>,
+    },
+}
+
+/// Chamber swelling, paper 002 eq. 22: r_p(p) = r_p (1 + c_p p / p_ref).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SwellingSpec {
+    pub c_p: f64,
+    /// Reference pressure p_ref in Pa.
+    pub p_ref: f64,
+}
+
+/// Constitutive refinements of one section.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LawSpec {
+    #[serde(default)]
+    pub axial: AxialSpec,
+    /// Manufacturing offset rho_off of every chamber centroid (paper 002 eq. 21), in the
+    /// body frame (d1, d2), m.
+    #[serde(default)]
+    pub chamber_offset: [f64; 2],
+    #[serde(default)]
+    pub swelling: Option<SwellingSpec>,
+    /// Bending stiffness proportional to the local stretch v3 (paper 004 eq. 29, L_c/L_c0).
+    #[serde(default)]
+    pub stretch_bending: bool,
+    /// Scale EA, EI_1, EI_2 by the per-solve factors sigma(p) (paper 001 eq. 13).
+    #[serde(default)]
+    pub stiffness_map: bool,
+}
+
+impl LawSpec {
+    pub fn is_linear(&self) -> bool {
+        *self == LawSpec::default()
+    }
+}
+
+/// Paper 004's partition of the cross-section into 2j + 1 parts (eqs. 13-15): j parts of
+/// stiffness E_I on radius r_I (chambers), j of E_II on r_II, a central one of E_III.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PartitionSpec {
+    pub j: u32,
+    /// Extensional stiffness of one chamber part, N.
+    pub e_i: f64,
+    /// Radius of the circle of chamber-part centres, m.
+    pub r_i: f64,
+    #[serde(default)]
+    pub e_ii: f64,
+    #[serde(default)]
+    pub r_ii: f64,
+    #[serde(default)]
+    pub e_iii: f64,
+}
+
+impl PartitionSpec {
+    /// E = j (E_I + E_II) + E_III, N (eq. 23).
+    pub fn extensional(&self) -> f64 {
+        self.j as f64 * (self.e_i + self.e_ii) + self.e_iii
+    }
+    /// B at stretch 1: (j/2)(E_I r_I^2 + E_II r_II^2), N m^2 (eq. 29).
+    pub fn bending(&self) -> f64 {
+        0.5 * self.j as f64 * (self.e_i * self.r_i * self.r_i + self.e_ii * self.r_ii * self.r_ii)
+    }
 }
 
 /// Base pose and gravity.
@@ -234,6 +324,119 @@ impl MaterialSpec {
 }
 
 impl SectionSpec {
+    /// Centroid of chamber k in (d1, d2) including the section's chamber offset, m.
+    pub fn chamber_centroid(&self, k: usize) -> [f64; 2] {
+        let c = self.chambers[k].centroid();
+        let o = self.law.chamber_offset;
+        [c[0] + o[0], c[1] + o[1]]
+    }
+
+    /// EA and EI the section is given directly (or by its partition), N and N m^2.
+    pub fn given_stiffness(&self) -> StiffnessSpec {
+        let mut st = self.stiffness;
+        if let Some(p) = &self.partition {
+            st.ea = Some(p.extensional());
+            st.ei1 = Some(p.bending());
+            st.ei2 = Some(p.bending());
+        }
+        st
+    }
+
+    /// Bending stiffness proportional to the stretch (set, or implied by a partition).
+    pub fn stretch_bending(&self) -> bool {
+        self.law.stretch_bending || self.partition.is_some()
+    }
+
+    fn validate_law(&self, i: usize) -> Result<()> {
+        let f = |k: &str| format!("sections[{i}].{k}");
+        if self.rigid && (!self.law.is_linear() || self.partition.is_some()) {
+            return Err(SoftrodError::invalid(
+                f("law"),
+                "set",
+                "a rigid section has no constitutive law (remove law/partition or make it elastic)",
+            ));
+        }
+        match &self.law.axial {
+            AxialSpec::Linear => {}
+            AxialSpec::Ogden { alpha } => {
+                finite(&f("law.axial.alpha"), *alpha)?;
+                if !(*alpha > 0.0 && *alpha <= 100.0) {
+                    return Err(SoftrodError::invalid(
+                        f("law.axial.alpha"),
+                        alpha,
+                        "the Ogden exponent must lie in (0, 100] (paper 002 eq. 16)",
+                    ));
+                }
+            }
+            AxialSpec::Table { force, stiffness } => {
+                if force.len() < 2 || force.len() != stiffness.len() {
+                    return Err(SoftrodError::invalid(
+                        f("law.axial.force"),
+                        format!("{} forces, {} stiffnesses", force.len(), stiffness.len()),
+                        "an EA(F) table needs at least 2 points and as many stiffnesses as forces",
+                    ));
+                }
+                for (k, x) in force.iter().enumerate() {
+                    finite(&f(&format!("law.axial.force[{k}]")), *x)?;
+                    if k > 0 && *x <= force[k - 1] {
+                        return Err(SoftrodError::invalid(
+                            f(&format!("law.axial.force[{k}]")),
+                            x,
+                            "table forces must increase strictly",
+                        ));
+                    }
+                }
+                for (k, x) in stiffness.iter().enumerate() {
+                    positive(&f(&format!("law.axial.stiffness[{k}]")), *x)?;
+                }
+            }
+        }
+        for (k, o) in self.law.chamber_offset.iter().enumerate() {
+            finite(&f(&format!("law.chamber_offset[{k}]")), *o)?;
+        }
+        if let Some(sw) = &self.law.swelling {
+            finite(&f("law.swelling.c_p"), sw.c_p)?;
+            positive(&f("law.swelling.p_ref"), sw.p_ref)?;
+            if self.chambers.is_empty() {
+                return Err(SoftrodError::invalid(
+                    f("law.swelling"),
+                    "set",
+                    "chamber swelling needs chambers in this section",
+                ));
+            }
+        }
+        if let Some(p) = &self.partition {
+            if p.j < 3 {
+                return Err(SoftrodError::invalid(
+                    f("partition.j"),
+                    p.j,
+                    "must be >= 3 (paper 004 eqs. 20 and 28 hold for j >= 3)",
+                ));
+            }
+            positive(&f("partition.E_I"), p.e_i)?;
+            positive(&f("partition.r_I"), p.r_i)?;
+            non_negative(&f("partition.E_II"), p.e_ii)?;
+            non_negative(&f("partition.r_II"), p.r_ii)?;
+            non_negative(&f("partition.E_III"), p.e_iii)?;
+            let st = &self.stiffness;
+            if st.ea.is_some() || st.ei1.is_some() || st.ei2.is_some() {
+                return Err(SoftrodError::invalid(
+                    f("partition"),
+                    "set",
+                    "the partition gives EA and EI; do not also give EA, EI, EI1 or EI2",
+                ));
+            }
+            if matches!(self.law.axial, AxialSpec::Table { .. }) {
+                return Err(SoftrodError::invalid(
+                    f("law.axial"),
+                    "table",
+                    "an EA(F) table replaces the partition's E; use one or the other",
+                ));
+            }
+        }
+        Ok(())
+    }
+
     fn validate(&self, i: usize) -> Result<()> {
         let f = |k: &str| format!("sections[{i}].{k}");
         if self.name.trim().is_empty() {
@@ -262,7 +465,8 @@ impl SectionSpec {
         if let Some(mat) = &self.material {
             mat.validate(&f("material"))?;
         }
-        let st = &self.stiffness;
+        self.validate_law(i)?;
+        let st = &self.given_stiffness();
         for (k, v) in [
             ("EA", st.ea),
             ("GA", st.ga),
@@ -322,26 +526,28 @@ impl SectionSpec {
             non_negative(&g("distance"), c.distance)?;
             finite(&g("angle"), c.angle)?;
             let r = c.hole_radius();
+            // Containment uses the centroid with the section's chamber offset.
+            let [cx, cy] = self.chamber_centroid(k);
+            let dist = cx.hypot(cy);
             if let Some(ro) = self.outer_radius {
-                if c.distance + r > ro * (1.0 + GEOMETRY_SLACK) {
+                if dist + r > ro * (1.0 + GEOMETRY_SLACK) {
                     return Err(SoftrodError::invalid(
                         g("distance"),
                         c.distance,
                         format!(
-                            "chamber lies outside the section: distance + radius = {:.6e} m exceeds outer_radius = {ro:.6e} m",
-                            c.distance + r
+                            "chamber lies outside the section: distance (with chamber_offset) + radius = {:.6e} m exceeds outer_radius = {ro:.6e} m",
+                            dist + r
                         ),
                     ));
                 }
             }
-            if self.bore_radius > 0.0 && c.distance - r < self.bore_radius * (1.0 - GEOMETRY_SLACK)
-            {
+            if self.bore_radius > 0.0 && dist - r < self.bore_radius * (1.0 - GEOMETRY_SLACK) {
                 return Err(SoftrodError::invalid(
                     g("distance"),
                     c.distance,
                     format!(
-                        "chamber overlaps the bore: distance - radius = {:.6e} m is less than bore_radius = {:.6e} m",
-                        c.distance - r,
+                        "chamber overlaps the bore: distance (with chamber_offset) - radius = {:.6e} m is less than bore_radius = {:.6e} m",
+                        dist - r,
                         self.bore_radius
                     ),
                 ));

@@ -121,7 +121,16 @@ fn inf_norm(r: &[f64; 3]) -> f64 {
 impl<'a> Problem<'a> {
     fn new(rod: &'a Rod, loads: &'a Loads, factor: f64) -> Self {
         let coeffs = (0..rod.sections.len())
-            .map(|i| Coeffs::build(rod, i, &loads.pressures, &rod.gravity, factor))
+            .map(|i| {
+                Coeffs::build(
+                    rod,
+                    i,
+                    &loads.pressures,
+                    &rod.gravity,
+                    factor,
+                    &loads.stiffness_scale,
+                )
+            })
             .collect();
         let mut p = Problem {
             rod,
@@ -156,6 +165,7 @@ impl<'a> Problem<'a> {
             rot: self.rod.base_rotation.map(|row| row.map(c)),
             n: self.n0.map(c),
             m: [x[0] * self.ms, x[1] * self.ms, x[2] * self.ms],
+            aux: [c(1.0), c(1.0)],
         }
     }
 
@@ -353,7 +363,7 @@ pub fn solve(
     opts: &SolverOptions,
 ) -> Result<Solution> {
     opts.validate()?;
-    rod.check_pressures(&loads.pressures)?;
+    rod.check_loads(&loads.pressures, &loads.stiffness_scale)?;
     for (name, v) in [
         ("tip_force", &loads.tip_force),
         ("tip_moment", &loads.tip_moment),

@@ -59,7 +59,7 @@ fn batch_equals_single_solves() {
         .fold(0.0, f64::max);
     assert!(spread > 0.2 * l, "tip spread {spread}");
     for threads in [1, 2] {
-        let rows = solve_batch(&rod, &p, tip_force, [0.0; 3], &opts, threads).unwrap();
+        let rows = solve_batch(&rod, &p, tip_force, [0.0; 3], None, &opts, threads).unwrap();
         assert_eq!(rows.len(), LEVELS.pow(3));
         for (k, (row, s)) in rows.iter().zip(&single).enumerate() {
             assert!(
@@ -102,7 +102,7 @@ fn invalid_pressure_row_is_rejected_by_row_and_channel() {
     for bad in [f64::NAN, f64::INFINITY, -101_325.5, -2e5] {
         let mut p = grid();
         p[3 * 7 + 1] = bad; // row 7, channel 1
-        let e = solve_batch(&rod, &p, [0.0; 3], [0.0; 3], &opts, 1).unwrap_err();
+        let e = solve_batch(&rod, &p, [0.0; 3], [0.0; 3], None, &opts, 1).unwrap_err();
         let msg = e.to_string();
         let field = field_of(e);
         assert!(
@@ -113,7 +113,7 @@ fn invalid_pressure_row_is_rejected_by_row_and_channel() {
     // exactly -1 atm (a perfect vacuum) is allowed
     let mut p = vec![0.0; 3];
     p[2] = -101_325.0;
-    assert!(solve_batch(&rod, &p, [0.0; 3], [0.0; 3], &opts, 1).is_ok());
+    assert!(solve_batch(&rod, &p, [0.0; 3], [0.0; 3], None, &opts, 1).is_ok());
 }
 
 #[test]
@@ -121,11 +121,11 @@ fn wrong_number_of_columns_is_rejected() {
     let rod = spa();
     let opts = SolverOptions::default();
     for len in [1, 2, 4, 5, 3 * 4 + 2] {
-        let e = solve_batch(&rod, &vec![1e3; len], [0.0; 3], [0.0; 3], &opts, 1).unwrap_err();
+        let e = solve_batch(&rod, &vec![1e3; len], [0.0; 3], [0.0; 3], None, &opts, 1).unwrap_err();
         assert_eq!(field_of(e), "pressures", "{len} values");
     }
     // no rows at all is a valid (empty) batch
-    assert!(solve_batch(&rod, &[], [0.0; 3], [0.0; 3], &opts, 1)
+    assert!(solve_batch(&rod, &[], [0.0; 3], [0.0; 3], None, &opts, 1)
         .unwrap()
         .is_empty());
 }

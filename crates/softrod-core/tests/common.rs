@@ -3,7 +3,8 @@
 
 use softrod_core::ode::Loads;
 use softrod_core::spec::{
-    ChamberSpec, DesignSpec, MaterialSpec, MountingSpec, SectionSpec, StiffnessSpec, TipSpec,
+    ChamberSpec, DesignSpec, LawSpec, MaterialSpec, MountingSpec, SectionSpec, StiffnessSpec,
+    TipSpec,
 };
 
 pub const IDENTITY: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
@@ -43,6 +44,8 @@ pub fn direct_section(
         },
         chambers: vec![],
         steps,
+        law: LawSpec::default(),
+        partition: None,
     }
 }
 
@@ -65,6 +68,7 @@ pub fn loads(p: &[f64]) -> Loads {
         pressures: p.to_vec(),
         tip_force: [0.0; 3],
         tip_moment: [0.0; 3],
+        stiffness_scale: [1.0; 3],
     }
 }
 
@@ -145,6 +149,8 @@ pub fn geometry_section(
         stiffness: StiffnessSpec::default(),
         chambers,
         steps,
+        law: LawSpec::default(),
+        partition: None,
     }
 }
 
@@ -165,6 +171,8 @@ pub fn rigid_section(name: &str, length: f64, mass: f64) -> SectionSpec {
         stiffness: StiffnessSpec::default(),
         chambers: vec![],
         steps: 1,
+        law: LawSpec::default(),
+        partition: None,
     }
 }
 

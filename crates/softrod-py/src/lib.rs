@@ -136,7 +136,7 @@ impl PyRod {
     }
 
     /// Solve one static equilibrium; returns a dict of numpy arrays (SI).
-    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200))]
+    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stiffness_scale=[1.0, 1.0, 1.0]))]
     #[allow(clippy::too_many_arguments)]
     fn solve<'py>(
         &self,
@@ -149,11 +149,13 @@ impl PyRod {
         max_iter: usize,
         continuation: bool,
         max_load_steps: usize,
+        stiffness_scale: [f64; 3],
     ) -> PyResult<Bound<'py, PyDict>> {
         let loads = Loads {
             pressures,
             tip_force,
             tip_moment,
+            stiffness_scale,
         };
         let opts = options(tol, max_iter, continuation, max_load_steps);
         let rod = &self.rod;
@@ -184,7 +186,7 @@ impl PyRod {
     }
 
     /// Solve every row of an (m, channels) pressure array in parallel (GIL released).
-    #[pyo3(signature = (pressures, tip_force, tip_moment, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200))]
+    #[pyo3(signature = (pressures, tip_force, tip_moment, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stiffness_scale=None))]
     #[allow(clippy::too_many_arguments)]
     fn solve_batch<'py>(
         &self,
@@ -197,6 +199,7 @@ impl PyRod {
         max_iter: usize,
         continuation: bool,
         max_load_steps: usize,
+        stiffness_scale: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let shape = pressures.as_array().shape().to_vec();
         if shape[1] != self.rod.n_channels {
@@ -215,10 +218,22 @@ impl PyRod {
         }
         // Copy into owned Rust data before releasing the GIL.
         let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
+        let sigma: Option<Vec<f64>> =
+            stiffness_scale.map(|s| s.as_array().iter().copied().collect());
         let opts = options(tol, max_iter, continuation, max_load_steps);
         let rod = &self.rod;
         let rows = py
-            .detach(|| solve_batch(rod, &flat, tip_force, tip_moment, &opts, threads))
+            .detach(|| {
+                solve_batch(
+                    rod,
+                    &flat,
+                    tip_force,
+                    tip_moment,
+                    sigma.as_deref(),
+                    &opts,
+                    threads,
+                )
+            })
             .map_err(|e| to_py_err(py, e, Context::Input))?;
         let d = PyDict::new(py);
         let tp: Vec<[f64; 3]> = rows.iter().map(|r| r.tip_position).collect();
