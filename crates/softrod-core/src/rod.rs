@@ -333,6 +333,38 @@ impl Rod {
                 }
             }
             if let Some(geo) = &s.law.geometry {
+                // Swollen chambers must stay inside the wall, off the bore and apart: eq. 22
+                // is a heuristic with no such limit, and overlapping holes would be
+                // subtracted twice from A_m and I.
+                for (k, (c, f)) in s.chambers.iter().zip(&w).enumerate() {
+                    let r = c.hole_radius * f;
+                    let dist = c.centroid[0].hypot(c.centroid[1]);
+                    let clash = if dist + r > geo.outer_radius {
+                        Some("breaks through the outer wall".to_string())
+                    } else if geo.bore_radius > 0.0 && dist - r < geo.bore_radius {
+                        Some("reaches the bore".to_string())
+                    } else {
+                        s.chambers
+                            .iter()
+                            .zip(&w)
+                            .take(k)
+                            .position(|(o, g)| {
+                                let d = (c.centroid[0] - o.centroid[0])
+                                    .hypot(c.centroid[1] - o.centroid[1]);
+                                d < r + o.hole_radius * g
+                            })
+                            .map(|j| format!("overlaps chambers[{j}]"))
+                    };
+                    if let Some(what) = clash {
+                        return Err(SoftrodError::invalid(
+                            "pressures",
+                            format!("{pressures:?}"),
+                            format!(
+                                "swell sections[{i}].chambers[{k}] to radius {r:.4e} m (factor 1 + c_p p / p_ref = {f:.4}), which {what}; lower c_p or the pressure"
+                            ),
+                        ));
+                    }
+                }
                 let cs = CrossSection::from_holes(
                     geo.outer_radius,
                     geo.bore_radius,

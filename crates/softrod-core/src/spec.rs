@@ -359,10 +359,10 @@ impl SectionSpec {
         match &self.law.axial {
             AxialSpec::Linear => {}
             AxialSpec::Ogden { alpha } => {
-                finite(&f("law.axial.alpha"), *alpha)?;
+                finite(&f("law.alpha"), *alpha)?;
                 if !(*alpha > 0.0 && *alpha <= 100.0) {
                     return Err(SoftrodError::invalid(
-                        f("law.axial.alpha"),
+                        f("law.alpha"),
                         alpha,
                         "the Ogden exponent must lie in (0, 100] (paper 002 eq. 16)",
                     ));
@@ -371,23 +371,23 @@ impl SectionSpec {
             AxialSpec::Table { force, stiffness } => {
                 if force.len() < 2 || force.len() != stiffness.len() {
                     return Err(SoftrodError::invalid(
-                        f("law.axial.force"),
+                        f("law.axial_force"),
                         format!("{} forces, {} stiffnesses", force.len(), stiffness.len()),
                         "an EA(F) table needs at least 2 points and as many stiffnesses as forces",
                     ));
                 }
                 for (k, x) in force.iter().enumerate() {
-                    finite(&f(&format!("law.axial.force[{k}]")), *x)?;
+                    finite(&f(&format!("law.axial_force[{k}]")), *x)?;
                     if k > 0 && *x <= force[k - 1] {
                         return Err(SoftrodError::invalid(
-                            f(&format!("law.axial.force[{k}]")),
+                            f(&format!("law.axial_force[{k}]")),
                             x,
                             "table forces must increase strictly",
                         ));
                     }
                 }
                 for (k, x) in stiffness.iter().enumerate() {
-                    positive(&f(&format!("law.axial.stiffness[{k}]")), *x)?;
+                    positive(&f(&format!("law.axial_stiffness[{k}]")), *x)?;
                 }
             }
         }
@@ -395,11 +395,11 @@ impl SectionSpec {
             finite(&f(&format!("law.chamber_offset[{k}]")), *o)?;
         }
         if let Some(sw) = &self.law.swelling {
-            finite(&f("law.swelling.c_p"), sw.c_p)?;
-            positive(&f("law.swelling.p_ref"), sw.p_ref)?;
+            finite(&f("law.c_p"), sw.c_p)?;
+            positive(&f("law.p_ref"), sw.p_ref)?;
             if self.chambers.is_empty() {
                 return Err(SoftrodError::invalid(
-                    f("law.swelling"),
+                    f("law.c_p"),
                     "set",
                     "chamber swelling needs chambers in this section",
                 ));
