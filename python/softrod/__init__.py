@@ -5,13 +5,21 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :func:`load_design` -> :class:`Design`
 - :func:`solve_statics` -> :class:`StaticSolution`
 - :func:`solve_statics_batch` -> :class:`BatchSolution`
+- :func:`list_presets`: named published models (``load_design("paper002_M3_vertical")``)
+- :func:`compare_models`: models on paper 002's experiments -> pandas DataFrame
 - :class:`SolverOptions`
+- :class:`StiffnessMap`: pressure-dependent stiffness scaling sigma(p) (paper 001 eq. 13)
+- :func:`load_dataset` / :func:`write_dataset` -> :class:`Dataset` (CSV, Parquet; docs/datasets.md)
+- :func:`synthesize_dataset`: synthetic datasets from the model, marked as such
 - exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError`
 """
 
 from ._core import __version__ as _core_version
+from .compare import compare_models
+from .datasets import Dataset, load_dataset, synthesize_dataset, write_dataset
 from .design import Design, bundled_designs, designs_dir, load_design
 from .errors import ConvergenceError, DesignError, InputError, SoftrodError
+from .presets import Preset, list_presets
 from .statics import (
     BatchSolution,
     SolverOptions,
@@ -19,22 +27,31 @@ from .statics import (
     solve_statics,
     solve_statics_batch,
 )
+from .stiffness_map import StiffnessMap
 
 __version__ = _core_version
 
 __all__ = [
     "BatchSolution",
     "ConvergenceError",
+    "Dataset",
     "Design",
     "DesignError",
     "InputError",
+    "Preset",
     "SoftrodError",
     "SolverOptions",
     "StaticSolution",
+    "StiffnessMap",
     "__version__",
     "bundled_designs",
+    "compare_models",
     "designs_dir",
+    "list_presets",
+    "load_dataset",
     "load_design",
     "solve_statics",
     "solve_statics_batch",
+    "synthesize_dataset",
+    "write_dataset",
 ]

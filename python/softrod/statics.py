@@ -12,6 +12,7 @@ import numpy as np
 
 from .design import Design, load_design
 from .errors import ConvergenceError, InputError, design_error
+from .stiffness_map import StiffnessMap
 from .units import to_si
 
 
@@ -56,6 +57,8 @@ class StaticSolution:
     force: (n, 3) total internal force n, N.    moment: (n, 3) total internal moment m, N m.
     v: (n, 3) shear/stretch strain (body).      u: (n, 3) curvature/twist, 1/m (body).
     Forces and moments are the totals of the balance laws (material plus pressure part).
+    stiffness_scale: (3,) sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) applied to the
+    mapped sections (docs/stiffness-map.md); ones when the design has none.
     """
 
     design: Design
@@ -73,6 +76,7 @@ class StaticSolution:
     residual: float
     load_steps: int
     shooting_unknowns: np.ndarray = field(repr=False)
+    stiffness_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
 
     @property
     def tip_position(self) -> np.ndarray:
@@ -104,6 +108,8 @@ class BatchSolution:
 
     tip_position (m, 3) m; tip_rotation (m, 3, 3); base_force (m, 3) N; base_moment (m, 3) N m;
     converged (m,) bool (rows that failed hold NaN); iterations (m,); residual (m,).
+    stiffness_scale (m, 3): sigma of every row when the design has mapped sections
+    (docs/stiffness-map.md), else None.
     """
 
     pressures: np.ndarray
@@ -114,6 +120,7 @@ class BatchSolution:
     converged: np.ndarray
     iterations: np.ndarray
     residual: np.ndarray
+    stiffness_scale: np.ndarray | None = None
 
 
 def _pressures(design: Design, pressures) -> list[float]:
@@ -153,6 +160,55 @@ def _options(options: SolverOptions | None) -> SolverOptions:
     return options
 
 
+def _mapped_sections(design: Design) -> list[str]:
+    return [
+        sec["name"]
+        for sec in design.spec["sections"]
+        if (sec.get("law") or {}).get("stiffness_map", False)
+    ]
+
+
+def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
+    """The map to use, or None for a design without mapped sections."""
+    mapped = _mapped_sections(design)
+    if stiffness_map is None:
+        if mapped:
+            raise design_error(
+                "stiffness_map",
+                None,
+                f"section(s) {', '.join(mapped)} of design {design.name!r} set [sections.law] "
+                "stiffness_map = true: pass stiffness_map=, a softrod.StiffnessMap (e.g. "
+                "StiffnessMap.from_table or from_csv; sigma is never assumed to be 1)",
+                InputError,
+            )
+        return None
+    if not isinstance(stiffness_map, StiffnessMap):
+        raise design_error(
+            "stiffness_map",
+            type(stiffness_map).__name__,
+            "must be a softrod.StiffnessMap (build one with StiffnessMap.from_table, "
+            "from_csv, from_callable or from_regressor)",
+            InputError,
+        )
+    if not mapped:
+        raise design_error(
+            "stiffness_map",
+            stiffness_map,
+            f"design {design.name!r} has no section with [sections.law] stiffness_map = true, "
+            "so the map would have no effect",
+            InputError,
+        )
+    if stiffness_map.n_channels != design.n_channels:
+        raise design_error(
+            "stiffness_map",
+            stiffness_map,
+            f"takes {stiffness_map.n_channels} pressure channel(s), the design has "
+            f"{design.n_channels}",
+            InputError,
+        )
+    return stiffness_map
+
+
 def solve_statics(
     design,
     pressures,
@@ -162,6 +218,7 @@ def solve_statics(
     options: SolverOptions | None = None,
     initial: StaticSolution | None = None,
     check: bool = True,
+    stiffness_map: StiffnessMap | None = None,
 ) -> StaticSolution:
     """Static shape of ``design`` under chamber ``pressures`` (Pa gauge, one per channel).
 
@@ -169,16 +226,22 @@ def solve_statics(
     moment when given; gravity and the tip body always act. ``initial`` warm-starts from a
     previous solution. On non-convergence raises :class:`ConvergenceError`, or with
     ``check=False`` returns a solution with ``converged=False`` and NaN arrays.
+    ``stiffness_map`` (a :class:`StiffnessMap`) is required exactly when a section sets
+    ``[sections.law] stiffness_map = true``; it is evaluated once at ``pressures``.
     """
     design = load_design(design)
     p = _pressures(design, pressures)
+    smap = _stiffness_map(design, stiffness_map)
+    sigma = np.ones(3) if smap is None else smap(np.array([p]))[0]
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
     guess = None if initial is None else [float(x) for x in initial.shooting_unknowns]
     opts = _options(options)
     try:
-        out = design._rod.solve(p, tf, tm, guess=guess, **opts.as_kwargs())
+        out = design._rod.solve(
+            p, tf, tm, guess=guess, stiffness_scale=sigma.tolist(), **opts.as_kwargs()
+        )
     except ConvergenceError as exc:
         if check:
             raise
@@ -198,7 +261,8 @@ def solve_statics(
             iterations=exc.iterations,
             residual=exc.residual,
             load_steps=0,
-            shooting_unknowns=np.full(6, np.nan),
+            shooting_unknowns=np.full(3, np.nan),
+            stiffness_scale=sigma,
         )
     return StaticSolution(
         design=design,
@@ -216,6 +280,7 @@ def solve_statics(
         residual=out["residual"],
         load_steps=out["load_steps"],
         shooting_unknowns=np.array(out["x"]),
+        stiffness_scale=sigma,
     )
 
 
@@ -227,12 +292,14 @@ def solve_statics_batch(
     tip_moment=None,
     options: SolverOptions | None = None,
     threads: int = 0,
+    stiffness_map: StiffnessMap | None = None,
 ) -> BatchSolution:
     """Solve for every row of an (m, channels) pressure array (Pa) in parallel.
 
     Runs in Rust on ``threads`` cores (0 = all) with the GIL released; rows in order warm-start
     from their neighbour, so sweeps should be ordered. Rows that fail to converge are kept with
-    ``converged = False`` and NaN results.
+    ``converged = False`` and NaN results. ``stiffness_map`` as in :func:`solve_statics`,
+    evaluated in one call for all rows.
     """
     design = load_design(design)
     arr = np.asarray(pressures, dtype=float)
@@ -249,10 +316,17 @@ def solve_statics_batch(
         raise design_error(
             "threads", threads, "must be an integer >= 0 (0 = all cores)", InputError
         )
+    smap = _stiffness_map(design, stiffness_map)
+    sigma = None if smap is None else np.ascontiguousarray(smap(arr), dtype=float)
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
     out = design._rod.solve_batch(
-        np.ascontiguousarray(arr), tf, tm, threads=threads, **_options(options).as_kwargs()
+        np.ascontiguousarray(arr),
+        tf,
+        tm,
+        threads=threads,
+        stiffness_scale=sigma,
+        **_options(options).as_kwargs(),
     )
-    return BatchSolution(pressures=arr, **out)
+    return BatchSolution(pressures=arr, stiffness_scale=sigma, **out)

@@ -1,0 +1,655 @@
+"""Pressure-dependent stiffness scaling sigma(p) (paper 001, eq. 13 and eqs. 23-25).
+
+Paper 001 keeps the linear law but makes it depend on the operating point: K_se(p) and
+K_bt(p). Here that is three positive factors per solve, sigma = (sigma_ext, sigma_bend_x,
+sigma_bend_y), which the core applies to every section marked ``[sections.law]
+stiffness_map = true``: EA * sigma_ext, EI_1 (about d1) * sigma_bend_x, EI_2 (about d2) *
+sigma_bend_y and the product term EI_12 * sqrt(sigma_bend_x * sigma_bend_y).
+
+A :class:`StiffnessMap` turns gauge pressures (m, n_channels) in Pa into sigma (m, 3). It is
+built from a regular table (tensor-product PCHIP or multilinear interpolation), a CSV file,
+a Python callable or a trained regressor with a ``predict`` method (one model for all three
+factors, or three models as in the paper). Every evaluation is checked: sigma must be finite
+and > 0, otherwise :class:`~softrod.errors.InputError` names the row and its pressures.
+See docs/stiffness-map.md.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError, design_error
+from .units import SI_UNIT, registry, to_si
+
+SIGMA_NAMES = ("sigma_ext", "sigma_bend_x", "sigma_bend_y")
+METHODS = ("pchip", "linear")
+OUTSIDE = ("raise", "clamp")
+
+# Pressures this close to a table's end (relative to the axis span) count as inside and are
+# clamped silently: unit conversions such as "0.6 bar" -> Pa leave such round-off.
+_EDGE_SLACK = 1e-9
+# Rows interpolated together: bounds the temporary arrays (rows x grid points x 3).
+_CHUNK_ELEMENTS = 1 << 20
+
+_PRESSURE_COLUMN = re.compile(r"^p(\d+)_(.+)$")
+
+
+def _pa_per(unit: str, field: str) -> float:
+    """How many Pa one ``unit`` is; InputError unless ``unit`` is a pressure unit."""
+    ureg = registry()
+    try:
+        q = ureg.Quantity(1.0, unit)
+    except Exception as exc:  # pint raises several error types for unknown units
+        raise design_error(
+            field, unit, f"not a pressure unit (Pa, kPa, bar, ...): {exc}", InputError
+        ) from None
+    if q.dimensionality != ureg.get_dimensionality(SI_UNIT["pressure"]):
+        raise design_error(
+            field,
+            unit,
+            f"not a pressure unit (Pa, kPa, bar, ...): dimension {q.dimensionality}",
+            InputError,
+        )
+    return float(q.to("Pa").magnitude)
+
+
+def _axis(values: Any, k: int) -> np.ndarray:
+    """One table axis in Pa: numbers (Pa), strings with units, or a pint quantity array."""
+    field = f"axes[{k}]"
+    if hasattr(values, "to") and hasattr(values, "magnitude"):  # a pint quantity
+        try:
+            values = np.asarray(values.to("Pa").magnitude, dtype=float)
+        except Exception as exc:
+            raise design_error(field, values, f"must be pressures: {exc}", InputError) from None
+    if isinstance(values, (str, bytes)) or np.ndim(values) != 1:
+        raise design_error(field, values, "must be a 1-D sequence of pressures (Pa)", InputError)
+    axis = np.array(
+        [
+            float(v)
+            if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+            else to_si(v, "pressure", f"{field}[{i}]", InputError)
+            for i, v in enumerate(values)
+        ],
+        dtype=float,
+    )
+    if len(axis) < 2:
+        raise design_error(
+            field,
+            values.tolist() if hasattr(values, "tolist") else values,
+            "needs at least 2 pressures (a channel the map does not depend on still spans a range)",
+            InputError,
+        )
+    if not np.all(np.isfinite(axis)):
+        raise design_error(field, axis.tolist(), "must be finite pressures", InputError)
+    if not np.all(np.diff(axis) > 0):
+        raise design_error(field, axis.tolist(), "must be strictly increasing", InputError)
+    axis.setflags(write=False)
+    return axis
+
+
+class _Axis:
+    """One table axis and its constants for interpolation along it.
+
+    Arrays interpolated along this axis have shape (..., n, M, 3): n the axis' nodes, M the
+    rows (M = 1 for the table itself, shared by every row), 3 the factors.
+    """
+
+    def __init__(self, x: np.ndarray):
+        self.x = x
+        self.n = len(x)
+        self.h = np.diff(x)
+        self.inv_h = (1.0 / self.h)[:, None, None]
+        if self.n > 2:
+            h = self.h
+            w1 = 2.0 * h[1:] + h[:-1]
+            w2 = h[1:] + 2.0 * h[:-1]
+            self.w1 = w1[:, None, None]
+            self.w2 = w2[:, None, None]
+            self.w12 = (w1 + w2)[:, None, None]
+            # One-sided three-point end slopes d = a m0 - b m1 (start, end).
+            self.end_a = np.array(
+                [(2.0 * h[0] + h[1]) / (h[0] + h[1]), (2.0 * h[-1] + h[-2]) / (h[-1] + h[-2])]
+            )[:, None, None]
+            self.end_b = np.array([h[0] / (h[0] + h[1]), h[-1] / (h[-1] + h[-2])])[:, None, None]
+
+    def slopes(self, y: np.ndarray) -> np.ndarray:
+        """PCHIP derivatives at the nodes, by the rules of scipy's PchipInterpolator:
+        a weighted harmonic mean of the neighbouring secants inside (zero where they differ
+        in sign or one is zero), one-sided shape-preserving estimates at the ends. Each
+        interval's cubic is then monotone, so it stays between its two end values."""
+        mk = (y[..., 1:, :, :] - y[..., :-1, :, :]) * self.inv_h
+        if self.n == 2:
+            return np.concatenate([mk, mk], axis=-3)
+        m0, m1 = mk[..., :-1, :, :], mk[..., 1:, :, :]
+        prod = m0 * m1
+        inner = np.zeros(np.broadcast_shapes(prod.shape, self.w1.shape))
+        np.divide(self.w12 * prod, self.w1 * m1 + self.w2 * m0, out=inner, where=prod > 0)
+        e0, e1 = mk[..., [0, -1], :, :], mk[..., [1, -2], :, :]
+        d = self.end_a * e0 - self.end_b * e1
+        s0 = np.sign(e0)
+        steep = (s0 != np.sign(e1)) & (np.abs(d) > 3.0 * np.abs(e0))
+        d = np.where(np.sign(d) != s0, 0.0, np.where(steep, 3.0 * e0, d))
+        return np.concatenate([d[..., :1, :, :], inner, d[..., 1:, :, :]], axis=-3)
+
+    def collapse(self, y: np.ndarray, q: np.ndarray, method: str) -> np.ndarray:
+        """Interpolate along this axis at one pressure per row ``q`` (m,). ``y`` is (..., n,
+        M, 3) for "linear" and (..., n, M, 6) for "pchip" (values, then PCHIP slopes), with
+        M = 1 (the table, shared by every row) or m. Returns (..., m, 3)."""
+        # Interval index in [0, n - 2] (pressures are already on the axis).
+        i = np.searchsorted(self.x[1:-1], q, side="right")
+        h = self.h[i]
+        t = ((q - self.x[i]) / h)[:, None]
+        col = np.arange(len(q)) if y.shape[-2] > 1 else np.zeros(len(q), dtype=np.intp)
+        g = y[..., np.stack([i, i + 1]), col, :]  # (..., 2, m, 3 or 6)
+        y0, y1 = g[..., 0, :, :3], g[..., 1, :, :3]
+        if method == "linear":
+            return y0 + t * (y1 - y0)
+        d0, d1 = g[..., 0, :, 3:], g[..., 1, :, 3:]
+        s = 1.0 - t
+        return y0 + t * t * (3.0 - 2.0 * t) * (y1 - y0) + t * s * h[:, None] * (s * d0 - t * d1)
+
+    def with_slopes(self, y: np.ndarray) -> np.ndarray:
+        """``y`` (..., n, M, 3) with its PCHIP slopes appended: (..., n, M, 6)."""
+        return np.concatenate([y, self.slopes(y)], axis=-1)
+
+
+class StiffnessMap:
+    """sigma(p): gauge pressures (m, n_channels) in Pa -> (m, 3) positive stiffness factors.
+
+    Columns of sigma: (sigma_ext, sigma_bend_x, sigma_bend_y), scaling EA, EI_1 (about d1)
+    and EI_2 (about d2) of every mapped section (``[sections.law] stiffness_map = true``).
+    Build one with :meth:`from_table`, :meth:`from_csv`, :meth:`from_callable`,
+    :meth:`from_regressor` or :meth:`constant`; pass it to ``solve_statics`` /
+    ``solve_statics_batch`` as ``stiffness_map=``. Immutable.
+    """
+
+    __slots__ = (
+        "_kind",
+        "_n_channels",
+        "_fn",
+        "_describe",
+        "_axes",
+        "_values",
+        "_method",
+        "_outside",
+    )
+
+    def __init__(self, *, _kind: str, _n_channels: int, _fn: Callable, _describe: str, **table):
+        # Private: use the from_* constructors.
+        object.__setattr__(self, "_kind", _kind)
+        object.__setattr__(self, "_n_channels", _n_channels)
+        object.__setattr__(self, "_fn", _fn)
+        object.__setattr__(self, "_describe", _describe)
+        for key in ("_axes", "_values", "_method", "_outside"):
+            object.__setattr__(self, key, table.get(key))
+
+    def __setattr__(self, name, value):
+        raise AttributeError("StiffnessMap is immutable; build a new one")
+
+    def __delattr__(self, name):
+        raise AttributeError("StiffnessMap is immutable; build a new one")
+
+    # -- constructors -------------------------------------------------------------------------
+
+    @classmethod
+    def constant(cls, sigma: Sequence[float], n_channels: int) -> StiffnessMap:
+        """The same sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) at every pressure."""
+        n = _channels(n_channels, 0)
+        s = np.asarray(_sigma_row(sigma, "sigma"), dtype=float)
+        s.setflags(write=False)
+        return cls(
+            _kind="constant",
+            _n_channels=n,
+            _fn=lambda p: np.tile(s, (p.shape[0], 1)),
+            _describe=f"constant sigma=({s[0]:g}, {s[1]:g}, {s[2]:g})",
+        )
+
+    @classmethod
+    def from_table(
+        cls,
+        axes: Sequence[Any],
+        sigma: Any,
+        *,
+        method: str = "pchip",
+        outside: str = "raise",
+    ) -> StiffnessMap:
+        """Interpolate sigma on a regular grid of pressures.
+
+        axes: one strictly increasing 1-D axis per channel (at least 2 points each), in Pa or
+        as strings with units ("20 kPa") or a pint quantity array.
+        sigma: array of shape (len(axes[0]), ..., len(axes[-1]), 3), finite and > 0.
+        method: "pchip" (default; tensor-product monotone cubic, C1 along each channel with
+        3 or more points, linear along a 2-point axis) or "linear" (multilinear). Both keep
+        every interpolated value between the table's values at the surrounding nodes, so a
+        positive table gives positive sigma.
+        outside: "raise" (default): a pressure outside an axis raises InputError;
+        "clamp": it is moved to the nearest end of the axis (sigma held constant beyond the
+        table).
+        """
+        if method not in METHODS:
+            raise design_error("method", method, f"must be one of {', '.join(METHODS)}", InputError)
+        if outside not in OUTSIDE:
+            raise design_error(
+                "outside", outside, f"must be one of {', '.join(OUTSIDE)}", InputError
+            )
+        if isinstance(axes, (str, bytes)) or not isinstance(axes, (Sequence, np.ndarray)):
+            raise design_error(
+                "axes", axes, "must be a list of 1-D pressure axes, one per channel", InputError
+            )
+        if len(axes) == 0:
+            raise design_error(
+                "axes",
+                axes,
+                "needs one axis per channel (for no channels use StiffnessMap.constant)",
+                InputError,
+            )
+        grid = tuple(_axis(a, k) for k, a in enumerate(axes))
+        shape = tuple(len(a) for a in grid) + (3,)
+        try:
+            values = np.array(sigma, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise design_error(
+                "sigma", type(sigma).__name__, f"must be an array of numbers: {exc}", InputError
+            ) from None
+        if values.shape != shape:
+            raise design_error(
+                "sigma",
+                f"shape {values.shape}",
+                f"must have shape {shape}: one (sigma_ext, sigma_bend_x, sigma_bend_y) per "
+                "grid point",
+                InputError,
+            )
+        bad = ~(np.isfinite(values) & (values > 0))
+        if bad.any():
+            idx = tuple(int(i) for i in np.argwhere(bad)[0])
+            at = ", ".join(f"{grid[k][j]:g}" for k, j in enumerate(idx[:-1]))
+            raise design_error(
+                f"sigma[{', '.join(map(str, idx))}]",
+                float(values[idx]),
+                f"must be finite and > 0 (stiffness must stay positive); grid point ({at}) Pa, "
+                f"{SIGMA_NAMES[idx[-1]]}",
+                InputError,
+            )
+        values.setflags(write=False)
+        axes_ = [_Axis(a) for a in grid]
+        table = values[..., None, :]  # (n_0, ..., n_c-1, 1, 3): one "row", shared
+        if method == "pchip":
+            table = axes_[-1].with_slopes(table)
+        grid_text = "x".join(str(len(a)) for a in grid)
+        spans = ", ".join(f"p{k} in [{a[0]:g}, {a[-1]:g}] Pa" for k, a in enumerate(grid))
+        chunk = max(1, _CHUNK_ELEMENTS // (3 * math.prod(len(a) for a in grid[:-1])))
+
+        def evaluate(p: np.ndarray) -> np.ndarray:
+            # Channel by channel, last first (as scipy's RegularGridInterpolator "pchip").
+            p = _inside(grid, p, outside)
+            out = np.empty((p.shape[0], 3))
+            for start in range(0, p.shape[0], chunk):
+                rows = p[start : start + chunk]
+                y = axes_[-1].collapse(table, rows[:, -1], method)
+                for c in range(len(grid) - 2, -1, -1):
+                    if method == "pchip":
+                        y = axes_[c].with_slopes(y)
+                    y = axes_[c].collapse(y, rows[:, c], method)
+                out[start : start + chunk] = y
+            return out
+
+        return cls(
+            _kind="table",
+            _n_channels=len(grid),
+            _fn=evaluate,
+            _describe=f"table {grid_text}, {spans}, method={method!r}, outside={outside!r}",
+            _axes=grid,
+            _values=values,
+            _method=method,
+            _outside=outside,
+        )
+
+    @classmethod
+    def from_csv(
+        cls, path: str | Path, *, method: str = "pchip", outside: str = "raise"
+    ) -> StiffnessMap:
+        """Read a table from CSV: one row per grid point, in any order.
+
+        Header: one column per channel named ``p<k>_<unit>`` (``p0_kPa``, ``p1_bar``,
+        ``p2_Pa``; channels 0..c-1, any pressure unit pint knows) and the columns
+        ``sigma_ext``, ``sigma_bend_x``, ``sigma_bend_y``. The rows must cover the full grid
+        (every combination of the distinct pressures of each column) exactly once. Errors
+        name the line of the file. ``method`` and ``outside`` as in :meth:`from_table`.
+        """
+        path = Path(path)
+        if not path.is_file():
+            raise design_error("path", str(path), "no such file", InputError)
+        with open(path, newline="", encoding="utf-8") as fh:
+            reader = csv.reader(fh)
+            header = next(reader, None)
+            if header is None:
+                raise design_error(str(path), "empty file", "needs a header line", InputError)
+            header = [h.strip() for h in header]
+            channels: dict[
+                int, tuple[int, float, str]
+            ] = {}  # channel -> (column, Pa per unit, name)
+            sig_cols: dict[str, int] = {}
+            for col, name in enumerate(header):
+                m = _PRESSURE_COLUMN.match(name)
+                if name in SIGMA_NAMES:
+                    if name in sig_cols:
+                        raise design_error(
+                            f"{path.name}: column {name}", name, "appears twice", InputError
+                        )
+                    sig_cols[name] = col
+                elif m:
+                    k = int(m.group(1))
+                    if k in channels:
+                        raise design_error(
+                            f"{path.name}: column {name}",
+                            name,
+                            f"a second column for channel {k}",
+                            InputError,
+                        )
+                    channels[k] = (col, _pa_per(m.group(2), f"{path.name}: column {name}"), name)
+                else:
+                    raise design_error(
+                        f"{path.name}: column {name!r}",
+                        name,
+                        "unknown column: expected p<k>_<unit> (e.g. p0_kPa) per channel and "
+                        f"{', '.join(SIGMA_NAMES)}",
+                        InputError,
+                    )
+            missing = [s for s in SIGMA_NAMES if s not in sig_cols]
+            if missing:
+                raise design_error(
+                    f"{path.name}: header",
+                    ",".join(header),
+                    f"missing column(s) {', '.join(missing)}",
+                    InputError,
+                )
+            n = len(channels)
+            if n == 0 or sorted(channels) != list(range(n)):
+                raise design_error(
+                    f"{path.name}: header",
+                    ",".join(header),
+                    "needs one pressure column per channel 0..c-1, named p<k>_<unit> (e.g. p0_kPa)",
+                    InputError,
+                )
+            cols = [channels[k][0] for k in range(n)] + [sig_cols[s] for s in SIGMA_NAMES]
+            names = [channels[k][2] for k in range(n)] + list(SIGMA_NAMES)
+            rows: list[list[float]] = []
+            lines: list[int] = []
+            for row in reader:
+                if not row or all(not c.strip() for c in row):
+                    continue
+                line = reader.line_num
+                if len(row) != len(header):
+                    raise design_error(
+                        f"{path.name}: line {line}",
+                        ",".join(row),
+                        f"has {len(row)} fields, the header {len(header)}",
+                        InputError,
+                    )
+                vals = []
+                for col, name in zip(cols, names, strict=True):
+                    text = row[col].strip()
+                    try:
+                        v = float(text)
+                    except ValueError:
+                        v = math.nan
+                    if not math.isfinite(v):
+                        raise design_error(
+                            f"{path.name}: line {line}, {name}",
+                            text,
+                            "must be a finite number",
+                            InputError,
+                        )
+                    vals.append(v)
+                if not all(v > 0 for v in vals[n:]):
+                    raise design_error(
+                        f"{path.name}: line {line}",
+                        vals[n:],
+                        "sigma must be > 0 (stiffness must stay positive)",
+                        InputError,
+                    )
+                rows.append(vals)
+                lines.append(line)
+        if not rows:
+            raise design_error(
+                str(path), "no data rows", "needs one row per grid point", InputError
+            )
+        data = np.array(rows)
+        # Axes in the file's own units (exact equality of the written values), then Pa.
+        axes_file = [np.unique(data[:, k]) for k in range(n)]
+        index = tuple(np.searchsorted(axes_file[k], data[:, k]) for k in range(n))
+        shape = tuple(len(a) for a in axes_file)
+        flat = np.ravel_multi_index(index, shape)
+        seen = np.full(math.prod(shape), -1)
+        for r, f in enumerate(flat):
+            if seen[f] >= 0:
+                raise design_error(
+                    f"{path.name}: line {lines[r]}",
+                    ",".join(f"{v:g}" for v in data[r, :n]),
+                    f"repeats the grid point of line {lines[seen[f]]}",
+                    InputError,
+                )
+            seen[f] = r
+        if (seen < 0).any():
+            gap = np.unravel_index(int(np.argmin(seen)), shape)
+            point = ", ".join(f"{names[k]} = {axes_file[k][j]:g}" for k, j in enumerate(gap))
+            raise design_error(
+                f"{path.name}: grid point ({point})",
+                "missing",
+                f"the rows must cover the full grid {'x'.join(map(str, shape))} "
+                f"({math.prod(shape)} rows, got {len(rows)})",
+                InputError,
+            )
+        sigma = data[seen, n:].reshape(shape + (3,))
+        axes = [axes_file[k] * channels[k][1] for k in range(n)]
+        m = cls.from_table(axes, sigma, method=method, outside=outside)
+        object.__setattr__(m, "_describe", f"{m._describe}, from {path.name}")
+        return m
+
+    @classmethod
+    def from_callable(cls, fn: Callable[[np.ndarray], Any], n_channels: int) -> StiffnessMap:
+        """sigma = fn(P): P an (m, n_channels) float array of gauge pressures in Pa (a
+        read-only copy), the result an (m, 3) array."""
+        if not callable(fn):
+            raise design_error(
+                "fn", fn, "must be callable: fn(P (m, channels) Pa) -> (m, 3)", InputError
+            )
+        n = _channels(n_channels, 0)
+        return cls(_kind="callable", _n_channels=n, _fn=fn, _describe=f"callable {_name(fn)}")
+
+    @classmethod
+    def from_regressor(cls, model: Any, n_channels: int, pressure_unit: str = "Pa") -> StiffnessMap:
+        """A trained regressor (scikit-learn style): ``model.predict(P)`` with P the
+        pressures in ``pressure_unit`` (the unit it was trained in) returning (m, 3); or a
+        list of three models, one per factor (sigma_ext, sigma_bend_x, sigma_bend_y) as in
+        paper 001 eqs. 23-25, each returning (m,) or (m, 1)."""
+        n = _channels(n_channels, 0)
+        scale = 1.0 / _pa_per(pressure_unit, "pressure_unit")
+        if isinstance(model, (list, tuple)):
+            if len(model) != 3:
+                raise design_error(
+                    "model",
+                    f"{len(model)} models",
+                    "give one model for all of sigma or three (ext, bend_x, bend_y)",
+                    InputError,
+                )
+            models = list(model)
+        else:
+            models = [model]
+        for k, mdl in enumerate(models):
+            if not callable(getattr(mdl, "predict", None)):
+                where = "model" if len(models) == 1 else f"model[{k}]"
+                raise design_error(
+                    where, type(mdl).__name__, "must have a predict(P) method", InputError
+                )
+
+        def evaluate(p: np.ndarray) -> np.ndarray:
+            x = p * scale
+            if len(models) == 1:
+                return models[0].predict(x)
+            cols = []
+            for k, mdl in enumerate(models):
+                col = np.asarray(mdl.predict(x), dtype=float)
+                if col.shape not in ((p.shape[0],), (p.shape[0], 1)):
+                    raise design_error(
+                        f"model[{k}].predict",
+                        f"output shape {col.shape}",
+                        f"must return ({p.shape[0]},) or ({p.shape[0]}, 1): {SIGMA_NAMES[k]} "
+                        "per row",
+                        InputError,
+                    )
+                cols.append(col.reshape(-1))
+            return np.stack(cols, axis=1)
+
+        names = ", ".join(type(m).__name__ for m in models)
+        return cls(
+            _kind="regressor",
+            _n_channels=n,
+            _fn=evaluate,
+            _describe=f"regressor {names}, pressure_unit={pressure_unit!r}",
+        )
+
+    # -- use ------------------------------------------------------------------------------------
+
+    @property
+    def n_channels(self) -> int:
+        """Number of pressure channels (columns of P)."""
+        return self._n_channels
+
+    @property
+    def kind(self) -> str:
+        """ "table", "callable", "regressor" or "constant"."""
+        return self._kind
+
+    @property
+    def axes(self) -> tuple[np.ndarray, ...] | None:
+        """The table's pressure axes in Pa (read-only), None unless built from a table."""
+        return self._axes
+
+    @property
+    def values(self) -> np.ndarray | None:
+        """The table's sigma (grid shape + (3,), read-only), None unless built from a table."""
+        return self._values
+
+    def __call__(self, pressures: Any) -> np.ndarray:
+        """sigma (m, 3) for gauge pressures (m, n_channels) in Pa; a 1-D row of n_channels
+        pressures gives sigma (3,). Raises InputError for a bad shape, non-finite pressures, a
+        pressure outside a table (``outside="raise"``) or a sigma that is not finite and > 0."""
+        try:
+            p = np.array(pressures, dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise design_error(
+                "pressures", pressures, f"must be numbers (gauge pressures, Pa): {exc}", InputError
+            ) from None
+        single = p.ndim == 1 and p.shape[0] == self._n_channels
+        if single:
+            p = p[None, :]
+        if p.ndim != 2 or p.shape[1] != self._n_channels:
+            raise design_error(
+                "pressures",
+                f"shape {p.shape}",
+                f"the stiffness map takes an (m, {self._n_channels}) array of gauge pressures (Pa)",
+                InputError,
+            )
+        finite = np.isfinite(p).all(axis=1)
+        if not finite.all():
+            r = int(np.argmin(finite))
+            raise design_error(f"pressures[{r}]", p[r].tolist(), "must be finite (Pa)", InputError)
+        p.setflags(write=False)
+        sigma = self._fn(p) if p.shape[0] else np.empty((0, 3))
+        sigma = _check_output(sigma, p)
+        return sigma[0] if single else sigma
+
+    def __repr__(self) -> str:
+        plural = "s" if self._n_channels != 1 else ""
+        return f"StiffnessMap({self._describe}, {self._n_channels} channel{plural})"
+
+
+def _channels(n: Any, minimum: int) -> int:
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < minimum:
+        raise design_error("n_channels", n, f"must be an integer >= {minimum}", InputError)
+    return int(n)
+
+
+def _sigma_row(sigma: Any, field: str) -> list[float]:
+    try:
+        s = [float(x) for x in sigma]
+    except (TypeError, ValueError):
+        raise design_error(
+            field, sigma, "must be 3 numbers (sigma_ext, sigma_bend_x, sigma_bend_y)", InputError
+        ) from None
+    if len(s) != 3:
+        raise design_error(
+            field, sigma, "must be 3 numbers (sigma_ext, sigma_bend_x, sigma_bend_y)", InputError
+        )
+    for k, x in enumerate(s):
+        if not (math.isfinite(x) and x > 0):
+            raise design_error(
+                f"{field}[{k}]",
+                x,
+                "must be finite and > 0 (stiffness must stay positive)",
+                InputError,
+            )
+    return s
+
+
+def _name(fn: Any) -> str:
+    return getattr(fn, "__qualname__", None) or type(fn).__name__
+
+
+def _inside(grid: tuple[np.ndarray, ...], p: np.ndarray, outside: str) -> np.ndarray:
+    """Pressures moved onto the table (clamp), or InputError for the first row outside."""
+    lo = np.array([a[0] for a in grid])
+    hi = np.array([a[-1] for a in grid])
+    if outside == "raise":
+        slack = _EDGE_SLACK * (hi - lo)
+        out = (p < lo - slack) | (p > hi + slack)
+        if out.any():
+            r, k = (int(i) for i in np.argwhere(out)[0])
+            raise design_error(
+                f"pressures[{r}]",
+                p[r].tolist(),
+                f"channel {k} = {p[r, k]:g} Pa lies outside the stiffness table "
+                f"[{lo[k]:g}, {hi[k]:g}] Pa ({int(out.any(axis=1).sum())} row(s) outside); extend "
+                "the table or build the map with outside='clamp'",
+                InputError,
+            )
+    return np.minimum(np.maximum(p, lo), hi)
+
+
+def _check_output(sigma: Any, p: np.ndarray) -> np.ndarray:
+    m = p.shape[0]
+    try:
+        s = np.array(sigma, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise design_error(
+            "stiffness_map", type(sigma).__name__, f"must return numbers: {exc}", InputError
+        ) from None
+    if s.shape != (m, 3):
+        raise design_error(
+            "stiffness_map",
+            f"output shape {s.shape}",
+            f"must return an ({m}, 3) array (sigma_ext, sigma_bend_x, sigma_bend_y) for {m} "
+            "pressure row(s)",
+            InputError,
+        )
+    good = (np.isfinite(s) & (s > 0)).all(axis=1)
+    if not good.all():
+        r = int(np.argmin(good))
+        more = int((~good).sum()) - 1
+        raise design_error(
+            f"sigma[{r}]",
+            s[r].tolist(),
+            f"must be finite and > 0 (stiffness must stay positive); the stiffness map returned it "
+            f"for pressures[{r}] = {p[r].tolist()} Pa"
+            + (f" ({more} more row(s) bad)" if more else ""),
+            InputError,
+        )
+    return s
