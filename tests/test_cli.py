@@ -253,3 +253,107 @@ def test_designs_lists_all(run):
     for name in softrod.bundled_designs():
         assert name in result.stdout
     assert "3 channels" in result.stdout
+
+
+# --------------------------------------------------------------------------- presets, compare
+
+
+def test_designs_lists_presets(run):
+    result = run("designs")
+    assert result.exit_code == 0
+    assert "presets" in result.stdout
+    for p in softrod.list_presets():
+        assert p.name in result.stdout
+
+
+def test_solve_accepts_a_preset_name(run):
+    result = run("solve", "paper002_M3_vertical", "-p", "0.3bar,0,0", "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["design"] == "paper002_M3_vertical"
+    api = solve_statics("paper002_M3_vertical", [30e3, 0, 0])
+    np.testing.assert_allclose(data["tip_position_m"], api.tip_position, rtol=0, atol=1e-12)
+
+
+def test_compare_writes_table_and_figure(run, tmp_path):
+    out, fig = tmp_path / "compare.parquet", tmp_path / "compare.png"
+    result = run(
+        "compare",
+        "paper002",
+        "--models",
+        "M0,M3",
+        "--experiments",
+        "iii,a",
+        "--pressure-ramp",
+        "0:0.6bar:2",
+        "--out",
+        out,
+        "--figure",
+        fig,
+        "--threads",
+        1,
+    )
+    assert result.exit_code == 0, result.output
+    assert "2 models x 2 experiments x 3 levels" in result.stdout
+    assert "12 solves, 12 converged" in result.stdout
+    assert str(out) in result.stdout and str(fig) in result.stdout
+    df = pd.read_parquet(out)
+    assert tuple(df.columns) == softrod.compare.COLUMNS
+    assert len(df) == 12 and df["converged"].all()
+    np.testing.assert_allclose(sorted(set(df["p_kPa"])), [0.0, 30.0, 60.0], rtol=0, atol=1e-9)
+    api = softrod.compare_models(["M0", "M3"], experiments="iii,a", pressures=[0, 30e3, 60e3])
+    np.testing.assert_allclose(df["paper_z_mm"], api["paper_z_mm"], rtol=0, atol=1e-9)
+    # The printed table shows the tip at the top of the ramp in the paper's frame.
+    last = api[(api["model"] == "M3") & (api["experiment"] == "iii")].iloc[-1]
+    assert f"{last['paper_z_mm']:.2f}" in result.stdout
+    assert fig.read_bytes()[:8] == PNG_SIGNATURE
+    assert sorted(tmp_path.iterdir()) == sorted([fig, out])  # no temporary files left
+
+
+def test_compare_defaults_are_paper_002(run):
+    result = run("compare", "--models", "M1", "--experiments", "i-2")
+    assert result.exit_code == 0, result.output
+    assert "1 model x 1 experiment x 31 levels (0 to 60 kPa) = 31 solves" in result.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "fragments"),
+    [
+        (["--models", "M0,M4"], ["--models", "M4", "M0, M1, M2, M3"]),
+        (["--models", "M0,M0"], ["--models", "twice"]),
+        (["--experiments", "i,iv"], ["--experiments", "iv", "unknown experiment"]),
+        (["--pressure-ramp", "0:0.6bar"], ["--pressure-ramp", "START:STOP:STEPS"]),
+        (["--pressure-ramp", "0:0.6bar:0"], ["--pressure-ramp.steps"]),
+        (["--pressure-ramp", "0:1m:3"], ["--pressure-ramp.stop", "pressure"]),
+        (["--pressure-ramp", "-2bar:0:3"], ["--pressure-ramp.start", "-1 atm"]),
+        (["--out", "{tmp}/c.xlsx"], ["--out", ".csv", ".parquet"]),
+        (["--figure", "{tmp}/c.foo"], ["--figure", ".png"]),
+        (["--out", "{tmp}/nodir/c.csv"], ["--out", "does not exist"]),
+        # M3 swells its chambers (eq. 22) into the bore at 1.5 bar
+        (["--models", "M3", "--pressure-ramp", "0:3bar:2"], ["model M3", "lower c_p"]),
+    ],
+    ids=[
+        "unknown-model",
+        "model-twice",
+        "unknown-experiment",
+        "ramp-no-steps",
+        "ramp-zero-steps",
+        "ramp-wrong-unit",
+        "ramp-below-vacuum",
+        "table-suffix",
+        "figure-suffix",
+        "no-folder",
+        "swelling-too-far",
+    ],
+)
+def test_compare_bad_options(run, tmp_path, args, fragments):
+    args = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    result = run("compare", *args)
+    assert_clean_error(result, 2, *fragments)
+    assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def test_compare_unknown_protocol(run):
+    result = run("compare", "paper001")
+    assert result.exit_code == 2
+    assert "paper002" in result.stderr

@@ -1,4 +1,5 @@
-"""``softrod`` command line: solve one equilibrium, sweep a pressure grid, run the demo.
+"""``softrod`` command line: solve one equilibrium, sweep a pressure grid, compare models on
+a paper's experiments, list designs and presets, run the demo.
 
 Units at the boundary: pressures and loads are read with pint ("30kPa", "0.3bar", "-1 N");
 a bare number is SI (Pa, N, N m). Outputs state their units (table headers, JSON keys,
@@ -248,15 +249,8 @@ class _RateColumn(ProgressColumn):
         return Text(f"{task.completed / elapsed:,.0f} rows/s", style="cyan")
 
 
-def _run_sweep(
-    design: Design, pressures: np.ndarray, threads: int, chunk: int, console: Console, label: str
-) -> tuple[dict[str, np.ndarray], float]:
-    """Solve every row in chunks under a progress bar; return (results, wall time s)."""
-    m = len(pressures)
-    tips = np.empty((m, 3))
-    converged = np.empty(m, dtype=bool)
-    iterations = np.empty(m, dtype=np.int64)
-    columns = (  # fits in 80 columns
+def _progress_columns() -> tuple:
+    return (  # fits in 80 columns
         TextColumn("[bold]{task.description}"),
         BarColumn(bar_width=24),
         MofNCompleteColumn(),
@@ -265,8 +259,18 @@ def _run_sweep(
         TextColumn("ETA"),
         TimeRemainingColumn(),
     )
+
+
+def _run_sweep(
+    design: Design, pressures: np.ndarray, threads: int, chunk: int, console: Console, label: str
+) -> tuple[dict[str, np.ndarray], float]:
+    """Solve every row in chunks under a progress bar; return (results, wall time s)."""
+    m = len(pressures)
+    tips = np.empty((m, 3))
+    converged = np.empty(m, dtype=bool)
+    iterations = np.empty(m, dtype=np.int64)
     t0 = time.perf_counter()
-    with Progress(*columns, console=console) as progress:
+    with Progress(*_progress_columns(), console=console) as progress:
         task = progress.add_task(label, total=m)
         for lo in range(0, m, chunk):
             hi = min(lo + chunk, m)
@@ -557,26 +561,256 @@ def demo(out_dir):
     console.print(Text(f"wrote {tips}"), soft_wrap=True)
 
 
+def _parse_ramp(text: str, option: str = "--pressure-ramp") -> np.ndarray:
+    """START:STOP:STEPS -> STEPS + 1 pressure levels in Pa (STEPS equal steps, both ends)."""
+    from .compare import MAX_RAMP_STEPS, pressure_ramp
+
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise design_error(
+            option,
+            text,
+            "must read START:STOP:STEPS, e.g. '0 bar:0.6 bar:30' (STEPS equal steps, "
+            "STEPS + 1 levels)",
+            InputError,
+        )
+    start, stop = _parse_quantities(parts[:2], "pressure", [f"{option}.start", f"{option}.stop"])
+    try:
+        steps = int(parts[2])
+    except ValueError:
+        steps = 0
+    if not 1 <= steps <= MAX_RAMP_STEPS:
+        raise design_error(
+            f"{option}.steps", parts[2], f"must be an integer in [1, {MAX_RAMP_STEPS}]", InputError
+        )
+    for name, value, raw in (
+        (f"{option}.start", start, parts[0]),
+        (f"{option}.stop", stop, parts[1]),
+    ):
+        if value < -ATM:
+            raise design_error(
+                name, raw.strip(), "gauge pressure must be >= -1 atm (-101325 Pa)", InputError
+            )
+    return pressure_ramp(start, stop, steps)
+
+
+def _renamed(option: str, func, *args):
+    """Call func; name the command-line option in an InputError instead of the API field."""
+    try:
+        return func(*args)
+    except InputError as exc:
+        raise design_error(option, exc.value, exc.rule, InputError) from None
+
+
+def _on_chambers(exp) -> str:
+    """'1, 2' for an experiment that ramps chambers 1 and 2."""
+    return ", ".join(str(k + 1) for k, w in enumerate(exp.weights) if w)
+
+
+def _parse_models(text: str) -> list[str]:
+    from .presets import PAPER002_MODELS
+
+    names = [m.strip() for m in text.split(",")]
+    for name in names:
+        if name not in PAPER002_MODELS:
+            raise design_error(
+                "--models",
+                name,
+                f"unknown model: give a comma-separated list of {', '.join(PAPER002_MODELS)} "
+                "(paper 002 Table IV)",
+                InputError,
+            )
+    if len(set(names)) != len(names):
+        raise design_error("--models", text, "names a model twice", InputError)
+    return names
+
+
+@main.command()
+@click.argument(
+    "protocol",
+    type=click.Choice(["paper002"]),
+    default="paper002",
+    required=False,
+    metavar="[PROTOCOL]",
+)
+@click.option(
+    "--models",
+    default="M0,M1,M2,M3",
+    show_default=True,
+    metavar="M0,M1,...",
+    help="Comma-separated models of paper 002 Table IV (the paper002_<M>_<mounting> presets).",
+)
+@click.option(
+    "--experiments",
+    default="all",
+    show_default=True,
+    metavar="NAMES",
+    help="Comma-separated experiments of paper 002 Sec. V: i-1, i-2, i-3 (one chamber), "
+    "ii-1, ii-2, ii-3 (all but chamber k), iii (all three), a (horizontal, chamber 1); "
+    "groups i, ii, vertical, horizontal, all.",
+)
+@click.option(
+    "--pressure-ramp",
+    "ramp",
+    default="0 bar:0.6 bar:30",
+    show_default=True,
+    metavar="START:STOP:STEPS",
+    help="Ramp of the pressure p in STEPS equal steps (STEPS + 1 levels); a unit on STOP "
+    "alone applies to both ends.",
+)
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the table here, .csv or .parquet (written whole or not at all).",
+)
+@click.option(
+    "--figure",
+    "figure_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the figure here (tip x, y, z vs p per experiment; .png, .pdf, .svg).",
+)
+@click.option(
+    "--threads",
+    default=0,
+    show_default=True,
+    type=click.IntRange(min=0),
+    help="Worker threads per batch (0 = all cores).",
+)
+@_handle_errors
+def compare(protocol, models, experiments, ramp, out, figure_path, threads):
+    """Compare models on the experiments of a paper (PROTOCOL: paper002, the default).
+
+    paper002 (Sec. V): every experiment ramps p on some chambers of the 134 mm actuator and
+    each (model, experiment) pair is one ordered batch solve. Tip coordinates are reported
+    in the paper's frame e_i (paper_x_mm, ...) and in softrod's world frame (world_x_mm, ...);
+    see docs/compare.md for all columns.
+    """
+    from .compare import EXPERIMENTS, compare_models, resolve_experiments
+
+    names = _parse_models(models)
+    exps = _renamed("--experiments", resolve_experiments, experiments)
+    levels = _parse_ramp(ramp)
+    if out is not None:
+        out = _for_option(check_table_path, out, "--out")
+    if figure_path is not None:
+        from .plotting import check_figure_path
+
+        figure_path = _for_option(check_figure_path, figure_path, "--figure")
+
+    console = _stdout()
+    rows = len(names) * len(exps) * len(levels)
+    console.print(
+        Text(
+            f"{protocol}: {len(names)} model{'s' if len(names) != 1 else ''} x {len(exps)} "
+            f"experiment{'s' if len(exps) != 1 else ''} x {len(levels)} levels "
+            f"({levels[0] / 1e3:g} to {levels[-1] / 1e3:g} kPa) = {rows:,} solves"
+        )
+    )
+    t0 = time.perf_counter()
+    with Progress(*_progress_columns(), console=console) as progress:
+        task = progress.add_task("compare", total=rows)
+
+        def advance(label: str, n: int) -> None:
+            progress.update(task, advance=n, description=f"compare {label}")
+
+        df = compare_models(
+            names, experiments=exps, pressures=levels, threads=threads, progress=advance
+        )
+        progress.update(task, description="compare")
+    wall = time.perf_counter() - t0
+
+    table = Table(
+        title=f"tip at p = {levels[-1] / 1e3:g} kPa, paper frame e_i (mm)",
+        title_justify="left",
+        caption="i-k, ii-k, iii: vertical mounting; a: horizontal (paper 002 Sec. V)",
+        caption_justify="left",
+    )
+    for name, justify in (
+        ("experi-\nment", "left"),
+        ("chambers\nat p", "left"),
+        ("model", "left"),
+        ("x\nmm", "right"),
+        ("y\nmm", "right"),
+        ("z\nmm", "right"),
+        ("lateral\nmm", "right"),
+        ("converged", "right"),
+    ):
+        table.add_column(name, justify=justify)
+    for exp in exps:
+        sub = df[df["experiment"] == exp]
+        for k, model in enumerate(names):
+            r = sub[sub["model"] == model]
+            last = r.iloc[-1]
+            x, y, z = (float(last[f"paper_{a}_mm"]) for a in "xyz")
+            table.add_row(
+                exp if k == 0 else "",
+                _on_chambers(EXPERIMENTS[exp]) if k == 0 else "",
+                model,
+                _fmt(x, 2),
+                _fmt(y, 2),
+                _fmt(z, 2),
+                _fmt(math.hypot(x, y), 2),  # distance from the clamp axis e3
+                f"{int(r['converged'].sum())}/{len(r)}",
+                end_section=k == len(names) - 1,
+            )
+    console.print(table)
+    n_ok = int(df["converged"].sum())
+    style = "green" if n_ok == rows else "yellow"
+    console.print(f"{rows:,} solves, [{style}]{n_ok:,} converged[/{style}], wall time {wall:.2f} s")
+    if out is not None:
+        write_table(df, out)
+        console.print(Text(f"wrote {out}"), soft_wrap=True)
+    if figure_path is not None:
+        plt = _pyplot()
+        from .compare import plot_comparison
+        from .plotting import save_figure
+
+        fig = plot_comparison(
+            df, title=f"{protocol}: tip position vs pressure, models {', '.join(names)}"
+        )
+        try:
+            save_figure(fig, figure_path)
+        finally:
+            plt.close(fig)
+        console.print(Text(f"wrote {figure_path}"), soft_wrap=True)
+
+
 @main.command()
 @_handle_errors
 def designs():
-    """List the bundled designs with their channel count and citation."""
+    """List the bundled designs and the presets with their channel count and source."""
+    from .presets import list_presets
+
     console = _stdout()
     console.print(Text("bundled designs (use the name as DESIGN):", style="bold"))
     for name in bundled_designs():
-        try:
-            d = load_design(name)
-        except DesignError as exc:
-            console.print(Text(name, style="bold"), Text(f"cannot load: {exc}", style="red"))
-            continue
-        n = d.n_channels
-        console.print(
-            Text.assemble(
-                (name, "bold cyan"),
-                f"  {n} channel{'s' if n != 1 else ''}, {d.length * 1e3:.1f} mm",
-            )
+        _list_design(console, name, lambda d: d.citation)
+    console.print()
+    console.print(
+        Text(
+            "presets (published models built from a bundled design; use the name as DESIGN):",
+            style="bold",
         )
-        console.print(Padding(Text(d.citation, style="dim"), (0, 0, 0, 4)))
+    )
+    summaries = {p.name: p.summary for p in list_presets()}
+    for name, summary in summaries.items():
+        _list_design(console, name, lambda d, s=summary: s)
+
+
+def _list_design(console: Console, name: str, note) -> None:
+    try:
+        d = load_design(name)
+    except DesignError as exc:
+        console.print(Text(name, style="bold"), Text(f"cannot load: {exc}", style="red"))
+        return
+    n = d.n_channels
+    console.print(
+        Text.assemble(
+            (name, "bold cyan"),
+            f"  {n} channel{'s' if n != 1 else ''}, {d.length * 1e3:.1f} mm",
+        )
+    )
+    console.print(Padding(Text(note(d), style="dim"), (0, 0, 0, 4)))
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -499,7 +499,8 @@ def load_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
     """Load and validate a design.
 
     ``design`` is a path to a TOML file, the name of a bundled design (see
-    :func:`bundled_designs`), a mapping with the same structure as the file, or a Design.
+    :func:`bundled_designs`), the name of a preset (see :func:`softrod.list_presets`), a
+    mapping with the same structure as the file, or a Design.
     Raises :class:`DesignError` naming the field, the value and the rule.
     """
     if isinstance(design, Design):
@@ -516,8 +517,16 @@ def load_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
     if not path.exists() and path.suffix == "" and (designs_dir() / f"{design}.toml").exists():
         path = designs_dir() / f"{design}.toml"
     if not path.exists():
+        # Late import: presets build on this module.
+        from .presets import PRESETS
+
+        if str(design) in PRESETS:
+            return PRESETS[str(design)].load()
         raise design_error(
-            "design", str(design), f"no such file (bundled designs: {', '.join(bundled_designs())})"
+            "design",
+            str(design),
+            f"no such file, bundled design or preset (bundled designs: "
+            f"{', '.join(bundled_designs())}; presets: {', '.join(PRESETS)})",
         )
     try:
         with open(path, "rb") as fh:

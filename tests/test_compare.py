@@ -1,0 +1,196 @@
+"""compare_models: paper 002's experiments (Sec. V) for several models, tables and figure."""
+
+import numpy as np
+import pandas as pd
+import pytest
+import softrod
+from softrod import InputError, compare_models, load_design, solve_statics_batch
+from softrod.compare import (
+    COLUMNS,
+    EXPERIMENTS,
+    clamp_frame,
+    plot_comparison,
+    pressure_ramp,
+    resolve_experiments,
+)
+from softrod.io import write_table
+from softrod.plotting import save_figure
+
+pytestmark = pytest.mark.fast  # the whole module runs in a few seconds
+
+SHORT = pressure_ramp(0.0, 0.6e5, 3)  # 4 levels: enough for shape checks, quick
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def table():
+    return compare_models(["M0", "M2"], experiments="ii-1,iii,a", pressures=SHORT, threads=1)
+
+
+def test_paper_ramp():
+    """Sec. V: 0 to 0.6 bar in 30 equal steps, i.e. 31 levels."""
+    ramp = pressure_ramp()
+    assert len(ramp) == 31 and ramp[0] == 0.0 and ramp[-1] == pytest.approx(0.6e5)
+    np.testing.assert_allclose(np.diff(ramp), 2e3)
+    np.testing.assert_allclose(pressure_ramp("0 bar", "60 kPa", 30), ramp, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("steps", [0, -1, 1.5, True])
+def test_bad_ramp_steps(steps):
+    with pytest.raises(InputError, match="ramp.steps"):
+        pressure_ramp(0.0, 1e4, steps)
+
+
+def test_experiments_and_groups():
+    assert list(EXPERIMENTS) == ["i-1", "i-2", "i-3", "ii-1", "ii-2", "ii-3", "iii", "a"]
+    assert resolve_experiments(None) == list(EXPERIMENTS)
+    assert resolve_experiments("a, i") == ["i-1", "i-2", "i-3", "a"]  # canonical order
+    assert resolve_experiments(["iii", "iii"]) == ["iii"]
+    assert EXPERIMENTS["ii-2"].weights == (1.0, 0.0, 1.0)  # p_2 = 0, the others p
+    assert EXPERIMENTS["a"].mounting == "horizontal"
+    assert EXPERIMENTS["i-3"].title == "(i-3) vertical: p3 = p, p1 = p2 = 0"
+    with pytest.raises(InputError, match="experiments = 'iv'.*unknown"):
+        resolve_experiments("i,iv")
+
+
+def test_table_columns_and_rows(table):
+    assert tuple(table.columns) == COLUMNS
+    assert len(table) == 2 * 3 * len(SHORT)
+    assert table["converged"].all()
+    assert list(table["model"].unique()) == ["M0", "M2"]
+    assert set(table["design"]) == {
+        "paper002_M0_vertical",
+        "paper002_M0_horizontal",
+        "paper002_M2_vertical",
+        "paper002_M2_horizontal",
+    }
+    rows = table[(table["model"] == "M2") & (table["experiment"] == "ii-1")]
+    np.testing.assert_array_equal(rows["step"], np.arange(len(SHORT)))
+    np.testing.assert_allclose(rows["p_kPa"], SHORT / 1e3)
+    np.testing.assert_array_equal(rows["p1_kPa"], 0.0)
+    np.testing.assert_allclose(rows[["p2_kPa", "p3_kPa"]], np.c_[SHORT, SHORT] / 1e3)
+    assert (rows["mounting"] == "vertical").all()
+
+
+def test_rows_equal_a_direct_batch_solve(table):
+    rows = table[(table["model"] == "M2") & (table["experiment"] == "iii")]
+    direct = solve_statics_batch("paper002_M2_vertical", np.c_[SHORT, SHORT, SHORT], threads=1)
+    # Same inputs, same ordered batch: identical up to the mm scaling.
+    np.testing.assert_allclose(
+        rows[["world_x_mm", "world_y_mm", "world_z_mm"]], direct.tip_position * 1e3, rtol=1e-15
+    )
+
+
+def test_paper_frame_mapping(table):
+    """Documented maps (design descriptions): vertical paper (x, y, z) = world (x, -y, -z);
+    horizontal paper (x, y, z) = world (z, -y, x)."""
+    w = table[["world_x_mm", "world_y_mm", "world_z_mm"]].to_numpy()
+    p = table[["paper_x_mm", "paper_y_mm", "paper_z_mm"]].to_numpy()
+    vertical = (table["mounting"] == "vertical").to_numpy()
+    # 1e-12 mm: a matrix of 0 and +-1 applied in floating point
+    np.testing.assert_allclose(p[vertical], w[vertical] * [1, -1, -1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(p[~vertical], w[~vertical][:, [2, 1, 0]] * [1, -1, 1], atol=1e-12)
+
+
+def test_horizontal_zero_pressure_tip_is_the_measured_one(table):
+    """Eq. 24: at zero pressure the end point was at (-34.5, 2.8, 130.8) mm in the paper's
+    frame. 10 mm as in test_designs (M0's mean error in Table V is 9-11 mm); the frame map
+    matters: a sign error in x would miss by about 69 mm."""
+    start = table[(table["experiment"] == "a") & (table["step"] == 0)]
+    for _, row in start.iterrows():
+        tip = row[["paper_x_mm", "paper_y_mm", "paper_z_mm"]].to_numpy(dtype=float)
+        assert np.linalg.norm(tip - [-34.5, 2.8, 130.8]) < 10.0
+
+
+def test_equal_pressures_drift_sideways_only_with_the_offset(table):
+    """Experiment (iii) (Fig. 5 bottom, Sec. VII): M0 only elongates, M2 drifts sideways."""
+    iii = table[table["experiment"] == "iii"]
+    for model, low, high in (("M0", 0.0, 0.1), ("M2", 5.0, np.inf)):  # mm
+        r = iii[iii["model"] == model][["paper_x_mm", "paper_y_mm"]].to_numpy()
+        drift = np.linalg.norm(r[-1] - r[0])
+        assert low <= drift < high, (model, drift)
+
+
+def test_clamp_frame_of_the_base_is_zero():
+    d = load_design("paper002_M3_horizontal")
+    np.testing.assert_array_equal(clamp_frame(d, d.spec["mounting"]["base_position"]), 0.0)
+
+
+def test_own_designs_as_models():
+    m3 = load_design("paper002_M3_vertical")
+    stiffer = m3.replace({"sections[1].c_b": 1.5})
+    df = compare_models(
+        {"M3": {"vertical": m3}, "stiff": {"vertical": stiffer}},
+        experiments="i-1",
+        pressures=SHORT,
+    )
+    end = df[df["step"] == len(SHORT) - 1].set_index("model")["paper_x_mm"]
+    assert 0 < end["stiff"] < end["M3"]  # a stiffer body bends less
+
+
+@pytest.mark.parametrize(
+    ("models", "experiments", "match"),
+    [
+        (["M7"], "iii", "models = 'M7'.*unknown model"),
+        ([], "iii", "at least one model"),
+        ({"x": {"vertical": "paper002_M0_vertical"}}, "a", "needs a design for the horizontal"),
+        ({"x": {"sideways": "paper002_M0_vertical"}}, "iii", "unknown mounting"),
+        ({"x": {"vertical": "pam_arm_220mm"}}, "iii", None),  # 3 channels: accepted
+    ],
+    ids=["unknown", "empty", "missing-mounting", "bad-mounting", "other-design"],
+)
+def test_model_errors(models, experiments, match):
+    if match is None:
+        compare_models(models, experiments=experiments, pressures=[0.0])
+        return
+    with pytest.raises(InputError, match=match):
+        compare_models(models, experiments=experiments, pressures=SHORT)
+
+
+def test_bad_pressures_and_failing_ramp():
+    with pytest.raises(InputError, match="pressures"):
+        compare_models(["M0"], pressures=[[0.0, 1.0]])
+    # M3 swells its chambers (eq. 22); at 3 bar chamber 1 breaks through the wall. The error
+    # says which model and experiment.
+    with pytest.raises(InputError, match="model M3, experiment i-1: .*outer wall"):
+        compare_models(["M3"], experiments="i-1", pressures=[0.0, 3e5])
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".parquet"])
+def test_table_round_trip(table, tmp_path, suffix):
+    path = write_table(table, tmp_path / f"compare{suffix}")
+    assert sorted(tmp_path.iterdir()) == [path]  # written atomically: no temporary left
+    back = pd.read_csv(path) if suffix == ".csv" else pd.read_parquet(path)
+    assert tuple(back.columns) == COLUMNS
+    pd.testing.assert_frame_equal(back, table, check_exact=False, rtol=1e-12)
+
+
+def test_figure(table, tmp_path):
+    import matplotlib.pyplot as plt
+
+    fig = plot_comparison(table, experiments="iii,a", title="test")
+    try:
+        axes = fig.get_axes()
+        assert len(axes) == 2 * 3  # (x, y, z) per experiment
+        assert [a.get_ylabel() for a in axes[:3]] == ["x (mm)", "y (mm)", "z (mm)"]
+        assert all(a.get_xlabel() == "p (bar)" for a in axes)
+        assert [len(a.get_lines()) for a in axes] == [2] * 6  # one line per model
+        # SubFigure.get_suptitle needs matplotlib 3.8; softrod supports 3.7.
+        titles = [s._suptitle.get_text() for s in fig.subfigs]  # header, then experiments
+        assert titles == ["test", EXPERIMENTS["iii"].title, EXPERIMENTS["a"].title]
+        assert [t.get_text() for t in fig.subfigs[0].legends[0].get_texts()] == ["M0", "M2"]
+        # x axis in bar: the last point of the ramp is at 0.6 bar
+        assert axes[0].get_lines()[0].get_xdata()[-1] == pytest.approx(0.6)
+        path = save_figure(fig, tmp_path / "compare.png")
+        assert path.read_bytes()[:8] == PNG_SIGNATURE
+        assert sorted(tmp_path.iterdir()) == [path]
+    finally:
+        plt.close(fig)
+    with pytest.raises(InputError, match="none of them"):
+        plot_comparison(table, experiments="i-1")
+    with pytest.raises(InputError, match="missing column"):
+        plot_comparison(table.drop(columns="paper_x_mm"))
+
+
+def test_public_names():
+    assert softrod.compare_models is compare_models
