@@ -1,0 +1,1112 @@
+"""Measurement datasets: load, validate, write and synthesise (schema in docs/datasets.md).
+
+A dataset is a table with one row per static equilibrium (or time sample). Columns (base
+names; kind; required or not):
+
+- ``p0``, ``p1``, ... ``p<c-1>`` (pressure, required): gauge pressure of each channel.
+- ``tip_x``, ``tip_y``, ``tip_z`` (length, required): tip position in the world frame of the
+  design, the frame of ``StaticSolution.tip_position``.
+- ``tip_qw``, ``tip_qx``, ``tip_qy``, ``tip_qz`` (no unit, optional group): tip orientation
+  [d1 d2 d3] (world) as a unit quaternion, scalar first.
+- ``base_fx``, ``base_fy``, ``base_fz`` (force) and ``base_mx``, ``base_my``, ``base_mz``
+  (moment), optional groups: the force the rod exerts on its mount and its moment about the
+  base point, world frame (``StaticSolution.base_force`` / ``base_moment``).
+- ``experiment`` (integer or string id), ``mounting`` (string), ``time`` (time): optional.
+
+Every column of a kind with a dimension carries its unit, either in its name
+(``<base>_<unit>``: ``p0_kPa``, ``tip_x_mm``, ``base_mx_Nmm``, ``time_s``) or in a metadata
+block (CSV: a leading comment line ``# units: {"p0": "kPa"}``; Parquet: the key-value
+metadata entry ``softrod.units``), never in both. Units are parsed by pint after the ASCII
+spellings of :data:`UNIT_ALIASES` are mapped (``Nm`` would be pint's number-metre). Inside,
+everything is SI: Pa, m, N, N m, s.
+
+Errors are :class:`~softrod.errors.InputError` naming the column, the value and the rule; rows
+are located by their line in a CSV file (as a text editor counts them), by their 0-based row in
+a Parquet file and by their index label in a DataFrame.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import re
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .design import PACKAGE_DIR, Design, load_design
+from .errors import ConvergenceError, InputError, design_error
+from .io import TABLE_SUFFIXES, atomic_path, check_table_path
+from .units import SI_UNIT, registry, vector_to_si
+
+__all__ = [
+    "DEFAULT_UNITS",
+    "Dataset",
+    "QUATERNION_TOLERANCE",
+    "UNIT_ALIASES",
+    "example_dataset_path",
+    "example_datasets",
+    "load_dataset",
+    "synthesize_dataset",
+    "write_dataset",
+]
+
+# ASCII spellings of moment units, mapped before pint reads a unit: pint reads "Nm" as
+# number-metre and does not know "Nmm". Keys are exact (case-sensitive) unit strings.
+UNIT_ALIASES = {
+    "Nm": "N*m",
+    "Nmm": "N*mm",
+    "Ncm": "N*cm",
+    "mNm": "mN*m",
+    "mNmm": "mN*mm",
+    "kNm": "kN*m",
+}
+_SUFFIX_OF = {v: k for k, v in UNIT_ALIASES.items()}
+
+# Units to_frame and write_dataset use unless told otherwise (one per kind).
+DEFAULT_UNITS = {"pressure": "kPa", "length": "mm", "force": "N", "moment": "Nmm", "time": "s"}
+
+# |q| must be 1 within this. Motion-capture exports round quaternions to about 7 significant
+# digits (|q| - 1 ~ 1e-7); a larger error means the columns are not a unit quaternion at all
+# (scalar-last order, Euler angles, degrees), which must not be renormalised silently.
+QUATERNION_TOLERANCE = 1e-6
+
+# A stored rotation matrix must be orthonormal within this (same reasoning).
+_ROTATION_TOLERANCE = 1e-6
+
+_NAME = re.compile(
+    r"^(?P<base>p(?:0|[1-9][0-9]*)|tip_[xyz]|tip_q[wxyz]|base_[fm][xyz]|experiment|mounting|time)"
+    r"(?:_(?P<unit>.*))?$"
+)
+_XYZ = ("x", "y", "z")
+_TIP = tuple(f"tip_{a}" for a in _XYZ)
+_QUAT = ("tip_qw", "tip_qx", "tip_qy", "tip_qz")
+_FORCE = tuple(f"base_f{a}" for a in _XYZ)
+_MOMENT = tuple(f"base_m{a}" for a in _XYZ)
+_LABELS = ("experiment", "mounting")
+_KNOWN = "p0, p1, ... (channels), tip_x/y/z, tip_qw/qx/qy/qz, base_fx/fy/fz, base_mx/my/mz, " + (
+    "experiment, mounting, time"
+)
+_MAX_LISTED = 10  # rows named in one error message before "and N more"
+
+_EXAMPLES_DIR = PACKAGE_DIR / "data" / "examples"
+
+
+def _kind(base: str) -> str | None:
+    """Quantity kind of a base column name (None: no unit allowed)."""
+    if base[0] == "p":
+        return "pressure"
+    if base in _TIP:
+        return "length"
+    if base in _FORCE:
+        return "force"
+    if base in _MOMENT:
+        return "moment"
+    if base == "time":
+        return "time"
+    return None
+
+
+def _base(name: str) -> str | None:
+    """The schema's base name of a column name (``p0_kPa`` -> ``p0``), None if unknown."""
+    m = _NAME.match(name)
+    return None if m is None else m["base"]
+
+
+def _fail(field: str, value: object, rule: str) -> InputError:
+    return design_error(field, value, rule, InputError)
+
+
+def _unit_factor(unit: str, kind: str, column: str) -> float:
+    """SI factor of ``unit`` (a unit string, aliases allowed) checked against ``kind``."""
+    text = unit.strip()
+    if not text:
+        raise _fail(column, unit, f"empty unit: a {kind} needs one, e.g. '{DEFAULT_UNITS[kind]}'")
+    ureg = registry()
+    try:
+        parsed = ureg.parse_units(UNIT_ALIASES.get(text, text))
+    except Exception as exc:  # pint raises several error types for bad strings
+        raise _fail(
+            column,
+            unit,
+            f"unknown unit ({exc}); a {kind} column needs a unit pint knows, e.g. "
+            f"'{DEFAULT_UNITS[kind]}' (moment spellings {', '.join(UNIT_ALIASES)} are accepted)",
+        ) from None
+    want = ureg.get_dimensionality(SI_UNIT[kind])
+    if parsed.dimensionality != want:
+        have = str(parsed.dimensionality) if not parsed.dimensionless else "dimensionless"
+        raise _fail(
+            column,
+            unit,
+            f"wrong unit: this column is a {kind} (like '{DEFAULT_UNITS[kind]}'), "
+            f"but the unit has dimension {have}",
+        )
+    return float(ureg.Quantity(1.0, parsed).to(SI_UNIT[kind]).magnitude)
+
+
+def _suffix(unit: str) -> str:
+    """The column-name spelling of a unit (``N*mm`` -> ``Nmm``)."""
+    return _SUFFIX_OF.get(unit.strip(), unit.strip())
+
+
+# --- rotations -------------------------------------------------------------------------------
+
+
+def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """(m, 4) unit quaternions (w, x, y, z) -> (m, 3, 3) rotation matrices."""
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        axis=1,
+    )
+
+
+def _matrix_to_quat(r: np.ndarray) -> np.ndarray:
+    """(m, 3, 3) rotation matrices -> (m, 4) unit quaternions (w, x, y, z) with w >= 0.
+
+    Shepperd's method: divide by the largest of |w|, |x|, |y|, |z| so no branch loses digits.
+    """
+    r = np.asarray(r, dtype=float).reshape(-1, 3, 3)
+    tr = np.trace(r, axis1=1, axis2=2)
+    diag = np.stack([r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]], axis=1)
+    four_sq = np.column_stack([1 + tr, 1 + 2 * diag - tr[:, None]])  # 4w^2, 4x^2, 4y^2, 4z^2
+    pick = np.argmax(four_sq, axis=1)
+    big = 0.5 * np.sqrt(np.maximum(four_sq[np.arange(len(r)), pick], 0.0))
+    d = 4.0 * np.where(big > 0, big, 1.0)
+    a21, a12, a02, a20, a10, a01 = (
+        r[:, 2, 1],
+        r[:, 1, 2],
+        r[:, 0, 2],
+        r[:, 2, 0],
+        r[:, 1, 0],
+        r[:, 0, 1],
+    )
+    cases = [
+        (big, (a21 - a12) / d, (a02 - a20) / d, (a10 - a01) / d),
+        ((a21 - a12) / d, big, (a01 + a10) / d, (a02 + a20) / d),
+        ((a02 - a20) / d, (a01 + a10) / d, big, (a12 + a21) / d),
+        ((a10 - a01) / d, (a02 + a20) / d, (a12 + a21) / d, big),
+    ]
+    q = np.zeros((len(r), 4))
+    for k, comps in enumerate(cases):
+        sel = pick == k
+        q[sel] = np.column_stack([c[sel] for c in comps])
+    q[q[:, 0] < 0] *= -1.0
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+# --- the dataset -------------------------------------------------------------------------------
+
+
+def _readonly(a: np.ndarray | None) -> np.ndarray | None:
+    if a is not None:
+        a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class Dataset:
+    """Measured (or synthetic) static equilibria, SI, one row per sample (m rows).
+
+    pressures: (m, c) gauge pressures, Pa.     tip_position: (m, 3) tip position, m (world).
+    tip_rotation: (m, 3, 3) [d1 d2 d3] of the tip (world) or None.
+    base_force, base_moment: (m, 3) force (N) and moment about the base point (N m) that the
+    rod exerts on its mount, world frame, or None (``StaticSolution.base_force`` convention).
+    experiment: (m,) ids (int64 or str) or None.  mounting: (m,) str or None.
+    time: (m,) s or None.  metadata: dict; ``metadata["synthetic"]`` is True for data made by
+    :func:`synthesize_dataset` (with the design, noise and seed).  source: file read or None.
+
+    Arrays are read-only. Use :func:`load_dataset` to read a file, :meth:`to_frame` and
+    :func:`write_dataset` to write one.
+    """
+
+    pressures: np.ndarray
+    tip_position: np.ndarray
+    tip_rotation: np.ndarray | None = None
+    base_force: np.ndarray | None = None
+    base_moment: np.ndarray | None = None
+    experiment: np.ndarray | None = None
+    mounting: np.ndarray | None = None
+    time: np.ndarray | None = None
+    metadata: dict = field(default_factory=lambda: {"synthetic": False})
+    source: Path | None = None
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        p = np.array(self.pressures, dtype=float)
+        if p.ndim != 2 or p.shape[1] < 1:
+            raise _fail("pressures", f"shape {p.shape}", "must be an (m, channels) array in Pa")
+        m = p.shape[0]
+        set_(self, "pressures", _readonly(p))
+        shapes = {
+            "tip_position": (m, 3),
+            "tip_rotation": (m, 3, 3),
+            "base_force": (m, 3),
+            "base_moment": (m, 3),
+            "time": (m,),
+        }
+        for name, shape in shapes.items():
+            value = getattr(self, name)
+            if value is None:
+                if name == "tip_position":
+                    raise _fail(name, None, "is required (an (m, 3) array in m)")
+                continue
+            a = np.array(value, dtype=float)
+            if a.shape != shape:
+                raise _fail(name, f"shape {a.shape}", f"must have shape {shape} (m = {m} rows)")
+            set_(self, name, _readonly(a))
+        for name in ("pressures", "tip_position", "tip_rotation", "base_force", "base_moment"):
+            a = getattr(self, name)
+            if a is not None and not np.isfinite(a).all():
+                bad = np.flatnonzero(~np.isfinite(a.reshape(m, -1)).all(axis=1))
+                raise _fail(name, "non-finite", f"must be finite (rows {_runs(bad)})")
+        if self.tip_rotation is not None and m:
+            r = self.tip_rotation
+            err = np.abs(np.einsum("kji,kjl->kil", r, r) - np.eye(3)).max(axis=(1, 2))
+            det = np.linalg.det(r)
+            bad = np.flatnonzero((err > _ROTATION_TOLERANCE) | (det < 0))
+            if bad.size:
+                raise _fail(
+                    "tip_rotation",
+                    f"rows {_runs(bad)}",
+                    f"must be rotation matrices (orthonormal within {_ROTATION_TOLERANCE:g}, "
+                    "det +1)",
+                )
+        for name in _LABELS:
+            value = getattr(self, name)
+            if value is not None:
+                a = _labels(np.asarray(value), name, ints=name == "experiment")
+                if a.shape != (m,):
+                    raise _fail(name, f"shape {a.shape}", f"must have shape ({m},)")
+                set_(self, name, _readonly(a))
+        if not isinstance(self.metadata, Mapping):
+            raise _fail("metadata", self.metadata, "must be a dict")
+        meta = dict(self.metadata)
+        meta.setdefault("synthetic", False)
+        if not isinstance(meta["synthetic"], bool):
+            raise _fail("metadata.synthetic", meta["synthetic"], "must be true or false")
+        set_(self, "metadata", meta)
+        if self.source is not None:
+            set_(self, "source", Path(self.source))
+
+    def __len__(self) -> int:
+        return self.pressures.shape[0]
+
+    def __repr__(self) -> str:
+        parts = [f"{len(self)} rows", f"{self.n_channels} channels"]
+        if self.experiment is not None:
+            parts.append(f"experiments {list(self.experiments)}")
+        optional = [
+            n
+            for n in ("tip_rotation", "base_force", "base_moment", "time")
+            if getattr(self, n) is not None
+        ]
+        if optional:
+            parts.append("with " + ", ".join(optional))
+        if self.synthetic:
+            parts.append(f"SYNTHETIC from {self.metadata.get('design', '?')}")
+        if self.source is not None:
+            parts.append(f"source={str(self.source)!r}")
+        return f"Dataset({'; '.join(parts)})"
+
+    @property
+    def n_channels(self) -> int:
+        """Number of pressure channels (columns of ``pressures``)."""
+        return self.pressures.shape[1]
+
+    @property
+    def synthetic(self) -> bool:
+        """True for data generated by the model (not measurements)."""
+        return bool(self.metadata.get("synthetic", False))
+
+    @property
+    def experiments(self) -> tuple:
+        """The distinct experiment ids in order of first appearance (empty if none)."""
+        if self.experiment is None:
+            return ()
+        _, first = np.unique(self.experiment, return_index=True)
+        return tuple(self.experiment[i].item() for i in sorted(first))
+
+    def subset(self, rows) -> Dataset:
+        """The rows chosen by a boolean mask of length m or by integer indices (in that order)."""
+        a = np.asarray(rows)
+        m = len(self)
+        if a.dtype == bool:
+            if a.shape != (m,):
+                raise _fail(
+                    "rows", f"mask of shape {a.shape}", f"a boolean mask needs shape ({m},)"
+                )
+            idx = np.flatnonzero(a)
+        elif a.size == 0:
+            idx = np.zeros(0, dtype=int)
+        elif np.issubdtype(a.dtype, np.integer) and a.ndim == 1:
+            if a.min() < -m or a.max() >= m:
+                raise _fail("rows", f"indices {a.min()}..{a.max()}", f"must lie in [-{m}, {m})")
+            idx = a
+        else:
+            raise _fail("rows", rows, "must be a boolean mask or a 1-d array of integer indices")
+
+        def take(x):
+            return None if x is None else x[idx]
+
+        return Dataset(
+            pressures=self.pressures[idx],
+            tip_position=self.tip_position[idx],
+            tip_rotation=take(self.tip_rotation),
+            base_force=take(self.base_force),
+            base_moment=take(self.base_moment),
+            experiment=take(self.experiment),
+            mounting=take(self.mounting),
+            time=take(self.time),
+            metadata=dict(self.metadata),
+            source=self.source,
+        )
+
+    def split(self, by: str = "experiment", *, test) -> tuple[Dataset, Dataset]:
+        """(train, test): the rows whose ``by`` column ("experiment" or "mounting") holds one
+        of the ``test`` ids go to test, the others to train. Unknown ids are an error."""
+        if by not in _LABELS:
+            raise _fail("by", by, f"must be one of {', '.join(_LABELS)}")
+        labels = getattr(self, by)
+        if labels is None:
+            raise _fail("by", by, f"the dataset has no {by} column to split by")
+        ids = [test] if isinstance(test, (str, int, np.integer)) else list(test)
+        if not ids:
+            raise _fail("test", test, f"name at least one {by} id")
+        known = self.experiments if by == "experiment" else tuple(dict.fromkeys(labels.tolist()))
+        unknown = [t for t in ids if not any(_same_id(t, k) for k in known)]
+        if unknown:
+            raise _fail(
+                "test",
+                unknown,
+                f"unknown {by} id(s); the dataset has {', '.join(repr(k) for k in known)}",
+            )
+        mask = np.zeros(len(self), dtype=bool)
+        for t in ids:
+            mask |= labels == t
+        if mask.all():
+            raise _fail("test", ids, f"takes every {by}: nothing would be left to train on")
+        return self.subset(~mask), self.subset(mask)
+
+    def to_frame(self, units: Mapping[str, str] | None = None) -> pd.DataFrame:
+        """The dataset as a DataFrame of the schema, units in the column names.
+
+        ``units`` maps a kind ("pressure", "length", "force", "moment", "time") to a unit;
+        the others keep :data:`DEFAULT_UNITS` (kPa, mm, N, Nmm = N*mm, s). The orientation is
+        written as a unit quaternion (w >= 0). ``frame.attrs["softrod.metadata"]`` holds the
+        metadata, so ``load_dataset(frame)`` keeps the synthetic flag.
+        """
+        chosen = dict(DEFAULT_UNITS)
+        for kind, unit in dict(units or {}).items():
+            if kind not in DEFAULT_UNITS:
+                raise _fail(
+                    f"units.{kind}", unit, f"unknown kind (known: {', '.join(DEFAULT_UNITS)})"
+                )
+            if not isinstance(unit, str):
+                raise _fail(f"units.{kind}", unit, "must be a unit string such as 'kPa'")
+            chosen[kind] = _suffix(unit)
+        factor = {k: _unit_factor(u, k, f"units.{k}") for k, u in chosen.items()}
+        cols: dict[str, Any] = {}
+        for name in _LABELS:
+            if getattr(self, name) is not None:
+                cols[name] = getattr(self, name)
+        if self.time is not None:
+            cols[f"time_{chosen['time']}"] = self.time / factor["time"]
+        for k in range(self.n_channels):
+            cols[f"p{k}_{chosen['pressure']}"] = self.pressures[:, k] / factor["pressure"]
+        for i, name in enumerate(_TIP):
+            cols[f"{name}_{chosen['length']}"] = self.tip_position[:, i] / factor["length"]
+        if self.tip_rotation is not None:
+            q = _matrix_to_quat(self.tip_rotation)
+            for i, name in enumerate(_QUAT):
+                cols[name] = q[:, i]
+        for names, arr, kind in (
+            (_FORCE, self.base_force, "force"),
+            (_MOMENT, self.base_moment, "moment"),
+        ):
+            if arr is not None:
+                for i, name in enumerate(names):
+                    cols[f"{name}_{chosen[kind]}"] = arr[:, i] / factor[kind]
+        frame = pd.DataFrame(cols)
+        frame.attrs["softrod.metadata"] = dict(self.metadata)
+        return frame
+
+
+def _same_id(a, b) -> bool:
+    """Equal ids of the same kind: 1 and np.int64(1) match, 1 and "1" (or True) do not."""
+    if isinstance(a, (bool, np.bool_)) or isinstance(b, (bool, np.bool_)):
+        return False
+    if isinstance(a, (int, np.integer)) and isinstance(b, (int, np.integer)):
+        return int(a) == int(b)
+    return isinstance(a, str) and isinstance(b, str) and a == b
+
+
+def _labels(a: np.ndarray, name: str, ints: bool) -> np.ndarray:
+    """Experiment ids as int64 when all are integers, else str; mounting always str."""
+    if ints and a.dtype.kind in "iu":
+        return a.astype(np.int64)
+    if ints and a.dtype.kind == "f":
+        if np.all(np.isfinite(a)) and np.all(a == np.round(a)):
+            return a.astype(np.int64)
+        raise _fail(name, "non-integer numbers", "ids must be integers or strings")
+    if a.dtype.kind == "b":
+        raise _fail(name, "booleans", "must be integers or strings")
+    values = [v.item() if isinstance(v, np.generic) else v for v in a.tolist()]
+    if ints and all(isinstance(v, int) and not isinstance(v, bool) for v in values):
+        return np.asarray(values, dtype=np.int64)
+    if (
+        ints
+        and values
+        and all(isinstance(v, str) and re.fullmatch(r"-?(0|[1-9][0-9]*)", v) for v in values)
+    ):
+        return np.asarray([int(v) for v in values], dtype=np.int64)
+    return np.asarray([str(v).strip() for v in values], dtype=str)
+
+
+# --- locating rows in messages ----------------------------------------------------------------
+
+
+def _runs(idx: Iterable[int], fmt: Callable[[int], int | str] = lambda i: i) -> str:
+    """'3, 7-9, 12' (consecutive runs compressed), at most _MAX_LISTED items then 'and N more'."""
+    idx = sorted(int(i) for i in idx)
+    items: list[str] = []
+    i = 0
+    while i < len(idx):
+        j = i
+        while j + 1 < len(idx) and idx[j + 1] == idx[j] + 1:
+            j += 1
+        items.append(f"{fmt(idx[i])}" if j == i else f"{fmt(idx[i])}-{fmt(idx[j])}")
+        i = j + 1
+    more = len(items) - _MAX_LISTED
+    text = ", ".join(items[:_MAX_LISTED])
+    return text + (f" and {more} more" if more > 0 else "")
+
+
+@dataclass(frozen=True)
+class _Where:
+    """How rows are named in messages: CSV lines, Parquet rows or DataFrame index labels."""
+
+    noun: str  # "line", "row", "index"
+    first: int = 0  # CSV: line number of the first data row
+    labels: tuple | None = None  # DataFrame index labels
+
+    def __call__(self, rows: Iterable[int]) -> str:
+        rows = list(rows)
+        noun = (
+            self.noun
+            if len(rows) == 1
+            else {"index": "index labels"}.get(self.noun, self.noun + "s")
+        )
+        if self.labels is not None:
+            shown = ", ".join(repr(self.labels[i]) for i in rows[:_MAX_LISTED])
+            more = len(rows) - _MAX_LISTED
+            return f"{noun} {shown}" + (f" and {more} more" if more > 0 else "")
+        return f"{noun} {_runs(rows, lambda i: i + self.first)}"
+
+
+# --- loading -------------------------------------------------------------------------------------
+
+
+def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
+    text = path.read_text(encoding="utf-8-sig")
+    lines = text.splitlines()
+    units: dict = {}
+    meta: dict = {}
+    n_pre = 0
+    for n_pre, line in enumerate(lines):  # noqa: B007 - n_pre is the header's index after
+        stripped = line.strip()
+        if stripped and not stripped.startswith("#"):
+            break
+        entry = re.match(r"^#\s*(units|metadata)\s*:(.*)$", stripped)
+        if entry:
+            key, body = entry.group(1), entry.group(2)
+            try:
+                value = json.loads(body)
+            except json.JSONDecodeError as exc:
+                raise _fail(
+                    key,
+                    body.strip(),
+                    f"line {n_pre + 1}: not valid JSON ({exc.msg}); write e.g. "
+                    '# units: {"p0": "kPa", "tip_x": "mm"}',
+                ) from None
+            if not isinstance(value, dict):
+                raise _fail(key, value, f"line {n_pre + 1}: must be a JSON object {{...}}")
+            target = units if key == "units" else meta
+            if target:
+                raise _fail(key, value, f"line {n_pre + 1}: the {key} block is given twice")
+            target.update(value)
+    else:
+        raise _fail("file", str(path), "has no header line (column names) after the comments")
+    header_line = n_pre + 1  # 1-based
+    raw_names = next(csv.reader([lines[n_pre]]))
+    names = [n.strip() for n in raw_names]  # "p0_kPa, tip_x_mm" is read like "p0_kPa,tip_x_mm"
+    _check_duplicates(names)
+    labels = [r for r, n in zip(raw_names, names, strict=True) if _base(n) in _LABELS]
+    body = "\n".join(lines[n_pre:]) + "\n"
+    try:
+        df = pd.read_csv(
+            io.StringIO(body),
+            skip_blank_lines=False,
+            skipinitialspace=True,
+            # Ids stay text ("007" is not 7); keys as pandas may spell the header name.
+            dtype=dict.fromkeys([*labels, *(r.lstrip() for r in labels)], str),
+        )
+    except pd.errors.ParserError as exc:
+        ragged = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(exc))
+        if ragged:
+            want, line, saw = (int(g) for g in ragged.groups())
+            raise _fail(
+                f"line {line + n_pre}",
+                f"{saw} values",
+                f"the header has {want} columns; every row needs one value per column "
+                "(quote a value that contains a comma)",
+            ) from None
+        raise _fail("file", path.name, f"is not a valid CSV table: {exc}") from None
+    df.columns = names
+    # Blank lines at the end of a file are not rows.
+    empty = df.isna().all(axis=1).to_numpy()
+    n = len(df)
+    while n and empty[n - 1]:
+        n -= 1
+    df = df.iloc[:n]
+    return df, units, meta, _Where("line", first=header_line + 1)
+
+
+def _read_parquet(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
+    import pyarrow.parquet as pq
+
+    try:
+        table = pq.read_table(path)
+    except Exception as exc:  # pyarrow raises its own error types for broken files
+        raise _fail("file", str(path), f"is not a readable Parquet file: {exc}") from None
+    _check_duplicates(table.column_names)
+    kv = table.schema.metadata or {}
+    blocks = []
+    for key in (b"softrod.units", b"softrod.metadata"):
+        raw = kv.get(key)
+        if raw is None:
+            blocks.append({})
+            continue
+        try:
+            value = json.loads(raw.decode("utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise _fail(
+                key.decode(), raw[:80], f"Parquet metadata is not valid JSON ({exc})"
+            ) from None
+        if not isinstance(value, dict):
+            raise _fail(key.decode(), value, "Parquet metadata must be a JSON object")
+        blocks.append(value)
+    return table.to_pandas(), blocks[0], blocks[1], _Where("row")
+
+
+def _check_duplicates(names: list) -> None:
+    seen: dict[str, int] = {}
+    for n in names:
+        seen[n] = seen.get(n, 0) + 1
+    dup = [n for n, c in seen.items() if c > 1]
+    if dup:
+        raise _fail("columns", dup, "duplicate column name(s): each column may appear once")
+
+
+def load_dataset(
+    source,
+    *,
+    n_channels: int | None = None,
+    design=None,
+    units: Mapping[str, str] | None = None,
+    extra: str = "error",
+) -> Dataset:
+    """Read and validate a dataset from a CSV or Parquet file or a pandas DataFrame.
+
+    ``source``: a path (``.csv`` or ``.parquet``), a DataFrame (units in the column names,
+    in ``units`` or in ``frame.attrs["softrod.units"]``) or a Dataset (returned as is).
+    ``n_channels`` / ``design``: the pressure channels the data must have (a Design or a
+    design name gives ``design.n_channels``). ``units``: a units block (column -> unit) in
+    addition to the file's. ``extra``: "error" (default: an unknown column is a typo until
+    shown otherwise) or "ignore". Values come back SI. Raises :class:`InputError` naming the
+    column, the value, the rule and the rows (CSV line numbers as a text editor shows them).
+    """
+    if isinstance(source, Dataset):
+        want, what = _expected_channels(n_channels, design)
+        if want is not None and source.n_channels != want:
+            raise _fail(
+                "pressures",
+                f"shape {source.pressures.shape}",
+                f"the data has {source.n_channels} pressure channel(s) but {what}",
+            )
+        return source
+    if extra not in ("error", "ignore"):
+        raise _fail("extra", extra, "must be 'error' or 'ignore'")
+    path = None
+    if isinstance(source, pd.DataFrame):
+        names = list(source.columns)
+        bad = [n for n in names if not isinstance(n, str)]
+        if bad:
+            raise _fail("columns", bad, "column names must be strings")
+        _check_duplicates(names)
+        df = source.reset_index(drop=True)
+        file_units = dict(source.attrs.get("softrod.units", {}))
+        meta = dict(source.attrs.get("softrod.metadata", {}))
+        where = _Where("index", labels=tuple(source.index))
+    elif isinstance(source, (str, os.PathLike)):
+        path = Path(source)
+        if path.suffix.lower() not in TABLE_SUFFIXES:
+            check_table_path(path)  # raises with the list of formats
+        if not path.is_file():
+            raise _fail("path", str(path), "no such file")
+        reader = _read_csv if path.suffix.lower() == ".csv" else _read_parquet
+        try:
+            df, file_units, meta, where = reader(path)
+        except InputError as exc:
+            exc.args = (f"{path.name}: {exc.args[0]}",)
+            raise
+    else:
+        raise _fail(
+            "source",
+            type(source).__name__,
+            "must be a .csv/.parquet path, a DataFrame or a Dataset",
+        )
+    try:
+        return _from_frame(
+            df, file_units, dict(units or {}), meta, where, path, n_channels, design, extra
+        )
+    except InputError as exc:
+        if path is not None:
+            exc.args = (f"{path.name}: {exc.args[0]}",)
+        raise
+
+
+def _expected_channels(n_channels, design) -> tuple[int | None, str]:
+    want, what = None, ""
+    if n_channels is not None:
+        if (
+            isinstance(n_channels, bool)
+            or not isinstance(n_channels, (int, np.integer))
+            or n_channels < 1
+        ):
+            raise _fail("n_channels", n_channels, "must be an integer >= 1")
+        want, what = int(n_channels), f"n_channels = {int(n_channels)}"
+    if design is not None:
+        d = load_design(design)
+        if want is not None and want != d.n_channels:
+            raise _fail(
+                "n_channels",
+                n_channels,
+                f"disagrees with design {d.name!r}, which has {d.n_channels} channels",
+            )
+        want, what = d.n_channels, f"design {d.name!r} has {d.n_channels}"
+    return want, what
+
+
+def _from_frame(
+    df, file_units, call_units, meta, where, path, n_channels, design, extra
+) -> Dataset:
+    names = [str(c) for c in df.columns]
+    # Units block: the file's and the caller's, a column in at most one of them.
+    for label, block in (("units", file_units), ("units (argument)", call_units)):
+        for k, v in block.items():
+            if not isinstance(k, str) or not isinstance(v, str):
+                raise _fail(f"{label}.{k}", v, "must map a column name to a unit string")
+    both = sorted(set(file_units) & set(call_units))
+    if both:
+        raise _fail("units", both, "given both in the file's units block and in units=")
+    block = {**file_units, **call_units}
+    unused = sorted(set(block) - set(names))
+    if unused:
+        raise _fail(
+            f"units.{unused[0]}", block[unused[0]], f"names no column (columns: {', '.join(names)})"
+        )
+
+    # Column names -> base name and SI factor.
+    columns: dict[str, tuple[str, float | None]] = {}  # base -> (column, factor)
+    unknown = []
+    for name in names:
+        m = _NAME.match(name)
+        if m is None:
+            unknown.append(name)
+            continue
+        base, unit = m["base"], m["unit"]
+        kind = _kind(base)
+        if unit is not None and name in block:
+            raise _fail(
+                name, block[name], "unit given twice: in the column name and in the units block"
+            )
+        if unit is None:
+            unit = block.get(name)
+        if kind is None:
+            if unit is not None:
+                what = "an identifier" if base in _LABELS else "dimensionless"
+                raise _fail(
+                    name, unit, f"{base} is {what} and takes no unit; name the column {base!r}"
+                )
+            factor = None
+        elif unit is None:
+            raise _fail(
+                name,
+                "no unit",
+                f"a {kind} column needs a unit: in its name ({base}_{DEFAULT_UNITS[kind]}) "
+                f'or in the units block (# units: {{"{base}": "{DEFAULT_UNITS[kind]}"}})',
+            )
+        else:
+            factor = _unit_factor(unit, kind, name)
+        if base in columns:
+            raise _fail("columns", [columns[base][0], name], f"both give {base}: keep one")
+        columns[base] = (name, factor)
+    if unknown and extra == "error":
+        raise _fail(
+            "columns",
+            unknown,
+            f"unknown column(s); known names: {_KNOWN}, each <name>_<unit> for quantities with "
+            "a unit (pass extra='ignore' to skip unknown columns)",
+        )
+
+    # Required columns and complete groups.
+    channels = sorted(int(b[1:]) for b in columns if b[0] == "p")
+    missing = [b for b in _TIP if b not in columns]
+    if not channels:
+        missing.insert(0, "p0")
+    for group in (_QUAT, _FORCE, _MOMENT):
+        present = [b for b in group if b in columns]
+        if present:
+            missing += [b for b in group if b not in columns]
+    if missing:
+        spelled = ", ".join(f"{b}_{DEFAULT_UNITS[k]}" if (k := _kind(b)) else b for b in missing)
+        raise _fail(
+            "columns",
+            names,
+            f"missing column(s) {', '.join(missing)} (spelled e.g. {spelled}); required are "
+            "p0, p1, ... and tip_x, tip_y, tip_z; the tip_q*, base_f* and base_m* columns are "
+            "optional but come in complete groups",
+        )
+    gaps = sorted(set(range(channels[-1] + 1)) - set(channels))
+    if gaps:
+        raise _fail(
+            "columns",
+            [columns[f"p{k}"][0] for k in channels],
+            f"pressure channels must be numbered p0, p1, ... without gaps: "
+            f"{', '.join(f'p{k}' for k in gaps)} missing",
+        )
+    want, what = _expected_channels(n_channels, design)
+    if want is not None and len(channels) != want:
+        raise _fail(
+            "columns",
+            [columns[f"p{k}"][0] for k in channels],
+            f"the data has {len(channels)} pressure channel(s) but {what}",
+        )
+    if len(df) == 0:
+        raise _fail("rows", 0, "the table has no data rows")
+
+    # Values: empty cells, text in number columns, non-finite numbers.
+    used = [columns[b][0] for b in columns]
+    isna = df[used].isna().to_numpy()
+    if isna.any():
+        blank = isna.all(axis=1)
+        parts = [f"blank {where(np.flatnonzero(blank))}"] if blank.any() else []
+        cols = [c for k, c in enumerate(used) if (isna[:, k] & ~blank).any()]
+        parts += [f"{c} at {where(np.flatnonzero(isna[:, used.index(c)] & ~blank))}" for c in cols]
+        n_rows = int(isna.any(axis=1).sum())
+        raise _fail(
+            ", ".join(cols) if cols else "rows",
+            "empty/NaN",
+            f"empty or NaN values in {n_rows} row(s): {'; '.join(parts)}; "
+            "fill or delete these rows",
+        )
+    numeric: dict[str, np.ndarray] = {}
+    for base, (col, factor) in columns.items():
+        if base in _LABELS:
+            continue
+        raw = df[col]
+        values = pd.to_numeric(raw, errors="coerce")
+        text = np.flatnonzero(values.isna().to_numpy())
+        if text.size:
+            raise _fail(col, raw.iloc[text[0]], f"not a number at {where(text)}")
+        a = values.to_numpy(dtype=float)
+        bad = np.flatnonzero(~np.isfinite(a))
+        if bad.size:
+            raise _fail(col, a[bad[0]].item(), f"must be finite, at {where(bad)}")
+        numeric[base] = a if factor is None else a * factor
+
+    rotation = None
+    if _QUAT[0] in columns:
+        q = np.column_stack([numeric[b] for b in _QUAT])
+        norm = np.linalg.norm(q, axis=1)
+        bad = np.flatnonzero(np.abs(norm - 1.0) > QUATERNION_TOLERANCE)
+        if bad.size:
+            raise _fail(
+                ", ".join(columns[b][0] for b in _QUAT),
+                f"|q| = {norm[bad[0]]:.9g}",
+                f"not a unit quaternion at {where(bad)}: |q| must be 1 within "
+                f"{QUATERNION_TOLERANCE:g} (the columns are (w, x, y, z), scalar first; a norm "
+                "far from 1 usually means another order, Euler angles or a missing column)",
+            )
+        rotation = _quat_to_matrix(q)
+
+    labels = {}
+    for base in _LABELS:
+        if base in columns:
+            labels[base] = _labels(
+                df[columns[base][0]].to_numpy(), columns[base][0], base == "experiment"
+            )
+
+    def stack(group):
+        return np.column_stack([numeric[b] for b in group]) if group[0] in columns else None
+
+    meta = dict(meta)
+    return Dataset(
+        pressures=np.column_stack([numeric[f"p{k}"] for k in channels]),
+        tip_position=stack(_TIP),
+        tip_rotation=rotation,
+        base_force=stack(_FORCE),
+        base_moment=stack(_MOMENT),
+        experiment=labels.get("experiment"),
+        mounting=labels.get("mounting"),
+        time=numeric.get("time"),
+        metadata=meta,
+        source=path,
+    )
+
+
+# --- writing -------------------------------------------------------------------------------------
+
+
+def _json_default(x):
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, Path):
+        return str(x)
+    raise TypeError(f"{type(x).__name__} is not JSON serialisable")
+
+
+def _metadata_json(meta: Mapping) -> str:
+    try:
+        return json.dumps(dict(meta), default=_json_default, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise _fail("metadata", dict(meta), f"must be JSON serialisable ({exc})") from None
+
+
+def write_dataset(dataset: Dataset, path, *, units: Mapping[str, str] | None = None) -> Path:
+    """Write ``dataset`` to ``path``: CSV (``.csv``) or Parquet (``.parquet``) by suffix.
+
+    Units go into the column names (``units`` as in :meth:`Dataset.to_frame`); the metadata
+    goes into a ``# metadata: {...}`` comment line (CSV) or the ``softrod.metadata`` entry
+    (Parquet). Synthetic data says so in the first line of a CSV file. The file is written
+    atomically: a temporary file in the same folder, renamed into place when complete, so a
+    failure leaves no partial file (and an older file untouched). Returns the path.
+    """
+    if not isinstance(dataset, Dataset):
+        raise _fail("dataset", type(dataset).__name__, "must be a softrod Dataset")
+    path = check_table_path(path)
+    frame = dataset.to_frame(units)
+    meta = _metadata_json(dataset.metadata)
+    with atomic_path(path) as tmp:
+        if path.suffix.lower() == ".csv":
+            with open(tmp, "w", encoding="utf-8", newline="") as fh:
+                if dataset.synthetic:
+                    fh.write(
+                        f"# SYNTHETIC softrod dataset: generated by the model "
+                        f"({dataset.metadata.get('design', '?')}), not measured\n"
+                    )
+                else:
+                    fh.write("# softrod dataset\n")
+                fh.write("# schema: docs/datasets.md; units are in the column names\n")
+                fh.write(f"# metadata: {meta}\n")
+                frame.to_csv(fh, index=False, lineterminator="\n")
+        else:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+
+            table = pa.Table.from_pandas(frame, preserve_index=False)
+            kv = dict(table.schema.metadata or {})
+            kv[b"softrod.metadata"] = meta.encode("utf-8")
+            pq.write_table(table.replace_schema_metadata(kv), tmp)
+    return path
+
+
+# --- synthetic data ------------------------------------------------------------------------------
+
+
+def synthesize_dataset(
+    design,
+    pressures,
+    *,
+    noise_mm: float = 0.0,
+    seed: int | None = None,
+    experiment=None,
+    mounting=None,
+    time=None,
+    tip_force=None,
+    tip_moment=None,
+    options=None,
+    threads: int = 0,
+) -> Dataset:
+    """A synthetic dataset: the model's equilibria at ``pressures`` plus measurement noise.
+
+    ``pressures``: (m, channels) gauge pressures in Pa. The tip position gets isotropic
+    Gaussian noise of standard deviation ``noise_mm`` (millimetres, per axis, independent);
+    orientation and base wrench are the model's, noise-free. ``seed`` makes the noise
+    reproducible; without one a seed is drawn and recorded. ``experiment``/``mounting``: one
+    label for every row or one per row; ``time``: (m,) seconds. ``tip_force``, ``tip_moment``,
+    ``options`` and ``threads`` go to :func:`~softrod.solve_statics_batch`.
+
+    Raises :class:`~softrod.errors.ConvergenceError` listing the rows that did not converge
+    (nothing is dropped silently). ``metadata["synthetic"]`` is True and the metadata records
+    the design, noise, seed and loads, so the data is never mistaken for measurements.
+    """
+    from . import __version__
+    from .statics import solve_statics_batch
+
+    design = load_design(design)
+    if (
+        isinstance(noise_mm, bool)
+        or not isinstance(noise_mm, (int, float))
+        or not (math.isfinite(noise_mm) and noise_mm >= 0)
+    ):
+        raise _fail("noise_mm", noise_mm, "must be a finite number >= 0 (standard deviation, mm)")
+    if seed is None:
+        seed = int(np.random.SeedSequence().entropy % 2**63)
+    elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise _fail("seed", seed, "must be an integer >= 0 or None")
+    p = np.asarray(pressures, dtype=float)
+    if p.ndim == 2 and not np.isfinite(p).all():
+        raise _fail("pressures", "non-finite", "must be finite (Pa)")
+    batch = solve_statics_batch(
+        design, p, tip_force=tip_force, tip_moment=tip_moment, options=options, threads=threads
+    )
+    p = batch.pressures
+    m = p.shape[0]
+    failed = np.flatnonzero(~np.asarray(batch.converged, dtype=bool))
+    if failed.size:
+        shown = "; ".join(
+            f"row {i}: p = ({', '.join(f'{x / 1e3:g}' for x in p[i])}) kPa"
+            for i in failed[:_MAX_LISTED]
+        )
+        more = f" and {failed.size - _MAX_LISTED} more" if failed.size > _MAX_LISTED else ""
+        raise ConvergenceError(
+            f"synthesize_dataset: {failed.size} of {m} rows did not converge ({shown}{more}); "
+            "remove them from pressures or change the solver options"
+        )
+    rng = np.random.default_rng(int(seed))
+    noise = rng.normal(0.0, noise_mm * 1e-3, size=(m, 3)) if noise_mm > 0 else np.zeros((m, 3))
+
+    def per_row(value, name):
+        if value is None:
+            return None
+        if isinstance(value, (str, int, np.integer)) and not isinstance(value, bool):
+            return np.full(m, value)
+        a = np.asarray(value)
+        if a.shape != (m,):
+            raise _fail(name, f"shape {a.shape}", f"must be one label or one per row ({m},)")
+        return a
+
+    tf = _tip_load(design, tip_force, "force")
+    tm = _tip_load(design, tip_moment, "moment")
+    meta = {
+        "synthetic": True,
+        "note": "SYNTHETIC: generated by the softrod model, not measurements",
+        "generator": "softrod.synthesize_dataset",
+        "softrod_version": __version__,
+        "design": design.name,
+        "design_source": None if design.source is None else design.source.name,
+        "noise_mm": float(noise_mm),
+        "noise": "isotropic Gaussian on tip_position only (per axis, independent); "
+        "tip_rotation and base wrench are noise-free",
+        "seed": int(seed),
+        "tip_force_N": tf,
+        "tip_moment_Nm": tm,
+    }
+    return Dataset(
+        pressures=p,
+        tip_position=batch.tip_position + noise,
+        # Through the quaternion once, so the stored rotation is exactly what a file holds.
+        tip_rotation=_quat_to_matrix(_matrix_to_quat(batch.tip_rotation)),
+        base_force=batch.base_force,
+        base_moment=batch.base_moment,
+        experiment=per_row(experiment, "experiment"),
+        mounting=per_row(mounting, "mounting"),
+        time=None if time is None else np.asarray(time, dtype=float),
+        metadata=meta,
+        source=None,
+    )
+
+
+def _tip_load(design: Design, value, kind: str) -> list[float]:
+    """The tip load the solve used (SI): ``value`` or, if None, the design's ``[tip]`` entry."""
+    if value is None:
+        return [float(x) for x in design.spec["tip"][kind]]
+    return vector_to_si(list(value), kind, f"tip_{kind}", InputError)
+
+
+# --- bundled examples ----------------------------------------------------------------------------
+
+
+def example_datasets() -> list[str]:
+    """Names of the bundled example datasets (all synthetic)."""
+    return sorted(p.stem for p in _EXAMPLES_DIR.glob("*") if p.suffix in TABLE_SUFFIXES)
+
+
+def example_dataset_path(name: str) -> Path:
+    """Path of a bundled example dataset, e.g. ``example_dataset_path("spa130_synthetic")``."""
+    for suffix in ("", *TABLE_SUFFIXES):
+        candidate = _EXAMPLES_DIR / f"{name}{suffix}"
+        if isinstance(name, str) and name and candidate.is_file():
+            return candidate
+    raise _fail(
+        "name", name, f"no bundled example dataset (known: {', '.join(example_datasets())})"
+    )
+
+
+# How the bundled example was made; _write_examples() rebuilds it (tests check it still does).
+SPA130_EXAMPLE = {
+    "design": "spa_three_chamber_130mm",
+    "grid_kPa": [0.0, 14.0, 28.0, 42.0, 56.0, 70.0],  # 6 x 6 x 6 = 216 rows
+    "noise_mm": 0.3,
+    "seed": 130,
+    "experiments": [1, 2, 3],
+    "mounting": "hanging",
+    "seconds_per_sample": 5.0,
+}
+
+
+def _spa130_example() -> Dataset:
+    """216 grid points, shuffled (seeded) into three experiments of 72 rows each."""
+    spec = SPA130_EXAMPLE
+    grid = np.asarray(spec["grid_kPa"]) * 1e3
+    p = np.array(np.meshgrid(grid, grid, grid, indexing="ij")).reshape(3, -1).T
+    n_exp = len(spec["experiments"])
+    order = np.random.default_rng(spec["seed"]).permutation(len(p))
+    exp_index = np.empty(len(p), dtype=int)
+    exp_index[order] = np.arange(len(p)) % n_exp
+    rows = np.lexsort((np.arange(len(p)), exp_index))  # by experiment, grid order within
+    p, exp_index = p[rows], exp_index[rows]
+    within = np.concatenate([np.arange(np.sum(exp_index == k)) for k in range(n_exp)])
+    return synthesize_dataset(
+        spec["design"],
+        p,
+        noise_mm=spec["noise_mm"],
+        seed=spec["seed"],
+        experiment=np.asarray(spec["experiments"])[exp_index],
+        mounting=spec["mounting"],
+        time=within * spec["seconds_per_sample"],
+    )
+
+
+def _write_examples(folder: str | os.PathLike | None = None) -> list[Path]:
+    """Regenerate the bundled examples: ``python -c "from softrod.datasets import
+    _write_examples; _write_examples()"``."""
+    folder = Path(folder) if folder is not None else _EXAMPLES_DIR
+    ds = _spa130_example()
+    return [write_dataset(ds, folder / "spa130_synthetic.csv")]
