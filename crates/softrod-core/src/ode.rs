@@ -457,12 +457,16 @@ pub fn integrate<C: Coeff, D: StateScalar<C>>(
     mut visit: Option<Visitor<'_, D>>,
 ) -> State<D> {
     let mut y = y0;
-    if let Some(v) = visit.as_mut() {
-        v(0, 0.0, &y);
-    }
     for (i, (sec, c)) in rod.sections.iter().zip(coeffs).enumerate() {
         if let AxialCoeffs::Ogden { k_e, alpha, k_s } = &c.axial {
             y.aux = initial_stretch(&y, c.p_force, *k_e, *alpha, *k_s);
+        }
+        if i == 0 {
+            // The base node is visited once the first section's carried stretch is set,
+            // so that its strains come from that section's law like every other node's.
+            if let Some(v) = visit.as_mut() {
+                v(0, 0.0, &y);
+            }
         }
         let h = sec.length / sec.steps as f64;
         for k in 0..sec.steps {

@@ -6,7 +6,7 @@ use crate::law::AxialTable;
 use crate::section::CrossSection;
 use crate::spec::{
     validate_pressures, AxialSpec, DesignSpec, MaterialSpec, SectionSpec, StiffnessSpec,
-    SwellingSpec,
+    SwellingSpec, GEOMETRY_SLACK,
 };
 use std::sync::Arc;
 
@@ -339,9 +339,13 @@ impl Rod {
                 for (k, (c, f)) in s.chambers.iter().zip(&w).enumerate() {
                     let r = c.hole_radius * f;
                     let dist = c.centroid[0].hypot(c.centroid[1]);
-                    let clash = if dist + r > geo.outer_radius {
+                    // The same slack as the design's own containment checks, so that a
+                    // chamber the design accepts (e.g. tangent to the wall) passes at p = 0.
+                    let clash = if dist + r > geo.outer_radius * (1.0 + GEOMETRY_SLACK) {
                         Some("breaks through the outer wall".to_string())
-                    } else if geo.bore_radius > 0.0 && dist - r < geo.bore_radius {
+                    } else if geo.bore_radius > 0.0
+                        && dist - r < geo.bore_radius * (1.0 - GEOMETRY_SLACK)
+                    {
                         Some("reaches the bore".to_string())
                     } else {
                         s.chambers
@@ -351,7 +355,7 @@ impl Rod {
                             .position(|(o, g)| {
                                 let d = (c.centroid[0] - o.centroid[0])
                                     .hypot(c.centroid[1] - o.centroid[1]);
-                                d < r + o.hole_radius * g
+                                d < (r + o.hole_radius * g) * (1.0 - GEOMETRY_SLACK)
                             })
                             .map(|j| format!("overlaps chambers[{j}]"))
                     };

@@ -303,7 +303,7 @@ fn finite3(field: &str, v: &[f64; 3]) -> Result<()> {
 
 /// Relative slack in the geometric containment checks, so that a chamber drawn exactly
 /// tangent to the outer wall is accepted despite round-off in unit conversion.
-const GEOMETRY_SLACK: f64 = 1e-9;
+pub(crate) const GEOMETRY_SLACK: f64 = 1e-9;
 
 impl MaterialSpec {
     fn validate(&self, field: &str) -> Result<()> {
@@ -350,8 +350,13 @@ impl SectionSpec {
     fn validate_law(&self, i: usize) -> Result<()> {
         let f = |k: &str| format!("sections[{i}].{k}");
         if self.rigid && (!self.law.is_linear() || self.partition.is_some()) {
+            // Name the table the design file has: [sections.law], else [sections.partition].
             return Err(SoftrodError::invalid(
-                f("law"),
+                f(if self.law.is_linear() {
+                    "partition"
+                } else {
+                    "law"
+                }),
                 "set",
                 "a rigid section has no constitutive law (remove law/partition or make it elastic)",
             ));
