@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from . import _core
 from .errors import InputError, design_error
 from .units import SI_UNIT, registry, to_si
 
@@ -95,7 +96,7 @@ def _axis(values: Any, k: int) -> np.ndarray:
 
 
 class _Axis:
-    """One table axis and its constants for interpolation along it.
+    """One table axis, for multilinear interpolation along it.
 
     Arrays interpolated along this axis have shape (..., n, M, 3): n the axis' nodes, M the
     rows (M = 1 for the table itself, shared by every row), 3 the factors.
@@ -103,61 +104,19 @@ class _Axis:
 
     def __init__(self, x: np.ndarray):
         self.x = x
-        self.n = len(x)
         self.h = np.diff(x)
-        self.inv_h = (1.0 / self.h)[:, None, None]
-        if self.n > 2:
-            h = self.h
-            w1 = 2.0 * h[1:] + h[:-1]
-            w2 = h[1:] + 2.0 * h[:-1]
-            self.w1 = w1[:, None, None]
-            self.w2 = w2[:, None, None]
-            self.w12 = (w1 + w2)[:, None, None]
-            # One-sided three-point end slopes d = a m0 - b m1 (start, end).
-            self.end_a = np.array(
-                [(2.0 * h[0] + h[1]) / (h[0] + h[1]), (2.0 * h[-1] + h[-2]) / (h[-1] + h[-2])]
-            )[:, None, None]
-            self.end_b = np.array([h[0] / (h[0] + h[1]), h[-1] / (h[-1] + h[-2])])[:, None, None]
 
-    def slopes(self, y: np.ndarray) -> np.ndarray:
-        """PCHIP derivatives at the nodes, by the rules of scipy's PchipInterpolator:
-        a weighted harmonic mean of the neighbouring secants inside (zero where they differ
-        in sign or one is zero), one-sided shape-preserving estimates at the ends. Each
-        interval's cubic is then monotone, so it stays between its two end values."""
-        mk = (y[..., 1:, :, :] - y[..., :-1, :, :]) * self.inv_h
-        if self.n == 2:
-            return np.concatenate([mk, mk], axis=-3)
-        m0, m1 = mk[..., :-1, :, :], mk[..., 1:, :, :]
-        prod = m0 * m1
-        inner = np.zeros(np.broadcast_shapes(prod.shape, self.w1.shape))
-        np.divide(self.w12 * prod, self.w1 * m1 + self.w2 * m0, out=inner, where=prod > 0)
-        e0, e1 = mk[..., [0, -1], :, :], mk[..., [1, -2], :, :]
-        d = self.end_a * e0 - self.end_b * e1
-        s0 = np.sign(e0)
-        steep = (s0 != np.sign(e1)) & (np.abs(d) > 3.0 * np.abs(e0))
-        d = np.where(np.sign(d) != s0, 0.0, np.where(steep, 3.0 * e0, d))
-        return np.concatenate([d[..., :1, :, :], inner, d[..., 1:, :, :]], axis=-3)
-
-    def collapse(self, y: np.ndarray, q: np.ndarray, method: str) -> np.ndarray:
-        """Interpolate along this axis at one pressure per row ``q`` (m,). ``y`` is (..., n,
-        M, 3) for "linear" and (..., n, M, 6) for "pchip" (values, then PCHIP slopes), with
-        M = 1 (the table, shared by every row) or m. Returns (..., m, 3)."""
+    def collapse(self, y: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Interpolate linearly along this axis at one pressure per row ``q`` (m,). ``y`` is
+        (..., n, M, 3) with M = 1 (the table, shared by every row) or m. Returns
+        (..., m, 3)."""
         # Interval index in [0, n - 2] (pressures are already on the axis).
         i = np.searchsorted(self.x[1:-1], q, side="right")
-        h = self.h[i]
-        t = ((q - self.x[i]) / h)[:, None]
+        t = ((q - self.x[i]) / self.h[i])[:, None]
         col = np.arange(len(q)) if y.shape[-2] > 1 else np.zeros(len(q), dtype=np.intp)
-        g = y[..., np.stack([i, i + 1]), col, :]  # (..., 2, m, 3 or 6)
-        y0, y1 = g[..., 0, :, :3], g[..., 1, :, :3]
-        if method == "linear":
-            return y0 + t * (y1 - y0)
-        d0, d1 = g[..., 0, :, 3:], g[..., 1, :, 3:]
-        s = 1.0 - t
-        return y0 + t * t * (3.0 - 2.0 * t) * (y1 - y0) + t * s * h[:, None] * (s * d0 - t * d1)
-
-    def with_slopes(self, y: np.ndarray) -> np.ndarray:
-        """``y`` (..., n, M, 3) with its PCHIP slopes appended: (..., n, M, 6)."""
-        return np.concatenate([y, self.slopes(y)], axis=-1)
+        g = y[..., np.stack([i, i + 1]), col, :]  # (..., 2, m, 3)
+        y0, y1 = g[..., 0, :, :], g[..., 1, :, :]
+        return y0 + t * (y1 - y0)
 
 
 class StiffnessMap:
@@ -278,27 +237,31 @@ class StiffnessMap:
                 InputError,
             )
         values.setflags(write=False)
-        axes_ = [_Axis(a) for a in grid]
-        table = values[..., None, :]  # (n_0, ..., n_c-1, 1, 3): one "row", shared
-        if method == "pchip":
-            table = axes_[-1].with_slopes(table)
         grid_text = "x".join(str(len(a)) for a in grid)
         spans = ", ".join(f"p{k} in [{a[0]:g}, {a[-1]:g}] Pa" for k, a in enumerate(grid))
-        chunk = max(1, _CHUNK_ELEMENTS // (3 * math.prod(len(a) for a in grid[:-1])))
+        if method == "pchip":
+            # Tensor-product PCHIP in the Rust core (softrod_core::interp): a few us per row.
+            pchip = _core.GridPchip([a.tolist() for a in grid], values.ravel().tolist(), 3)
 
-        def evaluate(p: np.ndarray) -> np.ndarray:
-            # Channel by channel, last first (as scipy's RegularGridInterpolator "pchip").
-            p = _inside(grid, p, outside)
-            out = np.empty((p.shape[0], 3))
-            for start in range(0, p.shape[0], chunk):
-                rows = p[start : start + chunk]
-                y = axes_[-1].collapse(table, rows[:, -1], method)
-                for c in range(len(grid) - 2, -1, -1):
-                    if method == "pchip":
-                        y = axes_[c].with_slopes(y)
-                    y = axes_[c].collapse(y, rows[:, c], method)
-                out[start : start + chunk] = y
-            return out
+            def evaluate(p: np.ndarray) -> np.ndarray:
+                return pchip.eval(np.ascontiguousarray(_inside(grid, p, outside)))
+
+        else:
+            axes_ = [_Axis(a) for a in grid]
+            table = values[..., None, :]  # (n_0, ..., n_c-1, 1, 3): one "row", shared
+            chunk = max(1, _CHUNK_ELEMENTS // (3 * math.prod(len(a) for a in grid[:-1])))
+
+            def evaluate(p: np.ndarray) -> np.ndarray:
+                # Channel by channel, last first.
+                p = _inside(grid, p, outside)
+                out = np.empty((p.shape[0], 3))
+                for start in range(0, p.shape[0], chunk):
+                    rows = p[start : start + chunk]
+                    y = axes_[-1].collapse(table, rows[:, -1])
+                    for c in range(len(grid) - 2, -1, -1):
+                        y = axes_[c].collapse(y, rows[:, c])
+                    out[start : start + chunk] = y
+                return out
 
         return cls(
             _kind="table",

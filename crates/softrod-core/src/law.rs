@@ -20,6 +20,7 @@
 //!   cubic (Fritsch-Carlson) interpolation of a table, constant beyond the table's ends.
 //!   Explicit: v3 = 1 + F / EA(F).
 
+use crate::interp::pchip_slopes;
 use crate::jet::RodScalar;
 
 /// W1 of paper 002 eq. 16 at stretch `lam`.
@@ -201,39 +202,12 @@ pub struct AxialTable {
 impl AxialTable {
     /// Build from validated points (>= 2, strictly increasing forces).
     pub fn new(force: &[f64], stiffness: &[f64]) -> Self {
-        let n = force.len();
-        let h: Vec<f64> = (0..n - 1).map(|k| force[k + 1] - force[k]).collect();
-        let d: Vec<f64> = (0..n - 1)
-            .map(|k| (stiffness[k + 1] - stiffness[k]) / h[k])
-            .collect();
-        let mut m = vec![0.0; n];
-        if n == 2 {
-            m = vec![d[0]; 2];
-        } else {
-            for k in 1..n - 1 {
-                if d[k - 1] * d[k] > 0.0 {
-                    // Weighted harmonic mean (Fritsch-Butland form of Fritsch-Carlson).
-                    let (w1, w2) = (2.0 * h[k] + h[k - 1], h[k] + 2.0 * h[k - 1]);
-                    m[k] = (w1 + w2) / (w1 / d[k - 1] + w2 / d[k]);
-                }
-            }
-            let end = |h0: f64, h1: f64, d0: f64, d1: f64| {
-                let s = ((2.0 * h0 + h1) * d0 - h0 * d1) / (h0 + h1);
-                if s * d0 <= 0.0 {
-                    0.0
-                } else if d0 * d1 <= 0.0 && s.abs() > 3.0 * d0.abs() {
-                    3.0 * d0
-                } else {
-                    s
-                }
-            };
-            m[0] = end(h[0], h[1], d[0], d[1]);
-            m[n - 1] = end(h[n - 2], h[n - 3], d[n - 2], d[n - 3]);
-        }
+        let mut slope = vec![0.0; force.len()];
+        pchip_slopes(force, stiffness, &mut slope);
         AxialTable {
             force: force.to_vec(),
             stiffness: stiffness.to_vec(),
-            slope: m,
+            slope,
         }
     }
 

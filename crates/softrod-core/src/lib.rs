@@ -10,6 +10,7 @@
 
 pub mod batch;
 pub mod error;
+pub mod interp;
 pub mod jet;
 pub mod law;
 pub mod ode;

@@ -2,10 +2,11 @@
 //! It converts types, maps errors to the exception classes of `softrod.errors`, and
 //! releases the GIL for long calls. No physics lives here.
 
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::batch::solve_batch;
+use softrod_core::interp::GridPchip;
 use softrod_core::ode::Loads;
 use softrod_core::statics::{self, SolverOptions};
 use softrod_core::{DesignSpec, Rod, SoftrodError};
@@ -260,9 +261,62 @@ impl PyRod {
     }
 }
 
+/// Tensor-product PCHIP on a regular grid (the interpolation of table stiffness maps).
+#[pyclass(name = "GridPchip", frozen)]
+struct PyGridPchip {
+    grid: GridPchip,
+}
+
+#[pymethods]
+impl PyGridPchip {
+    /// axes: one increasing axis per dimension; values: flat row-major (last axis fastest),
+    /// `width` values per grid point.
+    #[new]
+    fn new(py: Python<'_>, axes: Vec<Vec<f64>>, values: Vec<f64>, width: usize) -> PyResult<Self> {
+        let grid =
+            GridPchip::new(axes, values, width).map_err(|e| to_py_err(py, e, Context::Input))?;
+        Ok(PyGridPchip { grid })
+    }
+
+    /// Interpolate at every row of an (m, dims) array of points inside the grid.
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let pts = points.as_array();
+        let dims = self.grid.dims();
+        if pts.shape()[1] != dims {
+            return Err(to_py_err(
+                py,
+                SoftrodError::invalid(
+                    "points",
+                    format!("shape {:?}", pts.shape()),
+                    format!("must have {dims} columns"),
+                ),
+                Context::Input,
+            ));
+        }
+        let rows: Vec<Vec<f64>> = pts.rows().into_iter().map(|r| r.to_vec()).collect();
+        let grid = &self.grid;
+        let width = grid.width();
+        let out: Vec<Vec<f64>> = py.detach(|| {
+            rows.iter()
+                .map(|p| {
+                    let mut o = vec![0.0; width];
+                    grid.eval(p, &mut o);
+                    o
+                })
+                .collect()
+        });
+        Ok(PyArray2::from_vec2(py, &out)?)
+    }
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRod>()?;
+    m.add_class::<PyGridPchip>()?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

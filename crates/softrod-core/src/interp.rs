@@ -1,0 +1,175 @@
+//! Monotone cubic (PCHIP) interpolation: the 1-D slopes shared by the EA(F) table
+//! (`crate::law::AxialTable`) and a tensor-product grid used for stiffness maps sigma(p)
+//! (paper 001 eq. 13).
+//!
+//! Slopes follow Fritsch-Carlson with the Fritsch-Butland weighted harmonic mean inside and
+//! the one-sided three-point, shape-preserving estimate at the ends (the rules of scipy's
+//! `PchipInterpolator`); two points give a straight line. Each interval's cubic is then
+//! monotone, so interpolated values stay between the interval's end values.
+
+use crate::error::{Result, SoftrodError};
+
+/// PCHIP derivatives at the nodes `x` (strictly increasing, >= 2) of the values `y`.
+pub fn pchip_slopes(x: &[f64], y: &[f64], m: &mut [f64]) {
+    let n = x.len();
+    let h = |k: usize| x[k + 1] - x[k];
+    let d = |k: usize| (y[k + 1] - y[k]) / h(k);
+    if n == 2 {
+        m[0] = d(0);
+        m[1] = d(0);
+        return;
+    }
+    for k in 1..n - 1 {
+        let (d0, d1) = (d(k - 1), d(k));
+        m[k] = if d0 * d1 > 0.0 {
+            let (w1, w2) = (2.0 * h(k) + h(k - 1), h(k) + 2.0 * h(k - 1));
+            (w1 + w2) / (w1 / d0 + w2 / d1)
+        } else {
+            0.0
+        };
+    }
+    let end = |h0: f64, h1: f64, d0: f64, d1: f64| {
+        let s = ((2.0 * h0 + h1) * d0 - h0 * d1) / (h0 + h1);
+        if s * d0 <= 0.0 {
+            0.0
+        } else if d0 * d1 <= 0.0 && s.abs() > 3.0 * d0.abs() {
+            3.0 * d0
+        } else {
+            s
+        }
+    };
+    m[0] = end(h(0), h(1), d(0), d(1));
+    m[n - 1] = end(h(n - 2), h(n - 3), d(n - 2), d(n - 3));
+}
+
+/// Cubic Hermite value on interval `k` at `q`.
+#[inline]
+pub fn hermite(x: &[f64], y: &[f64], m: &[f64], k: usize, q: f64) -> f64 {
+    let h = x[k + 1] - x[k];
+    let t = (q - x[k]) / h;
+    let s = 1.0 - t;
+    y[k] + t * t * (3.0 - 2.0 * t) * (y[k + 1] - y[k]) + t * s * h * (s * m[k] - t * m[k + 1])
+}
+
+/// Interval of `q` in `x` (clamped to the first/last interval).
+#[inline]
+pub fn interval(x: &[f64], q: f64) -> usize {
+    x[1..x.len() - 1].partition_point(|&v| v <= q)
+}
+
+/// Values on a regular grid (one strictly increasing axis per dimension, `width` values per
+/// grid point, row-major with the last axis fastest), interpolated by tensor-product PCHIP,
+/// last axis first (as scipy's `RegularGridInterpolator(method="pchip")`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridPchip {
+    axes: Vec<Vec<f64>>,
+    values: Vec<f64>,
+    width: usize,
+}
+
+impl GridPchip {
+    pub fn new(axes: Vec<Vec<f64>>, values: Vec<f64>, width: usize) -> Result<Self> {
+        if axes.is_empty() || width == 0 {
+            return Err(SoftrodError::invalid(
+                "axes",
+                axes.len(),
+                "a grid needs at least one axis and one value per point",
+            ));
+        }
+        for (k, a) in axes.iter().enumerate() {
+            if a.len() < 2 || a.windows(2).any(|w| w[1] <= w[0]) || a.iter().any(|v| !v.is_finite())
+            {
+                return Err(SoftrodError::invalid(
+                    format!("axes[{k}]"),
+                    format!("{a:?}"),
+                    "must hold at least 2 finite, strictly increasing values",
+                ));
+            }
+        }
+        let points: usize = axes.iter().map(Vec::len).product();
+        if values.len() != points * width {
+            return Err(SoftrodError::invalid(
+                "values",
+                format!("{} values", values.len()),
+                format!("must hold {width} values for each of the {points} grid points"),
+            ));
+        }
+        Ok(GridPchip {
+            axes,
+            values,
+            width,
+        })
+    }
+
+    pub fn dims(&self) -> usize {
+        self.axes.len()
+    }
+
+    /// Values per grid point.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Interpolate at the point `p` (one coordinate per axis, inside the grid; the caller
+    /// decides what happens outside) into `out` (`width` values).
+    pub fn eval(&self, p: &[f64], out: &mut [f64]) {
+        let mut cur = self.values.clone();
+        let mut lines: usize = self.values.len() / self.width;
+        let mut line = Vec::new();
+        let mut slopes = Vec::new();
+        for (c, x) in self.axes.iter().enumerate().rev() {
+            let n = x.len();
+            lines /= n;
+            let k = interval(x, p[c]);
+            line.resize(n, 0.0);
+            slopes.resize(n, 0.0);
+            let mut next = vec![0.0; lines * self.width];
+            // cur is (lines, n, width) row-major; collapse its middle axis at p[c].
+            for l in 0..lines {
+                for w in 0..self.width {
+                    for (j, v) in line.iter_mut().enumerate() {
+                        *v = cur[(l * n + j) * self.width + w];
+                    }
+                    pchip_slopes(x, &line, &mut slopes);
+                    next[l * self.width + w] = hermite(x, &line, &slopes, k, p[c]);
+                }
+            }
+            cur = next;
+        }
+        out[..self.width].copy_from_slice(&cur[..self.width]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A function that is cubic along each axis within the grid is not reproduced by PCHIP
+    /// in general, but a multilinear one is exactly (all slopes equal the secants).
+    #[test]
+    fn grid_reproduces_nodes_and_multilinear_functions() {
+        let axes = vec![vec![0.0, 1.0, 3.0], vec![-1.0, 0.5, 2.0, 4.0]];
+        let f = |a: f64, b: f64| 2.0 + 0.5 * a - 0.25 * b + 0.1 * a * b;
+        let mut values = Vec::new();
+        for &a in &axes[0] {
+            for &b in &axes[1] {
+                values.push(f(a, b));
+                values.push(3.0 * f(a, b));
+            }
+        }
+        let g = GridPchip::new(axes, values, 2).unwrap();
+        let mut out = [0.0; 2];
+        for (a, b) in [(0.0, -1.0), (1.0, 2.0), (3.0, 4.0), (0.3, 0.7), (2.2, 3.9)] {
+            g.eval(&[a, b], &mut out);
+            assert!((out[0] - f(a, b)).abs() < 1e-13, "({a}, {b}): {}", out[0]);
+            assert!((out[1] - 3.0 * f(a, b)).abs() < 1e-13);
+        }
+    }
+
+    #[test]
+    fn grid_rejects_bad_shapes() {
+        assert!(GridPchip::new(vec![vec![0.0, 1.0]], vec![1.0; 3], 1).is_err());
+        assert!(GridPchip::new(vec![vec![1.0, 0.0]], vec![1.0; 2], 1).is_err());
+        assert!(GridPchip::new(vec![], vec![], 1).is_err());
+    }
+}
