@@ -35,29 +35,37 @@ shape output and Python objects, the variants again run in turn.
 
 from __future__ import annotations
 
-import argparse
 import copy
-import gc
 import inspect
 import json
-import os
 import re
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
-from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 import softrod
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-from bench_statics import machine, write_json  # noqa: E402  (sibling module of this script)
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from common import (  # noqa: E402  (sibling module of this script)
+    HERE,
+    KPA,
+    P001_PRESSURES_KPA,
+    bench_main,
+    binding_solver,
+    gc_disabled,
+    kpa,
+    load_average,
+    machine,
+    median,
+    result_header,
+    steps_of,
+    with_step_length,
+)
 
-KPA = 1e3
 ACCURACY = 1e-6  # every variant's tip error (vs 4x the steps) at most 1e-6 of the length
 TARGET_RATIO = 2.0  # issue 3, item 5
 SIGMA = (1.2, 0.9, 1.1)  # stiffness scale of the stiffness-map variant (EA, EI1, EI2)
@@ -91,14 +99,6 @@ def law_variant(base, sections: dict, drop=LAW_KEYS):
             sec.pop(key, None)
         sec.update(copy.deepcopy(entries))
     return softrod.load_design(doc)
-
-
-def with_step_length(design, h_mm: float):
-    return design.replace({"numerics": {"step_length": f"{h_mm} mm"}})
-
-
-def steps_of(design) -> list[int]:
-    return [int(s["steps"]) for s in design.spec["sections"]]
 
 
 def finer(design, factor: int = 4):
@@ -195,15 +195,7 @@ def groups() -> list[dict]:
             "title": "paper 001 actuator (spa_three_chamber_130mm), 0-70 kPa",
             "design": d001,
             "variants": {k: law_variant(d001, v) for k, v in p001.items()},
-            "pressures": [
-                (0.0, 0.0, 0.0),
-                (35.0, 0.0, 0.0),
-                (70.0, 0.0, 0.0),
-                (70.0, 70.0, 0.0),
-                (20.0, 45.0, 70.0),
-                (70.0, 35.0, 10.0),
-                (70.0, 70.0, 70.0),
-            ],
+            "pressures": P001_PRESSURES_KPA,
             "steps_mm": [22.0, 16.0, 13.0, 11.0, 10.0, 8.0],
             "sigma": {
                 "map on, sigma = 1": (1.0, 1.0, 1.0),
@@ -212,10 +204,6 @@ def groups() -> list[dict]:
             },
         },
     ]
-
-
-def kpa(p) -> list[float]:
-    return [x * KPA for x in p]
 
 
 def api_supports_map() -> bool:
@@ -252,15 +240,9 @@ def solvers(design, pp: list[float], spec):
     or "table" (the synthetic table map): solve_statics gets the map and evaluates it in
     every call; the binding gets sigma at ``pp`` (evaluated once here). api is None when the
     Python API cannot pass the map."""
-    rod = design._rod
-    opts = softrod.SolverOptions().as_kwargs()
-    tip = design.spec["tip"]
-    tf = [float(x) for x in tip["force"]]
-    tm = [float(x) for x in tip["moment"]]
     if spec is None:
         api = lambda: softrod.solve_statics(design, pp)  # noqa: E731
-        core = lambda: rod.solve(pp, tf, tm, guess=None, **opts)  # noqa: E731
-        return api, core
+        return api, binding_solver(design, pp)
     smap = stiffness_map(design, spec)
     if smap is not None:
         scale = [float(s) for s in smap(np.array([pp]))[0]]
@@ -273,8 +255,7 @@ def solvers(design, pp: list[float], spec):
         api = None
         if all(s == 1.0 for s in scale):
             api = lambda: softrod.solve_statics(design, pp)  # noqa: E731
-    core = lambda: rod.solve(pp, tf, tm, guess=None, stiffness_scale=scale, **opts)  # noqa: E731
-    return api, core
+    return api, binding_solver(design, pp, stiffness_scale=scale)
 
 
 def tip_of(design, pp, sigma) -> tuple[np.ndarray, int, int]:
@@ -310,9 +291,7 @@ def timed_round_robin(calls: dict, reps: int, warm: int) -> dict:
     reversed every other round."""
     keys = list(calls)
     times = {k: [] for k in keys}
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
+    with gc_disabled():
         for _ in range(warm):
             for k in keys:
                 calls[k]()
@@ -322,15 +301,7 @@ def timed_round_robin(calls: dict, reps: int, warm: int) -> dict:
                 t0 = time.perf_counter_ns()
                 fn()
                 times[k].append(time.perf_counter_ns() - t0)
-    finally:
-        if enabled:
-            gc.enable()
     return {k: float(statistics.median(v)) * 1e-9 for k, v in times.items()}
-
-
-def median(xs) -> float:
-    xs = [x for x in xs if x is not None]
-    return float(statistics.median(xs)) if xs else float("nan")
 
 
 def run_group(group: dict, quick: bool, reps: int, warm: int) -> dict:
@@ -562,7 +533,7 @@ def run(quick: bool, core: bool = False) -> dict:
     print_table(results, reps)
     if core:
         print_core(results)
-    info["load_average_after"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
+    info["load_average_after"] = load_average()
     print(f"load average before {info['load_average_before']}, after {info['load_average_after']}")
     met = all(r["met"] for res in results.values() for r in res["variants"].values())
     missed = [n for res in results.values() for n, r in res["variants"].items() if not r["met"]]
@@ -571,10 +542,7 @@ def run(quick: bool, core: bool = False) -> dict:
         + (f" (missed: {', '.join(missed)})" if missed else "")
     )
     return {
-        "benchmark": "laws",
-        "mode": "quick" if quick else "full",
-        "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "machine": info,
+        **result_header("laws", quick, info),
         "units": "seconds; errors as a fraction of the length; pressures in kPa",
         "settings": {
             "repetitions_per_pressure": reps,
@@ -597,25 +565,14 @@ def run(quick: bool, core: bool = False) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="smoke run (< 20 s)")
-    parser.add_argument(
-        "--core",
-        action="store_true",
-        help="also time the Rust core alone (builds and runs the profile_solve example)",
-    )
-    parser.add_argument(
-        "--output",
-        type=Path,
-        default=None,
-        help="JSON file (default benchmarks/results/laws.json, or laws_quick.json with --quick)",
-    )
-    args = parser.parse_args(argv)
-    result = run(args.quick, args.core)
-    out = args.output or HERE / "results" / ("laws_quick.json" if args.quick else "laws.json")
-    write_json(out, result)
-    print(f"results written to {out} ({result['wall_time_s']:.1f} s)")
-    return 0
+    def core_option(parser) -> None:
+        parser.add_argument(
+            "--core",
+            action="store_true",
+            help="also time the Rust core alone (builds and runs the profile_solve example)",
+        )
+
+    return bench_main(argv, __doc__, "laws", lambda args: run(args.quick, args.core), core_option)
 
 
 if __name__ == "__main__":

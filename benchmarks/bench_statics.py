@@ -20,43 +20,38 @@ All times are medians of wall-clock times (time.perf_counter_ns) with the garbag
 
 from __future__ import annotations
 
-import argparse
-import gc
-import json
 import os
-import platform
-import statistics
-import subprocess
 import sys
-import tempfile
 import time
-from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
-import scipy
 import softrod
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-import baseline_bvp  # noqa: E402  (sibling module of this script)
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import baseline_bvp  # noqa: E402  (sibling modules of this script)
+from common import (  # noqa: E402
+    KPA,
+    P001_PRESSURES_KPA,
+    bench_main,
+    binding_solver,
+    kpa,
+    load_average,
+    machine,
+    median,
+    result_header,
+    steps_of,
+    timed,
+    with_step_length,
+)
 
 DESIGN = "spa_three_chamber_130mm"
-KPA = 1e3
 ACCURACY = 1e-6  # target: tip error <= 1e-6 of the length
 REFERENCE_STEP_MM = 0.25  # reference step length; RK4 error ~ h^4 puts it ~1e-13 L
 # Demanding cases of the paper's range: 70 kPa on one chamber, on two.
 DEMANDING = [(70.0, 0.0, 0.0), (0.0, 0.0, 70.0), (70.0, 70.0, 0.0), (0.0, 70.0, 70.0)]
 # Representative pressures for single solves (kPa): rest, one/two/three chambers, mixed.
-REPRESENTATIVE = [
-    (0.0, 0.0, 0.0),
-    (35.0, 0.0, 0.0),
-    (70.0, 0.0, 0.0),
-    (70.0, 70.0, 0.0),
-    (20.0, 45.0, 70.0),
-    (70.0, 35.0, 10.0),
-    (70.0, 70.0, 70.0),
-]
+REPRESENTATIVE = P001_PRESSURES_KPA
 CHECKED = DEMANDING + [p for p in REPRESENTATIVE if p not in DEMANDING]
 STEP_CANDIDATES_MM = [22.0, 16.0, 13.0, 11.0, 10.0, 9.0, 8.0, 6.0, 5.0, 4.0, 3.0]
 TOL_CANDIDATES = [1e-3, 1e-4, 1e-5, 1e-6]
@@ -64,41 +59,8 @@ BVP_NODES = 20  # initial mesh nodes per section (60 over the three sections)
 TARGETS = {"single_cold_solve_s": 50e-6, "sweep_s": 0.3, "speedup_vs_baseline": 100.0}
 
 
-def kpa(p) -> list[float]:
-    return [x * KPA for x in p]
-
-
-def with_step_length(design, h_mm: float):
-    """The design with numerics.step_length = h_mm (replaces its [numerics] table)."""
-    return design.replace({"numerics": {"step_length": f"{h_mm} mm"}})
-
-
-def steps_of(design) -> list[int]:
-    return [int(s["steps"]) for s in design.spec["sections"]]
-
-
-def timed(fn, reps: int) -> list[float]:
-    """Wall-clock seconds of ``reps`` calls of fn(), GC off."""
-    out = []
-    enabled = gc.isenabled()
-    gc.disable()
-    try:
-        for _ in range(reps):
-            t0 = time.perf_counter_ns()
-            fn()
-            out.append((time.perf_counter_ns() - t0) * 1e-9)
-    finally:
-        if enabled:
-            gc.enable()
-    return out
-
-
 def row(label: str, cells) -> str:
     return f"    {label:<18}" + " ".join(cells)
-
-
-def median(xs) -> float:
-    return float(statistics.median(xs))
 
 
 def fmt_t(seconds: float) -> str:
@@ -107,44 +69,6 @@ def fmt_t(seconds: float) -> str:
     if seconds < 1.0:
         return f"{seconds * 1e3:.2f} ms"
     return f"{seconds:.3f} s"
-
-
-def machine() -> dict:
-    try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"],
-            cwd=HERE,
-            capture_output=True,
-            text=True,
-            timeout=5,
-        ).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        commit = ""
-    return {
-        "cpu_count": os.cpu_count(),
-        "platform": platform.platform(),
-        "processor": platform.processor() or platform.machine(),
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "scipy": scipy.__version__,
-        "softrod": softrod.__version__,
-        "git_commit": commit,
-        "load_average_before": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-    }
-
-
-def write_json(path: Path, data: dict) -> None:
-    """Atomic write: temporary file in the same folder, then rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump(data, fh, indent=2)
-            fh.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def run(quick: bool) -> dict:
@@ -230,17 +154,13 @@ def run(quick: bool) -> dict:
     # 3. Single cold solves ---------------------------------------------------------------
     reps = 30 if quick else 300
     warm = 5 if quick else 50
-    rod = design._rod
-    opts = softrod.SolverOptions().as_kwargs()
-    tip = design.spec["tip"]
-    tf = [float(x) for x in tip["force"]]
-    tm = [float(x) for x in tip["moment"]]
+    newton_tol = softrod.SolverOptions().as_kwargs()["tol"]
     single = {}
     for p in REPRESENTATIVE:
         pp = kpa(p)
         sol = softrod.solve_statics(design, pp)
         api = lambda pp=pp: softrod.solve_statics(design, pp)  # noqa: E731
-        core = lambda pp=pp: rod.solve(pp, tf, tm, guess=None, **opts)  # noqa: E731
+        core = binding_solver(design, pp)
         timed(api, warm)
         timed(core, warm)
         single[p] = {
@@ -387,23 +307,18 @@ def run(quick: bool) -> dict:
     )
     print(
         f"settings: step {step_mm:g} mm, steps {steps} (tip error {chosen_err:.1e} L; design "
-        f"file: steps {design_steps}), Newton tol {opts['tol']:.0e}; solve_bvp tol {bvp_tol:.0e}, "
+        f"file: steps {design_steps}), Newton tol {newton_tol:.0e}; solve_bvp tol {bvp_tol:.0e}, "
         f"{BVP_NODES} nodes/section, exact Jacobians; medians of {reps} (single), {runs} "
         f"(sweep), {b_reps} (baseline) runs"
     )
     print(
-        f"machine: {info['cpu_count']} CPUs, {info['platform']}; load average now "
-        f"{list(os.getloadavg()) if hasattr(os, 'getloadavg') else None}"
+        f"machine: {info['cpu_count']} CPUs, {info['platform']}; load average now {load_average()}"
     )
     print("=" * 96)
 
-    info["load_average_after"] = list(os.getloadavg()) if hasattr(os, "getloadavg") else None
+    info["load_average_after"] = load_average()
     return {
-        "benchmark": "statics",
-        "design": DESIGN,
-        "mode": "quick" if quick else "full",
-        "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-        "machine": info,
+        **result_header("statics", quick, info, design=DESIGN),
         "units": "seconds; errors as a fraction of the length",
         "discretisation": {
             "accuracy_target": ACCURACY,
@@ -458,21 +373,7 @@ def run(quick: bool) -> dict:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="smoke run (< 20 s)")
-    parser.add_argument(
-        "--output",
-        type=Path,
-        default=None,
-        help="JSON file (default benchmarks/results/statics.json, "
-        "or statics_quick.json with --quick)",
-    )
-    args = parser.parse_args(argv)
-    result = run(args.quick)
-    out = args.output or HERE / "results" / ("statics_quick.json" if args.quick else "statics.json")
-    write_json(out, result)
-    print(f"results written to {out} ({result['wall_time_s']:.1f} s)")
-    return 0
+    return bench_main(argv, __doc__, "statics", lambda args: run(args.quick))
 
 
 if __name__ == "__main__":

@@ -1,12 +1,11 @@
 """Bad input fails loudly: DesignError / InputError naming the field; ConvergenceError."""
 
-import copy
 import math
-import re
 
 import numpy as np
 import pytest
 import softrod
+from conftest import DELETE, with_entries
 from softrod import (
     ConvergenceError,
     DesignError,
@@ -22,21 +21,6 @@ pytestmark = pytest.mark.fast  # the whole module runs in seconds
 SPA = "spa_three_chamber_130mm"
 BODY = "sections[1]"  # the chambered Ecoflex body of SPA
 EF = "materials.ecoflex_00_50_table1"  # its inline material
-DELETE = object()
-
-
-def mutated(path: str, value, name: str = SPA) -> dict:
-    """A valid design document with one entry set (or removed, value=DELETE)."""
-    doc = copy.deepcopy(load_design(name).document)
-    keys = [int(k) if k.isdigit() else k for k in re.findall(r"[^.\[\]]+", path)]
-    target = doc
-    for k in keys[:-1]:
-        target = target[k]
-    if value is DELETE:
-        del target[keys[-1]]
-    else:
-        target[keys[-1]] = value
-    return doc
 
 
 # (id, entry to change, new value, field the error must name)
@@ -102,7 +86,7 @@ DESIGN_CASES = [
     ("path", "value", "field"), [c[1:] for c in DESIGN_CASES], ids=[c[0] for c in DESIGN_CASES]
 )
 def test_bad_design_raises_design_error(path, value, field):
-    doc = mutated(path, value)
+    doc = with_entries(SPA, {path: value})
     with pytest.raises(DesignError) as info:
         load_design(doc)
     exc = info.value

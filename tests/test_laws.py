@@ -7,11 +7,11 @@ through ``solve_statics``: paper 002's models M0-M3 (Table IV) on its vertical a
 physics in more depth, plus Jacobians and convergence orders.
 """
 
-import copy
 import math
 
 import numpy as np
 import pytest
+from conftest import DELETE, with_entries
 from softrod import ConvergenceError, DesignError, InputError, load_design, solve_statics
 
 pytestmark = pytest.mark.fast  # the whole module runs in about a second
@@ -19,7 +19,6 @@ pytestmark = pytest.mark.fast  # the whole module runs in about a second
 SPA = "spa_three_chamber_134mm_vertical"  # paper 002's actuator, hanging; body = sections[1]
 P004 = "modular_two_module"  # paper 004's actuator; sections[1] is a partition module
 BODY = "sections[1]"
-DELETE = object()
 
 # Paper 002, Table IV (c_b = 1.31 in all, set by the design file) and Sec. VI.
 M1 = {"c_e": 2.95, "law": {"axial": "ogden", "alpha": 0.61}}
@@ -43,26 +42,6 @@ R_O, R_I, R_P, RHO_P = 21.1e-3, 2.9e-3, 5.15e-3, 12e-3
 E_ECOFLEX = 0.08e6
 C_B = 1.31
 BODY_LENGTH = 0.110
-
-
-def document(name: str) -> dict:
-    return copy.deepcopy(load_design(name).document)
-
-
-def with_entries(name: str, entries: dict) -> dict:
-    """A design document with dotted-path entries set (or removed with DELETE)."""
-    doc = document(name)
-    for path, value in entries.items():
-        parts = path.replace("]", "").replace("[", ".").split(".")
-        keys = [int(k) if k.isdigit() else k for k in parts]
-        target = doc
-        for k in keys[:-1]:
-            target = target[k]
-        if value is DELETE:
-            del target[keys[-1]]
-        else:
-            target[keys[-1]] = value
-    return doc
 
 
 def body_law(law: dict, name: str = SPA, section: int = 1) -> dict:

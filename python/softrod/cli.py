@@ -151,25 +151,19 @@ def _parse_pressures(text: str | None, design: Design) -> list[float]:
     return values
 
 
-def _parse_grid(text: str, option: str = "--grid") -> np.ndarray:
-    """START:STOP:COUNT -> COUNT evenly spaced pressures in Pa (both ends included)."""
+def _parse_span(text: str, option: str, form: str, check_n) -> tuple[float, float, int]:
+    """START:STOP:N with pressures START and STOP -> (start Pa, stop Pa, N). ``form``: the rule
+    when the text is not three parts; ``check_n(start, stop, n, raw)`` rejects a bad N (n = 0
+    when ``raw`` is not an integer), before both ends are checked to be >= -1 atm."""
     parts = text.split(":")
     if len(parts) != 3:
-        raise design_error(option, text, "must read START:STOP:COUNT, e.g. 0:70kPa:21", InputError)
+        raise design_error(option, text, form, InputError)
     start, stop = _parse_quantities(parts[:2], "pressure", [f"{option}.start", f"{option}.stop"])
     try:
-        count = int(parts[2])
+        n = int(parts[2])
     except ValueError:
-        count = 0
-    if count < 1:
-        raise design_error(f"{option}.count", parts[2], "must be an integer >= 1", InputError)
-    if count == 1 and start != stop:
-        raise design_error(
-            f"{option}.count",
-            parts[2],
-            "COUNT = 1 needs START = STOP (or give COUNT >= 2)",
-            InputError,
-        )
+        n = 0
+    check_n(start, stop, n, parts[2])
     for name, value, raw in (
         (f"{option}.start", start, parts[0]),
         (f"{option}.stop", stop, parts[1]),
@@ -178,6 +172,26 @@ def _parse_grid(text: str, option: str = "--grid") -> np.ndarray:
             raise design_error(
                 name, raw.strip(), "gauge pressure must be >= -1 atm (-101325 Pa)", InputError
             )
+    return start, stop, n
+
+
+def _parse_grid(text: str, option: str = "--grid") -> np.ndarray:
+    """START:STOP:COUNT -> COUNT evenly spaced pressures in Pa (both ends included)."""
+
+    def check_count(start: float, stop: float, count: int, raw: str) -> None:
+        if count < 1:
+            raise design_error(f"{option}.count", raw, "must be an integer >= 1", InputError)
+        if count == 1 and start != stop:
+            raise design_error(
+                f"{option}.count",
+                raw,
+                "COUNT = 1 needs START = STOP (or give COUNT >= 2)",
+                InputError,
+            )
+
+    start, stop, count = _parse_span(
+        text, option, "must read START:STOP:COUNT, e.g. 0:70kPa:21", check_count
+    )
     return np.linspace(start, stop, count)
 
 
@@ -296,6 +310,13 @@ def _sweep_frame(pressures: np.ndarray, res: dict[str, np.ndarray]):
     return pd.DataFrame(cols)
 
 
+def _threads_option(help_text: str):
+    """The ``--threads`` option of the commands that solve batches (0 = all cores)."""
+    return click.option(
+        "--threads", default=0, show_default=True, type=click.IntRange(min=0), help=help_text
+    )
+
+
 # --------------------------------------------------------------------------- commands
 
 
@@ -406,13 +427,7 @@ def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
     type=click.Path(dir_okay=False, path_type=Path),
     help="Output table, .csv or .parquet (written whole or not at all).",
 )
-@click.option(
-    "--threads",
-    default=0,
-    show_default=True,
-    type=click.IntRange(min=0),
-    help="Worker threads (0 = all cores).",
-)
+@_threads_option("Worker threads (0 = all cores).")
 @_handle_errors
 def sweep(design, grids, out, threads):
     """Tip positions over a full-factorial pressure grid of DESIGN.
@@ -565,32 +580,18 @@ def _parse_ramp(text: str, option: str = "--pressure-ramp") -> np.ndarray:
     """START:STOP:STEPS -> STEPS + 1 pressure levels in Pa (STEPS equal steps, both ends)."""
     from .compare import MAX_RAMP_STEPS, pressure_ramp
 
-    parts = text.split(":")
-    if len(parts) != 3:
-        raise design_error(
-            option,
-            text,
-            "must read START:STOP:STEPS, e.g. '0 bar:0.6 bar:30' (STEPS equal steps, "
-            "STEPS + 1 levels)",
-            InputError,
-        )
-    start, stop = _parse_quantities(parts[:2], "pressure", [f"{option}.start", f"{option}.stop"])
-    try:
-        steps = int(parts[2])
-    except ValueError:
-        steps = 0
-    if not 1 <= steps <= MAX_RAMP_STEPS:
-        raise design_error(
-            f"{option}.steps", parts[2], f"must be an integer in [1, {MAX_RAMP_STEPS}]", InputError
-        )
-    for name, value, raw in (
-        (f"{option}.start", start, parts[0]),
-        (f"{option}.stop", stop, parts[1]),
-    ):
-        if value < -ATM:
+    def check_steps(start: float, stop: float, steps: int, raw: str) -> None:
+        if not 1 <= steps <= MAX_RAMP_STEPS:
             raise design_error(
-                name, raw.strip(), "gauge pressure must be >= -1 atm (-101325 Pa)", InputError
+                f"{option}.steps", raw, f"must be an integer in [1, {MAX_RAMP_STEPS}]", InputError
             )
+
+    start, stop, steps = _parse_span(
+        text,
+        option,
+        "must read START:STOP:STEPS, e.g. '0 bar:0.6 bar:30' (STEPS equal steps, STEPS + 1 levels)",
+        check_steps,
+    )
     return pressure_ramp(start, stop, steps)
 
 
@@ -669,13 +670,7 @@ def _parse_models(text: str) -> list[str]:
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write the figure here (tip x, y, z vs p per experiment; .png, .pdf, .svg).",
 )
-@click.option(
-    "--threads",
-    default=0,
-    show_default=True,
-    type=click.IntRange(min=0),
-    help="Worker threads per batch (0 = all cores).",
-)
+@_threads_option("Worker threads per batch (0 = all cores).")
 @_handle_errors
 def compare(protocol, models, experiments, ramp, out, figure_path, threads):
     """Compare models on the experiments of a paper (PROTOCOL: paper002, the default).

@@ -12,7 +12,7 @@ import numpy as np
 
 from .design import Design, load_design
 from .errors import ConvergenceError, InputError, design_error
-from .stiffness_map import StiffnessMap
+from .stiffness_map import StiffnessMap, _check_pressure_rows
 from .units import to_si
 
 
@@ -305,13 +305,9 @@ def solve_statics_batch(
     arr = np.asarray(pressures, dtype=float)
     if arr.ndim == 1 and design.n_channels == 1:
         arr = arr[:, None]
-    if arr.ndim != 2 or arr.shape[1] != design.n_channels:
-        raise design_error(
-            "pressures",
-            f"shape {arr.shape}",
-            f"must be an (m, {design.n_channels}) array of gauge pressures (Pa)",
-            InputError,
-        )
+    _check_pressure_rows(
+        arr, design.n_channels, f"must be an (m, {design.n_channels}) array of gauge pressures (Pa)"
+    )
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 0:
         raise design_error(
             "threads", threads, "must be an integer >= 0 (0 = all cores)", InputError

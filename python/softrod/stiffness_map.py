@@ -211,12 +211,7 @@ class StiffnessMap:
             )
         grid = tuple(_axis(a, k) for k, a in enumerate(axes))
         shape = tuple(len(a) for a in grid) + (3,)
-        try:
-            values = np.array(sigma, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise design_error(
-                "sigma", type(sigma).__name__, f"must be an array of numbers: {exc}", InputError
-            ) from None
+        values = _float_array(sigma, "sigma", type(sigma).__name__, "must be an array of numbers")
         if values.shape != shape:
             raise design_error(
                 "sigma",
@@ -505,22 +500,15 @@ class StiffnessMap:
         """sigma (m, 3) for gauge pressures (m, n_channels) in Pa; a 1-D row of n_channels
         pressures gives sigma (3,). Raises InputError for a bad shape, non-finite pressures, a
         pressure outside a table (``outside="raise"``) or a sigma that is not finite and > 0."""
-        try:
-            p = np.array(pressures, dtype=float)
-        except (TypeError, ValueError) as exc:
-            raise design_error(
-                "pressures", pressures, f"must be numbers (gauge pressures, Pa): {exc}", InputError
-            ) from None
+        p = _float_array(pressures, "pressures", pressures, "must be numbers (gauge pressures, Pa)")
         single = p.ndim == 1 and p.shape[0] == self._n_channels
         if single:
             p = p[None, :]
-        if p.ndim != 2 or p.shape[1] != self._n_channels:
-            raise design_error(
-                "pressures",
-                f"shape {p.shape}",
-                f"the stiffness map takes an (m, {self._n_channels}) array of gauge pressures (Pa)",
-                InputError,
-            )
+        _check_pressure_rows(
+            p,
+            self._n_channels,
+            f"the stiffness map takes an (m, {self._n_channels}) array of gauge pressures (Pa)",
+        )
         finite = np.isfinite(p).all(axis=1)
         if not finite.all():
             r = int(np.argmin(finite))
@@ -587,14 +575,25 @@ def _inside(grid: tuple[np.ndarray, ...], p: np.ndarray, outside: str) -> np.nda
     return np.minimum(np.maximum(p, lo), hi)
 
 
+def _float_array(value: Any, field: str, shown: Any, rule: str) -> np.ndarray:
+    """``value`` as a new float array; InputError ``field = shown: rule: <numpy's reason>``
+    when it is not numeric."""
+    try:
+        return np.array(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise design_error(field, shown, f"{rule}: {exc}", InputError) from None
+
+
+def _check_pressure_rows(p: np.ndarray, n_channels: int, rule: str) -> None:
+    """InputError ``pressures = shape (...): rule`` unless ``p`` is an (m, n_channels) array
+    (one row of gauge pressures per solve)."""
+    if p.ndim != 2 or p.shape[1] != n_channels:
+        raise design_error("pressures", f"shape {p.shape}", rule, InputError)
+
+
 def _check_output(sigma: Any, p: np.ndarray) -> np.ndarray:
     m = p.shape[0]
-    try:
-        s = np.array(sigma, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise design_error(
-            "stiffness_map", type(sigma).__name__, f"must return numbers: {exc}", InputError
-        ) from None
+    s = _float_array(sigma, "stiffness_map", type(sigma).__name__, "must return numbers")
     if s.shape != (m, 3):
         raise design_error(
             "stiffness_map",

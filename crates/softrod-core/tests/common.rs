@@ -1,11 +1,14 @@
 //! Shared builders for the core's integration tests.
 #![allow(dead_code)]
 
+use nalgebra::{Rotation3, Unit, Vector3};
 use softrod_core::ode::Loads;
 use softrod_core::spec::{
     ChamberSpec, DesignSpec, LawSpec, MaterialSpec, MountingSpec, SectionSpec, StiffnessSpec,
     TipSpec,
 };
+use softrod_core::statics::{residual, residual_and_jacobian, solve, SolverOptions};
+use softrod_core::Rod;
 
 pub const IDENTITY: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 /// Horizontal mounting: d3 = +x_world, d1 = +z_world, d2 = d3 x d1 = -y_world.
@@ -248,4 +251,88 @@ impl Lcg {
             .wrapping_add(1442695040888963407);
         ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
     }
+}
+
+/// A base rotation with no axis along the world axes, so no entry is structurally zero.
+pub fn tilted() -> [[f64; 3]; 3] {
+    let r = Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8)), 1.1);
+    std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)]))
+}
+
+// Exact (dual-number) Jacobians of the shooting residual against central finite differences
+// of the plain residual (tests/jacobian.rs: the linear law; tests/laws.rs: every law).
+
+/// Finite-difference step, relative to max(1, |x_j|) (the unknowns are scaled to be of
+/// order 1). Central differences err by h^2 |r'''| / 6 (truncation, ~1e-12 here) plus
+/// eps |r| / h (round-off, ~2e-16 * 10 / 1e-6 = 2e-9 for residuals up to 10): h = 1e-6
+/// is close to the optimum eps^(1/3) and keeps both far below FD_TOL.
+pub const FD_STEP: f64 = 1e-6;
+/// Column-wise agreement, relative to the larger of the column's norm and 1e-3 (a column
+/// of an O(1)-scaled Jacobian can be near zero only by accident). Measured: at most
+/// 1.2e-9 over all points and designs of tests/jacobian.rs (printed with --nocapture;
+/// tests/laws.rs prints its own), so 1e-7 leaves an 80x margin for round-off while still
+/// catching a missing derivative term: e.g. the tip body's lever R(L) c, whose derivative
+/// is ~1e-2 of a column for paper 002's marker, or a law's (the carried stretch's initial
+/// value, d(EA)/dF of the table, the v3 in stretch-dependent bending).
+pub const FD_TOL: f64 = 1e-7;
+/// The dual-number residual and the f64 residual run the same arithmetic on the value
+/// parts; allow a few ulps of the residual's size.
+pub const SAME_RESIDUAL_TOL: f64 = 1e-13;
+/// Points: the solution plus a perturbation of this size in each scaled unknown, and
+/// points with each unknown drawn uniformly from [-RANDOM_BOX, RANDOM_BOX] (forces up to
+/// F_s = EI/L^2, moments up to F_s L: the rod bends by up to a radian, far from
+/// equilibrium).
+pub const PERTURBATION: f64 = 0.3;
+pub const RANDOM_BOX: f64 = 1.0;
+
+/// Check `residual_and_jacobian` against central differences of `residual` at 8 points that
+/// are not the solution (solved with `opts`): 4 near it (perturbed by up to PERTURBATION),
+/// 4 drawn from the RANDOM_BOX, from `Lcg(seed)`. The two residuals must agree to
+/// SAME_RESIDUAL_TOL and every Jacobian column to FD_TOL; prints the worst column error.
+pub fn check_jacobian_against_fd(
+    name: &str,
+    rod: &Rod,
+    ld: &Loads,
+    opts: &SolverOptions,
+    seed: u64,
+) {
+    let sol = solve(rod, ld, None, opts).unwrap();
+    let mut rng = Lcg(seed);
+    let mut worst: f64 = 0.0;
+    for k in 0..8 {
+        let x: [f64; 3] = std::array::from_fn(|i| {
+            if k < 4 {
+                sol.x[i] + PERTURBATION * rng.uniform()
+            } else {
+                RANDOM_BOX * rng.uniform()
+            }
+        });
+        let (r, jac) = residual_and_jacobian(rod, ld, &x);
+        let r_plain = residual(rod, ld, &x);
+        let rnorm = r.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        assert!(rnorm > 1e-3, "{name}: x = {x:?} should not be a solution");
+        for (i, (a, b)) in r.iter().zip(&r_plain).enumerate() {
+            assert!(
+                (a - b).abs() <= SAME_RESIDUAL_TOL * rnorm.max(1.0),
+                "{name}: residual[{i}] {a} vs {b}"
+            );
+        }
+        for j in 0..3 {
+            let h = FD_STEP * x[j].abs().max(1.0);
+            let (mut xp, mut xm) = (x, x);
+            xp[j] += h;
+            xm[j] -= h;
+            let (rp, rm) = (residual(rod, ld, &xp), residual(rod, ld, &xm));
+            let fd: [f64; 3] = std::array::from_fn(|i| (rp[i] - rm[i]) / (xp[j] - xm[j]));
+            let col: [f64; 3] = std::array::from_fn(|i| jac[i][j]);
+            let scale = norm(&col).max(1e-3);
+            let err = dist(&col, &fd) / scale;
+            worst = worst.max(err);
+            assert!(
+                err < FD_TOL,
+                "{name}: x = {x:?}, column {j}: AD {col:?} vs FD {fd:?} (rel. error {err:.2e})"
+            );
+        }
+    }
+    eprintln!("{name}: worst relative column error {worst:.2e}");
 }

@@ -6,16 +6,13 @@
 
 mod common;
 use common::*;
-use nalgebra::{Rotation3, Unit, Vector3};
 use softrod_core::law::{ogden_derivatives, ogden_energy, ogden_inverse};
 use softrod_core::ode::Loads;
 use softrod_core::spec::{
     AxialSpec, ChamberSpec, DesignSpec, LawSpec, PartitionSpec, SectionSpec, StiffnessSpec,
     SwellingSpec, TipSpec,
 };
-use softrod_core::statics::{
-    residual, residual_and_jacobian, shape, solve, Shape, Solution, SolverOptions,
-};
+use softrod_core::statics::{shape, solve, Shape, Solution, SolverOptions};
 use softrod_core::Rod;
 use std::f64::consts::PI;
 
@@ -775,69 +772,13 @@ fn partition_bending_stiffness_grows_with_the_stretch() {
 // 7. Exact Jacobians against finite differences, for every law
 // ---------------------------------------------------------------------------------------
 
-/// Finite-difference step relative to max(1, |x_j|) (scaled unknowns of order 1): central
-/// differences err by h^2 |r'''| / 6 (truncation, ~1e-12) plus eps |r| / h (round-off,
-/// ~2e-9 for residuals up to 10), so h = 1e-6 (near the optimum eps^(1/3)) keeps both far
-/// below FD_TOL. As tests/jacobian.rs.
-const FD_STEP: f64 = 1e-6;
-/// Column-wise agreement relative to max(column norm, 1e-3). The linear-law designs of
-/// tests/jacobian.rs measure 1.2e-9; a missing derivative term of any law (e.g. the
-/// carried stretch's initial value, d(EA)/dF of the table, the v3 in stretch-dependent
-/// bending) changes a column by far more than 1e-7. Measured here: see --nocapture.
-const FD_TOL: f64 = 1e-7;
-/// The dual-number and f64 residuals run the same arithmetic on the value parts.
-const SAME_RESIDUAL_TOL: f64 = 1e-13;
-/// Points: the solution perturbed by up to PERTURBATION per scaled unknown, and points
-/// drawn from [-RANDOM_BOX, RANDOM_BOX] (moments up to F_s L: bends up to ~1 rad).
-const PERTURBATION: f64 = 0.3;
-const RANDOM_BOX: f64 = 1.0;
-
+/// The shared check (tests/common.rs: FD step, tolerances, points) with this file's tight
+/// Newton tolerance. The linear-law designs of tests/jacobian.rs measure 1.2e-9; a missing
+/// derivative term of any law (e.g. the carried stretch's initial value, d(EA)/dF of the
+/// table, the v3 in stretch-dependent bending) changes a column by far more than FD_TOL =
+/// 1e-7. Measured here: see --nocapture.
 fn check_against_fd(name: &str, rod: &Rod, ld: &Loads) {
-    let sol = solve(rod, ld, None, &opts()).unwrap();
-    let mut rng = Lcg(0x1A55_0F0D_E701);
-    let mut worst: f64 = 0.0;
-    for k in 0..8 {
-        let x: [f64; 3] = std::array::from_fn(|i| {
-            if k < 4 {
-                sol.x[i] + PERTURBATION * rng.uniform()
-            } else {
-                RANDOM_BOX * rng.uniform()
-            }
-        });
-        let (r, jac) = residual_and_jacobian(rod, ld, &x);
-        let r_plain = residual(rod, ld, &x);
-        let rnorm = r.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-        assert!(rnorm > 1e-3, "{name}: x = {x:?} should not be a solution");
-        for (a, b) in r.iter().zip(&r_plain) {
-            assert!(
-                (a - b).abs() <= SAME_RESIDUAL_TOL * rnorm.max(1.0),
-                "{name}: residual {a} vs {b}"
-            );
-        }
-        for j in 0..3 {
-            let h = FD_STEP * x[j].abs().max(1.0);
-            let (mut xp, mut xm) = (x, x);
-            xp[j] += h;
-            xm[j] -= h;
-            let (rp, rm) = (residual(rod, ld, &xp), residual(rod, ld, &xm));
-            let fd: [f64; 3] = std::array::from_fn(|i| (rp[i] - rm[i]) / (xp[j] - xm[j]));
-            let col: [f64; 3] = std::array::from_fn(|i| jac[i][j]);
-            let scale = norm(&col).max(1e-3);
-            let err = dist(&col, &fd) / scale;
-            worst = worst.max(err);
-            assert!(
-                err < FD_TOL,
-                "{name}: x = {x:?}, column {j}: AD {col:?} vs FD {fd:?} (rel. error {err:.2e})"
-            );
-        }
-    }
-    eprintln!("{name}: worst relative column error {worst:.2e}");
-}
-
-/// A base rotation with no axis along the world axes, so no entry is structurally zero.
-fn tilted() -> [[f64; 3]; 3] {
-    let r = Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8)), 1.1);
-    std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)]))
+    check_jacobian_against_fd(name, rod, ld, &opts(), 0x1A55_0F0D_E701);
 }
 
 /// Paper 002's marker plate (Sec. V): 17.25 g at (9.3, 2.9, -1.1) mm in the paper's tip
