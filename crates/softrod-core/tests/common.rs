@@ -14,6 +14,29 @@ pub const IDENTITY: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0
 /// Horizontal mounting: d3 = +x_world, d1 = +z_world, d2 = d3 x d1 = -y_world.
 pub const HORIZONTAL: [[f64; 3]; 3] = [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]];
 
+/// A linear-law section with unit correction factors, no chambers and nothing set; the
+/// builders below fill in what distinguishes them.
+fn base_section(name: &str, length: f64, steps: usize) -> SectionSpec {
+    SectionSpec {
+        name: name.into(),
+        length,
+        rigid: false,
+        outer_radius: None,
+        bore_radius: 0.0,
+        material: None,
+        mass: None,
+        c_s: 1.0,
+        c_e: 1.0,
+        c_b: 1.0,
+        c_t: 1.0,
+        stiffness: StiffnessSpec::default(),
+        chambers: vec![],
+        steps,
+        law: LawSpec::default(),
+        partition: None,
+    }
+}
+
 /// A uniform elastic section with stiffnesses given directly.
 #[allow(clippy::too_many_arguments)] // mirrors the section's own fields
 pub fn direct_section(
@@ -27,17 +50,7 @@ pub fn direct_section(
     steps: usize,
 ) -> SectionSpec {
     SectionSpec {
-        name: name.into(),
-        length,
-        rigid: false,
-        outer_radius: None,
-        bore_radius: 0.0,
-        material: None,
         mass: Some(mass),
-        c_s: 1.0,
-        c_e: 1.0,
-        c_b: 1.0,
-        c_t: 1.0,
         stiffness: StiffnessSpec {
             ea: Some(ea),
             ga: Some(ga),
@@ -45,10 +58,7 @@ pub fn direct_section(
             ei2: Some(ei),
             gj: Some(gj),
         },
-        chambers: vec![],
-        steps,
-        law: LawSpec::default(),
-        partition: None,
+        ..base_section(name, length, steps)
     }
 }
 
@@ -138,44 +148,20 @@ pub fn geometry_section(
     steps: usize,
 ) -> SectionSpec {
     SectionSpec {
-        name: name.into(),
-        length,
-        rigid: false,
         outer_radius: Some(outer_radius),
         bore_radius,
         material: Some(material),
-        mass: None,
-        c_s: 1.0,
-        c_e: 1.0,
-        c_b: 1.0,
-        c_t: 1.0,
-        stiffness: StiffnessSpec::default(),
         chambers,
-        steps,
-        law: LawSpec::default(),
-        partition: None,
+        ..base_section(name, length, steps)
     }
 }
 
 /// A rigid section that only carries its mass.
 pub fn rigid_section(name: &str, length: f64, mass: f64) -> SectionSpec {
     SectionSpec {
-        name: name.into(),
-        length,
         rigid: true,
-        outer_radius: None,
-        bore_radius: 0.0,
-        material: None,
         mass: Some(mass),
-        c_s: 1.0,
-        c_e: 1.0,
-        c_b: 1.0,
-        c_t: 1.0,
-        stiffness: StiffnessSpec::default(),
-        chambers: vec![],
-        steps: 1,
-        law: LawSpec::default(),
-        partition: None,
+        ..base_section(name, length, 1)
     }
 }
 
@@ -186,6 +172,19 @@ pub fn p002_chambers(angles_deg: [f64; 3]) -> Vec<ChamberSpec> {
         .enumerate()
         .map(|(k, &a)| chamber(P002_RP, P002_RHO, a, k))
         .collect()
+}
+
+/// Paper 002's body section alone: Ecoflex with three chambers at 90, 210 and 330 deg.
+pub fn p002_body(steps: usize) -> SectionSpec {
+    geometry_section(
+        "body",
+        P002_BODY,
+        P002_RO,
+        P002_RI,
+        ECOFLEX,
+        p002_chambers([90.0, 210.0, 330.0]),
+        steps,
+    )
 }
 
 /// Paper 002's actuator: Dragon Skin cap (d^a) / Ecoflex body with three chambers at 90, 210
@@ -202,15 +201,7 @@ pub fn p002_actuator(rotation: [[f64; 3]; 3], g: f64, steps: usize) -> DesignSpe
                 vec![],
                 steps,
             ),
-            geometry_section(
-                "body",
-                P002_BODY,
-                P002_RO,
-                P002_RI,
-                ECOFLEX,
-                p002_chambers([90.0, 210.0, 330.0]),
-                steps,
-            ),
+            p002_body(steps),
             geometry_section(
                 "cap_c",
                 P002_CAP_C,

@@ -136,22 +136,9 @@ fn vec3(a: &[f64; 3]) -> Vector3<f64> {
     Vector3::new(a[0], a[1], a[2])
 }
 
-/// Paper 002's body section alone, chambers at 90/210/330 deg.
-fn body(steps: usize) -> SectionSpec {
-    geometry_section(
-        "body",
-        P002_BODY,
-        P002_RO,
-        P002_RI,
-        ECOFLEX,
-        p002_chambers([90.0, 210.0, 330.0]),
-        steps,
-    )
-}
-
 #[test]
 fn paper_002_cross_section_matches_table_iii() {
-    let sec = body(STEPS);
+    let sec = p002_body(STEPS);
     let cs = CrossSection::from_spec(&sec, P002_RO);
     // A_m = pi (r_o^2 - r_i^2 - 3 r_p^2)
     let am = PI * (P002_RO.powi(2) - P002_RI.powi(2) - 3.0 * P002_RP.powi(2));
@@ -259,7 +246,7 @@ fn check_single_section_arc(sec: &SectionSpec, p: &[f64]) {
 
 #[test]
 fn pressurised_chamber_gives_constant_curvature_and_stretch() {
-    let sec = body(STEPS);
+    let sec = p002_body(STEPS);
     // one chamber (on +d2): the rod bends away from it, towards -d2 = -y_world
     let p = [60e3, 0.0, 0.0];
     check_single_section_arc(&sec, &p);
@@ -287,7 +274,7 @@ fn pressurised_chamber_gives_constant_curvature_and_stretch() {
 
 #[test]
 fn equal_pressures_in_symmetric_chambers_only_extend() {
-    let sec = body(STEPS);
+    let sec = p002_body(STEPS);
     let rod = Rod::new(design(vec![sec.clone()], IDENTITY, 0.0)).unwrap();
     let p = 50e3;
     let sol = solve(&rod, &loads(&[p; 3]), None, &SolverOptions::default()).unwrap();
