@@ -143,6 +143,10 @@ pub trait RodScalar:
     fn recip(self) -> Self;
     /// Square root.
     fn sqrt(self) -> Self;
+    /// e^self.
+    fn exp(self) -> Self;
+    /// Natural logarithm.
+    fn ln(self) -> Self;
 }
 
 impl<const N: usize> RodScalar for Jet<N> {
@@ -168,6 +172,22 @@ impl<const N: usize> RodScalar for Jet<N> {
             eps: self.eps.map(|e| e * d),
         }
     }
+    #[inline(always)]
+    fn exp(self) -> Self {
+        let r = self.re.exp();
+        Jet {
+            re: r,
+            eps: self.eps.map(|e| e * r),
+        }
+    }
+    #[inline(always)]
+    fn ln(self) -> Self {
+        let d = 1.0 / self.re;
+        Jet {
+            re: self.re.ln(),
+            eps: self.eps.map(|e| e * d),
+        }
+    }
 }
 
 impl<T: num_dual::DualNum<Primitive = f64> + Copy> RodScalar for T {
@@ -182,6 +202,14 @@ impl<T: num_dual::DualNum<Primitive = f64> + Copy> RodScalar for T {
     #[inline(always)]
     fn sqrt(self) -> Self {
         num_dual::DualNum::sqrt(&self)
+    }
+    #[inline(always)]
+    fn exp(self) -> Self {
+        num_dual::DualNum::exp(&self)
+    }
+    #[inline(always)]
+    fn ln(self) -> Self {
+        num_dual::DualNum::ln(&self)
     }
 }
 

@@ -22,6 +22,7 @@
 
 use crate::interp::pchip_slopes;
 use crate::jet::RodScalar;
+use crate::ode::{Coeff, StateScalar};
 
 /// W1 of paper 002 eq. 16 at stretch `lam`.
 pub fn ogden_energy(k_e: f64, alpha: f64, lam: f64) -> f64 {
@@ -146,21 +147,22 @@ fn solve_tangent<D: RodScalar>(d12: D, d3: D, c: D, v: &[D; 3], b: &[D; 3]) -> [
 
 /// Ogden strains from the carried stretch `lam` and `lam_alpha` = lambda^alpha, for the
 /// material force `n` (body frame): v, and the gradient d lambda / d n_m = K^-1 v / lambda
-/// that drives the stretch along the rod. Algebraic (square roots only), any scalar type.
+/// that drives the stretch along the rod. Algebraic (square roots only), any scalar type
+/// for the state (`D`) and for the law's parameters (`P`).
 #[inline(always)]
-pub fn ogden_from_stretch<D: RodScalar>(
-    k_e: f64,
-    alpha: f64,
-    k_s: f64,
+pub fn ogden_from_stretch<P: Coeff, D: StateScalar<P>>(
+    k_e: P,
+    alpha: P,
+    k_s: P,
     lam: D,
     lam_alpha: D,
     n: &[D; 3],
 ) -> ([D; 3], [D; 3]) {
-    let c0 = 2.0 / 3.0 * k_e / alpha;
+    let c0 = k_e * alpha.recip() * (2.0 / 3.0);
     let inv_lam = lam.recip();
     let b = lam_alpha.sqrt().recip(); // lambda^(-alpha/2)
     let p = lam_alpha - b; // lambda^a - lambda^(-a/2)
-    let dp = (lam_alpha * alpha + b * (0.5 * alpha)) * inv_lam;
+    let dp = (lam_alpha * alpha + b * (alpha * 0.5)) * inv_lam;
     let d1 = p * inv_lam * c0; // W1'
     let d2 = (dp - p * inv_lam) * inv_lam * c0; // W1''
     let g = d1 * inv_lam;
@@ -174,19 +176,47 @@ pub fn ogden_from_stretch<D: RodScalar>(
     (v, z.map(|x| x * inv_lam))
 }
 
+/// The Ogden contact force at the strain `v` (a value) with the parameters in scalar `P`:
+/// the parameter derivatives of n_m at fixed strain.
+fn ogden_force_with<P: Coeff>(k_e: P, alpha: P, k_s: P, v: &[f64; 3]) -> [P; 3] {
+    let lam = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let l = P::from(lam.ln());
+    let a = (alpha * l).exp(); // lambda^alpha
+    let b = (alpha * l * -0.5).exp(); // lambda^(-alpha/2)
+                                      // g = W1'(lambda) / lambda = (2/3)(k_e/alpha)(a - b) / lambda^2
+    let g = k_e * alpha.recip() * (a - b) * (2.0 / (3.0 * lam * lam));
+    [(k_s + g) * v[0], (k_s + g) * v[1], g * v[2]]
+}
+
 /// Initial (lambda, lambda^alpha) of an Ogden section for the material force `n` (body
-/// frame): the value-level inverse, linearised in the scalar type (exact first
-/// derivatives, see the module docs). NaN when the law cannot be inverted.
-pub fn ogden_initial_stretch<D: RodScalar>(k_e: f64, alpha: f64, k_s: f64, n: &[D; 3]) -> [D; 2] {
+/// frame): the value-level inverse, linearised in the scalar types (exact first
+/// derivatives, see the module docs). With dual parameters the linearisation is the
+/// implicit function theorem on n_m(v; theta) = n: dv = K^-1 (dn - d_theta n_m).
+/// NaN when the law cannot be inverted.
+pub fn ogden_initial_stretch<P: Coeff, D: StateScalar<P>>(
+    k_e: P,
+    alpha: P,
+    k_s: P,
+    n: &[D; 3],
+) -> [D; 2] {
     let nv = n.map(|x| x.value());
-    let Some(v) = ogden_inverse(k_e, alpha, k_s, &nv, f64::NAN) else {
+    let (ke, al, ks) = (k_e.value(), alpha.value(), k_s.value());
+    let Some(v) = ogden_inverse(ke, al, ks, &nv, f64::NAN) else {
         return [D::from(f64::NAN); 2];
     };
     let lam = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    let la = lam.powf(alpha);
-    let (_, grad) = ogden_from_stretch(k_e, alpha, k_s, lam, la, &nv);
-    let dl = (n[0] - nv[0]) * grad[0] + (n[1] - nv[1]) * grad[1] + (n[2] - nv[2]) * grad[2];
-    [dl + lam, dl * (alpha * la / lam) + la]
+    let la = lam.powf(al);
+    let (_, grad) = ogden_from_stretch(ke, al, ks, lam, la, &nv);
+    let nm = ogden_force_with(k_e, alpha, k_s, &v);
+    // dn - d_theta n_m, both with zero value.
+    let rhs: [D; 3] = std::array::from_fn(|i| (n[i] - nv[i]) - D::from(nm[i] - nm[i].value()));
+    let dl = rhs[0] * grad[0] + rhs[1] * grad[1] + rhs[2] * grad[2];
+    // d(lambda^alpha) = lambda^alpha (alpha / lambda d lambda + ln(lambda) d alpha)
+    let dalpha = D::from(alpha - al);
+    [
+        dl + lam,
+        dl * (al * la / lam) + dalpha * (la * lam.ln()) + la,
+    ]
 }
 
 /// EA(F): a monotone cubic (Fritsch-Carlson PCHIP) through the table points, constant

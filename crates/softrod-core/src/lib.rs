@@ -3,7 +3,8 @@
 //! Pure Rust, no Python. A [`spec::DesignSpec`] (SI units) is validated and compiled into a
 //! [`rod::Rod`]; [`statics::solve`] finds its static equilibrium under chamber pressures,
 //! gravity and loads by shooting with an exact (dual-number) Jacobian;
-//! [`batch::solve_batch`] does many in parallel.
+//! [`batch::solve_batch`] does many in parallel; [`sensitivity`] gives exact derivatives
+//! of the tip pose with respect to design parameters for calibration.
 
 // Index loops over 3-vectors read like the equations they implement.
 #![allow(clippy::needless_range_loop)]
@@ -16,6 +17,7 @@ pub mod law;
 pub mod ode;
 pub mod rod;
 pub mod section;
+pub mod sensitivity;
 pub mod spec;
 pub mod statics;
 

@@ -15,14 +15,14 @@
 
 use crate::jet::RodScalar;
 use crate::law::{ogden_from_stretch, ogden_initial_stretch, AxialTable};
-use crate::rod::{inverse3, stiffness_matrices, AxialLaw, Rod};
+use crate::rod::{inverse3, stiffness_matrices, AxialLaw, Rod, Section};
 use crate::section::CrossSection;
-use std::ops::{Add, Mul, Neg};
+use std::ops::{Add, Mul};
 use std::sync::Arc;
 
 /// Scalar of the coefficients (f64, or a dual number for parameter derivatives).
-pub trait Coeff: Copy + Neg<Output = Self> {}
-impl<C: Copy + Neg<Output = C>> Coeff for C {}
+pub trait Coeff: RodScalar {}
+impl<C: RodScalar> Coeff for C {}
 
 /// Scalar of the state.
 pub trait StateScalar<C>:
@@ -47,14 +47,14 @@ pub struct State<D> {
 
 /// Axial law of one solve (stiffnesses after swelling and the stiffness map).
 #[derive(Debug, Clone, PartialEq)]
-pub enum AxialCoeffs {
+pub enum AxialCoeffs<C> {
     /// v = C_se n_m + e3 (folded into c_se and v_shift).
     Linear,
     /// Paper 002 eq. 16 with k_e = c_e EA (N), exponent alpha, shear stiffness k_s (N).
     /// The stretch is carried in `State::aux` (see `crate::law`).
-    Ogden { k_e: f64, alpha: f64, k_s: f64 },
+    Ogden { k_e: C, alpha: C, k_s: C },
     /// v3 = 1 + F / (scale EA(F)); shear linear through c_se.
-    Table { table: Arc<AxialTable>, scale: f64 },
+    Table { table: Arc<AxialTable>, scale: C },
 }
 
 /// Per-solve coefficients of one section: compliances, strain shifts from pressure, loads.
@@ -72,7 +72,7 @@ pub struct Coeffs<C> {
     pub l: [C; 3],
     /// Pressure force P = sum_k p_k A_k, N (n_m = n + P d3).
     pub p_force: C,
-    pub axial: AxialCoeffs,
+    pub axial: AxialCoeffs<C>,
     /// Bending stiffness times the local stretch v3 (paper 004 eq. 29).
     pub stretch_bending: bool,
 }
@@ -114,16 +114,75 @@ fn cross<D: RodScalar>(a: &[D; 3], b: &[D; 3]) -> [D; 3] {
 }
 
 /// Factor by which chamber radii grow at the (scaled) pressures: 1 + c_p p / p_ref
-/// (paper 002 eq. 22), one per chamber of section `i`.
+/// (paper 002 eq. 22), one per chamber of section `i`, with the section's own c_p.
 pub fn swelling_factors(rod: &Rod, i: usize, pressures: &[f64], factor: f64) -> Vec<f64> {
+    let c_p = rod.sections[i].law.swelling.map_or(0.0, |sw| sw.c_p);
+    swelling_factors_with(rod, i, pressures, factor, c_p)
+}
+
+fn swelling_factors_with<S: RodScalar>(
+    rod: &Rod,
+    i: usize,
+    pressures: &[f64],
+    factor: f64,
+    c_p: S,
+) -> Vec<S> {
     let s = &rod.sections[i];
     s.chambers
         .iter()
         .map(|c| match s.law.swelling {
-            Some(sw) => 1.0 + sw.c_p * factor * pressures[c.channel] / sw.p_ref,
-            None => 1.0,
+            Some(sw) => c_p * (factor * pressures[c.channel] / sw.p_ref) + 1.0,
+            None => S::from(1.0),
         })
         .collect()
+}
+
+/// The values of a section's calibration parameters, in any scalar: f64 for a solve, dual
+/// numbers for the parameter derivatives of `crate::sensitivity`. `SectionKnobs::of` gives
+/// the compiled design's values, with which `Coeffs::build_with` equals `Coeffs::build`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SectionKnobs<S> {
+    /// Correction factors c_s, c_e, c_b, c_t (paper 002 eqs. 17, 19, 20).
+    pub factors: [S; 4],
+    /// Young's and shear modulus of the geometric stiffnesses relative to the material's.
+    pub youngs_scale: S,
+    /// Ogden exponent (paper 002 eq. 16); unused in other sections.
+    pub alpha: S,
+    /// Shift of every chamber centroid (d1, d2) in m on top of the design's (eq. 21).
+    pub offset: [S; 2],
+    /// Swelling coefficient (eq. 22); unused without swelling.
+    pub c_p: S,
+    /// Factor on every chamber's pressurised area (an effective area, as A_eff of paper 000).
+    pub area_scale: S,
+}
+
+impl SectionKnobs<f64> {
+    /// The compiled values of section `s`.
+    pub fn of(s: &Section) -> Self {
+        SectionKnobs {
+            factors: s.law.factors,
+            youngs_scale: 1.0,
+            alpha: match s.law.axial {
+                AxialLaw::Ogden { alpha } => alpha,
+                _ => 1.0,
+            },
+            offset: [0.0; 2],
+            c_p: s.law.swelling.map_or(0.0, |sw| sw.c_p),
+            area_scale: 1.0,
+        }
+    }
+
+    /// The same values in scalar `S` (no derivatives).
+    pub fn lift<S: RodScalar>(&self) -> SectionKnobs<S> {
+        SectionKnobs {
+            factors: self.factors.map(S::from),
+            youngs_scale: S::from(self.youngs_scale),
+            alpha: S::from(self.alpha),
+            offset: self.offset.map(S::from),
+            c_p: S::from(self.c_p),
+            area_scale: S::from(self.area_scale),
+        }
+    }
 }
 
 impl Coeffs<f64> {
@@ -137,77 +196,105 @@ impl Coeffs<f64> {
         factor: f64,
         sigma: &[f64; 3],
     ) -> Self {
+        let knobs = SectionKnobs::of(&rod.sections[i]);
+        Self::build_with(rod, i, pressures, g, factor, sigma, &knobs)
+    }
+}
+
+impl<C: RodScalar> Coeffs<C> {
+    /// [`Coeffs::build`] with the section's parameters given as `knobs`, in any scalar.
+    pub fn build_with(
+        rod: &Rod,
+        i: usize,
+        pressures: &[f64],
+        g: &[f64; 3],
+        factor: f64,
+        sigma: &[C; 3],
+        knobs: &SectionKnobs<C>,
+    ) -> Self {
         let s = &rod.sections[i];
         let law = &s.law;
-        let swell = swelling_factors(rod, i, pressures, factor);
-        let (mut k_se, mut k_bt) = (s.k_se, s.k_bt);
-        let mut changed = false;
-        if let (Some(_), Some(geo)) = (law.swelling, &law.geometry) {
-            // Swollen chambers remove more material: A_m and I at this pressure.
-            let cs = CrossSection::from_holes(
-                geo.outer_radius,
-                geo.bore_radius,
-                s.chambers
-                    .iter()
-                    .zip(&swell)
-                    .map(|(c, w)| (c.hole_radius * w, c.centroid)),
-            );
-            (k_se, k_bt) = stiffness_matrices(&law.given, Some((&cs, &geo.material)), law.factors);
-            changed = true;
-        }
+        let zero = C::from(0.0);
+        let swell = swelling_factors_with(rod, i, pressures, factor, knobs.c_p);
+        let centroids: Vec<[C; 2]> = s
+            .chambers
+            .iter()
+            .map(|c| {
+                [
+                    knobs.offset[0] + c.centroid[0],
+                    knobs.offset[1] + c.centroid[1],
+                ]
+            })
+            .collect();
+        // Stiffness at this pressure (swollen chambers remove more material: A_m and I of
+        // eq. 22) and these parameters, from the same formulas as the compiled rod.
+        let (mut k_se, mut k_bt) = match &law.geometry {
+            Some(geo) => {
+                let cs = CrossSection::from_holes(
+                    geo.outer_radius,
+                    geo.bore_radius,
+                    s.chambers
+                        .iter()
+                        .zip(&swell)
+                        .zip(&centroids)
+                        .map(|((c, w), x)| (*w * c.hole_radius, *x)),
+                );
+                let e = knobs.youngs_scale * geo.material.youngs_modulus;
+                let g = knobs.youngs_scale * geo.material.shear_modulus;
+                stiffness_matrices(&law.given, Some((&cs, e, g)), knobs.factors)
+            }
+            None => stiffness_matrices(&law.given, None, knobs.factors),
+        };
         if law.stiffness_map {
             let [se, s1, s2] = *sigma;
-            k_se[2] *= se;
-            k_bt[0][0] *= s1;
-            k_bt[1][1] *= s2;
+            k_se[2] = k_se[2] * se;
+            k_bt[0][0] = k_bt[0][0] * s1;
+            k_bt[1][1] = k_bt[1][1] * s2;
             // The coupling scales with the geometric mean, which keeps K_bt positive definite.
             let c = (s1 * s2).sqrt();
-            k_bt[0][1] *= c;
-            k_bt[1][0] *= c;
-            changed = true;
+            k_bt[0][1] = k_bt[0][1] * c;
+            k_bt[1][0] = k_bt[1][0] * c;
         }
-        let (c_se, c_bt) = if changed && !s.rigid {
-            (
-                k_se.map(|k| 1.0 / k),
-                inverse3(&k_bt).unwrap_or([[f64::NAN; 3]; 3]),
-            )
+        let (c_se, c_bt) = if s.rigid {
+            ([zero; 3], [[zero; 3]; 3])
         } else {
-            (s.c_se, s.c_bt)
+            (
+                k_se.map(|k| k.recip()),
+                inverse3(&k_bt).unwrap_or([[C::from(f64::NAN); 3]; 3]),
+            )
         };
-        let mut force = 0.0; // sum p_k A_k
-        let mut mp = [0.0; 3]; // sum p_k A_k (y_k, -x_k, 0)
-        for (c, w) in s.chambers.iter().zip(&swell) {
-            let pa = factor * pressures[c.channel] * c.area * w * w;
+        let mut force = zero; // sum p_k A_k
+        let mut mp = [zero; 3]; // sum p_k A_k (y_k, -x_k, 0)
+        for ((c, w), x) in s.chambers.iter().zip(&swell).zip(&centroids) {
+            let pa = *w * *w * knobs.area_scale * (factor * pressures[c.channel] * c.area);
             force += pa;
-            mp[0] += pa * c.centroid[1];
-            mp[1] -= pa * c.centroid[0];
+            mp[0] += pa * x[1];
+            mp[1] -= pa * x[0];
         }
-        let mut u_shift = [0.0; 3];
-        for (a, row) in u_shift.iter_mut().zip(&c_bt) {
-            *a = row[0] * mp[0] + row[1] * mp[1] + row[2] * mp[2];
-        }
-        let mut f = [0.0; 3];
-        let mut l = [0.0; 3];
-        for k in 0..3 {
-            f[k] = factor * (s.line_mass * g[k] + s.line_force[k]);
-            l[k] = factor * s.line_moment[k];
-        }
+        let u_shift: [C; 3] =
+            std::array::from_fn(|a| c_bt[a][0] * mp[0] + c_bt[a][1] * mp[1] + c_bt[a][2] * mp[2]);
+        let f = std::array::from_fn(|k| C::from(factor * (s.line_mass * g[k] + s.line_force[k])));
+        let l = std::array::from_fn(|k| C::from(factor * s.line_moment[k]));
         let axial = match &law.axial {
             AxialLaw::Linear => AxialCoeffs::Linear,
-            AxialLaw::Ogden { alpha } => AxialCoeffs::Ogden {
+            AxialLaw::Ogden { .. } => AxialCoeffs::Ogden {
                 k_e: k_se[2],
-                alpha: *alpha,
+                alpha: knobs.alpha,
                 k_s: k_se[0],
             },
             AxialLaw::Table(table) => AxialCoeffs::Table {
                 table: table.clone(),
-                scale: law.factors[1] * if law.stiffness_map { sigma[0] } else { 1.0 },
+                scale: if law.stiffness_map {
+                    knobs.factors[1] * sigma[0]
+                } else {
+                    knobs.factors[1]
+                },
             },
         };
         Coeffs {
             c_se,
             c_bt,
-            v_shift: [0.0, 0.0, 1.0 + c_se[2] * force],
+            v_shift: [zero, zero, c_se[2] * force + 1.0],
             u_shift,
             f,
             l,
@@ -431,9 +518,9 @@ fn rigid_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, len: f64
 fn initial_stretch<C: Coeff, D: StateScalar<C>>(
     y: &State<D>,
     p_force: C,
-    k_e: f64,
-    alpha: f64,
-    k_s: f64,
+    k_e: C,
+    alpha: C,
+    k_s: C,
 ) -> [D; 2] {
     let d = |j: usize| y.director(j);
     let dot = |a: &[D; 3], b: &[D; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];

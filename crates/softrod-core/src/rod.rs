@@ -2,6 +2,7 @@
 //! weight and chamber data (all SI), ready for the integrator.
 
 use crate::error::{Result, SoftrodError};
+use crate::jet::RodScalar;
 use crate::law::AxialTable;
 use crate::section::CrossSection;
 use crate::spec::{
@@ -63,45 +64,38 @@ impl SectionLaw {
 }
 
 /// K_se diagonal and K_bt of a section from directly given stiffnesses, or else from the
-/// cross-section and material, times the correction factors (paper 002 eqs. 17, 19, 20).
-pub fn stiffness_matrices(
+/// cross-section and the material's (E, G), times the correction factors (paper 002 eqs.
+/// 17, 19, 20). Generic over the scalar so that parameter derivatives pass through it.
+pub fn stiffness_matrices<S: RodScalar>(
     given: &StiffnessSpec,
-    geo: Option<(&CrossSection, &MaterialSpec)>,
-    [c_s, c_e, c_b, c_t]: [f64; 4],
-) -> ([f64; 3], [[f64; 3]; 3]) {
-    let from = |f: &dyn Fn(&CrossSection, &MaterialSpec) -> f64| -> f64 {
-        match geo {
-            Some((c, m)) => f(c, m),
-            None => f64::NAN, // unreachable for validated elastic sections
+    geo: Option<(&CrossSection<S>, S, S)>,
+    [c_s, c_e, c_b, c_t]: [S; 4],
+) -> ([S; 3], [[S; 3]; 3]) {
+    let from = |given: Option<f64>, f: &dyn Fn(&CrossSection<S>, S, S) -> S| -> S {
+        match (given, geo) {
+            (Some(k), _) => S::from(k),
+            (None, Some((c, e, g))) => f(c, e, g),
+            (None, None) => S::from(f64::NAN), // unreachable for validated elastic sections
         }
     };
-    let ea = given
-        .ea
-        .unwrap_or_else(|| from(&|c, m| m.youngs_modulus * c.area));
-    let ga = given
-        .ga
-        .unwrap_or_else(|| from(&|c, m| m.shear_modulus * c.area));
-    let ei1 = given
-        .ei1
-        .unwrap_or_else(|| from(&|c, m| m.youngs_modulus * c.i11));
-    let ei2 = given
-        .ei2
-        .unwrap_or_else(|| from(&|c, m| m.youngs_modulus * c.i22));
+    let ea = from(given.ea, &|c, e, _| e * c.area);
+    let ga = from(given.ga, &|c, _, g| g * c.area);
+    let ei1 = from(given.ei1, &|c, e, _| e * c.i11);
+    let ei2 = from(given.ei2, &|c, e, _| e * c.i22);
     // The coupling term comes from the geometry only (direct stiffnesses describe
     // principal axes); zero when the section has no geometry.
     let ei12 = match geo {
-        Some((c, m)) if given.ei1.is_none() && given.ei2.is_none() => m.youngs_modulus * c.i12,
-        _ => 0.0,
+        Some((c, e, _)) if given.ei1.is_none() && given.ei2.is_none() => e * c.i12,
+        _ => S::from(0.0),
     };
-    let gj = given
-        .gj
-        .unwrap_or_else(|| from(&|c, m| m.shear_modulus * c.polar()));
+    let gj = from(given.gj, &|c, _, g| g * c.polar());
+    let zero = S::from(0.0);
     (
         [c_s * ga, c_s * ga, c_e * ea],
         [
-            [c_b * ei1, c_b * ei12, 0.0],
-            [c_b * ei12, c_b * ei2, 0.0],
-            [0.0, 0.0, c_t * gj],
+            [c_b * ei1, c_b * ei12, zero],
+            [c_b * ei12, c_b * ei2, zero],
+            [zero, zero, c_t * gj],
         ],
     )
 }
@@ -173,22 +167,22 @@ pub struct Rod {
 }
 
 /// Inverse of a 3x3 matrix with positive determinant, else None.
-pub fn inverse3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+pub fn inverse3<S: RodScalar>(m: &[[S; 3]; 3]) -> Option<[[S; 3]; 3]> {
     let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
         - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
         + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    if !(det.is_finite() && det > 0.0) {
+    let d = det.value();
+    if !(d.is_finite() && d > 0.0) {
         return None;
     }
-    let mut inv = [[0.0; 3]; 3];
-    for i in 0..3 {
-        for j in 0..3 {
+    let inv_det = det.recip();
+    Some(std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
             let (a, b) = ((j + 1) % 3, (j + 2) % 3);
-            let (c, d) = ((i + 1) % 3, (i + 2) % 3);
-            inv[i][j] = (m[a][c] * m[b][d] - m[a][d] * m[b][c]) / det;
-        }
-    }
-    Some(inv)
+            let (c, e) = ((i + 1) % 3, (i + 2) % 3);
+            (m[a][c] * m[b][e] - m[a][e] * m[b][c]) * inv_det
+        })
+    }))
 }
 
 impl Rod {
@@ -211,7 +205,9 @@ impl Rod {
             let law = compile_law(s);
             let (k_se, k_bt) = stiffness_matrices(
                 &law.given,
-                cs.as_ref().zip(s.material.as_ref()),
+                cs.as_ref()
+                    .zip(s.material.as_ref())
+                    .map(|(c, m)| (c, m.youngs_modulus, m.shear_modulus)),
                 law.factors,
             );
             let (c_se, c_bt) = if s.rigid {
@@ -377,8 +373,11 @@ impl Rod {
                         .zip(&w)
                         .map(|(c, f)| (c.hole_radius * f, c.centroid)),
                 );
-                let (_, k_bt) =
-                    stiffness_matrices(&s.law.given, Some((&cs, &geo.material)), s.law.factors);
+                let (_, k_bt) = stiffness_matrices(
+                    &s.law.given,
+                    Some((&cs, geo.material.youngs_modulus, geo.material.shear_modulus)),
+                    s.law.factors,
+                );
                 if !(cs.area > 0.0 && inverse3(&k_bt).is_some()) {
                     return Err(SoftrodError::invalid(
                         "pressures",

@@ -8,24 +8,26 @@
 //! hole of area A_k centred at (x_k, y_k) removes A_k, pi r_k^4/4 + y_k^2 A_k from I_11,
 //! pi r_k^4/4 + x_k^2 A_k from I_22, and adds x_k y_k A_k to I_12 (Steiner).
 
+use crate::jet::RodScalar;
 use crate::spec::SectionSpec;
 use std::f64::consts::PI;
 
 /// Area and second moments of the material part of a cross-section, about the geometric
-/// centre of the outer disc (the rod's centreline, as in paper 002).
+/// centre of the outer disc (the rod's centreline, as in paper 002). Generic over the
+/// scalar so that parameter derivatives (chamber offset, swelling) pass through it.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CrossSection {
+pub struct CrossSection<S = f64> {
     /// Material area A_m, m^2.
-    pub area: f64,
+    pub area: S,
     /// int y^2 dA, m^4.
-    pub i11: f64,
+    pub i11: S,
     /// int x^2 dA, m^4.
-    pub i22: f64,
+    pub i22: S,
     /// -int x y dA, m^4.
-    pub i12: f64,
+    pub i12: S,
 }
 
-impl CrossSection {
+impl CrossSection<f64> {
     /// Outer disc minus bore minus chamber holes (centroids include the chamber offset).
     pub fn from_spec(s: &SectionSpec, outer_radius: f64) -> Self {
         Self::from_holes(
@@ -37,21 +39,25 @@ impl CrossSection {
                 .map(|(k, c)| (c.hole_radius(), s.chamber_centroid(k))),
         )
     }
+}
 
+impl<S: RodScalar> CrossSection<S> {
     /// Outer disc of radius `outer` minus a central bore minus circular holes
     /// (radius, centroid (x, y)).
-    pub fn from_holes(outer: f64, bore: f64, holes: impl Iterator<Item = (f64, [f64; 2])>) -> Self {
+    pub fn from_holes(outer: f64, bore: f64, holes: impl Iterator<Item = (S, [S; 2])>) -> Self {
         let disc = |r: f64| (PI * r * r, PI / 4.0 * r.powi(4));
         let (ao, io) = disc(outer);
         let (ai, ii) = disc(bore);
         let mut cs = CrossSection {
-            area: ao - ai,
-            i11: io - ii,
-            i22: io - ii,
-            i12: 0.0,
+            area: S::from(ao - ai),
+            i11: S::from(io - ii),
+            i22: S::from(io - ii),
+            i12: S::from(0.0),
         };
         for (r, [x, y]) in holes {
-            let (a, i0) = disc(r);
+            let r2 = r * r;
+            let a = r2 * PI;
+            let i0 = r2 * r2 * (PI / 4.0);
             cs.area -= a;
             cs.i11 -= i0 + y * y * a;
             cs.i22 -= i0 + x * x * a;
@@ -61,7 +67,7 @@ impl CrossSection {
     }
 
     /// Polar moment J = I_11 + I_22 (paper 002, eq. 19).
-    pub fn polar(&self) -> f64 {
+    pub fn polar(&self) -> S {
         self.i11 + self.i22
     }
 }

@@ -101,11 +101,11 @@ pub struct Shape {
 }
 
 /// One load level of one problem: coefficients and scales.
-struct Problem<'a> {
+pub(crate) struct Problem<'a> {
     rod: &'a Rod,
     loads: &'a Loads,
     factor: f64,
-    coeffs: Vec<Coeffs<f64>>,
+    pub(crate) coeffs: Vec<Coeffs<f64>>,
     /// Base force, known exactly from the force balance.
     n0: [f64; 3],
     ms: f64,
@@ -119,7 +119,7 @@ fn inf_norm(r: &[f64; 3]) -> f64 {
 }
 
 impl<'a> Problem<'a> {
-    fn new(rod: &'a Rod, loads: &'a Loads, factor: f64) -> Self {
+    pub(crate) fn new(rod: &'a Rod, loads: &'a Loads, factor: f64) -> Self {
         let coeffs = (0..rod.sections.len())
             .map(|i| {
                 Coeffs::build(
@@ -158,7 +158,7 @@ impl<'a> Problem<'a> {
         self.rod.gravity.map(|g| self.factor * mt * g)
     }
 
-    fn base_state<D: RodScalar>(&self, x: &[D; 3]) -> State<D> {
+    pub(crate) fn base_state<D: RodScalar>(&self, x: &[D; 3]) -> State<D> {
         let c = |v: f64| D::from(v);
         State {
             r: self.rod.base_position.map(c),
@@ -169,7 +169,7 @@ impl<'a> Problem<'a> {
         }
     }
 
-    fn residual_of_tip<D: RodScalar>(&self, tip: &State<D>) -> [D; 3] {
+    pub(crate) fn residual_of_tip<D: RodScalar>(&self, tip: &State<D>) -> [D; 3] {
         let w = self.tip_weight();
         let com = self.rod.spec.tip.com_offset;
         // centre of mass offset in the world frame: R(L) c

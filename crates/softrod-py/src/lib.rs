@@ -5,9 +5,10 @@
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use softrod_core::batch::solve_batch;
+use softrod_core::batch::{sensitivity_batch, solve_batch, BatchRow};
 use softrod_core::interp::GridPchip;
 use softrod_core::ode::Loads;
+use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::statics::{self, SolverOptions};
 use softrod_core::{DesignSpec, Rod, SoftrodError};
 
@@ -202,21 +203,7 @@ impl PyRod {
         max_load_steps: usize,
         stiffness_scale: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let shape = pressures.as_array().shape().to_vec();
-        if shape[1] != self.rod.n_channels {
-            return Err(to_py_err(
-                py,
-                SoftrodError::invalid(
-                    "pressures",
-                    format!("shape {shape:?}"),
-                    format!(
-                        "must have {} columns, one per pressure channel",
-                        self.rod.n_channels
-                    ),
-                ),
-                Context::Input,
-            ));
-        }
+        self.check_columns(py, &pressures)?;
         // Copy into owned Rust data before releasing the GIL.
         let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
         let sigma: Option<Vec<f64>> =
@@ -236,29 +223,148 @@ impl PyRod {
                 )
             })
             .map_err(|e| to_py_err(py, e, Context::Input))?;
-        let d = PyDict::new(py);
-        let tp: Vec<[f64; 3]> = rows.iter().map(|r| r.tip_position).collect();
-        let tr: Vec<[[f64; 3]; 3]> = rows.iter().map(|r| r.tip_rotation).collect();
-        let bf: Vec<[f64; 3]> = rows.iter().map(|r| r.base_force).collect();
-        let bm: Vec<[f64; 3]> = rows.iter().map(|r| r.base_moment).collect();
-        d.set_item("tip_position", array2(py, &tp)?)?;
-        d.set_item("tip_rotation", array3(py, &tr)?)?;
-        d.set_item("base_force", array2(py, &bf)?)?;
-        d.set_item("base_moment", array2(py, &bm)?)?;
+        rows_dict(py, &rows)
+    }
+
+    /// `solve_batch` plus the exact derivatives of every converged tip pose with respect to
+    /// calibration parameters (GIL released). `params`: a list of (kind, sections) pairs,
+    /// kinds as in `softrod_core::sensitivity::ParamKind::ALL`. `x0`: optional (m, 3) warm
+    /// starts (a previous call's "x"; NaN rows start cold). Adds "x" (m, 3),
+    /// "d_tip_position" (m, 3, P) and "d_tip_rotation" (m, 3, 3, P), NaN on failed rows.
+    #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200))]
+    #[allow(clippy::too_many_arguments)]
+    fn sensitivity_batch<'py>(
+        &self,
+        py: Python<'py>,
+        pressures: PyReadonlyArray2<'py, f64>,
+        tip_force: [f64; 3],
+        tip_moment: [f64; 3],
+        params: Vec<(String, Vec<usize>)>,
+        stiffness_scale: Option<PyReadonlyArray2<'py, f64>>,
+        x0: Option<PyReadonlyArray2<'py, f64>>,
+        threads: usize,
+        tol: f64,
+        max_iter: usize,
+        continuation: bool,
+        max_load_steps: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        self.check_columns(py, &pressures)?;
+        let params: Vec<Param> = params
+            .into_iter()
+            .enumerate()
+            .map(|(j, (name, sections))| match ParamKind::from_name(&name) {
+                Some(kind) => Ok(Param { kind, sections }),
+                None => Err(to_py_err(
+                    py,
+                    SoftrodError::invalid(
+                        format!("params[{j}]"),
+                        &name,
+                        format!(
+                            "unknown parameter kind; known: {}",
+                            ParamKind::ALL.map(|(n, _)| n).join(", ")
+                        ),
+                    ),
+                    Context::Input,
+                )),
+            })
+            .collect::<PyResult<_>>()?;
+        let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
+        let sigma: Option<Vec<f64>> =
+            stiffness_scale.map(|s| s.as_array().iter().copied().collect());
+        let guesses: Option<Vec<f64>> = x0.map(|s| s.as_array().iter().copied().collect());
+        let opts = options(tol, max_iter, continuation, max_load_steps);
+        let rod = &self.rod;
+        let rows = py
+            .detach(|| {
+                sensitivity_batch(
+                    rod,
+                    &flat,
+                    tip_force,
+                    tip_moment,
+                    sigma.as_deref(),
+                    guesses.as_deref(),
+                    &params,
+                    &opts,
+                    threads,
+                )
+            })
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
+        let d = rows_dict(py, &rows)?;
+        let np = params.len();
+        let m = rows.len();
+        let (mut dp, mut dr) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 9 * np]);
+        for (r, row) in rows.iter().enumerate() {
+            let Some(sens) = &row.sensitivity else {
+                continue;
+            };
+            for j in 0..np {
+                for i in 0..3 {
+                    dp[(r * 3 + i) * np + j] = sens.position[j][i];
+                    for k in 0..3 {
+                        dr[((r * 3 + i) * 3 + k) * np + j] = sens.rotation[j][i][k];
+                    }
+                }
+            }
+        }
         d.set_item(
-            "converged",
-            PyArray1::from_vec(py, rows.iter().map(|r| r.converged).collect()),
+            "d_tip_position",
+            PyArray1::from_vec(py, dp).reshape([m, 3, np])?,
         )?;
         d.set_item(
-            "iterations",
-            PyArray1::from_vec(py, rows.iter().map(|r| r.iterations as i64).collect()),
-        )?;
-        d.set_item(
-            "residual",
-            PyArray1::from_vec(py, rows.iter().map(|r| r.residual).collect()),
+            "d_tip_rotation",
+            PyArray1::from_vec(py, dr).reshape([m, 3, 3, np])?,
         )?;
         Ok(d)
     }
+}
+
+impl PyRod {
+    fn check_columns(&self, py: Python<'_>, pressures: &PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+        let shape = pressures.as_array().shape().to_vec();
+        if shape[1] != self.rod.n_channels {
+            return Err(to_py_err(
+                py,
+                SoftrodError::invalid(
+                    "pressures",
+                    format!("shape {shape:?}"),
+                    format!(
+                        "must have {} columns, one per pressure channel",
+                        self.rod.n_channels
+                    ),
+                ),
+                Context::Input,
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The per-row arrays of a batch result.
+fn rows_dict<'py>(py: Python<'py>, rows: &[BatchRow]) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let tp: Vec<[f64; 3]> = rows.iter().map(|r| r.tip_position).collect();
+    let tr: Vec<[[f64; 3]; 3]> = rows.iter().map(|r| r.tip_rotation).collect();
+    let bf: Vec<[f64; 3]> = rows.iter().map(|r| r.base_force).collect();
+    let bm: Vec<[f64; 3]> = rows.iter().map(|r| r.base_moment).collect();
+    d.set_item("tip_position", array2(py, &tp)?)?;
+    d.set_item("tip_rotation", array3(py, &tr)?)?;
+    d.set_item("base_force", array2(py, &bf)?)?;
+    d.set_item("base_moment", array2(py, &bm)?)?;
+    d.set_item(
+        "converged",
+        PyArray1::from_vec(py, rows.iter().map(|r| r.converged).collect()),
+    )?;
+    d.set_item(
+        "iterations",
+        PyArray1::from_vec(py, rows.iter().map(|r| r.iterations as i64).collect()),
+    )?;
+    d.set_item(
+        "residual",
+        PyArray1::from_vec(py, rows.iter().map(|r| r.residual).collect()),
+    )?;
+    let x: Vec<[f64; 3]> = rows.iter().map(|r| r.x).collect();
+    d.set_item("x", array2(py, &x)?)?;
+    Ok(d)
 }
 
 /// Tensor-product PCHIP on a regular grid (the interpolation of table stiffness maps).

@@ -1,0 +1,281 @@
+//! Exact parameter derivatives of the tip pose (crate::sensitivity) against central finite
+//! differences of full solves with the parameter changed in the design, for every
+//! parameter kind and law; the batch against single solves; parameter validation.
+
+mod common;
+use common::*;
+use softrod_core::batch::sensitivity_batch;
+use softrod_core::ode::Loads;
+use softrod_core::sensitivity::{tip_sensitivity, validate_params, Param, ParamKind};
+use softrod_core::spec::{AxialSpec, DesignSpec, LawSpec, SwellingSpec};
+use softrod_core::statics::{solve, SolverOptions};
+use softrod_core::{Rod, SoftrodError};
+
+/// Newton tolerance for the finite-difference solves: the solution error (~1e-13 of the
+/// scaled unknowns) divided by the step below stays near 1e-8 of a derivative.
+const SOLVER_TOL: f64 = 1e-13;
+/// Relative parameter step of the central differences: truncation h^2 |y'''|/6 ~ 1e-10
+/// relative for these smooth laws, solve error / h ~ 1e-8 relative.
+const H: f64 = 1e-5;
+/// Column-wise agreement relative to the column's norm. Measured (printed): at most 2e-7
+/// (the Ogden alpha's rotation column), most below 1e-8; a derivative missing one term
+/// (e.g. swelling's change of I, lambda^alpha's dependence on alpha, the offset's moment
+/// arm) is off by percent.
+const COLUMN_TOL: f64 = 1e-6;
+/// Plus an absolute allowance for the finite differences' own noise on columns that are
+/// nearly zero (c_t barely moves the tip): two solves agree to ~1e-14 m, divided by 2 h.
+const TIP_NOISE: f64 = 1e-14;
+
+fn opts() -> SolverOptions {
+    SolverOptions {
+        tol: SOLVER_TOL,
+        ..Default::default()
+    }
+}
+
+const HANGING: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
+
+/// Paper 002's M3 body (Ogden, offset, swelling) in the p002 actuator, c_b 1.31 on the body
+/// only so that a shared c_b of both caps is a different parameter.
+fn m3(rotation: [[f64; 3]; 3]) -> DesignSpec {
+    let mut d = p002_actuator(rotation, 9.81, 12);
+    d.sections[1].c_b = 1.31;
+    d.sections[1].c_e = 2.82;
+    d.sections[1].law = LawSpec {
+        axial: AxialSpec::Ogden { alpha: 8.89 },
+        chamber_offset: [0.89e-3, 0.98e-3],
+        swelling: Some(SwellingSpec {
+            c_p: 0.48,
+            p_ref: 0.8e5,
+        }),
+        ..Default::default()
+    };
+    d.tip.mass = 6e-3;
+    d.tip.com_offset = [1e-3, 0.0, 4e-3];
+    d
+}
+
+/// Set a parameter's value in the design (or the loads, for sigma).
+fn set(spec: &mut DesignSpec, ld: &mut Loads, p: &Param, v: f64) {
+    if let ParamKind::StiffnessScale(k) = p.kind {
+        ld.stiffness_scale[k] = v;
+        return;
+    }
+    for &i in &p.sections {
+        let s = &mut spec.sections[i];
+        match p.kind {
+            ParamKind::CorrectionFactor(0) => s.c_s = v,
+            ParamKind::CorrectionFactor(1) => s.c_e = v,
+            ParamKind::CorrectionFactor(2) => s.c_b = v,
+            ParamKind::CorrectionFactor(_) => s.c_t = v,
+            ParamKind::YoungsModulus => {
+                let m = s.material.as_mut().unwrap();
+                m.shear_modulus *= v / m.youngs_modulus; // Poisson's ratio held fixed
+                m.youngs_modulus = v;
+            }
+            ParamKind::OgdenAlpha => s.law.axial = AxialSpec::Ogden { alpha: v },
+            ParamKind::SwellingCp => s.law.swelling.as_mut().unwrap().c_p = v,
+            ParamKind::ChamberOffset(a) => s.law.chamber_offset[a] = v,
+            // relative to the design's areas: v is the factor on the current areas
+            ParamKind::AreaScale => s.chambers.iter_mut().for_each(|c| c.area *= v),
+            ParamKind::StiffnessScale(_) => unreachable!(),
+        }
+    }
+}
+
+fn param(name: &str, sections: &[usize]) -> Param {
+    Param {
+        kind: ParamKind::from_name(name).unwrap(),
+        sections: sections.to_vec(),
+    }
+}
+
+/// Compare every parameter's exact derivative of the tip position and rotation with
+/// central differences; returns the worst relative column error.
+fn check(name: &str, spec: DesignSpec, ld: Loads, params: &[Param]) -> f64 {
+    let rod = Rod::new(spec.clone()).unwrap();
+    validate_params(&rod, params).unwrap();
+    let sol = solve(&rod, &ld, None, &opts()).unwrap();
+    let sens = tip_sensitivity(&rod, &ld, &sol, params).unwrap();
+    let mut worst: f64 = 0.0;
+    for (j, p) in params.iter().enumerate() {
+        let v0 = p.value(&rod, &ld);
+        // Offsets are absolute lengths (possibly 0): step in m.
+        let step = match p.kind {
+            ParamKind::ChamberOffset(_) => 1e-8,
+            _ => H * v0.abs(),
+        };
+        let at = |v: f64| {
+            let (mut s, mut l) = (spec.clone(), ld.clone());
+            if let ParamKind::AreaScale = p.kind {
+                set(&mut s, &mut l, p, v / v0); // factor on the design's areas
+            } else {
+                set(&mut s, &mut l, p, v);
+            }
+            let r = Rod::new(s).unwrap();
+            solve(&r, &l, Some(&sol.x), &opts()).unwrap().tip
+        };
+        let (tp, tm) = (at(v0 + step), at(v0 - step));
+        let fd_r: Vec<f64> = (0..3).map(|i| (tp.r[i] - tm.r[i]) / (2.0 * step)).collect();
+        let fd_q: Vec<f64> = (0..9)
+            .map(|k| (tp.rot[k / 3][k % 3] - tm.rot[k / 3][k % 3]) / (2.0 * step))
+            .collect();
+        let ex_r = sens.position[j].to_vec();
+        let ex_q: Vec<f64> = (0..9).map(|k| sens.rotation[j][k / 3][k % 3]).collect();
+        for (what, fd, ex) in [("position", fd_r, ex_r), ("rotation", fd_q, ex_q)] {
+            let n = fd.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let e = fd
+                .iter()
+                .zip(&ex)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+                .sqrt()
+                / (n + TIP_NOISE / (COLUMN_TOL * step));
+            println!(
+                "{name}: d tip {what} / d {} : rel. error {e:.2e}",
+                p.kind.name()
+            );
+            assert!(
+                e < COLUMN_TOL,
+                "{name}: d tip {what}/d {}: exact {ex:?} vs FD {fd:?} (rel. error {e:.2e})",
+                p.kind.name()
+            );
+            worst = worst.max(e);
+        }
+    }
+    worst
+}
+
+#[test]
+fn every_parameter_of_the_m3_law_matches_finite_differences() {
+    let ld = Loads {
+        pressures: vec![30e3, 12e3, 0.0],
+        ..loads(&[0.0; 3])
+    };
+    let params = [
+        param("c_b", &[1]),
+        param("c_e", &[1]),
+        param("alpha", &[1]),
+        param("c_p", &[1]),
+        param("offset_1", &[1]),
+        param("offset_2", &[1]),
+        param("E", &[1]),
+        param("area_scale", &[1]),
+        param("c_s", &[1]),
+        param("c_t", &[1]),
+        param("c_b", &[0, 2]), // both caps share c_b = 1
+        param("E", &[0, 2]),   // both caps are Dragon Skin
+    ];
+    for (name, rotation) in [("hanging", HANGING), ("tilted", tilted())] {
+        check(name, m3(rotation), ld.clone(), &params);
+    }
+}
+
+#[test]
+fn stiffness_scaling_factors_match_finite_differences() {
+    let mut spec = p002_actuator(HORIZONTAL, 9.81, 12);
+    spec.sections[1].law.stiffness_map = true;
+    let ld = Loads {
+        pressures: vec![40e3, 0.0, 25e3],
+        stiffness_scale: [0.8, 1.2, 0.7],
+        ..loads(&[0.0; 3])
+    };
+    let params = [
+        param("sigma_ext", &[]),
+        param("sigma_bend_1", &[]),
+        param("sigma_bend_2", &[]),
+        param("c_b", &[1]),
+    ];
+    check("sigma", spec, ld, &params);
+}
+
+#[test]
+fn table_law_and_linear_law_parameters_match_finite_differences() {
+    let mut spec = p002_actuator(tilted(), 9.81, 12);
+    spec.sections[1].law.axial = AxialSpec::Table {
+        force: vec![0.0, 5.0, 20.0],
+        stiffness: vec![90.0, 70.0, 60.0],
+    };
+    spec.sections[1].law.stiffness_map = true;
+    let ld = Loads {
+        pressures: vec![20e3, 35e3, 5e3],
+        stiffness_scale: [1.1, 1.0, 0.9],
+        ..loads(&[0.0; 3])
+    };
+    let params = [
+        param("c_e", &[1]),
+        param("sigma_ext", &[]),
+        param("E", &[1]),
+        param("area_scale", &[1]),
+    ];
+    check("table", spec, ld, &params);
+}
+
+#[test]
+fn batch_sensitivities_equal_single_ones() {
+    let spec = m3(HANGING);
+    let rod = Rod::new(spec).unwrap();
+    let params = [
+        param("c_b", &[1]),
+        param("alpha", &[1]),
+        param("c_p", &[1]),
+        param("offset_2", &[1]),
+        param("c_e", &[1]),
+    ];
+    let mut pressures = vec![];
+    for k in 0..6 {
+        pressures.extend([5e3 * k as f64, 3e3, 20e3 - 3e3 * k as f64]);
+    }
+    let rows = sensitivity_batch(
+        &rod,
+        &pressures,
+        [0.0; 3],
+        [0.0; 3],
+        None,
+        None,
+        &params,
+        &opts(),
+        2,
+    )
+    .unwrap();
+    for (r, row) in rows.iter().enumerate() {
+        let ld = loads(&pressures[3 * r..3 * r + 3]);
+        let sol = solve(&rod, &ld, None, &opts()).unwrap();
+        let single = tip_sensitivity(&rod, &ld, &sol, &params).unwrap();
+        let batch = row.sensitivity.as_ref().unwrap();
+        // Warm and cold solves reach the same equilibrium to the solver tolerance; the
+        // derivatives then agree to about the same relative size.
+        for j in 0..params.len() {
+            let n = norm(&single.position[j]).max(1e-12);
+            let d = dist(&single.position[j], &batch.position[j]);
+            assert!(d <= 1e-8 * n, "row {r} param {j}: {d:e} vs {n:e}");
+        }
+    }
+}
+
+#[test]
+fn parameters_are_validated_against_the_design() {
+    let rod = Rod::new(m3(HANGING)).unwrap();
+    let err = |p: Param| match validate_params(&rod, &[p]) {
+        Err(SoftrodError::InvalidParameter { field, value, rule }) => {
+            format!("{field} | {value} | {rule}")
+        }
+        other => panic!("expected an error, got {other:?}"),
+    };
+    assert!(err(param("alpha", &[0])).contains("ogden"));
+    assert!(err(param("c_p", &[0])).contains("swelling"));
+    assert!(err(param("c_b", &[7])).contains("3 sections"));
+    assert!(err(param("c_b", &[])).contains("at least one section"));
+    assert!(err(param("sigma_ext", &[])).contains("stiffness_map"));
+    assert!(err(param("offset_1", &[0])).contains("no chambers"));
+    // c_b is 1 in the caps and 1.31 in the body: one parameter cannot have both values.
+    let e = err(param("c_b", &[0, 1]));
+    assert!(e.contains("one value") && e.contains("1.31"), "{e}");
+    let mut rigid = m3(HANGING);
+    rigid.sections[2] = rigid_section("cap_c", 0.01, 0.005);
+    let rod = Rod::new(rigid).unwrap();
+    assert!(matches!(
+        validate_params(&rod, &[param("c_e", &[2])]),
+        Err(SoftrodError::InvalidParameter { rule, .. }) if rule.contains("rigid")
+    ));
+}
