@@ -1107,6 +1107,11 @@ def _spa130_example() -> Dataset:
 def _write_examples(folder: str | os.PathLike | None = None) -> list[Path]:
     """Regenerate the bundled examples: ``python -c "from softrod.datasets import
     _write_examples; _write_examples()"``."""
+    from .calibration.axial import _write_axial_examples
+
     folder = Path(folder) if folder is not None else _EXAMPLES_DIR
     ds = _spa130_example()
-    return [write_dataset(ds, folder / "spa130_synthetic.csv")]
+    return [
+        write_dataset(ds, folder / "spa130_synthetic.csv"),
+        *_write_axial_examples(folder / "axial"),
+    ]

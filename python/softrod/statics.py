@@ -109,7 +109,7 @@ class BatchSolution:
     tip_position (m, 3) m; tip_rotation (m, 3, 3); base_force (m, 3) N; base_moment (m, 3) N m;
     converged (m,) bool (rows that failed hold NaN); iterations (m,); residual (m,).
     stiffness_scale (m, 3): sigma of every row when the design has mapped sections
-    (docs/stiffness-map.md), else None.
+    (docs/stiffness-map.md), else None. x (m, 3): the solver's scaled unknowns (warm starts).
     """
 
     pressures: np.ndarray
@@ -121,6 +121,7 @@ class BatchSolution:
     iterations: np.ndarray
     residual: np.ndarray
     stiffness_scale: np.ndarray | None = None
+    x: np.ndarray | None = None
 
 
 def _pressures(design: Design, pressures) -> list[float]:

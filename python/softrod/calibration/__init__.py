@@ -1,0 +1,29 @@
+"""Calibration: fit model parameters to measured tip positions and report the fit."""
+
+from .axial import (
+    AxialData,
+    AxialIdentification,
+    axial_example_paths,
+    calibrate_axial,
+    identify_axial,
+    load_axial_data,
+    synthesize_axial_data,
+    write_axial_data,
+)
+from .metrics import per_sample_errors, tip_error_table
+from .report import save_figures, write_report
+
+__all__ = [
+    "AxialData",
+    "AxialIdentification",
+    "axial_example_paths",
+    "calibrate_axial",
+    "identify_axial",
+    "load_axial_data",
+    "per_sample_errors",
+    "save_figures",
+    "synthesize_axial_data",
+    "tip_error_table",
+    "write_axial_data",
+    "write_report",
+]
