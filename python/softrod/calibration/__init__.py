@@ -10,10 +10,14 @@ from .axial import (
     synthesize_axial_data,
     write_axial_data,
 )
+from .fit import CalibrationResult, CalibrationWarning, calibrate
 from .metrics import per_sample_errors, tip_error_table
 from .report import save_figures, write_report
 
 __all__ = [
+    "CalibrationResult",
+    "CalibrationWarning",
+    "calibrate",
     "AxialData",
     "AxialIdentification",
     "axial_example_paths",

@@ -1,0 +1,692 @@
+"""Global calibration: fit design parameters to measured tip positions (paper 002's
+identification of c_b, c_e, alpha, offsets and c_p; docs/calibration.md).
+
+The cost is the sum of squared tip-position errors over the training samples. With
+``method="lm"`` it is minimised by Levenberg-Marquardt (scipy's MINPACK) with the exact
+Jacobian from the core (dual numbers through the shooting solve and the implicit function
+theorem, ``Rod.sensitivity_batch``; every evaluation is one parallel batch over all
+samples); positive parameters are optimised in log space so they stay positive. With
+explicit ``bounds`` the same Jacobian drives scipy's trust-region-reflective method.
+``method="nelder-mead"`` is paper 002's derivative-free simplex on the same cost.
+Standard errors and correlations come from the Jacobian at the optimum (Gauss-Newton
+covariance s^2 (J^T J)^-1 with s^2 = SSR / (n - P)).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..datasets import Dataset, load_dataset
+from ..design import Design, load_design
+from ..errors import ConvergenceError, InputError
+from ..io import atomic_path
+from ..statics import SolverOptions, _options
+from ..units import to_si
+from .metrics import tip_error_table
+from .params import SIGMA_KINDS, Parameter, design_changes, parse_parameters
+
+#: Residual scale: residuals are in mm so that the cost is O(1) for scipy's tolerances.
+_MM = 1e-3
+#: Correlation above which a pair of parameters is reported as strongly correlated.
+STRONG_CORRELATION = 0.95
+#: Condition number of the column-scaled Jacobian above which the fit is reported as not
+#: identifiable: a relative change of 1e-6 in the best-determined combination moves the
+#: tips as much as a change of 1 in the worst.
+UNIDENTIFIABLE_CONDITION = 1e6
+#: A parameter whose standard error exceeds this fraction of its value is reported.
+POOR_RELATIVE_ERROR = 0.5
+#: Penalty residual (mm) of a sample whose solve fails at a trial point, so that the
+#: optimiser steps back instead of stopping on a NaN.
+_FAILED_RESIDUAL_MM = 1e3
+_ORIENTATIONS = ("hanging", "upright", "horizontal")
+
+
+class CalibrationWarning(UserWarning):
+    """A calibration result to be read with care (unidentifiable or correlated parameters,
+    samples that did not converge)."""
+
+
+def _fail(field_: str, value, rule: str) -> InputError:
+    return InputError(f"{field_} = {value!r}: {rule}", field_, value, rule)
+
+
+# --- inputs --------------------------------------------------------------------------------
+
+
+def _bounds(params: list[Parameter], bounds, design: Design, initial: np.ndarray):
+    """(lower, upper) arrays in SI and whether the user gave any."""
+    lo = np.array(
+        [1e-3 * v if p.positive else -math.inf for p, v in zip(params, initial, strict=True)]
+    )
+    hi = np.array(
+        [1e3 * v if p.positive else math.inf for p, v in zip(params, initial, strict=True)]
+    )
+    if bounds is None:
+        return lo, hi, False
+    if not isinstance(bounds, Mapping):
+        raise _fail("bounds", bounds, "must map parameter names to (lower, upper)")
+    names = [p.name for p in params]
+    kinds = {"Pa": "pressure", "m": "length"}
+    for name, pair in bounds.items():
+        if name not in names:
+            raise _fail("bounds", name, f"is not a calibrated parameter ({', '.join(names)})")
+        j = names.index(name)
+        if not isinstance(pair, Sequence) or isinstance(pair, str) or len(pair) != 2:
+            raise _fail(f"bounds[{name}]", pair, "must be a pair (lower, upper)")
+        unit = params[j].unit
+        vals = [
+            to_si(v, kinds[unit], f"bounds[{name}]", InputError) if unit in kinds else float(v)
+            for v in pair
+        ]
+        if not vals[0] < vals[1]:
+            raise _fail(f"bounds[{name}]", pair, "lower must be below upper")
+        if params[j].positive and vals[0] <= 0:
+            raise _fail(f"bounds[{name}]", pair, f"{params[j].kind} must stay > 0")
+        if not vals[0] <= initial[j] <= vals[1]:
+            raise _fail(f"bounds[{name}]", pair, f"must contain the design's value {initial[j]:g}")
+        lo[j], hi[j] = vals
+    return lo, hi, True
+
+
+def _split(dataset: Dataset, split, test) -> np.ndarray:
+    """Boolean test mask."""
+    m = len(dataset)
+    if split is None:
+        if test is not None:
+            raise _fail("test", test, "needs split='experiment' or split='mounting'")
+        return np.zeros(m, dtype=bool)
+    if isinstance(split, str):
+        if split not in ("experiment", "mounting"):
+            raise _fail("split", split, "must be 'experiment', 'mounting', a mask or None")
+        if test is None:
+            ids = dataset.experiments if split == "experiment" else ()
+            if split == "mounting" or len(ids) < 2:
+                raise _fail(
+                    "test", None, f"name the test {split} id(s) (the dataset has {len(ids)})"
+                )
+            test = ids[-1]  # documented default: the last experiment is the test set
+        dataset.split(split, test=test)  # checks the ids
+        labels = getattr(dataset, split)
+        ids = [test] if isinstance(test, (str, int, np.integer)) else list(test)
+        return np.isin(labels, ids)
+    mask = np.asarray(split)
+    if mask.dtype != bool or mask.shape != (m,):
+        raise _fail("split", f"array of shape {mask.shape}", f"a test mask must be bool ({m},)")
+    if mask.all():
+        raise _fail("split", "all rows", "leaves nothing to train on")
+    return mask.copy()
+
+
+def _groups(design: Design, dataset: Dataset) -> list[tuple[dict, np.ndarray]]:
+    """(document changes for the mounting, row indices) per mounting label."""
+    m = len(dataset)
+    if dataset.mounting is None:
+        return [({}, np.arange(m))]
+    labels = list(dict.fromkeys(dataset.mounting.tolist()))
+    if len(labels) == 1 and labels[0] not in _ORIENTATIONS:
+        return [({}, np.arange(m))]
+    out = []
+    for label in labels:
+        if label not in _ORIENTATIONS:
+            raise _fail(
+                "dataset.mounting",
+                label,
+                f"with several mountings each must be one of {', '.join(_ORIENTATIONS)}",
+            )
+        if "base_rotation" in design.document.get("mounting", {}):
+            raise _fail(
+                "design.mounting.base_rotation",
+                "given",
+                "mounting labels set the orientation; use mounting.orientation instead",
+            )
+        out.append(({"mounting.orientation": label}, np.flatnonzero(dataset.mounting == label)))
+    return out
+
+
+def _with_stiffness_map(design: Design, params: list[Parameter]) -> Design:
+    """Sigma parameters need mapped sections: map the chambered elastic sections if none is."""
+    if not any(p.kind in SIGMA_KINDS for p in params):
+        return design
+    secs = design.spec["sections"]
+    if any(s.get("law", {}).get("stiffness_map") for s in secs):
+        return design
+    changes = {}
+    for i, s in enumerate(secs):
+        if not s["rigid"] and s["chambers"]:
+            law = dict(design.document["sections"][i].get("law", {}))
+            law["stiffness_map"] = True
+            changes[f"sections[{i}].law"] = law
+    return design.replace(changes)
+
+
+# --- the model on the dataset ----------------------------------------------------------------
+
+
+class _Model:
+    """Tip positions of the dataset's samples and their parameter derivatives at theta."""
+
+    def __init__(self, design, dataset, params, groups, rows, options, threads):
+        self.design, self.params, self.groups = design, params, groups
+        self.rows = rows  # which rows take part (train)
+        self.p = np.ascontiguousarray(dataset.pressures, dtype=float)
+        self.opts = _options(options).as_kwargs()
+        self.threads = threads
+        self.x0 = np.full((len(dataset), 3), np.nan)
+        self.sigma_index = {
+            j: SIGMA_KINDS.index(p.kind) for j, p in enumerate(params) if p.kind in SIGMA_KINDS
+        }
+        self.evaluations = 0
+
+    def designs(self, theta) -> list[Design]:
+        changes = design_changes(self.params, theta, self.design)
+        return [self.design.replace({**changes, **g}) for g, _ in self.groups]
+
+    def sigma(self, theta, n: int) -> np.ndarray | None:
+        if not self.sigma_index:
+            return None
+        s = np.ones(3)
+        for j, k in self.sigma_index.items():
+            s[k] = theta[j]
+        return np.tile(s, (n, 1))
+
+    def __call__(self, theta, jacobian: bool, rows=None):
+        """(tip (m, 3), d tip / d theta (m, 3, P) or None, converged (m,)) for ``rows``."""
+        rows = self.rows if rows is None else rows
+        m, n_par = len(self.p), len(self.params)
+        tip = np.full((m, 3), np.nan)
+        jac = np.full((m, 3, n_par), np.nan) if jacobian else None
+        ok = np.zeros(m, dtype=bool)
+        self.evaluations += 1
+        for d, (_, idx) in zip(self.designs(theta), self.groups, strict=True):
+            idx = idx[np.isin(idx, rows)]
+            if idx.size == 0:
+                continue
+            tip_f = d.spec["tip"]["force"]
+            tip_m = d.spec["tip"]["moment"]
+            kw = dict(
+                stiffness_scale=self.sigma(theta, idx.size),
+                threads=self.threads,
+                **self.opts,
+            )
+            if jacobian:
+                out = d._rod.sensitivity_batch(
+                    self.p[idx],
+                    tip_f,
+                    tip_m,
+                    [p.core() for p in self.params],
+                    x0=np.ascontiguousarray(self.x0[idx]),
+                    **kw,
+                )
+                dj = out["d_tip_position"]
+                for j, p in enumerate(self.params):
+                    if p.kind == "area_scale":
+                        # The core differentiates by a factor on the current areas, which
+                        # are theta_j times the design's: d/d theta_j = (1/theta_j) d/dk.
+                        dj[:, :, j] /= theta[j]
+                jac[idx] = dj
+            else:
+                out = d._rod.solve_batch(self.p[idx], tip_f, tip_m, **kw)
+            tip[idx] = out["tip_position"]
+            ok[idx] = out["converged"]
+            good = idx[out["converged"]]
+            self.x0[good] = out["x"][out["converged"]]
+        return tip, jac, ok
+
+
+# --- the result --------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """What :func:`calibrate` found. Values and standard errors in SI (see ``units``)."""
+
+    design: Design
+    initial_design: Design
+    parameters: tuple[Parameter, ...]
+    initial: np.ndarray
+    values: np.ndarray
+    std_errors: np.ndarray
+    covariance: np.ndarray
+    correlation: np.ndarray
+    warnings: tuple[str, ...]
+    method: str
+    success: bool
+    message: str
+    evaluations: int
+    cost_m2: float
+    dataset: Dataset
+    predicted: np.ndarray
+    converged: np.ndarray
+    labels: np.ndarray
+    error_table: pd.DataFrame
+    elapsed_s: float
+    reference: np.ndarray = field(repr=False)
+
+    @property
+    def names(self) -> list[str]:
+        return [p.name for p in self.parameters]
+
+    @property
+    def units(self) -> list[str]:
+        return [p.unit for p in self.parameters]
+
+    @property
+    def residuals(self) -> np.ndarray:
+        """Predicted minus measured tip position, (m, 3) m (NaN where a solve failed)."""
+        return self.predicted - self.dataset.tip_position
+
+    @property
+    def stiffness_scale(self) -> np.ndarray | None:
+        """The fitted constant sigma (3,), or None without sigma parameters."""
+        idx = {p.kind: j for j, p in enumerate(self.parameters) if p.kind in SIGMA_KINDS}
+        if not idx:
+            return None
+        return np.array([self.values[idx[k]] if k in idx else 1.0 for k in SIGMA_KINDS])
+
+    @property
+    def stiffness_map(self):
+        """A constant :class:`~softrod.StiffnessMap` of the fitted sigma (or None), to pass
+        as ``stiffness_map=`` with :attr:`design`."""
+        from ..stiffness_map import StiffnessMap
+
+        s = self.stiffness_scale
+        return None if s is None else StiffnessMap.constant(s, self.design.n_channels)
+
+    def parameter_table(self) -> pd.DataFrame:
+        rel = np.abs(self.std_errors / np.where(self.values == 0, np.nan, self.values))
+        return pd.DataFrame(
+            {
+                "parameter": self.names,
+                "unit": self.units,
+                "initial": self.initial,
+                "value": self.values,
+                "std_error": self.std_errors,
+                "rel_std_error_pct": 100 * rel,
+            }
+        )
+
+    def summary(self) -> str:
+        lines = [
+            f"Calibration of {self.initial_design.name} on {_dataset_name(self.dataset)} "
+            f"({self.method}, {self.evaluations} model evaluations, {self.elapsed_s:.2f} s)",
+            f"  {self.message}",
+        ]
+        for p, v0, v, s in zip(
+            self.parameters, self.initial, self.values, self.std_errors, strict=True
+        ):
+            unit = "" if p.unit == "1" else f" {p.unit}"
+            lines.append(f"  {p.name:<16} {v0:>12.6g} -> {v:>12.6g} +- {s:.3g}{unit}")
+        cols = ["set", "n", "failed", "mean_error_mm", "median_error_mm", "max_error_mm"]
+        lines.append(self.error_table[cols].to_string(index=False, float_format="%.3f"))
+        lines += [f"  warning: {w}" for w in self.warnings]
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def to_toml(self, path) -> Path:
+        """Write the calibrated design as a TOML design file (whole or not at all). The
+        fitted values and their standard errors are recorded in ``[design].assumptions``."""
+        import tomli_w
+
+        if self.stiffness_scale is not None:
+            raise _fail(
+                "params",
+                [p.name for p in self.parameters if p.kind in SIGMA_KINDS],
+                "sigma factors are per-solve, not part of a design; use result.stiffness_map "
+                "with result.design, or fit c_e and c_b instead",
+            )
+        path = Path(path)
+        if path.suffix.lower() != ".toml":
+            raise _fail("path", str(path), "a design file must end in .toml")
+        text = tomli_w.dumps(_plain(self.design.document))
+        with atomic_path(path) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+        return path
+
+    def write_report(self, path) -> Path:
+        """An HTML report: parameters, correlations, error tables and figures."""
+        from .report import write_report
+
+        d = self.design
+        return write_report(
+            path,
+            title=f"softrod calibration: {self.initial_design.name}",
+            summary={
+                "design": self.initial_design.name,
+                "dataset": _dataset_name(self.dataset),
+                "synthetic data": self.dataset.synthetic,
+                "samples (train / test)": f"{(self.labels == 'train').sum()} / "
+                f"{(self.labels == 'test').sum()}",
+                "method": self.method,
+                "model evaluations": self.evaluations,
+                "final cost (sum of squared tip errors)": f"{self.cost_m2 * 1e6:.4g} mm^2",
+                "status": self.message,
+                "time": f"{self.elapsed_s:.2f} s",
+            },
+            parameter_table=self.parameter_table(),
+            error_table=self.error_table,
+            measured=self.dataset.tip_position,
+            predicted=self.predicted,
+            labels=self.labels,
+            pressures=self.dataset.pressures,
+            warnings=self.warnings,
+            correlation=self.correlation,
+            param_names=self.names,
+            length=d.length,
+            axis=np.asarray(d.spec["mounting"]["base_rotation"])[:, 2],
+            base_position=np.asarray(d.spec["mounting"]["base_position"]),
+        )
+
+
+def _plain(x):
+    """Python scalars for TOML (numpy floats and ints are not TOML types)."""
+    if isinstance(x, Mapping):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def _dataset_name(dataset: Dataset) -> str:
+    name = dataset.source.name if dataset.source is not None else "in-memory dataset"
+    return f"{name} (SYNTHETIC)" if dataset.synthetic else name
+
+
+def _diagnostics(params, values, jac, ssr, n_res):
+    """Covariance, standard errors, correlation and warnings from the Jacobian (m per SI
+    unit) at the optimum."""
+    n_par = len(params)
+    found: list[str] = []
+    dof = n_res - n_par
+    if dof <= 0:
+        found.append(f"{n_res} residuals for {n_par} parameters: no standard errors")
+        nan = np.full((n_par, n_par), np.nan)
+        return nan, np.full(n_par, np.nan), nan, found
+    # Column scaling: relative changes (1 mm for offsets, which may be 0).
+    scale = np.array([abs(v) if p.positive else 1e-3 for p, v in zip(params, values, strict=True)])
+    js = jac * scale
+    sv = np.linalg.svd(js, compute_uv=False)
+    cond = sv[0] / sv[-1] if sv[-1] > 0 else math.inf
+    s2 = ssr / dof
+    if cond > UNIDENTIFIABLE_CONDITION:
+        _, _, vt = np.linalg.svd(js)
+        null = vt[-1]
+        involved = [
+            f"{params[j].name} ({null[j]:+.2f})"
+            for j in np.argsort(-np.abs(null))
+            if abs(null[j]) > 0.1
+        ]
+        found.append(
+            f"not identifiable: the tip positions barely change along the combination "
+            f"{', '.join(involved)} of relative parameter changes (Jacobian condition number "
+            f"{cond:.2e} > {UNIDENTIFIABLE_CONDITION:.0e}); fix some of these parameters"
+        )
+        cov = s2 * np.linalg.pinv(js.T @ js) * np.outer(scale, scale)
+        std = np.sqrt(np.abs(np.diag(cov)))
+        std[:] = np.inf
+        corr = np.full((n_par, n_par), np.nan)
+        return cov, std, corr, found
+    cov = s2 * np.linalg.inv(js.T @ js) * np.outer(scale, scale)
+    std = np.sqrt(np.diag(cov))
+    corr = cov / np.outer(std, std)
+    for a in range(n_par):
+        for b in range(a + 1, n_par):
+            if abs(corr[a, b]) > STRONG_CORRELATION:
+                found.append(
+                    f"{params[a].name} and {params[b].name} are strongly correlated "
+                    f"(r = {corr[a, b]:+.3f}): the data determine mainly a combination"
+                )
+    for p, v, s in zip(params, values, std, strict=True):
+        if p.positive and s > POOR_RELATIVE_ERROR * abs(v):
+            found.append(f"{p.name} is poorly determined (standard error {s:.3g} on {v:.3g})")
+    return cov, std, corr, found
+
+
+# --- the entry point ---------------------------------------------------------------------------
+
+
+def calibrate(
+    design,
+    dataset,
+    params: Sequence[str] | str,
+    *,
+    bounds: Mapping[str, Sequence] | None = None,
+    method: str = "lm",
+    split=None,
+    test=None,
+    options: SolverOptions | None = None,
+    threads: int = 0,
+    max_evaluations: int = 200,
+    progress: Callable[[int, float], None] | None = None,
+) -> CalibrationResult:
+    """Fit ``params`` of ``design`` to the tip positions of ``dataset``.
+
+    design: a design (path, bundled name, preset or :class:`~softrod.Design`).
+    dataset: a :class:`~softrod.Dataset` or a path to one. Rows with a ``mounting`` of
+    "hanging", "upright" or "horizontal" are solved with that orientation (paper 002 fits
+    vertical and horizontal experiments together). The design's tip loads apply to all rows.
+    params: names such as ``["c_b", "c_e", "alpha", "offset_1", "offset_2", "c_p"]`` (see
+    :mod:`softrod.calibration.params`).
+    bounds: optional ``{name: (lower, upper)}`` in SI or with units ("40 kPa").
+    method: "lm" (exact Jacobian) or "nelder-mead" (paper 002's simplex, no derivatives).
+    split: None (fit on all rows), "experiment" or "mounting" with ``test`` ids (default
+    for "experiment": the last experiment), or a boolean test mask.
+    progress: called as ``progress(evaluations, rms_error_mm)`` after every evaluation.
+
+    Returns a :class:`CalibrationResult`; emits a :class:`CalibrationWarning` for each
+    identifiability problem (also listed in ``result.warnings``).
+    """
+    from scipy.optimize import least_squares, minimize
+
+    start = time.perf_counter()
+    design0 = load_design(design)
+    if not isinstance(dataset, Dataset):
+        dataset = load_dataset(dataset, design=design0)
+    if dataset.n_channels != design0.n_channels:
+        raise _fail(
+            "dataset.pressures",
+            f"{dataset.n_channels} channels",
+            f"design {design0.name!r} has {design0.n_channels} pressure channels",
+        )
+    if method not in ("lm", "nelder-mead"):
+        raise _fail("method", method, "must be 'lm' or 'nelder-mead'")
+    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 0:
+        raise _fail("threads", threads, "must be an integer >= 0 (0 = all cores)")
+    params = parse_parameters(params, design0)
+    design0 = _with_stiffness_map(design0, params)
+    for p in params:  # the core checks each parameter against the design
+        design0._rod.sensitivity_batch(
+            np.zeros((0, design0.n_channels)), [0.0] * 3, [0.0] * 3, [p.core()]
+        )
+    theta0 = np.array([p.value(design0) for p in params])
+    lo, hi, user_bounds = _bounds(params, bounds, design0, theta0)
+    test_mask = _split(dataset, split, test)
+    train = np.flatnonzero(~test_mask)
+    groups = _groups(design0, dataset)
+    model = _Model(design0, dataset, list(params), groups, train, options, threads)
+    measured = dataset.tip_position
+    positive = np.array([p.positive for p in params])
+
+    # Optimisation variable u: log(theta) for positive parameters, theta otherwise.
+    def theta_of(u):
+        return np.where(positive, np.exp(np.where(positive, u, 0.0)), u)
+
+    u0 = np.where(positive, np.log(np.where(positive, theta0, 1.0)), theta0)
+
+    def residual(tip, ok):
+        r = (tip[train] - measured[train]) / _MM
+        r[~ok[train]] = _FAILED_RESIDUAL_MM
+        return r.ravel()
+
+    cache: dict = {}
+
+    def evaluate(u, jacobian):
+        key = u.tobytes()
+        if key in cache and (cache[key][1] is not None or not jacobian):
+            return cache[key]
+        theta = theta_of(u)
+        tip, jac, ok = model(theta, jacobian)
+        r = residual(tip, ok)
+        cache.clear()
+        cache[key] = (r, jac, ok)
+        if progress is not None:
+            progress(model.evaluations, float(np.sqrt(np.mean(r.reshape(-1, 3) ** 2) * 3)))
+        return cache[key]
+
+    def jac_u(u):
+        r, jac, ok = evaluate(u, True)
+        j = jac[train] / _MM
+        j[~ok[train]] = 0.0
+        # d/du = theta d/dtheta for the log-transformed parameters
+        return (j * np.where(positive, theta_of(u), 1.0)).reshape(-1, len(params))
+
+    if method == "lm":
+        use_bounds = user_bounds
+        ulo = np.where(positive, np.log(np.where(positive, lo, 1.0)), lo)
+        uhi = np.where(positive, np.log(np.where(positive, hi, 1.0)), hi)
+        sol = least_squares(
+            lambda u: evaluate(u, True)[0],
+            u0,
+            jac=jac_u,
+            method="trf" if use_bounds else "lm",
+            bounds=(ulo, uhi) if use_bounds else (-np.inf, np.inf),
+            x_scale=1.0,
+            xtol=1e-10,
+            ftol=1e-10,
+            gtol=1e-10,
+            max_nfev=max_evaluations,
+        )
+        u_best, success, message = sol.x, bool(sol.success), str(sol.message)
+        method_used = "lm (MINPACK)" if not use_bounds else "trf (bounded, exact Jacobian)"
+    else:
+        ulo = np.where(positive, np.log(np.where(positive, lo, 1.0)), lo)
+        uhi = np.where(positive, np.log(np.where(positive, hi, 1.0)), hi)
+        sol = minimize(
+            lambda u: 0.5 * float(np.sum(evaluate(u, False)[0] ** 2)),
+            u0,
+            method="Nelder-Mead",
+            bounds=list(zip(ulo, uhi, strict=True)) if user_bounds else None,
+            options={"maxfev": max_evaluations, "xatol": 1e-8, "fatol": 1e-10},
+        )
+        u_best, success, message = sol.x, bool(sol.success), str(sol.message)
+        method_used = "nelder-mead"
+
+    values = theta_of(u_best)
+    tip_train, jac, ok = model(values, True)
+    if not ok[train].all():
+        bad = train[~ok[train]]
+        raise ConvergenceError(
+            f"calibrate: the model did not converge for {bad.size} training samples at the "
+            f"fitted parameters (rows {bad[:10].tolist()}); check the data and the bounds"
+        )
+    r = (tip_train[train] - measured[train]).ravel()
+    ssr = float(r @ r)
+    j = jac[train].reshape(-1, len(params))
+    cov, std, corr, found = _diagnostics(params, values, j, ssr, r.size)
+    if not success:
+        found.insert(0, f"the optimiser stopped without converging: {message}")
+
+    calibrated = design0.replace(design_changes(params, values, design0))
+    calibrated = _record(calibrated, params, values, std, method_used, dataset, train.size)
+    # Predictions on every row (train and test) with the calibrated design.
+    all_rows = np.arange(len(dataset))
+    final = _Model(calibrated, dataset, [], groups, all_rows, options, threads)
+    sigma_params = [p for p in params if p.kind in SIGMA_KINDS]
+    if sigma_params:
+        final = _Model(calibrated, dataset, list(sigma_params), groups, all_rows, options, threads)
+        predicted, _, converged = final(
+            np.array([values[params.index(p)] for p in sigma_params]), False
+        )
+    else:
+        predicted, _, converged = final(np.zeros(0), False)
+    reference = _reference(calibrated, groups, len(dataset), options)
+    labels = np.where(test_mask, "test", "train")
+    table = tip_error_table(
+        measured,
+        np.where(converged[:, None], predicted, np.nan),
+        length=calibrated.length,
+        reference=reference,
+        base_position=np.asarray(calibrated.spec["mounting"]["base_position"]),
+        axis=np.asarray(calibrated.spec["mounting"]["base_rotation"])[:, 2],
+        labels=labels if test_mask.any() else None,
+    )
+    for w in found:
+        warnings.warn(w, CalibrationWarning, stacklevel=2)
+    return CalibrationResult(
+        design=calibrated,
+        initial_design=design0,
+        parameters=tuple(params),
+        initial=theta0,
+        values=values,
+        std_errors=std,
+        covariance=cov,
+        correlation=corr,
+        warnings=tuple(found),
+        method=method_used,
+        success=success,
+        message=message,
+        evaluations=model.evaluations,
+        cost_m2=ssr,
+        dataset=dataset,
+        predicted=predicted,
+        converged=converged,
+        labels=labels,
+        error_table=table,
+        elapsed_s=time.perf_counter() - start,
+        reference=reference,
+    )
+
+
+def _reference(design: Design, groups, m: int, options) -> np.ndarray:
+    """The model's unpressurised tip position of every row's mounting (for % deflection)."""
+    ref = np.full((m, 3), np.nan)
+    zero = np.zeros((1, design.n_channels))
+    for changes, idx in groups:
+        d = design.replace(changes) if changes else design
+        out = d._rod.solve_batch(
+            zero, d.spec["tip"]["force"], d.spec["tip"]["moment"], **_options(options).as_kwargs()
+        )
+        ref[idx] = out["tip_position"][0]
+    return ref
+
+
+def _record(design, params, values, std, method, dataset, n_train) -> Design:
+    """The calibrated design with a line in [design].assumptions saying what was fitted."""
+    fitted = ", ".join(
+        f"{p.name} = {v:.6g} +- {s:.2g}{'' if p.unit == '1' else ' ' + p.unit}"
+        for p, v, s in zip(params, values, std, strict=True)
+        if p.kind not in SIGMA_KINDS
+    )
+    if not fitted:
+        return design
+    line = (
+        f"Calibrated with softrod.calibrate ({method}) on {_dataset_name(dataset)}, "
+        f"{n_train} training samples: {fitted} (standard errors from the Jacobian)."
+    )
+    assumptions = list(design.document["design"].get("assumptions", [])) + [line]
+    return design.replace({"design.assumptions": assumptions})
+
+
+def result_json(result: CalibrationResult) -> str:
+    """The parameter table and error table as JSON (for scripts and the CLI)."""
+    return json.dumps(
+        {
+            "parameters": result.parameter_table().to_dict(orient="records"),
+            "errors": result.error_table.to_dict(orient="records"),
+            "warnings": list(result.warnings),
+        },
+        default=float,
+        indent=2,
+    )
