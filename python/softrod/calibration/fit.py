@@ -301,6 +301,9 @@ class CalibrationResult:
         s = self.stiffness_scale
         return None if s is None else StiffnessMap.constant(s, self.design.n_channels)
 
+    def _mountings(self) -> list:
+        return [] if self.dataset.mounting is None else self.dataset.mounting.tolist()
+
     def parameter_table(self) -> pd.DataFrame:
         rel = np.abs(self.std_errors / np.where(self.values == 0, np.nan, self.values))
         return pd.DataFrame(
@@ -383,9 +386,18 @@ class CalibrationResult:
             correlation=self.correlation,
             param_names=self.names,
             length=d.length,
-            axis=np.asarray(d.spec["mounting"]["base_rotation"])[:, 2],
-            base_position=np.asarray(d.spec["mounting"]["base_position"]),
+            axis=_axis(d) if len(set(self._mountings())) <= 1 else None,
+            base_position=_base_position(d) if len(set(self._mountings())) <= 1 else None,
         )
+
+
+def _axis(design: Design) -> np.ndarray:
+    """The undeformed axis d3 at the base (world)."""
+    return np.asarray(design.spec["mounting"]["base_rotation"])[:, 2]
+
+
+def _base_position(design: Design) -> np.ndarray:
+    return np.asarray(design.spec["mounting"]["base_position"])
 
 
 def _plain(x):
@@ -422,25 +434,30 @@ def _diagnostics(params, values, jac, ssr, n_res):
     s2 = ssr / dof
     if cond > UNIDENTIFIABLE_CONDITION:
         _, _, vt = np.linalg.svd(js)
-        null = vt[-1]
-        involved = [
-            f"{params[j].name} ({null[j]:+.2f})"
-            for j in np.argsort(-np.abs(null))
-            if abs(null[j]) > 0.1
-        ]
-        found.append(
-            f"not identifiable: the tip positions barely change along the combination "
-            f"{', '.join(involved)} of relative parameter changes (Jacobian condition number "
-            f"{cond:.2e} > {UNIDENTIFIABLE_CONDITION:.0e}); fix some of these parameters"
-        )
+        for k in np.flatnonzero(sv < sv[0] / UNIDENTIFIABLE_CONDITION):
+            null = vt[k]
+            involved = [
+                f"{params[j].name} ({null[j]:+.2f})"
+                for j in np.argsort(-np.abs(null))
+                if abs(null[j]) > 0.1
+            ]
+            found.append(
+                f"not identifiable: the tip positions barely change along the combination "
+                f"{', '.join(involved)} of relative parameter changes (singular value ratio "
+                f"{sv[k] / sv[0]:.1e} < 1/{UNIDENTIFIABLE_CONDITION:.0e}); fix some of these "
+                "parameters"
+            )
         cov = s2 * np.linalg.pinv(js.T @ js) * np.outer(scale, scale)
         std = np.sqrt(np.abs(np.diag(cov)))
         std[:] = np.inf
         corr = np.full((n_par, n_par), np.nan)
         return cov, std, corr, found
-    cov = s2 * np.linalg.inv(js.T @ js) * np.outer(scale, scale)
+    inv = np.linalg.inv(js.T @ js)
+    cov = s2 * inv * np.outer(scale, scale)
     std = np.sqrt(np.diag(cov))
-    corr = cov / np.outer(std, std)
+    # From (J^T J)^-1 alone, so that it is defined for a perfect fit (s = 0) too.
+    d = np.sqrt(np.diag(inv))
+    corr = inv / np.outer(d, d)
     for a in range(n_par):
         for b in range(a + 1, n_par):
             if abs(corr[a, b]) > STRONG_CORRELATION:
@@ -618,8 +635,9 @@ def calibrate(
         np.where(converged[:, None], predicted, np.nan),
         length=calibrated.length,
         reference=reference,
-        base_position=np.asarray(calibrated.spec["mounting"]["base_position"]),
-        axis=np.asarray(calibrated.spec["mounting"]["base_rotation"])[:, 2],
+        # Radial and height errors need one undeformed axis: one mounting only.
+        base_position=None if len(groups) > 1 else _base_position(calibrated),
+        axis=None if len(groups) > 1 else _axis(calibrated),
         labels=labels if test_mask.any() else None,
     )
     for w in found:
