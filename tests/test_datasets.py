@@ -532,7 +532,7 @@ def test_synthetic_input_errors():
 def test_bundled_example():
     path = example_dataset_path("spa130_synthetic")
     assert path.name == "spa130_synthetic.csv" and path.stat().st_size < 100_000
-    assert example_datasets() == ["spa130_synthetic"]
+    assert example_datasets() == ["paper002_m3_synthetic", "spa130_synthetic"]
     assert path.read_text().startswith("# SYNTHETIC")
     ds = load_dataset(path, design=DESIGN)
     assert len(ds) == 216 and ds.synthetic and ds.experiments == (1, 2, 3)
@@ -544,8 +544,19 @@ def test_bundled_example():
     fresh = _spa130_example()
     np.testing.assert_allclose(ds.tip_position, fresh.tip_position, rtol=0, atol=1e-6)
     np.testing.assert_array_equal(ds.pressures, fresh.pressures)
-    with pytest.raises(InputError, match="known: spa130_synthetic"):
+    with pytest.raises(InputError, match="known: paper002_m3_synthetic, spa130_synthetic"):
         example_dataset_path("spa131")
+
+
+def test_calibration_example_is_what_its_recipe_makes():
+    """The calibration tutorial's dataset (docs/calibration.md) still matches its recipe."""
+    from softrod.datasets import PAPER002_EXAMPLE, _paper002_example
+
+    ds = load_dataset(example_dataset_path("paper002_m3_synthetic"))
+    assert len(ds) == 240 and ds.synthetic and ds.experiments == (1, 2, 3, 4)
+    assert ds.metadata["true_parameters"] == PAPER002_EXAMPLE["truth"]
+    fresh = _paper002_example()
+    np.testing.assert_allclose(ds.tip_position, fresh.tip_position, rtol=0, atol=1e-6)
 
 
 def test_public_names():

@@ -1104,6 +1104,47 @@ def _spa130_example() -> Dataset:
     )
 
 
+# The calibration tutorial's example (docs/calibration.md): paper 002's protocol on its model M3
+# with parameters that differ from Table IV, so that a fit from Table IV has work to do.
+PAPER002_EXAMPLE = {
+    "design": "paper002_M3_vertical",
+    "truth": {"c_b": 1.45, "c_e": 2.6, "alpha": 7.0, "offset_1": 0.5e-3, "offset_2": 1.2e-3},
+    "ramp_kPa": 60.0,  # each experiment ramps to 60 kPa in 60 equilibria
+    "patterns": [[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.6, 0.4, 0]],  # experiments 1-4
+    "noise_mm": 0.2,
+    "seed": 2,
+    "mounting": "hanging",
+}
+
+
+def _paper002_example() -> Dataset:
+    """4 experiments x 60 equilibria of paper002_M3_vertical with the ``truth`` parameters."""
+    from .calibration.params import design_changes, parse_parameters
+
+    spec = PAPER002_EXAMPLE
+    base = load_design(spec["design"])
+    names, values = list(spec["truth"]), list(spec["truth"].values())
+    made = base.replace(design_changes(parse_parameters(names, base), values, base))
+    ramp = spec["ramp_kPa"] * 1e3 * np.arange(1, 61) / 60
+    p = np.vstack([np.outer(ramp, q) for q in spec["patterns"]])
+    n = len(spec["patterns"])
+    ds = synthesize_dataset(
+        made,
+        p,
+        noise_mm=spec["noise_mm"],
+        seed=spec["seed"],
+        experiment=np.repeat(np.arange(1, n + 1), 60),
+        mounting=spec["mounting"],
+    )
+    truth = ", ".join(f"{k} = {v:g}" for k, v in spec["truth"].items())
+    meta = {
+        **ds.metadata,
+        "design": f"{spec['design']} with {truth}",
+        "true_parameters": spec["truth"],
+    }
+    return Dataset(**{**ds.__dict__, "metadata": meta})
+
+
 def _write_examples(folder: str | os.PathLike | None = None) -> list[Path]:
     """Regenerate the bundled examples: ``python -c "from softrod.datasets import
     _write_examples; _write_examples()"``."""
@@ -1113,5 +1154,6 @@ def _write_examples(folder: str | os.PathLike | None = None) -> list[Path]:
     ds = _spa130_example()
     return [
         write_dataset(ds, folder / "spa130_synthetic.csv"),
+        write_dataset(_paper002_example(), folder / "paper002_m3_synthetic.csv"),
         *_write_axial_examples(folder / "axial"),
     ]

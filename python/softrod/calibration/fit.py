@@ -132,7 +132,7 @@ def _groups(design: Design, dataset: Dataset) -> list[tuple[dict, np.ndarray]]:
     if dataset.mounting is None:
         return [({}, np.arange(m))]
     labels = list(dict.fromkeys(dataset.mounting.tolist()))
-    if len(labels) == 1 and labels[0] not in _ORIENTATIONS:
+    if len(labels) == 1:  # one mounting: the design is mounted as the data were
         return [({}, np.arange(m))]
     out = []
     for label in labels:
