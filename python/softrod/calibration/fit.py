@@ -27,10 +27,10 @@ import pandas as pd
 
 from ..datasets import Dataset, load_dataset
 from ..design import Design, load_design
-from ..errors import ConvergenceError, InputError
+from ..errors import ConvergenceError, DesignError, InputError
 from ..io import atomic_path
 from ..statics import SolverOptions, _options
-from ..units import to_si
+from ..units import number, to_si
 from .metrics import tip_error_table
 from .params import SIGMA_KINDS, Parameter, design_changes, parse_parameters
 
@@ -63,7 +63,9 @@ def _fail(field_: str, value, rule: str) -> InputError:
 
 
 def _bounds(params: list[Parameter], bounds, design: Design, initial: np.ndarray):
-    """(lower, upper) arrays in SI and whether the user gave any."""
+    """(lower, upper) arrays in SI and whether the user gave any. Without bounds, positive
+    parameters stay within 1e-3 to 1e3 times the design's values (a sanity box: points
+    outside count as failed)."""
     lo = np.array(
         [1e-3 * v if p.positive else -math.inf for p, v in zip(params, initial, strict=True)]
     )
@@ -84,7 +86,9 @@ def _bounds(params: list[Parameter], bounds, design: Design, initial: np.ndarray
             raise _fail(f"bounds[{name}]", pair, "must be a pair (lower, upper)")
         unit = params[j].unit
         vals = [
-            to_si(v, kinds[unit], f"bounds[{name}]", InputError) if unit in kinds else float(v)
+            to_si(v, kinds[unit], f"bounds[{name}]", InputError)
+            if unit in kinds
+            else number(v, f"bounds[{name}]", InputError)
             for v in pair
         ]
         if not vals[0] < vals[1]:
@@ -107,12 +111,14 @@ def _split(dataset: Dataset, split, test) -> np.ndarray:
     if isinstance(split, str):
         if split not in ("experiment", "mounting"):
             raise _fail("split", split, "must be 'experiment', 'mounting', a mask or None")
+        if getattr(dataset, split) is None:
+            raise _fail("split", split, f"the dataset has no {split} column")
         if test is None:
-            ids = dataset.experiments if split == "experiment" else ()
-            if split == "mounting" or len(ids) < 2:
-                raise _fail(
-                    "test", None, f"name the test {split} id(s) (the dataset has {len(ids)})"
-                )
+            if split == "mounting":
+                raise _fail("test", None, "name the test mounting(s)")
+            ids = dataset.experiments
+            if len(ids) < 2:
+                raise _fail("test", None, f"the dataset has {len(ids)} experiment: nothing to test")
             test = ids[-1]  # documented default: the last experiment is the test set
         dataset.split(split, test=test)  # checks the ids
         labels = getattr(dataset, split)
@@ -206,7 +212,13 @@ class _Model:
         jac = np.full((m, 3, n_par), np.nan) if jacobian else None
         ok = np.zeros(m, dtype=bool)
         self.evaluations += 1
-        for d, (_, idx) in zip(self.designs(theta), self.groups, strict=True):
+        try:
+            designs = self.designs(theta)
+        except DesignError:
+            # A trial point outside what a design allows (e.g. a stiffness that is no longer
+            # positive definite): every sample fails, so the optimiser steps back.
+            return tip, jac, ok
+        for d, (_, idx) in zip(designs, self.groups, strict=True):
             idx = idx[np.isin(idx, rows)]
             if idx.size == 0:
                 continue
@@ -554,7 +566,13 @@ def calibrate(
         if key in cache and (cache[key][1] is not None or not jacobian):
             return cache[key]
         theta = theta_of(u)
-        tip, jac, ok = model(theta, jacobian)
+        if np.all((theta >= lo) & (theta <= hi)):
+            tip, jac, ok = model(theta, jacobian)
+        else:
+            # Outside the sanity box (default 1e-3 to 1e3 times the design's values): a
+            # failed point, so that an unidentifiable direction cannot run off to 1e150.
+            tip, ok = np.full((len(dataset), 3), np.nan), np.zeros(len(dataset), dtype=bool)
+            jac = np.zeros((len(dataset), 3, len(params))) if jacobian else None
         r = residual(tip, ok)
         cache.clear()
         cache[key] = (r, jac, ok)
@@ -698,13 +716,28 @@ def _record(design, params, values, std, method, dataset, n_train) -> Design:
 
 
 def result_json(result: CalibrationResult) -> str:
-    """The parameter table and error table as JSON (for scripts and the CLI)."""
+    """The parameter table and error table as standard JSON (non-finite numbers as null),
+    for scripts and the CLI."""
+
+    def finite(x):
+        if isinstance(x, dict):
+            return {k: finite(v) for k, v in x.items()}
+        if isinstance(x, list):
+            return [finite(v) for v in x]
+        if isinstance(x, (float, np.floating)):
+            return float(x) if math.isfinite(x) else None
+        if isinstance(x, np.generic):
+            return x.item()
+        return x
+
     return json.dumps(
-        {
-            "parameters": result.parameter_table().to_dict(orient="records"),
-            "errors": result.error_table.to_dict(orient="records"),
-            "warnings": list(result.warnings),
-        },
-        default=float,
+        finite(
+            {
+                "parameters": result.parameter_table().to_dict(orient="records"),
+                "errors": result.error_table.to_dict(orient="records"),
+                "warnings": list(result.warnings),
+            }
+        ),
         indent=2,
+        allow_nan=False,
     )
