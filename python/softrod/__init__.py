@@ -11,10 +11,20 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :class:`StiffnessMap`: pressure-dependent stiffness scaling sigma(p) (paper 001 eq. 13)
 - :func:`load_dataset` / :func:`write_dataset` -> :class:`Dataset` (CSV, Parquet; docs/datasets.md)
 - :func:`synthesize_dataset`: synthetic datasets from the model, marked as such
+- :func:`identify_stiffness` -> :class:`StiffnessIdentification`: sigma per sample (paper 001)
+- :func:`fit_stiffness_map` -> :class:`HybridStiffnessModel`, :func:`compare_hybrid`: the
+  hybrid neural stiffness map of paper 001 and its tip errors
 - exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError`
 """
 
 from ._core import __version__ as _core_version
+from .calibration import (
+    HybridStiffnessModel,
+    StiffnessIdentification,
+    compare_hybrid,
+    fit_stiffness_map,
+    identify_stiffness,
+)
 from .compare import compare_models
 from .datasets import Dataset, load_dataset, synthesize_dataset, write_dataset
 from .design import Design, bundled_designs, designs_dir, load_design
@@ -37,16 +47,21 @@ __all__ = [
     "Dataset",
     "Design",
     "DesignError",
+    "HybridStiffnessModel",
     "InputError",
     "Preset",
     "SoftrodError",
     "SolverOptions",
     "StaticSolution",
+    "StiffnessIdentification",
     "StiffnessMap",
     "__version__",
     "bundled_designs",
+    "compare_hybrid",
     "compare_models",
     "designs_dir",
+    "fit_stiffness_map",
+    "identify_stiffness",
     "list_presets",
     "load_dataset",
     "load_design",

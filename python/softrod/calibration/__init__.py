@@ -11,7 +11,9 @@ from .axial import (
     write_axial_data,
 )
 from .fit import CalibrationResult, CalibrationWarning, calibrate
+from .hybrid import HybridStiffnessModel, compare_hybrid, fit_stiffness_map
 from .metrics import per_sample_errors, tip_error_table
+from .per_sample import StiffnessIdentification, identify_stiffness, stiffness_mapped_design
 from .report import save_figures, write_report
 
 __all__ = [
@@ -20,12 +22,18 @@ __all__ = [
     "calibrate",
     "AxialData",
     "AxialIdentification",
+    "HybridStiffnessModel",
+    "StiffnessIdentification",
     "axial_example_paths",
     "calibrate_axial",
+    "compare_hybrid",
+    "fit_stiffness_map",
     "identify_axial",
+    "identify_stiffness",
     "load_axial_data",
     "per_sample_errors",
     "save_figures",
+    "stiffness_mapped_design",
     "synthesize_axial_data",
     "tip_error_table",
     "write_axial_data",

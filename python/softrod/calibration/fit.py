@@ -162,16 +162,9 @@ def _with_stiffness_map(design: Design, params: list[Parameter]) -> Design:
     """Sigma parameters need mapped sections: map the chambered elastic sections if none is."""
     if not any(p.kind in SIGMA_KINDS for p in params):
         return design
-    secs = design.spec["sections"]
-    if any(s.get("law", {}).get("stiffness_map") for s in secs):
-        return design
-    changes = {}
-    for i, s in enumerate(secs):
-        if not s["rigid"] and s["chambers"]:
-            law = dict(design.document["sections"][i].get("law", {}))
-            law["stiffness_map"] = True
-            changes[f"sections[{i}].law"] = law
-    return design.replace(changes)
+    from .per_sample import stiffness_mapped_design
+
+    return stiffness_mapped_design(design)[0]
 
 
 # --- the model on the dataset ----------------------------------------------------------------
