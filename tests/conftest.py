@@ -4,6 +4,8 @@ import copy
 import os
 import re
 
+import pytest
+
 # Tests never open windows: pick matplotlib's non-interactive backend before anything
 # imports pyplot (the library itself never selects a backend).
 os.environ.setdefault("MPLBACKEND", "Agg")
@@ -28,3 +30,28 @@ def with_entries(name: str, entries: dict) -> dict:
         else:
             target[keys[-1]] = value
     return doc
+
+
+@pytest.fixture
+def run():
+    """Invoke the CLI in-process: ``run("solve", design, "--pressure", "30kPa,0,0")``."""
+    from click.testing import CliRunner
+    from softrod.cli import main
+
+    runner = CliRunner()
+
+    def invoke(*args):
+        return runner.invoke(main, [str(a) for a in args], catch_exceptions=False)
+
+    return invoke
+
+
+def assert_clean_error(result, code: int, *fragments: str):
+    """A CLI failure: exit ``code`` and one ``error:`` line on stderr holding ``fragments``."""
+    assert result.exit_code == code, result.output
+    err = result.stderr
+    assert err.startswith("error: "), err
+    assert len(err.strip().splitlines()) == 1, err  # one line, never a traceback
+    assert "Traceback" not in result.output
+    for f in fragments:
+        assert f in err, (f, err)

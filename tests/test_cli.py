@@ -6,34 +6,13 @@ import numpy as np
 import pandas as pd
 import pytest
 import softrod
-from click.testing import CliRunner
+from conftest import assert_clean_error
 from softrod import ConvergenceError, solve_statics, solve_statics_batch
-from softrod.cli import main
 
 pytestmark = pytest.mark.fast  # the whole module runs in seconds
 
 SPA = "spa_three_chamber_130mm"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-
-
-@pytest.fixture
-def run():
-    runner = CliRunner()
-
-    def invoke(*args):
-        return runner.invoke(main, [str(a) for a in args], catch_exceptions=False)
-
-    return invoke
-
-
-def assert_clean_error(result, code: int, *fragments: str):
-    assert result.exit_code == code, result.output
-    err = result.stderr
-    assert err.startswith("error: "), err
-    assert len(err.strip().splitlines()) == 1, err  # one line, never a traceback
-    assert "Traceback" not in result.output
-    for f in fragments:
-        assert f in err, (f, err)
 
 
 def test_version(run):

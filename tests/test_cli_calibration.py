@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 import softrod
 import tomli_w
-from click.testing import CliRunner
+from conftest import assert_clean_error
 from rich.console import Console
 from softrod import ConvergenceError
 from softrod.calibration import axial_example_paths, identify_axial, load_axial_data
 from softrod.calibration.params import design_changes, parse_parameters
-from softrod.cli import _FitProgress, main
+from softrod.cli import _FitProgress
 
 pytestmark = pytest.mark.fast  # the whole module runs in seconds
 
@@ -71,26 +71,6 @@ def case(tmp_path_factory):
         "weightless_toml": _write_design(weightless, folder / "weightless.toml"),
         "weightless_data": softrod.write_dataset(weightless_data, folder / "weightless.csv"),
     }
-
-
-@pytest.fixture
-def run():
-    runner = CliRunner()
-
-    def invoke(*args):
-        return runner.invoke(main, [str(a) for a in args], catch_exceptions=False)
-
-    return invoke
-
-
-def assert_clean_error(result, code: int, *fragments: str):
-    assert result.exit_code == code, result.output
-    err = result.stderr
-    assert err.startswith("error: "), err
-    assert len(err.strip().splitlines()) == 1, err  # one line, never a traceback
-    assert "Traceback" not in result.output
-    for f in fragments:
-        assert f in err, (f, err)
 
 
 def flat(text: str) -> str:
