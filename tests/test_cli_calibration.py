@@ -9,6 +9,7 @@ import io
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 import softrod
 import tomli_w
@@ -357,3 +358,33 @@ def test_calibrate_axial_missing_file(run, tmp_path):
     force, _ = axial_example_paths()
     result = run("calibrate-axial", force, tmp_path / "l.csv", "--design", "modular_two_module")
     assert_clean_error(result, 2, "LENGTH_CSV", "no such file")
+
+
+# --- softrod identify (paper 001 per-sample identification) ---------------------------------
+
+
+def test_identify_writes_the_factors_and_the_report(run, tmp_path):
+    from softrod.datasets import example_dataset_path
+
+    data = example_dataset_path("spa130_synthetic")
+    out, report = tmp_path / "sigma.csv", tmp_path / "ident.html"
+    res = run("identify", "spa_three_chamber_130mm", data, "--out", out, "--report", report)
+    assert res.exit_code == 0, res.output
+    assert "sigma_ext identified" in res.output
+    frame = pd.read_csv(out)
+    assert len(frame) == 216 and {"sigma_ext", "sigma_bend_x", "sigma_bend_y"} <= set(frame)
+    # The example was made with sigma = 1 everywhere plus 0.3 mm noise: identified factors
+    # scatter around 1 (median within 5 %).
+    assert abs(frame["sigma_ext"].median() - 1) < 0.05
+    assert report.read_text().count("data:image/png") >= 3
+
+
+def test_identify_rejects_bad_outputs_before_working(run, tmp_path):
+    from softrod.datasets import example_dataset_path
+
+    data = example_dataset_path("spa130_synthetic")
+    res = run("identify", "spa_three_chamber_130mm", data, "--out", tmp_path / "s.txt")
+    assert_clean_error(res, 2, "--out")
+    res = run("identify", "spa_three_chamber_130mm", data, "--sections", "nose")
+    assert_clean_error(res, 2, "nose")
+    assert list(tmp_path.iterdir()) == []

@@ -1315,6 +1315,78 @@ def calibrate_axial(
 
 
 @main.command()
+@click.argument("design")
+@click.argument("data", type=click.Path(dir_okay=False, path_type=Path))
+@click.option(
+    "--sections",
+    help="Comma-separated names of the sections sigma scales (default: the chambered "
+    "elastic sections, as paper 001 scales its body).",
+)
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the identified factors per sample here (.csv or .parquet).",
+)
+@click.option(
+    "--report",
+    "report_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write an HTML report here (factors over the workspace, paper 001 Fig. 5).",
+)
+@_threads_option("Worker threads per core call (0 = all cores).")
+@_handle_errors
+def identify(design, data, sections, out, report_path, threads):
+    """Identify the stiffness factors sigma of every sample in DATA (paper 001 eqs. 14-22).
+
+    For each measured pose: sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) that puts the
+    model tip on the measured tip. A factor the pose cannot determine (deflection near a
+    principal axis) is left empty and flagged. docs/calibration-per-sample.md.
+    """
+    from .calibration.per_sample import identify_stiffness, stiffness_mapped_design
+    from .calibration.report import REPORT_SUFFIXES
+    from .datasets import load_dataset
+    from .io import TABLE_SUFFIXES
+
+    d = load_design(design)
+    outputs = []
+    if out is not None:
+        outputs.append(_check_output(out, "--out", TABLE_SUFFIXES, "a table"))
+    if report_path is not None:
+        outputs.append(_check_output(report_path, "--report", REPORT_SUFFIXES, "a report is HTML"))
+    try:
+        dataset = load_dataset(data, design=d)
+    except InputError as exc:
+        raise _as_option(exc, {"path": "DATA"}) from None
+    names = None if sections is None else [n.strip() for n in sections.split(",") if n.strip()]
+    try:  # check the sections before the progress bar starts
+        stiffness_mapped_design(d, names)
+    except InputError as exc:
+        raise _as_option(exc, {"sections": "--sections"}) from None
+    console = _stdout()
+    with Progress(*_progress_columns(), console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task("identify", total=len(dataset))
+
+        def progress(iteration: int, active: int, total: int) -> None:
+            bar.update(task, completed=total - active, description=f"iteration {iteration}")
+
+        result = identify_stiffness(d, dataset, sections=names, threads=threads, progress=progress)
+    table = Table(show_header=False, box=None, padding=(0, 2))
+    for key, value in result.summary().items():
+        table.add_row(str(key), f"{value:.4g}" if isinstance(value, float) else str(value))
+    console.print(table)
+    if outputs:
+        with _staged(outputs) as staged:
+            k = 0
+            if out is not None:
+                write_table(result.to_frame(), staged[k])
+                k += 1
+            if report_path is not None:
+                result.write_report(staged[k])
+        for path in outputs:
+            console.print(Text(f"wrote {path}"), soft_wrap=True)
+
+
+@main.command()
 @_handle_errors
 def designs():
     """List the bundled designs and the presets with their channel count and source."""
