@@ -124,6 +124,17 @@ def _fail(field: str, value: object, rule: str) -> InputError:
     return design_error(field, value, rule, InputError)
 
 
+def _checked_metadata(metadata) -> dict:
+    """A copy of a data container's metadata with ``synthetic`` (default False) checked."""
+    if not isinstance(metadata, Mapping):
+        raise _fail("metadata", metadata, "must be a dict")
+    meta = dict(metadata)
+    meta.setdefault("synthetic", False)
+    if not isinstance(meta["synthetic"], bool):
+        raise _fail("metadata.synthetic", meta["synthetic"], "must be true or false")
+    return meta
+
+
 def _unit_factor(unit: str, kind: str, column: str) -> float:
     """SI factor of ``unit`` (a unit string, aliases allowed) checked against ``kind``."""
     text = unit.strip()
@@ -291,13 +302,7 @@ class Dataset:
                 if a.shape != (m,):
                     raise _fail(name, f"shape {a.shape}", f"must have shape ({m},)")
                 set_(self, name, _readonly(a))
-        if not isinstance(self.metadata, Mapping):
-            raise _fail("metadata", self.metadata, "must be a dict")
-        meta = dict(self.metadata)
-        meta.setdefault("synthetic", False)
-        if not isinstance(meta["synthetic"], bool):
-            raise _fail("metadata.synthetic", meta["synthetic"], "must be true or false")
-        set_(self, "metadata", meta)
+        set_(self, "metadata", _checked_metadata(self.metadata))
         if self.source is not None:
             set_(self, "source", Path(self.source))
 

@@ -45,7 +45,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..datasets import _fail, _metadata_json, _read_csv, _runs, _unit_factor, _Where
+from ..datasets import (
+    _checked_metadata,
+    _fail,
+    _metadata_json,
+    _read_csv,
+    _runs,
+    _unit_factor,
+    _Where,
+)
 from ..design import PACKAGE_DIR, Design, load_design
 from ..errors import InputError
 from ..io import atomic_path
@@ -183,13 +191,7 @@ class AxialData:
             if not L0 > self.rigid_length:
                 raise _fail("L0", L0, f"must exceed rigid_length = {self.rigid_length:g} m")
             set_(self, "L0", float(L0))
-        if not isinstance(self.metadata, Mapping):
-            raise _fail("metadata", self.metadata, "must be a dict")
-        meta = dict(self.metadata)
-        meta.setdefault("synthetic", False)
-        if not isinstance(meta["synthetic"], bool):
-            raise _fail("metadata.synthetic", meta["synthetic"], "must be true or false")
-        set_(self, "metadata", meta)
+        set_(self, "metadata", _checked_metadata(self.metadata))
 
     @property
     def synthetic(self) -> bool:
