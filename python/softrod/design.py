@@ -31,7 +31,7 @@ PACKAGE_DIR = Path(__file__).resolve().parent
 DEFAULT_STEPS = 16
 
 _SCHEMA: dict[str, set[str]] = {
-    "": {"design", "mounting", "materials", "sections", "tip", "loads", "numerics"},
+    "": {"design", "mounting", "materials", "sections", "tip", "loads", "numerics", "dynamics"},
     "design": {"name", "citation", "description", "assumptions"},
     "mounting": {"orientation", "roll", "base_position", "gravity", "base_rotation"},
     "material": {"E", "poisson", "G", "density", "source", "notes"},
@@ -57,6 +57,9 @@ _SCHEMA: dict[str, set[str]] = {
         "steps",
         "law",
         "partition",
+        "rotary_inertia",
+        "damping_se",
+        "damping_bt",
     },
     "law": {
         "axial",
@@ -71,7 +74,8 @@ _SCHEMA: dict[str, set[str]] = {
     },
     "partition": {"j", "E_I", "r_I", "E_II", "r_II", "E_III"},
     "chamber": {"radius", "area", "distance", "angle", "channel"},
-    "tip": {"mass", "com_offset", "force", "moment"},
+    "tip": {"mass", "com_offset", "force", "moment", "inertia"},
+    "dynamics": {"damping_time", "pressure_time_constant", "pressure_rate_limit"},
     "load": {"section", "force_per_length", "moment_per_length"},
     "numerics": {"steps_per_section", "step_length"},
 }
@@ -233,6 +237,13 @@ def _section(sec: Any, i: int, materials: Mapping, numerics: tuple[str, float]) 
         out["law"] = _law(sec["law"], f"{where}.law")
     if "partition" in sec:
         out["partition"] = _partition(sec["partition"], f"{where}.partition")
+    for key, kind in (
+        ("rotary_inertia", "inertia_per_length"),
+        ("damping_se", "damping_force"),
+        ("damping_bt", "damping_moment"),
+    ):
+        if key in sec:
+            out[key] = vector_to_si(sec[key], kind, f"{where}.{key}")
     chambers = sec.get("chambers", [])
     if not isinstance(chambers, list):
         raise design_error(f"{where}.chambers", chambers, "must be an array of tables")
@@ -406,9 +417,26 @@ def _to_spec(doc: Mapping) -> dict:
             ),
             "force": vector_to_si(tip.get("force", [0, 0, 0]), "force", "tip.force"),
             "moment": vector_to_si(tip.get("moment", [0, 0, 0]), "moment", "tip.moment"),
+            "inertia": vector_to_si(tip.get("inertia", [0, 0, 0]), "inertia", "tip.inertia"),
         },
         "loads": load_specs,
+        "dynamics": _dynamics(_check_keys(doc.get("dynamics", {}), "dynamics", "dynamics")),
     }
+
+
+def _dynamics(dyn: Mapping) -> dict:
+    """[dynamics]: Kelvin-Voigt damping time and pressure supply (docs/dynamics.md)."""
+    out = {
+        "damping_time": to_si(dyn.get("damping_time", 0.0), "time", "dynamics.damping_time"),
+        "pressure_time_constant": to_si(
+            dyn.get("pressure_time_constant", 0.0), "time", "dynamics.pressure_time_constant"
+        ),
+    }
+    if "pressure_rate_limit" in dyn:
+        out["pressure_rate_limit"] = to_si(
+            dyn["pressure_rate_limit"], "pressure_rate", "dynamics.pressure_rate_limit"
+        )
+    return out
 
 
 @dataclass(frozen=True)

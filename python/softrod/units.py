@@ -26,6 +26,11 @@ DIMENSIONS = {
     "force_per_length": "[mass] / [time] ** 2",
     "stiffness_bending": "[length] ** 3 * [mass] / [time] ** 2",
     "time": "[time]",
+    "pressure_rate": "[mass] / [length] / [time] ** 3",
+    "inertia": "[length] ** 2 * [mass]",
+    "inertia_per_length": "[length] * [mass]",
+    "damping_force": "[length] * [mass] / [time]",
+    "damping_moment": "[length] ** 3 * [mass] / [time]",
 }
 
 SI_UNIT = {
@@ -41,6 +46,11 @@ SI_UNIT = {
     "force_per_length": "N/m",
     "stiffness_bending": "N*m^2",
     "time": "s",
+    "pressure_rate": "Pa/s",
+    "inertia": "kg*m^2",
+    "inertia_per_length": "kg*m",
+    "damping_force": "N*s",
+    "damping_moment": "N*m^2*s",
 }
 
 

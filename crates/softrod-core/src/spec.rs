@@ -126,6 +126,17 @@ pub struct SectionSpec {
     /// stiffness grow with the stretch.
     #[serde(default)]
     pub partition: Option<PartitionSpec>,
+    /// Mass moments of inertia per unit length (rho I_11, rho I_22, rho J), kg m, for
+    /// dynamics; `None` derives them (see `crate::rod::Section::rotary_inertia`).
+    #[serde(default)]
+    pub rotary_inertia: Option<[f64; 3]>,
+    /// Kelvin-Voigt damping (paper 000 eq. 8) given as matrices instead of B = tau K:
+    /// diagonal of B_se (shear, shear, extension), N s ...
+    #[serde(default)]
+    pub damping_se: Option<[f64; 3]>,
+    /// ... and of B_bt (bending, bending, torsion), N m^2 s. Give both or neither.
+    #[serde(default)]
+    pub damping_bt: Option<[f64; 3]>,
 }
 
 /// Axial (stretch) law of a section.
@@ -240,6 +251,27 @@ pub struct TipSpec {
     /// Dead moment at the tip, world frame, N m.
     #[serde(default)]
     pub moment: [f64; 3],
+    /// Principal moments of inertia of the tip body about its centre of mass, along the
+    /// tip frame's axes (d1, d2, d3), kg m^2 (dynamics only).
+    #[serde(default)]
+    pub inertia: [f64; 3],
+}
+
+/// Settings of the dynamic model (paper 000 eq. 8 and Sec. III-A).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DynamicsSpec {
+    /// Kelvin-Voigt damping time tau, s: B_se = tau K_se and B_bt = tau K_bt wherever a
+    /// section gives no damping matrices (paper 000 eq. 8; 0.19 s for its arm).
+    #[serde(default)]
+    pub damping_time: f64,
+    /// First-order lag between commanded and chamber pressure, s (0: none).
+    #[serde(default)]
+    pub pressure_time_constant: f64,
+    /// Largest rate of change of a chamber pressure, Pa/s (`None`: unlimited; paper 000's
+    /// regulators: about 3 kPa/s).
+    #[serde(default)]
+    pub pressure_rate_limit: Option<f64>,
 }
 
 /// Distributed dead line load on one section, world frame.
@@ -266,6 +298,8 @@ pub struct DesignSpec {
     pub tip: TipSpec,
     #[serde(default)]
     pub loads: Vec<LineLoadSpec>,
+    #[serde(default)]
+    pub dynamics: DynamicsSpec,
 }
 
 fn finite(field: &str, x: f64) -> Result<()> {
@@ -467,6 +501,36 @@ impl SectionSpec {
         if let Some(m) = self.mass {
             non_negative(&f("mass"), m)?;
         }
+        if let Some(j) = &self.rotary_inertia {
+            for (k, x) in j.iter().enumerate() {
+                non_negative(&f(&format!("rotary_inertia[{k}]")), *x)?;
+            }
+        }
+        match (&self.damping_se, &self.damping_bt) {
+            (Some(se), Some(bt)) => {
+                for (k, x) in se.iter().enumerate() {
+                    non_negative(&f(&format!("damping_se[{k}]")), *x)?;
+                }
+                for (k, x) in bt.iter().enumerate() {
+                    non_negative(&f(&format!("damping_bt[{k}]")), *x)?;
+                }
+            }
+            (None, None) => {}
+            (Some(_), None) => {
+                return Err(SoftrodError::invalid(
+                    f("damping_bt"),
+                    "missing",
+                    "give damping_se and damping_bt together (or neither, for B = tau K)",
+                ))
+            }
+            (None, Some(_)) => {
+                return Err(SoftrodError::invalid(
+                    f("damping_se"),
+                    "missing",
+                    "give damping_se and damping_bt together (or neither, for B = tau K)",
+                ))
+            }
+        }
         if let Some(mat) = &self.material {
             mat.validate(&f("material"))?;
         }
@@ -644,6 +708,15 @@ impl DesignSpec {
         finite3("tip.com_offset", &self.tip.com_offset)?;
         finite3("tip.force", &self.tip.force)?;
         finite3("tip.moment", &self.tip.moment)?;
+        for (k, x) in self.tip.inertia.iter().enumerate() {
+            non_negative(&format!("tip.inertia[{k}]"), *x)?;
+        }
+        let dy = &self.dynamics;
+        non_negative("dynamics.damping_time", dy.damping_time)?;
+        non_negative("dynamics.pressure_time_constant", dy.pressure_time_constant)?;
+        if let Some(r) = dy.pressure_rate_limit {
+            positive("dynamics.pressure_rate_limit", r)?;
+        }
         for (k, l) in self.loads.iter().enumerate() {
             if l.section >= self.sections.len() {
                 return Err(SoftrodError::invalid(

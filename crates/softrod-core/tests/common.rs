@@ -34,6 +34,9 @@ fn base_section(name: &str, length: f64, steps: usize) -> SectionSpec {
         steps,
         law: LawSpec::default(),
         partition: None,
+        rotary_inertia: None,
+        damping_se: None,
+        damping_bt: None,
     }
 }
 
@@ -73,6 +76,7 @@ pub fn design(sections: Vec<SectionSpec>, rotation: [[f64; 3]; 3], g: f64) -> De
         sections,
         tip: TipSpec::default(),
         loads: vec![],
+        dynamics: Default::default(),
     }
 }
 
