@@ -10,6 +10,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod batch;
+pub mod dynamics;
 pub mod error;
 pub mod interp;
 pub mod jet;

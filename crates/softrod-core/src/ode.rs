@@ -482,7 +482,7 @@ fn rk4_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, h: f64) ->
 /// step squares that, so rotations stay orthonormal to round-off, and positions, forces
 /// and the exact Jacobian (this is generic code) all see the same R.
 #[inline(always)]
-fn reproject<D: RodScalar>(r: &[[D; 3]; 3]) -> [[D; 3]; 3] {
+pub(crate) fn reproject<D: RodScalar>(r: &[[D; 3]; 3]) -> [[D; 3]; 3] {
     let s: [[D; 3]; 3] = std::array::from_fn(|i| {
         std::array::from_fn(|j| r[0][i] * r[0][j] + r[1][i] * r[1][j] + r[2][i] * r[2][j])
     });

@@ -1,0 +1,10 @@
+"""Dynamics: pressure schedules in, trajectories out (docs/dynamics.md).
+
+- :class:`PressureSchedule`: commanded chamber pressures as a function of time (Pa, s).
+- :class:`Trajectory`: a simulated motion; save/load (Parquet, NPZ), plots, animations.
+"""
+
+from .schedule import VACUUM_PA, PressureSchedule
+from .trajectory import Trajectory
+
+__all__ = ["VACUUM_PA", "PressureSchedule", "Trajectory"]

@@ -1,0 +1,700 @@
+"""Trajectories: the result of a dynamic simulation, with files, plots and animations.
+
+A :class:`Trajectory` holds, at n sample times, the commanded and actual chamber pressures,
+the tip pose and velocity and the mechanical energy, plus the full centreline at k of those
+times (the "shapes"). Everything is SI (s, Pa, m, m/s, J). Files:
+
+- Parquet (``.parquet``): one row per sample time, units in the column names (see
+  :meth:`Trajectory.to_frame`), the shapes in a list column ``shape_m``, the metadata as JSON
+  in the schema metadata. Layout in docs/dynamics.md.
+- NumPy (``.npz``): one array per field (SI) plus the metadata as JSON.
+
+Both are written atomically (whole or not at all) and read back exactly by
+:meth:`Trajectory.load`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..datasets import _fail, _metadata_json, _unit_factor
+from ..errors import InputError
+from ..io import atomic_path
+
+__all__ = ["TRAJECTORY_FORMAT", "TRAJECTORY_SUFFIXES", "Trajectory"]
+
+TRAJECTORY_SUFFIXES = (".parquet", ".npz")
+TRAJECTORY_FORMAT = 1  # version of the file layout; written into every file
+ANIMATION_SUFFIXES = (".gif", ".mp4")
+
+_XYZ = ("x", "y", "z")
+_ROT = tuple(f"tip_R{i + 1}{j + 1}" for i in range(3) for j in range(3))  # R[i, j], row-major
+_FIELDS = (
+    "time",
+    "command",
+    "pressure",
+    "tip_position",
+    "tip_rotation",
+    "tip_velocity",
+    "energy",
+    "shape_time",
+    "shape_s",
+    "shape_position",
+)
+_PARQUET_KEY = b"softrod.trajectory"  # layout facts (format, channels, shape_s_m)
+_META_KEY = b"softrod.metadata"  # the metadata dict
+_NPZ_FORMAT = "softrod.trajectory"
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+def _array(value, name: str, shape: tuple, what: str) -> np.ndarray:
+    """A float copy of ``value`` with ``shape`` (None entries: any size)."""
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise _fail(name, type(value).__name__, f"must be an array of numbers: {what}") from None
+    ok = a.ndim == len(shape) and all(
+        w is None or w == h for w, h in zip(shape, a.shape, strict=False)
+    )
+    if not ok:
+        want = "(" + ", ".join("*" if w is None else str(w) for w in shape) + ")"
+        raise _fail(name, f"shape {a.shape}", f"must have shape {want}: {what}")
+    return a
+
+
+def _finite(a: np.ndarray, name: str) -> None:
+    bad = np.flatnonzero(~np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)) if a.size else []
+    if len(bad):
+        raise _fail(name, "non-finite", f"must be finite; first bad sample at index {bad[0]}")
+
+
+def _increasing(t: np.ndarray, name: str) -> None:
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        i = bad[0] + 1
+        raise _fail(
+            f"{name}[{i}]",
+            t[i].item(),
+            f"must be strictly increasing, but {name}[{i - 1}] = {t[i - 1]!r}",
+        )
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class Trajectory:
+    """A simulated motion, SI, n samples, c pressure channels, k shapes of p nodes each.
+
+    - ``time`` (n,) s, finite, strictly increasing (n >= 1);
+    - ``command`` (n, c) Pa: commanded gauge pressures (the schedule);
+    - ``pressure`` (n, c) Pa: actual chamber gauge pressures (after the supply's lag);
+    - ``tip_position`` (n, 3) m, world frame; ``tip_rotation`` (n, 3, 3): the tip frame
+      [d1 d2 d3] as columns in world coordinates; ``tip_velocity`` (n, 3) m/s;
+    - ``energy`` (n,) J: total mechanical energy (kinetic + elastic + gravitational), NaN
+      where not defined (default: all NaN);
+    - ``shape_time`` (k,) s: times of the stored centrelines, each exactly one of ``time``
+      (k may be 0); ``shape_s`` (p,) m: reference arc length of the nodes, strictly
+      increasing; ``shape_position`` (k, p, 3) m: the centrelines;
+    - ``metadata``: a JSON-serialisable dict (design, model, dt, method, wall time,
+      real-time factor, ...).
+
+    Every array but ``energy`` must be finite. Arrays are stored as read-only float copies.
+    """
+
+    time: np.ndarray
+    command: np.ndarray
+    pressure: np.ndarray
+    tip_position: np.ndarray
+    tip_rotation: np.ndarray
+    tip_velocity: np.ndarray
+    energy: np.ndarray | None = None
+    shape_time: np.ndarray | None = None
+    shape_s: np.ndarray | None = None
+    shape_position: np.ndarray | None = None
+    metadata: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        t = _array(self.time, "time", (None,), "the sample times in s")
+        if t.size == 0:
+            raise _fail("time", "shape (0,)", "needs at least one sample")
+        _finite(t, "time")
+        _increasing(t, "time")
+        n = t.size
+        set_(self, "time", _readonly(t))
+        cmd = _array(self.command, "command", (n, None), f"(n = {n}, channels) in Pa")
+        if cmd.shape[1] < 1:
+            raise _fail("command", f"shape {cmd.shape}", "needs at least one channel")
+        c = cmd.shape[1]
+        specs = {
+            "command": (cmd, (n, c), f"(n = {n}, channels) in Pa"),
+            "pressure": (self.pressure, (n, c), f"(n = {n}, channels = {c}) in Pa"),
+            "tip_position": (self.tip_position, (n, 3), f"(n = {n}, 3) in m"),
+            "tip_rotation": (self.tip_rotation, (n, 3, 3), f"(n = {n}, 3, 3), [d1 d2 d3]"),
+            "tip_velocity": (self.tip_velocity, (n, 3), f"(n = {n}, 3) in m/s"),
+        }
+        for name, (value, shape, what) in specs.items():
+            a = _array(value, name, shape, what)
+            _finite(a, name)
+            set_(self, name, _readonly(a))
+        e = np.full(n, np.nan) if self.energy is None else self.energy
+        set_(self, "energy", _readonly(_array(e, "energy", (n,), f"(n = {n},) in J, NaN allowed")))
+
+        st = np.zeros(0) if self.shape_time is None else self.shape_time
+        st = _array(st, "shape_time", (None,), "the times of the stored shapes in s")
+        _finite(st, "shape_time")
+        _increasing(st, "shape_time")
+        if st.size:
+            pos = np.searchsorted(t, st).clip(0, n - 1)
+            bad = np.flatnonzero(t[pos] != st)
+            if bad.size:
+                i = bad[0]
+                raise _fail(
+                    f"shape_time[{i}]",
+                    st[i].item(),
+                    "every shape time must be one of the sample times (exactly, e.g. "
+                    "time[::save_every])",
+                )
+        k = st.size
+        ss = np.zeros(0) if self.shape_s is None else self.shape_s
+        ss = _array(ss, "shape_s", (None,), "the arc length of the shape nodes in m")
+        _finite(ss, "shape_s")
+        _increasing(ss, "shape_s")
+        if k and ss.size < 2:
+            raise _fail("shape_s", f"shape {ss.shape}", "shapes need at least 2 nodes")
+        p = ss.size
+        sp = np.zeros((k, p, 3)) if self.shape_position is None else self.shape_position
+        sp = _array(sp, "shape_position", (k, p, 3), f"(k = {k}, p = {p}, 3) in m")
+        _finite(sp, "shape_position")
+        for name, a in (("shape_time", st), ("shape_s", ss), ("shape_position", sp)):
+            set_(self, name, _readonly(a))
+        if not isinstance(self.metadata, dict):
+            raise _fail("metadata", self.metadata, "must be a dict")
+        meta = json.loads(_metadata_json(self.metadata))  # checks it, and a plain copy
+        set_(self, "metadata", meta)
+
+    # --- basic facts -------------------------------------------------------------------------
+
+    def __len__(self) -> int:
+        return self.time.size
+
+    def __repr__(self) -> str:
+        name = self.metadata.get("design")
+        what = f", design {name!r}" if name else ""
+        return (
+            f"Trajectory({len(self)} samples, t = {self.time[0]:g} ... {self.time[-1]:g} s, "
+            f"{self.n_channels} channels, {self.shape_time.size} shapes of "
+            f"{self.shape_s.size} nodes{what})"
+        )
+
+    @property
+    def n_channels(self) -> int:
+        """Number of pressure channels."""
+        return self.command.shape[1]
+
+    @property
+    def duration(self) -> float:
+        """``time[-1] - time[0]`` in s."""
+        return float(self.time[-1] - self.time[0])
+
+    # --- tables and files --------------------------------------------------------------------
+
+    def to_frame(self) -> pd.DataFrame:
+        """The tip table: one row per sample, SI units in the column names.
+
+        Columns: ``time_s``; ``cmd0_Pa``, ... (commanded) and ``p0_Pa``, ... (actual);
+        ``tip_x_m``, ``tip_y_m``, ``tip_z_m``; ``tip_R11`` ... ``tip_R33`` (``tip_Rij`` =
+        ``tip_rotation[:, i-1, j-1]``, column j is d_j); ``tip_vx_m_s``, ``tip_vy_m_s``,
+        ``tip_vz_m_s``; ``energy_J``. ``frame.attrs["softrod.metadata"]`` holds the metadata.
+        The ``time_s``, ``p<k>_Pa`` and ``tip_*_m`` names are those of datasets, so
+        ``load_dataset(frame, extra="ignore")`` reads it as tip data.
+        """
+        cols: dict[str, np.ndarray] = {"time_s": np.array(self.time)}
+        for k in range(self.n_channels):
+            cols[f"cmd{k}_Pa"] = np.array(self.command[:, k])
+        for k in range(self.n_channels):
+            cols[f"p{k}_Pa"] = np.array(self.pressure[:, k])
+        for i, a in enumerate(_XYZ):
+            cols[f"tip_{a}_m"] = np.array(self.tip_position[:, i])
+        for name, (i, j) in zip(_ROT, np.ndindex(3, 3), strict=True):
+            cols[name] = np.array(self.tip_rotation[:, i, j])
+        for i, a in enumerate(_XYZ):
+            cols[f"tip_v{a}_m_s"] = np.array(self.tip_velocity[:, i])
+        cols["energy_J"] = np.array(self.energy)
+        frame = pd.DataFrame(cols)
+        frame.attrs["softrod.metadata"] = dict(self.metadata)
+        return frame
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write to ``.parquet`` or ``.npz`` (by suffix), atomically; returns the path.
+
+        Parquet: the columns of :meth:`to_frame` plus ``shape_m``, a list column holding the
+        flattened centreline (p nodes x 3, node-major: x0, y0, z0, x1, ...) in m in the rows
+        whose time is a shape time and null elsewhere; the schema metadata holds
+        ``softrod.metadata`` (the metadata as JSON) and ``softrod.trajectory`` (JSON with
+        ``format``, ``n_channels``, ``n_nodes`` and ``shape_s_m``, the node arc lengths).
+        NPZ: one array per field under its field name (SI), ``metadata_json`` and ``format``.
+        """
+        path = _check_path(path)
+        meta = _metadata_json(self.metadata)
+        with atomic_path(path) as tmp:
+            if path.suffix.lower() == ".npz":
+                arrays = {name: getattr(self, name) for name in _FIELDS}
+                with open(tmp, "wb") as fh:  # a file object: numpy would append ".npz"
+                    np.savez_compressed(
+                        fh,
+                        **arrays,
+                        metadata_json=np.array(meta),
+                        format=np.array(f"{_NPZ_FORMAT}/{TRAJECTORY_FORMAT}"),
+                    )
+            else:
+                self._write_parquet(tmp, meta)
+        return path
+
+    def _write_parquet(self, tmp: Path, meta: str) -> None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        table = pa.Table.from_pandas(self.to_frame(), preserve_index=False)
+        n, p = len(self), self.shape_s.size
+        rows = np.searchsorted(self.time, self.shape_time)  # exact members (checked)
+        lengths = np.zeros(n, dtype=np.int32)
+        lengths[rows] = 3 * p
+        offsets = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int32)
+        is_null = np.ones(n, dtype=bool)
+        is_null[rows] = False
+        shapes = pa.ListArray.from_arrays(
+            pa.array(offsets),
+            pa.array(self.shape_position.reshape(-1), type=pa.float64()),
+            mask=pa.array(is_null),
+        )
+        table = table.append_column("shape_m", shapes)
+        layout = {
+            "format": TRAJECTORY_FORMAT,
+            "n_channels": self.n_channels,
+            "n_nodes": p,
+            "shape_s_m": self.shape_s.tolist(),  # JSON floats round-trip exactly
+            "shape_layout": "shape_m: node-major (x0, y0, z0, x1, ...) in m; null: no shape",
+        }
+        kv = dict(table.schema.metadata or {})
+        kv.pop(b"pandas", None)  # the table is read back column by column, not via pandas
+        kv[_META_KEY] = meta.encode("utf-8")
+        kv[_PARQUET_KEY] = json.dumps(layout).encode("utf-8")
+        pq.write_table(table.replace_schema_metadata(kv), tmp)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Trajectory:
+        """Read a trajectory written by :meth:`save` (``.parquet`` or ``.npz``), exactly."""
+        path = _check_path(path, must_exist=True)
+        try:
+            if path.suffix.lower() == ".npz":
+                return _load_npz(path)
+            return _load_parquet(path)
+        except InputError as exc:
+            exc.args = (f"{path.name}: {exc.args[0]}",)
+            raise
+
+    # --- interpolation and errors ------------------------------------------------------------
+
+    def tip_position_at(self, times) -> np.ndarray:
+        """Tip positions (m, 3) in m at ``times`` (m,) s, linear in time between samples.
+
+        Every time must lie in ``[time[0], time[-1]]``; otherwise :class:`InputError`
+        naming the first sample outside.
+        """
+        t = _array(times, "times", (None,), "the times in s")
+        _finite(t, "times")
+        lo, hi = self.time[0], self.time[-1]
+        bad = np.flatnonzero((t < lo) | (t > hi))
+        if bad.size:
+            i = bad[0]
+            raise _fail(
+                f"times[{i}]",
+                t[i].item(),
+                f"outside the simulated interval [{lo:g}, {hi:g}] s "
+                f"({bad.size} of {t.size} times are); simulate longer or trim the measurements",
+            )
+        return np.column_stack([np.interp(t, self.time, self.tip_position[:, i]) for i in range(3)])
+
+    def tip_error(self, measured_time, measured_position) -> np.ndarray:
+        """Euclidean tip error (m,) in m between measured tip positions and the trajectory.
+
+        ``measured_time`` (m,) s and ``measured_position`` (m, 3) m, world frame; the
+        trajectory is interpolated linearly at the measured times (see
+        :meth:`tip_position_at`; times outside the simulated interval are an error).
+        """
+        t = _array(measured_time, "measured_time", (None,), "sample times in s")
+        pos = _array(measured_position, "measured_position", (t.size, 3), f"(m = {t.size}, 3) in m")
+        _finite(pos, "measured_position")
+        try:
+            model = self.tip_position_at(t)
+        except InputError as exc:
+            exc.args = (exc.args[0].replace("times[", "measured_time[", 1),)
+            raise
+        return np.linalg.norm(model - pos, axis=1)
+
+    # --- plots -------------------------------------------------------------------------------
+
+    def plot_tip(self, path: str | os.PathLike | None = None, *, reference=None, title=None):
+        """Tip x, y, z (mm) and chamber pressures (kPa) against time (s); returns the Figure.
+
+        Top panel: the tip coordinates (solid), with ``reference`` overlaid (dashed, same
+        colour per axis) as in paper 000, Fig. 3. ``reference``: another Trajectory, a
+        Dataset with times, a DataFrame with ``time_<unit>`` and ``tip_x_<unit>``,
+        ``tip_y_<unit>``, ``tip_z_<unit>`` columns (e.g. ``time_s``, ``tip_x_mm``), or a
+        tuple ``(time in s (m,), position in m (m, 3))``. Bottom panel: actual pressures
+        (solid) and commands (dotted) per channel. With ``path`` the figure is also written
+        atomically (format from the suffix). Made with pyplot: close it when done.
+        """
+        from ..plotting import check_figure_path, save_figure
+
+        if path is not None:
+            path = check_figure_path(path)
+        ref = None if reference is None else _reference(reference)
+        import matplotlib.pyplot as plt
+
+        fig, (ax, axp) = plt.subplots(
+            2, 1, sharex=True, figsize=(8.0, 6.0), gridspec_kw={"height_ratios": [2, 1]}
+        )
+        for i, a in enumerate(_XYZ):
+            ax.plot(self.time, self.tip_position[:, i] * 1e3, color=f"C{i}", label=f"{a} model")
+            if ref is not None:
+                ax.plot(
+                    ref[0],
+                    ref[1][:, i] * 1e3,
+                    color=f"C{i}",
+                    linestyle="--",
+                    linewidth=1.0,
+                    label=f"{a} {ref[2]}",
+                )
+        ax.set_ylabel("tip position (mm)")
+        ax.legend(loc="upper right", fontsize="small", ncol=2 if ref is not None else 1)
+        ax.grid(True, alpha=0.3)
+        for k in range(self.n_channels):
+            colour = f"C{(k + 3) % 10}"
+            axp.plot(self.time, self.pressure[:, k] / 1e3, color=colour, label=f"p{k}")
+            axp.plot(
+                self.time,
+                self.command[:, k] / 1e3,
+                color=colour,
+                linestyle=":",
+                linewidth=1.0,
+                label=f"p{k} command",
+            )
+        axp.set_xlabel("time (s)")
+        axp.set_ylabel("pressure (kPa)")
+        axp.legend(loc="upper right", fontsize="small", ncol=self.n_channels)
+        axp.grid(True, alpha=0.3)
+        if title is None:
+            title = self.metadata.get("design") or "tip trajectory"
+        ax.set_title(str(title))
+        fig.tight_layout()
+        if path is not None:
+            save_figure(fig, path)
+        return fig
+
+    def animate(
+        self,
+        path: str | os.PathLike,
+        *,
+        fps: float = 25,
+        speed: float = 1.0,
+        trail: bool = True,
+        elev: float = 20.0,
+        azim: float = -60.0,
+        dpi: int = 80,
+        figsize: tuple[float, float] = (5.0, 5.0),
+    ) -> Path:
+        """Write a 3-D animation of the stored shapes as ``.gif`` or ``.mp4``; returns the path.
+
+        Frame j shows the stored shape nearest to ``shape_time[0] + j * speed / fps``, for
+        every such time up to ``shape_time[-1]`` (``speed`` 2 plays twice as fast as real
+        time). Axes in mm with equal scale, fixed over the whole run; the base is a black
+        square, the tip a dot, ``trail`` draws the tip path so far (from the tip samples), and
+        a label gives the time of the shape shown. ``elev``, ``azim``: view angles in degrees.
+
+        GIF is written with Pillow (frames kept as 8-bit palette images; GIF timing has a
+        resolution of 10 ms, and identical consecutive frames are merged). MP4 needs the
+        ``ffmpeg`` program on PATH (matplotlib's FFMpegWriter). Needs at least 2 shapes. The
+        file is written atomically. Rendering takes some tens of ms per frame.
+        """
+        path = Path(path)
+        suffix = path.suffix.lower()
+        if suffix not in ANIMATION_SUFFIXES:
+            raise _fail(
+                "path",
+                str(path),
+                f"unknown animation format {path.suffix or '(no suffix)'!r}: the file name must "
+                f"end in {' or '.join(ANIMATION_SUFFIXES)}",
+            )
+        for name, value in (("fps", fps), ("speed", speed)):
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float, np.integer, np.floating))
+                or not math.isfinite(value)
+                or value <= 0
+            ):
+                raise _fail(name, value, "must be a finite number > 0")
+        if self.shape_time.size < 2:
+            raise _fail(
+                "shape_time",
+                f"{self.shape_time.size} shape(s)",
+                "an animation needs at least 2 stored shapes (simulate with a smaller save_every)",
+            )
+        if suffix == ".mp4":
+            from matplotlib.animation import FFMpegWriter
+
+            if shutil.which("ffmpeg") is None or not FFMpegWriter.isAvailable():
+                raise _fail(
+                    "path",
+                    str(path),
+                    "writing .mp4 needs the ffmpeg program on PATH: install ffmpeg "
+                    "(e.g. apt install ffmpeg, conda install ffmpeg) or write a .gif",
+                )
+        frames = self._frame_indices(float(fps), float(speed))
+        with atomic_path(path) as tmp:
+            # The writers pick the format from the file name, so render to a sibling with the
+            # right suffix and move it onto the temporary file.
+            media = tmp.with_name(tmp.name + suffix)
+            try:
+                self._render(media, frames, float(fps), trail, elev, azim, dpi, figsize)
+                os.replace(media, tmp)
+            finally:
+                media.unlink(missing_ok=True)
+        return path
+
+    def _frame_indices(self, fps: float, speed: float) -> np.ndarray:
+        """Index of the stored shape shown in each frame (nearest in time)."""
+        st = self.shape_time
+        step = speed / fps  # simulated seconds per frame
+        n = int(math.floor((st[-1] - st[0]) / step * (1 + 1e-12))) + 1
+        tf = st[0] + np.arange(n) * step
+        hi = np.searchsorted(st, tf).clip(1, st.size - 1)
+        lo = hi - 1
+        return np.where(tf - st[lo] <= st[hi] - tf, lo, hi)
+
+    def _render(self, out: Path, frames, fps, trail, elev, azim, dpi, figsize) -> None:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        from ..plotting import _equal_box
+
+        fig = Figure(figsize=figsize, dpi=dpi)
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot(projection="3d")
+        shapes = self.shape_position * 1e3
+        tips = self.tip_position * 1e3
+        shown = self.time <= self.shape_time[-1]
+        _equal_box(ax, np.concatenate([shapes.reshape(-1, 3), tips[shown]]))
+        ax.view_init(elev=elev, azim=azim)
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("y (mm)")
+        ax.set_zlabel("z (mm)")
+        name = self.metadata.get("design")
+        if name:
+            ax.set_title(str(name), fontsize="medium")
+        base = shapes[0, 0]
+        ax.plot([base[0]], [base[1]], [base[2]], marker="s", color="black", linestyle="none")
+        (rod,) = ax.plot([], [], [], color="C0", linewidth=3.0)
+        (tip,) = ax.plot([], [], [], marker="o", color="C0", markeredgecolor="black")
+        (path_line,) = ax.plot([], [], [], color="C1", linewidth=1.0, alpha=0.8)
+        label = ax.text2D(0.02, 0.95, "", transform=ax.transAxes)
+
+        def draw(i: int) -> None:
+            s = shapes[i]
+            rod.set_data_3d(s[:, 0], s[:, 1], s[:, 2])
+            tip.set_data_3d([s[-1, 0]], [s[-1, 1]], [s[-1, 2]])
+            if trail:
+                upto = tips[self.time <= self.shape_time[i]]
+                path_line.set_data_3d(upto[:, 0], upto[:, 1], upto[:, 2])
+            label.set_text(f"t = {self.shape_time[i]:.2f} s")
+
+        if out.suffix == ".gif":
+            from PIL import Image
+
+            images = []
+            for i in frames:
+                draw(int(i))
+                fig.canvas.draw()
+                rgba = np.asarray(fig.canvas.buffer_rgba())
+                img = Image.fromarray(rgba[..., :3].copy(), "RGB")
+                images.append(img.quantize(colors=255, method=Image.Quantize.FASTOCTREE))
+            images[0].save(
+                out,
+                format="GIF",
+                save_all=True,
+                append_images=images[1:],
+                duration=max(int(round(1000.0 / fps)), 10),
+                loop=0,
+            )
+        else:
+            from matplotlib.animation import FFMpegWriter
+
+            writer = FFMpegWriter(fps=fps)
+            with writer.saving(fig, str(out), dpi):
+                for i in frames:
+                    draw(int(i))
+                    writer.grab_frame()
+
+
+def _check_path(path, *, must_exist: bool = False) -> Path:
+    path = Path(path)
+    if path.suffix.lower() not in TRAJECTORY_SUFFIXES:
+        raise _fail(
+            "path",
+            str(path),
+            f"unknown trajectory format {path.suffix or '(no suffix)'!r}: the file name must "
+            f"end in {' or '.join(TRAJECTORY_SUFFIXES)}",
+        )
+    if must_exist and not path.is_file():
+        raise _fail("path", str(path), "no such file")
+    return path
+
+
+def _json_block(raw, key: str) -> dict:
+    try:
+        value = json.loads(raw if isinstance(raw, str) else raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise _fail(key, str(raw)[:80], f"is not valid JSON ({exc})") from None
+    if not isinstance(value, dict):
+        raise _fail(key, value, "must be a JSON object")
+    return value
+
+
+def _load_npz(path: Path) -> Trajectory:
+    try:
+        data = np.load(path, allow_pickle=False)
+    except Exception as exc:  # zipfile / numpy raise several types for broken files
+        raise _fail("file", str(path), f"is not a readable .npz file: {exc}") from None
+    with data:
+        fmt = str(data["format"]) if "format" in data.files else None
+        if fmt is None or not fmt.startswith(_NPZ_FORMAT + "/"):
+            raise _fail("format", fmt, "not a softrod trajectory file (written by save)")
+        version = fmt.split("/", 1)[1]
+        if version != str(TRAJECTORY_FORMAT):
+            raise _fail(
+                "format", fmt, f"unsupported version (this softrod reads {TRAJECTORY_FORMAT})"
+            )
+        missing = [n for n in (*_FIELDS, "metadata_json") if n not in data.files]
+        if missing:
+            raise _fail("arrays", sorted(data.files), f"missing {', '.join(missing)}")
+        arrays = {n: data[n] for n in _FIELDS}
+        meta = _json_block(str(data["metadata_json"]), "metadata_json")
+    return Trajectory(**arrays, metadata=meta)
+
+
+def _load_parquet(path: Path) -> Trajectory:
+    import pyarrow.parquet as pq
+
+    try:
+        table = pq.read_table(path)
+    except Exception as exc:  # pyarrow raises its own error types for broken files
+        raise _fail("file", str(path), f"is not a readable Parquet file: {exc}") from None
+    kv = table.schema.metadata or {}
+    if _PARQUET_KEY not in kv:
+        raise _fail("file", str(path), "not a softrod trajectory (no softrod.trajectory metadata)")
+    layout = _json_block(kv[_PARQUET_KEY], _PARQUET_KEY.decode())
+    if layout.get("format") != TRAJECTORY_FORMAT:
+        raise _fail(
+            "softrod.trajectory.format",
+            layout.get("format"),
+            f"unsupported version (this softrod reads {TRAJECTORY_FORMAT})",
+        )
+    meta = _json_block(kv.get(_META_KEY, b"{}"), _META_KEY.decode())
+    c = layout.get("n_channels")
+    if not isinstance(c, int) or c < 1:
+        raise _fail("softrod.trajectory.n_channels", c, "must be an integer >= 1")
+    names = set(table.column_names)
+
+    def col(name: str) -> np.ndarray:
+        if name not in names:
+            raise _fail("columns", sorted(names), f"missing column {name!r}")
+        return table.column(name).to_numpy().astype(float, copy=False)
+
+    def cols(fmt: str, keys) -> np.ndarray:
+        return np.column_stack([col(fmt.format(k)) for k in keys])
+
+    n = table.num_rows
+    time = col("time_s")
+    rotation = cols("{}", _ROT).reshape(n, 3, 3)
+    ss = np.asarray(layout.get("shape_s_m", []), dtype=float)
+    shapes = table.column("shape_m").combine_chunks() if "shape_m" in names else None
+    if shapes is None:
+        raise _fail("columns", sorted(names), "missing column 'shape_m'")
+    has = shapes.is_valid().to_numpy(zero_copy_only=False)
+    values = shapes.flatten().to_numpy(zero_copy_only=False).astype(float, copy=False)
+    k, p = int(has.sum()), ss.size
+    if values.size != k * p * 3:
+        raise _fail(
+            "shape_m",
+            f"{values.size} values in {k} rows",
+            f"each shape row must hold {p} nodes x 3 = {3 * p} values (shape_s_m has {p})",
+        )
+    return Trajectory(
+        time=time,
+        command=cols("cmd{}_Pa", range(c)),
+        pressure=cols("p{}_Pa", range(c)),
+        tip_position=cols("tip_{}_m", _XYZ),
+        tip_rotation=rotation,
+        tip_velocity=cols("tip_v{}_m_s", _XYZ),
+        energy=col("energy_J"),
+        shape_time=time[has],
+        shape_s=ss,
+        shape_position=values.reshape(k, p, 3),
+        metadata=meta,
+    )
+
+
+_REF_NAME = re.compile(r"^(?P<base>time|tip_[xyz])_(?P<unit>.+)$")
+
+
+def _reference(reference) -> tuple[np.ndarray, np.ndarray, str]:
+    """(time in s, tip position in m, label) of a reference for :meth:`Trajectory.plot_tip`."""
+    from ..datasets import Dataset
+
+    if isinstance(reference, Trajectory):
+        return reference.time, reference.tip_position, "reference"
+    if isinstance(reference, Dataset):
+        if reference.time is None:
+            raise _fail("reference", repr(reference), "the dataset has no time column")
+        return reference.time, reference.tip_position, "measured"
+    if isinstance(reference, pd.DataFrame):
+        found: dict[str, np.ndarray] = {}
+        for name in reference.columns:
+            m = _REF_NAME.match(str(name))
+            if m is None:
+                continue
+            kind = "time" if m["base"] == "time" else "length"
+            factor = _unit_factor(m["unit"], kind, str(name))
+            found[m["base"]] = pd.to_numeric(reference[name]).to_numpy(dtype=float) * factor
+        missing = [b for b in ("time", "tip_x", "tip_y", "tip_z") if b not in found]
+        if missing:
+            raise _fail(
+                "reference",
+                list(map(str, reference.columns)),
+                f"missing column(s) {', '.join(missing)} with units in the name "
+                "(e.g. time_s, tip_x_mm, tip_y_mm, tip_z_mm)",
+            )
+        pos = np.column_stack([found["tip_x"], found["tip_y"], found["tip_z"]])
+        return found["time"], pos, "measured"
+    if isinstance(reference, tuple) and len(reference) == 2:
+        t = _array(reference[0], "reference[0]", (None,), "times in s")
+        pos = _array(reference[1], "reference[1]", (t.size, 3), f"(m = {t.size}, 3) in m")
+        return t, pos, "measured"
+    raise _fail(
+        "reference",
+        type(reference).__name__,
+        "must be a Trajectory, a Dataset with times, a DataFrame (time_s, tip_x_mm, ...) or "
+        "a tuple (time in s, position in m (m, 3))",
+    )
