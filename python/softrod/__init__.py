@@ -5,6 +5,8 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :func:`load_design` -> :class:`Design`
 - :func:`solve_statics` -> :class:`StaticSolution`
 - :func:`solve_statics_batch` -> :class:`BatchSolution`
+- :func:`simulate` -> :class:`Trajectory`: motion under a :class:`PressureSchedule`
+  (paper 000's viscoelastic rod); :class:`Simulation`: the same, step by step
 - :func:`list_presets`: named published models (``load_design("paper002_M3_vertical")``)
 - :func:`compare_models`: models on paper 002's experiments -> pandas DataFrame
 - :class:`SolverOptions`
@@ -28,6 +30,7 @@ from .calibration import (
 from .compare import compare_models
 from .datasets import Dataset, load_dataset, synthesize_dataset, write_dataset
 from .design import Design, bundled_designs, designs_dir, load_design
+from .dynamics import PressureSchedule, Simulation, Trajectory, simulate
 from .errors import ConvergenceError, DesignError, InputError, SoftrodError
 from .presets import Preset, list_presets
 from .statics import (
@@ -55,6 +58,9 @@ __all__ = [
     "StaticSolution",
     "StiffnessIdentification",
     "StiffnessMap",
+    "PressureSchedule",
+    "Simulation",
+    "Trajectory",
     "__version__",
     "bundled_designs",
     "compare_hybrid",
@@ -66,6 +72,7 @@ __all__ = [
     "load_dataset",
     "load_design",
     "solve_statics",
+    "simulate",
     "solve_statics_batch",
     "synthesize_dataset",
     "write_dataset",

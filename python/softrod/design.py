@@ -497,8 +497,13 @@ def _set_path(doc: dict, path: str, value: Any) -> None:
         parts.extend(int(i) for i in idx)
     target: Any = doc
     try:
-        for p in parts[:-1]:
-            target = target[p]
+        for p, nxt in zip(parts[:-1], parts[1:], strict=True):
+            if isinstance(target, dict) and isinstance(p, str) and isinstance(nxt, str):
+                # A table the file leaves out (e.g. [dynamics]) is created; the schema
+                # check of the rebuilt design still rejects unknown names.
+                target = target.setdefault(p, {})
+            else:
+                target = target[p]
     except (KeyError, IndexError, TypeError):
         raise design_error(path, value, "no such entry in the design") from None
     target[parts[-1]] = value

@@ -208,10 +208,7 @@ impl<C: Coeff> DynCoeffs<C> {
                     std::array::from_fn(|j| C::from(if i == j { bt[i] } else { 0.0 }))
                 }),
             ),
-            None => (
-                k_se.map(|k| k * tau),
-                k_bt.map(|row| row.map(|k| k * tau)),
-            ),
+            None => (k_se.map(|k| k * tau), k_bt.map(|row| row.map(|k| k * tau))),
         };
         out.a_se = std::array::from_fn(|k| (k_se[k] + b_se[k] * c0).recip());
         let eff: [[C; 3]; 3] =
@@ -305,7 +302,8 @@ fn rhs<C: Coeff, D: StateScalar<C>>(
     } else {
         let nb = rot_t_mul(&y.rot, &y.n);
         let mb = rot_t_mul(&y.rot, &y.m);
-        let v: [D; 3] = std::array::from_fn(|k| (nb[k] + (c.g_se[k] - c.b_se[k] * h[k])) * c.a_se[k]);
+        let v: [D; 3] =
+            std::array::from_fn(|k| (nb[k] + (c.g_se[k] - c.b_se[k] * h[k])) * c.a_se[k]);
         let t: [C; 3] = std::array::from_fn(|i| {
             c.g_bt[i] - (c.b_bt[i][0] * h[3] + c.b_bt[i][1] * h[4] + c.b_bt[i][2] * h[5])
         });
@@ -502,7 +500,12 @@ impl StepProblem<'_> {
         })
     }
 
-    fn eval(&self, hist: &[[f64; FIELDS]], x: &[f64; 6], rec: Option<&mut Record>) -> ([f64; 6], DynState<f64>) {
+    fn eval(
+        &self,
+        hist: &[[f64; FIELDS]],
+        x: &[f64; 6],
+        rec: Option<&mut Record>,
+    ) -> ([f64; 6], DynState<f64>) {
         let tip = sweep(self.rod, &self.coeffs, hist, self.base(x), rec);
         (self.residual(&tip, hist.last().expect("tip slot")), tip)
     }
@@ -579,7 +582,10 @@ fn straight_record(rod: &Rod) -> Record {
 }
 
 fn inf_norm(r: &[f64]) -> f64 {
-    r.iter().fold(0.0, |a: f64, x| if x.is_nan() { f64::NAN } else { a.max(x.abs()) })
+    r.iter().fold(
+        0.0,
+        |a: f64, x| if x.is_nan() { f64::NAN } else { a.max(x.abs()) },
+    )
 }
 
 /// History of one stage slot: X_{i-1}, X_{i-2} and X_t(t_{i-1}).
@@ -725,8 +731,9 @@ impl Simulator {
                             iterations: it,
                             residual: res,
                             load_factor: 1.0,
-                            reason: "the initial static state did not solve as a dynamic state at rest"
-                                .into(),
+                            reason:
+                                "the initial static state did not solve as a dynamic state at rest"
+                                    .into(),
                         },
                     )?;
                 self.x = x;
@@ -803,7 +810,9 @@ impl Simulator {
         let hist: Vec<[f64; FIELDS]> = self
             .slots
             .iter()
-            .map(|s| std::array::from_fn(|k| bdf.c1 * s.x1[k] + bdf.c2 * s.x2[k] + bdf.d1 * s.xt[k]))
+            .map(|s| {
+                std::array::from_fn(|k| bdf.c1 * s.x1[k] + bdf.c2 * s.x2[k] + bdf.d1 * s.xt[k])
+            })
             .collect();
         let mut p = step_problem(&self.rod, &self.inertia, &self.pressures, bdf.c0);
         p.tip.force = self.tip_force;
@@ -811,7 +820,15 @@ impl Simulator {
         // Linear extrapolation of the unknowns from the last two steps.
         let guess: [f64; 6] = std::array::from_fn(|k| 2.0 * self.x[k] - self.x_prev[k]);
         let mut rec = std::mem::take(&mut self.record);
-        let result = newton(&p, &hist, guess, self.jac.take(), &self.opts, &mut rec, &mut self.stats);
+        let result = newton(
+            &p,
+            &hist,
+            guess,
+            self.jac.take(),
+            &self.opts,
+            &mut rec,
+            &mut self.stats,
+        );
         let (x, tip, lu) = match result {
             Ok(v) => v,
             Err((it, res)) => {
@@ -834,7 +851,11 @@ impl Simulator {
         // Shift the histories: X_t(t_i) = c0 X_i + X_h.
         for ((slot, f), h) in self.slots.iter_mut().zip(&rec.fields).zip(&hist) {
             let xt: [f64; FIELDS] = std::array::from_fn(|k| bdf.c0 * f[k] + h[k]);
-            *slot = Slot { x1: *f, x2: slot.x1, xt };
+            *slot = Slot {
+                x1: *f,
+                x2: slot.x1,
+                xt,
+            };
         }
         let tip_slot = self.slots.len() - 1;
         let th = &hist[tip_slot];
@@ -843,7 +864,11 @@ impl Simulator {
         tf[9..12].copy_from_slice(&tip.w);
         let xt: [f64; FIELDS] = std::array::from_fn(|k| bdf.c0 * tf[k] + th[k]);
         let old = self.slots[tip_slot].x1;
-        self.slots[tip_slot] = Slot { x1: tf, x2: old, xt };
+        self.slots[tip_slot] = Slot {
+            x1: tf,
+            x2: old,
+            xt,
+        };
         self.record = rec;
         self.x_prev = self.x;
         self.x = x;
@@ -874,7 +899,10 @@ impl Simulator {
         p.tip.moment = self.tip_moment;
         let (r, _) = p.eval(&hist, x, None);
         let j = p.jacobian(&hist, x);
-        (r, std::array::from_fn(|i| std::array::from_fn(|k| j[(i, k)])))
+        (
+            r,
+            std::array::from_fn(|i| std::array::from_fn(|k| j[(i, k)])),
+        )
     }
 
     /// The scaled shooting unknowns of the last step (n(0)/F_s, m(0)/(F_s L)).

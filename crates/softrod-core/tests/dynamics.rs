@@ -36,7 +36,10 @@ fn cantilever(steps: usize, tau: f64) -> Rod {
 /// bisecting on the determinant of the free-end conditions:
 ///   w' = psi + V/(GA),  psi' = M/EI,  M' = -V - rho I om^2 psi,  V' = -rho A om^2 w.
 fn timoshenko_first_frequency() -> f64 {
-    let (a, i) = (std::f64::consts::PI * R * R, std::f64::consts::PI * R.powi(4) / 4.0);
+    let (a, i) = (
+        std::f64::consts::PI * R * R,
+        std::f64::consts::PI * R.powi(4) / 4.0,
+    );
     let (ei, ga) = (E * i, E / 3.0 * a);
     let (ra, ri) = (RHO * a, RHO * i);
     let det = |om: f64| -> f64 {
@@ -114,8 +117,7 @@ fn crossings(t: &[f64], x: &[f64]) -> Vec<f64> {
 #[test]
 fn first_frequency_matches_timoshenko() {
     let om = timoshenko_first_frequency();
-    let eb = 1.875104068712f64.powi(2)
-        * (E * R * R / 4.0 / (RHO * L.powi(4))).sqrt();
+    let eb = 1.875104068712f64.powi(2) * (E * R * R / 4.0 / (RHO * L.powi(4))).sqrt();
     // The README's note: at L/r = 50 the Timoshenko frequency is about 0.1 % below.
     let shift = 1.0 - om / eb;
     assert!(shift > 0.0005 && shift < 0.002, "Timoshenko shift {shift}");
@@ -126,7 +128,10 @@ fn first_frequency_matches_timoshenko() {
     assert!(c.len() >= 5, "{} crossings", c.len());
     let measured = (c[c.len() - 1] - c[0]) / (c.len() - 1) as f64;
     let err = measured / period - 1.0;
-    eprintln!("period {measured:.6e} s vs Timoshenko {period:.6e} s: {:.4} %", 100.0 * err);
+    eprintln!(
+        "period {measured:.6e} s vs Timoshenko {period:.6e} s: {:.4} %",
+        100.0 * err
+    );
     // Issue 5: 0.5 %. The discretisation errors (RK4 in s, 20 steps; BDF-alpha at 200
     // steps per period, (om dt)^2/12 ~ 8e-5) are far smaller.
     assert!(err.abs() < 0.005);
@@ -158,7 +163,11 @@ fn kelvin_voigt_decay_ratio_is_tau_omega_over_two() {
     let delta = (p[1].1 / p[p.len() - 1].1).ln() / cycles;
     let zeta = delta / (4.0 * std::f64::consts::PI.powi(2) + delta * delta).sqrt();
     let err = zeta / (tau * om / 2.0) - 1.0;
-    eprintln!("zeta {zeta:.6} vs tau om / 2 = {:.6}: {:.3} %", tau * om / 2.0, 100.0 * err);
+    eprintln!(
+        "zeta {zeta:.6} vs tau om / 2 = {:.6}: {:.3} %",
+        tau * om / 2.0,
+        100.0 * err
+    );
     // 1 %: BDF-alpha's numerical damping at 200 steps per period is ~(om dt)^3 ~ 3e-5, 0.1 %
     // of zeta; the peak interpolation errs by less than 1e-4 relative.
     assert!(err.abs() < 0.01);
@@ -197,11 +206,17 @@ fn long_time_limit_is_the_static_equilibrium() {
     }
     let st = solve(&rod, &loads(&p), None, &SolverOptions::default()).unwrap();
     let d = dist(&sim.tip().r, &st.tip.r);
-    eprintln!("tip after 5 s vs statics: {d:.3e} m; moved {:.3e} m", dist(&st.tip.r, &[0.0, 0.0, -0.22]));
+    eprintln!(
+        "tip after 5 s vs statics: {d:.3e} m; moved {:.3e} m",
+        dist(&st.tip.r, &[0.0, 0.0, -0.22])
+    );
     // Issue 5: 1e-6 L. The slowest mode decays as exp(-5.8 t) (overdamped, zeta ~ 1.7), so
     // after 5 s the transient is ~1e-13 of the 0.1 m motion.
     assert!(d < 1e-6 * 0.22);
-    assert!(dist(&st.tip.r, &[0.0, 0.0, -0.22]) > 0.05, "the pressure bends the arm");
+    assert!(
+        dist(&st.tip.r, &[0.0, 0.0, -0.22]) > 0.05,
+        "the pressure bends the arm"
+    );
 }
 
 #[test]
@@ -274,5 +289,8 @@ fn energy_never_grows_without_input() {
     eprintln!("energy {e0:.6e} J -> {e:.6e} J, largest step increase {worst:.3e} J");
     assert!(e < e0);
     // Round-off of a sum of O(1e-1) J terms and the 1e-9 residual tolerance: 1e-9 |E0|.
-    assert!(worst <= 1e-9 * e0.abs(), "energy grew by {worst:.3e} J in one step");
+    assert!(
+        worst <= 1e-9 * e0.abs(),
+        "energy grew by {worst:.3e} J in one step"
+    );
 }

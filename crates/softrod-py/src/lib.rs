@@ -12,6 +12,8 @@ use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::statics::{self, SolverOptions};
 use softrod_core::{DesignSpec, Rod, SoftrodError};
 
+mod dynamics;
+
 /// Which exception class a core `InvalidParameter` becomes.
 #[derive(Clone, Copy)]
 enum Context {
@@ -423,6 +425,7 @@ impl PyGridPchip {
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRod>()?;
     m.add_class::<PyGridPchip>()?;
+    dynamics::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

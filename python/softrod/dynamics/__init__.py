@@ -2,9 +2,11 @@
 
 - :class:`PressureSchedule`: commanded chamber pressures as a function of time (Pa, s).
 - :class:`Trajectory`: a simulated motion; save/load (Parquet, NPZ), plots, animations.
+- :func:`simulate`: a design's motion under a schedule; :class:`Simulation`: a stepper.
 """
 
 from .schedule import VACUUM_PA, PressureSchedule
+from .simulate import Simulation, simulate
 from .trajectory import Trajectory
 
-__all__ = ["VACUUM_PA", "PressureSchedule", "Trajectory"]
+__all__ = ["VACUUM_PA", "PressureSchedule", "Simulation", "Trajectory", "simulate"]
