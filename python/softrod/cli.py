@@ -1424,5 +1424,16 @@ def _list_design(console: Console, name: str, note) -> None:
     console.print(Padding(Text(note(d), style="dim"), (0, 0, 0, 4)))
 
 
+def _register_simulate() -> None:
+    import sys
+
+    from .cli_simulate import add_simulate_command
+
+    add_simulate_command(main, sys.modules[__name__])
+
+
+_register_simulate()
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

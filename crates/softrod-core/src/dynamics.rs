@@ -634,6 +634,8 @@ pub struct Simulator {
     /// Dead tip loads now (world): the design's, until changed with `set_tip_loads`.
     tip_force: [f64; 3],
     tip_moment: [f64; 3],
+    /// The tip loads of the last step taken (the start of a ramp).
+    step_tip: ([f64; 3], [f64; 3]),
     pub stats: DynStats,
 }
 
@@ -699,6 +701,7 @@ impl Simulator {
             coeffs: vec![],
             tip_force: rod.spec.tip.force,
             tip_moment: rod.spec.tip.moment,
+            step_tip: (rod.spec.tip.force, rod.spec.tip.moment),
             stats: DynStats::default(),
             rod,
         };
@@ -814,21 +817,25 @@ impl Simulator {
                 std::array::from_fn(|k| bdf.c1 * s.x1[k] + bdf.c2 * s.x2[k] + bdf.d1 * s.xt[k])
             })
             .collect();
-        let mut p = step_problem(&self.rod, &self.inertia, &self.pressures, bdf.c0);
-        p.tip.force = self.tip_force;
-        p.tip.moment = self.tip_moment;
         // Linear extrapolation of the unknowns from the last two steps.
         let guess: [f64; 6] = std::array::from_fn(|k| 2.0 * self.x[k] - self.x_prev[k]);
         let mut rec = std::mem::take(&mut self.record);
-        let result = newton(
-            &p,
-            &hist,
-            guess,
-            self.jac.take(),
-            &self.opts,
-            &mut rec,
-            &mut self.stats,
-        );
+        let level = Level {
+            rod: &self.rod,
+            inertia: &self.inertia,
+            c0: bdf.c0,
+            hist: &hist,
+            opts: &self.opts,
+            from: (&saved, self.step_tip),
+            to: (&self.pressures, (self.tip_force, self.tip_moment)),
+        };
+        let mut result = level.solve(1.0, guess, self.jac.take(), &mut rec, &mut self.stats);
+        if result.is_err() {
+            // A sudden change of the inputs (a pressure step) can put the new state out of
+            // Newton's reach: ramp the step's inputs from the last step's values to the new
+            // ones (the equations at ramp 1 are the step's own).
+            result = level.ramp(self.x, &mut rec, &mut self.stats);
+        }
         let (x, tip, lu) = match result {
             Ok(v) => v,
             Err((it, res)) => {
@@ -839,7 +846,7 @@ impl Simulator {
                     residual: res,
                     load_factor: 1.0,
                     reason: format!(
-                        "dynamic step from t = {:.6} s to {:.6} s did not converge (dt = {} s); a larger dt, more damping or fewer steps per section improves the shooting problem's conditioning",
+                        "dynamic step from t = {:.6} s to {:.6} s did not converge (dt = {} s), also with the step's inputs ramped; a larger dt, more damping or fewer steps per section improves the shooting problem's conditioning",
                         self.time,
                         self.time + self.opts.dt,
                         self.opts.dt
@@ -847,7 +854,8 @@ impl Simulator {
                 });
             }
         };
-        self.coeffs = p.coeffs;
+        self.step_tip = (self.tip_force, self.tip_moment);
+        self.coeffs = step_problem(&self.rod, &self.inertia, &self.pressures, bdf.c0).coeffs;
         // Shift the histories: X_t(t_i) = c0 X_i + X_h.
         for ((slot, f), h) in self.slots.iter_mut().zip(&rec.fields).zip(&hist) {
             let xt: [f64; FIELDS] = std::array::from_fn(|k| bdf.c0 * f[k] + h[k]);
@@ -874,8 +882,9 @@ impl Simulator {
         self.x = x;
         self.tip = tip;
         self.jac = lu;
-        self.time += self.opts.dt;
         self.stats.steps += 1;
+        // Steps times dt, not a running sum: no round-off drift of the clock.
+        self.time = self.stats.steps as f64 * self.opts.dt;
         Ok(())
     }
 
@@ -1017,6 +1026,68 @@ fn rename_pressure_error(e: SoftrodError, name: &str) -> SoftrodError {
 }
 
 type Lu6 = nalgebra::LU<f64, nalgebra::Const<6>, nalgebra::Const<6>>;
+type Solved = std::result::Result<([f64; 6], DynState<f64>, Option<Lu6>), (usize, f64)>;
+
+/// One time step's equations with its inputs (pressures, tip loads) a fraction `lam` of
+/// the way from the last step's values to the new ones.
+struct Level<'a> {
+    rod: &'a Rod,
+    inertia: &'a [SectionInertia],
+    c0: f64,
+    hist: &'a [[f64; FIELDS]],
+    opts: &'a DynOptions,
+    from: (&'a [f64], ([f64; 3], [f64; 3])),
+    to: (&'a [f64], ([f64; 3], [f64; 3])),
+}
+
+impl Level<'_> {
+    fn solve(
+        &self,
+        lam: f64,
+        x0: [f64; 6],
+        jac: Option<Lu6>,
+        rec: &mut Record,
+        stats: &mut DynStats,
+    ) -> Solved {
+        let mix = |a: f64, b: f64| a + lam * (b - a);
+        let p: Vec<f64> = self
+            .from
+            .0
+            .iter()
+            .zip(self.to.0)
+            .map(|(a, b)| mix(*a, *b))
+            .collect();
+        let mut sp = step_problem(self.rod, self.inertia, &p, self.c0);
+        let ((f0, m0), (f1, m1)) = (self.from.1, self.to.1);
+        sp.tip.force = std::array::from_fn(|k| mix(f0[k], f1[k]));
+        sp.tip.moment = std::array::from_fn(|k| mix(m0[k], m1[k]));
+        newton(&sp, self.hist, x0, jac, self.opts, rec, stats)
+    }
+
+    /// Continuation in the ramp parameter from 0 (solved from the last step's unknowns)
+    /// to 1, halving the increment on failure down to 1/1024.
+    fn ramp(&self, x_last: [f64; 6], rec: &mut Record, stats: &mut DynStats) -> Solved {
+        let (mut x, _, _) = self.solve(0.0, x_last, None, rec, stats)?;
+        let (mut lam, mut dlam): (f64, f64) = (0.0, 0.25);
+        loop {
+            let target = (lam + dlam).min(1.0);
+            match self.solve(target, x, None, rec, stats) {
+                Ok(done) if target >= 1.0 => return Ok(done),
+                Ok((xn, _, _)) => {
+                    x = xn;
+                    lam = target;
+                    dlam = (dlam * 1.5).min(0.5);
+                }
+                Err(e) => {
+                    dlam *= 0.5;
+                    if dlam < 1.0 / 1024.0 {
+                        return Err(e);
+                    }
+                }
+            }
+        }
+    }
+}
 
 /// Newton on the six base unknowns from `x0`. A Jacobian from the previous step is reused
 /// while it contracts the residual by at least `REUSE_CONTRACTION` per iteration (the

@@ -189,11 +189,11 @@ class Simulation:
         keep = np.zeros(n, dtype=np.uint8)
         keep[save_every - 1 :: save_every] = 1
         keep[-1] = 1
-        keep[_shape_steps(shapes, n, dt, save_every)] = 2
+        shape_steps, want_shape0 = _shape_steps(shapes, n, dt, save_every)
+        keep[shape_steps] = 2
         times = t0 + dt * np.arange(1, n + 1)
         commands = schedule.sample(times)
         first = self._sim.snapshot()
-        want_shape0 = shapes is not None
         parts = [first]
         wall0 = _time.perf_counter()
         start, chunk = 0, 32
@@ -247,28 +247,28 @@ class Simulation:
         )
 
 
-def _shape_steps(shapes, n: int, dt: float, save_every: int) -> np.ndarray:
-    """Indices of the steps after which the shape is kept."""
+def _shape_steps(shapes, n: int, dt: float, save_every: int) -> tuple[np.ndarray, bool]:
+    """Indices of the steps after which the shape is kept, and whether the start's is."""
     if shapes is None:
-        return np.zeros(0, dtype=int)
+        return np.zeros(0, dtype=int), False
     if isinstance(shapes, str):
         if shapes != "saved":
             raise design_error(
                 "shapes", shapes, "must be None, 'saved', an interval (s) or times", InputError
             )
         idx = np.arange(save_every - 1, n, save_every)
-        return np.unique(np.append(idx, n - 1))
+        return np.unique(np.append(idx, n - 1)), True
     arr = np.atleast_1d(np.asarray(shapes, dtype=float))
     if arr.ndim == 1 and arr.size == 1 and not isinstance(shapes, Sequence | np.ndarray):
         every = max(1, round(float(arr[0]) / dt))
         if not (math.isfinite(arr[0]) and arr[0] > 0):
             raise design_error("shapes", shapes, "an interval must be > 0 s", InputError)
-        return np.arange(every - 1, n, every)
+        return np.arange(every - 1, n, every), True
     # Chosen instants, relative to the start of the run: the nearest step.
     if not np.all(np.isfinite(arr)) or np.any(arr < 0):
         raise design_error("shapes", list(arr), "times must be finite and >= 0 s", InputError)
-    idx = np.clip(np.rint(arr / dt).astype(int) - 1, 0, n - 1)
-    return np.unique(idx)
+    steps = np.rint(arr / dt).astype(int)
+    return np.unique(np.clip(steps[steps > 0] - 1, 0, n - 1)), bool(np.any(steps == 0))
 
 
 def simulate(
@@ -323,9 +323,7 @@ def simulate(
                 "must be 'static', 'straight' or a Simulation",
                 InputError,
             )
-        sim = Simulation(
-            d, p0, initial=initial, dt=dt, alpha=alpha, tol=tol, max_iter=max_iter
-        )
+        sim = Simulation(d, p0, initial=initial, dt=dt, alpha=alpha, tol=tol, max_iter=max_iter)
         pressure_schedule = schedule
     return sim.run(
         pressure_schedule,
