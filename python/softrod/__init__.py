@@ -13,6 +13,8 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :class:`StiffnessMap`: pressure-dependent stiffness scaling sigma(p) (paper 001 eq. 13)
 - :func:`load_dataset` / :func:`write_dataset` -> :class:`Dataset` (CSV, Parquet; docs/datasets.md)
 - :func:`synthesize_dataset`: synthetic datasets from the model, marked as such
+- :func:`calibrate` -> :class:`CalibrationResult`: fit parameters to measured tip positions
+  (``dynamic=True``: to tip trajectories, e.g. tau and A_eff of paper 000)
 - :func:`identify_stiffness` -> :class:`StiffnessIdentification`: sigma per sample (paper 001)
 - :func:`fit_stiffness_map` -> :class:`HybridStiffnessModel`, :func:`compare_hybrid`: the
   hybrid neural stiffness map of paper 001 and its tip errors
@@ -21,8 +23,10 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 
 from ._core import __version__ as _core_version
 from .calibration import (
+    CalibrationResult,
     HybridStiffnessModel,
     StiffnessIdentification,
+    calibrate,
     compare_hybrid,
     fit_stiffness_map,
     identify_stiffness,
@@ -46,6 +50,7 @@ __version__ = _core_version
 
 __all__ = [
     "BatchSolution",
+    "CalibrationResult",
     "ConvergenceError",
     "Dataset",
     "Design",
@@ -63,6 +68,7 @@ __all__ = [
     "Trajectory",
     "__version__",
     "bundled_designs",
+    "calibrate",
     "compare_hybrid",
     "compare_models",
     "designs_dir",

@@ -10,6 +10,7 @@ from .axial import (
     synthesize_axial_data,
     write_axial_data,
 )
+from .dynamic import DynamicCalibrationResult, calibrate_dynamics, synthesize_trajectory_dataset
 from .fit import CalibrationResult, CalibrationWarning, calibrate
 from .hybrid import HybridStiffnessModel, compare_hybrid, fit_stiffness_map
 from .metrics import per_sample_errors, tip_error_table
@@ -20,6 +21,9 @@ __all__ = [
     "CalibrationResult",
     "CalibrationWarning",
     "calibrate",
+    "calibrate_dynamics",
+    "DynamicCalibrationResult",
+    "synthesize_trajectory_dataset",
     "AxialData",
     "AxialIdentification",
     "HybridStiffnessModel",

@@ -485,14 +485,16 @@ def calibrate(
     params: Sequence[str] | str,
     *,
     bounds: Mapping[str, Sequence] | None = None,
-    method: str = "lm",
+    method: str | None = None,
     split=None,
     test=None,
     options: SolverOptions | None = None,
     threads: int = 0,
     max_evaluations: int = 200,
     progress: Callable[[int, float], None] | None = None,
-) -> CalibrationResult:
+    dynamic: bool = False,
+    dt=5e-3,
+):
     """Fit ``params`` of ``design`` to the tip positions of ``dataset``.
 
     design: a design (path, bundled name, preset or :class:`~softrod.Design`).
@@ -502,7 +504,13 @@ def calibrate(
     params: names such as ``["c_b", "c_e", "alpha", "offset_1", "offset_2", "c_p"]`` (see
     :mod:`softrod.calibration.params`).
     bounds: optional ``{name: (lower, upper)}`` in SI or with units ("40 kPa").
-    method: "lm" (exact Jacobian) or "nelder-mead" (paper 002's simplex, no derivatives).
+    method: "lm" (exact Jacobian; the default) or "nelder-mead" (paper 002's simplex, no
+    derivatives).
+    dynamic: fit tip *trajectories* instead of equilibria: ``dataset`` is a time series
+    (``time`` column, one experiment per run), ``params`` may include ``"damping_time"``
+    (tau), and each evaluation simulates every experiment with time step ``dt``
+    (paper 000 Sec. III-D; see :func:`softrod.calibration.calibrate_dynamics`, which this
+    calls and whose result it returns). Dynamic fits use Nelder-Mead.
     split: None (fit on all rows), "experiment" or "mounting" with ``test`` ids (default
     for "experiment": the last experiment), or a boolean test mask.
     progress: called as ``progress(evaluations, rms_error_mm)`` after every evaluation.
@@ -512,6 +520,25 @@ def calibrate(
     """
     from scipy.optimize import least_squares, minimize
 
+    if dynamic:
+        from .dynamic import calibrate_dynamics
+
+        if method not in (None, "nelder-mead"):
+            raise _fail(
+                "method",
+                method,
+                "dynamic fits use 'nelder-mead' (trajectory sensitivities are not exact yet)",
+            )
+        if bounds is not None or split is not None or test is not None:
+            raise _fail(
+                "dynamic",
+                True,
+                "bounds, split and test are not available for dynamic fits (yet)",
+            )
+        return calibrate_dynamics(
+            design, dataset, params, dt=dt, max_evaluations=max_evaluations, progress=progress
+        )
+    method = "lm" if method is None else method
     start = time.perf_counter()
     design0 = load_design(design)
     if not isinstance(dataset, Dataset):
