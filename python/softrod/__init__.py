@@ -18,9 +18,13 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :func:`identify_stiffness` -> :class:`StiffnessIdentification`: sigma per sample (paper 001)
 - :func:`fit_stiffness_map` -> :class:`HybridStiffnessModel`, :func:`compare_hybrid`: the
   hybrid neural stiffness map of paper 001 and its tip errors
+- :mod:`softrod.pcc`: paper 003's piecewise-constant-curvature model (``run_pcc``,
+  ``pcc_shape``, identification, ``compare_pcc``); statics via
+  ``solve_statics(..., model="pcc")``
 - exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError`
 """
 
+from . import pcc
 from ._core import __version__ as _core_version
 from .calibration import (
     CalibrationResult,
@@ -76,6 +80,7 @@ __all__ = [
     "identify_stiffness",
     "list_presets",
     "load_dataset",
+    "pcc",
     "load_design",
     "solve_statics",
     "simulate",

@@ -1434,6 +1434,10 @@ def _register_simulate() -> None:
 
 _register_simulate()
 
+from .cli_pcc import add_pcc_commands  # noqa: E402
+
+add_pcc_commands(main)
+
 
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -31,7 +31,17 @@ PACKAGE_DIR = Path(__file__).resolve().parent
 DEFAULT_STEPS = 16
 
 _SCHEMA: dict[str, set[str]] = {
-    "": {"design", "mounting", "materials", "sections", "tip", "loads", "numerics", "dynamics"},
+    "": {
+        "design",
+        "mounting",
+        "materials",
+        "sections",
+        "tip",
+        "loads",
+        "numerics",
+        "dynamics",
+        "pcc",
+    },
     "design": {"name", "citation", "description", "assumptions"},
     "mounting": {"orientation", "roll", "base_position", "gravity", "base_rotation"},
     "material": {"E", "poisson", "G", "density", "source", "notes"},
@@ -77,6 +87,19 @@ _SCHEMA: dict[str, set[str]] = {
     "tip": {"mass", "com_offset", "force", "moment", "inertia"},
     "dynamics": {"damping_time", "pressure_time_constant", "pressure_rate_limit"},
     "load": {"section", "force_per_length", "moment_per_length"},
+    "pcc": {
+        "k_L",
+        "b_L",
+        "k_theta",
+        "b_theta",
+        "k_phi",
+        "b_phi",
+        "mass_model",
+        "pressure_force",
+        "plane",
+        "quadrature",
+    },
+    "pcc_table": {"angle", "stiffness"},
     "numerics": {"steps_per_section", "step_length"},
 }
 
@@ -421,6 +444,7 @@ def _to_spec(doc: Mapping) -> dict:
         },
         "loads": load_specs,
         "dynamics": _dynamics(_check_keys(doc.get("dynamics", {}), "dynamics", "dynamics")),
+        **({"pcc": _pcc(_check_keys(doc["pcc"], "pcc", "pcc"))} if "pcc" in doc else {}),
     }
 
 
@@ -436,6 +460,53 @@ def _dynamics(dyn: Mapping) -> dict:
         out["pressure_rate_limit"] = to_si(
             dyn["pressure_rate_limit"], "pressure_rate", "dynamics.pressure_rate_limit"
         )
+    return out
+
+
+def _pcc(pcc: Mapping) -> dict:
+    """[pcc]: parameters of the piecewise-constant-curvature model (docs/pcc.md)."""
+    kinds = {
+        "k_L": ("k_l", "force_per_length"),
+        "b_L": ("b_l", "damping_linear"),
+        "b_theta": ("b_theta", "damping_rotational"),
+        "k_phi": ("k_phi", "moment"),
+        "b_phi": ("b_phi", "damping_rotational"),
+    }
+    out: dict[str, Any] = {}
+    for key, (name, kind) in kinds.items():
+        if key in pcc:
+            out[name] = to_si(pcc[key], kind, f"pcc.{key}")
+    if "k_theta" in pcc:
+        kt = pcc["k_theta"]
+        if isinstance(kt, Mapping):
+            kt = _check_keys(kt, "pcc_table", "pcc.k_theta")
+            angles = _require(kt, "angle", "pcc.k_theta")
+            stiff = _require(kt, "stiffness", "pcc.k_theta")
+            for key, val in (("angle", angles), ("stiffness", stiff)):
+                if not isinstance(val, list):
+                    raise design_error(f"pcc.k_theta.{key}", val, "must be an array")
+            out["k_theta_table"] = {
+                "angle": [
+                    to_si(a, "angle", f"pcc.k_theta.angle[{i}]") for i, a in enumerate(angles)
+                ],
+                "stiffness": [
+                    to_si(k, "moment", f"pcc.k_theta.stiffness[{i}]") for i, k in enumerate(stiff)
+                ],
+            }
+        else:
+            out["k_theta"] = to_si(kt, "moment", "pcc.k_theta")
+    for key, allowed in (
+        ("mass_model", ("distributed", "tip")),
+        ("pressure_force", ("chamber", "tip_force")),
+    ):
+        if key in pcc:
+            if pcc[key] not in allowed:
+                raise design_error(f"pcc.{key}", pcc[key], f"must be one of {', '.join(allowed)}")
+            out[key] = pcc[key]
+    if "plane" in pcc:
+        out["plane"] = to_si(pcc["plane"], "angle", "pcc.plane")
+    if "quadrature" in pcc:
+        out["quadrature"] = _integer(pcc["quadrature"], "pcc.quadrature", 2)
     return out
 
 

@@ -220,8 +220,14 @@ def solve_statics(
     initial: StaticSolution | None = None,
     check: bool = True,
     stiffness_map: StiffnessMap | None = None,
+    model: str = "cosserat",
 ) -> StaticSolution:
     """Static shape of ``design`` under chamber ``pressures`` (Pa gauge, one per channel).
+
+    model: "cosserat" (the rod) or "pcc" (paper 003's piecewise-constant-curvature model,
+    docs/pcc.md): the same design and inputs; its shape is the chain of arcs, its ``force``
+    and ``moment`` are NaN (the PCC model does not resolve the internal wrench) and
+    ``options.max_iter`` bounds its Newton iterations.
 
     tip_force / tip_moment (N, N m; world frame) replace the design's ``[tip]`` force and
     moment when given; gravity and the tip body always act. ``initial`` warm-starts from a
@@ -232,6 +238,24 @@ def solve_statics(
     """
     design = load_design(design)
     p = _pressures(design, pressures)
+    if model not in ("cosserat", "pcc"):
+        raise design_error("model", model, "must be 'cosserat' or 'pcc'", InputError)
+    if model == "pcc":
+        if stiffness_map is not None:
+            raise design_error(
+                "stiffness_map", stiffness_map, "is not used by model='pcc'", InputError
+            )
+        from .pcc.statics import solve_pcc_statics
+
+        return solve_pcc_statics(
+            design,
+            p,
+            tip_force=tip_force,
+            tip_moment=tip_moment,
+            max_iter=_options(options).max_iter,
+            initial=initial,
+            check=check,
+        )
     smap = _stiffness_map(design, stiffness_map)
     sigma = np.ones(3) if smap is None else smap(np.array([p]))[0]
     tip = design.spec["tip"]

@@ -31,6 +31,8 @@ DIMENSIONS = {
     "inertia_per_length": "[length] * [mass]",
     "damping_force": "[length] * [mass] / [time]",
     "damping_moment": "[length] ** 3 * [mass] / [time]",
+    "damping_linear": "[mass] / [time]",
+    "damping_rotational": "[length] ** 2 * [mass] / [time]",
 }
 
 SI_UNIT = {
@@ -51,6 +53,8 @@ SI_UNIT = {
     "inertia_per_length": "kg*m",
     "damping_force": "N*s",
     "damping_moment": "N*m^2*s",
+    "damping_linear": "N*s/m",
+    "damping_rotational": "N*m*s",
 }
 
 

@@ -1100,7 +1100,7 @@ fn newton(
     opts: &DynOptions,
     rec: &mut Record,
     stats: &mut DynStats,
-) -> std::result::Result<([f64; 6], DynState<f64>, Option<Lu6>), (usize, f64)> {
+) -> Solved {
     const REUSE_CONTRACTION: f64 = 0.2;
     let mut x = x0;
     let (mut r, mut tip) = p.eval(hist, &x, Some(rec));

@@ -16,6 +16,7 @@ pub mod interp;
 pub mod jet;
 pub mod law;
 pub mod ode;
+pub mod pcc;
 pub mod rod;
 pub mod section;
 pub mod sensitivity;

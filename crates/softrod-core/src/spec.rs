@@ -300,6 +300,10 @@ pub struct DesignSpec {
     pub loads: Vec<LineLoadSpec>,
     #[serde(default)]
     pub dynamics: DynamicsSpec,
+    /// Parameters of the piecewise-constant-curvature model (paper 003); `None` derives
+    /// them from the rod's stiffnesses (see `crate::pcc`).
+    #[serde(default)]
+    pub pcc: Option<crate::pcc::PccSpec>,
 }
 
 fn finite(field: &str, x: f64) -> Result<()> {
@@ -730,6 +734,9 @@ impl DesignSpec {
                 &format!("loads[{k}].moment_per_length"),
                 &l.moment_per_length,
             )?;
+        }
+        if let Some(p) = &self.pcc {
+            p.validate()?;
         }
         let n = self.n_channels();
         let mut used = vec![false; n];

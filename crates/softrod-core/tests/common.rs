@@ -77,6 +77,7 @@ pub fn design(sections: Vec<SectionSpec>, rotation: [[f64; 3]; 3], g: f64) -> De
         tip: TipSpec::default(),
         loads: vec![],
         dynamics: Default::default(),
+        pcc: None,
     }
 }
 

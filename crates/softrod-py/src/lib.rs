@@ -13,6 +13,7 @@ use softrod_core::statics::{self, SolverOptions};
 use softrod_core::{DesignSpec, Rod, SoftrodError};
 
 mod dynamics;
+mod pcc;
 
 /// Which exception class a core `InvalidParameter` becomes.
 #[derive(Clone, Copy)]
@@ -426,6 +427,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRod>()?;
     m.add_class::<PyGridPchip>()?;
     dynamics::register(m)?;
+    pcc::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

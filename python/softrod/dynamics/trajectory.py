@@ -310,13 +310,15 @@ class Trajectory:
     def tip_position_at(self, times) -> np.ndarray:
         """Tip positions (m, 3) in m at ``times`` (m,) s, linear in time between samples.
 
-        Every time must lie in ``[time[0], time[-1]]``; otherwise :class:`InputError`
-        naming the first sample outside.
+        Every time must lie in ``[time[0], time[-1]]`` (with a round-off slack of 1e-9 of
+        the duration: a clock of n * dt may end a few 1e-13 s off a nominal end); otherwise
+        :class:`InputError` naming the first sample outside.
         """
         t = _array(times, "times", (None,), "the times in s")
         _finite(t, "times")
         lo, hi = self.time[0], self.time[-1]
-        bad = np.flatnonzero((t < lo) | (t > hi))
+        slack = 1e-9 * max(hi - lo, 1e-300)
+        bad = np.flatnonzero((t < lo - slack) | (t > hi + slack))
         if bad.size:
             i = bad[0]
             raise _fail(

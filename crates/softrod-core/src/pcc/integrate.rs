@@ -1,0 +1,623 @@
+//! Statics and time stepping of the PCC model.
+//!
+//! Dynamics: implicit midpoint rule on (q, q_t): with v_m = (v0 + v1)/2,
+//!   q1 = q0 + h v_m,  M(q_m) (v1 - v0)/h + C(q_m, v_m) v_m - Q(q_m, v_m, p_m) = 0,
+//! q_m = (q0 + q1)/2, p_m = (p0 + p1)/2, solved for v_m by Newton with the exact Jacobian
+//! (one vector-dual evaluation of the equations of motion). The rule is A-stable and
+//! second order, and adds no numerical damping, so energy is kept to O(h^2) without
+//! damping or input.
+//! Statics: Newton with backtracking on Q(q) = 0, pressure continuation if needed.
+
+use super::kinematics::Pose;
+use super::lagrangian::Energy;
+use super::{LinkKind, PccModel};
+use crate::error::{Result, SoftrodError};
+use num_dual::DualSVec;
+
+/// Newton settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepOptions {
+    /// Converged when every Newton update, as a displacement, is below tol times the
+    /// coordinate's scale (L0 for lengths, 1 rad for angles).
+    pub tol: f64,
+    pub max_iter: usize,
+}
+
+impl Default for StepOptions {
+    fn default() -> Self {
+        StepOptions {
+            tol: 1e-11,
+            max_iter: 30,
+        }
+    }
+}
+
+/// Where a simulation starts (model coordinates).
+#[derive(Debug, Clone, PartialEq)]
+pub enum InitialState {
+    /// At rest in the static equilibrium under zero pressure.
+    Rest,
+    /// At rest in the static equilibrium under the first pressures.
+    Static,
+    /// Given coordinates and rates.
+    Given { x: Vec<f64>, v: Vec<f64> },
+}
+
+/// A static equilibrium.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PccStatic {
+    /// Model coordinates.
+    pub x: Vec<f64>,
+    pub iterations: usize,
+    /// Largest generalised force left, N or N m.
+    pub residual: f64,
+}
+
+/// A simulated trajectory at the saved steps.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PccTrajectory {
+    pub time: Vec<f64>,
+    /// Model coordinates and rates, one row per saved step.
+    pub x: Vec<Vec<f64>>,
+    pub v: Vec<Vec<f64>>,
+    pub tip_position: Vec<[f64; 3]>,
+    pub tip_rotation: Vec<[[f64; 3]; 3]>,
+    /// Kinetic + gravitational + elastic energy, J.
+    pub energy: Vec<f64>,
+    /// Newton iterations over all steps.
+    pub newton_iterations: usize,
+    /// Exact Jacobians computed (the Newton matrix is kept while it works).
+    pub jacobian_evaluations: usize,
+}
+
+macro_rules! dispatch {
+    ($n:expr, $f:ident ( $($arg:expr),* )) => {
+        match $n {
+            2 => $f::<2>($($arg),*),
+            3 => $f::<3>($($arg),*),
+            4 => $f::<4>($($arg),*),
+            6 => $f::<6>($($arg),*),
+            8 => $f::<8>($($arg),*),
+            9 => $f::<9>($($arg),*),
+            10 => $f::<10>($($arg),*),
+            12 => $f::<12>($($arg),*),
+            14 => $f::<14>($($arg),*),
+            15 => $f::<15>($($arg),*),
+            n => Err(SoftrodError::invalid(
+                "sections",
+                n,
+                "the PCC model supports at most 5 deformable sections (7 when planar)",
+            )),
+        }
+    };
+}
+
+type Dn<const N: usize> = DualSVec<f64, N>;
+
+/// A sampled shape: reference arc length s, positions and rotations.
+pub type Shape = (Vec<f64>, Vec<[f64; 3]>, Vec<[[f64; 3]; 3]>);
+
+/// Solve A z = b by Gaussian elimination with partial pivoting; None if singular.
+fn solve_dense<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
+    let norm = a.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
+    for c in 0..N {
+        let piv = (c..N).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        // A NaN pivot is singular too.
+        if a[piv][c].abs().is_nan() || a[piv][c].abs() <= 1e-14 * norm {
+            return None;
+        }
+        a.swap(c, piv);
+        b.swap(c, piv);
+        for r in c + 1..N {
+            let f = a[r][c] / a[c][c];
+            for k in c..N {
+                a[r][k] -= f * a[c][k];
+            }
+            b[r] -= f * b[c];
+        }
+    }
+    let mut z = [0.0; N];
+    for c in (0..N).rev() {
+        let s: f64 = (c + 1..N).map(|k| a[c][k] * z[k]).sum();
+        z[c] = (b[c] - s) / a[c][c];
+    }
+    Some(z)
+}
+
+fn arr<const N: usize>(x: &[f64]) -> [f64; N] {
+    std::array::from_fn(|i| x[i])
+}
+
+/// Coordinate scales: L0 for lengths, 1 rad for angles.
+fn scales<const N: usize>(m: &PccModel) -> [f64; N] {
+    let mut s = [1.0; N];
+    for l in &m.links {
+        if let LinkKind::Segment { offset, .. } = l.kind {
+            s[offset] = l.length;
+        }
+    }
+    s
+}
+
+/// Residual and Jacobian of the equations of motion with respect to a variable z, given how
+/// (x, v, a) depend on z.
+fn eval_jac<const N: usize>(
+    m: &PccModel,
+    z: &[f64; N],
+    p: &[f64],
+    build: impl Fn(&[Dn<N>; N]) -> ([Dn<N>; N], [Dn<N>; N], [Dn<N>; N]),
+) -> ([f64; N], [[f64; N]; N]) {
+    let zd: [Dn<N>; N] = std::array::from_fn(|i| Dn::<N>::from_re(z[i]).derivative(i));
+    let (x, v, a) = build(&zd);
+    let r = m.forces(&x, &v, &a, p).residual();
+    let mut jac = [[0.0; N]; N];
+    for i in 0..N {
+        if let Some(e) = &r[i].eps.0 {
+            for j in 0..N {
+                jac[i][j] = e[j];
+            }
+        }
+    }
+    (std::array::from_fn(|i| r[i].re), jac)
+}
+
+fn statics_n<const N: usize>(
+    m: &PccModel,
+    p: &[f64],
+    guess: &[f64],
+    opts: &StepOptions,
+) -> Result<PccStatic> {
+    let sc = scales::<N>(m);
+    let merit = |r: &[f64; N]| (0..N).map(|i| (r[i] * sc[i]).powi(2)).sum::<f64>();
+    let solve = |x0: [f64; N], p: &[f64]| -> std::result::Result<([f64; N], usize, f64), f64> {
+        let mut x = x0;
+        let zero = [Dn::<N>::from_re(0.0); N];
+        for it in 0..opts.max_iter {
+            let (r, jac) = eval_jac(m, &x, p, |z| (*z, zero, zero));
+            let Some(lu) = solve_dense(jac, r) else {
+                return Err(merit(&r).sqrt());
+            };
+            let f0 = merit(&r);
+            let mut step = 1.0;
+            let mut xn = x;
+            // Backtracking: accept the first step that lowers the work-scaled residual.
+            for _ in 0..30 {
+                xn = std::array::from_fn(|i| x[i] - step * lu[i]);
+                let ok = m.segments().all(|(_, o, _)| xn[o] > 0.0);
+                if ok {
+                    let z = xn.map(f64::from);
+                    let rn = m.forces(&z, &[0.0; N], &[0.0; N], p).residual();
+                    if merit(&rn) <= f0 || step < 1e-3 {
+                        break;
+                    }
+                }
+                step *= 0.5;
+            }
+            x = xn;
+            let small = (0..N).all(|i| (step * lu[i]).abs() <= opts.tol * sc[i]);
+            if small {
+                let r = m.forces(&x, &[0.0; N], &[0.0; N], p).residual();
+                let res = r.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+                return Ok((x, it + 1, res));
+            }
+        }
+        Err(f64::NAN)
+    };
+    let x0: [f64; N] = arr(guess);
+    let mut total = 0;
+    match solve(x0, p) {
+        Ok((x, it, res)) => {
+            return Ok(PccStatic {
+                x: x.to_vec(),
+                iterations: it,
+                residual: res,
+            })
+        }
+        Err(_) => {
+            // Continuation in the pressures from the guess.
+            let mut x = x0;
+            let steps = 20;
+            for k in 1..=steps {
+                let lam = k as f64 / steps as f64;
+                let pk: Vec<f64> = p.iter().map(|v| v * lam).collect();
+                match solve(x, &pk) {
+                    Ok((xn, it, res)) => {
+                        x = xn;
+                        total += it;
+                        if k == steps {
+                            return Ok(PccStatic {
+                                x: x.to_vec(),
+                                iterations: total,
+                                residual: res,
+                            });
+                        }
+                    }
+                    Err(res) => {
+                        return Err(SoftrodError::NotConverged {
+                            iterations: total,
+                            residual: res,
+                            load_factor: lam,
+                            reason: "PCC static Newton failed during pressure continuation".into(),
+                        })
+                    }
+                }
+            }
+        }
+    }
+    unreachable!("continuation returns from its last step")
+}
+
+/// Newton matrix kept between steps: the exact Jacobian (dual numbers) at the iterate where
+/// it was last computed. It is recomputed when the iteration stops contracting quickly
+/// (simplified Newton, as in stiff ODE codes): the converged step is the same, each
+/// iteration after the first costs one evaluation in plain f64.
+struct NewtonMatrix<const N: usize> {
+    jac: Option<[[f64; N]; N]>,
+    evaluations: usize,
+}
+
+/// One implicit midpoint step from (x0, v0) with guess vm for the midpoint velocity:
+/// returns (x1, v1, iterations).
+#[allow(clippy::too_many_arguments)]
+fn step_n<const N: usize>(
+    m: &PccModel,
+    x0: &[f64; N],
+    v0: &[f64; N],
+    guess: [f64; N],
+    pm: &[f64],
+    h: f64,
+    opts: &StepOptions,
+    sc: &[f64; N],
+    newton: &mut NewtonMatrix<N>,
+) -> std::result::Result<([f64; N], [f64; N], usize), f64> {
+    let build = |z: &[f64; N]| -> ([f64; N], [f64; N]) {
+        (
+            std::array::from_fn(|i| x0[i] + 0.5 * h * z[i]),
+            std::array::from_fn(|i| (z[i] - v0[i]) * (2.0 / h)),
+        )
+    };
+    let resid = |z: &[f64; N]| {
+        let (x, a) = build(z);
+        m.forces(&x, z, &a, pm).residual()
+    };
+    let refresh = |z: &[f64; N], newton: &mut NewtonMatrix<N>| {
+        let (r, jac) = eval_jac(m, z, pm, |zd| {
+            let x = std::array::from_fn(|i| zd[i] * (0.5 * h) + x0[i]);
+            let a = std::array::from_fn(|i| (zd[i] - v0[i]) * (2.0 / h));
+            (x, *zd, a)
+        });
+        newton.jac = Some(jac);
+        newton.evaluations += 1;
+        r
+    };
+    let mut vm = guess;
+    let mut fresh = newton.jac.is_none();
+    let mut r = if fresh {
+        refresh(&vm, newton)
+    } else {
+        resid(&vm)
+    };
+    let mut prev = f64::INFINITY;
+    let mut last = f64::NAN;
+    for it in 0..opts.max_iter {
+        let jac = newton.jac.expect("set above");
+        let Some(d) = solve_dense(jac, r) else {
+            if fresh {
+                return Err(last);
+            }
+            r = refresh(&vm, newton);
+            fresh = true;
+            continue;
+        };
+        for i in 0..N {
+            vm[i] -= d[i];
+        }
+        last = (0..N).fold(0.0f64, |a, i| a.max((d[i] * h / sc[i]).abs()));
+        if !last.is_finite() {
+            return Err(last);
+        }
+        if last <= opts.tol {
+            let x1 = std::array::from_fn(|i| x0[i] + h * vm[i]);
+            let v1 = std::array::from_fn(|i| 2.0 * vm[i] - v0[i]);
+            return Ok((x1, v1, it + 1));
+        }
+        // Slow contraction with an old matrix: recompute it here.
+        if last > 0.2 * prev && !fresh {
+            r = refresh(&vm, newton);
+            fresh = true;
+            prev = f64::INFINITY;
+        } else {
+            r = resid(&vm);
+            fresh = false;
+            prev = last;
+        }
+    }
+    Err(last)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn simulate_n<const N: usize>(
+    m: &PccModel,
+    dt: f64,
+    pressures: &[f64],
+    n_steps: usize,
+    initial: &InitialState,
+    save_every: usize,
+    opts: &StepOptions,
+) -> Result<PccTrajectory> {
+    let nc = m.n_channels;
+    let row = |k: usize| &pressures[k * nc..(k + 1) * nc];
+    let (x0, v0) = match initial {
+        InitialState::Rest => {
+            let s = statics_n::<N>(m, &vec![0.0; nc], &m.rest(), opts)?;
+            (arr::<N>(&s.x), [0.0; N])
+        }
+        InitialState::Static => {
+            let s = statics_n::<N>(m, row(0), &m.rest(), opts)?;
+            (arr::<N>(&s.x), [0.0; N])
+        }
+        InitialState::Given { x, v } => (arr::<N>(x), arr::<N>(v)),
+    };
+    let sc = scales::<N>(m);
+    let mut out = PccTrajectory {
+        time: vec![],
+        x: vec![],
+        v: vec![],
+        tip_position: vec![],
+        tip_rotation: vec![],
+        energy: vec![],
+        newton_iterations: 0,
+        jacobian_evaluations: 0,
+    };
+    let save = |out: &mut PccTrajectory, k: usize, x: &[f64; N], v: &[f64; N]| {
+        let (p, r) = m.walk(x, None, |_, _| {});
+        let e = m.energy_n(x, v, row(k));
+        out.time.push(k as f64 * dt);
+        out.x.push(x.to_vec());
+        out.v.push(v.to_vec());
+        out.tip_position.push(p);
+        out.tip_rotation.push(r);
+        out.energy.push(e.kinetic + e.gravity + e.elastic);
+    };
+    let (mut x, mut v) = (x0, v0);
+    let mut newton = NewtonMatrix::<N> {
+        jac: None,
+        evaluations: 0,
+    };
+    let mut accel = [0.0; N];
+    save(&mut out, 0, &x, &v);
+    for k in 0..n_steps {
+        let pm: Vec<f64> = row(k)
+            .iter()
+            .zip(row(k + 1))
+            .map(|(a, b)| 0.5 * (a + b))
+            .collect();
+        // Guess: the midpoint velocity with the last step's acceleration.
+        let guess = std::array::from_fn(|i| v[i] + 0.5 * dt * accel[i]);
+        match step_n::<N>(m, &x, &v, guess, &pm, dt, opts, &sc, &mut newton) {
+            Ok((x1, v1, it)) => {
+                accel = std::array::from_fn(|i| (v1[i] - v[i]) / dt);
+                x = x1;
+                v = v1;
+                out.newton_iterations += it;
+            }
+            Err(res) => {
+                return Err(SoftrodError::NotConverged {
+                    iterations: opts.max_iter,
+                    residual: res,
+                    load_factor: (k as f64 + 1.0) / n_steps as f64,
+                    reason: format!(
+                        "PCC implicit midpoint step {} (t = {:.6} s) did not converge; try a smaller dt",
+                        k + 1,
+                        (k + 1) as f64 * dt
+                    ),
+                });
+            }
+        }
+        if m.segments().any(|(_, o, _)| x[o] <= 0.0) {
+            return Err(SoftrodError::NotConverged {
+                iterations: out.newton_iterations,
+                residual: f64::NAN,
+                load_factor: (k as f64 + 1.0) / n_steps as f64,
+                reason: format!(
+                    "a segment length became <= 0 at t = {:.6} s",
+                    (k + 1) as f64 * dt
+                ),
+            });
+        }
+        if (k + 1) % save_every == 0 {
+            save(&mut out, k + 1, &x, &v);
+        }
+    }
+    out.jacobian_evaluations = newton.evaluations;
+    Ok(out)
+}
+
+fn forces_n<const N: usize>(
+    m: &PccModel,
+    x: &[f64],
+    v: &[f64],
+    a: &[f64],
+    p: &[f64],
+) -> Result<[Vec<f64>; 4]> {
+    let f = m.forces(&arr::<N>(x), &arr::<N>(v), &arr::<N>(a), p);
+    Ok([
+        f.inertial.to_vec(),
+        f.external.to_vec(),
+        f.pressure.to_vec(),
+        f.viscoelastic.to_vec(),
+    ])
+}
+
+fn mass_n<const N: usize>(m: &PccModel, x: &[f64]) -> Result<Vec<Vec<f64>>> {
+    Ok(m.mass_matrix_n(&arr::<N>(x))
+        .iter()
+        .map(|r| r.to_vec())
+        .collect())
+}
+
+fn energy_dispatch<const N: usize>(
+    m: &PccModel,
+    x: &[f64],
+    v: &[f64],
+    p: &[f64],
+) -> Result<Energy> {
+    Ok(m.energy_n(&arr::<N>(x), &arr::<N>(v), p))
+}
+
+impl PccModel {
+    fn check_len(&self, field: &str, x: &[f64]) -> Result<()> {
+        if x.len() != self.ndof {
+            return Err(SoftrodError::invalid(
+                field,
+                format!("{} values", x.len()),
+                format!("the PCC model has {} coordinates", self.ndof),
+            ));
+        }
+        for (i, z) in x.iter().enumerate() {
+            if !z.is_finite() {
+                return Err(SoftrodError::invalid(
+                    format!("{field}[{i}]"),
+                    z,
+                    "must be a finite number",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The generalised forces [inertial, external, pressure, visco-elastic] at (x, v, a).
+    pub fn force_terms(&self, x: &[f64], v: &[f64], a: &[f64], p: &[f64]) -> Result<[Vec<f64>; 4]> {
+        self.check_len("x", x)?;
+        self.check_len("v", v)?;
+        self.check_len("a", a)?;
+        self.check_pressures(p)?;
+        dispatch!(self.ndof, forces_n(self, x, v, a, p))
+    }
+
+    /// Mass matrix M(x).
+    pub fn mass_matrix(&self, x: &[f64]) -> Result<Vec<Vec<f64>>> {
+        self.check_len("x", x)?;
+        dispatch!(self.ndof, mass_n(self, x))
+    }
+
+    /// Energies at (x, v) under constant pressures p.
+    pub fn energy(&self, x: &[f64], v: &[f64], p: &[f64]) -> Result<Energy> {
+        self.check_len("x", x)?;
+        self.check_len("v", v)?;
+        self.check_pressures(p)?;
+        dispatch!(self.ndof, energy_dispatch(self, x, v, p))
+    }
+
+    /// Pose of the tip (the end of the last section).
+    pub fn tip_pose(&self, x: &[f64]) -> Pose<f64> {
+        self.walk(x, None, |_, _| {})
+    }
+
+    /// The shape sampled at `per_link` + 1 points along every section: reference arc
+    /// length s, positions and rotations (rows of [d1 d2 d3]).
+    pub fn shape(&self, x: &[f64], per_link: usize) -> Result<Shape> {
+        self.check_len("x", x)?;
+        if per_link == 0 {
+            return Err(SoftrodError::invalid(
+                "n_points",
+                per_link,
+                "need at least one interval per section",
+            ));
+        }
+        let sig: Vec<f64> = (0..per_link).map(|j| j as f64 / per_link as f64).collect();
+        let starts: Vec<f64> = self
+            .links
+            .iter()
+            .scan(0.0, |acc, l| {
+                let s = *acc;
+                *acc += l.length;
+                Some(s)
+            })
+            .collect();
+        let (mut s, mut p, mut r) = (vec![], vec![], vec![]);
+        let tip = self.walk(x, Some(&sig), |site, pose| {
+            if let super::lagrangian::Site::Node { link, weight } = site {
+                s.push(starts[link] + weight * self.links[link].length);
+                p.push(pose.0);
+                r.push(pose.1);
+            }
+        });
+        s.push(self.length());
+        p.push(tip.0);
+        r.push(tip.1);
+        Ok((s, p, r))
+    }
+
+    /// Static equilibrium under pressures p, from `guess` (default: the rest configuration).
+    pub fn solve_statics(
+        &self,
+        p: &[f64],
+        guess: Option<&[f64]>,
+        opts: &StepOptions,
+    ) -> Result<PccStatic> {
+        self.check_pressures(p)?;
+        let rest = self.rest();
+        let g = guess.unwrap_or(&rest);
+        self.check_len("guess", g)?;
+        dispatch!(self.ndof, statics_n(self, p, g, opts))
+    }
+
+    /// Simulate with time step dt under pressures sampled at every step time (row-major,
+    /// (n_steps + 1) x n_channels, Pa); saves every `save_every` steps.
+    pub fn simulate(
+        &self,
+        dt: f64,
+        pressures: &[f64],
+        initial: &InitialState,
+        save_every: usize,
+        opts: &StepOptions,
+    ) -> Result<PccTrajectory> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(SoftrodError::invalid(
+                "dt",
+                dt,
+                "must be a finite time step > 0 s",
+            ));
+        }
+        if save_every == 0 {
+            return Err(SoftrodError::invalid("save_every", 0, "must be >= 1"));
+        }
+        let nc = self.n_channels.max(1);
+        if self.n_channels == 0 || pressures.len() % nc != 0 || pressures.len() < nc {
+            return Err(SoftrodError::invalid(
+                "pressures",
+                format!("{} values", pressures.len()),
+                format!(
+                    "give an array of shape (n_steps + 1, {}) with the chamber pressures (Pa) at every step time",
+                    self.n_channels
+                ),
+            ));
+        }
+        let rows = pressures.len() / nc;
+        for k in 0..rows {
+            self.check_pressures(&pressures[k * nc..(k + 1) * nc])
+                .map_err(|e| match e {
+                    SoftrodError::InvalidParameter { field, value, rule } => {
+                        SoftrodError::invalid(format!("{field} (row {k})"), value, rule)
+                    }
+                    other => other,
+                })?;
+        }
+        if let InitialState::Given { x, v } = initial {
+            self.check_len("initial.q", x)?;
+            self.check_len("initial.q_dot", v)?;
+            if self.segments().any(|(_, o, _)| x[o] <= 0.0) {
+                return Err(SoftrodError::invalid(
+                    "initial.q",
+                    format!("{x:?}"),
+                    "segment lengths L must be > 0",
+                ));
+            }
+        }
+        dispatch!(
+            self.ndof,
+            simulate_n(self, dt, pressures, rows - 1, initial, save_every, opts)
+        )
+    }
+}

@@ -1,0 +1,256 @@
+//! Binding of the PCC model (softrod_core::pcc): type conversion and error mapping only.
+
+use super::{array2, array3, to_py_err, Context};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use softrod_core::pcc::{BendStiffness, InitialState, PccModel, StepOptions};
+use softrod_core::{DesignSpec, SoftrodError};
+
+/// The compiled PCC model of a design (immutable).
+#[pyclass(name = "PccModel", module = "softrod._core", frozen)]
+struct PyPcc {
+    model: PccModel,
+}
+
+fn matrix<'py>(py: Python<'py>, rows: &[Vec<f64>], width: usize) -> PyResult<Bound<'py, PyAny>> {
+    let flat: Vec<f64> = rows.iter().flatten().copied().collect();
+    Ok(PyArray1::from_vec(py, flat)
+        .reshape([rows.len(), width])?
+        .into_any())
+}
+
+impl PyPcc {
+    fn paper_rows(&self, x: &[Vec<f64>], v: &[Vec<f64>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+        x.iter()
+            .zip(v)
+            .map(|(a, b)| self.model.to_paper(a, b))
+            .unzip()
+    }
+}
+
+#[pymethods]
+impl PyPcc {
+    /// Build from the JSON text of a `DesignSpec` (SI units).
+    #[new]
+    fn new(py: Python<'_>, spec_json: &str) -> PyResult<Self> {
+        let spec: DesignSpec = serde_json::from_str(spec_json).map_err(|e| {
+            to_py_err(
+                py,
+                SoftrodError::invalid("design", "(JSON)", e.to_string()),
+                Context::Design,
+            )
+        })?;
+        let model = PccModel::new(&spec).map_err(|e| to_py_err(py, e, Context::Design))?;
+        Ok(PyPcc { model })
+    }
+
+    #[getter]
+    fn n_channels(&self) -> usize {
+        self.model.n_channels
+    }
+
+    #[getter]
+    fn ndof(&self) -> usize {
+        self.model.ndof
+    }
+
+    #[getter]
+    fn n_segments(&self) -> usize {
+        self.model.n_segments()
+    }
+
+    #[getter]
+    fn planar(&self) -> bool {
+        self.model.plane.is_some()
+    }
+
+    /// Reference length of the chain, m.
+    #[getter]
+    fn length(&self) -> f64 {
+        self.model.length()
+    }
+
+    /// Per-segment parameters (SI) as dicts.
+    fn segments<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        self.model
+            .segments()
+            .map(|(l, _, p)| {
+                let d = PyDict::new(py);
+                d.set_item("name", &l.name)?;
+                d.set_item("length", l.length)?;
+                d.set_item("mass", l.line_mass * l.length)?;
+                d.set_item("k_L", p.k_l)?;
+                d.set_item("b_L", p.b_l)?;
+                match &p.k_theta {
+                    BendStiffness::Constant(k) => d.set_item("k_theta", *k)?,
+                    BendStiffness::Table(a, k) => d.set_item("k_theta", (a.clone(), k.clone()))?,
+                }
+                d.set_item("b_theta", p.b_theta)?;
+                d.set_item("k_phi", p.k_phi)?;
+                d.set_item("b_phi", p.b_phi)?;
+                Ok(d)
+            })
+            .collect()
+    }
+
+    /// Model coordinates (x, v) from paper coordinates (q, q_dot) = (L, theta, phi) per segment.
+    fn to_model(
+        &self,
+        py: Python<'_>,
+        q: Vec<f64>,
+        q_dot: Vec<f64>,
+    ) -> PyResult<(Vec<f64>, Vec<f64>)> {
+        self.model
+            .from_paper(&q, &q_dot)
+            .map_err(|e| to_py_err(py, e, Context::Input))
+    }
+
+    /// Static equilibrium: dict with x, q, iterations, residual, tip pose.
+    #[pyo3(signature = (pressures, guess=None, tol=1e-11, max_iter=30))]
+    fn statics<'py>(
+        &self,
+        py: Python<'py>,
+        pressures: Vec<f64>,
+        guess: Option<Vec<f64>>,
+        tol: f64,
+        max_iter: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let opts = StepOptions { tol, max_iter };
+        let m = &self.model;
+        let s = py
+            .detach(|| m.solve_statics(&pressures, guess.as_deref(), &opts))
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
+        let zero = vec![0.0; s.x.len()];
+        let (q, _) = m.to_paper(&s.x, &zero);
+        let (p, r) = m.tip_pose(&s.x);
+        let d = PyDict::new(py);
+        d.set_item("x", s.x.clone())?;
+        d.set_item("q", q)?;
+        d.set_item("iterations", s.iterations)?;
+        d.set_item("residual", s.residual)?;
+        d.set_item("tip_position", p.to_vec())?;
+        d.set_item(
+            "tip_rotation",
+            r.iter().map(|x| x.to_vec()).collect::<Vec<_>>(),
+        )?;
+        Ok(d)
+    }
+
+    /// Shape at model coordinates x: (s, position (p, 3), rotation (p, 3, 3)).
+    fn shape<'py>(
+        &self,
+        py: Python<'py>,
+        x: Vec<f64>,
+        per_section: usize,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        let (s, p, r) = self
+            .model
+            .shape(&x, per_section)
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
+        Ok((
+            PyArray1::from_vec(py, s).into_any(),
+            array2(py, &p)?,
+            array3(py, &r)?,
+        ))
+    }
+
+    /// Energies (kinetic, gravity, elastic, pressure) at model coordinates (x, v), J.
+    fn energy(
+        &self,
+        py: Python<'_>,
+        x: Vec<f64>,
+        v: Vec<f64>,
+        pressures: Vec<f64>,
+    ) -> PyResult<(f64, f64, f64, f64)> {
+        let e = self
+            .model
+            .energy(&x, &v, &pressures)
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
+        Ok((e.kinetic, e.gravity, e.elastic, e.pressure))
+    }
+
+    /// Mass matrix at model coordinates x.
+    fn mass_matrix(&self, py: Python<'_>, x: Vec<f64>) -> PyResult<Vec<Vec<f64>>> {
+        self.model
+            .mass_matrix(&x)
+            .map_err(|e| to_py_err(py, e, Context::Input))
+    }
+
+    /// Simulate: pressures (n_steps + 1, n_channels) Pa at every step time; initial is
+    /// "rest", "static" or "given" (with q0, q_dot0 in paper coordinates).
+    #[pyo3(signature = (dt, pressures, initial="rest", q0=None, q_dot0=None, save_every=1, tol=1e-11, max_iter=30))]
+    #[allow(clippy::too_many_arguments)]
+    fn simulate<'py>(
+        &self,
+        py: Python<'py>,
+        dt: f64,
+        pressures: PyReadonlyArray2<'_, f64>,
+        initial: &str,
+        q0: Option<Vec<f64>>,
+        q_dot0: Option<Vec<f64>>,
+        save_every: usize,
+        tol: f64,
+        max_iter: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let m = &self.model;
+        let arr = pressures.as_array();
+        let nc = m.n_channels;
+        if arr.shape()[1] != nc {
+            return Err(to_py_err(
+                py,
+                SoftrodError::invalid(
+                    "pressures",
+                    format!("{} columns", arr.shape()[1]),
+                    format!("the design has {nc} pressure channels: one column per channel (Pa)"),
+                ),
+                Context::Input,
+            ));
+        }
+        let flat: Vec<f64> = arr.iter().copied().collect();
+        let init = match initial {
+            "rest" => InitialState::Rest,
+            "static" => InitialState::Static,
+            "given" => {
+                let (q, qd) = (q0.unwrap_or_default(), q_dot0.unwrap_or_default());
+                let (x, v) = m
+                    .from_paper(&q, &qd)
+                    .map_err(|e| to_py_err(py, e, Context::Input))?;
+                InitialState::Given { x, v }
+            }
+            other => {
+                return Err(to_py_err(
+                    py,
+                    SoftrodError::invalid(
+                        "initial",
+                        other,
+                        "must be 'rest', 'static' or a pair (q, q_dot)",
+                    ),
+                    Context::Input,
+                ))
+            }
+        };
+        let opts = StepOptions { tol, max_iter };
+        let tr = py
+            .detach(|| m.simulate(dt, &flat, &init, save_every, &opts))
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
+        let (q, qd) = self.paper_rows(&tr.x, &tr.v);
+        let n = 3 * m.n_segments();
+        let d = PyDict::new(py);
+        d.set_item("time", PyArray1::from_vec(py, tr.time.clone()))?;
+        d.set_item("q", matrix(py, &q, n)?)?;
+        d.set_item("q_dot", matrix(py, &qd, n)?)?;
+        d.set_item("x", matrix(py, &tr.x, m.ndof)?)?;
+        d.set_item("x_dot", matrix(py, &tr.v, m.ndof)?)?;
+        d.set_item("tip_position", array2(py, &tr.tip_position)?)?;
+        d.set_item("tip_rotation", array3(py, &tr.tip_rotation)?)?;
+        d.set_item("energy", PyArray1::from_vec(py, tr.energy.clone()))?;
+        d.set_item("newton_iterations", tr.newton_iterations)?;
+        d.set_item("jacobian_evaluations", tr.jacobian_evaluations)?;
+        Ok(d)
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyPcc>()
+}

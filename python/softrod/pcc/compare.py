@@ -1,0 +1,120 @@
+"""Side by side: the PCC model and the Cosserat rod on the same design and inputs."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from ..design import load_design
+from ..errors import InputError, design_error
+from ..statics import solve_statics
+
+__all__ = ["compare_pcc", "plot_pcc_comparison"]
+
+CASES = ("weightless", "gravity", "gravity + tip load")
+
+
+def compare_pcc(
+    design,
+    channels: Sequence[int],
+    p_max: float,
+    *,
+    steps: int = 11,
+    tip_force: Sequence[float] = (0.0, 0.0, -0.0981),
+    progress: Callable[[int], None] | None = None,
+):
+    """Tip positions of both models while ``channels`` (indices) ramp together from 0 to
+    ``p_max`` (Pa) in ``steps`` levels, in three cases: weightless and unloaded (gravity
+    off, no tip body or tip load: both models must give the same arc when the rod's law is
+    linear), with gravity, and with gravity plus ``tip_force`` (N, world frame; default a
+    10 g weight). ``progress(n)`` is called after every n solves.
+
+    Returns a pandas DataFrame with columns case, p_Pa, pcc_{x,y,z}_mm, rod_{x,y,z}_mm,
+    error_mm (distance between the two tips) and rel_error (error / tip travel of the rod).
+    """
+    import pandas as pd
+
+    d = load_design(design)
+    chans = [int(c) for c in channels]
+    if not chans or any(c < 0 or c >= d.n_channels for c in chans):
+        raise design_error(
+            "channels", list(channels), f"must be channel indices 0..{d.n_channels - 1}", InputError
+        )
+    if isinstance(steps, bool) or not isinstance(steps, int) or steps < 2:
+        raise design_error("steps", steps, "must be an integer >= 2", InputError)
+    if not (np.isfinite(p_max) and p_max > 0):
+        raise design_error("p_max", p_max, "must be a pressure > 0 Pa", InputError)
+    levels = np.linspace(0.0, p_max, steps)
+    weightless = d.replace({"mounting.gravity": "0 m/s^2", "tip.mass": "0 kg"})
+    zero = [0.0, 0.0, 0.0]
+    setups = {
+        CASES[0]: (weightless, zero),
+        CASES[1]: (d, zero),
+        CASES[2]: (d, [float(f) for f in tip_force]),
+    }
+    rows = []
+    for case, (des, force) in setups.items():
+        prev = {"pcc": None, "cosserat": None}
+        start = None
+        for p in levels:
+            pr = np.zeros(d.n_channels)
+            pr[chans] = p
+            tips = {}
+            for model in ("pcc", "cosserat"):
+                sol = solve_statics(
+                    des, pr, model=model, tip_force=force, tip_moment=zero, initial=prev[model]
+                )
+                prev[model] = sol
+                tips[model] = sol.tip_position
+            if start is None:
+                start = tips["cosserat"]
+            err = float(np.linalg.norm(tips["pcc"] - tips["cosserat"]))
+            travel = float(np.linalg.norm(tips["cosserat"] - start))
+            rows.append(
+                {
+                    "case": case,
+                    "p_Pa": p,
+                    **{f"pcc_{a}_mm": 1e3 * v for a, v in zip("xyz", tips["pcc"], strict=True)},
+                    **{
+                        f"rod_{a}_mm": 1e3 * v for a, v in zip("xyz", tips["cosserat"], strict=True)
+                    },
+                    "error_mm": 1e3 * err,
+                    "rel_error": err / travel if travel > 0 else np.nan,
+                }
+            )
+            if progress is not None:
+                progress(2)
+    return pd.DataFrame(rows)
+
+
+def plot_pcc_comparison(df, title: str | None = None):
+    """Figure: tip error vs pressure per case (left) and both models' tip paths (right)."""
+    import matplotlib.pyplot as plt
+
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
+    for k, case in enumerate(CASES):
+        sub = df[df["case"] == case]
+        if sub.empty:
+            continue
+        color = f"C{k}"
+        ax1.plot(sub["p_Pa"] / 1e5, sub["error_mm"], "o-", color=color, label=case)
+        # Tip paths in the plane of largest travel: horizontal distance vs height.
+        for model, style in (("pcc", "--"), ("rod", "-")):
+            h = np.hypot(sub[f"{model}_x_mm"], sub[f"{model}_y_mm"])
+            ax2.plot(
+                h, sub[f"{model}_z_mm"], style, color=color, marker="." if model == "pcc" else ""
+            )
+    ax1.set_xlabel("pressure (bar)")
+    ax1.set_ylabel("|tip_PCC - tip_rod| (mm)")
+    ax1.legend(fontsize=8)
+    ax1.grid(alpha=0.3)
+    ax2.set_xlabel("horizontal tip distance (mm)")
+    ax2.set_ylabel("tip height z (mm)")
+    ax2.set_title("tip paths: rod (solid), PCC (dashed)", fontsize=9)
+    ax2.grid(alpha=0.3)
+    ax2.set_aspect("equal", adjustable="datalim")
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
