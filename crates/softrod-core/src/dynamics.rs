@@ -28,6 +28,7 @@ use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
 use crate::ode::{reproject, Coeff, Coeffs, Loads, StateScalar};
 use crate::rod::{inverse3, AxialLaw, Rod};
+use crate::spec::DynamicsSpec;
 use crate::statics::{self, SolverOptions};
 use nalgebra::{SMatrix, SVector};
 
@@ -613,6 +614,24 @@ pub struct DynStats {
     pub jacobians: usize,
 }
 
+/// Advance chamber pressures by one step of dt towards the commands: a first-order lag with
+/// time constant T (exact for a command held over the step), then the rate limit (paper 000
+/// Sec. III-A). The PCC model uses the same supply, so both models see the same pressures.
+pub fn advance_supply(dy: &DynamicsSpec, dt: f64, pressures: &mut [f64], command: &[f64]) {
+    for (p, &c) in pressures.iter_mut().zip(command) {
+        let target = if dy.pressure_time_constant > 0.0 {
+            c + (*p - c) * (-dt / dy.pressure_time_constant).exp()
+        } else {
+            c
+        };
+        let step = match dy.pressure_rate_limit {
+            Some(rate) => (target - *p).clamp(-rate * dt, rate * dt),
+            None => target - *p,
+        };
+        *p += step;
+    }
+}
+
 /// A running simulation: the rod, the time, the chamber pressures and the histories.
 /// Clone it to branch a simulation from its current state.
 #[derive(Debug, Clone)]
@@ -780,23 +799,14 @@ impl Simulator {
         Ok(())
     }
 
-    /// Advance the chamber pressures by one step towards the commands: a first-order lag
-    /// with time constant T (exact for a command held over the step), then the rate limit.
+    /// Advance the chamber pressures by one step towards the commands.
     fn advance_pressures(&mut self, command: &[f64]) {
-        let dy = self.rod.spec.dynamics;
-        let dt = self.opts.dt;
-        for (p, &c) in self.pressures.iter_mut().zip(command) {
-            let target = if dy.pressure_time_constant > 0.0 {
-                c + (*p - c) * (-dt / dy.pressure_time_constant).exp()
-            } else {
-                c
-            };
-            let step = match dy.pressure_rate_limit {
-                Some(rate) => (target - *p).clamp(-rate * dt, rate * dt),
-                None => target - *p,
-            };
-            *p += step;
-        }
+        advance_supply(
+            &self.rod.spec.dynamics,
+            self.opts.dt,
+            &mut self.pressures,
+            command,
+        );
     }
 
     /// One time step with the commanded pressures `command` (Pa) at the new time.

@@ -155,6 +155,30 @@ impl PyPcc {
         ))
     }
 
+    /// Shapes at many model coordinates (rows of x): (s (p,), positions (k, p, 3)).
+    fn shapes<'py>(
+        &self,
+        py: Python<'py>,
+        xs: PyReadonlyArray2<'_, f64>,
+        per_section: usize,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        let xs = xs.as_array();
+        let mut s_out = vec![];
+        let mut flat = vec![];
+        for row in xs.rows() {
+            let x: Vec<f64> = row.iter().copied().collect();
+            let (s, p, _) = self
+                .model
+                .shape(&x, per_section)
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            flat.extend(p.iter().flatten().copied());
+            s_out = s;
+        }
+        let n_pts = s_out.len();
+        let pos = PyArray1::from_vec(py, flat).reshape([xs.nrows(), n_pts, 3])?;
+        Ok((PyArray1::from_vec(py, s_out).into_any(), pos.into_any()))
+    }
+
     /// Energies (kinetic, gravity, elastic, pressure) at model coordinates (x, v), J.
     fn energy(
         &self,
@@ -218,6 +242,12 @@ impl PyPcc {
                     .map_err(|e| to_py_err(py, e, Context::Input))?;
                 InitialState::Given { x, v }
             }
+            // Model coordinates as returned in "x"/"x_dot" (continuing a run without the
+            // loss of the bending direction that paper coordinates have at theta = 0).
+            "model" => InitialState::Given {
+                x: q0.unwrap_or_default(),
+                v: q_dot0.unwrap_or_default(),
+            },
             other => {
                 return Err(to_py_err(
                     py,
@@ -244,6 +274,8 @@ impl PyPcc {
         d.set_item("x_dot", matrix(py, &tr.v, m.ndof)?)?;
         d.set_item("tip_position", array2(py, &tr.tip_position)?)?;
         d.set_item("tip_rotation", array3(py, &tr.tip_rotation)?)?;
+        d.set_item("tip_velocity", array2(py, &tr.tip_velocity)?)?;
+        d.set_item("pressure", matrix(py, &tr.pressure, nc)?)?;
         d.set_item("energy", PyArray1::from_vec(py, tr.energy.clone()))?;
         d.set_item("newton_iterations", tr.newton_iterations)?;
         d.set_item("jacobian_evaluations", tr.jacobian_evaluations)?;

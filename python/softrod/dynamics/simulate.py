@@ -280,9 +280,10 @@ def simulate(
     save_every: int = 1,
     shapes=None,
     initial="static",
+    model: str = "cosserat",
     alpha: float = -0.2,
-    tol: float = 1e-9,
-    max_iter: int = 25,
+    tol: float | None = None,
+    max_iter: int | None = None,
     energy: bool = True,
     progress: Callable[[float, float, float], None] | None = None,
 ) -> Trajectory:
@@ -302,7 +303,14 @@ def simulate(
     - ``initial``: ``"static"`` (at rest in equilibrium under the first commanded pressures),
       ``"straight"`` (at rest in the straight reference shape), or a :class:`Simulation`
       to continue from its state (it is not changed; the schedule is read on its clock).
-    - ``alpha``, ``tol``, ``max_iter``: integrator settings (see :class:`Simulation`).
+    - ``model``: ``"cosserat"`` (paper 000's viscoelastic rod) or ``"pcc"`` (paper 003's
+      piecewise-constant-curvature Lagrangian model, one arc per deformable section, with
+      the design's ``[pcc]`` parameters; docs/pcc.md). Both take the same schedule through
+      the same pressure supply and return the same :class:`Trajectory`; a PCC run's shapes
+      are its arcs sampled along s, and ``initial`` may not be a :class:`Simulation`.
+    - ``alpha``, ``tol``, ``max_iter``: integrator settings (see :class:`Simulation`;
+      ``alpha`` is the rod's BDF-alpha parameter; the PCC model uses the implicit midpoint
+      rule, its ``tol`` default is 1e-11 on the Newton update per coordinate scale).
     - ``energy``: also record the total mechanical energy (J).
     - ``progress``: called after each chunk of steps as progress(t_done, t_end, wall_s).
 
@@ -310,6 +318,25 @@ def simulate(
     real-time factor. A step that does not converge raises ``ConvergenceError`` with the
     time it failed at.
     """
+    if model not in ("cosserat", "pcc"):
+        raise design_error("model", model, "must be 'cosserat' or 'pcc'", InputError)
+    if model == "pcc":
+        return _simulate_pcc(
+            design,
+            pressure_schedule,
+            t_end,
+            dt=dt,
+            save_every=save_every,
+            shapes=shapes,
+            initial=initial,
+            alpha=alpha,
+            tol=1e-11 if tol is None else tol,
+            max_iter=30 if max_iter is None else max_iter,
+            energy=energy,
+            progress=progress,
+        )
+    tol = 1e-9 if tol is None else tol
+    max_iter = 25 if max_iter is None else max_iter
     if isinstance(initial, Simulation):
         sim = initial.copy()
     else:
@@ -332,4 +359,45 @@ def simulate(
         shapes=shapes,
         energy=energy,
         progress=progress,
+    )
+
+
+def _simulate_pcc(
+    design, pressure_schedule, t_end, *, dt, save_every, shapes, initial, alpha, **kw
+) -> Trajectory:
+    """``simulate(model="pcc")``: check the shared arguments, then run the PCC model."""
+    from ..pcc.simulate import simulate_pcc
+
+    if isinstance(initial, Simulation) or initial not in ("static", "straight"):
+        what = "a Simulation" if isinstance(initial, Simulation) else initial
+        raise design_error(
+            "initial", what, "with model='pcc' must be 'static' or 'straight'", InputError
+        )
+    if alpha != -0.2:
+        raise design_error(
+            "alpha",
+            alpha,
+            "is the rod's BDF-alpha parameter; the PCC model uses the implicit midpoint rule",
+            InputError,
+        )
+    d = load_design(design)
+    schedule = _schedule(pressure_schedule, d.n_channels)
+    step = _seconds(dt, "dt")
+    duration = _seconds(t_end, "t_end")
+    if isinstance(save_every, bool) or not isinstance(save_every, int | np.integer):
+        raise design_error("save_every", save_every, "must be an integer >= 1", InputError)
+    if save_every < 1:
+        raise design_error("save_every", save_every, "must be an integer >= 1", InputError)
+    n = max(1, math.ceil(duration / step * (1.0 - 1e-12)))
+    shape_steps, shape0 = _shape_steps(shapes, n, step, int(save_every))
+    return simulate_pcc(
+        d,
+        schedule,
+        duration,
+        dt=step,
+        save_every=int(save_every),
+        shape_steps=shape_steps,
+        shape_at_start=shape0,
+        initial=initial,
+        **kw,
     )

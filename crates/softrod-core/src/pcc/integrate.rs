@@ -62,6 +62,10 @@ pub struct PccTrajectory {
     pub v: Vec<Vec<f64>>,
     pub tip_position: Vec<[f64; 3]>,
     pub tip_rotation: Vec<[[f64; 3]; 3]>,
+    /// Tip velocity, m/s (the exact derivative of the tip position along v).
+    pub tip_velocity: Vec<[f64; 3]>,
+    /// Chamber pressures after the supply's lag and rate limit, Pa.
+    pub pressure: Vec<Vec<f64>>,
     /// Kinetic + gravitational + elastic energy, J.
     pub energy: Vec<f64>,
     /// Newton iterations over all steps.
@@ -365,6 +369,8 @@ fn simulate_n<const N: usize>(
         v: vec![],
         tip_position: vec![],
         tip_rotation: vec![],
+        tip_velocity: vec![],
+        pressure: vec![],
         energy: vec![],
         newton_iterations: 0,
         jacobian_evaluations: 0,
@@ -372,6 +378,8 @@ fn simulate_n<const N: usize>(
     let save = |out: &mut PccTrajectory, k: usize, x: &[f64; N], v: &[f64; N]| {
         let (p, r) = m.walk(x, None, |_, _| {});
         let e = m.energy_n(x, v, row(k));
+        out.tip_velocity.push(m.tip_velocity(x, v));
+        out.pressure.push(row(k).to_vec());
         out.time.push(k as f64 * dt);
         out.x.push(x.to_vec());
         out.v.push(v.to_vec());
@@ -425,7 +433,7 @@ fn simulate_n<const N: usize>(
                 ),
             });
         }
-        if (k + 1) % save_every == 0 {
+        if (k + 1) % save_every == 0 || k + 1 == n_steps {
             save(&mut out, k + 1, &x, &v);
         }
     }
@@ -514,6 +522,23 @@ impl PccModel {
         self.walk(x, None, |_, _| {})
     }
 
+    /// Tip velocity at model coordinates and rates (x, v), m/s: the tip position's
+    /// derivative along v, exact with one dual-number walk.
+    pub fn tip_velocity(&self, x: &[f64], v: &[f64]) -> [f64; 3] {
+        let xd: Vec<Dn<1>> = x
+            .iter()
+            .zip(v)
+            .map(|(&a, &b)| {
+                Dn::<1>::new(a, num_dual::Derivative::some(nalgebra::SVector::from([b])))
+            })
+            .collect();
+        let (p, _) = self.walk(&xd, None, |_, _| {});
+        p.map(|c| {
+            c.eps
+                .unwrap_generic(nalgebra::Const::<1>, nalgebra::Const::<1>)[0]
+        })
+    }
+
     /// The shape sampled at `per_link` + 1 points along every section: reference arc
     /// length s, positions and rotations (rows of [d1 d2 d3]).
     pub fn shape(&self, x: &[f64], per_link: usize) -> Result<Shape> {
@@ -563,8 +588,10 @@ impl PccModel {
         dispatch!(self.ndof, statics_n(self, p, g, opts))
     }
 
-    /// Simulate with time step dt under pressures sampled at every step time (row-major,
-    /// (n_steps + 1) x n_channels, Pa); saves every `save_every` steps.
+    /// Simulate with time step dt under commanded pressures sampled at every step time
+    /// (row-major, (n_steps + 1) x n_channels, Pa), passed through the design's pressure
+    /// supply (`[dynamics]` lag and rate limit; none by default); saves every `save_every`
+    /// steps and the last.
     pub fn simulate(
         &self,
         dt: f64,
@@ -615,9 +642,19 @@ impl PccModel {
                 ));
             }
         }
+        // The chamber pressures follow the commands through the design's supply (lag and
+        // rate limit, as in the rod's dynamics), starting at the first command.
+        let mut applied = pressures.to_vec();
+        for k in 1..rows {
+            let (done, rest) = applied.split_at_mut(k * nc);
+            let now = &mut rest[..nc];
+            let command = now.to_vec();
+            now.copy_from_slice(&done[(k - 1) * nc..]);
+            crate::dynamics::advance_supply(&self.supply, dt, now, &command);
+        }
         dispatch!(
             self.ndof,
-            simulate_n(self, dt, pressures, rows - 1, initial, save_every, opts)
+            simulate_n(self, dt, &applied, rows - 1, initial, save_every, opts)
         )
     }
 }

@@ -142,6 +142,19 @@ impl PccModel {
                 }
             };
             let world = |(p, r): Pose<S>| -> Pose<S> {
+                if li == 0 {
+                    // The base frame is constant: products with plain numbers are several
+                    // times cheaper than with the nested duals (most chains are one link).
+                    let (b, q) = (&self.base_position, &self.base_rotation);
+                    let d: [S; 3] =
+                        std::array::from_fn(|i| p[0] * q[i][0] + p[1] * q[i][1] + p[2] * q[i][2]);
+                    let rr = std::array::from_fn(|i| {
+                        std::array::from_fn(|j| {
+                            r[0][j] * q[i][0] + r[1][j] * q[i][1] + r[2][j] * q[i][2]
+                        })
+                    });
+                    return (std::array::from_fn(|k| d[k] + b[k]), rr);
+                }
                 let d = mv(&rot, &p);
                 (std::array::from_fn(|k| pos[k] + d[k]), mm(&rot, &r))
             };

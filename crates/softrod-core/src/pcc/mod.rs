@@ -328,6 +328,9 @@ pub struct PccModel {
     pub pressure_model: PressureModel,
     /// Gauss-Legendre nodes and weights on [0, 1].
     pub nodes: Vec<(f64, f64)>,
+    /// The pressure supply (lag and rate limit) of the design's `[dynamics]` table, shared
+    /// with the rod's dynamics so that both models see the same chamber pressures.
+    pub supply: crate::spec::DynamicsSpec,
 }
 
 /// Supported numbers of coordinates (up to 5 spatial or 7 planar segments).
@@ -495,6 +498,7 @@ impl PccModel {
             n_channels: rod.n_channels,
             pressure_model: pspec.pressure_force,
             nodes: gauss_legendre(pspec.quadrature),
+            supply: spec.dynamics,
         })
     }
 
