@@ -78,6 +78,14 @@ def add_simulate_command(main: click.Group, helpers) -> None:
         help="Start at rest in equilibrium under the first pressures, or straight.",
     )
     @click.option(
+        "--model",
+        type=click.Choice(["cosserat", "pcc"]),
+        default="cosserat",
+        show_default=True,
+        help="cosserat: paper 000's viscoelastic rod; pcc: paper 003's constant-curvature "
+        "Lagrangian model with the design's [pcc] parameters (docs/pcc.md).",
+    )
+    @click.option(
         "--out",
         required=True,
         type=click.Path(dir_okay=False, path_type=Path),
@@ -113,6 +121,7 @@ def add_simulate_command(main: click.Group, helpers) -> None:
         dt,
         save_every,
         initial,
+        model,
         out,
         animation,
         fps,
@@ -122,8 +131,9 @@ def add_simulate_command(main: click.Group, helpers) -> None:
         """Simulate DESIGN's motion under commanded chamber pressures over time.
 
         The rod is paper 000's viscoelastic Cosserat rod (damping time from the design's
-        [dynamics] table), integrated with BDF-alpha in time and shooting in space. Progress
-        shows the simulated time and the real-time factor on stderr.
+        [dynamics] table), integrated with BDF-alpha in time and shooting in space; with
+        --model pcc, paper 003's piecewise-constant-curvature model (implicit midpoint rule).
+        Progress shows the simulated time and the real-time factor on stderr.
         """
         d = load_design(design)
         if (input_path is None) == (pulses is None):
@@ -155,11 +165,14 @@ def add_simulate_command(main: click.Group, helpers) -> None:
             duration = _seconds(t_end, "--t-end")
         shapes = 1.0 / fps if animation is not None else None
         console = helpers._stdout()
+        if model == "pcc":
+            what = "PCC model (paper 003)"
+        else:
+            what = f"Cosserat rod, damping time {d.spec['dynamics']['damping_time']:g} s"
         console.print(
             Text(
                 f"{d.name}: {duration:g} s at dt = {step * 1e3:g} ms "
-                f"({math.ceil(duration / step):,} steps), damping time "
-                f"{d.spec['dynamics']['damping_time']:g} s"
+                f"({math.ceil(duration / step):,} steps), {what}"
             )
         )
         err = Console(stderr=True)
@@ -191,6 +204,7 @@ def add_simulate_command(main: click.Group, helpers) -> None:
                 save_every=save_every,
                 shapes=shapes,
                 initial=initial,
+                model=model,
                 progress=report,
             )
             wall = time.perf_counter() - t0

@@ -369,8 +369,9 @@ class Trajectory:
         fig, (ax, axp) = plt.subplots(
             2, 1, sharex=True, figsize=(8.0, 6.0), gridspec_kw={"height_ratios": [2, 1]}
         )
+        model = {"cosserat": "rod", "pcc": "PCC"}.get(self.metadata.get("model"), "model")
         for i, a in enumerate(_XYZ):
-            ax.plot(self.time, self.tip_position[:, i] * 1e3, color=f"C{i}", label=f"{a} model")
+            ax.plot(self.time, self.tip_position[:, i] * 1e3, color=f"C{i}", label=f"{a} {model}")
             if ref is not None:
                 ax.plot(
                     ref[0],
@@ -392,11 +393,21 @@ class Trajectory:
                 color=colour,
                 linestyle=":",
                 linewidth=1.0,
-                label=f"p{k} command",
             )
+        from matplotlib.lines import Line2D
+
         axp.set_xlabel("time (s)")
         axp.set_ylabel("pressure (kPa)")
-        axp.legend(loc="upper right", fontsize="small", ncol=self.n_channels)
+        handles, _ = axp.get_legend_handles_labels()
+        handles.append(Line2D([], [], color="k", linestyle=":", linewidth=1.0, label="command"))
+        # Beside the panel: with many channels a legend inside would hide the curves.
+        axp.legend(
+            handles=handles,
+            loc="upper left",
+            bbox_to_anchor=(1.01, 1.0),
+            fontsize="small",
+            frameon=False,
+        )
         axp.grid(True, alpha=0.3)
         if title is None:
             title = self.metadata.get("design") or "tip trajectory"
