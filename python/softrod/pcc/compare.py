@@ -1,4 +1,11 @@
-"""Side by side: the PCC model and the Cosserat rod on the same design and inputs."""
+"""Side by side: the PCC model and the Cosserat rod on the same design and inputs.
+
+- :func:`compare_pcc`: static tip positions while chambers ramp up (tip error vs pressure);
+- :func:`compare_pcc_dynamics`: tip trajectories under one pressure schedule (tip error vs
+  time);
+
+each in three cases: weightless and unloaded, with gravity, and with gravity and a tip load.
+"""
 
 from __future__ import annotations
 
@@ -10,7 +17,12 @@ from ..design import load_design
 from ..errors import InputError, design_error
 from ..statics import solve_statics
 
-__all__ = ["compare_pcc", "plot_pcc_comparison"]
+__all__ = [
+    "compare_pcc",
+    "compare_pcc_dynamics",
+    "plot_pcc_comparison",
+    "plot_pcc_dynamics_comparison",
+]
 
 CASES = ("weightless", "gravity", "gravity + tip load")
 
@@ -46,13 +58,8 @@ def compare_pcc(
     if not (np.isfinite(p_max) and p_max > 0):
         raise design_error("p_max", p_max, "must be a pressure > 0 Pa", InputError)
     levels = np.linspace(0.0, p_max, steps)
-    weightless = d.replace({"mounting.gravity": "0 m/s^2", "tip.mass": "0 kg"})
     zero = [0.0, 0.0, 0.0]
-    setups = {
-        CASES[0]: (weightless, zero),
-        CASES[1]: (d, zero),
-        CASES[2]: (d, [float(f) for f in tip_force]),
-    }
+    setups = _cases(d, tip_force)
     rows = []
     for case, (des, force) in setups.items():
         prev = {"pcc": None, "cosserat": None}
@@ -86,6 +93,92 @@ def compare_pcc(
             if progress is not None:
                 progress(2)
     return pd.DataFrame(rows)
+
+
+def _cases(d, tip_force) -> dict:
+    """The three cases as (design, tip force N): weightless (gravity off, no tip body),
+    with gravity, with gravity and ``tip_force``."""
+    force = [float(f) for f in tip_force]
+    if len(force) != 3 or not np.all(np.isfinite(force)):
+        raise design_error("tip_force", list(tip_force), "must be 3 finite forces (N)", InputError)
+    weightless = d.replace({"mounting.gravity": "0 m/s^2", "tip.mass": "0 kg"})
+    zero = [0.0, 0.0, 0.0]
+    return {CASES[0]: (weightless, zero), CASES[1]: (d, zero), CASES[2]: (d, force)}
+
+
+def compare_pcc_dynamics(
+    design,
+    schedule,
+    t_end,
+    *,
+    dt=2e-3,
+    save_every: int = 5,
+    tip_force: Sequence[float] = (0.0, 0.0, -0.0981),
+    progress: Callable[[int], None] | None = None,
+):
+    """Tip trajectories of both models under the same pressure ``schedule`` (anything
+    :func:`softrod.simulate` takes) for ``t_end`` at time step ``dt``, in the three cases of
+    :func:`compare_pcc` (weightless means gravity off and no tip body; the arm keeps its
+    mass). Both start at rest in equilibrium under the first pressures and see the same
+    supplied pressures; each model uses its own damping (the rod: the design's
+    ``[dynamics]`` Kelvin-Voigt time; PCC: ``[pcc]`` b_L, b_theta). ``progress(1)`` is
+    called after every run (6 runs).
+
+    Returns a pandas DataFrame with columns case, time_s, pcc_{x,y,z}_mm, rod_{x,y,z}_mm and
+    error_mm (distance between the two tips), one row per saved step and case.
+    """
+    import pandas as pd
+
+    from ..dynamics import simulate
+
+    d = load_design(design)
+    frames = []
+    for case, (des, force) in _cases(d, tip_force).items():
+        if any(force):
+            des = des.replace({"tip.force": [f"{f!r} N" for f in force]})
+        tips = {}
+        for model in ("pcc", "cosserat"):
+            tr = simulate(des, schedule, t_end, dt=dt, save_every=save_every, model=model)
+            tips[model] = tr.tip_position
+            time = tr.time
+            if progress is not None:
+                progress(1)
+        frame = {"case": case, "time_s": time}
+        for model, key in (("pcc", "pcc"), ("cosserat", "rod")):
+            for k, a in enumerate("xyz"):
+                frame[f"{key}_{a}_mm"] = 1e3 * tips[model][:, k]
+        frame["error_mm"] = 1e3 * np.linalg.norm(tips["pcc"] - tips["cosserat"], axis=1)
+        frames.append(pd.DataFrame(frame))
+    return pd.concat(frames, ignore_index=True)
+
+
+def plot_pcc_dynamics_comparison(df, title: str | None = None):
+    """Figure: tip error vs time per case (left) and both models' lateral tip distance
+    from the axis over time (right: rod solid, PCC dashed)."""
+    import matplotlib.pyplot as plt
+
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
+    for k, case in enumerate(CASES):
+        sub = df[df["case"] == case]
+        if sub.empty:
+            continue
+        color = f"C{k}"
+        ax1.plot(sub["time_s"], sub["error_mm"], color=color, label=case)
+        for model, style in (("rod", "-"), ("pcc", "--")):
+            h = np.hypot(sub[f"{model}_x_mm"], sub[f"{model}_y_mm"])
+            ax2.plot(sub["time_s"], h, style, color=color)
+    ax1.set_xlabel("time (s)")
+    ax1.set_ylabel("|tip_PCC - tip_rod| (mm)")
+    ax1.legend(fontsize=8)
+    ax1.grid(alpha=0.3)
+    ax2.set_xlabel("time (s)")
+    ax2.set_ylabel("lateral tip distance from the axis (mm)")
+    ax2.set_title("rod (solid), PCC (dashed)", fontsize=9)
+    ax2.grid(alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
 
 
 def plot_pcc_comparison(df, title: str | None = None):
