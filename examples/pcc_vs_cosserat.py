@@ -1,9 +1,10 @@
 """PCC model (paper 003) vs Cosserat rod on the modified STIFF-FLOP arm.
 
 Writes docs/figures/pcc_vs_cosserat.png (tip difference vs pressure: weightless, with
-gravity, with gravity and a 10 g tip weight) and docs/figures/pcc_step_response.png (the
-PCC model's response to a 1 bar step on chambers 1, 3, 5 and on 6, 1, 2, as in paper 003
-Figs. 8 and 9), and prints the numbers.
+gravity, with gravity and a 10 g tip weight), docs/figures/pcc_dynamics_vs_cosserat.png
+(the same three cases in motion: tip difference vs time under a 1 bar pulse on chambers
+6, 1, 2) and docs/figures/pcc_step_response.png (the PCC model's response to a 1 bar step on
+chambers 1, 3, 5 and on 6, 1, 2, as in paper 003 Figs. 8 and 9), and prints the numbers.
 
 Run: python examples/pcc_vs_cosserat.py [output folder]
 """
@@ -19,7 +20,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import softrod  # noqa: E402
 from softrod.pcc import run_pcc  # noqa: E402
-from softrod.pcc.compare import compare_pcc, plot_pcc_comparison  # noqa: E402
+from softrod.pcc.compare import (  # noqa: E402
+    compare_pcc,
+    compare_pcc_dynamics,
+    plot_pcc_comparison,
+    plot_pcc_dynamics_comparison,
+)
 
 out_dir = (
     Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent.parent / "docs" / "figures"
@@ -32,6 +38,19 @@ print(f"side by side: {len(df)} rows x 2 models in {time.perf_counter() - t0:.2f
 print(df[["case", "p_Pa", "error_mm", "rel_error"]].to_string(index=False, float_format="%.4g"))
 fig = plot_pcc_comparison(df, title="stiff_flop_pcc: PCC vs Cosserat rod, chambers 6, 1, 2")
 fig.savefig(out_dir / "pcc_vs_cosserat.png", dpi=120)
+plt.close(fig)
+
+zero, pulse = np.zeros(6), np.zeros(6)
+pulse[[5, 0, 1]] = 1e5
+schedule = softrod.PressureSchedule.steps([0.0, 0.1, 1.5], [zero, pulse, zero])
+t0 = time.perf_counter()
+dyn = compare_pcc_dynamics(design, schedule, 3.0, dt=2e-3)
+print(f"dynamic side by side: 3 cases x 2 models, 3 s each, in {time.perf_counter() - t0:.2f} s")
+print(dyn.groupby("case", sort=False)["error_mm"].max().to_string(float_format="%.3f mm"))
+fig = plot_pcc_dynamics_comparison(
+    dyn, title="stiff_flop_pcc: PCC vs Cosserat rod, 1 bar pulse on chambers 6, 1, 2"
+)
+fig.savefig(out_dir / "pcc_dynamics_vs_cosserat.png", dpi=120)
 plt.close(fig)
 
 dt, n = 2e-3, 1500
@@ -55,4 +74,5 @@ for ax, chambers, label in (
 fig.tight_layout()
 fig.savefig(out_dir / "pcc_step_response.png", dpi=120)
 plt.close(fig)
-print(f"wrote {out_dir / 'pcc_vs_cosserat.png'} and {out_dir / 'pcc_step_response.png'}")
+names = "pcc_vs_cosserat.png, pcc_dynamics_vs_cosserat.png and pcc_step_response.png"
+print(f"wrote {names} in {out_dir}")
