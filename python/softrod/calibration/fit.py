@@ -494,6 +494,8 @@ def calibrate(
     progress: Callable[[int, float], None] | None = None,
     dynamic: bool = False,
     dt=5e-3,
+    model: str = "cosserat",
+    experiments: Mapping | None = None,
 ):
     """Fit ``params`` of ``design`` to the tip positions of ``dataset``.
 
@@ -514,11 +516,64 @@ def calibrate(
     split: None (fit on all rows), "experiment" or "mounting" with ``test`` ids (default
     for "experiment": the last experiment), or a boolean test mask.
     progress: called as ``progress(evaluations, rms_error_mm)`` after every evaluation.
+    model: "cosserat" (default: the rod, everything above) or "pcc": paper 003's
+    identification of the PCC model (Sec. V, docs/pcc.md). ``params`` is then one or a list
+    of "k_L", "k_theta", "b_L", "b_theta", each identified from its own experiment:
+    equal-pressure elongation (static rows: Hookean fit with an offset that takes the
+    weight), one-side bending (static rows: k = M/theta, gravity moment taken out by the
+    model), an elongation step and a free bending decay (time series). A list is fitted in
+    that order, each fit using the values before it. ``experiments={"k_L": id, ...}``
+    names the experiment rows of each parameter (default: the experiment called
+    "elongation", "bending", "step" or "free_decay"), and ``options`` is a dict of the
+    further settings of :func:`softrod.pcc.identify_pcc` (``degree``, ``gravity``, ``k_L``,
+    ``k_theta``, ``inertia``). Returns a :class:`softrod.pcc.PccFit` (``fit.to_toml(path)``
+    writes the design with the values). bounds, method, split, test, progress, threads,
+    max_evaluations and dynamic do not apply.
 
     Returns a :class:`CalibrationResult`; emits a :class:`CalibrationWarning` for each
     identifiability problem (also listed in ``result.warnings``).
     """
     from scipy.optimize import least_squares, minimize
+
+    if model not in ("cosserat", "pcc"):
+        raise _fail("model", model, "must be 'cosserat' (the rod) or 'pcc' (paper 003)")
+    if model == "pcc":
+        from ..pcc.experiments import identify_pcc
+
+        unused = {
+            name: value
+            for name, value, default in (
+                ("bounds", bounds, None),
+                ("method", method, None),
+                ("split", split, None),
+                ("test", test, None),
+                ("progress", progress, None),
+                ("threads", threads, 0),
+                ("max_evaluations", max_evaluations, 200),
+                ("dynamic", dynamic, False),
+            )
+            if (value is not None if default is None else value != default)
+        }
+        if unused:
+            name, value = next(iter(unused.items()))
+            raise _fail(
+                name,
+                value,
+                "does not apply to model='pcc' (paper 003's closed-form fits, one per experiment)",
+            )
+        settings = ("degree", "gravity", "k_L", "k_theta", "inertia")
+        if options is not None and (
+            not isinstance(options, Mapping) or any(k not in settings for k in options)
+        ):
+            raise _fail(
+                "options",
+                options,
+                f"with model='pcc' a dict of softrod.pcc.identify_pcc settings "
+                f"({', '.join(settings)})",
+            )
+        return identify_pcc(design, dataset, params, experiments=experiments, **(options or {}))
+    if experiments is not None:
+        raise _fail("experiments", experiments, "applies to model='pcc' only")
 
     if dynamic:
         from .dynamic import calibrate_dynamics

@@ -8,10 +8,14 @@
   :func:`fit_bending_stiffness`, :func:`fit_longitudinal_damping`,
   :func:`fit_bending_damping`, with :func:`chamber_moment` and
   :func:`bending_angle_from_tip`; each returns a :class:`PccFit`
+- the same on a :class:`~softrod.Dataset`: :func:`identify_pcc`, also
+  ``softrod.calibrate(design, dataset, params, model="pcc")``; synthetic experiments from
+  the model: :func:`synthesize_pcc_experiments`
 - :func:`compare_pcc`, :func:`plot_pcc_comparison`: PCC vs Cosserat tip positions
 """
 
 from .compare import compare_pcc, plot_pcc_comparison
+from .experiments import EXPERIMENTS, PCC_PARAMETERS, identify_pcc, synthesize_pcc_experiments
 from .identify import (
     PccFit,
     bending_angle_from_tip,
@@ -24,6 +28,8 @@ from .identify import (
 from .model import pcc_model, pcc_parameters, pcc_shape, run_pcc
 
 __all__ = [
+    "EXPERIMENTS",
+    "PCC_PARAMETERS",
     "PccFit",
     "bending_angle_from_tip",
     "chamber_moment",
@@ -32,9 +38,11 @@ __all__ = [
     "fit_bending_stiffness",
     "fit_longitudinal_damping",
     "fit_longitudinal_stiffness",
+    "identify_pcc",
     "pcc_model",
     "pcc_parameters",
     "pcc_shape",
     "plot_pcc_comparison",
     "run_pcc",
+    "synthesize_pcc_experiments",
 ]
