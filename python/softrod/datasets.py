@@ -944,6 +944,22 @@ def write_dataset(dataset: Dataset, path, *, units: Mapping[str, str] | None = N
 # --- synthetic data ------------------------------------------------------------------------------
 
 
+def noise_seed(noise_mm, seed) -> int:
+    """Check the noise (standard deviation, mm) and seed of synthetic data; return the seed
+    (a fresh one, recorded in the metadata, when ``seed`` is None)."""
+    if (
+        isinstance(noise_mm, bool)
+        or not isinstance(noise_mm, (int, float))
+        or not (math.isfinite(noise_mm) and noise_mm >= 0)
+    ):
+        raise _fail("noise_mm", noise_mm, "must be a finite number >= 0 (standard deviation, mm)")
+    if seed is None:
+        return int(np.random.SeedSequence().entropy % 2**63)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise _fail("seed", seed, "must be an integer >= 0 or None")
+    return int(seed)
+
+
 def synthesize_dataset(
     design,
     pressures,
@@ -975,16 +991,7 @@ def synthesize_dataset(
     from .statics import solve_statics_batch
 
     design = load_design(design)
-    if (
-        isinstance(noise_mm, bool)
-        or not isinstance(noise_mm, (int, float))
-        or not (math.isfinite(noise_mm) and noise_mm >= 0)
-    ):
-        raise _fail("noise_mm", noise_mm, "must be a finite number >= 0 (standard deviation, mm)")
-    if seed is None:
-        seed = int(np.random.SeedSequence().entropy % 2**63)
-    elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise _fail("seed", seed, "must be an integer >= 0 or None")
+    seed = noise_seed(noise_mm, seed)
     p = np.asarray(pressures, dtype=float)
     if p.ndim == 2 and not np.isfinite(p).all():
         raise _fail("pressures", "non-finite", "must be finite (Pa)")

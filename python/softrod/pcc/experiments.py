@@ -34,7 +34,14 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .. import _core
-from ..datasets import Dataset, _matrix_to_quat, _quat_to_matrix, _runs, load_dataset
+from ..datasets import (
+    Dataset,
+    _matrix_to_quat,
+    _quat_to_matrix,
+    _runs,
+    load_dataset,
+    noise_seed,
+)
 from ..design import Design, load_design
 from ..errors import ConvergenceError, InputError, design_error
 from ..units import to_si
@@ -672,16 +679,7 @@ def synthesize_pcc_experiments(
             "must map experiment kinds (elongation, bending, step, free_decay) to a pressure "
             "or a dict of settings",
         )
-    if (
-        isinstance(noise_mm, bool)
-        or not isinstance(noise_mm, (int, float))
-        or not (math.isfinite(noise_mm) and noise_mm >= 0)
-    ):
-        raise _fail("noise_mm", noise_mm, "must be a finite number >= 0 (standard deviation, mm)")
-    if seed is None:
-        seed = int(np.random.SeedSequence().entropy % 2**63)
-    elif isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise _fail("seed", seed, "must be an integer >= 0 or None")
+    seed = noise_seed(noise_mm, seed)
     dt_s = _positive_number(dt, "dt", "time")
     rate_hz = _positive_number(rate, "rate")
     ratio = 1.0 / (rate_hz * dt_s)
