@@ -6,7 +6,7 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::dynamics::{DynOptions, Initial, Simulator};
-use softrod_core::{DesignSpec, Rod, SoftrodError};
+use softrod_core::{Rod, SoftrodError};
 
 /// A running simulation of a design (see `softrod.dynamics`).
 #[pyclass(name = "Simulator", module = "softrod._core")]
@@ -89,13 +89,7 @@ impl PySimulator {
         tol: f64,
         max_iter: usize,
     ) -> PyResult<Self> {
-        let spec: DesignSpec = serde_json::from_str(spec_json).map_err(|e| {
-            to_py_err(
-                py,
-                SoftrodError::invalid("design", "(JSON)", e.to_string()),
-                Context::Design,
-            )
-        })?;
+        let spec = crate::parse_spec(py, spec_json)?;
         let rod = Rod::new(spec).map_err(|e| to_py_err(py, e, Context::Design))?;
         let initial = match initial {
             "static" => Initial::Static,

@@ -63,6 +63,17 @@ fn options(tol: f64, max_iter: usize, continuation: bool, max_load_steps: usize)
     }
 }
 
+/// The `DesignSpec` of a design's JSON text (SI units), as written by the Python package.
+fn parse_spec(py: Python<'_>, spec_json: &str) -> PyResult<DesignSpec> {
+    serde_json::from_str(spec_json).map_err(|e| {
+        to_py_err(
+            py,
+            SoftrodError::invalid("design", "(JSON)", e.to_string()),
+            Context::Design,
+        )
+    })
+}
+
 fn array2<'py>(py: Python<'py>, rows: &[[f64; 3]]) -> PyResult<Bound<'py, PyAny>> {
     let flat: Vec<f64> = rows.iter().flatten().copied().collect();
     Ok(PyArray1::from_vec(py, flat)
@@ -82,13 +93,7 @@ impl PyRod {
     /// Build from the JSON text of a `DesignSpec` (SI units).
     #[new]
     fn new(py: Python<'_>, spec_json: &str) -> PyResult<Self> {
-        let spec: DesignSpec = serde_json::from_str(spec_json).map_err(|e| {
-            to_py_err(
-                py,
-                SoftrodError::invalid("design", "(JSON)", e.to_string()),
-                Context::Design,
-            )
-        })?;
+        let spec = parse_spec(py, spec_json)?;
         let rod = Rod::new(spec).map_err(|e| to_py_err(py, e, Context::Design))?;
         Ok(PyRod { rod })
     }

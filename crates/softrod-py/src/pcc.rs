@@ -5,7 +5,7 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::pcc::{BendStiffness, InitialState, PccModel, StepOptions};
-use softrod_core::{DesignSpec, SoftrodError};
+use softrod_core::SoftrodError;
 
 /// The compiled PCC model of a design (immutable).
 #[pyclass(name = "PccModel", module = "softrod._core", frozen)]
@@ -34,13 +34,7 @@ impl PyPcc {
     /// Build from the JSON text of a `DesignSpec` (SI units).
     #[new]
     fn new(py: Python<'_>, spec_json: &str) -> PyResult<Self> {
-        let spec: DesignSpec = serde_json::from_str(spec_json).map_err(|e| {
-            to_py_err(
-                py,
-                SoftrodError::invalid("design", "(JSON)", e.to_string()),
-                Context::Design,
-            )
-        })?;
+        let spec = crate::parse_spec(py, spec_json)?;
         let model = PccModel::new(&spec).map_err(|e| to_py_err(py, e, Context::Design))?;
         Ok(PyPcc { model })
     }
