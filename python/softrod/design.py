@@ -526,6 +526,8 @@ class Design:
     document: dict
     source: Path | None = None
     _rod: Any = field(default=None, repr=False, compare=False)
+    # Compiled PCC models by tip loads, built on first use (softrod.pcc.pcc_model).
+    _pcc: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def n_channels(self) -> int:

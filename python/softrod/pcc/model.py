@@ -23,17 +23,33 @@ from ..units import to_si
 __all__ = ["pcc_model", "pcc_parameters", "pcc_shape", "run_pcc"]
 
 
+_CACHED_LOADS = 8  # compiled models kept per design (sweeps reuse a few tip loads)
+
+
 def pcc_model(design, *, tip_force=None, tip_moment=None) -> _core.PccModel:
-    """The compiled core model of ``design`` (tip loads optionally replaced, world frame)."""
+    """The compiled core model of ``design`` (tip loads optionally replaced, world frame).
+
+    Kept on the design for the next call with the same tip loads: compiling costs more than
+    a PCC static solve (the spec's JSON text and the core's checks)."""
     design = load_design(design)
     spec = design.spec
-    if tip_force is not None or tip_moment is not None:
+    force = None if tip_force is None else _vec3(tip_force, "force", "tip_force")
+    moment = None if tip_moment is None else _vec3(tip_moment, "moment", "tip_moment")
+    key = (None if force is None else tuple(force), None if moment is None else tuple(moment))
+    cache = design._pcc
+    if key in cache:
+        return cache[key]
+    if force is not None or moment is not None:
         spec = copy.deepcopy(spec)
-        if tip_force is not None:
-            spec["tip"]["force"] = _vec3(tip_force, "force", "tip_force")
-        if tip_moment is not None:
-            spec["tip"]["moment"] = _vec3(tip_moment, "moment", "tip_moment")
-    return _core.PccModel(json.dumps(spec))
+        if force is not None:
+            spec["tip"]["force"] = force
+        if moment is not None:
+            spec["tip"]["moment"] = moment
+    model = _core.PccModel(json.dumps(spec))
+    if len(cache) >= _CACHED_LOADS:
+        cache.pop(next(iter(cache)))
+    cache[key] = model
+    return model
 
 
 def _vec3(value, kind: str, name: str) -> list[float]:

@@ -10,10 +10,54 @@
 //! scalar, so dual numbers give exact derivatives of any order.
 
 use num_dual::DualNum;
+use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
 
-/// Scalars the PCC model is written for: f64 and (nested) num-dual numbers.
-pub trait Real: DualNum<Primitive = f64> + Copy {}
-impl<T: DualNum<Primitive = f64> + Copy> Real for T {}
+/// Scalars the PCC model is written for: f64, num-dual numbers and the model's own
+/// fixed-size jets (`super::jet`). Only what the kinematics and forces use.
+pub trait Real:
+    Copy
+    + From<f64>
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + Add<f64, Output = Self>
+    + Sub<f64, Output = Self>
+    + Mul<f64, Output = Self>
+    + Div<f64, Output = Self>
+    + AddAssign
+    + SubAssign
+    + MulAssign<f64>
+{
+    /// Highest derivative carried (nilpotency order of the non-real part).
+    const NDERIV: usize;
+    /// The plain value.
+    fn re(&self) -> f64;
+    fn sqrt(&self) -> Self;
+    fn sin(&self) -> Self;
+    fn cos(&self) -> Self;
+}
+
+impl<T: DualNum<Primitive = f64> + Copy> Real for T {
+    const NDERIV: usize = <T as DualNum>::NDERIV;
+    #[inline]
+    fn re(&self) -> f64 {
+        num_dual::DualStruct::re(self)
+    }
+    #[inline]
+    fn sqrt(&self) -> Self {
+        DualNum::sqrt(self)
+    }
+    #[inline]
+    fn sin(&self) -> Self {
+        DualNum::sin(self)
+    }
+    #[inline]
+    fn cos(&self) -> Self {
+        DualNum::cos(self)
+    }
+}
 
 /// Below t = theta^2 = 0.25 (|theta| < 0.5 rad) the series are used.
 pub const SERIES_SWITCH: f64 = 0.25;
@@ -26,6 +70,43 @@ fn factorial(n: usize) -> f64 {
     (1..=n).map(|k| k as f64).product()
 }
 
+const fn factorial_c(n: usize) -> f64 {
+    let mut acc = 1.0;
+    let mut k = 1;
+    while k <= n {
+        acc *= k as f64;
+        k += 1;
+    }
+    acc
+}
+
+/// Table of (-1)^n C(n, k) / (2n + offset)!: row k holds the coefficients of the k-th
+/// Taylor coefficient f^(k)(t0)/k! as a polynomial in t0 (computed once, at compile time,
+/// with the same operations as a run-time evaluation would use).
+const fn taylor_table(offset: usize) -> [[f64; SERIES_TERMS]; SERIES_TERMS] {
+    let mut tab = [[0.0; SERIES_TERMS]; SERIES_TERMS];
+    let mut k = 0;
+    while k < SERIES_TERMS {
+        let mut n = k;
+        while n < SERIES_TERMS {
+            let mut binom = 1.0;
+            let mut j = n - k + 1;
+            while j <= n {
+                binom *= j as f64;
+                j += 1;
+            }
+            binom /= factorial_c(k);
+            let sign = if n % 2 == 0 { 1.0 } else { -1.0 };
+            tab[k][n] = sign * binom / factorial_c(2 * n + offset);
+            n += 1;
+        }
+        k += 1;
+    }
+    tab
+}
+
+const TAYLOR: [[[f64; SERIES_TERMS]; SERIES_TERMS]; 2] = [taylor_table(1), taylor_table(2)];
+
 /// Horner evaluation of sum_n c_n (-t)^n with c_n = 1/(2n + offset)!.
 fn alternating_series<S: Real>(t: S, offset: usize) -> S {
     let mut acc = S::from(1.0 / factorial(2 * (SERIES_TERMS - 1) + offset));
@@ -37,22 +118,23 @@ fn alternating_series<S: Real>(t: S, offset: usize) -> S {
 
 /// The series at a dual argument t = t0 + h, evaluated as its Taylor polynomial in h: h has
 /// no real part, so h^(NDERIV + 1) = 0 and the polynomial of degree NDERIV is exact for the
-/// dual type. Its coefficients f^(k)(t0)/k! are plain numbers, so this costs NDERIV dual
-/// products instead of the SERIES_TERMS of Horner's rule on duals (the PCC residual's
-/// nested duals make that the largest cost of a step).
+/// dual type. Its coefficients f^(k)(t0)/k! are plain numbers (from the table `TAYLOR`), so
+/// this costs NDERIV dual products instead of the SERIES_TERMS of Horner's rule on duals.
 fn alternating_series_taylor<S: Real>(t: S, offset: usize) -> S {
     let t0 = t.re();
     let order = S::NDERIV;
     if order == 0 {
         return S::from(alternating_series(t0, offset));
     }
+    let tab = &TAYLOR[offset - 1];
     // coefficient k: sum_{n >= k} c_n (-1)^n C(n, k) t0^(n - k)
     let coef = |k: usize| -> f64 {
+        if k >= SERIES_TERMS {
+            return 0.0;
+        }
         let mut acc = 0.0;
         for n in (k..SERIES_TERMS).rev() {
-            let binom = ((n - k + 1)..=n).map(|j| j as f64).product::<f64>() / factorial(k);
-            let sign = if n % 2 == 0 { 1.0 } else { -1.0 };
-            acc = acc * t0 + sign * binom / factorial(2 * n + offset);
+            acc = acc * t0 + tab[k][n];
         }
         acc
     };
@@ -103,20 +185,32 @@ pub type Pose<S> = ([S; 3], [[S; 3]; 3]);
 /// R = exp(hat(w)) with w = sigma (-theta_y, theta_x, 0) (Rodrigues:
 /// R = I + f1 hat(w) + f2 hat(w)^2); p = sigma L (sigma theta_x f2, sigma theta_y f2, f1).
 pub fn segment_pose<S: Real>(y: &[S; 3], sigma: f64) -> Pose<S> {
-    let tx = y[1] * sigma;
-    let ty = y[2] * sigma;
-    let t = tx * tx + ty * ty;
-    let f1 = sinc_t(t);
-    let f2 = cosc_t(t);
-    let ls = y[0] * sigma;
+    let (p, [tx, ty, t, f1, f2]) = segment_position_parts(y, sigma);
     let one = S::from(1.0);
-    let p = [ls * tx * f2, ls * ty * f2, ls * f1];
     let r = [
         [one - f2 * tx * tx, -(f2 * tx * ty), f1 * tx],
         [-(f2 * tx * ty), one - f2 * ty * ty, f1 * ty],
         [-(f1 * tx), -(f1 * ty), one - f2 * t],
     ];
     (p, r)
+}
+
+/// Position part of `segment_pose` (about half its cost).
+pub fn segment_position<S: Real>(y: &[S; 3], sigma: f64) -> [S; 3] {
+    segment_position_parts(y, sigma).0
+}
+
+/// Position and the intermediate (sigma theta_x, sigma theta_y, t, f1, f2).
+#[inline]
+fn segment_position_parts<S: Real>(y: &[S; 3], sigma: f64) -> ([S; 3], [S; 5]) {
+    let tx = y[1] * sigma;
+    let ty = y[2] * sigma;
+    let t = tx * tx + ty * ty;
+    let f1 = sinc_t(t);
+    let f2 = cosc_t(t);
+    let ls = y[0] * sigma;
+    let lf2 = ls * f2;
+    ([lf2 * tx, lf2 * ty, ls * f1], [tx, ty, t, f1, f2])
 }
 
 /// Paper 003's (L, theta, phi) from the bending vector: theta >= 0, phi in (-pi, pi]

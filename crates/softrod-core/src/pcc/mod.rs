@@ -24,6 +24,7 @@
 //! from dual numbers) and solves the statics.
 
 pub mod integrate;
+pub mod jet;
 pub mod kinematics;
 pub mod lagrangian;
 
