@@ -154,3 +154,17 @@ def test_cli_compare_pcc_and_identify(tmp_path):
     )
     assert res.exit_code == 0, res.output
     assert 'k_L = "200 N/m"' in res.output
+
+
+def test_pcc_statics_that_fails_says_so():
+    # One Newton iteration cannot reach the 145 deg bend: with check=False the result is
+    # marked unconverged with NaN coordinates; with check=True the error is raised.
+    from softrod.errors import ConvergenceError
+    from softrod.pcc.statics import solve_pcc_statics
+
+    d = softrod.load_design("stiff_flop_pcc")
+    p = [1.5e5, 1.5e5, 0.0, 0.0, 0.0, 1.5e5]
+    sol = solve_pcc_statics(d, p, check=False, max_iter=1)
+    assert not sol.converged and np.isnan(sol.shooting_unknowns).all()
+    with pytest.raises(ConvergenceError):
+        solve_pcc_statics(d, p, max_iter=1)

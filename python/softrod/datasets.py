@@ -43,7 +43,7 @@ import pandas as pd
 
 from .design import PACKAGE_DIR, Design, load_design
 from .errors import ConvergenceError, InputError, design_error
-from .io import TABLE_SUFFIXES, atomic_path, check_table_path
+from .io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
 from .units import SI_UNIT, registry, vector_to_si
 
 __all__ = [
@@ -931,13 +931,7 @@ def write_dataset(dataset: Dataset, path, *, units: Mapping[str, str] | None = N
                 fh.write(f"# metadata: {meta}\n")
                 frame.to_csv(fh, index=False, lineterminator="\n")
         else:
-            import pyarrow as pa
-            import pyarrow.parquet as pq
-
-            table = pa.Table.from_pandas(frame, preserve_index=False)
-            kv = dict(table.schema.metadata or {})
-            kv[b"softrod.metadata"] = meta.encode("utf-8")
-            pq.write_table(table.replace_schema_metadata(kv), tmp)
+            write_parquet_with_metadata(frame, tmp, meta)
     return path
 
 

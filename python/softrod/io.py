@@ -86,3 +86,16 @@ def write_table(df, path: str | os.PathLike) -> Path:
         else:
             df.to_parquet(tmp, index=False, engine="pyarrow")
     return path
+
+
+def write_parquet_with_metadata(frame, path: str | os.PathLike, metadata_json: str) -> None:
+    """Write ``frame`` to Parquet at ``path`` with ``metadata_json`` under the schema key
+    ``softrod.metadata`` (how datasets and schedules keep their metadata in one file).
+    Call it on the temporary path of :func:`atomic_path`."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pa.Table.from_pandas(frame, preserve_index=False)
+    kv = dict(table.schema.metadata or {})
+    kv[b"softrod.metadata"] = metadata_json.encode("utf-8")
+    pq.write_table(table.replace_schema_metadata(kv), path)

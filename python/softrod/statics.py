@@ -78,6 +78,30 @@ class StaticSolution:
     shooting_unknowns: np.ndarray = field(repr=False)
     stiffness_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
 
+    @classmethod
+    def failed(cls, design, pressures, exc, n_unknowns: int, **extra) -> StaticSolution:
+        """The result of a solve that did not converge (``check=False``): NaN shape and
+        wrench, ``converged`` False, the iterations and residual of ``exc``."""
+        nan3 = np.full((1, 3), np.nan)
+        return cls(
+            design=design,
+            pressures=np.array(pressures),
+            s=np.array([np.nan]),
+            section=np.array([-1]),
+            position=nan3,
+            rotation=np.full((1, 3, 3), np.nan),
+            force=nan3,
+            moment=nan3,
+            v=nan3,
+            u=nan3,
+            converged=False,
+            iterations=exc.iterations,
+            residual=exc.residual,
+            load_steps=0,
+            shooting_unknowns=np.full(n_unknowns, np.nan),
+            **extra,
+        )
+
     @property
     def tip_position(self) -> np.ndarray:
         """Tip position (end of the last section), m."""
@@ -270,25 +294,7 @@ def solve_statics(
     except ConvergenceError as exc:
         if check:
             raise
-        nan3 = np.full((1, 3), np.nan)
-        return StaticSolution(
-            design=design,
-            pressures=np.array(p),
-            s=np.array([np.nan]),
-            section=np.array([-1]),
-            position=nan3,
-            rotation=np.full((1, 3, 3), np.nan),
-            force=nan3,
-            moment=nan3,
-            v=nan3,
-            u=nan3,
-            converged=False,
-            iterations=exc.iterations,
-            residual=exc.residual,
-            load_steps=0,
-            shooting_unknowns=np.full(3, np.nan),
-            stiffness_scale=sigma,
-        )
+        return StaticSolution.failed(design, p, exc, 3, stiffness_scale=sigma)
     return StaticSolution(
         design=design,
         pressures=np.array(p),

@@ -39,7 +39,7 @@ from ..datasets import (
     _Where,
 )
 from ..errors import InputError
-from ..io import TABLE_SUFFIXES, atomic_path, check_table_path
+from ..io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
 
 __all__ = ["KINDS", "VACUUM_PA", "PressureSchedule"]
 
@@ -532,13 +532,7 @@ class PressureSchedule:
                     fh.write(f"# metadata: {meta}\n")
                     frame.to_csv(fh, index=False, lineterminator="\n")
             else:
-                import pyarrow as pa
-                import pyarrow.parquet as pq
-
-                table = pa.Table.from_pandas(frame, preserve_index=False)
-                kv = dict(table.schema.metadata or {})
-                kv[b"softrod.metadata"] = meta.encode("utf-8")
-                pq.write_table(table.replace_schema_metadata(kv), tmp)
+                write_parquet_with_metadata(frame, tmp, meta)
         return path
 
 

@@ -38,24 +38,7 @@ def solve_pcc_statics(
     except ConvergenceError as exc:
         if check:
             raise
-        nan3 = np.full((1, 3), np.nan)
-        return StaticSolution(
-            design=design,
-            pressures=np.array(pressures),
-            s=np.array([np.nan]),
-            section=np.array([-1]),
-            position=nan3,
-            rotation=np.full((1, 3, 3), np.nan),
-            force=nan3,
-            moment=nan3,
-            v=nan3,
-            u=nan3,
-            converged=False,
-            iterations=exc.iterations,
-            residual=exc.residual,
-            load_steps=0,
-            shooting_unknowns=np.full(model.ndof, np.nan),
-        )
+        return StaticSolution.failed(design, pressures, exc, model.ndof)
     x = out["x"]
     s, pos, rot = model.shape(x, N_PER_SECTION)
     v, u, section = _strains(design, model, x, len(s))
