@@ -21,7 +21,8 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :mod:`softrod.pcc`: paper 003's piecewise-constant-curvature model (``run_pcc``,
   ``pcc_shape``, identification, ``compare_pcc``); statics via
   ``solve_statics(..., model="pcc")``
-- exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError`
+- exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError`,
+  :class:`InvalidStateError`
 """
 
 from . import pcc
@@ -39,7 +40,13 @@ from .compare import compare_models
 from .datasets import Dataset, load_dataset, synthesize_dataset, write_dataset
 from .design import Design, bundled_designs, designs_dir, load_design
 from .dynamics import PressureSchedule, Simulation, Trajectory, simulate
-from .errors import ConvergenceError, DesignError, InputError, SoftrodError
+from .errors import (
+    ConvergenceError,
+    DesignError,
+    InputError,
+    InvalidStateError,
+    SoftrodError,
+)
 from .presets import Preset, list_presets
 from .statics import (
     BatchSolution,
@@ -61,6 +68,7 @@ __all__ = [
     "DesignError",
     "HybridStiffnessModel",
     "InputError",
+    "InvalidStateError",
     "Preset",
     "SoftrodError",
     "SolverOptions",

@@ -40,6 +40,27 @@ class ConvergenceError(SoftrodError, RuntimeError):
         self.reason = reason
 
 
+class InvalidStateError(ConvergenceError):
+    """A computed state breaks a physical rule (a rotation that is not one, a stretch <= 0,
+    energy that grows without input), so it is not returned. ``quantity`` and ``value``
+    say what was found, ``location`` where (node and arc length, or time and step) and
+    ``rule`` what must hold and what to change."""
+
+    def __init__(
+        self,
+        message: str,
+        quantity: str = "",
+        location: str = "",
+        value: object = "",
+        rule: str = "",
+    ):
+        super().__init__(message, reason=rule)
+        self.quantity = quantity
+        self.location = location
+        self.value = value
+        self.rule = rule
+
+
 def design_error(field: str, value: object, rule: str, cls: type[DesignError] = DesignError):
     """Build a DesignError whose message reads ``field = value: rule``."""
     return cls(f"{field} = {value!r}: {rule}", field, value, rule)

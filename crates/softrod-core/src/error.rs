@@ -24,6 +24,16 @@ pub enum SoftrodError {
         load_factor: f64,
         reason: String,
     },
+    /// A computed state breaks a physical rule (see `crate::validity`): a rotation that is
+    /// not one, a stretch <= 0, energy that grows without input. `location` says where
+    /// (node and arc length, or time and step), `rule` what must hold and what to change.
+    #[error("{quantity} = {value} at {location}: {rule}")]
+    InvalidState {
+        quantity: String,
+        location: String,
+        value: String,
+        rule: String,
+    },
 }
 
 impl SoftrodError {
@@ -34,6 +44,22 @@ impl SoftrodError {
     ) -> Self {
         SoftrodError::InvalidParameter {
             field: field.into(),
+            value: value.to_string(),
+            rule: rule.into(),
+        }
+    }
+}
+
+impl SoftrodError {
+    pub fn invalid_state(
+        quantity: impl Into<String>,
+        location: impl Into<String>,
+        value: impl ToString,
+        rule: impl Into<String>,
+    ) -> Self {
+        SoftrodError::InvalidState {
+            quantity: quantity.into(),
+            location: location.into(),
             value: value.to_string(),
             rule: rule.into(),
         }

@@ -43,6 +43,15 @@ fn to_py_err(py: Python<'_>, err: SoftrodError, ctx: Context) -> PyErr {
                 let cls = errors.getattr("ConvergenceError")?;
                 PyErr::from_value(cls.call1((msg, iterations, residual, load_factor, reason))?)
             }
+            SoftrodError::InvalidState {
+                quantity,
+                location,
+                value,
+                rule,
+            } => {
+                let cls = errors.getattr("InvalidStateError")?;
+                PyErr::from_value(cls.call1((msg, quantity, location, value, rule))?)
+            }
         })
     };
     build().unwrap_or_else(|e| e)
