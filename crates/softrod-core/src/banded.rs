@@ -54,6 +54,7 @@ impl BandedLu {
     }
 
     /// Factor in place. Returns false if a pivot is exactly zero or not finite (singular).
+    #[inline(never)]
     pub fn factor(&mut self) -> bool {
         let (n, kl, ku) = (self.n, self.kl, self.ku);
         let kv = kl + ku;
@@ -108,27 +109,35 @@ impl BandedLu {
     }
 
     /// Solve A x = b in place with the factors.
+    #[inline(never)]
     pub fn solve(&self, b: &mut [f64]) {
         let (n, kl) = (self.n, self.kl);
         let kv = self.kl + self.ku;
+        let ld = self.ldab;
         for j in 0..n {
             let p = self.piv[j];
             if p != j {
                 b.swap(p, j);
             }
             let bj = b[j];
-            if bj != 0.0 {
-                for i in j + 1..=(j + kl).min(n - 1) {
-                    b[i] -= self.ab[self.at(i, j)] * bj;
+            let lm = kl.min(n - 1 - j);
+            if bj != 0.0 && lm > 0 {
+                // Column j of L below the diagonal: rows j+1..=j+lm, contiguous.
+                let col = &self.ab[j * ld + kv + 1..j * ld + kv + 1 + lm];
+                for (bi, l) in b[j + 1..j + 1 + lm].iter_mut().zip(col) {
+                    *bi -= l * bj;
                 }
             }
         }
         for j in (0..n).rev() {
-            b[j] /= self.ab[self.at(j, j)];
+            b[j] /= self.ab[j * ld + kv];
             let bj = b[j];
-            if bj != 0.0 {
-                for i in j.saturating_sub(kv)..j {
-                    b[i] -= self.ab[self.at(i, j)] * bj;
+            let i0 = j.saturating_sub(kv);
+            if bj != 0.0 && i0 < j {
+                // Column j of U above the diagonal: rows i0..j, contiguous.
+                let col = &self.ab[j * ld + kv - (j - i0)..j * ld + kv];
+                for (bi, u) in b[i0..j].iter_mut().zip(col) {
+                    *bi -= u * bj;
                 }
             }
         }

@@ -44,7 +44,7 @@ use crate::jet::{Jet, RodScalar};
 use crate::law::{ogden_derivatives, ogden_force, AxialTable};
 use crate::ode::{AxialCoeffs, Coeffs};
 use crate::rod::{inverse3, Rod};
-use nalgebra::{SMatrix, SVector};
+use nalgebra::SMatrix;
 use std::sync::Arc;
 
 /// Unknowns per point: quaternion (4), n (3), m (3), q (3), w (3).
@@ -68,8 +68,6 @@ type Mat32 = SMatrix<f64, 32, 32>;
 type Mat16 = SMatrix<f64, 16, 16>;
 type Mat32x16 = SMatrix<f64, 32, 16>;
 type Mat16x32 = SMatrix<f64, 16, 32>;
-type Vec32 = SVector<f64, 32>;
-type Vec16 = SVector<f64, 16>;
 
 /// One collocation interval.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -836,6 +834,7 @@ impl<'a> Problem<'a> {
 
     /// Factor Newton's matrix at `z`: per interval the condensed stage block, then the
     /// banded node system. None if a block is singular.
+    #[inline(never)]
     pub fn factorize(&self, z: &[f64]) -> Option<Factorization> {
         let n_int = self.grid.len();
         let mut blocks = Vec::with_capacity(n_int);
@@ -860,17 +859,13 @@ impl<'a> Problem<'a> {
                     g[(r, 16 + c)] = hh * GAUSS_B[1] * j2[(r, c)];
                 }
             }
-            let lu = m.lu();
-            if !lu.is_invertible() {
+            let minv = m.try_inverse()?;
+            if !minv.iter().all(|x| x.is_finite()) {
                 return None;
             }
-            let mut e = Mat32x16::zeros();
-            for r in 0..16 {
-                e[(r, r)] = 1.0;
-                e[(16 + r, r)] = 1.0;
-            }
-            let p = lu.solve(&e)?;
-            let t = eye + g * p;
+            let gminv = g * minv;
+            let p = Mat32x16::from_fn(|r, c| minv[(r, c)] + minv[(r, 16 + c)]);
+            let t = eye + Mat16::from_fn(|r, c| gminv[(r, c)] + gminv[(r, 16 + c)]);
             // Rows of interval j: dY_{j+1} - T_j dY_j = t_j.
             let row0 = 16 * j;
             let col_next = 6 + 16 * j;
@@ -889,7 +884,11 @@ impl<'a> Problem<'a> {
                     }
                 }
             }
-            blocks.push(IntervalFactor { lu, p, g });
+            blocks.push(IntervalFactor {
+                minv: minv.as_slice().to_vec(),
+                gminv: gminv.as_slice().to_vec(),
+                p: p.as_slice().to_vec(),
+            });
         }
         // Tip rows: C dY_N = -r_tip.
         let yn = self.node(z, n_int);
@@ -916,13 +915,30 @@ impl<'a> Problem<'a> {
     }
 }
 
+/// One interval's condensed stage block: with M = I - h (A (x) I) diag(J1, J2) the
+/// stage matrix and G = h [b1 J1, b2 J2], the stages follow dS = M^-1 (-r_S) + P dY_j and
+/// the end node dY_{j+1} = T dY_j + G M^-1 (-r_S) - r_N. Kept as explicit matrices
+/// (column-major) so that each Newton iteration is three matrix-vector products.
 #[derive(Debug, Clone)]
 struct IntervalFactor {
-    lu: nalgebra::LU<f64, nalgebra::Const<32>, nalgebra::Const<32>>,
-    /// M^-1 [I; I]: how the stages follow the interval's start node.
-    p: Mat32x16,
-    /// h [b1 J1, b2 J2].
-    g: Mat16x32,
+    /// M^-1 (32 x 32).
+    minv: Vec<f64>,
+    /// G M^-1 (16 x 32).
+    gminv: Vec<f64>,
+    /// P = M^-1 [I; I] (32 x 16).
+    p: Vec<f64>,
+}
+
+/// y += A x for a column-major A with R rows and C columns (axpy per column: vectorises).
+#[inline(always)]
+fn gemv_add<const R: usize, const C: usize>(y: &mut [f64; R], a: &[f64], x: &[f64; C]) {
+    let a = &a[..R * C];
+    for (c, xc) in x.iter().enumerate() {
+        let col = &a[c * R..(c + 1) * R];
+        for (yr, ar) in y.iter_mut().zip(col) {
+            *yr += ar * xc;
+        }
+    }
 }
 
 /// Newton's matrix of a collocation problem, factored.
@@ -936,18 +952,20 @@ pub struct Factorization {
 
 impl Factorization {
     /// The Newton step: solves J dz = -r for the scaled residual `r`.
+    #[inline(never)]
     pub fn solve(&self, r: &[f64], dz: &mut [f64]) {
         let n_int = self.blocks.len();
         let mut rhs = vec![0.0; self.band.n()];
-        let mut s_all: Vec<Vec32> = Vec::with_capacity(n_int);
+        // dz's stage slots hold M^-1 (-r_S) until the node increments are known.
         for (j, b) in self.blocks.iter().enumerate() {
             let o = 48 * j;
-            let rs = Vec32::from_fn(|k, _| -r[o + k]);
-            let s = b.lu.solve(&rs).unwrap_or_else(Vec32::zeros);
-            let rn = Vec16::from_fn(|k, _| r[o + 32 + k]);
-            let t = b.g * s - rn;
-            rhs[16 * j..16 * j + 16].copy_from_slice(t.as_slice());
-            s_all.push(s);
+            let rs: [f64; 32] = std::array::from_fn(|k| -r[o + k]);
+            let mut s = [0.0; 32];
+            gemv_add(&mut s, &b.minv, &rs);
+            let mut t: [f64; 16] = std::array::from_fn(|k| -r[o + 32 + k]);
+            gemv_add(&mut t, &b.gminv, &rs);
+            rhs[16 * j..16 * j + 16].copy_from_slice(&t);
+            dz[6 + o..6 + o + 32].copy_from_slice(&s);
         }
         let o = 48 * n_int;
         for k in 0..6 {
@@ -956,20 +974,23 @@ impl Factorization {
         self.band.solve(&mut rhs);
         // Base unknowns, then per interval the stages (s + P dY_j) and the end node.
         dz[..6].copy_from_slice(&rhs[..6]);
-        for (j, (b, s)) in self.blocks.iter().zip(&s_all).enumerate() {
-            let dyj = if j == 0 {
+        for (j, b) in self.blocks.iter().enumerate() {
+            let dyj: [f64; 16] = if j == 0 {
                 // dY_0 in scaled point units: only n(0), m(0) move.
-                let mut d = Vec16::zeros();
-                for c in 0..6 {
-                    d[IN + c] = rhs[c];
-                }
-                d
+                std::array::from_fn(|k| {
+                    if (IN..IN + 6).contains(&k) {
+                        rhs[k - IN]
+                    } else {
+                        0.0
+                    }
+                })
             } else {
-                Vec16::from_column_slice(&rhs[6 + 16 * (j - 1)..6 + 16 * j])
+                std::array::from_fn(|k| rhs[6 + 16 * (j - 1) + k])
             };
-            let st = s + b.p * dyj;
             let o = 6 + 48 * j;
-            dz[o..o + 32].copy_from_slice(st.as_slice());
+            let mut st: [f64; 32] = std::array::from_fn(|k| dz[o + k]);
+            gemv_add(&mut st, &b.p, &dyj);
+            dz[o..o + 32].copy_from_slice(&st);
             dz[o + 32..o + 48].copy_from_slice(&rhs[6 + 16 * j..6 + 16 * j + 16]);
         }
     }
@@ -990,18 +1011,41 @@ pub struct NewtonStats {
     pub jacobians: usize,
 }
 
+/// Largest |r_k|, NaN if any entry is NaN (4 lanes so that it vectorises).
 fn inf_norm(r: &[f64]) -> f64 {
-    r.iter().fold(
-        0.0,
-        |a: f64, x| if x.is_nan() { f64::NAN } else { a.max(x.abs()) },
-    )
+    let mut m = [0.0f64; 4];
+    let mut nan = false;
+    let chunks = r.chunks_exact(4);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for k in 0..4 {
+            let a = c[k].abs();
+            nan |= a != a;
+            m[k] = if a > m[k] { a } else { m[k] };
+        }
+    }
+    for x in rest {
+        let a = x.abs();
+        nan |= a != a;
+        m[0] = if a > m[0] { a } else { m[0] };
+    }
+    if nan {
+        f64::NAN
+    } else {
+        m[0].max(m[1]).max(m[2].max(m[3]))
+    }
 }
 
-/// Damped Newton on `p` from `z` (in place). A factorization in `cache` (from an earlier
-/// iterate or step) is reused while it contracts the residual by at least `REUSE` per
-/// iteration, and refreshed otherwise; convergence is always judged on the true residual.
-/// Ok(final scaled residual) or Err((iterations, residual)); on return `cache` holds the
-/// last factorization (None if it was discarded).
+/// Damped Newton on `p` from `z` (in place). Converged when a full Newton correction, or
+/// the error it leaves (theta / (1 - theta) of it at contraction rate theta < 1/2), is below
+/// `tol` (scaled unknowns, relative to max(1, |z|)): the correction measures
+/// the error in the unknowns themselves, whose scales are physical (rotations in rad,
+/// velocities in L c0, so a velocity error moves the rod by that fraction of L in one
+/// step), where the residual's rows mix very different sensitivities. A factorization in
+/// `cache` (from an earlier iterate or step) is reused while it contracts by at least
+/// `REUSE` per iteration and refreshed otherwise. Ok(final scaled residual) or
+/// Err((iterations, residual)); on return `cache` holds the last factorization (None if
+/// it was discarded).
 pub fn newton(
     p: &Problem,
     z: &mut [f64],
@@ -1009,7 +1053,10 @@ pub fn newton(
     opts: &NewtonOptions,
     stats: &mut NewtonStats,
 ) -> std::result::Result<f64, (usize, f64)> {
-    const REUSE: f64 = 0.2;
+    let reuse: f64 = std::env::var("SOFTROD_REUSE")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(0.25);
     let n = z.len();
     let mut r = vec![0.0; n];
     let mut rt = vec![0.0; n];
@@ -1018,12 +1065,10 @@ pub fn newton(
     p.residual(z, &mut r, None);
     let mut norm = inf_norm(&r);
     let mut fresh = false;
+    let mut last_step = f64::INFINITY;
+    let debug = std::env::var("SOFTROD_DEBUG_NEWTON").is_ok();
     for it in 0..opts.max_iter {
         stats.iterations += 1;
-        let scale = inf_norm(z).max(1.0);
-        if norm <= opts.tol * scale {
-            return Ok(norm);
-        }
         if !norm.is_finite() && fresh {
             return Err((it + 1, norm));
         }
@@ -1037,12 +1082,38 @@ pub fn newton(
         }
         let fac = cache.as_ref().expect("factorization");
         fac.solve(&r, &mut dz);
-        if !dz.iter().all(|x| x.is_finite()) {
+        let scale = inf_norm(z).max(1.0);
+        let step = inf_norm(&dz) / scale;
+        if debug {
+            eprintln!("  it {it}: residual {norm:.3e}, correction {step:.3e}, fresh {fresh}");
+        }
+        if !step.is_finite() {
             if fresh {
                 return Err((it + 1, norm));
             }
             *cache = None;
             continue;
+        }
+        // Contraction rate from the last two full corrections (1 when unknown).
+        let theta = if last_step.is_finite() {
+            step / last_step
+        } else {
+            1.0
+        };
+        // Remaining error after this correction: theta / (1 - theta) of it for a
+        // contracting iteration (Hairer and Wanner, Radau5); the first correction itself.
+        let remaining = if theta < 0.5 {
+            step * theta / (1.0 - theta)
+        } else {
+            step
+        };
+        if step <= opts.tol || (it > 0 && remaining <= opts.tol) {
+            // Converged: apply the (tiny) correction and finish (the residual reported is
+            // the one before it).
+            for k in 0..n {
+                z[k] += dz[k];
+            }
+            return Ok(norm);
         }
         let mut alpha = 1.0;
         let mut accepted = false;
@@ -1053,7 +1124,7 @@ pub fn newton(
             p.residual(&zt, &mut rt, None);
             let nt = inf_norm(&rt);
             if nt.is_finite() && nt < (1.0 - 1e-4 * alpha) * norm {
-                if nt > REUSE * norm {
+                if alpha < 1.0 || (last_step.is_finite() && theta > reuse) {
                     *cache = None; // refresh at the new iterate
                 }
                 z.copy_from_slice(&zt);
@@ -1061,6 +1132,7 @@ pub fn newton(
                 norm = nt;
                 accepted = true;
                 fresh = false;
+                last_step = if alpha == 1.0 { step } else { f64::INFINITY };
                 break;
             }
             if !fresh {
@@ -1070,19 +1142,16 @@ pub fn newton(
         }
         if !accepted {
             if fresh {
-                if norm <= 100.0 * opts.tol * scale {
+                if step <= 100.0 * opts.tol {
                     return Ok(norm); // at round-off already
                 }
                 return Err((it + 1, norm));
             }
             *cache = None;
+            last_step = f64::INFINITY;
         }
     }
-    if norm <= opts.tol * inf_norm(z).max(1.0) {
-        Ok(norm)
-    } else {
-        Err((opts.max_iter, norm))
-    }
+    Err((opts.max_iter, norm))
 }
 
 /// Node and stage states of a solution in physical units, with the centreline recovered

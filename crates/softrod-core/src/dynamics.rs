@@ -444,6 +444,7 @@ pub struct Simulator {
     /// Physical unknowns now and one step before (for the predictor).
     z: Vec<f64>,
     z_prev: Vec<f64>,
+    z_prev2: Vec<f64>,
     slots: Vec<Slot>,
     /// Section models at the current pressures (for the energy).
     models: Vec<SectionModel>,
@@ -527,6 +528,7 @@ impl Simulator {
             step_tip: (rod.spec.tip.force, rod.spec.tip.moment),
             z: vec![],
             z_prev: vec![],
+            z_prev2: vec![],
             slots: vec![zero; n_slots],
             models: vec![],
             eval: Evaluated::default(),
@@ -618,13 +620,28 @@ impl Simulator {
         let eval = problem.evaluate(&z_scaled);
         self.z = to_physical(&problem, &z_scaled);
         self.z_prev = self.z.clone();
+        self.z_prev2 = self.z.clone();
         let n = self.slots.len();
-        for (slot, f) in self.slots[..n - 1].iter_mut().zip(&eval.fields) {
-            *slot = Slot {
-                x1: *f,
-                x2: *f,
-                xt: zero,
-            };
+        for (k, (slot, f)) in self.slots[..n - 1].iter_mut().zip(&eval.fields).enumerate() {
+            let mut xt = zero;
+            if initial == Initial::Straight {
+                // Released from rest in a state that is no equilibrium: the stage
+                // accelerations at t = 0+ follow from n' = rho A R q_t - f with n uniform
+                // along a section (v = e3, u = 0): q_t = R^T f / (rho A); w_t = 0 and the
+                // strain rates are zero. A consistent start keeps the schemes second order.
+                let m = &models[self.grid.intervals[k / 2].section];
+                if m.rho_a > 0.0 {
+                    let fb = mat_t_vec(&self.rod.base_rotation, &m.f);
+                    for a in 0..3 {
+                        xt[6 + a] = fb[a] / m.rho_a;
+                    }
+                }
+            }
+            *slot = Slot { x1: *f, x2: *f, xt };
+        }
+        if initial == Initial::Straight {
+            let gb = mat_t_vec(&self.rod.base_rotation, &self.rod.gravity);
+            self.slots[n - 1].xt[6..9].copy_from_slice(&gb);
         }
         self.check_state(&eval, &self.z.clone())?;
         self.models = models;
@@ -645,15 +662,19 @@ impl Simulator {
 
     /// Finite values, rotations and quaternion norms at the nodes, stretch at the stages.
     fn check_state(&self, eval: &Evaluated, z: &[f64]) -> Result<()> {
-        let at = |what: &str| format!("{what} at t = {:.6} s", self.time);
-        validity::check_finite("collocation unknowns", z, &at("a node"))?;
-        for (j, y) in eval.nodes.iter().enumerate() {
-            let s = self.grid.node_s(j);
-            let loc = format!(
+        // Cheap predicates first; the error (with its formatted location) only on failure.
+        if !z.iter().all(|x| x.is_finite()) {
+            let at = format!("a node at t = {:.6} s", self.time);
+            validity::check_finite("collocation unknowns", z, &at)?;
+        }
+        let node_loc = |j: usize| {
+            format!(
                 "{} at t = {:.6} s",
-                validity::node_location(j, s),
+                validity::node_location(j, self.grid.node_s(j)),
                 self.time
-            );
+            )
+        };
+        for (j, y) in eval.nodes.iter().enumerate() {
             let qn = y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3];
             // The quaternion norm is a quadratic invariant of Gauss collocation, so it
             // stays 1 to the Newton tolerance times the number of intervals (<= 1e-9 x
@@ -661,18 +682,20 @@ impl Simulator {
             if !((qn - 1.0).abs() <= 1e-6) {
                 return Err(SoftrodError::invalid_state(
                     "|Q|^2 (rotation quaternion)",
-                    loc,
+                    node_loc(j),
                     format!("{qn:.9}"),
                     "must stay 1 to 1e-6: the collocation equations do not hold; tighten tol or shorten the step",
                 ));
             }
-            validity::check_rotation(
-                &collocation::rotation(&y[..4]),
-                validity::ROTATION_TOL,
-                &loc,
-            )?;
+            let rot = collocation::rotation(&y[..4]);
+            if !validity::is_rotation(&rot, validity::ROTATION_TOL) {
+                validity::check_rotation(&rot, validity::ROTATION_TOL, &node_loc(j))?;
+            }
         }
         for (k, f) in eval.fields.iter().enumerate() {
+            if validity::is_valid_stretch(f[2]) {
+                continue;
+            }
             let j = k / 2;
             let s = self.grid.stage_s(j, k % 2);
             let sec = &self.rod.sections[self.grid.intervals[j].section];
@@ -721,6 +744,39 @@ impl Simulator {
         e.potential -= t.mass * (0..3).map(|k| g[k] * (r[k] + cw[k])).sum::<f64>();
         e.potential -= (0..3).map(|k| force[k] * r[k]).sum::<f64>();
         e
+    }
+
+    /// Kelvin-Voigt dissipation over a step of length h from `old` to `new`: h (dX/h) B
+    /// (dX/h) with dX the change of the stage strains, the midpoint rate of the
+    /// trapezoidal rule, under which it is the exact energy loss of the linearised rod.
+    fn dissipation(
+        &self,
+        models: &[SectionModel],
+        old: &Evaluated,
+        new: &Evaluated,
+        h: f64,
+    ) -> f64 {
+        let mut out = 0.0;
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let m = &models[iv.section];
+            if m.rigid {
+                continue;
+            }
+            for i in 0..2 {
+                let k = 2 * j + i;
+                let (a, b) = (&old.fields[k], &new.fields[k]);
+                let dv: [f64; 3] = std::array::from_fn(|c| b[c] - a[c]);
+                let du: [f64; 3] = std::array::from_fn(|c| b[3 + c] - a[3 + c]);
+                let mut d = (0..3).map(|c| dv[c] * m.b_se[c] * dv[c]).sum::<f64>();
+                for c in 0..3 {
+                    for e in 0..3 {
+                        d += du[c] * m.b_bt[c][e] * du[e];
+                    }
+                }
+                out += iv.h * GAUSS_B[i] * d / h;
+            }
+        }
+        out
     }
 
     /// Rates at one instant: Kelvin-Voigt dissipation, power of the dead moments (line and
@@ -859,14 +915,23 @@ impl Simulator {
             .collect();
         let tip = self.tip_body(self.tip_force, self.tip_moment);
         let problem = Problem::new(&self.rod, &self.grid, &models, bdf.c0, &hist, tip);
-        // Predictor: linear extrapolation of the unknowns.
+        // Predictor. BDF-alpha damps the unresolved modes: linear extrapolation. The
+        // trapezoidal rule keeps them, flipping sign every step (amplification -> -1 for
+        // omega h >> 1): z_n + z_{n-1} - z_{n-2} extrapolates linear trends and such
+        // alternating modes exactly (at equal steps).
         let ratio = h / self.h_prev;
-        let guess: Vec<f64> = self
-            .z
-            .iter()
-            .zip(&self.z_prev)
-            .map(|(a, b)| a + ratio * (a - b))
-            .collect();
+        let alternating = self.opts.alpha_eff() == -0.5 && self.z_prev2.len() == self.z.len();
+        let guess: Vec<f64> = if alternating {
+            (0..self.z.len())
+                .map(|k| self.z[k] + ratio * (self.z_prev[k] - self.z_prev2[k]))
+                .collect()
+        } else {
+            self.z
+                .iter()
+                .zip(&self.z_prev)
+                .map(|(a, b)| a + ratio * (a - b))
+                .collect()
+        };
         let mut z = to_scaled(&problem, &guess);
         let old = self.cache.take().filter(|c| c.key.c0 == bdf.c0);
         let (mut cache, old_key) = match old {
@@ -945,7 +1010,7 @@ impl Simulator {
         let df: [f64; 3] = std::array::from_fn(|k| self.tip_force[k] - self.step_tip.0[k]);
         let fin = -(0..3).map(|k| df[k] * 0.5 * (r0[k] + r1[k])).sum::<f64>();
         let rates = self.rates(&models, &eval, &slots, self.tip_moment);
-        let d = 0.5 * h * (books.rates[0] + rates[0]);
+        let d = self.dissipation(&models, &self.eval, &eval, h);
         let win = 0.5 * h * (books.rates[1] + rates[1] + books.rates[2] + rates[2]);
         books.now = Energy {
             work_in: books.now.work_in + pin + fin + win,
@@ -1062,7 +1127,7 @@ impl Simulator {
         self.h_prev = c.h;
         self.pressures = c.pressures;
         self.sigma = c.sigma;
-        self.z_prev = std::mem::replace(&mut self.z, c.z);
+        self.z_prev2 = std::mem::replace(&mut self.z_prev, std::mem::replace(&mut self.z, c.z));
         self.slots = c.slots;
         self.models = c.models;
         self.eval = c.eval;
@@ -1366,6 +1431,11 @@ fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
         a[2] * b[0] - a[0] * b[2],
         a[0] * b[1] - a[1] * b[0],
     ]
+}
+
+#[inline(always)]
+fn mat_t_vec(r: &[[f64; 3]; 3], x: &[f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| r[0][i] * x[0] + r[1][i] * x[1] + r[2][i] * x[2])
 }
 
 #[inline(always)]

@@ -14,9 +14,7 @@ use crate::error::{Result, SoftrodError};
 /// deviations of 0.5 and det R = 0.74).
 pub const ROTATION_TOL: f64 = 1e-9;
 
-/// `rot` (row-major, columns d1 d2 d3) is a proper rotation: finite, |R^T R - I| <= tol
-/// entrywise and det R > 0.
-pub fn check_rotation(rot: &[[f64; 3]; 3], tol: f64, location: &str) -> Result<()> {
+fn rotation_error(rot: &[[f64; 3]; 3]) -> (f64, f64) {
     let mut worst: f64 = 0.0;
     for i in 0..3 {
         for j in 0..3 {
@@ -32,6 +30,25 @@ pub fn check_rotation(rot: &[[f64; 3]; 3], tol: f64, location: &str) -> Result<(
     let det = rot[0][0] * (rot[1][1] * rot[2][2] - rot[1][2] * rot[2][1])
         - rot[0][1] * (rot[1][0] * rot[2][2] - rot[1][2] * rot[2][0])
         + rot[0][2] * (rot[1][0] * rot[2][1] - rot[1][1] * rot[2][0]);
+    (worst, det)
+}
+
+/// Whether `rot` passes [`check_rotation`] (no allocation: hot loops test this first and
+/// call the check only to build the error).
+pub fn is_rotation(rot: &[[f64; 3]; 3], tol: f64) -> bool {
+    let (worst, det) = rotation_error(rot);
+    worst <= tol && det > 0.0
+}
+
+/// Whether `v3` passes [`check_stretch`].
+pub fn is_valid_stretch(v3: f64) -> bool {
+    v3.is_finite() && v3 > 0.0
+}
+
+/// `rot` (row-major, columns d1 d2 d3) is a proper rotation: finite, |R^T R - I| <= tol
+/// entrywise and det R > 0.
+pub fn check_rotation(rot: &[[f64; 3]; 3], tol: f64, location: &str) -> Result<()> {
+    let (worst, det) = rotation_error(rot);
     if !(worst <= tol && det > 0.0) {
         return Err(SoftrodError::invalid_state(
             "max |R^T R - I|",
@@ -47,7 +64,7 @@ pub fn check_rotation(rot: &[[f64; 3]; 3], tol: f64, location: &str) -> Result<(
 
 /// The stretch v3 = d3 . r' must be positive (the rod may not turn inside out) and finite.
 pub fn check_stretch(v3: f64, location: &str) -> Result<()> {
-    if !(v3.is_finite() && v3 > 0.0) {
+    if !is_valid_stretch(v3) {
         return Err(SoftrodError::invalid_state(
             "stretch v3",
             location,
