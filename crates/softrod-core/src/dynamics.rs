@@ -1272,6 +1272,303 @@ impl Simulator {
     }
 }
 
+/// Layout version of [`Simulator::save`].
+const STATE_VERSION: f64 = 1.0;
+/// First number of a saved state ("softrod" in a number; guards against foreign arrays).
+const STATE_MAGIC: f64 = 50_770_213.0;
+
+/// Writes a state as a flat list of numbers (counts as exact integers).
+struct Writer(Vec<f64>);
+
+impl Writer {
+    fn f(&mut self, x: f64) {
+        self.0.push(x);
+    }
+    fn n(&mut self, k: usize) {
+        self.0.push(k as f64);
+    }
+    fn all(&mut self, xs: &[f64]) {
+        self.0.extend_from_slice(xs);
+    }
+    fn vec(&mut self, xs: &[f64]) {
+        self.n(xs.len());
+        self.all(xs);
+    }
+    fn arrays<const K: usize>(&mut self, xs: &[[f64; K]]) {
+        self.n(xs.len());
+        for x in xs {
+            self.all(x);
+        }
+    }
+}
+
+/// Reads what [`Writer`] wrote, checking every count against what is left.
+struct Reader<'a> {
+    data: &'a [f64],
+    pos: usize,
+}
+
+fn bad_state(rule: impl Into<String>) -> SoftrodError {
+    SoftrodError::invalid("state", "(saved state)", rule)
+}
+
+impl Reader<'_> {
+    fn f(&mut self) -> Result<f64> {
+        let x = *self
+            .data
+            .get(self.pos)
+            .ok_or_else(|| bad_state("is truncated: not a state saved by Simulator::save"))?;
+        self.pos += 1;
+        Ok(x)
+    }
+    fn n(&mut self) -> Result<usize> {
+        let x = self.f()?;
+        let left = (self.data.len() - self.pos) as f64;
+        if !(x >= 0.0 && x.fract() == 0.0 && x <= left.max(64.0)) {
+            return Err(bad_state(
+                "holds an invalid count: not a state saved by Simulator::save",
+            ));
+        }
+        Ok(x as usize)
+    }
+    fn take(&mut self, k: usize) -> Result<&[f64]> {
+        if self.pos + k > self.data.len() {
+            return Err(bad_state(
+                "is truncated: not a state saved by Simulator::save",
+            ));
+        }
+        let out = &self.data[self.pos..self.pos + k];
+        self.pos += k;
+        Ok(out)
+    }
+    fn fixed<const K: usize>(&mut self) -> Result<[f64; K]> {
+        let t = self.take(K)?;
+        Ok(std::array::from_fn(|i| t[i]))
+    }
+    fn vec(&mut self) -> Result<Vec<f64>> {
+        let k = self.n()?;
+        Ok(self.take(k)?.to_vec())
+    }
+    fn arrays<const K: usize>(&mut self) -> Result<Vec<[f64; K]>> {
+        let k = self.n()?;
+        let t = self.take(k * K)?;
+        Ok(t.chunks_exact(K)
+            .map(|c| std::array::from_fn(|i| c[i]))
+            .collect())
+    }
+}
+
+impl Simulator {
+    /// The complete dynamic state as a flat list of numbers: time, inputs, collocation
+    /// unknowns, histories, energy books, counters and what the kept Newton matrix was
+    /// computed from. [`Simulator::restore`] continues from it bit for bit.
+    pub fn save(&self) -> Vec<f64> {
+        let mut w = Writer(Vec::new());
+        w.f(STATE_MAGIC);
+        w.f(STATE_VERSION);
+        w.n(self.grid.len());
+        w.n(self.rod.n_channels);
+        w.f(self.time);
+        w.f(self.h_prev);
+        w.f(self.h_next);
+        w.vec(&self.pressures);
+        w.all(&self.sigma);
+        w.all(&self.tip_force);
+        w.all(&self.tip_moment);
+        w.all(&self.step_tip.0);
+        w.all(&self.step_tip.1);
+        w.vec(&self.z);
+        w.vec(&self.z_prev);
+        w.vec(&self.z_prev2);
+        w.n(self.slots.len());
+        for sl in &self.slots {
+            w.all(&sl.x1);
+            w.all(&sl.x2);
+            w.all(&sl.xt);
+        }
+        w.arrays(&self.eval.nodes);
+        w.arrays(&self.eval.node_r);
+        w.arrays(&self.eval.fields);
+        w.arrays(&self.eval.stage_r);
+        let rot: Vec<[f64; 9]> = self
+            .eval
+            .stage_rot
+            .iter()
+            .map(|r| std::array::from_fn(|k| r[k / 3][k % 3]))
+            .collect();
+        w.arrays(&rot);
+        w.n(self.past.len());
+        for (t, r) in &self.past {
+            w.f(*t);
+            w.arrays(r);
+        }
+        let b = &self.books;
+        w.all(&[
+            b.now.kinetic,
+            b.now.elastic,
+            b.now.potential,
+            b.now.work_in,
+            b.now.dissipated,
+            b.e0,
+            b.elastic0,
+            b.potential0,
+            b.max_kinetic,
+            b.max_elastic,
+            b.max_potential,
+            b.moved_in,
+        ]);
+        w.all(&b.rates);
+        let st = &self.stats;
+        for c in [
+            st.steps,
+            st.internal_steps,
+            st.rejected,
+            st.newton_iterations,
+            st.jacobians,
+        ] {
+            w.n(c);
+        }
+        match &self.cache {
+            None => w.f(0.0),
+            Some(c) => {
+                w.f(1.0);
+                w.vec(&c.key.at);
+                w.vec(&c.key.pressures);
+                w.all(&c.key.sigma);
+                w.f(c.key.c0);
+                w.arrays(&c.key.hist);
+            }
+        }
+        w.0
+    }
+
+    /// Continue from a state saved by [`Simulator::save`] of a simulation of the same rod
+    /// (same intervals and channels). With the same options the run continues bit for bit
+    /// as the one it was saved from; the kept Newton matrix is recomputed from what it was
+    /// computed from.
+    pub fn restore(&mut self, data: &[f64]) -> Result<()> {
+        let mut r = Reader { data, pos: 0 };
+        if r.f()? != STATE_MAGIC {
+            return Err(bad_state("is not a state saved by Simulator::save"));
+        }
+        let version = r.f()?;
+        if version != STATE_VERSION {
+            return Err(bad_state(format!(
+                "has layout version {version}; this softrod reads version {STATE_VERSION}"
+            )));
+        }
+        let (n_int, nc) = (r.n()?, r.n()?);
+        if n_int != self.grid.len() || nc != self.rod.n_channels {
+            return Err(bad_state(format!(
+                "was saved from a rod with {n_int} intervals and {nc} channels; this simulation has {} and {}",
+                self.grid.len(),
+                self.rod.n_channels
+            )));
+        }
+        let mut next = self.clone();
+        next.time = r.f()?;
+        next.h_prev = r.f()?;
+        next.h_next = r.f()?;
+        next.pressures = r.vec()?;
+        next.sigma = r.fixed()?;
+        next.tip_force = r.fixed()?;
+        next.tip_moment = r.fixed()?;
+        next.step_tip = (r.fixed()?, r.fixed()?);
+        next.z = r.vec()?;
+        next.z_prev = r.vec()?;
+        next.z_prev2 = r.vec()?;
+        let n_slots = r.n()?;
+        if n_slots != self.slots.len() || next.z.len() != self.z.len() {
+            return Err(bad_state("does not match this simulation's discretisation"));
+        }
+        next.slots = (0..n_slots)
+            .map(|_| -> Result<Slot> {
+                Ok(Slot {
+                    x1: r.fixed()?,
+                    x2: r.fixed()?,
+                    xt: r.fixed()?,
+                })
+            })
+            .collect::<Result<_>>()?;
+        next.eval = Evaluated {
+            nodes: r.arrays()?,
+            node_r: r.arrays()?,
+            fields: r.arrays()?,
+            stage_r: r.arrays()?,
+            stage_rot: r
+                .arrays::<9>()?
+                .iter()
+                .map(|a| std::array::from_fn(|i| std::array::from_fn(|j| a[3 * i + j])))
+                .collect(),
+        };
+        let n_past = r.n()?;
+        next.past = (0..n_past)
+            .map(|_| -> Result<(f64, Vec<[f64; 3]>)> { Ok((r.f()?, r.arrays()?)) })
+            .collect::<Result<_>>()?;
+        let b: [f64; 12] = r.fixed()?;
+        next.books = Books {
+            now: Energy {
+                kinetic: b[0],
+                elastic: b[1],
+                potential: b[2],
+                work_in: b[3],
+                dissipated: b[4],
+            },
+            e0: b[5],
+            elastic0: b[6],
+            potential0: b[7],
+            max_kinetic: b[8],
+            max_elastic: b[9],
+            max_potential: b[10],
+            moved_in: b[11],
+            rates: r.fixed()?,
+        };
+        next.stats = DynStats {
+            steps: r.n()?,
+            internal_steps: r.n()?,
+            rejected: r.n()?,
+            newton_iterations: r.n()?,
+            jacobians: r.n()?,
+        };
+        next.cache = None;
+        if r.f()? == 1.0 {
+            let key = JacKey {
+                at: r.vec()?,
+                pressures: r.vec()?,
+                sigma: r.fixed()?,
+                c0: r.f()?,
+                hist: r.arrays()?,
+            };
+            if key.at.len() != self.z.len()
+                || key.pressures.len() != nc
+                || key.hist.len() != n_slots
+            {
+                return Err(bad_state("does not match this simulation's discretisation"));
+            }
+            let models = next.models_at(&key.pressures, &key.sigma, key.c0);
+            let tip = next.tip_body(next.tip_force, next.tip_moment);
+            let p = Problem::new(&next.rod, &next.grid, &models, key.c0, &key.hist, tip);
+            if let Some(fac) = p.factorize(&key.at) {
+                next.cache = Some(Cached { fac, key });
+            }
+        }
+        if r.pos != data.len() {
+            return Err(bad_state(
+                "has trailing numbers: not a state saved by Simulator::save",
+            ));
+        }
+        if next.eval.nodes.len() != n_int + 1
+            || next.eval.fields.len() != 2 * n_int
+            || next.eval.stage_rot.len() != 2 * n_int
+        {
+            return Err(bad_state("does not match this simulation's discretisation"));
+        }
+        next.models = next.models_at(&next.pressures, &next.sigma, 0.0);
+        *self = next;
+        Ok(())
+    }
+}
+
 /// Tip state of a simulation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TipState {
