@@ -1020,13 +1020,13 @@ fn inf_norm(r: &[f64]) -> f64 {
     for c in chunks {
         for k in 0..4 {
             let a = c[k].abs();
-            nan |= a != a;
+            nan |= a.is_nan();
             m[k] = if a > m[k] { a } else { m[k] };
         }
     }
     for x in rest {
         let a = x.abs();
-        nan |= a != a;
+        nan |= a.is_nan();
         m[0] = if a > m[0] { a } else { m[0] };
     }
     if nan {
