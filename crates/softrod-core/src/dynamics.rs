@@ -507,6 +507,25 @@ impl Simulator {
         opts: DynOptions,
         sigma_map: SigmaMap,
     ) -> Result<Self> {
+        let (f, m) = (rod.spec.tip.force, rod.spec.tip.moment);
+        Self::with_inputs(rod, pressures, initial, opts, sigma_map, f, m)
+    }
+
+    /// [`Simulator::with_map`] with dead tip loads at t = 0 (world; the starting static
+    /// state balances them) other than the design's.
+    pub fn with_inputs(
+        rod: Rod,
+        pressures: &[f64],
+        initial: Initial,
+        opts: DynOptions,
+        sigma_map: SigmaMap,
+        tip_force: [f64; 3],
+        tip_moment: [f64; 3],
+    ) -> Result<Self> {
+        for (name, v) in [("tip_force", &tip_force), ("tip_moment", &tip_moment)] {
+            validity::check_finite(name, v, "t = 0")
+                .map_err(|_| SoftrodError::invalid(name, format!("{v:?}"), "must be finite"))?;
+        }
         opts.validate()?;
         check_dynamic_laws(&rod, &sigma_map)?;
         rod.check_pressures(pressures)?;
@@ -531,9 +550,9 @@ impl Simulator {
             h_next: opts.dt,
             pressures: pressures.to_vec(),
             sigma,
-            tip_force: rod.spec.tip.force,
-            tip_moment: rod.spec.tip.moment,
-            step_tip: (rod.spec.tip.force, rod.spec.tip.moment),
+            tip_force,
+            tip_moment,
+            step_tip: (tip_force, tip_moment),
             z: vec![],
             z_prev: vec![],
             z_prev2: vec![],

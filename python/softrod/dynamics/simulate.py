@@ -1,19 +1,21 @@
 """``simulate``: the motion of a design under a pressure schedule (docs/dynamics.md).
 
 The physics and the time stepping live in the Rust core (``softrod_core::dynamics``:
-paper 000's Kelvin-Voigt Cosserat rod, BDF-alpha in time and shooting in space as in Till,
-Aloi and Rucker, IJRR 2019). This module turns user input into SI arrays, drives the core in
-chunks so that long runs can show progress, and packs the result into a
-:class:`~softrod.dynamics.Trajectory`.
+paper 000's Kelvin-Voigt Cosserat rod; BDF-alpha or the implicit midpoint rule in time as in
+Till, Aloi and Rucker, IJRR 2019; Gauss collocation in space with an exact block-banded
+Newton). This module turns user input into SI arrays, drives the core in chunks so that long
+runs can show progress, and packs the result into a :class:`~softrod.dynamics.Trajectory`.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
 import time as _time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,12 +24,176 @@ from ..design import Design, load_design
 from ..errors import InputError, design_error
 from ..units import to_si
 from .schedule import PressureSchedule
-from .trajectory import Trajectory
+from .trajectory import ENERGY_PARTS, Trajectory
 
-__all__ = ["METHOD", "Simulation", "simulate"]
+__all__ = ["METHOD", "SCHEMES", "Simulation", "SimulationState", "simulate"]
 
-METHOD = "BDF-alpha in time, shooting in space with RK4 (Till, Aloi, Rucker, IJRR 2019)"
+METHOD = (
+    "{scheme} in time (Till, Aloi, Rucker, IJRR 2019), Gauss collocation in space "
+    "(4th order, block-banded Newton)"
+)
+SCHEMES = ("bdf-alpha", "midpoint")
+DEFAULT_ENERGY_TOL = 0.02  # softrod_core::dynamics::DEFAULT_ENERGY_TOL
 _CHUNK_WALL_S = 0.2  # wall time per chunk between progress reports
+
+
+def _fingerprint(design: Design) -> str:
+    """A digest of the design's SI document: a saved state only restores into the same."""
+    text = json.dumps(design.spec, sort_keys=True)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def _number(value, field: str, rule: str, ok) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
+        raise design_error(field, value, rule, InputError)
+    x = float(value)
+    if not (math.isfinite(x) and ok(x)):
+        raise design_error(field, value, rule, InputError)
+    return x
+
+
+def _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol) -> dict:
+    """The integrator's keyword options, checked here (the core checks them again)."""
+    if scheme not in SCHEMES:
+        raise design_error(
+            "scheme",
+            scheme,
+            "must be 'bdf-alpha' (numerical damping of unresolved modes, alpha in "
+            "[-0.5, 0]) or 'midpoint' (energy-conserving)",
+            InputError,
+        )
+    alpha = _number(
+        alpha,
+        "alpha",
+        "the BDF-alpha parameter must be a number in [-0.5, 0] (-0.5 trapezoidal, 0 BDF2)",
+        lambda x: -0.5 <= x <= 0.0,
+    )
+    tol = _number(tol, "tol", "must be a number in (0, 1)", lambda x: 0.0 < x < 1.0)
+    if isinstance(max_iter, bool) or not isinstance(max_iter, int | np.integer) or max_iter < 1:
+        raise design_error("max_iter", max_iter, "must be an integer >= 1", InputError)
+    if error_tol is not None:
+        error_tol = to_si(error_tol, "length", "error_tol", InputError)
+        if not (math.isfinite(error_tol) and error_tol > 0):
+            raise design_error(
+                "error_tol",
+                error_tol,
+                "must be a length > 0 (the local error of the node positions per step, "
+                "e.g. '0.1 mm')",
+                InputError,
+            )
+    energy_tol = _number(
+        energy_tol,
+        "energy_tol",
+        "must be a number > 0 (a fraction of the energy moved, e.g. 0.02)",
+        lambda x: x > 0.0,
+    )
+    return {
+        "scheme": scheme,
+        "alpha": alpha,
+        "tol": tol,
+        "max_iter": int(max_iter),
+        "error_tol": error_tol,
+        "energy_tol": energy_tol,
+    }
+
+
+def _sigma_args(design: Design, stiffness_map) -> dict:
+    """The core's stiffness-map arguments: sigma evaluated in the core at every step's
+    pressures, so only maps the core can evaluate (constant, PCHIP table)."""
+    mapped = [
+        i for i, s in enumerate(design.spec["sections"]) if s.get("law", {}).get("stiffness_map")
+    ]
+    if stiffness_map is None:
+        if mapped:
+            raise design_error(
+                f"sections[{mapped[0]}].law.stiffness_map",
+                True,
+                "a mapped section needs stiffness_map= (a StiffnessMap.constant or a "
+                "StiffnessMap.from_table) to simulate",
+                InputError,
+            )
+        return {}
+    from ..stiffness_map import StiffnessMap
+
+    if not isinstance(stiffness_map, StiffnessMap):
+        raise design_error(
+            "stiffness_map", type(stiffness_map).__name__, "must be a StiffnessMap", InputError
+        )
+    if stiffness_map.n_channels != design.n_channels:
+        raise design_error(
+            "stiffness_map.n_channels",
+            stiffness_map.n_channels,
+            f"must equal the design's {design.n_channels} pressure channels",
+            InputError,
+        )
+    kind = stiffness_map.kind
+    if kind == "constant":
+        return {"sigma_const": [float(x) for x in stiffness_map(np.zeros((1, design.n_channels)))[0]]}
+    axes = stiffness_map.axes
+    ok_linear = axes is not None and all(len(a) == 2 for a in axes)
+    if kind == "table" and (stiffness_map._method == "pchip" or ok_linear):
+        values = np.asarray(stiffness_map.values, dtype=float)
+        return {
+            "sigma_grid": (
+                [np.asarray(a, dtype=float).tolist() for a in axes],
+                values.ravel().tolist(),
+                stiffness_map._outside == "clamp",
+            )
+        }
+    raise design_error(
+        "stiffness_map",
+        repr(stiffness_map),
+        "dynamics evaluates sigma in the core at every step: use StiffnessMap.constant or "
+        "StiffnessMap.from_table(..., method='pchip') (tabulate a trained regressor over "
+        "your pressure range first)",
+        InputError,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationState:
+    """A :class:`Simulation`'s state at one time (SI). The named fields are what a
+    controller reads; ``data`` holds everything the core needs to continue exactly
+    (:meth:`Simulation.restore` reproduces the run from here bit for bit).
+
+    ``time`` s; ``pressure`` (c,) Pa (actual chamber pressures); ``tip_force``,
+    ``tip_moment`` (3,) N, N m (dead tip loads now, world); ``tip_position`` (3,) m,
+    ``tip_rotation`` (3, 3) [d1 d2 d3], ``tip_velocity`` (3,) m/s; ``base_force``,
+    ``base_moment`` (3,) N, N m; ``shape_s`` (p,) m and ``shape_position`` (p, 3) m (the
+    centreline at the nodes); ``energy`` J (kinetic + elastic + potential) and its books
+    ``kinetic``, ``elastic``, ``potential``, ``work_in``, ``dissipated`` J;
+    ``energy_balance`` J (zero for the exact motion); ``design`` and ``fingerprint`` (the
+    design it belongs to); ``data`` (read-only float array).
+    """
+
+    design: str
+    fingerprint: str
+    time: float
+    pressure: np.ndarray
+    tip_force: np.ndarray
+    tip_moment: np.ndarray
+    tip_position: np.ndarray
+    tip_rotation: np.ndarray
+    tip_velocity: np.ndarray
+    base_force: np.ndarray
+    base_moment: np.ndarray
+    shape_s: np.ndarray
+    shape_position: np.ndarray
+    energy: float
+    kinetic: float
+    elastic: float
+    potential: float
+    work_in: float
+    dissipated: float
+    energy_balance: float
+    data: np.ndarray
+
+    def __repr__(self) -> str:
+        tip = ", ".join(f"{x * 1e3:.2f}" for x in self.tip_position)
+        return (
+            f"SimulationState({self.design!r}, t = {self.time:g} s, tip ({tip}) mm, "
+            f"E = {self.energy:.6g} J)"
+        )
 
 
 def _seconds(value, field: str, *, positive: bool = True) -> float:
@@ -67,9 +233,15 @@ class Simulation:
     ``pressures``: chamber pressures at t = 0 in Pa (default zero). ``initial``:
     ``"static"`` (at rest in equilibrium under those pressures, gravity and the design's tip
     loads) or ``"straight"`` (at rest in the straight reference shape, released at t = 0).
-    ``dt``: time step (s or a string with units). ``alpha``: BDF-alpha parameter in
-    [-0.5, 0] (-0.5 is paper 000's trapezoidal rule; 0 is BDF2). ``tol``: tolerance on the
-    scaled shooting residual at each step.
+    ``dt``: time step (s or a string with units). ``scheme``: ``"bdf-alpha"`` (default;
+    ``alpha`` in [-0.5, 0]: -0.5 is paper 000's trapezoidal rule, 0 BDF2; below -0.45
+    unresolved modes are not damped) or ``"midpoint"`` (the implicit midpoint rule:
+    conserves the energy of undamped runs; docs/dynamics.md). ``tol``: Newton tolerance on
+    the scaled collocation unknowns at each step. ``error_tol``: adaptive time stepping,
+    the largest estimated local error of the node positions per step (m or a string such
+    as "0.1 mm"); each ``dt`` is then split into as many steps as that needs. ``energy_tol``:
+    the energy check's tolerance (fraction of the energy moved). ``stiffness_map``: the
+    StiffnessMap of a design with mapped sections (constant or PCHIP table).
     """
 
     def __init__(
@@ -79,9 +251,14 @@ class Simulation:
         *,
         initial: str = "static",
         dt=2e-3,
+        scheme: str = "bdf-alpha",
         alpha: float = -0.2,
         tol: float = 1e-9,
         max_iter: int = 25,
+        error_tol=None,
+        energy_tol: float = DEFAULT_ENERGY_TOL,
+        stiffness_map=None,
+        _tip_loads0=None,
     ):
         self.design: Design = load_design(design)
         n = self.design.n_channels
@@ -95,27 +272,37 @@ class Simulation:
             )
         if initial not in ("static", "straight"):
             raise design_error("initial", initial, "must be 'static' or 'straight'", InputError)
+        opts = _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol)
         self._sim = _core.Simulator(
             json.dumps(self.design.spec),
             p.tolist(),
             initial,
             _seconds(dt, "dt"),
-            float(alpha),
-            float(tol),
-            int(max_iter),
+            **opts,
+            **_sigma_args(self.design, stiffness_map),
+            **(
+                {}
+                if _tip_loads0 is None
+                else {"tip_force": list(_tip_loads0[:3]), "tip_moment": list(_tip_loads0[3:])}
+            ),
         )
         self.initial = initial
-        self.alpha = float(alpha)
+        self.options = opts
 
     @classmethod
-    def _wrap(cls, design: Design, sim, initial: str, alpha: float) -> Simulation:
+    def _wrap(cls, design: Design, sim, initial: str, options: dict) -> Simulation:
         obj = cls.__new__(cls)
-        obj.design, obj._sim, obj.initial, obj.alpha = design, sim, initial, alpha
+        obj.design, obj._sim, obj.initial, obj.options = design, sim, initial, options
         return obj
 
     def copy(self) -> Simulation:
-        """An independent simulation starting from this one's current state."""
-        return Simulation._wrap(self.design, self._sim.copy(), self.initial, self.alpha)
+        """An independent simulation starting from this one's current state (exact)."""
+        return Simulation._wrap(self.design, self._sim.copy(), self.initial, dict(self.options))
+
+    @property
+    def alpha(self) -> float:
+        """The BDF-alpha parameter."""
+        return self.options["alpha"]
 
     @property
     def time(self) -> float:
@@ -134,35 +321,64 @@ class Simulation:
 
     @property
     def stats(self) -> dict:
-        """Steps, Newton iterations and exact Jacobians so far."""
+        """Steps (calls), internal (time) steps, rejected steps, Newton iterations and exact
+        Jacobians so far."""
         return dict(self._sim.stats)
 
-    def state(self) -> dict:
-        """The state now: ``time`` (s), ``pressure`` (Pa), ``tip_position`` (m),
-        ``tip_rotation``, ``tip_velocity`` (m/s), ``energy`` (J), ``base_force`` (N),
-        ``base_moment`` (N m), ``shape_s`` (m) and ``shape_position`` (p, 3) m."""
+    def state(self) -> SimulationState:
+        """The state now: a :class:`SimulationState`, which :meth:`restore` continues
+        from exactly."""
         d = self._sim.snapshot()
-        return {
-            "time": float(d["time"][0]),
-            "pressure": d["pressure"][0],
-            "tip_position": d["tip_position"][0],
-            "tip_rotation": d["tip_rotation"][0],
-            "tip_velocity": d["tip_velocity"][0],
-            "energy": float(d["energy"][0]),
-            "base_force": np.asarray(d["base_force"]),
-            "base_moment": np.asarray(d["base_moment"]),
-            "shape_s": d["shape_s"],
-            "shape_position": d["shape_position"][0],
-        }
+        ro = lambda a: _ro(np.asarray(a, dtype=float))  # noqa: E731
+        return SimulationState(
+            design=self.design.name,
+            fingerprint=_fingerprint(self.design),
+            time=float(d["time"][0]),
+            pressure=ro(d["pressure"][0]),
+            tip_force=ro(d["tip_force"]),
+            tip_moment=ro(d["tip_moment"]),
+            tip_position=ro(d["tip_position"][0]),
+            tip_rotation=ro(d["tip_rotation"][0]),
+            tip_velocity=ro(d["tip_velocity"][0]),
+            base_force=ro(d["base_force"]),
+            base_moment=ro(d["base_moment"]),
+            shape_s=ro(d["shape_s"]),
+            shape_position=ro(d["shape_position"][0]),
+            energy=float(d["energy"][0]),
+            **{k: float(d[k][0]) for k in ENERGY_PARTS},
+            energy_balance=float(d["energy_balance"]),
+            data=ro(self._sim.save()),
+        )
+
+    def restore(self, state: SimulationState) -> None:
+        """Continue from ``state`` (taken from a simulation of the same design): the next
+        steps are bit for bit those the original simulation would take."""
+        if not isinstance(state, SimulationState):
+            raise design_error(
+                "state", type(state).__name__, "must be a SimulationState", InputError
+            )
+        if state.fingerprint != _fingerprint(self.design):
+            raise design_error(
+                "state",
+                repr(state),
+                f"was taken from design {state.design!r}, not from this simulation's "
+                f"{self.design.name!r} (or from another version of it)",
+                InputError,
+            )
+        self._sim.restore(np.ascontiguousarray(state.data, dtype=float))
 
     def set_tip_loads(self, force=(0.0, 0.0, 0.0), moment=(0.0, 0.0, 0.0)) -> None:
         """Dead tip force (N) and moment (N m), world frame, from the next step on."""
-        self._sim.set_tip_loads([float(x) for x in force], [float(x) for x in moment])
+        self._sim.set_tip_loads(
+            _vector(force, "force", "force"), _vector(moment, "moment", "moment")
+        )
 
-    def step(self, command) -> None:
-        """One time step towards the commanded pressures ``command`` (Pa)."""
-        c = np.asarray(command, dtype=float).reshape(1, -1)
-        self._sim.run(c, np.zeros(1, dtype=np.uint8), False)
+    def step(self, command=None) -> None:
+        """One time step towards the commanded pressures ``command`` (Pa; None or empty for
+        a design without chambers)."""
+        n = self.design.n_channels
+        c = np.zeros((1, 0)) if command is None and n == 0 else np.asarray(command, dtype=float)
+        self._sim.run(c.reshape(1, -1), np.zeros(1, dtype=np.uint8), False)
 
     def run(
         self,
@@ -172,11 +388,12 @@ class Simulation:
         save_every: int = 1,
         shapes=None,
         energy: bool = True,
+        tip_load=None,
         progress: Callable[[float, float, float], None] | None = None,
     ) -> Trajectory:
         """Advance by ``duration`` (s) under ``pressure_schedule`` (evaluated on this
-        simulation's clock) and return the trajectory from the current time on; see
-        :func:`simulate` for the arguments."""
+        simulation's clock; None for a design without chambers) and return the trajectory
+        from the current time on; see :func:`simulate` for the arguments."""
         dt = self.dt
         duration = _seconds(duration, "t_end")
         n = max(1, math.ceil(duration / dt * (1.0 - 1e-12)))
@@ -184,7 +401,10 @@ class Simulation:
             raise design_error("save_every", save_every, "must be an integer >= 1", InputError)
         if save_every < 1:
             raise design_error("save_every", save_every, "must be an integer >= 1", InputError)
-        schedule = _schedule(pressure_schedule, self.design.n_channels)
+        nc = self.design.n_channels
+        schedule = None if pressure_schedule is None and nc == 0 else _schedule(
+            pressure_schedule, nc
+        )
         t0 = self.time
         keep = np.zeros(n, dtype=np.uint8)
         keep[save_every - 1 :: save_every] = 1
@@ -192,7 +412,8 @@ class Simulation:
         shape_steps, want_shape0 = _shape_steps(shapes, n, dt, save_every)
         keep[shape_steps] = 2
         times = t0 + dt * np.arange(1, n + 1)
-        commands = schedule.sample(times)
+        commands = np.zeros((n, 0)) if schedule is None else schedule.sample(times)
+        loads = _tip_loads(tip_load, times)
         first = self._sim.snapshot()
         parts = [first]
         wall0 = _time.perf_counter()
@@ -202,7 +423,10 @@ class Simulation:
             t_chunk = _time.perf_counter()
             parts.append(
                 self._sim.run(
-                    np.ascontiguousarray(commands[start:stop]), keep[start:stop], bool(energy)
+                    np.ascontiguousarray(commands[start:stop]),
+                    keep[start:stop],
+                    bool(energy),
+                    None if loads is None else np.ascontiguousarray(loads[start:stop]),
                 )
             )
             spent = _time.perf_counter() - t_chunk
@@ -213,14 +437,23 @@ class Simulation:
                 progress(self.time - t0, duration, _time.perf_counter() - wall0)
         wall = _time.perf_counter() - wall0
         cat = lambda key: np.concatenate([p[key] for p in parts])  # noqa: E731
-        command0 = schedule.sample([t0])
+        command0 = np.zeros((1, 0)) if schedule is None else schedule.sample([t0])
         shape_parts = [p for p in (parts if want_shape0 else parts[1:]) if len(p["shape_time"])]
+        opts = self.options
         metadata = {
             "design": self.design.name,
             "model": "cosserat",
-            "method": METHOD,
+            "method": METHOD.format(
+                scheme="the implicit midpoint rule"
+                if opts["scheme"] == "midpoint"
+                else f"BDF-alpha (alpha = {opts['alpha']:g})"
+            ),
+            "scheme": opts["scheme"],
             "dt_s": dt,
-            "alpha": self.alpha,
+            "alpha": opts["alpha"],
+            "tol": opts["tol"],
+            "error_tol_m": opts["error_tol"],
+            "energy_tol": opts["energy_tol"],
             "initial": self.initial,
             "damping_time_s": self.design.spec["dynamics"]["damping_time"],
             "steps": n,
@@ -236,6 +469,7 @@ class Simulation:
             tip_rotation=cat("tip_rotation"),
             tip_velocity=cat("tip_velocity"),
             energy=cat("energy") if energy else None,
+            **({k: cat(k) for k in ENERGY_PARTS} if energy else {}),
             shape_time=np.concatenate([p["shape_time"] for p in shape_parts])
             if shape_parts
             else None,
@@ -245,6 +479,60 @@ class Simulation:
             else None,
             metadata=metadata,
         )
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def _vector(value, field: str, kind: str) -> list[float]:
+    """Three finite numbers (SI), or strings with units of ``kind``."""
+    try:
+        items = list(value)
+    except TypeError:
+        items = None
+    if items is None or len(items) != 3 or isinstance(value, str):
+        raise design_error(field, value, f"must be 3 numbers ({kind}, world frame)", InputError)
+    out = [to_si(x, kind, f"{field}[{i}]", InputError) for i, x in enumerate(items)]
+    for i, x in enumerate(out):
+        if not math.isfinite(x):
+            raise design_error(f"{field}[{i}]", x, "must be finite", InputError)
+    return out
+
+
+def _tip_loads(tip_load, times: np.ndarray) -> np.ndarray | None:
+    """(n, 6) dead tip force (N) and moment (N m) at the step times, or None (the design's
+    own tip loads). ``tip_load``: None, a pair (force, moment) held constant, or a
+    function of t (s) returning such a pair."""
+    if tip_load is None:
+        return None
+    if callable(tip_load):
+        rows = []
+        for t in times:
+            raw = tip_load(float(t))
+            if not (isinstance(raw, tuple | list) and len(raw) == 2):
+                raise design_error(
+                    f"tip_load(t = {t:g} s)",
+                    raw,
+                    "must return a pair (force (3,) in N, moment (3,) in N m)",
+                    InputError,
+                )
+            f = _vector(raw[0], f"tip_load(t = {t:g} s)[0]", "force")
+            m = _vector(raw[1], f"tip_load(t = {t:g} s)[1]", "moment")
+            rows.append(f + m)
+        return np.array(rows, dtype=float).reshape(len(times), 6)
+    if isinstance(tip_load, tuple | list) and len(tip_load) == 2:
+        f = _vector(tip_load[0], "tip_load[0]", "force")
+        m = _vector(tip_load[1], "tip_load[1]", "moment")
+        return np.tile(np.array(f + m, dtype=float), (len(times), 1))
+    raise design_error(
+        "tip_load",
+        type(tip_load).__name__,
+        "must be None, a pair (force in N, moment in N m) or a function of t (s) returning one",
+        InputError,
+    )
 
 
 def _shape_steps(shapes, n: int, dt: float, save_every: int) -> tuple[np.ndarray, bool]:
@@ -281,9 +569,14 @@ def simulate(
     shapes=None,
     initial="static",
     model: str = "cosserat",
+    scheme: str = "bdf-alpha",
     alpha: float = -0.2,
     tol: float | None = None,
     max_iter: int | None = None,
+    error_tol=None,
+    energy_tol: float = DEFAULT_ENERGY_TOL,
+    stiffness_map=None,
+    tip_load=None,
     energy: bool = True,
     progress: Callable[[float, float, float], None] | None = None,
 ) -> Trajectory:
@@ -294,7 +587,7 @@ def simulate(
       lag and rate limit; sections may give damping matrices and rotary inertia instead.
     - ``pressure_schedule``: a :class:`PressureSchedule`, a CSV/Parquet file of commands
       (``time_s``, ``p0_kPa``, ...), a function of t (s) returning one pressure per channel
-      (Pa), or constant pressures (Pa).
+      (Pa), or constant pressures (Pa); None for a design without chambers.
     - ``t_end`` (s or a string with units) and ``dt`` (default 2 ms): the run takes
       ceil(t_end / dt) steps.
     - ``save_every``: keep every n-th step (the last step is always kept).
@@ -308,19 +601,38 @@ def simulate(
       the design's ``[pcc]`` parameters; docs/pcc.md). Both take the same schedule through
       the same pressure supply and return the same :class:`Trajectory`; a PCC run's shapes
       are its arcs sampled along s, and ``initial`` may not be a :class:`Simulation`.
-    - ``alpha``, ``tol``, ``max_iter``: integrator settings (see :class:`Simulation`;
-      ``alpha`` is the rod's BDF-alpha parameter; the PCC model uses the implicit midpoint
-      rule, its ``tol`` default is 1e-11 on the Newton update per coordinate scale).
-    - ``energy``: also record the total mechanical energy (J).
+    - ``scheme``, ``alpha``, ``tol``, ``max_iter``, ``error_tol``, ``energy_tol``,
+      ``stiffness_map``: the rod's integrator settings, see :class:`Simulation` (the PCC
+      model uses the implicit midpoint rule; its ``tol`` default is 1e-11 on the Newton
+      update per coordinate scale, and it takes none of the others).
+    - ``tip_load``: dead tip force (N) and moment (N m), world frame, over time: None (the
+      design's ``[tip]`` loads), a pair ``(force, moment)``, or a function of t (s)
+      returning one (sampled at the step times, like the schedule). With it, designs
+      without chambers simulate.
+    - ``energy``: also record the energy and its books (J).
     - ``progress``: called after each chunk of steps as progress(t_done, t_end, wall_s).
 
     Returns a :class:`Trajectory`; its metadata records the method, the wall time and the
     real-time factor. A step that does not converge raises ``ConvergenceError`` with the
-    time it failed at.
+    time it failed at; a state that breaks a physical rule (stretch <= 0, energy growth
+    beyond ``energy_tol``) raises ``InvalidStateError`` naming the time, the step, the
+    rule and what to change.
     """
     if model not in ("cosserat", "pcc"):
         raise design_error("model", model, "must be 'cosserat' or 'pcc'", InputError)
     if model == "pcc":
+        rod_only = {
+            "scheme": (scheme, "bdf-alpha"),
+            "error_tol": (error_tol, None),
+            "energy_tol": (energy_tol, DEFAULT_ENERGY_TOL),
+            "stiffness_map": (stiffness_map, None),
+            "tip_load": (tip_load, None),
+        }
+        for name, (value, default) in rod_only.items():
+            if value is not default and value != default:
+                raise design_error(
+                    name, value, "is a setting of the rod model (model='cosserat')", InputError
+                )
         return _simulate_pcc(
             design,
             pressure_schedule,
@@ -341,8 +653,11 @@ def simulate(
         sim = initial.copy()
     else:
         d = load_design(design)
-        schedule = _schedule(pressure_schedule, d.n_channels)
-        p0 = schedule.sample([0.0])[0]
+        if pressure_schedule is None and d.n_channels == 0:
+            schedule, p0 = None, np.zeros(0)
+        else:
+            schedule = _schedule(pressure_schedule, d.n_channels)
+            p0 = schedule.sample([0.0])[0]
         if not isinstance(initial, str):
             raise design_error(
                 "initial",
@@ -350,7 +665,21 @@ def simulate(
                 "must be 'static', 'straight' or a Simulation",
                 InputError,
             )
-        sim = Simulation(d, p0, initial=initial, dt=dt, alpha=alpha, tol=tol, max_iter=max_iter)
+        first = None if tip_load is None else _tip_loads(tip_load, np.zeros(1))[0]
+        sim = Simulation(
+            d,
+            p0,
+            initial=initial,
+            dt=dt,
+            scheme=scheme,
+            alpha=alpha,
+            tol=tol,
+            max_iter=max_iter,
+            error_tol=error_tol,
+            energy_tol=energy_tol,
+            stiffness_map=stiffness_map,
+            _tip_loads0=first,
+        )
         pressure_schedule = schedule
     return sim.run(
         pressure_schedule,
@@ -358,6 +687,7 @@ def simulate(
         save_every=save_every,
         shapes=shapes,
         energy=energy,
+        tip_load=tip_load,
         progress=progress,
     )
 

@@ -1,8 +1,9 @@
 """Trajectories: the result of a dynamic simulation, with files, plots and animations.
 
 A :class:`Trajectory` holds, at n sample times, the commanded and actual chamber pressures,
-the tip pose and velocity and the mechanical energy, plus the full centreline at k of those
-times (the "shapes"). Everything is SI (s, Pa, m, m/s, J). Files:
+the tip pose and velocity, the mechanical energy and its books (kinetic, elastic, potential,
+work of the inputs, dissipation), plus the full centreline at k of those times (the
+"shapes"). Everything is SI (s, Pa, m, m/s, J). Files:
 
 - Parquet (``.parquet``): one row per sample time, units in the column names (see
   :meth:`Trajectory.to_frame`), the shapes in a list column ``shape_m``, the metadata as JSON
@@ -30,7 +31,7 @@ from ..datasets import _fail, _metadata_json, _unit_factor
 from ..errors import InputError
 from ..io import atomic_path
 
-__all__ = ["TRAJECTORY_FORMAT", "TRAJECTORY_SUFFIXES", "Trajectory"]
+__all__ = ["ENERGY_PARTS", "TRAJECTORY_FORMAT", "TRAJECTORY_SUFFIXES", "Trajectory"]
 
 TRAJECTORY_SUFFIXES = (".parquet", ".npz")
 TRAJECTORY_FORMAT = 1  # version of the file layout; written into every file
@@ -50,6 +51,9 @@ _FIELDS = (
     "shape_s",
     "shape_position",
 )
+# The energy books (J, (n,), NaN where not recorded): optional in files, so that
+# trajectories written before they existed still load.
+ENERGY_PARTS = ("kinetic", "elastic", "potential", "work_in", "dissipated")
 _PARQUET_KEY = b"softrod.trajectory"  # layout facts (format, channels, shape_s_m)
 _META_KEY = b"softrod.metadata"  # the metadata dict
 _NPZ_FORMAT = "softrod.trajectory"
@@ -101,8 +105,14 @@ class Trajectory:
     - ``pressure`` (n, c) Pa: actual chamber gauge pressures (after the supply's lag);
     - ``tip_position`` (n, 3) m, world frame; ``tip_rotation`` (n, 3, 3): the tip frame
       [d1 d2 d3] as columns in world coordinates; ``tip_velocity`` (n, 3) m/s;
-    - ``energy`` (n,) J: total mechanical energy (kinetic + elastic + gravitational), NaN
+    - ``energy`` (n,) J: total mechanical energy (kinetic + elastic + potential), NaN
       where not defined (default: all NaN);
+    - ``kinetic``, ``elastic``, ``potential`` (n,) J: its parts (elastic: the law's stored
+      energy at the current pressures; potential: gravity and dead forces), and
+      ``work_in``, ``dissipated`` (n,) J: the work of the inputs (pressure and load
+      changes, dead moments) and the Kelvin-Voigt dissipation since t = 0, NaN where not
+      recorded; ``energy_balance`` = energy - energy[0] - (work_in - work_in[0]) +
+      (dissipated - dissipated[0]) is zero for the exact motion;
     - ``shape_time`` (k,) s: times of the stored centrelines, each exactly one of ``time``
       (k may be 0); ``shape_s`` (p,) m: reference arc length of the nodes, strictly
       increasing; ``shape_position`` (k, p, 3) m: the centrelines;
@@ -123,6 +133,11 @@ class Trajectory:
     shape_s: np.ndarray | None = None
     shape_position: np.ndarray | None = None
     metadata: dict = field(default_factory=dict)
+    kinetic: np.ndarray | None = None
+    elastic: np.ndarray | None = None
+    potential: np.ndarray | None = None
+    work_in: np.ndarray | None = None
+    dissipated: np.ndarray | None = None
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -134,9 +149,7 @@ class Trajectory:
         n = t.size
         set_(self, "time", _readonly(t))
         cmd = _array(self.command, "command", (n, None), f"(n = {n}, channels) in Pa")
-        if cmd.shape[1] < 1:
-            raise _fail("command", f"shape {cmd.shape}", "needs at least one channel")
-        c = cmd.shape[1]
+        c = cmd.shape[1]  # 0 for a design without chambers
         specs = {
             "command": (cmd, (n, c), f"(n = {n}, channels) in Pa"),
             "pressure": (self.pressure, (n, c), f"(n = {n}, channels = {c}) in Pa"),
@@ -148,8 +161,10 @@ class Trajectory:
             a = _array(value, name, shape, what)
             _finite(a, name)
             set_(self, name, _readonly(a))
-        e = np.full(n, np.nan) if self.energy is None else self.energy
-        set_(self, "energy", _readonly(_array(e, "energy", (n,), f"(n = {n},) in J, NaN allowed")))
+        for name in ("energy", *ENERGY_PARTS):
+            v = getattr(self, name)
+            e = np.full(n, np.nan) if v is None else v
+            set_(self, name, _readonly(_array(e, name, (n,), f"(n = {n},) in J, NaN allowed")))
 
         st = np.zeros(0) if self.shape_time is None else self.shape_time
         st = _array(st, "shape_time", (None,), "the times of the stored shapes in s")
@@ -204,6 +219,18 @@ class Trajectory:
         return self.command.shape[1]
 
     @property
+    def energy_balance(self) -> np.ndarray:
+        """(n,) J: energy - energy[0] - (work_in - work_in[0]) + (dissipated -
+        dissipated[0]), zero for the exact motion (the simulation stops when it grows
+        beyond its energy_tol; docs/dynamics.md)."""
+        return (
+            self.energy
+            - self.energy[0]
+            - (self.work_in - self.work_in[0])
+            + (self.dissipated - self.dissipated[0])
+        )
+
+    @property
     def duration(self) -> float:
         """``time[-1] - time[0]`` in s."""
         return float(self.time[-1] - self.time[0])
@@ -216,7 +243,8 @@ class Trajectory:
         Columns: ``time_s``; ``cmd0_Pa``, ... (commanded) and ``p0_Pa``, ... (actual);
         ``tip_x_m``, ``tip_y_m``, ``tip_z_m``; ``tip_R11`` ... ``tip_R33`` (``tip_Rij`` =
         ``tip_rotation[:, i-1, j-1]``, column j is d_j); ``tip_vx_m_s``, ``tip_vy_m_s``,
-        ``tip_vz_m_s``; ``energy_J``. ``frame.attrs["softrod.metadata"]`` holds the metadata.
+        ``tip_vz_m_s``; ``energy_J``, ``kinetic_J``, ``elastic_J``, ``potential_J``,
+        ``work_in_J``, ``dissipated_J``. ``frame.attrs["softrod.metadata"]`` holds the metadata.
         The ``time_s``, ``p<k>_Pa`` and ``tip_*_m`` names are those of datasets, so
         ``load_dataset(frame, extra="ignore")`` reads it as tip data.
         """
@@ -232,6 +260,8 @@ class Trajectory:
         for i, a in enumerate(_XYZ):
             cols[f"tip_v{a}_m_s"] = np.array(self.tip_velocity[:, i])
         cols["energy_J"] = np.array(self.energy)
+        for name in ENERGY_PARTS:
+            cols[f"{name}_J"] = np.array(getattr(self, name))
         frame = pd.DataFrame(cols)
         frame.attrs["softrod.metadata"] = dict(self.metadata)
         return frame
@@ -250,7 +280,7 @@ class Trajectory:
         meta = _metadata_json(self.metadata)
         with atomic_path(path) as tmp:
             if path.suffix.lower() == ".npz":
-                arrays = {name: getattr(self, name) for name in _FIELDS}
+                arrays = {name: getattr(self, name) for name in (*_FIELDS, *ENERGY_PARTS)}
                 with open(tmp, "wb") as fh:  # a file object: numpy would append ".npz"
                     np.savez_compressed(
                         fh,
@@ -603,6 +633,7 @@ def _load_npz(path: Path) -> Trajectory:
         if missing:
             raise _fail("arrays", sorted(data.files), f"missing {', '.join(missing)}")
         arrays = {n: data[n] for n in _FIELDS}
+        arrays.update({n: data[n] for n in ENERGY_PARTS if n in data.files})
         meta = _json_block(str(data["metadata_json"]), "metadata_json")
     return Trajectory(**arrays, metadata=meta)
 
@@ -626,8 +657,8 @@ def _load_parquet(path: Path) -> Trajectory:
         )
     meta = _json_block(kv.get(_META_KEY, b"{}"), _META_KEY.decode())
     c = layout.get("n_channels")
-    if not isinstance(c, int) or c < 1:
-        raise _fail("softrod.trajectory.n_channels", c, "must be an integer >= 1")
+    if not isinstance(c, int) or isinstance(c, bool) or c < 0:
+        raise _fail("softrod.trajectory.n_channels", c, "must be an integer >= 0")
     names = set(table.column_names)
 
     def col(name: str) -> np.ndarray:
@@ -635,10 +666,14 @@ def _load_parquet(path: Path) -> Trajectory:
             raise _fail("columns", sorted(names), f"missing column {name!r}")
         return table.column(name).to_numpy().astype(float, copy=False)
 
+    n = table.num_rows
+
     def cols(fmt: str, keys) -> np.ndarray:
+        keys = list(keys)
+        if not keys:
+            return np.zeros((n, 0))
         return np.column_stack([col(fmt.format(k)) for k in keys])
 
-    n = table.num_rows
     time = col("time_s")
     rotation = cols("{}", _ROT).reshape(n, 3, 3)
     ss = np.asarray(layout.get("shape_s_m", []), dtype=float)
@@ -662,6 +697,7 @@ def _load_parquet(path: Path) -> Trajectory:
         tip_rotation=rotation,
         tip_velocity=cols("tip_v{}_m_s", _XYZ),
         energy=col("energy_J"),
+        **{p: col(f"{p}_J") for p in ENERGY_PARTS if f"{p}_J" in names},
         shape_time=time[has],
         shape_s=ss,
         shape_position=values.reshape(k, p, 3),
