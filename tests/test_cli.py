@@ -202,7 +202,7 @@ def test_convergence_failure_exits_3(run, monkeypatch):
             "static solve did not converge after 25 iterations", iterations=25, residual=1e-3
         )
 
-    monkeypatch.setattr("softrod.cli.solve_statics", fail)
+    monkeypatch.setattr("softrod.cli.statics.solve_statics", fail)
     assert_clean_error(run("solve", SPA, "-p", "70kPa,0,0"), 3, "did not converge")
 
 

@@ -18,7 +18,7 @@ from rich.console import Console
 from softrod import ConvergenceError
 from softrod.calibration import axial_example_paths, identify_axial, load_axial_data
 from softrod.calibration.params import design_changes, parse_parameters
-from softrod.cli import _FitProgress
+from softrod.cli.calibrate import _FitProgress
 
 pytestmark = pytest.mark.fast  # the whole module runs in seconds
 

@@ -35,9 +35,10 @@ from .calibration import (
     fit_stiffness_map,
     identify_stiffness,
 )
+from .catalog import bundled_designs, load_design
 from .compare import compare_models
 from .datasets import Dataset, load_dataset, synthesize_dataset, write_dataset
-from .design import Design, bundled_designs, designs_dir, load_design
+from .design import Design, designs_dir
 from .dynamics import PressureSchedule, Simulation, Trajectory, simulate
 from .errors import ConvergenceError, DesignError, InputError, SoftrodError
 from .presets import Preset, list_presets

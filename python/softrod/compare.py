@@ -33,7 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from .design import Design, load_design
+from .catalog import load_design
+from .design import Design
 from .errors import DesignError, InputError, design_error
 from .presets import PAPER002_MODELS, paper002_preset
 from .statics import SolverOptions, solve_statics_batch

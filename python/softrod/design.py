@@ -116,11 +116,6 @@ def designs_dir() -> Path:
     return PACKAGE_DIR / "designs"
 
 
-def bundled_designs() -> list[str]:
-    """Names of the bundled designs (usable in ``load_design``)."""
-    return sorted(p.stem for p in designs_dir().glob("*.toml"))
-
-
 def _check_keys(table: Any, kind: str, where: str) -> dict:
     if not isinstance(table, Mapping):
         raise design_error(where or "design", type(table).__name__, "must be a table")
@@ -601,12 +596,10 @@ def _build(doc: dict, source: Path | None) -> Design:
     )
 
 
-def load_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
-    """Load and validate a design.
-
-    ``design`` is a path to a TOML file, the name of a bundled design (see
-    :func:`bundled_designs`), the name of a preset (see :func:`softrod.list_presets`), a
-    mapping with the same structure as the file, or a Design.
+def read_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
+    """Read and validate a design from a TOML file, a mapping with the file's structure, or a
+    Design (returned as is). Names of bundled designs and presets are resolved one level up,
+    by :func:`softrod.load_design` (``softrod.catalog``).
     Raises :class:`DesignError` naming the field, the value and the rule.
     """
     if isinstance(design, Design):
@@ -620,20 +613,6 @@ def load_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
             "must be a path, a bundled design name, a mapping or a Design",
         )
     path = Path(design)
-    if not path.exists() and path.suffix == "" and (designs_dir() / f"{design}.toml").exists():
-        path = designs_dir() / f"{design}.toml"
-    if not path.exists():
-        # Late import: presets build on this module.
-        from .presets import PRESETS
-
-        if str(design) in PRESETS:
-            return PRESETS[str(design)].load()
-        raise design_error(
-            "design",
-            str(design),
-            f"no such file, bundled design or preset (bundled designs: "
-            f"{', '.join(bundled_designs())}; presets: {', '.join(PRESETS)})",
-        )
     try:
         with open(path, "rb") as fh:
             doc = tomllib.load(fh)

@@ -6,12 +6,14 @@ All inputs and outputs are SI: pressures in Pa (gauge), one per channel.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from .design import Design, load_design
+from .catalog import load_design
+from .design import Design
 from .errors import ConvergenceError, InputError, design_error
+from .solution import BatchSolution, StaticSolution
 from .stiffness_map import StiffnessMap, _check_pressure_rows
 from .units import to_si
 
@@ -46,106 +48,6 @@ class SolverOptions:
             "continuation": self.continuation,
             "max_load_steps": self.max_load_steps,
         }
-
-
-@dataclass(frozen=True)
-class StaticSolution:
-    """A static equilibrium, sampled at every integration node (n nodes).
-
-    s: (n,) reference arc length, m.            section: (n,) section index of each node.
-    position: (n, 3) centreline r, m (world).   rotation: (n, 3, 3) [d1 d2 d3] (world).
-    force: (n, 3) total internal force n, N.    moment: (n, 3) total internal moment m, N m.
-    v: (n, 3) shear/stretch strain (body).      u: (n, 3) curvature/twist, 1/m (body).
-    Forces and moments are the totals of the balance laws (material plus pressure part).
-    stiffness_scale: (3,) sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) applied to the
-    mapped sections (docs/stiffness-map.md); ones when the design has none.
-    """
-
-    design: Design
-    pressures: np.ndarray
-    s: np.ndarray
-    section: np.ndarray
-    position: np.ndarray
-    rotation: np.ndarray
-    force: np.ndarray
-    moment: np.ndarray
-    v: np.ndarray
-    u: np.ndarray
-    converged: bool
-    iterations: int
-    residual: float
-    load_steps: int
-    shooting_unknowns: np.ndarray = field(repr=False)
-    stiffness_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
-
-    @classmethod
-    def failed(cls, design, pressures, exc, n_unknowns: int, **extra) -> StaticSolution:
-        """The result of a solve that did not converge (``check=False``): NaN shape and
-        wrench, ``converged`` False, the iterations and residual of ``exc``."""
-        nan3 = np.full((1, 3), np.nan)
-        return cls(
-            design=design,
-            pressures=np.array(pressures),
-            s=np.array([np.nan]),
-            section=np.array([-1]),
-            position=nan3,
-            rotation=np.full((1, 3, 3), np.nan),
-            force=nan3,
-            moment=nan3,
-            v=nan3,
-            u=nan3,
-            converged=False,
-            iterations=exc.iterations,
-            residual=exc.residual,
-            load_steps=0,
-            shooting_unknowns=np.full(n_unknowns, np.nan),
-            **extra,
-        )
-
-    @property
-    def tip_position(self) -> np.ndarray:
-        """Tip position (end of the last section), m."""
-        return self.position[-1]
-
-    @property
-    def tip_rotation(self) -> np.ndarray:
-        """Tip rotation [d1 d2 d3], world frame."""
-        return self.rotation[-1]
-
-    @property
-    def base_force(self) -> np.ndarray:
-        """Total internal force at the base (the wrench the mount takes), N."""
-        return self.force[0]
-
-    @property
-    def base_moment(self) -> np.ndarray:
-        return self.moment[0]
-
-    @property
-    def strains(self) -> dict[str, np.ndarray]:
-        return {"v": self.v, "u": self.u}
-
-
-@dataclass(frozen=True)
-class BatchSolution:
-    """Results of ``solve_statics_batch``: one row per input row, failed rows kept.
-
-    tip_position (m, 3) m; tip_rotation (m, 3, 3); base_force (m, 3) N; base_moment (m, 3) N m;
-    converged (m,) bool (rows that failed hold NaN); iterations (m,); residual (m,).
-    stiffness_scale (m, 3): sigma of every row when the design has mapped sections
-    (docs/stiffness-map.md), else None. x (m, 3): the solver's scaled unknowns (warm starts).
-    """
-
-    pressures: np.ndarray
-    tip_position: np.ndarray
-    tip_rotation: np.ndarray
-    base_force: np.ndarray
-    base_moment: np.ndarray
-    converged: np.ndarray
-    iterations: np.ndarray
-    residual: np.ndarray
-    stiffness_scale: np.ndarray | None = None
-    x: np.ndarray | None = None
 
 
 def _pressures(design: Design, pressures) -> list[float]:

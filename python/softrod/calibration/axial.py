@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..catalog import load_design
 from ..datasets import (
     _checked_metadata,
     _fail,
@@ -54,7 +55,7 @@ from ..datasets import (
     _unit_factor,
     _Where,
 )
-from ..design import PACKAGE_DIR, Design, load_design
+from ..design import PACKAGE_DIR, Design
 from ..errors import InputError
 from ..io import atomic_path
 from ..units import to_si
@@ -996,7 +997,7 @@ def synthesize_axial_data(
 # --- bundled example -------------------------------------------------------------------------
 
 # How the bundled example was made (paper 004's actuator, Sec. 3.1 and Table 1);
-# softrod.datasets._write_examples() rebuilds it, and a test checks it still does.
+# softrod._examples.write_examples() rebuilds it, and a test checks it still does.
 AXIAL_EXAMPLE = {
     "E_N": 200.0,  # Sec. 4.1 / Table 3
     "force_at_96kPa_N": 33.0,  # Sec. 3.1, three chambers
@@ -1028,7 +1029,7 @@ def axial_example_paths() -> tuple[Path, Path]:
 
 
 def _write_axial_examples(folder: str | os.PathLike | None = None) -> list[Path]:
-    """Regenerate the bundled axial example (called by softrod.datasets._write_examples)."""
+    """Regenerate the bundled axial example (called by softrod._examples.write_examples)."""
     folder = Path(folder) if folder is not None else _EXAMPLES_DIR
     folder.mkdir(exist_ok=True)
     names = AXIAL_EXAMPLE["files"]

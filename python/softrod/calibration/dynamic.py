@@ -26,11 +26,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..catalog import load_design
 from ..datasets import Dataset, load_dataset
-from ..design import Design, load_design
+from ..design import Design
 from ..dynamics import PressureSchedule, Trajectory, simulate
-from ..errors import ConvergenceError, InputError
-from .fit import CalibrationWarning
+from ..errors import CalibrationWarning, ConvergenceError, InputError
 from .params import Parameter, design_changes, parse_parameters
 
 __all__ = [

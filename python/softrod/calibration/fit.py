@@ -25,9 +25,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..catalog import load_design
 from ..datasets import Dataset, load_dataset
-from ..design import Design, load_design
-from ..errors import ConvergenceError, DesignError, InputError
+from ..design import Design
+from ..errors import CalibrationWarning, ConvergenceError, DesignError, InputError
 from ..io import atomic_path
 from ..statics import SolverOptions, _options
 from ..units import number, to_si
@@ -48,11 +49,6 @@ POOR_RELATIVE_ERROR = 0.5
 #: optimiser steps back instead of stopping on a NaN.
 _FAILED_RESIDUAL_MM = 1e3
 _ORIENTATIONS = ("hanging", "upright", "horizontal")
-
-
-class CalibrationWarning(UserWarning):
-    """A calibration result to be read with care (unidentifiable or correlated parameters,
-    samples that did not converge)."""
 
 
 def _fail(field_: str, value, rule: str) -> InputError:

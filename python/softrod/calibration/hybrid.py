@@ -29,8 +29,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
+from ..catalog import load_design
 from ..datasets import Dataset
-from ..design import load_design
 from ..errors import InputError, design_error
 from ..statics import SolverOptions, solve_statics_batch
 from ..stiffness_map import SIGMA_NAMES, StiffnessMap

@@ -46,8 +46,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..catalog import load_design
 from ..datasets import Dataset
-from ..design import Design, load_design
+from ..design import Design
 from ..errors import InputError, design_error
 from ..statics import SolverOptions
 from ..stiffness_map import SIGMA_NAMES

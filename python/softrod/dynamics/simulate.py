@@ -18,7 +18,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from .. import _core
-from ..design import Design, load_design
+from ..catalog import load_design
+from ..design import Design
 from ..errors import InputError, design_error
 from ..units import to_si
 from .schedule import PressureSchedule

@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..design import load_design
+from ..catalog import load_design
 from ..errors import InputError, design_error
 from ..statics import solve_statics
 

@@ -34,6 +34,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .. import _core
+from ..catalog import load_design
 from ..datasets import (
     Dataset,
     _matrix_to_quat,
@@ -42,7 +43,7 @@ from ..datasets import (
     load_dataset,
     noise_seed,
 )
-from ..design import Design, load_design
+from ..design import Design
 from ..errors import ConvergenceError, InputError, design_error
 from ..units import to_si
 from .identify import (
