@@ -41,11 +41,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from . import _validate as V
+from ._validate import UNIT_ALIASES
 from .catalog import load_design
 from .design import PACKAGE_DIR, Design
 from .errors import ConvergenceError, InputError, design_error
 from .io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
-from .units import SI_UNIT, registry, vector_to_si
 
 __all__ = [
     "DEFAULT_UNITS",
@@ -59,17 +60,10 @@ __all__ = [
     "write_dataset",
 ]
 
-# ASCII spellings of moment units, mapped before pint reads a unit: pint reads "Nm" as
-# number-metre and does not know "Nmm". Keys are exact (case-sensitive) unit strings.
-UNIT_ALIASES = {
-    "Nm": "N*m",
-    "Nmm": "N*mm",
-    "Ncm": "N*cm",
-    "mNm": "mN*m",
-    "mNmm": "mN*mm",
-    "kNm": "kN*m",
-}
-_SUFFIX_OF = {v: k for k, v in UNIT_ALIASES.items()}
+# ASCII spellings of moment units (pint reads "Nm" as number-metre and does not know
+# "Nmm"), mapped by the unit grammar of softrod._validate for every unit softrod reads.
+_SUFFIX_OF = {v: k for k, v in UNIT_ALIASES.items() if "*" in v}
+MAX_FILE_BYTES = 2**31  # dataset and schedule files larger than this are refused unread
 
 # Units to_frame and write_dataset use unless told otherwise (one per kind).
 DEFAULT_UNITS = {"pressure": "kPa", "length": "mm", "force": "N", "moment": "Nmm", "time": "s"}
@@ -137,30 +131,62 @@ def _checked_metadata(metadata) -> dict:
 
 
 def _unit_factor(unit: str, kind: str, column: str) -> float:
-    """SI factor of ``unit`` (a unit string, aliases allowed) checked against ``kind``."""
-    text = unit.strip()
-    if not text:
-        raise _fail(column, unit, f"empty unit: a {kind} needs one, e.g. '{DEFAULT_UNITS[kind]}'")
-    ureg = registry()
-    try:
-        parsed = ureg.parse_units(UNIT_ALIASES.get(text, text))
-    except Exception as exc:  # pint raises several error types for bad strings
+    """SI factor of ``unit`` (a unit string, aliases allowed) checked against ``kind``, read
+    by the restricted unit grammar (never evaluated as an expression)."""
+    return V.unit_factor(unit, kind, column)
+
+
+def _channel(base: str, column: str) -> int:
+    """The channel index of a ``p<k>`` base name, refused beyond MAX_CHANNELS before any
+    table of channels is built."""
+    digits = base[1:]
+    if len(digits) > 3 or int(digits) >= V.MAX_CHANNELS:
         raise _fail(
             column,
-            unit,
-            f"unknown unit ({exc}); a {kind} column needs a unit pint knows, e.g. "
-            f"'{DEFAULT_UNITS[kind]}' (moment spellings {', '.join(UNIT_ALIASES)} are accepted)",
-        ) from None
-    want = ureg.get_dimensionality(SI_UNIT[kind])
-    if parsed.dimensionality != want:
-        have = str(parsed.dimensionality) if not parsed.dimensionless else "dimensionless"
-        raise _fail(
             column,
-            unit,
-            f"wrong unit: this column is a {kind} (like '{DEFAULT_UNITS[kind]}'), "
-            f"but the unit has dimension {have}",
+            f"channel {digits if len(digits) <= 12 else digits[:12] + '...'} is beyond softrod's "
+            f"limit of {V.MAX_CHANNELS} pressure channels (p0 ... p{V.MAX_CHANNELS - 1})",
         )
-    return float(ureg.Quantity(1.0, parsed).to(SI_UNIT[kind]).magnitude)
+    return int(digits)
+
+
+def _read_text(path: Path) -> str:
+    """A text file as str: UTF-8 (a byte-order mark allowed); anything else, such as a
+    binary or UTF-16 file, is an InputError naming the file."""
+    size = path.stat().st_size
+    if size > MAX_FILE_BYTES:
+        raise _fail("file", str(path), f"is too large ({size} bytes; at most {MAX_FILE_BYTES})")
+    raw = path.read_bytes()
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise _fail("file", str(path), "is UTF-16 text: save it as UTF-8 (CSV UTF-8)")
+    if b"\0" in raw[:65536]:
+        raise _fail("file", str(path), "is not a text file (it holds NUL bytes)")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise _fail(
+            "file", str(path), f"is not UTF-8 text (byte {exc.start}, line {line}): save as UTF-8"
+        ) from None
+
+
+def _json_block(body: str, key: str, where: str) -> dict:
+    """A ``# units:``/``# metadata:`` JSON object, nesting bounded (no RecursionError)."""
+    try:
+        value = json.loads(body)
+    except json.JSONDecodeError as exc:
+        raise _fail(
+            key,
+            body.strip(),
+            f"{where}: not valid JSON ({exc.msg}); write e.g. "
+            '# units: {"p0": "kPa", "tip_x": "mm"}',
+        ) from None
+    except RecursionError:
+        raise _fail(key, body.strip(), f"{where}: nested too deeply") from None
+    if not isinstance(value, dict):
+        raise _fail(key, value, f"{where}: must be a JSON object {{...}}")
+    V.check_depth(value, key)
+    return value
 
 
 def _suffix(unit: str) -> str:
@@ -526,7 +552,7 @@ class _Where:
 
 
 def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
-    text = path.read_text(encoding="utf-8-sig")
+    text = _read_text(path)
     lines = text.splitlines()
     units: dict = {}
     meta: dict = {}
@@ -538,17 +564,7 @@ def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
         entry = re.match(r"^#\s*(units|metadata)\s*:(.*)$", stripped)
         if entry:
             key, body = entry.group(1), entry.group(2)
-            try:
-                value = json.loads(body)
-            except json.JSONDecodeError as exc:
-                raise _fail(
-                    key,
-                    body.strip(),
-                    f"line {n_pre + 1}: not valid JSON ({exc.msg}); write e.g. "
-                    '# units: {"p0": "kPa", "tip_x": "mm"}',
-                ) from None
-            if not isinstance(value, dict):
-                raise _fail(key, value, f"line {n_pre + 1}: must be a JSON object {{...}}")
+            value = _json_block(body, key, f"line {n_pre + 1}")
             target = units if key == "units" else meta
             if target:
                 raise _fail(key, value, f"line {n_pre + 1}: the {key} block is given twice")
@@ -556,7 +572,10 @@ def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
     else:
         raise _fail("file", str(path), "has no header line (column names) after the comments")
     header_line = n_pre + 1  # 1-based
-    raw_names = next(csv.reader([lines[n_pre]]))
+    try:
+        raw_names = next(csv.reader([lines[n_pre]]))
+    except csv.Error as exc:
+        raise _fail("file", path.name, f"line {header_line}: not a CSV header ({exc})") from None
     names = [n.strip() for n in raw_names]  # "p0_kPa, tip_x_mm" is read like "p0_kPa,tip_x_mm"
     _check_duplicates(names)
     labels = [r for r, n in zip(raw_names, names, strict=True) if _base(n) in _LABELS]
@@ -569,7 +588,7 @@ def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
             # Ids stay text ("007" is not 7); keys as pandas may spell the header name.
             dtype=dict.fromkeys([*labels, *(r.lstrip() for r in labels)], str),
         )
-    except pd.errors.ParserError as exc:
+    except (pd.errors.ParserError, ValueError, csv.Error) as exc:
         ragged = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(exc))
         if ragged:
             want, line, saw = (int(g) for g in ragged.groups())
@@ -606,15 +625,17 @@ def _read_parquet(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
             blocks.append({})
             continue
         try:
-            value = json.loads(raw.decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise _fail(
-                key.decode(), raw[:80], f"Parquet metadata is not valid JSON ({exc})"
-            ) from None
-        if not isinstance(value, dict):
-            raise _fail(key.decode(), value, "Parquet metadata must be a JSON object")
-        blocks.append(value)
-    return table.to_pandas(), blocks[0], blocks[1], _Where("row")
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise _fail(key.decode(), raw[:80], f"Parquet metadata is not UTF-8 ({exc})") from None
+        blocks.append(_json_block(text, key.decode(), "Parquet metadata"))
+    if table.num_rows > V.MAX_ROWS:
+        raise _fail("rows", table.num_rows, f"too many rows: at most {V.MAX_ROWS:,}")
+    try:
+        frame = table.to_pandas()
+    except Exception as exc:  # pyarrow raises its own error types for unconvertible columns
+        raise _fail("file", str(path), f"has columns pandas cannot read: {exc}") from None
+    return frame, blocks[0], blocks[1], _Where("row")
 
 
 def _check_duplicates(names: list) -> None:
@@ -694,15 +715,32 @@ def load_dataset(
         raise
 
 
+def _check_dtype(column: pd.Series, name: str) -> None:
+    """A number column holds numbers (or text to read as numbers), never dates, durations,
+    booleans or complex values, which pandas would turn into numbers silently (a timestamp
+    would become 1.58e18 Pa)."""
+    kind = getattr(column.dtype, "kind", "O")
+    what = {"M": "dates/times", "m": "durations", "b": "booleans", "c": "complex numbers"}
+    if kind in what:
+        raise _fail(name, str(column.dtype), f"must hold numbers, not {what[kind]}")
+    if kind == "O":
+        bad = next(
+            (
+                v
+                for v in column.array
+                if isinstance(v, (bool, np.bool_, complex, bytes))
+                or (not isinstance(v, (str, int, float, np.number)) and v is not None)
+            ),
+            None,
+        )
+        if bad is not None:
+            raise _fail(name, bad, f"must hold numbers, not {type(bad).__name__}")
+
+
 def _expected_channels(n_channels, design) -> tuple[int | None, str]:
     want, what = None, ""
     if n_channels is not None:
-        if (
-            isinstance(n_channels, bool)
-            or not isinstance(n_channels, (int, np.integer))
-            or n_channels < 1
-        ):
-            raise _fail("n_channels", n_channels, "must be an integer >= 1")
+        V.integer(n_channels, "n_channels", minimum=1, maximum=V.MAX_CHANNELS)
         want, what = int(n_channels), f"n_channels = {int(n_channels)}"
     if design is not None:
         d = load_design(design)
@@ -744,6 +782,8 @@ def _from_frame(
             unknown.append(name)
             continue
         base, unit = m["base"], m["unit"]
+        if base[0] == "p":
+            _channel(base, name)
         kind = _kind(base)
         if unit is not None and name in block:
             raise _fail(
@@ -813,6 +853,8 @@ def _from_frame(
         )
     if len(df) == 0:
         raise _fail("rows", 0, "the table has no data rows")
+    if len(df) > V.MAX_ROWS:
+        raise _fail("rows", len(df), f"too many rows: at most {V.MAX_ROWS:,}")
 
     # Values: empty cells, text in number columns, non-finite numbers.
     used = [columns[b][0] for b in columns]
@@ -834,6 +876,7 @@ def _from_frame(
         if base in _LABELS:
             continue
         raw = df[col]
+        _check_dtype(raw, col)
         values = pd.to_numeric(raw, errors="coerce")
         text = np.flatnonzero(values.isna().to_numpy())
         if text.size:
