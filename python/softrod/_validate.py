@@ -451,7 +451,7 @@ def quantity(
             number, unit = split_quantity(value)
             factor, dims, is_angle = parse_unit(unit)
         except _UnitSyntaxError as exc:
-            raise fail(field, value, f"cannot read as a {kind}: {exc}; {_GRAMMAR}", cls) from None
+            raise fail(field, value, f"cannot read as {_article(kind)} {kind}: {exc}; {_GRAMMAR}", cls) from None
         if not math.isfinite(number):
             raise fail(field, value, "must be a finite number", cls)
         if not unit:
@@ -466,7 +466,8 @@ def quantity(
             raise fail(
                 field,
                 value,
-                f"wrong unit: must be a {kind} (like '{EXAMPLE_UNIT[kind]}'), got {_dim_text(dims, unit)}",
+                f"wrong unit: must be {_article(kind)} {kind} (like '{EXAMPLE_UNIT[kind]}'), "
+                f"got {_dim_text(dims, unit)}",
                 cls,
             )
         x = number * factor
@@ -477,7 +478,7 @@ def quantity(
         raise fail(
             field,
             value,
-            f"must be a {kind} such as '1 {EXAMPLE_UNIT[kind]}', not {_type_name(value)}",
+            f"must be {_article(kind)} {kind} such as '1 {EXAMPLE_UNIT[kind]}', not {_type_name(value)}",
             cls,
         )
     return _bare(_as_float(value, field, cls), value, kind, field, cls, bare)
@@ -491,10 +492,14 @@ def _bare(x: float, value, kind: str, field: str, cls, bare: str) -> float:
     raise fail(
         field,
         value,
-        f"a bare number is ambiguous for a {kind}: write it with its unit, e.g. "
+        f"a bare number is ambiguous for {_article(kind)} {kind}: write it with its unit, e.g. "
         f"\"{shown} {EXAMPLE_UNIT[kind]}\"{suffix}",
         cls,
     )
+
+
+def _article(word: str) -> str:
+    return "an" if word[0] in "aeiou" else "a"
 
 
 def _dim_text(dims: tuple, unit: str) -> str:
@@ -510,17 +515,17 @@ def unit_factor(unit: str, kind: str, field: str, cls: type[DesignError] = Input
     if not isinstance(unit, str):
         raise fail(field, unit, "must be a unit string such as 'kPa'", cls)
     if not unit.strip():
-        raise fail(field, unit, f"empty unit: a {kind} needs one, e.g. '{EXAMPLE_UNIT[kind]}'", cls)
+        raise fail(field, unit, f"empty unit: {_article(kind)} {kind} needs one, e.g. '{EXAMPLE_UNIT[kind]}'", cls)
     try:
         factor, dims, is_angle = parse_unit(unit)
     except _UnitSyntaxError as exc:
-        raise fail(field, unit, f"not a unit of a {kind}: {exc}", cls) from None
+        raise fail(field, unit, f"not a unit of {_article(kind)} {kind}: {exc}", cls) from None
     ok = is_angle if kind == "angle" else dims == _kind_dims(kind)
     if not ok:
         raise fail(
             field,
             unit,
-            f"wrong unit: must be a {kind} unit (like '{EXAMPLE_UNIT[kind]}'), got {_dim_text(dims, unit)}",
+            f"wrong unit: must be {_article(kind)} {kind} unit (like '{EXAMPLE_UNIT[kind]}'), got {_dim_text(dims, unit)}",
             cls,
         )
     return factor
@@ -548,3 +553,9 @@ def check_depth(obj: object, field: str, cls: type[DesignError] = InputError, li
             seen += 1
             if isinstance(c, (Mapping, list, tuple)):
                 stack.append((c, depth + 1))
+
+
+def si_text(value: float, kind: str) -> str:
+    """An SI value as a quantity string that reads back exactly (``"0.0123 m"``): how
+    softrod writes computed values into design documents, which need units."""
+    return f"{float(value)!r} {SI_UNIT[kind]}"
