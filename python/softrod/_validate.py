@@ -488,12 +488,14 @@ def _bare(x: float, value, kind: str, field: str, cls, bare: str) -> float:
     if bare == "si" or x == 0.0:
         return x
     suffix = "" if bare == "error" else f" {bare}"
-    shown = value if isinstance(value, str) else f"{x:g}"
+    shown = value.strip() if isinstance(value, str) else f"{x:g}"
+    units = dict.fromkeys((EXAMPLE_UNIT[kind], SI_UNIT[kind]))
+    spelled = " or ".join(f'"{shown} {u}"' for u in units)
     raise fail(
         field,
         value,
         f"a bare number is ambiguous for {_article(kind)} {kind}: write it with its unit, e.g. "
-        f"\"{shown} {EXAMPLE_UNIT[kind]}\"{suffix}",
+        f"{spelled}{suffix}",
         cls,
     )
 

@@ -6,15 +6,19 @@ One module per command group: ``statics`` (solve, sweep, demo), ``compare``, ``c
 (calibrate, calibrate-axial, identify), ``simulate``, ``pcc`` (compare-pcc, pcc-identify),
 ``designs``; shared parsing, error handling and output helpers in ``_common``.
 
-Units at the boundary: pressures and loads are read with pint ("30kPa", "0.3bar", "-1 N");
-a bare number is SI (Pa, N, N m). Outputs state their units (table headers, JSON keys,
-column names such as ``x_mm``).
+Units at the boundary: quantities carry their units ("30kPa", "0.3bar", "-1 N", "2 ms"),
+read by softrod's restricted unit grammar; a bare non-zero number is refused as ambiguous
+(zero needs no unit; a unit on the last item of a list applies to all). Outputs state their
+units (table headers, JSON keys, column names such as ``x_mm``).
 
-Exit codes: 0 success; 2 bad design, input or output path (also click's usage errors);
-3 the solver did not converge. Errors print one red line ``error: <message>`` on stderr.
+Exit codes: 0 success; 1 internal error (a bug); 2 bad design, input or output path (also
+click's usage errors); 3 the solver did not converge. Errors print one red line
+``error: <message>`` on stderr, never a traceback.
 """
 
 from __future__ import annotations
+
+import sys
 
 import click
 
@@ -27,14 +31,42 @@ from .simulate import simulate_cmd
 from .statics import demo, solve, sweep
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Main(click.Group):
+    """The softrod group: click's usage errors (a bad option value, a missing argument)
+    print as one red line with exit code 2, like every other error."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        try:
+            code = super().main(
+                args, prog_name, complete_var, standalone_mode=False, **extra
+            )
+        except click.ClickException as exc:
+            from ._common import _fail
+
+            hint = ""
+            if isinstance(exc, click.UsageError) and exc.ctx is not None:
+                hint = f" (see: {exc.ctx.command_path} --help)"
+            try:
+                _fail(exc.format_message() + hint, exc.exit_code or 2)
+            except click.exceptions.Exit as done:
+                code = done.exit_code
+        except click.Abort:
+            click.echo("Aborted!", err=True)
+            code = 1
+        if not standalone_mode:
+            return code
+        sys.exit(code if isinstance(code, int) else 0)
+
+
+@click.group(cls=_Main, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, "--version", prog_name="softrod", message="%(prog)s %(version)s")
 def main():
     """softrod: Cosserat-rod models of soft pneumatic actuators.
 
     DESIGN arguments are a TOML file or the name of a bundled design (see `softrod designs`).
-    Quantities take units ("30kPa", "0.3bar", "-1 N"); a bare number is SI.
-    Exit codes: 0 ok, 2 bad design or input, 3 no convergence.
+    Quantities need units ("30kPa", "0.3bar", "-1 N", "2 ms"); zero needs none, and a unit
+    on the last item of a list applies to all ("10,20,30kPa").
+    Exit codes: 0 ok, 1 internal error, 2 bad design or input, 3 no convergence.
     """
 
 

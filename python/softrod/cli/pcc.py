@@ -11,10 +11,10 @@ from rich.progress import Progress
 from ..catalog import load_design
 from ..errors import InputError, design_error
 from ..io import atomic_path, check_table_path, write_table
-from ..units import to_si
 from ._common import (
     _for_option,
     _handle_errors,
+    _quantity,
     _parse_vector,
     _progress_columns,
     _pyplot,
@@ -53,8 +53,8 @@ def _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt):
     from ..dynamics import PressureSchedule
     from ..pcc.compare import compare_pcc_dynamics, plot_pcc_dynamics_comparison
 
-    duration = to_si(t_end, "time", "--t-end", InputError)
-    step = to_si(dt, "time", "--dt", InputError)
+    duration = _quantity(t_end, "time", "--t-end")
+    step = _quantity(dt, "time", "--dt")
     for name, value, given in (("--t-end", duration, t_end), ("--dt", step, dt)):
         if not value > 0:
             raise design_error(name, given, "must be > 0 s", InputError)
@@ -138,7 +138,7 @@ def compare_pcc_cmd(
         raise design_error(
             "--channels", channels, f"must be channel indices 0..{d.n_channels - 1}", InputError
         )
-    pmax = to_si(p_max, "pressure", "--p-max", InputError)
+    pmax = _quantity(p_max, "pressure", "--p-max")
     force = _parse_vector(tip_force, "force", "--tip-force", 3)
     if out.suffix.lower() not in (".png", ".pdf", ".svg"):
         raise design_error("--out", str(out), "must end in .png, .pdf or .svg", InputError)
@@ -289,7 +289,7 @@ def pcc_identify(
         elif kind == "longitudinal-damping":
             cols = _read_columns(data, ["t_s", "z_m"])
             k = (
-                to_si(k_l, "force_per_length", "--k-L", InputError)
+                _quantity(k_l, "force_per_length", "--k-L")
                 if k_l
                 else pcc_parameters(need_design("k_L"))[0]["k_L"]
             )
@@ -297,7 +297,7 @@ def pcc_identify(
         else:
             cols = _read_columns(data, ["t_s", "theta_rad"])
             k = (
-                to_si(k_theta, "moment", "--k-theta", InputError)
+                _quantity(k_theta, "moment", "--k-theta")
                 if k_theta
                 else pcc_parameters(need_design("k_theta"))[0]["k_theta"]
             )

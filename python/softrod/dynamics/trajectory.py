@@ -477,14 +477,8 @@ class Trajectory:
                 )
         frames = self._frame_indices(float(fps), float(speed))
         with atomic_path(path) as tmp:
-            # The writers pick the format from the file name, so render to a sibling with the
-            # right suffix and move it onto the temporary file.
-            media = tmp.with_name(tmp.name + suffix)
-            try:
-                self._render(media, frames, float(fps), trail, elev, azim, dpi, figsize)
-                os.replace(media, tmp)
-            finally:
-                media.unlink(missing_ok=True)
+            # The temporary's name ends in the target's, so the writers pick the format.
+            self._render(tmp, frames, float(fps), trail, elev, azim, dpi, figsize)
         return path
 
     def _frame_indices(self, fps: float, speed: float) -> np.ndarray:
