@@ -162,7 +162,7 @@ def real(
 
 def _as_float(value: object, field: str, cls: type[DesignError]) -> float:
     if isinstance(value, (int, np.integer)) and abs(int(value)) > MAX_ABS_INT:
-        raise fail(field, value, f"is too large (integers beyond 2^53 = {MAX_ABS_INT} are refused)", cls)
+        raise fail(field, value, "is too large (integers beyond 2^53 are refused)", cls)
     try:
         x = float(value)
     except (OverflowError, ValueError, TypeError):
@@ -312,7 +312,7 @@ def real_array(
         flat = arr.ravel()
         out = np.empty(flat.shape, dtype=float)
         for i, x in enumerate(flat):
-            where = f"{field}[{i}]" if arr.ndim == 1 else f"{field}{list(np.unravel_index(i, arr.shape))}"
+            where = field + "".join(f"[{int(k)}]" for k in np.unravel_index(i, arr.shape))
             if unit_kind is not None and isinstance(x, str):
                 out[i] = quantity(x, unit_kind, where, cls)
             else:
@@ -446,12 +446,14 @@ def quantity(
     without ``units = "SI"`` and CLI options), or a message suffix for the error."""
     if isinstance(value, str):
         if len(value) > MAX_QUANTITY_LENGTH:
-            raise fail(field, value, f"is too long for a quantity ({MAX_QUANTITY_LENGTH} characters at most)", cls)
+            rule = f"is too long for a quantity ({MAX_QUANTITY_LENGTH} characters at most)"
+            raise fail(field, value, rule, cls)
         try:
             number, unit = split_quantity(value)
             factor, dims, is_angle = parse_unit(unit)
         except _UnitSyntaxError as exc:
-            raise fail(field, value, f"cannot read as {_article(kind)} {kind}: {exc}; {_GRAMMAR}", cls) from None
+            rule = f"cannot read as {_article(kind)} {kind}: {exc}; {_GRAMMAR}"
+            raise fail(field, value, rule, cls) from None
         if not math.isfinite(number):
             raise fail(field, value, "must be a finite number", cls)
         if not unit:
@@ -459,9 +461,8 @@ def quantity(
         want = _kind_dims(kind)
         if kind == "angle":
             if not is_angle:
-                raise fail(
-                    field, value, f"must be an angle with an angle unit (e.g. '30 deg' or '0.5 rad'), got {_dim_text(dims, unit)}", cls
-                )
+                rule = "must be an angle with an angle unit (e.g. '30 deg' or '0.5 rad'), got "
+                raise fail(field, value, rule + _dim_text(dims, unit), cls)
         elif dims != want:
             raise fail(
                 field,
@@ -478,7 +479,8 @@ def quantity(
         raise fail(
             field,
             value,
-            f"must be {_article(kind)} {kind} such as '1 {EXAMPLE_UNIT[kind]}', not {_type_name(value)}",
+            f"must be {_article(kind)} {kind} such as '1 {EXAMPLE_UNIT[kind]}', "
+            f"not {_type_name(value)}",
             cls,
         )
     return _bare(_as_float(value, field, cls), value, kind, field, cls, bare)
@@ -517,7 +519,8 @@ def unit_factor(unit: str, kind: str, field: str, cls: type[DesignError] = Input
     if not isinstance(unit, str):
         raise fail(field, unit, "must be a unit string such as 'kPa'", cls)
     if not unit.strip():
-        raise fail(field, unit, f"empty unit: {_article(kind)} {kind} needs one, e.g. '{EXAMPLE_UNIT[kind]}'", cls)
+        rule = f"empty unit: {_article(kind)} {kind} needs one, e.g. '{EXAMPLE_UNIT[kind]}'"
+        raise fail(field, unit, rule, cls)
     try:
         factor, dims, is_angle = parse_unit(unit)
     except _UnitSyntaxError as exc:
@@ -527,7 +530,8 @@ def unit_factor(unit: str, kind: str, field: str, cls: type[DesignError] = Input
         raise fail(
             field,
             unit,
-            f"wrong unit: must be {_article(kind)} {kind} unit (like '{EXAMPLE_UNIT[kind]}'), got {_dim_text(dims, unit)}",
+            f"wrong unit: must be {_article(kind)} {kind} unit (like '{EXAMPLE_UNIT[kind]}'), "
+            f"got {_dim_text(dims, unit)}",
             cls,
         )
     return factor
@@ -536,7 +540,9 @@ def unit_factor(unit: str, kind: str, field: str, cls: type[DesignError] = Input
 # --- structure -----------------------------------------------------------------------------------
 
 
-def check_depth(obj: object, field: str, cls: type[DesignError] = InputError, limit: int = MAX_DEPTH) -> None:
+def check_depth(
+    obj: object, field: str, cls: type[DesignError] = InputError, limit: int = MAX_DEPTH
+) -> None:
     """Refuse tables and arrays nested deeper than ``limit`` (iteratively: a hostile document
     can never raise RecursionError here)."""
     stack = [(obj, 0)]
@@ -544,7 +550,8 @@ def check_depth(obj: object, field: str, cls: type[DesignError] = InputError, li
     while stack:
         item, depth = stack.pop()
         if depth > limit:
-            raise fail(field, "deeply nested data", f"nests tables/arrays deeper than {limit} levels", cls)
+            rule = f"nests tables/arrays deeper than {limit} levels"
+            raise fail(field, "deeply nested data", rule, cls)
         if isinstance(item, Mapping):
             children = item.values()
         elif isinstance(item, (list, tuple)):

@@ -47,6 +47,7 @@ from .catalog import load_design
 from .design import PACKAGE_DIR, Design
 from .errors import ConvergenceError, InputError, design_error
 from .io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
+from .units import vector_to_si
 
 __all__ = [
     "DEFAULT_UNITS",

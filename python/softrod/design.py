@@ -140,7 +140,8 @@ def _qvec(value: Any, kind: str, field: str, length: int | None = 3) -> list[flo
         count = "" if length is None else f"{length} "
         raise V.fail(field, value, f"must be a list of {count}{kind} values", DesignError)
     if len(value) > V.MAX_TABLE_POINTS:
-        raise V.fail(field, value, f"has too many values: at most {V.MAX_TABLE_POINTS}", DesignError)
+        rule = f"has too many values: at most {V.MAX_TABLE_POINTS}"
+        raise V.fail(field, value, rule, DesignError)
     return [_q(v, kind, f"{field}[{i}]") for i, v in enumerate(value)]
 
 
@@ -257,7 +258,9 @@ def _base_rotation(mount: Mapping) -> list[list[float]]:
             'is required: the mounting decides where gravity acts; write [mounting] '
             'orientation = "hanging", "upright" or "horizontal" (or give base_rotation)',
         )
-    orientation = V.choice(mount["orientation"], sorted(_ORIENTATIONS), "mounting.orientation", DesignError)
+    orientation = V.choice(
+        mount["orientation"], sorted(_ORIENTATIONS), "mounting.orientation", DesignError
+    )
     roll = _q(mount.get("roll", 0.0), "angle", "mounting.roll")
     c, s = math.cos(roll), math.sin(roll)
     rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
@@ -516,7 +519,8 @@ def _spec(doc: dict) -> dict:
     if not isinstance(loads, list):
         raise V.fail("loads", loads, "must be an array of tables", DesignError)
     if len(loads) > V.MAX_LOADS:
-        raise V.fail("loads", f"{len(loads)} loads", f"too many: at most {V.MAX_LOADS}", DesignError)
+        rule = f"too many: at most {V.MAX_LOADS}"
+        raise V.fail("loads", f"{len(loads)} loads", rule, DesignError)
     load_specs = []
     for k, ld in enumerate(loads):
         ld = _check_keys(ld, "load", f"loads[{k}]")
@@ -703,7 +707,8 @@ class Design:
         return _build(doc, self.source)
 
 
-_PATH = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:\[\d{1,9}\])*(?:\.[A-Za-z_][A-Za-z0-9_]*(?:\[\d{1,9}\])*)*")
+_KEY = r"[A-Za-z_][A-Za-z0-9_]*(?:\[\d{1,9}\])*"  # a key with optional [index] parts
+_PATH = re.compile(rf"{_KEY}(?:\.{_KEY})*")
 
 
 def _set_path(doc: dict, path: str, value: Any) -> None:
@@ -782,9 +787,8 @@ def _read_toml(path: Path) -> dict:
     try:
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:
-            raise V.fail(
-                str(path), f"{size} bytes", f"is too large for a design file ({MAX_FILE_BYTES} bytes at most)", DesignError
-            )
+            rule = f"is too large for a design file ({MAX_FILE_BYTES} bytes at most)"
+            raise V.fail(str(path), f"{size} bytes", rule, DesignError)
         with open(path, "rb") as fh:
             doc = tomllib.load(fh)
     except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError, ValueError) as exc:
@@ -800,6 +804,7 @@ def _read_toml(path: Path) -> dict:
         raise DesignError(f"{path}: not valid TOML: {reason}", str(path), "", reason) from None
     except OSError as exc:
         reason = exc.strerror or str(exc)
-        raise DesignError(f"{path}: cannot read the design file: {reason}", str(path), "", reason) from None
+        message = f"{path}: cannot read the design file: {reason}"
+        raise DesignError(message, str(path), "", reason) from None
     V.check_depth(doc, str(path), DesignError)
     return doc

@@ -13,7 +13,6 @@ import contextlib
 import functools
 import math
 import os
-import sys
 from pathlib import Path
 
 import click

@@ -14,10 +14,10 @@ from ..io import atomic_path, check_table_path, write_table
 from ._common import (
     _for_option,
     _handle_errors,
-    _quantity,
     _parse_vector,
     _progress_columns,
     _pyplot,
+    _quantity,
     _stdout,
 )
 

@@ -24,11 +24,11 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import curve_fit, least_squares
 
+from .._validate import si_text
 from ..catalog import load_design
 from ..design import Design
 from ..errors import ConvergenceError, InputError, design_error
 from ..io import atomic_path
-from .._validate import si_text
 from ..units import SI_UNIT
 
 __all__ = [
