@@ -51,6 +51,7 @@ MAX_TEXT_LENGTH = 100_000  # characters of free text (description, citation, ass
 MAX_QUANTITY_LENGTH = 100  # characters of a quantity string such as "110 mm"
 MAX_DEPTH = 32  # nesting of tables and arrays in documents and metadata
 MAX_ABS_INT = 2**53  # integers beyond this are not exact as floats: refused as values
+VACUUM_PA = -101325.0  # the lowest gauge pressure there is (absolute zero at 1 atm ambient)
 
 LIMITS = {
     "channels": MAX_CHANNELS,

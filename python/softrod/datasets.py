@@ -266,6 +266,8 @@ class Dataset:
     experiment: (m,) ids (int64 or str) or None.  mounting: (m,) str or None.
     time: (m,) s or None.  metadata: dict; ``metadata["synthetic"]`` is True for data made by
     :func:`synthesize_dataset` (with the design, noise and seed).  source: file read or None.
+    first_line: for a CSV source, the file line of the first row (messages name rows by
+    line, as a text editor counts them); None otherwise.
 
     Arrays are read-only. Use :func:`load_dataset` to read a file, :meth:`to_frame` and
     :func:`write_dataset` to write one.
@@ -281,11 +283,12 @@ class Dataset:
     time: np.ndarray | None = None
     metadata: dict = field(default_factory=lambda: {"synthetic": False})
     source: Path | None = None
+    first_line: int | None = None
 
     def __post_init__(self):
         set_ = object.__setattr__
-        p = np.array(self.pressures, dtype=float)
-        if p.ndim != 2 or p.shape[1] < 1:
+        p = V.real_array(self.pressures, "pressures", what="gauge pressures (Pa)")
+        if p.ndim != 2 or p.shape[1] < 1 or p.shape[1] > V.MAX_CHANNELS:
             raise _fail("pressures", f"shape {p.shape}", "must be an (m, channels) array in Pa")
         m = p.shape[0]
         set_(self, "pressures", _readonly(p))
@@ -302,7 +305,7 @@ class Dataset:
                 if name == "tip_position":
                     raise _fail(name, None, "is required (an (m, 3) array in m)")
                 continue
-            a = np.array(value, dtype=float)
+            a = V.real_array(value, name)
             if a.shape != shape:
                 raise _fail(name, f"shape {a.shape}", f"must have shape {shape} (m = {m} rows)")
             set_(self, name, _readonly(a))
@@ -336,6 +339,17 @@ class Dataset:
 
     def __len__(self) -> int:
         return self.pressures.shape[0]
+
+    def rows_text(self, rows) -> str:
+        """Rows (0-based indices) as a message names them: by file line for a CSV source
+        ("d.csv lines 3-5, 9"), by 0-based row for a Parquet source, else by index."""
+        rows = sorted(int(r) for r in rows)
+        many = len(rows) > 1
+        if self.source is not None and self.first_line is not None:
+            noun = "lines" if many else "line"
+            return f"{self.source.name} {noun} {_runs(r + self.first_line for r in rows)}"
+        prefix = f"{self.source.name} " if self.source is not None else ""
+        return f"{prefix}{'rows' if many else 'row'} {_runs(rows)} (0-based)"
 
     def __repr__(self) -> str:
         parts = [f"{len(self)} rows", f"{self.n_channels} channels"]
@@ -707,13 +721,16 @@ def load_dataset(
             "must be a .csv/.parquet path, a DataFrame or a Dataset",
         )
     try:
-        return _from_frame(
+        data = _from_frame(
             df, file_units, dict(units or {}), meta, where, path, n_channels, design, extra
         )
     except InputError as exc:
         if path is not None:
             exc.args = (f"{path.name}: {exc.args[0]}",)
         raise
+    if path is not None and where.noun == "line":
+        object.__setattr__(data, "first_line", where.first)
+    return data
 
 
 def _check_dtype(column: pd.Series, name: str) -> None:
@@ -887,6 +904,16 @@ def _from_frame(
         if bad.size:
             raise _fail(col, a[bad[0]].item(), f"must be finite, at {where(bad)}")
         numeric[base] = a if factor is None else a * factor
+
+    low = np.flatnonzero(
+        np.column_stack([numeric[f"p{k}"] for k in channels]).min(axis=1) < V.VACUUM_PA
+    )
+    if low.size:
+        raise _fail(
+            ", ".join(columns[f"p{k}"][0] for k in channels),
+            [float(numeric[f"p{k}"][low[0]]) for k in channels],
+            f"gauge pressures must be >= {V.VACUUM_PA:g} Pa (a perfect vacuum), at {where(low)}",
+        )
 
     rotation = None
     if _QUAT[0] in columns:

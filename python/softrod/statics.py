@@ -284,4 +284,15 @@ def batch_pressures(design: Design, pressures) -> np.ndarray:
     if arr.ndim == 1 and n == 1:
         arr = arr[:, None]
     _check_pressure_rows(arr, n, f"must be an (m, {n}) array of gauge pressures (Pa)")
+    if arr.shape[0] > V.MAX_ROWS:
+        raise V.fail("pressures", f"{arr.shape[0]} rows", f"too many rows: at most {V.MAX_ROWS:,}")
+    low = np.flatnonzero((arr < V.VACUUM_PA).any(axis=1))
+    if low.size:
+        r = int(low[0])
+        raise V.fail(
+            f"pressures[{r}]",
+            arr[r].tolist(),
+            f"gauge pressures must be >= {V.VACUUM_PA:g} Pa (-1 atm, a perfect vacuum)"
+            + (f"; {low.size} rows are below" if low.size > 1 else ""),
+        )
     return np.ascontiguousarray(arr)

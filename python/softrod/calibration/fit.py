@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
 from ..catalog import load_design
 from ..datasets import Dataset, load_dataset
 from ..design import Design
@@ -531,8 +532,7 @@ def calibrate(
     """
     from scipy.optimize import least_squares, minimize
 
-    if model not in ("cosserat", "pcc"):
-        raise _fail("model", model, "must be 'cosserat' (the rod) or 'pcc' (paper 003)")
+    V.choice(model, ("cosserat", "pcc"), "model")
     if model == "pcc":
         from ..pcc.experiments import identify_pcc
 
@@ -600,10 +600,11 @@ def calibrate(
             f"{dataset.n_channels} channels",
             f"design {design0.name!r} has {design0.n_channels} pressure channels",
         )
-    if method not in ("lm", "nelder-mead"):
-        raise _fail("method", method, "must be 'lm' or 'nelder-mead'")
-    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 0:
-        raise _fail("threads", threads, "must be an integer >= 0 (0 = all cores)")
+    V.choice(method, ("lm", "nelder-mead"), "method")
+    threads = V.threads(threads)
+    V.integer(max_evaluations, "max_evaluations", minimum=1, maximum=V.MAX_ITERATIONS)
+    if progress is not None and not callable(progress):
+        raise _fail("progress", progress, "must be callable or None")
     params = parse_parameters(params, design0)
     design0 = _with_stiffness_map(design0, params)
     for p in params:  # the core checks each parameter against the design
@@ -695,7 +696,7 @@ def calibrate(
         bad = train[~ok[train]]
         raise ConvergenceError(
             f"calibrate: the model did not converge for {bad.size} training samples at the "
-            f"fitted parameters (rows {bad[:10].tolist()}); check the data and the bounds"
+            f"fitted parameters ({dataset.rows_text(bad)}); check the data and the bounds"
         )
     r = (tip_train[train] - measured[train]).ravel()
     ssr = float(r @ r)

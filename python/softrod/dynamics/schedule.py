@@ -45,7 +45,7 @@ from ..io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_wi
 
 __all__ = ["KINDS", "VACUUM_PA", "PressureSchedule"]
 
-VACUUM_PA = -101325.0  # the lowest gauge pressure there is (absolute zero at 1 atm ambient)
+VACUUM_PA = V.VACUUM_PA  # the lowest gauge pressure there is (absolute zero at 1 atm ambient)
 KINDS = ("linear", "step")  # kinds of tabulated schedules (files and constructors)
 
 # Schedule columns: time_<unit> and p<k>_<unit> (the datasets' base names and unit rules).
