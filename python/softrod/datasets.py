@@ -689,8 +689,9 @@ def load_dataset(
                 f"the data has {source.n_channels} pressure channel(s) but {what}",
             )
         return source
-    if extra not in ("error", "ignore"):
-        raise _fail("extra", extra, "must be 'error' or 'ignore'")
+    V.choice(extra, ("error", "ignore"), "extra")
+    if units is not None and not isinstance(units, Mapping):
+        raise _fail("units", units, "must be a mapping {column: unit string}")
     path = None
     if isinstance(source, pd.DataFrame):
         names = list(source.columns)

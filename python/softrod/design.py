@@ -158,9 +158,10 @@ def _check_keys(table: Any, kind: str, where: str) -> dict:
         (k for k in table if not isinstance(k, str) or k not in allowed), key=str
     )
     if unknown:
-        key = str(unknown[0])
+        key = unknown[0]
+        name = key if isinstance(key, str) and key.isidentifier() else repr(key)
         raise V.fail(
-            f"{where}.{key}" if where else key,
+            f"{where}.{name}" if where else name,
             table[unknown[0]],
             f"unknown key (allowed here: {', '.join(sorted(allowed))})",
             DesignError,

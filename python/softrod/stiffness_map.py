@@ -17,6 +17,7 @@ See docs/stiffness-map.md.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import re
 from collections.abc import Callable, Sequence
@@ -272,99 +273,106 @@ class StiffnessMap:
         path = Path(path)
         if not path.is_file():
             raise design_error("path", str(path), "no such file", InputError)
-        with open(path, newline="", encoding="utf-8") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            if header is None:
-                raise design_error(str(path), "empty file", "needs a header line", InputError)
-            header = [h.strip() for h in header]
-            channels: dict[
-                int, tuple[int, float, str]
-            ] = {}  # channel -> (column, Pa per unit, name)
-            sig_cols: dict[str, int] = {}
-            for col, name in enumerate(header):
-                m = _PRESSURE_COLUMN.match(name)
-                if name in SIGMA_NAMES:
-                    if name in sig_cols:
-                        raise design_error(
-                            f"{path.name}: column {name}", name, "appears twice", InputError
-                        )
-                    sig_cols[name] = col
-                elif m:
-                    from .datasets import _channel
+        from .datasets import _read_text
 
-                    k = _channel("p" + m.group(1), name)
-                    if k in channels:
+        text = _read_text(path)
+        try:
+            with io.StringIO(text, newline="") as fh:
+                reader = csv.reader(fh)
+                header = next(reader, None)
+                if header is None:
+                    raise design_error(str(path), "empty file", "needs a header line", InputError)
+                header = [h.strip() for h in header]
+                channels: dict[
+                    int, tuple[int, float, str]
+                ] = {}  # channel -> (column, Pa per unit, name)
+                sig_cols: dict[str, int] = {}
+                for col, name in enumerate(header):
+                    m = _PRESSURE_COLUMN.match(name)
+                    if name in SIGMA_NAMES:
+                        if name in sig_cols:
+                            raise design_error(
+                                f"{path.name}: column {name}", name, "appears twice", InputError
+                            )
+                        sig_cols[name] = col
+                    elif m:
+                        from .datasets import _channel
+
+                        k = _channel("p" + m.group(1), name)
+                        if k in channels:
+                            raise design_error(
+                                f"{path.name}: column {name}",
+                                name,
+                                f"a second column for channel {k}",
+                                InputError,
+                            )
+                        channels[k] = (col, _pa_per(m.group(2), f"{path.name}: column {name}"), name)
+                    else:
                         raise design_error(
-                            f"{path.name}: column {name}",
+                            f"{path.name}: column {name!r}",
                             name,
-                            f"a second column for channel {k}",
+                            "unknown column: expected p<k>_<unit> (e.g. p0_kPa) per channel and "
+                            f"{', '.join(SIGMA_NAMES)}",
                             InputError,
                         )
-                    channels[k] = (col, _pa_per(m.group(2), f"{path.name}: column {name}"), name)
-                else:
+                missing = [s for s in SIGMA_NAMES if s not in sig_cols]
+                if missing:
                     raise design_error(
-                        f"{path.name}: column {name!r}",
-                        name,
-                        "unknown column: expected p<k>_<unit> (e.g. p0_kPa) per channel and "
-                        f"{', '.join(SIGMA_NAMES)}",
+                        f"{path.name}: header",
+                        ",".join(header),
+                        f"missing column(s) {', '.join(missing)}",
                         InputError,
                     )
-            missing = [s for s in SIGMA_NAMES if s not in sig_cols]
-            if missing:
-                raise design_error(
-                    f"{path.name}: header",
-                    ",".join(header),
-                    f"missing column(s) {', '.join(missing)}",
-                    InputError,
-                )
-            n = len(channels)
-            if n == 0 or sorted(channels) != list(range(n)):
-                raise design_error(
-                    f"{path.name}: header",
-                    ",".join(header),
-                    "needs one pressure column per channel 0..c-1, named p<k>_<unit> (e.g. p0_kPa)",
-                    InputError,
-                )
-            cols = [channels[k][0] for k in range(n)] + [sig_cols[s] for s in SIGMA_NAMES]
-            names = [channels[k][2] for k in range(n)] + list(SIGMA_NAMES)
-            rows: list[list[float]] = []
-            lines: list[int] = []
-            for row in reader:
-                if not row or all(not c.strip() for c in row):
-                    continue
-                line = reader.line_num
-                if len(row) != len(header):
+                n = len(channels)
+                if n == 0 or sorted(channels) != list(range(n)):
                     raise design_error(
-                        f"{path.name}: line {line}",
-                        ",".join(row),
-                        f"has {len(row)} fields, the header {len(header)}",
+                        f"{path.name}: header",
+                        ",".join(header),
+                        "needs one pressure column per channel 0..c-1, named p<k>_<unit> (e.g. p0_kPa)",
                         InputError,
                     )
-                vals = []
-                for col, name in zip(cols, names, strict=True):
-                    text = row[col].strip()
-                    try:
-                        v = float(text)
-                    except ValueError:
-                        v = math.nan
-                    if not math.isfinite(v):
+                cols = [channels[k][0] for k in range(n)] + [sig_cols[s] for s in SIGMA_NAMES]
+                names = [channels[k][2] for k in range(n)] + list(SIGMA_NAMES)
+                rows: list[list[float]] = []
+                lines: list[int] = []
+                for row in reader:
+                    if not row or all(not c.strip() for c in row):
+                        continue
+                    line = reader.line_num
+                    if len(row) != len(header):
                         raise design_error(
-                            f"{path.name}: line {line}, {name}",
-                            text,
-                            "must be a finite number",
+                            f"{path.name}: line {line}",
+                            ",".join(row),
+                            f"has {len(row)} fields, the header {len(header)}",
                             InputError,
                         )
-                    vals.append(v)
-                if not all(v > 0 for v in vals[n:]):
-                    raise design_error(
-                        f"{path.name}: line {line}",
-                        vals[n:],
-                        "sigma must be > 0 (stiffness must stay positive)",
-                        InputError,
-                    )
-                rows.append(vals)
-                lines.append(line)
+                    vals = []
+                    for col, name in zip(cols, names, strict=True):
+                        text = row[col].strip()
+                        try:
+                            v = float(text)
+                        except ValueError:
+                            v = math.nan
+                        if not math.isfinite(v):
+                            raise design_error(
+                                f"{path.name}: line {line}, {name}",
+                                text,
+                                "must be a finite number",
+                                InputError,
+                            )
+                        vals.append(v)
+                    if not all(v > 0 for v in vals[n:]):
+                        raise design_error(
+                            f"{path.name}: line {line}",
+                            vals[n:],
+                            "sigma must be > 0 (stiffness must stay positive)",
+                            InputError,
+                        )
+                    rows.append(vals)
+                    lines.append(line)
+        except csv.Error as exc:
+            rule = f"not a CSV table: {exc}"
+            raise design_error(str(path), "unreadable", rule, InputError) from None
         if not rows:
             raise design_error(
                 str(path), "no data rows", "needs one row per grid point", InputError
