@@ -39,6 +39,7 @@ CASE_TIMEOUT_S = 20.0
 MEMORY_LIMIT_BYTES = 3 * 2**30
 ROTATION_TOLERANCE = 1e-6  # |R^T R - I| at a node (the core's rule, docs/model.md)
 MAX_MESSAGE = 2000  # characters of an error message; longer ones are a defect (unreadable)
+DEFAULT_OPTIONS = "<default solver options>"  # a case's options: softrod's defaults
 
 DEFECT_CLASSES = (
     "crash",
@@ -307,12 +308,21 @@ def _options():
 
 
 def target_design(doc) -> str:
-    """Load a design document; if it loads, solve it at zero pressure."""
+    """Load a design document; if it loads, solve it at zero pressure and at 50 kPa on the
+    first channel."""
     import softrod
 
     d = softrod.load_design(doc)
-    sol = softrod.solve_statics(d, [0.0] * d.n_channels, options=_options())
-    return _check_solution(sol)
+    for p in (0.0, 5e4):
+        pressures = [p] + [0.0] * (d.n_channels - 1) if d.n_channels else []
+        try:
+            sol = softrod.solve_statics(d, pressures, options=_options())
+        except softrod.ConvergenceError:
+            continue
+        problem = _check_solution(sol)
+        if problem:
+            return problem
+    return ""
 
 
 def target_design_file(data: bytes) -> str:
@@ -331,9 +341,13 @@ def target_statics(payload) -> str:
     import softrod
 
     kwargs = dict(payload.get("kwargs", {}))
-    if kwargs.pop("quick", True):
-        kwargs.setdefault("options", _options())
-    sol = softrod.solve_statics(payload["design"], payload["pressures"], **kwargs)
+    kwargs.setdefault("options", _options())
+    if kwargs["options"] == DEFAULT_OPTIONS:
+        del kwargs["options"]
+    design = softrod.load_design(payload["design"])
+    if payload.get("changes"):
+        design = design.replace(payload["changes"])
+    sol = softrod.solve_statics(design, payload["pressures"], **kwargs)
     if kwargs.get("check", True) is False and not sol.converged:
         return ""
     return _check_solution(sol)

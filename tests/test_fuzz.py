@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
-from fuzzing import CliArgs, Pool, Stats
+from fuzzing import DEFAULT_OPTIONS, CliArgs, Pool, Stats
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -427,7 +427,13 @@ def statics_cases(draw):
             "options": hostile(),
         },
     )
-    return ("statics", {"design": design, "pressures": pressures, "kwargs": kwargs})
+    changes = {}
+    if draw(st.integers(0, 2)) == 0:  # coarse or fine integration
+        changes["numerics"] = {"steps_per_section": draw(st.sampled_from([1, 2, 4, 16, 64]))}
+    if draw(st.integers(0, 5)) == 0:
+        kwargs["options"] = DEFAULT_OPTIONS  # a full continuation, as users run it
+    payload = {"design": design, "pressures": pressures, "kwargs": kwargs, "changes": changes}
+    return ("statics", payload)
 
 
 @st.composite

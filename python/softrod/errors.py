@@ -48,7 +48,9 @@ class ConvergenceError(SoftrodError, RuntimeError):
 def design_error(field: str, value: object, rule: str, cls: type[DesignError] = DesignError):
     """Build a DesignError whose message reads ``field = value: rule`` (a long value is
     shortened in the message; ``exc.value`` keeps it whole)."""
-    return cls(f"{field} = {brief(value)}: {rule}", field, value, rule)
+    shown = field if len(field) <= 200 else field[:150] + f"... ({len(field)} characters)"
+    said = rule if len(rule) <= 1000 else rule[:900] + f"... ({len(rule)} characters)"
+    return cls(f"{shown} = {brief(value)}: {said}", field, value, rule)
 
 
 def brief(value: object) -> str:
