@@ -37,7 +37,7 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
         total.defects += s.defects
     terminalreporter.section(f"softrod fuzz suite: {total.total} cases")
     terminalreporter.write_line(total.table())
-    for target, case, out in total.defects[:20]:
+    for target, _case, out in total.defects[:20]:
         terminalreporter.write_line(f"defect [{target}] {out.defect}: {out.detail[:300]}")
 
 

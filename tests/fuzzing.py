@@ -545,7 +545,8 @@ def _clean(exc, design_error, convergence_error) -> Outcome:
     if len(text) > MAX_MESSAGE:
         return Outcome("defect", "unclear error", f"message of {len(text)} characters")
     if isinstance(exc, design_error):
-        if not (isinstance(exc.field, str) and exc.field and isinstance(exc.rule, str) and exc.rule):
+        said = isinstance(exc.field, str) and exc.field and isinstance(exc.rule, str)
+        if not (said and exc.rule):
             return Outcome("defect", "unclear error", f"no field or rule: {text[:300]}")
         if "(JSON)" in text or "line 1 column" in text:
             return Outcome("defect", "unclear error", f"no field path: {text[:300]}")

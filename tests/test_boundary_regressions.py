@@ -85,7 +85,7 @@ CASES = [
                               "kwargs": {"dt": 1e-9}}), "error", "t_end"),
     ("t_end-1e9", ("simulate", {"design": SPA, "schedule": [0, 0, 0], "t_end": 1e9}), "error",
      "t_end"),
-    # --- silently wrong values ---------------------------------------------------------------------
+    # --- silently wrong values -------------------------------------------------------------------
     ("deg-as-pressure", ("statics", {"design": SPA, "pressures": ["30 deg", 0, 0]}), "error",
      "pressures[0]"),
     ("deg-as-length", ("design", _doc({f"{BODY}.length": "30 deg"})), "error", f"{BODY}.length"),
@@ -118,7 +118,7 @@ CASES = [
     ("missing-orientation", ("design", _without_orientation()), "error", "mounting.orientation"),
     ("max_iter-1.5", ("api", {"function": "SolverOptions", "kwargs": {"max_iter": 1.5}}),
      "error", "max_iter"),
-    # --- raw Python exceptions ---------------------------------------------------------------------
+    # --- raw Python exceptions -------------------------------------------------------------------
     ("huge-int-mass", ("design", _doc({"tip.mass": 10**400})), "error", "tip.mass"),
     ("huge-radius", ("design", _doc({f"{BODY}.outer_radius": "1e300 mm"})), "error", None),
     ("orientation-list", ("design", _doc({"mounting.orientation": ["hanging"]})), "error",
@@ -146,7 +146,7 @@ CASES = [
     ("sweep-bare-grid",
      ("cli", CliArgs(["sweep", SPA, "--grid", "0:70000:3", "--out", "o.csv"])), "error",
      "--grid"),
-    # --- errors that say where --------------------------------------------------------------------
+    # --- errors that say where -------------------------------------------------------------------
     ("json-type-steps", ("design", _doc({"numerics.steps_per_section": 2**64})), "error",
      "numerics.steps_per_section"),
     ("json-type-partition",

@@ -306,7 +306,8 @@ class StiffnessMap:
                                 f"a second column for channel {k}",
                                 InputError,
                             )
-                        channels[k] = (col, _pa_per(m.group(2), f"{path.name}: column {name}"), name)
+                        per = _pa_per(m.group(2), f"{path.name}: column {name}")
+                        channels[k] = (col, per, name)
                     else:
                         raise design_error(
                             f"{path.name}: column {name!r}",
@@ -328,7 +329,8 @@ class StiffnessMap:
                     raise design_error(
                         f"{path.name}: header",
                         ",".join(header),
-                        "needs one pressure column per channel 0..c-1, named p<k>_<unit> (e.g. p0_kPa)",
+                        "needs one pressure column per channel 0..c-1, named p<k>_<unit> "
+                        "(e.g. p0_kPa)",
                         InputError,
                     )
                 cols = [channels[k][0] for k in range(n)] + [sig_cols[s] for s in SIGMA_NAMES]
