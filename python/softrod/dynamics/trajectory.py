@@ -26,9 +26,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
 from ..datasets import _fail, _metadata_json, _unit_factor
 from ..errors import InputError
-from ..io import atomic_path
+from ..io import atomic_path, check_target
 
 __all__ = ["TRAJECTORY_FORMAT", "TRAJECTORY_SUFFIXES", "Trajectory"]
 
@@ -566,7 +567,7 @@ def _check_path(path, *, must_exist: bool = False) -> Path:
         )
     if must_exist and not path.is_file():
         raise _fail("path", str(path), "no such file")
-    return path
+    return path if must_exist else check_target(path)
 
 
 def _json_block(raw, key: str) -> dict:
@@ -574,8 +575,11 @@ def _json_block(raw, key: str) -> dict:
         value = json.loads(raw if isinstance(raw, str) else raw.decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise _fail(key, str(raw)[:80], f"is not valid JSON ({exc})") from None
+    except RecursionError:
+        raise _fail(key, str(raw)[:80], "is nested too deeply") from None
     if not isinstance(value, dict):
         raise _fail(key, value, "must be a JSON object")
+    V.check_depth(value, key)
     return value
 
 
