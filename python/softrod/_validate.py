@@ -297,6 +297,11 @@ def real_array(
     if arr.size > max_size:
         raise fail(field, f"array of {arr.size} values", f"is too large: at most {max_size}", cls)
     kind = arr.dtype.kind
+    if kind in "iuf" and not isinstance(value, np.ndarray) and arr.size:
+        # numpy turns [True, 0] into integers: look at what was given.
+        given = np.array(value, dtype=object).ravel()
+        if any(isinstance(x, (bool, np.bool_)) for x in given):
+            kind = "b"
     if kind == "b":
         raise fail(field, value, f"must be {what}, not booleans", cls)
     if kind == "c":

@@ -443,7 +443,7 @@ class PressureSchedule:
         for i, ti in enumerate(t):
             raw = self._fn(float(ti))
             row = V.real_array(
-                raw, f"fn(t = {ti:g} s)", max_size=V.MAX_CHANNELS, what="pressures (Pa)"
+                raw, f"fn(t = {ti:g} s)", max_size=V.MAX_CHANNELS, what="numbers (Pa)"
             )
             if row.ndim == 0 and self._n == 1:
                 row = row.reshape(1)
