@@ -33,6 +33,8 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 # Limits of one case. The memory limit is on the worker's address space (RLIMIT_AS): a case
 # that tries to allocate gigabytes fails there (MemoryError or an abort), which is a defect.
 CASE_TIMEOUT_S = 20.0
@@ -246,7 +248,6 @@ class Pool:
 
 def _check_solution(sol) -> str:
     """'' if a StaticSolution that says converged is valid, else what is wrong."""
-    import numpy as np
 
     if not sol.converged:
         return "a solution returned with converged = False by a call that should raise"
@@ -265,7 +266,6 @@ def _check_solution(sol) -> str:
 
 
 def _check_batch(out, m: int) -> str:
-    import numpy as np
 
     if out.tip_position.shape != (m, 3) or out.converged.shape != (m,):
         return f"batch result has the wrong shape for {m} rows"
@@ -281,7 +281,6 @@ def _check_batch(out, m: int) -> str:
 
 
 def _check_trajectory(traj) -> str:
-    import numpy as np
 
     for name in ("time", "tip_position", "tip_rotation", "pressure"):
         a = np.asarray(getattr(traj, name))
@@ -354,7 +353,6 @@ def target_statics(payload) -> str:
 
 
 def target_batch(payload) -> str:
-    import numpy as np
     import softrod
 
     kwargs = dict(payload.get("kwargs", {}))
@@ -405,7 +403,6 @@ def target_dataset_frame(payload) -> str:
     import softrod
 
     ds = softrod.load_dataset(payload["frame"], **payload.get("kwargs", {}))
-    import numpy as np
 
     if not (np.all(np.isfinite(ds.pressures)) and np.all(np.isfinite(ds.tip_position))):
         return "a dataset with non-finite values was accepted"
@@ -435,6 +432,38 @@ def target_replace(payload) -> str:
     d = softrod.load_design(payload["design"]).replace(payload["changes"])
     sol = softrod.solve_statics(d, [0.0] * d.n_channels, options=_options())
     return _check_solution(sol)
+
+
+def target_fit(payload) -> str:
+    """calibrate / identify_stiffness on a few rows of a bundled example dataset, with
+    hostile arguments."""
+    import softrod
+    from softrod.datasets import example_dataset_path
+
+    data = softrod.load_dataset(example_dataset_path(payload["dataset"]))
+    data = data.subset(np.arange(min(len(data), payload.get("rows", 6))))
+    kwargs = dict(payload.get("kwargs", {}))
+    if payload["function"] == "calibrate":
+        kwargs.setdefault("max_evaluations", 3)
+        softrod.calibrate(payload["design"], data, payload["params"], **kwargs)
+    else:
+        softrod.identify_stiffness(payload["design"], data, **kwargs)
+    return ""
+
+
+def target_trajectory_file(data: bytes) -> str:
+    """Trajectory.load of these bytes as .npz and as .parquet."""
+    import softrod
+
+    for suffix in (".npz", ".parquet"):
+        with tempfile.TemporaryDirectory() as folder:
+            path = Path(folder) / f"t{suffix}"
+            path.write_bytes(data)
+            try:
+                softrod.Trajectory.load(path)
+            except softrod.InputError:
+                continue
+    return ""
 
 
 def target_api(payload) -> str:

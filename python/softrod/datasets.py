@@ -30,7 +30,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import os
 import re
 from collections.abc import Callable, Iterable, Mapping
@@ -1014,17 +1013,10 @@ def write_dataset(dataset: Dataset, path, *, units: Mapping[str, str] | None = N
 def noise_seed(noise_mm, seed) -> int:
     """Check the noise (standard deviation, mm) and seed of synthetic data; return the seed
     (a fresh one, recorded in the metadata, when ``seed`` is None)."""
-    if (
-        isinstance(noise_mm, bool)
-        or not isinstance(noise_mm, (int, float))
-        or not (math.isfinite(noise_mm) and noise_mm >= 0)
-    ):
-        raise _fail("noise_mm", noise_mm, "must be a finite number >= 0 (standard deviation, mm)")
+    V.real(noise_mm, "noise_mm", minimum=0.0, what="a standard deviation in mm")
     if seed is None:
         return int(np.random.SeedSequence().entropy % 2**63)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise _fail("seed", seed, "must be an integer >= 0 or None")
-    return int(seed)
+    return V.integer(seed, "seed", minimum=0, maximum=2**128)
 
 
 def synthesize_dataset(
@@ -1055,13 +1047,11 @@ def synthesize_dataset(
     the design, noise, seed and loads, so the data is never mistaken for measurements.
     """
     from . import __version__
-    from .statics import solve_statics_batch
+    from .statics import batch_pressures, solve_statics_batch
 
     design = load_design(design)
     seed = noise_seed(noise_mm, seed)
-    p = np.asarray(pressures, dtype=float)
-    if p.ndim == 2 and not np.isfinite(p).all():
-        raise _fail("pressures", "non-finite", "must be finite (Pa)")
+    p = batch_pressures(design, pressures)
     batch = solve_statics_batch(
         design, p, tip_force=tip_force, tip_moment=tip_moment, options=options, threads=threads
     )
@@ -1116,7 +1106,7 @@ def synthesize_dataset(
         base_moment=batch.base_moment,
         experiment=per_row(experiment, "experiment"),
         mounting=per_row(mounting, "mounting"),
-        time=None if time is None else np.asarray(time, dtype=float),
+        time=None if time is None else V.real_array(time, "time", what="times (s)"),
         metadata=meta,
         source=None,
     )

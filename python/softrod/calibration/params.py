@@ -170,6 +170,8 @@ def parse_parameters(names: Sequence[str] | str, design: Design) -> list[Paramet
     """Resolve a list of names (or one comma-separated string outside brackets)."""
     if isinstance(names, str):
         names = [n for n in re.split(r",(?![^\[]*\])", names) if n.strip()]
+    if not isinstance(names, (list, tuple)):
+        raise _fail("params", names, "must be a name, a comma-separated string or a list of names")
     params = [parse_parameter(n, design) for n in names]
     if not params:
         raise _fail("params", names, "name at least one parameter")

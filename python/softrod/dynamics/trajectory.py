@@ -589,7 +589,10 @@ def _load_npz(path: Path) -> Trajectory:
     except Exception as exc:  # zipfile / numpy raise several types for broken files
         raise _fail("file", str(path), f"is not a readable .npz file: {exc}") from None
     with data:
-        fmt = str(data["format"]) if "format" in data.files else None
+        try:
+            fmt = str(data["format"]) if "format" in data.files else None
+        except Exception as exc:  # a damaged archive: zipfile, zlib and numpy errors
+            raise _fail("file", str(path), f"is a damaged .npz file: {exc}") from None
         if fmt is None or not fmt.startswith(_NPZ_FORMAT + "/"):
             raise _fail("format", fmt, "not a softrod trajectory file (written by save)")
         version = fmt.split("/", 1)[1]
@@ -600,8 +603,12 @@ def _load_npz(path: Path) -> Trajectory:
         missing = [n for n in (*_FIELDS, "metadata_json") if n not in data.files]
         if missing:
             raise _fail("arrays", sorted(data.files), f"missing {', '.join(missing)}")
-        arrays = {n: data[n] for n in _FIELDS}
-        meta = _json_block(str(data["metadata_json"]), "metadata_json")
+        try:
+            arrays = {n: data[n] for n in _FIELDS}
+            meta_text = str(data["metadata_json"])
+        except Exception as exc:  # a damaged archive: zipfile, zlib and numpy errors
+            raise _fail("file", str(path), f"is a damaged .npz file: {exc}") from None
+        meta = _json_block(meta_text, "metadata_json")
     return Trajectory(**arrays, metadata=meta)
 
 
