@@ -627,7 +627,7 @@ def cli_cases(draw):
     design = draw(st.sampled_from([*BUNDLED[:2], "nope", "fuzz.toml", "data.csv"]))
     files = {"fuzz.toml": draw(design_files()), "data.csv": draw(table_files())["data"]}
     cmd = draw(st.sampled_from(["solve", "sweep", "simulate", "calibrate", "designs", "identify",
-                                "compare-pcc", "bogus"]))
+                                "compare-pcc", "pcc-identify", "bogus"]))
     args = [cmd]
     if cmd == "solve":
         args.append(design)
@@ -660,6 +660,15 @@ def cli_cases(draw):
         args += [design, "--channels", draw(st.sampled_from(["0", "0,1", "99999999999", "x", ""])),
                  "--p-max", draw(st.sampled_from(["1 bar", "100000", "10**10**10 Pa", "1 m"])),
                  "--steps", draw(st.sampled_from(["2", "0", "100000000", "x"]))]
+    elif cmd == "pcc-identify":
+        kind = draw(st.sampled_from(["all", "longitudinal-stiffness", "bending-damping", "x"]))
+        args += [kind, "data.csv"]
+        if draw(st.booleans()):
+            args += ["--design", draw(st.sampled_from(["stiff_flop_pcc", "fuzz.toml", "nope"]))]
+        if draw(st.booleans()):
+            args += ["--write-design", draw(st.sampled_from(["o.toml", "o.csv", "m/o.toml"]))]
+        if draw(st.booleans()):
+            args += ["--k-theta", draw(st.sampled_from(["0.05 N*m", "0.05", "10**10**10 N*m"]))]
     elif cmd == "bogus":
         args += draw(st.lists(st.text(max_size=6), max_size=3))
     return ("cli", CliArgs(args, files))

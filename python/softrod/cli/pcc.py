@@ -8,10 +8,12 @@ import click
 import numpy as np
 from rich.progress import Progress
 
+from .. import _validate as V
 from ..catalog import load_design
 from ..errors import InputError, design_error
 from ..io import atomic_path, check_table_path, write_table
 from ._common import (
+    _check_output,
     _for_option,
     _handle_errors,
     _parse_vector,
@@ -34,9 +36,23 @@ def _channels(text: str) -> list[int]:
 
 
 def _read_columns(path: Path, needed: list[str]) -> dict[str, np.ndarray]:
+    """The SI columns of an array table (CSV or Parquet), each a finite float array."""
+    import io
+
     import pandas as pd
 
-    df = pd.read_parquet(path) if path.suffix.lower() == ".parquet" else pd.read_csv(path)
+    from ..datasets import _read_text
+
+    try:
+        if path.suffix.lower() == ".parquet":
+            df = pd.read_parquet(path)
+        else:
+            df = pd.read_csv(io.StringIO(_read_text(path)))
+    except InputError:
+        raise
+    except Exception as exc:  # pandas and pyarrow raise many types for unreadable tables
+        rule = f"not a CSV/Parquet table: {exc}"
+        raise design_error(str(path), "unreadable", rule, InputError) from None
     missing = [c for c in needed if c not in df.columns]
     if missing:
         raise design_error(
@@ -45,7 +61,11 @@ def _read_columns(path: Path, needed: list[str]) -> dict[str, np.ndarray]:
             f"needs the column(s) {', '.join(missing)} (SI units in the names)",
             InputError,
         )
-    return {c: df[c].to_numpy(dtype=float) for c in df.columns}
+    return {
+        c: V.real_array(df[c].to_numpy(), f"{path.name}: {c}", ndim=1)
+        for c in df.columns
+        if c in needed
+    }
 
 
 def _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt):
@@ -140,8 +160,7 @@ def compare_pcc_cmd(
         )
     pmax = _quantity(p_max, "pressure", "--p-max")
     force = _parse_vector(tip_force, "force", "--tip-force", 3)
-    if out.suffix.lower() not in (".png", ".pdf", ".svg"):
-        raise design_error("--out", str(out), "must end in .png, .pdf or .svg", InputError)
+    out = _check_output(out, "--out", (".png", ".pdf", ".svg"), "a figure")
     if table is not None:
         table = _for_option(check_table_path, table, "--table")
     if input_path is not None and not dynamic:
@@ -240,17 +259,7 @@ def pcc_identify(
 
     if write_design is not None:
         need_design("--write-design")
-        if write_design.suffix.lower() != ".toml":
-            raise design_error(
-                "--write-design", str(write_design), "must end in .toml", InputError
-            )
-        if not write_design.parent.is_dir():
-            raise design_error(
-                "--write-design",
-                str(write_design),
-                f"folder {str(write_design.parent)!r} does not exist",
-                InputError,
-            )
+        write_design = _check_output(write_design, "--write-design", (".toml",), "a design file")
     console = _stdout()
     if kind == "all" or _is_dataset(data):
         fit = _identify_dataset(
@@ -322,13 +331,22 @@ KIND_PARAMETERS = {
 
 def _columns(path: Path) -> list[str]:
     """The column names of a CSV (after its # comment lines) or Parquet file."""
-    import pandas as pd
+    import csv
 
-    if path.suffix.lower() == ".parquet":
-        import pyarrow.parquet as pq
+    from ..datasets import _read_text
 
-        return list(pq.read_schema(path).names)
-    return [str(c).strip() for c in pd.read_csv(path, comment="#", nrows=0).columns]
+    try:
+        if path.suffix.lower() == ".parquet":
+            import pyarrow.parquet as pq
+
+            return list(pq.read_schema(path).names)
+        lines = (line for line in _read_text(path).splitlines() if not line.startswith("#"))
+        return [c.strip() for c in next(csv.reader(lines), [])]
+    except InputError:
+        raise
+    except Exception as exc:  # pyarrow and csv raise their own types for unreadable files
+        rule = f"not a CSV/Parquet table: {exc}"
+        raise design_error(str(path), "unreadable", rule, InputError) from None
 
 
 def _is_dataset(path: Path) -> bool:
