@@ -455,14 +455,11 @@ def target_trajectory_file(data: bytes) -> str:
     """Trajectory.load of these bytes as .npz and as .parquet."""
     import softrod
 
-    for suffix in (".npz", ".parquet"):
-        with tempfile.TemporaryDirectory() as folder:
-            path = Path(folder) / f"t{suffix}"
-            path.write_bytes(data)
-            try:
-                softrod.Trajectory.load(path)
-            except softrod.InputError:
-                continue
+    suffix = ".npz" if data[:2] == b"PK" else ".parquet"  # a zip archive, or not
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / f"t{suffix}"
+        path.write_bytes(data)
+        softrod.Trajectory.load(path)
     return ""
 
 

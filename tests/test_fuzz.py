@@ -310,17 +310,45 @@ PREAMBLE = [
 ]
 
 
+# Valid files of each reader, which the strategy damages a little (or not at all).
+VALID_TABLES = {
+    "dataset": (
+        ["experiment", "p0_kPa", "p1_kPa", "p2_kPa", "tip_x_mm", "tip_y_mm", "tip_z_mm"],
+        [["1", "0", "0", "0", "0", "0", "-130"], ["1", "30", "0", "0", "0", "15", "-131"],
+         ["2", "0", "30", "0", "13", "-7", "-131"]],
+    ),
+    "schedule": (["time_s", "p0_kPa", "p1_kPa", "p2_kPa"],
+                 [["0", "0", "0", "0"], ["0.5", "30", "0", "0"], ["1", "0", "0", "0"]]),
+    "stiffness_map": (
+        ["p0_kPa", "sigma_ext", "sigma_bend_x", "sigma_bend_y"],
+        [["0", "1", "1", "1"], ["70", "0.9", "0.8", "0.8"]],
+    ),
+}
+
+
 @st.composite
 def table_files(draw):
     reader = draw(st.sampled_from(["dataset", "dataset", "schedule", "stiffness_map"]))
-    cols = draw(st.lists(st.sampled_from(COLUMNS), min_size=1, max_size=8))
-    rows = draw(
-        st.lists(st.lists(st.sampled_from(CELLS), min_size=len(cols), max_size=len(cols) + 1),
-                 max_size=4)
-    )
+    if draw(st.booleans()):
+        cols, rows = copy.deepcopy(VALID_TABLES[reader])
+        for _ in range(draw(st.sampled_from([0, 0, 1, 2]))):
+            r = draw(st.integers(-1, len(rows) - 1))
+            c = draw(st.integers(0, len(cols) - 1))
+            if r < 0:
+                cols[c] = draw(st.sampled_from(COLUMNS))
+            else:
+                rows[r][c] = draw(st.one_of(st.sampled_from(CELLS), numbers().map(repr)))
+    else:
+        cols = draw(st.lists(st.sampled_from(COLUMNS), min_size=1, max_size=8))
+        rows = draw(
+            st.lists(
+                st.lists(st.sampled_from(CELLS), min_size=len(cols), max_size=len(cols) + 1),
+                max_size=4,
+            )
+        )
     pre = draw(st.lists(st.sampled_from(PREAMBLE), max_size=2))
     text = "\n".join([*pre, ",".join(cols), *(",".join(r) for r in rows)]) + "\n"
-    encoding = draw(st.sampled_from(["utf-8", "utf-8", "utf-8", "utf-16", "latin-1", "binary"]))
+    encoding = draw(st.sampled_from(["utf-8"] * 6 + ["utf-16", "latin-1", "binary"]))
     if encoding == "binary":
         data = draw(st.binary(max_size=100))
     else:
@@ -331,7 +359,7 @@ def table_files(draw):
         "reader": reader,
         "data": data,
         "extra": draw(st.sampled_from(["error", "ignore"])),
-        "suffix": draw(st.sampled_from([".csv", ".csv", ".parquet"])),
+        "suffix": draw(st.sampled_from([".csv", ".csv", ".csv", ".parquet"])),
     }
 
 
