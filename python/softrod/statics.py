@@ -258,4 +258,14 @@ def solve_statics_batch(
         stiffness_scale=sigma,
         **_options(options).as_kwargs(),
     )
-    return BatchSolution(pressures=arr, stiffness_scale=sigma, **out)
+    from .schema import provenance
+
+    meta = provenance(
+        "softrod.solve_statics_batch",
+        design,
+        solver=_options(options).as_kwargs(),
+        tip_force_N=tf,
+        tip_moment_Nm=tm,
+        stiffness_map=None if smap is None else repr(smap),
+    )
+    return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)

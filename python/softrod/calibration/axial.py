@@ -266,6 +266,9 @@ def _read_table(source, value: str, n_chambers: int, extra: str, rtol: float):
         where = _Where("index", labels=tuple(source.index))
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
+        bundled = _EXAMPLES_DIR / f"{source}.csv"
+        if path.suffix == "" and not path.exists() and bundled.is_file():
+            path = bundled  # a bundled example by name, e.g. modular_axial_force_synthetic
         if path.suffix.lower() != ".csv":
             raise _fail("path", str(path), "must be a .csv file (or pass a DataFrame)")
         if not path.is_file():

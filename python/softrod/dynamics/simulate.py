@@ -21,6 +21,7 @@ from .. import _core
 from ..catalog import load_design
 from ..design import Design
 from ..errors import InputError, design_error
+from ..progress import reporter
 from ..units import to_si
 from .schedule import PressureSchedule
 from .trajectory import Trajectory
@@ -29,6 +30,12 @@ __all__ = ["METHOD", "Simulation", "simulate"]
 
 METHOD = "BDF-alpha in time, shooting in space with RK4 (Till, Aloi, Rucker, IJRR 2019)"
 _CHUNK_WALL_S = 0.2  # wall time per chunk between progress reports
+
+
+def simulated_time(done: float, total: float, wall: float) -> tuple[float, str]:
+    """A progress bar's position and text for simulate's progress(t_done, t_end, wall_s)."""
+    rtf = f"{done / wall:,.0f}x real time" if wall > 0 else ""
+    return done, f"{done:.2f} / {total:g} s {rtf}"
 
 
 def _seconds(value, field: str, *, positive: bool = True) -> float:
@@ -198,20 +205,21 @@ class Simulation:
         parts = [first]
         wall0 = _time.perf_counter()
         start, chunk = 0, 32
-        while start < n:
-            stop = min(n, start + chunk)
-            t_chunk = _time.perf_counter()
-            parts.append(
-                self._sim.run(
-                    np.ascontiguousarray(commands[start:stop]), keep[start:stop], bool(energy)
+        with reporter(progress, "simulate", duration, simulated_time) as report:
+            while start < n:
+                stop = min(n, start + chunk)
+                t_chunk = _time.perf_counter()
+                parts.append(
+                    self._sim.run(
+                        np.ascontiguousarray(commands[start:stop]), keep[start:stop], bool(energy)
+                    )
                 )
-            )
-            spent = _time.perf_counter() - t_chunk
-            # Size the next chunk for about _CHUNK_WALL_S of work.
-            chunk = int(np.clip(chunk * _CHUNK_WALL_S / max(spent, 1e-6), 8, 100_000))
-            start = stop
-            if progress is not None:
-                progress(self.time - t0, duration, _time.perf_counter() - wall0)
+                spent = _time.perf_counter() - t_chunk
+                # Size the next chunk for about _CHUNK_WALL_S of work.
+                chunk = int(np.clip(chunk * _CHUNK_WALL_S / max(spent, 1e-6), 8, 100_000))
+                start = stop
+                if report is not None:
+                    report(self.time - t0, duration, _time.perf_counter() - wall0)
         wall = _time.perf_counter() - wall0
         cat = lambda key: np.concatenate([p[key] for p in parts])  # noqa: E731
         command0 = schedule.sample([t0])
@@ -313,7 +321,9 @@ def simulate(
       ``alpha`` is the rod's BDF-alpha parameter; the PCC model uses the implicit midpoint
       rule, its ``tol`` default is 1e-11 on the Newton update per coordinate scale).
     - ``energy``: also record the total mechanical energy (J).
-    - ``progress``: called after each chunk of steps as progress(t_done, t_end, wall_s).
+    - ``progress``: None (a bar in interactive sessions), True, False, or a callable called
+      after each chunk of steps as progress(t_done, t_end, wall_s); see
+      :mod:`softrod.progress`.
 
     Returns a :class:`Trajectory`; its metadata records the method, the wall time and the
     real-time factor. A step that does not converge raises ``ConvergenceError`` with the
@@ -391,14 +401,16 @@ def _simulate_pcc(
         raise design_error("save_every", save_every, "must be an integer >= 1", InputError)
     n = max(1, math.ceil(duration / step * (1.0 - 1e-12)))
     shape_steps, shape0 = _shape_steps(shapes, n, step, int(save_every))
-    return simulate_pcc(
-        d,
-        schedule,
-        duration,
-        dt=step,
-        save_every=int(save_every),
-        shape_steps=shape_steps,
-        shape_at_start=shape0,
-        initial=initial,
-        **kw,
-    )
+    with reporter(kw.pop("progress"), "simulate (PCC)", duration, simulated_time) as report:
+        return simulate_pcc(
+            d,
+            schedule,
+            duration,
+            dt=step,
+            save_every=int(save_every),
+            shape_steps=shape_steps,
+            shape_at_start=shape0,
+            initial=initial,
+            progress=report,
+            **kw,
+        )
