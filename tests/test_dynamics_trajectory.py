@@ -155,7 +155,7 @@ def test_parquet_layout(tmp_path):
     kv = table.schema.metadata
     meta = json.loads(kv[b"softrod.metadata"])
     declared = meta.pop("columns")
-    assert meta == tr.metadata
+    assert meta == {"synthetic": True, **tr.metadata}  # made by the model, not measured
     assert set(declared) == {"cmd0_Pa", "cmd1_Pa", "energy_J", "shape_m"} | {
         f"tip_v{a}_m/s" for a in "xyz"
     } | {f"tip_R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)}
@@ -173,9 +173,8 @@ def test_to_frame_reads_as_dataset():
     tr = arc_trajectory()
     frame = tr.to_frame()
     assert "shape_m" not in frame.columns
-    assert {k: v for k, v in frame.attrs["softrod.metadata"].items() if k != "columns"} == (
-        tr.metadata
-    )
+    meta = frame.attrs["softrod.metadata"]
+    assert {k: v for k, v in meta.items() if k != "columns"} == {"synthetic": True, **tr.metadata}
     assert list(frame.columns[:4]) == ["time_s", "p0_kPa", "p1_kPa", "p2_kPa"]
     ds = load_dataset(frame)  # the result columns are declared: no extra="ignore" needed
     np.testing.assert_allclose(ds.tip_position, tr.tip_position, rtol=_UNIT_ROUND_TRIP)

@@ -36,7 +36,6 @@ import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -45,7 +44,6 @@ from .catalog import load_design
 from .design import PACKAGE_DIR, Design
 from .errors import ConvergenceError, InputError, design_error
 from .io import TABLE_SUFFIXES, check_table_path, write_table
-from .io import metadata_json as _metadata_json
 from .schema import (
     DEFAULT_UNITS,
     UNIT_ALIASES,

@@ -138,7 +138,9 @@ def table_units(units: Mapping[str, str] | None) -> tuple[dict[str, str], dict[s
         units = TABLE_SI
     chosen = dict(DEFAULT_UNITS)
     if units is not None and not isinstance(units, Mapping):
-        raise _fail("units", units, "must map a kind ('pressure', 'length', ...) to a unit, or 'SI'")
+        raise _fail(
+            "units", units, "must map a kind ('pressure', 'length', ...) to a unit, or 'SI'"
+        )
     for kind, unit in dict(units or {}).items():
         if kind not in DEFAULT_UNITS:
             raise _fail(f"units.{kind}", unit, f"unknown kind (known: {', '.join(DEFAULT_UNITS)})")
@@ -295,12 +297,18 @@ def schema_frame(
     return frame
 
 
-def provenance(generator: str, design=None, **settings) -> dict:
-    """The metadata block of a table softrod writes: what made it (``generator``), the
-    softrod version, the design (name and file) and the settings given."""
+def provenance(generator: str, design=None, *, synthetic: bool = True, **settings) -> dict:
+    """The metadata block of a table softrod writes: what made it (``generator``), whether
+    its tip columns come from the model (``synthetic``, True for sweeps, comparisons and
+    trajectories; a table of measurements with results beside them says False), the softrod
+    version, the design (name and file) and the settings given."""
     from . import __version__
 
-    meta: dict[str, Any] = {"generator": generator, "softrod_version": __version__}
+    meta: dict[str, Any] = {
+        "generator": generator,
+        "synthetic": bool(synthetic),
+        "softrod_version": __version__,
+    }
     if design is not None:
         meta["design"] = design.name
         meta["design_source"] = None if design.source is None else str(design.source.name)

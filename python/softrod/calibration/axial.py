@@ -49,7 +49,6 @@ from ..catalog import load_design
 from ..datasets import (
     _checked_metadata,
     _fail,
-    _metadata_json,
     _read_csv,
     _runs,
     _unit_factor,
@@ -58,6 +57,7 @@ from ..datasets import (
 from ..design import PACKAGE_DIR, Design
 from ..errors import InputError
 from ..io import atomic_path
+from ..io import metadata_json as _metadata_json
 from ..units import to_si
 
 __all__ = [

@@ -481,25 +481,72 @@ class StiffnessIdentification:
         """(3,) fraction of the samples at which each factor was identified."""
         return self.identifiable.mean(axis=0) if len(self) else np.zeros(3)
 
-    def to_frame(self) -> pd.DataFrame:
-        """One row per sample: pressures (kPa), sigma, identifiable, sensitivity (mm),
-        at_bound, residuals, iterations and status."""
-        cols: dict = {}
-        for k in range(self.dataset.n_channels):
-            cols[f"p{k}_kPa"] = self.dataset.pressures[:, k] / 1e3
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[name] = self.sigma[:, k]
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[f"identifiable_{name}"] = self.identifiable[:, k]
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[f"sensitivity_{name}_mm"] = 1e3 * self.sensitivity[:, k]
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[f"at_bound_{name}"] = self.at_bound[:, k]
-        cols["residual_mm"] = self.residual_mm
-        cols["rotation_residual_deg"] = self.rotation_residual_deg
-        cols["iterations"] = self.iterations
-        cols["status"] = self.status
-        return pd.DataFrame(cols)
+    def to_frame(self, units=None) -> pd.DataFrame:
+        """One row per sample in the dataset schema (docs/datasets.md): the measured
+        sample (``p0_kPa`` ..., ``tip_x_mm`` ..., and whatever else the dataset has), then the
+        result columns ``sigma_ext``, ``sigma_bend_x``, ``sigma_bend_y`` (empty where not
+        identified), ``identifiable_*``, ``sensitivity_*_mm``, ``at_bound_*``,
+        ``model_tip_x_mm`` ... (the model's tip at the solver's sigma), ``residual_mm``,
+        ``rotation_residual_deg``, ``iterations`` and ``status``. The metadata block names the
+        design, the scaled sections, the dataset and the settings; ``load_dataset`` reads
+        the table back."""
+        from ..schema import Extra, provenance, schema_frame
+
+        ds = self.dataset
+        extras = [
+            Extra(name, self.sigma[:, k], f"identified {name} (empty: not identifiable)")
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(f"identifiable_{name}", self.identifiable[:, k], f"{name} was identified")
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(
+                f"sensitivity_{name}",
+                self.sensitivity[:, k],
+                f"tip displacement per unit change of log {name}",
+                "length",
+            )
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(f"at_bound_{name}", self.at_bound[:, k], f"{name} ended at a bound")
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(f"model_tip_{a}", self.tip_position[:, i], "model tip (solver's sigma)", "length")
+            for i, a in enumerate("xyz")
+        ]
+        extras += [
+            Extra("residual", self.residual_mm * 1e-3, "|measured - model tip|", "length"),
+            Extra("rotation_residual_deg", self.rotation_residual_deg, "tip rotation residual"),
+            Extra("iterations", self.iterations, "Levenberg-Marquardt iterations"),
+            Extra("status", self.status, f"one of {', '.join(STATUS)}"),
+        ]
+        dataset_meta = {k: v for k, v in ds.metadata.items() if k != "columns"}
+        meta = provenance(
+            "softrod.identify_stiffness",
+            self.design,
+            sections=list(self.sections),
+            synthetic=ds.synthetic,  # the tip columns are the dataset's
+            dataset=None if ds.source is None else ds.source.name,
+            dataset_metadata=dataset_meta,
+            settings=_plain_settings(self.settings),
+        )
+        return schema_frame(
+            pressures=ds.pressures,
+            tip_position=ds.tip_position,
+            tip_rotation=ds.tip_rotation,
+            base_force=ds.base_force,
+            base_moment=ds.base_moment,
+            time=ds.time,
+            experiment=ds.experiment,
+            mounting=ds.mounting,
+            extras=extras,
+            units=units,
+            metadata=meta,
+        )
 
     def factor_table(self) -> pd.DataFrame:
         """Per factor: samples identified (count, fraction), at a bound, statistics of the
@@ -598,6 +645,18 @@ class StiffnessIdentification:
 
 
 # --------------------------------------------------------------------------- entry point
+
+
+def _plain_settings(settings: dict) -> dict:
+    """The settings as JSON values (tuples as lists, numpy scalars as numbers)."""
+    out = {}
+    for key, value in settings.items():
+        if isinstance(value, tuple):
+            value = list(value)
+        if isinstance(value, np.generic):
+            value = value.item()
+        out[key] = value
+    return out
 
 
 def _positive(value, name: str, kind: str) -> float:

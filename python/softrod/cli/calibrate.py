@@ -29,8 +29,6 @@ from ._common import (
     _threads_option,
 )
 
-# Calibrated values are shown in these units (SI in the JSON and the TOML).
-_DISPLAY_UNITS = {"Pa": ("kPa", 1e-3), "m": ("mm", 1e3), "1": ("-", 1.0)}
 # calibrate()'s argument names -> the options that set them (for error messages).
 _CALIBRATE_OPTIONS = {
     "params": "--params",
@@ -121,10 +119,10 @@ class _FitProgress:
     fit prints nothing else. The line shows only on a terminal and disappears at the end (a
     summary line follows); redirected, stderr stays empty."""
 
-    def __init__(self, on_start=None) -> None:
+    def __init__(self, on_start=None, console=None) -> None:
         from rich.console import Console
 
-        self._console = Console(stderr=True, highlight=False)
+        self._console = console or Console(stderr=True, highlight=False)
         self._progress = None
         self._task = None
         self._on_start = on_start
@@ -174,6 +172,8 @@ def _parameter_table(result):
     from rich.table import Table
     from rich.text import Text
 
+    from ..schema import DISPLAY_UNITS
+
     table = Table(title="calibrated parameters", title_justify="left")
     for name, justify in (
         ("parameter", "left"),
@@ -185,7 +185,10 @@ def _parameter_table(result):
     ):
         table.add_column(name, justify=justify)
     for row in result.parameter_table().itertuples(index=False):
-        unit, scale = _DISPLAY_UNITS.get(row.unit, (row.unit, 1.0))
+        # softrod.schema.DISPLAY_UNITS: the units of summaries and reports too (SI in the
+        # JSON and the TOML).
+        unit, scale = DISPLAY_UNITS.get(row.unit, (row.unit, 1.0))
+        unit = unit or "-"
         table.add_row(
             Text(row.parameter),
             _num(row.initial, scale),
@@ -433,8 +436,11 @@ def calibrate(
         note.print(_parameter_table(result))
         note.print(_error_table(result))
     _print_warnings(note, found)
-    if not found and not as_json:
-        note.print(Text(f"no warnings ({_thresholds_text()})"))
+    if not as_json:
+        from ..calibration.fit import warning_thresholds
+
+        lead = "no warnings" if not found else "rules"
+        note.print(Text(f"{lead}: {warning_thresholds()}", style="dim"))
 
     if outputs:
         paths = list(outputs.values())
@@ -448,16 +454,6 @@ def calibrate(
                     result.write_report(tmp)
         for path in paths:
             _say(f"wrote {path}", stderr=as_json)
-
-
-def _thresholds_text() -> str:
-    """The warning thresholds, as the report and docs/calibration.md state them."""
-    from ..calibration.fit import POOR_RELATIVE_ERROR, STRONG_CORRELATION
-
-    return (
-        f"every relative standard error <= {100 * POOR_RELATIVE_ERROR:g} %, every "
-        f"correlation |r| <= {STRONG_CORRELATION:g}, Jacobian well conditioned"
-    )
 
 
 @click.command("calibrate-axial")
@@ -521,8 +517,8 @@ def calibrate_axial(
     FORCE_CSV: blocked force at the reference length, columns "pressure [kPa]" and
     "force [N]"; LENGTH_CSV: free elongation, "pressure [kPa]" and "length [mm]" (any
     pint unit; docs/calibration-axial.md). Either may be the name of a bundled example
-    (modular_axial_force_synthetic, modular_axial_length_synthetic). Prints the identified values with standard errors
-    and builds a design from BASE with them.
+    (modular_axial_force_synthetic, modular_axial_length_synthetic). Prints the identified
+    values with standard errors and builds a design from BASE with them.
     """
     from rich.text import Text
 

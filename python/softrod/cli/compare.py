@@ -123,7 +123,6 @@ def compare(protocol, models, experiments, ramp, out, figure_path, threads):
     import math
 
     from rich.table import Table
-    from rich.text import Text
 
     from ..compare import EXPERIMENTS, compare_models, resolve_experiments
     from ..io import check_table_path, write_table

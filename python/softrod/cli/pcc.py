@@ -225,9 +225,9 @@ def pcc_identify(
     load_dataset reads it; needs --design), fitted with softrod.calibrate(...,
     model="pcc"): KIND all fits k_L, k_theta, b_L and b_theta in that order. Or DATA is an
     array table with SI columns: longitudinal-stiffness p_Pa, d_m; bending-stiffness
-    p0_Pa..p<N-1>_Pa (channels from 0), theta_rad; longitudinal-damping t_s, z_m; bending-damping t_s,
-    theta_rad. Prints each value, its standard error and the [pcc] line to put in the
-    design; --write-design writes that design (whole or not at all)."""
+    p0_Pa..p<N-1>_Pa (channels from 0), theta_rad; longitudinal-damping t_s, z_m;
+    bending-damping t_s, theta_rad. Prints each value, its standard error and the [pcc]
+    line to put in the design; --write-design writes that design (whole or not at all)."""
     import numpy as np
 
     from ..catalog import load_design

@@ -32,6 +32,25 @@ METHOD = "BDF-alpha in time, shooting in space with RK4 (Till, Aloi, Rucker, IJR
 _CHUNK_WALL_S = 0.2  # wall time per chunk between progress reports
 
 
+def _no_stiffness_map(design: Design) -> None:
+    """Dynamics have no pressure-dependent stiffness scaling (yet): a design that needs one
+    is refused rather than simulated with sigma = 1."""
+    mapped = [
+        s["name"]
+        for s in design.spec["sections"]
+        if (s.get("law") or {}).get("stiffness_map", False)
+    ]
+    if mapped:
+        raise design_error(
+            "design",
+            design.name,
+            f"section(s) {', '.join(mapped)} set [sections.law] stiffness_map = true: the "
+            "dynamics do not support a stiffness map sigma(p) (paper 001's static model); "
+            "simulate a design without mapped sections",
+            InputError,
+        )
+
+
 def simulated_time(done: float, total: float, wall: float) -> tuple[float, str]:
     """A progress bar's position and text for simulate's progress(t_done, t_end, wall_s)."""
     rtf = f"{done / wall:,.0f}x real time" if wall > 0 else ""
@@ -92,6 +111,7 @@ class Simulation:
         max_iter: int = 25,
     ):
         self.design: Design = load_design(design)
+        _no_stiffness_map(self.design)
         n = self.design.n_channels
         p = np.zeros(n) if pressures is None else np.asarray(pressures, dtype=float)
         if p.shape != (n,):
@@ -392,6 +412,7 @@ def _simulate_pcc(
             InputError,
         )
     d = load_design(design)
+    _no_stiffness_map(d)
     schedule = _schedule(pressure_schedule, d.n_channels)
     step = _seconds(dt, "dt")
     duration = _seconds(t_end, "t_end")

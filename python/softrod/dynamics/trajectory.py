@@ -250,12 +250,16 @@ class Trajectory:
             time=self.time,
             extras=self._extras(),
             units=units,
-            metadata=self.metadata,
+            metadata=self._table_metadata(),
         )
+
+    def _table_metadata(self) -> dict:
+        """The metadata of the tables: the trajectory's, marked as made by the model."""
+        return {"synthetic": True, **self.metadata}
 
     def _extras(self) -> list[Extra]:
         extras = [
-            Extra(f"cmd{k}", self.command[:, k], f"commanded gauge pressure of channel {k}", "pressure")
+            Extra(f"cmd{k}", self.command[:, k], f"commanded pressure of channel {k}", "pressure")
             for k in range(self.n_channels)
         ]
         extras += [
@@ -309,7 +313,7 @@ class Trajectory:
             time=self.time,
             extras=self._extras() + exact,
             units="SI",
-            metadata=self.metadata,
+            metadata=self._table_metadata(),
         )
         meta = frame.attrs["softrod.metadata"]
         meta["columns"]["shape_m"] = (
@@ -335,6 +339,8 @@ class Trajectory:
             "n_nodes": p,
             "shape_s_m": self.shape_s.tolist(),  # JSON floats round-trip exactly
             "shape_layout": "shape_m: node-major (x0, y0, z0, x1, ...) in m; null: no shape",
+            # Metadata entries the table adds (load() takes them out again).
+            "table_metadata": sorted(set(meta) - set(self.metadata)),
         }
         kv = dict(table.schema.metadata or {})
         kv.pop(b"pandas", None)  # the table is read back column by column, not via pandas
@@ -812,7 +818,8 @@ def _load_parquet(path: Path) -> Trajectory:
     layout = _json_block(kv[_PARQUET_KEY], _PARQUET_KEY.decode())
     version = _check_format(layout.get("format"), "softrod.trajectory.format")
     meta = _json_block(kv.get(_META_KEY, b"{}"), _META_KEY.decode())
-    meta.pop("columns", None)  # the declaration of the result columns, written by save
+    for key in layout.get("table_metadata", ["columns"]):
+        meta.pop(key, None)  # e.g. the declaration of the result columns, added by save
     c = layout.get("n_channels")
     if not isinstance(c, int) or c < 1:
         raise _fail("softrod.trajectory.n_channels", c, "must be an integer >= 1")
