@@ -9,7 +9,6 @@ import io
 import json
 
 import numpy as np
-import pandas as pd
 import pytest
 import softrod
 import tomli_w

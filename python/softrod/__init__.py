@@ -21,7 +21,9 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :mod:`softrod.pcc`: paper 003's piecewise-constant-curvature model (``run_pcc``,
   ``pcc_shape``, identification, ``compare_pcc``); statics via
   ``solve_statics(..., model="pcc")``
-- exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError`
+- exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError` (and its
+  :class:`InvalidStateError`), :class:`InternalError`; warnings :class:`StabilityWarning`,
+  :class:`ValidityWarning`
 """
 
 import importlib
@@ -60,7 +62,11 @@ _EXPORTS = {
     "ConvergenceError": ".errors",
     "DesignError": ".errors",
     "InputError": ".errors",
+    "InternalError": ".errors",
+    "InvalidStateError": ".errors",
     "SoftrodError": ".errors",
+    "StabilityWarning": ".errors",
+    "ValidityWarning": ".errors",
     "Preset": ".presets",
     "list_presets": ".presets",
     "BatchSolution": ".statics",
@@ -116,7 +122,11 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         ConvergenceError,
         DesignError,
         InputError,
+        InternalError,
+        InvalidStateError,
         SoftrodError,
+        StabilityWarning,
+        ValidityWarning,
     )
     from .presets import Preset, list_presets
     from .statics import (
@@ -138,15 +148,19 @@ __all__ = [
     "DesignError",
     "HybridStiffnessModel",
     "InputError",
+    "InternalError",
+    "InvalidStateError",
     "Preset",
     "SoftrodError",
     "SolverOptions",
+    "StabilityWarning",
     "StaticSolution",
     "StiffnessIdentification",
     "StiffnessMap",
     "PressureSchedule",
     "Simulation",
     "Trajectory",
+    "ValidityWarning",
     "__version__",
     "bundled_designs",
     "calibrate",
