@@ -29,6 +29,11 @@ F = TypeVar("F", bound=Callable)
 def fit_blas_threads() -> Iterator[None]:
     """Limit BLAS (OpenBLAS, MKL, BLIS, ...) to :data:`FIT_BLAS_THREADS` while the block
     runs; the previous limits come back afterwards."""
+    # threadpoolctl limits the BLAS libraries loaded when the block starts: load numpy's and
+    # scipy's (scikit-learn uses scipy's) first, or a fit that imports scipy lazily would
+    # run its BLAS with the default threads.
+    import numpy  # noqa: F401
+    import scipy.linalg  # noqa: F401
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=FIT_BLAS_THREADS, user_api="blas"):

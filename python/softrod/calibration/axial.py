@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import (
     _checked_metadata,
@@ -793,6 +794,7 @@ class AxialIdentification:
         )
 
 
+@one_blas_thread
 def identify_axial(
     data: AxialData, *, force_law: str = "proportional", stiffness: str = "constant"
 ) -> AxialIdentification:
@@ -882,6 +884,7 @@ def identify_axial(
     )
 
 
+@one_blas_thread
 def calibrate_axial(
     force,
     length,

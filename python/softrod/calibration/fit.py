@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import Dataset, load_dataset
 from ..design import Design
@@ -559,6 +560,7 @@ def _diagnostics(params, values, jac, ssr, n_res):
 # --- the entry point ---------------------------------------------------------------------------
 
 
+@one_blas_thread
 def calibrate(
     design,
     dataset,
@@ -839,7 +841,7 @@ def calibrate(
         labels=labels if test_mask.any() else None,
     )
     for w in found:
-        warnings.warn(w, CalibrationWarning, stacklevel=2)
+        warnings.warn(w, CalibrationWarning, stacklevel=3)  # past the BLAS-thread wrapper
     return CalibrationResult(
         design=calibrated,
         initial_design=design0,

@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import Dataset
 from ..design import Design
@@ -755,6 +756,7 @@ def _problem(design, dataset, *, use_rotation, n_high, r_high, m_high, R_high, o
     return problem, c_t, c_r
 
 
+@one_blas_thread
 def identify_stiffness(
     design,
     dataset: Dataset,
