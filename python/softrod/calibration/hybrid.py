@@ -223,7 +223,7 @@ class HybridStiffnessModel:
             "settings": {
                 k: list(v) if isinstance(v, tuple) else v for k, v in self.settings.items()
             },
-            "training": json.loads(self.training.to_json(orient="records")),
+            "training": _records(self.training),
             "train_rows": self.train_rows.tolist(),
             "test_rows": self.test_rows.tolist(),
             "wall_time_s": self.wall_time_s,
@@ -265,7 +265,7 @@ class HybridStiffnessModel:
             identification=None,
             train_rows=_readonly(np.asarray(hybrid.get("train_rows", []), dtype=np.int64)),
             test_rows=_readonly(np.asarray(hybrid.get("test_rows", []), dtype=np.int64)),
-            training=pd.DataFrame(hybrid.get("training", [])),
+            training=pd.DataFrame(hybrid.get("training", [])).fillna(np.nan),
             settings=settings,
             wall_time_s=float(hybrid.get("wall_time_s", float("nan"))),
             saved={
@@ -275,6 +275,19 @@ class HybridStiffnessModel:
                 "source": str(path),
             },
         )
+
+
+def _records(frame: pd.DataFrame) -> list[dict]:
+    """A table as JSON records, every number exact (NaN as null)."""
+    out = []
+    for row in frame.to_dict(orient="records"):
+        clean = {}
+        for key, value in row.items():
+            if isinstance(value, np.generic):
+                value = value.item()
+            clean[key] = None if isinstance(value, float) and np.isnan(value) else value
+        out.append(clean)
+    return out
 
 
 def _design_document(design) -> dict:
