@@ -27,11 +27,17 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 """
 
 import importlib
+import logging
 from typing import TYPE_CHECKING
 
 from ._core import __version__ as _core_version
 
 __version__ = _core_version
+
+# softrod reports what it does on the standard logging module, logger "softrod" (INFO: the
+# steps of long calls; DEBUG: details such as files written). A library adds no handler of
+# its own: applications configure logging (the CLI does with -v/-q).
+logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 # Public name -> the module that defines it. Importing softrod imports none of them (PEP 562):
 # `softrod --help` and `import softrod` stay fast, and numpy, pandas, scipy, pyarrow and

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
 import tempfile
 from collections.abc import Iterator
@@ -18,6 +19,8 @@ from pathlib import Path
 from .errors import InputError, design_error
 
 TABLE_SUFFIXES = (".csv", ".parquet")
+
+logger = logging.getLogger(__name__)
 
 
 def check_table_path(path: str | os.PathLike) -> Path:
@@ -121,6 +124,7 @@ def write_table(df, path: str | os.PathLike, *, header: tuple[str, ...] = ()) ->
             write_parquet_with_metadata(df, tmp, text)
         else:
             df.to_parquet(tmp, index=False, engine="pyarrow")
+    logger.debug("wrote %s (%d rows, %d columns)", path, len(df), len(df.columns))
     return path
 
 

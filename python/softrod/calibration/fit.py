@@ -15,6 +15,7 @@ covariance s^2 (J^T J)^-1 with s^2 = SSR / (n - P)).
 from __future__ import annotations
 
 import json
+import logging
 import math
 import time
 import warnings
@@ -35,6 +36,8 @@ from ..statics import SolverOptions, _options
 from ..units import number, to_si
 from .metrics import tip_error_table
 from .params import SIGMA_KINDS, Parameter, design_changes, parse_parameters
+
+logger = logging.getLogger(__name__)
 
 
 def warning_thresholds() -> str:
@@ -726,6 +729,14 @@ def calibrate(
     groups = _groups(design0, dataset)
     model = _Model(design0, dataset, list(params), groups, train, options, threads)
     measured = dataset.tip_position
+    logger.info(
+        "calibrate %s: %s on %d training samples (%d test), method %s",
+        design0.name,
+        ", ".join(p.name for p in params),
+        train.size,
+        int(test_mask.sum()),
+        method,
+    )
     positive = np.array([p.positive for p in params])
 
     # Optimisation variable u: log(theta) for positive parameters, theta otherwise.
@@ -798,6 +809,13 @@ def calibrate(
         u_best, success, message = sol.x, bool(sol.success), str(sol.message)
         method_used = "nelder-mead"
 
+    logger.info(
+        "calibrate %s: %s after %d model evaluations (%s)",
+        design0.name,
+        "converged" if success else "stopped",
+        model.evaluations,
+        message,
+    )
     values = theta_of(u_best)
     tip_train, jac, ok = model(values, True)
     if not ok[train].all():

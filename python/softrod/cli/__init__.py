@@ -51,10 +51,12 @@ class _StderrHandler(logging.Handler):
 _HANDLER = _StderrHandler()
 
 
-def _configure_logging(quiet: bool, verbose: int) -> None:
+def _configure_logging(ctx, quiet: bool, verbose: int) -> None:
     """The "softrod" logger for this command: warnings by default, errors only with
-    --quiet, steps with -v (INFO) and details with -vv (DEBUG)."""
+    --quiet, steps with -v (INFO) and details with -vv (DEBUG). Undone when the command
+    ends, so that a program that calls ``main`` keeps its own logging."""
     logger = logging.getLogger("softrod")
+    previous = logger.level
     if _HANDLER not in logger.handlers:
         logger.addHandler(_HANDLER)
     if quiet:
@@ -62,6 +64,12 @@ def _configure_logging(quiet: bool, verbose: int) -> None:
     else:
         level = {0: logging.WARNING, 1: logging.INFO}.get(verbose, logging.DEBUG)
     logger.setLevel(level)
+
+    def restore() -> None:
+        logger.removeHandler(_HANDLER)
+        logger.setLevel(previous)
+
+    ctx.call_on_close(restore)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -91,7 +99,7 @@ def main(ctx, quiet, verbose):
     if quiet and verbose:
         raise click.UsageError("give --quiet or --verbose, not both")
     ctx.meta["softrod.cli"] = {"quiet": quiet, "verbose": verbose}
-    _configure_logging(quiet, verbose)
+    _configure_logging(ctx, quiet, verbose)
 
 
 for _command in (

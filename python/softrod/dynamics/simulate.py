@@ -10,6 +10,7 @@ chunks so that long runs can show progress, and packs the result into a
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import time as _time
@@ -30,6 +31,8 @@ __all__ = ["METHOD", "Simulation", "simulate"]
 
 METHOD = "BDF-alpha in time, shooting in space with RK4 (Till, Aloi, Rucker, IJRR 2019)"
 _CHUNK_WALL_S = 0.2  # wall time per chunk between progress reports
+
+logger = logging.getLogger(__name__)
 
 
 def _no_stiffness_map(design: Design) -> None:
@@ -241,6 +244,14 @@ class Simulation:
                 if report is not None:
                     report(self.time - t0, duration, _time.perf_counter() - wall0)
         wall = _time.perf_counter() - wall0
+        logger.info(
+            "simulate %s: %d steps of %g s in %.3g s (%.3g x real time)",
+            self.design.name,
+            n,
+            dt,
+            wall,
+            (n * dt) / wall if wall > 0 else math.inf,
+        )
         cat = lambda key: np.concatenate([p[key] for p in parts])  # noqa: E731
         command0 = schedule.sample([t0])
         shape_parts = [p for p in (parts if want_shape0 else parts[1:]) if len(p["shape_time"])]
