@@ -42,8 +42,8 @@ def _parse_ramp(text: str, option: str = "--pressure-ramp"):
 
 
 def _on_chambers(exp) -> str:
-    """'p0, p1' for an experiment that ramps channels 0 and 1."""
-    return ", ".join(f"p{k}" for k, w in enumerate(exp.weights) if w)
+    """'p0,p1' for an experiment that ramps channels 0 and 1."""
+    return ",".join(f"p{k}" for k, w in enumerate(exp.weights) if w)
 
 
 def _parse_models(text: str) -> list[str]:
@@ -172,7 +172,7 @@ def compare(protocol, models, experiments, ramp, out, figure_path, threads):
         ("lateral\nmm", "right"),
         ("converged", "right"),
     ):
-        table.add_column(name, justify=justify)
+        table.add_column(name, justify=justify, no_wrap=True)
     for exp in exps:
         sub = df[df["experiment"] == exp]
         for k, model in enumerate(names):
