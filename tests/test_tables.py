@@ -138,3 +138,15 @@ def test_compare_pcc_figure_names_channels_as_given(run, tmp_path):
     finally:
         plt.close(fig)
     assert df.attrs["softrod.metadata"]["channels"] == [5, 0, 1]
+
+
+def test_known_unit_factors_are_pints():
+    """Tables are written without building pint's registry: the shortcut factors must be
+    exactly the ones pint gives (the same doubles)."""
+    from softrod.schema import _KNOWN_FACTORS, TABLE_SI, UNIT_ALIASES
+    from softrod.units import registry
+
+    ureg = registry()
+    for (kind, unit), factor in _KNOWN_FACTORS.items():
+        parsed = ureg.parse_units(UNIT_ALIASES.get(unit, unit))
+        assert float(ureg.Quantity(1.0, parsed).to(TABLE_SI[kind]).magnitude) == factor, unit

@@ -102,8 +102,30 @@ def unit_suffix(unit: str) -> str:
     return _SUFFIX_OF.get(unit.strip(), unit.strip())
 
 
+# SI factors of the units tables are written in by default and in SI, as pint gives them:
+# writing a table needs no unit registry (building pint's takes a good part of a second).
+_KNOWN_FACTORS = {
+    ("pressure", "kPa"): 1e3,
+    ("pressure", "Pa"): 1.0,
+    ("length", "mm"): 1e-3,
+    ("length", "m"): 1.0,
+    ("force", "N"): 1.0,
+    ("moment", "Nmm"): 1e-3,
+    ("moment", "N*mm"): 1e-3,
+    ("moment", "Nm"): 1.0,
+    ("moment", "N*m"): 1.0,
+    ("time", "s"): 1.0,
+    ("velocity", "mm/s"): 1e-3,
+    ("velocity", "m/s"): 1.0,
+    ("energy", "J"): 1.0,
+}
+
+
 def unit_factor(unit: str, kind: str, column: str) -> float:
     """SI factor of ``unit`` (a unit string, aliases allowed) checked against ``kind``."""
+    known = _KNOWN_FACTORS.get((kind, unit.strip()))
+    if known is not None:
+        return known
     from .units import registry
 
     text = unit.strip()
