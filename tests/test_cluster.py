@@ -180,3 +180,21 @@ def test_bad_executor_is_rejected(design):
         solve_statics_batch(design, grid(2), executor="tcp://localhost:8786")
     with pytest.raises(softrod.InputError, match="applies with executor= only"):
         solve_statics_batch(design, grid(2), chunk_size=10)
+
+
+def test_sweep_command_with_scheduler(client, run, tmp_path, monkeypatch):
+    import pandas as pd
+    import softrod.cluster
+
+    args = ("sweep", SPA, "--grid", "0:70kPa:5", "--threads", "1")
+    local = run(*args, "--out", tmp_path / "local.csv")
+    remote = run(*args, "--out", tmp_path / "remote.csv", "--scheduler", client.scheduler.address)
+    assert local.exit_code == 0 and remote.exit_code == 0, remote.output
+    assert "on the Dask cluster" in remote.output
+    # 125 rows: one chunk, one thread, as in process: the same table to the last digit.
+    pd.testing.assert_frame_equal(
+        pd.read_csv(tmp_path / "remote.csv"), pd.read_csv(tmp_path / "local.csv")
+    )
+    monkeypatch.setattr(softrod.cluster, "CONNECT_TIMEOUT", "1s")  # nothing listens there
+    bad = run(*args, "--out", tmp_path / "x.csv", "--scheduler", "tcp://127.0.0.1:9")
+    assert bad.exit_code == 2 and "--scheduler" in bad.stderr

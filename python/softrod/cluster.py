@@ -33,6 +33,9 @@ CHUNKS_PER_SLOT = 4
 MIN_CHUNK_ROWS = 2_000
 MAX_CHUNK_ROWS = 100_000
 
+#: How long `connect` waits for a scheduler before it gives up.
+CONNECT_TIMEOUT = "10s"
+
 #: A worker keeps this many rebuilt designs (by the hash of their TOML text).
 _DESIGN_CACHE_SIZE = 16
 _designs: OrderedDict[str, Any] = OrderedDict()
@@ -76,7 +79,7 @@ def connect(address: str):
             InputError,
         ) from None
     try:
-        return Client(address, timeout="10s")
+        return Client(address, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError) as exc:
         raise design_error(
             "--scheduler", address, f"cannot connect to a Dask scheduler there ({exc})",
