@@ -25,7 +25,9 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
   (``pip install 'softrod[viewer]'``; docs/viewer.md)
 - ``executor=`` (a ``distributed.Client``) on ``solve_statics_batch``, ``identify_stiffness``
   and ``calibrate(restarts=...)``: the work runs on a Dask cluster (docs/cluster.md)
-- exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError`
+- exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError` (and its
+  :class:`InvalidStateError`), :class:`InternalError`; warnings :class:`StabilityWarning`,
+  :class:`ValidityWarning`
 """
 
 from . import pcc
@@ -44,7 +46,16 @@ from .compare import compare_models
 from .datasets import Dataset, load_dataset, synthesize_dataset, write_dataset
 from .design import Design, designs_dir
 from .dynamics import PressureSchedule, Simulation, Trajectory, simulate
-from .errors import ConvergenceError, DesignError, InputError, SoftrodError
+from .errors import (
+    ConvergenceError,
+    DesignError,
+    InputError,
+    InternalError,
+    InvalidStateError,
+    SoftrodError,
+    StabilityWarning,
+    ValidityWarning,
+)
 from .presets import Preset, list_presets
 from .statics import (
     BatchSolution,
@@ -67,15 +78,19 @@ __all__ = [
     "DesignError",
     "HybridStiffnessModel",
     "InputError",
+    "InternalError",
+    "InvalidStateError",
     "Preset",
     "SoftrodError",
     "SolverOptions",
+    "StabilityWarning",
     "StaticSolution",
     "StiffnessIdentification",
     "StiffnessMap",
     "PressureSchedule",
     "Simulation",
     "Trajectory",
+    "ValidityWarning",
     "__version__",
     "bundled_designs",
     "calibrate",
