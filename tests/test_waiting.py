@@ -32,6 +32,7 @@ def test_help_imports_no_heavy_library():
     (not a timing test: what is imported decides the time)."""
     commands = [[], *[[name] for name in ("solve", "sweep", "calibrate", "simulate", "identify")]]
     commands += [["compare"], ["compare-pcc"], ["pcc-identify"], ["calibrate-axial"], ["demo"]]
+    commands += [["view"], ["designs"]]
     code = (
         "import sys\n"
         "from softrod.cli import main\n"

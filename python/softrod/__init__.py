@@ -21,6 +21,10 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :mod:`softrod.pcc`: paper 003's piecewise-constant-curvature model (``run_pcc``,
   ``pcc_shape``, identification, ``compare_pcc``); statics via
   ``solve_statics(..., model="pcc")``
+- :func:`view` -> :class:`~softrod.viewer.Viewer`: the interactive 3-D viewer in the browser
+  (``pip install 'softrod[viewer]'``; docs/viewer.md)
+- ``executor=`` (a ``distributed.Client``) on ``solve_statics_batch``, ``identify_stiffness``
+  and ``calibrate(restarts=...)``: the work runs on a Dask cluster (docs/cluster.md)
 - exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError` (and its
   :class:`InvalidStateError`), :class:`InternalError`; warnings :class:`StabilityWarning`,
   :class:`ValidityWarning`
@@ -81,6 +85,7 @@ _EXPORTS = {
     "solve_statics": ".statics",
     "solve_statics_batch": ".statics",
     "StiffnessMap": ".stiffness_map",
+    "view": ".viewer",
 }
 _SUBMODULES = ("pcc", "calibration", "dynamics")
 
@@ -143,6 +148,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         solve_statics_batch,
     )
     from .stiffness_map import StiffnessMap
+    from .viewer import view
 
 __all__ = [
     "BatchSolution",
@@ -186,5 +192,6 @@ __all__ = [
     "simulate",
     "solve_statics_batch",
     "synthesize_dataset",
+    "view",
     "write_dataset",
 ]

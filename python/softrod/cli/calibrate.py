@@ -24,6 +24,8 @@ from ._common import (
     _quiet,
     _renamed,
     _say,
+    _scheduler,
+    _scheduler_option,
     _staged,
     _stdout,
     _threads_option,
@@ -36,6 +38,8 @@ _CALIBRATE_OPTIONS = {
     "test": "--test",
     "method": "--method",
     "threads": "--threads",
+    "restarts": "--restarts",
+    "seed": "--seed",
 }
 
 
@@ -311,7 +315,19 @@ def _error_table(result):
     is_flag=True,
     help="Print the parameter and error tables as JSON (SI values) instead of tables.",
 )
+@click.option(
+    "--restarts",
+    default=0,
+    show_default=True,
+    type=click.IntRange(min=0),
+    help="Extra fits from random starting points (within --bounds, or within a factor 3 of "
+    "a positive parameter's value); the best fit wins.",
+)
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Seed of the restarts' starting points.")
 @_threads_option("Worker threads per model evaluation (0 = all cores).")
+@_scheduler_option("Run the restarts on the Dask cluster whose scheduler is at ADDRESS "
+                   "(docs/cluster.md).")
 @_handle_errors
 def calibrate(
     design,
@@ -327,7 +343,10 @@ def calibrate(
     predictions_path,
     report_path,
     as_json,
+    restarts,
+    seed,
     threads,
+    scheduler,
 ):
     """Fit parameters of DESIGN to the measured tip positions in DATA.
 
@@ -400,7 +419,7 @@ def calibrate(
         # keep the caller's filters and are passed on after the fit.
         warnings.simplefilter("always", CalibrationWarning)
         try:
-            with _FitProgress(header) as progress:
+            with _scheduler(scheduler) as client, _FitProgress(header) as progress:
                 result = fit(
                     d,
                     dataset,
@@ -412,6 +431,9 @@ def calibrate(
                     threads=threads,
                     max_evaluations=max_evaluations,
                     progress=progress,
+                    restarts=restarts,
+                    seed=seed,
+                    executor=client,
                     name=name,
                 )
         except InputError as exc:
@@ -581,8 +603,10 @@ def calibrate_axial(
     help="Write an HTML report here (factors over the workspace, paper 001 Fig. 5).",
 )
 @_threads_option("Worker threads per core call (0 = all cores).")
+@_scheduler_option("Identify the samples on the Dask cluster whose scheduler is at ADDRESS "
+                   "(docs/cluster.md).")
 @_handle_errors
-def identify(design, data, sections, out, report_path, threads):
+def identify(design, data, sections, out, report_path, threads, scheduler):
     """Identify the stiffness factors sigma of every sample in DATA (paper 001 eqs. 14-22).
 
     For each measured pose: sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) that puts the
@@ -613,14 +637,21 @@ def identify(design, data, sections, out, report_path, threads):
     except InputError as exc:
         raise _as_option(exc, {"sections": "--sections"}) from None
     console = _stdout()
-    with _progress("identify", len(dataset)) as advance:
+    with _scheduler(scheduler) as client, _progress("identify", len(dataset)) as advance:
         done = [0]
 
         def progress(iteration: int, active: int, total: int) -> None:
             advance(total - active - done[0])
             done[0] = total - active
 
-        result = identify_stiffness(d, dataset, sections=names, threads=threads, progress=progress)
+        result = identify_stiffness(
+            d,
+            dataset,
+            sections=names,
+            threads=threads,
+            progress=progress,
+            executor=client,
+        )
     table = Table(show_header=False, box=None, padding=(0, 2))
     for key, value in result.summary().items():
         table.add_row(str(key), f"{value:.4g}" if isinstance(value, float) else str(value))

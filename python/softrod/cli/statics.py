@@ -22,6 +22,8 @@ from ._common import (
     _parse_vector,
     _progress,
     _say,
+    _scheduler,
+    _scheduler_option,
     _stdout,
     _threads_option,
     _write_shape_plot,
@@ -44,14 +46,29 @@ def _lateral(sol) -> float:
     return float(np.linalg.norm(d - np.dot(d, t0) * t0))
 
 
-def _run_sweep(design, pressures, threads: int, chunk: int, label: str):
-    """Solve every row in chunks under a progress bar; return (BatchSolution, wall time s)."""
+def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=None):
+    """Solve every row in chunks under a progress bar; return (BatchSolution, wall time s).
+    With a Dask ``client`` the chunks run on its cluster (chunk size by softrod.cluster's
+    rule)."""
     import numpy as np
 
     from ..solution import BatchSolution
     from ..statics import solve_statics_batch
 
     m = len(pressures)
+    if client is not None:
+        t0 = time.perf_counter()
+        with _progress(label, m) as advance:
+            done = [0]
+
+            def chunks_done(rows: int, _total: int) -> None:
+                advance(rows - done[0])
+                done[0] = rows
+
+            batch = solve_statics_batch(
+                design, pressures, threads=threads, executor=client, progress=chunks_done
+            )
+        return batch, time.perf_counter() - t0
     parts = []
     t0 = time.perf_counter()
     with _progress(label, m) as advance:
@@ -176,9 +193,12 @@ def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
     type=click.Path(dir_okay=False, path_type=Path),
     help="Output table, .csv or .parquet (written whole or not at all).",
 )
-@_threads_option("Worker threads (0 = all cores).")
+@_threads_option("Worker threads (0 = all cores; with --scheduler: per task, 0 = the "
+                 "worker's share of its machine).")
+@_scheduler_option("Run on the Dask cluster whose scheduler is at ADDRESS, e.g. "
+                   "tcp://10.0.0.5:8786 (docs/cluster.md).")
 @_handle_errors
-def sweep(design, grids, out, threads):
+def sweep(design, grids, out, threads, scheduler):
     """Tip positions over a full-factorial pressure grid of DESIGN.
 
     Rows run with channel 0 slowest and the last channel fastest, so consecutive rows are
@@ -224,7 +244,10 @@ def sweep(design, grids, out, threads):
     pressures = _full_factorial(axes)
     console = _stdout()
     _say(f"{d.name}: {rows:,} rows ({' x '.join(str(len(a)) for a in axes)})")
-    batch, wall = _run_sweep(d, pressures, threads, SWEEP_CHUNK, "sweep")
+    with _scheduler(scheduler) as client:
+        if client is not None:
+            _say(f"on the Dask cluster at {scheduler}")
+        batch, wall = _run_sweep(d, pressures, threads, SWEEP_CHUNK, "sweep", client)
     frame = batch.to_frame()
     frame.attrs["softrod.metadata"].update(
         generator="softrod sweep", grid=list(grids), chunk_rows=SWEEP_CHUNK
