@@ -51,6 +51,7 @@ from ..catalog import load_design
 from ..datasets import Dataset
 from ..design import Design
 from ..errors import InputError, design_error
+from ..progress import check_progress, reporter
 from ..statics import SolverOptions
 from ..stiffness_map import SIGMA_NAMES
 from ..units import to_si
@@ -648,6 +649,11 @@ class StiffnessIdentification:
 # --------------------------------------------------------------------------- entry point
 
 
+def _samples_done(step: int, active: int, total: int) -> tuple[float, str]:
+    """A progress bar's position and text for identify's progress(step, active, total)."""
+    return total - active, f"{total - active}/{total} samples done"
+
+
 def _plain_settings(settings: dict) -> dict:
     """The settings as JSON values (tuples as lists, numpy scalars as numbers)."""
     out = {}
@@ -794,8 +800,9 @@ def identify_stiffness(
     initial: starting sigma, (3,) or (m, 3); default 1 (the literature stiffness).
     max_iter: Levenberg-Marquardt iterations (core calls after the first).
     options: :class:`~softrod.SolverOptions` of the shooting solves; threads: cores (0 =
-        all). progress: called as ``progress(iteration, n_active, n_total)`` after each
-        iteration (nothing is printed otherwise).
+        all). progress: None (a bar in interactive sessions), True, False, or a callable
+        called as ``progress(iteration, n_active, n_total)`` after each iteration
+        (:mod:`softrod.progress`).
     executor: a ``distributed.Client``: the samples are identified on its cluster in chunks
         of ``chunk_size`` samples (default: the rule in :mod:`softrod.cluster`), each chunk
         this function on a worker (``threads`` as in ``solve_statics_batch``), and the rows
@@ -812,13 +819,7 @@ def identify_stiffness(
     dataset = _check_dataset(dataset, mapped)
     bounds = _check_bounds(bounds)
     max_iter = _int_at_least(max_iter, "max_iter", 1, "must be an integer >= 1")
-    if progress is not None and not callable(progress):
-        raise design_error(
-            "progress",
-            progress,
-            "must be callable: progress(iteration, n_active, n_total)",
-            InputError,
-        )
+    check_progress(progress)
     if min_sensitivity is None:
         min_sens = MIN_SENSITIVITY_FRACTION * mapped.length
     else:
@@ -859,13 +860,15 @@ def identify_stiffness(
             max_iter=max_iter,
             options=options,
         )
-        return _identify_on_cluster(
-            executor, mapped, names, dataset, np.exp(theta0), kwargs, threads, chunk_size,
-            progress, t0,
-        )
+        with reporter(progress, "identify_stiffness", len(dataset), _samples_done) as report:
+            return _identify_on_cluster(
+                executor, mapped, names, dataset, np.exp(theta0), kwargs, threads, chunk_size,
+                report, t0,
+            )
     if chunk_size is not None:
         raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
-    lm = _levenberg_marquardt(problem, theta0, bounds, max_iter, progress)
+    with reporter(progress, "identify_stiffness", len(dataset), _samples_done) as report:
+        lm = _levenberg_marquardt(problem, theta0, bounds, max_iter, report)
 
     sigma_solver = np.exp(lm.theta)
     solved = lm.solved & np.isin(lm.status, (_CONVERGED, _STALLED))
