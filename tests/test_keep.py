@@ -264,6 +264,13 @@ def test_calibrated_design_has_a_new_name_and_provenance(tmp_path):
     assert "offset_1 = " in back.assumptions[-1] and " mm " in back.assumptions[-1]
     named = softrod.calibrate("paper002_M3_vertical", data, ["c_b"], name="rig_b_2024")
     assert named.design.name == "rig_b_2024"
+    # One display unit per kind: the offset in mm in the summary and in the report, as on
+    # the command line (SI in the arrays, the parameter table and the file).
+    line = next(x for x in str(res).splitlines() if x.strip().startswith("offset_1"))
+    assert f"{res.values[1] * 1e3:.6g} +- " in line and " mm (" in line
+    html = res.write_report(tmp_path / "r.html").read_text()
+    assert "Rules: warnings when a relative standard error exceeds 20 %" in html
+    assert "<td>mm</td>" in html and res.parameter_table()["unit"].tolist() == ["1", "m"]
 
 
 def test_calibrate_cli_name_and_predictions(run, tmp_path):
