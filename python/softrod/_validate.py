@@ -29,49 +29,29 @@ from functools import lru_cache
 
 import numpy as np
 
+from ._limits import (  # noqa: F401 - the limits are part of this module's interface
+    LIMITS,
+    MAX_ABS_INT,
+    MAX_CHAMBERS,
+    MAX_CHANNELS,
+    MAX_DEPTH,
+    MAX_DESIGN_STEPS,
+    MAX_DYNAMIC_STEPS,
+    MAX_ITERATIONS,
+    MAX_LOADS,
+    MAX_NAME_LENGTH,
+    MAX_QUANTITY_LENGTH,
+    MAX_ROWS,
+    MAX_SAVED_SAMPLES,
+    MAX_SECTION_STEPS,
+    MAX_SECTIONS,
+    MAX_SHAPE_POINTS,
+    MAX_TABLE_POINTS,
+    MAX_TEXT_LENGTH,
+    MAX_THREADS,
+    VACUUM_PA,
+)
 from .errors import DesignError, InputError, design_error
-
-# --- limits (docs/errors.md "Limits") -----------------------------------------------------------
-
-MAX_CHANNELS = 64  # pressure channels of a design: channel indices 0 ... 63
-MAX_SECTIONS = 1000  # sections of a design
-MAX_CHAMBERS = 64  # chambers of one section
-MAX_LOADS = 1000  # [[loads]] entries of a design
-MAX_TABLE_POINTS = 10_000  # points of a tabulated law (axial table, PCC k_theta table)
-MAX_SECTION_STEPS = 100_000  # integration steps of one section
-MAX_DESIGN_STEPS = 1_000_000  # integration steps of a whole design (nodes of its shape)
-MAX_ITERATIONS = 100_000  # Newton iterations, load steps, optimiser evaluations
-MAX_ROWS = 10_000_000  # rows of a batch, a dataset, a schedule or a pressure grid
-MAX_DYNAMIC_STEPS = 10_000_000  # time steps of one simulation run
-MAX_SAVED_SAMPLES = 2_000_000  # samples a trajectory keeps
-MAX_SHAPE_POINTS = 20_000_000  # centreline points a trajectory keeps (samples x nodes)
-MAX_THREADS = max(256, 4 * (os.cpu_count() or 1))  # worker threads of a parallel call
-MAX_NAME_LENGTH = 200  # characters of a name (design, section, material, column)
-MAX_TEXT_LENGTH = 100_000  # characters of free text (description, citation, assumption)
-MAX_QUANTITY_LENGTH = 100  # characters of a quantity string such as "110 mm"
-MAX_DEPTH = 32  # nesting of tables and arrays in documents and metadata
-MAX_ABS_INT = 2**53  # integers beyond this are not exact as floats: refused as values
-VACUUM_PA = -101325.0  # the lowest gauge pressure there is (absolute zero at 1 atm ambient)
-
-LIMITS = {
-    "channels": MAX_CHANNELS,
-    "sections": MAX_SECTIONS,
-    "chambers per section": MAX_CHAMBERS,
-    "loads": MAX_LOADS,
-    "table points": MAX_TABLE_POINTS,
-    "steps per section": MAX_SECTION_STEPS,
-    "steps per design": MAX_DESIGN_STEPS,
-    "iterations": MAX_ITERATIONS,
-    "rows": MAX_ROWS,
-    "time steps": MAX_DYNAMIC_STEPS,
-    "saved samples": MAX_SAVED_SAMPLES,
-    "shape points": MAX_SHAPE_POINTS,
-    "threads": MAX_THREADS,
-    "name length": MAX_NAME_LENGTH,
-    "text length": MAX_TEXT_LENGTH,
-    "quantity length": MAX_QUANTITY_LENGTH,
-    "nesting depth": MAX_DEPTH,
-}
 
 # --- quantity kinds -------------------------------------------------------------------------------
 
@@ -96,6 +76,8 @@ SI_UNIT = {
     "damping_moment": "N*m^2*s",
     "damping_linear": "N*s/m",
     "damping_rotational": "N*m*s",
+    "velocity": "m/s",
+    "energy": "J",
 }
 
 # A unit the error messages suggest for each kind (what people usually write).
@@ -109,6 +91,7 @@ EXAMPLE_UNIT = {
     "area": "mm^2",
     "time": "ms",
     "stiffness_bending": "N*mm^2",
+    "velocity": "mm/s",
 }
 
 # Whole-symbol spellings pint would misread ("Nm" is pint's number-metre) or not know.

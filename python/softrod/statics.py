@@ -114,13 +114,16 @@ def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
     """The map to use, or None for a design without mapped sections."""
     mapped = _mapped_sections(design)
     if stiffness_map is None:
+        if design.stiffness_map is not None:
+            return design.stiffness_map  # the design file's [stiffness_map]
         if mapped:
             raise design_error(
                 "stiffness_map",
                 None,
                 f"section(s) {', '.join(mapped)} of design {design.name!r} set [sections.law] "
                 "stiffness_map = true: pass stiffness_map=, a softrod.StiffnessMap (e.g. "
-                "StiffnessMap.from_table or from_csv; sigma is never assumed to be 1)",
+                "StiffnessMap.from_table or from_csv; sigma is never assumed to be 1), or "
+                'reference a map file in the design ([stiffness_map] file = "sigma.json")',
                 InputError,
             )
         return None
@@ -174,8 +177,10 @@ def solve_statics(
     moment when given; gravity and the tip body always act. ``initial`` warm-starts from a
     previous solution. On non-convergence raises :class:`ConvergenceError`, or with
     ``check=False`` returns a solution with ``converged=False`` and NaN arrays.
-    ``stiffness_map`` (a :class:`StiffnessMap`) is required exactly when a section sets
-    ``[sections.law] stiffness_map = true``; it is evaluated once at ``pressures``.
+    ``stiffness_map`` (a :class:`StiffnessMap`) is needed exactly when a section sets
+    ``[sections.law] stiffness_map = true``; it defaults to the map the design file
+    references (``[stiffness_map] file = ...``, ``design.stiffness_map``), and one given here
+    replaces it. It is evaluated once at ``pressures``.
     """
     design = load_design(design)
     p = _pressures(design, pressures)
@@ -241,6 +246,9 @@ def solve_statics_batch(
     options: SolverOptions | None = None,
     threads: int = 0,
     stiffness_map: StiffnessMap | None = None,
+    executor=None,
+    chunk_size: int | None = None,
+    progress=None,
 ) -> BatchSolution:
     """Solve for every row of an (m, channels) pressure array (Pa) in parallel.
 
@@ -248,6 +256,12 @@ def solve_statics_batch(
     from their neighbour, so sweeps should be ordered. Rows that fail to converge are kept with
     ``converged = False`` and NaN results. ``stiffness_map`` as in :func:`solve_statics`,
     evaluated in one call for all rows.
+
+    executor: a ``distributed.Client``: the rows run on its cluster in chunks of
+    ``chunk_size`` rows (default: the rule in :mod:`softrod.cluster`), each chunk one Rust
+    batch on a worker with ``threads`` cores (0 = the worker's share of its machine), and
+    come back in order (docs/cluster.md). ``progress(done_rows, total_rows)`` is called as
+    chunks finish (with an executor only).
     """
     design = load_design(design)
     arr = batch_pressures(design, pressures)
@@ -258,6 +272,18 @@ def solve_statics_batch(
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
+    from .cluster import check_executor
+
+    if check_executor(executor) is not None:
+        out = _batch_on_cluster(
+            executor, design, arr, tf, tm, sigma, _options(options), threads, chunk_size, progress
+        )
+        meta = _batch_metadata(design, options, tf, tm, smap)
+        return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
+    if chunk_size is not None:
+        raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
+    if progress is not None:
+        raise design_error("progress", progress, "applies with executor= only", InputError)
     out = design._rod.solve_batch(
         np.ascontiguousarray(arr),
         tf,
@@ -266,7 +292,77 @@ def solve_statics_batch(
         stiffness_scale=sigma,
         **opts.as_kwargs(),
     )
-    return BatchSolution(pressures=arr, stiffness_scale=sigma, **out)
+    meta = _batch_metadata(design, options, tf, tm, smap)
+    return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
+
+
+def _batch_metadata(design, options, tf, tm, smap) -> dict:
+    """The metadata block of a batch's table (BatchSolution.to_frame)."""
+    from .schema import provenance
+
+    return provenance(
+        "softrod.solve_statics_batch",
+        design,
+        solver=_options(options).as_kwargs(),
+        tip_force_N=tf,
+        tip_moment_Nm=tm,
+        stiffness_map=None if smap is None else repr(smap),
+    )
+
+
+def _batch_chunk(text, pressures, tip_force, tip_moment, sigma, options, threads, per_host):
+    """One chunk of a batch on a worker: the design rebuilt from its TOML text, one Rust
+    batch call."""
+    from .cluster import design_from_text, worker_threads
+
+    design = design_from_text(text)
+    return design._rod.solve_batch(
+        pressures,
+        tip_force,
+        tip_moment,
+        threads=worker_threads(per_host, threads),
+        stiffness_scale=sigma,
+        **options,
+    )
+
+
+def _batch_on_cluster(executor, design, arr, tf, tm, sigma, options, threads, chunk_size, progress):
+    from .cluster import chunk_rows, design_text, run_chunks, task_slots
+
+    if progress is not None and not callable(progress):
+        raise design_error(
+            "progress", progress, "must be callable: progress(done_rows, total_rows)", InputError
+        )
+    m = arr.shape[0]
+    slots, per_host = task_slots(executor)
+    rows = chunk_rows(m, slots, chunk_size)
+    text = design_text(design)
+    bounds = [(lo, min(lo + rows, m)) for lo in range(0, m, rows)]
+    chunks = [
+        (
+            text,
+            np.ascontiguousarray(arr[lo:hi]),
+            tf,
+            tm,
+            None if sigma is None else np.ascontiguousarray(sigma[lo:hi]),
+            options.as_kwargs(),
+            threads,
+            per_host,
+        )
+        for lo, hi in bounds
+    ]
+    parts = run_chunks(
+        executor,
+        _batch_chunk,
+        chunks,
+        sizes=[hi - lo for lo, hi in bounds],
+        progress=progress,
+        name="softrod-batch",
+    )
+    if not parts:  # no rows: the core's empty result
+        return design._rod.solve_batch(arr, tf, tm, threads=1, stiffness_scale=sigma,
+                                       **options.as_kwargs())
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
 def batch_pressures(design: Design, pressures) -> np.ndarray:
