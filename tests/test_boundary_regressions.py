@@ -290,9 +290,11 @@ def test_read_only_folder_is_named_before_the_work(tmp_path, run):
 
 
 def test_failed_write_leaves_no_temporary(tmp_path):
-    class Broken:
-        def to_csv(self, path, index=False):
-            Path(path).write_text("half")
+    class Broken:  # a frame whose writing fails half-way
+        attrs: dict = {}
+
+        def to_csv(self, fh, **kwargs):
+            fh.write("half")
             raise RuntimeError("disk full")
 
     with pytest.raises(RuntimeError):
