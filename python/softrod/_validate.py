@@ -11,8 +11,8 @@ work or allocation (docs/errors.md).
   unit symbols reach pint's registry (to look up their size and dimension); no text is ever
   evaluated as an expression, so ``"10**10**10 mm"`` is an instant error. The unit must have
   the field's dimension: ``"30 deg"`` is not a length and ``"5 %"`` is not a mass.
-- Sizes are bounded by the limits below (channels, sections, chambers, steps, threads,
-  rows, text), checked before anything is allocated.
+- Sizes are bounded by the limits of :mod:`softrod._limits` (channels, sections, chambers,
+  steps, threads, rows, text), checked before anything is allocated.
 
 Errors are :class:`~softrod.errors.DesignError` (design documents) or
 :class:`~softrod.errors.InputError` (everything else), with ``field`` (the path of the
