@@ -6,14 +6,16 @@ All inputs and outputs are SI: pressures in Pa (gauge), one per channel.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from .design import Design, load_design
+from . import _validate as V
+from .catalog import load_design
+from .design import Design
 from .errors import ConvergenceError, InputError, design_error
+from .solution import BatchSolution, StaticSolution
 from .stiffness_map import StiffnessMap, _check_pressure_rows
-from .units import to_si
 
 
 @dataclass(frozen=True)
@@ -32,149 +34,64 @@ class SolverOptions:
     max_load_steps: int = 200
 
     def __post_init__(self):
-        if not (isinstance(self.tol, float | int) and 0 < self.tol < 1):
+        tol = V.real(self.tol, "tol", minimum=0.0, exclusive=True)
+        if not tol < 1:
             raise design_error("tol", self.tol, "must be in (0, 1)", InputError)
         for name in ("max_iter", "max_load_steps"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise design_error(name, v, "must be an integer >= 1", InputError)
+            V.integer(getattr(self, name), name, minimum=1, maximum=V.MAX_ITERATIONS)
+        V.boolean(self.continuation, "continuation")
 
     def as_kwargs(self) -> dict:
         return {
             "tol": float(self.tol),
-            "max_iter": self.max_iter,
-            "continuation": self.continuation,
-            "max_load_steps": self.max_load_steps,
+            "max_iter": int(self.max_iter),
+            "continuation": bool(self.continuation),
+            "max_load_steps": int(self.max_load_steps),
         }
 
 
-@dataclass(frozen=True)
-class StaticSolution:
-    """A static equilibrium, sampled at every integration node (n nodes).
-
-    s: (n,) reference arc length, m.            section: (n,) section index of each node.
-    position: (n, 3) centreline r, m (world).   rotation: (n, 3, 3) [d1 d2 d3] (world).
-    force: (n, 3) total internal force n, N.    moment: (n, 3) total internal moment m, N m.
-    v: (n, 3) shear/stretch strain (body).      u: (n, 3) curvature/twist, 1/m (body).
-    Forces and moments are the totals of the balance laws (material plus pressure part).
-    stiffness_scale: (3,) sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) applied to the
-    mapped sections (docs/stiffness-map.md); ones when the design has none.
-    """
-
-    design: Design
-    pressures: np.ndarray
-    s: np.ndarray
-    section: np.ndarray
-    position: np.ndarray
-    rotation: np.ndarray
-    force: np.ndarray
-    moment: np.ndarray
-    v: np.ndarray
-    u: np.ndarray
-    converged: bool
-    iterations: int
-    residual: float
-    load_steps: int
-    shooting_unknowns: np.ndarray = field(repr=False)
-    stiffness_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
-
-    @classmethod
-    def failed(cls, design, pressures, exc, n_unknowns: int, **extra) -> StaticSolution:
-        """The result of a solve that did not converge (``check=False``): NaN shape and
-        wrench, ``converged`` False, the iterations and residual of ``exc``."""
-        nan3 = np.full((1, 3), np.nan)
-        return cls(
-            design=design,
-            pressures=np.array(pressures),
-            s=np.array([np.nan]),
-            section=np.array([-1]),
-            position=nan3,
-            rotation=np.full((1, 3, 3), np.nan),
-            force=nan3,
-            moment=nan3,
-            v=nan3,
-            u=nan3,
-            converged=False,
-            iterations=exc.iterations,
-            residual=exc.residual,
-            load_steps=0,
-            shooting_unknowns=np.full(n_unknowns, np.nan),
-            **extra,
-        )
-
-    @property
-    def tip_position(self) -> np.ndarray:
-        """Tip position (end of the last section), m."""
-        return self.position[-1]
-
-    @property
-    def tip_rotation(self) -> np.ndarray:
-        """Tip rotation [d1 d2 d3], world frame."""
-        return self.rotation[-1]
-
-    @property
-    def base_force(self) -> np.ndarray:
-        """Total internal force at the base (the wrench the mount takes), N."""
-        return self.force[0]
-
-    @property
-    def base_moment(self) -> np.ndarray:
-        return self.moment[0]
-
-    @property
-    def strains(self) -> dict[str, np.ndarray]:
-        return {"v": self.v, "u": self.u}
-
-
-@dataclass(frozen=True)
-class BatchSolution:
-    """Results of ``solve_statics_batch``: one row per input row, failed rows kept.
-
-    tip_position (m, 3) m; tip_rotation (m, 3, 3); base_force (m, 3) N; base_moment (m, 3) N m;
-    converged (m,) bool (rows that failed hold NaN); iterations (m,); residual (m,).
-    stiffness_scale (m, 3): sigma of every row when the design has mapped sections
-    (docs/stiffness-map.md), else None. x (m, 3): the solver's scaled unknowns (warm starts).
-    """
-
-    pressures: np.ndarray
-    tip_position: np.ndarray
-    tip_rotation: np.ndarray
-    base_force: np.ndarray
-    base_moment: np.ndarray
-    converged: np.ndarray
-    iterations: np.ndarray
-    residual: np.ndarray
-    stiffness_scale: np.ndarray | None = None
-    x: np.ndarray | None = None
-
-
 def _pressures(design: Design, pressures) -> list[float]:
-    if isinstance(pressures, (int, float, str)):
+    """One gauge pressure per channel (Pa, or strings with units), checked like a batch row."""
+    if V.is_real(pressures) or isinstance(pressures, str):
         pressures = [pressures]
-    try:
-        values = list(pressures)
-    except TypeError:
-        raise design_error(
-            "pressures", pressures, "must be a sequence of gauge pressures (Pa)", InputError
-        ) from None
-    if len(values) != design.n_channels:
-        raise design_error(
-            "pressures",
-            values,
-            f"the design has {design.n_channels} pressure channels; give one gauge pressure per "
-            "channel",
-            InputError,
-        )
-    return [to_si(p, "pressure", f"pressures[{i}]", InputError) for i, p in enumerate(values)]
+    return _quantities(pressures, "pressure", "pressures", design.n_channels,
+                       f"the design has {design.n_channels} pressure channels; give one gauge "
+                       "pressure per channel")
+
+
+def _quantities(value, kind: str, name: str, count: int, rule: str) -> list[float]:
+    """``count`` quantities from a list/tuple (numbers in SI or strings with units) or a 1-d
+    numeric array; mappings, sets, masked arrays, bools and complex numbers are refused."""
+    if isinstance(value, (list, tuple)):
+        if len(value) != count:
+            raise V.fail(name, value, rule)
+        return [V.quantity(x, kind, f"{name}[{i}]") for i, x in enumerate(value)]
+    arr = V.real_array(value, name, what=f"{kind}s (SI)", max_size=V.MAX_CHANNELS * 4)
+    if arr.ndim != 1 or arr.size != count:
+        raise V.fail(name, f"shape {arr.shape}", rule)
+    return arr.tolist()
 
 
 def _vec3(value, kind: str, name: str, default) -> list[float]:
     if value is None:
         return list(default)
-    arr = list(value) if not isinstance(value, str) else value
-    if isinstance(arr, str) or len(arr) != 3:
-        raise design_error(name, value, f"must be 3 {kind} values (world frame)", InputError)
-    return [to_si(x, kind, f"{name}[{i}]", InputError) for i, x in enumerate(arr)]
+    return _quantities(value, kind, name, 3, f"must be 3 {kind} values (world frame)")
+
+
+def _initial(initial, model: str) -> list[float] | None:
+    """The warm start of ``initial`` (a converged StaticSolution of the same model)."""
+    if initial is None:
+        return None
+    if not isinstance(initial, StaticSolution):
+        raise V.fail("initial", type(initial).__name__, "must be a StaticSolution or None")
+    x = np.asarray(initial.shooting_unknowns, dtype=float)
+    if not initial.converged or not np.all(np.isfinite(x)):
+        raise V.fail(
+            "initial",
+            "a solution with converged = False",
+            "cannot warm-start a solve: pass a converged solution (or none)",
+        )
+    return x.tolist()
 
 
 def _options(options: SolverOptions | None) -> SolverOptions:
@@ -197,13 +114,16 @@ def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
     """The map to use, or None for a design without mapped sections."""
     mapped = _mapped_sections(design)
     if stiffness_map is None:
+        if design.stiffness_map is not None:
+            return design.stiffness_map  # the design file's [stiffness_map]
         if mapped:
             raise design_error(
                 "stiffness_map",
                 None,
                 f"section(s) {', '.join(mapped)} of design {design.name!r} set [sections.law] "
                 "stiffness_map = true: pass stiffness_map=, a softrod.StiffnessMap (e.g. "
-                "StiffnessMap.from_table or from_csv; sigma is never assumed to be 1)",
+                "StiffnessMap.from_table or from_csv; sigma is never assumed to be 1), or "
+                'reference a map file in the design ([stiffness_map] file = "sigma.json")',
                 InputError,
             )
         return None
@@ -257,13 +177,16 @@ def solve_statics(
     moment when given; gravity and the tip body always act. ``initial`` warm-starts from a
     previous solution. On non-convergence raises :class:`ConvergenceError`, or with
     ``check=False`` returns a solution with ``converged=False`` and NaN arrays.
-    ``stiffness_map`` (a :class:`StiffnessMap`) is required exactly when a section sets
-    ``[sections.law] stiffness_map = true``; it is evaluated once at ``pressures``.
+    ``stiffness_map`` (a :class:`StiffnessMap`) is needed exactly when a section sets
+    ``[sections.law] stiffness_map = true``; it defaults to the map the design file
+    references (``[stiffness_map] file = ...``, ``design.stiffness_map``), and one given here
+    replaces it. It is evaluated once at ``pressures``.
     """
     design = load_design(design)
     p = _pressures(design, pressures)
-    if model not in ("cosserat", "pcc"):
-        raise design_error("model", model, "must be 'cosserat' or 'pcc'", InputError)
+    V.choice(model, ("cosserat", "pcc"), "model")
+    V.boolean(check, "check")
+    guess = _initial(initial, model)
     if model == "pcc":
         if stiffness_map is not None:
             raise design_error(
@@ -285,7 +208,6 @@ def solve_statics(
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
-    guess = None if initial is None else [float(x) for x in initial.shooting_unknowns]
     opts = _options(options)
     try:
         out = design._rod.solve(
@@ -324,6 +246,9 @@ def solve_statics_batch(
     options: SolverOptions | None = None,
     threads: int = 0,
     stiffness_map: StiffnessMap | None = None,
+    executor=None,
+    chunk_size: int | None = None,
+    progress=None,
 ) -> BatchSolution:
     """Solve for every row of an (m, channels) pressure array (Pa) in parallel.
 
@@ -331,29 +256,139 @@ def solve_statics_batch(
     from their neighbour, so sweeps should be ordered. Rows that fail to converge are kept with
     ``converged = False`` and NaN results. ``stiffness_map`` as in :func:`solve_statics`,
     evaluated in one call for all rows.
+
+    executor: a ``distributed.Client``: the rows run on its cluster in chunks of
+    ``chunk_size`` rows (default: the rule in :mod:`softrod.cluster`), each chunk one Rust
+    batch on a worker with ``threads`` cores (0 = the worker's share of its machine), and
+    come back in order (docs/cluster.md). ``progress(done_rows, total_rows)`` is called as
+    chunks finish (with an executor only).
     """
     design = load_design(design)
-    arr = np.asarray(pressures, dtype=float)
-    if arr.ndim == 1 and design.n_channels == 1:
-        arr = arr[:, None]
-    _check_pressure_rows(
-        arr, design.n_channels, f"must be an (m, {design.n_channels}) array of gauge pressures (Pa)"
-    )
-    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 0:
-        raise design_error(
-            "threads", threads, "must be an integer >= 0 (0 = all cores)", InputError
-        )
+    arr = batch_pressures(design, pressures)
+    threads = V.threads(threads)
+    opts = _options(options)
     smap = _stiffness_map(design, stiffness_map)
     sigma = None if smap is None else np.ascontiguousarray(smap(arr), dtype=float)
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
+    from .cluster import check_executor
+
+    if check_executor(executor) is not None:
+        out = _batch_on_cluster(
+            executor, design, arr, tf, tm, sigma, _options(options), threads, chunk_size, progress
+        )
+        meta = _batch_metadata(design, options, tf, tm, smap)
+        return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
+    if chunk_size is not None:
+        raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
+    if progress is not None:
+        raise design_error("progress", progress, "applies with executor= only", InputError)
     out = design._rod.solve_batch(
         np.ascontiguousarray(arr),
         tf,
         tm,
         threads=threads,
         stiffness_scale=sigma,
-        **_options(options).as_kwargs(),
+        **opts.as_kwargs(),
     )
-    return BatchSolution(pressures=arr, stiffness_scale=sigma, **out)
+    meta = _batch_metadata(design, options, tf, tm, smap)
+    return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
+
+
+def _batch_metadata(design, options, tf, tm, smap) -> dict:
+    """The metadata block of a batch's table (BatchSolution.to_frame)."""
+    from .schema import provenance
+
+    return provenance(
+        "softrod.solve_statics_batch",
+        design,
+        solver=_options(options).as_kwargs(),
+        tip_force_N=tf,
+        tip_moment_Nm=tm,
+        stiffness_map=None if smap is None else repr(smap),
+    )
+
+
+def _batch_chunk(text, pressures, tip_force, tip_moment, sigma, options, threads, per_host):
+    """One chunk of a batch on a worker: the design rebuilt from its TOML text, one Rust
+    batch call."""
+    from .cluster import design_from_text, worker_threads
+
+    design = design_from_text(text)
+    return design._rod.solve_batch(
+        pressures,
+        tip_force,
+        tip_moment,
+        threads=worker_threads(per_host, threads),
+        stiffness_scale=sigma,
+        **options,
+    )
+
+
+def _batch_on_cluster(executor, design, arr, tf, tm, sigma, options, threads, chunk_size, progress):
+    from .cluster import chunk_rows, design_text, run_chunks, task_slots
+
+    if progress is not None and not callable(progress):
+        raise design_error(
+            "progress", progress, "must be callable: progress(done_rows, total_rows)", InputError
+        )
+    m = arr.shape[0]
+    slots, per_host = task_slots(executor)
+    rows = chunk_rows(m, slots, chunk_size)
+    text = design_text(design)
+    bounds = [(lo, min(lo + rows, m)) for lo in range(0, m, rows)]
+    chunks = [
+        (
+            text,
+            np.ascontiguousarray(arr[lo:hi]),
+            tf,
+            tm,
+            None if sigma is None else np.ascontiguousarray(sigma[lo:hi]),
+            options.as_kwargs(),
+            threads,
+            per_host,
+        )
+        for lo, hi in bounds
+    ]
+    parts = run_chunks(
+        executor,
+        _batch_chunk,
+        chunks,
+        sizes=[hi - lo for lo, hi in bounds],
+        progress=progress,
+        name="softrod-batch",
+    )
+    if not parts:  # no rows: the core's empty result
+        return design._rod.solve_batch(arr, tf, tm, threads=1, stiffness_scale=sigma,
+                                       **options.as_kwargs())
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def batch_pressures(design: Design, pressures) -> np.ndarray:
+    """An (m, channels) float array of gauge pressures (Pa), checked as :func:`solve_statics`
+    checks one row: numbers (Python or numpy) or strings with units, never bools, complex
+    numbers, masked or text arrays; at most MAX_ROWS rows."""
+    n = design.n_channels
+    arr = V.real_array(
+        pressures,
+        "pressures",
+        unit_kind="pressure",
+        max_size=V.MAX_ROWS * max(n, 1),
+        what="gauge pressures (Pa)",
+    )
+    if arr.ndim == 1 and n == 1:
+        arr = arr[:, None]
+    _check_pressure_rows(arr, n, f"must be an (m, {n}) array of gauge pressures (Pa)")
+    if arr.shape[0] > V.MAX_ROWS:
+        raise V.fail("pressures", f"{arr.shape[0]} rows", f"too many rows: at most {V.MAX_ROWS:,}")
+    low = np.flatnonzero((arr < V.VACUUM_PA).any(axis=1))
+    if low.size:
+        r = int(low[0])
+        raise V.fail(
+            f"pressures[{r}]",
+            arr[r].tolist(),
+            f"gauge pressures must be >= {V.VACUUM_PA:g} Pa (-1 atm, a perfect vacuum)"
+            + (f"; {low.size} rows are below" if low.size > 1 else ""),
+        )
+    return np.ascontiguousarray(arr)

@@ -523,8 +523,13 @@ impl Simulator {
         tip_moment: [f64; 3],
     ) -> Result<Self> {
         for (name, v) in [("tip_force", &tip_force), ("tip_moment", &tip_moment)] {
-            validity::check_finite(name, v, "t = 0")
-                .map_err(|_| SoftrodError::invalid(name, format!("{v:?}"), "must be finite"))?;
+            if !v.iter().all(|x| x.is_finite()) {
+                return Err(SoftrodError::invalid(
+                    name,
+                    format!("{v:?}"),
+                    "must be finite",
+                ));
+            }
         }
         opts.validate()?;
         check_dynamic_laws(&rod, &sigma_map)?;
@@ -689,48 +694,53 @@ impl Simulator {
 
     /// Finite values, rotations and quaternion norms at the nodes, stretch at the stages.
     fn check_state(&self, eval: &Evaluated, z: &[f64]) -> Result<()> {
-        // Cheap predicates first; the error (with its formatted location) only on failure.
-        if !z.iter().all(|x| x.is_finite()) {
-            let at = format!("a node at t = {:.6} s", self.time);
-            validity::check_finite("collocation unknowns", z, &at)?;
-        }
-        let node_loc = |j: usize| {
-            format!(
-                "{} at t = {:.6} s",
-                validity::node_location(j, self.grid.node_s(j)),
-                self.time
-            )
+        let t = self.time;
+        let node = |j: usize| validity::Node {
+            index: j,
+            s: self.grid.node_s(j),
+            section: self.grid.intervals[j.min(self.grid.len() - 1)].section,
         };
+        if let Some(k) = z.iter().position(|x| !x.is_finite()) {
+            // z holds the base unknowns, then 48 per interval (stages and end node).
+            let j = if k < 6 { 0 } else { (k - 6) / 48 + 1 };
+            validity::check_finite(node(j.min(self.grid.len())), &z[k..=k])
+                .map_err(|e| e.at_time(t))?;
+        }
         for (j, y) in eval.nodes.iter().enumerate() {
             let qn = y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3];
             // The quaternion norm is a quadratic invariant of Gauss collocation, so it
             // stays 1 to the Newton tolerance times the number of intervals (<= 1e-9 x
             // 400); 1e-6 flags a state the collocation equations do not hold for.
             if (qn - 1.0).abs().is_nan() || (qn - 1.0).abs() > 1e-6 {
-                return Err(SoftrodError::invalid_state(
-                    "|Q|^2 (rotation quaternion)",
-                    node_loc(j),
-                    format!("{qn:.9}"),
-                    "must stay 1 to 1e-6: the collocation equations do not hold; tighten tol or shorten the step",
-                ));
+                let n = node(j);
+                return Err(SoftrodError::InvalidState {
+                    rule: validity::Rule::Rotation,
+                    node: Some(j),
+                    s: n.s,
+                    time: Some(t),
+                    value: qn,
+                    message: format!(
+                        "the rotation quaternion's squared norm is {qn:.9} in sections[{}], not 1 to 1e-6: the collocation equations do not hold (tighten tol or shorten the step)",
+                        n.section
+                    ),
+                });
             }
-            let rot = collocation::rotation(&y[..4]);
-            if !validity::is_rotation(&rot, validity::ROTATION_TOL) {
-                validity::check_rotation(&rot, validity::ROTATION_TOL, &node_loc(j))?;
-            }
+            validity::check_rotation(node(j), &collocation::rotation(&y[..4]))
+                .map_err(|e| e.at_time(t))?;
         }
         for (k, f) in eval.fields.iter().enumerate() {
-            if validity::is_valid_stretch(f[2]) {
+            if f[2] > 0.0 {
                 continue;
             }
+            // Strains live at the stage points: report the interval's start node and the
+            // stage's own arc length.
             let j = k / 2;
-            let s = self.grid.stage_s(j, k % 2);
-            let sec = &self.rod.sections[self.grid.intervals[j].section];
-            let loc = format!(
-                "stage point {k} (s = {s:.4} m, section '{}') at t = {:.6} s",
-                sec.name, self.time
-            );
-            validity::check_stretch(f[2], &loc)?;
+            let at = validity::Node {
+                index: j,
+                s: self.grid.stage_s(j, k % 2),
+                section: self.grid.intervals[j].section,
+            };
+            validity::check_stretch(at, &[f[0], f[1], f[2]]).map_err(|e| e.at_time(t))?;
         }
         Ok(())
     }
@@ -1264,21 +1274,19 @@ impl Simulator {
             Scheme::BdfAlpha if self.opts.alpha < -0.45 => "alpha = -0.5 (the trapezoidal rule) has no numerical damping, and unresolved modes can feed a large motion through the nonlinearity: use alpha -0.45 to 0, a smaller dt or adaptive stepping (error_tol)",
             Scheme::BdfAlpha => "use a smaller dt or adaptive stepping (error_tol), alpha closer to 0 (more numerical damping), or a tighter tol",
         };
-        Err(SoftrodError::invalid_state(
-            "energy balance E - E(0) - W_in + D",
-            format!(
-                "t = {t:.6} s (step {}, time step {h:.3e} s)",
+        Err(SoftrodError::InvalidState {
+            rule: validity::Rule::EnergyBalance,
+            node: None,
+            s: f64::NAN,
+            time: Some(t),
+            value: balance,
+            message: format!(
+                "the energy balance E - E(0) - W_in + D grew to {balance:.4e} J, {:.3} % of the {scale:.4e} J moved, beyond energy_tol = {} (step {}, time step {h:.3e} s): energy may not appear without input; the time integration is unstable or too coarse here: {hint}",
+                100.0 * balance / scale.max(1e-300),
+                self.opts.energy_tol,
                 self.stats.steps + 1
             ),
-            format!(
-                "{balance:.4e} J ({:.3} % of the {scale:.4e} J moved)",
-                100.0 * balance / scale.max(1e-300)
-            ),
-            format!(
-                "energy may not grow without input beyond energy_tol = {} of the energy moved; the time integration is unstable or too coarse here: {hint}",
-                self.opts.energy_tol
-            ),
-        ))
+        })
     }
 
     fn commit(&mut self, c: Candidate) {

@@ -24,16 +24,23 @@ pub enum SoftrodError {
         load_factor: f64,
         reason: String,
     },
-    /// A computed state breaks a physical rule (see `crate::validity`): a rotation that is
-    /// not one, a stretch <= 0, energy that grows without input. `location` says where
-    /// (node and arc length, or time and step), `rule` what must hold and what to change.
-    #[error("{quantity} = {value} at {location}: {rule}")]
+    /// A state breaks a rule of `crate::validity` (a rotation that is not one, stretch <= 0,
+    /// a collapsed chamber, strains or pressures outside the validity range). `node` is the
+    /// integration node (0 = base) and `s` its arc length in m, when the rule concerns a
+    /// node; `time` the simulation time in s, when a dynamic run broke it; `value` the
+    /// offending number.
+    #[error("{}{}rule {}: {message}", .time.map_or(String::new(), |t| format!("at t = {t} s, ")), .node.map_or(String::new(), |n| format!("node {n} (s = {s:.6} m), ")), .rule.name())]
     InvalidState {
-        quantity: String,
-        location: String,
-        value: String,
-        rule: String,
+        rule: crate::validity::Rule,
+        node: Option<usize>,
+        s: f64,
+        time: Option<f64>,
+        value: f64,
+        message: String,
     },
+    /// A bug: a panic inside the core, caught at the boundary. Please report it.
+    #[error("internal error (a bug in softrod; please report it): {0}")]
+    Internal(String),
 }
 
 impl SoftrodError {
@@ -51,17 +58,25 @@ impl SoftrodError {
 }
 
 impl SoftrodError {
-    pub fn invalid_state(
-        quantity: impl Into<String>,
-        location: impl Into<String>,
-        value: impl ToString,
-        rule: impl Into<String>,
-    ) -> Self {
-        SoftrodError::InvalidState {
-            quantity: quantity.into(),
-            location: location.into(),
-            value: value.to_string(),
-            rule: rule.into(),
+    /// The same error, stamped with the simulation time at which a state broke a rule.
+    pub fn at_time(self, t: f64) -> Self {
+        match self {
+            SoftrodError::InvalidState {
+                rule,
+                node,
+                s,
+                value,
+                message,
+                ..
+            } => SoftrodError::InvalidState {
+                rule,
+                node,
+                s,
+                time: Some(t),
+                value,
+                message,
+            },
+            other => other,
         }
     }
 }

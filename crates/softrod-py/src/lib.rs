@@ -44,13 +44,18 @@ fn to_py_err(py: Python<'_>, err: SoftrodError, ctx: Context) -> PyErr {
                 PyErr::from_value(cls.call1((msg, iterations, residual, load_factor, reason))?)
             }
             SoftrodError::InvalidState {
-                quantity,
-                location,
-                value,
                 rule,
+                node,
+                s,
+                time,
+                value,
+                ..
             } => {
                 let cls = errors.getattr("InvalidStateError")?;
-                PyErr::from_value(cls.call1((msg, quantity, location, value, rule))?)
+                PyErr::from_value(cls.call1((msg, rule.name(), node, s, value, time))?)
+            }
+            SoftrodError::Internal(_) => {
+                PyErr::from_value(errors.getattr("InternalError")?.call1((msg,))?)
             }
         })
     };
