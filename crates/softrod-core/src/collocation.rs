@@ -1428,3 +1428,67 @@ pub fn base_wrench(rod: &Rod, z: &[f64]) -> ([f64; 3], [f64; 3]) {
         [z[3] * ms, z[4] * ms, z[5] * ms],
     )
 }
+
+/// The growth exponent of single shooting's sensitivity in statics, int_0^L sqrt(|n| / EI)
+/// ds: under an axial force n the bending perturbations grow (tension) or oscillate
+/// (compression) with wavenumber sqrt(|n| / EI), so the tip responds to the base unknowns
+/// by up to exp(this). n(s) = F_tip + m_t g + int_s^L f ds is exact in statics (dead
+/// loads), so this is known before any solve. Rigid sections add nothing.
+pub fn shooting_growth(rod: &Rod, loads: &crate::ode::Loads) -> f64 {
+    let g = rod.gravity;
+    let mt = rod.spec.tip.mass;
+    let mut n: [f64; 3] = std::array::from_fn(|k| loads.tip_force[k] + mt * g[k]);
+    let mut kappa = 0.0;
+    // From the tip to the base, 8 midpoint samples per section.
+    for sec in rod.sections.iter().rev() {
+        let f: [f64; 3] = std::array::from_fn(|k| sec.line_mass * g[k] + sec.line_force[k]);
+        let ei = sec.k_bt[0][0].min(sec.k_bt[1][1]);
+        let h = sec.length / 8.0;
+        for _ in 0..8 {
+            let mid: [f64; 3] = std::array::from_fn(|k| n[k] + 0.5 * h * f[k]);
+            if !sec.rigid && ei > 0.0 {
+                let nn = (mid[0] * mid[0] + mid[1] * mid[1] + mid[2] * mid[2]).sqrt();
+                kappa += h * (nn / ei).sqrt();
+            }
+            for k in 0..3 {
+                n[k] += h * f[k];
+            }
+        }
+    }
+    kappa
+}
+
+/// Beyond this growth exponent (e^12 ~ 1.6e5: Newton's steps from a poor guess lose about
+/// 5 of 16 digits, and continuation wanders between equilibria) statics uses collocation.
+pub const SHOOTING_GROWTH_LIMIT: f64 = 12.0;
+
+/// Whether statics should solve `rod` under `loads` by collocation rather than single
+/// shooting (see [`shooting_growth`]).
+pub fn shooting_ill_conditioned(rod: &Rod, loads: &crate::ode::Loads) -> bool {
+    shooting_growth(rod, loads) > SHOOTING_GROWTH_LIMIT
+}
+
+impl StaticSolution {
+    /// Strains (v, u) at every node of a static solution (the law at rest: c0 = 0).
+    pub fn node_strains(&self, rod: &Rod, loads: &crate::ode::Loads) -> Vec<([f64; 3], [f64; 3])> {
+        let grid = Grid::new(rod);
+        let models = static_models(rod, loads, 1.0);
+        let zero = [0.0; NF];
+        self.evaluated
+            .nodes
+            .iter()
+            .enumerate()
+            .map(|(j, y)| {
+                let sec = if j == 0 {
+                    0
+                } else {
+                    grid.intervals[j - 1].section
+                };
+                let rot = rotation(&y[IQ..IQ + 4]);
+                let nb = mat_t_vec(&rot, &[y[IN], y[IN + 1], y[IN + 2]]);
+                let mb = mat_t_vec(&rot, &[y[IM], y[IM + 1], y[IM + 2]]);
+                models[sec].strains(&nb, &mb, &zero, 0.0)
+            })
+            .collect()
+    }
+}

@@ -83,6 +83,9 @@ pub struct Solution {
     pub residual: f64,
     /// Load levels used (1 without continuation).
     pub load_steps: usize,
+    /// The shape, when the solve used collocation (`crate::collocation`): re-integrating
+    /// from `x` by shooting is what that rod's conditioning forbids.
+    pub collocation: Option<std::sync::Arc<Shape>>,
 }
 
 /// The rod's shape at every integration node.
@@ -352,7 +355,50 @@ fn finish(
         iterations,
         residual,
         load_steps,
+        collocation: None,
     }
+}
+
+/// A static solve by collocation (`crate::collocation::solve_static`), for rods whose
+/// single-shooting problem is ill-conditioned (docs/model.md, "Collocation").
+fn by_collocation(rod: &Rod, loads: &Loads, opts: &SolverOptions) -> Result<Solution> {
+    let sol = crate::collocation::solve_static(rod, loads, None, opts)?;
+    let (base_force, base_moment) = crate::collocation::base_wrench(rod, &sol.z);
+    let ev = &sol.evaluated;
+    let grid = crate::collocation::Grid::new(rod);
+    let strains = sol.node_strains(rod, loads);
+    let mut shape = Shape::default();
+    for (j, y) in ev.nodes.iter().enumerate() {
+        shape.s.push(grid.node_s(j));
+        shape.section.push(if j == 0 {
+            0
+        } else {
+            grid.intervals[j - 1].section
+        });
+        shape.position.push(ev.node_r[j]);
+        shape.rotation.push(crate::collocation::rotation(&y[..4]));
+        shape.force.push([y[4], y[5], y[6]]);
+        shape.moment.push([y[7], y[8], y[9]]);
+        shape.v.push(strains[j].0);
+        shape.u.push(strains[j].1);
+    }
+    let last = shape.s.len() - 1;
+    Ok(Solution {
+        x: [sol.z[3], sol.z[4], sol.z[5]],
+        base_force,
+        base_moment,
+        tip: State {
+            r: shape.position[last],
+            rot: shape.rotation[last],
+            n: shape.force[last],
+            m: shape.moment[last],
+            aux: [1.0, 1.0],
+        },
+        iterations: sol.iterations,
+        residual: sol.residual,
+        load_steps: sol.load_steps,
+        collocation: Some(std::sync::Arc::new(shape)),
+    })
 }
 
 /// Solve the static equilibrium. `guess` is a previous solution's `x` (warm start).
@@ -377,6 +423,11 @@ pub fn solve(
                 ));
             }
         }
+    }
+    // Single shooting's sensitivity grows like exp(int sqrt(|n| / EI) ds): long, soft rods
+    // under their own weight go to collocation (docs/model.md, "Collocation").
+    if crate::collocation::shooting_ill_conditioned(rod, loads) {
+        return by_collocation(rod, loads, opts);
     }
     let full = Problem::new(rod, loads, 1.0);
     let x0 = match guess {
@@ -403,7 +454,7 @@ pub fn solve(
     let mut levels = 0;
     while lam < 1.0 {
         if levels >= opts.max_load_steps {
-            return Err(SoftrodError::NotConverged {
+            let failed = SoftrodError::NotConverged {
                 iterations,
                 residual: last_res,
                 load_factor: lam,
@@ -411,7 +462,9 @@ pub fn solve(
                     "load continuation used all {} load steps",
                     opts.max_load_steps
                 ),
-            });
+            };
+            // Shooting gave up: collocation's conditioning may not (it keeps the error if not).
+            return by_collocation(rod, loads, opts).map_err(|_| failed);
         }
         levels += 1;
         let target = (lam + dlam).min(1.0);
@@ -440,12 +493,13 @@ pub fn solve(
                 last_res = res;
                 dlam *= 0.5;
                 if dlam < 1e-5 {
-                    return Err(SoftrodError::NotConverged {
+                    let failed = SoftrodError::NotConverged {
                         iterations,
                         residual: last_res,
                         load_factor: lam,
                         reason: "load step fell below 1e-5 (the load may exceed a limit point such as buckling)".into(),
-                    });
+                    };
+                    return by_collocation(rod, loads, opts).map_err(|_| failed);
                 }
             }
         }
@@ -455,6 +509,9 @@ pub fn solve(
 
 /// The shape of a converged solution at every integration node.
 pub fn shape(rod: &Rod, loads: &Loads, sol: &Solution) -> Shape {
+    if let Some(sh) = &sol.collocation {
+        return (**sh).clone();
+    }
     let p = Problem::new(rod, loads, 1.0);
     let mut out = Shape::default();
     let mut visit = |i: usize, s: f64, y: &State<f64>| {
