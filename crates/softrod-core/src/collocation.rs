@@ -348,6 +348,9 @@ fn table_stretch<D: RodScalar>(table: &AxialTable, s: f64, b: f64, c0: f64, h: f
     };
     let bc = b * c0;
     let mut f = target - b * (c0 + h);
+    // phi sums terms up to this size: its round-off floor (relative 1e-13 leaves room for
+    // a few ulps of each).
+    let size = 1.0 + target.abs() + bc.abs() * 2.0 + (b * h).abs();
     let mut ok = false;
     for _ in 0..60 {
         let phi = f + bc * v3(f) + b * h - target;
@@ -355,9 +358,8 @@ fn table_stretch<D: RodScalar>(table: &AxialTable, s: f64, b: f64, c0: f64, h: f
         if !(phi.is_finite() && dphi.is_finite() && dphi > 0.0) {
             break;
         }
-        let step = phi / dphi;
-        f -= step;
-        if step.abs() <= 1e-15 * (1.0 + f.abs()) {
+        f -= phi / dphi;
+        if phi.abs() <= 1e-13 * size {
             ok = true;
             break;
         }
@@ -409,7 +411,11 @@ fn ogden_strain<D: RodScalar>(
             })
         })
     };
-    let scale = 1.0 + target.iter().fold(0.0f64, |a, x| a.max(x.abs())) + k_e;
+    // The residual sums terms up to this size (its round-off floor).
+    let bmax = b.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    let hmax = h.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    let scale =
+        1.0 + target.iter().fold(0.0f64, |a, x| a.max(x.abs())) + k_e + bmax * (2.0 * c0 + hmax);
     let mut r = resid(&v);
     let norm = |r: &[f64; 3]| r.iter().fold(0.0f64, |a, x| a.max(x.abs()));
     let mut ok = false;
@@ -417,7 +423,7 @@ fn ogden_strain<D: RodScalar>(
         if !(norm(&r).is_finite()) {
             break;
         }
-        if norm(&r) <= 1e-14 * scale {
+        if norm(&r) <= 1e-13 * scale {
             ok = true;
             break;
         }
