@@ -66,6 +66,7 @@ _EXPORTS = {
     "designs_dir": ".design",
     "PressureSchedule": ".dynamics",
     "Simulation": ".dynamics",
+    "SimulationState": ".dynamics",
     "Trajectory": ".dynamics",
     "simulate": ".dynamics",
     "CalibrationWarning": ".errors",
@@ -127,7 +128,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         write_dataset,
     )
     from .design import Design, designs_dir
-    from .dynamics import PressureSchedule, Simulation, Trajectory, simulate
+    from .dynamics import PressureSchedule, Simulation, SimulationState, Trajectory, simulate
     from .errors import (
         CalibrationWarning,
         ConvergenceError,
@@ -171,6 +172,7 @@ __all__ = [
     "StiffnessMap",
     "PressureSchedule",
     "Simulation",
+    "SimulationState",
     "Trajectory",
     "ValidityWarning",
     "__version__",

@@ -1080,15 +1080,25 @@ impl Simulator {
         let mut books = self.books;
         let e = self.energy_now(&models, &eval, self.tip_force);
         // Work of changing pressures (and sigma): the stored energy's change at fixed
-        // strains, averaged over the old and new strains (second order in time); of a
-        // changed dead tip force: -dF . r_tip at the mean tip position.
-        let pin = 0.5
-            * ((e.elastic - self.elastic_of(&self.models, &eval))
-                + (self.elastic_of(&models, &self.eval) - self.books.now.elastic));
+        // strains, at the old and new strains. A scheme that applies the new inputs over
+        // the step (BDF-alpha solves (1 + alpha) f_{n+1} - alpha f_n = ...) does their
+        // work at the configuration they first act on: for a linear law with a jump of the
+        // inputs the discrete energy identity gives exactly weight 1 + alpha on the old
+        // strains and -alpha on the new (the trapezoidal and midpoint rules: 1/2, 1/2);
+        // second order for smooth changes. Of a changed dead tip force: -dF . r_tip alike.
+        let w_new = if midpoint {
+            0.5
+        } else {
+            -self.opts.alpha_eff()
+        };
+        let pin = w_new * (e.elastic - self.elastic_of(&self.models, &eval))
+            + (1.0 - w_new) * (self.elastic_of(&models, &self.eval) - self.books.now.elastic);
         let r0 = self.eval.node_r.last().expect("tip");
         let r1 = eval.node_r.last().expect("tip");
         let df: [f64; 3] = std::array::from_fn(|k| self.tip_force[k] - self.step_tip.0[k]);
-        let fin = -(0..3).map(|k| df[k] * 0.5 * (r0[k] + r1[k])).sum::<f64>();
+        let fin = -(0..3)
+            .map(|k| df[k] * ((1.0 - w_new) * r0[k] + w_new * r1[k]))
+            .sum::<f64>();
         let rates = self.rates(&models, &eval, &slots, self.tip_moment);
         let d = self.dissipation(&models, &self.eval, &eval, h);
         let win = 0.5 * h * (books.rates[1] + rates[1] + books.rates[2] + rates[2]);

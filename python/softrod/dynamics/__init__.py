@@ -7,7 +7,7 @@
 """
 
 from .schedule import VACUUM_PA, PressureSchedule
-from .simulate import Simulation, simulate
+from .simulate import Simulation, SimulationState, simulate
 from .trajectory import AnimationPlan, Trajectory, animation_plan
 
 __all__ = [

@@ -97,52 +97,31 @@ def _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol) -> dict
 
 
 def _sigma_args(design: Design, stiffness_map) -> dict:
-    """The core's stiffness-map arguments: sigma evaluated in the core at every step's
-    pressures, so only maps the core can evaluate (constant, PCHIP table)."""
-    mapped = [
-        i for i, s in enumerate(design.spec["sections"]) if s.get("law", {}).get("stiffness_map")
-    ]
-    if stiffness_map is None:
-        if mapped:
-            raise design_error(
-                f"sections[{mapped[0]}].law.stiffness_map",
-                True,
-                "a mapped section needs stiffness_map= (a StiffnessMap.constant or a "
-                "StiffnessMap.from_table) to simulate",
-                InputError,
-            )
-        return {}
-    from ..stiffness_map import StiffnessMap
+    """The core's stiffness-map arguments (the map given, else the design file's): sigma is
+    evaluated in the core at every step's pressures, so only maps the core can evaluate
+    (constant, PCHIP table) run in dynamics."""
+    from ..statics import _stiffness_map
 
-    if not isinstance(stiffness_map, StiffnessMap):
-        raise design_error(
-            "stiffness_map", type(stiffness_map).__name__, "must be a StiffnessMap", InputError
-        )
-    if stiffness_map.n_channels != design.n_channels:
-        raise design_error(
-            "stiffness_map.n_channels",
-            stiffness_map.n_channels,
-            f"must equal the design's {design.n_channels} pressure channels",
-            InputError,
-        )
-    kind = stiffness_map.kind
-    if kind == "constant":
-        sigma = stiffness_map(np.zeros((1, design.n_channels)))[0]
+    smap = _stiffness_map(design, stiffness_map)
+    if smap is None:
+        return {}
+    if smap.kind == "constant":
+        sigma = smap(np.zeros((1, design.n_channels)))[0]
         return {"sigma_const": [float(x) for x in sigma]}
-    axes = stiffness_map.axes
-    ok_linear = axes is not None and all(len(a) == 2 for a in axes)
-    if kind == "table" and (stiffness_map._method == "pchip" or ok_linear):
-        values = np.asarray(stiffness_map.values, dtype=float)
+    axes = smap.axes
+    two_point = axes is not None and all(len(a) == 2 for a in axes)
+    if smap.kind == "table" and (smap._method == "pchip" or two_point):
+        values = np.asarray(smap.values, dtype=float)
         return {
             "sigma_grid": (
                 [np.asarray(a, dtype=float).tolist() for a in axes],
                 values.ravel().tolist(),
-                stiffness_map._outside == "clamp",
+                smap._outside == "clamp",
             )
         }
     raise design_error(
         "stiffness_map",
-        repr(stiffness_map),
+        repr(smap),
         "dynamics evaluates sigma in the core at every step: use StiffnessMap.constant or "
         "StiffnessMap.from_table(..., method='pchip') (tabulate a trained regressor over "
         "your pressure range first)",
