@@ -642,13 +642,34 @@ pub struct Problem<'a> {
 /// force F_s = EI_min / L^2, moment F_s L, velocities L w_s and w_s with
 /// w_s = max(c0, 1/s) (a velocity error dq moves the rod by dq / c0 in one step).
 pub fn point_scale(rod: &Rod, c0: f64) -> [f64; NY] {
-    let fs = rod.force_scale;
+    let fs = force_scale(rod);
     let ms = fs * rod.length;
     let ws = c0.max(1.0);
     let vs = rod.length * ws;
     [
         1.0, 1.0, 1.0, 1.0, fs, fs, fs, ms, ms, ms, vs, vs, vs, ws, ws, ws,
     ]
+}
+
+/// The force scale of the unknowns and equations: the geometric mean of the bending force
+/// scale EI/L^2 (a force that bends the rod by ~L) and the smallest axial or shear
+/// stiffness K (one that strains it by ~1), capped at 100 EI/L^2. With EI/L^2 alone, a
+/// uniform change of the axial force barely moves a long arm (strain fs / K), and Newton's
+/// matrix grows ill-conditioned in that direction (paper 000's arm at 1 m: its smallest
+/// equilibrated singular value fell to 6e-8 and steps stopped converging); the geometric
+/// mean balances the two sensitivities (each off by sqrt(K L^2 / EI)).
+pub fn force_scale(rod: &Rod) -> f64 {
+    let bend = rod.force_scale;
+    let k = rod
+        .sections
+        .iter()
+        .filter(|s| !s.rigid)
+        .map(|s| s.k_se[0].min(s.k_se[1]).min(s.k_se[2]))
+        .fold(f64::INFINITY, f64::min);
+    if !(k.is_finite() && k > 0.0 && bend > 0.0) {
+        return bend;
+    }
+    bend * (k / bend).sqrt().clamp(1.0, 100.0)
 }
 
 impl<'a> Problem<'a> {
@@ -670,8 +691,8 @@ impl<'a> Problem<'a> {
             tip,
             gravity: rod.gravity,
             scale: point_scale(rod, c0),
-            fs: rod.force_scale,
-            ms: rod.force_scale * rod.length,
+            fs: force_scale(rod),
+            ms: force_scale(rod) * rod.length,
             base_q: quaternion(&rod.base_rotation),
         }
     }
@@ -1427,7 +1448,7 @@ pub fn solve_static(
 
 /// Base force and moment (world) of a solution, N and N m.
 pub fn base_wrench(rod: &Rod, z: &[f64]) -> ([f64; 3], [f64; 3]) {
-    let fs = rod.force_scale;
+    let fs = force_scale(rod);
     let ms = fs * rod.length;
     (
         [z[0] * fs, z[1] * fs, z[2] * fs],
