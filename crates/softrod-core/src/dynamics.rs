@@ -109,8 +109,83 @@ const SQRT3_6: f64 = 0.288_675_134_594_812_9; // sqrt(3) / 6, the Gauss tableau'
 /// within a few e-foldings.
 pub const DEFAULT_ENERGY_TOL: f64 = 0.02;
 
-/// How many times a step may be halved when Newton fails (2^10 substeps).
-const MAX_HALVINGS: u32 = 10;
+/// How many times a step may be halved when Newton fails (2^6 substeps). Not more: as
+/// h -> 0 the stiff solutions of a step's boundary-value problem (exp(s c0 / c)) make Gauss
+/// collocation's amplification approach 1 for both growing and decaying ones, and its
+/// Newton matrix grows singular; a failure that survives 64 substeps is not a step size
+/// problem.
+const MAX_HALVINGS: u32 = 6;
+
+/// Commanded pressures as a table of knots, so that steps inside an output interval
+/// (substeps, adaptive steps) see the commands at their own end times: linear between the
+/// knots, or held from each knot to the next (`step`); the end values hold outside.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CommandSchedule {
+    times: Vec<f64>,
+    values: Vec<Vec<f64>>,
+    step: bool,
+}
+
+impl CommandSchedule {
+    /// Knots `times` (finite, strictly increasing) with one row of `channels` pressures
+    /// each (Pa; checked like commands).
+    pub fn new(
+        times: Vec<f64>,
+        values: Vec<Vec<f64>>,
+        step: bool,
+        channels: usize,
+    ) -> Result<Self> {
+        if times.is_empty() || times.len() != values.len() {
+            return Err(SoftrodError::invalid(
+                "schedule",
+                format!("{} times, {} rows", times.len(), values.len()),
+                "needs one row of pressures per knot time, at least one",
+            ));
+        }
+        for (k, t) in times.iter().enumerate() {
+            if !t.is_finite() || (k > 0 && *t <= times[k - 1]) {
+                return Err(SoftrodError::invalid(
+                    format!("schedule.times[{k}]"),
+                    t,
+                    "knot times must be finite and strictly increasing",
+                ));
+            }
+        }
+        for (k, row) in values.iter().enumerate() {
+            crate::spec::validate_pressures(row, channels)
+                .map_err(|e| rename_pressure_error(e, &format!("schedule.values[{k}]")))?;
+        }
+        Ok(CommandSchedule {
+            times,
+            values,
+            step,
+        })
+    }
+
+    /// The commands at time t.
+    pub fn at(&self, t: f64) -> Vec<f64> {
+        let k = self.times.partition_point(|&x| x <= t);
+        if k == 0 {
+            return self.values[0].clone();
+        }
+        if k == self.times.len() || self.step {
+            return self.values[k - 1].clone();
+        }
+        let (t0, t1) = (self.times[k - 1], self.times[k]);
+        let w = (t - t0) / (t1 - t0);
+        self.values[k - 1]
+            .iter()
+            .zip(&self.values[k])
+            .map(|(a, b)| a + w * (b - a))
+            .collect()
+    }
+
+    /// The first knot strictly after t (where the commands change slope or jump).
+    fn next_knot(&self, t: f64) -> Option<f64> {
+        let k = self.times.partition_point(|&x| x <= t);
+        self.times.get(k).copied()
+    }
+}
 
 impl DynOptions {
     pub fn validate(&self) -> Result<()> {
@@ -867,6 +942,13 @@ impl Simulator {
     /// One time step with the commanded pressures `command` (Pa) held over it: dt, taken
     /// as one step, as substeps where Newton fails, or as error-controlled steps (adaptive).
     pub fn step(&mut self, command: &[f64]) -> Result<()> {
+        self.step_with(command, None)
+    }
+
+    /// [`Simulator::step`] where the steps inside the interval (substeps, adaptive steps)
+    /// take their commands from `schedule` at their own end times (the interval's end
+    /// still takes `command`), and end on the schedule's knots.
+    pub fn step_with(&mut self, command: &[f64], schedule: Option<&CommandSchedule>) -> Result<()> {
         crate::spec::validate_pressures(command, self.rod.n_channels)
             .map_err(|e| rename_pressure_error(e, "command"))?;
         let dt = self.opts.dt;
@@ -881,7 +963,20 @@ impl Simulator {
             if h >= remaining * (1.0 - 1e-9) || remaining - h < 1e-3 * h {
                 h = remaining;
             }
-            match self.attempt(h, command) {
+            // Inside the interval: end on the schedule's next knot (a jump or a kink of the
+            // commands) and take the commands there.
+            let mut cmd = command.to_vec();
+            if let Some(sch) = schedule {
+                if h < remaining {
+                    if let Some(knot) = sch.next_knot(self.time) {
+                        if knot < self.time + h && knot > self.time + 1e-3 * h {
+                            h = knot - self.time;
+                        }
+                    }
+                    cmd = sch.at(self.time + h);
+                }
+            }
+            match self.attempt(h, &cmd) {
                 Ok(c) => {
                     if let (Some(tol), Some(err)) = (self.opts.error_tol, c.error) {
                         let factor =
@@ -916,9 +1011,9 @@ impl Simulator {
                             residual,
                             load_factor: 1.0,
                             reason: format!(
-                                "{reason}; also in {} substeps of {:.3e} s: check the inputs (a pressure or load far beyond the design's range?) or loosen tol",
-                                1 << MAX_HALVINGS,
-                                dt / f64::from(1u32 << MAX_HALVINGS)
+                                "{reason}; also in steps down to {:.3e} s (dt / {}): check the inputs (a pressure or load far beyond the design's range?) or loosen tol",
+                                dt / f64::from(1u32 << MAX_HALVINGS),
+                                1u32 << MAX_HALVINGS
                             ),
                         });
                     }

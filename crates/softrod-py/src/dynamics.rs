@@ -5,7 +5,7 @@ use crate::{array2, array3, to_py_err, Context};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
+use softrod_core::dynamics::{CommandSchedule, DynOptions, Initial, Scheme, SigmaMap, Simulator};
 use softrod_core::interp::GridPchip;
 use softrod_core::{Rod, SoftrodError};
 
@@ -248,7 +248,9 @@ impl PySimulator {
     /// each new step time, with the dead tip loads of `tip_loads` (k, 6: force N, moment
     /// N m, world) when given. After step j the state is kept when `keep[j]` is 1 (tip) or
     /// 2 (tip and shape). Returns the kept samples as arrays.
-    #[pyo3(signature = (commands, keep, energy=true, tip_loads=None))]
+    /// `schedule` = (knot times, knot rows, step kind): the commands of steps inside an
+    /// interval (substeps, adaptive steps) come from it at their own times.
+    #[pyo3(signature = (commands, keep, energy=true, tip_loads=None, schedule=None))]
     fn run<'py>(
         &mut self,
         py: Python<'py>,
@@ -256,6 +258,7 @@ impl PySimulator {
         keep: PyReadonlyArray1<'_, u8>,
         energy: bool,
         tip_loads: Option<PyReadonlyArray2<'_, f64>>,
+        schedule: Option<(Vec<f64>, Vec<Vec<f64>>, bool)>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let nc = self.sim.rod().n_channels;
         let cmd = commands.as_array().to_owned();
@@ -283,6 +286,13 @@ impl PySimulator {
                 Context::Input,
             ));
         }
+        let table = match schedule {
+            Some((t, v, step)) => Some(
+                CommandSchedule::new(t, v, step, nc)
+                    .map_err(|e| to_py_err(py, e, Context::Input))?,
+            ),
+            None => None,
+        };
         let loads = tip_loads.map(|a| a.as_array().to_owned());
         if let Some(l) = &loads {
             if l.shape() != [shape[0], 6] {
@@ -308,7 +318,7 @@ impl PySimulator {
                     )?;
                 }
                 let c: Vec<f64> = row.to_vec();
-                sim.step(&c)?;
+                sim.step_with(&c, table.as_ref())?;
                 if *flag >= 1 {
                     saved.push(sim, energy);
                 }

@@ -443,6 +443,15 @@ class Simulation:
             return np.zeros((t.size, 0)) if schedule is None else schedule.sample(t)
 
         kept_commands = [commands_at(np.array([t0]))]
+        # Steps inside an interval (substeps, adaptive steps) read a table schedule at their
+        # own times; a callable's is sampled at the intervals' ends only.
+        table = None
+        if schedule is not None and schedule.kind in ("linear", "step"):
+            table = (
+                schedule.times.tolist(),
+                schedule.pressures.tolist(),
+                schedule.kind == "step",
+            )
         wall0 = _time.perf_counter()
         start, chunk = 0, 32
         with reporter(progress, "simulate", duration, simulated_time) as report:
@@ -460,6 +469,7 @@ class Simulation:
                         keep[start:stop],
                         bool(energy),
                         None if loads is None else np.ascontiguousarray(loads),
+                        table,
                     )
                 )
                 spent = _time.perf_counter() - t_chunk
