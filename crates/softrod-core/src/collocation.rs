@@ -1080,10 +1080,24 @@ pub fn newton(
     opts: &NewtonOptions,
     stats: &mut NewtonStats,
 ) -> std::result::Result<f64, (usize, f64)> {
-    let reuse: f64 = std::env::var("SOFTROD_REUSE")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(0.25);
+    let mut theta = 1.0;
+    newton_with(p, z, cache, opts, stats, &mut theta)
+}
+
+/// [`newton`] with the contraction rate `theta` of the matrix's last use (updated on
+/// return): a sequence of similar problems (time steps) with a kept matrix contracts at
+/// about the same rate, so the first correction's remaining error can be estimated as
+/// theta / (1 - theta) of it; when that is below tol, and the residual confirms the
+/// contraction, the step ends after one correction (Hairer and Wanner's device in Radau5).
+pub fn newton_with(
+    p: &Problem,
+    z: &mut [f64],
+    cache: &mut Option<Factorization>,
+    opts: &NewtonOptions,
+    stats: &mut NewtonStats,
+    theta_hint: &mut f64,
+) -> std::result::Result<f64, (usize, f64)> {
+    const REUSE: f64 = 0.25;
     let n = z.len();
     let mut r = vec![0.0; n];
     let mut rt = vec![0.0; n];
@@ -1093,7 +1107,6 @@ pub fn newton(
     let mut norm = inf_norm(&r);
     let mut fresh = false;
     let mut last_step = f64::INFINITY;
-    let debug = std::env::var("SOFTROD_DEBUG_NEWTON").is_ok();
     for it in 0..opts.max_iter {
         stats.iterations += 1;
         if !norm.is_finite() && fresh {
@@ -1111,9 +1124,6 @@ pub fn newton(
         fac.solve(&r, &mut dz);
         let scale = inf_norm(z).max(1.0);
         let step = inf_norm(&dz) / scale;
-        if debug {
-            eprintln!("  it {it}: residual {norm:.3e}, correction {step:.3e}, fresh {fresh}");
-        }
         if !step.is_finite() {
             if fresh {
                 return Err((it + 1, norm));
@@ -1140,7 +1150,27 @@ pub fn newton(
             for k in 0..n {
                 z[k] += dz[k];
             }
+            if it > 0 && theta < 1.0 {
+                *theta_hint = theta;
+            }
             return Ok(norm);
+        }
+        if it == 0 && !fresh && *theta_hint < 0.5 {
+            // The kept matrix's last rate predicts the remaining error; accept one
+            // correction if that is below tol and the residual falls at least as the rate
+            // says (by 10x the predicted factor at worst, and by half).
+            let th = *theta_hint;
+            if step * th / (1.0 - th) <= opts.tol {
+                for k in 0..n {
+                    zt[k] = z[k] + dz[k];
+                }
+                p.residual(&zt, &mut rt, None);
+                let nt = inf_norm(&rt);
+                if nt.is_finite() && nt <= norm * (10.0 * th).min(0.5) {
+                    z.copy_from_slice(&zt);
+                    return Ok(nt);
+                }
+            }
         }
         let mut alpha = 1.0;
         let mut accepted = false;
@@ -1151,7 +1181,7 @@ pub fn newton(
             p.residual(&zt, &mut rt, None);
             let nt = inf_norm(&rt);
             if nt.is_finite() && nt < (1.0 - 1e-4 * alpha) * norm {
-                if alpha < 1.0 || (last_step.is_finite() && theta > reuse) {
+                if alpha < 1.0 || (last_step.is_finite() && theta > REUSE) {
                     *cache = None; // refresh at the new iterate
                 }
                 z.copy_from_slice(&zt);
@@ -1176,6 +1206,10 @@ pub fn newton(
             }
             *cache = None;
             last_step = f64::INFINITY;
+            *theta_hint = 1.0;
+        }
+        if cache.is_none() {
+            *theta_hint = 1.0; // a new matrix: its rate is unknown
         }
     }
     Err((opts.max_iter, norm))

@@ -536,6 +536,8 @@ pub struct Simulator {
     past: Vec<(f64, Vec<[f64; 3]>)>,
     books: Books,
     cache: Option<Cached>,
+    /// Newton's contraction rate with the kept matrix at the last step.
+    theta: f64,
     pub stats: DynStats,
 }
 
@@ -642,6 +644,7 @@ impl Simulator {
             past: vec![],
             books: Books::default(),
             cache: None,
+            theta: 1.0,
             stats: DynStats::default(),
             grid,
             rod,
@@ -1107,7 +1110,14 @@ impl Simulator {
             max_iter: self.opts.max_iter,
         };
         let mut ns = NewtonStats::default();
-        let result = collocation::newton(&problem, &mut z, &mut cache, &nopts, &mut ns);
+        let result = collocation::newton_with(
+            &problem,
+            &mut z,
+            &mut cache,
+            &nopts,
+            &mut ns,
+            &mut self.theta,
+        );
         self.stats.newton_iterations += ns.iterations;
         self.stats.jacobians += ns.jacobians;
         // Keep the factorization, and what it was computed from, for the next step.
@@ -1548,7 +1558,7 @@ impl Simulator {
 }
 
 /// Layout version of [`Simulator::save`].
-const STATE_VERSION: f64 = 1.0;
+const STATE_VERSION: f64 = 2.0;
 /// First number of a saved state ("softrod" in a number; guards against foreign arrays).
 const STATE_MAGIC: f64 = 50_770_213.0;
 
@@ -1693,6 +1703,7 @@ impl Simulator {
             b.moved_in,
         ]);
         w.all(&b.rates);
+        w.f(self.theta);
         let st = &self.stats;
         for c in [
             st.steps,
@@ -1798,6 +1809,7 @@ impl Simulator {
             moved_in: b[11],
             rates: r.fixed()?,
         };
+        next.theta = r.f()?;
         next.stats = DynStats {
             steps: r.n()?,
             internal_steps: r.n()?,
