@@ -10,6 +10,9 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :func:`list_presets`: named published models (``load_design("paper002_M3_vertical")``)
 - :func:`compare_models`: models on paper 002's experiments -> pandas DataFrame
 - :class:`SolverOptions`
+- :func:`solve_inverse` / :class:`InverseProblem`: pressures within bounds that bring the tip
+  to a target; :func:`linearise` (M, D, K, B and modes), :func:`workspace`,
+  :func:`run_closed_loop` (:mod:`softrod.control`, docs/control.md)
 - :class:`StiffnessMap`: pressure-dependent stiffness scaling sigma(p) (paper 001 eq. 13)
 - :func:`load_dataset` / :func:`write_dataset` -> :class:`Dataset` (CSV, Parquet; docs/datasets.md)
 - :func:`synthesize_dataset`: synthetic datasets from the model, marked as such
@@ -43,6 +46,18 @@ from .calibration import (
 )
 from .catalog import bundled_designs, load_design
 from .compare import compare_models
+from .control import (
+    InverseProblem,
+    InverseSolution,
+    LinearSystem,
+    TargetPath,
+    TrackingController,
+    Workspace,
+    linearise,
+    run_closed_loop,
+    solve_inverse,
+    workspace,
+)
 from .datasets import Dataset, load_dataset, synthesize_dataset, write_dataset
 from .design import Design, designs_dir
 from .dynamics import PressureSchedule, Simulation, Trajectory, simulate
@@ -78,8 +93,11 @@ __all__ = [
     "DesignError",
     "HybridStiffnessModel",
     "InputError",
+    "InverseProblem",
+    "InverseSolution",
     "InternalError",
     "InvalidStateError",
+    "LinearSystem",
     "Preset",
     "SoftrodError",
     "SolverOptions",
@@ -87,10 +105,13 @@ __all__ = [
     "StaticSolution",
     "StiffnessIdentification",
     "StiffnessMap",
+    "TargetPath",
+    "TrackingController",
     "PressureSchedule",
     "Simulation",
     "Trajectory",
     "ValidityWarning",
+    "Workspace",
     "__version__",
     "bundled_designs",
     "calibrate",
@@ -99,14 +120,18 @@ __all__ = [
     "designs_dir",
     "fit_stiffness_map",
     "identify_stiffness",
+    "linearise",
     "list_presets",
     "load_dataset",
     "pcc",
     "load_design",
     "solve_statics",
     "simulate",
+    "run_closed_loop",
+    "solve_inverse",
     "solve_statics_batch",
     "synthesize_dataset",
     "view",
+    "workspace",
     "write_dataset",
 ]

@@ -40,6 +40,8 @@ class StaticSolution:
     load_steps: int
     shooting_unknowns: np.ndarray = field(repr=False)
     stiffness_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
+    #: (tip force, tip moment) the equilibrium was solved under (world frame, N and N m).
+    tip_loads: tuple | None = field(default=None, repr=False)
 
     @classmethod
     def failed(cls, design, pressures, exc, n_unknowns: int, **extra) -> StaticSolution:
@@ -87,6 +89,14 @@ class StaticSolution:
     @property
     def strains(self) -> dict[str, np.ndarray]:
         return {"v": self.v, "u": self.u}
+
+    def jacobian(self, *, params=(), point=None):
+        """The exact Jacobian of the tip pose (or the pose at arc length ``point``) with
+        respect to the pressures, the tip force and moment, and named calibration
+        parameters (tip only): a :class:`softrod.control.Jacobian` (docs/control.md)."""
+        from .control.linear import jacobian
+
+        return jacobian(self, params=params, point=point)
 
 
 @dataclass(frozen=True)

@@ -214,6 +214,7 @@ def solve_statics(
         load_steps=out["load_steps"],
         shooting_unknowns=np.array(out["x"]),
         stiffness_scale=sigma,
+        tip_loads=(tuple(tf), tuple(tm)),
     )
 
 

@@ -33,7 +33,7 @@
 //! converged and checked against the validity rules (`crate::validity`).
 
 use crate::error::{Result, SoftrodError};
-use crate::jacobian::{pass_with, total_derivatives, value_with, Input, Probe};
+use crate::jacobian::{pass_with, total_derivatives, value_with, Input, Pass, Probe};
 use crate::ode::{integrate, strains, Loads, State};
 use crate::rod::Rod;
 use crate::statics::{self, Problem, Solution, SolverOptions};
@@ -122,6 +122,8 @@ pub struct InverseSolution {
     pub passes: usize,
     /// Validity-range violations accepted under `Policy::Warn`.
     pub warnings: Vec<SoftrodError>,
+    /// The last linearisation used (a warm start keeps it: [`InverseSolution::warm_start`]).
+    pub linearisation: Option<Linearisation>,
 }
 
 fn finite(field: &str, v: f64) -> Result<()> {
@@ -528,20 +530,60 @@ struct Iterate {
     y: [f64; 12],
     point: State<f64>,
     tip: State<f64>,
+    /// The probe's values corrected to first order for the equilibrium defect g (equal to
+    /// `y` when the iterate is exact: g within the statics tolerance).
+    y_corr: [f64; 12],
+    exact: bool,
 }
+
+/// Largest equilibrium defect (scaled residual, relative to max(1, |x|)) an intermediate
+/// iterate may keep: its probe values are corrected to first order (error ~1e-6 times the
+/// step), the cost comparisons stay meaningful, and the answer is made exact at the end.
+const LOOSE: f64 = 1e-6;
 
 fn inf(v: &[f64]) -> f64 {
     v.iter().fold(0.0, |a: f64, x| a.max(x.abs()))
 }
 
+/// A warm start: the shooting unknowns of the start pressures (e.g. the previous answer's
+/// `solution.x`) and, from a previous answer of the same problem, its linearisation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WarmStart {
+    pub x: [f64; 3],
+    /// The converged equilibrium this warm start describes: pressures, the probe's and the
+    /// tip's states (when the start pressures equal these, no pass is needed to begin).
+    pub equilibrium: Option<(Vec<f64>, State<f64>, State<f64>)>,
+    pub linearisation: Option<Linearisation>,
+}
+
+/// A linearisation of the equilibrium and the probe: the pass (partial derivatives at some
+/// iterate) and the reduced Jacobian dy/dp, refined by Broyden updates as steps are taken.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Linearisation {
+    pub pass: Pass,
+    pub dy: Vec<[f64; 12]>,
+}
+
+impl InverseSolution {
+    /// A warm start for the next target of the same problem.
+    pub fn warm_start(&self) -> WarmStart {
+        WarmStart {
+            x: self.solution.x,
+            equilibrium: Some((self.pressures.clone(), self.point, self.solution.tip)),
+            linearisation: self.linearisation.clone(),
+        }
+    }
+}
+
 /// Solve the inverse problem. `loads.pressures` is the start (clipped into the bounds);
-/// `guess` its shooting unknowns (a warm start: e.g. the previous solution's `x`).
+/// `warm` a warm start for it (else a cold start: the equilibrium is solved from scratch
+/// and the best of a few start candidates is taken).
 pub fn solve_inverse(
     rod: &Rod,
     loads: &Loads,
     target: &InverseTarget,
     opts: &InverseOptions,
-    guess: Option<&[f64; 3]>,
+    warm: Option<&WarmStart>,
 ) -> Result<InverseSolution> {
     validate(rod, loads, target, opts)?;
     let probe = Probe::at(rod, target.s)?;
@@ -580,27 +622,96 @@ pub fn solve_inverse(
             .sum();
         0.5 * e.iter().map(|v| v * v).sum::<f64>() + 0.5 * eps * reg
     };
-    let iterate_at = |p: Vec<f64>, guess: Option<&[f64; 3]>| -> Result<Iterate> {
-        let ld = with_p(&p);
-        let sol = statics::solve(rod, &ld, guess, &opts.statics)?;
-        let problem = Problem::new(rod, &ld, 1.0);
-        let (g, point, tip) = value_with(&problem, rod, &sol.x, &probe);
-        Ok(Iterate {
+    let eq_tol = |x: &[f64; 3]| opts.statics.tol * inf(x).max(1.0);
+    let exact_at = |p: Vec<f64>, x: [f64; 3], problem: &Problem| -> Iterate {
+        let (g, point, tip) = value_with(problem, rod, &x, &probe);
+        let y = flatten(&point);
+        Iterate {
             p,
-            x: sol.x,
+            x,
             g,
-            y: flatten(&point),
+            y,
             point,
             tip,
-        })
+            y_corr: y,
+            exact: true,
+        }
     };
+    let iterate_at = |p: Vec<f64>, guess: Option<&[f64; 3]>| -> Result<Iterate> {
+        let ld = with_p(&p);
+        let problem = Problem::new(rod, &ld, 1.0);
+        if let Some(x) = guess {
+            // A warm start is usually the equilibrium already: one f64 pass tells.
+            let it = exact_at(p.clone(), *x, &problem);
+            if inf(&it.g) <= eq_tol(x) {
+                return Ok(it);
+            }
+        }
+        let sol = statics::solve(rod, &ld, guess, &opts.statics)?;
+        Ok(exact_at(p, sol.x, &problem))
+    };
+    // Chord Newton on the equilibrium at fixed pressures with the LU of a nearby g_x
+    // (f64 passes only); a full statics solve if that does not converge.
+    let make_exact =
+        |it: Iterate, lu: &nalgebra::LU<f64, nalgebra::U3, nalgebra::U3>| -> Result<Iterate> {
+            if it.exact {
+                return Ok(it);
+            }
+            let ld = with_p(&it.p);
+            let problem = Problem::new(rod, &ld, 1.0);
+            let mut x = it.x;
+            let mut g = it.g;
+            let mut last = f64::INFINITY;
+            for _ in 0..8 {
+                let n = inf(&g);
+                if !n.is_finite() || n > 0.5 * last {
+                    break;
+                }
+                let d = lu
+                    .solve(&-Vector3::from_column_slice(&g))
+                    .unwrap_or_else(Vector3::zeros);
+                for k in 0..3 {
+                    x[k] += d[k];
+                }
+                let next = exact_at(it.p.clone(), x, &problem);
+                if inf(&next.g) <= eq_tol(&x) {
+                    return Ok(next);
+                }
+                last = n;
+                g = next.g;
+            }
+            let sol = statics::solve(rod, &ld, Some(&it.x), &opts.statics)?;
+            Ok(exact_at(it.p, sol.x, &problem))
+        };
     // Start: the equilibrium at the clipped start pressures; from a cold start, the best of
     // it, the box's centre and (up to 4 channels) its corners, so that the local method
     // starts in the right basin of a non-convex distance.
     let p0: Vec<f64> = (0..nc)
         .map(|c| loads.pressures[c].clamp(lo[c], hi[c]))
         .collect();
-    let mut it = iterate_at(p0, guess)?;
+    let guess = warm.map(|w| &w.x);
+    let known = warm.and_then(|w| {
+        w.equilibrium
+            .as_ref()
+            .filter(|(p, _, _)| *p == p0 && w.x.iter().all(|v| v.is_finite()))
+    });
+    let mut it = match known {
+        // The previous answer: converged and checked there, at these very pressures.
+        Some((_, point, tip)) => {
+            let y = flatten(point);
+            Iterate {
+                p: p0,
+                x: warm.expect("known comes from warm").x,
+                g: [0.0; 3],
+                y,
+                point: *point,
+                tip: *tip,
+                y_corr: y,
+                exact: true,
+            }
+        }
+        None => iterate_at(p0, guess)?,
+    };
     if guess.is_none() {
         let mut candidates: Vec<Vec<f64>> = vec![(0..nc).map(|c| 0.5 * (lo[c] + hi[c])).collect()];
         if nc <= 4 {
@@ -627,27 +738,46 @@ pub fn solve_inverse(
     let mut mu = 0.0f64;
     let mut iterations = 0;
     let mut stationary = false;
-    let eq_tol = |x: &[f64; 3]| opts.statics.tol * inf(x).max(1.0);
+    // The linearisation in use: fresh from a pass at the current iterate, or kept from an
+    // earlier iterate (or the previous call) while its chord steps contract well.
+    let mut lin: Option<Linearisation> = warm
+        .and_then(|w| w.linearisation.clone())
+        .filter(|l| l.pass.g_a.len() == nc && l.pass.s == target.s);
+    let mut fresh = false;
+    let mut need_fresh = lin.is_none();
     while iterations < opts.max_iter {
-        if eps == 0.0 && task.reached(&it.y, opts.tol) {
-            break;
+        if eps == 0.0 && task.reached(&it.y_corr, opts.tol) {
+            if let Some(l) = &lin {
+                it = make_exact(it, &l.pass.g_x.lu())?;
+            }
+            if task.reached(&it.y, opts.tol) {
+                break;
+            }
         }
         iterations += 1;
-        let ld = with_p(&it.p);
-        let problem = Problem::new(rod, &ld, 1.0);
-        let pass = pass_with(&problem, rod, &ld, &it.x, &inputs, &probe);
-        passes += 1;
+        if need_fresh || lin.is_none() {
+            let ld = with_p(&it.p);
+            let problem = Problem::new(rod, &ld, 1.0);
+            let pass = pass_with(&problem, rod, &ld, &it.x, &inputs, &probe);
+            passes += 1;
+            let Some((dy, _)) = total_derivatives(&pass) else {
+                return Err(SoftrodError::NotConverged {
+                    iterations,
+                    residual: inf(&it.g),
+                    load_factor: 1.0,
+                    reason: "the shooting Jacobian became singular during the inverse (a limit point of the equilibrium)".into(),
+                });
+            };
+            lin = Some(Linearisation { pass, dy });
+            fresh = true;
+            need_fresh = false;
+        }
+        let current = lin.as_ref().expect("a linearisation is set above");
+        let pass = &current.pass;
+        let dy = current.dy.clone();
         let lu = pass.g_x.lu();
-        let Some((dy, _)) = total_derivatives(&pass) else {
-            return Err(SoftrodError::NotConverged {
-                iterations,
-                residual: inf(&it.g),
-                load_factor: 1.0,
-                reason: "the shooting Jacobian became singular during the inverse (a limit point of the equilibrium)".into(),
-            });
-        };
-        // Value and Jacobian of e in scaled pressures; the small equilibrium defect g is
-        // folded in through the linearised equilibrium.
+        // Value and Jacobian of e in scaled pressures; the equilibrium defect g of the
+        // iterate is folded in through the linearised equilibrium.
         let dx0 = lu
             .solve(&-Vector3::from_column_slice(&it.g))
             .unwrap_or_else(Vector3::zeros);
@@ -659,7 +789,7 @@ pub fn solve_inverse(
             .map(|c| task.residual(&dy[c].map(|v| v * range[c]), true))
             .collect();
         let jac = DMatrix::from_fn(m, nc, |r, c| columns[c][r]);
-        let cost = cost_of(&it.y, &it.p, eps);
+        let cost = cost_of(&y_lin, &it.p, eps);
         let z: Vec<f64> = (0..nc).map(|c| (it.p[c] - lo[c]) / range[c]).collect();
         let jtj = jac.transpose() * &jac;
         let scale = jtj.diagonal().max().max(1e-300);
@@ -692,14 +822,15 @@ pub fn solve_inverse(
             let p_t: Vec<f64> = (0..nc)
                 .map(|c| (it.p[c] + dz[c] * range[c]).clamp(lo[c], hi[c]))
                 .collect();
-            let dp: Vec<f64> = (0..nc).map(|c| p_t[c] - it.p[c]).collect();
             let mut rhs = Vector3::from_column_slice(&it.g);
             for c in 0..nc {
-                rhs += Vector3::from_column_slice(&pass.g_a[c]) * dp[c];
+                rhs += Vector3::from_column_slice(&pass.g_a[c]) * (p_t[c] - it.p[c]);
             }
             let dx = lu.solve(&-rhs).unwrap_or_else(Vector3::zeros);
             let mut x_t = [it.x[0] + dx[0], it.x[1] + dx[1], it.x[2] + dx[2]];
-            // Chord Newton on the equilibrium at p_t with the pass's g_x.
+            // The equilibrium at p_t: accept the linearised x_t when its defect is within
+            // LOOSE (probe values corrected to first order), else chord Newton steps with
+            // this g_x, else a full solve.
             let ld_t = with_p(&p_t);
             let prob_t = Problem::new(rod, &ld_t, 1.0);
             let mut trial = None;
@@ -710,8 +841,8 @@ pub fn solve_inverse(
                 if !n.is_finite() || n > 0.5 * last {
                     break;
                 }
-                if n <= eq_tol(&x_t) {
-                    trial = Some((g, point, tip));
+                if n <= LOOSE * inf(&x_t).max(1.0) {
+                    trial = Some((g, point, tip, n <= eq_tol(&x_t)));
                     break;
                 }
                 last = n;
@@ -722,19 +853,31 @@ pub fn solve_inverse(
                     x_t[k] += d[k];
                 }
             }
-            if trial.is_none() {
+            if trial.is_none() && fresh {
                 // A long step: solve the equilibrium properly (Newton, continuation).
                 if let Ok(sol) = statics::solve(rod, &ld_t, Some(&x_t), &opts.statics) {
                     x_t = sol.x;
-                    trial = Some(value_with(&prob_t, rod, &x_t, &probe));
+                    let (g, point, tip) = value_with(&prob_t, rod, &x_t, &probe);
+                    trial = Some((g, point, tip, true));
                 }
             }
-            let Some((g_t, point_t, tip_t)) = trial else {
+            let Some((g_t, point_t, tip_t, exact_t)) = trial else {
+                if !fresh {
+                    break; // the kept linearisation is too old: take a fresh one
+                }
                 mu = (mu * 4.0).max(1e-3 * scale);
                 continue;
             };
             let y_t = flatten(&point_t);
-            let cost_t = cost_of(&y_t, &p_t, eps);
+            let y_corr_t = if exact_t {
+                y_t
+            } else {
+                let d = lu
+                    .solve(&-Vector3::from_column_slice(&g_t))
+                    .unwrap_or_else(Vector3::zeros);
+                std::array::from_fn(|i| y_t[i] + (0..3).map(|j| pass.y_x[i][j] * d[j]).sum::<f64>())
+            };
+            let cost_t = cost_of(&y_corr_t, &p_t, eps);
             if cost_t.is_finite() && cost_t < cost {
                 let rho = (cost - cost_t) / pred;
                 mu = if rho > 0.75 {
@@ -747,6 +890,26 @@ pub fn solve_inverse(
                 if mu < 1e-12 * scale {
                     mu = 0.0;
                 }
+                // Keep this linearisation for the next step while it contracts the cost
+                // well (a chord step of the joint Newton method costs f64 passes only).
+                need_fresh = cost_t > 0.0625 * cost;
+                // Broyden's update of dy/dp with the observed change (scaled pressures).
+                let sz: Vec<f64> = (0..nc).map(|c| (p_t[c] - it.p[c]) / range[c]).collect();
+                let ss: f64 = sz.iter().map(|v| v * v).sum();
+                if ss > 0.0 {
+                    let miss: [f64; 12] = std::array::from_fn(|i| {
+                        y_corr_t[i]
+                            - y_lin[i]
+                            - (0..nc).map(|c| dy[c][i] * sz[c] * range[c]).sum::<f64>()
+                    });
+                    if let Some(l) = lin.as_mut() {
+                        for c in 0..nc {
+                            for i in 0..12 {
+                                l.dy[c][i] += miss[i] * sz[c] / (ss * range[c]);
+                            }
+                        }
+                    }
+                }
                 it = Iterate {
                     p: p_t,
                     x: x_t,
@@ -754,11 +917,23 @@ pub fn solve_inverse(
                     y: y_t,
                     point: point_t,
                     tip: tip_t,
+                    y_corr: y_corr_t,
+                    exact: exact_t,
                 };
                 accepted = true;
+                fresh = false;
+                break;
+            }
+            if !fresh {
                 break;
             }
             mu = (mu * 4.0).max(1e-4 * scale);
+        }
+        if !accepted && !fresh {
+            // A kept linearisation failed to make progress: retry with a fresh one.
+            need_fresh = true;
+            stationary = false;
+            continue;
         }
         if !accepted {
             stationary = true;
@@ -774,6 +949,9 @@ pub fn solve_inverse(
             }
             break;
         }
+    }
+    if let Some(l) = &lin {
+        it = make_exact(it, &l.pass.g_x.lu())?;
     }
     let reached = task.reached(&it.y, opts.tol);
     if !reached && !stationary && eps == 0.0 && iterations >= opts.max_iter {
@@ -827,6 +1005,7 @@ pub fn solve_inverse(
         iterations,
         passes,
         warnings,
+        linearisation: lin,
     })
 }
 

@@ -91,8 +91,10 @@ impl Probe {
 
 /// One pass: the residual and the probe's state, each with its partial derivatives in the
 /// pass's directions (x first, then the inputs).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Pass {
+    /// Arc length of the probe, m.
+    pub s: f64,
     /// Scaled shooting residual g (3).
     pub g: [f64; 3],
     /// d g / d x.
@@ -173,6 +175,7 @@ fn pass_n<const N: usize>(
     }
     let y = flatten(&point.unwrap_or(tip));
     Pass {
+        s: probe.s,
         g: g.map(|v| v.re),
         g_x: Matrix3::from_fn(|i, j| g[i].eps[j]),
         g_a: (0..inputs.len())

@@ -104,7 +104,7 @@ fn warm_start_follows_a_moving_target() {
             &loads(&prev.pressures),
             &target(&rod, goal),
             &opts,
-            Some(&prev.solution.x),
+            Some(&prev.warm_start()),
         )
         .unwrap();
         assert!(

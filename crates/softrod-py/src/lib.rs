@@ -12,6 +12,7 @@ use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::statics::{self, SolverOptions};
 use softrod_core::{DesignSpec, Rod, SoftrodError};
 
+mod control;
 mod dynamics;
 mod pcc;
 
@@ -64,8 +65,8 @@ fn to_py_err(py: Python<'_>, err: SoftrodError, ctx: Context) -> PyErr {
 
 /// A validated, compiled design (immutable).
 #[pyclass(name = "Rod", module = "softrod._core", frozen)]
-struct PyRod {
-    rod: Rod,
+pub(crate) struct PyRod {
+    pub(crate) rod: Rod,
 }
 
 fn options(tol: f64, max_iter: usize, continuation: bool, max_load_steps: usize) -> SolverOptions {
@@ -445,6 +446,7 @@ impl PyGridPchip {
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRod>()?;
     m.add_class::<PyGridPchip>()?;
+    control::register(m)?;
     dynamics::register(m)?;
     pcc::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
