@@ -5,7 +5,8 @@ use crate::{options, to_py_err, Context, PyRod};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget};
+use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget, WarmStart};
+use std::sync::Mutex;
 use softrod_core::jacobian::{point_jacobian, Input, Probe};
 use softrod_core::linearise::linearise;
 use softrod_core::ode::Loads;
@@ -44,6 +45,9 @@ pub struct PyInverse {
     orientation_weight: f64,
     tip_force: [f64; 3],
     tip_moment: [f64; 3],
+    /// The last answer's warm start: a call that starts from that answer (same pressures
+    /// and unknowns) reuses its equilibrium and linearisation.
+    last: Mutex<Option<WarmStart>>,
 }
 
 #[pymethods]
@@ -96,6 +100,7 @@ impl PyInverse {
             orientation_weight,
             tip_force,
             tip_moment,
+            last: Mutex::new(None),
         })
     }
 
@@ -137,9 +142,21 @@ impl PyInverse {
             None => &self.opts,
         };
         let rod = &self.rod;
+        let last = self.last.lock().ok().and_then(|g| g.clone());
+        let warm = x.map(|x| match last {
+            Some(w) if w.x == x => w,
+            other => WarmStart {
+                x,
+                equilibrium: None,
+                linearisation: other.and_then(|w| w.linearisation),
+            },
+        });
         let out = py
-            .detach(|| solve_inverse(rod, &loads, &target, opts, x.as_ref()))
+            .detach(|| solve_inverse(rod, &loads, &target, opts, warm.as_ref()))
             .map_err(|e| to_py_err(py, e, Context::Input))?;
+        if let Ok(mut g) = self.last.lock() {
+            *g = Some(out.warm_start());
+        }
         let d = PyDict::new(py);
         d.set_item("pressures", out.pressures)?;
         d.set_item("x", out.solution.x.to_vec())?;

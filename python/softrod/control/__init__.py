@@ -6,7 +6,8 @@ linearised dynamics and modes, the reachable workspace, and closed-loop simulati
 - :func:`linearise` -> :class:`LinearSystem` (M, D, K, B), ``.modes()`` -> :class:`Modes`
 - :func:`workspace` -> :class:`Workspace`
 - :func:`run_closed_loop` -> :class:`ClosedLoopResult`; :class:`TrackingController`,
-  :class:`TargetPath`, :class:`Measurement`
+  :class:`TargetPath`, :class:`Measurement`; :func:`predicted_circle_error` (the linear
+  model's prediction of the tracking error), :func:`tracking_frame`, :func:`tracking_plot`
 """
 
 from .closed_loop import (
@@ -14,7 +15,10 @@ from .closed_loop import (
     Measurement,
     TargetPath,
     TrackingController,
+    predicted_circle_error,
     run_closed_loop,
+    tracking_frame,
+    tracking_plot,
 )
 from .inverse import InverseProblem, InverseSolution, pressure_bounds, solve_inverse
 from .linear import Jacobian, LinearSystem, Modes, jacobian, linearise
@@ -33,8 +37,11 @@ __all__ = [
     "Workspace",
     "jacobian",
     "linearise",
+    "predicted_circle_error",
     "pressure_bounds",
     "run_closed_loop",
     "solve_inverse",
+    "tracking_frame",
+    "tracking_plot",
     "workspace",
 ]

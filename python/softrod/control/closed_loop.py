@@ -25,7 +25,10 @@ __all__ = [
     "Measurement",
     "TargetPath",
     "TrackingController",
+    "predicted_circle_error",
     "run_closed_loop",
+    "tracking_frame",
+    "tracking_plot",
 ]
 
 
@@ -367,3 +370,34 @@ def tracking_plot(controller: TrackingController, result: ClosedLoopResult, path
         with atomic_path(path) as tmp:
             fig.savefig(tmp, dpi=130, format=Path(path).suffix[1:])
     return fig
+
+
+def predicted_circle_error(system, radius: float, period: float, *, kp: float, ki: float,
+                           rate: float) -> float:
+    """The steady-state RMS tip error (m) that the linearised model ``system`` (a
+    :class:`~softrod.control.LinearSystem` at the circle's centre) predicts for a
+    :class:`TrackingController` on a horizontal circle of ``radius`` run once per
+    ``period``.
+
+    Plant from the corrected target to the tip: G(s) = H(s) H(0)^-1 e^(-s / (2 rate)) with
+    H(s) = T (M s^2 + D s + K)^-1 B_p (the tip's response to the pressures; inverse statics
+    is H(0)^-1 to first order; the zero-order hold delays by half a control period).
+    Controller C(s) = kp + ki / s on e = r - r_tip, so e = (I + G C)^-1 (I - G) r. For
+    r = c + radius (cos w t, sin w t, 0), w = 2 pi / period, the error is the phasor
+    e^ = E(i w) radius (1, -i, 0) and its RMS over a period |e^| / sqrt(2). Terms of second
+    order in the radius over the arm's length (the Jacobian's change around the circle)
+    and in w / rate are neglected.
+    """
+    nc = system.design.n_channels
+    w = 2 * math.pi / period
+
+    def tip_response(omega):
+        z = system.stiffness - omega**2 * system.mass + 1j * omega * system.damping
+        return np.linalg.solve(z, system.input[:, :nc])[system.tip_rows][:3]
+
+    h0 = tip_response(0.0).real
+    plant = tip_response(w) @ np.linalg.pinv(h0) * np.exp(-1j * w / (2 * rate))
+    c = kp + ki / (1j * w)
+    err = np.linalg.solve(np.eye(3) + plant * c, np.eye(3) - plant)
+    phasor = err @ (radius * np.array([1.0, -1j, 0.0]))
+    return float(np.linalg.norm(phasor) / math.sqrt(2))

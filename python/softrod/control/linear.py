@@ -174,6 +174,14 @@ class LinearSystem:
 
     def modes(self, count: int | None = None) -> Modes:
         """The ``count`` lowest modes (default all)."""
+        from threadpoolctl import threadpool_limits
+
+        # Dense eigenproblems of a few hundred unknowns: one BLAS thread is fastest (and
+        # several oversubscribe a shared machine).
+        with threadpool_limits(1):
+            return self._modes(count)
+
+    def _modes(self, count: int | None) -> Modes:
         import scipy.linalg
 
         w2, vecs = scipy.linalg.eig(self.stiffness, self.mass)
