@@ -270,7 +270,7 @@ def plot_shape(
         ax.set_title("3-D view", fontsize="medium")
     if own_figure:
         fig.suptitle(title)
-        fig.legend(handles=handles, loc="outside right upper", fontsize="small", frameon=False)
+        fig.legend(handles=handles, loc="outside right center", fontsize="small", frameon=False)
     else:
         ax.set_title(title)
         ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
