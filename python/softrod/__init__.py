@@ -21,7 +21,9 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :mod:`softrod.pcc`: paper 003's piecewise-constant-curvature model (``run_pcc``,
   ``pcc_shape``, identification, ``compare_pcc``); statics via
   ``solve_statics(..., model="pcc")``
-- exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError`
+- exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError` (and its
+  :class:`InvalidStateError`), :class:`InternalError`; warnings :class:`StabilityWarning`,
+  :class:`ValidityWarning`
 """
 
 from . import pcc
@@ -40,7 +42,16 @@ from .compare import compare_models
 from .datasets import Dataset, load_dataset, synthesize_dataset, write_dataset
 from .design import Design, designs_dir
 from .dynamics import PressureSchedule, Simulation, Trajectory, simulate
-from .errors import ConvergenceError, DesignError, InputError, SoftrodError
+from .errors import (
+    ConvergenceError,
+    DesignError,
+    InputError,
+    InternalError,
+    InvalidStateError,
+    SoftrodError,
+    StabilityWarning,
+    ValidityWarning,
+)
 from .presets import Preset, list_presets
 from .statics import (
     BatchSolution,
@@ -62,15 +73,19 @@ __all__ = [
     "DesignError",
     "HybridStiffnessModel",
     "InputError",
+    "InternalError",
+    "InvalidStateError",
     "Preset",
     "SoftrodError",
     "SolverOptions",
+    "StabilityWarning",
     "StaticSolution",
     "StiffnessIdentification",
     "StiffnessMap",
     "PressureSchedule",
     "Simulation",
     "Trajectory",
+    "ValidityWarning",
     "__version__",
     "bundled_designs",
     "calibrate",

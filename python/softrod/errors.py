@@ -48,3 +48,42 @@ class ConvergenceError(SoftrodError, RuntimeError):
 def design_error(field: str, value: object, rule: str, cls: type[DesignError] = DesignError):
     """Build a DesignError whose message reads ``field = value: rule``."""
     return cls(f"{field} = {value!r}: {rule}", field, value, rule)
+
+
+class InvalidStateError(ConvergenceError):
+    """A solution breaks a validity rule (docs/model.md, "Validity and stability"): a
+    rotation that is not one, stretch <= 0, a collapsed chamber, strains or pressures outside
+    the validity range, or (when asked to raise) an unstable equilibrium. ``rule`` names the
+    rule, ``node`` the integration node (0 = base; None when the rule concerns no node),
+    ``s`` its arc length in m, ``value`` the offending number and ``time`` the simulation
+    time in s (None in statics)."""
+
+    def __init__(
+        self,
+        message: str,
+        rule: str = "",
+        node: int | None = None,
+        s: float = float("nan"),
+        value: float = float("nan"),
+        time: float | None = None,
+    ):
+        super().__init__(message, reason=rule)
+        self.rule = rule
+        self.node = node
+        self.s = s
+        self.value = value
+        self.time = time
+
+
+class InternalError(SoftrodError, RuntimeError):
+    """A bug inside softrod (a panic in the Rust core, caught at the boundary). Please
+    report it with the input that caused it."""
+
+
+class StabilityWarning(UserWarning):
+    """A static equilibrium is unstable (a small disturbance moves the rod away from it)."""
+
+
+class ValidityWarning(UserWarning):
+    """A solution lies outside the model's validity range (strains or the design's
+    operating_range); returned because the caller asked for ``on_invalid="warn"``."""

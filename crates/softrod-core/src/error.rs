@@ -24,6 +24,23 @@ pub enum SoftrodError {
         load_factor: f64,
         reason: String,
     },
+    /// A state breaks a rule of `crate::validity` (a rotation that is not one, stretch <= 0,
+    /// a collapsed chamber, strains or pressures outside the validity range). `node` is the
+    /// integration node (0 = base) and `s` its arc length in m, when the rule concerns a
+    /// node; `time` the simulation time in s, when a dynamic run broke it; `value` the
+    /// offending number.
+    #[error("{}{}rule {}: {message}", .time.map_or(String::new(), |t| format!("at t = {t} s, ")), .node.map_or(String::new(), |n| format!("node {n} (s = {s:.6} m), ")), .rule.name())]
+    InvalidState {
+        rule: crate::validity::Rule,
+        node: Option<usize>,
+        s: f64,
+        time: Option<f64>,
+        value: f64,
+        message: String,
+    },
+    /// A bug: a panic inside the core, caught at the boundary. Please report it.
+    #[error("internal error (a bug in softrod; please report it): {0}")]
+    Internal(String),
 }
 
 impl SoftrodError {
@@ -36,6 +53,30 @@ impl SoftrodError {
             field: field.into(),
             value: value.to_string(),
             rule: rule.into(),
+        }
+    }
+}
+
+impl SoftrodError {
+    /// The same error, stamped with the simulation time at which a state broke a rule.
+    pub fn at_time(self, t: f64) -> Self {
+        match self {
+            SoftrodError::InvalidState {
+                rule,
+                node,
+                s,
+                value,
+                message,
+                ..
+            } => SoftrodError::InvalidState {
+                rule,
+                node,
+                s,
+                time: Some(t),
+                value,
+                message,
+            },
+            other => other,
         }
     }
 }

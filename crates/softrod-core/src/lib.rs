@@ -22,6 +22,7 @@ pub mod section;
 pub mod sensitivity;
 pub mod spec;
 pub mod statics;
+pub mod validity;
 
 pub use error::{Result, SoftrodError};
 pub use rod::Rod;

@@ -287,6 +287,15 @@ pub struct LineLoadSpec {
     pub moment_per_length: [f64; 3],
 }
 
+/// What the actuator is built and validated for (design file `[operating_range]`). Solves
+/// outside it are refused or warned about (`crate::validity::check_operating_range`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OperatingRangeSpec {
+    /// Lowest and highest gauge pressure of every channel, Pa.
+    pub pressure: [f64; 2],
+}
+
 /// A complete design in SI units.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -304,6 +313,9 @@ pub struct DesignSpec {
     /// them from the rod's stiffnesses (see `crate::pcc`).
     #[serde(default)]
     pub pcc: Option<crate::pcc::PccSpec>,
+    /// The pressures the actuator is built for; `None`: no range is known.
+    #[serde(default)]
+    pub operating_range: Option<OperatingRangeSpec>,
 }
 
 fn finite(field: &str, x: f64) -> Result<()> {
@@ -495,13 +507,6 @@ impl SectionSpec {
         ] {
             positive(&f(k), c)?;
         }
-        if self.steps == 0 || self.steps > 100_000 {
-            return Err(SoftrodError::invalid(
-                f("steps"),
-                self.steps,
-                "must be in 1..=100000",
-            ));
-        }
         if let Some(m) = self.mass {
             non_negative(&f("mass"), m)?;
         }
@@ -649,7 +654,7 @@ impl DesignSpec {
     pub fn n_channels(&self) -> usize {
         self.sections
             .iter()
-            .flat_map(|s| s.chambers.iter().map(|c| c.channel + 1))
+            .flat_map(|s| s.chambers.iter().map(|c| c.channel.saturating_add(1)))
             .max()
             .unwrap_or(0)
     }
@@ -659,8 +664,77 @@ impl DesignSpec {
         self.sections.iter().map(|s| s.length).sum()
     }
 
+    /// The size limits of `crate::validity` (channels, sections, chambers, steps, loads,
+    /// tables), checked before anything is allocated or looped over by these sizes.
+    pub fn check_sizes(&self) -> Result<()> {
+        use crate::validity::{
+            MAX_CHAMBERS_PER_SECTION, MAX_CHANNELS, MAX_LINE_LOADS, MAX_SECTIONS,
+            MAX_STEPS_PER_SECTION, MAX_TABLE_POINTS, MAX_TOTAL_STEPS,
+        };
+        if self.sections.len() > MAX_SECTIONS {
+            return Err(SoftrodError::invalid(
+                "sections",
+                format!("{} sections", self.sections.len()),
+                format!("a design may have at most {MAX_SECTIONS} sections"),
+            ));
+        }
+        if self.loads.len() > MAX_LINE_LOADS {
+            return Err(SoftrodError::invalid(
+                "loads",
+                format!("{} loads", self.loads.len()),
+                format!("a design may have at most {MAX_LINE_LOADS} line loads"),
+            ));
+        }
+        let mut total_steps: usize = 0;
+        for (i, s) in self.sections.iter().enumerate() {
+            if s.chambers.len() > MAX_CHAMBERS_PER_SECTION {
+                return Err(SoftrodError::invalid(
+                    format!("sections[{i}].chambers"),
+                    format!("{} chambers", s.chambers.len()),
+                    format!("a section may have at most {MAX_CHAMBERS_PER_SECTION} chambers"),
+                ));
+            }
+            for (k, c) in s.chambers.iter().enumerate() {
+                if c.channel >= MAX_CHANNELS {
+                    return Err(SoftrodError::invalid(
+                        format!("sections[{i}].chambers[{k}].channel"),
+                        c.channel,
+                        format!("channel indices must lie in 0..{MAX_CHANNELS} (at most {MAX_CHANNELS} pressure channels)"),
+                    ));
+                }
+            }
+            if s.steps == 0 || s.steps > MAX_STEPS_PER_SECTION {
+                return Err(SoftrodError::invalid(
+                    format!("sections[{i}].steps"),
+                    s.steps,
+                    format!("must be in 1..={MAX_STEPS_PER_SECTION}"),
+                ));
+            }
+            total_steps = total_steps.saturating_add(s.steps);
+            if let AxialSpec::Table { force, stiffness } = &s.law.axial {
+                let n = force.len().max(stiffness.len());
+                if n > MAX_TABLE_POINTS {
+                    return Err(SoftrodError::invalid(
+                        format!("sections[{i}].law.axial_force"),
+                        format!("{n} points"),
+                        format!("an EA(F) table may have at most {MAX_TABLE_POINTS} points"),
+                    ));
+                }
+            }
+        }
+        if total_steps > MAX_TOTAL_STEPS {
+            return Err(SoftrodError::invalid(
+                "sections.steps",
+                total_steps,
+                format!("the rod may have at most {MAX_TOTAL_STEPS} integration steps in all"),
+            ));
+        }
+        Ok(())
+    }
+
     /// Check every rule; the first broken one is reported with its field path.
     pub fn validate(&self) -> Result<()> {
+        self.check_sizes()?;
         if self.sections.is_empty() {
             return Err(SoftrodError::invalid(
                 "sections",
@@ -737,6 +811,18 @@ impl DesignSpec {
         }
         if let Some(p) = &self.pcc {
             p.validate()?;
+        }
+        if let Some(r) = &self.operating_range {
+            let [lo, hi] = r.pressure;
+            finite("operating_range.pressure[0]", lo)?;
+            finite("operating_range.pressure[1]", hi)?;
+            if lo < -ATMOSPHERE || hi <= lo {
+                return Err(SoftrodError::invalid(
+                    "operating_range.pressure",
+                    format!("[{lo}, {hi}] Pa"),
+                    "must be [low, high] gauge pressures with -101325 Pa <= low < high",
+                ));
+            }
         }
         let n = self.n_channels();
         let mut used = vec![false; n];

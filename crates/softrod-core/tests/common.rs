@@ -78,6 +78,7 @@ pub fn design(sections: Vec<SectionSpec>, rotation: [[f64; 3]; 3], g: f64) -> De
         loads: vec![],
         dynamics: Default::default(),
         pcc: None,
+        operating_range: None,
     }
 }
 

@@ -211,6 +211,72 @@ const CASES: &[(&str, Breaker, &str)] = &[
         "sections[3].mass",
     ),
     (
+        "channel index 1e12 (would size a 1e12-entry table)",
+        |d| d.sections[1].chambers[1].channel = 1_000_000_000_000,
+        "sections[1].chambers[1].channel",
+    ),
+    (
+        "channel index usize::MAX (channel + 1 overflows)",
+        |d| d.sections[1].chambers[0].channel = usize::MAX,
+        "sections[1].chambers[0].channel",
+    ),
+    (
+        "channel index i64::MAX",
+        |d| d.sections[1].chambers[2].channel = i64::MAX as usize,
+        "sections[1].chambers[2].channel",
+    ),
+    (
+        "too many chambers in a section",
+        |d| {
+            let c = d.sections[1].chambers[0];
+            d.sections[1].chambers = vec![c; softrod_core::validity::MAX_CHAMBERS_PER_SECTION + 1];
+        },
+        "sections[1].chambers",
+    ),
+    (
+        "too many steps in one section",
+        |d| d.sections[0].steps = softrod_core::validity::MAX_STEPS_PER_SECTION + 1,
+        "sections[0].steps",
+    ),
+    (
+        "too many steps over the rod",
+        |d| {
+            for s in &mut d.sections {
+                s.steps = softrod_core::validity::MAX_STEPS_PER_SECTION;
+            }
+            let extra = d.sections[3].clone();
+            for k in 0..8 {
+                let mut e = extra.clone();
+                e.name = format!("extra{k}");
+                d.sections.push(e);
+            }
+        },
+        "sections.steps",
+    ),
+    (
+        "too many sections",
+        |d| {
+            let s = d.sections[3].clone();
+            d.sections = (0..=softrod_core::validity::MAX_SECTIONS)
+                .map(|k| {
+                    let mut e = s.clone();
+                    e.name = format!("s{k}");
+                    e
+                })
+                .collect();
+        },
+        "sections",
+    ),
+    (
+        "operating range upside down",
+        |d| {
+            d.operating_range = Some(softrod_core::spec::OperatingRangeSpec {
+                pressure: [7e4, 0.0],
+            })
+        },
+        "operating_range.pressure",
+    ),
+    (
         "non-contiguous channel indices",
         |d| d.sections[1].chambers[1].channel = 3,
         "chambers.channel",

@@ -43,6 +43,20 @@ fn to_py_err(py: Python<'_>, err: SoftrodError, ctx: Context) -> PyErr {
                 let cls = errors.getattr("ConvergenceError")?;
                 PyErr::from_value(cls.call1((msg, iterations, residual, load_factor, reason))?)
             }
+            SoftrodError::InvalidState {
+                rule,
+                node,
+                s,
+                time,
+                value,
+                ..
+            } => {
+                let cls = errors.getattr("InvalidStateError")?;
+                PyErr::from_value(cls.call1((msg, rule.name(), node, s, value, time))?)
+            }
+            SoftrodError::Internal(_) => {
+                PyErr::from_value(errors.getattr("InternalError")?.call1((msg,))?)
+            }
         })
     };
     build().unwrap_or_else(|e| e)

@@ -175,6 +175,17 @@ impl PccSpec {
             ));
         }
         if let Some(t) = &self.k_theta_table {
+            let n = t.angle.len().max(t.stiffness.len());
+            if n > crate::validity::MAX_TABLE_POINTS {
+                return Err(SoftrodError::invalid(
+                    "pcc.k_theta.angle",
+                    format!("{n} points"),
+                    format!(
+                        "the k_theta table may have at most {} points",
+                        crate::validity::MAX_TABLE_POINTS
+                    ),
+                ));
+            }
             if t.angle.len() != t.stiffness.len() || t.angle.len() < 2 {
                 return Err(SoftrodError::invalid(
                     "pcc.k_theta.angle",
