@@ -9,8 +9,10 @@ Conventions of the Markdown files (docs/writing-docs.md says the same):
   trailing spaces and blank lines at both ends. ``...`` in the shown output matches any text
   (doctest's ELLIPSIS), for values that change from run to run (timings, temporary paths,
   round-off below the shown digits).
-- ```console blocks hold ``$ softrod ...`` commands, each followed by its output (compared the
-  same way; no output shown means only the exit code is checked). ```bash blocks: every line
+- ```console blocks hold ``$ softrod ...`` commands (or ``$ python examples/NAME.py``, the
+  repository's examples, run in a subprocess), each followed by its output (compared the
+  same way; no output shown means only the exit code is checked). A command must exit with 0,
+  or with N when it ends in ``# exit N`` (an error shown on purpose). ```bash blocks: every line
   that starts with ``softrod`` is run and must exit 0. Commands run in-process through click's
   CliRunner, in the same working directory as the file's Python blocks.
 - ``<!-- not-run: REASON -->`` on the line before a fence skips it; the reason is required
@@ -167,16 +169,38 @@ def shell_commands(block: Block) -> list[str]:
     return out
 
 
+def run_example(where: str, command: str, want: str | None) -> None:
+    """``python examples/NAME.py ...``: the repository's example script, in a subprocess."""
+    import subprocess
+    import sys
+
+    args = shlex.split(command, comments=True)
+    script = ROOT / args[1]
+    assert script.is_file() and script.parent == ROOT / "examples", f"{where}: {command!r}"
+    proc = subprocess.run(
+        [sys.executable, str(script), *args[2:]], capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 0, f"{where}: {command!r} exited {proc.returncode}:\n{proc.stderr}"
+    if want is not None and want.strip():
+        check_output(f"{where}: {command!r}", proc.stdout + proc.stderr, want)
+
+
 def run_cli(where: str, command: str, want: str | None) -> None:
     from click.testing import CliRunner
     from softrod.cli import main
 
+    if command.startswith("python examples/"):
+        return run_example(where, command, want)
+    exit_code = re.search(r"#\s*exit\s+(\d+)\s*$", command)
+    expected = int(exit_code[1]) if exit_code else 0
     args = shlex.split(command, comments=True)
     assert args and args[0] == "softrod", f"{where}: only softrod commands run here: {command!r}"
     result = CliRunner().invoke(main, args[1:], catch_exceptions=True)
     if result.exception is not None and not isinstance(result.exception, SystemExit):
         raise AssertionError(f"{where}: {command!r} raised") from result.exception
-    assert result.exit_code == 0, f"{where}: {command!r} exited {result.exit_code}:\n{result.output}"
+    assert result.exit_code == expected, (
+        f"{where}: {command!r} exited {result.exit_code}, not {expected}:\n{result.output}"
+    )
     if want is not None and want.strip():
         check_output(f"{where}: {command!r}", result.output, want)
 
