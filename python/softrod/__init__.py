@@ -21,6 +21,10 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :mod:`softrod.pcc`: paper 003's piecewise-constant-curvature model (``run_pcc``,
   ``pcc_shape``, identification, ``compare_pcc``); statics via
   ``solve_statics(..., model="pcc")``
+- :func:`view` -> :class:`~softrod.viewer.Viewer`: the interactive 3-D viewer in the browser
+  (``pip install 'softrod[viewer]'``; docs/viewer.md)
+- ``executor=`` (a ``distributed.Client``) on ``solve_statics_batch``, ``identify_stiffness``
+  and ``calibrate(restarts=...)``: the work runs on a Dask cluster (docs/cluster.md)
 - exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError` (and its
   :class:`InvalidStateError`), :class:`InternalError`; warnings :class:`StabilityWarning`,
   :class:`ValidityWarning`
@@ -61,6 +65,7 @@ from .statics import (
     solve_statics_batch,
 )
 from .stiffness_map import StiffnessMap
+from .viewer import view
 
 __version__ = _core_version
 
@@ -102,5 +107,6 @@ __all__ = [
     "simulate",
     "solve_statics_batch",
     "synthesize_dataset",
+    "view",
     "write_dataset",
 ]

@@ -226,6 +226,9 @@ def solve_statics_batch(
     options: SolverOptions | None = None,
     threads: int = 0,
     stiffness_map: StiffnessMap | None = None,
+    executor=None,
+    chunk_size: int | None = None,
+    progress=None,
 ) -> BatchSolution:
     """Solve for every row of an (m, channels) pressure array (Pa) in parallel.
 
@@ -233,6 +236,12 @@ def solve_statics_batch(
     from their neighbour, so sweeps should be ordered. Rows that fail to converge are kept with
     ``converged = False`` and NaN results. ``stiffness_map`` as in :func:`solve_statics`,
     evaluated in one call for all rows.
+
+    executor: a ``distributed.Client``: the rows run on its cluster in chunks of
+    ``chunk_size`` rows (default: the rule in :mod:`softrod.cluster`), each chunk one Rust
+    batch on a worker with ``threads`` cores (0 = the worker's share of its machine), and
+    come back in order (docs/cluster.md). ``progress(done_rows, total_rows)`` is called as
+    chunks finish (with an executor only).
     """
     design = load_design(design)
     arr = np.asarray(pressures, dtype=float)
@@ -250,6 +259,17 @@ def solve_statics_batch(
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
+    from .cluster import check_executor
+
+    if check_executor(executor) is not None:
+        out = _batch_on_cluster(
+            executor, design, arr, tf, tm, sigma, _options(options), threads, chunk_size, progress
+        )
+        return BatchSolution(pressures=arr, stiffness_scale=sigma, **out)
+    if chunk_size is not None:
+        raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
+    if progress is not None:
+        raise design_error("progress", progress, "applies with executor= only", InputError)
     out = design._rod.solve_batch(
         np.ascontiguousarray(arr),
         tf,
@@ -259,3 +279,58 @@ def solve_statics_batch(
         **_options(options).as_kwargs(),
     )
     return BatchSolution(pressures=arr, stiffness_scale=sigma, **out)
+
+
+def _batch_chunk(text, pressures, tip_force, tip_moment, sigma, options, threads, per_host):
+    """One chunk of a batch on a worker: the design rebuilt from its TOML text, one Rust
+    batch call."""
+    from .cluster import design_from_text, worker_threads
+
+    design = design_from_text(text)
+    return design._rod.solve_batch(
+        pressures,
+        tip_force,
+        tip_moment,
+        threads=worker_threads(per_host, threads),
+        stiffness_scale=sigma,
+        **options,
+    )
+
+
+def _batch_on_cluster(executor, design, arr, tf, tm, sigma, options, threads, chunk_size, progress):
+    from .cluster import chunk_rows, design_text, run_chunks, task_slots
+
+    if progress is not None and not callable(progress):
+        raise design_error(
+            "progress", progress, "must be callable: progress(done_rows, total_rows)", InputError
+        )
+    m = arr.shape[0]
+    slots, per_host = task_slots(executor)
+    rows = chunk_rows(m, slots, chunk_size)
+    text = design_text(design)
+    bounds = [(lo, min(lo + rows, m)) for lo in range(0, m, rows)]
+    chunks = [
+        (
+            text,
+            np.ascontiguousarray(arr[lo:hi]),
+            tf,
+            tm,
+            None if sigma is None else np.ascontiguousarray(sigma[lo:hi]),
+            options.as_kwargs(),
+            threads,
+            per_host,
+        )
+        for lo, hi in bounds
+    ]
+    parts = run_chunks(
+        executor,
+        _batch_chunk,
+        chunks,
+        sizes=[hi - lo for lo, hi in bounds],
+        progress=progress,
+        name="softrod-batch",
+    )
+    if not parts:  # no rows: the core's empty result
+        return design._rod.solve_batch(arr, tf, tm, threads=1, stiffness_scale=sigma,
+                                       **options.as_kwargs())
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}

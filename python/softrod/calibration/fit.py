@@ -271,6 +271,9 @@ class CalibrationResult:
     error_table: pd.DataFrame
     elapsed_s: float
     reference: np.ndarray = field(repr=False)
+    #: One row per start (start and final values, cost in mm^2, success, evaluations)
+    #: when ``restarts`` > 0, else None.
+    starts: pd.DataFrame | None = field(default=None, repr=False)
 
     @property
     def names(self) -> list[str]:
@@ -472,6 +475,202 @@ def _diagnostics(params, values, jac, ssr, n_res):
     return cov, std, corr, found
 
 
+# --- one fit from one start, and restarts -----------------------------------------------------
+
+#: Restarts of a positive parameter without bounds start within this factor of the design's
+#: value (log-uniformly in [v / RESTART_SPREAD, v * RESTART_SPREAD]).
+RESTART_SPREAD = 3.0
+
+
+@dataclass(frozen=True)
+class _FitSetup:
+    """Everything one fit needs except the design (which travels as TOML text)."""
+
+    dataset: Dataset
+    params: tuple[Parameter, ...]
+    groups: list
+    train: np.ndarray
+    options: SolverOptions | None
+    lo: np.ndarray
+    hi: np.ndarray
+    user_bounds: bool
+    method: str
+    max_evaluations: int
+
+
+def _optimise(design: Design, setup: _FitSetup, theta_start, threads: int, progress) -> dict:
+    """One fit of ``setup`` from ``theta_start``: the optimiser's best point u (log theta for
+    positive parameters), its cost 0.5 sum r^2 (mm^2), success, message, method and model
+    evaluations."""
+    from scipy.optimize import least_squares, minimize
+
+    params, train, lo, hi = list(setup.params), setup.train, setup.lo, setup.hi
+    dataset = setup.dataset
+    model = _Model(design, dataset, params, setup.groups, train, setup.options, threads)
+    measured = dataset.tip_position
+    positive = np.array([p.positive for p in params])
+
+    # Optimisation variable u: log(theta) for positive parameters, theta otherwise.
+    def theta_of(u):
+        return np.where(positive, np.exp(np.where(positive, u, 0.0)), u)
+
+    theta_start = np.asarray(theta_start, dtype=float)
+    u0 = np.where(positive, np.log(np.where(positive, theta_start, 1.0)), theta_start)
+
+    def residual(tip, ok):
+        r = (tip[train] - measured[train]) / _MM
+        r[~ok[train]] = _FAILED_RESIDUAL_MM
+        return r.ravel()
+
+    cache: dict = {}
+
+    def evaluate(u, jacobian):
+        key = u.tobytes()
+        if key in cache and (cache[key][1] is not None or not jacobian):
+            return cache[key]
+        theta = theta_of(u)
+        if np.all((theta >= lo) & (theta <= hi)):
+            tip, jac, ok = model(theta, jacobian)
+        else:
+            # Outside the sanity box (default 1e-3 to 1e3 times the design's values): a
+            # failed point, so that an unidentifiable direction cannot run off to 1e150.
+            tip, ok = np.full((len(dataset), 3), np.nan), np.zeros(len(dataset), dtype=bool)
+            jac = np.zeros((len(dataset), 3, len(params))) if jacobian else None
+        r = residual(tip, ok)
+        cache.clear()
+        cache[key] = (r, jac, ok)
+        if progress is not None:
+            progress(model.evaluations, float(np.sqrt(np.mean(r.reshape(-1, 3) ** 2) * 3)))
+        return cache[key]
+
+    def jac_u(u):
+        r, jac, ok = evaluate(u, True)
+        j = jac[train] / _MM
+        j[~ok[train]] = 0.0
+        # d/du = theta d/dtheta for the log-transformed parameters
+        return (j * np.where(positive, theta_of(u), 1.0)).reshape(-1, len(params))
+
+    ulo = np.where(positive, np.log(np.where(positive, lo, 1.0)), lo)
+    uhi = np.where(positive, np.log(np.where(positive, hi, 1.0)), hi)
+    if setup.method == "lm":
+        use_bounds = setup.user_bounds
+        sol = least_squares(
+            lambda u: evaluate(u, True)[0],
+            u0,
+            jac=jac_u,
+            method="trf" if use_bounds else "lm",
+            bounds=(ulo, uhi) if use_bounds else (-np.inf, np.inf),
+            x_scale=1.0,
+            xtol=1e-10,
+            ftol=1e-10,
+            gtol=1e-10,
+            max_nfev=setup.max_evaluations,
+        )
+        method_used = "lm (MINPACK)" if not use_bounds else "trf (bounded, exact Jacobian)"
+        cost = float(sol.cost)
+    else:
+        sol = minimize(
+            lambda u: 0.5 * float(np.sum(evaluate(u, False)[0] ** 2)),
+            u0,
+            method="Nelder-Mead",
+            bounds=list(zip(ulo, uhi, strict=True)) if setup.user_bounds else None,
+            options={"maxfev": setup.max_evaluations, "xatol": 1e-8, "fatol": 1e-10},
+        )
+        method_used = "nelder-mead"
+        cost = float(sol.fun)
+    return {
+        "start": theta_start,
+        "u": np.asarray(sol.x, dtype=float),
+        "values": theta_of(np.asarray(sol.x, dtype=float)),
+        "cost": cost,
+        "success": bool(sol.success),
+        "message": str(sol.message),
+        "method": method_used,
+        "evaluations": model.evaluations,
+    }
+
+
+def _start_points(params, theta0, lo, hi, bounded, restarts, seed) -> np.ndarray:
+    """The design's values, then ``restarts`` points drawn with ``seed``: uniformly within a
+    parameter's bounds (log-uniformly for positive ones), or, for a positive parameter
+    without bounds, log-uniformly within RESTART_SPREAD of its value."""
+    if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 0:
+        raise _fail("restarts", restarts, "must be an integer >= 0 (extra starting points)")
+    if restarts == 0:
+        return theta0[None, :]
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise _fail("seed", seed, "must be an integer >= 0 (it makes the restarts repeatable)")
+    for p, b in zip(params, bounded, strict=True):
+        if not (b or p.positive):
+            raise _fail(
+                "restarts",
+                restarts,
+                f"{p.name} can be negative: give its bounds so that restarts know where to "
+                "start (bounds={'" + p.name + "': (lower, upper)})",
+            )
+    positive = np.array([p.positive for p in params])
+    a = np.where(bounded, lo, theta0 / RESTART_SPREAD)
+    b = np.where(bounded, hi, theta0 * RESTART_SPREAD)
+    rng = np.random.default_rng(seed)
+    x = rng.random((int(restarts), len(params)))
+    log_a = np.log(np.where(positive, a, 1.0))
+    log_b = np.log(np.where(positive, b, 1.0))
+    drawn = np.where(positive, np.exp(log_a + x * (log_b - log_a)), a + x * (b - a))
+    return np.vstack([theta0[None, :], drawn])
+
+
+def _run_starts(design, setup, starts, threads, progress, executor) -> list[dict]:
+    """One fit per start, in process or on a Dask cluster; in the order of ``starts``."""
+    from ..cluster import check_executor
+
+    if check_executor(executor) is None:
+        return [_optimise(design, setup, start, threads, progress) for start in starts]
+    from ..cluster import design_text, run_chunks, task_slots
+
+    _, per_host = task_slots(executor)
+    text = design_text(design)
+    report = None
+    if progress is not None:
+
+        def report(done, total):
+            progress(done, float("nan"))
+
+    return run_chunks(
+        executor,
+        _fit_start,
+        [(text, setup, start, threads, per_host) for start in starts],
+        progress=report,
+        name="softrod-calibrate",
+    )
+
+
+def _fit_start(text, setup, start, threads, per_host) -> dict:
+    """One restart on a worker: the design rebuilt from its TOML text."""
+    from ..cluster import design_from_text, worker_threads
+
+    return _optimise(
+        design_from_text(text), setup, start, worker_threads(per_host, threads), None
+    )
+
+
+def _finite_or_inf(x: float) -> float:
+    return x if math.isfinite(x) else math.inf
+
+
+def _starts_table(params, fits, best) -> pd.DataFrame:
+    rows = []
+    for k, f in enumerate(fits):
+        row = {"start": k, "best": k == best}
+        for p, v0, v in zip(params, f["start"], f["values"], strict=True):
+            row[f"{p.name} start"] = v0
+            row[f"{p.name}"] = v
+        row.update(
+            cost_mm2=f["cost"], success=f["success"], evaluations=f["evaluations"]
+        )
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
 # --- the entry point ---------------------------------------------------------------------------
 
 
@@ -492,6 +691,9 @@ def calibrate(
     dt=5e-3,
     model: str = "cosserat",
     experiments: Mapping | None = None,
+    restarts: int = 0,
+    seed: int = 0,
+    executor=None,
 ):
     """Fit ``params`` of ``design`` to the tip positions of ``dataset``.
 
@@ -509,6 +711,11 @@ def calibrate(
     (tau), and each evaluation simulates every experiment with time step ``dt``
     (paper 000 Sec. III-D; see :func:`softrod.calibration.calibrate_dynamics`, which this
     calls and whose result it returns). Dynamic fits use Nelder-Mead.
+    restarts: extra fits from ``restarts`` starting points drawn with ``seed`` (within each
+    parameter's bounds, or within a factor RESTART_SPREAD = 3 of a positive parameter's
+    value when it has none); the fit with the lowest cost wins (ties: the earliest) and
+    ``result.starts`` lists them all. executor: a ``distributed.Client``: the starts run on
+    its cluster, one task each (docs/cluster.md).
     split: None (fit on all rows), "experiment" or "mounting" with ``test`` ids (default
     for "experiment": the last experiment), or a boolean test mask.
     progress: called as ``progress(evaluations, rms_error_mm)`` after every evaluation.
@@ -529,7 +736,6 @@ def calibrate(
     Returns a :class:`CalibrationResult`; emits a :class:`CalibrationWarning` for each
     identifiability problem (also listed in ``result.warnings``).
     """
-    from scipy.optimize import least_squares, minimize
 
     if model not in ("cosserat", "pcc"):
         raise _fail("model", model, "must be 'cosserat' (the rod) or 'pcc' (paper 003)")
@@ -547,6 +753,8 @@ def calibrate(
                 ("threads", threads, 0),
                 ("max_evaluations", max_evaluations, 200),
                 ("dynamic", dynamic, False),
+                ("restarts", restarts, 0),
+                ("executor", executor, None),
             )
             if (value is not None if default is None else value != default)
         }
@@ -586,6 +794,10 @@ def calibrate(
                 True,
                 "bounds, split and test are not available for dynamic fits (yet)",
             )
+        if restarts != 0 or executor is not None:
+            raise _fail(
+                "dynamic", True, "restarts and executor are not available for dynamic fits (yet)"
+            )
         return calibrate_dynamics(
             design, dataset, params, dt=dt, max_evaluations=max_evaluations, progress=progress
         )
@@ -615,79 +827,33 @@ def calibrate(
     test_mask = _split(dataset, split, test)
     train = np.flatnonzero(~test_mask)
     groups = _groups(design0, dataset)
-    model = _Model(design0, dataset, list(params), groups, train, options, threads)
     measured = dataset.tip_position
+    setup = _FitSetup(
+        dataset=dataset,
+        params=tuple(params),
+        groups=groups,
+        train=train,
+        options=options,
+        lo=lo,
+        hi=hi,
+        user_bounds=user_bounds,
+        method=method,
+        max_evaluations=max_evaluations,
+    )
+    bounded = np.array([p.name in (bounds or {}) for p in params], dtype=bool)
+    starts = _start_points(params, theta0, lo, hi, bounded, restarts, seed)
+    fits = _run_starts(design0, setup, starts, threads, progress, executor)
+    best = min(range(len(fits)), key=lambda k: (_finite_or_inf(fits[k]["cost"]), k))
+    u_best = fits[best]["u"]
+    success, message = fits[best]["success"], fits[best]["message"]
+    method_used = fits[best]["method"]
+    model = _Model(design0, dataset, list(params), groups, train, options, threads)
+    model.evaluations = sum(f["evaluations"] for f in fits)
     positive = np.array([p.positive for p in params])
 
-    # Optimisation variable u: log(theta) for positive parameters, theta otherwise.
     def theta_of(u):
         return np.where(positive, np.exp(np.where(positive, u, 0.0)), u)
 
-    u0 = np.where(positive, np.log(np.where(positive, theta0, 1.0)), theta0)
-
-    def residual(tip, ok):
-        r = (tip[train] - measured[train]) / _MM
-        r[~ok[train]] = _FAILED_RESIDUAL_MM
-        return r.ravel()
-
-    cache: dict = {}
-
-    def evaluate(u, jacobian):
-        key = u.tobytes()
-        if key in cache and (cache[key][1] is not None or not jacobian):
-            return cache[key]
-        theta = theta_of(u)
-        if np.all((theta >= lo) & (theta <= hi)):
-            tip, jac, ok = model(theta, jacobian)
-        else:
-            # Outside the sanity box (default 1e-3 to 1e3 times the design's values): a
-            # failed point, so that an unidentifiable direction cannot run off to 1e150.
-            tip, ok = np.full((len(dataset), 3), np.nan), np.zeros(len(dataset), dtype=bool)
-            jac = np.zeros((len(dataset), 3, len(params))) if jacobian else None
-        r = residual(tip, ok)
-        cache.clear()
-        cache[key] = (r, jac, ok)
-        if progress is not None:
-            progress(model.evaluations, float(np.sqrt(np.mean(r.reshape(-1, 3) ** 2) * 3)))
-        return cache[key]
-
-    def jac_u(u):
-        r, jac, ok = evaluate(u, True)
-        j = jac[train] / _MM
-        j[~ok[train]] = 0.0
-        # d/du = theta d/dtheta for the log-transformed parameters
-        return (j * np.where(positive, theta_of(u), 1.0)).reshape(-1, len(params))
-
-    if method == "lm":
-        use_bounds = user_bounds
-        ulo = np.where(positive, np.log(np.where(positive, lo, 1.0)), lo)
-        uhi = np.where(positive, np.log(np.where(positive, hi, 1.0)), hi)
-        sol = least_squares(
-            lambda u: evaluate(u, True)[0],
-            u0,
-            jac=jac_u,
-            method="trf" if use_bounds else "lm",
-            bounds=(ulo, uhi) if use_bounds else (-np.inf, np.inf),
-            x_scale=1.0,
-            xtol=1e-10,
-            ftol=1e-10,
-            gtol=1e-10,
-            max_nfev=max_evaluations,
-        )
-        u_best, success, message = sol.x, bool(sol.success), str(sol.message)
-        method_used = "lm (MINPACK)" if not use_bounds else "trf (bounded, exact Jacobian)"
-    else:
-        ulo = np.where(positive, np.log(np.where(positive, lo, 1.0)), lo)
-        uhi = np.where(positive, np.log(np.where(positive, hi, 1.0)), hi)
-        sol = minimize(
-            lambda u: 0.5 * float(np.sum(evaluate(u, False)[0] ** 2)),
-            u0,
-            method="Nelder-Mead",
-            bounds=list(zip(ulo, uhi, strict=True)) if user_bounds else None,
-            options={"maxfev": max_evaluations, "xatol": 1e-8, "fatol": 1e-10},
-        )
-        u_best, success, message = sol.x, bool(sol.success), str(sol.message)
-        method_used = "nelder-mead"
 
     values = theta_of(u_best)
     tip_train, jac, ok = model(values, True)
@@ -753,6 +919,7 @@ def calibrate(
         error_table=table,
         elapsed_s=time.perf_counter() - start,
         reference=reference,
+        starts=_starts_table(params, fits, best) if len(fits) > 1 else None,
     )
 
 

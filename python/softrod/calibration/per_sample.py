@@ -713,6 +713,8 @@ def identify_stiffness(
     options: SolverOptions | None = None,
     threads: int = 0,
     progress: Callable[[int, int, int], None] | None = None,
+    executor=None,
+    chunk_size: int | None = None,
 ) -> StiffnessIdentification:
     """Identify sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) for every sample (paper 001
     eqs. 14-22; method in the module docstring and docs/calibration-per-sample.md).
@@ -733,6 +735,13 @@ def identify_stiffness(
     options: :class:`~softrod.SolverOptions` of the shooting solves; threads: cores (0 =
         all). progress: called as ``progress(iteration, n_active, n_total)`` after each
         iteration (nothing is printed otherwise).
+    executor: a ``distributed.Client``: the samples are identified on its cluster in chunks
+        of ``chunk_size`` samples (default: the rule in :mod:`softrod.cluster`), each chunk
+        this function on a worker (``threads`` as in ``solve_statics_batch``), and the rows
+        come back in order; ``progress`` is then called as ``progress(chunks_done,
+        samples_left, samples)`` after each chunk (docs/cluster.md). Every sample's fit is
+        its own problem, so chunking changes no sample's result once batch rows do not
+        depend on their neighbours.
 
     Raises :class:`~softrod.errors.InputError` for bad inputs (naming field, value, rule).
     Samples whose model does not converge are kept with status "solve_failed".
@@ -775,6 +784,26 @@ def identify_stiffness(
     )
     m = len(dataset)
     theta0 = np.log(_initial(initial, m, bounds))
+    from ..cluster import check_executor
+
+    if check_executor(executor) is not None:
+        kwargs = dict(
+            min_sensitivity=min_sens,
+            bounds=bounds,
+            use_rotation=use_rotation,
+            n_high=n_high,
+            r_high=r_high,
+            m_high=m_high,
+            R_high=R_high,
+            max_iter=max_iter,
+            options=options,
+        )
+        return _identify_on_cluster(
+            executor, mapped, names, dataset, np.exp(theta0), kwargs, threads, chunk_size,
+            progress, t0,
+        )
+    if chunk_size is not None:
+        raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
     lm = _levenberg_marquardt(problem, theta0, bounds, max_iter, progress)
 
     sigma_solver = np.exp(lm.theta)
@@ -820,4 +849,84 @@ def identify_stiffness(
         },
         calls=lm.calls,
         wall_time_s=time.perf_counter() - t0,
+    )
+
+
+# --------------------------------------------------------------------------- on a cluster
+
+_ROW_FIELDS = (
+    "sigma",
+    "identifiable",
+    "sensitivity",
+    "at_bound",
+    "sigma_solver",
+    "tip_position",
+    "residual_mm",
+    "rotation_residual_deg",
+    "iterations",
+    "status",
+)
+
+
+def _identify_chunk(text, names, dataset, initial, kwargs, threads, per_host) -> dict:
+    """One chunk of samples on a worker: the arrays of :func:`identify_stiffness` (a result
+    object holds a compiled design, which never travels)."""
+    from ..cluster import design_from_text, worker_threads
+
+    result = identify_stiffness(
+        design_from_text(text),
+        dataset,
+        sections=list(names),
+        initial=initial,
+        threads=worker_threads(per_host, threads),
+        **kwargs,
+    )
+    out = {name: np.array(getattr(result, name)) for name in _ROW_FIELDS}
+    out["calls"] = result.calls
+    out["settings"] = result.settings
+    return out
+
+
+def _identify_on_cluster(
+    executor, mapped, names, dataset, initial, kwargs, threads, chunk_size, progress, t0
+) -> StiffnessIdentification:
+    from ..cluster import chunk_rows, design_text, run_chunks, task_slots
+
+    m = len(dataset)
+    slots, per_host = task_slots(executor)
+    rows = chunk_rows(m, slots, chunk_size)
+    bounds = [(lo, min(lo + rows, m)) for lo in range(0, m, rows)]
+    text = design_text(mapped)
+    chunks = [
+        (text, names, dataset.subset(np.arange(lo, hi)), initial[lo:hi], kwargs, threads,
+         per_host)
+        for lo, hi in bounds
+    ]
+    report = None
+    if progress is not None:
+        finished = [0]
+
+        def report(done, total):
+            finished[0] += 1
+            progress(finished[0], total - done, total)
+
+    parts = run_chunks(
+        executor,
+        _identify_chunk,
+        chunks,
+        sizes=[hi - lo for lo, hi in bounds],
+        progress=report,
+        name="softrod-identify",
+    )
+    fields = {
+        name: _readonly(np.concatenate([p[name] for p in parts])) for name in _ROW_FIELDS
+    }
+    return StiffnessIdentification(
+        design=mapped,
+        dataset=dataset,
+        sections=tuple(names),
+        settings=parts[0]["settings"],
+        calls=sum(p["calls"] for p in parts),
+        wall_time_s=time.perf_counter() - t0,
+        **fields,
     )

@@ -1,10 +1,11 @@
 """``softrod`` command line: solve one equilibrium, sweep a pressure grid, compare models on
 a paper's experiments, calibrate parameters to measured tip positions, identify a design from
-axial measurements, simulate motion, run the PCC model, list designs and presets, run the demo.
+axial measurements, simulate motion, run the PCC model, list designs and presets, run the demo,
+view a design in the browser.
 
 One module per command group: ``statics`` (solve, sweep, demo), ``compare``, ``calibrate``
 (calibrate, calibrate-axial, identify), ``simulate``, ``pcc`` (compare-pcc, pcc-identify),
-``designs``; shared parsing, error handling and output helpers in ``_common``.
+``designs``, ``view``; shared parsing, error handling and output helpers in ``_common``.
 
 Units at the boundary: pressures and loads are read with pint ("30kPa", "0.3bar", "-1 N");
 a bare number is SI (Pa, N, N m). Outputs state their units (table headers, JSON keys,
@@ -25,6 +26,7 @@ from .designs import designs
 from .pcc import compare_pcc_cmd, pcc_identify
 from .simulate import simulate_cmd
 from .statics import demo, solve, sweep
+from .view import view
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -50,5 +52,6 @@ for _command in (
     simulate_cmd,
     compare_pcc_cmd,
     pcc_identify,
+    view,
 ):
     main.add_command(_command)

@@ -256,6 +256,26 @@ def _threads_option(help_text: str):
     )
 
 
+def _scheduler_option(help_text: str):
+    """The ``--scheduler ADDRESS`` option of the commands that can run on a Dask cluster."""
+    return click.option("--scheduler", metavar="ADDRESS", default=None, help=help_text)
+
+
+@contextlib.contextmanager
+def _scheduler(address: str | None):
+    """A ``distributed.Client`` connected to ``address`` for the block (None: no cluster)."""
+    if address is None:
+        yield None
+        return
+    from ..cluster import connect
+
+    client = connect(address)
+    try:
+        yield client
+    finally:
+        client.close()
+
+
 def _check_output(path: Path, option: str, suffixes: tuple[str, ...], what: str) -> Path:
     """Fail fast on an output path (suffix, existing folder), before a long computation."""
     if path.suffix.lower() not in suffixes:

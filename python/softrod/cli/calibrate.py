@@ -28,6 +28,8 @@ from ._common import (
     _print_warnings,
     _progress_columns,
     _renamed,
+    _scheduler,
+    _scheduler_option,
     _staged,
     _stdout,
     _threads_option,
@@ -42,6 +44,8 @@ _CALIBRATE_OPTIONS = {
     "test": "--test",
     "method": "--method",
     "threads": "--threads",
+    "restarts": "--restarts",
+    "seed": "--seed",
 }
 
 
@@ -290,7 +294,19 @@ def _error_table(result) -> Table:
     is_flag=True,
     help="Print the parameter and error tables as JSON (SI values) instead of tables.",
 )
+@click.option(
+    "--restarts",
+    default=0,
+    show_default=True,
+    type=click.IntRange(min=0),
+    help="Extra fits from random starting points (within --bounds, or within a factor 3 of "
+    "a positive parameter's value); the best fit wins.",
+)
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Seed of the restarts' starting points.")
 @_threads_option("Worker threads per model evaluation (0 = all cores).")
+@_scheduler_option("Run the restarts on the Dask cluster whose scheduler is at ADDRESS "
+                   "(docs/cluster.md).")
 @_handle_errors
 def calibrate(
     design,
@@ -304,7 +320,10 @@ def calibrate(
     out,
     report_path,
     as_json,
+    restarts,
+    seed,
     threads,
+    scheduler,
 ):
     """Fit parameters of DESIGN to the measured tip positions in DATA.
 
@@ -364,7 +383,7 @@ def calibrate(
         # keep the caller's filters and are passed on after the fit.
         warnings.simplefilter("always", CalibrationWarning)
         try:
-            with _FitProgress(header) as progress:
+            with _scheduler(scheduler) as client, _FitProgress(header) as progress:
                 result = fit(
                     d,
                     dataset,
@@ -376,6 +395,9 @@ def calibrate(
                     threads=threads,
                     max_evaluations=max_evaluations,
                     progress=progress,
+                    restarts=restarts,
+                    seed=seed,
+                    executor=client,
                 )
         except InputError as exc:
             raise _as_option(exc, renames, typed) from None
@@ -532,8 +554,10 @@ def calibrate_axial(
     help="Write an HTML report here (factors over the workspace, paper 001 Fig. 5).",
 )
 @_threads_option("Worker threads per core call (0 = all cores).")
+@_scheduler_option("Identify the samples on the Dask cluster whose scheduler is at ADDRESS "
+                   "(docs/cluster.md).")
 @_handle_errors
-def identify(design, data, sections, out, report_path, threads):
+def identify(design, data, sections, out, report_path, threads, scheduler):
     """Identify the stiffness factors sigma of every sample in DATA (paper 001 eqs. 14-22).
 
     For each measured pose: sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) that puts the
@@ -561,13 +585,23 @@ def identify(design, data, sections, out, report_path, threads):
     except InputError as exc:
         raise _as_option(exc, {"sections": "--sections"}) from None
     console = _stdout()
-    with Progress(*_progress_columns(), console=Console(stderr=True), transient=True) as bar:
+    with _scheduler(scheduler) as client, Progress(
+        *_progress_columns(), console=Console(stderr=True), transient=True
+    ) as bar:
         task = bar.add_task("identify", total=len(dataset))
+        step = "chunk" if client is not None else "iteration"
 
         def progress(iteration: int, active: int, total: int) -> None:
-            bar.update(task, completed=total - active, description=f"iteration {iteration}")
+            bar.update(task, completed=total - active, description=f"{step} {iteration}")
 
-        result = identify_stiffness(d, dataset, sections=names, threads=threads, progress=progress)
+        result = identify_stiffness(
+            d,
+            dataset,
+            sections=names,
+            threads=threads,
+            progress=progress,
+            executor=client,
+        )
     table = Table(show_header=False, box=None, padding=(0, 2))
     for key, value in result.summary().items():
         table.add_row(str(key), f"{value:.4g}" if isinstance(value, float) else str(value))

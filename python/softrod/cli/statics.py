@@ -30,6 +30,8 @@ from ._common import (
     _parse_pressures,
     _parse_vector,
     _progress_columns,
+    _scheduler,
+    _scheduler_option,
     _stdout,
     _threads_option,
     _write_shape_plot,
@@ -51,10 +53,35 @@ def _lateral(sol: StaticSolution) -> float:
 
 
 def _run_sweep(
-    design: Design, pressures: np.ndarray, threads: int, chunk: int, console: Console, label: str
+    design: Design,
+    pressures: np.ndarray,
+    threads: int,
+    chunk: int,
+    console: Console,
+    label: str,
+    client=None,
 ) -> tuple[dict[str, np.ndarray], float]:
-    """Solve every row in chunks under a progress bar; return (results, wall time s)."""
+    """Solve every row in chunks under a progress bar; return (results, wall time s). With a
+    Dask ``client`` the chunks run on its cluster (chunk size by softrod.cluster's rule)."""
     m = len(pressures)
+    if client is not None:
+        t0 = time.perf_counter()
+        with Progress(*_progress_columns(), console=console) as progress:
+            task = progress.add_task(label, total=m)
+            out = solve_statics_batch(
+                design,
+                pressures,
+                threads=threads,
+                executor=client,
+                progress=lambda done, _total: progress.update(task, completed=done),
+            )
+        wall = time.perf_counter() - t0
+        res = {
+            "tip_position": out.tip_position,
+            "converged": out.converged,
+            "iterations": out.iterations,
+        }
+        return res, wall
     tips = np.empty((m, 3))
     converged = np.empty(m, dtype=bool)
     iterations = np.empty(m, dtype=np.int64)
@@ -181,9 +208,12 @@ def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
     type=click.Path(dir_okay=False, path_type=Path),
     help="Output table, .csv or .parquet (written whole or not at all).",
 )
-@_threads_option("Worker threads (0 = all cores).")
+@_threads_option("Worker threads (0 = all cores; with --scheduler: per task, 0 = the "
+                 "worker's share of its machine).")
+@_scheduler_option("Run on the Dask cluster whose scheduler is at ADDRESS, e.g. "
+                   "tcp://10.0.0.5:8786 (docs/cluster.md).")
 @_handle_errors
-def sweep(design, grids, out, threads):
+def sweep(design, grids, out, threads, scheduler):
     """Tip positions over a full-factorial pressure grid of DESIGN.
 
     Rows run with channel 1 slowest and the last channel fastest, so consecutive rows are
@@ -223,7 +253,10 @@ def sweep(design, grids, out, threads):
     pressures = _full_factorial(axes)
     console = _stdout()
     console.print(Text(f"{d.name}: {rows:,} rows ({' x '.join(str(len(a)) for a in axes)})"))
-    res, wall = _run_sweep(d, pressures, threads, SWEEP_CHUNK, console, "sweep")
+    with _scheduler(scheduler) as client:
+        if client is not None:
+            console.print(Text(f"on the Dask cluster at {scheduler}"), soft_wrap=True)
+        res, wall = _run_sweep(d, pressures, threads, SWEEP_CHUNK, console, "sweep", client)
     write_table(_sweep_frame(pressures, res), out)
     n_ok = int(res["converged"].sum())
     style = "green" if n_ok == rows else "yellow"
