@@ -9,7 +9,7 @@ Conventions of the Markdown files (docs/writing-docs.md says the same):
   trailing spaces and blank lines at both ends. ``...`` in the shown output matches any text
   (doctest's ELLIPSIS), for values that change from run to run (timings, temporary paths,
   round-off below the shown digits).
-- ```console blocks hold ``$ softrod ...`` commands (or ``$ python examples/NAME.py``, the
+- ```console blocks hold ``$ softrod ...`` commands (or ``$ python examples/<name>.py``, the
   repository's examples, run in a subprocess), each followed by its output (compared the
   same way; no output shown means only the exit code is checked). A command must exit with 0,
   or with N when it ends in ``# exit N`` (an error shown on purpose). ```bash blocks: every line
@@ -170,7 +170,7 @@ def shell_commands(block: Block) -> list[str]:
 
 
 def run_example(where: str, command: str, want: str | None) -> None:
-    """``python examples/NAME.py ...``: the repository's example script, in a subprocess."""
+    """``python examples/<name>.py ...``: the repository's example script, in a subprocess."""
     import subprocess
     import sys
 

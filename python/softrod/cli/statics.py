@@ -279,7 +279,8 @@ def sweep(design, grids, out, threads, scheduler):
 def demo(out_dir):
     """Tour: solve, plot and sweep the bundled three-chamber actuator (a few seconds).
 
-    Writes shapes.png (all shapes in one 3-D figure) and tips.csv to --out-dir.
+    Writes shapes.png (the shapes in a 3-D view and a top view) and tips.csv to
+    --out-dir.
     """
     import pandas as pd
 

@@ -232,8 +232,16 @@ def plot_pcc_step_response(runs, rest_length: float, title: str | None = None):
         q = np.asarray(out["q"], dtype=float)
         t = np.asarray(out["time"], dtype=float)
         top, bottom = axes[0, k], axes[1, k]
-        top.plot(t, 1e3 * (q[:, 0] - rest_length), color="C0")
-        bottom.plot(t, np.degrees(q[:, 1]), color="C1")
+        elongation_mm, theta_deg = 1e3 * (q[:, 0] - rest_length), np.degrees(q[:, 1])
+        top.plot(t, elongation_mm, color="C0")
+        bottom.plot(t, theta_deg, color="C1")
+        # A quantity that stays at zero (no bending under equal chambers) is round-off, not a
+        # curve: show at least +-1 mm or +-1 deg instead of blowing 1e-14 up to the axis.
+        for ax, values in ((top, elongation_mm), (bottom, theta_deg)):
+            lo, hi = float(np.min(values)), float(np.max(values))
+            if hi - lo < 2.0:
+                mid = 0.5 * (lo + hi)
+                ax.set_ylim(mid - 1.0, mid + 1.0)
         top.set_title(str(label), fontsize="medium")
         top.set_ylabel("elongation L - L0 (mm)")
         bottom.set_ylabel("bending angle theta (deg)")
