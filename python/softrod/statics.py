@@ -99,13 +99,16 @@ def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
     """The map to use, or None for a design without mapped sections."""
     mapped = _mapped_sections(design)
     if stiffness_map is None:
+        if design.stiffness_map is not None:
+            return design.stiffness_map  # the design file's [stiffness_map]
         if mapped:
             raise design_error(
                 "stiffness_map",
                 None,
                 f"section(s) {', '.join(mapped)} of design {design.name!r} set [sections.law] "
                 "stiffness_map = true: pass stiffness_map=, a softrod.StiffnessMap (e.g. "
-                "StiffnessMap.from_table or from_csv; sigma is never assumed to be 1)",
+                "StiffnessMap.from_table or from_csv; sigma is never assumed to be 1), or "
+                'reference a map file in the design ([stiffness_map] file = "sigma.json")',
                 InputError,
             )
         return None
@@ -159,8 +162,10 @@ def solve_statics(
     moment when given; gravity and the tip body always act. ``initial`` warm-starts from a
     previous solution. On non-convergence raises :class:`ConvergenceError`, or with
     ``check=False`` returns a solution with ``converged=False`` and NaN arrays.
-    ``stiffness_map`` (a :class:`StiffnessMap`) is required exactly when a section sets
-    ``[sections.law] stiffness_map = true``; it is evaluated once at ``pressures``.
+    ``stiffness_map`` (a :class:`StiffnessMap`) is needed exactly when a section sets
+    ``[sections.law] stiffness_map = true``; it defaults to the map the design file
+    references (``[stiffness_map] file = ...``, ``design.stiffness_map``), and one given here
+    replaces it. It is evaluated once at ``pressures``.
     """
     design = load_design(design)
     p = _pressures(design, pressures)
@@ -265,7 +270,8 @@ def solve_statics_batch(
         out = _batch_on_cluster(
             executor, design, arr, tf, tm, sigma, _options(options), threads, chunk_size, progress
         )
-        return BatchSolution(pressures=arr, stiffness_scale=sigma, **out)
+        meta = _batch_metadata(design, options, tf, tm, smap)
+        return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
     if chunk_size is not None:
         raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
     if progress is not None:
@@ -278,7 +284,22 @@ def solve_statics_batch(
         stiffness_scale=sigma,
         **_options(options).as_kwargs(),
     )
-    return BatchSolution(pressures=arr, stiffness_scale=sigma, **out)
+    meta = _batch_metadata(design, options, tf, tm, smap)
+    return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
+
+
+def _batch_metadata(design, options, tf, tm, smap) -> dict:
+    """The metadata block of a batch's table (BatchSolution.to_frame)."""
+    from .schema import provenance
+
+    return provenance(
+        "softrod.solve_statics_batch",
+        design,
+        solver=_options(options).as_kwargs(),
+        tip_force_N=tf,
+        tip_moment_Nm=tm,
+        stiffness_map=None if smap is None else repr(smap),
+    )
 
 
 def _batch_chunk(text, pressures, tip_force, tip_moment, sigma, options, threads, per_host):

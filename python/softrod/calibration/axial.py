@@ -45,11 +45,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import (
     _checked_metadata,
     _fail,
-    _metadata_json,
     _read_csv,
     _runs,
     _unit_factor,
@@ -58,6 +58,7 @@ from ..datasets import (
 from ..design import PACKAGE_DIR, Design
 from ..errors import InputError
 from ..io import atomic_path
+from ..io import metadata_json as _metadata_json
 from ..units import to_si
 
 __all__ = [
@@ -266,6 +267,9 @@ def _read_table(source, value: str, n_chambers: int, extra: str, rtol: float):
         where = _Where("index", labels=tuple(source.index))
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
+        bundled = _EXAMPLES_DIR / f"{source}.csv"
+        if path.suffix == "" and not path.exists() and bundled.is_file():
+            path = bundled  # a bundled example by name, e.g. modular_axial_force_synthetic
         if path.suffix.lower() != ".csv":
             raise _fail("path", str(path), "must be a .csv file (or pass a DataFrame)")
         if not path.is_file():
@@ -790,6 +794,7 @@ class AxialIdentification:
         )
 
 
+@one_blas_thread
 def identify_axial(
     data: AxialData, *, force_law: str = "proportional", stiffness: str = "constant"
 ) -> AxialIdentification:
@@ -879,6 +884,7 @@ def identify_axial(
     )
 
 
+@one_blas_thread
 def calibrate_axial(
     force,
     length,

@@ -12,31 +12,67 @@ import tempfile
 from pathlib import Path
 
 import click
-import numpy as np
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    ProgressColumn,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
-from rich.text import Text
 
-from ..design import Design
 from ..errors import ConvergenceError, DesignError, InputError, design_error
-from ..units import registry, to_si
+
+# Imported inside the functions that need them, never here: numpy, rich, pint (softrod.units)
+# and the model (softrod.design). `softrod --help` imports this module and must stay fast.
 
 ATM = 101_325.0  # Pa; gauge pressures below -1 atm are impossible
 
 
-def _stdout() -> Console:
+def _settings() -> dict:
+    """The group options of this invocation (--quiet, --verbose)."""
+    ctx = click.get_current_context(silent=True)
+    meta = ctx.find_root().meta if ctx is not None else {}
+    return meta.get("softrod.cli", {"quiet": False, "verbose": 0})
+
+
+def _quiet() -> bool:
+    """True with ``softrod --quiet``: results and errors only, no progress or notes."""
+    return bool(_settings()["quiet"])
+
+
+def _say(text: str, *, stderr: bool = False) -> None:
+    """A note for people (``wrote out.csv``): one line, left out with --quiet."""
+    if _quiet():
+        return
+    from rich.console import Console
+    from rich.text import Text
+
+    Console(stderr=stderr, highlight=False).print(Text(text), soft_wrap=True)
+
+
+@contextlib.contextmanager
+def _progress(label: str, total: float | None):
+    """A progress bar on stderr while the block runs; yields ``advance(n)``.
+
+    Shown only when stderr is a terminal and not with --quiet (redirected output and logs
+    stay clean); it disappears when done, a summary line follows."""
+    from rich.console import Console
+    from rich.progress import Progress
+
+    console = Console(stderr=True, highlight=False)
+    if _quiet() or not console.is_terminal:
+        yield lambda n=1: None
+        return
+    with Progress(*_progress_columns(), console=console, transient=True) as bar:
+        task = bar.add_task(label, total=total)
+        yield lambda n=1: bar.advance(task, n)
+
+
+def _stdout():
+    """A rich Console on the current sys.stdout."""
+    from rich.console import Console
+
     # Made per call so that it writes to the current sys.stdout (click's test runner swaps it).
     return Console(highlight=False)
 
 
 def _fail(message: str, code: int) -> None:
+    from rich.console import Console
+    from rich.text import Text
+
     line = " ".join(str(message).split())  # one line, whatever the message contains
     err = Console(stderr=True, highlight=False, soft_wrap=True)
     err.print(Text(f"error: {line}", style="bold red"))
@@ -77,6 +113,8 @@ def _parse_quantities(items: list[str], kind: str, fields: list[str]) -> list[fl
     - Otherwise every item stands alone and a bare number is SI; but a non-zero bare number
       next to items with units ("30kPa,5,0") is refused as ambiguous (5 Pa or 5 kPa?).
     """
+    from ..units import registry, to_si
+
     items = [t.strip() for t in items]
     for t, f in zip(items, fields, strict=True):
         if not t:
@@ -106,7 +144,7 @@ def _parse_vector(text: str, kind: str, option: str, count: int) -> list[float]:
     return _parse_quantities(items, kind, [f"{option}[{i}]" for i in range(count)])
 
 
-def _parse_pressures(text: str | None, design: Design) -> list[float]:
+def _parse_pressures(text: str | None, design) -> list[float]:
     n = design.n_channels
     if text is None:
         return [0.0] * n
@@ -155,8 +193,9 @@ def _parse_span(text: str, option: str, form: str, check_n) -> tuple[float, floa
     return start, stop, n
 
 
-def _parse_grid(text: str, option: str = "--grid") -> np.ndarray:
+def _parse_grid(text: str, option: str = "--grid"):
     """START:STOP:COUNT -> COUNT evenly spaced pressures in Pa (both ends included)."""
+    import numpy as np
 
     def check_count(start: float, stop: float, count: int, raw: str) -> None:
         if count < 1:
@@ -175,8 +214,10 @@ def _parse_grid(text: str, option: str = "--grid") -> np.ndarray:
     return np.linspace(start, stop, count)
 
 
-def _full_factorial(axes: list[np.ndarray]) -> np.ndarray:
+def _full_factorial(axes: list):
     """All combinations, channel 0 slowest and the last channel fastest (C order)."""
+    import numpy as np
+
     mesh = np.meshgrid(*axes, indexing="ij")
     return np.stack([m.ravel() for m in mesh], axis=1)
 
@@ -225,19 +266,28 @@ def _write_shape_plot(solutions, path: Path, title: str | None = None) -> Path:
         plt.close(fig)
 
 
-class _RateColumn(ProgressColumn):
-    """Rows per second of a progress task."""
-
-    def render(self, task) -> Text:
-        # The mean rate since the start: steadier than rich's windowed estimate, and defined
-        # after a single advance (a sweep of one chunk).
-        elapsed = task.elapsed
-        if not elapsed or not task.completed:
-            return Text("-- rows/s", style="cyan")
-        return Text(f"{task.completed / elapsed:,.0f} rows/s", style="cyan")
-
-
 def _progress_columns() -> tuple:
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        ProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.text import Text
+
+    class _RateColumn(ProgressColumn):
+        """Rows per second of a progress task."""
+
+        def render(self, task) -> Text:
+            # The mean rate since the start: steadier than rich's windowed estimate, and
+            # defined after a single advance (a sweep of one chunk).
+            elapsed = task.elapsed
+            if not elapsed or not task.completed:
+                return Text("-- rows/s", style="cyan")
+            return Text(f"{task.completed / elapsed:,.0f} rows/s", style="cyan")
+
     return (  # fits in 80 columns
         TextColumn("[bold]{task.description}"),
         BarColumn(bar_width=24),
@@ -336,7 +386,9 @@ def _num(x: float, scale: float = 1.0, digits: int = 6) -> str:
     return f"{x * scale:.{digits}g}"
 
 
-def _print_warnings(console: Console, messages: list[str]) -> None:
+def _print_warnings(console, messages: list[str]) -> None:
+    from rich.text import Text
+
     for message in messages:
         console.print(Text(f"warning: {message}", style="bold yellow"))
 

@@ -5,19 +5,15 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-import numpy as np
-from rich.progress import Progress
 
-from ..catalog import load_design
 from ..errors import InputError, design_error
-from ..io import atomic_path, check_table_path, write_table
-from ..units import to_si
 from ._common import (
     _for_option,
     _handle_errors,
     _parse_vector,
-    _progress_columns,
+    _progress,
     _pyplot,
+    _say,
     _stdout,
 )
 
@@ -33,7 +29,7 @@ def _channels(text: str) -> list[int]:
         ) from None
 
 
-def _read_columns(path: Path, needed: list[str]) -> dict[str, np.ndarray]:
+def _read_columns(path: Path, needed: list[str]) -> dict:
     import pandas as pd
 
     df = pd.read_parquet(path) if path.suffix.lower() == ".parquet" else pd.read_csv(path)
@@ -50,8 +46,11 @@ def _read_columns(path: Path, needed: list[str]) -> dict[str, np.ndarray]:
 
 def _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt):
     """compare-pcc --dynamic: the runs (with a progress bar) and the figure."""
+    import numpy as np
+
     from ..dynamics import PressureSchedule
     from ..pcc.compare import compare_pcc_dynamics, plot_pcc_dynamics_comparison
+    from ..units import to_si
 
     duration = to_si(t_end, "time", "--t-end", InputError)
     step = to_si(dt, "time", "--dt", InputError)
@@ -67,26 +66,26 @@ def _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt):
         on[chans] = pmax
         zero = np.zeros(d.n_channels)
         schedule = PressureSchedule.steps([0.0, 0.1, duration / 2], [zero, on, zero])
-        what = f"{pmax / 1e5:g} bar pulse from 0.1 s to {duration / 2:g} s"
-    with Progress(*_progress_columns(), console=_stdout()) as progress:
-        task = progress.add_task("runs", total=6)
+        what = (
+            f"{pmax / 1e3:g} kPa pulse on channels {', '.join(map(str, chans))} "
+            f"from 0.1 s to {duration / 2:g} s"
+        )
+    with _progress("runs", 6) as advance:
         df = compare_pcc_dynamics(
-            d,
-            schedule,
-            duration,
-            dt=step,
-            tip_force=force,
-            progress=lambda n: progress.advance(task, n),
+            d, schedule, duration, dt=step, tip_force=force, progress=advance
         )
     _pyplot()
     fig = plot_pcc_dynamics_comparison(df, title=f"{d.name}: PCC vs Cosserat rod, {what}")
     return df, fig, f"dynamics, dt = {step * 1e3:g} ms"
 
 
-
 @click.command("compare-pcc")
 @click.argument("design")
-@click.option("--channels", required=True, help="Channels pressurised together, e.g. 0,1,5.")
+@click.option(
+    "--channels",
+    required=True,
+    help="Channels pressurised together, numbered from 0 as everywhere in softrod, e.g. 5,0,1.",
+)
 @click.option("--p-max", "p_max", default="1 bar", show_default=True, help="Largest pressure.")
 @click.option("--steps", default=11, show_default=True, help="Pressure levels from 0.")
 @click.option(
@@ -107,7 +106,8 @@ def _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt):
     "--table",
     "table",
     type=click.Path(dir_okay=False, path_type=Path),
-    help="Also write the numbers (.csv or .parquet).",
+    help="Also write the numbers (.csv or .parquet, the dataset schema: one row per case, "
+    "level and model).",
 )
 @click.option(
     "--dynamic",
@@ -130,7 +130,10 @@ def compare_pcc_cmd(
     """PCC model vs Cosserat rod on DESIGN: tip positions while CHANNELS ramp to P_MAX,
     weightless, with gravity, and with gravity and a tip load (docs/pcc.md). With
     --dynamic, the tip trajectories of both models under the same pressures."""
+    from ..catalog import load_design
+    from ..io import atomic_path, check_table_path, write_table
     from ..pcc.compare import compare_pcc, plot_pcc_comparison
+    from ..units import to_si
 
     d = load_design(design)
     chans = _channels(channels)
@@ -150,18 +153,13 @@ def compare_pcc_cmd(
     if dynamic:
         df, fig, key = _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt)
     else:
-        with Progress(*_progress_columns(), console=console) as progress:
-            task = progress.add_task("solves", total=3 * 2 * steps)
-            df = compare_pcc(
-                d,
-                chans,
-                pmax,
-                steps=steps,
-                tip_force=force,
-                progress=lambda n: progress.advance(task, n),
-            )
+        with _progress("solves", 3 * 2 * steps) as advance:
+            df = compare_pcc(d, chans, pmax, steps=steps, tip_force=force, progress=advance)
         _pyplot()
-        fig = plot_pcc_comparison(df, title=f"{d.name}: PCC vs Cosserat rod")
+        on = ", ".join(map(str, chans))
+        fig = plot_pcc_comparison(
+            df, title=f"{d.name}: PCC vs Cosserat rod, channels {on} to {pmax / 1e3:g} kPa"
+        )
         key = "statics"
     plt = _pyplot()
     try:
@@ -171,14 +169,16 @@ def compare_pcc_cmd(
         plt.close(fig)
     if table is not None:
         write_table(df, table)
-    for case, sub in df.groupby("case", sort=False):
+    rod = df[df["model"] == "cosserat"]
+    for case, sub in rod.groupby("experiment", sort=False):
         worst = sub["error_mm"].max()
         console.print(f"{case:>20}: largest tip difference {worst:8.3f} mm ({key})")
-    console.print(f"wrote {out}" + (f" and {table}" if table else ""), soft_wrap=True)
+    _say(f"wrote {out}" + (f" and {table}" if table else ""))
+
 
 @click.command("pcc-identify")
 @click.argument("kind", type=click.Choice([*KINDS, "all"]))
-@click.argument("data", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("data", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--design", "design", help="Design (for chamber areas, moments, k values).")
 @click.option(
     "--chambers", default=3, show_default=True, help="Chambers pressurised (k_L, array CSV)."
@@ -225,12 +225,21 @@ def pcc_identify(
     load_dataset reads it; needs --design), fitted with softrod.calibrate(...,
     model="pcc"): KIND all fits k_L, k_theta, b_L and b_theta in that order. Or DATA is an
     array table with SI columns: longitudinal-stiffness p_Pa, d_m; bending-stiffness
-    p1_Pa..pN_Pa, theta_rad; longitudinal-damping t_s, z_m; bending-damping t_s,
-    theta_rad. Prints each value, its standard error and the [pcc] line to put in the
-    design; --write-design writes that design (whole or not at all)."""
+    p0_Pa..p<N-1>_Pa (channels from 0), theta_rad; longitudinal-damping t_s, z_m;
+    bending-damping t_s, theta_rad. Prints each value, its standard error and the [pcc]
+    line to put in the design; --write-design writes that design (whole or not at all)."""
+    import numpy as np
+
+    from ..catalog import load_design
+    from ..datasets import example_dataset_path, example_datasets
     from ..pcc import identify as idf
     from ..pcc.model import pcc_parameters
+    from ..units import to_si
 
+    if not data.exists() and data.suffix == "" and str(data) in example_datasets():
+        data = example_dataset_path(str(data))
+    if not data.is_file():
+        raise design_error("DATA", str(data), "no such file or bundled dataset", InputError)
     d = load_design(design) if design else None
 
     def need_design(what):
@@ -282,7 +291,7 @@ def pcc_identify(
             )
         elif kind == "bending-stiffness":
             dd = need_design("the chamber moment")
-            names = [f"p{k + 1}_Pa" for k in range(dd.n_channels)]
+            names = [f"p{k}_Pa" for k in range(dd.n_channels)]
             cols = _read_columns(data, [*names, "theta_rad"])
             moment = idf.chamber_moment(dd, np.column_stack([cols[n] for n in names]))
             fit = idf.fit_bending_stiffness(cols["theta_rad"], moment, degree=degree)
