@@ -7,6 +7,7 @@ All inputs and outputs are SI: pressures in Pa (gauge), one per channel.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -16,6 +17,9 @@ from .errors import ConvergenceError, InputError, design_error
 from .solution import BatchSolution, StaticSolution
 from .stiffness_map import StiffnessMap, _check_pressure_rows
 from .units import to_si
+
+if TYPE_CHECKING:
+    from ._types import ArrayLike, DesignLike, Progress
 
 
 @dataclass(frozen=True)
@@ -140,11 +144,11 @@ def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
 
 
 def solve_statics(
-    design,
-    pressures,
+    design: DesignLike,
+    pressures: ArrayLike,
     *,
-    tip_force=None,
-    tip_moment=None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
     options: SolverOptions | None = None,
     initial: StaticSolution | None = None,
     check: bool = True,
@@ -223,17 +227,17 @@ def solve_statics(
 
 
 def solve_statics_batch(
-    design,
-    pressures,
+    design: DesignLike,
+    pressures: ArrayLike,
     *,
-    tip_force=None,
-    tip_moment=None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
     options: SolverOptions | None = None,
     threads: int = 0,
     stiffness_map: StiffnessMap | None = None,
-    executor=None,
+    executor: Any = None,
     chunk_size: int | None = None,
-    progress=None,
+    progress: Progress = None,
 ) -> BatchSolution:
     """Solve for every row of an (m, channels) pressure array (Pa) in parallel.
 

@@ -15,6 +15,7 @@ import math
 import os
 import time as _time
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -26,6 +27,9 @@ from ..progress import reporter
 from ..units import to_si
 from .schedule import PressureSchedule
 from .trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from .._types import ArrayLike, DesignLike, Quantity, ScheduleLike
 
 __all__ = ["METHOD", "Simulation", "simulate"]
 
@@ -104,11 +108,11 @@ class Simulation:
 
     def __init__(
         self,
-        design,
-        pressures=None,
+        design: DesignLike,
+        pressures: ArrayLike | None = None,
         *,
         initial: str = "static",
-        dt=2e-3,
+        dt: Quantity = 2e-3,
         alpha: float = -0.2,
         tol: float = 1e-9,
         max_iter: int = 25,
@@ -186,22 +190,24 @@ class Simulation:
             "shape_position": d["shape_position"][0],
         }
 
-    def set_tip_loads(self, force=(0.0, 0.0, 0.0), moment=(0.0, 0.0, 0.0)) -> None:
+    def set_tip_loads(
+        self, force: ArrayLike = (0.0, 0.0, 0.0), moment: ArrayLike = (0.0, 0.0, 0.0)
+    ) -> None:
         """Dead tip force (N) and moment (N m), world frame, from the next step on."""
         self._sim.set_tip_loads([float(x) for x in force], [float(x) for x in moment])
 
-    def step(self, command) -> None:
+    def step(self, command: ArrayLike) -> None:
         """One time step towards the commanded pressures ``command`` (Pa)."""
         c = np.asarray(command, dtype=float).reshape(1, -1)
         self._sim.run(c, np.zeros(1, dtype=np.uint8), False)
 
     def run(
         self,
-        pressure_schedule,
-        duration,
+        pressure_schedule: ScheduleLike,
+        duration: Quantity,
         *,
         save_every: int = 1,
-        shapes=None,
+        shapes: str | float | Sequence[float] | None = None,
         energy: bool = True,
         progress: Callable[[float, float, float], None] | None = None,
     ) -> Trajectory:
@@ -312,14 +318,14 @@ def _shape_steps(shapes, n: int, dt: float, save_every: int) -> tuple[np.ndarray
 
 
 def simulate(
-    design,
-    pressure_schedule,
-    t_end,
+    design: DesignLike,
+    pressure_schedule: ScheduleLike,
+    t_end: Quantity,
     *,
-    dt=2e-3,
+    dt: Quantity = 2e-3,
     save_every: int = 1,
-    shapes=None,
-    initial="static",
+    shapes: str | float | Sequence[float] | None = None,
+    initial: str | Simulation = "static",
     model: str = "cosserat",
     alpha: float = -0.2,
     tol: float | None = None,
