@@ -192,6 +192,28 @@ def test_trajectory_tip_plot_with_a_reference(trajectory):
     assert_readable(trajectory.plot_tip(reference=ref))
 
 
+def _first_frame(trajectory):
+    """The animation's figure with its first frame drawn (Trajectory.animate's defaults)."""
+    fig, _canvas, draw = trajectory._animation_scene(
+        trail=True, elev=20.0, azim=-60.0, dpi=80, figsize=(5.0, 5.0)
+    )
+    draw(0)
+    return fig
+
+
+def test_animation_first_frame(trajectory):
+    fig = _first_frame(trajectory)
+    assert [t.get_text() for t in fig.axes[0].texts] == ["t = 0.00 s"]
+    assert_readable(fig)
+
+
+def test_animation_first_frame_of_the_slender_pcc_arm():
+    # The PCC GIF of the issue: a 110 mm arm bending by 100 mm, a tall narrow 3-D box.
+    schedule = softrod.PressureSchedule.steps([0.0, 0.1], [np.zeros(6), [1e5, 0, 0, 0, 0, 1e5]])
+    tr = softrod.simulate("stiff_flop_pcc", schedule, 0.6, dt=5e-3, model="pcc", shapes=0.1)
+    assert_readable(_first_frame(tr))
+
+
 def test_trajectory_tip_plot_of_the_pcc_model():
     schedule = softrod.PressureSchedule.steps([0.0, 0.1], [np.zeros(6), [1e5, 0, 0, 0, 0, 1e5]])
     tr = softrod.simulate("stiff_flop_pcc", schedule, 0.6, dt=5e-3, model="pcc")

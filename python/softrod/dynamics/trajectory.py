@@ -593,7 +593,9 @@ class Trajectory:
         lo = hi - 1
         return np.where(tf - st[lo] <= st[hi] - tf, lo, hi)
 
-    def _render(self, out: Path, frames, fps, trail, elev, azim, dpi, figsize, report) -> None:
+    def _animation_scene(self, trail, elev, azim, dpi, figsize):
+        """(Figure, Agg canvas, draw) of an animation: ``draw(i)`` shows stored shape i and
+        returns the frame's RGBA pixels."""
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
@@ -601,7 +603,9 @@ class Trajectory:
 
         fig = Figure(figsize=figsize, dpi=dpi)
         canvas = FigureCanvasAgg(fig)
-        ax = fig.add_subplot(projection="3d")
+        # Margins around the 3-D box: its tick and axis labels stand outside the box, and a
+        # slender arm's box fills the height (the labels would leave the frame otherwise).
+        ax = fig.add_axes((0.06, 0.16, 0.78, 0.72), projection="3d")
         shapes = self.shape_position * 1e3
         tips = self.tip_position * 1e3
         shown = self.time <= self.shape_time[-1]
@@ -641,6 +645,11 @@ class Trajectory:
                 ax.draw_artist(artist)
             return np.asarray(canvas.buffer_rgba())
 
+        return fig, canvas, draw
+
+
+    def _render(self, out: Path, frames, fps, trail, elev, azim, dpi, figsize, report) -> None:
+        _fig, canvas, draw = self._animation_scene(trail, elev, azim, dpi, figsize)
         n = len(frames)
         if out.suffix == ".gif":
             from PIL import Image
