@@ -13,9 +13,10 @@ Figures (tip positions in mm, world frame):
 - ``tip_error_boxes``: box plots of the Euclidean tip error per set, with the signed radial
   and height errors (measured minus predicted) of paper 001 Fig. 7 when the base and axis
   are given, and a % of L scale when the length L is given;
-- ``tip_error_map``: measured tips coloured by the tip error (paper 001 Fig. 6, bottom);
-- ``factors`` (with ``factors``): measured tips coloured by each identified stiffness factor
-  (paper 001 Fig. 5);
+- ``tip_error_map``: measured tips coloured by the tip error, in top and side view (paper
+  001 Fig. 6, bottom, shows them in 3-D);
+- ``factors`` (with ``factors``): measured tips coloured by each identified stiffness factor,
+  one row of top and side views per factor (paper 001 Fig. 5);
 - ``error_vs_pressure`` (with ``pressures``): tip error against each chamber pressure.
 """
 
@@ -374,7 +375,8 @@ def _figures(
         ),
         (
             "tip_error_map",
-            "Tip error at the measured tip positions (like paper 001 Fig. 6, bottom).",
+            "Tip error at the measured tip positions, top and side view (like paper 001 Fig. 6, "
+            "bottom).",
             _residual_figure(meas, samples),
         ),
     ]
@@ -382,7 +384,8 @@ def _figures(
         out.append(
             (
                 "factors",
-                "Identified factors at the measured tip positions (like paper 001 Fig. 5).",
+                "Identified factors at the measured tip positions, top and side view (like paper "
+                "001 Fig. 5).",
                 _factor_figure(meas, f, f_names),
             )
         )
