@@ -299,7 +299,7 @@ class Dataset:
     def __len__(self) -> int:
         return self.pressures.shape[0]
 
-    def rows_text(self, rows) -> str:
+    def rows_text(self, rows: Iterable[int]) -> str:
         """Rows (0-based indices) as a message names them: by file line for a CSV source
         ("d.csv lines 3-5, 9"), by 0-based row for a Parquet source, else by index."""
         rows = sorted(int(r) for r in rows)
