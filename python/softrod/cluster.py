@@ -88,10 +88,16 @@ def connect(address: str):
 
 
 def design_text(design) -> str:
-    """The TOML text of a design's document (what travels to the workers)."""
+    """The TOML text of a design's document (what travels to the workers): units on every
+    value (as Design.save writes them), a stiffness map file by its absolute path."""
     import tomli_w
 
-    return tomli_w.dumps(_plain(design.document))
+    from .design import _with_units
+
+    doc = _with_units(_plain(design.document))
+    if design.stiffness_map_source is not None:
+        doc["stiffness_map"] = {**doc["stiffness_map"], "file": str(design.stiffness_map_source)}
+    return tomli_w.dumps(doc)
 
 
 def _plain(value):

@@ -30,22 +30,35 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import os
 import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
+from . import _validate as V
 from .catalog import load_design
 from .design import PACKAGE_DIR, Design
 from .errors import ConvergenceError, InputError, design_error
-from .io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
-from .units import SI_UNIT, registry, vector_to_si
+from .io import TABLE_SUFFIXES, check_table_path, write_table
+from .schema import (
+    DEFAULT_UNITS,
+    UNIT_ALIASES,
+    Extra,
+    schema_frame,
+)
+from .schema import matrix_to_quat as _matrix_to_quat
+from .schema import quat_to_matrix as _quat_to_matrix
+from .schema import unit_factor as _unit_factor
+from .units import vector_to_si
+
+if TYPE_CHECKING:
+    from ._types import ArrayLike, DesignLike, PathLike
+    from .statics import SolverOptions
 
 __all__ = [
     "DEFAULT_UNITS",
@@ -59,21 +72,7 @@ __all__ = [
     "write_dataset",
 ]
 
-# ASCII spellings of moment units, mapped before pint reads a unit: pint reads "Nm" as
-# number-metre and does not know "Nmm". Keys are exact (case-sensitive) unit strings.
-UNIT_ALIASES = {
-    "Nm": "N*m",
-    "Nmm": "N*mm",
-    "Ncm": "N*cm",
-    "mNm": "mN*m",
-    "mNmm": "mN*mm",
-    "kNm": "kN*m",
-}
-_SUFFIX_OF = {v: k for k, v in UNIT_ALIASES.items()}
-
-# Units to_frame and write_dataset use unless told otherwise (one per kind).
-DEFAULT_UNITS = {"pressure": "kPa", "length": "mm", "force": "N", "moment": "Nmm", "time": "s"}
-
+MAX_FILE_BYTES = 2**31  # dataset and schedule files larger than this are refused unread
 # |q| must be 1 within this. Motion-capture exports round quaternions to about 7 significant
 # digits (|q| - 1 ~ 1e-7); a larger error means the columns are not a unit quaternion at all
 # (scalar-last order, Euler angles, degrees), which must not be renormalised silently.
@@ -136,87 +135,57 @@ def _checked_metadata(metadata) -> dict:
     return meta
 
 
-def _unit_factor(unit: str, kind: str, column: str) -> float:
-    """SI factor of ``unit`` (a unit string, aliases allowed) checked against ``kind``."""
-    text = unit.strip()
-    if not text:
-        raise _fail(column, unit, f"empty unit: a {kind} needs one, e.g. '{DEFAULT_UNITS[kind]}'")
-    ureg = registry()
-    try:
-        parsed = ureg.parse_units(UNIT_ALIASES.get(text, text))
-    except Exception as exc:  # pint raises several error types for bad strings
+def _channel(base: str, column: str) -> int:
+    """The channel index of a ``p<k>`` base name, refused beyond MAX_CHANNELS before any
+    table of channels is built."""
+    digits = base[1:]
+    if len(digits) > 3 or int(digits) >= V.MAX_CHANNELS:
         raise _fail(
             column,
-            unit,
-            f"unknown unit ({exc}); a {kind} column needs a unit pint knows, e.g. "
-            f"'{DEFAULT_UNITS[kind]}' (moment spellings {', '.join(UNIT_ALIASES)} are accepted)",
-        ) from None
-    want = ureg.get_dimensionality(SI_UNIT[kind])
-    if parsed.dimensionality != want:
-        have = str(parsed.dimensionality) if not parsed.dimensionless else "dimensionless"
-        raise _fail(
             column,
-            unit,
-            f"wrong unit: this column is a {kind} (like '{DEFAULT_UNITS[kind]}'), "
-            f"but the unit has dimension {have}",
+            f"channel {digits if len(digits) <= 12 else digits[:12] + '...'} is beyond softrod's "
+            f"limit of {V.MAX_CHANNELS} pressure channels (p0 ... p{V.MAX_CHANNELS - 1})",
         )
-    return float(ureg.Quantity(1.0, parsed).to(SI_UNIT[kind]).magnitude)
+    return int(digits)
 
 
-def _suffix(unit: str) -> str:
-    """The column-name spelling of a unit (``N*mm`` -> ``Nmm``)."""
-    return _SUFFIX_OF.get(unit.strip(), unit.strip())
+def _read_text(path: Path) -> str:
+    """A text file as str: UTF-8 (a byte-order mark allowed); anything else, such as a
+    binary or UTF-16 file, is an InputError naming the file."""
+    size = path.stat().st_size
+    if size > MAX_FILE_BYTES:
+        raise _fail("file", str(path), f"is too large ({size} bytes; at most {MAX_FILE_BYTES})")
+    raw = path.read_bytes()
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise _fail("file", str(path), "is UTF-16 text: save it as UTF-8 (CSV UTF-8)")
+    if b"\0" in raw[:65536]:
+        raise _fail("file", str(path), "is not a text file (it holds NUL bytes)")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise _fail(
+            "file", str(path), f"is not UTF-8 text (byte {exc.start}, line {line}): save as UTF-8"
+        ) from None
 
 
-# --- rotations -------------------------------------------------------------------------------
-
-
-def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """(m, 4) unit quaternions (w, x, y, z) -> (m, 3, 3) rotation matrices."""
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        axis=1,
-    )
-
-
-def _matrix_to_quat(r: np.ndarray) -> np.ndarray:
-    """(m, 3, 3) rotation matrices -> (m, 4) unit quaternions (w, x, y, z) with w >= 0.
-
-    Shepperd's method: divide by the largest of |w|, |x|, |y|, |z| so no branch loses digits.
-    """
-    r = np.asarray(r, dtype=float).reshape(-1, 3, 3)
-    tr = np.trace(r, axis1=1, axis2=2)
-    diag = np.stack([r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]], axis=1)
-    four_sq = np.column_stack([1 + tr, 1 + 2 * diag - tr[:, None]])  # 4w^2, 4x^2, 4y^2, 4z^2
-    pick = np.argmax(four_sq, axis=1)
-    big = 0.5 * np.sqrt(np.maximum(four_sq[np.arange(len(r)), pick], 0.0))
-    d = 4.0 * np.where(big > 0, big, 1.0)
-    a21, a12, a02, a20, a10, a01 = (
-        r[:, 2, 1],
-        r[:, 1, 2],
-        r[:, 0, 2],
-        r[:, 2, 0],
-        r[:, 1, 0],
-        r[:, 0, 1],
-    )
-    cases = [
-        (big, (a21 - a12) / d, (a02 - a20) / d, (a10 - a01) / d),
-        ((a21 - a12) / d, big, (a01 + a10) / d, (a02 + a20) / d),
-        ((a02 - a20) / d, (a01 + a10) / d, big, (a12 + a21) / d),
-        ((a10 - a01) / d, (a02 + a20) / d, (a12 + a21) / d, big),
-    ]
-    q = np.zeros((len(r), 4))
-    for k, comps in enumerate(cases):
-        sel = pick == k
-        q[sel] = np.column_stack([c[sel] for c in comps])
-    q[q[:, 0] < 0] *= -1.0
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
+def _json_block(body: str, key: str, where: str) -> dict:
+    """A ``# units:``/``# metadata:`` JSON object, nesting bounded (no RecursionError)."""
+    try:
+        value = json.loads(body)
+    except json.JSONDecodeError as exc:
+        raise _fail(
+            key,
+            body.strip(),
+            f"{where}: not valid JSON ({exc.msg}); write e.g. "
+            '# units: {"p0": "kPa", "tip_x": "mm"}',
+        ) from None
+    except RecursionError:
+        raise _fail(key, body.strip(), f"{where}: nested too deeply") from None
+    if not isinstance(value, dict):
+        raise _fail(key, value, f"{where}: must be a JSON object {{...}}")
+    V.check_depth(value, key)
+    return value
 
 
 # --- the dataset -------------------------------------------------------------------------------
@@ -239,6 +208,11 @@ class Dataset:
     experiment: (m,) ids (int64 or str) or None.  mounting: (m,) str or None.
     time: (m,) s or None.  metadata: dict; ``metadata["synthetic"]`` is True for data made by
     :func:`synthesize_dataset` (with the design, noise and seed).  source: file read or None.
+    first_line: for a CSV source, the file line of the first row (messages name rows by
+    line, as a text editor counts them); None otherwise.
+    extra: the result columns of a table softrod wrote (``converged``, ``iterations``,
+    ``sigma_ext``, ...), by column name as written, (m,) each, described in
+    ``metadata["columns"]``; empty for measurements.
 
     Arrays are read-only. Use :func:`load_dataset` to read a file, :meth:`to_frame` and
     :func:`write_dataset` to write one.
@@ -254,11 +228,13 @@ class Dataset:
     time: np.ndarray | None = None
     metadata: dict = field(default_factory=lambda: {"synthetic": False})
     source: Path | None = None
+    first_line: int | None = None
+    extra: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self):
         set_ = object.__setattr__
-        p = np.array(self.pressures, dtype=float)
-        if p.ndim != 2 or p.shape[1] < 1:
+        p = V.real_array(self.pressures, "pressures", what="gauge pressures (Pa)")
+        if p.ndim != 2 or p.shape[1] < 1 or p.shape[1] > V.MAX_CHANNELS:
             raise _fail("pressures", f"shape {p.shape}", "must be an (m, channels) array in Pa")
         m = p.shape[0]
         set_(self, "pressures", _readonly(p))
@@ -275,7 +251,7 @@ class Dataset:
                 if name == "tip_position":
                     raise _fail(name, None, "is required (an (m, 3) array in m)")
                 continue
-            a = np.array(value, dtype=float)
+            a = V.real_array(value, name)
             if a.shape != shape:
                 raise _fail(name, f"shape {a.shape}", f"must have shape {shape} (m = {m} rows)")
             set_(self, name, _readonly(a))
@@ -306,9 +282,33 @@ class Dataset:
         set_(self, "metadata", _checked_metadata(self.metadata))
         if self.source is not None:
             set_(self, "source", Path(self.source))
+        if not isinstance(self.extra, Mapping):
+            raise _fail("extra", type(self.extra).__name__, "must map column names to arrays")
+        extra = {}
+        for name, values in self.extra.items():
+            if not isinstance(name, str) or _base(name) is not None:
+                raise _fail(
+                    "extra", name, "result columns need names outside the schema (a string)"
+                )
+            a = np.array(values)  # a copy; an object array of lists stays 1-D
+            if a.shape != (m,):
+                raise _fail(f"extra.{name}", f"shape {a.shape}", f"must have shape ({m},)")
+            extra[name] = _readonly(a)
+        set_(self, "extra", extra)
 
     def __len__(self) -> int:
         return self.pressures.shape[0]
+
+    def rows_text(self, rows: Iterable[int]) -> str:
+        """Rows (0-based indices) as a message names them: by file line for a CSV source
+        ("d.csv lines 3-5, 9"), by 0-based row for a Parquet source, else by index."""
+        rows = sorted(int(r) for r in rows)
+        many = len(rows) > 1
+        if self.source is not None and self.first_line is not None:
+            noun = "lines" if many else "line"
+            return f"{self.source.name} {noun} {_runs(r + self.first_line for r in rows)}"
+        prefix = f"{self.source.name} " if self.source is not None else ""
+        return f"{prefix}{'rows' if many else 'row'} {_runs(rows)} (0-based)"
 
     def __repr__(self) -> str:
         parts = [f"{len(self)} rows", f"{self.n_channels} channels"]
@@ -321,6 +321,12 @@ class Dataset:
         ]
         if optional:
             parts.append("with " + ", ".join(optional))
+        if self.extra:
+            shown = list(self.extra)[:6]
+            more = len(self.extra) - len(shown)
+            parts.append(
+                "result columns " + ", ".join(shown) + (f" and {more} more" if more > 0 else "")
+            )
         if self.synthetic:
             parts.append(f"SYNTHETIC from {self.metadata.get('design', '?')}")
         if self.source is not None:
@@ -345,7 +351,7 @@ class Dataset:
         _, first = np.unique(self.experiment, return_index=True)
         return tuple(self.experiment[i].item() for i in sorted(first))
 
-    def subset(self, rows) -> Dataset:
+    def subset(self, rows: ArrayLike) -> Dataset:
         """The rows chosen by a boolean mask of length m or by integer indices (in that order)."""
         a = np.asarray(rows)
         m = len(self)
@@ -378,9 +384,10 @@ class Dataset:
             time=take(self.time),
             metadata=dict(self.metadata),
             source=self.source,
+            extra={name: values[idx] for name, values in self.extra.items()},
         )
 
-    def split(self, by: str = "experiment", *, test) -> tuple[Dataset, Dataset]:
+    def split(self, by: str = "experiment", *, test: Any) -> tuple[Dataset, Dataset]:
         """(train, test): the rows whose ``by`` column ("experiment" or "mounting") holds one
         of the ``test`` ids go to test, the others to train. Unknown ids are an error."""
         if by not in _LABELS:
@@ -406,48 +413,30 @@ class Dataset:
             raise _fail("test", ids, f"takes every {by}: nothing would be left to train on")
         return self.subset(~mask), self.subset(mask)
 
-    def to_frame(self, units: Mapping[str, str] | None = None) -> pd.DataFrame:
+    def to_frame(self, units: Mapping[str, str] | str | None = None) -> pd.DataFrame:
         """The dataset as a DataFrame of the schema, units in the column names.
 
         ``units`` maps a kind ("pressure", "length", "force", "moment", "time") to a unit;
-        the others keep :data:`DEFAULT_UNITS` (kPa, mm, N, Nmm = N*mm, s). The orientation is
-        written as a unit quaternion (w >= 0). ``frame.attrs["softrod.metadata"]`` holds the
-        metadata, so ``load_dataset(frame)`` keeps the synthetic flag.
+        the others keep :data:`DEFAULT_UNITS` (kPa, mm, N, Nmm = N*mm, s); ``units="SI"``
+        writes Pa, m, N, Nm and s. The orientation is written as a unit quaternion
+        (w >= 0). The result columns of :attr:`extra` follow, as they were read.
+        ``frame.attrs["softrod.metadata"]`` holds the metadata, so ``load_dataset(frame)``
+        keeps the synthetic flag and the result columns.
         """
-        chosen = dict(DEFAULT_UNITS)
-        for kind, unit in dict(units or {}).items():
-            if kind not in DEFAULT_UNITS:
-                raise _fail(
-                    f"units.{kind}", unit, f"unknown kind (known: {', '.join(DEFAULT_UNITS)})"
-                )
-            if not isinstance(unit, str):
-                raise _fail(f"units.{kind}", unit, "must be a unit string such as 'kPa'")
-            chosen[kind] = _suffix(unit)
-        factor = {k: _unit_factor(u, k, f"units.{k}") for k, u in chosen.items()}
-        cols: dict[str, Any] = {}
-        for name in _LABELS:
-            if getattr(self, name) is not None:
-                cols[name] = getattr(self, name)
-        if self.time is not None:
-            cols[f"time_{chosen['time']}"] = self.time / factor["time"]
-        for k in range(self.n_channels):
-            cols[f"p{k}_{chosen['pressure']}"] = self.pressures[:, k] / factor["pressure"]
-        for i, name in enumerate(_TIP):
-            cols[f"{name}_{chosen['length']}"] = self.tip_position[:, i] / factor["length"]
-        if self.tip_rotation is not None:
-            q = _matrix_to_quat(self.tip_rotation)
-            for i, name in enumerate(_QUAT):
-                cols[name] = q[:, i]
-        for names, arr, kind in (
-            (_FORCE, self.base_force, "force"),
-            (_MOMENT, self.base_moment, "moment"),
-        ):
-            if arr is not None:
-                for i, name in enumerate(names):
-                    cols[f"{name}_{chosen[kind]}"] = arr[:, i] / factor[kind]
-        frame = pd.DataFrame(cols)
-        frame.attrs["softrod.metadata"] = dict(self.metadata)
-        return frame
+        described = dict(self.metadata.get("columns") or {})
+        return schema_frame(
+            pressures=self.pressures,
+            tip_position=self.tip_position,
+            tip_rotation=self.tip_rotation,
+            base_force=self.base_force,
+            base_moment=self.base_moment,
+            time=self.time,
+            experiment=self.experiment,
+            mounting=self.mounting,
+            extras=[Extra(n, v, str(described.get(n, ""))) for n, v in self.extra.items()],
+            units=units,
+            metadata=self.metadata,
+        )
 
 
 def _same_id(a, b) -> bool:
@@ -522,11 +511,27 @@ class _Where:
         return f"{noun} {_runs(rows, lambda i: i + self.first)}"
 
 
+@dataclass(frozen=True)
+class _KeptRows:
+    """Rows named as in the file after some rows were dropped (``kept``: the original index
+    of each remaining row)."""
+
+    where: _Where
+    kept: np.ndarray
+
+    @property
+    def labels(self):
+        return None
+
+    def __call__(self, rows: Iterable[int]) -> str:
+        return self.where([int(self.kept[i]) for i in rows])
+
+
 # --- loading -------------------------------------------------------------------------------------
 
 
 def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
-    text = path.read_text(encoding="utf-8-sig")
+    text = _read_text(path)
     lines = text.splitlines()
     units: dict = {}
     meta: dict = {}
@@ -538,17 +543,7 @@ def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
         entry = re.match(r"^#\s*(units|metadata)\s*:(.*)$", stripped)
         if entry:
             key, body = entry.group(1), entry.group(2)
-            try:
-                value = json.loads(body)
-            except json.JSONDecodeError as exc:
-                raise _fail(
-                    key,
-                    body.strip(),
-                    f"line {n_pre + 1}: not valid JSON ({exc.msg}); write e.g. "
-                    '# units: {"p0": "kPa", "tip_x": "mm"}',
-                ) from None
-            if not isinstance(value, dict):
-                raise _fail(key, value, f"line {n_pre + 1}: must be a JSON object {{...}}")
+            value = _json_block(body, key, f"line {n_pre + 1}")
             target = units if key == "units" else meta
             if target:
                 raise _fail(key, value, f"line {n_pre + 1}: the {key} block is given twice")
@@ -556,7 +551,10 @@ def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
     else:
         raise _fail("file", str(path), "has no header line (column names) after the comments")
     header_line = n_pre + 1  # 1-based
-    raw_names = next(csv.reader([lines[n_pre]]))
+    try:
+        raw_names = next(csv.reader([lines[n_pre]]))
+    except csv.Error as exc:
+        raise _fail("file", path.name, f"line {header_line}: not a CSV header ({exc})") from None
     names = [n.strip() for n in raw_names]  # "p0_kPa, tip_x_mm" is read like "p0_kPa,tip_x_mm"
     _check_duplicates(names)
     labels = [r for r, n in zip(raw_names, names, strict=True) if _base(n) in _LABELS]
@@ -569,7 +567,7 @@ def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
             # Ids stay text ("007" is not 7); keys as pandas may spell the header name.
             dtype=dict.fromkeys([*labels, *(r.lstrip() for r in labels)], str),
         )
-    except pd.errors.ParserError as exc:
+    except (pd.errors.ParserError, ValueError, csv.Error) as exc:
         ragged = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(exc))
         if ragged:
             want, line, saw = (int(g) for g in ragged.groups())
@@ -606,15 +604,17 @@ def _read_parquet(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
             blocks.append({})
             continue
         try:
-            value = json.loads(raw.decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise _fail(
-                key.decode(), raw[:80], f"Parquet metadata is not valid JSON ({exc})"
-            ) from None
-        if not isinstance(value, dict):
-            raise _fail(key.decode(), value, "Parquet metadata must be a JSON object")
-        blocks.append(value)
-    return table.to_pandas(), blocks[0], blocks[1], _Where("row")
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise _fail(key.decode(), raw[:80], f"Parquet metadata is not UTF-8 ({exc})") from None
+        blocks.append(_json_block(text, key.decode(), "Parquet metadata"))
+    if table.num_rows > V.MAX_ROWS:
+        raise _fail("rows", table.num_rows, f"too many rows: at most {V.MAX_ROWS:,}")
+    try:
+        frame = table.to_pandas()
+    except Exception as exc:  # pyarrow raises its own error types for unconvertible columns
+        raise _fail("file", str(path), f"has columns pandas cannot read: {exc}") from None
+    return frame, blocks[0], blocks[1], _Where("row")
 
 
 def _check_duplicates(names: list) -> None:
@@ -627,22 +627,29 @@ def _check_duplicates(names: list) -> None:
 
 
 def load_dataset(
-    source,
+    source: PathLike | pd.DataFrame | Dataset,
     *,
     n_channels: int | None = None,
-    design=None,
+    design: DesignLike | None = None,
     units: Mapping[str, str] | None = None,
     extra: str = "error",
+    unconverged: str = "error",
 ) -> Dataset:
     """Read and validate a dataset from a CSV or Parquet file or a pandas DataFrame.
 
-    ``source``: a path (``.csv`` or ``.parquet``), a DataFrame (units in the column names,
-    in ``units`` or in ``frame.attrs["softrod.units"]``) or a Dataset (returned as is).
+    ``source``: a path (``.csv`` or ``.parquet``), the name of a bundled example dataset
+    (``"spa130_synthetic"``, see :func:`example_datasets`), a DataFrame (units in the column
+    names, in ``units`` or in ``frame.attrs["softrod.units"]``) or a Dataset (returned as
+    is). Every table softrod writes (sweeps, trajectories, comparisons, identifications,
+    predictions) loads too: its result columns, declared in its metadata, come back in
+    :attr:`Dataset.extra`.
     ``n_channels`` / ``design``: the pressure channels the data must have (a Design or a
     design name gives ``design.n_channels``). ``units``: a units block (column -> unit) in
     addition to the file's. ``extra``: "error" (default: an unknown column is a typo until
-    shown otherwise) or "ignore". Values come back SI. Raises :class:`InputError` naming the
-    column, the value, the rule and the rows (CSV line numbers as a text editor shows them).
+    shown otherwise) or "ignore". ``unconverged``: what to do with the rows of a solver's
+    table whose ``converged`` is False (they have no tip position): "error" (default) or
+    "drop". Values come back SI. Raises :class:`InputError` naming the column, the value, the
+    rule and the rows (CSV line numbers as a text editor shows them).
     """
     if isinstance(source, Dataset):
         want, what = _expected_channels(n_channels, design)
@@ -653,8 +660,10 @@ def load_dataset(
                 f"the data has {source.n_channels} pressure channel(s) but {what}",
             )
         return source
-    if extra not in ("error", "ignore"):
-        raise _fail("extra", extra, "must be 'error' or 'ignore'")
+    V.choice(extra, ("error", "ignore"), "extra")
+    V.choice(unconverged, ("error", "drop"), "unconverged")
+    if units is not None and not isinstance(units, Mapping):
+        raise _fail("units", units, "must be a mapping {column: unit string}")
     path = None
     if isinstance(source, pd.DataFrame):
         names = list(source.columns)
@@ -668,7 +677,16 @@ def load_dataset(
         where = _Where("index", labels=tuple(source.index))
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
+        if path.suffix == "" and not path.exists() and str(source) in example_datasets():
+            path = example_dataset_path(str(source))
         if path.suffix.lower() not in TABLE_SUFFIXES:
+            if path.suffix == "" and not path.exists():
+                raise _fail(
+                    "path",
+                    str(path),
+                    "no such file or bundled example dataset (bundled: "
+                    f"{', '.join(example_datasets())}; files end in .csv or .parquet)",
+                )
             check_table_path(path)  # raises with the list of formats
         if not path.is_file():
             raise _fail("path", str(path), "no such file")
@@ -685,24 +703,54 @@ def load_dataset(
             "must be a .csv/.parquet path, a DataFrame or a Dataset",
         )
     try:
-        return _from_frame(
-            df, file_units, dict(units or {}), meta, where, path, n_channels, design, extra
+        data = _from_frame(
+            df,
+            file_units,
+            dict(units or {}),
+            meta,
+            where,
+            path,
+            n_channels,
+            design,
+            extra,
+            unconverged,
         )
     except InputError as exc:
         if path is not None:
             exc.args = (f"{path.name}: {exc.args[0]}",)
         raise
+    if path is not None and where.noun == "line" and len(data) == len(df):
+        # Rows are the file's lines in order (none dropped): name them by line.
+        object.__setattr__(data, "first_line", where.first)
+    return data
+
+
+def _check_dtype(column: pd.Series, name: str) -> None:
+    """A number column holds numbers (or text to read as numbers), never dates, durations,
+    booleans or complex values, which pandas would turn into numbers silently (a timestamp
+    would become 1.58e18 Pa)."""
+    kind = getattr(column.dtype, "kind", "O")
+    what = {"M": "dates/times", "m": "durations", "b": "booleans", "c": "complex numbers"}
+    if kind in what:
+        raise _fail(name, str(column.dtype), f"must hold numbers, not {what[kind]}")
+    if kind == "O":
+        bad = next(
+            (
+                v
+                for v in column.array
+                if isinstance(v, (bool, np.bool_, complex, bytes))
+                or (not isinstance(v, (str, int, float, np.number)) and v is not None)
+            ),
+            None,
+        )
+        if bad is not None:
+            raise _fail(name, bad, f"must hold numbers, not {type(bad).__name__}")
 
 
 def _expected_channels(n_channels, design) -> tuple[int | None, str]:
     want, what = None, ""
     if n_channels is not None:
-        if (
-            isinstance(n_channels, bool)
-            or not isinstance(n_channels, (int, np.integer))
-            or n_channels < 1
-        ):
-            raise _fail("n_channels", n_channels, "must be an integer >= 1")
+        V.integer(n_channels, "n_channels", minimum=1, maximum=V.MAX_CHANNELS)
         want, what = int(n_channels), f"n_channels = {int(n_channels)}"
     if design is not None:
         d = load_design(design)
@@ -717,7 +765,7 @@ def _expected_channels(n_channels, design) -> tuple[int | None, str]:
 
 
 def _from_frame(
-    df, file_units, call_units, meta, where, path, n_channels, design, extra
+    df, file_units, call_units, meta, where, path, n_channels, design, extra, unconverged
 ) -> Dataset:
     names = [str(c) for c in df.columns]
     # Units block: the file's and the caller's, a column in at most one of them.
@@ -735,15 +783,25 @@ def _from_frame(
             f"units.{unused[0]}", block[unused[0]], f"names no column (columns: {', '.join(names)})"
         )
 
+    # Result columns a softrod writer declared in the metadata (name -> description).
+    declared = meta.get("columns") or {}
+    if not isinstance(declared, Mapping):
+        raise _fail("metadata.columns", declared, "must map column names to descriptions")
+    extras = [n for n in names if n in declared and _NAME.match(n) is None]
+
     # Column names -> base name and SI factor.
     columns: dict[str, tuple[str, float | None]] = {}  # base -> (column, factor)
     unknown = []
     for name in names:
+        if name in extras:
+            continue
         m = _NAME.match(name)
         if m is None:
             unknown.append(name)
             continue
         base, unit = m["base"], m["unit"]
+        if base[0] == "p":
+            _channel(base, name)
         kind = _kind(base)
         if unit is not None and name in block:
             raise _fail(
@@ -813,6 +871,11 @@ def _from_frame(
         )
     if len(df) == 0:
         raise _fail("rows", 0, "the table has no data rows")
+    if len(df) > V.MAX_ROWS:
+        raise _fail("rows", len(df), f"too many rows: at most {V.MAX_ROWS:,}")
+    if "converged" in extras:
+        df, where = _converged_rows(df, where, unconverged)
+
 
     # Values: empty cells, text in number columns, non-finite numbers.
     used = [columns[b][0] for b in columns]
@@ -834,6 +897,7 @@ def _from_frame(
         if base in _LABELS:
             continue
         raw = df[col]
+        _check_dtype(raw, col)
         values = pd.to_numeric(raw, errors="coerce")
         text = np.flatnonzero(values.isna().to_numpy())
         if text.size:
@@ -843,6 +907,16 @@ def _from_frame(
         if bad.size:
             raise _fail(col, a[bad[0]].item(), f"must be finite, at {where(bad)}")
         numeric[base] = a if factor is None else a * factor
+
+    low = np.flatnonzero(
+        np.column_stack([numeric[f"p{k}"] for k in channels]).min(axis=1) < V.VACUUM_PA
+    )
+    if low.size:
+        raise _fail(
+            ", ".join(columns[f"p{k}"][0] for k in channels),
+            [float(numeric[f"p{k}"][low[0]]) for k in channels],
+            f"gauge pressures must be >= {V.VACUUM_PA:g} Pa (a perfect vacuum), at {where(low)}",
+        )
 
     rotation = None
     if _QUAT[0] in columns:
@@ -881,30 +955,60 @@ def _from_frame(
         time=numeric.get("time"),
         metadata=meta,
         source=path,
+        extra={name: _extra_values(df[name]) for name in extras},
     )
+
+
+def _extra_values(column: pd.Series) -> np.ndarray:
+    """A result column as a numpy array: numbers as float (empty cells NaN), flags as bool,
+    anything else as text."""
+    values = column.to_numpy()
+    if values.dtype.kind in "biuf":
+        return values
+    if any(isinstance(v, (list, tuple, np.ndarray)) for v in values):
+        out = np.empty(len(values), dtype=object)  # e.g. a trajectory's shape_m list column
+        out[:] = list(values)
+        return out
+    as_bool = column.map({True: True, False: False, "True": True, "False": False})
+    if as_bool.notna().all():
+        return as_bool.to_numpy(dtype=bool)
+    numbers = pd.to_numeric(column, errors="coerce")
+    if (numbers.notna() | column.isna()).all():
+        return numbers.to_numpy(dtype=float)
+    return np.asarray(["" if pd.isna(v) else str(v) for v in values], dtype=str)
+
+
+def _converged_rows(df: pd.DataFrame, where, unconverged: str):
+    """The rows of a solver's table (a declared ``converged`` column) whose solve converged:
+    a row that did not has no tip position, so it is an error unless the caller drops it."""
+    flags = _extra_values(df["converged"])
+    if flags.dtype != bool:
+        raise _fail("converged", df["converged"].iloc[0], "must hold True or False in every row")
+    if flags.all():
+        return df, where
+    failed = np.flatnonzero(~flags)
+    if unconverged == "error":
+        raise _fail(
+            "converged",
+            False,
+            f"the solve did not converge at {where(failed)} ({failed.size} of {len(df)} rows), "
+            "which therefore have no tip position; pass unconverged='drop' to load the "
+            "converged rows only",
+        )
+    kept = np.flatnonzero(flags)
+    if where.labels is not None:
+        where = _Where(where.noun, where.first, tuple(where.labels[i] for i in kept))
+    else:
+        where = _KeptRows(where, kept)
+    return df.iloc[kept].reset_index(drop=True), where
 
 
 # --- writing -------------------------------------------------------------------------------------
 
 
-def _json_default(x):
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, Path):
-        return str(x)
-    raise TypeError(f"{type(x).__name__} is not JSON serialisable")
-
-
-def _metadata_json(meta: Mapping) -> str:
-    try:
-        return json.dumps(dict(meta), default=_json_default, allow_nan=False)
-    except (TypeError, ValueError) as exc:
-        raise _fail("metadata", dict(meta), f"must be JSON serialisable ({exc})") from None
-
-
-def write_dataset(dataset: Dataset, path, *, units: Mapping[str, str] | None = None) -> Path:
+def write_dataset(
+    dataset: Dataset, path: PathLike, *, units: Mapping[str, str] | None = None
+) -> Path:
     """Write ``dataset`` to ``path``: CSV (``.csv``) or Parquet (``.parquet``) by suffix.
 
     Units go into the column names (``units`` as in :meth:`Dataset.to_frame`); the metadata
@@ -917,23 +1021,16 @@ def write_dataset(dataset: Dataset, path, *, units: Mapping[str, str] | None = N
         raise _fail("dataset", type(dataset).__name__, "must be a softrod Dataset")
     path = check_table_path(path)
     frame = dataset.to_frame(units)
-    meta = _metadata_json(dataset.metadata)
-    with atomic_path(path) as tmp:
-        if path.suffix.lower() == ".csv":
-            with open(tmp, "w", encoding="utf-8", newline="") as fh:
-                if dataset.synthetic:
-                    fh.write(
-                        f"# SYNTHETIC softrod dataset: generated by the model "
-                        f"({dataset.metadata.get('design', '?')}), not measured\n"
-                    )
-                else:
-                    fh.write("# softrod dataset\n")
-                fh.write("# schema: docs/datasets.md; units are in the column names\n")
-                fh.write(f"# metadata: {meta}\n")
-                frame.to_csv(fh, index=False, lineterminator="\n")
-        else:
-            write_parquet_with_metadata(frame, tmp, meta)
-    return path
+    if dataset.synthetic:
+        first = (
+            "SYNTHETIC softrod dataset: generated by the model "
+            f"({dataset.metadata.get('design', '?')}), not measured"
+        )
+    else:
+        first = "softrod dataset"
+    return write_table(
+        frame, path, header=(first, "schema: docs/datasets.md; units are in the column names")
+    )
 
 
 # --- synthetic data ------------------------------------------------------------------------------
@@ -942,31 +1039,24 @@ def write_dataset(dataset: Dataset, path, *, units: Mapping[str, str] | None = N
 def noise_seed(noise_mm, seed) -> int:
     """Check the noise (standard deviation, mm) and seed of synthetic data; return the seed
     (a fresh one, recorded in the metadata, when ``seed`` is None)."""
-    if (
-        isinstance(noise_mm, bool)
-        or not isinstance(noise_mm, (int, float))
-        or not (math.isfinite(noise_mm) and noise_mm >= 0)
-    ):
-        raise _fail("noise_mm", noise_mm, "must be a finite number >= 0 (standard deviation, mm)")
+    V.real(noise_mm, "noise_mm", minimum=0.0, what="a standard deviation in mm")
     if seed is None:
         return int(np.random.SeedSequence().entropy % 2**63)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise _fail("seed", seed, "must be an integer >= 0 or None")
-    return int(seed)
+    return V.integer(seed, "seed", minimum=0, maximum=2**128)
 
 
 def synthesize_dataset(
-    design,
-    pressures,
+    design: DesignLike,
+    pressures: ArrayLike,
     *,
     noise_mm: float = 0.0,
     seed: int | None = None,
-    experiment=None,
-    mounting=None,
-    time=None,
-    tip_force=None,
-    tip_moment=None,
-    options=None,
+    experiment: ArrayLike | None = None,
+    mounting: str | ArrayLike | None = None,
+    time: ArrayLike | None = None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
+    options: SolverOptions | None = None,
     threads: int = 0,
 ) -> Dataset:
     """A synthetic dataset: the model's equilibria at ``pressures`` plus measurement noise.
@@ -983,13 +1073,11 @@ def synthesize_dataset(
     the design, noise, seed and loads, so the data is never mistaken for measurements.
     """
     from . import __version__
-    from .statics import solve_statics_batch
+    from .statics import batch_pressures, solve_statics_batch
 
     design = load_design(design)
     seed = noise_seed(noise_mm, seed)
-    p = np.asarray(pressures, dtype=float)
-    if p.ndim == 2 and not np.isfinite(p).all():
-        raise _fail("pressures", "non-finite", "must be finite (Pa)")
+    p = batch_pressures(design, pressures)
     batch = solve_statics_batch(
         design, p, tip_force=tip_force, tip_moment=tip_moment, options=options, threads=threads
     )
@@ -1044,7 +1132,7 @@ def synthesize_dataset(
         base_moment=batch.base_moment,
         experiment=per_row(experiment, "experiment"),
         mounting=per_row(mounting, "mounting"),
-        time=None if time is None else np.asarray(time, dtype=float),
+        time=None if time is None else V.real_array(time, "time", what="times (s)"),
         metadata=meta,
         source=None,
     )

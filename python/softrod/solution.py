@@ -5,10 +5,16 @@ the PCC model's) returns the same types without importing each other."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .design import Design
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ._types import ArrayLike, Units
 
 
 @dataclass(frozen=True)
@@ -44,7 +50,14 @@ class StaticSolution:
     tip_loads: tuple | None = field(default=None, repr=False)
 
     @classmethod
-    def failed(cls, design, pressures, exc, n_unknowns: int, **extra) -> StaticSolution:
+    def failed(
+        cls,
+        design: Design,
+        pressures: ArrayLike,
+        exc: Exception,
+        n_unknowns: int,
+        **extra: Any,
+    ) -> StaticSolution:
         """The result of a solve that did not converge (``check=False``): NaN shape and
         wrench, ``converged`` False, the iterations and residual of ``exc``."""
         nan3 = np.full((1, 3), np.nan)
@@ -107,6 +120,8 @@ class BatchSolution:
     converged (m,) bool (rows that failed hold NaN); iterations (m,); residual (m,).
     stiffness_scale (m, 3): sigma of every row when the design has mapped sections
     (docs/stiffness-map.md), else None. x (m, 3): the solver's scaled unknowns (warm starts).
+    metadata: design, softrod version and solver settings (the metadata block of
+    :meth:`to_frame`).
     """
 
     pressures: np.ndarray
@@ -119,3 +134,43 @@ class BatchSolution:
     residual: np.ndarray
     stiffness_scale: np.ndarray | None = None
     x: np.ndarray | None = None
+    metadata: dict = field(default_factory=dict, compare=False)
+
+    def __len__(self) -> int:
+        return self.pressures.shape[0]
+
+    def to_frame(self, units: Units = None) -> pd.DataFrame:
+        """The results as a DataFrame in the dataset schema (docs/datasets.md), one row per
+        solve: ``p0_kPa`` ..., ``tip_x_mm`` ..., ``tip_qw`` ... ``tip_qz``, ``base_fx_N`` ...,
+        ``base_mx_Nmm`` ..., then the result columns ``converged``, ``iterations``,
+        ``residual`` and, with a stiffness map, ``sigma_ext``, ``sigma_bend_x``,
+        ``sigma_bend_y``. Rows that did not converge keep NaN (empty cells in a file).
+        ``units`` as in :meth:`softrod.Dataset.to_frame`. The metadata block
+        (``frame.attrs["softrod.metadata"]``) is :attr:`metadata`: design, softrod version,
+        solver settings. The same quantities get the same names as in
+        :meth:`softrod.Trajectory.to_frame`; ``load_dataset(frame)`` reads it back.
+        """
+        from .schema import Extra, schema_frame
+
+        extras = [
+            Extra("converged", np.asarray(self.converged, dtype=bool), "the solve converged"),
+            Extra("iterations", np.asarray(self.iterations), "Newton iterations"),
+            Extra("residual", np.asarray(self.residual, dtype=float), "scaled final residual"),
+        ]
+        if self.stiffness_scale is not None:
+            from .stiffness_map import SIGMA_NAMES
+
+            extras += [
+                Extra(name, self.stiffness_scale[:, k], f"stiffness factor {name} (paper 001)")
+                for k, name in enumerate(SIGMA_NAMES)
+            ]
+        return schema_frame(
+            pressures=self.pressures,
+            tip_position=self.tip_position,
+            tip_rotation=self.tip_rotation,
+            base_force=self.base_force,
+            base_moment=self.base_moment,
+            extras=extras,
+            units=units,
+            metadata=self.metadata,
+        )

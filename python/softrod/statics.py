@@ -7,15 +7,19 @@ All inputs and outputs are SI: pressures in Pa (gauge), one per channel.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from . import _validate as V
 from .catalog import load_design
 from .design import Design
 from .errors import ConvergenceError, InputError, design_error
 from .solution import BatchSolution, StaticSolution
 from .stiffness_map import StiffnessMap, _check_pressure_rows
-from .units import to_si
+
+if TYPE_CHECKING:
+    from ._types import ArrayLike, DesignLike, Progress
 
 
 @dataclass(frozen=True)
@@ -34,49 +38,64 @@ class SolverOptions:
     max_load_steps: int = 200
 
     def __post_init__(self):
-        if not (isinstance(self.tol, float | int) and 0 < self.tol < 1):
+        tol = V.real(self.tol, "tol", minimum=0.0, exclusive=True)
+        if not tol < 1:
             raise design_error("tol", self.tol, "must be in (0, 1)", InputError)
         for name in ("max_iter", "max_load_steps"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise design_error(name, v, "must be an integer >= 1", InputError)
+            V.integer(getattr(self, name), name, minimum=1, maximum=V.MAX_ITERATIONS)
+        V.boolean(self.continuation, "continuation")
 
     def as_kwargs(self) -> dict:
         return {
             "tol": float(self.tol),
-            "max_iter": self.max_iter,
-            "continuation": self.continuation,
-            "max_load_steps": self.max_load_steps,
+            "max_iter": int(self.max_iter),
+            "continuation": bool(self.continuation),
+            "max_load_steps": int(self.max_load_steps),
         }
 
 
 def _pressures(design: Design, pressures) -> list[float]:
-    if isinstance(pressures, (int, float, str)):
+    """One gauge pressure per channel (Pa, or strings with units), checked like a batch row."""
+    if V.is_real(pressures) or isinstance(pressures, str):
         pressures = [pressures]
-    try:
-        values = list(pressures)
-    except TypeError:
-        raise design_error(
-            "pressures", pressures, "must be a sequence of gauge pressures (Pa)", InputError
-        ) from None
-    if len(values) != design.n_channels:
-        raise design_error(
-            "pressures",
-            values,
-            f"the design has {design.n_channels} pressure channels; give one gauge pressure per "
-            "channel",
-            InputError,
-        )
-    return [to_si(p, "pressure", f"pressures[{i}]", InputError) for i, p in enumerate(values)]
+    return _quantities(pressures, "pressure", "pressures", design.n_channels,
+                       f"the design has {design.n_channels} pressure channels; give one gauge "
+                       "pressure per channel")
+
+
+def _quantities(value, kind: str, name: str, count: int, rule: str) -> list[float]:
+    """``count`` quantities from a list/tuple (numbers in SI or strings with units) or a 1-d
+    numeric array; mappings, sets, masked arrays, bools and complex numbers are refused."""
+    if isinstance(value, (list, tuple)):
+        if len(value) != count:
+            raise V.fail(name, value, rule)
+        return [V.quantity(x, kind, f"{name}[{i}]") for i, x in enumerate(value)]
+    arr = V.real_array(value, name, what=f"{kind}s (SI)", max_size=V.MAX_CHANNELS * 4)
+    if arr.ndim != 1 or arr.size != count:
+        raise V.fail(name, f"shape {arr.shape}", rule)
+    return arr.tolist()
 
 
 def _vec3(value, kind: str, name: str, default) -> list[float]:
     if value is None:
         return list(default)
-    arr = list(value) if not isinstance(value, str) else value
-    if isinstance(arr, str) or len(arr) != 3:
-        raise design_error(name, value, f"must be 3 {kind} values (world frame)", InputError)
-    return [to_si(x, kind, f"{name}[{i}]", InputError) for i, x in enumerate(arr)]
+    return _quantities(value, kind, name, 3, f"must be 3 {kind} values (world frame)")
+
+
+def _initial(initial, model: str) -> list[float] | None:
+    """The warm start of ``initial`` (a converged StaticSolution of the same model)."""
+    if initial is None:
+        return None
+    if not isinstance(initial, StaticSolution):
+        raise V.fail("initial", type(initial).__name__, "must be a StaticSolution or None")
+    x = np.asarray(initial.shooting_unknowns, dtype=float)
+    if not initial.converged or not np.all(np.isfinite(x)):
+        raise V.fail(
+            "initial",
+            "a solution with converged = False",
+            "cannot warm-start a solve: pass a converged solution (or none)",
+        )
+    return x.tolist()
 
 
 def _options(options: SolverOptions | None) -> SolverOptions:
@@ -99,13 +118,16 @@ def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
     """The map to use, or None for a design without mapped sections."""
     mapped = _mapped_sections(design)
     if stiffness_map is None:
+        if design.stiffness_map is not None:
+            return design.stiffness_map  # the design file's [stiffness_map]
         if mapped:
             raise design_error(
                 "stiffness_map",
                 None,
                 f"section(s) {', '.join(mapped)} of design {design.name!r} set [sections.law] "
                 "stiffness_map = true: pass stiffness_map=, a softrod.StiffnessMap (e.g. "
-                "StiffnessMap.from_table or from_csv; sigma is never assumed to be 1)",
+                "StiffnessMap.from_table or from_csv; sigma is never assumed to be 1), or "
+                'reference a map file in the design ([stiffness_map] file = "sigma.json")',
                 InputError,
             )
         return None
@@ -137,11 +159,11 @@ def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
 
 
 def solve_statics(
-    design,
-    pressures,
+    design: DesignLike,
+    pressures: ArrayLike,
     *,
-    tip_force=None,
-    tip_moment=None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
     options: SolverOptions | None = None,
     initial: StaticSolution | None = None,
     check: bool = True,
@@ -159,13 +181,16 @@ def solve_statics(
     moment when given; gravity and the tip body always act. ``initial`` warm-starts from a
     previous solution. On non-convergence raises :class:`ConvergenceError`, or with
     ``check=False`` returns a solution with ``converged=False`` and NaN arrays.
-    ``stiffness_map`` (a :class:`StiffnessMap`) is required exactly when a section sets
-    ``[sections.law] stiffness_map = true``; it is evaluated once at ``pressures``.
+    ``stiffness_map`` (a :class:`StiffnessMap`) is needed exactly when a section sets
+    ``[sections.law] stiffness_map = true``; it defaults to the map the design file
+    references (``[stiffness_map] file = ...``, ``design.stiffness_map``), and one given here
+    replaces it. It is evaluated once at ``pressures``.
     """
     design = load_design(design)
     p = _pressures(design, pressures)
-    if model not in ("cosserat", "pcc"):
-        raise design_error("model", model, "must be 'cosserat' or 'pcc'", InputError)
+    V.choice(model, ("cosserat", "pcc"), "model")
+    V.boolean(check, "check")
+    guess = _initial(initial, model)
     if model == "pcc":
         if stiffness_map is not None:
             raise design_error(
@@ -187,7 +212,6 @@ def solve_statics(
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
-    guess = None if initial is None else [float(x) for x in initial.shooting_unknowns]
     opts = _options(options)
     try:
         out = design._rod.solve(
@@ -219,17 +243,17 @@ def solve_statics(
 
 
 def solve_statics_batch(
-    design,
-    pressures,
+    design: DesignLike,
+    pressures: ArrayLike,
     *,
-    tip_force=None,
-    tip_moment=None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
     options: SolverOptions | None = None,
     threads: int = 0,
     stiffness_map: StiffnessMap | None = None,
-    executor=None,
+    executor: Any = None,
     chunk_size: int | None = None,
-    progress=None,
+    progress: Progress = None,
 ) -> BatchSolution:
     """Solve for every row of an (m, channels) pressure array (Pa) in parallel.
 
@@ -245,16 +269,9 @@ def solve_statics_batch(
     chunks finish (with an executor only).
     """
     design = load_design(design)
-    arr = np.asarray(pressures, dtype=float)
-    if arr.ndim == 1 and design.n_channels == 1:
-        arr = arr[:, None]
-    _check_pressure_rows(
-        arr, design.n_channels, f"must be an (m, {design.n_channels}) array of gauge pressures (Pa)"
-    )
-    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 0:
-        raise design_error(
-            "threads", threads, "must be an integer >= 0 (0 = all cores)", InputError
-        )
+    arr = batch_pressures(design, pressures)
+    threads = V.threads(threads)
+    opts = _options(options)
     smap = _stiffness_map(design, stiffness_map)
     sigma = None if smap is None else np.ascontiguousarray(smap(arr), dtype=float)
     tip = design.spec["tip"]
@@ -266,7 +283,8 @@ def solve_statics_batch(
         out = _batch_on_cluster(
             executor, design, arr, tf, tm, sigma, _options(options), threads, chunk_size, progress
         )
-        return BatchSolution(pressures=arr, stiffness_scale=sigma, **out)
+        meta = _batch_metadata(design, options, tf, tm, smap)
+        return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
     if chunk_size is not None:
         raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
     if progress is not None:
@@ -277,9 +295,24 @@ def solve_statics_batch(
         tm,
         threads=threads,
         stiffness_scale=sigma,
-        **_options(options).as_kwargs(),
+        **opts.as_kwargs(),
     )
-    return BatchSolution(pressures=arr, stiffness_scale=sigma, **out)
+    meta = _batch_metadata(design, options, tf, tm, smap)
+    return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
+
+
+def _batch_metadata(design, options, tf, tm, smap) -> dict:
+    """The metadata block of a batch's table (BatchSolution.to_frame)."""
+    from .schema import provenance
+
+    return provenance(
+        "softrod.solve_statics_batch",
+        design,
+        solver=_options(options).as_kwargs(),
+        tip_force_N=tf,
+        tip_moment_Nm=tm,
+        stiffness_map=None if smap is None else repr(smap),
+    )
 
 
 def _batch_chunk(text, pressures, tip_force, tip_moment, sigma, options, threads, per_host):
@@ -335,3 +368,32 @@ def _batch_on_cluster(executor, design, arr, tf, tm, sigma, options, threads, ch
         return design._rod.solve_batch(arr, tf, tm, threads=1, stiffness_scale=sigma,
                                        **options.as_kwargs())
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def batch_pressures(design: Design, pressures) -> np.ndarray:
+    """An (m, channels) float array of gauge pressures (Pa), checked as :func:`solve_statics`
+    checks one row: numbers (Python or numpy) or strings with units, never bools, complex
+    numbers, masked or text arrays; at most MAX_ROWS rows."""
+    n = design.n_channels
+    arr = V.real_array(
+        pressures,
+        "pressures",
+        unit_kind="pressure",
+        max_size=V.MAX_ROWS * max(n, 1),
+        what="gauge pressures (Pa)",
+    )
+    if arr.ndim == 1 and n == 1:
+        arr = arr[:, None]
+    _check_pressure_rows(arr, n, f"must be an (m, {n}) array of gauge pressures (Pa)")
+    if arr.shape[0] > V.MAX_ROWS:
+        raise V.fail("pressures", f"{arr.shape[0]} rows", f"too many rows: at most {V.MAX_ROWS:,}")
+    low = np.flatnonzero((arr < V.VACUUM_PA).any(axis=1))
+    if low.size:
+        r = int(low[0])
+        raise V.fail(
+            f"pressures[{r}]",
+            arr[r].tolist(),
+            f"gauge pressures must be >= {V.VACUUM_PA:g} Pa (-1 atm, a perfect vacuum)"
+            + (f"; {low.size} rows are below" if low.size > 1 else ""),
+        )
+    return np.ascontiguousarray(arr)

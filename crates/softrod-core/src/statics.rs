@@ -1,4 +1,4 @@
-//! Static equilibrium by shooting (DESIGN.md section 5; paper 001 section II-D).
+//! Static equilibrium by shooting (docs/model.md, "Solver"; paper 001 section II-D).
 //!
 //! All loads are dead (gravity, dead tip and line loads, the tip body's weight), so the force
 //! balance n' = -f is statically determinate: n(0) = F_tip + m_t g + int_0^L f ds exactly,

@@ -45,11 +45,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import (
     _checked_metadata,
     _fail,
-    _metadata_json,
     _read_csv,
     _runs,
     _unit_factor,
@@ -57,7 +57,8 @@ from ..datasets import (
 )
 from ..design import PACKAGE_DIR, Design
 from ..errors import InputError
-from ..io import atomic_path
+from ..io import atomic_path, check_target
+from ..io import metadata_json as _metadata_json
 from ..units import to_si
 
 __all__ = [
@@ -266,6 +267,9 @@ def _read_table(source, value: str, n_chambers: int, extra: str, rtol: float):
         where = _Where("index", labels=tuple(source.index))
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
+        bundled = _EXAMPLES_DIR / f"{source}.csv"
+        if path.suffix == "" and not path.exists() and bundled.is_file():
+            path = bundled  # a bundled example by name, e.g. modular_axial_force_synthetic
         if path.suffix.lower() != ".csv":
             raise _fail("path", str(path), "must be a .csv file (or pass a DataFrame)")
         if not path.is_file():
@@ -673,6 +677,11 @@ class AxialIdentification:
         base = load_design(base_design)
         if out_path is not None and Path(out_path).suffix.lower() != ".toml":
             raise _fail("out_path", str(out_path), "must end in .toml")
+        if out_path is not None:
+            try:
+                check_target(out_path)
+            except InputError as exc:
+                raise _fail("out_path", str(out_path), exc.rule) from None
         changes: dict = {}
         described, r_I = [], set()
         for i, (sec, spec) in enumerate(
@@ -790,6 +799,7 @@ class AxialIdentification:
         )
 
 
+@one_blas_thread
 def identify_axial(
     data: AxialData, *, force_law: str = "proportional", stiffness: str = "constant"
 ) -> AxialIdentification:
@@ -879,6 +889,7 @@ def identify_axial(
     )
 
 
+@one_blas_thread
 def calibrate_axial(
     force,
     length,

@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._threads import one_blas_thread
+from .._validate import si_text
 from ..catalog import load_design
 from ..datasets import Dataset, load_dataset
 from ..design import Design
@@ -110,6 +112,7 @@ def _experiments(dataset: Dataset) -> list[np.ndarray]:
     return out
 
 
+@one_blas_thread
 def calibrate_dynamics(
     design,
     dataset,
@@ -167,7 +170,7 @@ def calibrate_dynamics(
             "are not separately identifiable (paper 000 Sec. II-G)"
         )
     for w in found:
-        warnings.warn(w, CalibrationWarning, stacklevel=2)
+        warnings.warn(w, CalibrationWarning, stacklevel=3)  # past the BLAS-thread wrapper
     if isinstance(max_evaluations, bool) or not isinstance(max_evaluations, int):
         raise _fail("max_evaluations", max_evaluations, "must be an integer >= 1")
     if max_evaluations < 1:
@@ -178,7 +181,7 @@ def calibrate_dynamics(
     def design_of(theta) -> Design:
         changes = design_changes(static, theta[int(with_tau) :], design0) if static else {}
         if with_tau:
-            changes["dynamics.damping_time"] = float(theta[0])
+            changes["dynamics.damping_time"] = si_text(theta[0], "time")
         return design0.replace(changes) if changes else design0
 
     def run(theta) -> tuple[np.ndarray, list[Trajectory]]:

@@ -15,36 +15,69 @@ covariance s^2 (J^T J)^-1 with s^2 = SSR / (n - P)).
 from __future__ import annotations
 
 import json
+import logging
 import math
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
+from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import Dataset, load_dataset
 from ..design import Design
 from ..errors import CalibrationWarning, ConvergenceError, DesignError, InputError
-from ..io import atomic_path
+from ..progress import reporter
+from ..schema import DISPLAY_UNITS, display
 from ..statics import SolverOptions, _options
 from ..units import number, to_si
 from .metrics import tip_error_table
 from .params import SIGMA_KINDS, Parameter, design_changes, parse_parameters
 
+if TYPE_CHECKING:
+    from .._types import ArrayLike, DesignLike, PathLike, Quantity, Units
+    from ..pcc import PccFit
+    from ..stiffness_map import StiffnessMap
+    from .dynamic import DynamicCalibrationResult
+
+logger = logging.getLogger(__name__)
+
+
+def _evaluations(evaluations: int, rms_mm: float) -> tuple[float, str]:
+    """A progress bar's position and text for calibrate's progress(evaluations, rms_mm)."""
+    return evaluations, f"{evaluations} evaluations, RMS tip error {rms_mm:.3g} mm"
+
+
+def warning_thresholds() -> str:
+    """The rules behind the calibration warnings, as reports and the CLI state them."""
+    return (
+        f"warnings when a relative standard error exceeds {100 * POOR_RELATIVE_ERROR:g} %, a "
+        f"correlation |r| exceeds {STRONG_CORRELATION:g} or the singular values of the scaled "
+        f"Jacobian span more than {UNIDENTIFIABLE_CONDITION:.0e}"
+    )
+
+
 #: Residual scale: residuals are in mm so that the cost is O(1) for scipy's tolerances.
 _MM = 1e-3
-#: Correlation above which a pair of parameters is reported as strongly correlated.
-STRONG_CORRELATION = 0.95
+#: |r| above which a pair of parameters is reported as strongly correlated: at |r| = 0.9 the
+#: data pin down one combination of the pair about 2.3 times (1 / sqrt(1 - r^2)) better than
+#: either parameter alone, and each standard error is that much larger than it would be with
+#: the other parameter fixed.
+STRONG_CORRELATION = 0.9
 #: Condition number of the column-scaled Jacobian above which the fit is reported as not
 #: identifiable: a relative change of 1e-6 in the best-determined combination moves the
 #: tips as much as a change of 1 in the worst.
 UNIDENTIFIABLE_CONDITION = 1e6
-#: A parameter whose standard error exceeds this fraction of its value is reported.
-POOR_RELATIVE_ERROR = 0.5
+#: A parameter whose standard error exceeds this fraction of its value is reported as poorly
+#: determined: at 20 % its 95 % interval spans +-40 % of the value, too wide to compare
+#: actuators or to publish the value as a material property.
+POOR_RELATIVE_ERROR = 0.2
 #: Penalty residual (mm) of a sample whose solve fails at a trial point, so that the
 #: optimiser steps back instead of stopping on a NaN.
 _FAILED_RESIDUAL_MM = 1e3
@@ -185,13 +218,16 @@ class _Model:
         changes = design_changes(self.params, theta, self.design)
         return [self.design.replace({**changes, **g}) for g, _ in self.groups]
 
-    def sigma(self, theta, n: int) -> np.ndarray | None:
+    def sigma(self, theta, idx: np.ndarray) -> np.ndarray | None:
+        """sigma of the rows ``idx``: the fitted constant one, the design's stiffness map
+        (``[stiffness_map] file``), or None (no mapped sections)."""
         if not self.sigma_index:
-            return None
+            smap = self.design.stiffness_map
+            return None if smap is None else np.ascontiguousarray(smap(self.p[idx]))
         s = np.ones(3)
         for j, k in self.sigma_index.items():
             s[k] = theta[j]
-        return np.tile(s, (n, 1))
+        return np.tile(s, (idx.size, 1))
 
     def __call__(self, theta, jacobian: bool, rows=None):
         """(tip (m, 3), d tip / d theta (m, 3, P) or None, converged (m,)) for ``rows``."""
@@ -214,7 +250,7 @@ class _Model:
             tip_f = d.spec["tip"]["force"]
             tip_m = d.spec["tip"]["moment"]
             kw = dict(
-                stiffness_scale=self.sigma(theta, idx.size),
+                stiffness_scale=self.sigma(theta, idx),
                 threads=self.threads,
                 **self.opts,
             )
@@ -297,7 +333,7 @@ class CalibrationResult:
         return np.array([self.values[idx[k]] if k in idx else 1.0 for k in SIGMA_KINDS])
 
     @property
-    def stiffness_map(self):
+    def stiffness_map(self) -> StiffnessMap | None:
         """A constant :class:`~softrod.StiffnessMap` of the fitted sigma (or None), to pass
         as ``stiffness_map=`` with :attr:`design`."""
         from ..stiffness_map import StiffnessMap
@@ -330,21 +366,28 @@ class CalibrationResult:
         for p, v0, v, s in zip(
             self.parameters, self.initial, self.values, self.std_errors, strict=True
         ):
-            unit = "" if p.unit == "1" else f" {p.unit}"
-            lines.append(f"  {p.name:<16} {v0:>12.6g} -> {v:>12.6g} +- {s:.3g}{unit}")
+            (v0, unit), (v, _), (s, _) = (display(x, p.unit) for x in (v0, v, s))
+            unit = f" {unit}" if unit else ""
+            rel = abs(s / v) if v != 0 and math.isfinite(s) else math.nan
+            rel_text = f" ({100 * rel:.3g} %)" if math.isfinite(rel) else ""
+            lines.append(f"  {p.name:<16} {v0:>12.6g} -> {v:>12.6g} +- {s:.3g}{unit}{rel_text}")
         cols = ["set", "n", "failed", "mean_error_mm", "median_error_mm", "max_error_mm"]
         lines.append(self.error_table[cols].to_string(index=False, float_format="%.3f"))
         lines += [f"  warning: {w}" for w in self.warnings]
+        if not self.warnings:
+            lines.append(f"  no warnings ({warning_thresholds()})")
         return "\n".join(lines)
 
     def __str__(self) -> str:
         return self.summary()
 
-    def to_toml(self, path) -> Path:
-        """Write the calibrated design as a TOML design file (whole or not at all). The
-        fitted values and their standard errors are recorded in ``[design].assumptions``."""
-        import tomli_w
-
+    def to_toml(self, path: PathLike) -> Path:
+        """Write the calibrated design as a TOML design file (whole or not at all), with
+        :meth:`Design.save`. Its name is the calibrated design's (``<name>_calibrated`` or
+        the ``name`` given to :func:`calibrate`); ``[design.provenance]`` records the
+        dataset, the fitted values with standard errors (SI, with their unit), the method,
+        the softrod version and the date, and ``[design].assumptions`` says the same in a
+        sentence."""
         if self.stiffness_scale is not None:
             raise _fail(
                 "params",
@@ -352,15 +395,51 @@ class CalibrationResult:
                 "sigma factors are per-solve, not part of a design; use result.stiffness_map "
                 "with result.design, or fit c_e and c_b instead",
             )
-        path = Path(path)
-        if path.suffix.lower() != ".toml":
-            raise _fail("path", str(path), "a design file must end in .toml")
-        text = tomli_w.dumps(_plain(self.design.document))
-        with atomic_path(path) as tmp:
-            tmp.write_text(text, encoding="utf-8")
-        return path
+        return self.design.save(path)
 
-    def write_report(self, path) -> Path:
+    def to_frame(self, units: Units = None) -> pd.DataFrame:
+        """The predictions, one row per sample, in the dataset schema (docs/datasets.md):
+        the measured sample (``p0_kPa`` ..., ``tip_x_mm`` ..., and the dataset's other
+        columns), then ``set`` (train or test), ``converged``, the calibrated model's tip
+        ``model_tip_x_mm`` ... (empty where its solve failed) and ``error_mm`` (Euclidean
+        distance measured - model). The metadata block names the calibrated and the initial
+        design, the dataset, the fitted values with standard errors and the softrod
+        version; ``load_dataset`` reads the table back."""
+        from ..schema import Extra, schema_frame
+
+        ds = self.dataset
+        predicted = np.where(self.converged[:, None], self.predicted, np.nan)
+        extras = [
+            Extra("set", self.labels, "train or test"),
+            Extra("converged", self.converged, "the calibrated model's solve converged"),
+        ]
+        extras += [
+            Extra(f"model_tip_{a}", predicted[:, i], "calibrated model's tip", "length")
+            for i, a in enumerate("xyz")
+        ]
+        error = np.linalg.norm(ds.tip_position - predicted, axis=1)
+        extras.append(Extra("error", error, "|measured - model tip|", "length"))
+        meta = {
+            "generator": "softrod.calibrate",
+            "synthetic": ds.synthetic,  # the tip columns are the dataset's
+            **(self.design.provenance or {}),
+            "design": self.design.name,
+        }
+        return schema_frame(
+            pressures=ds.pressures,
+            tip_position=ds.tip_position,
+            tip_rotation=ds.tip_rotation,
+            base_force=ds.base_force,
+            base_moment=ds.base_moment,
+            time=ds.time,
+            experiment=ds.experiment,
+            mounting=ds.mounting,
+            extras=extras,
+            units=units,
+            metadata=meta,
+        )
+
+    def write_report(self, path: PathLike) -> Path:
         """An HTML report: parameters, correlations, error tables and figures."""
         from .report import write_report
 
@@ -380,7 +459,7 @@ class CalibrationResult:
                 "status": self.message,
                 "time": f"{self.elapsed_s:.2f} s",
             },
-            parameter_table=self.parameter_table(),
+            parameter_table=_display_table(self.parameter_table()),
             error_table=self.error_table,
             measured=self.dataset.tip_position,
             predicted=self.predicted,
@@ -392,7 +471,23 @@ class CalibrationResult:
             length=d.length,
             axis=_axis(d) if len(set(self._mountings())) <= 1 else None,
             base_position=_base_position(d) if len(set(self._mountings())) <= 1 else None,
+            warning_rules=warning_thresholds(),
         )
+
+
+def _display_table(table: pd.DataFrame) -> pd.DataFrame:
+    """The parameter table in display units (offsets in mm, E in kPa; docs: one unit per
+    quantity kind wherever people read it)."""
+    out = table.copy()
+    factors, units = [], []
+    for unit in table["unit"]:
+        shown = DISPLAY_UNITS.get(unit, (unit, 1.0))
+        units.append(shown[0] or "1")
+        factors.append(shown[1])
+    for col in ("initial", "value", "std_error"):
+        out[col] = table[col].to_numpy() * np.asarray(factors)
+    out["unit"] = units
+    return out
 
 
 def _axis(design: Design) -> np.ndarray:
@@ -467,11 +562,18 @@ def _diagnostics(params, values, jac, ssr, n_res):
             if abs(corr[a, b]) > STRONG_CORRELATION:
                 found.append(
                     f"{params[a].name} and {params[b].name} are strongly correlated "
-                    f"(r = {corr[a, b]:+.3f}): the data determine mainly a combination"
+                    f"(r = {corr[a, b]:+.3f}, |r| > {STRONG_CORRELATION:g}): the data "
+                    "determine mainly a combination"
                 )
+    # Offsets may be 0, so a relative error means nothing for them: correlations judge them.
     for p, v, s in zip(params, values, std, strict=True):
         if p.positive and s > POOR_RELATIVE_ERROR * abs(v):
-            found.append(f"{p.name} is poorly determined (standard error {s:.3g} on {v:.3g})")
+            (vd, unit), (sd, _) = display(v, p.unit), display(s, p.unit)
+            unit = f" {unit}" if unit else ""
+            found.append(
+                f"{p.name} is poorly determined: standard error {sd:.3g}{unit} on {vd:.3g}{unit} "
+                f"({100 * s / abs(v):.3g} % > {100 * POOR_RELATIVE_ERROR:g} %)"
+            )
     return cov, std, corr, found
 
 
@@ -674,27 +776,29 @@ def _starts_table(params, fits, best) -> pd.DataFrame:
 # --- the entry point ---------------------------------------------------------------------------
 
 
+@one_blas_thread
 def calibrate(
-    design,
-    dataset,
+    design: DesignLike,
+    dataset: Dataset | PathLike | pd.DataFrame,
     params: Sequence[str] | str,
     *,
     bounds: Mapping[str, Sequence] | None = None,
     method: str | None = None,
-    split=None,
-    test=None,
+    split: str | ArrayLike | None = None,
+    test: Any = None,
     options: SolverOptions | None = None,
     threads: int = 0,
     max_evaluations: int = 200,
     progress: Callable[[int, float], None] | None = None,
     dynamic: bool = False,
-    dt=5e-3,
+    dt: Quantity = 5e-3,
     model: str = "cosserat",
     experiments: Mapping | None = None,
     restarts: int = 0,
     seed: int = 0,
-    executor=None,
-):
+    executor: Any = None,
+    name: str | None = None,
+) -> CalibrationResult | DynamicCalibrationResult | PccFit:
     """Fit ``params`` of ``design`` to the tip positions of ``dataset``.
 
     design: a design (path, bundled name, preset or :class:`~softrod.Design`).
@@ -718,7 +822,8 @@ def calibrate(
     its cluster, one task each (docs/cluster.md).
     split: None (fit on all rows), "experiment" or "mounting" with ``test`` ids (default
     for "experiment": the last experiment), or a boolean test mask.
-    progress: called as ``progress(evaluations, rms_error_mm)`` after every evaluation.
+    progress: None (a bar in interactive sessions), True, False, or a callable called as
+    ``progress(evaluations, rms_error_mm)`` after every evaluation (:mod:`softrod.progress`).
     model: "cosserat" (default: the rod, everything above) or "pcc": paper 003's
     identification of the PCC model (Sec. V, docs/pcc.md). ``params`` is then one or a list
     of "k_L", "k_theta", "b_L", "b_theta", each identified from its own experiment:
@@ -733,12 +838,21 @@ def calibrate(
     writes the design with the values). bounds, method, split, test, progress, threads,
     max_evaluations and dynamic do not apply.
 
+    name: the calibrated design's name (default ``<design name>_calibrated``); its
+    ``[design.provenance]`` records the dataset, the values with standard errors, the
+    method, the softrod version and the date (``result.design.provenance``).
+
     Returns a :class:`CalibrationResult`; emits a :class:`CalibrationWarning` for each
-    identifiability problem (also listed in ``result.warnings``).
+    identifiability problem (also listed in ``result.warnings``): a relative standard error
+    above :data:`POOR_RELATIVE_ERROR` (20 %), a correlation with ``|r|`` above
+    :data:`STRONG_CORRELATION` (0.9), a Jacobian whose singular values span more than
+    :data:`UNIDENTIFIABLE_CONDITION`, or an optimiser that did not converge.
+
+    The fit runs BLAS on one thread (:mod:`softrod._threads`): the same inputs give the same
+    result whatever the BLAS settings; ``threads`` sets the Rust core's workers.
     """
 
-    if model not in ("cosserat", "pcc"):
-        raise _fail("model", model, "must be 'cosserat' (the rod) or 'pcc' (paper 003)")
+    V.choice(model, ("cosserat", "pcc"), "model")
     if model == "pcc":
         from ..pcc.experiments import identify_pcc
 
@@ -746,6 +860,7 @@ def calibrate(
             name: value
             for name, value, default in (
                 ("bounds", bounds, None),
+                ("name", name, None),
                 ("method", method, None),
                 ("split", split, None),
                 ("test", test, None),
@@ -798,6 +913,8 @@ def calibrate(
             raise _fail(
                 "dynamic", True, "restarts and executor are not available for dynamic fits (yet)"
             )
+        if name is not None:
+            raise _fail("name", name, "applies to static fits (dynamic=False)")
         return calibrate_dynamics(
             design, dataset, params, dt=dt, max_evaluations=max_evaluations, progress=progress
         )
@@ -812,11 +929,19 @@ def calibrate(
             f"{dataset.n_channels} channels",
             f"design {design0.name!r} has {design0.n_channels} pressure channels",
         )
-    if method not in ("lm", "nelder-mead"):
-        raise _fail("method", method, "must be 'lm' or 'nelder-mead'")
-    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 0:
-        raise _fail("threads", threads, "must be an integer >= 0 (0 = all cores)")
+    V.choice(method, ("lm", "nelder-mead"), "method")
+    threads = V.threads(threads)
+    V.integer(max_evaluations, "max_evaluations", minimum=1, maximum=V.MAX_ITERATIONS)
     params = parse_parameters(params, design0)
+    sigma_names = [p.name for p in params if p.kind in SIGMA_KINDS]
+    if sigma_names and design0.stiffness_map is not None:
+        raise _fail(
+            "params",
+            sigma_names,
+            f"design {design0.name!r} has a stiffness map ([stiffness_map] file): the constant "
+            "sigma factors would replace it; fit them on the design without the map "
+            "(design.with_stiffness_map(None)) or fit other parameters",
+        )
     design0 = _with_stiffness_map(design0, params)
     for p in params:  # the core checks each parameter against the design
         design0._rod.sensitivity_batch(
@@ -828,6 +953,14 @@ def calibrate(
     train = np.flatnonzero(~test_mask)
     groups = _groups(design0, dataset)
     measured = dataset.tip_position
+    logger.info(
+        "calibrate %s: %s on %d training samples (%d test), method %s",
+        design0.name,
+        ", ".join(p.name for p in params),
+        train.size,
+        int(test_mask.sum()),
+        method,
+    )
     setup = _FitSetup(
         dataset=dataset,
         params=tuple(params),
@@ -842,7 +975,8 @@ def calibrate(
     )
     bounded = np.array([p.name in (bounds or {}) for p in params], dtype=bool)
     starts = _start_points(params, theta0, lo, hi, bounded, restarts, seed)
-    fits = _run_starts(design0, setup, starts, threads, progress, executor)
+    with reporter(progress, "calibrate", None, _evaluations) as report:
+        fits = _run_starts(design0, setup, starts, threads, report, executor)
     best = min(range(len(fits)), key=lambda k: (_finite_or_inf(fits[k]["cost"]), k))
     u_best = fits[best]["u"]
     success, message = fits[best]["success"], fits[best]["message"]
@@ -855,13 +989,20 @@ def calibrate(
         return np.where(positive, np.exp(np.where(positive, u, 0.0)), u)
 
 
+    logger.info(
+        "calibrate %s: %s after %d model evaluations (%s)",
+        design0.name,
+        "converged" if success else "stopped",
+        model.evaluations,
+        message,
+    )
     values = theta_of(u_best)
     tip_train, jac, ok = model(values, True)
     if not ok[train].all():
         bad = train[~ok[train]]
         raise ConvergenceError(
             f"calibrate: the model did not converge for {bad.size} training samples at the "
-            f"fitted parameters (rows {bad[:10].tolist()}); check the data and the bounds"
+            f"fitted parameters ({dataset.rows_text(bad)}); check the data and the bounds"
         )
     r = (tip_train[train] - measured[train]).ravel()
     ssr = float(r @ r)
@@ -871,7 +1012,9 @@ def calibrate(
         found.insert(0, f"the optimiser stopped without converging: {message}")
 
     calibrated = design0.replace(design_changes(params, values, design0))
-    calibrated = _record(calibrated, params, values, std, method_used, dataset, train.size)
+    calibrated = _record(
+        calibrated, design0, name, params, values, std, method_used, dataset, train.size
+    )
     # Predictions on every row (train and test) with the calibrated design.
     all_rows = np.arange(len(dataset))
     final = _Model(calibrated, dataset, [], groups, all_rows, options, threads)
@@ -896,7 +1039,7 @@ def calibrate(
         labels=labels if test_mask.any() else None,
     )
     for w in found:
-        warnings.warn(w, CalibrationWarning, stacklevel=2)
+        warnings.warn(w, CalibrationWarning, stacklevel=3)  # past the BLAS-thread wrapper
     return CalibrationResult(
         design=calibrated,
         initial_design=design0,
@@ -927,30 +1070,74 @@ def _reference(design: Design, groups, m: int, options) -> np.ndarray:
     """The model's unpressurised tip position of every row's mounting (for % deflection)."""
     ref = np.full((m, 3), np.nan)
     zero = np.zeros((1, design.n_channels))
+    smap = design.stiffness_map
+    sigma = None if smap is None else np.ascontiguousarray(smap(zero))
     for changes, idx in groups:
         d = design.replace(changes) if changes else design
         out = d._rod.solve_batch(
-            zero, d.spec["tip"]["force"], d.spec["tip"]["moment"], **_options(options).as_kwargs()
+            zero,
+            d.spec["tip"]["force"],
+            d.spec["tip"]["moment"],
+            stiffness_scale=sigma,
+            **_options(options).as_kwargs(),
         )
         ref[idx] = out["tip_position"][0]
     return ref
 
 
-def _record(design, params, values, std, method, dataset, n_train) -> Design:
-    """The calibrated design with a line in [design].assumptions saying what was fitted."""
-    fitted = ", ".join(
-        f"{p.name} = {v:.6g} +- {s:.2g}{'' if p.unit == '1' else ' ' + p.unit}"
-        for p, v, s in zip(params, values, std, strict=True)
-        if p.kind not in SIGMA_KINDS
-    )
-    if not fitted:
-        return design
-    line = (
-        f"Calibrated with softrod.calibrate ({method}) on {_dataset_name(dataset)}, "
-        f"{n_train} training samples: {fitted} (standard errors from the Jacobian)."
-    )
-    assumptions = list(design.document["design"].get("assumptions", [])) + [line]
-    return design.replace({"design.assumptions": assumptions})
+def _record(design, initial, name, params, values, std, method, dataset, n_train) -> Design:
+    """The calibrated design under its new name, with ``[design.provenance]`` (what was
+    fitted to what, by which softrod, when) and a sentence in ``[design].assumptions``."""
+    import datetime
+
+    from .. import __version__
+
+    if name is None:
+        name = f"{initial.name}_calibrated"
+    if not isinstance(name, str) or not name.strip():
+        raise _fail("name", name, "must be a non-empty string (the calibrated design's name)")
+    fitted = [
+        (p, v, s) for p, v, s in zip(params, values, std, strict=True) if p.kind not in SIGMA_KINDS
+    ]
+    source = dataset.source
+    provenance = {
+        "tool": "softrod.calibrate",
+        "softrod_version": __version__,
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "initial_design": initial.name,
+        "dataset": "in-memory dataset" if source is None else source.name,
+        "synthetic_data": dataset.synthetic,
+        "training_samples": int(n_train),
+        "method": method,
+        "parameters": [
+            {
+                "name": p.name,
+                "value": float(v),
+                "std_error": float(s) if math.isfinite(s) else "not determined",
+                "unit": p.unit,
+            }
+            for p, v, s in fitted
+        ],
+    }
+    changes: dict = {"design.name": name, "design.provenance": provenance}
+    if fitted:
+        shown = ", ".join(f"{p.name} = {_shown(v, s, p.unit)}" for p, v, s in fitted)
+        line = (
+            f"Calibrated with softrod.calibrate ({method}) on {_dataset_name(dataset)}, "
+            f"{n_train} training samples: {shown} (standard errors from the Jacobian)."
+        )
+        changes["design.assumptions"] = list(design.document["design"].get("assumptions", []))
+        changes["design.assumptions"].append(line)
+    return design.replace(changes)
+
+
+def _shown(value: float, std: float, unit: str) -> str:
+    """'0.500126 +- 0.0078 mm': a value and its standard error in the display unit."""
+    from ..schema import display
+
+    v, shown_unit = display(value, unit)
+    s, _ = display(std, unit)
+    return f"{v:.6g} +- {s:.2g}" + (f" {shown_unit}" if shown_unit else "")
 
 
 def result_json(result: CalibrationResult) -> str:

@@ -42,17 +42,24 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
+from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import Dataset
 from ..design import Design
 from ..errors import InputError, design_error
+from ..progress import check_progress, reporter
 from ..statics import SolverOptions
 from ..stiffness_map import SIGMA_NAMES
 from ..units import to_si
+
+if TYPE_CHECKING:
+    from .._types import ArrayLike, DesignLike, PathLike, Quantity, Units
 
 __all__ = [
     "DEFAULT_BOUNDS",
@@ -481,25 +488,72 @@ class StiffnessIdentification:
         """(3,) fraction of the samples at which each factor was identified."""
         return self.identifiable.mean(axis=0) if len(self) else np.zeros(3)
 
-    def to_frame(self) -> pd.DataFrame:
-        """One row per sample: pressures (kPa), sigma, identifiable, sensitivity (mm),
-        at_bound, residuals, iterations and status."""
-        cols: dict = {}
-        for k in range(self.dataset.n_channels):
-            cols[f"p{k}_kPa"] = self.dataset.pressures[:, k] / 1e3
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[name] = self.sigma[:, k]
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[f"identifiable_{name}"] = self.identifiable[:, k]
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[f"sensitivity_{name}_mm"] = 1e3 * self.sensitivity[:, k]
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[f"at_bound_{name}"] = self.at_bound[:, k]
-        cols["residual_mm"] = self.residual_mm
-        cols["rotation_residual_deg"] = self.rotation_residual_deg
-        cols["iterations"] = self.iterations
-        cols["status"] = self.status
-        return pd.DataFrame(cols)
+    def to_frame(self, units: Units = None) -> pd.DataFrame:
+        """One row per sample in the dataset schema (docs/datasets.md): the measured
+        sample (``p0_kPa`` ..., ``tip_x_mm`` ..., and whatever else the dataset has), then the
+        result columns ``sigma_ext``, ``sigma_bend_x``, ``sigma_bend_y`` (empty where not
+        identified), ``identifiable_*``, ``sensitivity_*_mm``, ``at_bound_*``,
+        ``model_tip_x_mm`` ... (the model's tip at the solver's sigma), ``residual_mm``,
+        ``rotation_residual_deg``, ``iterations`` and ``status``. The metadata block names the
+        design, the scaled sections, the dataset and the settings; ``load_dataset`` reads
+        the table back."""
+        from ..schema import Extra, provenance, schema_frame
+
+        ds = self.dataset
+        extras = [
+            Extra(name, self.sigma[:, k], f"identified {name} (empty: not identifiable)")
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(f"identifiable_{name}", self.identifiable[:, k], f"{name} was identified")
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(
+                f"sensitivity_{name}",
+                self.sensitivity[:, k],
+                f"tip displacement per unit change of log {name}",
+                "length",
+            )
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(f"at_bound_{name}", self.at_bound[:, k], f"{name} ended at a bound")
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(f"model_tip_{a}", self.tip_position[:, i], "model tip (solver's sigma)", "length")
+            for i, a in enumerate("xyz")
+        ]
+        extras += [
+            Extra("residual", self.residual_mm * 1e-3, "|measured - model tip|", "length"),
+            Extra("rotation_residual_deg", self.rotation_residual_deg, "tip rotation residual"),
+            Extra("iterations", self.iterations, "Levenberg-Marquardt iterations"),
+            Extra("status", self.status, f"one of {', '.join(STATUS)}"),
+        ]
+        dataset_meta = {k: v for k, v in ds.metadata.items() if k != "columns"}
+        meta = provenance(
+            "softrod.identify_stiffness",
+            self.design,
+            sections=list(self.sections),
+            synthetic=ds.synthetic,  # the tip columns are the dataset's
+            dataset=None if ds.source is None else ds.source.name,
+            dataset_metadata=dataset_meta,
+            settings=_plain_settings(self.settings),
+        )
+        return schema_frame(
+            pressures=ds.pressures,
+            tip_position=ds.tip_position,
+            tip_rotation=ds.tip_rotation,
+            base_force=ds.base_force,
+            base_moment=ds.base_moment,
+            time=ds.time,
+            experiment=ds.experiment,
+            mounting=ds.mounting,
+            extras=extras,
+            units=units,
+            metadata=meta,
+        )
 
     def factor_table(self) -> pd.DataFrame:
         """Per factor: samples identified (count, fraction), at a bound, statistics of the
@@ -552,7 +606,7 @@ class StiffnessIdentification:
         out["wall time (s)"] = round(self.wall_time_s, 3)
         return out
 
-    def write_report(self, path) -> Path:
+    def write_report(self, path: PathLike) -> Path:
         """An HTML report (:func:`softrod.calibration.report.write_report`): summary, the
         factor table, the tip residuals of the identified model and the measured tips coloured
         by each identified factor (paper 001 Fig. 5)."""
@@ -600,6 +654,23 @@ class StiffnessIdentification:
 # --------------------------------------------------------------------------- entry point
 
 
+def _samples_done(step: int, active: int, total: int) -> tuple[float, str]:
+    """A progress bar's position and text for identify's progress(step, active, total)."""
+    return total - active, f"{total - active}/{total} samples done"
+
+
+def _plain_settings(settings: dict) -> dict:
+    """The settings as JSON values (tuples as lists, numpy scalars as numbers)."""
+    out = {}
+    for key, value in settings.items():
+        if isinstance(value, tuple):
+            value = list(value)
+        if isinstance(value, np.generic):
+            value = value.item()
+        out[key] = value
+    return out
+
+
 def _positive(value, name: str, kind: str) -> float:
     x = to_si(value.item() if isinstance(value, np.generic) else value, kind, name, InputError)
     if not (math.isfinite(x) and x > 0):
@@ -607,15 +678,11 @@ def _positive(value, name: str, kind: str) -> float:
     return x
 
 
-def _int_at_least(value, name: str, minimum: int, rule: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise design_error(name, value, rule, InputError)
-    return int(value)
-
-
 def _check_bounds(bounds) -> tuple[float, float]:
     try:
-        lo, hi = (float(b) for b in bounds)
+        if isinstance(bounds, (str, bytes)) or not isinstance(bounds, (list, tuple, np.ndarray)):
+            raise TypeError
+        lo, hi = (V.real(b, "bounds") for b in bounds)
     except (TypeError, ValueError):
         raise design_error(
             "bounds",
@@ -677,7 +744,7 @@ def _problem(design, dataset, *, use_rotation, n_high, r_high, m_high, R_high, o
         options = SolverOptions()
     if not isinstance(options, SolverOptions):
         raise design_error("options", options, "must be a softrod.SolverOptions", InputError)
-    threads = _int_at_least(threads, "threads", 0, "must be an integer >= 0 (0 = all cores)")
+    threads = V.threads(threads)
     c_t = _positive(n_high, "n_high", "force") / _positive(r_high, "r_high", "length")  # eq. 20
     c_r = _positive(m_high, "m_high", "moment") / _positive(R_high, "R_high", "angle")
     if not isinstance(use_rotation, bool):
@@ -696,24 +763,25 @@ def _problem(design, dataset, *, use_rotation, n_high, r_high, m_high, R_high, o
     return problem, c_t, c_r
 
 
+@one_blas_thread
 def identify_stiffness(
-    design,
+    design: DesignLike,
     dataset: Dataset,
     *,
     sections: Sequence[str] | None = None,
-    min_sensitivity=None,
+    min_sensitivity: Quantity | None = None,
     bounds: tuple[float, float] = DEFAULT_BOUNDS,
     use_rotation: bool = True,
-    n_high=N_HIGH,
-    r_high=R_HIGH,
-    m_high=M_HIGH,
-    R_high=ROT_HIGH,
-    initial=None,
+    n_high: Quantity = N_HIGH,
+    r_high: Quantity = R_HIGH,
+    m_high: Quantity = M_HIGH,
+    R_high: Quantity = ROT_HIGH,
+    initial: ArrayLike | None = None,
     max_iter: int = 30,
     options: SolverOptions | None = None,
     threads: int = 0,
     progress: Callable[[int, int, int], None] | None = None,
-    executor=None,
+    executor: Any = None,
     chunk_size: int | None = None,
 ) -> StiffnessIdentification:
     """Identify sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) for every sample (paper 001
@@ -733,8 +801,9 @@ def identify_stiffness(
     initial: starting sigma, (3,) or (m, 3); default 1 (the literature stiffness).
     max_iter: Levenberg-Marquardt iterations (core calls after the first).
     options: :class:`~softrod.SolverOptions` of the shooting solves; threads: cores (0 =
-        all). progress: called as ``progress(iteration, n_active, n_total)`` after each
-        iteration (nothing is printed otherwise).
+        all). progress: None (a bar in interactive sessions), True, False, or a callable
+        called as ``progress(iteration, n_active, n_total)`` after each iteration
+        (:mod:`softrod.progress`).
     executor: a ``distributed.Client``: the samples are identified on its cluster in chunks
         of ``chunk_size`` samples (default: the rule in :mod:`softrod.cluster`), each chunk
         this function on a worker (``threads`` as in ``solve_statics_batch``), and the rows
@@ -750,14 +819,8 @@ def identify_stiffness(
     mapped, names = stiffness_mapped_design(design, sections)
     dataset = _check_dataset(dataset, mapped)
     bounds = _check_bounds(bounds)
-    max_iter = _int_at_least(max_iter, "max_iter", 1, "must be an integer >= 1")
-    if progress is not None and not callable(progress):
-        raise design_error(
-            "progress",
-            progress,
-            "must be callable: progress(iteration, n_active, n_total)",
-            InputError,
-        )
+    max_iter = V.integer(max_iter, "max_iter", minimum=1, maximum=V.MAX_ITERATIONS)
+    check_progress(progress)
     if min_sensitivity is None:
         min_sens = MIN_SENSITIVITY_FRACTION * mapped.length
     else:
@@ -798,13 +861,15 @@ def identify_stiffness(
             max_iter=max_iter,
             options=options,
         )
-        return _identify_on_cluster(
-            executor, mapped, names, dataset, np.exp(theta0), kwargs, threads, chunk_size,
-            progress, t0,
-        )
+        with reporter(progress, "identify_stiffness", len(dataset), _samples_done) as report:
+            return _identify_on_cluster(
+                executor, mapped, names, dataset, np.exp(theta0), kwargs, threads, chunk_size,
+                report, t0,
+            )
     if chunk_size is not None:
         raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
-    lm = _levenberg_marquardt(problem, theta0, bounds, max_iter, progress)
+    with reporter(progress, "identify_stiffness", len(dataset), _samples_done) as report:
+        lm = _levenberg_marquardt(problem, theta0, bounds, max_iter, report)
 
     sigma_solver = np.exp(lm.theta)
     solved = lm.solved & np.isin(lm.status, (_CONVERGED, _STALLED))

@@ -9,14 +9,8 @@ import warnings
 from pathlib import Path
 
 import click
-from rich.console import Console
-from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-from rich.table import Table
-from rich.text import Text
 
-from ..catalog import load_design
 from ..errors import InputError, design_error
-from ..io import write_table
 from ._common import (
     _as_option,
     _check_output,
@@ -26,8 +20,11 @@ from ._common import (
     _num,
     _parse_quantities,
     _print_warnings,
-    _progress_columns,
+    _progress,
+    _quantity,
+    _quiet,
     _renamed,
+    _say,
     _scheduler,
     _scheduler_option,
     _staged,
@@ -35,8 +32,6 @@ from ._common import (
     _threads_option,
 )
 
-# Calibrated values are shown in these units (SI in the JSON and the TOML).
-_DISPLAY_UNITS = {"Pa": ("kPa", 1e-3), "m": ("mm", 1e3), "1": ("-", 1.0)}
 # calibrate()'s argument names -> the options that set them (for error messages).
 _CALIBRATE_OPTIONS = {
     "params": "--params",
@@ -53,7 +48,7 @@ def _parse_bounds(items: tuple[str, ...], params) -> tuple[dict, dict[str, str]]
     """NAME=LO:HI items -> ({name: (lo, hi) in SI}, {"bounds[name]": the item as typed}).
 
     LO and HI take units ("E=40kPa:200kPa"; a unit on HI alone applies to both, "E=40:200kPa");
-    a bare number is SI. Dimensionless parameters take plain numbers."""
+    a bare number other than 0 is refused. Dimensionless parameters take plain numbers."""
     kinds = {"Pa": "pressure", "m": "length"}
     by_name = {p.name: p for p in params}
     bounds: dict[str, tuple[float, float]] = {}
@@ -129,9 +124,11 @@ class _FitProgress:
     fit prints nothing else. The line shows only on a terminal and disappears at the end (a
     summary line follows); redirected, stderr stays empty."""
 
-    def __init__(self, on_start=None, console: Console | None = None) -> None:
+    def __init__(self, on_start=None, console=None) -> None:
+        from rich.console import Console
+
         self._console = console or Console(stderr=True, highlight=False)
-        self._progress: Progress | None = None
+        self._progress = None
         self._task = None
         self._on_start = on_start
         self.evaluations = 0
@@ -144,9 +141,11 @@ class _FitProgress:
         self.evaluations = evaluations
         if math.isfinite(rms_mm):
             self.best = min(self.best, rms_mm)
-        if not self._console.is_terminal:
+        if _quiet() or not self._console.is_terminal:
             return
         if self._progress is None:
+            from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
             self._progress = Progress(
                 SpinnerColumn(),
                 TextColumn("[bold]calibrate[/bold] {task.fields[evaluations]} evaluations"),
@@ -174,7 +173,12 @@ class _FitProgress:
             self._progress.stop()
 
 
-def _parameter_table(result) -> Table:
+def _parameter_table(result):
+    from rich.table import Table
+    from rich.text import Text
+
+    from ..schema import DISPLAY_UNITS
+
     table = Table(title="calibrated parameters", title_justify="left")
     for name, justify in (
         ("parameter", "left"),
@@ -186,7 +190,10 @@ def _parameter_table(result) -> Table:
     ):
         table.add_column(name, justify=justify)
     for row in result.parameter_table().itertuples(index=False):
-        unit, scale = _DISPLAY_UNITS.get(row.unit, (row.unit, 1.0))
+        # softrod.schema.DISPLAY_UNITS: the units of summaries and reports too (SI in the
+        # JSON and the TOML).
+        unit, scale = DISPLAY_UNITS.get(row.unit, (row.unit, 1.0))
+        unit = unit or "-"
         table.add_row(
             Text(row.parameter),
             _num(row.initial, scale),
@@ -198,7 +205,10 @@ def _parameter_table(result) -> Table:
     return table
 
 
-def _error_table(result) -> Table:
+def _error_table(result):
+    from rich.table import Table
+    from rich.text import Text
+
     length_mm = result.design.length * 1e3
     table = Table(
         title=f"tip errors (Euclidean; % of the length L = {length_mm:.4g} mm)",
@@ -268,7 +278,7 @@ def _error_table(result) -> Table:
     multiple=True,
     metavar="NAME=LO:HI",
     help='Bounds of one parameter, e.g. c_b=0.5:3 or "E=40kPa:200kPa" (a unit on HI alone '
-    "applies to both; a bare number is SI). Repeat for several parameters.",
+    "applies to both; a bare number needs its unit). Repeat for several parameters.",
 )
 @click.option(
     "--max-evaluations",
@@ -280,7 +290,19 @@ def _error_table(result) -> Table:
 @click.option(
     "--out",
     type=click.Path(dir_okay=False, path_type=Path),
-    help="Write the calibrated design here (.toml; fitted values noted in its assumptions).",
+    help="Write the calibrated design here (.toml; its [design.provenance] records the "
+    "dataset, the fitted values with standard errors, the softrod version and the date).",
+)
+@click.option(
+    "--name",
+    help="Name of the calibrated design (default: <DESIGN's name>_calibrated).",
+)
+@click.option(
+    "--predictions",
+    "predictions_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the measured and predicted tip of every sample here (.csv or .parquet, the "
+    "dataset schema with model_tip_*, error and set columns).",
 )
 @click.option(
     "--report",
@@ -318,6 +340,8 @@ def calibrate(
     bounds_items,
     max_evaluations,
     out,
+    name,
+    predictions_path,
     report_path,
     as_json,
     restarts,
@@ -327,23 +351,30 @@ def calibrate(
 ):
     """Fit parameters of DESIGN to the measured tip positions in DATA.
 
-    DATA is a dataset table (.csv or .parquet, docs/datasets.md) with one chamber pressure
-    column per channel of DESIGN. Prints the fitted values with standard errors, the tip
-    errors on the training and test sets, and warnings about parameters that the data
-    cannot determine. Every output file is written whole or not at all.
+    DATA is a dataset table (.csv or .parquet, docs/datasets.md), or the name of a bundled
+    example dataset, with one chamber pressure column per channel of DESIGN. Prints the
+    fitted values with standard errors, the tip errors on the training and test sets, and
+    warnings about parameters that the data cannot determine (relative standard error above
+    20 %, correlation |r| above 0.9, near-singular Jacobian). Every output file is written
+    whole or not at all.
     """
+    from rich.console import Console
+    from rich.text import Text
+
     from ..calibration.fit import calibrate as fit
     from ..calibration.fit import result_json
     from ..calibration.params import SIGMA_KINDS, parse_parameters
     from ..calibration.report import REPORT_SUFFIXES
+    from ..catalog import load_design
     from ..datasets import load_dataset
     from ..errors import CalibrationWarning
+    from ..io import TABLE_SUFFIXES, write_table
 
     d = load_design(design)
     parsed = _renamed("--params", parse_parameters, params, d)
     bounds, typed = _parse_bounds(bounds_items, parsed)
     sigma = [p.name for p in parsed if p.kind in SIGMA_KINDS]
-    outputs = []
+    outputs = {}
     if out is not None:
         out = _check_output(out, "--out", (".toml",), "a design file")
         if sigma:
@@ -354,10 +385,15 @@ def calibrate(
                 "part of a design (fit c_e and c_b instead, or drop --out)",
                 InputError,
             )
-        outputs.append(out)
+        outputs["design"] = out
+    if predictions_path is not None:
+        outputs["predictions"] = _check_output(
+            predictions_path, "--predictions", TABLE_SUFFIXES, "a table"
+        )
     if report_path is not None:
-        report_path = _check_output(report_path, "--report", REPORT_SUFFIXES, "a report is HTML")
-        outputs.append(report_path)
+        outputs["report"] = _check_output(
+            report_path, "--report", REPORT_SUFFIXES, "a report is HTML"
+        )
     try:
         dataset = load_dataset(data, design=d)
     except InputError as exc:
@@ -367,8 +403,9 @@ def calibrate(
     note = Console(stderr=True, highlight=False) if as_json else _stdout()
 
     def header() -> None:  # once the fit runs (the inputs have passed calibrate's checks)
-        if not as_json:
-            src = Path(data).name + (" (SYNTHETIC)" if dataset.synthetic else "")
+        if not as_json and not _quiet():
+            src = dataset.source.name if dataset.source is not None else str(data)
+            src += " (SYNTHETIC)" if dataset.synthetic else ""
             note.print(
                 Text(
                     f"calibrate {', '.join(p.name for p in parsed)} of {d.name} on {src}: "
@@ -398,6 +435,7 @@ def calibrate(
                     restarts=restarts,
                     seed=seed,
                     executor=client,
+                    name=name,
                 )
         except InputError as exc:
             raise _as_option(exc, renames, typed) from None
@@ -421,16 +459,24 @@ def calibrate(
         note.print(_parameter_table(result))
         note.print(_error_table(result))
     _print_warnings(note, found)
+    if not as_json:
+        from ..calibration.fit import warning_thresholds
+
+        lead = "no warnings" if not found else "rules"
+        note.print(Text(f"{lead}: {warning_thresholds()}", style="dim"))
 
     if outputs:
-        with _staged(outputs) as staged:
-            for tmp, path in zip(staged, outputs, strict=True):
-                if path == out:
+        paths = list(outputs.values())
+        with _staged(paths) as staged:
+            for tmp, (kind, _path) in zip(staged, outputs.items(), strict=True):
+                if kind == "design":
                     result.to_toml(tmp)
+                elif kind == "predictions":
+                    write_table(result.to_frame(), tmp)
                 else:
                     result.write_report(tmp)
-        for path in outputs:
-            note.print(Text(f"wrote {path}"), soft_wrap=True)
+        for path in paths:
+            _say(f"wrote {path}", stderr=as_json)
 
 
 @click.command("calibrate-axial")
@@ -493,10 +539,14 @@ def calibrate_axial(
 
     FORCE_CSV: blocked force at the reference length, columns "pressure [kPa]" and
     "force [N]"; LENGTH_CSV: free elongation, "pressure [kPa]" and "length [mm]" (any
-    pint unit; docs/calibration-axial.md). Prints the identified values with standard errors
-    and builds a design from BASE with them.
+    pint unit; docs/calibration-axial.md). Either may be the name of a bundled example
+    (modular_axial_force_synthetic, modular_axial_length_synthetic). Prints the identified
+    values with standard errors and builds a design from BASE with them.
     """
+    from rich.text import Text
+
     from ..calibration.axial import calibrate_axial as identify
+    from ..catalog import load_design
 
     d = load_design(base)
     if out is not None:
@@ -515,8 +565,8 @@ def calibrate_axial(
             d,
             out,
             n_chambers=chambers,
-            L0=L0,
-            rigid_length=rigid_length,
+            L0=None if L0 is None else _quantity(L0, "length", "--L0"),
+            rigid_length=_quantity(rigid_length, "length", "--rigid-length"),
             force_law=force_law,
             stiffness=stiffness,
             name=name,
@@ -529,14 +579,14 @@ def calibrate_axial(
     console.print(Text(result.summary()), soft_wrap=True)
     console.print(Text(f"design {new.name} (from {d.name})"), soft_wrap=True)
     if out is not None:
-        console.print(Text(f"wrote {out}"), soft_wrap=True)
-    else:
+        _say(f"wrote {out}")
+    elif not _quiet():
         console.print(Text("not written: give --out design.toml to write it"), style="dim")
 
 
 @click.command()
 @click.argument("design")
-@click.argument("data", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("data")
 @click.option(
     "--sections",
     help="Comma-separated names of the sections sigma scales (default: the chambered "
@@ -564,10 +614,13 @@ def identify(design, data, sections, out, report_path, threads, scheduler):
     model tip on the measured tip. A factor the pose cannot determine (deflection near a
     principal axis) is left empty and flagged. docs/calibration-per-sample.md.
     """
+    from rich.table import Table
+
     from ..calibration.per_sample import identify_stiffness, stiffness_mapped_design
     from ..calibration.report import REPORT_SUFFIXES
+    from ..catalog import load_design
     from ..datasets import load_dataset
-    from ..io import TABLE_SUFFIXES
+    from ..io import TABLE_SUFFIXES, write_table
 
     d = load_design(design)
     outputs = []
@@ -585,14 +638,12 @@ def identify(design, data, sections, out, report_path, threads, scheduler):
     except InputError as exc:
         raise _as_option(exc, {"sections": "--sections"}) from None
     console = _stdout()
-    with _scheduler(scheduler) as client, Progress(
-        *_progress_columns(), console=Console(stderr=True), transient=True
-    ) as bar:
-        task = bar.add_task("identify", total=len(dataset))
-        step = "chunk" if client is not None else "iteration"
+    with _scheduler(scheduler) as client, _progress("identify", len(dataset)) as advance:
+        done = [0]
 
         def progress(iteration: int, active: int, total: int) -> None:
-            bar.update(task, completed=total - active, description=f"{step} {iteration}")
+            advance(total - active - done[0])
+            done[0] = total - active
 
         result = identify_stiffness(
             d,
@@ -615,4 +666,4 @@ def identify(design, data, sections, out, report_path, threads, scheduler):
             if report_path is not None:
                 result.write_report(staged[k])
         for path in outputs:
-            console.print(Text(f"wrote {path}"), soft_wrap=True)
+            _say(f"wrote {path}")

@@ -2,32 +2,27 @@
 
 from __future__ import annotations
 
-import math
 import time
 from pathlib import Path
 
 import click
-import numpy as np
-from rich.progress import Progress
-from rich.table import Table
-from rich.text import Text
 
 from ..errors import InputError, design_error
-from ..io import check_table_path, write_table
 from ._common import (
     _fmt,
     _for_option,
     _handle_errors,
     _parse_span,
-    _progress_columns,
+    _progress,
     _pyplot,
     _renamed,
+    _say,
     _stdout,
     _threads_option,
 )
 
 
-def _parse_ramp(text: str, option: str = "--pressure-ramp") -> np.ndarray:
+def _parse_ramp(text: str, option: str = "--pressure-ramp"):
     """START:STOP:STEPS -> STEPS + 1 pressure levels in Pa (STEPS equal steps, both ends)."""
     from ..compare import MAX_RAMP_STEPS, pressure_ramp
 
@@ -47,8 +42,8 @@ def _parse_ramp(text: str, option: str = "--pressure-ramp") -> np.ndarray:
 
 
 def _on_chambers(exp) -> str:
-    """'1, 2' for an experiment that ramps chambers 1 and 2."""
-    return ", ".join(str(k + 1) for k, w in enumerate(exp.weights) if w)
+    """'p0,p1' for an experiment that ramps channels 0 and 1."""
+    return ",".join(f"p{k}" for k, w in enumerate(exp.weights) if w)
 
 
 def _parse_models(text: str) -> list[str]:
@@ -89,9 +84,10 @@ def _parse_models(text: str) -> list[str]:
     default="all",
     show_default=True,
     metavar="NAMES",
-    help="Comma-separated experiments of paper 002 Sec. V: i-1, i-2, i-3 (one chamber), "
-    "ii-1, ii-2, ii-3 (all but chamber k), iii (all three), a (horizontal, chamber 1); "
-    "groups i, ii, vertical, horizontal, all.",
+    help="Comma-separated experiments of paper 002 Sec. V: i-0, i-1, i-2 (channel k alone), "
+    "ii-0, ii-1, ii-2 (all but channel k), iii (all three), a (horizontal, channel 0); "
+    "groups i, ii, vertical, horizontal, all. Channels count from 0: paper 002's chamber 1 "
+    "is p0.",
 )
 @click.option(
     "--pressure-ramp",
@@ -119,11 +115,17 @@ def compare(protocol, models, experiments, ramp, out, figure_path, threads):
     """Compare models on the experiments of a paper (PROTOCOL: paper002, the default).
 
     paper002 (Sec. V): every experiment ramps p on some chambers of the 134 mm actuator and
-    each (model, experiment) pair is one ordered batch solve. Tip coordinates are reported
-    in the paper's frame e_i (paper_x_mm, ...) and in softrod's world frame (world_x_mm, ...);
-    see docs/compare.md for all columns.
+    each (model, experiment) pair is one ordered batch solve. The table is in the dataset
+    schema (p0_kPa.., tip_x_mm.. in softrod's world frame) with the tip in the paper's frame
+    e_i as paper_x_mm, ... and the model, ramp level and solver columns; see
+    docs/compare.md for all columns.
     """
+    import math
+
+    from rich.table import Table
+
     from ..compare import EXPERIMENTS, compare_models, resolve_experiments
+    from ..io import check_table_path, write_table
 
     names = _parse_models(models)
     exps = _renamed("--experiments", resolve_experiments, experiments)
@@ -137,35 +139,32 @@ def compare(protocol, models, experiments, ramp, out, figure_path, threads):
 
     console = _stdout()
     rows = len(names) * len(exps) * len(levels)
-    console.print(
-        Text(
-            f"{protocol}: {len(names)} model{'s' if len(names) != 1 else ''} x {len(exps)} "
-            f"experiment{'s' if len(exps) != 1 else ''} x {len(levels)} levels "
-            f"({levels[0] / 1e3:g} to {levels[-1] / 1e3:g} kPa) = {rows:,} solves"
-        )
+    _say(
+        f"{protocol}: {len(names)} model{'s' if len(names) != 1 else ''} x {len(exps)} "
+        f"experiment{'s' if len(exps) != 1 else ''} x {len(levels)} levels "
+        f"({levels[0] / 1e3:g} to {levels[-1] / 1e3:g} kPa) = {rows:,} solves"
     )
     t0 = time.perf_counter()
-    with Progress(*_progress_columns(), console=console) as progress:
-        task = progress.add_task("compare", total=rows)
-
-        def advance(label: str, n: int) -> None:
-            progress.update(task, advance=n, description=f"compare {label}")
-
+    with _progress("compare", rows) as advance:
         df = compare_models(
-            names, experiments=exps, pressures=levels, threads=threads, progress=advance
+            names,
+            experiments=exps,
+            pressures=levels,
+            threads=threads,
+            progress=lambda label, n: advance(n),
         )
-        progress.update(task, description="compare")
     wall = time.perf_counter() - t0
 
     table = Table(
         title=f"tip at p = {levels[-1] / 1e3:g} kPa, paper frame e_i (mm)",
         title_justify="left",
-        caption="i-k, ii-k, iii: vertical mounting; a: horizontal (paper 002 Sec. V)",
+        caption="i-k, ii-k, iii: vertical mounting; a: horizontal (paper 002 Sec. V); "
+        "channels p0, p1, p2 are the paper's chambers 1, 2, 3",
         caption_justify="left",
     )
     for name, justify in (
         ("experi-\nment", "left"),
-        ("chambers\nat p", "left"),
+        ("channels\nat p", "left"),
         ("model", "left"),
         ("x\nmm", "right"),
         ("y\nmm", "right"),
@@ -173,7 +172,7 @@ def compare(protocol, models, experiments, ramp, out, figure_path, threads):
         ("lateral\nmm", "right"),
         ("converged", "right"),
     ):
-        table.add_column(name, justify=justify)
+        table.add_column(name, justify=justify, no_wrap=True)
     for exp in exps:
         sub = df[df["experiment"] == exp]
         for k, model in enumerate(names):
@@ -197,7 +196,7 @@ def compare(protocol, models, experiments, ramp, out, figure_path, threads):
     console.print(f"{rows:,} solves, [{style}]{n_ok:,} converged[/{style}], wall time {wall:.2f} s")
     if out is not None:
         write_table(df, out)
-        console.print(Text(f"wrote {out}"), soft_wrap=True)
+        _say(f"wrote {out}")
     if figure_path is not None:
         plt = _pyplot()
         from ..compare import plot_comparison
@@ -210,5 +209,4 @@ def compare(protocol, models, experiments, ramp, out, figure_path, threads):
             save_figure(fig, figure_path)
         finally:
             plt.close(fig)
-        console.print(Text(f"wrote {figure_path}"), soft_wrap=True)
-
+        _say(f"wrote {figure_path}")

@@ -3,19 +3,19 @@
 from __future__ import annotations
 
 import click
-from rich.console import Console
-from rich.padding import Padding
-from rich.text import Text
 
-from ..catalog import bundled_designs, load_design
-from ..errors import DesignError
 from ._common import _handle_errors, _stdout
 
 
 @click.command()
 @_handle_errors
 def designs():
-    """List the bundled designs and the presets with their channel count and source."""
+    """List the bundled designs, the presets and the example datasets, with their channel
+    count and source."""
+    from rich.text import Text
+
+    from ..catalog import bundled_designs
+    from ..datasets import example_dataset_path, example_datasets
     from ..presets import list_presets
 
     console = _stdout()
@@ -32,9 +32,20 @@ def designs():
     summaries = {p.name: p.summary for p in list_presets()}
     for name, summary in summaries.items():
         _list_design(console, name, lambda d, s=summary: s)
+    console.print()
+    console.print(Text("example datasets (SYNTHETIC; use the name as DATA):", style="bold"))
+    for name in example_datasets():
+        path = example_dataset_path(name)
+        console.print(Text.assemble((name, "bold cyan"), f"  {path.name}"))
 
 
-def _list_design(console: Console, name: str, note) -> None:
+def _list_design(console, name: str, note) -> None:
+    from rich.padding import Padding
+    from rich.text import Text
+
+    from ..catalog import load_design
+    from ..errors import DesignError
+
     try:
         d = load_design(name)
     except DesignError as exc:

@@ -5,19 +5,17 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-import numpy as np
-from rich.progress import Progress
 
-from ..catalog import load_design
 from ..errors import InputError, design_error
-from ..io import atomic_path, check_table_path, write_table
-from ..units import to_si
 from ._common import (
+    _check_output,
     _for_option,
     _handle_errors,
     _parse_vector,
-    _progress_columns,
+    _progress,
     _pyplot,
+    _quantity,
+    _say,
     _stdout,
 )
 
@@ -33,10 +31,25 @@ def _channels(text: str) -> list[int]:
         ) from None
 
 
-def _read_columns(path: Path, needed: list[str]) -> dict[str, np.ndarray]:
+def _read_columns(path: Path, needed: list[str]) -> dict:
+    """The SI columns of an array table (CSV or Parquet), each a finite float array."""
+    import io
+
     import pandas as pd
 
-    df = pd.read_parquet(path) if path.suffix.lower() == ".parquet" else pd.read_csv(path)
+    from .. import _validate as V
+    from ..datasets import _read_text
+
+    try:
+        if path.suffix.lower() == ".parquet":
+            df = pd.read_parquet(path)
+        else:
+            df = pd.read_csv(io.StringIO(_read_text(path)))
+    except InputError:
+        raise
+    except Exception as exc:  # pandas and pyarrow raise many types for unreadable tables
+        rule = f"not a CSV/Parquet table: {exc}"
+        raise design_error(str(path), "unreadable", rule, InputError) from None
     missing = [c for c in needed if c not in df.columns]
     if missing:
         raise design_error(
@@ -45,16 +58,22 @@ def _read_columns(path: Path, needed: list[str]) -> dict[str, np.ndarray]:
             f"needs the column(s) {', '.join(missing)} (SI units in the names)",
             InputError,
         )
-    return {c: df[c].to_numpy(dtype=float) for c in df.columns}
+    return {
+        c: V.real_array(df[c].to_numpy(), f"{path.name}: {c}", ndim=1)
+        for c in df.columns
+        if c in needed
+    }
 
 
 def _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt):
     """compare-pcc --dynamic: the runs (with a progress bar) and the figure."""
+    import numpy as np
+
     from ..dynamics import PressureSchedule
     from ..pcc.compare import compare_pcc_dynamics, plot_pcc_dynamics_comparison
 
-    duration = to_si(t_end, "time", "--t-end", InputError)
-    step = to_si(dt, "time", "--dt", InputError)
+    duration = _quantity(t_end, "time", "--t-end")
+    step = _quantity(dt, "time", "--dt")
     for name, value, given in (("--t-end", duration, t_end), ("--dt", step, dt)):
         if not value > 0:
             raise design_error(name, given, "must be > 0 s", InputError)
@@ -67,26 +86,26 @@ def _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt):
         on[chans] = pmax
         zero = np.zeros(d.n_channels)
         schedule = PressureSchedule.steps([0.0, 0.1, duration / 2], [zero, on, zero])
-        what = f"{pmax / 1e5:g} bar pulse from 0.1 s to {duration / 2:g} s"
-    with Progress(*_progress_columns(), console=_stdout()) as progress:
-        task = progress.add_task("runs", total=6)
+        what = (
+            f"{pmax / 1e3:g} kPa pulse on channels {', '.join(map(str, chans))} "
+            f"from 0.1 s to {duration / 2:g} s"
+        )
+    with _progress("runs", 6) as advance:
         df = compare_pcc_dynamics(
-            d,
-            schedule,
-            duration,
-            dt=step,
-            tip_force=force,
-            progress=lambda n: progress.advance(task, n),
+            d, schedule, duration, dt=step, tip_force=force, progress=advance
         )
     _pyplot()
     fig = plot_pcc_dynamics_comparison(df, title=f"{d.name}: PCC vs Cosserat rod, {what}")
     return df, fig, f"dynamics, dt = {step * 1e3:g} ms"
 
 
-
 @click.command("compare-pcc")
 @click.argument("design")
-@click.option("--channels", required=True, help="Channels pressurised together, e.g. 0,1,5.")
+@click.option(
+    "--channels",
+    required=True,
+    help="Channels pressurised together, numbered from 0 as everywhere in softrod, e.g. 5,0,1.",
+)
 @click.option("--p-max", "p_max", default="1 bar", show_default=True, help="Largest pressure.")
 @click.option("--steps", default=11, show_default=True, help="Pressure levels from 0.")
 @click.option(
@@ -107,7 +126,8 @@ def _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt):
     "--table",
     "table",
     type=click.Path(dir_okay=False, path_type=Path),
-    help="Also write the numbers (.csv or .parquet).",
+    help="Also write the numbers (.csv or .parquet, the dataset schema: one row per case, "
+    "level and model).",
 )
 @click.option(
     "--dynamic",
@@ -130,6 +150,8 @@ def compare_pcc_cmd(
     """PCC model vs Cosserat rod on DESIGN: tip positions while CHANNELS ramp to P_MAX,
     weightless, with gravity, and with gravity and a tip load (docs/pcc.md). With
     --dynamic, the tip trajectories of both models under the same pressures."""
+    from ..catalog import load_design
+    from ..io import atomic_path, check_table_path, write_table
     from ..pcc.compare import compare_pcc, plot_pcc_comparison
 
     d = load_design(design)
@@ -138,10 +160,9 @@ def compare_pcc_cmd(
         raise design_error(
             "--channels", channels, f"must be channel indices 0..{d.n_channels - 1}", InputError
         )
-    pmax = to_si(p_max, "pressure", "--p-max", InputError)
+    pmax = _quantity(p_max, "pressure", "--p-max")
     force = _parse_vector(tip_force, "force", "--tip-force", 3)
-    if out.suffix.lower() not in (".png", ".pdf", ".svg"):
-        raise design_error("--out", str(out), "must end in .png, .pdf or .svg", InputError)
+    out = _check_output(out, "--out", (".png", ".pdf", ".svg"), "a figure")
     if table is not None:
         table = _for_option(check_table_path, table, "--table")
     if input_path is not None and not dynamic:
@@ -150,18 +171,13 @@ def compare_pcc_cmd(
     if dynamic:
         df, fig, key = _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt)
     else:
-        with Progress(*_progress_columns(), console=console) as progress:
-            task = progress.add_task("solves", total=3 * 2 * steps)
-            df = compare_pcc(
-                d,
-                chans,
-                pmax,
-                steps=steps,
-                tip_force=force,
-                progress=lambda n: progress.advance(task, n),
-            )
+        with _progress("solves", 3 * 2 * steps) as advance:
+            df = compare_pcc(d, chans, pmax, steps=steps, tip_force=force, progress=advance)
         _pyplot()
-        fig = plot_pcc_comparison(df, title=f"{d.name}: PCC vs Cosserat rod")
+        on = ", ".join(map(str, chans))
+        fig = plot_pcc_comparison(
+            df, title=f"{d.name}: PCC vs Cosserat rod, channels {on} to {pmax / 1e3:g} kPa"
+        )
         key = "statics"
     plt = _pyplot()
     try:
@@ -171,14 +187,16 @@ def compare_pcc_cmd(
         plt.close(fig)
     if table is not None:
         write_table(df, table)
-    for case, sub in df.groupby("case", sort=False):
+    rod = df[df["model"] == "cosserat"]
+    for case, sub in rod.groupby("experiment", sort=False):
         worst = sub["error_mm"].max()
         console.print(f"{case:>20}: largest tip difference {worst:8.3f} mm ({key})")
-    console.print(f"wrote {out}" + (f" and {table}" if table else ""), soft_wrap=True)
+    _say(f"wrote {out}" + (f" and {table}" if table else ""))
+
 
 @click.command("pcc-identify")
 @click.argument("kind", type=click.Choice([*KINDS, "all"]))
-@click.argument("data", type=click.Path(exists=True, dir_okay=False, path_type=Path))
+@click.argument("data", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--design", "design", help="Design (for chamber areas, moments, k values).")
 @click.option(
     "--chambers", default=3, show_default=True, help="Chambers pressurised (k_L, array CSV)."
@@ -225,12 +243,20 @@ def pcc_identify(
     load_dataset reads it; needs --design), fitted with softrod.calibrate(...,
     model="pcc"): KIND all fits k_L, k_theta, b_L and b_theta in that order. Or DATA is an
     array table with SI columns: longitudinal-stiffness p_Pa, d_m; bending-stiffness
-    p1_Pa..pN_Pa, theta_rad; longitudinal-damping t_s, z_m; bending-damping t_s,
-    theta_rad. Prints each value, its standard error and the [pcc] line to put in the
-    design; --write-design writes that design (whole or not at all)."""
+    p0_Pa..p<N-1>_Pa (channels from 0), theta_rad; longitudinal-damping t_s, z_m;
+    bending-damping t_s, theta_rad. Prints each value, its standard error and the [pcc]
+    line to put in the design; --write-design writes that design (whole or not at all)."""
+    import numpy as np
+
+    from ..catalog import load_design
+    from ..datasets import example_dataset_path, example_datasets
     from ..pcc import identify as idf
     from ..pcc.model import pcc_parameters
 
+    if not data.exists() and data.suffix == "" and str(data) in example_datasets():
+        data = example_dataset_path(str(data))
+    if not data.is_file():
+        raise design_error("DATA", str(data), "no such file or bundled dataset", InputError)
     d = load_design(design) if design else None
 
     def need_design(what):
@@ -240,17 +266,7 @@ def pcc_identify(
 
     if write_design is not None:
         need_design("--write-design")
-        if write_design.suffix.lower() != ".toml":
-            raise design_error(
-                "--write-design", str(write_design), "must end in .toml", InputError
-            )
-        if not write_design.parent.is_dir():
-            raise design_error(
-                "--write-design",
-                str(write_design),
-                f"folder {str(write_design.parent)!r} does not exist",
-                InputError,
-            )
+        write_design = _check_output(write_design, "--write-design", (".toml",), "a design file")
     console = _stdout()
     if kind == "all" or _is_dataset(data):
         fit = _identify_dataset(
@@ -282,14 +298,14 @@ def pcc_identify(
             )
         elif kind == "bending-stiffness":
             dd = need_design("the chamber moment")
-            names = [f"p{k + 1}_Pa" for k in range(dd.n_channels)]
+            names = [f"p{k}_Pa" for k in range(dd.n_channels)]
             cols = _read_columns(data, [*names, "theta_rad"])
             moment = idf.chamber_moment(dd, np.column_stack([cols[n] for n in names]))
             fit = idf.fit_bending_stiffness(cols["theta_rad"], moment, degree=degree)
         elif kind == "longitudinal-damping":
             cols = _read_columns(data, ["t_s", "z_m"])
             k = (
-                to_si(k_l, "force_per_length", "--k-L", InputError)
+                _quantity(k_l, "force_per_length", "--k-L")
                 if k_l
                 else pcc_parameters(need_design("k_L"))[0]["k_L"]
             )
@@ -297,7 +313,7 @@ def pcc_identify(
         else:
             cols = _read_columns(data, ["t_s", "theta_rad"])
             k = (
-                to_si(k_theta, "moment", "--k-theta", InputError)
+                _quantity(k_theta, "moment", "--k-theta")
                 if k_theta
                 else pcc_parameters(need_design("k_theta"))[0]["k_theta"]
             )
@@ -322,13 +338,22 @@ KIND_PARAMETERS = {
 
 def _columns(path: Path) -> list[str]:
     """The column names of a CSV (after its # comment lines) or Parquet file."""
-    import pandas as pd
+    import csv
 
-    if path.suffix.lower() == ".parquet":
-        import pyarrow.parquet as pq
+    from ..datasets import _read_text
 
-        return list(pq.read_schema(path).names)
-    return [str(c).strip() for c in pd.read_csv(path, comment="#", nrows=0).columns]
+    try:
+        if path.suffix.lower() == ".parquet":
+            import pyarrow.parquet as pq
+
+            return list(pq.read_schema(path).names)
+        lines = (line for line in _read_text(path).splitlines() if not line.startswith("#"))
+        return [c.strip() for c in next(csv.reader(lines), [])]
+    except InputError:
+        raise
+    except Exception as exc:  # pyarrow and csv raise their own types for unreadable files
+        rule = f"not a CSV/Parquet table: {exc}"
+        raise design_error(str(path), "unreadable", rule, InputError) from None
 
 
 def _is_dataset(path: Path) -> bool:

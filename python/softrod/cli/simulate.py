@@ -9,16 +9,9 @@ import time
 from pathlib import Path
 
 import click
-import numpy as np
-from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-from rich.text import Text
 
-from ..catalog import load_design
-from ..dynamics import PressureSchedule, simulate
 from ..errors import InputError, design_error
-from ..units import to_si
-from ._common import _check_output, _handle_errors, _staged, _stdout
+from ._common import _check_output, _handle_errors, _quantity, _quiet, _say, _staged, _stdout
 
 TRAJECTORY_SUFFIXES = (".parquet", ".npz")
 ANIMATION_SUFFIXES = (".gif", ".mp4")
@@ -27,7 +20,7 @@ BUILTIN_PULSES = {"paper000": "paper 000 Fig. 3 style square pulses (116 s, 3 ch
 
 
 def _seconds(text: str, option: str, *, positive: bool = True) -> float:
-    x = to_si(text, "time", option, InputError)
+    x = _quantity(text, "time", option)
     if positive and not x > 0:
         raise design_error(option, text, "must be > 0 s", InputError)
     return x
@@ -58,7 +51,7 @@ def _seconds(text: str, option: str, *, positive: bool = True) -> float:
 @click.option(
     "--t-end",
     "t_end",
-    help="Simulated time, e.g. 10 or '10 s' (default: the schedule's last time).",
+    help="Simulated time with its unit, e.g. '10 s' (default: the schedule's last time).",
 )
 @click.option("--dt", default="2 ms", show_default=True, help="Time step.")
 @click.option(
@@ -95,13 +88,27 @@ def _seconds(text: str, option: str, *, positive: bool = True) -> float:
     type=click.Path(dir_okay=False, path_type=Path),
     help="Also write a 3-D animation of the shape, .gif (or .mp4 with ffmpeg).",
 )
-@click.option("--fps", default=20, show_default=True, type=click.IntRange(min=1, max=100))
+@click.option(
+    "--fps",
+    default=20,
+    show_default=True,
+    type=click.IntRange(min=1, max=100),
+    help="Animation frames per second (lowered when the clip would need more than "
+    "--max-frames frames).",
+)
 @click.option(
     "--speed",
-    default=1.0,
-    show_default=True,
+    default=None,
     type=click.FloatRange(min=0.01, max=1000),
-    help="Animation playback speed (2 = twice as fast as real time).",
+    help="Animation playback speed (2 = twice as fast as real time). Default: real time "
+    "for runs up to 15 s, faster for longer ones, so the clip lasts about 15 s.",
+)
+@click.option(
+    "--max-frames",
+    default=300,
+    show_default=True,
+    type=click.IntRange(min=2),
+    help="Frame budget of the animation.",
 )
 @click.option(
     "--plot",
@@ -124,6 +131,7 @@ def simulate_cmd(
     animation,
     fps,
     speed,
+    max_frames,
     plot_path,
 ):
     """Simulate DESIGN's motion under commanded chamber pressures over time.
@@ -133,6 +141,13 @@ def simulate_cmd(
     --model pcc, paper 003's piecewise-constant-curvature model (implicit midpoint rule).
     Progress shows the simulated time and the real-time factor on stderr.
     """
+    import numpy as np
+
+    from ..catalog import load_design
+    from ..dynamics import PressureSchedule, simulate
+    from ..dynamics.trajectory import animation_plan
+    from ..progress import reporter
+
     d = load_design(design)
     if (input_path is None) == (pulses is None):
         raise design_error(
@@ -140,9 +155,7 @@ def simulate_cmd(
         )
     outputs = [_check_output(out, "--out", TRAJECTORY_SUFFIXES, "trajectory")]
     if animation is not None:
-        outputs.append(
-            _check_output(animation, "--animate", ANIMATION_SUFFIXES, "animation")
-        )
+        outputs.append(_check_output(animation, "--animate", ANIMATION_SUFFIXES, "animation"))
     if plot_path is not None:
         outputs.append(_check_output(plot_path, "--plot", PLOT_SUFFIXES, "plot"))
     if len({p.resolve() for p in outputs}) != len(outputs):
@@ -161,39 +174,29 @@ def simulate_cmd(
         duration = float(schedule.t_end)
     else:
         duration = _seconds(t_end, "--t-end")
-    shapes = 1.0 / fps if animation is not None else None
+    plan = None
+    shapes = None
+    if animation is not None:
+        # Store just the shapes the clip shows: one per frame.
+        plan = animation_plan(duration, fps=fps, speed=speed, max_frames=max_frames)
+        shapes = plan.frame_interval_s
     console = _stdout()
     if model == "pcc":
         what = "PCC model (paper 003)"
     else:
         what = f"Cosserat rod, damping time {d.spec['dynamics']['damping_time']:g} s"
-    console.print(
-        Text(
-            f"{d.name}: {duration:g} s at dt = {step * 1e3:g} ms "
-            f"({math.ceil(duration / step):,} steps), {what}"
-        )
+    _say(
+        f"{d.name}: {duration:g} s at dt = {step * 1e3:g} ms "
+        f"({math.ceil(duration / step):,} steps), {what}"
     )
-    err = Console(stderr=True)
-    with Progress(
-        TextColumn("[bold]simulate"),
-        BarColumn(bar_width=24),
-        TextColumn("{task.fields[t]} / {task.fields[total_s]} s"),
-        TextColumn("{task.fields[rtf]}x real time"),
-        TimeElapsedColumn(),
-        TextColumn("ETA"),
-        TimeRemainingColumn(),
-        console=err,
-        transient=True,
-    ) as bar:
-        task = bar.add_task(
-            "simulate", total=duration, t="0", total_s=f"{duration:g}", rtf="--"
-        )
+    bar = not _quiet() and _stderr_is_terminal()  # progress bars: on a terminal only
 
-        def report(done: float, total: float, wall: float) -> None:
-            rtf = f"{done / wall:,.0f}" if wall > 0 else "--"
-            bar.update(task, completed=done, t=f"{done:.2f}", rtf=rtf)
+    def simulated(done: float, total: float, wall: float):
+        rtf = f"{done / wall:,.0f}" if wall > 0 else "--"
+        return done, f"{done:.2f} / {total:g} s, {rtf}x real time"
 
-        t0 = time.perf_counter()
+    t0 = time.perf_counter()
+    with reporter(bar, "simulate", duration, simulated) as report:
         traj = simulate(
             d,
             schedule,
@@ -203,25 +206,43 @@ def simulate_cmd(
             shapes=shapes,
             initial=initial,
             model=model,
-            progress=report,
+            progress=report if report is not None else False,
         )
-        wall = time.perf_counter() - t0
-    with _staged(outputs) as staged:
-        traj.save(staged[0])
-        k = 1
-        if animation is not None:
-            traj.animate(staged[k], fps=fps, speed=speed)
-            k += 1
-        if plot_path is not None:
-            traj.plot_tip(staged[k])
-    tip = traj.tip_position
-    reach = np.linalg.norm(tip - tip[0], axis=1).max()
+    wall = time.perf_counter() - t0
     meta = traj.metadata
     console.print(
         f"{meta['steps']:,} steps in {wall:.2f} s: {meta['real_time_factor']:,.0f}x real "
         f"time on one core ({meta['newton_iterations']:,} Newton iterations, "
         f"{meta['jacobians']:,} exact Jacobians)"
     )
+    with _staged(outputs) as staged:
+        traj.save(staged[0])
+        k = 1
+        if animation is not None:
+            t1 = time.perf_counter()
+            traj.animate(
+                staged[k],
+                fps=plan.fps,
+                speed=plan.speed,
+                max_frames=max_frames,
+                progress=bar,
+            )
+            console.print(
+                f"animation: {plan.n_frames} frames at {plan.fps:.3g} fps, "
+                f"{plan.speed:.3g}x real time, a {plan.clip_s:.1f} s clip, rendered in "
+                f"{time.perf_counter() - t1:.1f} s"
+            )
+            k += 1
+        if plot_path is not None:
+            traj.plot_tip(staged[k])
+    tip = traj.tip_position
+    reach = np.linalg.norm(tip - tip[0], axis=1).max()
     console.print(f"largest tip excursion from the start: {reach * 1e3:.1f} mm")
     for p in outputs:
-        console.print(Text(f"wrote {p}"), soft_wrap=True)
+        _say(f"wrote {p}")
+
+
+def _stderr_is_terminal() -> bool:
+    from rich.console import Console
+
+    return Console(stderr=True).is_terminal

@@ -8,17 +8,8 @@ import time
 from pathlib import Path
 
 import click
-import numpy as np
-from rich.console import Console
-from rich.progress import Progress
-from rich.table import Table
-from rich.text import Text
 
-from ..catalog import load_design
-from ..design import Design
 from ..errors import InputError, design_error
-from ..io import check_table_path, write_table
-from ..statics import StaticSolution, solve_statics, solve_statics_batch
 from ._common import (
     _fmt,
     _fmt_kpa,
@@ -29,7 +20,8 @@ from ._common import (
     _parse_grid,
     _parse_pressures,
     _parse_vector,
-    _progress_columns,
+    _progress,
+    _say,
     _scheduler,
     _scheduler_option,
     _stdout,
@@ -45,71 +37,59 @@ DEMO_SWEEP = (0.0, 70e3, 7)  # Pa, Pa, points per channel: a 7^3 grid
 
 
 
-def _lateral(sol: StaticSolution) -> float:
+def _lateral(sol) -> float:
     """Tip distance from the base tangent line (the straight reference axis), m."""
+    import numpy as np
+
     d = sol.tip_position - sol.position[0]
     t0 = sol.rotation[0][:, 2]
     return float(np.linalg.norm(d - np.dot(d, t0) * t0))
 
 
-def _run_sweep(
-    design: Design,
-    pressures: np.ndarray,
-    threads: int,
-    chunk: int,
-    console: Console,
-    label: str,
-    client=None,
-) -> tuple[dict[str, np.ndarray], float]:
-    """Solve every row in chunks under a progress bar; return (results, wall time s). With a
-    Dask ``client`` the chunks run on its cluster (chunk size by softrod.cluster's rule)."""
+def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=None):
+    """Solve every row in chunks under a progress bar; return (BatchSolution, wall time s).
+    With a Dask ``client`` the chunks run on its cluster (chunk size by softrod.cluster's
+    rule)."""
+    import numpy as np
+
+    from ..solution import BatchSolution
+    from ..statics import solve_statics_batch
+
     m = len(pressures)
     if client is not None:
         t0 = time.perf_counter()
-        with Progress(*_progress_columns(), console=console) as progress:
-            task = progress.add_task(label, total=m)
-            out = solve_statics_batch(
-                design,
-                pressures,
-                threads=threads,
-                executor=client,
-                progress=lambda done, _total: progress.update(task, completed=done),
+        with _progress(label, m) as advance:
+            done = [0]
+
+            def chunks_done(rows: int, _total: int) -> None:
+                advance(rows - done[0])
+                done[0] = rows
+
+            batch = solve_statics_batch(
+                design, pressures, threads=threads, executor=client, progress=chunks_done
             )
-        wall = time.perf_counter() - t0
-        res = {
-            "tip_position": out.tip_position,
-            "converged": out.converged,
-            "iterations": out.iterations,
-        }
-        return res, wall
-    tips = np.empty((m, 3))
-    converged = np.empty(m, dtype=bool)
-    iterations = np.empty(m, dtype=np.int64)
+        return batch, time.perf_counter() - t0
+    parts = []
     t0 = time.perf_counter()
-    with Progress(*_progress_columns(), console=console) as progress:
-        task = progress.add_task(label, total=m)
+    with _progress(label, m) as advance:
         for lo in range(0, m, chunk):
             hi = min(lo + chunk, m)
-            out = solve_statics_batch(design, pressures[lo:hi], threads=threads)
-            tips[lo:hi] = out.tip_position
-            converged[lo:hi] = out.converged
-            iterations[lo:hi] = out.iterations
-            progress.advance(task, hi - lo)
+            parts.append(solve_statics_batch(design, pressures[lo:hi], threads=threads))
+            advance(hi - lo)
     wall = time.perf_counter() - t0
-    return {"tip_position": tips, "converged": converged, "iterations": iterations}, wall
 
+    def stack(name):
+        return np.concatenate([getattr(b, name) for b in parts])
 
-def _sweep_frame(pressures: np.ndarray, res: dict[str, np.ndarray]):
-    import pandas as pd
-
-    cols: dict[str, np.ndarray] = {}
-    for k in range(pressures.shape[1]):
-        cols[f"p{k + 1}_Pa"] = pressures[:, k]
-    tips_mm = res["tip_position"] * 1e3
-    cols["x_mm"], cols["y_mm"], cols["z_mm"] = tips_mm[:, 0], tips_mm[:, 1], tips_mm[:, 2]
-    cols["converged"] = res["converged"]
-    cols["iterations"] = res["iterations"]
-    return pd.DataFrame(cols)
+    fields = ("tip_position", "tip_rotation", "base_force", "base_moment", "converged")
+    batch = BatchSolution(
+        pressures=np.asarray(pressures, dtype=float),
+        **{name: stack(name) for name in fields},
+        iterations=stack("iterations"),
+        residual=stack("residual"),
+        metadata=parts[0].metadata if parts else {},
+    )
+    return batch, wall
 
 
 @click.command()
@@ -119,7 +99,7 @@ def _sweep_frame(pressures: np.ndarray, res: dict[str, np.ndarray]):
     "-p",
     metavar="P1,P2,...",
     help="Gauge pressure per channel, comma-separated, e.g. 30kPa,0,0 or 0.3bar,0,0. "
-    "A bare number is Pa; a unit on the last item alone applies to all. "
+    "Units are required (zero needs none); a unit on the last item alone applies to all. "
     "Default: 0 on every channel.",
 )
 @click.option(
@@ -142,6 +122,11 @@ def _sweep_frame(pressures: np.ndarray, res: dict[str, np.ndarray]):
 @_handle_errors
 def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
     """Static shape of DESIGN under the given chamber pressures."""
+    from rich.table import Table
+
+    from ..catalog import load_design
+    from ..statics import solve_statics
+
     d = load_design(design)
     if plot_path is not None:
         from ..plotting import check_figure_path
@@ -173,7 +158,7 @@ def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
         table.add_column("quantity")
         table.add_column("value", justify="right")
         table.add_column("unit")
-        table.add_row("pressures", _fmt_kpa(p), "kPa")
+        table.add_row(f"pressures p0..p{len(p) - 1}", _fmt_kpa(p), "kPa")
         table.add_row("tip position (x, y, z)", _fmt_vec(sol.tip_position, 1e3, 3), "mm")
         table.add_row("tip tangent d3", _fmt_vec(sol.tip_rotation[:, 2], 1.0, 4), "-")
         table.add_row("base force", _fmt_vec(sol.base_force, 1.0, 4), "N")
@@ -187,7 +172,7 @@ def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
     if plot_path is not None:
         written = _write_shape_plot([sol], plot_path)
         # Keep stdout pure JSON with --json: say where the figure went on stderr instead.
-        Console(stderr=as_json, highlight=False).print(Text(f"wrote {written}"), soft_wrap=True)
+        _say(f"wrote {written}", stderr=as_json)
 
 
 @click.command()
@@ -216,10 +201,16 @@ def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
 def sweep(design, grids, out, threads, scheduler):
     """Tip positions over a full-factorial pressure grid of DESIGN.
 
-    Rows run with channel 1 slowest and the last channel fastest, so consecutive rows are
-    neighbours (warm starts). Columns: p1_Pa, p2_Pa, ..., x_mm, y_mm, z_mm, converged,
-    iterations.
+    Rows run with channel 0 slowest and the last channel fastest, so consecutive rows are
+    neighbours (warm starts). The table is in the dataset schema (docs/datasets.md):
+    p0_kPa, p1_kPa, ..., tip_x_mm, tip_y_mm, tip_z_mm, tip_qw..tip_qz, base_fx_N..,
+    base_mx_Nmm.., then converged, iterations and residual; its metadata block names the
+    design, the softrod version and the grid. Rows that did not converge are kept with
+    empty tip cells.
     """
+    from ..catalog import load_design
+    from ..io import check_table_path, write_table
+
     d = load_design(design)
     n = d.n_channels
     if n == 0:
@@ -252,19 +243,23 @@ def sweep(design, grids, out, threads, scheduler):
         )
     pressures = _full_factorial(axes)
     console = _stdout()
-    console.print(Text(f"{d.name}: {rows:,} rows ({' x '.join(str(len(a)) for a in axes)})"))
+    _say(f"{d.name}: {rows:,} rows ({' x '.join(str(len(a)) for a in axes)})")
     with _scheduler(scheduler) as client:
         if client is not None:
-            console.print(Text(f"on the Dask cluster at {scheduler}"), soft_wrap=True)
-        res, wall = _run_sweep(d, pressures, threads, SWEEP_CHUNK, console, "sweep", client)
-    write_table(_sweep_frame(pressures, res), out)
-    n_ok = int(res["converged"].sum())
+            _say(f"on the Dask cluster at {scheduler}")
+        batch, wall = _run_sweep(d, pressures, threads, SWEEP_CHUNK, "sweep", client)
+    frame = batch.to_frame()
+    frame.attrs["softrod.metadata"].update(
+        generator="softrod sweep", grid=list(grids), chunk_rows=SWEEP_CHUNK
+    )
+    write_table(frame, out)
+    n_ok = int(batch.converged.sum())
     style = "green" if n_ok == rows else "yellow"
     console.print(
         f"{rows:,} rows, [{style}]{n_ok:,} converged[/{style}], wall time {wall:.2f} s, "
         f"{rows / wall:,.0f} solves/s"
     )
-    console.print(Text(f"wrote {out}"), soft_wrap=True)
+    _say(f"wrote {out}")
 
 
 @click.command()
@@ -279,9 +274,17 @@ def sweep(design, grids, out, threads, scheduler):
 def demo(out_dir):
     """Tour: solve, plot and sweep the bundled three-chamber actuator (a few seconds).
 
-    Writes shapes.png (all shapes in one 3-D figure) and tips.csv to --out-dir.
+    Writes shapes.png (the shapes in a 3-D view and a top view) and tips.csv (the dataset
+    schema, docs/datasets.md) to --out-dir.
     """
-    import pandas as pd
+    import numpy as np
+    from rich.table import Table
+    from rich.text import Text
+
+    from ..catalog import load_design
+    from ..io import write_table
+    from ..schema import Extra, provenance, schema_frame
+    from ..statics import solve_statics
 
     console = _stdout()
     d = load_design(DEMO_DESIGN)
@@ -291,73 +294,62 @@ def demo(out_dir):
     )
     console.print(Text(d.citation, style="dim"))
 
-    solutions, rows = [], []
+    solutions, times = [], []
     for case in DEMO_CASES_KPA:
-        p = [1e3 * x for x in case]
         t0 = time.perf_counter()
-        sol = solve_statics(d, p)
-        dt = time.perf_counter() - t0
-        solutions.append(sol)
-        tip = sol.tip_position * 1e3
-        rows.append(
-            {
-                **{f"p{k + 1}_kPa": float(case[k]) for k in range(len(case))},
-                "x_mm": tip[0],
-                "y_mm": tip[1],
-                "z_mm": tip[2],
-                "lateral_mm": _lateral(sol) * 1e3,
-                "iterations": int(sol.iterations),
-                "solve_time_us": round(dt * 1e6, 1),
-            }
-        )
+        solutions.append(solve_statics(d, [1e3 * x for x in case]))
+        times.append(time.perf_counter() - t0)
+    lateral = np.array([_lateral(sol) for sol in solutions])
+    frame = schema_frame(
+        pressures=np.array([sol.pressures for sol in solutions]),
+        tip_position=np.array([sol.tip_position for sol in solutions]),
+        tip_rotation=np.array([sol.tip_rotation for sol in solutions]),
+        base_force=np.array([sol.base_force for sol in solutions]),
+        base_moment=np.array([sol.base_moment for sol in solutions]),
+        extras=[
+            Extra("lateral", lateral, "tip distance from the base tangent line", "length"),
+            Extra("iterations", [sol.iterations for sol in solutions], "Newton iterations"),
+            Extra("solve_time_us", np.round(np.array(times) * 1e6, 1), "wall time of the solve"),
+        ],
+        metadata=provenance("softrod demo", d),
+    )
 
     table = Table(
         title="tip positions (world frame; base at the origin, hanging along -z)",
         title_justify="left",
     )
-    for name in (
-        "p1\nkPa",
-        "p2\nkPa",
-        "p3\nkPa",
-        "tip x\nmm",
-        "tip y\nmm",
-        "tip z\nmm",
-        "lateral\nmm",
-        "iter-\nations",
-        "solve\ntime µs",
-    ):
+    headers = [f"p{k}\nkPa" for k in range(d.n_channels)]
+    headers += ["tip x\nmm", "tip y\nmm", "tip z\nmm", "lateral\nmm", "iter-\nations"]
+    for name in [*headers, "solve\ntime µs"]:
         table.add_column(name, justify="right")
-    for r in rows:
+    for case, sol, lat, dt in zip(DEMO_CASES_KPA, solutions, lateral, times, strict=True):
+        tip = sol.tip_position * 1e3
         table.add_row(
-            f"{r['p1_kPa']:g}",
-            f"{r['p2_kPa']:g}",
-            f"{r['p3_kPa']:g}",
-            _fmt(r["x_mm"], 2),
-            _fmt(r["y_mm"], 2),
-            _fmt(r["z_mm"], 2),
-            _fmt(r["lateral_mm"], 2),
-            f"{r['iterations']}",
-            f"{r['solve_time_us']:,.0f}",
+            *(f"{x:g}" for x in case),
+            *(_fmt(x, 2) for x in tip),
+            _fmt(lat * 1e3, 2),
+            f"{sol.iterations}",
+            f"{dt * 1e6:,.0f}",
         )
     console.print(table)
 
     out_dir.mkdir(parents=True, exist_ok=True)
     shapes = _write_shape_plot(solutions, out_dir / "shapes.png", title=f"{d.name}: static shapes")
-    tips = write_table(pd.DataFrame(rows), out_dir / "tips.csv")
+    tips = write_table(frame, out_dir / "tips.csv")
 
     start, stop, count = DEMO_SWEEP
     grid = _full_factorial([np.linspace(start, stop, count)] * d.n_channels)
-    res, wall = _run_sweep(d, grid, 0, SWEEP_CHUNK, console, f"sweep {count}^{d.n_channels}")
-    n_ok = int(res["converged"].sum())
+    batch, wall = _run_sweep(d, grid, 0, SWEEP_CHUNK, f"sweep {count}^{d.n_channels}")
+    n_ok = int(batch.converged.sum())
     # The demo design hangs from the origin along -z: lateral reach is the distance from z.
-    lateral = np.hypot(res["tip_position"][:, 0], res["tip_position"][:, 1]) * 1e3
+    reach = np.hypot(batch.tip_position[:, 0], batch.tip_position[:, 1]) * 1e3
     console.print(
         f"sweep of {len(grid)} pressure combinations, {start / 1e3:g}-{stop / 1e3:g} "
         f"kPa per chamber: {n_ok} converged"
     )
     console.print(
         f"  {wall * 1e3:.0f} ms, [bold]{len(grid) / wall:,.0f} solves/s[/bold]; "
-        f"lateral reach up to {np.nanmax(lateral):.1f} mm"
+        f"lateral reach up to {np.nanmax(reach):.1f} mm"
     )
-    console.print(Text(f"wrote {shapes}"), soft_wrap=True)
-    console.print(Text(f"wrote {tips}"), soft_wrap=True)
+    _say(f"wrote {shapes}")
+    _say(f"wrote {tips}")

@@ -5,9 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-from rich.text import Text
 
-from ..catalog import load_design
 from ..errors import InputError, design_error
 from ._common import (
     _handle_errors,
@@ -60,6 +58,10 @@ def view(design, pressure, pressure_range, max_force, trajectory, data, host, po
     the solver's state (converged, iterations, tip position) shows beside it. Needs the
     viewer extra: pip install 'softrod[viewer]'.
     """
+    from rich.text import Text
+
+    from ..catalog import load_design
+
     d = load_design(design)
     p = None if pressure is None else _parse_pressures(pressure, d)
     p_range = None

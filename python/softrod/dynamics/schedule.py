@@ -19,20 +19,22 @@ perfect vacuum); every value must be finite.
 
 from __future__ import annotations
 
-import math
 import os
 import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
 from ..datasets import (
     DEFAULT_UNITS,
+    _channel,
+    _check_dtype,
     _check_duplicates,
     _fail,
-    _metadata_json,
     _read_csv,
     _read_parquet,
     _unit_factor,
@@ -40,10 +42,15 @@ from ..datasets import (
 )
 from ..errors import InputError
 from ..io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
+from ..io import metadata_json as _metadata_json
+
+if TYPE_CHECKING:
+    from .._types import ArrayLike
+    from ..design import Design
 
 __all__ = ["KINDS", "VACUUM_PA", "PressureSchedule"]
 
-VACUUM_PA = -101325.0  # the lowest gauge pressure there is (absolute zero at 1 atm ambient)
+VACUUM_PA = V.VACUUM_PA  # the lowest gauge pressure there is (absolute zero at 1 atm ambient)
 KINDS = ("linear", "step")  # kinds of tabulated schedules (files and constructors)
 
 # Schedule columns: time_<unit> and p<k>_<unit> (the datasets' base names and unit rules).
@@ -57,10 +64,7 @@ def _is_int(x) -> bool:
 
 def _times(values, field: str = "times") -> np.ndarray:
     """Knot times: 1-d, non-empty, finite, >= 0, strictly increasing (s)."""
-    try:
-        t = np.array(values, dtype=float)
-    except (TypeError, ValueError):
-        raise _fail(field, values, "must be a 1-d sequence of numbers (s)") from None
+    t = V.real_array(values, field, max_size=V.MAX_ROWS, what="times (s)")
     if t.ndim != 1 or t.size == 0:
         raise _fail(field, f"shape {t.shape}", "must be a non-empty 1-d array of times (s)")
     bad = np.flatnonzero(~np.isfinite(t))
@@ -82,11 +86,8 @@ def _times(values, field: str = "times") -> np.ndarray:
 
 def _pressures(values, n: int | None, field: str = "pressures") -> np.ndarray:
     """(n, channels) finite gauge pressures >= VACUUM_PA (Pa)."""
-    try:
-        p = np.array(values, dtype=float)
-    except (TypeError, ValueError):
-        raise _fail(field, values, "must be an (n, channels) array of numbers (Pa)") from None
-    if p.ndim != 2 or p.shape[1] < 1:
+    p = V.real_array(values, field, max_size=V.MAX_ROWS * V.MAX_CHANNELS, what="pressures (Pa)")
+    if p.ndim != 2 or p.shape[1] < 1 or p.shape[1] > V.MAX_CHANNELS:
         raise _fail(
             field,
             f"shape {p.shape}",
@@ -121,17 +122,11 @@ def _readonly(a: np.ndarray) -> np.ndarray:
 
 
 def _n_channels(n, field: str = "n_channels") -> int:
-    if not _is_int(n) or n < 1:
-        raise _fail(field, n, "must be an integer >= 1")
-    return int(n)
+    return V.integer(n, field, minimum=1, maximum=V.MAX_CHANNELS)
 
 
 def _positive(x, field: str, *, zero: bool = False) -> float:
-    ok = isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
-    if not ok or not math.isfinite(x) or x < 0 or (x == 0 and not zero):
-        rule = ">= 0" if zero else "> 0"
-        raise _fail(field, x, f"must be a finite number {rule} (s)")
-    return float(x)
+    return V.real(x, field, minimum=0.0, exclusive=not zero, what="a number of seconds")
 
 
 class PressureSchedule:
@@ -148,7 +143,14 @@ class PressureSchedule:
 
     __slots__ = ("_fn", "_kind", "_n", "_pressures", "_times")
 
-    def __init__(self, kind: str, times, pressures, fn=None, n_channels: int | None = None):
+    def __init__(
+        self,
+        kind: str,
+        times: ArrayLike,
+        pressures: ArrayLike,
+        fn: Callable[[float], Sequence[float]] | None = None,
+        n_channels: int | None = None,
+    ):
         """Internal: use the class methods. ``kind``: "linear", "step" or "callable"."""
         set_ = object.__setattr__
         if kind == "callable":
@@ -182,7 +184,7 @@ class PressureSchedule:
     # --- constructors ------------------------------------------------------------------------
 
     @classmethod
-    def piecewise_linear(cls, times, pressures) -> PressureSchedule:
+    def piecewise_linear(cls, times: ArrayLike, pressures: ArrayLike) -> PressureSchedule:
         """Linear interpolation between knots ``(times[i], pressures[i])``.
 
         ``times``: (n,) s, finite, >= 0, strictly increasing. ``pressures``: (n, channels)
@@ -192,7 +194,7 @@ class PressureSchedule:
         return cls("linear", times, pressures)
 
     @classmethod
-    def steps(cls, times, pressures) -> PressureSchedule:
+    def steps(cls, times: ArrayLike, pressures: ArrayLike) -> PressureSchedule:
         """Zero-order hold: ``pressures[i]`` holds on ``[times[i], times[i + 1])``.
 
         Same arguments and rules as :meth:`piecewise_linear`; the first value also holds
@@ -201,17 +203,19 @@ class PressureSchedule:
         return cls("step", times, pressures)
 
     @classmethod
-    def constant(cls, pressures) -> PressureSchedule:
+    def constant(cls, pressures: ArrayLike) -> PressureSchedule:
         """The same pressures (one per channel, Pa) at all times: a step schedule with its
         single knot at t = 0 (so ``t_end`` is 0)."""
         if not _numeric(pressures) or np.ndim(pressures) != 1:
             raise _fail(
                 "pressures", pressures, "must be a 1-d sequence of pressures, one per channel (Pa)"
             )
-        return cls("step", [0.0], np.array(pressures, dtype=float)[None, :])
+        return cls("step", [0.0], V.real_array(pressures, "pressures")[None, :])
 
     @classmethod
-    def from_callable(cls, fn: Callable[[float], Sequence[float]], n_channels: int):
+    def from_callable(
+        cls, fn: Callable[[float], Sequence[float]], n_channels: int
+    ) -> PressureSchedule:
         """A schedule computed by ``fn(t)``: t in s (a float) -> ``n_channels`` pressures in Pa.
 
         ``fn`` is called once per sample time by :meth:`sample`, which checks every result
@@ -224,11 +228,11 @@ class PressureSchedule:
     def square_pulses(
         cls,
         n_channels: int,
-        pulses,
+        pulses: Sequence[tuple[int | Sequence[int], float | Sequence[float], float]],
         *,
         rest: float = 5.0,
         start: float = 0.0,
-        base=0.0,
+        base: float | ArrayLike = 0.0,
     ) -> PressureSchedule:
         """Square pressure pulses separated by rests: a step schedule (zero-order hold).
 
@@ -259,12 +263,14 @@ class PressureSchedule:
         start = _positive(start, "start", zero=True)
         if not _numeric(base) or np.ndim(base) > 1 or (np.ndim(base) == 1 and np.size(base) != n):
             raise _fail("base", base, f"must be one pressure or one per channel ({n}), Pa")
-        b = np.broadcast_to(np.array(base, dtype=float), (n,)).copy()
+        b = np.broadcast_to(V.real_array(base, "base", what="pressures (Pa)"), (n,)).copy()
         _check_values(b[None, :], lambda i: "base")
         if isinstance(pulses, (str, bytes)) or not isinstance(pulses, Sequence) or not pulses:
             raise _fail(
                 "pulses", pulses, "must be a non-empty sequence of (channels, pressure, duration)"
             )
+        if len(pulses) > V.MAX_ROWS // 2:
+            raise _fail("pulses", f"{len(pulses)} pulses", f"too many: at most {V.MAX_ROWS // 2}")
         times: list[float] = []
         rows: list[np.ndarray] = []
 
@@ -299,7 +305,7 @@ class PressureSchedule:
                 raise _fail(f"{field}.channels", channels, "lists a channel twice")
             if not _numeric(level) or np.ndim(level) > 1:
                 raise _fail(f"{field}.pressure", level, "must be a number or a list (Pa)")
-            lv = np.array(level, dtype=float)
+            lv = V.real_array(level, f"{field}.pressure", what="pressures (Pa)")
             if lv.ndim == 1 and lv.size != len(chans):
                 raise _fail(
                     f"{field}.pressure",
@@ -323,7 +329,7 @@ class PressureSchedule:
         cls,
         *,
         n_channels: int = 3,
-        levels=(0.9e5, 1.8e5, 2.7e5, 3.6e5),
+        levels: Sequence[float] = (0.9e5, 1.8e5, 2.7e5, 3.6e5),
         duration: float = 5.0,
         rest: float = 5.0,
         start: float = 1.0,
@@ -430,16 +436,13 @@ class PressureSchedule:
 
     # --- evaluation --------------------------------------------------------------------------
 
-    def sample(self, times) -> np.ndarray:
+    def sample(self, times: ArrayLike) -> np.ndarray:
         """Commanded pressures at ``times`` (s; a number or a 1-d array): (len(times),
         n_channels) in Pa. A number gives one row. Times must be finite; they may lie before
         the first or after the last knot (the end values hold there)."""
-        t = np.atleast_1d(np.array(times, dtype=float))
+        t = np.atleast_1d(V.real_array(times, "times", max_size=V.MAX_ROWS, what="times (s)"))
         if t.ndim != 1:
             raise _fail("times", f"shape {t.shape}", "must be a number or a 1-d array (s)")
-        bad = np.flatnonzero(~np.isfinite(t))
-        if bad.size:
-            raise _fail(f"times[{bad[0]}]", t[bad[0]].item(), "must be finite (s)")
         if self._kind == "callable":
             return self._call(t)
         kt, kp = self._times, self._pressures
@@ -453,12 +456,9 @@ class PressureSchedule:
         out = np.empty((t.size, self._n))
         for i, ti in enumerate(t):
             raw = self._fn(float(ti))
-            try:
-                row = np.array(raw, dtype=float)
-            except (TypeError, ValueError):
-                raise _fail(
-                    f"fn(t = {ti:g} s)", raw, f"must return {self._n} numbers (Pa)"
-                ) from None
+            row = V.real_array(
+                raw, f"fn(t = {ti:g} s)", max_size=V.MAX_CHANNELS, what="numbers (Pa)"
+            )
             if row.ndim == 0 and self._n == 1:
                 row = row.reshape(1)
             if row.shape != (self._n,):
@@ -472,7 +472,7 @@ class PressureSchedule:
             out[i] = row
         return out
 
-    def check_channels(self, n) -> None:
+    def check_channels(self, n: int | Design) -> None:
         """Raise :class:`InputError` unless the schedule has ``n`` channels (an int, or an
         object with ``n_channels`` such as a :class:`~softrod.Design`)."""
         what = f"{n}"
@@ -491,7 +491,7 @@ class PressureSchedule:
 
     # --- tables and files --------------------------------------------------------------------
 
-    def to_frame(self, times=None) -> pd.DataFrame:
+    def to_frame(self, times: ArrayLike | None = None) -> pd.DataFrame:
         """A DataFrame with ``time_s`` and ``p0_kPa``, ``p1_kPa``, ... at ``times`` (s).
 
         Without ``times``: the knots (required for a callable schedule).
@@ -513,7 +513,7 @@ class PressureSchedule:
         frame.attrs["softrod.metadata"] = {_FILE_KEY: kind}
         return frame
 
-    def write(self, path: str | os.PathLike, *, times=None) -> Path:
+    def write(self, path: str | os.PathLike, *, times: ArrayLike | None = None) -> Path:
         """Write the schedule to a CSV or Parquet file (by suffix), atomically.
 
         The columns are those of :meth:`to_frame` (``time_s``, ``p<k>_kPa``); the kind goes
@@ -537,14 +537,15 @@ class PressureSchedule:
 
 
 def _numeric(x) -> bool:
-    """True if ``x`` converts to a float array (a number or nested sequences of numbers)."""
-    if isinstance(x, (str, bytes, bool)):
-        return False
+    """True if ``x`` is a number or nested sequences of numbers (no bools, text, complex or
+    masked values)."""
+    if V.is_real(x):
+        return True
     try:
-        a = np.array(x, dtype=float)
-    except (TypeError, ValueError):
+        V.real_array(x, "x", max_size=V.MAX_ROWS * V.MAX_CHANNELS)
+    except InputError:
         return False
-    return a.dtype.kind == "f"
+    return True
 
 
 def _from_frame(df: pd.DataFrame, units: dict, where: _Where, extra: str):
@@ -565,6 +566,8 @@ def _from_frame(df: pd.DataFrame, units: dict, where: _Where, extra: str):
             unknown.append(name)
             continue
         base, unit = m["base"], m["unit"]
+        if base != "time":
+            _channel(base, name)
         kind = "time" if base == "time" else "pressure"
         if unit is not None and name in units:
             raise _fail(name, units[name], "unit given twice: in the column name and units block")
@@ -605,9 +608,12 @@ def _from_frame(df: pd.DataFrame, units: dict, where: _Where, extra: str):
         )
     if len(df) == 0:
         raise _fail("rows", 0, "the table has no data rows")
+    if len(df) > V.MAX_ROWS:
+        raise _fail("rows", len(df), f"too many rows: at most {V.MAX_ROWS:,}")
     values = {}
     for base, (col, factor) in columns.items():
         raw = df[col]
+        _check_dtype(raw, col)
         num = pd.to_numeric(raw, errors="coerce")
         a = num.to_numpy(dtype=float)
         missing_rows = np.flatnonzero(raw.isna().to_numpy())

@@ -34,6 +34,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .. import _core
+from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import (
     Dataset,
@@ -476,6 +477,7 @@ def _fit_b_theta(design, sec, dataset, rows, used, inertia):
 # --- the entry point -----------------------------------------------------------------------------
 
 
+@one_blas_thread
 def identify_pcc(
     design,
     dataset,
