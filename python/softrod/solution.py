@@ -12,9 +12,12 @@ import numpy as np
 from .design import Design
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     import pandas as pd
 
     from ._types import ArrayLike, Units
+    from .control.linear import Jacobian
 
 
 @dataclass(frozen=True)
@@ -103,7 +106,9 @@ class StaticSolution:
     def strains(self) -> dict[str, np.ndarray]:
         return {"v": self.v, "u": self.u}
 
-    def jacobian(self, *, params=(), point=None):
+    def jacobian(
+        self, *, params: Sequence[str] = (), point: float | str | None = None
+    ) -> Jacobian:
         """The exact Jacobian of the tip pose (or the pose at arc length ``point``) with
         respect to the pressures, the tip force and moment, and named calibration
         parameters (tip only): a :class:`softrod.control.Jacobian` (docs/control.md)."""

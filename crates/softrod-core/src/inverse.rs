@@ -329,7 +329,8 @@ impl Task<'_> {
         let pos_ok = (0..3).all(|i| {
             t.position_weight[i] == 0.0 || (y[i] - t.position[i]).abs() <= tol * self.length
         });
-        let rot_ok = t.orientation_weight == 0.0 || self.angle(y).is_nan_or(|a| a <= tol);
+        let angle = self.angle(y);
+        let rot_ok = t.orientation_weight == 0.0 || angle.is_nan() || angle <= tol;
         pos_ok && rot_ok
     }
 
@@ -346,15 +347,6 @@ impl Task<'_> {
                 2.0 * ((f2 / 8.0).sqrt().min(1.0)).asin()
             }
         }
-    }
-}
-
-trait NanOr {
-    fn is_nan_or(self, f: impl Fn(f64) -> bool) -> bool;
-}
-impl NanOr for f64 {
-    fn is_nan_or(self, f: impl Fn(f64) -> bool) -> bool {
-        self.is_nan() || f(self)
     }
 }
 

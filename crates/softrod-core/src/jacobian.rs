@@ -284,8 +284,11 @@ pub fn small_rotation(rot: &[[f64; 3]; 3], d_rot: &[[f64; 3]; 3]) -> [f64; 3] {
     ]
 }
 
+/// Total derivatives of the probe's values (12 per input) and of x (3 per input).
+pub type TotalDerivatives = (Vec<[f64; 12]>, Vec<[f64; 3]>);
+
 /// Reduce a pass to total derivatives: dy/da = y_a - y_x g_x^-1 g_a. Also returns dx/da.
-pub fn total_derivatives(p: &Pass) -> Option<(Vec<[f64; 12]>, Vec<[f64; 3]>)> {
+pub fn total_derivatives(p: &Pass) -> Option<TotalDerivatives> {
     let lu = p.g_x.lu();
     let mut dy = Vec::with_capacity(p.g_a.len());
     let mut dxs = Vec::with_capacity(p.g_a.len());

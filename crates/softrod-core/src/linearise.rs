@@ -23,6 +23,7 @@
 //! - B: pressure columns K dq/dp (a pressure change shifts the rest strains, so its static
 //!   response K^-1 B equals the equilibrium's derivative); tip load columns are unit
 //!   generalised forces at the tip node.
+//!
 //! This construction uses only the static model and the section inertia, so it does not
 //! depend on how the dynamic solver discretises space and time.
 
@@ -200,7 +201,9 @@ pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Re
     // Per load node k: derivatives of every interval quantity w.r.t. its 6 load components.
     // phi[interval][end] is (6, nq) for the pose and psi for the strains.
     let mut flex = DMatrix::<f64>::zeros(nq, nq);
-    let mut intervals_meta: Vec<(usize, f64, f64, [[[f64; 3]; 3]; 3])> = Vec::new();
+    // Per interval: section, [a, b] and the rotation at a, the midpoint and b.
+    type Meta = (usize, f64, f64, [[[f64; 3]; 3]; 3]);
+    let mut intervals_meta: Vec<Meta> = Vec::new();
     let mut phi: Vec<[DMatrix<f64>; 3]> = Vec::new();
     let mut psi: Vec<[DMatrix<f64>; 3]> = Vec::new();
     for (k, &(sec, step, _)) in nodes.iter().enumerate() {

@@ -120,7 +120,7 @@ pub fn swelling_factors(rod: &Rod, i: usize, pressures: &[f64], factor: f64) -> 
     swelling_factors_with(rod, i, pressures, factor, c_p)
 }
 
-fn swelling_factors_with<S: RodScalar, P: Copy>(
+fn swelling_factors_with<S, P: Copy>(
     rod: &Rod,
     i: usize,
     pressures: &[P],
@@ -128,7 +128,7 @@ fn swelling_factors_with<S: RodScalar, P: Copy>(
     c_p: S,
 ) -> Vec<S>
 where
-    S: From<P>,
+    S: RodScalar + From<P>,
 {
     let s = &rod.sections[i];
     s.chambers

@@ -2,6 +2,9 @@
 //! unreachable targets, redundant channels and warm starts; the exact pressure and tip-load
 //! Jacobians (crate::jacobian) against finite differences of whole solves.
 
+// Index loops over channels read like the equations they check.
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 use common::*;
 use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget};
@@ -286,7 +289,8 @@ fn pressure_and_load_jacobians_match_finite_differences() {
             for (k, a) in inputs.iter().enumerate() {
                 // Steps: 1 Pa, 1e-4 N, 1e-5 N m: truncation ~h^2 y''' relative 1e-9, solve
                 // noise 1e-13 / h ~ 1e-9 of a column.
-                let (h, set): (f64, Box<dyn Fn(&mut Loads, f64)>) = match *a {
+                type Setter = Box<dyn Fn(&mut Loads, f64)>;
+                let (h, set): (f64, Setter) = match *a {
                     Input::Pressure(c) => {
                         (1.0, Box::new(move |l: &mut Loads, d| l.pressures[c] += d))
                     }

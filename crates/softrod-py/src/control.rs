@@ -6,7 +6,6 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget, WarmStart};
-use std::sync::Mutex;
 use softrod_core::jacobian::{point_jacobian, Input, Probe};
 use softrod_core::linearise::linearise;
 use softrod_core::ode::Loads;
@@ -14,6 +13,7 @@ use softrod_core::sensitivity::{tip_sensitivity, validate_params, Param, ParamKi
 use softrod_core::statics::{self, SolverOptions};
 use softrod_core::validity::{Policy, StrainLimits};
 use softrod_core::{Rod, SoftrodError};
+use std::sync::Mutex;
 
 fn policy(py: Python<'_>, name: &str) -> PyResult<Policy> {
     Policy::from_name(name).ok_or_else(|| {

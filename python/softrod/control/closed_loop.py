@@ -10,12 +10,21 @@ command is held until the next call (zero-order hold).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from .._types import ArrayLike, DesignLike, PathLike, Quantity
+    from ..dynamics import Trajectory
+
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._validate import real
 from ..catalog import load_design
 from ..errors import InputError, design_error
 from ..units import to_si
@@ -60,10 +69,8 @@ class ClosedLoopResult:
 
 
 def _period(rate, dt):
-    if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not (
-            math.isfinite(rate) and rate > 0):
-        raise design_error("rate", rate, "must be a control rate > 0 Hz", InputError)
-    period = 1.0 / float(rate)
+    rate = real(rate, "rate", minimum=0.0, exclusive=True, what="a control rate in Hz")
+    period = 1.0 / rate
     if dt is None:
         steps = max(1, math.ceil(period / 2e-3 - 1e-9))
         return float(rate), period, period / steps, steps
@@ -80,13 +87,13 @@ def _period(rate, dt):
 
 
 def run_closed_loop(
-    design,
-    controller: Callable[[Measurement], object],
-    t_end,
+    design: DesignLike,
+    controller: Callable[[Measurement], ArrayLike],
+    t_end: Quantity,
     *,
-    rate,
-    dt=None,
-    pressures=None,
+    rate: float,
+    dt: Quantity | None = None,
+    pressures: ArrayLike | None = None,
     initial: str = "static",
     alpha: float = -0.2,
     progress: Callable[[float, float], None] | None = None,
@@ -210,8 +217,16 @@ class TargetPath:
         return np.array([np.interp(t, self.time, self.position[:, k]) for k in range(3)])
 
     @classmethod
-    def circle(cls, center, radius, period, *, duration=None, samples_per_period: int = 400,
-               start_angle: float = 0.0) -> TargetPath:
+    def circle(
+        cls,
+        center: ArrayLike,
+        radius: Quantity,
+        period: Quantity,
+        *,
+        duration: Quantity | None = None,
+        samples_per_period: int = 400,
+        start_angle: float = 0.0,
+    ) -> TargetPath:
         """A circle in the horizontal (x-y) plane around ``center`` (3 values, m), run
         counter-clockwise seen from +z once per ``period`` (s) for ``duration`` (default one
         period)."""
@@ -230,7 +245,7 @@ class TargetPath:
         return cls(t, pos)
 
     @classmethod
-    def from_file(cls, path) -> TargetPath:
+    def from_file(cls, path: PathLike) -> TargetPath:
         """Read a CSV with columns ``time_s`` and ``x_<unit>``, ``y_<unit>``, ``z_<unit>``
         (unit m or mm), e.g. ``time_s,x_mm,y_mm,z_mm``."""
         import pandas as pd
@@ -250,7 +265,7 @@ class TargetPath:
                                    f"needs a column {axis}_m or {axis}_mm", InputError)
         return cls(frame["time_s"].to_numpy(float), np.column_stack(cols))
 
-    def to_frame(self):
+    def to_frame(self) -> pd.DataFrame:
         import pandas as pd
 
         return pd.DataFrame({"time_s": self.time, "x_mm": self.position[:, 0] * 1e3,
@@ -272,18 +287,24 @@ class TrackingController:
     p) of every call.
     """
 
-    def __init__(self, design, path, *, rate, kp: float = 0.0, ki: float = 0.0,
-                 pressure_bounds=None, **problem):
+    def __init__(
+        self,
+        design: DesignLike,
+        path: TargetPath | Callable[[float], ArrayLike],
+        *,
+        rate: float,
+        kp: float = 0.0,
+        ki: float = 0.0,
+        pressure_bounds: ArrayLike | str | None = None,
+        **problem: Any,
+    ):
         from .inverse import InverseProblem
 
         self.design = load_design(design)
         self.path = path
-        self.rate = float(rate)
-        for name, v in (("kp", kp), ("ki", ki)):
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
-                    or v < 0:
-                raise design_error(name, v, "must be a finite gain >= 0", InputError)
-        self.kp, self.ki = float(kp), float(ki)
+        self.rate = real(rate, "rate", minimum=0.0, exclusive=True, what="a control rate in Hz")
+        self.kp = real(kp, "kp", minimum=0.0)
+        self.ki = real(ki, "ki", minimum=0.0)
         self.problem = InverseProblem(self.design, pressure_bounds=pressure_bounds, **problem)
         self.integral = np.zeros(3)
         self.last = None
@@ -302,7 +323,7 @@ class TrackingController:
         self.history.append((m.time, r, np.asarray(m.tip_position), self.last.pressures))
         return self.last.pressures
 
-    def errors(self, trajectory) -> np.ndarray:
+    def errors(self, trajectory: Trajectory) -> np.ndarray:
         """Tip error |r(t) - r_tip(t)| (m) at every sample of a trajectory."""
         ref = np.array([self.reference(t) for t in trajectory.time])
         return np.linalg.norm(ref - trajectory.tip_position, axis=1)

@@ -6,6 +6,11 @@ module reads the arguments once (units, bounds, weights) and packs the answer.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .._types import ArrayLike, DesignLike, Quantity
+
 import math
 import re
 from dataclasses import dataclass, field
@@ -13,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import _core
+from .._validate import integer, real
 from ..catalog import load_design
 from ..design import Design
 from ..errors import InputError, design_error
@@ -126,18 +132,12 @@ def _weights(weights, orientation: bool) -> tuple[list[float], float]:
             InputError,
         )
     pos = weights.get("position", 1.0)
-    pos = [pos] * 3 if isinstance(pos, (int, float)) else list(pos)
+    pos = [pos] * 3 if not isinstance(pos, (list, tuple, np.ndarray)) else list(pos)
     if len(pos) != 3:
         raise design_error("weights.position", pos, "must be a number or 3 numbers", InputError)
-    out = []
-    for i, w in enumerate(pos):
-        if isinstance(w, bool) or not isinstance(w, (int, float)) or not math.isfinite(w) or w < 0:
-            raise design_error(f"weights.position[{i}]", w, "must be a finite number >= 0",
-                               InputError)
-        out.append(float(w))
-    wo = weights.get("orientation", 1.0 if orientation else 0.0)
-    if isinstance(wo, bool) or not isinstance(wo, (int, float)) or not math.isfinite(wo) or wo < 0:
-        raise design_error("weights.orientation", wo, "must be a finite number >= 0", InputError)
+    out = [real(w, f"weights.position[{i}]", minimum=0.0) for i, w in enumerate(pos)]
+    wo = real(weights.get("orientation", 1.0 if orientation else 0.0), "weights.orientation",
+              minimum=0.0)
     return out, float(wo)
 
 
@@ -229,15 +229,15 @@ class InverseProblem:
 
     def __init__(
         self,
-        design,
+        design: DesignLike,
         *,
-        pressure_bounds=None,
-        point=None,
-        weights=None,
+        pressure_bounds: ArrayLike | str | None = None,
+        point: Quantity | None = None,
+        weights: dict[str, Any] | None = None,
         regularisation: str | None = None,
         orientation: bool = False,
-        tip_force=None,
-        tip_moment=None,
+        tip_force: ArrayLike | None = None,
+        tip_moment: ArrayLike | None = None,
         tol: float = 1e-10,
         max_iter: int = 100,
         on_invalid: str = "raise",
@@ -264,10 +264,8 @@ class InverseProblem:
         tip = d.spec["tip"]
         self.tip_force = tuple(_vec3(tip_force, "force", "tip_force", tip["force"]))
         self.tip_moment = tuple(_vec3(tip_moment, "moment", "tip_moment", tip["moment"]))
-        if not (isinstance(tol, (int, float)) and 0 < tol < 1):
-            raise design_error("tol", tol, "must be in (0, 1)", InputError)
-        if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
-            raise design_error("max_iter", max_iter, "must be an integer >= 1", InputError)
+        tol = real(tol, "tol", minimum=0.0, exclusive=True, maximum=0.1)
+        max_iter = integer(max_iter, "max_iter", minimum=1, maximum=10_000)
         self._least = np.clip(0.0, self.bounds[:, 0], self.bounds[:, 1])
         self._solver = _core.InverseSolver(
             d._rod,
@@ -283,7 +281,13 @@ class InverseProblem:
             on_invalid=on_invalid,
         )
 
-    def solve(self, target, *, orientation=None, initial=None) -> InverseSolution:
+    def solve(
+        self,
+        target: ArrayLike | str,
+        *,
+        orientation: ArrayLike | None = None,
+        initial: InverseSolution | StaticSolution | ArrayLike | None = None,
+    ) -> InverseSolution:
         """Pressures that bring the point to ``target`` (3 positions: m, strings with units,
         or "10,5,-130 mm") and, when given, to ``orientation`` (a 3x3 rotation [d1 d2 d3]).
 
@@ -372,17 +376,17 @@ class InverseProblem:
 
 
 def solve_inverse(
-    design,
-    target,
+    design: DesignLike,
+    target: ArrayLike | str,
     *,
-    weights=None,
-    pressure_bounds=None,
-    initial=None,
-    point=None,
-    orientation=None,
+    weights: dict[str, Any] | None = None,
+    pressure_bounds: ArrayLike | str | None = None,
+    initial: InverseSolution | StaticSolution | ArrayLike | None = None,
+    point: Quantity | None = None,
+    orientation: ArrayLike | None = None,
     regularisation: str | None = None,
-    tip_force=None,
-    tip_moment=None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
     tol: float = 1e-10,
     max_iter: int = 100,
     on_invalid: str = "raise",

@@ -7,12 +7,21 @@ are dense linear algebra (scipy) on them. docs/control.md explains the discretis
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from .._types import ArrayLike, DesignLike, Quantity
+
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .. import _core
+from .._validate import integer
 from ..catalog import load_design
 from ..design import Design
 from ..errors import InputError, design_error
@@ -43,7 +52,9 @@ class Jacobian:
     param_names: tuple[str, ...] = ()
 
 
-def jacobian(solution: StaticSolution, *, params=(), point=None) -> Jacobian:
+def jacobian(
+    solution: StaticSolution, *, params: Sequence[str] = (), point: Quantity | None = None
+) -> Jacobian:
     """The exact Jacobian of the pose at arc length ``point`` (default the tip) of a
     converged rod equilibrium with respect to the pressures, the tip force and moment and,
     at the tip, the named calibration parameters (``params``: names such as "E" or
@@ -120,7 +131,7 @@ class Modes:
     nodes: np.ndarray
     poles: np.ndarray = field(repr=False)
 
-    def to_frame(self):
+    def to_frame(self) -> pd.DataFrame:
         import pandas as pd
 
         return pd.DataFrame({
@@ -196,13 +207,14 @@ class LinearSystem:
         k = len(omega) if count is None else int(count)
         omega, vecs = omega[:k], vecs[:, :k]
         zeta = np.array([
-            (v @ self.damping @ v) / (2 * w * (v @ self.mass @ v)) for v, w in zip(vecs.T, omega)
+            (v @ self.damping @ v) / (2 * w * (v @ self.mass @ v))
+            for v, w in zip(vecs.T, omega, strict=True)
         ])
         a, _ = self.state_space()
         poles = np.linalg.eigvals(a)
         damped = np.full(k, np.nan)
         upper = poles[poles.imag > 0]
-        for i, (w, z) in enumerate(zip(omega, zeta)):
+        for i, (w, z) in enumerate(zip(omega, zeta, strict=True)):
             if z < 1 and len(upper):
                 expect = complex(-z * w, w * math.sqrt(max(0.0, 1 - z * z)))
                 damped[i] = upper[np.argmin(abs(upper - expect))].imag / (2 * math.pi)
@@ -224,8 +236,15 @@ class LinearSystem:
         )
 
 
-def linearise(design, pressures=None, *, nodes: int = 12, tip_force=None, tip_moment=None,
-              initial: StaticSolution | None = None) -> LinearSystem:
+def linearise(
+    design: DesignLike | StaticSolution,
+    pressures: ArrayLike | None = None,
+    *,
+    nodes: int = 12,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
+    initial: StaticSolution | None = None,
+) -> LinearSystem:
     """The linearised dynamics of ``design`` about its equilibrium under ``pressures`` (Pa;
     default zero) and the tip loads (default the design's), or about ``initial`` when it is
     given (a :class:`StaticSolution`; its pressures and loads are used). ``nodes``: how
@@ -235,8 +254,7 @@ def linearise(design, pressures=None, *, nodes: int = 12, tip_force=None, tip_mo
     if isinstance(design, StaticSolution):
         initial, design = design, design.design
     design = load_design(design)
-    if isinstance(nodes, bool) or not isinstance(nodes, int) or nodes < 1:
-        raise design_error("nodes", nodes, "must be an integer >= 1", InputError)
+    nodes = integer(nodes, "nodes", minimum=1, maximum=200)
     if initial is None:
         p = _pressures(design, np.zeros(design.n_channels) if pressures is None else pressures)
         tip = design.spec["tip"]

@@ -12,11 +12,21 @@ boundary may also contain interior fold points; say so when you use it there.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+    from .._types import ArrayLike, DesignLike, PathLike
+    from ..statics import SolverOptions
+
 import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._validate import integer
 from ..catalog import load_design
 from ..design import Design
 from ..errors import InputError, design_error
@@ -86,12 +96,12 @@ class Workspace:
             out["hull_volume"] = 0.0
         return out
 
-    def distance_to(self, point) -> float:
+    def distance_to(self, point: ArrayLike) -> float:
         """Distance (m) from ``point`` to the nearest sampled boundary point."""
         p = np.asarray(point, dtype=float)
         return float(np.min(np.linalg.norm(self.points - p, axis=1)))
 
-    def to_frame(self):
+    def to_frame(self) -> pd.DataFrame:
         """One row per sample: face, channel and side, pressures (kPa), tip (mm),
         converged."""
         import pandas as pd
@@ -108,7 +118,7 @@ class Workspace:
         cols["converged"] = self.converged
         return pd.DataFrame(cols)
 
-    def plot(self, path=None, *, title: str | None = None):
+    def plot(self, path: PathLike | None = None, *, title: str | None = None) -> Figure:
         """3-D view of the boundary (one surface per face for three channels, points
         otherwise) beside top (x-y) and side (x-z) views at equal scale; saved to ``path``
         when given. Returns the figure."""
@@ -165,14 +175,14 @@ class Workspace:
 
 
 def workspace(
-    design,
+    design: DesignLike,
     *,
-    pressure_bounds=None,
+    pressure_bounds: ArrayLike | str | None = None,
     samples: int = 21,
-    tip_force=None,
-    tip_moment=None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
     threads: int = 0,
-    options=None,
+    options: SolverOptions | None = None,
 ) -> Workspace:
     """Sample the boundary of the tip workspace of ``design`` under ``pressure_bounds``
     (default: the design's operating range): ``samples`` values per free channel on each
@@ -187,8 +197,7 @@ def workspace(
     if nc == 0:
         raise design_error("design", design.name, "has no pressure channels", InputError)
     bounds = _bounds(design, pressure_bounds)
-    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 2:
-        raise design_error("samples", samples, "must be an integer >= 2", InputError)
+    samples = integer(samples, "samples", minimum=2, maximum=10_000)
     count = 2 * nc * samples ** (nc - 1) if nc > 1 else samples
     if count > MAX_WORKSPACE_SOLVES:
         raise design_error(
