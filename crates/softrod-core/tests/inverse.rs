@@ -87,6 +87,49 @@ fn round_trip_recovers_pressures() {
     assert!(worst_tip <= 1e-9, "{worst_tip}");
 }
 
+/// The other laws on the same actuator: EA(F) table (paper 004), bending stiffness that
+/// grows with the stretch (paper 004 eq. 29), swelling chambers (paper 002 eq. 22).
+fn other_laws() -> Vec<(&'static str, DesignSpec)> {
+    let mut table = p002_actuator(HANGING, 9.81, 12);
+    table.sections[1].law.axial = AxialSpec::Table {
+        force: vec![-2.0, 0.0, 2.0, 6.0],
+        stiffness: vec![40.0, 36.0, 30.0, 26.0],
+    };
+    let mut stretch = p002_actuator(HANGING, 9.81, 12);
+    stretch.sections[1].law.stretch_bending = true;
+    let mut swelling = p002_actuator(HANGING, 9.81, 12);
+    swelling.sections[1].law.swelling = Some(SwellingSpec {
+        c_p: 0.3,
+        p_ref: 0.8e5,
+    });
+    vec![
+        ("table", table),
+        ("stretch_bending", stretch),
+        ("swelling", swelling),
+        ("m3", m3()),
+    ]
+}
+
+/// Every law: round trips from cold starts recover the pressures.
+#[test]
+fn round_trip_for_every_law() {
+    let opts = InverseOptions::new(vec![[0.0, P_MAX]; 3]);
+    let mut rng = Lcg(5);
+    for (name, spec) in other_laws() {
+        let rod = Rod::new(spec).unwrap();
+        for _ in 0..10 {
+            let p: Vec<f64> = (0..3).map(|_| (rng.uniform() + 1.0) * 0.5 * P_MAX).collect();
+            let fwd = solve(&rod, &loads(&p), None, &SolverOptions::default()).unwrap();
+            let inv = solve_inverse(&rod, &loads(&[0.0; 3]), &target(&rod, fwd.tip.r), &opts, None)
+                .unwrap_or_else(|e| panic!("{name}, p = {p:?}: {e}"));
+            assert!(inv.reached, "{name}: {}", inv.distance);
+            for c in 0..3 {
+                assert!((inv.pressures[c] - p[c]).abs() <= 1e-6 * P_MAX, "{name}: {:?} vs {p:?}", inv.pressures);
+            }
+        }
+    }
+}
+
 /// Warm starts along a path: each call starts from the previous answer and needs few passes.
 #[test]
 fn warm_start_follows_a_moving_target() {
@@ -264,7 +307,9 @@ fn pressure_and_load_jacobians_match_finite_differences() {
         tol: 1e-13,
         ..Default::default()
     };
-    for spec in [p002_actuator(tilted(), 9.81, 12), m3()] {
+    let specs = std::iter::once(p002_actuator(tilted(), 9.81, 12))
+        .chain(other_laws().into_iter().map(|(_, s)| s));
+    for spec in specs {
         let rod = Rod::new(spec).unwrap();
         let base = Loads {
             pressures: vec![35e3, 12e3, 50e3],
