@@ -128,10 +128,12 @@ class Workspace:
             matplotlib.use("Agg", force=False)
         import matplotlib.pyplot as plt
 
-        fig = plt.figure(figsize=(12, 4.4), constrained_layout=True)
-        ax3 = fig.add_subplot(1, 3, 1, projection="3d")
-        top = fig.add_subplot(1, 3, 2)
-        side = fig.add_subplot(1, 3, 3)
+        fig = plt.figure(figsize=(14, 5.0))
+        grid = fig.add_gridspec(1, 3, width_ratios=[1.3, 1, 1], wspace=0.35, left=0.02,
+                                right=0.98, bottom=0.2, top=0.88)
+        ax3 = fig.add_subplot(grid[0], projection="3d")
+        top = fig.add_subplot(grid[1])
+        side = fig.add_subplot(grid[2])
         mm = self.tip_position * 1e3
         nc = self.pressures.shape[1]
         colours = plt.cm.tab10(np.linspace(0, 1, 10))
@@ -149,10 +151,12 @@ class Workspace:
                 ax3.scatter(*mm[rows].T, s=2, color=col)
             top.scatter(mm[rows, 0], mm[rows, 1], s=1.5, color=col, label=label)
             side.scatter(mm[rows, 0], mm[rows, 2], s=1.5, color=col)
-        ax3.set_xlabel("x (mm)")
-        ax3.set_ylabel("y (mm)")
-        ax3.set_zlabel("z (mm)")
+        ax3.set_xlabel("x (mm)", labelpad=8)
+        ax3.set_ylabel("y (mm)", labelpad=8)
+        ax3.set_zlabel("z (mm)", labelpad=10)
         ax3.set_title("boundary of the workspace")
+        span = np.nanmax(mm, axis=0) - np.nanmin(mm, axis=0)
+        ax3.set_box_aspect(np.maximum(span, 0.25 * span.max()))
         for ax, (a, b) in ((top, ("x", "y")), (side, ("x", "z"))):
             ax.set_aspect("equal", adjustable="datalim")
             ax.set_xlabel(f"{a} (mm)")
@@ -160,7 +164,9 @@ class Workspace:
             ax.grid(True, alpha=0.3)
         top.set_title("top view")
         side.set_title("side view")
-        top.legend(fontsize=7, markerscale=4, loc="best")
+        handles, labels = top.get_legend_handles_labels()
+        fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 6), fontsize=8,
+                   markerscale=4, title="face of the pressure box", title_fontsize=8)
         lo, hi = self.bounds[0] / 1e3
         fig.suptitle(title or f"{self.design.name}: tip workspace, {lo:g}-{hi:g} kPa, "
                      f"{self.samples} x {self.samples} samples per face")
