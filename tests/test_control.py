@@ -133,6 +133,24 @@ def test_warm_start_follows_a_path_and_regularises_to_the_previous_command(spa):
     assert sum(passes) <= 10, passes
 
 
+def test_stacked_modules_with_split_channels():
+    """Paper 004's two modules on six channels (module 2 on channels 3-5): a position target
+    is redundant (6 channels, 3 dimensions), resolved by least pressure; a pose target
+    (position and orientation) recovers the pressures that made it."""
+    base = softrod.load_design("modular_two_module")
+    design = base.replace({f"sections[3].chambers[{k}].channel": 3 + k for k in range(3)})
+    assert design.n_channels == 6
+    p = np.array([60e3, 10e3, 0.0, 20e3, 50e3, 5e3])
+    st_ = solve_statics(design, p)
+    sol = solve_inverse(design, st_.tip_position, pressure_bounds="0:100 kPa")
+    assert sol.reached
+    assert np.sum(sol.pressures**2) < np.sum(p**2)
+    pose = solve_inverse(design, st_.tip_position, orientation=st_.tip_rotation,
+                         pressure_bounds="0:100 kPa")
+    assert pose.reached and pose.angle < 1e-9
+    assert np.allclose(pose.pressures, p, atol=1e-6 * 100e3)
+
+
 def test_bad_inputs_are_named(spa):
     with pytest.raises(InputError, match="pressure_bounds"):
         solve_inverse(spa, [0, 0, -0.13])  # the design has no operating range

@@ -737,6 +737,7 @@ pub fn solve_inverse(
         .filter(|l| l.pass.g_a.len() == nc && l.pass.s == target.s);
     let mut fresh = false;
     let mut need_fresh = lin.is_none();
+    let mut moved = false;
     while iterations < opts.max_iter {
         if eps == 0.0 && task.reached(&it.y_corr, opts.tol) {
             if let Some(l) = &lin {
@@ -913,6 +914,7 @@ pub fn solve_inverse(
                     exact: exact_t,
                 };
                 accepted = true;
+                moved = true;
                 fresh = false;
                 break;
             }
@@ -944,6 +946,10 @@ pub fn solve_inverse(
     }
     if let Some(l) = &lin {
         it = make_exact(it, &l.pass.g_x.lu())?;
+    }
+    if known.is_some() && !moved {
+        // The answer is the warm start's own equilibrium: check it rather than trust it.
+        it = iterate_at(it.p.clone(), Some(&it.x))?;
     }
     let reached = task.reached(&it.y, opts.tol);
     if !reached && !stationary && eps == 0.0 && iterations >= opts.max_iter {

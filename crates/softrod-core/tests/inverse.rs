@@ -118,13 +118,25 @@ fn round_trip_for_every_law() {
     for (name, spec) in other_laws() {
         let rod = Rod::new(spec).unwrap();
         for _ in 0..10 {
-            let p: Vec<f64> = (0..3).map(|_| (rng.uniform() + 1.0) * 0.5 * P_MAX).collect();
+            let p: Vec<f64> = (0..3)
+                .map(|_| (rng.uniform() + 1.0) * 0.5 * P_MAX)
+                .collect();
             let fwd = solve(&rod, &loads(&p), None, &SolverOptions::default()).unwrap();
-            let inv = solve_inverse(&rod, &loads(&[0.0; 3]), &target(&rod, fwd.tip.r), &opts, None)
-                .unwrap_or_else(|e| panic!("{name}, p = {p:?}: {e}"));
+            let inv = solve_inverse(
+                &rod,
+                &loads(&[0.0; 3]),
+                &target(&rod, fwd.tip.r),
+                &opts,
+                None,
+            )
+            .unwrap_or_else(|e| panic!("{name}, p = {p:?}: {e}"));
             assert!(inv.reached, "{name}: {}", inv.distance);
             for c in 0..3 {
-                assert!((inv.pressures[c] - p[c]).abs() <= 1e-6 * P_MAX, "{name}: {:?} vs {p:?}", inv.pressures);
+                assert!(
+                    (inv.pressures[c] - p[c]).abs() <= 1e-6 * P_MAX,
+                    "{name}: {:?} vs {p:?}",
+                    inv.pressures
+                );
             }
         }
     }

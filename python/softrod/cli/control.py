@@ -45,10 +45,13 @@ def inverse(design, target, bounds, point, as_json):
     """
     from ..catalog import load_design
     from ..control import solve_inverse
+    from ..errors import InputError
+    from ..units import to_si
 
     d = load_design(design)
     position = _parse_vector(target, "length", "--target", 3)
-    sol = solve_inverse(d, position, pressure_bounds=_bounds(d, bounds), point=point)
+    s = None if point is None else to_si(point, "length", "--point", InputError, bare="error")
+    sol = solve_inverse(d, position, pressure_bounds=_bounds(d, bounds), point=s)
     if as_json:
         out = {
             "design": d.name,
