@@ -124,7 +124,7 @@ fn swelling_factors_with<S: RodScalar>(
     rod: &Rod,
     i: usize,
     pressures: &[f64],
-    factor: f64,
+    factor: S,
     c_p: S,
 ) -> Vec<S> {
     let s = &rod.sections[i];
@@ -202,13 +202,15 @@ impl Coeffs<f64> {
 }
 
 impl<C: RodScalar> Coeffs<C> {
-    /// [`Coeffs::build`] with the section's parameters given as `knobs`, in any scalar.
+    /// [`Coeffs::build`] with the section's parameters given as `knobs`, in any scalar;
+    /// the load factor may be a dual number too (the load derivative of
+    /// `crate::statics`' continuation predictor).
     pub fn build_with(
         rod: &Rod,
         i: usize,
         pressures: &[f64],
         g: &[f64; 3],
-        factor: f64,
+        factor: C,
         sigma: &[C; 3],
         knobs: &SectionKnobs<C>,
     ) -> Self {
@@ -273,8 +275,8 @@ impl<C: RodScalar> Coeffs<C> {
         }
         let u_shift: [C; 3] =
             std::array::from_fn(|a| c_bt[a][0] * mp[0] + c_bt[a][1] * mp[1] + c_bt[a][2] * mp[2]);
-        let f = std::array::from_fn(|k| C::from(factor * (s.line_mass * g[k] + s.line_force[k])));
-        let l = std::array::from_fn(|k| C::from(factor * s.line_moment[k]));
+        let f = std::array::from_fn(|k| factor * (s.line_mass * g[k] + s.line_force[k]));
+        let l = std::array::from_fn(|k| factor * s.line_moment[k]);
         let axial = match &law.axial {
             AxialLaw::Linear => AxialCoeffs::Linear,
             AxialLaw::Ogden { .. } => AxialCoeffs::Ogden {
