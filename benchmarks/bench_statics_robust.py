@@ -166,7 +166,11 @@ def run(args) -> dict:
             "load_steps": int(sol.load_steps),
             "tip_sag_over_L": sag,
         },
-        "spa_three_chamber_130mm": {"api_s": spa_api, "binding_s": spa_core, "by_pressure_kPa": spa_rows},
+        "spa_three_chamber_130mm": {
+            "api_s": spa_api,
+            "binding_s": spa_core,
+            "by_pressure_kPa": spa_rows,
+        },
         "sweep_9261": {str(k): v for k, v in sweep.items()},
         "batch_vs_single_200_rows": {str(k): v for k, v in equal.items()},
         "targets": TARGETS,

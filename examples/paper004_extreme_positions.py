@@ -51,9 +51,10 @@ def extreme_positions() -> pd.DataFrame:
                     "load": load,
                     "position": pos,
                     "chambers": "+".join(str(c) for c in chambers),
-                    "p1_kPa": pressures[row, 0] / 1e3,
-                    "p2_kPa": pressures[row, 1] / 1e3,
-                    "p3_kPa": pressures[row, 2] / 1e3,
+                    # the paper's chambers 1, 2, 3 are softrod's channels 0, 1, 2
+                    "p0_kPa": pressures[row, 0] / 1e3,
+                    "p1_kPa": pressures[row, 1] / 1e3,
+                    "p2_kPa": pressures[row, 2] / 1e3,
                     "x_mm": x,
                     "y_mm": y,
                     "z_mm": z,

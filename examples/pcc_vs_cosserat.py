@@ -2,9 +2,11 @@
 
 Writes docs/figures/pcc_vs_cosserat.png (tip difference vs pressure: weightless, with
 gravity, with gravity and a 10 g tip weight), docs/figures/pcc_dynamics_vs_cosserat.png
-(the same three cases in motion: tip difference vs time under a 1 bar pulse on chambers
-6, 1, 2) and docs/figures/pcc_step_response.png (the PCC model's response to a 1 bar step on
-chambers 1, 3, 5 and on 6, 1, 2, as in paper 003 Figs. 8 and 9), and prints the numbers.
+(the same three cases in motion: tip difference vs time under a 1 bar pulse on channels
+5, 0, 1) and docs/figures/pcc_step_response.png (the PCC model's response to a 1 bar step on
+channels 0, 2, 4 and on 5, 0, 1, as in paper 003 Figs. 8 and 9), and prints the numbers.
+Channels are numbered from 0, as everywhere in softrod: paper 003's chambers 1 ... 6 are
+channels 0 ... 5.
 
 Run: python examples/pcc_vs_cosserat.py [output folder]
 """
@@ -34,9 +36,11 @@ design = softrod.load_design("stiff_flop_pcc")
 
 t0 = time.perf_counter()
 df = compare_pcc(design, [5, 0, 1], 1.5e5, steps=7)
-print(f"side by side: {len(df)} rows x 2 models in {time.perf_counter() - t0:.2f} s")
-print(df[["case", "p_Pa", "error_mm", "rel_error"]].to_string(index=False, float_format="%.4g"))
-fig = plot_pcc_comparison(df, title="stiff_flop_pcc: PCC vs Cosserat rod, chambers 6, 1, 2")
+rod = df[df["model"] == "cosserat"]  # one row per model: the error is on both
+print(f"side by side: {len(rod)} levels x 2 models in {time.perf_counter() - t0:.2f} s")
+columns = ["experiment", "level_kPa", "error_mm", "rel_error"]
+print(rod[columns].to_string(index=False, float_format="%.4g"))
+fig = plot_pcc_comparison(df, title="stiff_flop_pcc: PCC vs Cosserat rod, channels 5, 0, 1")
 fig.savefig(out_dir / "pcc_vs_cosserat.png", dpi=120)
 plt.close(fig)
 
@@ -46,21 +50,22 @@ schedule = softrod.PressureSchedule.steps([0.0, 0.1, 1.5], [zero, pulse, zero])
 t0 = time.perf_counter()
 dyn = compare_pcc_dynamics(design, schedule, 3.0, dt=2e-3)
 print(f"dynamic side by side: 3 cases x 2 models, 3 s each, in {time.perf_counter() - t0:.2f} s")
-print(dyn.groupby("case", sort=False)["error_mm"].max().to_string(float_format="%.3f mm"))
+rod = dyn[dyn["model"] == "cosserat"]
+print(rod.groupby("experiment", sort=False)["error_mm"].max().to_string(float_format="%.3f mm"))
 fig = plot_pcc_dynamics_comparison(
-    dyn, title="stiff_flop_pcc: PCC vs Cosserat rod, 1 bar pulse on chambers 6, 1, 2"
+    dyn, title="stiff_flop_pcc: PCC vs Cosserat rod, 1 bar pulse on channels 5, 0, 1"
 )
 fig.savefig(out_dir / "pcc_dynamics_vs_cosserat.png", dpi=120)
 plt.close(fig)
 
 dt, n = 2e-3, 1500
 fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
-for ax, chambers, label in (
-    (axes[0], [0, 2, 4], "chambers 1, 3, 5 (elongation)"),
-    (axes[1], [5, 0, 1], "chambers 6, 1, 2 (bending)"),
+for ax, channels, label in (
+    (axes[0], [0, 2, 4], "channels 0, 2, 4 (elongation)"),
+    (axes[1], [5, 0, 1], "channels 5, 0, 1 (bending)"),
 ):
     p = np.zeros((n + 1, 6))
-    p[int(0.2 / dt) :, chambers] = 1e5
+    p[int(0.2 / dt) :, channels] = 1e5
     t0 = time.perf_counter()
     out = run_pcc(design, dt, p, save_every=5)
     wall = time.perf_counter() - t0

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 import softrod
 from conftest import assert_clean_error
-from softrod import ConvergenceError, solve_statics, solve_statics_batch
+from softrod import ConvergenceError, load_dataset, solve_statics, solve_statics_batch
 
 pytestmark = pytest.mark.fast  # the whole module runs in seconds
 
@@ -93,30 +93,35 @@ def test_sweep_writes_table(run, tmp_path, suffix):
     result = run("sweep", SPA, "--grid", "0:60kPa:3", "--out", out, "--threads", 1)
     assert result.exit_code == 0, result.output
     assert "27 rows" in result.stdout and "solves/s" in result.stdout
-    df = pd.read_csv(out) if suffix == ".csv" else pd.read_parquet(out)
-    assert list(df.columns) == [
-        "p1_Pa",
-        "p2_Pa",
-        "p3_Pa",
-        "x_mm",
-        "y_mm",
-        "z_mm",
-        "converged",
-        "iterations",
+    ds = load_dataset(out, design=SPA)  # the dataset schema: softrod reads its own table
+    assert ds.metadata["generator"] == "softrod sweep" and ds.metadata["design"] == SPA
+    assert ds.metadata["softrod_version"] == softrod.__version__
+    assert ds.metadata["grid"] == ["0:60kPa:3"]
+    assert list(ds.extra) == ["converged", "iterations", "residual"]
+    df = ds.to_frame()
+    assert list(df.columns[:9]) == [
+        "p0_kPa",
+        "p1_kPa",
+        "p2_kPa",
+        "tip_x_mm",
+        "tip_y_mm",
+        "tip_z_mm",
+        "tip_qw",
+        "tip_qx",
+        "tip_qy",
     ]
-    assert len(df) == 27
-    assert df["converged"].all()
-    # Channel 1 slowest, last channel fastest.
-    np.testing.assert_array_equal(df["p3_Pa"][:3], [0.0, 30e3, 60e3])
-    np.testing.assert_array_equal(df["p1_Pa"][:9], 0.0)
-    np.testing.assert_array_equal(df["p1_Pa"][18:], 60e3)
-    p = df.loc[14, ["p1_Pa", "p2_Pa", "p3_Pa"]].to_numpy(dtype=float)
-    tip_mm = solve_statics(SPA, p).tip_position * 1e3
-    # 1e-6 mm = 1e-9 m: sweep rows warm-start (see test_batch_equals_single); the CSV keeps
-    # full float precision.
-    np.testing.assert_allclose(
-        df.loc[14, ["x_mm", "y_mm", "z_mm"]].to_numpy(dtype=float), tip_mm, rtol=0, atol=1e-6
-    )
+    assert len(ds) == 27
+    assert ds.extra["converged"].all()
+    # Channel 0 slowest, last channel fastest.
+    np.testing.assert_array_equal(ds.pressures[:3, 2], [0.0, 30e3, 60e3])
+    np.testing.assert_array_equal(ds.pressures[:9, 0], 0.0)
+    np.testing.assert_array_equal(ds.pressures[18:, 0], 60e3)
+    sol = solve_statics(SPA, ds.pressures[14])
+    # 1e-9 m: sweep rows warm-start (see test_batch_equals_single); the file keeps full
+    # float precision (kPa and mm to the shortest round-trip decimal).
+    np.testing.assert_allclose(ds.tip_position[14], sol.tip_position, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ds.tip_rotation[14], sol.tip_rotation, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(ds.base_force[14], sol.base_force, rtol=0, atol=1e-8)
 
 
 def test_sweep_grid_per_channel(run, tmp_path):
@@ -134,15 +139,15 @@ def test_sweep_grid_per_channel(run, tmp_path):
         out,
     )
     assert result.exit_code == 0, result.output
-    df = pd.read_csv(out)
-    assert len(df) == 6
+    ds = load_dataset(out)
+    assert len(ds) == 6
     # 1e-9 Pa: bar -> Pa round-off.
-    np.testing.assert_allclose(sorted(set(df["p2_Pa"])), [10e3, 20e3], rtol=0, atol=1e-9)
-    np.testing.assert_array_equal(df["p3_Pa"], 5e3)
-    batch = solve_statics_batch(SPA, df[["p1_Pa", "p2_Pa", "p3_Pa"]].to_numpy())
+    np.testing.assert_allclose(sorted(set(ds.pressures[:, 1])), [10e3, 20e3], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(ds.pressures[:, 2], 5e3)
+    batch = solve_statics_batch(SPA, ds.pressures)
     np.testing.assert_allclose(
-        df[["x_mm", "y_mm", "z_mm"]], batch.tip_position * 1e3, rtol=0, atol=1e-6
-    )  # 1e-6 mm: chunking changes warm starts
+        ds.tip_position, batch.tip_position, rtol=0, atol=1e-9
+    )  # 1e-9 m: chunking changes warm starts
 
 
 @pytest.mark.parametrize(
@@ -202,7 +207,7 @@ def test_convergence_failure_exits_3(run, monkeypatch):
             "static solve did not converge after 25 iterations", iterations=25, residual=1e-3
         )
 
-    monkeypatch.setattr("softrod.cli.solve_statics", fail)
+    monkeypatch.setattr("softrod.statics.solve_statics", fail)
     assert_clean_error(run("solve", SPA, "-p", "70kPa,0,0"), 3, "did not converge")
 
 
@@ -212,16 +217,19 @@ def test_demo_writes_files(run, tmp_path):
     assert result.exit_code == 0, result.output
     shapes, tips = out_dir / "shapes.png", out_dir / "tips.csv"
     assert shapes.read_bytes()[:8] == PNG_SIGNATURE
-    df = pd.read_csv(tips)
-    assert len(df) == 5
-    assert {"p1_kPa", "x_mm", "y_mm", "z_mm", "lateral_mm", "solve_time_us"} <= set(df.columns)
-    # Pressurising chamber 1 bends the actuator sideways, more at 70 than at 35 kPa;
+    ds = load_dataset(tips, design=SPA)
+    assert len(ds) == 5
+    assert {"lateral_mm", "iterations", "solve_time_us"} == set(ds.extra)
+    assert ds.metadata["generator"] == "softrod demo"
+    np.testing.assert_array_equal(ds.pressures[1], [35e3, 0, 0])  # channel 0 first
+    # Pressurising channel 0 bends the actuator sideways, more at 70 than at 35 kPa;
     # equal pressure on all three only stretches it (1e-6 mm: round-off of a symmetric case).
-    lateral = df["lateral_mm"].to_numpy()
+    lateral = ds.extra["lateral_mm"]
     assert lateral[0] == pytest.approx(0.0, abs=1e-6)
     assert 0 < lateral[1] < lateral[2]
     assert lateral[4] == pytest.approx(0.0, abs=1e-6)
-    assert df["z_mm"][4] < df["z_mm"][0] < 0  # hangs down and stretches
+    df = ds.to_frame()
+    assert df["tip_z_mm"][4] < df["tip_z_mm"][0] < 0  # hangs down and stretches
     assert str(shapes) in result.stdout and str(tips) in result.stdout
     assert "solves/s" in result.stdout
 
@@ -277,9 +285,11 @@ def test_compare_writes_table_and_figure(run, tmp_path):
     assert "12 solves, 12 converged" in result.stdout
     assert str(out) in result.stdout and str(fig) in result.stdout
     df = pd.read_parquet(out)
-    assert tuple(df.columns) == softrod.compare.COLUMNS
+    assert tuple(df.columns) == softrod.compare.COLUMNS + softrod.compare.RESULT_COLUMNS
     assert len(df) == 12 and df["converged"].all()
-    np.testing.assert_allclose(sorted(set(df["p_kPa"])), [0.0, 30.0, 60.0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sorted(set(df["ramp_kPa"])), [0.0, 30.0, 60.0], rtol=0, atol=1e-9)
+    ds = load_dataset(out)
+    assert ds.metadata["generator"] == "softrod.compare_models" and len(ds) == 12
     api = softrod.compare_models(["M0", "M3"], experiments="iii,a", pressures=[0, 30e3, 60e3])
     np.testing.assert_allclose(df["paper_z_mm"], api["paper_z_mm"], rtol=0, atol=1e-9)
     # The printed table shows the tip at the top of the ramp in the paper's frame.
@@ -290,7 +300,7 @@ def test_compare_writes_table_and_figure(run, tmp_path):
 
 
 def test_compare_defaults_are_paper_002(run):
-    result = run("compare", "--models", "M1", "--experiments", "i-2")
+    result = run("compare", "--models", "M1", "--experiments", "i-1")
     assert result.exit_code == 0, result.output
     assert "1 model x 1 experiment x 31 levels (0 to 60 kPa) = 31 solves" in result.stdout
 

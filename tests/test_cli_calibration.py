@@ -9,7 +9,6 @@ import io
 import json
 
 import numpy as np
-import pandas as pd
 import pytest
 import softrod
 import tomli_w
@@ -18,7 +17,7 @@ from rich.console import Console
 from softrod import ConvergenceError
 from softrod.calibration import axial_example_paths, identify_axial, load_axial_data
 from softrod.calibration.params import design_changes, parse_parameters
-from softrod.cli import _FitProgress
+from softrod.cli.calibrate import _FitProgress
 
 pytestmark = pytest.mark.fast  # the whole module runs in seconds
 
@@ -108,11 +107,24 @@ def test_calibrate_recovers_c_b_and_writes_design_and_report(run, case, tmp_path
     assert "calibrate c_b of paper002_M3_vertical on d.csv (SYNTHETIC): 15 samples" in text
     assert "calibrated parameters" in text and "tip errors" in text
     assert f"wrote {out}" in text and f"wrote {report}" in text
-    assert "warning" not in text
+    assert "warning:" not in text
+    # No warnings, and the rules it was judged by (docs/calibration.md).
+    assert "no warnings: warnings when a relative standard error exceeds 20 %" in text
+    assert "correlation |r| exceeds 0.9" in text
 
     fitted = softrod.load_design(out)
     assert _c_b(fitted) == pytest.approx(case["c_b"], rel=RECOVERY_RTOL)
     assert "Calibrated with softrod.calibrate" in fitted.assumptions[-1]
+    # A new name and the provenance, in the file.
+    assert fitted.name == "paper002_M3_vertical_calibrated"
+    prov = fitted.provenance
+    assert prov["tool"] == "softrod.calibrate" and prov["softrod_version"] == softrod.__version__
+    assert prov["dataset"] == "d.csv" and prov["synthetic_data"] is True
+    assert prov["initial_design"] == "paper002_M3_vertical" and prov["training_samples"] == 10
+    (entry,) = prov["parameters"]
+    assert entry["name"] == "c_b" and entry["unit"] == "1"
+    assert entry["value"] == pytest.approx(case["c_b"], rel=RECOVERY_RTOL)
+    assert len(prov["date"]) == 25  # ISO 8601 with seconds and UTC offset
     # The written design reproduces the data (the test experiment too).
     data = softrod.load_dataset(case["data"])
     tips = softrod.solve_statics_batch(fitted, data.pressures).tip_position
@@ -368,10 +380,21 @@ def test_identify_writes_the_factors_and_the_report(run, tmp_path):
 
     data = example_dataset_path("spa130_synthetic")
     out, report = tmp_path / "sigma.csv", tmp_path / "ident.html"
-    res = run("identify", "spa_three_chamber_130mm", data, "--out", out, "--report", report)
+    # DATA by the bundled name (the path works the same).
+    res = run(
+        "identify", "spa_three_chamber_130mm", "spa130_synthetic", "--out", out, "--report", report
+    )
     assert res.exit_code == 0, res.output
     assert "sigma_ext identified" in res.output
-    frame = pd.read_csv(out)
+    ds = softrod.load_dataset(out)  # the dataset schema, read back
+    assert ds.metadata["generator"] == "softrod.identify_stiffness"
+    # The tip columns are the example's, which is synthetic: so is the table.
+    assert ds.metadata["dataset"] == data.name and ds.synthetic is True
+    measured = softrod.load_dataset(data)
+    # The measured columns are the dataset's (kPa/mm and back: 2 ulp).
+    np.testing.assert_allclose(ds.tip_position, measured.tip_position, rtol=1e-15)
+    np.testing.assert_array_equal(ds.experiment, measured.experiment)
+    frame = ds.to_frame()
     assert len(frame) == 216 and {"sigma_ext", "sigma_bend_x", "sigma_bend_y"} <= set(frame)
     # The example was made with sigma = 1 everywhere plus 0.3 mm noise: identified factors
     # scatter around 1 (median within 5 %).

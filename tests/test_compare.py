@@ -4,10 +4,11 @@ import numpy as np
 import pandas as pd
 import pytest
 import softrod
-from softrod import InputError, compare_models, load_design, solve_statics_batch
+from softrod import InputError, compare_models, load_dataset, load_design, solve_statics_batch
 from softrod.compare import (
     COLUMNS,
     EXPERIMENTS,
+    RESULT_COLUMNS,
     clamp_frame,
     plot_comparison,
     pressure_ramp,
@@ -24,7 +25,7 @@ PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 @pytest.fixture(scope="module")
 def table():
-    return compare_models(["M0", "M2"], experiments="ii-1,iii,a", pressures=SHORT, threads=1)
+    return compare_models(["M0", "M2"], experiments="ii-0,iii,a", pressures=SHORT, threads=1)
 
 
 def test_paper_ramp():
@@ -42,19 +43,19 @@ def test_bad_ramp_steps(steps):
 
 
 def test_experiments_and_groups():
-    assert list(EXPERIMENTS) == ["i-1", "i-2", "i-3", "ii-1", "ii-2", "ii-3", "iii", "a"]
+    assert list(EXPERIMENTS) == ["i-0", "i-1", "i-2", "ii-0", "ii-1", "ii-2", "iii", "a"]
     assert resolve_experiments(None) == list(EXPERIMENTS)
-    assert resolve_experiments("a, i") == ["i-1", "i-2", "i-3", "a"]  # canonical order
+    assert resolve_experiments("a, i") == ["i-0", "i-1", "i-2", "a"]  # canonical order
     assert resolve_experiments(["iii", "iii"]) == ["iii"]
-    assert EXPERIMENTS["ii-2"].weights == (1.0, 0.0, 1.0)  # p_2 = 0, the others p
+    assert EXPERIMENTS["ii-1"].weights == (1.0, 0.0, 1.0)  # p1 = 0, the others p
     assert EXPERIMENTS["a"].mounting == "horizontal"
-    assert EXPERIMENTS["i-3"].title == "(i-3) vertical: p3 = p, p1 = p2 = 0"
+    assert EXPERIMENTS["i-2"].title == "(i-2) vertical: p2 = p, p0 = p1 = 0"
     with pytest.raises(InputError, match="experiments = 'iv'.*unknown"):
         resolve_experiments("i,iv")
 
 
 def test_table_columns_and_rows(table):
-    assert tuple(table.columns) == COLUMNS
+    assert tuple(table.columns) == COLUMNS + RESULT_COLUMNS
     assert len(table) == 2 * 3 * len(SHORT)
     assert table["converged"].all()
     assert list(table["model"].unique()) == ["M0", "M2"]
@@ -64,11 +65,11 @@ def test_table_columns_and_rows(table):
         "paper002_M2_vertical",
         "paper002_M2_horizontal",
     }
-    rows = table[(table["model"] == "M2") & (table["experiment"] == "ii-1")]
+    rows = table[(table["model"] == "M2") & (table["experiment"] == "ii-0")]
     np.testing.assert_array_equal(rows["step"], np.arange(len(SHORT)))
-    np.testing.assert_allclose(rows["p_kPa"], SHORT / 1e3)
-    np.testing.assert_array_equal(rows["p1_kPa"], 0.0)
-    np.testing.assert_allclose(rows[["p2_kPa", "p3_kPa"]], np.c_[SHORT, SHORT] / 1e3)
+    np.testing.assert_allclose(rows["ramp_kPa"], SHORT / 1e3)
+    np.testing.assert_array_equal(rows["p0_kPa"], 0.0)
+    np.testing.assert_allclose(rows[["p1_kPa", "p2_kPa"]], np.c_[SHORT, SHORT] / 1e3)
     assert (rows["mounting"] == "vertical").all()
 
 
@@ -77,14 +78,14 @@ def test_rows_equal_a_direct_batch_solve(table):
     direct = solve_statics_batch("paper002_M2_vertical", np.c_[SHORT, SHORT, SHORT], threads=1)
     # Same inputs, same ordered batch: identical up to the mm scaling.
     np.testing.assert_allclose(
-        rows[["world_x_mm", "world_y_mm", "world_z_mm"]], direct.tip_position * 1e3, rtol=1e-15
+        rows[["tip_x_mm", "tip_y_mm", "tip_z_mm"]], direct.tip_position * 1e3, rtol=1e-15
     )
 
 
 def test_paper_frame_mapping(table):
     """Documented maps (design descriptions): vertical paper (x, y, z) = world (x, -y, -z);
     horizontal paper (x, y, z) = world (z, -y, x)."""
-    w = table[["world_x_mm", "world_y_mm", "world_z_mm"]].to_numpy()
+    w = table[["tip_x_mm", "tip_y_mm", "tip_z_mm"]].to_numpy()
     p = table[["paper_x_mm", "paper_y_mm", "paper_z_mm"]].to_numpy()
     vertical = (table["mounting"] == "vertical").to_numpy()
     # 1e-12 mm: a matrix of 0 and +-1 applied in floating point
@@ -121,7 +122,7 @@ def test_own_designs_as_models():
     stiffer = m3.replace({"sections[1].c_b": 1.5})
     df = compare_models(
         {"M3": {"vertical": m3}, "stiff": {"vertical": stiffer}},
-        experiments="i-1",
+        experiments="i-0",
         pressures=SHORT,
     )
     end = df[df["step"] == len(SHORT) - 1].set_index("model")["paper_x_mm"]
@@ -152,17 +153,26 @@ def test_bad_pressures_and_failing_ramp():
         compare_models(["M0"], pressures=[[0.0, 1.0]])
     # M3 swells its chambers (eq. 22); at 3 bar chamber 1 breaks through the wall. The error
     # says which model and experiment.
-    with pytest.raises(InputError, match="model M3, experiment i-1: .*outer wall"):
-        compare_models(["M3"], experiments="i-1", pressures=[0.0, 3e5])
+    with pytest.raises(InputError, match="model M3, experiment i-0: .*outer wall"):
+        compare_models(["M3"], experiments="i-0", pressures=[0.0, 3e5])
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".parquet"])
 def test_table_round_trip(table, tmp_path, suffix):
     path = write_table(table, tmp_path / f"compare{suffix}")
     assert sorted(tmp_path.iterdir()) == [path]  # written atomically: no temporary left
-    back = pd.read_csv(path) if suffix == ".csv" else pd.read_parquet(path)
-    assert tuple(back.columns) == COLUMNS
-    pd.testing.assert_frame_equal(back, table, check_exact=False, rtol=1e-12)
+    back = pd.read_csv(path, comment="#") if suffix == ".csv" else pd.read_parquet(path)
+    assert tuple(back.columns) == COLUMNS + RESULT_COLUMNS
+    # The CSV text is the shortest decimal that reads back to the same double: exact.
+    pd.testing.assert_frame_equal(back, table, check_exact=True, check_dtype=False)
+    ds = load_dataset(path)  # the dataset schema, result columns declared in the metadata
+    # mm -> m (load) -> mm (here): two roundings, at most 2 ulp = 4.4e-16 relative.
+    tips = table[["tip_x_mm", "tip_y_mm", "tip_z_mm"]]
+    np.testing.assert_allclose(ds.tip_position * 1e3, tips, rtol=1e-15)
+    assert ds.metadata["generator"] == "softrod.compare_models"
+    assert ds.metadata["softrod_version"] == softrod.__version__
+    assert list(ds.extra["model"][:2]) == ["M0", "M0"] and ds.extra["converged"].all()
+    assert list(ds.experiments) == ["ii-0", "iii", "a"]
 
 
 def test_figure(table, tmp_path):
@@ -173,21 +183,21 @@ def test_figure(table, tmp_path):
         axes = fig.get_axes()
         assert len(axes) == 2 * 3  # (x, y, z) per experiment
         assert [a.get_ylabel() for a in axes[:3]] == ["x (mm)", "y (mm)", "z (mm)"]
-        assert all(a.get_xlabel() == "p (bar)" for a in axes)
+        assert all(a.get_xlabel() == "p (kPa)" for a in axes)
         assert [len(a.get_lines()) for a in axes] == [2] * 6  # one line per model
         # SubFigure.get_suptitle needs matplotlib 3.8; softrod supports 3.7.
         titles = [s._suptitle.get_text() for s in fig.subfigs]  # header, then experiments
         assert titles == ["test", EXPERIMENTS["iii"].title, EXPERIMENTS["a"].title]
         assert [t.get_text() for t in fig.subfigs[0].legends[0].get_texts()] == ["M0", "M2"]
-        # x axis in bar: the last point of the ramp is at 0.6 bar
-        assert axes[0].get_lines()[0].get_xdata()[-1] == pytest.approx(0.6)
+        # x axis in kPa: the last point of the ramp is at 60 kPa (0.6 bar)
+        assert axes[0].get_lines()[0].get_xdata()[-1] == pytest.approx(60.0)
         path = save_figure(fig, tmp_path / "compare.png")
         assert path.read_bytes()[:8] == PNG_SIGNATURE
         assert sorted(tmp_path.iterdir()) == [path]
     finally:
         plt.close(fig)
     with pytest.raises(InputError, match="none of them"):
-        plot_comparison(table, experiments="i-1")
+        plot_comparison(table, experiments="i-0")
     with pytest.raises(InputError, match="missing column"):
         plot_comparison(table.drop(columns="paper_x_mm"))
 

@@ -18,12 +18,11 @@ from softrod import (
     synthesize_dataset,
     write_dataset,
 )
+from softrod._examples import SPA130_EXAMPLE, _spa130_example
 from softrod.datasets import (
     QUATERNION_TOLERANCE,
-    SPA130_EXAMPLE,
     _matrix_to_quat,
     _quat_to_matrix,
-    _spa130_example,
     example_dataset_path,
     example_datasets,
 )
@@ -550,7 +549,7 @@ def test_bundled_example():
 
 def test_calibration_example_is_what_its_recipe_makes():
     """The calibration tutorial's dataset (docs/calibration.md) still matches its recipe."""
-    from softrod.datasets import PAPER002_EXAMPLE, _paper002_example
+    from softrod._examples import PAPER002_EXAMPLE, _paper002_example
 
     ds = load_dataset(example_dataset_path("paper002_m3_synthetic"))
     assert len(ds) == 240 and ds.synthetic and ds.experiments == (1, 2, 3, 4)

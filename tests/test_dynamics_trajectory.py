@@ -131,39 +131,83 @@ def test_parquet_layout(tmp_path):
     table = pq.read_table(path)
     assert table.column_names == [
         "time_s",
-        "cmd0_Pa",
-        "cmd1_Pa",
         "p0_Pa",
         "p1_Pa",
         "tip_x_m",
         "tip_y_m",
         "tip_z_m",
-        *[f"tip_R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)],
-        "tip_vx_m_s",
-        "tip_vy_m_s",
-        "tip_vz_m_s",
+        "tip_qw",
+        "tip_qx",
+        "tip_qy",
+        "tip_qz",
+        "cmd0_Pa",
+        "cmd1_Pa",
+        "tip_vx_m/s",
+        "tip_vy_m/s",
+        "tip_vz_m/s",
         "energy_J",
+        *[f"tip_R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)],
         "shape_m",
     ]
     shapes = table.column("shape_m").to_pylist()
     assert [x is not None for x in shapes] == [i % 2 == 0 for i in range(21)]
     np.testing.assert_array_equal(shapes[4], tr.shape_position[2].reshape(-1))  # node-major
     kv = table.schema.metadata
-    assert json.loads(kv[b"softrod.metadata"]) == tr.metadata
+    meta = json.loads(kv[b"softrod.metadata"])
+    declared = meta.pop("columns")
+    assert meta == {"synthetic": True, **tr.metadata}  # made by the model, not measured
+    assert set(declared) == {"cmd0_Pa", "cmd1_Pa", "energy_J", "shape_m"} | {
+        f"tip_v{a}_m/s" for a in "xyz"
+    } | {f"tip_R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)}
     layout = json.loads(kv[b"softrod.trajectory"])
-    assert layout["format"] == 1 and layout["n_channels"] == 2 and layout["n_nodes"] == 9
+    assert layout["format"] == 2 and layout["n_channels"] == 2 and layout["n_nodes"] == 9
     assert layout["shape_s_m"] == tr.shape_s.tolist()
     np.testing.assert_array_equal(table.column("tip_R23").to_numpy(), tr.tip_rotation[:, 1, 2])
+
+
+# to_frame writes kPa and mm: x / 1e3 and back * 1e3 round twice, at most 2 ulp (4.4e-16 rel).
+_UNIT_ROUND_TRIP = 1e-15
 
 
 def test_to_frame_reads_as_dataset():
     tr = arc_trajectory()
     frame = tr.to_frame()
-    assert "shape_m" not in frame.columns and frame.attrs["softrod.metadata"] == tr.metadata
-    ds = load_dataset(frame, extra="ignore")
+    assert "shape_m" not in frame.columns
+    meta = frame.attrs["softrod.metadata"]
+    assert {k: v for k, v in meta.items() if k != "columns"} == {"synthetic": True, **tr.metadata}
+    assert list(frame.columns[:4]) == ["time_s", "p0_kPa", "p1_kPa", "p2_kPa"]
+    ds = load_dataset(frame)  # the result columns are declared: no extra="ignore" needed
+    np.testing.assert_allclose(ds.tip_position, tr.tip_position, rtol=_UNIT_ROUND_TRIP)
+    np.testing.assert_allclose(ds.pressures, tr.pressure, rtol=_UNIT_ROUND_TRIP)
+    np.testing.assert_array_equal(ds.time, tr.time)
+    np.testing.assert_allclose(ds.extra["cmd0_kPa"] * 1e3, tr.command[:, 0], rtol=1e-15)
+    np.testing.assert_allclose(ds.extra["tip_vx_mm/s"] / 1e3, tr.tip_velocity[:, 0], rtol=1e-15)
+    # Quaternion and back: the rotation to a few ulp.
+    np.testing.assert_allclose(ds.tip_rotation, tr.tip_rotation, atol=1e-15)
+
+
+def test_saved_trajectory_reads_as_dataset(tmp_path):
+    tr = arc_trajectory()
+    ds = load_dataset(tr.save(tmp_path / "run.parquet"))  # SI columns: exact
     np.testing.assert_array_equal(ds.tip_position, tr.tip_position)
     np.testing.assert_array_equal(ds.pressures, tr.pressure)
-    np.testing.assert_array_equal(ds.time, tr.time)
+    np.testing.assert_array_equal(ds.extra["tip_R23"], tr.tip_rotation[:, 1, 2])
+    assert ds.metadata["design"] == tr.metadata["design"]
+
+
+def test_newer_format_is_a_clear_error(tmp_path):
+    import pyarrow.parquet as pq
+
+    tr = arc_trajectory(n=3)
+    path = tr.save(tmp_path / "run.parquet")
+    table = pq.read_table(path)
+    kv = dict(table.schema.metadata)
+    layout = json.loads(kv[b"softrod.trajectory"])
+    layout["format"] = 99
+    kv[b"softrod.trajectory"] = json.dumps(layout).encode()
+    pq.write_table(table.replace_schema_metadata(kv), path)
+    with pytest.raises(InputError, match="newer softrod .trajectory format 99"):
+        Trajectory.load(path)
 
 
 def test_save_load_errors(tmp_path):

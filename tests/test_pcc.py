@@ -135,9 +135,13 @@ def test_cli_compare_pcc_and_identify(tmp_path):
     args = ["compare-pcc", "stiff_flop_pcc", "--channels", "5,0,1", "--steps", "3"]
     res = runner.invoke(main, [*args, "--out", str(fig), "--table", str(table)])
     assert res.exit_code == 0, res.output
-    df = pd.read_csv(table)
-    assert set(df["case"]) == {"weightless", "gravity", "gravity + tip load"}
-    assert df[df["case"] == "weightless"]["error_mm"].max() < 1e-2  # same arc (see above)
+    ds = softrod.load_dataset(table)  # the dataset schema, channels from 0
+    assert set(ds.experiments) == {"weightless", "gravity", "gravity + tip load"}
+    weightless = ds.experiment == "weightless"
+    assert ds.extra["error_mm"][weightless].max() < 1e-2  # same arc (see above)
+    assert ds.metadata["channels"] == [5, 0, 1]
+    assert ds.pressures[:, [5, 0, 1]].max() == pytest.approx(1e5)  # --p-max 1 bar
+    assert ds.pressures[:, [2, 3, 4]].max() == 0.0
     assert fig.stat().st_size > 0
     res = runner.invoke(
         main, ["compare-pcc", "stiff_flop_pcc", "--channels", "9", "--out", "x.png"]

@@ -21,51 +21,139 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :mod:`softrod.pcc`: paper 003's piecewise-constant-curvature model (``run_pcc``,
   ``pcc_shape``, identification, ``compare_pcc``); statics via
   ``solve_statics(..., model="pcc")``
+- :func:`view` -> :class:`~softrod.viewer.Viewer`: the interactive 3-D viewer in the browser
+  (``pip install 'softrod[viewer]'``; docs/viewer.md)
+- ``executor=`` (a ``distributed.Client``) on ``solve_statics_batch``, ``identify_stiffness``
+  and ``calibrate(restarts=...)``: the work runs on a Dask cluster (docs/cluster.md)
 - exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError` (and its
   :class:`InvalidStateError`), :class:`InternalError`; warnings :class:`StabilityWarning`,
   :class:`ValidityWarning`
 """
 
-from . import pcc
+import importlib
+import logging
+from typing import TYPE_CHECKING
+
 from ._core import __version__ as _core_version
-from .calibration import (
-    CalibrationResult,
-    HybridStiffnessModel,
-    StiffnessIdentification,
-    calibrate,
-    compare_hybrid,
-    fit_stiffness_map,
-    identify_stiffness,
-)
-from .compare import compare_models
-from .datasets import Dataset, load_dataset, synthesize_dataset, write_dataset
-from .design import Design, bundled_designs, designs_dir, load_design
-from .dynamics import PressureSchedule, Simulation, Trajectory, simulate
-from .errors import (
-    ConvergenceError,
-    DesignError,
-    InputError,
-    InternalError,
-    InvalidStateError,
-    SoftrodError,
-    StabilityWarning,
-    ValidityWarning,
-)
-from .presets import Preset, list_presets
-from .statics import (
-    BatchSolution,
-    SolverOptions,
-    StaticSolution,
-    solve_statics,
-    solve_statics_batch,
-)
-from .stiffness_map import StiffnessMap
 
 __version__ = _core_version
+
+# softrod reports what it does on the standard logging module, logger "softrod" (INFO: the
+# steps of long calls; DEBUG: details such as files written). A library adds no handler of
+# its own: applications configure logging (the CLI does with -v/-q).
+logging.getLogger(__name__).addHandler(logging.NullHandler())
+
+# Public name -> the module that defines it. Importing softrod imports none of them (PEP 562):
+# `softrod --help` and `import softrod` stay fast, and numpy, pandas, scipy, pyarrow and
+# matplotlib load only when a name that needs them is first used.
+_EXPORTS = {
+    "CalibrationResult": ".calibration",
+    "HybridStiffnessModel": ".calibration",
+    "StiffnessIdentification": ".calibration",
+    "calibrate": ".calibration",
+    "compare_hybrid": ".calibration",
+    "fit_stiffness_map": ".calibration",
+    "identify_stiffness": ".calibration",
+    "bundled_designs": ".catalog",
+    "load_design": ".catalog",
+    "compare_models": ".compare",
+    "Dataset": ".datasets",
+    "example_datasets": ".datasets",
+    "load_dataset": ".datasets",
+    "synthesize_dataset": ".datasets",
+    "write_dataset": ".datasets",
+    "Design": ".design",
+    "designs_dir": ".design",
+    "PressureSchedule": ".dynamics",
+    "Simulation": ".dynamics",
+    "Trajectory": ".dynamics",
+    "simulate": ".dynamics",
+    "CalibrationWarning": ".errors",
+    "ConvergenceError": ".errors",
+    "DesignError": ".errors",
+    "InputError": ".errors",
+    "InternalError": ".errors",
+    "InvalidStateError": ".errors",
+    "SoftrodError": ".errors",
+    "StabilityWarning": ".errors",
+    "ValidityWarning": ".errors",
+    "Preset": ".presets",
+    "list_presets": ".presets",
+    "BatchSolution": ".statics",
+    "SolverOptions": ".statics",
+    "StaticSolution": ".statics",
+    "solve_statics": ".statics",
+    "solve_statics_batch": ".statics",
+    "StiffnessMap": ".stiffness_map",
+    "view": ".viewer",
+}
+_SUBMODULES = ("pcc", "calibration", "dynamics")
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is not None:
+        value = getattr(importlib.import_module(module, __name__), name)
+    elif name in _SUBMODULES:
+        value = importlib.import_module(f".{name}", __name__)
+    else:
+        raise AttributeError(f"module 'softrod' has no attribute {name!r}")
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
+    from . import calibration, dynamics, pcc
+    from .calibration import (
+        CalibrationResult,
+        HybridStiffnessModel,
+        StiffnessIdentification,
+        calibrate,
+        compare_hybrid,
+        fit_stiffness_map,
+        identify_stiffness,
+    )
+    from .catalog import bundled_designs, load_design
+    from .compare import compare_models
+    from .datasets import (
+        Dataset,
+        example_datasets,
+        load_dataset,
+        synthesize_dataset,
+        write_dataset,
+    )
+    from .design import Design, designs_dir
+    from .dynamics import PressureSchedule, Simulation, Trajectory, simulate
+    from .errors import (
+        CalibrationWarning,
+        ConvergenceError,
+        DesignError,
+        InputError,
+        InternalError,
+        InvalidStateError,
+        SoftrodError,
+        StabilityWarning,
+        ValidityWarning,
+    )
+    from .presets import Preset, list_presets
+    from .statics import (
+        BatchSolution,
+        SolverOptions,
+        StaticSolution,
+        solve_statics,
+        solve_statics_batch,
+    )
+    from .stiffness_map import StiffnessMap
+    from .viewer import view
 
 __all__ = [
     "BatchSolution",
     "CalibrationResult",
+    "CalibrationWarning",
     "ConvergenceError",
     "Dataset",
     "Design",
@@ -88,9 +176,12 @@ __all__ = [
     "__version__",
     "bundled_designs",
     "calibrate",
+    "calibration",
     "compare_hybrid",
     "compare_models",
     "designs_dir",
+    "dynamics",
+    "example_datasets",
     "fit_stiffness_map",
     "identify_stiffness",
     "list_presets",
@@ -101,5 +192,6 @@ __all__ = [
     "simulate",
     "solve_statics_batch",
     "synthesize_dataset",
+    "view",
     "write_dataset",
 ]

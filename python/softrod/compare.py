@@ -6,11 +6,14 @@ some chambers and keeps the others at 0 (gauge):
 ====== ========== ==================================== ==============
 name   mounting   chamber pressures                    paper figure
 ====== ========== ==================================== ==============
-i-k    vertical   p_k = p, the others 0 (k = 1, 2, 3)  Fig. 6
+i-k    vertical   p_k = p, the others 0 (k = 0, 1, 2)  Fig. 6
 ii-k   vertical   p_k = 0, the other two = p           Fig. 7
-iii    vertical   p1 = p2 = p3 = p                     Fig. 5 bottom
-a      horizontal p1 = p, p2 = p3 = 0                  Fig. 5 top
+iii    vertical   p0 = p1 = p2 = p                     Fig. 5 bottom
+a      horizontal p0 = p, p1 = p2 = 0                  Fig. 5 top
 ====== ========== ==================================== ==============
+
+Channels are numbered from 0, as everywhere in softrod: paper 002's chambers 1, 2, 3 are
+channels 0, 1, 2 (so the paper's experiment (i) on chamber 1 is ``i-0``).
 
 :func:`compare_models` solves every (model, experiment) pair as one ordered
 ``solve_statics_batch`` call (each level warm-starts from the previous one) and returns a
@@ -33,7 +36,8 @@ from typing import Any
 
 import numpy as np
 
-from .design import Design, load_design
+from .catalog import load_design
+from .design import Design
 from .errors import DesignError, InputError, design_error
 from .presets import PAPER002_MODELS, paper002_preset
 from .statics import SolverOptions, solve_statics_batch
@@ -51,8 +55,8 @@ class Experiment:
 
 
 def _chambers(weights) -> str:
-    on = [f"p{k + 1}" for k, w in enumerate(weights) if w]
-    off = [f"p{k + 1}" for k, w in enumerate(weights) if not w]
+    on = [f"p{k}" for k, w in enumerate(weights) if w]
+    off = [f"p{k}" for k, w in enumerate(weights) if not w]
     text = " = ".join(on) + " = p"
     return text + (f", {' = '.join(off)} = 0" if off else "")
 
@@ -61,10 +65,10 @@ def _experiments() -> dict[str, Experiment]:
     out = {}
     for k in range(3):
         w = tuple(float(j == k) for j in range(3))
-        out[f"i-{k + 1}"] = Experiment(f"i-{k + 1}", "vertical", w, "")
+        out[f"i-{k}"] = Experiment(f"i-{k}", "vertical", w, "")
     for k in range(3):
         w = tuple(float(j != k) for j in range(3))
-        out[f"ii-{k + 1}"] = Experiment(f"ii-{k + 1}", "vertical", w, "")
+        out[f"ii-{k}"] = Experiment(f"ii-{k}", "vertical", w, "")
     out["iii"] = Experiment("iii", "vertical", (1.0, 1.0, 1.0), "")
     out["a"] = Experiment("a", "horizontal", (1.0, 0.0, 0.0), "")
     return {
@@ -76,8 +80,8 @@ def _experiments() -> dict[str, Experiment]:
 EXPERIMENTS: dict[str, Experiment] = _experiments()
 # Names that stand for several experiments.
 EXPERIMENT_GROUPS: dict[str, tuple[str, ...]] = {
-    "i": ("i-1", "i-2", "i-3"),
-    "ii": ("ii-1", "ii-2", "ii-3"),
+    "i": ("i-0", "i-1", "i-2"),
+    "ii": ("ii-0", "ii-1", "ii-2"),
     "vertical": tuple(n for n, e in EXPERIMENTS.items() if e.mounting == "vertical"),
     "horizontal": ("a",),
     "all": tuple(EXPERIMENTS),
@@ -87,22 +91,36 @@ MOUNTINGS = ("vertical", "horizontal")
 PAPER002_RAMP = (0.0, 0.6e5, 30)  # Pa, Pa, equal steps: 0 to 0.6 bar in 30 steps (Sec. V)
 MAX_RAMP_STEPS = 100_000  # more levels than any experiment needs; refused as a likely typo
 
+# The table of compare_models: the dataset schema (docs/datasets.md) with these columns,
+# then the result columns of RESULT_COLUMNS.
 COLUMNS = (
-    "model",
-    "design",
-    "mounting",
     "experiment",
-    "step",
-    "p_kPa",
+    "mounting",
+    "p0_kPa",
     "p1_kPa",
     "p2_kPa",
-    "p3_kPa",
+    "tip_x_mm",
+    "tip_y_mm",
+    "tip_z_mm",
+    "tip_qw",
+    "tip_qx",
+    "tip_qy",
+    "tip_qz",
+    "base_fx_N",
+    "base_fy_N",
+    "base_fz_N",
+    "base_mx_Nmm",
+    "base_my_Nmm",
+    "base_mz_Nmm",
+)
+RESULT_COLUMNS = (
+    "model",
+    "design",
+    "step",
+    "ramp_kPa",
     "paper_x_mm",
     "paper_y_mm",
     "paper_z_mm",
-    "world_x_mm",
-    "world_y_mm",
-    "world_z_mm",
     "converged",
     "iterations",
 )
@@ -235,15 +253,24 @@ def compare_models(
     pressures: the ramp levels p in Pa, in order (default :func:`pressure_ramp`: 0 to
         0.6 bar in 30 steps); every experiment applies ``weights * p``.
     threads, options: passed to :func:`softrod.solve_statics_batch`.
-    progress: called as ``progress(label, rows)`` after each (model, experiment) batch.
+    progress: None (a bar in interactive sessions), True, False or a callable called as
+        ``progress(label, rows)`` after each (model, experiment) batch
+        (:mod:`softrod.progress`).
 
-    One row per model, experiment and level, in that nesting order, with the columns of
-    :data:`COLUMNS`: pressures in kPa (``p_kPa`` is the ramp level p), the tip in the paper's
-    frame (``paper_*_mm``, see the module docstring) and in softrod's world frame
-    (``world_*_mm``), ``converged`` and Newton ``iterations``. Rows that did not converge are
-    kept with NaN coordinates.
+    One row per model, experiment and level, in that nesting order, in the dataset schema
+    (docs/datasets.md): ``experiment``, ``mounting``, the chamber pressures ``p0_kPa``,
+    ``p1_kPa``, ``p2_kPa``, the tip in softrod's world frame ``tip_x_mm`` ... with its
+    orientation ``tip_q*`` and the base wrench (:data:`COLUMNS`), then the result columns
+    ``model``, ``design``, ``step``, ``ramp_kPa`` (the ramp level p), the tip in the paper's
+    frame ``paper_x_mm`` ... (see the module docstring), ``converged`` and Newton
+    ``iterations`` (:data:`RESULT_COLUMNS`). Rows that did not converge are kept with NaN
+    coordinates. ``frame.attrs["softrod.metadata"]`` holds the metadata block (models, ramp,
+    softrod version); ``load_dataset`` reads the table back.
     """
     import pandas as pd
+
+    from .progress import reporter
+    from .schema import Extra, provenance, schema_frame
 
     names = resolve_experiments(experiments)
     ramp = pressure_ramp() if pressures is None else np.asarray(pressures, dtype=float)
@@ -255,39 +282,72 @@ def compare_models(
             InputError,
         )
     designs = _model_designs(models, {EXPERIMENTS[n].mounting for n in names})
+    meta = provenance(
+        "softrod.compare_models",
+        protocol="paper002",
+        models={
+            label: {mounting: d.name for mounting, d in by.items()}
+            for label, by in designs.items()
+        },
+        experiments=names,
+        ramp_kPa=(ramp / 1e3).tolist(),
+        solver=(options or SolverOptions()).as_kwargs(),
+    )
     frames = []
-    for label, by_mounting in designs.items():
-        for name in names:
-            exp = EXPERIMENTS[name]
-            design = by_mounting[exp.mounting]
-            pressures_pa = ramp[:, None] * np.asarray(exp.weights)[None, :]
-            try:
-                out = solve_statics_batch(design, pressures_pa, threads=threads, options=options)
-            except DesignError as exc:  # e.g. a ramp that swells a chamber through the wall
-                exc.args = (f"model {label}, experiment {name}: {exc.args[0]}",)
-                raise
-            world = out.tip_position
-            paper = clamp_frame(design, world)
-            cols: dict[str, Any] = {
-                "model": label,
-                "design": design.name,
-                "mounting": exp.mounting,
-                "experiment": name,
-                "step": np.arange(len(ramp)),
-                "p_kPa": ramp / 1e3,
-            }
-            for k in range(3):
-                cols[f"p{k + 1}_kPa"] = pressures_pa[:, k] / 1e3
-            for k, axis in enumerate("xyz"):
-                cols[f"paper_{axis}_mm"] = paper[:, k] * 1e3
-            for k, axis in enumerate("xyz"):
-                cols[f"world_{axis}_mm"] = world[:, k] * 1e3
-            cols["converged"] = np.asarray(out.converged, dtype=bool)
-            cols["iterations"] = np.asarray(out.iterations, dtype=np.int64)
-            frames.append(pd.DataFrame(cols, columns=list(COLUMNS)))
-            if progress is not None:
-                progress(f"{label} {name}", len(ramp))
-    return pd.concat(frames, ignore_index=True)
+    total = len(designs) * len(names) * len(ramp)
+    done = [0]
+
+    def rows_done(label: str, n: int) -> tuple[float, str]:
+        done[0] += n
+        return done[0], label
+
+    with reporter(progress, "compare", total, rows_done) as report:
+        for label, by_mounting in designs.items():
+            for name in names:
+                exp = EXPERIMENTS[name]
+                design = by_mounting[exp.mounting]
+                pressures_pa = ramp[:, None] * np.asarray(exp.weights)[None, :]
+                try:
+                    out = solve_statics_batch(
+                        design, pressures_pa, threads=threads, options=options
+                    )
+                except DesignError as exc:  # e.g. a ramp that swells a chamber through the wall
+                    exc.args = (f"model {label}, experiment {name}: {exc.args[0]}",)
+                    raise
+                paper = clamp_frame(design, out.tip_position)
+                n = len(ramp)
+                extras = [
+                    Extra("model", np.full(n, label), "model label"),
+                    Extra("design", np.full(n, design.name), "design solved"),
+                    Extra("step", np.arange(n), "index of the ramp level"),
+                    Extra("ramp", ramp, "ramp level p of the experiment", "pressure"),
+                ]
+                extras += [
+                    Extra(f"paper_{a}", paper[:, k], "tip in paper 002's frame e_i", "length")
+                    for k, a in enumerate("xyz")
+                ]
+                extras += [
+                    Extra("converged", np.asarray(out.converged, dtype=bool), "solve converged"),
+                    Extra("iterations", np.asarray(out.iterations, dtype=np.int64), "Newton"),
+                ]
+                frames.append(
+                    schema_frame(
+                        pressures=pressures_pa,
+                        tip_position=out.tip_position,
+                        tip_rotation=out.tip_rotation,
+                        base_force=out.base_force,
+                        base_moment=out.base_moment,
+                        experiment=np.full(n, name),
+                        mounting=np.full(n, exp.mounting),
+                        extras=extras,
+                        metadata=meta,
+                    )
+                )
+                if report is not None:
+                    report(f"{label} {name}", n)
+    df = pd.concat(frames, ignore_index=True)
+    df.attrs["softrod.metadata"] = frames[0].attrs["softrod.metadata"]
+    return df
 
 
 # --------------------------------------------------------------------------- figure
@@ -309,14 +369,14 @@ def plot_comparison(df, *, experiments: str | Sequence[str] | None = None, title
     """Figure of a :func:`compare_models` table like paper 002's Figs. 5-7.
 
     One row of panels per experiment (its title names the chambers pressurised), one panel
-    per tip coordinate x, y, z in the paper's frame (mm) against the ramp pressure (bar);
+    per tip coordinate x, y, z in the paper's frame (mm) against the ramp pressure (kPa);
     each model has its own colour, marker and line style (M1 o, M2 +, M3 x as in the paper).
     ``experiments`` picks and orders the rows (default: those in ``df``).
     """
     import matplotlib as mpl
     import matplotlib.pyplot as plt
 
-    missing = [c for c in ("model", "experiment", "p_kPa", "paper_x_mm") if c not in df]
+    missing = [c for c in ("model", "experiment", "ramp_kPa", "paper_x_mm") if c not in df]
     if missing:
         raise design_error(
             "df", missing[0], "missing column: pass a table from compare_models", InputError
@@ -346,7 +406,7 @@ def plot_comparison(df, *, experiments: str | Sequence[str] | None = None, title
                 r = rows[rows["model"] == m]
                 n = len(r)
                 ax.plot(
-                    r["p_kPa"] / 100.0,  # kPa -> bar
+                    r["ramp_kPa"],
                     r[f"paper_{axis}_mm"],
                     label=m,
                     markevery=max(1, n // 10),
@@ -355,7 +415,7 @@ def plot_comparison(df, *, experiments: str | Sequence[str] | None = None, title
                     **styles[m],
                 )
             ax.set_ylabel(f"{axis} (mm)")
-            ax.set_xlabel("p (bar)")
+            ax.set_xlabel("p (kPa)")
             ax.grid(True, alpha=0.3)
     handles, labels = subfigs[0].axes[0].get_legend_handles_labels()
     if title:

@@ -36,15 +36,24 @@ import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from .design import PACKAGE_DIR, Design, load_design
+from .catalog import load_design
+from .design import PACKAGE_DIR, Design
 from .errors import ConvergenceError, InputError, design_error
-from .io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
-from .units import SI_UNIT, registry, vector_to_si
+from .io import TABLE_SUFFIXES, check_table_path, write_table
+from .schema import (
+    DEFAULT_UNITS,
+    UNIT_ALIASES,
+    Extra,
+    schema_frame,
+)
+from .schema import matrix_to_quat as _matrix_to_quat
+from .schema import quat_to_matrix as _quat_to_matrix
+from .schema import unit_factor as _unit_factor
+from .units import vector_to_si
 
 __all__ = [
     "DEFAULT_UNITS",
@@ -57,21 +66,6 @@ __all__ = [
     "synthesize_dataset",
     "write_dataset",
 ]
-
-# ASCII spellings of moment units, mapped before pint reads a unit: pint reads "Nm" as
-# number-metre and does not know "Nmm". Keys are exact (case-sensitive) unit strings.
-UNIT_ALIASES = {
-    "Nm": "N*m",
-    "Nmm": "N*mm",
-    "Ncm": "N*cm",
-    "mNm": "mN*m",
-    "mNmm": "mN*mm",
-    "kNm": "kN*m",
-}
-_SUFFIX_OF = {v: k for k, v in UNIT_ALIASES.items()}
-
-# Units to_frame and write_dataset use unless told otherwise (one per kind).
-DEFAULT_UNITS = {"pressure": "kPa", "length": "mm", "force": "N", "moment": "Nmm", "time": "s"}
 
 # |q| must be 1 within this. Motion-capture exports round quaternions to about 7 significant
 # digits (|q| - 1 ~ 1e-7); a larger error means the columns are not a unit quaternion at all
@@ -135,89 +129,6 @@ def _checked_metadata(metadata) -> dict:
     return meta
 
 
-def _unit_factor(unit: str, kind: str, column: str) -> float:
-    """SI factor of ``unit`` (a unit string, aliases allowed) checked against ``kind``."""
-    text = unit.strip()
-    if not text:
-        raise _fail(column, unit, f"empty unit: a {kind} needs one, e.g. '{DEFAULT_UNITS[kind]}'")
-    ureg = registry()
-    try:
-        parsed = ureg.parse_units(UNIT_ALIASES.get(text, text))
-    except Exception as exc:  # pint raises several error types for bad strings
-        raise _fail(
-            column,
-            unit,
-            f"unknown unit ({exc}); a {kind} column needs a unit pint knows, e.g. "
-            f"'{DEFAULT_UNITS[kind]}' (moment spellings {', '.join(UNIT_ALIASES)} are accepted)",
-        ) from None
-    want = ureg.get_dimensionality(SI_UNIT[kind])
-    if parsed.dimensionality != want:
-        have = str(parsed.dimensionality) if not parsed.dimensionless else "dimensionless"
-        raise _fail(
-            column,
-            unit,
-            f"wrong unit: this column is a {kind} (like '{DEFAULT_UNITS[kind]}'), "
-            f"but the unit has dimension {have}",
-        )
-    return float(ureg.Quantity(1.0, parsed).to(SI_UNIT[kind]).magnitude)
-
-
-def _suffix(unit: str) -> str:
-    """The column-name spelling of a unit (``N*mm`` -> ``Nmm``)."""
-    return _SUFFIX_OF.get(unit.strip(), unit.strip())
-
-
-# --- rotations -------------------------------------------------------------------------------
-
-
-def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """(m, 4) unit quaternions (w, x, y, z) -> (m, 3, 3) rotation matrices."""
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        axis=1,
-    )
-
-
-def _matrix_to_quat(r: np.ndarray) -> np.ndarray:
-    """(m, 3, 3) rotation matrices -> (m, 4) unit quaternions (w, x, y, z) with w >= 0.
-
-    Shepperd's method: divide by the largest of |w|, |x|, |y|, |z| so no branch loses digits.
-    """
-    r = np.asarray(r, dtype=float).reshape(-1, 3, 3)
-    tr = np.trace(r, axis1=1, axis2=2)
-    diag = np.stack([r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]], axis=1)
-    four_sq = np.column_stack([1 + tr, 1 + 2 * diag - tr[:, None]])  # 4w^2, 4x^2, 4y^2, 4z^2
-    pick = np.argmax(four_sq, axis=1)
-    big = 0.5 * np.sqrt(np.maximum(four_sq[np.arange(len(r)), pick], 0.0))
-    d = 4.0 * np.where(big > 0, big, 1.0)
-    a21, a12, a02, a20, a10, a01 = (
-        r[:, 2, 1],
-        r[:, 1, 2],
-        r[:, 0, 2],
-        r[:, 2, 0],
-        r[:, 1, 0],
-        r[:, 0, 1],
-    )
-    cases = [
-        (big, (a21 - a12) / d, (a02 - a20) / d, (a10 - a01) / d),
-        ((a21 - a12) / d, big, (a01 + a10) / d, (a02 + a20) / d),
-        ((a02 - a20) / d, (a01 + a10) / d, big, (a12 + a21) / d),
-        ((a10 - a01) / d, (a02 + a20) / d, (a12 + a21) / d, big),
-    ]
-    q = np.zeros((len(r), 4))
-    for k, comps in enumerate(cases):
-        sel = pick == k
-        q[sel] = np.column_stack([c[sel] for c in comps])
-    q[q[:, 0] < 0] *= -1.0
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
-
-
 # --- the dataset -------------------------------------------------------------------------------
 
 
@@ -238,6 +149,9 @@ class Dataset:
     experiment: (m,) ids (int64 or str) or None.  mounting: (m,) str or None.
     time: (m,) s or None.  metadata: dict; ``metadata["synthetic"]`` is True for data made by
     :func:`synthesize_dataset` (with the design, noise and seed).  source: file read or None.
+    extra: the result columns of a table softrod wrote (``converged``, ``iterations``,
+    ``sigma_ext``, ...), by column name as written, (m,) each, described in
+    ``metadata["columns"]``; empty for measurements.
 
     Arrays are read-only. Use :func:`load_dataset` to read a file, :meth:`to_frame` and
     :func:`write_dataset` to write one.
@@ -253,6 +167,7 @@ class Dataset:
     time: np.ndarray | None = None
     metadata: dict = field(default_factory=lambda: {"synthetic": False})
     source: Path | None = None
+    extra: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -305,6 +220,19 @@ class Dataset:
         set_(self, "metadata", _checked_metadata(self.metadata))
         if self.source is not None:
             set_(self, "source", Path(self.source))
+        if not isinstance(self.extra, Mapping):
+            raise _fail("extra", type(self.extra).__name__, "must map column names to arrays")
+        extra = {}
+        for name, values in self.extra.items():
+            if not isinstance(name, str) or _base(name) is not None:
+                raise _fail(
+                    "extra", name, "result columns need names outside the schema (a string)"
+                )
+            a = np.array(values)  # a copy; an object array of lists stays 1-D
+            if a.shape != (m,):
+                raise _fail(f"extra.{name}", f"shape {a.shape}", f"must have shape ({m},)")
+            extra[name] = _readonly(a)
+        set_(self, "extra", extra)
 
     def __len__(self) -> int:
         return self.pressures.shape[0]
@@ -320,6 +248,12 @@ class Dataset:
         ]
         if optional:
             parts.append("with " + ", ".join(optional))
+        if self.extra:
+            shown = list(self.extra)[:6]
+            more = len(self.extra) - len(shown)
+            parts.append(
+                "result columns " + ", ".join(shown) + (f" and {more} more" if more > 0 else "")
+            )
         if self.synthetic:
             parts.append(f"SYNTHETIC from {self.metadata.get('design', '?')}")
         if self.source is not None:
@@ -377,6 +311,7 @@ class Dataset:
             time=take(self.time),
             metadata=dict(self.metadata),
             source=self.source,
+            extra={name: values[idx] for name, values in self.extra.items()},
         )
 
     def split(self, by: str = "experiment", *, test) -> tuple[Dataset, Dataset]:
@@ -405,48 +340,30 @@ class Dataset:
             raise _fail("test", ids, f"takes every {by}: nothing would be left to train on")
         return self.subset(~mask), self.subset(mask)
 
-    def to_frame(self, units: Mapping[str, str] | None = None) -> pd.DataFrame:
+    def to_frame(self, units: Mapping[str, str] | str | None = None) -> pd.DataFrame:
         """The dataset as a DataFrame of the schema, units in the column names.
 
         ``units`` maps a kind ("pressure", "length", "force", "moment", "time") to a unit;
-        the others keep :data:`DEFAULT_UNITS` (kPa, mm, N, Nmm = N*mm, s). The orientation is
-        written as a unit quaternion (w >= 0). ``frame.attrs["softrod.metadata"]`` holds the
-        metadata, so ``load_dataset(frame)`` keeps the synthetic flag.
+        the others keep :data:`DEFAULT_UNITS` (kPa, mm, N, Nmm = N*mm, s); ``units="SI"``
+        writes Pa, m, N, Nm and s. The orientation is written as a unit quaternion
+        (w >= 0). The result columns of :attr:`extra` follow, as they were read.
+        ``frame.attrs["softrod.metadata"]`` holds the metadata, so ``load_dataset(frame)``
+        keeps the synthetic flag and the result columns.
         """
-        chosen = dict(DEFAULT_UNITS)
-        for kind, unit in dict(units or {}).items():
-            if kind not in DEFAULT_UNITS:
-                raise _fail(
-                    f"units.{kind}", unit, f"unknown kind (known: {', '.join(DEFAULT_UNITS)})"
-                )
-            if not isinstance(unit, str):
-                raise _fail(f"units.{kind}", unit, "must be a unit string such as 'kPa'")
-            chosen[kind] = _suffix(unit)
-        factor = {k: _unit_factor(u, k, f"units.{k}") for k, u in chosen.items()}
-        cols: dict[str, Any] = {}
-        for name in _LABELS:
-            if getattr(self, name) is not None:
-                cols[name] = getattr(self, name)
-        if self.time is not None:
-            cols[f"time_{chosen['time']}"] = self.time / factor["time"]
-        for k in range(self.n_channels):
-            cols[f"p{k}_{chosen['pressure']}"] = self.pressures[:, k] / factor["pressure"]
-        for i, name in enumerate(_TIP):
-            cols[f"{name}_{chosen['length']}"] = self.tip_position[:, i] / factor["length"]
-        if self.tip_rotation is not None:
-            q = _matrix_to_quat(self.tip_rotation)
-            for i, name in enumerate(_QUAT):
-                cols[name] = q[:, i]
-        for names, arr, kind in (
-            (_FORCE, self.base_force, "force"),
-            (_MOMENT, self.base_moment, "moment"),
-        ):
-            if arr is not None:
-                for i, name in enumerate(names):
-                    cols[f"{name}_{chosen[kind]}"] = arr[:, i] / factor[kind]
-        frame = pd.DataFrame(cols)
-        frame.attrs["softrod.metadata"] = dict(self.metadata)
-        return frame
+        described = dict(self.metadata.get("columns") or {})
+        return schema_frame(
+            pressures=self.pressures,
+            tip_position=self.tip_position,
+            tip_rotation=self.tip_rotation,
+            base_force=self.base_force,
+            base_moment=self.base_moment,
+            time=self.time,
+            experiment=self.experiment,
+            mounting=self.mounting,
+            extras=[Extra(n, v, str(described.get(n, ""))) for n, v in self.extra.items()],
+            units=units,
+            metadata=self.metadata,
+        )
 
 
 def _same_id(a, b) -> bool:
@@ -519,6 +436,22 @@ class _Where:
             more = len(rows) - _MAX_LISTED
             return f"{noun} {shown}" + (f" and {more} more" if more > 0 else "")
         return f"{noun} {_runs(rows, lambda i: i + self.first)}"
+
+
+@dataclass(frozen=True)
+class _KeptRows:
+    """Rows named as in the file after some rows were dropped (``kept``: the original index
+    of each remaining row)."""
+
+    where: _Where
+    kept: np.ndarray
+
+    @property
+    def labels(self):
+        return None
+
+    def __call__(self, rows: Iterable[int]) -> str:
+        return self.where([int(self.kept[i]) for i in rows])
 
 
 # --- loading -------------------------------------------------------------------------------------
@@ -632,16 +565,23 @@ def load_dataset(
     design=None,
     units: Mapping[str, str] | None = None,
     extra: str = "error",
+    unconverged: str = "error",
 ) -> Dataset:
     """Read and validate a dataset from a CSV or Parquet file or a pandas DataFrame.
 
-    ``source``: a path (``.csv`` or ``.parquet``), a DataFrame (units in the column names,
-    in ``units`` or in ``frame.attrs["softrod.units"]``) or a Dataset (returned as is).
+    ``source``: a path (``.csv`` or ``.parquet``), the name of a bundled example dataset
+    (``"spa130_synthetic"``, see :func:`example_datasets`), a DataFrame (units in the column
+    names, in ``units`` or in ``frame.attrs["softrod.units"]``) or a Dataset (returned as
+    is). Every table softrod writes (sweeps, trajectories, comparisons, identifications,
+    predictions) loads too: its result columns, declared in its metadata, come back in
+    :attr:`Dataset.extra`.
     ``n_channels`` / ``design``: the pressure channels the data must have (a Design or a
     design name gives ``design.n_channels``). ``units``: a units block (column -> unit) in
     addition to the file's. ``extra``: "error" (default: an unknown column is a typo until
-    shown otherwise) or "ignore". Values come back SI. Raises :class:`InputError` naming the
-    column, the value, the rule and the rows (CSV line numbers as a text editor shows them).
+    shown otherwise) or "ignore". ``unconverged``: what to do with the rows of a solver's
+    table whose ``converged`` is False (they have no tip position): "error" (default) or
+    "drop". Values come back SI. Raises :class:`InputError` naming the column, the value, the
+    rule and the rows (CSV line numbers as a text editor shows them).
     """
     if isinstance(source, Dataset):
         want, what = _expected_channels(n_channels, design)
@@ -654,6 +594,8 @@ def load_dataset(
         return source
     if extra not in ("error", "ignore"):
         raise _fail("extra", extra, "must be 'error' or 'ignore'")
+    if unconverged not in ("error", "drop"):
+        raise _fail("unconverged", unconverged, "must be 'error' or 'drop'")
     path = None
     if isinstance(source, pd.DataFrame):
         names = list(source.columns)
@@ -667,7 +609,16 @@ def load_dataset(
         where = _Where("index", labels=tuple(source.index))
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
+        if path.suffix == "" and not path.exists() and str(source) in example_datasets():
+            path = example_dataset_path(str(source))
         if path.suffix.lower() not in TABLE_SUFFIXES:
+            if path.suffix == "" and not path.exists():
+                raise _fail(
+                    "path",
+                    str(path),
+                    "no such file or bundled example dataset (bundled: "
+                    f"{', '.join(example_datasets())}; files end in .csv or .parquet)",
+                )
             check_table_path(path)  # raises with the list of formats
         if not path.is_file():
             raise _fail("path", str(path), "no such file")
@@ -685,7 +636,16 @@ def load_dataset(
         )
     try:
         return _from_frame(
-            df, file_units, dict(units or {}), meta, where, path, n_channels, design, extra
+            df,
+            file_units,
+            dict(units or {}),
+            meta,
+            where,
+            path,
+            n_channels,
+            design,
+            extra,
+            unconverged,
         )
     except InputError as exc:
         if path is not None:
@@ -716,7 +676,7 @@ def _expected_channels(n_channels, design) -> tuple[int | None, str]:
 
 
 def _from_frame(
-    df, file_units, call_units, meta, where, path, n_channels, design, extra
+    df, file_units, call_units, meta, where, path, n_channels, design, extra, unconverged
 ) -> Dataset:
     names = [str(c) for c in df.columns]
     # Units block: the file's and the caller's, a column in at most one of them.
@@ -734,10 +694,18 @@ def _from_frame(
             f"units.{unused[0]}", block[unused[0]], f"names no column (columns: {', '.join(names)})"
         )
 
+    # Result columns a softrod writer declared in the metadata (name -> description).
+    declared = meta.get("columns") or {}
+    if not isinstance(declared, Mapping):
+        raise _fail("metadata.columns", declared, "must map column names to descriptions")
+    extras = [n for n in names if n in declared and _NAME.match(n) is None]
+
     # Column names -> base name and SI factor.
     columns: dict[str, tuple[str, float | None]] = {}  # base -> (column, factor)
     unknown = []
     for name in names:
+        if name in extras:
+            continue
         m = _NAME.match(name)
         if m is None:
             unknown.append(name)
@@ -812,6 +780,9 @@ def _from_frame(
         )
     if len(df) == 0:
         raise _fail("rows", 0, "the table has no data rows")
+    if "converged" in extras:
+        df, where = _converged_rows(df, where, unconverged)
+
 
     # Values: empty cells, text in number columns, non-finite numbers.
     used = [columns[b][0] for b in columns]
@@ -880,27 +851,55 @@ def _from_frame(
         time=numeric.get("time"),
         metadata=meta,
         source=path,
+        extra={name: _extra_values(df[name]) for name in extras},
     )
 
 
+def _extra_values(column: pd.Series) -> np.ndarray:
+    """A result column as a numpy array: numbers as float (empty cells NaN), flags as bool,
+    anything else as text."""
+    values = column.to_numpy()
+    if values.dtype.kind in "biuf":
+        return values
+    if any(isinstance(v, (list, tuple, np.ndarray)) for v in values):
+        out = np.empty(len(values), dtype=object)  # e.g. a trajectory's shape_m list column
+        out[:] = list(values)
+        return out
+    as_bool = column.map({True: True, False: False, "True": True, "False": False})
+    if as_bool.notna().all():
+        return as_bool.to_numpy(dtype=bool)
+    numbers = pd.to_numeric(column, errors="coerce")
+    if (numbers.notna() | column.isna()).all():
+        return numbers.to_numpy(dtype=float)
+    return np.asarray(["" if pd.isna(v) else str(v) for v in values], dtype=str)
+
+
+def _converged_rows(df: pd.DataFrame, where, unconverged: str):
+    """The rows of a solver's table (a declared ``converged`` column) whose solve converged:
+    a row that did not has no tip position, so it is an error unless the caller drops it."""
+    flags = _extra_values(df["converged"])
+    if flags.dtype != bool:
+        raise _fail("converged", df["converged"].iloc[0], "must hold True or False in every row")
+    if flags.all():
+        return df, where
+    failed = np.flatnonzero(~flags)
+    if unconverged == "error":
+        raise _fail(
+            "converged",
+            False,
+            f"the solve did not converge at {where(failed)} ({failed.size} of {len(df)} rows), "
+            "which therefore have no tip position; pass unconverged='drop' to load the "
+            "converged rows only",
+        )
+    kept = np.flatnonzero(flags)
+    if where.labels is not None:
+        where = _Where(where.noun, where.first, tuple(where.labels[i] for i in kept))
+    else:
+        where = _KeptRows(where, kept)
+    return df.iloc[kept].reset_index(drop=True), where
+
+
 # --- writing -------------------------------------------------------------------------------------
-
-
-def _json_default(x):
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, Path):
-        return str(x)
-    raise TypeError(f"{type(x).__name__} is not JSON serialisable")
-
-
-def _metadata_json(meta: Mapping) -> str:
-    try:
-        return json.dumps(dict(meta), default=_json_default, allow_nan=False)
-    except (TypeError, ValueError) as exc:
-        raise _fail("metadata", dict(meta), f"must be JSON serialisable ({exc})") from None
 
 
 def write_dataset(dataset: Dataset, path, *, units: Mapping[str, str] | None = None) -> Path:
@@ -916,23 +915,16 @@ def write_dataset(dataset: Dataset, path, *, units: Mapping[str, str] | None = N
         raise _fail("dataset", type(dataset).__name__, "must be a softrod Dataset")
     path = check_table_path(path)
     frame = dataset.to_frame(units)
-    meta = _metadata_json(dataset.metadata)
-    with atomic_path(path) as tmp:
-        if path.suffix.lower() == ".csv":
-            with open(tmp, "w", encoding="utf-8", newline="") as fh:
-                if dataset.synthetic:
-                    fh.write(
-                        f"# SYNTHETIC softrod dataset: generated by the model "
-                        f"({dataset.metadata.get('design', '?')}), not measured\n"
-                    )
-                else:
-                    fh.write("# softrod dataset\n")
-                fh.write("# schema: docs/datasets.md; units are in the column names\n")
-                fh.write(f"# metadata: {meta}\n")
-                frame.to_csv(fh, index=False, lineterminator="\n")
-        else:
-            write_parquet_with_metadata(frame, tmp, meta)
-    return path
+    if dataset.synthetic:
+        first = (
+            "SYNTHETIC softrod dataset: generated by the model "
+            f"({dataset.metadata.get('design', '?')}), not measured"
+        )
+    else:
+        first = "softrod dataset"
+    return write_table(
+        frame, path, header=(first, "schema: docs/datasets.md; units are in the column names")
+    )
 
 
 # --- synthetic data ------------------------------------------------------------------------------
@@ -1073,93 +1065,3 @@ def example_dataset_path(name: str) -> Path:
     raise _fail(
         "name", name, f"no bundled example dataset (known: {', '.join(example_datasets())})"
     )
-
-
-# How the bundled example was made; _write_examples() rebuilds it (tests check it still does).
-SPA130_EXAMPLE = {
-    "design": "spa_three_chamber_130mm",
-    "grid_kPa": [0.0, 14.0, 28.0, 42.0, 56.0, 70.0],  # 6 x 6 x 6 = 216 rows
-    "noise_mm": 0.3,
-    "seed": 130,
-    "experiments": [1, 2, 3],
-    "mounting": "hanging",
-    "seconds_per_sample": 5.0,
-}
-
-
-def _spa130_example() -> Dataset:
-    """216 grid points, shuffled (seeded) into three experiments of 72 rows each."""
-    spec = SPA130_EXAMPLE
-    grid = np.asarray(spec["grid_kPa"]) * 1e3
-    p = np.array(np.meshgrid(grid, grid, grid, indexing="ij")).reshape(3, -1).T
-    n_exp = len(spec["experiments"])
-    order = np.random.default_rng(spec["seed"]).permutation(len(p))
-    exp_index = np.empty(len(p), dtype=int)
-    exp_index[order] = np.arange(len(p)) % n_exp
-    rows = np.lexsort((np.arange(len(p)), exp_index))  # by experiment, grid order within
-    p, exp_index = p[rows], exp_index[rows]
-    within = np.concatenate([np.arange(np.sum(exp_index == k)) for k in range(n_exp)])
-    return synthesize_dataset(
-        spec["design"],
-        p,
-        noise_mm=spec["noise_mm"],
-        seed=spec["seed"],
-        experiment=np.asarray(spec["experiments"])[exp_index],
-        mounting=spec["mounting"],
-        time=within * spec["seconds_per_sample"],
-    )
-
-
-# The calibration tutorial's example (docs/calibration.md): paper 002's protocol on its model M3
-# with parameters that differ from Table IV, so that a fit from Table IV has work to do.
-PAPER002_EXAMPLE = {
-    "design": "paper002_M3_vertical",
-    "truth": {"c_b": 1.45, "c_e": 2.6, "alpha": 7.0, "offset_1": 0.5e-3, "offset_2": 1.2e-3},
-    "ramp_kPa": 60.0,  # each experiment ramps to 60 kPa in 60 equilibria
-    "patterns": [[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.6, 0.4, 0]],  # experiments 1-4
-    "noise_mm": 0.2,
-    "seed": 2,
-    "mounting": "hanging",
-}
-
-
-def _paper002_example() -> Dataset:
-    """4 experiments x 60 equilibria of paper002_M3_vertical with the ``truth`` parameters."""
-    from .calibration.params import design_changes, parse_parameters
-
-    spec = PAPER002_EXAMPLE
-    base = load_design(spec["design"])
-    names, values = list(spec["truth"]), list(spec["truth"].values())
-    made = base.replace(design_changes(parse_parameters(names, base), values, base))
-    ramp = spec["ramp_kPa"] * 1e3 * np.arange(1, 61) / 60
-    p = np.vstack([np.outer(ramp, q) for q in spec["patterns"]])
-    n = len(spec["patterns"])
-    ds = synthesize_dataset(
-        made,
-        p,
-        noise_mm=spec["noise_mm"],
-        seed=spec["seed"],
-        experiment=np.repeat(np.arange(1, n + 1), 60),
-        mounting=spec["mounting"],
-    )
-    truth = ", ".join(f"{k} = {v:g}" for k, v in spec["truth"].items())
-    meta = {
-        **ds.metadata,
-        "design": f"{spec['design']} with {truth}",
-        "true_parameters": spec["truth"],
-    }
-    return Dataset(**{**ds.__dict__, "metadata": meta})
-
-
-def _write_examples(folder: str | os.PathLike | None = None) -> list[Path]:
-    """Regenerate the bundled examples: ``python -c "from softrod.datasets import
-    _write_examples; _write_examples()"``."""
-    from .calibration.axial import _write_axial_examples
-
-    folder = Path(folder) if folder is not None else _EXAMPLES_DIR
-    ds = _spa130_example()
-    return [
-        write_dataset(ds, folder / "spa130_synthetic.csv"),
-        write_dataset(_paper002_example(), folder / "paper002_m3_synthetic.csv"),
-        *_write_axial_examples(folder / "axial"),
-    ]

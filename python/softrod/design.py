@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import os
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -41,8 +42,10 @@ _SCHEMA: dict[str, set[str]] = {
         "numerics",
         "dynamics",
         "pcc",
+        "stiffness_map",
     },
-    "design": {"name", "citation", "description", "assumptions"},
+    "design": {"name", "citation", "description", "assumptions", "provenance"},
+    "stiffness_map": {"file", "method", "outside"},
     "mounting": {"orientation", "roll", "base_position", "gravity", "base_rotation"},
     "material": {"E", "poisson", "G", "density", "source", "notes"},
     "section": {
@@ -114,11 +117,6 @@ _ORIENTATIONS = {
 def designs_dir() -> Path:
     """Folder of the bundled design files."""
     return PACKAGE_DIR / "designs"
-
-
-def bundled_designs() -> list[str]:
-    """Names of the bundled designs (usable in ``load_design``)."""
-    return sorted(p.stem for p in designs_dir().glob("*.toml"))
 
 
 def _check_keys(table: Any, kind: str, where: str) -> dict:
@@ -515,7 +513,10 @@ class Design:
     """A validated design (immutable). All numbers are SI.
 
     ``spec`` is the SI description handed to the Rust core; ``document`` the parsed file
-    (units as written). Use :func:`load_design` to make one.
+    (units as written). Use :func:`load_design` to make one, :meth:`save` to write one.
+    Two designs are equal when they describe the same model (name, citation, description,
+    assumptions, the SI spec and the stiffness map file), whatever file they came from and
+    however their units were written.
     """
 
     name: str
@@ -523,9 +524,13 @@ class Design:
     description: str
     assumptions: tuple[str, ...]
     spec: dict
-    document: dict
-    source: Path | None = None
+    document: dict = field(compare=False)
+    source: Path | None = field(default=None, compare=False)
     _rod: Any = field(default=None, repr=False, compare=False)
+    #: The stiffness map the file references (``[stiffness_map] file = ...``), loaded.
+    stiffness_map: Any = field(default=None, repr=False, compare=False)
+    #: The map's file, resolved (part of the design's identity: a design is its contents).
+    stiffness_map_source: Path | None = field(default=None, repr=False)
     # Compiled PCC models by tip loads, built on first use (softrod.pcc.pcc_model).
     _pcc: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -553,6 +558,14 @@ class Design:
         """Compiled section properties (SI): stiffness matrices, line mass, chambers."""
         return self._rod.sections()
 
+    @property
+    def provenance(self) -> dict | None:
+        """``[design.provenance]``: how the design was made (e.g. by ``calibrate``: the
+        dataset, the fitted values with standard errors, the softrod version, the date), or
+        None for a hand-written design."""
+        value = self.document["design"].get("provenance")
+        return None if value is None else copy.deepcopy(value)
+
     def replace(self, changes: Mapping[str, Any]) -> Design:
         """A copy with some document entries changed, e.g.
         ``{"sections[1].c_b": 1.2, "tip.mass": "10 g"}``; validated like a new file."""
@@ -560,6 +573,47 @@ class Design:
         for path, value in changes.items():
             _set_path(doc, path, value)
         return _build(doc, self.source)
+
+    def with_stiffness_map(self, path: str | Path | None) -> Design:
+        """A copy whose ``[stiffness_map]`` references the map file ``path`` (a table CSV or
+        a map saved with :meth:`softrod.StiffnessMap.save` / ``HybridStiffnessModel.save``;
+        a relative path is relative to the current folder), or has none (None)."""
+        doc = copy.deepcopy(self.document)
+        if path is None:
+            doc.pop("stiffness_map", None)
+        else:
+            doc["stiffness_map"] = {"file": str(Path(path).resolve())}
+        return _build(doc, self.source)
+
+    def save(self, path: str | Path) -> Path:
+        """Write the design as a TOML design file, whole or not at all; returns the path.
+
+        The file loads with :func:`softrod.load_design` to an equal design. Every
+        dimensional value carries its unit: the units of the original file as written, and
+        the SI unit for values set as plain numbers (``replace({"tip.mass": 0.01})`` is
+        written ``"0.01 kg"``). A stiffness map file keeps its reference, rewritten relative
+        to the new file's folder.
+        """
+        import tomli_w
+
+        from .errors import InputError
+        from .io import atomic_path
+
+        path = Path(path)
+        if path.suffix.lower() != ".toml":
+            raise design_error("path", str(path), "a design file must end in .toml", InputError)
+        doc = _with_units(_plain(copy.deepcopy(self.document)))
+        if self.stiffness_map_source is not None:
+            target = Path(path).resolve().parent
+            try:
+                rel = Path(os.path.relpath(self.stiffness_map_source, target))
+            except ValueError:  # another drive (Windows)
+                rel = self.stiffness_map_source
+            doc["stiffness_map"]["file"] = rel.as_posix()
+        text = tomli_w.dumps(doc)
+        with atomic_path(path) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+        return path
 
 
 def _set_path(doc: dict, path: str, value: Any) -> None:
@@ -589,6 +643,9 @@ def _build(doc: dict, source: Path | None) -> Design:
     assumptions = meta.get("assumptions", [])
     if not isinstance(assumptions, list) or not all(isinstance(a, str) for a in assumptions):
         raise design_error("design.assumptions", assumptions, "must be a list of strings")
+    if "provenance" in meta and not isinstance(meta["provenance"], Mapping):
+        raise design_error("design.provenance", meta["provenance"], "must be a table")
+    smap, smap_source = _stiffness_map(doc, spec, rod, source)
     return Design(
         name=meta["name"],
         citation=meta["citation"],
@@ -598,15 +655,184 @@ def _build(doc: dict, source: Path | None) -> Design:
         document=doc,
         source=source,
         _rod=rod,
+        stiffness_map=smap,
+        stiffness_map_source=smap_source,
     )
 
 
-def load_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
-    """Load and validate a design.
+def _stiffness_map(doc: Mapping, spec: Mapping, rod, source: Path | None):
+    """The map of ``[stiffness_map]`` (loaded) and its resolved file, or (None, None)."""
+    if "stiffness_map" not in doc:
+        return None, None
+    table = _check_keys(doc["stiffness_map"], "stiffness_map", "stiffness_map")
+    given = _require(table, "file", "stiffness_map")
+    if not isinstance(given, str) or not given.strip():
+        raise design_error("stiffness_map.file", given, "must be a file name (a string)")
+    file = Path(given)
+    if not file.is_absolute():
+        # Relative to the design file's folder, as a reader of the file would expect.
+        file = (source.resolve().parent if source is not None else Path.cwd()) / file
+    options = {k: table[k] for k in ("method", "outside") if k in table}
+    mapped = [
+        s["name"] for s in spec["sections"] if (s.get("law") or {}).get("stiffness_map", False)
+    ]
+    if not mapped:
+        raise design_error(
+            "stiffness_map.file",
+            given,
+            "no section sets [sections.law] stiffness_map = true, so the map would have no "
+            "effect",
+        )
+    from .stiffness_map import load_stiffness_map
 
-    ``design`` is a path to a TOML file, the name of a bundled design (see
-    :func:`bundled_designs`), the name of a preset (see :func:`softrod.list_presets`), a
-    mapping with the same structure as the file, or a Design.
+    try:
+        smap = load_stiffness_map(file, **options)
+    except DesignError as exc:
+        raise design_error(f"stiffness_map.{exc.field or 'file'}", exc.value, exc.rule) from None
+    if smap.n_channels != rod.n_channels:
+        raise design_error(
+            "stiffness_map.file",
+            given,
+            f"the map takes {smap.n_channels} pressure channel(s), the design has "
+            f"{rod.n_channels}",
+        )
+    return smap, file.resolve()
+
+
+# The quantity kind of every dimensional entry of a design document, by table kind and key
+# (Design.save writes a plain number in these with its SI unit).
+_KINDS: dict[str, dict[str, str]] = {
+    "mounting": {"base_position": "length", "roll": "angle", "gravity": "acceleration"},
+    "material": {"E": "pressure", "G": "pressure", "density": "density"},
+    "section": {
+        "length": "length",
+        "outer_radius": "length",
+        "bore_radius": "length",
+        "mass": "mass",
+        "EA": "force",
+        "GA": "force",
+        "EI": "stiffness_bending",
+        "EI1": "stiffness_bending",
+        "EI2": "stiffness_bending",
+        "GJ": "stiffness_bending",
+        "rotary_inertia": "inertia_per_length",
+        "damping_se": "damping_force",
+        "damping_bt": "damping_moment",
+    },
+    "law": {
+        "axial_force": "force",
+        "axial_stiffness": "force",
+        "chamber_offset": "length",
+        "p_ref": "pressure",
+    },
+    "partition": {
+        "E_I": "force",
+        "E_II": "force",
+        "E_III": "force",
+        "r_I": "length",
+        "r_II": "length",
+    },
+    "chamber": {"radius": "length", "area": "area", "distance": "length", "angle": "angle"},
+    "tip": {
+        "mass": "mass",
+        "com_offset": "length",
+        "force": "force",
+        "moment": "moment",
+        "inertia": "inertia",
+    },
+    "dynamics": {
+        "damping_time": "time",
+        "pressure_time_constant": "time",
+        "pressure_rate_limit": "pressure_rate",
+    },
+    "load": {"force_per_length": "force_per_length", "moment_per_length": "force"},
+    "pcc": {
+        "k_L": "force_per_length",
+        "b_L": "damping_linear",
+        "k_theta": "moment",
+        "b_theta": "damping_rotational",
+        "k_phi": "moment",
+        "b_phi": "damping_rotational",
+        "plane": "angle",
+    },
+    "pcc_table": {"angle": "angle", "stiffness": "moment"},
+    "numerics": {"step_length": "length"},
+}
+
+
+def _plain(x):
+    """Python scalars for TOML (numpy floats and ints are not TOML types)."""
+    if isinstance(x, Mapping):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.generic):
+        return x.item()
+    return x
+
+
+def _with_unit(value: Any, kind: str) -> Any:
+    """A plain number (or a list of them) as a string with its SI unit; strings (units as
+    written) and anything else unchanged."""
+    from .units import SI_UNIT
+
+    if isinstance(value, list):
+        return [_with_unit(v, kind) for v in value]
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        unit = "rad" if kind == "angle" else SI_UNIT[kind]
+        return f"{float(value)!r} {unit}"
+    return value
+
+
+def _units_in(table: Mapping, kind: str) -> dict:
+    out = dict(table)
+    for key, k in _KINDS.get(kind, {}).items():
+        if key in out:
+            if kind == "pcc" and key == "k_theta" and isinstance(out[key], Mapping):
+                out[key] = _units_in(out[key], "pcc_table")
+            else:
+                out[key] = _with_unit(out[key], k)
+    return out
+
+
+def _with_units(doc: dict) -> dict:
+    """The document with a unit on every dimensional value (see ``_KINDS``)."""
+    doc = dict(doc)
+    for key in ("mounting", "tip", "dynamics", "pcc", "numerics"):
+        if isinstance(doc.get(key), Mapping):
+            doc[key] = _units_in(doc[key], key)
+    if isinstance(doc.get("materials"), Mapping):
+        doc["materials"] = {
+            name: _units_in(m, "material") if isinstance(m, Mapping) else m
+            for name, m in doc["materials"].items()
+        }
+    if isinstance(doc.get("loads"), list):
+        doc["loads"] = [
+            _units_in(ld, "load") if isinstance(ld, Mapping) else ld for ld in doc["loads"]
+        ]
+    sections = []
+    for sec in doc.get("sections", []):
+        if not isinstance(sec, Mapping):
+            sections.append(sec)
+            continue
+        sec = _units_in(sec, "section")
+        for key, kind in (("law", "law"), ("partition", "partition")):
+            if isinstance(sec.get(key), Mapping):
+                sec[key] = _units_in(sec[key], kind)
+        if isinstance(sec.get("chambers"), list):
+            sec["chambers"] = [
+                _units_in(c, "chamber") if isinstance(c, Mapping) else c for c in sec["chambers"]
+            ]
+        sections.append(sec)
+    if "sections" in doc:
+        doc["sections"] = sections
+    return doc
+
+
+def read_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
+    """Read and validate a design from a TOML file, a mapping with the file's structure, or a
+    Design (returned as is). Names of bundled designs and presets are resolved one level up,
+    by :func:`softrod.load_design` (``softrod.catalog``).
     Raises :class:`DesignError` naming the field, the value and the rule.
     """
     if isinstance(design, Design):
@@ -620,20 +846,6 @@ def load_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
             "must be a path, a bundled design name, a mapping or a Design",
         )
     path = Path(design)
-    if not path.exists() and path.suffix == "" and (designs_dir() / f"{design}.toml").exists():
-        path = designs_dir() / f"{design}.toml"
-    if not path.exists():
-        # Late import: presets build on this module.
-        from .presets import PRESETS
-
-        if str(design) in PRESETS:
-            return PRESETS[str(design)].load()
-        raise design_error(
-            "design",
-            str(design),
-            f"no such file, bundled design or preset (bundled designs: "
-            f"{', '.join(bundled_designs())}; presets: {', '.join(PRESETS)})",
-        )
     try:
         with open(path, "rb") as fh:
             doc = tomllib.load(fh)

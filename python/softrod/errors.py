@@ -22,6 +22,11 @@ class InputError(DesignError):
     """A per-call input (pressures, loads, options) breaks a rule."""
 
 
+class CalibrationWarning(UserWarning):
+    """A calibration result to be read with care (unidentifiable or correlated parameters,
+    samples that did not converge)."""
+
+
 class ConvergenceError(SoftrodError, RuntimeError):
     """A solver did not converge; no shape is returned."""
 

@@ -9,6 +9,8 @@ leaves the old file (if any) untouched.
 from __future__ import annotations
 
 import contextlib
+import json
+import logging
 import os
 import tempfile
 from collections.abc import Iterator
@@ -17,6 +19,8 @@ from pathlib import Path
 from .errors import InputError, design_error
 
 TABLE_SUFFIXES = (".csv", ".parquet")
+
+logger = logging.getLogger(__name__)
 
 
 def check_table_path(path: str | os.PathLike) -> Path:
@@ -72,19 +76,55 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         raise
 
 
-def write_table(df, path: str | os.PathLike) -> Path:
+def _json_default(x):
+    import numpy as np
+
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, Path):
+        return str(x)
+    raise TypeError(f"{type(x).__name__} is not JSON serialisable")
+
+
+def metadata_json(meta) -> str:
+    """The metadata block as one line of standard JSON (numpy scalars and arrays, paths
+    allowed; NaN and infinity are not JSON: an InputError)."""
+    try:
+        return json.dumps(dict(meta), default=_json_default, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise design_error(
+            "metadata", dict(meta), f"must be JSON serialisable ({exc})", InputError
+        ) from None
+
+
+def write_table(df, path: str | os.PathLike, *, header: tuple[str, ...] = ()) -> Path:
     """Write a pandas DataFrame to ``path`` as CSV (``.csv``) or Parquet (``.parquet``).
 
-    The file is written atomically (whole or not at all). Column names should carry their
-    units (``p1_Pa``, ``x_mm``). Raises :class:`InputError` for any other suffix.
-    Returns the path written.
+    The file is written atomically (whole or not at all). Column names carry their units
+    (``p0_kPa``, ``tip_x_mm``; docs/datasets.md). The metadata block
+    ``df.attrs["softrod.metadata"]``, when there is one, goes into a ``# metadata: {...}``
+    comment line of the CSV file (after the free-text ``header`` lines) or into the Parquet
+    entry ``softrod.metadata``, where :func:`softrod.load_dataset` finds it. Raises
+    :class:`InputError` for any other suffix. Returns the path written.
     """
     path = check_table_path(path)
+    meta = df.attrs.get("softrod.metadata")
+    text = None if meta is None else metadata_json(meta)
     with atomic_path(path) as tmp:
         if path.suffix.lower() == ".csv":
-            df.to_csv(tmp, index=False)
+            with open(tmp, "w", encoding="utf-8", newline="") as fh:
+                for line in header:
+                    fh.write(f"# {line}\n")
+                if text is not None:
+                    fh.write(f"# metadata: {text}\n")
+                df.to_csv(fh, index=False, lineterminator="\n")
+        elif text is not None:
+            write_parquet_with_metadata(df, tmp, text)
         else:
             df.to_parquet(tmp, index=False, engine="pyarrow")
+    logger.debug("wrote %s (%d rows, %d columns)", path, len(df), len(df.columns))
     return path
 
 

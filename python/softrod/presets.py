@@ -28,7 +28,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from .design import Design, designs_dir, load_design
+from .design import Design, designs_dir, read_design
 from .errors import DesignError, design_error
 
 PAPER002_TITLE = (
@@ -68,7 +68,7 @@ class Preset:
     def load(self) -> Design:
         """Build the design (a fresh, validated :class:`Design`)."""
         # The bundled file itself, never a same-named file in the working folder.
-        base = load_design(designs_dir() / f"{self.base}.toml")
+        base = read_design(designs_dir() / f"{self.base}.toml")
         names = [s.get("name") for s in base.document["sections"]]
         changes: dict[str, Any] = {}
         for sec, values in self.section_changes.items():

@@ -6,12 +6,14 @@ All inputs and outputs are SI: pressures in Pa (gauge), one per channel.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from .design import Design, load_design
+from .catalog import load_design
+from .design import Design
 from .errors import ConvergenceError, InputError, design_error
+from .solution import BatchSolution, StaticSolution
 from .stiffness_map import StiffnessMap, _check_pressure_rows
 from .units import to_si
 
@@ -46,106 +48,6 @@ class SolverOptions:
             "continuation": self.continuation,
             "max_load_steps": self.max_load_steps,
         }
-
-
-@dataclass(frozen=True)
-class StaticSolution:
-    """A static equilibrium, sampled at every integration node (n nodes).
-
-    s: (n,) reference arc length, m.            section: (n,) section index of each node.
-    position: (n, 3) centreline r, m (world).   rotation: (n, 3, 3) [d1 d2 d3] (world).
-    force: (n, 3) total internal force n, N.    moment: (n, 3) total internal moment m, N m.
-    v: (n, 3) shear/stretch strain (body).      u: (n, 3) curvature/twist, 1/m (body).
-    Forces and moments are the totals of the balance laws (material plus pressure part).
-    stiffness_scale: (3,) sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) applied to the
-    mapped sections (docs/stiffness-map.md); ones when the design has none.
-    """
-
-    design: Design
-    pressures: np.ndarray
-    s: np.ndarray
-    section: np.ndarray
-    position: np.ndarray
-    rotation: np.ndarray
-    force: np.ndarray
-    moment: np.ndarray
-    v: np.ndarray
-    u: np.ndarray
-    converged: bool
-    iterations: int
-    residual: float
-    load_steps: int
-    shooting_unknowns: np.ndarray = field(repr=False)
-    stiffness_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
-
-    @classmethod
-    def failed(cls, design, pressures, exc, n_unknowns: int, **extra) -> StaticSolution:
-        """The result of a solve that did not converge (``check=False``): NaN shape and
-        wrench, ``converged`` False, the iterations and residual of ``exc``."""
-        nan3 = np.full((1, 3), np.nan)
-        return cls(
-            design=design,
-            pressures=np.array(pressures),
-            s=np.array([np.nan]),
-            section=np.array([-1]),
-            position=nan3,
-            rotation=np.full((1, 3, 3), np.nan),
-            force=nan3,
-            moment=nan3,
-            v=nan3,
-            u=nan3,
-            converged=False,
-            iterations=exc.iterations,
-            residual=exc.residual,
-            load_steps=0,
-            shooting_unknowns=np.full(n_unknowns, np.nan),
-            **extra,
-        )
-
-    @property
-    def tip_position(self) -> np.ndarray:
-        """Tip position (end of the last section), m."""
-        return self.position[-1]
-
-    @property
-    def tip_rotation(self) -> np.ndarray:
-        """Tip rotation [d1 d2 d3], world frame."""
-        return self.rotation[-1]
-
-    @property
-    def base_force(self) -> np.ndarray:
-        """Total internal force at the base (the wrench the mount takes), N."""
-        return self.force[0]
-
-    @property
-    def base_moment(self) -> np.ndarray:
-        return self.moment[0]
-
-    @property
-    def strains(self) -> dict[str, np.ndarray]:
-        return {"v": self.v, "u": self.u}
-
-
-@dataclass(frozen=True)
-class BatchSolution:
-    """Results of ``solve_statics_batch``: one row per input row, failed rows kept.
-
-    tip_position (m, 3) m; tip_rotation (m, 3, 3); base_force (m, 3) N; base_moment (m, 3) N m;
-    converged (m,) bool (rows that failed hold NaN); iterations (m,); residual (m,).
-    stiffness_scale (m, 3): sigma of every row when the design has mapped sections
-    (docs/stiffness-map.md), else None. x (m, 3): the solver's scaled unknowns (warm starts).
-    """
-
-    pressures: np.ndarray
-    tip_position: np.ndarray
-    tip_rotation: np.ndarray
-    base_force: np.ndarray
-    base_moment: np.ndarray
-    converged: np.ndarray
-    iterations: np.ndarray
-    residual: np.ndarray
-    stiffness_scale: np.ndarray | None = None
-    x: np.ndarray | None = None
 
 
 def _pressures(design: Design, pressures) -> list[float]:
@@ -197,13 +99,16 @@ def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
     """The map to use, or None for a design without mapped sections."""
     mapped = _mapped_sections(design)
     if stiffness_map is None:
+        if design.stiffness_map is not None:
+            return design.stiffness_map  # the design file's [stiffness_map]
         if mapped:
             raise design_error(
                 "stiffness_map",
                 None,
                 f"section(s) {', '.join(mapped)} of design {design.name!r} set [sections.law] "
                 "stiffness_map = true: pass stiffness_map=, a softrod.StiffnessMap (e.g. "
-                "StiffnessMap.from_table or from_csv; sigma is never assumed to be 1)",
+                "StiffnessMap.from_table or from_csv; sigma is never assumed to be 1), or "
+                'reference a map file in the design ([stiffness_map] file = "sigma.json")',
                 InputError,
             )
         return None
@@ -257,8 +162,10 @@ def solve_statics(
     moment when given; gravity and the tip body always act. ``initial`` warm-starts from a
     previous solution. On non-convergence raises :class:`ConvergenceError`, or with
     ``check=False`` returns a solution with ``converged=False`` and NaN arrays.
-    ``stiffness_map`` (a :class:`StiffnessMap`) is required exactly when a section sets
-    ``[sections.law] stiffness_map = true``; it is evaluated once at ``pressures``.
+    ``stiffness_map`` (a :class:`StiffnessMap`) is needed exactly when a section sets
+    ``[sections.law] stiffness_map = true``; it defaults to the map the design file
+    references (``[stiffness_map] file = ...``, ``design.stiffness_map``), and one given here
+    replaces it. It is evaluated once at ``pressures``.
     """
     design = load_design(design)
     p = _pressures(design, pressures)
@@ -324,6 +231,9 @@ def solve_statics_batch(
     options: SolverOptions | None = None,
     threads: int = 0,
     stiffness_map: StiffnessMap | None = None,
+    executor=None,
+    chunk_size: int | None = None,
+    progress=None,
 ) -> BatchSolution:
     """Solve for every row of an (m, channels) pressure array (Pa) in parallel.
 
@@ -331,6 +241,12 @@ def solve_statics_batch(
     from their neighbour, so sweeps should be ordered. Rows that fail to converge are kept with
     ``converged = False`` and NaN results. ``stiffness_map`` as in :func:`solve_statics`,
     evaluated in one call for all rows.
+
+    executor: a ``distributed.Client``: the rows run on its cluster in chunks of
+    ``chunk_size`` rows (default: the rule in :mod:`softrod.cluster`), each chunk one Rust
+    batch on a worker with ``threads`` cores (0 = the worker's share of its machine), and
+    come back in order (docs/cluster.md). ``progress(done_rows, total_rows)`` is called as
+    chunks finish (with an executor only).
     """
     design = load_design(design)
     arr = np.asarray(pressures, dtype=float)
@@ -348,6 +264,18 @@ def solve_statics_batch(
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
+    from .cluster import check_executor
+
+    if check_executor(executor) is not None:
+        out = _batch_on_cluster(
+            executor, design, arr, tf, tm, sigma, _options(options), threads, chunk_size, progress
+        )
+        meta = _batch_metadata(design, options, tf, tm, smap)
+        return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
+    if chunk_size is not None:
+        raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
+    if progress is not None:
+        raise design_error("progress", progress, "applies with executor= only", InputError)
     out = design._rod.solve_batch(
         np.ascontiguousarray(arr),
         tf,
@@ -356,4 +284,74 @@ def solve_statics_batch(
         stiffness_scale=sigma,
         **_options(options).as_kwargs(),
     )
-    return BatchSolution(pressures=arr, stiffness_scale=sigma, **out)
+    meta = _batch_metadata(design, options, tf, tm, smap)
+    return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
+
+
+def _batch_metadata(design, options, tf, tm, smap) -> dict:
+    """The metadata block of a batch's table (BatchSolution.to_frame)."""
+    from .schema import provenance
+
+    return provenance(
+        "softrod.solve_statics_batch",
+        design,
+        solver=_options(options).as_kwargs(),
+        tip_force_N=tf,
+        tip_moment_Nm=tm,
+        stiffness_map=None if smap is None else repr(smap),
+    )
+
+
+def _batch_chunk(text, pressures, tip_force, tip_moment, sigma, options, threads, per_host):
+    """One chunk of a batch on a worker: the design rebuilt from its TOML text, one Rust
+    batch call."""
+    from .cluster import design_from_text, worker_threads
+
+    design = design_from_text(text)
+    return design._rod.solve_batch(
+        pressures,
+        tip_force,
+        tip_moment,
+        threads=worker_threads(per_host, threads),
+        stiffness_scale=sigma,
+        **options,
+    )
+
+
+def _batch_on_cluster(executor, design, arr, tf, tm, sigma, options, threads, chunk_size, progress):
+    from .cluster import chunk_rows, design_text, run_chunks, task_slots
+
+    if progress is not None and not callable(progress):
+        raise design_error(
+            "progress", progress, "must be callable: progress(done_rows, total_rows)", InputError
+        )
+    m = arr.shape[0]
+    slots, per_host = task_slots(executor)
+    rows = chunk_rows(m, slots, chunk_size)
+    text = design_text(design)
+    bounds = [(lo, min(lo + rows, m)) for lo in range(0, m, rows)]
+    chunks = [
+        (
+            text,
+            np.ascontiguousarray(arr[lo:hi]),
+            tf,
+            tm,
+            None if sigma is None else np.ascontiguousarray(sigma[lo:hi]),
+            options.as_kwargs(),
+            threads,
+            per_host,
+        )
+        for lo, hi in bounds
+    ]
+    parts = run_chunks(
+        executor,
+        _batch_chunk,
+        chunks,
+        sizes=[hi - lo for lo, hi in bounds],
+        progress=progress,
+        name="softrod-batch",
+    )
+    if not parts:  # no rows: the core's empty result
+        return design._rod.solve_batch(arr, tf, tm, threads=1, stiffness_scale=sigma,
+                                       **options.as_kwargs())
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}

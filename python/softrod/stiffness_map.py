@@ -17,9 +17,10 @@ See docs/stiffness-map.md.
 from __future__ import annotations
 
 import csv
+import json
 import math
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -138,6 +139,7 @@ class StiffnessMap:
         "_values",
         "_method",
         "_outside",
+        "_data",
     )
 
     def __init__(self, *, _kind: str, _n_channels: int, _fn: Callable, _describe: str, **table):
@@ -146,7 +148,7 @@ class StiffnessMap:
         object.__setattr__(self, "_n_channels", _n_channels)
         object.__setattr__(self, "_fn", _fn)
         object.__setattr__(self, "_describe", _describe)
-        for key in ("_axes", "_values", "_method", "_outside"):
+        for key in ("_axes", "_values", "_method", "_outside", "_data"):
             object.__setattr__(self, key, table.get(key))
 
     def __setattr__(self, name, value):
@@ -168,6 +170,7 @@ class StiffnessMap:
             _n_channels=n,
             _fn=lambda p: np.tile(s, (p.shape[0], 1)),
             _describe=f"constant sigma=({s[0]:g}, {s[1]:g}, {s[2]:g})",
+            _data={"sigma": s.tolist()},
         )
 
     @classmethod
@@ -233,7 +236,9 @@ class StiffnessMap:
             )
         values.setflags(write=False)
         grid_text = "x".join(str(len(a)) for a in grid)
-        spans = ", ".join(f"p{k} in [{a[0]:g}, {a[-1]:g}] Pa" for k, a in enumerate(grid))
+        spans = ", ".join(
+            f"p{k} in [{a[0] / 1e3:g}, {a[-1] / 1e3:g}] kPa" for k, a in enumerate(grid)
+        )
         if method == "pchip":
             # Tensor-product PCHIP in the Rust core (softrod_core::interp): a few us per row.
             pchip = _core.GridPchip([a.tolist() for a in grid], values.ravel().tolist(), 3)
@@ -474,6 +479,114 @@ class StiffnessMap:
             _describe=f"regressor {names}, pressure_unit={pressure_unit!r}",
         )
 
+    @classmethod
+    def from_networks(cls, networks: Sequence[Mapping[str, Any]]) -> StiffnessMap:
+        """Three neural networks, one per factor (sigma_ext, sigma_bend_x, sigma_bend_y), as
+        plain arrays: the hybrid model of paper 001 (eqs. 23-25) evaluated with numpy, no
+        scikit-learn needed. Each network is a mapping with ``input_mean`` and
+        ``input_scale`` (c,) (pressures in Pa are standardised first), ``weights`` (a list of
+        (n_in, n_out) matrices) and ``biases`` (a list of (n_out,) vectors) of the layers,
+        ``activation`` of the hidden layers ("tanh", "relu" or "logistic"; the output layer
+        is linear), and ``target_mean``, ``target_scale``: sigma = exp(target_mean +
+        target_scale * net(p)) (a standardised log sigma, so sigma > 0 everywhere)."""
+        if isinstance(networks, (str, bytes)) or len(networks) != 3:
+            raise design_error(
+                "networks",
+                f"{len(networks) if hasattr(networks, '__len__') else networks!r}",
+                f"needs three networks, one per factor ({', '.join(SIGMA_NAMES)})",
+                InputError,
+            )
+        nets = [_network(net, f"networks[{k}]") for k, net in enumerate(networks)]
+        n = nets[0]["input_mean"].size
+        for k, net in enumerate(nets):
+            if net["input_mean"].size != n:
+                raise design_error(
+                    f"networks[{k}].input_mean",
+                    f"{net['input_mean'].size} inputs",
+                    f"every network takes the same pressures ({n} channels)",
+                    InputError,
+                )
+
+        def evaluate(p: np.ndarray) -> np.ndarray:
+            return np.column_stack([_forward(net, p) for net in nets])
+
+        layers = "-".join(str(w.shape[0]) for w in nets[0]["weights"]) + "-1"
+        return cls(
+            _kind="mlp",
+            _n_channels=n,
+            _fn=evaluate,
+            _describe=f"networks {layers} {nets[0]['activation']} x 3",
+            _data={"networks": nets},
+        )
+
+    # -- files ----------------------------------------------------------------------------------
+
+    def save(self, path: str | Path, *, metadata: Mapping[str, Any] | None = None) -> Path:
+        """Write the map as a JSON file (whole or not at all); returns the path.
+
+        The format (docs/stiffness-map.md) is plain JSON: ``format``
+        ("softrod.stiffness_map"), ``version`` (:data:`FORMAT_VERSION`), ``kind``
+        ("table", "constant" or "mlp"), ``n_channels``, the numbers (table axes in Pa and
+        sigma values; or sigma; or the networks' arrays), ``metadata``. Floats are written
+        to the shortest decimal that reads back to the same double, so :func:`load_stiffness_map`
+        gives back the same map bit for bit. Maps made from a Python callable or a
+        scikit-learn regressor are code, not data, and cannot be saved (InputError).
+        """
+        from .io import metadata_json
+
+        doc = self._document()
+        doc["metadata"] = json.loads(metadata_json(metadata or {}))
+        return _write_json(doc, path)
+
+    def _document(self) -> dict[str, Any]:
+        """The map as the JSON object of :meth:`save` (without ``metadata``)."""
+        if self._kind not in ("table", "constant", "mlp"):
+            raise design_error(
+                "stiffness_map",
+                repr(self),
+                f"a {self._kind} map is Python code, not data, and cannot be saved: build it "
+                "with from_table, from_csv, constant or from_networks (HybridStiffnessModel's "
+                "stiffness_map is saveable)",
+                InputError,
+            )
+        doc: dict[str, Any] = {
+            "format": FORMAT,
+            "version": FORMAT_VERSION,
+            "kind": self._kind,
+            "n_channels": self._n_channels,
+            "pressure_unit": "Pa",
+        }
+        if self._kind == "table":
+            doc.update(
+                axes=[a.tolist() for a in self._axes],
+                sigma=self._values.tolist(),
+                method=self._method,
+                outside=self._outside,
+            )
+        elif self._kind == "constant":
+            doc["sigma"] = list(self._data["sigma"])
+        else:
+            doc["networks"] = [
+                {
+                    "factor": name,
+                    "input_mean": net["input_mean"].tolist(),
+                    "input_scale": net["input_scale"].tolist(),
+                    "weights": [w.tolist() for w in net["weights"]],
+                    "biases": [b.tolist() for b in net["biases"]],
+                    "activation": net["activation"],
+                    "target_mean": net["target_mean"],
+                    "target_scale": net["target_scale"],
+                }
+                for name, net in zip(SIGMA_NAMES, self._data["networks"], strict=True)
+            ]
+        return doc
+
+    @classmethod
+    def load(cls, path: str | Path, **options) -> StiffnessMap:
+        """Read a map file: the JSON of :meth:`save` or a table CSV (:meth:`from_csv`,
+        which takes ``method`` and ``outside``). Same as :func:`load_stiffness_map`."""
+        return load_stiffness_map(path, **options)
+
     # -- use ------------------------------------------------------------------------------------
 
     @property
@@ -483,7 +596,7 @@ class StiffnessMap:
 
     @property
     def kind(self) -> str:
-        """ "table", "callable", "regressor" or "constant"."""
+        """ "table", "constant", "mlp" (networks as arrays), "callable" or "regressor"."""
         return self._kind
 
     @property
@@ -615,3 +728,216 @@ def _check_output(sigma: Any, p: np.ndarray) -> np.ndarray:
             InputError,
         )
     return s
+
+
+# -- saved maps ---------------------------------------------------------------------------------
+
+FORMAT = "softrod.stiffness_map"
+#: Version of the JSON layout written by :meth:`StiffnessMap.save`. A file of a newer version
+#: is an error that says to upgrade softrod, never a guess.
+FORMAT_VERSION = 1
+_ACTIVATIONS = {
+    "tanh": np.tanh,
+    "relu": lambda x: np.maximum(x, 0.0),
+    "logistic": lambda x: 1.0 / (1.0 + np.exp(-x)),
+}
+
+
+def _vector(value: Any, field: str) -> np.ndarray:
+    a = _float_array(value, field, type(value).__name__, "must be an array of numbers")
+    if a.ndim != 1 or not np.all(np.isfinite(a)):
+        raise design_error(field, f"shape {a.shape}", "must be a finite 1-D array", InputError)
+    return a
+
+
+def _network(net: Any, where: str) -> dict:
+    """A network's arrays, checked: shapes that chain, finite numbers, positive scales."""
+    if not isinstance(net, Mapping):
+        raise design_error(where, type(net).__name__, "must be a mapping of arrays", InputError)
+    keys = (
+        "input_mean",
+        "input_scale",
+        "weights",
+        "biases",
+        "activation",
+        "target_mean",
+        "target_scale",
+    )
+    missing = [k for k in keys if k not in net]
+    if missing:
+        raise design_error(where, sorted(net), f"missing {', '.join(missing)}", InputError)
+    mean = _vector(net["input_mean"], f"{where}.input_mean")
+    scale = _vector(net["input_scale"], f"{where}.input_scale")
+    if scale.shape != mean.shape or not np.all(scale > 0):
+        raise design_error(
+            f"{where}.input_scale", scale.tolist(), "must be > 0, one per input", InputError
+        )
+    weights, biases = net["weights"], net["biases"]
+    if not isinstance(weights, (list, tuple)) or not isinstance(biases, (list, tuple)):
+        raise design_error(
+            f"{where}.weights", type(weights).__name__, "must be a list", InputError
+        )
+    if len(weights) != len(biases) or len(weights) < 1:
+        raise design_error(
+            f"{where}.weights",
+            f"{len(weights)} layers",
+            "one bias per layer, at least one layer",
+            InputError,
+        )
+    ws, bs = [], []
+    n_in = mean.size
+    for i, (w, b) in enumerate(zip(weights, biases, strict=True)):
+        w = _float_array(w, f"{where}.weights[{i}]", type(w).__name__, "must be a matrix")
+        b = _vector(b, f"{where}.biases[{i}]")
+        if w.ndim != 2 or w.shape[0] != n_in or w.shape[1] != b.size or not np.isfinite(w).all():
+            raise design_error(
+                f"{where}.weights[{i}]",
+                f"shape {w.shape}",
+                f"must be a finite ({n_in}, {b.size}) matrix (layer inputs x outputs)",
+                InputError,
+            )
+        ws.append(w)
+        bs.append(b)
+        n_in = b.size
+    if n_in != 1:
+        raise design_error(
+            f"{where}.biases[-1]", n_in, "the output layer has one neuron", InputError
+        )
+    activation = net["activation"]
+    if activation not in _ACTIVATIONS:
+        raise design_error(
+            f"{where}.activation",
+            activation,
+            f"must be one of {', '.join(_ACTIVATIONS)}",
+            InputError,
+        )
+    target = []
+    for key in ("target_mean", "target_scale"):
+        v = net[key]
+        number = isinstance(v, (int, float, np.floating)) and not isinstance(v, bool)
+        if not number or not math.isfinite(v):
+            raise design_error(f"{where}.{key}", v, "must be a finite number", InputError)
+        target.append(float(v))
+    if not target[1] > 0:
+        raise design_error(f"{where}.target_scale", target[1], "must be > 0", InputError)
+    for a in (mean, scale, *ws, *bs):
+        a.setflags(write=False)
+    return {
+        "input_mean": mean,
+        "input_scale": scale,
+        "weights": ws,
+        "biases": bs,
+        "activation": activation,
+        "target_mean": target[0],
+        "target_scale": target[1],
+    }
+
+
+def _forward(net: dict, p: np.ndarray) -> np.ndarray:
+    """sigma_k at pressures p (m, c) Pa: standardise, hidden layers, linear output, then
+    undo the target's standardisation and the log. The same operations, in the same order,
+    as scikit-learn's StandardScaler, MLPRegressor and TransformedTargetRegressor."""
+    x = (p - net["input_mean"]) / net["input_scale"]
+    act = _ACTIVATIONS[net["activation"]]
+    last = len(net["weights"]) - 1
+    for i, (w, b) in enumerate(zip(net["weights"], net["biases"], strict=True)):
+        x = x @ w + b
+        if i < last:
+            x = act(x)
+    return np.exp(x[:, 0] * net["target_scale"] + net["target_mean"])
+
+
+def _write_json(doc: dict, path: str | Path) -> Path:
+    """Write a map document (``.json``) atomically; floats as their shortest round-trip
+    decimals, so reading gives the same doubles."""
+    from .io import atomic_path
+
+    path = Path(path)
+    if path.suffix.lower() != ".json":
+        raise design_error("path", str(path), "a stiffness map file must end in .json", InputError)
+    text = json.dumps(doc, allow_nan=False)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text + "\n", encoding="utf-8")
+    return path
+
+
+def read_map_document(path: str | Path) -> dict:
+    """The JSON object of a saved map, its format and version checked."""
+    path = Path(path)
+    if path.suffix.lower() != ".json":
+        raise design_error("path", str(path), "a saved map file ends in .json", InputError)
+    if not path.is_file():
+        raise design_error("path", str(path), "no such file", InputError)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise design_error("path", str(path), f"is not valid JSON ({exc})", InputError) from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise design_error(
+            "format",
+            doc.get("format") if isinstance(doc, dict) else type(doc).__name__,
+            f"{path.name} is not a softrod stiffness map (format {FORMAT!r})",
+            InputError,
+        )
+    version = doc.get("version")
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise design_error("version", version, "must be an integer >= 1", InputError)
+    if version > FORMAT_VERSION:
+        raise design_error(
+            "version",
+            version,
+            f"{path.name} was written by a newer softrod (stiffness map format {version}; this "
+            f"softrod reads up to {FORMAT_VERSION}): upgrade softrod to read it",
+            InputError,
+        )
+    return doc
+
+
+def map_from_document(doc: dict, name: str) -> StiffnessMap:
+    """The StiffnessMap of a saved map's JSON object (see :func:`read_map_document`)."""
+    kind = doc.get("kind")
+    if kind == "table":
+        m = StiffnessMap.from_table(
+            doc.get("axes"),
+            doc.get("sigma"),
+            method=doc.get("method", "pchip"),
+            outside=doc.get("outside", "raise"),
+        )
+    elif kind == "constant":
+        m = StiffnessMap.constant(doc.get("sigma"), doc.get("n_channels"))
+    elif kind == "mlp":
+        m = StiffnessMap.from_networks(doc.get("networks") or [])
+    else:
+        raise design_error("kind", kind, "must be 'table', 'constant' or 'mlp'", InputError)
+    if doc.get("n_channels") != m.n_channels:
+        raise design_error(
+            "n_channels",
+            doc.get("n_channels"),
+            f"disagrees with the map ({m.n_channels})",
+            InputError,
+        )
+    object.__setattr__(m, "_describe", f"{m._describe}, from {name}")
+    return m
+
+
+def load_stiffness_map(path: str | Path, **options) -> StiffnessMap:
+    """A stiffness map from a file: the JSON written by :meth:`StiffnessMap.save` (also by
+    ``HybridStiffnessModel.save``) or a table CSV (:meth:`StiffnessMap.from_csv`; ``options``
+    ``method`` and ``outside`` apply to CSV tables only). A JSON file of a newer format
+    version, or not a softrod map at all, is an InputError that says so."""
+    path = Path(path)
+    if path.suffix.lower() == ".csv":
+        return StiffnessMap.from_csv(path, **options)
+    if path.suffix.lower() != ".json":
+        raise design_error(
+            "path",
+            str(path),
+            "a stiffness map file ends in .json (saved) or .csv (a table)",
+            InputError,
+        )
+    if options:
+        key = sorted(options)[0]
+        raise design_error(
+            key, options[key], "applies to CSV tables; a saved map keeps its own", InputError
+        )
+    return map_from_document(read_map_document(path), path.name)

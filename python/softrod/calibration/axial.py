@@ -45,18 +45,20 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._threads import one_blas_thread
+from ..catalog import load_design
 from ..datasets import (
     _checked_metadata,
     _fail,
-    _metadata_json,
     _read_csv,
     _runs,
     _unit_factor,
     _Where,
 )
-from ..design import PACKAGE_DIR, Design, load_design
+from ..design import PACKAGE_DIR, Design
 from ..errors import InputError
 from ..io import atomic_path
+from ..io import metadata_json as _metadata_json
 from ..units import to_si
 
 __all__ = [
@@ -265,6 +267,9 @@ def _read_table(source, value: str, n_chambers: int, extra: str, rtol: float):
         where = _Where("index", labels=tuple(source.index))
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
+        bundled = _EXAMPLES_DIR / f"{source}.csv"
+        if path.suffix == "" and not path.exists() and bundled.is_file():
+            path = bundled  # a bundled example by name, e.g. modular_axial_force_synthetic
         if path.suffix.lower() != ".csv":
             raise _fail("path", str(path), "must be a .csv file (or pass a DataFrame)")
         if not path.is_file():
@@ -789,6 +794,7 @@ class AxialIdentification:
         )
 
 
+@one_blas_thread
 def identify_axial(
     data: AxialData, *, force_law: str = "proportional", stiffness: str = "constant"
 ) -> AxialIdentification:
@@ -878,6 +884,7 @@ def identify_axial(
     )
 
 
+@one_blas_thread
 def calibrate_axial(
     force,
     length,
@@ -996,7 +1003,7 @@ def synthesize_axial_data(
 # --- bundled example -------------------------------------------------------------------------
 
 # How the bundled example was made (paper 004's actuator, Sec. 3.1 and Table 1);
-# softrod.datasets._write_examples() rebuilds it, and a test checks it still does.
+# softrod._examples.write_examples() rebuilds it, and a test checks it still does.
 AXIAL_EXAMPLE = {
     "E_N": 200.0,  # Sec. 4.1 / Table 3
     "force_at_96kPa_N": 33.0,  # Sec. 3.1, three chambers
@@ -1028,7 +1035,7 @@ def axial_example_paths() -> tuple[Path, Path]:
 
 
 def _write_axial_examples(folder: str | os.PathLike | None = None) -> list[Path]:
-    """Regenerate the bundled axial example (called by softrod.datasets._write_examples)."""
+    """Regenerate the bundled axial example (called by softrod._examples.write_examples)."""
     folder = Path(folder) if folder is not None else _EXAMPLES_DIR
     folder.mkdir(exist_ok=True)
     names = AXIAL_EXAMPLE["files"]

@@ -26,11 +26,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._threads import one_blas_thread
+from ..catalog import load_design
 from ..datasets import Dataset, load_dataset
-from ..design import Design, load_design
+from ..design import Design
 from ..dynamics import PressureSchedule, Trajectory, simulate
-from ..errors import ConvergenceError, InputError
-from .fit import CalibrationWarning
+from ..errors import CalibrationWarning, ConvergenceError, InputError
 from .params import Parameter, design_changes, parse_parameters
 
 __all__ = [
@@ -110,6 +111,7 @@ def _experiments(dataset: Dataset) -> list[np.ndarray]:
     return out
 
 
+@one_blas_thread
 def calibrate_dynamics(
     design,
     dataset,
@@ -167,7 +169,7 @@ def calibrate_dynamics(
             "are not separately identifiable (paper 000 Sec. II-G)"
         )
     for w in found:
-        warnings.warn(w, CalibrationWarning, stacklevel=2)
+        warnings.warn(w, CalibrationWarning, stacklevel=3)  # past the BLAS-thread wrapper
     if isinstance(max_evaluations, bool) or not isinstance(max_evaluations, int):
         raise _fail("max_evaluations", max_evaluations, "must be an integer >= 1")
     if max_evaluations < 1:

@@ -15,6 +15,7 @@ covariance s^2 (J^T J)^-1 with s^2 = SSR / (n - P)).
 from __future__ import annotations
 
 import json
+import logging
 import math
 import time
 import warnings
@@ -25,34 +26,54 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._threads import one_blas_thread
+from ..catalog import load_design
 from ..datasets import Dataset, load_dataset
-from ..design import Design, load_design
-from ..errors import ConvergenceError, DesignError, InputError
-from ..io import atomic_path
+from ..design import Design
+from ..errors import CalibrationWarning, ConvergenceError, DesignError, InputError
+from ..progress import reporter
+from ..schema import DISPLAY_UNITS, display
 from ..statics import SolverOptions, _options
 from ..units import number, to_si
 from .metrics import tip_error_table
 from .params import SIGMA_KINDS, Parameter, design_changes, parse_parameters
 
+logger = logging.getLogger(__name__)
+
+
+def _evaluations(evaluations: int, rms_mm: float) -> tuple[float, str]:
+    """A progress bar's position and text for calibrate's progress(evaluations, rms_mm)."""
+    return evaluations, f"{evaluations} evaluations, RMS tip error {rms_mm:.3g} mm"
+
+
+def warning_thresholds() -> str:
+    """The rules behind the calibration warnings, as reports and the CLI state them."""
+    return (
+        f"warnings when a relative standard error exceeds {100 * POOR_RELATIVE_ERROR:g} %, a "
+        f"correlation |r| exceeds {STRONG_CORRELATION:g} or the singular values of the scaled "
+        f"Jacobian span more than {UNIDENTIFIABLE_CONDITION:.0e}"
+    )
+
+
 #: Residual scale: residuals are in mm so that the cost is O(1) for scipy's tolerances.
 _MM = 1e-3
-#: Correlation above which a pair of parameters is reported as strongly correlated.
-STRONG_CORRELATION = 0.95
+#: |r| above which a pair of parameters is reported as strongly correlated: at |r| = 0.9 the
+#: data pin down one combination of the pair about 2.3 times (1 / sqrt(1 - r^2)) better than
+#: either parameter alone, and each standard error is that much larger than it would be with
+#: the other parameter fixed.
+STRONG_CORRELATION = 0.9
 #: Condition number of the column-scaled Jacobian above which the fit is reported as not
 #: identifiable: a relative change of 1e-6 in the best-determined combination moves the
 #: tips as much as a change of 1 in the worst.
 UNIDENTIFIABLE_CONDITION = 1e6
-#: A parameter whose standard error exceeds this fraction of its value is reported.
-POOR_RELATIVE_ERROR = 0.5
+#: A parameter whose standard error exceeds this fraction of its value is reported as poorly
+#: determined: at 20 % its 95 % interval spans +-40 % of the value, too wide to compare
+#: actuators or to publish the value as a material property.
+POOR_RELATIVE_ERROR = 0.2
 #: Penalty residual (mm) of a sample whose solve fails at a trial point, so that the
 #: optimiser steps back instead of stopping on a NaN.
 _FAILED_RESIDUAL_MM = 1e3
 _ORIENTATIONS = ("hanging", "upright", "horizontal")
-
-
-class CalibrationWarning(UserWarning):
-    """A calibration result to be read with care (unidentifiable or correlated parameters,
-    samples that did not converge)."""
 
 
 def _fail(field_: str, value, rule: str) -> InputError:
@@ -189,13 +210,16 @@ class _Model:
         changes = design_changes(self.params, theta, self.design)
         return [self.design.replace({**changes, **g}) for g, _ in self.groups]
 
-    def sigma(self, theta, n: int) -> np.ndarray | None:
+    def sigma(self, theta, idx: np.ndarray) -> np.ndarray | None:
+        """sigma of the rows ``idx``: the fitted constant one, the design's stiffness map
+        (``[stiffness_map] file``), or None (no mapped sections)."""
         if not self.sigma_index:
-            return None
+            smap = self.design.stiffness_map
+            return None if smap is None else np.ascontiguousarray(smap(self.p[idx]))
         s = np.ones(3)
         for j, k in self.sigma_index.items():
             s[k] = theta[j]
-        return np.tile(s, (n, 1))
+        return np.tile(s, (idx.size, 1))
 
     def __call__(self, theta, jacobian: bool, rows=None):
         """(tip (m, 3), d tip / d theta (m, 3, P) or None, converged (m,)) for ``rows``."""
@@ -218,7 +242,7 @@ class _Model:
             tip_f = d.spec["tip"]["force"]
             tip_m = d.spec["tip"]["moment"]
             kw = dict(
-                stiffness_scale=self.sigma(theta, idx.size),
+                stiffness_scale=self.sigma(theta, idx),
                 threads=self.threads,
                 **self.opts,
             )
@@ -275,6 +299,9 @@ class CalibrationResult:
     error_table: pd.DataFrame
     elapsed_s: float
     reference: np.ndarray = field(repr=False)
+    #: One row per start (start and final values, cost in mm^2, success, evaluations)
+    #: when ``restarts`` > 0, else None.
+    starts: pd.DataFrame | None = field(default=None, repr=False)
 
     @property
     def names(self) -> list[str]:
@@ -331,21 +358,28 @@ class CalibrationResult:
         for p, v0, v, s in zip(
             self.parameters, self.initial, self.values, self.std_errors, strict=True
         ):
-            unit = "" if p.unit == "1" else f" {p.unit}"
-            lines.append(f"  {p.name:<16} {v0:>12.6g} -> {v:>12.6g} +- {s:.3g}{unit}")
+            (v0, unit), (v, _), (s, _) = (display(x, p.unit) for x in (v0, v, s))
+            unit = f" {unit}" if unit else ""
+            rel = abs(s / v) if v != 0 and math.isfinite(s) else math.nan
+            rel_text = f" ({100 * rel:.3g} %)" if math.isfinite(rel) else ""
+            lines.append(f"  {p.name:<16} {v0:>12.6g} -> {v:>12.6g} +- {s:.3g}{unit}{rel_text}")
         cols = ["set", "n", "failed", "mean_error_mm", "median_error_mm", "max_error_mm"]
         lines.append(self.error_table[cols].to_string(index=False, float_format="%.3f"))
         lines += [f"  warning: {w}" for w in self.warnings]
+        if not self.warnings:
+            lines.append(f"  no warnings ({warning_thresholds()})")
         return "\n".join(lines)
 
     def __str__(self) -> str:
         return self.summary()
 
     def to_toml(self, path) -> Path:
-        """Write the calibrated design as a TOML design file (whole or not at all). The
-        fitted values and their standard errors are recorded in ``[design].assumptions``."""
-        import tomli_w
-
+        """Write the calibrated design as a TOML design file (whole or not at all), with
+        :meth:`Design.save`. Its name is the calibrated design's (``<name>_calibrated`` or
+        the ``name`` given to :func:`calibrate`); ``[design.provenance]`` records the
+        dataset, the fitted values with standard errors (SI, with their unit), the method,
+        the softrod version and the date, and ``[design].assumptions`` says the same in a
+        sentence."""
         if self.stiffness_scale is not None:
             raise _fail(
                 "params",
@@ -353,13 +387,49 @@ class CalibrationResult:
                 "sigma factors are per-solve, not part of a design; use result.stiffness_map "
                 "with result.design, or fit c_e and c_b instead",
             )
-        path = Path(path)
-        if path.suffix.lower() != ".toml":
-            raise _fail("path", str(path), "a design file must end in .toml")
-        text = tomli_w.dumps(_plain(self.design.document))
-        with atomic_path(path) as tmp:
-            tmp.write_text(text, encoding="utf-8")
-        return path
+        return self.design.save(path)
+
+    def to_frame(self, units=None) -> pd.DataFrame:
+        """The predictions, one row per sample, in the dataset schema (docs/datasets.md):
+        the measured sample (``p0_kPa`` ..., ``tip_x_mm`` ..., and the dataset's other
+        columns), then ``set`` (train or test), ``converged``, the calibrated model's tip
+        ``model_tip_x_mm`` ... (empty where its solve failed) and ``error_mm`` (Euclidean
+        distance measured - model). The metadata block names the calibrated and the initial
+        design, the dataset, the fitted values with standard errors and the softrod
+        version; ``load_dataset`` reads the table back."""
+        from ..schema import Extra, schema_frame
+
+        ds = self.dataset
+        predicted = np.where(self.converged[:, None], self.predicted, np.nan)
+        extras = [
+            Extra("set", self.labels, "train or test"),
+            Extra("converged", self.converged, "the calibrated model's solve converged"),
+        ]
+        extras += [
+            Extra(f"model_tip_{a}", predicted[:, i], "calibrated model's tip", "length")
+            for i, a in enumerate("xyz")
+        ]
+        error = np.linalg.norm(ds.tip_position - predicted, axis=1)
+        extras.append(Extra("error", error, "|measured - model tip|", "length"))
+        meta = {
+            "generator": "softrod.calibrate",
+            "synthetic": ds.synthetic,  # the tip columns are the dataset's
+            **(self.design.provenance or {}),
+            "design": self.design.name,
+        }
+        return schema_frame(
+            pressures=ds.pressures,
+            tip_position=ds.tip_position,
+            tip_rotation=ds.tip_rotation,
+            base_force=ds.base_force,
+            base_moment=ds.base_moment,
+            time=ds.time,
+            experiment=ds.experiment,
+            mounting=ds.mounting,
+            extras=extras,
+            units=units,
+            metadata=meta,
+        )
 
     def write_report(self, path) -> Path:
         """An HTML report: parameters, correlations, error tables and figures."""
@@ -381,7 +451,7 @@ class CalibrationResult:
                 "status": self.message,
                 "time": f"{self.elapsed_s:.2f} s",
             },
-            parameter_table=self.parameter_table(),
+            parameter_table=_display_table(self.parameter_table()),
             error_table=self.error_table,
             measured=self.dataset.tip_position,
             predicted=self.predicted,
@@ -393,7 +463,23 @@ class CalibrationResult:
             length=d.length,
             axis=_axis(d) if len(set(self._mountings())) <= 1 else None,
             base_position=_base_position(d) if len(set(self._mountings())) <= 1 else None,
+            warning_rules=warning_thresholds(),
         )
+
+
+def _display_table(table: pd.DataFrame) -> pd.DataFrame:
+    """The parameter table in display units (offsets in mm, E in kPa; docs: one unit per
+    quantity kind wherever people read it)."""
+    out = table.copy()
+    factors, units = [], []
+    for unit in table["unit"]:
+        shown = DISPLAY_UNITS.get(unit, (unit, 1.0))
+        units.append(shown[0] or "1")
+        factors.append(shown[1])
+    for col in ("initial", "value", "std_error"):
+        out[col] = table[col].to_numpy() * np.asarray(factors)
+    out["unit"] = units
+    return out
 
 
 def _axis(design: Design) -> np.ndarray:
@@ -468,17 +554,221 @@ def _diagnostics(params, values, jac, ssr, n_res):
             if abs(corr[a, b]) > STRONG_CORRELATION:
                 found.append(
                     f"{params[a].name} and {params[b].name} are strongly correlated "
-                    f"(r = {corr[a, b]:+.3f}): the data determine mainly a combination"
+                    f"(r = {corr[a, b]:+.3f}, |r| > {STRONG_CORRELATION:g}): the data "
+                    "determine mainly a combination"
                 )
+    # Offsets may be 0, so a relative error means nothing for them: correlations judge them.
     for p, v, s in zip(params, values, std, strict=True):
         if p.positive and s > POOR_RELATIVE_ERROR * abs(v):
-            found.append(f"{p.name} is poorly determined (standard error {s:.3g} on {v:.3g})")
+            (vd, unit), (sd, _) = display(v, p.unit), display(s, p.unit)
+            unit = f" {unit}" if unit else ""
+            found.append(
+                f"{p.name} is poorly determined: standard error {sd:.3g}{unit} on {vd:.3g}{unit} "
+                f"({100 * s / abs(v):.3g} % > {100 * POOR_RELATIVE_ERROR:g} %)"
+            )
     return cov, std, corr, found
+
+
+# --- one fit from one start, and restarts -----------------------------------------------------
+
+#: Restarts of a positive parameter without bounds start within this factor of the design's
+#: value (log-uniformly in [v / RESTART_SPREAD, v * RESTART_SPREAD]).
+RESTART_SPREAD = 3.0
+
+
+@dataclass(frozen=True)
+class _FitSetup:
+    """Everything one fit needs except the design (which travels as TOML text)."""
+
+    dataset: Dataset
+    params: tuple[Parameter, ...]
+    groups: list
+    train: np.ndarray
+    options: SolverOptions | None
+    lo: np.ndarray
+    hi: np.ndarray
+    user_bounds: bool
+    method: str
+    max_evaluations: int
+
+
+def _optimise(design: Design, setup: _FitSetup, theta_start, threads: int, progress) -> dict:
+    """One fit of ``setup`` from ``theta_start``: the optimiser's best point u (log theta for
+    positive parameters), its cost 0.5 sum r^2 (mm^2), success, message, method and model
+    evaluations."""
+    from scipy.optimize import least_squares, minimize
+
+    params, train, lo, hi = list(setup.params), setup.train, setup.lo, setup.hi
+    dataset = setup.dataset
+    model = _Model(design, dataset, params, setup.groups, train, setup.options, threads)
+    measured = dataset.tip_position
+    positive = np.array([p.positive for p in params])
+
+    # Optimisation variable u: log(theta) for positive parameters, theta otherwise.
+    def theta_of(u):
+        return np.where(positive, np.exp(np.where(positive, u, 0.0)), u)
+
+    theta_start = np.asarray(theta_start, dtype=float)
+    u0 = np.where(positive, np.log(np.where(positive, theta_start, 1.0)), theta_start)
+
+    def residual(tip, ok):
+        r = (tip[train] - measured[train]) / _MM
+        r[~ok[train]] = _FAILED_RESIDUAL_MM
+        return r.ravel()
+
+    cache: dict = {}
+
+    def evaluate(u, jacobian):
+        key = u.tobytes()
+        if key in cache and (cache[key][1] is not None or not jacobian):
+            return cache[key]
+        theta = theta_of(u)
+        if np.all((theta >= lo) & (theta <= hi)):
+            tip, jac, ok = model(theta, jacobian)
+        else:
+            # Outside the sanity box (default 1e-3 to 1e3 times the design's values): a
+            # failed point, so that an unidentifiable direction cannot run off to 1e150.
+            tip, ok = np.full((len(dataset), 3), np.nan), np.zeros(len(dataset), dtype=bool)
+            jac = np.zeros((len(dataset), 3, len(params))) if jacobian else None
+        r = residual(tip, ok)
+        cache.clear()
+        cache[key] = (r, jac, ok)
+        if progress is not None:
+            progress(model.evaluations, float(np.sqrt(np.mean(r.reshape(-1, 3) ** 2) * 3)))
+        return cache[key]
+
+    def jac_u(u):
+        r, jac, ok = evaluate(u, True)
+        j = jac[train] / _MM
+        j[~ok[train]] = 0.0
+        # d/du = theta d/dtheta for the log-transformed parameters
+        return (j * np.where(positive, theta_of(u), 1.0)).reshape(-1, len(params))
+
+    ulo = np.where(positive, np.log(np.where(positive, lo, 1.0)), lo)
+    uhi = np.where(positive, np.log(np.where(positive, hi, 1.0)), hi)
+    if setup.method == "lm":
+        use_bounds = setup.user_bounds
+        sol = least_squares(
+            lambda u: evaluate(u, True)[0],
+            u0,
+            jac=jac_u,
+            method="trf" if use_bounds else "lm",
+            bounds=(ulo, uhi) if use_bounds else (-np.inf, np.inf),
+            x_scale=1.0,
+            xtol=1e-10,
+            ftol=1e-10,
+            gtol=1e-10,
+            max_nfev=setup.max_evaluations,
+        )
+        method_used = "lm (MINPACK)" if not use_bounds else "trf (bounded, exact Jacobian)"
+        cost = float(sol.cost)
+    else:
+        sol = minimize(
+            lambda u: 0.5 * float(np.sum(evaluate(u, False)[0] ** 2)),
+            u0,
+            method="Nelder-Mead",
+            bounds=list(zip(ulo, uhi, strict=True)) if setup.user_bounds else None,
+            options={"maxfev": setup.max_evaluations, "xatol": 1e-8, "fatol": 1e-10},
+        )
+        method_used = "nelder-mead"
+        cost = float(sol.fun)
+    return {
+        "start": theta_start,
+        "u": np.asarray(sol.x, dtype=float),
+        "values": theta_of(np.asarray(sol.x, dtype=float)),
+        "cost": cost,
+        "success": bool(sol.success),
+        "message": str(sol.message),
+        "method": method_used,
+        "evaluations": model.evaluations,
+    }
+
+
+def _start_points(params, theta0, lo, hi, bounded, restarts, seed) -> np.ndarray:
+    """The design's values, then ``restarts`` points drawn with ``seed``: uniformly within a
+    parameter's bounds (log-uniformly for positive ones), or, for a positive parameter
+    without bounds, log-uniformly within RESTART_SPREAD of its value."""
+    if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 0:
+        raise _fail("restarts", restarts, "must be an integer >= 0 (extra starting points)")
+    if restarts == 0:
+        return theta0[None, :]
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise _fail("seed", seed, "must be an integer >= 0 (it makes the restarts repeatable)")
+    for p, b in zip(params, bounded, strict=True):
+        if not (b or p.positive):
+            raise _fail(
+                "restarts",
+                restarts,
+                f"{p.name} can be negative: give its bounds so that restarts know where to "
+                "start (bounds={'" + p.name + "': (lower, upper)})",
+            )
+    positive = np.array([p.positive for p in params])
+    a = np.where(bounded, lo, theta0 / RESTART_SPREAD)
+    b = np.where(bounded, hi, theta0 * RESTART_SPREAD)
+    rng = np.random.default_rng(seed)
+    x = rng.random((int(restarts), len(params)))
+    log_a = np.log(np.where(positive, a, 1.0))
+    log_b = np.log(np.where(positive, b, 1.0))
+    drawn = np.where(positive, np.exp(log_a + x * (log_b - log_a)), a + x * (b - a))
+    return np.vstack([theta0[None, :], drawn])
+
+
+def _run_starts(design, setup, starts, threads, progress, executor) -> list[dict]:
+    """One fit per start, in process or on a Dask cluster; in the order of ``starts``."""
+    from ..cluster import check_executor
+
+    if check_executor(executor) is None:
+        return [_optimise(design, setup, start, threads, progress) for start in starts]
+    from ..cluster import design_text, run_chunks, task_slots
+
+    _, per_host = task_slots(executor)
+    text = design_text(design)
+    report = None
+    if progress is not None:
+
+        def report(done, total):
+            progress(done, float("nan"))
+
+    return run_chunks(
+        executor,
+        _fit_start,
+        [(text, setup, start, threads, per_host) for start in starts],
+        progress=report,
+        name="softrod-calibrate",
+    )
+
+
+def _fit_start(text, setup, start, threads, per_host) -> dict:
+    """One restart on a worker: the design rebuilt from its TOML text."""
+    from ..cluster import design_from_text, worker_threads
+
+    return _optimise(
+        design_from_text(text), setup, start, worker_threads(per_host, threads), None
+    )
+
+
+def _finite_or_inf(x: float) -> float:
+    return x if math.isfinite(x) else math.inf
+
+
+def _starts_table(params, fits, best) -> pd.DataFrame:
+    rows = []
+    for k, f in enumerate(fits):
+        row = {"start": k, "best": k == best}
+        for p, v0, v in zip(params, f["start"], f["values"], strict=True):
+            row[f"{p.name} start"] = v0
+            row[f"{p.name}"] = v
+        row.update(
+            cost_mm2=f["cost"], success=f["success"], evaluations=f["evaluations"]
+        )
+        rows.append(row)
+    return pd.DataFrame(rows)
 
 
 # --- the entry point ---------------------------------------------------------------------------
 
 
+@one_blas_thread
 def calibrate(
     design,
     dataset,
@@ -496,6 +786,10 @@ def calibrate(
     dt=5e-3,
     model: str = "cosserat",
     experiments: Mapping | None = None,
+    restarts: int = 0,
+    seed: int = 0,
+    executor=None,
+    name: str | None = None,
 ):
     """Fit ``params`` of ``design`` to the tip positions of ``dataset``.
 
@@ -513,9 +807,15 @@ def calibrate(
     (tau), and each evaluation simulates every experiment with time step ``dt``
     (paper 000 Sec. III-D; see :func:`softrod.calibration.calibrate_dynamics`, which this
     calls and whose result it returns). Dynamic fits use Nelder-Mead.
+    restarts: extra fits from ``restarts`` starting points drawn with ``seed`` (within each
+    parameter's bounds, or within a factor RESTART_SPREAD = 3 of a positive parameter's
+    value when it has none); the fit with the lowest cost wins (ties: the earliest) and
+    ``result.starts`` lists them all. executor: a ``distributed.Client``: the starts run on
+    its cluster, one task each (docs/cluster.md).
     split: None (fit on all rows), "experiment" or "mounting" with ``test`` ids (default
     for "experiment": the last experiment), or a boolean test mask.
-    progress: called as ``progress(evaluations, rms_error_mm)`` after every evaluation.
+    progress: None (a bar in interactive sessions), True, False, or a callable called as
+    ``progress(evaluations, rms_error_mm)`` after every evaluation (:mod:`softrod.progress`).
     model: "cosserat" (default: the rod, everything above) or "pcc": paper 003's
     identification of the PCC model (Sec. V, docs/pcc.md). ``params`` is then one or a list
     of "k_L", "k_theta", "b_L", "b_theta", each identified from its own experiment:
@@ -530,10 +830,19 @@ def calibrate(
     writes the design with the values). bounds, method, split, test, progress, threads,
     max_evaluations and dynamic do not apply.
 
+    name: the calibrated design's name (default ``<design name>_calibrated``); its
+    ``[design.provenance]`` records the dataset, the values with standard errors, the
+    method, the softrod version and the date (``result.design.provenance``).
+
     Returns a :class:`CalibrationResult`; emits a :class:`CalibrationWarning` for each
-    identifiability problem (also listed in ``result.warnings``).
+    identifiability problem (also listed in ``result.warnings``): a relative standard error
+    above :data:`POOR_RELATIVE_ERROR` (20 %), a correlation with ``|r|`` above
+    :data:`STRONG_CORRELATION` (0.9), a Jacobian whose singular values span more than
+    :data:`UNIDENTIFIABLE_CONDITION`, or an optimiser that did not converge.
+
+    The fit runs BLAS on one thread (:mod:`softrod._threads`): the same inputs give the same
+    result whatever the BLAS settings; ``threads`` sets the Rust core's workers.
     """
-    from scipy.optimize import least_squares, minimize
 
     if model not in ("cosserat", "pcc"):
         raise _fail("model", model, "must be 'cosserat' (the rod) or 'pcc' (paper 003)")
@@ -544,6 +853,7 @@ def calibrate(
             name: value
             for name, value, default in (
                 ("bounds", bounds, None),
+                ("name", name, None),
                 ("method", method, None),
                 ("split", split, None),
                 ("test", test, None),
@@ -551,6 +861,8 @@ def calibrate(
                 ("threads", threads, 0),
                 ("max_evaluations", max_evaluations, 200),
                 ("dynamic", dynamic, False),
+                ("restarts", restarts, 0),
+                ("executor", executor, None),
             )
             if (value is not None if default is None else value != default)
         }
@@ -590,6 +902,12 @@ def calibrate(
                 True,
                 "bounds, split and test are not available for dynamic fits (yet)",
             )
+        if restarts != 0 or executor is not None:
+            raise _fail(
+                "dynamic", True, "restarts and executor are not available for dynamic fits (yet)"
+            )
+        if name is not None:
+            raise _fail("name", name, "applies to static fits (dynamic=False)")
         return calibrate_dynamics(
             design, dataset, params, dt=dt, max_evaluations=max_evaluations, progress=progress
         )
@@ -609,6 +927,15 @@ def calibrate(
     if isinstance(threads, bool) or not isinstance(threads, int) or threads < 0:
         raise _fail("threads", threads, "must be an integer >= 0 (0 = all cores)")
     params = parse_parameters(params, design0)
+    sigma_names = [p.name for p in params if p.kind in SIGMA_KINDS]
+    if sigma_names and design0.stiffness_map is not None:
+        raise _fail(
+            "params",
+            sigma_names,
+            f"design {design0.name!r} has a stiffness map ([stiffness_map] file): the constant "
+            "sigma factors would replace it; fit them on the design without the map "
+            "(design.with_stiffness_map(None)) or fit other parameters",
+        )
     design0 = _with_stiffness_map(design0, params)
     for p in params:  # the core checks each parameter against the design
         design0._rod.sensitivity_batch(
@@ -619,80 +946,50 @@ def calibrate(
     test_mask = _split(dataset, split, test)
     train = np.flatnonzero(~test_mask)
     groups = _groups(design0, dataset)
-    model = _Model(design0, dataset, list(params), groups, train, options, threads)
     measured = dataset.tip_position
+    logger.info(
+        "calibrate %s: %s on %d training samples (%d test), method %s",
+        design0.name,
+        ", ".join(p.name for p in params),
+        train.size,
+        int(test_mask.sum()),
+        method,
+    )
+    setup = _FitSetup(
+        dataset=dataset,
+        params=tuple(params),
+        groups=groups,
+        train=train,
+        options=options,
+        lo=lo,
+        hi=hi,
+        user_bounds=user_bounds,
+        method=method,
+        max_evaluations=max_evaluations,
+    )
+    bounded = np.array([p.name in (bounds or {}) for p in params], dtype=bool)
+    starts = _start_points(params, theta0, lo, hi, bounded, restarts, seed)
+    with reporter(progress, "calibrate", None, _evaluations) as report:
+        fits = _run_starts(design0, setup, starts, threads, report, executor)
+    best = min(range(len(fits)), key=lambda k: (_finite_or_inf(fits[k]["cost"]), k))
+    u_best = fits[best]["u"]
+    success, message = fits[best]["success"], fits[best]["message"]
+    method_used = fits[best]["method"]
+    model = _Model(design0, dataset, list(params), groups, train, options, threads)
+    model.evaluations = sum(f["evaluations"] for f in fits)
     positive = np.array([p.positive for p in params])
 
-    # Optimisation variable u: log(theta) for positive parameters, theta otherwise.
     def theta_of(u):
         return np.where(positive, np.exp(np.where(positive, u, 0.0)), u)
 
-    u0 = np.where(positive, np.log(np.where(positive, theta0, 1.0)), theta0)
 
-    def residual(tip, ok):
-        r = (tip[train] - measured[train]) / _MM
-        r[~ok[train]] = _FAILED_RESIDUAL_MM
-        return r.ravel()
-
-    cache: dict = {}
-
-    def evaluate(u, jacobian):
-        key = u.tobytes()
-        if key in cache and (cache[key][1] is not None or not jacobian):
-            return cache[key]
-        theta = theta_of(u)
-        if np.all((theta >= lo) & (theta <= hi)):
-            tip, jac, ok = model(theta, jacobian)
-        else:
-            # Outside the sanity box (default 1e-3 to 1e3 times the design's values): a
-            # failed point, so that an unidentifiable direction cannot run off to 1e150.
-            tip, ok = np.full((len(dataset), 3), np.nan), np.zeros(len(dataset), dtype=bool)
-            jac = np.zeros((len(dataset), 3, len(params))) if jacobian else None
-        r = residual(tip, ok)
-        cache.clear()
-        cache[key] = (r, jac, ok)
-        if progress is not None:
-            progress(model.evaluations, float(np.sqrt(np.mean(r.reshape(-1, 3) ** 2) * 3)))
-        return cache[key]
-
-    def jac_u(u):
-        r, jac, ok = evaluate(u, True)
-        j = jac[train] / _MM
-        j[~ok[train]] = 0.0
-        # d/du = theta d/dtheta for the log-transformed parameters
-        return (j * np.where(positive, theta_of(u), 1.0)).reshape(-1, len(params))
-
-    if method == "lm":
-        use_bounds = user_bounds
-        ulo = np.where(positive, np.log(np.where(positive, lo, 1.0)), lo)
-        uhi = np.where(positive, np.log(np.where(positive, hi, 1.0)), hi)
-        sol = least_squares(
-            lambda u: evaluate(u, True)[0],
-            u0,
-            jac=jac_u,
-            method="trf" if use_bounds else "lm",
-            bounds=(ulo, uhi) if use_bounds else (-np.inf, np.inf),
-            x_scale=1.0,
-            xtol=1e-10,
-            ftol=1e-10,
-            gtol=1e-10,
-            max_nfev=max_evaluations,
-        )
-        u_best, success, message = sol.x, bool(sol.success), str(sol.message)
-        method_used = "lm (MINPACK)" if not use_bounds else "trf (bounded, exact Jacobian)"
-    else:
-        ulo = np.where(positive, np.log(np.where(positive, lo, 1.0)), lo)
-        uhi = np.where(positive, np.log(np.where(positive, hi, 1.0)), hi)
-        sol = minimize(
-            lambda u: 0.5 * float(np.sum(evaluate(u, False)[0] ** 2)),
-            u0,
-            method="Nelder-Mead",
-            bounds=list(zip(ulo, uhi, strict=True)) if user_bounds else None,
-            options={"maxfev": max_evaluations, "xatol": 1e-8, "fatol": 1e-10},
-        )
-        u_best, success, message = sol.x, bool(sol.success), str(sol.message)
-        method_used = "nelder-mead"
-
+    logger.info(
+        "calibrate %s: %s after %d model evaluations (%s)",
+        design0.name,
+        "converged" if success else "stopped",
+        model.evaluations,
+        message,
+    )
     values = theta_of(u_best)
     tip_train, jac, ok = model(values, True)
     if not ok[train].all():
@@ -709,7 +1006,9 @@ def calibrate(
         found.insert(0, f"the optimiser stopped without converging: {message}")
 
     calibrated = design0.replace(design_changes(params, values, design0))
-    calibrated = _record(calibrated, params, values, std, method_used, dataset, train.size)
+    calibrated = _record(
+        calibrated, design0, name, params, values, std, method_used, dataset, train.size
+    )
     # Predictions on every row (train and test) with the calibrated design.
     all_rows = np.arange(len(dataset))
     final = _Model(calibrated, dataset, [], groups, all_rows, options, threads)
@@ -734,7 +1033,7 @@ def calibrate(
         labels=labels if test_mask.any() else None,
     )
     for w in found:
-        warnings.warn(w, CalibrationWarning, stacklevel=2)
+        warnings.warn(w, CalibrationWarning, stacklevel=3)  # past the BLAS-thread wrapper
     return CalibrationResult(
         design=calibrated,
         initial_design=design0,
@@ -757,6 +1056,7 @@ def calibrate(
         error_table=table,
         elapsed_s=time.perf_counter() - start,
         reference=reference,
+        starts=_starts_table(params, fits, best) if len(fits) > 1 else None,
     )
 
 
@@ -764,30 +1064,74 @@ def _reference(design: Design, groups, m: int, options) -> np.ndarray:
     """The model's unpressurised tip position of every row's mounting (for % deflection)."""
     ref = np.full((m, 3), np.nan)
     zero = np.zeros((1, design.n_channels))
+    smap = design.stiffness_map
+    sigma = None if smap is None else np.ascontiguousarray(smap(zero))
     for changes, idx in groups:
         d = design.replace(changes) if changes else design
         out = d._rod.solve_batch(
-            zero, d.spec["tip"]["force"], d.spec["tip"]["moment"], **_options(options).as_kwargs()
+            zero,
+            d.spec["tip"]["force"],
+            d.spec["tip"]["moment"],
+            stiffness_scale=sigma,
+            **_options(options).as_kwargs(),
         )
         ref[idx] = out["tip_position"][0]
     return ref
 
 
-def _record(design, params, values, std, method, dataset, n_train) -> Design:
-    """The calibrated design with a line in [design].assumptions saying what was fitted."""
-    fitted = ", ".join(
-        f"{p.name} = {v:.6g} +- {s:.2g}{'' if p.unit == '1' else ' ' + p.unit}"
-        for p, v, s in zip(params, values, std, strict=True)
-        if p.kind not in SIGMA_KINDS
-    )
-    if not fitted:
-        return design
-    line = (
-        f"Calibrated with softrod.calibrate ({method}) on {_dataset_name(dataset)}, "
-        f"{n_train} training samples: {fitted} (standard errors from the Jacobian)."
-    )
-    assumptions = list(design.document["design"].get("assumptions", [])) + [line]
-    return design.replace({"design.assumptions": assumptions})
+def _record(design, initial, name, params, values, std, method, dataset, n_train) -> Design:
+    """The calibrated design under its new name, with ``[design.provenance]`` (what was
+    fitted to what, by which softrod, when) and a sentence in ``[design].assumptions``."""
+    import datetime
+
+    from .. import __version__
+
+    if name is None:
+        name = f"{initial.name}_calibrated"
+    if not isinstance(name, str) or not name.strip():
+        raise _fail("name", name, "must be a non-empty string (the calibrated design's name)")
+    fitted = [
+        (p, v, s) for p, v, s in zip(params, values, std, strict=True) if p.kind not in SIGMA_KINDS
+    ]
+    source = dataset.source
+    provenance = {
+        "tool": "softrod.calibrate",
+        "softrod_version": __version__,
+        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "initial_design": initial.name,
+        "dataset": "in-memory dataset" if source is None else source.name,
+        "synthetic_data": dataset.synthetic,
+        "training_samples": int(n_train),
+        "method": method,
+        "parameters": [
+            {
+                "name": p.name,
+                "value": float(v),
+                "std_error": float(s) if math.isfinite(s) else "not determined",
+                "unit": p.unit,
+            }
+            for p, v, s in fitted
+        ],
+    }
+    changes: dict = {"design.name": name, "design.provenance": provenance}
+    if fitted:
+        shown = ", ".join(f"{p.name} = {_shown(v, s, p.unit)}" for p, v, s in fitted)
+        line = (
+            f"Calibrated with softrod.calibrate ({method}) on {_dataset_name(dataset)}, "
+            f"{n_train} training samples: {shown} (standard errors from the Jacobian)."
+        )
+        changes["design.assumptions"] = list(design.document["design"].get("assumptions", []))
+        changes["design.assumptions"].append(line)
+    return design.replace(changes)
+
+
+def _shown(value: float, std: float, unit: str) -> str:
+    """'0.500126 +- 0.0078 mm': a value and its standard error in the display unit."""
+    from ..schema import display
+
+    v, shown_unit = display(value, unit)
+    s, _ = display(std, unit)
+    return f"{v:.6g} +- {s:.2g}" + (f" {shown_unit}" if shown_unit else "")
 
 
 def result_json(result: CalibrationResult) -> str:

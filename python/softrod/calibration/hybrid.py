@@ -21,16 +21,20 @@ on all test samples, including those where the identification found no factor (S
 
 from __future__ import annotations
 
+import json
+import logging
 import time
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from .._threads import one_blas_thread
+from ..catalog import load_design
 from ..datasets import Dataset
-from ..design import load_design
 from ..errors import InputError, design_error
 from ..statics import SolverOptions, solve_statics_batch
 from ..stiffness_map import SIGMA_NAMES, StiffnessMap
@@ -44,6 +48,8 @@ from .per_sample import (
 )
 
 __all__ = ["HybridStiffnessModel", "compare_hybrid", "fit_stiffness_map"]
+
+logger = logging.getLogger(__name__)
 
 # A network needs at least this many identified training samples of its factor: below it a
 # 3-45-50-1 network (about 2,600 weights) is not even constrained in shape by the data.
@@ -84,26 +90,66 @@ def _network(hidden, activation, alpha, max_iter, seed):
     )
 
 
+class _SavedNetwork:
+    """A network read from a file: ``predict(P)`` (pressures in Pa) with numpy, as the
+    scikit-learn model it was saved from."""
+
+    def __init__(self, arrays: dict):
+        self.arrays = arrays
+
+    def predict(self, pressures) -> np.ndarray:
+        from ..stiffness_map import _forward
+
+        return _forward(self.arrays, np.asarray(pressures, dtype=float))
+
+
+def _arrays(net) -> dict:
+    """A fitted network's numbers (scikit-learn objects -> arrays, see
+    :meth:`StiffnessMap.from_networks`)."""
+    if isinstance(net, _SavedNetwork):
+        return net.arrays
+    scaler, mlp = net.regressor_[0], net.regressor_[-1]
+    target = net.transformer_[-1]
+    if mlp.out_activation_ != "identity":  # pragma: no cover - MLPRegressor's output is linear
+        raise design_error("nets", mlp.out_activation_, "the output layer must be linear")
+    return {
+        "input_mean": np.asarray(scaler.mean_, dtype=float),
+        "input_scale": np.asarray(scaler.scale_, dtype=float),
+        "weights": [np.asarray(w, dtype=float) for w in mlp.coefs_],
+        "biases": [np.asarray(b, dtype=float) for b in mlp.intercepts_],
+        "activation": mlp.activation,
+        "target_mean": float(target.mean_[0]),
+        "target_scale": float(target.scale_[0]),
+    }
+
+
 @dataclass(frozen=True, eq=False)
 class HybridStiffnessModel:
     """Three trained networks sigma_k(p) (paper 001 eqs. 23-25) and how they were trained.
 
     nets: the fitted regressors (sigma_ext, sigma_bend_x, sigma_bend_y), each mapping
         pressures in Pa (m, c) to sigma_k (m,).
-    identification: the :class:`StiffnessIdentification` they learned from.
+    identification: the :class:`StiffnessIdentification` they learned from (None for a model
+        read with :meth:`load`: the file keeps the networks, not the data).
     train_rows, test_rows: sample indices of the 80/20 split (over all samples).
     training: per factor: samples used (identified ones), train/test RMSE of sigma (and of
         log sigma), L-BFGS iterations and whether it converged.
     settings: hidden layers, activation, alpha, test fraction, seed, max_iter.
+    saved: for a loaded model, the design and sections the file records.
+
+    :meth:`save` writes the networks as arrays in a versioned JSON file (no pickle), which is
+    also a stiffness map file: ``StiffnessMap.load(path)``, or ``[stiffness_map] file = ...``
+    in a design.
     """
 
     nets: tuple
-    identification: StiffnessIdentification
+    identification: StiffnessIdentification | None
     train_rows: np.ndarray
     test_rows: np.ndarray
     training: pd.DataFrame
     settings: dict = field(default_factory=dict)
     wall_time_s: float = float("nan")
+    saved: dict = field(default_factory=dict, repr=False)
 
     def __repr__(self) -> str:
         test = ", ".join(
@@ -117,10 +163,21 @@ class HybridStiffnessModel:
     @property
     def design(self):
         """The design with the mapped sections (as identified)."""
+        if self.identification is None:
+            return self.saved["design"]
         return self.identification.design
 
     @property
+    def sections(self) -> tuple[str, ...]:
+        """The sections sigma scales."""
+        if self.identification is None:
+            return tuple(self.saved["sections"])
+        return tuple(self.identification.sections)
+
+    @property
     def n_channels(self) -> int:
+        if self.identification is None:
+            return self.design.n_channels
         return self.identification.dataset.n_channels
 
     def predict(self, pressures) -> np.ndarray:
@@ -137,11 +194,107 @@ class HybridStiffnessModel:
             return np.empty((0, 3))
         return np.column_stack([np.asarray(net.predict(p)).reshape(-1) for net in self.nets])
 
+    def networks(self) -> list[dict]:
+        """The three networks as arrays (see :meth:`StiffnessMap.from_networks`)."""
+        return [_arrays(net) for net in self.nets]
+
     @property
     def stiffness_map(self) -> StiffnessMap:
         """The networks as a :class:`~softrod.StiffnessMap` (pressures in Pa), for
-        ``solve_statics(self.design, p, stiffness_map=...)``."""
-        return StiffnessMap.from_regressor(self, self.n_channels, pressure_unit="Pa")
+        ``solve_statics(self.design, p, stiffness_map=...)``. It evaluates the networks'
+        arrays with numpy (the same operations as scikit-learn) and can be saved."""
+        return StiffnessMap.from_networks(self.networks())
+
+    def save(self, path) -> Path:
+        """Write the model as JSON (whole or not at all): the stiffness map of
+        :meth:`StiffnessMap.save` (format "softrod.stiffness_map", kind "mlp", versioned)
+        plus a ``hybrid`` block with the settings, the training table, the split, the design
+        and its mapped sections. No pickle: the file holds numbers and text only, and
+        :meth:`load` reads it back without scikit-learn. Returns the path."""
+        from ..io import metadata_json
+        from ..schema import provenance
+        from ..stiffness_map import _write_json
+
+        doc = self.stiffness_map._document()
+        design = self.design
+        doc["hybrid"] = {
+            "design": _design_document(design),
+            "sections": list(self.sections),
+            "settings": {
+                k: list(v) if isinstance(v, tuple) else v for k, v in self.settings.items()
+            },
+            "training": _records(self.training),
+            "train_rows": self.train_rows.tolist(),
+            "test_rows": self.test_rows.tolist(),
+            "wall_time_s": self.wall_time_s,
+        }
+        ident = self.identification
+        meta = provenance("softrod.fit_stiffness_map", design)
+        if ident is not None:
+            source = ident.dataset.source
+            meta["dataset"] = None if source is None else source.name
+            meta["synthetic"] = ident.dataset.synthetic
+        elif "metadata" in self.saved:
+            meta = dict(self.saved["metadata"])
+        doc["metadata"] = json.loads(metadata_json(meta))
+        return _write_json(doc, path)
+
+    @classmethod
+    def load(cls, path) -> HybridStiffnessModel:
+        """Read a model written by :meth:`save`. Its networks predict with numpy; it has no
+        ``identification`` (``compare_hybrid`` needs the fitted model)."""
+        from ..design import read_design
+        from ..stiffness_map import read_map_document
+
+        doc = read_map_document(path)
+        hybrid = doc.get("hybrid")
+        if doc.get("kind") != "mlp" or not isinstance(hybrid, dict):
+            raise design_error(
+                "path",
+                str(path),
+                "is a stiffness map but not a hybrid model (load it with StiffnessMap.load)",
+                InputError,
+            )
+        smap = StiffnessMap.from_networks(doc["networks"])
+        design = read_design(hybrid["design"])
+        settings = dict(hybrid.get("settings", {}))
+        if "hidden" in settings:
+            settings["hidden"] = tuple(settings["hidden"])
+        return cls(
+            nets=tuple(_SavedNetwork(net) for net in smap._data["networks"]),
+            identification=None,
+            train_rows=_readonly(np.asarray(hybrid.get("train_rows", []), dtype=np.int64)),
+            test_rows=_readonly(np.asarray(hybrid.get("test_rows", []), dtype=np.int64)),
+            training=pd.DataFrame(hybrid.get("training", [])).fillna(np.nan),
+            settings=settings,
+            wall_time_s=float(hybrid.get("wall_time_s", float("nan"))),
+            saved={
+                "design": design,
+                "sections": list(hybrid.get("sections", [])),
+                "metadata": doc.get("metadata", {}),
+                "source": str(path),
+            },
+        )
+
+
+def _records(frame: pd.DataFrame) -> list[dict]:
+    """A table as JSON records, every number exact (NaN as null)."""
+    out = []
+    for row in frame.to_dict(orient="records"):
+        clean = {}
+        for key, value in row.items():
+            if isinstance(value, np.generic):
+                value = value.item()
+            clean[key] = None if isinstance(value, float) and np.isnan(value) else value
+        out.append(clean)
+    return out
+
+
+def _design_document(design) -> dict:
+    """A design's document with units on every value, as JSON values."""
+    from ..design import _plain, _with_units
+
+    return json.loads(json.dumps(_with_units(_plain(design.document))))
 
 
 def _split(m: int, test_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -154,6 +307,7 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean((a - b) ** 2))) if a.size else float("nan")
 
 
+@one_blas_thread
 def fit_stiffness_map(
     identification: StiffnessIdentification,
     *,
@@ -163,6 +317,7 @@ def fit_stiffness_map(
     test_fraction: float = 0.2,
     seed: int = 0,
     max_iter: int = DEFAULT_MAX_ITER,
+    progress=None,
 ) -> HybridStiffnessModel:
     """Train one network per factor on the identified samples (paper 001 Sec. III-C, V-B).
 
@@ -170,7 +325,11 @@ def fit_stiffness_map(
     "relu" or "logistic". alpha: L2 weight penalty (scikit-learn's; stands in for the
     Bayesian regularisation of Table II). test_fraction: share of all samples held out
     (Table II: 20 %). seed: the split and the networks' initial weights. max_iter: L-BFGS
-    iterations per network.
+    iterations per network. progress: see :mod:`softrod.progress`; a callable gets
+    ``progress(networks_done, 3)``.
+
+    Reproducible: the same identification and seed give the same networks, bit for bit,
+    whatever the BLAS thread settings (the fit runs BLAS on one thread, :mod:`softrod._threads`).
 
     Raises :class:`~softrod.errors.InputError` when a factor has fewer than
     :data:`MIN_TRAINING_SAMPLES` identified training samples.
@@ -208,11 +367,42 @@ def fit_stiffness_map(
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise design_error(name, value, f"must be an integer >= {low}", InputError)
 
-    from sklearn.exceptions import ConvergenceWarning
+    from ..progress import check_progress, reporter
 
+    check_progress(progress)
     ident = identification
     p = np.asarray(ident.dataset.pressures, dtype=float)
     train_rows, test_rows = _split(len(ident), float(test_fraction), int(seed))
+    with reporter(
+        progress, "fit_stiffness_map", 3, lambda done, total: (done, f"{done}/{total} networks")
+    ) as report:
+        nets, rows = _train(
+            ident, p, train_rows, test_rows, hidden, activation, alpha, max_iter, seed, report
+        )
+    return HybridStiffnessModel(
+        nets=tuple(nets),
+        identification=ident,
+        train_rows=_readonly(train_rows),
+        test_rows=_readonly(test_rows),
+        training=pd.DataFrame(rows),
+        settings={
+            "hidden": hidden,
+            "activation": activation,
+            "alpha": float(alpha),
+            "test_fraction": float(test_fraction),
+            "seed": int(seed),
+            "max_iter": int(max_iter),
+            "target": "standardised log sigma",
+            "solver": "lbfgs",
+        },
+        wall_time_s=time.perf_counter() - t0,
+    )
+
+
+def _train(ident, p, train_rows, test_rows, hidden, activation, alpha, max_iter, seed, report):
+    """The three networks and their training table (fit_stiffness_map's loop)."""
+    from sklearn.exceptions import ConvergenceWarning
+
     nets, rows = [], []
     for k, name in enumerate(SIGMA_NAMES):
         ok = ident.identifiable[:, k]
@@ -242,7 +432,7 @@ def fit_stiffness_map(
                 "iterations without converging; its RMSE is in the training table (raise "
                 "max_iter or alpha)",
                 RuntimeWarning,
-                stacklevel=2,
+                stacklevel=4,  # the caller of fit_stiffness_map (via the BLAS-thread wrapper)
             )
         fit_tr, fit_te = net.predict(p[tr]), net.predict(p[te]) if te.size else np.empty(0)
         s_tr, s_te = ident.sigma[tr, k], ident.sigma[te, k]
@@ -260,24 +450,15 @@ def fit_stiffness_map(
             }
         )
         nets.append(net)
-    return HybridStiffnessModel(
-        nets=tuple(nets),
-        identification=ident,
-        train_rows=_readonly(train_rows),
-        test_rows=_readonly(test_rows),
-        training=pd.DataFrame(rows),
-        settings={
-            "hidden": hidden,
-            "activation": activation,
-            "alpha": float(alpha),
-            "test_fraction": float(test_fraction),
-            "seed": int(seed),
-            "max_iter": int(max_iter),
-            "target": "standardised log sigma",
-            "solver": "lbfgs",
-        },
-        wall_time_s=time.perf_counter() - t0,
-    )
+        logger.info(
+            "fit_stiffness_map: network %s, %d iterations, test RMSE %.3g",
+            name,
+            int(mlp.n_iter_),
+            rows[-1]["rmse_test"],
+        )
+        if report is not None:
+            report(k + 1, 3)
+    return nets, rows
 
 
 def _rows(rows, hybrid: HybridStiffnessModel, dataset: Dataset) -> np.ndarray:
@@ -338,6 +519,14 @@ def compare_hybrid(
             "hybrid",
             type(hybrid).__name__,
             "must be the result of fit_stiffness_map",
+            InputError,
+        )
+    if hybrid.identification is None:
+        raise design_error(
+            "hybrid",
+            repr(hybrid),
+            "was read from a file and has no identification (its training data and split): "
+            "compare the model fitted by fit_stiffness_map",
             InputError,
         )
     mapped, _ = stiffness_mapped_design(design, hybrid.identification.sections)

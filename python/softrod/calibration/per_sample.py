@@ -46,9 +46,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .._threads import one_blas_thread
+from ..catalog import load_design
 from ..datasets import Dataset
-from ..design import Design, load_design
+from ..design import Design
 from ..errors import InputError, design_error
+from ..progress import check_progress, reporter
 from ..statics import SolverOptions
 from ..stiffness_map import SIGMA_NAMES
 from ..units import to_si
@@ -480,25 +483,72 @@ class StiffnessIdentification:
         """(3,) fraction of the samples at which each factor was identified."""
         return self.identifiable.mean(axis=0) if len(self) else np.zeros(3)
 
-    def to_frame(self) -> pd.DataFrame:
-        """One row per sample: pressures (kPa), sigma, identifiable, sensitivity (mm),
-        at_bound, residuals, iterations and status."""
-        cols: dict = {}
-        for k in range(self.dataset.n_channels):
-            cols[f"p{k}_kPa"] = self.dataset.pressures[:, k] / 1e3
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[name] = self.sigma[:, k]
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[f"identifiable_{name}"] = self.identifiable[:, k]
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[f"sensitivity_{name}_mm"] = 1e3 * self.sensitivity[:, k]
-        for k, name in enumerate(SIGMA_NAMES):
-            cols[f"at_bound_{name}"] = self.at_bound[:, k]
-        cols["residual_mm"] = self.residual_mm
-        cols["rotation_residual_deg"] = self.rotation_residual_deg
-        cols["iterations"] = self.iterations
-        cols["status"] = self.status
-        return pd.DataFrame(cols)
+    def to_frame(self, units=None) -> pd.DataFrame:
+        """One row per sample in the dataset schema (docs/datasets.md): the measured
+        sample (``p0_kPa`` ..., ``tip_x_mm`` ..., and whatever else the dataset has), then the
+        result columns ``sigma_ext``, ``sigma_bend_x``, ``sigma_bend_y`` (empty where not
+        identified), ``identifiable_*``, ``sensitivity_*_mm``, ``at_bound_*``,
+        ``model_tip_x_mm`` ... (the model's tip at the solver's sigma), ``residual_mm``,
+        ``rotation_residual_deg``, ``iterations`` and ``status``. The metadata block names the
+        design, the scaled sections, the dataset and the settings; ``load_dataset`` reads
+        the table back."""
+        from ..schema import Extra, provenance, schema_frame
+
+        ds = self.dataset
+        extras = [
+            Extra(name, self.sigma[:, k], f"identified {name} (empty: not identifiable)")
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(f"identifiable_{name}", self.identifiable[:, k], f"{name} was identified")
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(
+                f"sensitivity_{name}",
+                self.sensitivity[:, k],
+                f"tip displacement per unit change of log {name}",
+                "length",
+            )
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(f"at_bound_{name}", self.at_bound[:, k], f"{name} ended at a bound")
+            for k, name in enumerate(SIGMA_NAMES)
+        ]
+        extras += [
+            Extra(f"model_tip_{a}", self.tip_position[:, i], "model tip (solver's sigma)", "length")
+            for i, a in enumerate("xyz")
+        ]
+        extras += [
+            Extra("residual", self.residual_mm * 1e-3, "|measured - model tip|", "length"),
+            Extra("rotation_residual_deg", self.rotation_residual_deg, "tip rotation residual"),
+            Extra("iterations", self.iterations, "Levenberg-Marquardt iterations"),
+            Extra("status", self.status, f"one of {', '.join(STATUS)}"),
+        ]
+        dataset_meta = {k: v for k, v in ds.metadata.items() if k != "columns"}
+        meta = provenance(
+            "softrod.identify_stiffness",
+            self.design,
+            sections=list(self.sections),
+            synthetic=ds.synthetic,  # the tip columns are the dataset's
+            dataset=None if ds.source is None else ds.source.name,
+            dataset_metadata=dataset_meta,
+            settings=_plain_settings(self.settings),
+        )
+        return schema_frame(
+            pressures=ds.pressures,
+            tip_position=ds.tip_position,
+            tip_rotation=ds.tip_rotation,
+            base_force=ds.base_force,
+            base_moment=ds.base_moment,
+            time=ds.time,
+            experiment=ds.experiment,
+            mounting=ds.mounting,
+            extras=extras,
+            units=units,
+            metadata=meta,
+        )
 
     def factor_table(self) -> pd.DataFrame:
         """Per factor: samples identified (count, fraction), at a bound, statistics of the
@@ -599,6 +649,23 @@ class StiffnessIdentification:
 # --------------------------------------------------------------------------- entry point
 
 
+def _samples_done(step: int, active: int, total: int) -> tuple[float, str]:
+    """A progress bar's position and text for identify's progress(step, active, total)."""
+    return total - active, f"{total - active}/{total} samples done"
+
+
+def _plain_settings(settings: dict) -> dict:
+    """The settings as JSON values (tuples as lists, numpy scalars as numbers)."""
+    out = {}
+    for key, value in settings.items():
+        if isinstance(value, tuple):
+            value = list(value)
+        if isinstance(value, np.generic):
+            value = value.item()
+        out[key] = value
+    return out
+
+
 def _positive(value, name: str, kind: str) -> float:
     x = to_si(value.item() if isinstance(value, np.generic) else value, kind, name, InputError)
     if not (math.isfinite(x) and x > 0):
@@ -695,6 +762,7 @@ def _problem(design, dataset, *, use_rotation, n_high, r_high, m_high, R_high, o
     return problem, c_t, c_r
 
 
+@one_blas_thread
 def identify_stiffness(
     design,
     dataset: Dataset,
@@ -712,6 +780,8 @@ def identify_stiffness(
     options: SolverOptions | None = None,
     threads: int = 0,
     progress: Callable[[int, int, int], None] | None = None,
+    executor=None,
+    chunk_size: int | None = None,
 ) -> StiffnessIdentification:
     """Identify sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) for every sample (paper 001
     eqs. 14-22; method in the module docstring and docs/calibration-per-sample.md).
@@ -730,8 +800,16 @@ def identify_stiffness(
     initial: starting sigma, (3,) or (m, 3); default 1 (the literature stiffness).
     max_iter: Levenberg-Marquardt iterations (core calls after the first).
     options: :class:`~softrod.SolverOptions` of the shooting solves; threads: cores (0 =
-        all). progress: called as ``progress(iteration, n_active, n_total)`` after each
-        iteration (nothing is printed otherwise).
+        all). progress: None (a bar in interactive sessions), True, False, or a callable
+        called as ``progress(iteration, n_active, n_total)`` after each iteration
+        (:mod:`softrod.progress`).
+    executor: a ``distributed.Client``: the samples are identified on its cluster in chunks
+        of ``chunk_size`` samples (default: the rule in :mod:`softrod.cluster`), each chunk
+        this function on a worker (``threads`` as in ``solve_statics_batch``), and the rows
+        come back in order; ``progress`` is then called as ``progress(chunks_done,
+        samples_left, samples)`` after each chunk (docs/cluster.md). Every sample's fit is
+        its own problem, so chunking changes no sample's result once batch rows do not
+        depend on their neighbours.
 
     Raises :class:`~softrod.errors.InputError` for bad inputs (naming field, value, rule).
     Samples whose model does not converge are kept with status "solve_failed".
@@ -741,13 +819,7 @@ def identify_stiffness(
     dataset = _check_dataset(dataset, mapped)
     bounds = _check_bounds(bounds)
     max_iter = _int_at_least(max_iter, "max_iter", 1, "must be an integer >= 1")
-    if progress is not None and not callable(progress):
-        raise design_error(
-            "progress",
-            progress,
-            "must be callable: progress(iteration, n_active, n_total)",
-            InputError,
-        )
+    check_progress(progress)
     if min_sensitivity is None:
         min_sens = MIN_SENSITIVITY_FRACTION * mapped.length
     else:
@@ -774,7 +846,29 @@ def identify_stiffness(
     )
     m = len(dataset)
     theta0 = np.log(_initial(initial, m, bounds))
-    lm = _levenberg_marquardt(problem, theta0, bounds, max_iter, progress)
+    from ..cluster import check_executor
+
+    if check_executor(executor) is not None:
+        kwargs = dict(
+            min_sensitivity=min_sens,
+            bounds=bounds,
+            use_rotation=use_rotation,
+            n_high=n_high,
+            r_high=r_high,
+            m_high=m_high,
+            R_high=R_high,
+            max_iter=max_iter,
+            options=options,
+        )
+        with reporter(progress, "identify_stiffness", len(dataset), _samples_done) as report:
+            return _identify_on_cluster(
+                executor, mapped, names, dataset, np.exp(theta0), kwargs, threads, chunk_size,
+                report, t0,
+            )
+    if chunk_size is not None:
+        raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
+    with reporter(progress, "identify_stiffness", len(dataset), _samples_done) as report:
+        lm = _levenberg_marquardt(problem, theta0, bounds, max_iter, report)
 
     sigma_solver = np.exp(lm.theta)
     solved = lm.solved & np.isin(lm.status, (_CONVERGED, _STALLED))
@@ -819,4 +913,84 @@ def identify_stiffness(
         },
         calls=lm.calls,
         wall_time_s=time.perf_counter() - t0,
+    )
+
+
+# --------------------------------------------------------------------------- on a cluster
+
+_ROW_FIELDS = (
+    "sigma",
+    "identifiable",
+    "sensitivity",
+    "at_bound",
+    "sigma_solver",
+    "tip_position",
+    "residual_mm",
+    "rotation_residual_deg",
+    "iterations",
+    "status",
+)
+
+
+def _identify_chunk(text, names, dataset, initial, kwargs, threads, per_host) -> dict:
+    """One chunk of samples on a worker: the arrays of :func:`identify_stiffness` (a result
+    object holds a compiled design, which never travels)."""
+    from ..cluster import design_from_text, worker_threads
+
+    result = identify_stiffness(
+        design_from_text(text),
+        dataset,
+        sections=list(names),
+        initial=initial,
+        threads=worker_threads(per_host, threads),
+        **kwargs,
+    )
+    out = {name: np.array(getattr(result, name)) for name in _ROW_FIELDS}
+    out["calls"] = result.calls
+    out["settings"] = result.settings
+    return out
+
+
+def _identify_on_cluster(
+    executor, mapped, names, dataset, initial, kwargs, threads, chunk_size, progress, t0
+) -> StiffnessIdentification:
+    from ..cluster import chunk_rows, design_text, run_chunks, task_slots
+
+    m = len(dataset)
+    slots, per_host = task_slots(executor)
+    rows = chunk_rows(m, slots, chunk_size)
+    bounds = [(lo, min(lo + rows, m)) for lo in range(0, m, rows)]
+    text = design_text(mapped)
+    chunks = [
+        (text, names, dataset.subset(np.arange(lo, hi)), initial[lo:hi], kwargs, threads,
+         per_host)
+        for lo, hi in bounds
+    ]
+    report = None
+    if progress is not None:
+        finished = [0]
+
+        def report(done, total):
+            finished[0] += 1
+            progress(finished[0], total - done, total)
+
+    parts = run_chunks(
+        executor,
+        _identify_chunk,
+        chunks,
+        sizes=[hi - lo for lo, hi in bounds],
+        progress=report,
+        name="softrod-identify",
+    )
+    fields = {
+        name: _readonly(np.concatenate([p[name] for p in parts])) for name in _ROW_FIELDS
+    }
+    return StiffnessIdentification(
+        design=mapped,
+        dataset=dataset,
+        sections=tuple(names),
+        settings=parts[0]["settings"],
+        calls=sum(p["calls"] for p in parts),
+        wall_time_s=time.perf_counter() - t0,
+        **fields,
     )

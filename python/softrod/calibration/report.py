@@ -34,9 +34,9 @@ import numpy as np
 from ..errors import InputError, design_error
 from ..io import atomic_path
 from ..plotting import _equal_box, save_figure
+from .fit import STRONG_CORRELATION
 from .metrics import ALL, _length, per_sample_errors
 
-STRONG_CORRELATION = 0.95  # |r| above this: the two parameters are hardly separable
 _CORRELATION_ROUNDING = 1e-9  # |r| may exceed 1 by rounding; more means it is no correlation
 REPORT_SUFFIXES = (".html", ".htm")
 _DPI = 110
@@ -301,7 +301,7 @@ def _pressure_figure(samples, pressures_pa: np.ndarray):
         for name, style in styles.items():
             s = (sets == name) & ok
             ax.scatter(pressures_pa[s, c] / 1e3, err[s], s=16, alpha=0.8, label=name, **style)
-        ax.set_xlabel(f"p{c + 1} (kPa)")
+        ax.set_xlabel(f"p{c} (kPa)")
         ax.grid(True, alpha=0.3)
     axes[0].set_ylabel("Euclidean tip error (mm)")
     axes[0].legend(fontsize="small")
@@ -416,11 +416,12 @@ def _summary_html(summary: Mapping) -> str:
     return f"<table>{rows}</table>"
 
 
-def _warnings_html(items: Sequence[str]) -> str:
+def _warnings_html(items: Sequence[str], rules: str | None) -> str:
+    note = f'<p class="note">Rules: {html.escape(rules)}.</p>' if rules else ""
     if not items:
-        return '<p class="note">No warnings.</p>'
+        return '<p class="note">No warnings.</p>' + note
     li = "".join(f"<li>{html.escape(str(w))}</li>" for w in items)
-    return f'<ul class="warnings">{li}</ul>'
+    return f'<ul class="warnings">{li}</ul>' + note
 
 
 def _correlation_html(r: np.ndarray, names: list[str]) -> str:
@@ -474,6 +475,7 @@ def write_report(
     length=None,
     axis=None,
     base_position=None,
+    warning_rules: str | None = None,
 ) -> Path:
     """Write a calibration report to ``path`` (``.html``): one self-contained file.
 
@@ -484,7 +486,8 @@ def write_report(
     NaN rows of ``predicted`` for failed predictions; labels: the set of each sample.
     pressures: (m, channels) gauge pressures in Pa (adds the error-against-pressure figure).
     factors, factor_names: (m, k) identified dimensionless factors per sample, NaN where
-    none was found (adds paper 001 Fig. 5). warnings: shown highlighted near the top.
+    none was found (adds paper 001 Fig. 5). warnings: shown highlighted near the top, with
+    ``warning_rules`` (the thresholds behind them) below.
     correlation, param_names: the (k, k) parameter correlation matrix (a DataFrame gives its
     own names); entries with |r| > :data:`STRONG_CORRELATION` are highlighted.
     length, axis, base_position: as in :func:`~softrod.calibration.metrics.per_sample_errors`;
@@ -524,7 +527,7 @@ def write_report(
         )
         sections = [
             ("Summary", _summary_html(summary)),
-            ("Warnings", _warnings_html(list(warnings))),
+            ("Warnings", _warnings_html(list(warnings), warning_rules)),
             *tables,
             ("Figures", images),
         ]

@@ -32,7 +32,6 @@ from ..datasets import (
     DEFAULT_UNITS,
     _check_duplicates,
     _fail,
-    _metadata_json,
     _read_csv,
     _read_parquet,
     _unit_factor,
@@ -40,6 +39,7 @@ from ..datasets import (
 )
 from ..errors import InputError
 from ..io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
+from ..io import metadata_json as _metadata_json
 
 __all__ = ["KINDS", "VACUUM_PA", "PressureSchedule"]
 

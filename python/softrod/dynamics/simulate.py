@@ -10,6 +10,7 @@ chunks so that long runs can show progress, and packs the result into a
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import time as _time
@@ -18,8 +19,10 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from .. import _core
-from ..design import Design, load_design
+from ..catalog import load_design
+from ..design import Design
 from ..errors import InputError, design_error
+from ..progress import reporter
 from ..units import to_si
 from .schedule import PressureSchedule
 from .trajectory import Trajectory
@@ -28,6 +31,33 @@ __all__ = ["METHOD", "Simulation", "simulate"]
 
 METHOD = "BDF-alpha in time, shooting in space with RK4 (Till, Aloi, Rucker, IJRR 2019)"
 _CHUNK_WALL_S = 0.2  # wall time per chunk between progress reports
+
+logger = logging.getLogger(__name__)
+
+
+def _no_stiffness_map(design: Design) -> None:
+    """Dynamics have no pressure-dependent stiffness scaling (yet): a design that needs one
+    is refused rather than simulated with sigma = 1."""
+    mapped = [
+        s["name"]
+        for s in design.spec["sections"]
+        if (s.get("law") or {}).get("stiffness_map", False)
+    ]
+    if mapped:
+        raise design_error(
+            "design",
+            design.name,
+            f"section(s) {', '.join(mapped)} set [sections.law] stiffness_map = true: the "
+            "dynamics do not support a stiffness map sigma(p) (paper 001's static model); "
+            "simulate a design without mapped sections",
+            InputError,
+        )
+
+
+def simulated_time(done: float, total: float, wall: float) -> tuple[float, str]:
+    """A progress bar's position and text for simulate's progress(t_done, t_end, wall_s)."""
+    rtf = f"{done / wall:,.0f}x real time" if wall > 0 else ""
+    return done, f"{done:.2f} / {total:g} s {rtf}"
 
 
 def _seconds(value, field: str, *, positive: bool = True) -> float:
@@ -84,6 +114,7 @@ class Simulation:
         max_iter: int = 25,
     ):
         self.design: Design = load_design(design)
+        _no_stiffness_map(self.design)
         n = self.design.n_channels
         p = np.zeros(n) if pressures is None else np.asarray(pressures, dtype=float)
         if p.shape != (n,):
@@ -197,21 +228,30 @@ class Simulation:
         parts = [first]
         wall0 = _time.perf_counter()
         start, chunk = 0, 32
-        while start < n:
-            stop = min(n, start + chunk)
-            t_chunk = _time.perf_counter()
-            parts.append(
-                self._sim.run(
-                    np.ascontiguousarray(commands[start:stop]), keep[start:stop], bool(energy)
+        with reporter(progress, "simulate", duration, simulated_time) as report:
+            while start < n:
+                stop = min(n, start + chunk)
+                t_chunk = _time.perf_counter()
+                parts.append(
+                    self._sim.run(
+                        np.ascontiguousarray(commands[start:stop]), keep[start:stop], bool(energy)
+                    )
                 )
-            )
-            spent = _time.perf_counter() - t_chunk
-            # Size the next chunk for about _CHUNK_WALL_S of work.
-            chunk = int(np.clip(chunk * _CHUNK_WALL_S / max(spent, 1e-6), 8, 100_000))
-            start = stop
-            if progress is not None:
-                progress(self.time - t0, duration, _time.perf_counter() - wall0)
+                spent = _time.perf_counter() - t_chunk
+                # Size the next chunk for about _CHUNK_WALL_S of work.
+                chunk = int(np.clip(chunk * _CHUNK_WALL_S / max(spent, 1e-6), 8, 100_000))
+                start = stop
+                if report is not None:
+                    report(self.time - t0, duration, _time.perf_counter() - wall0)
         wall = _time.perf_counter() - wall0
+        logger.info(
+            "simulate %s: %d steps of %g s in %.3g s (%.3g x real time)",
+            self.design.name,
+            n,
+            dt,
+            wall,
+            (n * dt) / wall if wall > 0 else math.inf,
+        )
         cat = lambda key: np.concatenate([p[key] for p in parts])  # noqa: E731
         command0 = schedule.sample([t0])
         shape_parts = [p for p in (parts if want_shape0 else parts[1:]) if len(p["shape_time"])]
@@ -312,7 +352,9 @@ def simulate(
       ``alpha`` is the rod's BDF-alpha parameter; the PCC model uses the implicit midpoint
       rule, its ``tol`` default is 1e-11 on the Newton update per coordinate scale).
     - ``energy``: also record the total mechanical energy (J).
-    - ``progress``: called after each chunk of steps as progress(t_done, t_end, wall_s).
+    - ``progress``: None (a bar in interactive sessions), True, False, or a callable called
+      after each chunk of steps as progress(t_done, t_end, wall_s); see
+      :mod:`softrod.progress`.
 
     Returns a :class:`Trajectory`; its metadata records the method, the wall time and the
     real-time factor. A step that does not converge raises ``ConvergenceError`` with the
@@ -381,6 +423,7 @@ def _simulate_pcc(
             InputError,
         )
     d = load_design(design)
+    _no_stiffness_map(d)
     schedule = _schedule(pressure_schedule, d.n_channels)
     step = _seconds(dt, "dt")
     duration = _seconds(t_end, "t_end")
@@ -390,14 +433,16 @@ def _simulate_pcc(
         raise design_error("save_every", save_every, "must be an integer >= 1", InputError)
     n = max(1, math.ceil(duration / step * (1.0 - 1e-12)))
     shape_steps, shape0 = _shape_steps(shapes, n, step, int(save_every))
-    return simulate_pcc(
-        d,
-        schedule,
-        duration,
-        dt=step,
-        save_every=int(save_every),
-        shape_steps=shape_steps,
-        shape_at_start=shape0,
-        initial=initial,
-        **kw,
-    )
+    with reporter(kw.pop("progress"), "simulate (PCC)", duration, simulated_time) as report:
+        return simulate_pcc(
+            d,
+            schedule,
+            duration,
+            dt=step,
+            save_every=int(save_every),
+            shape_steps=shape_steps,
+            shape_at_start=shape0,
+            initial=initial,
+            progress=report,
+            **kw,
+        )

@@ -16,25 +16,45 @@ Both are written atomically (whole or not at all) and read back exactly by
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 import re
 import shutil
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..datasets import _fail, _metadata_json, _unit_factor
+from ..datasets import _fail
 from ..errors import InputError
 from ..io import atomic_path
+from ..io import metadata_json as _metadata_json
+from ..schema import Extra, schema_frame
+from ..schema import unit_factor as _unit_factor
 
-__all__ = ["TRAJECTORY_FORMAT", "TRAJECTORY_SUFFIXES", "Trajectory"]
+__all__ = [
+    "TRAJECTORY_FORMAT",
+    "TRAJECTORY_SUFFIXES",
+    "AnimationPlan",
+    "Trajectory",
+    "animation_plan",
+]
+
+logger = logging.getLogger(__name__)
 
 TRAJECTORY_SUFFIXES = (".parquet", ".npz")
-TRAJECTORY_FORMAT = 1  # version of the file layout; written into every file
+# Version of the file layout, written into every file. 2: the dataset schema's tip_q* columns
+# and velocity names tip_v*_m/s (version 1: tip_v*_m_s, no quaternion; still read).
+TRAJECTORY_FORMAT = 2
+_READABLE_FORMATS = (1, 2)
 ANIMATION_SUFFIXES = (".gif", ".mp4")
+# Animation defaults: a watchable clip, fast to render (docs/dynamics.md).
+DEFAULT_FPS = 20  # frames per second of clip
+TARGET_CLIP_S = 15.0  # longer runs play faster than real time to last about this long
+MAX_FRAMES = 300  # frame budget: fps drops below DEFAULT_FPS rather than exceed it
 
 _XYZ = ("x", "y", "z")
 _ROT = tuple(f"tip_R{i + 1}{j + 1}" for i in range(3) for j in range(3))  # R[i, j], row-major
@@ -210,31 +230,46 @@ class Trajectory:
 
     # --- tables and files --------------------------------------------------------------------
 
-    def to_frame(self) -> pd.DataFrame:
-        """The tip table: one row per sample, SI units in the column names.
+    def to_frame(self, units=None) -> pd.DataFrame:
+        """The tip table in the dataset schema (docs/datasets.md), one row per sample.
 
-        Columns: ``time_s``; ``cmd0_Pa``, ... (commanded) and ``p0_Pa``, ... (actual);
-        ``tip_x_m``, ``tip_y_m``, ``tip_z_m``; ``tip_R11`` ... ``tip_R33`` (``tip_Rij`` =
-        ``tip_rotation[:, i-1, j-1]``, column j is d_j); ``tip_vx_m_s``, ``tip_vy_m_s``,
-        ``tip_vz_m_s``; ``energy_J``. ``frame.attrs["softrod.metadata"]`` holds the metadata.
-        The ``time_s``, ``p<k>_Pa`` and ``tip_*_m`` names are those of datasets, so
-        ``load_dataset(frame, extra="ignore")`` reads it as tip data.
+        Columns: ``time_s``; ``p0_kPa``, ... (actual chamber pressures); ``tip_x_mm``,
+        ``tip_y_mm``, ``tip_z_mm``; ``tip_qw`` ... ``tip_qz`` (the tip frame as a unit
+        quaternion, scalar first); then the result columns ``cmd0_kPa``, ... (commanded
+        pressures), ``tip_vx_mm/s``, ``tip_vy_mm/s``, ``tip_vz_mm/s`` (tip velocity, world
+        frame) and ``energy_J``. ``units`` as in :meth:`softrod.Dataset.to_frame` (also
+        "velocity" and "energy"; ``units="SI"`` for Pa, m, m/s). The same quantities have the
+        same names as in :meth:`softrod.BatchSolution.to_frame`. The metadata block
+        (``frame.attrs["softrod.metadata"]``) is :attr:`metadata` with the result columns
+        declared, so ``load_dataset(frame)`` reads it back.
         """
-        cols: dict[str, np.ndarray] = {"time_s": np.array(self.time)}
-        for k in range(self.n_channels):
-            cols[f"cmd{k}_Pa"] = np.array(self.command[:, k])
-        for k in range(self.n_channels):
-            cols[f"p{k}_Pa"] = np.array(self.pressure[:, k])
-        for i, a in enumerate(_XYZ):
-            cols[f"tip_{a}_m"] = np.array(self.tip_position[:, i])
-        for name, (i, j) in zip(_ROT, np.ndindex(3, 3), strict=True):
-            cols[name] = np.array(self.tip_rotation[:, i, j])
-        for i, a in enumerate(_XYZ):
-            cols[f"tip_v{a}_m_s"] = np.array(self.tip_velocity[:, i])
-        cols["energy_J"] = np.array(self.energy)
-        frame = pd.DataFrame(cols)
-        frame.attrs["softrod.metadata"] = dict(self.metadata)
-        return frame
+        return schema_frame(
+            pressures=self.pressure,
+            tip_position=self.tip_position,
+            tip_rotation=self.tip_rotation,
+            time=self.time,
+            extras=self._extras(),
+            units=units,
+            metadata=self._table_metadata(),
+        )
+
+    def _table_metadata(self) -> dict:
+        """The metadata of the tables: the trajectory's, marked as made by the model."""
+        return {"synthetic": True, **self.metadata}
+
+    def _extras(self) -> list[Extra]:
+        extras = [
+            Extra(f"cmd{k}", self.command[:, k], f"commanded pressure of channel {k}", "pressure")
+            for k in range(self.n_channels)
+        ]
+        extras += [
+            Extra(f"tip_v{a}", self.tip_velocity[:, i], "tip velocity, world frame", "velocity")
+            for i, a in enumerate(_XYZ)
+        ]
+        extras.append(
+            Extra("energy", self.energy, "total mechanical energy (empty: not defined)", "energy")
+        )
+        return extras
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write to ``.parquet`` or ``.npz`` (by suffix), atomically; returns the path.
@@ -259,14 +294,32 @@ class Trajectory:
                         format=np.array(f"{_NPZ_FORMAT}/{TRAJECTORY_FORMAT}"),
                     )
             else:
-                self._write_parquet(tmp, meta)
+                self._write_parquet(tmp)
         return path
 
-    def _write_parquet(self, tmp: Path, meta: str) -> None:
+    def _write_parquet(self, tmp: Path) -> None:
         import pyarrow as pa
         import pyarrow.parquet as pq
 
-        table = pa.Table.from_pandas(self.to_frame(), preserve_index=False)
+        # SI columns, and the rotation matrix beside its quaternion: load() gets every bit back.
+        exact = [
+            Extra(name, self.tip_rotation[:, i, j], f"tip rotation R[{i}, {j}] (d{j + 1} column)")
+            for name, (i, j) in zip(_ROT, np.ndindex(3, 3), strict=True)
+        ]
+        frame = schema_frame(
+            pressures=self.pressure,
+            tip_position=self.tip_position,
+            tip_rotation=self.tip_rotation,
+            time=self.time,
+            extras=self._extras() + exact,
+            units="SI",
+            metadata=self._table_metadata(),
+        )
+        meta = frame.attrs["softrod.metadata"]
+        meta["columns"]["shape_m"] = (
+            "centreline, node-major (x0, y0, z0, x1, ...) in m; empty: no shape stored"
+        )
+        table = pa.Table.from_pandas(frame, preserve_index=False)
         n, p = len(self), self.shape_s.size
         rows = np.searchsorted(self.time, self.shape_time)  # exact members (checked)
         lengths = np.zeros(n, dtype=np.int32)
@@ -286,10 +339,12 @@ class Trajectory:
             "n_nodes": p,
             "shape_s_m": self.shape_s.tolist(),  # JSON floats round-trip exactly
             "shape_layout": "shape_m: node-major (x0, y0, z0, x1, ...) in m; null: no shape",
+            # Metadata entries the table adds (load() takes them out again).
+            "table_metadata": sorted(set(meta) - set(self.metadata)),
         }
         kv = dict(table.schema.metadata or {})
         kv.pop(b"pandas", None)  # the table is read back column by column, not via pandas
-        kv[_META_KEY] = meta.encode("utf-8")
+        kv[_META_KEY] = _metadata_json(meta).encode("utf-8")
         kv[_PARQUET_KEY] = json.dumps(layout).encode("utf-8")
         pq.write_table(table.replace_schema_metadata(kv), tmp)
 
@@ -421,27 +476,39 @@ class Trajectory:
         self,
         path: str | os.PathLike,
         *,
-        fps: float = 25,
-        speed: float = 1.0,
+        fps: float = DEFAULT_FPS,
+        speed: float | None = None,
+        max_frames: int | None = MAX_FRAMES,
         trail: bool = True,
         elev: float = 20.0,
         azim: float = -60.0,
         dpi: int = 80,
         figsize: tuple[float, float] = (5.0, 5.0),
+        progress=None,
     ) -> Path:
         """Write a 3-D animation of the stored shapes as ``.gif`` or ``.mp4``; returns the path.
 
-        Frame j shows the stored shape nearest to ``shape_time[0] + j * speed / fps``, for
-        every such time up to ``shape_time[-1]`` (``speed`` 2 plays twice as fast as real
-        time). Axes in mm with equal scale, fixed over the whole run; the base is a black
-        square, the tip a dot, ``trail`` draws the tip path so far (from the tip samples), and
-        a label gives the time of the shape shown. ``elev``, ``azim``: view angles in degrees.
+        The clip is meant to be watched: ``speed`` (simulated seconds per second of clip)
+        defaults to :func:`animation_plan`'s choice, real time for runs up to
+        :data:`TARGET_CLIP_S` (15 s) and faster for longer ones so the clip lasts about 15 s;
+        at most ``max_frames`` (300) frames are drawn, at ``fps`` (20) or fewer when the clip
+        would need more (``max_frames=None``: no cap). Frame j shows the stored shape nearest
+        to ``shape_time[0] + j * speed / fps``. Simulate with ``shapes=`` at the plan's
+        ``frame_interval_s`` to store just the shapes the clip shows.
 
-        GIF is written with Pillow (frames kept as 8-bit palette images; GIF timing has a
-        resolution of 10 ms, and identical consecutive frames are merged). MP4 needs the
-        ``ffmpeg`` program on PATH (matplotlib's FFMpegWriter). Needs at least 2 shapes. The
-        file is written atomically. Rendering takes some tens of ms per frame.
+        Axes in mm with equal scale, fixed over the whole run; the base is a black square,
+        the tip a dot, ``trail`` draws the tip path so far (from the tip samples), and a label
+        gives the time of the shape shown. ``elev``, ``azim``: view angles in degrees. Only
+        the moving parts are redrawn per frame (the axes are drawn once), so a frame takes a
+        few ms. ``progress``: see :mod:`softrod.progress`; a callable gets
+        ``progress(frames_done, n_frames)``.
+
+        GIF is written with Pillow (8-bit palette frames; GIF timing has a resolution of
+        10 ms, and identical consecutive frames are merged). MP4 needs the ``ffmpeg``
+        program on PATH. Needs at least 2 shapes. The file is written atomically.
         """
+        from ..progress import check_progress, reporter
+
         path = Path(path)
         suffix = path.suffix.lower()
         if suffix not in ANIMATION_SUFFIXES:
@@ -451,40 +518,57 @@ class Trajectory:
                 f"unknown animation format {path.suffix or '(no suffix)'!r}: the file name must "
                 f"end in {' or '.join(ANIMATION_SUFFIXES)}",
             )
-        for name, value in (("fps", fps), ("speed", speed)):
-            if (
-                isinstance(value, bool)
-                or not isinstance(value, (int, float, np.integer, np.floating))
-                or not math.isfinite(value)
-                or value <= 0
-            ):
-                raise _fail(name, value, "must be a finite number > 0")
+        check_progress(progress)
         if self.shape_time.size < 2:
             raise _fail(
                 "shape_time",
                 f"{self.shape_time.size} shape(s)",
-                "an animation needs at least 2 stored shapes (simulate with a smaller save_every)",
+                "an animation needs at least 2 stored shapes (simulate with shapes=...)",
             )
+        plan = animation_plan(
+            float(self.shape_time[-1] - self.shape_time[0]),
+            fps=fps,
+            speed=speed,
+            max_frames=max_frames,
+        )
         if suffix == ".mp4":
-            from matplotlib.animation import FFMpegWriter
-
-            if shutil.which("ffmpeg") is None or not FFMpegWriter.isAvailable():
+            if shutil.which("ffmpeg") is None:
                 raise _fail(
                     "path",
                     str(path),
                     "writing .mp4 needs the ffmpeg program on PATH: install ffmpeg "
                     "(e.g. apt install ffmpeg, conda install ffmpeg) or write a .gif",
                 )
-        frames = self._frame_indices(float(fps), float(speed))
-        with atomic_path(path) as tmp:
+        frames = self._frame_indices(plan.fps, plan.speed)
+        logger.info(
+            "animate %s: %d frames at %.3g fps, %.3g x real time, a %.1f s clip",
+            path.name,
+            frames.size,
+            plan.fps,
+            plan.speed,
+            frames.size / plan.fps,
+        )
+        t0 = time.perf_counter()
+        with (
+            reporter(
+                progress,
+                f"animate {path.name}",
+                frames.size,
+                lambda done, total: (done, f"{done}/{total} frames"),
+            ) as report,
+            atomic_path(path) as tmp,
+        ):
             # The writers pick the format from the file name, so render to a sibling with the
             # right suffix and move it onto the temporary file.
             media = tmp.with_name(tmp.name + suffix)
             try:
-                self._render(media, frames, float(fps), trail, elev, azim, dpi, figsize)
+                self._render(
+                    media, frames, plan.fps, trail, elev, azim, dpi, figsize, report
+                )
                 os.replace(media, tmp)
             finally:
                 media.unlink(missing_ok=True)
+        logger.info("animate %s: written in %.2f s", path.name, time.perf_counter() - t0)
         return path
 
     def _frame_indices(self, fps: float, speed: float) -> np.ndarray:
@@ -497,14 +581,14 @@ class Trajectory:
         lo = hi - 1
         return np.where(tf - st[lo] <= st[hi] - tf, lo, hi)
 
-    def _render(self, out: Path, frames, fps, trail, elev, azim, dpi, figsize) -> None:
+    def _render(self, out: Path, frames, fps, trail, elev, azim, dpi, figsize, report) -> None:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
         from ..plotting import _equal_box
 
         fig = Figure(figsize=figsize, dpi=dpi)
-        FigureCanvasAgg(fig)
+        canvas = FigureCanvasAgg(fig)
         ax = fig.add_subplot(projection="3d")
         shapes = self.shape_position * 1e3
         tips = self.tip_position * 1e3
@@ -519,30 +603,43 @@ class Trajectory:
             ax.set_title(str(name), fontsize="medium")
         base = shapes[0, 0]
         ax.plot([base[0]], [base[1]], [base[2]], marker="s", color="black", linestyle="none")
-        (rod,) = ax.plot([], [], [], color="C0", linewidth=3.0)
-        (tip,) = ax.plot([], [], [], marker="o", color="C0", markeredgecolor="black")
-        (path_line,) = ax.plot([], [], [], color="C1", linewidth=1.0, alpha=0.8)
-        label = ax.text2D(0.02, 0.95, "", transform=ax.transAxes)
+        (rod,) = ax.plot([], [], [], color="C0", linewidth=3.0, animated=True)
+        (tip,) = ax.plot(
+            [], [], [], marker="o", color="C0", markeredgecolor="black", animated=True
+        )
+        (path_line,) = ax.plot([], [], [], color="C1", linewidth=1.0, alpha=0.8, animated=True)
+        label = ax.text2D(0.02, 0.95, "", transform=ax.transAxes, animated=True)
+        moving = (path_line, rod, tip, label)
+        # The view is fixed: draw the axes, panes and ticks once and keep the pixels; each
+        # frame restores them and draws only the moving artists (blitting on the Agg canvas).
+        canvas.draw()
+        background = canvas.copy_from_bbox(fig.bbox)
+        upto = np.searchsorted(self.time, self.shape_time, side="right")
 
-        def draw(i: int) -> None:
+        def draw(i: int) -> np.ndarray:
             s = shapes[i]
             rod.set_data_3d(s[:, 0], s[:, 1], s[:, 2])
             tip.set_data_3d([s[-1, 0]], [s[-1, 1]], [s[-1, 2]])
             if trail:
-                upto = tips[self.time <= self.shape_time[i]]
-                path_line.set_data_3d(upto[:, 0], upto[:, 1], upto[:, 2])
+                past = tips[: upto[i]]
+                path_line.set_data_3d(past[:, 0], past[:, 1], past[:, 2])
             label.set_text(f"t = {self.shape_time[i]:.2f} s")
+            canvas.restore_region(background)
+            for artist in moving:
+                ax.draw_artist(artist)
+            return np.asarray(canvas.buffer_rgba())
 
+        n = len(frames)
         if out.suffix == ".gif":
             from PIL import Image
 
             images = []
-            for i in frames:
-                draw(int(i))
-                fig.canvas.draw()
-                rgba = np.asarray(fig.canvas.buffer_rgba())
+            for j, i in enumerate(frames):
+                rgba = draw(int(i))
                 img = Image.fromarray(rgba[..., :3].copy(), "RGB")
                 images.append(img.quantize(colors=255, method=Image.Quantize.FASTOCTREE))
+                if report is not None:
+                    report(j + 1, n)
             images[0].save(
                 out,
                 format="GIF",
@@ -552,13 +649,98 @@ class Trajectory:
                 loop=0,
             )
         else:
-            from matplotlib.animation import FFMpegWriter
+            import subprocess
 
-            writer = FFMpegWriter(fps=fps)
-            with writer.saving(fig, str(out), dpi):
-                for i in frames:
-                    draw(int(i))
-                    writer.grab_frame()
+            width, height = canvas.get_width_height()
+            command = [
+                shutil.which("ffmpeg") or "ffmpeg",
+                "-loglevel",
+                "error",
+                "-y",
+                "-f",
+                "rawvideo",
+                "-pix_fmt",
+                "rgba",
+                "-s",
+                f"{width}x{height}",
+                "-r",
+                f"{fps:.6g}",
+                "-i",
+                "-",
+                "-vf",
+                "pad=ceil(iw/2)*2:ceil(ih/2)*2",  # yuv420p needs even sizes
+                "-vcodec",
+                "libx264",
+                "-pix_fmt",
+                "yuv420p",
+                str(out),
+            ]
+            with subprocess.Popen(command, stdin=subprocess.PIPE, stderr=subprocess.PIPE) as proc:
+                try:
+                    for j, i in enumerate(frames):
+                        proc.stdin.write(np.ascontiguousarray(draw(int(i))).tobytes())
+                        if report is not None:
+                            report(j + 1, n)
+                finally:
+                    proc.stdin.close()
+                err = proc.stderr.read().decode(errors="replace")
+            if proc.returncode != 0:
+                raise _fail("path", str(out), f"ffmpeg failed ({proc.returncode}): {err.strip()}")
+
+
+@dataclass(frozen=True)
+class AnimationPlan:
+    """How a run of ``duration`` s becomes a clip: ``speed`` (simulated s per clip s),
+    ``fps`` (frames per clip s), ``n_frames`` and ``frame_interval_s`` (simulated s between
+    frames: the ``shapes=`` interval to simulate with)."""
+
+    duration: float
+    speed: float
+    fps: float
+    n_frames: int
+
+    @property
+    def frame_interval_s(self) -> float:
+        return self.speed / self.fps
+
+    @property
+    def clip_s(self) -> float:
+        return self.n_frames / self.fps
+
+
+def animation_plan(
+    duration: float,
+    *,
+    fps: float = DEFAULT_FPS,
+    speed: float | None = None,
+    max_frames: int | None = MAX_FRAMES,
+) -> AnimationPlan:
+    """The clip of a ``duration`` s run: ``speed`` None picks real time up to
+    :data:`TARGET_CLIP_S` and ``duration / TARGET_CLIP_S`` beyond (a clip of about 15 s);
+    ``fps`` is lowered when the clip would need more than ``max_frames`` frames."""
+    for name, value in (("fps", fps), ("speed", speed), ("duration", duration)):
+        if value is None and name == "speed":
+            continue
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float, np.integer, np.floating))
+            or not math.isfinite(value)
+            or value <= 0
+        ):
+            raise _fail(name, value, "must be a finite number > 0")
+    if max_frames is not None and (
+        isinstance(max_frames, bool) or not isinstance(max_frames, (int, np.integer))
+        or max_frames < 2
+    ):
+        raise _fail("max_frames", max_frames, "must be an integer >= 2 or None (no cap)")
+    duration = float(duration)
+    if speed is None:
+        speed = max(1.0, duration / TARGET_CLIP_S)
+    speed, fps = float(speed), float(fps)
+    if max_frames is not None and duration / speed * fps + 1 > max_frames:
+        fps = (max_frames - 1) * speed / duration
+    n = int(math.floor(duration / (speed / fps) * (1 + 1e-12))) + 1
+    return AnimationPlan(duration=duration, speed=speed, fps=fps, n_frames=n)
 
 
 def _check_path(path, *, must_exist: bool = False) -> Path:
@@ -585,6 +767,26 @@ def _json_block(raw, key: str) -> dict:
     return value
 
 
+def _check_format(version, field: str) -> int:
+    """The file layout's version as an int; InputError for one this softrod cannot read."""
+    try:
+        number = int(version)
+    except (TypeError, ValueError):
+        number = None
+    if number is None or str(number) != str(version) or number < 1:
+        raise _fail(field, version, "not a softrod trajectory format version")
+    if number > TRAJECTORY_FORMAT:
+        raise _fail(
+            field,
+            version,
+            f"written by a newer softrod (trajectory format {number}; this softrod reads "
+            f"{', '.join(map(str, _READABLE_FORMATS))}): upgrade softrod to read it",
+        )
+    if number not in _READABLE_FORMATS:
+        raise _fail(field, version, f"unsupported version (this softrod reads {_READABLE_FORMATS})")
+    return number
+
+
 def _load_npz(path: Path) -> Trajectory:
     try:
         data = np.load(path, allow_pickle=False)
@@ -594,11 +796,7 @@ def _load_npz(path: Path) -> Trajectory:
         fmt = str(data["format"]) if "format" in data.files else None
         if fmt is None or not fmt.startswith(_NPZ_FORMAT + "/"):
             raise _fail("format", fmt, "not a softrod trajectory file (written by save)")
-        version = fmt.split("/", 1)[1]
-        if version != str(TRAJECTORY_FORMAT):
-            raise _fail(
-                "format", fmt, f"unsupported version (this softrod reads {TRAJECTORY_FORMAT})"
-            )
+        _check_format(fmt.split("/", 1)[1], "format")
         missing = [n for n in (*_FIELDS, "metadata_json") if n not in data.files]
         if missing:
             raise _fail("arrays", sorted(data.files), f"missing {', '.join(missing)}")
@@ -618,13 +816,10 @@ def _load_parquet(path: Path) -> Trajectory:
     if _PARQUET_KEY not in kv:
         raise _fail("file", str(path), "not a softrod trajectory (no softrod.trajectory metadata)")
     layout = _json_block(kv[_PARQUET_KEY], _PARQUET_KEY.decode())
-    if layout.get("format") != TRAJECTORY_FORMAT:
-        raise _fail(
-            "softrod.trajectory.format",
-            layout.get("format"),
-            f"unsupported version (this softrod reads {TRAJECTORY_FORMAT})",
-        )
+    version = _check_format(layout.get("format"), "softrod.trajectory.format")
     meta = _json_block(kv.get(_META_KEY, b"{}"), _META_KEY.decode())
+    for key in layout.get("table_metadata", ["columns"]):
+        meta.pop(key, None)  # e.g. the declaration of the result columns, added by save
     c = layout.get("n_channels")
     if not isinstance(c, int) or c < 1:
         raise _fail("softrod.trajectory.n_channels", c, "must be an integer >= 1")
@@ -660,7 +855,7 @@ def _load_parquet(path: Path) -> Trajectory:
         pressure=cols("p{}_Pa", range(c)),
         tip_position=cols("tip_{}_m", _XYZ),
         tip_rotation=rotation,
-        tip_velocity=cols("tip_v{}_m_s", _XYZ),
+        tip_velocity=cols("tip_v{}_m_s" if version == 1 else "tip_v{}_m/s", _XYZ),
         energy=col("energy_J"),
         shape_time=time[has],
         shape_s=ss,

@@ -13,7 +13,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from ..design import load_design
+from ..catalog import load_design
 from ..errors import InputError, design_error
 from ..statics import solve_statics
 
@@ -42,10 +42,14 @@ def compare_pcc(
     linear), with gravity, and with gravity plus ``tip_force`` (N, world frame; default a
     10 g weight). ``progress(n)`` is called after every n solves.
 
-    Returns a pandas DataFrame with columns case, p_Pa, pcc_{x,y,z}_mm, rod_{x,y,z}_mm,
-    error_mm (distance between the two tips) and rel_error (error / tip travel of the rod).
+    Returns a pandas DataFrame in the dataset schema (docs/datasets.md), two rows per case
+    and level (one per model): ``experiment`` (the case), ``p0_kPa`` ... (every channel),
+    ``tip_x_mm`` ... and ``tip_q*`` of that model's tip, then the result columns ``model``
+    ("pcc" or "cosserat"), ``level_kPa`` (the ramp level), ``error_mm`` (distance between the
+    two models' tips) and ``rel_error`` (error / tip travel of the rod). The metadata block
+    names the design, the channels and the cases; ``load_dataset`` reads it back.
     """
-    import pandas as pd
+    from ..schema import Extra, provenance, schema_frame
 
     d = load_design(design)
     chans = [int(c) for c in channels]
@@ -67,32 +71,44 @@ def compare_pcc(
         for p in levels:
             pr = np.zeros(d.n_channels)
             pr[chans] = p
-            tips = {}
+            sols = {}
             for model in ("pcc", "cosserat"):
                 sol = solve_statics(
                     des, pr, model=model, tip_force=force, tip_moment=zero, initial=prev[model]
                 )
                 prev[model] = sol
-                tips[model] = sol.tip_position
+                sols[model] = sol
             if start is None:
-                start = tips["cosserat"]
-            err = float(np.linalg.norm(tips["pcc"] - tips["cosserat"]))
-            travel = float(np.linalg.norm(tips["cosserat"] - start))
-            rows.append(
-                {
-                    "case": case,
-                    "p_Pa": p,
-                    **{f"pcc_{a}_mm": 1e3 * v for a, v in zip("xyz", tips["pcc"], strict=True)},
-                    **{
-                        f"rod_{a}_mm": 1e3 * v for a, v in zip("xyz", tips["cosserat"], strict=True)
-                    },
-                    "error_mm": 1e3 * err,
-                    "rel_error": err / travel if travel > 0 else np.nan,
-                }
-            )
+                start = sols["cosserat"].tip_position
+            err = float(np.linalg.norm(sols["pcc"].tip_position - sols["cosserat"].tip_position))
+            travel = float(np.linalg.norm(sols["cosserat"].tip_position - start))
+            rel = err / travel if travel > 0 else np.nan
+            for model in ("pcc", "cosserat"):
+                rows.append((case, model, p, pr, sols[model], err, rel))
             if progress is not None:
                 progress(2)
-    return pd.DataFrame(rows)
+    frame = schema_frame(
+        pressures=np.array([r[3] for r in rows]),
+        tip_position=np.array([r[4].tip_position for r in rows]),
+        tip_rotation=np.array([r[4].tip_rotation for r in rows]),
+        experiment=np.array([r[0] for r in rows]),
+        extras=[
+            Extra("model", np.array([r[1] for r in rows]), "pcc or cosserat (the rod)"),
+            Extra("level", np.array([r[2] for r in rows]), "ramp level", "pressure"),
+            Extra("error", np.array([r[5] for r in rows]), "|tip_PCC - tip_rod|", "length"),
+            Extra("rel_error", np.array([r[6] for r in rows]), "error / tip travel of the rod"),
+        ],
+        metadata=provenance(
+            "softrod.pcc.compare_pcc",
+            d,
+            channels=chans,
+            p_max_kPa=p_max / 1e3,
+            steps=steps,
+            tip_force_N=[float(f) for f in tip_force],
+            cases=list(setups),
+        ),
+    )
+    return frame
 
 
 def _cases(d, tip_force) -> dict:
@@ -124,32 +140,60 @@ def compare_pcc_dynamics(
     ``[dynamics]`` Kelvin-Voigt time; PCC: ``[pcc]`` b_L, b_theta). ``progress(1)`` is
     called after every run (6 runs).
 
-    Returns a pandas DataFrame with columns case, time_s, pcc_{x,y,z}_mm, rod_{x,y,z}_mm and
-    error_mm (distance between the two tips), one row per saved step and case.
+    Returns a pandas DataFrame in the dataset schema, one row per saved step, case and
+    model: ``experiment`` (the case), ``time_s``, ``p0_kPa`` ... (the supplied chamber
+    pressures), ``tip_x_mm`` ..., ``tip_q*``, then ``model`` ("pcc" or "cosserat") and
+    ``error_mm`` (distance between the two models' tips at that time).
     """
     import pandas as pd
 
     from ..dynamics import simulate
+    from ..schema import Extra, provenance, schema_frame
 
     d = load_design(design)
     frames = []
     for case, (des, force) in _cases(d, tip_force).items():
         if any(force):
             des = des.replace({"tip.force": [f"{f!r} N" for f in force]})
-        tips = {}
+        runs = {}
         for model in ("pcc", "cosserat"):
-            tr = simulate(des, schedule, t_end, dt=dt, save_every=save_every, model=model)
-            tips[model] = tr.tip_position
-            time = tr.time
+            runs[model] = simulate(
+                des, schedule, t_end, dt=dt, save_every=save_every, model=model, progress=False
+            )
             if progress is not None:
                 progress(1)
-        frame = {"case": case, "time_s": time}
-        for model, key in (("pcc", "pcc"), ("cosserat", "rod")):
-            for k, a in enumerate("xyz"):
-                frame[f"{key}_{a}_mm"] = 1e3 * tips[model][:, k]
-        frame["error_mm"] = 1e3 * np.linalg.norm(tips["pcc"] - tips["cosserat"], axis=1)
-        frames.append(pd.DataFrame(frame))
-    return pd.concat(frames, ignore_index=True)
+        error = np.linalg.norm(runs["pcc"].tip_position - runs["cosserat"].tip_position, axis=1)
+        for model, tr in runs.items():
+            n = len(tr)
+            frames.append(
+                schema_frame(
+                    pressures=tr.pressure,
+                    tip_position=tr.tip_position,
+                    tip_rotation=tr.tip_rotation,
+                    time=tr.time,
+                    experiment=np.full(n, case),
+                    extras=[
+                        Extra("model", np.full(n, model), "pcc or cosserat (the rod)"),
+                        Extra("error", error, "|tip_PCC - tip_rod| at this time", "length"),
+                    ],
+                    metadata=provenance(
+                        "softrod.pcc.compare_pcc_dynamics",
+                        d,
+                        dt_s=float(runs[model].metadata.get("dt_s", dt)),
+                        save_every=save_every,
+                        tip_force_N=[float(f) for f in tip_force],
+                    ),
+                )
+            )
+    df = pd.concat(frames, ignore_index=True)
+    df.attrs["softrod.metadata"] = frames[0].attrs["softrod.metadata"]
+    return df
+
+
+def _models(df, case):
+    """The rows of one case: (rod rows, PCC rows), each in the table's order."""
+    sub = df[df["experiment"] == case]
+    return sub[sub["model"] == "cosserat"], sub[sub["model"] == "pcc"]
 
 
 def plot_pcc_dynamics_comparison(df, title: str | None = None):
@@ -159,13 +203,13 @@ def plot_pcc_dynamics_comparison(df, title: str | None = None):
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
     for k, case in enumerate(CASES):
-        sub = df[df["case"] == case]
-        if sub.empty:
+        rod, pcc = _models(df, case)
+        if rod.empty:
             continue
         color = f"C{k}"
-        ax1.plot(sub["time_s"], sub["error_mm"], color=color, label=case)
-        for model, style in (("rod", "-"), ("pcc", "--")):
-            h = np.hypot(sub[f"{model}_x_mm"], sub[f"{model}_y_mm"])
+        ax1.plot(rod["time_s"], rod["error_mm"], color=color, label=case)
+        for sub, style in ((rod, "-"), (pcc, "--")):
+            h = np.hypot(sub["tip_x_mm"], sub["tip_y_mm"])
             ax2.plot(sub["time_s"], h, style, color=color)
     ax1.set_xlabel("time (s)")
     ax1.set_ylabel("|tip_PCC - tip_rod| (mm)")
@@ -187,18 +231,16 @@ def plot_pcc_comparison(df, title: str | None = None):
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
     for k, case in enumerate(CASES):
-        sub = df[df["case"] == case]
-        if sub.empty:
+        rod, pcc = _models(df, case)
+        if rod.empty:
             continue
         color = f"C{k}"
-        ax1.plot(sub["p_Pa"] / 1e5, sub["error_mm"], "o-", color=color, label=case)
+        ax1.plot(rod["level_kPa"], rod["error_mm"], "o-", color=color, label=case)
         # Tip paths in the plane of largest travel: horizontal distance vs height.
-        for model, style in (("pcc", "--"), ("rod", "-")):
-            h = np.hypot(sub[f"{model}_x_mm"], sub[f"{model}_y_mm"])
-            ax2.plot(
-                h, sub[f"{model}_z_mm"], style, color=color, marker="." if model == "pcc" else ""
-            )
-    ax1.set_xlabel("pressure (bar)")
+        for sub, style, marker in ((pcc, "--", "."), (rod, "-", "")):
+            h = np.hypot(sub["tip_x_mm"], sub["tip_y_mm"])
+            ax2.plot(h, sub["tip_z_mm"], style, color=color, marker=marker)
+    ax1.set_xlabel("pressure (kPa)")
     ax1.set_ylabel("|tip_PCC - tip_rod| (mm)")
     ax1.legend(fontsize=8)
     ax1.grid(alpha=0.3)

@@ -34,6 +34,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from .. import _core
+from .._threads import one_blas_thread
+from ..catalog import load_design
 from ..datasets import (
     Dataset,
     _matrix_to_quat,
@@ -42,7 +44,7 @@ from ..datasets import (
     load_dataset,
     noise_seed,
 )
-from ..design import Design, load_design
+from ..design import Design
 from ..errors import ConvergenceError, InputError, design_error
 from ..units import to_si
 from .identify import (
@@ -475,6 +477,7 @@ def _fit_b_theta(design, sec, dataset, rows, used, inertia):
 # --- the entry point -----------------------------------------------------------------------------
 
 
+@one_blas_thread
 def identify_pcc(
     design,
     dataset,

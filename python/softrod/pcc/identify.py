@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import curve_fit, least_squares
 
-from ..design import Design, load_design
+from ..catalog import load_design
+from ..design import Design
 from ..errors import ConvergenceError, InputError, design_error
 from ..io import atomic_path
 from ..units import SI_UNIT

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .. import _core
-from ..design import load_design
+from ..catalog import load_design
 from ..errors import InputError, design_error
 from ..units import to_si
 

@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..design import load_design
+from ..catalog import load_design
 from ..errors import InputError, design_error
 from .model import pcc_model
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ConvergenceError
+from ..solution import StaticSolution
 from .model import pcc_model
 
 N_PER_SECTION = 32
@@ -29,8 +30,6 @@ def solve_pcc_statics(
     ``shooting_unknowns`` holds the PCC coordinates (L, theta_x, theta_y) per segment, so a
     solution warm-starts the next one through ``initial``.
     """
-    from ..statics import StaticSolution
-
     model = pcc_model(design, tip_force=tip_force, tip_moment=tip_moment)
     guess = None if initial is None else [float(v) for v in initial.shooting_unknowns]
     try:

@@ -1,0 +1,85 @@
+"""Viewer latency: slider move to redrawn scene, in headless Chromium (a script, not a test).
+
+    python benchmarks/bench_viewer.py          # 25 slider clicks -> results/viewer.json
+    python benchmarks/bench_viewer.py --quick  # 7 clicks
+    python benchmarks/bench_viewer.py --figures  # also write docs/figures/viewer_*.png
+
+The viewer of ``spa_three_chamber_130mm`` (sliders 0-70 kPa) in Debian's Chromium, driven by
+playwright through the browser's executable path, exactly as tests/test_viewer_browser.py
+does (tests/browser_driver.py). Each click on a pressure slider's track is timed in the
+page's clock: ``shown`` when the page has applied the server's update (the new tube and the
+solver panel arrive in one batch), ``total`` two animation frames later, when the frame with
+the new geometry has been drawn; and on the server: when the solve started (``server``,
+same machine's clock), the Rust solve (``solve``) and building and sending the scene update
+(``draw``). Medians over the clicks. Without a GPU the browser renders with SwiftShader
+(software WebGL), whose frame time dominates ``total``; ``frame_ms`` is the page's idle
+animation-frame interval.
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import softrod
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent / "tests"))
+from browser_driver import ViewerPage, chromium_path  # noqa: E402
+from common import bench_main, load_average, machine, result_header  # noqa: E402
+
+DESIGN = "spa_three_chamber_130mm"
+FIGURES = HERE.parent / "docs" / "figures"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--figures", action="store_true", help="write docs/figures/viewer_*.png")
+
+
+def run(args) -> dict:
+    t_start = time.perf_counter()
+    chromium = chromium_path()
+    if chromium is None:
+        raise SystemExit("no Chromium installed (Debian: apt-get install chromium)")
+    info = machine()
+    clicks = 7 if args.quick else 25
+    out = {}
+    for size in ((1280, 800), (800, 600)):
+        viewer = softrod.view(DESIGN, pressure_range=(0, 70e3), environment_map=False)
+        try:
+            with ViewerPage(viewer, chromium, *size) as page:
+                page.wait_rendered()
+                frame = page.frame_interval_ms()
+                page.click_slider(0, 0.5)  # warm-up: first geometry upload
+                rows = [page.click_slider(k % 3, 0.1 + 0.8 * ((k * 7) % 11) / 10) for k in
+                        range(clicks)]
+                if args.figures and size == (1280, 800):
+                    viewer.set_inputs(pressures=[60e3, 25e3, 0], tip_force=[0.0, 0.0, 0.0])
+                    time.sleep(1.0)
+                    viewer.screenshot(FIGURES / "viewer_spa_130mm.png", width=1000, height=700)
+                    page.page.screenshot(path=str(FIGURES / "viewer_page.png"))
+        finally:
+            viewer.close()
+        key = f"{size[0]}x{size[1]}"
+        out[key] = {
+            "clicks": clicks,
+            "frame_ms": frame,
+            **{f"median_{k}_ms": statistics.median(r[k] for r in rows) for k in rows[0]},
+            "max_total_ms": max(r["total"] for r in rows),
+        }
+        print(key, {k: round(v, 2) for k, v in out[key].items()})
+    return {
+        **result_header("viewer", args.quick, info, design=DESIGN),
+        "browser": chromium,
+        "renderer": "SwiftShader (software WebGL), no GPU",
+        **out,
+        "load_average_after": load_average(),
+        "wall_time_s": time.perf_counter() - t_start,
+    }
+
+
+if __name__ == "__main__":
+    raise SystemExit(bench_main(sys.argv[1:], __doc__, "viewer", run, add_arguments))

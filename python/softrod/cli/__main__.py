@@ -1,0 +1,5 @@
+"""``python -m softrod.cli``."""
+
+from . import main
+
+main()

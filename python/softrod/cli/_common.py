@@ -1,0 +1,394 @@
+"""Shared pieces of the ``softrod`` commands: error handling (one red line and an exit code,
+never a traceback), parsing of quantities with units, number formatting, progress columns,
+output checks and staged (all-or-none) writes."""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import click
+
+from ..errors import ConvergenceError, DesignError, InputError, design_error
+
+# Imported inside the functions that need them, never here: numpy, rich, pint (softrod.units)
+# and the model (softrod.design). `softrod --help` imports this module and must stay fast.
+
+ATM = 101_325.0  # Pa; gauge pressures below -1 atm are impossible
+
+
+def _settings() -> dict:
+    """The group options of this invocation (--quiet, --verbose)."""
+    ctx = click.get_current_context(silent=True)
+    meta = ctx.find_root().meta if ctx is not None else {}
+    return meta.get("softrod.cli", {"quiet": False, "verbose": 0})
+
+
+def _quiet() -> bool:
+    """True with ``softrod --quiet``: results and errors only, no progress or notes."""
+    return bool(_settings()["quiet"])
+
+
+def _say(text: str, *, stderr: bool = False) -> None:
+    """A note for people (``wrote out.csv``): one line, left out with --quiet."""
+    if _quiet():
+        return
+    from rich.console import Console
+    from rich.text import Text
+
+    Console(stderr=stderr, highlight=False).print(Text(text), soft_wrap=True)
+
+
+@contextlib.contextmanager
+def _progress(label: str, total: float | None):
+    """A progress bar on stderr while the block runs; yields ``advance(n)``.
+
+    Shown only when stderr is a terminal and not with --quiet (redirected output and logs
+    stay clean); it disappears when done, a summary line follows."""
+    from rich.console import Console
+    from rich.progress import Progress
+
+    console = Console(stderr=True, highlight=False)
+    if _quiet() or not console.is_terminal:
+        yield lambda n=1: None
+        return
+    with Progress(*_progress_columns(), console=console, transient=True) as bar:
+        task = bar.add_task(label, total=total)
+        yield lambda n=1: bar.advance(task, n)
+
+
+def _stdout():
+    """A rich Console on the current sys.stdout."""
+    from rich.console import Console
+
+    # Made per call so that it writes to the current sys.stdout (click's test runner swaps it).
+    return Console(highlight=False)
+
+
+def _fail(message: str, code: int) -> None:
+    from rich.console import Console
+    from rich.text import Text
+
+    line = " ".join(str(message).split())  # one line, whatever the message contains
+    err = Console(stderr=True, highlight=False, soft_wrap=True)
+    err.print(Text(f"error: {line}", style="bold red"))
+    raise click.exceptions.Exit(code)
+
+
+def _handle_errors(func):
+    """Turn softrod's exceptions into one red line and an exit code, never a traceback."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        try:
+            return func(*args, **kwargs)
+        except ConvergenceError as exc:
+            _fail(exc, 3)
+        except DesignError as exc:  # includes InputError
+            _fail(exc, 2)
+        except OSError as exc:
+            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            _fail(f"{exc.strerror or exc}{where}", 2)
+
+    return wrapper
+
+
+def _is_bare(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _parse_quantities(items: list[str], kind: str, fields: list[str]) -> list[float]:
+    """SI values of quantity strings, with one shorthand and one safety rule.
+
+    - If only the last item carries a unit, it applies to every item ("0,0,-1 N",
+      "10,20,30kPa", and in grids "0:70kPa").
+    - Otherwise every item stands alone and a bare number is SI; but a non-zero bare number
+      next to items with units ("30kPa,5,0") is refused as ambiguous (5 Pa or 5 kPa?).
+    """
+    from ..units import registry, to_si
+
+    items = [t.strip() for t in items]
+    for t, f in zip(items, fields, strict=True):
+        if not t:
+            raise design_error(f, t, f"is empty: give a {kind} such as '30kPa'", InputError)
+    bare = [_is_bare(t) for t in items]
+    if len(items) > 1 and not bare[-1] and all(bare[:-1]):
+        to_si(items[-1], kind, fields[-1], InputError)  # a bad unit is named where it was given
+        unit = registry().Quantity(items[-1]).units
+        items = [f"{t} {unit}" if b else t for t, b in zip(items, bare, strict=True)]
+    elif not all(bare):
+        for t, b, f in zip(items, bare, fields, strict=True):
+            if b and float(t) != 0.0:
+                raise design_error(
+                    f,
+                    t,
+                    "bare number next to values with units is ambiguous: give it a unit "
+                    "(a unit on the last item alone applies to all items)",
+                    InputError,
+                )
+    return [to_si(t, kind, f, InputError) for t, f in zip(items, fields, strict=True)]
+
+
+def _parse_vector(text: str, kind: str, option: str, count: int) -> list[float]:
+    items = text.split(",")
+    if len(items) != count:
+        raise design_error(option, text, f"give {count} comma-separated {kind} values", InputError)
+    return _parse_quantities(items, kind, [f"{option}[{i}]" for i in range(count)])
+
+
+def _parse_pressures(text: str | None, design) -> list[float]:
+    n = design.n_channels
+    if text is None:
+        return [0.0] * n
+    items = text.split(",")
+    if len(items) != n:
+        raise design_error(
+            "--pressure",
+            text,
+            f"design {design.name} has {n} pressure channel{'s' if n != 1 else ''}; give {n} "
+            "comma-separated gauge pressures, e.g. " + ",".join(["30kPa"] + ["0"] * (n - 1)),
+            InputError,
+        )
+    values = _parse_quantities(items, "pressure", [f"--pressure[{i}]" for i in range(n)])
+    for i, p in enumerate(values):
+        if p < -ATM:
+            raise design_error(
+                f"--pressure[{i}]",
+                items[i].strip(),
+                "gauge pressure must be >= -1 atm (-101325 Pa)",
+                InputError,
+            )
+    return values
+
+
+def _parse_span(text: str, option: str, form: str, check_n) -> tuple[float, float, int]:
+    """START:STOP:N with pressures START and STOP -> (start Pa, stop Pa, N). ``form``: the rule
+    when the text is not three parts; ``check_n(start, stop, n, raw)`` rejects a bad N (n = 0
+    when ``raw`` is not an integer), before both ends are checked to be >= -1 atm."""
+    parts = text.split(":")
+    if len(parts) != 3:
+        raise design_error(option, text, form, InputError)
+    start, stop = _parse_quantities(parts[:2], "pressure", [f"{option}.start", f"{option}.stop"])
+    try:
+        n = int(parts[2])
+    except ValueError:
+        n = 0
+    check_n(start, stop, n, parts[2])
+    for name, value, raw in (
+        (f"{option}.start", start, parts[0]),
+        (f"{option}.stop", stop, parts[1]),
+    ):
+        if value < -ATM:
+            raise design_error(
+                name, raw.strip(), "gauge pressure must be >= -1 atm (-101325 Pa)", InputError
+            )
+    return start, stop, n
+
+
+def _parse_grid(text: str, option: str = "--grid"):
+    """START:STOP:COUNT -> COUNT evenly spaced pressures in Pa (both ends included)."""
+    import numpy as np
+
+    def check_count(start: float, stop: float, count: int, raw: str) -> None:
+        if count < 1:
+            raise design_error(f"{option}.count", raw, "must be an integer >= 1", InputError)
+        if count == 1 and start != stop:
+            raise design_error(
+                f"{option}.count",
+                raw,
+                "COUNT = 1 needs START = STOP (or give COUNT >= 2)",
+                InputError,
+            )
+
+    start, stop, count = _parse_span(
+        text, option, "must read START:STOP:COUNT, e.g. 0:70kPa:21", check_count
+    )
+    return np.linspace(start, stop, count)
+
+
+def _full_factorial(axes: list):
+    """All combinations, channel 0 slowest and the last channel fastest (C order)."""
+    import numpy as np
+
+    mesh = np.meshgrid(*axes, indexing="ij")
+    return np.stack([m.ravel() for m in mesh], axis=1)
+
+
+def _fmt(x: float, digits: int) -> str:
+    # round first, then + 0.0 turns the -0.0 of tiny negative values into 0.0
+    return f"{round(float(x), digits) + 0.0:.{digits}f}"
+
+
+def _fmt_vec(v, scale: float = 1.0, digits: int = 3) -> str:
+    return "(" + ", ".join(_fmt(x * scale, digits) for x in v) + ")"
+
+
+def _fmt_kpa(pressures) -> str:
+    return ", ".join(f"{p / 1e3:g}" for p in pressures)
+
+
+
+def _for_option(check, path: Path, option: str) -> Path:
+    """Run a path check; name the command-line option in the error instead of 'path'."""
+    try:
+        return check(path)
+    except InputError as exc:
+        raise design_error(option, str(path), exc.rule, InputError) from None
+
+
+def _pyplot():
+    # The CLI only writes files, never opens windows: the non-interactive Agg backend works
+    # with and without a display. Selected here, never when the library is imported.
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _write_shape_plot(solutions, path: Path, title: str | None = None) -> Path:
+    plt = _pyplot()
+    from ..plotting import plot_shape, save_figure
+
+    fig = plot_shape(solutions, title=title)
+    try:
+        return save_figure(fig, path)
+    finally:
+        plt.close(fig)
+
+
+def _progress_columns() -> tuple:
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        ProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.text import Text
+
+    class _RateColumn(ProgressColumn):
+        """Rows per second of a progress task."""
+
+        def render(self, task) -> Text:
+            # The mean rate since the start: steadier than rich's windowed estimate, and
+            # defined after a single advance (a sweep of one chunk).
+            elapsed = task.elapsed
+            if not elapsed or not task.completed:
+                return Text("-- rows/s", style="cyan")
+            return Text(f"{task.completed / elapsed:,.0f} rows/s", style="cyan")
+
+    return (  # fits in 80 columns
+        TextColumn("[bold]{task.description}"),
+        BarColumn(bar_width=24),
+        MofNCompleteColumn(),
+        _RateColumn(),
+        TimeElapsedColumn(),
+        TextColumn("ETA"),
+        TimeRemainingColumn(),
+    )
+
+
+def _threads_option(help_text: str):
+    """The ``--threads`` option of the commands that solve batches (0 = all cores)."""
+    return click.option(
+        "--threads", default=0, show_default=True, type=click.IntRange(min=0), help=help_text
+    )
+
+
+def _scheduler_option(help_text: str):
+    """The ``--scheduler ADDRESS`` option of the commands that can run on a Dask cluster."""
+    return click.option("--scheduler", metavar="ADDRESS", default=None, help=help_text)
+
+
+@contextlib.contextmanager
+def _scheduler(address: str | None):
+    """A ``distributed.Client`` connected to ``address`` for the block (None: no cluster)."""
+    if address is None:
+        yield None
+        return
+    from ..cluster import connect
+
+    client = connect(address)
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+def _check_output(path: Path, option: str, suffixes: tuple[str, ...], what: str) -> Path:
+    """Fail fast on an output path (suffix, existing folder), before a long computation."""
+    if path.suffix.lower() not in suffixes:
+        raise design_error(
+            option,
+            str(path),
+            f"{what}: the file name must end in {' or '.join(suffixes)}",
+            InputError,
+        )
+    if not path.parent.is_dir():
+        raise design_error(
+            option, str(path), f"folder {str(path.parent)!r} does not exist", InputError
+        )
+    return path
+
+
+@contextlib.contextmanager
+def _staged(paths: list[Path]):
+    """Yield a temporary path per destination (same file name, in a hidden folder beside it).
+    When the block succeeds every file is moved into place; when it fails none is, and the
+    destinations are left as they were: several outputs are written all or none."""
+    with contextlib.ExitStack() as stack:
+        staged = []
+        for path in paths:
+            folder = stack.enter_context(
+                tempfile.TemporaryDirectory(dir=path.parent, prefix=f".{path.name}.")
+            )
+            staged.append(Path(folder) / path.name)
+        yield staged
+        for tmp, path in zip(staged, paths, strict=True):
+            os.replace(tmp, path)
+
+
+def _as_option(exc: InputError, renames: dict[str, str], values: dict[str, str] | None = None):
+    """The error with the command-line option in place of the API field it names (others
+    unchanged); ``values`` replaces the value by what was typed for that option."""
+    option = renames.get(exc.field)
+    if option is None:
+        return exc
+    value = (values or {}).get(exc.field, exc.value)
+    return design_error(option, value, exc.rule, InputError)
+
+
+def _renamed(option: str, func, *args):
+    """Call func; name the command-line option in an InputError instead of the API field."""
+    try:
+        return func(*args)
+    except InputError as exc:
+        raise design_error(option, exc.value, exc.rule, InputError) from None
+
+
+def _num(x: float, scale: float = 1.0, digits: int = 6) -> str:
+    x = float(x)
+    if math.isnan(x):
+        return "n/a"
+    if math.isinf(x):
+        return "inf"
+    return f"{x * scale:.{digits}g}"
+
+
+def _print_warnings(console, messages: list[str]) -> None:
+    from rich.text import Text
+
+    for message in messages:
+        console.print(Text(f"warning: {message}", style="bold yellow"))
+

@@ -1,0 +1,250 @@
+"""``softrod simulate``: a design's motion under a pressure schedule, with a progress bar
+that shows the real-time factor; the trajectory, an animation and a tip plot are written
+all or none (docs/dynamics.md)."""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import click
+
+from ..errors import InputError, design_error
+from ._common import _check_output, _handle_errors, _quiet, _say, _staged, _stdout
+
+TRAJECTORY_SUFFIXES = (".parquet", ".npz")
+ANIMATION_SUFFIXES = (".gif", ".mp4")
+PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+BUILTIN_PULSES = {"paper000": "paper 000 Fig. 3 style square pulses (116 s, 3 channels)"}
+
+
+def _seconds(text: str, option: str, *, positive: bool = True) -> float:
+    from ..units import to_si
+
+    x = to_si(text, "time", option, InputError)
+    if positive and not x > 0:
+        raise design_error(option, text, "must be > 0 s", InputError)
+    return x
+
+
+
+@click.command("simulate")
+@click.argument("design")
+@click.option(
+    "--input",
+    "input_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Commanded pressures over time: CSV or Parquet with time_s and p0_kPa, p1_kPa, "
+    "... columns (units in the names; docs/dynamics.md).",
+)
+@click.option(
+    "--pulses",
+    type=click.Choice(sorted(BUILTIN_PULSES)),
+    help="A built-in schedule instead of --input: paper000 = square pulses of 0.9-3.6 "
+    "bar on each PAM in turn, 116 s (for a 3-channel design).",
+)
+@click.option(
+    "--kind",
+    type=click.Choice(["linear", "step"]),
+    default=None,
+    help="How --input's rows are joined (default: as recorded in the file, else linear).",
+)
+@click.option(
+    "--t-end",
+    "t_end",
+    help="Simulated time, e.g. 10 or '10 s' (default: the schedule's last time).",
+)
+@click.option("--dt", default="2 ms", show_default=True, help="Time step.")
+@click.option(
+    "--save-every",
+    default=5,
+    show_default=True,
+    type=click.IntRange(min=1),
+    help="Keep every n-th step in the trajectory.",
+)
+@click.option(
+    "--initial",
+    type=click.Choice(["static", "straight"]),
+    default="static",
+    show_default=True,
+    help="Start at rest in equilibrium under the first pressures, or straight.",
+)
+@click.option(
+    "--model",
+    type=click.Choice(["cosserat", "pcc"]),
+    default="cosserat",
+    show_default=True,
+    help="cosserat: paper 000's viscoelastic rod; pcc: paper 003's constant-curvature "
+    "Lagrangian model with the design's [pcc] parameters (docs/pcc.md).",
+)
+@click.option(
+    "--out",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Trajectory file, .parquet or .npz.",
+)
+@click.option(
+    "--animate",
+    "animation",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Also write a 3-D animation of the shape, .gif (or .mp4 with ffmpeg).",
+)
+@click.option(
+    "--fps",
+    default=20,
+    show_default=True,
+    type=click.IntRange(min=1, max=100),
+    help="Animation frames per second (lowered when the clip would need more than "
+    "--max-frames frames).",
+)
+@click.option(
+    "--speed",
+    default=None,
+    type=click.FloatRange(min=0.01, max=1000),
+    help="Animation playback speed (2 = twice as fast as real time). Default: real time "
+    "for runs up to 15 s, faster for longer ones, so the clip lasts about 15 s.",
+)
+@click.option(
+    "--max-frames",
+    default=300,
+    show_default=True,
+    type=click.IntRange(min=2),
+    help="Frame budget of the animation.",
+)
+@click.option(
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Also write a plot of the tip position and pressures over time (.png/.pdf/.svg).",
+)
+@_handle_errors
+def simulate_cmd(
+    design,
+    input_path,
+    pulses,
+    kind,
+    t_end,
+    dt,
+    save_every,
+    initial,
+    model,
+    out,
+    animation,
+    fps,
+    speed,
+    max_frames,
+    plot_path,
+):
+    """Simulate DESIGN's motion under commanded chamber pressures over time.
+
+    The rod is paper 000's viscoelastic Cosserat rod (damping time from the design's
+    [dynamics] table), integrated with BDF-alpha in time and shooting in space; with
+    --model pcc, paper 003's piecewise-constant-curvature model (implicit midpoint rule).
+    Progress shows the simulated time and the real-time factor on stderr.
+    """
+    import numpy as np
+
+    from ..catalog import load_design
+    from ..dynamics import PressureSchedule, simulate
+    from ..dynamics.trajectory import animation_plan
+    from ..progress import reporter
+
+    d = load_design(design)
+    if (input_path is None) == (pulses is None):
+        raise design_error(
+            "--input", input_path, "give exactly one of --input FILE or --pulses", InputError
+        )
+    outputs = [_check_output(out, "--out", TRAJECTORY_SUFFIXES, "trajectory")]
+    if animation is not None:
+        outputs.append(_check_output(animation, "--animate", ANIMATION_SUFFIXES, "animation"))
+    if plot_path is not None:
+        outputs.append(_check_output(plot_path, "--plot", PLOT_SUFFIXES, "plot"))
+    if len({p.resolve() for p in outputs}) != len(outputs):
+        raise design_error("--out", str(out), "the output files must differ", InputError)
+    if input_path is not None:
+        schedule = PressureSchedule.from_file(input_path, kind=kind)
+    else:
+        schedule = PressureSchedule.paper000_square_pulses(n_channels=d.n_channels)
+    schedule.check_channels(d.n_channels)
+    step = _seconds(dt, "--dt")
+    if t_end is None:
+        if not schedule.t_end:
+            raise design_error(
+                "--t-end", None, "the schedule has no end time; give --t-end", InputError
+            )
+        duration = float(schedule.t_end)
+    else:
+        duration = _seconds(t_end, "--t-end")
+    plan = None
+    shapes = None
+    if animation is not None:
+        # Store just the shapes the clip shows: one per frame.
+        plan = animation_plan(duration, fps=fps, speed=speed, max_frames=max_frames)
+        shapes = plan.frame_interval_s
+    console = _stdout()
+    if model == "pcc":
+        what = "PCC model (paper 003)"
+    else:
+        what = f"Cosserat rod, damping time {d.spec['dynamics']['damping_time']:g} s"
+    _say(
+        f"{d.name}: {duration:g} s at dt = {step * 1e3:g} ms "
+        f"({math.ceil(duration / step):,} steps), {what}"
+    )
+    bar = not _quiet() and _stderr_is_terminal()  # progress bars: on a terminal only
+
+    def simulated(done: float, total: float, wall: float):
+        rtf = f"{done / wall:,.0f}" if wall > 0 else "--"
+        return done, f"{done:.2f} / {total:g} s, {rtf}x real time"
+
+    t0 = time.perf_counter()
+    with reporter(bar, "simulate", duration, simulated) as report:
+        traj = simulate(
+            d,
+            schedule,
+            duration,
+            dt=step,
+            save_every=save_every,
+            shapes=shapes,
+            initial=initial,
+            model=model,
+            progress=report if report is not None else False,
+        )
+    wall = time.perf_counter() - t0
+    meta = traj.metadata
+    console.print(
+        f"{meta['steps']:,} steps in {wall:.2f} s: {meta['real_time_factor']:,.0f}x real "
+        f"time on one core ({meta['newton_iterations']:,} Newton iterations, "
+        f"{meta['jacobians']:,} exact Jacobians)"
+    )
+    with _staged(outputs) as staged:
+        traj.save(staged[0])
+        k = 1
+        if animation is not None:
+            t1 = time.perf_counter()
+            traj.animate(
+                staged[k],
+                fps=plan.fps,
+                speed=plan.speed,
+                max_frames=max_frames,
+                progress=bar,
+            )
+            console.print(
+                f"animation: {plan.n_frames} frames at {plan.fps:.3g} fps, "
+                f"{plan.speed:.3g}x real time, a {plan.clip_s:.1f} s clip, rendered in "
+                f"{time.perf_counter() - t1:.1f} s"
+            )
+            k += 1
+        if plot_path is not None:
+            traj.plot_tip(staged[k])
+    tip = traj.tip_position
+    reach = np.linalg.norm(tip - tip[0], axis=1).max()
+    console.print(f"largest tip excursion from the start: {reach * 1e3:.1f} mm")
+    for p in outputs:
+        _say(f"wrote {p}")
+
+
+def _stderr_is_terminal() -> bool:
+    from rich.console import Console
+
+    return Console(stderr=True).is_terminal

@@ -1,0 +1,355 @@
+"""``softrod solve``, ``softrod sweep`` and ``softrod demo``: static equilibria of a design."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import click
+
+from ..errors import InputError, design_error
+from ._common import (
+    _fmt,
+    _fmt_kpa,
+    _fmt_vec,
+    _for_option,
+    _full_factorial,
+    _handle_errors,
+    _parse_grid,
+    _parse_pressures,
+    _parse_vector,
+    _progress,
+    _say,
+    _scheduler,
+    _scheduler_option,
+    _stdout,
+    _threads_option,
+    _write_shape_plot,
+)
+
+MAX_SWEEP_ROWS = 10_000_000  # larger grids are refused (memory, and hours of compute)
+SWEEP_CHUNK = 512  # rows per batch call: the progress bar advances per chunk
+DEMO_DESIGN = "spa_three_chamber_130mm"
+DEMO_CASES_KPA = [(0, 0, 0), (35, 0, 0), (70, 0, 0), (70, 70, 0), (70, 70, 70)]
+DEMO_SWEEP = (0.0, 70e3, 7)  # Pa, Pa, points per channel: a 7^3 grid
+
+
+
+def _lateral(sol) -> float:
+    """Tip distance from the base tangent line (the straight reference axis), m."""
+    import numpy as np
+
+    d = sol.tip_position - sol.position[0]
+    t0 = sol.rotation[0][:, 2]
+    return float(np.linalg.norm(d - np.dot(d, t0) * t0))
+
+
+def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=None):
+    """Solve every row in chunks under a progress bar; return (BatchSolution, wall time s).
+    With a Dask ``client`` the chunks run on its cluster (chunk size by softrod.cluster's
+    rule)."""
+    import numpy as np
+
+    from ..solution import BatchSolution
+    from ..statics import solve_statics_batch
+
+    m = len(pressures)
+    if client is not None:
+        t0 = time.perf_counter()
+        with _progress(label, m) as advance:
+            done = [0]
+
+            def chunks_done(rows: int, _total: int) -> None:
+                advance(rows - done[0])
+                done[0] = rows
+
+            batch = solve_statics_batch(
+                design, pressures, threads=threads, executor=client, progress=chunks_done
+            )
+        return batch, time.perf_counter() - t0
+    parts = []
+    t0 = time.perf_counter()
+    with _progress(label, m) as advance:
+        for lo in range(0, m, chunk):
+            hi = min(lo + chunk, m)
+            parts.append(solve_statics_batch(design, pressures[lo:hi], threads=threads))
+            advance(hi - lo)
+    wall = time.perf_counter() - t0
+
+    def stack(name):
+        return np.concatenate([getattr(b, name) for b in parts])
+
+    fields = ("tip_position", "tip_rotation", "base_force", "base_moment", "converged")
+    batch = BatchSolution(
+        pressures=np.asarray(pressures, dtype=float),
+        **{name: stack(name) for name in fields},
+        iterations=stack("iterations"),
+        residual=stack("residual"),
+        metadata=parts[0].metadata if parts else {},
+    )
+    return batch, wall
+
+
+@click.command()
+@click.argument("design")
+@click.option(
+    "--pressure",
+    "-p",
+    metavar="P1,P2,...",
+    help="Gauge pressure per channel, comma-separated, e.g. 30kPa,0,0 or 0.3bar,0,0. "
+    "A bare number is Pa; a unit on the last item alone applies to all. "
+    "Default: 0 on every channel.",
+)
+@click.option(
+    "--tip-force",
+    metavar="FX,FY,FZ",
+    help='Dead tip force in the world frame, e.g. "0,0,-1 N" (replaces the design\'s).',
+)
+@click.option(
+    "--tip-moment",
+    metavar="MX,MY,MZ",
+    help='Dead tip moment in the world frame, e.g. "0,5,0 N*mm".',
+)
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON object with SI values.")
+@click.option(
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the 3-D shape figure here (format from the suffix: .png, .pdf, .svg).",
+)
+@_handle_errors
+def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
+    """Static shape of DESIGN under the given chamber pressures."""
+    from rich.table import Table
+
+    from ..catalog import load_design
+    from ..statics import solve_statics
+
+    d = load_design(design)
+    if plot_path is not None:
+        from ..plotting import check_figure_path
+
+        _for_option(check_figure_path, plot_path, "--plot")
+    p = _parse_pressures(pressure, d)
+    tf = None if tip_force is None else _parse_vector(tip_force, "force", "--tip-force", 3)
+    tm = None if tip_moment is None else _parse_vector(tip_moment, "moment", "--tip-moment", 3)
+    t0 = time.perf_counter()
+    sol = solve_statics(d, p, tip_force=tf, tip_moment=tm)
+    elapsed = time.perf_counter() - t0
+
+    if as_json:
+        out = {
+            "design": d.name,
+            "pressures_Pa": [float(x) for x in p],
+            "tip_position_m": sol.tip_position.tolist(),
+            "tip_rotation": sol.tip_rotation.tolist(),
+            "base_force_N": sol.base_force.tolist(),
+            "base_moment_Nm": sol.base_moment.tolist(),
+            "converged": bool(sol.converged),
+            "iterations": int(sol.iterations),
+            "residual": float(sol.residual),
+            "shape": {"s_m": sol.s.tolist(), "position_m": sol.position.tolist()},
+        }
+        click.echo(json.dumps(out, indent=2))
+    else:
+        table = Table(title=f"{d.name}: static equilibrium", title_justify="left")
+        table.add_column("quantity")
+        table.add_column("value", justify="right")
+        table.add_column("unit")
+        table.add_row(f"pressures p0..p{len(p) - 1}", _fmt_kpa(p), "kPa")
+        table.add_row("tip position (x, y, z)", _fmt_vec(sol.tip_position, 1e3, 3), "mm")
+        table.add_row("tip tangent d3", _fmt_vec(sol.tip_rotation[:, 2], 1.0, 4), "-")
+        table.add_row("base force", _fmt_vec(sol.base_force, 1.0, 4), "N")
+        table.add_row("base moment", _fmt_vec(sol.base_moment, 1e3, 3), "N mm")
+        table.add_row("converged", "yes" if sol.converged else "no", "")
+        table.add_row("iterations", f"{sol.iterations}", "")
+        table.add_row("residual (scaled)", f"{sol.residual:.2e}", "")
+        table.add_row("solve time", f"{elapsed * 1e6:,.0f}", "us")
+        _stdout().print(table)
+
+    if plot_path is not None:
+        written = _write_shape_plot([sol], plot_path)
+        # Keep stdout pure JSON with --json: say where the figure went on stderr instead.
+        _say(f"wrote {written}", stderr=as_json)
+
+
+@click.command()
+@click.argument("design")
+@click.option(
+    "--grid",
+    "grids",
+    multiple=True,
+    required=True,
+    metavar="START:STOP:COUNT",
+    help="Pressures per channel, e.g. 0:70kPa:21 (a unit on STOP alone applies to "
+    "both ends). Give it once for every channel, or once per channel.",
+)
+@click.option(
+    "--out",
+    "out",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Output table, .csv or .parquet (written whole or not at all).",
+)
+@_threads_option("Worker threads (0 = all cores; with --scheduler: per task, 0 = the "
+                 "worker's share of its machine).")
+@_scheduler_option("Run on the Dask cluster whose scheduler is at ADDRESS, e.g. "
+                   "tcp://10.0.0.5:8786 (docs/cluster.md).")
+@_handle_errors
+def sweep(design, grids, out, threads, scheduler):
+    """Tip positions over a full-factorial pressure grid of DESIGN.
+
+    Rows run with channel 0 slowest and the last channel fastest, so consecutive rows are
+    neighbours (warm starts). The table is in the dataset schema (docs/datasets.md):
+    p0_kPa, p1_kPa, ..., tip_x_mm, tip_y_mm, tip_z_mm, tip_qw..tip_qz, base_fx_N..,
+    base_mx_Nmm.., then converged, iterations and residual; its metadata block names the
+    design, the softrod version and the grid. Rows that did not converge are kept with
+    empty tip cells.
+    """
+    from ..catalog import load_design
+    from ..io import check_table_path, write_table
+
+    d = load_design(design)
+    n = d.n_channels
+    if n == 0:
+        raise design_error(
+            "design",
+            d.name,
+            "has no pressure channels: nothing to sweep (use `softrod solve`)",
+            InputError,
+        )
+    out = _for_option(check_table_path, out, "--out")
+    if len(grids) == 1:
+        axes = [_parse_grid(grids[0])] * n
+    elif len(grids) == n:
+        axes = [_parse_grid(g, f"--grid[{k}]") for k, g in enumerate(grids)]
+    else:
+        raise design_error(
+            "--grid",
+            list(grids),
+            f"give one --grid for all {n} channels or one per channel ({n}), not {len(grids)}",
+            InputError,
+        )
+    rows = math.prod(len(a) for a in axes)
+    if rows > MAX_SWEEP_ROWS:
+        raise design_error(
+            "--grid",
+            list(grids),
+            f"the grid has {rows:,} rows; the limit is {MAX_SWEEP_ROWS:,} "
+            "(use fewer points per channel)",
+            InputError,
+        )
+    pressures = _full_factorial(axes)
+    console = _stdout()
+    _say(f"{d.name}: {rows:,} rows ({' x '.join(str(len(a)) for a in axes)})")
+    with _scheduler(scheduler) as client:
+        if client is not None:
+            _say(f"on the Dask cluster at {scheduler}")
+        batch, wall = _run_sweep(d, pressures, threads, SWEEP_CHUNK, "sweep", client)
+    frame = batch.to_frame()
+    frame.attrs["softrod.metadata"].update(
+        generator="softrod sweep", grid=list(grids), chunk_rows=SWEEP_CHUNK
+    )
+    write_table(frame, out)
+    n_ok = int(batch.converged.sum())
+    style = "green" if n_ok == rows else "yellow"
+    console.print(
+        f"{rows:,} rows, [{style}]{n_ok:,} converged[/{style}], wall time {wall:.2f} s, "
+        f"{rows / wall:,.0f} solves/s"
+    )
+    _say(f"wrote {out}")
+
+
+@click.command()
+@click.option(
+    "--out-dir",
+    default="softrod-demo",
+    show_default=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="Folder for shapes.png and tips.csv (created if needed).",
+)
+@_handle_errors
+def demo(out_dir):
+    """Tour: solve, plot and sweep the bundled three-chamber actuator (a few seconds).
+
+    Writes shapes.png (all shapes in one 3-D figure) and tips.csv (the dataset schema,
+    docs/datasets.md) to --out-dir.
+    """
+    import numpy as np
+    from rich.table import Table
+    from rich.text import Text
+
+    from ..catalog import load_design
+    from ..io import write_table
+    from ..schema import Extra, provenance, schema_frame
+    from ..statics import solve_statics
+
+    console = _stdout()
+    d = load_design(DEMO_DESIGN)
+    console.print(
+        f"[bold]{d.name}[/bold]: {d.length * 1e3:.0f} mm, {d.n_channels} chambers, "
+        f"hanging under gravity"
+    )
+    console.print(Text(d.citation, style="dim"))
+
+    solutions, times = [], []
+    for case in DEMO_CASES_KPA:
+        t0 = time.perf_counter()
+        solutions.append(solve_statics(d, [1e3 * x for x in case]))
+        times.append(time.perf_counter() - t0)
+    lateral = np.array([_lateral(sol) for sol in solutions])
+    frame = schema_frame(
+        pressures=np.array([sol.pressures for sol in solutions]),
+        tip_position=np.array([sol.tip_position for sol in solutions]),
+        tip_rotation=np.array([sol.tip_rotation for sol in solutions]),
+        base_force=np.array([sol.base_force for sol in solutions]),
+        base_moment=np.array([sol.base_moment for sol in solutions]),
+        extras=[
+            Extra("lateral", lateral, "tip distance from the base tangent line", "length"),
+            Extra("iterations", [sol.iterations for sol in solutions], "Newton iterations"),
+            Extra("solve_time_us", np.round(np.array(times) * 1e6, 1), "wall time of the solve"),
+        ],
+        metadata=provenance("softrod demo", d),
+    )
+
+    table = Table(
+        title="tip positions (world frame; base at the origin, hanging along -z)",
+        title_justify="left",
+    )
+    headers = [f"p{k}\nkPa" for k in range(d.n_channels)]
+    headers += ["tip x\nmm", "tip y\nmm", "tip z\nmm", "lateral\nmm", "iter-\nations"]
+    for name in [*headers, "solve\ntime µs"]:
+        table.add_column(name, justify="right")
+    for case, sol, lat, dt in zip(DEMO_CASES_KPA, solutions, lateral, times, strict=True):
+        tip = sol.tip_position * 1e3
+        table.add_row(
+            *(f"{x:g}" for x in case),
+            *(_fmt(x, 2) for x in tip),
+            _fmt(lat * 1e3, 2),
+            f"{sol.iterations}",
+            f"{dt * 1e6:,.0f}",
+        )
+    console.print(table)
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    shapes = _write_shape_plot(solutions, out_dir / "shapes.png", title=f"{d.name}: static shapes")
+    tips = write_table(frame, out_dir / "tips.csv")
+
+    start, stop, count = DEMO_SWEEP
+    grid = _full_factorial([np.linspace(start, stop, count)] * d.n_channels)
+    batch, wall = _run_sweep(d, grid, 0, SWEEP_CHUNK, f"sweep {count}^{d.n_channels}")
+    n_ok = int(batch.converged.sum())
+    # The demo design hangs from the origin along -z: lateral reach is the distance from z.
+    reach = np.hypot(batch.tip_position[:, 0], batch.tip_position[:, 1]) * 1e3
+    console.print(
+        f"sweep of {len(grid)} pressure combinations, {start / 1e3:g}-{stop / 1e3:g} "
+        f"kPa per chamber: {n_ok} converged"
+    )
+    console.print(
+        f"  {wall * 1e3:.0f} ms, [bold]{len(grid) / wall:,.0f} solves/s[/bold]; "
+        f"lateral reach up to {np.nanmax(reach):.1f} mm"
+    )
+    _say(f"wrote {shapes}")
+    _say(f"wrote {tips}")

@@ -1,0 +1,100 @@
+"""``softrod view``: the interactive 3-D viewer in the browser (docs/viewer.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..errors import InputError, design_error
+from ._common import (
+    _handle_errors,
+    _parse_pressures,
+    _parse_quantities,
+    _parse_vector,
+    _stdout,
+)
+
+
+@click.command("view")
+@click.argument("design")
+@click.option(
+    "--pressure",
+    "-p",
+    metavar="P1,P2,...",
+    help="Initial gauge pressure per channel, e.g. 30kPa,0,0 (default 0).",
+)
+@click.option(
+    "--pressure-range",
+    metavar="LOW:HIGH",
+    help="Range of the pressure sliders, e.g. 0:70kPa (default: 0 to the pressure that bends "
+    "the softest chambered section by about half a turn).",
+)
+@click.option(
+    "--max-force",
+    metavar="F",
+    help="Range of the tip-force sliders, +-F, e.g. 0.5N (default: the force that deflects the "
+    "rod by about half its length).",
+)
+@click.option(
+    "--trajectory",
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    help="Play back a saved trajectory (.parquet or .npz from `softrod simulate`).",
+)
+@click.option(
+    "--data",
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    help="Show a dataset's measured tips against DESIGN's predictions (e.g. a calibrated "
+    "design from `softrod calibrate --out`).",
+)
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Interface to listen on (0.0.0.0: reachable from other machines).")
+@click.option("--port", type=click.IntRange(1, 65535), help="Port (default: a free one).")
+@_handle_errors
+def view(design, pressure, pressure_range, max_force, trajectory, data, host, port):
+    """Serve an interactive 3-D view of DESIGN in the browser (Ctrl-C stops it).
+
+    One slider per pressure channel and per tip-force component re-solves the shape live;
+    the solver's state (converged, iterations, tip position) shows beside it. Needs the
+    viewer extra: pip install 'softrod[viewer]'.
+    """
+    from rich.text import Text
+
+    from ..catalog import load_design
+
+    d = load_design(design)
+    p = None if pressure is None else _parse_pressures(pressure, d)
+    p_range = None
+    if pressure_range is not None:
+        parts = pressure_range.split(":")
+        if len(parts) != 2:
+            raise design_error(
+                "--pressure-range", pressure_range, "must read LOW:HIGH, e.g. 0:70kPa", InputError
+            )
+        p_range = tuple(
+            _parse_quantities(parts, "pressure", ["--pressure-range.low", "--pressure-range.high"])
+        )
+        if not p_range[0] < p_range[1]:
+            raise design_error(
+                "--pressure-range", pressure_range, "LOW must be below HIGH", InputError
+            )
+    f_max = None
+    if max_force is not None:
+        (f_max,) = _parse_vector(max_force, "force", "--max-force", 1)
+        if not f_max > 0:
+            raise design_error("--max-force", max_force, "must be a positive force", InputError)
+    from ..viewer import view as start
+
+    viewer = start(
+        d,
+        pressures=p,
+        pressure_range=p_range,
+        force_max=f_max,
+        trajectory=trajectory,
+        dataset=data,
+        host=host,
+        port=port,
+    )
+    _stdout().print(Text(f"softrod viewer of {d.name}: open {viewer.url}  (Ctrl-C stops)"),
+                    soft_wrap=True)
+    viewer.wait()

@@ -1,0 +1,113 @@
+"""Progress of the calls that can take more than a few seconds.
+
+``simulate``, ``Trajectory.animate``, ``calibrate``, ``identify_stiffness``,
+``fit_stiffness_map`` and ``compare_models`` take ``progress=``:
+
+- ``None`` (the default): a progress bar on stderr in an interactive session (the Python
+  prompt, IPython, Jupyter), nothing in a script, so that batch jobs and their logs stay
+  clean. The environment variable ``SOFTROD_PROGRESS=1`` (or ``0``) turns the default on (or
+  off) everywhere.
+- ``True``: always a bar; ``False``: never.
+- a callable: called instead of drawing a bar, with the arguments each function documents
+  (e.g. ``simulate`` calls ``progress(t_done, t_end, wall_s)``).
+
+Bars are drawn with rich, imported only when one is shown.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+from collections.abc import Callable, Iterator
+from typing import Any
+
+from .errors import InputError, design_error
+
+__all__ = ["check_progress", "interactive", "reporter"]
+
+ENV = "SOFTROD_PROGRESS"
+
+
+def interactive() -> bool:
+    """True in the Python prompt, IPython or Jupyter (where a bar helps someone waiting)."""
+    if hasattr(sys, "ps1") or sys.flags.interactive:
+        return True
+    ipython = sys.modules.get("IPython")
+    if ipython is not None:
+        get = getattr(ipython, "get_ipython", None)
+        return get is not None and get() is not None
+    return False
+
+
+def check_progress(progress: Any, field: str = "progress") -> Any:
+    """``progress`` if it is None, True, False or a callable; InputError otherwise."""
+    if progress is None or isinstance(progress, bool) or callable(progress):
+        return progress
+    raise design_error(
+        field,
+        type(progress).__name__,
+        "must be None (a bar in interactive sessions), True, False or a callable",
+        InputError,
+    )
+
+
+def _wants_bar(progress: Any) -> bool:
+    if progress is True:
+        return True
+    if progress is not None:
+        return False
+    setting = os.environ.get(ENV, "").strip().lower()
+    if setting in ("1", "true", "yes", "on"):
+        return True
+    if setting in ("0", "false", "no", "off"):
+        return False
+    return interactive()
+
+
+@contextlib.contextmanager
+def reporter(
+    progress: Any,
+    label: str,
+    total: float | None,
+    update: Callable[..., tuple[float | None, str]],
+    *,
+    field: str = "progress",
+) -> Iterator[Callable[..., None] | None]:
+    """The callback a long call passes on while the block runs.
+
+    ``progress`` (see the module docstring) as given when it is a callable; a function that
+    moves a rich bar on stderr when a bar is wanted; else None. ``update(*args)`` turns the
+    callback's arguments into (completed, text shown after the bar).
+    """
+    progress = check_progress(progress, field)
+    if callable(progress) and not isinstance(progress, bool):
+        yield progress
+        return
+    if not _wants_bar(progress):
+        yield None
+        return
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        SpinnerColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    columns = [SpinnerColumn(), TextColumn("[bold]{task.description}")]
+    if total is not None:
+        columns += [BarColumn(bar_width=24), TextColumn("{task.percentage:>3.0f}%")]
+    columns += [TextColumn("{task.fields[text]}"), TimeElapsedColumn()]
+    if total is not None:
+        columns += [TextColumn("ETA"), TimeRemainingColumn()]
+    with Progress(*columns, console=Console(stderr=True), transient=True) as bar:
+        task = bar.add_task(label, total=total, text="")
+
+        def advance(*args) -> None:
+            completed, text = update(*args)
+            bar.update(task, completed=completed, text=text)
+
+        yield advance

@@ -1,0 +1,85 @@
+"""Interactive 3-D viewer in the browser (docs/viewer.md), built on viser.
+
+``softrod.view(design)`` starts a local web server and returns a :class:`Viewer`; open its
+``url`` (a notebook shows the page inline). viser is an optional dependency, imported only
+when a viewer starts: ``pip install 'softrod[viewer]'``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .app import Viewer
+
+__all__ = ["Viewer", "view"]
+
+
+def view(
+    design,
+    *,
+    pressures=None,
+    pressure_range=None,
+    force_max=None,
+    trajectory=None,
+    calibration=None,
+    dataset=None,
+    stiffness_map=None,
+    options=None,
+    host: str = "127.0.0.1",
+    port: int | None = None,
+    environment_map: bool = True,
+) -> Viewer:
+    """Serve an interactive view of ``design`` in the browser and return the
+    :class:`Viewer` (the server runs in background threads until ``viewer.close()``).
+
+    design: a design (path, bundled name, preset or :class:`~softrod.Design`).
+    pressures: initial gauge pressures (Pa, one per channel; default 0).
+    pressure_range: (low, high) of the pressure sliders in Pa; default 0 to the pressure that
+        bends the softest chambered section by about half a turn (docs/viewer.md).
+    force_max: range (N, +-) of the tip-force sliders; default: the force that deflects the
+        rod by about half its length.
+    trajectory: a :class:`~softrod.Trajectory` (or its file) to play back with a time slider.
+    calibration: a :class:`~softrod.CalibrationResult`: its measured and predicted tips are
+        drawn; or dataset: a :class:`~softrod.Dataset` (or its file) whose measured tips are
+        drawn against ``design``'s predictions.
+    stiffness_map, options: as in :func:`softrod.solve_statics`.
+    host, port: where to listen (default: this machine only, a free port).
+    environment_map: viser's image-based lighting (turn off for software rendering, where
+        the first frame takes seconds).
+    """
+    try:
+        from .app import Viewer
+    except ModuleNotFoundError as exc:  # pragma: no cover (viser missing)
+        if exc.name and exc.name.split(".")[0] == "viser":
+            from ..errors import InputError
+
+            raise InputError(
+                "softrod.view needs the viewer extra: pip install 'softrod[viewer]' (viser)",
+                "viser",
+                None,
+                "not installed",
+            ) from None
+        raise
+    return Viewer(
+        design,
+        pressures=pressures,
+        pressure_range=pressure_range,
+        force_max=force_max,
+        trajectory=trajectory,
+        calibration=calibration,
+        dataset=dataset,
+        stiffness_map=stiffness_map,
+        options=options,
+        host=host,
+        port=port,
+        environment_map=environment_map,
+    )
+
+
+def __getattr__(name):
+    if name == "Viewer":
+        from .app import Viewer
+
+        return Viewer
+    raise AttributeError(name)

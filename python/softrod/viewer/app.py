@@ -1,0 +1,742 @@
+"""The interactive viewer: a viser server that draws a design's static shape and re-solves it
+live as the user moves the pressure and tip-force sliders (docs/viewer.md).
+
+Every slider move is one ``solve_statics`` call (the Rust shooting solve, warm-started from
+the shape on screen) and one redraw: the tube of every section, the tip frame, the load
+arrows, the chamber cross-section and the solver's state, sent to the browser as one
+message batch. Moves that arrive while a solve runs are merged: the next solve takes the
+sliders' latest values, so a fast drag never queues stale work.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import socket
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..catalog import load_design
+from ..design import Design
+from ..errors import InputError, design_error
+from ..solution import StaticSolution
+from ..statics import SolverOptions, solve_statics
+from . import geometry as geo
+
+#: Colours (RGB) of the arrows and markers.
+GRAVITY_COLOUR = (60, 110, 220)
+FORCE_COLOUR = (220, 40, 40)
+WEIGHT_COLOUR = (150, 60, 200)
+MEASURED_COLOUR = (30, 160, 60)
+PREDICTED_COLOUR = (230, 120, 20)
+
+
+@dataclass(frozen=True)
+class Timing:
+    """One re-solve and redraw, measured on the server (s): the solve in Rust, building and
+    queueing the scene update, and the two together; ``at`` is when it started (time.time(),
+    to line it up with the browser's clock in latency measurements)."""
+
+    solve_s: float
+    draw_s: float
+    at: float = 0.0
+
+    @property
+    def total_s(self) -> float:
+        return self.solve_s + self.draw_s
+
+
+def free_port(host: str = "127.0.0.1") -> int:
+    """A TCP port that is free on ``host`` right now."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
+def _nice_ceiling(x: float) -> float:
+    """The smallest of 1, 1.5, 2, 3, 5, 7 times a power of ten that is >= x."""
+    if not (math.isfinite(x) and x > 0):
+        return 1.0
+    e = 10.0 ** math.floor(math.log10(x))
+    return next(m * e for m in (1.0, 1.5, 2.0, 3.0, 5.0, 7.0, 10.0) if m * e >= x * (1 - 1e-12))
+
+
+def default_pressure_max(design: Design) -> float:
+    """Default top of the pressure sliders (Pa): the pressure at which one channel's chambers
+    alone bend the softest chambered section by about half a turn, p = pi EI / (A d L) (the
+    pressure moment p A d over the bending stiffness EI gives the curvature; a bend angle of
+    pi over the section length L), rounded up to a round number (1, 1.5, 2, 3, 5 or 7 times
+    a power of ten)."""
+    best = math.inf
+    for sec, spec in zip(design.sections(), design.spec["sections"], strict=True):
+        if spec["rigid"] or not spec["chambers"]:
+            continue
+        ei = min(float(sec["k_bt"][0][0]), float(sec["k_bt"][1][1]))
+        per_channel: dict[int, float] = {}
+        for ch in spec["chambers"]:
+            per_channel[ch["channel"]] = per_channel.get(ch["channel"], 0.0) + (
+                ch["area"] * ch["distance"]
+            )
+        ad = max(per_channel.values())
+        if ad > 0:
+            best = min(best, math.pi * ei / (ad * spec["length"]))
+    return _nice_ceiling(best) if math.isfinite(best) else 100e3
+
+
+def default_force_max(design: Design) -> float:
+    """Default range of the tip-force sliders (N, +-): the tip force that deflects the rod,
+    taken as a uniform cantilever with the smallest bending stiffness of its elastic sections,
+    by half its length (F L^3 / (3 EI) = L / 2), rounded up like the pressure range."""
+    eis = [
+        min(float(sec["k_bt"][0][0]), float(sec["k_bt"][1][1]))
+        for sec, spec in zip(design.sections(), design.spec["sections"], strict=True)
+        if not spec["rigid"]
+    ]
+    if not eis:
+        return 1.0
+    return _nice_ceiling(1.5 * min(eis) / design.length**2)
+
+
+class Viewer:
+    """An interactive 3-D view of ``design`` in the browser (start it with :func:`view`).
+
+    Attributes for scripts and tests: :attr:`url`, :attr:`solution` (the shape on screen),
+    :attr:`solves` (re-solves so far), :attr:`timings` (one :class:`Timing` per re-solve),
+    :attr:`pressures` and :attr:`tip_force` (the sliders' values, SI).
+    """
+
+    def __init__(
+        self,
+        design,
+        *,
+        pressures=None,
+        pressure_range=None,
+        force_max=None,
+        trajectory=None,
+        calibration=None,
+        dataset=None,
+        stiffness_map=None,
+        options: SolverOptions | None = None,
+        host: str = "127.0.0.1",
+        port: int | None = None,
+        environment_map: bool = True,
+    ):
+        import viser  # optional dependency: pip install 'softrod[viewer]'
+
+        self.design = load_design(design)
+        d = self.design
+        self._options = options
+        self._stiffness_map = stiffness_map
+        self.looks = geo.section_looks(d)
+        nc = d.n_channels
+        if pressure_range is None:
+            self.pressure_range = (0.0, default_pressure_max(d))
+        else:
+            self.pressure_range = _range(pressure_range)
+        self.force_max = default_force_max(d) if force_max is None else _positive(force_max)
+        p0 = np.zeros(nc) if pressures is None else np.array(pressures, dtype=float)
+        if p0.shape != (nc,):
+            raise design_error(
+                "pressures", pressures, f"must be {nc} gauge pressures (Pa)", InputError
+            )
+        self.trajectory = _trajectory(d, trajectory)
+        self.calibration = _measured_predicted(d, calibration, dataset)
+
+        self.solution: StaticSolution | None = None
+        self.solves = 0
+        self.timings: list[Timing] = []
+        self.error: str | None = None
+        self._run_lock = threading.Lock()
+        self._pending_lock = threading.Lock()
+        self._pending = False
+        self._quiet = False  # set while Python moves several sliders: one solve for all
+        self._playing = threading.Event()
+        self._closed = False
+
+        port = free_port(host) if port is None else port
+        with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: we print the URL
+            self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.server.gui.configure_theme(control_width="large")
+        self.server.scene.set_up_direction("+z")
+        if not environment_map:
+            # Without image-based lighting the scene needs lamps: a key light from the
+            # camera's side and an ambient fill.
+            sc = self.server.scene
+            sc.configure_environment_map(hdri=None)
+            sc.add_light_directional("/lights/key", intensity=2.5, position=(1.0, -1.5, 2.0))
+            sc.add_light_ambient("/lights/fill", intensity=1.2)
+        self._set_camera()
+        self._build_scene()
+        self._build_gui(p0)
+        self._request_solve()
+
+    # ------------------------------------------------------------------ public API
+
+    @property
+    def url(self) -> str:
+        """Address of the page, e.g. ``http://127.0.0.1:8080``."""
+        host = self.server.get_host()
+        host = "127.0.0.1" if host in ("0.0.0.0", "") else host
+        return f"http://{host}:{self.server.get_port()}"
+
+    @property
+    def pressures(self) -> np.ndarray:
+        """The pressure sliders' values, Pa (one per channel)."""
+        return np.array([s.value * 1e3 for s in self._p_sliders])
+
+    @property
+    def tip_force(self) -> np.ndarray:
+        """The tip-force sliders' values, N (world frame)."""
+        return np.array([s.value for s in self._f_sliders])
+
+    def set_inputs(self, pressures=None, tip_force=None) -> StaticSolution | None:
+        """Move the sliders from Python (Pa, N) and wait for the re-solve; returns the
+        solution on screen."""
+        self._quiet = True
+        try:
+            with self.server.atomic():
+                if pressures is not None:
+                    for s, p in zip(self._p_sliders, np.asarray(pressures, float), strict=True):
+                        s.value = float(p) / 1e3
+                if tip_force is not None:
+                    for s, f in zip(self._f_sliders, np.asarray(tip_force, float), strict=True):
+                        s.value = float(f)
+        finally:
+            self._quiet = False
+        self._request_solve()
+        return self.solution
+
+    def screenshot(self, path, *, width: int = 1280, height: int = 800, timeout: float = 60.0):
+        """Render the scene in a connected browser and write it as PNG (whole or not at all).
+        Waits up to ``timeout`` s for a browser to connect. Returns the path."""
+        from PIL import Image
+
+        from ..io import atomic_path
+
+        path = Path(path)
+        if path.suffix.lower() != ".png":
+            raise design_error("path", str(path), "a screenshot is written as .png", InputError)
+        client = self._first_client(timeout)
+        image = client.get_render(height=height, width=width, transport_format="png",
+                                  timeout=timeout)
+        with atomic_path(path) as tmp:
+            Image.fromarray(image).save(tmp, format="PNG")
+        return path
+
+    def wait(self) -> None:
+        """Serve until interrupted (Ctrl-C), then close."""
+        try:
+            while not self._closed:
+                time.sleep(0.2)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Stop the server (the page stops updating)."""
+        if not self._closed:
+            self._closed = True
+            self._playing.clear()
+            self.server.stop()
+
+    def __enter__(self) -> Viewer:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _repr_html_(self) -> str:  # notebooks show the page inline
+        return (
+            f'<iframe src="{self.url}" width="100%" height="600" '
+            'style="border:1px solid #ccc"></iframe>'
+        )
+
+    def __repr__(self) -> str:
+        return f"Viewer({self.design.name!r} at {self.url}, {self.solves} solves)"
+
+    # ------------------------------------------------------------------ set-up
+
+    def _build_scene(self) -> None:
+        d, sc = self.design, self.server.scene
+        L = d.length
+        rmax = max(lk.radius for lk in self.looks)
+        self._scale = L
+        base = np.asarray(d.spec["mounting"]["base_position"], float)
+        base_rot = np.asarray(d.spec["mounting"]["base_rotation"], float)
+        # The mount: a plate across the base, in the base's cross-section plane.
+        sc.add_box(
+            "/mount",
+            dimensions=(3.0 * rmax, 3.0 * rmax, 0.15 * rmax),
+            color=(200, 200, 200),
+            position=base - base_rot[:, 2] * 0.075 * rmax,
+            wxyz=geo.wxyz(base_rot),
+        )
+        self._tubes = []
+        for k, lk in enumerate(self.looks):
+            self._tubes.append(
+                sc.add_mesh_simple(
+                    f"/rod/{k}_{lk.name}",
+                    vertices=np.zeros((3, 3), np.float32),
+                    faces=np.array([[0, 1, 2]], np.uint32),
+                    color=lk.colour,
+                    side="double",
+                    # No shadow maps: each one is another pass over the scene per frame,
+                    # which software WebGL pays for on every redraw.
+                    cast_shadow=False,
+                    receive_shadow=False,
+                )
+            )
+        # Axes that reach out of the tube (the frame sits on the centreline).
+        axes = max(0.15 * L, 1.8 * self.looks[-1].radius)
+        self._tip_frame = sc.add_frame(
+            "/tip_frame", axes_length=axes, axes_radius=0.06 * axes, origin_radius=0.1 * axes
+        )
+        g = float(np.linalg.norm(d.spec["mounting"]["gravity"]))
+        side = base + np.array([2.0 * rmax, 0.0, 0.0])
+        self._gravity = sc.add_arrows(
+            "/loads/gravity",
+            points=geo.arrow(side, [0.0, 0.0, -0.25 * L]),
+            colors=GRAVITY_COLOUR,
+            shaft_radius=0.01 * L,
+            head_radius=0.025 * L,
+            head_length=0.05 * L,
+            visible=g > 0,
+        )
+        sc.add_label("/loads/gravity/label", f"g {g:.2f} m/s²", position=side, visible=g > 0)
+        # Forces share one scale: the slider range (or the largest constant load) is 0.3 L.
+        tip = d.spec["tip"]
+        self._weight_n = tip["mass"] * g
+        line_loads = [
+            np.asarray(ld["force_per_length"]) * d.spec["sections"][ld["section"]]["length"]
+            for ld in d.spec["loads"]
+        ]
+        f_ref = max([self.force_max, self._weight_n] + [float(np.linalg.norm(f)) for f in
+                                                        line_loads])
+        self._force_scale = 0.3 * L / f_ref
+        arrow_kw = dict(shaft_radius=0.008 * L, head_radius=0.02 * L, head_length=0.04 * L)
+        self._force_arrow = sc.add_arrows(
+            "/loads/tip_force", points=geo.arrow([0, 0, 0], [0, 0, 1e-9]), colors=FORCE_COLOUR,
+            **arrow_kw,
+        )
+        self._weight_arrow = sc.add_arrows(
+            "/loads/tip_weight", points=geo.arrow([0, 0, 0], [0, 0, 1e-9]), colors=WEIGHT_COLOUR,
+            visible=self._weight_n > 0, **arrow_kw,
+        )
+        self._line_loads = []
+        for k, (ld, f) in enumerate(zip(d.spec["loads"], line_loads, strict=True)):
+            lk = self.looks[ld["section"]]
+            self._line_loads.append(
+                (
+                    0.5 * (lk.s0 + lk.s1),
+                    f,
+                    sc.add_arrows(
+                        f"/loads/line_{k}",
+                        points=geo.arrow([0, 0, 0], [0, 0, 1e-9]),
+                        colors=WEIGHT_COLOUR,
+                        **arrow_kw,
+                    ),
+                )
+            )
+        if self.calibration is not None:
+            measured, predicted, _ = self.calibration
+            ok = np.isfinite(predicted).all(axis=1)
+            pt = 0.012 * L
+            sc.add_point_cloud("/calibration/measured", points=measured.astype(np.float32),
+                               colors=MEASURED_COLOUR, point_size=pt, point_shape="circle")
+            sc.add_point_cloud("/calibration/predicted", points=predicted[ok].astype(np.float32),
+                               colors=PREDICTED_COLOUR, point_size=pt, point_shape="circle")
+            sc.add_line_segments(
+                "/calibration/errors",
+                points=np.stack([measured[ok], predicted[ok]], axis=1).astype(np.float32),
+                colors=(120, 120, 120),
+            )
+            self._sample_marker = sc.add_icosphere(
+                "/calibration/sample", radius=0.02 * L, color=MEASURED_COLOUR, visible=False
+            )
+
+    def _build_gui(self, p0: np.ndarray) -> None:
+        gui, d = self.server.gui, self.design
+        gui.add_markdown(f"**{d.name}**  \n{d.length * 1e3:.0f} mm, {d.n_channels} channel(s)")
+        lo, hi = self.pressure_range
+        step = _nice_ceiling((hi - lo) / 1000.0) / 1e3
+        self._p_sliders = []
+        with gui.add_folder("Pressures (kPa)"):
+            for k in range(d.n_channels):
+                s = gui.add_slider(
+                    f"channel {k}",
+                    min=lo / 1e3,
+                    max=hi / 1e3,
+                    step=step,
+                    initial_value=float(np.clip(p0[k], lo, hi)) / 1e3,
+                )
+                s.on_update(self._on_slider)
+                self._p_sliders.append(s)
+        self._f_sliders = []
+        f0 = np.asarray(d.spec["tip"]["force"], float)
+        fm = self.force_max
+        with gui.add_folder("Tip force (N, world)", expand_by_default=False):
+            for k, axis in enumerate("xyz"):
+                s = gui.add_slider(
+                    f"F{axis}",
+                    min=-fm,
+                    max=fm,
+                    step=fm / 500.0,
+                    initial_value=float(np.clip(f0[k], -fm, fm)),
+                )
+                s.on_update(self._on_slider)
+                self._f_sliders.append(s)
+        with gui.add_folder("Solver"):
+            self._status = gui.add_markdown("starting...")
+        chambered = [
+            (k, sec) for k, sec in enumerate(d.spec["sections"]) if sec["chambers"]
+        ]
+        self._sections_html = []
+        if chambered:
+            with gui.add_folder("Cross-section (from the tip)"):
+                for k, sec in chambered:
+                    self._sections_html.append(
+                        (sec, self.looks[k].radius, gui.add_html(""), sec["name"])
+                    )
+        with gui.add_folder("Sections", expand_by_default=False):
+            rows = ["| section | kind | outer radius |", "|---|---|---|"]
+            for lk in self.looks:
+                note = "" if lk.radius_from_design else " (drawn; not in the design)"
+                rows.append(f"| {lk.name} | {lk.kind} | {lk.radius * 1e3:.1f} mm{note} |")
+            gui.add_markdown("\n".join(rows))
+        if self.trajectory is not None:
+            self._build_trajectory_gui()
+        if self.calibration is not None:
+            self._build_calibration_gui()
+        shot = gui.add_button("Save screenshot (PNG)")
+        shot.on_click(self._on_screenshot_button)
+        self._shot_note = gui.add_markdown("")
+
+    def _build_trajectory_gui(self) -> None:
+        gui, tr = self.server.gui, self.trajectory
+        with gui.add_folder("Trajectory"):
+            self._t_slider = gui.add_slider(
+                "sample", min=0, max=len(tr) - 1, step=1, initial_value=0
+            )
+            self._t_note = gui.add_markdown("")
+            self._play = gui.add_checkbox("play", initial_value=False)
+            self._speed = gui.add_slider("speed", min=0.1, max=4.0, step=0.1, initial_value=1.0)
+        self._t_slider.on_update(lambda _e: self._show_trajectory(int(self._t_slider.value)))
+        self._play.on_update(lambda _e: self._toggle_play())
+
+    def _build_calibration_gui(self) -> None:
+        gui = self.server.gui
+        measured, predicted, _ = self.calibration
+        err = np.linalg.norm(predicted - measured, axis=1) * 1e3
+        ok = np.isfinite(err)
+        with gui.add_folder("Calibration"):
+            gui.add_markdown(
+                f"{len(measured)} samples: measured (green) vs predicted (orange)  \n"
+                f"tip error mean {np.mean(err[ok]):.2f} mm, max {np.max(err[ok]):.2f} mm"
+                if ok.any()
+                else f"{len(measured)} samples; no prediction converged"
+            )
+            self._sample = gui.add_slider(
+                "sample", min=0, max=len(measured) - 1, step=1, initial_value=0
+            )
+            go = gui.add_button("Solve at this sample's pressures")
+        go.on_click(lambda _e: self._show_sample(int(self._sample.value)))
+
+    def _set_camera(self) -> None:
+        """Every new page starts looking at the rod's middle from the side, slightly from
+        above, from far enough to see it whole."""
+        d = self.design
+        base = np.asarray(d.spec["mounting"]["base_position"], float)
+        axis = np.asarray(d.spec["mounting"]["base_rotation"], float)[:, 2]
+        mid = base + 0.5 * d.length * axis
+        cam = self.server.initial_camera
+        cam.position = tuple(mid + d.length * np.array([1.1, -1.5, 0.6]))  # first: it moves look_at
+        cam.look_at = tuple(mid)
+        cam.near = 1e-3 * d.length
+
+    def _first_client(self, timeout: float):
+        deadline = time.monotonic() + timeout
+        while True:
+            clients = self.server.get_clients()
+            if clients:
+                return next(iter(clients.values()))
+            if time.monotonic() > deadline:
+                raise InputError(
+                    f"screenshot: no browser connected to {self.url} within {timeout:g} s "
+                    "(the scene is rendered by the browser: open the page first)",
+                    "timeout",
+                    timeout,
+                    "a browser must be connected",
+                )
+            time.sleep(0.05)
+
+    def _on_screenshot_button(self, event) -> None:
+        path = Path.cwd() / f"softrod-{self.design.name}-{time.strftime('%Y%m%d-%H%M%S')}.png"
+        try:
+            self.screenshot(path)
+            self._shot_note.content = f"wrote `{path}`"
+        except Exception as exc:  # shown in the page; the server keeps running
+            self._shot_note.content = f"screenshot failed: {exc}"
+
+    # ------------------------------------------------------------------ solve and draw
+
+    def _on_slider(self, _event) -> None:
+        if not self._quiet:
+            self._request_solve()
+
+    def _request_solve(self) -> None:
+        """Solve for the sliders' current values; merge requests that arrive meanwhile."""
+        with self._pending_lock:
+            self._pending = True
+        while True:
+            if not self._run_lock.acquire(blocking=False):
+                return  # the running solve loop picks the request up
+            try:
+                while True:
+                    with self._pending_lock:
+                        if not self._pending:
+                            break
+                        self._pending = False
+                    self._solve_and_draw()
+            finally:
+                self._run_lock.release()
+            with self._pending_lock:
+                if not self._pending:
+                    return
+
+    def _solve_and_draw(self) -> None:
+        if self._closed:
+            return
+        p, f = self.pressures, self.tip_force
+        at = time.time()
+        t0 = time.perf_counter()
+        sol = solve_statics(
+            self.design,
+            p,
+            tip_force=f,
+            options=self._options,
+            stiffness_map=self._stiffness_map,
+            initial=self.solution if self.solution is not None and self.solution.converged
+            else None,
+            check=False,
+        )
+        t1 = time.perf_counter()
+        self.solves += 1
+        if sol.converged:
+            self.solution = sol
+            self.error = None
+        else:
+            self.error = (
+                f"no convergence at these inputs ({sol.iterations} iterations, residual "
+                f"{sol.residual:.2e}): the last converged shape stays drawn"
+            )
+        with self.server.atomic():
+            if sol.converged:
+                self._draw_rod(sol.position, sol.rotation, sol.section)
+                self._draw_tip(sol.position[-1], sol.rotation[-1], f)
+                self._draw_line_loads(sol.s, sol.position)
+            self._draw_sections(p)
+            self._status.content = self._status_text(sol, t1 - t0)
+        self.server.flush()  # send now, not at the end of viser's 1/60 s batching window
+        self.timings.append(Timing(t1 - t0, time.perf_counter() - t1, at))
+
+    def _draw_rod(self, position, rotation, section) -> None:
+        ranges = geo.node_ranges(np.asarray(section), len(self.looks))
+        for k, (lk, rng) in enumerate(zip(self.looks, ranges, strict=True)):
+            mesh = self._tubes[k]
+            if rng is None:
+                mesh.visible = False
+                continue
+            a, b = rng
+            if b == a:  # a section of one node: draw nothing rather than a disc
+                mesh.visible = False
+                continue
+            verts = geo.tube_vertices(
+                position[a : b + 1], rotation[a : b + 1, :, 0], rotation[a : b + 1, :, 1],
+                lk.radius,
+            )
+            n = b - a + 1
+            if mesh.faces.shape[0] != geo.tube_faces(n).shape[0]:
+                mesh.faces = geo.tube_faces(n)
+            mesh.vertices = verts
+            mesh.visible = True
+
+    def _draw_tip(self, tip, rot, force) -> None:
+        self._tip_frame.position = tuple(tip)
+        self._tip_frame.wxyz = tuple(geo.wxyz(rot))
+        fvec = np.asarray(force, float) * self._force_scale
+        self._force_arrow.points = geo.arrow(tip, fvec).astype(np.float32)
+        self._force_arrow.visible = bool(np.linalg.norm(force) > 0)
+        if self._weight_n > 0:
+            w = np.array([0.0, 0.0, -self._weight_n]) * self._force_scale
+            self._weight_arrow.points = geo.arrow(tip, w).astype(np.float32)
+
+    def _draw_line_loads(self, s, position) -> None:
+        for s_mid, f, handle in self._line_loads:
+            at = np.array([np.interp(s_mid, s, position[:, i]) for i in range(3)])
+            handle.points = geo.arrow(at, f * self._force_scale).astype(np.float32)
+
+    def _draw_sections(self, pressures) -> None:
+        hi = self.pressure_range[1]
+        for sec, radius, handle, _name in self._sections_html:
+            handle.content = geo.cross_section_svg(sec, pressures, hi, radius)
+
+    def _status_text(self, sol: StaticSolution, solve_s: float) -> str:
+        lines = [f"solve {self.solves}: {solve_s * 1e3:.2f} ms"]
+        if sol.converged:
+            tip = sol.tip_position * 1e3
+            lines += [
+                "converged: **yes**",
+                f"iterations: {sol.iterations} (load steps {sol.load_steps})",
+                f"residual: {sol.residual:.1e}",
+                f"tip (mm): {tip[0]:.2f}, {tip[1]:.2f}, {tip[2]:.2f}",
+            ]
+            stable = getattr(sol, "stable", None)
+            if stable is not None:
+                lines.append(f"stable: **{'yes' if stable else 'NO (unstable branch)'}**")
+        else:
+            lines += ["converged: **NO**", self.error or ""]
+        return "  \n".join(lines)
+
+    # ------------------------------------------------------------------ playback, samples
+
+    def _show_trajectory(self, i: int) -> None:
+        tr, d = self.trajectory, self.design
+        i = int(np.clip(i, 0, len(tr) - 1))
+        t = tr.time[i]
+        note = f"t = {t:.3f} s of {tr.time[-1]:.3f} s; pressures (kPa): " + ", ".join(
+            f"{p / 1e3:.1f}" for p in tr.pressure[i]
+        )
+        with self.server.atomic():
+            if tr.shape_time is not None and tr.shape_time.size:
+                j = int(np.searchsorted(tr.shape_time, t, side="right")) - 1
+                j = max(j, 0)
+                pos = tr.shape_position[j]
+                rot = geo.transport_frames(pos, np.asarray(d.spec["mounting"]["base_rotation"]))
+                sec = geo.section_of_arclength(self.looks, tr.shape_s)
+                self._draw_rod(pos, rot, sec)
+                note += f"  \nshape at t = {tr.shape_time[j]:.3f} s"
+            else:
+                note += "  \n(the trajectory stores no shapes: tip only)"
+            self._draw_tip(tr.tip_position[i], tr.tip_rotation[i], np.zeros(3))
+            self._draw_sections(tr.pressure[i])
+            self._t_note.content = note
+
+    def _toggle_play(self) -> None:
+        if self._play.value and not self._playing.is_set():
+            self._playing.set()
+            threading.Thread(target=self._play_loop, daemon=True).start()
+        elif not self._play.value:
+            self._playing.clear()
+
+    def _play_loop(self) -> None:
+        tr = self.trajectory
+        wall0 = time.perf_counter()
+        t_start = tr.time[int(self._t_slider.value)]
+        if int(self._t_slider.value) >= len(tr) - 1:
+            t_start = tr.time[0]
+        while self._playing.is_set() and not self._closed:
+            t = t_start + (time.perf_counter() - wall0) * float(self._speed.value)
+            i = int(np.searchsorted(tr.time, t, side="right")) - 1
+            if i >= len(tr) - 1:
+                self._t_slider.value = len(tr) - 1
+                break
+            self._t_slider.value = max(i, 0)
+            time.sleep(1 / 30)
+        self._playing.clear()
+        self._play.value = False
+
+    def _show_sample(self, k: int) -> None:
+        measured, _, pressures = self.calibration
+        self._sample_marker.position = tuple(measured[k])
+        self._sample_marker.visible = True
+        self.set_inputs(pressures=pressures[k])
+
+
+def _range(value) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise design_error(
+            "pressure_range", value, "must be (low, high) gauge pressures in Pa", InputError
+        ) from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise design_error("pressure_range", value, "must be finite with low < high", InputError)
+    return lo, hi
+
+
+def _positive(value) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        x = math.nan
+    if not (math.isfinite(x) and x > 0):
+        raise design_error("force_max", value, "must be a positive force in N", InputError)
+    return x
+
+
+def _measured_predicted(design: Design, calibration, dataset):
+    """(measured, predicted, pressures): tip positions (m, 3) and pressures (m, c) of a
+    calibration result, or of a dataset against ``design`` (one batch solve), or None."""
+    if calibration is not None and dataset is not None:
+        raise design_error(
+            "dataset", "given", "give calibration= or dataset=, not both", InputError
+        )
+    if calibration is not None:
+        for attr in ("dataset", "predicted"):
+            if not hasattr(calibration, attr):
+                raise design_error(
+                    "calibration",
+                    type(calibration).__name__,
+                    "must be a softrod.CalibrationResult (from softrod.calibrate)",
+                    InputError,
+                )
+        return (
+            np.asarray(calibration.dataset.tip_position, float),
+            np.asarray(calibration.predicted, float),
+            np.asarray(calibration.dataset.pressures, float),
+        )
+    if dataset is None:
+        return None
+    from ..datasets import Dataset, load_dataset
+    from ..statics import solve_statics_batch
+
+    if not isinstance(dataset, Dataset):
+        dataset = load_dataset(dataset, design=design)
+    if dataset.mounting is not None and len(set(dataset.mounting.tolist())) > 1:
+        raise design_error(
+            "dataset",
+            "several mountings",
+            "one mounting per view: pass a CalibrationResult (calibration=) instead, which "
+            "carries predictions for every mounting",
+            InputError,
+        )
+    out = solve_statics_batch(design, dataset.pressures)
+    return (
+        np.asarray(dataset.tip_position, float),
+        out.tip_position,
+        np.asarray(dataset.pressures, float),
+    )
+
+
+def _trajectory(design: Design, trajectory):
+    """A Trajectory (or the path of one) whose channels match ``design``, or None."""
+    if trajectory is None:
+        return None
+    from ..dynamics import Trajectory
+
+    if not isinstance(trajectory, Trajectory):
+        trajectory = Trajectory.load(trajectory)
+    if trajectory.n_channels != design.n_channels:
+        raise design_error(
+            "trajectory",
+            f"{trajectory.n_channels} channels",
+            f"design {design.name!r} has {design.n_channels}",
+            InputError,
+        )
+    return trajectory

@@ -1,0 +1,219 @@
+"""What the viewer draws, as plain numpy (no viser here, so it is testable on its own):
+the rod's sections with their kind, colour and outer radius, the tube mesh around a
+solved centreline, quaternions of frames, load arrows and the chamber cross-section (SVG).
+
+Everything is vectorised over the nodes: one mesh for a whole section is a handful of array
+operations on the (n, 3) centreline and the (n, 3, 3) rotations that the Rust solve returns.
+Lengths are metres (the scene's unit).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..design import Design
+
+#: Points around the tube's circumference (smooth enough at the sizes drawn, ~1 ms to mesh).
+RING = 32
+
+#: Section colours (RGB): caps and other plain elastic parts, the chambered body, rigid parts.
+COLOURS = {
+    "cap": (150, 170, 190),
+    "chambered": (240, 150, 60),
+    "rigid": (90, 90, 100),
+}
+
+#: Wall outside the chambers when a design gives no outer radius (the drawn tube encloses
+#: the chambers with this relative margin; the panel says the radius is not the design's).
+ENVELOPE_MARGIN = 1.15
+
+
+@dataclass(frozen=True)
+class SectionLook:
+    """How one section is drawn: kind ("cap", "chambered", "rigid"), colour, outer radius
+    (m) and whether that radius is the design's own (False: drawn from the chambers or a
+    neighbour, because the design gives none)."""
+
+    name: str
+    kind: str
+    colour: tuple[int, int, int]
+    radius: float
+    radius_from_design: bool
+    s0: float
+    s1: float
+
+
+def section_looks(design: Design) -> list[SectionLook]:
+    """Kind, colour, radius and arc-length span of every section of ``design``."""
+    secs = design.spec["sections"]
+    radii: list[float | None] = []
+    own: list[bool] = []
+    for sec in secs:
+        if sec.get("outer_radius"):
+            radii.append(float(sec["outer_radius"]))
+            own.append(True)
+        elif sec["chambers"]:
+            reach = max(
+                c["distance"] + (c["radius"] or math.sqrt(c["area"] / math.pi))
+                for c in sec["chambers"]
+            )
+            radii.append(ENVELOPE_MARGIN * reach)
+            own.append(False)
+        else:
+            radii.append(None)
+            own.append(False)
+    known = [i for i, r in enumerate(radii) if r is not None]
+    fallback = design.length / 20.0  # no section says anything about its size
+    looks, s = [], 0.0
+    for i, sec in enumerate(secs):
+        r = radii[i]
+        if r is None:
+            r = radii[min(known, key=lambda k: abs(k - i))] if known else fallback
+        kind = "rigid" if sec["rigid"] else ("chambered" if sec["chambers"] else "cap")
+        looks.append(
+            SectionLook(sec["name"], kind, COLOURS[kind], float(r), own[i], s, s + sec["length"])
+        )
+        s += sec["length"]
+    return looks
+
+
+def section_of_arclength(looks: list[SectionLook], s: np.ndarray) -> np.ndarray:
+    """Section index of every arc length (a node on a junction belongs to the later one)."""
+    ends = np.array([lk.s1 for lk in looks[:-1]])
+    return np.searchsorted(ends, np.asarray(s), side="right")
+
+
+def node_ranges(section: np.ndarray, n_sections: int) -> list[tuple[int, int] | None]:
+    """For each section, the (first, last) node indices that its tube spans, inclusive; the
+    next section's first node is added so that neighbouring tubes meet without a gap."""
+    out: list[tuple[int, int] | None] = []
+    n = section.size
+    for k in range(n_sections):
+        idx = np.flatnonzero(section == k)
+        if idx.size == 0:
+            out.append(None)
+            continue
+        a, b = int(idx[0]), int(idx[-1])
+        out.append((a, min(b + 1, n - 1) if b + 1 < n and section[b + 1] != k else b))
+    return out
+
+
+def tube_faces(n: int, ring: int = RING) -> np.ndarray:
+    """Triangles (uint32) of a tube of ``n`` rings of ``ring`` points, closed at both ends
+    by fans around a centre vertex (vertex n * ring is the start centre, n * ring + 1 the end
+    centre)."""
+    i = np.arange(n - 1)[:, None]
+    k = np.arange(ring)[None, :]
+    a = i * ring + k
+    b = i * ring + (k + 1) % ring
+    c = a + ring
+    d = b + ring
+    side = np.concatenate(
+        [np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)]
+    )
+    k = np.arange(ring)
+    start = np.stack([np.full(ring, n * ring), (k + 1) % ring, k], -1)
+    last = (n - 1) * ring
+    end = np.stack([np.full(ring, n * ring + 1), last + k, last + (k + 1) % ring], -1)
+    return np.concatenate([side, start, end]).astype(np.uint32)
+
+
+def tube_vertices(
+    position: np.ndarray, d1: np.ndarray, d2: np.ndarray, radius, ring: int = RING
+) -> np.ndarray:
+    """Vertices (n * ring + 2, 3) of a tube: at node i the circle of ``radius`` in the plane
+    of (d1_i, d2_i) around position_i, then the two end centres (see :func:`tube_faces`)."""
+    theta = 2.0 * np.pi * np.arange(ring) / ring
+    r = np.broadcast_to(np.asarray(radius, dtype=float), position.shape[:1])[:, None, None]
+    cos, sin = np.cos(theta)[None, :, None], np.sin(theta)[None, :, None]
+    circle = cos * d1[:, None, :] + sin * d2[:, None, :]
+    rings = position[:, None, :] + r * circle
+    return np.concatenate([rings.reshape(-1, 3), position[:1], position[-1:]]).astype(np.float32)
+
+
+def transport_frames(position: np.ndarray, base_rotation: np.ndarray) -> np.ndarray:
+    """Rotations (n, 3, 3) along a centreline that stores no frames (a Trajectory's shapes):
+    d3 is the unit tangent and (d1, d2) the base's, turned by the smallest rotation that takes
+    the base tangent to each node's tangent. The tube is round, so only the tangent matters
+    for its surface; this is exact for it up to bends of nearly 180 deg from the base tangent,
+    where the smallest rotation is not unique (the normal plane is still right there)."""
+    t = np.gradient(position, axis=0)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    t0 = base_rotation[:, 2]
+    axis = np.cross(t0, t)
+    c = t @ t0
+    # Rodrigues for the rotation t0 -> t: R = I + [a]x + [a]x^2 / (1 + c).
+    ax = np.zeros((t.shape[0], 3, 3))
+    ax[:, 0, 1], ax[:, 0, 2], ax[:, 1, 2] = -axis[:, 2], axis[:, 1], -axis[:, 0]
+    ax -= np.transpose(ax, (0, 2, 1))
+    turn = np.eye(3) + ax + (ax @ ax) / np.maximum(1.0 + c, 1e-9)[:, None, None]
+    return turn @ base_rotation
+
+
+def wxyz(rotation: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method)."""
+    m = np.asarray(rotation, dtype=float)
+    tr = np.trace(m)
+    if tr > 0:
+        s = 2.0 * math.sqrt(tr + 1.0)
+        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
+    else:
+        i = int(np.argmax(np.diag(m)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * math.sqrt(max(1.0 + m[i, i] - m[j, j] - m[k, k], 1e-300))
+        q = [0.0] * 4
+        q[0] = (m[k, j] - m[j, k]) / s
+        q[1 + i] = 0.25 * s
+        q[1 + j] = (m[j, i] + m[i, j]) / s
+        q[1 + k] = (m[k, i] + m[i, k]) / s
+    q = np.array(q)
+    return q / np.linalg.norm(q)
+
+
+def arrow(start, vector) -> np.ndarray:
+    """One arrow as viser's (1, 2, 3) start/end points."""
+    start = np.asarray(start, dtype=float)
+    return np.stack([start, start + np.asarray(vector, dtype=float)])[None]
+
+
+def cross_section_svg(
+    section: dict, pressures: np.ndarray, p_max: float, radius: float, size: int = 150
+) -> str:
+    """The chambered cross-section seen from the tip towards the base (d1 to the right, d2
+    up): outer disc, bore and chambers, each chamber filled by its channel's pressure
+    (white 0 to orange at ``p_max``) and labelled with its channel."""
+    scale = 0.45 * size / radius
+    cx = cy = size / 2
+
+    def xy(r, angle):
+        return cx + scale * r * math.cos(angle), cy - scale * r * math.sin(angle)
+
+    parts = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{size}" height="{size}" '
+        f'viewBox="0 0 {size} {size}">',
+        f'<circle cx="{cx}" cy="{cy}" r="{scale * radius:.2f}" fill="#f0d8c0" stroke="#555"/>',
+    ]
+    if section.get("bore_radius"):
+        r = scale * section["bore_radius"]
+        parts.append(f'<circle cx="{cx}" cy="{cy}" r="{r:.2f}" fill="#fff" stroke="#555"/>')
+    for ch in section["chambers"]:
+        rc = ch["radius"] or math.sqrt(ch["area"] / math.pi)
+        x, y = xy(ch["distance"], ch["angle"])
+        p = float(pressures[ch["channel"]]) if ch["channel"] < len(pressures) else 0.0
+        f = min(max(p / p_max, 0.0), 1.0) if p_max > 0 else 0.0
+        fill = f"#ff{int(255 - 105 * f):02x}{int(255 - 195 * f):02x}"
+        parts.append(
+            f'<circle cx="{x:.2f}" cy="{y:.2f}" r="{scale * rc:.2f}" fill="{fill}" '
+            f'stroke="#333"/><text x="{x:.2f}" y="{y + 4:.2f}" font-size="11" '
+            f'text-anchor="middle" font-family="sans-serif">{ch["channel"]}</text>'
+        )
+    parts.append(
+        f'<text x="{size - 4}" y="{cy - 4}" font-size="9" text-anchor="end" '
+        f'font-family="sans-serif" fill="#555">d1</text>'
+        f'<text x="{cx + 4}" y="10" font-size="9" font-family="sans-serif" fill="#555">d2</text>'
+        "</svg>"
+    )
+    return "".join(parts)
