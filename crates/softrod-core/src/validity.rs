@@ -36,6 +36,12 @@ pub const MAX_TABLE_POINTS: usize = 10_000;
 /// about 1e-3 before it: a step far too coarse for the curvature. The cure is more steps.
 pub const ROTATION_TOLERANCE: f64 = 1e-6;
 
+/// Largest centreline stretch v3 of any state: no silicone elastomer of soft robotics
+/// stretches to 10 times its length before it tears (elongation at break, manufacturers'
+/// data sheets: Ecoflex 00-30 900 %, Dragon Skin 30 364 %). A larger stretch (e.g. 1e9 Pa
+/// in a chamber) is not a state of the actuator, whatever the validity range allows.
+pub const MAX_STRETCH: f64 = 10.0;
+
 /// What a solver does when a state leaves a validity range (physical rules always raise).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Policy {
@@ -69,6 +75,8 @@ pub enum Rule {
     Rotation,
     /// The centreline stretch v3 is positive (v3 <= 0: the rod is turned inside out).
     PositiveStretch,
+    /// The centreline stretch v3 is at most [`MAX_STRETCH`] (the material would have torn).
+    StretchLimit,
     /// Every chamber's stretch is positive (its volume element has not vanished).
     ChamberCollapse,
     /// Fibre stretch across the section within the model's validity range.
@@ -84,6 +92,7 @@ impl Rule {
             Rule::Finite => "finite_state",
             Rule::Rotation => "rotation",
             Rule::PositiveStretch => "positive_stretch",
+            Rule::StretchLimit => "stretch_limit",
             Rule::ChamberCollapse => "chamber_collapse",
             Rule::StrainRange => "strain_range",
             Rule::OperatingRange => "operating_range",
@@ -202,8 +211,19 @@ pub fn check_rotation(node: Node, rot: &[[f64; 3]; 3]) -> Result<()> {
     ))
 }
 
-/// The centreline stretch v3 is positive.
+/// The centreline stretch v3 is positive and at most [`MAX_STRETCH`].
 pub fn check_stretch(node: Node, v: &[f64; 3]) -> Result<()> {
+    if v[2] > MAX_STRETCH {
+        return Err(broken(
+            Rule::StretchLimit,
+            Some(node),
+            v[2],
+            format!(
+                "stretch v3 = {:.4e} in sections[{}] exceeds {MAX_STRETCH}: no elastomer stretches that far before it tears; the pressures or loads are beyond anything the actuator survives",
+                v[2], node.section
+            ),
+        ));
+    }
     if v[2] > 0.0 {
         return Ok(());
     }
@@ -340,6 +360,10 @@ mod tests {
     #[test]
     fn stretch_chamber_and_range_rules() {
         assert!(check_stretch(NODE, &[0.0, 0.0, 0.3]).is_ok());
+        assert_eq!(
+            rule_of(check_stretch(NODE, &[0.0, 0.0, 3012.0]).unwrap_err()),
+            Rule::StretchLimit
+        );
         let e = check_stretch(NODE, &[0.0, 0.0, -0.87]).unwrap_err();
         assert!(e.to_string().contains("-0.87"), "{e}");
         assert_eq!(rule_of(e), Rule::PositiveStretch);

@@ -77,8 +77,16 @@ fn batch_equals_single_solves_bitwise() {
     let rows = solve_batch(&rod, &p[3 * half..], tip_force, [0.0; 3], None, &opts, 3).unwrap();
     check(&rows, half, "second half");
     for k in [0, 7, half, LEVELS.pow(3) - 1] {
-        let rows =
-            solve_batch(&rod, &p[3 * k..3 * k + 3], tip_force, [0.0; 3], None, &opts, 1).unwrap();
+        let rows = solve_batch(
+            &rod,
+            &p[3 * k..3 * k + 3],
+            tip_force,
+            [0.0; 3],
+            None,
+            &opts,
+            1,
+        )
+        .unwrap();
         check(&rows, k, "one row");
     }
 }

@@ -321,6 +321,20 @@ fn absurd_pressures_never_converge_to_a_shape() {
             }
         }
     }
+    // not even when the validity ranges are not checked: the stretch limit is physical
+    let ignore = SolverOptions {
+        on_invalid: Policy::Ignore,
+        ..Default::default()
+    };
+    for p in [1e9, 1e12, 1e19] {
+        match solve(&rod, &loads(&[p, p, p]), None, &ignore) {
+            Err(SoftrodError::InvalidState { rule, .. }) => {
+                assert!(rule.is_physical(), "p = {p}: {rule:?}")
+            }
+            Err(SoftrodError::NotConverged { .. }) => {}
+            other => panic!("p = {p}: {other:?}"),
+        }
+    }
     // and within the range a strong pressure gives a stretch inside the validity range
     // or the named rule
     let warn = SolverOptions {
