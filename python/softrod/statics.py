@@ -44,7 +44,7 @@ class SolverOptions:
     max_iter: int = 25
     continuation: bool = True
     max_load_steps: int = 200
-    stretch_range: tuple[float, float] = (0.5, 2.0)
+    stretch_range: tuple[float, float] = (1 / 3, 3.0)
 
     def __post_init__(self):
         if not (isinstance(self.tol, float | int) and 0 < self.tol < 1):

@@ -33,9 +33,8 @@ const P_REF: f64 = 0.8e5;
 const C_B: f64 = 1.31;
 const C_E_M0: f64 = 0.92;
 
-/// These tests check the laws' algebra, some of them at stretches beyond the default
-/// validity range of the model (up to 2.5 under the Ogden law's limit force), so the range
-/// is not checked here (the physical rules still are).
+/// These tests check the laws' algebra, some of them at extreme stretches and pressures,
+/// so the validity range is not checked here (the physical rules still are).
 fn opts() -> SolverOptions {
     SolverOptions {
         tol: SOLVER_TOL,

@@ -224,7 +224,7 @@ impl PyRod {
 
     /// Solve one static equilibrium; returns a dict of numpy arrays (SI), the stability
     /// flag "stable" and the validity-range violations "violations" (with on_invalid="warn").
-    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(0.5, 2.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise"))]
+    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise"))]
     #[allow(clippy::too_many_arguments)]
     fn solve<'py>(
         &self,
@@ -290,7 +290,7 @@ impl PyRod {
     }
 
     /// Solve every row of an (m, channels) pressure array in parallel (GIL released).
-    #[pyo3(signature = (pressures, tip_force, tip_moment, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(0.5, 2.0), stiffness_scale=None, on_invalid="raise"))]
+    #[pyo3(signature = (pressures, tip_force, tip_moment, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=None, on_invalid="raise"))]
     #[allow(clippy::too_many_arguments)]
     fn solve_batch<'py>(
         &self,
@@ -345,7 +345,7 @@ impl PyRod {
     /// kinds as in `softrod_core::sensitivity::ParamKind::ALL`. `x0`: optional (m, 3) warm
     /// starts (a previous call's "x"; NaN rows start cold). Adds "x" (m, 3),
     /// "d_tip_position" (m, 3, P) and "d_tip_rotation" (m, 3, 3, P), NaN on failed rows.
-    #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(0.5, 2.0), on_invalid="ignore"))]
+    #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore"))]
     #[allow(clippy::too_many_arguments)]
     fn sensitivity_batch<'py>(
         &self,
