@@ -12,7 +12,6 @@ import os
 import platform
 import statistics
 import subprocess
-import tempfile
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -140,17 +139,14 @@ def result_header(benchmark: str, quick: bool, info: dict, **extra) -> dict:
 
 
 def write_json(path: Path, data: dict) -> None:
-    """Atomic write: temporary file in the same folder, then rename."""
+    """Whole or not at all, through softrod's one atomic writer (softrod.io.atomic_path)."""
+    from softrod.io import atomic_path
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
+    with atomic_path(path) as tmp:
+        with open(tmp, "w") as fh:
             json.dump(data, fh, indent=2)
             fh.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def bench_main(

@@ -13,6 +13,34 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 DELETE = object()  # an entry's value for with_entries: remove the entry
 
 
+def pytest_addoption(parser):
+    parser.addoption(
+        "--fuzz-long",
+        action="store_true",
+        default=False,
+        help="run the fuzz suite (tests/test_fuzz.py) with many thousands of random cases "
+        "instead of the few hundred fixed ones of the default run",
+    )
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    """After a run of the fuzz suite: cases per target and outcome, and the defects."""
+    runs = getattr(config, "_softrod_fuzz", [])
+    if not runs:
+        return
+    from fuzzing import Stats
+
+    total = Stats()
+    for s in runs:
+        for key, n in s.counts.items():
+            total.counts[key] = total.counts.get(key, 0) + n
+        total.defects += s.defects
+    terminalreporter.section(f"softrod fuzz suite: {total.total} cases")
+    terminalreporter.write_line(total.table())
+    for target, _case, out in total.defects[:20]:
+        terminalreporter.write_line(f"defect [{target}] {out.defect}: {out.detail[:300]}")
+
+
 def with_entries(name: str, entries: dict) -> dict:
     """A copy of the document of the bundled design ``name`` with entries set by path
     (``"sections[1].law.alpha"``), or removed (value DELETE). Not validated, unlike

@@ -49,8 +49,11 @@ def test_every_bundled_design_and_preset_round_trips(name, tmp_path):
 
 
 def test_plain_numbers_are_written_with_their_si_unit(tmp_path):
+    # Plain numbers for dimensional entries need a document that says units = "SI"
+    # (docs/design-format.md); saving writes each with its SI unit.
     d = load_design(SPA).replace(
         {
+            "units": "SI",
             "tip.mass": 0.01,
             "sections[1].chambers[0].angle": 0.5,
             "mounting.base_position": [0, 0, 0.1],

@@ -216,7 +216,7 @@ def test_weightless_paper_method_is_exact():
     # Without gravity the chamber moment is the whole load: paper 003's M/theta and the
     # model-based k_theta agree, and both are exact. A table (degree 1) follows a k_theta
     # that falls with the angle (paper Fig. 5c) and is written as one.
-    table = {"angle": [0.0, float(np.radians(140))], "stiffness": [0.08, 0.05]}
+    table = {"angle": ["0 deg", "140 deg"], "stiffness": ["0.08 N*m", "0.05 N*m"]}
     truth = softrod.load_design("stiff_flop_pcc").replace(
         {"mounting.gravity": "0 m/s^2", "pcc.k_theta": table}
     )
@@ -224,7 +224,8 @@ def test_weightless_paper_method_is_exact():
     for gravity in ("include", "subtract"):
         fit = identify_pcc(truth, data, "k_theta", degree=1, gravity=gravity)
         grid, k = fit.table
-        assert np.allclose(k, np.interp(grid, table["angle"], table["stiffness"]), rtol=1e-9)
+        truth_k = np.interp(grid, [0.0, np.radians(140)], [0.08, 0.05])  # the table in SI
+        assert np.allclose(k, truth_k, rtol=1e-9)
     written = fit.to_design(truth).spec["pcc"]["k_theta_table"]
     assert written["stiffness"] == pytest.approx(list(k))
 

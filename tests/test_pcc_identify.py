@@ -47,8 +47,9 @@ def test_longitudinal_stiffness_round_trip():
 
 def test_bending_stiffness_table_round_trip():
     # k_theta falling linearly from 0.2 to 0.06 N m/rad over 0-140 deg (paper Fig. 5c).
-    table = {"angle": [0.0, np.radians(140)], "stiffness": [0.2, 0.06]}
-    d = arm(**{"pcc.k_theta": table})
+    table = {"angle": [0.0, np.radians(140)], "stiffness": [0.2, 0.06]}  # SI
+    written = {"angle": ["0 deg", "140 deg"], "stiffness": ["0.2 N*m", "0.06 N*m"]}
+    d = arm(**{"pcc.k_theta": written})
     rng = np.random.default_rng(4)
     p = np.linspace(0.1e5, 1.5e5, 15)
     rows = np.zeros((p.size, 6))

@@ -426,7 +426,7 @@ def test_csv_errors(tmp_path):
     for header, match in (
         (["p0_kPa", "p1_kPa", "sigma_ext", "sigma_bend_x", "sigma_bendy"], "unknown column"),
         (["p0_kPa", "p2_kPa", "sigma_ext", "sigma_bend_x", "sigma_bend_y"], "channel 0..c-1"),
-        (["p0_kPa", "p1_mm", "sigma_ext", "sigma_bend_x", "sigma_bend_y"], "not a pressure"),
+        (["p0_kPa", "p1_mm", "sigma_ext", "sigma_bend_x", "sigma_bend_y"], "must be a pressure"),
     ):
         path = write_csv(tmp_path / "cols.csv", axes_kpa, values, np.arange(n), header)
         with pytest.raises(InputError, match=match):

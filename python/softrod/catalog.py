@@ -28,8 +28,16 @@ def load_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
     Raises :class:`DesignError` naming the field, the value and the rule.
     """
     if isinstance(design, (str, Path)):
+        if isinstance(design, str) and (len(design) > 4096 or "\0" in design or not design):
+            raise design_error(
+                "design", design, "must be a design file path, a bundled design or a preset name"
+            )
         path = Path(design)
-        if not path.exists():
+        try:
+            exists = path.exists()
+        except (OSError, ValueError):  # a name too long for the file system, for one
+            exists = False
+        if not exists:
             bundled = designs_dir() / f"{design}.toml"
             if path.suffix == "" and bundled.exists():
                 return read_design(bundled)

@@ -30,7 +30,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import os
 import re
 from collections.abc import Callable, Iterable, Mapping
@@ -40,6 +39,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from . import _validate as V
 from .catalog import load_design
 from .design import PACKAGE_DIR, Design
 from .errors import ConvergenceError, InputError, design_error
@@ -67,6 +67,7 @@ __all__ = [
     "write_dataset",
 ]
 
+MAX_FILE_BYTES = 2**31  # dataset and schedule files larger than this are refused unread
 # |q| must be 1 within this. Motion-capture exports round quaternions to about 7 significant
 # digits (|q| - 1 ~ 1e-7); a larger error means the columns are not a unit quaternion at all
 # (scalar-last order, Euler angles, degrees), which must not be renormalised silently.
@@ -129,6 +130,59 @@ def _checked_metadata(metadata) -> dict:
     return meta
 
 
+def _channel(base: str, column: str) -> int:
+    """The channel index of a ``p<k>`` base name, refused beyond MAX_CHANNELS before any
+    table of channels is built."""
+    digits = base[1:]
+    if len(digits) > 3 or int(digits) >= V.MAX_CHANNELS:
+        raise _fail(
+            column,
+            column,
+            f"channel {digits if len(digits) <= 12 else digits[:12] + '...'} is beyond softrod's "
+            f"limit of {V.MAX_CHANNELS} pressure channels (p0 ... p{V.MAX_CHANNELS - 1})",
+        )
+    return int(digits)
+
+
+def _read_text(path: Path) -> str:
+    """A text file as str: UTF-8 (a byte-order mark allowed); anything else, such as a
+    binary or UTF-16 file, is an InputError naming the file."""
+    size = path.stat().st_size
+    if size > MAX_FILE_BYTES:
+        raise _fail("file", str(path), f"is too large ({size} bytes; at most {MAX_FILE_BYTES})")
+    raw = path.read_bytes()
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise _fail("file", str(path), "is UTF-16 text: save it as UTF-8 (CSV UTF-8)")
+    if b"\0" in raw[:65536]:
+        raise _fail("file", str(path), "is not a text file (it holds NUL bytes)")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise _fail(
+            "file", str(path), f"is not UTF-8 text (byte {exc.start}, line {line}): save as UTF-8"
+        ) from None
+
+
+def _json_block(body: str, key: str, where: str) -> dict:
+    """A ``# units:``/``# metadata:`` JSON object, nesting bounded (no RecursionError)."""
+    try:
+        value = json.loads(body)
+    except json.JSONDecodeError as exc:
+        raise _fail(
+            key,
+            body.strip(),
+            f"{where}: not valid JSON ({exc.msg}); write e.g. "
+            '# units: {"p0": "kPa", "tip_x": "mm"}',
+        ) from None
+    except RecursionError:
+        raise _fail(key, body.strip(), f"{where}: nested too deeply") from None
+    if not isinstance(value, dict):
+        raise _fail(key, value, f"{where}: must be a JSON object {{...}}")
+    V.check_depth(value, key)
+    return value
+
+
 # --- the dataset -------------------------------------------------------------------------------
 
 
@@ -149,6 +203,8 @@ class Dataset:
     experiment: (m,) ids (int64 or str) or None.  mounting: (m,) str or None.
     time: (m,) s or None.  metadata: dict; ``metadata["synthetic"]`` is True for data made by
     :func:`synthesize_dataset` (with the design, noise and seed).  source: file read or None.
+    first_line: for a CSV source, the file line of the first row (messages name rows by
+    line, as a text editor counts them); None otherwise.
     extra: the result columns of a table softrod wrote (``converged``, ``iterations``,
     ``sigma_ext``, ...), by column name as written, (m,) each, described in
     ``metadata["columns"]``; empty for measurements.
@@ -167,12 +223,13 @@ class Dataset:
     time: np.ndarray | None = None
     metadata: dict = field(default_factory=lambda: {"synthetic": False})
     source: Path | None = None
+    first_line: int | None = None
     extra: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self):
         set_ = object.__setattr__
-        p = np.array(self.pressures, dtype=float)
-        if p.ndim != 2 or p.shape[1] < 1:
+        p = V.real_array(self.pressures, "pressures", what="gauge pressures (Pa)")
+        if p.ndim != 2 or p.shape[1] < 1 or p.shape[1] > V.MAX_CHANNELS:
             raise _fail("pressures", f"shape {p.shape}", "must be an (m, channels) array in Pa")
         m = p.shape[0]
         set_(self, "pressures", _readonly(p))
@@ -189,7 +246,7 @@ class Dataset:
                 if name == "tip_position":
                     raise _fail(name, None, "is required (an (m, 3) array in m)")
                 continue
-            a = np.array(value, dtype=float)
+            a = V.real_array(value, name)
             if a.shape != shape:
                 raise _fail(name, f"shape {a.shape}", f"must have shape {shape} (m = {m} rows)")
             set_(self, name, _readonly(a))
@@ -236,6 +293,17 @@ class Dataset:
 
     def __len__(self) -> int:
         return self.pressures.shape[0]
+
+    def rows_text(self, rows) -> str:
+        """Rows (0-based indices) as a message names them: by file line for a CSV source
+        ("d.csv lines 3-5, 9"), by 0-based row for a Parquet source, else by index."""
+        rows = sorted(int(r) for r in rows)
+        many = len(rows) > 1
+        if self.source is not None and self.first_line is not None:
+            noun = "lines" if many else "line"
+            return f"{self.source.name} {noun} {_runs(r + self.first_line for r in rows)}"
+        prefix = f"{self.source.name} " if self.source is not None else ""
+        return f"{prefix}{'rows' if many else 'row'} {_runs(rows)} (0-based)"
 
     def __repr__(self) -> str:
         parts = [f"{len(self)} rows", f"{self.n_channels} channels"]
@@ -458,7 +526,7 @@ class _KeptRows:
 
 
 def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
-    text = path.read_text(encoding="utf-8-sig")
+    text = _read_text(path)
     lines = text.splitlines()
     units: dict = {}
     meta: dict = {}
@@ -470,17 +538,7 @@ def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
         entry = re.match(r"^#\s*(units|metadata)\s*:(.*)$", stripped)
         if entry:
             key, body = entry.group(1), entry.group(2)
-            try:
-                value = json.loads(body)
-            except json.JSONDecodeError as exc:
-                raise _fail(
-                    key,
-                    body.strip(),
-                    f"line {n_pre + 1}: not valid JSON ({exc.msg}); write e.g. "
-                    '# units: {"p0": "kPa", "tip_x": "mm"}',
-                ) from None
-            if not isinstance(value, dict):
-                raise _fail(key, value, f"line {n_pre + 1}: must be a JSON object {{...}}")
+            value = _json_block(body, key, f"line {n_pre + 1}")
             target = units if key == "units" else meta
             if target:
                 raise _fail(key, value, f"line {n_pre + 1}: the {key} block is given twice")
@@ -488,7 +546,10 @@ def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
     else:
         raise _fail("file", str(path), "has no header line (column names) after the comments")
     header_line = n_pre + 1  # 1-based
-    raw_names = next(csv.reader([lines[n_pre]]))
+    try:
+        raw_names = next(csv.reader([lines[n_pre]]))
+    except csv.Error as exc:
+        raise _fail("file", path.name, f"line {header_line}: not a CSV header ({exc})") from None
     names = [n.strip() for n in raw_names]  # "p0_kPa, tip_x_mm" is read like "p0_kPa,tip_x_mm"
     _check_duplicates(names)
     labels = [r for r, n in zip(raw_names, names, strict=True) if _base(n) in _LABELS]
@@ -501,7 +562,7 @@ def _read_csv(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
             # Ids stay text ("007" is not 7); keys as pandas may spell the header name.
             dtype=dict.fromkeys([*labels, *(r.lstrip() for r in labels)], str),
         )
-    except pd.errors.ParserError as exc:
+    except (pd.errors.ParserError, ValueError, csv.Error) as exc:
         ragged = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(exc))
         if ragged:
             want, line, saw = (int(g) for g in ragged.groups())
@@ -538,15 +599,17 @@ def _read_parquet(path: Path) -> tuple[pd.DataFrame, dict, dict, _Where]:
             blocks.append({})
             continue
         try:
-            value = json.loads(raw.decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise _fail(
-                key.decode(), raw[:80], f"Parquet metadata is not valid JSON ({exc})"
-            ) from None
-        if not isinstance(value, dict):
-            raise _fail(key.decode(), value, "Parquet metadata must be a JSON object")
-        blocks.append(value)
-    return table.to_pandas(), blocks[0], blocks[1], _Where("row")
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise _fail(key.decode(), raw[:80], f"Parquet metadata is not UTF-8 ({exc})") from None
+        blocks.append(_json_block(text, key.decode(), "Parquet metadata"))
+    if table.num_rows > V.MAX_ROWS:
+        raise _fail("rows", table.num_rows, f"too many rows: at most {V.MAX_ROWS:,}")
+    try:
+        frame = table.to_pandas()
+    except Exception as exc:  # pyarrow raises its own error types for unconvertible columns
+        raise _fail("file", str(path), f"has columns pandas cannot read: {exc}") from None
+    return frame, blocks[0], blocks[1], _Where("row")
 
 
 def _check_duplicates(names: list) -> None:
@@ -592,10 +655,10 @@ def load_dataset(
                 f"the data has {source.n_channels} pressure channel(s) but {what}",
             )
         return source
-    if extra not in ("error", "ignore"):
-        raise _fail("extra", extra, "must be 'error' or 'ignore'")
-    if unconverged not in ("error", "drop"):
-        raise _fail("unconverged", unconverged, "must be 'error' or 'drop'")
+    V.choice(extra, ("error", "ignore"), "extra")
+    V.choice(unconverged, ("error", "drop"), "unconverged")
+    if units is not None and not isinstance(units, Mapping):
+        raise _fail("units", units, "must be a mapping {column: unit string}")
     path = None
     if isinstance(source, pd.DataFrame):
         names = list(source.columns)
@@ -635,7 +698,7 @@ def load_dataset(
             "must be a .csv/.parquet path, a DataFrame or a Dataset",
         )
     try:
-        return _from_frame(
+        data = _from_frame(
             df,
             file_units,
             dict(units or {}),
@@ -651,17 +714,38 @@ def load_dataset(
         if path is not None:
             exc.args = (f"{path.name}: {exc.args[0]}",)
         raise
+    if path is not None and where.noun == "line" and len(data) == len(df):
+        # Rows are the file's lines in order (none dropped): name them by line.
+        object.__setattr__(data, "first_line", where.first)
+    return data
+
+
+def _check_dtype(column: pd.Series, name: str) -> None:
+    """A number column holds numbers (or text to read as numbers), never dates, durations,
+    booleans or complex values, which pandas would turn into numbers silently (a timestamp
+    would become 1.58e18 Pa)."""
+    kind = getattr(column.dtype, "kind", "O")
+    what = {"M": "dates/times", "m": "durations", "b": "booleans", "c": "complex numbers"}
+    if kind in what:
+        raise _fail(name, str(column.dtype), f"must hold numbers, not {what[kind]}")
+    if kind == "O":
+        bad = next(
+            (
+                v
+                for v in column.array
+                if isinstance(v, (bool, np.bool_, complex, bytes))
+                or (not isinstance(v, (str, int, float, np.number)) and v is not None)
+            ),
+            None,
+        )
+        if bad is not None:
+            raise _fail(name, bad, f"must hold numbers, not {type(bad).__name__}")
 
 
 def _expected_channels(n_channels, design) -> tuple[int | None, str]:
     want, what = None, ""
     if n_channels is not None:
-        if (
-            isinstance(n_channels, bool)
-            or not isinstance(n_channels, (int, np.integer))
-            or n_channels < 1
-        ):
-            raise _fail("n_channels", n_channels, "must be an integer >= 1")
+        V.integer(n_channels, "n_channels", minimum=1, maximum=V.MAX_CHANNELS)
         want, what = int(n_channels), f"n_channels = {int(n_channels)}"
     if design is not None:
         d = load_design(design)
@@ -711,6 +795,8 @@ def _from_frame(
             unknown.append(name)
             continue
         base, unit = m["base"], m["unit"]
+        if base[0] == "p":
+            _channel(base, name)
         kind = _kind(base)
         if unit is not None and name in block:
             raise _fail(
@@ -780,6 +866,8 @@ def _from_frame(
         )
     if len(df) == 0:
         raise _fail("rows", 0, "the table has no data rows")
+    if len(df) > V.MAX_ROWS:
+        raise _fail("rows", len(df), f"too many rows: at most {V.MAX_ROWS:,}")
     if "converged" in extras:
         df, where = _converged_rows(df, where, unconverged)
 
@@ -804,6 +892,7 @@ def _from_frame(
         if base in _LABELS:
             continue
         raw = df[col]
+        _check_dtype(raw, col)
         values = pd.to_numeric(raw, errors="coerce")
         text = np.flatnonzero(values.isna().to_numpy())
         if text.size:
@@ -813,6 +902,16 @@ def _from_frame(
         if bad.size:
             raise _fail(col, a[bad[0]].item(), f"must be finite, at {where(bad)}")
         numeric[base] = a if factor is None else a * factor
+
+    low = np.flatnonzero(
+        np.column_stack([numeric[f"p{k}"] for k in channels]).min(axis=1) < V.VACUUM_PA
+    )
+    if low.size:
+        raise _fail(
+            ", ".join(columns[f"p{k}"][0] for k in channels),
+            [float(numeric[f"p{k}"][low[0]]) for k in channels],
+            f"gauge pressures must be >= {V.VACUUM_PA:g} Pa (a perfect vacuum), at {where(low)}",
+        )
 
     rotation = None
     if _QUAT[0] in columns:
@@ -933,17 +1032,10 @@ def write_dataset(dataset: Dataset, path, *, units: Mapping[str, str] | None = N
 def noise_seed(noise_mm, seed) -> int:
     """Check the noise (standard deviation, mm) and seed of synthetic data; return the seed
     (a fresh one, recorded in the metadata, when ``seed`` is None)."""
-    if (
-        isinstance(noise_mm, bool)
-        or not isinstance(noise_mm, (int, float))
-        or not (math.isfinite(noise_mm) and noise_mm >= 0)
-    ):
-        raise _fail("noise_mm", noise_mm, "must be a finite number >= 0 (standard deviation, mm)")
+    V.real(noise_mm, "noise_mm", minimum=0.0, what="a standard deviation in mm")
     if seed is None:
         return int(np.random.SeedSequence().entropy % 2**63)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise _fail("seed", seed, "must be an integer >= 0 or None")
-    return int(seed)
+    return V.integer(seed, "seed", minimum=0, maximum=2**128)
 
 
 def synthesize_dataset(
@@ -974,13 +1066,11 @@ def synthesize_dataset(
     the design, noise, seed and loads, so the data is never mistaken for measurements.
     """
     from . import __version__
-    from .statics import solve_statics_batch
+    from .statics import batch_pressures, solve_statics_batch
 
     design = load_design(design)
     seed = noise_seed(noise_mm, seed)
-    p = np.asarray(pressures, dtype=float)
-    if p.ndim == 2 and not np.isfinite(p).all():
-        raise _fail("pressures", "non-finite", "must be finite (Pa)")
+    p = batch_pressures(design, pressures)
     batch = solve_statics_batch(
         design, p, tip_force=tip_force, tip_moment=tip_moment, options=options, threads=threads
     )
@@ -1035,7 +1125,7 @@ def synthesize_dataset(
         base_moment=batch.base_moment,
         experiment=per_row(experiment, "experiment"),
         mounting=per_row(mounting, "mounting"),
-        time=None if time is None else np.asarray(time, dtype=float),
+        time=None if time is None else V.real_array(time, "time", what="times (s)"),
         metadata=meta,
         source=None,
     )

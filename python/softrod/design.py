@@ -1,8 +1,11 @@
 """Design files: TOML with units -> validated, SI ``Design`` backed by the Rust core.
 
-The schema is documented in docs/design-format.md. Unknown keys are errors. Geometry rules
+The schema is documented in docs/design-format.md. Unknown keys are errors. Every
+dimensional quantity needs its unit (``"110 mm"``); a bare number is an error naming the
+field, unless the document starts with ``units = "SI"`` (zero needs no unit). Geometry rules
 (chambers inside the section, no overlaps, Poisson ratio range, ...) are checked by the Rust
-core so that Rust users get them too; this module checks structure and units.
+core so that Rust users get them too; this module checks types, structure, sizes and units
+(through :mod:`softrod._validate`), so the core only ever sees a well-formed spec.
 """
 
 from __future__ import annotations
@@ -11,8 +14,10 @@ import copy
 import json
 import math
 import os
+import re
 import sys
 from collections.abc import Mapping
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,8 +25,8 @@ from typing import Any
 import numpy as np
 
 from . import _core
+from . import _validate as V
 from .errors import DesignError, design_error
-from .units import number, to_si, vector_to_si
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -30,9 +35,16 @@ else:  # pragma: no cover
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 DEFAULT_STEPS = 16
+MAX_FILE_BYTES = 16 * 2**20  # design files larger than this are refused before reading
+
+# What a bare number means while a document is read: "si" with units = "SI", else an error
+# (whose message suggests the fix). Set by _to_spec for the document being read.
+_BARE: ContextVar[str] = ContextVar("softrod_design_bare", default="si")
+_BARE_FIX = '(or put units = "SI" at the top of the file to read bare numbers as SI)'
 
 _SCHEMA: dict[str, set[str]] = {
     "": {
+        "units",
         "design",
         "mounting",
         "materials",
@@ -121,16 +133,42 @@ def designs_dir() -> Path:
     return PACKAGE_DIR / "designs"
 
 
+def _q(value: Any, kind: str, field: str) -> float:
+    """A quantity of the document being read (bare numbers as its ``units`` key says)."""
+    return V.quantity(value, kind, field, DesignError, bare=_BARE.get())
+
+
+def _qvec(value: Any, kind: str, field: str, length: int | None = 3) -> list[float]:
+    """A list of quantities: ``length`` of them, or up to MAX_TABLE_POINTS if None."""
+    if not isinstance(value, (list, tuple)) or (length is not None and len(value) != length):
+        count = "" if length is None else f"{length} "
+        raise V.fail(field, value, f"must be a list of {count}{kind} values", DesignError)
+    if len(value) > V.MAX_TABLE_POINTS:
+        rule = f"has too many values: at most {V.MAX_TABLE_POINTS}"
+        raise V.fail(field, value, rule, DesignError)
+    return [_q(v, kind, f"{field}[{i}]") for i, v in enumerate(value)]
+
+
+def number(value: Any, field: str) -> float:
+    """A dimensionless finite number of a design (a factor, an exponent)."""
+    return V.real(value, field, DesignError)
+
+
 def _check_keys(table: Any, kind: str, where: str) -> dict:
     if not isinstance(table, Mapping):
         raise design_error(where or "design", type(table).__name__, "must be a table")
-    unknown = sorted(set(table) - _SCHEMA[kind])
+    allowed = _SCHEMA[kind]
+    unknown = sorted(
+        (k for k in table if not isinstance(k, str) or k not in allowed), key=str
+    )
     if unknown:
-        allowed = ", ".join(sorted(_SCHEMA[kind]))
-        raise design_error(
-            f"{where}.{unknown[0]}" if where else unknown[0],
+        key = unknown[0]
+        name = key if isinstance(key, str) and key.isidentifier() else repr(key)
+        raise V.fail(
+            f"{where}.{name}" if where else name,
             table[unknown[0]],
-            f"unknown key (allowed here: {allowed})",
+            f"unknown key (allowed here: {', '.join(sorted(allowed))})",
+            DesignError,
         )
     return dict(table)
 
@@ -141,10 +179,8 @@ def _require(table: Mapping, key: str, where: str) -> Any:
     return table[key]
 
 
-def _integer(value: Any, field: str, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise design_error(field, value, f"must be an integer >= {minimum}")
-    return int(value)
+def _integer(value: Any, field: str, minimum: int, maximum: int | None = None) -> int:
+    return V.integer(value, field, DesignError, minimum=minimum, maximum=maximum)
 
 
 def _library() -> dict:
@@ -152,27 +188,48 @@ def _library() -> dict:
         return tomllib.load(fh)
 
 
+def _positive(value: float, raw: Any, field: str) -> float:
+    if not value > 0:
+        raise V.fail(field, raw, "must be > 0", DesignError)
+    return value
+
+
 def _material(name: str, inline: Mapping, field: str) -> dict:
+    """The SI material ``name`` (inline first, then the library); errors name the entry of
+    the table the value came from (``materials.<name>.E``), not the section using it."""
     if name in inline:
         table, where = inline[name], f"materials.{name}"
     else:
         lib = _library()
         if name not in lib:
-            known = ", ".join(sorted(set(inline) | set(lib)))
-            raise design_error(field, name, f"unknown material (known: {known})")
+            known = ", ".join(sorted(set(map(str, inline)) | set(lib)))
+            raise V.fail(field, name, f"unknown material (known: {known})", DesignError)
         table, where = lib[name], f"library material {name}"
     table = _check_keys(table, "material", where)
-    e = to_si(_require(table, "E", where), "pressure", f"{where}.E")
+    for key in ("source", "notes"):
+        if key in table:
+            V.text(table[key], f"{where}.{key}", DesignError, max_length=V.MAX_TEXT_LENGTH)
+    raw_e = _require(table, "E", where)
+    e = _positive(_q(raw_e, "pressure", f"{where}.E"), raw_e, f"{where}.E")
     if "G" in table and "poisson" in table:
         raise design_error(f"{where}.G", table["G"], "give either G or poisson, not both")
     if "G" in table:
-        g = to_si(table["G"], "pressure", f"{where}.G")
+        g = _positive(_q(table["G"], "pressure", f"{where}.G"), table["G"], f"{where}.G")
+        nu = e / (2.0 * g) - 1.0
+        if not -1.0 < nu <= 0.5 + 1e-12:
+            raise V.fail(
+                f"{where}.G",
+                table["G"],
+                f"gives Poisson's ratio E/(2G) - 1 = {nu:.4g}, which must lie in (-1, 0.5]",
+                DesignError,
+            )
     else:
         nu = number(_require(table, "poisson", where), f"{where}.poisson")
         if not -1.0 < nu <= 0.5:
             raise design_error(f"{where}.poisson", nu, "Poisson's ratio must lie in (-1, 0.5]")
         g = e / (2.0 * (1.0 + nu))
-    rho = to_si(_require(table, "density", where), "density", f"{where}.density")
+    raw_rho = _require(table, "density", where)
+    rho = _positive(_q(raw_rho, "density", f"{where}.density"), raw_rho, f"{where}.density")
     return {"youngs_modulus": e, "shear_modulus": g, "density": rho}
 
 
@@ -186,23 +243,30 @@ def _base_rotation(mount: Mapping) -> list[list[float]]:
             )
         rot = mount["base_rotation"]
         if not (
-            isinstance(rot, list)
+            isinstance(rot, (list, tuple))
             and len(rot) == 3
-            and all(isinstance(r, list) and len(r) == 3 for r in rot)
+            and all(isinstance(r, (list, tuple)) and len(r) == 3 for r in rot)
         ):
-            raise design_error("mounting.base_rotation", rot, "must be a 3x3 matrix (list of rows)")
+            raise V.fail(
+                "mounting.base_rotation", rot, "must be a 3x3 matrix (list of rows)", DesignError
+            )
         return [
             [number(x, f"mounting.base_rotation[{i}][{j}]") for j, x in enumerate(r)]
             for i, r in enumerate(rot)
         ]
-    orientation = mount.get("orientation", "upright")
-    if orientation not in _ORIENTATIONS:
+    if "orientation" not in mount:
+        # No silent default: a hanging actuator mounted upright is a wrong answer, not a
+        # convenience. The file must say which way the rod points.
         raise design_error(
             "mounting.orientation",
-            orientation,
-            f"must be one of {', '.join(sorted(_ORIENTATIONS))} (or give base_rotation)",
+            "missing",
+            'is required: the mounting decides where gravity acts; write [mounting] '
+            'orientation = "hanging", "upright" or "horizontal" (or give base_rotation)',
         )
-    roll = to_si(mount.get("roll", 0.0), "angle", "mounting.roll")
+    orientation = V.choice(
+        mount["orientation"], sorted(_ORIENTATIONS), "mounting.orientation", DesignError
+    )
+    roll = _q(mount.get("roll", 0.0), "angle", "mounting.roll")
     c, s = math.cos(roll), math.sin(roll)
     rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return (_ORIENTATIONS[orientation] @ rz).tolist()
@@ -211,50 +275,55 @@ def _base_rotation(mount: Mapping) -> list[list[float]]:
 def _section(sec: Any, i: int, materials: Mapping, numerics: tuple[str, float]) -> dict:
     where = f"sections[{i}]"
     sec = _check_keys(sec, "section", where)
-    name = _require(sec, "name", where)
-    if not isinstance(name, str):
-        raise design_error(f"{where}.name", name, "must be a string")
-    length = to_si(_require(sec, "length", where), "length", f"{where}.length")
+    name = V.text(_require(sec, "name", where), f"{where}.name", DesignError, non_empty=True)
+    length = _q(_require(sec, "length", where), "length", f"{where}.length")
     mode, value = numerics
     if "steps" in sec:
-        steps = _integer(sec["steps"], f"{where}.steps", 1)
+        steps = _integer(sec["steps"], f"{where}.steps", 1, V.MAX_SECTION_STEPS)
     elif mode == "step_length" and math.isfinite(length) and length > 0:
         # Steps of at most step_length (a tiny relative slack keeps 110 mm / 11 mm at 10).
-        steps = max(1, math.ceil(length / value * (1.0 - 1e-12)))
+        ratio = length / value * (1.0 - 1e-12)
+        if ratio > V.MAX_SECTION_STEPS:
+            raise V.fail(
+                "numerics.step_length",
+                f"{value:g} m",
+                f"gives {where} ({length:g} m) {ratio:.3g} steps; the limit is "
+                f"{V.MAX_SECTION_STEPS} per section",
+                DesignError,
+            )
+        steps = max(1, math.ceil(ratio))
     else:
         steps = int(value)
+    rigid = V.boolean(sec.get("rigid", False), f"{where}.rigid", DesignError)
     out: dict[str, Any] = {
         "name": name,
         "length": length,
-        "rigid": bool(sec.get("rigid", False)),
-        "bore_radius": to_si(sec.get("bore_radius", 0.0), "length", f"{where}.bore_radius"),
+        "rigid": rigid,
+        "bore_radius": _q(sec.get("bore_radius", 0.0), "length", f"{where}.bore_radius"),
         "steps": steps,
     }
-    if not isinstance(sec.get("rigid", False), bool):
-        raise design_error(f"{where}.rigid", sec["rigid"], "must be true or false")
     if "outer_radius" in sec:
-        out["outer_radius"] = to_si(sec["outer_radius"], "length", f"{where}.outer_radius")
+        out["outer_radius"] = _q(sec["outer_radius"], "length", f"{where}.outer_radius")
     if "material" in sec:
-        if not isinstance(sec["material"], str):
-            raise design_error(f"{where}.material", sec["material"], "must be a material name")
-        out["material"] = _material(sec["material"], materials, f"{where}.material")
+        material = V.text(sec["material"], f"{where}.material", DesignError, non_empty=True)
+        out["material"] = _material(material, materials, f"{where}.material")
     if "mass" in sec:
-        out["mass"] = to_si(sec["mass"], "mass", f"{where}.mass")
+        out["mass"] = _q(sec["mass"], "mass", f"{where}.mass")
     for k in ("c_s", "c_e", "c_b", "c_t"):
         if k in sec:
             out[k] = number(sec[k], f"{where}.{k}")
     stiff: dict[str, float] = {}
     if "EA" in sec:
-        stiff["ea"] = to_si(sec["EA"], "force", f"{where}.EA")
+        stiff["ea"] = _q(sec["EA"], "force", f"{where}.EA")
     if "GA" in sec:
-        stiff["ga"] = to_si(sec["GA"], "force", f"{where}.GA")
+        stiff["ga"] = _q(sec["GA"], "force", f"{where}.GA")
     if "EI" in sec:
         if "EI1" in sec or "EI2" in sec:
             raise design_error(f"{where}.EI", sec["EI"], "give EI or EI1/EI2, not both")
-        stiff["ei1"] = stiff["ei2"] = to_si(sec["EI"], "stiffness_bending", f"{where}.EI")
+        stiff["ei1"] = stiff["ei2"] = _q(sec["EI"], "stiffness_bending", f"{where}.EI")
     for k in ("EI1", "EI2", "GJ"):
         if k in sec:
-            stiff[k.lower()] = to_si(sec[k], "stiffness_bending", f"{where}.{k}")
+            stiff[k.lower()] = _q(sec[k], "stiffness_bending", f"{where}.{k}")
     out["stiffness"] = stiff
     if "law" in sec:
         out["law"] = _law(sec["law"], f"{where}.law")
@@ -266,10 +335,17 @@ def _section(sec: Any, i: int, materials: Mapping, numerics: tuple[str, float]) 
         ("damping_bt", "damping_moment"),
     ):
         if key in sec:
-            out[key] = vector_to_si(sec[key], kind, f"{where}.{key}")
+            out[key] = _qvec(sec[key], kind, f"{where}.{key}")
     chambers = sec.get("chambers", [])
     if not isinstance(chambers, list):
-        raise design_error(f"{where}.chambers", chambers, "must be an array of tables")
+        raise V.fail(f"{where}.chambers", chambers, "must be an array of tables", DesignError)
+    if len(chambers) > V.MAX_CHAMBERS:
+        raise V.fail(
+            f"{where}.chambers",
+            f"{len(chambers)} chambers",
+            f"too many: at most {V.MAX_CHAMBERS} per section",
+            DesignError,
+        )
     out["chambers"] = [_chamber(c, f"{where}.chambers[{k}]") for k, c in enumerate(chambers)]
     return out
 
@@ -280,9 +356,7 @@ _AXIAL_LAWS = ("linear", "ogden", "table")
 def _law(law: Any, where: str) -> dict:
     """[sections.law]: the refinements of the linear law (docs/laws.md)."""
     law = _check_keys(law, "law", where)
-    kind = law.get("axial", "linear")
-    if kind not in _AXIAL_LAWS:
-        raise design_error(f"{where}.axial", kind, f"must be one of {', '.join(_AXIAL_LAWS)}")
+    kind = V.choice(law.get("axial", "linear"), _AXIAL_LAWS, f"{where}.axial", DesignError)
     out: dict[str, Any] = {}
     if kind == "ogden":
         out["axial"] = {
@@ -295,12 +369,12 @@ def _law(law: Any, where: str) -> dict:
         force = _require(law, "axial_force", where)
         stiff = _require(law, "axial_stiffness", where)
         for key, value in (("axial_force", force), ("axial_stiffness", stiff)):
-            if isinstance(value, str) or not isinstance(value, list):
-                raise design_error(f"{where}.{key}", value, "must be an array of forces")
+            if not isinstance(value, list):
+                raise V.fail(f"{where}.{key}", value, "must be an array of forces", DesignError)
         out["axial"] = {
             "kind": "table",
-            "force": vector_to_si(force, "force", f"{where}.axial_force", length=None),
-            "stiffness": vector_to_si(stiff, "force", f"{where}.axial_stiffness", length=None),
+            "force": _qvec(force, "force", f"{where}.axial_force", length=None),
+            "stiffness": _qvec(stiff, "force", f"{where}.axial_stiffness", length=None),
         }
     else:
         for key in ("axial_force", "axial_stiffness"):
@@ -309,19 +383,17 @@ def _law(law: Any, where: str) -> dict:
     if kind == "linear":
         out["axial"] = {"kind": "linear"}
     if "chamber_offset" in law:
-        out["chamber_offset"] = vector_to_si(
+        out["chamber_offset"] = _qvec(
             law["chamber_offset"], "length", f"{where}.chamber_offset", length=2
         )
     if "c_p" in law or "p_ref" in law:
         out["swelling"] = {
             "c_p": number(_require(law, "c_p", where), f"{where}.c_p"),
-            "p_ref": to_si(_require(law, "p_ref", where), "pressure", f"{where}.p_ref"),
+            "p_ref": _q(_require(law, "p_ref", where), "pressure", f"{where}.p_ref"),
         }
     for key in ("stretch_bending", "stiffness_map"):
         if key in law:
-            if not isinstance(law[key], bool):
-                raise design_error(f"{where}.{key}", law[key], "must be true or false")
-            out[key] = law[key]
+            out[key] = V.boolean(law[key], f"{where}.{key}", DesignError)
     return out
 
 
@@ -329,20 +401,20 @@ def _partition(part: Any, where: str) -> dict:
     """[sections.partition]: paper 004's partitioned cross-section (eqs. 13-15, 23, 29)."""
     part = _check_keys(part, "partition", where)
     return {
-        "j": _integer(_require(part, "j", where), f"{where}.j", 1),
-        "e_i": to_si(_require(part, "E_I", where), "force", f"{where}.E_I"),
-        "r_i": to_si(_require(part, "r_I", where), "length", f"{where}.r_I"),
-        "e_ii": to_si(part.get("E_II", 0.0), "force", f"{where}.E_II"),
-        "r_ii": to_si(part.get("r_II", 0.0), "length", f"{where}.r_II"),
-        "e_iii": to_si(part.get("E_III", 0.0), "force", f"{where}.E_III"),
+        "j": _integer(_require(part, "j", where), f"{where}.j", 1, V.MAX_CHAMBERS),
+        "e_i": _q(_require(part, "E_I", where), "force", f"{where}.E_I"),
+        "r_i": _q(_require(part, "r_I", where), "length", f"{where}.r_I"),
+        "e_ii": _q(part.get("E_II", 0.0), "force", f"{where}.E_II"),
+        "r_ii": _q(part.get("r_II", 0.0), "length", f"{where}.r_II"),
+        "e_iii": _q(part.get("E_III", 0.0), "force", f"{where}.E_III"),
     }
 
 
 def _chamber(ch: Any, where: str) -> dict:
     ch = _check_keys(ch, "chamber", where)
-    radius = to_si(ch["radius"], "length", f"{where}.radius") if "radius" in ch else None
+    radius = _q(ch["radius"], "length", f"{where}.radius") if "radius" in ch else None
     if "area" in ch:
-        area = to_si(ch["area"], "area", f"{where}.area")
+        area = _q(ch["area"], "area", f"{where}.area")
     elif radius is not None:
         area = math.pi * radius**2
     else:
@@ -350,9 +422,16 @@ def _chamber(ch: Any, where: str) -> dict:
     return {
         "area": area,
         "radius": radius,
-        "distance": to_si(_require(ch, "distance", where), "length", f"{where}.distance"),
-        "angle": to_si(_require(ch, "angle", where), "angle", f"{where}.angle"),
-        "channel": _integer(_require(ch, "channel", where), f"{where}.channel", 0),
+        "distance": _q(_require(ch, "distance", where), "length", f"{where}.distance"),
+        "angle": _q(_require(ch, "angle", where), "angle", f"{where}.angle"),
+        "channel": V.integer(
+            _require(ch, "channel", where),
+            f"{where}.channel",
+            DesignError,
+            minimum=0,
+            maximum=V.MAX_CHANNELS - 1,
+            hint=f" (softrod supports {V.MAX_CHANNELS} pressure channels, numbered from 0)",
+        ),
     }
 
 
@@ -365,58 +444,113 @@ def _numerics(numerics: Mapping) -> tuple[str, float]:
             "give steps_per_section or step_length, not both",
         )
     if "step_length" in numerics:
-        h = to_si(numerics["step_length"], "length", "numerics.step_length")
+        h = _q(numerics["step_length"], "length", "numerics.step_length")
         if not (math.isfinite(h) and h > 0):
             raise design_error("numerics.step_length", numerics["step_length"], "must be > 0")
         return ("step_length", h)
     n = numerics.get("steps_per_section", DEFAULT_STEPS)
-    return ("steps_per_section", _integer(n, "numerics.steps_per_section", 1))
+    return (
+        "steps_per_section",
+        _integer(n, "numerics.steps_per_section", 1, V.MAX_SECTION_STEPS),
+    )
 
 
 def _to_spec(doc: Mapping) -> dict:
-    """Structure and units: TOML document -> SI spec for the Rust core."""
+    """Types, structure, sizes and units: a design document -> SI spec for the Rust core."""
     doc = _check_keys(doc, "", "")
+    units = doc.get("units")
+    if units is not None and units != "SI":
+        raise V.fail(
+            "units",
+            units,
+            'must be "SI" (bare numbers are then SI: m, kg, s, N, Pa, rad), or left out (every '
+            "dimensional quantity then carries its unit, e.g. \"110 mm\")",
+            DesignError,
+        )
+    token = _BARE.set("si" if units == "SI" else _BARE_FIX)
+    try:
+        return _spec(doc)
+    finally:
+        _BARE.reset(token)
+
+
+def _spec(doc: dict) -> dict:
     meta = _check_keys(_require(doc, "design", ""), "design", "design")
-    for k in ("name", "citation"):
-        if not isinstance(_require(meta, k, "design"), str) or not meta[k].strip():
-            raise design_error(f"design.{k}", meta[k], "must be a non-empty string")
+    V.text(_require(meta, "name", "design"), "design.name", DesignError, non_empty=True)
+    V.text(
+        _require(meta, "citation", "design"),
+        "design.citation",
+        DesignError,
+        max_length=V.MAX_TEXT_LENGTH,
+        non_empty=True,
+    )
+    if "description" in meta:
+        V.text(meta["description"], "design.description", DesignError, max_length=V.MAX_TEXT_LENGTH)
+    assumptions = meta.get("assumptions", [])
+    if not isinstance(assumptions, list) or len(assumptions) > V.MAX_TABLE_POINTS:
+        raise V.fail("design.assumptions", assumptions, "must be a list of strings", DesignError)
+    for k, a in enumerate(assumptions):
+        V.text(a, f"design.assumptions[{k}]", DesignError, max_length=V.MAX_TEXT_LENGTH)
     mount = _check_keys(doc.get("mounting", {}), "mounting", "mounting")
     numerics = _check_keys(doc.get("numerics", {}), "numerics", "numerics")
     steps = _numerics(numerics)
     materials = doc.get("materials", {})
     if not isinstance(materials, Mapping):
-        raise design_error("materials", materials, "must be a table of materials")
+        raise V.fail("materials", materials, "must be a table of materials", DesignError)
     sections = _require(doc, "sections", "")
     if not isinstance(sections, list) or not sections:
-        raise design_error("sections", sections, "must be a non-empty array of tables")
+        raise V.fail("sections", sections, "must be a non-empty array of tables", DesignError)
+    if len(sections) > V.MAX_SECTIONS:
+        raise V.fail(
+            "sections",
+            f"{len(sections)} sections",
+            f"too many: at most {V.MAX_SECTIONS}",
+            DesignError,
+        )
     secs = [_section(s, i, materials, steps) for i, s in enumerate(sections)]
+    total = sum(s["steps"] for s in secs)
+    if total > V.MAX_DESIGN_STEPS:
+        raise V.fail(
+            "numerics",
+            f"{total} steps in all",
+            f"the sections' integration steps add up to more than {V.MAX_DESIGN_STEPS}; use "
+            "fewer steps per section or a longer step_length",
+            DesignError,
+        )
+    _check_channels(secs)
     names = [s["name"] for s in secs]
     tip = _check_keys(doc.get("tip", {}), "tip", "tip")
     loads = doc.get("loads", [])
     if not isinstance(loads, list):
-        raise design_error("loads", loads, "must be an array of tables")
+        raise V.fail("loads", loads, "must be an array of tables", DesignError)
+    if len(loads) > V.MAX_LOADS:
+        rule = f"too many: at most {V.MAX_LOADS}"
+        raise V.fail("loads", f"{len(loads)} loads", rule, DesignError)
     load_specs = []
     for k, ld in enumerate(loads):
         ld = _check_keys(ld, "load", f"loads[{k}]")
         sec_name = _require(ld, "section", f"loads[{k}]")
-        if sec_name not in names:
-            raise design_error(
-                f"loads[{k}].section", sec_name, f"must name a section ({', '.join(names)})"
+        if not isinstance(sec_name, str) or sec_name not in names:
+            raise V.fail(
+                f"loads[{k}].section",
+                sec_name,
+                f"must name a section ({', '.join(names)})",
+                DesignError,
             )
         load_specs.append(
             {
                 "section": names.index(sec_name),
-                "force_per_length": vector_to_si(
+                "force_per_length": _qvec(
                     ld.get("force_per_length", [0, 0, 0]),
                     "force_per_length",
                     f"loads[{k}].force_per_length",
                 ),
-                "moment_per_length": vector_to_si(
+                "moment_per_length": _qvec(
                     ld.get("moment_per_length", [0, 0, 0]), "force", f"loads[{k}].moment_per_length"
                 ),
             }
         )
-    g = to_si(mount.get("gravity", 9.81), "acceleration", "mounting.gravity")
+    g = _q(mount.get("gravity", "9.81 m/s^2"), "acceleration", "mounting.gravity")
     if g < 0:
         raise design_error(
             "mounting.gravity",
@@ -426,7 +560,7 @@ def _to_spec(doc: Mapping) -> dict:
     return {
         "name": meta["name"],
         "mounting": {
-            "base_position": vector_to_si(
+            "base_position": _qvec(
                 mount.get("base_position", [0, 0, 0]), "length", "mounting.base_position"
             ),
             "base_rotation": _base_rotation(mount),
@@ -434,13 +568,11 @@ def _to_spec(doc: Mapping) -> dict:
         },
         "sections": secs,
         "tip": {
-            "mass": to_si(tip.get("mass", 0.0), "mass", "tip.mass"),
-            "com_offset": vector_to_si(
-                tip.get("com_offset", [0, 0, 0]), "length", "tip.com_offset"
-            ),
-            "force": vector_to_si(tip.get("force", [0, 0, 0]), "force", "tip.force"),
-            "moment": vector_to_si(tip.get("moment", [0, 0, 0]), "moment", "tip.moment"),
-            "inertia": vector_to_si(tip.get("inertia", [0, 0, 0]), "inertia", "tip.inertia"),
+            "mass": _q(tip.get("mass", 0.0), "mass", "tip.mass"),
+            "com_offset": _qvec(tip.get("com_offset", [0, 0, 0]), "length", "tip.com_offset"),
+            "force": _qvec(tip.get("force", [0, 0, 0]), "force", "tip.force"),
+            "moment": _qvec(tip.get("moment", [0, 0, 0]), "moment", "tip.moment"),
+            "inertia": _qvec(tip.get("inertia", [0, 0, 0]), "inertia", "tip.inertia"),
         },
         "loads": load_specs,
         "dynamics": _dynamics(_check_keys(doc.get("dynamics", {}), "dynamics", "dynamics")),
@@ -460,24 +592,48 @@ def _operating_range(table: Any) -> dict:
     table = _check_keys(table, "operating_range", "operating_range")
     pressure = _require(table, "pressure", "operating_range")
     if isinstance(pressure, str) or not isinstance(pressure, list) or len(pressure) != 2:
-        raise design_error(
-            "operating_range.pressure", pressure, 'must be [low, high], e.g. ["0 kPa", "70 kPa"]'
+        raise V.fail(
+            "operating_range.pressure",
+            pressure,
+            'must be [low, high], e.g. ["0 kPa", "70 kPa"]',
+            DesignError,
         )
     if "source" in table and not isinstance(table["source"], str):
-        raise design_error("operating_range.source", table["source"], "must be a string")
-    return {"pressure": vector_to_si(pressure, "pressure", "operating_range.pressure", length=2)}
+        raise V.fail("operating_range.source", table["source"], "must be a string", DesignError)
+    return {"pressure": _qvec(pressure, "pressure", "operating_range.pressure", length=2)}
+
+
+def _check_channels(secs: list[dict]) -> None:
+    """Channels numbered 0, 1, ... without gaps; the error names the chamber with the
+    highest channel (the one that declares the unused ones)."""
+    where: dict[int, str] = {}
+    for i, sec in enumerate(secs):
+        for k, ch in enumerate(sec["chambers"]):
+            where.setdefault(ch["channel"], f"sections[{i}].chambers[{k}].channel")
+    if not where:
+        return
+    top = max(where)
+    missing = [c for c in range(top + 1) if c not in where]
+    if missing:
+        raise V.fail(
+            where[top],
+            top,
+            f"channels must be numbered 0, 1, ... without gaps: channel {missing[0]} is unused "
+            f"but channel {top} is given ({top + 1} channels declared)",
+            DesignError,
+        )
 
 
 def _dynamics(dyn: Mapping) -> dict:
     """[dynamics]: Kelvin-Voigt damping time and pressure supply (docs/dynamics.md)."""
     out = {
-        "damping_time": to_si(dyn.get("damping_time", 0.0), "time", "dynamics.damping_time"),
-        "pressure_time_constant": to_si(
+        "damping_time": _q(dyn.get("damping_time", 0.0), "time", "dynamics.damping_time"),
+        "pressure_time_constant": _q(
             dyn.get("pressure_time_constant", 0.0), "time", "dynamics.pressure_time_constant"
         ),
     }
     if "pressure_rate_limit" in dyn:
-        out["pressure_rate_limit"] = to_si(
+        out["pressure_rate_limit"] = _q(
             dyn["pressure_rate_limit"], "pressure_rate", "dynamics.pressure_rate_limit"
         )
     return out
@@ -495,7 +651,7 @@ def _pcc(pcc: Mapping) -> dict:
     out: dict[str, Any] = {}
     for key, (name, kind) in kinds.items():
         if key in pcc:
-            out[name] = to_si(pcc[key], kind, f"pcc.{key}")
+            out[name] = _q(pcc[key], kind, f"pcc.{key}")
     if "k_theta" in pcc:
         kt = pcc["k_theta"]
         if isinstance(kt, Mapping):
@@ -504,29 +660,23 @@ def _pcc(pcc: Mapping) -> dict:
             stiff = _require(kt, "stiffness", "pcc.k_theta")
             for key, val in (("angle", angles), ("stiffness", stiff)):
                 if not isinstance(val, list):
-                    raise design_error(f"pcc.k_theta.{key}", val, "must be an array")
+                    raise V.fail(f"pcc.k_theta.{key}", val, "must be an array", DesignError)
             out["k_theta_table"] = {
-                "angle": [
-                    to_si(a, "angle", f"pcc.k_theta.angle[{i}]") for i, a in enumerate(angles)
-                ],
-                "stiffness": [
-                    to_si(k, "moment", f"pcc.k_theta.stiffness[{i}]") for i, k in enumerate(stiff)
-                ],
+                "angle": _qvec(angles, "angle", "pcc.k_theta.angle", length=None),
+                "stiffness": _qvec(stiff, "moment", "pcc.k_theta.stiffness", length=None),
             }
         else:
-            out["k_theta"] = to_si(kt, "moment", "pcc.k_theta")
+            out["k_theta"] = _q(kt, "moment", "pcc.k_theta")
     for key, allowed in (
         ("mass_model", ("distributed", "tip")),
         ("pressure_force", ("chamber", "tip_force")),
     ):
         if key in pcc:
-            if pcc[key] not in allowed:
-                raise design_error(f"pcc.{key}", pcc[key], f"must be one of {', '.join(allowed)}")
-            out[key] = pcc[key]
+            out[key] = V.choice(pcc[key], allowed, f"pcc.{key}", DesignError)
     if "plane" in pcc:
-        out["plane"] = to_si(pcc["plane"], "angle", "pcc.plane")
+        out["plane"] = _q(pcc["plane"], "angle", "pcc.plane")
     if "quadrature" in pcc:
-        out["quadrature"] = _integer(pcc["quadrature"], "pcc.quadrature", 2)
+        out["quadrature"] = _integer(pcc["quadrature"], "pcc.quadrature", 2, V.MAX_TABLE_POINTS)
     return out
 
 
@@ -591,9 +741,12 @@ class Design:
     def replace(self, changes: Mapping[str, Any]) -> Design:
         """A copy with some document entries changed, e.g.
         ``{"sections[1].c_b": 1.2, "tip.mass": "10 g"}``; validated like a new file."""
+        if not isinstance(changes, Mapping):
+            raise V.fail("changes", changes, "must be a mapping {entry path: value}", DesignError)
+        V.check_depth(changes, "changes", DesignError)
         doc = copy.deepcopy(self.document)
         for path, value in changes.items():
-            _set_path(doc, path, value)
+            _set_path(doc, path, copy.deepcopy(value))
         return _build(doc, self.source)
 
     def with_stiffness_map(self, path: str | Path | None) -> Design:
@@ -612,7 +765,7 @@ class Design:
 
         The file loads with :func:`softrod.load_design` to an equal design. Every
         dimensional value carries its unit: the units of the original file as written, and
-        the SI unit for values set as plain numbers (``replace({"tip.mass": 0.01})`` is
+        the SI unit for the plain numbers of a ``units = "SI"`` document (``mass = 0.01`` is
         written ``"0.01 kg"``). A stiffness map file keeps its reference, rewritten relative
         to the new file's folder.
         """
@@ -638,7 +791,18 @@ class Design:
         return path
 
 
+_KEY = r"[A-Za-z_][A-Za-z0-9_]*(?:\[\d{1,9}\])*"  # a key with optional [index] parts
+_PATH = re.compile(rf"{_KEY}(?:\.{_KEY})*")
+
+
 def _set_path(doc: dict, path: str, value: Any) -> None:
+    if not isinstance(path, str) or len(path) > V.MAX_NAME_LENGTH or not _PATH.fullmatch(path):
+        raise V.fail(
+            "changes",
+            path,
+            "an entry path reads like 'sections[1].c_b' or 'tip.mass'",
+            DesignError,
+        )
     parts: list[Any] = []
     for token in path.replace("]", "").split("."):
         name, *idx = token.split("[")
@@ -660,11 +824,9 @@ def _set_path(doc: dict, path: str, value: Any) -> None:
 
 def _build(doc: dict, source: Path | None) -> Design:
     spec = _to_spec(doc)
-    rod = _core.Rod(json.dumps(spec))
+    rod = _core.Rod(json.dumps(spec, allow_nan=False))
     meta = doc["design"]
     assumptions = meta.get("assumptions", [])
-    if not isinstance(assumptions, list) or not all(isinstance(a, str) for a in assumptions):
-        raise design_error("design.assumptions", assumptions, "must be a list of strings")
     if "provenance" in meta and not isinstance(meta["provenance"], Mapping):
         raise design_error("design.provenance", meta["provenance"], "must be a table")
     smap, smap_source = _stiffness_map(doc, spec, rod, source)
@@ -860,21 +1022,47 @@ def read_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
     if isinstance(design, Design):
         return design
     if isinstance(design, Mapping):
+        V.check_depth(design, "design", DesignError)
         return _build(copy.deepcopy(dict(design)), None)
-    if not isinstance(design, (str, Path)):
+    if not isinstance(design, (str, os.PathLike)):
         raise design_error(
             "design",
             type(design).__name__,
             "must be a path, a bundled design name, a mapping or a Design",
         )
     path = Path(design)
-    try:
-        with open(path, "rb") as fh:
-            doc = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise DesignError(f"{path}: not valid TOML: {exc}", str(path), "", str(exc)) from None
+    doc = _read_toml(path)
     try:
         return _build(doc, path)
     except DesignError as exc:
         exc.args = (f"{path.name}: {exc.args[0]}",)
         raise
+
+
+def _read_toml(path: Path) -> dict:
+    """The document of a TOML file; DesignError naming the file for anything that is not a
+    readable, reasonably small, valid UTF-8 TOML document."""
+    try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            rule = f"is too large for a design file ({MAX_FILE_BYTES} bytes at most)"
+            raise V.fail(str(path), f"{size} bytes", rule, DesignError)
+        with open(path, "rb") as fh:
+            doc = tomllib.load(fh)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError, RecursionError, ValueError) as exc:
+        if isinstance(exc, DesignError):
+            raise
+        reason = (
+            "not UTF-8 text"
+            if isinstance(exc, UnicodeDecodeError)
+            else "nested too deeply"
+            if isinstance(exc, RecursionError)
+            else str(exc)
+        )
+        raise DesignError(f"{path}: not valid TOML: {reason}", str(path), "", reason) from None
+    except OSError as exc:
+        reason = exc.strerror or str(exc)
+        message = f"{path}: cannot read the design file: {reason}"
+        raise DesignError(message, str(path), "", reason) from None
+    V.check_depth(doc, str(path), DesignError)
+    return doc

@@ -46,8 +46,31 @@ class ConvergenceError(SoftrodError, RuntimeError):
 
 
 def design_error(field: str, value: object, rule: str, cls: type[DesignError] = DesignError):
-    """Build a DesignError whose message reads ``field = value: rule``."""
-    return cls(f"{field} = {value!r}: {rule}", field, value, rule)
+    """Build a DesignError whose message reads ``field = value: rule`` (a long value is
+    shortened in the message; ``exc.value`` keeps it whole)."""
+    shown = field if len(field) <= 200 else field[:150] + f"... ({len(field)} characters)"
+    said = rule if len(rule) <= 1000 else rule[:900] + f"... ({len(rule)} characters)"
+    return cls(f"{shown} = {brief(value)}: {said}", field, value, rule)
+
+
+def brief(value: object) -> str:
+    """``repr(value)`` for a message, shortened: a hostile input (a megabyte of text, a huge
+    integer, a big container) never makes a huge message or a slow repr."""
+    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 100:
+        return f"<an integer of {value.bit_length()} bits>"
+    if isinstance(value, (str, bytes)) and len(value) > 120:
+        return repr(value[:100])[:-1] + f"...' ({len(value)} characters)"
+    try:
+        n = len(value)  # type: ignore[arg-type]
+    except Exception:
+        n = None
+    if n is not None and n > 20 and not isinstance(value, (str, bytes)):
+        return f"<{type(value).__name__} of {n} items>"
+    try:
+        text = repr(value)
+    except Exception:
+        return f"<{type(value).__name__}>"
+    return text if len(text) <= 300 else text[:200] + f"... ({type(value).__name__})"
 
 
 class InvalidStateError(ConvergenceError):

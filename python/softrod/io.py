@@ -1,9 +1,17 @@
 """Tables and files: write results whole or not at all.
 
-``write_table`` picks CSV or Parquet from the file suffix. Every writer here goes through
-:func:`atomic_path`: it writes a temporary file in the destination folder and moves it into
-place with ``os.replace``, so a reader never sees a half-written file and an interrupted run
-leaves the old file (if any) untouched.
+``write_table`` picks CSV or Parquet from the file suffix. Every writer of softrod (tables,
+datasets, schedules, trajectories, designs, reports, figures, animations, JSON) goes through
+:func:`atomic_path` (or :func:`staged_paths` for several files that belong together):
+
+- the target's folder is checked first (it must exist and be writable), so a bad target
+  fails at once, named by the target, before any computation;
+- the data goes to a temporary file in the same folder, named
+  ``.softrod-tmp-<pid>-<random>-<target name>``, which replaces the target in one
+  ``os.replace`` when it is complete: a reader never sees a half-written file, and a failed
+  write leaves the old file (if any) untouched;
+- a temporary left behind by a process that was killed (SIGKILL, power loss) is removed by
+  the next softrod write into that folder, once its process id no longer runs.
 """
 
 from __future__ import annotations
@@ -12,7 +20,8 @@ import contextlib
 import json
 import logging
 import os
-import tempfile
+import re
+import secrets
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -20,11 +29,15 @@ from .errors import InputError, design_error
 
 TABLE_SUFFIXES = (".csv", ".parquet")
 
+TMP_PREFIX = ".softrod-tmp-"
+_TMP_NAME = re.compile(r"^\.softrod-tmp-(?P<pid>[0-9]{1,10})-[0-9a-f]{8}-")
+_MAX_NAME = 255 - 40  # room for the temporary prefix within a file name's 255 bytes
 logger = logging.getLogger(__name__)
 
 
 def check_table_path(path: str | os.PathLike) -> Path:
-    """The path as a Path if its suffix is a table format softrod writes, else InputError.
+    """The path as a Path if its suffix is a table format softrod writes and its folder
+    exists and is writable, else InputError.
 
     Call it before a long computation so a typo in the output name fails at once.
     """
@@ -37,42 +50,116 @@ def check_table_path(path: str | os.PathLike) -> Path:
             f"one of {', '.join(TABLE_SUFFIXES)}",
             InputError,
         )
-    _check_folder(path)
+    return check_target(path)
+
+
+def check_target(path: str | os.PathLike) -> Path:
+    """``path`` as a Path if a file can be written there: its folder exists and is writable,
+    and the path is not a folder. Otherwise InputError naming the target (not a temporary
+    file), raised before any work."""
+    path = Path(path)
+    folder = path.parent
+    if not path.name or path.name in (".", ".."):
+        raise design_error("path", str(path), "must name a file, not a folder", InputError)
+    if len(os.fsencode(path.name)) > _MAX_NAME:
+        raise design_error(
+            "path", str(path), f"the file name is too long ({_MAX_NAME} bytes at most)", InputError
+        )
+    if not folder.is_dir():
+        raise design_error("path", str(path), f"folder {str(folder)!r} does not exist", InputError)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise design_error(
+            "path", str(path), f"folder {str(folder)!r} is not writable", InputError
+        )
+    if path.is_dir():
+        raise design_error("path", str(path), "is a folder, not a file", InputError)
     return path
 
 
-def _check_folder(path: Path) -> None:
-    folder = path.parent
-    if not folder.is_dir():
-        raise design_error("path", str(path), f"folder {str(folder)!r} does not exist", InputError)
+def _running(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, ValueError):
+        return pid > 0  # it runs under another user (or the id is out of range: not ours)
+    return True
 
 
-def _default_mode() -> int:
-    # mkstemp creates files readable by the owner only; give the final file the mode a plain
-    # open() would (0o666 minus the umask). Reading the umask means setting it, so restore it.
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
+def remove_stale_temporaries(folder: str | os.PathLike) -> list[Path]:
+    """Remove the temporaries softrod left in ``folder`` whose process no longer runs (a
+    writer that was killed); returns what was removed. Never raises."""
+    removed = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        m = _TMP_NAME.match(entry.name)
+        if m is None or _running(int(m["pid"])):
+            continue
+        with contextlib.suppress(OSError):
+            os.unlink(entry.path)
+            removed.append(Path(entry.path))
+    return removed
+
+
+def _temporary(path: Path) -> Path:
+    """A new, empty file beside ``path`` that only this call owns (O_EXCL), created with
+    the mode a plain open() would give (0o666 minus the umask)."""
+    name = f"{TMP_PREFIX}{os.getpid()}-{secrets.token_hex(4)}-{path.name}"
+    tmp = path.parent / name
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    except OSError as exc:  # named by the target, never by the temporary's name
+        raise design_error(
+            "path", str(path), f"cannot write there: {exc.strerror or exc}", InputError
+        ) from None
+    os.close(fd)
+    return tmp
 
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
-    """Yield a temporary path next to ``path``; on success move it onto ``path``.
+    """Yield a temporary path beside ``path`` (it ends in ``path``'s name, so writers that
+    choose the format from the suffix work); on success move it onto ``path``.
 
-    On an exception the temporary file is removed and ``path`` is left as it was.
+    The target is checked first (:func:`check_target`); stale temporaries of killed writers
+    in the folder are removed. On an exception the temporary file is removed and ``path`` is
+    left as it was.
     """
-    path = Path(path)
-    _check_folder(path)
-    fd, tmp_name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    tmp = Path(tmp_name)
+    path = check_target(path)
+    remove_stale_temporaries(path.parent)
+    tmp = _temporary(path)
     try:
         yield tmp
-        os.chmod(tmp, _default_mode())
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        raise
+
+
+@contextlib.contextmanager
+def staged_paths(paths: list[Path]) -> Iterator[list[Path]]:
+    """Temporary paths for several outputs that belong together: when the block succeeds
+    every file is moved into place, when it fails none is (and the temporaries go)."""
+    paths = [check_target(p) for p in paths]
+    for folder in {p.parent for p in paths}:
+        remove_stale_temporaries(folder)
+    staged: list[Path] = []
+    try:
+        for p in paths:
+            staged.append(_temporary(p))
+        yield staged
+        for tmp, p in zip(staged, paths, strict=True):
+            os.replace(tmp, p)
+    except BaseException:
+        for tmp in staged:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
         raise
 
 

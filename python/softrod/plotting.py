@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError, design_error
-from .io import atomic_path
+from .io import atomic_path, check_target
 from .statics import StaticSolution
 
 # Styles of the parts of a rod. Chambered (actuated) sections take the colour of their
@@ -210,7 +210,7 @@ def check_figure_path(path: str | os.PathLike) -> Path:
             f"one of {', '.join('.' + k for k in sorted(supported))}",
             InputError,
         )
-    return path
+    return check_target(path)
 
 
 def save_figure(fig, path: str | os.PathLike) -> Path:

@@ -122,35 +122,17 @@ _KNOWN_FACTORS = {
 
 
 def unit_factor(unit: str, kind: str, column: str) -> float:
-    """SI factor of ``unit`` (a unit string, aliases allowed) checked against ``kind``."""
+    """SI factor of ``unit`` (a unit string, aliases allowed) checked against ``kind``, read
+    by the restricted unit grammar of :mod:`softrod._validate` (never evaluated as an
+    expression: a column ``p0_10**10**10`` is refused at once)."""
+    if not isinstance(unit, str):
+        raise _fail(column, unit, "must be a unit string such as 'kPa'")
     known = _KNOWN_FACTORS.get((kind, unit.strip()))
     if known is not None:
         return known
-    from .units import registry
+    from ._validate import unit_factor as checked
 
-    text = unit.strip()
-    if not text:
-        raise _fail(column, unit, f"empty unit: a {kind} needs one, e.g. '{DEFAULT_UNITS[kind]}'")
-    ureg = registry()
-    try:
-        parsed = ureg.parse_units(UNIT_ALIASES.get(text, text))
-    except Exception as exc:  # pint raises several error types for bad strings
-        raise _fail(
-            column,
-            unit,
-            f"unknown unit ({exc}); a {kind} column needs a unit pint knows, e.g. "
-            f"'{DEFAULT_UNITS[kind]}' (moment spellings {', '.join(UNIT_ALIASES)} are accepted)",
-        ) from None
-    want = ureg.get_dimensionality(TABLE_SI[kind])
-    if parsed.dimensionality != want:
-        have = str(parsed.dimensionality) if not parsed.dimensionless else "dimensionless"
-        raise _fail(
-            column,
-            unit,
-            f"wrong unit: this column is a {kind} (like '{DEFAULT_UNITS[kind]}'), "
-            f"but the unit has dimension {have}",
-        )
-    return float(ureg.Quantity(1.0, parsed).to(TABLE_SI[kind]).magnitude)
+    return checked(unit, kind, column)
 
 
 def table_units(units: Mapping[str, str] | None) -> tuple[dict[str, str], dict[str, float]]:

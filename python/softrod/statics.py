@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import _validate as V
 from .catalog import load_design
 from .design import Design
 from .errors import (
@@ -23,7 +24,6 @@ from .errors import (
 )
 from .solution import BatchSolution, StaticSolution
 from .stiffness_map import StiffnessMap, _check_pressure_rows
-from .units import to_si
 
 
 @dataclass(frozen=True)
@@ -47,33 +47,27 @@ class SolverOptions:
     stretch_range: tuple[float, float] = (1 / 3, 3.0)
 
     def __post_init__(self):
-        if not (isinstance(self.tol, float | int) and 0 < self.tol < 1):
+        tol = V.real(self.tol, "tol", minimum=0.0, exclusive=True)
+        if not tol < 1:
             raise design_error("tol", self.tol, "must be in (0, 1)", InputError)
         for name in ("max_iter", "max_load_steps"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
-                raise design_error(name, v, "must be an integer >= 1", InputError)
+            V.integer(getattr(self, name), name, minimum=1, maximum=V.MAX_ITERATIONS)
+        V.boolean(self.continuation, "continuation")
         r = self.stretch_range
-        ok = (
-            isinstance(r, tuple | list)
-            and len(r) == 2
-            and all(isinstance(x, float | int) and not isinstance(x, bool) for x in r)
-            and 0 < r[0] < 1 < r[1] < float("inf")
-        )
-        if not ok:
-            raise design_error(
-                "stretch_range",
-                r,
-                "must be (min, max) with 0 < min < 1 < max (stretch 1 is the reference state)",
-                InputError,
-            )
+        rule = "must be (min, max) with 0 < min < 1 < max (stretch 1 is the reference state)"
+        if isinstance(r, str) or not isinstance(r, tuple | list) or len(r) != 2:
+            raise design_error("stretch_range", r, rule, InputError)
+        lo = V.real(r[0], "stretch_range[0]")
+        hi = V.real(r[1], "stretch_range[1]")
+        if not 0 < lo < 1 < hi:
+            raise design_error("stretch_range", r, rule, InputError)
 
     def as_kwargs(self) -> dict:
         return {
             "tol": float(self.tol),
-            "max_iter": self.max_iter,
-            "continuation": self.continuation,
-            "max_load_steps": self.max_load_steps,
+            "max_iter": int(self.max_iter),
+            "continuation": bool(self.continuation),
+            "max_load_steps": int(self.max_load_steps),
             "stretch_range": (float(self.stretch_range[0]), float(self.stretch_range[1])),
         }
 
@@ -103,32 +97,47 @@ def _report_stability(stable: bool, on_unstable: str, what: str) -> None:
 
 
 def _pressures(design: Design, pressures) -> list[float]:
-    if isinstance(pressures, (int, float, str)):
+    """One gauge pressure per channel (Pa, or strings with units), checked like a batch row."""
+    if V.is_real(pressures) or isinstance(pressures, str):
         pressures = [pressures]
-    try:
-        values = list(pressures)
-    except TypeError:
-        raise design_error(
-            "pressures", pressures, "must be a sequence of gauge pressures (Pa)", InputError
-        ) from None
-    if len(values) != design.n_channels:
-        raise design_error(
-            "pressures",
-            values,
-            f"the design has {design.n_channels} pressure channels; give one gauge pressure per "
-            "channel",
-            InputError,
-        )
-    return [to_si(p, "pressure", f"pressures[{i}]", InputError) for i, p in enumerate(values)]
+    return _quantities(pressures, "pressure", "pressures", design.n_channels,
+                       f"the design has {design.n_channels} pressure channels; give one gauge "
+                       "pressure per channel")
+
+
+def _quantities(value, kind: str, name: str, count: int, rule: str) -> list[float]:
+    """``count`` quantities from a list/tuple (numbers in SI or strings with units) or a 1-d
+    numeric array; mappings, sets, masked arrays, bools and complex numbers are refused."""
+    if isinstance(value, (list, tuple)):
+        if len(value) != count:
+            raise V.fail(name, value, rule)
+        return [V.quantity(x, kind, f"{name}[{i}]") for i, x in enumerate(value)]
+    arr = V.real_array(value, name, what=f"{kind}s (SI)", max_size=V.MAX_CHANNELS * 4)
+    if arr.ndim != 1 or arr.size != count:
+        raise V.fail(name, f"shape {arr.shape}", rule)
+    return arr.tolist()
 
 
 def _vec3(value, kind: str, name: str, default) -> list[float]:
     if value is None:
         return list(default)
-    arr = list(value) if not isinstance(value, str) else value
-    if isinstance(arr, str) or len(arr) != 3:
-        raise design_error(name, value, f"must be 3 {kind} values (world frame)", InputError)
-    return [to_si(x, kind, f"{name}[{i}]", InputError) for i, x in enumerate(arr)]
+    return _quantities(value, kind, name, 3, f"must be 3 {kind} values (world frame)")
+
+
+def _initial(initial, model: str) -> list[float] | None:
+    """The warm start of ``initial`` (a converged StaticSolution of the same model)."""
+    if initial is None:
+        return None
+    if not isinstance(initial, StaticSolution):
+        raise V.fail("initial", type(initial).__name__, "must be a StaticSolution or None")
+    x = np.asarray(initial.shooting_unknowns, dtype=float)
+    if not initial.converged or not np.all(np.isfinite(x)):
+        raise V.fail(
+            "initial",
+            "a solution with converged = False",
+            "cannot warm-start a solve: pass a converged solution (or none)",
+        )
+    return x.tolist()
 
 
 def _options(options: SolverOptions | None) -> SolverOptions:
@@ -237,8 +246,9 @@ def solve_statics(
     on_invalid = _policy("on_invalid", on_invalid)
     design = load_design(design)
     p = _pressures(design, pressures)
-    if model not in ("cosserat", "pcc"):
-        raise design_error("model", model, "must be 'cosserat' or 'pcc'", InputError)
+    V.choice(model, ("cosserat", "pcc"), "model")
+    V.boolean(check, "check")
+    guess = _initial(initial, model)
     if model == "pcc":
         if stiffness_map is not None:
             raise design_error(
@@ -260,7 +270,6 @@ def solve_statics(
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
-    guess = None if initial is None else [float(x) for x in initial.shooting_unknowns]
     opts = _options(options)
     try:
         out = design._rod.solve(
@@ -341,16 +350,9 @@ def solve_statics_batch(
     on_unstable = _policy("on_unstable", on_unstable)
     on_invalid = _policy("on_invalid", on_invalid)
     design = load_design(design)
-    arr = np.asarray(pressures, dtype=float)
-    if arr.ndim == 1 and design.n_channels == 1:
-        arr = arr[:, None]
-    _check_pressure_rows(
-        arr, design.n_channels, f"must be an (m, {design.n_channels}) array of gauge pressures (Pa)"
-    )
-    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 0:
-        raise design_error(
-            "threads", threads, "must be an integer >= 0 (0 = all cores)", InputError
-        )
+    arr = batch_pressures(design, pressures)
+    threads = V.threads(threads)
+    opts = _options(options)
     smap = _stiffness_map(design, stiffness_map)
     sigma = None if smap is None else np.ascontiguousarray(smap(arr), dtype=float)
     tip = design.spec["tip"]
@@ -385,7 +387,7 @@ def solve_statics_batch(
         threads=threads,
         stiffness_scale=sigma,
         on_invalid=on_invalid,
-        **_options(options).as_kwargs(),
+        **opts.as_kwargs(),
     )
     meta = _batch_metadata(design, options, tf, tm, smap)
     return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid)
@@ -493,3 +495,32 @@ def _batch_on_cluster(
             **options.as_kwargs()
         )
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def batch_pressures(design: Design, pressures) -> np.ndarray:
+    """An (m, channels) float array of gauge pressures (Pa), checked as :func:`solve_statics`
+    checks one row: numbers (Python or numpy) or strings with units, never bools, complex
+    numbers, masked or text arrays; at most MAX_ROWS rows."""
+    n = design.n_channels
+    arr = V.real_array(
+        pressures,
+        "pressures",
+        unit_kind="pressure",
+        max_size=V.MAX_ROWS * max(n, 1),
+        what="gauge pressures (Pa)",
+    )
+    if arr.ndim == 1 and n == 1:
+        arr = arr[:, None]
+    _check_pressure_rows(arr, n, f"must be an (m, {n}) array of gauge pressures (Pa)")
+    if arr.shape[0] > V.MAX_ROWS:
+        raise V.fail("pressures", f"{arr.shape[0]} rows", f"too many rows: at most {V.MAX_ROWS:,}")
+    low = np.flatnonzero((arr < V.VACUUM_PA).any(axis=1))
+    if low.size:
+        r = int(low[0])
+        raise V.fail(
+            f"pressures[{r}]",
+            arr[r].tolist(),
+            f"gauge pressures must be >= {V.VACUUM_PA:g} Pa (-1 atm, a perfect vacuum)"
+            + (f"; {low.size} rows are below" if low.size > 1 else ""),
+        )
+    return np.ascontiguousarray(arr)

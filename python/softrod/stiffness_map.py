@@ -17,6 +17,7 @@ See docs/stiffness-map.md.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import re
@@ -27,8 +28,8 @@ from typing import Any
 import numpy as np
 
 from . import _core
+from . import _validate as V
 from .errors import InputError, design_error
-from .units import SI_UNIT, registry, to_si
 
 SIGMA_NAMES = ("sigma_ext", "sigma_bend_x", "sigma_bend_y")
 METHODS = ("pchip", "linear")
@@ -44,22 +45,9 @@ _PRESSURE_COLUMN = re.compile(r"^p(\d+)_(.+)$")
 
 
 def _pa_per(unit: str, field: str) -> float:
-    """How many Pa one ``unit`` is; InputError unless ``unit`` is a pressure unit."""
-    ureg = registry()
-    try:
-        q = ureg.Quantity(1.0, unit)
-    except Exception as exc:  # pint raises several error types for unknown units
-        raise design_error(
-            field, unit, f"not a pressure unit (Pa, kPa, bar, ...): {exc}", InputError
-        ) from None
-    if q.dimensionality != ureg.get_dimensionality(SI_UNIT["pressure"]):
-        raise design_error(
-            field,
-            unit,
-            f"not a pressure unit (Pa, kPa, bar, ...): dimension {q.dimensionality}",
-            InputError,
-        )
-    return float(q.to("Pa").magnitude)
+    """How many Pa one ``unit`` is; InputError unless ``unit`` is a pressure unit (read by
+    the restricted unit grammar of softrod._validate)."""
+    return V.unit_factor(unit, "pressure", field)
 
 
 def _axis(values: Any, k: int) -> np.ndarray:
@@ -70,17 +58,17 @@ def _axis(values: Any, k: int) -> np.ndarray:
             values = np.asarray(values.to("Pa").magnitude, dtype=float)
         except Exception as exc:
             raise design_error(field, values, f"must be pressures: {exc}", InputError) from None
-    if isinstance(values, (str, bytes)) or np.ndim(values) != 1:
+    if isinstance(values, (list, tuple)):
+        if len(values) > V.MAX_TABLE_POINTS:
+            raise V.fail(field, values, f"too many points: at most {V.MAX_TABLE_POINTS}")
+        axis = np.array(
+            [V.quantity(v, "pressure", f"{field}[{i}]") for i, v in enumerate(values)],
+            dtype=float,
+        ).reshape(-1)
+    else:
+        axis = V.real_array(values, field, max_size=V.MAX_TABLE_POINTS, what="pressures (Pa)")
+    if axis.ndim != 1:
         raise design_error(field, values, "must be a 1-D sequence of pressures (Pa)", InputError)
-    axis = np.array(
-        [
-            float(v)
-            if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
-            else to_si(v, "pressure", f"{field}[{i}]", InputError)
-            for i, v in enumerate(values)
-        ],
-        dtype=float,
-    )
     if len(axis) < 2:
         raise design_error(
             field,
@@ -195,12 +183,8 @@ class StiffnessMap:
         "clamp": it is moved to the nearest end of the axis (sigma held constant beyond the
         table).
         """
-        if method not in METHODS:
-            raise design_error("method", method, f"must be one of {', '.join(METHODS)}", InputError)
-        if outside not in OUTSIDE:
-            raise design_error(
-                "outside", outside, f"must be one of {', '.join(OUTSIDE)}", InputError
-            )
+        V.choice(method, METHODS, "method")
+        V.choice(outside, OUTSIDE, "outside")
         if isinstance(axes, (str, bytes)) or not isinstance(axes, (Sequence, np.ndarray)):
             raise design_error(
                 "axes", axes, "must be a list of 1-D pressure axes, one per channel", InputError
@@ -212,9 +196,14 @@ class StiffnessMap:
                 "needs one axis per channel (for no channels use StiffnessMap.constant)",
                 InputError,
             )
+        if len(axes) > V.MAX_CHANNELS:
+            raise V.fail("axes", f"{len(axes)} axes", f"at most {V.MAX_CHANNELS} channels")
         grid = tuple(_axis(a, k) for k, a in enumerate(axes))
         shape = tuple(len(a) for a in grid) + (3,)
-        values = _float_array(sigma, "sigma", type(sigma).__name__, "must be an array of numbers")
+        if math.prod(shape) > V.MAX_ROWS:
+            grid_shape = "x".join(map(str, shape[:-1]))
+            raise V.fail("axes", grid_shape, f"the grid has more than {V.MAX_ROWS:,} points")
+        values = V.real_array(sigma, "sigma", what="stiffness factors")
         if values.shape != shape:
             raise design_error(
                 "sigma",
@@ -289,97 +278,108 @@ class StiffnessMap:
         path = Path(path)
         if not path.is_file():
             raise design_error("path", str(path), "no such file", InputError)
-        with open(path, newline="", encoding="utf-8") as fh:
-            reader = csv.reader(fh)
-            header = next(reader, None)
-            if header is None:
-                raise design_error(str(path), "empty file", "needs a header line", InputError)
-            header = [h.strip() for h in header]
-            channels: dict[
-                int, tuple[int, float, str]
-            ] = {}  # channel -> (column, Pa per unit, name)
-            sig_cols: dict[str, int] = {}
-            for col, name in enumerate(header):
-                m = _PRESSURE_COLUMN.match(name)
-                if name in SIGMA_NAMES:
-                    if name in sig_cols:
+        from .datasets import _read_text
+
+        text = _read_text(path)
+        try:
+            with io.StringIO(text, newline="") as fh:
+                reader = csv.reader(fh)
+                header = next(reader, None)
+                if header is None:
+                    raise design_error(str(path), "empty file", "needs a header line", InputError)
+                header = [h.strip() for h in header]
+                channels: dict[
+                    int, tuple[int, float, str]
+                ] = {}  # channel -> (column, Pa per unit, name)
+                sig_cols: dict[str, int] = {}
+                for col, name in enumerate(header):
+                    m = _PRESSURE_COLUMN.match(name)
+                    if name in SIGMA_NAMES:
+                        if name in sig_cols:
+                            raise design_error(
+                                f"{path.name}: column {name}", name, "appears twice", InputError
+                            )
+                        sig_cols[name] = col
+                    elif m:
+                        from .datasets import _channel
+
+                        k = _channel("p" + m.group(1), name)
+                        if k in channels:
+                            raise design_error(
+                                f"{path.name}: column {name}",
+                                name,
+                                f"a second column for channel {k}",
+                                InputError,
+                            )
+                        per = _pa_per(m.group(2), f"{path.name}: column {name}")
+                        channels[k] = (col, per, name)
+                    else:
                         raise design_error(
-                            f"{path.name}: column {name}", name, "appears twice", InputError
-                        )
-                    sig_cols[name] = col
-                elif m:
-                    k = int(m.group(1))
-                    if k in channels:
-                        raise design_error(
-                            f"{path.name}: column {name}",
+                            f"{path.name}: column {name!r}",
                             name,
-                            f"a second column for channel {k}",
+                            "unknown column: expected p<k>_<unit> (e.g. p0_kPa) per channel and "
+                            f"{', '.join(SIGMA_NAMES)}",
                             InputError,
                         )
-                    channels[k] = (col, _pa_per(m.group(2), f"{path.name}: column {name}"), name)
-                else:
+                missing = [s for s in SIGMA_NAMES if s not in sig_cols]
+                if missing:
                     raise design_error(
-                        f"{path.name}: column {name!r}",
-                        name,
-                        "unknown column: expected p<k>_<unit> (e.g. p0_kPa) per channel and "
-                        f"{', '.join(SIGMA_NAMES)}",
+                        f"{path.name}: header",
+                        ",".join(header),
+                        f"missing column(s) {', '.join(missing)}",
                         InputError,
                     )
-            missing = [s for s in SIGMA_NAMES if s not in sig_cols]
-            if missing:
-                raise design_error(
-                    f"{path.name}: header",
-                    ",".join(header),
-                    f"missing column(s) {', '.join(missing)}",
-                    InputError,
-                )
-            n = len(channels)
-            if n == 0 or sorted(channels) != list(range(n)):
-                raise design_error(
-                    f"{path.name}: header",
-                    ",".join(header),
-                    "needs one pressure column per channel 0..c-1, named p<k>_<unit> (e.g. p0_kPa)",
-                    InputError,
-                )
-            cols = [channels[k][0] for k in range(n)] + [sig_cols[s] for s in SIGMA_NAMES]
-            names = [channels[k][2] for k in range(n)] + list(SIGMA_NAMES)
-            rows: list[list[float]] = []
-            lines: list[int] = []
-            for row in reader:
-                if not row or all(not c.strip() for c in row):
-                    continue
-                line = reader.line_num
-                if len(row) != len(header):
+                n = len(channels)
+                if n == 0 or sorted(channels) != list(range(n)):
                     raise design_error(
-                        f"{path.name}: line {line}",
-                        ",".join(row),
-                        f"has {len(row)} fields, the header {len(header)}",
+                        f"{path.name}: header",
+                        ",".join(header),
+                        "needs one pressure column per channel 0..c-1, named p<k>_<unit> "
+                        "(e.g. p0_kPa)",
                         InputError,
                     )
-                vals = []
-                for col, name in zip(cols, names, strict=True):
-                    text = row[col].strip()
-                    try:
-                        v = float(text)
-                    except ValueError:
-                        v = math.nan
-                    if not math.isfinite(v):
+                cols = [channels[k][0] for k in range(n)] + [sig_cols[s] for s in SIGMA_NAMES]
+                names = [channels[k][2] for k in range(n)] + list(SIGMA_NAMES)
+                rows: list[list[float]] = []
+                lines: list[int] = []
+                for row in reader:
+                    if not row or all(not c.strip() for c in row):
+                        continue
+                    line = reader.line_num
+                    if len(row) != len(header):
                         raise design_error(
-                            f"{path.name}: line {line}, {name}",
-                            text,
-                            "must be a finite number",
+                            f"{path.name}: line {line}",
+                            ",".join(row),
+                            f"has {len(row)} fields, the header {len(header)}",
                             InputError,
                         )
-                    vals.append(v)
-                if not all(v > 0 for v in vals[n:]):
-                    raise design_error(
-                        f"{path.name}: line {line}",
-                        vals[n:],
-                        "sigma must be > 0 (stiffness must stay positive)",
-                        InputError,
-                    )
-                rows.append(vals)
-                lines.append(line)
+                    vals = []
+                    for col, name in zip(cols, names, strict=True):
+                        text = row[col].strip()
+                        try:
+                            v = float(text)
+                        except ValueError:
+                            v = math.nan
+                        if not math.isfinite(v):
+                            raise design_error(
+                                f"{path.name}: line {line}, {name}",
+                                text,
+                                "must be a finite number",
+                                InputError,
+                            )
+                        vals.append(v)
+                    if not all(v > 0 for v in vals[n:]):
+                        raise design_error(
+                            f"{path.name}: line {line}",
+                            vals[n:],
+                            "sigma must be > 0 (stiffness must stay positive)",
+                            InputError,
+                        )
+                    rows.append(vals)
+                    lines.append(line)
+        except csv.Error as exc:
+            rule = f"not a CSV table: {exc}"
+            raise design_error(str(path), "unreadable", rule, InputError) from None
         if not rows:
             raise design_error(
                 str(path), "no data rows", "needs one row per grid point", InputError
@@ -389,6 +389,14 @@ class StiffnessMap:
         axes_file = [np.unique(data[:, k]) for k in range(n)]
         index = tuple(np.searchsorted(axes_file[k], data[:, k]) for k in range(n))
         shape = tuple(len(a) for a in axes_file)
+        if math.prod(shape) > 2 * len(rows):  # many points missing: say so before allocating
+            raise design_error(
+                str(path),
+                f"{len(rows)} rows",
+                f"the rows must cover the full grid {'x'.join(map(str, shape))} "
+                f"({math.prod(shape)} rows, got {len(rows)})",
+                InputError,
+            )
         flat = np.ravel_multi_index(index, shape)
         seen = np.full(math.prod(shape), -1)
         for r, f in enumerate(flat):
@@ -459,7 +467,7 @@ class StiffnessMap:
                 return models[0].predict(x)
             cols = []
             for k, mdl in enumerate(models):
-                col = np.asarray(mdl.predict(x), dtype=float)
+                col = V.real_array(mdl.predict(x), f"model[{k}].predict", what="sigma values")
                 if col.shape not in ((p.shape[0],), (p.shape[0], 1)):
                     raise design_error(
                         f"model[{k}].predict",
@@ -613,7 +621,7 @@ class StiffnessMap:
         """sigma (m, 3) for gauge pressures (m, n_channels) in Pa; a 1-D row of n_channels
         pressures gives sigma (3,). Raises InputError for a bad shape, non-finite pressures, a
         pressure outside a table (``outside="raise"``) or a sigma that is not finite and > 0."""
-        p = _float_array(pressures, "pressures", pressures, "must be numbers (gauge pressures, Pa)")
+        p = V.real_array(pressures, "pressures", what="gauge pressures (Pa)")
         single = p.ndim == 1 and p.shape[0] == self._n_channels
         if single:
             p = p[None, :]
@@ -637,9 +645,7 @@ class StiffnessMap:
 
 
 def _channels(n: Any, minimum: int) -> int:
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < minimum:
-        raise design_error("n_channels", n, f"must be an integer >= {minimum}", InputError)
-    return int(n)
+    return V.integer(n, "n_channels", minimum=minimum, maximum=V.MAX_CHANNELS)
 
 
 def _sigma_row(sigma: Any, field: str) -> list[float]:

@@ -86,7 +86,7 @@ impl SolverOptions {
 }
 
 /// Most Newton iterations per load level a caller may ask for.
-pub const MAX_ITER: usize = 10_000;
+pub const MAX_ITER: usize = 100_000;
 /// Most continuation load levels a caller may ask for.
 pub const MAX_LOAD_STEPS: usize = 100_000;
 

@@ -14,8 +14,9 @@
 use crate::error::{Result, SoftrodError};
 
 /// Most pressure channels a design may use (channel indices 0..MAX_CHANNELS). Checked before
-/// anything is sized by the channel count.
-pub const MAX_CHANNELS: usize = 1024;
+/// anything is sized by the channel count. The limits here equal the Python boundary's
+/// (`python/softrod/_limits.py`, docs/errors.md), so Rust users get the same rules.
+pub const MAX_CHANNELS: usize = 64;
 /// Most sections in a design.
 pub const MAX_SECTIONS: usize = 1000;
 /// Most chambers in one section (the overlap check is quadratic in this number).
@@ -26,7 +27,7 @@ pub const MAX_STEPS_PER_SECTION: usize = 100_000;
 /// this bounds a solution at about 240 MB.
 pub const MAX_TOTAL_STEPS: usize = 1_000_000;
 /// Most distributed line loads in a design.
-pub const MAX_LINE_LOADS: usize = 10_000;
+pub const MAX_LINE_LOADS: usize = 1000;
 /// Most points in an EA(F) table.
 pub const MAX_TABLE_POINTS: usize = 10_000;
 

@@ -57,7 +57,7 @@ from ..datasets import (
 )
 from ..design import PACKAGE_DIR, Design
 from ..errors import InputError
-from ..io import atomic_path
+from ..io import atomic_path, check_target
 from ..io import metadata_json as _metadata_json
 from ..units import to_si
 
@@ -677,6 +677,11 @@ class AxialIdentification:
         base = load_design(base_design)
         if out_path is not None and Path(out_path).suffix.lower() != ".toml":
             raise _fail("out_path", str(out_path), "must end in .toml")
+        if out_path is not None:
+            try:
+                check_target(out_path)
+            except InputError as exc:
+                raise _fail("out_path", str(out_path), exc.rule) from None
         changes: dict = {}
         described, r_I = [], set()
         for i, (sec, spec) in enumerate(

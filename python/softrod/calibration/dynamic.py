@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._threads import one_blas_thread
+from .._validate import si_text
 from ..catalog import load_design
 from ..datasets import Dataset, load_dataset
 from ..design import Design
@@ -180,7 +181,7 @@ def calibrate_dynamics(
     def design_of(theta) -> Design:
         changes = design_changes(static, theta[int(with_tau) :], design0) if static else {}
         if with_tau:
-            changes["dynamics.damping_time"] = float(theta[0])
+            changes["dynamics.damping_time"] = si_text(theta[0], "time")
         return design0.replace(changes) if changes else design0
 
     def run(theta) -> tuple[np.ndarray, list[Trajectory]]:

@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
 from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import Dataset, load_dataset
@@ -844,8 +845,7 @@ def calibrate(
     result whatever the BLAS settings; ``threads`` sets the Rust core's workers.
     """
 
-    if model not in ("cosserat", "pcc"):
-        raise _fail("model", model, "must be 'cosserat' (the rod) or 'pcc' (paper 003)")
+    V.choice(model, ("cosserat", "pcc"), "model")
     if model == "pcc":
         from ..pcc.experiments import identify_pcc
 
@@ -922,10 +922,9 @@ def calibrate(
             f"{dataset.n_channels} channels",
             f"design {design0.name!r} has {design0.n_channels} pressure channels",
         )
-    if method not in ("lm", "nelder-mead"):
-        raise _fail("method", method, "must be 'lm' or 'nelder-mead'")
-    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 0:
-        raise _fail("threads", threads, "must be an integer >= 0 (0 = all cores)")
+    V.choice(method, ("lm", "nelder-mead"), "method")
+    threads = V.threads(threads)
+    V.integer(max_evaluations, "max_evaluations", minimum=1, maximum=V.MAX_ITERATIONS)
     params = parse_parameters(params, design0)
     sigma_names = [p.name for p in params if p.kind in SIGMA_KINDS]
     if sigma_names and design0.stiffness_map is not None:
@@ -996,7 +995,7 @@ def calibrate(
         bad = train[~ok[train]]
         raise ConvergenceError(
             f"calibrate: the model did not converge for {bad.size} training samples at the "
-            f"fitted parameters (rows {bad[:10].tolist()}); check the data and the bounds"
+            f"fitted parameters ({dataset.rows_text(bad)}); check the data and the bounds"
         )
     r = (tip_train[train] - measured[train]).ravel()
     ssr = float(r @ r)

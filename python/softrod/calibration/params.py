@@ -33,6 +33,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from .._validate import si_text
 from ..design import Design, _library
 from ..errors import InputError
 
@@ -169,6 +170,8 @@ def parse_parameters(names: Sequence[str] | str, design: Design) -> list[Paramet
     """Resolve a list of names (or one comma-separated string outside brackets)."""
     if isinstance(names, str):
         names = [n for n in re.split(r",(?![^\[]*\])", names) if n.strip()]
+    if not isinstance(names, (list, tuple)):
+        raise _fail("params", names, "must be a name, a comma-separated string or a list of names")
     params = [parse_parameter(n, design) for n in names]
     if not params:
         raise _fail("params", names, "name at least one parameter")
@@ -183,7 +186,7 @@ def parse_parameters(names: Sequence[str] | str, design: Design) -> list[Paramet
 
 def design_changes(params: Sequence[Parameter], values: Sequence[float], base: Design) -> dict:
     """Document entries (for :meth:`Design.replace`) that give ``params`` the ``values``
-    (SI; bare numbers in a design file are SI) on top of ``base``. Sigma is left out: it is
+    (SI, written as strings with SI units) on top of ``base``. Sigma is left out: it is
     not part of a design. ``area_scale`` multiplies ``base``'s areas."""
     doc = base.document
     changes: dict = {}
@@ -194,7 +197,7 @@ def design_changes(params: Sequence[Parameter], values: Sequence[float], base: D
             laws[i] = dict(doc["sections"][i].get("law", {}))
             offset = base.spec["sections"][i].get("law", {}).get("chamber_offset")
             if offset is not None:
-                laws[i]["chamber_offset"] = [float(x) for x in offset]
+                laws[i]["chamber_offset"] = [si_text(x, "length") for x in offset]
         return laws[i]
 
     for p, v in zip(params, values, strict=False):
@@ -210,14 +213,15 @@ def design_changes(params: Sequence[Parameter], values: Sequence[float], base: D
             elif p.kind in ("alpha", "c_p"):
                 law(i)[p.kind] = v
             elif p.kind.startswith("offset"):
-                offset = law(i).setdefault("chamber_offset", [0.0, 0.0])
-                offset[int(p.kind[-1]) - 1] = v
+                offset = law(i).setdefault("chamber_offset", ["0 m", "0 m"])
+                offset[int(p.kind[-1]) - 1] = si_text(v, "length")
             else:  # area_scale
                 chambers = copy.deepcopy(doc["sections"][i]["chambers"])
                 for ch, ch_si in zip(chambers, base.spec["sections"][i]["chambers"], strict=False):
                     # The hole stays as designed; only the pressurised area scales.
-                    ch["radius"] = ch_si["radius"] or math.sqrt(ch_si["area"] / math.pi)
-                    ch["area"] = v * ch_si["area"]
+                    radius = ch_si["radius"] or math.sqrt(ch_si["area"] / math.pi)
+                    ch["radius"] = si_text(radius, "length")
+                    ch["area"] = si_text(v * ch_si["area"], "area")
                 changes[f"sections[{i}].chambers"] = chambers
     for i, table in laws.items():
         changes[f"sections[{i}].law"] = table
@@ -239,8 +243,8 @@ def _material_change(base: Design, name: str, e: float) -> dict:
             for s, d in zip(base.spec["sections"], base.document["sections"], strict=False)
             if d.get("material") == name
         )
-        table["G"] = g * e / old
-    table["E"] = e
+        table["G"] = si_text(g * e / old, "pressure")
+    table["E"] = si_text(e, "pressure")
     materials = dict(base.document.get("materials", {}))
     materials[name] = table
     return {"materials": materials}

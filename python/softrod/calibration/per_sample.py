@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
 from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import Dataset
@@ -673,15 +674,11 @@ def _positive(value, name: str, kind: str) -> float:
     return x
 
 
-def _int_at_least(value, name: str, minimum: int, rule: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise design_error(name, value, rule, InputError)
-    return int(value)
-
-
 def _check_bounds(bounds) -> tuple[float, float]:
     try:
-        lo, hi = (float(b) for b in bounds)
+        if isinstance(bounds, (str, bytes)) or not isinstance(bounds, (list, tuple, np.ndarray)):
+            raise TypeError
+        lo, hi = (V.real(b, "bounds") for b in bounds)
     except (TypeError, ValueError):
         raise design_error(
             "bounds",
@@ -743,7 +740,7 @@ def _problem(design, dataset, *, use_rotation, n_high, r_high, m_high, R_high, o
         options = SolverOptions()
     if not isinstance(options, SolverOptions):
         raise design_error("options", options, "must be a softrod.SolverOptions", InputError)
-    threads = _int_at_least(threads, "threads", 0, "must be an integer >= 0 (0 = all cores)")
+    threads = V.threads(threads)
     c_t = _positive(n_high, "n_high", "force") / _positive(r_high, "r_high", "length")  # eq. 20
     c_r = _positive(m_high, "m_high", "moment") / _positive(R_high, "R_high", "angle")
     if not isinstance(use_rotation, bool):
@@ -818,7 +815,7 @@ def identify_stiffness(
     mapped, names = stiffness_mapped_design(design, sections)
     dataset = _check_dataset(dataset, mapped)
     bounds = _check_bounds(bounds)
-    max_iter = _int_at_least(max_iter, "max_iter", 1, "must be an integer >= 1")
+    max_iter = V.integer(max_iter, "max_iter", minimum=1, maximum=V.MAX_ITERATIONS)
     check_progress(progress)
     if min_sensitivity is None:
         min_sens = MIN_SENSITIVITY_FRACTION * mapped.length

@@ -7,10 +7,11 @@ One module per command group: ``statics`` (solve, sweep, demo), ``compare``, ``c
 (calibrate, calibrate-axial, identify), ``simulate``, ``pcc`` (compare-pcc, pcc-identify),
 ``designs``, ``view``; shared parsing, error handling and output helpers in ``_common``.
 
-Units at the boundary: pressures and loads are read with pint ("30kPa", "0.3bar", "-1 N");
-a bare number is SI (Pa, N, N m). Outputs state their units (table headers, JSON keys,
-column names such as ``tip_x_mm``); every table written is in the dataset schema
-(docs/datasets.md).
+Units at the boundary: quantities carry their units ("30kPa", "0.3bar", "-1 N", "2 ms"),
+read by softrod's restricted unit grammar; a bare non-zero number is refused as ambiguous
+(zero needs no unit; a unit on the last item of a list applies to all). Outputs state their
+units (table headers, JSON keys, column names such as ``tip_x_mm``); every table written is
+in the dataset schema (docs/datasets.md).
 
 Start-up is kept fast (`softrod --help` imports neither numpy nor pandas): the command
 modules import the model, numpy, pandas, scipy, pyarrow and matplotlib inside the commands.
@@ -18,8 +19,9 @@ modules import the model, numpy, pandas, scipy, pyarrow and matplotlib inside th
 ``--quiet`` leaves out progress bars, notes and log lines; ``-v``/``-vv`` show the
 ``softrod`` logger's INFO/DEBUG records on stderr.
 
-Exit codes: 0 success; 2 bad design, input or output path (also click's usage errors);
-3 the solver did not converge. Errors print one red line ``error: <message>`` on stderr.
+Exit codes: 0 success; 1 internal error (a bug); 2 bad design, input or output path (also
+click's usage errors); 3 the solver did not converge. Errors print one red line
+``error: <message>`` on stderr, never a traceback.
 """
 
 from __future__ import annotations
@@ -74,7 +76,34 @@ def _configure_logging(ctx, quiet: bool, verbose: int) -> None:
     ctx.call_on_close(restore)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Main(click.Group):
+    """The softrod group: click's usage errors (a bad option value, a missing argument)
+    print as one red line with exit code 2, like every other error."""
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        try:
+            code = super().main(
+                args, prog_name, complete_var, standalone_mode=False, **extra
+            )
+        except click.ClickException as exc:
+            from ._common import _fail
+
+            hint = ""
+            if isinstance(exc, click.UsageError) and exc.ctx is not None:
+                hint = f" (see: {exc.ctx.command_path} --help)"
+            try:
+                _fail(exc.format_message() + hint, exc.exit_code or 2)
+            except click.exceptions.Exit as done:
+                code = done.exit_code
+        except click.Abort:
+            click.echo("Aborted!", err=True)
+            code = 1
+        if not standalone_mode:
+            return code
+        sys.exit(code if isinstance(code, int) else 0)
+
+
+@click.group(cls=_Main, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, "--version", prog_name="softrod", message="%(prog)s %(version)s")
 @click.option(
     "--quiet",
@@ -95,8 +124,9 @@ def main(ctx, quiet, verbose):
     DESIGN arguments are a TOML file or the name of a bundled design or preset (see
     `softrod designs`); DATA arguments are a .csv/.parquet file or the name of a bundled
     example dataset (spa130_synthetic, paper002_m3_synthetic).
-    Quantities take units ("30kPa", "0.3bar", "-1 N"); a bare number is SI.
-    Exit codes: 0 ok, 2 bad design or input, 3 no convergence.
+    Quantities need units ("30kPa", "0.3bar", "-1 N", "2 ms"); zero needs none, and a unit
+    on the last item of a list applies to all ("10,20,30kPa").
+    Exit codes: 0 ok, 1 internal error, 2 bad design or input, 3 no convergence.
     """
     if quiet and verbose:
         raise click.UsageError("give --quiet or --verbose, not both")

@@ -1,6 +1,11 @@
 """Shared pieces of the ``softrod`` commands: error handling (one red line and an exit code,
 never a traceback), parsing of quantities with units, number formatting, progress columns,
-output checks and staged (all-or-none) writes."""
+output checks and staged (all-or-none) writes.
+
+Quantities on the command line need units: ``--pressure 30kPa,0,0``, ``--dt "2 ms"``. A bare
+non-zero number is refused as ambiguous (30000 what?); zero needs no unit, and a unit on the
+last item of a list applies to every item (``10,20,30kPa``, ``0:70kPa:21``).
+"""
 
 from __future__ import annotations
 
@@ -8,12 +13,13 @@ import contextlib
 import functools
 import math
 import os
-import tempfile
 from pathlib import Path
 
 import click
 
-from ..errors import ConvergenceError, DesignError, InputError, design_error
+from .._limits import MAX_QUANTITY_LENGTH, MAX_THREADS
+from ..errors import ConvergenceError, DesignError, InputError, SoftrodError, design_error
+from ..io import check_target, staged_paths
 
 # Imported inside the functions that need them, never here: numpy, rich, pint (softrod.units)
 # and the model (softrod.design). `softrod --help` imports this module and must stay fast.
@@ -80,29 +86,56 @@ def _fail(message: str, code: int) -> None:
 
 
 def _handle_errors(func):
-    """Turn softrod's exceptions into one red line and an exit code, never a traceback."""
+    """Turn every exception into one red line and an exit code, never a traceback: softrod's
+    errors (2 bad input, 3 no convergence), file-system errors (2), and anything else as an
+    internal error (1; a bug to report; SOFTROD_DEBUG=1 shows the traceback)."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
         try:
             return func(*args, **kwargs)
+        except click.exceptions.Exit:
+            raise
         except ConvergenceError as exc:
             _fail(exc, 3)
         except DesignError as exc:  # includes InputError
             _fail(exc, 2)
+        except SoftrodError as exc:
+            _fail(exc, 2)
         except OSError as exc:
             where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
             _fail(f"{exc.strerror or exc}{where}", 2)
+        except (click.ClickException, click.Abort, KeyboardInterrupt):
+            raise
+        except MemoryError:
+            _fail("out of memory: the computation needs more memory than this machine has", 2)
+        except BaseException as exc:  # a Rust panic (pyo3's PanicException) included
+            if os.environ.get("SOFTROD_DEBUG"):
+                raise
+            _fail(
+                f"internal error {type(exc).__name__}: {exc} (a bug in softrod: please report "
+                "it with the command; SOFTROD_DEBUG=1 shows the traceback)",
+                1,
+            )
 
     return wrapper
 
 
 def _is_bare(text: str) -> bool:
+    """True for a number without a unit ("30000", "0", "1e3")."""
     try:
-        float(text)
+        from .._validate import split_quantity
+
+        return split_quantity(text)[1] == ""
     except ValueError:
         return False
-    return True
+
+
+def _quantity(text: str, kind: str, option: str) -> float:
+    """One quantity of a command-line option: it needs a unit unless it is zero."""
+    from .._validate import quantity
+
+    return quantity(text, kind, option, bare="error")
 
 
 def _parse_quantities(items: list[str], kind: str, fields: list[str]) -> list[float]:
@@ -110,31 +143,26 @@ def _parse_quantities(items: list[str], kind: str, fields: list[str]) -> list[fl
 
     - If only the last item carries a unit, it applies to every item ("0,0,-1 N",
       "10,20,30kPa", and in grids "0:70kPa").
-    - Otherwise every item stands alone and a bare number is SI; but a non-zero bare number
-      next to items with units ("30kPa,5,0") is refused as ambiguous (5 Pa or 5 kPa?).
+    - Otherwise every item stands alone; a bare number other than zero is refused as
+      ambiguous (30000 Pa or 30000 kPa?): it needs its unit.
     """
-    from ..units import registry, to_si
+    from .. import _validate as V
 
     items = [t.strip() for t in items]
     for t, f in zip(items, fields, strict=True):
         if not t:
             raise design_error(f, t, f"is empty: give a {kind} such as '30kPa'", InputError)
+        if len(t) > MAX_QUANTITY_LENGTH:
+            raise design_error(f, t, f"is too long for a {kind}", InputError)
     bare = [_is_bare(t) for t in items]
     if len(items) > 1 and not bare[-1] and all(bare[:-1]):
-        to_si(items[-1], kind, fields[-1], InputError)  # a bad unit is named where it was given
-        unit = registry().Quantity(items[-1]).units
+        V.quantity(items[-1], kind, fields[-1], bare="error")  # a bad unit is named where given
+        unit = V.split_quantity(items[-1])[1]
         items = [f"{t} {unit}" if b else t for t, b in zip(items, bare, strict=True)]
-    elif not all(bare):
-        for t, b, f in zip(items, bare, fields, strict=True):
-            if b and float(t) != 0.0:
-                raise design_error(
-                    f,
-                    t,
-                    "bare number next to values with units is ambiguous: give it a unit "
-                    "(a unit on the last item alone applies to all items)",
-                    InputError,
-                )
-    return [to_si(t, kind, f, InputError) for t, f in zip(items, fields, strict=True)]
+    hint = "(a unit on the last item alone applies to all items)" if len(items) > 1 else ""
+    return [
+        V.quantity(t, kind, f, bare=hint or "error") for t, f in zip(items, fields, strict=True)
+    ]
 
 
 def _parse_vector(text: str, kind: str, option: str, count: int) -> list[float]:
@@ -177,10 +205,8 @@ def _parse_span(text: str, option: str, form: str, check_n) -> tuple[float, floa
     if len(parts) != 3:
         raise design_error(option, text, form, InputError)
     start, stop = _parse_quantities(parts[:2], "pressure", [f"{option}.start", f"{option}.stop"])
-    try:
-        n = int(parts[2])
-    except ValueError:
-        n = 0
+    raw = parts[2].strip()
+    n = int(raw) if raw.isascii() and raw.isdigit() and len(raw) <= 9 else 0
     check_n(start, stop, n, parts[2])
     for name, value, raw in (
         (f"{option}.start", start, parts[0]),
@@ -302,7 +328,11 @@ def _progress_columns() -> tuple:
 def _threads_option(help_text: str):
     """The ``--threads`` option of the commands that solve batches (0 = all cores)."""
     return click.option(
-        "--threads", default=0, show_default=True, type=click.IntRange(min=0), help=help_text
+        "--threads",
+        default=0,
+        show_default=True,
+        type=click.IntRange(min=0, max=MAX_THREADS),
+        help=help_text,
     )
 
 
@@ -327,7 +357,8 @@ def _scheduler(address: str | None):
 
 
 def _check_output(path: Path, option: str, suffixes: tuple[str, ...], what: str) -> Path:
-    """Fail fast on an output path (suffix, existing folder), before a long computation."""
+    """Fail fast on an output path (suffix, an existing writable folder), before a long
+    computation; the error names the option and the target."""
     if path.suffix.lower() not in suffixes:
         raise design_error(
             option,
@@ -335,28 +366,17 @@ def _check_output(path: Path, option: str, suffixes: tuple[str, ...], what: str)
             f"{what}: the file name must end in {' or '.join(suffixes)}",
             InputError,
         )
-    if not path.parent.is_dir():
-        raise design_error(
-            option, str(path), f"folder {str(path.parent)!r} does not exist", InputError
-        )
-    return path
+    return _for_option(check_target, path, option)
 
 
 @contextlib.contextmanager
 def _staged(paths: list[Path]):
-    """Yield a temporary path per destination (same file name, in a hidden folder beside it).
-    When the block succeeds every file is moved into place; when it fails none is, and the
-    destinations are left as they were: several outputs are written all or none."""
-    with contextlib.ExitStack() as stack:
-        staged = []
-        for path in paths:
-            folder = stack.enter_context(
-                tempfile.TemporaryDirectory(dir=path.parent, prefix=f".{path.name}.")
-            )
-            staged.append(Path(folder) / path.name)
+    """Yield a temporary path per destination (beside it, named so that a later write into
+    the folder removes it if this process dies). When the block succeeds every file is moved
+    into place; when it fails none is, and the destinations are left as they were: several
+    outputs are written all or none."""
+    with staged_paths(paths) as staged:
         yield staged
-        for tmp, path in zip(staged, paths, strict=True):
-            os.replace(tmp, path)
 
 
 def _as_option(exc: InputError, renames: dict[str, str], values: dict[str, str] | None = None):

@@ -21,6 +21,7 @@ from ._common import (
     _parse_quantities,
     _print_warnings,
     _progress,
+    _quantity,
     _quiet,
     _renamed,
     _say,
@@ -47,7 +48,7 @@ def _parse_bounds(items: tuple[str, ...], params) -> tuple[dict, dict[str, str]]
     """NAME=LO:HI items -> ({name: (lo, hi) in SI}, {"bounds[name]": the item as typed}).
 
     LO and HI take units ("E=40kPa:200kPa"; a unit on HI alone applies to both, "E=40:200kPa");
-    a bare number is SI. Dimensionless parameters take plain numbers."""
+    a bare number other than 0 is refused. Dimensionless parameters take plain numbers."""
     kinds = {"Pa": "pressure", "m": "length"}
     by_name = {p.name: p for p in params}
     bounds: dict[str, tuple[float, float]] = {}
@@ -277,7 +278,7 @@ def _error_table(result):
     multiple=True,
     metavar="NAME=LO:HI",
     help='Bounds of one parameter, e.g. c_b=0.5:3 or "E=40kPa:200kPa" (a unit on HI alone '
-    "applies to both; a bare number is SI). Repeat for several parameters.",
+    "applies to both; a bare number needs its unit). Repeat for several parameters.",
 )
 @click.option(
     "--max-evaluations",
@@ -564,8 +565,8 @@ def calibrate_axial(
             d,
             out,
             n_chambers=chambers,
-            L0=L0,
-            rigid_length=rigid_length,
+            L0=None if L0 is None else _quantity(L0, "length", "--L0"),
+            rigid_length=_quantity(rigid_length, "length", "--rigid-length"),
             force_law=force_law,
             stiffness=stiffness,
             name=name,

@@ -8,11 +8,13 @@ import click
 
 from ..errors import InputError, design_error
 from ._common import (
+    _check_output,
     _for_option,
     _handle_errors,
     _parse_vector,
     _progress,
     _pyplot,
+    _quantity,
     _say,
     _stdout,
 )
@@ -30,9 +32,24 @@ def _channels(text: str) -> list[int]:
 
 
 def _read_columns(path: Path, needed: list[str]) -> dict:
+    """The SI columns of an array table (CSV or Parquet), each a finite float array."""
+    import io
+
     import pandas as pd
 
-    df = pd.read_parquet(path) if path.suffix.lower() == ".parquet" else pd.read_csv(path)
+    from .. import _validate as V
+    from ..datasets import _read_text
+
+    try:
+        if path.suffix.lower() == ".parquet":
+            df = pd.read_parquet(path)
+        else:
+            df = pd.read_csv(io.StringIO(_read_text(path)))
+    except InputError:
+        raise
+    except Exception as exc:  # pandas and pyarrow raise many types for unreadable tables
+        rule = f"not a CSV/Parquet table: {exc}"
+        raise design_error(str(path), "unreadable", rule, InputError) from None
     missing = [c for c in needed if c not in df.columns]
     if missing:
         raise design_error(
@@ -41,7 +58,11 @@ def _read_columns(path: Path, needed: list[str]) -> dict:
             f"needs the column(s) {', '.join(missing)} (SI units in the names)",
             InputError,
         )
-    return {c: df[c].to_numpy(dtype=float) for c in df.columns}
+    return {
+        c: V.real_array(df[c].to_numpy(), f"{path.name}: {c}", ndim=1)
+        for c in df.columns
+        if c in needed
+    }
 
 
 def _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt):
@@ -50,10 +71,9 @@ def _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt):
 
     from ..dynamics import PressureSchedule
     from ..pcc.compare import compare_pcc_dynamics, plot_pcc_dynamics_comparison
-    from ..units import to_si
 
-    duration = to_si(t_end, "time", "--t-end", InputError)
-    step = to_si(dt, "time", "--dt", InputError)
+    duration = _quantity(t_end, "time", "--t-end")
+    step = _quantity(dt, "time", "--dt")
     for name, value, given in (("--t-end", duration, t_end), ("--dt", step, dt)):
         if not value > 0:
             raise design_error(name, given, "must be > 0 s", InputError)
@@ -133,7 +153,6 @@ def compare_pcc_cmd(
     from ..catalog import load_design
     from ..io import atomic_path, check_table_path, write_table
     from ..pcc.compare import compare_pcc, plot_pcc_comparison
-    from ..units import to_si
 
     d = load_design(design)
     chans = _channels(channels)
@@ -141,10 +160,9 @@ def compare_pcc_cmd(
         raise design_error(
             "--channels", channels, f"must be channel indices 0..{d.n_channels - 1}", InputError
         )
-    pmax = to_si(p_max, "pressure", "--p-max", InputError)
+    pmax = _quantity(p_max, "pressure", "--p-max")
     force = _parse_vector(tip_force, "force", "--tip-force", 3)
-    if out.suffix.lower() not in (".png", ".pdf", ".svg"):
-        raise design_error("--out", str(out), "must end in .png, .pdf or .svg", InputError)
+    out = _check_output(out, "--out", (".png", ".pdf", ".svg"), "a figure")
     if table is not None:
         table = _for_option(check_table_path, table, "--table")
     if input_path is not None and not dynamic:
@@ -234,7 +252,6 @@ def pcc_identify(
     from ..datasets import example_dataset_path, example_datasets
     from ..pcc import identify as idf
     from ..pcc.model import pcc_parameters
-    from ..units import to_si
 
     if not data.exists() and data.suffix == "" and str(data) in example_datasets():
         data = example_dataset_path(str(data))
@@ -249,17 +266,7 @@ def pcc_identify(
 
     if write_design is not None:
         need_design("--write-design")
-        if write_design.suffix.lower() != ".toml":
-            raise design_error(
-                "--write-design", str(write_design), "must end in .toml", InputError
-            )
-        if not write_design.parent.is_dir():
-            raise design_error(
-                "--write-design",
-                str(write_design),
-                f"folder {str(write_design.parent)!r} does not exist",
-                InputError,
-            )
+        write_design = _check_output(write_design, "--write-design", (".toml",), "a design file")
     console = _stdout()
     if kind == "all" or _is_dataset(data):
         fit = _identify_dataset(
@@ -298,7 +305,7 @@ def pcc_identify(
         elif kind == "longitudinal-damping":
             cols = _read_columns(data, ["t_s", "z_m"])
             k = (
-                to_si(k_l, "force_per_length", "--k-L", InputError)
+                _quantity(k_l, "force_per_length", "--k-L")
                 if k_l
                 else pcc_parameters(need_design("k_L"))[0]["k_L"]
             )
@@ -306,7 +313,7 @@ def pcc_identify(
         else:
             cols = _read_columns(data, ["t_s", "theta_rad"])
             k = (
-                to_si(k_theta, "moment", "--k-theta", InputError)
+                _quantity(k_theta, "moment", "--k-theta")
                 if k_theta
                 else pcc_parameters(need_design("k_theta"))[0]["k_theta"]
             )
@@ -331,13 +338,22 @@ KIND_PARAMETERS = {
 
 def _columns(path: Path) -> list[str]:
     """The column names of a CSV (after its # comment lines) or Parquet file."""
-    import pandas as pd
+    import csv
 
-    if path.suffix.lower() == ".parquet":
-        import pyarrow.parquet as pq
+    from ..datasets import _read_text
 
-        return list(pq.read_schema(path).names)
-    return [str(c).strip() for c in pd.read_csv(path, comment="#", nrows=0).columns]
+    try:
+        if path.suffix.lower() == ".parquet":
+            import pyarrow.parquet as pq
+
+            return list(pq.read_schema(path).names)
+        lines = (line for line in _read_text(path).splitlines() if not line.startswith("#"))
+        return [c.strip() for c in next(csv.reader(lines), [])]
+    except InputError:
+        raise
+    except Exception as exc:  # pyarrow and csv raise their own types for unreadable files
+        rule = f"not a CSV/Parquet table: {exc}"
+        raise design_error(str(path), "unreadable", rule, InputError) from None
 
 
 def _is_dataset(path: Path) -> bool:

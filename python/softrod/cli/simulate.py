@@ -11,7 +11,7 @@ from pathlib import Path
 import click
 
 from ..errors import InputError, design_error
-from ._common import _check_output, _handle_errors, _quiet, _say, _staged, _stdout
+from ._common import _check_output, _handle_errors, _quantity, _quiet, _say, _staged, _stdout
 
 TRAJECTORY_SUFFIXES = (".parquet", ".npz")
 ANIMATION_SUFFIXES = (".gif", ".mp4")
@@ -20,9 +20,7 @@ BUILTIN_PULSES = {"paper000": "paper 000 Fig. 3 style square pulses (116 s, 3 ch
 
 
 def _seconds(text: str, option: str, *, positive: bool = True) -> float:
-    from ..units import to_si
-
-    x = to_si(text, "time", option, InputError)
+    x = _quantity(text, "time", option)
     if positive and not x > 0:
         raise design_error(option, text, "must be > 0 s", InputError)
     return x
@@ -53,7 +51,7 @@ def _seconds(text: str, option: str, *, positive: bool = True) -> float:
 @click.option(
     "--t-end",
     "t_end",
-    help="Simulated time, e.g. 10 or '10 s' (default: the schedule's last time).",
+    help="Simulated time with its unit, e.g. '10 s' (default: the schedule's last time).",
 )
 @click.option("--dt", default="2 ms", show_default=True, help="Time step.")
 @click.option(

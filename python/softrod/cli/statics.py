@@ -111,7 +111,7 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
     "-p",
     metavar="P1,P2,...",
     help="Gauge pressure per channel, comma-separated, e.g. 30kPa,0,0 or 0.3bar,0,0. "
-    "A bare number is Pa; a unit on the last item alone applies to all. "
+    "Units are required (zero needs none); a unit on the last item alone applies to all. "
     "Default: 0 on every channel.",
 )
 @click.option(

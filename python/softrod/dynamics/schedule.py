@@ -19,7 +19,6 @@ perfect vacuum); every value must be finite.
 
 from __future__ import annotations
 
-import math
 import os
 import re
 from collections.abc import Callable, Sequence
@@ -28,8 +27,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
 from ..datasets import (
     DEFAULT_UNITS,
+    _channel,
+    _check_dtype,
     _check_duplicates,
     _fail,
     _read_csv,
@@ -43,7 +45,7 @@ from ..io import metadata_json as _metadata_json
 
 __all__ = ["KINDS", "VACUUM_PA", "PressureSchedule"]
 
-VACUUM_PA = -101325.0  # the lowest gauge pressure there is (absolute zero at 1 atm ambient)
+VACUUM_PA = V.VACUUM_PA  # the lowest gauge pressure there is (absolute zero at 1 atm ambient)
 KINDS = ("linear", "step")  # kinds of tabulated schedules (files and constructors)
 
 # Schedule columns: time_<unit> and p<k>_<unit> (the datasets' base names and unit rules).
@@ -57,10 +59,7 @@ def _is_int(x) -> bool:
 
 def _times(values, field: str = "times") -> np.ndarray:
     """Knot times: 1-d, non-empty, finite, >= 0, strictly increasing (s)."""
-    try:
-        t = np.array(values, dtype=float)
-    except (TypeError, ValueError):
-        raise _fail(field, values, "must be a 1-d sequence of numbers (s)") from None
+    t = V.real_array(values, field, max_size=V.MAX_ROWS, what="times (s)")
     if t.ndim != 1 or t.size == 0:
         raise _fail(field, f"shape {t.shape}", "must be a non-empty 1-d array of times (s)")
     bad = np.flatnonzero(~np.isfinite(t))
@@ -82,11 +81,8 @@ def _times(values, field: str = "times") -> np.ndarray:
 
 def _pressures(values, n: int | None, field: str = "pressures") -> np.ndarray:
     """(n, channels) finite gauge pressures >= VACUUM_PA (Pa)."""
-    try:
-        p = np.array(values, dtype=float)
-    except (TypeError, ValueError):
-        raise _fail(field, values, "must be an (n, channels) array of numbers (Pa)") from None
-    if p.ndim != 2 or p.shape[1] < 1:
+    p = V.real_array(values, field, max_size=V.MAX_ROWS * V.MAX_CHANNELS, what="pressures (Pa)")
+    if p.ndim != 2 or p.shape[1] < 1 or p.shape[1] > V.MAX_CHANNELS:
         raise _fail(
             field,
             f"shape {p.shape}",
@@ -121,17 +117,11 @@ def _readonly(a: np.ndarray) -> np.ndarray:
 
 
 def _n_channels(n, field: str = "n_channels") -> int:
-    if not _is_int(n) or n < 1:
-        raise _fail(field, n, "must be an integer >= 1")
-    return int(n)
+    return V.integer(n, field, minimum=1, maximum=V.MAX_CHANNELS)
 
 
 def _positive(x, field: str, *, zero: bool = False) -> float:
-    ok = isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, bool)
-    if not ok or not math.isfinite(x) or x < 0 or (x == 0 and not zero):
-        rule = ">= 0" if zero else "> 0"
-        raise _fail(field, x, f"must be a finite number {rule} (s)")
-    return float(x)
+    return V.real(x, field, minimum=0.0, exclusive=not zero, what="a number of seconds")
 
 
 class PressureSchedule:
@@ -208,7 +198,7 @@ class PressureSchedule:
             raise _fail(
                 "pressures", pressures, "must be a 1-d sequence of pressures, one per channel (Pa)"
             )
-        return cls("step", [0.0], np.array(pressures, dtype=float)[None, :])
+        return cls("step", [0.0], V.real_array(pressures, "pressures")[None, :])
 
     @classmethod
     def from_callable(cls, fn: Callable[[float], Sequence[float]], n_channels: int):
@@ -259,12 +249,14 @@ class PressureSchedule:
         start = _positive(start, "start", zero=True)
         if not _numeric(base) or np.ndim(base) > 1 or (np.ndim(base) == 1 and np.size(base) != n):
             raise _fail("base", base, f"must be one pressure or one per channel ({n}), Pa")
-        b = np.broadcast_to(np.array(base, dtype=float), (n,)).copy()
+        b = np.broadcast_to(V.real_array(base, "base", what="pressures (Pa)"), (n,)).copy()
         _check_values(b[None, :], lambda i: "base")
         if isinstance(pulses, (str, bytes)) or not isinstance(pulses, Sequence) or not pulses:
             raise _fail(
                 "pulses", pulses, "must be a non-empty sequence of (channels, pressure, duration)"
             )
+        if len(pulses) > V.MAX_ROWS // 2:
+            raise _fail("pulses", f"{len(pulses)} pulses", f"too many: at most {V.MAX_ROWS // 2}")
         times: list[float] = []
         rows: list[np.ndarray] = []
 
@@ -299,7 +291,7 @@ class PressureSchedule:
                 raise _fail(f"{field}.channels", channels, "lists a channel twice")
             if not _numeric(level) or np.ndim(level) > 1:
                 raise _fail(f"{field}.pressure", level, "must be a number or a list (Pa)")
-            lv = np.array(level, dtype=float)
+            lv = V.real_array(level, f"{field}.pressure", what="pressures (Pa)")
             if lv.ndim == 1 and lv.size != len(chans):
                 raise _fail(
                     f"{field}.pressure",
@@ -434,12 +426,9 @@ class PressureSchedule:
         """Commanded pressures at ``times`` (s; a number or a 1-d array): (len(times),
         n_channels) in Pa. A number gives one row. Times must be finite; they may lie before
         the first or after the last knot (the end values hold there)."""
-        t = np.atleast_1d(np.array(times, dtype=float))
+        t = np.atleast_1d(V.real_array(times, "times", max_size=V.MAX_ROWS, what="times (s)"))
         if t.ndim != 1:
             raise _fail("times", f"shape {t.shape}", "must be a number or a 1-d array (s)")
-        bad = np.flatnonzero(~np.isfinite(t))
-        if bad.size:
-            raise _fail(f"times[{bad[0]}]", t[bad[0]].item(), "must be finite (s)")
         if self._kind == "callable":
             return self._call(t)
         kt, kp = self._times, self._pressures
@@ -453,12 +442,9 @@ class PressureSchedule:
         out = np.empty((t.size, self._n))
         for i, ti in enumerate(t):
             raw = self._fn(float(ti))
-            try:
-                row = np.array(raw, dtype=float)
-            except (TypeError, ValueError):
-                raise _fail(
-                    f"fn(t = {ti:g} s)", raw, f"must return {self._n} numbers (Pa)"
-                ) from None
+            row = V.real_array(
+                raw, f"fn(t = {ti:g} s)", max_size=V.MAX_CHANNELS, what="numbers (Pa)"
+            )
             if row.ndim == 0 and self._n == 1:
                 row = row.reshape(1)
             if row.shape != (self._n,):
@@ -537,14 +523,15 @@ class PressureSchedule:
 
 
 def _numeric(x) -> bool:
-    """True if ``x`` converts to a float array (a number or nested sequences of numbers)."""
-    if isinstance(x, (str, bytes, bool)):
-        return False
+    """True if ``x`` is a number or nested sequences of numbers (no bools, text, complex or
+    masked values)."""
+    if V.is_real(x):
+        return True
     try:
-        a = np.array(x, dtype=float)
-    except (TypeError, ValueError):
+        V.real_array(x, "x", max_size=V.MAX_ROWS * V.MAX_CHANNELS)
+    except InputError:
         return False
-    return a.dtype.kind == "f"
+    return True
 
 
 def _from_frame(df: pd.DataFrame, units: dict, where: _Where, extra: str):
@@ -565,6 +552,8 @@ def _from_frame(df: pd.DataFrame, units: dict, where: _Where, extra: str):
             unknown.append(name)
             continue
         base, unit = m["base"], m["unit"]
+        if base != "time":
+            _channel(base, name)
         kind = "time" if base == "time" else "pressure"
         if unit is not None and name in units:
             raise _fail(name, units[name], "unit given twice: in the column name and units block")
@@ -605,9 +594,12 @@ def _from_frame(df: pd.DataFrame, units: dict, where: _Where, extra: str):
         )
     if len(df) == 0:
         raise _fail("rows", 0, "the table has no data rows")
+    if len(df) > V.MAX_ROWS:
+        raise _fail("rows", len(df), f"too many rows: at most {V.MAX_ROWS:,}")
     values = {}
     for base, (col, factor) in columns.items():
         raw = df[col]
+        _check_dtype(raw, col)
         num = pd.to_numeric(raw, errors="coerce")
         a = num.to_numpy(dtype=float)
         missing_rows = np.flatnonzero(raw.isna().to_numpy())

@@ -19,11 +19,11 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from .. import _core
+from .. import _validate as V
 from ..catalog import load_design
 from ..design import Design
 from ..errors import InputError, design_error
 from ..progress import reporter
-from ..units import to_si
 from .schedule import PressureSchedule
 from .trajectory import Trajectory
 
@@ -61,10 +61,50 @@ def simulated_time(done: float, total: float, wall: float) -> tuple[float, str]:
 
 
 def _seconds(value, field: str, *, positive: bool = True) -> float:
-    x = to_si(value, "time", field, InputError)
+    x = V.quantity(value, "time", field)
     if positive and x <= 0:
         raise design_error(field, value, "must be > 0 s", InputError)
     return x
+
+
+def step_count(duration: float, dt: float, field: str = "t_end") -> int:
+    """ceil(duration / dt) time steps, refused beyond MAX_DYNAMIC_STEPS before anything is
+    allocated (a 1e-9 s step over 1 s would otherwise build a 1e9-row command table)."""
+    ratio = duration / dt * (1.0 - 1e-12)
+    if not ratio <= V.MAX_DYNAMIC_STEPS:
+        raise design_error(
+            field,
+            f"{duration:g} s at dt = {dt:g} s",
+            f"needs {ratio:.3g} time steps; the limit is {V.MAX_DYNAMIC_STEPS:,} per run "
+            "(use a larger dt, a shorter run, or several runs continued with initial=)",
+            InputError,
+        )
+    return max(1, math.ceil(ratio))
+
+
+def _save_every(save_every) -> int:
+    return V.integer(save_every, "save_every", minimum=1, maximum=V.MAX_DYNAMIC_STEPS)
+
+
+def _check_saved(n: int, save_every: int, shape_rows: int, nodes: int) -> None:
+    """Refuse runs whose trajectory would not fit the documented limits."""
+    saved = n // save_every + 2
+    if saved > V.MAX_SAVED_SAMPLES:
+        raise design_error(
+            "save_every",
+            save_every,
+            f"keeps {saved:,} samples of {n:,} steps; the limit is {V.MAX_SAVED_SAMPLES:,} "
+            "(keep every n-th step with a larger save_every)",
+            InputError,
+        )
+    if shape_rows * nodes > V.MAX_SHAPE_POINTS:
+        raise design_error(
+            "shapes",
+            f"{shape_rows:,} shapes of {nodes} nodes",
+            f"would keep {shape_rows * nodes:,} centreline points; the limit is "
+            f"{V.MAX_SHAPE_POINTS:,} (keep fewer shapes)",
+            InputError,
+        )
 
 
 def _schedule(schedule, n_channels: int) -> PressureSchedule:
@@ -113,30 +153,27 @@ class Simulation:
         tol: float = 1e-9,
         max_iter: int = 25,
     ):
+        from ..statics import _pressures
+
         self.design: Design = load_design(design)
         _no_stiffness_map(self.design)
         n = self.design.n_channels
-        p = np.zeros(n) if pressures is None else np.asarray(pressures, dtype=float)
-        if p.shape != (n,):
-            raise design_error(
-                "pressures",
-                list(np.ravel(p)),
-                f"the design has {n} pressure channels; give one gauge pressure (Pa) each",
-                InputError,
-            )
-        if initial not in ("static", "straight"):
-            raise design_error("initial", initial, "must be 'static' or 'straight'", InputError)
+        p = [0.0] * n if pressures is None else _pressures(self.design, pressures)
+        V.choice(initial, ("static", "straight"), "initial")
+        alpha = V.real(alpha, "alpha", minimum=-0.5, maximum=0.0)
+        tol = V.real(tol, "tol", minimum=0.0, exclusive=True, maximum=1.0)
+        max_iter = V.integer(max_iter, "max_iter", minimum=1, maximum=V.MAX_ITERATIONS)
         self._sim = _core.Simulator(
-            json.dumps(self.design.spec),
-            p.tolist(),
+            json.dumps(self.design.spec, allow_nan=False),
+            p,
             initial,
             _seconds(dt, "dt"),
-            float(alpha),
-            float(tol),
-            int(max_iter),
+            alpha,
+            tol,
+            max_iter,
         )
         self.initial = initial
-        self.alpha = float(alpha)
+        self.alpha = alpha
 
     @classmethod
     def _wrap(cls, design: Design, sim, initial: str, alpha: float) -> Simulation:
@@ -188,11 +225,17 @@ class Simulation:
 
     def set_tip_loads(self, force=(0.0, 0.0, 0.0), moment=(0.0, 0.0, 0.0)) -> None:
         """Dead tip force (N) and moment (N m), world frame, from the next step on."""
-        self._sim.set_tip_loads([float(x) for x in force], [float(x) for x in moment])
+        from ..statics import _vec3
+
+        f = _vec3(force, "force", "force", None)
+        m = _vec3(moment, "moment", "moment", None)
+        self._sim.set_tip_loads(f, m)
 
     def step(self, command) -> None:
         """One time step towards the commanded pressures ``command`` (Pa)."""
-        c = np.asarray(command, dtype=float).reshape(1, -1)
+        from ..statics import _pressures
+
+        c = np.asarray([_pressures(self.design, command)], dtype=float)
         self._sim.run(c, np.zeros(1, dtype=np.uint8), False)
 
     def run(
@@ -210,32 +253,32 @@ class Simulation:
         :func:`simulate` for the arguments."""
         dt = self.dt
         duration = _seconds(duration, "t_end")
-        n = max(1, math.ceil(duration / dt * (1.0 - 1e-12)))
-        if isinstance(save_every, bool) or not isinstance(save_every, int | np.integer):
-            raise design_error("save_every", save_every, "must be an integer >= 1", InputError)
-        if save_every < 1:
-            raise design_error("save_every", save_every, "must be an integer >= 1", InputError)
+        n = step_count(duration, dt)
+        save_every = _save_every(save_every)
+        V.boolean(energy, "energy")
         schedule = _schedule(pressure_schedule, self.design.n_channels)
         t0 = self.time
+        shape_steps, want_shape0 = _shape_steps(shapes, n, dt, save_every)
+        nodes = len(self._sim.snapshot()["shape_s"])
+        _check_saved(n, save_every, len(shape_steps) + int(want_shape0), nodes)
         keep = np.zeros(n, dtype=np.uint8)
         keep[save_every - 1 :: save_every] = 1
         keep[-1] = 1
-        shape_steps, want_shape0 = _shape_steps(shapes, n, dt, save_every)
         keep[shape_steps] = 2
-        times = t0 + dt * np.arange(1, n + 1)
-        commands = schedule.sample(times)
         first = self._sim.snapshot()
         parts = [first]
+        kept_commands = [schedule.sample([t0])]
         wall0 = _time.perf_counter()
         start, chunk = 0, 32
         with reporter(progress, "simulate", duration, simulated_time) as report:
             while start < n:
                 stop = min(n, start + chunk)
                 t_chunk = _time.perf_counter()
+                # Commands are sampled chunk by chunk: memory stays bounded by the chunk size.
+                commands = schedule.sample(t0 + dt * np.arange(start + 1, stop + 1))
+                kept_commands.append(commands[keep[start:stop] >= 1])
                 parts.append(
-                    self._sim.run(
-                        np.ascontiguousarray(commands[start:stop]), keep[start:stop], bool(energy)
-                    )
+                    self._sim.run(np.ascontiguousarray(commands), keep[start:stop], bool(energy))
                 )
                 spent = _time.perf_counter() - t_chunk
                 # Size the next chunk for about _CHUNK_WALL_S of work.
@@ -253,7 +296,6 @@ class Simulation:
             (n * dt) / wall if wall > 0 else math.inf,
         )
         cat = lambda key: np.concatenate([p[key] for p in parts])  # noqa: E731
-        command0 = schedule.sample([t0])
         shape_parts = [p for p in (parts if want_shape0 else parts[1:]) if len(p["shape_time"])]
         metadata = {
             "design": self.design.name,
@@ -270,7 +312,7 @@ class Simulation:
         }
         return Trajectory(
             time=cat("time"),
-            command=np.concatenate([command0, commands[keep >= 1]]),
+            command=np.concatenate(kept_commands),
             pressure=cat("pressure"),
             tip_position=cat("tip_position"),
             tip_rotation=cat("tip_rotation"),
@@ -298,16 +340,16 @@ def _shape_steps(shapes, n: int, dt: float, save_every: int) -> tuple[np.ndarray
             )
         idx = np.arange(save_every - 1, n, save_every)
         return np.unique(np.append(idx, n - 1)), True
-    arr = np.atleast_1d(np.asarray(shapes, dtype=float))
-    if arr.ndim == 1 and arr.size == 1 and not isinstance(shapes, Sequence | np.ndarray):
-        every = max(1, round(float(arr[0]) / dt))
-        if not (math.isfinite(arr[0]) and arr[0] > 0):
-            raise design_error("shapes", shapes, "an interval must be > 0 s", InputError)
+    if V.is_real(shapes):
+        interval = V.real(shapes, "shapes", minimum=0.0, exclusive=True, what="an interval (s)")
+        # At most one shape per step: a tiny interval means every step, not 1e12 indices.
+        every = max(1, round(min(interval / dt, n + 1)))
         return np.arange(every - 1, n, every), True
     # Chosen instants, relative to the start of the run: the nearest step.
-    if not np.all(np.isfinite(arr)) or np.any(arr < 0):
-        raise design_error("shapes", list(arr), "times must be finite and >= 0 s", InputError)
-    steps = np.rint(arr / dt).astype(int)
+    arr = V.real_array(shapes, "shapes", ndim=1, max_size=V.MAX_SAVED_SAMPLES, what="times (s)")
+    if np.any(arr < 0):
+        raise design_error("shapes", "negative times", "times must be >= 0 s", InputError)
+    steps = np.rint(np.minimum(arr / dt, n + 1)).astype(int)
     return np.unique(np.clip(steps[steps > 0] - 1, 0, n - 1)), bool(np.any(steps == 0))
 
 
@@ -360,8 +402,7 @@ def simulate(
     real-time factor. A step that does not converge raises ``ConvergenceError`` with the
     time it failed at.
     """
-    if model not in ("cosserat", "pcc"):
-        raise design_error("model", model, "must be 'cosserat' or 'pcc'", InputError)
+    V.choice(model, ("cosserat", "pcc"), "model")
     if model == "pcc":
         return _simulate_pcc(
             design,
@@ -427,19 +468,19 @@ def _simulate_pcc(
     schedule = _schedule(pressure_schedule, d.n_channels)
     step = _seconds(dt, "dt")
     duration = _seconds(t_end, "t_end")
-    if isinstance(save_every, bool) or not isinstance(save_every, int | np.integer):
-        raise design_error("save_every", save_every, "must be an integer >= 1", InputError)
-    if save_every < 1:
-        raise design_error("save_every", save_every, "must be an integer >= 1", InputError)
-    n = max(1, math.ceil(duration / step * (1.0 - 1e-12)))
-    shape_steps, shape0 = _shape_steps(shapes, n, step, int(save_every))
+    save_every = _save_every(save_every)
+    n = step_count(duration, step)
+    shape_steps, shape0 = _shape_steps(shapes, n, step, save_every)
+    _check_saved(n, save_every, len(shape_steps) + int(shape0), 33 * len(d.spec["sections"]) + 1)
+    kw["tol"] = V.real(kw["tol"], "tol", minimum=0.0, exclusive=True, maximum=1.0)
+    kw["max_iter"] = V.integer(kw["max_iter"], "max_iter", minimum=1, maximum=V.MAX_ITERATIONS)
     with reporter(kw.pop("progress"), "simulate (PCC)", duration, simulated_time) as report:
         return simulate_pcc(
             d,
             schedule,
             duration,
             dt=step,
-            save_every=int(save_every),
+            save_every=save_every,
             shape_steps=shape_steps,
             shape_at_start=shape0,
             initial=initial,

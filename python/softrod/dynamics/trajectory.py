@@ -28,9 +28,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
 from ..datasets import _fail
 from ..errors import InputError
-from ..io import atomic_path
+from ..io import atomic_path, check_target
 from ..io import metadata_json as _metadata_json
 from ..schema import Extra, schema_frame
 from ..schema import unit_factor as _unit_factor
@@ -558,16 +559,8 @@ class Trajectory:
             ) as report,
             atomic_path(path) as tmp,
         ):
-            # The writers pick the format from the file name, so render to a sibling with the
-            # right suffix and move it onto the temporary file.
-            media = tmp.with_name(tmp.name + suffix)
-            try:
-                self._render(
-                    media, frames, plan.fps, trail, elev, azim, dpi, figsize, report
-                )
-                os.replace(media, tmp)
-            finally:
-                media.unlink(missing_ok=True)
+            # The temporary's name ends in the target's, so the writers pick the format.
+            self._render(tmp, frames, plan.fps, trail, elev, azim, dpi, figsize, report)
         logger.info("animate %s: written in %.2f s", path.name, time.perf_counter() - t0)
         return path
 
@@ -754,7 +747,7 @@ def _check_path(path, *, must_exist: bool = False) -> Path:
         )
     if must_exist and not path.is_file():
         raise _fail("path", str(path), "no such file")
-    return path
+    return path if must_exist else check_target(path)
 
 
 def _json_block(raw, key: str) -> dict:
@@ -762,8 +755,11 @@ def _json_block(raw, key: str) -> dict:
         value = json.loads(raw if isinstance(raw, str) else raw.decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise _fail(key, str(raw)[:80], f"is not valid JSON ({exc})") from None
+    except RecursionError:
+        raise _fail(key, str(raw)[:80], "is nested too deeply") from None
     if not isinstance(value, dict):
         raise _fail(key, value, "must be a JSON object")
+    V.check_depth(value, key)
     return value
 
 
@@ -793,15 +789,22 @@ def _load_npz(path: Path) -> Trajectory:
     except Exception as exc:  # zipfile / numpy raise several types for broken files
         raise _fail("file", str(path), f"is not a readable .npz file: {exc}") from None
     with data:
-        fmt = str(data["format"]) if "format" in data.files else None
+        try:
+            fmt = str(data["format"]) if "format" in data.files else None
+        except Exception as exc:  # a damaged archive: zipfile, zlib and numpy errors
+            raise _fail("file", str(path), f"is a damaged .npz file: {exc}") from None
         if fmt is None or not fmt.startswith(_NPZ_FORMAT + "/"):
             raise _fail("format", fmt, "not a softrod trajectory file (written by save)")
         _check_format(fmt.split("/", 1)[1], "format")
         missing = [n for n in (*_FIELDS, "metadata_json") if n not in data.files]
         if missing:
             raise _fail("arrays", sorted(data.files), f"missing {', '.join(missing)}")
-        arrays = {n: data[n] for n in _FIELDS}
-        meta = _json_block(str(data["metadata_json"]), "metadata_json")
+        try:
+            arrays = {n: data[n] for n in _FIELDS}
+            meta_text = str(data["metadata_json"])
+        except Exception as exc:  # a damaged archive: zipfile, zlib and numpy errors
+            raise _fail("file", str(path), f"is a damaged .npz file: {exc}") from None
+        meta = _json_block(meta_text, "metadata_json")
     return Trajectory(**arrays, metadata=meta)
 
 

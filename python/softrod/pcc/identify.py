@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import curve_fit, least_squares
 
+from .._validate import si_text
 from ..catalog import load_design
 from ..design import Design
 from ..errors import ConvergenceError, InputError, design_error
@@ -101,8 +102,8 @@ class PccFit:
             if key == "k_theta" and self.table is not None:
                 angles, stiff = self.table
                 changes["pcc.k_theta"] = {
-                    "angle": [float(a) for a in angles],
-                    "stiffness": [float(k) for k in stiff],
+                    "angle": [si_text(a, "angle") for a in angles],
+                    "stiffness": [si_text(k, "moment") for k in stiff],
                 }
             else:
                 changes[f"pcc.{key}"] = f"{float(val)!r} {SI_UNIT[_UNITS[key]]}"

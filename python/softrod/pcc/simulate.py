@@ -50,8 +50,6 @@ def simulate_pcc(
     design = load_design(design)
     model = pcc_model(design)
     n = max(1, math.ceil(t_end / dt * (1.0 - 1e-12)))
-    times = dt * np.arange(n + 1)
-    commands = np.ascontiguousarray(schedule.sample(times))
     if initial == "static":
         state = ("static", None, None)
     elif initial == "straight":
@@ -71,10 +69,11 @@ def simulate_pcc(
     parts: list[dict] = []
     wall0 = _time.perf_counter()
     start, chunk = 0, max(every, 256 - 256 % every)
-    pressure_now = commands[0]
+    pressure_now = schedule.sample([0.0])[0]
     while start < n:
         stop = min(n, start + chunk)
-        rows = commands[start : stop + 1].copy()
+        # Commands sampled chunk by chunk: memory stays bounded by the chunk size.
+        rows = np.ascontiguousarray(schedule.sample(dt * np.arange(start, stop + 1)))
         rows[0] = pressure_now  # the supply continues from the pressures reached
         kind, a, b = state
         t_chunk = _time.perf_counter()
@@ -128,7 +127,7 @@ def simulate_pcc(
     }
     return Trajectory(
         time=steps[sel] * dt,
-        command=commands[steps[sel]],
+        command=schedule.sample(dt * steps[sel]),
         pressure=cat("pressure")[sel],
         tip_position=cat("tip_position")[sel],
         tip_rotation=cat("tip_rotation")[sel],

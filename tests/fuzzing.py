@@ -1,0 +1,608 @@
+"""The fuzz harness: hostile cases run in worker subprocesses with a time and a memory limit,
+and every outcome classified (docs/errors.md, "The fuzz suite").
+
+A case is ``(target, payload)``: the name of a function below (``TARGETS``) and plain data
+(documents, arrays, argument lists, file bytes) that it feeds to softrod. A worker runs it
+and reports one of
+
+- ``ok``: accepted, and the result passed its validity checks (finite, rotations
+  orthonormal, stretch > 0, exit code 0, ...);
+- ``error``: a clean softrod error (DesignError/InputError naming field and rule,
+  ConvergenceError, or a CLI exit 2/3 with one ``error:`` line);
+- ``defect``: anything else, with its class (``raw exception``, ``invalid result``,
+  ``unclear error``, ``internal error``, ``numpy warning``), or, seen from the parent, a
+  ``crash`` (the worker died: abort, signal, out of memory) or a ``timeout``.
+
+Run as ``python fuzzing.py --worker`` it is a worker: length-prefixed pickles in on stdin,
+out on stdout. :class:`Pool` starts and restarts the workers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import pickle
+import select
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+import traceback
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+# Limits of one case. The memory limit is on the worker's address space (RLIMIT_AS): a case
+# that tries to allocate gigabytes fails there (MemoryError or an abort), which is a defect.
+CASE_TIMEOUT_S = 20.0
+MEMORY_LIMIT_BYTES = 3 * 2**30
+ROTATION_TOLERANCE = 1e-6  # |R^T R - I| at a node (the core's rule, docs/model.md)
+MAX_MESSAGE = 2000  # characters of an error message; longer ones are a defect (unreadable)
+DEFAULT_OPTIONS = "<default solver options>"  # a case's options: softrod's defaults
+
+DEFECT_CLASSES = (
+    "crash",
+    "timeout",
+    "raw exception",
+    "internal error",
+    "invalid result",
+    "unclear error",
+    "numpy warning",
+)
+
+
+@dataclass
+class Outcome:
+    kind: str  # "ok", "error" or "defect"
+    defect: str = ""  # the defect class (DEFECT_CLASSES)
+    detail: str = ""
+    seconds: float = 0.0
+
+
+@dataclass
+class Stats:
+    """Counts of outcomes per target, and the defects seen (case and outcome)."""
+
+    counts: dict = field(default_factory=dict)
+    defects: list = field(default_factory=list)
+
+    def add(self, target: str, case, outcome: Outcome) -> None:
+        key = (target, outcome.kind if outcome.kind != "defect" else outcome.defect)
+        self.counts[key] = self.counts.get(key, 0) + 1
+        if outcome.kind == "defect":
+            self.defects.append((target, case, outcome))
+
+    @property
+    def total(self) -> int:
+        return sum(self.counts.values())
+
+    def table(self) -> str:
+        targets = sorted({t for t, _ in self.counts})
+        kinds = ["ok", "error", *DEFECT_CLASSES]
+        rows = [f"{'target':<14}" + "".join(f"{k:>15}" for k in kinds)]
+        for t in targets:
+            rows.append(f"{t:<14}" + "".join(f"{self.counts.get((t, k), 0):>15}" for k in kinds))
+        return "\n".join(rows)
+
+
+# --- the parent side -----------------------------------------------------------------------------
+
+
+def _send(stream, obj) -> None:
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    stream.write(struct.pack("<Q", len(data)) + data)
+    stream.flush()
+
+
+class _Worker:
+    def __init__(self):
+        self.log = tempfile.TemporaryFile()
+        env = dict(os.environ)
+        env.update(
+            OMP_NUM_THREADS="1",
+            OPENBLAS_NUM_THREADS="1",
+            MKL_NUM_THREADS="1",
+            MALLOC_ARENA_MAX="2",
+            MPLBACKEND="Agg",
+            RAYON_NUM_THREADS="2",
+        )
+        self.proc = subprocess.Popen(
+            [sys.executable, str(Path(__file__).resolve()), "--worker"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=self.log,
+            env=env,
+        )
+        self.buffer = b""
+
+    def send(self, case) -> None:
+        _send(self.proc.stdin, case)
+
+    def receive(self, timeout: float):
+        """The worker's answer, or None if it died or timed out (then it is killed)."""
+        deadline = time.monotonic() + timeout
+        fd = self.proc.stdout.fileno()
+        while True:
+            if len(self.buffer) >= 8:
+                (n,) = struct.unpack("<Q", self.buffer[:8])
+                if len(self.buffer) >= 8 + n:
+                    data, self.buffer = self.buffer[8 : 8 + n], self.buffer[8 + n :]
+                    return pickle.loads(data)
+            left = deadline - time.monotonic()
+            if left <= 0:
+                self.kill()
+                return None
+            ready, _, _ = select.select([fd], [], [], left)
+            if ready:
+                chunk = os.read(fd, 1 << 20)
+                if not chunk:  # the worker died
+                    self.proc.wait()
+                    return None
+                self.buffer += chunk
+
+    def stderr_tail(self) -> str:
+        with contextlib.suppress(OSError):
+            self.log.seek(0, os.SEEK_END)
+            size = self.log.tell()
+            self.log.seek(max(0, size - 1500))
+            return self.log.read().decode("utf-8", "replace").strip()
+        return ""
+
+    def kill(self) -> None:
+        with contextlib.suppress(OSError):
+            self.proc.kill()
+        self.proc.wait()
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError, BrokenPipeError):
+            self.proc.stdin.close()
+        try:
+            self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            self.kill()
+        with contextlib.suppress(OSError):
+            self.proc.stdout.close()
+        self.log.close()
+
+
+class Pool:
+    """``n`` worker subprocesses; :meth:`run` spreads cases over them and classifies a dead
+    or stuck worker's case as a crash or a timeout (and starts a new worker)."""
+
+    def __init__(self, n: int = 2, timeout: float = CASE_TIMEOUT_S):
+        self.n = n
+        self.timeout = timeout
+        self.workers: list[_Worker] = []
+
+    def __enter__(self) -> Pool:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        for w in self.workers:
+            w.close()
+        self.workers = []
+
+    def _worker(self, i: int) -> _Worker:
+        while len(self.workers) <= i:
+            self.workers.append(_Worker())
+        return self.workers[i]
+
+    def run(self, cases: list[tuple[str, object]]) -> list[Outcome]:
+        outcomes: list[Outcome | None] = [None] * len(cases)
+        queue = list(range(len(cases)))
+        busy: dict[int, tuple[int, float]] = {}  # worker -> (case index, start time)
+        while queue or busy:
+            for i in range(self.n):
+                if i not in busy and queue:
+                    k = queue.pop(0)
+                    try:
+                        self._worker(i).send(cases[k])
+                    except OSError:  # it died between cases: start another
+                        self.workers[i].close()
+                        self.workers[i] = _Worker()
+                        self.workers[i].send(cases[k])
+                    busy[i] = (k, time.monotonic())
+            fds = {self.workers[i].proc.stdout.fileno(): i for i in busy}
+            ready, _, _ = select.select(list(fds), [], [], 0.05)
+            for fd in ready:
+                i = fds[fd]
+                k, start = busy[i]
+                w = self.workers[i]
+                answer = w.receive(max(0.1, self.timeout - (time.monotonic() - start)))
+                if answer is None:
+                    code = w.proc.returncode
+                    outcomes[k] = Outcome(
+                        "defect",
+                        "crash",
+                        f"the worker died (exit code {code}): {w.stderr_tail()[-600:]}",
+                        time.monotonic() - start,
+                    )
+                    self._replace(i)
+                else:
+                    outcomes[k] = answer
+                del busy[i]
+            for i in list(busy):
+                k, start = busy[i]
+                if time.monotonic() - start > self.timeout:
+                    outcomes[k] = Outcome(
+                        "defect", "timeout", f"no answer within {self.timeout:g} s", self.timeout
+                    )
+                    self._replace(i)
+                    del busy[i]
+        return outcomes  # type: ignore[return-value]
+
+    def _replace(self, i: int) -> None:
+        self.workers[i].kill()
+        self.workers[i].close()
+        self.workers[i] = _Worker()
+
+
+# --- the worker side -----------------------------------------------------------------------------
+
+
+def _check_solution(sol) -> str:
+    """'' if a StaticSolution that says converged is valid, else what is wrong."""
+
+    if not sol.converged:
+        return "a solution returned with converged = False by a call that should raise"
+    for name in ("position", "rotation", "v", "u"):
+        a = np.asarray(getattr(sol, name))
+        if not np.all(np.isfinite(a)):
+            return f"{name} is not finite"
+    r = np.asarray(sol.rotation)
+    err = np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max()
+    if err > ROTATION_TOLERANCE or np.linalg.det(r).min() <= 0:
+        return f"rotation not orthonormal: max |R^T R - I| = {err:.3g}"
+    v3 = np.asarray(sol.v)[:, 2]
+    if v3.min() <= 0:
+        return f"stretch v3 = {v3.min():.3g} <= 0"
+    return ""
+
+
+def _check_batch(out, m: int) -> str:
+
+    if out.tip_position.shape != (m, 3) or out.converged.shape != (m,):
+        return f"batch result has the wrong shape for {m} rows"
+    ok = np.asarray(out.converged, dtype=bool)
+    if not np.all(np.isfinite(out.tip_position[ok])):
+        return "a converged row is not finite"
+    r = out.tip_rotation[ok]
+    if r.size:
+        err = np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max()
+        if err > ROTATION_TOLERANCE:
+            return f"tip rotation not orthonormal: max |R^T R - I| = {err:.3g}"
+    return ""
+
+
+def _check_trajectory(traj) -> str:
+
+    for name in ("time", "tip_position", "tip_rotation", "pressure"):
+        a = np.asarray(getattr(traj, name))
+        if not np.all(np.isfinite(a)):
+            return f"trajectory {name} is not finite"
+    r = np.asarray(traj.tip_rotation)
+    err = np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max()
+    if err > ROTATION_TOLERANCE:
+        return f"tip rotation not orthonormal: max |R^T R - I| = {err:.3g}"
+    return ""
+
+
+_QUICK = None
+
+
+def _options():
+    """Solver options that keep a hostile case short (clean ConvergenceError otherwise)."""
+    global _QUICK
+    if _QUICK is None:
+        from softrod import SolverOptions
+
+        _QUICK = SolverOptions(max_iter=12, max_load_steps=8)
+    return _QUICK
+
+
+def target_design(doc) -> str:
+    """Load a design document; if it loads, solve it at zero pressure and at 50 kPa on the
+    first channel."""
+    import softrod
+
+    d = softrod.load_design(doc)
+    for p in (0.0, 5e4):
+        pressures = [p] + [0.0] * (d.n_channels - 1) if d.n_channels else []
+        try:
+            sol = softrod.solve_statics(d, pressures, options=_options())
+        except softrod.ConvergenceError:
+            continue
+        problem = _check_solution(sol)
+        if problem:
+            return problem
+    return ""
+
+
+def target_design_file(data: bytes) -> str:
+    """Load a design file with these bytes."""
+    import softrod
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "fuzz.toml"
+        path.write_bytes(data)
+        softrod.load_design(path)
+    return ""
+
+
+def target_statics(payload) -> str:
+    """solve_statics(design, pressures, **kwargs) on a bundled design."""
+    import softrod
+
+    kwargs = dict(payload.get("kwargs", {}))
+    kwargs.setdefault("options", _options())
+    if kwargs["options"] == DEFAULT_OPTIONS:
+        del kwargs["options"]
+    design = softrod.load_design(payload["design"])
+    if payload.get("changes"):
+        design = design.replace(payload["changes"])
+    sol = softrod.solve_statics(design, payload["pressures"], **kwargs)
+    if kwargs.get("check", True) is False and not sol.converged:
+        return ""
+    return _check_solution(sol)
+
+
+def target_batch(payload) -> str:
+    import softrod
+
+    kwargs = dict(payload.get("kwargs", {}))
+    kwargs.setdefault("options", _options())
+    out = softrod.solve_statics_batch(payload["design"], payload["pressures"], **kwargs)
+    return _check_batch(out, len(np.asarray(out.pressures)))
+
+
+def target_simulate(payload) -> str:
+    import softrod
+
+    traj = softrod.simulate(
+        payload["design"], payload["schedule"], payload["t_end"], **payload.get("kwargs", {})
+    )
+    return _check_trajectory(traj)
+
+
+def target_schedule(payload) -> str:
+    """A PressureSchedule constructor with these arguments, then a sample."""
+    from softrod import PressureSchedule
+
+    make = getattr(PressureSchedule, payload["constructor"])
+    s = make(*payload.get("args", ()), **payload.get("kwargs", {}))
+    s.sample(payload.get("times", [0.0, 0.5, 1.0]))
+    return ""
+
+
+def target_dataset_file(payload) -> str:
+    """Read these bytes as a dataset (CSV/Parquet), a schedule and a stiffness map."""
+    import softrod
+    from softrod import PressureSchedule, StiffnessMap
+
+    suffix = payload.get("suffix", ".csv")
+    reader = payload.get("reader", "dataset")
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / f"fuzz{suffix}"
+        path.write_bytes(payload["data"])
+        if reader == "dataset":
+            softrod.load_dataset(path, extra=payload.get("extra", "error"))
+        elif reader == "schedule":
+            PressureSchedule.from_file(path, extra=payload.get("extra", "error"))
+        else:
+            StiffnessMap.from_csv(path)
+    return ""
+
+
+def target_dataset_frame(payload) -> str:
+    import softrod
+
+    ds = softrod.load_dataset(payload["frame"], **payload.get("kwargs", {}))
+
+    if not (np.all(np.isfinite(ds.pressures)) and np.all(np.isfinite(ds.tip_position))):
+        return "a dataset with non-finite values was accepted"
+    return ""
+
+
+def target_stiffness_map(payload) -> str:
+    from softrod import StiffnessMap
+
+    m = StiffnessMap.from_table(payload["axes"], payload["sigma"], **payload.get("kwargs", {}))
+    m(payload.get("pressures", [[0.0] * m.n_channels]))
+    return ""
+
+
+def target_quantity(payload) -> str:
+    """A quantity string of a kind (the unit grammar alone)."""
+    from softrod._validate import quantity
+
+    quantity(payload["value"], payload["kind"], "x", bare=payload.get("bare", "error"))
+    return ""
+
+
+def target_replace(payload) -> str:
+    """Design.replace(changes) on a bundled design, then a solve at zero pressure."""
+    import softrod
+
+    d = softrod.load_design(payload["design"]).replace(payload["changes"])
+    sol = softrod.solve_statics(d, [0.0] * d.n_channels, options=_options())
+    return _check_solution(sol)
+
+
+def target_fit(payload) -> str:
+    """calibrate / identify_stiffness on a few rows of a bundled example dataset, with
+    hostile arguments."""
+    import softrod
+    from softrod.datasets import example_dataset_path
+
+    data = softrod.load_dataset(example_dataset_path(payload["dataset"]))
+    data = data.subset(np.arange(min(len(data), payload.get("rows", 6))))
+    kwargs = dict(payload.get("kwargs", {}))
+    if payload["function"] == "calibrate":
+        kwargs.setdefault("max_evaluations", 3)
+        softrod.calibrate(payload["design"], data, payload["params"], **kwargs)
+    else:
+        softrod.identify_stiffness(payload["design"], data, **kwargs)
+    return ""
+
+
+def target_trajectory_file(data: bytes) -> str:
+    """Trajectory.load of these bytes as .npz and as .parquet."""
+    import softrod
+
+    suffix = ".npz" if data[:2] == b"PK" else ".parquet"  # a zip archive, or not
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / f"t{suffix}"
+        path.write_bytes(data)
+        softrod.Trajectory.load(path)
+    return ""
+
+
+def target_api(payload) -> str:
+    """Any public function by name with these arguments (calibrate, synthesize_dataset,
+    identify_stiffness, Design.replace, Simulation, ...)."""
+    import softrod
+
+    fn = softrod
+    for part in payload["function"].split("."):
+        fn = getattr(fn, part)
+    fn(*payload.get("args", ()), **payload.get("kwargs", {}))
+    return ""
+
+
+def target_cli(args) -> str:
+    """``softrod ARGS`` in a fresh folder; a clean failure is exit 2 or 3 with one
+    ``error:`` line on stderr (exit 1 is an internal error: a defect)."""
+    from click.testing import CliRunner
+    from softrod.cli import main
+
+    runner = CliRunner()
+    with runner.isolated_filesystem():
+        for name, data in getattr(args, "files", {}).items():
+            Path(name).write_bytes(data)
+        result = runner.invoke(main, list(args), catch_exceptions=True)
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise result.exception
+    err = result.stderr.strip()
+    if result.exit_code == 0:
+        return ""
+    if "Traceback" in result.output or "Traceback" in err:
+        raise _Defect("raw exception", f"traceback on exit {result.exit_code}: {err[-400:]}")
+    if result.exit_code == 1:
+        raise _Defect("internal error", err[-400:])
+    if result.exit_code not in (2, 3) or not err.startswith("error: ") or "\n" in err:
+        raise _Defect("unclear error", f"exit {result.exit_code}: {err[-400:]!r}")
+    raise _CleanExit(err)
+
+
+class CliArgs(list):
+    """CLI arguments plus files to create in the run's folder (name -> bytes)."""
+
+    def __init__(self, args, files=None):
+        super().__init__(args)
+        self.files = dict(files or {})
+
+
+class _Defect(Exception):
+    def __init__(self, kind: str, detail: str):
+        super().__init__(detail)
+        self.kind = kind
+
+
+class _CleanExit(Exception):
+    pass
+
+
+TARGETS = {
+    name[len("target_") :]: fn for name, fn in dict(globals()).items() if name.startswith("target_")
+}
+
+
+def classify(target: str, payload) -> Outcome:
+    """Run one case here and classify what happened (the worker's side)."""
+    from softrod.errors import ConvergenceError, DesignError, SoftrodError
+
+    internal = getattr(__import__("softrod.errors", fromlist=["x"]), "InternalError", ())
+    start = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            problem = TARGETS[target](payload)
+            out = Outcome("defect", "invalid result", problem) if problem else Outcome("ok")
+        except _CleanExit as exc:
+            out = Outcome("error", detail=str(exc)[:300])
+        except _Defect as exc:
+            out = Outcome("defect", exc.kind, str(exc))
+        except MemoryError:
+            out = Outcome("defect", "crash", "MemoryError")
+        except BaseException as exc:  # noqa: BLE001 - everything is classified
+            if internal and isinstance(exc, internal):
+                out = Outcome("defect", "internal error", str(exc)[:600])
+            elif isinstance(exc, SoftrodError):
+                out = _clean(exc, DesignError, ConvergenceError)
+            elif isinstance(exc, (KeyboardInterrupt, SystemExit)):
+                raise
+            else:
+                frames = traceback.extract_tb(exc.__traceback__)
+                inside = [f for f in frames if "softrod" in f.filename] or frames
+                last = inside[-1]
+                where = f"{Path(last.filename).name}:{last.lineno} in {last.name}"
+                out = Outcome(
+                    "defect", "raw exception", f"{type(exc).__name__} at {where}: {str(exc)[:400]}"
+                )
+    if out.kind != "defect":
+        for w in caught:
+            if issubclass(w.category, (RuntimeWarning,)) and "softrod" in str(w.filename):
+                out = Outcome("defect", "numpy warning", f"{w.message} ({w.filename}:{w.lineno})")
+                break
+    out.seconds = time.perf_counter() - start
+    return out
+
+
+def _clean(exc, design_error, convergence_error) -> Outcome:
+    """A softrod error is clean if it says where and why (a DesignError's field and rule,
+    a message that is short and not the core's raw JSON complaint)."""
+    text = str(exc)
+    if len(text) > MAX_MESSAGE:
+        return Outcome("defect", "unclear error", f"message of {len(text)} characters")
+    if isinstance(exc, design_error):
+        said = isinstance(exc.field, str) and exc.field and isinstance(exc.rule, str)
+        if not (said and exc.rule):
+            return Outcome("defect", "unclear error", f"no field or rule: {text[:300]}")
+        if "(JSON)" in text or "line 1 column" in text:
+            return Outcome("defect", "unclear error", f"no field path: {text[:300]}")
+    return Outcome("error", detail=f"{type(exc).__name__}: {text[:300]}")
+
+
+def _worker() -> None:
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_LIMIT_BYTES, MEMORY_LIMIT_BYTES))
+    proto_out = os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)  # anything printed goes to the log, never into the protocol
+    sys.stdout = sys.stderr
+    proto_in = os.fdopen(os.dup(0), "rb")
+    import softrod  # noqa: F401 - imported once, before the first case
+    from softrod._validate import registry
+
+    registry()
+    while True:
+        head = proto_in.read(8)
+        if len(head) < 8:
+            return
+        (n,) = struct.unpack("<Q", head)
+        target, payload = pickle.loads(proto_in.read(n))
+        _send(proto_out, classify(target, payload))
+
+
+if __name__ == "__main__" and "--worker" in sys.argv:
+    # Run as the module `fuzzing` so that what it pickles (Outcome) unpickles in the parent.
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import fuzzing
+
+    fuzzing._worker()
