@@ -2,9 +2,10 @@
 
 Each case runs in a worker subprocess with a time and a memory limit (tests/fuzzing.py), so
 a regression that aborts, hangs or eats memory fails its test instead of the test run. The
-defects of the Rust core that branch ``statics`` fixes (invalid results returned as
-converged, batch differing from single) are marked ``xfail(strict=True)`` until that branch
-is merged: they then pass, strict xfail turns that into a failure, and the marks go.
+Rust core's statics now checks results before returning them and solves batch rows exactly
+as single solves (those cases pass); defects still open elsewhere are marked
+``xfail(strict=True)``: once fixed they pass, strict xfail turns that into a failure, and the
+mark goes.
 """
 
 from __future__ import annotations
