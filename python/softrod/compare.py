@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -42,6 +42,11 @@ from .errors import DesignError, InputError, design_error
 from .presets import PAPER002_MODELS, paper002_preset
 from .statics import SolverOptions, solve_statics_batch
 from .units import to_si
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ._types import ArrayLike
 
 
 @dataclass(frozen=True)
@@ -239,11 +244,11 @@ def compare_models(
     models: Sequence[str] | Mapping[str, Mapping[str, Any]] = PAPER002_MODELS,
     *,
     experiments: str | Sequence[str] | None = None,
-    pressures=None,
+    pressures: ArrayLike | None = None,
     threads: int = 0,
     options: SolverOptions | None = None,
     progress: Callable[[str, int], None] | None = None,
-):
+) -> pd.DataFrame:
     """Tip positions of several models along paper 002's pressure ramps; a pandas DataFrame.
 
     models: paper 002 model names ("M0".."M3", the presets ``paper002_<M>_<mounting>``), or a

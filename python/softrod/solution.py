@@ -5,10 +5,16 @@ the PCC model's) returns the same types without importing each other."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .design import Design
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ._types import ArrayLike, Units
 
 
 @dataclass(frozen=True)
@@ -48,7 +54,14 @@ class StaticSolution:
     violations: tuple[str, ...] = ()
 
     @classmethod
-    def failed(cls, design, pressures, exc, n_unknowns: int, **extra) -> StaticSolution:
+    def failed(
+        cls,
+        design: Design,
+        pressures: ArrayLike,
+        exc: Exception,
+        n_unknowns: int,
+        **extra: Any,
+    ) -> StaticSolution:
         """The result of a solve that did not converge (``check=False``): NaN shape and
         wrench, ``converged`` False, the iterations and residual of ``exc``."""
         nan3 = np.full((1, 3), np.nan)
@@ -126,7 +139,7 @@ class BatchSolution:
     def __len__(self) -> int:
         return self.pressures.shape[0]
 
-    def to_frame(self, units=None):
+    def to_frame(self, units: Units = None) -> pd.DataFrame:
         """The results as a DataFrame in the dataset schema (docs/datasets.md), one row per
         solve: ``p0_kPa`` ..., ``tip_x_mm`` ..., ``tip_qw`` ... ``tip_qz``, ``base_fx_N`` ...,
         ``base_mx_Nmm`` ..., then the result columns ``converged``, ``iterations``,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,6 +25,9 @@ from .errors import (
 )
 from .solution import BatchSolution, StaticSolution
 from .stiffness_map import StiffnessMap, _check_pressure_rows
+
+if TYPE_CHECKING:
+    from ._types import ArrayLike, DesignLike, Progress
 
 
 @dataclass(frozen=True)
@@ -201,11 +205,11 @@ def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
 
 
 def solve_statics(
-    design,
-    pressures,
+    design: DesignLike,
+    pressures: ArrayLike,
     *,
-    tip_force=None,
-    tip_moment=None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
     options: SolverOptions | None = None,
     initial: StaticSolution | None = None,
     check: bool = True,
@@ -311,17 +315,17 @@ def solve_statics(
 
 
 def solve_statics_batch(
-    design,
-    pressures,
+    design: DesignLike,
+    pressures: ArrayLike,
     *,
-    tip_force=None,
-    tip_moment=None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
     options: SolverOptions | None = None,
     threads: int = 0,
     stiffness_map: StiffnessMap | None = None,
-    executor=None,
+    executor: Any = None,
     chunk_size: int | None = None,
-    progress=None,
+    progress: Progress = None,
     on_unstable: str = "warn",
     on_invalid: str = "raise",
 ) -> BatchSolution:

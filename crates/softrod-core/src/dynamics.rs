@@ -1,4 +1,4 @@
-//! Dynamics of the viscoelastic Cosserat rod (paper 000 eqs. 7-13; DESIGN.md sections 2-3),
+//! Dynamics of the viscoelastic Cosserat rod (paper 000 eqs. 7-13; docs/model.md),
 //! integrated in time with BDF-alpha and solved in space by shooting at every step (Till,
 //! Aloi, Rucker, "Real-time dynamics of soft and continuum robots based on Cosserat rod
 //! models", IJRR 2019).
@@ -8,7 +8,7 @@
 //! derivative X_t of X in {v, u, q, w} is replaced by the BDF-alpha formula
 //!   X_t(t_i) = c0 X_i + X_h,   X_h = c1 X_{i-1} + c2 X_{i-2} + d1 X_t(t_{i-1}),
 //! which turns the PDEs into an ODE in s at each step:
-//!   material law with Kelvin-Voigt damping (paper 000 eq. 8) and pressure (DESIGN.md 3):
+//!   material law with Kelvin-Voigt damping (paper 000 eq. 8) and pressure (docs/model.md):
 //!     R^T n + P e3 = K_se (v - v*) + B_se v_t  =>  v = (K_se + c0 B_se)^-1 (R^T n + K_se v_p - B_se v_h)
 //!     R^T m + M_p  = K_bt (u - u*) + B_bt u_t  =>  u = (K_bt + c0 B_bt)^-1 (R^T m + K_bt u_p - B_bt u_h)
 //!   (v_p = v* + K_se^-1 P e3 and u_p = u* + K_bt^-1 M_p are the static law's shifted strains),

@@ -1,4 +1,4 @@
-//! The static Cosserat rod ODE (DESIGN.md section 2-3; paper 001 eqs. 1-4 with the pressure
+//! The static Cosserat rod ODE (docs/model.md; paper 001 eqs. 1-4 with the pressure
 //! moved into the constitutive law as in paper 002 eqs. 6-7) and its fixed-step RK4
 //! integration from base to tip.
 //!

@@ -1,5 +1,5 @@
-//! Static equilibrium by shooting (DESIGN.md section 5; paper 001 section II-D), with the
-//! equilibrium's stability and validity checked before it is returned.
+//! Static equilibrium by shooting (docs/model.md, "Solver"; paper 001 section II-D), with
+//! the equilibrium's stability and validity checked before it is returned.
 //!
 //! All loads are dead (gravity, dead tip and line loads, the tip body's weight), so the force
 //! balance n' = -f is statically determinate: n(0) = F_tip + m_t g + int_0^L f ds exactly,

@@ -1,5 +1,5 @@
-//! The rules a rod state must satisfy before any solver returns it (DESIGN.md section 5b;
-//! docs/model.md "Validity and stability"), and the size limits of a design.
+//! The rules a rod state must satisfy before any solver returns it (docs/model.md, "Validity
+//! and stability"), and the size limits of a design.
 //!
 //! Small pure functions, shared by statics and dynamics: each checks one rule at one node and
 //! returns [`SoftrodError::InvalidState`] naming the rule, the node, its arc length, the

@@ -312,8 +312,8 @@ def sweep(design, grids, out, threads, scheduler):
 def demo(out_dir):
     """Tour: solve, plot and sweep the bundled three-chamber actuator (a few seconds).
 
-    Writes shapes.png (all shapes in one 3-D figure) and tips.csv (the dataset schema,
-    docs/datasets.md) to --out-dir.
+    Writes shapes.png (the shapes in a 3-D view and a top view) and tips.csv (the dataset
+    schema, docs/datasets.md) to --out-dir.
     """
     import numpy as np
     from rich.table import Table

@@ -15,6 +15,7 @@ import math
 import os
 import time as _time
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -26,6 +27,9 @@ from ..errors import InputError, design_error
 from ..progress import reporter
 from .schedule import PressureSchedule
 from .trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from .._types import ArrayLike, DesignLike, Quantity, ScheduleLike
 
 __all__ = ["METHOD", "Simulation", "simulate"]
 
@@ -144,11 +148,11 @@ class Simulation:
 
     def __init__(
         self,
-        design,
-        pressures=None,
+        design: DesignLike,
+        pressures: ArrayLike | None = None,
         *,
         initial: str = "static",
-        dt=2e-3,
+        dt: Quantity = 2e-3,
         alpha: float = -0.2,
         tol: float = 1e-9,
         max_iter: int = 25,
@@ -223,7 +227,9 @@ class Simulation:
             "shape_position": d["shape_position"][0],
         }
 
-    def set_tip_loads(self, force=(0.0, 0.0, 0.0), moment=(0.0, 0.0, 0.0)) -> None:
+    def set_tip_loads(
+        self, force: ArrayLike = (0.0, 0.0, 0.0), moment: ArrayLike = (0.0, 0.0, 0.0)
+    ) -> None:
         """Dead tip force (N) and moment (N m), world frame, from the next step on."""
         from ..statics import _vec3
 
@@ -231,7 +237,7 @@ class Simulation:
         m = _vec3(moment, "moment", "moment", None)
         self._sim.set_tip_loads(f, m)
 
-    def step(self, command) -> None:
+    def step(self, command: ArrayLike) -> None:
         """One time step towards the commanded pressures ``command`` (Pa)."""
         from ..statics import _pressures
 
@@ -240,11 +246,11 @@ class Simulation:
 
     def run(
         self,
-        pressure_schedule,
-        duration,
+        pressure_schedule: ScheduleLike,
+        duration: Quantity,
         *,
         save_every: int = 1,
-        shapes=None,
+        shapes: str | float | Sequence[float] | None = None,
         energy: bool = True,
         progress: Callable[[float, float, float], None] | None = None,
     ) -> Trajectory:
@@ -354,14 +360,14 @@ def _shape_steps(shapes, n: int, dt: float, save_every: int) -> tuple[np.ndarray
 
 
 def simulate(
-    design,
-    pressure_schedule,
-    t_end,
+    design: DesignLike,
+    pressure_schedule: ScheduleLike,
+    t_end: Quantity,
     *,
-    dt=2e-3,
+    dt: Quantity = 2e-3,
     save_every: int = 1,
-    shapes=None,
-    initial="static",
+    shapes: str | float | Sequence[float] | None = None,
+    initial: str | Simulation = "static",
     model: str = "cosserat",
     alpha: float = -0.2,
     tol: float | None = None,

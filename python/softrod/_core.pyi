@@ -1,0 +1,151 @@
+# Type stub of the compiled extension softrod._core (crates/softrod-py), written by hand.
+# tests/test_typing.py checks it against the built module with mypy's stubtest: a method or
+# argument added, renamed or removed in the binding fails there until this file follows.
+# Everything is SI; the binding holds no physics (softrod's Python API wraps these classes).
+
+from collections.abc import Sequence
+from typing import Any, final
+
+__all__ = ["GridPchip", "PccModel", "Rod", "Simulator", "__version__"]
+__version__: str
+
+# numpy arrays in and out; the stub names no numpy types so that checking it stays fast
+# (the Python layer above states the shapes and units).
+_ArrayLike = Any
+_Array = Any
+_Vec3 = Sequence[float]
+
+@final
+class Rod:
+    """A validated, compiled design (immutable)."""
+
+    def __new__(cls, spec_json: str) -> Rod: ...
+    @property
+    def n_channels(self) -> int: ...
+    @property
+    def length(self) -> float: ...
+    @property
+    def mass(self) -> float: ...
+    def sections(self) -> list[dict[str, Any]]: ...
+    def solve(
+        self,
+        pressures: Sequence[float],
+        tip_force: _Vec3,
+        tip_moment: _Vec3,
+        guess: _Vec3 | None = None,
+        tol: float = 1e-10,
+        max_iter: int = 25,
+        continuation: bool = True,
+        max_load_steps: int = 200,
+        stiffness_scale: _Vec3 = ...,
+    ) -> dict[str, Any]: ...
+    def solve_batch(
+        self,
+        pressures: _ArrayLike,
+        tip_force: _Vec3,
+        tip_moment: _Vec3,
+        threads: int = 0,
+        tol: float = 1e-10,
+        max_iter: int = 25,
+        continuation: bool = True,
+        max_load_steps: int = 200,
+        stiffness_scale: _ArrayLike | None = None,
+    ) -> dict[str, Any]: ...
+    def sensitivity_batch(
+        self,
+        pressures: _ArrayLike,
+        tip_force: _Vec3,
+        tip_moment: _Vec3,
+        params: Sequence[tuple[str, Sequence[int]]],
+        stiffness_scale: _ArrayLike | None = None,
+        x0: _ArrayLike | None = None,
+        threads: int = 0,
+        tol: float = 1e-10,
+        max_iter: int = 25,
+        continuation: bool = True,
+        max_load_steps: int = 200,
+    ) -> dict[str, Any]: ...
+
+@final
+class GridPchip:
+    """Tensor-product PCHIP on a regular grid (the interpolation of table stiffness maps)."""
+
+    def __new__(
+        cls, axes: Sequence[Sequence[float]], values: Sequence[float], width: int
+    ) -> GridPchip: ...
+    def eval(self, points: _ArrayLike) -> _Array: ...
+
+@final
+class PccModel:
+    """The compiled PCC model of a design (immutable)."""
+
+    def __new__(cls, spec_json: str) -> PccModel: ...
+    @property
+    def n_channels(self) -> int: ...
+    @property
+    def ndof(self) -> int: ...
+    @property
+    def n_segments(self) -> int: ...
+    @property
+    def planar(self) -> bool: ...
+    @property
+    def length(self) -> float: ...
+    def segments(self) -> list[dict[str, Any]]: ...
+    def to_model(
+        self, q: Sequence[float], q_dot: Sequence[float]
+    ) -> tuple[list[float], list[float]]: ...
+    def statics(
+        self,
+        pressures: Sequence[float],
+        guess: Sequence[float] | None = None,
+        tol: float = 1e-11,
+        max_iter: int = 30,
+    ) -> dict[str, Any]: ...
+    def shape(self, x: Sequence[float], per_section: int) -> tuple[_Array, _Array, _Array]: ...
+    def shapes(self, xs: _ArrayLike, per_section: int) -> tuple[_Array, _Array]: ...
+    def energy(
+        self, x: Sequence[float], v: Sequence[float], pressures: Sequence[float]
+    ) -> tuple[float, float, float, float]: ...
+    def mass_matrix(self, x: Sequence[float]) -> list[list[float]]: ...
+    def simulate(
+        self,
+        dt: float,
+        pressures: _ArrayLike,
+        initial: str = "rest",
+        q0: Sequence[float] | None = None,
+        q_dot0: Sequence[float] | None = None,
+        save_every: int = 1,
+        tol: float = 1e-11,
+        max_iter: int = 30,
+    ) -> dict[str, Any]: ...
+
+@final
+class Simulator:
+    """A running simulation of a design (see ``softrod.dynamics``)."""
+
+    def __new__(
+        cls,
+        spec_json: str,
+        pressures: Sequence[float],
+        initial: str = "static",
+        dt: float = 2e-3,
+        alpha: float = ...,  # -0.2 (pyo3 does not render a negative default)
+        tol: float = 1e-9,
+        max_iter: int = 25,
+    ) -> Simulator: ...
+    def copy(self) -> Simulator: ...
+    @property
+    def time(self) -> float: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def n_channels(self) -> int: ...
+    @property
+    def pressures(self) -> list[float]: ...
+    @property
+    def stats(self) -> dict[str, int]: ...
+    def set_tip_loads(self, force: _Vec3, moment: _Vec3) -> None: ...
+    def snapshot(self) -> dict[str, Any]: ...
+    def run(
+        self, commands: _ArrayLike, keep: _ArrayLike, energy: bool = True
+    ) -> dict[str, Any]: ...
