@@ -6,7 +6,7 @@
 from collections.abc import Sequence
 from typing import Any, final
 
-__all__ = ["GridPchip", "PccModel", "Rod", "Simulator", "__version__"]
+__all__ = ["GridPchip", "PccModel", "Rod", "Simulator", "__version__", "_panic_inside_guard"]
 __version__: str
 
 # numpy arrays in and out; the stub names no numpy types so that checking it stays fast
@@ -37,7 +37,9 @@ class Rod:
         max_iter: int = 25,
         continuation: bool = True,
         max_load_steps: int = 200,
+        stretch_range: tuple[float, float] = ...,
         stiffness_scale: _Vec3 = ...,
+        on_invalid: str = "raise",
     ) -> dict[str, Any]: ...
     def solve_batch(
         self,
@@ -49,7 +51,9 @@ class Rod:
         max_iter: int = 25,
         continuation: bool = True,
         max_load_steps: int = 200,
+        stretch_range: tuple[float, float] = ...,
         stiffness_scale: _ArrayLike | None = None,
+        on_invalid: str = "raise",
     ) -> dict[str, Any]: ...
     def sensitivity_batch(
         self,
@@ -64,7 +68,12 @@ class Rod:
         max_iter: int = 25,
         continuation: bool = True,
         max_load_steps: int = 200,
+        stretch_range: tuple[float, float] = ...,
+        on_invalid: str = "ignore",
     ) -> dict[str, Any]: ...
+
+def _panic_inside_guard() -> None:
+    """Panics inside the binding's guard (tests: a panic becomes softrod.InternalError)."""
 
 @final
 class GridPchip:
