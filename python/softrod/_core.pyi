@@ -13,6 +13,7 @@ __all__ = [
     "Rod",
     "Simulator",
     "__version__",
+    "_panic_inside_guard",
     "linearise_at",
     "point_jacobian_of",
 ]
@@ -46,7 +47,9 @@ class Rod:
         max_iter: int = 25,
         continuation: bool = True,
         max_load_steps: int = 200,
+        stretch_range: tuple[float, float] = ...,
         stiffness_scale: _Vec3 = ...,
+        on_invalid: str = "raise",
     ) -> dict[str, Any]: ...
     def solve_batch(
         self,
@@ -58,7 +61,9 @@ class Rod:
         max_iter: int = 25,
         continuation: bool = True,
         max_load_steps: int = 200,
+        stretch_range: tuple[float, float] = ...,
         stiffness_scale: _ArrayLike | None = None,
+        on_invalid: str = "raise",
     ) -> dict[str, Any]: ...
     def sensitivity_batch(
         self,
@@ -73,7 +78,12 @@ class Rod:
         max_iter: int = 25,
         continuation: bool = True,
         max_load_steps: int = 200,
+        stretch_range: tuple[float, float] = ...,
+        on_invalid: str = "ignore",
     ) -> dict[str, Any]: ...
+
+def _panic_inside_guard() -> None:
+    """Panics inside the binding's guard (tests: a panic becomes softrod.InternalError)."""
 
 @final
 class GridPchip:

@@ -15,8 +15,8 @@ a      horizontal p0 = p, p1 = p2 = 0                  Fig. 5 top
 Channels are numbered from 0, as everywhere in softrod: paper 002's chambers 1, 2, 3 are
 channels 0, 1, 2 (so the paper's experiment (i) on chamber 1 is ``i-0``).
 
-:func:`compare_models` solves every (model, experiment) pair as one ordered
-``solve_statics_batch`` call (each level warm-starts from the previous one) and returns a
+:func:`compare_models` solves every (model, experiment) pair as one
+``solve_statics_batch`` call (every level solved cold, as a single solve) and returns a
 tidy table; :func:`plot_comparison` draws it like paper 002's Figs. 5-7 (tip coordinates in
 the paper's frame against pressure). Models are the presets of paper 002's Sec. VI (M0-M3,
 :mod:`softrod.presets`) or designs of your own (e.g. a calibrated one).

@@ -31,6 +31,10 @@ class StaticSolution:
     Forces and moments are the totals of the balance laws (material plus pressure part).
     stiffness_scale: (3,) sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) applied to the
     mapped sections (docs/stiffness-map.md); ones when the design has none.
+    stable: the equilibrium is stable (docs/model.md, "Validity and stability"); None where
+    the model does not assess it (the PCC model) or the solve failed.
+    violations: the validity ranges the solution lies outside (only with
+    ``on_invalid="warn"``; otherwise such a solution is refused).
     """
 
     design: Design
@@ -49,6 +53,8 @@ class StaticSolution:
     load_steps: int
     shooting_unknowns: np.ndarray = field(repr=False)
     stiffness_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
+    stable: bool | None = None
+    violations: tuple[str, ...] = ()
     #: (tip force, tip moment) the equilibrium was solved under (world frame, N and N m).
     tip_loads: tuple | None = field(default=None, repr=False)
 
@@ -125,6 +131,8 @@ class BatchSolution:
     converged (m,) bool (rows that failed hold NaN); iterations (m,); residual (m,).
     stiffness_scale (m, 3): sigma of every row when the design has mapped sections
     (docs/stiffness-map.md), else None. x (m, 3): the solver's scaled unknowns (warm starts).
+    stable (m,) bool: the row's equilibrium is stable (False on failed rows). violation (m,)
+    str: the validity rule a row broke ("" if none; docs/model.md, "Validity and stability").
     metadata: design, softrod version and solver settings (the metadata block of
     :meth:`to_frame`).
     """
@@ -139,6 +147,8 @@ class BatchSolution:
     residual: np.ndarray
     stiffness_scale: np.ndarray | None = None
     x: np.ndarray | None = None
+    stable: np.ndarray | None = None
+    violation: np.ndarray | None = None
     metadata: dict = field(default_factory=dict, compare=False)
 
     def __len__(self) -> int:
@@ -162,6 +172,10 @@ class BatchSolution:
             Extra("iterations", np.asarray(self.iterations), "Newton iterations"),
             Extra("residual", np.asarray(self.residual, dtype=float), "scaled final residual"),
         ]
+        if self.stable is not None:
+            extras.append(
+                Extra("stable", np.asarray(self.stable, dtype=bool), "the equilibrium is stable")
+            )
         if self.stiffness_scale is not None:
             from .stiffness_map import SIGMA_NAMES
 

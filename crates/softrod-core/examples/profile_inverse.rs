@@ -1,6 +1,6 @@
 //! Time the pieces of a warm-started inverse solve (used while optimising;
 //! `cargo run --release --example profile_inverse SPEC.json`).
-use softrod_core::inverse::{check_equilibrium, solve_inverse, InverseOptions, InverseTarget};
+use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget};
 use softrod_core::jacobian::{pass, Input, Probe};
 use softrod_core::ode::Loads;
 use softrod_core::statics::{residual, solve, SolverOptions};
@@ -46,13 +46,7 @@ fn main() {
     });
     let _ = problem_new;
     let check = time(n, || {
-        check_equilibrium(
-            &rod,
-            &loads(&p),
-            &sol,
-            &Default::default(),
-            Default::default(),
-        )
+        softrod_core::statics::conclude_at(&rod, &loads(&p), sol.x, 0, &opts).unwrap()
     });
     let iopts = InverseOptions::new(vec![[0.0, 70e3]; 3]);
     let target = |r: [f64; 3]| InverseTarget {
@@ -84,7 +78,7 @@ fn main() {
         solve_inverse(&rod, &loads(&[0.0; 3]), &target(sol.tip.r), &iopts, None).unwrap()
     });
     println!(
-        "f64 pass {f64_pass:.2} us, warm statics {warm:.2} us, joint Jet<6> pass {joint:.2} us, validity check {check:.2} us, warm inverse {inv:.2} us ({} passes, {} iterations), cold inverse {cold:.1} us",
+        "f64 pass {f64_pass:.2} us, warm statics {warm:.2} us, joint Jet<6> pass {joint:.2} us, conclusion (validity, stability) {check:.2} us, warm inverse {inv:.2} us ({} passes, {} iterations), cold inverse {cold:.1} us",
         prev.passes, prev.iterations
     );
 }

@@ -30,14 +30,16 @@
 //! Unreachable targets: the iteration stops at a stationary point of the distance inside the
 //! box (a local minimum: some bounds active, the projected gradient zero) and the solution
 //! says `reached = false` with the distance left. The returned equilibrium is always
-//! converged and checked against the validity rules (`crate::validity`).
+//! converged and concluded as a static solve's answer (`statics::conclude_at`): checked
+//! against the validity rules (`crate::validity`), with its stability (`Solution::stable`)
+//! for the caller to refuse an unstable one.
 
 use crate::error::{Result, SoftrodError};
 use crate::jacobian::{pass_with, total_derivatives, value_with, Input, Pass, Probe};
-use crate::ode::{integrate, strains, Loads, State};
+use crate::ode::{Loads, State};
 use crate::rod::Rod;
 use crate::statics::{self, Problem, Solution, SolverOptions};
-use crate::validity::{self, Node, Policy, StrainLimits};
+use crate::validity::{self, Policy};
 use nalgebra::{DMatrix, DVector, Vector3};
 
 /// Most channels the inverse works with (its step is a dense problem in the channels).
@@ -74,11 +76,9 @@ pub struct InverseOptions {
     pub tol: f64,
     /// Most Levenberg-Marquardt iterations.
     pub max_iter: usize,
-    /// Options of the equilibrium solves (its tolerance is the equilibrium's).
+    /// Options of the equilibrium solves: the equilibrium's tolerance, and the validity
+    /// ranges (`strain_limits`, `on_invalid`) the answer is checked against.
     pub statics: SolverOptions,
-    /// Validity range of the strains, and what to do when a solution leaves a range.
-    pub limits: StrainLimits,
-    pub policy: Policy,
 }
 
 impl InverseOptions {
@@ -92,8 +92,6 @@ impl InverseOptions {
             tol: 1e-10,
             max_iter: 100,
             statics: SolverOptions::default(),
-            limits: StrainLimits::default(),
-            policy: Policy::Raise,
         }
     }
 }
@@ -103,7 +101,8 @@ impl InverseOptions {
 pub struct InverseSolution {
     /// Gauge pressure per channel, Pa, within the bounds.
     pub pressures: Vec<f64>,
-    /// The converged equilibrium under those pressures (`x` is a warm start).
+    /// The converged equilibrium under those pressures, checked as a static solve's answer
+    /// (`stable`, validity-range `violations`; `x` is a warm start).
     pub solution: Solution,
     /// Position and rotation of the target point.
     pub point: State<f64>,
@@ -120,8 +119,6 @@ pub struct InverseSolution {
     /// Levenberg-Marquardt iterations and dual passes.
     pub iterations: usize,
     pub passes: usize,
-    /// Validity-range violations accepted under `Policy::Warn`.
-    pub warnings: Vec<SoftrodError>,
     /// The last linearisation used (a warm start keeps it: [`InverseSolution::warm_start`]).
     pub linearisation: Option<Linearisation>,
 }
@@ -158,7 +155,6 @@ fn validate(rod: &Rod, loads: &Loads, target: &InverseTarget, opts: &InverseOpti
         ));
     }
     opts.statics.validate()?;
-    opts.limits.validate()?;
     if opts.bounds.len() != nc {
         return Err(SoftrodError::invalid(
             "pressure_bounds",
@@ -438,82 +434,6 @@ pub(crate) fn box_qp(h: &DMatrix<f64>, b: &DVector<f64>, lo: &[f64], hi: &[f64])
     z
 }
 
-/// Check a converged equilibrium against the validity rules at every node: finite state,
-/// rotations, positive stretch, chambers not collapsed (always errors), the strain range and
-/// the operating range (by `policy`). Returns the range violations accepted under `Warn`.
-pub fn check_equilibrium(
-    rod: &Rod,
-    loads: &Loads,
-    sol: &Solution,
-    limits: &StrainLimits,
-    policy: Policy,
-) -> Result<Vec<SoftrodError>> {
-    let p = Problem::new(rod, loads, 1.0);
-    let mut first_error: Option<SoftrodError> = None;
-    let mut warnings = Vec::new();
-    let mut index = 0usize;
-    let mut keep = |e: SoftrodError, physical: bool| {
-        if physical || policy == Policy::Raise {
-            if first_error.is_none() {
-                first_error = Some(e);
-            }
-        } else if policy == Policy::Warn && warnings.len() < 16 {
-            warnings.push(e);
-        }
-    };
-    let mut visit = |i: usize, s: f64, y: &State<f64>| {
-        let node = Node {
-            index,
-            s,
-            section: i,
-        };
-        index += 1;
-        let mut values = Vec::with_capacity(18);
-        values.extend_from_slice(&y.r);
-        values.extend(y.rot.iter().flatten());
-        values.extend_from_slice(&y.n);
-        values.extend_from_slice(&y.m);
-        if let Err(e) = validity::check_finite(node, &values) {
-            keep(e, true);
-            return;
-        }
-        if let Err(e) = validity::check_rotation(node, &y.rot) {
-            keep(e, true);
-        }
-        let sec = &rod.sections[i];
-        if sec.rigid {
-            return;
-        }
-        let (v, u) = strains(y, &p.coeffs[i]);
-        if let Err(e) = validity::check_stretch(node, &v) {
-            keep(e, true);
-        }
-        for (k, c) in sec.chambers.iter().enumerate() {
-            if let Err(e) = validity::check_chamber(node, k, &v, &u, c.centroid) {
-                keep(e, true);
-            }
-        }
-        if policy != Policy::Ignore {
-            let radius = sec.law.geometry.as_ref().map_or(0.0, |g| g.outer_radius);
-            if let Err(e) = validity::check_strain_range(node, &v, &u, radius, limits) {
-                keep(e, false);
-            }
-        }
-    };
-    integrate(rod, &p.coeffs, p.base_state(&sol.x), Some(&mut visit));
-    if policy != Policy::Ignore {
-        if let Some(range) = rod.spec.operating_range {
-            if let Err(e) = validity::check_operating_range(&loads.pressures, range.pressure) {
-                keep(e, false);
-            }
-        }
-    }
-    match first_error {
-        Some(e) => Err(e),
-        None => Ok(warnings),
-    }
-}
-
 /// Where an iterate stands: pressures, unknowns, residual, probe values.
 struct Iterate {
     p: Vec<f64>,
@@ -521,7 +441,6 @@ struct Iterate {
     g: [f64; 3],
     y: [f64; 12],
     point: State<f64>,
-    tip: State<f64>,
     /// The probe's values corrected to first order for the equilibrium defect g (equal to
     /// `y` when the iterate is exact: g within the statics tolerance).
     y_corr: [f64; 12],
@@ -542,9 +461,9 @@ fn inf(v: &[f64]) -> f64 {
 #[derive(Debug, Clone, PartialEq)]
 pub struct WarmStart {
     pub x: [f64; 3],
-    /// The converged equilibrium this warm start describes: pressures, the probe's and the
-    /// tip's states (when the start pressures equal these, no pass is needed to begin).
-    pub equilibrium: Option<(Vec<f64>, State<f64>, State<f64>)>,
+    /// The converged equilibrium this warm start describes: pressures and the probe's state
+    /// (when the start pressures equal these, no pass is needed to begin).
+    pub equilibrium: Option<(Vec<f64>, State<f64>)>,
     pub linearisation: Option<Linearisation>,
 }
 
@@ -561,7 +480,7 @@ impl InverseSolution {
     pub fn warm_start(&self) -> WarmStart {
         WarmStart {
             x: self.solution.x,
-            equilibrium: Some((self.pressures.clone(), self.point, self.solution.tip)),
+            equilibrium: Some((self.pressures.clone(), self.point)),
             linearisation: self.linearisation.clone(),
         }
     }
@@ -615,8 +534,13 @@ pub fn solve_inverse(
         0.5 * e.iter().map(|v| v * v).sum::<f64>() + 0.5 * eps * reg
     };
     let eq_tol = |x: &[f64; 3]| opts.statics.tol * inf(x).max(1.0);
+    // Intermediate equilibria are not answers: only the physical rules apply to them.
+    let inner = SolverOptions {
+        on_invalid: Policy::Ignore,
+        ..opts.statics
+    };
     let exact_at = |p: Vec<f64>, x: [f64; 3], problem: &Problem| -> Iterate {
-        let (g, point, tip) = value_with(problem, rod, &x, &probe);
+        let (g, point, _) = value_with(problem, rod, &x, &probe);
         let y = flatten(&point);
         Iterate {
             p,
@@ -624,7 +548,6 @@ pub fn solve_inverse(
             g,
             y,
             point,
-            tip,
             y_corr: y,
             exact: true,
         }
@@ -639,7 +562,7 @@ pub fn solve_inverse(
                 return Ok(it);
             }
         }
-        let sol = statics::solve(rod, &ld, guess, &opts.statics)?;
+        let sol = statics::solve(rod, &ld, guess, &inner)?;
         Ok(exact_at(p, sol.x, &problem))
     };
     // Chord Newton on the equilibrium at fixed pressures with the LU of a nearby g_x
@@ -672,7 +595,7 @@ pub fn solve_inverse(
                 last = n;
                 g = next.g;
             }
-            let sol = statics::solve(rod, &ld, Some(&it.x), &opts.statics)?;
+            let sol = statics::solve(rod, &ld, Some(&it.x), &inner)?;
             Ok(exact_at(it.p, sol.x, &problem))
         };
     // Start: the equilibrium at the clipped start pressures; from a cold start, the best of
@@ -685,11 +608,11 @@ pub fn solve_inverse(
     let known = warm.and_then(|w| {
         w.equilibrium
             .as_ref()
-            .filter(|(p, _, _)| *p == p0 && w.x.iter().all(|v| v.is_finite()))
+            .filter(|(p, _)| *p == p0 && w.x.iter().all(|v| v.is_finite()))
     });
     let mut it = match known {
         // The previous answer: converged and checked there, at these very pressures.
-        Some((_, point, tip)) => {
+        Some((_, point)) => {
             let y = flatten(point);
             Iterate {
                 p: p0,
@@ -697,7 +620,6 @@ pub fn solve_inverse(
                 g: [0.0; 3],
                 y,
                 point: *point,
-                tip: *tip,
                 y_corr: y,
                 exact: true,
             }
@@ -829,13 +751,13 @@ pub fn solve_inverse(
             let mut trial = None;
             let mut last = f64::INFINITY;
             for _ in 0..8 {
-                let (g, point, tip) = value_with(&prob_t, rod, &x_t, &probe);
+                let (g, point, _) = value_with(&prob_t, rod, &x_t, &probe);
                 let n = inf(&g);
                 if !n.is_finite() || n > 0.5 * last {
                     break;
                 }
                 if n <= LOOSE * inf(&x_t).max(1.0) {
-                    trial = Some((g, point, tip, n <= eq_tol(&x_t)));
+                    trial = Some((g, point, n <= eq_tol(&x_t)));
                     break;
                 }
                 last = n;
@@ -848,13 +770,13 @@ pub fn solve_inverse(
             }
             if trial.is_none() && fresh {
                 // A long step: solve the equilibrium properly (Newton, continuation).
-                if let Ok(sol) = statics::solve(rod, &ld_t, Some(&x_t), &opts.statics) {
+                if let Ok(sol) = statics::solve(rod, &ld_t, Some(&x_t), &inner) {
                     x_t = sol.x;
-                    let (g, point, tip) = value_with(&prob_t, rod, &x_t, &probe);
-                    trial = Some((g, point, tip, true));
+                    let (g, point, _) = value_with(&prob_t, rod, &x_t, &probe);
+                    trial = Some((g, point, true));
                 }
             }
-            let Some((g_t, point_t, tip_t, exact_t)) = trial else {
+            let Some((g_t, point_t, exact_t)) = trial else {
                 if !fresh {
                     break; // the kept linearisation is too old: take a fresh one
                 }
@@ -909,7 +831,6 @@ pub fn solve_inverse(
                     g: g_t,
                     y: y_t,
                     point: point_t,
-                    tip: tip_t,
                     y_corr: y_corr_t,
                     exact: exact_t,
                 };
@@ -963,19 +884,8 @@ pub fn solve_inverse(
             ),
         });
     }
-    let ld = with_p(&it.p);
-    let problem = Problem::new(rod, &ld, 1.0);
-    let y0 = problem.base_state(&it.x);
-    let solution = Solution {
-        x: it.x,
-        base_force: y0.n,
-        base_moment: y0.m,
-        tip: it.tip,
-        iterations,
-        residual: inf(&it.g),
-        load_steps: 1,
-    };
-    let warnings = check_equilibrium(rod, &ld, &solution, &opts.limits, opts.policy)?;
+    // The answer as a static solve concludes it: validity rules and stability.
+    let solution = statics::conclude_at(rod, &with_p(&it.p), it.x, iterations, &opts.statics)?;
     let distance = (0..3)
         .map(|i| (it.y[i] - target.position[i]).powi(2))
         .sum::<f64>()
@@ -1002,7 +912,6 @@ pub fn solve_inverse(
         solution,
         iterations,
         passes,
-        warnings,
         linearisation: lin,
     })
 }

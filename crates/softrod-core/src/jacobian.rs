@@ -126,7 +126,7 @@ pub(crate) fn dual_coeffs<const N: usize>(
     (0..rod.sections.len())
         .map(|i| {
             let knobs = SectionKnobs::of(&rod.sections[i]).lift();
-            Coeffs::build_with(rod, i, &p, &rod.gravity, 1.0, &sigma, &knobs)
+            Coeffs::build_with(rod, i, &p, &rod.gravity, Jet::from(1.0), &sigma, &knobs)
         })
         .collect()
 }

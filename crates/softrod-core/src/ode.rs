@@ -124,7 +124,7 @@ fn swelling_factors_with<S, P: Copy>(
     rod: &Rod,
     i: usize,
     pressures: &[P],
-    factor: f64,
+    factor: S,
     c_p: S,
 ) -> Vec<S>
 where
@@ -134,7 +134,7 @@ where
     s.chambers
         .iter()
         .map(|c| match s.law.swelling {
-            Some(sw) => c_p * (S::from(pressures[c.channel]) * factor / sw.p_ref) + 1.0,
+            Some(sw) => c_p * (factor * S::from(pressures[c.channel]) / sw.p_ref) + 1.0,
             None => S::from(1.0),
         })
         .collect()
@@ -205,15 +205,16 @@ impl Coeffs<f64> {
 }
 
 impl<C: RodScalar> Coeffs<C> {
-    /// [`Coeffs::build`] with the section's parameters given as `knobs`, in any scalar, and
-    /// the pressures in f64 or in the coefficients' scalar (dual pressures give the exact
-    /// pressure derivatives of `crate::jacobian`).
+    /// [`Coeffs::build`] with the section's parameters given as `knobs`, in any scalar;
+    /// the load factor may be a dual number too (the load derivative of
+    /// `crate::statics`' continuation predictor), and the pressures f64 or the coefficients'
+    /// scalar (dual pressures give the exact pressure derivatives of `crate::jacobian`).
     pub fn build_with<P: Copy>(
         rod: &Rod,
         i: usize,
         pressures: &[P],
         g: &[f64; 3],
-        factor: f64,
+        factor: C,
         sigma: &[C; 3],
         knobs: &SectionKnobs<C>,
     ) -> Self
@@ -274,15 +275,16 @@ impl<C: RodScalar> Coeffs<C> {
         let mut force = zero; // sum p_k A_k
         let mut mp = [zero; 3]; // sum p_k A_k (y_k, -x_k, 0)
         for ((c, w), x) in s.chambers.iter().zip(&swell).zip(&centroids) {
-            let pa = *w * *w * knobs.area_scale * (C::from(pressures[c.channel]) * factor * c.area);
+            let pa =
+                *w * *w * knobs.area_scale * (factor * C::from(pressures[c.channel]) * c.area);
             force += pa;
             mp[0] += pa * x[1];
             mp[1] -= pa * x[0];
         }
         let u_shift: [C; 3] =
             std::array::from_fn(|a| c_bt[a][0] * mp[0] + c_bt[a][1] * mp[1] + c_bt[a][2] * mp[2]);
-        let f = std::array::from_fn(|k| C::from(factor * (s.line_mass * g[k] + s.line_force[k])));
-        let l = std::array::from_fn(|k| C::from(factor * s.line_moment[k]));
+        let f = std::array::from_fn(|k| factor * (s.line_mass * g[k] + s.line_force[k]));
+        let l = std::array::from_fn(|k| factor * s.line_moment[k]);
         let axial = match &law.axial {
             AxialLaw::Linear => AxialCoeffs::Linear,
             AxialLaw::Ogden { .. } => AxialCoeffs::Ogden {

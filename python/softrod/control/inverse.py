@@ -149,7 +149,9 @@ class InverseSolution:
     distance (m): from the point to the target position; angle (rad): to the target
     orientation (NaN without one); active (c,): -1 at the lower bound, +1 at the upper, 0
     inside; point_position (3,), point_rotation (3, 3): the pose of the point at arc length
-    ``point``; tip_position, tip_rotation: the tip's. ``statics()`` gives the full
+    ``point``; tip_position, tip_rotation: the tip's; stable: the equilibrium's stability
+    (an unstable one is refused unless ``on_unstable`` says otherwise); violations: the
+    validity-range violations accepted with ``on_invalid="warn"``. ``statics()`` gives the full
     equilibrium (shape, forces) as a :class:`StaticSolution`; pass the solution as
     ``initial=`` to warm-start the next inverse.
     """
@@ -172,6 +174,8 @@ class InverseSolution:
     iterations: int
     passes: int
     shooting_unknowns: np.ndarray = field(repr=False)
+    stable: bool = True
+    violations: tuple[str, ...] = ()
     tip_force: tuple = field(default=(0.0, 0.0, 0.0), repr=False)
     tip_moment: tuple = field(default=(0.0, 0.0, 0.0), repr=False)
 
@@ -225,6 +229,8 @@ class InverseProblem:
     - ``tol``: the target counts as reached within tol L (position) and tol rad.
     - ``on_invalid``: "raise" (default), "warn" or "ignore" for solutions outside the
       validity ranges (strains, operating range); physical rules always raise.
+    - ``on_unstable``: "raise" (default: an unstable equilibrium is never returned as an
+      answer, :class:`InvalidStateError` with rule "stability"), "warn" or "ignore".
     """
 
     def __init__(
@@ -241,8 +247,9 @@ class InverseProblem:
         tol: float = 1e-10,
         max_iter: int = 100,
         on_invalid: str = "raise",
+        on_unstable: str = "raise",
     ):
-        from ..statics import _vec3
+        from ..statics import _policy, _vec3
 
         self.design: Design = load_design(design)
         d = self.design
@@ -266,6 +273,7 @@ class InverseProblem:
         self.tip_moment = tuple(_vec3(tip_moment, "moment", "tip_moment", tip["moment"]))
         tol = real(tol, "tol", minimum=0.0, exclusive=True, maximum=0.1)
         max_iter = integer(max_iter, "max_iter", minimum=1, maximum=10_000)
+        self.on_unstable = _policy("on_unstable", on_unstable)
         self._least = np.clip(0.0, self.bounds[:, 0], self.bounds[:, 1])
         self._solver = _core.InverseSolver(
             d._rod,
@@ -278,7 +286,7 @@ class InverseProblem:
             list(self.tip_moment),
             tol=float(tol),
             max_iter=int(max_iter),
-            on_invalid=on_invalid,
+            on_invalid=_policy("on_invalid", on_invalid),
         )
 
     def solve(
@@ -344,13 +352,19 @@ class InverseProblem:
             x=x,
             reference=reference,
         )
-        if out["warnings"]:
+        if out["violations"]:
             import warnings
 
             from ..errors import ValidityWarning
 
-            for rule, message in out["warnings"]:
-                warnings.warn(f"rule {rule}: {message}", ValidityWarning, stacklevel=2)
+            for message in out["violations"]:
+                warnings.warn(ValidityWarning(message), stacklevel=2)
+        if not out["stable"]:
+            from ..statics import _report_stability
+
+            kpa = ", ".join(f"{p / 1e3:.6g}" for p in out["pressures"])
+            _report_stability(False, self.on_unstable,
+                              f"the inverse's answer at pressures [{kpa}] kPa")
         return InverseSolution(
             design=self.design,
             pressures=np.array(out["pressures"]),
@@ -372,6 +386,8 @@ class InverseProblem:
             shooting_unknowns=np.array(out["x"]),
             tip_force=self.tip_force,
             tip_moment=self.tip_moment,
+            stable=bool(out["stable"]),
+            violations=tuple(out["violations"]),
         )
 
 
@@ -390,6 +406,7 @@ def solve_inverse(
     tol: float = 1e-10,
     max_iter: int = 100,
     on_invalid: str = "raise",
+    on_unstable: str = "raise",
 ) -> InverseSolution:
     """The chamber pressures within ``pressure_bounds`` that bring the tip (or the point at
     arc length ``point``) of ``design`` to ``target``, and to ``orientation`` when given.
@@ -413,5 +430,6 @@ def solve_inverse(
         tol=tol,
         max_iter=max_iter,
         on_invalid=on_invalid,
+        on_unstable=on_unstable,
     )
     return problem.solve(target, orientation=orientation, initial=initial)
