@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import softrod
-from conftest import assert_clean_error
+from conftest import DELETE, assert_clean_error, with_entries
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from softrod import InputError, InverseProblem, solve_inverse, solve_statics
@@ -51,7 +51,7 @@ def test_round_trip_recovers_200_random_pressures(spa):
     for p in rng.uniform(0.0, P_MAX, size=(200, 3)):
         tip = solve_statics(spa, p).tip_position
         sol = problem.solve(tip)
-        assert sol.reached
+        assert sol.reached and sol.stable
         assert np.all(sol.pressures >= 0.0) and np.all(sol.pressures <= P_MAX)
         worst_p = max(worst_p, np.max(np.abs(sol.pressures - p)) / P_MAX)
         worst_tip = max(worst_tip, sol.distance / spa.length)
@@ -110,7 +110,9 @@ def test_bounds_are_never_violated(x, y, z, lo, width):
     reaches the target or says it did not."""
     design = softrod.load_design(SPA)
     hi = lo + width
-    sol = solve_inverse(design, [x, y, z], pressure_bounds=(lo, hi))
+    # Bounds beyond the design's operating range are the caller's choice here: on_invalid
+    # "ignore" lets answers above 70 kPa through (the default refuses them).
+    sol = solve_inverse(design, [x, y, z], pressure_bounds=(lo, hi), on_invalid="ignore")
     assert np.all(sol.pressures >= lo) and np.all(sol.pressures <= hi)
     assert sol.reached == (sol.distance <= math.sqrt(3) * 1e-10 * design.length) or (
         not sol.reached)
@@ -151,9 +153,36 @@ def test_stacked_modules_with_split_channels():
     assert np.allclose(pose.pressures, p, atol=1e-6 * 100e3)
 
 
-def test_bad_inputs_are_named(spa):
+def test_an_unstable_answer_is_refused(spa):
+    """The actuator upright under a tip mass of five times the buckling load of its softest
+    section: at zero pressure the straight column is an equilibrium, but an unstable one
+    (the statics flags it). Asked for the straight column's tip, the inverse reaches it and
+    refuses the answer; with on_unstable="warn" it returns it marked unstable."""
+    ei = min(min(s["k_bt"][0][0], s["k_bt"][1][1]) for s in spa.sections() if not s["rigid"])
+    p_cr = math.pi**2 * ei / (4 * spa.length**2)  # below the true one: the softest section
+    up = spa.replace({"mounting.orientation": "upright",
+                      "tip.mass": f"{5 * p_cr / 9.81 * 1e3:.1f} g"})
+    with pytest.warns(softrod.StabilityWarning):
+        column = solve_statics(up, [0, 0, 0])
+    assert not column.stable
+    with pytest.raises(softrod.InvalidStateError) as err:
+        solve_inverse(up, column.tip_position, pressure_bounds=BOUNDS)
+    assert err.value.rule == "stability"
+    with pytest.warns(softrod.StabilityWarning):
+        sol = solve_inverse(up, column.tip_position, pressure_bounds=BOUNDS, on_unstable="warn")
+    assert sol.reached and not sol.stable
+
+
+def test_default_bounds_are_the_operating_range(spa):
+    sol = solve_inverse(spa, [0.0, 0.0, -0.2])  # below the reach: the closest pose
+    assert np.allclose(sol.bounds, [[0.0, 70e3]] * 3)  # the design's [operating_range]
+    assert not sol.reached and np.all(sol.pressures == 70e3)
+    bare = softrod.load_design(with_entries(SPA, {"operating_range": DELETE}))
     with pytest.raises(InputError, match="pressure_bounds"):
-        solve_inverse(spa, [0, 0, -0.13])  # the design has no operating range
+        solve_inverse(bare, [0, 0, -0.13])  # no range known: the caller must say
+
+
+def test_bad_inputs_are_named(spa):
     with pytest.raises(InputError, match="lo must be <= hi"):
         solve_inverse(spa, [0, 0, -0.13], pressure_bounds=(70e3, 0))
     with pytest.raises(InputError, match="target"):
@@ -351,7 +380,8 @@ def test_cli_inverse_json_and_table(run):
     assert "NOT reached" in result.stdout
     assert_clean_error(run("inverse", SPA, "--target", "10,5 mm", "--bounds", "0:70kPa"), 2,
                        "--target")
-    assert_clean_error(run("inverse", SPA, "--target", "1,2,3 mm"), 2, "--bounds")
+    assert_clean_error(run("inverse", SPA, "--target", "1,2,3 mm", "--bounds", "70:0kPa"), 2,
+                       "--bounds")
 
 
 def test_cli_workspace_writes_table_and_figure(run, tmp_path):

@@ -75,6 +75,7 @@ fn round_trip_recovers_pressures() {
         )
         .unwrap_or_else(|e| panic!("p = {p:?}: {e}"));
         assert!(inv.reached, "p = {p:?}: distance {}", inv.distance);
+        assert!(inv.solution.stable);
         for c in 0..3 {
             assert!((0.0..=P_MAX).contains(&inv.pressures[c]));
             worst_p = worst_p.max((inv.pressures[c] - p[c]).abs() / P_MAX);
