@@ -1,6 +1,6 @@
 """Baseline and independent reference: softrod's static model solved with scipy's solve_bvp.
 
-This re-implements, in numpy only, the static Cosserat rod of DESIGN.md sections 2-4 exactly
+This re-implements, in numpy only, the static Cosserat rod of docs/model.md exactly
 as softrod states it (crates/softrod-core/src/ode.rs), without calling the Rust solver:
 
     v = K_se^-1 (R^T n + P e3) + e3,           P = sum_k p_k A_k,

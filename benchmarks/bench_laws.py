@@ -435,7 +435,7 @@ def core_profile(group: dict, step_mm: float, rounds: int) -> dict | None:
 def print_core(results: dict) -> None:
     w = 30
     print(
-        "\nRust core alone (examples/profile_solve, 70/35/0 kPa, sigma = 1; mean of 2000 calls, "
+        "\nRust core alone (example profile_solve, 70/35/0 kPa, sigma = 1; mean of 2000 calls, "
         "median of the rounds), us and ratio to the group's baseline"
     )
     print(

@@ -303,7 +303,7 @@ def run(quick: bool) -> dict:
     print("-" * 96)
     print(
         f"* extrapolated: baseline median cold solve x {len(pressures)}, one core; softrod's "
-        f"sweep uses all {os.cpu_count()} cores and warm-starts along rows."
+        f"sweep uses all {os.cpu_count()} cores; every row is solved cold."
     )
     print(
         f"settings: step {step_mm:g} mm, steps {steps} (tip error {chosen_err:.1e} L; design "

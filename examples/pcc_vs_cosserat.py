@@ -27,6 +27,7 @@ from softrod.pcc.compare import (  # noqa: E402
     compare_pcc_dynamics,
     plot_pcc_comparison,
     plot_pcc_dynamics_comparison,
+    plot_pcc_step_response,
 )
 
 out_dir = (
@@ -59,24 +60,18 @@ fig.savefig(out_dir / "pcc_dynamics_vs_cosserat.png", dpi=120)
 plt.close(fig)
 
 dt, n = 2e-3, 1500
-fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
-for ax, channels, label in (
-    (axes[0], [0, 2, 4], "channels 0, 2, 4 (elongation)"),
-    (axes[1], [5, 0, 1], "channels 5, 0, 1 (bending)"),
+runs = {}
+for channels, label in (
+    ([0, 2, 4], "1 bar step on channels 0, 2, 4 (elongation)"),
+    ([5, 0, 1], "1 bar step on channels 5, 0, 1 (bending)"),
 ):
     p = np.zeros((n + 1, 6))
     p[int(0.2 / dt) :, channels] = 1e5
     t0 = time.perf_counter()
-    out = run_pcc(design, dt, p, save_every=5)
+    runs[label] = run_pcc(design, dt, p, save_every=5)
     wall = time.perf_counter() - t0
     print(f"{label}: {n} steps of {dt * 1e3:.0f} ms in {wall:.3f} s")
-    ax.plot(out["time"], 1e3 * (out["q"][:, 0] - 0.11), label="elongation d (mm)")
-    ax.plot(out["time"], np.degrees(out["q"][:, 1]), label="theta (deg)")
-    ax.set_xlabel("time (s)")
-    ax.set_title(f"1 bar step on {label}", fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-fig.tight_layout()
+fig = plot_pcc_step_response(runs, rest_length=design.length, title="stiff_flop_pcc: PCC model")
 fig.savefig(out_dir / "pcc_step_response.png", dpi=120)
 plt.close(fig)
 names = "pcc_vs_cosserat.png, pcc_dynamics_vs_cosserat.png and pcc_step_response.png"

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Every test of softrod from a fresh clone: installs the package with its test extra
-# (this builds the Rust extension), then runs the Rust tests, the Python tests and the
-# format/lint checks. Needs Python >= 3.10 with pip, and Rust (https://rustup.rs).
+# Every test of softrod from a fresh clone: installs the package with its test and docs extras
+# (this builds the Rust extension), then runs the Rust tests, the Python tests (the docs' examples,
+# the API reference build and the stub check included) and the format/lint checks. Needs
+# Python >= 3.10 with pip, and Rust (https://rustup.rs).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 command -v cargo >/dev/null || { echo "error: cargo not found; install Rust (https://rustup.rs)" >&2; exit 1; }
@@ -21,8 +22,8 @@ if ! command -v chromium >/dev/null 2>&1; then
         echo "note: Chromium is not installed and this user can neither apt-get nor sudo: the browser test will be skipped (install Debian's chromium to run it)"
     fi
 fi
-echo "== installing softrod with its test extra (builds the Rust core)"
-"$PY" -m pip install --quiet --disable-pip-version-check -e ".[test]"
+echo "== installing softrod with its test and docs extras (builds the Rust core)"
+"$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,docs]"
 echo "== format and lint"
 cargo fmt --all --check
 "$PY" -m ruff check python tests benchmarks

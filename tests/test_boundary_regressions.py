@@ -2,9 +2,10 @@
 
 Each case runs in a worker subprocess with a time and a memory limit (tests/fuzzing.py), so
 a regression that aborts, hangs or eats memory fails its test instead of the test run. The
-defects of the Rust core that branch ``statics`` fixes (invalid results returned as
-converged, batch differing from single) are marked ``xfail(strict=True)`` until that branch
-is merged: they then pass, strict xfail turns that into a failure, and the marks go.
+Rust core's statics now checks results before returning them and solves batch rows exactly
+as single solves (those cases pass); defects still open elsewhere are marked
+``xfail(strict=True)``: once fixed they pass, strict xfail turns that into a failure, and the
+mark goes.
 """
 
 from __future__ import annotations
@@ -27,9 +28,6 @@ from fuzzing import CliArgs, Pool
 SPA = "spa_three_chamber_130mm"
 BODY = "sections[1]"
 QUICK_S = 2.0  # a refusal is instant: well under this, even on a loaded 2-core machine
-RUST_STATICS = "the Rust core checks results before returning them: fixed on branch statics"
-
-
 def _doc(entries):
     return with_entries(SPA, entries)
 
@@ -204,31 +202,27 @@ def test_regression(pool, case, kind, fragment):
         assert out.seconds < QUICK_S, f"a refusal took {out.seconds:.2f} s"
 
 
-@pytest.mark.xfail(strict=True, reason=RUST_STATICS)
 @pytest.mark.parametrize("case", [c[1] for c in RUST_CASES], ids=[c[0] for c in RUST_CASES])
 def test_rust_result_checks(pool, case):
     (out,) = pool.run([case])
     assert out.kind in ("ok", "error"), out  # a clean refusal (InvalidStateError) or valid
 
 
-@pytest.mark.xfail(strict=True, reason=RUST_STATICS)
 def test_far_beyond_any_actuator_is_not_converged():
     # 1 GPa on a silicone module "converged" with the tip 60 lengths from the base.
     with pytest.raises(softrod.ConvergenceError):
         softrod.solve_statics("modular_two_module", [1e9, 0, 0])
 
 
-@pytest.mark.xfail(strict=True, reason=RUST_STATICS)
 def test_batch_rows_equal_single_solves():
     d = softrod.load_design(SPA)
     p = np.random.default_rng(0).uniform(0, 7e4, (200, 3))
     batch = softrod.solve_statics_batch(d, p)
     single = np.array([softrod.solve_statics(d, row).tip_position for row in p])
-    # 1e-13 relative to the length: round-off of one solve, never a different warm start.
-    assert np.abs(batch.tip_position - single).max() <= 1e-13 * d.length
+    # every row is solved cold, exactly as the single solve: bitwise equal
+    assert np.array_equal(batch.tip_position, single)
 
 
-@pytest.mark.xfail(strict=True, reason=RUST_STATICS)
 def test_batch_does_not_depend_on_threads():
     d = softrod.load_design(SPA)
     p = np.random.default_rng(1).uniform(0, 7e4, (200, 3))

@@ -52,12 +52,15 @@ def test_solve_json_equals_api(run):
         "base_force_N",
         "base_moment_Nm",
         "converged",
+        "stable",
+        "violations",
         "iterations",
         "residual",
         "shape",
     }
     api = solve_statics(SPA, [30e3, 0, 0], tip_force=[0, 0, -1])
     assert data["design"] == SPA and data["converged"] is True
+    assert data["stable"] is True and data["violations"] == []
     # 1e-9 Pa: "0.3bar" converts to 30000 Pa up to round-off.
     np.testing.assert_allclose(data["pressures_Pa"], [30e3, 0, 0], rtol=0, atol=1e-9)
     # Same inputs, same deterministic solve, and JSON floats round-trip exactly; 1e-12 m
@@ -97,7 +100,7 @@ def test_sweep_writes_table(run, tmp_path, suffix):
     assert ds.metadata["generator"] == "softrod sweep" and ds.metadata["design"] == SPA
     assert ds.metadata["softrod_version"] == softrod.__version__
     assert ds.metadata["grid"] == ["0:60kPa:3"]
-    assert list(ds.extra) == ["converged", "iterations", "residual"]
+    assert list(ds.extra) == ["converged", "iterations", "residual", "stable"]
     df = ds.to_frame()
     assert list(df.columns[:9]) == [
         "p0_kPa",

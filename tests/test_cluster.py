@@ -6,7 +6,7 @@ Fair comparison: today a batch row warm-starts from its neighbour within the cor
 internal chunks, whose size depends on the rows per call and the thread count. So the
 single-process reference runs the same chunks with the same thread count (one per task),
 which is exactly what a worker does; then the results must agree to the last bit. Once batch
-rows are independent of chunking (DESIGN.md 5b), the reference can be one call.
+rows are independent of chunking, the reference can be one call.
 """
 
 from __future__ import annotations

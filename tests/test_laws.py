@@ -367,7 +367,9 @@ def test_swelling_moment_and_stretch_follow_the_swollen_geometry():
     design = load_design(with_entries(SPA, entries))
     plain = load_design(with_entries(SPA, {**entries, f"{BODY}.law": {}}))
     for p in (np.array([60e3, 0, 0]), np.array([0, 30e3, 70e3])):
-        sol = solve_statics(design, p)
+        # 70 kPa is beyond paper 002's tested 0-0.6 bar (the design's operating_range): the
+        # law's algebra is checked there all the same.
+        sol = solve_statics(design, p, on_invalid="ignore")
         a_m, k, force, mp = swollen_body(p, c_p, p_ref)
         u = sol.u[body(sol)]
         np.testing.assert_allclose(u[:, :2] @ k.T, np.tile(mp, (len(u), 1)), rtol=1e-10)

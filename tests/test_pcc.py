@@ -21,7 +21,9 @@ def test_pcc_and_cosserat_agree_for_weightless_unloaded_arc(p):
     # rod's RK4 error (16 steps per section, ~1e-9 m here); 1e-7 m leaves a margin.
     d = weightless()
     a = softrod.solve_statics(d, p, model="pcc")
-    c = softrod.solve_statics(d, p)
+    # 80 kPa is beyond paper 001's 0-70 kPa (the design's operating_range); both models
+    # are compared there all the same.
+    c = softrod.solve_statics(d, p, on_invalid="ignore")
     assert np.abs(a.tip_position - c.tip_position).max() < 1e-7
     assert np.abs(a.tip_rotation - c.tip_rotation).max() < 1e-6
     # The whole shape is the arc: PCC samples every 1/32 of a section; compare to the rod's

@@ -66,7 +66,10 @@ def test_plot_shape_many_solutions_with_frames(tmp_path):
     fig = plot_shape([*sols, failed], title="test", show_frames=True)
     ax = fig.axes[0]
     assert ax.get_xlabel() == "x (mm)" and ax.get_zlabel() == "z (mm)"
-    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    top = fig.axes[1]  # the top view beside the 3-D one
+    assert top.get_xlabel() == "x (mm)" and top.get_ylabel() == "y (mm)"
+    assert top.get_aspect() == 1.0  # equal scale in the top view too
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
     assert "p = (60, 60, 0) kPa" in labels
     assert "p = (60, 0, 0) kPa (not converged)" in labels
     assert "rigid part" in labels and "base" in labels
@@ -76,6 +79,27 @@ def test_plot_shape_many_solutions_with_frames(tmp_path):
     np.testing.assert_allclose(aspect / aspect.max(), spans / spans.max(), rtol=1e-9)
     path = save_figure(fig, tmp_path / "shapes.pdf")
     assert path.read_bytes()[:5] == b"%PDF-"
+
+
+def test_plot_shape_draws_tip_forces_to_scale():
+    d = load_design("spa_three_chamber_130mm")
+    pushed = solve_statics(d, [30e3, 0, 0], tip_force=[0.3, 0, -0.4])  # 0.5 N
+    free = solve_statics(d, [30e3, 0, 0])  # only the tip body's weight: no arrow
+    fig = plot_shape([pushed, free])
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert "tip force 0.5 N (arrows to scale)" in labels
+    ax3d, top = fig.axes
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    quivers = [c for c in ax3d.collections if isinstance(c, Line3DCollection)]
+    assert len(quivers) == 1  # one arrow: the pushed shape's
+    assert len(top.texts) == 1  # the top view draws its horizontal part
+    # The arrow starts at the tip and points along the applied force (not the tip weight).
+    start = np.asarray(top.texts[0].xyann)
+    end = np.asarray(top.texts[0].xy)
+    np.testing.assert_allclose(start, 1e3 * pushed.tip_position[:2])
+    direction = (end - start) / np.linalg.norm(end - start)
+    np.testing.assert_allclose(direction, [1.0, 0.0], atol=1e-9)
 
 
 def test_plot_shape_into_given_axes_and_errors(tmp_path):

@@ -35,7 +35,10 @@ def _arc_error(angle: float, steps: int):
     """Solve the pure-bending rod; return (solution, radius, tip error in m)."""
     rod = load_design(straight_rod(steps=steps))
     moment = EI * angle / L  # N m about +y: the rod bends in the x-z plane through `angle`
-    sol = solve_statics(rod, [], tip_moment=[0.0, moment, 0.0])
+    # A dead tip moment is not conservative in 3-D, and with GJ < EI the stability test
+    # flags arcs beyond about 2.7 rad (lateral-torsional; docs/model.md, "Validity and
+    # stability"): this test checks the shape only.
+    sol = solve_statics(rod, [], tip_moment=[0.0, moment, 0.0], on_unstable="ignore")
     radius = EI / moment
     expected_tip = [radius * (1 - np.cos(angle)), 0.0, radius * np.sin(angle)]
     return sol, radius, float(np.abs(sol.tip_position - expected_tip).max())
@@ -72,7 +75,10 @@ def test_arc_error_is_fourth_order():
 @pytest.mark.parametrize("force", [3.0, -3.0])
 def test_axial_force_stretches_by_fl_over_ea(force):
     rod = load_design(straight_rod())
-    sol = solve_statics(rod, [], tip_force=[0.0, 0.0, force])
+    # -3 N exceeds the rod's Euler load pi^2 EI / (4 L^2) = 0.62 N: the straight solution is
+    # then an unstable equilibrium (flagged); this test checks the axial stretch only.
+    sol = solve_statics(rod, [], tip_force=[0.0, 0.0, force], on_unstable="ignore")
+    assert sol.stable == (force > 0)
     # The stretch is uniform and the ODE linear in s, which RK4 integrates exactly: only
     # round-off remains (1e-14 m against a 6 mm change).
     np.testing.assert_allclose(sol.tip_position, [0.0, 0.0, L + force * L / EA], rtol=0, atol=1e-14)
@@ -84,22 +90,20 @@ def _grid(n: int, top: float = 70e3) -> np.ndarray:
     return np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
 
 
-@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("threads", [1, 2, 4])
 def test_batch_equals_single(threads):
     d = load_design(SPA)
     pressures = _grid(4)
     batch = solve_statics_batch(d, pressures, threads=threads)
     single = [solve_statics(d, p) for p in pressures]
-    assert batch.converged.all()
-    # 1e-9 m: both converge to the solver tolerance (scaled residual 1e-10) but from
-    # different guesses (the batch warm-starts from the previous row), so they agree to
-    # ~1e-11 m, not bitwise.
-    np.testing.assert_allclose(
-        batch.tip_position, [s.tip_position for s in single], rtol=0, atol=1e-9
-    )
-    np.testing.assert_allclose(
-        batch.tip_rotation, [s.tip_rotation for s in single], rtol=0, atol=1e-8
-    )  # 1e-8: rotations are O(1), positions 0.1 m
+    assert batch.converged.all() and batch.stable.all()
+    # Every row is solved cold, exactly as the single solve: bitwise equal, whatever the
+    # thread count; and a sub-batch (other chunking) gives the same rows.
+    np.testing.assert_array_equal(batch.tip_position, [s.tip_position for s in single])
+    np.testing.assert_array_equal(batch.tip_rotation, [s.tip_rotation for s in single])
+    np.testing.assert_array_equal(batch.x, [s.shooting_unknowns for s in single])
+    part = solve_statics_batch(d, pressures[5:], threads=threads)
+    np.testing.assert_array_equal(part.tip_position, batch.tip_position[5:])
 
 
 def test_warm_start_same_answer_in_no_more_iterations():

@@ -15,8 +15,8 @@ a      horizontal p0 = p, p1 = p2 = 0                  Fig. 5 top
 Channels are numbered from 0, as everywhere in softrod: paper 002's chambers 1, 2, 3 are
 channels 0, 1, 2 (so the paper's experiment (i) on chamber 1 is ``i-0``).
 
-:func:`compare_models` solves every (model, experiment) pair as one ordered
-``solve_statics_batch`` call (each level warm-starts from the previous one) and returns a
+:func:`compare_models` solves every (model, experiment) pair as one
+``solve_statics_batch`` call (every level solved cold, as a single solve) and returns a
 tidy table; :func:`plot_comparison` draws it like paper 002's Figs. 5-7 (tip coordinates in
 the paper's frame against pressure). Models are the presets of paper 002's Sec. VI (M0-M3,
 :mod:`softrod.presets`) or designs of your own (e.g. a calibrated one).
@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -42,6 +42,11 @@ from .errors import DesignError, InputError, design_error
 from .presets import PAPER002_MODELS, paper002_preset
 from .statics import SolverOptions, solve_statics_batch
 from .units import to_si
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ._types import ArrayLike
 
 
 @dataclass(frozen=True)
@@ -239,11 +244,11 @@ def compare_models(
     models: Sequence[str] | Mapping[str, Mapping[str, Any]] = PAPER002_MODELS,
     *,
     experiments: str | Sequence[str] | None = None,
-    pressures=None,
+    pressures: ArrayLike | None = None,
     threads: int = 0,
     options: SolverOptions | None = None,
     progress: Callable[[str, int], None] | None = None,
-):
+) -> pd.DataFrame:
     """Tip positions of several models along paper 002's pressure ramps; a pandas DataFrame.
 
     models: paper 002 model names ("M0".."M3", the presets ``paper002_<M>_<mounting>``), or a

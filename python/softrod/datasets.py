@@ -35,6 +35,7 @@ import re
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -54,6 +55,10 @@ from .schema import matrix_to_quat as _matrix_to_quat
 from .schema import quat_to_matrix as _quat_to_matrix
 from .schema import unit_factor as _unit_factor
 from .units import vector_to_si
+
+if TYPE_CHECKING:
+    from ._types import ArrayLike, DesignLike, PathLike
+    from .statics import SolverOptions
 
 __all__ = [
     "DEFAULT_UNITS",
@@ -294,7 +299,7 @@ class Dataset:
     def __len__(self) -> int:
         return self.pressures.shape[0]
 
-    def rows_text(self, rows) -> str:
+    def rows_text(self, rows: Iterable[int]) -> str:
         """Rows (0-based indices) as a message names them: by file line for a CSV source
         ("d.csv lines 3-5, 9"), by 0-based row for a Parquet source, else by index."""
         rows = sorted(int(r) for r in rows)
@@ -346,7 +351,7 @@ class Dataset:
         _, first = np.unique(self.experiment, return_index=True)
         return tuple(self.experiment[i].item() for i in sorted(first))
 
-    def subset(self, rows) -> Dataset:
+    def subset(self, rows: ArrayLike) -> Dataset:
         """The rows chosen by a boolean mask of length m or by integer indices (in that order)."""
         a = np.asarray(rows)
         m = len(self)
@@ -382,7 +387,7 @@ class Dataset:
             extra={name: values[idx] for name, values in self.extra.items()},
         )
 
-    def split(self, by: str = "experiment", *, test) -> tuple[Dataset, Dataset]:
+    def split(self, by: str = "experiment", *, test: Any) -> tuple[Dataset, Dataset]:
         """(train, test): the rows whose ``by`` column ("experiment" or "mounting") holds one
         of the ``test`` ids go to test, the others to train. Unknown ids are an error."""
         if by not in _LABELS:
@@ -622,10 +627,10 @@ def _check_duplicates(names: list) -> None:
 
 
 def load_dataset(
-    source,
+    source: PathLike | pd.DataFrame | Dataset,
     *,
     n_channels: int | None = None,
-    design=None,
+    design: DesignLike | None = None,
     units: Mapping[str, str] | None = None,
     extra: str = "error",
     unconverged: str = "error",
@@ -1001,7 +1006,9 @@ def _converged_rows(df: pd.DataFrame, where, unconverged: str):
 # --- writing -------------------------------------------------------------------------------------
 
 
-def write_dataset(dataset: Dataset, path, *, units: Mapping[str, str] | None = None) -> Path:
+def write_dataset(
+    dataset: Dataset, path: PathLike, *, units: Mapping[str, str] | None = None
+) -> Path:
     """Write ``dataset`` to ``path``: CSV (``.csv``) or Parquet (``.parquet``) by suffix.
 
     Units go into the column names (``units`` as in :meth:`Dataset.to_frame`); the metadata
@@ -1039,17 +1046,17 @@ def noise_seed(noise_mm, seed) -> int:
 
 
 def synthesize_dataset(
-    design,
-    pressures,
+    design: DesignLike,
+    pressures: ArrayLike,
     *,
     noise_mm: float = 0.0,
     seed: int | None = None,
-    experiment=None,
-    mounting=None,
-    time=None,
-    tip_force=None,
-    tip_moment=None,
-    options=None,
+    experiment: ArrayLike | None = None,
+    mounting: str | ArrayLike | None = None,
+    time: ArrayLike | None = None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
+    options: SolverOptions | None = None,
     threads: int = 0,
 ) -> Dataset:
     """A synthetic dataset: the model's equilibria at ``pressures`` plus measurement noise.

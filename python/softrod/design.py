@@ -55,7 +55,9 @@ _SCHEMA: dict[str, set[str]] = {
         "dynamics",
         "pcc",
         "stiffness_map",
+        "operating_range",
     },
+    "operating_range": {"pressure", "source"},
     "design": {"name", "citation", "description", "assumptions", "provenance"},
     "stiffness_map": {"file", "method", "outside"},
     "mounting": {"orientation", "roll", "base_position", "gravity", "base_rotation"},
@@ -575,7 +577,30 @@ def _spec(doc: dict) -> dict:
         "loads": load_specs,
         "dynamics": _dynamics(_check_keys(doc.get("dynamics", {}), "dynamics", "dynamics")),
         **({"pcc": _pcc(_check_keys(doc["pcc"], "pcc", "pcc"))} if "pcc" in doc else {}),
+        **(
+            {"operating_range": _operating_range(doc["operating_range"])}
+            if "operating_range" in doc
+            else {}
+        ),
     }
+
+
+def _operating_range(table: Any) -> dict:
+    """[operating_range]: the gauge pressures the actuator is built and validated for,
+    ``pressure = ["0 kPa", "70 kPa"]`` for every channel, and the ``source`` of the range.
+    Solves outside it are refused or warned about (docs/model.md, "Validity and stability")."""
+    table = _check_keys(table, "operating_range", "operating_range")
+    pressure = _require(table, "pressure", "operating_range")
+    if isinstance(pressure, str) or not isinstance(pressure, list) or len(pressure) != 2:
+        raise V.fail(
+            "operating_range.pressure",
+            pressure,
+            'must be [low, high], e.g. ["0 kPa", "70 kPa"]',
+            DesignError,
+        )
+    if "source" in table and not isinstance(table["source"], str):
+        raise V.fail("operating_range.source", table["source"], "must be a string", DesignError)
+    return {"pressure": _qvec(pressure, "pressure", "operating_range.pressure", length=2)}
 
 
 def _check_channels(secs: list[dict]) -> None:

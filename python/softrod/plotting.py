@@ -82,32 +82,87 @@ def _equal_box(ax, points_mm: np.ndarray) -> None:
     ax.set_ylim(centre[1] - half[1], centre[1] + half[1])
     ax.set_zlim(centre[2] - half[2], centre[2] + half[2])
     ax.set_box_aspect(tuple(2.0 * half))
+    style_3d_axes(ax)
 
 
-def plot_shape(solutions, *, ax=None, title: str | None = None, show_frames: bool = False):
-    """Draw the centrelines of one or more static solutions in 3-D; return the Figure.
+def style_3d_axes(ax) -> None:
+    """Readable ticks and labels on a 3-D Axes whose box aspect is already set.
 
-    Axes are world coordinates in mm with equal scale. Chambered (actuated) sections are
-    drawn in the solution's colour, passive sections (caps) in light grey and rigid parts in
-    dark grey; the base is a black square and the tip a dot. The legend gives each shape's
-    chamber pressures in kPa. ``show_frames`` adds the director triads d1, d2, d3 (red, green,
-    blue) at a few nodes. ``ax`` must be a 3-D Axes (``projection="3d"``); without it a new
-    figure is made with pyplot. Solutions that did not converge are listed but not drawn.
+    Each axis gets a number of ticks in proportion to its length in the box (a short axis of
+    a flat or slender shape gets 2 or 3, not 6 crowded ones), and the tick labels and axis
+    labels stand off the axis lines, so a minus sign does not merge with a tick mark and a
+    label does not sit on the tick labels.
+    """
+    from matplotlib.ticker import MaxNLocator
+
+    box = np.asarray(ax.get_box_aspect(), dtype=float)
+    box = box / box.max()
+    for axis, side in zip((ax.xaxis, ax.yaxis, ax.zaxis), box, strict=True):
+        axis.set_major_locator(MaxNLocator(nbins=max(2, int(round(4 * side))), steps=[1, 2, 5, 10]))
+        # The tick marks point outwards by a few points; the labels start beyond them.
+        axis.set_tick_params(pad=7 if axis is ax.zaxis else 4, labelsize="small")
+        axis.labelpad = 14 if axis is ax.zaxis else 12
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_zlabel("z (mm)")
+
+
+def _tip_force(solution: StaticSolution) -> np.ndarray:
+    """The dead tip force applied at the rod tip (world frame, N): the total force at the
+    tip minus the tip body's weight (the rod's tip balance, docs/model.md)."""
+    design = solution.design
+    gravity = np.asarray(design.spec["mounting"]["gravity"], dtype=float)
+    return np.asarray(solution.force[-1], dtype=float) - design.tip_mass * gravity
+
+
+def _magnitude_label(newtons: float) -> str:
+    return f"{newtons:.3g} N"
+
+
+def plot_shape(
+    solutions,
+    *,
+    ax=None,
+    title: str | None = None,
+    show_frames: bool = False,
+    top_view: bool = True,
+):
+    """Draw the centrelines of one or more static solutions; return the Figure.
+
+    Without ``ax``: a 3-D view and, with ``top_view`` (default), a top view (x-y) beside it,
+    both in world coordinates in mm at equal scale, and the legend below them. With ``ax`` (a
+    3-D Axes, ``projection="3d"``): the 3-D view only, drawn into it. Chambered (actuated)
+    sections are drawn in the solution's colour, passive sections (caps) in light grey and
+    rigid parts in dark grey; the base is a black square and the tip a dot. The legend gives
+    each shape's chamber pressures in kPa. A dead tip force (the call's ``tip_force`` or the
+    design's ``[tip] force``) is an arrow at the tip, in the shape's colour, with its
+    magnitude in the legend; the arrows share one scale, the largest as long as a quarter of
+    the shape. ``show_frames`` adds the director triads d1, d2, d3 (red, green, blue) at a
+    few nodes. Solutions that did not converge are listed but not drawn.
     """
     import matplotlib as mpl
     from matplotlib.lines import Line2D
-    from matplotlib.ticker import MaxNLocator
 
     sols = _as_list(solutions)
     if ax is None:
         import matplotlib.pyplot as plt
 
-        fig = plt.figure(figsize=(7.0, 6.5))
-        ax = fig.add_subplot(projection="3d")
+        if top_view:
+            fig = plt.figure(figsize=(12.0, 6.4), layout="constrained")
+            grid = fig.add_gridspec(1, 2, width_ratios=[1.1, 1.0])
+            ax = fig.add_subplot(grid[0], projection="3d")
+            top = fig.add_subplot(grid[1])
+        else:
+            fig = plt.figure(figsize=(7.0, 6.8), layout="constrained")
+            ax = fig.add_subplot(projection="3d")
+            top = None
+        own_figure = True
     elif not hasattr(ax, "zaxis"):
         raise design_error(
             "ax", type(ax).__name__, "must be a 3-D Axes (projection='3d')", InputError
         )
+    else:
+        top, own_figure = None, False
     fig = ax.figure
 
     colours = mpl.rcParams["axes.prop_cycle"].by_key().get("color", ["C0"])
@@ -115,6 +170,7 @@ def plot_shape(solutions, *, ax=None, title: str | None = None, show_frames: boo
     handles: list = []
     kinds_seen: set[str] = set()
     drawn: list[np.ndarray] = []
+    loads: list[tuple[np.ndarray, np.ndarray, str]] = []  # (tip mm, force N, colour)
     for i, sol in enumerate(sols):
         colour = colours[i % len(colours)]
         label = pressure_label(sol.pressures)
@@ -133,8 +189,16 @@ def plot_shape(solutions, *, ax=None, title: str | None = None, show_frames: boo
             else:
                 style = _RIGID if kind == "rigid" else _PASSIVE
             ax.plot(seg[:, 0], seg[:, 1], seg[:, 2], **style)
+            if top is not None:
+                top.plot(seg[:, 0], seg[:, 1], **style)
         ax.scatter(*pos[0], marker="s", s=40, color="black", depthshade=False)
         ax.scatter(*pos[-1], marker="o", s=36, color=colour, edgecolors="black", depthshade=False)
+        if top is not None:
+            top.scatter(*pos[0, :2], marker="s", s=40, color="black", zorder=3)
+            top.scatter(*pos[-1, :2], marker="o", s=36, color=colour, edgecolors="black", zorder=3)
+        force = _tip_force(sol)
+        if np.all(np.isfinite(force)) and np.linalg.norm(force) > 1e-9:
+            loads.append((pos[-1], force, colour))
         handles.append(
             Line2D(
                 [],
@@ -149,8 +213,43 @@ def plot_shape(solutions, *, ax=None, title: str | None = None, show_frames: boo
         if show_frames:
             _draw_frames(ax, pos, np.asarray(sol.rotation, dtype=float))
 
-    if drawn:
-        _equal_box(ax, np.concatenate(drawn))
+    points = np.concatenate(drawn) if drawn else None
+    if loads and points is not None:
+        extent = float(np.ptp(points, axis=0).max()) or 1.0
+        scale = 0.25 * extent / max(np.linalg.norm(f) for _, f, _ in loads)  # mm per N
+        ends = []
+        for tip, force, colour in loads:
+            arrow = force * scale
+            ax.quiver(
+                *tip, *arrow, color=colour, linewidth=1.8, arrow_length_ratio=0.25, normalize=False
+            )
+            if top is not None and np.hypot(*arrow[:2]) > 0.05 * np.linalg.norm(arrow):
+                top.annotate(
+                    "",
+                    xy=tuple(tip[:2] + arrow[:2]),
+                    xytext=tuple(tip[:2]),
+                    arrowprops={"arrowstyle": "-|>", "color": colour, "linewidth": 1.8},
+                    annotation_clip=False,
+                )
+                top.update_datalim([tip[:2] + arrow[:2]])
+            ends.append(tip + arrow)
+        points = np.concatenate([points, np.array(ends)])
+        magnitudes = sorted({_magnitude_label(float(np.linalg.norm(f))) for _, f, _ in loads})
+        handles.append(
+            Line2D(
+                [],
+                [],
+                color="0.3",
+                linewidth=1.8,
+                marker=">",
+                markevery=[-1],
+                label=f"tip force {', '.join(magnitudes)} (arrows to scale)",
+            )
+        )
+    if points is not None:
+        _equal_box(ax, points)
+    else:
+        style_3d_axes(ax)
     handles.append(Line2D([], [], color="black", marker="s", linestyle="none", label="base"))
     if "passive" in kinds_seen:
         handles.append(Line2D([], [], label="passive section (cap)", **_PASSIVE))
@@ -159,16 +258,22 @@ def plot_shape(solutions, *, ax=None, title: str | None = None, show_frames: boo
     if show_frames and drawn:
         for name, c in zip(("d1", "d2", "d3"), _FRAME_COLOURS, strict=True):
             handles.append(Line2D([], [], color=c, linewidth=1.0, label=name))
-    ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
-    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):  # short axes get crowded ticks otherwise
-        axis.set_major_locator(MaxNLocator(nbins=5))
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
-    ax.set_zlabel("z (mm)", labelpad=10)
     if title is None:
         names = sorted({s.design.name for s in sols})
         title = ", ".join(names)
-    ax.set_title(title)
+    if top is not None:
+        top.set_aspect("equal", adjustable="datalim")
+        top.set_xlabel("x (mm)")
+        top.set_ylabel("y (mm)")
+        top.set_title("top view (x-y), base at the black square", fontsize="medium")
+        top.grid(True, alpha=0.3)
+        ax.set_title("3-D view", fontsize="medium")
+    if own_figure:
+        fig.suptitle(title)
+        fig.legend(handles=handles, loc="outside right center", fontsize="small", frameon=False)
+    else:
+        ax.set_title(title)
+        ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
     return fig
 
 

@@ -5,10 +5,19 @@ the PCC model's) returns the same types without importing each other."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .design import Design
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    import pandas as pd
+
+    from ._types import ArrayLike, Units
+    from .control.linear import Jacobian
 
 
 @dataclass(frozen=True)
@@ -22,6 +31,10 @@ class StaticSolution:
     Forces and moments are the totals of the balance laws (material plus pressure part).
     stiffness_scale: (3,) sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) applied to the
     mapped sections (docs/stiffness-map.md); ones when the design has none.
+    stable: the equilibrium is stable (docs/model.md, "Validity and stability"); None where
+    the model does not assess it (the PCC model) or the solve failed.
+    violations: the validity ranges the solution lies outside (only with
+    ``on_invalid="warn"``; otherwise such a solution is refused).
     """
 
     design: Design
@@ -40,9 +53,20 @@ class StaticSolution:
     load_steps: int
     shooting_unknowns: np.ndarray = field(repr=False)
     stiffness_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
+    stable: bool | None = None
+    violations: tuple[str, ...] = ()
+    #: (tip force, tip moment) the equilibrium was solved under (world frame, N and N m).
+    tip_loads: tuple | None = field(default=None, repr=False)
 
     @classmethod
-    def failed(cls, design, pressures, exc, n_unknowns: int, **extra) -> StaticSolution:
+    def failed(
+        cls,
+        design: Design,
+        pressures: ArrayLike,
+        exc: Exception,
+        n_unknowns: int,
+        **extra: Any,
+    ) -> StaticSolution:
         """The result of a solve that did not converge (``check=False``): NaN shape and
         wrench, ``converged`` False, the iterations and residual of ``exc``."""
         nan3 = np.full((1, 3), np.nan)
@@ -88,6 +112,16 @@ class StaticSolution:
     def strains(self) -> dict[str, np.ndarray]:
         return {"v": self.v, "u": self.u}
 
+    def jacobian(
+        self, *, params: Sequence[str] = (), point: float | str | None = None
+    ) -> Jacobian:
+        """The exact Jacobian of the tip pose (or the pose at arc length ``point``) with
+        respect to the pressures, the tip force and moment, and named calibration
+        parameters (tip only): a :class:`softrod.control.Jacobian` (docs/control.md)."""
+        from .control.linear import jacobian
+
+        return jacobian(self, params=params, point=point)
+
 
 @dataclass(frozen=True)
 class BatchSolution:
@@ -97,6 +131,8 @@ class BatchSolution:
     converged (m,) bool (rows that failed hold NaN); iterations (m,); residual (m,).
     stiffness_scale (m, 3): sigma of every row when the design has mapped sections
     (docs/stiffness-map.md), else None. x (m, 3): the solver's scaled unknowns (warm starts).
+    stable (m,) bool: the row's equilibrium is stable (False on failed rows). violation (m,)
+    str: the validity rule a row broke ("" if none; docs/model.md, "Validity and stability").
     metadata: design, softrod version and solver settings (the metadata block of
     :meth:`to_frame`).
     """
@@ -111,12 +147,14 @@ class BatchSolution:
     residual: np.ndarray
     stiffness_scale: np.ndarray | None = None
     x: np.ndarray | None = None
+    stable: np.ndarray | None = None
+    violation: np.ndarray | None = None
     metadata: dict = field(default_factory=dict, compare=False)
 
     def __len__(self) -> int:
         return self.pressures.shape[0]
 
-    def to_frame(self, units=None):
+    def to_frame(self, units: Units = None) -> pd.DataFrame:
         """The results as a DataFrame in the dataset schema (docs/datasets.md), one row per
         solve: ``p0_kPa`` ..., ``tip_x_mm`` ..., ``tip_qw`` ... ``tip_qz``, ``base_fx_N`` ...,
         ``base_mx_Nmm`` ..., then the result columns ``converged``, ``iterations``,
@@ -134,6 +172,10 @@ class BatchSolution:
             Extra("iterations", np.asarray(self.iterations), "Newton iterations"),
             Extra("residual", np.asarray(self.residual, dtype=float), "scaled final residual"),
         ]
+        if self.stable is not None:
+            extras.append(
+                Extra("stable", np.asarray(self.stable, dtype=bool), "the equilibrium is stable")
+            )
         if self.stiffness_scale is not None:
             from .stiffness_map import SIGMA_NAMES
 

@@ -6,16 +6,28 @@ All inputs and outputs are SI: pressures in Pa (gauge), one per channel.
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from . import _validate as V
 from .catalog import load_design
 from .design import Design
-from .errors import ConvergenceError, InputError, design_error
+from .errors import (
+    ConvergenceError,
+    InputError,
+    InvalidStateError,
+    StabilityWarning,
+    ValidityWarning,
+    design_error,
+)
 from .solution import BatchSolution, StaticSolution
 from .stiffness_map import StiffnessMap, _check_pressure_rows
+
+if TYPE_CHECKING:
+    from ._types import ArrayLike, DesignLike, Progress
 
 
 @dataclass(frozen=True)
@@ -24,14 +36,19 @@ class SolverOptions:
 
     tol: convergence tolerance on the scaled tip-wrench residual (relative, see docs).
     max_iter: Newton iterations per load level.
-    continuation: ramp pressures, gravity and loads from zero when Newton fails.
+    continuation: ramp pressures, gravity and loads from zero (the natural path) when Newton
+        fails or lands on an unstable equilibrium.
     max_load_steps: most load levels continuation may take.
+    stretch_range: (min, max) validity range of the fibre stretch (docs/model.md, "Validity
+        and stability"); a solution outside it is refused, or warned about with
+        ``on_invalid="warn"``.
     """
 
     tol: float = 1e-10
     max_iter: int = 25
     continuation: bool = True
     max_load_steps: int = 200
+    stretch_range: tuple[float, float] = (1 / 3, 3.0)
 
     def __post_init__(self):
         tol = V.real(self.tol, "tol", minimum=0.0, exclusive=True)
@@ -40,6 +57,14 @@ class SolverOptions:
         for name in ("max_iter", "max_load_steps"):
             V.integer(getattr(self, name), name, minimum=1, maximum=V.MAX_ITERATIONS)
         V.boolean(self.continuation, "continuation")
+        r = self.stretch_range
+        rule = "must be (min, max) with 0 < min < 1 < max (stretch 1 is the reference state)"
+        if isinstance(r, str) or not isinstance(r, tuple | list) or len(r) != 2:
+            raise design_error("stretch_range", r, rule, InputError)
+        lo = V.real(r[0], "stretch_range[0]")
+        hi = V.real(r[1], "stretch_range[1]")
+        if not 0 < lo < 1 < hi:
+            raise design_error("stretch_range", r, rule, InputError)
 
     def as_kwargs(self) -> dict:
         return {
@@ -47,7 +72,32 @@ class SolverOptions:
             "max_iter": int(self.max_iter),
             "continuation": bool(self.continuation),
             "max_load_steps": int(self.max_load_steps),
+            "stretch_range": (float(self.stretch_range[0]), float(self.stretch_range[1])),
         }
+
+
+_POLICIES = ("raise", "warn", "ignore")
+
+
+def _policy(name: str, value) -> str:
+    if not isinstance(value, str) or value not in _POLICIES:
+        raise design_error(name, value, "must be 'raise', 'warn' or 'ignore'", InputError)
+    return value
+
+
+def _report_stability(stable: bool, on_unstable: str, what: str) -> None:
+    """Warn about (or raise for) an unstable equilibrium, as ``on_unstable`` says."""
+    if stable or on_unstable == "ignore":
+        return
+    message = (
+        f"{what} is an unstable equilibrium (the second variation of the energy is not positive "
+        "definite: a small disturbance moves the rod away; docs/model.md, 'Validity and "
+        "stability'). Above a buckling load add the imperfection that decides the side (a "
+        "small lateral force), or pass on_unstable='ignore'"
+    )
+    if on_unstable == "raise":
+        raise InvalidStateError(message, rule="stability")
+    warnings.warn(StabilityWarning(message), stacklevel=3)
 
 
 def _pressures(design: Design, pressures) -> list[float]:
@@ -79,11 +129,17 @@ def _vec3(value, kind: str, name: str, default) -> list[float]:
 
 
 def _initial(initial, model: str) -> list[float] | None:
-    """The warm start of ``initial`` (a converged StaticSolution of the same model)."""
+    """The warm start of ``initial`` (a converged StaticSolution of the same model, or an
+    InverseSolution: its equilibrium)."""
     if initial is None:
         return None
+    from .control.inverse import InverseSolution
+
+    if isinstance(initial, InverseSolution) and model == "cosserat":
+        return [float(v) for v in initial.shooting_unknowns]
     if not isinstance(initial, StaticSolution):
-        raise V.fail("initial", type(initial).__name__, "must be a StaticSolution or None")
+        raise V.fail("initial", type(initial).__name__,
+                     "must be a StaticSolution, an InverseSolution or None")
     x = np.asarray(initial.shooting_unknowns, dtype=float)
     if not initial.converged or not np.all(np.isfinite(x)):
         raise V.fail(
@@ -155,16 +211,18 @@ def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
 
 
 def solve_statics(
-    design,
-    pressures,
+    design: DesignLike,
+    pressures: ArrayLike,
     *,
-    tip_force=None,
-    tip_moment=None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
     options: SolverOptions | None = None,
     initial: StaticSolution | None = None,
     check: bool = True,
     stiffness_map: StiffnessMap | None = None,
     model: str = "cosserat",
+    on_unstable: str = "warn",
+    on_invalid: str = "raise",
 ) -> StaticSolution:
     """Static shape of ``design`` under chamber ``pressures`` (Pa gauge, one per channel).
 
@@ -181,7 +239,21 @@ def solve_statics(
     ``[sections.law] stiffness_map = true``; it defaults to the map the design file
     references (``[stiffness_map] file = ...``, ``design.stiffness_map``), and one given here
     replaces it. It is evaluated once at ``pressures``.
+
+    Every solution is checked before it is returned (docs/model.md, "Validity and
+    stability"): a state that breaks a physical rule (a rotation that is not one, stretch
+    <= 0, a collapsed chamber) raises :class:`InvalidStateError` naming the rule, the node
+    and the value. ``on_invalid`` says what a solution outside the validity range does
+    (fibre stretch beyond ``options.stretch_range``, pressures beyond the design's
+    ``operating_range``): "raise" (default, :class:`InvalidStateError`), "warn"
+    (:class:`ValidityWarning`, listed in ``violations``) or "ignore". ``stable`` says whether
+    the equilibrium is stable; ``on_unstable`` says what an unstable one does: "warn"
+    (default, :class:`StabilityWarning`), "raise" (:class:`InvalidStateError` with rule
+    "stability") or "ignore". A cold start follows the natural path from zero load, so an
+    upright column above its buckling load bends to the side a small lateral force pushes.
     """
+    on_unstable = _policy("on_unstable", on_unstable)
+    on_invalid = _policy("on_invalid", on_invalid)
     design = load_design(design)
     p = _pressures(design, pressures)
     V.choice(model, ("cosserat", "pcc"), "model")
@@ -211,12 +283,21 @@ def solve_statics(
     opts = _options(options)
     try:
         out = design._rod.solve(
-            p, tf, tm, guess=guess, stiffness_scale=sigma.tolist(), **opts.as_kwargs()
+            p,
+            tf,
+            tm,
+            guess=guess,
+            stiffness_scale=sigma.tolist(),
+            on_invalid=on_invalid,
+            **opts.as_kwargs(),
         )
+        _report_stability(out["stable"], on_unstable, f"the solution at pressures {p} Pa")
     except ConvergenceError as exc:
         if check:
             raise
         return StaticSolution.failed(design, p, exc, 3, stiffness_scale=sigma)
+    for v in out["violations"]:
+        warnings.warn(ValidityWarning(v), stacklevel=2)
     return StaticSolution(
         design=design,
         pressures=np.array(p),
@@ -234,28 +315,42 @@ def solve_statics(
         load_steps=out["load_steps"],
         shooting_unknowns=np.array(out["x"]),
         stiffness_scale=sigma,
+        stable=bool(out["stable"]),
+        violations=tuple(out["violations"]),
+        tip_loads=(tuple(tf), tuple(tm)),
     )
 
 
 def solve_statics_batch(
-    design,
-    pressures,
+    design: DesignLike,
+    pressures: ArrayLike,
     *,
-    tip_force=None,
-    tip_moment=None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
     options: SolverOptions | None = None,
     threads: int = 0,
     stiffness_map: StiffnessMap | None = None,
-    executor=None,
+    executor: Any = None,
     chunk_size: int | None = None,
-    progress=None,
+    progress: Progress = None,
+    on_unstable: str = "warn",
+    on_invalid: str = "raise",
 ) -> BatchSolution:
     """Solve for every row of an (m, channels) pressure array (Pa) in parallel.
 
-    Runs in Rust on ``threads`` cores (0 = all) with the GIL released; rows in order warm-start
-    from their neighbour, so sweeps should be ordered. Rows that fail to converge are kept with
+    Runs in Rust on ``threads`` cores (0 = all) with the GIL released. Every row is solved
+    as :func:`solve_statics` solves it alone (cold), so a row is bitwise equal to the single
+    solve whatever the thread count or chunking. Rows that fail to converge are kept with
     ``converged = False`` and NaN results. ``stiffness_map`` as in :func:`solve_statics`,
     evaluated in one call for all rows.
+
+    ``stable`` (m,) says which equilibria are stable and ``violation`` (m,) which validity
+    rule a row broke ("" if none). ``on_invalid``: with "raise" (default) pressures beyond
+    the design's operating range are refused before any work (naming the row), and rows
+    outside the strain validity range are kept failed (``converged`` False, NaN, the rule in
+    ``violation``); with "warn" such rows keep their values and one :class:`ValidityWarning`
+    names how many; "ignore" checks neither range. ``on_unstable``: "warn" (default, one
+    :class:`StabilityWarning` naming how many rows are unstable), "raise" or "ignore".
 
     executor: a ``distributed.Client``: the rows run on its cluster in chunks of
     ``chunk_size`` rows (default: the rule in :mod:`softrod.cluster`), each chunk one Rust
@@ -263,6 +358,8 @@ def solve_statics_batch(
     come back in order (docs/cluster.md). ``progress(done_rows, total_rows)`` is called as
     chunks finish (with an executor only).
     """
+    on_unstable = _policy("on_unstable", on_unstable)
+    on_invalid = _policy("on_invalid", on_invalid)
     design = load_design(design)
     arr = batch_pressures(design, pressures)
     threads = V.threads(threads)
@@ -276,10 +373,20 @@ def solve_statics_batch(
 
     if check_executor(executor) is not None:
         out = _batch_on_cluster(
-            executor, design, arr, tf, tm, sigma, _options(options), threads, chunk_size, progress
+            executor,
+            design,
+            arr,
+            tf,
+            tm,
+            sigma,
+            _options(options),
+            threads,
+            chunk_size,
+            progress,
+            on_invalid,
         )
         meta = _batch_metadata(design, options, tf, tm, smap)
-        return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
+        return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid)
     if chunk_size is not None:
         raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
     if progress is not None:
@@ -290,9 +397,37 @@ def solve_statics_batch(
         tm,
         threads=threads,
         stiffness_scale=sigma,
+        on_invalid=on_invalid,
         **opts.as_kwargs(),
     )
     meta = _batch_metadata(design, options, tf, tm, smap)
+    return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid)
+
+
+def _batch_result(arr, sigma, meta, out, on_unstable, on_invalid) -> BatchSolution:
+    """The BatchSolution of the core's columns, with the stability and validity reports."""
+    out = dict(out)
+    out["violation"] = np.asarray(out["violation"], dtype=object)
+    converged = np.asarray(out["converged"], dtype=bool)
+    unstable = np.flatnonzero(converged & ~np.asarray(out["stable"], dtype=bool))
+    if unstable.size:
+        _report_stability(
+            False,
+            on_unstable,
+            f"{unstable.size} of {len(converged)} rows (first: row {unstable[0]})"
+            if unstable.size > 1
+            else f"row {unstable[0]}",
+        )
+    outside = np.flatnonzero(converged & (out["violation"] != ""))
+    if outside.size and on_invalid == "warn":
+        warnings.warn(
+            ValidityWarning(
+                f"{outside.size} of {len(converged)} rows lie outside the validity range "
+                f"(first: row {outside[0]}: {out['violation'][outside[0]]}); see "
+                "BatchSolution.violation"
+            ),
+            stacklevel=3,
+        )
     return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
 
 
@@ -310,7 +445,9 @@ def _batch_metadata(design, options, tf, tm, smap) -> dict:
     )
 
 
-def _batch_chunk(text, pressures, tip_force, tip_moment, sigma, options, threads, per_host):
+def _batch_chunk(
+    text, pressures, tip_force, tip_moment, sigma, options, threads, per_host, on_invalid
+):
     """One chunk of a batch on a worker: the design rebuilt from its TOML text, one Rust
     batch call."""
     from .cluster import design_from_text, worker_threads
@@ -322,11 +459,14 @@ def _batch_chunk(text, pressures, tip_force, tip_moment, sigma, options, threads
         tip_moment,
         threads=worker_threads(per_host, threads),
         stiffness_scale=sigma,
+        on_invalid=on_invalid,
         **options,
     )
 
 
-def _batch_on_cluster(executor, design, arr, tf, tm, sigma, options, threads, chunk_size, progress):
+def _batch_on_cluster(
+    executor, design, arr, tf, tm, sigma, options, threads, chunk_size, progress, on_invalid
+):
     from .cluster import chunk_rows, design_text, run_chunks, task_slots
 
     if progress is not None and not callable(progress):
@@ -348,6 +488,7 @@ def _batch_on_cluster(executor, design, arr, tf, tm, sigma, options, threads, ch
             options.as_kwargs(),
             threads,
             per_host,
+            on_invalid,
         )
         for lo, hi in bounds
     ]
@@ -360,8 +501,10 @@ def _batch_on_cluster(executor, design, arr, tf, tm, sigma, options, threads, ch
         name="softrod-batch",
     )
     if not parts:  # no rows: the core's empty result
-        return design._rod.solve_batch(arr, tf, tm, threads=1, stiffness_scale=sigma,
-                                       **options.as_kwargs())
+        return design._rod.solve_batch(
+            arr, tf, tm, threads=1, stiffness_scale=sigma, on_invalid=on_invalid,
+            **options.as_kwargs()
+        )
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 

@@ -130,7 +130,9 @@ class StiffnessMap:
         "_data",
     )
 
-    def __init__(self, *, _kind: str, _n_channels: int, _fn: Callable, _describe: str, **table):
+    def __init__(
+        self, *, _kind: str, _n_channels: int, _fn: Callable, _describe: str, **table: Any
+    ):
         # Private: use the from_* constructors.
         object.__setattr__(self, "_kind", _kind)
         object.__setattr__(self, "_n_channels", _n_channels)
@@ -590,7 +592,7 @@ class StiffnessMap:
         return doc
 
     @classmethod
-    def load(cls, path: str | Path, **options) -> StiffnessMap:
+    def load(cls, path: str | Path, **options: Any) -> StiffnessMap:
         """Read a map file: the JSON of :meth:`save` or a table CSV (:meth:`from_csv`,
         which takes ``method`` and ``outside``). Same as :func:`load_stiffness_map`."""
         return load_stiffness_map(path, **options)

@@ -11,7 +11,7 @@ fn main() {
     let spec: DesignSpec = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     let rod = Rod::new(spec).unwrap();
     let loads = Loads {
-        pressures: vec![70e3, 35e3, 0.0],
+        pressures: [70e3, 35e3, 0.0][..rod.n_channels.min(3)].to_vec(),
         tip_force: [0.0; 3],
         tip_moment: [0.0; 3],
         stiffness_scale: [1.0; 3],
@@ -36,9 +36,11 @@ fn main() {
     }
     let cold = t.elapsed().as_secs_f64() / n as f64;
     println!(
-        "f64 pass {:.2} us, dual pass {:.2} us, cold solve {:.2} us ({it} iterations)",
+        "f64 pass {:.2} us, dual pass {:.2} us, cold solve {:.2} us ({it} iterations, {} load levels, stable {})",
         f64_pass * 1e6,
         dual_pass * 1e6,
-        cold * 1e6
+        cold * 1e6,
+        sol.load_steps,
+        sol.stable
     );
 }

@@ -1,10 +1,13 @@
-//! Many static solves in parallel (rayon), warm-starting each solve from its neighbour.
+//! Many static solves in parallel (rayon). Every row is solved exactly as [`solve`] solves
+//! it alone from the same start (cold, or the row's own warm start), so a batch row is
+//! bitwise equal to the single solve, whatever the thread count or the order of the rows.
 
 use crate::error::{Result, SoftrodError};
 use crate::ode::Loads;
 use crate::rod::Rod;
 use crate::sensitivity::{tip_sensitivity, validate_params, Param, TipSensitivity};
 use crate::statics::{solve, Solution, SolverOptions};
+use crate::validity::{self, Policy};
 
 /// One row of a batch result. Failed rows are kept, with `converged = false` and NaNs.
 #[derive(Debug, Clone, PartialEq)]
@@ -18,6 +21,11 @@ pub struct BatchRow {
     pub residual: f64,
     /// Scaled shooting unknowns (a warm start for a later solve of this row).
     pub x: [f64; 3],
+    /// The equilibrium is stable (false on failed rows).
+    pub stable: bool,
+    /// The validity rule the row broke (a failed row under `Policy::Raise`, or a returned
+    /// one under `Policy::Warn`), else empty.
+    pub violation: String,
     /// Tip-pose derivatives with respect to the parameters ([`sensitivity_batch`] only).
     pub sensitivity: Option<TipSensitivity>,
 }
@@ -25,6 +33,8 @@ pub struct BatchRow {
 impl BatchRow {
     fn failed(iterations: usize, residual: f64) -> Self {
         BatchRow {
+            stable: false,
+            violation: String::new(),
             converged: false,
             tip_position: [f64::NAN; 3],
             tip_rotation: [[f64::NAN; 3]; 3],
@@ -47,6 +57,12 @@ impl BatchRow {
             iterations: sol.iterations,
             residual: sol.residual,
             x: sol.x,
+            stable: sol.stable,
+            violation: sol
+                .violations
+                .first()
+                .map(|e| e.to_string())
+                .unwrap_or_default(),
             sensitivity: None,
         }
     }
@@ -65,6 +81,7 @@ struct Rows<'a> {
 impl<'a> Rows<'a> {
     fn new(
         rod: &Rod,
+        opts: &SolverOptions,
         pressures: &'a [f64],
         stiffness_scale: Option<&'a [f64]>,
         guesses: Option<&'a [f64]>,
@@ -96,8 +113,18 @@ impl<'a> Rows<'a> {
             stiffness_scale,
             guesses,
         };
+        let range = rod
+            .spec
+            .operating_range
+            .filter(|_| opts.on_invalid == Policy::Raise);
         for r in 0..count {
             rod.check_loads(rows.pressures(r), &rows.sigma(r))
+                .and_then(|()| match range {
+                    Some(range) => {
+                        validity::check_operating_range(rows.pressures(r), range.pressure)
+                    }
+                    None => Ok(()),
+                })
                 .map_err(|e| match e {
                     SoftrodError::InvalidParameter { field, value, rule } => {
                         SoftrodError::InvalidParameter {
@@ -106,6 +133,21 @@ impl<'a> Rows<'a> {
                             rule,
                         }
                     }
+                    SoftrodError::InvalidState {
+                        rule,
+                        node,
+                        s,
+                        time,
+                        value,
+                        message,
+                    } => SoftrodError::InvalidState {
+                        rule,
+                        node,
+                        s,
+                        time,
+                        value,
+                        message: format!("row {r}: {message}"),
+                    },
                     other => other,
                 })?;
         }
@@ -127,10 +169,9 @@ impl<'a> Rows<'a> {
             .filter(|g| g.iter().all(|v| v.is_finite()))
     }
 
-    /// Solve every row, then apply `after` to each converged one, in parallel. Rows are
-    /// split into contiguous chunks; inside a chunk a row without its own warm start
-    /// starts from the previous row's solution, so ordered sweeps (grids, ramps) converge
-    /// in few iterations.
+    /// Solve every row (from its own warm start, else cold), then apply `after` to each
+    /// converged one, in parallel. Rows are independent: no row starts from another's
+    /// solution, so the result does not depend on how rows are shared among threads.
     fn run(
         &self,
         rod: &Rod,
@@ -142,48 +183,45 @@ impl<'a> Rows<'a> {
     ) -> Result<Vec<BatchRow>> {
         let work = || -> Vec<BatchRow> {
             use rayon::prelude::*;
-            let n_threads = rayon::current_num_threads().max(1);
-            // Enough chunks to balance load, few enough that warm starts dominate.
-            let chunk = self.count.div_ceil(8 * n_threads).max(1);
-            let mut out = vec![BatchRow::failed(0, f64::NAN); self.count];
-            out.par_chunks_mut(chunk)
-                .enumerate()
-                .for_each(|(ci, slot)| {
-                    let mut previous: Option<[f64; 3]> = None;
-                    for (k, row) in slot.iter_mut().enumerate() {
-                        let r = ci * chunk + k;
-                        let loads = Loads {
-                            pressures: self.pressures(r).to_vec(),
-                            tip_force,
-                            tip_moment,
-                            stiffness_scale: self.sigma(r),
-                        };
-                        let guess = self.guess(r).or(previous);
-                        let mut attempt = solve(rod, &loads, guess.as_ref(), opts);
-                        if attempt.is_err() && guess.is_some() {
-                            attempt = solve(rod, &loads, None, opts); // cold retry
+            (0..self.count)
+                .into_par_iter()
+                .map(|r| {
+                    let loads = Loads {
+                        pressures: self.pressures(r).to_vec(),
+                        tip_force,
+                        tip_moment,
+                        stiffness_scale: self.sigma(r),
+                    };
+                    match solve(rod, &loads, self.guess(r).as_ref(), opts) {
+                        Ok(sol) => {
+                            let mut row = BatchRow::solved(&sol);
+                            after(&loads, &sol, &mut row);
+                            row
                         }
-                        *row = match attempt {
-                            Ok(sol) => {
-                                previous = Some(sol.x);
-                                let mut row = BatchRow::solved(&sol);
-                                after(&loads, &sol, &mut row);
-                                row
-                            }
-                            Err(SoftrodError::NotConverged {
-                                iterations,
-                                residual,
-                                ..
-                            }) => BatchRow::failed(iterations, residual),
-                            Err(_) => BatchRow::failed(0, f64::NAN),
-                        };
+                        Err(SoftrodError::NotConverged {
+                            iterations,
+                            residual,
+                            ..
+                        }) => BatchRow::failed(iterations, residual),
+                        Err(e @ SoftrodError::InvalidState { .. }) => BatchRow {
+                            violation: e.to_string(),
+                            ..BatchRow::failed(0, f64::NAN)
+                        },
+                        Err(_) => BatchRow::failed(0, f64::NAN),
                     }
-                });
-            out
+                })
+                .collect()
         };
         if threads == 0 {
             Ok(work())
         } else {
+            if threads > MAX_THREADS {
+                return Err(SoftrodError::invalid(
+                    "threads",
+                    threads,
+                    format!("must be in 0..={MAX_THREADS} (0 = all cores)"),
+                ));
+            }
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
@@ -199,6 +237,9 @@ impl<'a> Rows<'a> {
     }
 }
 
+/// Most worker threads a batch may ask for.
+pub const MAX_THREADS: usize = 1024;
+
 /// Solve for every row of `pressures` (row-major, `n_channels` per row). `threads = 0`
 /// uses all cores. `stiffness_scale`, when given, holds sigma (3 per row, row-major) for
 /// the sections with a stiffness map.
@@ -212,7 +253,7 @@ pub fn solve_batch(
     threads: usize,
 ) -> Result<Vec<BatchRow>> {
     opts.validate()?;
-    let rows = Rows::new(rod, pressures, stiffness_scale, None)?;
+    let rows = Rows::new(rod, opts, pressures, stiffness_scale, None)?;
     rows.run(rod, tip_force, tip_moment, opts, threads, &|_, _, _| {})
 }
 
@@ -234,7 +275,7 @@ pub fn sensitivity_batch(
 ) -> Result<Vec<BatchRow>> {
     opts.validate()?;
     validate_params(rod, params)?;
-    let rows = Rows::new(rod, pressures, stiffness_scale, guesses)?;
+    let rows = Rows::new(rod, opts, pressures, stiffness_scale, guesses)?;
     rows.run(
         rod,
         tip_force,

@@ -1,4 +1,4 @@
-//! Dynamics of the viscoelastic Cosserat rod (paper 000 eqs. 7-13; DESIGN.md sections 2-3).
+//! Dynamics of the viscoelastic Cosserat rod (paper 000 eqs. 7-13; docs/model.md).
 //!
 //! Time: every time derivative X_t of X in {v, u, q, w} is replaced by an implicit formula
 //! X_t = c0 X + X_h with X_h built from earlier steps (Till, Aloi, Rucker, "Real-time
@@ -806,19 +806,31 @@ impl Simulator {
             validity::check_rotation(node(j), &collocation::rotation(&y[..4]))
                 .map_err(|e| e.at_time(t))?;
         }
+        // Strains live at the stage points: the same physical rules as statics' nodes
+        // (stretch positive and below the tearing limit, no chamber collapsed).
         for (k, f) in eval.fields.iter().enumerate() {
-            if f[2] > 0.0 {
+            let j = k / 2;
+            let sec = &self.rod.sections[self.grid.intervals[j].section];
+            let (v, u) = ([f[0], f[1], f[2]], [f[3], f[4], f[5]]);
+            let fine = v[2] > 0.0
+                && v[2] <= validity::MAX_STRETCH
+                && sec
+                    .chambers
+                    .iter()
+                    .all(|c| validity::fibre_stretch(&v, &u, c.centroid) > 0.0);
+            if fine {
                 continue;
             }
-            // Strains live at the stage points: report the interval's start node and the
-            // stage's own arc length.
-            let j = k / 2;
+            // Report the interval's start node and the stage's own arc length.
             let at = validity::Node {
                 index: j,
                 s: self.grid.stage_s(j, k % 2),
                 section: self.grid.intervals[j].section,
             };
-            validity::check_stretch(at, &[f[0], f[1], f[2]]).map_err(|e| e.at_time(t))?;
+            validity::check_stretch(at, &v).map_err(|e| e.at_time(t))?;
+            for (c, ch) in sec.chambers.iter().enumerate() {
+                validity::check_chamber(at, c, &v, &u, ch.centroid).map_err(|e| e.at_time(t))?;
+            }
         }
         Ok(())
     }

@@ -6,7 +6,7 @@
 //! arithmetic (value + first derivatives, exact) without them. It only implements what the
 //! rod ODE needs; `RodScalar` is the interface both types (and f64) satisfy.
 
-use std::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
+use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub, SubAssign};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Jet<const N: usize> {
@@ -109,6 +109,17 @@ impl<const N: usize> Mul<f64> for Jet<N> {
     }
 }
 
+impl<const N: usize> Div<f64> for Jet<N> {
+    type Output = Self;
+    #[inline(always)]
+    fn div(self, o: f64) -> Self {
+        Jet {
+            re: self.re / o,
+            eps: self.eps.map(|e| e / o),
+        }
+    }
+}
+
 impl<const N: usize> AddAssign for Jet<N> {
     #[inline(always)]
     fn add_assign(&mut self, o: Self) {
@@ -134,6 +145,7 @@ pub trait RodScalar:
     + Add<f64, Output = Self>
     + Sub<f64, Output = Self>
     + Mul<f64, Output = Self>
+    + Div<f64, Output = Self>
     + AddAssign
     + SubAssign
 {

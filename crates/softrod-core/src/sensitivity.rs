@@ -262,7 +262,7 @@ pub fn tip_sensitivity(
                     i,
                     &loads.pressures,
                     &rod.gravity,
-                    1.0,
+                    Dual::from(1.0),
                     &sigma,
                     &knobs[i],
                 )

@@ -1,4 +1,5 @@
-//! Static equilibrium by shooting (DESIGN.md section 5; paper 001 section II-D).
+//! Static equilibrium by shooting (docs/model.md, "Solver"; paper 001 section II-D), with
+//! the equilibrium's stability and validity checked before it is returned.
 //!
 //! All loads are dead (gravity, dead tip and line loads, the tip body's weight), so the force
 //! balance n' = -f is statically determinate: n(0) = F_tip + m_t g + int_0^L f ds exactly,
@@ -6,15 +7,25 @@
 //! scaled by M_s = F_s L with F_s = EI_min / L^2. Residual: the tip moment balance
 //! m(L) = M_tip + (R(L) c) x (m_t g), scaled the same way; n(L) = F_tip + m_t g holds by
 //! construction. Newton with the exact Jacobian from forward-mode dual numbers (one
-//! integration in `Jet<3>` gives residual and Jacobian), a backtracking line search, a
-//! Levenberg-Marquardt fallback when the Jacobian is singular, and automatic load
-//! continuation (ramping pressures, gravity and loads together) when Newton fails from
-//! the initial guess.
+//! integration in `Jet<3>` gives residual and Jacobian), a backtracking line search and a
+//! Levenberg-Marquardt step when the Jacobian is singular.
+//!
+//! A cold start follows the natural path: loads (pressures, gravity, tip and line loads)
+//! ramped from zero with a tangent predictor (dx/dlambda = -J^-1 dR/dlambda, exact by dual
+//! numbers, see `Problem::tangent`) and adaptive steps, the first step going straight to the
+//! full load. Each level's equilibrium must be stable while the path is (else the step is
+//! cut), so the path does not jump to another branch. See docs/model.md "Solver" and
+//! "Validity and stability".
+//!
+//! Stability (`Jacobi`): the second variation of the energy is positive definite iff there is
+//! no point conjugate to the clamp in (0, L] (det of the Jacobi fields' rotations,
+//! d theta(s)/dx, keeps its sign) and the tip form sym(Theta(L)^T J) is positive definite.
 
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
-use crate::ode::{integrate, strains, Coeffs, Loads, State};
-use crate::rod::Rod;
+use crate::ode::{integrate, strains, Coeffs, Loads, SectionKnobs, State};
+use crate::rod::{Rod, Section};
+use crate::validity::{self, Node, Policy, StrainLimits};
 use nalgebra::{Matrix3, Vector3};
 
 /// Solver settings (a validated value object with defaults).
@@ -26,10 +37,16 @@ pub struct SolverOptions {
     pub tol: f64,
     /// Newton iterations per load level.
     pub max_iter: usize,
-    /// Ramp loads from zero when Newton fails from the initial guess.
+    /// Ramp loads from zero (the natural path) when Newton fails from the initial guess or
+    /// lands on an unstable equilibrium.
     pub continuation: bool,
     /// Most load levels continuation may take.
     pub max_load_steps: usize,
+    /// Validity range of the fibre stretch (`crate::validity`).
+    pub strain_limits: StrainLimits,
+    /// What a solution outside a validity range (strains, the design's operating range)
+    /// gives: an error, a solution listing the violations, or no check.
+    pub on_invalid: Policy,
 }
 
 impl Default for SolverOptions {
@@ -39,6 +56,8 @@ impl Default for SolverOptions {
             max_iter: 25,
             continuation: true,
             max_load_steps: 200,
+            strain_limits: StrainLimits::default(),
+            on_invalid: Policy::Raise,
         }
     }
 }
@@ -48,23 +67,28 @@ impl SolverOptions {
         if !(self.tol.is_finite() && self.tol > 0.0 && self.tol < 1.0) {
             return Err(SoftrodError::invalid("tol", self.tol, "must be in (0, 1)"));
         }
-        if self.max_iter == 0 {
+        if self.max_iter == 0 || self.max_iter > MAX_ITER {
             return Err(SoftrodError::invalid(
                 "max_iter",
                 self.max_iter,
-                "must be >= 1",
+                format!("must be in 1..={MAX_ITER}"),
             ));
         }
-        if self.max_load_steps == 0 {
+        if self.max_load_steps == 0 || self.max_load_steps > MAX_LOAD_STEPS {
             return Err(SoftrodError::invalid(
                 "max_load_steps",
                 self.max_load_steps,
-                "must be >= 1",
+                format!("must be in 1..={MAX_LOAD_STEPS}"),
             ));
         }
-        Ok(())
+        self.strain_limits.validate()
     }
 }
+
+/// Most Newton iterations per load level a caller may ask for.
+pub const MAX_ITER: usize = 100_000;
+/// Most continuation load levels a caller may ask for.
+pub const MAX_LOAD_STEPS: usize = 100_000;
 
 /// A converged static equilibrium (the shape is recovered with [`shape`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -81,8 +105,14 @@ pub struct Solution {
     pub iterations: usize,
     /// Final scaled residual (infinity norm).
     pub residual: f64,
-    /// Load levels used (1 without continuation).
+    /// Load levels used (1 when the first step reached the full load).
     pub load_steps: usize,
+    /// The equilibrium is stable: the second variation of the energy is positive definite
+    /// (no conjugate point, positive tip form; docs/model.md "Validity and stability").
+    pub stable: bool,
+    /// Validity-range violations (with `Policy::Warn`; empty otherwise): the worst fibre
+    /// stretch outside `strain_limits`, pressures outside the design's operating range.
+    pub violations: Vec<SoftrodError>,
     /// The shape, when the solve used collocation (`crate::collocation`): re-integrating
     /// from `x` by shooting is what that rod's conditioning forbids.
     pub collocation: Option<std::sync::Arc<Shape>>,
@@ -103,6 +133,19 @@ pub struct Shape {
     pub u: Vec<[f64; 3]>,
 }
 
+impl Shape {
+    fn push(&mut self, node: Node, y: &State<f64>, v: [f64; 3], u: [f64; 3]) {
+        self.s.push(node.s);
+        self.section.push(node.section);
+        self.position.push(y.r);
+        self.rotation.push(y.rot);
+        self.force.push(y.n);
+        self.moment.push(y.m);
+        self.v.push(v);
+        self.u.push(u);
+    }
+}
+
 /// One load level of one problem: coefficients and scales.
 pub(crate) struct Problem<'a> {
     rod: &'a Rod,
@@ -111,6 +154,8 @@ pub(crate) struct Problem<'a> {
     pub(crate) coeffs: Vec<Coeffs<f64>>,
     /// Base force, known exactly from the force balance.
     n0: [f64; 3],
+    /// Its derivative with respect to the load factor (it is linear in the factor).
+    dn0: [f64; 3],
     ms: f64,
 }
 
@@ -119,6 +164,51 @@ fn inf_norm(r: &[f64; 3]) -> f64 {
         0.0,
         |a: f64, x| if x.is_nan() { f64::NAN } else { a.max(x.abs()) },
     )
+}
+
+/// Broyden's rank-one update of J after the step dx changed the residual by dr.
+fn broyden(jac: &mut Matrix3<f64>, dx: &Vector3<f64>, dr: &Vector3<f64>) {
+    let d2 = dx.norm_squared();
+    if d2 > 0.0 && d2.is_finite() {
+        let update = (dr - *jac * dx) * dx.transpose() / d2;
+        if update.iter().all(|v| v.is_finite()) {
+            *jac += update;
+        }
+    }
+}
+
+fn cross<D: RodScalar>(a: &[D; 3], b: &[D; 3]) -> [D; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// A Newton solve that reached the tolerance.
+struct Converged {
+    x: [f64; 3],
+    /// Residual at x.
+    r: [f64; 3],
+    /// Its infinity norm.
+    residual: f64,
+    iterations: usize,
+}
+
+/// How Newton starts.
+#[derive(Clone, Copy)]
+enum Start {
+    /// From a guess, with the exact Jacobian there.
+    Guess,
+    /// From a predicted point (load continuation), with a Jacobian from nearby and the
+    /// residual at the point. With `fail_fast` it gives up at once when its first full
+    /// step fails even with the exact Jacobian: the prediction lies outside Newton's basin,
+    /// and a shorter load step is cheaper than a line search far from the solution.
+    Predicted {
+        jac: Matrix3<f64>,
+        r: [f64; 3],
+        fail_fast: bool,
+    },
 }
 
 impl<'a> Problem<'a> {
@@ -141,15 +231,19 @@ impl<'a> Problem<'a> {
             factor,
             coeffs,
             n0: [0.0; 3],
+            dn0: [0.0; 3],
             ms: rod.force_scale * rod.length,
         };
         let w = p.tip_weight();
+        let mt = rod.spec.tip.mass;
         for k in 0..3 {
             p.n0[k] = factor * loads.tip_force[k] + w[k];
+            p.dn0[k] = loads.tip_force[k] + mt * rod.gravity[k];
         }
         for (sec, c) in rod.sections.iter().zip(&p.coeffs) {
             for k in 0..3 {
                 p.n0[k] += c.f[k] * sec.length;
+                p.dn0[k] += (sec.line_mass * rod.gravity[k] + sec.line_force[k]) * sec.length;
             }
         }
         p
@@ -173,21 +267,22 @@ impl<'a> Problem<'a> {
     }
 
     pub(crate) fn residual_of_tip<D: RodScalar>(&self, tip: &State<D>) -> [D; 3] {
-        let w = self.tip_weight();
+        let w = self.tip_weight().map(D::from);
+        let m_tip = self.loads.tip_moment.map(|m| D::from(self.factor * m));
+        self.tip_balance(tip, &w, &m_tip)
+    }
+
+    /// Scaled tip moment balance m(L) - (R(L) c) x W - M_tip for a tip weight W and tip
+    /// moment M (either may carry a load derivative).
+    fn tip_balance<D: RodScalar>(&self, tip: &State<D>, w: &[D; 3], m_tip: &[D; 3]) -> [D; 3] {
         let com = self.rod.spec.tip.com_offset;
         // centre of mass offset in the world frame: R(L) c
         let mut cw = [D::from(0.0); 3];
         for (i, cwi) in cw.iter_mut().enumerate() {
             *cwi = tip.rot[i][0] * com[0] + tip.rot[i][1] * com[1] + tip.rot[i][2] * com[2];
         }
-        let cxw = [
-            cw[1] * w[2] - cw[2] * w[1],
-            cw[2] * w[0] - cw[0] * w[2],
-            cw[0] * w[1] - cw[1] * w[0],
-        ];
-        std::array::from_fn(|k| {
-            (tip.m[k] - cxw[k] - self.factor * self.loads.tip_moment[k]) * (1.0 / self.ms)
-        })
+        let cxw = cross(&cw, w);
+        std::array::from_fn(|k| (tip.m[k] - cxw[k] - m_tip[k]) * (1.0 / self.ms))
     }
 
     fn eval(&self, x: &[f64; 3]) -> [f64; 3] {
@@ -204,7 +299,50 @@ impl<'a> Problem<'a> {
         (rd.map(|r| r.re), jac)
     }
 
-    /// Equilibrium of the straight, undeformed rod: a cheap cold-start guess.
+    /// The path's tangent dx/dlambda = -J^-1 dR/dlambda at a converged point x of this
+    /// load level, with J and the point's stability: one integration in `Jet<4>`, the
+    /// unknowns seeded in directions 0..3 and the load factor in direction 3 (through the
+    /// coefficients, the base force and the tip loads). None if J is singular.
+    fn tangent(&self, x: &[f64; 3]) -> Option<([f64; 3], Matrix3<f64>, bool)> {
+        let lam = Jet::<4>::variable(self.factor, 3);
+        let sigma = self.loads.stiffness_scale.map(Jet::from);
+        let coeffs: Vec<Coeffs<Jet<4>>> = (0..self.rod.sections.len())
+            .map(|i| {
+                let knobs = SectionKnobs::of(&self.rod.sections[i]).lift();
+                Coeffs::build_with(
+                    self.rod,
+                    i,
+                    &self.loads.pressures,
+                    &self.rod.gravity,
+                    lam,
+                    &sigma,
+                    &knobs,
+                )
+            })
+            .collect();
+        let mut y0: State<Jet<4>> =
+            self.base_state(&std::array::from_fn(|i| Jet::variable(x[i], i)));
+        for k in 0..3 {
+            y0.n[k].eps[3] = self.dn0[k];
+        }
+        let mut jacobi = Jacobi::default();
+        let mut visit = |_: usize, _: f64, y: &State<Jet<4>>| jacobi.visit(y);
+        let tip = integrate(self.rod, &coeffs, y0, Some(&mut visit));
+        let mt = self.rod.spec.tip.mass;
+        let w: [Jet<4>; 3] = std::array::from_fn(|k| lam * (mt * self.rod.gravity[k]));
+        let m_tip: [Jet<4>; 3] = std::array::from_fn(|k| lam * self.loads.tip_moment[k]);
+        let rd = self.tip_balance(&tip, &w, &m_tip);
+        let jac = Matrix3::from_fn(|i, j| rd[i].eps[j]);
+        let r_lam = Vector3::from_fn(|i, _| -rd[i].eps[3]);
+        let t = jac.lu().solve(&r_lam)?;
+        t.iter()
+            .all(|v| v.is_finite())
+            .then(|| ([t[0], t[1], t[2]], jac, jacobi.stable(&jac)))
+    }
+
+    /// Equilibrium of the straight, undeformed rod: a cheap cold-start guess. It equals the
+    /// path's tangent at zero load times the load factor (at zero load J = I, and dR/dlambda
+    /// is minus the loads' moment about the base on the straight rod).
     fn straight_guess(&self) -> [f64; 3] {
         let t = [
             self.rod.base_rotation[0][2],
@@ -223,61 +361,66 @@ impl<'a> Problem<'a> {
                 + t[k] * self.rod.length;
         }
         // n(0) = F + int f;  int_0^L n ds = F L + int s f ds
-        let mut n0 = f_tip;
         let mut int_n = f_tip.map(|f| f * self.rod.length);
         let mut l_tot = [0.0; 3];
         for (sec, c) in self.rod.sections.iter().zip(&self.coeffs) {
             let (a, b) = (sec.s_start, sec.s_start + sec.length);
             for k in 0..3 {
-                n0[k] += c.f[k] * sec.length;
                 int_n[k] += c.f[k] * 0.5 * (b * b - a * a);
                 l_tot[k] += c.l[k] * sec.length;
             }
         }
-        let cross = |a: [f64; 3], b: [f64; 3]| {
-            [
-                a[1] * b[2] - a[2] * b[1],
-                a[2] * b[0] - a[0] * b[2],
-                a[0] * b[1] - a[1] * b[0],
-            ]
-        };
         // m(0) = M_tip + (c_w x W measured from the tip) + t x int n + int l, about the base
         let tip_arm = [
             cw[0] - t[0] * self.rod.length,
             cw[1] - t[1] * self.rod.length,
             cw[2] - t[2] * self.rod.length,
         ];
-        let cxw = cross(tip_arm, w);
-        let txn = cross(t, int_n);
-        debug_assert!((0..3).all(|k| (n0[k] - self.n0[k]).abs() <= 1e-12 * (1.0 + n0[k].abs())));
+        let cxw = cross(&tip_arm, &w);
+        let txn = cross(&t, &int_n);
         std::array::from_fn(|k| {
             (self.factor * self.loads.tip_moment[k] + cxw[k] + txn[k] + l_tot[k]) / self.ms
         })
     }
 
-    /// Damped Newton from `x0`. Ok((x, residual, iterations)) or Err((iterations, residual)).
+    /// Damped Newton from `x0`. Err((iterations, residual)) when it fails.
     ///
-    /// Trial points are evaluated with the cheap f64 pass; the exact Jacobian (a dual pass,
-    /// ~8x dearer) is refreshed only when the last step contracted the residual by less than
-    /// `REUSE_CONTRACTION` (Shamanskii's variant of Newton's method). Near the solution the
-    /// Jacobian barely changes, so this saves passes without changing what "converged" means.
+    /// Trial points are evaluated with the cheap f64 pass. The exact Jacobian (a dual pass,
+    /// about 9 f64 passes) is computed at the start (`Start::Guess`) and whenever a step
+    /// needs the line search or contracts the residual by less than `REFRESH_CONTRACTION`;
+    /// after the other steps it gets Broyden's rank-one update (J += (dr - J dx) dx^T /
+    /// |dx|^2), which keeps it accurate along the path of the iterates. Convergence is
+    /// always judged on the true residual, and the final pass (`conclude`) evaluates the
+    /// exact Jacobian at the solution for the stability test.
     fn newton(
         &self,
         x0: [f64; 3],
+        start: Start,
         opts: &SolverOptions,
-    ) -> std::result::Result<([f64; 3], f64, usize), (usize, f64)> {
-        const REUSE_CONTRACTION: f64 = 0.05;
+    ) -> std::result::Result<Converged, (usize, f64)> {
+        const REFRESH_CONTRACTION: f64 = 0.5;
         let mut x = x0;
-        let (mut r, mut jac) = self.eval_jac(&x);
+        let (mut r, mut jac, mut fresh, fail_fast) = match start {
+            Start::Guess => {
+                let (r, j) = self.eval_jac(&x);
+                (r, j, true, false)
+            }
+            Start::Predicted { jac, r, fail_fast } => (r, jac, false, fail_fast),
+        };
         let mut norm = inf_norm(&r);
         if !norm.is_finite() {
             return Err((1, norm));
         }
-        let mut fresh = true;
+        let done = |x: [f64; 3], r: [f64; 3], norm: f64, iterations: usize| Converged {
+            x,
+            r,
+            residual: norm,
+            iterations,
+        };
         for it in 0..opts.max_iter {
             let xmax = inf_norm(&x).max(1.0);
             if norm <= opts.tol * xmax {
-                return Ok((x, norm, it + 1));
+                return Ok(done(x, r, norm, it + 1));
             }
             let rv = Vector3::from_column_slice(&r);
             let step = jac
@@ -302,103 +445,267 @@ impl<'a> Problem<'a> {
                 let rt = self.eval(&xt);
                 let r2t = Vector3::from_column_slice(&rt).norm();
                 if r2t.is_finite() && r2t < (1.0 - 1e-4 * alpha) * r2 {
+                    let dx = Vector3::from_fn(|i, _| xt[i] - x[i]);
+                    let dr = Vector3::from_fn(|i, _| rt[i] - r[i]);
                     x = xt;
                     r = rt;
                     norm = inf_norm(&r);
                     accepted = true;
-                    if r2t > REUSE_CONTRACTION * r2 || alpha < 1.0 {
+                    if r2t > REFRESH_CONTRACTION * r2 || alpha < 1.0 {
                         (r, jac) = self.eval_jac(&x);
                         fresh = true;
                     } else {
+                        broyden(&mut jac, &dx, &dr);
                         fresh = false;
                     }
                     break;
                 }
                 if !fresh {
-                    // A stale Jacobian may be the problem: refresh it and retry the full step.
+                    // An inexact Jacobian may be the problem: refresh it and retry the full
+                    // step.
                     (r, jac) = self.eval_jac(&x);
                     fresh = true;
                     break;
+                }
+                if fail_fast && it == 0 {
+                    return Err((it + 1, norm));
                 }
                 alpha *= 0.5;
             }
             if !accepted && fresh && alpha < 1.0 / 1024.0 {
                 // Converged to round-off already? Accept if within 100x the tolerance.
                 if norm <= 100.0 * opts.tol * xmax {
-                    return Ok((x, norm, it + 1));
+                    return Ok(done(x, r, norm, it + 1));
                 }
                 return Err((it + 1, norm));
             }
         }
         if norm <= opts.tol * inf_norm(&x).max(1.0) {
-            Ok((x, norm, opts.max_iter))
+            Ok(done(x, r, norm, opts.max_iter))
         } else {
             Err((opts.max_iter, norm))
         }
     }
-}
 
-fn finish(
-    p: &Problem,
-    x: [f64; 3],
-    residual: f64,
-    iterations: usize,
-    load_steps: usize,
-) -> Solution {
-    let y0 = p.base_state(&x);
-    let tip = integrate(p.rod, &p.coeffs, y0, None);
-    Solution {
-        x,
-        base_force: y0.n,
-        base_moment: y0.m,
-        tip,
-        iterations,
-        residual,
-        load_steps,
-        collocation: None,
+    /// The final pass at a converged x of the full load: one integration in `Jet<3>` gives
+    /// the tip, J and the Jacobi fields for the stability test, and at every node the
+    /// validity rules are checked (and the shape kept, if wanted). A broken physical rule is
+    /// an error; a validity range broken under `Policy::Raise` too.
+    fn conclude(
+        &self,
+        c: &Converged,
+        iterations: usize,
+        load_steps: usize,
+        opts: &SolverOptions,
+        mut violations: Vec<SoftrodError>,
+        want_shape: bool,
+    ) -> Result<(Solution, Option<Shape>)> {
+        let xd: [Jet<3>; 3] = std::array::from_fn(|i| Jet::variable(c.x[i], i));
+        let y0 = self.base_state(&xd);
+        let mut jacobi = Jacobi::default();
+        let mut shape = want_shape.then(Shape::default);
+        let mut broken: Option<SoftrodError> = None;
+        let mut worst: Option<(f64, SoftrodError)> = None;
+        let mut index = 0;
+        let mut visit = |i: usize, s: f64, y: &State<Jet<3>>| {
+            jacobi.visit(y);
+            let node = Node {
+                index,
+                s,
+                section: i,
+            };
+            index += 1;
+            let y = y.re();
+            let (v, u) = match self.check_node(node, &y, opts, &mut worst) {
+                Ok(vu) => vu,
+                Err(e) => {
+                    broken.get_or_insert(e);
+                    return;
+                }
+            };
+            if let Some(sh) = shape.as_mut() {
+                sh.push(node, &y, v, u);
+            }
+        };
+        let tip = integrate(self.rod, &self.coeffs, y0, Some(&mut visit));
+        if let Some(e) = broken {
+            return Err(e);
+        }
+        if let Some((_, e)) = worst {
+            match opts.on_invalid {
+                Policy::Raise => return Err(e),
+                Policy::Warn => violations.push(e),
+                Policy::Ignore => {}
+            }
+        }
+        let rd = self.residual_of_tip(&tip);
+        let jac = Matrix3::from_fn(|i, j| rd[i].eps[j]);
+        Ok((
+            Solution {
+                x: c.x,
+                base_force: self.n0,
+                base_moment: c.x.map(|x| x * self.ms),
+                tip: tip.re(),
+                iterations,
+                residual: c.residual,
+                load_steps,
+                stable: jacobi.stable(&jac),
+                violations,
+                collocation: None,
+            },
+            shape,
+        ))
     }
-}
 
-/// A static solve by collocation (`crate::collocation::solve_static`), for rods whose
-/// single-shooting problem is ill-conditioned (docs/model.md, "Collocation").
-fn by_collocation(rod: &Rod, loads: &Loads, opts: &SolverOptions) -> Result<Solution> {
-    let sol = crate::collocation::solve_static(rod, loads, None, opts)?;
-    let (base_force, base_moment) = crate::collocation::base_wrench(rod, &sol.z);
-    let ev = &sol.evaluated;
-    let grid = crate::collocation::Grid::new(rod);
-    let strains = sol.node_strains(rod, loads);
-    let mut shape = Shape::default();
-    for (j, y) in ev.nodes.iter().enumerate() {
-        shape.s.push(grid.node_s(j));
-        shape.section.push(if j == 0 {
-            0
-        } else {
-            grid.intervals[j - 1].section
+    /// The rules of `crate::validity` at one node; the strains (v, u) there.
+    fn check_node(
+        &self,
+        node: Node,
+        y: &State<f64>,
+        opts: &SolverOptions,
+        worst: &mut Option<(f64, SoftrodError)>,
+    ) -> Result<([f64; 3], [f64; 3])> {
+        let flat: [f64; 18] = std::array::from_fn(|k| match k {
+            0..3 => y.r[k],
+            3..12 => y.rot[(k - 3) / 3][(k - 3) % 3],
+            12..15 => y.n[k - 12],
+            _ => y.m[k - 15],
         });
-        shape.position.push(ev.node_r[j]);
-        shape.rotation.push(crate::collocation::rotation(&y[..4]));
-        shape.force.push([y[4], y[5], y[6]]);
-        shape.moment.push([y[7], y[8], y[9]]);
-        shape.v.push(strains[j].0);
-        shape.u.push(strains[j].1);
+        validity::check_finite(node, &flat)?;
+        validity::check_rotation(node, &y.rot)?;
+        let sec = &self.rod.sections[node.section];
+        if sec.rigid {
+            return Ok(([0.0, 0.0, 1.0], [0.0; 3]));
+        }
+        let (v, u) = strains(y, &self.coeffs[node.section]);
+        validity::check_finite(node, &[v[0], v[1], v[2], u[0], u[1], u[2]])?;
+        validity::check_stretch(node, &v)?;
+        for (k, c) in sec.chambers.iter().enumerate() {
+            validity::check_chamber(node, k, &v, &u, c.centroid)?;
+        }
+        if opts.on_invalid != Policy::Ignore {
+            let radius = fibre_radius(sec);
+            if let Err(e) = validity::check_strain_range(node, &v, &u, radius, &opts.strain_limits)
+            {
+                // Keep the node furthest out (in log stretch, symmetric in compression and
+                // extension).
+                let far = match &e {
+                    SoftrodError::InvalidState { value, .. } => value.ln().abs(),
+                    _ => 0.0,
+                };
+                if worst.as_ref().is_none_or(|(w, _)| far > *w) {
+                    *worst = Some((far, e));
+                }
+            }
+        }
+        Ok((v, u))
     }
-    let last = shape.s.len() - 1;
-    Ok(Solution {
-        x: [sol.z[3], sol.z[4], sol.z[5]],
-        base_force,
-        base_moment,
-        tip: State {
-            r: shape.position[last],
-            rot: shape.rotation[last],
-            n: shape.force[last],
-            m: shape.moment[last],
-            aux: [1.0, 1.0],
-        },
-        iterations: sol.iterations,
-        residual: sol.residual,
-        load_steps: sol.load_steps,
-        collocation: Some(std::sync::Arc::new(shape)),
-    })
+}
+
+/// The radius of a section's outermost material fibre for the strain-range rule: the outer
+/// radius, else (stiffnesses given directly) the outer edge of the farthest chamber, else 0
+/// (only the centreline is checked).
+fn fibre_radius(sec: &Section) -> f64 {
+    match &sec.law.geometry {
+        Some(g) => g.outer_radius,
+        None => sec
+            .chambers
+            .iter()
+            .map(|c| c.centroid[0].hypot(c.centroid[1]) + c.hole_radius)
+            .fold(0.0, f64::max),
+    }
+}
+
+/// The conjugate-point test along s (docs/model.md "Validity and stability"). The columns of
+/// Theta(s) are the rotation fields d theta(s)/dx_j of the three Jacobi fields that start
+/// at the clamp (theta(0) = 0, dm(0) = M_s e_j), in the world frame: delta R R^T =
+/// [d theta]x. Near the clamp Theta ~ s R0 K_bt^-1 R0^T M_s (positive definite). A point
+/// where Theta is singular is conjugate to the clamp; between two nodes, one is crossed
+/// when T = Theta(s_k+1)^-1 Theta(s_k) has an eigenvalue with negative real part (without
+/// a crossing, T = I + O(h)). This counts the double crossings of symmetric rods (a
+/// round column buckles in two planes at once), which leave det Theta positive.
+#[derive(Default)]
+struct Jacobi {
+    /// An elastic step has been taken (Theta = 0 on leading rigid sections).
+    elastic: bool,
+    conjugate: bool,
+    theta: Matrix3<f64>,
+}
+
+impl Jacobi {
+    fn visit<const N: usize>(&mut self, y: &State<Jet<N>>) {
+        let th = Matrix3::from_fn(|a, j| {
+            // Omega = dR R^T (row-major R): Omega[p][q] = sum_k dR[p][k] R[q][k].
+            let om = |p: usize, q: usize| -> f64 {
+                (0..3).map(|k| y.rot[p][k].eps[j] * y.rot[q][k].re).sum()
+            };
+            match a {
+                0 => 0.5 * (om(2, 1) - om(1, 2)),
+                1 => 0.5 * (om(0, 2) - om(2, 0)),
+                _ => 0.5 * (om(1, 0) - om(0, 1)),
+            }
+        });
+        if self.elastic {
+            if !self.conjugate && th != self.theta {
+                self.conjugate = match th.try_inverse() {
+                    Some(inv) => !right_half_plane(&(inv * self.theta)),
+                    None => true,
+                };
+            }
+        } else {
+            self.elastic = th.determinant() > 0.0;
+        }
+        self.theta = th;
+    }
+
+    /// Stable: no conjugate point in (0, L] and the tip form sym(Theta(L)^T J) positive
+    /// definite (the second variation on the Jacobi field reaching the tip with
+    /// d theta(L) = Theta(L) xi is (M_s / 2) xi^T Theta(L)^T J xi). A rod without an elastic
+    /// step cannot deform and is stable.
+    fn stable(&self, jac: &Matrix3<f64>) -> bool {
+        if !self.elastic {
+            return true;
+        }
+        if self.conjugate {
+            return false;
+        }
+        let a = self.theta.transpose() * jac;
+        let q = (a + a.transpose()) * 0.5;
+        q.iter().all(|v| v.is_finite()) && q.cholesky().is_some()
+    }
+}
+
+/// Every eigenvalue of the 3x3 matrix t has a positive real part: by the Routh-Hurwitz
+/// criterion for the characteristic polynomial of -t, tr t > 0, det t > 0 and
+/// tr t * c2 > det t, with c2 the sum of the principal 2x2 minors.
+fn right_half_plane(t: &Matrix3<f64>) -> bool {
+    let tr = t.trace();
+    let det = t.determinant();
+    let c2 = t[(0, 0)] * t[(1, 1)] - t[(0, 1)] * t[(1, 0)] + t[(0, 0)] * t[(2, 2)]
+        - t[(0, 2)] * t[(2, 0)]
+        + t[(1, 1)] * t[(2, 2)]
+        - t[(1, 2)] * t[(2, 1)];
+    tr > 0.0 && det > 0.0 && tr * c2 > det
+}
+
+/// The best of two attempts: a stable solution, else an unstable one, else the more telling
+/// error (a broken validity rule over non-convergence). Ties go to `b`.
+type Attempt = Result<(Solution, Option<Shape>)>;
+
+fn rank(a: &Attempt) -> u8 {
+    match a {
+        Ok((s, _)) if s.stable => 3,
+        Ok(_) => 2,
+        Err(SoftrodError::InvalidState { .. }) => 1,
+        Err(_) => 0,
+    }
+}
+
+fn better(a: Option<Attempt>, b: Attempt) -> Attempt {
+    match a {
+        Some(a) if rank(&a) > rank(&b) => a,
+        _ => b,
+    }
 }
 
 /// Solve the static equilibrium. `guess` is a previous solution's `x` (warm start).
@@ -408,6 +715,20 @@ pub fn solve(
     guess: Option<&[f64; 3]>,
     opts: &SolverOptions,
 ) -> Result<Solution> {
+    solve_inner(rod, loads, guess, opts, false).map(|(s, _)| s)
+}
+
+/// [`solve`] and the shape at every integration node, from the same final pass.
+pub fn solve_with_shape(
+    rod: &Rod,
+    loads: &Loads,
+    guess: Option<&[f64; 3]>,
+    opts: &SolverOptions,
+) -> Result<(Solution, Shape)> {
+    solve_inner(rod, loads, guess, opts, true).map(|(s, sh)| (s, sh.unwrap_or_default()))
+}
+
+fn check_inputs(rod: &Rod, loads: &Loads, opts: &SolverOptions) -> Result<Vec<SoftrodError>> {
     opts.validate()?;
     rod.check_loads(&loads.pressures, &loads.stiffness_scale)?;
     for (name, v) in [
@@ -424,87 +745,352 @@ pub fn solve(
             }
         }
     }
+    let mut violations = vec![];
+    if let (Some(range), true) = (rod.spec.operating_range, opts.on_invalid != Policy::Ignore) {
+        if let Err(e) = validity::check_operating_range(&loads.pressures, range.pressure) {
+            if opts.on_invalid == Policy::Raise {
+                return Err(e);
+            }
+            violations.push(e);
+        }
+    }
+    Ok(violations)
+}
+
+fn solve_inner(
+    rod: &Rod,
+    loads: &Loads,
+    guess: Option<&[f64; 3]>,
+    opts: &SolverOptions,
+    want_shape: bool,
+) -> Attempt {
+    let violations = check_inputs(rod, loads, opts)?;
     // Single shooting's sensitivity grows like exp(int sqrt(|n| / EI) ds): long, soft rods
     // under their own weight go to collocation (docs/model.md, "Collocation").
     if crate::collocation::shooting_ill_conditioned(rod, loads) {
-        return by_collocation(rod, loads, opts);
+        return by_collocation(rod, loads, opts, violations);
     }
-    let full = Problem::new(rod, loads, 1.0);
-    let x0 = match guess {
-        Some(g) if g.iter().all(|v| v.is_finite()) => *g,
-        _ => full.straight_guess(),
+    let mut iterations = 0;
+    let mut first: Option<Attempt> = None;
+    if let Some(g) = guess.filter(|g| g.iter().all(|v| v.is_finite())) {
+        let full = Problem::new(rod, loads, 1.0);
+        match full.newton(*g, Start::Guess, opts) {
+            Ok(c) => {
+                let out = full.conclude(&c, c.iterations, 1, opts, violations.clone(), want_shape);
+                if rank(&out) == 3 {
+                    return out;
+                }
+                iterations = c.iterations;
+                first = Some(out);
+            }
+            Err((it, res)) => {
+                iterations = it;
+                first = Some(Err(SoftrodError::NotConverged {
+                    iterations: it,
+                    residual: res,
+                    load_factor: 0.0,
+                    reason: "Newton failed from the initial guess and continuation is off".into(),
+                }));
+            }
+        }
+        if !opts.continuation {
+            return first.unwrap_or_else(unreachable_attempt);
+        }
+    }
+    let path = natural_path(rod, loads, opts, violations, want_shape, iterations);
+    better(first, path)
+}
+
+/// A static solve by collocation (`crate::collocation::solve_static`), for rods whose
+/// single-shooting problem is ill-conditioned (docs/model.md, "Collocation"). Every node
+/// passes the same validity rules as a shooting solution's. The conjugate-point test
+/// integrates the Jacobi fields from the clamp, which is the same ill-conditioned initial
+/// value problem, so it is not run: `stable` is true without that test (the solution is an
+/// equilibrium that collocation's Newton reached from the straight rod by continuation).
+fn by_collocation(
+    rod: &Rod,
+    loads: &Loads,
+    opts: &SolverOptions,
+    violations: Vec<SoftrodError>,
+) -> Attempt {
+    let mut violations = violations;
+    let sol = crate::collocation::solve_static(rod, loads, None, opts)?;
+    let (base_force, base_moment) = crate::collocation::base_wrench(rod, &sol.z);
+    let ev = &sol.evaluated;
+    let grid = crate::collocation::Grid::new(rod);
+    let p = Problem::new(rod, loads, 1.0);
+    let mut shape = Shape::default();
+    let mut worst: Option<(f64, SoftrodError)> = None;
+    for (j, y) in ev.nodes.iter().enumerate() {
+        let node = Node {
+            index: j,
+            s: grid.node_s(j),
+            section: if j == 0 {
+                0
+            } else {
+                grid.intervals[j - 1].section
+            },
+        };
+        let state = State {
+            r: ev.node_r[j],
+            rot: crate::collocation::rotation(&y[..4]),
+            n: [y[4], y[5], y[6]],
+            m: [y[7], y[8], y[9]],
+            aux: [1.0, 1.0],
+        };
+        let (v, u) = p.check_node(node, &state, opts, &mut worst)?;
+        shape.push(node, &state, v, u);
+    }
+    if let Some((_, e)) = worst {
+        match opts.on_invalid {
+            Policy::Raise => return Err(e),
+            Policy::Warn => violations.push(e),
+            Policy::Ignore => {}
+        }
+    }
+    let last = shape.s.len() - 1;
+    let tip = State {
+        r: shape.position[last],
+        rot: shape.rotation[last],
+        n: shape.force[last],
+        m: shape.moment[last],
+        aux: [1.0, 1.0],
     };
-    let (mut iterations, mut last_res) = match full.newton(x0, opts) {
-        Ok((x, res, it)) => return Ok(finish(&full, x, res, it, 1)),
-        Err(failed) => failed,
-    };
-    if !opts.continuation {
-        return Err(SoftrodError::NotConverged {
+    let shape = std::sync::Arc::new(shape);
+    Ok((
+        Solution {
+            x: [sol.z[3], sol.z[4], sol.z[5]],
+            base_force,
+            base_moment,
+            tip,
+            iterations: sol.iterations,
+            residual: sol.residual,
+            load_steps: sol.load_steps,
+            stable: true,
+            violations,
+            collocation: Some(shape.clone()),
+        },
+        Some((*shape).clone()),
+    ))
+}
+
+/// An error in place of a branch the logic never takes (the core never panics).
+fn unreachable_attempt() -> Attempt {
+    Err(SoftrodError::Internal(
+        "static solve ended without an outcome".into(),
+    ))
+}
+
+/// Smallest load step continuation tries before giving up.
+const MIN_LOAD_STEP: f64 = 1e-5;
+/// A step that leaves the stable path (lands on an unstable equilibrium while the last level
+/// was stable) is cut until it is this short; a path that still loses stability then does
+/// so itself (a bifurcation or limit point on the path, e.g. a perfect column above its
+/// buckling load) and is followed.
+const MIN_STABLE_STEP: f64 = 1.0 / 64.0;
+/// How far (infinity norm of the scaled unknowns, about the rod's rotation in rad) the
+/// first load step may move the solution along the tangent: further, the linear
+/// prediction is too poor for Newton; the full load is tried at once when its tangent
+/// prediction moves less.
+const FIRST_REACH: f64 = 2.0;
+/// Tolerance of the intermediate load levels (relative, as `SolverOptions::tol`): they are
+/// stepping stones, and the predictor does not need them exact.
+const LEVEL_TOL: f64 = 1e-2;
+
+/// The natural path: loads ramped from zero (where x = 0 is the exact, stable solution and
+/// J = I), predicted along the exact tangent (at zero load: the straight-rod guess) and
+/// corrected by Newton. The step moves the predicted solution by a set reach, adapted to
+/// Newton's effort; Newton starts from the last level's exact Jacobian, updated by Broyden
+/// along the prediction.
+fn natural_path(
+    rod: &Rod,
+    loads: &Loads,
+    opts: &SolverOptions,
+    violations: Vec<SoftrodError>,
+    want_shape: bool,
+    spent: usize,
+) -> Attempt {
+    let mut iterations = spent;
+    let mut last_res = f64::NAN;
+    let not_converged = |iterations, residual, load_factor, reason: String| {
+        Err(SoftrodError::NotConverged {
             iterations,
-            residual: last_res,
-            load_factor: 0.0,
-            reason: "Newton failed from the initial guess and continuation is off".into(),
-        });
-    }
-    // Load continuation from the unloaded straight rod (x = 0 solves it exactly).
+            residual,
+            load_factor,
+            reason,
+        })
+    };
+    // The last level on the path: load factor, solution, its residual, tangent, exact
+    // Jacobian, stability.
     let mut lam = 0.0;
     let mut x = [0.0; 3];
-    let mut prev: Option<(f64, [f64; 3])> = None;
-    let mut dlam: f64 = 0.25;
+    let mut r = [0.0; 3];
+    let mut tangent = Problem::new(rod, loads, 1.0).straight_guess();
+    let mut jac = Matrix3::identity();
+    let mut stable = true;
+    let mut step: f64 = (FIRST_REACH / inf_norm(&tangent)).min(1.0);
+    if !step.is_finite() || !opts.continuation {
+        step = 1.0;
+    }
     let mut levels = 0;
-    while lam < 1.0 {
+    // An equilibrium that left the stable path at full load, kept in case no stable one is
+    // reached.
+    let mut unstable_end: Option<Attempt> = None;
+    loop {
         if levels >= opts.max_load_steps {
-            let failed = SoftrodError::NotConverged {
+            let out = not_converged(
                 iterations,
-                residual: last_res,
-                load_factor: lam,
-                reason: format!(
-                    "load continuation used all {} load steps",
-                    opts.max_load_steps
-                ),
-            };
-            // Shooting gave up: collocation's conditioning may not (it keeps the error if not).
-            return by_collocation(rod, loads, opts).map_err(|_| failed);
+                last_res,
+                lam,
+                if opts.continuation {
+                    format!(
+                        "load continuation used all {} load steps",
+                        opts.max_load_steps
+                    )
+                } else {
+                    "Newton failed from the initial guess and continuation is off".into()
+                },
+            );
+            return better(unstable_end, out);
         }
         levels += 1;
-        let target = (lam + dlam).min(1.0);
+        let target = (lam + step).min(1.0);
+        let h = target - lam;
+        let guess: [f64; 3] = std::array::from_fn(|i| x[i] + tangent[i] * h);
         let p = Problem::new(rod, loads, target);
-        // Secant predictor from the last two converged levels.
-        let guess: [f64; 3] = match prev {
-            Some((lp, xp)) if lam > lp => {
-                std::array::from_fn(|i| x[i] + (x[i] - xp[i]) * (target - lam) / (lam - lp))
-            }
-            _ => x,
+        let level_opts = SolverOptions {
+            tol: if target < 1.0 {
+                opts.tol.max(LEVEL_TOL)
+            } else {
+                opts.tol
+            },
+            ..*opts
         };
-        match p.newton(guess, opts) {
-            Ok((xn, res, it)) => {
-                iterations += it;
-                last_res = res;
-                prev = Some((lam, x));
-                x = xn;
-                lam = target;
-                if lam >= 1.0 {
-                    return Ok(finish(&p, x, res, iterations, levels));
+        // The augmented Jacobian [J, dR/dlambda] of the last level, updated by Broyden
+        // along the prediction (dx, h): dR/dlambda = -J t, so the linear model predicts
+        // r + J (dx - t h) at the guess.
+        let r0 = p.eval(&guess);
+        let dx = Vector3::from_fn(|i, _| guess[i] - x[i]);
+        let t = Vector3::from_column_slice(&tangent);
+        let miss =
+            Vector3::from_column_slice(&r0) - Vector3::from_column_slice(&r) - jac * (dx - t * h);
+        let mut j = jac;
+        let update = miss * dx.transpose() / (dx.norm_squared() + h * h);
+        if update.iter().all(|v| v.is_finite()) {
+            j += update;
+        }
+        let start = Start::Predicted {
+            jac: j,
+            r: r0,
+            // Straight to the full load: an ordinary Newton solve, with its line search.
+            fail_fast: !(levels == 1 && target >= 1.0),
+        };
+        let attempt = p.newton(guess, start, &level_opts);
+        match attempt {
+            Ok(c) => {
+                iterations += c.iterations;
+                last_res = c.residual;
+                if target >= 1.0 {
+                    let out =
+                        p.conclude(&c, iterations, levels, opts, violations.clone(), want_shape);
+                    let left_path = stable && rank(&out) == 2;
+                    if !(left_path && h > MIN_STABLE_STEP && opts.continuation) {
+                        return better(unstable_end, out);
+                    }
+                    unstable_end = Some(out);
+                    step = 0.5 * h;
+                    continue;
                 }
-                dlam = (dlam * 1.5).min(0.5);
+                let Some((t, j, st)) = p.tangent(&c.x) else {
+                    step = 0.5 * h;
+                    continue;
+                };
+                if stable && !st && h > MIN_STABLE_STEP {
+                    step = 0.5 * h;
+                    continue;
+                }
+                // The next step moves the prediction as far as this one did, more or less
+                // as Newton found it easy or hard.
+                let reach = next_reach(h * inf_norm(&tangent), c.iterations);
+                lam = target;
+                x = c.x;
+                r = c.r;
+                tangent = t;
+                jac = j;
+                stable = st;
+                step = reach / inf_norm(&tangent);
+                if !(step.is_finite() && step > 0.0) {
+                    step = 1.0;
+                }
             }
             Err((it, res)) => {
                 iterations += it;
                 last_res = res;
-                dlam *= 0.5;
-                if dlam < 1e-5 {
-                    let failed = SoftrodError::NotConverged {
+                if !opts.continuation {
+                    return not_converged(
                         iterations,
-                        residual: last_res,
-                        load_factor: lam,
-                        reason: "load step fell below 1e-5 (the load may exceed a limit point such as buckling)".into(),
-                    };
-                    return by_collocation(rod, loads, opts).map_err(|_| failed);
+                        res,
+                        lam,
+                        "Newton failed from the initial guess and continuation is off".into(),
+                    );
+                }
+                step = 0.5 * h;
+                if step < MIN_LOAD_STEP {
+                    let out = not_converged(
+                        iterations,
+                        last_res,
+                        lam,
+                        "load step fell below 1e-5 (the load may exceed a limit point such as snap-through)".into(),
+                    );
+                    return better(unstable_end, out);
                 }
             }
         }
     }
-    unreachable!("the continuation loop returns at load factor 1")
+}
+
+/// The next step's reach from the last one and the Newton iterations it needed: longer
+/// when the prediction was good, shorter when Newton worked hard.
+fn next_reach(reach: f64, iterations: usize) -> f64 {
+    match iterations {
+        0..=3 => 2.0 * reach,
+        4..=5 => 1.25 * reach,
+        _ => 0.7 * reach,
+    }
+}
+
+/// The checked solution at unknowns `x` that the caller has converged for `loads` (e.g.
+/// inverse statics, which solves the equilibrium jointly with the pressures): the same
+/// conclusion as [`solve`]'s, one dual pass giving the validity checks and the stability
+/// test. Errors when the residual at `x` is not within `opts.tol` (the caller did not
+/// converge), or as [`solve`] for a state that breaks a rule.
+pub fn conclude_at(
+    rod: &Rod,
+    loads: &Loads,
+    x: [f64; 3],
+    iterations: usize,
+    opts: &SolverOptions,
+) -> Result<Solution> {
+    let violations = check_inputs(rod, loads, opts)?;
+    let p = Problem::new(rod, loads, 1.0);
+    let r = p.eval(&x);
+    let residual = inf_norm(&r);
+    if !(residual <= opts.tol * inf_norm(&x).max(1.0)) {
+        return Err(SoftrodError::NotConverged {
+            iterations,
+            residual,
+            load_factor: 1.0,
+            reason: "the given unknowns are not an equilibrium to the tolerance".into(),
+        });
+    }
+    let c = Converged {
+        x,
+        r,
+        residual,
+        iterations,
+    };
+    p.conclude(&c, iterations, 1, opts, violations, false)
+        .map(|(s, _)| s)
 }
 
 /// The shape of a converged solution at every integration node.
@@ -514,20 +1100,24 @@ pub fn shape(rod: &Rod, loads: &Loads, sol: &Solution) -> Shape {
     }
     let p = Problem::new(rod, loads, 1.0);
     let mut out = Shape::default();
+    let mut index = 0;
     let mut visit = |i: usize, s: f64, y: &State<f64>| {
         let (v, u) = if rod.sections[i].rigid {
             ([0.0, 0.0, 1.0], [0.0; 3])
         } else {
             strains(y, &p.coeffs[i])
         };
-        out.s.push(s);
-        out.section.push(i);
-        out.position.push(y.r);
-        out.rotation.push(y.rot);
-        out.force.push(y.n);
-        out.moment.push(y.m);
-        out.v.push(v);
-        out.u.push(u);
+        out.push(
+            Node {
+                index,
+                s,
+                section: i,
+            },
+            y,
+            v,
+            u,
+        );
+        index += 1;
     };
     integrate(rod, &p.coeffs, p.base_state(&sol.x), Some(&mut visit));
     out
@@ -547,4 +1137,20 @@ pub fn residual_and_jacobian(rod: &Rod, loads: &Loads, x: &[f64; 3]) -> ([f64; 3
 /// Scaled tip-moment residual at `x` (f64 only).
 pub fn residual(rod: &Rod, loads: &Loads, x: &[f64; 3]) -> [f64; 3] {
     Problem::new(rod, loads, 1.0).eval(x)
+}
+
+/// The path tangent dx/dlambda, the Jacobian and the stability flag at a converged solution
+/// x of the loads scaled by `factor` (exposed for tests against finite differences).
+pub fn load_tangent(
+    rod: &Rod,
+    loads: &Loads,
+    factor: f64,
+    x: &[f64; 3],
+) -> Option<([f64; 3], [[f64; 3]; 3], bool)> {
+    let (t, j, st) = Problem::new(rod, loads, factor).tangent(x)?;
+    Some((
+        t,
+        std::array::from_fn(|i| std::array::from_fn(|k| j[(i, k)])),
+        st,
+    ))
 }

@@ -1,5 +1,5 @@
-//! The rules a rod state must satisfy before any solver returns it (DESIGN.md section 5b;
-//! docs/model.md "Validity and stability"), and the size limits of a design.
+//! The rules a rod state must satisfy before any solver returns it (docs/model.md, "Validity
+//! and stability"), and the size limits of a design.
 //!
 //! Small pure functions, shared by statics and dynamics: each checks one rule at one node and
 //! returns [`SoftrodError::InvalidState`] naming the rule, the node, its arc length, the
@@ -14,8 +14,9 @@
 use crate::error::{Result, SoftrodError};
 
 /// Most pressure channels a design may use (channel indices 0..MAX_CHANNELS). Checked before
-/// anything is sized by the channel count.
-pub const MAX_CHANNELS: usize = 1024;
+/// anything is sized by the channel count. The limits here equal the Python boundary's
+/// (`python/softrod/_limits.py`, docs/errors.md), so Rust users get the same rules.
+pub const MAX_CHANNELS: usize = 64;
 /// Most sections in a design.
 pub const MAX_SECTIONS: usize = 1000;
 /// Most chambers in one section (the overlap check is quadratic in this number).
@@ -26,7 +27,7 @@ pub const MAX_STEPS_PER_SECTION: usize = 100_000;
 /// this bounds a solution at about 240 MB.
 pub const MAX_TOTAL_STEPS: usize = 1_000_000;
 /// Most distributed line loads in a design.
-pub const MAX_LINE_LOADS: usize = 10_000;
+pub const MAX_LINE_LOADS: usize = 1000;
 /// Most points in an EA(F) table.
 pub const MAX_TABLE_POINTS: usize = 10_000;
 
@@ -35,6 +36,12 @@ pub const MAX_TABLE_POINTS: usize = 10_000;
 /// error, so a correct solution sits at round-off (~1e-15). 1e-6 after re-projection means
 /// about 1e-3 before it: a step far too coarse for the curvature. The cure is more steps.
 pub const ROTATION_TOLERANCE: f64 = 1e-6;
+
+/// Largest centreline stretch v3 of any state: no silicone elastomer of soft robotics
+/// stretches to 10 times its length before it tears (elongation at break, manufacturers'
+/// data sheets: Ecoflex 00-30 900 %, Dragon Skin 30 364 %). A larger stretch (e.g. 1e9 Pa
+/// in a chamber) is not a state of the actuator, whatever the validity range allows.
+pub const MAX_STRETCH: f64 = 10.0;
 
 /// What a solver does when a state leaves a validity range (physical rules always raise).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -69,6 +76,8 @@ pub enum Rule {
     Rotation,
     /// The centreline stretch v3 is positive (v3 <= 0: the rod is turned inside out).
     PositiveStretch,
+    /// The centreline stretch v3 is at most [`MAX_STRETCH`] (the material would have torn).
+    StretchLimit,
     /// Every chamber's stretch is positive (its volume element has not vanished).
     ChamberCollapse,
     /// Fibre stretch across the section within the model's validity range.
@@ -87,6 +96,7 @@ impl Rule {
             Rule::Finite => "finite_state",
             Rule::Rotation => "rotation",
             Rule::PositiveStretch => "positive_stretch",
+            Rule::StretchLimit => "stretch_limit",
             Rule::ChamberCollapse => "chamber_collapse",
             Rule::StrainRange => "strain_range",
             Rule::OperatingRange => "operating_range",
@@ -102,9 +112,11 @@ impl Rule {
 
 /// The validity range of the fibre stretch: along every material fibre of the cross-section
 /// the axial stretch lambda = v3 + u1 y - u2 x must lie in [stretch_min, stretch_max].
-/// The default [0.5, 2]: the laws are calibrated in the papers for strains of tens of
-/// percent; halving or doubling a fibre's length is far beyond any of their data and close
-/// to where silicone cross-sections stop being rigid discs (the rod model's assumption).
+/// The default [1/3, 3] is a judgement, not a material law: the papers' laws are fitted to
+/// data with fibre stretches up to about 2.3 (STIFF-FLOP, paper 003, at 1.5 bar on three
+/// chambers: 84 % elongation plus bending), and a fibre compressed to a third or stretched
+/// to three times its length is far outside any of them, where the cross-section no longer
+/// stays the rigid disc the rod model assumes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StrainLimits {
     pub stretch_min: f64,
@@ -114,8 +126,8 @@ pub struct StrainLimits {
 impl Default for StrainLimits {
     fn default() -> Self {
         StrainLimits {
-            stretch_min: 0.5,
-            stretch_max: 2.0,
+            stretch_min: 1.0 / 3.0,
+            stretch_max: 3.0,
         }
     }
 }
@@ -206,8 +218,19 @@ pub fn check_rotation(node: Node, rot: &[[f64; 3]; 3]) -> Result<()> {
     ))
 }
 
-/// The centreline stretch v3 is positive.
+/// The centreline stretch v3 is positive and at most [`MAX_STRETCH`].
 pub fn check_stretch(node: Node, v: &[f64; 3]) -> Result<()> {
+    if v[2] > MAX_STRETCH {
+        return Err(broken(
+            Rule::StretchLimit,
+            Some(node),
+            v[2],
+            format!(
+                "stretch v3 = {:.4e} in sections[{}] exceeds {MAX_STRETCH}: no elastomer stretches that far before it tears; the pressures or loads are beyond anything the actuator survives",
+                v[2], node.section
+            ),
+        ));
+    }
     if v[2] > 0.0 {
         return Ok(());
     }
@@ -344,6 +367,10 @@ mod tests {
     #[test]
     fn stretch_chamber_and_range_rules() {
         assert!(check_stretch(NODE, &[0.0, 0.0, 0.3]).is_ok());
+        assert_eq!(
+            rule_of(check_stretch(NODE, &[0.0, 0.0, 3012.0]).unwrap_err()),
+            Rule::StretchLimit
+        );
         let e = check_stretch(NODE, &[0.0, 0.0, -0.87]).unwrap_err();
         assert!(e.to_string().contains("-0.87"), "{e}");
         assert_eq!(rule_of(e), Rule::PositiveStretch);
@@ -361,7 +388,7 @@ mod tests {
             Rule::StrainRange
         );
         assert_eq!(
-            rule_of(check_strain_range(NODE, &[0.0, 0.0, 3.0], &[0.0; 3], 0.0, &lim).unwrap_err()),
+            rule_of(check_strain_range(NODE, &[0.0, 0.0, 3.5], &[0.0; 3], 0.0, &lim).unwrap_err()),
             Rule::StrainRange
         );
         assert!(StrainLimits {

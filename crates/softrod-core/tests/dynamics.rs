@@ -1,5 +1,5 @@
 //! Dynamics of the viscoelastic Cosserat rod against closed-form and independent results
-//! (shared/validation/README.md) and the static solver.
+//! (Timoshenko beam, Kelvin-Voigt decay, spring-mass; see docs/dynamics.md) and the static solver.
 
 mod common;
 

@@ -1,4 +1,4 @@
-//! Closed forms for chambered sections (DESIGN.md section 3; paper 002, eqs. 6-7, 21 and
+//! Closed forms for chambered sections (docs/model.md; paper 002, eqs. 6-7, 21 and
 //! Table III): with no gravity and no tip load the total internal force and moment vanish,
 //! so the strains are the pressure shifts alone,
 //!   u = K_bt^-1 sum_k p_k A_k (y_k, -x_k, 0),   v = (0, 0, 1 + sum_k p_k A_k / (c_e E A_m)),

@@ -10,8 +10,10 @@ use softrod_core::interp::GridPchip;
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::statics::{self, SolverOptions};
+use softrod_core::validity::{Policy, StrainLimits};
 use softrod_core::{DesignSpec, Rod, SoftrodError};
 
+mod control;
 mod dynamics;
 mod pcc;
 
@@ -64,25 +66,85 @@ fn to_py_err(py: Python<'_>, err: SoftrodError, ctx: Context) -> PyErr {
 
 /// A validated, compiled design (immutable).
 #[pyclass(name = "Rod", module = "softrod._core", frozen)]
-struct PyRod {
-    rod: Rod,
+pub(crate) struct PyRod {
+    pub(crate) rod: Rod,
 }
 
-fn options(tol: f64, max_iter: usize, continuation: bool, max_load_steps: usize) -> SolverOptions {
-    SolverOptions {
+/// The solver options of a call; `on_invalid` is "raise", "warn" or "ignore".
+fn options(
+    py: Python<'_>,
+    tol: f64,
+    max_iter: usize,
+    continuation: bool,
+    max_load_steps: usize,
+    stretch_range: (f64, f64),
+    on_invalid: &str,
+) -> PyResult<SolverOptions> {
+    let on_invalid = Policy::from_name(on_invalid).ok_or_else(|| {
+        to_py_err(
+            py,
+            SoftrodError::invalid(
+                "on_invalid",
+                on_invalid,
+                "must be 'raise', 'warn' or 'ignore'",
+            ),
+            Context::Input,
+        )
+    })?;
+    Ok(SolverOptions {
         tol,
         max_iter,
         continuation,
         max_load_steps,
-    }
+        strain_limits: StrainLimits {
+            stretch_min: stretch_range.0,
+            stretch_max: stretch_range.1,
+        },
+        on_invalid,
+    })
+}
+
+/// Run a binding entry so that a panic inside the core (a bug: the core reports every
+/// expected failure as a `SoftrodError`) becomes `softrod.InternalError`, never a
+/// `pyo3_runtime.PanicException` that `except Exception` would miss.
+pub(crate) fn guarded<T>(py: Python<'_>, f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|payload| {
+        let what = payload
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic without a message".into());
+        Err(to_py_err(py, SoftrodError::Internal(what), Context::Input))
+    })
 }
 
 /// The `DesignSpec` of a design's JSON text (SI units), as written by the Python package.
+/// A type or value error names the field path (`sections[1].chambers[0].channel`).
 fn parse_spec(py: Python<'_>, spec_json: &str) -> PyResult<DesignSpec> {
-    serde_json::from_str(spec_json).map_err(|e| {
+    let de = &mut serde_json::Deserializer::from_str(spec_json);
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let path = e.path().to_string();
+        let field = if path.is_empty() || path == "." {
+            "design".to_string()
+        } else {
+            path
+        };
+        let inner = e.inner();
+        // serde_json's message without its position in the JSON text (which the user never
+        // wrote); the offending value is the first `quoted` part, when there is one.
+        let text = inner.to_string();
+        let rule = match text.rfind(" at line ") {
+            Some(k) if inner.line() > 0 => text[..k].to_string(),
+            _ => text.clone(),
+        };
+        let value = rule
+            .split('`')
+            .nth(1)
+            .map(str::to_string)
+            .unwrap_or_else(|| "(invalid)".into());
         to_py_err(
             py,
-            SoftrodError::invalid("design", "(JSON)", e.to_string()),
+            SoftrodError::invalid(field, value, rule),
             Context::Design,
         )
     })
@@ -107,9 +169,11 @@ impl PyRod {
     /// Build from the JSON text of a `DesignSpec` (SI units).
     #[new]
     fn new(py: Python<'_>, spec_json: &str) -> PyResult<Self> {
-        let spec = parse_spec(py, spec_json)?;
-        let rod = Rod::new(spec).map_err(|e| to_py_err(py, e, Context::Design))?;
-        Ok(PyRod { rod })
+        guarded(py, || {
+            let spec = parse_spec(py, spec_json)?;
+            let rod = Rod::new(spec).map_err(|e| to_py_err(py, e, Context::Design))?;
+            Ok(PyRod { rod })
+        })
     }
 
     #[getter]
@@ -159,8 +223,9 @@ impl PyRod {
             .collect()
     }
 
-    /// Solve one static equilibrium; returns a dict of numpy arrays (SI).
-    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stiffness_scale=[1.0, 1.0, 1.0]))]
+    /// Solve one static equilibrium; returns a dict of numpy arrays (SI), the stability
+    /// flag "stable" and the validity-range violations "violations" (with on_invalid="warn").
+    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise"))]
     #[allow(clippy::too_many_arguments)]
     fn solve<'py>(
         &self,
@@ -173,44 +238,60 @@ impl PyRod {
         max_iter: usize,
         continuation: bool,
         max_load_steps: usize,
+        stretch_range: (f64, f64),
         stiffness_scale: [f64; 3],
+        on_invalid: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let loads = Loads {
-            pressures,
-            tip_force,
-            tip_moment,
-            stiffness_scale,
-        };
-        let opts = options(tol, max_iter, continuation, max_load_steps);
-        let rod = &self.rod;
-        let result = py.detach(|| {
-            statics::solve(rod, &loads, guess.as_ref(), &opts).map(|sol| {
-                let sh = statics::shape(rod, &loads, &sol);
-                (sol, sh)
-            })
-        });
-        let (sol, sh) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
-        let d = PyDict::new(py);
-        d.set_item("s", PyArray1::from_vec(py, sh.s))?;
-        d.set_item(
-            "section",
-            PyArray1::from_vec(py, sh.section.iter().map(|&i| i as i64).collect()),
-        )?;
-        d.set_item("position", array2(py, &sh.position)?)?;
-        d.set_item("rotation", array3(py, &sh.rotation)?)?;
-        d.set_item("force", array2(py, &sh.force)?)?;
-        d.set_item("moment", array2(py, &sh.moment)?)?;
-        d.set_item("v", array2(py, &sh.v)?)?;
-        d.set_item("u", array2(py, &sh.u)?)?;
-        d.set_item("x", sol.x.to_vec())?;
-        d.set_item("iterations", sol.iterations)?;
-        d.set_item("residual", sol.residual)?;
-        d.set_item("load_steps", sol.load_steps)?;
-        Ok(d)
+        guarded(py, || {
+            let loads = Loads {
+                pressures,
+                tip_force,
+                tip_moment,
+                stiffness_scale,
+            };
+            let opts = options(
+                py,
+                tol,
+                max_iter,
+                continuation,
+                max_load_steps,
+                stretch_range,
+                on_invalid,
+            )?;
+            let rod = &self.rod;
+            let result =
+                py.detach(|| statics::solve_with_shape(rod, &loads, guess.as_ref(), &opts));
+            let (sol, sh) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
+            let d = PyDict::new(py);
+            d.set_item("s", PyArray1::from_vec(py, sh.s))?;
+            d.set_item(
+                "section",
+                PyArray1::from_vec(py, sh.section.iter().map(|&i| i as i64).collect()),
+            )?;
+            d.set_item("position", array2(py, &sh.position)?)?;
+            d.set_item("rotation", array3(py, &sh.rotation)?)?;
+            d.set_item("force", array2(py, &sh.force)?)?;
+            d.set_item("moment", array2(py, &sh.moment)?)?;
+            d.set_item("v", array2(py, &sh.v)?)?;
+            d.set_item("u", array2(py, &sh.u)?)?;
+            d.set_item("x", sol.x.to_vec())?;
+            d.set_item("iterations", sol.iterations)?;
+            d.set_item("residual", sol.residual)?;
+            d.set_item("load_steps", sol.load_steps)?;
+            d.set_item("stable", sol.stable)?;
+            d.set_item(
+                "violations",
+                sol.violations
+                    .iter()
+                    .map(|e| e.to_string())
+                    .collect::<Vec<_>>(),
+            )?;
+            Ok(d)
+        })
     }
 
     /// Solve every row of an (m, channels) pressure array in parallel (GIL released).
-    #[pyo3(signature = (pressures, tip_force, tip_moment, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stiffness_scale=None))]
+    #[pyo3(signature = (pressures, tip_force, tip_moment, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=None, on_invalid="raise"))]
     #[allow(clippy::too_many_arguments)]
     fn solve_batch<'py>(
         &self,
@@ -223,29 +304,41 @@ impl PyRod {
         max_iter: usize,
         continuation: bool,
         max_load_steps: usize,
+        stretch_range: (f64, f64),
         stiffness_scale: Option<PyReadonlyArray2<'py, f64>>,
+        on_invalid: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
-        self.check_columns(py, &pressures)?;
-        // Copy into owned Rust data before releasing the GIL.
-        let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
-        let sigma: Option<Vec<f64>> =
-            stiffness_scale.map(|s| s.as_array().iter().copied().collect());
-        let opts = options(tol, max_iter, continuation, max_load_steps);
-        let rod = &self.rod;
-        let rows = py
-            .detach(|| {
-                solve_batch(
-                    rod,
-                    &flat,
-                    tip_force,
-                    tip_moment,
-                    sigma.as_deref(),
-                    &opts,
-                    threads,
-                )
-            })
-            .map_err(|e| to_py_err(py, e, Context::Input))?;
-        rows_dict(py, &rows)
+        guarded(py, || {
+            self.check_columns(py, &pressures)?;
+            // Copy into owned Rust data before releasing the GIL.
+            let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
+            let sigma: Option<Vec<f64>> =
+                stiffness_scale.map(|s| s.as_array().iter().copied().collect());
+            let opts = options(
+                py,
+                tol,
+                max_iter,
+                continuation,
+                max_load_steps,
+                stretch_range,
+                on_invalid,
+            )?;
+            let rod = &self.rod;
+            let rows = py
+                .detach(|| {
+                    solve_batch(
+                        rod,
+                        &flat,
+                        tip_force,
+                        tip_moment,
+                        sigma.as_deref(),
+                        &opts,
+                        threads,
+                    )
+                })
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            rows_dict(py, &rows)
+        })
     }
 
     /// `solve_batch` plus the exact derivatives of every converged tip pose with respect to
@@ -253,7 +346,7 @@ impl PyRod {
     /// kinds as in `softrod_core::sensitivity::ParamKind::ALL`. `x0`: optional (m, 3) warm
     /// starts (a previous call's "x"; NaN rows start cold). Adds "x" (m, 3),
     /// "d_tip_position" (m, 3, P) and "d_tip_rotation" (m, 3, 3, P), NaN on failed rows.
-    #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200))]
+    #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore"))]
     #[allow(clippy::too_many_arguments)]
     fn sensitivity_batch<'py>(
         &self,
@@ -269,74 +362,86 @@ impl PyRod {
         max_iter: usize,
         continuation: bool,
         max_load_steps: usize,
+        stretch_range: (f64, f64),
+        on_invalid: &str,
     ) -> PyResult<Bound<'py, PyDict>> {
-        self.check_columns(py, &pressures)?;
-        let params: Vec<Param> = params
-            .into_iter()
-            .enumerate()
-            .map(|(j, (name, sections))| match ParamKind::from_name(&name) {
-                Some(kind) => Ok(Param { kind, sections }),
-                None => Err(to_py_err(
-                    py,
-                    SoftrodError::invalid(
-                        format!("params[{j}]"),
-                        &name,
-                        format!(
-                            "unknown parameter kind; known: {}",
-                            ParamKind::ALL.map(|(n, _)| n).join(", ")
+        guarded(py, || {
+            self.check_columns(py, &pressures)?;
+            let params: Vec<Param> = params
+                .into_iter()
+                .enumerate()
+                .map(|(j, (name, sections))| match ParamKind::from_name(&name) {
+                    Some(kind) => Ok(Param { kind, sections }),
+                    None => Err(to_py_err(
+                        py,
+                        SoftrodError::invalid(
+                            format!("params[{j}]"),
+                            &name,
+                            format!(
+                                "unknown parameter kind; known: {}",
+                                ParamKind::ALL.map(|(n, _)| n).join(", ")
+                            ),
                         ),
-                    ),
-                    Context::Input,
-                )),
-            })
-            .collect::<PyResult<_>>()?;
-        let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
-        let sigma: Option<Vec<f64>> =
-            stiffness_scale.map(|s| s.as_array().iter().copied().collect());
-        let guesses: Option<Vec<f64>> = x0.map(|s| s.as_array().iter().copied().collect());
-        let opts = options(tol, max_iter, continuation, max_load_steps);
-        let rod = &self.rod;
-        let rows = py
-            .detach(|| {
-                sensitivity_batch(
-                    rod,
-                    &flat,
-                    tip_force,
-                    tip_moment,
-                    sigma.as_deref(),
-                    guesses.as_deref(),
-                    &params,
-                    &opts,
-                    threads,
-                )
-            })
-            .map_err(|e| to_py_err(py, e, Context::Input))?;
-        let d = rows_dict(py, &rows)?;
-        let np = params.len();
-        let m = rows.len();
-        let (mut dp, mut dr) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 9 * np]);
-        for (r, row) in rows.iter().enumerate() {
-            let Some(sens) = &row.sensitivity else {
-                continue;
-            };
-            for j in 0..np {
-                for i in 0..3 {
-                    dp[(r * 3 + i) * np + j] = sens.position[j][i];
-                    for k in 0..3 {
-                        dr[((r * 3 + i) * 3 + k) * np + j] = sens.rotation[j][i][k];
+                        Context::Input,
+                    )),
+                })
+                .collect::<PyResult<_>>()?;
+            let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
+            let sigma: Option<Vec<f64>> =
+                stiffness_scale.map(|s| s.as_array().iter().copied().collect());
+            let guesses: Option<Vec<f64>> = x0.map(|s| s.as_array().iter().copied().collect());
+            let opts = options(
+                py,
+                tol,
+                max_iter,
+                continuation,
+                max_load_steps,
+                stretch_range,
+                on_invalid,
+            )?;
+            let rod = &self.rod;
+            let rows = py
+                .detach(|| {
+                    sensitivity_batch(
+                        rod,
+                        &flat,
+                        tip_force,
+                        tip_moment,
+                        sigma.as_deref(),
+                        guesses.as_deref(),
+                        &params,
+                        &opts,
+                        threads,
+                    )
+                })
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            let d = rows_dict(py, &rows)?;
+            let np = params.len();
+            let m = rows.len();
+            let (mut dp, mut dr) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 9 * np]);
+            for (r, row) in rows.iter().enumerate() {
+                let Some(sens) = &row.sensitivity else {
+                    continue;
+                };
+                for j in 0..np {
+                    for i in 0..3 {
+                        dp[(r * 3 + i) * np + j] = sens.position[j][i];
+                        for k in 0..3 {
+                            dr[((r * 3 + i) * 3 + k) * np + j] = sens.rotation[j][i][k];
+                        }
                     }
                 }
             }
-        }
-        d.set_item(
-            "d_tip_position",
-            PyArray1::from_vec(py, dp).reshape([m, 3, np])?,
-        )?;
-        d.set_item(
-            "d_tip_rotation",
-            PyArray1::from_vec(py, dr).reshape([m, 3, 3, np])?,
-        )?;
-        Ok(d)
+            d.set_item(
+                "d_tip_position",
+                PyArray1::from_vec(py, dp).reshape([m, 3, np])?,
+            )?;
+            d.set_item(
+                "d_tip_rotation",
+                PyArray1::from_vec(py, dr).reshape([m, 3, 3, np])?,
+            )?;
+            Ok(d)
+        })
     }
 }
 
@@ -386,6 +491,16 @@ fn rows_dict<'py>(py: Python<'py>, rows: &[BatchRow]) -> PyResult<Bound<'py, PyD
     )?;
     let x: Vec<[f64; 3]> = rows.iter().map(|r| r.x).collect();
     d.set_item("x", array2(py, &x)?)?;
+    d.set_item(
+        "stable",
+        PyArray1::from_vec(py, rows.iter().map(|r| r.stable).collect()),
+    )?;
+    d.set_item(
+        "violation",
+        rows.iter()
+            .map(|r| r.violation.as_str())
+            .collect::<Vec<_>>(),
+    )?;
     Ok(d)
 }
 
@@ -401,9 +516,11 @@ impl PyGridPchip {
     /// `width` values per grid point.
     #[new]
     fn new(py: Python<'_>, axes: Vec<Vec<f64>>, values: Vec<f64>, width: usize) -> PyResult<Self> {
-        let grid =
-            GridPchip::new(axes, values, width).map_err(|e| to_py_err(py, e, Context::Input))?;
-        Ok(PyGridPchip { grid })
+        guarded(py, || {
+            let grid = GridPchip::new(axes, values, width)
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            Ok(PyGridPchip { grid })
+        })
     }
 
     /// Interpolate at every row of an (m, dims) array of points inside the grid.
@@ -412,39 +529,50 @@ impl PyGridPchip {
         py: Python<'py>,
         points: PyReadonlyArray2<'py, f64>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let pts = points.as_array();
-        let dims = self.grid.dims();
-        if pts.shape()[1] != dims {
-            return Err(to_py_err(
-                py,
-                SoftrodError::invalid(
-                    "points",
-                    format!("shape {:?}", pts.shape()),
-                    format!("must have {dims} columns"),
-                ),
-                Context::Input,
-            ));
-        }
-        let rows: Vec<Vec<f64>> = pts.rows().into_iter().map(|r| r.to_vec()).collect();
-        let grid = &self.grid;
-        let width = grid.width();
-        let out: Vec<Vec<f64>> = py.detach(|| {
-            rows.iter()
-                .map(|p| {
-                    let mut o = vec![0.0; width];
-                    grid.eval(p, &mut o);
-                    o
-                })
-                .collect()
-        });
-        Ok(PyArray2::from_vec2(py, &out)?)
+        guarded(py, || {
+            let pts = points.as_array();
+            let dims = self.grid.dims();
+            if pts.shape()[1] != dims {
+                return Err(to_py_err(
+                    py,
+                    SoftrodError::invalid(
+                        "points",
+                        format!("shape {:?}", pts.shape()),
+                        format!("must have {dims} columns"),
+                    ),
+                    Context::Input,
+                ));
+            }
+            let rows: Vec<Vec<f64>> = pts.rows().into_iter().map(|r| r.to_vec()).collect();
+            let grid = &self.grid;
+            let width = grid.width();
+            let out: Vec<Vec<f64>> = py.detach(|| {
+                rows.iter()
+                    .map(|p| {
+                        let mut o = vec![0.0; width];
+                        grid.eval(p, &mut o);
+                        o
+                    })
+                    .collect()
+            });
+            Ok(PyArray2::from_vec2(py, &out)?)
+        })
     }
+}
+
+/// Panics inside `guarded`: the tests' proof that a panic in the core reaches Python as
+/// `softrod.InternalError` (no other use).
+#[pyfunction]
+fn _panic_inside_guard(py: Python<'_>) -> PyResult<()> {
+    guarded(py, || panic!("deliberate panic from _panic_inside_guard"))
 }
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRod>()?;
     m.add_class::<PyGridPchip>()?;
+    m.add_function(wrap_pyfunction!(_panic_inside_guard, m)?)?;
+    control::register(m)?;
     dynamics::register(m)?;
     pcc::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -34,9 +34,11 @@ impl PyPcc {
     /// Build from the JSON text of a `DesignSpec` (SI units).
     #[new]
     fn new(py: Python<'_>, spec_json: &str) -> PyResult<Self> {
-        let spec = crate::parse_spec(py, spec_json)?;
-        let model = PccModel::new(&spec).map_err(|e| to_py_err(py, e, Context::Design))?;
-        Ok(PyPcc { model })
+        crate::guarded(py, || {
+            let spec = crate::parse_spec(py, spec_json)?;
+            let model = PccModel::new(&spec).map_err(|e| to_py_err(py, e, Context::Design))?;
+            Ok(PyPcc { model })
+        })
     }
 
     #[getter]
@@ -67,25 +69,29 @@ impl PyPcc {
 
     /// Per-segment parameters (SI) as dicts.
     fn segments<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        self.model
-            .segments()
-            .map(|(l, _, p)| {
-                let d = PyDict::new(py);
-                d.set_item("name", &l.name)?;
-                d.set_item("length", l.length)?;
-                d.set_item("mass", l.line_mass * l.length)?;
-                d.set_item("k_L", p.k_l)?;
-                d.set_item("b_L", p.b_l)?;
-                match &p.k_theta {
-                    BendStiffness::Constant(k) => d.set_item("k_theta", *k)?,
-                    BendStiffness::Table(a, k) => d.set_item("k_theta", (a.clone(), k.clone()))?,
-                }
-                d.set_item("b_theta", p.b_theta)?;
-                d.set_item("k_phi", p.k_phi)?;
-                d.set_item("b_phi", p.b_phi)?;
-                Ok(d)
-            })
-            .collect()
+        crate::guarded(py, || {
+            self.model
+                .segments()
+                .map(|(l, _, p)| {
+                    let d = PyDict::new(py);
+                    d.set_item("name", &l.name)?;
+                    d.set_item("length", l.length)?;
+                    d.set_item("mass", l.line_mass * l.length)?;
+                    d.set_item("k_L", p.k_l)?;
+                    d.set_item("b_L", p.b_l)?;
+                    match &p.k_theta {
+                        BendStiffness::Constant(k) => d.set_item("k_theta", *k)?,
+                        BendStiffness::Table(a, k) => {
+                            d.set_item("k_theta", (a.clone(), k.clone()))?
+                        }
+                    }
+                    d.set_item("b_theta", p.b_theta)?;
+                    d.set_item("k_phi", p.k_phi)?;
+                    d.set_item("b_phi", p.b_phi)?;
+                    Ok(d)
+                })
+                .collect()
+        })
     }
 
     /// Model coordinates (x, v) from paper coordinates (q, q_dot) = (L, theta, phi) per segment.
@@ -95,9 +101,11 @@ impl PyPcc {
         q: Vec<f64>,
         q_dot: Vec<f64>,
     ) -> PyResult<(Vec<f64>, Vec<f64>)> {
-        self.model
-            .from_paper(&q, &q_dot)
-            .map_err(|e| to_py_err(py, e, Context::Input))
+        crate::guarded(py, || {
+            self.model
+                .from_paper(&q, &q_dot)
+                .map_err(|e| to_py_err(py, e, Context::Input))
+        })
     }
 
     /// Static equilibrium: dict with x, q, iterations, residual, tip pose.
@@ -110,25 +118,27 @@ impl PyPcc {
         tol: f64,
         max_iter: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let opts = StepOptions { tol, max_iter };
-        let m = &self.model;
-        let s = py
-            .detach(|| m.solve_statics(&pressures, guess.as_deref(), &opts))
-            .map_err(|e| to_py_err(py, e, Context::Input))?;
-        let zero = vec![0.0; s.x.len()];
-        let (q, _) = m.to_paper(&s.x, &zero);
-        let (p, r) = m.tip_pose(&s.x);
-        let d = PyDict::new(py);
-        d.set_item("x", s.x.clone())?;
-        d.set_item("q", q)?;
-        d.set_item("iterations", s.iterations)?;
-        d.set_item("residual", s.residual)?;
-        d.set_item("tip_position", p.to_vec())?;
-        d.set_item(
-            "tip_rotation",
-            r.iter().map(|x| x.to_vec()).collect::<Vec<_>>(),
-        )?;
-        Ok(d)
+        crate::guarded(py, || {
+            let opts = StepOptions { tol, max_iter };
+            let m = &self.model;
+            let s = py
+                .detach(|| m.solve_statics(&pressures, guess.as_deref(), &opts))
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            let zero = vec![0.0; s.x.len()];
+            let (q, _) = m.to_paper(&s.x, &zero);
+            let (p, r) = m.tip_pose(&s.x);
+            let d = PyDict::new(py);
+            d.set_item("x", s.x.clone())?;
+            d.set_item("q", q)?;
+            d.set_item("iterations", s.iterations)?;
+            d.set_item("residual", s.residual)?;
+            d.set_item("tip_position", p.to_vec())?;
+            d.set_item(
+                "tip_rotation",
+                r.iter().map(|x| x.to_vec()).collect::<Vec<_>>(),
+            )?;
+            Ok(d)
+        })
     }
 
     /// Shape at model coordinates x: (s, position (p, 3), rotation (p, 3, 3)).
@@ -138,15 +148,17 @@ impl PyPcc {
         x: Vec<f64>,
         per_section: usize,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        let (s, p, r) = self
-            .model
-            .shape(&x, per_section)
-            .map_err(|e| to_py_err(py, e, Context::Input))?;
-        Ok((
-            PyArray1::from_vec(py, s).into_any(),
-            array2(py, &p)?,
-            array3(py, &r)?,
-        ))
+        crate::guarded(py, || {
+            let (s, p, r) = self
+                .model
+                .shape(&x, per_section)
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            Ok((
+                PyArray1::from_vec(py, s).into_any(),
+                array2(py, &p)?,
+                array3(py, &r)?,
+            ))
+        })
     }
 
     /// Shapes at many model coordinates (rows of x): (s (p,), positions (k, p, 3)).
@@ -156,21 +168,23 @@ impl PyPcc {
         xs: PyReadonlyArray2<'_, f64>,
         per_section: usize,
     ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-        let xs = xs.as_array();
-        let mut s_out = vec![];
-        let mut flat = vec![];
-        for row in xs.rows() {
-            let x: Vec<f64> = row.iter().copied().collect();
-            let (s, p, _) = self
-                .model
-                .shape(&x, per_section)
-                .map_err(|e| to_py_err(py, e, Context::Input))?;
-            flat.extend(p.iter().flatten().copied());
-            s_out = s;
-        }
-        let n_pts = s_out.len();
-        let pos = PyArray1::from_vec(py, flat).reshape([xs.nrows(), n_pts, 3])?;
-        Ok((PyArray1::from_vec(py, s_out).into_any(), pos.into_any()))
+        crate::guarded(py, || {
+            let xs = xs.as_array();
+            let mut s_out = vec![];
+            let mut flat = vec![];
+            for row in xs.rows() {
+                let x: Vec<f64> = row.iter().copied().collect();
+                let (s, p, _) = self
+                    .model
+                    .shape(&x, per_section)
+                    .map_err(|e| to_py_err(py, e, Context::Input))?;
+                flat.extend(p.iter().flatten().copied());
+                s_out = s;
+            }
+            let n_pts = s_out.len();
+            let pos = PyArray1::from_vec(py, flat).reshape([xs.nrows(), n_pts, 3])?;
+            Ok((PyArray1::from_vec(py, s_out).into_any(), pos.into_any()))
+        })
     }
 
     /// Energies (kinetic, gravity, elastic, pressure) at model coordinates (x, v), J.
@@ -181,18 +195,22 @@ impl PyPcc {
         v: Vec<f64>,
         pressures: Vec<f64>,
     ) -> PyResult<(f64, f64, f64, f64)> {
-        let e = self
-            .model
-            .energy(&x, &v, &pressures)
-            .map_err(|e| to_py_err(py, e, Context::Input))?;
-        Ok((e.kinetic, e.gravity, e.elastic, e.pressure))
+        crate::guarded(py, || {
+            let e = self
+                .model
+                .energy(&x, &v, &pressures)
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            Ok((e.kinetic, e.gravity, e.elastic, e.pressure))
+        })
     }
 
     /// Mass matrix at model coordinates x.
     fn mass_matrix(&self, py: Python<'_>, x: Vec<f64>) -> PyResult<Vec<Vec<f64>>> {
-        self.model
-            .mass_matrix(&x)
-            .map_err(|e| to_py_err(py, e, Context::Input))
+        crate::guarded(py, || {
+            self.model
+                .mass_matrix(&x)
+                .map_err(|e| to_py_err(py, e, Context::Input))
+        })
     }
 
     /// Simulate: pressures (n_steps + 1, n_channels) Pa at every step time; initial is
@@ -211,69 +229,73 @@ impl PyPcc {
         tol: f64,
         max_iter: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let m = &self.model;
-        let arr = pressures.as_array();
-        let nc = m.n_channels;
-        if arr.shape()[1] != nc {
-            return Err(to_py_err(
-                py,
-                SoftrodError::invalid(
-                    "pressures",
-                    format!("{} columns", arr.shape()[1]),
-                    format!("the design has {nc} pressure channels: one column per channel (Pa)"),
-                ),
-                Context::Input,
-            ));
-        }
-        let flat: Vec<f64> = arr.iter().copied().collect();
-        let init = match initial {
-            "rest" => InitialState::Rest,
-            "static" => InitialState::Static,
-            "given" => {
-                let (q, qd) = (q0.unwrap_or_default(), q_dot0.unwrap_or_default());
-                let (x, v) = m
-                    .from_paper(&q, &qd)
-                    .map_err(|e| to_py_err(py, e, Context::Input))?;
-                InitialState::Given { x, v }
-            }
-            // Model coordinates as returned in "x"/"x_dot" (continuing a run without the
-            // loss of the bending direction that paper coordinates have at theta = 0).
-            "model" => InitialState::Given {
-                x: q0.unwrap_or_default(),
-                v: q_dot0.unwrap_or_default(),
-            },
-            other => {
+        crate::guarded(py, || {
+            let m = &self.model;
+            let arr = pressures.as_array();
+            let nc = m.n_channels;
+            if arr.shape()[1] != nc {
                 return Err(to_py_err(
                     py,
                     SoftrodError::invalid(
-                        "initial",
-                        other,
-                        "must be 'rest', 'static' or a pair (q, q_dot)",
+                        "pressures",
+                        format!("{} columns", arr.shape()[1]),
+                        format!(
+                            "the design has {nc} pressure channels: one column per channel (Pa)"
+                        ),
                     ),
                     Context::Input,
-                ))
+                ));
             }
-        };
-        let opts = StepOptions { tol, max_iter };
-        let tr = py
-            .detach(|| m.simulate(dt, &flat, &init, save_every, &opts))
-            .map_err(|e| to_py_err(py, e, Context::Input))?;
-        let (q, qd) = self.paper_rows(&tr.x, &tr.v);
-        let n = 3 * m.n_segments();
-        let d = PyDict::new(py);
-        d.set_item("time", PyArray1::from_vec(py, tr.time.clone()))?;
-        d.set_item("q", matrix(py, &q, n)?)?;
-        d.set_item("q_dot", matrix(py, &qd, n)?)?;
-        d.set_item("x", matrix(py, &tr.x, m.ndof)?)?;
-        d.set_item("x_dot", matrix(py, &tr.v, m.ndof)?)?;
-        d.set_item("tip_position", array2(py, &tr.tip_position)?)?;
-        d.set_item("tip_rotation", array3(py, &tr.tip_rotation)?)?;
-        d.set_item("tip_velocity", array2(py, &tr.tip_velocity)?)?;
-        d.set_item("pressure", matrix(py, &tr.pressure, nc)?)?;
-        d.set_item("energy", PyArray1::from_vec(py, tr.energy.clone()))?;
-        d.set_item("newton_iterations", tr.newton_iterations)?;
-        d.set_item("jacobian_evaluations", tr.jacobian_evaluations)?;
-        Ok(d)
+            let flat: Vec<f64> = arr.iter().copied().collect();
+            let init = match initial {
+                "rest" => InitialState::Rest,
+                "static" => InitialState::Static,
+                "given" => {
+                    let (q, qd) = (q0.unwrap_or_default(), q_dot0.unwrap_or_default());
+                    let (x, v) = m
+                        .from_paper(&q, &qd)
+                        .map_err(|e| to_py_err(py, e, Context::Input))?;
+                    InitialState::Given { x, v }
+                }
+                // Model coordinates as returned in "x"/"x_dot" (continuing a run without the
+                // loss of the bending direction that paper coordinates have at theta = 0).
+                "model" => InitialState::Given {
+                    x: q0.unwrap_or_default(),
+                    v: q_dot0.unwrap_or_default(),
+                },
+                other => {
+                    return Err(to_py_err(
+                        py,
+                        SoftrodError::invalid(
+                            "initial",
+                            other,
+                            "must be 'rest', 'static' or a pair (q, q_dot)",
+                        ),
+                        Context::Input,
+                    ))
+                }
+            };
+            let opts = StepOptions { tol, max_iter };
+            let tr = py
+                .detach(|| m.simulate(dt, &flat, &init, save_every, &opts))
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            let (q, qd) = self.paper_rows(&tr.x, &tr.v);
+            let n = 3 * m.n_segments();
+            let d = PyDict::new(py);
+            d.set_item("time", PyArray1::from_vec(py, tr.time.clone()))?;
+            d.set_item("q", matrix(py, &q, n)?)?;
+            d.set_item("q_dot", matrix(py, &qd, n)?)?;
+            d.set_item("x", matrix(py, &tr.x, m.ndof)?)?;
+            d.set_item("x_dot", matrix(py, &tr.v, m.ndof)?)?;
+            d.set_item("tip_position", array2(py, &tr.tip_position)?)?;
+            d.set_item("tip_rotation", array3(py, &tr.tip_rotation)?)?;
+            d.set_item("tip_velocity", array2(py, &tr.tip_velocity)?)?;
+            d.set_item("pressure", matrix(py, &tr.pressure, nc)?)?;
+            d.set_item("energy", PyArray1::from_vec(py, tr.energy.clone()))?;
+            d.set_item("newton_iterations", tr.newton_iterations)?;
+            d.set_item("jacobian_evaluations", tr.jacobian_evaluations)?;
+            Ok(d)
+        })
     }
 }
 

@@ -22,6 +22,7 @@ import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -38,6 +39,12 @@ from ..statics import SolverOptions, _options
 from ..units import number, to_si
 from .metrics import tip_error_table
 from .params import SIGMA_KINDS, Parameter, design_changes, parse_parameters
+
+if TYPE_CHECKING:
+    from .._types import ArrayLike, DesignLike, PathLike, Quantity, Units
+    from ..pcc import PccFit
+    from ..stiffness_map import StiffnessMap
+    from .dynamic import DynamicCalibrationResult
 
 logger = logging.getLogger(__name__)
 
@@ -326,7 +333,7 @@ class CalibrationResult:
         return np.array([self.values[idx[k]] if k in idx else 1.0 for k in SIGMA_KINDS])
 
     @property
-    def stiffness_map(self):
+    def stiffness_map(self) -> StiffnessMap | None:
         """A constant :class:`~softrod.StiffnessMap` of the fitted sigma (or None), to pass
         as ``stiffness_map=`` with :attr:`design`."""
         from ..stiffness_map import StiffnessMap
@@ -374,7 +381,7 @@ class CalibrationResult:
     def __str__(self) -> str:
         return self.summary()
 
-    def to_toml(self, path) -> Path:
+    def to_toml(self, path: PathLike) -> Path:
         """Write the calibrated design as a TOML design file (whole or not at all), with
         :meth:`Design.save`. Its name is the calibrated design's (``<name>_calibrated`` or
         the ``name`` given to :func:`calibrate`); ``[design.provenance]`` records the
@@ -390,7 +397,7 @@ class CalibrationResult:
             )
         return self.design.save(path)
 
-    def to_frame(self, units=None) -> pd.DataFrame:
+    def to_frame(self, units: Units = None) -> pd.DataFrame:
         """The predictions, one row per sample, in the dataset schema (docs/datasets.md):
         the measured sample (``p0_kPa`` ..., ``tip_x_mm`` ..., and the dataset's other
         columns), then ``set`` (train or test), ``converged``, the calibrated model's tip
@@ -432,7 +439,7 @@ class CalibrationResult:
             metadata=meta,
         )
 
-    def write_report(self, path) -> Path:
+    def write_report(self, path: PathLike) -> Path:
         """An HTML report: parameters, correlations, error tables and figures."""
         from .report import write_report
 
@@ -771,27 +778,27 @@ def _starts_table(params, fits, best) -> pd.DataFrame:
 
 @one_blas_thread
 def calibrate(
-    design,
-    dataset,
+    design: DesignLike,
+    dataset: Dataset | PathLike | pd.DataFrame,
     params: Sequence[str] | str,
     *,
     bounds: Mapping[str, Sequence] | None = None,
     method: str | None = None,
-    split=None,
-    test=None,
+    split: str | ArrayLike | None = None,
+    test: Any = None,
     options: SolverOptions | None = None,
     threads: int = 0,
     max_evaluations: int = 200,
     progress: Callable[[int, float], None] | None = None,
     dynamic: bool = False,
-    dt=5e-3,
+    dt: Quantity = 5e-3,
     model: str = "cosserat",
     experiments: Mapping | None = None,
     restarts: int = 0,
     seed: int = 0,
-    executor=None,
+    executor: Any = None,
     name: str | None = None,
-):
+) -> CalibrationResult | DynamicCalibrationResult | PccFit:
     """Fit ``params`` of ``design`` to the tip positions of ``dataset``.
 
     design: a design (path, bundled name, preset or :class:`~softrod.Design`).

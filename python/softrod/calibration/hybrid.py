@@ -28,6 +28,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -46,6 +47,10 @@ from .per_sample import (
     _readonly,
     stiffness_mapped_design,
 )
+
+if TYPE_CHECKING:
+    from .._types import ArrayLike, DesignLike, PathLike, Progress
+    from ..design import Design
 
 __all__ = ["HybridStiffnessModel", "compare_hybrid", "fit_stiffness_map"]
 
@@ -161,7 +166,7 @@ class HybridStiffnessModel:
         )
 
     @property
-    def design(self):
+    def design(self) -> Design:
         """The design with the mapped sections (as identified)."""
         if self.identification is None:
             return self.saved["design"]
@@ -180,7 +185,7 @@ class HybridStiffnessModel:
             return self.design.n_channels
         return self.identification.dataset.n_channels
 
-    def predict(self, pressures) -> np.ndarray:
+    def predict(self, pressures: ArrayLike) -> np.ndarray:
         """sigma (m, 3) at gauge pressures (m, c) in Pa; every entry finite and > 0."""
         p = np.asarray(pressures, dtype=float)
         if p.ndim != 2 or p.shape[1] != self.n_channels:
@@ -205,7 +210,7 @@ class HybridStiffnessModel:
         arrays with numpy (the same operations as scikit-learn) and can be saved."""
         return StiffnessMap.from_networks(self.networks())
 
-    def save(self, path) -> Path:
+    def save(self, path: PathLike) -> Path:
         """Write the model as JSON (whole or not at all): the stiffness map of
         :meth:`StiffnessMap.save` (format "softrod.stiffness_map", kind "mlp", versioned)
         plus a ``hybrid`` block with the settings, the training table, the split, the design
@@ -240,7 +245,7 @@ class HybridStiffnessModel:
         return _write_json(doc, path)
 
     @classmethod
-    def load(cls, path) -> HybridStiffnessModel:
+    def load(cls, path: PathLike) -> HybridStiffnessModel:
         """Read a model written by :meth:`save`. Its networks predict with numpy; it has no
         ``identification`` (``compare_hybrid`` needs the fitted model)."""
         from ..design import read_design
@@ -317,7 +322,7 @@ def fit_stiffness_map(
     test_fraction: float = 0.2,
     seed: int = 0,
     max_iter: int = DEFAULT_MAX_ITER,
-    progress=None,
+    progress: Progress = None,
 ) -> HybridStiffnessModel:
     """Train one network per factor on the identified samples (paper 001 Sec. III-C, V-B).
 
@@ -487,13 +492,13 @@ def _rows(rows, hybrid: HybridStiffnessModel, dataset: Dataset) -> np.ndarray:
 
 
 def compare_hybrid(
-    design,
+    design: DesignLike,
     dataset: Dataset,
     hybrid: HybridStiffnessModel,
     *,
-    rows=None,
-    literature=None,
-    constant="fit",
+    rows: ArrayLike | None = None,
+    literature: ArrayLike | None = None,
+    constant: str | ArrayLike | None = "fit",
     options: SolverOptions | None = None,
     threads: int = 0,
 ) -> pd.DataFrame:

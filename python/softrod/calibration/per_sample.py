@@ -42,6 +42,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -56,6 +57,9 @@ from ..progress import check_progress, reporter
 from ..statics import SolverOptions
 from ..stiffness_map import SIGMA_NAMES
 from ..units import to_si
+
+if TYPE_CHECKING:
+    from .._types import ArrayLike, DesignLike, PathLike, Quantity, Units
 
 __all__ = [
     "DEFAULT_BOUNDS",
@@ -484,7 +488,7 @@ class StiffnessIdentification:
         """(3,) fraction of the samples at which each factor was identified."""
         return self.identifiable.mean(axis=0) if len(self) else np.zeros(3)
 
-    def to_frame(self, units=None) -> pd.DataFrame:
+    def to_frame(self, units: Units = None) -> pd.DataFrame:
         """One row per sample in the dataset schema (docs/datasets.md): the measured
         sample (``p0_kPa`` ..., ``tip_x_mm`` ..., and whatever else the dataset has), then the
         result columns ``sigma_ext``, ``sigma_bend_x``, ``sigma_bend_y`` (empty where not
@@ -602,7 +606,7 @@ class StiffnessIdentification:
         out["wall time (s)"] = round(self.wall_time_s, 3)
         return out
 
-    def write_report(self, path) -> Path:
+    def write_report(self, path: PathLike) -> Path:
         """An HTML report (:func:`softrod.calibration.report.write_report`): summary, the
         factor table, the tip residuals of the identified model and the measured tips coloured
         by each identified factor (paper 001 Fig. 5)."""
@@ -761,23 +765,23 @@ def _problem(design, dataset, *, use_rotation, n_high, r_high, m_high, R_high, o
 
 @one_blas_thread
 def identify_stiffness(
-    design,
+    design: DesignLike,
     dataset: Dataset,
     *,
     sections: Sequence[str] | None = None,
-    min_sensitivity=None,
+    min_sensitivity: Quantity | None = None,
     bounds: tuple[float, float] = DEFAULT_BOUNDS,
     use_rotation: bool = True,
-    n_high=N_HIGH,
-    r_high=R_HIGH,
-    m_high=M_HIGH,
-    R_high=ROT_HIGH,
-    initial=None,
+    n_high: Quantity = N_HIGH,
+    r_high: Quantity = R_HIGH,
+    m_high: Quantity = M_HIGH,
+    R_high: Quantity = ROT_HIGH,
+    initial: ArrayLike | None = None,
     max_iter: int = 30,
     options: SolverOptions | None = None,
     threads: int = 0,
     progress: Callable[[int, int, int], None] | None = None,
-    executor=None,
+    executor: Any = None,
     chunk_size: int | None = None,
 ) -> StiffnessIdentification:
     """Identify sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) for every sample (paper 001

@@ -13,9 +13,10 @@ Figures (tip positions in mm, world frame):
 - ``tip_error_boxes``: box plots of the Euclidean tip error per set, with the signed radial
   and height errors (measured minus predicted) of paper 001 Fig. 7 when the base and axis
   are given, and a % of L scale when the length L is given;
-- ``tip_error_map``: measured tips coloured by the tip error (paper 001 Fig. 6, bottom);
-- ``factors`` (with ``factors``): measured tips coloured by each identified stiffness factor
-  (paper 001 Fig. 5);
+- ``tip_error_map``: measured tips coloured by the tip error, in top and side view (paper
+  001 Fig. 6, bottom, shows them in 3-D);
+- ``factors`` (with ``factors``): measured tips coloured by each identified stiffness factor,
+  one row of top and side views per factor (paper 001 Fig. 5);
 - ``error_vs_pressure`` (with ``pressures``): tip error against each chamber pressure.
 """
 
@@ -24,7 +25,6 @@ from __future__ import annotations
 import base64
 import html
 import io
-import math
 from collections.abc import Mapping, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
@@ -33,7 +33,7 @@ import numpy as np
 
 from ..errors import InputError, design_error
 from ..io import atomic_path
-from ..plotting import _equal_box, save_figure
+from ..plotting import save_figure
 from .fit import STRONG_CORRELATION
 from .metrics import ALL, _length, per_sample_errors
 
@@ -202,10 +202,15 @@ def _box(ax, samples, column: str, ylabel: str, length_mm: float | None) -> None
     if filled:
         ax.boxplot([data[k] for k in filled], positions=np.arange(len(filled)), widths=0.5)
     ax.set_xticks(np.arange(len(filled)))
-    ax.set_xticklabels([f"{names[k]}\n(n = {data[k].size})" for k in filled])
+    # Long set names or many sets would run into each other side by side: stand them up.
+    upright = len(filled) > 4 or max((len(str(names[k])) for k in filled), default=0) > 8
+    sep = " " if upright else "\n"
+    texts = [f"{names[k]}{sep}(n = {data[k].size})" for k in filled]
+    ax.set_xticklabels(texts, rotation=90 if upright else 0)
     if not filled:
         ax.text(0.5, 0.5, "no successful prediction", ha="center", transform=ax.transAxes)
     ax.set_ylabel(ylabel)
+    ax.ticklabel_format(axis="y", useOffset=False)  # mm as they are, no "+1.73e-1" above
     ax.grid(True, axis="y", alpha=0.3)
     if length_mm is not None:
         sec = ax.secondary_yaxis(
@@ -218,72 +223,87 @@ def _box(ax, samples, column: str, ylabel: str, length_mm: float | None) -> None
 def _error_box_figure(samples, length_mm: float | None):
     """Box plots of the tip error per set; radial and height errors as in paper 001 Fig. 7."""
     split = bool(samples["radial_error_mm"].notna().any())
-    fig = _new_figure(11.0 if split else 5.5, 4.3)
+    fig = _new_figure(12.0 if split else 5.5, 4.5)
     axes = fig.subplots(1, 3 if split else 1, squeeze=False)[0]
-    _box(axes[0], samples, "error_mm", "Euclidean tip error (mm)", length_mm)
-    axes[0].set_title("tip error |measured - predicted|")
+    _box(axes[0], samples, "error_mm", "|measured - predicted| (mm)", length_mm)
+    axes[0].set_title("Euclidean tip error")
     if split:
         for ax, col, what in zip(
             axes[1:], ("radial_error_mm", "height_error_mm"), ("radial", "height"), strict=True
         ):
-            _box(ax, samples, col, f"{what} error (mm)", length_mm)
+            _box(ax, samples, col, f"measured - predicted, {what} (mm)", length_mm)
             ax.axhline(0.0, color="0.4", linewidth=0.8)
-            ax.set_title(f"{what} error, measured - predicted")
+            ax.set_title(f"{what} error")
     return fig
 
 
-def _scatter3d(fig, ax, points: np.ndarray, values: np.ndarray, label: str, **kw) -> None:
-    sc = ax.scatter(*points.T, c=values, cmap="viridis", s=18, depthshade=False, **kw)
-    fig.colorbar(sc, ax=ax, shrink=0.7, pad=0.14, label=label)
+_VIEWS = ((0, 1, "top view (x-y)"), (0, 2, "side view (x-z)"))
 
 
-def _label_3d(ax) -> None:
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
-    ax.set_zlabel("z (mm)")
+def _map_views(fig, axes, points: np.ndarray, values: np.ndarray, label: str, **kw) -> None:
+    """Points coloured by ``values`` in top and side view (2-D, equal scale), one colour bar.
+
+    Two flat views instead of one 3-D scatter: every point and tick stays readable, the
+    workspace of a hanging actuator being a shallow bowl (paper 001 Figs. 5-6 show it in 3-D).
+    """
+    norm = None
+    if values.size:
+        from matplotlib.colors import Normalize
+
+        norm = Normalize(float(values.min()), float(values.max()))
+    sc = None
+    for ax, (i, j, name) in zip(axes, _VIEWS, strict=True):
+        if values.size:
+            sc = ax.scatter(
+                points[:, i], points[:, j], c=values, cmap="viridis", norm=norm, s=16, **kw
+            )
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel(f"{'xyz'[i]} (mm)")
+        ax.set_ylabel(f"{'xyz'[j]} (mm)")
+        ax.set_title(name, fontsize="medium")
+        ax.grid(True, alpha=0.3)
+    if sc is not None:
+        fig.colorbar(sc, ax=list(axes), shrink=0.9, label=label)
 
 
 def _residual_figure(meas: np.ndarray, samples):
     """Measured tips coloured by the tip error (like paper 001 Fig. 6, bottom)."""
-    fig = _new_figure(7.0, 6.0)
-    ax = fig.add_subplot(projection="3d")
+    fig = _new_figure(10.0, 4.6)
+    axes = fig.subplots(1, 2)
     failed = samples["failed"].to_numpy()
     err = samples["error_mm"].to_numpy()
     ok = ~failed
-    if ok.any():
-        _scatter3d(fig, ax, meas[ok], err[ok], "Euclidean tip error (mm)")
+    _map_views(fig, axes, meas[ok], err[ok], "Euclidean tip error (mm)")
     if failed.any():
-        ax.scatter(
-            *meas[failed].T,
-            marker="x",
-            color="tab:red",
-            s=36,
-            depthshade=False,
-            label=f"prediction failed ({int(failed.sum())})",
-        )
-        ax.legend(fontsize="small")
-    _equal_box(ax, meas)
-    _label_3d(ax)
-    ax.set_title("Tip error over the workspace (at the measured tips)")
+        for ax, (i, j, _) in zip(axes, _VIEWS, strict=True):
+            ax.scatter(
+                meas[failed, i],
+                meas[failed, j],
+                marker="x",
+                color="tab:red",
+                s=36,
+                label=f"prediction failed ({int(failed.sum())})",
+            )
+        axes[0].legend(fontsize="small")
+    fig.suptitle("Tip error over the workspace (at the measured tips)")
     return fig
 
 
 def _factor_figure(meas: np.ndarray, factors: np.ndarray, names: list[str]):
-    """Measured tips coloured by each identified factor (paper 001 Fig. 5)."""
+    """Measured tips coloured by each identified factor (paper 001 Fig. 5): one row per
+    factor, top and side view."""
     k = factors.shape[1]
-    cols = min(k, 3)
-    rows = math.ceil(k / cols)
-    fig = _new_figure(5.2 * cols, 4.6 * rows)
-    for i, name in enumerate(names):
-        ax = fig.add_subplot(rows, cols, i + 1, projection="3d")
-        f = factors[:, i]
+    fig = _new_figure(10.0, 3.9 * k + 0.5)
+    rows = fig.subplots(k, 2, squeeze=False)
+    for axes, name, f in zip(rows, names, factors.T, strict=True):
         ok = np.isfinite(f)
-        if ok.any():
-            _scatter3d(fig, ax, meas[ok], f[ok], f"{name} (-)")
-        _equal_box(ax, meas)
-        _label_3d(ax)
+        _map_views(fig, axes, meas[ok], f[ok], f"{name} (-)")
         missing = int((~ok).sum())
-        ax.set_title(name + (f" ({missing} not identified)" if missing else ""))
+        axes[0].set_title(
+            f"{name}: top view (x-y)" + (f", {missing} not identified" if missing else ""),
+            fontsize="medium",
+        )
+        axes[1].set_title(f"{name}: side view (x-z)", fontsize="medium")
     fig.suptitle("Identified factors at the measured tips (dimensionless)")
     return fig
 
@@ -355,7 +375,8 @@ def _figures(
         ),
         (
             "tip_error_map",
-            "Tip error at the measured tip positions (like paper 001 Fig. 6, bottom).",
+            "Tip error at the measured tip positions, top and side view (like paper 001 Fig. 6, "
+            "bottom).",
             _residual_figure(meas, samples),
         ),
     ]
@@ -363,7 +384,8 @@ def _figures(
         out.append(
             (
                 "factors",
-                "Identified factors at the measured tip positions (like paper 001 Fig. 5).",
+                "Identified factors at the measured tip positions, top and side view (like paper "
+                "001 Fig. 5).",
                 _factor_figure(meas, f, f_names),
             )
         )

@@ -20,6 +20,7 @@ from ._common import (
     _parse_grid,
     _parse_pressures,
     _parse_vector,
+    _print_warnings,
     _progress,
     _say,
     _scheduler,
@@ -66,7 +67,12 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
                 done[0] = rows
 
             batch = solve_statics_batch(
-                design, pressures, threads=threads, executor=client, progress=chunks_done
+                design,
+                pressures,
+                threads=threads,
+                executor=client,
+                progress=chunks_done,
+                on_unstable="ignore",
             )
         return batch, time.perf_counter() - t0
     parts = []
@@ -74,7 +80,11 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
     with _progress(label, m) as advance:
         for lo in range(0, m, chunk):
             hi = min(lo + chunk, m)
-            parts.append(solve_statics_batch(design, pressures[lo:hi], threads=threads))
+            parts.append(
+                solve_statics_batch(
+                    design, pressures[lo:hi], threads=threads, on_unstable="ignore"
+                )
+            )
             advance(hi - lo)
     wall = time.perf_counter() - t0
 
@@ -87,6 +97,8 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
         **{name: stack(name) for name in fields},
         iterations=stack("iterations"),
         residual=stack("residual"),
+        stable=stack("stable"),
+        violation=stack("violation"),
         metadata=parts[0].metadata if parts else {},
     )
     return batch, wall
@@ -112,6 +124,15 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
     metavar="MX,MY,MZ",
     help='Dead tip moment in the world frame, e.g. "0,5,0 N*mm".',
 )
+@click.option(
+    "--on-invalid",
+    type=click.Choice(["raise", "warn"]),
+    default="raise",
+    show_default=True,
+    help="A solution outside the validity range (strains beyond the model's range, "
+    "pressures beyond the design's operating_range): an error, or a warning with the "
+    "result (docs/model.md, 'Validity and stability').",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object with SI values.")
 @click.option(
     "--plot",
@@ -120,7 +141,7 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
     help="Write the 3-D shape figure here (format from the suffix: .png, .pdf, .svg).",
 )
 @_handle_errors
-def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
+def solve(design, pressure, tip_force, tip_moment, on_invalid, as_json, plot_path):
     """Static shape of DESIGN under the given chamber pressures."""
     from rich.table import Table
 
@@ -136,8 +157,16 @@ def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
     tf = None if tip_force is None else _parse_vector(tip_force, "force", "--tip-force", 3)
     tm = None if tip_moment is None else _parse_vector(tip_moment, "moment", "--tip-moment", 3)
     t0 = time.perf_counter()
-    sol = solve_statics(d, p, tip_force=tf, tip_moment=tm)
+    sol = solve_statics(
+        d, p, tip_force=tf, tip_moment=tm, on_unstable="ignore", on_invalid=on_invalid
+    )
     elapsed = time.perf_counter() - t0
+    notes = list(sol.violations)
+    if not sol.stable:
+        notes.append(
+            "the equilibrium is unstable: a small disturbance moves the rod away from it "
+            "(above a buckling load, add a small lateral force to choose the side)"
+        )
 
     if as_json:
         out = {
@@ -148,6 +177,8 @@ def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
             "base_force_N": sol.base_force.tolist(),
             "base_moment_Nm": sol.base_moment.tolist(),
             "converged": bool(sol.converged),
+            "stable": bool(sol.stable),
+            "violations": list(sol.violations),
             "iterations": int(sol.iterations),
             "residual": float(sol.residual),
             "shape": {"s_m": sol.s.tolist(), "position_m": sol.position.tolist()},
@@ -164,10 +195,16 @@ def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
         table.add_row("base force", _fmt_vec(sol.base_force, 1.0, 4), "N")
         table.add_row("base moment", _fmt_vec(sol.base_moment, 1e3, 3), "N mm")
         table.add_row("converged", "yes" if sol.converged else "no", "")
+        table.add_row("stable", "yes" if sol.stable else "NO", "")
         table.add_row("iterations", f"{sol.iterations}", "")
         table.add_row("residual (scaled)", f"{sol.residual:.2e}", "")
         table.add_row("solve time", f"{elapsed * 1e6:,.0f}", "us")
         _stdout().print(table)
+    if notes:
+        # Warnings go to stderr, so that --json output stays pure JSON.
+        from rich.console import Console
+
+        _print_warnings(Console(stderr=True, highlight=False), notes)
 
     if plot_path is not None:
         written = _write_shape_plot([sol], plot_path)
@@ -201,10 +238,10 @@ def solve(design, pressure, tip_force, tip_moment, as_json, plot_path):
 def sweep(design, grids, out, threads, scheduler):
     """Tip positions over a full-factorial pressure grid of DESIGN.
 
-    Rows run with channel 0 slowest and the last channel fastest, so consecutive rows are
-    neighbours (warm starts). The table is in the dataset schema (docs/datasets.md):
+    Rows run with channel 0 slowest and the last channel fastest; every row is solved cold,
+    exactly as `softrod solve` would. The table is in the dataset schema (docs/datasets.md):
     p0_kPa, p1_kPa, ..., tip_x_mm, tip_y_mm, tip_z_mm, tip_qw..tip_qz, base_fx_N..,
-    base_mx_Nmm.., then converged, iterations and residual; its metadata block names the
+    base_mx_Nmm.., then converged, iterations, residual and stable; its metadata block names the
     design, the softrod version and the grid. Rows that did not converge are kept with
     empty tip cells.
     """
@@ -254,10 +291,11 @@ def sweep(design, grids, out, threads, scheduler):
     )
     write_table(frame, out)
     n_ok = int(batch.converged.sum())
-    style = "green" if n_ok == rows else "yellow"
+    n_unstable = int((batch.converged & ~batch.stable).sum())
+    style = "green" if n_ok == rows and n_unstable == 0 else "yellow"
     console.print(
-        f"{rows:,} rows, [{style}]{n_ok:,} converged[/{style}], wall time {wall:.2f} s, "
-        f"{rows / wall:,.0f} solves/s"
+        f"{rows:,} rows, [{style}]{n_ok:,} converged, {n_unstable:,} unstable[/{style}], "
+        f"wall time {wall:.2f} s, {rows / wall:,.0f} solves/s"
     )
     _say(f"wrote {out}")
 
@@ -274,8 +312,8 @@ def sweep(design, grids, out, threads, scheduler):
 def demo(out_dir):
     """Tour: solve, plot and sweep the bundled three-chamber actuator (a few seconds).
 
-    Writes shapes.png (all shapes in one 3-D figure) and tips.csv (the dataset schema,
-    docs/datasets.md) to --out-dir.
+    Writes shapes.png (the shapes in a 3-D view and a top view) and tips.csv (the dataset
+    schema, docs/datasets.md) to --out-dir.
     """
     import numpy as np
     from rich.table import Table

@@ -23,6 +23,7 @@ import os
 import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -42,6 +43,10 @@ from ..datasets import (
 from ..errors import InputError
 from ..io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
 from ..io import metadata_json as _metadata_json
+
+if TYPE_CHECKING:
+    from .._types import ArrayLike
+    from ..design import Design
 
 __all__ = ["KINDS", "VACUUM_PA", "PressureSchedule"]
 
@@ -138,7 +143,14 @@ class PressureSchedule:
 
     __slots__ = ("_fn", "_kind", "_n", "_pressures", "_times")
 
-    def __init__(self, kind: str, times, pressures, fn=None, n_channels: int | None = None):
+    def __init__(
+        self,
+        kind: str,
+        times: ArrayLike,
+        pressures: ArrayLike,
+        fn: Callable[[float], Sequence[float]] | None = None,
+        n_channels: int | None = None,
+    ):
         """Internal: use the class methods. ``kind``: "linear", "step" or "callable"."""
         set_ = object.__setattr__
         if kind == "callable":
@@ -172,7 +184,7 @@ class PressureSchedule:
     # --- constructors ------------------------------------------------------------------------
 
     @classmethod
-    def piecewise_linear(cls, times, pressures) -> PressureSchedule:
+    def piecewise_linear(cls, times: ArrayLike, pressures: ArrayLike) -> PressureSchedule:
         """Linear interpolation between knots ``(times[i], pressures[i])``.
 
         ``times``: (n,) s, finite, >= 0, strictly increasing. ``pressures``: (n, channels)
@@ -182,7 +194,7 @@ class PressureSchedule:
         return cls("linear", times, pressures)
 
     @classmethod
-    def steps(cls, times, pressures) -> PressureSchedule:
+    def steps(cls, times: ArrayLike, pressures: ArrayLike) -> PressureSchedule:
         """Zero-order hold: ``pressures[i]`` holds on ``[times[i], times[i + 1])``.
 
         Same arguments and rules as :meth:`piecewise_linear`; the first value also holds
@@ -191,7 +203,7 @@ class PressureSchedule:
         return cls("step", times, pressures)
 
     @classmethod
-    def constant(cls, pressures) -> PressureSchedule:
+    def constant(cls, pressures: ArrayLike) -> PressureSchedule:
         """The same pressures (one per channel, Pa) at all times: a step schedule with its
         single knot at t = 0 (so ``t_end`` is 0)."""
         if not _numeric(pressures) or np.ndim(pressures) != 1:
@@ -201,7 +213,9 @@ class PressureSchedule:
         return cls("step", [0.0], V.real_array(pressures, "pressures")[None, :])
 
     @classmethod
-    def from_callable(cls, fn: Callable[[float], Sequence[float]], n_channels: int):
+    def from_callable(
+        cls, fn: Callable[[float], Sequence[float]], n_channels: int
+    ) -> PressureSchedule:
         """A schedule computed by ``fn(t)``: t in s (a float) -> ``n_channels`` pressures in Pa.
 
         ``fn`` is called once per sample time by :meth:`sample`, which checks every result
@@ -214,11 +228,11 @@ class PressureSchedule:
     def square_pulses(
         cls,
         n_channels: int,
-        pulses,
+        pulses: Sequence[tuple[int | Sequence[int], float | Sequence[float], float]],
         *,
         rest: float = 5.0,
         start: float = 0.0,
-        base=0.0,
+        base: float | ArrayLike = 0.0,
     ) -> PressureSchedule:
         """Square pressure pulses separated by rests: a step schedule (zero-order hold).
 
@@ -315,7 +329,7 @@ class PressureSchedule:
         cls,
         *,
         n_channels: int = 3,
-        levels=(0.9e5, 1.8e5, 2.7e5, 3.6e5),
+        levels: Sequence[float] = (0.9e5, 1.8e5, 2.7e5, 3.6e5),
         duration: float = 5.0,
         rest: float = 5.0,
         start: float = 1.0,
@@ -422,7 +436,7 @@ class PressureSchedule:
 
     # --- evaluation --------------------------------------------------------------------------
 
-    def sample(self, times) -> np.ndarray:
+    def sample(self, times: ArrayLike) -> np.ndarray:
         """Commanded pressures at ``times`` (s; a number or a 1-d array): (len(times),
         n_channels) in Pa. A number gives one row. Times must be finite; they may lie before
         the first or after the last knot (the end values hold there)."""
@@ -458,7 +472,7 @@ class PressureSchedule:
             out[i] = row
         return out
 
-    def check_channels(self, n) -> None:
+    def check_channels(self, n: int | Design) -> None:
         """Raise :class:`InputError` unless the schedule has ``n`` channels (an int, or an
         object with ``n_channels`` such as a :class:`~softrod.Design`)."""
         what = f"{n}"
@@ -477,7 +491,7 @@ class PressureSchedule:
 
     # --- tables and files --------------------------------------------------------------------
 
-    def to_frame(self, times=None) -> pd.DataFrame:
+    def to_frame(self, times: ArrayLike | None = None) -> pd.DataFrame:
         """A DataFrame with ``time_s`` and ``p0_kPa``, ``p1_kPa``, ... at ``times`` (s).
 
         Without ``times``: the knots (required for a callable schedule).
@@ -499,7 +513,7 @@ class PressureSchedule:
         frame.attrs["softrod.metadata"] = {_FILE_KEY: kind}
         return frame
 
-    def write(self, path: str | os.PathLike, *, times=None) -> Path:
+    def write(self, path: str | os.PathLike, *, times: ArrayLike | None = None) -> Path:
         """Write the schedule to a CSV or Parquet file (by suffix), atomically.
 
         The columns are those of :meth:`to_frame` (``time_s``, ``p<k>_kPa``); the kind goes

@@ -17,6 +17,7 @@ import os
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -28,6 +29,15 @@ from ..errors import InputError, design_error
 from ..progress import reporter
 from .schedule import PressureSchedule
 from .trajectory import ENERGY_PARTS, Trajectory
+
+if TYPE_CHECKING:
+    from .._types import ArrayLike, DesignLike, Quantity, ScheduleLike
+    from ..stiffness_map import StiffnessMap
+
+    # Held (force, moment) in N and N m, or a function of t returning them.
+    TipLoad = (
+        tuple[ArrayLike, ArrayLike] | Callable[[float], tuple[ArrayLike, ArrayLike]]
+    )
 
 __all__ = ["METHOD", "SCHEMES", "Simulation", "SimulationState", "simulate"]
 
@@ -271,20 +281,20 @@ class Simulation:
 
     def __init__(
         self,
-        design,
-        pressures=None,
+        design: DesignLike,
+        pressures: ArrayLike | None = None,
         *,
         initial: str = "static",
-        dt=2e-3,
+        dt: Quantity = 2e-3,
         scheme: str = "bdf-alpha",
         alpha: float = -0.2,
         tol: float = 1e-9,
         max_iter: int = 25,
-        error_tol=None,
+        error_tol: Quantity | None = None,
         energy_tol: float = DEFAULT_ENERGY_TOL,
-        stiffness_map=None,
-        _tip_loads0=None,
-    ):
+        stiffness_map: StiffnessMap | None = None,
+        _tip_loads0: Sequence[float] | None = None,
+    ) -> None:
         from ..statics import _pressures
 
         self.design: Design = load_design(design)
@@ -386,7 +396,9 @@ class Simulation:
             )
         self._sim.restore(np.ascontiguousarray(state.data, dtype=float))
 
-    def set_tip_loads(self, force=(0.0, 0.0, 0.0), moment=(0.0, 0.0, 0.0)) -> None:
+    def set_tip_loads(
+        self, force: ArrayLike = (0.0, 0.0, 0.0), moment: ArrayLike = (0.0, 0.0, 0.0)
+    ) -> None:
         """Dead tip force (N) and moment (N m), world frame, from the next step on."""
         from ..statics import _vec3
 
@@ -394,7 +406,7 @@ class Simulation:
         m = _vec3(moment, "moment", "moment", None)
         self._sim.set_tip_loads(f, m)
 
-    def step(self, command=None) -> None:
+    def step(self, command: ArrayLike | None = None) -> None:
         """One time step towards the commanded pressures ``command`` (Pa; None for a design
         without chambers)."""
         from ..statics import _pressures
@@ -407,13 +419,13 @@ class Simulation:
 
     def run(
         self,
-        pressure_schedule,
-        duration,
+        pressure_schedule: ScheduleLike,
+        duration: Quantity,
         *,
         save_every: int = 1,
-        shapes=None,
+        shapes: str | float | Sequence[float] | None = None,
         energy: bool = True,
-        tip_load=None,
+        tip_load: TipLoad | None = None,
         progress: Callable[[float, float, float], None] | None = None,
     ) -> Trajectory:
         """Advance by ``duration`` (s) under ``pressure_schedule`` (evaluated on this
@@ -604,23 +616,23 @@ def _shape_steps(shapes, n: int, dt: float, save_every: int) -> tuple[np.ndarray
 
 
 def simulate(
-    design,
-    pressure_schedule,
-    t_end,
+    design: DesignLike,
+    pressure_schedule: ScheduleLike,
+    t_end: Quantity,
     *,
-    dt=2e-3,
+    dt: Quantity = 2e-3,
     save_every: int = 1,
-    shapes=None,
-    initial="static",
+    shapes: str | float | Sequence[float] | None = None,
+    initial: str | Simulation = "static",
     model: str = "cosserat",
     scheme: str = "bdf-alpha",
     alpha: float = -0.2,
     tol: float | None = None,
     max_iter: int | None = None,
-    error_tol=None,
+    error_tol: Quantity | None = None,
     energy_tol: float = DEFAULT_ENERGY_TOL,
-    stiffness_map=None,
-    tip_load=None,
+    stiffness_map: StiffnessMap | None = None,
+    tip_load: TipLoad | None = None,
     energy: bool = True,
     progress: Callable[[float, float, float], None] | None = None,
 ) -> Trajectory:

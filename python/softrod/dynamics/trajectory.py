@@ -25,6 +25,7 @@ import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -36,6 +37,11 @@ from ..io import atomic_path, check_target
 from ..io import metadata_json as _metadata_json
 from ..schema import Extra, schema_frame
 from ..schema import unit_factor as _unit_factor
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from .._types import ArrayLike, Progress, Units
 
 __all__ = [
     "ENERGY_PARTS",
@@ -266,7 +272,7 @@ class Trajectory:
 
     # --- tables and files --------------------------------------------------------------------
 
-    def to_frame(self, units=None) -> pd.DataFrame:
+    def to_frame(self, units: Units = None) -> pd.DataFrame:
         """The tip table in the dataset schema (docs/datasets.md), one row per sample.
 
         Columns: ``time_s``; ``p0_kPa``, ... (actual chamber pressures); ``tip_x_mm``,
@@ -403,7 +409,7 @@ class Trajectory:
 
     # --- interpolation and errors ------------------------------------------------------------
 
-    def tip_position_at(self, times) -> np.ndarray:
+    def tip_position_at(self, times: ArrayLike) -> np.ndarray:
         """Tip positions (m, 3) in m at ``times`` (m,) s, linear in time between samples.
 
         Every time must lie in ``[time[0], time[-1]]`` (with a round-off slack of 1e-9 of
@@ -425,7 +431,7 @@ class Trajectory:
             )
         return np.column_stack([np.interp(t, self.time, self.tip_position[:, i]) for i in range(3)])
 
-    def tip_error(self, measured_time, measured_position) -> np.ndarray:
+    def tip_error(self, measured_time: ArrayLike, measured_position: ArrayLike) -> np.ndarray:
         """Euclidean tip error (m,) in m between measured tip positions and the trajectory.
 
         ``measured_time`` (m,) s and ``measured_position`` (m, 3) m, world frame; the
@@ -444,7 +450,13 @@ class Trajectory:
 
     # --- plots -------------------------------------------------------------------------------
 
-    def plot_tip(self, path: str | os.PathLike | None = None, *, reference=None, title=None):
+    def plot_tip(
+        self,
+        path: str | os.PathLike | None = None,
+        *,
+        reference: Any = None,
+        title: str | None = None,
+    ) -> Figure:
         """Tip x, y, z (mm) and chamber pressures (kPa) against time (s); returns the Figure.
 
         Top panel: the tip coordinates (solid), with ``reference`` overlaid (dashed, same
@@ -525,7 +537,7 @@ class Trajectory:
         azim: float = -60.0,
         dpi: int = 80,
         figsize: tuple[float, float] = (5.0, 5.0),
-        progress=None,
+        progress: Progress = None,
     ) -> Path:
         """Write a 3-D animation of the stored shapes as ``.gif`` or ``.mp4``; returns the path.
 
@@ -614,7 +626,9 @@ class Trajectory:
         lo = hi - 1
         return np.where(tf - st[lo] <= st[hi] - tf, lo, hi)
 
-    def _render(self, out: Path, frames, fps, trail, elev, azim, dpi, figsize, report) -> None:
+    def _animation_scene(self, trail, elev, azim, dpi, figsize):
+        """(Figure, Agg canvas, draw) of an animation: ``draw(i)`` shows stored shape i and
+        returns the frame's RGBA pixels."""
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
@@ -622,7 +636,9 @@ class Trajectory:
 
         fig = Figure(figsize=figsize, dpi=dpi)
         canvas = FigureCanvasAgg(fig)
-        ax = fig.add_subplot(projection="3d")
+        # Margins around the 3-D box: its tick and axis labels stand outside the box, and a
+        # slender arm's box fills the height (the labels would leave the frame otherwise).
+        ax = fig.add_axes((0.06, 0.16, 0.78, 0.72), projection="3d")
         shapes = self.shape_position * 1e3
         tips = self.tip_position * 1e3
         shown = self.time <= self.shape_time[-1]
@@ -662,6 +678,11 @@ class Trajectory:
                 ax.draw_artist(artist)
             return np.asarray(canvas.buffer_rgba())
 
+        return fig, canvas, draw
+
+
+    def _render(self, out: Path, frames, fps, trail, elev, azim, dpi, figsize, report) -> None:
+        _fig, canvas, draw = self._animation_scene(trail, elev, azim, dpi, figsize)
         n = len(frames)
         if out.suffix == ".gif":
             from PIL import Image

@@ -11,10 +11,11 @@
 - the same on a :class:`~softrod.Dataset`: :func:`identify_pcc`, also
   ``softrod.calibrate(design, dataset, params, model="pcc")``; synthetic experiments from
   the model: :func:`synthesize_pcc_experiments`
-- :func:`compare_pcc`, :func:`plot_pcc_comparison`: PCC vs Cosserat tip positions
+- :func:`compare_pcc`, :func:`plot_pcc_comparison`: PCC vs Cosserat tip positions;
+  :func:`plot_pcc_step_response`: step responses (paper 003 Figs. 8-9)
 """
 
-from .compare import compare_pcc, plot_pcc_comparison
+from .compare import compare_pcc, plot_pcc_comparison, plot_pcc_step_response
 from .experiments import EXPERIMENTS, PCC_PARAMETERS, identify_pcc, synthesize_pcc_experiments
 from .identify import (
     PccFit,
@@ -43,6 +44,7 @@ __all__ = [
     "pcc_parameters",
     "pcc_shape",
     "plot_pcc_comparison",
+    "plot_pcc_step_response",
     "run_pcc",
     "synthesize_pcc_experiments",
 ]

@@ -253,3 +253,43 @@ def plot_pcc_comparison(df, title: str | None = None):
         fig.suptitle(title)
     fig.tight_layout()
     return fig
+
+
+def plot_pcc_step_response(runs, rest_length: float, title: str | None = None):
+    """Figure: the PCC model's step responses, one column per run (paper 003 Figs. 8-9).
+
+    runs: ``{label: out}`` with ``out`` from :func:`~softrod.pcc.run_pcc` (one segment).
+    Top row: elongation L - ``rest_length`` (mm); bottom row: bending angle theta (deg); one
+    axis per quantity, shared time axis (s).
+    """
+    import matplotlib.pyplot as plt
+
+    if not runs:
+        raise design_error("runs", "{}", "give at least one {label: run_pcc output}", InputError)
+    n = len(runs)
+    fig, axes = plt.subplots(
+        2, n, figsize=(5.0 * n, 5.4), sharex="col", squeeze=False, layout="constrained"
+    )
+    for k, (label, out) in enumerate(runs.items()):
+        q = np.asarray(out["q"], dtype=float)
+        t = np.asarray(out["time"], dtype=float)
+        top, bottom = axes[0, k], axes[1, k]
+        elongation_mm, theta_deg = 1e3 * (q[:, 0] - rest_length), np.degrees(q[:, 1])
+        top.plot(t, elongation_mm, color="C0")
+        bottom.plot(t, theta_deg, color="C1")
+        # A quantity that stays at zero (no bending under equal chambers) is round-off, not a
+        # curve: show at least +-1 mm or +-1 deg instead of blowing 1e-14 up to the axis.
+        for ax, values in ((top, elongation_mm), (bottom, theta_deg)):
+            lo, hi = float(np.min(values)), float(np.max(values))
+            if hi - lo < 2.0:
+                mid = 0.5 * (lo + hi)
+                ax.set_ylim(mid - 1.0, mid + 1.0)
+        top.set_title(str(label), fontsize="medium")
+        top.set_ylabel("elongation L - L0 (mm)")
+        bottom.set_ylabel("bending angle theta (deg)")
+        bottom.set_xlabel("time (s)")
+        for ax in (top, bottom):
+            ax.grid(True, alpha=0.3)
+    if title:
+        fig.suptitle(title)
+    return fig

@@ -7,25 +7,26 @@ when a viewer starts: ``pip install 'softrod[viewer]'``.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # pragma: no cover
+    from .._types import ArrayLike, DesignLike, Quantity
     from .app import Viewer
 
 __all__ = ["Viewer", "view"]
 
 
 def view(
-    design,
+    design: DesignLike,
     *,
-    pressures=None,
-    pressure_range=None,
-    force_max=None,
-    trajectory=None,
-    calibration=None,
-    dataset=None,
-    stiffness_map=None,
-    options=None,
+    pressures: ArrayLike | None = None,
+    pressure_range: tuple[Quantity, Quantity] | None = None,
+    force_max: Quantity | None = None,
+    trajectory: Any = None,
+    calibration: Any = None,
+    dataset: Any = None,
+    stiffness_map: Any = None,
+    options: Any = None,
     host: str = "127.0.0.1",
     port: int | None = None,
     environment_map: bool = True,

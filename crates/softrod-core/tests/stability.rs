@@ -1,0 +1,395 @@
+//! The stability test (conjugate points and the tip form), the natural path of load
+//! continuation, its exact tangent, and the validity rules of a returned solution.
+//!
+//! References are closed forms or independent computations: the Euler load of the
+//! clamped-free column P_cr = pi^2 EI / (4 L^2); Greenhill's self-weight load
+//! (q L^3 / EI)_cr = 7.8373 (Timoshenko & Gere, "Theory of Elastic Stability", 2nd ed.,
+//! Sec. 2.10); the planar elastica under a tip load integrated here in its angle form.
+
+mod common;
+use common::*;
+use softrod_core::ode::Loads;
+use softrod_core::spec::{DesignSpec, OperatingRangeSpec};
+use softrod_core::statics::{load_tangent, solve, SolverOptions};
+use softrod_core::validity::{Policy, Rule};
+use softrod_core::{Rod, SoftrodError};
+use std::f64::consts::PI;
+
+const L: f64 = 1.0;
+const EI: f64 = 1.0;
+/// Extension and shear 1e10 times stiffer than bending (EA L^2 / EI): the extensible rod's
+/// tip moves less than 1e-9 L from the inextensible elastica's at these loads.
+const STIFF: f64 = 1e10;
+
+/// P_cr = pi^2 EI / (4 L^2) of the clamped-free column.
+fn p_cr() -> f64 {
+    PI * PI * EI / (4.0 * L * L)
+}
+
+/// An upright column (d3 = +z), clamped at the base, no gravity unless `line_mass` > 0.
+fn column(steps: usize, line_mass: f64, g: f64) -> Rod {
+    Rod::new(design(
+        vec![direct_section(
+            "column",
+            L,
+            STIFF,
+            STIFF,
+            EI,
+            2.0 * EI,
+            line_mass * L,
+            steps,
+        )],
+        IDENTITY,
+        g,
+    ))
+    .unwrap()
+}
+
+fn tip_loaded(force: [f64; 3]) -> Loads {
+    let mut ld = loads(&[]);
+    ld.tip_force = force;
+    ld
+}
+
+fn opts() -> SolverOptions {
+    SolverOptions {
+        tol: 1e-12,
+        ..Default::default()
+    }
+}
+
+/// The straight column is stable below the Euler load and unstable above it: just above,
+/// the tip form fails (kL just past pi/2); at 5 P_cr (kL = 3.51 > pi) the tip form is
+/// positive again and only the conjugate point at kL = pi flags it. A round column
+/// buckles in two planes at once (a double conjugate point, det Theta touching zero
+/// without changing sign), which the test must still see.
+#[test]
+fn euler_column_changes_stability_at_the_buckling_load() {
+    let rod = column(200, 0.0, 0.0);
+    for (ratio, want) in [
+        (0.5, true),
+        (0.97, true),
+        (1.03, false),
+        (1.5, false),
+        (2.0, false),
+        (5.0, false),
+    ] {
+        let sol = solve(
+            &rod,
+            &tip_loaded([0.0, 0.0, -ratio * p_cr()]),
+            None,
+            &opts(),
+        )
+        .unwrap_or_else(|e| panic!("P = {ratio} P_cr: {e}"));
+        // the perfect column has no reason to leave the straight branch
+        assert!(
+            sol.tip.r[0].abs() < 1e-12 && sol.tip.r[1].abs() < 1e-12,
+            "P = {ratio} P_cr: tip {:?}",
+            sol.tip.r
+        );
+        assert_eq!(sol.stable, want, "P = {ratio} P_cr");
+    }
+}
+
+/// Greenhill's heavy column: a straight upright column under its own weight buckles at
+/// q L^3 / EI = 7.8373.
+#[test]
+fn heavy_column_changes_stability_at_greenhills_load() {
+    const Q_CR: f64 = 7.8373;
+    for (ratio, want) in [(0.97, true), (1.03, false)] {
+        let q = ratio * Q_CR * EI / (L * L * L);
+        let rod = column(200, q / 9.81, 9.81);
+        let sol = solve(&rod, &loads(&[]), None, &opts()).unwrap();
+        assert!(sol.tip.r[0].abs() < 1e-12, "tip {:?}", sol.tip.r);
+        assert_eq!(sol.stable, want, "q = {ratio} q_cr");
+    }
+}
+
+/// The planar elastica under a dead tip load (H along +x, P down), angle form:
+/// EI theta'' = -(H cos theta + P sin theta), theta(0) = 0, theta'(L) = 0, theta from +z
+/// towards +x. Shooting on theta'(0) with classical RK4 at 20000 steps (error ~1e-15) and
+/// bisection on the bracket [lo, hi] of theta'(0). Returns the tip (x, z).
+fn elastica_tip(p: f64, h: f64, lo: f64, hi: f64) -> [f64; 2] {
+    const N: usize = 20_000;
+    let run = |k0: f64| -> ([f64; 2], f64) {
+        let f = |y: [f64; 4]| {
+            [
+                y[1],
+                -(h * y[0].cos() + p * y[0].sin()) / EI,
+                y[0].sin(),
+                y[0].cos(),
+            ]
+        };
+        let mut y = [0.0, k0, 0.0, 0.0]; // theta, theta', x, z
+        let dt = L / N as f64;
+        for _ in 0..N {
+            let k1 = f(y);
+            let k2 = f(std::array::from_fn(|i| y[i] + 0.5 * dt * k1[i]));
+            let k3 = f(std::array::from_fn(|i| y[i] + 0.5 * dt * k2[i]));
+            let k4 = f(std::array::from_fn(|i| y[i] + dt * k3[i]));
+            y = std::array::from_fn(|i| {
+                y[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+            });
+        }
+        ([y[2], y[3]], y[1])
+    };
+    let (mut a, mut b) = (lo, hi);
+    let fa = run(a).1;
+    assert!(fa * run(b).1 < 0.0, "bracket [{lo}, {hi}] holds no root");
+    for _ in 0..200 {
+        let m = 0.5 * (a + b);
+        if run(m).1 * fa > 0.0 {
+            a = m;
+        } else {
+            b = m;
+        }
+        if b - a < 1e-15 {
+            break;
+        }
+    }
+    run(0.5 * (a + b)).0
+}
+
+/// Above the Euler load with a small lateral force, the cold start follows the natural path
+/// (loads ramped from zero), which bends towards the force and stays stable, and agrees
+/// with the elastica. Today's direct Newton from the straight guess went the other way.
+#[test]
+fn column_above_the_buckling_load_bends_with_the_lateral_force() {
+    let rod = column(400, 0.0, 0.0);
+    for ratio in [1.5, 2.0] {
+        let p = ratio * p_cr();
+        let h = 1e-3 * p;
+        // the stable, with-force branch: theta'(0) > 0 and large (the buckled shape)
+        let reference = elastica_tip(p, h, 0.05, 5.0);
+        for (axis, sign) in [(0, 1.0), (0, -1.0), (1, 1.0)] {
+            let mut f = [0.0, 0.0, -p];
+            f[axis] = sign * h;
+            let sol = solve(&rod, &tip_loaded(f), None, &opts()).unwrap();
+            assert!(sol.stable, "P = {ratio} P_cr, force {f:?}: unstable");
+            let lateral = sol.tip.r[axis] * sign;
+            assert!(
+                lateral > 0.1 * L,
+                "P = {ratio} P_cr, force {f:?}: tip {:?} does not deflect with the force",
+                sol.tip.r
+            );
+            // 1e-6 L: the discretisation error of 400 RK4 steps (~1e-10 L) and the
+            // extensibility (P / EA ~ 5e-10) are far below it.
+            let err = (lateral - reference[0])
+                .abs()
+                .max((sol.tip.r[2] - reference[1]).abs());
+            assert!(
+                err < 1e-6 * L,
+                "P = {ratio} P_cr, force {f:?}: tip {:?}, elastica {reference:?}, error {err:e}",
+                sol.tip.r
+            );
+        }
+    }
+}
+
+/// The exact load tangent dx/dlambda against central differences of converged solutions.
+#[test]
+fn load_tangent_matches_finite_differences() {
+    let base = |g: f64| {
+        let mut spec = p002_actuator(HORIZONTAL, g, 16);
+        spec.tip = Default::default();
+        Rod::new(spec).unwrap()
+    };
+    let rod = base(9.81);
+    let mut ld = loads(&[40e3, 10e3, 0.0]);
+    ld.tip_force = [0.0, 0.02, -0.03];
+    ld.tip_moment = [1e-3, 0.0, 2e-4];
+    let tight = SolverOptions {
+        tol: 1e-14,
+        ..Default::default()
+    };
+    // a solution at load factor lambda: scale every load (pressures, gravity through the
+    // design, tip loads) by solving the problem whose loads are lambda times the loads.
+    let scaled = |lam: f64| -> [f64; 3] {
+        let rod = base(9.81 * lam);
+        let mut l = ld.clone();
+        l.pressures = ld.pressures.iter().map(|p| p * lam).collect();
+        l.tip_force = ld.tip_force.map(|f| f * lam);
+        l.tip_moment = ld.tip_moment.map(|m| m * lam);
+        solve(&rod, &l, None, &tight).unwrap().x
+    };
+    let lam = 0.6;
+    let x = scaled(lam);
+    let (t, _, stable) = load_tangent(&rod, &ld, lam, &x).unwrap();
+    assert!(stable);
+    let eps = 1e-5;
+    let (xp, xm) = (scaled(lam + eps), scaled(lam - eps));
+    for i in 0..3 {
+        let fd = (xp[i] - xm[i]) / (2.0 * eps);
+        // central differences: truncation ~eps^2 |x'''| ~1e-10, round-off ~1e-14 / eps
+        assert!(
+            (t[i] - fd).abs() < 1e-7 * (1.0 + fd.abs()),
+            "component {i}: exact {} vs finite differences {fd}",
+            t[i]
+        );
+    }
+}
+
+fn rule_of<T: std::fmt::Debug>(r: Result<T, SoftrodError>) -> (Rule, Option<usize>, f64) {
+    match r {
+        Err(SoftrodError::InvalidState {
+            rule, node, value, ..
+        }) => (rule, node, value),
+        other => panic!("expected InvalidState, got {other:?}"),
+    }
+}
+
+/// A soft column squeezed beyond zero length: the linear law would return v3 < 0 (the rod
+/// turned inside out) and a tip below the base; the solve names the rule and the node.
+#[test]
+fn stretch_through_zero_is_an_error_naming_the_node() {
+    // EA = 1 N, a 1.5 N compressive tip force: v3 = 1 - 1.5 = -0.5 if it stayed straight
+    let rod = Rod::new(design(
+        vec![direct_section("soft", 0.1, 1.0, 1.0, 1.0, 1.0, 0.0, 10)],
+        IDENTITY,
+        0.0,
+    ))
+    .unwrap();
+    let (rule, node, value) = rule_of(solve(
+        &rod,
+        &tip_loaded([0.0, 0.0, -1.5]),
+        None,
+        &SolverOptions::default(),
+    ));
+    assert_eq!(rule, Rule::PositiveStretch);
+    assert!(
+        node.is_some() && value <= 0.0,
+        "node {node:?}, value {value}"
+    );
+}
+
+fn p002_with_range() -> DesignSpec {
+    let mut spec = p002_actuator(IDENTITY, 9.81, 16);
+    spec.operating_range = Some(OperatingRangeSpec {
+        pressure: [0.0, 60e3],
+    });
+    spec
+}
+
+/// Pressures beyond the design's operating range: an error before any work with
+/// `Policy::Raise` (the default), a listed violation with `Policy::Warn`, nothing with
+/// `Policy::Ignore`.
+#[test]
+fn operating_range_is_checked_by_policy() {
+    let rod = Rod::new(p002_with_range()).unwrap();
+    let ok = solve(
+        &rod,
+        &loads(&[50e3, 0.0, 0.0]),
+        None,
+        &SolverOptions::default(),
+    )
+    .unwrap();
+    assert!(ok.violations.is_empty() && ok.stable);
+    let (rule, node, value) = rule_of(solve(
+        &rod,
+        &loads(&[5e5, 0.0, 0.0]),
+        None,
+        &SolverOptions::default(),
+    ));
+    assert_eq!((rule, node, value), (Rule::OperatingRange, None, 5e5));
+    let warn = SolverOptions {
+        on_invalid: Policy::Warn,
+        ..Default::default()
+    };
+    let sol = solve(&rod, &loads(&[0.0, 1e5, 0.0]), None, &warn).unwrap();
+    assert_eq!(sol.violations.len(), 1, "{:?}", sol.violations);
+    let ignore = SolverOptions {
+        on_invalid: Policy::Ignore,
+        ..Default::default()
+    };
+    assert!(solve(&rod, &loads(&[0.0, 1e5, 0.0]), None, &ignore)
+        .unwrap()
+        .violations
+        .is_empty());
+}
+
+/// Absurd pressures (1e9 to 1e19 Pa on paper 002's actuator) never come back as a
+/// converged shape: the strain range (or a physical rule, or non-convergence) stops them.
+#[test]
+fn absurd_pressures_never_converge_to_a_shape() {
+    let rod = Rod::new(p002_actuator(IDENTITY, 9.81, 16)).unwrap();
+    for p in [1e9, 1e12, 1e15, 1e19] {
+        for ld in [loads(&[p, 0.0, 0.0]), loads(&[p, p, p])] {
+            match solve(&rod, &ld, None, &SolverOptions::default()) {
+                Err(SoftrodError::InvalidState { .. }) | Err(SoftrodError::NotConverged { .. }) => {
+                }
+                other => panic!("p = {p}: {other:?}"),
+            }
+        }
+    }
+    // not even when the validity ranges are not checked: the stretch limit is physical
+    let ignore = SolverOptions {
+        on_invalid: Policy::Ignore,
+        ..Default::default()
+    };
+    for p in [1e9, 1e12, 1e19] {
+        match solve(&rod, &loads(&[p, p, p]), None, &ignore) {
+            Err(SoftrodError::InvalidState { rule, .. }) => {
+                assert!(rule.is_physical(), "p = {p}: {rule:?}")
+            }
+            Err(SoftrodError::NotConverged { .. }) => {}
+            other => panic!("p = {p}: {other:?}"),
+        }
+    }
+    // and within the range a strong pressure gives a stretch inside the validity range
+    // or the named rule
+    let warn = SolverOptions {
+        on_invalid: Policy::Warn,
+        ..Default::default()
+    };
+    let sol = solve(&rod, &loads(&[1e6, 1e6, 1e6]), None, &warn);
+    match sol {
+        Ok(s) => assert!(
+            s.violations.iter().all(|e| matches!(
+                e,
+                SoftrodError::InvalidState {
+                    rule: Rule::StrainRange,
+                    ..
+                }
+            )),
+            "{:?}",
+            s.violations
+        ),
+        Err(SoftrodError::InvalidState { .. }) | Err(SoftrodError::NotConverged { .. }) => {}
+        Err(e) => panic!("{e}"),
+    }
+}
+
+/// One RK4 step over a long, strongly bent section cannot represent the rotation: the
+/// result is refused by the rotation rule (or fails to converge), never returned.
+#[test]
+fn too_coarse_steps_break_the_rotation_rule() {
+    let rod = Rod::new(design(
+        vec![direct_section("coarse", 1.0, 1e6, 1e6, 1.0, 1.0, 0.0, 1)],
+        HORIZONTAL,
+        0.0,
+    ))
+    .unwrap();
+    let mut ld = loads(&[]);
+    ld.tip_moment = [0.0, 1.5, 0.0]; // u = 1.5 rad over one step
+    match solve(&rod, &ld, None, &SolverOptions::default()) {
+        Err(SoftrodError::InvalidState { rule, .. }) => assert_eq!(rule, Rule::Rotation),
+        Err(SoftrodError::NotConverged { .. }) => {}
+        Ok(s) => panic!(
+            "one step of 1.5 rad returned as a solution: tip {:?}",
+            s.tip.r
+        ),
+        Err(e) => panic!("{e}"),
+    }
+    // the same with 64 steps is a valid, stable solution
+    let fine = Rod::new(design(
+        vec![direct_section("fine", 1.0, 1e6, 1e6, 1.0, 1.0, 0.0, 64)],
+        HORIZONTAL,
+        0.0,
+    ))
+    .unwrap();
+    assert!(
+        solve(&fine, &ld, None, &SolverOptions::default())
+            .unwrap()
+            .stable
+    );
+}

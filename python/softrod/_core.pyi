@@ -1,0 +1,234 @@
+# Type stub of the compiled extension softrod._core (crates/softrod-py), written by hand.
+# tests/test_typing.py checks it against the built module with mypy's stubtest: a method or
+# argument added, renamed or removed in the binding fails there until this file follows.
+# Everything is SI; the binding holds no physics (softrod's Python API wraps these classes).
+
+from collections.abc import Sequence
+from typing import Any, final
+
+__all__ = [
+    "GridPchip",
+    "InverseSolver",
+    "PccModel",
+    "Rod",
+    "Simulator",
+    "__version__",
+    "_panic_inside_guard",
+    "linearise_at",
+    "point_jacobian_of",
+]
+__version__: str
+
+# numpy arrays in and out; the stub names no numpy types so that checking it stays fast
+# (the Python layer above states the shapes and units).
+_ArrayLike = Any
+_Array = Any
+_Vec3 = Sequence[float]
+
+@final
+class Rod:
+    """A validated, compiled design (immutable)."""
+
+    def __new__(cls, spec_json: str) -> Rod: ...
+    @property
+    def n_channels(self) -> int: ...
+    @property
+    def length(self) -> float: ...
+    @property
+    def mass(self) -> float: ...
+    def sections(self) -> list[dict[str, Any]]: ...
+    def solve(
+        self,
+        pressures: Sequence[float],
+        tip_force: _Vec3,
+        tip_moment: _Vec3,
+        guess: _Vec3 | None = None,
+        tol: float = 1e-10,
+        max_iter: int = 25,
+        continuation: bool = True,
+        max_load_steps: int = 200,
+        stretch_range: tuple[float, float] = ...,
+        stiffness_scale: _Vec3 = ...,
+        on_invalid: str = "raise",
+    ) -> dict[str, Any]: ...
+    def solve_batch(
+        self,
+        pressures: _ArrayLike,
+        tip_force: _Vec3,
+        tip_moment: _Vec3,
+        threads: int = 0,
+        tol: float = 1e-10,
+        max_iter: int = 25,
+        continuation: bool = True,
+        max_load_steps: int = 200,
+        stretch_range: tuple[float, float] = ...,
+        stiffness_scale: _ArrayLike | None = None,
+        on_invalid: str = "raise",
+    ) -> dict[str, Any]: ...
+    def sensitivity_batch(
+        self,
+        pressures: _ArrayLike,
+        tip_force: _Vec3,
+        tip_moment: _Vec3,
+        params: Sequence[tuple[str, Sequence[int]]],
+        stiffness_scale: _ArrayLike | None = None,
+        x0: _ArrayLike | None = None,
+        threads: int = 0,
+        tol: float = 1e-10,
+        max_iter: int = 25,
+        continuation: bool = True,
+        max_load_steps: int = 200,
+        stretch_range: tuple[float, float] = ...,
+        on_invalid: str = "ignore",
+    ) -> dict[str, Any]: ...
+
+def _panic_inside_guard() -> None:
+    """Panics inside the binding's guard (tests: a panic becomes softrod.InternalError)."""
+
+@final
+class GridPchip:
+    """Tensor-product PCHIP on a regular grid (the interpolation of table stiffness maps)."""
+
+    def __new__(
+        cls, axes: Sequence[Sequence[float]], values: Sequence[float], width: int
+    ) -> GridPchip: ...
+    def eval(self, points: _ArrayLike) -> _Array: ...
+
+@final
+class PccModel:
+    """The compiled PCC model of a design (immutable)."""
+
+    def __new__(cls, spec_json: str) -> PccModel: ...
+    @property
+    def n_channels(self) -> int: ...
+    @property
+    def ndof(self) -> int: ...
+    @property
+    def n_segments(self) -> int: ...
+    @property
+    def planar(self) -> bool: ...
+    @property
+    def length(self) -> float: ...
+    def segments(self) -> list[dict[str, Any]]: ...
+    def to_model(
+        self, q: Sequence[float], q_dot: Sequence[float]
+    ) -> tuple[list[float], list[float]]: ...
+    def statics(
+        self,
+        pressures: Sequence[float],
+        guess: Sequence[float] | None = None,
+        tol: float = 1e-11,
+        max_iter: int = 30,
+    ) -> dict[str, Any]: ...
+    def shape(self, x: Sequence[float], per_section: int) -> tuple[_Array, _Array, _Array]: ...
+    def shapes(self, xs: _ArrayLike, per_section: int) -> tuple[_Array, _Array]: ...
+    def energy(
+        self, x: Sequence[float], v: Sequence[float], pressures: Sequence[float]
+    ) -> tuple[float, float, float, float]: ...
+    def mass_matrix(self, x: Sequence[float]) -> list[list[float]]: ...
+    def simulate(
+        self,
+        dt: float,
+        pressures: _ArrayLike,
+        initial: str = "rest",
+        q0: Sequence[float] | None = None,
+        q_dot0: Sequence[float] | None = None,
+        save_every: int = 1,
+        tol: float = 1e-11,
+        max_iter: int = 30,
+    ) -> dict[str, Any]: ...
+
+@final
+class Simulator:
+    """A running simulation of a design (see ``softrod.dynamics``)."""
+
+    def __new__(
+        cls,
+        spec_json: str,
+        pressures: Sequence[float],
+        initial: str = "static",
+        dt: float = 2e-3,
+        alpha: float = ...,  # -0.2 (pyo3 does not render a negative default)
+        tol: float = 1e-9,
+        max_iter: int = 25,
+        scheme: str = "bdf-alpha",
+        error_tol: float | None = None,
+        energy_tol: float = ...,  # softrod_core::dynamics::DEFAULT_ENERGY_TOL (0.02)
+        sigma_const: _Vec3 | None = None,
+        sigma_grid: tuple[Sequence[Sequence[float]], Sequence[float], bool] | None = None,
+        tip_force: _Vec3 | None = None,
+        tip_moment: _Vec3 | None = None,
+    ) -> Simulator: ...
+    def save(self) -> _Array: ...
+    def restore(self, state: _ArrayLike) -> None: ...
+    def copy(self) -> Simulator: ...
+    @property
+    def time(self) -> float: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def n_channels(self) -> int: ...
+    @property
+    def pressures(self) -> list[float]: ...
+    @property
+    def stats(self) -> dict[str, int]: ...
+    def set_tip_loads(self, force: _Vec3, moment: _Vec3) -> None: ...
+    def snapshot(self) -> dict[str, Any]: ...
+    def run(
+        self,
+        commands: _ArrayLike,
+        keep: _ArrayLike,
+        energy: bool = True,
+        tip_loads: _ArrayLike | None = None,
+        schedule: tuple[Sequence[float], Sequence[Sequence[float]], bool] | None = None,
+    ) -> dict[str, Any]: ...
+
+@final
+class InverseSolver:
+    """An inverse problem of one design (see ``softrod.control.inverse``)."""
+
+    def __new__(
+        cls,
+        rod: Rod,
+        bounds: Sequence[Sequence[float]],
+        reference: Sequence[float],
+        s: float,
+        position_weight: _Vec3,
+        orientation_weight: float,
+        tip_force: _Vec3,
+        tip_moment: _Vec3,
+        regularisation: float = 1e-6,
+        tol: float = 1e-10,
+        max_iter: int = 100,
+        statics_tol: float = 1e-10,
+        statics_max_iter: int = 25,
+        on_invalid: str = "raise",
+        stretch_range: tuple[float, float] = ...,  # (0.5, 2.0)
+    ) -> InverseSolver: ...
+    def solve(
+        self,
+        position: _Vec3,
+        pressures: Sequence[float],
+        orientation: Sequence[Sequence[float]] | None = None,
+        x: _Vec3 | None = None,
+        reference: Sequence[float] | None = None,
+    ) -> dict[str, Any]: ...
+
+def point_jacobian_of(
+    rod: Rod,
+    pressures: Sequence[float],
+    tip_force: _Vec3,
+    tip_moment: _Vec3,
+    stiffness_scale: _Vec3,
+    x: _Vec3,
+    s: float,
+    params: Sequence[tuple[str, Sequence[int]]],
+) -> dict[str, Any]: ...
+def linearise_at(
+    rod: Rod,
+    pressures: Sequence[float],
+    tip_force: _Vec3,
+    tip_moment: _Vec3,
+    x: _Vec3 | None,
+    nodes: int,
+) -> dict[str, Any]: ...

@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Regenerates the figures in docs/figures/ that softrod itself draws (the viewer's screenshots
+# come from benchmarks/bench_viewer.py --figures). Needs softrod installed (pip install -e .).
+# Run from anywhere: bash scripts/make_doc_figures.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-python3}
+SOFTROD=("$PY" -m softrod.cli)
+out=docs/figures
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+
+echo "== softrod demo: $out/demo_shapes.png"
+"${SOFTROD[@]}" demo --out-dir "$tmp/demo" >/dev/null
+cp "$tmp/demo/shapes.png" "$out/demo_shapes.png"
+
+echo "== paper 002's experiments: $out/compare_paper002_fig{5,6,7}.png"
+"${SOFTROD[@]}" compare --experiments iii,a --figure "$out/compare_paper002_fig5.png" >/dev/null
+"${SOFTROD[@]}" compare --experiments i --figure "$out/compare_paper002_fig6.png" >/dev/null
+"${SOFTROD[@]}" compare --experiments ii --figure "$out/compare_paper002_fig7.png" >/dev/null
+
+echo "== PCC model vs rod: $out/pcc_*.png"
+"$PY" examples/pcc_vs_cosserat.py "$out" >/dev/null
+echo "done"

@@ -1,0 +1,255 @@
+"""Stability and validity of static solutions (docs/model.md, "Validity and stability"):
+the buckled column against the elastica, the unstable straight column, the invalid states
+of issues 13 and 14 (negative stretch, pressures far beyond the operating range, absurd
+pressures), stability of the bundled designs, and the boundary of the Rust core (no panic
+or abort on huge channel indices; JSON errors name the field)."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+import softrod
+from scipy.optimize import brentq
+from scipy.special import ellipeinc, ellipkinc
+from softrod import (
+    DesignError,
+    InternalError,
+    InvalidStateError,
+    SolverOptions,
+    StabilityWarning,
+    ValidityWarning,
+    load_design,
+    solve_statics,
+    solve_statics_batch,
+)
+
+pytestmark = pytest.mark.fast
+
+L = 1.0  # m
+EI = 1.0  # N m^2
+P_CR = np.pi**2 * EI / (4 * L**2)  # Euler load of the clamped-free column
+
+
+def column(steps: int = 400, chambers: list | None = None) -> softrod.Design:
+    """An upright column, clamped at the base, weightless; extension and shear 1e10 times
+    stiffer than bending (EA L^2 / EI), so it is the inextensible elastica to ~1e-9 L."""
+    extra = {} if chambers is None else {"chambers": chambers}
+    return load_design(
+        {
+            "design": {"name": "column", "citation": "Euler column, clamped-free"},
+            "mounting": {"orientation": "upright", "gravity": "0 m/s^2"},
+            "sections": [
+                {
+                    "name": "column",
+                    "length": f"{L} m",
+                    "mass": "0 kg",
+                    "EA": "1e10 N",
+                    "GA": "1e10 N",
+                    "EI": f"{EI} N*m^2",
+                    "GJ": f"{2 * EI} N*m^2",
+                    "steps": steps,
+                    **extra,
+                }
+            ],
+        }
+    )
+
+
+def elastica_tip(p: float, h: float) -> tuple[float, float]:
+    """Tip (lateral, vertical) of the inextensible elastica clamped upright at the base under
+    a dead tip force of h along +x and p down, on the branch that bends with h (no
+    inflection point), by elliptic integrals.
+
+    With theta the angle from +z towards +x, EI theta'' = -(h cos theta + p sin theta) =
+    -F sin(psi), F = hypot(p, h), psi = theta + gamma, tan gamma = h / p. With
+    sin(psi / 2) = k sin(phi): L sqrt(F / EI) = K(k) - F(phi0, k), sin(phi0) =
+    sin(gamma / 2) / k; int sin(psi) ds = 2 k cos(phi0) c and int cos(psi) ds =
+    (2 (E(k) - E(phi0, k)) - (K(k) - F(phi0, k))) c, c = sqrt(EI / F)."""
+    f = np.hypot(p, h)
+    gamma = np.arctan2(h, p)
+    s0 = np.sin(gamma / 2)
+    c = np.sqrt(EI / f)
+
+    def phi0(k):
+        return np.arcsin(min(1.0, s0 / k))
+
+    def length_error(k):
+        m = k * k
+        return (ellipkinc(np.pi / 2, m) - ellipkinc(phi0(k), m)) * c - L
+
+    k = brentq(length_error, s0 * (1 + 1e-12), 1 - 1e-15, xtol=1e-16, rtol=1e-15)
+    m = k * k
+    big_f = ellipkinc(np.pi / 2, m) - ellipkinc(phi0(k), m)
+    big_e = ellipeinc(np.pi / 2, m) - ellipeinc(phi0(k), m)
+    s_int = 2 * k * np.cos(phi0(k)) * c
+    c_int = (2 * big_e - big_f) * c
+    x = np.cos(gamma) * s_int - np.sin(gamma) * c_int
+    z = np.cos(gamma) * c_int + np.sin(gamma) * s_int
+    return float(x), float(z)
+
+
+def test_elastica_reference_reduces_to_the_linear_beam():
+    # Tiny loads: the tip deflects by h L^3 / (3 EI) (the reference itself is checked).
+    x, z = elastica_tip(1e-9, 1e-6)
+    assert abs(x - 1e-6 * L**3 / (3 * EI)) < 1e-12 and abs(z - L) < 1e-9
+
+
+@pytest.mark.parametrize("ratio", [1.5, 2.0])
+def test_straight_column_above_the_buckling_load_is_flagged_unstable(ratio):
+    d = column(200)
+    with pytest.warns(StabilityWarning, match="unstable equilibrium"):
+        sol = solve_statics(d, [], tip_force=[0, 0, -ratio * P_CR])
+    assert sol.stable is False
+    assert np.abs(sol.tip_position[:2]).max() < 1e-12  # the perfect column stays straight
+    with pytest.raises(InvalidStateError, match="unstable") as err:
+        solve_statics(d, [], tip_force=[0, 0, -ratio * P_CR], on_unstable="raise")
+    assert err.value.rule == "stability"
+    failed = solve_statics(
+        d, [], tip_force=[0, 0, -ratio * P_CR], on_unstable="raise", check=False
+    )
+    assert failed.converged is False
+    below = solve_statics(d, [], tip_force=[0, 0, -0.9 * P_CR])
+    assert below.stable is True
+
+
+@pytest.mark.parametrize("ratio", [1.5, 2.0])
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_column_with_a_lateral_imperfection_bends_with_the_force(ratio, sign):
+    p = ratio * P_CR
+    h = 1e-3 * p
+    sol = solve_statics(column(), [], tip_force=[sign * h, 0, -p])
+    assert sol.stable is True
+    x, z = elastica_tip(p, h)
+    assert sign * sol.tip_position[0] > 0.1 * L  # it buckled, towards the force
+    # 1e-6 L: 400 RK4 steps (~1e-10 L) and the extensibility (P / EA ~ 5e-10) are far below.
+    assert abs(sign * sol.tip_position[0] - x) < 1e-6 * L
+    assert abs(sol.tip_position[2] - z) < 1e-6 * L
+
+
+def test_negative_stretch_is_refused_naming_the_node():
+    # issue 14: the tip 94 mm below the base with v3 = -0.87 came back "converged"
+    with pytest.raises(InvalidStateError, match="stretch v3") as err:
+        solve_statics("stiff_flop_pcc", [0.0] * 6, tip_force=[0, 0, -50])
+    assert err.value.rule == "positive_stretch"
+    assert err.value.node is not None and err.value.value <= 0
+
+
+@pytest.mark.parametrize("bar", [5.0, 50.0])
+def test_pressures_beyond_the_operating_range_are_refused(bar):
+    d = load_design("spa_three_chamber_130mm")
+    with pytest.raises(InvalidStateError, match="operating_range") as err:
+        solve_statics(d, [bar * 1e5, 0, 0])
+    assert err.value.rule == "operating_range" and err.value.value == bar * 1e5
+    # asked to warn: the operating range warns, and the state is checked too (5 bar bends
+    # the actuator beyond the strain range; 50 bar beyond what its steps can represent)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            sol = solve_statics(d, [bar * 1e5, 0, 0], on_invalid="warn")
+        except InvalidStateError as exc:  # a physical rule: no state to warn about
+            assert exc.rule in ("rotation", "positive_stretch", "stretch_limit", "chamber_collapse")
+        else:
+            assert any("operating_range" in v for v in sol.violations)
+            assert any(issubclass(w.category, ValidityWarning) for w in caught)
+    # a batch refuses the row before any work, naming it
+    with pytest.raises(InvalidStateError, match="row 1"):
+        solve_statics_batch(d, [[0, 0, 0], [bar * 1e5, 0, 0]])
+
+
+@pytest.mark.parametrize("pressure", [1e9, 1e12, 1e15, 1e19])
+def test_absurd_pressures_never_converge(pressure):
+    # issue 13: 1e9 to 1e19 Pa "converged" with the tip 60 L to 1e12 L from the base. Even
+    # with the validity ranges switched off, a physical rule or non-convergence stops them.
+    with pytest.raises(softrod.ConvergenceError):
+        solve_statics("spa_three_chamber_130mm", [pressure, pressure, 0], on_invalid="ignore")
+
+
+def test_strain_range_is_configurable():
+    d = load_design("spa_three_chamber_130mm")
+    narrow = SolverOptions(stretch_range=(0.99, 1.01))
+    with pytest.raises(InvalidStateError, match="fibre stretch") as err:
+        solve_statics(d, [70e3, 0, 0], options=narrow)
+    assert err.value.rule == "strain_range" and err.value.node is not None
+    with pytest.warns(ValidityWarning, match="fibre stretch"):
+        sol = solve_statics(d, [70e3, 0, 0], options=narrow, on_invalid="warn")
+    assert sol.converged and len(sol.violations) == 1
+    for bad in [(0.0, 2.0), (1.0, 2.0), (0.5, 1.0), (0.5, float("inf")), "wide"]:
+        with pytest.raises(softrod.InputError, match="stretch_range"):
+            SolverOptions(stretch_range=bad)
+    with pytest.raises(softrod.InputError, match="on_invalid"):
+        solve_statics(d, [0, 0, 0], on_invalid="maybe")
+
+
+def test_batch_reports_stability_and_validity_per_row():
+    # a batch needs a pressure channel: a 1 um chamber on the axis, always at 0 Pa
+    dummy = [{"radius": "1 um", "distance": "0 mm", "angle": "0 deg", "channel": 0}]
+    d = column(100, dummy)
+    rows = np.zeros((3, 1))
+    with pytest.warns(StabilityWarning, match="row"):
+        out = solve_statics_batch(d, rows, tip_force=[0, 0, -2 * P_CR])
+    assert out.converged.all() and not out.stable.any()
+    frame = out.to_frame()
+    assert "stable" in frame.columns and not frame["stable"].any()
+    spa = load_design("spa_three_chamber_130mm")
+    # at rest the hanging body stretches by 1.5 % under the cap's weight; at 70 kPa one side
+    # shortens by 6.5 %
+    narrow = SolverOptions(stretch_range=(0.95, 1.05))
+    kept = solve_statics_batch(spa, [[0, 0, 0], [70e3, 0, 0]], options=narrow)
+    assert kept.converged.tolist() == [True, False]
+    assert kept.violation[0] == "" and "strain_range" in kept.violation[1]
+    with pytest.warns(ValidityWarning, match="1 of 2 rows"):
+        warned = solve_statics_batch(
+            spa, [[0, 0, 0], [70e3, 0, 0]], options=narrow, on_invalid="warn"
+        )
+    assert warned.converged.all() and "strain_range" in warned.violation[1]
+
+
+def _range_corners(design) -> list[list[float]]:
+    lo, hi = design.spec["operating_range"]["pressure"]
+    n = design.n_channels
+    corners = [[lo] * n, [hi] * n] + [[hi if k == j else lo for k in range(n)] for j in range(n)]
+    return corners + [[0.5 * (lo + hi)] * n]
+
+
+@pytest.mark.parametrize("name", softrod.bundled_designs())
+def test_bundled_designs_are_stable_across_their_operating_range(name):
+    d = load_design(name)
+    assert "operating_range" in d.spec, f"{name} states no operating range"
+    out = solve_statics_batch(d, _range_corners(d), threads=1)
+    assert out.converged.all(), out.violation
+    assert out.stable.all(), name
+
+
+@pytest.mark.parametrize(
+    "channel", [10**12, 2**63 - 1, 2**64 - 1], ids=["1e12", "i64_max", "u64_max"]
+)
+def test_huge_channel_indices_are_a_design_error_not_an_abort(channel):
+    # issue 13: 1e12 aborted the interpreter (a 1e12-entry allocation), 2^63 - 1 and
+    # 2^64 - 1 raised pyo3's PanicException (capacity overflow, index out of bounds).
+    spec = load_design("spa_three_chamber_130mm").spec
+    spec = json.loads(json.dumps(spec))
+    spec["sections"][1]["chambers"][0]["channel"] = channel
+    with pytest.raises(DesignError) as err:
+        softrod._core.Rod(json.dumps(spec))
+    assert err.value.field == "sections[1].chambers[0].channel"
+
+
+def test_json_errors_name_the_field_path():
+    spec = json.loads(json.dumps(load_design("spa_three_chamber_130mm").spec))
+    spec["sections"][1]["chambers"][2]["channel"] = -1
+    with pytest.raises(DesignError) as err:
+        softrod._core.Rod(json.dumps(spec))
+    assert err.value.field == "sections[1].chambers[2].channel"
+    assert "-1" in str(err.value) and "line 1 column" not in str(err.value)
+    spec["sections"][1]["chambers"][2]["channel"] = 2
+    spec["sections"][0]["length"] = "long"
+    with pytest.raises(DesignError) as err:
+        softrod._core.Rod(json.dumps(spec))
+    assert err.value.field == "sections[0].length"
+
+
+def test_a_panic_in_the_core_is_an_internal_error():
+    # every binding entry runs under the same guard; this entry panics on purpose
+    with pytest.raises(InternalError, match="deliberate panic"):
+        softrod._core._panic_inside_guard()
