@@ -241,6 +241,11 @@ impl AxialTable {
         }
     }
 
+    /// The table's forces (knots), N.
+    pub fn knots(&self) -> &[f64] {
+        &self.force
+    }
+
     /// EA at axial force `f` (any scalar type: exact derivative dEA/dF inside the table).
     #[inline]
     pub fn eval<D: RodScalar>(&self, f: D) -> D {

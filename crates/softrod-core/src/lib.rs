@@ -11,7 +11,9 @@
 // Index loops over 3-vectors read like the equations they implement.
 #![allow(clippy::needless_range_loop)]
 
+pub mod banded;
 pub mod batch;
+pub mod collocation;
 pub mod dynamics;
 pub mod error;
 pub mod interp;

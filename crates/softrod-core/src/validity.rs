@@ -84,6 +84,9 @@ pub enum Rule {
     StrainRange,
     /// Pressures within the design's operating range.
     OperatingRange,
+    /// A dynamic run's energy balance E - E(0) - W_in + D does not grow beyond the
+    /// integrator's tolerance (energy does not appear without input).
+    EnergyBalance,
 }
 
 impl Rule {
@@ -97,6 +100,7 @@ impl Rule {
             Rule::ChamberCollapse => "chamber_collapse",
             Rule::StrainRange => "strain_range",
             Rule::OperatingRange => "operating_range",
+            Rule::EnergyBalance => "energy_balance",
         }
     }
 
