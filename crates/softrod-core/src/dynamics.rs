@@ -31,7 +31,6 @@ use crate::interp::GridPchip;
 use crate::law::ogden_energy;
 use crate::ode::{Coeffs, Loads};
 use crate::rod::Rod;
-use crate::spec::DynamicsSpec;
 use crate::statics::{self, SolverOptions};
 use crate::validity;
 
@@ -456,24 +455,6 @@ pub struct DynStats {
     pub jacobians: usize,
 }
 
-/// Advance chamber pressures by one step of dt towards the commands: a first-order lag with
-/// time constant T (exact for a command held over the step), then the rate limit (paper 000
-/// Sec. III-A). The PCC model uses the same supply, so both models see the same pressures.
-pub fn advance_supply(dy: &DynamicsSpec, dt: f64, pressures: &mut [f64], command: &[f64]) {
-    for (p, &c) in pressures.iter_mut().zip(command) {
-        let target = if dy.pressure_time_constant > 0.0 {
-            c + (*p - c) * (-dt / dy.pressure_time_constant).exp()
-        } else {
-            c
-        };
-        let step = match dy.pressure_rate_limit {
-            Some(rate) => (target - *p).clamp(-rate * dt, rate * dt),
-            None => target - *p,
-        };
-        *p += step;
-    }
-}
-
 fn rename_pressure_error(e: SoftrodError, name: &str) -> SoftrodError {
     match e {
         SoftrodError::InvalidParameter { field, value, rule } => SoftrodError::InvalidParameter {
@@ -707,21 +688,26 @@ impl Simulator {
                     tol: self.opts.tol.min(1e-10),
                     ..SolverOptions::default()
                 };
-                let sol = collocation::solve_static(&self.rod, &loads, guess.as_deref(), &opts)
-                    .map_err(|e| match e {
-                        SoftrodError::NotConverged {
-                            iterations,
-                            residual,
-                            load_factor,
-                            reason,
-                        } => SoftrodError::NotConverged {
-                            iterations,
-                            residual,
-                            load_factor,
-                            reason: format!("the initial static state did not solve: {reason}"),
-                        },
-                        other => other,
-                    })?;
+                let sol = crate::statics::collocation::solve_static(
+                    &self.rod,
+                    &loads,
+                    guess.as_deref(),
+                    &opts,
+                )
+                .map_err(|e| match e {
+                    SoftrodError::NotConverged {
+                        iterations,
+                        residual,
+                        load_factor,
+                        reason,
+                    } => SoftrodError::NotConverged {
+                        iterations,
+                        residual,
+                        load_factor,
+                        reason: format!("the initial static state did not solve: {reason}"),
+                    },
+                    other => other,
+                })?;
                 self.stats.newton_iterations += sol.iterations;
                 sol.z
             }
@@ -1048,7 +1034,10 @@ impl Simulator {
     fn attempt(&mut self, h: f64, command: &[f64]) -> Result<Candidate> {
         let t_new = self.time + h;
         let mut pressures = self.pressures.clone();
-        advance_supply(&self.rod.spec.dynamics, h, &mut pressures, command);
+        self.rod
+            .spec
+            .dynamics
+            .advance_supply(h, &mut pressures, command);
         let sigma = self.sigma_map.eval(&pressures)?;
         self.rod.check_loads(&pressures, &sigma)?;
         let midpoint = self.opts.scheme == Scheme::Midpoint;

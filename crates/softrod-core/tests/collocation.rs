@@ -4,8 +4,8 @@
 mod common;
 
 use common::*;
-use softrod_core::collocation::{shooting_growth, solve_static, SHOOTING_GROWTH_LIMIT};
 use softrod_core::spec::MaterialSpec;
+use softrod_core::statics::collocation::{shooting_growth, solve_static, SHOOTING_GROWTH_LIMIT};
 use softrod_core::statics::{shape, solve, SolverOptions};
 use softrod_core::validity::{Policy, Rule};
 use softrod_core::{Rod, SoftrodError};

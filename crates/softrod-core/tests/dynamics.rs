@@ -508,7 +508,7 @@ fn damped_run_settles_on_the_collocation_statics() {
     // The dynamic discretisation at rest is collocation statics (dt -> infinity): a
     // damped run under constant pressure must settle on it to the solvers' tolerance,
     // 1e-9 L (issue 14); single-shooting statics differs by its own O(h^4) error.
-    use softrod_core::collocation::solve_static;
+    use softrod_core::statics::collocation::solve_static;
     let rod = pam_arm(16, 0.19);
     let p = [150e3, 0.0, 60e3];
     let opts = DynOptions {

@@ -9,11 +9,11 @@
 mod common;
 
 use common::*;
-use softrod_core::collocation::solve_static;
 use softrod_core::dynamics::{DynOptions, Initial, SigmaMap, Simulator};
 use softrod_core::interp::GridPchip;
 use softrod_core::ode::Loads;
 use softrod_core::spec::{AxialSpec, DesignSpec, LawSpec, SwellingSpec};
+use softrod_core::statics::collocation::solve_static;
 use softrod_core::statics::SolverOptions;
 use softrod_core::Rod;
 

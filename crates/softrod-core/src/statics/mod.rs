@@ -21,6 +21,8 @@
 //! no point conjugate to the clamp in (0, L] (det of the Jacobi fields' rotations,
 //! d theta(s)/dx, keeps its sign) and the tip form sym(Theta(L)^T J) is positive definite.
 
+pub mod collocation;
+
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
 use crate::ode::{integrate, strains, Coeffs, Loads, SectionKnobs, State};
@@ -767,7 +769,7 @@ fn solve_inner(
     let violations = check_inputs(rod, loads, opts)?;
     // Single shooting's sensitivity grows like exp(int sqrt(|n| / EI) ds): long, soft rods
     // under their own weight go to collocation (docs/model.md, "Collocation").
-    if crate::collocation::shooting_ill_conditioned(rod, loads) {
+    if collocation::shooting_ill_conditioned(rod, loads) {
         return by_collocation(rod, loads, opts, violations);
     }
     let mut iterations = 0;
@@ -801,7 +803,7 @@ fn solve_inner(
     better(first, path)
 }
 
-/// A static solve by collocation (`crate::collocation::solve_static`), for rods whose
+/// A static solve by collocation (`collocation::solve_static`), for rods whose
 /// single-shooting problem is ill-conditioned (docs/model.md, "Collocation"). Every node
 /// passes the same validity rules as a shooting solution's. The conjugate-point test
 /// integrates the Jacobi fields from the clamp, which is the same ill-conditioned initial
@@ -814,8 +816,8 @@ fn by_collocation(
     violations: Vec<SoftrodError>,
 ) -> Attempt {
     let mut violations = violations;
-    let sol = crate::collocation::solve_static(rod, loads, None, opts)?;
-    let (base_force, base_moment) = crate::collocation::base_wrench(rod, &sol.z);
+    let sol = collocation::solve_static(rod, loads, None, opts)?;
+    let (base_force, base_moment) = collocation::base_wrench(rod, &sol.z);
     let ev = &sol.evaluated;
     let grid = crate::collocation::Grid::new(rod);
     let p = Problem::new(rod, loads, 1.0);
