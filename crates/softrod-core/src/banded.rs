@@ -3,6 +3,57 @@
 //! solve, linear in n. The collocation Newton (`crate::collocation`) solves its
 //! almost-block-diagonal systems with it: partial pivoting is what keeps multiple-shooting
 //! and collocation systems stable where the recurrence alone (single shooting) is not.
+//!
+//! The hot loops are short contiguous axpys; [`simd_dispatch!`] compiles them a second time
+//! for AVX2 and picks that copy at run time where the CPU has it. Without FMA the AVX2
+//! copy performs the same IEEE operations in the same order, only four lanes at a time, so
+//! both copies return bitwise equal results.
+
+/// Inside `impl $ty`, define `pub fn $name(args) -> R` that runs the body `$imp` compiled for AVX2 where the
+/// CPU has it (detected at run time, cached by std) and for the baseline target otherwise.
+/// `$imp` must be `#[inline(always)]` so that it is compiled into each copy. AVX2 without
+/// FMA changes no rounding (Rust never contracts a * b + c), so the copies agree bitwise.
+macro_rules! simd_dispatch {
+    ($ty:ty: $(#[$m:meta])* $vis:vis fn $name:ident(&$self:ident $(, $a:ident: $t:ty)*) $(-> $r:ty)? => $imp:ident) => {
+        $(#[$m])*
+        #[inline(never)]
+        $vis fn $name(&$self $(, $a: $t)*) $(-> $r)? {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx2")]
+                unsafe fn avx2(this: &$ty $(, $a: $t)*) $(-> $r)? {
+                    this.$imp($($a),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU supports AVX2 (checked just above), the only
+                    // requirement of calling a function compiled for it.
+                    return unsafe { avx2($self $(, $a)*) };
+                }
+            }
+            $self.$imp($($a),*)
+        }
+    };
+    ($ty:ty: $(#[$m:meta])* $vis:vis fn $name:ident(&mut $self:ident $(, $a:ident: $t:ty)*) $(-> $r:ty)? => $imp:ident) => {
+        $(#[$m])*
+        #[inline(never)]
+        $vis fn $name(&mut $self $(, $a: $t)*) $(-> $r)? {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx2")]
+                unsafe fn avx2(this: &mut $ty $(, $a: $t)*) $(-> $r)? {
+                    this.$imp($($a),*)
+                }
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU supports AVX2 (checked just above), the only
+                    // requirement of calling a function compiled for it.
+                    return unsafe { avx2($self $(, $a)*) };
+                }
+            }
+            $self.$imp($($a),*)
+        }
+    };
+}
+pub(crate) use simd_dispatch;
 
 /// A banded n x n matrix with `kl` sub- and `ku` super-diagonals, and after [`factor`] its
 /// LU factors (U has kl + ku super-diagonals from the row exchanges).
@@ -53,9 +104,19 @@ impl BandedLu {
         self.ab[k] = v;
     }
 
-    /// Factor in place. Returns false if a pivot is exactly zero or not finite (singular).
-    #[inline(never)]
-    pub fn factor(&mut self) -> bool {
+    simd_dispatch! { BandedLu:
+        /// Factor in place. Returns false if a pivot is exactly zero or not finite
+        /// (singular).
+        pub fn factor(&mut self) -> bool => factor_impl
+    }
+
+    simd_dispatch! { BandedLu:
+        /// Solve A x = b in place with the factors.
+        pub fn solve(&self, b: &mut [f64]) => solve_impl
+    }
+
+    #[inline(always)]
+    fn factor_impl(&mut self) -> bool {
         let (n, kl, ku) = (self.n, self.kl, self.ku);
         let kv = kl + ku;
         // Fill-in rows above the original band start at zero.
@@ -108,9 +169,8 @@ impl BandedLu {
         true
     }
 
-    /// Solve A x = b in place with the factors.
-    #[inline(never)]
-    pub fn solve(&self, b: &mut [f64]) {
+    #[inline(always)]
+    fn solve_impl(&self, b: &mut [f64]) {
         let (n, kl) = (self.n, self.kl);
         let kv = self.kl + self.ku;
         let ld = self.ldab;

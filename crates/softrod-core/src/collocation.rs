@@ -38,7 +38,7 @@
 //! Jacobian of f at each stage is exact: one evaluation in `Jet<16>` over the stage's own
 //! unknowns.
 
-use crate::banded::BandedLu;
+use crate::banded::{simd_dispatch, BandedLu};
 
 use crate::jet::{Jet, RodScalar};
 use crate::law::{ogden_derivatives, ogden_force, AxialTable};
@@ -753,9 +753,14 @@ impl<'a> Problem<'a> {
         })
     }
 
-    /// Scaled residual at scaled unknowns `z` into `out`; the stage fields (v, u, q, w)
-    /// into `fields` when given (2 per interval).
-    pub fn residual(&self, z: &[f64], out: &mut [f64], mut fields: Option<&mut [[f64; NF]]>) {
+    simd_dispatch! { Problem<'_>:
+        /// Scaled residual at scaled unknowns `z` into `out`; the stage fields (v, u, q, w)
+        /// into `fields` when given (2 per interval).
+        pub fn residual(&self, z: &[f64], out: &mut [f64], fields: Option<&mut [[f64; NF]]>) => residual_impl
+    }
+
+    #[inline(always)]
+    fn residual_impl(&self, z: &[f64], out: &mut [f64], mut fields: Option<&mut [[f64; NF]]>) {
         let inv: [f64; NY] = self.scale.map(|s| 1.0 / s);
         let mut yj = self.node(z, 0);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
@@ -859,14 +864,21 @@ impl<'a> Problem<'a> {
         jac
     }
 
-    /// Factor Newton's matrix at `z`: per interval the condensed stage block, then the
-    /// banded node system. None if a block is singular.
-    #[inline(never)]
-    pub fn factorize(&self, z: &[f64]) -> Option<Factorization> {
+    simd_dispatch! { Problem<'_>:
+        /// Factor Newton's matrix at `z`: per interval the condensed stage block, then the
+        /// banded node system. None if a block is singular.
+        pub fn factorize(&self, z: &[f64]) -> Option<Factorization> => factorize_impl
+    }
+
+    #[inline(always)]
+    fn factorize_impl(&self, z: &[f64]) -> Option<Factorization> {
         let n_int = self.grid.len();
         let mut blocks = Vec::with_capacity(n_int);
         let n = 6 + 16 * n_int;
-        let (kl, ku) = (25, 21);
+        // Row block j (interval j: dY_{j+1} - T_j dY_j) spans the columns of node j (16 from
+        // 16 j - 10, or the 6 base unknowns) to node j + 1's identity 6 right of the
+        // diagonal: 25 sub- and 6 super-diagonals (the tip rows lie inside).
+        let (kl, ku) = (25, 6);
         let mut band = BandedLu::zeros(n, kl, ku);
         let eye = Mat16::identity();
         for (j, iv) in self.grid.intervals.iter().enumerate() {
@@ -978,9 +990,13 @@ pub struct Factorization {
 }
 
 impl Factorization {
-    /// The Newton step: solves J dz = -r for the scaled residual `r`.
-    #[inline(never)]
-    pub fn solve(&self, r: &[f64], dz: &mut [f64]) {
+    simd_dispatch! { Factorization:
+        /// The Newton step: solves J dz = -r for the scaled residual `r`.
+        pub fn solve(&self, r: &[f64], dz: &mut [f64]) => solve_impl
+    }
+
+    #[inline(always)]
+    fn solve_impl(&self, r: &[f64], dz: &mut [f64]) {
         let n_int = self.blocks.len();
         let mut rhs = vec![0.0; self.band.n()];
         // dz's stage slots hold M^-1 (-r_S) until the node increments are known.
