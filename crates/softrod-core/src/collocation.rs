@@ -64,10 +64,7 @@ const GAUSS_A: [[f64; 2]; 2] = [[0.25, 0.25 - SQRT3_6], [0.25 + SQRT3_6, 0.25]];
 /// Gauss-Legendre weights on [0, 1].
 pub const GAUSS_B: [f64; 2] = [0.5, 0.5];
 
-type Mat32 = SMatrix<f64, 32, 32>;
 type Mat16 = SMatrix<f64, 16, 16>;
-type Mat32x16 = SMatrix<f64, 32, 16>;
-type Mat16x32 = SMatrix<f64, 16, 32>;
 
 /// One collocation interval.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -880,31 +877,62 @@ impl<'a> Problem<'a> {
         // diagonal: 25 sub- and 6 super-diagonals (the tip rows lie inside).
         let (kl, ku) = (25, 6);
         let mut band = BandedLu::zeros(n, kl, ku);
-        let eye = Mat16::identity();
         for (j, iv) in self.grid.intervals.iter().enumerate() {
             let model = &self.models[iv.section];
             let j1 = self.point_jacobian(&self.stage(z, j, 0), model, &self.hist[2 * j]);
             let j2 = self.point_jacobian(&self.stage(z, j, 1), model, &self.hist[2 * j + 1]);
             let hh = iv.h;
-            let mut m = Mat32::identity();
-            let mut g = Mat16x32::zeros();
-            for r in 0..16 {
-                for c in 0..16 {
-                    m[(r, c)] -= hh * GAUSS_A[0][0] * j1[(r, c)];
-                    m[(r, 16 + c)] -= hh * GAUSS_A[0][1] * j2[(r, c)];
-                    m[(16 + r, c)] -= hh * GAUSS_A[1][0] * j1[(r, c)];
-                    m[(16 + r, 16 + c)] -= hh * GAUSS_A[1][1] * j2[(r, c)];
-                    g[(r, c)] = hh * GAUSS_B[0] * j1[(r, c)];
-                    g[(r, 16 + c)] = hh * GAUSS_B[1] * j2[(r, c)];
+            // Column-major M = I - h (A (x) I) diag(J1, J2) (32 x 32) and
+            // G = h [b1 J1, b2 J2] (16 x 32).
+            let mut m = [0.0; 32 * 32];
+            let mut g = [0.0; 16 * 32];
+            for c in 0..16 {
+                for r in 0..16 {
+                    let (a, b) = (j1[(r, c)], j2[(r, c)]);
+                    m[c * 32 + r] = -hh * GAUSS_A[0][0] * a;
+                    m[c * 32 + 16 + r] = -hh * GAUSS_A[1][0] * a;
+                    m[(16 + c) * 32 + r] = -hh * GAUSS_A[0][1] * b;
+                    m[(16 + c) * 32 + 16 + r] = -hh * GAUSS_A[1][1] * b;
+                    g[c * 16 + r] = hh * GAUSS_B[0] * a;
+                    g[(16 + c) * 16 + r] = hh * GAUSS_B[1] * b;
                 }
             }
-            let minv = m.try_inverse()?;
-            if !minv.iter().all(|x| x.is_finite()) {
+            for k in 0..32 {
+                m[k * 32 + k] += 1.0;
+            }
+            // M^-1 column by column from M's LU (inlined here, so it shares this
+            // function's AVX2 copy), then G M^-1, P = M^-1 [I; I] and T = I + G P.
+            let mut piv = [0u8; 32];
+            if !lu_dense::<32>(&mut m, &mut piv) {
                 return None;
             }
-            let gminv = g * minv;
-            let p = Mat32x16::from_fn(|r, c| minv[(r, c)] + minv[(r, 16 + c)]);
-            let t = eye + Mat16::from_fn(|r, c| gminv[(r, c)] + gminv[(r, 16 + c)]);
+            let mut f = IntervalFactor {
+                minv: vec![0.0; 32 * 32],
+                gminv: vec![0.0; 16 * 32],
+                p: vec![0.0; 32 * 16],
+            };
+            for c in 0..32 {
+                let mut x = [0.0; 32];
+                x[c] = 1.0;
+                lu_dense_solve::<32>(&m, &piv, &mut x);
+                f.minv[32 * c..32 * c + 32].copy_from_slice(&x);
+                let mut y = [0.0; 16];
+                gemv_add(&mut y, &g, &x);
+                f.gminv[16 * c..16 * c + 16].copy_from_slice(&y);
+            }
+            if !f.minv.iter().all(|x| x.is_finite()) {
+                return None;
+            }
+            let mut t = [[0.0; 16]; 16]; // t[c][r] = T(r, c)
+            for c in 0..16 {
+                for r in 0..32 {
+                    f.p[32 * c + r] = f.minv[32 * c + r] + f.minv[32 * (16 + c) + r];
+                }
+                for r in 0..16 {
+                    t[c][r] = f.gminv[16 * c + r] + f.gminv[16 * (16 + c) + r];
+                }
+                t[c][c] += 1.0;
+            }
             // Rows of interval j: dY_{j+1} - T_j dY_j = t_j.
             let row0 = 16 * j;
             let col_next = 6 + 16 * j;
@@ -914,20 +942,16 @@ impl<'a> Problem<'a> {
                     // dY_0 = E dx0: the base unknowns n(0)/F_s, m(0)/(F_s L) are the
                     // scaled slots IN..IN + 6 of node 0.
                     for c in 0..6 {
-                        band.set(row0 + r, c, -t[(r, IN + c)]);
+                        band.set(row0 + r, c, -t[IN + c][r]);
                     }
                 } else {
                     let col = 6 + 16 * (j - 1);
                     for c in 0..16 {
-                        band.set(row0 + r, col + c, -t[(r, c)]);
+                        band.set(row0 + r, col + c, -t[c][r]);
                     }
                 }
             }
-            blocks.push(IntervalFactor {
-                minv: minv.as_slice().to_vec(),
-                gminv: gminv.as_slice().to_vec(),
-                p: p.as_slice().to_vec(),
-            });
+            blocks.push(f);
         }
         // Tip rows: C dY_N = -r_tip.
         let yn = self.node(z, n_int);
@@ -966,6 +990,76 @@ struct IntervalFactor {
     gminv: Vec<f64>,
     /// P = M^-1 [I; I] (32 x 16).
     p: Vec<f64>,
+}
+
+/// LU factorisation with partial pivoting of a dense column-major N x N matrix in place
+/// (right-looking, column axpy updates: vectorises). False if singular or not finite.
+#[inline(always)]
+fn lu_dense<const N: usize>(a: &mut [f64], piv: &mut [u8; N]) -> bool {
+    for k in 0..N {
+        let mut p = k;
+        let mut best = a[k * N + k].abs();
+        for i in k + 1..N {
+            let v = a[k * N + i].abs();
+            if v > best {
+                best = v;
+                p = i;
+            }
+        }
+        if !(best.is_finite() && best > 0.0) {
+            return false;
+        }
+        piv[k] = p as u8;
+        if p != k {
+            for c in 0..N {
+                a.swap(c * N + k, c * N + p);
+            }
+        }
+        let inv = 1.0 / a[k * N + k];
+        for i in k + 1..N {
+            a[k * N + i] *= inv;
+        }
+        let (left, right) = a.split_at_mut((k + 1) * N);
+        let lk = &left[k * N + k + 1..k * N + N];
+        for c in 0..N - k - 1 {
+            let col = &mut right[c * N..(c + 1) * N];
+            let u = col[k];
+            if u != 0.0 {
+                for (x, l) in col[k + 1..].iter_mut().zip(lk) {
+                    *x -= l * u;
+                }
+            }
+        }
+    }
+    true
+}
+
+/// Solve with [`lu_dense`]'s factors in place (P A = L U, rows exchanged whole).
+#[inline(always)]
+fn lu_dense_solve<const N: usize>(a: &[f64], piv: &[u8; N], x: &mut [f64; N]) {
+    for k in 0..N {
+        let p = piv[k] as usize;
+        if p != k {
+            x.swap(k, p);
+        }
+    }
+    for k in 0..N {
+        let xk = x[k];
+        if xk != 0.0 {
+            for (xi, l) in x[k + 1..].iter_mut().zip(&a[k * N + k + 1..k * N + N]) {
+                *xi -= l * xk;
+            }
+        }
+    }
+    for k in (0..N).rev() {
+        x[k] /= a[k * N + k];
+        let xk = x[k];
+        if xk != 0.0 {
+            for (xi, u) in x[..k].iter_mut().zip(&a[k * N..k * N + k]) {
+                *xi -= u * xk;
+            }
+        }
+    }
 }
 
 /// y += A x for a column-major A with R rows and C columns (axpy per column: vectorises).

@@ -1093,6 +1093,24 @@ impl Simulator {
             (0..self.z.len())
                 .map(|k| self.z[k] + ratio * (self.z_prev[k] - self.z_prev2[k]))
                 .collect()
+        } else if self.past.len() >= 3 {
+            // BDF-alpha: the quadratic through the last three states (at past[0..3]'s
+            // times): the first correction shrinks from O(h^2) to O(h^3) on smooth motion,
+            // so that one correction with the kept matrix usually ends the step.
+            let ts = [t_new, self.past[0].0, self.past[1].0, self.past[2].0];
+            let lag = |k: usize| -> f64 {
+                let mut w = 1.0;
+                for m in 1..4 {
+                    if m != k {
+                        w *= (ts[0] - ts[m]) / (ts[k] - ts[m]);
+                    }
+                }
+                w
+            };
+            let w = [lag(1), lag(2), lag(3)];
+            (0..self.z.len())
+                .map(|k| w[0] * self.z[k] + w[1] * self.z_prev[k] + w[2] * self.z_prev2[k])
+                .collect()
         } else {
             self.z
                 .iter()
