@@ -67,6 +67,9 @@ pub struct BandedLu {
     /// Column-major band: entry (i, j) at `ab[j * ldab + kl + ku + i - j]`.
     ab: Vec<f64>,
     piv: Vec<usize>,
+    /// 1 / U(j, j): the back substitution multiplies (a division's latency would
+    /// serialise it; the factors are reused for many solves).
+    dinv: Vec<f64>,
     ldab: usize,
 }
 
@@ -80,6 +83,7 @@ impl BandedLu {
             ku,
             ab: vec![0.0; ldab * n],
             piv: vec![0; n],
+            dinv: vec![0.0; n],
             ldab,
         }
     }
@@ -166,6 +170,9 @@ impl BandedLu {
             }
         }
         let _ = kv;
+        for j in 0..n {
+            self.dinv[j] = 1.0 / self.ab[self.at(j, j)];
+        }
         true
     }
 
@@ -190,7 +197,7 @@ impl BandedLu {
             }
         }
         for j in (0..n).rev() {
-            b[j] /= self.ab[j * ld + kv];
+            b[j] *= self.dinv[j];
             let bj = b[j];
             let i0 = j.saturating_sub(kv);
             if bj != 0.0 && i0 < j {
