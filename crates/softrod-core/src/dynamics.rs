@@ -1215,8 +1215,14 @@ impl Simulator {
         } else {
             -self.opts.alpha_eff()
         };
-        let pin = w_new * (e.elastic - self.elastic_of(&self.models, &eval))
-            + (1.0 - w_new) * (self.elastic_of(&models, &self.eval) - self.books.now.elastic);
+        // Unchanged models (same inputs and step): both differences are exactly zero (the
+        // same sums in the same order as energy_now's), so skip their two passes.
+        let pin = if models == self.models {
+            0.0
+        } else {
+            w_new * (e.elastic - self.elastic_of(&self.models, &eval))
+                + (1.0 - w_new) * (self.elastic_of(&models, &self.eval) - self.books.now.elastic)
+        };
         let r0 = self.eval.node_r.last().expect("tip");
         let r1 = eval.node_r.last().expect("tip");
         let df: [f64; 3] = std::array::from_fn(|k| self.tip_force[k] - self.step_tip.0[k]);
