@@ -901,7 +901,7 @@ impl<'a> Problem<'a> {
                 m[k * 32 + k] += 1.0;
             }
             // M^-1 column by column from M's LU (inlined here, so it shares this
-            // function's AVX2 copy), then G M^-1, P = M^-1 [I; I] and T = I + G P.
+            // function's AVX2 copy), and G M^-1.
             let mut piv = [0u8; 32];
             if !lu_dense::<32>(&mut m, &mut piv) {
                 return None;
@@ -909,7 +909,6 @@ impl<'a> Problem<'a> {
             let mut f = IntervalFactor {
                 minv: vec![0.0; 32 * 32],
                 gminv: vec![0.0; 16 * 32],
-                p: vec![0.0; 32 * 16],
             };
             for c in 0..32 {
                 let mut x = [0.0; 32];
@@ -923,11 +922,9 @@ impl<'a> Problem<'a> {
             if !f.minv.iter().all(|x| x.is_finite()) {
                 return None;
             }
-            let mut t = [[0.0; 16]; 16]; // t[c][r] = T(r, c)
+            // T = I + G M^-1 [I; I], t[c][r] = T(r, c).
+            let mut t = [[0.0; 16]; 16];
             for c in 0..16 {
-                for r in 0..32 {
-                    f.p[32 * c + r] = f.minv[32 * c + r] + f.minv[32 * (16 + c) + r];
-                }
                 for r in 0..16 {
                     t[c][r] = f.gminv[16 * c + r] + f.gminv[16 * (16 + c) + r];
                 }
@@ -979,17 +976,16 @@ impl<'a> Problem<'a> {
 }
 
 /// One interval's condensed stage block: with M = I - h (A (x) I) diag(J1, J2) the
-/// stage matrix and G = h [b1 J1, b2 J2], the stages follow dS = M^-1 (-r_S) + P dY_j and
-/// the end node dY_{j+1} = T dY_j + G M^-1 (-r_S) - r_N. Kept as explicit matrices
-/// (column-major) so that each Newton iteration is three matrix-vector products.
+/// stage matrix and G = h [b1 J1, b2 J2], the stages follow dS = M^-1 (-r_S + [dY_j; dY_j])
+/// and the end node dY_{j+1} = T dY_j + G M^-1 (-r_S) - r_N with T = I + G M^-1 [I; I].
+/// Kept as explicit matrices (column-major) so that each Newton iteration is two
+/// matrix-vector products per interval (the factors serve many iterations and steps).
 #[derive(Debug, Clone)]
 struct IntervalFactor {
     /// M^-1 (32 x 32).
     minv: Vec<f64>,
     /// G M^-1 (16 x 32).
     gminv: Vec<f64>,
-    /// P = M^-1 [I; I] (32 x 16).
-    p: Vec<f64>,
 }
 
 /// LU factorisation with partial pivoting of a dense column-major N x N matrix in place
@@ -1093,23 +1089,21 @@ impl Factorization {
     fn solve_impl(&self, r: &[f64], dz: &mut [f64]) {
         let n_int = self.blocks.len();
         let mut rhs = vec![0.0; self.band.n()];
-        // dz's stage slots hold M^-1 (-r_S) until the node increments are known.
+        // The node recurrences' right sides G M^-1 (-r_S) - r_N.
         for (j, b) in self.blocks.iter().enumerate() {
             let o = 48 * j;
             let rs: [f64; 32] = std::array::from_fn(|k| -r[o + k]);
-            let mut s = [0.0; 32];
-            gemv_add(&mut s, &b.minv, &rs);
             let mut t: [f64; 16] = std::array::from_fn(|k| -r[o + 32 + k]);
             gemv_add(&mut t, &b.gminv, &rs);
             rhs[16 * j..16 * j + 16].copy_from_slice(&t);
-            dz[6 + o..6 + o + 32].copy_from_slice(&s);
         }
         let o = 48 * n_int;
         for k in 0..6 {
             rhs[16 * n_int + k] = -r[o + k];
         }
         self.band.solve(&mut rhs);
-        // Base unknowns, then per interval the stages (s + P dY_j) and the end node.
+        // Base unknowns, then per interval the stages M^-1 (-r_S + [dY_j; dY_j]) (one
+        // product with M^-1 where s + P dY_j took two) and the end node.
         dz[..6].copy_from_slice(&rhs[..6]);
         for (j, b) in self.blocks.iter().enumerate() {
             let dyj: [f64; 16] = if j == 0 {
@@ -1124,11 +1118,12 @@ impl Factorization {
             } else {
                 std::array::from_fn(|k| rhs[6 + 16 * (j - 1) + k])
             };
-            let o = 6 + 48 * j;
-            let mut st: [f64; 32] = std::array::from_fn(|k| dz[o + k]);
-            gemv_add(&mut st, &b.p, &dyj);
-            dz[o..o + 32].copy_from_slice(&st);
-            dz[o + 32..o + 48].copy_from_slice(&rhs[6 + 16 * j..6 + 16 * j + 16]);
+            let o = 48 * j;
+            let rs: [f64; 32] = std::array::from_fn(|k| dyj[k % 16] - r[o + k]);
+            let mut st = [0.0; 32];
+            gemv_add(&mut st, &b.minv, &rs);
+            dz[6 + o..6 + o + 32].copy_from_slice(&st);
+            dz[6 + o + 32..6 + o + 48].copy_from_slice(&rhs[6 + 16 * j..6 + 16 * j + 16]);
         }
     }
 }
