@@ -22,7 +22,9 @@ fn command(t: f64, n: usize) -> Vec<f64> {
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
-    let path = args.get(1).expect("usage: profile_dynamics SPEC.json [dt] [t_end] [alpha] [pulses|release]");
+    let path = args
+        .get(1)
+        .expect("usage: profile_dynamics SPEC.json [dt] [t_end] [alpha] [pulses|release]");
     let arg = |i: usize, d: f64| args.get(i).map(|s| s.parse().unwrap()).unwrap_or(d);
     let (dt, t_end, alpha) = (arg(2, 5e-3), arg(3, 116.0), arg(4, -0.2));
     let release = args.get(5).map(|s| s == "release").unwrap_or(false);
@@ -34,12 +36,20 @@ fn main() {
         alpha,
         ..Default::default()
     };
-    let initial = if release { Initial::Straight } else { Initial::Static };
+    let initial = if release {
+        Initial::Straight
+    } else {
+        Initial::Static
+    };
     let t0 = Instant::now();
     let mut sim = Simulator::new(rod, &vec![0.0; nch], initial, opts).unwrap();
     let n = (t_end / dt).round() as usize;
     for k in 0..n {
-        let c = if release { vec![0.0; nch] } else { command((k + 1) as f64 * dt, nch) };
+        let c = if release {
+            vec![0.0; nch]
+        } else {
+            command((k + 1) as f64 * dt, nch)
+        };
         sim.step(&c).unwrap();
     }
     let wall = t0.elapsed();
