@@ -708,9 +708,11 @@ def _number_column(raw: pd.Series, name: str, where) -> np.ndarray:
     bad = np.flatnonzero(~np.isfinite(a))
     if bad.size:
         value = raw.iloc[bad[0]]
-        if isinstance(value, int) and abs(value) >= 10**20:
+        if isinstance(value, int) and abs(value) >= 10**20:  # beyond the float range
             value = f"{str(value)[:20]}... ({len(str(value))} digits)"
-        raise _fail(name, value, f"must be a finite number within the float range, at {where(bad)}")
+        else:
+            value = a[bad[0]].item()
+        raise _fail(name, value, f"must be finite, at {where(bad)}")
     return a
 
 
