@@ -529,7 +529,7 @@ fn step_problem<'a>(
     let sigma = [1.0; 3];
     let coeffs = (0..rod.sections.len())
         .map(|i| {
-            let c = Coeffs::build(rod, i, pressures, &rod.gravity, 1.0, &sigma);
+            let c = Coeffs::build(rod, i, pressures, &[], &rod.gravity, 1.0, &sigma);
             DynCoeffs::build(
                 &c,
                 &inertia[i],
@@ -660,6 +660,48 @@ pub struct Simulator {
 
 /// Check that every section's law has a dynamic counterpart here.
 fn check_dynamic_laws(rod: &Rod) -> Result<()> {
+    // Statics-only features of issue 17 (dynamics follows on the collocation engine).
+    let statics_only = |field: String, what: &str| {
+        SoftrodError::invalid(
+            field,
+            what,
+            "is not supported by dynamics yet; use solve_statics for this design",
+        )
+    };
+    if rod.spec.tip.frame == crate::spec::Frame::Body {
+        return Err(statics_only(
+            "tip.frame".into(),
+            "a follower (body-frame) tip load",
+        ));
+    }
+    if let Some(k) = rod
+        .spec
+        .loads
+        .iter()
+        .position(|l| l.frame == crate::spec::Frame::Body)
+    {
+        return Err(statics_only(
+            format!("loads[{k}].frame"),
+            "a follower line load",
+        ));
+    }
+    for (i, s) in rod.sections.iter().enumerate() {
+        if !s.reference.is_straight() {
+            return Err(statics_only(
+                format!("sections[{i}].reference"),
+                "a reference shape (precurvature or pre-strain)",
+            ));
+        }
+        if s.tapered {
+            return Err(statics_only(
+                format!("sections[{i}].outer_radius_end"),
+                "a tapered section",
+            ));
+        }
+        if !s.tendons.is_empty() {
+            return Err(statics_only(format!("sections[{i}].tendons"), "tendons"));
+        }
+    }
     for (i, s) in rod.sections.iter().enumerate() {
         let what = if !matches!(s.law.axial, AxialLaw::Linear) {
             Some("a nonlinear axial law (ogden/table)")

@@ -137,6 +137,7 @@ impl<const N: usize> SubAssign for Jet<N> {
 /// What the rod ODE needs from a scalar: ring arithmetic with itself and with f64.
 pub trait RodScalar:
     Copy
+    + 'static
     + From<f64>
     + Add<Output = Self>
     + Sub<Output = Self>

@@ -17,11 +17,13 @@ pub mod jet;
 pub mod law;
 pub mod ode;
 pub mod pcc;
+pub mod reference;
 pub mod rod;
 pub mod section;
 pub mod sensitivity;
 pub mod spec;
 pub mod statics;
+pub mod tendon;
 pub mod validity;
 
 pub use error::{Result, SoftrodError};
