@@ -966,6 +966,13 @@ impl SectionSpec {
     }
 
     fn validate_tendons(&self, i: usize) -> Result<()> {
+        if !self.tendons.is_empty() && !matches!(self.law.axial, AxialSpec::Linear) {
+            return Err(SoftrodError::invalid(
+                format!("sections[{i}].tendons"),
+                format!("{} tendons", self.tendons.len()),
+                "tendons are supported with the linear axial law (with stretch-dependent bending, swelling, offsets and stiffness maps), not with axial = \"ogden\" or \"table\"",
+            ));
+        }
         for (k, t) in self.tendons.iter().enumerate() {
             let g = |key: &str| format!("sections[{i}].tendons[{k}].{key}");
             if self.rigid {
