@@ -214,6 +214,9 @@ impl Section {
             return self.line_mass;
         }
         let [a, m, b] = self.line_mass_profile;
+        if a == m && m == b {
+            return a;
+        }
         // The quadratic through (0, a), (1/2, m), (1, b).
         a + t * (4.0 * m - 3.0 * a - b) + t * t * (2.0 * (a + b) - 4.0 * m)
     }
@@ -357,7 +360,7 @@ impl Rod {
                 [mass_at(0.0); 3]
             };
             let [ma, mm, mb] = line_mass_profile;
-            let line_mass = if tapered {
+            let line_mass = if tapered && !(ma == mm && mm == mb) {
                 (ma + 4.0 * mm + mb) / 6.0
             } else {
                 ma
