@@ -89,6 +89,9 @@ pub struct Coeffs<C> {
     /// Reference strains v*, u* (body frame) at the section's start.
     pub v_star: [f64; 3],
     pub u_star: [f64; 3],
+    /// Stiffnesses K_se (diagonal) and K_bt at the section's start.
+    pub k_se: [C; 3],
+    pub k_bt: [[C; 3]; 3],
     /// Follower line force and moment (body frame), N/m and N m/m.
     pub f_body: [C; 3],
     pub l_body: [C; 3],
@@ -119,9 +122,10 @@ pub struct Local<C> {
     pub u_star: [f64; 3],
     pub f: [C; 3],
     pub p_force: C,
-    /// Ogden stiffnesses k_e, k_s (the section's extensional and shear stiffness).
-    pub k_e: C,
-    pub k_s: C,
+    /// Stiffnesses K_se (diagonal) and K_bt: the inverses of c_se and c_bt (the Ogden law
+    /// takes k_e = K_se[2] and k_s = K_se[0]).
+    pub k_se: [C; 3],
+    pub k_bt: [[C; 3]; 3],
 }
 
 /// The per-solve inputs of a varying section's law (the parameters, pressures and loads
@@ -322,9 +326,9 @@ impl<C: RodScalar> Coeffs<C> {
         let axial = match &law.axial {
             AxialLaw::Linear => AxialCoeffs::Linear,
             AxialLaw::Ogden { .. } => AxialCoeffs::Ogden {
-                k_e: loc.k_e,
+                k_e: loc.k_se[2],
                 alpha: knobs.alpha,
-                k_s: loc.k_s,
+                k_s: loc.k_se[0],
             },
             AxialLaw::Table(table) => AxialCoeffs::Table {
                 table: table.clone(),
@@ -356,6 +360,8 @@ impl<C: RodScalar> Coeffs<C> {
             stretch_bending: law.stretch_bending,
             v_star: loc.v_star,
             u_star: loc.u_star,
+            k_se: loc.k_se,
+            k_bt: loc.k_bt,
             f_body: s.line_force_body.map(|x| factor * x),
             l_body: s.line_moment_body.map(|x| factor * x),
             follower: s
@@ -379,14 +385,8 @@ impl<C: RodScalar> Coeffs<C> {
             u_star: self.u_star,
             f: self.f,
             p_force: self.p_force,
-            k_e: match &self.axial {
-                AxialCoeffs::Ogden { k_e, .. } => *k_e,
-                _ => C::from(0.0),
-            },
-            k_s: match &self.axial {
-                AxialCoeffs::Ogden { k_s, .. } => *k_s,
-                _ => C::from(0.0),
-            },
+            k_se: self.k_se,
+            k_bt: self.k_bt,
         }
     }
 
@@ -473,8 +473,8 @@ fn local_law<C: RodScalar>(sec: &Section, inp: &LawInputs<C>, s: f64) -> Local<C
         u_star,
         f: std::array::from_fn(|k| inp.gravity[k] * mass + inp.line_force[k]),
         p_force: force,
-        k_e: k_se[2],
-        k_s: k_se[0],
+        k_se,
+        k_bt,
     }
 }
 
@@ -531,6 +531,8 @@ pub fn strains<C: Coeff, D: StateScalar<C>>(
 #[derive(Default)]
 pub(crate) struct Scratch {
     hint: Option<[f64; 6]>,
+    /// The last factorised J_K (linear law): Newton's matrix for the next stage.
+    factor: Option<crate::tendon::Ldl6>,
     points: Vec<TendonPoint>,
     tangents: Vec<([f64; 3], f64)>,
 }
@@ -547,8 +549,8 @@ impl<C: RodScalar> Local<C> {
             u_star: self.u_star,
             f: self.f.map(|x| x.value()),
             p_force: self.p_force.value(),
-            k_e: self.k_e.value(),
-            k_s: self.k_s.value(),
+            k_se: self.k_se.map(|x| x.value()),
+            k_bt: self.k_bt.map(|r| r.map(|x| x.value())),
         }
     }
 
@@ -642,7 +644,8 @@ fn law_strains<C: Coeff, D: StateScalar<C>>(
         // Material force n_m = n + P d3 (the pressure part of the total force removed).
         AxialCoeffs::Ogden { alpha, .. } => {
             let nm = [nb[0], nb[1], nb[2] + loc.p_force];
-            let (v, g) = ogden_from_stretch(loc.k_e, *alpha, loc.k_s, y.aux[0], y.aux[1], &nm);
+            let (v, g) =
+                ogden_from_stretch(loc.k_se[2], *alpha, loc.k_se[0], y.aux[0], y.aux[1], &nm);
             grad = Some(g);
             let w = loc.v_star;
             [v[0] + w[0], v[1] + w[1], v[2] + (w[2] - 1.0)]
@@ -675,10 +678,202 @@ fn law_strains<C: Coeff, D: StateScalar<C>>(
     (v, u, dlam)
 }
 
-/// Strains of a section with tendons under tension (see `crate::tendon`): Newton's method
-/// in f64 on w = S(nb - F_t(w), mb - M_t(w)) from the last stage's strains, then one
-/// linearised step in the state's scalar for exact first derivatives.
+/// Strains of a section with tendons under tension (see `crate::tendon`).
+#[inline]
 fn tendon_strains<C: Coeff, D: StateScalar<C>>(
+    nb: &[D; 3],
+    mb: &[D; 3],
+    c: &Coeffs<C>,
+    loc: &Local<C>,
+    sec: &Section,
+    s: f64,
+    scratch: &mut Scratch,
+) -> ([D; 3], [D; 3]) {
+    if c.stretch_bending {
+        general_tendon_strains(nb, mb, c, loc, sec, s, scratch)
+    } else {
+        linear_tendon_strains(nb, mb, c, loc, sec, s, scratch)
+    }
+}
+
+/// Newton's tolerance on the strain change (u scaled by the outermost fibre's radius, a
+/// strain): a few hundred ulps of a stretch near 1.
+const TENDON_TOL: f64 = 1e-13;
+
+/// Scaled size of a strain change: u times `rho` is a strain.
+#[inline]
+fn strain_size(d: &[f64; 6], rho: f64) -> f64 {
+    let mut m: f64 = 0.0;
+    for k in 0..6 {
+        let x = if k < 3 { d[k] } else { rho * d[k] };
+        m = if x.is_nan() { f64::NAN } else { m.max(x.abs()) };
+    }
+    m
+}
+
+/// The tendon law with the linear law (any stiffness, reference strains, pressure):
+/// G(w) = K (w - w_free) + T(w) = 0 with w_free = S(nb, mb) the strains without tendons
+/// and T = sum tau B^T t(w): the gradient of a strictly convex potential, whose Hessian
+/// J_K = K + sum (tau / |q|) B^T (I - t t^T) B is symmetric positive definite (LDL^T).
+/// Newton in f64 from the last stage's strains, keeping J_K from stage to stage (a chord
+/// method, refreshed when it contracts poorly); for dual scalars, J_K at the solution and
+/// one linearised step: w_D = w* - J_K^-1 G_D(w*) (the implicit function theorem).
+fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
+    nb: &[D; 3],
+    mb: &[D; 3],
+    c: &Coeffs<C>,
+    loc: &Local<C>,
+    sec: &Section,
+    s: f64,
+    scratch: &mut Scratch,
+) -> ([D; 3], [D; 3]) {
+    use crate::tendon::{load, stiffness_with_tendons, tangent, Ldl6};
+    let lf = loc.value();
+    let nbf = nb.map(|x| x.value());
+    let mbf = mb.map(|x| x.value());
+    scratch.points.clear();
+    for t in &c.tendons {
+        let (r, dr) = t.route.at(s);
+        scratch.points.push(TendonPoint {
+            tension: t.tension.value(),
+            r,
+            dr,
+        });
+    }
+    let points = &scratch.points;
+    let tangents = &mut scratch.tangents;
+    let (vf, uf) = linear_strains(&lf, false, &nbf, &mbf);
+    let wfree = [vf[0], vf[1], vf[2], uf[0], uf[1], uf[2]];
+    let rho = if sec.fibre_radius > 0.0 {
+        sec.fibre_radius
+    } else {
+        1e-2 * sec.length
+    };
+    // G(w) = K (w - w_free) + T(w), with the tangents at w left in `tangents`.
+    let residual = |w: &[f64; 6], tangents: &mut Vec<([f64; 3], f64)>| -> [f64; 6] {
+        tangents.clear();
+        tangents.extend(points.iter().map(|p| tangent(w, p)));
+        let t = load(tangents, points);
+        let d: [f64; 6] = std::array::from_fn(|k| w[k] - wfree[k]);
+        let mut g = [0.0; 6];
+        for a in 0..3 {
+            g[a] = lf.k_se[a] * d[a] + t[a];
+            g[3 + a] =
+                lf.k_bt[a][0] * d[3] + lf.k_bt[a][1] * d[4] + lf.k_bt[a][2] * d[5] + t[3 + a];
+        }
+        g
+    };
+    let build = |tangents: &Vec<([f64; 3], f64)>| {
+        Ldl6::new(&stiffness_with_tendons(
+            &lf.k_se, &lf.k_bt, tangents, points,
+        ))
+    };
+    let plain = std::any::TypeId::of::<D>() == std::any::TypeId::of::<f64>();
+    // The start: the last stage's strains, else straight tendons (t = e3: w = w_free -
+    // C T(e3), which is exact for straight tendons without shear or twist).
+    let mut w = match scratch.hint {
+        Some(w) => w,
+        None => {
+            tangents.clear();
+            tangents.extend(points.iter().map(|_| ([0.0, 0.0, 1.0], 1.0)));
+            let t = load(tangents, points);
+            let nm = [nbf[0] - t[0], nbf[1] - t[1], nbf[2] - t[2]];
+            let mm = [mbf[0] - t[3], mbf[1] - t[4], mbf[2] - t[5]];
+            let (v, u) = linear_strains(&lf, false, &nm, &mm);
+            [v[0], v[1], v[2], u[0], u[1], u[2]]
+        }
+    };
+    let mut factor = scratch.factor;
+    let mut refresh = factor.is_none();
+    let mut prev = f64::INFINITY;
+    let mut converged = false;
+    for _ in 0..60 {
+        let g = residual(&w, tangents);
+        if refresh {
+            factor = build(tangents);
+            refresh = false;
+        }
+        let Some(f) = factor.as_ref() else { break };
+        let d = f.solve(&g);
+        let dn = strain_size(&d, rho);
+        if !dn.is_finite() {
+            break;
+        }
+        for k in 0..6 {
+            w[k] -= d[k];
+        }
+        // Converged when the step, or (a contracting iteration) the next one, is below the
+        // tolerance: the error after this step is about rate * dn.
+        if dn <= TENDON_TOL || (prev.is_finite() && dn * dn <= TENDON_TOL * prev) {
+            converged = true;
+            break;
+        }
+        if dn > 0.25 * prev {
+            refresh = true; // poor contraction: Newton's matrix at the new point
+        }
+        prev = dn;
+    }
+    if !converged {
+        scratch.hint = None;
+        scratch.factor = None;
+        let nan = D::from(f64::NAN);
+        return ([nan; 3], [nan; 3]);
+    }
+    scratch.hint = Some(w);
+    if plain {
+        scratch.factor = factor;
+        return (
+            [w[0], w[1], w[2]].map(D::from),
+            [w[3], w[4], w[5]].map(D::from),
+        );
+    }
+    // Exact first derivatives: J_K at the solution, then w_D = w* - J_K^-1 G_D(w*) with
+    // G_D = K_C (w* - S_C(nb_D, mb_D) ...) written as K_C (w* - shift_C) + T_C - (nb, mb)_D
+    // (the same G: K (w - w_free) = K (w - shift) - (nb, mb)).
+    let _ = residual(&w, tangents);
+    let Some(f) = build(tangents) else {
+        scratch.factor = None;
+        let nan = D::from(f64::NAN);
+        return ([nan; 3], [nan; 3]);
+    };
+    scratch.factor = Some(f);
+    let zero = D::from(0.0);
+    let mut t = [zero; 6];
+    for (tc, (p, (tv, _))) in c.tendons.iter().zip(points.iter().zip(tangents.iter())) {
+        let (x, y) = (p.r[0], p.r[1]);
+        let tau = zero + tc.tension;
+        t[0] += tau * tv[0];
+        t[1] += tau * tv[1];
+        t[2] += tau * tv[2];
+        t[3] += tau * (y * tv[2]);
+        t[4] -= tau * (x * tv[2]);
+        t[5] += tau * (x * tv[1] - y * tv[0]);
+    }
+    let shift = [
+        loc.v_shift[0],
+        loc.v_shift[1],
+        loc.v_shift[2],
+        loc.u_shift[0],
+        loc.u_shift[1],
+        loc.u_shift[2],
+    ];
+    let dw: [C; 6] = std::array::from_fn(|k| -shift[k] + w[k]);
+    let mut g = [zero; 6];
+    for a in 0..3 {
+        g[a] = t[a] - nb[a] + loc.k_se[a] * dw[a];
+        g[3 + a] = t[3 + a] - mb[a]
+            + (loc.k_bt[a][0] * dw[3] + loc.k_bt[a][1] * dw[4] + loc.k_bt[a][2] * dw[5]);
+    }
+    let d = f.solve(&g);
+    let out: [D; 6] = std::array::from_fn(|k| -d[k] + w[k]);
+    ([out[0], out[1], out[2]], [out[3], out[4], out[5]])
+}
+
+/// Strains of a section with tendons and stretch-dependent bending (a law that is not the
+/// gradient of a quadratic): Newton's method in f64 on w = S(nb - F_t(w), mb - M_t(w)) from
+/// the last stage's strains (general LU), then one linearised step in the state's scalar
+/// for exact first derivatives.
+fn general_tendon_strains<C: Coeff, D: StateScalar<C>>(
     nb: &[D; 3],
     mb: &[D; 3],
     c: &Coeffs<C>,

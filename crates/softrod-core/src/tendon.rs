@@ -40,16 +40,23 @@ pub struct Route {
     distance: [f64; 2],
     angle: [f64; 2],
     length: f64,
+    /// The offset of a straight tendon (constant distance and angle).
+    fixed: Option<[f64; 2]>,
 }
 
 impl Route {
     pub fn new(t: &TendonSpec, length: f64) -> Self {
         let (distance, angle) = t.ends();
+        let fixed = (distance[0] == distance[1] && angle[0] == angle[1]).then(|| {
+            let (sn, cs) = angle[0].sin_cos();
+            [distance[0] * cs, distance[0] * sn]
+        });
         Route {
             channel: t.channel,
             distance,
             angle,
             length,
+            fixed,
         }
     }
 
@@ -61,6 +68,9 @@ impl Route {
     /// Offset r = (x, y) in (d1, d2), m, and its derivative dr/ds at the local arc length s.
     #[inline]
     pub fn at(&self, s: f64) -> ([f64; 2], [f64; 2]) {
+        if let Some(r) = self.fixed {
+            return (r, [0.0; 2]);
+        }
         let t = s / self.length;
         let dd = (self.distance[1] - self.distance[0]) / self.length;
         let da = (self.angle[1] - self.angle[0]) / self.length;
@@ -141,4 +151,111 @@ pub(crate) fn load_jacobian(tangents: &[([f64; 3], f64)], points: &[TendonPoint]
         m += (b.transpose() * proj * b) * c;
     }
     m
+}
+
+/// J_K = K + sum_i (tau_i / |q_i|) B_i^T (I - t_i t_i^T) B_i for the linear law, K =
+/// diag(K_se) + K_bt: symmetric positive definite (the Hessian of the convex potential).
+/// B_i^T P B_i written out: B_i's columns are e1, e2, e3, y e3, -x e3, (-y, x, 0).
+pub(crate) fn stiffness_with_tendons(
+    k_se: &[f64; 3],
+    k_bt: &[[f64; 3]; 3],
+    tangents: &[([f64; 3], f64)],
+    points: &[TendonPoint],
+) -> [[f64; 6]; 6] {
+    let mut j = [[0.0; 6]; 6];
+    for a in 0..3 {
+        j[a][a] = k_se[a];
+        for b in 0..3 {
+            j[3 + a][3 + b] = k_bt[a][b];
+        }
+    }
+    for ((t, len), p) in tangents.iter().zip(points) {
+        let c = p.tension / len;
+        if c == 0.0 {
+            continue;
+        }
+        let (x, y) = (p.r[0], p.r[1]);
+        // P = I - t t^T
+        let pm = |a: usize, b: usize| (if a == b { 1.0 } else { 0.0 }) - t[a] * t[b];
+        let p5 = |a: usize| -y * pm(a, 0) + x * pm(a, 1); // (P b5)_a
+        let col: [[f64; 3]; 6] = [
+            [pm(0, 0), pm(1, 0), pm(2, 0)],
+            [pm(0, 1), pm(1, 1), pm(2, 1)],
+            [pm(0, 2), pm(1, 2), pm(2, 2)],
+            [y * pm(0, 2), y * pm(1, 2), y * pm(2, 2)],
+            [-x * pm(0, 2), -x * pm(1, 2), -x * pm(2, 2)],
+            [p5(0), p5(1), p5(2)],
+        ];
+        // b_j^T (P b_k): b_0..b_2 unit vectors, b_3 = y e3, b_4 = -x e3, b_5 = (-y, x, 0).
+        let dot = |jdx: usize, v: &[f64; 3]| match jdx {
+            0..=2 => v[jdx],
+            3 => y * v[2],
+            4 => -x * v[2],
+            _ => -y * v[0] + x * v[1],
+        };
+        for a in 0..6 {
+            for b in a..6 {
+                let e = c * dot(a, &col[b]);
+                j[a][b] += e;
+                if a != b {
+                    j[b][a] += e;
+                }
+            }
+        }
+    }
+    j
+}
+
+/// LDL^T factors of a symmetric positive definite 6 x 6 matrix.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Ldl6 {
+    l: [[f64; 6]; 6],
+    d: [f64; 6],
+}
+
+impl Ldl6 {
+    /// None unless the matrix is positive definite (all pivots > 0 and finite).
+    pub(crate) fn new(a: &[[f64; 6]; 6]) -> Option<Self> {
+        let mut l = [[0.0; 6]; 6];
+        let mut d = [0.0; 6];
+        for j in 0..6 {
+            let mut dj = a[j][j];
+            for k in 0..j {
+                dj -= l[j][k] * l[j][k] * d[k];
+            }
+            if !(dj > 0.0 && dj.is_finite()) {
+                return None;
+            }
+            d[j] = dj;
+            l[j][j] = 1.0;
+            for i in j + 1..6 {
+                let mut v = a[i][j];
+                for k in 0..j {
+                    v -= l[i][k] * l[j][k] * d[k];
+                }
+                l[i][j] = v / dj;
+            }
+        }
+        Some(Ldl6 { l, d })
+    }
+
+    /// Solve A x = b for a right-hand side in any scalar (f64 factors).
+    #[inline]
+    pub(crate) fn solve<D: crate::jet::RodScalar>(&self, b: &[D; 6]) -> [D; 6] {
+        let mut x = *b;
+        for i in 0..6 {
+            for k in 0..i {
+                x[i] = x[i] - x[k] * self.l[i][k];
+            }
+        }
+        for i in 0..6 {
+            x[i] = x[i] * (1.0 / self.d[i]);
+        }
+        for i in (0..6).rev() {
+            for k in i + 1..6 {
+                x[i] = x[i] - x[k] * self.l[k][i];
+            }
+        }
+        x
+    }
 }
