@@ -658,8 +658,9 @@ pub struct Simulator {
     pub stats: DynStats,
 }
 
-/// Check that every section's law has a dynamic counterpart here.
-fn check_dynamic_laws(rod: &Rod) -> Result<()> {
+/// Refuse the statics-only features of a design (follower loads, reference shapes, tapered
+/// sections, tendons): the dynamics and its linearisation do not carry them yet.
+pub(crate) fn check_statics_only(rod: &Rod) -> Result<()> {
     // Statics-only features of issue 17 (dynamics follows on the collocation engine).
     let statics_only = |field: String, what: &str| {
         SoftrodError::invalid(
@@ -702,6 +703,12 @@ fn check_dynamic_laws(rod: &Rod) -> Result<()> {
             return Err(statics_only(format!("sections[{i}].tendons"), "tendons"));
         }
     }
+    Ok(())
+}
+
+/// Check that every section's law has a dynamic counterpart here.
+fn check_dynamic_laws(rod: &Rod) -> Result<()> {
+    check_statics_only(rod)?;
     for (i, s) in rod.sections.iter().enumerate() {
         let what = if !matches!(s.law.axial, AxialLaw::Linear) {
             Some("a nonlinear axial law (ogden/table)")

@@ -207,18 +207,21 @@ pub fn swelling_factors(rod: &Rod, i: usize, pressures: &[f64], factor: f64) -> 
     swelling_factors_with(rod, i, pressures, factor, c_p)
 }
 
-fn swelling_factors_with<S: RodScalar>(
+fn swelling_factors_with<S, P: Copy>(
     rod: &Rod,
     i: usize,
-    pressures: &[f64],
+    pressures: &[P],
     factor: S,
     c_p: S,
-) -> Vec<S> {
+) -> Vec<S>
+where
+    S: RodScalar + From<P>,
+{
     let s = &rod.sections[i];
     s.chambers
         .iter()
         .map(|c| match s.law.swelling {
-            Some(sw) => c_p * (factor * pressures[c.channel] / sw.p_ref) + 1.0,
+            Some(sw) => c_p * (factor * S::from(pressures[c.channel]) / sw.p_ref) + 1.0,
             None => S::from(1.0),
         })
         .collect()
@@ -293,18 +296,22 @@ impl Coeffs<f64> {
 impl<C: RodScalar> Coeffs<C> {
     /// [`Coeffs::build`] with the section's parameters given as `knobs`, in any scalar;
     /// the load factor may be a dual number too (the load derivative of
-    /// `crate::statics`' continuation predictor).
+    /// `crate::statics`' continuation predictor), and the pressures f64 or the coefficients'
+    /// scalar (dual pressures give the exact pressure derivatives of `crate::jacobian`).
     #[allow(clippy::too_many_arguments)]
-    pub fn build_with(
+    pub fn build_with<P: Copy>(
         rod: &Rod,
         i: usize,
-        pressures: &[f64],
+        pressures: &[P],
         tensions: &[f64],
         g: &[f64; 3],
         factor: C,
         sigma: &[C; 3],
         knobs: &SectionKnobs<C>,
-    ) -> Self {
+    ) -> Self
+    where
+        C: From<P>,
+    {
         let s = &rod.sections[i];
         let law = &s.law;
         let swell = swelling_factors_with(rod, i, pressures, factor, knobs.c_p);
@@ -312,7 +319,7 @@ impl<C: RodScalar> Coeffs<C> {
             .chambers
             .iter()
             .zip(&swell)
-            .map(|(c, w)| *w * *w * knobs.area_scale * (factor * pressures[c.channel]))
+            .map(|(c, w)| *w * *w * knobs.area_scale * (factor * C::from(pressures[c.channel])))
             .collect();
         let inputs = LawInputs {
             knobs: *knobs,
@@ -1244,17 +1251,50 @@ pub fn integrate<C: Coeff, D: StateScalar<C>>(
     y0: State<D>,
     mut visit: Option<Visitor<'_, D>>,
 ) -> State<D> {
+    match visit.as_mut() {
+        None => integrate_with(rod, coeffs, y0, &mut |_, _| false),
+        Some(v) => integrate_with(rod, coeffs, y0, &mut |node: NodeAt, y: &mut State<D>| {
+            // The base node is visited once the first section's carried stretch is set,
+            // so that its strains come from that section's law like every other node's;
+            // a later section's start is the previous section's end, already visited.
+            if node.step > 0 || node.section == 0 {
+                v(node.section, node.s, y);
+            }
+            false
+        }),
+    }
+}
+
+/// A node visited by [`integrate_with`]: section index, steps done in that section (0 at the
+/// section's start) and arc length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NodeAt {
+    pub section: usize,
+    pub step: usize,
+    pub s: f64,
+}
+
+/// [`integrate`] with a hook that sees every node (every section's start, then the end of
+/// every step) and may change the state there, e.g. to apply a point load as a jump of n
+/// and m. When the hook returns true the state was changed, and an Ogden section's carried
+/// stretch is solved again from the new force. A hook that changes nothing reproduces
+/// [`integrate`] exactly.
+pub fn integrate_with<C: Coeff, D: StateScalar<C>>(
+    rod: &Rod,
+    coeffs: &[Coeffs<C>],
+    y0: State<D>,
+    at_node: &mut dyn FnMut(NodeAt, &mut State<D>) -> bool,
+) -> State<D> {
     let mut y = y0;
     for (i, (sec, c)) in rod.sections.iter().zip(coeffs).enumerate() {
-        if let AxialCoeffs::Ogden { k_e, alpha, k_s } = &c.axial {
-            y.aux = initial_stretch(&y, c.p_force, *k_e, *alpha, *k_s);
-        }
-        if i == 0 {
-            // The base node is visited once the first section's carried stretch is set,
-            // so that its strains come from that section's law like every other node's.
-            if let Some(v) = visit.as_mut() {
-                v(0, 0.0, &y);
-            }
+        resolve_stretch(&mut y, c);
+        let node = NodeAt {
+            section: i,
+            step: 0,
+            s: sec.s_start,
+        };
+        if at_node(node, &mut y) {
+            resolve_stretch(&mut y, c);
         }
         let h = sec.length / sec.steps as f64;
         let mut scratch = Scratch::default();
@@ -1284,10 +1324,52 @@ pub fn integrate<C: Coeff, D: StateScalar<C>>(
             } else {
                 rk4_step(&y, c, [&uniform; 3], sec, s0, h, &mut scratch)
             };
-            if let Some(v) = visit.as_mut() {
-                v(i, sec.s_start + h * (k + 1) as f64, &y);
+            let node = NodeAt {
+                section: i,
+                step: k + 1,
+                s: sec.s_start + h * (k + 1) as f64,
+            };
+            if at_node(node, &mut y) {
+                resolve_stretch(&mut y, c);
             }
         }
     }
     y
+}
+
+/// In an Ogden section, set the carried stretch (lambda, lambda^alpha) by solving the law
+/// for the state's force (as at a section start); nothing in other sections.
+pub fn resolve_stretch<C: Coeff, D: StateScalar<C>>(y: &mut State<D>, c: &Coeffs<C>) {
+    if let AxialCoeffs::Ogden { k_e, alpha, k_s } = &c.axial {
+        y.aux = initial_stretch(y, c.p_force, *k_e, *alpha, *k_s);
+    }
+}
+
+/// The state a distance `h` (0 <= h <= one step) further along the rod from `y` at `node`:
+/// one RK4 step of length h (with the law at the step's start, middle and end in a varying
+/// section; the exact rigid transfer in a rigid section). Used to read the state at an arc
+/// length between two nodes.
+pub fn advance<C: Coeff, D: StateScalar<C>>(
+    rod: &Rod,
+    coeffs: &[Coeffs<C>],
+    node: NodeAt,
+    y: &State<D>,
+    h: f64,
+) -> State<D> {
+    let sec = &rod.sections[node.section];
+    let c = &coeffs[node.section];
+    if h == 0.0 {
+        *y
+    } else if sec.rigid {
+        rigid_step(y, c, h)
+    } else {
+        let s0 = (node.s - sec.s_start).max(0.0);
+        let locs = [
+            c.local_at(sec, s0),
+            c.local_at(sec, s0 + 0.5 * h),
+            c.local_at(sec, (s0 + h).min(sec.length)),
+        ];
+        let mut scratch = Scratch::default();
+        rk4_step(y, c, [&locs[0], &locs[1], &locs[2]], sec, s0, h, &mut scratch)
+    }
 }
