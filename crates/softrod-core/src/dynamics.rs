@@ -659,14 +659,17 @@ pub struct Simulator {
 }
 
 /// Refuse the statics-only features of a design (follower loads, reference shapes, tapered
-/// sections, tendons): the dynamics and its linearisation do not carry them yet.
-pub(crate) fn check_statics_only(rod: &Rod) -> Result<()> {
+/// sections, tendons): `model` (the dynamics, its linearisation, the PCC model) does not
+/// carry them yet.
+pub(crate) fn check_statics_only(rod: &Rod, model: &str) -> Result<()> {
     // Statics-only features of issue 17 (dynamics follows on the collocation engine).
     let statics_only = |field: String, what: &str| {
         SoftrodError::invalid(
             field,
             what,
-            "is not supported by dynamics yet; use solve_statics for this design",
+            format!(
+                "is not supported by {model} yet; the Cosserat statics (solve_statics) supports it"
+            ),
         )
     };
     if rod.spec.tip.frame == crate::spec::Frame::Body {
@@ -708,7 +711,7 @@ pub(crate) fn check_statics_only(rod: &Rod) -> Result<()> {
 
 /// Check that every section's law has a dynamic counterpart here.
 fn check_dynamic_laws(rod: &Rod) -> Result<()> {
-    check_statics_only(rod)?;
+    check_statics_only(rod, "the dynamics")?;
     for (i, s) in rod.sections.iter().enumerate() {
         let what = if !matches!(s.law.axial, AxialLaw::Linear) {
             Some("a nonlinear axial law (ogden/table)")

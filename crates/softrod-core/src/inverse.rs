@@ -35,9 +35,7 @@
 //! for the caller to refuse an unstable one.
 
 use crate::error::{Result, SoftrodError};
-use crate::jacobian::{
-    pass_with, total_derivatives, unknowns3, value_with, Input, Pass, Probe,
-};
+use crate::jacobian::{pass_with, total_derivatives, unknowns3, value_with, Input, Pass, Probe};
 use crate::ode::{Loads, State};
 use crate::rod::Rod;
 use crate::statics::{self, Problem, Solution, SolverOptions};

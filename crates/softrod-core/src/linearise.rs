@@ -202,7 +202,7 @@ fn pose6(y: &State<J9>, dir: usize) -> [f64; 6] {
 pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Result<LinearSystem> {
     crate::jacobian::dead_loads_only(rod, loads, "the linearisation")?;
     // Its mass matrix is that of the dynamics (uniform sections, no tendons).
-    crate::dynamics::check_statics_only(rod)?;
+    crate::dynamics::check_statics_only(rod, "the linearisation")?;
     let x = crate::jacobian::unknowns3(sol)?;
     let nodes = choose_nodes(rod, n_nodes)?;
     let n = nodes.len();

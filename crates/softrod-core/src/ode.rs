@@ -1370,6 +1370,14 @@ pub fn advance<C: Coeff, D: StateScalar<C>>(
             c.local_at(sec, (s0 + h).min(sec.length)),
         ];
         let mut scratch = Scratch::default();
-        rk4_step(y, c, [&locs[0], &locs[1], &locs[2]], sec, s0, h, &mut scratch)
+        rk4_step(
+            y,
+            c,
+            [&locs[0], &locs[1], &locs[2]],
+            sec,
+            s0,
+            h,
+            &mut scratch,
+        )
     }
 }

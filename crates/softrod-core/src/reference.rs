@@ -1,5 +1,5 @@
 //! The reference (stress-free) shape of a section: precurvature u*(s) and pre-strain v*(s)
-//! (docs/laws.md, "Reference shape").
+//! (docs/scope.md, "Reference shape").
 //!
 //! Constant, or tabulated along the section and interpolated by a not-a-knot cubic spline:
 //! the interpolant is C2, so the right-hand side of the rod ODE has a third derivative that

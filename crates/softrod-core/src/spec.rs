@@ -109,7 +109,7 @@ fn e3() -> [f64; 3] {
 
 /// The reference (stress-free) strains of a section: precurvature u* (bending about d1, d2
 /// and twist, 1/m) and pre-strain v* (shear, shear, stretch), body frame. The laws act on
-/// the strains relative to them (docs/laws.md, "Reference shape"). Constant, or a table in
+/// the strains relative to them (docs/scope.md, "Reference shape"). Constant, or a table in
 /// s interpolated by a not-a-knot cubic spline (C2, so RK4 stays fourth order).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -1,5 +1,5 @@
 //! Tendons: routing in the cross-section and the constitutive law with tendon tensions
-//! (docs/model.md, "Tendons"; Rucker and Webster, "Statics and dynamics of continuum robots
+//! (docs/scope.md, "Tendons"; Rucker and Webster, "Statics and dynamics of continuum robots
 //! with general tendon routing and external loading", IEEE T-RO 27(6):1033-1044, 2011).
 //!
 //! A frictionless tendon i at the body-frame offset r_i(s) = (x_i, y_i, 0) carries the same

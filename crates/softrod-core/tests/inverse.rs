@@ -6,11 +6,11 @@
 #![allow(clippy::needless_range_loop)]
 
 mod common;
-use softrod_core::spec::Frame;
 use common::*;
 use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget};
 use softrod_core::jacobian::{point_jacobian, Input, Probe};
 use softrod_core::ode::Loads;
+use softrod_core::spec::Frame;
 use softrod_core::spec::{AxialSpec, DesignSpec, LawSpec, SwellingSpec};
 use softrod_core::statics::{solve, SolverOptions};
 use softrod_core::Rod;

@@ -4,13 +4,13 @@
 //! definite, D = tau K for an unstressed rod.
 
 mod common;
-use softrod_core::spec::Frame;
 use common::*;
 use nalgebra::DMatrix;
 use softrod_core::jacobian::{point_jacobian, Input, Probe};
 use softrod_core::linearise::linearise;
 use softrod_core::ode::Loads;
 use softrod_core::spec::DesignSpec;
+use softrod_core::spec::Frame;
 use softrod_core::statics::{solve, SolverOptions};
 use softrod_core::Rod;
 

@@ -424,14 +424,7 @@ impl PyRod {
                         tip_force,
                         tip_moment,
                     };
-                    sensitivity_batch(
-                        rod,
-                        &inputs,
-                        guesses.as_deref(),
-                        &params,
-                        &opts,
-                        threads,
-                    )
+                    sensitivity_batch(rod, &inputs, guesses.as_deref(), &params, &opts, threads)
                 })
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
             let d = rows_dict(py, &rows)?;
