@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from . import _validate as V
 from .design import Design
 
 if TYPE_CHECKING:
@@ -91,6 +92,17 @@ class StaticSolution:
             shooting_unknowns=np.full(n_unknowns, np.nan),
             **extra,
         )
+
+    def _warm_start(self, model: str) -> list[float]:
+        """The shooting unknowns that warm-start another solve (statics' ``initial``)."""
+        x = np.asarray(self.shooting_unknowns, dtype=float)
+        if not self.converged or not np.all(np.isfinite(x)):
+            raise V.fail(
+                "initial",
+                "a solution with converged = False",
+                "cannot warm-start a solve: pass a converged solution (or none)",
+            )
+        return x.tolist()
 
     @property
     def tip_position(self) -> np.ndarray:
