@@ -137,8 +137,9 @@ def test_follower_tip_moment_rolls_the_rod_into_a_circle():
     design = rod(steps=32)
     design["tip"] = {"moment": [0, f"{2 * math.pi * EI / L} N*m", 0], "frame": "body"}
     sol = solve_statics(load_design(design), [])
-    # A body-frame moment 2 pi EI / L keeps u2 = 2 pi / L: the tip comes back to the base.
-    assert np.abs(sol.tip_position).max() < 0.02 * L * (2 * math.pi / 32) ** 4 * 10
+    # A body-frame moment 2 pi EI / L keeps u2 = 2 pi / L: the tip comes back to the base,
+    # up to RK4's error C L (angle / steps)^4 with C = 0.02 as for the arcs above (1.2e-6 m).
+    assert np.abs(sol.tip_position).max() < 0.02 * L * (2 * math.pi / 32) ** 4
     assert sol.stable is None  # follower loads are not conservative: not assessed
     assert sol.shooting_unknowns.shape == (6,)
 
