@@ -407,7 +407,7 @@ impl Rod {
                         _ => fibre_radius,
                     };
                     let fibre = v[2] - rho * u[0].hypot(u[1]);
-                    if !(fibre > 0.0) {
+                    if fibre.is_nan() || fibre <= 0.0 {
                         return Err(SoftrodError::invalid(
                             format!("sections[{i}].reference"),
                             format!("u* = {u:?} 1/m, v* = {v:?} at s = {:.6e} m", t * s.length),

@@ -245,7 +245,7 @@ impl Ldl6 {
         let mut x = *b;
         for i in 0..6 {
             for k in 0..i {
-                x[i] = x[i] - x[k] * self.l[i][k];
+                x[i] -= x[k] * self.l[i][k];
             }
         }
         for i in 0..6 {
@@ -253,7 +253,7 @@ impl Ldl6 {
         }
         for i in (0..6).rev() {
             for k in i + 1..6 {
-                x[i] = x[i] - x[k] * self.l[k][i];
+                x[i] -= x[k] * self.l[k][i];
             }
         }
         x

@@ -225,7 +225,9 @@ fn sensitivities_with_tendons_match_finite_differences() {
     };
     let h_cb = 1e-6;
     let h_e = 1e-6 * ECOFLEX.youngs_modulus;
-    let cases: [(usize, f64, Box<dyn Fn(&mut DesignSpec, &mut Loads, f64)>); 2] = [
+    // (parameter index, finite-difference step, how the step changes the design)
+    type Perturb = Box<dyn Fn(&mut DesignSpec, &mut Loads, f64)>;
+    let cases: [(usize, f64, Perturb); 2] = [
         (0, h_cb, Box::new(|s, _, h| s.sections[1].c_b += h)),
         (
             1,
