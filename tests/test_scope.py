@@ -322,3 +322,22 @@ def test_any_straight_tendon_bends_towards_itself(tension, angle):
     k = tension * 3e-3 / EI
     expected = np.tile([-k * math.sin(a), k * math.cos(a), 0.0], (len(sol.s), 1))
     np.testing.assert_allclose(sol.u, expected, rtol=0, atol=1e-9 * max(k, 1.0))
+
+
+def test_cli_solve_takes_tensions(run):
+    import json
+
+    from conftest import assert_clean_error
+
+    result = run("solve", FINGER, "--pressure", "30kPa", "--tension", "2N", "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["tensions_N"] == [2.0] and data["stable"] is True
+    api = solve_statics(FINGER, [30e3], tensions=[2.0])
+    # Same inputs and deterministic solve; JSON floats round-trip exactly.
+    np.testing.assert_array_equal(data["tip_position_m"], api.tip_position)
+    assert_clean_error(run("solve", FINGER, "--tension", "-1N"), 2, "--tension[0]", ">= 0")
+    assert_clean_error(run("solve", FINGER, "--tension", "1N,2N"), 2, "--tension", "1 tendon")
+    assert_clean_error(
+        run("solve", "spa_three_chamber_130mm", "--tension", "1N"), 2, "0 tendon channels"
+    )

@@ -163,7 +163,7 @@ def _check_tension_values(arr: np.ndarray, name: str) -> None:
         where = f"{name}[{k}]" if arr.ndim <= 1 else f"{name}[{k // arr.shape[1]}, {k % arr.shape[1]}]"
         raise V.fail(
             where,
-            f"{arr.reshape(-1)[k]!r} N",
+            f"{float(arr.reshape(-1)[k])!r} N",
             "a tendon tension must be >= 0 (a tendon pulls or is slack, it cannot push)",
         )
 

@@ -55,7 +55,16 @@ def _parse_tensions(text: str | None, design) -> list[float] | None:
         )
     from ._common import _parse_quantities
 
-    return _parse_quantities(items, "force", [f"--tension[{i}]" for i in range(n)])
+    values = _parse_quantities(items, "force", [f"--tension[{i}]" for i in range(n)])
+    for i, t in enumerate(values):
+        if not t >= 0:
+            raise design_error(
+                f"--tension[{i}]",
+                items[i].strip(),
+                "a tendon tension must be >= 0 (a tendon pulls or is slack, it cannot push)",
+                InputError,
+            )
+    return values
 
 
 def _lateral(sol) -> float:
@@ -209,7 +218,6 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
         out = {
             "design": d.name,
             "pressures_Pa": [float(x) for x in p],
-            "tensions_N": [float(x) for x in sol.tensions],
             "tip_position_m": sol.tip_position.tolist(),
             "tip_rotation": sol.tip_rotation.tolist(),
             "base_force_N": sol.base_force.tolist(),
@@ -221,6 +229,8 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
             "residual": float(sol.residual),
             "shape": {"s_m": sol.s.tolist(), "position_m": sol.position.tolist()},
         }
+        if d.n_tendons:
+            out["tensions_N"] = [float(x) for x in sol.tensions]
         click.echo(json.dumps(out, indent=2))
     else:
         table = Table(title=f"{d.name}: static equilibrium", title_justify="left")
