@@ -102,14 +102,16 @@ def test_precurved_and_twisted_rod_is_a_helix():
 
 def test_tendon_gives_the_constant_curvature_arc():
     d, t = 4e-3, 2.0  # m, N
-    design = load_design(rod(tendons=[{"channel": 0, "distance": f"{d * 1e3} mm", "angle": "0 deg"}]))
+    tendon = {"channel": 0, "distance": f"{d * 1e3} mm", "angle": "0 deg"}
+    design = load_design(rod(tendons=[tendon]))
     assert design.n_tendons == 1
     sol = solve_statics(design, [], tensions=[f"{t} N"])
     # Rucker-Webster, straight tendon at (d, 0): the tension's moment T d bends the rod
     # towards the tendon (u2 = T d / EI) and its force compresses it (v3 = 1 - T / EA),
     # uniform along s. Exact up to the Newton tolerance of the tendon law (1e-13 on strains).
     n = len(sol.s)
-    np.testing.assert_allclose(sol.u, np.tile([0.0, t * d / EI, 0.0], (n, 1)), rtol=1e-10, atol=1e-10)
+    u_exact = np.tile([0.0, t * d / EI, 0.0], (n, 1))
+    np.testing.assert_allclose(sol.u, u_exact, rtol=1e-10, atol=1e-10)
     np.testing.assert_allclose(sol.v, np.tile([0.0, 0.0, 1 - t / EA], (n, 1)), rtol=0, atol=1e-10)
     # The tip: an arc of curvature u2 / v3 per deformed length over v3 L.
     k, stretch = t * d / EI, 1 - t / EA

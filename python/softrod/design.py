@@ -404,9 +404,8 @@ def _reference(sec: Mapping, where: str, length: float) -> dict | None:
         # Bends towards (cos phi, sin phi) in (d1, d2): d3' = u x d3 = (u2, -u1, 0).
         out["curvature"] = [-math.sin(phi) / radius, math.cos(phi) / radius, 0.0]
     if "v_star" in sec:
-        out["strain"] = [
-            number(v, f"{where}.v_star[{k}]") for k, v in enumerate(_list3(sec["v_star"], f"{where}.v_star"))
-        ]
+        v_star = _list3(sec["v_star"], f"{where}.v_star")
+        out["strain"] = [number(v, f"{where}.v_star[{k}]") for k, v in enumerate(v_star)]
     if "reference_table" in sec:
         if out:
             raise design_error(
@@ -426,10 +425,14 @@ def _reference(sec: Mapping, where: str, length: float) -> dict | None:
             if raw is None:
                 return [list(default) for _ in range(n)]
             if not isinstance(raw, list) or len(raw) != n:
-                raise V.fail(f"{w}.{key}", raw, f"must be a list of {n} rows (one per s)", DesignError)
+                rule = f"must be a list of {n} rows (one per s)"
+                raise V.fail(f"{w}.{key}", raw, rule, DesignError)
             if kind is None:
                 return [
-                    [number(v, f"{w}.{key}[{i}][{k}]") for k, v in enumerate(_list3(r, f"{w}.{key}[{i}]"))]
+                    [
+                        number(v, f"{w}.{key}[{i}][{k}]")
+                        for k, v in enumerate(_list3(r, f"{w}.{key}[{i}]"))
+                    ]
                     for i, r in enumerate(raw)
                 ]
             return [_qvec(r, kind, f"{w}.{key}[{i}]") for i, r in enumerate(raw)]
@@ -1054,7 +1057,12 @@ _KINDS: dict[str, dict[str, str]] = {
         "outer_radius_end": "length",
     },
     "reference_table": {"s": "length", "curvature": "curvature"},
-    "tendon": {"distance": "length", "angle": "angle", "distance_end": "length", "angle_end": "angle"},
+    "tendon": {
+        "distance": "length",
+        "angle": "angle",
+        "distance_end": "length",
+        "angle_end": "angle",
+    },
     "law": {
         "axial_force": "force",
         "axial_stiffness": "force",

@@ -160,7 +160,10 @@ def _check_tension_values(arr: np.ndarray, name: str) -> None:
     bad = np.flatnonzero(~(arr.reshape(-1) >= 0.0))
     if bad.size:
         k = int(bad[0])
-        where = f"{name}[{k}]" if arr.ndim <= 1 else f"{name}[{k // arr.shape[1]}, {k % arr.shape[1]}]"
+        if arr.ndim <= 1:
+            where = f"{name}[{k}]"
+        else:
+            where = f"{name}[{k // arr.shape[1]}, {k % arr.shape[1]}]"
         raise V.fail(
             where,
             f"{float(arr.reshape(-1)[k])!r} N",
