@@ -343,3 +343,27 @@ def test_cli_solve_takes_tensions(run):
     assert_clean_error(
         run("solve", "spa_three_chamber_130mm", "--tension", "1N"), 2, "0 tendon channels"
     )
+
+
+def test_jacobian_is_taken_at_the_solved_tensions():
+    d = load_design(FINGER)
+    opts = SolverOptions(tol=1e-13)
+    sol = solve_statics(d, [20e3], tensions=[1.5], options=opts)
+    jac = sol.jacobian()
+    h = 50.0  # Pa: central differences, truncation O(h^2) ~ 1e-12 of the derivative
+    hi = solve_statics(d, [20e3 + h], tensions=[1.5], options=opts).tip_position
+    lo = solve_statics(d, [20e3 - h], tensions=[1.5], options=opts).tip_position
+    fd = (hi - lo) / (2 * h)
+    # Tolerance: the solves' 1e-13 residual over 2h gives ~1e-13 * 0.1 m / 100 Pa.
+    np.testing.assert_allclose(jac.pressures[:3, 0], fd, rtol=1e-5, atol=1e-12)
+    # At zero tension the derivative differs: the tensions were not dropped.
+    slack = solve_statics(d, [20e3], options=opts).jacobian()
+    assert np.abs(slack.pressures[:3, 0] - jac.pressures[:3, 0]).max() > 1e-3 * np.abs(fd).max()
+
+
+def test_control_refuses_follower_loads():
+    design = rod(chambers=[{"radius": "2 mm", "distance": "4 mm", "angle": "0 deg", "channel": 0}])
+    design["tip"] = {"force": ["0.02 N", 0, 0], "frame": "body"}
+    sol = solve_statics(load_design(design), [10e3])
+    with pytest.raises(InputError, match=r"tip\.frame.*dead"):
+        sol.jacobian()

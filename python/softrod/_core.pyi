@@ -211,15 +211,16 @@ def point_jacobian_of(
     tip_force: _Vec3,
     tip_moment: _Vec3,
     stiffness_scale: _Vec3,
-    x: _Vec3,
+    x: Sequence[float],
     s: float,
     params: Sequence[tuple[str, Sequence[int]]],
+    tensions: Sequence[float] | None = None,
 ) -> dict[str, Any]: ...
 def linearise_at(
     rod: Rod,
     pressures: Sequence[float],
     tip_force: _Vec3,
     tip_moment: _Vec3,
-    x: _Vec3 | None,
+    x: Sequence[float] | None,
     nodes: int,
 ) -> dict[str, Any]: ...

@@ -212,9 +212,10 @@ fn parse_params(py: Python<'_>, params: Vec<(String, Vec<usize>)>) -> PyResult<V
 
 /// The exact Jacobian of the pose at arc length `s` of the equilibrium under `pressures`
 /// and tip loads (warm start `x`): (6, k) arrays, rows position then small rotation, for
-/// the pressures, tip force, tip moment and (at the tip only) the named parameters.
+/// the pressures, tip force, tip moment and (at the tip only) the named parameters, at the
+/// given tendon `tensions` (N; None: slack).
 #[pyfunction]
-#[pyo3(signature = (rod, pressures, tip_force, tip_moment, stiffness_scale, x, s, params))]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, stiffness_scale, x, s, params, tensions=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn point_jacobian_of<'py>(
     py: Python<'py>,
@@ -223,9 +224,10 @@ pub fn point_jacobian_of<'py>(
     tip_force: [f64; 3],
     tip_moment: [f64; 3],
     stiffness_scale: [f64; 3],
-    x: [f64; 3],
+    x: Vec<f64>,
     s: f64,
     params: Vec<(String, Vec<usize>)>,
+    tensions: Option<Vec<f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let params = parse_params(py, params)?;
@@ -237,14 +239,14 @@ pub fn point_jacobian_of<'py>(
             tip_force,
             tip_moment,
             stiffness_scale,
-            tensions: vec![],
+            tensions: tensions.unwrap_or_default(),
             tip_frame: rod.spec.tip.frame,
         };
         let nc = rod.n_channels;
         let result = py.detach(|| -> softrod_core::Result<_> {
             validate_params(rod, &params)?;
             let probe = Probe::at(rod, s)?;
-            let sol = statics::solve(rod, &loads, Some(&x[..]), &checked)?;
+            let sol = statics::solve(rod, &loads, Some(&x), &checked)?;
             let mut inputs: Vec<Input> = (0..nc).map(Input::Pressure).collect();
             inputs.extend((0..3).map(Input::TipForce));
             inputs.extend((0..3).map(Input::TipMoment));
@@ -303,7 +305,7 @@ pub fn linearise_at<'py>(
     pressures: Vec<f64>,
     tip_force: [f64; 3],
     tip_moment: [f64; 3],
-    x: Option<[f64; 3]>,
+    x: Option<Vec<f64>>,
     nodes: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
@@ -325,7 +327,7 @@ pub fn linearise_at<'py>(
                     "has sections with law.stiffness_map: its sigma(p) is evaluated outside the core, so the linearisation is not available",
                 ));
             }
-            let sol = statics::solve(rod, &loads, x.as_ref().map(|g| &g[..]), &checked)?;
+            let sol = statics::solve(rod, &loads, x.as_deref(), &checked)?;
             let sys = linearise(rod, &loads, &sol, nodes)?;
             Ok((sol, sys))
         });

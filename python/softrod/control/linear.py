@@ -80,6 +80,7 @@ def jacobian(
         [float(v) for v in solution.shooting_unknowns],
         float(s),
         pairs,
+        tensions=[float(t) for t in getattr(solution, "tensions", ())],
     )
     return Jacobian(
         point=float(s),
