@@ -367,3 +367,37 @@ def test_control_refuses_follower_loads():
     sol = solve_statics(load_design(design), [10e3])
     with pytest.raises(InputError, match=r"tip\.frame.*dead"):
         sol.jacobian()
+
+
+def test_follower_force_cantilever_against_the_elastica():
+    """A tip force that follows the body (F along the tip's d1) on a nearly inextensible,
+    unshearable cantilever against the planar elastica solved independently by scipy's
+    collocation BVP solver: n = F R(L) e1 is constant along the rod, so
+    EI theta'' = -(cos(theta) n_x - sin(theta) n_z), theta(0) = 0, theta'(L) = 0, with the
+    tip angle theta(L) an unknown parameter (it sets the force's direction)."""
+    from scipy.integrate import solve_bvp
+
+    force = 2.0  # N: F L^2 / EI = 2, a large deflection
+    design = rod(steps=64, EA="1e7 N", GA="1e7 N")
+    design["tip"] = {"force": [f"{force} N", 0, 0], "frame": "body"}
+    sol = solve_statics(load_design(design), [], options=SolverOptions(tol=1e-12))
+
+    def rhs(s, y, p):
+        theta, dtheta = y[0], y[1]
+        nx, nz = force * math.cos(p[0]), -force * math.sin(p[0])
+        return np.vstack(
+            [dtheta, -(np.cos(theta) * nx - np.sin(theta) * nz) / EI, np.sin(theta), np.cos(theta)]
+        )
+
+    def bc(y0, y1, p):
+        return np.array([y0[0], y1[1], y0[2], y0[3], y1[0] - p[0]])
+
+    s = np.linspace(0, L, 201)
+    guess = np.vstack([s / L, np.ones_like(s), 0.5 * s, s])
+    ref = solve_bvp(rhs, bc, s, guess, p=[1.0], tol=1e-10, max_nodes=100_000)
+    assert ref.success
+    tip_ref = np.array([ref.sol(L)[2], 0.0, ref.sol(L)[3]])
+    # Differences: extension and shear F / EA ~ 2e-7 of the length, RK4's error
+    # C L (theta h)^4 ~ 1e-11 m, the BVP's tolerance 1e-10: 1e-7 m is 1e-6 of L.
+    np.testing.assert_allclose(sol.tip_position, tip_ref, rtol=0, atol=1e-7)
+    assert abs(math.atan2(sol.tip_rotation[0, 2], sol.tip_rotation[2, 2]) - ref.p[0]) < 1e-6

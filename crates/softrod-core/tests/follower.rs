@@ -1,8 +1,8 @@
 //! Follower loads (tip force and moment and line loads in the body frame): the 6-unknown
 //! shooting they need, the end moment that rolls a rod into a circle, the follower force
 //! against the dead force it ends up as, exact Jacobians and sensitivities, batches, and
-//! stability reported as not assessed. (The follower-force elastica against its closed form
-//! is in tests/test_follower.py, with scipy's quadrature.)
+//! stability reported as not assessed. (The follower-force cantilever against the elastica
+//! solved by scipy's BVP solver is in tests/test_scope.py.)
 
 mod common;
 use common::*;
