@@ -100,7 +100,7 @@ const NJ: usize = 9; // x (3), point force (3), point moment (3)
 type J9 = Jet<NJ>;
 
 /// Strains at local arc length `s` of section `sec` (zero in a rigid one).
-fn strain6<D: crate::ode::StateScalar<f64>>(
+fn strain6<D: crate::jet::StateScalar<f64>>(
     sec: &Section,
     y: &State<D>,
     c: &Coeffs<f64>,
