@@ -288,8 +288,9 @@ def test_reference_table_round_trips_through_save(tmp_path):
 
 def test_dynamics_and_pcc_refuse_the_statics_only_keys():
     d = load_design(FINGER)
-    with pytest.raises((InputError, DesignError), match=r"sections\[0\]"):
-        softrod.simulate(d, lambda t: [0.0], 0.01)
+    # The finger's constant precurvature is carried; its tendon is not.
+    with pytest.raises((InputError, DesignError), match=r"sections\[0\]\.tendons"):
+        softrod.simulate(d, softrod.PressureSchedule.constant([0.0]), 0.01)
     with pytest.raises((InputError, DesignError), match="PCC model"):
         solve_statics(d, [0.0], model="pcc")
 
@@ -401,3 +402,22 @@ def test_follower_force_cantilever_against_the_elastica():
     # C L (theta h)^4 ~ 1e-11 m, the BVP's tolerance 1e-10: 1e-7 m is 1e-6 of L.
     np.testing.assert_allclose(sol.tip_position, tip_ref, rtol=0, atol=1e-7)
     assert abs(math.atan2(sol.tip_rotation[0, 2], sol.tip_rotation[2, 2]) - ref.p[0]) < 1e-6
+
+
+def test_precurved_rod_in_dynamics_settles_on_its_statics():
+    chamber = {"radius": "2 mm", "distance": "4 mm", "angle": "90 deg", "channel": 0}
+    design = rod(curvature=[0, "10 1/m", 0], chambers=[chamber])
+    design["mounting"]["gravity"] = "9.81 m/s^2"
+    design["dynamics"] = {"damping_time": "20 ms"}
+    d = load_design(design)
+    p = 20e3
+    traj = softrod.simulate(d, softrod.PressureSchedule.constant([p]), 1.0, dt=5e-3)
+    static = solve_statics(d, [p])
+    # Starting at rest under p it stays there (the run starts from its own statics): the tip
+    # stays on the shooting statics up to the two discretisations' O(h^4) difference,
+    # 1e-6 of the length (tests/dynamics_scope.rs checks the moving case to 1e-9 L against
+    # the collocation statics).
+    assert np.abs(traj.tip_position - static.tip_position).max() < 1e-6 * L
+    # and that statics is the precurved one, not the straight rod's.
+    straight = solve_statics(load_design(rod(chambers=[chamber])), [p])
+    assert np.linalg.norm(static.tip_position - straight.tip_position) > 1e-3
