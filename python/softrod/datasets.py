@@ -30,6 +30,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import os
 import re
 from collections.abc import Callable, Iterable, Mapping
@@ -688,6 +689,46 @@ def load_dataset(
     return data
 
 
+def _number_column(raw: pd.Series, name: str, where) -> np.ndarray:
+    """A table column as finite floats, or an InputError naming the column, the value and
+    the rows: text that is not a number, an empty cell, or a number beyond the float range
+    (an integer with hundreds of digits; converted one by one, as pandas would overflow)."""
+    _check_dtype(raw, name)
+    try:
+        num = pd.to_numeric(raw, errors="coerce")
+    except OverflowError:
+        num = pd.Series([_number_or_nan(v) for v in raw.array], index=raw.index, dtype=float)
+    empty = np.flatnonzero(raw.isna().to_numpy())
+    if empty.size:
+        raise _fail(name, "empty/NaN", f"empty or NaN value at {where(empty)}")
+    text = np.flatnonzero(num.isna().to_numpy())
+    if text.size:
+        raise _fail(name, raw.iloc[text[0]], f"not a number at {where(text)}")
+    a = num.to_numpy(dtype=float)
+    bad = np.flatnonzero(~np.isfinite(a))
+    if bad.size:
+        value = raw.iloc[bad[0]]
+        if isinstance(value, int) and abs(value) >= 10**20:  # beyond the float range
+            value = f"{str(value)[:20]}... ({len(str(value))} digits)"
+        else:
+            value = a[bad[0]].item()
+        raise _fail(name, value, f"must be finite, at {where(bad)}")
+    return a
+
+
+def _number_or_nan(v) -> float:
+    """One cell as a float: beyond the float range it is inf (refused by the caller), text
+    that is not a number NaN."""
+    if v is None:
+        return math.nan
+    try:
+        return float(v)
+    except OverflowError:
+        return math.inf if v > 0 else -math.inf
+    except (TypeError, ValueError):
+        return math.nan
+
+
 def _check_dtype(column: pd.Series, name: str) -> None:
     """A number column holds numbers (or text to read as numbers), never dates, durations,
     booleans or complex values, which pandas would turn into numbers silently (a timestamp
@@ -859,16 +900,7 @@ def _from_frame(
     for base, (col, factor) in columns.items():
         if base in _LABELS:
             continue
-        raw = df[col]
-        _check_dtype(raw, col)
-        values = pd.to_numeric(raw, errors="coerce")
-        text = np.flatnonzero(values.isna().to_numpy())
-        if text.size:
-            raise _fail(col, raw.iloc[text[0]], f"not a number at {where(text)}")
-        a = values.to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(a))
-        if bad.size:
-            raise _fail(col, a[bad[0]].item(), f"must be finite, at {where(bad)}")
+        a = _number_column(df[col], col, where)
         numeric[base] = a if factor is None else a * factor
 
     low = np.flatnonzero(
