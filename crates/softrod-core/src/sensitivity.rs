@@ -13,7 +13,7 @@ use crate::jet::Jet;
 use crate::ode::{integrate, Coeffs, Loads, SectionKnobs, State};
 use crate::rod::{AxialLaw, Rod};
 use crate::statics::{Problem, Solution};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector};
 
 /// Parameters per dual integration.
 const CHUNK: usize = 4;
@@ -243,12 +243,26 @@ pub fn tip_sensitivity(
     sol: &Solution,
     params: &[Param],
 ) -> Result<TipSensitivity> {
+    if sol.x.len() == 6 {
+        sensitivity_n::<6>(rod, loads, sol, params)
+    } else {
+        sensitivity_n::<3>(rod, loads, sol, params)
+    }
+}
+
+fn sensitivity_n<const N: usize>(
+    rod: &Rod,
+    loads: &Loads,
+    sol: &Solution,
+    params: &[Param],
+) -> Result<TipSensitivity> {
     let p = Problem::new(rod, loads, 1.0);
     // J = d_x R and d_x y in one pass with x seeded.
-    let xd: [Jet<3>; 3] = std::array::from_fn(|i| Jet::variable(sol.x[i], i));
+    let xd: [Jet<N>; N] = std::array::from_fn(|i| Jet::variable(sol.x[i], i));
     let tip_x = integrate(rod, &p.coeffs, p.base_state(&xd), None);
-    let r_x = p.residual_of_tip(&tip_x);
-    let lu = Matrix3::from_fn(|i, k| r_x[i].eps[k]).lu();
+    let r_x: [Jet<N>; N] = p.residual_of_tip(&tip_x);
+    let jac = DMatrix::from_fn(N, N, |i, k| r_x[i].eps[k]);
+    let lu = jac.lu();
     let mut out = TipSensitivity {
         position: Vec::with_capacity(params.len()),
         rotation: Vec::with_capacity(params.len()),
@@ -261,6 +275,7 @@ pub fn tip_sensitivity(
                     rod,
                     i,
                     &loads.pressures,
+                    &loads.tensions,
                     &rod.gravity,
                     Dual::from(1.0),
                     &sigma,
@@ -268,11 +283,11 @@ pub fn tip_sensitivity(
                 )
             })
             .collect();
-        let x = sol.x.map(Dual::from);
+        let x: Vec<Dual> = sol.x.iter().map(|v| Dual::from(*v)).collect();
         let tip: State<Dual> = integrate(rod, &coeffs, p.base_state(&x), None);
-        let r_t = p.residual_of_tip(&tip);
+        let r_t: [Dual; N] = p.residual_of_tip(&tip);
         for q in 0..chunk.len() {
-            let rhs = Vector3::from_fn(|i, _| -r_t[i].eps[q]);
+            let rhs = DVector::from_fn(N, |i, _| -r_t[i].eps[q]);
             let dx = lu
                 .solve(&rhs)
                 .filter(|d| d.iter().all(|v| v.is_finite()))
@@ -283,7 +298,7 @@ pub fn tip_sensitivity(
                     reason: "the shooting Jacobian is singular at this equilibrium, so its parameter derivatives are undefined".into(),
                 })?;
             let total =
-                |d: &Dual, dx_: &Jet<3>| d.eps[q] + (0..3).map(|k| dx_.eps[k] * dx[k]).sum::<f64>();
+                |d: &Dual, dx_: &Jet<N>| d.eps[q] + (0..N).map(|k| dx_.eps[k] * dx[k]).sum::<f64>();
             out.position
                 .push(std::array::from_fn(|i| total(&tip.r[i], &tip_x.r[i])));
             out.rotation.push(std::array::from_fn(|i| {

@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use softrod_core::batch::sensitivity_batch;
+use softrod_core::batch::{sensitivity_batch, BatchInputs};
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{tip_sensitivity, validate_params, Param, ParamKind};
 use softrod_core::spec::{AxialSpec, DesignSpec, LawSpec, SwellingSpec};
@@ -228,10 +228,7 @@ fn batch_sensitivities_equal_single_ones() {
     }
     let rows = sensitivity_batch(
         &rod,
-        &pressures,
-        [0.0; 3],
-        [0.0; 3],
-        None,
+        &BatchInputs::pressures(&rod, &pressures),
         None,
         &params,
         &opts(),
