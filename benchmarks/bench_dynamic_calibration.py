@@ -1,6 +1,6 @@
 """Dynamic calibration of paper 000's tau and A_eff (a script, not a test).
 
-    python benchmarks/bench_dynamic_calibration.py           # full run, results/dynamic_calibration.json
+    python benchmarks/bench_dynamic_calibration.py          # results/dynamic_calibration.json
     python benchmarks/bench_dynamic_calibration.py --quick   # smoke run (2 experiments of 4 s)
 
 Issue 19: "Dynamic calibration of tau and A_eff on 4 experiments of 20 s (dt 5 ms): at least

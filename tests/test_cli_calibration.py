@@ -154,7 +154,7 @@ def test_calibrate_json_is_clean_and_matches_the_fit(run, case):
     )
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)  # nothing but JSON on stdout
-    assert set(data) == {"parameters", "errors", "warnings"}
+    assert set(data) == {"model", "dynamic", "parameters", "errors", "warnings"}
     assert result.stderr == ""
     params = {p["parameter"]: p for p in data["parameters"]}
     assert params["c_b"]["value"] == pytest.approx(case["c_b"], rel=RECOVERY_RTOL)

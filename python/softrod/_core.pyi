@@ -70,6 +70,7 @@ class Rod:
         max_load_steps: int = 200,
         stretch_range: tuple[float, float] = ...,
         on_invalid: str = "ignore",
+        markers: Sequence[tuple[float, Sequence[float]]] = ...,
     ) -> dict[str, Any]: ...
 
 def _panic_inside_guard() -> None:

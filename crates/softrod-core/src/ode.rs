@@ -154,6 +154,8 @@ pub struct SectionKnobs<S> {
     pub c_p: S,
     /// Factor on every chamber's pressurised area (an effective area, as A_eff of paper 000).
     pub area_scale: S,
+    /// Factor on the section's mass per length (its weight here; its inertia in dynamics).
+    pub mass_scale: S,
 }
 
 impl SectionKnobs<f64> {
@@ -169,6 +171,7 @@ impl SectionKnobs<f64> {
             offset: [0.0; 2],
             c_p: s.law.swelling.map_or(0.0, |sw| sw.c_p),
             area_scale: 1.0,
+            mass_scale: 1.0,
         }
     }
 
@@ -181,6 +184,7 @@ impl SectionKnobs<f64> {
             offset: self.offset.map(S::from),
             c_p: S::from(self.c_p),
             area_scale: S::from(self.area_scale),
+            mass_scale: S::from(self.mass_scale),
         }
     }
 }
@@ -275,7 +279,9 @@ impl<C: RodScalar> Coeffs<C> {
         }
         let u_shift: [C; 3] =
             std::array::from_fn(|a| c_bt[a][0] * mp[0] + c_bt[a][1] * mp[1] + c_bt[a][2] * mp[2]);
-        let f = std::array::from_fn(|k| factor * (s.line_mass * g[k] + s.line_force[k]));
+        let f = std::array::from_fn(|k| {
+            factor * (knobs.mass_scale * (s.line_mass * g[k]) + s.line_force[k])
+        });
         let l = std::array::from_fn(|k| factor * s.line_moment[k]);
         let axial = match &law.axial {
             AxialLaw::Linear => AxialCoeffs::Linear,
@@ -455,7 +461,11 @@ fn neg<C: Coeff>(x: C) -> C {
 
 /// One classical RK4 step of length h.
 #[inline(always)]
-fn rk4_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, h: f64) -> State<D> {
+pub(crate) fn rk4_step<C: Coeff, D: StateScalar<C>>(
+    y: &State<D>,
+    c: &Coeffs<C>,
+    h: f64,
+) -> State<D> {
     let k1 = rhs(y, c);
     let k2 = rhs(&y.axpy(0.5 * h, &k1), c);
     let k3 = rhs(&y.axpy(0.5 * h, &k2), c);
@@ -498,7 +508,11 @@ pub(crate) fn reproject<D: RodScalar>(r: &[[D; 3]; 3]) -> [[D; 3]; 3] {
 
 /// Exact transfer through a rigid section of length L with constant line loads:
 /// v = e3, u = 0, so r' = d3 is constant and n, m integrate in closed form.
-fn rigid_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, len: f64) -> State<D> {
+pub(crate) fn rigid_step<C: Coeff, D: StateScalar<C>>(
+    y: &State<D>,
+    c: &Coeffs<C>,
+    len: f64,
+) -> State<D> {
     let t = y.director(2);
     let mut out = *y;
     let zero = D::from(0.0);
@@ -517,7 +531,7 @@ fn rigid_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, len: f64
 
 /// (lambda, lambda^alpha) at the start of an Ogden section: the law solved for the material
 /// force there (see `crate::law`).
-fn initial_stretch<C: Coeff, D: StateScalar<C>>(
+pub(crate) fn initial_stretch<C: Coeff, D: StateScalar<C>>(
     y: &State<D>,
     p_force: C,
     k_e: C,

@@ -1,0 +1,132 @@
+"""Cosserat-rod time series on a dataset (paper 000 Sec. III-D): every experiment (rows with
+``time``, the chamber pressures and the measured positions) is replayed: the measured
+pressures drive the model (joined linearly between samples), the arm starts at rest in
+equilibrium under the experiment's first pressures, and the model's tip is read at every
+sample time."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...design import Design
+from ...errors import ConvergenceError, DesignError, InputError, design_error
+from ..params import SIGMA_KINDS, Parameter, design_changes
+from ..problem import ModelAdapter, Prediction
+
+
+def _fail(field_: str, value, rule: str) -> InputError:
+    return design_error(field_, value, rule, InputError)
+
+
+def experiment_rows(dataset) -> list[np.ndarray]:
+    """Row indices of each experiment, in time order; each needs >= 2 samples."""
+    if dataset.time is None:
+        raise _fail("dataset.time", None, "a dynamic calibration needs a time column (e.g. time_s)")
+    ids = dataset.experiments or (None,)
+    out = []
+    for e in ids:
+        rows = (
+            np.arange(len(dataset.time)) if e is None else np.flatnonzero(dataset.experiment == e)
+        )
+        rows = rows[np.argsort(dataset.time[rows], kind="stable")]
+        t = dataset.time[rows]
+        if len(rows) < 2 or np.any(np.diff(t) <= 0):
+            raise _fail(
+                "dataset.time",
+                f"experiment {e}",
+                "each experiment needs >= 2 rows with strictly increasing time",
+            )
+        out.append(rows)
+    return out
+
+
+class RodDynamic(ModelAdapter):
+    """The tip of every sample of every replayed experiment."""
+
+    model = "cosserat"
+    dynamic = True
+    exact_jacobian = False
+
+    def __init__(self, design: Design, dataset, params: list[Parameter], dt, threads: int):
+        from ...dynamics.simulate import _seconds
+
+        super().__init__()
+        if dataset.markers is not None:
+            raise _fail(
+                "dataset.markers",
+                f"{dataset.n_markers} markers",
+                "dynamic fits read the tip position only (markers: static fits)",
+            )
+        sigma = [p.name for p in params if p.kind in SIGMA_KINDS]
+        if sigma:
+            raise _fail("params", sigma, "sigma factors belong to static fits")
+        if any(p.kind == "damping_time" for p in params):
+            tau0 = design.spec["dynamics"]["damping_time"]
+            if not tau0 > 0:
+                raise _fail(
+                    "design.dynamics.damping_time",
+                    tau0,
+                    "give a starting damping time > 0 s in [dynamics] (the fit works on "
+                    "log tau)",
+                )
+        for p in params:
+            if not p.positive:
+                raise _fail("params", p.name, "dynamic calibration fits positive parameters only")
+        self.design = design
+        self.params = list(params)
+        self.parameters = tuple(params)
+        self.initial = np.array([p.value(design) for p in params])
+        self.dt = _seconds(dt, "dt")
+        self.threads = threads
+        self.experiments = experiment_rows(dataset)
+        self.time = dataset.time
+        self.pressures = dataset.pressures
+        self.m = len(dataset)
+
+    def design_of(self, theta) -> Design:
+        return self.design.replace(design_changes(self.params, theta, self.design))
+
+    def predict(self, theta, rows, jacobian: bool) -> Prediction:
+        from ...dynamics import PressureSchedule, simulate
+
+        if jacobian:
+            raise _fail("method", "lm", "dynamic fits give no exact Jacobian yet")
+        out = Prediction.empty(self.m, len(self.params), 0, False)
+        self.evaluations += 1
+        try:
+            d = self.design_of(theta)
+        except DesignError:
+            return out
+        wanted = np.zeros(self.m, dtype=bool)
+        wanted[rows] = True
+        for exp in self.experiments:
+            if not wanted[exp].any():
+                continue
+            t = self.time[exp]
+            sched = PressureSchedule.piecewise_linear(t - t[0], self.pressures[exp])
+            try:
+                tr = simulate(d, sched, t[-1] - t[0], dt=self.dt, save_every=1, energy=False)
+            except ConvergenceError:
+                continue
+            out.tip[exp] = tr.tip_position_at(np.minimum(t - t[0], tr.time[-1]))
+            out.ok[exp] = True
+        return out
+
+    def calibrated_design(self, theta) -> Design:
+        return self.design_of(theta)
+
+    def reference(self, calibrated: Design, theta) -> Prediction:
+        from ...statics import solve_statics
+
+        out = Prediction.empty(self.m, 0, 0, False)
+        sol = solve_statics(calibrated, np.zeros(calibrated.n_channels))
+        out.tip[:] = sol.tip_position
+        out.ok[:] = True
+        return out
+
+    def base_frame(self):
+        mount = self.design.spec["mounting"]
+        return (
+            np.asarray(mount["base_position"], dtype=float),
+            np.asarray(mount["base_rotation"], dtype=float)[:, 2],
+        )
