@@ -128,6 +128,26 @@ class PccModel:
         tol: float = 1e-11,
         max_iter: int = 30,
     ) -> dict[str, Any]: ...
+    def statics_sensitivity(
+        self,
+        pressures: _ArrayLike,
+        params: Sequence[str],
+        markers: Sequence[tuple[float, Sequence[float]]] = ...,
+        guesses: _ArrayLike | None = None,
+        threads: int = 0,
+        tol: float = 1e-11,
+        max_iter: int = 30,
+    ) -> dict[str, Any]: ...
+    def runs_sensitivity(
+        self,
+        runs: Sequence[tuple[_ArrayLike, str, int]],
+        dt: float,
+        params: Sequence[str],
+        markers: Sequence[tuple[float, Sequence[float]]] = ...,
+        threads: int = 0,
+        tol: float = 1e-11,
+        max_iter: int = 30,
+    ) -> list[dict[str, Any]]: ...
 
 @final
 class Simulator:
