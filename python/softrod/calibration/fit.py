@@ -379,7 +379,7 @@ def calibrate(
     # The Jacobian at the optimum (cold solves, as every start began).
     adapter.reset()
     adapter.evaluations = sum(f["evaluations"] for f in fits)
-    pred = problem.predict(values, True)
+    pred = problem.predict(values, adapter.exact_jacobian)
     if not pred.ok[train].all():
         bad = train[~pred.ok[train]]
         raise ConvergenceError(
@@ -388,10 +388,17 @@ def calibrate(
         )
     r = residual.vector(pred)
     ssr = float(r @ r)
-    jac = residual.jacobian(pred)
-    cov, std, corr, found = diagnostics(
-        params_all, values, jac, ssr, r.size, _what(dataset, adapter.dynamic)
-    )
+    if adapter.exact_jacobian:
+        jac = residual.jacobian(pred)
+        cov, std, corr, found = diagnostics(
+            params_all, values, jac, ssr, r.size, _what(dataset, adapter.dynamic)
+        )
+    else:
+        n_par = len(params_all)
+        nan = np.full((n_par, n_par), np.nan)
+        cov, std, corr = nan, np.full(n_par, np.nan), nan.copy()
+        found = ["no standard errors or identifiability checks: this model gives no exact "
+                 "Jacobian yet"]
     if not success:
         found.insert(0, f"the optimiser stopped without converging: {message}")
     evaluations = adapter.evaluations

@@ -74,6 +74,9 @@ class CalibrationResult:
     registration: dict | None = None
     scales: dict = field(default_factory=dict, repr=False)
     cost: float = math.nan
+    #: A staged identification's stages (softrod.pcc.identify_pcc: per parameter its
+    #: experiment, closed-form start and stage value), else None.
+    stages: pd.DataFrame | None = field(default=None, repr=False)
 
     @property
     def names(self) -> list[str]:
