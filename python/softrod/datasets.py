@@ -234,7 +234,7 @@ class Dataset:
     """
 
     pressures: np.ndarray
-    tip_position: np.ndarray
+    tip_position: np.ndarray | None = None
     tip_rotation: np.ndarray | None = None
     base_force: np.ndarray | None = None
     base_moment: np.ndarray | None = None

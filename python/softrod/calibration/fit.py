@@ -229,6 +229,22 @@ def _split_params(names, design: Design, model: str):
     return rest, reg
 
 
+def resolve_parameters(design: Design, params, model: str = "cosserat") -> list:
+    """The parameter objects (name, unit, positive) that ``params`` names for ``model``, in
+    order: the model's, then the registration's (for messages and the CLI's units)."""
+    V.choice(model, ("cosserat", "pcc"), "model")
+    names, registration = _split_params(params, design, model)
+    if model == "pcc":
+        from .adapters.pcc import parse_pcc_parameters
+
+        found = parse_pcc_parameters(names) if names else []
+    else:
+        from .params import parse_parameters
+
+        found = parse_parameters(names, design) if names else []
+    return [*found, *registration]
+
+
 # --- the entry point ---------------------------------------------------------------------------
 
 

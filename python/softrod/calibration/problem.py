@@ -352,7 +352,10 @@ class Problem:
         return self.adapter.parameters
 
     def theta_of(self, u: np.ndarray) -> np.ndarray:
-        return np.where(self.positive, np.exp(np.where(self.positive, u, 0.0)), u)
+        # A step along an unidentifiable direction may overflow exp: inf lies outside the
+        # bounds, so the point counts as failed and the optimiser steps back.
+        with np.errstate(over="ignore"):
+            return np.where(self.positive, np.exp(np.where(self.positive, u, 0.0)), u)
 
     def u_of(self, theta: np.ndarray) -> np.ndarray:
         theta = np.asarray(theta, dtype=float)

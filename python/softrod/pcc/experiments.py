@@ -364,8 +364,8 @@ def identify_pcc(
             work = work.replace(
                 {
                     "pcc.k_theta": {
-                        "angle": [f"{a!r} rad" for a in angles],
-                        "stiffness": [f"{k!r} N*m" for k in stiff],
+                        "angle": [f"{float(a)!r} rad" for a in angles],
+                        "stiffness": [f"{float(k)!r} N*m" for k in stiff],
                     }
                 }
             )

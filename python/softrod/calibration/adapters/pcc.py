@@ -286,7 +286,7 @@ class PccAdapter(ModelAdapter):
         if runs:
             commands = [self._commands(r) for r in runs]
             results = model.runs_sensitivity(
-                [(c, "static", 1) for c, _ in commands],
+                [(c, "static", _save_every(t, self.dt)) for c, t in commands],
                 self.dt,
                 names,
                 markers=self.markers,
@@ -368,6 +368,16 @@ class PccAdapter(ModelAdapter):
 
         state["design"] = design_from_text(state["design"])
         self.__dict__.update(state)
+
+
+def _save_every(t: np.ndarray, dt: float) -> int:
+    """The largest step count k such that every sample time is a multiple of k dt (so the
+    run keeps only those steps), 1 when some sample falls between steps."""
+    steps = t / dt
+    k = np.rint(steps)
+    if np.any(np.abs(steps - k) > 1e-9 * np.maximum(1.0, steps)):
+        return 1
+    return max(int(np.gcd.reduce(k.astype(np.int64))), 1)
 
 
 def _at_times(steps_t, points, d_points, t):
