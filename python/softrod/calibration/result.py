@@ -151,7 +151,7 @@ class CalibrationResult:
             (v0, unit), (v, _), (s, _) = (display(x, p.unit) for x in (v0, v, s))
             unit = f" {unit}" if unit else ""
             rel = abs(s / v) if v != 0 and math.isfinite(s) else math.nan
-            rel_text = f" ({100 * rel:.3g} %)" if math.isfinite(rel) and p.positive else ""
+            rel_text = f" ({100 * rel:.3g} %)" if math.isfinite(rel) else ""
             lines.append(f"  {p.name:<18} {v0:>12.6g} -> {v:>12.6g} +- {s:.3g}{unit}{rel_text}")
         cols = ["quantity", "set", "n", "failed", "mean_error_mm", "median_error_mm"]
         cols.append("max_error_mm")
