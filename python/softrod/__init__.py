@@ -10,6 +10,9 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :func:`list_presets`: named published models (``load_design("paper002_M3_vertical")``)
 - :func:`compare_models`: models on paper 002's experiments -> pandas DataFrame
 - :class:`SolverOptions`
+- :func:`solve_inverse` / :class:`InverseProblem`: pressures within bounds that bring the tip
+  to a target; :func:`linearise` (M, D, K, B and modes), :func:`workspace`,
+  :func:`run_closed_loop` (:mod:`softrod.control`, docs/control.md)
 - :class:`StiffnessMap`: pressure-dependent stiffness scaling sigma(p) (paper 001 eq. 13)
 - :func:`load_dataset` / :func:`write_dataset` -> :class:`Dataset` (CSV, Parquet; docs/datasets.md)
 - :func:`synthesize_dataset`: synthetic datasets from the model, marked as such
@@ -57,6 +60,16 @@ _EXPORTS = {
     "bundled_designs": ".catalog",
     "load_design": ".catalog",
     "compare_models": ".compare",
+    "InverseProblem": ".control",
+    "InverseSolution": ".control",
+    "LinearSystem": ".control",
+    "TargetPath": ".control",
+    "TrackingController": ".control",
+    "Workspace": ".control",
+    "linearise": ".control",
+    "run_closed_loop": ".control",
+    "solve_inverse": ".control",
+    "workspace": ".control",
     "Dataset": ".datasets",
     "example_datasets": ".datasets",
     "load_dataset": ".datasets",
@@ -87,7 +100,7 @@ _EXPORTS = {
     "StiffnessMap": ".stiffness_map",
     "view": ".viewer",
 }
-_SUBMODULES = ("pcc", "calibration", "dynamics")
+_SUBMODULES = ("pcc", "calibration", "control", "dynamics")
 
 
 def __getattr__(name: str):
@@ -107,7 +120,7 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
-    from . import calibration, dynamics, pcc
+    from . import calibration, control, dynamics, pcc
     from .calibration import (
         CalibrationResult,
         HybridStiffnessModel,
@@ -119,6 +132,18 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
     )
     from .catalog import bundled_designs, load_design
     from .compare import compare_models
+    from .control import (
+        InverseProblem,
+        InverseSolution,
+        LinearSystem,
+        TargetPath,
+        TrackingController,
+        Workspace,
+        linearise,
+        run_closed_loop,
+        solve_inverse,
+        workspace,
+    )
     from .datasets import (
         Dataset,
         example_datasets,
@@ -162,6 +187,9 @@ __all__ = [
     "InputError",
     "InternalError",
     "InvalidStateError",
+    "InverseProblem",
+    "InverseSolution",
+    "LinearSystem",
     "Preset",
     "SoftrodError",
     "SolverOptions",
@@ -169,29 +197,37 @@ __all__ = [
     "StaticSolution",
     "StiffnessIdentification",
     "StiffnessMap",
+    "TargetPath",
+    "TrackingController",
     "PressureSchedule",
     "Simulation",
     "Trajectory",
     "ValidityWarning",
+    "Workspace",
     "__version__",
     "bundled_designs",
     "calibrate",
     "calibration",
     "compare_hybrid",
     "compare_models",
+    "control",
     "designs_dir",
     "dynamics",
     "example_datasets",
     "fit_stiffness_map",
     "identify_stiffness",
+    "linearise",
     "list_presets",
     "load_dataset",
     "pcc",
     "load_design",
     "solve_statics",
     "simulate",
+    "run_closed_loop",
+    "solve_inverse",
     "solve_statics_batch",
     "synthesize_dataset",
     "view",
+    "workspace",
     "write_dataset",
 ]

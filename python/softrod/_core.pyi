@@ -6,7 +6,17 @@
 from collections.abc import Sequence
 from typing import Any, final
 
-__all__ = ["GridPchip", "PccModel", "Rod", "Simulator", "__version__", "_panic_inside_guard"]
+__all__ = [
+    "GridPchip",
+    "InverseSolver",
+    "PccModel",
+    "Rod",
+    "Simulator",
+    "__version__",
+    "_panic_inside_guard",
+    "linearise_at",
+    "point_jacobian_of",
+]
 __version__: str
 
 # numpy arrays in and out; the stub names no numpy types so that checking it stays fast
@@ -179,3 +189,53 @@ class Simulator:
     def run(
         self, commands: _ArrayLike, keep: _ArrayLike, energy: bool = True
     ) -> dict[str, Any]: ...
+
+@final
+class InverseSolver:
+    """An inverse problem of one design (see ``softrod.control.inverse``)."""
+
+    def __new__(
+        cls,
+        rod: Rod,
+        bounds: Sequence[Sequence[float]],
+        reference: Sequence[float],
+        s: float,
+        position_weight: _Vec3,
+        orientation_weight: float,
+        tip_force: _Vec3,
+        tip_moment: _Vec3,
+        regularisation: float = 1e-6,
+        tol: float = 1e-10,
+        max_iter: int = 100,
+        statics_tol: float = 1e-10,
+        statics_max_iter: int = 25,
+        on_invalid: str = "raise",
+        stretch_range: tuple[float, float] = ...,  # (0.5, 2.0)
+    ) -> InverseSolver: ...
+    def solve(
+        self,
+        position: _Vec3,
+        pressures: Sequence[float],
+        orientation: Sequence[Sequence[float]] | None = None,
+        x: _Vec3 | None = None,
+        reference: Sequence[float] | None = None,
+    ) -> dict[str, Any]: ...
+
+def point_jacobian_of(
+    rod: Rod,
+    pressures: Sequence[float],
+    tip_force: _Vec3,
+    tip_moment: _Vec3,
+    stiffness_scale: _Vec3,
+    x: _Vec3,
+    s: float,
+    params: Sequence[tuple[str, Sequence[int]]],
+) -> dict[str, Any]: ...
+def linearise_at(
+    rod: Rod,
+    pressures: Sequence[float],
+    tip_force: _Vec3,
+    tip_moment: _Vec3,
+    x: _Vec3 | None,
+    nodes: int,
+) -> dict[str, Any]: ...

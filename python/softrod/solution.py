@@ -12,9 +12,12 @@ import numpy as np
 from .design import Design
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
     import pandas as pd
 
     from ._types import ArrayLike, Units
+    from .control.linear import Jacobian
 
 
 @dataclass(frozen=True)
@@ -52,6 +55,8 @@ class StaticSolution:
     stiffness_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
     stable: bool | None = None
     violations: tuple[str, ...] = ()
+    #: (tip force, tip moment) the equilibrium was solved under (world frame, N and N m).
+    tip_loads: tuple | None = field(default=None, repr=False)
 
     @classmethod
     def failed(
@@ -106,6 +111,16 @@ class StaticSolution:
     @property
     def strains(self) -> dict[str, np.ndarray]:
         return {"v": self.v, "u": self.u}
+
+    def jacobian(
+        self, *, params: Sequence[str] = (), point: float | str | None = None
+    ) -> Jacobian:
+        """The exact Jacobian of the tip pose (or the pose at arc length ``point``) with
+        respect to the pressures, the tip force and moment, and named calibration
+        parameters (tip only): a :class:`softrod.control.Jacobian` (docs/control.md)."""
+        from .control.linear import jacobian
+
+        return jacobian(self, params=params, point=point)
 
 
 @dataclass(frozen=True)

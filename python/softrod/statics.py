@@ -129,11 +129,17 @@ def _vec3(value, kind: str, name: str, default) -> list[float]:
 
 
 def _initial(initial, model: str) -> list[float] | None:
-    """The warm start of ``initial`` (a converged StaticSolution of the same model)."""
+    """The warm start of ``initial`` (a converged StaticSolution of the same model, or an
+    InverseSolution: its equilibrium)."""
     if initial is None:
         return None
+    from .control.inverse import InverseSolution
+
+    if isinstance(initial, InverseSolution) and model == "cosserat":
+        return [float(v) for v in initial.shooting_unknowns]
     if not isinstance(initial, StaticSolution):
-        raise V.fail("initial", type(initial).__name__, "must be a StaticSolution or None")
+        raise V.fail("initial", type(initial).__name__,
+                     "must be a StaticSolution, an InverseSolution or None")
     x = np.asarray(initial.shooting_unknowns, dtype=float)
     if not initial.converged or not np.all(np.isfinite(x)):
         raise V.fail(
@@ -311,6 +317,7 @@ def solve_statics(
         stiffness_scale=sigma,
         stable=bool(out["stable"]),
         violations=tuple(out["violations"]),
+        tip_loads=(tuple(tf), tuple(tm)),
     )
 
 

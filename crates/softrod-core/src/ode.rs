@@ -120,18 +120,21 @@ pub fn swelling_factors(rod: &Rod, i: usize, pressures: &[f64], factor: f64) -> 
     swelling_factors_with(rod, i, pressures, factor, c_p)
 }
 
-fn swelling_factors_with<S: RodScalar>(
+fn swelling_factors_with<S, P: Copy>(
     rod: &Rod,
     i: usize,
-    pressures: &[f64],
+    pressures: &[P],
     factor: S,
     c_p: S,
-) -> Vec<S> {
+) -> Vec<S>
+where
+    S: RodScalar + From<P>,
+{
     let s = &rod.sections[i];
     s.chambers
         .iter()
         .map(|c| match s.law.swelling {
-            Some(sw) => c_p * (factor * pressures[c.channel] / sw.p_ref) + 1.0,
+            Some(sw) => c_p * (factor * S::from(pressures[c.channel]) / sw.p_ref) + 1.0,
             None => S::from(1.0),
         })
         .collect()
@@ -208,16 +211,20 @@ impl Coeffs<f64> {
 impl<C: RodScalar> Coeffs<C> {
     /// [`Coeffs::build`] with the section's parameters given as `knobs`, in any scalar;
     /// the load factor may be a dual number too (the load derivative of
-    /// `crate::statics`' continuation predictor).
-    pub fn build_with(
+    /// `crate::statics`' continuation predictor), and the pressures f64 or the coefficients'
+    /// scalar (dual pressures give the exact pressure derivatives of `crate::jacobian`).
+    pub fn build_with<P: Copy>(
         rod: &Rod,
         i: usize,
-        pressures: &[f64],
+        pressures: &[P],
         g: &[f64; 3],
         factor: C,
         sigma: &[C; 3],
         knobs: &SectionKnobs<C>,
-    ) -> Self {
+    ) -> Self
+    where
+        C: From<P>,
+    {
         let s = &rod.sections[i];
         let law = &s.law;
         let zero = C::from(0.0);
@@ -272,7 +279,8 @@ impl<C: RodScalar> Coeffs<C> {
         let mut force = zero; // sum p_k A_k
         let mut mp = [zero; 3]; // sum p_k A_k (y_k, -x_k, 0)
         for ((c, w), x) in s.chambers.iter().zip(&swell).zip(&centroids) {
-            let pa = *w * *w * knobs.area_scale * (factor * pressures[c.channel] * c.area);
+            let pa =
+                *w * *w * knobs.area_scale * (factor * C::from(pressures[c.channel]) * c.area);
             force += pa;
             mp[0] += pa * x[1];
             mp[1] -= pa * x[0];
@@ -584,4 +592,82 @@ pub fn integrate<C: Coeff, D: StateScalar<C>>(
         }
     }
     y
+}
+
+/// A node visited by [`integrate_with`]: section index, steps done in that section (0 at the
+/// section's start) and arc length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NodeAt {
+    pub section: usize,
+    pub step: usize,
+    pub s: f64,
+}
+
+/// [`integrate`] with a hook that sees every node (every section's start, then the end of
+/// every step) and may change the state there, e.g. to apply a point load as a jump of n
+/// and m. When the hook returns true the state was changed, and an Ogden section's carried
+/// stretch is solved again from the new force. A hook that changes nothing reproduces
+/// [`integrate`] exactly.
+pub fn integrate_with<C: Coeff, D: StateScalar<C>>(
+    rod: &Rod,
+    coeffs: &[Coeffs<C>],
+    y0: State<D>,
+    at_node: &mut dyn FnMut(NodeAt, &mut State<D>) -> bool,
+) -> State<D> {
+    let mut y = y0;
+    for (i, (sec, c)) in rod.sections.iter().zip(coeffs).enumerate() {
+        resolve_stretch(&mut y, c);
+        let node = NodeAt {
+            section: i,
+            step: 0,
+            s: sec.s_start,
+        };
+        if at_node(node, &mut y) {
+            resolve_stretch(&mut y, c);
+        }
+        let h = sec.length / sec.steps as f64;
+        for k in 0..sec.steps {
+            y = if sec.rigid {
+                rigid_step(&y, c, sec.length)
+            } else {
+                rk4_step(&y, c, h)
+            };
+            let node = NodeAt {
+                section: i,
+                step: k + 1,
+                s: sec.s_start + h * (k + 1) as f64,
+            };
+            if at_node(node, &mut y) {
+                resolve_stretch(&mut y, c);
+            }
+        }
+    }
+    y
+}
+
+/// In an Ogden section, set the carried stretch (lambda, lambda^alpha) by solving the law
+/// for the state's force (as at a section start); nothing in other sections.
+pub fn resolve_stretch<C: Coeff, D: StateScalar<C>>(y: &mut State<D>, c: &Coeffs<C>) {
+    if let AxialCoeffs::Ogden { k_e, alpha, k_s } = &c.axial {
+        y.aux = initial_stretch(y, c.p_force, *k_e, *alpha, *k_s);
+    }
+}
+
+/// The state a distance `h` (0 <= h <= one step) further along section `i` from `y`: one
+/// RK4 step of length h (the exact rigid transfer in a rigid section). Used to read the
+/// state at an arc length between two nodes.
+pub fn advance<C: Coeff, D: StateScalar<C>>(
+    rod: &Rod,
+    coeffs: &[Coeffs<C>],
+    i: usize,
+    y: &State<D>,
+    h: f64,
+) -> State<D> {
+    if h == 0.0 {
+        *y
+    } else if rod.sections[i].rigid {
+        rigid_step(y, &coeffs[i], h)
+    } else {
+        rk4_step(y, &coeffs[i], h)
+    }
 }

@@ -977,6 +977,40 @@ fn next_reach(reach: f64, iterations: usize) -> f64 {
     }
 }
 
+/// The checked solution at unknowns `x` that the caller has converged for `loads` (e.g.
+/// inverse statics, which solves the equilibrium jointly with the pressures): the same
+/// conclusion as [`solve`]'s, one dual pass giving the validity checks and the stability
+/// test. Errors when the residual at `x` is not within `opts.tol` (the caller did not
+/// converge), or as [`solve`] for a state that breaks a rule.
+pub fn conclude_at(
+    rod: &Rod,
+    loads: &Loads,
+    x: [f64; 3],
+    iterations: usize,
+    opts: &SolverOptions,
+) -> Result<Solution> {
+    let violations = check_inputs(rod, loads, opts)?;
+    let p = Problem::new(rod, loads, 1.0);
+    let r = p.eval(&x);
+    let residual = inf_norm(&r);
+    if !(residual <= opts.tol * inf_norm(&x).max(1.0)) {
+        return Err(SoftrodError::NotConverged {
+            iterations,
+            residual,
+            load_factor: 1.0,
+            reason: "the given unknowns are not an equilibrium to the tolerance".into(),
+        });
+    }
+    let c = Converged {
+        x,
+        r,
+        residual,
+        iterations,
+    };
+    p.conclude(&c, iterations, 1, opts, violations, false)
+        .map(|(s, _)| s)
+}
+
 /// The shape of a converged solution at every integration node.
 pub fn shape(rod: &Rod, loads: &Loads, sol: &Solution) -> Shape {
     let p = Problem::new(rod, loads, 1.0);

@@ -13,6 +13,7 @@ use softrod_core::statics::{self, SolverOptions};
 use softrod_core::validity::{Policy, StrainLimits};
 use softrod_core::{DesignSpec, Rod, SoftrodError};
 
+mod control;
 mod dynamics;
 mod pcc;
 
@@ -65,8 +66,8 @@ fn to_py_err(py: Python<'_>, err: SoftrodError, ctx: Context) -> PyErr {
 
 /// A validated, compiled design (immutable).
 #[pyclass(name = "Rod", module = "softrod._core", frozen)]
-struct PyRod {
-    rod: Rod,
+pub(crate) struct PyRod {
+    pub(crate) rod: Rod,
 }
 
 /// The solver options of a call; `on_invalid` is "raise", "warn" or "ignore".
@@ -106,7 +107,7 @@ fn options(
 /// Run a binding entry so that a panic inside the core (a bug: the core reports every
 /// expected failure as a `SoftrodError`) becomes `softrod.InternalError`, never a
 /// `pyo3_runtime.PanicException` that `except Exception` would miss.
-fn guarded<T>(py: Python<'_>, f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
+pub(crate) fn guarded<T>(py: Python<'_>, f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
     std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|payload| {
         let what = payload
             .downcast_ref::<&str>()
@@ -598,6 +599,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRod>()?;
     m.add_class::<PyGridPchip>()?;
     m.add_function(wrap_pyfunction!(_panic_inside_guard, m)?)?;
+    control::register(m)?;
     dynamics::register(m)?;
     pcc::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

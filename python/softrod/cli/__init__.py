@@ -1,11 +1,12 @@
 """``softrod`` command line: solve one equilibrium, sweep a pressure grid, compare models on
 a paper's experiments, calibrate parameters to measured tip positions, identify a design from
 axial measurements, simulate motion, run the PCC model, list designs and presets, run the demo,
-view a design in the browser.
+view a design in the browser, invert statics, map the workspace and track a path.
 
 One module per command group: ``statics`` (solve, sweep, demo), ``compare``, ``calibrate``
 (calibrate, calibrate-axial, identify), ``simulate``, ``pcc`` (compare-pcc, pcc-identify),
-``designs``, ``view``; shared parsing, error handling and output helpers in ``_common``.
+``designs``, ``view``, ``control`` (inverse, workspace, track); shared parsing, error
+handling and output helpers in ``_common``.
 
 Units at the boundary: quantities carry their units ("30kPa", "0.3bar", "-1 N", "2 ms"),
 read by softrod's restricted unit grammar; a bare non-zero number is refused as ambiguous
@@ -34,6 +35,7 @@ import click
 from .. import __version__
 from .calibrate import calibrate, calibrate_axial, identify
 from .compare import compare
+from .control import inverse, track, workspace_cmd
 from .designs import designs
 from .pcc import compare_pcc_cmd, pcc_identify
 from .simulate import simulate_cmd
@@ -147,5 +149,8 @@ for _command in (
     compare_pcc_cmd,
     pcc_identify,
     view,
+    inverse,
+    workspace_cmd,
+    track,
 ):
     main.add_command(_command)

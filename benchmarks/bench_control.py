@@ -1,0 +1,156 @@
+"""Control tools on ``spa_three_chamber_130mm`` (a script, not a test).
+
+    python benchmarks/bench_control.py          # full run (~1 min), writes results/control.json
+    python benchmarks/bench_control.py --quick  # smoke run (~10 s), results/control_quick.json
+
+1. **Warm-started inverse statics** through the Python API: an :class:`InverseProblem`
+   (bounds 0-70 kPa, tip position target) solved for a target moving 0.5 mm per call along
+   a circle of 10 mm radius around the tip at 35 kPa in every chamber, each call warm-started
+   from the previous answer (``initial=previous``). Per-call wall times (time.perf_counter_ns,
+   garbage collector off) after a warm-up; the rate is 1 / median. Also the CPU time of the
+   whole loop per call (time.thread_time: less sensitive to other jobs on a shared machine),
+   the dual passes per call and the worst tip distance (all calls must reach the target).
+   The same for ``solve_inverse(design, target, initial=previous, ...)`` (the function, which
+   reads its arguments anew on each call), and the cold start (``problem.solve(target)``
+   without ``initial``) at 7 targets. Run at the design file's 16 steps per section and at
+   the 13 mm steps that bench_statics uses for its timings (the largest meeting 1e-6 L).
+   One core: RAYON_NUM_THREADS = 1 (the inverse is sequential).
+2. **Workspace** of the actuator, 21 x 21 boundary samples on each of the 6 faces of the
+   pressure box (2646 solves): ``softrod.workspace`` on 2 cores and on 1, median of 5 runs
+   each (alternating), at the design file's steps.
+
+The machine's load average before and after is recorded: on a shared machine wall times
+stretch with the load, CPU times much less.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+
+os.environ.setdefault("RAYON_NUM_THREADS", "2")
+
+import numpy as np  # noqa: E402
+import softrod  # noqa: E402
+from common import (  # noqa: E402
+    bench_main,
+    gc_disabled,
+    load_average,
+    machine,
+    median,
+    result_header,
+    steps_of,
+    with_step_length,
+)
+
+DESIGN = "spa_three_chamber_130mm"
+BOUNDS = (0.0, 70e3)
+STEP = 0.5e-3  # m per call
+RADIUS = 10e-3  # m
+
+
+def _targets(centre: np.ndarray, n: int) -> list[np.ndarray]:
+    da = STEP / RADIUS
+    return [centre + RADIUS * np.array([math.cos(k * da), math.sin(k * da), 0.0])
+            for k in range(n)]
+
+
+def _inverse(design, n_calls: int, warmup: int) -> dict:
+    problem = softrod.InverseProblem(design, pressure_bounds=BOUNDS)
+    centre = softrod.solve_statics(design, [35e3] * 3).tip_position
+    targets = _targets(centre, n_calls + warmup + 1)
+    prev = problem.solve(targets[0])
+    for t in targets[1:warmup + 1]:
+        prev = problem.solve(t, initial=prev)
+    times, passes, worst = [], 0, 0.0
+    with gc_disabled():
+        cpu0 = time.thread_time()
+        for t in targets[warmup + 1:]:
+            t0 = time.perf_counter_ns()
+            prev = problem.solve(t, initial=prev)
+            times.append((time.perf_counter_ns() - t0) * 1e-9)
+            passes += prev.passes
+            worst = max(worst, prev.distance)
+            assert prev.reached
+        cpu = (time.thread_time() - cpu0) / n_calls
+    # The one-shot function (arguments read on every call).
+    fn_times = []
+    with gc_disabled():
+        for t in targets[1:min(len(targets), 1 + n_calls // 4)]:
+            t0 = time.perf_counter_ns()
+            prev = softrod.solve_inverse(design, t, pressure_bounds=BOUNDS, initial=prev)
+            fn_times.append((time.perf_counter_ns() - t0) * 1e-9)
+    cold = []
+    for p in ([10e3, 0, 0], [70e3, 0, 0], [35e3, 35e3, 0], [20e3, 45e3, 70e3],
+              [70e3, 35e3, 10e3], [5e3, 5e3, 60e3], [50e3, 50e3, 50e3]):
+        tip = softrod.solve_statics(design, p).tip_position
+        with gc_disabled():
+            t0 = time.perf_counter_ns()
+            sol = problem.solve(tip)
+            cold.append((time.perf_counter_ns() - t0) * 1e-9)
+        assert sol.reached
+    med = median(times)
+    return {
+        "steps": steps_of(design),
+        "calls": n_calls,
+        "median_us": med * 1e6,
+        "p90_us": float(np.percentile(times, 90)) * 1e6,
+        "rate_kHz": 1e-3 / med,
+        "cpu_per_call_us": cpu * 1e6,
+        "rate_by_cpu_kHz": 1e-3 / cpu,
+        "dual_passes_per_call": passes / n_calls,
+        "worst_tip_distance_over_L": worst / design.length,
+        "function_median_us": median(fn_times) * 1e6,
+        "cold_median_us": median(cold) * 1e6,
+    }
+
+
+def _workspace(design, runs: int) -> dict:
+    out = {"solves": None, "two_cores_s": [], "one_core_s": []}
+    for r in range(runs):
+        order = (2, 1) if r % 2 == 0 else (1, 2)
+        for threads in order:
+            t0 = time.perf_counter()
+            ws = softrod.workspace(design, pressure_bounds=BOUNDS, samples=21, threads=threads)
+            wall = time.perf_counter() - t0
+            out["two_cores_s" if threads == 2 else "one_core_s"].append(wall)
+            out["solves"] = int(len(ws.converged))
+            out["converged"] = int(ws.converged.sum())
+    out["two_cores_median_s"] = median(out["two_cores_s"])
+    out["one_core_median_s"] = median(out["one_core_s"])
+    out["speed_up"] = out["one_core_median_s"] / out["two_cores_median_s"]
+    return out
+
+
+def run(args) -> dict:
+    t_start = time.perf_counter()
+    info = machine()
+    design = softrod.load_design(DESIGN)
+    coarse = with_step_length(design, 13)
+    n, warm = (300, 50) if args.quick else (3000, 200)
+    os.environ["RAYON_NUM_THREADS"] = "1"
+    result = result_header("control", args.quick, info, design=DESIGN)
+    result["inverse_design_steps"] = _inverse(design, n, warm)
+    result["inverse_13mm_steps"] = _inverse(coarse, n, warm)
+    result["workspace"] = _workspace(design, 2 if args.quick else 5)
+    info["load_average_after"] = load_average()
+    result["wall_time_s"] = time.perf_counter() - t_start
+    for key in ("inverse_design_steps", "inverse_13mm_steps"):
+        r = result[key]
+        print(f"{key}: {r['steps']} steps: warm median {r['median_us']:.1f} us "
+              f"({r['rate_kHz']:.1f} kHz; CPU {r['cpu_per_call_us']:.1f} us = "
+              f"{r['rate_by_cpu_kHz']:.1f} kHz), {r['dual_passes_per_call']:.3f} dual passes "
+              f"per call; function {r['function_median_us']:.1f} us; cold "
+              f"{r['cold_median_us']:.0f} us")
+    w = result["workspace"]
+    print(f"workspace: {w['solves']} solves, 2 cores {w['two_cores_median_s']:.3f} s, "
+          f"1 core {w['one_core_median_s']:.3f} s")
+    print(f"load average before {info['load_average_before']}, after "
+          f"{info['load_average_after']}")
+    return result
+
+
+if __name__ == "__main__":
+    sys.exit(bench_main(sys.argv[1:], __doc__, "control", run))

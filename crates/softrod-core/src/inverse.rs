@@ -1,0 +1,925 @@
+//! Inverse statics: the chamber pressures, within per-channel bounds, that bring a point of
+//! the rod (the tip by default) to a target position and optionally orientation.
+//!
+//! Problem (pressures p in the box [lo, hi], shooting unknowns x):
+//!   minimise  1/2 |e(x, p)|^2 + eps/2 |S (p - p_ref)|^2   subject to  g(x, p) = 0,
+//! with g the scaled shooting residual of `crate::statics` (the equilibrium), S = diag(1 /
+//! (hi - lo)) and the task residual e: w_i (r_i - r*_i) / L for the position and
+//! w_R (R - R*)_jk / sqrt(2) for the orientation (|R - R*|_F^2 / 2 = 2 (1 - cos theta), which
+//! is theta^2 for small angles and grows monotonically up to 180 deg).
+//!
+//! Method: projected Levenberg-Marquardt (Gauss-Newton with an adaptive damping mu) solved
+//! jointly with the equilibrium. At each iterate one dual pass (`crate::jacobian`) gives g,
+//! e and their exact partial derivatives in x and p; the implicit function theorem on g = 0
+//! turns them into the tip Jacobian J = de/dp = e_p - e_x g_x^-1 g_p. The step is the box-
+//! constrained least-squares problem (scaled pressures z = S p)
+//!   min_dz 1/2 |e + J dz|^2 + eps/2 |z + dz - z_ref|^2 + mu/2 |dz|^2,  lo <= z + dz <= hi,
+//! solved exactly by a primal active-set method; x follows the linearised equilibrium
+//! x + dx with dx = -g_x^-1 (g + g_p dp), corrected by chord Newton steps with the same
+//! g_x (f64 passes only) until g is within the statics tolerance. A step that does not lower
+//! the cost is refused and mu raised. Near a reachable target the steps are Newton steps on
+//! the joint system (quadratic convergence), so a warm start a small move away costs two or
+//! three dual passes.
+//!
+//! Redundancy: with more free channels than task dimensions the minimisers form a manifold.
+//! The solver first converges with eps = `regularisation` (least pressure: p_ref = the lower
+//! bounds clipped to 0, or closest to the previous command: p_ref = the warm start), then
+//! sets eps = 0 and continues with minimum-norm steps, which reach the target exactly while
+//! staying next to the regularised point. Without redundancy eps is 0 throughout.
+//!
+//! Unreachable targets: the iteration stops at a stationary point of the distance inside the
+//! box (a local minimum: some bounds active, the projected gradient zero) and the solution
+//! says `reached = false` with the distance left. The returned equilibrium is always
+//! converged and concluded as a static solve's answer (`statics::conclude_at`): checked
+//! against the validity rules (`crate::validity`), with its stability (`Solution::stable`)
+//! for the caller to refuse an unstable one.
+
+use crate::error::{Result, SoftrodError};
+use crate::jacobian::{pass_with, total_derivatives, value_with, Input, Pass, Probe};
+use crate::ode::{Loads, State};
+use crate::rod::Rod;
+use crate::statics::{self, Problem, Solution, SolverOptions};
+use crate::validity::{self, Policy};
+use nalgebra::{DMatrix, DVector, Vector3};
+
+/// Most channels the inverse works with (its step is a dense problem in the channels).
+pub const MAX_INVERSE_CHANNELS: usize = 64;
+
+/// What the rod should reach.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InverseTarget {
+    /// Arc length of the point that should reach the target, m (the tip: the length L).
+    pub s: f64,
+    /// Target position (world frame), m.
+    pub position: [f64; 3],
+    /// Target rotation [d1 d2 d3] (world frame, row-major), if the orientation matters.
+    pub orientation: Option<[[f64; 3]; 3]>,
+    /// Weight of each position component's error measured in rod lengths L (0 ignores
+    /// that component).
+    pub position_weight: [f64; 3],
+    /// Weight of the orientation error measured in rad (used with `orientation`).
+    pub orientation_weight: f64,
+}
+
+/// Settings of the inverse solver.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InverseOptions {
+    /// [lo, hi] gauge pressure per channel, Pa (lo == hi pins a channel).
+    pub bounds: Vec<[f64; 2]>,
+    /// The regularisation's centre p_ref, Pa (one per channel, inside the bounds).
+    pub reference: Vec<f64>,
+    /// eps of the regularisation (dimensionless; the task error is measured in L and rad,
+    /// the pressures in fractions of their range). Used only with redundant channels.
+    pub regularisation: f64,
+    /// The target counts as reached when every weighted position component is within
+    /// tol L and the orientation within tol rad; the iteration stops there.
+    pub tol: f64,
+    /// Most Levenberg-Marquardt iterations.
+    pub max_iter: usize,
+    /// Options of the equilibrium solves: the equilibrium's tolerance, and the validity
+    /// ranges (`strain_limits`, `on_invalid`) the answer is checked against.
+    pub statics: SolverOptions,
+}
+
+impl InverseOptions {
+    /// Bounds for every channel with the default settings.
+    pub fn new(bounds: Vec<[f64; 2]>) -> Self {
+        let reference = bounds.iter().map(|b| 0f64.clamp(b[0], b[1])).collect();
+        InverseOptions {
+            bounds,
+            reference,
+            regularisation: 1e-6,
+            tol: 1e-10,
+            max_iter: 100,
+            statics: SolverOptions::default(),
+        }
+    }
+}
+
+/// The answer of [`solve_inverse`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct InverseSolution {
+    /// Gauge pressure per channel, Pa, within the bounds.
+    pub pressures: Vec<f64>,
+    /// The converged equilibrium under those pressures, checked as a static solve's answer
+    /// (`stable`, validity-range `violations`; `x` is a warm start).
+    pub solution: Solution,
+    /// Position and rotation of the target point.
+    pub point: State<f64>,
+    /// Whether the target was reached to `tol`.
+    pub reached: bool,
+    /// Distance from the target point to the target position, m (all three components).
+    pub distance: f64,
+    /// Angle between the point's rotation and the target orientation, rad (NaN without).
+    pub angle: f64,
+    /// Least-squares cost 1/2 |e|^2 (without the regularisation).
+    pub cost: f64,
+    /// -1 at the lower bound, +1 at the upper, 0 inside, per channel.
+    pub active: Vec<i8>,
+    /// Levenberg-Marquardt iterations and dual passes.
+    pub iterations: usize,
+    pub passes: usize,
+    /// The last linearisation used (a warm start keeps it: [`InverseSolution::warm_start`]).
+    pub linearisation: Option<Linearisation>,
+}
+
+fn finite(field: &str, v: f64) -> Result<()> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(SoftrodError::invalid(field, v, "must be a finite number"))
+    }
+}
+
+fn validate(rod: &Rod, loads: &Loads, target: &InverseTarget, opts: &InverseOptions) -> Result<()> {
+    let nc = rod.n_channels;
+    if nc == 0 {
+        return Err(SoftrodError::invalid(
+            "design",
+            &rod.spec.name,
+            "has no pressure channels, so there is nothing to invert",
+        ));
+    }
+    if nc > MAX_INVERSE_CHANNELS {
+        return Err(SoftrodError::invalid(
+            "design",
+            format!("{nc} channels"),
+            format!("the inverse handles at most {MAX_INVERSE_CHANNELS} channels"),
+        ));
+    }
+    if rod.sections.iter().any(|s| s.law.stiffness_map) {
+        return Err(SoftrodError::invalid(
+            "design",
+            &rod.spec.name,
+            "has sections with law.stiffness_map: sigma(p) is evaluated outside the core, so the inverse cannot differentiate it; solve with fixed sigma instead",
+        ));
+    }
+    opts.statics.validate()?;
+    if opts.bounds.len() != nc {
+        return Err(SoftrodError::invalid(
+            "pressure_bounds",
+            format!("{} pairs", opts.bounds.len()),
+            format!("give one [lo, hi] per channel ({nc})"),
+        ));
+    }
+    for (c, b) in opts.bounds.iter().enumerate() {
+        finite(&format!("pressure_bounds[{c}][0]"), b[0])?;
+        finite(&format!("pressure_bounds[{c}][1]"), b[1])?;
+        if b[0] > b[1] {
+            return Err(SoftrodError::invalid(
+                format!("pressure_bounds[{c}]"),
+                format!("[{}, {}]", b[0], b[1]),
+                "lo must be <= hi",
+            ));
+        }
+        if b[0] < -crate::spec::ATMOSPHERE {
+            return Err(SoftrodError::invalid(
+                format!("pressure_bounds[{c}][0]"),
+                b[0],
+                "a gauge pressure cannot lie below -1 atm (vacuum)",
+            ));
+        }
+    }
+    if opts.reference.len() != nc {
+        return Err(SoftrodError::invalid(
+            "reference",
+            format!("{} values", opts.reference.len()),
+            format!("give one pressure per channel ({nc})"),
+        ));
+    }
+    for (c, (&r, b)) in opts.reference.iter().zip(&opts.bounds).enumerate() {
+        finite(&format!("reference[{c}]"), r)?;
+        if r < b[0] || r > b[1] {
+            return Err(SoftrodError::invalid(
+                format!("reference[{c}]"),
+                r,
+                format!("must lie inside the bounds [{}, {}] Pa", b[0], b[1]),
+            ));
+        }
+    }
+    if loads.pressures.len() != nc || loads.pressures.iter().any(|p| !p.is_finite()) {
+        return Err(SoftrodError::invalid(
+            "initial",
+            format!("{:?}", loads.pressures),
+            format!("the start needs {nc} finite pressures"),
+        ));
+    }
+    if !(opts.regularisation.is_finite() && opts.regularisation >= 0.0) {
+        return Err(SoftrodError::invalid(
+            "regularisation",
+            opts.regularisation,
+            "must be finite and >= 0",
+        ));
+    }
+    if !(opts.tol.is_finite() && opts.tol > 0.0 && opts.tol < 1.0) {
+        return Err(SoftrodError::invalid("tol", opts.tol, "must be in (0, 1)"));
+    }
+    if opts.max_iter == 0 {
+        return Err(SoftrodError::invalid("max_iter", 0, "must be >= 1"));
+    }
+    for (k, v) in target.position.iter().enumerate() {
+        finite(&format!("target[{k}]"), *v)?;
+    }
+    for (k, w) in target.position_weight.iter().enumerate() {
+        finite(&format!("weights.position[{k}]"), *w)?;
+        if *w < 0.0 {
+            return Err(SoftrodError::invalid(
+                format!("weights.position[{k}]"),
+                w,
+                "must be >= 0",
+            ));
+        }
+    }
+    finite("weights.orientation", target.orientation_weight)?;
+    if target.orientation_weight < 0.0 {
+        return Err(SoftrodError::invalid(
+            "weights.orientation",
+            target.orientation_weight,
+            "must be >= 0",
+        ));
+    }
+    if let Some(r) = &target.orientation {
+        for row in r {
+            for v in row {
+                finite("orientation", *v)?;
+            }
+        }
+        let err = validity::orthonormality_error(r);
+        let det = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
+            - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+            + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
+        if err > 1e-9 || det <= 0.0 {
+            return Err(SoftrodError::invalid(
+                "orientation",
+                format!("{r:?}"),
+                format!("must be a rotation matrix (max |R^T R - I| = {err:.2e}, det = {det:.6})"),
+            ));
+        }
+    }
+    let weighted = target.position_weight.iter().any(|w| *w > 0.0)
+        || (target.orientation.is_some() && target.orientation_weight > 0.0);
+    if !weighted {
+        return Err(SoftrodError::invalid(
+            "weights",
+            "all zero",
+            "at least one position component or the orientation must carry weight",
+        ));
+    }
+    Ok(())
+}
+
+/// Rows of the task residual e and its derivative from the probe's values y and dy.
+struct Task<'a> {
+    target: &'a InverseTarget,
+    length: f64,
+}
+
+impl Task<'_> {
+    fn rows(&self) -> usize {
+        if self.target.orientation.is_some() {
+            12
+        } else {
+            3
+        }
+    }
+
+    /// Number of task dimensions that carry weight.
+    fn dof(&self) -> usize {
+        let pos = self
+            .target
+            .position_weight
+            .iter()
+            .filter(|w| **w > 0.0)
+            .count();
+        let rot = if self.target.orientation.is_some() && self.target.orientation_weight > 0.0 {
+            3
+        } else {
+            0
+        };
+        pos + rot
+    }
+
+    /// e_i = (scale_i) (y_i - y*_i), or with `delta` the linear map of a change of y.
+    fn residual(&self, y: &[f64; 12], delta: bool) -> Vec<f64> {
+        let t = self.target;
+        let mut e = Vec::with_capacity(self.rows());
+        for i in 0..3 {
+            let d = if delta { y[i] } else { y[i] - t.position[i] };
+            e.push(t.position_weight[i] * d / self.length);
+        }
+        if let Some(r) = &t.orientation {
+            let w = t.orientation_weight / std::f64::consts::SQRT_2;
+            for j in 0..3 {
+                for k in 0..3 {
+                    let v = y[3 + 3 * j + k];
+                    e.push(w * if delta { v } else { v - r[j][k] });
+                }
+            }
+        }
+        e
+    }
+
+    /// Reached: every weighted position component within tol L, the angle within tol.
+    fn reached(&self, y: &[f64; 12], tol: f64) -> bool {
+        let t = self.target;
+        let pos_ok = (0..3).all(|i| {
+            t.position_weight[i] == 0.0 || (y[i] - t.position[i]).abs() <= tol * self.length
+        });
+        let angle = self.angle(y);
+        let rot_ok = t.orientation_weight == 0.0 || angle.is_nan() || angle <= tol;
+        pos_ok && rot_ok
+    }
+
+    fn angle(&self, y: &[f64; 12]) -> f64 {
+        match &self.target.orientation {
+            None => f64::NAN,
+            Some(r) => {
+                // cos theta = (tr(R*^T R) - 1) / 2; sin theta from |R - R*|_F for accuracy
+                // near 0: |R - R*|_F^2 = 8 sin^2(theta / 2).
+                let f2: f64 = (0..3)
+                    .flat_map(|j| (0..3).map(move |k| (j, k)))
+                    .map(|(j, k)| (y[3 + 3 * j + k] - r[j][k]).powi(2))
+                    .sum();
+                2.0 * ((f2 / 8.0).sqrt().min(1.0)).asin()
+            }
+        }
+    }
+}
+
+/// min 1/2 z^T H z - b^T z subject to lo <= z <= hi (lo <= 0 <= hi), H symmetric positive
+/// definite: a primal active-set method from the feasible start z = 0. Exact after finitely
+/// many changes of the active set (at most a few per channel in practice).
+pub(crate) fn box_qp(h: &DMatrix<f64>, b: &DVector<f64>, lo: &[f64], hi: &[f64]) -> DVector<f64> {
+    let n = b.len();
+    let mut z = DVector::zeros(n);
+    // 0: free, -1: at lo, +1: at hi
+    let mut state: Vec<i8> = (0..n)
+        .map(|i| if lo[i] == hi[i] { -1 } else { 0 })
+        .collect();
+    for _ in 0..(10 * n + 10) {
+        let free: Vec<usize> = (0..n).filter(|&i| state[i] == 0).collect();
+        // Minimiser over the free variables with the others held at their bounds.
+        let mut target = z.clone();
+        if !free.is_empty() {
+            let hf = DMatrix::from_fn(free.len(), free.len(), |a, c| h[(free[a], free[c])]);
+            let rhs = DVector::from_fn(free.len(), |a, _| {
+                let i = free[a];
+                b[i] - (0..n)
+                    .filter(|&j| state[j] != 0)
+                    .map(|j| h[(i, j)] * z[j])
+                    .sum::<f64>()
+            });
+            let sol = match hf.clone().cholesky() {
+                Some(ch) => ch.solve(&rhs),
+                None => hf
+                    .lu()
+                    .solve(&rhs)
+                    .unwrap_or_else(|| DVector::zeros(free.len())),
+            };
+            for (a, &i) in free.iter().enumerate() {
+                target[i] = sol[a];
+            }
+        }
+        // Step towards it until a bound blocks.
+        let mut alpha = 1.0;
+        let mut block = None;
+        for &i in &free {
+            let d = target[i] - z[i];
+            if d < 0.0 && target[i] < lo[i] {
+                let a = (lo[i] - z[i]) / d;
+                if a < alpha {
+                    alpha = a;
+                    block = Some((i, -1));
+                }
+            } else if d > 0.0 && target[i] > hi[i] {
+                let a = (hi[i] - z[i]) / d;
+                if a < alpha {
+                    alpha = a;
+                    block = Some((i, 1));
+                }
+            }
+        }
+        for &i in &free {
+            z[i] += alpha.max(0.0) * (target[i] - z[i]);
+        }
+        if let Some((i, side)) = block {
+            z[i] = if side < 0 { lo[i] } else { hi[i] };
+            state[i] = side;
+            continue;
+        }
+        // At the minimiser of this face: release the bound whose multiplier has the wrong
+        // sign (the gradient H z - b points into the box there).
+        let grad = h * &z - b;
+        let mut worst = None;
+        let mut worst_val = 0.0;
+        for i in 0..n {
+            if lo[i] == hi[i] {
+                continue;
+            }
+            let v = match state[i] {
+                -1 => -grad[i], // at lo the cost must rise inwards: grad >= 0
+                1 => grad[i],   // at hi: grad <= 0
+                _ => 0.0,
+            };
+            if v > worst_val {
+                worst_val = v;
+                worst = Some(i);
+            }
+        }
+        match worst {
+            Some(i) => state[i] = 0,
+            None => return z,
+        }
+    }
+    z
+}
+
+/// Where an iterate stands: pressures, unknowns, residual, probe values.
+struct Iterate {
+    p: Vec<f64>,
+    x: [f64; 3],
+    g: [f64; 3],
+    y: [f64; 12],
+    point: State<f64>,
+    /// The probe's values corrected to first order for the equilibrium defect g (equal to
+    /// `y` when the iterate is exact: g within the statics tolerance).
+    y_corr: [f64; 12],
+    exact: bool,
+}
+
+/// Largest equilibrium defect (scaled residual, relative to max(1, |x|)) an intermediate
+/// iterate may keep: its probe values are corrected to first order (error ~1e-6 times the
+/// step), the cost comparisons stay meaningful, and the answer is made exact at the end.
+const LOOSE: f64 = 1e-6;
+
+fn inf(v: &[f64]) -> f64 {
+    v.iter().fold(0.0, |a: f64, x| a.max(x.abs()))
+}
+
+/// A warm start: the shooting unknowns of the start pressures (e.g. the previous answer's
+/// `solution.x`) and, from a previous answer of the same problem, its linearisation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WarmStart {
+    pub x: [f64; 3],
+    /// The converged equilibrium this warm start describes: pressures and the probe's state
+    /// (when the start pressures equal these, no pass is needed to begin).
+    pub equilibrium: Option<(Vec<f64>, State<f64>)>,
+    pub linearisation: Option<Linearisation>,
+}
+
+/// A linearisation of the equilibrium and the probe: the pass (partial derivatives at some
+/// iterate) and the reduced Jacobian dy/dp, refined by Broyden updates as steps are taken.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Linearisation {
+    pub pass: Pass,
+    pub dy: Vec<[f64; 12]>,
+}
+
+impl InverseSolution {
+    /// A warm start for the next target of the same problem.
+    pub fn warm_start(&self) -> WarmStart {
+        WarmStart {
+            x: self.solution.x,
+            equilibrium: Some((self.pressures.clone(), self.point)),
+            linearisation: self.linearisation.clone(),
+        }
+    }
+}
+
+/// Solve the inverse problem. `loads.pressures` is the start (clipped into the bounds);
+/// `warm` a warm start for it (else a cold start: the equilibrium is solved from scratch
+/// and the best of a few start candidates is taken).
+pub fn solve_inverse(
+    rod: &Rod,
+    loads: &Loads,
+    target: &InverseTarget,
+    opts: &InverseOptions,
+    warm: Option<&WarmStart>,
+) -> Result<InverseSolution> {
+    validate(rod, loads, target, opts)?;
+    let probe = Probe::at(rod, target.s)?;
+    let nc = rod.n_channels;
+    let task = Task {
+        target,
+        length: rod.length,
+    };
+    let lo: Vec<f64> = opts.bounds.iter().map(|b| b[0]).collect();
+    let hi: Vec<f64> = opts.bounds.iter().map(|b| b[1]).collect();
+    // Scaled pressures z = (p - lo) / range; a pinned channel keeps range 1 Pa (its step is 0).
+    let range: Vec<f64> = opts
+        .bounds
+        .iter()
+        .map(|b| if b[1] > b[0] { b[1] - b[0] } else { 1.0 })
+        .collect();
+    let with_p = |p: &[f64]| Loads {
+        pressures: p.to_vec(),
+        ..loads.clone()
+    };
+    let inputs: Vec<Input> = (0..nc).map(Input::Pressure).collect();
+    let z_ref: Vec<f64> = (0..nc)
+        .map(|c| (opts.reference[c] - lo[c]) / range[c])
+        .collect();
+    let free = (0..nc).filter(|&c| hi[c] > lo[c]).count();
+    let mut eps = if free > task.dof() {
+        opts.regularisation
+    } else {
+        0.0
+    };
+
+    let cost_of = |y: &[f64; 12], p: &[f64], eps: f64| -> f64 {
+        let e = task.residual(y, false);
+        let reg: f64 = (0..nc)
+            .map(|c| ((p[c] - lo[c]) / range[c] - z_ref[c]).powi(2))
+            .sum();
+        0.5 * e.iter().map(|v| v * v).sum::<f64>() + 0.5 * eps * reg
+    };
+    let eq_tol = |x: &[f64; 3]| opts.statics.tol * inf(x).max(1.0);
+    // Intermediate equilibria are not answers: only the physical rules apply to them.
+    let inner = SolverOptions {
+        on_invalid: Policy::Ignore,
+        ..opts.statics
+    };
+    let exact_at = |p: Vec<f64>, x: [f64; 3], problem: &Problem| -> Iterate {
+        let (g, point, _) = value_with(problem, rod, &x, &probe);
+        let y = flatten(&point);
+        Iterate {
+            p,
+            x,
+            g,
+            y,
+            point,
+            y_corr: y,
+            exact: true,
+        }
+    };
+    let iterate_at = |p: Vec<f64>, guess: Option<&[f64; 3]>| -> Result<Iterate> {
+        let ld = with_p(&p);
+        let problem = Problem::new(rod, &ld, 1.0);
+        if let Some(x) = guess {
+            // A warm start is usually the equilibrium already: one f64 pass tells.
+            let it = exact_at(p.clone(), *x, &problem);
+            if inf(&it.g) <= eq_tol(x) {
+                return Ok(it);
+            }
+        }
+        let sol = statics::solve(rod, &ld, guess, &inner)?;
+        Ok(exact_at(p, sol.x, &problem))
+    };
+    // Chord Newton on the equilibrium at fixed pressures with the LU of a nearby g_x
+    // (f64 passes only); a full statics solve if that does not converge.
+    let make_exact =
+        |it: Iterate, lu: &nalgebra::LU<f64, nalgebra::U3, nalgebra::U3>| -> Result<Iterate> {
+            if it.exact {
+                return Ok(it);
+            }
+            let ld = with_p(&it.p);
+            let problem = Problem::new(rod, &ld, 1.0);
+            let mut x = it.x;
+            let mut g = it.g;
+            let mut last = f64::INFINITY;
+            for _ in 0..8 {
+                let n = inf(&g);
+                if !n.is_finite() || n > 0.5 * last {
+                    break;
+                }
+                let d = lu
+                    .solve(&-Vector3::from_column_slice(&g))
+                    .unwrap_or_else(Vector3::zeros);
+                for k in 0..3 {
+                    x[k] += d[k];
+                }
+                let next = exact_at(it.p.clone(), x, &problem);
+                if inf(&next.g) <= eq_tol(&x) {
+                    return Ok(next);
+                }
+                last = n;
+                g = next.g;
+            }
+            let sol = statics::solve(rod, &ld, Some(&it.x), &inner)?;
+            Ok(exact_at(it.p, sol.x, &problem))
+        };
+    // Start: the equilibrium at the clipped start pressures; from a cold start, the best of
+    // it, the box's centre and (up to 4 channels) its corners, so that the local method
+    // starts in the right basin of a non-convex distance.
+    let p0: Vec<f64> = (0..nc)
+        .map(|c| loads.pressures[c].clamp(lo[c], hi[c]))
+        .collect();
+    let guess = warm.map(|w| &w.x);
+    let known = warm.and_then(|w| {
+        w.equilibrium
+            .as_ref()
+            .filter(|(p, _)| *p == p0 && w.x.iter().all(|v| v.is_finite()))
+    });
+    let mut it = match known {
+        // The previous answer: converged and checked there, at these very pressures.
+        Some((_, point)) => {
+            let y = flatten(point);
+            Iterate {
+                p: p0,
+                x: warm.expect("known comes from warm").x,
+                g: [0.0; 3],
+                y,
+                point: *point,
+                y_corr: y,
+                exact: true,
+            }
+        }
+        None => iterate_at(p0, guess)?,
+    };
+    if guess.is_none() {
+        let mut candidates: Vec<Vec<f64>> = vec![(0..nc).map(|c| 0.5 * (lo[c] + hi[c])).collect()];
+        if nc <= 4 {
+            for corner in 0..(1usize << nc) {
+                candidates.push(
+                    (0..nc)
+                        .map(|c| if corner >> c & 1 == 1 { hi[c] } else { lo[c] })
+                        .collect(),
+                );
+            }
+        }
+        let mut best = cost_of(&it.y, &it.p, eps);
+        for cand in candidates {
+            if let Ok(c) = iterate_at(cand, None) {
+                let cost = cost_of(&c.y, &c.p, eps);
+                if cost < best {
+                    best = cost;
+                    it = c;
+                }
+            }
+        }
+    }
+    let mut passes = 0usize;
+    let mut mu = 0.0f64;
+    let mut iterations = 0;
+    let mut stationary = false;
+    // The linearisation in use: fresh from a pass at the current iterate, or kept from an
+    // earlier iterate (or the previous call) while its chord steps contract well.
+    let mut lin: Option<Linearisation> = warm
+        .and_then(|w| w.linearisation.clone())
+        .filter(|l| l.pass.g_a.len() == nc && l.pass.s == target.s);
+    let mut fresh = false;
+    let mut need_fresh = lin.is_none();
+    let mut moved = false;
+    while iterations < opts.max_iter {
+        if eps == 0.0 && task.reached(&it.y_corr, opts.tol) {
+            if let Some(l) = &lin {
+                it = make_exact(it, &l.pass.g_x.lu())?;
+            }
+            if task.reached(&it.y, opts.tol) {
+                break;
+            }
+        }
+        iterations += 1;
+        if need_fresh || lin.is_none() {
+            let ld = with_p(&it.p);
+            let problem = Problem::new(rod, &ld, 1.0);
+            let pass = pass_with(&problem, rod, &ld, &it.x, &inputs, &probe);
+            passes += 1;
+            let Some((dy, _)) = total_derivatives(&pass) else {
+                return Err(SoftrodError::NotConverged {
+                    iterations,
+                    residual: inf(&it.g),
+                    load_factor: 1.0,
+                    reason: "the shooting Jacobian became singular during the inverse (a limit point of the equilibrium)".into(),
+                });
+            };
+            lin = Some(Linearisation { pass, dy });
+            fresh = true;
+            need_fresh = false;
+        }
+        let current = lin.as_ref().expect("a linearisation is set above");
+        let pass = &current.pass;
+        let dy = current.dy.clone();
+        let lu = pass.g_x.lu();
+        // Value and Jacobian of e in scaled pressures; the equilibrium defect g of the
+        // iterate is folded in through the linearised equilibrium.
+        let dx0 = lu
+            .solve(&-Vector3::from_column_slice(&it.g))
+            .unwrap_or_else(Vector3::zeros);
+        let y_lin: [f64; 12] =
+            std::array::from_fn(|i| it.y[i] + (0..3).map(|j| pass.y_x[i][j] * dx0[j]).sum::<f64>());
+        let e = DVector::from_vec(task.residual(&y_lin, false));
+        let m = e.len();
+        let columns: Vec<Vec<f64>> = (0..nc)
+            .map(|c| task.residual(&dy[c].map(|v| v * range[c]), true))
+            .collect();
+        let jac = DMatrix::from_fn(m, nc, |r, c| columns[c][r]);
+        let cost = cost_of(&y_lin, &it.p, eps);
+        let z: Vec<f64> = (0..nc).map(|c| (it.p[c] - lo[c]) / range[c]).collect();
+        let jtj = jac.transpose() * &jac;
+        let scale = jtj.diagonal().max().max(1e-300);
+        let grad_reg = DVector::from_fn(nc, |c, _| eps * (z[c] - z_ref[c]));
+        let b = -(jac.transpose() * &e) - &grad_reg;
+        let zlo: Vec<f64> = (0..nc).map(|c| -z[c]).collect();
+        let zhi: Vec<f64> = (0..nc)
+            .map(|c| if hi[c] > lo[c] { 1.0 - z[c] } else { 0.0 })
+            .collect();
+        let mut accepted = false;
+        for _attempt in 0..12 {
+            let mut h = jtj.clone();
+            let ridge = eps + mu + 1e-14 * scale;
+            for c in 0..nc {
+                h[(c, c)] += ridge;
+            }
+            let dz = box_qp(&h, &b, &zlo, &zhi);
+            let step_size = inf(dz.as_slice());
+            // Predicted decrease of the model (without the mu term).
+            let model = |d: &DVector<f64>| -> f64 {
+                let r = &e + &jac * d;
+                let reg: f64 = (0..nc).map(|c| (z[c] + d[c] - z_ref[c]).powi(2)).sum();
+                0.5 * r.dot(&r) + 0.5 * eps * reg
+            };
+            let pred = cost - model(&dz);
+            if step_size <= 1e-12 || pred <= 1e-15 * cost.max(1e-300) {
+                stationary = true;
+                break;
+            }
+            let p_t: Vec<f64> = (0..nc)
+                .map(|c| (it.p[c] + dz[c] * range[c]).clamp(lo[c], hi[c]))
+                .collect();
+            let mut rhs = Vector3::from_column_slice(&it.g);
+            for c in 0..nc {
+                rhs += Vector3::from_column_slice(&pass.g_a[c]) * (p_t[c] - it.p[c]);
+            }
+            let dx = lu.solve(&-rhs).unwrap_or_else(Vector3::zeros);
+            let mut x_t = [it.x[0] + dx[0], it.x[1] + dx[1], it.x[2] + dx[2]];
+            // The equilibrium at p_t: accept the linearised x_t when its defect is within
+            // LOOSE (probe values corrected to first order), else chord Newton steps with
+            // this g_x, else a full solve.
+            let ld_t = with_p(&p_t);
+            let prob_t = Problem::new(rod, &ld_t, 1.0);
+            let mut trial = None;
+            let mut last = f64::INFINITY;
+            for _ in 0..8 {
+                let (g, point, _) = value_with(&prob_t, rod, &x_t, &probe);
+                let n = inf(&g);
+                if !n.is_finite() || n > 0.5 * last {
+                    break;
+                }
+                if n <= LOOSE * inf(&x_t).max(1.0) {
+                    trial = Some((g, point, n <= eq_tol(&x_t)));
+                    break;
+                }
+                last = n;
+                let d = lu
+                    .solve(&-Vector3::from_column_slice(&g))
+                    .unwrap_or_else(Vector3::zeros);
+                for k in 0..3 {
+                    x_t[k] += d[k];
+                }
+            }
+            if trial.is_none() && fresh {
+                // A long step: solve the equilibrium properly (Newton, continuation).
+                if let Ok(sol) = statics::solve(rod, &ld_t, Some(&x_t), &inner) {
+                    x_t = sol.x;
+                    let (g, point, _) = value_with(&prob_t, rod, &x_t, &probe);
+                    trial = Some((g, point, true));
+                }
+            }
+            let Some((g_t, point_t, exact_t)) = trial else {
+                if !fresh {
+                    break; // the kept linearisation is too old: take a fresh one
+                }
+                mu = (mu * 4.0).max(1e-3 * scale);
+                continue;
+            };
+            let y_t = flatten(&point_t);
+            let y_corr_t = if exact_t {
+                y_t
+            } else {
+                let d = lu
+                    .solve(&-Vector3::from_column_slice(&g_t))
+                    .unwrap_or_else(Vector3::zeros);
+                std::array::from_fn(|i| y_t[i] + (0..3).map(|j| pass.y_x[i][j] * d[j]).sum::<f64>())
+            };
+            let cost_t = cost_of(&y_corr_t, &p_t, eps);
+            if cost_t.is_finite() && cost_t < cost {
+                let rho = (cost - cost_t) / pred;
+                mu = if rho > 0.75 {
+                    mu / 3.0
+                } else if rho < 0.25 {
+                    (mu * 2.0).max(1e-6 * scale)
+                } else {
+                    mu
+                };
+                if mu < 1e-12 * scale {
+                    mu = 0.0;
+                }
+                // Keep this linearisation for the next step while it contracts the cost
+                // well (a chord step of the joint Newton method costs f64 passes only).
+                need_fresh = cost_t > 0.0625 * cost;
+                // Broyden's update of dy/dp with the observed change (scaled pressures).
+                let sz: Vec<f64> = (0..nc).map(|c| (p_t[c] - it.p[c]) / range[c]).collect();
+                let ss: f64 = sz.iter().map(|v| v * v).sum();
+                if ss > 0.0 {
+                    let miss: [f64; 12] = std::array::from_fn(|i| {
+                        y_corr_t[i]
+                            - y_lin[i]
+                            - (0..nc).map(|c| dy[c][i] * sz[c] * range[c]).sum::<f64>()
+                    });
+                    if let Some(l) = lin.as_mut() {
+                        for c in 0..nc {
+                            for i in 0..12 {
+                                l.dy[c][i] += miss[i] * sz[c] / (ss * range[c]);
+                            }
+                        }
+                    }
+                }
+                it = Iterate {
+                    p: p_t,
+                    x: x_t,
+                    g: g_t,
+                    y: y_t,
+                    point: point_t,
+                    y_corr: y_corr_t,
+                    exact: exact_t,
+                };
+                accepted = true;
+                moved = true;
+                fresh = false;
+                break;
+            }
+            if !fresh {
+                break;
+            }
+            mu = (mu * 4.0).max(1e-4 * scale);
+        }
+        if !accepted && !fresh {
+            // A kept linearisation failed to make progress: retry with a fresh one.
+            need_fresh = true;
+            stationary = false;
+            continue;
+        }
+        if !accepted {
+            stationary = true;
+        }
+        if stationary {
+            if eps > 0.0 {
+                // The regularised problem has converged: now the task alone, with
+                // minimum-norm steps from here.
+                eps = 0.0;
+                stationary = false;
+                mu = 0.0;
+                continue;
+            }
+            break;
+        }
+    }
+    if let Some(l) = &lin {
+        it = make_exact(it, &l.pass.g_x.lu())?;
+    }
+    if known.is_some() && !moved {
+        // The answer is the warm start's own equilibrium: check it rather than trust it.
+        it = iterate_at(it.p.clone(), Some(&it.x))?;
+    }
+    let reached = task.reached(&it.y, opts.tol);
+    if !reached && !stationary && eps == 0.0 && iterations >= opts.max_iter {
+        return Err(SoftrodError::NotConverged {
+            iterations,
+            residual: cost_of(&it.y, &it.p, 0.0),
+            load_factor: 1.0,
+            reason: format!(
+                "the inverse reached neither the target nor a stationary point in {} iterations (raise max_iter)",
+                opts.max_iter
+            ),
+        });
+    }
+    // The answer as a static solve concludes it: validity rules and stability.
+    let solution = statics::conclude_at(rod, &with_p(&it.p), it.x, iterations, &opts.statics)?;
+    let distance = (0..3)
+        .map(|i| (it.y[i] - target.position[i]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let tol_p = |c: usize| 1e-12 * range[c];
+    Ok(InverseSolution {
+        active: (0..nc)
+            .map(|c| {
+                if it.p[c] <= lo[c] + tol_p(c) {
+                    -1
+                } else if it.p[c] >= hi[c] - tol_p(c) {
+                    1
+                } else {
+                    0
+                }
+            })
+            .collect(),
+        point: it.point,
+        reached,
+        distance,
+        angle: task.angle(&it.y),
+        cost: cost_of(&it.y, &it.p, 0.0),
+        pressures: it.p,
+        solution,
+        iterations,
+        passes,
+        linearisation: lin,
+    })
+}
+
+fn flatten(st: &State<f64>) -> [f64; 12] {
+    let r = &st.rot;
+    [
+        st.r[0], st.r[1], st.r[2], r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0],
+        r[2][1], r[2][2],
+    ]
+}

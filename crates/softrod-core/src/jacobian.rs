@@ -1,0 +1,364 @@
+//! Exact first derivatives of a static equilibrium with respect to the chamber pressures,
+//! the dead tip loads and the shooting unknowns, at any point of the rod: the building block
+//! of inverse statics (`crate::inverse`), tip Jacobians and linearisations
+//! (`crate::linearise`).
+//!
+//! One integration in `Jet<N>` carries N directions: the three scaled shooting unknowns x
+//! (the base moment, see `crate::statics`) and up to N - 3 inputs (a pressure, a component of
+//! the tip force or moment). Pressures enter through the coefficients (chamber forces and
+//! moments, and with swelling the stiffnesses, paper 002 eq. 22), so the coefficients are
+//! built from dual pressures (`Coeffs::build_with`); the tip force enters the known base
+//! force n(0) and the tip moment the residual. The pass returns the shooting residual
+//! g(x, a) and the state at a probe point with their partial derivatives; by the implicit
+//! function theorem on g = 0, dx/da = -g_x^-1 g_a and every output y moves as
+//! dy/da = y_a + y_x dx/da. No finite differences.
+
+use crate::error::{Result, SoftrodError};
+use crate::jet::Jet;
+use crate::ode::{advance, integrate_with, Coeffs, Loads, NodeAt, SectionKnobs, State};
+use crate::rod::Rod;
+use crate::statics::{Problem, Solution};
+use nalgebra::{DMatrix, Matrix3, Vector3};
+
+/// An input a derivative is taken with respect to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Input {
+    /// Gauge pressure of a channel, Pa.
+    Pressure(usize),
+    /// Component of the dead tip force (world frame), N.
+    TipForce(usize),
+    /// Component of the dead tip moment (world frame), N m.
+    TipMoment(usize),
+}
+
+/// Where the state is read: at a node, or a partial step after it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Probe {
+    /// Arc length, m.
+    pub s: f64,
+    section: usize,
+    step: usize,
+    offset: f64,
+}
+
+impl Probe {
+    /// The point at arc length `s` in [0, L]. A point within 1e-9 of a step from a node is
+    /// that node (so the tip is read exactly as the solver integrates it).
+    pub fn at(rod: &Rod, s: f64) -> Result<Self> {
+        if !(s.is_finite() && (0.0..=rod.length * (1.0 + 1e-12)).contains(&s)) {
+            return Err(SoftrodError::invalid(
+                "point",
+                s,
+                format!("the arc length must lie in [0, L] = [0, {}] m", rod.length),
+            ));
+        }
+        let last = rod.sections.len() - 1;
+        let i = rod
+            .sections
+            .iter()
+            .position(|sec| s < sec.s_start + sec.length)
+            .unwrap_or(last);
+        let sec = &rod.sections[i];
+        let h = sec.length / sec.steps as f64;
+        let t = ((s - sec.s_start) / h).max(0.0);
+        let mut step = (t.floor() as usize).min(sec.steps);
+        let mut offset = (s - sec.s_start - h * step as f64).max(0.0);
+        if offset >= h * (1.0 - 1e-9) {
+            step = (step + 1).min(sec.steps);
+            offset = 0.0;
+        } else if offset <= h * 1e-9 {
+            offset = 0.0;
+        }
+        Ok(Probe {
+            s,
+            section: i,
+            step,
+            offset,
+        })
+    }
+
+    /// The tip.
+    pub fn tip(rod: &Rod) -> Self {
+        let i = rod.sections.len() - 1;
+        Probe {
+            s: rod.length,
+            section: i,
+            step: rod.sections[i].steps,
+            offset: 0.0,
+        }
+    }
+}
+
+/// One pass: the residual and the probe's state, each with its partial derivatives in the
+/// pass's directions (x first, then the inputs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pass {
+    /// Arc length of the probe, m.
+    pub s: f64,
+    /// Scaled shooting residual g (3).
+    pub g: [f64; 3],
+    /// d g / d x.
+    pub g_x: Matrix3<f64>,
+    /// d g / d input, one column per input.
+    pub g_a: Vec<[f64; 3]>,
+    /// Position (3) then rotation (9, row-major) at the probe.
+    pub y: [f64; 12],
+    /// d y / d x.
+    pub y_x: [[f64; 3]; 12],
+    /// d y / d input, one column per input.
+    pub y_a: Vec<[f64; 12]>,
+}
+
+/// Pressures, knobs and sigma of the coefficients in `Jet<N>`, the listed pressures seeded
+/// as directions `3 + k`.
+pub(crate) fn dual_coeffs<const N: usize>(
+    rod: &Rod,
+    loads: &Loads,
+    inputs: &[Input],
+) -> Vec<Coeffs<Jet<N>>> {
+    let mut p: Vec<Jet<N>> = loads.pressures.iter().map(|&v| Jet::from(v)).collect();
+    for (k, a) in inputs.iter().enumerate() {
+        if let Input::Pressure(c) = a {
+            p[*c].eps[3 + k] = 1.0;
+        }
+    }
+    let sigma = loads.stiffness_scale.map(Jet::from);
+    (0..rod.sections.len())
+        .map(|i| {
+            let knobs = SectionKnobs::of(&rod.sections[i]).lift();
+            Coeffs::build_with(rod, i, &p, &rod.gravity, Jet::from(1.0), &sigma, &knobs)
+        })
+        .collect()
+}
+
+fn flatten<D: Copy>(st: &State<D>) -> [D; 12] {
+    let r = &st.rot;
+    [
+        st.r[0], st.r[1], st.r[2], r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0],
+        r[2][1], r[2][2],
+    ]
+}
+
+/// The pass in `Jet<N>` for at most N - 3 inputs.
+fn pass_n<const N: usize>(
+    problem: &Problem,
+    rod: &Rod,
+    loads: &Loads,
+    x: &[f64; 3],
+    inputs: &[Input],
+    probe: &Probe,
+) -> Pass {
+    debug_assert!(inputs.len() + 3 <= N);
+    let coeffs = dual_coeffs::<N>(rod, loads, inputs);
+    let xd: [Jet<N>; 3] = std::array::from_fn(|i| Jet::variable(x[i], i));
+    let mut y0 = problem.base_state(&xd);
+    for (k, a) in inputs.iter().enumerate() {
+        if let Input::TipForce(j) = a {
+            // n(0) = F_tip + tip weight + int f: d n(0) / d F_tip = I.
+            y0.n[*j].eps[3 + k] = 1.0;
+        }
+    }
+    let mut point = None;
+    let tip = integrate_with(rod, &coeffs, y0, &mut |node: NodeAt, y| {
+        if point.is_none() && node.section == probe.section && node.step == probe.step {
+            point = Some(advance(rod, &coeffs, node.section, y, probe.offset));
+        }
+        false
+    });
+    let mut g = problem.residual_of_tip(&tip);
+    let ms = rod.force_scale * rod.length;
+    for (k, a) in inputs.iter().enumerate() {
+        if let Input::TipMoment(j) = a {
+            // g = (m(L) - c x W - M_tip) / M_s
+            g[*j].eps[3 + k] -= 1.0 / ms;
+        }
+    }
+    let y = flatten(&point.unwrap_or(tip));
+    Pass {
+        s: probe.s,
+        g: g.map(|v| v.re),
+        g_x: Matrix3::from_fn(|i, j| g[i].eps[j]),
+        g_a: (0..inputs.len())
+            .map(|k| std::array::from_fn(|i| g[i].eps[3 + k]))
+            .collect(),
+        y: y.map(|v| v.re),
+        y_x: std::array::from_fn(|i| std::array::from_fn(|j| y[i].eps[j])),
+        y_a: (0..inputs.len())
+            .map(|k| std::array::from_fn(|i| y[i].eps[3 + k]))
+            .collect(),
+    }
+}
+
+/// Inputs per pass beyond x: passes with more directions are split into chunks.
+const CHUNK: usize = 6;
+
+/// The residual and the probe's state at (x, loads) with their partial derivatives with
+/// respect to x and `inputs`. Inputs are checked by the caller (channels in range).
+pub fn pass(rod: &Rod, loads: &Loads, x: &[f64; 3], inputs: &[Input], probe: &Probe) -> Pass {
+    let problem = Problem::new(rod, loads, 1.0);
+    pass_with(&problem, rod, loads, x, inputs, probe)
+}
+
+/// [`pass`] on an already built problem (its loads must be `loads`).
+pub(crate) fn pass_with(
+    problem: &Problem,
+    rod: &Rod,
+    loads: &Loads,
+    x: &[f64; 3],
+    inputs: &[Input],
+    probe: &Probe,
+) -> Pass {
+    let run = |chunk: &[Input]| -> Pass {
+        match chunk.len() {
+            0 => pass_n::<3>(problem, rod, loads, x, chunk, probe),
+            1 => pass_n::<4>(problem, rod, loads, x, chunk, probe),
+            2 => pass_n::<5>(problem, rod, loads, x, chunk, probe),
+            3 => pass_n::<6>(problem, rod, loads, x, chunk, probe),
+            4 => pass_n::<7>(problem, rod, loads, x, chunk, probe),
+            5 => pass_n::<8>(problem, rod, loads, x, chunk, probe),
+            _ => pass_n::<9>(problem, rod, loads, x, chunk, probe),
+        }
+    };
+    let mut chunks = inputs.chunks(CHUNK);
+    let mut out = run(chunks.next().unwrap_or(&[]));
+    for chunk in chunks {
+        let more = run(chunk);
+        out.g_a.extend(more.g_a);
+        out.y_a.extend(more.y_a);
+    }
+    out
+}
+
+/// The value part only (residual and probe state), at f64 cost.
+pub(crate) fn value_with(
+    problem: &Problem,
+    rod: &Rod,
+    x: &[f64; 3],
+    probe: &Probe,
+) -> ([f64; 3], State<f64>, State<f64>) {
+    let mut point = None;
+    let tip = integrate_with(
+        rod,
+        &problem.coeffs,
+        problem.base_state(x),
+        &mut |node, y| {
+            if point.is_none() && node.section == probe.section && node.step == probe.step {
+                point = Some(advance(rod, &problem.coeffs, node.section, y, probe.offset));
+            }
+            false
+        },
+    );
+    (problem.residual_of_tip(&tip), point.unwrap_or(tip), tip)
+}
+
+/// Total derivatives of the probe's position and rotation with respect to each input at a
+/// converged equilibrium, by the implicit function theorem.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointJacobian {
+    pub position: [f64; 3],
+    pub rotation: [[f64; 3]; 3],
+    /// d r / d a_k (world frame), one per input.
+    pub d_position: Vec<[f64; 3]>,
+    /// The small rotation d theta / d a_k (world frame, d R = [d theta]x R), one per input.
+    pub d_rotation: Vec<[f64; 3]>,
+}
+
+/// Error for a singular shooting Jacobian (the equilibrium is at a limit point).
+pub(crate) fn singular(sol: &Solution) -> SoftrodError {
+    SoftrodError::NotConverged {
+        iterations: sol.iterations,
+        residual: sol.residual,
+        load_factor: 1.0,
+        reason: "the shooting Jacobian is singular at this equilibrium (a limit point), so its derivatives are undefined".into(),
+    }
+}
+
+/// The small rotation w (world) with d R = [w]x R, from d R and R: [w]x = dR R^T.
+pub fn small_rotation(rot: &[[f64; 3]; 3], d_rot: &[[f64; 3]; 3]) -> [f64; 3] {
+    let w = |i: usize, j: usize| -> f64 { (0..3).map(|k| d_rot[i][k] * rot[j][k]).sum() };
+    // vee of the skew part (dR R^T is skew to first order; averaging removes round-off).
+    [
+        0.5 * (w(2, 1) - w(1, 2)),
+        0.5 * (w(0, 2) - w(2, 0)),
+        0.5 * (w(1, 0) - w(0, 1)),
+    ]
+}
+
+/// Total derivatives of the probe's values (12 per input) and of x (3 per input).
+pub type TotalDerivatives = (Vec<[f64; 12]>, Vec<[f64; 3]>);
+
+/// Reduce a pass to total derivatives: dy/da = y_a - y_x g_x^-1 g_a. Also returns dx/da.
+pub fn total_derivatives(p: &Pass) -> Option<TotalDerivatives> {
+    let lu = p.g_x.lu();
+    let mut dy = Vec::with_capacity(p.g_a.len());
+    let mut dxs = Vec::with_capacity(p.g_a.len());
+    for (ga, ya) in p.g_a.iter().zip(&p.y_a) {
+        let dx = lu
+            .solve(&-Vector3::from_column_slice(ga))
+            .filter(|d| d.iter().all(|v| v.is_finite()))?;
+        dy.push(std::array::from_fn(|i| {
+            ya[i] + (0..3).map(|j| p.y_x[i][j] * dx[j]).sum::<f64>()
+        }));
+        dxs.push([dx[0], dx[1], dx[2]]);
+    }
+    Some((dy, dxs))
+}
+
+/// The exact Jacobian of the pose at `probe` with respect to `inputs` at the converged
+/// solution `sol` of `loads`.
+pub fn point_jacobian(
+    rod: &Rod,
+    loads: &Loads,
+    sol: &Solution,
+    inputs: &[Input],
+    probe: &Probe,
+) -> Result<PointJacobian> {
+    check_inputs(rod, inputs)?;
+    let p = pass(rod, loads, &sol.x, inputs, probe);
+    let (dy, _) = total_derivatives(&p).ok_or_else(|| singular(sol))?;
+    let rot: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| p.y[3 + 3 * i + j]));
+    Ok(PointJacobian {
+        position: [p.y[0], p.y[1], p.y[2]],
+        rotation: rot,
+        d_position: dy.iter().map(|d| [d[0], d[1], d[2]]).collect(),
+        d_rotation: dy
+            .iter()
+            .map(|d| {
+                let dr = std::array::from_fn(|i| std::array::from_fn(|j| d[3 + 3 * i + j]));
+                small_rotation(&rot, &dr)
+            })
+            .collect(),
+    })
+}
+
+/// Inputs name existing channels and components.
+pub fn check_inputs(rod: &Rod, inputs: &[Input]) -> Result<()> {
+    for (k, a) in inputs.iter().enumerate() {
+        let bad = match a {
+            Input::Pressure(c) => *c >= rod.n_channels,
+            Input::TipForce(j) | Input::TipMoment(j) => *j >= 3,
+        };
+        if bad {
+            return Err(SoftrodError::invalid(
+                format!("inputs[{k}]"),
+                format!("{a:?}"),
+                format!(
+                    "pressure channels are 0..{} and load components 0..3",
+                    rod.n_channels
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The Jacobian as a dense (6, inputs) matrix: rows position (3) then small rotation (3).
+pub fn as_matrix(j: &PointJacobian) -> DMatrix<f64> {
+    DMatrix::from_fn(6, j.d_position.len(), |i, k| {
+        if i < 3 {
+            j.d_position[k][i]
+        } else {
+            j.d_rotation[k][i - 3]
+        }
+    })
+}

@@ -1,0 +1,442 @@
+//! The linearised dynamics of the rod about a static equilibrium:
+//!   M q'' + D q' + K q = B u,
+//! with q the displacement dr and small rotation dtheta (world frame, dR = [dtheta]x R) of
+//! n nodes along the rod (the last one the tip), u the changes of the chamber pressures and
+//! of the dead tip force and moment.
+//!
+//! Discretisation (a Ritz method with the rod's own static deflection shapes):
+//! - K is the exact static tangent condensed to the nodes: K = C^-1 with C the flexibility,
+//!   the derivative of the node poses with respect to dead point forces and moments at the
+//!   nodes, by one dual pass per node (point loads enter as jumps of n and m) and the
+//!   implicit function theorem on the shooting residual (`crate::jacobian`). It contains
+//!   everything the equilibrium does: the material law with its pressure-dependent
+//!   coefficients, the prestress of gravity and pressure, the tip body's moment arm.
+//! - Between the nodes the rod deforms as under the node loads, so the displacement field is
+//!   dr(s) = Phi_r(s) K q and the strain field (dv, du)(s) = Psi(s) K q with Phi, Psi the
+//!   recorded derivatives at every integration node. These are the shape functions of M and
+//!   D (exact static shapes, like Hermite cubics for an Euler beam):
+//!   M = int Phi^T diag(rho A I, R rho J R^T) Phi ds (+ the tip body), and
+//!   D = int Psi^T diag(B_se, B_bt) Psi ds for Kelvin-Voigt damping (paper 000 eq. 8:
+//!   B = tau K_0 with K_0 the section's stiffness at the current pressure, or the section's
+//!   damping diagonals), both by the trapezoidal rule on the integration nodes (Simpson on
+//!   rigid parts, exact there).
+//! - B: pressure columns K dq/dp (a pressure change shifts the rest strains, so its static
+//!   response K^-1 B equals the equilibrium's derivative); tip load columns are unit
+//!   generalised forces at the tip node.
+//!
+//! This construction uses only the static model and the section inertia, so it does not
+//! depend on how the dynamic solver discretises space and time.
+
+use crate::dynamics::section_inertia;
+use crate::error::{Result, SoftrodError};
+use crate::jacobian::{dual_coeffs, singular, Input};
+use crate::jet::Jet;
+use crate::ode::{advance, integrate_with, resolve_stretch, strains, Coeffs, Loads, NodeAt, State};
+use crate::rod::{inverse3, Rod};
+use crate::statics::{Problem, Solution};
+use nalgebra::{DMatrix, Matrix3, Vector3};
+
+/// Most nodes of a linearisation (6 coordinates each).
+pub const MAX_NODES: usize = 200;
+
+/// The linearised system about an equilibrium (SI; q = (dr_1, dtheta_1, ..., dr_n,
+/// dtheta_n)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearSystem {
+    /// Arc length of every node, m (the last is the tip).
+    pub nodes: Vec<f64>,
+    pub mass: DMatrix<f64>,
+    pub damping: DMatrix<f64>,
+    pub stiffness: DMatrix<f64>,
+    /// Columns: pressures (Pa, one per channel), tip force (N, x y z), tip moment (N m).
+    pub input: DMatrix<f64>,
+}
+
+/// The integration nodes that end a step: (section, step) and arc length.
+fn step_nodes(rod: &Rod) -> Vec<(usize, usize, f64)> {
+    let mut out = Vec::new();
+    for (i, sec) in rod.sections.iter().enumerate() {
+        let h = sec.length / sec.steps as f64;
+        for k in 1..=sec.steps {
+            out.push((i, k, sec.s_start + h * k as f64));
+        }
+    }
+    out
+}
+
+/// `n` nodes spread evenly over the integration nodes, the tip last.
+pub fn choose_nodes(rod: &Rod, n: usize) -> Result<Vec<(usize, usize, f64)>> {
+    let all = step_nodes(rod);
+    if n == 0 || n > all.len().min(MAX_NODES) {
+        return Err(SoftrodError::invalid(
+            "nodes",
+            n,
+            format!(
+                "must lie in 1..={} (the design has {} integration steps; raise numerics steps for more)",
+                all.len().min(MAX_NODES),
+                all.len()
+            ),
+        ));
+    }
+    let t = all.len();
+    Ok((1..=n).map(|k| all[(k * t).div_ceil(n) - 1]).collect())
+}
+
+/// What one pass records on one step interval [a, b]: pose and strains at both ends
+/// (strains as right limit at a and left limit at b, since point loads make them jump).
+struct Interval<D> {
+    section: usize,
+    a: f64,
+    b: f64,
+    start: State<D>,
+    mid: State<D>,
+    end: State<D>,
+    strain_a: [D; 6],
+    strain_m: [D; 6],
+    strain_b: [D; 6],
+}
+
+const NJ: usize = 9; // x (3), point force (3), point moment (3)
+type J9 = Jet<NJ>;
+
+fn strain6<D: crate::ode::StateScalar<f64>>(y: &State<D>, c: &Coeffs<f64>, rigid: bool) -> [D; 6] {
+    if rigid {
+        return [D::from(0.0); 6];
+    }
+    let (v, u) = strains(y, c);
+    [v[0], v[1], v[2], u[0], u[1], u[2]]
+}
+
+/// One pass with a point force and moment at node `at` (section, step) seeded as directions
+/// 3..9 and x as 0..3: the residual and every interval.
+fn load_pass(
+    problem: &Problem,
+    rod: &Rod,
+    x: &[f64; 3],
+    at: (usize, usize),
+) -> ([J9; 3], Vec<Interval<J9>>) {
+    let xd: [J9; 3] = std::array::from_fn(|i| Jet::variable(x[i], i));
+    let mut y0 = problem.base_state(&xd);
+    for j in 0..3 {
+        // The point force is carried by everything inboard: n(0) grows by it.
+        y0.n[j].eps[3 + j] = 1.0;
+    }
+    let mut intervals: Vec<Interval<J9>> = Vec::new();
+    type Open = (usize, f64, State<J9>, [J9; 6], State<J9>, [J9; 6]);
+    let mut open: Option<Open> = None;
+    let coeffs = &problem.coeffs;
+    let tip = integrate_with(rod, coeffs, y0, &mut |node: NodeAt, y| {
+        let sec = &rod.sections[node.section];
+        let c = &coeffs[node.section];
+        if node.step > 0 {
+            if let Some((section, a, start, strain_a, mid, strain_m)) = open.take() {
+                intervals.push(Interval {
+                    section,
+                    a,
+                    b: node.s,
+                    start,
+                    mid,
+                    end: *y,
+                    strain_a,
+                    strain_m,
+                    strain_b: strain6(y, c, sec.rigid),
+                });
+            }
+        }
+        let mut changed = false;
+        if (node.section, node.step) == at {
+            for j in 0..3 {
+                y.n[j].eps[3 + j] -= 1.0;
+                y.m[j].eps[6 + j] -= 1.0;
+            }
+            resolve_stretch(y, c);
+            changed = true;
+        }
+        if node.step < sec.steps {
+            // The interval starting here, after the jump (right limits of the strains), and
+            // its midpoint by half a step (for Simpson's rule).
+            let h = if sec.rigid {
+                sec.length
+            } else {
+                sec.length / sec.steps as f64
+            };
+            let mid = advance(rod, coeffs, node.section, y, 0.5 * h);
+            open = Some((
+                node.section,
+                node.s,
+                *y,
+                strain6(y, c, sec.rigid),
+                mid,
+                strain6(&mid, c, sec.rigid),
+            ));
+        }
+        changed
+    });
+    (problem.residual_of_tip(&tip), intervals)
+}
+
+/// Pose (dr, dtheta) derivative of a state with respect to the directions, given the
+/// rotation's value: dtheta from [dtheta]x = dR R^T.
+fn pose6(y: &State<J9>, dir: usize) -> [f64; 6] {
+    let rot: [[f64; 3]; 3] = y.rot.map(|r| r.map(|v| v.re));
+    let d_rot: [[f64; 3]; 3] = y.rot.map(|r| r.map(|v| v.eps[dir]));
+    let w = crate::jacobian::small_rotation(&rot, &d_rot);
+    [
+        y.r[0].eps[dir],
+        y.r[1].eps[dir],
+        y.r[2].eps[dir],
+        w[0],
+        w[1],
+        w[2],
+    ]
+}
+
+/// Linearise the dynamics at the converged equilibrium `sol` of `loads` with `n_nodes`
+/// nodes (see the module docs).
+pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Result<LinearSystem> {
+    let nodes = choose_nodes(rod, n_nodes)?;
+    let n = nodes.len();
+    let nq = 6 * n;
+    let problem = Problem::new(rod, loads, 1.0);
+    // Per load node k: derivatives of every interval quantity w.r.t. its 6 load components.
+    // phi[interval][end] is (6, nq) for the pose and psi for the strains.
+    let mut flex = DMatrix::<f64>::zeros(nq, nq);
+    // Per interval: section, [a, b] and the rotation at a, the midpoint and b.
+    type Meta = (usize, f64, f64, [[[f64; 3]; 3]; 3]);
+    let mut intervals_meta: Vec<Meta> = Vec::new();
+    let mut phi: Vec<[DMatrix<f64>; 3]> = Vec::new();
+    let mut psi: Vec<[DMatrix<f64>; 3]> = Vec::new();
+    for (k, &(sec, step, _)) in nodes.iter().enumerate() {
+        let (g, intervals) = load_pass(&problem, rod, &sol.x, (sec, step));
+        let gx = Matrix3::from_fn(|i, j| g[i].eps[j]);
+        let lu = gx.lu();
+        // dx / d load_j for the 6 load directions.
+        let mut dx = [[0.0; 3]; 6];
+        for j in 0..6 {
+            let rhs = Vector3::from_fn(|i, _| -g[i].eps[3 + j]);
+            let d = lu
+                .solve(&rhs)
+                .filter(|d| d.iter().all(|v| v.is_finite()))
+                .ok_or_else(|| singular(sol))?;
+            dx[j] = [d[0], d[1], d[2]];
+        }
+        let total6 = |partial: &dyn Fn(usize) -> [f64; 6]| -> [[f64; 6]; 6] {
+            let px: [[f64; 6]; 3] = std::array::from_fn(partial);
+            std::array::from_fn(|j| {
+                let pj = partial(3 + j);
+                std::array::from_fn(|r| pj[r] + (0..3).map(|i| px[i][r] * dx[j][i]).sum::<f64>())
+            })
+        };
+        if k == 0 {
+            for iv in &intervals {
+                let value = |st: &State<J9>| st.rot.map(|r| r.map(|v| v.re));
+                intervals_meta.push((
+                    iv.section,
+                    iv.a,
+                    iv.b,
+                    [value(&iv.start), value(&iv.mid), value(&iv.end)],
+                ));
+                let z = || DMatrix::zeros(6, nq);
+                phi.push([z(), z(), z()]);
+                psi.push([z(), z(), z()]);
+            }
+        }
+        for (m, iv) in intervals.iter().enumerate() {
+            let ends = [
+                (&iv.start, &iv.strain_a),
+                (&iv.mid, &iv.strain_m),
+                (&iv.end, &iv.strain_b),
+            ];
+            for (e, (st, sn)) in ends.iter().enumerate() {
+                let dpose = total6(&|dir| pose6(st, dir));
+                let dstrain = total6(&|dir| std::array::from_fn(|r| sn[r].eps[dir]));
+                for j in 0..6 {
+                    for r in 0..6 {
+                        phi[m][e][(r, 6 * k + j)] = dpose[j][r];
+                        psi[m][e][(r, 6 * k + j)] = dstrain[j][r];
+                    }
+                }
+            }
+        }
+        // Flexibility rows: the node poses (the end of the interval that ends at each node).
+        for (a, &(_, _, s_a)) in nodes.iter().enumerate() {
+            let m = intervals
+                .iter()
+                .position(|iv| (iv.b - s_a).abs() <= 1e-12 * rod.length)
+                .expect("every node ends an interval");
+            for j in 0..6 {
+                for r in 0..6 {
+                    flex[(6 * a + r, 6 * k + j)] = phi[m][2][(r, 6 * k + j)];
+                }
+            }
+        }
+    }
+    let stiffness = flex.clone().try_inverse().ok_or_else(|| singular(sol))?;
+    // Mass and damping in load coordinates, then K^T (.) K.
+    let tau = rod.spec.dynamics.damping_time;
+    let mut gm = DMatrix::<f64>::zeros(nq, nq);
+    let mut gd = DMatrix::<f64>::zeros(nq, nq);
+    for (m, &(sec, a, b, rots)) in intervals_meta.iter().enumerate() {
+        let inertia = section_inertia(rod, sec);
+        let mass_at = |rot: &[[f64; 3]; 3]| -> DMatrix<f64> {
+            let mut ms = DMatrix::zeros(6, 6);
+            for i in 0..3 {
+                ms[(i, i)] = inertia.rho_a;
+            }
+            for i in 0..3 {
+                for j in 0..3 {
+                    ms[(3 + i, 3 + j)] = (0..3)
+                        .map(|k| rot[i][k] * inertia.rho_j[k] * rot[j][k])
+                        .sum();
+                }
+            }
+            ms
+        };
+        // Simpson's rule on [a, b] (exact on rigid parts, whose motion is linear in s).
+        let w = [(b - a) / 6.0, 4.0 * (b - a) / 6.0, (b - a) / 6.0];
+        for e in 0..3 {
+            let ms = mass_at(&rots[e]);
+            gm += phi[m][e].transpose() * &ms * &phi[m][e] * w[e];
+        }
+        if rod.sections[sec].rigid {
+            continue;
+        }
+        let bmat = damping_matrix(rod, &problem.coeffs[sec], sec, tau);
+        for e in 0..3 {
+            gd += psi[m][e].transpose() * &bmat * &psi[m][e] * w[e];
+        }
+    }
+    // The tip body: mass m_t at c_w = R(L) c from the tip node, inertia along the tip frame.
+    let tip = &rod.spec.tip;
+    let last = intervals_meta.last().expect("at least one interval");
+    let rot_l = last.3[2];
+    let cw: [f64; 3] =
+        std::array::from_fn(|i| (0..3).map(|k| rot_l[i][k] * tip.com_offset[k]).sum());
+    let skew = Matrix3::new(0.0, -cw[2], cw[1], cw[2], 0.0, -cw[0], -cw[1], cw[0], 0.0);
+    let jw = Matrix3::from_fn(|i, j| {
+        (0..3)
+            .map(|k| rot_l[i][k] * tip.inertia[k] * rot_l[j][k])
+            .sum()
+    });
+    let mt = tip.mass;
+    let tip_block = {
+        let mut b = DMatrix::<f64>::zeros(6, 6);
+        let ct = -skew * mt;
+        let rr = jw - skew * skew * mt;
+        for i in 0..3 {
+            b[(i, i)] = mt;
+            for j in 0..3 {
+                b[(i, 3 + j)] = ct[(i, j)];
+                b[(3 + i, j)] = -ct[(i, j)];
+                b[(3 + i, 3 + j)] = rr[(i, j)];
+            }
+        }
+        b
+    };
+    let kt = stiffness.transpose();
+    // K^T G K is symmetric; symmetrise away the round-off of the product.
+    let sym = |a: DMatrix<f64>| (&a + a.transpose()) * 0.5;
+    let mut mass = sym(&kt * gm * &stiffness);
+    let damping = sym(&kt * gd * &stiffness);
+    let o = nq - 6;
+    for i in 0..6 {
+        for j in 0..6 {
+            mass[(o + i, o + j)] += tip_block[(i, j)];
+        }
+    }
+    let input = input_matrix(rod, loads, sol, &nodes, &stiffness)?;
+    Ok(LinearSystem {
+        nodes: nodes.iter().map(|n| n.2).collect(),
+        mass,
+        damping,
+        stiffness,
+        input,
+    })
+}
+
+/// Kelvin-Voigt damping of a section in the body frame (6 x 6): the given diagonals, else
+/// tau times the section's stiffness at this pressure (the inverse of its compliances).
+fn damping_matrix(rod: &Rod, c: &Coeffs<f64>, sec: usize, tau: f64) -> DMatrix<f64> {
+    let mut b = DMatrix::zeros(6, 6);
+    match section_inertia(rod, sec).damping {
+        Some((se, bt)) => {
+            for i in 0..3 {
+                b[(i, i)] = se[i];
+                b[(3 + i, 3 + i)] = bt[i];
+            }
+        }
+        None => {
+            let kbt = inverse3(&c.c_bt).unwrap_or([[f64::NAN; 3]; 3]);
+            for i in 0..3 {
+                b[(i, i)] = tau / c.c_se[i];
+                for j in 0..3 {
+                    b[(3 + i, 3 + j)] = tau * kbt[i][j];
+                }
+            }
+        }
+    }
+    b
+}
+
+/// Columns of B: K dq/dp for the pressures; unit generalised forces at the tip node for
+/// the tip force and moment.
+fn input_matrix(
+    rod: &Rod,
+    loads: &Loads,
+    sol: &Solution,
+    nodes: &[(usize, usize, f64)],
+    stiffness: &DMatrix<f64>,
+) -> Result<DMatrix<f64>> {
+    let nc = rod.n_channels;
+    let nq = 6 * nodes.len();
+    let mut dq = DMatrix::<f64>::zeros(nq, nc);
+    let problem = Problem::new(rod, loads, 1.0);
+    for chunk in (0..nc).collect::<Vec<_>>().chunks(6) {
+        let inputs: Vec<Input> = chunk.iter().map(|&c| Input::Pressure(c)).collect();
+        let coeffs = dual_coeffs::<9>(rod, loads, &inputs);
+        let xd: [J9; 3] = std::array::from_fn(|i| Jet::variable(sol.x[i], i));
+        let y0 = problem.base_state(&xd);
+        let mut at_nodes: Vec<State<J9>> = Vec::with_capacity(nodes.len());
+        let tip = integrate_with(rod, &coeffs, y0, &mut |node: NodeAt, y| {
+            if node.step > 0
+                && nodes
+                    .iter()
+                    .any(|n| (n.0, n.1) == (node.section, node.step))
+            {
+                at_nodes.push(*y);
+            }
+            false
+        });
+        let g = problem.residual_of_tip(&tip);
+        let lu = Matrix3::from_fn(|i, j| g[i].eps[j]).lu();
+        for (q, &c) in chunk.iter().enumerate() {
+            let rhs = Vector3::from_fn(|i, _| -g[i].eps[3 + q]);
+            let dx = lu
+                .solve(&rhs)
+                .filter(|d| d.iter().all(|v| v.is_finite()))
+                .ok_or_else(|| singular(sol))?;
+            for (a, st) in at_nodes.iter().enumerate() {
+                let total = |dir_p: usize| -> [f64; 6] {
+                    let p = pose6(st, dir_p);
+                    let px: [[f64; 6]; 3] = std::array::from_fn(|i| pose6(st, i));
+                    std::array::from_fn(|r| p[r] + (0..3).map(|i| px[i][r] * dx[i]).sum::<f64>())
+                };
+                let d = total(3 + q);
+                for r in 0..6 {
+                    dq[(6 * a + r, c)] = d[r];
+                }
+            }
+        }
+    }
+    let bp = stiffness * dq;
+    let mut input = DMatrix::<f64>::zeros(nq, nc + 6);
+    for r in 0..nq {
+        for c in 0..nc {
+            input[(r, c)] = bp[(r, c)];
+        }
+    }
+    for j in 0..6 {
+        input[(nq - 6 + j, nc + j)] = 1.0;
+    }
+    Ok(input)
+}

@@ -1,0 +1,343 @@
+//! Binding of the control tools of the core (`softrod_core::{inverse, jacobian, linearise}`):
+//! type conversion and error mapping only.
+
+use crate::{guarded, options, to_py_err, Context, PyRod};
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget, WarmStart};
+use softrod_core::jacobian::{point_jacobian, Input, Probe};
+use softrod_core::linearise::linearise;
+use softrod_core::ode::Loads;
+use softrod_core::sensitivity::{tip_sensitivity, validate_params, Param, ParamKind};
+use softrod_core::statics;
+use softrod_core::{Rod, SoftrodError};
+use std::sync::Mutex;
+
+fn matrix<'py>(py: Python<'py>, m: &nalgebra::DMatrix<f64>) -> PyResult<Bound<'py, PyAny>> {
+    // nalgebra is column-major; numpy wants rows.
+    let (r, c) = m.shape();
+    let flat: Vec<f64> = (0..r)
+        .flat_map(|i| (0..c).map(move |j| m[(i, j)]))
+        .collect();
+    Ok(PyArray1::from_vec(py, flat).reshape([r, c])?.into_any())
+}
+
+/// An inverse problem of one design with fixed bounds, weights, point and tip loads, solved
+/// for a target at a time (GIL released). See `softrod.InverseProblem`.
+#[pyclass(name = "InverseSolver", module = "softrod._core", frozen)]
+pub struct PyInverse {
+    rod: Rod,
+    opts: InverseOptions,
+    s: f64,
+    position_weight: [f64; 3],
+    orientation_weight: f64,
+    tip_force: [f64; 3],
+    tip_moment: [f64; 3],
+    /// The last answer's warm start: a call that starts from that answer (same pressures
+    /// and unknowns) reuses its equilibrium and linearisation.
+    last: Mutex<Option<WarmStart>>,
+}
+
+#[pymethods]
+impl PyInverse {
+    #[new]
+    #[pyo3(signature = (rod, bounds, reference, s, position_weight, orientation_weight, tip_force, tip_moment, regularisation=1e-6, tol=1e-10, max_iter=100, statics_tol=1e-10, statics_max_iter=25, on_invalid="raise", stretch_range=(1.0 / 3.0, 3.0)))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        rod: PyRef<'_, PyRod>,
+        bounds: Vec<[f64; 2]>,
+        reference: Vec<f64>,
+        s: f64,
+        position_weight: [f64; 3],
+        orientation_weight: f64,
+        tip_force: [f64; 3],
+        tip_moment: [f64; 3],
+        regularisation: f64,
+        tol: f64,
+        max_iter: usize,
+        statics_tol: f64,
+        statics_max_iter: usize,
+        on_invalid: &str,
+        stretch_range: (f64, f64),
+    ) -> PyResult<Self> {
+        guarded(py, || {
+            let statics = options(
+                py,
+                statics_tol,
+                statics_max_iter,
+                true,
+                200,
+                stretch_range,
+                on_invalid,
+            )?;
+            let opts = InverseOptions {
+                bounds,
+                reference,
+                regularisation,
+                tol,
+                max_iter,
+                statics,
+            };
+            let rod = rod.rod.clone();
+            Probe::at(&rod, s).map_err(|e| to_py_err(py, e, Context::Input))?;
+            Ok(PyInverse {
+                rod,
+                opts,
+                s,
+                position_weight,
+                orientation_weight,
+                tip_force,
+                tip_moment,
+                last: Mutex::new(None),
+            })
+        })
+    }
+
+    /// Solve for `position` (m) and optionally `orientation` from the start `pressures`
+    /// (Pa) and, for a warm start, its shooting unknowns `x`. `reference` replaces the
+    /// regularisation's centre for this call. Returns a dict (SI).
+    #[pyo3(signature = (position, pressures, orientation=None, x=None, reference=None))]
+    fn solve<'py>(
+        &self,
+        py: Python<'py>,
+        position: [f64; 3],
+        pressures: Vec<f64>,
+        orientation: Option<[[f64; 3]; 3]>,
+        x: Option<[f64; 3]>,
+        reference: Option<Vec<f64>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        guarded(py, || {
+            let target = InverseTarget {
+                s: self.s,
+                position,
+                orientation,
+                position_weight: self.position_weight,
+                orientation_weight: self.orientation_weight,
+            };
+            let loads = Loads {
+                pressures,
+                tip_force: self.tip_force,
+                tip_moment: self.tip_moment,
+                stiffness_scale: [1.0; 3],
+            };
+            let custom;
+            let opts = match reference {
+                Some(r) => {
+                    custom = InverseOptions {
+                        reference: r,
+                        ..self.opts.clone()
+                    };
+                    &custom
+                }
+                None => &self.opts,
+            };
+            let rod = &self.rod;
+            let last = self.last.lock().ok().and_then(|g| g.clone());
+            let warm = x.map(|x| match last {
+                Some(w) if w.x == x => w,
+                other => WarmStart {
+                    x,
+                    equilibrium: None,
+                    linearisation: other.and_then(|w| w.linearisation),
+                },
+            });
+            let out = py
+                .detach(|| solve_inverse(rod, &loads, &target, opts, warm.as_ref()))
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            if let Ok(mut g) = self.last.lock() {
+                *g = Some(out.warm_start());
+            }
+            let d = PyDict::new(py);
+            d.set_item("pressures", out.pressures)?;
+            d.set_item("x", out.solution.x.to_vec())?;
+            d.set_item("point_position", out.point.r.to_vec())?;
+            d.set_item("point_rotation", out.point.rot.map(|r| r.to_vec()).to_vec())?;
+            d.set_item("tip_position", out.solution.tip.r.to_vec())?;
+            d.set_item(
+                "tip_rotation",
+                out.solution.tip.rot.map(|r| r.to_vec()).to_vec(),
+            )?;
+            d.set_item("base_force", out.solution.base_force.to_vec())?;
+            d.set_item("base_moment", out.solution.base_moment.to_vec())?;
+            d.set_item("residual", out.solution.residual)?;
+            d.set_item("reached", out.reached)?;
+            d.set_item("distance", out.distance)?;
+            d.set_item("angle", out.angle)?;
+            d.set_item("cost", out.cost)?;
+            d.set_item(
+                "active",
+                out.active.iter().map(|&a| a as i64).collect::<Vec<_>>(),
+            )?;
+            d.set_item("iterations", out.iterations)?;
+            d.set_item("passes", out.passes)?;
+            d.set_item("stable", out.solution.stable)?;
+            d.set_item(
+                "violations",
+                out.solution
+                    .violations
+                    .iter()
+                    .map(|v| v.to_string())
+                    .collect::<Vec<_>>(),
+            )?;
+            Ok(d)
+        })
+    }
+}
+
+fn parse_params(py: Python<'_>, params: Vec<(String, Vec<usize>)>) -> PyResult<Vec<Param>> {
+    params
+        .into_iter()
+        .enumerate()
+        .map(|(j, (name, sections))| match ParamKind::from_name(&name) {
+            Some(kind) => Ok(Param { kind, sections }),
+            None => Err(to_py_err(
+                py,
+                SoftrodError::invalid(
+                    format!("params[{j}]"),
+                    &name,
+                    format!(
+                        "unknown parameter; known: {}",
+                        ParamKind::ALL.map(|(n, _)| n).join(", ")
+                    ),
+                ),
+                Context::Input,
+            )),
+        })
+        .collect()
+}
+
+/// The exact Jacobian of the pose at arc length `s` of the equilibrium under `pressures`
+/// and tip loads (warm start `x`): (6, k) arrays, rows position then small rotation, for
+/// the pressures, tip force, tip moment and (at the tip only) the named parameters.
+#[pyfunction]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, stiffness_scale, x, s, params))]
+#[allow(clippy::too_many_arguments)]
+pub fn point_jacobian_of<'py>(
+    py: Python<'py>,
+    rod: PyRef<'_, PyRod>,
+    pressures: Vec<f64>,
+    tip_force: [f64; 3],
+    tip_moment: [f64; 3],
+    stiffness_scale: [f64; 3],
+    x: [f64; 3],
+    s: f64,
+    params: Vec<(String, Vec<usize>)>,
+) -> PyResult<Bound<'py, PyDict>> {
+    guarded(py, || {
+        let params = parse_params(py, params)?;
+        let rod = &rod.rod;
+        // The equilibrium the caller holds was checked when it was solved.
+        let checked = options(py, 1e-10, 25, true, 200, (1.0 / 3.0, 3.0), "ignore")?;
+        let loads = Loads {
+            pressures,
+            tip_force,
+            tip_moment,
+            stiffness_scale,
+        };
+        let nc = rod.n_channels;
+        let result = py.detach(|| -> softrod_core::Result<_> {
+            validate_params(rod, &params)?;
+            let probe = Probe::at(rod, s)?;
+            let sol = statics::solve(rod, &loads, Some(&x), &checked)?;
+            let mut inputs: Vec<Input> = (0..nc).map(Input::Pressure).collect();
+            inputs.extend((0..3).map(Input::TipForce));
+            inputs.extend((0..3).map(Input::TipMoment));
+            let jac = point_jacobian(rod, &loads, &sol, &inputs, &probe)?;
+            let sens = if params.is_empty() {
+                None
+            } else {
+                if (s - rod.length).abs() > 1e-12 * rod.length {
+                    return Err(SoftrodError::invalid(
+                        "params",
+                        format!("{} parameters", params.len()),
+                        "parameter derivatives are available at the tip only",
+                    ));
+                }
+                Some(tip_sensitivity(rod, &loads, &sol, &params)?)
+            };
+            Ok((jac, sens))
+        });
+        let (jac, sens) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
+        let block = |from: usize, count: usize| {
+            nalgebra::DMatrix::from_fn(6, count, |i, k| {
+                if i < 3 {
+                    jac.d_position[from + k][i]
+                } else {
+                    jac.d_rotation[from + k][i - 3]
+                }
+            })
+        };
+        let d = PyDict::new(py);
+        d.set_item("position", jac.position.to_vec())?;
+        d.set_item("rotation", jac.rotation.map(|r| r.to_vec()).to_vec())?;
+        d.set_item("pressures", matrix(py, &block(0, nc))?)?;
+        d.set_item("tip_force", matrix(py, &block(nc, 3))?)?;
+        d.set_item("tip_moment", matrix(py, &block(nc + 3, 3))?)?;
+        if let Some(sens) = sens {
+            let m = nalgebra::DMatrix::from_fn(6, sens.position.len(), |i, k| {
+                if i < 3 {
+                    sens.position[k][i]
+                } else {
+                    softrod_core::jacobian::small_rotation(&jac.rotation, &sens.rotation[k])[i - 3]
+                }
+            });
+            d.set_item("params", matrix(py, &m)?)?;
+        }
+        Ok(d)
+    })
+}
+
+/// The linearised dynamics at the equilibrium under `pressures` and tip loads (warm start
+/// `x`) with `nodes` nodes: dict of mass, damping, stiffness, input (numpy) and nodes (m).
+#[pyfunction]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, x, nodes))]
+pub fn linearise_at<'py>(
+    py: Python<'py>,
+    rod: PyRef<'_, PyRod>,
+    pressures: Vec<f64>,
+    tip_force: [f64; 3],
+    tip_moment: [f64; 3],
+    x: Option<[f64; 3]>,
+    nodes: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    guarded(py, || {
+        let rod = &rod.rod;
+        let checked = options(py, 1e-10, 25, true, 200, (1.0 / 3.0, 3.0), "ignore")?;
+        let loads = Loads {
+            pressures,
+            tip_force,
+            tip_moment,
+            stiffness_scale: [1.0; 3],
+        };
+        let result = py.detach(|| -> softrod_core::Result<_> {
+            if rod.sections.iter().any(|s| s.law.stiffness_map) {
+                return Err(SoftrodError::invalid(
+                    "design",
+                    &rod.spec.name,
+                    "has sections with law.stiffness_map: its sigma(p) is evaluated outside the core, so the linearisation is not available",
+                ));
+            }
+            let sol = statics::solve(rod, &loads, x.as_ref(), &checked)?;
+            let sys = linearise(rod, &loads, &sol, nodes)?;
+            Ok((sol, sys))
+        });
+        let (sol, sys) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
+        let d = PyDict::new(py);
+        d.set_item("mass", matrix(py, &sys.mass)?)?;
+        d.set_item("damping", matrix(py, &sys.damping)?)?;
+        d.set_item("stiffness", matrix(py, &sys.stiffness)?)?;
+        d.set_item("input", matrix(py, &sys.input)?)?;
+        d.set_item("nodes", PyArray1::from_vec(py, sys.nodes))?;
+        d.set_item("x", sol.x.to_vec())?;
+        Ok(d)
+    })
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyInverse>()?;
+    m.add_function(wrap_pyfunction!(point_jacobian_of, m)?)?;
+    m.add_function(wrap_pyfunction!(linearise_at, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,282 @@
+"""Linearisations at an equilibrium: the exact pose Jacobian of a static solution
+(``StaticSolution.jacobian``) and the linearised dynamics M q'' + D q' + K q = B u with its
+modes (``linearise``, ``LinearSystem.modes``). The matrices come from the Rust core
+(``softrod_core::{jacobian, linearise}``, exact by dual numbers); the eigenvalue problems
+are dense linear algebra (scipy) on them. docs/control.md explains the discretisation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from .._types import ArrayLike, DesignLike, Quantity
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import _core
+from .._validate import integer
+from ..catalog import load_design
+from ..design import Design
+from ..errors import InputError, design_error
+from ..solution import StaticSolution
+
+__all__ = ["Jacobian", "LinearSystem", "Modes", "jacobian", "linearise"]
+
+INPUT_NAMES_LOADS = ("F_x", "F_y", "F_z", "M_x", "M_y", "M_z")
+
+
+@dataclass(frozen=True)
+class Jacobian:
+    """Exact derivatives of a point's pose at an equilibrium (SI). Rows: position x, y, z
+    (m) then the small rotation theta_x, theta_y, theta_z (rad, world frame:
+    dR = [dtheta]x R).
+
+    pressures (6, c) per Pa; tip_force (6, 3) per N; tip_moment (6, 3) per N m;
+    params (6, k) per unit of each named parameter (tip only), ``param_names`` their names.
+    """
+
+    point: float
+    position: np.ndarray
+    rotation: np.ndarray
+    pressures: np.ndarray
+    tip_force: np.ndarray
+    tip_moment: np.ndarray
+    params: np.ndarray | None = None
+    param_names: tuple[str, ...] = ()
+
+
+def jacobian(
+    solution: StaticSolution, *, params: Sequence[str] = (), point: Quantity | None = None
+) -> Jacobian:
+    """The exact Jacobian of the pose at arc length ``point`` (default the tip) of a
+    converged rod equilibrium with respect to the pressures, the tip force and moment and,
+    at the tip, the named calibration parameters (``params``: names such as "E" or
+    "c_b[body]", as in :func:`softrod.calibrate`). Implicit
+    differentiation of the shooting residual: no finite differences."""
+    from ..units import to_si
+
+    if not isinstance(solution, StaticSolution) or not solution.converged:
+        raise design_error("solution", type(solution).__name__,
+                           "must be a converged StaticSolution", InputError)
+    if not np.all(np.isfinite(solution.force)):
+        raise design_error("solution", "model='pcc'",
+                           "the Jacobian is available for the rod model only", InputError)
+    design = solution.design
+    s = design.length if point is None else to_si(point, "length", "point", InputError)
+    pairs, names = _param_pairs(design, params)
+    out = _core.point_jacobian_of(
+        design._rod,
+        [float(p) for p in solution.pressures],
+        [float(v) for v in _tip_load(solution, "force")],
+        [float(v) for v in _tip_load(solution, "moment")],
+        [float(v) for v in solution.stiffness_scale],
+        [float(v) for v in solution.shooting_unknowns],
+        float(s),
+        pairs,
+    )
+    return Jacobian(
+        point=float(s),
+        position=np.array(out["position"]),
+        rotation=np.array(out["rotation"]),
+        pressures=out["pressures"],
+        tip_force=out["tip_force"],
+        tip_moment=out["tip_moment"],
+        params=out.get("params"),
+        param_names=tuple(names),
+    )
+
+
+def _tip_load(solution: StaticSolution, kind: str):
+    """The tip force or moment the solution was solved under: from the base wrench
+    balance it is not recoverable in general, so solutions carry it (``tip_loads``)."""
+    loads = getattr(solution, "tip_loads", None)
+    if loads is not None:
+        return loads[0] if kind == "force" else loads[1]
+    return solution.design.spec["tip"][kind]
+
+
+def _param_pairs(design: Design, params) -> tuple[list, list[str]]:
+    if not params:
+        return [], []
+    from ..calibration.params import parse_parameters
+
+    resolved = parse_parameters(params, design)
+    return [p.core() for p in resolved], [p.name for p in resolved]
+
+
+@dataclass(frozen=True)
+class Modes:
+    """Modes of a :class:`LinearSystem`, lowest first (k modes).
+
+    frequency (k,) Hz and omega (k,) rad/s: undamped natural frequencies (K phi = w^2 M phi);
+    damping_ratio (k,): modal damping phi^T D phi / (2 w phi^T M phi) (exact for Kelvin-Voigt
+    damping without prestress, where D = tau K; first order otherwise);
+    damped_frequency (k,) Hz: the imaginary part of the exact pole of each mode (NaN when it
+    is overdamped); shapes (k, n, 6): node displacements and small rotations, normalised to
+    the largest entry 1; nodes (n,) m; poles: every eigenvalue of the first-order system, 1/s.
+    """
+
+    frequency: np.ndarray
+    omega: np.ndarray
+    damping_ratio: np.ndarray
+    damped_frequency: np.ndarray
+    shapes: np.ndarray
+    nodes: np.ndarray
+    poles: np.ndarray = field(repr=False)
+
+    def to_frame(self) -> pd.DataFrame:
+        import pandas as pd
+
+        return pd.DataFrame({
+            "mode": np.arange(1, len(self.frequency) + 1),
+            "frequency_Hz": self.frequency,
+            "damping_ratio": self.damping_ratio,
+            "damped_frequency_Hz": self.damped_frequency,
+        })
+
+
+@dataclass(frozen=True)
+class LinearSystem:
+    """The linearised dynamics M q'' + D q' + K q = B u about a static equilibrium (SI).
+
+    q = (dr_1, dtheta_1, ..., dr_n, dtheta_n): displacement (m) and small rotation (rad,
+    world frame) of the nodes at arc lengths ``nodes`` (the last is the tip); u = changes of
+    the chamber pressures (Pa) and of the tip force (N) and moment (N m), named in
+    ``input_names``. ``equilibrium`` is the static solution it was taken at.
+    """
+
+    design: Design
+    pressures: np.ndarray
+    nodes: np.ndarray
+    mass: np.ndarray
+    damping: np.ndarray
+    stiffness: np.ndarray
+    input: np.ndarray
+    input_names: tuple[str, ...]
+    equilibrium: StaticSolution = field(repr=False)
+
+    @property
+    def tip_rows(self) -> slice:
+        """Rows of q holding the tip's displacement and rotation."""
+        n = self.mass.shape[0]
+        return slice(n - 6, n)
+
+    def state_space(self) -> tuple[np.ndarray, np.ndarray]:
+        """(A, B) of x' = A x + B u with x = (q, q')."""
+        n = self.mass.shape[0]
+        minv = np.linalg.inv(self.mass)
+        a = np.block([[np.zeros((n, n)), np.eye(n)],
+                      [-minv @ self.stiffness, -minv @ self.damping]])
+        b = np.vstack([np.zeros_like(self.input), minv @ self.input])
+        return a, b
+
+    def frequency_response(self, omega: float) -> np.ndarray:
+        """The tip pose (6 rows) per unit input at angular frequency ``omega`` (rad/s):
+        T (K - w^2 M + i w D)^-1 B."""
+        z = self.stiffness - omega**2 * self.mass + 1j * omega * self.damping
+        return np.linalg.solve(z, self.input)[self.tip_rows]
+
+    def modes(self, count: int | None = None) -> Modes:
+        """The ``count`` lowest modes (default all)."""
+        from threadpoolctl import threadpool_limits
+
+        # Dense eigenproblems of a few hundred unknowns: one BLAS thread is fastest (and
+        # several oversubscribe a shared machine).
+        with threadpool_limits(1):
+            return self._modes(count)
+
+    def _modes(self, count: int | None) -> Modes:
+        import scipy.linalg
+
+        w2, vecs = scipy.linalg.eig(self.stiffness, self.mass)
+        w2 = w2.real
+        order = np.argsort(w2)
+        w2, vecs = w2[order], vecs[:, order].real
+        if np.any(w2 <= 0):
+            raise design_error(
+                "equilibrium", "K", "has a non-positive eigenvalue: the equilibrium is not "
+                "stable, so it has no modes", InputError)
+        omega = np.sqrt(w2)
+        k = len(omega) if count is None else int(count)
+        omega, vecs = omega[:k], vecs[:, :k]
+        zeta = np.array([
+            (v @ self.damping @ v) / (2 * w * (v @ self.mass @ v))
+            for v, w in zip(vecs.T, omega, strict=True)
+        ])
+        a, _ = self.state_space()
+        poles = np.linalg.eigvals(a)
+        damped = np.full(k, np.nan)
+        upper = poles[poles.imag > 0]
+        for i, (w, z) in enumerate(zip(omega, zeta, strict=True)):
+            if z < 1 and len(upper):
+                expect = complex(-z * w, w * math.sqrt(max(0.0, 1 - z * z)))
+                damped[i] = upper[np.argmin(abs(upper - expect))].imag / (2 * math.pi)
+        shapes = vecs.T.reshape(k, -1, 6)
+        scale = np.abs(shapes).reshape(k, -1).max(axis=1)
+        shapes = shapes / scale[:, None, None]
+        # Sign: the largest entry positive.
+        flat = shapes.reshape(k, -1)
+        sign = np.sign(flat[np.arange(k), np.abs(flat).argmax(axis=1)])
+        shapes = shapes * sign[:, None, None]
+        return Modes(
+            frequency=omega / (2 * math.pi),
+            omega=omega,
+            damping_ratio=zeta,
+            damped_frequency=damped,
+            shapes=shapes,
+            nodes=self.nodes,
+            poles=poles[np.argsort(abs(poles))],
+        )
+
+
+def linearise(
+    design: DesignLike | StaticSolution,
+    pressures: ArrayLike | None = None,
+    *,
+    nodes: int = 12,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
+    initial: StaticSolution | None = None,
+) -> LinearSystem:
+    """The linearised dynamics of ``design`` about its equilibrium under ``pressures`` (Pa;
+    default zero) and the tip loads (default the design's), or about ``initial`` when it is
+    given (a :class:`StaticSolution`; its pressures and loads are used). ``nodes``: how
+    many nodes carry the coordinates (spread over the integration nodes, the tip last)."""
+    from ..statics import _pressures, _vec3, solve_statics
+
+    if isinstance(design, StaticSolution):
+        initial, design = design, design.design
+    design = load_design(design)
+    nodes = integer(nodes, "nodes", minimum=1, maximum=200)
+    if initial is None:
+        p = _pressures(design, np.zeros(design.n_channels) if pressures is None else pressures)
+        tip = design.spec["tip"]
+        tf = _vec3(tip_force, "force", "tip_force", tip["force"])
+        tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
+        initial = solve_statics(design, p, tip_force=tf, tip_moment=tm)
+    else:
+        p = [float(v) for v in initial.pressures]
+        tf = [float(v) for v in _tip_load(initial, "force")]
+        tm = [float(v) for v in _tip_load(initial, "moment")]
+    out = _core.linearise_at(
+        design._rod, p, tf, tm, [float(v) for v in initial.shooting_unknowns], nodes
+    )
+    names = tuple(f"p{c}" for c in range(design.n_channels)) + INPUT_NAMES_LOADS
+    return LinearSystem(
+        design=design,
+        pressures=np.array(p),
+        nodes=out["nodes"],
+        mass=out["mass"],
+        damping=out["damping"],
+        stiffness=out["stiffness"],
+        input=out["input"],
+        input_names=names,
+        equilibrium=initial,
+    )
