@@ -179,7 +179,8 @@ def test_markers_and_registration_recover_material_and_frame():
         with warnings.catch_warnings():
             warnings.simplefilter("error", CalibrationWarning)  # all identifiable
             res = calibrate(design, data, [E_NAME, RHO_NAME, *REGISTRATION])
-        z = {n: (v - truth[n]) / s for n, v, s in zip(res.names, res.values, res.std_errors, strict=True)}
+        fitted = zip(res.names, res.values, res.std_errors, strict=True)
+        z = {n: (v - truth[n]) / s for n, v, s in fitted}
         # Within 3 standard errors (p = 0.3 % per value for honest errors).
         assert all(abs(x) < 3 for x in z.values()), z
         inside_2 += sum(abs(x) < 2 for x in z.values())
@@ -210,7 +211,9 @@ def test_registration_jacobian_matches_finite_differences():
     design = _mocap_design()
     data = _measured(design, 4, tip=True)
     params = parse_parameters([E_NAME, "c_b"], design)
-    reg = [RegistrationParameter(n, "angle" if n.endswith("angle") else n[-1]) for n in REGISTRATION]
+    reg = [
+        RegistrationParameter(n, "angle" if n.endswith("angle") else n[-1]) for n in REGISTRATION
+    ]
     adapter = Registered(RodStatic(design, data, params, softrod.SolverOptions(tol=1e-12), 1), reg)
     theta = np.array([85e3, 1.2, 0.05, 1e-3, -2e-3, 0.5e-3])
     rows = np.arange(len(data))
@@ -218,8 +221,10 @@ def test_registration_jacobian_matches_finite_differences():
     for j, step in enumerate([85e3 * 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6]):
         e = np.zeros_like(theta)
         e[j] = step
-        plus, minus = adapter.predict(theta + e, rows, False), adapter.predict(theta - e, rows, False)
-        for exact, a, b in ((pred.d_tip, plus.tip, minus.tip), (pred.d_markers, plus.markers, minus.markers)):
+        plus = adapter.predict(theta + e, rows, False)
+        minus = adapter.predict(theta - e, rows, False)
+        pairs = ((pred.d_tip, plus.tip, minus.tip), (pred.d_markers, plus.markers, minus.markers))
+        for exact, a, b in pairs:
             fd = (a - b) / (2 * step)
             # Central differences of converged solves: truncation ~step^2, solve noise
             # 1e-14 m / step; the exact column agrees to 1e-6 of its size.
@@ -268,7 +273,11 @@ def test_marker_datasets_round_trip_through_files(tmp_path):
             "markers[0, 0]",
             "seen (x, y, z all given)",
         ),
-        ({"markers": np.zeros((2, 1, 3)), "marker_s": [-1.0], "marker_offset": [[0, 0]]}, "marker_s", ">= 0"),
+        (
+            {"markers": np.zeros((2, 1, 3)), "marker_s": [-1.0], "marker_offset": [[0, 0]]},
+            "marker_s",
+            ">= 0",
+        ),
         ({"tip_position": np.zeros((2, 3)), "marker_s": [0.1]}, "marker_s", "needs markers"),
     ],
 )

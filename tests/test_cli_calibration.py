@@ -104,7 +104,8 @@ def test_calibrate_recovers_c_b_and_writes_design_and_report(run, case, tmp_path
     assert result.exit_code == 0, result.output
     assert result.stderr == ""  # no terminal: no progress line, and no warnings here
     text = flat(result.stdout)
-    assert "calibrate c_b of paper002_M3_vertical (cosserat) on d.csv (SYNTHETIC): 15 samples" in text
+    header = "calibrate c_b of paper002_M3_vertical (cosserat) on d.csv (SYNTHETIC): 15 samples"
+    assert header in text
     assert "calibrated parameters" in text and "position errors" in text
     assert f"wrote {out}" in text and f"wrote {report}" in text
     assert "warning:" not in text

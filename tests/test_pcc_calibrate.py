@@ -120,7 +120,8 @@ def test_staged_identification_starts_from_the_closed_forms(clean):
     assert stages.loc["k_theta", "stage_value"] == pytest.approx(TRUTH["k_theta"], rel=1e-8)
     assert stages.loc["b_L", "start"] == pytest.approx(TRUTH["b_L"], rel=0.05)
     assert stages.loc["b_theta", "start"] == pytest.approx(TRUTH["b_theta"], rel=0.05)
-    assert all(s.startswith(("Hookean", "M / theta", "tied", "logarithmic")) for s in stages.start_from)
+    closed_forms = ("Hookean", "M / theta", "tied", "logarithmic")
+    assert all(s.startswith(closed_forms) for s in stages.start_from)
 
 
 def test_a_release_to_zero_no_longer_biases_the_damping():
@@ -163,7 +164,8 @@ def test_noisy_round_trips_have_honest_standard_errors():
             noise_mm=NOISE_MM, seed=100 + seed, duration="0.6 s", levels=5, rate=50.0, dt="4 ms"
         )
         res = softrod.calibrate(_start_design(), data, list(TRUTH), model="pcc", dt="4 ms")
-        z += [(v - TRUTH[n]) / s for n, v, s in zip(res.names, res.values, res.std_errors, strict=True)]
+        fitted = zip(res.names, res.values, res.std_errors, strict=True)
+        z += [(v - TRUTH[n]) / s for n, v, s in fitted]
         # Informative: 0.1 mm of tip noise leaves about a per cent or less on each value.
         assert np.all(res.std_errors < 0.02 * np.array(list(TRUTH.values())))
     z = np.abs(np.array(z))

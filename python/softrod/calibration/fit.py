@@ -32,7 +32,7 @@ from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import Dataset, load_dataset
 from ..design import Design
-from ..errors import CalibrationWarning, ConvergenceError, InputError, design_error
+from ..errors import CalibrationWarning, ConvergenceError
 from ..progress import reporter
 from ..statics import SolverOptions
 from .diagnostics import (
@@ -89,10 +89,6 @@ _BOUND_KINDS = {
 }
 
 
-def _fail(field_: str, value, rule: str) -> InputError:
-    return design_error(field_, value, rule, InputError)
-
-
 def _evaluations(evaluations: int, rms_mm: float) -> tuple[float, str]:
     """A progress bar's position and text for calibrate's progress(evaluations, rms_mm)."""
     return evaluations, f"{evaluations} evaluations, RMS position error {rms_mm:.3g} mm"
@@ -107,15 +103,15 @@ def _bounds(params, bounds, initial: np.ndarray) -> Bounds:
     if bounds is None:
         return out
     if not isinstance(bounds, Mapping):
-        raise _fail("bounds", bounds, "must map parameter names to (lower, upper)")
+        raise V.fail("bounds", bounds, "must map parameter names to (lower, upper)")
     lo, hi, given = out.lower.copy(), out.upper.copy(), out.given.copy()
     names = [p.name for p in params]
     for name, pair in bounds.items():
         if name not in names:
-            raise _fail("bounds", name, f"is not a calibrated parameter ({', '.join(names)})")
+            raise V.fail("bounds", name, f"is not a calibrated parameter ({', '.join(names)})")
         j = names.index(name)
         if not isinstance(pair, Sequence) or isinstance(pair, str) or len(pair) != 2:
-            raise _fail(f"bounds[{name}]", pair, "must be a pair (lower, upper)")
+            raise V.fail(f"bounds[{name}]", pair, "must be a pair (lower, upper)")
         kind = _BOUND_KINDS.get(params[j].unit)
         vals = [
             V.quantity(v, kind, f"bounds[{name}]")
@@ -124,11 +120,11 @@ def _bounds(params, bounds, initial: np.ndarray) -> Bounds:
             for v in pair
         ]
         if not vals[0] < vals[1]:
-            raise _fail(f"bounds[{name}]", pair, "lower must be below upper")
+            raise V.fail(f"bounds[{name}]", pair, "lower must be below upper")
         if params[j].positive and vals[0] <= 0:
-            raise _fail(f"bounds[{name}]", pair, f"{params[j].name} must stay > 0")
+            raise V.fail(f"bounds[{name}]", pair, f"{params[j].name} must stay > 0")
         if not vals[0] <= initial[j] <= vals[1]:
-            raise _fail(
+            raise V.fail(
                 f"bounds[{name}]", pair, f"must contain the starting value {initial[j]:g}"
             )
         lo[j], hi[j] = vals
@@ -141,19 +137,21 @@ def _split(dataset: Dataset, split, test) -> np.ndarray:
     m = len(dataset)
     if split is None:
         if test is not None:
-            raise _fail("test", test, "needs split='experiment' or split='mounting'")
+            raise V.fail("test", test, "needs split='experiment' or split='mounting'")
         return np.zeros(m, dtype=bool)
     if isinstance(split, str):
         if split not in ("experiment", "mounting"):
-            raise _fail("split", split, "must be 'experiment', 'mounting', a mask or None")
+            raise V.fail("split", split, "must be 'experiment', 'mounting', a mask or None")
         if getattr(dataset, split) is None:
-            raise _fail("split", split, f"the dataset has no {split} column")
+            raise V.fail("split", split, f"the dataset has no {split} column")
         if test is None:
             if split == "mounting":
-                raise _fail("test", None, "name the test mounting(s)")
+                raise V.fail("test", None, "name the test mounting(s)")
             ids = dataset.experiments
             if len(ids) < 2:
-                raise _fail("test", None, f"the dataset has {len(ids)} experiment: nothing to test")
+                raise V.fail(
+                    "test", None, f"the dataset has {len(ids)} experiment: nothing to test"
+                )
             test = ids[-1]  # documented default: the last experiment is the test set
         dataset.split(split, test=test)  # checks the ids
         labels = getattr(dataset, split)
@@ -161,9 +159,9 @@ def _split(dataset: Dataset, split, test) -> np.ndarray:
         return np.isin(labels, ids)
     mask = np.asarray(split)
     if mask.dtype != bool or mask.shape != (m,):
-        raise _fail("split", f"array of shape {mask.shape}", f"a test mask must be bool ({m},)")
+        raise V.fail("split", f"array of shape {mask.shape}", f"a test mask must be bool ({m},)")
     if mask.all():
-        raise _fail("split", "all rows", "leaves nothing to train on")
+        raise V.fail("split", "all rows", "leaves nothing to train on")
     return mask.copy()
 
 
@@ -176,19 +174,19 @@ def _scales(weights, dataset: Dataset) -> dict[str, float]:
     if weights is None:
         return scales
     if not isinstance(weights, Mapping):
-        raise _fail(
+        raise V.fail(
             "weights", weights, "must map measured quantities ('tip', 'markers') to lengths"
         )
     for key, value in weights.items():
         if key not in QUANTITIES:
-            raise _fail(
+            raise V.fail(
                 f"weights[{key!r}]", value, f"unknown quantity (known: {', '.join(QUANTITIES)})"
             )
         if key not in present:
-            raise _fail(f"weights[{key!r}]", value, f"the dataset has no {key} columns")
+            raise V.fail(f"weights[{key!r}]", value, f"the dataset has no {key} columns")
         x = V.quantity(value, "length", f"weights[{key!r}]")
         if not x > 0:
-            raise _fail(
+            raise V.fail(
                 f"weights[{key!r}]",
                 value,
                 "must be a length > 0 (the measurement's standard deviation)",
@@ -214,18 +212,18 @@ def _split_params(names, design: Design, model: str):
 
         names = [n.strip() for n in re.split(r",(?![^\[]*\])", names) if n.strip()]
     if not isinstance(names, (list, tuple)):
-        raise _fail("params", names, "must be a name, a comma-separated string or a list of names")
+        raise V.fail("params", names, "must be a name, a comma-separated string or a list of names")
     reg, rest = [], []
     for n in names:
         key = n.strip() if isinstance(n, str) else n
         if isinstance(key, str) and key in REGISTRATION:
             if any(p.name == key for p in reg):
-                raise _fail("params", key, "is named twice")
+                raise V.fail("params", key, "is named twice")
             reg.append(RegistrationParameter(key, REGISTRATION[key]))
         else:
             rest.append(n)
     if not rest and not reg:
-        raise _fail("params", names, "name at least one parameter")
+        raise V.fail("params", names, "name at least one parameter")
     return rest, reg
 
 
@@ -338,21 +336,21 @@ def calibrate(
     if not isinstance(dataset, Dataset):
         dataset = load_dataset(dataset, design=design0)
     if dataset.n_channels != design0.n_channels:
-        raise _fail(
+        raise V.fail(
             "dataset.pressures",
             f"{dataset.n_channels} channels",
             f"design {design0.name!r} has {design0.n_channels} pressure channels",
         )
     names, registration = _split_params(params, design0, model)
     if experiments is not None and model != "pcc":
-        raise _fail("experiments", experiments, "applies to model='pcc' only")
+        raise V.fail("experiments", experiments, "applies to model='pcc' only")
     adapter = _adapter(
         model, dynamic, design0, dataset, names, options, threads, dt, experiments
     )
     if registration:
         adapter = Registered(adapter, registration)
     if method == "lm" and not adapter.exact_jacobian:
-        raise _fail(
+        raise V.fail(
             "method",
             method,
             "this model gives no exact Jacobian yet; use method='nelder-mead'",
@@ -419,7 +417,6 @@ def calibrate(
         found.insert(0, f"the optimiser stopped without converging: {message}")
     evaluations = adapter.evaluations
 
-    n_model = len(params_all) - len(registration)
     calibrated = adapter.calibrated_design(values)
     what = ("time series" if adapter.dynamic else "equilibria") + f", {model} model"
     calibrated = record(
@@ -444,7 +441,6 @@ def calibrate(
     if registration:
         angle, offset = adapter.values(values)
         reg = {"angle": angle, "offset": offset}
-    del n_model
     return CalibrationResult(
         design=calibrated,
         initial_design=design0,
@@ -492,10 +488,10 @@ def _adapter(model, dynamic, design0, dataset, names, options, threads, dt, expe
         return RodDynamic(design0, dataset, params, dt, threads)
     dyn = [p.name for p in params if p.kind == "damping_time"]
     if dyn:
-        raise _fail("params", dyn, "damping_time acts in dynamic fits only (dynamic=True)")
+        raise V.fail("params", dyn, "damping_time acts in dynamic fits only (dynamic=True)")
     sigma_names = [p.name for p in params if p.kind in SIGMA_KINDS]
     if sigma_names and design0.stiffness_map is not None:
-        raise _fail(
+        raise V.fail(
             "params",
             sigma_names,
             f"design {design0.name!r} has a stiffness map ([stiffness_map] file): the constant "

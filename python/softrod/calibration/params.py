@@ -39,9 +39,9 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from .. import _validate as V
 from .._validate import si_text
 from ..design import Design, _library
-from ..errors import InputError
 
 _FACTORS = ("c_s", "c_e", "c_b", "c_t")
 _MATERIAL_KINDS = ("E", "density")
@@ -68,10 +68,6 @@ _UNITS = {
     "damping_time": "s",
 }
 _NAME = re.compile(r"^\s*([A-Za-z_0-9]+)\s*(?:\[\s*([^\]]*)\])?\s*$")
-
-
-def _fail(field: str, value, rule: str) -> InputError:
-    return InputError(f"{field} = {value!r}: {rule}", field, value, rule)
 
 
 @dataclass(frozen=True)
@@ -143,22 +139,22 @@ def _default_sections(design: Design, kind: str) -> list[int]:
 def parse_parameter(name: str, design: Design) -> Parameter:
     """Resolve a parameter name such as ``"c_b"``, ``"c_b[body]"`` or ``"E[ecoflex]"``."""
     if not isinstance(name, str):
-        raise _fail("params", name, "each parameter must be a name such as 'c_b' or 'c_b[body]'")
+        raise V.fail("params", name, "each parameter must be a name such as 'c_b' or 'c_b[body]'")
     m = _NAME.match(name)
     if not m or m.group(1) not in KINDS:
-        raise _fail("params", name, f"unknown parameter; known kinds: {', '.join(KINDS)}")
+        raise V.fail("params", name, f"unknown parameter; known kinds: {', '.join(KINDS)}")
     kind, selector = m.group(1), m.group(2)
     secs = design.spec["sections"]
     names = [s["name"] for s in secs]
     if kind in SIGMA_KINDS:
         if selector:
-            raise _fail(
+            raise V.fail(
                 "params", name, "sigma factors act on the stiffness-mapped sections: no selector"
             )
         return Parameter(name.strip(), kind, ())
     if kind in DYNAMIC_KINDS:
         if selector:
-            raise _fail("params", name, f"{kind} is one value of [dynamics]: no selector")
+            raise V.fail("params", name, f"{kind} is one value of [dynamics]: no selector")
         return Parameter(name.strip(), kind, ())
     if kind in _MATERIAL_KINDS:
         mats = {
@@ -170,13 +166,13 @@ def parse_parameter(name: str, design: Design) -> Parameter:
             material = selector.strip()
             if material not in mats.values():
                 known = ", ".join(sorted({v for v in mats.values() if v}))
-                raise _fail(
+                raise V.fail(
                     "params", name, f"no elastic section uses material {material!r} (used: {known})"
                 )
         else:
             used = {mats[i] for i in _default_sections(design, kind) if i in mats}
             if len(used) != 1:
-                raise _fail(
+                raise V.fail(
                     "params",
                     name,
                     f"the chambered sections use {len(used)} materials "
@@ -194,12 +190,14 @@ def parse_parameter(name: str, design: Design) -> Parameter:
         for part in selector.split(","):
             part = part.strip()
             if part not in names:
-                raise _fail(
+                raise V.fail(
                     "params", name, f"no section named {part!r} (sections: {', '.join(names)})"
                 )
             idx.append(names.index(part))
     if not idx:
-        raise _fail("params", name, f"no section of design {design.name!r} has what {kind} acts on")
+        raise V.fail(
+            "params", name, f"no section of design {design.name!r} has what {kind} acts on"
+        )
     return Parameter(name.strip(), kind, tuple(idx))
 
 
@@ -208,15 +206,15 @@ def parse_parameters(names: Sequence[str] | str, design: Design) -> list[Paramet
     if isinstance(names, str):
         names = [n for n in re.split(r",(?![^\[]*\])", names) if n.strip()]
     if not isinstance(names, (list, tuple)):
-        raise _fail("params", names, "must be a name, a comma-separated string or a list of names")
+        raise V.fail("params", names, "must be a name, a comma-separated string or a list of names")
     params = [parse_parameter(n, design) for n in names]
     if not params:
-        raise _fail("params", names, "name at least one parameter")
+        raise V.fail("params", names, "name at least one parameter")
     seen: dict[tuple, str] = {}
     for p in params:
         for key in [(p.kind, i) for i in p.sections] or [(p.kind, None)]:
             if key in seen:
-                raise _fail("params", p.name, f"acts on the same thing as {seen[key]!r}")
+                raise V.fail("params", p.name, f"acts on the same thing as {seen[key]!r}")
             seen[key] = p.name
     return params
 

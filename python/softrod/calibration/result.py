@@ -13,9 +13,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
 from ..datasets import Dataset
 from ..design import Design
-from ..errors import InputError, design_error
 from ..schema import DISPLAY_UNITS, display
 from .diagnostics import warning_thresholds
 from .metrics import tip_error_table
@@ -24,10 +24,6 @@ from .params import SIGMA_KINDS
 if TYPE_CHECKING:
     from .._types import PathLike, Units
     from ..stiffness_map import StiffnessMap
-
-
-def _fail(field_: str, value, rule: str) -> InputError:
-    return design_error(field_, value, rule, InputError)
 
 
 @dataclass(frozen=True)
@@ -173,7 +169,7 @@ class CalibrationResult:
         sentence. Registration parameters describe the measurement frame, not the design:
         they are recorded in the provenance only."""
         if self.stiffness_scale is not None:
-            raise _fail(
+            raise V.fail(
                 "params",
                 [p.name for p in self.parameters if p.kind in SIGMA_KINDS],
                 "sigma factors are per-solve, not part of a design; use result.stiffness_map "
@@ -406,7 +402,7 @@ def record(design, initial, name, params, values, std, method, dataset, n_train,
     if name is None:
         name = f"{initial.name}_calibrated"
     if not isinstance(name, str) or not name.strip():
-        raise _fail("name", name, "must be a non-empty string (the calibrated design's name)")
+        raise V.fail("name", name, "must be a non-empty string (the calibrated design's name)")
     fitted = [
         (p, v, s) for p, v, s in zip(params, values, std, strict=True) if p.kind not in SIGMA_KINDS
     ]

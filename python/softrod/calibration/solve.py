@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..errors import InputError, design_error
+from .. import _validate as V
 from .problem import Bounds, Prediction, Problem
 
 #: Restarts of a positive parameter without bounds start within this factor of its starting
@@ -29,10 +29,6 @@ RESTART_SPREAD = 3.0
 #: The sanity box of a positive parameter without bounds, as factors on its start.
 SANITY_FACTOR = 1e3
 METHODS = ("lm", "nelder-mead")
-
-
-def _fail(field_: str, value, rule: str) -> InputError:
-    return design_error(field_, value, rule, InputError)
 
 
 def default_bounds(params, initial: np.ndarray) -> Bounds:
@@ -148,15 +144,15 @@ def start_points(params, theta0, bounds: Bounds, restarts, seed) -> np.ndarray:
     parameter's bounds (log-uniformly for positive ones), or, for a positive parameter
     without bounds, log-uniformly within RESTART_SPREAD of its value."""
     if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 0:
-        raise _fail("restarts", restarts, "must be an integer >= 0 (extra starting points)")
+        raise V.fail("restarts", restarts, "must be an integer >= 0 (extra starting points)")
     if restarts == 0:
         return theta0[None, :]
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise _fail("seed", seed, "must be an integer >= 0 (it makes the restarts repeatable)")
+        raise V.fail("seed", seed, "must be an integer >= 0 (it makes the restarts repeatable)")
     bounded = bounds.given
     for p, b in zip(params, bounded, strict=True):
         if not (b or p.positive):
-            raise _fail(
+            raise V.fail(
                 "restarts",
                 restarts,
                 f"{p.name} can be negative: give its bounds so that restarts know where to "

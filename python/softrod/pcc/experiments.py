@@ -38,11 +38,12 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
 from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..datasets import Dataset, _matrix_to_quat, _quat_to_matrix, load_dataset, noise_seed
 from ..design import Design
-from ..errors import ConvergenceError, InputError, design_error
+from ..errors import ConvergenceError, InputError
 from ..units import to_si
 from .identify import (
     bending_angle_from_tip,
@@ -78,10 +79,6 @@ STATIC_SAMPLE_PERIOD = 1.0
 TABLE_ENTRIES = 8
 
 
-def _fail(field: str, value, rule: str) -> InputError:
-    return design_error(field, value, rule, InputError)
-
-
 # --- the design --------------------------------------------------------------------------------
 
 
@@ -90,7 +87,7 @@ def _arm(design: Design) -> dict:
     segment from base to tip; eq. 14 reads the bending angle off the tip of that arc)."""
     sections = design.spec["sections"]
     if len(sections) != 1 or sections[0].get("rigid", False):
-        raise _fail(
+        raise V.fail(
             "design.sections",
             f"{len(sections)} section(s) in {design.name!r}",
             "paper 003's identification needs a single deformable section (one PCC segment "
@@ -98,7 +95,7 @@ def _arm(design: Design) -> dict:
         )
     sec = design.sections()[0]
     if not sec["chambers"]:
-        raise _fail("design.sections[0].chambers", "none", "the arm needs pressure chambers")
+        raise V.fail("design.sections[0].chambers", "none", "the arm needs pressure chambers")
     return sec
 
 
@@ -120,16 +117,16 @@ def _pcc_value(design: Design, name: str):
 def _params(params) -> list[str]:
     names = [params] if isinstance(params, str) else params
     if not isinstance(names, Sequence) or isinstance(names, str) or not names:
-        raise _fail("params", params, f"must be one or a list of {', '.join(PCC_PARAMETERS)}")
+        raise V.fail("params", params, f"must be one or a list of {', '.join(PCC_PARAMETERS)}")
     unknown = [p for p in names if p not in PCC_PARAMETERS]
     if unknown:
-        raise _fail(
+        raise V.fail(
             "params",
             unknown,
             f"identify_pcc identifies {', '.join(PCC_PARAMETERS)} (paper 003 Sec. V)",
         )
     if len(set(names)) != len(names):
-        raise _fail("params", list(names), "names a parameter twice")
+        raise V.fail("params", list(names), "names a parameter twice")
     return [p for p in PCC_PARAMETERS if p in names]
 
 
@@ -141,7 +138,7 @@ def _experiment_ids(value, name: str) -> list:
         or not ids
         or not all(isinstance(i, (str, int, np.integer)) and not isinstance(i, bool) for i in ids)
     ):
-        raise _fail(f"experiments[{name!r}]", value, "must be an experiment id or a list of ids")
+        raise V.fail(f"experiments[{name!r}]", value, "must be an experiment id or a list of ids")
     return list(ids)
 
 
@@ -157,14 +154,14 @@ def _rows(dataset: Dataset, param: str, experiments: Mapping, n_params: int) -> 
     if param in experiments:
         wanted = _experiment_ids(experiments[param], param)
         if dataset.experiment is None:
-            raise _fail(
+            raise V.fail(
                 f"experiments[{param!r}]",
                 experiments[param],
                 "the dataset has no experiment column to select rows by",
             )
         unknown = [w for w in wanted if not any(_same(w, k) for k in ids)]
         if unknown:
-            raise _fail(
+            raise V.fail(
                 f"experiments[{param!r}]",
                 unknown,
                 f"unknown experiment id(s); the dataset has {', '.join(map(repr, ids))}",
@@ -175,7 +172,7 @@ def _rows(dataset: Dataset, param: str, experiments: Mapping, n_params: int) -> 
     elif n_params == 1 and len(ids) <= 1:
         return np.arange(len(dataset)), list(ids)
     else:
-        raise _fail(
+        raise V.fail(
             "experiments",
             dict(experiments),
             f"say which experiment identifies {param}, e.g. experiments={{{param!r}: id}} "
@@ -260,7 +257,7 @@ def _closed_form(name, design, sec, dataset, rows, degree):
             value, table = _start_k_theta(design, dataset, rows, degree)
             return value, table, "M / theta (Sec. V-C)"
         if dataset.time is None:
-            raise _fail(
+            raise V.fail(
                 "dataset.time",
                 None,
                 f"{name} is identified from a time series ({EXPERIMENTS[name]}); the dataset "
@@ -321,7 +318,7 @@ def identify_pcc(
     if not isinstance(dataset, Dataset):
         dataset = load_dataset(dataset, design=design)
     if dataset.n_channels != design.n_channels:
-        raise _fail(
+        raise V.fail(
             "dataset.pressures",
             f"{dataset.n_channels} channels",
             f"design {design.name!r} has {design.n_channels} pressure channels",
@@ -332,28 +329,28 @@ def identify_pcc(
     if experiments is None:
         experiments = {}
     if not isinstance(experiments, Mapping):
-        raise _fail("experiments", experiments, "must map parameter names to experiment ids")
+        raise V.fail("experiments", experiments, "must map parameter names to experiment ids")
     extra = [k for k in experiments if k not in names]
     if extra:
-        raise _fail("experiments", extra, f"names parameters that are not fitted ({names})")
+        raise V.fail("experiments", extra, f"names parameters that are not fitted ({names})")
     if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)) or degree < 0:
-        raise _fail("degree", degree, "must be an integer >= 0 (0: a constant k_theta)")
+        raise V.fail("degree", degree, "must be an integer >= 0 (0: a constant k_theta)")
     work = design  # the design with the values known so far: given, then fitted
     for name, value, kind in (("k_L", k_L, "force_per_length"), ("k_theta", k_theta, "moment")):
         if value is None:
             continue
         if name in names:
-            raise _fail(name, value, f"{name} is fitted here; do not also give it")
+            raise V.fail(name, value, f"{name} is fitted here; do not also give it")
         si = to_si(value, kind, name, InputError)
         if not si > 0:
-            raise _fail(name, value, "must be > 0")
+            raise V.fail(name, value, "must be > 0")
         work = work.replace({f"pcc.{name}": f"{si!r} {'N/m' if name == 'k_L' else 'N*m'}"})
 
     stages, used_rows, fitted, kinds = [], [], [], {}
     for name in names:
         rows, used = _rows(dataset, name, experiments, len(names))
         if rows.size == 0:
-            raise _fail(f"experiments[{name!r}]", used, "selects no rows")
+            raise V.fail(f"experiments[{name!r}]", used, "selects no rows")
         start, table, how = _closed_form(name, work, sec, dataset, rows, int(degree))
         if not (math.isfinite(start) and start > 0):
             value = _pcc_value(work, name)
@@ -454,13 +451,13 @@ def _released(design: Design, sec: dict, pattern: np.ndarray, release, kind: str
     if release == "zero":
         return np.zeros_like(pattern)
     if release != "balanced":
-        raise _fail(f"experiments[{kind!r}].release", release, "must be 'zero' or 'balanced'")
+        raise V.fail(f"experiments[{kind!r}].release", release, "must be 'zero' or 'balanced'")
     areas = np.zeros_like(pattern)
     for area, *_, ch in sec["chambers"]:
         areas[ch] += area
     out = np.full_like(pattern, float(pattern @ areas) / float(areas.sum()))
     if chamber_moment(design, out[None, :])[0] > 1e-9 * float(out @ areas) * design.length:
-        raise _fail(
+        raise V.fail(
             f"experiments[{kind!r}].release",
             release,
             "needs chambers whose equal pressure does not bend the arm",
@@ -471,7 +468,7 @@ def _released(design: Design, sec: dict, pattern: np.ndarray, release, kind: str
 def _positive_number(value, name: str, kind: str | None = None) -> float:
     x = to_si(value, kind, name, InputError) if kind else value
     if isinstance(x, bool) or not isinstance(x, (int, float)) or not (math.isfinite(x) and x > 0):
-        raise _fail(name, value, "must be a finite number > 0")
+        raise V.fail(name, value, "must be a finite number > 0")
     return float(x)
 
 
@@ -508,9 +505,9 @@ def synthesize_pcc_experiments(
     step ``dt``, sampled at ``rate`` (Hz; 1 / (rate dt) must be an integer). A time series
     is driven by its sampled pressures joined linearly (a step rises over one sample
     interval), from rest in equilibrium under the first sample: exactly what
-    ``softrod.calibrate(..., model="pcc")`` replays. The tip positions get isotropic Gaussian noise of
-    ``noise_mm`` (per axis) from ``seed`` (drawn and recorded when None); rotations are
-    noise-free. Experiment ids are the kinds (or ``id``). When any time series is present,
+    ``softrod.calibrate(..., model="pcc")`` replays. The tip positions get isotropic Gaussian
+    noise of ``noise_mm`` (per axis) from ``seed`` (drawn and recorded when None); rotations
+    are noise-free. Experiment ids are the kinds (or ``id``). When any time series is present,
     static rows get time = index * 1 s within their experiment, so that all rows have a time.
 
     Returns one :class:`~softrod.Dataset`, ``metadata["synthetic"]`` True, with the design,
@@ -522,7 +519,7 @@ def synthesize_pcc_experiments(
     design = load_design(design)
     sec = _arm(design)
     if not isinstance(experiments, Mapping) or not experiments:
-        raise _fail(
+        raise V.fail(
             "experiments",
             experiments,
             "must map experiment kinds (elongation, bending, step, free_decay) to a pressure "
@@ -534,24 +531,24 @@ def synthesize_pcc_experiments(
     ratio = 1.0 / (rate_hz * dt_s)
     save_every = int(round(ratio))
     if save_every < 1 or abs(ratio - save_every) > 1e-9 * ratio:
-        raise _fail("rate", rate, f"1 / (rate dt) must be an integer (dt = {dt_s:g} s)")
+        raise V.fail("rate", rate, f"1 / (rate dt) must be an integer (dt = {dt_s:g} s)")
 
     model = pcc_model(design)
     kinds = tuple(EXPERIMENTS.values())
     parts, settings = [], {}
     for kind, spec in experiments.items():
         if kind not in kinds:
-            raise _fail("experiments", kind, f"unknown kind (known: {', '.join(kinds)})")
+            raise V.fail("experiments", kind, f"unknown kind (known: {', '.join(kinds)})")
         spec = dict(spec) if isinstance(spec, Mapping) else {"pressure": spec}
         unknown = set(spec) - _SETTINGS
         if unknown:
-            raise _fail(
+            raise V.fail(
                 f"experiments[{kind!r}]",
                 sorted(unknown),
                 f"unknown setting(s) (known: {', '.join(sorted(_SETTINGS))})",
             )
         if "pressure" not in spec:
-            raise _fail(f"experiments[{kind!r}]", spec, "needs a pressure")
+            raise V.fail(f"experiments[{kind!r}]", spec, "needs a pressure")
         pressure = _positive_number(spec["pressure"], f"experiments[{kind!r}].pressure", "pressure")
         channels = spec.get("channels", _default_channels(sec, kind))
         if (
@@ -561,7 +558,7 @@ def synthesize_pcc_experiments(
                 isinstance(c, (int, np.integer)) and 0 <= c < design.n_channels for c in channels
             )
         ):
-            raise _fail(
+            raise V.fail(
                 f"experiments[{kind!r}].channels",
                 channels,
                 f"must be channel indices 0..{design.n_channels - 1}",
@@ -573,7 +570,7 @@ def synthesize_pcc_experiments(
         if kind in ("elongation", "bending"):
             n = spec.get("levels", levels)
             if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 3:
-                raise _fail(f"experiments[{kind!r}].levels", n, "must be an integer >= 3")
+                raise V.fail(f"experiments[{kind!r}].levels", n, "must be an integer >= 3")
             p = np.outer(np.linspace(0.0, 1.0, int(n)), pattern)
             tips, rots, guess = [], [], None
             for row in p:
@@ -589,7 +586,9 @@ def synthesize_pcc_experiments(
             )
             n_steps = int(round(dur / dt_s / save_every)) * save_every
             if n_steps < 5 * save_every:
-                raise _fail(f"experiments[{kind!r}].duration", dur, "must cover at least 5 samples")
+                raise V.fail(
+                    f"experiments[{kind!r}].duration", dur, "must cover at least 5 samples"
+                )
             # The samples: before (row 0) and after (rows 1..) the step or release.
             samples = np.zeros((n_steps // save_every + 1, design.n_channels))
             if kind == "step":
@@ -602,7 +601,9 @@ def synthesize_pcc_experiments(
             # under the first sample, as calibrate replays a time series.
             t_s = np.arange(samples.shape[0]) * save_every * dt_s
             t_k = np.arange(n_steps + 1) * dt_s
-            p = np.column_stack([np.interp(t_k, t_s, samples[:, c]) for c in range(samples.shape[1])])
+            p = np.column_stack(
+                [np.interp(t_k, t_s, samples[:, c]) for c in range(samples.shape[1])]
+            )
             out = run_pcc(design, dt_s, p, save_every=save_every, initial="static")
             parts.append(
                 (label, samples, out["tip_position"], out["tip_rotation"], out["time"])
@@ -610,7 +611,7 @@ def synthesize_pcc_experiments(
             settings[kind]["duration_s"] = n_steps * dt_s
     labels = [lab for lab, *_ in parts]
     if len(set(map(str, labels))) != len(labels):
-        raise _fail("experiments", labels, "experiment ids must differ")
+        raise V.fail("experiments", labels, "experiment ids must differ")
     timed = any(t is not None for *_, t in parts)
     rng = np.random.default_rng(int(seed))
     pressures = np.vstack([p for _, p, *_ in parts])

@@ -20,9 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ... import _core
+from ... import _validate as V
 from ..._validate import si_text
 from ...design import Design
-from ...errors import DesignError, InputError, design_error
+from ...errors import DesignError
 from ..problem import ModelAdapter, Prediction
 from .rod_dynamic import experiment_rows
 from .rod_static import marker_sites
@@ -44,10 +45,6 @@ _NODE = re.compile(r"^k_theta\[\s*(\d+)\s*\]$")
 DYNAMIC_EXPERIMENTS = ("step", "free_decay")
 
 
-def _fail(field_: str, value, rule: str) -> InputError:
-    return design_error(field_, value, rule, InputError)
-
-
 @dataclass(frozen=True)
 class PccParameter:
     """A PCC parameter (paper 003 Sec. IV-B): k_L, b_L, k_theta or k_theta[j], b_theta,
@@ -66,11 +63,11 @@ class PccParameter:
 
 def parse_pcc_parameters(names) -> list[PccParameter]:
     if not names:
-        raise _fail("params", names, f"name at least one of {', '.join(PCC_KINDS)}")
+        raise V.fail("params", names, f"name at least one of {', '.join(PCC_KINDS)}")
     out = []
     for n in names:
         if not isinstance(n, str):
-            raise _fail("params", n, "each parameter must be a name such as 'k_L'")
+            raise V.fail("params", n, "each parameter must be a name such as 'k_L'")
         key = n.strip()
         node = _NODE.match(key)
         if node:
@@ -78,7 +75,7 @@ def parse_pcc_parameters(names) -> list[PccParameter]:
         elif key in PCC_KINDS:
             out.append(PccParameter(key, key))
         else:
-            raise _fail(
+            raise V.fail(
                 "params",
                 n,
                 f"unknown PCC parameter; known: {', '.join(PCC_KINDS)}, k_theta[j] (the j-th "
@@ -87,9 +84,9 @@ def parse_pcc_parameters(names) -> list[PccParameter]:
     names = [p.name for p in out]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise _fail("params", dup, "names a parameter twice")
+        raise V.fail("params", dup, "names a parameter twice")
     if any(p.node is not None for p in out) and "k_theta" in names:
-        raise _fail("params", names, "k_theta and k_theta[j] act on the same stiffness")
+        raise V.fail("params", names, "k_theta and k_theta[j] act on the same stiffness")
     return out
 
 
@@ -101,25 +98,25 @@ def _kinds(dataset, experiments, dynamic: bool) -> dict:
             return dict.fromkeys(ids, "dynamic")
         return {e: ("dynamic" if e in DYNAMIC_EXPERIMENTS else "static") for e in ids}
     if not isinstance(experiments, Mapping):
-        raise _fail(
+        raise V.fail(
             "experiments", experiments, "must map experiment ids to 'static' or 'dynamic'"
         )
     if dataset.experiment is None:
-        raise _fail("experiments", dict(experiments), "the dataset has no experiment column")
+        raise V.fail("experiments", dict(experiments), "the dataset has no experiment column")
     out = {}
     for e, kind in experiments.items():
         if not any(_same(e, k) for k in ids):
-            raise _fail(
+            raise V.fail(
                 "experiments",
                 e,
                 f"unknown experiment id; the dataset has {', '.join(map(repr, ids))}",
             )
         if kind not in ("static", "dynamic"):
-            raise _fail(f"experiments[{e!r}]", kind, "must be 'static' or 'dynamic'")
+            raise V.fail(f"experiments[{e!r}]", kind, "must be 'static' or 'dynamic'")
         out[next(k for k in ids if _same(e, k))] = kind
     missing = [k for k in ids if k not in out]
     if missing:
-        raise _fail(
+        raise V.fail(
             "experiments",
             dict(experiments),
             f"say for every experiment whether it is 'static' or 'dynamic' (missing: "
@@ -153,7 +150,7 @@ class PccAdapter(ModelAdapter):
         self.initial = np.array([self._value(p) for p in self.params])
         for p, v in zip(self.params, self.initial, strict=True):
             if not v > 0:
-                raise _fail(
+                raise V.fail(
                     "params",
                     p.name,
                     f"{p.name} is {v:g} in design {design.name!r}: give a starting value > 0 "
@@ -171,7 +168,7 @@ class PccAdapter(ModelAdapter):
         self.runs: list[np.ndarray] = []
         if self.dynamic:
             if dataset.time is None:
-                raise _fail(
+                raise V.fail(
                     "dataset.time", None, "time series (dynamic experiments) need a time column"
                 )
             all_runs = experiment_rows(dataset) if labels is not None else [np.arange(self.m)]
@@ -198,24 +195,24 @@ class PccAdapter(ModelAdapter):
             (s for s in pcc_parameters(self.design) if s["name"] in chambered), None
         )
         if seg is None:
-            raise _fail("design.sections", "no chambers", "the PCC parameters act on chambers")
+            raise V.fail("design.sections", "no chambers", "the PCC parameters act on chambers")
         value = seg[p.kind]
         if p.kind == "k_theta":
             table = isinstance(value, (tuple, list))
             if p.node is None and table:
-                raise _fail(
+                raise V.fail(
                     "params",
                     p.name,
                     "the design's k_theta is a table: calibrate its entries k_theta[j]",
                 )
             if p.node is not None:
                 if not table:
-                    raise _fail(
+                    raise V.fail(
                         "params", p.name, "the design's k_theta is a constant: calibrate k_theta"
                     )
                 stiff = value[1]
                 if p.node >= len(stiff):
-                    raise _fail(
+                    raise V.fail(
                         "params",
                         p.name,
                         f"the k_theta table has {len(stiff)} entries (0..{len(stiff) - 1})",
@@ -387,7 +384,8 @@ def _at_times(steps_t, points, d_points, t):
     span = steps_t[idx + 1] - steps_t[idx]
     w = np.clip((t - steps_t[idx]) / span, 0.0, 1.0)
     # A sample on a step (to round-off) is read at that step.
-    w = np.where(np.isclose(w, 0.0, atol=1e-9), 0.0, np.where(np.isclose(w, 1.0, atol=1e-9), 1.0, w))
+    w = np.where(np.isclose(w, 0.0, atol=1e-9), 0.0, w)
+    w = np.where(np.isclose(w, 1.0, atol=1e-9), 1.0, w)
     pts = points[idx] * (1 - w)[:, None, None] + points[idx + 1] * w[:, None, None]
     dp = d_points[idx] * (1 - w)[:, None, None, None] + d_points[idx + 1] * w[:, None, None, None]
     return pts, dp

@@ -8,20 +8,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from ... import _validate as V
 from ...design import Design
-from ...errors import ConvergenceError, DesignError, InputError, design_error
+from ...errors import ConvergenceError, DesignError
 from ..params import SIGMA_KINDS, Parameter, design_changes
 from ..problem import ModelAdapter, Prediction
-
-
-def _fail(field_: str, value, rule: str) -> InputError:
-    return design_error(field_, value, rule, InputError)
 
 
 def experiment_rows(dataset) -> list[np.ndarray]:
     """Row indices of each experiment, in time order; each needs >= 2 samples."""
     if dataset.time is None:
-        raise _fail("dataset.time", None, "a dynamic calibration needs a time column (e.g. time_s)")
+        raise V.fail(
+            "dataset.time", None, "a dynamic calibration needs a time column (e.g. time_s)"
+        )
     ids = dataset.experiments or (None,)
     out = []
     for e in ids:
@@ -31,7 +30,7 @@ def experiment_rows(dataset) -> list[np.ndarray]:
         rows = rows[np.argsort(dataset.time[rows], kind="stable")]
         t = dataset.time[rows]
         if len(rows) < 2 or np.any(np.diff(t) <= 0):
-            raise _fail(
+            raise V.fail(
                 "dataset.time",
                 f"experiment {e}",
                 "each experiment needs >= 2 rows with strictly increasing time",
@@ -52,18 +51,18 @@ class RodDynamic(ModelAdapter):
 
         super().__init__()
         if dataset.markers is not None:
-            raise _fail(
+            raise V.fail(
                 "dataset.markers",
                 f"{dataset.n_markers} markers",
                 "dynamic fits read the tip position only (markers: static fits)",
             )
         sigma = [p.name for p in params if p.kind in SIGMA_KINDS]
         if sigma:
-            raise _fail("params", sigma, "sigma factors belong to static fits")
+            raise V.fail("params", sigma, "sigma factors belong to static fits")
         if any(p.kind == "damping_time" for p in params):
             tau0 = design.spec["dynamics"]["damping_time"]
             if not tau0 > 0:
-                raise _fail(
+                raise V.fail(
                     "design.dynamics.damping_time",
                     tau0,
                     "give a starting damping time > 0 s in [dynamics] (the fit works on "
@@ -71,7 +70,7 @@ class RodDynamic(ModelAdapter):
                 )
         for p in params:
             if not p.positive:
-                raise _fail("params", p.name, "dynamic calibration fits positive parameters only")
+                raise V.fail("params", p.name, "dynamic calibration fits positive parameters only")
         self.design = design
         self.params = list(params)
         self.parameters = tuple(params)
@@ -90,7 +89,7 @@ class RodDynamic(ModelAdapter):
         from ...dynamics import PressureSchedule, simulate
 
         if jacobian:
-            raise _fail("method", "lm", "dynamic fits give no exact Jacobian yet")
+            raise V.fail("method", "lm", "dynamic fits give no exact Jacobian yet")
         out = Prediction.empty(self.m, len(self.params), 0, False)
         self.evaluations += 1
         try:

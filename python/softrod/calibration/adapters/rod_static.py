@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ... import _validate as V
 from ...design import Design
-from ...errors import DesignError, InputError, design_error
+from ...errors import DesignError
 from ...statics import _options
 from ..params import SIGMA_KINDS, Parameter, design_changes
 from ..problem import ModelAdapter, Prediction
@@ -16,10 +17,6 @@ from ..problem import ModelAdapter, Prediction
 #: Mounting labels a dataset may carry per row (paper 002 fits vertical and horizontal
 #: experiments together).
 ORIENTATIONS = ("hanging", "upright", "horizontal")
-
-
-def _fail(field_: str, value, rule: str) -> InputError:
-    return design_error(field_, value, rule, InputError)
 
 
 def mounting_groups(design: Design, dataset) -> list[tuple[dict, np.ndarray]]:
@@ -33,13 +30,13 @@ def mounting_groups(design: Design, dataset) -> list[tuple[dict, np.ndarray]]:
     out = []
     for label in labels:
         if label not in ORIENTATIONS:
-            raise _fail(
+            raise V.fail(
                 "dataset.mounting",
                 label,
                 f"with several mountings each must be one of {', '.join(ORIENTATIONS)}",
             )
         if "base_rotation" in design.document.get("mounting", {}):
-            raise _fail(
+            raise V.fail(
                 "design.mounting.base_rotation",
                 "given",
                 "mounting labels set the orientation; use mounting.orientation instead",
