@@ -411,8 +411,10 @@ def calibrate(
         n_par = len(params_all)
         nan = np.full((n_par, n_par), np.nan)
         cov, std, corr = nan, np.full(n_par, np.nan), nan.copy()
-        found = ["no standard errors or identifiability checks: this model gives no exact "
-                 "Jacobian yet"]
+        found = [
+            "no standard errors or identifiability checks: this model gives no exact "
+            "parameter Jacobian yet, so the fit ran derivative-free (Nelder-Mead)"
+        ]
     if not success:
         found.insert(0, f"the optimiser stopped without converging: {message}")
     evaluations = adapter.evaluations

@@ -148,7 +148,8 @@ class CalibrationResult:
             unit = f" {unit}" if unit else ""
             rel = abs(s / v) if v != 0 and math.isfinite(s) else math.nan
             rel_text = f" ({100 * rel:.3g} %)" if math.isfinite(rel) else ""
-            lines.append(f"  {p.name:<18} {v0:>12.6g} -> {v:>12.6g} +- {s:.3g}{unit}{rel_text}")
+            err = f"+- {s:.3g}{unit}{rel_text}" if math.isfinite(s) else unit.strip()
+            lines.append(f"  {p.name:<18} {v0:>12.6g} -> {v:>12.6g} {err}".rstrip())
         cols = ["quantity", "set", "n", "failed", "mean_error_mm", "median_error_mm"]
         cols.append("max_error_mm")
         lines.append(self.error_table[cols].to_string(index=False, float_format="%.3f"))

@@ -32,6 +32,7 @@ tip positions, and synthesise the four experiments with the PCC model.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 
@@ -383,6 +384,8 @@ def identify_pcc(
             dt=dt,
             threads=threads,
             progress=False,
+            # A stage's design keeps the name (the joint fit's result gets the new one).
+            name=design.name if len(names) > 1 else None,
         )
         work = stage.design
         fitted += stage_params
@@ -412,8 +415,6 @@ def identify_pcc(
             threads=threads,
             progress=False,
         )
-    import dataclasses
-
     return dataclasses.replace(result, stages=pd.DataFrame(stages))
 
 
