@@ -103,9 +103,7 @@ def run(args) -> dict:
             warnings.simplefilter("ignore", CalibrationWarning)
             t0 = time.perf_counter()
             try:
-                kwargs = {"dynamic": True, "dt": DT, "max_evaluations": 1000}
-                if method != "nelder-mead":
-                    kwargs["method"] = method
+                kwargs = {"dynamic": True, "dt": DT, "max_evaluations": 1000, "method": method}
                 res = softrod.calibrate(start, data, ["damping_time", "area_scale"], **kwargs)
             except softrod.InputError as exc:
                 print(f"{method:12s} not available: {exc}")

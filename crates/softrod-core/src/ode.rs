@@ -279,8 +279,7 @@ impl<C: RodScalar> Coeffs<C> {
         let mut force = zero; // sum p_k A_k
         let mut mp = [zero; 3]; // sum p_k A_k (y_k, -x_k, 0)
         for ((c, w), x) in s.chambers.iter().zip(&swell).zip(&centroids) {
-            let pa =
-                *w * *w * knobs.area_scale * (factor * C::from(pressures[c.channel]) * c.area);
+            let pa = *w * *w * knobs.area_scale * (factor * C::from(pressures[c.channel]) * c.area);
             force += pa;
             mp[0] += pa * x[1];
             mp[1] -= pa * x[0];

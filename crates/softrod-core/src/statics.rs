@@ -993,7 +993,8 @@ pub fn conclude_at(
     let p = Problem::new(rod, loads, 1.0);
     let r = p.eval(&x);
     let residual = inf_norm(&r);
-    if !(residual <= opts.tol * inf_norm(&x).max(1.0)) {
+    // Beyond the tolerance, or NaN: refused (f64::max keeps the bound finite).
+    if residual.is_nan() || residual > opts.tol * inf_norm(&x).max(1.0) {
         return Err(SoftrodError::NotConverged {
             iterations,
             residual,
