@@ -77,6 +77,10 @@ class ModelAdapter:
     dynamic: bool = False
     #: Whether the adapter gives exact Jacobians (else only derivative-free fits work).
     exact_jacobian: bool = True
+    #: Nelder-Mead's stopping rules (scipy's xatol on u = log theta, fatol on the cost,
+    #: relative to the starting cost when ``fatol_relative``) and the first simplex's step
+    #: in u (None: scipy's 5 %).
+    nelder_mead: dict = {"xatol": 1e-8, "fatol": 1e-10, "fatol_relative": False, "step": None}
 
     def __init__(self) -> None:
         self.evaluations = 0
@@ -172,6 +176,9 @@ class Registered(ModelAdapter):
         self.initial = np.concatenate([inner.initial, np.zeros(len(registration))])
         self.model, self.dynamic = inner.model, inner.dynamic
         self.exact_jacobian = inner.exact_jacobian
+        # The inner model's stopping rules; scipy's first simplex (a step in log theta makes
+        # no sense for an offset that starts at 0 m).
+        self.nelder_mead = {**inner.nelder_mead, "step": None}
 
     @property
     def n_inner(self) -> int:

@@ -108,12 +108,22 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
         method_used = "lm (MINPACK)" if not use_bounds else "trf (bounded, exact Jacobian)"
         cost = float(sol.cost)
     else:
+
+        def cost_of(u) -> float:
+            return 0.5 * float(np.sum(evaluate(u, False)[0] ** 2))
+
+        nm = adapter.nelder_mead
+        options = {"maxfev": settings.max_evaluations, "xatol": nm["xatol"], "fatol": nm["fatol"]}
+        if nm["fatol_relative"]:  # the start's cost, cached: the simplex's first vertex
+            options["fatol"] *= max(cost_of(u0), 1e-300)
+        if nm["step"] is not None:
+            options["initial_simplex"] = np.vstack([u0, u0 + nm["step"] * np.eye(u0.size)])
         sol = minimize(
-            lambda u: 0.5 * float(np.sum(evaluate(u, False)[0] ** 2)),
+            cost_of,
             u0,
             method="Nelder-Mead",
             bounds=list(zip(ulo, uhi, strict=True)) if bounds.any_given else None,
-            options={"maxfev": settings.max_evaluations, "xatol": 1e-8, "fatol": 1e-10},
+            options=options,
         )
         method_used = "nelder-mead"
         cost = float(sol.fun)

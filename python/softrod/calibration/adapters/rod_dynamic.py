@@ -45,6 +45,11 @@ class RodDynamic(ModelAdapter):
     model = "cosserat"
     dynamic = True
     exact_jacobian = False
+    #: The former dynamic fit's Nelder-Mead settings, kept for this fallback: every
+    #: evaluation replays every experiment, so the simplex starts at +-20 % (the fit's
+    #: scale, not scipy's 5 %) and stops at 1e-4 in log theta (0.01 %, well below the
+    #: scatter that measurement noise leaves) or a cost change of 1e-9 of the start's.
+    nelder_mead = {"xatol": 1e-4, "fatol": 1e-9, "fatol_relative": True, "step": 0.2}
 
     def __init__(self, design: Design, dataset, params: list[Parameter], dt, threads: int):
         from ...dynamics.simulate import _seconds
