@@ -82,3 +82,15 @@ def test_cli_fits_time_series_and_refuses_lm(trajectory_data, run, tmp_path):
     assert row["std_error"] is None  # NaN in Python, null in standard JSON
     assert out["dynamic"] is True and out["model"] == "cosserat"
     assert any("no standard errors" in w for w in out["warnings"])
+
+
+def test_the_fallback_reports_in_the_one_format(trajectory_data, tmp_path):
+    with pytest.warns(CalibrationWarning):  # 8 evaluations: also "stopped without converging"
+        res = softrod.calibrate(
+            ARM, trajectory_data, ["damping_time"], dynamic=True, method="nelder-mead",
+            max_evaluations=8,
+        )
+    assert any("no standard errors" in w for w in res.warnings)
+    html = res.write_report(tmp_path / "dynamic.html").read_text(encoding="utf-8")
+    assert "time series replayed" in html and "damping_time" in html
+    assert "no standard errors" in html  # the missing uncertainty is stated, not hidden

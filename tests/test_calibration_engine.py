@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import warnings
 from pathlib import Path
 
@@ -319,3 +320,15 @@ def test_weights_scale_each_quantity():
     n = 3 * (len(data) + data.markers.shape[0] * data.markers.shape[1])
     assert res.cost / (n - 6) == pytest.approx(1.0, rel=0.25)
     assert res.scales == {"tip": 1e-4, "markers": 1e-4}
+
+
+def test_one_report_for_markers_and_registration(tmp_path):
+    """The one report format holds a marker fit with its registration: the parameters with
+    their units, the per-quantity error table, the warnings' rules."""
+    design = _mocap_design()
+    res = calibrate(design, _measured(design, 5), [E_NAME, *REGISTRATION])
+    html = res.write_report(tmp_path / "mocap.html").read_text(encoding="utf-8")
+    for text in ("registration_angle", "registration_z", E_NAME, "markers", "Rules:"):
+        assert text in html, text
+    text = " ".join(re.sub("<[^>]+>", " ", html).split())
+    assert "model cosserat dataset" in text  # equilibria: no "(time series replayed)"
