@@ -302,7 +302,8 @@ def _error_table(result):
     default="lm",
     show_default=True,
     help="lm: Levenberg-Marquardt with the exact Jacobian (trust-region reflective with "
-    "--bounds); nelder-mead: paper 002's simplex, no derivatives.",
+    "--bounds); nelder-mead: paper 002's simplex, no derivatives and no standard errors "
+    "(the rod's --dynamic fits need it).",
 )
 @click.option(
     "--bounds",
@@ -370,7 +371,8 @@ def _error_table(result):
     "--dynamic",
     is_flag=True,
     help="Replay the time series of DATA (time column, one experiment per run) instead of "
-    "fitting equilibria (paper 000's tau: --params damping_time,area_scale).",
+    "fitting equilibria (paper 000's tau: --params damping_time,area_scale --method "
+    "nelder-mead for the rod; the PCC model's time series take lm).",
 )
 @click.option(
     "--dt",
