@@ -993,8 +993,12 @@ pub fn conclude_at(
     let p = Problem::new(rod, loads, 1.0);
     let r = p.eval(&x);
     let residual = inf_norm(&r);
-    // Beyond the tolerance, or NaN: refused (f64::max keeps the bound finite).
-    if residual.is_nan() || residual > opts.tol * inf_norm(&x).max(1.0) {
+    // Not within the tolerance, or NaN.
+    let limit = opts.tol * inf_norm(&x).max(1.0);
+    if !matches!(
+        residual.partial_cmp(&limit),
+        Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+    ) {
         return Err(SoftrodError::NotConverged {
             iterations,
             residual,
