@@ -4,11 +4,13 @@ sensitivities yet)."""
 
 import json
 
+import numpy as np
 import pytest
 import softrod
 from conftest import assert_clean_error
 from softrod import PressureSchedule
 from softrod.calibration import CalibrationWarning, synthesize_trajectory_dataset
+from softrod.calibration.adapters.rod_dynamic import RodDynamic
 from softrod.calibration.params import design_changes, parse_parameters
 from softrod.errors import InputError
 
@@ -94,3 +96,24 @@ def test_the_fallback_reports_in_the_one_format(trajectory_data, tmp_path):
     html = res.write_report(tmp_path / "dynamic.html").read_text(encoding="utf-8")
     assert "time series replayed" in html and "damping_time" in html
     assert "no standard errors" in html  # the missing uncertainty is stated, not hidden
+
+
+def test_experiments_replay_in_parallel_as_in_series(trajectory_data):
+    """Experiments replay side by side on threads (the core runs with the GIL released); the
+    predictions are those of one thread, bit for bit."""
+    m = len(trajectory_data)
+    two = softrod.Dataset(
+        pressures=trajectory_data.pressures,
+        tip_position=trajectory_data.tip_position,
+        time=trajectory_data.time,
+        experiment=np.where(np.arange(m) < m // 2, 0, 1),
+    )
+    design = softrod.load_design(ARM)
+    params = parse_parameters(["damping_time", "area_scale"], design)
+    theta, rows = np.array([0.15, 1.2]), np.arange(m)
+    tips = [
+        RodDynamic(design, two, params, 5e-3, threads).predict(theta, rows, False)
+        for threads in (1, 2)
+    ]
+    assert tips[0].ok.all() and tips[1].ok.all()
+    assert np.array_equal(tips[0].tip, tips[1].tip)

@@ -6,6 +6,9 @@ sample time."""
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from ... import _validate as V
@@ -90,9 +93,24 @@ class RodDynamic(ModelAdapter):
     def design_of(self, theta) -> Design:
         return self.design.replace(design_changes(self.params, theta, self.design))
 
-    def predict(self, theta, rows, jacobian: bool) -> Prediction:
+    def set_threads(self, threads: int) -> None:
+        self.threads = threads
+
+    def _replay(self, design: Design, exp: np.ndarray) -> np.ndarray | None:
+        """The model's tip at the sample times of one experiment (None: the run failed)."""
         from ...dynamics import PressureSchedule, simulate
 
+        t = self.time[exp] - self.time[exp][0]
+        sched = PressureSchedule.piecewise_linear(t, self.pressures[exp])
+        try:
+            tr = simulate(
+                design, sched, t[-1], dt=self.dt, save_every=1, energy=False, progress=False
+            )
+        except ConvergenceError:
+            return None
+        return tr.tip_position_at(np.minimum(t, tr.time[-1]))
+
+    def predict(self, theta, rows, jacobian: bool) -> Prediction:
         if jacobian:
             raise V.fail("method", "lm", "dynamic fits give no exact Jacobian yet")
         out = Prediction.empty(self.m, len(self.params), 0, False)
@@ -103,17 +121,19 @@ class RodDynamic(ModelAdapter):
             return out
         wanted = np.zeros(self.m, dtype=bool)
         wanted[rows] = True
-        for exp in self.experiments:
-            if not wanted[exp].any():
-                continue
-            t = self.time[exp]
-            sched = PressureSchedule.piecewise_linear(t - t[0], self.pressures[exp])
-            try:
-                tr = simulate(d, sched, t[-1] - t[0], dt=self.dt, save_every=1, energy=False)
-            except ConvergenceError:
-                continue
-            out.tip[exp] = tr.tip_position_at(np.minimum(t - t[0], tr.time[-1]))
-            out.ok[exp] = True
+        todo = [exp for exp in self.experiments if wanted[exp].any()]
+        # The experiments replay side by side: each run steps in the core with the GIL
+        # released, so threads overlap the runs (in order: the same result on any count).
+        workers = min(len(todo), self.threads or os.cpu_count() or 1)
+        if workers > 1:
+            with ThreadPoolExecutor(workers) as pool:
+                tips = list(pool.map(lambda exp: self._replay(d, exp), todo))
+        else:
+            tips = [self._replay(d, exp) for exp in todo]
+        for exp, tip in zip(todo, tips, strict=True):
+            if tip is not None:
+                out.tip[exp] = tip
+                out.ok[exp] = True
         return out
 
     def calibrated_design(self, theta) -> Design:
