@@ -559,6 +559,8 @@ def test_calibration_example_is_what_its_recipe_makes():
 
 
 def test_public_names():
-    for name in ("Dataset", "load_dataset", "write_dataset", "synthesize_dataset"):
+    for name in ("Dataset", "load_dataset", "write_dataset"):
         assert getattr(softrod, name) is getattr(softrod.datasets, name)
         assert name in softrod.__all__
+    assert softrod.synthesize_dataset is softrod.synthetic.synthesize_dataset
+    assert "synthesize_dataset" in softrod.__all__

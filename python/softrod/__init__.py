@@ -73,7 +73,7 @@ _EXPORTS = {
     "Dataset": ".datasets",
     "example_datasets": ".datasets",
     "load_dataset": ".datasets",
-    "synthesize_dataset": ".datasets",
+    "synthesize_dataset": ".synthetic",
     "write_dataset": ".datasets",
     "Design": ".design",
     "designs_dir": ".design",
@@ -148,7 +148,6 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         Dataset,
         example_datasets,
         load_dataset,
-        synthesize_dataset,
         write_dataset,
     )
     from .design import Design, designs_dir
@@ -173,6 +172,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         solve_statics_batch,
     )
     from .stiffness_map import StiffnessMap
+    from .synthetic import synthesize_dataset
     from .viewer import view
 
 __all__ = [

@@ -12,7 +12,8 @@ import numpy as np
 from .calibration.axial import _write_axial_examples
 from .calibration.params import design_changes, parse_parameters
 from .catalog import load_design
-from .datasets import _EXAMPLES_DIR, Dataset, synthesize_dataset, write_dataset
+from .datasets import _EXAMPLES_DIR, Dataset, write_dataset
+from .synthetic import synthesize_dataset
 
 # How the bundled example was made; write_examples() rebuilds it (tests check it still does).
 SPA130_EXAMPLE = {

@@ -226,3 +226,30 @@ def write_parquet_with_metadata(frame, path: str | os.PathLike, metadata_json: s
     kv = dict(table.schema.metadata or {})
     kv[b"softrod.metadata"] = metadata_json.encode("utf-8")
     pq.write_table(table.replace_schema_metadata(kv), path)
+
+
+MAX_FILE_BYTES = 2**31  # dataset, schedule and map files larger than this are refused unread
+
+
+def read_text_file(path: Path) -> str:
+    """A text file as str: UTF-8 (a byte-order mark allowed); anything else, such as a
+    binary or UTF-16 file, is an InputError naming the file."""
+    size = path.stat().st_size
+    if size > MAX_FILE_BYTES:
+        raise _fail("file", str(path), f"is too large ({size} bytes; at most {MAX_FILE_BYTES})")
+    raw = path.read_bytes()
+    if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        raise _fail("file", str(path), "is UTF-16 text: save it as UTF-8 (CSV UTF-8)")
+    if b"\0" in raw[:65536]:
+        raise _fail("file", str(path), "is not a text file (it holds NUL bytes)")
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise _fail(
+            "file", str(path), f"is not UTF-8 text (byte {exc.start}, line {line}): save as UTF-8"
+        ) from None
+
+
+def _fail(field: str, value: object, rule: str) -> InputError:
+    return design_error(field, value, rule, InputError)

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from ._limits import MAX_CHANNELS
 from .errors import InputError, design_error
 
 __all__ = [
@@ -340,3 +341,19 @@ def provenance(generator: str, design=None, *, synthetic: bool = True, **setting
         meta["design_source"] = None if design.source is None else str(design.source.name)
     meta.update(settings)
     return meta
+
+
+def channel_index(base: str, column: str) -> int:
+    """The channel index of a ``p<k>`` base name, refused beyond MAX_CHANNELS before any
+    table of channels is built."""
+    digits = base[1:]
+    if len(digits) > 3 or int(digits) >= MAX_CHANNELS:
+        shown = digits if len(digits) <= 12 else digits[:12] + "..."
+        raise design_error(
+            column,
+            column,
+            f"channel {shown} is beyond softrod's limit of {MAX_CHANNELS} pressure channels "
+            f"(p0 ... p{MAX_CHANNELS - 1})",
+            InputError,
+        )
+    return int(digits)

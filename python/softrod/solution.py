@@ -1,4 +1,5 @@
-"""Results of static solves: ``StaticSolution`` (one equilibrium, any model) and
+"""Results of static solves: ``StaticSolution`` (one equilibrium, any model, with its exact
+Jacobian ``Jacobian``) and
 ``BatchSolution`` (many). Kept apart from the solvers so that every model's solver (the rod's,
 the PCC model's) returns the same types without importing each other."""
 
@@ -9,7 +10,10 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from . import _core
+from . import _validate as V
 from .design import Design
+from .errors import InputError, design_error
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -17,7 +21,26 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from ._types import ArrayLike, Units
-    from .control.linear import Jacobian
+
+
+@dataclass(frozen=True)
+class Jacobian:
+    """Exact derivatives of a point's pose at an equilibrium (SI). Rows: position x, y, z
+    (m) then the small rotation theta_x, theta_y, theta_z (rad, world frame:
+    dR = [dtheta]x R).
+
+    pressures (6, c) per Pa; tip_force (6, 3) per N; tip_moment (6, 3) per N m;
+    params (6, k) per unit of each named parameter (tip only), ``param_names`` their names.
+    """
+
+    point: float
+    position: np.ndarray
+    rotation: np.ndarray
+    pressures: np.ndarray
+    tip_force: np.ndarray
+    tip_moment: np.ndarray
+    params: np.ndarray | None = None
+    param_names: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -89,6 +112,17 @@ class StaticSolution:
             **extra,
         )
 
+    def _warm_start(self, model: str) -> list[float]:
+        """The shooting unknowns that warm-start another solve (statics' ``initial``)."""
+        x = np.asarray(self.shooting_unknowns, dtype=float)
+        if not self.converged or not np.all(np.isfinite(x)):
+            raise V.fail(
+                "initial",
+                "a solution with converged = False",
+                "cannot warm-start a solve: pass a converged solution (or none)",
+            )
+        return x.tolist()
+
     @property
     def tip_position(self) -> np.ndarray:
         """Tip position (end of the last section), m."""
@@ -115,12 +149,59 @@ class StaticSolution:
     def jacobian(
         self, *, params: Sequence[str] = (), point: float | str | None = None
     ) -> Jacobian:
-        """The exact Jacobian of the tip pose (or the pose at arc length ``point``) with
-        respect to the pressures, the tip force and moment, and named calibration
-        parameters (tip only): a :class:`softrod.control.Jacobian` (docs/control.md)."""
-        from .control.linear import jacobian
+        """The exact Jacobian of the pose at arc length ``point`` (default the tip) with
+        respect to the pressures, the tip force and moment and, at the tip, the named
+        calibration parameters (``params``: names such as "E" or "c_b[body]", as in
+        :func:`softrod.calibrate`); docs/control.md. Implicit differentiation of the
+        shooting residual: no finite differences."""
+        from .units import to_si
 
-        return jacobian(self, params=params, point=point)
+        if not self.converged:
+            raise design_error("solution", "converged = False",
+                               "must be a converged StaticSolution", InputError)
+        if not np.all(np.isfinite(self.force)):
+            raise design_error("solution", "model='pcc'",
+                               "the Jacobian is available for the rod model only", InputError)
+        design = self.design
+        s = design.length if point is None else to_si(point, "length", "point", InputError)
+        pairs, names = _param_pairs(design, params)
+        out = _core.point_jacobian_of(
+            design._rod,
+            [float(p) for p in self.pressures],
+            [float(v) for v in self._tip_load("force")],
+            [float(v) for v in self._tip_load("moment")],
+            [float(v) for v in self.stiffness_scale],
+            [float(v) for v in self.shooting_unknowns],
+            float(s),
+            pairs,
+        )
+        return Jacobian(
+            point=float(s),
+            position=np.array(out["position"]),
+            rotation=np.array(out["rotation"]),
+            pressures=out["pressures"],
+            tip_force=out["tip_force"],
+            tip_moment=out["tip_moment"],
+            params=out.get("params"),
+            param_names=tuple(names),
+        )
+
+    def _tip_load(self, kind: str):
+        """The tip force or moment the solution was solved under: from the base wrench
+        balance it is not recoverable in general, so solutions carry it (``tip_loads``)."""
+        if self.tip_loads is not None:
+            return self.tip_loads[0] if kind == "force" else self.tip_loads[1]
+        return self.design.spec["tip"][kind]
+
+
+def _param_pairs(design: Design, params) -> tuple[list, list[str]]:
+    """The core's (parameter, section) pairs and the names of calibration parameters."""
+    if not params:
+        return [], []
+    from .calibration.params import parse_parameters
+
+    resolved = parse_parameters(params, design)
+    return [p.core() for p in resolved], [p.name for p in resolved]
 
 
 @dataclass(frozen=True)

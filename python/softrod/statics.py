@@ -129,25 +129,16 @@ def _vec3(value, kind: str, name: str, default) -> list[float]:
 
 
 def _initial(initial, model: str) -> list[float] | None:
-    """The warm start of ``initial`` (a converged StaticSolution of the same model, or an
-    InverseSolution: its equilibrium)."""
+    """The warm start of ``initial``: any result that knows its equilibrium's shooting
+    unknowns (a converged StaticSolution, or an InverseSolution) through ``_warm_start``, so
+    this layer needs no import of the layers above it."""
     if initial is None:
         return None
-    from .control.inverse import InverseSolution
-
-    if isinstance(initial, InverseSolution) and model == "cosserat":
-        return [float(v) for v in initial.shooting_unknowns]
-    if not isinstance(initial, StaticSolution):
+    warm_start = getattr(initial, "_warm_start", None)
+    if warm_start is None:
         raise V.fail("initial", type(initial).__name__,
                      "must be a StaticSolution, an InverseSolution or None")
-    x = np.asarray(initial.shooting_unknowns, dtype=float)
-    if not initial.converged or not np.all(np.isfinite(x)):
-        raise V.fail(
-            "initial",
-            "a solution with converged = False",
-            "cannot warm-start a solve: pass a converged solution (or none)",
-        )
-    return x.tolist()
+    return warm_start(model)
 
 
 def _options(options: SolverOptions | None) -> SolverOptions:

@@ -280,9 +280,9 @@ class StiffnessMap:
         path = Path(path)
         if not path.is_file():
             raise design_error("path", str(path), "no such file", InputError)
-        from .datasets import _read_text
+        from .io import read_text_file
 
-        text = _read_text(path)
+        text = read_text_file(path)
         try:
             with io.StringIO(text, newline="") as fh:
                 reader = csv.reader(fh)
@@ -303,9 +303,9 @@ class StiffnessMap:
                             )
                         sig_cols[name] = col
                     elif m:
-                        from .datasets import _channel
+                        from .schema import channel_index
 
-                        k = _channel("p" + m.group(1), name)
+                        k = channel_index("p" + m.group(1), name)
                         if k in channels:
                             raise design_error(
                                 f"{path.name}: column {name}",

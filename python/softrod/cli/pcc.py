@@ -38,13 +38,13 @@ def _read_columns(path: Path, needed: list[str]) -> dict:
     import pandas as pd
 
     from .. import _validate as V
-    from ..datasets import _read_text
+    from ..io import read_text_file
 
     try:
         if path.suffix.lower() == ".parquet":
             df = pd.read_parquet(path)
         else:
-            df = pd.read_csv(io.StringIO(_read_text(path)))
+            df = pd.read_csv(io.StringIO(read_text_file(path)))
     except InputError:
         raise
     except Exception as exc:  # pandas and pyarrow raise many types for unreadable tables
@@ -345,14 +345,14 @@ def _columns(path: Path) -> list[str]:
     """The column names of a CSV (after its # comment lines) or Parquet file."""
     import csv
 
-    from ..datasets import _read_text
+    from ..io import read_text_file
 
     try:
         if path.suffix.lower() == ".parquet":
             import pyarrow.parquet as pq
 
             return list(pq.read_schema(path).names)
-        lines = (line for line in _read_text(path).splitlines() if not line.startswith("#"))
+        lines = (line for line in read_text_file(path).splitlines() if not line.startswith("#"))
         return [c.strip() for c in next(csv.reader(lines), [])]
     except InputError:
         raise

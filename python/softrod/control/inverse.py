@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import _core
+from .. import _validate as V
 from .._validate import integer, real
 from ..catalog import load_design
 from ..design import Design
@@ -178,6 +179,12 @@ class InverseSolution:
     violations: tuple[str, ...] = ()
     tip_force: tuple = field(default=(0.0, 0.0, 0.0), repr=False)
     tip_moment: tuple = field(default=(0.0, 0.0, 0.0), repr=False)
+
+    def _warm_start(self, model: str) -> list[float]:
+        """This equilibrium's shooting unknowns, to warm-start a solve (statics' ``initial``)."""
+        if model != "cosserat":
+            raise V.fail("initial", "an InverseSolution", "warm-starts the Cosserat model only")
+        return [float(v) for v in self.shooting_unknowns]
 
     def statics(self) -> StaticSolution:
         """The equilibrium under these pressures and tip loads (shape, forces, strains)."""

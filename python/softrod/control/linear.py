@@ -25,90 +25,22 @@ from .._validate import integer
 from ..catalog import load_design
 from ..design import Design
 from ..errors import InputError, design_error
-from ..solution import StaticSolution
+from ..solution import Jacobian, StaticSolution
 
 __all__ = ["Jacobian", "LinearSystem", "Modes", "jacobian", "linearise"]
 
 INPUT_NAMES_LOADS = ("F_x", "F_y", "F_z", "M_x", "M_y", "M_z")
 
 
-@dataclass(frozen=True)
-class Jacobian:
-    """Exact derivatives of a point's pose at an equilibrium (SI). Rows: position x, y, z
-    (m) then the small rotation theta_x, theta_y, theta_z (rad, world frame:
-    dR = [dtheta]x R).
-
-    pressures (6, c) per Pa; tip_force (6, 3) per N; tip_moment (6, 3) per N m;
-    params (6, k) per unit of each named parameter (tip only), ``param_names`` their names.
-    """
-
-    point: float
-    position: np.ndarray
-    rotation: np.ndarray
-    pressures: np.ndarray
-    tip_force: np.ndarray
-    tip_moment: np.ndarray
-    params: np.ndarray | None = None
-    param_names: tuple[str, ...] = ()
-
-
 def jacobian(
     solution: StaticSolution, *, params: Sequence[str] = (), point: Quantity | None = None
 ) -> Jacobian:
     """The exact Jacobian of the pose at arc length ``point`` (default the tip) of a
-    converged rod equilibrium with respect to the pressures, the tip force and moment and,
-    at the tip, the named calibration parameters (``params``: names such as "E" or
-    "c_b[body]", as in :func:`softrod.calibrate`). Implicit
-    differentiation of the shooting residual: no finite differences."""
-    from ..units import to_si
-
-    if not isinstance(solution, StaticSolution) or not solution.converged:
+    converged rod equilibrium: :meth:`softrod.StaticSolution.jacobian`."""
+    if not isinstance(solution, StaticSolution):
         raise design_error("solution", type(solution).__name__,
                            "must be a converged StaticSolution", InputError)
-    if not np.all(np.isfinite(solution.force)):
-        raise design_error("solution", "model='pcc'",
-                           "the Jacobian is available for the rod model only", InputError)
-    design = solution.design
-    s = design.length if point is None else to_si(point, "length", "point", InputError)
-    pairs, names = _param_pairs(design, params)
-    out = _core.point_jacobian_of(
-        design._rod,
-        [float(p) for p in solution.pressures],
-        [float(v) for v in _tip_load(solution, "force")],
-        [float(v) for v in _tip_load(solution, "moment")],
-        [float(v) for v in solution.stiffness_scale],
-        [float(v) for v in solution.shooting_unknowns],
-        float(s),
-        pairs,
-    )
-    return Jacobian(
-        point=float(s),
-        position=np.array(out["position"]),
-        rotation=np.array(out["rotation"]),
-        pressures=out["pressures"],
-        tip_force=out["tip_force"],
-        tip_moment=out["tip_moment"],
-        params=out.get("params"),
-        param_names=tuple(names),
-    )
-
-
-def _tip_load(solution: StaticSolution, kind: str):
-    """The tip force or moment the solution was solved under: from the base wrench
-    balance it is not recoverable in general, so solutions carry it (``tip_loads``)."""
-    loads = getattr(solution, "tip_loads", None)
-    if loads is not None:
-        return loads[0] if kind == "force" else loads[1]
-    return solution.design.spec["tip"][kind]
-
-
-def _param_pairs(design: Design, params) -> tuple[list, list[str]]:
-    if not params:
-        return [], []
-    from ..calibration.params import parse_parameters
-
-    resolved = parse_parameters(params, design)
-    return [p.core() for p in resolved], [p.name for p in resolved]
+    return solution.jacobian(params=params, point=point)
 
 
 @dataclass(frozen=True)
@@ -263,8 +195,8 @@ def linearise(
         initial = solve_statics(design, p, tip_force=tf, tip_moment=tm)
     else:
         p = [float(v) for v in initial.pressures]
-        tf = [float(v) for v in _tip_load(initial, "force")]
-        tm = [float(v) for v in _tip_load(initial, "moment")]
+        tf = [float(v) for v in initial._tip_load("force")]
+        tm = [float(v) for v in initial._tip_load("moment")]
     out = _core.linearise_at(
         design._rod, p, tf, tm, [float(v) for v in initial.shooting_unknowns], nodes
     )

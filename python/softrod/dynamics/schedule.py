@@ -31,7 +31,6 @@ import pandas as pd
 from .. import _validate as V
 from ..datasets import (
     DEFAULT_UNITS,
-    _channel,
     _check_dtype,
     _check_duplicates,
     _fail,
@@ -43,6 +42,7 @@ from ..datasets import (
 from ..errors import InputError
 from ..io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
 from ..io import metadata_json as _metadata_json
+from ..schema import channel_index
 
 if TYPE_CHECKING:
     from .._types import ArrayLike
@@ -567,7 +567,7 @@ def _from_frame(df: pd.DataFrame, units: dict, where: _Where, extra: str):
             continue
         base, unit = m["base"], m["unit"]
         if base != "time":
-            _channel(base, name)
+            channel_index(base, name)
         kind = "time" if base == "time" else "pressure"
         if unit is not None and name in units:
             raise _fail(name, units[name], "unit given twice: in the column name and units block")

@@ -1,0 +1,182 @@
+"""Synthetic datasets: the model's equilibria plus measurement noise, marked as synthetic
+so they are never mistaken for measurements (docs/datasets.md). Above both the dataset
+format (``softrod.datasets``) and the solvers (``softrod.statics``), which know nothing of
+each other."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import _validate as V
+from .catalog import load_design
+from .datasets import (
+    _MAX_LISTED,
+    MAX_MARKERS,
+    Dataset,
+    _fail,
+    _matrix_to_quat,
+    _quat_to_matrix,
+    noise_seed,
+)
+from .design import Design
+from .errors import ConvergenceError, InputError
+from .statics import _options, batch_pressures, solve_statics_batch
+from .units import vector_to_si
+
+if TYPE_CHECKING:
+    from ._types import ArrayLike, DesignLike
+    from .statics import SolverOptions
+
+__all__ = ["synthesize_dataset"]
+
+
+def synthesize_dataset(
+    design: DesignLike,
+    pressures: ArrayLike,
+    *,
+    noise_mm: float = 0.0,
+    seed: int | None = None,
+    experiment: ArrayLike | None = None,
+    mounting: str | ArrayLike | None = None,
+    time: ArrayLike | None = None,
+    tip_force: ArrayLike | None = None,
+    tip_moment: ArrayLike | None = None,
+    options: SolverOptions | None = None,
+    threads: int = 0,
+    markers: Sequence | None = None,
+    tip: bool = True,
+) -> Dataset:
+    """A synthetic dataset: the model's equilibria at ``pressures`` plus measurement noise.
+
+    ``pressures``: (m, channels) gauge pressures in Pa. The tip position gets isotropic
+    Gaussian noise of standard deviation ``noise_mm`` (millimetres, per axis, independent);
+    orientation and base wrench are the model's, noise-free. ``seed`` makes the noise
+    reproducible; without one a seed is drawn and recorded. ``experiment``/``mounting``: one
+    label for every row or one per row; ``time``: (m,) seconds. ``tip_force``, ``tip_moment``,
+    ``options`` and ``threads`` go to :func:`~softrod.solve_statics_batch`.
+    ``markers``: points on the body to record as motion-capture markers, each
+    ``(s, offset)``: arc length from the base and offset in the cross-section frame
+    (d1, d2[, d3]), SI numbers or strings with units (``("55 mm", ["12 mm", "0 mm"])``);
+    their positions get the same noise. ``tip=False`` leaves the tip columns out (markers
+    only).
+
+    Raises :class:`~softrod.errors.ConvergenceError` listing the rows that did not converge
+    (nothing is dropped silently). ``metadata["synthetic"]`` is True and the metadata records
+    the design, noise, seed and loads, so the data is never mistaken for measurements.
+    """
+    from . import __version__
+
+    design = load_design(design)
+    seed = noise_seed(noise_mm, seed)
+    p = batch_pressures(design, pressures)
+    batch = solve_statics_batch(
+        design, p, tip_force=tip_force, tip_moment=tip_moment, options=options, threads=threads
+    )
+    p = batch.pressures
+    m = p.shape[0]
+    failed = np.flatnonzero(~np.asarray(batch.converged, dtype=bool))
+    if failed.size:
+        shown = "; ".join(
+            f"row {i}: p = ({', '.join(f'{x / 1e3:g}' for x in p[i])}) kPa"
+            for i in failed[:_MAX_LISTED]
+        )
+        more = f" and {failed.size - _MAX_LISTED} more" if failed.size > _MAX_LISTED else ""
+        raise ConvergenceError(
+            f"synthesize_dataset: {failed.size} of {m} rows did not converge ({shown}{more}); "
+            "remove them from pressures or change the solver options"
+        )
+    rng = np.random.default_rng(int(seed))
+    noise = rng.normal(0.0, noise_mm * 1e-3, size=(m, 3)) if noise_mm > 0 else np.zeros((m, 3))
+    sites = _synthetic_sites(markers)
+    marker_pos = None
+    if sites is not None:
+        smap = design.stiffness_map
+        out = design._rod.sensitivity_batch(
+            p,
+            _tip_load(design, tip_force, "force"),
+            _tip_load(design, tip_moment, "moment"),
+            [],
+            stiffness_scale=None if smap is None else np.ascontiguousarray(smap(p)),
+            markers=[(float(a), [float(v) for v in b]) for a, b in zip(*sites, strict=True)],
+            threads=threads,
+            **_options(options).as_kwargs(),
+        )
+        marker_pos = out["marker_position"]
+        if noise_mm > 0:
+            marker_pos = marker_pos + rng.normal(0.0, noise_mm * 1e-3, size=marker_pos.shape)
+    if not tip and sites is None:
+        raise _fail("tip", tip, "a dataset without tip columns needs markers")
+
+    def per_row(value, name):
+        if value is None:
+            return None
+        if isinstance(value, (str, int, np.integer)) and not isinstance(value, bool):
+            return np.full(m, value)
+        a = np.asarray(value)
+        if a.shape != (m,):
+            raise _fail(name, f"shape {a.shape}", f"must be one label or one per row ({m},)")
+        return a
+
+    tf = _tip_load(design, tip_force, "force")
+    tm = _tip_load(design, tip_moment, "moment")
+    meta = {
+        "synthetic": True,
+        "note": "SYNTHETIC: generated by the softrod model, not measurements",
+        "generator": "softrod.synthesize_dataset",
+        "softrod_version": __version__,
+        "design": design.name,
+        "design_source": None if design.source is None else design.source.name,
+        "noise_mm": float(noise_mm),
+        "noise": "isotropic Gaussian on tip_position and markers (per axis, independent); "
+        "tip_rotation and base wrench are noise-free",
+        "seed": int(seed),
+        "tip_force_N": tf,
+        "tip_moment_Nm": tm,
+    }
+    return Dataset(
+        pressures=p,
+        tip_position=batch.tip_position + noise if tip else None,
+        markers=marker_pos,
+        marker_s=None if sites is None else sites[0],
+        marker_offset=None if sites is None else sites[1],
+        # Through the quaternion once, so the stored rotation is exactly what a file holds.
+        tip_rotation=_quat_to_matrix(_matrix_to_quat(batch.tip_rotation)),
+        base_force=batch.base_force,
+        base_moment=batch.base_moment,
+        experiment=per_row(experiment, "experiment"),
+        mounting=per_row(mounting, "mounting"),
+        time=None if time is None else V.real_array(time, "time", what="times (s)"),
+        metadata=meta,
+        source=None,
+    )
+
+
+def _synthetic_sites(markers):
+    """(s (K,), offset (K, 3)) in m of synthesize_dataset's ``markers``, or None."""
+    if markers is None:
+        return None
+    if not isinstance(markers, (list, tuple)) or not 1 <= len(markers) <= MAX_MARKERS:
+        raise _fail(
+            "markers", markers, f"must be a list of 1 to {MAX_MARKERS} pairs (s, offset)"
+        )
+    s, offset = np.zeros(len(markers)), np.zeros((len(markers), 3))
+    for k, item in enumerate(markers):
+        if not isinstance(item, (list, tuple)) or len(item) != 2:
+            raise _fail(f"markers[{k}]", item, "must be a pair (s, offset)")
+        s[k] = V.quantity(item[0], "length", f"markers[{k}].s")
+        off = item[1]
+        if not isinstance(off, (list, tuple, np.ndarray)) or len(off) not in (2, 3):
+            raise _fail(f"markers[{k}].offset", off, "must be 2 or 3 lengths (d1, d2[, d3])")
+        for i, v in enumerate(off):
+            offset[k, i] = V.quantity(v, "length", f"markers[{k}].offset[{i}]")
+    return s, offset
+
+
+def _tip_load(design: Design, value, kind: str) -> list[float]:
+    """The tip load the solve used (SI): ``value`` or, if None, the design's ``[tip]`` entry."""
+    if value is None:
+        return [float(x) for x in design.spec["tip"][kind]]
+    return vector_to_si(list(value), kind, f"tip_{kind}", InputError)
