@@ -175,10 +175,6 @@ RUST_CASES = [
 ]
 
 
-RUST_DYNAMICS = "the Rust core checks dynamic states before returning them: branch dyn"
-
-
-@pytest.mark.xfail(strict=True, reason=RUST_DYNAMICS)
 def test_dynamic_rotations_stay_rotations(pool):
     # A ramp to 10 MPa in 50 ms: the tip rotation came back with det 0.736.
     ramp = softrod.PressureSchedule.piecewise_linear([0, 0.05], [[0, 0, 0], [1e7, 0, 0]])

@@ -83,6 +83,11 @@ def assert_same(a: Trajectory, b: Trajectory):
         "tip_rotation",
         "tip_velocity",
         "energy",
+        "kinetic",
+        "elastic",
+        "potential",
+        "work_in",
+        "dissipated",
         "shape_time",
         "shape_s",
         "shape_position",
@@ -125,6 +130,16 @@ def test_round_trip_without_shapes(tmp_path, suffix):
     assert_same(Trajectory.load(bare.save(tmp_path / f"b{suffix}")), bare)
 
 
+def test_zero_channels_round_trip(tmp_path):
+    # A design without chambers (driven by tip loads) has no pressure columns.
+    tr = arc_trajectory(channels=1)
+    fields = {**_fields(tr), "command": np.zeros((len(tr), 0)), "pressure": np.zeros((len(tr), 0))}
+    bare = Trajectory(**fields)
+    assert bare.n_channels == 0
+    for suffix in (".parquet", ".npz"):
+        assert_same(Trajectory.load(bare.save(tmp_path / f"z{suffix}")), bare)
+
+
 def test_parquet_layout(tmp_path):
     tr = arc_trajectory(channels=2)
     path = tr.save(tmp_path / "run.parquet")
@@ -146,6 +161,11 @@ def test_parquet_layout(tmp_path):
         "tip_vy_m/s",
         "tip_vz_m/s",
         "energy_J",
+        "kinetic_J",
+        "elastic_J",
+        "potential_J",
+        "work_in_J",
+        "dissipated_J",
         *[f"tip_R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)],
         "shape_m",
     ]
@@ -156,7 +176,8 @@ def test_parquet_layout(tmp_path):
     meta = json.loads(kv[b"softrod.metadata"])
     declared = meta.pop("columns")
     assert meta == {"synthetic": True, **tr.metadata}  # made by the model, not measured
-    assert set(declared) == {"cmd0_Pa", "cmd1_Pa", "energy_J", "shape_m"} | {
+    books = {f"{p}_J" for p in ("kinetic", "elastic", "potential", "work_in", "dissipated")}
+    assert set(declared) == {"cmd0_Pa", "cmd1_Pa", "energy_J", "shape_m"} | books | {
         f"tip_v{a}_m/s" for a in "xyz"
     } | {f"tip_R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)}
     layout = json.loads(kv[b"softrod.trajectory"])
@@ -284,7 +305,7 @@ def _fields(tr: Trajectory) -> dict:
         ({"shape_s": np.linspace(0, 1, 9)[::-1]}, ("shape_s[1]", "strictly increasing")),
         ({"metadata": {"x": object()}}, ("metadata", "JSON")),
         ({"metadata": {"rtf": float("nan")}}, ("metadata", "JSON")),
-        ({"command": np.zeros((3, 0))}, ("command", "at least one channel")),
+        ({"command": np.zeros((3, 0))}, ("pressure", "(n = 3, channels = 0)")),
     ],
 )
 def test_validation_errors(change, fragments):

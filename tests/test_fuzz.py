@@ -34,11 +34,7 @@ BATCH = 16  # cases per hypothesis example, run in parallel by the pool
 
 # Rust-side defect classes that another branch fixes (see test_boundary_regressions.py):
 # reported, counted, but not failed on until that branch is merged. Keep empty otherwise.
-PENDING: dict[str, str] = {
-    # Statics returned as converged with |R^T R - I| > 1e-6 or stretch <= 0 (coarse steps,
-    # huge pressures or loads): the core's result checks.
-    "invalid result": "checked by the Rust core before returning: fixed on branch statics",
-}
+PENDING: dict[str, str] = {}
 
 
 # --- hostile values ------------------------------------------------------------------------------

@@ -241,9 +241,15 @@ def test_map_reference_errors(tmp_path):
         load_design(doc)
 
 
-def test_simulate_refuses_a_mapped_design():
-    with pytest.raises(InputError, match="do not support a stiffness map"):
+def test_simulate_needs_the_map_of_a_mapped_design():
+    # sigma is never assumed to be 1: a mapped design simulates with its map (evaluated in
+    # the core at every step's pressures) or not at all.
+    with pytest.raises(InputError, match="pass stiffness_map="):
         softrod.simulate(mapped_spa(), [0.0, 0.0, 0.0], 0.01)
+    traj = softrod.simulate(
+        mapped_spa(), [20e3, 0.0, 0.0], 0.02, dt=0.01, stiffness_map=table_map(), progress=False
+    )
+    assert np.all(np.isfinite(traj.tip_position))
 
 
 # --------------------------------------------------------------------------- calibrated designs

@@ -79,6 +79,7 @@ _EXPORTS = {
     "designs_dir": ".design",
     "PressureSchedule": ".dynamics",
     "Simulation": ".dynamics",
+    "SimulationState": ".dynamics",
     "Trajectory": ".dynamics",
     "simulate": ".dynamics",
     "CalibrationWarning": ".errors",
@@ -151,7 +152,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         write_dataset,
     )
     from .design import Design, designs_dir
-    from .dynamics import PressureSchedule, Simulation, Trajectory, simulate
+    from .dynamics import PressureSchedule, Simulation, SimulationState, Trajectory, simulate
     from .errors import (
         CalibrationWarning,
         ConvergenceError,
@@ -201,6 +202,7 @@ __all__ = [
     "TrackingController",
     "PressureSchedule",
     "Simulation",
+    "SimulationState",
     "Trajectory",
     "ValidityWarning",
     "Workspace",

@@ -172,7 +172,16 @@ class Simulator:
         alpha: float = ...,  # -0.2 (pyo3 does not render a negative default)
         tol: float = 1e-9,
         max_iter: int = 25,
+        scheme: str = "bdf-alpha",
+        error_tol: float | None = None,
+        energy_tol: float = ...,  # softrod_core::dynamics::DEFAULT_ENERGY_TOL (0.02)
+        sigma_const: _Vec3 | None = None,
+        sigma_grid: tuple[Sequence[Sequence[float]], Sequence[float], bool] | None = None,
+        tip_force: _Vec3 | None = None,
+        tip_moment: _Vec3 | None = None,
     ) -> Simulator: ...
+    def save(self) -> _Array: ...
+    def restore(self, state: _ArrayLike) -> None: ...
     def copy(self) -> Simulator: ...
     @property
     def time(self) -> float: ...
@@ -187,7 +196,12 @@ class Simulator:
     def set_tip_loads(self, force: _Vec3, moment: _Vec3) -> None: ...
     def snapshot(self) -> dict[str, Any]: ...
     def run(
-        self, commands: _ArrayLike, keep: _ArrayLike, energy: bool = True
+        self,
+        commands: _ArrayLike,
+        keep: _ArrayLike,
+        energy: bool = True,
+        tip_loads: _ArrayLike | None = None,
+        schedule: tuple[Sequence[float], Sequence[Sequence[float]], bool] | None = None,
     ) -> dict[str, Any]: ...
 
 @final

@@ -1,64 +1,188 @@
-//! Dynamics of the viscoelastic Cosserat rod (paper 000 eqs. 7-13; docs/model.md),
-//! integrated in time with BDF-alpha and solved in space by shooting at every step (Till,
-//! Aloi, Rucker, "Real-time dynamics of soft and continuum robots based on Cosserat rod
-//! models", IJRR 2019).
+//! Dynamics of the viscoelastic Cosserat rod (paper 000 eqs. 7-13; docs/model.md).
 //!
-//! State along s: y = (r, R, n, m, q, w) with n, m the total internal force and moment
-//! (world frame) and q, w the linear and angular velocity in the body frame. Every time
-//! derivative X_t of X in {v, u, q, w} is replaced by the BDF-alpha formula
-//!   X_t(t_i) = c0 X_i + X_h,   X_h = c1 X_{i-1} + c2 X_{i-2} + d1 X_t(t_{i-1}),
-//! which turns the PDEs into an ODE in s at each step:
-//!   material law with Kelvin-Voigt damping (paper 000 eq. 8) and pressure (docs/model.md):
-//!     R^T n + P e3 = K_se (v - v*) + B_se v_t  =>  v = (K_se + c0 B_se)^-1 (R^T n + K_se v_p - B_se v_h)
-//!     R^T m + M_p  = K_bt (u - u*) + B_bt u_t  =>  u = (K_bt + c0 B_bt)^-1 (R^T m + K_bt u_p - B_bt u_h)
-//!   (v_p = v* + K_se^-1 P e3 and u_p = u* + K_bt^-1 M_p are the static law's shifted strains),
-//!   r' = R v,  R' = R u^,
-//!   q' = v_t + w x v - u x q,  w' = u_t + w x u          (compatibility, paper 000 eq. 13),
-//!   n' = rho A R (q_t + w x q) - f,                      (linear momentum, eq. 7)
-//!   m' = R (rho J w_t + w x rho J w) - r' x n - l        (angular momentum, eq. 7).
-//! The base is clamped (q = w = 0); the six unknowns n(0), m(0) are found by Newton with the
-//! exact Jacobian (dual numbers) so that the tip balances the tip body's inertia and the
-//! dead tip loads. RK4 in s evaluates each step's right-hand side at four stages; each stage
-//! keeps its own history slot, so the space discretisation is the static solver's.
+//! Time: every time derivative X_t of X in {v, u, q, w} is replaced by an implicit formula
+//! X_t = c0 X + X_h with X_h built from earlier steps (Till, Aloi, Rucker, "Real-time
+//! dynamics of soft and continuum robots based on Cosserat rod models", IJRR 2019):
+//! BDF-alpha (alpha in [-0.5, 0]; 0 is BDF2, -0.5 the trapezoidal rule) in a variable-step
+//! form, so that a step can be subdivided or adapted, or the implicit midpoint rule, which
+//! conserves the energy of the linear law exactly. Space: at every step the resulting
+//! boundary-value problem in s is solved by Gauss collocation (`crate::collocation`),
+//! whose conditioning does not depend on dt or the stiffness and whose semi-discrete
+//! energy is conserved in the linear limit.
 //!
-//! alpha = -0.5 is the trapezoidal rule of paper 000 (no numerical damping); alpha = 0 is
-//! BDF2; the default -0.2 damps unresolved high-frequency modes a little and is second order.
+//! Material law with Kelvin-Voigt damping (paper 000 eq. 8): R^T n_m = N(v) + B_se v_t,
+//! R^T m_m = M(u, v) + B_bt u_t with N, M the section's static law (linear, Ogden, EA(F)
+//! table, stretch-dependent bending, swelling, stiffness map) and B = tau K_0 (K_0 the
+//! law's small-strain stiffness at the current pressure) or the section's given damping
+//! diagonals: a linear viscous term that dissipates exactly v_t B v_t + u_t B u_t.
+//!
+//! After every step: finite values, rotations orthonormal, stretch v3 > 0 at every stage
+//! point, and the energy balance E(t) - E(0) = W_in - D (kinetic + elastic + potential
+//! energy, work of the inputs, Kelvin-Voigt dissipation) must not show growth beyond
+//! `energy_tol` of the energy moved; a violation stops the run with an error naming the
+//! time, the step and what to change.
 
+use crate::collocation::{
+    self, Evaluated, Factorization, Grid, NewtonOptions, NewtonStats, Problem, SectionModel,
+    TipBody, GAUSS_B, NF, NY,
+};
 use crate::error::{Result, SoftrodError};
-use crate::jet::{Jet, RodScalar};
-use crate::ode::{reproject, Coeff, Coeffs, Loads, StateScalar};
-use crate::rod::{inverse3, AxialLaw, Rod};
-use crate::spec::DynamicsSpec;
+use crate::interp::GridPchip;
+use crate::law::ogden_energy;
+use crate::ode::{Coeffs, Loads};
+use crate::rod::Rod;
 use crate::statics::{self, SolverOptions};
-use nalgebra::{SMatrix, SVector};
+use crate::validity;
 
 /// v, u, q, w (body frame) at one stage point.
-pub const FIELDS: usize = 12;
+pub const FIELDS: usize = NF;
 
-type Mat6 = SMatrix<f64, 6, 6>;
-type Vec6 = SVector<f64, 6>;
+/// The time integrator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scheme {
+    /// BDF-alpha with the options' alpha: second order, damps unresolved modes for
+    /// alpha > -0.5 (alpha = 0 is BDF2). alpha = -0.5 is the trapezoidal rule of paper
+    /// 000: no numerical damping, conserves the linearised rod's energy, but large
+    /// nonlinear motions can grow through unresolved modes (the energy check stops them).
+    BdfAlpha,
+    /// The implicit midpoint rule: the step's boundary-value problem is solved at
+    /// t_n + h/2 with X_t = (X_{n+1} - X_n) / h, then X_{n+1} = 2 X_{n+1/2} - X_n and the
+    /// shape at t_{n+1} is rebuilt from its strains. Second order, no numerical damping; for
+    /// the linear law the stored and kinetic energies are quadratic in the integrated
+    /// fields and the gyroscopic terms do no work, so the rule conserves the energy of
+    /// undamped motions of any amplitude without gravity (with gravity to second order).
+    Midpoint,
+}
+
+impl Scheme {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Scheme::BdfAlpha => "bdf-alpha",
+            Scheme::Midpoint => "midpoint",
+        }
+    }
+}
 
 /// Settings of the time integrator.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DynOptions {
-    /// Time step, s.
+    /// Time step, s (with `error_tol`: the output interval and the largest step).
     pub dt: f64,
-    /// BDF-alpha parameter in [-0.5, 0]: -0.5 trapezoidal, 0 BDF2.
+    pub scheme: Scheme,
+    /// BDF-alpha parameter in [-0.5, 0] (`Scheme::BdfAlpha` only).
     pub alpha: f64,
-    /// Tolerance on the scaled shooting residual at every step.
+    /// Tolerance on the scaled collocation residual at every step.
     pub tol: f64,
     /// Newton iterations per step.
     pub max_iter: usize,
+    /// Adaptive time stepping: the largest estimated local error of any node position per
+    /// step, m. None: steps of dt, subdivided only where Newton fails.
+    pub error_tol: Option<f64>,
+    /// Largest growth of the energy balance E - E(0) - W_in + D, relative to the energy
+    /// moved so far, before the run is stopped (see `Simulator::energy_check`).
+    pub energy_tol: f64,
 }
 
 impl Default for DynOptions {
     fn default() -> Self {
         DynOptions {
             dt: 2e-3,
+            scheme: Scheme::BdfAlpha,
             alpha: -0.2,
             tol: 1e-9,
             max_iter: 25,
+            error_tol: None,
+            energy_tol: DEFAULT_ENERGY_TOL,
         }
+    }
+}
+
+const SQRT3_6: f64 = 0.288_675_134_594_812_9; // sqrt(3) / 6, the Gauss tableau's
+
+/// Default `energy_tol`: 2 % of the energy moved. The schemes' legitimate energy errors
+/// are far smaller: none for the midpoint rule with the linear law and no dead loads
+/// (exact conservation), numerical dissipation (a decrease, never flagged) for
+/// BDF-alpha, and second-order errors of ~(omega dt)^2 / 12 of the nonlinear motion's
+/// energy for resolved modes (omega dt <= 0.5: <= 2 %; measured: below 0.3 % in the
+/// tests' large swings); an instability grows exponentially and crosses any such bound
+/// within a few e-foldings.
+pub const DEFAULT_ENERGY_TOL: f64 = 0.02;
+
+/// How many times a step may be halved when Newton fails (2^6 substeps). Not more: as
+/// h -> 0 the stiff solutions of a step's boundary-value problem (exp(s c0 / c)) make Gauss
+/// collocation's amplification approach 1 for both growing and decaying ones, and its
+/// Newton matrix grows singular; a failure that survives 64 substeps is not a step size
+/// problem.
+const MAX_HALVINGS: u32 = 6;
+
+/// Commanded pressures as a table of knots, so that steps inside an output interval
+/// (substeps, adaptive steps) see the commands at their own end times: linear between the
+/// knots, or held from each knot to the next (`step`); the end values hold outside.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CommandSchedule {
+    times: Vec<f64>,
+    values: Vec<Vec<f64>>,
+    step: bool,
+}
+
+impl CommandSchedule {
+    /// Knots `times` (finite, strictly increasing) with one row of `channels` pressures
+    /// each (Pa; checked like commands).
+    pub fn new(
+        times: Vec<f64>,
+        values: Vec<Vec<f64>>,
+        step: bool,
+        channels: usize,
+    ) -> Result<Self> {
+        if times.is_empty() || times.len() != values.len() {
+            return Err(SoftrodError::invalid(
+                "schedule",
+                format!("{} times, {} rows", times.len(), values.len()),
+                "needs one row of pressures per knot time, at least one",
+            ));
+        }
+        for (k, t) in times.iter().enumerate() {
+            if !t.is_finite() || (k > 0 && *t <= times[k - 1]) {
+                return Err(SoftrodError::invalid(
+                    format!("schedule.times[{k}]"),
+                    t,
+                    "knot times must be finite and strictly increasing",
+                ));
+            }
+        }
+        for (k, row) in values.iter().enumerate() {
+            crate::spec::validate_pressures(row, channels)
+                .map_err(|e| rename_pressure_error(e, &format!("schedule.values[{k}]")))?;
+        }
+        Ok(CommandSchedule {
+            times,
+            values,
+            step,
+        })
+    }
+
+    /// The commands at time t.
+    pub fn at(&self, t: f64) -> Vec<f64> {
+        let k = self.times.partition_point(|&x| x <= t);
+        if k == 0 {
+            return self.values[0].clone();
+        }
+        if k == self.times.len() || self.step {
+            return self.values[k - 1].clone();
+        }
+        let (t0, t1) = (self.times[k - 1], self.times[k]);
+        let w = (t - t0) / (t1 - t0);
+        self.values[k - 1]
+            .iter()
+            .zip(&self.values[k])
+            .map(|(a, b)| a + w * (b - a))
+            .collect()
+    }
+
+    /// The first knot strictly after t (where the commands change slope or jump).
+    fn next_knot(&self, t: f64) -> Option<f64> {
+        let k = self.times.partition_point(|&x| x <= t);
+        self.times.get(k).copied()
     }
 }
 
@@ -80,11 +204,38 @@ impl DynOptions {
         if self.max_iter == 0 {
             return Err(SoftrodError::invalid("max_iter", 0, "must be >= 1"));
         }
+        if let Some(e) = self.error_tol {
+            if !(e.is_finite() && e > 0.0) {
+                return Err(SoftrodError::invalid(
+                    "error_tol",
+                    e,
+                    "must be a finite length > 0 m (the local error of the node positions per step)",
+                ));
+            }
+        }
+        if !(self.energy_tol.is_finite() && self.energy_tol > 0.0) {
+            return Err(SoftrodError::invalid(
+                "energy_tol",
+                self.energy_tol,
+                "must be a finite number > 0 (a fraction of the energy moved)",
+            ));
+        }
         Ok(())
+    }
+
+    fn alpha_eff(&self) -> f64 {
+        match self.scheme {
+            Scheme::BdfAlpha => self.alpha,
+            Scheme::Midpoint => -0.5,
+        }
     }
 }
 
-/// BDF-alpha coefficients (Till et al. 2019, eq. 7).
+/// Coefficients of X_t(t_{n+1}) = c0 X_{n+1} + c1 X_n + c2 X_{n-1} + d1 X_t(t_n) for the
+/// step h after a step h_prev: BDF-alpha (Till et al. 2019, eq. 7) in variable-step form,
+/// (1 + alpha) X_t,n+1 - alpha X_t,n = BDF2(X) + alpha D(X) with the variable-step BDF2
+/// and D the second divided difference times h; both sides are exact for quadratics, and
+/// at alpha = -0.5 the X_{n-1} terms cancel to the trapezoidal rule.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Bdf {
     c0: f64,
@@ -94,13 +245,40 @@ struct Bdf {
 }
 
 impl Bdf {
-    fn new(dt: f64, alpha: f64) -> Self {
-        Bdf {
-            c0: (1.5 + alpha) / (dt * (1.0 + alpha)),
-            c1: -2.0 / dt,
-            c2: (0.5 + alpha) / (dt * (1.0 + alpha)),
-            d1: alpha / (1.0 + alpha),
+    fn new(alpha: f64, h: f64, h_prev: f64) -> Self {
+        let w = h / h_prev;
+        let s = h + h_prev;
+        let (a0, a1, a2) = (
+            (1.0 + 2.0 * w) / ((1.0 + w) * h),
+            -(1.0 + w) / h,
+            w * w / ((1.0 + w) * h),
+        );
+        let (e0, e1, e2) = (2.0 / s, -2.0 * (1.0 + w) / s, 2.0 * w / s);
+        let k = 1.0 / (1.0 + alpha);
+        if alpha == -0.5 {
+            // The trapezoidal rule exactly (no round-off from the cancelling X_{n-1}).
+            return Bdf {
+                c0: 2.0 / h,
+                c1: -2.0 / h,
+                c2: 0.0,
+                d1: -1.0,
+            };
         }
+        Bdf {
+            c0: (a0 + alpha * e0) * k,
+            c1: (a1 + alpha * e1) * k,
+            c2: (a2 + alpha * e2) * k,
+            d1: alpha * k,
+        }
+    }
+
+    /// Local error of one step for X''' = 1, with exact history: the formula's defect on
+    /// the cubic (t - t_{n+1})^3 / 6 divided by c0 (for error estimates).
+    fn error_constant(&self, h: f64, h_prev: f64) -> f64 {
+        let e = self.c1 * (-h.powi(3) / 6.0)
+            + self.c2 * (-(h + h_prev).powi(3) / 6.0)
+            + self.d1 * (h * h / 2.0);
+        (e / self.c0).abs()
     }
 }
 
@@ -146,450 +324,108 @@ pub fn section_inertia(rod: &Rod, i: usize) -> SectionInertia {
     }
 }
 
-/// Per-step coefficients of one section (scalar C: f64, or dual numbers for derivatives).
+/// The stiffness scale sigma(p) of mapped sections (paper 001 eq. 13) during a run,
+/// evaluated in the core at the chamber pressures of every step.
 #[derive(Debug, Clone, PartialEq)]
-pub struct DynCoeffs<C> {
-    rigid: bool,
-    /// (K_se + c0 B_se)^-1 (diagonal).
-    a_se: [C; 3],
-    /// K_se v_p.
-    g_se: [C; 3],
-    b_se: [C; 3],
-    /// (K_bt + c0 B_bt)^-1.
-    a_bt: [[C; 3]; 3],
-    /// K_bt u_p.
-    g_bt: [C; 3],
-    b_bt: [[C; 3]; 3],
-    k_se: [C; 3],
-    k_bt: [[C; 3]; 3],
-    v_p: [C; 3],
-    u_p: [C; 3],
-    rho_a: f64,
-    rho_j: [f64; 3],
-    /// Line force and moment (world), weight included.
-    f: [C; 3],
-    l: [C; 3],
-    c0: f64,
+pub enum SigmaMap {
+    /// The design has no mapped section.
+    None,
+    Constant([f64; 3]),
+    /// Tensor-product PCHIP on a pressure grid (one axis per channel); outside the grid
+    /// the pressure is clamped to it (`clamp`) or the step fails with an error.
+    Grid {
+        grid: GridPchip,
+        clamp: bool,
+    },
 }
 
-impl<C: Coeff> DynCoeffs<C> {
-    /// From the static law's coefficients `c` (which carry the pressure), the damping time
-    /// `tau` and the BDF factor c0.
-    fn build(c: &Coeffs<C>, inertia: &SectionInertia, rigid: bool, tau: C, c0: f64) -> Self {
-        let zero = C::from(0.0);
-        let z3 = [zero; 3];
-        let z33 = [[zero; 3]; 3];
-        let mut out = DynCoeffs {
-            rigid,
-            a_se: z3,
-            g_se: z3,
-            b_se: z3,
-            a_bt: z33,
-            g_bt: z3,
-            b_bt: z33,
-            k_se: z3,
-            k_bt: z33,
-            v_p: c.v_shift,
-            u_p: c.u_shift,
-            rho_a: inertia.rho_a,
-            rho_j: inertia.rho_j,
-            f: c.f,
-            l: c.l,
-            c0,
-        };
-        if rigid {
-            return out;
-        }
-        let k_se = c.c_se.map(|x| x.recip());
-        let k_bt = inverse3(&c.c_bt).unwrap_or([[C::from(f64::NAN); 3]; 3]);
-        let (b_se, b_bt) = match inertia.damping {
-            Some((se, bt)) => (
-                se.map(C::from),
-                std::array::from_fn(|i| {
-                    std::array::from_fn(|j| C::from(if i == j { bt[i] } else { 0.0 }))
-                }),
-            ),
-            None => (k_se.map(|k| k * tau), k_bt.map(|row| row.map(|k| k * tau))),
-        };
-        out.a_se = std::array::from_fn(|k| (k_se[k] + b_se[k] * c0).recip());
-        let eff: [[C; 3]; 3] =
-            std::array::from_fn(|i| std::array::from_fn(|j| k_bt[i][j] + b_bt[i][j] * c0));
-        out.a_bt = inverse3(&eff).unwrap_or([[C::from(f64::NAN); 3]; 3]);
-        out.g_se = std::array::from_fn(|k| k_se[k] * c.v_shift[k]);
-        out.g_bt = std::array::from_fn(|i| {
-            k_bt[i][0] * c.u_shift[0] + k_bt[i][1] * c.u_shift[1] + k_bt[i][2] * c.u_shift[2]
-        });
-        out.b_se = b_se;
-        out.b_bt = b_bt;
-        out.k_se = k_se;
-        out.k_bt = k_bt;
-        out
-    }
-}
-
-/// Rod state at one arc length during a time step.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DynState<D> {
-    pub r: [D; 3],
-    pub rot: [[D; 3]; 3],
-    pub n: [D; 3],
-    pub m: [D; 3],
-    /// Linear velocity, body frame, m/s.
-    pub q: [D; 3],
-    /// Angular velocity, body frame, rad/s.
-    pub w: [D; 3],
-}
-
-impl<D: RodScalar> DynState<D> {
-    #[inline(always)]
-    fn axpy(&self, h: f64, k: &DynState<D>) -> Self {
-        let mut y = *self;
-        for i in 0..3 {
-            y.r[i] += k.r[i] * h;
-            y.n[i] += k.n[i] * h;
-            y.m[i] += k.m[i] * h;
-            y.q[i] += k.q[i] * h;
-            y.w[i] += k.w[i] * h;
-            for j in 0..3 {
-                y.rot[i][j] += k.rot[i][j] * h;
-            }
-        }
-        y
-    }
-
-    pub fn re(&self) -> DynState<f64> {
-        DynState {
-            r: self.r.map(|x| x.value()),
-            rot: self.rot.map(|row| row.map(|x| x.value())),
-            n: self.n.map(|x| x.value()),
-            m: self.m.map(|x| x.value()),
-            q: self.q.map(|x| x.value()),
-            w: self.w.map(|x| x.value()),
-        }
-    }
-}
-
-#[inline(always)]
-fn cross<D: RodScalar>(a: &[D; 3], b: &[D; 3]) -> [D; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-#[inline(always)]
-fn rot_mul<D: RodScalar>(rot: &[[D; 3]; 3], x: &[D; 3]) -> [D; 3] {
-    std::array::from_fn(|i| rot[i][0] * x[0] + rot[i][1] * x[1] + rot[i][2] * x[2])
-}
-
-#[inline(always)]
-fn rot_t_mul<D: RodScalar>(rot: &[[D; 3]; 3], x: &[D; 3]) -> [D; 3] {
-    std::array::from_fn(|i| rot[0][i] * x[0] + rot[1][i] * x[1] + rot[2][i] * x[2])
-}
-
-/// dy/ds and the stage's fields (v, u, q, w), given the history terms `h` of this stage.
-#[inline(always)]
-fn rhs<C: Coeff, D: StateScalar<C>>(
-    y: &DynState<D>,
-    c: &DynCoeffs<C>,
-    h: &[C; FIELDS],
-) -> (DynState<D>, [D; FIELDS]) {
-    let zero = D::from(0.0);
-    let c0 = c.c0;
-    let (v, u, vt, ut) = if c.rigid {
-        let v = [zero, zero, D::from(1.0)];
-        (v, [zero; 3], [zero; 3], [zero; 3])
-    } else {
-        let nb = rot_t_mul(&y.rot, &y.n);
-        let mb = rot_t_mul(&y.rot, &y.m);
-        let v: [D; 3] =
-            std::array::from_fn(|k| (nb[k] + (c.g_se[k] - c.b_se[k] * h[k])) * c.a_se[k]);
-        let t: [C; 3] = std::array::from_fn(|i| {
-            c.g_bt[i] - (c.b_bt[i][0] * h[3] + c.b_bt[i][1] * h[4] + c.b_bt[i][2] * h[5])
-        });
-        let tm: [D; 3] = std::array::from_fn(|k| mb[k] + t[k]);
-        let u: [D; 3] = std::array::from_fn(|i| {
-            tm[0] * c.a_bt[i][0] + tm[1] * c.a_bt[i][1] + tm[2] * c.a_bt[i][2]
-        });
-        let vt: [D; 3] = std::array::from_fn(|k| v[k] * c0 + h[k]);
-        let ut: [D; 3] = std::array::from_fn(|k| u[k] * c0 + h[3 + k]);
-        (v, u, vt, ut)
-    };
-    let qt: [D; 3] = std::array::from_fn(|k| y.q[k] * c0 + h[6 + k]);
-    let wt: [D; 3] = std::array::from_fn(|k| y.w[k] * c0 + h[9 + k]);
-    let dr = rot_mul(&y.rot, &v);
-    let rot = &y.rot;
-    let mut drot = *rot;
-    for i in 0..3 {
-        let (a, b, e) = (rot[i][0], rot[i][1], rot[i][2]);
-        drot[i][0] = b * u[2] - e * u[1];
-        drot[i][1] = e * u[0] - a * u[2];
-        drot[i][2] = a * u[1] - b * u[0];
-    }
-    let wxv = cross(&y.w, &v);
-    let uxq = cross(&u, &y.q);
-    let wxu = cross(&y.w, &u);
-    let dq: [D; 3] = std::array::from_fn(|k| vt[k] + wxv[k] - uxq[k]);
-    let dw: [D; 3] = std::array::from_fn(|k| ut[k] + wxu[k]);
-    let wxq = cross(&y.w, &y.q);
-    let acc: [D; 3] = std::array::from_fn(|k| (wxq[k] + qt[k]) * c.rho_a);
-    let acc_w = rot_mul(&y.rot, &acc);
-    let dn: [D; 3] = std::array::from_fn(|k| acc_w[k] + (-c.f[k]));
-    let jw: [D; 3] = std::array::from_fn(|k| y.w[k] * c.rho_j[k]);
-    let wxjw = cross(&y.w, &jw);
-    let ang: [D; 3] = std::array::from_fn(|k| wt[k] * c.rho_j[k] + wxjw[k]);
-    let ang_w = rot_mul(&y.rot, &ang);
-    let rxn = cross(&dr, &y.n);
-    let dm: [D; 3] = std::array::from_fn(|k| ang_w[k] - rxn[k] + (-c.l[k]));
-    let fields = [
-        v[0], v[1], v[2], u[0], u[1], u[2], y.q[0], y.q[1], y.q[2], y.w[0], y.w[1], y.w[2],
-    ];
-    (
-        DynState {
-            r: dr,
-            rot: drot,
-            n: dn,
-            m: dm,
-            q: dq,
-            w: dw,
-        },
-        fields,
-    )
-}
-
-/// What a sweep keeps: per stage slot the fields and the position (for histories and the
-/// energy), and the centreline at every node (for shapes).
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Record {
-    pub fields: Vec<[f64; FIELDS]>,
-    pub position: Vec<[f64; 3]>,
-    pub nodes: Vec<[f64; 3]>,
-    pub node_s: Vec<f64>,
-}
-
-impl Record {
-    fn clear(&mut self) {
-        self.fields.clear();
-        self.position.clear();
-        self.nodes.clear();
-        self.node_s.clear();
-    }
-}
-
-/// Integrate base to tip through every section with RK4, each stage using its own history
-/// slot of `hist`; returns the tip state.
-fn sweep<C: Coeff, D: StateScalar<C>>(
-    rod: &Rod,
-    coeffs: &[DynCoeffs<C>],
-    hist: &[[C; FIELDS]],
-    y0: DynState<D>,
-    mut rec: Option<&mut Record>,
-) -> DynState<D> {
-    let mut y = y0;
-    let mut slot = 0;
-    if let Some(r) = rec.as_mut() {
-        r.clear();
-        r.nodes.push(y.r.map(|x| x.value()));
-        r.node_s.push(0.0);
-    }
-    for (sec, c) in rod.sections.iter().zip(coeffs) {
-        // A rigid part is one RK4 step: along it the integrands are polynomials in s of
-        // degree <= 3 (q is linear), which RK4 integrates exactly.
-        let h = sec.length / sec.steps as f64;
-        for k in 0..sec.steps {
-            let (k1, f1) = rhs(&y, c, &hist[slot]);
-            let y2 = y.axpy(0.5 * h, &k1);
-            let (k2, f2) = rhs(&y2, c, &hist[slot + 1]);
-            let y3 = y.axpy(0.5 * h, &k2);
-            let (k3, f3) = rhs(&y3, c, &hist[slot + 2]);
-            let y4 = y.axpy(h, &k3);
-            let (k4, f4) = rhs(&y4, c, &hist[slot + 3]);
-            if let Some(r) = rec.as_mut() {
-                for (f, ys) in [(f1, &y), (f2, &y2), (f3, &y3), (f4, &y4)] {
-                    r.fields.push(f.map(|x| x.value()));
-                    r.position.push(ys.r.map(|x| x.value()));
+impl SigmaMap {
+    fn eval(&self, p: &[f64]) -> Result<[f64; 3]> {
+        match self {
+            SigmaMap::None => Ok([1.0; 3]),
+            SigmaMap::Constant(s) => Ok(*s),
+            SigmaMap::Grid { grid, clamp } => {
+                let axes = grid.axes();
+                let mut at = p.to_vec();
+                for (k, a) in axes.iter().enumerate() {
+                    let (lo, hi) = (a[0], a[a.len() - 1]);
+                    if at[k] < lo || at[k] > hi {
+                        if *clamp {
+                            at[k] = at[k].clamp(lo, hi);
+                        } else {
+                            return Err(SoftrodError::invalid(
+                                format!("pressures[{k}]"),
+                                at[k],
+                                format!("lies outside the stiffness map's axis [{lo}, {hi}] Pa (use a map with outside='clamp' or a wider table)"),
+                            ));
+                        }
+                    }
                 }
-            }
-            slot += 4;
-            let w = h / 6.0;
-            let mut out = y;
-            for i in 0..3 {
-                out.r[i] += (k1.r[i] + (k2.r[i] + k3.r[i]) * 2.0 + k4.r[i]) * w;
-                out.n[i] += (k1.n[i] + (k2.n[i] + k3.n[i]) * 2.0 + k4.n[i]) * w;
-                out.m[i] += (k1.m[i] + (k2.m[i] + k3.m[i]) * 2.0 + k4.m[i]) * w;
-                out.q[i] += (k1.q[i] + (k2.q[i] + k3.q[i]) * 2.0 + k4.q[i]) * w;
-                out.w[i] += (k1.w[i] + (k2.w[i] + k3.w[i]) * 2.0 + k4.w[i]) * w;
-                for j in 0..3 {
-                    out.rot[i][j] +=
-                        (k1.rot[i][j] + (k2.rot[i][j] + k3.rot[i][j]) * 2.0 + k4.rot[i][j]) * w;
-                }
-            }
-            out.rot = reproject(&out.rot);
-            y = out;
-            if let Some(r) = rec.as_mut() {
-                r.nodes.push(y.r.map(|x| x.value()));
-                r.node_s.push(sec.s_start + h * (k + 1) as f64);
+                let mut out = [0.0; 3];
+                grid.eval(&at, &mut out);
+                Ok(out)
             }
         }
     }
-    y
 }
 
-/// Rigid tip body and dead tip loads.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct TipBody {
-    mass: f64,
-    com: [f64; 3],
-    inertia: [f64; 3],
-    force: [f64; 3],
-    moment: [f64; 3],
+/// Energies at one instant and the cumulative exchanges since t = 0, J.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Energy {
+    /// Kinetic energy of the rod and the tip body.
+    pub kinetic: f64,
+    /// Stored energy of the law at the current pressures: for the linear law
+    /// (1/2)(v - v_p) K_se (v - v_p) + (1/2)(u - u_p) K_bt (u - u_p) about the
+    /// pressure-shifted strains; for the others W(v, u) - P (v3 - 1) - M_p . u.
+    pub elastic: f64,
+    /// Potential of gravity and of the dead forces (line and tip).
+    pub potential: f64,
+    /// Work done on the rod since t = 0 by changing pressures, stiffness scale and dead
+    /// loads, by dead moments, and by the non-potential part of stretch-dependent bending.
+    pub work_in: f64,
+    /// Kelvin-Voigt dissipation since t = 0.
+    pub dissipated: f64,
 }
 
-/// Everything one time step's shooting problem needs besides the histories.
-struct StepProblem<'a> {
-    rod: &'a Rod,
-    coeffs: Vec<DynCoeffs<f64>>,
-    tip: TipBody,
-    gravity: [f64; 3],
-    c0: f64,
-    fs: f64,
-    ms: f64,
-}
-
-impl StepProblem<'_> {
-    fn base<D: RodScalar>(&self, x: &[D; 6]) -> DynState<D> {
-        let c = |v: f64| D::from(v);
-        DynState {
-            r: self.rod.base_position.map(c),
-            rot: self.rod.base_rotation.map(|row| row.map(c)),
-            n: [x[0] * self.fs, x[1] * self.fs, x[2] * self.fs],
-            m: [x[3] * self.ms, x[4] * self.ms, x[5] * self.ms],
-            q: [c(0.0); 3],
-            w: [c(0.0); 3],
-        }
-    }
-
-    /// Tip balance: n(L) = F + m_t (g - a_c), m(L) = M + c_w x m_t (g - a_c) - R (J w_t +
-    /// w x J w), with a_c the acceleration of the tip body's centre of mass; scaled.
-    fn residual<D: RodScalar>(&self, y: &DynState<D>, th: &[f64; FIELDS]) -> [D; 6] {
-        let t = &self.tip;
-        let c0 = self.c0;
-        let qt: [D; 3] = std::array::from_fn(|k| y.q[k] * c0 + th[6 + k]);
-        let wt: [D; 3] = std::array::from_fn(|k| y.w[k] * c0 + th[9 + k]);
-        let com = t.com.map(D::from);
-        let wxq = cross(&y.w, &y.q);
-        let wtxc = cross(&wt, &com);
-        let wxc = cross(&y.w, &com);
-        let wxwxc = cross(&y.w, &wxc);
-        let ab: [D; 3] = std::array::from_fn(|k| qt[k] + wxq[k] + wtxc[k] + wxwxc[k]);
-        let a = rot_mul(&y.rot, &ab);
-        let body: [D; 3] = std::array::from_fn(|k| (-a[k] + self.gravity[k]) * t.mass);
-        let cw = rot_mul(&y.rot, &com);
-        let cxb = cross(&cw, &body);
-        let jw: [D; 3] = std::array::from_fn(|k| y.w[k] * t.inertia[k]);
-        let wxjw = cross(&y.w, &jw);
-        let torque: [D; 3] = std::array::from_fn(|k| wt[k] * t.inertia[k] + wxjw[k]);
-        let torque_w = rot_mul(&y.rot, &torque);
-        std::array::from_fn(|k| {
-            if k < 3 {
-                (y.n[k] - body[k] - t.force[k]) * (1.0 / self.fs)
-            } else {
-                let j = k - 3;
-                (y.m[j] - cxb[j] + torque_w[j] - t.moment[j]) * (1.0 / self.ms)
-            }
-        })
-    }
-
-    fn eval(
-        &self,
-        hist: &[[f64; FIELDS]],
-        x: &[f64; 6],
-        rec: Option<&mut Record>,
-    ) -> ([f64; 6], DynState<f64>) {
-        let tip = sweep(self.rod, &self.coeffs, hist, self.base(x), rec);
-        (self.residual(&tip, hist.last().expect("tip slot")), tip)
-    }
-
-    fn jacobian(&self, hist: &[[f64; FIELDS]], x: &[f64; 6]) -> Mat6 {
-        let xd: [Jet<6>; 6] = std::array::from_fn(|i| Jet::variable(x[i], i));
-        let tip = sweep(self.rod, &self.coeffs, hist, self.base(&xd), None);
-        let r = self.residual(&tip, hist.last().expect("tip slot"));
-        Mat6::from_fn(|i, j| r[i].eps[j])
+impl Energy {
+    /// Mechanical energy: kinetic + elastic + potential.
+    pub fn total(&self) -> f64 {
+        self.kinetic + self.elastic + self.potential
     }
 }
 
-/// The shooting problem of one step at chamber pressures `pressures` with BDF factor c0.
-fn step_problem<'a>(
-    rod: &'a Rod,
-    inertia: &[SectionInertia],
-    pressures: &[f64],
-    c0: f64,
-) -> StepProblem<'a> {
-    let sigma = [1.0; 3];
-    let coeffs = (0..rod.sections.len())
-        .map(|i| {
-            let c = Coeffs::build(rod, i, pressures, &rod.gravity, 1.0, &sigma);
-            DynCoeffs::build(
-                &c,
-                &inertia[i],
-                rod.sections[i].rigid,
-                rod.spec.dynamics.damping_time,
-                c0,
-            )
-        })
-        .collect();
-    let t = &rod.spec.tip;
-    StepProblem {
-        rod,
-        coeffs,
-        tip: TipBody {
-            mass: t.mass,
-            com: t.com_offset,
-            inertia: t.inertia,
-            force: t.force,
-            moment: t.moment,
-        },
-        gravity: rod.gravity,
-        c0,
-        fs: rod.force_scale,
-        ms: rod.force_scale * rod.length,
+/// The energy books of a run: the balance E - E(0) - W_in + D is zero for the exact
+/// motion; `scale` is the energy moved so far (the check's reference).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Books {
+    now: Energy,
+    e0: f64,
+    elastic0: f64,
+    potential0: f64,
+    max_kinetic: f64,
+    max_elastic: f64,
+    max_potential: f64,
+    moved_in: f64,
+    /// Rates at the current time (for the trapezoidal quadrature in time): dissipation,
+    /// power of dead moments, power of the non-potential law part.
+    rates: [f64; 3],
+}
+
+impl Books {
+    fn scale(&self) -> f64 {
+        self.max_kinetic
+            + self.max_elastic
+            + self.max_potential
+            + self.moved_in
+            + self.now.dissipated
+    }
+
+    fn balance(&self) -> f64 {
+        self.now.total() - self.e0 - self.now.work_in + self.now.dissipated
     }
 }
 
-/// The record of the straight reference shape at rest: v = e3, u = 0, q = w = 0.
-fn straight_record(rod: &Rod) -> Record {
-    let mut rec = Record::default();
-    let base = rod.base_position;
-    let t: [f64; 3] = std::array::from_fn(|k| rod.base_rotation[k][2]);
-    let at = |s: f64| -> [f64; 3] { std::array::from_fn(|k| base[k] + t[k] * s) };
-    let mut f = [0.0; FIELDS];
-    f[2] = 1.0;
-    rec.nodes.push(at(0.0));
-    rec.node_s.push(0.0);
-    for sec in &rod.sections {
-        let h = sec.length / sec.steps as f64;
-        for k in 0..sec.steps {
-            let s0 = sec.s_start + h * k as f64;
-            for ds in [0.0, 0.5 * h, 0.5 * h, h] {
-                rec.fields.push(f);
-                rec.position.push(at(s0 + ds));
-            }
-            rec.nodes.push(at(s0 + h));
-            rec.node_s.push(s0 + h);
-        }
-    }
-    rec
-}
-
-fn inf_norm(r: &[f64]) -> f64 {
-    r.iter().fold(
-        0.0,
-        |a: f64, x| if x.is_nan() { f64::NAN } else { a.max(x.abs()) },
-    )
-}
-
-/// History of one stage slot: X_{i-1}, X_{i-2} and X_t(t_{i-1}).
+/// History of one stage slot: X_n, X_{n-1} and X_t(t_n).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Slot {
     x1: [f64; FIELDS],
@@ -609,217 +445,636 @@ pub enum Initial {
 /// Counters of a run.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DynStats {
+    /// Calls of `step` (output steps).
     pub steps: usize,
+    /// Time steps taken (more than `steps` where steps were subdivided or adapted).
+    pub internal_steps: usize,
+    /// Steps rejected (Newton failure or, adaptive, error above the tolerance).
+    pub rejected: usize,
     pub newton_iterations: usize,
     pub jacobians: usize,
 }
 
-/// Advance chamber pressures by one step of dt towards the commands: a first-order lag with
-/// time constant T (exact for a command held over the step), then the rate limit (paper 000
-/// Sec. III-A). The PCC model uses the same supply, so both models see the same pressures.
-pub fn advance_supply(dy: &DynamicsSpec, dt: f64, pressures: &mut [f64], command: &[f64]) {
-    for (p, &c) in pressures.iter_mut().zip(command) {
-        let target = if dy.pressure_time_constant > 0.0 {
-            c + (*p - c) * (-dt / dy.pressure_time_constant).exp()
-        } else {
-            c
-        };
-        let step = match dy.pressure_rate_limit {
-            Some(rate) => (target - *p).clamp(-rate * dt, rate * dt),
-            None => target - *p,
-        };
-        *p += step;
+fn rename_pressure_error(e: SoftrodError, name: &str) -> SoftrodError {
+    match e {
+        SoftrodError::InvalidParameter { field, value, rule } => SoftrodError::InvalidParameter {
+            field: field.replacen("pressures", name, 1),
+            value,
+            rule,
+        },
+        other => other,
     }
 }
 
-/// A running simulation: the rod, the time, the chamber pressures and the histories.
-/// Clone it to branch a simulation from its current state.
+/// What a Newton factorization was computed from (so a restored state can recompute it
+/// bit for bit): the scaled unknowns, pressures, sigma, c0 and histories of its problem.
+#[derive(Debug, Clone, PartialEq)]
+struct JacKey {
+    at: Vec<f64>,
+    pressures: Vec<f64>,
+    sigma: [f64; 3],
+    c0: f64,
+    hist: Vec<[f64; FIELDS]>,
+}
+
+#[derive(Debug, Clone)]
+struct Cached {
+    fac: Factorization,
+    key: JacKey,
+}
+
+/// A running simulation: the rod, the time, the inputs, the collocation state and the
+/// integrator's histories. Clone it to branch from its current state; `save`/`restore`
+/// round-trip it exactly.
 #[derive(Debug, Clone)]
 pub struct Simulator {
     rod: Rod,
+    grid: Grid,
     inertia: Vec<SectionInertia>,
+    sigma_map: SigmaMap,
     opts: DynOptions,
-    bdf: Bdf,
     time: f64,
+    /// Length of the last time step taken and the next one proposed (adaptive).
+    h_prev: f64,
+    h_next: f64,
     /// Chamber pressures now, Pa (after the supply lag and rate limit).
     pressures: Vec<f64>,
-    x: [f64; 6],
-    x_prev: [f64; 6],
-    slots: Vec<Slot>,
-    jac: Option<nalgebra::LU<f64, nalgebra::Const<6>, nalgebra::Const<6>>>,
-    record: Record,
-    tip: DynState<f64>,
-    coeffs: Vec<DynCoeffs<f64>>,
+    sigma: [f64; 3],
     /// Dead tip loads now (world): the design's, until changed with `set_tip_loads`.
     tip_force: [f64; 3],
     tip_moment: [f64; 3],
-    /// The tip loads of the last step taken (the start of a ramp).
+    /// The tip loads of the last step taken.
     step_tip: ([f64; 3], [f64; 3]),
+    /// Physical unknowns now and one step before (for the predictor).
+    z: Vec<f64>,
+    z_prev: Vec<f64>,
+    z_prev2: Vec<f64>,
+    slots: Vec<Slot>,
+    /// Section models at the current pressures (for the energy).
+    models: Vec<SectionModel>,
+    eval: Evaluated,
+    /// (time, node positions) of the last three steps, newest first (error estimates).
+    past: Vec<(f64, Vec<[f64; 3]>)>,
+    books: Books,
+    cache: Option<Cached>,
+    /// Newton's contraction rate with the kept matrix at the last step.
+    theta: f64,
     pub stats: DynStats,
 }
 
-/// Check that every section's law has a dynamic counterpart here.
-fn check_dynamic_laws(rod: &Rod) -> Result<()> {
+/// Check that every section's law has a dynamic counterpart and the map is given where
+/// needed.
+fn check_dynamic_laws(rod: &Rod, map: &SigmaMap) -> Result<()> {
     for (i, s) in rod.sections.iter().enumerate() {
-        let what = if !matches!(s.law.axial, AxialLaw::Linear) {
-            Some("a nonlinear axial law (ogden/table)")
-        } else if s.law.stretch_bending {
-            Some("stretch-dependent bending (partition / stretch_bending)")
-        } else if s.law.stiffness_map {
-            Some("a pressure-dependent stiffness map")
-        } else {
-            None
-        };
-        if let Some(what) = what {
+        if s.law.stiffness_map && matches!(map, SigmaMap::None) {
             return Err(SoftrodError::invalid(
-                format!("sections[{i}].law"),
-                what,
-                "dynamics supports the linear law (with chamber swelling and correction factors); use solve_statics for this section's law",
+                format!("sections[{i}].law.stiffness_map"),
+                true,
+                "a mapped section needs a stiffness map (sigma of the pressures) for dynamics: pass a constant or table StiffnessMap",
             ));
         }
     }
     Ok(())
 }
 
+/// The candidate result of one time step, committed only if it passes every check.
+struct Candidate {
+    h: f64,
+    pressures: Vec<f64>,
+    sigma: [f64; 3],
+    z: Vec<f64>,
+    slots: Vec<Slot>,
+    models: Vec<SectionModel>,
+    eval: Evaluated,
+    books: Books,
+    /// Estimated local error of the node positions, m (None without enough history).
+    error: Option<f64>,
+}
+
 impl Simulator {
     /// Start a simulation of `rod` at t = 0 with chamber pressures `pressures` (Pa).
     pub fn new(rod: Rod, pressures: &[f64], initial: Initial, opts: DynOptions) -> Result<Self> {
+        Self::with_map(rod, pressures, initial, opts, SigmaMap::None)
+    }
+
+    /// [`Simulator::new`] with a stiffness map for the mapped sections.
+    pub fn with_map(
+        rod: Rod,
+        pressures: &[f64],
+        initial: Initial,
+        opts: DynOptions,
+        sigma_map: SigmaMap,
+    ) -> Result<Self> {
+        let (f, m) = (rod.spec.tip.force, rod.spec.tip.moment);
+        Self::with_inputs(rod, pressures, initial, opts, sigma_map, f, m)
+    }
+
+    /// [`Simulator::with_map`] with dead tip loads at t = 0 (world; the starting static
+    /// state balances them) other than the design's.
+    pub fn with_inputs(
+        rod: Rod,
+        pressures: &[f64],
+        initial: Initial,
+        opts: DynOptions,
+        sigma_map: SigmaMap,
+        tip_force: [f64; 3],
+        tip_moment: [f64; 3],
+    ) -> Result<Self> {
+        for (name, v) in [("tip_force", &tip_force), ("tip_moment", &tip_moment)] {
+            if !v.iter().all(|x| x.is_finite()) {
+                return Err(SoftrodError::invalid(
+                    name,
+                    format!("{v:?}"),
+                    "must be finite",
+                ));
+            }
+        }
         opts.validate()?;
-        check_dynamic_laws(&rod)?;
-        rod.check_loads(pressures, &[1.0; 3])?;
+        check_dynamic_laws(&rod, &sigma_map)?;
+        rod.check_pressures(pressures)?;
+        let sigma = sigma_map.eval(pressures)?;
+        rod.check_loads(pressures, &sigma)?;
         let inertia: Vec<SectionInertia> = (0..rod.sections.len())
             .map(|i| section_inertia(&rod, i))
             .collect();
-        let n_slots: usize = rod.sections.iter().map(|s| 4 * s.steps).sum::<usize>() + 1;
+        let grid = Grid::new(&rod);
+        let n_slots = 2 * grid.len() + 1;
+        let zero = Slot {
+            x1: [0.0; FIELDS],
+            x2: [0.0; FIELDS],
+            xt: [0.0; FIELDS],
+        };
         let mut sim = Simulator {
             inertia,
+            sigma_map,
             opts,
-            bdf: Bdf::new(opts.dt, opts.alpha),
             time: 0.0,
+            h_prev: opts.dt,
+            h_next: opts.dt,
             pressures: pressures.to_vec(),
-            x: [0.0; 6],
-            x_prev: [0.0; 6],
-            slots: vec![
-                Slot {
-                    x1: [0.0; FIELDS],
-                    x2: [0.0; FIELDS],
-                    xt: [0.0; FIELDS],
-                };
-                n_slots
-            ],
-            jac: None,
-            record: Record::default(),
-            tip: DynState {
-                r: [0.0; 3],
-                rot: [[0.0; 3]; 3],
-                n: [0.0; 3],
-                m: [0.0; 3],
-                q: [0.0; 3],
-                w: [0.0; 3],
-            },
-            coeffs: vec![],
-            tip_force: rod.spec.tip.force,
-            tip_moment: rod.spec.tip.moment,
-            step_tip: (rod.spec.tip.force, rod.spec.tip.moment),
+            sigma,
+            tip_force,
+            tip_moment,
+            step_tip: (tip_force, tip_moment),
+            z: vec![],
+            z_prev: vec![],
+            z_prev2: vec![],
+            slots: vec![zero; n_slots],
+            models: vec![],
+            eval: Evaluated::default(),
+            past: vec![],
+            books: Books::default(),
+            cache: None,
+            theta: 1.0,
             stats: DynStats::default(),
+            grid,
             rod,
         };
         sim.start(initial)?;
         Ok(sim)
     }
 
+    /// Section models at `pressures` and `sigma` for the integrator's c0.
+    fn models_at(&self, pressures: &[f64], sigma: &[f64; 3], c0: f64) -> Vec<SectionModel> {
+        let tau = self.rod.spec.dynamics.damping_time;
+        (0..self.rod.sections.len())
+            .map(|i| {
+                let c = Coeffs::build(&self.rod, i, pressures, &self.rod.gravity, 1.0, sigma);
+                let inr = &self.inertia[i];
+                SectionModel::new(
+                    &c,
+                    self.rod.sections[i].rigid,
+                    inr.rho_a,
+                    inr.rho_j,
+                    inr.damping,
+                    tau,
+                    c0,
+                )
+            })
+            .collect()
+    }
+
+    fn tip_body(&self, force: [f64; 3], moment: [f64; 3]) -> TipBody {
+        let t = &self.rod.spec.tip;
+        TipBody {
+            mass: t.mass,
+            com: t.com_offset,
+            inertia: t.inertia,
+            force,
+            moment,
+        }
+    }
+
     fn start(&mut self, initial: Initial) -> Result<()> {
         let zero = [0.0; FIELDS];
-        match initial {
+        let hist0 = vec![zero; self.slots.len()];
+        let models = self.models_at(&self.pressures, &self.sigma, 0.0);
+        let tip = self.tip_body(self.tip_force, self.tip_moment);
+        let problem = Problem::new(&self.rod, &self.grid, &models, 0.0, &hist0, tip);
+        let z_scaled = match initial {
             Initial::Static => {
-                // The static solver (with continuation) gives the base wrench. One shooting
-                // solve of the dynamic equations at rest (c0 = 0, no history) then fills
-                // every stage slot consistently.
-                let loads = Loads::from_design(&self.rod, self.pressures.clone());
-                let sol = statics::solve(&self.rod, &loads, None, &SolverOptions::default())?;
-                let p = step_problem(&self.rod, &self.inertia, &self.pressures, 0.0);
-                let x0: [f64; 6] = std::array::from_fn(|k| {
-                    if k < 3 {
-                        sol.base_force[k] / p.fs
-                    } else {
-                        sol.base_moment[k - 3] / p.ms
-                    }
-                });
-                let hist = vec![zero; self.slots.len()];
-                let mut rec = Record::default();
-                let (x, tip, _) =
-                    newton(&p, &hist, x0, None, &self.opts, &mut rec, &mut self.stats).map_err(
-                        |(it, res)| SoftrodError::NotConverged {
-                            iterations: it,
-                            residual: res,
-                            load_factor: 1.0,
-                            reason:
-                                "the initial static state did not solve as a dynamic state at rest"
-                                    .into(),
-                        },
-                    )?;
-                self.x = x;
-                self.x_prev = x;
-                self.tip = tip;
-                let n = self.slots.len();
-                for (slot, f) in self.slots[..n - 1].iter_mut().zip(&rec.fields) {
-                    *slot = Slot {
-                        x1: *f,
-                        x2: *f,
-                        xt: zero,
-                    };
-                }
-                self.record = rec;
-            }
-            Initial::Straight => {
-                let rec = straight_record(&self.rod);
-                let n = self.slots.len();
-                for (slot, f) in self.slots[..n - 1].iter_mut().zip(&rec.fields) {
-                    *slot = Slot {
-                        x1: *f,
-                        x2: *f,
-                        xt: zero,
-                    };
-                }
-                let end = *rec.nodes.last().expect("at least the base node");
-                self.tip = DynState {
-                    r: end,
-                    rot: self.rod.base_rotation,
-                    n: [0.0; 3],
-                    m: [0.0; 3],
-                    q: [0.0; 3],
-                    w: [0.0; 3],
+                // Equilibrium of this discretisation at rest (c0 = 0, no history), from
+                // the static solver's solution (which picks shooting or collocation).
+                let loads = Loads {
+                    pressures: self.pressures.clone(),
+                    tip_force: self.tip_force,
+                    tip_moment: self.tip_moment,
+                    stiffness_scale: self.sigma,
                 };
-                self.record = rec;
-                self.x = [0.0; 6];
-                self.x_prev = self.x;
+                let guess = statics::solve(&self.rod, &loads, None, &SolverOptions::default())
+                    .ok()
+                    .map(|sol| static_guess(&self.rod, &problem, &loads, &sol));
+                let opts = SolverOptions {
+                    tol: self.opts.tol.min(1e-10),
+                    ..SolverOptions::default()
+                };
+                let sol = crate::statics::collocation::solve_static(
+                    &self.rod,
+                    &loads,
+                    guess.as_deref(),
+                    &opts,
+                )
+                .map_err(|e| match e {
+                    SoftrodError::NotConverged {
+                        iterations,
+                        residual,
+                        load_factor,
+                        reason,
+                    } => SoftrodError::NotConverged {
+                        iterations,
+                        residual,
+                        load_factor,
+                        reason: format!("the initial static state did not solve: {reason}"),
+                    },
+                    other => other,
+                })?;
+                self.stats.newton_iterations += sol.iterations;
+                sol.z
             }
+            Initial::Straight => problem.straight_unknowns(),
+        };
+        let eval = problem.evaluate(&z_scaled);
+        self.z = to_physical(&problem, &z_scaled);
+        self.z_prev = self.z.clone();
+        self.z_prev2 = self.z.clone();
+        let n = self.slots.len();
+        for (k, (slot, f)) in self.slots[..n - 1].iter_mut().zip(&eval.fields).enumerate() {
+            let mut xt = zero;
+            if initial == Initial::Straight {
+                // Released from rest in a state that is no equilibrium: the stage
+                // accelerations at t = 0+ follow from n' = rho A R q_t - f with n uniform
+                // along a section (v = e3, u = 0): q_t = R^T f / (rho A); w_t = 0 and the
+                // strain rates are zero. A consistent start keeps the schemes second order.
+                let m = &models[self.grid.intervals[k / 2].section];
+                if m.rho_a > 0.0 {
+                    let fb = mat_t_vec(&self.rod.base_rotation, &m.f);
+                    for a in 0..3 {
+                        xt[6 + a] = fb[a] / m.rho_a;
+                    }
+                }
+            }
+            *slot = Slot { x1: *f, x2: *f, xt };
         }
-        self.coeffs = step_problem(&self.rod, &self.inertia, &self.pressures, self.bdf.c0).coeffs;
+        if initial == Initial::Straight {
+            let gb = mat_t_vec(&self.rod.base_rotation, &self.rod.gravity);
+            self.slots[n - 1].xt[6..9].copy_from_slice(&gb);
+        }
+        self.check_state(&eval, &self.z.clone())?;
+        self.models = models;
+        self.eval = eval;
+        self.past = vec![(0.0, self.eval.node_r.clone())];
+        let e = self.energy_now(&self.models, &self.eval, self.tip_force);
+        self.books = Books {
+            now: e,
+            e0: e.total(),
+            elastic0: e.elastic,
+            potential0: e.potential,
+            max_kinetic: e.kinetic,
+            ..Books::default()
+        };
+        self.books.rates = self.rates(&self.models, &self.eval, &self.slots, self.tip_moment);
         Ok(())
     }
 
-    /// Advance the chamber pressures by one step towards the commands.
-    fn advance_pressures(&mut self, command: &[f64]) {
-        advance_supply(
-            &self.rod.spec.dynamics,
-            self.opts.dt,
-            &mut self.pressures,
-            command,
-        );
+    /// Finite values, rotations and quaternion norms at the nodes, stretch at the stages.
+    fn check_state(&self, eval: &Evaluated, z: &[f64]) -> Result<()> {
+        let t = self.time;
+        let node = |j: usize| validity::Node {
+            index: j,
+            s: self.grid.node_s(j),
+            section: self.grid.intervals[j.min(self.grid.len() - 1)].section,
+        };
+        if let Some(k) = z.iter().position(|x| !x.is_finite()) {
+            // z holds the base unknowns, then 48 per interval (stages and end node).
+            let j = if k < 6 { 0 } else { (k - 6) / 48 + 1 };
+            validity::check_finite(node(j.min(self.grid.len())), &z[k..=k])
+                .map_err(|e| e.at_time(t))?;
+        }
+        for (j, y) in eval.nodes.iter().enumerate() {
+            let qn = y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3];
+            // The quaternion norm is a quadratic invariant of Gauss collocation, so it
+            // stays 1 to the Newton tolerance times the number of intervals (<= 1e-9 x
+            // 400); 1e-6 flags a state the collocation equations do not hold for.
+            if (qn - 1.0).abs().is_nan() || (qn - 1.0).abs() > 1e-6 {
+                let n = node(j);
+                return Err(SoftrodError::InvalidState {
+                    rule: validity::Rule::Rotation,
+                    node: Some(j),
+                    s: n.s,
+                    time: Some(t),
+                    value: qn,
+                    message: format!(
+                        "the rotation quaternion's squared norm is {qn:.9} in sections[{}], not 1 to 1e-6: the collocation equations do not hold (tighten tol or shorten the step)",
+                        n.section
+                    ),
+                });
+            }
+            validity::check_rotation(node(j), &collocation::rotation(&y[..4]))
+                .map_err(|e| e.at_time(t))?;
+        }
+        // Strains live at the stage points: the same physical rules as statics' nodes
+        // (stretch positive and below the tearing limit, no chamber collapsed).
+        for (k, f) in eval.fields.iter().enumerate() {
+            let j = k / 2;
+            let sec = &self.rod.sections[self.grid.intervals[j].section];
+            let (v, u) = ([f[0], f[1], f[2]], [f[3], f[4], f[5]]);
+            let fine = v[2] > 0.0
+                && v[2] <= validity::MAX_STRETCH
+                && sec
+                    .chambers
+                    .iter()
+                    .all(|c| validity::fibre_stretch(&v, &u, c.centroid) > 0.0);
+            if fine {
+                continue;
+            }
+            // Report the interval's start node and the stage's own arc length.
+            let at = validity::Node {
+                index: j,
+                s: self.grid.stage_s(j, k % 2),
+                section: self.grid.intervals[j].section,
+            };
+            validity::check_stretch(at, &v).map_err(|e| e.at_time(t))?;
+            for (c, ch) in sec.chambers.iter().enumerate() {
+                validity::check_chamber(at, c, &v, &u, ch.centroid).map_err(|e| e.at_time(t))?;
+            }
+        }
+        Ok(())
     }
 
-    /// One time step with the commanded pressures `command` (Pa) at the new time.
+    /// Kinetic, elastic and potential energy of a state.
+    fn energy_now(&self, models: &[SectionModel], eval: &Evaluated, force: [f64; 3]) -> Energy {
+        let mut e = Energy::default();
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let m = &models[iv.section];
+            for i in 0..2 {
+                let k = 2 * j + i;
+                let f = &eval.fields[k];
+                let r = &eval.stage_r[k];
+                let wgt = iv.h * GAUSS_B[i];
+                let (q, w) = (&f[6..9], &f[9..12]);
+                e.kinetic += wgt
+                    * 0.5
+                    * (m.rho_a * (q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
+                        + (0..3).map(|a| m.rho_j[a] * w[a] * w[a]).sum::<f64>());
+                e.potential -= wgt * (0..3).map(|a| m.f[a] * r[a]).sum::<f64>();
+                if !m.rigid {
+                    e.elastic += wgt * elastic_density(m, &[f[0], f[1], f[2]], &[f[3], f[4], f[5]]);
+                }
+            }
+        }
+        let t = &self.rod.spec.tip;
+        let y = eval.nodes.last().expect("tip node");
+        let rot = collocation::rotation(&y[..4]);
+        let q = [y[10], y[11], y[12]];
+        let w = [y[13], y[14], y[15]];
+        let wxc = cross(&w, &t.com_offset);
+        let vc: [f64; 3] = std::array::from_fn(|k| q[k] + wxc[k]);
+        let cw = mat_vec(&rot, &t.com_offset);
+        let r = eval.node_r.last().expect("tip node");
+        let g = self.rod.gravity;
+        e.kinetic += 0.5 * t.mass * (vc[0] * vc[0] + vc[1] * vc[1] + vc[2] * vc[2]);
+        e.kinetic += 0.5 * (0..3).map(|k| t.inertia[k] * w[k] * w[k]).sum::<f64>();
+        e.potential -= t.mass * (0..3).map(|k| g[k] * (r[k] + cw[k])).sum::<f64>();
+        e.potential -= (0..3).map(|k| force[k] * r[k]).sum::<f64>();
+        e
+    }
+
+    /// Kelvin-Voigt dissipation over a step of length h from `old` to `new`: h (dX/h) B
+    /// (dX/h) with dX the change of the stage strains, the midpoint rate of the
+    /// trapezoidal rule, under which it is the exact energy loss of the linearised rod.
+    fn dissipation(
+        &self,
+        models: &[SectionModel],
+        old: &Evaluated,
+        new: &Evaluated,
+        h: f64,
+    ) -> f64 {
+        let mut out = 0.0;
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let m = &models[iv.section];
+            if m.rigid {
+                continue;
+            }
+            for i in 0..2 {
+                let k = 2 * j + i;
+                let (a, b) = (&old.fields[k], &new.fields[k]);
+                let dv: [f64; 3] = std::array::from_fn(|c| b[c] - a[c]);
+                let du: [f64; 3] = std::array::from_fn(|c| b[3 + c] - a[3 + c]);
+                let mut d = (0..3).map(|c| dv[c] * m.b_se[c] * dv[c]).sum::<f64>();
+                for c in 0..3 {
+                    for e in 0..3 {
+                        d += du[c] * m.b_bt[c][e] * du[e];
+                    }
+                }
+                out += iv.h * GAUSS_B[i] * d / h;
+            }
+        }
+        out
+    }
+
+    /// Rates at one instant: Kelvin-Voigt dissipation, power of the dead moments (line and
+    /// tip), power of the non-potential part of stretch-dependent bending.
+    fn rates(
+        &self,
+        models: &[SectionModel],
+        eval: &Evaluated,
+        slots: &[Slot],
+        moment: [f64; 3],
+    ) -> [f64; 3] {
+        let mut out = [0.0; 3];
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let m = &models[iv.section];
+            if m.rigid {
+                continue;
+            }
+            for i in 0..2 {
+                let k = 2 * j + i;
+                let wgt = iv.h * GAUSS_B[i];
+                let xt = &slots[k].xt;
+                let f = &eval.fields[k];
+                let (vt, ut) = (&xt[0..3], &xt[3..6]);
+                let mut d = (0..3).map(|a| vt[a] * m.b_se[a] * vt[a]).sum::<f64>();
+                for a in 0..3 {
+                    for b in 0..3 {
+                        d += ut[a] * m.b_bt[a][b] * ut[b];
+                    }
+                }
+                out[0] += wgt * d;
+                let ww = mat_vec(&eval.stage_rot[k], &[f[9], f[10], f[11]]);
+                out[1] += wgt * (0..3).map(|a| m.l[a] * ww[a]).sum::<f64>();
+                if m.stretch_bending {
+                    // The law's axial force lacks d/dv3 of (1/2) v3 u_b K_b u_b.
+                    let u = [f[3], f[4]];
+                    let ub = 0.5
+                        * (0..2)
+                            .map(|a| (0..2).map(|b| u[a] * m.k_bt[a][b] * u[b]).sum::<f64>())
+                            .sum::<f64>();
+                    out[2] += wgt * ub * vt[2];
+                }
+            }
+        }
+        let y = eval.nodes.last().expect("tip node");
+        let rot = collocation::rotation(&y[..4]);
+        let ww = mat_vec(&rot, &[y[13], y[14], y[15]]);
+        out[1] += (0..3).map(|k| moment[k] * ww[k]).sum::<f64>();
+        out
+    }
+
+    /// One time step with the commanded pressures `command` (Pa) held over it: dt, taken
+    /// as one step, as substeps where Newton fails, or as error-controlled steps (adaptive).
     pub fn step(&mut self, command: &[f64]) -> Result<()> {
+        self.step_with(command, None)
+    }
+
+    /// [`Simulator::step`] where the steps inside the interval (substeps, adaptive steps)
+    /// take their commands from `schedule` at their own end times (the interval's end
+    /// still takes `command`), and end on the schedule's knots.
+    pub fn step_with(&mut self, command: &[f64], schedule: Option<&CommandSchedule>) -> Result<()> {
         crate::spec::validate_pressures(command, self.rod.n_channels)
             .map_err(|e| rename_pressure_error(e, "command"))?;
-        let saved = self.pressures.clone();
-        self.advance_pressures(command);
-        if let Err(e) = self.rod.check_loads(&self.pressures, &[1.0; 3]) {
-            self.pressures = saved;
-            return Err(e);
+        let dt = self.opts.dt;
+        let t_end = (self.stats.steps + 1) as f64 * dt;
+        let mut remaining = dt;
+        let mut h = match self.opts.error_tol {
+            Some(_) => self.h_next.min(dt),
+            None => dt,
+        };
+        let mut halvings = 0;
+        while remaining > 0.0 {
+            if h >= remaining * (1.0 - 1e-9) || remaining - h < 1e-3 * h {
+                h = remaining;
+            }
+            // Inside the interval: end on the schedule's next knot (a jump or a kink of the
+            // commands) and take the commands there.
+            let mut cmd = command.to_vec();
+            if let Some(sch) = schedule {
+                if h < remaining {
+                    if let Some(knot) = sch.next_knot(self.time) {
+                        if knot < self.time + h && knot > self.time + 1e-3 * h {
+                            h = knot - self.time;
+                        }
+                    }
+                    cmd = sch.at(self.time + h);
+                }
+            }
+            match self.attempt(h, &cmd) {
+                Ok(c) => {
+                    if let (Some(tol), Some(err)) = (self.opts.error_tol, c.error) {
+                        let factor =
+                            (0.9 * (tol / err.max(1e-300)).powf(1.0 / 3.0)).clamp(0.2, 2.0);
+                        if err > tol && h > dt * 0.5f64.powi(20) {
+                            self.stats.rejected += 1;
+                            h *= factor.min(0.7);
+                            continue;
+                        }
+                        self.h_next = h * factor;
+                    }
+                    self.commit(c);
+                    remaining -= h;
+                    if remaining <= 1e-12 * dt {
+                        break;
+                    }
+                    if self.opts.error_tol.is_some() {
+                        h = self.h_next.min(dt);
+                    }
+                }
+                Err(SoftrodError::NotConverged {
+                    iterations,
+                    residual,
+                    reason,
+                    ..
+                }) => {
+                    self.stats.rejected += 1;
+                    halvings += 1;
+                    if halvings > MAX_HALVINGS {
+                        return Err(SoftrodError::NotConverged {
+                            iterations,
+                            residual,
+                            load_factor: 1.0,
+                            reason: format!(
+                                "{reason}; also in steps down to {:.3e} s (dt / {}): check the inputs (a pressure or load far beyond the design's range?) or loosen tol",
+                                dt / f64::from(1u32 << MAX_HALVINGS),
+                                1u32 << MAX_HALVINGS
+                            ),
+                        });
+                    }
+                    h *= 0.5;
+                    self.h_next = h;
+                }
+                Err(e) => return Err(e),
+            }
         }
-        let bdf = self.bdf;
+        self.stats.steps += 1;
+        // Steps times dt, not a running sum: no round-off drift of the clock.
+        self.time = t_end;
+        Ok(())
+    }
+
+    /// Solve one time step of length h (not committed).
+    fn attempt(&mut self, h: f64, command: &[f64]) -> Result<Candidate> {
+        let t_new = self.time + h;
+        let mut pressures = self.pressures.clone();
+        self.rod
+            .spec
+            .dynamics
+            .advance_supply(h, &mut pressures, command);
+        let sigma = self.sigma_map.eval(&pressures)?;
+        self.rod.check_loads(&pressures, &sigma)?;
+        let midpoint = self.opts.scheme == Scheme::Midpoint;
+        let bdf = if midpoint {
+            // X_t(t_{n+1/2}) = (2 / h) (X_{n+1/2} - X_n).
+            Bdf {
+                c0: 2.0 / h,
+                c1: -2.0 / h,
+                c2: 0.0,
+                d1: 0.0,
+            }
+        } else {
+            Bdf::new(self.opts.alpha_eff(), h, self.h_prev)
+        };
+        // The step's boundary-value problem: at t_{n+1}, or at the midpoint with the
+        // inputs halfway.
+        let (solve_p, solve_sigma, tip) = if midpoint {
+            let pm: Vec<f64> = self
+                .pressures
+                .iter()
+                .zip(&pressures)
+                .map(|(a, b)| 0.5 * (a + b))
+                .collect();
+            let sm = self.sigma_map.eval(&pm)?;
+            let f: [f64; 3] =
+                std::array::from_fn(|k| 0.5 * (self.step_tip.0[k] + self.tip_force[k]));
+            let m: [f64; 3] =
+                std::array::from_fn(|k| 0.5 * (self.step_tip.1[k] + self.tip_moment[k]));
+            (pm, sm, self.tip_body(f, m))
+        } else {
+            (
+                pressures.clone(),
+                sigma,
+                self.tip_body(self.tip_force, self.tip_moment),
+            )
+        };
+        let models = self.models_at(&solve_p, &solve_sigma, bdf.c0);
         let hist: Vec<[f64; FIELDS]> = self
             .slots
             .iter()
@@ -827,85 +1082,357 @@ impl Simulator {
                 std::array::from_fn(|k| bdf.c1 * s.x1[k] + bdf.c2 * s.x2[k] + bdf.d1 * s.xt[k])
             })
             .collect();
-        // Linear extrapolation of the unknowns from the last two steps.
-        let guess: [f64; 6] = std::array::from_fn(|k| 2.0 * self.x[k] - self.x_prev[k]);
-        let mut rec = std::mem::take(&mut self.record);
-        let level = Level {
-            rod: &self.rod,
-            inertia: &self.inertia,
-            c0: bdf.c0,
-            hist: &hist,
-            opts: &self.opts,
-            from: (&saved, self.step_tip),
-            to: (&self.pressures, (self.tip_force, self.tip_moment)),
+        let problem = Problem::new(&self.rod, &self.grid, &models, bdf.c0, &hist, tip);
+        // Predictor. BDF-alpha damps the unresolved modes: linear extrapolation. The
+        // trapezoidal and midpoint rules keep them, flipping sign every step
+        // (amplification -> -1 for omega h >> 1): z_n + z_{n-1} - z_{n-2} extrapolates
+        // linear trends and such alternating modes exactly (at equal steps).
+        let ratio = h / self.h_prev;
+        let alternating = self.opts.alpha_eff() == -0.5 && self.z_prev2.len() == self.z.len();
+        let guess: Vec<f64> = if alternating {
+            (0..self.z.len())
+                .map(|k| self.z[k] + ratio * (self.z_prev[k] - self.z_prev2[k]))
+                .collect()
+        } else {
+            self.z
+                .iter()
+                .zip(&self.z_prev)
+                .map(|(a, b)| a + ratio * (a - b))
+                .collect()
         };
-        let mut result = level.solve(1.0, guess, self.jac.take(), &mut rec, &mut self.stats);
-        if result.is_err() {
-            // A sudden change of the inputs (a pressure step) can put the new state out of
-            // Newton's reach: ramp the step's inputs from the last step's values to the new
-            // ones (the equations at ramp 1 are the step's own).
-            result = level.ramp(self.x, &mut rec, &mut self.stats);
+        let mut z = to_scaled(&problem, &guess);
+        let old = self.cache.take().filter(|c| c.key.c0 == bdf.c0);
+        let (mut cache, old_key) = match old {
+            Some(c) => (Some(c.fac), Some(c.key)),
+            None => (None, None),
+        };
+        let nopts = NewtonOptions {
+            tol: self.opts.tol,
+            max_iter: self.opts.max_iter,
+        };
+        let mut ns = NewtonStats::default();
+        let result = collocation::newton_with(
+            &problem,
+            &mut z,
+            &mut cache,
+            &nopts,
+            &mut ns,
+            &mut self.theta,
+        );
+        self.stats.newton_iterations += ns.iterations;
+        self.stats.jacobians += ns.jacobians;
+        // Keep the factorization, and what it was computed from, for the next step.
+        self.cache = cache.map(|fac| {
+            let key = match old_key {
+                Some(k) if k.at == fac.at => k,
+                _ => JacKey {
+                    at: fac.at.clone(),
+                    pressures: solve_p.clone(),
+                    sigma: solve_sigma,
+                    c0: bdf.c0,
+                    hist: hist.clone(),
+                },
+            };
+            Cached { fac, key }
+        });
+        if let Err((it, res)) = result {
+            return Err(SoftrodError::NotConverged {
+                iterations: it,
+                residual: res,
+                load_factor: 1.0,
+                reason: format!(
+                    "dynamic step from t = {:.6} s to {:.6} s (h = {h:.3e} s) did not converge",
+                    self.time, t_new
+                ),
+            });
         }
-        let (x, tip, lu) = match result {
-            Ok(v) => v,
-            Err((it, res)) => {
-                self.pressures = saved;
-                self.record = rec;
-                return Err(SoftrodError::NotConverged {
-                    iterations: it,
-                    residual: res,
-                    load_factor: 1.0,
-                    reason: format!(
-                        "dynamic step from t = {:.6} s to {:.6} s did not converge (dt = {} s), also with the step's inputs ramped; a larger dt, more damping or fewer steps per section improves the shooting problem's conditioning",
-                        self.time,
-                        self.time + self.opts.dt,
-                        self.opts.dt
-                    ),
-                });
-            }
+        let solved = problem.evaluate(&z);
+        let zp = to_physical(&problem, &z);
+        let (eval, models) = if midpoint {
+            let models_new = self.models_at(&pressures, &sigma, bdf.c0);
+            (self.midpoint_end(&solved), models_new)
+        } else {
+            (solved, models)
         };
-        self.step_tip = (self.tip_force, self.tip_moment);
-        self.coeffs = step_problem(&self.rod, &self.inertia, &self.pressures, bdf.c0).coeffs;
-        // Shift the histories: X_t(t_i) = c0 X_i + X_h.
-        for ((slot, f), h) in self.slots.iter_mut().zip(&rec.fields).zip(&hist) {
-            let xt: [f64; FIELDS] = std::array::from_fn(|k| bdf.c0 * f[k] + h[k]);
+        let saved_time = self.time;
+        self.time = t_new;
+        let checked = self.check_state(&eval, &zp);
+        self.time = saved_time;
+        checked?;
+        let n = self.slots.len();
+        let mut slots = self.slots.clone();
+        for (k, slot) in slots.iter_mut().enumerate() {
+            let f = if k + 1 < n {
+                eval.fields[k]
+            } else {
+                let y = eval.nodes.last().expect("tip node");
+                let mut tf = [0.0; FIELDS];
+                tf[6..12].copy_from_slice(&y[10..16]);
+                tf
+            };
+            // X_t at the new time (BDF-alpha, trapezoidal) or over the step (midpoint).
+            let xt: [f64; FIELDS] = if midpoint {
+                std::array::from_fn(|a| (f[a] - slot.x1[a]) / h)
+            } else {
+                std::array::from_fn(|a| bdf.c0 * f[a] + hist[k][a])
+            };
             *slot = Slot {
-                x1: *f,
+                x1: f,
                 x2: slot.x1,
                 xt,
             };
         }
-        let tip_slot = self.slots.len() - 1;
-        let th = &hist[tip_slot];
-        let mut tf = [0.0; FIELDS];
-        tf[6..9].copy_from_slice(&tip.q);
-        tf[9..12].copy_from_slice(&tip.w);
-        let xt: [f64; FIELDS] = std::array::from_fn(|k| bdf.c0 * tf[k] + th[k]);
-        let old = self.slots[tip_slot].x1;
-        self.slots[tip_slot] = Slot {
-            x1: tf,
-            x2: old,
-            xt,
+        // Energy books.
+        let mut books = self.books;
+        let e = self.energy_now(&models, &eval, self.tip_force);
+        // Work of changing pressures (and sigma): the stored energy's change at fixed
+        // strains, at the old and new strains. A scheme that applies the new inputs over
+        // the step (BDF-alpha solves (1 + alpha) f_{n+1} - alpha f_n = ...) does their
+        // work at the configuration they first act on: for a linear law with a jump of the
+        // inputs the discrete energy identity gives exactly weight 1 + alpha on the old
+        // strains and -alpha on the new (the trapezoidal and midpoint rules: 1/2, 1/2);
+        // second order for smooth changes. Of a changed dead tip force: -dF . r_tip alike.
+        let w_new = if midpoint {
+            0.5
+        } else {
+            -self.opts.alpha_eff()
         };
-        self.record = rec;
-        self.x_prev = self.x;
-        self.x = x;
-        self.tip = tip;
-        self.jac = lu;
-        self.stats.steps += 1;
-        // Steps times dt, not a running sum: no round-off drift of the clock.
-        self.time = self.stats.steps as f64 * self.opts.dt;
-        Ok(())
+        let pin = w_new * (e.elastic - self.elastic_of(&self.models, &eval))
+            + (1.0 - w_new) * (self.elastic_of(&models, &self.eval) - self.books.now.elastic);
+        let r0 = self.eval.node_r.last().expect("tip");
+        let r1 = eval.node_r.last().expect("tip");
+        let df: [f64; 3] = std::array::from_fn(|k| self.tip_force[k] - self.step_tip.0[k]);
+        let fin = -(0..3)
+            .map(|k| df[k] * ((1.0 - w_new) * r0[k] + w_new * r1[k]))
+            .sum::<f64>();
+        let rates = self.rates(&models, &eval, &slots, self.tip_moment);
+        let d = self.dissipation(&models, &self.eval, &eval, h);
+        let win = 0.5 * h * (books.rates[1] + rates[1] + books.rates[2] + rates[2]);
+        books.now = Energy {
+            work_in: books.now.work_in + pin + fin + win,
+            dissipated: books.now.dissipated + d,
+            ..e
+        };
+        books.rates = rates;
+        books.moved_in += pin.abs() + fin.abs() + win.abs();
+        books.max_kinetic = books.max_kinetic.max(e.kinetic);
+        books.max_elastic = books.max_elastic.max((e.elastic - books.elastic0).abs());
+        books.max_potential = books
+            .max_potential
+            .max((e.potential - books.potential0).abs());
+        self.energy_check(&books, t_new, h)?;
+        // Local error estimate of the node positions (adaptive stepping).
+        let error = if self.past.len() >= 3 {
+            let ts = [t_new, self.past[0].0, self.past[1].0, self.past[2].0];
+            let cp = ((ts[0] - ts[1]) * (ts[0] - ts[2]) * (ts[0] - ts[3]) / 6.0).abs();
+            let cs = if midpoint {
+                h.powi(3) / 24.0 // the midpoint rule's local error constant
+            } else {
+                bdf.error_constant(h, self.h_prev)
+            };
+            let lag = |k: usize| -> f64 {
+                let mut w = 1.0;
+                for m in 1..4 {
+                    if m != k {
+                        w *= (ts[0] - ts[m]) / (ts[k] - ts[m]);
+                    }
+                }
+                w
+            };
+            let w = [lag(1), lag(2), lag(3)];
+            let mut worst: f64 = 0.0;
+            for (j, r) in eval.node_r.iter().enumerate() {
+                let pred: [f64; 3] = std::array::from_fn(|a| {
+                    w[0] * self.past[0].1[j][a]
+                        + w[1] * self.past[1].1[j][a]
+                        + w[2] * self.past[2].1[j][a]
+                });
+                let d = ((r[0] - pred[0]).powi(2)
+                    + (r[1] - pred[1]).powi(2)
+                    + (r[2] - pred[2]).powi(2))
+                .sqrt();
+                worst = worst.max(d);
+            }
+            Some(cs / (cs + cp) * worst)
+        } else {
+            None
+        };
+        Ok(Candidate {
+            h,
+            pressures,
+            sigma,
+            z: zp,
+            slots,
+            models,
+            eval,
+            books,
+            error,
+        })
+    }
+
+    /// The state at t_{n+1} of a midpoint step: stage fields X_{n+1} = 2 X_{n+1/2} - X_n,
+    /// node forces, moments and velocities extrapolated alike, and the shape rebuilt from
+    /// the new strains from the base by the same collocation (Q' = Q (0, u) / 2 is linear
+    /// in Q for given u: an 8 x 8 solve per interval) and quadrature for r.
+    fn midpoint_end(&self, mid: &Evaluated) -> Evaluated {
+        let old = &self.eval;
+        let twice = |m: &[f64], o: &[f64], k: usize| 2.0 * m[k] - o[k];
+        let fields: Vec<[f64; FIELDS]> = mid
+            .fields
+            .iter()
+            .zip(&old.fields)
+            .map(|(m, o)| std::array::from_fn(|k| twice(m, o, k)))
+            .collect();
+        let node_at = |j: usize, q: [f64; 4]| -> [f64; NY] {
+            std::array::from_fn(|k| {
+                if k < 4 {
+                    q[k]
+                } else {
+                    twice(&mid.nodes[j], &old.nodes[j], k)
+                }
+            })
+        };
+        let w = |u: &[f64]| -> nalgebra::Matrix4<f64> {
+            nalgebra::Matrix4::new(
+                0.0, -u[0], -u[1], -u[2], u[0], 0.0, u[2], -u[1], u[1], -u[2], 0.0, u[0], u[2],
+                u[1], -u[0], 0.0,
+            ) * 0.5
+        };
+        let n_int = self.grid.len();
+        let mut out = Evaluated {
+            nodes: Vec::with_capacity(n_int + 1),
+            node_r: Vec::with_capacity(n_int + 1),
+            fields: Vec::with_capacity(2 * n_int),
+            stage_r: Vec::with_capacity(2 * n_int),
+            stage_rot: Vec::with_capacity(2 * n_int),
+        };
+        let q0 = collocation::quaternion(&self.rod.base_rotation);
+        let mut qj = nalgebra::Vector4::from_column_slice(&q0);
+        let mut r = self.rod.base_position;
+        out.nodes.push(node_at(0, q0));
+        out.node_r.push(r);
+        let a = [[0.25, 0.25 - SQRT3_6], [0.25 + SQRT3_6, 0.25]];
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let (f1, f2) = (&fields[2 * j], &fields[2 * j + 1]);
+            let ws = [w(&f1[3..6]), w(&f2[3..6])];
+            let mut m = nalgebra::SMatrix::<f64, 8, 8>::identity();
+            for i in 0..2 {
+                for k in 0..2 {
+                    let blk = ws[k] * (-iv.h * a[i][k]);
+                    for rr in 0..4 {
+                        for cc in 0..4 {
+                            m[(4 * i + rr, 4 * k + cc)] += blk[(rr, cc)];
+                        }
+                    }
+                }
+            }
+            let rhs = nalgebra::SVector::<f64, 8>::from_fn(|k, _| qj[k % 4]);
+            let qs = m
+                .lu()
+                .solve(&rhs)
+                .unwrap_or_else(|| nalgebra::SVector::from_element(f64::NAN));
+            let q1 = qs.fixed_rows::<4>(0).into_owned();
+            let q2 = qs.fixed_rows::<4>(4).into_owned();
+            let qn = qj + (ws[0] * q1 + ws[1] * q2) * (0.5 * iv.h);
+            let rots = [
+                collocation::rotation(q1.as_slice()),
+                collocation::rotation(q2.as_slice()),
+            ];
+            let dr = [
+                mat_vec(&rots[0], &[f1[0], f1[1], f1[2]]),
+                mat_vec(&rots[1], &[f2[0], f2[1], f2[2]]),
+            ];
+            for i in 0..2 {
+                out.stage_r.push(std::array::from_fn(|k| {
+                    r[k] + iv.h * (a[i][0] * dr[0][k] + a[i][1] * dr[1][k])
+                }));
+                out.stage_rot.push(rots[i]);
+            }
+            r = std::array::from_fn(|k| r[k] + iv.h * 0.5 * (dr[0][k] + dr[1][k]));
+            qj = qn;
+            out.nodes.push(node_at(j + 1, [qn[0], qn[1], qn[2], qn[3]]));
+            out.node_r.push(r);
+        }
+        out.fields = fields;
+        out
+    }
+
+    /// The stored energy of a state under other section models (other pressures).
+    fn elastic_of(&self, models: &[SectionModel], eval: &Evaluated) -> f64 {
+        let mut e = 0.0;
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let m = &models[iv.section];
+            if m.rigid {
+                continue;
+            }
+            for i in 0..2 {
+                let f = &eval.fields[2 * j + i];
+                e += iv.h
+                    * GAUSS_B[i]
+                    * elastic_density(m, &[f[0], f[1], f[2]], &[f[3], f[4], f[5]]);
+            }
+        }
+        e
+    }
+
+    /// The energy check: the balance E - E(0) - W_in + D may not exceed `energy_tol` of the
+    /// energy moved (max kinetic + max |change of elastic| + max |change of potential| +
+    /// work in + dissipated), plus round-off (1e-10 F_s L, F_s = EI_min / L^2).
+    fn energy_check(&self, books: &Books, t: f64, h: f64) -> Result<()> {
+        let balance = books.balance();
+        let scale = books.scale();
+        let floor = 1e-10 * self.rod.force_scale * self.rod.length;
+        if balance.is_finite() && balance <= self.opts.energy_tol * scale + floor {
+            return Ok(());
+        }
+        let hint = match self.opts.scheme {
+            Scheme::Midpoint => "the midpoint rule has no numerical damping, and unresolved modes can feed a large motion through the nonlinearity: use scheme 'bdf-alpha' (alpha -0.45 to 0), a smaller dt or adaptive stepping (error_tol)",
+            Scheme::BdfAlpha if self.opts.alpha < -0.45 => "alpha = -0.5 (the trapezoidal rule) has no numerical damping, and unresolved modes can feed a large motion through the nonlinearity: use alpha -0.45 to 0, a smaller dt or adaptive stepping (error_tol)",
+            Scheme::BdfAlpha => "use a smaller dt or adaptive stepping (error_tol), alpha closer to 0 (more numerical damping), or a tighter tol",
+        };
+        Err(SoftrodError::InvalidState {
+            rule: validity::Rule::EnergyBalance,
+            node: None,
+            s: f64::NAN,
+            time: Some(t),
+            value: balance,
+            message: format!(
+                "the energy balance E - E(0) - W_in + D grew to {balance:.4e} J, {:.3} % of the {scale:.4e} J moved, beyond energy_tol = {} (step {}, time step {h:.3e} s): energy may not appear without input; the time integration is unstable or too coarse here: {hint}",
+                100.0 * balance / scale.max(1e-300),
+                self.opts.energy_tol,
+                self.stats.steps + 1
+            ),
+        })
+    }
+
+    fn commit(&mut self, c: Candidate) {
+        self.past
+            .insert(0, (self.time + c.h, c.eval.node_r.clone()));
+        self.past.truncate(3);
+        self.time += c.h;
+        self.h_prev = c.h;
+        self.pressures = c.pressures;
+        self.sigma = c.sigma;
+        self.z_prev2 = std::mem::replace(&mut self.z_prev, std::mem::replace(&mut self.z, c.z));
+        self.slots = c.slots;
+        self.models = c.models;
+        self.eval = c.eval;
+        self.books = c.books;
+        self.step_tip = (self.tip_force, self.tip_moment);
+        self.stats.internal_steps += 1;
     }
 
     pub fn time(&self) -> f64 {
         self.time
     }
 
-    /// The next step's scaled shooting residual and its exact Jacobian at unknowns `x`, at
-    /// the current pressures (for tests against finite differences).
-    pub fn step_residual_and_jacobian(&self, x: &[f64; 6]) -> ([f64; 6], [[f64; 6]; 6]) {
-        let bdf = self.bdf;
+    /// The collocation problem of a step of length dt from the current state at the
+    /// current pressures: its full residual at physical unknowns `z` (layout of
+    /// `unknowns`) and the dense exact Jacobian with respect to z (for tests against
+    /// finite differences).
+    pub fn step_residual_and_jacobian(&self, z: &[f64]) -> (Vec<f64>, Vec<Vec<f64>>) {
+        let bdf = Bdf::new(self.opts.alpha_eff(), self.opts.dt, self.h_prev);
+        let models = self.models_at(&self.pressures, &self.sigma, bdf.c0);
         let hist: Vec<[f64; FIELDS]> = self
             .slots
             .iter()
@@ -913,21 +1440,28 @@ impl Simulator {
                 std::array::from_fn(|k| bdf.c1 * s.x1[k] + bdf.c2 * s.x2[k] + bdf.d1 * s.xt[k])
             })
             .collect();
-        let mut p = step_problem(&self.rod, &self.inertia, &self.pressures, bdf.c0);
-        p.tip.force = self.tip_force;
-        p.tip.moment = self.tip_moment;
-        let (r, _) = p.eval(&hist, x, None);
-        let j = p.jacobian(&hist, x);
-        (
-            r,
-            std::array::from_fn(|i| std::array::from_fn(|k| j[(i, k)])),
-        )
+        let tip = self.tip_body(self.tip_force, self.tip_moment);
+        let p = Problem::new(&self.rod, &self.grid, &models, bdf.c0, &hist, tip);
+        let zs = to_scaled(&p, z);
+        let n = zs.len();
+        let mut r = vec![0.0; n];
+        p.residual(&zs, &mut r, None);
+        let jac = p.dense_jacobian(&zs);
+        // Back to physical unknowns: dr/dz_phys = dr/dz_scaled / scale.
+        let sc = unknown_scales(&p, n);
+        let j: Vec<Vec<f64>> = jac
+            .iter()
+            .map(|row| row.iter().zip(&sc).map(|(a, s)| a / s).collect())
+            .collect();
+        (r, j)
     }
 
-    /// The scaled shooting unknowns of the last step (n(0)/F_s, m(0)/(F_s L)).
-    pub fn unknowns(&self) -> [f64; 6] {
-        self.x
+    /// The physical unknowns now (base force and moment, then per interval its two
+    /// stages and its end node: quaternion, n, m, q, w).
+    pub fn unknowns(&self) -> &[f64] {
+        &self.z
     }
+
     /// Change the dead tip force and moment (world, N and N m) from the next step on.
     pub fn set_tip_loads(&mut self, force: [f64; 3], moment: [f64; 3]) -> Result<()> {
         for (name, v) in [("tip_force", &force), ("tip_moment", &moment)] {
@@ -948,245 +1482,585 @@ impl Simulator {
     pub fn dt(&self) -> f64 {
         self.opts.dt
     }
+    pub fn options(&self) -> &DynOptions {
+        &self.opts
+    }
     pub fn rod(&self) -> &Rod {
         &self.rod
+    }
+    pub fn grid(&self) -> &Grid {
+        &self.grid
     }
     /// Chamber pressures now, Pa.
     pub fn pressures(&self) -> &[f64] {
         &self.pressures
     }
-    /// State at the tip now.
-    pub fn tip(&self) -> &DynState<f64> {
-        &self.tip
+    /// The stiffness scale sigma now.
+    pub fn sigma(&self) -> [f64; 3] {
+        self.sigma
+    }
+    /// Dead tip force and moment now (world).
+    pub fn tip_loads(&self) -> ([f64; 3], [f64; 3]) {
+        (self.tip_force, self.tip_moment)
+    }
+    /// Tip position (m), rotation and body-frame velocities (m/s, rad/s) now.
+    pub fn tip(&self) -> TipState {
+        let y = self.eval.nodes.last().expect("tip node");
+        TipState {
+            r: *self.eval.node_r.last().expect("tip node"),
+            rot: collocation::rotation(&y[..4]),
+            q: [y[10], y[11], y[12]],
+            w: [y[13], y[14], y[15]],
+        }
     }
     /// Tip velocity in the world frame, m/s.
     pub fn tip_velocity(&self) -> [f64; 3] {
-        rot_mul(&self.tip.rot, &self.tip.q)
+        let t = self.tip();
+        mat_vec(&t.rot, &t.q)
     }
     /// Base force and moment (world), N and N m.
     pub fn base_wrench(&self) -> ([f64; 3], [f64; 3]) {
-        let fs = self.rod.force_scale;
-        let ms = fs * self.rod.length;
         (
-            [self.x[0] * fs, self.x[1] * fs, self.x[2] * fs],
-            [self.x[3] * ms, self.x[4] * ms, self.x[5] * ms],
+            [self.z[0], self.z[1], self.z[2]],
+            [self.z[3], self.z[4], self.z[5]],
         )
     }
-    /// Centreline at every node now: arc lengths (m) and positions (m, world).
-    pub fn shape(&self) -> (&[f64], &[[f64; 3]]) {
-        (&self.record.node_s, &self.record.nodes)
+    /// Arc lengths of the nodes, m.
+    pub fn node_s(&self) -> Vec<f64> {
+        (0..=self.grid.len()).map(|j| self.grid.node_s(j)).collect()
+    }
+    /// Centreline at every node now (m, world).
+    pub fn shape(&self) -> &[[f64; 3]] {
+        &self.eval.node_r
+    }
+    /// Node states now: quaternion, n, m, q, w.
+    pub fn nodes(&self) -> &[[f64; NY]] {
+        &self.eval.nodes
+    }
+    /// Stage fields (v, u, q, w) now.
+    pub fn fields(&self) -> &[[f64; FIELDS]] {
+        &self.eval.fields
     }
 
-    /// Total mechanical energy now, J: kinetic (translation and rotation), elastic about the
-    /// pressure-shifted stress-free strains, gravitational, the tip body's kinetic and
-    /// potential energy and the potential -F.r_tip of a dead tip force. With constant
-    /// pressures and loads it can only decrease (Kelvin-Voigt damping dissipates). Each
-    /// section is integrated with the RK4 weights over its stage points.
+    /// Energies now and the cumulative exchanges since t = 0, J.
+    pub fn energy_books(&self) -> Energy {
+        self.books.now
+    }
+
+    /// Total mechanical energy now, J (kinetic + elastic + potential).
     pub fn energy(&self) -> f64 {
-        let g = self.rod.gravity;
-        let mut e = 0.0;
-        let mut slot = 0;
-        for (sec, c) in self.rod.sections.iter().zip(&self.coeffs) {
-            let h = sec.length / sec.steps as f64;
-            for _ in 0..sec.steps {
-                for (j, w) in [1.0, 2.0, 2.0, 1.0].iter().enumerate() {
-                    let f = &self.record.fields[slot + j];
-                    let r = &self.record.position[slot + j];
-                    let (v, u, q, om) = (&f[0..3], &f[3..6], &f[6..9], &f[9..12]);
-                    let mut d = 0.5 * c.rho_a * (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
-                    d += 0.5 * (0..3).map(|k| c.rho_j[k] * om[k] * om[k]).sum::<f64>();
-                    d -= c.rho_a * (g[0] * r[0] + g[1] * r[1] + g[2] * r[2]);
-                    if !c.rigid {
-                        let dv: [f64; 3] = std::array::from_fn(|k| v[k] - c.v_p[k]);
-                        let du: [f64; 3] = std::array::from_fn(|k| u[k] - c.u_p[k]);
-                        d += 0.5 * (0..3).map(|k| c.k_se[k] * dv[k] * dv[k]).sum::<f64>();
-                        for a in 0..3 {
-                            for b in 0..3 {
-                                d += 0.5 * du[a] * c.k_bt[a][b] * du[b];
-                            }
-                        }
-                    }
-                    e += w * h / 6.0 * d;
-                }
-                slot += 4;
-            }
+        self.books.now.total()
+    }
+
+    /// The energy balance E - E(0) - W_in + D now (zero for the exact motion), J.
+    pub fn energy_balance(&self) -> f64 {
+        self.books.balance()
+    }
+}
+
+/// Layout version of [`Simulator::save`].
+const STATE_VERSION: f64 = 2.0;
+/// First number of a saved state ("softrod" in a number; guards against foreign arrays).
+const STATE_MAGIC: f64 = 50_770_213.0;
+
+/// Writes a state as a flat list of numbers (counts as exact integers).
+struct Writer(Vec<f64>);
+
+impl Writer {
+    fn f(&mut self, x: f64) {
+        self.0.push(x);
+    }
+    fn n(&mut self, k: usize) {
+        self.0.push(k as f64);
+    }
+    fn all(&mut self, xs: &[f64]) {
+        self.0.extend_from_slice(xs);
+    }
+    fn vec(&mut self, xs: &[f64]) {
+        self.n(xs.len());
+        self.all(xs);
+    }
+    fn arrays<const K: usize>(&mut self, xs: &[[f64; K]]) {
+        self.n(xs.len());
+        for x in xs {
+            self.all(x);
         }
-        let t = &self.rod.spec.tip;
-        let y = &self.tip;
-        let wxc = cross(&y.w, &t.com_offset);
-        let vc: [f64; 3] = std::array::from_fn(|k| y.q[k] + wxc[k]);
-        let cw = rot_mul(&y.rot, &t.com_offset);
-        e += 0.5 * t.mass * (vc[0] * vc[0] + vc[1] * vc[1] + vc[2] * vc[2]);
-        e += 0.5 * (0..3).map(|k| t.inertia[k] * y.w[k] * y.w[k]).sum::<f64>();
-        e -= t.mass * (0..3).map(|k| g[k] * (y.r[k] + cw[k])).sum::<f64>();
-        e -= (0..3).map(|k| self.tip_force[k] * y.r[k]).sum::<f64>();
-        e
     }
 }
 
-fn rename_pressure_error(e: SoftrodError, name: &str) -> SoftrodError {
-    match e {
-        SoftrodError::InvalidParameter { field, value, rule } => SoftrodError::InvalidParameter {
-            field: field.replacen("pressures", name, 1),
-            value,
-            rule,
-        },
-        other => other,
+/// Reads what [`Writer`] wrote, checking every count against what is left.
+struct Reader<'a> {
+    data: &'a [f64],
+    pos: usize,
+}
+
+fn bad_state(rule: impl Into<String>) -> SoftrodError {
+    SoftrodError::invalid("state", "(saved state)", rule)
+}
+
+impl Reader<'_> {
+    fn f(&mut self) -> Result<f64> {
+        let x = *self
+            .data
+            .get(self.pos)
+            .ok_or_else(|| bad_state("is truncated: not a state saved by Simulator::save"))?;
+        self.pos += 1;
+        Ok(x)
+    }
+    fn n(&mut self) -> Result<usize> {
+        let x = self.f()?;
+        let left = (self.data.len() - self.pos) as f64;
+        if !(x >= 0.0 && x.fract() == 0.0 && x <= left.max(64.0)) {
+            return Err(bad_state(
+                "holds an invalid count: not a state saved by Simulator::save",
+            ));
+        }
+        Ok(x as usize)
+    }
+    fn take(&mut self, k: usize) -> Result<&[f64]> {
+        if self.pos + k > self.data.len() {
+            return Err(bad_state(
+                "is truncated: not a state saved by Simulator::save",
+            ));
+        }
+        let out = &self.data[self.pos..self.pos + k];
+        self.pos += k;
+        Ok(out)
+    }
+    fn fixed<const K: usize>(&mut self) -> Result<[f64; K]> {
+        let t = self.take(K)?;
+        Ok(std::array::from_fn(|i| t[i]))
+    }
+    fn vec(&mut self) -> Result<Vec<f64>> {
+        let k = self.n()?;
+        Ok(self.take(k)?.to_vec())
+    }
+    fn arrays<const K: usize>(&mut self) -> Result<Vec<[f64; K]>> {
+        let k = self.n()?;
+        let t = self.take(k * K)?;
+        Ok(t.chunks_exact(K)
+            .map(|c| std::array::from_fn(|i| c[i]))
+            .collect())
     }
 }
 
-type Lu6 = nalgebra::LU<f64, nalgebra::Const<6>, nalgebra::Const<6>>;
-type Solved = std::result::Result<([f64; 6], DynState<f64>, Option<Lu6>), (usize, f64)>;
-
-/// One time step's equations with its inputs (pressures, tip loads) a fraction `lam` of
-/// the way from the last step's values to the new ones.
-struct Level<'a> {
-    rod: &'a Rod,
-    inertia: &'a [SectionInertia],
-    c0: f64,
-    hist: &'a [[f64; FIELDS]],
-    opts: &'a DynOptions,
-    from: (&'a [f64], ([f64; 3], [f64; 3])),
-    to: (&'a [f64], ([f64; 3], [f64; 3])),
-}
-
-impl Level<'_> {
-    fn solve(
-        &self,
-        lam: f64,
-        x0: [f64; 6],
-        jac: Option<Lu6>,
-        rec: &mut Record,
-        stats: &mut DynStats,
-    ) -> Solved {
-        let mix = |a: f64, b: f64| a + lam * (b - a);
-        let p: Vec<f64> = self
-            .from
-            .0
+impl Simulator {
+    /// The complete dynamic state as a flat list of numbers: time, inputs, collocation
+    /// unknowns, histories, energy books, counters and what the kept Newton matrix was
+    /// computed from. [`Simulator::restore`] continues from it bit for bit.
+    pub fn save(&self) -> Vec<f64> {
+        let mut w = Writer(Vec::new());
+        w.f(STATE_MAGIC);
+        w.f(STATE_VERSION);
+        w.n(self.grid.len());
+        w.n(self.rod.n_channels);
+        w.f(self.time);
+        w.f(self.h_prev);
+        w.f(self.h_next);
+        w.vec(&self.pressures);
+        w.all(&self.sigma);
+        w.all(&self.tip_force);
+        w.all(&self.tip_moment);
+        w.all(&self.step_tip.0);
+        w.all(&self.step_tip.1);
+        w.vec(&self.z);
+        w.vec(&self.z_prev);
+        w.vec(&self.z_prev2);
+        w.n(self.slots.len());
+        for sl in &self.slots {
+            w.all(&sl.x1);
+            w.all(&sl.x2);
+            w.all(&sl.xt);
+        }
+        w.arrays(&self.eval.nodes);
+        w.arrays(&self.eval.node_r);
+        w.arrays(&self.eval.fields);
+        w.arrays(&self.eval.stage_r);
+        let rot: Vec<[f64; 9]> = self
+            .eval
+            .stage_rot
             .iter()
-            .zip(self.to.0)
-            .map(|(a, b)| mix(*a, *b))
+            .map(|r| std::array::from_fn(|k| r[k / 3][k % 3]))
             .collect();
-        let mut sp = step_problem(self.rod, self.inertia, &p, self.c0);
-        let ((f0, m0), (f1, m1)) = (self.from.1, self.to.1);
-        sp.tip.force = std::array::from_fn(|k| mix(f0[k], f1[k]));
-        sp.tip.moment = std::array::from_fn(|k| mix(m0[k], m1[k]));
-        newton(&sp, self.hist, x0, jac, self.opts, rec, stats)
-    }
-
-    /// Continuation in the ramp parameter from 0 (solved from the last step's unknowns)
-    /// to 1, halving the increment on failure down to 1/1024.
-    fn ramp(&self, x_last: [f64; 6], rec: &mut Record, stats: &mut DynStats) -> Solved {
-        let (mut x, _, _) = self.solve(0.0, x_last, None, rec, stats)?;
-        let (mut lam, mut dlam): (f64, f64) = (0.0, 0.25);
-        loop {
-            let target = (lam + dlam).min(1.0);
-            match self.solve(target, x, None, rec, stats) {
-                Ok(done) if target >= 1.0 => return Ok(done),
-                Ok((xn, _, _)) => {
-                    x = xn;
-                    lam = target;
-                    dlam = (dlam * 1.5).min(0.5);
-                }
-                Err(e) => {
-                    dlam *= 0.5;
-                    if dlam < 1.0 / 1024.0 {
-                        return Err(e);
-                    }
-                }
+        w.arrays(&rot);
+        w.n(self.past.len());
+        for (t, r) in &self.past {
+            w.f(*t);
+            w.arrays(r);
+        }
+        let b = &self.books;
+        w.all(&[
+            b.now.kinetic,
+            b.now.elastic,
+            b.now.potential,
+            b.now.work_in,
+            b.now.dissipated,
+            b.e0,
+            b.elastic0,
+            b.potential0,
+            b.max_kinetic,
+            b.max_elastic,
+            b.max_potential,
+            b.moved_in,
+        ]);
+        w.all(&b.rates);
+        w.f(self.theta);
+        let st = &self.stats;
+        for c in [
+            st.steps,
+            st.internal_steps,
+            st.rejected,
+            st.newton_iterations,
+            st.jacobians,
+        ] {
+            w.n(c);
+        }
+        match &self.cache {
+            None => w.f(0.0),
+            Some(c) => {
+                w.f(1.0);
+                w.vec(&c.key.at);
+                w.vec(&c.key.pressures);
+                w.all(&c.key.sigma);
+                w.f(c.key.c0);
+                w.arrays(&c.key.hist);
             }
         }
+        w.0
+    }
+
+    /// Continue from a state saved by [`Simulator::save`] of a simulation of the same rod
+    /// (same intervals and channels). With the same options the run continues bit for bit
+    /// as the one it was saved from; the kept Newton matrix is recomputed from what it was
+    /// computed from.
+    pub fn restore(&mut self, data: &[f64]) -> Result<()> {
+        let mut r = Reader { data, pos: 0 };
+        if r.f()? != STATE_MAGIC {
+            return Err(bad_state("is not a state saved by Simulator::save"));
+        }
+        let version = r.f()?;
+        if version != STATE_VERSION {
+            return Err(bad_state(format!(
+                "has layout version {version}; this softrod reads version {STATE_VERSION}"
+            )));
+        }
+        let (n_int, nc) = (r.n()?, r.n()?);
+        if n_int != self.grid.len() || nc != self.rod.n_channels {
+            return Err(bad_state(format!(
+                "was saved from a rod with {n_int} intervals and {nc} channels; this simulation has {} and {}",
+                self.grid.len(),
+                self.rod.n_channels
+            )));
+        }
+        let mut next = self.clone();
+        next.time = r.f()?;
+        next.h_prev = r.f()?;
+        next.h_next = r.f()?;
+        next.pressures = r.vec()?;
+        next.sigma = r.fixed()?;
+        next.tip_force = r.fixed()?;
+        next.tip_moment = r.fixed()?;
+        next.step_tip = (r.fixed()?, r.fixed()?);
+        next.z = r.vec()?;
+        next.z_prev = r.vec()?;
+        next.z_prev2 = r.vec()?;
+        let n_slots = r.n()?;
+        if n_slots != self.slots.len() || next.z.len() != self.z.len() {
+            return Err(bad_state("does not match this simulation's discretisation"));
+        }
+        next.slots = (0..n_slots)
+            .map(|_| -> Result<Slot> {
+                Ok(Slot {
+                    x1: r.fixed()?,
+                    x2: r.fixed()?,
+                    xt: r.fixed()?,
+                })
+            })
+            .collect::<Result<_>>()?;
+        next.eval = Evaluated {
+            nodes: r.arrays()?,
+            node_r: r.arrays()?,
+            fields: r.arrays()?,
+            stage_r: r.arrays()?,
+            stage_rot: r
+                .arrays::<9>()?
+                .iter()
+                .map(|a| std::array::from_fn(|i| std::array::from_fn(|j| a[3 * i + j])))
+                .collect(),
+        };
+        let n_past = r.n()?;
+        next.past = (0..n_past)
+            .map(|_| -> Result<(f64, Vec<[f64; 3]>)> { Ok((r.f()?, r.arrays()?)) })
+            .collect::<Result<_>>()?;
+        let b: [f64; 12] = r.fixed()?;
+        next.books = Books {
+            now: Energy {
+                kinetic: b[0],
+                elastic: b[1],
+                potential: b[2],
+                work_in: b[3],
+                dissipated: b[4],
+            },
+            e0: b[5],
+            elastic0: b[6],
+            potential0: b[7],
+            max_kinetic: b[8],
+            max_elastic: b[9],
+            max_potential: b[10],
+            moved_in: b[11],
+            rates: r.fixed()?,
+        };
+        next.theta = r.f()?;
+        next.stats = DynStats {
+            steps: r.n()?,
+            internal_steps: r.n()?,
+            rejected: r.n()?,
+            newton_iterations: r.n()?,
+            jacobians: r.n()?,
+        };
+        next.cache = None;
+        if r.f()? == 1.0 {
+            let key = JacKey {
+                at: r.vec()?,
+                pressures: r.vec()?,
+                sigma: r.fixed()?,
+                c0: r.f()?,
+                hist: r.arrays()?,
+            };
+            if key.at.len() != self.z.len()
+                || key.pressures.len() != nc
+                || key.hist.len() != n_slots
+            {
+                return Err(bad_state("does not match this simulation's discretisation"));
+            }
+            let models = next.models_at(&key.pressures, &key.sigma, key.c0);
+            let tip = next.tip_body(next.tip_force, next.tip_moment);
+            let p = Problem::new(&next.rod, &next.grid, &models, key.c0, &key.hist, tip);
+            if let Some(fac) = p.factorize(&key.at) {
+                next.cache = Some(Cached { fac, key });
+            }
+        }
+        if r.pos != data.len() {
+            return Err(bad_state(
+                "has trailing numbers: not a state saved by Simulator::save",
+            ));
+        }
+        if next.eval.nodes.len() != n_int + 1
+            || next.eval.fields.len() != 2 * n_int
+            || next.eval.stage_rot.len() != 2 * n_int
+        {
+            return Err(bad_state("does not match this simulation's discretisation"));
+        }
+        next.models = next.models_at(&next.pressures, &next.sigma, 0.0);
+        *self = next;
+        Ok(())
     }
 }
 
-/// Newton on the six base unknowns from `x0`. A Jacobian from the previous step is reused
-/// while it contracts the residual by at least `REUSE_CONTRACTION` per iteration (the
-/// exact one is recomputed otherwise). The record holds the last (accepted) evaluation.
-fn newton(
-    p: &StepProblem,
-    hist: &[[f64; FIELDS]],
-    x0: [f64; 6],
-    jac: Option<Lu6>,
-    opts: &DynOptions,
-    rec: &mut Record,
-    stats: &mut DynStats,
-) -> Solved {
-    const REUSE_CONTRACTION: f64 = 0.2;
-    let mut x = x0;
-    let (mut r, mut tip) = p.eval(hist, &x, Some(rec));
-    let mut norm = inf_norm(&r);
-    let mut lu = jac;
-    let mut fresh = false;
-    for it in 0..opts.max_iter {
-        stats.newton_iterations += 1;
-        let scale = inf_norm(&x).max(1.0);
-        if norm <= opts.tol * scale {
-            return Ok((x, tip, lu));
+/// Tip state of a simulation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TipState {
+    pub r: [f64; 3],
+    pub rot: [[f64; 3]; 3],
+    pub q: [f64; 3],
+    pub w: [f64; 3],
+}
+
+/// The stored energy density of a section's law at strains (v, u), J/m, such that its
+/// gradient is the total internal force and moment in the body frame (see `Energy`).
+fn elastic_density(m: &SectionModel, v: &[f64; 3], u: &[f64; 3]) -> f64 {
+    let p = m.p_force;
+    let mut e = match &m.axial {
+        collocation::Axial::Linear { .. } => (0..3)
+            .map(|k| 0.5 * m.k_se[k] * (v[k] - m.v_p[k]).powi(2))
+            .sum::<f64>(),
+        collocation::Axial::Ogden { k_e, alpha, k_s } => {
+            let lam = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            ogden_energy(*k_e, *alpha, lam) + 0.5 * k_s * (v[0] * v[0] + v[1] * v[1])
+                - p * (v[2] - 1.0)
         }
-        if !norm.is_finite() && fresh {
-            return Err((it + 1, norm));
+        collocation::Axial::Table { table, scale, .. } => {
+            0.5 * (m.k_se[0] * v[0] * v[0] + m.k_se[1] * v[1] * v[1])
+                + table_energy(table, *scale, v[2])
+                - p * (v[2] - 1.0)
         }
-        if lu.is_none() {
-            lu = Some(p.jacobian(hist, &x).lu());
-            stats.jacobians += 1;
-            fresh = true;
+    };
+    // Bending and torsion: (1/2) u K u - M_p . u, K times v3 in the bending block with
+    // stretch-dependent bending (M_p = K u_p, the pressure moment).
+    let sb = if m.stretch_bending { v[2] } else { 1.0 };
+    for a in 0..3 {
+        for b in 0..3 {
+            let w = if a < 2 && b < 2 { sb } else { 1.0 };
+            e += 0.5 * u[a] * w * m.k_bt[a][b] * u[b];
         }
-        let rv = Vec6::from_column_slice(&r);
-        let step = lu
-            .as_ref()
-            .and_then(|l| l.solve(&(-rv)))
-            .filter(|d| d.iter().all(|v| v.is_finite()));
-        let Some(step) = step else {
-            if fresh {
-                return Err((it + 1, norm));
-            }
-            lu = None;
-            continue;
-        };
-        let mut alpha = 1.0;
-        let mut accepted = false;
-        while alpha >= 1.0 / 256.0 {
-            let xt: [f64; 6] = std::array::from_fn(|i| x[i] + alpha * step[i]);
-            let (rt, tipt) = p.eval(hist, &xt, Some(rec));
-            let nt = inf_norm(&rt);
-            if nt.is_finite() && nt < (1.0 - 1e-4 * alpha) * norm {
-                let contraction = nt / norm;
-                x = xt;
-                r = rt;
-                tip = tipt;
-                norm = nt;
-                accepted = true;
-                if contraction > REUSE_CONTRACTION {
-                    lu = None; // refresh next iteration
-                }
-                fresh = false;
-                break;
-            }
-            if !fresh {
-                break; // a stale Jacobian: refresh and retry the full step
-            }
-            alpha *= 0.5;
-        }
-        if !accepted {
-            if fresh {
-                // Converged to round-off already?
-                if norm <= 100.0 * opts.tol * scale {
-                    // The record must hold x's evaluation (the trials overwrote it).
-                    let (_, t) = p.eval(hist, &x, Some(rec));
-                    return Ok((x, t, lu));
-                }
-                return Err((it + 1, norm));
-            }
-            lu = None;
-            // Re-evaluate at x so the record matches it.
-            let (rr, t) = p.eval(hist, &x, Some(rec));
-            r = rr;
-            tip = t;
+        e -= m.g_bt[a] * u[a];
+    }
+    if matches!(m.axial, collocation::Axial::Linear { .. }) && !m.stretch_bending {
+        // Complete the square so that the linear law's energy is (1/2)(u - u_p) K (u - u_p).
+        e += 0.5 * (0..3).map(|a| m.g_bt[a] * m.u_p[a]).sum::<f64>();
+    }
+    e
+}
+
+/// Energy of the EA(F) table law at stretch v3: W = F (v3 - 1) - int_0^F f / (s EA(f)) df
+/// with F the elastic force at v3 (Newton on v3 = 1 + F / (s EA(F))), the integral by
+/// 8-point Gauss-Legendre on each stretch of [0, F] between table knots (smooth there).
+fn table_energy(table: &crate::law::AxialTable, s: f64, v3: f64) -> f64 {
+    use crate::jet::Jet;
+    let target = v3 - 1.0;
+    let mut f = target * s * table.eval(0.0);
+    for _ in 0..60 {
+        let j = table.eval(Jet::<1>::variable(f, 0));
+        let g = f / (s * j.re) - target;
+        let dg = (j.re - f * j.eps[0]) / (s * j.re * j.re);
+        let step = g / dg;
+        f -= step;
+        if step.abs() <= 1e-15 * (1.0 + f.abs()) {
+            break;
         }
     }
-    if norm <= opts.tol * inf_norm(&x).max(1.0) {
-        Ok((x, tip, lu))
-    } else {
-        Err((opts.max_iter, norm))
+    const X: [f64; 8] = [
+        -0.960_289_856_497_536_3,
+        -0.796_666_477_413_626_7,
+        -0.525_532_409_916_329,
+        -0.183_434_642_495_649_8,
+        0.183_434_642_495_649_8,
+        0.525_532_409_916_329,
+        0.796_666_477_413_626_7,
+        0.960_289_856_497_536_3,
+    ];
+    const W: [f64; 8] = [
+        0.101_228_536_290_376_3,
+        0.222_381_034_453_374_5,
+        0.313_706_645_877_887_3,
+        0.362_683_783_378_362,
+        0.362_683_783_378_362,
+        0.313_706_645_877_887_3,
+        0.222_381_034_453_374_5,
+        0.101_228_536_290_376_3,
+    ];
+    let mut cuts = vec![0.0, f];
+    for &k in table.knots() {
+        if (k > 0.0 && k < f) || (k < 0.0 && k > f) {
+            cuts.push(k);
+        }
+    }
+    cuts.sort_by(|a, b| a.partial_cmp(b).expect("finite"));
+    let mut integral = 0.0;
+    for w in cuts.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let (mid, half) = (0.5 * (a + b), 0.5 * (b - a));
+        for (x, wt) in X.iter().zip(&W) {
+            let ff = mid + half * x;
+            integral += half * wt * ff / (s * table.eval(ff));
+        }
+    }
+    if f < 0.0 {
+        // The cuts were sorted ascending: the integral from 0 to f < 0 is minus that.
+        integral = -integral;
+    }
+    f * target - integral
+}
+
+/// An initial guess of the static collocation problem from a shooting solution: its node
+/// states (the grids share their nodes), with quaternion signs kept continuous.
+fn static_guess(rod: &Rod, p: &Problem, loads: &Loads, sol: &statics::Solution) -> Vec<f64> {
+    let shape = statics::shape(rod, loads, sol);
+    let mut nodes: Vec<[f64; NY]> = Vec::with_capacity(shape.s.len());
+    let mut last = p.base_q;
+    for k in 0..shape.s.len() {
+        let mut q = collocation::quaternion(&shape.rotation[k]);
+        if (0..4).map(|a| q[a] * last[a]).sum::<f64>() < 0.0 {
+            q = q.map(|x| -x);
+        }
+        last = q;
+        let mut y = [0.0; NY];
+        y[..4].copy_from_slice(&q);
+        y[4..7].copy_from_slice(&shape.force[k]);
+        y[7..10].copy_from_slice(&shape.moment[k]);
+        nodes.push(y);
+    }
+    if nodes.len() != p.grid.len() + 1 {
+        return p.straight_unknowns();
+    }
+    p.unknowns_from_nodes(&nodes)
+}
+
+/// Scale of every unknown of a problem (base unknowns, then point blocks).
+fn unknown_scales(p: &Problem, n: usize) -> Vec<f64> {
+    let mut s = vec![0.0; n];
+    for k in 0..3 {
+        s[k] = p.fs;
+        s[3 + k] = p.ms;
+    }
+    for (o, v) in s.iter_mut().enumerate().skip(6) {
+        *v = p.scale[(o - 6) % 16];
+    }
+    s
+}
+
+fn to_scaled(p: &Problem, z: &[f64]) -> Vec<f64> {
+    let s = unknown_scales(p, z.len());
+    z.iter().zip(&s).map(|(a, b)| a / b).collect()
+}
+
+fn to_physical(p: &Problem, z: &[f64]) -> Vec<f64> {
+    let s = unknown_scales(p, z.len());
+    z.iter().zip(&s).map(|(a, b)| a * b).collect()
+}
+
+#[inline(always)]
+fn cross(a: &[f64; 3], b: &[f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[inline(always)]
+fn mat_t_vec(r: &[[f64; 3]; 3], x: &[f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| r[0][i] * x[0] + r[1][i] * x[1] + r[2][i] * x[2])
+}
+
+#[inline(always)]
+fn mat_vec(r: &[[f64; 3]; 3], x: &[f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The variable-step coefficients reduce to Till et al.'s constant-step ones, and are
+    /// exact for quadratics at any step ratio.
+    #[test]
+    fn bdf_alpha_coefficients() {
+        for alpha in [-0.4, -0.2, 0.0] {
+            let dt = 0.01;
+            let b = Bdf::new(alpha, dt, dt);
+            assert!((b.c0 - (1.5 + alpha) / (dt * (1.0 + alpha))).abs() < 1e-10);
+            assert!((b.c1 + 2.0 / dt).abs() < 1e-10);
+            assert!((b.c2 - (0.5 + alpha) / (dt * (1.0 + alpha))).abs() < 1e-10);
+            assert!((b.d1 - alpha / (1.0 + alpha)).abs() < 1e-14);
+            for ratio in [0.5, 1.0, 1.7] {
+                let (h, hp) = (dt, dt / ratio);
+                let b = Bdf::new(alpha, h, hp);
+                // y = t^2 + 3t, t_{n+1} = 0: y'(0) = 3 from y(0), y(-h), y(-h-hp), y'(-h).
+                let y = |t: f64| t * t + 3.0 * t;
+                let yt = |t: f64| 2.0 * t + 3.0;
+                let got = b.c0 * y(0.0) + b.c1 * y(-h) + b.c2 * y(-h - hp) + b.d1 * yt(-h);
+                assert!(
+                    (got - 3.0).abs() < 1e-9,
+                    "alpha {alpha}, ratio {ratio}: {got}"
+                );
+            }
+        }
+        let t = Bdf::new(-0.5, 0.01, 0.02);
+        assert_eq!((t.c0, t.c1, t.c2, t.d1), (200.0, -200.0, 0.0, -1.0));
+        // Error constants: trapezoidal 1/12, BDF2 2/9 (times h^3).
+        let h = 0.01;
+        assert!((Bdf::new(-0.5, h, h).error_constant(h, h) / h.powi(3) - 1.0 / 12.0).abs() < 1e-9);
+        assert!((Bdf::new(0.0, h, h).error_constant(h, h) / h.powi(3) - 2.0 / 9.0).abs() < 1e-9);
     }
 }

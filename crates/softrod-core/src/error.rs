@@ -31,7 +31,7 @@ pub enum SoftrodError {
     /// offending number.
     #[error("{}{}rule {}: {message}", .time.map_or(String::new(), |t| format!("at t = {t} s, ")), .node.map_or(String::new(), |n| format!("node {n} (s = {s:.6} m), ")), .rule.name())]
     InvalidState {
-        rule: crate::validity::Rule,
+        rule: Rule,
         node: Option<usize>,
         s: f64,
         time: Option<f64>,
@@ -82,3 +82,46 @@ impl SoftrodError {
 }
 
 pub type Result<T> = std::result::Result<T, SoftrodError>;
+
+/// The rule a state broke.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rule {
+    /// Every entry of the state is a finite number.
+    Finite,
+    /// R is a rotation: orthonormal to the rotation tolerance of the validity rules, det R > 0.
+    Rotation,
+    /// The centreline stretch v3 is positive (v3 <= 0: the rod is turned inside out).
+    PositiveStretch,
+    /// The centreline stretch v3 is at most the stretch limit of the validity rules (the material would have torn).
+    StretchLimit,
+    /// Every chamber's stretch is positive (its volume element has not vanished).
+    ChamberCollapse,
+    /// Fibre stretch across the section within the model's validity range.
+    StrainRange,
+    /// Pressures within the design's operating range.
+    OperatingRange,
+    /// A dynamic run's energy balance E - E(0) - W_in + D does not grow beyond the
+    /// integrator's tolerance (energy does not appear without input).
+    EnergyBalance,
+}
+
+impl Rule {
+    /// The rule's name in messages and in Python (`InvalidStateError.rule`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Rule::Finite => "finite_state",
+            Rule::Rotation => "rotation",
+            Rule::PositiveStretch => "positive_stretch",
+            Rule::StretchLimit => "stretch_limit",
+            Rule::ChamberCollapse => "chamber_collapse",
+            Rule::StrainRange => "strain_range",
+            Rule::OperatingRange => "operating_range",
+            Rule::EnergyBalance => "energy_balance",
+        }
+    }
+
+    /// A physical rule (always an error), as opposed to a validity range.
+    pub fn is_physical(self) -> bool {
+        !matches!(self, Rule::StrainRange | Rule::OperatingRange)
+    }
+}

@@ -101,6 +101,11 @@ impl GridPchip {
         })
     }
 
+    /// The grid's axes.
+    pub fn axes(&self) -> &[Vec<f64>] {
+        &self.axes
+    }
+
     pub fn dims(&self) -> usize {
         self.axes.len()
     }

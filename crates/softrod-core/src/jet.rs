@@ -1,136 +1,253 @@
-//! `Jet<N>`: a forward-mode dual number with exactly N derivative directions stored inline.
+//! The forward-mode dual number of the whole core, and the scalar interfaces the models are
+//! written for.
 //!
-//! num-dual's `DualSVec64<N>` keeps its derivative in an `Option` so that constants are cheap;
-//! on the shooting hot path every state entry carries all six derivatives, and the branches
-//! cost a factor of ~3 (measured by `examples/profile_solve.rs`). This type does the same
-//! arithmetic (value + first derivatives, exact) without them. It only implements what the
-//! rod ODE needs; `RodScalar` is the interface both types (and f64) satisfy.
+//! `Grad<D, N>`: a value and its gradient in exactly N directions, stored inline. The rod
+//! uses `Jet<N> = Grad<f64, N>` for its exact Jacobians; the PCC model nests it
+//! (`Grad<Grad<f64, N>, N>` carries the Hessian) and builds its time-path jet on it
+//! (`crate::pcc::jet`). num-dual's `DualSVec64<N>` keeps its derivative in an `Option` so
+//! that constants are cheap; on the shooting hot path every state entry carries all six
+//! derivatives, and the branches cost a factor of ~3 (measured by
+//! `examples/profile_solve.rs`). This type does the same arithmetic (value + first
+//! derivatives, exact) without them.
+//!
+//! `RodScalar` is what the rod ODE needs of a scalar, `Real` what the PCC kinematics need;
+//! f64, num-dual numbers and `Grad` satisfy both. `Coeff` and `StateScalar` name the two
+//! scalars of the rod ODE (coefficients and state).
 
-use std::ops::{Add, AddAssign, Div, Mul, Neg, Sub, SubAssign};
+use num_dual::DualNum;
+use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
 
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Jet<const N: usize> {
-    pub re: f64,
-    pub eps: [f64; N],
+/// A value and its gradient in N variables.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Grad<D, const N: usize> {
+    pub re: D,
+    pub eps: [D; N],
 }
 
-impl<const N: usize> Jet<N> {
-    /// The variable with index `i`: value `re`, derivative e_i.
-    pub fn variable(re: f64, i: usize) -> Self {
-        let mut eps = [0.0; N];
-        eps[i] = 1.0;
-        Jet { re, eps }
+impl<D: Real, const N: usize> Grad<D, N> {
+    /// A constant (zero gradient).
+    #[inline]
+    pub fn constant(re: D) -> Self {
+        Grad {
+            re,
+            eps: [D::from(0.0); N],
+        }
+    }
+
+    /// Variable number `i`: gradient e_i.
+    #[inline]
+    pub fn variable(re: D, i: usize) -> Self {
+        let mut g = Self::constant(re);
+        g.eps[i] = D::from(1.0);
+        g
+    }
+
+    /// f(self) given f and f' at the value.
+    #[inline]
+    fn chain(&self, f0: D, f1: D) -> Self {
+        Grad {
+            re: f0,
+            eps: self.eps.map(|e| e * f1),
+        }
     }
 }
 
-impl<const N: usize> From<f64> for Jet<N> {
-    #[inline(always)]
-    fn from(re: f64) -> Self {
-        Jet { re, eps: [0.0; N] }
+impl<D: Real, const N: usize> From<f64> for Grad<D, N> {
+    #[inline]
+    fn from(x: f64) -> Self {
+        Self::constant(D::from(x))
     }
 }
 
-impl<const N: usize> Add for Jet<N> {
+impl<D: Real, const N: usize> Add for Grad<D, N> {
     type Output = Self;
-    #[inline(always)]
+    #[inline]
     fn add(self, o: Self) -> Self {
-        Jet {
+        Grad {
             re: self.re + o.re,
             eps: std::array::from_fn(|i| self.eps[i] + o.eps[i]),
         }
     }
 }
 
-impl<const N: usize> Sub for Jet<N> {
+impl<D: Real, const N: usize> Sub for Grad<D, N> {
     type Output = Self;
-    #[inline(always)]
+    #[inline]
     fn sub(self, o: Self) -> Self {
-        Jet {
+        Grad {
             re: self.re - o.re,
             eps: std::array::from_fn(|i| self.eps[i] - o.eps[i]),
         }
     }
 }
 
-impl<const N: usize> Mul for Jet<N> {
+impl<D: Real, const N: usize> Mul for Grad<D, N> {
     type Output = Self;
-    // The product rule: the derivative part adds two products.
+    // The product rule adds.
     #[allow(clippy::suspicious_arithmetic_impl)]
-    #[inline(always)]
+    #[inline]
     fn mul(self, o: Self) -> Self {
-        Jet {
+        Grad {
             re: self.re * o.re,
-            eps: std::array::from_fn(|i| self.eps[i] * o.re + o.eps[i] * self.re),
+            eps: std::array::from_fn(|i| self.re * o.eps[i] + self.eps[i] * o.re),
         }
     }
 }
 
-impl<const N: usize> Neg for Jet<N> {
+impl<D: Real, const N: usize> Div for Grad<D, N> {
     type Output = Self;
-    #[inline(always)]
+    #[allow(clippy::suspicious_arithmetic_impl)]
+    #[inline]
+    fn div(self, o: Self) -> Self {
+        let inv = D::from(1.0) / o.re;
+        let re = self.re * inv;
+        Grad {
+            re,
+            eps: std::array::from_fn(|i| (self.eps[i] - re * o.eps[i]) * inv),
+        }
+    }
+}
+
+impl<D: Real, const N: usize> Neg for Grad<D, N> {
+    type Output = Self;
+    #[inline]
     fn neg(self) -> Self {
-        Jet {
+        Grad {
             re: -self.re,
             eps: self.eps.map(|e| -e),
         }
     }
 }
 
-impl<const N: usize> Add<f64> for Jet<N> {
+impl<D: Real, const N: usize> Add<f64> for Grad<D, N> {
     type Output = Self;
-    #[inline(always)]
-    fn add(self, o: f64) -> Self {
-        Jet {
-            re: self.re + o,
-            eps: self.eps,
-        }
+    #[inline]
+    fn add(mut self, o: f64) -> Self {
+        self.re = self.re + o;
+        self
     }
 }
 
-impl<const N: usize> Sub<f64> for Jet<N> {
+impl<D: Real, const N: usize> Sub<f64> for Grad<D, N> {
     type Output = Self;
-    #[inline(always)]
-    fn sub(self, o: f64) -> Self {
-        Jet {
-            re: self.re - o,
-            eps: self.eps,
-        }
+    #[inline]
+    fn sub(mut self, o: f64) -> Self {
+        self.re = self.re - o;
+        self
     }
 }
 
-impl<const N: usize> Mul<f64> for Jet<N> {
+impl<D: Real, const N: usize> Mul<f64> for Grad<D, N> {
     type Output = Self;
-    #[inline(always)]
+    #[inline]
     fn mul(self, o: f64) -> Self {
-        Jet {
+        Grad {
             re: self.re * o,
             eps: self.eps.map(|e| e * o),
         }
     }
 }
 
-impl<const N: usize> Div<f64> for Jet<N> {
+impl<D: Real, const N: usize> Div<f64> for Grad<D, N> {
     type Output = Self;
-    #[inline(always)]
+    #[inline]
     fn div(self, o: f64) -> Self {
-        Jet {
+        Grad {
             re: self.re / o,
             eps: self.eps.map(|e| e / o),
         }
     }
 }
 
-impl<const N: usize> AddAssign for Jet<N> {
-    #[inline(always)]
+impl<D: Real, const N: usize> AddAssign for Grad<D, N> {
+    #[inline]
     fn add_assign(&mut self, o: Self) {
         *self = *self + o;
     }
 }
 
-impl<const N: usize> SubAssign for Jet<N> {
-    #[inline(always)]
+impl<D: Real, const N: usize> SubAssign for Grad<D, N> {
+    #[inline]
     fn sub_assign(&mut self, o: Self) {
         *self = *self - o;
+    }
+}
+
+impl<D: Real, const N: usize> MulAssign<f64> for Grad<D, N> {
+    #[inline]
+    fn mul_assign(&mut self, o: f64) {
+        *self = *self * o;
+    }
+}
+
+impl<D: Real, const N: usize> Real for Grad<D, N> {
+    const NDERIV: usize = D::NDERIV + 1;
+    #[inline]
+    fn re(&self) -> f64 {
+        self.re.re()
+    }
+    #[inline]
+    fn sqrt(&self) -> Self {
+        let s = self.re.sqrt();
+        self.chain(s, D::from(0.5) / s)
+    }
+    #[inline]
+    fn sin(&self) -> Self {
+        self.chain(self.re.sin(), self.re.cos())
+    }
+    #[inline]
+    fn cos(&self) -> Self {
+        self.chain(self.re.cos(), -self.re.sin())
+    }
+}
+
+/// The rod's dual number: a value and N exact first derivatives, in f64.
+pub type Jet<const N: usize> = Grad<f64, N>;
+
+/// Scalars the PCC model is written for: f64, num-dual numbers and the model's own
+/// fixed-size jets (`super::jet`). Only what the kinematics and forces use.
+pub trait Real:
+    Copy
+    + From<f64>
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + Add<f64, Output = Self>
+    + Sub<f64, Output = Self>
+    + Mul<f64, Output = Self>
+    + Div<f64, Output = Self>
+    + AddAssign
+    + SubAssign
+    + MulAssign<f64>
+{
+    /// Highest derivative carried (nilpotency order of the non-real part).
+    const NDERIV: usize;
+    /// The plain value.
+    fn re(&self) -> f64;
+    fn sqrt(&self) -> Self;
+    fn sin(&self) -> Self;
+    fn cos(&self) -> Self;
+}
+
+impl<T: DualNum<Primitive = f64> + Copy> Real for T {
+    const NDERIV: usize = <T as DualNum>::NDERIV;
+    #[inline]
+    fn re(&self) -> f64 {
+        num_dual::DualStruct::re(self)
+    }
+    #[inline]
+    fn sqrt(&self) -> Self {
+        DualNum::sqrt(self)
+    }
+    #[inline]
+    fn sin(&self) -> Self {
+        DualNum::sin(self)
+    }
+    #[inline]
+    fn cos(&self) -> Self {
+        DualNum::cos(self)
     }
 }
 
@@ -161,7 +278,7 @@ pub trait RodScalar:
     fn ln(self) -> Self;
 }
 
-impl<const N: usize> RodScalar for Jet<N> {
+impl<const N: usize> RodScalar for Grad<f64, N> {
     #[inline(always)]
     fn value(&self) -> f64 {
         self.re
@@ -223,6 +340,20 @@ impl<T: num_dual::DualNum<Primitive = f64> + Copy> RodScalar for T {
     fn ln(self) -> Self {
         num_dual::DualNum::ln(&self)
     }
+}
+
+/// Scalar of the coefficients (f64, or a dual number for parameter derivatives).
+pub trait Coeff: RodScalar {}
+impl<C: RodScalar> Coeff for C {}
+
+/// Scalar of the state.
+pub trait StateScalar<C>:
+    RodScalar + From<C> + Mul<C, Output = Self> + Add<C, Output = Self>
+{
+}
+impl<C, D> StateScalar<C> for D where
+    D: RodScalar + From<C> + Mul<C, Output = D> + Add<C, Output = D>
+{
 }
 
 #[cfg(test)]

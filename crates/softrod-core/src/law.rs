@@ -21,8 +21,7 @@
 //!   Explicit: v3 = 1 + F / EA(F).
 
 use crate::interp::pchip_slopes;
-use crate::jet::RodScalar;
-use crate::ode::{Coeff, StateScalar};
+use crate::jet::{Coeff, RodScalar, StateScalar};
 
 /// W1 of paper 002 eq. 16 at stretch `lam`.
 pub fn ogden_energy(k_e: f64, alpha: f64, lam: f64) -> f64 {
@@ -239,6 +238,11 @@ impl AxialTable {
             stiffness: stiffness.to_vec(),
             slope,
         }
+    }
+
+    /// The table's forces (knots), N.
+    pub fn knots(&self) -> &[f64] {
+        &self.force
     }
 
     /// EA at axial force `f` (any scalar type: exact derivative dEA/dF inside the table).

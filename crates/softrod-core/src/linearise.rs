@@ -99,7 +99,7 @@ struct Interval<D> {
 const NJ: usize = 9; // x (3), point force (3), point moment (3)
 type J9 = Jet<NJ>;
 
-fn strain6<D: crate::ode::StateScalar<f64>>(y: &State<D>, c: &Coeffs<f64>, rigid: bool) -> [D; 6] {
+fn strain6<D: crate::jet::StateScalar<f64>>(y: &State<D>, c: &Coeffs<f64>, rigid: bool) -> [D; 6] {
     if rigid {
         return [D::from(0.0); 6];
     }

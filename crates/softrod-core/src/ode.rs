@@ -13,26 +13,11 @@
 //! Jacobians) and the scalar `C` of the coefficients (f64, or dual numbers when derivatives
 //! with respect to pressures or parameters are wanted).
 
-use crate::jet::RodScalar;
+use crate::jet::{Coeff, RodScalar, StateScalar};
 use crate::law::{ogden_from_stretch, ogden_initial_stretch, AxialTable};
-use crate::rod::{inverse3, stiffness_matrices, AxialLaw, Rod, Section};
+use crate::rod::{inverse3, stiffness_matrices, swelling_factors_with, AxialLaw, Rod, Section};
 use crate::section::CrossSection;
-use std::ops::{Add, Mul};
 use std::sync::Arc;
-
-/// Scalar of the coefficients (f64, or a dual number for parameter derivatives).
-pub trait Coeff: RodScalar {}
-impl<C: RodScalar> Coeff for C {}
-
-/// Scalar of the state.
-pub trait StateScalar<C>:
-    RodScalar + From<C> + Mul<C, Output = Self> + Add<C, Output = Self>
-{
-}
-impl<C, D> StateScalar<C> for D where
-    D: RodScalar + From<C> + Mul<C, Output = D> + Add<C, Output = D>
-{
-}
 
 /// Rod state at one arc length.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -111,33 +96,6 @@ fn cross<D: RodScalar>(a: &[D; 3], b: &[D; 3]) -> [D; 3] {
         a[2] * b[0] - a[0] * b[2],
         a[0] * b[1] - a[1] * b[0],
     ]
-}
-
-/// Factor by which chamber radii grow at the (scaled) pressures: 1 + c_p p / p_ref
-/// (paper 002 eq. 22), one per chamber of section `i`, with the section's own c_p.
-pub fn swelling_factors(rod: &Rod, i: usize, pressures: &[f64], factor: f64) -> Vec<f64> {
-    let c_p = rod.sections[i].law.swelling.map_or(0.0, |sw| sw.c_p);
-    swelling_factors_with(rod, i, pressures, factor, c_p)
-}
-
-fn swelling_factors_with<S, P: Copy>(
-    rod: &Rod,
-    i: usize,
-    pressures: &[P],
-    factor: S,
-    c_p: S,
-) -> Vec<S>
-where
-    S: RodScalar + From<P>,
-{
-    let s = &rod.sections[i];
-    s.chambers
-        .iter()
-        .map(|c| match s.law.swelling {
-            Some(sw) => c_p * (factor * S::from(pressures[c.channel]) / sw.p_ref) + 1.0,
-            None => S::from(1.0),
-        })
-        .collect()
 }
 
 /// The values of a section's calibration parameters, in any scalar: f64 for a solve, dual

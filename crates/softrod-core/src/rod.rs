@@ -315,7 +315,7 @@ impl Rod {
         }
         for (i, s) in self.sections.iter().enumerate() {
             let Some(sw) = s.law.swelling else { continue };
-            let w = crate::ode::swelling_factors(self, i, pressures, 1.0);
+            let w = swelling_factors(self, i, pressures, 1.0);
             for (k, (c, f)) in s.chambers.iter().zip(&w).enumerate() {
                 if f.is_nan() || *f <= 0.0 {
                     return Err(SoftrodError::invalid(
@@ -392,4 +392,31 @@ impl Rod {
         }
         Ok(())
     }
+}
+
+/// Factor by which chamber radii grow at the (scaled) pressures: 1 + c_p p / p_ref
+/// (paper 002 eq. 22), one per chamber of section `i`, with the section's own c_p.
+pub fn swelling_factors(rod: &Rod, i: usize, pressures: &[f64], factor: f64) -> Vec<f64> {
+    let c_p = rod.sections[i].law.swelling.map_or(0.0, |sw| sw.c_p);
+    swelling_factors_with(rod, i, pressures, factor, c_p)
+}
+
+pub(crate) fn swelling_factors_with<S, P: Copy>(
+    rod: &Rod,
+    i: usize,
+    pressures: &[P],
+    factor: S,
+    c_p: S,
+) -> Vec<S>
+where
+    S: RodScalar + From<P>,
+{
+    let s = &rod.sections[i];
+    s.chambers
+        .iter()
+        .map(|c| match s.law.swelling {
+            Some(sw) => c_p * (factor * S::from(pressures[c.channel]) / sw.p_ref) + 1.0,
+            None => S::from(1.0),
+        })
+        .collect()
 }

@@ -67,44 +67,7 @@ impl Policy {
     }
 }
 
-/// The rule a state broke.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Rule {
-    /// Every entry of the state is a finite number.
-    Finite,
-    /// R is a rotation: orthonormal to [`ROTATION_TOLERANCE`], det R > 0.
-    Rotation,
-    /// The centreline stretch v3 is positive (v3 <= 0: the rod is turned inside out).
-    PositiveStretch,
-    /// The centreline stretch v3 is at most [`MAX_STRETCH`] (the material would have torn).
-    StretchLimit,
-    /// Every chamber's stretch is positive (its volume element has not vanished).
-    ChamberCollapse,
-    /// Fibre stretch across the section within the model's validity range.
-    StrainRange,
-    /// Pressures within the design's operating range.
-    OperatingRange,
-}
-
-impl Rule {
-    /// The rule's name in messages and in Python (`InvalidStateError.rule`).
-    pub fn name(self) -> &'static str {
-        match self {
-            Rule::Finite => "finite_state",
-            Rule::Rotation => "rotation",
-            Rule::PositiveStretch => "positive_stretch",
-            Rule::StretchLimit => "stretch_limit",
-            Rule::ChamberCollapse => "chamber_collapse",
-            Rule::StrainRange => "strain_range",
-            Rule::OperatingRange => "operating_range",
-        }
-    }
-
-    /// A physical rule (always an error), as opposed to a validity range.
-    pub fn is_physical(self) -> bool {
-        !matches!(self, Rule::StrainRange | Rule::OperatingRange)
-    }
-}
+pub use crate::error::Rule;
 
 /// The validity range of the fibre stretch: along every material fibre of the cross-section
 /// the axial stretch lambda = v3 + u1 y - u2 x must lie in [stretch_min, stretch_max].

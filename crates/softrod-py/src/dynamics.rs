@@ -5,7 +5,8 @@ use crate::{array2, array3, to_py_err, Context};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use softrod_core::dynamics::{DynOptions, Initial, Simulator};
+use softrod_core::dynamics::{CommandSchedule, DynOptions, Initial, Scheme, SigmaMap, Simulator};
+use softrod_core::interp::GridPchip;
 use softrod_core::{Rod, SoftrodError};
 
 /// A running simulation of a design (see `softrod.dynamics`).
@@ -23,6 +24,8 @@ struct Saved {
     tip_rotation: Vec<[[f64; 3]; 3]>,
     tip_velocity: Vec<[f64; 3]>,
     energy: Vec<f64>,
+    /// kinetic, elastic, potential, work in, dissipated (J) per sample.
+    books: Vec<[f64; 5]>,
     shape_time: Vec<f64>,
     shape: Vec<[f64; 3]>,
 }
@@ -35,13 +38,18 @@ impl Saved {
         self.tip_position.push(tip.r);
         self.tip_rotation.push(tip.rot);
         self.tip_velocity.push(sim.tip_velocity());
-        self.energy
-            .push(if energy { sim.energy() } else { f64::NAN });
+        let b = sim.energy_books();
+        self.energy.push(if energy { b.total() } else { f64::NAN });
+        self.books.push(if energy {
+            [b.kinetic, b.elastic, b.potential, b.work_in, b.dissipated]
+        } else {
+            [f64::NAN; 5]
+        });
     }
 
     fn push_shape(&mut self, sim: &Simulator) {
         self.shape_time.push(sim.time());
-        self.shape.extend_from_slice(sim.shape().1);
+        self.shape.extend_from_slice(sim.shape());
     }
 
     fn into_dict<'py>(
@@ -61,6 +69,13 @@ impl Saved {
         d.set_item("tip_rotation", array3(py, &self.tip_rotation)?)?;
         d.set_item("tip_velocity", array2(py, &self.tip_velocity)?)?;
         d.set_item("energy", PyArray1::from_vec(py, self.energy))?;
+        for (k, name) in ["kinetic", "elastic", "potential", "work_in", "dissipated"]
+            .iter()
+            .enumerate()
+        {
+            let col: Vec<f64> = self.books.iter().map(|b| b[k]).collect();
+            d.set_item(*name, PyArray1::from_vec(py, col))?;
+        }
         let k = self.shape_time.len();
         d.set_item("shape_time", PyArray1::from_vec(py, self.shape_time))?;
         let flat: Vec<f64> = self.shape.iter().flatten().copied().collect();
@@ -76,8 +91,10 @@ impl Saved {
 impl PySimulator {
     /// Start at t = 0 from `initial` ("static": at rest in equilibrium under `pressures`;
     /// "straight": at rest in the straight reference shape) with chamber pressures (Pa).
+    /// `scheme`: "bdf-alpha" or "midpoint"; `error_tol` (m): adaptive steps; `sigma_const`
+    /// or `sigma_grid` = (axes, values, clamp): the stiffness map of mapped sections.
     #[new]
-    #[pyo3(signature = (spec_json, pressures, initial="static", dt=2e-3, alpha=-0.2, tol=1e-9, max_iter=25))]
+    #[pyo3(signature = (spec_json, pressures, initial="static", dt=2e-3, alpha=-0.2, tol=1e-9, max_iter=25, scheme="bdf-alpha", error_tol=None, energy_tol=softrod_core::dynamics::DEFAULT_ENERGY_TOL, sigma_const=None, sigma_grid=None, tip_force=None, tip_moment=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -88,37 +105,88 @@ impl PySimulator {
         alpha: f64,
         tol: f64,
         max_iter: usize,
+        scheme: &str,
+        error_tol: Option<f64>,
+        energy_tol: f64,
+        sigma_const: Option<[f64; 3]>,
+        sigma_grid: Option<(Vec<Vec<f64>>, Vec<f64>, bool)>,
+        tip_force: Option<[f64; 3]>,
+        tip_moment: Option<[f64; 3]>,
     ) -> PyResult<Self> {
-        let spec = crate::parse_spec(py, spec_json)?;
-        let rod = Rod::new(spec).map_err(|e| to_py_err(py, e, Context::Design))?;
-        let initial = match initial {
-            "static" => Initial::Static,
-            "straight" => Initial::Straight,
-            other => {
-                return Err(to_py_err(
-                    py,
-                    SoftrodError::invalid("initial", other, "must be 'static' or 'straight'"),
-                    Context::Input,
-                ))
-            }
-        };
-        let opts = DynOptions {
-            dt,
-            alpha,
-            tol,
-            max_iter,
-        };
-        let sim = py
-            .detach(|| Simulator::new(rod, &pressures, initial, opts))
-            .map_err(|e| to_py_err(py, e, Context::Input))?;
-        Ok(PySimulator { sim })
+        crate::guarded(py, || {
+            let spec = crate::parse_spec(py, spec_json)?;
+            let rod = Rod::new(spec).map_err(|e| to_py_err(py, e, Context::Design))?;
+            let input = |e: SoftrodError| to_py_err(py, e, Context::Input);
+            let initial = match initial {
+                "static" => Initial::Static,
+                "straight" => Initial::Straight,
+                other => {
+                    return Err(input(SoftrodError::invalid(
+                        "initial",
+                        other,
+                        "must be 'static' or 'straight'",
+                    )))
+                }
+            };
+            let scheme = match scheme {
+                "bdf-alpha" => Scheme::BdfAlpha,
+                "midpoint" => Scheme::Midpoint,
+                other => {
+                    return Err(input(SoftrodError::invalid(
+                        "scheme",
+                        other,
+                        "must be 'bdf-alpha' or 'midpoint'",
+                    )))
+                }
+            };
+            let map = match (sigma_const, sigma_grid) {
+                (Some(s), _) => SigmaMap::Constant(s),
+                (None, Some((axes, values, clamp))) => SigmaMap::Grid {
+                    grid: GridPchip::new(axes, values, 3).map_err(input)?,
+                    clamp,
+                },
+                (None, None) => SigmaMap::None,
+            };
+            let opts = DynOptions {
+                dt,
+                scheme,
+                alpha,
+                tol,
+                max_iter,
+                error_tol,
+                energy_tol,
+            };
+            let tf = tip_force.unwrap_or(rod.spec.tip.force);
+            let tm = tip_moment.unwrap_or(rod.spec.tip.moment);
+            let sim = py
+                .detach(|| Simulator::with_inputs(rod, &pressures, initial, opts, map, tf, tm))
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            Ok(PySimulator { sim })
+        })
+    }
+
+    /// The complete state as numbers (see `Simulator::save`).
+    fn save<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        crate::guarded(py, || Ok(PyArray1::from_vec(py, self.sim.save())))
+    }
+
+    /// Continue from a saved state (see `Simulator::restore`).
+    fn restore(&mut self, py: Python<'_>, state: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
+        crate::guarded(py, || {
+            let data = state.as_array().to_vec();
+            self.sim
+                .restore(&data)
+                .map_err(|e| to_py_err(py, e, Context::Input))
+        })
     }
 
     /// An independent copy of this simulation's current state.
-    fn copy(&self) -> Self {
-        PySimulator {
-            sim: self.sim.clone(),
-        }
+    fn copy(&self, py: Python<'_>) -> PyResult<Self> {
+        crate::guarded(py, || {
+            Ok(PySimulator {
+                sim: self.sim.clone(),
+            })
+        })
     }
 
     /// Time now, s.
@@ -147,92 +215,136 @@ impl PySimulator {
     /// Steps taken, Newton iterations and exact Jacobians computed.
     #[getter]
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let d = PyDict::new(py);
-        d.set_item("steps", self.sim.stats.steps)?;
-        d.set_item("newton_iterations", self.sim.stats.newton_iterations)?;
-        d.set_item("jacobians", self.sim.stats.jacobians)?;
-        Ok(d)
+        crate::guarded(py, || {
+            let d = PyDict::new(py);
+            let st = &self.sim.stats;
+            d.set_item("steps", st.steps)?;
+            d.set_item("internal_steps", st.internal_steps)?;
+            d.set_item("rejected_steps", st.rejected)?;
+            d.set_item("newton_iterations", st.newton_iterations)?;
+            d.set_item("jacobians", st.jacobians)?;
+            Ok(d)
+        })
     }
 
     /// Dead tip force and moment (world, N and N m) from the next step on.
     fn set_tip_loads(&mut self, py: Python<'_>, force: [f64; 3], moment: [f64; 3]) -> PyResult<()> {
-        self.sim
-            .set_tip_loads(force, moment)
-            .map_err(|e| to_py_err(py, e, Context::Input))
+        crate::guarded(py, || {
+            self.sim
+                .set_tip_loads(force, moment)
+                .map_err(|e| to_py_err(py, e, Context::Input))
+        })
     }
 
     /// The state now: time, pressures, tip pose and velocity, energy, base wrench, shape.
     fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let mut saved = Saved::default();
-        saved.push(&self.sim, true);
-        saved.push_shape(&self.sim);
-        let nodes = self.sim.shape().0.len();
-        let d = saved.into_dict(py, self.sim.rod().n_channels, nodes)?;
-        let (f, m) = self.sim.base_wrench();
-        d.set_item("base_force", f.to_vec())?;
-        d.set_item("base_moment", m.to_vec())?;
-        d.set_item(
-            "shape_s",
-            PyArray1::from_vec(py, self.sim.shape().0.to_vec()),
-        )?;
-        Ok(d)
+        crate::guarded(py, || {
+            let mut saved = Saved::default();
+            saved.push(&self.sim, true);
+            saved.push_shape(&self.sim);
+            let nodes = self.sim.shape().len();
+            let d = saved.into_dict(py, self.sim.rod().n_channels, nodes)?;
+            let (f, m) = self.sim.base_wrench();
+            d.set_item("base_force", f.to_vec())?;
+            d.set_item("base_moment", m.to_vec())?;
+            d.set_item("shape_s", PyArray1::from_vec(py, self.sim.node_s()))?;
+            let (tf, tm) = self.sim.tip_loads();
+            d.set_item("tip_force", tf.to_vec())?;
+            d.set_item("tip_moment", tm.to_vec())?;
+            d.set_item("energy_balance", self.sim.energy_balance())?;
+            Ok(d)
+        })
     }
 
     /// Take one step per row of `commands` (k, n_channels), Pa, the commanded pressures at
-    /// each new step time. After step j the state is kept when `keep[j]` is 1 (tip) or 2
-    /// (tip and shape). Returns the kept samples as arrays.
-    #[pyo3(signature = (commands, keep, energy=true))]
+    /// each new step time, with the dead tip loads of `tip_loads` (k, 6: force N, moment
+    /// N m, world) when given. After step j the state is kept when `keep[j]` is 1 (tip) or
+    /// 2 (tip and shape). Returns the kept samples as arrays.
+    /// `schedule` = (knot times, knot rows, step kind): the commands of steps inside an
+    /// interval (substeps, adaptive steps) come from it at their own times.
+    #[pyo3(signature = (commands, keep, energy=true, tip_loads=None, schedule=None))]
     fn run<'py>(
         &mut self,
         py: Python<'py>,
         commands: PyReadonlyArray2<'_, f64>,
         keep: PyReadonlyArray1<'_, u8>,
         energy: bool,
+        tip_loads: Option<PyReadonlyArray2<'_, f64>>,
+        schedule: Option<(Vec<f64>, Vec<Vec<f64>>, bool)>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let nc = self.sim.rod().n_channels;
-        let cmd = commands.as_array().to_owned();
-        let shape = cmd.shape().to_vec();
-        if shape[1] != nc {
-            return Err(to_py_err(
-                py,
-                SoftrodError::invalid(
-                    "commands",
-                    format!("{} columns", shape[1]),
-                    format!("the design has {nc} pressure channels"),
+        crate::guarded(py, || {
+            let nc = self.sim.rod().n_channels;
+            let cmd = commands.as_array().to_owned();
+            let shape = cmd.shape().to_vec();
+            if shape[1] != nc {
+                return Err(to_py_err(
+                    py,
+                    SoftrodError::invalid(
+                        "commands",
+                        format!("{} columns", shape[1]),
+                        format!("the design has {nc} pressure channels"),
+                    ),
+                    Context::Input,
+                ));
+            }
+            let keep = keep.as_array().to_owned();
+            if keep.len() != shape[0] {
+                return Err(to_py_err(
+                    py,
+                    SoftrodError::invalid(
+                        "keep",
+                        format!("{} flags", keep.len()),
+                        format!("needs one flag per command row ({})", shape[0]),
+                    ),
+                    Context::Input,
+                ));
+            }
+            let table = match schedule {
+                Some((t, v, step)) => Some(
+                    CommandSchedule::new(t, v, step, nc)
+                        .map_err(|e| to_py_err(py, e, Context::Input))?,
                 ),
-                Context::Input,
-            ));
-        }
-        let keep = keep.as_array().to_owned();
-        if keep.len() != shape[0] {
-            return Err(to_py_err(
-                py,
-                SoftrodError::invalid(
-                    "keep",
-                    format!("{} flags", keep.len()),
-                    format!("needs one flag per command row ({})", shape[0]),
-                ),
-                Context::Input,
-            ));
-        }
-        let sim = &mut self.sim;
-        let result = py.detach(|| -> Result<Saved, SoftrodError> {
-            let mut saved = Saved::default();
-            for (row, flag) in cmd.rows().into_iter().zip(keep.iter()) {
-                let c: Vec<f64> = row.to_vec();
-                sim.step(&c)?;
-                if *flag >= 1 {
-                    saved.push(sim, energy);
-                }
-                if *flag >= 2 {
-                    saved.push_shape(sim);
+                None => None,
+            };
+            let loads = tip_loads.map(|a| a.as_array().to_owned());
+            if let Some(l) = &loads {
+                if l.shape() != [shape[0], 6] {
+                    return Err(to_py_err(
+                        py,
+                        SoftrodError::invalid(
+                            "tip_loads",
+                            format!("shape {:?}", l.shape()),
+                            format!("must be ({}, 6): force and moment per step", shape[0]),
+                        ),
+                        Context::Input,
+                    ));
                 }
             }
-            Ok(saved)
-        });
-        let saved = result.map_err(|e| to_py_err(py, e, Context::Input))?;
-        let nodes = self.sim.shape().0.len();
-        saved.into_dict(py, nc, nodes)
+            let sim = &mut self.sim;
+            let result = py.detach(|| -> Result<Saved, SoftrodError> {
+                let mut saved = Saved::default();
+                for (j, (row, flag)) in cmd.rows().into_iter().zip(keep.iter()).enumerate() {
+                    if let Some(l) = &loads {
+                        sim.set_tip_loads(
+                            [l[[j, 0]], l[[j, 1]], l[[j, 2]]],
+                            [l[[j, 3]], l[[j, 4]], l[[j, 5]]],
+                        )?;
+                    }
+                    let c: Vec<f64> = row.to_vec();
+                    sim.step_with(&c, table.as_ref())?;
+                    if *flag >= 1 {
+                        saved.push(sim, energy);
+                    }
+                    if *flag >= 2 {
+                        saved.push_shape(sim);
+                    }
+                }
+                Ok(saved)
+            });
+            let saved = result.map_err(|e| to_py_err(py, e, Context::Input))?;
+            let nodes = self.sim.shape().len();
+            saved.into_dict(py, nc, nodes)
+        })
     }
 }
 

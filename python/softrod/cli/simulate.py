@@ -77,6 +77,37 @@ def _seconds(text: str, option: str, *, positive: bool = True) -> float:
     "Lagrangian model with the design's [pcc] parameters (docs/pcc.md).",
 )
 @click.option(
+    "--scheme",
+    type=click.Choice(["bdf-alpha", "midpoint"]),
+    default="bdf-alpha",
+    show_default=True,
+    help="Time integrator of the rod: bdf-alpha (numerical damping of unresolved modes, "
+    "--alpha) or midpoint (conserves the energy of undamped runs; docs/dynamics.md).",
+)
+@click.option(
+    "--alpha",
+    default=-0.2,
+    show_default=True,
+    type=float,
+    help="BDF-alpha parameter in [-0.5, 0] (-0.5: the trapezoidal rule; 0: BDF2).",
+)
+@click.option(
+    "--error-tol",
+    "error_tol",
+    default=None,
+    help="Adaptive time steps: the largest local error of the node positions per step, "
+    "with its unit, e.g. '0.1 mm' (dt is then the output interval and the largest step).",
+)
+@click.option(
+    "--energy-tol",
+    "energy_tol",
+    default=0.02,
+    show_default=True,
+    type=float,
+    help="The energy check: growth of the energy balance beyond this fraction of the "
+    "energy moved stops the run with an error.",
+)
+@click.option(
     "--out",
     required=True,
     type=click.Path(dir_okay=False, path_type=Path),
@@ -127,6 +158,10 @@ def simulate_cmd(
     save_every,
     initial,
     model,
+    scheme,
+    alpha,
+    error_tol,
+    energy_tol,
     out,
     animation,
     fps,
@@ -137,8 +172,9 @@ def simulate_cmd(
     """Simulate DESIGN's motion under commanded chamber pressures over time.
 
     The rod is paper 000's viscoelastic Cosserat rod (damping time from the design's
-    [dynamics] table), integrated with BDF-alpha in time and shooting in space; with
-    --model pcc, paper 003's piecewise-constant-curvature model (implicit midpoint rule).
+    [dynamics] table), integrated with BDF-alpha or the implicit midpoint rule in time and
+    Gauss collocation in space; with --model pcc, paper 003's piecewise-constant-curvature
+    model (implicit midpoint rule).
     Progress shows the simulated time and the real-time factor on stderr.
     """
     import numpy as np
@@ -181,10 +217,29 @@ def simulate_cmd(
         plan = animation_plan(duration, fps=fps, speed=speed, max_frames=max_frames)
         shapes = plan.frame_interval_s
     console = _stdout()
+    rod_options = {}
     if model == "pcc":
         what = "PCC model (paper 003)"
+        defaults = {
+            "--scheme": (scheme, "bdf-alpha"),
+            "--alpha": (alpha, -0.2),
+            "--error-tol": (error_tol, None),
+            "--energy-tol": (energy_tol, 0.02),
+        }
+        for option, (value, default) in defaults.items():
+            if value != default:
+                raise design_error(
+                    option, value, "is a setting of the rod model (--model cosserat)", InputError
+                )
     else:
         what = f"Cosserat rod, damping time {d.spec['dynamics']['damping_time']:g} s"
+        tol_m = None if error_tol is None else _quantity(error_tol, "length", "--error-tol")
+        rod_options = {
+            "scheme": scheme,
+            "alpha": alpha,
+            "error_tol": tol_m,
+            "energy_tol": energy_tol,
+        }
     _say(
         f"{d.name}: {duration:g} s at dt = {step * 1e3:g} ms "
         f"({math.ceil(duration / step):,} steps), {what}"
@@ -207,6 +262,7 @@ def simulate_cmd(
             initial=initial,
             model=model,
             progress=report if report is not None else False,
+            **rod_options,
         )
     wall = time.perf_counter() - t0
     meta = traj.metadata

@@ -123,11 +123,11 @@ def run_closed_loop(
     sim = Simulation(design, p0, initial=initial, dt=step, alpha=alpha)
     state = sim.state()
     meas = Measurement(
-        time=float(state["time"]),
-        tip_position=np.asarray(state["tip_position"]),
-        tip_rotation=np.asarray(state["tip_rotation"]),
-        tip_velocity=np.asarray(state["tip_velocity"]),
-        pressure=np.asarray(state["pressure"]),
+        time=state.time,
+        tip_position=np.array(state.tip_position),
+        tip_rotation=np.array(state.tip_rotation),
+        tip_velocity=np.array(state.tip_velocity),
+        pressure=np.array(state.pressure),
         command=p0.copy(),
     )
     periods = max(1, math.ceil(duration / period - 1e-9))

@@ -2,12 +2,13 @@
 
 - :class:`PressureSchedule`: commanded chamber pressures as a function of time (Pa, s).
 - :class:`Trajectory`: a simulated motion; save/load (Parquet, NPZ), plots, animations.
-- :func:`simulate`: a design's motion under a schedule; :class:`Simulation`: a stepper.
+- :func:`simulate`: a design's motion under a schedule; :class:`Simulation`: a stepper whose
+  :class:`SimulationState` restores exactly.
 - :func:`animation_plan`: how a run becomes a watchable clip (speed, frames, shape interval).
 """
 
 from .schedule import VACUUM_PA, PressureSchedule
-from .simulate import Simulation, simulate
+from .simulate import Simulation, SimulationState, simulate
 from .trajectory import AnimationPlan, Trajectory, animation_plan
 
 __all__ = [
@@ -15,6 +16,7 @@ __all__ = [
     "AnimationPlan",
     "PressureSchedule",
     "Simulation",
+    "SimulationState",
     "Trajectory",
     "animation_plan",
     "simulate",

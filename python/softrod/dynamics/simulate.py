@@ -1,20 +1,22 @@
 """``simulate``: the motion of a design under a pressure schedule (docs/dynamics.md).
 
 The physics and the time stepping live in the Rust core (``softrod_core::dynamics``:
-paper 000's Kelvin-Voigt Cosserat rod, BDF-alpha in time and shooting in space as in Till,
-Aloi and Rucker, IJRR 2019). This module turns user input into SI arrays, drives the core in
-chunks so that long runs can show progress, and packs the result into a
-:class:`~softrod.dynamics.Trajectory`.
+paper 000's Kelvin-Voigt Cosserat rod; BDF-alpha or the implicit midpoint rule in time as in
+Till, Aloi and Rucker, IJRR 2019; Gauss collocation in space with an exact block-banded
+Newton). This module turns user input into SI arrays, drives the core in chunks so that long
+runs can show progress, and packs the result into a :class:`~softrod.dynamics.Trajectory`.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import math
 import os
 import time as _time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -26,14 +28,25 @@ from ..design import Design
 from ..errors import InputError, design_error
 from ..progress import reporter
 from .schedule import PressureSchedule
-from .trajectory import Trajectory
+from .trajectory import ENERGY_PARTS, Trajectory
 
 if TYPE_CHECKING:
     from .._types import ArrayLike, DesignLike, Quantity, ScheduleLike
+    from ..stiffness_map import StiffnessMap
 
-__all__ = ["METHOD", "Simulation", "simulate"]
+    # Held (force, moment) in N and N m, or a function of t returning them.
+    TipLoad = (
+        tuple[ArrayLike, ArrayLike] | Callable[[float], tuple[ArrayLike, ArrayLike]]
+    )
 
-METHOD = "BDF-alpha in time, shooting in space with RK4 (Till, Aloi, Rucker, IJRR 2019)"
+__all__ = ["METHOD", "SCHEMES", "Simulation", "SimulationState", "simulate"]
+
+METHOD = (
+    "{scheme} in time (Till, Aloi, Rucker, IJRR 2019), Gauss collocation in space "
+    "(4th order, block-banded Newton)"
+)
+SCHEMES = ("bdf-alpha", "midpoint")
+DEFAULT_ENERGY_TOL = 0.02  # softrod_core::dynamics::DEFAULT_ENERGY_TOL
 _CHUNK_WALL_S = 0.2  # wall time per chunk between progress reports
 
 logger = logging.getLogger(__name__)
@@ -55,6 +68,120 @@ def _no_stiffness_map(design: Design) -> None:
             "dynamics do not support a stiffness map sigma(p) (paper 001's static model); "
             "simulate a design without mapped sections",
             InputError,
+        )
+
+
+def _fingerprint(design: Design) -> str:
+    """A digest of the design's SI document: a saved state only restores into the same."""
+    text = json.dumps(design.spec, sort_keys=True)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
+
+
+def _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol) -> dict:
+    """The integrator's keyword options, checked here (the core checks them again)."""
+    V.choice(scheme, SCHEMES, "scheme")
+    alpha = V.real(alpha, "alpha", minimum=-0.5, maximum=0.0)
+    tol = V.real(tol, "tol", minimum=0.0, exclusive=True, maximum=1.0)
+    max_iter = V.integer(max_iter, "max_iter", minimum=1, maximum=V.MAX_ITERATIONS)
+    if error_tol is not None:
+        error_tol = V.quantity(error_tol, "length", "error_tol")
+        if not error_tol > 0:
+            raise design_error(
+                "error_tol",
+                error_tol,
+                "must be a length > 0 (the local error of the node positions per step, "
+                "e.g. '0.1 mm')",
+                InputError,
+            )
+    energy_tol = V.real(
+        energy_tol, "energy_tol", minimum=0.0, exclusive=True, what="a fraction of the energy moved"
+    )
+    return {
+        "scheme": scheme,
+        "alpha": alpha,
+        "tol": tol,
+        "max_iter": max_iter,
+        "error_tol": error_tol,
+        "energy_tol": energy_tol,
+    }
+
+
+def _sigma_args(design: Design, stiffness_map) -> dict:
+    """The core's stiffness-map arguments (the map given, else the design file's): sigma is
+    evaluated in the core at every step's pressures, so only maps the core can evaluate
+    (constant, PCHIP table) run in dynamics."""
+    from ..statics import _stiffness_map
+
+    smap = _stiffness_map(design, stiffness_map)
+    if smap is None:
+        return {}
+    if smap.kind == "constant":
+        sigma = smap(np.zeros((1, design.n_channels)))[0]
+        return {"sigma_const": [float(x) for x in sigma]}
+    axes = smap.axes
+    two_point = axes is not None and all(len(a) == 2 for a in axes)
+    if smap.kind == "table" and (smap._method == "pchip" or two_point):
+        values = np.asarray(smap.values, dtype=float)
+        return {
+            "sigma_grid": (
+                [np.asarray(a, dtype=float).tolist() for a in axes],
+                values.ravel().tolist(),
+                smap._outside == "clamp",
+            )
+        }
+    raise design_error(
+        "stiffness_map",
+        repr(smap),
+        "dynamics evaluates sigma in the core at every step: use StiffnessMap.constant or "
+        "StiffnessMap.from_table(..., method='pchip') (tabulate a trained regressor over "
+        "your pressure range first)",
+        InputError,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationState:
+    """A :class:`Simulation`'s state at one time (SI). The named fields are what a
+    controller reads; ``data`` holds everything the core needs to continue exactly
+    (:meth:`Simulation.restore` reproduces the run from here bit for bit).
+
+    ``time`` s; ``pressure`` (c,) Pa (actual chamber pressures); ``tip_force``,
+    ``tip_moment`` (3,) N, N m (dead tip loads now, world); ``tip_position`` (3,) m,
+    ``tip_rotation`` (3, 3) [d1 d2 d3], ``tip_velocity`` (3,) m/s; ``base_force``,
+    ``base_moment`` (3,) N, N m; ``shape_s`` (p,) m and ``shape_position`` (p, 3) m (the
+    centreline at the nodes); ``energy`` J (kinetic + elastic + potential) and its books
+    ``kinetic``, ``elastic``, ``potential``, ``work_in``, ``dissipated`` J;
+    ``energy_balance`` J (zero for the exact motion); ``design`` and ``fingerprint`` (the
+    design it belongs to); ``data`` (read-only float array).
+    """
+
+    design: str
+    fingerprint: str
+    time: float
+    pressure: np.ndarray
+    tip_force: np.ndarray
+    tip_moment: np.ndarray
+    tip_position: np.ndarray
+    tip_rotation: np.ndarray
+    tip_velocity: np.ndarray
+    base_force: np.ndarray
+    base_moment: np.ndarray
+    shape_s: np.ndarray
+    shape_position: np.ndarray
+    energy: float
+    kinetic: float
+    elastic: float
+    potential: float
+    work_in: float
+    dissipated: float
+    energy_balance: float
+    data: np.ndarray
+
+    def __repr__(self) -> str:
+        tip = ", ".join(f"{x * 1e3:.2f}" for x in self.tip_position)
+        return (
+            f"SimulationState({self.design!r}, t = {self.time:g} s, tip ({tip}) mm, "
+            f"E = {self.energy:.6g} J)"
         )
 
 
@@ -141,9 +268,15 @@ class Simulation:
     ``pressures``: chamber pressures at t = 0 in Pa (default zero). ``initial``:
     ``"static"`` (at rest in equilibrium under those pressures, gravity and the design's tip
     loads) or ``"straight"`` (at rest in the straight reference shape, released at t = 0).
-    ``dt``: time step (s or a string with units). ``alpha``: BDF-alpha parameter in
-    [-0.5, 0] (-0.5 is paper 000's trapezoidal rule; 0 is BDF2). ``tol``: tolerance on the
-    scaled shooting residual at each step.
+    ``dt``: time step (s or a string with units). ``scheme``: ``"bdf-alpha"`` (default;
+    ``alpha`` in [-0.5, 0]: -0.5 is paper 000's trapezoidal rule, 0 BDF2; below -0.45
+    unresolved modes are not damped) or ``"midpoint"`` (the implicit midpoint rule:
+    conserves the energy of undamped runs; docs/dynamics.md). ``tol``: Newton tolerance on
+    the scaled collocation unknowns at each step. ``error_tol``: adaptive time stepping,
+    the largest estimated local error of the node positions per step (m or a string such
+    as "0.1 mm"); each ``dt`` is then split into as many steps as that needs. ``energy_tol``:
+    the energy check's tolerance (fraction of the energy moved). ``stiffness_map``: the
+    StiffnessMap of a design with mapped sections (constant or PCHIP table).
     """
 
     def __init__(
@@ -153,41 +286,52 @@ class Simulation:
         *,
         initial: str = "static",
         dt: Quantity = 2e-3,
+        scheme: str = "bdf-alpha",
         alpha: float = -0.2,
         tol: float = 1e-9,
         max_iter: int = 25,
-    ):
+        error_tol: Quantity | None = None,
+        energy_tol: float = DEFAULT_ENERGY_TOL,
+        stiffness_map: StiffnessMap | None = None,
+        _tip_loads0: Sequence[float] | None = None,
+    ) -> None:
         from ..statics import _pressures
 
         self.design: Design = load_design(design)
-        _no_stiffness_map(self.design)
         n = self.design.n_channels
         p = [0.0] * n if pressures is None else _pressures(self.design, pressures)
         V.choice(initial, ("static", "straight"), "initial")
-        alpha = V.real(alpha, "alpha", minimum=-0.5, maximum=0.0)
-        tol = V.real(tol, "tol", minimum=0.0, exclusive=True, maximum=1.0)
-        max_iter = V.integer(max_iter, "max_iter", minimum=1, maximum=V.MAX_ITERATIONS)
+        opts = _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol)
         self._sim = _core.Simulator(
             json.dumps(self.design.spec, allow_nan=False),
             p,
             initial,
             _seconds(dt, "dt"),
-            alpha,
-            tol,
-            max_iter,
+            **opts,
+            **_sigma_args(self.design, stiffness_map),
+            **(
+                {}
+                if _tip_loads0 is None
+                else {"tip_force": list(_tip_loads0[:3]), "tip_moment": list(_tip_loads0[3:])}
+            ),
         )
         self.initial = initial
-        self.alpha = alpha
+        self.options = opts
 
     @classmethod
-    def _wrap(cls, design: Design, sim, initial: str, alpha: float) -> Simulation:
+    def _wrap(cls, design: Design, sim, initial: str, options: dict) -> Simulation:
         obj = cls.__new__(cls)
-        obj.design, obj._sim, obj.initial, obj.alpha = design, sim, initial, alpha
+        obj.design, obj._sim, obj.initial, obj.options = design, sim, initial, options
         return obj
 
     def copy(self) -> Simulation:
-        """An independent simulation starting from this one's current state."""
-        return Simulation._wrap(self.design, self._sim.copy(), self.initial, self.alpha)
+        """An independent simulation starting from this one's current state (exact)."""
+        return Simulation._wrap(self.design, self._sim.copy(), self.initial, dict(self.options))
+
+    @property
+    def alpha(self) -> float:
+        """The BDF-alpha parameter."""
+        return self.options["alpha"]
 
     @property
     def time(self) -> float:
@@ -206,26 +350,51 @@ class Simulation:
 
     @property
     def stats(self) -> dict:
-        """Steps, Newton iterations and exact Jacobians so far."""
+        """Steps (calls), internal (time) steps, rejected steps, Newton iterations and exact
+        Jacobians so far."""
         return dict(self._sim.stats)
 
-    def state(self) -> dict:
-        """The state now: ``time`` (s), ``pressure`` (Pa), ``tip_position`` (m),
-        ``tip_rotation``, ``tip_velocity`` (m/s), ``energy`` (J), ``base_force`` (N),
-        ``base_moment`` (N m), ``shape_s`` (m) and ``shape_position`` (p, 3) m."""
+    def state(self) -> SimulationState:
+        """The state now: a :class:`SimulationState`, which :meth:`restore` continues
+        from exactly."""
         d = self._sim.snapshot()
-        return {
-            "time": float(d["time"][0]),
-            "pressure": d["pressure"][0],
-            "tip_position": d["tip_position"][0],
-            "tip_rotation": d["tip_rotation"][0],
-            "tip_velocity": d["tip_velocity"][0],
-            "energy": float(d["energy"][0]),
-            "base_force": np.asarray(d["base_force"]),
-            "base_moment": np.asarray(d["base_moment"]),
-            "shape_s": d["shape_s"],
-            "shape_position": d["shape_position"][0],
-        }
+        ro = lambda a: _ro(np.asarray(a, dtype=float))  # noqa: E731
+        return SimulationState(
+            design=self.design.name,
+            fingerprint=_fingerprint(self.design),
+            time=float(d["time"][0]),
+            pressure=ro(d["pressure"][0]),
+            tip_force=ro(d["tip_force"]),
+            tip_moment=ro(d["tip_moment"]),
+            tip_position=ro(d["tip_position"][0]),
+            tip_rotation=ro(d["tip_rotation"][0]),
+            tip_velocity=ro(d["tip_velocity"][0]),
+            base_force=ro(d["base_force"]),
+            base_moment=ro(d["base_moment"]),
+            shape_s=ro(d["shape_s"]),
+            shape_position=ro(d["shape_position"][0]),
+            energy=float(d["energy"][0]),
+            **{k: float(d[k][0]) for k in ENERGY_PARTS},
+            energy_balance=float(d["energy_balance"]),
+            data=ro(self._sim.save()),
+        )
+
+    def restore(self, state: SimulationState) -> None:
+        """Continue from ``state`` (taken from a simulation of the same design): the next
+        steps are bit for bit those the original simulation would take."""
+        if not isinstance(state, SimulationState):
+            raise design_error(
+                "state", type(state).__name__, "must be a SimulationState", InputError
+            )
+        if state.fingerprint != _fingerprint(self.design):
+            raise design_error(
+                "state",
+                repr(state),
+                f"was taken from design {state.design!r}, not from this simulation's "
+                f"{self.design.name!r} (or from another version of it)",
+                InputError,
+            )
+        self._sim.restore(np.ascontiguousarray(state.data, dtype=float))
 
     def set_tip_loads(
         self, force: ArrayLike = (0.0, 0.0, 0.0), moment: ArrayLike = (0.0, 0.0, 0.0)
@@ -237,11 +406,15 @@ class Simulation:
         m = _vec3(moment, "moment", "moment", None)
         self._sim.set_tip_loads(f, m)
 
-    def step(self, command: ArrayLike) -> None:
-        """One time step towards the commanded pressures ``command`` (Pa)."""
+    def step(self, command: ArrayLike | None = None) -> None:
+        """One time step towards the commanded pressures ``command`` (Pa; None for a design
+        without chambers)."""
         from ..statics import _pressures
 
-        c = np.asarray([_pressures(self.design, command)], dtype=float)
+        if command is None and self.design.n_channels == 0:
+            c = np.zeros((1, 0))
+        else:
+            c = np.asarray([_pressures(self.design, command)], dtype=float)
         self._sim.run(c, np.zeros(1, dtype=np.uint8), False)
 
     def run(
@@ -252,17 +425,21 @@ class Simulation:
         save_every: int = 1,
         shapes: str | float | Sequence[float] | None = None,
         energy: bool = True,
+        tip_load: TipLoad | None = None,
         progress: Callable[[float, float, float], None] | None = None,
     ) -> Trajectory:
         """Advance by ``duration`` (s) under ``pressure_schedule`` (evaluated on this
-        simulation's clock) and return the trajectory from the current time on; see
-        :func:`simulate` for the arguments."""
+        simulation's clock; None for a design without chambers) and return the trajectory
+        from the current time on; see :func:`simulate` for the arguments."""
         dt = self.dt
         duration = _seconds(duration, "t_end")
         n = step_count(duration, dt)
         save_every = _save_every(save_every)
         V.boolean(energy, "energy")
-        schedule = _schedule(pressure_schedule, self.design.n_channels)
+        nc = self.design.n_channels
+        schedule = (
+            None if pressure_schedule is None and nc == 0 else _schedule(pressure_schedule, nc)
+        )
         t0 = self.time
         shape_steps, want_shape0 = _shape_steps(shapes, n, dt, save_every)
         nodes = len(self._sim.snapshot()["shape_s"])
@@ -273,18 +450,39 @@ class Simulation:
         keep[shape_steps] = 2
         first = self._sim.snapshot()
         parts = [first]
-        kept_commands = [schedule.sample([t0])]
+
+        def commands_at(t: np.ndarray) -> np.ndarray:
+            return np.zeros((t.size, 0)) if schedule is None else schedule.sample(t)
+
+        kept_commands = [commands_at(np.array([t0]))]
+        # Steps inside an interval (substeps, adaptive steps) read a table schedule at their
+        # own times; a callable's is sampled at the intervals' ends only.
+        table = None
+        if schedule is not None and schedule.kind in ("linear", "step"):
+            table = (
+                schedule.times.tolist(),
+                schedule.pressures.tolist(),
+                schedule.kind == "step",
+            )
         wall0 = _time.perf_counter()
         start, chunk = 0, 32
         with reporter(progress, "simulate", duration, simulated_time) as report:
             while start < n:
                 stop = min(n, start + chunk)
                 t_chunk = _time.perf_counter()
-                # Commands are sampled chunk by chunk: memory stays bounded by the chunk size.
-                commands = schedule.sample(t0 + dt * np.arange(start + 1, stop + 1))
+                # Commands and loads are sampled chunk by chunk: memory stays bounded.
+                times = t0 + dt * np.arange(start + 1, stop + 1)
+                commands = commands_at(times)
+                loads = _tip_loads(tip_load, times)
                 kept_commands.append(commands[keep[start:stop] >= 1])
                 parts.append(
-                    self._sim.run(np.ascontiguousarray(commands), keep[start:stop], bool(energy))
+                    self._sim.run(
+                        np.ascontiguousarray(commands),
+                        keep[start:stop],
+                        bool(energy),
+                        None if loads is None else np.ascontiguousarray(loads),
+                        table,
+                    )
                 )
                 spent = _time.perf_counter() - t_chunk
                 # Size the next chunk for about _CHUNK_WALL_S of work.
@@ -303,12 +501,21 @@ class Simulation:
         )
         cat = lambda key: np.concatenate([p[key] for p in parts])  # noqa: E731
         shape_parts = [p for p in (parts if want_shape0 else parts[1:]) if len(p["shape_time"])]
+        opts = self.options
         metadata = {
             "design": self.design.name,
             "model": "cosserat",
-            "method": METHOD,
+            "method": METHOD.format(
+                scheme="the implicit midpoint rule"
+                if opts["scheme"] == "midpoint"
+                else f"BDF-alpha (alpha = {opts['alpha']:g})"
+            ),
+            "scheme": opts["scheme"],
             "dt_s": dt,
-            "alpha": self.alpha,
+            "alpha": opts["alpha"],
+            "tol": opts["tol"],
+            "error_tol_m": opts["error_tol"],
+            "energy_tol": opts["energy_tol"],
             "initial": self.initial,
             "damping_time_s": self.design.spec["dynamics"]["damping_time"],
             "steps": n,
@@ -324,6 +531,7 @@ class Simulation:
             tip_rotation=cat("tip_rotation"),
             tip_velocity=cat("tip_velocity"),
             energy=cat("energy") if energy else None,
+            **({k: cat(k) for k in ENERGY_PARTS} if energy else {}),
             shape_time=np.concatenate([p["shape_time"] for p in shape_parts])
             if shape_parts
             else None,
@@ -333,6 +541,54 @@ class Simulation:
             else None,
             metadata=metadata,
         )
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float)
+    a.setflags(write=False)
+    return a
+
+
+def _vector(value, field: str, kind: str) -> list[float]:
+    """Three finite numbers (SI), or strings with units of ``kind``."""
+    from ..statics import _vec3
+
+    if value is None:
+        raise design_error(field, value, f"must be 3 {kind} values (world frame)", InputError)
+    return _vec3(value, kind, field, None)
+
+
+def _tip_loads(tip_load, times: np.ndarray) -> np.ndarray | None:
+    """(n, 6) dead tip force (N) and moment (N m) at the step times, or None (the design's
+    own tip loads). ``tip_load``: None, a pair (force, moment) held constant, or a
+    function of t (s) returning such a pair."""
+    if tip_load is None:
+        return None
+    if callable(tip_load):
+        rows = []
+        for t in times:
+            raw = tip_load(float(t))
+            if not (isinstance(raw, tuple | list) and len(raw) == 2):
+                raise design_error(
+                    f"tip_load(t = {t:g} s)",
+                    raw,
+                    "must return a pair (force (3,) in N, moment (3,) in N m)",
+                    InputError,
+                )
+            f = _vector(raw[0], f"tip_load(t = {t:g} s)[0]", "force")
+            m = _vector(raw[1], f"tip_load(t = {t:g} s)[1]", "moment")
+            rows.append(f + m)
+        return np.array(rows, dtype=float).reshape(len(times), 6)
+    if isinstance(tip_load, tuple | list) and len(tip_load) == 2:
+        f = _vector(tip_load[0], "tip_load[0]", "force")
+        m = _vector(tip_load[1], "tip_load[1]", "moment")
+        return np.tile(np.array(f + m, dtype=float), (len(times), 1))
+    raise design_error(
+        "tip_load",
+        type(tip_load).__name__,
+        "must be None, a pair (force in N, moment in N m) or a function of t (s) returning one",
+        InputError,
+    )
 
 
 def _shape_steps(shapes, n: int, dt: float, save_every: int) -> tuple[np.ndarray, bool]:
@@ -369,9 +625,14 @@ def simulate(
     shapes: str | float | Sequence[float] | None = None,
     initial: str | Simulation = "static",
     model: str = "cosserat",
+    scheme: str = "bdf-alpha",
     alpha: float = -0.2,
     tol: float | None = None,
     max_iter: int | None = None,
+    error_tol: Quantity | None = None,
+    energy_tol: float = DEFAULT_ENERGY_TOL,
+    stiffness_map: StiffnessMap | None = None,
+    tip_load: TipLoad | None = None,
     energy: bool = True,
     progress: Callable[[float, float, float], None] | None = None,
 ) -> Trajectory:
@@ -382,7 +643,7 @@ def simulate(
       lag and rate limit; sections may give damping matrices and rotary inertia instead.
     - ``pressure_schedule``: a :class:`PressureSchedule`, a CSV/Parquet file of commands
       (``time_s``, ``p0_kPa``, ...), a function of t (s) returning one pressure per channel
-      (Pa), or constant pressures (Pa).
+      (Pa), or constant pressures (Pa); None for a design without chambers.
     - ``t_end`` (s or a string with units) and ``dt`` (default 2 ms): the run takes
       ceil(t_end / dt) steps.
     - ``save_every``: keep every n-th step (the last step is always kept).
@@ -396,20 +657,39 @@ def simulate(
       the design's ``[pcc]`` parameters; docs/pcc.md). Both take the same schedule through
       the same pressure supply and return the same :class:`Trajectory`; a PCC run's shapes
       are its arcs sampled along s, and ``initial`` may not be a :class:`Simulation`.
-    - ``alpha``, ``tol``, ``max_iter``: integrator settings (see :class:`Simulation`;
-      ``alpha`` is the rod's BDF-alpha parameter; the PCC model uses the implicit midpoint
-      rule, its ``tol`` default is 1e-11 on the Newton update per coordinate scale).
-    - ``energy``: also record the total mechanical energy (J).
+    - ``scheme``, ``alpha``, ``tol``, ``max_iter``, ``error_tol``, ``energy_tol``,
+      ``stiffness_map``: the rod's integrator settings, see :class:`Simulation` (the PCC
+      model uses the implicit midpoint rule; its ``tol`` default is 1e-11 on the Newton
+      update per coordinate scale, and it takes none of the others).
+    - ``tip_load``: dead tip force (N) and moment (N m), world frame, over time: None (the
+      design's ``[tip]`` loads), a pair ``(force, moment)``, or a function of t (s)
+      returning one (sampled at the step times, like the schedule). With it, designs
+      without chambers simulate.
+    - ``energy``: also record the energy and its books (J).
     - ``progress``: None (a bar in interactive sessions), True, False, or a callable called
       after each chunk of steps as progress(t_done, t_end, wall_s); see
       :mod:`softrod.progress`.
 
     Returns a :class:`Trajectory`; its metadata records the method, the wall time and the
     real-time factor. A step that does not converge raises ``ConvergenceError`` with the
-    time it failed at.
+    time it failed at; a state that breaks a physical rule (stretch <= 0, energy growth
+    beyond ``energy_tol``) raises ``InvalidStateError`` naming the time, the step, the
+    rule and what to change.
     """
     V.choice(model, ("cosserat", "pcc"), "model")
     if model == "pcc":
+        rod_only = {
+            "scheme": (scheme, "bdf-alpha"),
+            "error_tol": (error_tol, None),
+            "energy_tol": (energy_tol, DEFAULT_ENERGY_TOL),
+            "stiffness_map": (stiffness_map, None),
+            "tip_load": (tip_load, None),
+        }
+        for name, (value, default) in rod_only.items():
+            if value is not default and value != default:
+                raise design_error(
+                    name, value, "is a setting of the rod model (model='cosserat')", InputError
+                )
         return _simulate_pcc(
             design,
             pressure_schedule,
@@ -430,8 +710,11 @@ def simulate(
         sim = initial.copy()
     else:
         d = load_design(design)
-        schedule = _schedule(pressure_schedule, d.n_channels)
-        p0 = schedule.sample([0.0])[0]
+        if pressure_schedule is None and d.n_channels == 0:
+            schedule, p0 = None, np.zeros(0)
+        else:
+            schedule = _schedule(pressure_schedule, d.n_channels)
+            p0 = schedule.sample([0.0])[0]
         if not isinstance(initial, str):
             raise design_error(
                 "initial",
@@ -439,7 +722,21 @@ def simulate(
                 "must be 'static', 'straight' or a Simulation",
                 InputError,
             )
-        sim = Simulation(d, p0, initial=initial, dt=dt, alpha=alpha, tol=tol, max_iter=max_iter)
+        first = None if tip_load is None else _tip_loads(tip_load, np.zeros(1))[0]
+        sim = Simulation(
+            d,
+            p0,
+            initial=initial,
+            dt=dt,
+            scheme=scheme,
+            alpha=alpha,
+            tol=tol,
+            max_iter=max_iter,
+            error_tol=error_tol,
+            energy_tol=energy_tol,
+            stiffness_map=stiffness_map,
+            _tip_loads0=first,
+        )
         pressure_schedule = schedule
     return sim.run(
         pressure_schedule,
@@ -447,6 +744,7 @@ def simulate(
         save_every=save_every,
         shapes=shapes,
         energy=energy,
+        tip_load=tip_load,
         progress=progress,
     )
 

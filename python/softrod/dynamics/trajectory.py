@@ -1,8 +1,9 @@
 """Trajectories: the result of a dynamic simulation, with files, plots and animations.
 
 A :class:`Trajectory` holds, at n sample times, the commanded and actual chamber pressures,
-the tip pose and velocity and the mechanical energy, plus the full centreline at k of those
-times (the "shapes"). Everything is SI (s, Pa, m, m/s, J). Files:
+the tip pose and velocity, the mechanical energy and its books (kinetic, elastic, potential,
+work of the inputs, dissipation), plus the full centreline at k of those times (the
+"shapes"). Everything is SI (s, Pa, m, m/s, J). Files:
 
 - Parquet (``.parquet``): one row per sample time, units in the column names (see
   :meth:`Trajectory.to_frame`), the shapes in a list column ``shape_m``, the metadata as JSON
@@ -43,6 +44,7 @@ if TYPE_CHECKING:
     from .._types import ArrayLike, Progress, Units
 
 __all__ = [
+    "ENERGY_PARTS",
     "TRAJECTORY_FORMAT",
     "TRAJECTORY_SUFFIXES",
     "AnimationPlan",
@@ -77,6 +79,16 @@ _FIELDS = (
     "shape_s",
     "shape_position",
 )
+# The energy books (J, (n,), NaN where not recorded): optional in files, so that
+# trajectories written before they existed still load.
+ENERGY_PARTS = ("kinetic", "elastic", "potential", "work_in", "dissipated")
+ENERGY_DESCRIPTIONS = {
+    "kinetic": "kinetic energy (empty: not recorded)",
+    "elastic": "stored energy of the law at the current pressures (empty: not recorded)",
+    "potential": "potential of gravity and dead forces (empty: not recorded)",
+    "work_in": "work of the inputs since t = 0 (empty: not recorded)",
+    "dissipated": "Kelvin-Voigt dissipation since t = 0 (empty: not recorded)",
+}
 _PARQUET_KEY = b"softrod.trajectory"  # layout facts (format, channels, shape_s_m)
 _META_KEY = b"softrod.metadata"  # the metadata dict
 _NPZ_FORMAT = "softrod.trajectory"
@@ -128,8 +140,14 @@ class Trajectory:
     - ``pressure`` (n, c) Pa: actual chamber gauge pressures (after the supply's lag);
     - ``tip_position`` (n, 3) m, world frame; ``tip_rotation`` (n, 3, 3): the tip frame
       [d1 d2 d3] as columns in world coordinates; ``tip_velocity`` (n, 3) m/s;
-    - ``energy`` (n,) J: total mechanical energy (kinetic + elastic + gravitational), NaN
+    - ``energy`` (n,) J: total mechanical energy (kinetic + elastic + potential), NaN
       where not defined (default: all NaN);
+    - ``kinetic``, ``elastic``, ``potential`` (n,) J: its parts (elastic: the law's stored
+      energy at the current pressures; potential: gravity and dead forces), and
+      ``work_in``, ``dissipated`` (n,) J: the work of the inputs (pressure and load
+      changes, dead moments) and the Kelvin-Voigt dissipation since t = 0, NaN where not
+      recorded; ``energy_balance`` = energy - energy[0] - (work_in - work_in[0]) +
+      (dissipated - dissipated[0]) is zero for the exact motion;
     - ``shape_time`` (k,) s: times of the stored centrelines, each exactly one of ``time``
       (k may be 0); ``shape_s`` (p,) m: reference arc length of the nodes, strictly
       increasing; ``shape_position`` (k, p, 3) m: the centrelines;
@@ -150,6 +168,11 @@ class Trajectory:
     shape_s: np.ndarray | None = None
     shape_position: np.ndarray | None = None
     metadata: dict = field(default_factory=dict)
+    kinetic: np.ndarray | None = None
+    elastic: np.ndarray | None = None
+    potential: np.ndarray | None = None
+    work_in: np.ndarray | None = None
+    dissipated: np.ndarray | None = None
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -161,9 +184,7 @@ class Trajectory:
         n = t.size
         set_(self, "time", _readonly(t))
         cmd = _array(self.command, "command", (n, None), f"(n = {n}, channels) in Pa")
-        if cmd.shape[1] < 1:
-            raise _fail("command", f"shape {cmd.shape}", "needs at least one channel")
-        c = cmd.shape[1]
+        c = cmd.shape[1]  # 0 for a design without chambers
         specs = {
             "command": (cmd, (n, c), f"(n = {n}, channels) in Pa"),
             "pressure": (self.pressure, (n, c), f"(n = {n}, channels = {c}) in Pa"),
@@ -175,8 +196,10 @@ class Trajectory:
             a = _array(value, name, shape, what)
             _finite(a, name)
             set_(self, name, _readonly(a))
-        e = np.full(n, np.nan) if self.energy is None else self.energy
-        set_(self, "energy", _readonly(_array(e, "energy", (n,), f"(n = {n},) in J, NaN allowed")))
+        for name in ("energy", *ENERGY_PARTS):
+            v = getattr(self, name)
+            e = np.full(n, np.nan) if v is None else v
+            set_(self, name, _readonly(_array(e, name, (n,), f"(n = {n},) in J, NaN allowed")))
 
         st = np.zeros(0) if self.shape_time is None else self.shape_time
         st = _array(st, "shape_time", (None,), "the times of the stored shapes in s")
@@ -231,6 +254,18 @@ class Trajectory:
         return self.command.shape[1]
 
     @property
+    def energy_balance(self) -> np.ndarray:
+        """(n,) J: energy - energy[0] - (work_in - work_in[0]) + (dissipated -
+        dissipated[0]), zero for the exact motion (the simulation stops when it grows
+        beyond its energy_tol; docs/dynamics.md)."""
+        return (
+            self.energy
+            - self.energy[0]
+            - (self.work_in - self.work_in[0])
+            + (self.dissipated - self.dissipated[0])
+        )
+
+    @property
     def duration(self) -> float:
         """``time[-1] - time[0]`` in s."""
         return float(self.time[-1] - self.time[0])
@@ -244,7 +279,8 @@ class Trajectory:
         ``tip_y_mm``, ``tip_z_mm``; ``tip_qw`` ... ``tip_qz`` (the tip frame as a unit
         quaternion, scalar first); then the result columns ``cmd0_kPa``, ... (commanded
         pressures), ``tip_vx_mm/s``, ``tip_vy_mm/s``, ``tip_vz_mm/s`` (tip velocity, world
-        frame) and ``energy_J``. ``units`` as in :meth:`softrod.Dataset.to_frame` (also
+        frame), ``energy_J`` and its books ``kinetic_J``, ``elastic_J``, ``potential_J``,
+        ``work_in_J``, ``dissipated_J``. ``units`` as in :meth:`softrod.Dataset.to_frame` (also
         "velocity" and "energy"; ``units="SI"`` for Pa, m, m/s). The same quantities have the
         same names as in :meth:`softrod.BatchSolution.to_frame`. The metadata block
         (``frame.attrs["softrod.metadata"]``) is :attr:`metadata` with the result columns
@@ -276,6 +312,10 @@ class Trajectory:
         extras.append(
             Extra("energy", self.energy, "total mechanical energy (empty: not defined)", "energy")
         )
+        extras += [
+            Extra(name, getattr(self, name), what, "energy")
+            for name, what in ENERGY_DESCRIPTIONS.items()
+        ]
         return extras
 
     def save(self, path: str | os.PathLike) -> Path:
@@ -292,7 +332,7 @@ class Trajectory:
         meta = _metadata_json(self.metadata)
         with atomic_path(path) as tmp:
             if path.suffix.lower() == ".npz":
-                arrays = {name: getattr(self, name) for name in _FIELDS}
+                arrays = {name: getattr(self, name) for name in (*_FIELDS, *ENERGY_PARTS)}
                 with open(tmp, "wb") as fh:  # a file object: numpy would append ".npz"
                     np.savez_compressed(
                         fh,
@@ -822,6 +862,7 @@ def _load_npz(path: Path) -> Trajectory:
             raise _fail("arrays", sorted(data.files), f"missing {', '.join(missing)}")
         try:
             arrays = {n: data[n] for n in _FIELDS}
+            arrays.update({n: data[n] for n in ENERGY_PARTS if n in data.files})
             meta_text = str(data["metadata_json"])
         except Exception as exc:  # a damaged archive: zipfile, zlib and numpy errors
             raise _fail("file", str(path), f"is a damaged .npz file: {exc}") from None
@@ -845,8 +886,8 @@ def _load_parquet(path: Path) -> Trajectory:
     for key in layout.get("table_metadata", ["columns"]):
         meta.pop(key, None)  # e.g. the declaration of the result columns, added by save
     c = layout.get("n_channels")
-    if not isinstance(c, int) or c < 1:
-        raise _fail("softrod.trajectory.n_channels", c, "must be an integer >= 1")
+    if not isinstance(c, int) or isinstance(c, bool) or c < 0:
+        raise _fail("softrod.trajectory.n_channels", c, "must be an integer >= 0")
     names = set(table.column_names)
 
     def col(name: str) -> np.ndarray:
@@ -854,10 +895,14 @@ def _load_parquet(path: Path) -> Trajectory:
             raise _fail("columns", sorted(names), f"missing column {name!r}")
         return table.column(name).to_numpy().astype(float, copy=False)
 
+    n = table.num_rows
+
     def cols(fmt: str, keys) -> np.ndarray:
+        keys = list(keys)
+        if not keys:
+            return np.zeros((n, 0))
         return np.column_stack([col(fmt.format(k)) for k in keys])
 
-    n = table.num_rows
     time = col("time_s")
     rotation = cols("{}", _ROT).reshape(n, 3, 3)
     ss = np.asarray(layout.get("shape_s_m", []), dtype=float)
@@ -881,6 +926,7 @@ def _load_parquet(path: Path) -> Trajectory:
         tip_rotation=rotation,
         tip_velocity=cols("tip_v{}_m_s" if version == 1 else "tip_v{}_m/s", _XYZ),
         energy=col("energy_J"),
+        **{p: col(f"{p}_J") for p in ENERGY_PARTS if f"{p}_J" in names},
         shape_time=time[has],
         shape_s=ss,
         shape_position=values.reshape(k, p, 3),

@@ -710,7 +710,7 @@ impl PccModel {
             let now = &mut rest[..nc];
             let command = now.to_vec();
             now.copy_from_slice(&done[(k - 1) * nc..]);
-            crate::dynamics::advance_supply(&self.supply, dt, now, &command);
+            self.supply.advance_supply(dt, now, &command);
         }
         dispatch!(
             self.ndof,

@@ -9,55 +9,7 @@
 //! used below `SERIES_SWITCH`, the closed forms above it. The code is generic over the
 //! scalar, so dual numbers give exact derivatives of any order.
 
-use num_dual::DualNum;
-use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
-
-/// Scalars the PCC model is written for: f64, num-dual numbers and the model's own
-/// fixed-size jets (`super::jet`). Only what the kinematics and forces use.
-pub trait Real:
-    Copy
-    + From<f64>
-    + Add<Output = Self>
-    + Sub<Output = Self>
-    + Mul<Output = Self>
-    + Div<Output = Self>
-    + Neg<Output = Self>
-    + Add<f64, Output = Self>
-    + Sub<f64, Output = Self>
-    + Mul<f64, Output = Self>
-    + Div<f64, Output = Self>
-    + AddAssign
-    + SubAssign
-    + MulAssign<f64>
-{
-    /// Highest derivative carried (nilpotency order of the non-real part).
-    const NDERIV: usize;
-    /// The plain value.
-    fn re(&self) -> f64;
-    fn sqrt(&self) -> Self;
-    fn sin(&self) -> Self;
-    fn cos(&self) -> Self;
-}
-
-impl<T: DualNum<Primitive = f64> + Copy> Real for T {
-    const NDERIV: usize = <T as DualNum>::NDERIV;
-    #[inline]
-    fn re(&self) -> f64 {
-        num_dual::DualStruct::re(self)
-    }
-    #[inline]
-    fn sqrt(&self) -> Self {
-        DualNum::sqrt(self)
-    }
-    #[inline]
-    fn sin(&self) -> Self {
-        DualNum::sin(self)
-    }
-    #[inline]
-    fn cos(&self) -> Self {
-        DualNum::cos(self)
-    }
-}
+pub use crate::jet::Real;
 
 /// Below t = theta^2 = 0.25 (|theta| < 0.5 rad) the series are used.
 pub const SERIES_SWITCH: f64 = 0.25;

@@ -2,6 +2,8 @@
 //! `DesignSpec::validate` checks every rule a design must satisfy and names the offending
 //! field; `crate::rod::Rod::new` only accepts validated specs.
 
+pub mod pcc;
+
 use crate::error::{Result, SoftrodError};
 use serde::{Deserialize, Serialize};
 
@@ -274,6 +276,27 @@ pub struct DynamicsSpec {
     pub pressure_rate_limit: Option<f64>,
 }
 
+impl DynamicsSpec {
+    /// Advance chamber pressures by one step of dt towards the commands: a first-order lag
+    /// with time constant T (exact for a command held over the step), then the rate limit
+    /// (paper 000 Sec. III-A). The rod's dynamics and the PCC model both use this supply, so
+    /// both models see the same pressures.
+    pub fn advance_supply(&self, dt: f64, pressures: &mut [f64], command: &[f64]) {
+        for (p, &c) in pressures.iter_mut().zip(command) {
+            let target = if self.pressure_time_constant > 0.0 {
+                c + (*p - c) * (-dt / self.pressure_time_constant).exp()
+            } else {
+                c
+            };
+            let step = match self.pressure_rate_limit {
+                Some(rate) => (target - *p).clamp(-rate * dt, rate * dt),
+                None => target - *p,
+            };
+            *p += step;
+        }
+    }
+}
+
 /// Distributed dead line load on one section, world frame.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -312,7 +335,7 @@ pub struct DesignSpec {
     /// Parameters of the piecewise-constant-curvature model (paper 003); `None` derives
     /// them from the rod's stiffnesses (see `crate::pcc`).
     #[serde(default)]
-    pub pcc: Option<crate::pcc::PccSpec>,
+    pub pcc: Option<pcc::PccSpec>,
     /// The pressures the actuator is built for; `None`: no range is known.
     #[serde(default)]
     pub operating_range: Option<OperatingRangeSpec>,

@@ -21,6 +21,8 @@
 //! no point conjugate to the clamp in (0, L] (det of the Jacobi fields' rotations,
 //! d theta(s)/dx, keeps its sign) and the tip form sym(Theta(L)^T J) is positive definite.
 
+pub mod collocation;
+
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
 use crate::ode::{integrate, strains, Coeffs, Loads, SectionKnobs, State};
@@ -113,6 +115,9 @@ pub struct Solution {
     /// Validity-range violations (with `Policy::Warn`; empty otherwise): the worst fibre
     /// stretch outside `strain_limits`, pressures outside the design's operating range.
     pub violations: Vec<SoftrodError>,
+    /// The shape, when the solve used collocation (`crate::collocation`): re-integrating
+    /// from `x` by shooting is what that rod's conditioning forbids.
+    pub collocation: Option<std::sync::Arc<Shape>>,
 }
 
 /// The rod's shape at every integration node.
@@ -548,6 +553,7 @@ impl<'a> Problem<'a> {
                 load_steps,
                 stable: jacobi.stable(&jac),
                 violations,
+                collocation: None,
             },
             shape,
         ))
@@ -761,6 +767,11 @@ fn solve_inner(
     want_shape: bool,
 ) -> Attempt {
     let violations = check_inputs(rod, loads, opts)?;
+    // Single shooting's sensitivity grows like exp(int sqrt(|n| / EI) ds): long, soft rods
+    // under their own weight go to collocation (docs/model.md, "Collocation").
+    if collocation::shooting_ill_conditioned(rod, loads) {
+        return by_collocation(rod, loads, opts, violations);
+    }
     let mut iterations = 0;
     let mut first: Option<Attempt> = None;
     if let Some(g) = guess.filter(|g| g.iter().all(|v| v.is_finite())) {
@@ -790,6 +801,79 @@ fn solve_inner(
     }
     let path = natural_path(rod, loads, opts, violations, want_shape, iterations);
     better(first, path)
+}
+
+/// A static solve by collocation (`collocation::solve_static`), for rods whose
+/// single-shooting problem is ill-conditioned (docs/model.md, "Collocation"). Every node
+/// passes the same validity rules as a shooting solution's. The conjugate-point test
+/// integrates the Jacobi fields from the clamp, which is the same ill-conditioned initial
+/// value problem, so it is not run: `stable` is true without that test (the solution is an
+/// equilibrium that collocation's Newton reached from the straight rod by continuation).
+fn by_collocation(
+    rod: &Rod,
+    loads: &Loads,
+    opts: &SolverOptions,
+    violations: Vec<SoftrodError>,
+) -> Attempt {
+    let mut violations = violations;
+    let sol = collocation::solve_static(rod, loads, None, opts)?;
+    let (base_force, base_moment) = collocation::base_wrench(rod, &sol.z);
+    let ev = &sol.evaluated;
+    let grid = crate::collocation::Grid::new(rod);
+    let p = Problem::new(rod, loads, 1.0);
+    let mut shape = Shape::default();
+    let mut worst: Option<(f64, SoftrodError)> = None;
+    for (j, y) in ev.nodes.iter().enumerate() {
+        let node = Node {
+            index: j,
+            s: grid.node_s(j),
+            section: if j == 0 {
+                0
+            } else {
+                grid.intervals[j - 1].section
+            },
+        };
+        let state = State {
+            r: ev.node_r[j],
+            rot: crate::collocation::rotation(&y[..4]),
+            n: [y[4], y[5], y[6]],
+            m: [y[7], y[8], y[9]],
+            aux: [1.0, 1.0],
+        };
+        let (v, u) = p.check_node(node, &state, opts, &mut worst)?;
+        shape.push(node, &state, v, u);
+    }
+    if let Some((_, e)) = worst {
+        match opts.on_invalid {
+            Policy::Raise => return Err(e),
+            Policy::Warn => violations.push(e),
+            Policy::Ignore => {}
+        }
+    }
+    let last = shape.s.len() - 1;
+    let tip = State {
+        r: shape.position[last],
+        rot: shape.rotation[last],
+        n: shape.force[last],
+        m: shape.moment[last],
+        aux: [1.0, 1.0],
+    };
+    let shape = std::sync::Arc::new(shape);
+    Ok((
+        Solution {
+            x: [sol.z[3], sol.z[4], sol.z[5]],
+            base_force,
+            base_moment,
+            tip,
+            iterations: sol.iterations,
+            residual: sol.residual,
+            load_steps: sol.load_steps,
+            stable: true,
+            violations,
+            collocation: Some(shape.clone()),
+        },
+        Some((*shape).clone()),
+    ))
 }
 
 /// An error in place of a branch the logic never takes (the core never panics).
@@ -1018,6 +1102,9 @@ pub fn conclude_at(
 
 /// The shape of a converged solution at every integration node.
 pub fn shape(rod: &Rod, loads: &Loads, sol: &Solution) -> Shape {
+    if let Some(sh) = &sol.collocation {
+        return (**sh).clone();
+    }
     let p = Problem::new(rod, loads, 1.0);
     let mut out = Shape::default();
     let mut index = 0;

@@ -1,0 +1,1322 @@
+//! Spatial discretisation of the rod by Gauss-Legendre collocation (two stages, fourth
+//! order) with a block-banded Newton: the discretisation of dynamics at every time step and
+//! of statics wherever single shooting is ill-conditioned (docs/model.md, "Collocation").
+//!
+//! Why not single shooting. At a time step the balance laws become an ODE in s whose
+//! solutions grow like exp(s c0 / c) (c: axial or shear wave speed, c0 ~ 2/dt) and
+//! exp(s (rho A c0^2 / EI)^(1/4)); for a soft rod at a small step the product over the
+//! length exceeds 1e16 and shooting from the base cannot be solved. Multiple shooting with
+//! an explicit integrator (RK4) inside segments does not cure it: RK4 amplifies the
+//! decaying solutions too once the step exceeds 2.8 / k. Gauss collocation is A-stable in
+//! s (stiff solutions stay bounded: amplification (1 + z/2 + z^2/12) / (1 - z/2 + z^2/12)
+//! per interval), and with every node and stage unknown the Newton system is almost block
+//! diagonal; solved by banded LU with partial pivoting it costs O(N) and stays well
+//! conditioned for any dt and stiffness. Gauss collocation also makes the semi-discrete
+//! rod an ODE in the stage values with an exactly conserved quadratic energy in the
+//! linear limit (2-point Gauss quadrature integrates the energy flux's cubic polynomials
+//! exactly), so the trapezoidal rule in time conserves energy and BDF-alpha only damps;
+//! the former RK4 stage histories made the coupled scheme grow (issue 14).
+//!
+//! Unknowns at every node and stage point: the rotation as a quaternion Q (its norm is a
+//! quadratic invariant of Q' = Q (0, u) / 2, which Gauss collocation conserves, so
+//! R = R(Q) / |Q|^2 is a rotation to round-off), the total internal force n and moment m
+//! (world frame), and the body-frame velocities q, w. The centreline r is not an unknown:
+//! nothing depends on it, so it is recovered afterwards by the same quadrature
+//! (r_i = r_j + h sum_k a_ik R_k v_k). Per interval [s_j, s_j + h] with stages
+//! Y_1, Y_2 at s_j + c_i h:
+//!   Y_i     = Y_j + h sum_k a_ik f(Y_k)   (stage equations),
+//!   Y_{j+1} = Y_j + h sum_k b_k  f(Y_k)   (node equation),
+//! with c = 1/2 -+ sqrt(3)/6, a = [[1/4, 1/4 - sqrt(3)/6], [1/4 + sqrt(3)/6, 1/4]],
+//! b = (1/2, 1/2). Base: Q, q = w = 0 known, n(0), m(0) unknown (6); tip: 6 balance
+//! equations. f is the Cosserat ODE of `crate::dynamics` (inertia and Kelvin-Voigt terms
+//! through the time integrator's c0 and history terms; c0 = 0 with zero histories is
+//! statics).
+//!
+//! Newton's linear systems: each interval's stage block (32 x 32) is factored and
+//! condensed, leaving the node recurrences dY_{j+1} = T_j dY_j + t_j; these, the base
+//! unknowns and the tip equations form a banded matrix solved by `crate::banded`. The
+//! Jacobian of f at each stage is exact: one evaluation in `Jet<16>` over the stage's own
+//! unknowns.
+
+use crate::banded::BandedLu;
+
+use crate::jet::{Jet, RodScalar};
+use crate::law::{ogden_derivatives, ogden_force, AxialTable};
+use crate::ode::{AxialCoeffs, Coeffs};
+use crate::rod::{inverse3, Rod};
+use nalgebra::SMatrix;
+use std::sync::Arc;
+
+/// Unknowns per point: quaternion (4), n (3), m (3), q (3), w (3).
+pub const NY: usize = 16;
+/// Fields kept per stage for the time integrator: v, u, q, w (body frame).
+pub const NF: usize = 12;
+pub(crate) const IQ: usize = 0;
+pub(crate) const IN: usize = 4;
+pub(crate) const IM: usize = 7;
+const IV: usize = 10;
+const IW: usize = 13;
+
+const SQRT3_6: f64 = 0.288_675_134_594_812_9; // sqrt(3) / 6
+/// Gauss-Legendre nodes on [0, 1].
+pub const GAUSS_C: [f64; 2] = [0.5 - SQRT3_6, 0.5 + SQRT3_6];
+const GAUSS_A: [[f64; 2]; 2] = [[0.25, 0.25 - SQRT3_6], [0.25 + SQRT3_6, 0.25]];
+/// Gauss-Legendre weights on [0, 1].
+pub const GAUSS_B: [f64; 2] = [0.5, 0.5];
+
+type Mat32 = SMatrix<f64, 32, 32>;
+type Mat16 = SMatrix<f64, 16, 16>;
+type Mat32x16 = SMatrix<f64, 32, 16>;
+type Mat16x32 = SMatrix<f64, 16, 32>;
+
+/// One collocation interval.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Interval {
+    pub section: usize,
+    pub s0: f64,
+    pub h: f64,
+}
+
+/// The intervals of a rod: each section's `steps` (a rigid section is one interval, exact
+/// there: its integrands are polynomials of degree <= 2 in s).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grid {
+    pub intervals: Vec<Interval>,
+}
+
+impl Grid {
+    pub fn new(rod: &Rod) -> Self {
+        let mut intervals = Vec::new();
+        for (i, sec) in rod.sections.iter().enumerate() {
+            let h = sec.length / sec.steps as f64;
+            for k in 0..sec.steps {
+                intervals.push(Interval {
+                    section: i,
+                    s0: sec.s_start + h * k as f64,
+                    h,
+                });
+            }
+        }
+        Grid { intervals }
+    }
+
+    /// Number of intervals N (N + 1 nodes, 2N stage points).
+    pub fn len(&self) -> usize {
+        self.intervals.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.intervals.is_empty()
+    }
+
+    /// Length of the unknown (and residual) vector: 6 base unknowns, then per interval its
+    /// two stages and its end node.
+    pub fn unknowns(&self) -> usize {
+        6 + 48 * self.len()
+    }
+
+    /// Arc length of stage `i` of interval `j`.
+    pub fn stage_s(&self, j: usize, i: usize) -> f64 {
+        let iv = &self.intervals[j];
+        iv.s0 + GAUSS_C[i] * iv.h
+    }
+
+    /// Arc length of node j (0..=N).
+    pub fn node_s(&self, j: usize) -> f64 {
+        if j < self.len() {
+            self.intervals[j].s0
+        } else {
+            let iv = self.intervals[j - 1];
+            iv.s0 + iv.h
+        }
+    }
+}
+
+#[inline(always)]
+fn stage_index(j: usize, i: usize) -> usize {
+    6 + 48 * j + 16 * i
+}
+
+#[inline(always)]
+fn node_index(j: usize) -> usize {
+    // node j >= 1 is the end of interval j - 1
+    6 + 48 * (j - 1) + 32
+}
+
+/// Axial and shear law of a section at one time step.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Axial {
+    /// (K_se + c0 B_se) v = n_m + K_se v* - B_se v_h with n_m = R^T n + P e3 (diagonal).
+    Linear { a_se: [f64; 3], g_se: [f64; 3] },
+    /// Ogden (paper 002 eq. 16) with shear stiffness k_s: n_og(v) + B (c0 v + v_h) = n_m.
+    Ogden { k_e: f64, alpha: f64, k_s: f64 },
+    /// EA(F) table: elastic axial force F with v3 = 1 + F / (scale EA(F)), and
+    /// F + b3 (c0 v3 + h3) = n_m3; shear linear.
+    Table {
+        table: Arc<AxialTable>,
+        scale: f64,
+        a_s: [f64; 2],
+    },
+}
+
+/// The law, loads and inertia of one section at one time step (or a static solve).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SectionModel {
+    pub rigid: bool,
+    pub axial: Axial,
+    /// Diagonal of K_se (N) and its damping B_se (N s); for a nonlinear law the
+    /// small-strain stiffness.
+    pub k_se: [f64; 3],
+    pub b_se: [f64; 3],
+    /// K_bt, its damping B_bt and (K_bt + c0 B_bt)^-1.
+    pub k_bt: [[f64; 3]; 3],
+    pub b_bt: [[f64; 3]; 3],
+    a_bt: [[f64; 3]; 3],
+    /// K_bt u_p = K_bt u* + M_p (the pressure moment, body frame).
+    pub g_bt: [f64; 3],
+    /// Pressure-shifted stress-free strains of the linear law.
+    pub v_p: [f64; 3],
+    pub u_p: [f64; 3],
+    /// Pressure force P = sum_k p_k A_k, N.
+    pub p_force: f64,
+    /// Bending stiffness times the stretch v3 (paper 004 eq. 29).
+    pub stretch_bending: bool,
+    pub rho_a: f64,
+    pub rho_j: [f64; 3],
+    /// Line force (weight included) and moment, world frame.
+    pub f: [f64; 3],
+    pub l: [f64; 3],
+}
+
+impl SectionModel {
+    /// From the static law's coefficients `c` (pressures, swelling and stiffness scale
+    /// already applied), the section's line mass and rotary inertia, its damping (given
+    /// diagonals, or B = tau K with K the law's small-strain stiffness) and the time
+    /// integrator's c0 (0 for statics).
+    pub fn new(
+        c: &Coeffs<f64>,
+        rigid: bool,
+        rho_a: f64,
+        rho_j: [f64; 3],
+        damping: Option<([f64; 3], [f64; 3])>,
+        tau: f64,
+        c0: f64,
+    ) -> Self {
+        let z3 = [0.0; 3];
+        let z33 = [[0.0; 3]; 3];
+        let mut out = SectionModel {
+            rigid,
+            axial: Axial::Linear { a_se: z3, g_se: z3 },
+            k_se: z3,
+            b_se: z3,
+            k_bt: z33,
+            b_bt: z33,
+            a_bt: z33,
+            g_bt: z3,
+            v_p: c.v_shift,
+            u_p: c.u_shift,
+            p_force: c.p_force,
+            stretch_bending: c.stretch_bending,
+            rho_a,
+            rho_j,
+            f: c.f,
+            l: c.l,
+        };
+        if rigid {
+            return out;
+        }
+        let mut k_se = c.c_se.map(|x| 1.0 / x);
+        // The small-strain stiffness of the nonlinear axial laws (their tangent at the
+        // stress-free state): W1''(1) = k_e for Ogden, scale EA(0) for a table.
+        match &c.axial {
+            AxialCoeffs::Ogden { k_e, k_s, .. } => k_se = [*k_s, *k_s, *k_e],
+            AxialCoeffs::Table { table, scale } => k_se[2] = scale * table.eval(0.0),
+            AxialCoeffs::Linear => {}
+        }
+        let k_bt = inverse3(&c.c_bt).unwrap_or([[f64::NAN; 3]; 3]);
+        let (b_se, b_bt) = match damping {
+            Some((se, bt)) => (
+                se,
+                std::array::from_fn(|i| std::array::from_fn(|j| if i == j { bt[i] } else { 0.0 })),
+            ),
+            None => (k_se.map(|k| k * tau), k_bt.map(|row| row.map(|k| k * tau))),
+        };
+        let eff: [[f64; 3]; 3] =
+            std::array::from_fn(|i| std::array::from_fn(|j| k_bt[i][j] + c0 * b_bt[i][j]));
+        out.a_bt = inverse3(&eff).unwrap_or([[f64::NAN; 3]; 3]);
+        out.g_bt = std::array::from_fn(|i| (0..3).map(|j| k_bt[i][j] * c.u_shift[j]).sum());
+        out.axial = match &c.axial {
+            AxialCoeffs::Linear => Axial::Linear {
+                a_se: std::array::from_fn(|k| 1.0 / (k_se[k] + c0 * b_se[k])),
+                g_se: std::array::from_fn(|k| k_se[k] * c.v_shift[k]),
+            },
+            AxialCoeffs::Ogden { k_e, alpha, k_s } => Axial::Ogden {
+                k_e: *k_e,
+                alpha: *alpha,
+                k_s: *k_s,
+            },
+            AxialCoeffs::Table { table, scale } => Axial::Table {
+                table: table.clone(),
+                scale: *scale,
+                a_s: [
+                    1.0 / (k_se[0] + c0 * b_se[0]),
+                    1.0 / (k_se[1] + c0 * b_se[1]),
+                ],
+            },
+        };
+        out.k_se = k_se;
+        out.b_se = b_se;
+        out.k_bt = k_bt;
+        out.b_bt = b_bt;
+        out
+    }
+
+    /// Body-frame strains (v, u) from the body-frame total force and moment `nb`, `mb`,
+    /// with the time integrator's c0 and this point's history terms `h` (v_h, u_h first).
+    /// Nonlinear laws are solved in f64 and linearised in the scalar type (implicit
+    /// function theorem), so dual numbers carry exact first derivatives.
+    #[inline(always)]
+    pub fn strains<D: RodScalar>(
+        &self,
+        nb: &[D; 3],
+        mb: &[D; 3],
+        h: &[f64; NF],
+        c0: f64,
+    ) -> ([D; 3], [D; 3]) {
+        let zero = D::from(0.0);
+        if self.rigid {
+            return ([zero, zero, D::from(1.0)], [zero; 3]);
+        }
+        let b = &self.b_se;
+        let v: [D; 3] = match &self.axial {
+            Axial::Linear { a_se, g_se } => {
+                std::array::from_fn(|k| (nb[k] + (g_se[k] - b[k] * h[k])) * a_se[k])
+            }
+            Axial::Table { table, scale, a_s } => {
+                let nm3 = nb[2] + self.p_force;
+                let v3 = table_stretch(table, *scale, b[2], c0, h[2], nm3);
+                [
+                    (nb[0] - b[0] * h[0]) * a_s[0],
+                    (nb[1] - b[1] * h[1]) * a_s[1],
+                    v3,
+                ]
+            }
+            Axial::Ogden { k_e, alpha, k_s } => {
+                let nm = [nb[0], nb[1], nb[2] + self.p_force];
+                ogden_strain(*k_e, *alpha, *k_s, b, c0, &h[0..3], &nm)
+            }
+        };
+        let hu = [h[3], h[4], h[5]];
+        let t: [f64; 3] = std::array::from_fn(|i| {
+            self.g_bt[i] - (0..3).map(|j| self.b_bt[i][j] * hu[j]).sum::<f64>()
+        });
+        let tm: [D; 3] = std::array::from_fn(|k| mb[k] + t[k]);
+        let u: [D; 3] = if self.stretch_bending {
+            // (v3 K_b + c0 B_b) u_b = m_b + K_b u_p - B_b u_h (paper 004 eq. 29 with the
+            // stretch as L_c / L_c0); K_bt is block diagonal, so torsion stays linear.
+            let kb = &self.k_bt;
+            let bb = &self.b_bt;
+            let a = v[2] * kb[0][0] + c0 * bb[0][0];
+            let bm = v[2] * kb[0][1] + c0 * bb[0][1];
+            let cm = v[2] * kb[1][0] + c0 * bb[1][0];
+            let d = v[2] * kb[1][1] + c0 * bb[1][1];
+            let inv = (a * d - bm * cm).recip();
+            [
+                (d * tm[0] - bm * tm[1]) * inv,
+                (a * tm[1] - cm * tm[0]) * inv,
+                tm[2] * (1.0 / (kb[2][2] + c0 * bb[2][2])),
+            ]
+        } else {
+            std::array::from_fn(|i| {
+                tm[0] * self.a_bt[i][0] + tm[1] * self.a_bt[i][1] + tm[2] * self.a_bt[i][2]
+            })
+        };
+        (v, u)
+    }
+}
+
+/// The table law with damping: solve F + b (c0 v3(F) + h) = n_m3 for the elastic axial
+/// force F, v3(F) = 1 + F / (s EA(F)); exact first derivatives through the implicit
+/// function theorem (d/dF of the left side is > 0 while v3 grows with F).
+#[inline(always)]
+fn table_stretch<D: RodScalar>(table: &AxialTable, s: f64, b: f64, c0: f64, h: f64, nm3: D) -> D {
+    let target = nm3.value();
+    let v3 = |f: f64| 1.0 + f / (s * table.eval(f));
+    let dv3 = |f: f64| {
+        let j = table.eval(Jet::<1>::variable(f, 0));
+        (j.re - f * j.eps[0]) / (s * j.re * j.re)
+    };
+    let bc = b * c0;
+    let mut f = target - b * (c0 + h);
+    // phi sums terms up to this size: its round-off floor (relative 1e-13 leaves room for
+    // a few ulps of each).
+    let size = 1.0 + target.abs() + bc.abs() * 2.0 + (b * h).abs();
+    let mut ok = false;
+    for _ in 0..60 {
+        let phi = f + bc * v3(f) + b * h - target;
+        let dphi = 1.0 + bc * dv3(f);
+        if !(phi.is_finite() && dphi.is_finite() && dphi > 0.0) {
+            break;
+        }
+        f -= phi / dphi;
+        if phi.abs() <= 1e-13 * size {
+            ok = true;
+            break;
+        }
+    }
+    if !ok {
+        return D::from(f64::NAN);
+    }
+    let dphi = 1.0 + bc * dv3(f);
+    let fj = (nm3 - target) * (1.0 / dphi) + f;
+    (fj * (table.eval(fj) * s).recip()) + 1.0
+}
+
+/// The Ogden law with damping B = diag(b): solve n_og(v) + B (c0 v + h) = n_m in f64 by
+/// Newton from the linear law, then v = v* + (K_t + c0 B)^-1 (n_m - n_m*) in the scalar
+/// type (exact first derivatives). NaN when the law cannot be inverted.
+#[inline(always)]
+fn ogden_strain<D: RodScalar>(
+    k_e: f64,
+    alpha: f64,
+    k_s: f64,
+    b: &[f64; 3],
+    c0: f64,
+    h: &[f64],
+    nm: &[D; 3],
+) -> [D; 3] {
+    let target = nm.map(|x| x.value());
+    let k0 = [k_s, k_s, k_e];
+    let mut v: [f64; 3] = std::array::from_fn(|k| {
+        let shift = if k == 2 { k0[2] } else { 0.0 };
+        (target[k] + shift - b[k] * h[k]) / (k0[k] + c0 * b[k])
+    });
+    let resid = |v: &[f64; 3]| -> [f64; 3] {
+        let n = ogden_force(k_e, alpha, k_s, v);
+        std::array::from_fn(|k| n[k] + b[k] * (c0 * v[k] + h[k]) - target[k])
+    };
+    let tangent = |v: &[f64; 3]| -> [[f64; 3]; 3] {
+        let lam = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let (d1, d2) = ogden_derivatives(k_e, alpha, lam);
+        let g = d1 / lam;
+        let c = (d2 - g) / (lam * lam);
+        std::array::from_fn(|i| {
+            std::array::from_fn(|j| {
+                let diag = if i == j {
+                    (if i < 2 { k_s + g } else { g }) + c0 * b[i]
+                } else {
+                    0.0
+                };
+                diag + c * v[i] * v[j]
+            })
+        })
+    };
+    // The residual sums terms up to this size (its round-off floor).
+    let bmax = b.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    let hmax = h.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    let scale =
+        1.0 + target.iter().fold(0.0f64, |a, x| a.max(x.abs())) + k_e + bmax * (2.0 * c0 + hmax);
+    let mut r = resid(&v);
+    let norm = |r: &[f64; 3]| r.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+    let mut ok = false;
+    for _ in 0..60 {
+        if !(norm(&r).is_finite()) {
+            break;
+        }
+        if norm(&r) <= 1e-13 * scale {
+            ok = true;
+            break;
+        }
+        let Some(ki) = inverse3(&tangent(&v)) else {
+            break;
+        };
+        let dv: [f64; 3] = std::array::from_fn(|i| -(0..3).map(|j| ki[i][j] * r[j]).sum::<f64>());
+        // Keep lambda positive: halve the step until the residual falls.
+        let mut t = 1.0;
+        let mut accepted = false;
+        while t > 1e-6 {
+            let vt: [f64; 3] = std::array::from_fn(|k| v[k] + t * dv[k]);
+            if vt[2] > 0.0 {
+                let rt = resid(&vt);
+                if norm(&rt).is_finite() && norm(&rt) < norm(&r) {
+                    v = vt;
+                    r = rt;
+                    accepted = true;
+                    break;
+                }
+            }
+            t *= 0.5;
+        }
+        if !accepted {
+            ok = norm(&r) <= 1e-10 * scale;
+            break;
+        }
+    }
+    if !ok {
+        return [D::from(f64::NAN); 3];
+    }
+    let Some(ki) = inverse3(&tangent(&v)) else {
+        return [D::from(f64::NAN); 3];
+    };
+    let dn: [D; 3] = std::array::from_fn(|k| nm[k] - target[k]);
+    std::array::from_fn(|i| dn[0] * ki[i][0] + dn[1] * ki[i][1] + dn[2] * ki[i][2] + v[i])
+}
+
+#[inline(always)]
+fn cross<D: RodScalar>(a: &[D; 3], b: &[D; 3]) -> [D; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[inline(always)]
+fn mat_vec<D: RodScalar>(r: &[[D; 3]; 3], x: &[D; 3]) -> [D; 3] {
+    std::array::from_fn(|i| r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2])
+}
+
+#[inline(always)]
+pub(crate) fn mat_t_vec<D: RodScalar>(r: &[[D; 3]; 3], x: &[D; 3]) -> [D; 3] {
+    std::array::from_fn(|i| r[0][i] * x[0] + r[1][i] * x[1] + r[2][i] * x[2])
+}
+
+/// Rotation matrix (row-major, columns d1 d2 d3) of a quaternion (w, x, y, z) of any norm:
+/// R(Q) / |Q|^2, a rotation for every Q != 0.
+#[inline(always)]
+pub fn rotation<D: RodScalar>(q: &[D]) -> [[D; 3]; 3] {
+    let (w, x, y, z) = (q[0], q[1], q[2], q[3]);
+    let inv = (w * w + x * x + y * y + z * z).recip();
+    let two = inv * 2.0;
+    [
+        [
+            (w * w + x * x - y * y - z * z) * inv,
+            (x * y - w * z) * two,
+            (x * z + w * y) * two,
+        ],
+        [
+            (x * y + w * z) * two,
+            (w * w - x * x + y * y - z * z) * inv,
+            (y * z - w * x) * two,
+        ],
+        [
+            (x * z - w * y) * two,
+            (y * z + w * x) * two,
+            (w * w - x * x - y * y + z * z) * inv,
+        ],
+    ]
+}
+
+/// Unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method).
+pub fn quaternion(r: &[[f64; 3]; 3]) -> [f64; 4] {
+    let tr = r[0][0] + r[1][1] + r[2][2];
+    let q = if tr > 0.0 {
+        let s = (tr + 1.0).sqrt() * 2.0;
+        [
+            0.25 * s,
+            (r[2][1] - r[1][2]) / s,
+            (r[0][2] - r[2][0]) / s,
+            (r[1][0] - r[0][1]) / s,
+        ]
+    } else if r[0][0] > r[1][1] && r[0][0] > r[2][2] {
+        let s = (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt() * 2.0;
+        [
+            (r[2][1] - r[1][2]) / s,
+            0.25 * s,
+            (r[0][1] + r[1][0]) / s,
+            (r[0][2] + r[2][0]) / s,
+        ]
+    } else if r[1][1] > r[2][2] {
+        let s = (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt() * 2.0;
+        [
+            (r[0][2] - r[2][0]) / s,
+            (r[0][1] + r[1][0]) / s,
+            0.25 * s,
+            (r[1][2] + r[2][1]) / s,
+        ]
+    } else {
+        let s = (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt() * 2.0;
+        [
+            (r[1][0] - r[0][1]) / s,
+            (r[0][2] + r[2][0]) / s,
+            (r[1][2] + r[2][1]) / s,
+            0.25 * s,
+        ]
+    };
+    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    q.map(|x| x / n)
+}
+
+/// dY/ds at one point and its fields (v, u, q, w), given the point's history terms `h`
+/// (X_t = c0 X + X_h for X in v, u, q, w):
+///   Q' = Q (0, u) / 2,
+///   n' = R rho A (q_t + w x q) - f,                       (paper 000 eq. 7)
+///   m' = R (rho J w_t + w x rho J w) - (R v) x n - l,
+///   q' = v_t + w x v - u x q,   w' = u_t + w x u          (compatibility, eq. 13).
+#[inline(always)]
+pub fn rhs<D: RodScalar>(
+    y: &[D; NY],
+    m: &SectionModel,
+    h: &[f64; NF],
+    c0: f64,
+) -> ([D; NY], [D; NF]) {
+    let rot = rotation(&y[IQ..IQ + 4]);
+    let n = [y[IN], y[IN + 1], y[IN + 2]];
+    let mo = [y[IM], y[IM + 1], y[IM + 2]];
+    let q = [y[IV], y[IV + 1], y[IV + 2]];
+    let w = [y[IW], y[IW + 1], y[IW + 2]];
+    let nb = mat_t_vec(&rot, &n);
+    let mb = mat_t_vec(&rot, &mo);
+    let (v, u) = m.strains(&nb, &mb, h, c0);
+    let zero = D::from(0.0);
+    let (vt, ut) = if m.rigid {
+        ([zero; 3], [zero; 3])
+    } else {
+        (
+            std::array::from_fn(|k| v[k] * c0 + h[k]),
+            std::array::from_fn(|k| u[k] * c0 + h[3 + k]),
+        )
+    };
+    let qt: [D; 3] = std::array::from_fn(|k| q[k] * c0 + h[6 + k]);
+    let wt: [D; 3] = std::array::from_fn(|k| w[k] * c0 + h[9 + k]);
+    let mut dy = [zero; NY];
+    let (qw, qx, qy, qz) = (y[0], y[1], y[2], y[3]);
+    dy[0] = (qx * u[0] + qy * u[1] + qz * u[2]) * -0.5;
+    dy[1] = (qw * u[0] + qy * u[2] - qz * u[1]) * 0.5;
+    dy[2] = (qw * u[1] + qz * u[0] - qx * u[2]) * 0.5;
+    dy[3] = (qw * u[2] + qx * u[1] - qy * u[0]) * 0.5;
+    let wxq = cross(&w, &q);
+    let acc: [D; 3] = std::array::from_fn(|k| (qt[k] + wxq[k]) * m.rho_a);
+    let acc_w = mat_vec(&rot, &acc);
+    let jw: [D; 3] = std::array::from_fn(|k| w[k] * m.rho_j[k]);
+    let wxjw = cross(&w, &jw);
+    let ang: [D; 3] = std::array::from_fn(|k| wt[k] * m.rho_j[k] + wxjw[k]);
+    let ang_w = mat_vec(&rot, &ang);
+    let dr = mat_vec(&rot, &v);
+    let rxn = cross(&dr, &n);
+    let wxv = cross(&w, &v);
+    let uxq = cross(&u, &q);
+    let wxu = cross(&w, &u);
+    for k in 0..3 {
+        dy[IN + k] = acc_w[k] - m.f[k];
+        dy[IM + k] = ang_w[k] - rxn[k] - m.l[k];
+        dy[IV + k] = vt[k] + wxv[k] - uxq[k];
+        dy[IW + k] = ut[k] + wxu[k];
+    }
+    let fields = [
+        v[0], v[1], v[2], u[0], u[1], u[2], q[0], q[1], q[2], w[0], w[1], w[2],
+    ];
+    (dy, fields)
+}
+
+/// Rigid tip body and dead tip loads.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TipBody {
+    pub mass: f64,
+    pub com: [f64; 3],
+    pub inertia: [f64; 3],
+    pub force: [f64; 3],
+    pub moment: [f64; 3],
+}
+
+/// One time step's (or a static solve's) collocation problem.
+#[derive(Debug, Clone)]
+pub struct Problem<'a> {
+    pub rod: &'a Rod,
+    pub grid: &'a Grid,
+    /// One model per section.
+    pub models: &'a [SectionModel],
+    pub c0: f64,
+    /// History terms: 2 per interval (stage order), then the tip node's.
+    pub hist: &'a [[f64; NF]],
+    pub tip: TipBody,
+    pub gravity: [f64; 3],
+    /// Scales of a point's unknowns (and of its equations).
+    pub scale: [f64; NY],
+    pub fs: f64,
+    pub ms: f64,
+    pub base_q: [f64; 4],
+}
+
+/// The scales of a point's unknowns for a rod and a time integrator's c0: quaternion 1,
+/// force F_s = EI_min / L^2, moment F_s L, velocities L w_s and w_s with
+/// w_s = max(c0, 1/s) (a velocity error dq moves the rod by dq / c0 in one step).
+pub fn point_scale(rod: &Rod, c0: f64) -> [f64; NY] {
+    let fs = force_scale(rod);
+    let ms = fs * rod.length;
+    let ws = c0.max(1.0);
+    let vs = rod.length * ws;
+    [
+        1.0, 1.0, 1.0, 1.0, fs, fs, fs, ms, ms, ms, vs, vs, vs, ws, ws, ws,
+    ]
+}
+
+/// The force scale of the unknowns and equations: the geometric mean of the bending force
+/// scale EI/L^2 (a force that bends the rod by ~L) and the smallest axial or shear
+/// stiffness K (one that strains it by ~1), capped at 100 EI/L^2. With EI/L^2 alone, a
+/// uniform change of the axial force barely moves a long arm (strain fs / K), and Newton's
+/// matrix grows ill-conditioned in that direction (paper 000's arm at 1 m: its smallest
+/// equilibrated singular value fell to 6e-8 and steps stopped converging); the geometric
+/// mean balances the two sensitivities (each off by sqrt(K L^2 / EI)).
+pub fn force_scale(rod: &Rod) -> f64 {
+    let bend = rod.force_scale;
+    let k = rod
+        .sections
+        .iter()
+        .filter(|s| !s.rigid)
+        .map(|s| s.k_se[0].min(s.k_se[1]).min(s.k_se[2]))
+        .fold(f64::INFINITY, f64::min);
+    if !(k.is_finite() && k > 0.0 && bend > 0.0) {
+        return bend;
+    }
+    bend * (k / bend).sqrt().clamp(1.0, 100.0)
+}
+
+impl<'a> Problem<'a> {
+    /// A problem on `grid` with section `models`, c0 and histories.
+    pub fn new(
+        rod: &'a Rod,
+        grid: &'a Grid,
+        models: &'a [SectionModel],
+        c0: f64,
+        hist: &'a [[f64; NF]],
+        tip: TipBody,
+    ) -> Self {
+        Problem {
+            rod,
+            grid,
+            models,
+            c0,
+            hist,
+            tip,
+            gravity: rod.gravity,
+            scale: point_scale(rod, c0),
+            fs: force_scale(rod),
+            ms: force_scale(rod) * rod.length,
+            base_q: quaternion(&rod.base_rotation),
+        }
+    }
+
+    /// The physical state of node j (0..=N) from the scaled unknowns.
+    pub fn node(&self, z: &[f64], j: usize) -> [f64; NY] {
+        if j == 0 {
+            let mut y = [0.0; NY];
+            y[..4].copy_from_slice(&self.base_q);
+            for k in 0..3 {
+                y[IN + k] = z[k] * self.fs;
+                y[IM + k] = z[3 + k] * self.ms;
+            }
+            y
+        } else {
+            let o = node_index(j);
+            std::array::from_fn(|k| z[o + k] * self.scale[k])
+        }
+    }
+
+    fn stage(&self, z: &[f64], j: usize, i: usize) -> [f64; NY] {
+        let o = stage_index(j, i);
+        std::array::from_fn(|k| z[o + k] * self.scale[k])
+    }
+
+    /// Scaled tip residual: n(L) = F + m_t (g - a_c), m(L) = M + c_w x m_t (g - a_c) -
+    /// R (J w_t + w x J w), with a_c the acceleration of the tip body's centre of mass.
+    fn tip_residual<D: RodScalar>(&self, y: &[D; NY]) -> [D; 6] {
+        let t = &self.tip;
+        let th = self.hist.last().expect("tip slot");
+        let c0 = self.c0;
+        let rot = rotation(&y[IQ..IQ + 4]);
+        let q = [y[IV], y[IV + 1], y[IV + 2]];
+        let w = [y[IW], y[IW + 1], y[IW + 2]];
+        let qt: [D; 3] = std::array::from_fn(|k| q[k] * c0 + th[6 + k]);
+        let wt: [D; 3] = std::array::from_fn(|k| w[k] * c0 + th[9 + k]);
+        let com = t.com.map(D::from);
+        let wxq = cross(&w, &q);
+        let wtxc = cross(&wt, &com);
+        let wxc = cross(&w, &com);
+        let wxwxc = cross(&w, &wxc);
+        let ab: [D; 3] = std::array::from_fn(|k| qt[k] + wxq[k] + wtxc[k] + wxwxc[k]);
+        let a = mat_vec(&rot, &ab);
+        let body: [D; 3] = std::array::from_fn(|k| (-a[k] + self.gravity[k]) * t.mass);
+        let cw = mat_vec(&rot, &com);
+        let cxb = cross(&cw, &body);
+        let jw: [D; 3] = std::array::from_fn(|k| w[k] * t.inertia[k]);
+        let wxjw = cross(&w, &jw);
+        let torque: [D; 3] = std::array::from_fn(|k| wt[k] * t.inertia[k] + wxjw[k]);
+        let torque_w = mat_vec(&rot, &torque);
+        std::array::from_fn(|k| {
+            if k < 3 {
+                (y[IN + k] - body[k] - t.force[k]) * (1.0 / self.fs)
+            } else {
+                let j = k - 3;
+                (y[IM + j] - cxb[j] + torque_w[j] - t.moment[j]) * (1.0 / self.ms)
+            }
+        })
+    }
+
+    /// Scaled residual at scaled unknowns `z` into `out`; the stage fields (v, u, q, w)
+    /// into `fields` when given (2 per interval).
+    pub fn residual(&self, z: &[f64], out: &mut [f64], mut fields: Option<&mut [[f64; NF]]>) {
+        let inv: [f64; NY] = self.scale.map(|s| 1.0 / s);
+        let mut yj = self.node(z, 0);
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let model = &self.models[iv.section];
+            let y1 = self.stage(z, j, 0);
+            let y2 = self.stage(z, j, 1);
+            let (f1, fl1) = rhs(&y1, model, &self.hist[2 * j], self.c0);
+            let (f2, fl2) = rhs(&y2, model, &self.hist[2 * j + 1], self.c0);
+            if let Some(fl) = fields.as_mut() {
+                fl[2 * j] = fl1;
+                fl[2 * j + 1] = fl2;
+            }
+            let yn = self.node(z, j + 1);
+            let o = 48 * j;
+            let hh = iv.h;
+            for k in 0..NY {
+                out[o + k] =
+                    (y1[k] - yj[k] - hh * (GAUSS_A[0][0] * f1[k] + GAUSS_A[0][1] * f2[k])) * inv[k];
+                out[o + 16 + k] =
+                    (y2[k] - yj[k] - hh * (GAUSS_A[1][0] * f1[k] + GAUSS_A[1][1] * f2[k])) * inv[k];
+                out[o + 32 + k] =
+                    (yn[k] - yj[k] - hh * (GAUSS_B[0] * f1[k] + GAUSS_B[1] * f2[k])) * inv[k];
+            }
+            yj = yn;
+        }
+        let r = self.tip_residual(&yj);
+        let o = 48 * self.grid.len();
+        out[o..o + 6].copy_from_slice(&r);
+    }
+
+    /// Exact Jacobian of f at a point, in scaled variables and scaled rows.
+    fn point_jacobian(&self, y: &[f64; NY], model: &SectionModel, h: &[f64; NF]) -> Mat16 {
+        let yj: [Jet<NY>; NY] = std::array::from_fn(|k| {
+            let mut e = [0.0; NY];
+            e[k] = self.scale[k];
+            Jet { re: y[k], eps: e }
+        });
+        let (f, _) = rhs(&yj, model, h, self.c0);
+        Mat16::from_fn(|r, c| f[r].eps[c] / self.scale[r])
+    }
+
+    /// The dense Jacobian of the scaled residual with respect to the scaled unknowns (for
+    /// tests against finite differences; the solver never forms it).
+    pub fn dense_jacobian(&self, z: &[f64]) -> Vec<Vec<f64>> {
+        let n = z.len();
+        let mut jac = vec![vec![0.0; n]; n];
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let model = &self.models[iv.section];
+            let js = [
+                self.point_jacobian(&self.stage(z, j, 0), model, &self.hist[2 * j]),
+                self.point_jacobian(&self.stage(z, j, 1), model, &self.hist[2 * j + 1]),
+            ];
+            let o = 48 * j;
+            // Columns of node j: the base unknowns for j = 0 (slots IN..IN + 6).
+            let node_col = |k: usize| -> Option<usize> {
+                if j == 0 {
+                    (IN..IN + 6).contains(&k).then(|| k - IN)
+                } else {
+                    Some(node_index(j) + k)
+                }
+            };
+            for k in 0..NY {
+                for row in [o + k, o + 16 + k, o + 32 + k] {
+                    if let Some(c) = node_col(k) {
+                        jac[row][c] -= 1.0;
+                    }
+                }
+                jac[o + 32 + k][node_index(j + 1) + k] += 1.0;
+            }
+            for (si, jk) in js.iter().enumerate() {
+                let col0 = stage_index(j, si);
+                for r in 0..NY {
+                    jac[o + 16 * si + r][col0 + r] += 1.0;
+                    for c in 0..NY {
+                        for (ri, a) in [(0usize, GAUSS_A[0][si]), (1, GAUSS_A[1][si])] {
+                            jac[o + 16 * ri + r][col0 + c] -= iv.h * a * jk[(r, c)];
+                        }
+                        jac[o + 32 + r][col0 + c] -= iv.h * GAUSS_B[si] * jk[(r, c)];
+                    }
+                }
+            }
+        }
+        let n_int = self.grid.len();
+        let yn = self.node(z, n_int);
+        let yjet: [Jet<NY>; NY] = std::array::from_fn(|k| {
+            let mut e = [0.0; NY];
+            e[k] = self.scale[k];
+            Jet { re: yn[k], eps: e }
+        });
+        let rt = self.tip_residual(&yjet);
+        for r in 0..6 {
+            for c in 0..NY {
+                let col = if n_int == 0 {
+                    continue;
+                } else {
+                    node_index(n_int) + c
+                };
+                jac[48 * n_int + r][col] = rt[r].eps[c];
+            }
+        }
+        jac
+    }
+
+    /// Factor Newton's matrix at `z`: per interval the condensed stage block, then the
+    /// banded node system. None if a block is singular.
+    #[inline(never)]
+    pub fn factorize(&self, z: &[f64]) -> Option<Factorization> {
+        let n_int = self.grid.len();
+        let mut blocks = Vec::with_capacity(n_int);
+        let n = 6 + 16 * n_int;
+        let (kl, ku) = (25, 21);
+        let mut band = BandedLu::zeros(n, kl, ku);
+        let eye = Mat16::identity();
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let model = &self.models[iv.section];
+            let j1 = self.point_jacobian(&self.stage(z, j, 0), model, &self.hist[2 * j]);
+            let j2 = self.point_jacobian(&self.stage(z, j, 1), model, &self.hist[2 * j + 1]);
+            let hh = iv.h;
+            let mut m = Mat32::identity();
+            let mut g = Mat16x32::zeros();
+            for r in 0..16 {
+                for c in 0..16 {
+                    m[(r, c)] -= hh * GAUSS_A[0][0] * j1[(r, c)];
+                    m[(r, 16 + c)] -= hh * GAUSS_A[0][1] * j2[(r, c)];
+                    m[(16 + r, c)] -= hh * GAUSS_A[1][0] * j1[(r, c)];
+                    m[(16 + r, 16 + c)] -= hh * GAUSS_A[1][1] * j2[(r, c)];
+                    g[(r, c)] = hh * GAUSS_B[0] * j1[(r, c)];
+                    g[(r, 16 + c)] = hh * GAUSS_B[1] * j2[(r, c)];
+                }
+            }
+            let minv = m.try_inverse()?;
+            if !minv.iter().all(|x| x.is_finite()) {
+                return None;
+            }
+            let gminv = g * minv;
+            let p = Mat32x16::from_fn(|r, c| minv[(r, c)] + minv[(r, 16 + c)]);
+            let t = eye + Mat16::from_fn(|r, c| gminv[(r, c)] + gminv[(r, 16 + c)]);
+            // Rows of interval j: dY_{j+1} - T_j dY_j = t_j.
+            let row0 = 16 * j;
+            let col_next = 6 + 16 * j;
+            for r in 0..16 {
+                band.set(row0 + r, col_next + r, 1.0);
+                if j == 0 {
+                    // dY_0 = E dx0: the base unknowns n(0)/F_s, m(0)/(F_s L) are the
+                    // scaled slots IN..IN + 6 of node 0.
+                    for c in 0..6 {
+                        band.set(row0 + r, c, -t[(r, IN + c)]);
+                    }
+                } else {
+                    let col = 6 + 16 * (j - 1);
+                    for c in 0..16 {
+                        band.set(row0 + r, col + c, -t[(r, c)]);
+                    }
+                }
+            }
+            blocks.push(IntervalFactor {
+                minv: minv.as_slice().to_vec(),
+                gminv: gminv.as_slice().to_vec(),
+                p: p.as_slice().to_vec(),
+            });
+        }
+        // Tip rows: C dY_N = -r_tip.
+        let yn = self.node(z, n_int);
+        let yjet: [Jet<NY>; NY] = std::array::from_fn(|k| {
+            let mut e = [0.0; NY];
+            e[k] = self.scale[k];
+            Jet { re: yn[k], eps: e }
+        });
+        let rt = self.tip_residual(&yjet);
+        let col = 6 + 16 * (n_int - 1);
+        for r in 0..6 {
+            for c in 0..16 {
+                band.set(16 * n_int + r, col + c, rt[r].eps[c]);
+            }
+        }
+        if !band.factor() {
+            return None;
+        }
+        Some(Factorization {
+            blocks,
+            band,
+            at: z.to_vec(),
+        })
+    }
+}
+
+/// One interval's condensed stage block: with M = I - h (A (x) I) diag(J1, J2) the
+/// stage matrix and G = h [b1 J1, b2 J2], the stages follow dS = M^-1 (-r_S) + P dY_j and
+/// the end node dY_{j+1} = T dY_j + G M^-1 (-r_S) - r_N. Kept as explicit matrices
+/// (column-major) so that each Newton iteration is three matrix-vector products.
+#[derive(Debug, Clone)]
+struct IntervalFactor {
+    /// M^-1 (32 x 32).
+    minv: Vec<f64>,
+    /// G M^-1 (16 x 32).
+    gminv: Vec<f64>,
+    /// P = M^-1 [I; I] (32 x 16).
+    p: Vec<f64>,
+}
+
+/// y += A x for a column-major A with R rows and C columns (axpy per column: vectorises).
+#[inline(always)]
+fn gemv_add<const R: usize, const C: usize>(y: &mut [f64; R], a: &[f64], x: &[f64; C]) {
+    let a = &a[..R * C];
+    for (c, xc) in x.iter().enumerate() {
+        let col = &a[c * R..(c + 1) * R];
+        for (yr, ar) in y.iter_mut().zip(col) {
+            *yr += ar * xc;
+        }
+    }
+}
+
+/// Newton's matrix of a collocation problem, factored.
+#[derive(Debug, Clone)]
+pub struct Factorization {
+    blocks: Vec<IntervalFactor>,
+    band: BandedLu,
+    /// The scaled unknowns it was computed at.
+    pub at: Vec<f64>,
+}
+
+impl Factorization {
+    /// The Newton step: solves J dz = -r for the scaled residual `r`.
+    #[inline(never)]
+    pub fn solve(&self, r: &[f64], dz: &mut [f64]) {
+        let n_int = self.blocks.len();
+        let mut rhs = vec![0.0; self.band.n()];
+        // dz's stage slots hold M^-1 (-r_S) until the node increments are known.
+        for (j, b) in self.blocks.iter().enumerate() {
+            let o = 48 * j;
+            let rs: [f64; 32] = std::array::from_fn(|k| -r[o + k]);
+            let mut s = [0.0; 32];
+            gemv_add(&mut s, &b.minv, &rs);
+            let mut t: [f64; 16] = std::array::from_fn(|k| -r[o + 32 + k]);
+            gemv_add(&mut t, &b.gminv, &rs);
+            rhs[16 * j..16 * j + 16].copy_from_slice(&t);
+            dz[6 + o..6 + o + 32].copy_from_slice(&s);
+        }
+        let o = 48 * n_int;
+        for k in 0..6 {
+            rhs[16 * n_int + k] = -r[o + k];
+        }
+        self.band.solve(&mut rhs);
+        // Base unknowns, then per interval the stages (s + P dY_j) and the end node.
+        dz[..6].copy_from_slice(&rhs[..6]);
+        for (j, b) in self.blocks.iter().enumerate() {
+            let dyj: [f64; 16] = if j == 0 {
+                // dY_0 in scaled point units: only n(0), m(0) move.
+                std::array::from_fn(|k| {
+                    if (IN..IN + 6).contains(&k) {
+                        rhs[k - IN]
+                    } else {
+                        0.0
+                    }
+                })
+            } else {
+                std::array::from_fn(|k| rhs[6 + 16 * (j - 1) + k])
+            };
+            let o = 6 + 48 * j;
+            let mut st: [f64; 32] = std::array::from_fn(|k| dz[o + k]);
+            gemv_add(&mut st, &b.p, &dyj);
+            dz[o..o + 32].copy_from_slice(&st);
+            dz[o + 32..o + 48].copy_from_slice(&rhs[6 + 16 * j..6 + 16 * j + 16]);
+        }
+    }
+}
+
+/// Newton settings of a collocation solve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NewtonOptions {
+    /// Tolerance on the scaled residual (infinity norm), relative to max(1, |z|).
+    pub tol: f64,
+    pub max_iter: usize,
+}
+
+/// Counters of collocation solves.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct NewtonStats {
+    pub iterations: usize,
+    pub jacobians: usize,
+}
+
+/// Largest |r_k|, NaN if any entry is NaN (4 lanes so that it vectorises).
+fn inf_norm(r: &[f64]) -> f64 {
+    let mut m = [0.0f64; 4];
+    let mut nan = false;
+    let chunks = r.chunks_exact(4);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for k in 0..4 {
+            let a = c[k].abs();
+            nan |= a.is_nan();
+            m[k] = if a > m[k] { a } else { m[k] };
+        }
+    }
+    for x in rest {
+        let a = x.abs();
+        nan |= a.is_nan();
+        m[0] = if a > m[0] { a } else { m[0] };
+    }
+    if nan {
+        f64::NAN
+    } else {
+        m[0].max(m[1]).max(m[2].max(m[3]))
+    }
+}
+
+/// Damped Newton on `p` from `z` (in place). Converged when a full Newton correction, or
+/// the error it leaves (theta / (1 - theta) of it at contraction rate theta < 1/2), is below
+/// `tol` (scaled unknowns, relative to max(1, |z|)): the correction measures
+/// the error in the unknowns themselves, whose scales are physical (rotations in rad,
+/// velocities in L c0, so a velocity error moves the rod by that fraction of L in one
+/// step), where the residual's rows mix very different sensitivities. A factorization in
+/// `cache` (from an earlier iterate or step) is reused while it contracts by at least
+/// `REUSE` per iteration and refreshed otherwise. Ok(final scaled residual) or
+/// Err((iterations, residual)); on return `cache` holds the last factorization (None if
+/// it was discarded).
+pub fn newton(
+    p: &Problem,
+    z: &mut [f64],
+    cache: &mut Option<Factorization>,
+    opts: &NewtonOptions,
+    stats: &mut NewtonStats,
+) -> std::result::Result<f64, (usize, f64)> {
+    let mut theta = 1.0;
+    newton_with(p, z, cache, opts, stats, &mut theta)
+}
+
+/// [`newton`] with the contraction rate `theta` of the matrix's last use (updated on
+/// return): a sequence of similar problems (time steps) with a kept matrix contracts at
+/// about the same rate, so the first correction's remaining error can be estimated as
+/// theta / (1 - theta) of it; when that is below tol, and the residual confirms the
+/// contraction, the step ends after one correction (Hairer and Wanner's device in Radau5).
+pub fn newton_with(
+    p: &Problem,
+    z: &mut [f64],
+    cache: &mut Option<Factorization>,
+    opts: &NewtonOptions,
+    stats: &mut NewtonStats,
+    theta_hint: &mut f64,
+) -> std::result::Result<f64, (usize, f64)> {
+    const REUSE: f64 = 0.25;
+    let n = z.len();
+    let mut r = vec![0.0; n];
+    let mut rt = vec![0.0; n];
+    let mut dz = vec![0.0; n];
+    let mut zt = vec![0.0; n];
+    p.residual(z, &mut r, None);
+    let mut norm = inf_norm(&r);
+    let mut fresh = false;
+    let mut last_step = f64::INFINITY;
+    for it in 0..opts.max_iter {
+        stats.iterations += 1;
+        if !norm.is_finite() && fresh {
+            return Err((it + 1, norm));
+        }
+        if cache.is_none() {
+            *cache = p.factorize(z);
+            stats.jacobians += 1;
+            fresh = true;
+            if cache.is_none() {
+                return Err((it + 1, norm));
+            }
+        }
+        let fac = cache.as_ref().expect("factorization");
+        fac.solve(&r, &mut dz);
+        let scale = inf_norm(z).max(1.0);
+        let step = inf_norm(&dz) / scale;
+        if !step.is_finite() {
+            if fresh {
+                return Err((it + 1, norm));
+            }
+            *cache = None;
+            continue;
+        }
+        // Contraction rate from the last two full corrections (1 when unknown).
+        let theta = if last_step.is_finite() {
+            step / last_step
+        } else {
+            1.0
+        };
+        // Remaining error after this correction: theta / (1 - theta) of it for a
+        // contracting iteration (Hairer and Wanner, Radau5); the first correction itself.
+        let remaining = if theta < 0.5 {
+            step * theta / (1.0 - theta)
+        } else {
+            step
+        };
+        if step <= opts.tol || (it > 0 && remaining <= opts.tol) {
+            // Converged: apply the (tiny) correction and finish (the residual reported is
+            // the one before it).
+            for k in 0..n {
+                z[k] += dz[k];
+            }
+            if it > 0 && theta < 1.0 {
+                *theta_hint = theta;
+            }
+            return Ok(norm);
+        }
+        if it == 0 && !fresh && *theta_hint < 0.5 {
+            // The kept matrix's last rate predicts the remaining error; accept one
+            // correction if that is below tol and the residual falls at least as the rate
+            // says (by 10x the predicted factor at worst, and by half).
+            let th = *theta_hint;
+            if step * th / (1.0 - th) <= opts.tol {
+                for k in 0..n {
+                    zt[k] = z[k] + dz[k];
+                }
+                p.residual(&zt, &mut rt, None);
+                let nt = inf_norm(&rt);
+                if nt.is_finite() && nt <= norm * (10.0 * th).min(0.5) {
+                    z.copy_from_slice(&zt);
+                    return Ok(nt);
+                }
+            }
+        }
+        let mut alpha = 1.0;
+        let mut accepted = false;
+        while alpha >= 1.0 / 256.0 {
+            for k in 0..n {
+                zt[k] = z[k] + alpha * dz[k];
+            }
+            p.residual(&zt, &mut rt, None);
+            let nt = inf_norm(&rt);
+            if nt.is_finite() && nt < (1.0 - 1e-4 * alpha) * norm {
+                if alpha < 1.0 || (last_step.is_finite() && theta > REUSE) {
+                    *cache = None; // refresh at the new iterate
+                }
+                z.copy_from_slice(&zt);
+                std::mem::swap(&mut r, &mut rt);
+                norm = nt;
+                accepted = true;
+                fresh = false;
+                last_step = if alpha == 1.0 { step } else { f64::INFINITY };
+                break;
+            }
+            if !fresh {
+                break; // a stale matrix may be the problem: refresh and retry
+            }
+            alpha *= 0.5;
+        }
+        if !accepted {
+            if fresh {
+                if step <= 100.0 * opts.tol {
+                    return Ok(norm); // at round-off already
+                }
+                return Err((it + 1, norm));
+            }
+            *cache = None;
+            last_step = f64::INFINITY;
+            *theta_hint = 1.0;
+        }
+        if cache.is_none() {
+            *theta_hint = 1.0; // a new matrix: its rate is unknown
+        }
+    }
+    Err((opts.max_iter, norm))
+}
+
+/// Node and stage states of a solution in physical units, with the centreline recovered
+/// by the collocation quadrature (r_i = r_j + h sum_k a_ik R_k v_k).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Evaluated {
+    /// Node states (N + 1).
+    pub nodes: Vec<[f64; NY]>,
+    /// Node positions, m.
+    pub node_r: Vec<[f64; 3]>,
+    /// Stage fields v, u, q, w (2 per interval).
+    pub fields: Vec<[f64; NF]>,
+    /// Stage positions, m.
+    pub stage_r: Vec<[f64; 3]>,
+    /// Stage rotations.
+    pub stage_rot: Vec<[[f64; 3]; 3]>,
+}
+
+impl Problem<'_> {
+    /// States, fields and positions of the solution `z`.
+    pub fn evaluate(&self, z: &[f64]) -> Evaluated {
+        let n_int = self.grid.len();
+        let mut out = Evaluated {
+            nodes: Vec::with_capacity(n_int + 1),
+            node_r: Vec::with_capacity(n_int + 1),
+            fields: Vec::with_capacity(2 * n_int),
+            stage_r: Vec::with_capacity(2 * n_int),
+            stage_rot: Vec::with_capacity(2 * n_int),
+        };
+        let mut r = self.rod.base_position;
+        out.nodes.push(self.node(z, 0));
+        out.node_r.push(r);
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let model = &self.models[iv.section];
+            let mut dr = [[0.0; 3]; 2];
+            for i in 0..2 {
+                let y = self.stage(z, j, i);
+                let (_, fl) = rhs(&y, model, &self.hist[2 * j + i], self.c0);
+                let rot = rotation(&y[IQ..IQ + 4]);
+                dr[i] = mat_vec(&rot, &[fl[0], fl[1], fl[2]]);
+                out.fields.push(fl);
+                out.stage_rot.push(rot);
+            }
+            for i in 0..2 {
+                out.stage_r.push(std::array::from_fn(|k| {
+                    r[k] + iv.h * (GAUSS_A[i][0] * dr[0][k] + GAUSS_A[i][1] * dr[1][k])
+                }));
+            }
+            r = std::array::from_fn(|k| {
+                r[k] + iv.h * (GAUSS_B[0] * dr[0][k] + GAUSS_B[1] * dr[1][k])
+            });
+            out.nodes.push(self.node(z, j + 1));
+            out.node_r.push(r);
+        }
+        out
+    }
+
+    /// Scaled unknowns from physical node states (N + 1), the stages interpolated
+    /// linearly between their nodes (quaternions normalised): a Newton start.
+    pub fn unknowns_from_nodes(&self, nodes: &[[f64; NY]]) -> Vec<f64> {
+        let mut z = vec![0.0; self.grid.unknowns()];
+        for k in 0..3 {
+            z[k] = nodes[0][IN + k] / self.fs;
+            z[3 + k] = nodes[0][IM + k] / self.ms;
+        }
+        for j in 0..self.grid.len() {
+            for i in 0..2 {
+                let c = GAUSS_C[i];
+                let mut y: [f64; NY] =
+                    std::array::from_fn(|k| (1.0 - c) * nodes[j][k] + c * nodes[j + 1][k]);
+                let qn = (y[0] * y[0] + y[1] * y[1] + y[2] * y[2] + y[3] * y[3]).sqrt();
+                for v in &mut y[..4] {
+                    *v /= qn;
+                }
+                let o = stage_index(j, i);
+                for k in 0..NY {
+                    z[o + k] = y[k] / self.scale[k];
+                }
+            }
+            let o = node_index(j + 1);
+            for k in 0..NY {
+                z[o + k] = nodes[j + 1][k] / self.scale[k];
+            }
+        }
+        z
+    }
+
+    /// The straight, unloaded rod at rest: the exact solution with no loads.
+    pub fn straight_unknowns(&self) -> Vec<f64> {
+        let mut y = [0.0; NY];
+        y[..4].copy_from_slice(&self.base_q);
+        self.unknowns_from_nodes(&vec![y; self.grid.len() + 1])
+    }
+
+    /// Scaled unknowns of the same physical state under another problem's scales.
+    pub fn rescale_from(&self, other: &Problem, z: &[f64]) -> Vec<f64> {
+        let mut out = z.to_vec();
+        for j in 0..self.grid.len() {
+            for o in [stage_index(j, 0), stage_index(j, 1), node_index(j + 1)] {
+                for k in 0..NY {
+                    out[o + k] = z[o + k] * other.scale[k] / self.scale[k];
+                }
+            }
+        }
+        out
+    }
+}
