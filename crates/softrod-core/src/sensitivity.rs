@@ -17,10 +17,10 @@
 //! remaining length, so the integration itself, and the tip, are unchanged.
 
 use crate::error::{Result, SoftrodError};
-use crate::jet::{Jet, RodScalar};
+use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
 use crate::ode::{
-    initial_stretch, integrate, rigid_step, rk4_step, AxialCoeffs, Coeff, Coeffs, Loads,
-    SectionKnobs, State, StateScalar,
+    initial_stretch, integrate, rigid_step, rk4_step, AxialCoeffs, Coeffs, Loads, SectionKnobs,
+    State,
 };
 use crate::rod::{AxialLaw, Rod};
 use crate::statics::{Problem, Solution};
