@@ -132,6 +132,14 @@ CASES = [
     ("binary-dataset", ("dataset_file", {"data": b"\x89PNG\r\n\x1a\n\x00\x00\xff"}), "error",
      "file"),
     ("utf16-dataset", ("dataset_file", {"data": CSV_OK.encode("utf-16")}), "error", "UTF-16"),
+    # Found by a --fuzz-long run: an integer of 401 digits in a cell (pandas overflowed).
+    ("schedule-huge-int-cell",
+     ("dataset_file", {"reader": "schedule", "suffix": ".csv",
+                       "data": f"time_s,p0_kPa,p1_kPa\n0,0,0\n1,1{'0' * 400},0\n".encode()}),
+     "error", "p0_kPa"),
+    ("dataset-huge-int-cell",
+     ("dataset_file", {"data": CSV_OK.replace("10,0,0,1", f"1{'0' * 400},0,0,1").encode()}),
+     "error", "p0_kPa"),
     ("nested-metadata",
      ("dataset_file", {"data": ("# metadata: " + "[" * 5000 + "]" * 5000 + "\n" + CSV_OK)
                        .encode()}), "error", "metadata"),

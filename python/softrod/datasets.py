@@ -36,6 +36,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import os
 import re
 from collections.abc import Callable, Iterable, Mapping
@@ -800,6 +801,48 @@ def load_dataset(
     return data
 
 
+def _number_column(raw: pd.Series, name: str, where, *, missing_ok: bool = False) -> np.ndarray:
+    """A table column as finite floats, or an InputError naming the column, the value and
+    the rows: text that is not a number, an empty cell, or a number beyond the float range
+    (an integer with hundreds of digits; converted one by one, as pandas would overflow).
+    ``missing_ok``: empty cells are NaN (a marker not seen in that row)."""
+    _check_dtype(raw, name)
+    try:
+        num = pd.to_numeric(raw, errors="coerce")
+    except OverflowError:
+        num = pd.Series([_number_or_nan(v) for v in raw.array], index=raw.index, dtype=float)
+    missing = raw.isna().to_numpy()
+    empty = np.flatnonzero(missing)
+    if empty.size and not missing_ok:
+        raise _fail(name, "empty/NaN", f"empty or NaN value at {where(empty)}")
+    text = np.flatnonzero(num.isna().to_numpy() & ~missing)
+    if text.size:
+        raise _fail(name, raw.iloc[text[0]], f"not a number at {where(text)}")
+    a = num.to_numpy(dtype=float)
+    bad = np.flatnonzero(~np.isfinite(a) & ~missing)
+    if bad.size:
+        value = raw.iloc[bad[0]]
+        if isinstance(value, int) and abs(value) >= 10**20:  # beyond the float range
+            value = f"{str(value)[:20]}... ({len(str(value))} digits)"
+        else:
+            value = a[bad[0]].item()
+        raise _fail(name, value, f"must be finite, at {where(bad)}")
+    return a
+
+
+def _number_or_nan(v) -> float:
+    """One cell as a float: beyond the float range it is inf (refused by the caller), text
+    that is not a number NaN."""
+    if v is None:
+        return math.nan
+    try:
+        return float(v)
+    except OverflowError:
+        return math.inf if v > 0 else -math.inf
+    except (TypeError, ValueError):
+        return math.nan
+
+
 def _check_dtype(column: pd.Series, name: str) -> None:
     """A number column holds numbers (or text to read as numbers), never dates, durations,
     booleans or complex values, which pandas would turn into numbers silently (a timestamp
@@ -988,18 +1031,8 @@ def _from_frame(
     for base, (col, factor) in columns.items():
         if base in _LABELS:
             continue
-        raw = df[col]
-        _check_dtype(raw, col)
-        values = pd.to_numeric(raw, errors="coerce")
-        optional = _MARKER.match(base) is not None
-        text = values.isna().to_numpy() & (raw.notna().to_numpy() if optional else True)
-        text = np.flatnonzero(text)
-        if text.size:
-            raise _fail(col, raw.iloc[text[0]], f"not a number at {where(text)}")
-        a = values.to_numpy(dtype=float)
-        bad = np.flatnonzero(np.isinf(a) if optional else ~np.isfinite(a))
-        if bad.size:
-            raise _fail(col, a[bad[0]].item(), f"must be finite, at {where(bad)}")
+        optional = _MARKER.match(base) is not None  # an unseen marker: empty cells
+        a = _number_column(df[col], col, where, missing_ok=optional)
         numeric[base] = a if factor is None else a * factor
 
     low = np.flatnonzero(

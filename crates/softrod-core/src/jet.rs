@@ -26,7 +26,7 @@ pub struct Grad<D, const N: usize> {
 
 impl<D: Real, const N: usize> Grad<D, N> {
     /// A constant (zero gradient).
-    #[inline]
+    #[inline(always)]
     pub fn constant(re: D) -> Self {
         Grad {
             re,
@@ -35,7 +35,7 @@ impl<D: Real, const N: usize> Grad<D, N> {
     }
 
     /// Variable number `i`: gradient e_i.
-    #[inline]
+    #[inline(always)]
     pub fn variable(re: D, i: usize) -> Self {
         let mut g = Self::constant(re);
         g.eps[i] = D::from(1.0);
@@ -43,7 +43,7 @@ impl<D: Real, const N: usize> Grad<D, N> {
     }
 
     /// f(self) given f and f' at the value.
-    #[inline]
+    #[inline(always)]
     fn chain(&self, f0: D, f1: D) -> Self {
         Grad {
             re: f0,
@@ -53,7 +53,7 @@ impl<D: Real, const N: usize> Grad<D, N> {
 }
 
 impl<D: Real, const N: usize> From<f64> for Grad<D, N> {
-    #[inline]
+    #[inline(always)]
     fn from(x: f64) -> Self {
         Self::constant(D::from(x))
     }
@@ -61,7 +61,7 @@ impl<D: Real, const N: usize> From<f64> for Grad<D, N> {
 
 impl<D: Real, const N: usize> Add for Grad<D, N> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn add(self, o: Self) -> Self {
         Grad {
             re: self.re + o.re,
@@ -72,7 +72,7 @@ impl<D: Real, const N: usize> Add for Grad<D, N> {
 
 impl<D: Real, const N: usize> Sub for Grad<D, N> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Grad {
             re: self.re - o.re,
@@ -85,7 +85,7 @@ impl<D: Real, const N: usize> Mul for Grad<D, N> {
     type Output = Self;
     // The product rule adds.
     #[allow(clippy::suspicious_arithmetic_impl)]
-    #[inline]
+    #[inline(always)]
     fn mul(self, o: Self) -> Self {
         Grad {
             re: self.re * o.re,
@@ -97,7 +97,7 @@ impl<D: Real, const N: usize> Mul for Grad<D, N> {
 impl<D: Real, const N: usize> Div for Grad<D, N> {
     type Output = Self;
     #[allow(clippy::suspicious_arithmetic_impl)]
-    #[inline]
+    #[inline(always)]
     fn div(self, o: Self) -> Self {
         let inv = D::from(1.0) / o.re;
         let re = self.re * inv;
@@ -110,7 +110,7 @@ impl<D: Real, const N: usize> Div for Grad<D, N> {
 
 impl<D: Real, const N: usize> Neg for Grad<D, N> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn neg(self) -> Self {
         Grad {
             re: -self.re,
@@ -121,7 +121,7 @@ impl<D: Real, const N: usize> Neg for Grad<D, N> {
 
 impl<D: Real, const N: usize> Add<f64> for Grad<D, N> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn add(mut self, o: f64) -> Self {
         self.re = self.re + o;
         self
@@ -130,7 +130,7 @@ impl<D: Real, const N: usize> Add<f64> for Grad<D, N> {
 
 impl<D: Real, const N: usize> Sub<f64> for Grad<D, N> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn sub(mut self, o: f64) -> Self {
         self.re = self.re - o;
         self
@@ -139,7 +139,7 @@ impl<D: Real, const N: usize> Sub<f64> for Grad<D, N> {
 
 impl<D: Real, const N: usize> Mul<f64> for Grad<D, N> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn mul(self, o: f64) -> Self {
         Grad {
             re: self.re * o,
@@ -150,7 +150,7 @@ impl<D: Real, const N: usize> Mul<f64> for Grad<D, N> {
 
 impl<D: Real, const N: usize> Div<f64> for Grad<D, N> {
     type Output = Self;
-    #[inline]
+    #[inline(always)]
     fn div(self, o: f64) -> Self {
         Grad {
             re: self.re / o,
@@ -160,21 +160,21 @@ impl<D: Real, const N: usize> Div<f64> for Grad<D, N> {
 }
 
 impl<D: Real, const N: usize> AddAssign for Grad<D, N> {
-    #[inline]
+    #[inline(always)]
     fn add_assign(&mut self, o: Self) {
         *self = *self + o;
     }
 }
 
 impl<D: Real, const N: usize> SubAssign for Grad<D, N> {
-    #[inline]
+    #[inline(always)]
     fn sub_assign(&mut self, o: Self) {
         *self = *self - o;
     }
 }
 
 impl<D: Real, const N: usize> MulAssign<f64> for Grad<D, N> {
-    #[inline]
+    #[inline(always)]
     fn mul_assign(&mut self, o: f64) {
         *self = *self * o;
     }
@@ -182,20 +182,20 @@ impl<D: Real, const N: usize> MulAssign<f64> for Grad<D, N> {
 
 impl<D: Real, const N: usize> Real for Grad<D, N> {
     const NDERIV: usize = D::NDERIV + 1;
-    #[inline]
+    #[inline(always)]
     fn re(&self) -> f64 {
         self.re.re()
     }
-    #[inline]
+    #[inline(always)]
     fn sqrt(&self) -> Self {
         let s = self.re.sqrt();
         self.chain(s, D::from(0.5) / s)
     }
-    #[inline]
+    #[inline(always)]
     fn sin(&self) -> Self {
         self.chain(self.re.sin(), self.re.cos())
     }
-    #[inline]
+    #[inline(always)]
     fn cos(&self) -> Self {
         self.chain(self.re.cos(), -self.re.sin())
     }

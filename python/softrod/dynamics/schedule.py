@@ -31,9 +31,9 @@ import pandas as pd
 from .. import _validate as V
 from ..datasets import (
     DEFAULT_UNITS,
-    _check_dtype,
     _check_duplicates,
     _fail,
+    _number_column,
     _read_csv,
     _read_parquet,
     _unit_factor,
@@ -612,20 +612,7 @@ def _from_frame(df: pd.DataFrame, units: dict, where: _Where, extra: str):
         raise _fail("rows", len(df), f"too many rows: at most {V.MAX_ROWS:,}")
     values = {}
     for base, (col, factor) in columns.items():
-        raw = df[col]
-        _check_dtype(raw, col)
-        num = pd.to_numeric(raw, errors="coerce")
-        a = num.to_numpy(dtype=float)
-        missing_rows = np.flatnonzero(raw.isna().to_numpy())
-        if missing_rows.size:
-            raise _fail(col, "empty/NaN", f"empty or NaN value at {where(missing_rows)}")
-        text = np.flatnonzero(num.isna().to_numpy())
-        if text.size:
-            raise _fail(col, raw.iloc[text[0]], f"not a number at {where(text)}")
-        bad = np.flatnonzero(~np.isfinite(a))
-        if bad.size:
-            raise _fail(col, a[bad[0]].item(), f"must be finite, at {where(bad)}")
-        values[base] = a * factor
+        values[base] = _number_column(df[col], col, where) * factor
     t = values["time"]
     tcol = columns["time"][0]
     bad = np.flatnonzero(t < 0)
