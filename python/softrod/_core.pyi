@@ -33,6 +33,8 @@ class Rod:
     @property
     def n_channels(self) -> int: ...
     @property
+    def n_tendons(self) -> int: ...
+    @property
     def length(self) -> float: ...
     @property
     def mass(self) -> float: ...
@@ -42,7 +44,7 @@ class Rod:
         pressures: Sequence[float],
         tip_force: _Vec3,
         tip_moment: _Vec3,
-        guess: _Vec3 | None = None,
+        guess: Sequence[float] | None = None,
         tol: float = 1e-10,
         max_iter: int = 25,
         continuation: bool = True,
@@ -50,6 +52,7 @@ class Rod:
         stretch_range: tuple[float, float] = ...,
         stiffness_scale: _Vec3 = ...,
         on_invalid: str = "raise",
+        tensions: Sequence[float] | None = None,
     ) -> dict[str, Any]: ...
     def solve_batch(
         self,
@@ -64,6 +67,7 @@ class Rod:
         stretch_range: tuple[float, float] = ...,
         stiffness_scale: _ArrayLike | None = None,
         on_invalid: str = "raise",
+        tensions: _ArrayLike | None = None,
     ) -> dict[str, Any]: ...
     def sensitivity_batch(
         self,
@@ -80,6 +84,7 @@ class Rod:
         max_load_steps: int = 200,
         stretch_range: tuple[float, float] = ...,
         on_invalid: str = "ignore",
+        tensions: _ArrayLike | None = None,
         markers: Sequence[tuple[float, Sequence[float]]] = ...,
     ) -> dict[str, Any]: ...
 
@@ -241,15 +246,16 @@ def point_jacobian_of(
     tip_force: _Vec3,
     tip_moment: _Vec3,
     stiffness_scale: _Vec3,
-    x: _Vec3,
+    x: Sequence[float],
     s: float,
     params: Sequence[tuple[str, Sequence[int]]],
+    tensions: Sequence[float] | None = None,
 ) -> dict[str, Any]: ...
 def linearise_at(
     rod: Rod,
     pressures: Sequence[float],
     tip_force: _Vec3,
     tip_moment: _Vec3,
-    x: _Vec3 | None,
+    x: Sequence[float] | None,
     nodes: int,
 ) -> dict[str, Any]: ...

@@ -9,6 +9,7 @@ import os
 MAX_CHANNELS = 64  # pressure channels of a design: channel indices 0 ... 63
 MAX_SECTIONS = 1000  # sections of a design
 MAX_CHAMBERS = 64  # chambers of one section
+MAX_TENDONS = 64  # tendons of one section
 MAX_LOADS = 1000  # [[loads]] entries of a design
 MAX_TABLE_POINTS = 10_000  # points of a tabulated law (axial table, PCC k_theta table)
 MAX_SECTION_STEPS = 100_000  # integration steps of one section
@@ -30,6 +31,7 @@ LIMITS = {
     "channels": MAX_CHANNELS,
     "sections": MAX_SECTIONS,
     "chambers per section": MAX_CHAMBERS,
+    "tendons per section": MAX_TENDONS,
     "loads": MAX_LOADS,
     "table points": MAX_TABLE_POINTS,
     "steps per section": MAX_SECTION_STEPS,

@@ -87,7 +87,17 @@ _SCHEMA: dict[str, set[str]] = {
         "rotary_inertia",
         "damping_se",
         "damping_bt",
+        "curvature",
+        "u_star",
+        "bend_radius",
+        "bend_direction",
+        "v_star",
+        "reference_table",
+        "outer_radius_end",
+        "tendons",
     },
+    "reference_table": {"s", "curvature", "v_star"},
+    "tendon": {"channel", "distance", "angle", "distance_end", "angle_end"},
     "law": {
         "axial",
         "alpha",
@@ -100,10 +110,10 @@ _SCHEMA: dict[str, set[str]] = {
         "stiffness_map",
     },
     "partition": {"j", "E_I", "r_I", "E_II", "r_II", "E_III"},
-    "chamber": {"radius", "area", "distance", "angle", "channel"},
-    "tip": {"mass", "com_offset", "force", "moment", "inertia"},
+    "chamber": {"radius", "area", "distance", "angle", "channel", "distance_end", "radius_end"},
+    "tip": {"mass", "com_offset", "force", "moment", "inertia", "frame"},
     "dynamics": {"damping_time", "pressure_time_constant", "pressure_rate_limit"},
-    "load": {"section", "force_per_length", "moment_per_length"},
+    "load": {"section", "force_per_length", "moment_per_length", "frame"},
     "pcc": {
         "k_L",
         "b_L",
@@ -347,7 +357,130 @@ def _section(sec: Any, i: int, materials: Mapping, numerics: tuple[str, float]) 
             DesignError,
         )
     out["chambers"] = [_chamber(c, f"{where}.chambers[{k}]") for k, c in enumerate(chambers)]
+    if "outer_radius_end" in sec:
+        out["outer_radius_end"] = _q(sec["outer_radius_end"], "length", f"{where}.outer_radius_end")
+    reference = _reference(sec, where, length)
+    if reference is not None:
+        out["reference"] = reference
+    tendons = sec.get("tendons", [])
+    if not isinstance(tendons, list):
+        raise V.fail(f"{where}.tendons", tendons, "must be an array of tables", DesignError)
+    if len(tendons) > V.MAX_TENDONS:
+        raise V.fail(
+            f"{where}.tendons",
+            f"{len(tendons)} tendons",
+            f"too many: at most {V.MAX_TENDONS} per section",
+            DesignError,
+        )
+    if tendons:
+        out["tendons"] = [_tendon(t, f"{where}.tendons[{k}]") for k, t in enumerate(tendons)]
     return out
+
+
+def _reference(sec: Mapping, where: str, length: float) -> dict | None:
+    """The section's reference (stress-free) shape, docs/scope.md: precurvature u* as
+    ``curvature`` (alias ``u_star``, 1/m about d1, d2 and twist) or ``bend_radius`` with
+    ``bend_direction``, pre-strain ``v_star``, or both tabulated along s in
+    ``reference_table``. None for the straight rod."""
+    given = [k for k in ("curvature", "u_star", "bend_radius") if k in sec]
+    if len(given) > 1:
+        raise design_error(
+            f"{where}.{given[1]}",
+            sec[given[1]],
+            f"give one of curvature, u_star or bend_radius, not {given[0]} and {given[1]}",
+        )
+    if "bend_direction" in sec and "bend_radius" not in sec:
+        raise design_error(
+            f"{where}.bend_direction", sec["bend_direction"], "needs bend_radius"
+        )
+    out: dict[str, Any] = {}
+    if given and given[0] in ("curvature", "u_star"):
+        out["curvature"] = _qvec(sec[given[0]], "curvature", f"{where}.{given[0]}")
+    elif given:
+        radius = _q(sec["bend_radius"], "length", f"{where}.bend_radius")
+        if not (math.isfinite(radius) and radius > 0):
+            raise design_error(f"{where}.bend_radius", sec["bend_radius"], "must be > 0")
+        phi = _q(sec.get("bend_direction", 0.0), "angle", f"{where}.bend_direction")
+        # Bends towards (cos phi, sin phi) in (d1, d2): d3' = u x d3 = (u2, -u1, 0).
+        out["curvature"] = [-math.sin(phi) / radius, math.cos(phi) / radius, 0.0]
+    if "v_star" in sec:
+        v_star = _list3(sec["v_star"], f"{where}.v_star")
+        out["strain"] = [number(v, f"{where}.v_star[{k}]") for k, v in enumerate(v_star)]
+    if "reference_table" in sec:
+        if out:
+            raise design_error(
+                f"{where}.reference_table",
+                "a table",
+                "give the reference shape as constants or as a table, not both",
+            )
+        tab = _check_keys(sec["reference_table"], "reference_table", f"{where}.reference_table")
+        w = f"{where}.reference_table"
+        s = _qvec(_require(tab, "s", w), "length", f"{w}.s", length=None)
+        n = len(s)
+        if n < 2:
+            raise V.fail(f"{w}.s", tab["s"], "needs at least 2 points", DesignError)
+
+        def rows(key: str, kind: str | None, default: list[float]) -> list[list[float]]:
+            raw = tab.get(key)
+            if raw is None:
+                return [list(default) for _ in range(n)]
+            if not isinstance(raw, list) or len(raw) != n:
+                rule = f"must be a list of {n} rows (one per s)"
+                raise V.fail(f"{w}.{key}", raw, rule, DesignError)
+            if kind is None:
+                return [
+                    [
+                        number(v, f"{w}.{key}[{i}][{k}]")
+                        for k, v in enumerate(_list3(r, f"{w}.{key}[{i}]"))
+                    ]
+                    for i, r in enumerate(raw)
+                ]
+            return [_qvec(r, kind, f"{w}.{key}[{i}]") for i, r in enumerate(raw)]
+
+        if "curvature" not in tab and "v_star" not in tab:
+            raise design_error(w, "a table", "needs curvature or v_star rows")
+        out["table"] = {
+            "s": s,
+            "curvature": rows("curvature", "curvature", [0.0, 0.0, 0.0]),
+            "strain": rows("v_star", None, [0.0, 0.0, 1.0]),
+        }
+    return out or None
+
+
+def _list3(value: Any, field: str) -> list:
+    if not isinstance(value, (list, tuple)) or len(value) != 3:
+        raise V.fail(field, value, "must be a list of 3 values", DesignError)
+    return list(value)
+
+
+def _tendon(t: Any, where: str) -> dict:
+    """A ``[[sections.tendons]]`` entry: its tension channel and its routing (offset
+    distance and angle in the cross-section, linear along the section to ``*_end``)."""
+    t = _check_keys(t, "tendon", where)
+    out: dict[str, Any] = {
+        "channel": V.integer(
+            _require(t, "channel", where),
+            f"{where}.channel",
+            DesignError,
+            minimum=0,
+            maximum=V.MAX_CHANNELS - 1,
+            hint=f" (softrod supports {V.MAX_CHANNELS} tendon channels, numbered from 0)",
+        ),
+        "distance": _q(_require(t, "distance", where), "length", f"{where}.distance"),
+        "angle": _q(t.get("angle", 0.0), "angle", f"{where}.angle"),
+    }
+    if "distance_end" in t:
+        out["distance_end"] = _q(t["distance_end"], "length", f"{where}.distance_end")
+    if "angle_end" in t:
+        out["angle_end"] = _q(t["angle_end"], "angle", f"{where}.angle_end")
+    return out
+
+
+_FRAMES = ("world", "body")
+
+
+def _frame(table: Mapping, where: str) -> str:
+    return V.choice(table.get("frame", "world"), _FRAMES, f"{where}.frame", DesignError)
 
 
 _AXIAL_LAWS = ("linear", "ogden", "table")
@@ -419,7 +552,13 @@ def _chamber(ch: Any, where: str) -> dict:
         area = math.pi * radius**2
     else:
         raise design_error(f"{where}.radius", "missing", "give radius or area")
+    taper = {
+        key: _q(ch[key], "length", f"{where}.{key}")
+        for key in ("distance_end", "radius_end")
+        if key in ch
+    }
     return {
+        **taper,
         "area": area,
         "radius": radius,
         "distance": _q(_require(ch, "distance", where), "length", f"{where}.distance"),
@@ -518,6 +657,7 @@ def _spec(doc: dict) -> dict:
             DesignError,
         )
     _check_channels(secs)
+    _check_channels(secs, "tendons", "tendon")
     names = [s["name"] for s in secs]
     tip = _check_keys(doc.get("tip", {}), "tip", "tip")
     loads = doc.get("loads", [])
@@ -548,6 +688,7 @@ def _spec(doc: dict) -> dict:
                 "moment_per_length": _qvec(
                     ld.get("moment_per_length", [0, 0, 0]), "force", f"loads[{k}].moment_per_length"
                 ),
+                "frame": _frame(ld, f"loads[{k}]"),
             }
         )
     g = _q(mount.get("gravity", "9.81 m/s^2"), "acceleration", "mounting.gravity")
@@ -573,6 +714,7 @@ def _spec(doc: dict) -> dict:
             "force": _qvec(tip.get("force", [0, 0, 0]), "force", "tip.force"),
             "moment": _qvec(tip.get("moment", [0, 0, 0]), "moment", "tip.moment"),
             "inertia": _qvec(tip.get("inertia", [0, 0, 0]), "inertia", "tip.inertia"),
+            "frame": _frame(tip, "tip"),
         },
         "loads": load_specs,
         "dynamics": _dynamics(_check_keys(doc.get("dynamics", {}), "dynamics", "dynamics")),
@@ -603,13 +745,14 @@ def _operating_range(table: Any) -> dict:
     return {"pressure": _qvec(pressure, "pressure", "operating_range.pressure", length=2)}
 
 
-def _check_channels(secs: list[dict]) -> None:
-    """Channels numbered 0, 1, ... without gaps; the error names the chamber with the
-    highest channel (the one that declares the unused ones)."""
+def _check_channels(secs: list[dict], key: str = "chambers", what: str = "pressure") -> None:
+    """Channels (of the chambers, or of the tendons) numbered 0, 1, ... without gaps; the
+    error names the entry with the highest channel (the one that declares the unused
+    ones)."""
     where: dict[int, str] = {}
     for i, sec in enumerate(secs):
-        for k, ch in enumerate(sec["chambers"]):
-            where.setdefault(ch["channel"], f"sections[{i}].chambers[{k}].channel")
+        for k, ch in enumerate(sec.get(key, [])):
+            where.setdefault(ch["channel"], f"sections[{i}].{key}[{k}].channel")
     if not where:
         return
     top = max(where)
@@ -618,8 +761,8 @@ def _check_channels(secs: list[dict]) -> None:
         raise V.fail(
             where[top],
             top,
-            f"channels must be numbered 0, 1, ... without gaps: channel {missing[0]} is unused "
-            f"but channel {top} is given ({top + 1} channels declared)",
+            f"{what} channels must be numbered 0, 1, ... without gaps: channel {missing[0]} is "
+            f"unused but channel {top} is given ({top + 1} channels declared)",
             DesignError,
         )
 
@@ -710,6 +853,11 @@ class Design:
     def n_channels(self) -> int:
         """Number of pressure channels (inputs)."""
         return self._rod.n_channels
+
+    @property
+    def n_tendons(self) -> int:
+        """Number of tendon tension channels (inputs; ``[[sections.tendons]]``)."""
+        return self._rod.n_tendons
 
     @property
     def length(self) -> float:
@@ -902,6 +1050,18 @@ _KINDS: dict[str, dict[str, str]] = {
         "rotary_inertia": "inertia_per_length",
         "damping_se": "damping_force",
         "damping_bt": "damping_moment",
+        "curvature": "curvature",
+        "u_star": "curvature",
+        "bend_radius": "length",
+        "bend_direction": "angle",
+        "outer_radius_end": "length",
+    },
+    "reference_table": {"s": "length", "curvature": "curvature"},
+    "tendon": {
+        "distance": "length",
+        "angle": "angle",
+        "distance_end": "length",
+        "angle_end": "angle",
     },
     "law": {
         "axial_force": "force",
@@ -916,7 +1076,14 @@ _KINDS: dict[str, dict[str, str]] = {
         "r_I": "length",
         "r_II": "length",
     },
-    "chamber": {"radius": "length", "area": "area", "distance": "length", "angle": "angle"},
+    "chamber": {
+        "radius": "length",
+        "area": "area",
+        "distance": "length",
+        "angle": "angle",
+        "distance_end": "length",
+        "radius_end": "length",
+    },
     "tip": {
         "mass": "mass",
         "com_offset": "length",
@@ -1007,6 +1174,12 @@ def _with_units(doc: dict) -> dict:
             sec["chambers"] = [
                 _units_in(c, "chamber") if isinstance(c, Mapping) else c for c in sec["chambers"]
             ]
+        if isinstance(sec.get("tendons"), list):
+            sec["tendons"] = [
+                _units_in(t, "tendon") if isinstance(t, Mapping) else t for t in sec["tendons"]
+            ]
+        if isinstance(sec.get("reference_table"), Mapping):
+            sec["reference_table"] = _units_in(sec["reference_table"], "reference_table")
         sections.append(sec)
     if "sections" in doc:
         doc["sections"] = sections

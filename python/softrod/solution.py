@@ -55,7 +55,7 @@ class StaticSolution:
     stiffness_scale: (3,) sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) applied to the
     mapped sections (docs/stiffness-map.md); ones when the design has none.
     stable: the equilibrium is stable (docs/model.md, "Validity and stability"); None where
-    the model does not assess it (the PCC model) or the solve failed.
+    it is not assessed (the PCC model, follower loads: docs/scope.md) or the solve failed.
     violations: the validity ranges the solution lies outside (only with
     ``on_invalid="warn"``; otherwise such a solution is refused).
     """
@@ -78,8 +78,11 @@ class StaticSolution:
     stiffness_scale: np.ndarray = field(default_factory=lambda: np.ones(3))
     stable: bool | None = None
     violations: tuple[str, ...] = ()
-    #: (tip force, tip moment) the equilibrium was solved under (world frame, N and N m).
+    #: (tip force, tip moment) the equilibrium was solved under (the design's tip frame,
+    #: N and N m).
     tip_loads: tuple | None = field(default=None, repr=False)
+    #: Tendon tensions (N, one per tendon channel) it was solved under; empty without tendons.
+    tensions: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
 
     @classmethod
     def failed(
@@ -174,6 +177,7 @@ class StaticSolution:
             [float(v) for v in self.shooting_unknowns],
             float(s),
             pairs,
+            tensions=[float(t) for t in self.tensions],
         )
         return Jacobian(
             point=float(s),
@@ -212,7 +216,9 @@ class BatchSolution:
     converged (m,) bool (rows that failed hold NaN); iterations (m,); residual (m,).
     stiffness_scale (m, 3): sigma of every row when the design has mapped sections
     (docs/stiffness-map.md), else None. x (m, 3): the solver's scaled unknowns (warm starts).
-    stable (m,) bool: the row's equilibrium is stable (False on failed rows). violation (m,)
+    stable (m,) bool: the row's equilibrium is stable (False on failed rows and where not
+    assessed: see stability_assessed (m,) bool, False with follower loads). tensions (m, k):
+    the tendon tensions of every row, N (None: slack tendons). violation (m,)
     str: the validity rule a row broke ("" if none; docs/model.md, "Validity and stability").
     metadata: design, softrod version and solver settings (the metadata block of
     :meth:`to_frame`).
@@ -231,6 +237,8 @@ class BatchSolution:
     stable: np.ndarray | None = None
     violation: np.ndarray | None = None
     metadata: dict = field(default_factory=dict, compare=False)
+    stability_assessed: np.ndarray | None = None
+    tensions: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.pressures.shape[0]

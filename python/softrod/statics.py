@@ -85,9 +85,10 @@ def _policy(name: str, value) -> str:
     return value
 
 
-def _report_stability(stable: bool, on_unstable: str, what: str) -> None:
-    """Warn about (or raise for) an unstable equilibrium, as ``on_unstable`` says."""
-    if stable or on_unstable == "ignore":
+def _report_stability(stable: bool | None, on_unstable: str, what: str) -> None:
+    """Warn about (or raise for) an unstable equilibrium, as ``on_unstable`` says. None:
+    stability was not assessed (follower loads are not conservative; docs/scope.md)."""
+    if stable is None or stable or on_unstable == "ignore":
         return
     message = (
         f"{what} is an unstable equilibrium (the second variation of the energy is not positive "
@@ -125,7 +126,87 @@ def _quantities(value, kind: str, name: str, count: int, rule: str) -> list[floa
 def _vec3(value, kind: str, name: str, default) -> list[float]:
     if value is None:
         return list(default)
-    return _quantities(value, kind, name, 3, f"must be 3 {kind} values (world frame)")
+    return _quantities(
+        value, kind, name, 3, f"must be 3 {kind} values (in the design's tip frame)"
+    )
+
+
+def _tensions(design: Design, tensions) -> list[float]:
+    """One tendon tension per tendon channel (N, or strings with units), each finite and
+    >= 0 (a tendon pulls or is slack: it cannot push). None: every tendon slack."""
+    n = design.n_tendons
+    if tensions is None:
+        return [0.0] * n
+    if n == 0:
+        raise V.fail(
+            "tensions",
+            tensions,
+            f"design {design.name!r} has no tendons ([[sections.tendons]]); leave tensions out",
+        )
+    if V.is_real(tensions) or isinstance(tensions, str):
+        tensions = [tensions]
+    out = _quantities(
+        tensions,
+        "force",
+        "tensions",
+        n,
+        f"the design has {n} tendon channel(s); give one tension per channel",
+    )
+    _check_tension_values(np.asarray(out), "tensions")
+    return out
+
+
+def _check_tension_values(arr: np.ndarray, name: str) -> None:
+    bad = np.flatnonzero(~(arr.reshape(-1) >= 0.0))
+    if bad.size:
+        k = int(bad[0])
+        if arr.ndim <= 1:
+            where = f"{name}[{k}]"
+        else:
+            where = f"{name}[{k // arr.shape[1]}, {k % arr.shape[1]}]"
+        raise V.fail(
+            where,
+            f"{float(arr.reshape(-1)[k])!r} N",
+            "a tendon tension must be >= 0 (a tendon pulls or is slack, it cannot push)",
+        )
+
+
+def batch_tensions(design: Design, tensions, rows: int) -> np.ndarray | None:
+    """An (m, tendon channels) float array of tensions (N, each >= 0), or None (slack)."""
+    if tensions is None:
+        return None
+    n = design.n_tendons
+    if n == 0:
+        raise V.fail(
+            "tensions",
+            "an array",
+            f"design {design.name!r} has no tendons ([[sections.tendons]]); leave tensions out",
+        )
+    arr = V.real_array(
+        tensions, "tensions", unit_kind="force", max_size=V.MAX_ROWS * max(n, 1)
+    )
+    if arr.ndim == 1 and n == 1:
+        arr = arr[:, None]
+    if arr.ndim != 2 or arr.shape != (rows, n):
+        raise V.fail(
+            "tensions",
+            f"shape {arr.shape}",
+            f"must be ({rows}, {n}): one row per pressure row, one column per tendon channel",
+        )
+    _check_tension_values(arr, "tensions")
+    return np.ascontiguousarray(arr, dtype=float)
+
+
+def _n_unknowns(design: Design, tf, tm) -> int:
+    """Shooting unknowns of a solve: 6 with follower loads (base force unknown), else 3."""
+    spec = design.spec
+    tip_body = spec["tip"].get("frame") == "body" and any(v != 0 for v in [*tf, *tm])
+    line_body = any(
+        ld.get("frame") == "body"
+        and any(v != 0 for v in [*ld["force_per_length"], *ld["moment_per_length"]])
+        for ld in spec["loads"]
+    )
+    return 6 if tip_body or line_body else 3
 
 
 def _initial(initial, model: str) -> list[float] | None:
@@ -214,16 +295,20 @@ def solve_statics(
     model: str = "cosserat",
     on_unstable: str = "warn",
     on_invalid: str = "raise",
+    tensions: ArrayLike | None = None,
 ) -> StaticSolution:
-    """Static shape of ``design`` under chamber ``pressures`` (Pa gauge, one per channel).
+    """Static shape of ``design`` under chamber ``pressures`` (Pa gauge, one per channel)
+    and tendon ``tensions`` (N, one per tendon channel, each >= 0; None: slack).
 
     model: "cosserat" (the rod) or "pcc" (paper 003's piecewise-constant-curvature model,
     docs/pcc.md): the same design and inputs; its shape is the chain of arcs, its ``force``
     and ``moment`` are NaN (the PCC model does not resolve the internal wrench) and
     ``options.max_iter`` bounds its Newton iterations.
 
-    tip_force / tip_moment (N, N m; world frame) replace the design's ``[tip]`` force and
-    moment when given; gravity and the tip body always act. ``initial`` warm-starts from a
+    tip_force / tip_moment (N, N m; in the design's tip frame: the world, or the tip's body
+    frame with ``[tip] frame = "body"``, a follower load) replace the design's ``[tip]``
+    force and moment when given; gravity and the tip body always act. Tendons, reference
+    shapes, tapered sections and follower loads: docs/scope.md. ``initial`` warm-starts from a
     previous solution. On non-convergence raises :class:`ConvergenceError`, or with
     ``check=False`` returns a solution with ``converged=False`` and NaN arrays.
     ``stiffness_map`` (a :class:`StiffnessMap`) is needed exactly when a section sets
@@ -250,7 +335,10 @@ def solve_statics(
     V.choice(model, ("cosserat", "pcc"), "model")
     V.boolean(check, "check")
     guess = _initial(initial, model)
+    t = _tensions(design, tensions)
     if model == "pcc":
+        if tensions is not None:
+            raise design_error("tensions", tensions, "is not used by model='pcc'", InputError)
         if stiffness_map is not None:
             raise design_error(
                 "stiffness_map", stiffness_map, "is not used by model='pcc'", InputError
@@ -280,13 +368,17 @@ def solve_statics(
             guess=guess,
             stiffness_scale=sigma.tolist(),
             on_invalid=on_invalid,
+            tensions=t,
             **opts.as_kwargs(),
         )
         _report_stability(out["stable"], on_unstable, f"the solution at pressures {p} Pa")
     except ConvergenceError as exc:
         if check:
             raise
-        return StaticSolution.failed(design, p, exc, 3, stiffness_scale=sigma)
+        return StaticSolution.failed(
+            design, p, exc, _n_unknowns(design, tf, tm), stiffness_scale=sigma,
+            tensions=np.array(t),
+        )
     for v in out["violations"]:
         warnings.warn(ValidityWarning(v), stacklevel=2)
     return StaticSolution(
@@ -306,9 +398,10 @@ def solve_statics(
         load_steps=out["load_steps"],
         shooting_unknowns=np.array(out["x"]),
         stiffness_scale=sigma,
-        stable=bool(out["stable"]),
+        stable=None if out["stable"] is None else bool(out["stable"]),
         violations=tuple(out["violations"]),
         tip_loads=(tuple(tf), tuple(tm)),
+        tensions=np.array(t),
     )
 
 
@@ -326,8 +419,10 @@ def solve_statics_batch(
     progress: Progress = None,
     on_unstable: str = "warn",
     on_invalid: str = "raise",
+    tensions: ArrayLike | None = None,
 ) -> BatchSolution:
-    """Solve for every row of an (m, channels) pressure array (Pa) in parallel.
+    """Solve for every row of an (m, channels) pressure array (Pa) in parallel, with an
+    optional (m, tendon channels) array of tendon ``tensions`` (N, >= 0; None: slack).
 
     Runs in Rust on ``threads`` cores (0 = all) with the GIL released. Every row is solved
     as :func:`solve_statics` solves it alone (cold), so a row is bitwise equal to the single
@@ -335,7 +430,8 @@ def solve_statics_batch(
     ``converged = False`` and NaN results. ``stiffness_map`` as in :func:`solve_statics`,
     evaluated in one call for all rows.
 
-    ``stable`` (m,) says which equilibria are stable and ``violation`` (m,) which validity
+    ``stable`` (m,) says which equilibria are stable (``stability_assessed`` (m,) is False
+    where it was not assessed: follower loads) and ``violation`` (m,) which validity
     rule a row broke ("" if none). ``on_invalid``: with "raise" (default) pressures beyond
     the design's operating range are refused before any work (naming the row), and rows
     outside the strain validity range are kept failed (``converged`` False, NaN, the rule in
@@ -353,6 +449,7 @@ def solve_statics_batch(
     on_invalid = _policy("on_invalid", on_invalid)
     design = load_design(design)
     arr = batch_pressures(design, pressures)
+    tens = batch_tensions(design, tensions, arr.shape[0])
     threads = V.threads(threads)
     opts = _options(options)
     smap = _stiffness_map(design, stiffness_map)
@@ -375,9 +472,10 @@ def solve_statics_batch(
             chunk_size,
             progress,
             on_invalid,
+            tens,
         )
         meta = _batch_metadata(design, options, tf, tm, smap)
-        return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid)
+        return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens)
     if chunk_size is not None:
         raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
     if progress is not None:
@@ -389,18 +487,22 @@ def solve_statics_batch(
         threads=threads,
         stiffness_scale=sigma,
         on_invalid=on_invalid,
+        tensions=tens,
         **opts.as_kwargs(),
     )
     meta = _batch_metadata(design, options, tf, tm, smap)
-    return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid)
+    return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens)
 
 
-def _batch_result(arr, sigma, meta, out, on_unstable, on_invalid) -> BatchSolution:
+def _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens=None) -> BatchSolution:
     """The BatchSolution of the core's columns, with the stability and validity reports."""
     out = dict(out)
     out["violation"] = np.asarray(out["violation"], dtype=object)
+    out["stability_assessed"] = np.asarray(out.pop("assessed"), dtype=bool)
     converged = np.asarray(out["converged"], dtype=bool)
-    unstable = np.flatnonzero(converged & ~np.asarray(out["stable"], dtype=bool))
+    unstable = np.flatnonzero(
+        converged & out["stability_assessed"] & ~np.asarray(out["stable"], dtype=bool)
+    )
     if unstable.size:
         _report_stability(
             False,
@@ -419,7 +521,9 @@ def _batch_result(arr, sigma, meta, out, on_unstable, on_invalid) -> BatchSoluti
             ),
             stacklevel=3,
         )
-    return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, **out)
+    return BatchSolution(
+        pressures=arr, stiffness_scale=sigma, metadata=meta, tensions=tens, **out
+    )
 
 
 def _batch_metadata(design, options, tf, tm, smap) -> dict:
@@ -437,7 +541,8 @@ def _batch_metadata(design, options, tf, tm, smap) -> dict:
 
 
 def _batch_chunk(
-    text, pressures, tip_force, tip_moment, sigma, options, threads, per_host, on_invalid
+    text, pressures, tip_force, tip_moment, sigma, options, threads, per_host, on_invalid,
+    tensions=None,
 ):
     """One chunk of a batch on a worker: the design rebuilt from its TOML text, one Rust
     batch call."""
@@ -451,12 +556,14 @@ def _batch_chunk(
         threads=worker_threads(per_host, threads),
         stiffness_scale=sigma,
         on_invalid=on_invalid,
+        tensions=tensions,
         **options,
     )
 
 
 def _batch_on_cluster(
-    executor, design, arr, tf, tm, sigma, options, threads, chunk_size, progress, on_invalid
+    executor, design, arr, tf, tm, sigma, options, threads, chunk_size, progress, on_invalid,
+    tens=None,
 ):
     from .cluster import chunk_rows, design_text, run_chunks, task_slots
 
@@ -480,6 +587,7 @@ def _batch_on_cluster(
             threads,
             per_host,
             on_invalid,
+            None if tens is None else np.ascontiguousarray(tens[lo:hi]),
         )
         for lo, hi in bounds
     ]
@@ -494,7 +602,7 @@ def _batch_on_cluster(
     if not parts:  # no rows: the core's empty result
         return design._rod.solve_batch(
             arr, tf, tm, threads=1, stiffness_scale=sigma, on_invalid=on_invalid,
-            **options.as_kwargs()
+            tensions=tens, **options.as_kwargs()
         )
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 

@@ -10,23 +10,23 @@ fn main() {
         .expect("usage: profile_solve SPEC.json");
     let spec: DesignSpec = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     let rod = Rod::new(spec).unwrap();
-    let loads = Loads {
-        pressures: [70e3, 35e3, 0.0][..rod.n_channels.min(3)].to_vec(),
-        tip_force: [0.0; 3],
-        tip_moment: [0.0; 3],
-        stiffness_scale: [1.0; 3],
-    };
+    let mut loads = Loads::from_design(&rod, [70e3, 35e3, 0.0][..rod.n_channels.min(3)].to_vec());
+    // Optional second argument: the same tension on every tendon, N.
+    if let Some(t) = std::env::args().nth(2) {
+        let t: f64 = t.parse().expect("tension in N");
+        loads.tensions = vec![t; rod.n_tendons];
+    }
     let opts = SolverOptions::default();
     let sol = solve(&rod, &loads, None, &opts).unwrap();
     let n = 2000;
     let t = Instant::now();
     for _ in 0..n {
-        std::hint::black_box(residual(&rod, &loads, &sol.x));
+        let _ = std::hint::black_box(residual(&rod, &loads, &sol.x));
     }
     let f64_pass = t.elapsed().as_secs_f64() / n as f64;
     let t = Instant::now();
     for _ in 0..n {
-        std::hint::black_box(residual_and_jacobian(&rod, &loads, &sol.x));
+        let _ = std::hint::black_box(residual_and_jacobian(&rod, &loads, &sol.x));
     }
     let dual_pass = t.elapsed().as_secs_f64() / n as f64;
     let t = Instant::now();
@@ -36,7 +36,7 @@ fn main() {
     }
     let cold = t.elapsed().as_secs_f64() / n as f64;
     println!(
-        "f64 pass {:.2} us, dual pass {:.2} us, cold solve {:.2} us ({it} iterations, {} load levels, stable {})",
+        "f64 pass {:.2} us, dual pass {:.2} us, cold solve {:.2} us ({it} iterations, {} load levels, stable {:?})",
         f64_pass * 1e6,
         dual_pass * 1e6,
         cold * 1e6,

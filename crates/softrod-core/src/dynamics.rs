@@ -522,9 +522,76 @@ pub struct Simulator {
     pub stats: DynStats,
 }
 
+/// Refuse the statics-only features of a design (follower loads, reference shapes, tapered
+/// sections, tendons): `model` (the dynamics, its linearisation, the PCC model) does not
+/// carry them yet.
+pub(crate) fn check_statics_only(rod: &Rod, model: &str) -> Result<()> {
+    check_statics_only_with(rod, model, false)
+}
+
+/// [`check_statics_only`]; with `constant_reference` a constant reference shape of a
+/// section with the linear law is accepted (it enters the law's shifts).
+pub(crate) fn check_statics_only_with(
+    rod: &Rod,
+    model: &str,
+    constant_reference: bool,
+) -> Result<()> {
+    // Statics-only features of issue 17 (dynamics follows on the collocation engine).
+    let statics_only = |field: String, what: &str| {
+        SoftrodError::invalid(
+            field,
+            what,
+            format!(
+                "is not supported by {model} yet; the Cosserat statics (solve_statics) supports it"
+            ),
+        )
+    };
+    if rod.spec.tip.frame == crate::spec::Frame::Body {
+        return Err(statics_only(
+            "tip.frame".into(),
+            "a follower (body-frame) tip load",
+        ));
+    }
+    if let Some(k) = rod
+        .spec
+        .loads
+        .iter()
+        .position(|l| l.frame == crate::spec::Frame::Body)
+    {
+        return Err(statics_only(
+            format!("loads[{k}].frame"),
+            "a follower line load",
+        ));
+    }
+    for (i, s) in rod.sections.iter().enumerate() {
+        let carried = constant_reference
+            && matches!(s.reference, crate::reference::Reference::Constant { .. })
+            && matches!(s.law.axial, crate::rod::AxialLaw::Linear);
+        if !s.reference.is_straight() && !carried {
+            let what = if constant_reference {
+                "a reference shape tabulated along s, or one with a nonlinear axial law"
+            } else {
+                "a reference shape (precurvature or pre-strain)"
+            };
+            return Err(statics_only(format!("sections[{i}].reference"), what));
+        }
+        if s.tapered {
+            return Err(statics_only(
+                format!("sections[{i}].outer_radius_end"),
+                "a tapered section",
+            ));
+        }
+        if !s.tendons.is_empty() {
+            return Err(statics_only(format!("sections[{i}].tendons"), "tendons"));
+        }
+    }
+    Ok(())
+}
+
 /// Check that every section's law has a dynamic counterpart and the map is given where
 /// needed.
 fn check_dynamic_laws(rod: &Rod, map: &SigmaMap) -> Result<()> {
+    check_statics_only_with(rod, "the dynamics", true)?;
     for (i, s) in rod.sections.iter().enumerate() {
         if s.law.stiffness_map && matches!(map, SigmaMap::None) {
             return Err(SoftrodError::invalid(
@@ -639,7 +706,7 @@ impl Simulator {
         let tau = self.rod.spec.dynamics.damping_time;
         (0..self.rod.sections.len())
             .map(|i| {
-                let c = Coeffs::build(&self.rod, i, pressures, &self.rod.gravity, 1.0, sigma);
+                let c = Coeffs::build(&self.rod, i, pressures, &[], &self.rod.gravity, 1.0, sigma);
                 let inr = &self.inertia[i];
                 SectionModel::new(
                     &c,
@@ -677,8 +744,10 @@ impl Simulator {
                 // the static solver's solution (which picks shooting or collocation).
                 let loads = Loads {
                     pressures: self.pressures.clone(),
+                    tensions: vec![],
                     tip_force: self.tip_force,
                     tip_moment: self.tip_moment,
+                    tip_frame: crate::spec::Frame::World,
                     stiffness_scale: self.sigma,
                 };
                 let guess = statics::solve(&self.rod, &loads, None, &SolverOptions::default())

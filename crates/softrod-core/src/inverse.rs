@@ -35,7 +35,7 @@
 //! for the caller to refuse an unstable one.
 
 use crate::error::{Result, SoftrodError};
-use crate::jacobian::{pass_with, total_derivatives, value_with, Input, Pass, Probe};
+use crate::jacobian::{pass_with, total_derivatives, unknowns3, value_with, Input, Pass, Probe};
 use crate::ode::{Loads, State};
 use crate::rod::Rod;
 use crate::statics::{self, Problem, Solution, SolverOptions};
@@ -479,7 +479,7 @@ impl InverseSolution {
     /// A warm start for the next target of the same problem.
     pub fn warm_start(&self) -> WarmStart {
         WarmStart {
-            x: self.solution.x,
+            x: std::array::from_fn(|i| self.solution.x[i]),
             equilibrium: Some((self.pressures.clone(), self.point)),
             linearisation: self.linearisation.clone(),
         }
@@ -497,6 +497,7 @@ pub fn solve_inverse(
     warm: Option<&WarmStart>,
 ) -> Result<InverseSolution> {
     validate(rod, loads, target, opts)?;
+    crate::jacobian::dead_loads_only(rod, loads, "inverse statics")?;
     let probe = Probe::at(rod, target.s)?;
     let nc = rod.n_channels;
     let task = Task {
@@ -562,8 +563,8 @@ pub fn solve_inverse(
                 return Ok(it);
             }
         }
-        let sol = statics::solve(rod, &ld, guess, &inner)?;
-        Ok(exact_at(p, sol.x, &problem))
+        let sol = statics::solve(rod, &ld, guess.map(|g| &g[..]), &inner)?;
+        Ok(exact_at(p, unknowns3(&sol)?, &problem))
     };
     // Chord Newton on the equilibrium at fixed pressures with the LU of a nearby g_x
     // (f64 passes only); a full statics solve if that does not converge.
@@ -596,7 +597,7 @@ pub fn solve_inverse(
                 g = next.g;
             }
             let sol = statics::solve(rod, &ld, Some(&it.x), &inner)?;
-            Ok(exact_at(it.p, sol.x, &problem))
+            Ok(exact_at(it.p, unknowns3(&sol)?, &problem))
         };
     // Start: the equilibrium at the clipped start pressures; from a cold start, the best of
     // it, the box's centre and (up to 4 channels) its corners, so that the local method
@@ -771,7 +772,7 @@ pub fn solve_inverse(
             if trial.is_none() && fresh {
                 // A long step: solve the equilibrium properly (Newton, continuation).
                 if let Ok(sol) = statics::solve(rod, &ld_t, Some(&x_t), &inner) {
-                    x_t = sol.x;
+                    x_t = unknowns3(&sol)?;
                     let (g, point, _) = value_with(&prob_t, rod, &x_t, &probe);
                     trial = Some((g, point, true));
                 }

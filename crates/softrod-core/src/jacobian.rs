@@ -126,7 +126,16 @@ pub(crate) fn dual_coeffs<const N: usize>(
     (0..rod.sections.len())
         .map(|i| {
             let knobs = SectionKnobs::of(&rod.sections[i]).lift();
-            Coeffs::build_with(rod, i, &p, &rod.gravity, Jet::from(1.0), &sigma, &knobs)
+            Coeffs::build_with(
+                rod,
+                i,
+                &p,
+                &loads.tensions,
+                &rod.gravity,
+                Jet::from(1.0),
+                &sigma,
+                &knobs,
+            )
         })
         .collect()
 }
@@ -161,7 +170,7 @@ fn pass_n<const N: usize>(
     let mut point = None;
     let tip = integrate_with(rod, &coeffs, y0, &mut |node: NodeAt, y| {
         if point.is_none() && node.section == probe.section && node.step == probe.step {
-            point = Some(advance(rod, &coeffs, node.section, y, probe.offset));
+            point = Some(advance(rod, &coeffs, node, y, probe.offset));
         }
         false
     });
@@ -243,7 +252,7 @@ pub(crate) fn value_with(
         problem.base_state(x),
         &mut |node, y| {
             if point.is_none() && node.section == probe.section && node.step == probe.step {
-                point = Some(advance(rod, &problem.coeffs, node.section, y, probe.offset));
+                point = Some(advance(rod, &problem.coeffs, node, y, probe.offset));
             }
             false
         },
@@ -261,6 +270,42 @@ pub struct PointJacobian {
     pub d_position: Vec<[f64; 3]>,
     /// The small rotation d theta / d a_k (world frame, d R = [d theta]x R), one per input.
     pub d_rotation: Vec<[f64; 3]>,
+}
+
+/// Refuse follower (body-frame) tip or line loads: `what` supports dead loads only (3
+/// shooting unknowns, the base moment; with follower loads the base force is unknown too
+/// and the loads are not conservative).
+pub(crate) fn dead_loads_only(rod: &Rod, loads: &Loads, what: &str) -> Result<()> {
+    if loads.has_follower(rod) {
+        let (field, value) = if rod.spec.has_follower_line_loads() {
+            let k = rod
+                .spec
+                .loads
+                .iter()
+                .position(|l| l.frame == crate::spec::Frame::Body)
+                .unwrap_or(0);
+            (format!("loads[{k}].frame"), "body")
+        } else {
+            ("tip.frame".to_string(), "body")
+        };
+        return Err(SoftrodError::invalid(
+            field,
+            value,
+            format!("{what} supports dead (world-frame) loads only; follower loads are not supported there yet"),
+        ));
+    }
+    Ok(())
+}
+
+/// The three shooting unknowns of a solution with dead loads.
+pub(crate) fn unknowns3(sol: &Solution) -> Result<[f64; 3]> {
+    <[f64; 3]>::try_from(sol.x.as_slice()).map_err(|_| {
+        SoftrodError::invalid(
+            "solution",
+            format!("{} shooting unknowns", sol.x.len()),
+            "a solution with dead loads (3 shooting unknowns) is needed here",
+        )
+    })
 }
 
 /// Error for a singular shooting Jacobian (the equilibrium is at a limit point).
@@ -314,7 +359,9 @@ pub fn point_jacobian(
     probe: &Probe,
 ) -> Result<PointJacobian> {
     check_inputs(rod, inputs)?;
-    let p = pass(rod, loads, &sol.x, inputs, probe);
+    dead_loads_only(rod, loads, "the point Jacobian")?;
+    let x = unknowns3(sol)?;
+    let p = pass(rod, loads, &x, inputs, probe);
     let (dy, _) = total_derivatives(&p).ok_or_else(|| singular(sol))?;
     let rot: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| p.y[3 + 3 * i + j]));
     Ok(PointJacobian {

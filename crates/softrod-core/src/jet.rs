@@ -254,6 +254,7 @@ impl<T: DualNum<Primitive = f64> + Copy> Real for T {
 /// What the rod ODE needs from a scalar: ring arithmetic with itself and with f64.
 pub trait RodScalar:
     Copy
+    + 'static
     + From<f64>
     + Add<Output = Self>
     + Sub<Output = Self>

@@ -38,11 +38,13 @@ pub mod law;
 pub mod linearise;
 pub mod ode;
 pub mod pcc;
+pub mod reference;
 pub mod rod;
 pub mod section;
 pub mod sensitivity;
 pub mod spec;
 pub mod statics;
+pub mod tendon;
 pub mod validity;
 
 pub use error::{Result, SoftrodError};

@@ -32,7 +32,7 @@ use crate::error::{Result, SoftrodError};
 use crate::jacobian::{dual_coeffs, singular, Input};
 use crate::jet::Jet;
 use crate::ode::{advance, integrate_with, resolve_stretch, strains, Coeffs, Loads, NodeAt, State};
-use crate::rod::{inverse3, Rod};
+use crate::rod::{inverse3, Rod, Section};
 use crate::statics::{Problem, Solution};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
@@ -99,11 +99,17 @@ struct Interval<D> {
 const NJ: usize = 9; // x (3), point force (3), point moment (3)
 type J9 = Jet<NJ>;
 
-fn strain6<D: crate::jet::StateScalar<f64>>(y: &State<D>, c: &Coeffs<f64>, rigid: bool) -> [D; 6] {
-    if rigid {
+/// Strains at local arc length `s` of section `sec` (zero in a rigid one).
+fn strain6<D: crate::jet::StateScalar<f64>>(
+    sec: &Section,
+    y: &State<D>,
+    c: &Coeffs<f64>,
+    s: f64,
+) -> [D; 6] {
+    if sec.rigid {
         return [D::from(0.0); 6];
     }
-    let (v, u) = strains(y, c);
+    let (v, u) = strains(sec, y, c, s);
     [v[0], v[1], v[2], u[0], u[1], u[2]]
 }
 
@@ -139,7 +145,7 @@ fn load_pass(
                     end: *y,
                     strain_a,
                     strain_m,
-                    strain_b: strain6(y, c, sec.rigid),
+                    strain_b: strain6(sec, y, c, node.s - sec.s_start),
                 });
             }
         }
@@ -160,19 +166,19 @@ fn load_pass(
             } else {
                 sec.length / sec.steps as f64
             };
-            let mid = advance(rod, coeffs, node.section, y, 0.5 * h);
+            let mid = advance(rod, coeffs, node, y, 0.5 * h);
             open = Some((
                 node.section,
                 node.s,
                 *y,
-                strain6(y, c, sec.rigid),
+                strain6(sec, y, c, node.s - sec.s_start),
                 mid,
-                strain6(&mid, c, sec.rigid),
+                strain6(sec, &mid, c, node.s - sec.s_start + 0.5 * h),
             ));
         }
         changed
     });
-    (problem.residual_of_tip(&tip), intervals)
+    (problem.residual_of_tip::<J9, 3>(&tip), intervals)
 }
 
 /// Pose (dr, dtheta) derivative of a state with respect to the directions, given the
@@ -194,6 +200,10 @@ fn pose6(y: &State<J9>, dir: usize) -> [f64; 6] {
 /// Linearise the dynamics at the converged equilibrium `sol` of `loads` with `n_nodes`
 /// nodes (see the module docs).
 pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Result<LinearSystem> {
+    crate::jacobian::dead_loads_only(rod, loads, "the linearisation")?;
+    // Its mass matrix is that of the dynamics (uniform sections, no tendons).
+    crate::dynamics::check_statics_only(rod, "the linearisation")?;
+    let x = crate::jacobian::unknowns3(sol)?;
     let nodes = choose_nodes(rod, n_nodes)?;
     let n = nodes.len();
     let nq = 6 * n;
@@ -207,7 +217,7 @@ pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Re
     let mut phi: Vec<[DMatrix<f64>; 3]> = Vec::new();
     let mut psi: Vec<[DMatrix<f64>; 3]> = Vec::new();
     for (k, &(sec, step, _)) in nodes.iter().enumerate() {
-        let (g, intervals) = load_pass(&problem, rod, &sol.x, (sec, step));
+        let (g, intervals) = load_pass(&problem, rod, &x, (sec, step));
         let gx = Matrix3::from_fn(|i, j| g[i].eps[j]);
         let lu = gx.lu();
         // dx / d load_j for the 6 load directions.
@@ -407,7 +417,7 @@ fn input_matrix(
             }
             false
         });
-        let g = problem.residual_of_tip(&tip);
+        let g = problem.residual_of_tip::<J9, 3>(&tip);
         let lu = Matrix3::from_fn(|i, j| g[i].eps[j]).lu();
         for (q, &c) in chunk.iter().enumerate() {
             let rhs = Vector3::from_fn(|i, _| -g[i].eps[3 + q]);

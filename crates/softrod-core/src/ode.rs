@@ -7,7 +7,14 @@
 //!   v = K_se^-1 (R^T n + P e3) + v*,            P = sum_k p_k A_k,
 //!   u = K_bt^-1 (R^T m + sum_k p_k A_k (y_k, -x_k, 0)) + u*,
 //! since n_m = n - n_p with n_p = -P d3 and m_m = m - m_p with
-//! m_p = -sum_k rho_k x (p_k A_k d3). Then r' = R v, R' = R u^, n' = -f, m' = -r' x n - l.
+//! m_p = -sum_k rho_k x (p_k A_k d3). Then r' = R v, R' = R u^, n' = -f, m' = -r' x n - l,
+//! with f and l the world-frame line loads plus the body-frame (follower) ones turned by R.
+//! v*, u* are the section's reference strains (precurvature, pre-strain; `crate::reference`);
+//! tendons add their tensions to n and m (`crate::tendon`).
+//!
+//! A uniform section has constant coefficients ([`Coeffs`]); a tapered section or one with
+//! a tabulated reference shape has coefficients that depend on s, evaluated at every RK4
+//! stage ([`Local`], built by the same code for both).
 //!
 //! Everything is generic over the scalar `D` of the state (f64, or dual numbers for exact
 //! Jacobians) and the scalar `C` of the coefficients (f64, or dual numbers when derivatives
@@ -17,6 +24,8 @@ use crate::jet::{Coeff, RodScalar, StateScalar};
 use crate::law::{ogden_from_stretch, ogden_initial_stretch, AxialTable};
 use crate::rod::{inverse3, stiffness_matrices, swelling_factors_with, AxialLaw, Rod, Section};
 use crate::section::CrossSection;
+use crate::spec::Frame;
+use crate::tendon::{Route, TendonPoint};
 use std::sync::Arc;
 
 /// Rod state at one arc length.
@@ -43,6 +52,8 @@ pub enum AxialCoeffs<C> {
 }
 
 /// Per-solve coefficients of one section: compliances, strain shifts from pressure, loads.
+/// The law's fields are the section's values at its start (all along for a uniform section;
+/// a varying one recomputes them at every stage from `inputs`, see [`Coeffs::local_at`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Coeffs<C> {
     pub c_se: [C; 3],
@@ -60,32 +71,108 @@ pub struct Coeffs<C> {
     pub axial: AxialCoeffs<C>,
     /// Bending stiffness times the local stretch v3 (paper 004 eq. 29).
     pub stretch_bending: bool,
+    /// Reference strains v*, u* (body frame) at the section's start.
+    pub v_star: [f64; 3],
+    pub u_star: [f64; 3],
+    /// Stiffnesses K_se (diagonal) and K_bt at the section's start.
+    pub k_se: [C; 3],
+    pub k_bt: [[C; 3]; 3],
+    /// Follower line force and moment (body frame), N/m and N m/m.
+    pub f_body: [C; 3],
+    pub l_body: [C; 3],
+    /// Some follower line load is not zero.
+    pub follower: bool,
+    /// The section's tendons under tension in this solve.
+    pub tendons: Vec<TendonCoeff<C>>,
+    /// What a varying section needs to rebuild its law at any s; None if uniform.
+    pub inputs: Option<Box<LawInputs<C>>>,
 }
 
-/// The per-solve loads, SI, world frame. The solver scales all of them (and gravity) by a
-/// load factor during continuation. `tip_force` and `tip_moment` are the dead tip loads of
-/// this solve: [`Loads::from_design`] takes them from the design's `[tip]`; set them to
-/// override it. Gravity, line loads and the tip body always come from the design.
+/// A tendon of a section in one solve: its tension (scaled by the load factor) and routing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TendonCoeff<C> {
+    pub tension: C,
+    pub route: Route,
+}
+
+/// The law of a section at one arc length: what the right-hand side reads. For a uniform
+/// section it is copied once from [`Coeffs`]; a varying one builds it at every stage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Local<C> {
+    pub c_se: [C; 3],
+    pub c_bt: [[C; 3]; 3],
+    pub v_shift: [C; 3],
+    pub u_shift: [C; 3],
+    pub v_star: [f64; 3],
+    pub u_star: [f64; 3],
+    pub f: [C; 3],
+    pub p_force: C,
+    /// Stiffnesses K_se (diagonal) and K_bt: the inverses of c_se and c_bt (the Ogden law
+    /// takes k_e = K_se[2] and k_s = K_se[0]).
+    pub k_se: [C; 3],
+    pub k_bt: [[C; 3]; 3],
+}
+
+/// The per-solve inputs of a varying section's law (the parameters, pressures and loads
+/// of [`Coeffs::build_with`]), kept to rebuild [`Local`] at any arc length.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LawInputs<C> {
+    knobs: SectionKnobs<C>,
+    /// Swelling factor of every chamber.
+    swell: Vec<C>,
+    /// factor * p_k * area_scale * swell^2 for every chamber (times its area at s: the
+    /// pressure force p_k A_k).
+    pressure: Vec<C>,
+    sigma: [C; 3],
+    /// factor * g (world), m/s^2, and factor * user line force, N/m.
+    gravity: [C; 3],
+    line_force: [C; 3],
+}
+
+/// The per-solve loads, SI. The solver scales all of them (and gravity) by a load factor
+/// during continuation. `tip_force` and `tip_moment` are the tip loads of this solve, in
+/// `tip_frame` (world: dead loads; body: follower loads): [`Loads::from_design`] takes them
+/// from the design's `[tip]`; set them to override it. Gravity, line loads and the tip body
+/// always come from the design.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Loads {
     /// Gauge pressure per channel, Pa.
     pub pressures: Vec<f64>,
+    /// Tension per tendon channel, N (>= 0).
+    pub tensions: Vec<f64>,
     pub tip_force: [f64; 3],
     pub tip_moment: [f64; 3],
+    pub tip_frame: Frame,
     /// Stiffness scaling sigma = (sigma_ext, sigma_bend_1, sigma_bend_2) of this solve for
     /// the sections with `law.stiffness_map` (paper 001 eq. 13); not ramped by continuation.
     pub stiffness_scale: [f64; 3],
 }
 
 impl Loads {
-    /// The design's own tip loads with the given pressures.
+    /// The design's own tip loads with the given pressures and slack tendons.
     pub fn from_design(rod: &Rod, pressures: Vec<f64>) -> Self {
         Loads {
             pressures,
+            tensions: vec![0.0; rod.n_tendons],
             tip_force: rod.spec.tip.force,
             tip_moment: rod.spec.tip.moment,
+            tip_frame: rod.spec.tip.frame,
             stiffness_scale: [1.0; 3],
         }
+    }
+
+    /// Some load of this solve follows the body (a follower tip load or line load that is
+    /// not zero): the base force is then unknown and the loads are not conservative.
+    pub fn has_follower(&self, rod: &Rod) -> bool {
+        let tip = self.tip_frame == Frame::Body
+            && (self.tip_force.iter().any(|x| *x != 0.0)
+                || self.tip_moment.iter().any(|x| *x != 0.0));
+        tip || rod.spec.has_follower_line_loads()
+    }
+
+    /// Tensions of this solve (slack where the caller gave none).
+    pub fn tension(&self, channel: usize) -> f64 {
+        self.tensions.get(channel).copied().unwrap_or(0.0)
     }
 }
 
@@ -151,18 +238,20 @@ impl SectionKnobs<f64> {
 }
 
 impl Coeffs<f64> {
-    /// Coefficients of section `i` under `pressures` and gravity `g`, both scaled by the
-    /// load factor, with the stiffness scale `sigma` (used where the section is mapped).
+    /// Coefficients of section `i` under `pressures`, `tensions` and gravity `g`, all
+    /// scaled by the load factor, with the stiffness scale `sigma` (used where the section
+    /// is mapped).
     pub fn build(
         rod: &Rod,
         i: usize,
         pressures: &[f64],
+        tensions: &[f64],
         g: &[f64; 3],
         factor: f64,
         sigma: &[f64; 3],
     ) -> Self {
         let knobs = SectionKnobs::of(&rod.sections[i]);
-        Self::build_with(rod, i, pressures, g, factor, sigma, &knobs)
+        Self::build_with(rod, i, pressures, tensions, g, factor, sigma, &knobs)
     }
 }
 
@@ -171,10 +260,12 @@ impl<C: RodScalar> Coeffs<C> {
     /// the load factor may be a dual number too (the load derivative of
     /// `crate::statics`' continuation predictor), and the pressures f64 or the coefficients'
     /// scalar (dual pressures give the exact pressure derivatives of `crate::jacobian`).
+    #[allow(clippy::too_many_arguments)]
     pub fn build_with<P: Copy>(
         rod: &Rod,
         i: usize,
         pressures: &[P],
+        tensions: &[f64],
         g: &[f64; 3],
         factor: C,
         sigma: &[C; 3],
@@ -185,75 +276,28 @@ impl<C: RodScalar> Coeffs<C> {
     {
         let s = &rod.sections[i];
         let law = &s.law;
-        let zero = C::from(0.0);
         let swell = swelling_factors_with(rod, i, pressures, factor, knobs.c_p);
-        let centroids: Vec<[C; 2]> = s
+        let pressure: Vec<C> = s
             .chambers
             .iter()
-            .map(|c| {
-                [
-                    knobs.offset[0] + c.centroid[0],
-                    knobs.offset[1] + c.centroid[1],
-                ]
-            })
+            .zip(&swell)
+            .map(|(c, w)| *w * *w * knobs.area_scale * (factor * C::from(pressures[c.channel])))
             .collect();
-        // Stiffness at this pressure (swollen chambers remove more material: A_m and I of
-        // eq. 22) and these parameters, from the same formulas as the compiled rod.
-        let (mut k_se, mut k_bt) = match &law.geometry {
-            Some(geo) => {
-                let cs = CrossSection::from_holes(
-                    geo.outer_radius,
-                    geo.bore_radius,
-                    s.chambers
-                        .iter()
-                        .zip(&swell)
-                        .zip(&centroids)
-                        .map(|((c, w), x)| (*w * c.hole_radius, *x)),
-                );
-                let e = knobs.youngs_scale * geo.material.youngs_modulus;
-                let g = knobs.youngs_scale * geo.material.shear_modulus;
-                stiffness_matrices(&law.given, Some((&cs, e, g)), knobs.factors)
-            }
-            None => stiffness_matrices(&law.given, None, knobs.factors),
+        let inputs = LawInputs {
+            knobs: *knobs,
+            swell,
+            pressure,
+            sigma: *sigma,
+            gravity: g.map(|x| factor * x),
+            line_force: s.line_force.map(|x| factor * x),
         };
-        if law.stiffness_map {
-            let [se, s1, s2] = *sigma;
-            k_se[2] = k_se[2] * se;
-            k_bt[0][0] = k_bt[0][0] * s1;
-            k_bt[1][1] = k_bt[1][1] * s2;
-            // The coupling scales with the geometric mean, which keeps K_bt positive definite.
-            let c = (s1 * s2).sqrt();
-            k_bt[0][1] = k_bt[0][1] * c;
-            k_bt[1][0] = k_bt[1][0] * c;
-        }
-        let (c_se, c_bt) = if s.rigid {
-            ([zero; 3], [[zero; 3]; 3])
-        } else {
-            (
-                k_se.map(|k| k.recip()),
-                inverse3(&k_bt).unwrap_or([[C::from(f64::NAN); 3]; 3]),
-            )
-        };
-        let mut force = zero; // sum p_k A_k
-        let mut mp = [zero; 3]; // sum p_k A_k (y_k, -x_k, 0)
-        for ((c, w), x) in s.chambers.iter().zip(&swell).zip(&centroids) {
-            let pa = *w * *w * knobs.area_scale * (factor * C::from(pressures[c.channel]) * c.area);
-            force += pa;
-            mp[0] += pa * x[1];
-            mp[1] -= pa * x[0];
-        }
-        let u_shift: [C; 3] =
-            std::array::from_fn(|a| c_bt[a][0] * mp[0] + c_bt[a][1] * mp[1] + c_bt[a][2] * mp[2]);
-        let f = std::array::from_fn(|k| {
-            factor * (knobs.mass_scale * (s.line_mass * g[k]) + s.line_force[k])
-        });
-        let l = std::array::from_fn(|k| factor * s.line_moment[k]);
+        let loc = local_law(s, &inputs, 0.0);
         let axial = match &law.axial {
             AxialLaw::Linear => AxialCoeffs::Linear,
             AxialLaw::Ogden { .. } => AxialCoeffs::Ogden {
-                k_e: k_se[2],
+                k_e: loc.k_se[2],
                 alpha: knobs.alpha,
-                k_s: k_se[0],
+                k_s: loc.k_se[0],
             },
             AxialLaw::Table(table) => AxialCoeffs::Table {
                 table: table.clone(),
@@ -264,17 +308,144 @@ impl<C: RodScalar> Coeffs<C> {
                 },
             },
         };
+        let tendons = s
+            .tendons
+            .iter()
+            .filter(|r| tensions.get(r.channel).is_some_and(|t| *t != 0.0))
+            .map(|r| TendonCoeff {
+                tension: factor * tensions[r.channel],
+                route: *r,
+            })
+            .collect();
         Coeffs {
-            c_se,
-            c_bt,
-            v_shift: [zero, zero, c_se[2] * force + 1.0],
-            u_shift,
-            f,
-            l,
-            p_force: force,
+            c_se: loc.c_se,
+            c_bt: loc.c_bt,
+            v_shift: loc.v_shift,
+            u_shift: loc.u_shift,
+            f: loc.f,
+            l: s.line_moment.map(|x| factor * x),
+            p_force: loc.p_force,
             axial,
             stretch_bending: law.stretch_bending,
+            v_star: loc.v_star,
+            u_star: loc.u_star,
+            k_se: loc.k_se,
+            k_bt: loc.k_bt,
+            f_body: s.line_force_body.map(|x| factor * x),
+            l_body: s.line_moment_body.map(|x| factor * x),
+            follower: s
+                .line_force_body
+                .iter()
+                .chain(&s.line_moment_body)
+                .any(|x| *x != 0.0),
+            tendons,
+            inputs: s.is_varying().then(|| Box::new(inputs)),
         }
+    }
+
+    /// The law at the section's start (a uniform section's law all along).
+    pub fn local(&self) -> Local<C> {
+        Local {
+            c_se: self.c_se,
+            c_bt: self.c_bt,
+            v_shift: self.v_shift,
+            u_shift: self.u_shift,
+            v_star: self.v_star,
+            u_star: self.u_star,
+            f: self.f,
+            p_force: self.p_force,
+            k_se: self.k_se,
+            k_bt: self.k_bt,
+        }
+    }
+
+    /// The law of section `sec` at local arc length `s` (from its start).
+    #[inline]
+    pub fn local_at(&self, sec: &Section, s: f64) -> Local<C> {
+        match &self.inputs {
+            Some(inp) => local_law(sec, inp, s),
+            None => self.local(),
+        }
+    }
+}
+
+/// The law of a section at local arc length `s`: stiffness of its cross-section there
+/// (swollen chambers remove more material: A_m and I of paper 002 eq. 22; a tapered
+/// section's outer radius and chambers move linearly in s), the compliances, the pressure
+/// force and moment, the reference strains and the line force (weight on the referential
+/// area A_m,0: paper 002 eq. 27).
+fn local_law<C: RodScalar>(sec: &Section, inp: &LawInputs<C>, s: f64) -> Local<C> {
+    let law = &sec.law;
+    let zero = C::from(0.0);
+    let t = if sec.tapered { s / sec.length } else { 0.0 };
+    let knobs = &inp.knobs;
+    let centroid = |x: [f64; 2]| [knobs.offset[0] + x[0], knobs.offset[1] + x[1]];
+    let (mut k_se, mut k_bt) = match &law.geometry {
+        Some(geo) => {
+            let cs = CrossSection::from_holes(
+                geo.outer_at(t),
+                geo.bore_radius,
+                sec.chambers.iter().zip(&inp.swell).map(|(c, w)| {
+                    let (_, r, x) = c.at(t);
+                    (*w * r, centroid(x))
+                }),
+            );
+            let e = knobs.youngs_scale * geo.material.youngs_modulus;
+            let g = knobs.youngs_scale * geo.material.shear_modulus;
+            stiffness_matrices(&law.given, Some((&cs, e, g)), knobs.factors)
+        }
+        None => stiffness_matrices(&law.given, None, knobs.factors),
+    };
+    if law.stiffness_map {
+        let [se, s1, s2] = inp.sigma;
+        k_se[2] = k_se[2] * se;
+        k_bt[0][0] = k_bt[0][0] * s1;
+        k_bt[1][1] = k_bt[1][1] * s2;
+        // The coupling scales with the geometric mean, which keeps K_bt positive definite.
+        let c = (s1 * s2).sqrt();
+        k_bt[0][1] = k_bt[0][1] * c;
+        k_bt[1][0] = k_bt[1][0] * c;
+    }
+    let (c_se, c_bt) = if sec.rigid {
+        ([zero; 3], [[zero; 3]; 3])
+    } else {
+        (
+            k_se.map(|k| k.recip()),
+            inverse3(&k_bt).unwrap_or([[C::from(f64::NAN); 3]; 3]),
+        )
+    };
+    let mut force = zero; // sum p_k A_k
+    let mut mp = [zero; 3]; // sum p_k A_k (y_k, -x_k, 0)
+    for (c, p) in sec.chambers.iter().zip(&inp.pressure) {
+        let (area, _, x) = c.at(t);
+        let x = centroid(x);
+        let pa = *p * area;
+        force += pa;
+        mp[0] += pa * x[1];
+        mp[1] -= pa * x[0];
+    }
+    let (v_star, u_star) = sec.reference.at(s);
+    let u_shift: [C; 3] = std::array::from_fn(|a| {
+        c_bt[a][0] * mp[0] + c_bt[a][1] * mp[1] + c_bt[a][2] * mp[2] + u_star[a]
+    });
+    let mass = sec.line_mass_at(t);
+    Local {
+        c_se,
+        c_bt,
+        v_shift: [
+            zero + v_star[0],
+            zero + v_star[1],
+            c_se[2] * force + v_star[2],
+        ],
+        u_shift,
+        v_star,
+        u_star,
+        f: std::array::from_fn(|k| {
+            inp.gravity[k] * (inp.knobs.mass_scale * mass) + inp.line_force[k]
+        }),
+        p_force: force,
+        k_se,
+        k_bt,
     }
 }
 
@@ -313,16 +484,113 @@ impl<D: RodScalar> State<D> {
     }
 }
 
-/// Body-frame strains (v, u) from the state through the section's law with pressure.
-#[inline(always)]
-pub fn strains<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> ([D; 3], [D; 3]) {
-    let (v, u, _) = law_strains(y, c);
+/// Body-frame strains (v, u) from the state through section `sec`'s law at local arc
+/// length `s` (pressure, reference strains and tendons included).
+pub fn strains<C: Coeff, D: StateScalar<C>>(
+    sec: &Section,
+    y: &State<D>,
+    c: &Coeffs<C>,
+    s: f64,
+) -> ([D; 3], [D; 3]) {
+    let loc = c.local_at(sec, s);
+    let (v, u, _) = law_strains(y, c, &loc, sec, s, &mut Scratch::default());
     (v, u)
+}
+
+/// What the tendon law keeps from one evaluation to the next along a section: the last
+/// strains (Newton's starting point at the next stage) and buffers.
+#[derive(Default)]
+pub(crate) struct Scratch {
+    hint: Option<[f64; 6]>,
+    /// The last factorised J_K (linear law): Newton's matrix for the next stage.
+    factor: Option<crate::tendon::Ldl6>,
+    points: Vec<TendonPoint>,
+    tangents: Vec<([f64; 3], f64)>,
+}
+
+impl<C: RodScalar> Local<C> {
+    /// The values (derivatives dropped).
+    fn value(&self) -> Local<f64> {
+        Local {
+            c_se: self.c_se.map(|x| x.value()),
+            c_bt: self.c_bt.map(|r| r.map(|x| x.value())),
+            v_shift: self.v_shift.map(|x| x.value()),
+            u_shift: self.u_shift.map(|x| x.value()),
+            v_star: self.v_star,
+            u_star: self.u_star,
+            f: self.f.map(|x| x.value()),
+            p_force: self.p_force.value(),
+            k_se: self.k_se.map(|x| x.value()),
+            k_bt: self.k_bt.map(|r| r.map(|x| x.value())),
+        }
+    }
+
+    fn straight(&self) -> bool {
+        self.v_star == [0.0, 0.0, 1.0] && self.u_star == [0.0; 3]
+    }
+}
+
+/// The linear law (with stretch-dependent bending when `sb`): strains from the body-frame
+/// force `nm` and moment `mm` (the state's, less the tendons' when there are any).
+#[inline(always)]
+fn linear_strains<C: Coeff, D: StateScalar<C>>(
+    loc: &Local<C>,
+    sb: bool,
+    nm: &[D; 3],
+    mm: &[D; 3],
+) -> ([D; 3], [D; 3]) {
+    let v = [
+        nm[0] * loc.c_se[0] + loc.v_shift[0],
+        nm[1] * loc.c_se[1] + loc.v_shift[1],
+        nm[2] * loc.c_se[2] + loc.v_shift[2],
+    ];
+    let u = bending(loc, sb, &v, mm);
+    (v, u)
+}
+
+/// u from the body-frame moment `mm` (the law acts on u - u*); with stretch-dependent
+/// bending (paper 004 eq. 29, K_bend(v3) = v3 K_bend with the stretch relative to the
+/// reference, v3 - v3* + 1) the bending curvatures divide by that stretch; K_bt is block
+/// diagonal, so torsion is unaffected.
+#[inline(always)]
+fn bending<C: Coeff, D: StateScalar<C>>(
+    loc: &Local<C>,
+    sb: bool,
+    v: &[D; 3],
+    mm: &[D; 3],
+) -> [D; 3] {
+    let mut u = [mm[0]; 3];
+    for i in 0..3 {
+        u[i] = mm[0] * loc.c_bt[i][0]
+            + mm[1] * loc.c_bt[i][1]
+            + mm[2] * loc.c_bt[i][2]
+            + loc.u_shift[i];
+    }
+    if sb {
+        if loc.straight() {
+            let r = v[2].recip();
+            u[0] = u[0] * r;
+            u[1] = u[1] * r;
+        } else {
+            let r = (v[2] + (1.0 - loc.v_star[2])).recip();
+            for k in 0..2 {
+                u[k] = (u[k] - loc.u_star[k]) * r + loc.u_star[k];
+            }
+        }
+    }
+    u
 }
 
 /// Strains, and for an Ogden section the rate of the carried stretch lambda (else zero).
 #[inline(always)]
-fn law_strains<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> ([D; 3], [D; 3], D) {
+fn law_strains<C: Coeff, D: StateScalar<C>>(
+    y: &State<D>,
+    c: &Coeffs<C>,
+    loc: &Local<C>,
+    sec: &Section,
+    s: f64,
+    scratch: &mut Scratch,
+) -> ([D; 3], [D; 3], D) {
     let rt = |w: &[D; 3]| -> [D; 3] {
         let mut o = [w[0] * y.rot[0][0] + w[1] * y.rot[1][0] + w[2] * y.rot[2][0]; 3];
         o[1] = w[0] * y.rot[0][1] + w[1] * y.rot[1][1] + w[2] * y.rot[2][1];
@@ -331,59 +599,444 @@ fn law_strains<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> ([D;
     };
     let nb = rt(&y.n);
     let mb = rt(&y.m);
+    let zero = D::from(0.0);
+    if !c.tendons.is_empty() {
+        let (v, u) = tendon_strains(&nb, &mb, c, loc, sec, s, scratch);
+        return (v, u, zero);
+    }
     let mut grad = None;
+    // The laws act on the strain relative to the reference, v - v* + e3 (docs/laws.md).
     let v = match &c.axial {
         AxialCoeffs::Linear => [
-            nb[0] * c.c_se[0] + c.v_shift[0],
-            nb[1] * c.c_se[1] + c.v_shift[1],
-            nb[2] * c.c_se[2] + c.v_shift[2],
+            nb[0] * loc.c_se[0] + loc.v_shift[0],
+            nb[1] * loc.c_se[1] + loc.v_shift[1],
+            nb[2] * loc.c_se[2] + loc.v_shift[2],
         ],
         // Material force n_m = n + P d3 (the pressure part of the total force removed).
-        AxialCoeffs::Ogden { k_e, alpha, k_s } => {
-            let nm = [nb[0], nb[1], nb[2] + c.p_force];
-            let (v, g) = ogden_from_stretch(*k_e, *alpha, *k_s, y.aux[0], y.aux[1], &nm);
+        AxialCoeffs::Ogden { alpha, .. } => {
+            let nm = [nb[0], nb[1], nb[2] + loc.p_force];
+            let (v, g) =
+                ogden_from_stretch(loc.k_se[2], *alpha, loc.k_se[0], y.aux[0], y.aux[1], &nm);
             grad = Some(g);
-            v
+            let w = loc.v_star;
+            [v[0] + w[0], v[1] + w[1], v[2] + (w[2] - 1.0)]
         }
         AxialCoeffs::Table { table, scale } => {
-            let f = nb[2] + c.p_force;
+            let f = nb[2] + loc.p_force;
             let ea = table.eval(f) * *scale;
             [
-                nb[0] * c.c_se[0] + c.v_shift[0],
-                nb[1] * c.c_se[1] + c.v_shift[1],
-                f * ea.recip() + 1.0,
+                nb[0] * loc.c_se[0] + loc.v_shift[0],
+                nb[1] * loc.c_se[1] + loc.v_shift[1],
+                f * ea.recip() + loc.v_star[2],
             ]
         }
     };
-    let mut u = [mb[0]; 3];
-    for i in 0..3 {
-        u[i] = mb[0] * c.c_bt[i][0] + mb[1] * c.c_bt[i][1] + mb[2] * c.c_bt[i][2] + c.u_shift[i];
-    }
-    if c.stretch_bending {
-        // K_bend(v3) = v3 K_bend (paper 004 eq. 29 with L_c/L_c0 = v3): bending curvatures
-        // divide by v3; K_bt is block diagonal, so torsion is unaffected.
-        let r = v[2].recip();
-        u[0] = u[0] * r;
-        u[1] = u[1] * r;
-    }
-    let zero = D::from(0.0);
+    let u = bending(loc, c.stretch_bending, &v, &mb);
     let dlam = match grad {
-        // d n_m/ds in the body frame = R^T n' - u x (R^T n) = -R^T f - u x n_b.
+        // d n_m/ds in the body frame = R^T n' - u x (R^T n) = -R^T f - f_body - u x n_b.
         Some(g) => {
-            let f = [zero + c.f[0], zero + c.f[1], zero + c.f[2]];
+            let f = [zero + loc.f[0], zero + loc.f[1], zero + loc.f[2]];
             let fb = rt(&f);
             let uxn = cross(&u, &nb);
-            g[0] * (-fb[0] - uxn[0]) + g[1] * (-fb[1] - uxn[1]) + g[2] * (-fb[2] - uxn[2])
+            let mut d = zero;
+            for k in 0..3 {
+                d += g[k] * (-fb[k] - uxn[k] + neg(c.f_body[k]));
+            }
+            d
         }
         None => zero,
     };
     (v, u, dlam)
 }
 
-/// dy/ds for an elastic section.
+/// Strains of a section with tendons under tension (see `crate::tendon`).
+#[inline]
+fn tendon_strains<C: Coeff, D: StateScalar<C>>(
+    nb: &[D; 3],
+    mb: &[D; 3],
+    c: &Coeffs<C>,
+    loc: &Local<C>,
+    sec: &Section,
+    s: f64,
+    scratch: &mut Scratch,
+) -> ([D; 3], [D; 3]) {
+    if c.stretch_bending {
+        general_tendon_strains(nb, mb, c, loc, sec, s, scratch)
+    } else {
+        linear_tendon_strains(nb, mb, c, loc, sec, s, scratch)
+    }
+}
+
+/// Newton's tolerance on the strain change (u scaled by the outermost fibre's radius, a
+/// strain): a few hundred ulps of a stretch near 1.
+const TENDON_TOL: f64 = 1e-13;
+
+/// Scaled size of a strain change: u times `rho` is a strain.
+#[inline]
+fn strain_size(d: &[f64; 6], rho: f64) -> f64 {
+    let mut m: f64 = 0.0;
+    for k in 0..6 {
+        let x = if k < 3 { d[k] } else { rho * d[k] };
+        m = if x.is_nan() { f64::NAN } else { m.max(x.abs()) };
+    }
+    m
+}
+
+/// The tendon law with the linear law (any stiffness, reference strains, pressure):
+/// G(w) = K (w - w_free) + T(w) = 0 with w_free = S(nb, mb) the strains without tendons
+/// and T = sum tau B^T t(w): the gradient of a strictly convex potential, whose Hessian
+/// J_K = K + sum (tau / |q|) B^T (I - t t^T) B is symmetric positive definite (LDL^T).
+/// Newton in f64 from the last stage's strains, keeping J_K from stage to stage (a chord
+/// method, refreshed when it contracts poorly); for dual scalars, J_K at the solution and
+/// one linearised step: w_D = w* - J_K^-1 G_D(w*) (the implicit function theorem).
+fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
+    nb: &[D; 3],
+    mb: &[D; 3],
+    c: &Coeffs<C>,
+    loc: &Local<C>,
+    sec: &Section,
+    s: f64,
+    scratch: &mut Scratch,
+) -> ([D; 3], [D; 3]) {
+    use crate::tendon::{load, stiffness_with_tendons, tangent, Ldl6};
+    let lf = loc.value();
+    let nbf = nb.map(|x| x.value());
+    let mbf = mb.map(|x| x.value());
+    scratch.points.clear();
+    for t in &c.tendons {
+        let (r, dr) = t.route.at(s);
+        scratch.points.push(TendonPoint {
+            tension: t.tension.value(),
+            r,
+            dr,
+        });
+    }
+    let points = &scratch.points;
+    let tangents = &mut scratch.tangents;
+    let (vf, uf) = linear_strains(&lf, false, &nbf, &mbf);
+    let wfree = [vf[0], vf[1], vf[2], uf[0], uf[1], uf[2]];
+    let rho = if sec.fibre_radius > 0.0 {
+        sec.fibre_radius
+    } else {
+        1e-2 * sec.length
+    };
+    // G(w) = K (w - w_free) + T(w), with the tangents at w left in `tangents`.
+    let residual = |w: &[f64; 6], tangents: &mut Vec<([f64; 3], f64)>| -> [f64; 6] {
+        tangents.clear();
+        tangents.extend(points.iter().map(|p| tangent(w, p)));
+        let t = load(tangents, points);
+        let d: [f64; 6] = std::array::from_fn(|k| w[k] - wfree[k]);
+        let mut g = [0.0; 6];
+        for a in 0..3 {
+            g[a] = lf.k_se[a] * d[a] + t[a];
+            g[3 + a] =
+                lf.k_bt[a][0] * d[3] + lf.k_bt[a][1] * d[4] + lf.k_bt[a][2] * d[5] + t[3 + a];
+        }
+        g
+    };
+    let build = |tangents: &Vec<([f64; 3], f64)>| {
+        Ldl6::new(&stiffness_with_tendons(
+            &lf.k_se, &lf.k_bt, tangents, points,
+        ))
+    };
+    let plain = std::any::TypeId::of::<D>() == std::any::TypeId::of::<f64>();
+    // The start: the last stage's strains, else straight tendons (t = e3: w = w_free -
+    // C T(e3), which is exact for straight tendons without shear or twist).
+    let mut w = match scratch.hint {
+        Some(w) => w,
+        None => {
+            tangents.clear();
+            tangents.extend(points.iter().map(|_| ([0.0, 0.0, 1.0], 1.0)));
+            let t = load(tangents, points);
+            let nm = [nbf[0] - t[0], nbf[1] - t[1], nbf[2] - t[2]];
+            let mm = [mbf[0] - t[3], mbf[1] - t[4], mbf[2] - t[5]];
+            let (v, u) = linear_strains(&lf, false, &nm, &mm);
+            [v[0], v[1], v[2], u[0], u[1], u[2]]
+        }
+    };
+    let mut factor = scratch.factor;
+    let mut refresh = factor.is_none();
+    let mut prev = f64::INFINITY;
+    let mut converged = false;
+    for _ in 0..60 {
+        let g = residual(&w, tangents);
+        if refresh {
+            factor = build(tangents);
+            refresh = false;
+        }
+        let Some(f) = factor.as_ref() else { break };
+        let d = f.solve(&g);
+        let dn = strain_size(&d, rho);
+        if !dn.is_finite() {
+            break;
+        }
+        for k in 0..6 {
+            w[k] -= d[k];
+        }
+        // Converged when the step, or (a contracting iteration) the next one, is below the
+        // tolerance: the error after this step is about rate * dn.
+        if dn <= TENDON_TOL || (prev.is_finite() && dn * dn <= TENDON_TOL * prev) {
+            converged = true;
+            break;
+        }
+        if dn > 0.25 * prev {
+            refresh = true; // poor contraction: Newton's matrix at the new point
+        }
+        prev = dn;
+    }
+    if !converged {
+        scratch.hint = None;
+        scratch.factor = None;
+        let nan = D::from(f64::NAN);
+        return ([nan; 3], [nan; 3]);
+    }
+    scratch.hint = Some(w);
+    if plain {
+        scratch.factor = factor;
+        return (
+            [w[0], w[1], w[2]].map(D::from),
+            [w[3], w[4], w[5]].map(D::from),
+        );
+    }
+    // Exact first derivatives: J_K at the solution, then w_D = w* - J_K^-1 G_D(w*) with
+    // G_D = K_C (w* - S_C(nb_D, mb_D) ...) written as K_C (w* - shift_C) + T_C - (nb, mb)_D
+    // (the same G: K (w - w_free) = K (w - shift) - (nb, mb)).
+    let _ = residual(&w, tangents);
+    let Some(f) = build(tangents) else {
+        scratch.factor = None;
+        let nan = D::from(f64::NAN);
+        return ([nan; 3], [nan; 3]);
+    };
+    scratch.factor = Some(f);
+    let zero = D::from(0.0);
+    let mut t = [zero; 6];
+    for (tc, (p, (tv, _))) in c.tendons.iter().zip(points.iter().zip(tangents.iter())) {
+        let (x, y) = (p.r[0], p.r[1]);
+        let tau = zero + tc.tension;
+        t[0] += tau * tv[0];
+        t[1] += tau * tv[1];
+        t[2] += tau * tv[2];
+        t[3] += tau * (y * tv[2]);
+        t[4] -= tau * (x * tv[2]);
+        t[5] += tau * (x * tv[1] - y * tv[0]);
+    }
+    let shift = [
+        loc.v_shift[0],
+        loc.v_shift[1],
+        loc.v_shift[2],
+        loc.u_shift[0],
+        loc.u_shift[1],
+        loc.u_shift[2],
+    ];
+    let dw: [C; 6] = std::array::from_fn(|k| -shift[k] + w[k]);
+    let mut g = [zero; 6];
+    for a in 0..3 {
+        g[a] = t[a] - nb[a] + loc.k_se[a] * dw[a];
+        g[3 + a] = t[3 + a] - mb[a]
+            + (loc.k_bt[a][0] * dw[3] + loc.k_bt[a][1] * dw[4] + loc.k_bt[a][2] * dw[5]);
+    }
+    let d = f.solve(&g);
+    let out: [D; 6] = std::array::from_fn(|k| -d[k] + w[k]);
+    ([out[0], out[1], out[2]], [out[3], out[4], out[5]])
+}
+
+/// Strains of a section with tendons and stretch-dependent bending (a law that is not the
+/// gradient of a quadratic): Newton's method in f64 on w = S(nb - F_t(w), mb - M_t(w)) from
+/// the last stage's strains (general LU), then one linearised step in the state's scalar
+/// for exact first derivatives.
+fn general_tendon_strains<C: Coeff, D: StateScalar<C>>(
+    nb: &[D; 3],
+    mb: &[D; 3],
+    c: &Coeffs<C>,
+    loc: &Local<C>,
+    sec: &Section,
+    s: f64,
+    scratch: &mut Scratch,
+) -> ([D; 3], [D; 3]) {
+    use crate::tendon::{load, load_jacobian, tangent, Mat6, Vec6};
+    let sb = c.stretch_bending;
+    let lf = loc.value();
+    let nbf = nb.map(|x| x.value());
+    let mbf = mb.map(|x| x.value());
+    scratch.points.clear();
+    for t in &c.tendons {
+        let (r, dr) = t.route.at(s);
+        scratch.points.push(TendonPoint {
+            tension: t.tension.value(),
+            r,
+            dr,
+        });
+    }
+    let points = &scratch.points;
+    let tangents = &mut scratch.tangents;
+    let law = |ft: &[f64; 6]| -> [f64; 6] {
+        let nm = [nbf[0] - ft[0], nbf[1] - ft[1], nbf[2] - ft[2]];
+        let mm = [mbf[0] - ft[3], mbf[1] - ft[4], mbf[2] - ft[5]];
+        let (v, u) = linear_strains(&lf, sb, &nm, &mm);
+        [v[0], v[1], v[2], u[0], u[1], u[2]]
+    };
+    // Scaled size of a strain change: u times the outermost fibre's radius is a strain.
+    let rho = if sec.fibre_radius > 0.0 {
+        sec.fibre_radius
+    } else {
+        1e-2 * sec.length
+    };
+    let size = |d: &[f64; 6]| -> f64 {
+        let mut m: f64 = 0.0;
+        for k in 0..6 {
+            let x = if k < 3 { d[k] } else { rho * d[k] };
+            m = if x.is_nan() { f64::NAN } else { m.max(x.abs()) };
+        }
+        m
+    };
+    let residual = |w: &[f64; 6], tangents: &mut Vec<([f64; 3], f64)>| -> [f64; 6] {
+        tangents.clear();
+        tangents.extend(points.iter().map(|p| tangent(w, p)));
+        let wn = law(&load(tangents, points));
+        std::array::from_fn(|k| w[k] - wn[k])
+    };
+    // The start: the last strains of this section, else straight tendons (t = e3).
+    let mut w = match scratch.hint {
+        Some(w) => w,
+        None => {
+            tangents.clear();
+            tangents.extend(points.iter().map(|_| ([0.0, 0.0, 1.0], 1.0)));
+            law(&load(tangents, points))
+        }
+    };
+    let mut r = residual(&w, tangents);
+    let mut rn = size(&r);
+    // Newton converges quadratically: a step of 1e-8 leaves ~1e-16.
+    const TOL: f64 = 1e-13;
+    let plain = std::any::TypeId::of::<D>() == std::any::TypeId::of::<f64>();
+    let mut solved: Option<([f64; 6], Mat6)> = None;
+    for _ in 0..60 {
+        if !rn.is_finite() {
+            break;
+        }
+        // J = I + S' dT/dw at w.
+        let dt = load_jacobian(tangents, points);
+        let ft = load(tangents, points);
+        let sp = law_jacobian(&lf, sb, &nbf, &mbf, &ft);
+        let jac = Mat6::identity() + sp * dt;
+        let Some(step) = jac.lu().solve(&(-Vec6::from_column_slice(&r))) else {
+            break;
+        };
+        let d: [f64; 6] = std::array::from_fn(|k| step[k]);
+        let dn = size(&d);
+        if dn <= TOL || (plain && dn * dn <= 1e-2 * TOL) {
+            solved = Some((std::array::from_fn(|k| w[k] + d[k]), jac));
+            break;
+        }
+        // Backtrack on the residual (the law is the gradient of a convex function for the
+        // linear law, so a short enough Newton step always reduces it).
+        let mut alpha = 1.0;
+        loop {
+            let wt: [f64; 6] = std::array::from_fn(|k| w[k] + alpha * d[k]);
+            let rt = residual(&wt, tangents);
+            let rtn = size(&rt);
+            if rtn < rn || alpha < 1e-6 {
+                w = wt;
+                r = rt;
+                rn = rtn;
+                break;
+            }
+            alpha *= 0.5;
+        }
+    }
+    let Some((ws, jac)) = solved else {
+        scratch.hint = None;
+        let nan = D::from(f64::NAN);
+        return ([nan; 3], [nan; 3]);
+    };
+    scratch.hint = Some(ws);
+    if plain {
+        return (
+            [ws[0], ws[1], ws[2]].map(D::from),
+            [ws[3], ws[4], ws[5]].map(D::from),
+        );
+    }
+    // Exact first derivatives (implicit function theorem): w_D = w* - J^-1 R_D(w*), with
+    // R_D(w) = w - S_D(nb - F_t, mb - M_t) in the state's and coefficients' scalars at the
+    // tangents of w* (their dependence on w is in J).
+    let Some(inv) = jac.try_inverse() else {
+        let nan = D::from(f64::NAN);
+        return ([nan; 3], [nan; 3]);
+    };
+    let zero = D::from(0.0);
+    let mut ft = [zero; 6];
+    for (tc, p) in c.tendons.iter().zip(points.iter()) {
+        let (t, _) = tangent(&ws, p);
+        let (x, y) = (p.r[0], p.r[1]);
+        let tau = zero + tc.tension;
+        ft[0] += tau * t[0];
+        ft[1] += tau * t[1];
+        ft[2] += tau * t[2];
+        ft[3] += tau * (y * t[2]);
+        ft[4] -= tau * (x * t[2]);
+        ft[5] += tau * (x * t[1] - y * t[0]);
+    }
+    let nm = [nb[0] - ft[0], nb[1] - ft[1], nb[2] - ft[2]];
+    let mm = [mb[0] - ft[3], mb[1] - ft[4], mb[2] - ft[5]];
+    let (v, u) = linear_strains(loc, sb, &nm, &mm);
+    let wd = [v[0], v[1], v[2], u[0], u[1], u[2]];
+    let rd: [D; 6] = std::array::from_fn(|k| D::from(0.0) + ws[k] - wd[k]);
+    let out: [D; 6] = std::array::from_fn(|i| {
+        let mut acc = D::from(ws[i]);
+        for k in 0..6 {
+            acc -= rd[k] * inv[(i, k)];
+        }
+        acc
+    });
+    ([out[0], out[1], out[2]], [out[3], out[4], out[5]])
+}
+
+/// S' = d(v, u)/d(n_m, m_m) of the linear law (with stretch-dependent bending) at the
+/// body-frame force and moment nb - F_t, mb - M_t.
+fn law_jacobian(
+    loc: &Local<f64>,
+    sb: bool,
+    nb: &[f64; 3],
+    mb: &[f64; 3],
+    ft: &[f64; 6],
+) -> crate::tendon::Mat6 {
+    let mut j = crate::tendon::Mat6::zeros();
+    for k in 0..3 {
+        j[(k, k)] = loc.c_se[k];
+        for l in 0..3 {
+            j[(3 + k, 3 + l)] = loc.c_bt[k][l];
+        }
+    }
+    if sb {
+        let mm = [mb[0] - ft[3], mb[1] - ft[4], mb[2] - ft[5]];
+        let v3 = (nb[2] - ft[2]) * loc.c_se[2] + loc.v_shift[2];
+        let st = v3 + (1.0 - loc.v_star[2]);
+        for k in 0..2 {
+            let raw = mm[0] * loc.c_bt[k][0]
+                + mm[1] * loc.c_bt[k][1]
+                + mm[2] * loc.c_bt[k][2]
+                + loc.u_shift[k]
+                - loc.u_star[k];
+            for l in 0..3 {
+                j[(3 + k, 3 + l)] = loc.c_bt[k][l] / st;
+            }
+            j[(3 + k, 2)] = -raw / (st * st) * loc.c_se[2];
+        }
+    }
+    j
+}
+
+/// dy/ds for an elastic section at local arc length `s` with the law `loc` there.
 #[inline(always)]
-fn rhs<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> State<D> {
-    let (v, u, dlam) = law_strains(y, c);
+fn rhs<C: Coeff, D: StateScalar<C>>(
+    y: &State<D>,
+    c: &Coeffs<C>,
+    loc: &Local<C>,
+    sec: &Section,
+    s: f64,
+    scratch: &mut Scratch,
+) -> State<D> {
+    let (v, u, dlam) = law_strains(y, c, loc, sec, s, scratch);
     let rot = &y.rot;
     let mut dr = [v[0]; 3];
     for i in 0..3 {
@@ -398,13 +1051,26 @@ fn rhs<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>) -> State<D> {
         drot[i][2] = a * u[1] - b * u[0];
     }
     let zero = D::from(0.0);
-    let dn = [zero + neg(c.f[0]), zero + neg(c.f[1]), zero + neg(c.f[2])];
+    let mut dn = [
+        zero + neg(loc.f[0]),
+        zero + neg(loc.f[1]),
+        zero + neg(loc.f[2]),
+    ];
     let rxn = cross(&dr, &y.n);
-    let dm = [
+    let mut dm = [
         -rxn[0] + neg(c.l[0]),
         -rxn[1] + neg(c.l[1]),
         -rxn[2] + neg(c.l[2]),
     ];
+    if c.follower {
+        // Follower line loads: R f_body, R l_body.
+        for i in 0..3 {
+            for k in 0..3 {
+                dn[i] -= rot[i][k] * c.f_body[k];
+                dm[i] -= rot[i][k] * c.l_body[k];
+            }
+        }
+    }
     // d(lambda^alpha)/ds = alpha lambda^alpha / lambda * d lambda/ds (Ogden sections).
     let dla = match &c.axial {
         AxialCoeffs::Ogden { alpha, .. } => dlam * y.aux[1] * y.aux[0].recip() * *alpha,
@@ -424,17 +1090,37 @@ fn neg<C: Coeff>(x: C) -> C {
     -x
 }
 
-/// One classical RK4 step of length h.
+/// One classical RK4 step of length h from local arc length s0, with the law at the
+/// step's start, middle and end (`locs`; all the same in a uniform section).
 #[inline(always)]
-pub(crate) fn rk4_step<C: Coeff, D: StateScalar<C>>(
+#[allow(clippy::too_many_arguments)]
+fn rk4_step<C: Coeff, D: StateScalar<C>>(
     y: &State<D>,
     c: &Coeffs<C>,
+    locs: [&Local<C>; 3],
+    sec: &Section,
+    s0: f64,
     h: f64,
+    scratch: &mut Scratch,
 ) -> State<D> {
-    let k1 = rhs(y, c);
-    let k2 = rhs(&y.axpy(0.5 * h, &k1), c);
-    let k3 = rhs(&y.axpy(0.5 * h, &k2), c);
-    let k4 = rhs(&y.axpy(h, &k3), c);
+    let k1 = rhs(y, c, locs[0], sec, s0, scratch);
+    let k2 = rhs(
+        &y.axpy(0.5 * h, &k1),
+        c,
+        locs[1],
+        sec,
+        s0 + 0.5 * h,
+        scratch,
+    );
+    let k3 = rhs(
+        &y.axpy(0.5 * h, &k2),
+        c,
+        locs[1],
+        sec,
+        s0 + 0.5 * h,
+        scratch,
+    );
+    let k4 = rhs(&y.axpy(h, &k3), c, locs[2], sec, s0 + h, scratch);
     let mut out = *y;
     let w = h / 6.0;
     // (R is re-projected onto SO(3) below.)
@@ -472,31 +1158,36 @@ pub(crate) fn reproject<D: RodScalar>(r: &[[D; 3]; 3]) -> [[D; 3]; 3] {
 }
 
 /// Exact transfer through a rigid section of length L with constant line loads:
-/// v = e3, u = 0, so r' = d3 is constant and n, m integrate in closed form.
-pub(crate) fn rigid_step<C: Coeff, D: StateScalar<C>>(
-    y: &State<D>,
-    c: &Coeffs<C>,
-    len: f64,
-) -> State<D> {
+/// v = e3, u = 0, so r' = d3 is constant and n, m integrate in closed form (R is constant,
+/// so follower line loads are constant in the world frame too).
+fn rigid_step<C: Coeff, D: StateScalar<C>>(y: &State<D>, c: &Coeffs<C>, len: f64) -> State<D> {
     let t = y.director(2);
     let mut out = *y;
     let zero = D::from(0.0);
-    let f = [zero + c.f[0], zero + c.f[1], zero + c.f[2]];
+    let mut f = [zero + c.f[0], zero + c.f[1], zero + c.f[2]];
+    let mut l = [zero + c.l[0], zero + c.l[1], zero + c.l[2]];
+    if c.follower {
+        for i in 0..3 {
+            for k in 0..3 {
+                f[i] += y.rot[i][k] * c.f_body[k];
+                l[i] += y.rot[i][k] * c.l_body[k];
+            }
+        }
+    }
     let txn = cross(&t, &y.n);
     let txf = cross(&t, &f);
     for i in 0..3 {
         out.r[i] += t[i] * len;
         out.n[i] -= f[i] * len;
         // m(L) = m0 - L t x n0 + (L^2/2) t x f - L l
-        out.m[i] =
-            out.m[i] - txn[i] * len + txf[i] * (0.5 * len * len) + (zero + neg(c.l[i])) * len;
+        out.m[i] = out.m[i] - txn[i] * len + txf[i] * (0.5 * len * len) - l[i] * len;
     }
     out
 }
 
 /// (lambda, lambda^alpha) at the start of an Ogden section: the law solved for the material
 /// force there (see `crate::law`).
-pub(crate) fn initial_stretch<C: Coeff, D: StateScalar<C>>(
+fn initial_stretch<C: Coeff, D: StateScalar<C>>(
     y: &State<D>,
     p_force: C,
     k_e: C,
@@ -524,31 +1215,18 @@ pub fn integrate<C: Coeff, D: StateScalar<C>>(
     y0: State<D>,
     mut visit: Option<Visitor<'_, D>>,
 ) -> State<D> {
-    let mut y = y0;
-    for (i, (sec, c)) in rod.sections.iter().zip(coeffs).enumerate() {
-        if let AxialCoeffs::Ogden { k_e, alpha, k_s } = &c.axial {
-            y.aux = initial_stretch(&y, c.p_force, *k_e, *alpha, *k_s);
-        }
-        if i == 0 {
+    match visit.as_mut() {
+        None => integrate_with(rod, coeffs, y0, &mut |_, _| false),
+        Some(v) => integrate_with(rod, coeffs, y0, &mut |node: NodeAt, y: &mut State<D>| {
             // The base node is visited once the first section's carried stretch is set,
-            // so that its strains come from that section's law like every other node's.
-            if let Some(v) = visit.as_mut() {
-                v(0, 0.0, &y);
+            // so that its strains come from that section's law like every other node's;
+            // a later section's start is the previous section's end, already visited.
+            if node.step > 0 || node.section == 0 {
+                v(node.section, node.s, y);
             }
-        }
-        let h = sec.length / sec.steps as f64;
-        for k in 0..sec.steps {
-            y = if sec.rigid {
-                rigid_step(&y, c, sec.length)
-            } else {
-                rk4_step(&y, c, h)
-            };
-            if let Some(v) = visit.as_mut() {
-                v(i, sec.s_start + h * (k + 1) as f64, &y);
-            }
-        }
+            false
+        }),
     }
-    y
 }
 
 /// A node visited by [`integrate_with`]: section index, steps done in that section (0 at the
@@ -583,11 +1261,32 @@ pub fn integrate_with<C: Coeff, D: StateScalar<C>>(
             resolve_stretch(&mut y, c);
         }
         let h = sec.length / sec.steps as f64;
+        let mut scratch = Scratch::default();
+        let uniform = c.local();
+        let varying = c.inputs.is_some();
+        let mut start = if varying {
+            c.local_at(sec, 0.0)
+        } else {
+            uniform
+        };
         for k in 0..sec.steps {
+            let s0 = h * k as f64;
             y = if sec.rigid {
                 rigid_step(&y, c, sec.length)
+            } else if varying {
+                let mid = c.local_at(sec, s0 + 0.5 * h);
+                // The last step ends exactly at the section's length.
+                let end_s = if k + 1 == sec.steps {
+                    sec.length
+                } else {
+                    s0 + h
+                };
+                let end = c.local_at(sec, end_s);
+                let out = rk4_step(&y, c, [&start, &mid, &end], sec, s0, h, &mut scratch);
+                start = end;
+                out
             } else {
-                rk4_step(&y, c, h)
+                rk4_step(&y, c, [&uniform; 3], sec, s0, h, &mut scratch)
             };
             let node = NodeAt {
                 section: i,
@@ -610,21 +1309,39 @@ pub fn resolve_stretch<C: Coeff, D: StateScalar<C>>(y: &mut State<D>, c: &Coeffs
     }
 }
 
-/// The state a distance `h` (0 <= h <= one step) further along section `i` from `y`: one
-/// RK4 step of length h (the exact rigid transfer in a rigid section). Used to read the
-/// state at an arc length between two nodes.
+/// The state a distance `h` (0 <= h <= one step) further along the rod from `y` at `node`:
+/// one RK4 step of length h (with the law at the step's start, middle and end in a varying
+/// section; the exact rigid transfer in a rigid section). Used to read the state at an arc
+/// length between two nodes.
 pub fn advance<C: Coeff, D: StateScalar<C>>(
     rod: &Rod,
     coeffs: &[Coeffs<C>],
-    i: usize,
+    node: NodeAt,
     y: &State<D>,
     h: f64,
 ) -> State<D> {
+    let sec = &rod.sections[node.section];
+    let c = &coeffs[node.section];
     if h == 0.0 {
         *y
-    } else if rod.sections[i].rigid {
-        rigid_step(y, &coeffs[i], h)
+    } else if sec.rigid {
+        rigid_step(y, c, h)
     } else {
-        rk4_step(y, &coeffs[i], h)
+        let s0 = (node.s - sec.s_start).max(0.0);
+        let locs = [
+            c.local_at(sec, s0),
+            c.local_at(sec, s0 + 0.5 * h),
+            c.local_at(sec, (s0 + h).min(sec.length)),
+        ];
+        let mut scratch = Scratch::default();
+        rk4_step(
+            y,
+            c,
+            [&locs[0], &locs[1], &locs[2]],
+            sec,
+            s0,
+            h,
+            &mut scratch,
+        )
     }
 }

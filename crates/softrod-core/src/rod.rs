@@ -4,21 +4,44 @@
 use crate::error::{Result, SoftrodError};
 use crate::jet::RodScalar;
 use crate::law::AxialTable;
+use crate::reference::Reference;
 use crate::section::CrossSection;
 use crate::spec::{
-    validate_pressures, AxialSpec, DesignSpec, MaterialSpec, SectionSpec, StiffnessSpec,
-    SwellingSpec, GEOMETRY_SLACK,
+    validate_pressures, validate_tensions, AxialSpec, DesignSpec, Frame, MaterialSpec, SectionSpec,
+    StiffnessSpec, SwellingSpec, GEOMETRY_SLACK,
 };
+use crate::tendon::Route;
 use std::sync::Arc;
 
 /// A chamber as the constitutive law sees it: pressurised area, hole radius and centroid
-/// (d1, d2, including the section's chamber offset).
+/// (d1, d2, including the section's chamber offset), at the section's start; in a tapered
+/// section the centroid and the radius move linearly to their end values and the area
+/// follows the radius squared.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Chamber {
     pub area: f64,
     pub hole_radius: f64,
     pub centroid: [f64; 2],
     pub channel: usize,
+    pub centroid_end: [f64; 2],
+    pub hole_radius_end: f64,
+}
+
+impl Chamber {
+    /// (area, hole radius, centroid) at the relative position t in [0, 1] along the section.
+    #[inline]
+    pub fn at(&self, t: f64) -> (f64, f64, [f64; 2]) {
+        if t == 0.0 {
+            return (self.area, self.hole_radius, self.centroid);
+        }
+        let r = self.hole_radius + t * (self.hole_radius_end - self.hole_radius);
+        let c = [
+            self.centroid[0] + t * (self.centroid_end[0] - self.centroid[0]),
+            self.centroid[1] + t * (self.centroid_end[1] - self.centroid[1]),
+        ];
+        let q = r / self.hole_radius;
+        (self.area * q * q, r, c)
+    }
 }
 
 /// Axial law of a compiled section (see `crate::law`).
@@ -34,8 +57,22 @@ pub enum AxialLaw {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Geometry {
     pub outer_radius: f64,
+    /// Outer radius at the section's end (equal to `outer_radius` unless tapered).
+    pub outer_radius_end: f64,
     pub bore_radius: f64,
     pub material: MaterialSpec,
+}
+
+impl Geometry {
+    /// Outer radius at the relative position t in [0, 1] along the section.
+    #[inline]
+    pub fn outer_at(&self, t: f64) -> f64 {
+        if t == 0.0 {
+            self.outer_radius
+        } else {
+            self.outer_radius + t * (self.outer_radius_end - self.outer_radius)
+        }
+    }
 }
 
 /// The constitutive refinements of a compiled section.
@@ -115,6 +152,7 @@ fn compile_law(s: &SectionSpec) -> SectionLaw {
         geometry: match (s.outer_radius, s.material) {
             (Some(outer_radius), Some(material)) => Some(Geometry {
                 outer_radius,
+                outer_radius_end: s.outer_radius_end.unwrap_or(outer_radius),
                 bore_radius: s.bore_radius,
                 material,
             }),
@@ -140,15 +178,53 @@ pub struct Section {
     pub c_se: [f64; 3],
     /// Inverse of K_bt, 1/(N m^2).
     pub c_bt: [[f64; 3]; 3],
-    /// Mass per unit reference length, kg/m.
+    /// Mass per unit reference length, kg/m (the mean over the section if it is tapered).
     pub line_mass: f64,
+    /// Line mass at the section's start, middle and end (a quadratic in s: the area of a
+    /// tapered section), kg/m; all equal `line_mass` in a uniform section.
+    pub line_mass_profile: [f64; 3],
     /// User line loads on this section (world frame): force N/m and moment N m/m.
     pub line_force: [f64; 3],
     pub line_moment: [f64; 3],
+    /// Follower line loads (body frame): force N/m and moment N m/m.
+    pub line_force_body: [f64; 3],
+    pub line_moment_body: [f64; 3],
     pub chambers: Vec<Chamber>,
     /// Arc length at the start of the section, m.
     pub s_start: f64,
     pub law: SectionLaw,
+    /// Reference strains v*(s), u*(s).
+    pub reference: Reference,
+    /// Tendons routed through this section (a tendon listed here ends at this section's end
+    /// if no later section lists it).
+    pub tendons: Vec<Route>,
+    /// The cross-section changes along s (taper, chamber end values).
+    pub tapered: bool,
+    /// Radius of the outermost material fibre (validity rule of the fibre stretch): the
+    /// largest outer radius, else (stiffnesses given directly) the outer edge of the farthest
+    /// chamber or tendon, else 0 (only the centreline is checked).
+    pub fibre_radius: f64,
+}
+
+impl Section {
+    /// Line mass at the relative position t in [0, 1], kg/m.
+    #[inline]
+    pub fn line_mass_at(&self, t: f64) -> f64 {
+        if !self.tapered {
+            return self.line_mass;
+        }
+        let [a, m, b] = self.line_mass_profile;
+        if a == m && m == b {
+            return a;
+        }
+        // The quadratic through (0, a), (1/2, m), (1, b).
+        a + t * (4.0 * m - 3.0 * a - b) + t * t * (2.0 * (a + b) - 4.0 * m)
+    }
+
+    /// The section's properties change along s (taper or a reference table).
+    pub fn is_varying(&self) -> bool {
+        self.tapered || self.reference.is_varying()
+    }
 }
 
 /// A validated, compiled design. Immutable: solves never change it.
@@ -157,6 +233,8 @@ pub struct Rod {
     pub spec: DesignSpec,
     pub sections: Vec<Section>,
     pub n_channels: usize,
+    /// Number of tendon (tension) channels.
+    pub n_tendons: usize,
     pub length: f64,
     pub base_position: [f64; 3],
     /// Base rotation R0, row-major (columns are d1, d2, d3 in world coordinates).
@@ -192,16 +270,63 @@ impl Rod {
         let mut sections = Vec::with_capacity(spec.sections.len());
         let mut s_start = 0.0;
         for (i, s) in spec.sections.iter().enumerate() {
-            let cs = s.outer_radius.map(|ro| CrossSection::from_spec(s, ro));
-            if let Some(cs) = &cs {
-                if cs.area <= 0.0 || cs.i11 <= 0.0 || cs.i22 <= 0.0 {
-                    return Err(SoftrodError::invalid(
-                        format!("sections[{i}].chambers"),
-                        format!("A_m = {:.4e} m^2", cs.area),
-                        "bore and chambers leave no positive material area / second moment",
-                    ));
+            let chambers: Vec<Chamber> = s
+                .chambers
+                .iter()
+                .enumerate()
+                .map(|(k, c)| {
+                    let ([_, d1], [r0, r1]) = s.chamber_ends(k);
+                    let o = s.law.chamber_offset;
+                    Chamber {
+                        area: c.area,
+                        hole_radius: r0,
+                        centroid: s.chamber_centroid(k),
+                        channel: c.channel,
+                        centroid_end: [o[0] + d1 * c.angle.cos(), o[1] + d1 * c.angle.sin()],
+                        hole_radius_end: r1,
+                    }
+                })
+                .collect();
+            let tapered = s.is_tapered();
+            let outer_end = s.outer_radius.map(|ro| s.outer_radius_end.unwrap_or(ro));
+            // The material cross-section at the relative position t along the section.
+            let cs_at = |t: f64| {
+                s.outer_radius.zip(outer_end).map(|(r0, r1)| {
+                    CrossSection::from_holes(
+                        r0 + t * (r1 - r0),
+                        s.bore_radius,
+                        chambers.iter().map(|c| {
+                            let (_, r, x) = c.at(t);
+                            (r, x)
+                        }),
+                    )
+                })
+            };
+            // Every point the integrator evaluates: the RK4 stages of every step.
+            let stages: Vec<f64> = if tapered || s.reference.table.is_some() {
+                (0..=2 * s.steps)
+                    .map(|k| k as f64 / (2 * s.steps) as f64)
+                    .collect()
+            } else {
+                vec![0.0]
+            };
+            for &t in &stages {
+                if let Some(cs) = cs_at(t) {
+                    if cs.area <= 0.0 || cs.i11 <= 0.0 || cs.i22 <= 0.0 {
+                        return Err(SoftrodError::invalid(
+                            format!("sections[{i}].chambers"),
+                            format!("A_m = {:.4e} m^2", cs.area),
+                            if t == 0.0 {
+                                "bore and chambers leave no positive material area / second moment"
+                                    .to_string()
+                            } else {
+                                format!("bore and chambers leave no positive material area / second moment at {:.4} of the section's length", t)
+                            },
+                        ));
+                    }
                 }
             }
+            let cs = cs_at(0.0);
             let law = compile_law(s);
             let (k_se, k_bt) = stiffness_matrices(
                 &law.given,
@@ -223,30 +348,76 @@ impl Rod {
                 ([1.0 / k_se[0], 1.0 / k_se[1], 1.0 / k_se[2]], c_bt)
             };
             // Gravity acts on the referential area A_m,0 (paper 002 eq. 27): no swelling.
-            let line_mass = match (s.mass, &cs, &s.material) {
+            // A tapered section's area is a quadratic in s: Simpson's rule is exact.
+            let mass_at = |t: f64| match (s.mass, cs_at(t), &s.material) {
                 (Some(m), _, _) => m / s.length,
                 (None, Some(c), Some(m)) => m.density * c.area,
                 _ => f64::NAN, // unreachable for validated sections
             };
+            let line_mass_profile = if tapered {
+                [mass_at(0.0), mass_at(0.5), mass_at(1.0)]
+            } else {
+                [mass_at(0.0); 3]
+            };
+            let [ma, mm, mb] = line_mass_profile;
+            let line_mass = if tapered && !(ma == mm && mm == mb) {
+                (ma + 4.0 * mm + mb) / 6.0
+            } else {
+                ma
+            };
             let mut line_force = [0.0; 3];
             let mut line_moment = [0.0; 3];
+            let mut line_force_body = [0.0; 3];
+            let mut line_moment_body = [0.0; 3];
             for l in spec.loads.iter().filter(|l| l.section == i) {
+                let (f, m) = match l.frame {
+                    Frame::World => (&mut line_force, &mut line_moment),
+                    Frame::Body => (&mut line_force_body, &mut line_moment_body),
+                };
                 for k in 0..3 {
-                    line_force[k] += l.force_per_length[k];
-                    line_moment[k] += l.moment_per_length[k];
+                    f[k] += l.force_per_length[k];
+                    m[k] += l.moment_per_length[k];
                 }
             }
-            let chambers = s
-                .chambers
-                .iter()
-                .enumerate()
-                .map(|(k, c)| Chamber {
-                    area: c.area,
-                    hole_radius: c.hole_radius(),
-                    centroid: s.chamber_centroid(k),
-                    channel: c.channel,
-                })
-                .collect();
+            let tendons: Vec<Route> = s.tendons.iter().map(|t| Route::new(t, s.length)).collect();
+            let reference = Reference::new(&s.reference);
+            let fibre_radius = match (s.outer_radius, outer_end) {
+                (Some(r0), Some(r1)) => r0.max(r1),
+                _ => chambers
+                    .iter()
+                    .map(|c| {
+                        (c.centroid[0].hypot(c.centroid[1]) + c.hole_radius)
+                            .max(c.centroid_end[0].hypot(c.centroid_end[1]) + c.hole_radius_end)
+                    })
+                    .chain(tendons.iter().map(|t| t.max_distance()))
+                    .fold(0.0, f64::max),
+            };
+            // The reference length of every fibre is positive: v3* - rho |u*_perp| > 0 at
+            // the outermost fibre (else the stress-free shape folds through itself).
+            if !reference.is_straight() {
+                let refs: Vec<f64> = if reference.is_varying() {
+                    stages.clone()
+                } else {
+                    vec![0.0]
+                };
+                for t in refs {
+                    let (v, u) = reference.at(t * s.length);
+                    let rho = match (s.outer_radius, outer_end) {
+                        (Some(r0), Some(r1)) => r0 + t * (r1 - r0),
+                        _ => fibre_radius,
+                    };
+                    let fibre = v[2] - rho * u[0].hypot(u[1]);
+                    if fibre.is_nan() || fibre <= 0.0 {
+                        return Err(SoftrodError::invalid(
+                            format!("sections[{i}].reference"),
+                            format!("u* = {u:?} 1/m, v* = {v:?} at s = {:.6e} m", t * s.length),
+                            format!(
+                                "the precurvature folds the section through itself: the fibre at radius {rho:.4e} m would have reference stretch v3* - rho |(u1*, u2*)| = {fibre:.4} <= 0 (bend radius smaller than the section)"
+                            ),
+                        ));
+                    }
+                }
+            }
             sections.push(Section {
                 name: s.name.clone(),
                 length: s.length,
@@ -257,20 +428,37 @@ impl Rod {
                 c_se,
                 c_bt,
                 line_mass,
+                line_mass_profile,
                 line_force,
                 line_moment,
+                line_force_body,
+                line_moment_body,
                 chambers,
                 s_start,
                 law,
+                reference,
+                tendons,
+                tapered,
+                fibre_radius,
             });
             s_start += s.length;
         }
         let length = spec.length();
         // Force scale: the softest bending stiffness over L^2 (deflects the tip by ~L).
+        // (A tapered section's smallest EI is at one of its ends: I grows like r^4.)
         let ei_min = sections
             .iter()
             .filter(|s| !s.rigid)
-            .map(|s| s.k_bt[0][0].min(s.k_bt[1][1]))
+            .map(|s| {
+                let ei = s.k_bt[0][0].min(s.k_bt[1][1]);
+                match &s.law.geometry {
+                    Some(g) if s.tapered => {
+                        let q = (g.outer_radius_end / g.outer_radius).powi(4);
+                        ei.min(ei * q)
+                    }
+                    _ => ei,
+                }
+            })
             .fold(f64::INFINITY, f64::min);
         let force_scale = if ei_min.is_finite() {
             ei_min / (length * length)
@@ -279,6 +467,7 @@ impl Rod {
         };
         Ok(Rod {
             n_channels: spec.n_channels(),
+            n_tendons: spec.n_tendons(),
             length,
             base_position: spec.mounting.base_position,
             base_rotation: spec.mounting.base_rotation,
@@ -296,6 +485,11 @@ impl Rod {
 
     pub fn check_pressures(&self, pressures: &[f64]) -> Result<()> {
         validate_pressures(pressures, self.n_channels)
+    }
+
+    /// Check a solve's tendon tensions: one per tendon channel, finite, >= 0.
+    pub fn check_tensions(&self, tensions: &[f64]) -> Result<()> {
+        validate_tensions(tensions, self.n_tendons)
     }
 
     /// Check a solve's pressures and stiffness scale against the design: the pressures
@@ -328,30 +522,39 @@ impl Rod {
                     ));
                 }
             }
-            if let Some(geo) = &s.law.geometry {
-                // Swollen chambers must stay inside the wall, off the bore and apart: eq. 22
-                // is a heuristic with no such limit, and overlapping holes would be
-                // subtracted twice from A_m and I.
-                for (k, (c, f)) in s.chambers.iter().zip(&w).enumerate() {
-                    let r = c.hole_radius * f;
-                    let dist = c.centroid[0].hypot(c.centroid[1]);
+            let Some(geo) = &s.law.geometry else { continue };
+            // Swollen chambers must stay inside the wall, off the bore and apart: eq. 22 is a
+            // heuristic with no such limit, and overlapping holes would be subtracted twice
+            // from A_m and I. A tapered section is checked at its ends and middle.
+            let ts: &[f64] = if s.tapered { &[0.0, 0.5, 1.0] } else { &[0.0] };
+            for &t in ts {
+                let at: Vec<(f64, [f64; 2])> = s
+                    .chambers
+                    .iter()
+                    .zip(&w)
+                    .map(|(c, f)| {
+                        let (_, r, x) = c.at(t);
+                        (r * f, x)
+                    })
+                    .collect();
+                let outer = geo.outer_at(t);
+                for (k, &(r, cen)) in at.iter().enumerate() {
+                    let f = w[k];
+                    let dist = cen[0].hypot(cen[1]);
                     // The same slack as the design's own containment checks, so that a
                     // chamber the design accepts (e.g. tangent to the wall) passes at p = 0.
-                    let clash = if dist + r > geo.outer_radius * (1.0 + GEOMETRY_SLACK) {
+                    let clash = if dist + r > outer * (1.0 + GEOMETRY_SLACK) {
                         Some("breaks through the outer wall".to_string())
                     } else if geo.bore_radius > 0.0
                         && dist - r < geo.bore_radius * (1.0 - GEOMETRY_SLACK)
                     {
                         Some("reaches the bore".to_string())
                     } else {
-                        s.chambers
-                            .iter()
-                            .zip(&w)
+                        at.iter()
                             .take(k)
-                            .position(|(o, g)| {
-                                let d = (c.centroid[0] - o.centroid[0])
-                                    .hypot(c.centroid[1] - o.centroid[1]);
-                                d < (r + o.hole_radius * g) * (1.0 - GEOMETRY_SLACK)
+                            .position(|(ro, o)| {
+                                let d = (cen[0] - o[0]).hypot(cen[1] - o[1]);
+                                d < (r + ro) * (1.0 - GEOMETRY_SLACK)
                             })
                             .map(|j| format!("overlaps chambers[{j}]"))
                     };
@@ -365,14 +568,7 @@ impl Rod {
                         ));
                     }
                 }
-                let cs = CrossSection::from_holes(
-                    geo.outer_radius,
-                    geo.bore_radius,
-                    s.chambers
-                        .iter()
-                        .zip(&w)
-                        .map(|(c, f)| (c.hole_radius * f, c.centroid)),
-                );
+                let cs = CrossSection::from_holes(outer, geo.bore_radius, at.iter().copied());
                 let (_, k_bt) = stiffness_matrices(
                     &s.law.given,
                     Some((&cs, geo.material.youngs_modulus, geo.material.shear_modulus)),

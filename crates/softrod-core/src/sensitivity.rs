@@ -18,13 +18,10 @@
 
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
-use crate::ode::{
-    initial_stretch, integrate, rigid_step, rk4_step, AxialCoeffs, Coeffs, Loads, SectionKnobs,
-    State,
-};
+use crate::ode::{advance, integrate, resolve_stretch, Coeffs, Loads, NodeAt, SectionKnobs, State};
 use crate::rod::{AxialLaw, Rod};
 use crate::statics::{Problem, Solution};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector};
 
 /// Parameters per dual integration.
 const CHUNK: usize = 4;
@@ -245,6 +242,9 @@ pub struct Marker {
 pub struct MarkerAt {
     node: usize,
     section: usize,
+    /// Steps done in `section` at the node, and the node's arc length.
+    step: usize,
+    s_node: f64,
     h: f64,
     section_start: bool,
     offset: [f64; 3],
@@ -289,6 +289,8 @@ pub fn locate_markers(rod: &Rod, markers: &[Marker]) -> Result<Vec<MarkerAt>> {
                     MarkerAt {
                         node: node + k_step,
                         section: i,
+                        step: k_step,
+                        s_node: sec.s_start + k_step as f64 * h,
                         h: 0.0,
                         section_start: false,
                         offset: mk.offset,
@@ -297,6 +299,8 @@ pub fn locate_markers(rod: &Rod, markers: &[Marker]) -> Result<Vec<MarkerAt>> {
                     MarkerAt {
                         node: node + k_step + 1,
                         section: i,
+                        step: k_step + 1,
+                        s_node: sec.s_start + (k_step + 1) as f64 * h,
                         h: 0.0,
                         section_start: false,
                         offset: mk.offset,
@@ -305,6 +309,8 @@ pub fn locate_markers(rod: &Rod, markers: &[Marker]) -> Result<Vec<MarkerAt>> {
                     MarkerAt {
                         node: node + k_step,
                         section: i,
+                        step: k_step,
+                        s_node: sec.s_start + k_step as f64 * h,
                         h: rest,
                         section_start: k_step == 0,
                         offset: mk.offset,
@@ -337,18 +343,17 @@ fn integrate_markers<C: Coeff, D: StateScalar<C>>(
                 *out = Some(*y);
                 continue;
             }
-            let c = &coeffs[mk.section];
             let mut start = *y;
             if mk.section_start {
-                if let AxialCoeffs::Ogden { k_e, alpha, k_s } = &c.axial {
-                    start.aux = initial_stretch(&start, c.p_force, *k_e, *alpha, *k_s);
-                }
+                // The previous section's end: this section's carried stretch first.
+                resolve_stretch(&mut start, &coeffs[mk.section]);
             }
-            *out = Some(if rod.sections[mk.section].rigid {
-                rigid_step(&start, c, mk.h)
-            } else {
-                rk4_step(&start, c, mk.h)
-            });
+            let node = NodeAt {
+                section: mk.section,
+                step: mk.step,
+                s: mk.s_node,
+            };
+            *out = Some(advance(rod, coeffs, node, &start, mk.h));
         }
         node += 1;
     };
@@ -457,18 +462,33 @@ pub fn pose_sensitivity(
     params: &[Param],
     markers: &[MarkerAt],
 ) -> Result<TipSensitivity> {
+    if sol.x.len() == 6 {
+        sensitivity_n::<6>(rod, loads, sol, params, markers)
+    } else {
+        sensitivity_n::<3>(rod, loads, sol, params, markers)
+    }
+}
+
+fn sensitivity_n<const N: usize>(
+    rod: &Rod,
+    loads: &Loads,
+    sol: &Solution,
+    params: &[Param],
+    markers: &[MarkerAt],
+) -> Result<TipSensitivity> {
     let p = Problem::new(rod, loads, 1.0);
     // J = d_x R and d_x y in one pass with x seeded.
-    let xd: [Jet<3>; 3] = std::array::from_fn(|i| Jet::variable(sol.x[i], i));
+    let xd: [Jet<N>; N] = std::array::from_fn(|i| Jet::variable(sol.x[i], i));
     let (tip_x, marks_x) = integrate_markers(rod, &p.coeffs, p.base_state(&xd), markers);
-    let r_x = p.residual_of_tip(&tip_x);
-    let lu = Matrix3::from_fn(|i, k| r_x[i].eps[k]).lu();
+    let r_x: [Jet<N>; N] = p.residual_of_tip(&tip_x);
+    let jac = DMatrix::from_fn(N, N, |i, k| r_x[i].eps[k]);
+    let lu = jac.lu();
     let mut out = TipSensitivity {
         position: Vec::with_capacity(params.len()),
         rotation: Vec::with_capacity(params.len()),
         markers: Vec::with_capacity(params.len()),
     };
-    let pos_x: Vec<[Jet<3>; 3]> = marks_x
+    let pos_x: Vec<[Jet<N>; 3]> = marks_x
         .iter()
         .zip(markers)
         .map(|(y, mk)| marker_position(y, &mk.offset))
@@ -481,6 +501,7 @@ pub fn pose_sensitivity(
                     rod,
                     i,
                     &loads.pressures,
+                    &loads.tensions,
                     &rod.gravity,
                     Dual::from(1.0),
                     &sigma,
@@ -488,7 +509,7 @@ pub fn pose_sensitivity(
                 )
             })
             .collect();
-        let x = sol.x.map(Dual::from);
+        let x: Vec<Dual> = sol.x.iter().map(|v| Dual::from(*v)).collect();
         let mut base = p.base_state(&x);
         // The base force carries the rod's whole weight (n(0) = F_tip + m_t g + int f ds):
         // a mass parameter moves it by its sections' weight per unit of mass_scale.
@@ -498,14 +519,14 @@ pub fn pose_sensitivity(
             }
         }
         let (tip, marks) = integrate_markers(rod, &coeffs, base, markers);
-        let r_t = p.residual_of_tip(&tip);
+        let r_t: [Dual; N] = p.residual_of_tip(&tip);
         let pos_t: Vec<[Dual; 3]> = marks
             .iter()
             .zip(markers)
             .map(|(y, mk)| marker_position(y, &mk.offset))
             .collect();
         for q in 0..chunk.len() {
-            let rhs = Vector3::from_fn(|i, _| -r_t[i].eps[q]);
+            let rhs = DVector::from_fn(N, |i, _| -r_t[i].eps[q]);
             let dx = lu
                 .solve(&rhs)
                 .filter(|d| d.iter().all(|v| v.is_finite()))
@@ -516,7 +537,7 @@ pub fn pose_sensitivity(
                     reason: "the shooting Jacobian is singular at this equilibrium, so its parameter derivatives are undefined".into(),
                 })?;
             let total =
-                |d: &Dual, dx_: &Jet<3>| d.eps[q] + (0..3).map(|k| dx_.eps[k] * dx[k]).sum::<f64>();
+                |d: &Dual, dx_: &Jet<N>| d.eps[q] + (0..N).map(|k| dx_.eps[k] * dx[k]).sum::<f64>();
             out.position
                 .push(std::array::from_fn(|i| total(&tip.r[i], &tip_x.r[i])));
             out.rotation.push(std::array::from_fn(|i| {

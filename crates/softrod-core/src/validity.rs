@@ -28,8 +28,10 @@ pub const MAX_STEPS_PER_SECTION: usize = 100_000;
 pub const MAX_TOTAL_STEPS: usize = 1_000_000;
 /// Most distributed line loads in a design.
 pub const MAX_LINE_LOADS: usize = 1000;
-/// Most points in an EA(F) table.
+/// Most points in an EA(F) or reference-shape table.
 pub const MAX_TABLE_POINTS: usize = 10_000;
+/// Most tendon channels, and most tendons in one section.
+pub const MAX_TENDONS: usize = 64;
 
 /// Largest entry of |R^T R - I| accepted at a node (and det R > 0). The integrator
 /// re-projects R onto SO(3) after every step, which squares the step's orthonormality
@@ -235,21 +237,68 @@ pub fn check_chamber(
     ))
 }
 
+/// The extremes of the fibre stretch over the section's outer circle of radius `radius`
+/// (0 when unknown: only the centreline), measured relative to the reference shape: the
+/// fibre at (x, y) has the stretch (v3 + u1 y - u2 x) / (v3* + u1* y - u2* x) (shear and
+/// twist change it only at second order). For a straight reference the extremes are
+/// v3 -/+ radius |(u1, u2)|. Otherwise the ratio of two affine functions of the point on
+/// the circle (x, y) = radius (cos a, sin a) is extremal where
+/// (c b - a d) . (-sin a, cos a) = radius (b2 d1 - b1 d2) (a, b: numerator, c, d:
+/// denominator), solved in closed form; inside the disc it is monotone along every line,
+/// so the extremes lie on the circle.
+pub fn fibre_stretch_range(
+    v: &[f64; 3],
+    u: &[f64; 3],
+    reference: (&[f64; 3], &[f64; 3]),
+    radius: f64,
+) -> (f64, f64) {
+    let (vr, ur) = reference;
+    if *vr == [0.0, 0.0, 1.0] && ur[0] == 0.0 && ur[1] == 0.0 {
+        let spread = radius * u[0].hypot(u[1]);
+        return (v[2] - spread, v[2] + spread);
+    }
+    // stretch(x, y) = (a + b . p) / (c + d . p), p = (x, y)
+    let (a, b) = (v[2], [-u[1], u[0]]);
+    let (c, d) = (vr[2], [-ur[1], ur[0]]);
+    let at = |angle: f64| {
+        let (sn, cs) = angle.sin_cos();
+        let p = [radius * cs, radius * sn];
+        (a + b[0] * p[0] + b[1] * p[1]) / (c + d[0] * p[0] + d[1] * p[1])
+    };
+    let w = [c * b[0] - a * d[0], c * b[1] - a * d[1]];
+    let k = radius * (b[1] * d[0] - b[0] * d[1]);
+    // w2 cos(angle) - w1 sin(angle) = |w| cos(angle + beta) = -k
+    let norm = w[0].hypot(w[1]);
+    let mut angles = vec![0.0];
+    if norm > 0.0 && radius > 0.0 {
+        let beta = w[0].atan2(w[1]);
+        let q = (-k / norm).clamp(-1.0, 1.0).acos();
+        angles.extend([q - beta, -q - beta]);
+    }
+    let values: Vec<f64> = angles.into_iter().map(at).collect();
+    let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    (lo, hi)
+}
+
 /// The fibre stretch across a section of outer radius `radius` (0 when unknown: only the
-/// centreline is checked) within `limits`. Its extremes are v3 -/+ radius |(u1, u2)|.
+/// centreline is checked), relative to the reference strains (v*, u*), within `limits`
+/// (see [`fibre_stretch_range`]).
 pub fn check_strain_range(
     node: Node,
     v: &[f64; 3],
     u: &[f64; 3],
+    reference: (&[f64; 3], &[f64; 3]),
     radius: f64,
     limits: &StrainLimits,
 ) -> Result<()> {
-    let spread = radius * u[0].hypot(u[1]);
-    let (lo, hi) = (v[2] - spread, v[2] + spread);
+    let (lo, hi) = fibre_stretch_range(v, u, reference, radius);
     let (value, what) = if lo < limits.stretch_min {
         (lo, "below")
     } else if hi > limits.stretch_max {
         (hi, "above")
+    } else if lo.is_nan() || hi.is_nan() {
+        (f64::NAN, "outside")
     } else {
         return Ok(());
     };
@@ -258,10 +307,15 @@ pub fn check_strain_range(
         Some(node),
         value,
         format!(
-            "fibre stretch {value:.4} in sections[{}] (v3 = {:.4}, curvature {:.4} 1/m at radius {radius:.4e} m) is {what} the validity range [{}, {}] of the model (stretch_range)",
+            "fibre stretch {value:.4} in sections[{}] (v3 = {:.4}, curvature {:.4} 1/m at radius {radius:.4e} m{}) is {what} the validity range [{}, {}] of the model (stretch_range)",
             node.section,
             v[2],
             u[0].hypot(u[1]),
+            if *reference.0 == [0.0, 0.0, 1.0] && *reference.1 == [0.0; 3] {
+                String::new()
+            } else {
+                ", relative to the reference shape".to_string()
+            },
             limits.stretch_min,
             limits.stretch_max
         ),
@@ -341,14 +395,24 @@ mod tests {
             Rule::ChamberCollapse
         );
         let lim = StrainLimits::default();
-        assert!(check_strain_range(NODE, &v, &[0.0; 3], 0.01, &lim).is_ok());
+        let straight = (&[0.0, 0.0, 1.0], &[0.0; 3]);
+        assert!(check_strain_range(NODE, &v, &[0.0; 3], straight, 0.01, &lim).is_ok());
         assert_eq!(
-            rule_of(check_strain_range(NODE, &v, &u, 0.01, &lim).unwrap_err()),
+            rule_of(check_strain_range(NODE, &v, &u, straight, 0.01, &lim).unwrap_err()),
             Rule::StrainRange
         );
         assert_eq!(
-            rule_of(check_strain_range(NODE, &[0.0, 0.0, 3.5], &[0.0; 3], 0.0, &lim).unwrap_err()),
+            rule_of(
+                check_strain_range(NODE, &[0.0, 0.0, 3.5], &[0.0; 3], straight, 0.0, &lim)
+                    .unwrap_err()
+            ),
             Rule::StrainRange
+        );
+        // A rod bent to its own reference curvature has every fibre at stretch 1.
+        let (lo, hi) = fibre_stretch_range(&v, &u, (&v, &u), 0.004);
+        assert!(
+            (lo - 1.0).abs() < 1e-14 && (hi - 1.0).abs() < 1e-14,
+            "{lo} {hi}"
         );
         assert!(StrainLimits {
             stretch_min: 0.0,
@@ -356,6 +420,27 @@ mod tests {
         }
         .validate()
         .is_err());
+    }
+
+    /// The closed-form extremes of the relative fibre stretch against a dense sampling of
+    /// the outer circle (the extremes lie on it).
+    #[test]
+    fn relative_fibre_stretch_extremes() {
+        let (v, u) = ([0.01, -0.02, 1.1], [30.0, -12.0, 4.0]);
+        let (vr, ur) = ([0.0, 0.0, 0.95], [-8.0, 15.0, 1.0]);
+        let radius = 0.02;
+        let (lo, hi) = fibre_stretch_range(&v, &u, (&vr, &ur), radius);
+        let (mut slo, mut shi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for k in 0..100_000 {
+            let a = k as f64 / 100_000.0 * std::f64::consts::TAU;
+            let (x, y) = (radius * a.cos(), radius * a.sin());
+            let f = (v[2] + u[0] * y - u[1] * x) / (vr[2] + ur[0] * y - ur[1] * x);
+            slo = slo.min(f);
+            shi = shi.max(f);
+        }
+        // Sampling at 6e-5 rad misses the extreme by O(6e-5^2) relative.
+        assert!(lo <= slo + 1e-12 && lo > slo - 1e-8, "{lo} vs {slo}");
+        assert!(hi >= shi - 1e-12 && hi < shi + 1e-8, "{hi} vs {shi}");
     }
 
     #[test]

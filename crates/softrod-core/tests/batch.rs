@@ -2,7 +2,7 @@
 
 mod common;
 use common::*;
-use softrod_core::batch::solve_batch;
+use softrod_core::batch::{solve_batch, BatchInputs, BatchRow};
 use softrod_core::statics::{solve, SolverOptions};
 use softrod_core::{Rod, SoftrodError};
 
@@ -16,6 +16,26 @@ fn spa() -> Rod {
     spec.tip.mass = 17.25e-3;
     spec.tip.com_offset = [9.3e-3, 2.9e-3, -1.1e-3];
     Rod::new(spec).unwrap()
+}
+
+/// `solve_batch` of pressure rows with shared tip loads and optional sigma rows.
+fn batch_of(
+    rod: &Rod,
+    p: &[f64],
+    tip_force: [f64; 3],
+    tip_moment: [f64; 3],
+    sigma: Option<&[f64]>,
+    opts: &SolverOptions,
+    threads: usize,
+) -> softrod_core::Result<Vec<BatchRow>> {
+    let inputs = BatchInputs {
+        pressures: p,
+        tensions: None,
+        stiffness_scale: sigma,
+        tip_force,
+        tip_moment,
+    };
+    solve_batch(rod, &inputs, opts, threads)
 }
 
 fn grid() -> Vec<f64> {
@@ -55,7 +75,7 @@ fn batch_equals_single_solves_bitwise() {
         .map(|s| dist(&s.tip.r, &single[0].tip.r))
         .fold(0.0, f64::max);
     assert!(spread > 0.2 * l, "tip spread {spread}");
-    let check = |rows: &[softrod_core::batch::BatchRow], first: usize, what: &str| {
+    let check = |rows: &[BatchRow], first: usize, what: &str| {
         for (k, row) in rows.iter().enumerate() {
             let s = &single[first + k];
             assert!(row.converged, "{what}: row {k} did not converge");
@@ -68,16 +88,16 @@ fn batch_equals_single_solves_bitwise() {
         }
     };
     for threads in [1, 2, 4] {
-        let rows = solve_batch(&rod, &p, tip_force, [0.0; 3], None, &opts, threads).unwrap();
+        let rows = batch_of(&rod, &p, tip_force, [0.0; 3], None, &opts, threads).unwrap();
         assert_eq!(rows.len(), LEVELS.pow(3));
         check(&rows, 0, &format!("threads = {threads}"));
     }
     // other groupings of the same rows: the second half alone, and every row alone
     let half = LEVELS.pow(3) / 2;
-    let rows = solve_batch(&rod, &p[3 * half..], tip_force, [0.0; 3], None, &opts, 3).unwrap();
+    let rows = batch_of(&rod, &p[3 * half..], tip_force, [0.0; 3], None, &opts, 3).unwrap();
     check(&rows, half, "second half");
     for k in [0, 7, half, LEVELS.pow(3) - 1] {
-        let rows = solve_batch(
+        let rows = batch_of(
             &rod,
             &p[3 * k..3 * k + 3],
             tip_force,
@@ -105,7 +125,7 @@ fn invalid_pressure_row_is_rejected_by_row_and_channel() {
     for bad in [f64::NAN, f64::INFINITY, -101_325.5, -2e5] {
         let mut p = grid();
         p[3 * 7 + 1] = bad; // row 7, channel 1
-        let e = solve_batch(&rod, &p, [0.0; 3], [0.0; 3], None, &opts, 1).unwrap_err();
+        let e = batch_of(&rod, &p, [0.0; 3], [0.0; 3], None, &opts, 1).unwrap_err();
         let msg = e.to_string();
         let field = field_of(e);
         assert!(
@@ -116,7 +136,7 @@ fn invalid_pressure_row_is_rejected_by_row_and_channel() {
     // exactly -1 atm (a perfect vacuum) is allowed
     let mut p = vec![0.0; 3];
     p[2] = -101_325.0;
-    assert!(solve_batch(&rod, &p, [0.0; 3], [0.0; 3], None, &opts, 1).is_ok());
+    assert!(batch_of(&rod, &p, [0.0; 3], [0.0; 3], None, &opts, 1).is_ok());
 }
 
 #[test]
@@ -124,11 +144,11 @@ fn wrong_number_of_columns_is_rejected() {
     let rod = spa();
     let opts = SolverOptions::default();
     for len in [1, 2, 4, 5, 3 * 4 + 2] {
-        let e = solve_batch(&rod, &vec![1e3; len], [0.0; 3], [0.0; 3], None, &opts, 1).unwrap_err();
+        let e = batch_of(&rod, &vec![1e3; len], [0.0; 3], [0.0; 3], None, &opts, 1).unwrap_err();
         assert_eq!(field_of(e), "pressures", "{len} values");
     }
     // no rows at all is a valid (empty) batch
-    assert!(solve_batch(&rod, &[], [0.0; 3], [0.0; 3], None, &opts, 1)
+    assert!(batch_of(&rod, &[], [0.0; 3], [0.0; 3], None, &opts, 1)
         .unwrap()
         .is_empty());
 }

@@ -53,16 +53,19 @@ fn jacobian_matches_fd_with_rigid_section_and_line_loads() {
     );
     spec.loads = vec![
         LineLoadSpec {
+            frame: Default::default(),
             section: 0,
             force_per_length: [0.3, -0.2, 0.1],
             moment_per_length: [0.01, 0.0, -0.02],
         },
         LineLoadSpec {
+            frame: Default::default(),
             section: 1,
             force_per_length: [0.0, 0.5, 0.0],
             moment_per_length: [0.0, 0.03, 0.0],
         },
         LineLoadSpec {
+            frame: Default::default(),
             section: 2,
             force_per_length: [-0.1, 0.0, 0.2],
             moment_per_length: [0.0; 3],

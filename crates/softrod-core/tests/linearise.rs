@@ -10,6 +10,7 @@ use softrod_core::jacobian::{point_jacobian, Input, Probe};
 use softrod_core::linearise::linearise;
 use softrod_core::ode::Loads;
 use softrod_core::spec::DesignSpec;
+use softrod_core::spec::Frame;
 use softrod_core::statics::{solve, SolverOptions};
 use softrod_core::Rod;
 
@@ -97,6 +98,8 @@ fn static_response_of_the_linear_system_is_exact() {
         tip_force: [0.02, -0.01, 0.03],
         tip_moment: [0.0; 3],
         stiffness_scale: [1.0; 3],
+        tensions: vec![],
+        tip_frame: Frame::World,
     };
     let sol = solve(&rod, &ld, None, &SolverOptions::default()).unwrap();
     let sys = linearise(&rod, &ld, &sol, 9).unwrap();

@@ -52,6 +52,7 @@ const TRAJ_TOL: f64 = 1e-9;
 
 fn line_load(section: usize, f: [f64; 3], m: [f64; 3]) -> LineLoadSpec {
     LineLoadSpec {
+        frame: Default::default(),
         section,
         force_per_length: f,
         moment_per_length: m,

@@ -99,6 +99,7 @@ fn distributed_measures(lambda: f64, steps: usize, by_gravity: bool) -> [f64; 3]
     } else {
         let mut spec = cantilever(steps, 0.0, 0.0);
         spec.loads = vec![LineLoadSpec {
+            frame: Default::default(),
             section: 0,
             force_per_length: [0.0, 0.0, -q],
             moment_per_length: [0.0; 3],

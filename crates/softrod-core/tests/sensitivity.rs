@@ -5,7 +5,7 @@
 
 mod common;
 use common::*;
-use softrod_core::batch::sensitivity_batch;
+use softrod_core::batch::{sensitivity_batch, BatchInputs};
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{
     locate_markers, marker_positions, pose_sensitivity, tip_sensitivity, validate_params, Marker,
@@ -236,10 +236,7 @@ fn batch_sensitivities_equal_single_ones() {
     }
     let rows = sensitivity_batch(
         &rod,
-        &pressures,
-        [0.0; 3],
-        [0.0; 3],
-        None,
+        &BatchInputs::pressures(&rod, &pressures),
         None,
         &params,
         &[],
@@ -465,10 +462,7 @@ fn section_mass_matches_finite_differences_and_batch_markers_equal_single() {
     for params in [vec![], vec![param("mass", &[1])]] {
         let rows = sensitivity_batch(
             &rod,
-            &pressures,
-            [0.0; 3],
-            [0.0; 3],
-            None,
+            &BatchInputs::pressures(&rod, &pressures),
             None,
             &params,
             &mks,

@@ -336,6 +336,7 @@ const CASES: &[(&str, Breaker, &str)] = &[
         "line load on a missing section",
         |d| {
             d.loads.push(LineLoadSpec {
+                frame: Default::default(),
                 section: 4,
                 force_per_length: [0.0; 3],
                 moment_per_length: [0.0; 3],
@@ -347,6 +348,7 @@ const CASES: &[(&str, Breaker, &str)] = &[
         "NaN line load",
         |d| {
             d.loads.push(LineLoadSpec {
+                frame: Default::default(),
                 section: 0,
                 force_per_length: [0.0, f64::NAN, 0.0],
                 moment_per_length: [0.0; 3],

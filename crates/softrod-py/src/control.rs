@@ -121,6 +121,8 @@ impl PyInverse {
                 tip_force: self.tip_force,
                 tip_moment: self.tip_moment,
                 stiffness_scale: [1.0; 3],
+                tensions: vec![],
+                tip_frame: self.rod.spec.tip.frame,
             };
             let custom;
             let opts = match reference {
@@ -210,9 +212,10 @@ fn parse_params(py: Python<'_>, params: Vec<(String, Vec<usize>)>) -> PyResult<V
 
 /// The exact Jacobian of the pose at arc length `s` of the equilibrium under `pressures`
 /// and tip loads (warm start `x`): (6, k) arrays, rows position then small rotation, for
-/// the pressures, tip force, tip moment and (at the tip only) the named parameters.
+/// the pressures, tip force, tip moment and (at the tip only) the named parameters, at the
+/// given tendon `tensions` (N; None: slack).
 #[pyfunction]
-#[pyo3(signature = (rod, pressures, tip_force, tip_moment, stiffness_scale, x, s, params))]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, stiffness_scale, x, s, params, tensions=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn point_jacobian_of<'py>(
     py: Python<'py>,
@@ -221,9 +224,10 @@ pub fn point_jacobian_of<'py>(
     tip_force: [f64; 3],
     tip_moment: [f64; 3],
     stiffness_scale: [f64; 3],
-    x: [f64; 3],
+    x: Vec<f64>,
     s: f64,
     params: Vec<(String, Vec<usize>)>,
+    tensions: Option<Vec<f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let params = parse_params(py, params)?;
@@ -235,6 +239,8 @@ pub fn point_jacobian_of<'py>(
             tip_force,
             tip_moment,
             stiffness_scale,
+            tensions: tensions.unwrap_or_default(),
+            tip_frame: rod.spec.tip.frame,
         };
         let nc = rod.n_channels;
         let result = py.detach(|| -> softrod_core::Result<_> {
@@ -299,7 +305,7 @@ pub fn linearise_at<'py>(
     pressures: Vec<f64>,
     tip_force: [f64; 3],
     tip_moment: [f64; 3],
-    x: Option<[f64; 3]>,
+    x: Option<Vec<f64>>,
     nodes: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
@@ -310,6 +316,8 @@ pub fn linearise_at<'py>(
             tip_force,
             tip_moment,
             stiffness_scale: [1.0; 3],
+            tensions: vec![],
+            tip_frame: rod.spec.tip.frame,
         };
         let result = py.detach(|| -> softrod_core::Result<_> {
             if rod.sections.iter().any(|s| s.law.stiffness_map) {
@@ -319,7 +327,7 @@ pub fn linearise_at<'py>(
                     "has sections with law.stiffness_map: its sigma(p) is evaluated outside the core, so the linearisation is not available",
                 ));
             }
-            let sol = statics::solve(rod, &loads, x.as_ref(), &checked)?;
+            let sol = statics::solve(rod, &loads, x.as_deref(), &checked)?;
             let sys = linearise(rod, &loads, &sol, nodes)?;
             Ok((sol, sys))
         });

@@ -5,7 +5,7 @@
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use softrod_core::batch::{sensitivity_batch, solve_batch, BatchRow};
+use softrod_core::batch::{sensitivity_batch, solve_batch, BatchInputs, BatchRow};
 use softrod_core::interp::GridPchip;
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{Marker, Param, ParamKind};
@@ -181,6 +181,12 @@ impl PyRod {
         self.rod.n_channels
     }
 
+    /// Number of tendon tension channels.
+    #[getter]
+    fn n_tendons(&self) -> usize {
+        self.rod.n_tendons
+    }
+
     /// Total reference length, m.
     #[getter]
     fn length(&self) -> f64 {
@@ -224,8 +230,10 @@ impl PyRod {
     }
 
     /// Solve one static equilibrium; returns a dict of numpy arrays (SI), the stability
-    /// flag "stable" and the validity-range violations "violations" (with on_invalid="warn").
-    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise"))]
+    /// flag "stable" (None where not assessed: follower loads) and the validity-range
+    /// violations "violations" (with on_invalid="warn"). `tensions`: one per tendon channel,
+    /// N (None: slack); the tip loads act in the design's tip frame.
+    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise", tensions=None))]
     #[allow(clippy::too_many_arguments)]
     fn solve<'py>(
         &self,
@@ -233,7 +241,7 @@ impl PyRod {
         pressures: Vec<f64>,
         tip_force: [f64; 3],
         tip_moment: [f64; 3],
-        guess: Option<[f64; 3]>,
+        guess: Option<Vec<f64>>,
         tol: f64,
         max_iter: usize,
         continuation: bool,
@@ -241,12 +249,15 @@ impl PyRod {
         stretch_range: (f64, f64),
         stiffness_scale: [f64; 3],
         on_invalid: &str,
+        tensions: Option<Vec<f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(py, || {
             let loads = Loads {
                 pressures,
+                tensions: tensions.unwrap_or_default(),
                 tip_force,
                 tip_moment,
+                tip_frame: self.rod.spec.tip.frame,
                 stiffness_scale,
             };
             let opts = options(
@@ -260,7 +271,7 @@ impl PyRod {
             )?;
             let rod = &self.rod;
             let result =
-                py.detach(|| statics::solve_with_shape(rod, &loads, guess.as_ref(), &opts));
+                py.detach(|| statics::solve_with_shape(rod, &loads, guess.as_deref(), &opts));
             let (sol, sh) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
             let d = PyDict::new(py);
             d.set_item("s", PyArray1::from_vec(py, sh.s))?;
@@ -290,8 +301,9 @@ impl PyRod {
         })
     }
 
-    /// Solve every row of an (m, channels) pressure array in parallel (GIL released).
-    #[pyo3(signature = (pressures, tip_force, tip_moment, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=None, on_invalid="raise"))]
+    /// Solve every row of an (m, channels) pressure array in parallel (GIL released), with
+    /// an optional (m, tendon channels) tension array (N; None: slack).
+    #[pyo3(signature = (pressures, tip_force, tip_moment, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=None, on_invalid="raise", tensions=None))]
     #[allow(clippy::too_many_arguments)]
     fn solve_batch<'py>(
         &self,
@@ -307,6 +319,7 @@ impl PyRod {
         stretch_range: (f64, f64),
         stiffness_scale: Option<PyReadonlyArray2<'py, f64>>,
         on_invalid: &str,
+        tensions: Option<PyReadonlyArray2<'py, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(py, || {
             self.check_columns(py, &pressures)?;
@@ -314,6 +327,7 @@ impl PyRod {
             let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
             let sigma: Option<Vec<f64>> =
                 stiffness_scale.map(|s| s.as_array().iter().copied().collect());
+            let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
             let opts = options(
                 py,
                 tol,
@@ -326,15 +340,14 @@ impl PyRod {
             let rod = &self.rod;
             let rows = py
                 .detach(|| {
-                    solve_batch(
-                        rod,
-                        &flat,
+                    let inputs = BatchInputs {
+                        pressures: &flat,
+                        tensions: tens.as_deref(),
+                        stiffness_scale: sigma.as_deref(),
                         tip_force,
                         tip_moment,
-                        sigma.as_deref(),
-                        &opts,
-                        threads,
-                    )
+                    };
+                    solve_batch(rod, &inputs, &opts, threads)
                 })
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
             rows_dict(py, &rows)
@@ -346,9 +359,9 @@ impl PyRod {
     /// kinds as in `softrod_core::sensitivity::ParamKind::ALL`. `x0`: optional (m, 3) warm
     /// starts (a previous call's "x"; NaN rows start cold). `markers`: (s, offset) pairs,
     /// points on the body (reference arc length in m, offset (d1, d2, d3) in m). Adds "x"
-    /// (m, 3), "d_tip_position" (m, 3, P), "d_tip_rotation" (m, 3, 3, P), "marker_position"
+    /// (m, n), "d_tip_position" (m, 3, P), "d_tip_rotation" (m, 3, 3, P), "marker_position"
     /// (m, K, 3) and "d_marker_position" (m, K, 3, P), NaN on failed rows.
-    #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore", markers=vec![]))]
+    #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore", tensions=None, markers=vec![]))]
     #[allow(clippy::too_many_arguments)]
     fn sensitivity_batch<'py>(
         &self,
@@ -366,10 +379,12 @@ impl PyRod {
         max_load_steps: usize,
         stretch_range: (f64, f64),
         on_invalid: &str,
+        tensions: Option<PyReadonlyArray2<'py, f64>>,
         markers: Vec<(f64, [f64; 3])>,
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(py, || {
             self.check_columns(py, &pressures)?;
+            let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
             let markers: Vec<Marker> = markers
                 .into_iter()
                 .map(|(s, offset)| Marker { s, offset })
@@ -409,12 +424,16 @@ impl PyRod {
             let rod = &self.rod;
             let rows = py
                 .detach(|| {
-                    sensitivity_batch(
-                        rod,
-                        &flat,
+                    let inputs = BatchInputs {
+                        pressures: &flat,
+                        tensions: tens.as_deref(),
+                        stiffness_scale: sigma.as_deref(),
                         tip_force,
                         tip_moment,
-                        sigma.as_deref(),
+                    };
+                    sensitivity_batch(
+                        rod,
+                        &inputs,
                         guesses.as_deref(),
                         &params,
                         &markers,
@@ -516,11 +535,18 @@ fn rows_dict<'py>(py: Python<'py>, rows: &[BatchRow]) -> PyResult<Bound<'py, PyD
         "residual",
         PyArray1::from_vec(py, rows.iter().map(|r| r.residual).collect()),
     )?;
-    let x: Vec<[f64; 3]> = rows.iter().map(|r| r.x).collect();
-    d.set_item("x", array2(py, &x)?)?;
+    // Shooting unknowns (m, 3), or (m, 6) with follower loads (every row has as many).
+    let width = rows.first().map_or(3, |r| r.x.len());
+    let x: Vec<f64> = rows.iter().flat_map(|r| r.x.iter().copied()).collect();
+    d.set_item("x", PyArray1::from_vec(py, x).reshape([rows.len(), width])?)?;
+    // "stable" is false where stability was not assessed (follower loads): see "assessed".
     d.set_item(
         "stable",
-        PyArray1::from_vec(py, rows.iter().map(|r| r.stable).collect()),
+        PyArray1::from_vec(py, rows.iter().map(|r| r.stable == Some(true)).collect()),
+    )?;
+    d.set_item(
+        "assessed",
+        PyArray1::from_vec(py, rows.iter().map(|r| r.stable.is_some()).collect()),
     )?;
     d.set_item(
         "violation",

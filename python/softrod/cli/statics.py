@@ -38,6 +38,35 @@ DEMO_SWEEP = (0.0, 70e3, 7)  # Pa, Pa, points per channel: a 7^3 grid
 
 
 
+def _parse_tensions(text: str | None, design) -> list[float] | None:
+    """--tension T1,T2,...: one tension per tendon channel (N, >= 0), or None (slack)."""
+    if text is None:
+        return None
+    n = design.n_tendons
+    items = text.split(",")
+    if n == 0 or len(items) != n:
+        raise design_error(
+            "--tension",
+            text,
+            f"design {design.name} has {n} tendon channel{'s' if n != 1 else ''}"
+            + (f"; give {n} comma-separated tensions, e.g. " + ",".join(["2N"] + ["0"] * (n - 1))
+               if n else "; leave --tension out"),
+            InputError,
+        )
+    from ._common import _parse_quantities
+
+    values = _parse_quantities(items, "force", [f"--tension[{i}]" for i in range(n)])
+    for i, t in enumerate(values):
+        if not t >= 0:
+            raise design_error(
+                f"--tension[{i}]",
+                items[i].strip(),
+                "a tendon tension must be >= 0 (a tendon pulls or is slack, it cannot push)",
+                InputError,
+            )
+    return values
+
+
 def _lateral(sol) -> float:
     """Tip distance from the base tangent line (the straight reference axis), m."""
     import numpy as np
@@ -117,12 +146,20 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
 @click.option(
     "--tip-force",
     metavar="FX,FY,FZ",
-    help='Dead tip force in the world frame, e.g. "0,0,-1 N" (replaces the design\'s).',
+    help='Tip force in the design\'s tip frame (world, or body with [tip] frame = "body"), '
+    'e.g. "0,0,-1 N" (replaces the design\'s).',
 )
 @click.option(
     "--tip-moment",
     metavar="MX,MY,MZ",
-    help='Dead tip moment in the world frame, e.g. "0,5,0 N*mm".',
+    help='Tip moment in the design\'s tip frame, e.g. "0,5,0 N*mm".',
+)
+@click.option(
+    "--tension",
+    "-t",
+    metavar="T1,T2,...",
+    help="Tendon tension per tendon channel (>= 0), comma-separated, e.g. 2N,0 "
+    "(units required, zero needs none). Default: every tendon slack.",
 )
 @click.option(
     "--on-invalid",
@@ -141,7 +178,7 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
     help="Write the 3-D shape figure here (format from the suffix: .png, .pdf, .svg).",
 )
 @_handle_errors
-def solve(design, pressure, tip_force, tip_moment, on_invalid, as_json, plot_path):
+def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json, plot_path):
     """Static shape of DESIGN under the given chamber pressures."""
     from rich.table import Table
 
@@ -156,13 +193,22 @@ def solve(design, pressure, tip_force, tip_moment, on_invalid, as_json, plot_pat
     p = _parse_pressures(pressure, d)
     tf = None if tip_force is None else _parse_vector(tip_force, "force", "--tip-force", 3)
     tm = None if tip_moment is None else _parse_vector(tip_moment, "moment", "--tip-moment", 3)
+    tensions = _parse_tensions(tension, d)
     t0 = time.perf_counter()
     sol = solve_statics(
-        d, p, tip_force=tf, tip_moment=tm, on_unstable="ignore", on_invalid=on_invalid
+        d,
+        p,
+        tip_force=tf,
+        tip_moment=tm,
+        tensions=tensions,
+        on_unstable="ignore",
+        on_invalid=on_invalid,
     )
     elapsed = time.perf_counter() - t0
     notes = list(sol.violations)
-    if not sol.stable:
+    if sol.stable is None:
+        notes.append("stability not assessed (follower loads are not conservative)")
+    elif not sol.stable:
         notes.append(
             "the equilibrium is unstable: a small disturbance moves the rod away from it "
             "(above a buckling load, add a small lateral force to choose the side)"
@@ -177,12 +223,14 @@ def solve(design, pressure, tip_force, tip_moment, on_invalid, as_json, plot_pat
             "base_force_N": sol.base_force.tolist(),
             "base_moment_Nm": sol.base_moment.tolist(),
             "converged": bool(sol.converged),
-            "stable": bool(sol.stable),
+            "stable": None if sol.stable is None else bool(sol.stable),
             "violations": list(sol.violations),
             "iterations": int(sol.iterations),
             "residual": float(sol.residual),
             "shape": {"s_m": sol.s.tolist(), "position_m": sol.position.tolist()},
         }
+        if d.n_tendons:
+            out["tensions_N"] = [float(x) for x in sol.tensions]
         click.echo(json.dumps(out, indent=2))
     else:
         table = Table(title=f"{d.name}: static equilibrium", title_justify="left")
@@ -190,12 +238,16 @@ def solve(design, pressure, tip_force, tip_moment, on_invalid, as_json, plot_pat
         table.add_column("value", justify="right")
         table.add_column("unit")
         table.add_row(f"pressures p0..p{len(p) - 1}", _fmt_kpa(p), "kPa")
+        if len(sol.tensions):
+            t_all = sol.tensions
+            table.add_row(f"tensions t0..t{len(t_all) - 1}", _fmt_vec(t_all, 1.0, 3), "N")
         table.add_row("tip position (x, y, z)", _fmt_vec(sol.tip_position, 1e3, 3), "mm")
         table.add_row("tip tangent d3", _fmt_vec(sol.tip_rotation[:, 2], 1.0, 4), "-")
         table.add_row("base force", _fmt_vec(sol.base_force, 1.0, 4), "N")
         table.add_row("base moment", _fmt_vec(sol.base_moment, 1e3, 3), "N mm")
         table.add_row("converged", "yes" if sol.converged else "no", "")
-        table.add_row("stable", "yes" if sol.stable else "NO", "")
+        stable = "not assessed" if sol.stable is None else "yes" if sol.stable else "NO"
+        table.add_row("stable", stable, "")
         table.add_row("iterations", f"{sol.iterations}", "")
         table.add_row("residual (scaled)", f"{sol.residual:.2e}", "")
         table.add_row("solve time", f"{elapsed * 1e6:,.0f}", "us")

@@ -38,6 +38,14 @@ pub struct ChamberSpec {
     pub angle: f64,
     /// Pressure channel index.
     pub channel: usize,
+    /// Centroid distance at the section's end in m (a tapered section; `None`: `distance`
+    /// all along). The distance varies linearly in s.
+    #[serde(default)]
+    pub distance_end: Option<f64>,
+    /// Hole radius at the section's end in m (a tapered section; `None`: the start radius
+    /// all along). The radius varies linearly in s and the pressurised area with its square.
+    #[serde(default)]
+    pub radius_end: Option<f64>,
 }
 
 impl ChamberSpec {
@@ -53,6 +61,99 @@ impl ChamberSpec {
             self.distance * self.angle.sin(),
         ]
     }
+}
+
+/// A tendon routed through a section (Rucker and Webster, "Statics and dynamics of continuum
+/// robots with general tendon routing and external loading", IEEE T-RO 27(6), 2011). A tendon
+/// runs from the base to the end of the last section that lists it, where it is attached;
+/// every elastic section before that lists it too (its routing there). Its offset in the
+/// cross-section is (distance cos angle, distance sin angle) in (d1, d2), with distance and
+/// angle linear in s along the section (`*_end`: the values at the section's end; a helix
+/// has a changing angle). Frictionless: the tension is the same all along.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TendonSpec {
+    /// Tension channel index (the input `tensions[channel]`).
+    pub channel: usize,
+    /// Distance of the tendon from the centreline in m.
+    pub distance: f64,
+    /// Angle from d1 towards d2 in rad.
+    pub angle: f64,
+    #[serde(default)]
+    pub distance_end: Option<f64>,
+    #[serde(default)]
+    pub angle_end: Option<f64>,
+}
+
+impl TendonSpec {
+    /// (distance, angle) at the start and the end of a section.
+    pub fn ends(&self) -> ([f64; 2], [f64; 2]) {
+        (
+            [self.distance, self.distance_end.unwrap_or(self.distance)],
+            [self.angle, self.angle_end.unwrap_or(self.angle)],
+        )
+    }
+}
+
+/// The frame a tip or line load is given in: fixed in the world (a dead load) or in the
+/// body frame (d1, d2, d3) at its point of action (a follower load, which turns with the rod).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Frame {
+    #[default]
+    World,
+    Body,
+}
+
+fn e3() -> [f64; 3] {
+    [0.0, 0.0, 1.0]
+}
+
+/// The reference (stress-free) strains of a section: precurvature u* (bending about d1, d2
+/// and twist, 1/m) and pre-strain v* (shear, shear, stretch), body frame. The laws act on
+/// the strains relative to them (docs/scope.md, "Reference shape"). Constant, or a table in
+/// s interpolated by a not-a-knot cubic spline (C2, so RK4 stays fourth order).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceSpec {
+    /// Constant u*, 1/m.
+    #[serde(default)]
+    pub curvature: [f64; 3],
+    /// Constant v* (default (0, 0, 1): unsheared, unstretched).
+    #[serde(default = "e3")]
+    pub strain: [f64; 3],
+    /// Or: u* and v* at arc lengths from the section's start (0 ... length).
+    #[serde(default)]
+    pub table: Option<ReferenceTable>,
+}
+
+impl Default for ReferenceSpec {
+    fn default() -> Self {
+        ReferenceSpec {
+            curvature: [0.0; 3],
+            strain: e3(),
+            table: None,
+        }
+    }
+}
+
+impl ReferenceSpec {
+    /// The straight, unstrained reference of the plain rod.
+    pub fn is_straight(&self) -> bool {
+        *self == ReferenceSpec::default()
+    }
+}
+
+/// Reference strains tabulated along a section.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceTable {
+    /// Arc lengths from the section's start, m: strictly increasing from 0 to its length.
+    pub s: Vec<f64>,
+    /// u* at each s, 1/m.
+    pub curvature: Vec<[f64; 3]>,
+    /// v* at each s.
+    pub strain: Vec<[f64; 3]>,
 }
 
 /// Stiffnesses given directly instead of from geometry (paper 004 style). Any value left
@@ -139,6 +240,17 @@ pub struct SectionSpec {
     /// ... and of B_bt (bending, bending, torsion), N m^2 s. Give both or neither.
     #[serde(default)]
     pub damping_bt: Option<[f64; 3]>,
+    /// Reference shape (precurvature, pre-strain); straight when left out.
+    #[serde(default)]
+    pub reference: ReferenceSpec,
+    /// Outer radius at the section's end in m: a tapered section (cone, tentacle) whose
+    /// outer radius varies linearly from `outer_radius`; stiffness, weight and pressure
+    /// terms follow s.
+    #[serde(default)]
+    pub outer_radius_end: Option<f64>,
+    /// Tendons routed through this section.
+    #[serde(default)]
+    pub tendons: Vec<TendonSpec>,
 }
 
 /// Axial (stretch) law of a section.
@@ -237,7 +349,7 @@ pub struct MountingSpec {
     pub gravity: [f64; 3],
 }
 
-/// Rigid tip body and dead tip loads (world frame).
+/// Rigid tip body and tip loads (world frame, or the tip's body frame: `frame`).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TipSpec {
@@ -247,16 +359,20 @@ pub struct TipSpec {
     /// Its centre of mass in the tip frame (d1, d2, d3), m.
     #[serde(default)]
     pub com_offset: [f64; 3],
-    /// Dead force at the tip, world frame, N.
+    /// Force at the tip, N (in `frame`).
     #[serde(default)]
     pub force: [f64; 3],
-    /// Dead moment at the tip, world frame, N m.
+    /// Moment at the tip, N m (in `frame`).
     #[serde(default)]
     pub moment: [f64; 3],
     /// Principal moments of inertia of the tip body about its centre of mass, along the
     /// tip frame's axes (d1, d2, d3), kg m^2 (dynamics only).
     #[serde(default)]
     pub inertia: [f64; 3],
+    /// Frame of `force` and `moment`: world (dead loads) or the tip's body frame (follower
+    /// loads).
+    #[serde(default)]
+    pub frame: Frame,
 }
 
 /// Settings of the dynamic model (paper 000 eq. 8 and Sec. III-A).
@@ -297,11 +413,13 @@ impl DynamicsSpec {
     }
 }
 
-/// Distributed dead line load on one section, world frame.
+/// Distributed line load on one section: dead (world frame) or follower (body frame).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LineLoadSpec {
     pub section: usize,
+    #[serde(default)]
+    pub frame: Frame,
     /// Force per unit reference length, N/m.
     #[serde(default)]
     pub force_per_length: [f64; 3],
@@ -626,49 +744,338 @@ impl SectionSpec {
             }
             non_negative(&g("distance"), c.distance)?;
             finite(&g("angle"), c.angle)?;
-            let r = c.hole_radius();
-            // Containment uses the centroid with the section's chamber offset.
-            let [cx, cy] = self.chamber_centroid(k);
-            let dist = cx.hypot(cy);
-            if let Some(ro) = self.outer_radius {
-                if dist + r > ro * (1.0 + GEOMETRY_SLACK) {
+            if let Some(d) = c.distance_end {
+                non_negative(&g("distance_end"), d)?;
+            }
+            if let Some(r) = c.radius_end {
+                positive(&g("radius_end"), r)?;
+            }
+            // Geometry at the relative position t along the section (0: start, 1: end):
+            // distances and radii are linear in t, so containment (convex in t) holds
+            // everywhere if it holds at both ends, and the squared clearances to the bore and
+            // between chambers are quadratics in t whose minimum is found exactly.
+            let at = |k: usize, t: f64| -> ([f64; 2], f64) {
+                let ([d0, d1], [r0, r1]) = self.chamber_ends(k);
+                let d = d0 + t * (d1 - d0);
+                let a = self.chambers[k].angle;
+                let o = self.law.chamber_offset;
+                ([o[0] + d * a.cos(), o[1] + d * a.sin()], r0 + t * (r1 - r0))
+            };
+            let ends = |t: f64| {
+                if t == 0.0 {
+                    ""
+                } else {
+                    " at the section's end"
+                }
+            };
+            for t in [0.0, 1.0] {
+                if t == 1.0 && !self.is_tapered() {
+                    break;
+                }
+                let ([cx, cy], r) = at(k, t);
+                let dist = cx.hypot(cy);
+                let outer = self
+                    .outer_radius
+                    .map(|ro| ro + t * (self.outer_radius_end.unwrap_or(ro) - ro));
+                let key = if t == 0.0 { "distance" } else { "distance_end" };
+                if let Some(ro) = outer {
+                    if dist + r > ro * (1.0 + GEOMETRY_SLACK) {
+                        return Err(SoftrodError::invalid(
+                            g(key),
+                            c.distance_end.filter(|_| t == 1.0).unwrap_or(c.distance),
+                            format!(
+                                "chamber lies outside the section{}: distance (with chamber_offset) + radius = {:.6e} m exceeds outer_radius = {ro:.6e} m",
+                                ends(t),
+                                dist + r
+                            ),
+                        ));
+                    }
+                }
+            }
+            if self.bore_radius > 0.0 {
+                let (t, q) = quadratic_min(|t| {
+                    let ([cx, cy], r) = at(k, t);
+                    cx * cx + cy * cy - (r + self.bore_radius).powi(2)
+                });
+                let ([cx, cy], r) = at(k, t);
+                let dist = cx.hypot(cy);
+                if q < 0.0 && dist - r < self.bore_radius * (1.0 - GEOMETRY_SLACK) {
                     return Err(SoftrodError::invalid(
                         g("distance"),
                         c.distance,
                         format!(
-                            "chamber lies outside the section: distance (with chamber_offset) + radius = {:.6e} m exceeds outer_radius = {ro:.6e} m",
-                            dist + r
+                            "chamber overlaps the bore{}: distance (with chamber_offset) - radius = {:.6e} m is less than bore_radius = {:.6e} m",
+                            if t == 0.0 { String::new() } else { format!(" at {:.4} of the section's length", t) },
+                            dist - r,
+                            self.bore_radius
                         ),
                     ));
                 }
             }
-            if self.bore_radius > 0.0 && dist - r < self.bore_radius * (1.0 - GEOMETRY_SLACK) {
-                return Err(SoftrodError::invalid(
-                    g("distance"),
-                    c.distance,
-                    format!(
-                        "chamber overlaps the bore: distance (with chamber_offset) - radius = {:.6e} m is less than bore_radius = {:.6e} m",
-                        dist - r,
-                        self.bore_radius
-                    ),
-                ));
-            }
-            for (j, o) in self.chambers.iter().enumerate().take(k) {
-                let (a, b) = (c.centroid(), o.centroid());
+            for j in 0..k {
+                let (t, _) = quadratic_min(|t| {
+                    let ((a, ra), (b, rb)) = (at(k, t), at(j, t));
+                    (a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) - (ra + rb).powi(2)
+                });
+                let ((a, ra), (b, rb)) = (at(k, t), at(j, t));
                 let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt();
-                let min = r + o.hole_radius();
+                let min = ra + rb;
                 if d < min * (1.0 - GEOMETRY_SLACK) {
                     return Err(SoftrodError::invalid(
                         g("angle"),
                         c.angle,
                         format!(
-                            "chamber overlaps chambers[{j}]: centre distance {d:.6e} m is less than the sum of radii {min:.6e} m"
+                            "chamber overlaps chambers[{j}]{}: centre distance {d:.6e} m is less than the sum of radii {min:.6e} m",
+                            if t == 0.0 { String::new() } else { format!(" at {:.4} of the section's length", t) },
                         ),
                     ));
                 }
             }
         }
+        self.validate_reference(i)?;
+        self.validate_taper(i)?;
+        self.validate_tendons(i)?;
         Ok(())
+    }
+
+    /// The section's properties change along s (taper, chamber or reference tables).
+    pub fn is_varying(&self) -> bool {
+        self.outer_radius_end.is_some()
+            || self.reference.table.is_some()
+            || self
+                .chambers
+                .iter()
+                .any(|c| c.distance_end.is_some() || c.radius_end.is_some())
+    }
+
+    /// The cross-section changes along s (outer radius or chambers).
+    pub fn is_tapered(&self) -> bool {
+        self.outer_radius_end.is_some()
+            || self
+                .chambers
+                .iter()
+                .any(|c| c.distance_end.is_some() || c.radius_end.is_some())
+    }
+
+    fn validate_reference(&self, i: usize) -> Result<()> {
+        let f = |k: &str| format!("sections[{i}].reference.{k}");
+        let r = &self.reference;
+        if r.is_straight() {
+            return Ok(());
+        }
+        if self.rigid {
+            return Err(SoftrodError::invalid(
+                format!("sections[{i}].reference"),
+                "set",
+                "a rigid section is carried straight through; give the reference shape to an elastic section",
+            ));
+        }
+        finite3(&f("curvature"), &r.curvature)?;
+        finite3(&f("strain"), &r.strain)?;
+        let Some(t) = &r.table else {
+            return check_reference_stretch(&f("strain"), &r.strain);
+        };
+        if r.curvature != [0.0; 3] || r.strain != e3() {
+            return Err(SoftrodError::invalid(
+                f("table"),
+                "set",
+                "give a constant curvature/strain or a table, not both",
+            ));
+        }
+        let n = t.s.len();
+        if n < 2 || t.curvature.len() != n || t.strain.len() != n {
+            return Err(SoftrodError::invalid(
+                f("table.s"),
+                format!(
+                    "{n} arc lengths, {} curvatures, {} strains",
+                    t.curvature.len(),
+                    t.strain.len()
+                ),
+                "a reference table needs at least 2 points and one curvature and one strain per point",
+            ));
+        }
+        for (k, x) in t.s.iter().enumerate() {
+            finite(&f(&format!("table.s[{k}]")), *x)?;
+            if k > 0 && *x <= t.s[k - 1] {
+                return Err(SoftrodError::invalid(
+                    f(&format!("table.s[{k}]")),
+                    x,
+                    "table arc lengths must increase strictly",
+                ));
+            }
+            finite3(&f(&format!("table.curvature[{k}]")), &t.curvature[k])?;
+            finite3(&f(&format!("table.strain[{k}]")), &t.strain[k])?;
+            check_reference_stretch(&f(&format!("table.strain[{k}]")), &t.strain[k])?;
+        }
+        let slack = GEOMETRY_SLACK * self.length;
+        if t.s[0].abs() > slack || (t.s[n - 1] - self.length).abs() > slack {
+            return Err(SoftrodError::invalid(
+                f("table.s"),
+                format!("[{}, ..., {}] m", t.s[0], t.s[n - 1]),
+                format!(
+                    "must run from 0 to the section's length {} m (arc length from the section's start)",
+                    self.length
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn validate_taper(&self, i: usize) -> Result<()> {
+        let f = |k: &str| format!("sections[{i}].{k}");
+        if !self.is_tapered() {
+            return Ok(());
+        }
+        let key = if self.outer_radius_end.is_some() {
+            f("outer_radius_end")
+        } else {
+            f("chambers")
+        };
+        if self.rigid {
+            return Err(SoftrodError::invalid(
+                key,
+                "set",
+                "a rigid section has no cross-section law to taper",
+            ));
+        }
+        if matches!(self.law.axial, AxialSpec::Ogden { .. }) {
+            return Err(SoftrodError::invalid(
+                key,
+                "set",
+                "a tapered cross-section with axial = \"ogden\" is not supported (the carried stretch assumes a uniform section); use the linear or table law, or split the section",
+            ));
+        }
+        if let Some(re) = self.outer_radius_end {
+            positive(&f("outer_radius_end"), re)?;
+            let st = self.given_stiffness();
+            let given = st.ea.is_some()
+                || st.ga.is_some()
+                || st.ei1.is_some()
+                || st.ei2.is_some()
+                || st.gj.is_some()
+                || matches!(self.law.axial, AxialSpec::Table { .. });
+            if self.outer_radius.is_none() || self.material.is_none() || given {
+                return Err(SoftrodError::invalid(
+                    f("outer_radius_end"),
+                    re,
+                    "a tapered section takes its stiffness from its geometry: give outer_radius and material, and no EA, GA, EI, GJ, partition or EA(F) table",
+                ));
+            }
+            if self.mass.is_some() {
+                return Err(SoftrodError::invalid(
+                    f("mass"),
+                    "set",
+                    "a tapered section's weight follows its cross-section (density times area): leave mass out",
+                ));
+            }
+            if self.bore_radius >= re {
+                return Err(SoftrodError::invalid(
+                    f("bore_radius"),
+                    self.bore_radius,
+                    format!("must be smaller than outer_radius_end = {re}"),
+                ));
+            }
+        }
+        for (k, c) in self.chambers.iter().enumerate() {
+            let g = |key: &str| format!("sections[{i}].chambers[{k}].{key}");
+            if let Some(d) = c.distance_end {
+                non_negative(&g("distance_end"), d)?;
+            }
+            if let Some(r) = c.radius_end {
+                positive(&g("radius_end"), r)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn validate_tendons(&self, i: usize) -> Result<()> {
+        if !self.tendons.is_empty() && !matches!(self.law.axial, AxialSpec::Linear) {
+            return Err(SoftrodError::invalid(
+                format!("sections[{i}].tendons"),
+                format!("{} tendons", self.tendons.len()),
+                "tendons are supported with the linear axial law (with stretch-dependent bending, swelling, offsets and stiffness maps), not with axial = \"ogden\" or \"table\"",
+            ));
+        }
+        for (k, t) in self.tendons.iter().enumerate() {
+            let g = |key: &str| format!("sections[{i}].tendons[{k}].{key}");
+            if self.rigid {
+                return Err(SoftrodError::invalid(
+                    format!("sections[{i}].tendons"),
+                    self.tendons.len(),
+                    "a rigid section passes every tendon through unchanged: list tendons in elastic sections only",
+                ));
+            }
+            non_negative(&g("distance"), t.distance)?;
+            finite(&g("angle"), t.angle)?;
+            if let Some(d) = t.distance_end {
+                non_negative(&g("distance_end"), d)?;
+            }
+            if let Some(a) = t.angle_end {
+                finite(&g("angle_end"), a)?;
+            }
+            if let Some(ro) = self.outer_radius {
+                let ([d0, d1], _) = t.ends();
+                let r1 = self.outer_radius_end.unwrap_or(ro);
+                for (d, r, key) in [(d0, ro, "distance"), (d1, r1, "distance_end")] {
+                    if d > r * (1.0 + GEOMETRY_SLACK) {
+                        return Err(SoftrodError::invalid(
+                            g(key),
+                            d,
+                            format!("the tendon lies outside the section (outer radius {r:.6e} m there)"),
+                        ));
+                    }
+                }
+            }
+            if self.tendons[..k].iter().any(|o| o.channel == t.channel) {
+                return Err(SoftrodError::invalid(
+                    g("channel"),
+                    t.channel,
+                    "a section lists each tendon once (two tendons on one channel would share one tension: give them their own channels)",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Chamber `k`'s (distance, hole radius) at the start and end of the section.
+    pub fn chamber_ends(&self, k: usize) -> ([f64; 2], [f64; 2]) {
+        let c = &self.chambers[k];
+        let r = c.hole_radius();
+        (
+            [c.distance, c.distance_end.unwrap_or(c.distance)],
+            [r, c.radius_end.unwrap_or(r)],
+        )
+    }
+}
+
+/// The minimum over t in [0, 1] of a quadratic q (from its values at 0, 1/2 and 1), and where.
+fn quadratic_min(q: impl Fn(f64) -> f64) -> (f64, f64) {
+    let (q0, qh, q1) = (q(0.0), q(0.5), q(1.0));
+    let a = 2.0 * (q1 - 2.0 * qh + q0);
+    let b = q1 - q0 - a;
+    let mut best = if q1 < q0 { (1.0, q1) } else { (0.0, q0) };
+    if a > 0.0 {
+        let t = -b / (2.0 * a);
+        if t > 0.0 && t < 1.0 {
+            let v = q(t);
+            if v < best.1 {
+                best = (t, v);
+            }
+        }
+    }
+    best
+}
+
+/// A reference stretch v3* > 0 (a rod of positive length).
+fn check_reference_stretch(field: &str, v: &[f64; 3]) -> Result<()> {
+    if v[2] > 0.0 {
+        Ok(())
+    } else {
+        Err(SoftrodError::invalid(
+            format!("{field}[2]"),
+            v[2],
+            "the reference stretch v3* must be > 0",
+        ))
     }
 }
 
@@ -682,6 +1089,31 @@ impl DesignSpec {
             .unwrap_or(0)
     }
 
+    /// Number of tendon (tension) channels: one past the largest tendon channel index.
+    pub fn n_tendons(&self) -> usize {
+        self.sections
+            .iter()
+            .flat_map(|s| s.tendons.iter().map(|t| t.channel.saturating_add(1)))
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Index of the last section that lists tendon `channel` (where it is attached).
+    pub fn tendon_end(&self, channel: usize) -> Option<usize> {
+        self.sections
+            .iter()
+            .rposition(|s| s.tendons.iter().any(|t| t.channel == channel))
+    }
+
+    /// A load of the design is a follower load (body frame) and not zero.
+    pub fn has_follower_line_loads(&self) -> bool {
+        self.loads.iter().any(|l| {
+            l.frame == Frame::Body
+                && (l.force_per_length.iter().any(|x| *x != 0.0)
+                    || l.moment_per_length.iter().any(|x| *x != 0.0))
+        })
+    }
+
     /// Total reference length in m.
     pub fn length(&self) -> f64 {
         self.sections.iter().map(|s| s.length).sum()
@@ -692,7 +1124,7 @@ impl DesignSpec {
     pub fn check_sizes(&self) -> Result<()> {
         use crate::validity::{
             MAX_CHAMBERS_PER_SECTION, MAX_CHANNELS, MAX_LINE_LOADS, MAX_SECTIONS,
-            MAX_STEPS_PER_SECTION, MAX_TABLE_POINTS, MAX_TOTAL_STEPS,
+            MAX_STEPS_PER_SECTION, MAX_TABLE_POINTS, MAX_TENDONS, MAX_TOTAL_STEPS,
         };
         if self.sections.len() > MAX_SECTIONS {
             return Err(SoftrodError::invalid(
@@ -723,6 +1155,32 @@ impl DesignSpec {
                         format!("sections[{i}].chambers[{k}].channel"),
                         c.channel,
                         format!("channel indices must lie in 0..{MAX_CHANNELS} (at most {MAX_CHANNELS} pressure channels)"),
+                    ));
+                }
+            }
+            if s.tendons.len() > MAX_TENDONS {
+                return Err(SoftrodError::invalid(
+                    format!("sections[{i}].tendons"),
+                    format!("{} tendons", s.tendons.len()),
+                    format!("a section may have at most {MAX_TENDONS} tendons"),
+                ));
+            }
+            for (k, t) in s.tendons.iter().enumerate() {
+                if t.channel >= MAX_TENDONS {
+                    return Err(SoftrodError::invalid(
+                        format!("sections[{i}].tendons[{k}].channel"),
+                        t.channel,
+                        format!("tendon channel indices must lie in 0..{MAX_TENDONS} (at most {MAX_TENDONS} tendons)"),
+                    ));
+                }
+            }
+            if let Some(t) = &s.reference.table {
+                let n = t.s.len().max(t.curvature.len()).max(t.strain.len());
+                if n > MAX_TABLE_POINTS {
+                    return Err(SoftrodError::invalid(
+                        format!("sections[{i}].reference.table.s"),
+                        format!("{n} points"),
+                        format!("a reference table may have at most {MAX_TABLE_POINTS} points"),
                     ));
                 }
             }
@@ -861,8 +1319,62 @@ impl DesignSpec {
                 format!("channel indices must be contiguous from 0: channel {missing} is unused but {} channels are declared", n),
             ));
         }
+        self.validate_tendon_routes()
+    }
+
+    /// Tendon channels numbered 0, 1, ... without gaps, and every tendon routed through
+    /// every elastic section from the base to its attachment (a tendon is pulled at the
+    /// base: it cannot skip a section).
+    fn validate_tendon_routes(&self) -> Result<()> {
+        for c in 0..self.n_tendons() {
+            let Some(end) = self.tendon_end(c) else {
+                return Err(SoftrodError::invalid(
+                    "tendons.channel",
+                    c,
+                    format!(
+                        "tendon channels must be contiguous from 0: channel {c} is unused but {} tendon channels are declared",
+                        self.n_tendons()
+                    ),
+                ));
+            };
+            for (i, s) in self.sections[..end].iter().enumerate() {
+                if !s.rigid && !s.tendons.iter().any(|t| t.channel == c) {
+                    return Err(SoftrodError::invalid(
+                        format!("sections[{i}].tendons"),
+                        format!("no tendon on channel {c}"),
+                        format!(
+                            "tendon {c} is attached at the end of sections[{end}] ({}) and runs from the base: list its routing in every elastic section before that too",
+                            self.sections[end].name
+                        ),
+                    ));
+                }
+            }
+        }
         Ok(())
     }
+}
+
+/// Check a tension vector against the design: right length, finite, >= 0 (a tendon can
+/// only pull; a slack tendon has tension 0).
+pub fn validate_tensions(tensions: &[f64], n_tendons: usize) -> Result<()> {
+    if tensions.len() != n_tendons {
+        return Err(SoftrodError::invalid(
+            "tensions",
+            format!("{} values", tensions.len()),
+            format!("the design has {n_tendons} tendons; give one tension (N) per tendon channel"),
+        ));
+    }
+    for (i, &t) in tensions.iter().enumerate() {
+        finite(&format!("tensions[{i}]"), t)?;
+        if t < 0.0 {
+            return Err(SoftrodError::invalid(
+                format!("tensions[{i}]"),
+                t,
+                "a tendon can only pull: tension must be >= 0 (0 is a slack tendon)",
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Check a pressure vector against the design: right length, finite, above vacuum.

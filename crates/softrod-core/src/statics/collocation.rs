@@ -31,6 +31,7 @@ pub fn static_models(rod: &Rod, loads: &crate::ode::Loads, factor: f64) -> Vec<S
                 rod,
                 i,
                 &loads.pressures,
+                &loads.tensions,
                 &rod.gravity,
                 factor,
                 &loads.stiffness_scale,

@@ -1,0 +1,261 @@
+//! Tendons: routing in the cross-section and the constitutive law with tendon tensions
+//! (docs/scope.md, "Tendons"; Rucker and Webster, "Statics and dynamics of continuum robots
+//! with general tendon routing and external loading", IEEE T-RO 27(6):1033-1044, 2011).
+//!
+//! A frictionless tendon i at the body-frame offset r_i(s) = (x_i, y_i, 0) carries the same
+//! tension tau_i all along. Rucker and Webster put its pull on the rod as a distributed
+//! load along the routing plus a point load at the termination. Here, as for the pressure
+//! (paper 002 eqs. 6-7), the balance laws carry the total internal force and moment of the
+//! rod *with* its tendons: the tendon crossing a cut at s adds its tension to the cut's
+//! force,
+//!   n = n_m - P d3 + sum_i tau_i R t_i,      m = m_m - sum_k rho_k x (p_k A_k d3)
+//!                                              + sum_i R r_i x (tau_i R t_i),
+//! with t_i = q_i / |q_i| the tendon's unit tangent in the body frame,
+//! q_i = v + u x r_i + r_i'. The tendons' loads on the rod (the distributed one and the
+//! one at the termination) are then internal: n' + f = 0 and m' + r' x n + l = 0 hold with
+//! the external loads only, n(0) is still known from the dead loads, and n and m are
+//! continuous where a tendon ends (its point load there is what removes its tension from
+//! the cut). Both formulations give the same equilibria; this one keeps the balance laws and
+//! the boundary conditions of the rod without tendons.
+//!
+//! The price is an implicit law: the tendon tangents depend on the strains. In body
+//! coordinates, with w = (v, u) and B_i = [I, -[r_i]x] (so that q_i = B_i w + r_i'),
+//!   w = S(nb - F_t(w), mb - M_t(w)),   (F_t, M_t) = sum_i tau_i B_i^T t_i(w),
+//! where S is the section's law without tendons (strains from the material force and
+//! moment, pressure and reference strains included). This is the stationarity condition of
+//! a strictly convex function for the linear law (the elastic energy plus tau_i |q_i|, the
+//! work of the tension on the tendon's length), so it has one solution. It is solved by
+//! Newton's method in f64 with the exact Jacobian
+//!   J = I + S' sum_i (tau_i / |q_i|) B_i^T (I - t_i t_i^T) B_i,
+//! and dual parts (exact first derivatives) by one linearised step at the solution:
+//! w_D = w* - J^-1 R_D(w*), the implicit function theorem.
+
+use crate::spec::TendonSpec;
+use nalgebra::{SMatrix, SVector};
+
+/// Compiled routing of one tendon in one section: distance and angle linear in s.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Route {
+    pub channel: usize,
+    distance: [f64; 2],
+    angle: [f64; 2],
+    length: f64,
+    /// The offset of a straight tendon (constant distance and angle).
+    fixed: Option<[f64; 2]>,
+}
+
+impl Route {
+    pub fn new(t: &TendonSpec, length: f64) -> Self {
+        let (distance, angle) = t.ends();
+        let fixed = (distance[0] == distance[1] && angle[0] == angle[1]).then(|| {
+            let (sn, cs) = angle[0].sin_cos();
+            [distance[0] * cs, distance[0] * sn]
+        });
+        Route {
+            channel: t.channel,
+            distance,
+            angle,
+            length,
+            fixed,
+        }
+    }
+
+    /// Largest distance from the centreline along the section, m.
+    pub fn max_distance(&self) -> f64 {
+        self.distance[0].max(self.distance[1])
+    }
+
+    /// Offset r = (x, y) in (d1, d2), m, and its derivative dr/ds at the local arc length s.
+    #[inline]
+    pub fn at(&self, s: f64) -> ([f64; 2], [f64; 2]) {
+        if let Some(r) = self.fixed {
+            return (r, [0.0; 2]);
+        }
+        let t = s / self.length;
+        let dd = (self.distance[1] - self.distance[0]) / self.length;
+        let da = (self.angle[1] - self.angle[0]) / self.length;
+        let d = self.distance[0] + t * (self.distance[1] - self.distance[0]);
+        let a = self.angle[0] + t * (self.angle[1] - self.angle[0]);
+        let (sn, cs) = a.sin_cos();
+        (
+            [d * cs, d * sn],
+            [dd * cs - d * da * sn, dd * sn + d * da * cs],
+        )
+    }
+}
+
+/// One tendon at one arc length: tension (f64 value), offset and its derivative.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct TendonPoint {
+    pub tension: f64,
+    pub r: [f64; 2],
+    pub dr: [f64; 2],
+}
+
+pub(crate) type Mat6 = SMatrix<f64, 6, 6>;
+pub(crate) type Vec6 = SVector<f64, 6>;
+
+/// Tangent t = q / |q| of a tendon at strains w and |q|.
+#[inline]
+pub(crate) fn tangent(w: &[f64; 6], p: &TendonPoint) -> ([f64; 3], f64) {
+    let (x, y) = (p.r[0], p.r[1]);
+    // u x r with r = (x, y, 0): (-u3 y, u3 x, u1 y - u2 x)
+    let q = [
+        w[0] - w[5] * y + p.dr[0],
+        w[1] + w[5] * x + p.dr[1],
+        w[2] + w[3] * y - w[4] * x,
+    ];
+    let len = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+    ([q[0] / len, q[1] / len, q[2] / len], len)
+}
+
+/// The tendons' total force and moment in the body frame, (F_t, M_t) = sum tau B^T t,
+/// for given unit tangents (B^T t = (t, r x t)).
+#[inline]
+pub(crate) fn load(tangents: &[([f64; 3], f64)], points: &[TendonPoint]) -> [f64; 6] {
+    let mut out = [0.0; 6];
+    for ((t, _), p) in tangents.iter().zip(points) {
+        let (x, y) = (p.r[0], p.r[1]);
+        let tau = p.tension;
+        out[0] += tau * t[0];
+        out[1] += tau * t[1];
+        out[2] += tau * t[2];
+        // r x t = (y t3, -x t3, x t2 - y t1)
+        out[3] += tau * y * t[2];
+        out[4] -= tau * x * t[2];
+        out[5] += tau * (x * t[1] - y * t[0]);
+    }
+    out
+}
+
+/// dT/dw = sum_i (tau_i / |q_i|) B_i^T (I - t_i t_i^T) B_i at tangents t_i and |q_i|.
+pub(crate) fn load_jacobian(tangents: &[([f64; 3], f64)], points: &[TendonPoint]) -> Mat6 {
+    let mut m = Mat6::zeros();
+    for ((t, len), p) in tangents.iter().zip(points) {
+        let c = p.tension / len;
+        if c == 0.0 {
+            continue;
+        }
+        let (x, y) = (p.r[0], p.r[1]);
+        // B = [I, -[r]x]: q = B w; -[r]x u = u x r = (-y u3, x u3, y u1 - x u2).
+        let mut b = SMatrix::<f64, 3, 6>::zeros();
+        for k in 0..3 {
+            b[(k, k)] = 1.0;
+        }
+        b[(0, 5)] = -y;
+        b[(1, 5)] = x;
+        b[(2, 3)] = y;
+        b[(2, 4)] = -x;
+        let tv = nalgebra::Vector3::new(t[0], t[1], t[2]);
+        let proj = nalgebra::Matrix3::identity() - tv * tv.transpose();
+        m += (b.transpose() * proj * b) * c;
+    }
+    m
+}
+
+/// J_K = K + sum_i (tau_i / |q_i|) B_i^T (I - t_i t_i^T) B_i for the linear law, K =
+/// diag(K_se) + K_bt: symmetric positive definite (the Hessian of the convex potential).
+/// B_i^T P B_i written out: B_i's columns are e1, e2, e3, y e3, -x e3, (-y, x, 0).
+pub(crate) fn stiffness_with_tendons(
+    k_se: &[f64; 3],
+    k_bt: &[[f64; 3]; 3],
+    tangents: &[([f64; 3], f64)],
+    points: &[TendonPoint],
+) -> [[f64; 6]; 6] {
+    let mut j = [[0.0; 6]; 6];
+    for a in 0..3 {
+        j[a][a] = k_se[a];
+        for b in 0..3 {
+            j[3 + a][3 + b] = k_bt[a][b];
+        }
+    }
+    for ((t, len), p) in tangents.iter().zip(points) {
+        let c = p.tension / len;
+        if c == 0.0 {
+            continue;
+        }
+        let (x, y) = (p.r[0], p.r[1]);
+        // P = I - t t^T
+        let pm = |a: usize, b: usize| (if a == b { 1.0 } else { 0.0 }) - t[a] * t[b];
+        let p5 = |a: usize| -y * pm(a, 0) + x * pm(a, 1); // (P b5)_a
+        let col: [[f64; 3]; 6] = [
+            [pm(0, 0), pm(1, 0), pm(2, 0)],
+            [pm(0, 1), pm(1, 1), pm(2, 1)],
+            [pm(0, 2), pm(1, 2), pm(2, 2)],
+            [y * pm(0, 2), y * pm(1, 2), y * pm(2, 2)],
+            [-x * pm(0, 2), -x * pm(1, 2), -x * pm(2, 2)],
+            [p5(0), p5(1), p5(2)],
+        ];
+        // b_j^T (P b_k): b_0..b_2 unit vectors, b_3 = y e3, b_4 = -x e3, b_5 = (-y, x, 0).
+        let dot = |jdx: usize, v: &[f64; 3]| match jdx {
+            0..=2 => v[jdx],
+            3 => y * v[2],
+            4 => -x * v[2],
+            _ => -y * v[0] + x * v[1],
+        };
+        for a in 0..6 {
+            for b in a..6 {
+                let e = c * dot(a, &col[b]);
+                j[a][b] += e;
+                if a != b {
+                    j[b][a] += e;
+                }
+            }
+        }
+    }
+    j
+}
+
+/// LDL^T factors of a symmetric positive definite 6 x 6 matrix.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Ldl6 {
+    l: [[f64; 6]; 6],
+    d: [f64; 6],
+}
+
+impl Ldl6 {
+    /// None unless the matrix is positive definite (all pivots > 0 and finite).
+    pub(crate) fn new(a: &[[f64; 6]; 6]) -> Option<Self> {
+        let mut l = [[0.0; 6]; 6];
+        let mut d = [0.0; 6];
+        for j in 0..6 {
+            let mut dj = a[j][j];
+            for k in 0..j {
+                dj -= l[j][k] * l[j][k] * d[k];
+            }
+            if !(dj > 0.0 && dj.is_finite()) {
+                return None;
+            }
+            d[j] = dj;
+            l[j][j] = 1.0;
+            for i in j + 1..6 {
+                let mut v = a[i][j];
+                for k in 0..j {
+                    v -= l[i][k] * l[j][k] * d[k];
+                }
+                l[i][j] = v / dj;
+            }
+        }
+        Some(Ldl6 { l, d })
+    }
+
+    /// Solve A x = b for a right-hand side in any scalar (f64 factors).
+    #[inline]
+    pub(crate) fn solve<D: crate::jet::RodScalar>(&self, b: &[D; 6]) -> [D; 6] {
+        let mut x = *b;
+        for i in 0..6 {
+            for k in 0..i {
+                x[i] -= x[k] * self.l[i][k];
+            }
+        }
+        for i in 0..6 {
+            x[i] = x[i] * (1.0 / self.d[i]);
+        }
+        for i in (0..6).rev() {
+            for k in i + 1..6 {
+                x[i] -= x[k] * self.l[k][i];
+            }
+        }
+        x
+    }
+}
