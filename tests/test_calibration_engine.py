@@ -24,9 +24,16 @@ from static_fit_cases import CASES, run_case
 HERE = Path(__file__).resolve().parent
 
 #: The engine must reproduce the former fits to this (issue 19). The optimiser takes the
-#: same steps on the same residuals, so values agree bitwise and standard errors to
-#: round-off (measured: at most 6e-16).
+#: same steps on the same residuals, so values agreed bitwise and standard errors to
+#: round-off (measured: at most 6e-16); since the core's integrator was restructured
+#: (tapered sections, reference shapes) the residuals differ at round-off (1e-14 measured).
 SAME = 1e-9
+#: Nelder-Mead stops once its simplex spans xatol = 1e-8 in log theta: a round-off change
+#: of the cost moves where it stops anywhere within that (measured after the integrator's
+#: restructuring: 1.1e-8 on the values, 2.1e-8 on the standard errors taken there, 121
+#: instead of 127 evaluations). Its values are compared at 5 x xatol; the cost, flat at the
+#: optimum, still to SAME.
+SIMPLEX = 5e-8
 
 
 @pytest.mark.parametrize("case", CASES)
@@ -36,10 +43,12 @@ def test_static_fits_match_the_former_engine(case):
         warnings.simplefilter("ignore", CalibrationWarning)
         res = run_case(case)
     assert res.names == ref["names"]
-    np.testing.assert_allclose(res.values, ref["values"], rtol=SAME, atol=0)
-    np.testing.assert_allclose(res.std_errors, ref["std_errors"], rtol=SAME, atol=0)
+    rtol = SIMPLEX if case == "nelder_mead" else SAME
+    np.testing.assert_allclose(res.values, ref["values"], rtol=rtol, atol=0)
+    np.testing.assert_allclose(res.std_errors, ref["std_errors"], rtol=rtol, atol=0)
     assert res.cost_m2 == pytest.approx(ref["cost_m2"], rel=SAME)
-    assert res.evaluations == ref["evaluations"]
+    if case != "nelder_mead":  # the simplex's path follows the round-off
+        assert res.evaluations == ref["evaluations"]
 
 
 # --- identifiability without a pair list ----------------------------------------------------
