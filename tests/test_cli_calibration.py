@@ -104,8 +104,9 @@ def test_calibrate_recovers_c_b_and_writes_design_and_report(run, case, tmp_path
     assert result.exit_code == 0, result.output
     assert result.stderr == ""  # no terminal: no progress line, and no warnings here
     text = flat(result.stdout)
-    assert "calibrate c_b of paper002_M3_vertical on d.csv (SYNTHETIC): 15 samples" in text
-    assert "calibrated parameters" in text and "tip errors" in text
+    header = "calibrate c_b of paper002_M3_vertical (cosserat) on d.csv (SYNTHETIC): 15 samples"
+    assert header in text
+    assert "calibrated parameters" in text and "position errors" in text
     assert f"wrote {out}" in text and f"wrote {report}" in text
     assert "warning:" not in text
     # No warnings, and the rules it was judged by (docs/calibration.md).
@@ -154,7 +155,7 @@ def test_calibrate_json_is_clean_and_matches_the_fit(run, case):
     )
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)  # nothing but JSON on stdout
-    assert set(data) == {"parameters", "errors", "warnings"}
+    assert set(data) == {"model", "dynamic", "parameters", "errors", "warnings"}
     assert result.stderr == ""
     params = {p["parameter"]: p for p in data["parameters"]}
     assert params["c_b"]["value"] == pytest.approx(case["c_b"], rel=RECOVERY_RTOL)

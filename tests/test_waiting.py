@@ -97,11 +97,12 @@ def test_quiet_leaves_out_notes_and_verbose_logs(run, tmp_path):
 def test_verbose_shows_the_steps_of_a_fit(run):
     res = run("-v", "calibrate", SPA, "spa130_synthetic", "--params", "c_b", "--json")
     assert res.exit_code == 0, res.output
-    assert "softrod.calibration.fit: calibrate spa_three_chamber_130mm: c_b on 216" in res.stderr
+    logged = "softrod.calibration.fit: calibrate spa_three_chamber_130mm (cosserat): c_b on 216"
+    assert logged in res.stderr
     # --json keeps stdout pure JSON whatever the log level.
     import json
 
-    assert set(json.loads(res.stdout)) == {"parameters", "errors", "warnings"}
+    assert set(json.loads(res.stdout)) == {"model", "dynamic", "parameters", "errors", "warnings"}
 
 
 def test_library_logger_is_quiet_by_default(caplog):

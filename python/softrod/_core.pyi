@@ -85,6 +85,7 @@ class Rod:
         stretch_range: tuple[float, float] = ...,
         on_invalid: str = "ignore",
         tensions: _ArrayLike | None = None,
+        markers: Sequence[tuple[float, Sequence[float]]] = ...,
     ) -> dict[str, Any]: ...
 
 def _panic_inside_guard() -> None:
@@ -142,6 +143,26 @@ class PccModel:
         tol: float = 1e-11,
         max_iter: int = 30,
     ) -> dict[str, Any]: ...
+    def statics_sensitivity(
+        self,
+        pressures: _ArrayLike,
+        params: Sequence[str],
+        markers: Sequence[tuple[float, Sequence[float]]] = ...,
+        guesses: _ArrayLike | None = None,
+        threads: int = 0,
+        tol: float = 1e-11,
+        max_iter: int = 30,
+    ) -> dict[str, Any]: ...
+    def runs_sensitivity(
+        self,
+        runs: Sequence[tuple[_ArrayLike, str, int]],
+        dt: float,
+        params: Sequence[str],
+        markers: Sequence[tuple[float, Sequence[float]]] = ...,
+        threads: int = 0,
+        tol: float = 1e-11,
+        max_iter: int = 30,
+    ) -> list[dict[str, Any]]: ...
 
 @final
 class Simulator:

@@ -11,6 +11,12 @@ names; kind; required or not):
 - ``base_fx``, ``base_fy``, ``base_fz`` (force) and ``base_mx``, ``base_my``, ``base_mz``
   (moment), optional groups: the force the rod exerts on its mount and its moment about the
   base point, world frame (``StaticSolution.base_force`` / ``base_moment``).
+- ``marker0_x``, ``marker0_y``, ``marker0_z``, ``marker1_x``, ... (length, optional groups):
+  positions of motion-capture markers anywhere on the body, world frame. A marker not seen
+  in a row leaves its three cells empty. Where each marker sits is given once, in the
+  metadata block: ``{"markers": {"marker0": {"s": "55 mm", "offset": ["12 mm", "0 mm"]}}}``
+  (reference arc length s from the base and an offset in the cross-section frame (d1, d2)
+  or (d1, d2, d3)). A dataset needs the tip columns, markers, or both.
 - ``experiment`` (integer or string id), ``mounting`` (string), ``time`` (time): optional.
 
 Every column of a kind with a dimension carries its unit, either in its name
@@ -80,9 +86,13 @@ QUATERNION_TOLERANCE = 1e-6
 _ROTATION_TOLERANCE = 1e-6
 
 _NAME = re.compile(
-    r"^(?P<base>p(?:0|[1-9][0-9]*)|tip_[xyz]|tip_q[wxyz]|base_[fm][xyz]|experiment|mounting|time)"
+    r"^(?P<base>p(?:0|[1-9][0-9]*)|tip_[xyz]|tip_q[wxyz]|base_[fm][xyz]|experiment|mounting|time"
+    r"|marker(?:0|[1-9][0-9]*)_[xyz])"
     r"(?:_(?P<unit>.*))?$"
 )
+_MARKER = re.compile(r"^marker(0|[1-9][0-9]*)_([xyz])$")
+#: Most markers a dataset may have (a motion-capture rig tracks tens).
+MAX_MARKERS = 256
 _XYZ = ("x", "y", "z")
 _TIP = tuple(f"tip_{a}" for a in _XYZ)
 _QUAT = ("tip_qw", "tip_qx", "tip_qy", "tip_qz")
@@ -90,7 +100,7 @@ _FORCE = tuple(f"base_f{a}" for a in _XYZ)
 _MOMENT = tuple(f"base_m{a}" for a in _XYZ)
 _LABELS = ("experiment", "mounting")
 _KNOWN = "p0, p1, ... (channels), tip_x/y/z, tip_qw/qx/qy/qz, base_fx/fy/fz, base_mx/my/mz, " + (
-    "experiment, mounting, time"
+    "marker0_x/y/z, marker1_x/y/z, ..., experiment, mounting, time"
 )
 _MAX_LISTED = 10  # rows named in one error message before "and N more"
 
@@ -101,7 +111,7 @@ def _kind(base: str) -> str | None:
     """Quantity kind of a base column name (None: no unit allowed)."""
     if base[0] == "p":
         return "pressure"
-    if base in _TIP:
+    if base in _TIP or _MARKER.match(base):
         return "length"
     if base in _FORCE:
         return "force"
@@ -165,7 +175,8 @@ def _readonly(a: np.ndarray | None) -> np.ndarray | None:
 class Dataset:
     """Measured (or synthetic) static equilibria, SI, one row per sample (m rows).
 
-    pressures: (m, c) gauge pressures, Pa.     tip_position: (m, 3) tip position, m (world).
+    pressures: (m, c) gauge pressures, Pa.     tip_position: (m, 3) tip position, m (world),
+    or None when the dataset has markers instead.
     tip_rotation: (m, 3, 3) [d1 d2 d3] of the tip (world) or None.
     base_force, base_moment: (m, 3) force (N) and moment about the base point (N m) that the
     rod exerts on its mount, world frame, or None (``StaticSolution.base_force`` convention).
@@ -177,13 +188,17 @@ class Dataset:
     extra: the result columns of a table softrod wrote (``converged``, ``iterations``,
     ``sigma_ext``, ...), by column name as written, (m,) each, described in
     ``metadata["columns"]``; empty for measurements.
+    markers: (m, K, 3) measured marker positions, m (world), NaN where a marker was not
+    seen, or None. marker_s: (K,) where each marker sits, reference arc length from the
+    base (m); marker_offset: (K, 3) its offset in the cross-section frame (d1, d2, d3) at
+    s, m ((K, 2) is read as (d1, d2)).
 
     Arrays are read-only. Use :func:`load_dataset` to read a file, :meth:`to_frame` and
     :func:`write_dataset` to write one.
     """
 
     pressures: np.ndarray
-    tip_position: np.ndarray
+    tip_position: np.ndarray | None = None
     tip_rotation: np.ndarray | None = None
     base_force: np.ndarray | None = None
     base_moment: np.ndarray | None = None
@@ -194,6 +209,9 @@ class Dataset:
     source: Path | None = None
     first_line: int | None = None
     extra: Mapping[str, np.ndarray] = field(default_factory=dict)
+    markers: np.ndarray | None = None
+    marker_s: np.ndarray | None = None
+    marker_offset: np.ndarray | None = None
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -212,8 +230,10 @@ class Dataset:
         for name, shape in shapes.items():
             value = getattr(self, name)
             if value is None:
-                if name == "tip_position":
-                    raise _fail(name, None, "is required (an (m, 3) array in m)")
+                if name == "tip_position" and self.markers is None:
+                    raise _fail(
+                        name, None, "is required (an (m, 3) array in m) unless markers are given"
+                    )
                 continue
             a = V.real_array(value, name)
             if a.shape != shape:
@@ -224,6 +244,7 @@ class Dataset:
             if a is not None and not np.isfinite(a).all():
                 bad = np.flatnonzero(~np.isfinite(a.reshape(m, -1)).all(axis=1))
                 raise _fail(name, "non-finite", f"must be finite (rows {_runs(bad)})")
+        self._check_markers(m)
         if self.tip_rotation is not None and m:
             r = self.tip_rotation
             err = np.abs(np.einsum("kji,kjl->kil", r, r) - np.eye(3)).max(axis=(1, 2))
@@ -260,6 +281,87 @@ class Dataset:
             extra[name] = _readonly(a)
         set_(self, "extra", extra)
 
+    def _check_markers(self, m: int) -> None:
+        set_ = object.__setattr__
+        if self.markers is None:
+            for name in ("marker_s", "marker_offset"):
+                if getattr(self, name) is not None:
+                    raise _fail(name, "given", "needs markers (the measured marker positions)")
+            return
+        raw = self.markers
+        if isinstance(raw, np.ndarray) and raw.dtype.kind == "f":
+            unseen = np.isnan(raw)
+            a = V.real_array(np.where(unseen, 0.0, raw), "markers", what="marker positions (m)")
+            a[unseen] = np.nan
+        else:
+            a = V.real_array(raw, "markers", what="marker positions (m)")
+        if a.ndim != 3 or a.shape[0] != m or a.shape[2] != 3 or not 1 <= a.shape[1] <= MAX_MARKERS:
+            raise _fail(
+                "markers",
+                f"shape {a.shape}",
+                f"must be an (m, K, 3) array in m with m = {m} rows and 1 <= K <= {MAX_MARKERS}",
+            )
+        k = a.shape[1]
+        if np.isinf(a).any():
+            rows = np.flatnonzero(np.isinf(a).any(axis=(1, 2)))
+            raise _fail("markers", "inf", f"must be finite or NaN (not seen), rows {_runs(rows)}")
+        seen = np.isfinite(a)
+        partial = seen.any(axis=2) & ~seen.all(axis=2)
+        if partial.any():
+            row, mk = np.argwhere(partial)[0]
+            raise _fail(
+                f"markers[{row}, {mk}]",
+                a[row, mk].tolist(),
+                "a marker is seen (x, y, z all given) or not (all three NaN)",
+            )
+        if self.tip_position is None:
+            empty = np.flatnonzero(~seen.all(axis=2).any(axis=1))
+            if empty.size:
+                raise _fail(
+                    "markers",
+                    f"no marker seen in rows {_runs(empty)}",
+                    "without tip columns every row needs at least one seen marker",
+                )
+        if self.marker_s is None or self.marker_offset is None:
+            missing = "marker_s" if self.marker_s is None else "marker_offset"
+            raise _fail(
+                missing,
+                None,
+                "say where each marker sits on the body: its arc length s from the base and "
+                "its offset in the cross-section frame (the metadata block's \"markers\" entry "
+                "in a file)",
+            )
+        s = V.real_array(self.marker_s, "marker_s", what="arc lengths (m)")
+        if s.shape != (k,) or not np.isfinite(s).all() or (s < 0).any():
+            raise _fail("marker_s", s.tolist(), f"must be {k} finite arc lengths >= 0 m")
+        o = V.real_array(self.marker_offset, "marker_offset", what="offsets (m)")
+        if o.ndim != 2 or o.shape[0] != k or o.shape[1] not in (2, 3) or not np.isfinite(o).all():
+            raise _fail(
+                "marker_offset",
+                f"shape {o.shape}",
+                f"must be a finite ({k}, 2) or ({k}, 3) array of offsets in m (d1, d2[, d3])",
+            )
+        if o.shape[1] == 2:
+            o = np.column_stack([o, np.zeros(k)])
+        set_(self, "markers", _readonly(a))
+        set_(self, "marker_s", _readonly(s))
+        set_(self, "marker_offset", _readonly(np.ascontiguousarray(o)))
+
+    def require_tip(self, what: str) -> np.ndarray:
+        """The tip positions, or an InputError saying that ``what`` needs them."""
+        if self.tip_position is None:
+            raise _fail(
+                "tip_position",
+                None,
+                f"{what} needs the tip position (tip_x, tip_y, tip_z); this dataset has "
+                "markers only",
+            )
+        return self.tip_position
+
+    @property
+    def n_markers(self) -> int:
+        return 0 if self.markers is None else self.markers.shape[1]
+
     def __len__(self) -> int:
         return self.pressures.shape[0]
 
@@ -283,6 +385,10 @@ class Dataset:
             for n in ("tip_rotation", "base_force", "base_moment", "time")
             if getattr(self, n) is not None
         ]
+        if self.markers is not None:
+            optional.append(f"{self.n_markers} markers")
+        if self.tip_position is None:
+            parts.append("no tip")
         if optional:
             parts.append("with " + ", ".join(optional))
         if self.extra:
@@ -339,7 +445,7 @@ class Dataset:
 
         return Dataset(
             pressures=self.pressures[idx],
-            tip_position=self.tip_position[idx],
+            tip_position=take(self.tip_position),
             tip_rotation=take(self.tip_rotation),
             base_force=take(self.base_force),
             base_moment=take(self.base_moment),
@@ -349,6 +455,9 @@ class Dataset:
             metadata=dict(self.metadata),
             source=self.source,
             extra={name: values[idx] for name, values in self.extra.items()},
+            markers=take(self.markers),
+            marker_s=self.marker_s,
+            marker_offset=self.marker_offset,
         )
 
     def split(self, by: str = "experiment", *, test: Any) -> tuple[Dataset, Dataset]:
@@ -397,6 +506,9 @@ class Dataset:
             time=self.time,
             experiment=self.experiment,
             mounting=self.mounting,
+            markers=self.markers,
+            marker_s=self.marker_s,
+            marker_offset=self.marker_offset,
             extras=[Extra(n, v, str(described.get(n, ""))) for n, v in self.extra.items()],
             units=units,
             metadata=self.metadata,
@@ -689,23 +801,25 @@ def load_dataset(
     return data
 
 
-def _number_column(raw: pd.Series, name: str, where) -> np.ndarray:
+def _number_column(raw: pd.Series, name: str, where, *, missing_ok: bool = False) -> np.ndarray:
     """A table column as finite floats, or an InputError naming the column, the value and
     the rows: text that is not a number, an empty cell, or a number beyond the float range
-    (an integer with hundreds of digits; converted one by one, as pandas would overflow)."""
+    (an integer with hundreds of digits; converted one by one, as pandas would overflow).
+    ``missing_ok``: empty cells are NaN (a marker not seen in that row)."""
     _check_dtype(raw, name)
     try:
         num = pd.to_numeric(raw, errors="coerce")
     except OverflowError:
         num = pd.Series([_number_or_nan(v) for v in raw.array], index=raw.index, dtype=float)
-    empty = np.flatnonzero(raw.isna().to_numpy())
-    if empty.size:
+    missing = raw.isna().to_numpy()
+    empty = np.flatnonzero(missing)
+    if empty.size and not missing_ok:
         raise _fail(name, "empty/NaN", f"empty or NaN value at {where(empty)}")
-    text = np.flatnonzero(num.isna().to_numpy())
+    text = np.flatnonzero(num.isna().to_numpy() & ~missing)
     if text.size:
         raise _fail(name, raw.iloc[text[0]], f"not a number at {where(text)}")
     a = num.to_numpy(dtype=float)
-    bad = np.flatnonzero(~np.isfinite(a))
+    bad = np.flatnonzero(~np.isfinite(a) & ~missing)
     if bad.size:
         value = raw.iloc[bad[0]]
         if isinstance(value, int) and abs(value) >= 10**20:  # beyond the float range
@@ -842,7 +956,12 @@ def _from_frame(
 
     # Required columns and complete groups.
     channels = sorted(int(b[1:]) for b in columns if b[0] == "p")
+    marker_ids = sorted({int(m[1]) for b in columns if (m := _MARKER.match(b))})
     missing = [b for b in _TIP if b not in columns]
+    if marker_ids and len(missing) == len(_TIP):
+        missing = []  # markers instead of the tip
+    for k in marker_ids:
+        missing += [f"marker{k}_{a}" for a in _XYZ if f"marker{k}_{a}" not in columns]
     if not channels:
         missing.insert(0, "p0")
     for group in (_QUAT, _FORCE, _MOMENT):
@@ -855,9 +974,20 @@ def _from_frame(
             "columns",
             names,
             f"missing column(s) {', '.join(missing)} (spelled e.g. {spelled}); required are "
-            "p0, p1, ... and tip_x, tip_y, tip_z; the tip_q*, base_f* and base_m* columns are "
-            "optional but come in complete groups",
+            "p0, p1, ... and tip_x, tip_y, tip_z (or markers marker0_x, ...); the tip_q*, "
+            "base_f*, base_m* and marker* columns are optional but come in complete groups",
         )
+    if marker_ids and marker_ids != list(range(len(marker_ids))):
+        gaps = sorted(set(range(marker_ids[-1] + 1)) - set(marker_ids))
+        raise _fail(
+            "columns",
+            names,
+            f"markers must be numbered marker0, marker1, ... without gaps: "
+            f"{', '.join(f'marker{k}' for k in gaps)} missing",
+        )
+    if len(marker_ids) > MAX_MARKERS:
+        raise _fail("columns", f"{len(marker_ids)} markers", f"at most {MAX_MARKERS} markers")
+    sites = _marker_sites(meta.get("markers"), len(marker_ids))
     gaps = sorted(set(range(channels[-1] + 1)) - set(channels))
     if gaps:
         raise _fail(
@@ -881,8 +1011,9 @@ def _from_frame(
         df, where = _converged_rows(df, where, unconverged)
 
 
-    # Values: empty cells, text in number columns, non-finite numbers.
-    used = [columns[b][0] for b in columns]
+    # Values: empty cells, text in number columns, non-finite numbers. A marker not seen
+    # in a row leaves its cells empty.
+    used = [columns[b][0] for b in columns if not _MARKER.match(b)]
     isna = df[used].isna().to_numpy()
     if isna.any():
         blank = isna.all(axis=1)
@@ -900,7 +1031,8 @@ def _from_frame(
     for base, (col, factor) in columns.items():
         if base in _LABELS:
             continue
-        a = _number_column(df[col], col, where)
+        optional = _MARKER.match(base) is not None  # an unseen marker: empty cells
+        a = _number_column(df[col], col, where, missing_ok=optional)
         numeric[base] = a if factor is None else a * factor
 
     low = np.flatnonzero(
@@ -938,9 +1070,27 @@ def _from_frame(
     def stack(group):
         return np.column_stack([numeric[b] for b in group]) if group[0] in columns else None
 
+    markers = None
+    if marker_ids:
+        markers = np.stack(
+            [np.column_stack([numeric[f"marker{k}_{a}"] for a in _XYZ]) for k in marker_ids],
+            axis=1,
+        )
+        partial = np.isnan(markers).any(axis=2) & ~np.isnan(markers).all(axis=2)
+        if partial.any():
+            row, k = np.argwhere(partial)[0]
+            raise _fail(
+                ", ".join(columns[f"marker{k}_{a}"][0] for a in _XYZ),
+                "partly empty",
+                f"a marker is seen (x, y, z all given) or not (all three empty), at "
+                f"{where(np.flatnonzero(partial[:, k]))}",
+            )
     meta = dict(meta)
     return Dataset(
         pressures=np.column_stack([numeric[f"p{k}"] for k in channels]),
+        markers=markers,
+        marker_s=None if markers is None else sites[0],
+        marker_offset=None if markers is None else sites[1],
         tip_position=stack(_TIP),
         tip_rotation=rotation,
         base_force=stack(_FORCE),
@@ -952,6 +1102,50 @@ def _from_frame(
         source=path,
         extra={name: _extra_values(df[name]) for name in extras},
     )
+
+
+def _marker_sites(entry, count: int):
+    """(s (K,), offset (K, 3)) in m from the metadata's ``markers`` entry
+    ``{"marker0": {"s": "55 mm", "offset": ["12 mm", "0 mm"]}, ...}``; None without markers."""
+    if count == 0:
+        if entry:
+            raise _fail(
+                "metadata.markers",
+                list(entry),
+                "describes markers, but the table has no marker columns",
+            )
+        return None
+    if not isinstance(entry, Mapping):
+        raise _fail(
+            "metadata.markers",
+            entry,
+            'say where each marker sits: {"markers": {"marker0": {"s": "55 mm", "offset": '
+            '["12 mm", "0 mm"]}, ...}} (arc length from the base, offset in the cross-section '
+            "frame d1, d2[, d3])",
+        )
+    extra = sorted(set(entry) - {f"marker{k}" for k in range(count)})
+    if extra:
+        raise _fail(f"metadata.markers.{extra[0]}", entry[extra[0]], "has no marker columns")
+    s, offset = np.zeros(count), np.zeros((count, 3))
+    for k in range(count):
+        key = f"marker{k}"
+        site = entry.get(key)
+        where = f"metadata.markers.{key}"
+        if not isinstance(site, Mapping) or set(site) - {"s", "offset"} or "s" not in site:
+            raise _fail(
+                where,
+                site,
+                'must be {"s": "<arc length>", "offset": ["<d1>", "<d2>"(, "<d3>")]} with units',
+            )
+        s[k] = V.quantity(site["s"], "length", f"{where}.s", bare="error")
+        if s[k] < 0:
+            raise _fail(f"{where}.s", site["s"], "must be an arc length >= 0")
+        off = site.get("offset", [0.0, 0.0])
+        if not isinstance(off, (list, tuple)) or len(off) not in (2, 3):
+            raise _fail(f"{where}.offset", off, "must be 2 or 3 lengths (d1, d2[, d3])")
+        for i, v in enumerate(off):
+            offset[k, i] = V.quantity(v, "length", f"{where}.offset[{i}]", bare="error")
+    return s, offset
 
 
 def _extra_values(column: pd.Series) -> np.ndarray:

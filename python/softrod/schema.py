@@ -245,17 +245,23 @@ def schema_frame(
     time=None,
     experiment=None,
     mounting=None,
+    markers=None,
+    marker_s=None,
+    marker_offset=None,
     extras: Sequence[Extra] = (),
     units: Mapping[str, str] | str | None = None,
     metadata: Mapping[str, Any] | None = None,
 ):
     """A pandas DataFrame in the dataset schema from SI arrays (m rows).
 
-    Columns in order: experiment, mounting, time, p0..p<c-1>, tip_x/y/z, tip_qw..qz (from
-    ``tip_rotation``), base_fx..fz, base_mx..mz, then ``extras``. Units go into the names
-    (:data:`DEFAULT_UNITS` or ``units``). NaN rows (a failed solve) stay NaN. The metadata
-    (``frame.attrs["softrod.metadata"]``) gets a ``columns`` entry that declares every extra
-    column by its name.
+    Columns in order: experiment, mounting, time, p0..p<c-1>, tip_x/y/z (unless
+    ``tip_position`` is None), tip_qw..qz (from ``tip_rotation``), base_fx..fz,
+    base_mx..mz, marker0_x/y/z ... (from ``markers`` (m, K, 3), NaN where not seen), then
+    ``extras``. Units go into the names (:data:`DEFAULT_UNITS` or ``units``). NaN rows (a
+    failed solve) stay NaN. The metadata (``frame.attrs["softrod.metadata"]``) gets a
+    ``columns`` entry that declares every extra column by its name, and with markers a
+    ``markers`` entry with each marker's arc length ``marker_s`` (K,) and offset
+    ``marker_offset`` (K, 3), SI.
     """
     import pandas as pd
 
@@ -270,9 +276,10 @@ def schema_frame(
     p = np.asarray(pressures, dtype=float)
     for k in range(p.shape[1]):
         cols[f"p{k}_{chosen['pressure']}"] = p[:, k] / factor["pressure"]
-    tip = np.asarray(tip_position, dtype=float)
-    for i, name in enumerate(TIP):
-        cols[f"{name}_{chosen['length']}"] = tip[:, i] / factor["length"]
+    if tip_position is not None:
+        tip = np.asarray(tip_position, dtype=float)
+        for i, name in enumerate(TIP):
+            cols[f"{name}_{chosen['length']}"] = tip[:, i] / factor["length"]
     if tip_rotation is not None:
         q = matrix_to_quat(tip_rotation)
         for i, name in enumerate(QUAT):
@@ -282,6 +289,19 @@ def schema_frame(
             a = np.asarray(arr, dtype=float)
             for i, name in enumerate(names):
                 cols[f"{name}_{chosen[kind]}"] = a[:, i] / factor[kind]
+    sites = None
+    if markers is not None:
+        mk = np.asarray(markers, dtype=float)
+        for k in range(mk.shape[1]):
+            for i, a in enumerate(_XYZ):
+                cols[f"marker{k}_{a}_{chosen['length']}"] = mk[:, k, i] / factor["length"]
+        sites = {
+            f"marker{k}": {
+                "s": f"{float(s)!r} m",
+                "offset": [f"{float(v)!r} m" for v in o],
+            }
+            for k, (s, o) in enumerate(zip(marker_s, marker_offset, strict=True))
+        }
     declared: dict[str, str] = {}
     for extra in extras:
         values = np.asarray(extra.values)
@@ -296,6 +316,8 @@ def schema_frame(
         declared[name] = extra.description
     frame = pd.DataFrame(cols)
     meta = dict(metadata or {})
+    if sites is not None:
+        meta["markers"] = sites
     if declared:
         meta["columns"] = {**dict(meta.get("columns") or {}), **declared}
     frame.attrs["softrod.metadata"] = meta

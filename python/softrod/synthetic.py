@@ -5,16 +5,25 @@ each other."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import _validate as V
 from .catalog import load_design
-from .datasets import _MAX_LISTED, Dataset, _fail, _matrix_to_quat, _quat_to_matrix, noise_seed
+from .datasets import (
+    _MAX_LISTED,
+    MAX_MARKERS,
+    Dataset,
+    _fail,
+    _matrix_to_quat,
+    _quat_to_matrix,
+    noise_seed,
+)
 from .design import Design
 from .errors import ConvergenceError, InputError
-from .statics import batch_pressures, solve_statics_batch
+from .statics import _options, batch_pressures, solve_statics_batch
 from .units import vector_to_si
 
 if TYPE_CHECKING:
@@ -37,6 +46,8 @@ def synthesize_dataset(
     tip_moment: ArrayLike | None = None,
     options: SolverOptions | None = None,
     threads: int = 0,
+    markers: Sequence | None = None,
+    tip: bool = True,
 ) -> Dataset:
     """A synthetic dataset: the model's equilibria at ``pressures`` plus measurement noise.
 
@@ -46,6 +57,11 @@ def synthesize_dataset(
     reproducible; without one a seed is drawn and recorded. ``experiment``/``mounting``: one
     label for every row or one per row; ``time``: (m,) seconds. ``tip_force``, ``tip_moment``,
     ``options`` and ``threads`` go to :func:`~softrod.solve_statics_batch`.
+    ``markers``: points on the body to record as motion-capture markers, each
+    ``(s, offset)``: arc length from the base and offset in the cross-section frame
+    (d1, d2[, d3]), SI numbers or strings with units (``("55 mm", ["12 mm", "0 mm"])``);
+    their positions get the same noise. ``tip=False`` leaves the tip columns out (markers
+    only).
 
     Raises :class:`~softrod.errors.ConvergenceError` listing the rows that did not converge
     (nothing is dropped silently). ``metadata["synthetic"]`` is True and the metadata records
@@ -74,6 +90,25 @@ def synthesize_dataset(
         )
     rng = np.random.default_rng(int(seed))
     noise = rng.normal(0.0, noise_mm * 1e-3, size=(m, 3)) if noise_mm > 0 else np.zeros((m, 3))
+    sites = _synthetic_sites(markers)
+    marker_pos = None
+    if sites is not None:
+        smap = design.stiffness_map
+        out = design._rod.sensitivity_batch(
+            p,
+            _tip_load(design, tip_force, "force"),
+            _tip_load(design, tip_moment, "moment"),
+            [],
+            stiffness_scale=None if smap is None else np.ascontiguousarray(smap(p)),
+            markers=[(float(a), [float(v) for v in b]) for a, b in zip(*sites, strict=True)],
+            threads=threads,
+            **_options(options).as_kwargs(),
+        )
+        marker_pos = out["marker_position"]
+        if noise_mm > 0:
+            marker_pos = marker_pos + rng.normal(0.0, noise_mm * 1e-3, size=marker_pos.shape)
+    if not tip and sites is None:
+        raise _fail("tip", tip, "a dataset without tip columns needs markers")
 
     def per_row(value, name):
         if value is None:
@@ -95,7 +130,7 @@ def synthesize_dataset(
         "design": design.name,
         "design_source": None if design.source is None else design.source.name,
         "noise_mm": float(noise_mm),
-        "noise": "isotropic Gaussian on tip_position only (per axis, independent); "
+        "noise": "isotropic Gaussian on tip_position and markers (per axis, independent); "
         "tip_rotation and base wrench are noise-free",
         "seed": int(seed),
         "tip_force_N": tf,
@@ -103,7 +138,10 @@ def synthesize_dataset(
     }
     return Dataset(
         pressures=p,
-        tip_position=batch.tip_position + noise,
+        tip_position=batch.tip_position + noise if tip else None,
+        markers=marker_pos,
+        marker_s=None if sites is None else sites[0],
+        marker_offset=None if sites is None else sites[1],
         # Through the quaternion once, so the stored rotation is exactly what a file holds.
         tip_rotation=_quat_to_matrix(_matrix_to_quat(batch.tip_rotation)),
         base_force=batch.base_force,
@@ -116,11 +154,29 @@ def synthesize_dataset(
     )
 
 
+def _synthetic_sites(markers):
+    """(s (K,), offset (K, 3)) in m of synthesize_dataset's ``markers``, or None."""
+    if markers is None:
+        return None
+    if not isinstance(markers, (list, tuple)) or not 1 <= len(markers) <= MAX_MARKERS:
+        raise _fail(
+            "markers", markers, f"must be a list of 1 to {MAX_MARKERS} pairs (s, offset)"
+        )
+    s, offset = np.zeros(len(markers)), np.zeros((len(markers), 3))
+    for k, item in enumerate(markers):
+        if not isinstance(item, (list, tuple)) or len(item) != 2:
+            raise _fail(f"markers[{k}]", item, "must be a pair (s, offset)")
+        s[k] = V.quantity(item[0], "length", f"markers[{k}].s")
+        off = item[1]
+        if not isinstance(off, (list, tuple, np.ndarray)) or len(off) not in (2, 3):
+            raise _fail(f"markers[{k}].offset", off, "must be 2 or 3 lengths (d1, d2[, d3])")
+        for i, v in enumerate(off):
+            offset[k, i] = V.quantity(v, "length", f"markers[{k}].offset[{i}]")
+    return s, offset
+
+
 def _tip_load(design: Design, value, kind: str) -> list[float]:
     """The tip load the solve used (SI): ``value`` or, if None, the design's ``[tip]`` entry."""
     if value is None:
         return [float(x) for x in design.spec["tip"][kind]]
     return vector_to_si(list(value), kind, f"tip_{kind}", InputError)
-
-
-# --- bundled examples ----------------------------------------------------------------------------

@@ -5,7 +5,10 @@
 use crate::error::{Result, SoftrodError};
 use crate::ode::Loads;
 use crate::rod::Rod;
-use crate::sensitivity::{tip_sensitivity, validate_params, Param, TipSensitivity};
+use crate::sensitivity::{
+    locate_markers, marker_positions, pose_sensitivity, validate_params, Marker, Param,
+    TipSensitivity,
+};
 use crate::statics::{n_unknowns, solve, Solution, SolverOptions};
 use crate::validity::{self, Policy};
 
@@ -28,8 +31,12 @@ pub struct BatchRow {
     /// The validity rule the row broke (a failed row under `Policy::Raise`, or a returned
     /// one under `Policy::Warn`), else empty.
     pub violation: String,
-    /// Tip-pose derivatives with respect to the parameters ([`sensitivity_batch`] only).
+    /// Tip-pose (and marker) derivatives with respect to the parameters
+    /// ([`sensitivity_batch`] only).
     pub sensitivity: Option<TipSensitivity>,
+    /// Marker positions, world frame ([`sensitivity_batch`] with markers; NaN on failed
+    /// rows).
+    pub markers: Vec<[f64; 3]>,
 }
 
 impl BatchRow {
@@ -46,6 +53,7 @@ impl BatchRow {
             residual,
             x: vec![f64::NAN; unknowns],
             sensitivity: None,
+            markers: vec![],
         }
     }
 
@@ -66,6 +74,7 @@ impl BatchRow {
                 .map(|e| e.to_string())
                 .unwrap_or_default(),
             sensitivity: None,
+            markers: vec![],
         }
     }
 }
@@ -342,30 +351,41 @@ pub fn solve_batch(
     rows.run(rod, opts, threads, &|_, _, _| {})
 }
 
-/// [`solve_batch`] plus the exact derivatives of every converged tip pose with respect to
-/// `params` (see [`crate::sensitivity`]). `guesses`, when given, holds a warm start x
-/// (one per unknown per row, e.g. the previous iteration's `BatchRow::x`; NaN rows start
-/// cold). A row whose derivatives cannot be formed (singular shooting Jacobian) is reported
-/// failed.
+/// [`solve_batch`] plus the positions of `markers` on every converged row and the exact
+/// derivatives of its tip pose and marker positions with respect to `params` (see
+/// [`crate::sensitivity`]; with no parameters, the positions only). `guesses`, when given,
+/// holds a warm start x (one per unknown per row, e.g. the previous iteration's
+/// `BatchRow::x`; NaN rows start cold). A row whose derivatives cannot be formed (singular
+/// shooting Jacobian) is reported failed; failed rows have NaN marker positions.
 pub fn sensitivity_batch(
     rod: &Rod,
     inputs: &BatchInputs,
     guesses: Option<&[f64]>,
     params: &[Param],
+    markers: &[Marker],
     opts: &SolverOptions,
     threads: usize,
 ) -> Result<Vec<BatchRow>> {
     opts.validate()?;
     validate_params(rod, params)?;
+    let located = locate_markers(rod, markers)?;
     let rows = Rows::new(rod, opts, inputs, guesses)?;
     let n = rows.unknowns;
-    rows.run(
-        rod,
-        opts,
-        threads,
-        &|loads, sol, row| match tip_sensitivity(rod, loads, sol, params) {
-            Ok(s) => row.sensitivity = Some(s),
+    let mut out = rows.run(rod, opts, threads, &|loads, sol, row| {
+        if params.is_empty() {
+            row.markers = marker_positions(rod, loads, sol, &located);
+            return;
+        }
+        match pose_sensitivity(rod, loads, sol, params, &located) {
+            Ok(s) => {
+                row.markers = marker_positions(rod, loads, sol, &located);
+                row.sensitivity = Some(s);
+            }
             Err(_) => *row = BatchRow::failed(n, sol.iterations, sol.residual),
-        },
-    )
+        }
+    })?;
+    for row in out.iter_mut().filter(|r| !r.converged) {
+        row.markers = vec![[f64::NAN; 3]; markers.len()];
+    }
+    Ok(out)
 }

@@ -202,6 +202,8 @@ pub struct SectionKnobs<S> {
     pub c_p: S,
     /// Factor on every chamber's pressurised area (an effective area, as A_eff of paper 000).
     pub area_scale: S,
+    /// Factor on the section's mass per length (its weight here; its inertia in dynamics).
+    pub mass_scale: S,
 }
 
 impl SectionKnobs<f64> {
@@ -217,6 +219,7 @@ impl SectionKnobs<f64> {
             offset: [0.0; 2],
             c_p: s.law.swelling.map_or(0.0, |sw| sw.c_p),
             area_scale: 1.0,
+            mass_scale: 1.0,
         }
     }
 
@@ -229,6 +232,7 @@ impl SectionKnobs<f64> {
             offset: self.offset.map(S::from),
             c_p: S::from(self.c_p),
             area_scale: S::from(self.area_scale),
+            mass_scale: S::from(self.mass_scale),
         }
     }
 }
@@ -436,7 +440,9 @@ fn local_law<C: RodScalar>(sec: &Section, inp: &LawInputs<C>, s: f64) -> Local<C
         u_shift,
         v_star,
         u_star,
-        f: std::array::from_fn(|k| inp.gravity[k] * mass + inp.line_force[k]),
+        f: std::array::from_fn(|k| {
+            inp.gravity[k] * (inp.knobs.mass_scale * mass) + inp.line_force[k]
+        }),
         p_force: force,
         k_se,
         k_bt,

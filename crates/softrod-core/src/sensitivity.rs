@@ -1,16 +1,24 @@
-//! Exact derivatives of the static tip pose with respect to design parameters, for
-//! calibration (paper 002's fits, paper 001's per-sample stiffness identification).
+//! Exact derivatives of the static tip pose, and of marker points anywhere on the body,
+//! with respect to design parameters, for calibration (paper 002's fits, paper 001's
+//! per-sample stiffness identification, motion-capture markers as paper 000 Sec. III-D
+//! records them).
 //!
 //! At a converged solution the shooting residual R(x, theta) vanishes (see `statics`). By
 //! the implicit function theorem the unknowns move as dx/dtheta = -J^-1 d_theta R with
-//! J = d_x R, and the tip pose y(x, theta) as dy/dtheta = d_theta y + d_x y dx/dtheta.
-//! One integration in `Jet<3>` (state seeded in x) gives J and d_x y; one integration in
-//! `Jet<CHUNK>` per CHUNK parameters, with the coefficients built from dual-valued
-//! parameters (`Coeffs::build_with`), gives d_theta R and d_theta y. No finite differences.
+//! J = d_x R, and any output y(x, theta) (the tip pose, a marker's position) as
+//! dy/dtheta = d_theta y + d_x y dx/dtheta. One integration in `Jet<3>` (state seeded in x)
+//! gives J and d_x y; one integration in `Jet<CHUNK>` per CHUNK parameters, with the
+//! coefficients built from dual-valued parameters (`Coeffs::build_with`), gives d_theta R
+//! and d_theta y. No finite differences.
+//!
+//! A marker sits at reference arc length s with an offset o in the cross-section frame:
+//! its position is r(s) + R(s) o. The state at s is read during the same integration: the
+//! node before s, then one partial RK4 step (the exact transfer in a rigid section) of the
+//! remaining length, so the integration itself, and the tip, are unchanged.
 
 use crate::error::{Result, SoftrodError};
-use crate::jet::Jet;
-use crate::ode::{integrate, Coeffs, Loads, SectionKnobs, State};
+use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
+use crate::ode::{advance, integrate, resolve_stretch, Coeffs, Loads, NodeAt, SectionKnobs, State};
 use crate::rod::{AxialLaw, Rod};
 use crate::statics::{Problem, Solution};
 use nalgebra::{DMatrix, DVector};
@@ -38,11 +46,16 @@ pub enum ParamKind {
     /// Stiffness scaling factor sigma_ext (0), sigma_bend_1 (1), sigma_bend_2 (2) of the
     /// solve (paper 001 eq. 13), for the stiffness-mapped sections.
     StiffnessScale(usize),
+    /// Mass density in kg/m^3 of the listed sections' material (their weight; their
+    /// inertia in dynamics); for sections whose mass comes from the material.
+    Density,
+    /// Mass in kg of each listed section, for sections whose mass is given directly.
+    Mass,
 }
 
 impl ParamKind {
     /// Every kind with its name, as the Python layer spells them.
-    pub const ALL: [(&'static str, ParamKind); 13] = [
+    pub const ALL: [(&'static str, ParamKind); 15] = [
         ("c_s", ParamKind::CorrectionFactor(0)),
         ("c_e", ParamKind::CorrectionFactor(1)),
         ("c_b", ParamKind::CorrectionFactor(2)),
@@ -56,6 +69,8 @@ impl ParamKind {
         ("sigma_ext", ParamKind::StiffnessScale(0)),
         ("sigma_bend_1", ParamKind::StiffnessScale(1)),
         ("sigma_bend_2", ParamKind::StiffnessScale(2)),
+        ("density", ParamKind::Density),
+        ("mass", ParamKind::Mass),
     ];
 
     pub fn from_name(name: &str) -> Option<Self> {
@@ -107,6 +122,10 @@ fn section_value(rod: &Rod, i: usize, kind: ParamKind) -> f64 {
         ParamKind::ChamberOffset(k) => rod.spec.sections[i].law.chamber_offset[k],
         ParamKind::AreaScale => 1.0,
         ParamKind::StiffnessScale(_) => f64::NAN,
+        ParamKind::Density => rod.spec.sections[i]
+            .material
+            .map_or(f64::NAN, |m| m.density),
+        ParamKind::Mass => s.line_mass * s.length,
     }
 }
 
@@ -166,6 +185,15 @@ pub fn validate_params(rod: &Rod, params: &[Param]) -> Result<()> {
                     ParamKind::ChamberOffset(_) | ParamKind::AreaScale if s.chambers.is_empty() => {
                         Some("has no chambers")
                     }
+                    ParamKind::Density
+                        if rod.spec.sections[i].mass.is_some()
+                            || rod.spec.sections[i].material.is_none() =>
+                    {
+                        Some("has its mass given directly, not from a material density: calibrate its mass")
+                    }
+                    ParamKind::Mass if rod.spec.sections[i].mass.is_none() => {
+                        Some("has its mass from the material density: calibrate the density")
+                    }
                     _ => None,
                 }
             };
@@ -174,6 +202,13 @@ pub fn validate_params(rod: &Rod, params: &[Param]) -> Result<()> {
             }
         }
         let v0 = section_value(rod, p.sections[0], p.kind);
+        if matches!(p.kind, ParamKind::Density | ParamKind::Mass) && (v0.is_nan() || v0 <= 0.0) {
+            return Err(SoftrodError::invalid(
+                field,
+                v0,
+                "the mass the derivative scales must be > 0",
+            ));
+        }
         for &i in &p.sections[1..] {
             let v = section_value(rod, i, p.kind);
             if v != v0 {
@@ -191,13 +226,180 @@ pub fn validate_params(rod: &Rod, params: &[Param]) -> Result<()> {
     Ok(())
 }
 
-/// Derivatives of the tip pose with respect to each parameter.
+/// A point on the body whose position is measured (a motion-capture marker): reference arc
+/// length `s` in [0, L] and an offset in the cross-section frame (d1, d2, d3) at s, m.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Marker {
+    pub s: f64,
+    pub offset: [f64; 3],
+}
+
+/// Where a marker is read during the integration: after visit `node` (the base is visit 0,
+/// then the end of every step), a partial step of length `h` in `section` (none when the
+/// marker sits on that node), from the section's start when `section_start` (an Ogden
+/// section's carried stretch is set there first).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MarkerAt {
+    node: usize,
+    section: usize,
+    /// Steps done in `section` at the node, and the node's arc length.
+    step: usize,
+    s_node: f64,
+    h: f64,
+    section_start: bool,
+    offset: [f64; 3],
+}
+
+/// A marker closer than this fraction of a step to a node is read at that node (so a
+/// marker at s = L is read exactly at the tip).
+const NODE_SNAP: f64 = 1e-9;
+
+/// Check the markers against the rod and locate them on its integration grid. Errors name
+/// `markers[k]`.
+pub fn locate_markers(rod: &Rod, markers: &[Marker]) -> Result<Vec<MarkerAt>> {
+    let mut out = Vec::with_capacity(markers.len());
+    for (k, mk) in markers.iter().enumerate() {
+        if !(mk.s.is_finite() && mk.s >= 0.0 && mk.s <= rod.length * (1.0 + 1e-12)) {
+            return Err(SoftrodError::invalid(
+                format!("markers[{k}].s"),
+                mk.s,
+                format!(
+                    "a marker's arc length must lie in [0, L] = [0, {}] m",
+                    rod.length
+                ),
+            ));
+        }
+        if let Some(bad) = mk.offset.iter().find(|v| !v.is_finite()) {
+            return Err(SoftrodError::invalid(
+                format!("markers[{k}].offset"),
+                bad,
+                "must be finite (m, cross-section frame)",
+            ));
+        }
+        let mut node = 0;
+        let mut at = None;
+        for (i, sec) in rod.sections.iter().enumerate() {
+            let h = sec.length / sec.steps as f64;
+            let local = mk.s - sec.s_start;
+            let last = i + 1 == rod.sections.len();
+            if local <= sec.length || last {
+                let k_step = ((local / h).floor() as usize).min(sec.steps - 1);
+                let rest = (local - k_step as f64 * h).clamp(0.0, h);
+                at = Some(if rest <= NODE_SNAP * h {
+                    MarkerAt {
+                        node: node + k_step,
+                        section: i,
+                        step: k_step,
+                        s_node: sec.s_start + k_step as f64 * h,
+                        h: 0.0,
+                        section_start: false,
+                        offset: mk.offset,
+                    }
+                } else if rest >= (1.0 - NODE_SNAP) * h {
+                    MarkerAt {
+                        node: node + k_step + 1,
+                        section: i,
+                        step: k_step + 1,
+                        s_node: sec.s_start + (k_step + 1) as f64 * h,
+                        h: 0.0,
+                        section_start: false,
+                        offset: mk.offset,
+                    }
+                } else {
+                    MarkerAt {
+                        node: node + k_step,
+                        section: i,
+                        step: k_step,
+                        s_node: sec.s_start + k_step as f64 * h,
+                        h: rest,
+                        section_start: k_step == 0,
+                        offset: mk.offset,
+                    }
+                });
+                break;
+            }
+            node += sec.steps;
+        }
+        out.push(at.expect("the last section takes every s <= L"));
+    }
+    Ok(out)
+}
+
+/// Integrate like [`integrate`] and return the tip state and the state at every marker.
+fn integrate_markers<C: Coeff, D: StateScalar<C>>(
+    rod: &Rod,
+    coeffs: &[Coeffs<C>],
+    y0: State<D>,
+    markers: &[MarkerAt],
+) -> (State<D>, Vec<State<D>>) {
+    let mut states: Vec<Option<State<D>>> = vec![None; markers.len()];
+    let mut node = 0;
+    let mut visit = |_: usize, _: f64, y: &State<D>| {
+        for (mk, out) in markers.iter().zip(states.iter_mut()) {
+            if mk.node != node {
+                continue;
+            }
+            if mk.h == 0.0 {
+                *out = Some(*y);
+                continue;
+            }
+            let mut start = *y;
+            if mk.section_start {
+                // The previous section's end: this section's carried stretch first.
+                resolve_stretch(&mut start, &coeffs[mk.section]);
+            }
+            let node = NodeAt {
+                section: mk.section,
+                step: mk.step,
+                s: mk.s_node,
+            };
+            *out = Some(advance(rod, coeffs, node, &start, mk.h));
+        }
+        node += 1;
+    };
+    let tip = integrate(rod, coeffs, y0, Some(&mut visit));
+    let states = states
+        .into_iter()
+        .map(|s| s.expect("every marker lies on the integration grid"))
+        .collect();
+    (tip, states)
+}
+
+/// r(s) + R(s) o.
+fn marker_position<D: RodScalar>(y: &State<D>, offset: &[f64; 3]) -> [D; 3] {
+    std::array::from_fn(|i| {
+        y.r[i] + y.rot[i][0] * offset[0] + y.rot[i][1] * offset[1] + y.rot[i][2] * offset[2]
+    })
+}
+
+/// Positions of the markers of a converged solution (world frame, m).
+pub fn marker_positions(
+    rod: &Rod,
+    loads: &Loads,
+    sol: &Solution,
+    markers: &[MarkerAt],
+) -> Vec<[f64; 3]> {
+    if markers.is_empty() {
+        return vec![];
+    }
+    let p = Problem::new(rod, loads, 1.0);
+    let (_, states) = integrate_markers(rod, &p.coeffs, p.base_state(&sol.x), markers);
+    states
+        .iter()
+        .zip(markers)
+        .map(|(y, mk)| marker_position(y, &mk.offset))
+        .collect()
+}
+
+/// Derivatives of the tip pose and of the marker positions with respect to each parameter.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TipSensitivity {
     /// d r_tip / d theta_j (world frame), one per parameter.
     pub position: Vec<[f64; 3]>,
     /// d R_tip / d theta_j, one per parameter.
     pub rotation: Vec<[[f64; 3]; 3]>,
+    /// d marker_k / d theta_j (world frame): `markers[j][k]`.
+    pub markers: Vec<Vec<[f64; 3]>>,
 }
 
 type Dual = Jet<CHUNK>;
@@ -228,6 +430,10 @@ fn seeded(rod: &Rod, loads: &Loads, chunk: &[Param]) -> (Vec<SectionKnobs<Dual>>
                 ParamKind::SwellingCp => k.c_p.eps[q] = 1.0,
                 ParamKind::ChamberOffset(a) => k.offset[a].eps[q] = 1.0,
                 ParamKind::AreaScale => k.area_scale.eps[q] = 1.0,
+                // d(rho/rho0)/d rho = 1/rho0, d(m/m0)/dm = 1/m0
+                ParamKind::Density | ParamKind::Mass => {
+                    k.mass_scale.eps[q] = 1.0 / section_value(rod, i, p.kind)
+                }
                 ParamKind::StiffnessScale(_) => unreachable!("handled above"),
             }
         }
@@ -243,10 +449,23 @@ pub fn tip_sensitivity(
     sol: &Solution,
     params: &[Param],
 ) -> Result<TipSensitivity> {
+    pose_sensitivity(rod, loads, sol, params, &[])
+}
+
+/// Derivatives of the tip pose and of the markers (located by [`locate_markers`]) at the
+/// converged solution `sol` of `loads` (the parameters must have been validated with
+/// [`validate_params`]).
+pub fn pose_sensitivity(
+    rod: &Rod,
+    loads: &Loads,
+    sol: &Solution,
+    params: &[Param],
+    markers: &[MarkerAt],
+) -> Result<TipSensitivity> {
     if sol.x.len() == 6 {
-        sensitivity_n::<6>(rod, loads, sol, params)
+        sensitivity_n::<6>(rod, loads, sol, params, markers)
     } else {
-        sensitivity_n::<3>(rod, loads, sol, params)
+        sensitivity_n::<3>(rod, loads, sol, params, markers)
     }
 }
 
@@ -255,18 +474,25 @@ fn sensitivity_n<const N: usize>(
     loads: &Loads,
     sol: &Solution,
     params: &[Param],
+    markers: &[MarkerAt],
 ) -> Result<TipSensitivity> {
     let p = Problem::new(rod, loads, 1.0);
     // J = d_x R and d_x y in one pass with x seeded.
     let xd: [Jet<N>; N] = std::array::from_fn(|i| Jet::variable(sol.x[i], i));
-    let tip_x = integrate(rod, &p.coeffs, p.base_state(&xd), None);
+    let (tip_x, marks_x) = integrate_markers(rod, &p.coeffs, p.base_state(&xd), markers);
     let r_x: [Jet<N>; N] = p.residual_of_tip(&tip_x);
     let jac = DMatrix::from_fn(N, N, |i, k| r_x[i].eps[k]);
     let lu = jac.lu();
     let mut out = TipSensitivity {
         position: Vec::with_capacity(params.len()),
         rotation: Vec::with_capacity(params.len()),
+        markers: Vec::with_capacity(params.len()),
     };
+    let pos_x: Vec<[Jet<N>; 3]> = marks_x
+        .iter()
+        .zip(markers)
+        .map(|(y, mk)| marker_position(y, &mk.offset))
+        .collect();
     for chunk in params.chunks(CHUNK) {
         let (knobs, sigma) = seeded(rod, loads, chunk);
         let coeffs: Vec<Coeffs<Dual>> = (0..rod.sections.len())
@@ -284,8 +510,21 @@ fn sensitivity_n<const N: usize>(
             })
             .collect();
         let x: Vec<Dual> = sol.x.iter().map(|v| Dual::from(*v)).collect();
-        let tip: State<Dual> = integrate(rod, &coeffs, p.base_state(&x), None);
+        let mut base = p.base_state(&x);
+        // The base force carries the rod's whole weight (n(0) = F_tip + m_t g + int f ds):
+        // a mass parameter moves it by its sections' weight per unit of mass_scale.
+        for (sec, k) in rod.sections.iter().zip(&knobs) {
+            for c in 0..3 {
+                base.n[c] += (k.mass_scale - 1.0) * (sec.line_mass * rod.gravity[c] * sec.length);
+            }
+        }
+        let (tip, marks) = integrate_markers(rod, &coeffs, base, markers);
         let r_t: [Dual; N] = p.residual_of_tip(&tip);
+        let pos_t: Vec<[Dual; 3]> = marks
+            .iter()
+            .zip(markers)
+            .map(|(y, mk)| marker_position(y, &mk.offset))
+            .collect();
         for q in 0..chunk.len() {
             let rhs = DVector::from_fn(N, |i, _| -r_t[i].eps[q]);
             let dx = lu
@@ -304,6 +543,13 @@ fn sensitivity_n<const N: usize>(
             out.rotation.push(std::array::from_fn(|i| {
                 std::array::from_fn(|j| total(&tip.rot[i][j], &tip_x.rot[i][j]))
             }));
+            out.markers.push(
+                pos_t
+                    .iter()
+                    .zip(&pos_x)
+                    .map(|(pt, px)| std::array::from_fn(|i| total(&pt[i], &px[i])))
+                    .collect(),
+            );
         }
     }
     Ok(out)

@@ -212,7 +212,7 @@ fn sensitivities_and_batches_with_follower_loads() {
         tip_moment: spec.tip.moment,
     };
     let rows = solve_batch(&rod, &inputs, &opts(), 2).unwrap();
-    let sens = sensitivity_batch(&rod, &inputs, None, &params, &opts(), 2).unwrap();
+    let sens = sensitivity_batch(&rod, &inputs, None, &params, &[], &opts(), 2).unwrap();
     for (r, row) in rows.iter().enumerate() {
         let mut l = Loads::from_design(&rod, p[3 * r..3 * r + 3].to_vec());
         l.tensions = vec![t[r]];

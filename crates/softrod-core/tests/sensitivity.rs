@@ -1,14 +1,18 @@
-//! Exact parameter derivatives of the tip pose (crate::sensitivity) against central finite
-//! differences of full solves with the parameter changed in the design, for every
-//! parameter kind and law; the batch against single solves; parameter validation.
+//! Exact parameter derivatives of the tip pose and of marker points anywhere on the body
+//! (crate::sensitivity) against central finite differences of full solves with the
+//! parameter changed in the design, for every parameter kind and law; marker positions
+//! against the solved shape; the batch against single solves; parameter validation.
 
 mod common;
 use common::*;
 use softrod_core::batch::{sensitivity_batch, BatchInputs};
 use softrod_core::ode::Loads;
-use softrod_core::sensitivity::{tip_sensitivity, validate_params, Param, ParamKind};
+use softrod_core::sensitivity::{
+    locate_markers, marker_positions, pose_sensitivity, tip_sensitivity, validate_params, Marker,
+    Param, ParamKind,
+};
 use softrod_core::spec::{AxialSpec, DesignSpec, LawSpec, SwellingSpec};
-use softrod_core::statics::{solve, SolverOptions};
+use softrod_core::statics::{shape, solve, SolverOptions};
 use softrod_core::{Rod, SoftrodError};
 
 /// Newton tolerance for the finite-difference solves: the solution error (~1e-13 of the
@@ -78,6 +82,8 @@ fn set(spec: &mut DesignSpec, ld: &mut Loads, p: &Param, v: f64) {
             ParamKind::ChamberOffset(a) => s.law.chamber_offset[a] = v,
             // relative to the design's areas: v is the factor on the current areas
             ParamKind::AreaScale => s.chambers.iter_mut().for_each(|c| c.area *= v),
+            ParamKind::Density => s.material.as_mut().unwrap().density = v,
+            ParamKind::Mass => s.mass = Some(v),
             ParamKind::StiffnessScale(_) => unreachable!(),
         }
     }
@@ -165,6 +171,8 @@ fn every_parameter_of_the_m3_law_matches_finite_differences() {
         param("c_t", &[1]),
         param("c_b", &[0, 2]), // both caps share c_b = 1
         param("E", &[0, 2]),   // both caps are Dragon Skin
+        param("density", &[1]),
+        param("density", &[0, 2]),
     ];
     for (name, rotation) in [("hanging", HANGING), ("tilted", tilted())] {
         check(name, m3(rotation), ld.clone(), &params);
@@ -231,6 +239,7 @@ fn batch_sensitivities_equal_single_ones() {
         &BatchInputs::pressures(&rod, &pressures),
         None,
         &params,
+        &[],
         &opts(),
         2,
     )
@@ -275,4 +284,239 @@ fn parameters_are_validated_against_the_design() {
         validate_params(&rod, &[param("c_e", &[2])]),
         Err(SoftrodError::InvalidParameter { rule, .. }) if rule.contains("rigid")
     ));
+}
+
+/// Markers at the base, inside a step of the cap, at the junction cap/body, inside a step
+/// of the Ogden body (its first step, where the carried stretch starts), on a node of the
+/// body, at the junction body/cap and at the tip, with offsets in the cross-section frame.
+fn markers(spec: &DesignSpec) -> Vec<Marker> {
+    let (a, b) = (spec.sections[0].length, spec.sections[1].length);
+    let h = b / spec.sections[1].steps as f64;
+    [
+        (0.0, [0.0, 0.0, 0.0]),
+        (0.37 * a, [3e-3, -2e-3, 0.0]),
+        (a, [0.0, 12e-3, 0.0]),
+        (a + 0.4 * h, [-5e-3, 0.0, 1e-3]),
+        (a + 3.0 * h, [0.0, 0.0, 0.0]),
+        (a + 0.55 * b, [15e-3, 2e-3, -1e-3]),
+        (a + b, [1e-3, 1e-3, 0.0]),
+        (
+            spec.sections.iter().map(|s| s.length).sum::<f64>(),
+            [0.0, 0.0, 5e-3],
+        ),
+    ]
+    .into_iter()
+    .map(|(s, offset)| Marker { s, offset })
+    .collect()
+}
+
+#[test]
+fn markers_on_nodes_equal_the_solved_shape_and_the_tip() {
+    let spec = m3(tilted());
+    let rod = Rod::new(spec.clone()).unwrap();
+    let ld = Loads {
+        pressures: vec![30e3, 12e3, 0.0],
+        ..loads(&[0.0; 3])
+    };
+    let sol = solve(&rod, &ld, None, &opts()).unwrap();
+    let sh = shape(&rod, &ld, &sol);
+    // Every node, with no offset: the shape's positions; the last one is the tip, bitwise
+    // (the same state, read at the node).
+    let on_nodes: Vec<Marker> =
+        sh.s.iter()
+            .map(|&s| Marker {
+                s,
+                offset: [0.0; 3],
+            })
+            .collect();
+    let located = locate_markers(&rod, &on_nodes).unwrap();
+    let got = marker_positions(&rod, &ld, &sol, &located);
+    for (k, (p, q)) in got.iter().zip(&sh.position).enumerate() {
+        assert!(dist(p, q) <= 1e-15, "node {k}: {p:?} vs {q:?}");
+    }
+    assert_eq!(got.last().unwrap(), &sol.tip.r);
+    // An offset along d3 at the tip is the tip plus that length along the tip tangent.
+    let tip = Marker {
+        s: rod.length,
+        offset: [0.0, 0.0, 0.01],
+    };
+    let p = marker_positions(&rod, &ld, &sol, &locate_markers(&rod, &[tip]).unwrap())[0];
+    let d3 = column(&sol.tip.rot, 2);
+    for i in 0..3 {
+        assert!((p[i] - sol.tip.r[i] - 0.01 * d3[i]).abs() < 1e-15);
+    }
+}
+
+#[test]
+fn markers_between_nodes_converge_at_fourth_order() {
+    // A marker between nodes is read by a partial RK4 step: as the steps shrink its
+    // position approaches the exact one at the integrator's order (h^4), like the nodes.
+    let ld = Loads {
+        pressures: vec![40e3, 0.0, 10e3],
+        ..loads(&[0.0; 3])
+    };
+    let at = |steps: usize| {
+        let spec = p002_actuator(HANGING, 9.81, steps);
+        let s = spec.sections[0].length + 0.613 * spec.sections[1].length;
+        let rod = Rod::new(spec).unwrap();
+        let sol = solve(&rod, &ld, None, &opts()).unwrap();
+        let mk = Marker {
+            s,
+            offset: [4e-3, -3e-3, 0.0],
+        };
+        marker_positions(&rod, &ld, &sol, &locate_markers(&rod, &[mk]).unwrap())[0]
+    };
+    let reference = at(256);
+    let errors: Vec<f64> = [8, 16, 32]
+        .iter()
+        .map(|&n| dist(&at(n), &reference))
+        .collect();
+    let order = |a: f64, b: f64| (a / b).log2();
+    println!("marker errors {errors:?}");
+    // Fourth order: the error ratio per halving is 16 (slopes within [3.5, 4.5] measured
+    // 3.9-4.0; the reference's own error is 256^-4 relative, far below).
+    assert!(order(errors[0], errors[1]) > 3.5 && order(errors[1], errors[2]) > 3.5);
+}
+
+#[test]
+fn marker_derivatives_match_finite_differences() {
+    let spec = m3(tilted());
+    let rod = Rod::new(spec.clone()).unwrap();
+    let ld = Loads {
+        pressures: vec![25e3, 5e3, 15e3],
+        ..loads(&[0.0; 3])
+    };
+    let params = [
+        param("c_b", &[1]),
+        param("alpha", &[1]),
+        param("c_p", &[1]),
+        param("offset_1", &[1]),
+        param("E", &[0, 2]),
+        param("area_scale", &[1]),
+        param("density", &[1]),
+    ];
+    let mks = markers(&spec);
+    let located = locate_markers(&rod, &mks).unwrap();
+    let sol = solve(&rod, &ld, None, &opts()).unwrap();
+    let sens = pose_sensitivity(&rod, &ld, &sol, &params, &located).unwrap();
+    // The tip derivative is the same with or without markers.
+    let tip_only = tip_sensitivity(&rod, &ld, &sol, &params).unwrap();
+    assert_eq!(sens.position, tip_only.position);
+    for (j, p) in params.iter().enumerate() {
+        let v0 = p.value(&rod, &ld);
+        let step = match p.kind {
+            ParamKind::ChamberOffset(_) => 1e-8,
+            _ => H * v0.abs(),
+        };
+        let at = |v: f64| {
+            let (mut s, mut l) = (spec.clone(), ld.clone());
+            let v = if let ParamKind::AreaScale = p.kind {
+                v / v0
+            } else {
+                v
+            };
+            set(&mut s, &mut l, p, v);
+            let r = Rod::new(s).unwrap();
+            let sol = solve(&r, &l, Some(&sol.x), &opts()).unwrap();
+            marker_positions(&r, &l, &sol, &locate_markers(&r, &mks).unwrap())
+        };
+        let (plus, minus) = (at(v0 + step), at(v0 - step));
+        for k in 0..mks.len() {
+            let fd: [f64; 3] = std::array::from_fn(|i| (plus[k][i] - minus[k][i]) / (2.0 * step));
+            let ex = sens.markers[j][k];
+            let e = dist(&fd, &ex) / (norm(&fd) + TIP_NOISE / (COLUMN_TOL * step));
+            println!("marker {k} d/d {}: rel. error {e:.2e}", p.kind.name());
+            assert!(
+                e < COLUMN_TOL,
+                "marker {k} d/d {}: exact {ex:?} vs FD {fd:?} ({e:.2e})",
+                p.kind.name()
+            );
+        }
+        // The base marker does not move with any parameter.
+        assert_eq!(sens.markers[j][0], [0.0; 3]);
+    }
+}
+
+#[test]
+fn section_mass_matches_finite_differences_and_batch_markers_equal_single() {
+    // A section with its mass given (a rigid-free direct section) takes "mass"; its weight
+    // moves the base force, so the derivative needs n(0)'s share too.
+    let mut spec = p002_actuator(HORIZONTAL, 9.81, 12);
+    spec.sections[1].mass = Some(0.08);
+    let ld = Loads {
+        pressures: vec![20e3, 0.0, 30e3],
+        ..loads(&[0.0; 3])
+    };
+    check(
+        "mass",
+        spec.clone(),
+        ld,
+        &[param("mass", &[1]), param("c_b", &[1])],
+    );
+    let rod = Rod::new(spec.clone()).unwrap();
+    let mks = markers(&spec);
+    let mut pressures = vec![];
+    for k in 0..4 {
+        pressures.extend([8e3 * k as f64, 2e3, 15e3]);
+    }
+    for params in [vec![], vec![param("mass", &[1])]] {
+        let rows = sensitivity_batch(
+            &rod,
+            &BatchInputs::pressures(&rod, &pressures),
+            None,
+            &params,
+            &mks,
+            &opts(),
+            2,
+        )
+        .unwrap();
+        for (r, row) in rows.iter().enumerate() {
+            let ld = loads(&pressures[3 * r..3 * r + 3]);
+            let sol = solve(&rod, &ld, None, &opts()).unwrap();
+            let single = marker_positions(&rod, &ld, &sol, &locate_markers(&rod, &mks).unwrap());
+            for (a, b) in row.markers.iter().zip(&single) {
+                assert!(dist(a, b) <= 1e-12, "row {r}: {a:?} vs {b:?}");
+            }
+            assert_eq!(row.sensitivity.is_some(), !params.is_empty());
+        }
+    }
+}
+
+#[test]
+fn markers_and_mass_parameters_are_validated() {
+    let spec = m3(HANGING);
+    let rod = Rod::new(spec).unwrap();
+    let bad = |mk: Marker| match locate_markers(&rod, &[mk]) {
+        Err(SoftrodError::InvalidParameter { field, rule, .. }) => format!("{field} | {rule}"),
+        other => panic!("expected an error, got {other:?}"),
+    };
+    assert!(bad(Marker {
+        s: -1e-3,
+        offset: [0.0; 3]
+    })
+    .contains("markers[0].s"));
+    assert!(bad(Marker {
+        s: 1.0,
+        offset: [0.0; 3]
+    })
+    .contains("[0, L]"));
+    assert!(bad(Marker {
+        s: f64::NAN,
+        offset: [0.0; 3]
+    })
+    .contains("markers[0].s"));
+    assert!(bad(Marker {
+        s: 0.05,
+        offset: [0.0, f64::INFINITY, 0.0]
+    })
+    .contains("offset"));
+    let err = |p: Param| match validate_params(&rod, &[p]) {
+        Err(SoftrodError::InvalidParameter { rule, .. }) => rule,
+        other => panic!("expected an error, got {other:?}"),
+    };
+    assert!(err(param("mass", &[1])).contains("calibrate the density"));
+    let mut given = m3(HANGING);
+    given.sections[1].mass = Some(0.1);
+    let rod = Rod::new(given).unwrap();
+    assert!(validate_params(&rod, &[param("density", &[1])]).is_err());
 }

@@ -275,7 +275,7 @@ fn batch_with_tensions_equals_single_solves() {
         kind: ParamKind::CorrectionFactor(2),
         sections: vec![1],
     }];
-    let sens = sensitivity_batch(&rod, &inputs, None, &params, &opts(), 2).unwrap();
+    let sens = sensitivity_batch(&rod, &inputs, None, &params, &[], &opts(), 2).unwrap();
     for (r, row) in rows.iter().enumerate() {
         let ld = tensioned(&p[3 * r..3 * r + 3], &t[2 * r..2 * r + 2]);
         let sol = solve(&rod, &ld, None, &opts()).unwrap();

@@ -8,7 +8,7 @@ use pyo3::types::PyDict;
 use softrod_core::batch::{sensitivity_batch, solve_batch, BatchInputs, BatchRow};
 use softrod_core::interp::GridPchip;
 use softrod_core::ode::Loads;
-use softrod_core::sensitivity::{Param, ParamKind};
+use softrod_core::sensitivity::{Marker, Param, ParamKind};
 use softrod_core::statics::{self, SolverOptions};
 use softrod_core::validity::{Policy, StrainLimits};
 use softrod_core::{DesignSpec, Rod, SoftrodError};
@@ -357,9 +357,11 @@ impl PyRod {
     /// `solve_batch` plus the exact derivatives of every converged tip pose with respect to
     /// calibration parameters (GIL released). `params`: a list of (kind, sections) pairs,
     /// kinds as in `softrod_core::sensitivity::ParamKind::ALL`. `x0`: optional (m, 3) warm
-    /// starts (a previous call's "x"; NaN rows start cold). Adds "x" (m, 3),
-    /// "d_tip_position" (m, 3, P) and "d_tip_rotation" (m, 3, 3, P), NaN on failed rows.
-    #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore", tensions=None))]
+    /// starts (a previous call's "x"; NaN rows start cold). `markers`: (s, offset) pairs,
+    /// points on the body (reference arc length in m, offset (d1, d2, d3) in m). Adds "x"
+    /// (m, n), "d_tip_position" (m, 3, P), "d_tip_rotation" (m, 3, 3, P), "marker_position"
+    /// (m, K, 3) and "d_marker_position" (m, K, 3, P), NaN on failed rows.
+    #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore", tensions=None, markers=vec![]))]
     #[allow(clippy::too_many_arguments)]
     fn sensitivity_batch<'py>(
         &self,
@@ -378,10 +380,15 @@ impl PyRod {
         stretch_range: (f64, f64),
         on_invalid: &str,
         tensions: Option<PyReadonlyArray2<'py, f64>>,
+        markers: Vec<(f64, [f64; 3])>,
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(py, || {
             self.check_columns(py, &pressures)?;
             let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
+            let markers: Vec<Marker> = markers
+                .into_iter()
+                .map(|(s, offset)| Marker { s, offset })
+                .collect();
             let params: Vec<Param> = params
                 .into_iter()
                 .enumerate()
@@ -424,14 +431,28 @@ impl PyRod {
                         tip_force,
                         tip_moment,
                     };
-                    sensitivity_batch(rod, &inputs, guesses.as_deref(), &params, &opts, threads)
+                    sensitivity_batch(
+                        rod,
+                        &inputs,
+                        guesses.as_deref(),
+                        &params,
+                        &markers,
+                        &opts,
+                        threads,
+                    )
                 })
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
             let d = rows_dict(py, &rows)?;
             let np = params.len();
+            let nk = markers.len();
             let m = rows.len();
             let (mut dp, mut dr) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 9 * np]);
+            let mut mp = vec![f64::NAN; m * nk * 3];
+            let mut dm = vec![f64::NAN; m * nk * 3 * np];
             for (r, row) in rows.iter().enumerate() {
+                for (k, pos) in row.markers.iter().enumerate() {
+                    mp[(r * nk + k) * 3..(r * nk + k) * 3 + 3].copy_from_slice(pos);
+                }
                 let Some(sens) = &row.sensitivity else {
                     continue;
                 };
@@ -442,8 +463,21 @@ impl PyRod {
                             dr[((r * 3 + i) * 3 + k) * np + j] = sens.rotation[j][i][k];
                         }
                     }
+                    for k in 0..nk {
+                        for i in 0..3 {
+                            dm[((r * nk + k) * 3 + i) * np + j] = sens.markers[j][k][i];
+                        }
+                    }
                 }
             }
+            d.set_item(
+                "marker_position",
+                PyArray1::from_vec(py, mp).reshape([m, nk, 3])?,
+            )?;
+            d.set_item(
+                "d_marker_position",
+                PyArray1::from_vec(py, dm).reshape([m, nk, 3, np])?,
+            )?;
             d.set_item(
                 "d_tip_position",
                 PyArray1::from_vec(py, dp).reshape([m, 3, np])?,

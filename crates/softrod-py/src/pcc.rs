@@ -4,6 +4,10 @@ use super::{array2, array3, to_py_err, Context};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use softrod_core::pcc::sensitivity::{
+    simulate_sensitivity_batch, statics_sensitivity_batch, PccMarker, PccParam, PccRun,
+    PointSensitivity,
+};
 use softrod_core::pcc::{BendStiffness, InitialState, PccModel, StepOptions};
 use softrod_core::SoftrodError;
 
@@ -18,6 +22,65 @@ fn matrix<'py>(py: Python<'py>, rows: &[Vec<f64>], width: usize) -> PyResult<Bou
     Ok(PyArray1::from_vec(py, flat)
         .reshape([rows.len(), width])?
         .into_any())
+}
+
+/// Parameter names -> core parameters (errors name `params[j]`).
+fn pcc_params(py: Python<'_>, names: &[String]) -> PyResult<Vec<PccParam>> {
+    names
+        .iter()
+        .enumerate()
+        .map(|(j, n)| {
+            PccParam::parse(n).ok_or_else(|| {
+                to_py_err(
+                    py,
+                    SoftrodError::invalid(
+                        format!("params[{j}]"),
+                        n,
+                        "unknown PCC parameter; known: k_L, b_L, k_theta, k_theta[j], b_theta, k_phi, b_phi",
+                    ),
+                    Context::Input,
+                )
+            })
+        })
+        .collect()
+}
+
+fn pcc_markers(markers: Vec<(f64, [f64; 3])>) -> Vec<PccMarker> {
+    markers
+        .into_iter()
+        .map(|(s, offset)| PccMarker { s, offset })
+        .collect()
+}
+
+/// (points (n, K, 3), d_points (n, K, 3, P)) of several point sets, NaN for missing ones.
+fn point_arrays<'py>(
+    py: Python<'py>,
+    sets: &[Option<&PointSensitivity>],
+    n_points: usize,
+    n_par: usize,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let n = sets.len();
+    let mut pts = vec![f64::NAN; n * n_points * 3];
+    let mut dp = vec![f64::NAN; n * n_points * 3 * n_par];
+    for (r, set) in sets.iter().enumerate() {
+        let Some(set) = set else { continue };
+        for (i, (p, d)) in set.points.iter().zip(&set.d_points).enumerate() {
+            for k in 0..3 {
+                pts[(r * n_points + i) * 3 + k] = p[k];
+                for j in 0..n_par {
+                    dp[((r * n_points + i) * 3 + k) * n_par + j] = d[j][k];
+                }
+            }
+        }
+    }
+    Ok((
+        PyArray1::from_vec(py, pts)
+            .reshape([n, n_points, 3])?
+            .into_any(),
+        PyArray1::from_vec(py, dp)
+            .reshape([n, n_points, 3, n_par])?
+            .into_any(),
+    ))
 }
 
 impl PyPcc {
@@ -138,6 +201,158 @@ impl PyPcc {
                 r.iter().map(|x| x.to_vec()).collect::<Vec<_>>(),
             )?;
             Ok(d)
+        })
+    }
+
+    /// Equilibria of the rows of `pressures` (m, n_channels) with the derivatives of the tip
+    /// and the markers ((s, offset) pairs) with respect to `params` (names), in parallel
+    /// with the GIL released. `guesses`: optional (m, ndof) warm starts (NaN rows start at
+    /// rest). Returns a dict: x (m, ndof), converged (m,), errors (m, message or ""),
+    /// points (m, 1 + K, 3) (tip first), d_points (m, 1 + K, 3, P); NaN on failed rows.
+    #[pyo3(signature = (pressures, params, markers=vec![], guesses=None, threads=0, tol=1e-11, max_iter=30))]
+    #[allow(clippy::too_many_arguments)]
+    fn statics_sensitivity<'py>(
+        &self,
+        py: Python<'py>,
+        pressures: PyReadonlyArray2<'_, f64>,
+        params: Vec<String>,
+        markers: Vec<(f64, [f64; 3])>,
+        guesses: Option<PyReadonlyArray2<'_, f64>>,
+        threads: usize,
+        tol: f64,
+        max_iter: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        crate::guarded(py, || {
+            let m = &self.model;
+            let params = pcc_params(py, &params)?;
+            let markers = pcc_markers(markers);
+            let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
+            let rows = pressures.as_array().nrows();
+            let guesses: Option<Vec<f64>> = guesses.map(|g| g.as_array().iter().copied().collect());
+            let opts = StepOptions { tol, max_iter };
+            let out = py
+                .detach(|| {
+                    statics_sensitivity_batch(
+                        m,
+                        &flat,
+                        guesses.as_deref(),
+                        &params,
+                        &markers,
+                        &opts,
+                        threads,
+                    )
+                })
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            let d = PyDict::new(py);
+            let mut x = vec![f64::NAN; rows * m.ndof];
+            for (r, row) in out.iter().enumerate() {
+                if let Ok(s) = row {
+                    x[r * m.ndof..(r + 1) * m.ndof].copy_from_slice(&s.x);
+                }
+            }
+            let sets: Vec<Option<&PointSensitivity>> =
+                out.iter().map(|r| r.as_ref().ok().map(|s| &s.at)).collect();
+            let (pts, dp) = point_arrays(py, &sets, 1 + markers.len(), params.len())?;
+            d.set_item("x", PyArray1::from_vec(py, x).reshape([rows, m.ndof])?)?;
+            d.set_item(
+                "converged",
+                out.iter().map(|r| r.is_ok()).collect::<Vec<_>>(),
+            )?;
+            d.set_item(
+                "errors",
+                out.iter()
+                    .map(|r| r.as_ref().err().map(|e| e.to_string()).unwrap_or_default())
+                    .collect::<Vec<_>>(),
+            )?;
+            d.set_item("points", pts)?;
+            d.set_item("d_points", dp)?;
+            Ok(d)
+        })
+    }
+
+    /// Replay time series with the derivatives of the tip and the markers with respect to
+    /// `params`, in parallel with the GIL released. `runs`: (commands (n_steps + 1,
+    /// n_channels) Pa at every step of `dt`, initial "rest" or "static", save_every). Returns
+    /// one dict per run: time (n,), points (n, 1 + K, 3), d_points (n, 1 + K, 3, P), error
+    /// ("" when it ran).
+    #[pyo3(signature = (runs, dt, params, markers=vec![], threads=0, tol=1e-11, max_iter=30))]
+    #[allow(clippy::too_many_arguments)]
+    fn runs_sensitivity<'py>(
+        &self,
+        py: Python<'py>,
+        runs: Vec<(PyReadonlyArray2<'py, f64>, String, usize)>,
+        dt: f64,
+        params: Vec<String>,
+        markers: Vec<(f64, [f64; 3])>,
+        threads: usize,
+        tol: f64,
+        max_iter: usize,
+    ) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        crate::guarded(py, || {
+            let m = &self.model;
+            let params = pcc_params(py, &params)?;
+            let markers = pcc_markers(markers);
+            let mut core_runs = Vec::with_capacity(runs.len());
+            for (k, (p, initial, save_every)) in runs.iter().enumerate() {
+                let arr = p.as_array();
+                if arr.shape()[1] != m.n_channels {
+                    return Err(to_py_err(
+                        py,
+                        SoftrodError::invalid(
+                            format!("runs[{k}].pressures"),
+                            format!("{} columns", arr.shape()[1]),
+                            format!("the design has {} pressure channels", m.n_channels),
+                        ),
+                        Context::Input,
+                    ));
+                }
+                let initial = match initial.as_str() {
+                    "rest" => InitialState::Rest,
+                    "static" => InitialState::Static,
+                    other => {
+                        return Err(to_py_err(
+                            py,
+                            SoftrodError::invalid(
+                                format!("runs[{k}].initial"),
+                                other,
+                                "must be 'rest' or 'static'",
+                            ),
+                            Context::Input,
+                        ))
+                    }
+                };
+                core_runs.push(PccRun {
+                    dt,
+                    pressures: arr.iter().copied().collect(),
+                    initial,
+                    save_every: *save_every,
+                });
+            }
+            let opts = StepOptions { tol, max_iter };
+            let out = py
+                .detach(|| {
+                    simulate_sensitivity_batch(m, &core_runs, &params, &markers, &opts, threads)
+                })
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            out.iter()
+                .map(|run| {
+                    let d = PyDict::new(py);
+                    match run {
+                        Ok(r) => {
+                            let sets: Vec<Option<&PointSensitivity>> =
+                                r.at.iter().map(Some).collect();
+                            let (pts, dp) =
+                                point_arrays(py, &sets, 1 + markers.len(), params.len())?;
+                            d.set_item("time", PyArray1::from_vec(py, r.time.clone()))?;
+                            d.set_item("points", pts)?;
+                            d.set_item("d_points", dp)?;
+                            d.set_item("error", "")?;
+                        }
+                        Err(e) => d.set_item("error", e.to_string())?,
+                    }
+                    Ok(d)
+                })
+                .collect()
         })
     }
 

@@ -1,4 +1,11 @@
-"""Calibration: fit model parameters to measured tip positions and report the fit."""
+"""Calibration: fit model parameters to measured positions and report the fit.
+
+One engine for every model (:func:`calibrate`): a problem (:mod:`.problem`) of parameters,
+a model adapter with exact parameter Jacobians (:mod:`.adapters`: rod statics and dynamics,
+paper 003's PCC model), weighted residuals and a split; one solver layer (:mod:`.solve`);
+identifiability from the Jacobian (:mod:`.diagnostics`); one result (:mod:`.result`) and
+report (:mod:`.report`). Paper 001's per-sample identification and paper 004's axial
+identification are their own procedures (:mod:`.per_sample`, :mod:`.axial`)."""
 
 from .axial import (
     AxialData,
@@ -10,19 +17,17 @@ from .axial import (
     synthesize_axial_data,
     write_axial_data,
 )
-from .dynamic import DynamicCalibrationResult, calibrate_dynamics, synthesize_trajectory_dataset
 from .fit import CalibrationResult, CalibrationWarning, calibrate
 from .hybrid import HybridStiffnessModel, compare_hybrid, fit_stiffness_map
 from .metrics import per_sample_errors, tip_error_table
 from .per_sample import StiffnessIdentification, identify_stiffness, stiffness_mapped_design
 from .report import save_figures, write_report
+from .synthetic import synthesize_trajectory_dataset
 
 __all__ = [
     "CalibrationResult",
     "CalibrationWarning",
     "calibrate",
-    "calibrate_dynamics",
-    "DynamicCalibrationResult",
     "synthesize_trajectory_dataset",
     "AxialData",
     "AxialIdentification",

@@ -538,7 +538,7 @@ def compare_hybrid(
     dataset = _check_dataset(dataset, mapped)
     idx = _rows(rows, hybrid, dataset)
     p = np.asarray(dataset.pressures, dtype=float)[idx]
-    measured = np.asarray(dataset.tip_position, dtype=float)[idx]
+    measured = np.asarray(dataset.require_tip("compare_hybrid"), dtype=float)[idx]
     kwargs = {"options": options, "threads": threads}
 
     def solve(model_design, smap):

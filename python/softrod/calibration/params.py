@@ -13,9 +13,15 @@ E                       Young's modulus of a material; G scales with it (Poisson
 alpha                   Ogden exponent (paper 002 eq. 16)                               1
 c_p                     chamber swelling coefficient (paper 002 eq. 22)                 1
 offset_1, offset_2      chamber offset along d1, d2 (paper 002 eq. 21)                  m
-area_scale              factor on the pressurised chamber areas (1 = as designed)       1
+area_scale              factor on the pressurised chamber areas (1 = as designed;       1
+                        paper 000's effective area A_eff)
+density                 mass density of a material (its weight; its inertia in          kg/m^3
+                        dynamics). Selector: the material name
+mass                    mass of a section whose mass is given directly                  kg
 sigma_ext, sigma_bend_1,
 sigma_bend_2            constant stiffness scaling factors (paper 001 eq. 13)           1
+damping_time            Kelvin-Voigt damping time tau = B/K of ``[dynamics]`` (paper    s
+                        000 eq. 8); dynamic fits only
 ======================  ==============================================================  =====
 
 Without a selector a section parameter acts on every elastic section with chambers (the
@@ -33,20 +39,35 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from .. import _validate as V
 from .._validate import si_text
 from ..design import Design, _library
-from ..errors import InputError
 
 _FACTORS = ("c_s", "c_e", "c_b", "c_t")
-_SECTION_KINDS = _FACTORS + ("E", "alpha", "c_p", "offset_1", "offset_2", "area_scale")
+_MATERIAL_KINDS = ("E", "density")
+_SECTION_KINDS = _FACTORS + (
+    "E",
+    "alpha",
+    "c_p",
+    "offset_1",
+    "offset_2",
+    "area_scale",
+    "density",
+    "mass",
+)
 SIGMA_KINDS = ("sigma_ext", "sigma_bend_1", "sigma_bend_2")
-KINDS = _SECTION_KINDS + SIGMA_KINDS
-_UNITS = {"E": "Pa", "offset_1": "m", "offset_2": "m"}
+#: Parameters of the design's [dynamics] table: they act in dynamic fits only.
+DYNAMIC_KINDS = ("damping_time",)
+KINDS = _SECTION_KINDS + SIGMA_KINDS + DYNAMIC_KINDS
+_UNITS = {
+    "E": "Pa",
+    "offset_1": "m",
+    "offset_2": "m",
+    "density": "kg/m^3",
+    "mass": "kg",
+    "damping_time": "s",
+}
 _NAME = re.compile(r"^\s*([A-Za-z_0-9]+)\s*(?:\[\s*([^\]]*)\])?\s*$")
-
-
-def _fail(field: str, value, rule: str) -> InputError:
-    return InputError(f"{field} = {value!r}: {rule}", field, value, rule)
 
 
 @dataclass(frozen=True)
@@ -55,9 +76,9 @@ class Parameter:
 
     name: str
     kind: str
-    #: Indices of the sections it acts on (empty for sigma).
+    #: Indices of the sections it acts on (empty for sigma and damping_time).
     sections: tuple[int, ...]
-    #: The material it sets (E only).
+    #: The material it sets (E and density only).
     material: str | None = None
 
     @property
@@ -78,7 +99,13 @@ class Parameter:
         relative to it."""
         if self.kind in SIGMA_KINDS or self.kind == "area_scale":
             return 1.0
+        if self.kind == "damping_time":
+            return float(design.spec["dynamics"]["damping_time"])
         sec = design.spec["sections"][self.sections[0]]
+        if self.kind == "density":
+            return float(sec["material"]["density"])
+        if self.kind == "mass":
+            return float(sec["mass"])
         law = sec.get("law", {})
         if self.kind in _FACTORS:
             return float(sec.get(self.kind, 1.0))
@@ -104,26 +131,32 @@ def _default_sections(design: Design, kind: str) -> list[int]:
         ]
     if kind == "c_p":
         return [i for i in elastic if secs[i].get("law", {}).get("swelling")]
+    if kind == "mass":
+        return [i for i in elastic if secs[i]["chambers"] and "mass" in secs[i]]
     return [i for i in elastic if secs[i]["chambers"]]
 
 
 def parse_parameter(name: str, design: Design) -> Parameter:
     """Resolve a parameter name such as ``"c_b"``, ``"c_b[body]"`` or ``"E[ecoflex]"``."""
     if not isinstance(name, str):
-        raise _fail("params", name, "each parameter must be a name such as 'c_b' or 'c_b[body]'")
+        raise V.fail("params", name, "each parameter must be a name such as 'c_b' or 'c_b[body]'")
     m = _NAME.match(name)
     if not m or m.group(1) not in KINDS:
-        raise _fail("params", name, f"unknown parameter; known kinds: {', '.join(KINDS)}")
+        raise V.fail("params", name, f"unknown parameter; known kinds: {', '.join(KINDS)}")
     kind, selector = m.group(1), m.group(2)
     secs = design.spec["sections"]
     names = [s["name"] for s in secs]
     if kind in SIGMA_KINDS:
         if selector:
-            raise _fail(
+            raise V.fail(
                 "params", name, "sigma factors act on the stiffness-mapped sections: no selector"
             )
         return Parameter(name.strip(), kind, ())
-    if kind == "E":
+    if kind in DYNAMIC_KINDS:
+        if selector:
+            raise V.fail("params", name, f"{kind} is one value of [dynamics]: no selector")
+        return Parameter(name.strip(), kind, ())
+    if kind in _MATERIAL_KINDS:
         mats = {
             i: design.document["sections"][i].get("material")
             for i in _elastic(design)
@@ -133,13 +166,13 @@ def parse_parameter(name: str, design: Design) -> Parameter:
             material = selector.strip()
             if material not in mats.values():
                 known = ", ".join(sorted({v for v in mats.values() if v}))
-                raise _fail(
+                raise V.fail(
                     "params", name, f"no elastic section uses material {material!r} (used: {known})"
                 )
         else:
             used = {mats[i] for i in _default_sections(design, kind) if i in mats}
             if len(used) != 1:
-                raise _fail(
+                raise V.fail(
                     "params",
                     name,
                     f"the chambered sections use {len(used)} materials "
@@ -157,12 +190,14 @@ def parse_parameter(name: str, design: Design) -> Parameter:
         for part in selector.split(","):
             part = part.strip()
             if part not in names:
-                raise _fail(
+                raise V.fail(
                     "params", name, f"no section named {part!r} (sections: {', '.join(names)})"
                 )
             idx.append(names.index(part))
     if not idx:
-        raise _fail("params", name, f"no section of design {design.name!r} has what {kind} acts on")
+        raise V.fail(
+            "params", name, f"no section of design {design.name!r} has what {kind} acts on"
+        )
     return Parameter(name.strip(), kind, tuple(idx))
 
 
@@ -171,15 +206,15 @@ def parse_parameters(names: Sequence[str] | str, design: Design) -> list[Paramet
     if isinstance(names, str):
         names = [n for n in re.split(r",(?![^\[]*\])", names) if n.strip()]
     if not isinstance(names, (list, tuple)):
-        raise _fail("params", names, "must be a name, a comma-separated string or a list of names")
+        raise V.fail("params", names, "must be a name, a comma-separated string or a list of names")
     params = [parse_parameter(n, design) for n in names]
     if not params:
-        raise _fail("params", names, "name at least one parameter")
+        raise V.fail("params", names, "name at least one parameter")
     seen: dict[tuple, str] = {}
     for p in params:
         for key in [(p.kind, i) for i in p.sections] or [(p.kind, None)]:
             if key in seen:
-                raise _fail("params", p.name, f"acts on the same thing as {seen[key]!r}")
+                raise V.fail("params", p.name, f"acts on the same thing as {seen[key]!r}")
             seen[key] = p.name
     return params
 
@@ -200,12 +235,21 @@ def design_changes(params: Sequence[Parameter], values: Sequence[float], base: D
                 laws[i]["chamber_offset"] = [si_text(x, "length") for x in offset]
         return laws[i]
 
+    materials: dict = {}
     for p, v in zip(params, values, strict=False):
         v = float(v)
         if p.kind in SIGMA_KINDS:
             continue
-        if p.kind == "E":
-            changes.update(_material_change(base, p.material, v))
+        if p.kind == "damping_time":
+            changes["dynamics.damping_time"] = si_text(v, "time")
+            continue
+        if p.kind in _MATERIAL_KINDS:
+            table = materials.get(p.material) or _material_table(base, p.material)
+            materials[p.material] = _material_change(base, table, p.material, p.kind, v)
+            continue
+        if p.kind == "mass":
+            for i in p.sections:
+                changes[f"sections[{i}].mass"] = si_text(v, "mass")
             continue
         for i in p.sections:
             if p.kind in _FACTORS:
@@ -225,26 +269,30 @@ def design_changes(params: Sequence[Parameter], values: Sequence[float], base: D
                 changes[f"sections[{i}].chambers"] = chambers
     for i, table in laws.items():
         changes[f"sections[{i}].law"] = table
+    if materials:
+        changes["materials"] = {**base.document.get("materials", {}), **materials}
     return changes
 
 
-def _material_change(base: Design, name: str, e: float) -> dict:
-    """A [materials.<name>] table with E set (G scaled with it when G is given)."""
+def _material_table(base: Design, name: str) -> dict:
     inline = base.document.get("materials", {})
-    table = dict(inline[name]) if name in inline else dict(_library()[name])
-    old = next(
-        s["material"]["youngs_modulus"]
+    return dict(inline[name]) if name in inline else dict(_library()[name])
+
+
+def _material_change(base: Design, table: dict, name: str, kind: str, value: float) -> dict:
+    """``table`` ([materials.<name>]) with E (G scaled with it when G is given) or the
+    density set."""
+    table = dict(table)
+    compiled = next(
+        s["material"]
         for s, d in zip(base.spec["sections"], base.document["sections"], strict=False)
         if d.get("material") == name
     )
+    if kind == "density":
+        table["density"] = si_text(value, "density")
+        return table
     if "G" in table:
-        g = next(
-            s["material"]["shear_modulus"]
-            for s, d in zip(base.spec["sections"], base.document["sections"], strict=False)
-            if d.get("material") == name
-        )
-        table["G"] = si_text(g * e / old, "pressure")
-    table["E"] = si_text(e, "pressure")
-    materials = dict(base.document.get("materials", {}))
-    materials[name] = table
-    return {"materials": materials}
+        g = compiled["shear_modulus"]
+        table["G"] = si_text(g * value / compiled["youngs_modulus"], "pressure")
+    table["E"] = si_text(value, "pressure")
+    return table

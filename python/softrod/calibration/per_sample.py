@@ -753,7 +753,7 @@ def _problem(design, dataset, *, use_rotation, n_high, r_high, m_high, R_high, o
     problem = _Problem(
         design=design,
         pressures=np.asarray(dataset.pressures, dtype=float),
-        position=np.asarray(dataset.tip_position, dtype=float),
+        position=np.asarray(dataset.require_tip("identify_stiffness"), dtype=float),
         rotation=None if rotation is None else np.asarray(rotation, dtype=float),
         w_t=math.sqrt(c_t / 2.0),
         w_r=math.sqrt(c_r / 2.0),

@@ -34,7 +34,7 @@ import numpy as np
 from ..errors import InputError, design_error
 from ..io import atomic_path
 from ..plotting import save_figure
-from .fit import STRONG_CORRELATION
+from .diagnostics import STRONG_CORRELATION
 from .metrics import ALL, _length, per_sample_errors
 
 _CORRELATION_ROUNDING = 1e-9  # |r| may exceed 1 by rounding; more means it is no correlation

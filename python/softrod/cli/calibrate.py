@@ -41,7 +41,25 @@ _CALIBRATE_OPTIONS = {
     "threads": "--threads",
     "restarts": "--restarts",
     "seed": "--seed",
+    "model": "--model",
+    "dt": "--dt",
+    "experiments": "--experiments",
+    "weights": "--weights",
 }
+
+
+def _parse_pairs(items: tuple[str, ...], option: str, example: str) -> dict[str, str]:
+    """KEY=VALUE items -> {key: value} (a key once)."""
+    out: dict[str, str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        key, value = key.strip(), value.strip()
+        if not sep or not key or not value:
+            raise design_error(option, item, f"must read KEY=VALUE, e.g. {example}", InputError)
+        if key in out:
+            raise design_error(option, item, f"gives {key} twice", InputError)
+        out[key] = value
+    return out
 
 
 def _parse_bounds(items: tuple[str, ...], params) -> tuple[dict, dict[str, str]]:
@@ -49,7 +67,8 @@ def _parse_bounds(items: tuple[str, ...], params) -> tuple[dict, dict[str, str]]
 
     LO and HI take units ("E=40kPa:200kPa"; a unit on HI alone applies to both, "E=40:200kPa");
     a bare number other than 0 is refused. Dimensionless parameters take plain numbers."""
-    kinds = {"Pa": "pressure", "m": "length"}
+    from ..calibration.fit import _BOUND_KINDS as kinds
+
     by_name = {p.name: p for p in params}
     bounds: dict[str, tuple[float, float]] = {}
     typed: dict[str, str] = {}
@@ -89,6 +108,18 @@ def _parse_bounds(items: tuple[str, ...], params) -> tuple[dict, dict[str, str]]
         bounds[name] = (lo, hi)
         typed[f"bounds[{name}]"] = item
     return bounds, typed
+
+
+def _experiment_kinds(experiments: dict | None, dataset) -> dict | None:
+    """--experiments ID=KIND with ids as the dataset spells them (ints stay ints)."""
+    if experiments is None:
+        return None
+    labels = dataset.experiment
+    ints = labels is not None and labels.dtype.kind in "iu"
+    return {
+        (int(k) if ints and re.fullmatch(r"[+-]?[0-9]+", k) else k): v
+        for k, v in experiments.items()
+    }
 
 
 def _parse_test_ids(text: str | None, split: str | None, dataset) -> list | None:
@@ -211,10 +242,11 @@ def _error_table(result):
 
     length_mm = result.design.length * 1e3
     table = Table(
-        title=f"tip errors (Euclidean; % of the length L = {length_mm:.4g} mm)",
+        title=f"position errors (Euclidean; % of the length L = {length_mm:.4g} mm)",
         title_justify="left",
     )
     columns = (
+        ("quantity", "left", "quantity", None),
         ("set", "left", "set", None),
         ("n", "right", "n", None),
         ("failed", "right", "failed", None),
@@ -270,7 +302,8 @@ def _error_table(result):
     default="lm",
     show_default=True,
     help="lm: Levenberg-Marquardt with the exact Jacobian (trust-region reflective with "
-    "--bounds); nelder-mead: paper 002's simplex, no derivatives.",
+    "--bounds); nelder-mead: paper 002's simplex, no derivatives and no standard errors "
+    "(the rod's --dynamic fits need it).",
 )
 @click.option(
     "--bounds",
@@ -326,6 +359,44 @@ def _error_table(result):
 )
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="Seed of the restarts' starting points.")
+@click.option(
+    "--model",
+    type=click.Choice(["cosserat", "pcc"]),
+    default="cosserat",
+    show_default=True,
+    help="cosserat: the rod; pcc: paper 003's PCC model (params k_L, k_theta, k_theta[j], "
+    "b_L, b_theta, k_phi, b_phi).",
+)
+@click.option(
+    "--dynamic",
+    is_flag=True,
+    help="Replay the time series of DATA (time column, one experiment per run) instead of "
+    "fitting equilibria (paper 000's tau: --params damping_time,area_scale --method "
+    "nelder-mead for the rod; the PCC model's time series take lm).",
+)
+@click.option(
+    "--dt",
+    default="5 ms",
+    show_default=True,
+    help="Time step of the replayed time series.",
+)
+@click.option(
+    "--experiments",
+    "experiment_items",
+    multiple=True,
+    metavar="ID=KIND",
+    help="With --model pcc: whether an experiment is 'static' (equilibria) or 'dynamic' "
+    "(a time series), e.g. step=dynamic; repeat for every experiment (default: the "
+    "experiments step and free_decay are time series).",
+)
+@click.option(
+    "--weights",
+    "weight_items",
+    multiple=True,
+    metavar="QUANTITY=LENGTH",
+    help="Standard deviation of a measured quantity (tip or markers), e.g. tip=0.2mm "
+    "markers=0.5mm: each residual is divided by it (default 1 mm each).",
+)
 @_threads_option("Worker threads per model evaluation (0 = all cores).")
 @_scheduler_option("Run the restarts on the Dask cluster whose scheduler is at ADDRESS "
                    "(docs/cluster.md).")
@@ -346,14 +417,22 @@ def calibrate(
     as_json,
     restarts,
     seed,
+    model,
+    dynamic,
+    dt,
+    experiment_items,
+    weight_items,
     threads,
     scheduler,
 ):
-    """Fit parameters of DESIGN to the measured tip positions in DATA.
+    """Fit parameters of DESIGN to the measured positions in DATA.
 
     DATA is a dataset table (.csv or .parquet, docs/datasets.md), or the name of a bundled
-    example dataset, with one chamber pressure column per channel of DESIGN. Prints the
-    fitted values with standard errors, the tip errors on the training and test sets, and
+    example dataset, with one chamber pressure column per channel of DESIGN and the tip
+    position, markers on the body, or both. One engine for every model: the rod's
+    equilibria (default), its time series (--dynamic), or the PCC model (--model pcc);
+    --params registration_angle,registration_x,... fits the measurement frame too. Prints
+    the fitted values with standard errors, the errors on the training and test sets, and
     warnings about parameters that the data cannot determine (relative standard error above
     20 %, correlation |r| above 0.9, near-singular Jacobian). Every output file is written
     whole or not at all.
@@ -362,8 +441,8 @@ def calibrate(
     from rich.text import Text
 
     from ..calibration.fit import calibrate as fit
-    from ..calibration.fit import result_json
-    from ..calibration.params import SIGMA_KINDS, parse_parameters
+    from ..calibration.fit import resolve_parameters, result_json
+    from ..calibration.params import SIGMA_KINDS
     from ..calibration.report import REPORT_SUFFIXES
     from ..catalog import load_design
     from ..datasets import load_dataset
@@ -371,9 +450,11 @@ def calibrate(
     from ..io import TABLE_SUFFIXES, write_table
 
     d = load_design(design)
-    parsed = _renamed("--params", parse_parameters, params, d)
+    parsed = _renamed("--params", resolve_parameters, d, params, model)
     bounds, typed = _parse_bounds(bounds_items, parsed)
-    sigma = [p.name for p in parsed if p.kind in SIGMA_KINDS]
+    sigma = [p.name for p in parsed if getattr(p, "kind", None) in SIGMA_KINDS]
+    experiments = _parse_pairs(experiment_items, "--experiments", "step=dynamic") or None
+    weights = _parse_pairs(weight_items, "--weights", "tip=0.2mm") or None
     outputs = {}
     if out is not None:
         out = _check_output(out, "--out", (".toml",), "a design file")
@@ -408,7 +489,8 @@ def calibrate(
             src += " (SYNTHETIC)" if dataset.synthetic else ""
             note.print(
                 Text(
-                    f"calibrate {', '.join(p.name for p in parsed)} of {d.name} on {src}: "
+                    f"calibrate {', '.join(p.name for p in parsed)} of {d.name} "
+                    f"({model}{', time series' if dynamic else ''}) on {src}: "
                     f"{len(dataset)} samples, method {method}"
                 ),
                 soft_wrap=True,
@@ -436,6 +518,11 @@ def calibrate(
                     seed=seed,
                     executor=client,
                     name=name,
+                    model=model,
+                    dynamic=dynamic,
+                    dt=dt,
+                    experiments=_experiment_kinds(experiments, dataset),
+                    weights=weights,
                 )
         except InputError as exc:
             raise _as_option(exc, renames, typed) from None

@@ -220,12 +220,10 @@ def compare_pcc_cmd(
     "free_decay).",
 )
 @click.option(
-    "--gravity",
-    type=click.Choice(["subtract", "include"]),
-    default="subtract",
+    "--dt",
+    default="1 ms",
     show_default=True,
-    help="k_theta from a dataset: take the model's gravity moment out, or keep it in "
-    "(paper 003's M/theta).",
+    help="Time step of the replayed time series (datasets).",
 )
 @click.option(
     "--write-design",
@@ -235,13 +233,15 @@ def compare_pcc_cmd(
 )
 @_handle_errors
 def pcc_identify(
-    kind, data, design, chambers, k_l, k_theta, degree, experiment, gravity, write_design
+    kind, data, design, chambers, k_l, k_theta, degree, experiment, dt, write_design
 ):
     """Identify PCC parameters from DATA as in paper 003 Sec. V (docs/pcc.md).
 
     DATA is a softrod dataset (CSV/Parquet with tip_x/y/z and p0.. columns, as
-    load_dataset reads it; needs --design), fitted with softrod.calibrate(...,
-    model="pcc"): KIND all fits k_L, k_theta, b_L and b_theta in that order. Or DATA is an
+    load_dataset reads it; needs --design), identified with softrod.pcc.identify_pcc: one
+    stage per parameter through the calibration engine (closed-form start, the PCC model
+    fitted to the tip positions), then all together; KIND all fits k_L, k_theta, b_L and
+    b_theta in that order. Or DATA is an
     array table with SI columns: longitudinal-stiffness p_Pa, d_m; bending-stiffness
     p0_Pa..p<N-1>_Pa (channels from 0), theta_rad; longitudinal-damping t_s, z_m;
     bending-damping t_s, theta_rad. Prints each value, its standard error and the [pcc]
@@ -269,23 +269,28 @@ def pcc_identify(
         write_design = _check_output(write_design, "--write-design", (".toml",), "a design file")
     console = _stdout()
     if kind == "all" or _is_dataset(data):
-        fit = _identify_dataset(
+        result = _identify_dataset(
             kind,
             data,
             need_design("a dataset"),
             experiment,
             {
-                "gravity": gravity,
+                "dt": dt,
                 **({"degree": degree} if degree is not None else {}),
                 **({"k_L": k_l} if k_l else {}),
                 **({"k_theta": k_theta} if k_theta else {}),
             },
         )
+        _print_result(console, result)
+        if write_design is not None:
+            result.to_toml(write_design)
+            console.print(f"wrote {write_design}", soft_wrap=True)
+        return
     else:
-        if experiment or gravity != "subtract":
+        if experiment:
             raise design_error(
-                "--experiment" if experiment else "--gravity",
-                list(experiment) if experiment else gravity,
+                "--experiment",
+                list(experiment),
                 "applies to softrod datasets (tip_x/y/z columns), not to array tables",
                 InputError,
             )
@@ -367,8 +372,8 @@ def _experiment_id(text: str):
 
 
 def _identify_dataset(kind: str, path: Path, design, experiment: tuple, options: dict):
-    from ..calibration import calibrate
     from ..datasets import load_dataset
+    from ..pcc import identify_pcc
 
     params = KIND_PARAMETERS[kind]
     chosen: dict = {}
@@ -390,14 +395,40 @@ def _identify_dataset(kind: str, path: Path, design, experiment: tuple, options:
             )
         chosen.setdefault(name, []).append(_experiment_id(value))
     dataset = load_dataset(path, design=design)
-    return calibrate(
+    return identify_pcc(
         design,
         dataset,
         params,
-        model="pcc",
         experiments={k: v[0] if len(v) == 1 else v for k, v in chosen.items()},
-        options=options,
+        **options,
     )
+
+
+def _print_result(console, result) -> None:
+    """Value, standard error and [pcc] line of each parameter of an engine result."""
+    from ..pcc.model import pcc_parameters
+
+    for name, unit, val, se in zip(
+        result.names, result.units, result.values, result.std_errors, strict=True
+    ):
+        console.print(f"{name} = {val:.6g} {unit} +- {se:.3g} (1 s.e.)", markup=False)
+        if "[" not in name:
+            console.print(f'[pcc] line: {name} = "{val:.6g} {unit}"', markup=False)
+    table = pcc_parameters(result.design)[0]["k_theta"]
+    if isinstance(table, (tuple, list)):
+        a, k = table
+        console.print(
+            "[pcc] table: k_theta = { angle = ["
+            + ", ".join(f"{x:.4f}" for x in a)
+            + "], stiffness = ["
+            + ", ".join(f"{x:.5g}" for x in k)
+            + "] }",
+            markup=False,
+            soft_wrap=True,
+        )
+    console.print(f"RMS tip error {result.rms_error_mm:.3g} mm", markup=False)
+    for w in result.warnings:
+        console.print(f"warning: {w}", markup=False, soft_wrap=True)
 
 
 def _print_fit(console, fit) -> None:

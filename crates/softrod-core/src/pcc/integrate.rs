@@ -77,35 +77,16 @@ pub struct PccTrajectory {
     pub jacobian_evaluations: usize,
 }
 
-macro_rules! dispatch {
-    ($n:expr, $f:ident ( $($arg:expr),* )) => {
-        match $n {
-            2 => $f::<2>($($arg),*),
-            3 => $f::<3>($($arg),*),
-            4 => $f::<4>($($arg),*),
-            6 => $f::<6>($($arg),*),
-            8 => $f::<8>($($arg),*),
-            9 => $f::<9>($($arg),*),
-            10 => $f::<10>($($arg),*),
-            12 => $f::<12>($($arg),*),
-            14 => $f::<14>($($arg),*),
-            15 => $f::<15>($($arg),*),
-            n => Err(SoftrodError::invalid(
-                "sections",
-                n,
-                "the PCC model supports at most 5 deformable sections (7 when planar)",
-            )),
-        }
-    };
-}
-
-type Dn<const N: usize> = Grad<f64, N>;
+pub(crate) type Dn<const N: usize> = Grad<f64, N>;
 
 /// A sampled shape: reference arc length s, positions and rotations.
 pub type Shape = (Vec<f64>, Vec<[f64; 3]>, Vec<[[f64; 3]; 3]>);
 
 /// Solve A z = b by Gaussian elimination with partial pivoting; None if singular.
-fn solve_dense<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
+pub(crate) fn solve_dense<const N: usize>(
+    mut a: [[f64; N]; N],
+    mut b: [f64; N],
+) -> Option<[f64; N]> {
     let norm = a.iter().flatten().fold(0.0f64, |m, x| m.max(x.abs()));
     for c in 0..N {
         let piv = (c..N).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
@@ -131,7 +112,7 @@ fn solve_dense<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<
     Some(z)
 }
 
-fn arr<const N: usize>(x: &[f64]) -> [f64; N] {
+pub(crate) fn arr<const N: usize>(x: &[f64]) -> [f64; N] {
     std::array::from_fn(|i| x[i])
 }
 
@@ -148,7 +129,7 @@ fn scales<const N: usize>(m: &PccModel) -> [f64; N] {
 
 /// Residual and Jacobian with respect to a variable z of `residual`, evaluated on vector
 /// duals over z.
-fn eval_jac<const N: usize>(
+pub(crate) fn eval_jac<const N: usize>(
     z: &[f64; N],
     residual: impl Fn(&[Dn<N>; N]) -> [Dn<N>; N],
 ) -> ([f64; N], [[f64; N]; N]) {
@@ -161,7 +142,7 @@ fn eval_jac<const N: usize>(
 /// before.
 const STATIC_REFRESH_RATIO: f64 = 0.1;
 
-fn statics_n<const N: usize>(
+pub(crate) fn statics_n<const N: usize>(
     m: &PccModel,
     p: &[f64],
     guess: &[f64],

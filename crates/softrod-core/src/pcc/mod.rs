@@ -23,10 +23,34 @@
 //! `integrate` steps the equations with the implicit midpoint rule (Newton, exact Jacobian
 //! from dual numbers) and solves the statics.
 
+/// Call `$f::<N>(...)` with the const N of a model's number of coordinates.
+macro_rules! dispatch {
+    ($n:expr, $f:ident ( $($arg:expr),* )) => {
+        match $n {
+            2 => $f::<2>($($arg),*),
+            3 => $f::<3>($($arg),*),
+            4 => $f::<4>($($arg),*),
+            6 => $f::<6>($($arg),*),
+            8 => $f::<8>($($arg),*),
+            9 => $f::<9>($($arg),*),
+            10 => $f::<10>($($arg),*),
+            12 => $f::<12>($($arg),*),
+            14 => $f::<14>($($arg),*),
+            15 => $f::<15>($($arg),*),
+            n => Err(SoftrodError::invalid(
+                "sections",
+                n,
+                "the PCC model supports at most 5 deformable sections (7 when planar)",
+            )),
+        }
+    };
+}
+
 pub mod integrate;
 pub mod jet;
 pub mod kinematics;
 pub mod lagrangian;
+pub mod sensitivity;
 
 use crate::error::{Result, SoftrodError};
 use crate::rod::Rod;

@@ -1,0 +1,156 @@
+"""Cosserat-rod time series on a dataset (paper 000 Sec. III-D): every experiment (rows with
+``time``, the chamber pressures and the measured positions) is replayed: the measured
+pressures drive the model (joined linearly between samples), the arm starts at rest in
+equilibrium under the experiment's first pressures, and the model's tip is read at every
+sample time."""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from ... import _validate as V
+from ...design import Design
+from ...errors import ConvergenceError, DesignError
+from ..params import SIGMA_KINDS, Parameter, design_changes
+from ..problem import ModelAdapter, Prediction
+
+
+def experiment_rows(dataset) -> list[np.ndarray]:
+    """Row indices of each experiment, in time order; each needs >= 2 samples."""
+    if dataset.time is None:
+        raise V.fail(
+            "dataset.time", None, "a dynamic calibration needs a time column (e.g. time_s)"
+        )
+    ids = dataset.experiments or (None,)
+    out = []
+    for e in ids:
+        rows = (
+            np.arange(len(dataset.time)) if e is None else np.flatnonzero(dataset.experiment == e)
+        )
+        rows = rows[np.argsort(dataset.time[rows], kind="stable")]
+        t = dataset.time[rows]
+        if len(rows) < 2 or np.any(np.diff(t) <= 0):
+            raise V.fail(
+                "dataset.time",
+                f"experiment {e}",
+                "each experiment needs >= 2 rows with strictly increasing time",
+            )
+        out.append(rows)
+    return out
+
+
+class RodDynamic(ModelAdapter):
+    """The tip of every sample of every replayed experiment."""
+
+    model = "cosserat"
+    dynamic = True
+    exact_jacobian = False
+    #: The former dynamic fit's Nelder-Mead settings, kept for this fallback: every
+    #: evaluation replays every experiment, so the simplex starts at +-20 % (the fit's
+    #: scale, not scipy's 5 %) and stops at 1e-4 in log theta (0.01 %, well below the
+    #: scatter that measurement noise leaves) or a cost change of 1e-9 of the start's.
+    nelder_mead = {"xatol": 1e-4, "fatol": 1e-9, "fatol_relative": True, "step": 0.2}
+
+    def __init__(self, design: Design, dataset, params: list[Parameter], dt, threads: int):
+        from ...dynamics.simulate import _seconds
+
+        super().__init__()
+        if dataset.markers is not None:
+            raise V.fail(
+                "dataset.markers",
+                f"{dataset.n_markers} markers",
+                "dynamic fits read the tip position only (markers: static fits)",
+            )
+        sigma = [p.name for p in params if p.kind in SIGMA_KINDS]
+        if sigma:
+            raise V.fail("params", sigma, "sigma factors belong to static fits")
+        if any(p.kind == "damping_time" for p in params):
+            tau0 = design.spec["dynamics"]["damping_time"]
+            if not tau0 > 0:
+                raise V.fail(
+                    "design.dynamics.damping_time",
+                    tau0,
+                    "give a starting damping time > 0 s in [dynamics] (the fit works on "
+                    "log tau)",
+                )
+        for p in params:
+            if not p.positive:
+                raise V.fail("params", p.name, "dynamic calibration fits positive parameters only")
+        self.design = design
+        self.params = list(params)
+        self.parameters = tuple(params)
+        self.initial = np.array([p.value(design) for p in params])
+        self.dt = _seconds(dt, "dt")
+        self.threads = threads
+        self.experiments = experiment_rows(dataset)
+        self.time = dataset.time
+        self.pressures = dataset.pressures
+        self.m = len(dataset)
+
+    def design_of(self, theta) -> Design:
+        return self.design.replace(design_changes(self.params, theta, self.design))
+
+    def set_threads(self, threads: int) -> None:
+        self.threads = threads
+
+    def _replay(self, design: Design, exp: np.ndarray) -> np.ndarray | None:
+        """The model's tip at the sample times of one experiment (None: the run failed)."""
+        from ...dynamics import PressureSchedule, simulate
+
+        t = self.time[exp] - self.time[exp][0]
+        sched = PressureSchedule.piecewise_linear(t, self.pressures[exp])
+        try:
+            tr = simulate(
+                design, sched, t[-1], dt=self.dt, save_every=1, energy=False, progress=False
+            )
+        except ConvergenceError:
+            return None
+        return tr.tip_position_at(np.minimum(t, tr.time[-1]))
+
+    def predict(self, theta, rows, jacobian: bool) -> Prediction:
+        if jacobian:
+            raise V.fail("method", "lm", "dynamic fits give no exact Jacobian yet")
+        out = Prediction.empty(self.m, len(self.params), 0, False)
+        self.evaluations += 1
+        try:
+            d = self.design_of(theta)
+        except DesignError:
+            return out
+        wanted = np.zeros(self.m, dtype=bool)
+        wanted[rows] = True
+        todo = [exp for exp in self.experiments if wanted[exp].any()]
+        # The experiments replay side by side: each run steps in the core with the GIL
+        # released, so threads overlap the runs (in order: the same result on any count).
+        workers = min(len(todo), self.threads or os.cpu_count() or 1)
+        if workers > 1:
+            with ThreadPoolExecutor(workers) as pool:
+                tips = list(pool.map(lambda exp: self._replay(d, exp), todo))
+        else:
+            tips = [self._replay(d, exp) for exp in todo]
+        for exp, tip in zip(todo, tips, strict=True):
+            if tip is not None:
+                out.tip[exp] = tip
+                out.ok[exp] = True
+        return out
+
+    def calibrated_design(self, theta) -> Design:
+        return self.design_of(theta)
+
+    def reference(self, calibrated: Design, theta) -> Prediction:
+        from ...statics import solve_statics
+
+        out = Prediction.empty(self.m, 0, 0, False)
+        sol = solve_statics(calibrated, np.zeros(calibrated.n_channels))
+        out.tip[:] = sol.tip_position
+        out.ok[:] = True
+        return out
+
+    def base_frame(self):
+        mount = self.design.spec["mounting"]
+        return (
+            np.asarray(mount["base_position"], dtype=float),
+            np.asarray(mount["base_rotation"], dtype=float)[:, 2],
+        )

@@ -1,0 +1,217 @@
+"""Cosserat-rod equilibria on a dataset: the tip and the markers of every row, with their
+exact parameter derivatives (dual numbers through the shooting solve and the implicit
+function theorem, ``Rod.sensitivity_batch``; every evaluation is one parallel batch over
+the requested rows, GIL released)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ... import _validate as V
+from ...design import Design
+from ...errors import DesignError
+from ...statics import _options
+from ..params import SIGMA_KINDS, Parameter, design_changes
+from ..problem import ModelAdapter, Prediction
+
+#: Mounting labels a dataset may carry per row (paper 002 fits vertical and horizontal
+#: experiments together).
+ORIENTATIONS = ("hanging", "upright", "horizontal")
+
+
+def mounting_groups(design: Design, dataset) -> list[tuple[dict, np.ndarray]]:
+    """(document changes for the mounting, row indices) per mounting label."""
+    m = len(dataset)
+    if dataset.mounting is None:
+        return [({}, np.arange(m))]
+    labels = list(dict.fromkeys(dataset.mounting.tolist()))
+    if len(labels) == 1:  # one mounting: the design is mounted as the data were
+        return [({}, np.arange(m))]
+    out = []
+    for label in labels:
+        if label not in ORIENTATIONS:
+            raise V.fail(
+                "dataset.mounting",
+                label,
+                f"with several mountings each must be one of {', '.join(ORIENTATIONS)}",
+            )
+        if "base_rotation" in design.document.get("mounting", {}):
+            raise V.fail(
+                "design.mounting.base_rotation",
+                "given",
+                "mounting labels set the orientation; use mounting.orientation instead",
+            )
+        out.append(({"mounting.orientation": label}, np.flatnonzero(dataset.mounting == label)))
+    return out
+
+
+def marker_sites(dataset) -> list[tuple[float, list[float]]]:
+    """The core's (s, offset) of every marker of ``dataset`` (empty without markers)."""
+    if dataset.markers is None:
+        return []
+    return [
+        (float(s), [float(v) for v in o])
+        for s, o in zip(dataset.marker_s, dataset.marker_offset, strict=True)
+    ]
+
+
+class RodStatic(ModelAdapter):
+    """Tip and marker positions of the dataset's equilibria and their parameter derivatives."""
+
+    model = "cosserat"
+    dynamic = False
+
+    def __init__(self, design: Design, dataset, params: list[Parameter], options, threads: int):
+        super().__init__()
+        self.design = design
+        self.params = list(params)
+        self.parameters = tuple(params)
+        self.initial = np.array([p.value(design) for p in params])
+        self.groups = mounting_groups(design, dataset)
+        self.p = np.ascontiguousarray(dataset.pressures, dtype=float)
+        self.options = options
+        self.opts = _options(options).as_kwargs()
+        self.threads = threads
+        self.markers = marker_sites(dataset)
+        self.x0 = np.full((len(dataset), 3), np.nan)
+        self.sigma_index = {
+            j: SIGMA_KINDS.index(p.kind) for j, p in enumerate(params) if p.kind in SIGMA_KINDS
+        }
+
+    # --- pickling for Dask workers: the design travels as TOML text -------------------------
+
+    def __getstate__(self):
+        from ...cluster import design_text
+
+        state = dict(self.__dict__)
+        state["design"] = design_text(self.design)
+        return state
+
+    def __setstate__(self, state):
+        from ...cluster import design_from_text
+
+        state["design"] = design_from_text(state["design"])
+        self.__dict__.update(state)
+
+    def set_threads(self, threads: int) -> None:
+        self.threads = threads
+
+    def reset(self) -> None:
+        self.evaluations = 0
+        self.x0[:] = np.nan
+
+    # ------------------------------------------------------------------------------------------
+
+    def designs(self, theta) -> list[Design]:
+        changes = design_changes(self.params, theta, self.design)
+        return [self.design.replace({**changes, **g}) for g, _ in self.groups]
+
+    def sigma(self, theta, idx: np.ndarray) -> np.ndarray | None:
+        """sigma of the rows ``idx``: the fitted constant one, the design's stiffness map
+        (``[stiffness_map] file``), or None (no mapped sections)."""
+        if not self.sigma_index:
+            smap = self.design.stiffness_map
+            return None if smap is None else np.ascontiguousarray(smap(self.p[idx]))
+        s = np.ones(3)
+        for j, k in self.sigma_index.items():
+            s[k] = theta[j]
+        return np.tile(s, (idx.size, 1))
+
+    def predict(self, theta, rows, jacobian: bool) -> Prediction:
+        m, n_par = len(self.p), len(self.params)
+        out = Prediction.empty(m, n_par, len(self.markers), jacobian)
+        self.evaluations += 1
+        try:
+            designs = self.designs(theta)
+        except DesignError:
+            # A trial point outside what a design allows (e.g. a stiffness that is no longer
+            # positive definite): every sample fails, so the optimiser steps back.
+            return out
+        for d, (_, idx) in zip(designs, self.groups, strict=True):
+            idx = idx[np.isin(idx, rows)]
+            if idx.size == 0:
+                continue
+            tip_f = d.spec["tip"]["force"]
+            tip_m = d.spec["tip"]["moment"]
+            kw = dict(stiffness_scale=self.sigma(theta, idx), threads=self.threads, **self.opts)
+            if jacobian or self.markers:
+                res = d._rod.sensitivity_batch(
+                    self.p[idx],
+                    tip_f,
+                    tip_m,
+                    [p.core() for p in self.params] if jacobian else [],
+                    x0=np.ascontiguousarray(self.x0[idx]),
+                    markers=self.markers,
+                    **kw,
+                )
+            else:
+                res = d._rod.solve_batch(self.p[idx], tip_f, tip_m, **kw)
+            if jacobian:
+                dj = res["d_tip_position"]
+                dm = res["d_marker_position"]
+                for j, p in enumerate(self.params):
+                    if p.kind == "area_scale":
+                        # The core differentiates by a factor on the current areas, which
+                        # are theta_j times the design's: d/d theta_j = (1/theta_j) d/dk.
+                        dj[:, :, j] /= theta[j]
+                        dm[..., j] /= theta[j]
+                out.d_tip[idx] = dj
+                if out.d_markers is not None:
+                    out.d_markers[idx] = dm
+            out.tip[idx] = res["tip_position"]
+            if out.markers is not None:
+                out.markers[idx] = res["marker_position"]
+            out.ok[idx] = res["converged"]
+            good = idx[res["converged"]]
+            self.x0[good] = res["x"][res["converged"]]
+        return out
+
+    def calibrated_design(self, theta) -> Design:
+        return self.design.replace(design_changes(self.params, theta, self.design))
+
+    def final_prediction(self, calibrated: Design, theta, rows) -> Prediction:
+        """The positions with the calibrated design itself (only the per-solve sigma factors
+        remain parameters), so that the written design reproduces them."""
+        sigma = [p for p in self.params if p.kind in SIGMA_KINDS]
+        clone = object.__new__(RodStatic)
+        clone.__dict__.update(self.__dict__)
+        clone.design = calibrated
+        clone.params = sigma
+        clone.parameters = tuple(sigma)
+        clone.sigma_index = {j: SIGMA_KINDS.index(p.kind) for j, p in enumerate(sigma)}
+        clone.x0 = np.full_like(self.x0, np.nan)
+        values = np.array([theta[self.params.index(p)] for p in sigma])
+        return clone.predict(values, rows, False)
+
+    def reference(self, design: Design, theta) -> Prediction:
+        """The model's unpressurised tip (and markers) of every row's mounting."""
+        m = len(self.p)
+        out = Prediction.empty(m, 0, len(self.markers), False)
+        zero = np.zeros((1, design.n_channels))
+        smap = design.stiffness_map
+        sigma = None if smap is None else np.ascontiguousarray(smap(zero))
+        for changes, idx in self.groups:
+            d = design.replace(changes) if changes else design
+            res = d._rod.sensitivity_batch(
+                zero,
+                d.spec["tip"]["force"],
+                d.spec["tip"]["moment"],
+                [],
+                stiffness_scale=sigma,
+                markers=self.markers,
+                **_options(self.options).as_kwargs(),
+            )
+            out.tip[idx] = res["tip_position"][0]
+            if out.markers is not None:
+                out.markers[idx] = res["marker_position"][0]
+            out.ok[idx] = bool(res["converged"][0])
+        return out
+
+    def base_frame(self):
+        if len(self.groups) > 1:
+            return None
+        mount = self.design.spec["mounting"]
+        return (
+            np.asarray(mount["base_position"], dtype=float),
+            np.asarray(mount["base_rotation"], dtype=float)[:, 2],
+        )

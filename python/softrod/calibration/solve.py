@@ -1,0 +1,231 @@
+"""The solver layer: one fit of a :class:`~softrod.calibration.problem.Problem` from one
+start, and restarts (in process or on a Dask cluster).
+
+- ``"lm"``: scipy's ``least_squares`` with the adapter's exact Jacobian: MINPACK's
+  Levenberg-Marquardt without user bounds, the trust-region-reflective method with them.
+- ``"nelder-mead"``: derivative-free simplex on the same cost, an explicit fallback (paper
+  002 fitted with it) for models without exact Jacobians.
+
+Positive parameters are optimised on log(theta) so that they stay positive. Without user
+bounds a positive parameter stays within 1e-3 to 1e3 times its starting value (a sanity box:
+points outside count as failed, so an unidentifiable direction cannot run off to 1e150).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from .. import _validate as V
+from .problem import Bounds, Prediction, Problem
+
+#: Restarts of a positive parameter without bounds start within this factor of its starting
+#: value (log-uniformly in [v / RESTART_SPREAD, v * RESTART_SPREAD]).
+RESTART_SPREAD = 3.0
+#: The sanity box of a positive parameter without bounds, as factors on its start.
+SANITY_FACTOR = 1e3
+METHODS = ("lm", "nelder-mead")
+
+
+def default_bounds(params, initial: np.ndarray) -> Bounds:
+    pairs = list(zip(params, initial, strict=True))
+    lo = np.array([v / SANITY_FACTOR if p.positive else -math.inf for p, v in pairs])
+    hi = np.array([v * SANITY_FACTOR if p.positive else math.inf for p, v in pairs])
+    return Bounds(lo, hi, np.zeros(len(params), dtype=bool))
+
+
+@dataclass(frozen=True)
+class Settings:
+    method: str
+    max_evaluations: int
+
+
+def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -> dict:
+    """One fit from ``theta_start``: the optimiser's best point u, its cost 0.5 sum r^2, success,
+    message, method and the model evaluations."""
+    from scipy.optimize import least_squares, minimize
+
+    adapter = problem.adapter
+    n_par = len(problem.parameters)
+    n_markers = 0 if problem.residual.observed.markers is None else (
+        problem.residual.observed.markers.shape[1]
+    )
+    m = _rows_of(problem)
+    positive = problem.positive
+    theta_start = np.asarray(theta_start, dtype=float)
+    u0 = problem.u_of(theta_start)
+    adapter.reset()
+    cache: dict = {}
+
+    def evaluate(u, jacobian):
+        key = u.tobytes()
+        if key in cache and (cache[key][1] is not None or not jacobian):
+            return cache[key]
+        theta = problem.theta_of(u)
+        if problem.inside(theta):
+            pred = problem.predict(theta, jacobian)
+        else:
+            # Outside the sanity box: a failed point.
+            pred = Prediction.empty(m, n_par, n_markers, jacobian)
+            if jacobian:
+                pred.d_tip[:] = 0.0
+                if pred.d_markers is not None:
+                    pred.d_markers[:] = 0.0
+        r = problem.residual.vector(pred)
+        cache.clear()
+        cache[key] = (r, pred if jacobian else None, pred)
+        if progress is not None:
+            progress(adapter.evaluations, _rms(r))
+        return cache[key]
+
+    def jac_u(u):
+        _, pred, _ = evaluate(u, True)
+        j = problem.residual.jacobian(pred)
+        # d/du = theta d/dtheta for the log-transformed parameters
+        return j * np.where(positive, problem.theta_of(u), 1.0)
+
+    bounds = problem.bounds
+    ulo = np.where(positive, np.log(np.where(positive, bounds.lower, 1.0)), bounds.lower)
+    uhi = np.where(positive, np.log(np.where(positive, bounds.upper, 1.0)), bounds.upper)
+    if settings.method == "lm":
+        use_bounds = bounds.any_given
+        sol = least_squares(
+            lambda u: evaluate(u, True)[0],
+            u0,
+            jac=jac_u,
+            method="trf" if use_bounds else "lm",
+            bounds=(ulo, uhi) if use_bounds else (-np.inf, np.inf),
+            x_scale=1.0,
+            xtol=1e-10,
+            ftol=1e-10,
+            gtol=1e-10,
+            max_nfev=settings.max_evaluations,
+        )
+        method_used = "lm (MINPACK)" if not use_bounds else "trf (bounded, exact Jacobian)"
+        cost = float(sol.cost)
+    else:
+
+        def cost_of(u) -> float:
+            return 0.5 * float(np.sum(evaluate(u, False)[0] ** 2))
+
+        nm = adapter.nelder_mead
+        options = {"maxfev": settings.max_evaluations, "xatol": nm["xatol"], "fatol": nm["fatol"]}
+        if nm["fatol_relative"]:  # the start's cost, cached: the simplex's first vertex
+            options["fatol"] *= max(cost_of(u0), 1e-300)
+        if nm["step"] is not None:
+            options["initial_simplex"] = np.vstack([u0, u0 + nm["step"] * np.eye(u0.size)])
+        sol = minimize(
+            cost_of,
+            u0,
+            method="Nelder-Mead",
+            bounds=list(zip(ulo, uhi, strict=True)) if bounds.any_given else None,
+            options=options,
+        )
+        method_used = "nelder-mead"
+        cost = float(sol.fun)
+    return {
+        "start": theta_start,
+        "u": np.asarray(sol.x, dtype=float),
+        "values": problem.theta_of(np.asarray(sol.x, dtype=float)),
+        "cost": cost,
+        "success": bool(sol.success),
+        "message": str(sol.message),
+        "method": method_used,
+        "evaluations": adapter.evaluations,
+    }
+
+
+def _rows_of(problem: Problem) -> int:
+    obs = problem.residual.observed
+    return len(obs.tip) if obs.tip is not None else obs.markers.shape[0]
+
+
+def _rms(r: np.ndarray) -> float:
+    """RMS of the 3-d position errors of a residual (in units of the residual scale)."""
+    return float(np.sqrt(np.mean(r.reshape(-1, 3) ** 2) * 3)) if r.size else math.nan
+
+
+def start_points(params, theta0, bounds: Bounds, restarts, seed) -> np.ndarray:
+    """The starting values, then ``restarts`` points drawn with ``seed``: uniformly within a
+    parameter's bounds (log-uniformly for positive ones), or, for a positive parameter
+    without bounds, log-uniformly within RESTART_SPREAD of its value."""
+    if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 0:
+        raise V.fail("restarts", restarts, "must be an integer >= 0 (extra starting points)")
+    if restarts == 0:
+        return theta0[None, :]
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise V.fail("seed", seed, "must be an integer >= 0 (it makes the restarts repeatable)")
+    bounded = bounds.given
+    for p, b in zip(params, bounded, strict=True):
+        if not (b or p.positive):
+            raise V.fail(
+                "restarts",
+                restarts,
+                f"{p.name} can be negative: give its bounds so that restarts know where to "
+                "start (bounds={'" + p.name + "': (lower, upper)})",
+            )
+    positive = np.array([p.positive for p in params])
+    a = np.where(bounded, bounds.lower, theta0 / RESTART_SPREAD)
+    b = np.where(bounded, bounds.upper, theta0 * RESTART_SPREAD)
+    rng = np.random.default_rng(seed)
+    x = rng.random((int(restarts), len(params)))
+    log_a = np.log(np.where(positive, a, 1.0))
+    log_b = np.log(np.where(positive, b, 1.0))
+    drawn = np.where(positive, np.exp(log_a + x * (log_b - log_a)), a + x * (b - a))
+    return np.vstack([theta0[None, :], drawn])
+
+
+def run_starts(
+    problem: Problem,
+    settings: Settings,
+    starts: np.ndarray,
+    progress: Callable | None,
+    executor,
+    threads: int,
+) -> list[dict]:
+    """One fit per start, in process or on a Dask cluster; in the order of ``starts``."""
+    from ..cluster import check_executor
+
+    if check_executor(executor) is None:
+        return [optimise(problem, settings, start, progress) for start in starts]
+    from ..cluster import run_chunks, task_slots
+
+    _, per_host = task_slots(executor)
+    report = None
+    if progress is not None:
+
+        def report(done, total):
+            progress(done, float("nan"))
+
+    return run_chunks(
+        executor,
+        _fit_start,
+        [(problem, settings, start, threads, per_host) for start in starts],
+        progress=report,
+        name="softrod-calibrate",
+    )
+
+
+def _fit_start(problem: Problem, settings, start, threads, per_host) -> dict:
+    """One restart on a worker (the adapter rebuilt its design from TOML text when it was
+    unpickled), with the worker's share of the cores."""
+    from ..cluster import worker_threads
+
+    problem.adapter.set_threads(worker_threads(per_host, threads))
+    return optimise(problem, settings, start, None)
+
+
+def starts_table(params, fits, best) -> pd.DataFrame:
+    rows = []
+    for k, f in enumerate(fits):
+        row = {"start": k, "best": k == best}
+        for p, v0, v in zip(params, f["start"], f["values"], strict=True):
+            row[f"{p.name} start"] = v0
+            row[f"{p.name}"] = v
+        row.update(cost_mm2=f["cost"], success=f["success"], evaluations=f["evaluations"])
+        rows.append(row)
+    return pd.DataFrame(rows)
