@@ -38,7 +38,7 @@
 //! Jacobian of f at each stage is exact: one evaluation in `Jet<16>` over the stage's own
 //! unknowns.
 
-use crate::banded::BandedLu;
+use crate::banded::{simd_dispatch, BandedLu};
 
 use crate::jet::{Jet, RodScalar};
 use crate::law::{ogden_derivatives, ogden_force, AxialTable};
@@ -64,10 +64,7 @@ const GAUSS_A: [[f64; 2]; 2] = [[0.25, 0.25 - SQRT3_6], [0.25 + SQRT3_6, 0.25]];
 /// Gauss-Legendre weights on [0, 1].
 pub const GAUSS_B: [f64; 2] = [0.5, 0.5];
 
-type Mat32 = SMatrix<f64, 32, 32>;
 type Mat16 = SMatrix<f64, 16, 16>;
-type Mat32x16 = SMatrix<f64, 32, 16>;
-type Mat16x32 = SMatrix<f64, 16, 32>;
 
 /// One collocation interval.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -753,9 +750,14 @@ impl<'a> Problem<'a> {
         })
     }
 
-    /// Scaled residual at scaled unknowns `z` into `out`; the stage fields (v, u, q, w)
-    /// into `fields` when given (2 per interval).
-    pub fn residual(&self, z: &[f64], out: &mut [f64], mut fields: Option<&mut [[f64; NF]]>) {
+    simd_dispatch! { Problem<'_>:
+        /// Scaled residual at scaled unknowns `z` into `out`; the stage fields (v, u, q, w)
+        /// into `fields` when given (2 per interval).
+        pub fn residual(&self, z: &[f64], out: &mut [f64], fields: Option<&mut [[f64; NF]]>) => residual_impl
+    }
+
+    #[inline(always)]
+    fn residual_impl(&self, z: &[f64], out: &mut [f64], mut fields: Option<&mut [[f64; NF]]>) {
         let inv: [f64; NY] = self.scale.map(|s| 1.0 / s);
         let mut yj = self.node(z, 0);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
@@ -859,40 +861,75 @@ impl<'a> Problem<'a> {
         jac
     }
 
-    /// Factor Newton's matrix at `z`: per interval the condensed stage block, then the
-    /// banded node system. None if a block is singular.
-    #[inline(never)]
-    pub fn factorize(&self, z: &[f64]) -> Option<Factorization> {
+    simd_dispatch! { Problem<'_>:
+        /// Factor Newton's matrix at `z`: per interval the condensed stage block, then the
+        /// banded node system. None if a block is singular.
+        pub fn factorize(&self, z: &[f64]) -> Option<Factorization> => factorize_impl
+    }
+
+    #[inline(always)]
+    fn factorize_impl(&self, z: &[f64]) -> Option<Factorization> {
         let n_int = self.grid.len();
         let mut blocks = Vec::with_capacity(n_int);
         let n = 6 + 16 * n_int;
-        let (kl, ku) = (25, 21);
+        // Row block j (interval j: dY_{j+1} - T_j dY_j) spans the columns of node j (16 from
+        // 16 j - 10, or the 6 base unknowns) to node j + 1's identity 6 right of the
+        // diagonal: 25 sub- and 6 super-diagonals (the tip rows lie inside).
+        let (kl, ku) = (25, 6);
         let mut band = BandedLu::zeros(n, kl, ku);
-        let eye = Mat16::identity();
         for (j, iv) in self.grid.intervals.iter().enumerate() {
             let model = &self.models[iv.section];
             let j1 = self.point_jacobian(&self.stage(z, j, 0), model, &self.hist[2 * j]);
             let j2 = self.point_jacobian(&self.stage(z, j, 1), model, &self.hist[2 * j + 1]);
             let hh = iv.h;
-            let mut m = Mat32::identity();
-            let mut g = Mat16x32::zeros();
-            for r in 0..16 {
-                for c in 0..16 {
-                    m[(r, c)] -= hh * GAUSS_A[0][0] * j1[(r, c)];
-                    m[(r, 16 + c)] -= hh * GAUSS_A[0][1] * j2[(r, c)];
-                    m[(16 + r, c)] -= hh * GAUSS_A[1][0] * j1[(r, c)];
-                    m[(16 + r, 16 + c)] -= hh * GAUSS_A[1][1] * j2[(r, c)];
-                    g[(r, c)] = hh * GAUSS_B[0] * j1[(r, c)];
-                    g[(r, 16 + c)] = hh * GAUSS_B[1] * j2[(r, c)];
+            // Column-major M = I - h (A (x) I) diag(J1, J2) (32 x 32) and
+            // G = h [b1 J1, b2 J2] (16 x 32).
+            let mut m = [0.0; 32 * 32];
+            let mut g = [0.0; 16 * 32];
+            for c in 0..16 {
+                for r in 0..16 {
+                    let (a, b) = (j1[(r, c)], j2[(r, c)]);
+                    m[c * 32 + r] = -hh * GAUSS_A[0][0] * a;
+                    m[c * 32 + 16 + r] = -hh * GAUSS_A[1][0] * a;
+                    m[(16 + c) * 32 + r] = -hh * GAUSS_A[0][1] * b;
+                    m[(16 + c) * 32 + 16 + r] = -hh * GAUSS_A[1][1] * b;
+                    g[c * 16 + r] = hh * GAUSS_B[0] * a;
+                    g[(16 + c) * 16 + r] = hh * GAUSS_B[1] * b;
                 }
             }
-            let minv = m.try_inverse()?;
-            if !minv.iter().all(|x| x.is_finite()) {
+            for k in 0..32 {
+                m[k * 32 + k] += 1.0;
+            }
+            // M^-1 column by column from M's LU (inlined here, so it shares this
+            // function's AVX2 copy), and G M^-1.
+            let mut piv = [0u8; 32];
+            if !lu_dense::<32>(&mut m, &mut piv) {
                 return None;
             }
-            let gminv = g * minv;
-            let p = Mat32x16::from_fn(|r, c| minv[(r, c)] + minv[(r, 16 + c)]);
-            let t = eye + Mat16::from_fn(|r, c| gminv[(r, c)] + gminv[(r, 16 + c)]);
+            let mut f = IntervalFactor {
+                minv: vec![0.0; 32 * 32],
+                gminv: vec![0.0; 16 * 32],
+            };
+            for c in 0..32 {
+                let mut x = [0.0; 32];
+                x[c] = 1.0;
+                lu_dense_solve::<32>(&m, &piv, &mut x);
+                f.minv[32 * c..32 * c + 32].copy_from_slice(&x);
+                let mut y = [0.0; 16];
+                gemv_add(&mut y, &g, &x);
+                f.gminv[16 * c..16 * c + 16].copy_from_slice(&y);
+            }
+            if !f.minv.iter().all(|x| x.is_finite()) {
+                return None;
+            }
+            // T = I + G M^-1 [I; I], t[c][r] = T(r, c).
+            let mut t = [[0.0; 16]; 16];
+            for c in 0..16 {
+                for r in 0..16 {
+                    t[c][r] = f.gminv[16 * c + r] + f.gminv[16 * (16 + c) + r];
+                }
+                t[c][c] += 1.0;
+            }
             // Rows of interval j: dY_{j+1} - T_j dY_j = t_j.
             let row0 = 16 * j;
             let col_next = 6 + 16 * j;
@@ -902,20 +939,16 @@ impl<'a> Problem<'a> {
                     // dY_0 = E dx0: the base unknowns n(0)/F_s, m(0)/(F_s L) are the
                     // scaled slots IN..IN + 6 of node 0.
                     for c in 0..6 {
-                        band.set(row0 + r, c, -t[(r, IN + c)]);
+                        band.set(row0 + r, c, -t[IN + c][r]);
                     }
                 } else {
                     let col = 6 + 16 * (j - 1);
                     for c in 0..16 {
-                        band.set(row0 + r, col + c, -t[(r, c)]);
+                        band.set(row0 + r, col + c, -t[c][r]);
                     }
                 }
             }
-            blocks.push(IntervalFactor {
-                minv: minv.as_slice().to_vec(),
-                gminv: gminv.as_slice().to_vec(),
-                p: p.as_slice().to_vec(),
-            });
+            blocks.push(f);
         }
         // Tip rows: C dY_N = -r_tip.
         let yn = self.node(z, n_int);
@@ -943,17 +976,86 @@ impl<'a> Problem<'a> {
 }
 
 /// One interval's condensed stage block: with M = I - h (A (x) I) diag(J1, J2) the
-/// stage matrix and G = h [b1 J1, b2 J2], the stages follow dS = M^-1 (-r_S) + P dY_j and
-/// the end node dY_{j+1} = T dY_j + G M^-1 (-r_S) - r_N. Kept as explicit matrices
-/// (column-major) so that each Newton iteration is three matrix-vector products.
+/// stage matrix and G = h [b1 J1, b2 J2], the stages follow dS = M^-1 (-r_S + [dY_j; dY_j])
+/// and the end node dY_{j+1} = T dY_j + G M^-1 (-r_S) - r_N with T = I + G M^-1 [I; I].
+/// Kept as explicit matrices (column-major) so that each Newton iteration is two
+/// matrix-vector products per interval (the factors serve many iterations and steps).
 #[derive(Debug, Clone)]
 struct IntervalFactor {
     /// M^-1 (32 x 32).
     minv: Vec<f64>,
     /// G M^-1 (16 x 32).
     gminv: Vec<f64>,
-    /// P = M^-1 [I; I] (32 x 16).
-    p: Vec<f64>,
+}
+
+/// LU factorisation with partial pivoting of a dense column-major N x N matrix in place
+/// (right-looking, column axpy updates: vectorises). False if singular or not finite.
+#[inline(always)]
+fn lu_dense<const N: usize>(a: &mut [f64], piv: &mut [u8; N]) -> bool {
+    for k in 0..N {
+        let mut p = k;
+        let mut best = a[k * N + k].abs();
+        for i in k + 1..N {
+            let v = a[k * N + i].abs();
+            if v > best {
+                best = v;
+                p = i;
+            }
+        }
+        if !(best.is_finite() && best > 0.0) {
+            return false;
+        }
+        piv[k] = p as u8;
+        if p != k {
+            for c in 0..N {
+                a.swap(c * N + k, c * N + p);
+            }
+        }
+        let inv = 1.0 / a[k * N + k];
+        for i in k + 1..N {
+            a[k * N + i] *= inv;
+        }
+        let (left, right) = a.split_at_mut((k + 1) * N);
+        let lk = &left[k * N + k + 1..k * N + N];
+        for c in 0..N - k - 1 {
+            let col = &mut right[c * N..(c + 1) * N];
+            let u = col[k];
+            if u != 0.0 {
+                for (x, l) in col[k + 1..].iter_mut().zip(lk) {
+                    *x -= l * u;
+                }
+            }
+        }
+    }
+    true
+}
+
+/// Solve with [`lu_dense`]'s factors in place (P A = L U, rows exchanged whole).
+#[inline(always)]
+fn lu_dense_solve<const N: usize>(a: &[f64], piv: &[u8; N], x: &mut [f64; N]) {
+    for k in 0..N {
+        let p = piv[k] as usize;
+        if p != k {
+            x.swap(k, p);
+        }
+    }
+    for k in 0..N {
+        let xk = x[k];
+        if xk != 0.0 {
+            for (xi, l) in x[k + 1..].iter_mut().zip(&a[k * N + k + 1..k * N + N]) {
+                *xi -= l * xk;
+            }
+        }
+    }
+    for k in (0..N).rev() {
+        x[k] /= a[k * N + k];
+        let xk = x[k];
+        if xk != 0.0 {
+            for (xi, u) in x[..k].iter_mut().zip(&a[k * N..k * N + k]) {
+                *xi -= u * xk;
+            }
+        }
+    }
 }
 
 /// y += A x for a column-major A with R rows and C columns (axpy per column: vectorises).
@@ -978,28 +1080,30 @@ pub struct Factorization {
 }
 
 impl Factorization {
-    /// The Newton step: solves J dz = -r for the scaled residual `r`.
-    #[inline(never)]
-    pub fn solve(&self, r: &[f64], dz: &mut [f64]) {
+    simd_dispatch! { Factorization:
+        /// The Newton step: solves J dz = -r for the scaled residual `r`.
+        pub fn solve(&self, r: &[f64], dz: &mut [f64]) => solve_impl
+    }
+
+    #[inline(always)]
+    fn solve_impl(&self, r: &[f64], dz: &mut [f64]) {
         let n_int = self.blocks.len();
         let mut rhs = vec![0.0; self.band.n()];
-        // dz's stage slots hold M^-1 (-r_S) until the node increments are known.
+        // The node recurrences' right sides G M^-1 (-r_S) - r_N.
         for (j, b) in self.blocks.iter().enumerate() {
             let o = 48 * j;
             let rs: [f64; 32] = std::array::from_fn(|k| -r[o + k]);
-            let mut s = [0.0; 32];
-            gemv_add(&mut s, &b.minv, &rs);
             let mut t: [f64; 16] = std::array::from_fn(|k| -r[o + 32 + k]);
             gemv_add(&mut t, &b.gminv, &rs);
             rhs[16 * j..16 * j + 16].copy_from_slice(&t);
-            dz[6 + o..6 + o + 32].copy_from_slice(&s);
         }
         let o = 48 * n_int;
         for k in 0..6 {
             rhs[16 * n_int + k] = -r[o + k];
         }
         self.band.solve(&mut rhs);
-        // Base unknowns, then per interval the stages (s + P dY_j) and the end node.
+        // Base unknowns, then per interval the stages M^-1 (-r_S + [dY_j; dY_j]) (one
+        // product with M^-1 where s + P dY_j took two) and the end node.
         dz[..6].copy_from_slice(&rhs[..6]);
         for (j, b) in self.blocks.iter().enumerate() {
             let dyj: [f64; 16] = if j == 0 {
@@ -1014,11 +1118,12 @@ impl Factorization {
             } else {
                 std::array::from_fn(|k| rhs[6 + 16 * (j - 1) + k])
             };
-            let o = 6 + 48 * j;
-            let mut st: [f64; 32] = std::array::from_fn(|k| dz[o + k]);
-            gemv_add(&mut st, &b.p, &dyj);
-            dz[o..o + 32].copy_from_slice(&st);
-            dz[o + 32..o + 48].copy_from_slice(&rhs[6 + 16 * j..6 + 16 * j + 16]);
+            let o = 48 * j;
+            let rs: [f64; 32] = std::array::from_fn(|k| dyj[k % 16] - r[o + k]);
+            let mut st = [0.0; 32];
+            gemv_add(&mut st, &b.minv, &rs);
+            dz[6 + o..6 + o + 32].copy_from_slice(&st);
+            dz[6 + o + 32..6 + o + 48].copy_from_slice(&rhs[6 + 16 * j..6 + 16 * j + 16]);
         }
     }
 }

@@ -1,0 +1,58 @@
+//! Time a dynamics run (used while optimising; `cargo run --release --example
+//! profile_dynamics -- SPEC.json [dt] [t_end] [alpha] [pulses|release]`): the paper 000 square
+//! pulses (zero for 1 s, then 0.9 ... 3.6 bar, 5 s on each channel in turn with 5 s rests)
+//! or, with `release`, a rod released at rest in its straight shape with no input. Prints the
+//! wall time, the counters and the tip at the end (to compare runs bit for bit).
+use softrod_core::dynamics::{DynOptions, Initial, Simulator};
+use softrod_core::{DesignSpec, Rod};
+use std::time::Instant;
+
+fn command(t: f64, n: usize) -> Vec<f64> {
+    let mut p = vec![0.0; n];
+    if t < 1.0 || n == 0 {
+        return p;
+    }
+    let k = ((t - 1.0) / 10.0).floor() as usize;
+    let within = (t - 1.0) - 10.0 * k as f64;
+    if k < 4 * n && within < 5.0 {
+        p[k % n] = [0.9e5, 1.8e5, 2.7e5, 3.6e5][k / n];
+    }
+    p
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let path = args
+        .get(1)
+        .expect("usage: profile_dynamics SPEC.json [dt] [t_end] [alpha] [pulses|release]");
+    let arg = |i: usize, d: f64| args.get(i).map(|s| s.parse().unwrap()).unwrap_or(d);
+    let (dt, t_end, alpha) = (arg(2, 5e-3), arg(3, 116.0), arg(4, -0.2));
+    let release = args.get(5).map(|s| s == "release").unwrap_or(false);
+    let spec: DesignSpec = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let rod = Rod::new(spec).unwrap();
+    let nch = rod.n_channels;
+    let opts = DynOptions {
+        dt,
+        alpha,
+        ..Default::default()
+    };
+    let initial = if release {
+        Initial::Straight
+    } else {
+        Initial::Static
+    };
+    let t0 = Instant::now();
+    let mut sim = Simulator::new(rod, &vec![0.0; nch], initial, opts).unwrap();
+    let n = (t_end / dt).round() as usize;
+    for k in 0..n {
+        let c = if release {
+            vec![0.0; nch]
+        } else {
+            command((k + 1) as f64 * dt, nch)
+        };
+        sim.step(&c).unwrap();
+    }
+    let wall = t0.elapsed();
+    println!("wall {:.3} s, {:?}", wall.as_secs_f64(), sim.stats);
+    println!("tip {:?} energy {:e}", sim.tip().r, sim.energy());
+}
