@@ -8,15 +8,20 @@
 //!
 //!   dz_{n+1}/dtheta = -G_z^-1 (d_theta G + G_H dH_n/dtheta),
 //!
-//! with G_z the exact Newton matrix, factored again at the converged z_{n+1} (the step's
-//! Newton keeps an older matrix as long as it contracts; the sensitivity needs the exact
-//! one), and the bracket one evaluation of the residual in `Jet<CHUNK>` with the section
-//! models built from dual parameters (`SectionModel<Dual>`) and dual histories carrying
-//! dH_n/dtheta. The new slot values follow as X_{n+1} = fields(z_{n+1}) and X_t,n+1 = c0
+//! with G_z the exact Newton matrix at the converged z_{n+1} and the bracket one evaluation
+//! of the residual in `Jet<CHUNK>` with the section models built from dual parameters
+//! (`SectionModel<Dual>`) and dual histories carrying dH_n/dtheta. The step's Newton keeps
+//! an older matrix M as long as it contracts; factoring G_z at every step would cost
+//! several plain steps, so the linear equation is solved with M by iterative refinement,
+//! dz += -M^-1 (d_theta G + G_z dz), whose bracket is again one exact dual evaluation (at
+//! z_{n+1} + eps dz): it converges to the exact dz/dtheta as fast as Newton did, and stops
+//! when the corrections fall below 1e-11 of the derivative; where M does not contract (or
+//! none is kept) G_z is factored at z_{n+1} and solved directly. The new slot values follow as X_{n+1} = fields(z_{n+1}) and X_t,n+1 = c0
 //! X_{n+1} + X_h, both differentiated by a second dual evaluation at z_{n+1} + eps
 //! dz_{n+1}/dtheta, which also gives the tip position's derivative. The start (at rest in
-//! equilibrium, c0 = 0) is differentiated the same way. No finite differences; the only
-//! error is that of the converged Newton solution (tol) propagated linearly.
+//! equilibrium, c0 = 0) is differentiated the same way. No finite differences; the errors
+//! are that of the converged Newton solution (tol) propagated linearly and the refinement's
+//! 1e-11.
 //!
 //! What is supported: the BDF-alpha scheme with fixed steps (substeps where Newton fails
 //! are fine: the step sizes do not depend on theta), the static start, the linear axial
@@ -24,7 +29,7 @@
 //! E, c_p, chamber offsets, area_scale, density, mass and the damping time.
 
 use super::{Bdf, Candidate, Initial, Scheme, Simulator, Slot, FIELDS};
-use crate::collocation::{Problem, SectionModel, NF, NY};
+use crate::collocation::{Factorization, Problem, SectionModel, NF};
 use crate::error::{Result, SoftrodError};
 use crate::ode::Coeffs;
 use crate::sensitivity::{seeded, validate_params, Dual, Param, ParamKind, CHUNK};
@@ -171,8 +176,9 @@ impl Simulator {
         for (c, chunk) in params.chunks(CHUNK).enumerate() {
             let models_d = self.dual_models(chunk, &self.pressures, &self.sigma, 0.0);
             let hist_d = vec![[Dual::from(0.0); NF]; n_slots];
-            let (fields, _, tip_r) =
-                solve_chunk(&problem, &fac, &models_d, &hist_d, &z, chunk.len())?;
+            let zd = solve_exact(&problem, &fac, &models_d, &hist_d, &z, chunk.len())
+                .ok_or_else(|| not_solvable("initial equilibrium"))?;
+            let (fields, _, tip_r) = problem.fields_and_tip_with(&models_d, &hist_d, &zd);
             for q in 0..chunk.len() {
                 let j = CHUNK * c + q;
                 for (k, f) in fields.iter().enumerate() {
@@ -264,17 +270,24 @@ impl Simulator {
         };
         let out = self.advance_tracker(&mut tr, c);
         self.sens = Some(tr);
-        out
+        self.stats.jacobians += out?;
+        Ok(())
     }
 
-    fn advance_tracker(&mut self, tr: &mut Tracker, c: &Candidate) -> Result<()> {
+    /// [`Simulator::advance_sensitivity`]; returns the Newton matrices factored.
+    fn advance_tracker(&self, tr: &mut Tracker, c: &Candidate) -> Result<usize> {
         let Bdf { c0, c1, c2, d1 } = c.bdf;
         let tip = self.tip_body(self.tip_force, self.tip_moment);
         let problem = Problem::new(&self.rod, &self.grid, &c.models, c0, &c.hist, tip);
-        let fac = problem
-            .factorize(&c.z_scaled)
-            .ok_or_else(|| not_solvable(&format!("step to t = {:.6} s", self.time + c.h)))?;
-        self.stats.jacobians += 1;
+        // The matrix Newton kept for this step (same c0), if any: the sensitivity equation
+        // is solved with it by iterative refinement, else with the exact matrix factored
+        // at the converged state.
+        let kept = self
+            .cache
+            .as_ref()
+            .filter(|k| k.key.c0 == c0)
+            .map(|k| &k.fac);
+        let mut exact: Option<Factorization> = None;
         let n_slots = c.hist.len();
         let params = tr.params.clone();
         for (ci, chunk) in params.chunks(CHUNK).enumerate() {
@@ -292,9 +305,24 @@ impl Simulator {
                     })
                 })
                 .collect();
-            let (fields, tip_node, tip_r) =
-                solve_chunk(&problem, &fac, &models_d, &hist_d, &c.z_scaled, chunk.len())?;
-            for q in 0..chunk.len() {
+            let n_par = chunk.len();
+            let z = &c.z_scaled;
+            let mut zd = kept.and_then(|f| refine(&problem, f, &models_d, &hist_d, z, n_par));
+            if zd.is_none() {
+                if exact.is_none() {
+                    exact = Some(problem.factorize(z).ok_or_else(|| {
+                        not_solvable(&format!("step to t = {:.6} s", self.time + c.h))
+                    })?);
+                }
+                let fac = exact.as_ref().expect("factored above");
+                zd = Some(
+                    solve_exact(&problem, fac, &models_d, &hist_d, z, n_par)
+                        .ok_or_else(|| not_solvable("state"))?,
+                );
+            }
+            let zd = zd.expect("solved above");
+            let (fields, tip_node, tip_r) = problem.fields_and_tip_with(&models_d, &hist_d, &zd);
+            for q in 0..n_par {
                 let j = CHUNK * ci + q;
                 let slots = &mut tr.slots[j];
                 for (k, slot) in slots.iter_mut().enumerate() {
@@ -317,22 +345,26 @@ impl Simulator {
                 tr.tip[j] = std::array::from_fn(|a| tip_r[a].eps[q]);
             }
         }
-        Ok(())
+        Ok(usize::from(exact.is_some()))
     }
 }
 
-/// One chunk of parameters at a converged state `z` (scaled) of `problem` with the factored
-/// Newton matrix `fac`: dz/dtheta = -G_z^-1 dG/dtheta (models and histories dual), then
-/// the stage fields, the tip node and the tip position with those derivatives.
-#[allow(clippy::type_complexity)]
-fn solve_chunk(
+/// Refinement steps with a kept Newton matrix before the exact one is factored.
+const MAX_REFINE: usize = 12;
+/// The refinement stops when every correction is below this fraction of the derivative it
+/// corrects (scaled unknowns): far below the Newton tolerance's effect on the state.
+const REFINE_TOL: f64 = 1e-11;
+
+/// The chunk's unknowns with dz/dtheta in their dual parts, solved with the exact Newton
+/// matrix `fac` at `z`: dz/dtheta = -G_z^-1 dG/dtheta (models and histories dual).
+fn solve_exact(
     problem: &Problem,
-    fac: &crate::collocation::Factorization,
+    fac: &Factorization,
     models: &[SectionModel<Dual>],
     hist: &[[Dual; NF]],
     z: &[f64],
     n_par: usize,
-) -> Result<(Vec<[Dual; NF]>, [Dual; NY], [Dual; 3])> {
+) -> Option<Vec<Dual>> {
     let zc: Vec<Dual> = z.iter().map(|&x| Dual::from(x)).collect();
     let r = problem.residual_with(models, hist, &zc);
     let mut zd = zc;
@@ -345,13 +377,58 @@ fn solve_chunk(
         // The factorization solves J dz = -r.
         fac.solve(&rhs, &mut dz);
         if !dz.iter().all(|x| x.is_finite()) {
-            return Err(not_solvable("state"));
+            return None;
         }
         for (x, d) in zd.iter_mut().zip(&dz) {
             x.eps[q] = *d;
         }
     }
-    Ok(problem.fields_and_tip_with(models, hist, &zd))
+    Some(zd)
+}
+
+/// The same with an approximate (kept) matrix M: iterative refinement dz += -M^-1 (dG/dtheta
+/// + G_z dz), the bracket one dual evaluation of the residual at z + eps dz (exact); it
+/// converges to the exact dz/dtheta as fast as Newton did with M. None when it does not
+/// contract to REFINE_TOL within MAX_REFINE steps.
+fn refine(
+    problem: &Problem,
+    fac: &Factorization,
+    models: &[SectionModel<Dual>],
+    hist: &[[Dual; NF]],
+    z: &[f64],
+    n_par: usize,
+) -> Option<Vec<Dual>> {
+    let mut zd: Vec<Dual> = z.iter().map(|&x| Dual::from(x)).collect();
+    let mut rhs = vec![0.0; z.len()];
+    let mut corr = vec![0.0; z.len()];
+    let mut last = [f64::INFINITY; CHUNK];
+    for _ in 0..MAX_REFINE {
+        let r = problem.residual_with(models, hist, &zd);
+        let mut done = true;
+        for q in 0..n_par {
+            for (x, ri) in rhs.iter_mut().zip(&r) {
+                *x = ri.eps[q];
+            }
+            fac.solve(&rhs, &mut corr);
+            let step = corr.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            if !step.is_finite() || step > 0.5 * last[q] {
+                return None; // not contracting: the exact matrix is needed
+            }
+            last[q] = step;
+            let mut size = 0.0f64;
+            for (x, d) in zd.iter_mut().zip(&corr) {
+                x.eps[q] += *d;
+                size = size.max(x.eps[q].abs());
+            }
+            if step > REFINE_TOL * size {
+                done = false;
+            }
+        }
+        if done {
+            return Some(zd);
+        }
+    }
+    None
 }
 
 /// A section check's error with the index of the parameter in the full list.
