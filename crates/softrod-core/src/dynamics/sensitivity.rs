@@ -15,13 +15,14 @@
 //! several plain steps, so the linear equation is solved with M by iterative refinement,
 //! dz += -M^-1 (d_theta G + G_z dz), whose bracket is again one exact dual evaluation (at
 //! z_{n+1} + eps dz): it converges to the exact dz/dtheta as fast as Newton did, and stops
-//! when the corrections fall below 1e-11 of the derivative; where M does not contract (or
+//! when the corrections fall below 1e-9 of the derivative (it starts from dz/dtheta
+//! extrapolated from the last two steps); where M does not contract (or
 //! none is kept) G_z is factored at z_{n+1} and solved directly. The new slot values follow as X_{n+1} = fields(z_{n+1}) and X_t,n+1 = c0
 //! X_{n+1} + X_h, both differentiated by a second dual evaluation at z_{n+1} + eps
 //! dz_{n+1}/dtheta, which also gives the tip position's derivative. The start (at rest in
 //! equilibrium, c0 = 0) is differentiated the same way. No finite differences; the errors
 //! are that of the converged Newton solution (tol) propagated linearly and the refinement's
-//! 1e-11.
+//! 1e-9.
 //!
 //! What is supported: the BDF-alpha scheme with fixed steps (substeps where Newton fails
 //! are fine: the step sizes do not depend on theta), the static start, the linear axial
@@ -42,6 +43,9 @@ pub(crate) struct Tracker {
     slots: Vec<Vec<Slot>>,
     /// d r_tip / d theta_j now (world, m per unit of the parameter).
     tip: Vec<[f64; 3]>,
+    /// dz/dtheta_j (scaled unknowns) of the last two steps, newest first: the refinement's
+    /// start is their linear extrapolation (empty before two steps).
+    dz: Vec<Vec<Vec<f64>>>,
 }
 
 const ZERO_SLOT: Slot = Slot {
@@ -163,6 +167,7 @@ impl Simulator {
             params: params.to_vec(),
             slots: vec![vec![ZERO_SLOT; n_slots]; params.len()],
             tip: vec![[0.0; 3]; params.len()],
+            dz: vec![vec![]; params.len()],
         };
         // The start: equilibrium at rest (c0 = 0, no history) under the first pressures.
         let models = self.models_at(&self.pressures, &self.sigma, 0.0);
@@ -307,7 +312,17 @@ impl Simulator {
                 .collect();
             let n_par = chunk.len();
             let z = &c.z_scaled;
-            let mut zd = kept.and_then(|f| refine(&problem, f, &models_d, &hist_d, z, n_par));
+            // Start: dz/dtheta extrapolated linearly from the last two steps (smooth motion:
+            // the refinement starts O(h^2) off instead of O(1)).
+            let mut start: Vec<Dual> = z.iter().map(|&x| Dual::from(x)).collect();
+            for q in 0..n_par {
+                if let [a, b] = tr.dz[CHUNK * ci + q].as_slice() {
+                    for (x, (da, db)) in start.iter_mut().zip(a.iter().zip(b)) {
+                        x.eps[q] = 2.0 * da - db;
+                    }
+                }
+            }
+            let mut zd = kept.and_then(|f| refine(&problem, f, &models_d, &hist_d, start, n_par));
             if zd.is_none() {
                 if exact.is_none() {
                     exact = Some(problem.factorize(z).ok_or_else(|| {
@@ -324,6 +339,14 @@ impl Simulator {
             let (fields, tip_node, tip_r) = problem.fields_and_tip_with(&models_d, &hist_d, &zd);
             for q in 0..n_par {
                 let j = CHUNK * ci + q;
+                let mut old = std::mem::take(&mut tr.dz[j]);
+                let recycled = if old.len() == 2 { old.pop() } else { None };
+                let mut now = recycled.unwrap_or_else(|| vec![0.0; zd.len()]);
+                for (x, d) in now.iter_mut().zip(&zd) {
+                    *x = d.eps[q];
+                }
+                old.insert(0, now);
+                tr.dz[j] = old;
                 let slots = &mut tr.slots[j];
                 for (k, slot) in slots.iter_mut().enumerate() {
                     let x1: [f64; FIELDS] = if k < fields.len() {
@@ -352,8 +375,9 @@ impl Simulator {
 /// Refinement steps with a kept Newton matrix before the exact one is factored.
 const MAX_REFINE: usize = 12;
 /// The refinement stops when every correction is below this fraction of the derivative it
-/// corrects (scaled unknowns): far below the Newton tolerance's effect on the state.
-const REFINE_TOL: f64 = 1e-11;
+/// corrects (scaled unknowns): as fine as the state itself is solved (Newton's tol of 1e-9
+/// on the scaled unknowns), far below what a fit resolves.
+const REFINE_TOL: f64 = 1e-9;
 
 /// The chunk's unknowns with dz/dtheta in their dual parts, solved with the exact Newton
 /// matrix `fac` at `z`: dz/dtheta = -G_z^-1 dG/dtheta (models and histories dual).
@@ -395,12 +419,13 @@ fn refine(
     fac: &Factorization,
     models: &[SectionModel<Dual>],
     hist: &[[Dual; NF]],
-    z: &[f64],
+    start: Vec<Dual>,
     n_par: usize,
 ) -> Option<Vec<Dual>> {
-    let mut zd: Vec<Dual> = z.iter().map(|&x| Dual::from(x)).collect();
-    let mut rhs = vec![0.0; z.len()];
-    let mut corr = vec![0.0; z.len()];
+    let mut zd = start;
+    let n = zd.len();
+    let mut rhs = vec![0.0; n];
+    let mut corr = vec![0.0; n];
     let mut last = [f64::INFINITY; CHUNK];
     for _ in 0..MAX_REFINE {
         let r = problem.residual_with(models, hist, &zd);
