@@ -286,8 +286,8 @@ def calibrate(
     of the measurement frame, m), fitted jointly (paper 000 Sec. III-D).
     bounds: optional ``{name: (lower, upper)}`` in SI or with units ("40 kPa").
     method: "lm" (exact Jacobian; the default: Levenberg-Marquardt, trust-region reflective
-    with bounds) or "nelder-mead" (derivative-free simplex, an explicit fallback: no
-    standard errors). The rod's time series (``dynamic=True``) get their exact Jacobian from
+    with bounds) or "nelder-mead" (derivative-free simplex, an explicit fallback; the
+    standard errors come from the exact Jacobian at its optimum). The rod's time series (``dynamic=True``) get their exact Jacobian from
     the core's forward sensitivities through every time step (BDF-alpha, the linear axial
     law).
     weights: ``{quantity: standard deviation}`` per measured quantity ("tip", "markers"),

@@ -302,8 +302,8 @@ def _error_table(result):
     default="lm",
     show_default=True,
     help="lm: Levenberg-Marquardt with the exact Jacobian (trust-region reflective with "
-    "--bounds); nelder-mead: paper 002's simplex, no derivatives and no standard errors "
-    "(an explicit fallback).",
+    "--bounds); nelder-mead: paper 002's simplex, no derivatives during the fit (an "
+    "explicit fallback).",
 )
 @click.option(
     "--bounds",
