@@ -410,10 +410,10 @@ fn solve_exact(
     Some(zd)
 }
 
-/// The same with an approximate (kept) matrix M: iterative refinement dz += -M^-1 (dG/dtheta
-/// + G_z dz), the bracket one dual evaluation of the residual at z + eps dz (exact); it
-/// converges to the exact dz/dtheta as fast as Newton did with M. None when it does not
-/// contract to REFINE_TOL within MAX_REFINE steps.
+/// The same with an approximate (kept) matrix M: iterative refinement
+/// dz += -M^-1 (dG/dtheta + G_z dz), the bracket one dual evaluation of the residual at
+/// z + eps dz (exact); it converges to the exact dz/dtheta as fast as Newton did with M.
+/// None when it does not contract to REFINE_TOL within MAX_REFINE steps.
 fn refine(
     problem: &Problem,
     fac: &Factorization,
