@@ -6,6 +6,8 @@
 //! inputs. (Large loads and a two-rod mechanism against scipy's BVP solver are in
 //! tests/test_end_constraints.py.)
 
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 use common::*;
 use softrod_core::ode::Loads;
@@ -136,14 +138,22 @@ fn reactions_balance_the_applied_loads() {
         for k in 0..3 {
             // The clamp applies -n(0) and -m(0) to the rod.
             let f = -n0[k] + ld.tip_force[k] + f_r[k];
-            assert!(f.abs() < 1e-9 * scale_f, "{}: force balance {k}: {f:e}", c.name());
+            assert!(
+                f.abs() < 1e-9 * scale_f,
+                "{}: force balance {k}: {f:e}",
+                c.name()
+            );
         }
         let arm: [f64; 3] = std::array::from_fn(|k| tip[k] - r0[k]);
         let tot: [f64; 3] = std::array::from_fn(|k| ld.tip_force[k] + f_r[k]);
         let cx = cross(&arm, &tot);
         for k in 0..3 {
             let m = -m0[k] + cx[k] + ld.tip_moment[k] + m_r[k];
-            assert!(m.abs() < 1e-9 * scale_m, "{}: moment balance {k}: {m:e}", c.name());
+            assert!(
+                m.abs() < 1e-9 * scale_m,
+                "{}: moment balance {k}: {m:e}",
+                c.name()
+            );
         }
         if let TipConstraint::Pinned { .. } = c {
             assert_eq!(m_r, [0.0; 3]);
@@ -190,16 +200,27 @@ fn clamping_the_free_solution_tip_recovers_it() {
     ] {
         let sol = solve_constrained(&rod, &ld, &c, None, &opts()).unwrap();
         let fs = rod.force_scale;
-        assert!(norm(&sol.tip_reaction_force) < 1e-8 * fs, "{:?}", sol.tip_reaction_force);
+        assert!(
+            norm(&sol.tip_reaction_force) < 1e-8 * fs,
+            "{:?}",
+            sol.tip_reaction_force
+        );
         assert!(norm(&sol.tip_reaction_moment) < 1e-8 * fs * rod.length);
         for k in 0..3 {
-            assert!((sol.solution.base_moment[k] - free.base_moment[k]).abs() < 1e-8 * fs * rod.length);
+            assert!(
+                (sol.solution.base_moment[k] - free.base_moment[k]).abs() < 1e-8 * fs * rod.length
+            );
             assert!((sol.solution.base_force[k] - free.base_force[k]).abs() < 1e-8 * fs);
         }
     }
 }
 
-fn fd_check(name: &str, f: impl Fn(&[f64]) -> (Vec<f64>, Vec<Vec<f64>>), x: &[f64], step: impl Fn(&[f64], usize, f64) -> Vec<f64>) {
+fn fd_check(
+    name: &str,
+    f: impl Fn(&[f64]) -> (Vec<f64>, Vec<Vec<f64>>),
+    x: &[f64],
+    step: impl Fn(&[f64], usize, f64) -> Vec<f64>,
+) {
     let (_, jac) = f(x);
     let h = 1e-6;
     for j in 0..x.len() {
@@ -286,7 +307,10 @@ fn constraint_jacobian_turns_singular_at_the_euler_loads() {
         let below = det_at(&rod, &c, 0.999 * pe);
         let above = det_at(&rod, &c, 1.001 * pe);
         let far = det_at(&rod, &c, 0.5 * pe);
-        assert!(below * above < 0.0, "{name}: det {below:e} at 0.999 P_E, {above:e} at 1.001 P_E");
+        assert!(
+            below * above < 0.0,
+            "{name}: det {below:e} at 0.999 P_E, {above:e} at 1.001 P_E"
+        );
         assert!(far * below > 0.0, "{name}: a root below 0.5..0.999 P_E");
     }
 }
@@ -334,7 +358,13 @@ fn one_rod_system_equals_the_free_rod() {
         attachment: [0.0; 3],
         attachment_rotation: IDENTITY,
     }];
-    let sys = solve_system(&rods, &platform([0.0, 0.0, rod.length], force, moment), None, &opts()).unwrap();
+    let sys = solve_system(
+        &rods,
+        &platform([0.0, 0.0, rod.length], force, moment),
+        None,
+        &opts(),
+    )
+    .unwrap();
     ld.tip_force = force;
     ld.tip_moment = moment;
     let (free, _) = solve_with_shape(&rod, &ld, None, &opts()).unwrap();
@@ -383,18 +413,35 @@ fn two_rod_platform_balances_its_load() {
         }
     }
     assert!(norm(&f) < 1e-9 * norm(&force), "force balance {f:?}");
-    assert!(norm(&m) < 1e-9 * (norm(&moment) + 0.3 * norm(&force)), "moment balance {m:?}");
+    assert!(
+        norm(&m) < 1e-9 * (norm(&moment) + 0.3 * norm(&force)),
+        "moment balance {m:?}"
+    );
     // Attachments hold.
     for (r, s) in sys.rods.iter().zip(&rods) {
         let want: [f64; 3] = std::array::from_fn(|k| {
-            p[k] + (0..3).map(|j| sys.platform_rotation[k][j] * s.attachment[j]).sum::<f64>()
+            p[k] + (0..3)
+                .map(|j| sys.platform_rotation[k][j] * s.attachment[j])
+                .sum::<f64>()
         });
         assert!(dist(&want, &r.solution.tip.r) < 1e-10);
     }
     // Symmetric load: equal shares.
-    let sym = solve_system(&rods, &platform([0.04, 0.0, 0.3], [0.0, 0.0, -0.5], [0.0; 3]), None, &opts()).unwrap();
-    let (a, b) = (&sym.rods[0].tip_reaction_force, &sym.rods[1].tip_reaction_force);
-    assert!((a[2] - b[2]).abs() < 1e-9 && (a[2] + 0.25).abs() < 1e-9, "{a:?} {b:?}");
+    let sym = solve_system(
+        &rods,
+        &platform([0.04, 0.0, 0.3], [0.0, 0.0, -0.5], [0.0; 3]),
+        None,
+        &opts(),
+    )
+    .unwrap();
+    let (a, b) = (
+        &sym.rods[0].tip_reaction_force,
+        &sym.rods[1].tip_reaction_force,
+    );
+    assert!(
+        (a[2] - b[2]).abs() < 1e-9 && (a[2] + 0.25).abs() < 1e-9,
+        "{a:?} {b:?}"
+    );
     assert!((a[0] + b[0]).abs() < 1e-9);
 }
 
@@ -467,7 +514,12 @@ fn bad_constraints_are_refused_naming_the_field() {
         }
     }
     let none: Vec<SystemRod> = vec![];
-    match solve_system(&none, &platform([0.0; 3], [0.0; 3], [0.0; 3]), None, &opts()) {
+    match solve_system(
+        &none,
+        &platform([0.0; 3], [0.0; 3], [0.0; 3]),
+        None,
+        &opts(),
+    ) {
         Err(SoftrodError::InvalidParameter { field, .. }) => assert_eq!(field, "rods"),
         other => panic!("expected InvalidParameter, got {other:?}"),
     }
@@ -501,4 +553,3 @@ fn matmul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
 fn tmatmul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
     std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[k][i] * b[k][j]).sum()))
 }
-

@@ -85,59 +85,57 @@ fn constraint(
     })
 }
 
-#[pymethods]
-impl PyRod {
-    /// Solve one static equilibrium with the tip held by a constraint: `kind` "free",
-    /// "pinned" (needs `position`, world, m) or "clamped" (and `rotation`, row-major, the
-    /// tip frame's columns in the world). The dict of `solve` plus "tip_reaction_force"
-    /// and "tip_reaction_moment" (the wrench the constraint applies to the tip, world).
-    #[pyo3(signature = (pressures, tip_force, tip_moment, kind, position=None, rotation=None, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise", tensions=None))]
-    #[allow(clippy::too_many_arguments)]
-    fn solve_constrained<'py>(
-        &self,
-        py: Python<'py>,
-        pressures: Vec<f64>,
-        tip_force: [f64; 3],
-        tip_moment: [f64; 3],
-        kind: &str,
-        position: Option<[f64; 3]>,
-        rotation: Option<[[f64; 3]; 3]>,
-        guess: Option<Vec<f64>>,
-        tol: f64,
-        max_iter: usize,
-        continuation: bool,
-        max_load_steps: usize,
-        stretch_range: (f64, f64),
-        stiffness_scale: [f64; 3],
-        on_invalid: &str,
-        tensions: Option<Vec<f64>>,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        guarded(py, || {
-            let c = constraint(py, kind, position, rotation)?;
-            let loads = Loads {
-                pressures,
-                tensions: tensions.unwrap_or_default(),
-                tip_force,
-                tip_moment,
-                tip_frame: self.rod.spec.tip.frame,
-                stiffness_scale,
-            };
-            let opts = options(
-                py,
-                tol,
-                max_iter,
-                continuation,
-                max_load_steps,
-                stretch_range,
-                on_invalid,
-            )?;
-            let rod = &self.rod;
-            let out = py
-                .detach(|| solve_constrained(rod, &loads, &c, guess.as_deref(), &opts))
-                .map_err(|e| to_py_err(py, e, Context::Input))?;
-            solution_dict(py, &out)
-        })
-    }
+/// Solve one static equilibrium with the tip held by a constraint: `kind` "free",
+/// "pinned" (needs `position`, world, m) or "clamped" (and `rotation`, row-major, the
+/// tip frame's columns in the world). The dict of `solve` plus "tip_reaction_force"
+/// and "tip_reaction_moment" (the wrench the constraint applies to the tip, world).
+#[pyfunction]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, kind, position=None, rotation=None, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise", tensions=None))]
+#[allow(clippy::too_many_arguments)]
+fn solve_constrained_tip<'py>(
+    py: Python<'py>,
+    rod: PyRef<'py, PyRod>,
+    pressures: Vec<f64>,
+    tip_force: [f64; 3],
+    tip_moment: [f64; 3],
+    kind: &str,
+    position: Option<[f64; 3]>,
+    rotation: Option<[[f64; 3]; 3]>,
+    guess: Option<Vec<f64>>,
+    tol: f64,
+    max_iter: usize,
+    continuation: bool,
+    max_load_steps: usize,
+    stretch_range: (f64, f64),
+    stiffness_scale: [f64; 3],
+    on_invalid: &str,
+    tensions: Option<Vec<f64>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    guarded(py, || {
+        let c = constraint(py, kind, position, rotation)?;
+        let loads = Loads {
+            pressures,
+            tensions: tensions.unwrap_or_default(),
+            tip_force,
+            tip_moment,
+            tip_frame: rod.rod.spec.tip.frame,
+            stiffness_scale,
+        };
+        let opts = options(
+            py,
+            tol,
+            max_iter,
+            continuation,
+            max_load_steps,
+            stretch_range,
+            on_invalid,
+        )?;
+        let rod = &rod.rod;
+        let out = py
+            .detach(|| solve_constrained(rod, &loads, &c, guess.as_deref(), &opts))
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
+        solution_dict(py, &out)
+    })
 }
 
 /// One rod of a system: (rod, pressures, tensions, tip force, tip moment, attachment
@@ -243,6 +241,7 @@ fn solve_rod_system<'py>(
 }
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(solve_constrained_tip, m)?)?;
     m.add_function(wrap_pyfunction!(solve_rod_system, m)?)?;
     Ok(())
 }

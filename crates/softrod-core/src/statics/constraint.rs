@@ -129,7 +129,8 @@ pub struct ConstrainedSolution {
 // ---- rotations (row-major 3x3) ----
 
 pub(crate) fn det3(r: &[[f64; 3]; 3]) -> f64 {
-    r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1]) - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+    r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
+        - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
         + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0])
 }
 
@@ -374,7 +375,10 @@ pub(crate) fn follow_path<E: Equations>(
                 iterations,
                 f64::NAN,
                 lam,
-                format!("load continuation used all {} load steps", opts.max_load_steps),
+                format!(
+                    "load continuation used all {} load steps",
+                    opts.max_load_steps
+                ),
             ));
         }
         levels += 1;
@@ -438,7 +442,12 @@ pub(crate) fn follow_path<E: Equations>(
     }
 }
 
-fn not_converged(iterations: usize, residual: f64, load_factor: f64, reason: String) -> SoftrodError {
+fn not_converged(
+    iterations: usize,
+    residual: f64,
+    load_factor: f64,
+    reason: String,
+) -> SoftrodError {
     SoftrodError::NotConverged {
         iterations,
         residual,
@@ -482,7 +491,8 @@ impl Level<'_> {
             }
             TipConstraint::Free => (reference.r, reference.rot),
         };
-        let position = std::array::from_fn(|k| reference.r[k] + lam * (position[k] - reference.r[k]));
+        let position =
+            std::array::from_fn(|k| reference.r[k] + lam * (position[k] - reference.r[k]));
         Level {
             p: Problem::new(rod, loads, load_factor),
             constraint,
@@ -629,10 +639,15 @@ pub fn solve_constrained(
     // one. If the free rod has no valid equilibrium (e.g. a soft beam that only the second
     // support keeps from sagging beyond its validity range), the loads are ramped from the
     // unloaded shape together with the pose.
-    let from_free = super::solve(rod, loads, None, &SolverOptions {
-        on_invalid: Policy::Ignore,
-        ..*opts
-    })
+    let from_free = super::solve(
+        rod,
+        loads,
+        None,
+        &SolverOptions {
+            on_invalid: Policy::Ignore,
+            ..*opts
+        },
+    )
     .ok()
     .map(|free| {
         let p = Problem::new(rod, loads, 1.0);
@@ -738,5 +753,10 @@ pub fn constraint_residual_and_jacobian(
     let reference = reference_tip(rod, loads);
     let level = Level::new(rod, loads, *constraint, &reference, 1.0, 1.0);
     let (r, j) = level.eval_jac(x);
-    Ok((r, (0..6).map(|i| (0..6).map(|k| j[(i, k)]).collect()).collect()))
+    Ok((
+        r,
+        (0..6)
+            .map(|i| (0..6).map(|k| j[(i, k)]).collect())
+            .collect(),
+    ))
 }

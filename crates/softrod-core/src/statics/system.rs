@@ -238,7 +238,12 @@ impl Equations for Level<'_> {
         let (mut f, mut m) = self.platform_terms(&rp);
         let mut out = vec![0.0; 6 * n + 6];
         for (i, pr) in self.problems.iter().enumerate() {
-            let tip = integrate(pr.rod, &pr.coeffs, pr.base_state(&x[6 * i..6 * i + 6]), None);
+            let tip = integrate(
+                pr.rod,
+                &pr.coeffs,
+                pr.base_state(&x[6 * i..6 * i + 6]),
+                None,
+            );
             let (rows, fi, mi) = self.rod_terms(i, &tip, &p, &rp);
             out[6 * i..6 * i + 6].copy_from_slice(&rows);
             for k in 0..3 {
@@ -274,17 +279,18 @@ impl Equations for Level<'_> {
         let (mut f, mut m) = self.platform_terms(&rp);
         // Rod columns of the balance rows go straight to the matrix; f, m carry the
         // platform's.
-        let strip = |f: &mut [Jet<12>; 3], m: &mut [Jet<12>; 3], i: usize, jac: &mut DMatrix<f64>| {
-            let rows = self.balance_rows(f, m);
-            for (k, v) in rows.iter().enumerate() {
-                for j in 0..6 {
-                    jac[(6 * n + k, 6 * i + j)] += v.eps[j];
+        let strip =
+            |f: &mut [Jet<12>; 3], m: &mut [Jet<12>; 3], i: usize, jac: &mut DMatrix<f64>| {
+                let rows = self.balance_rows(f, m);
+                for (k, v) in rows.iter().enumerate() {
+                    for j in 0..6 {
+                        jac[(6 * n + k, 6 * i + j)] += v.eps[j];
+                    }
                 }
-            }
-            for v in f.iter_mut().chain(m.iter_mut()) {
-                v.eps[..6].fill(0.0);
-            }
-        };
+                for v in f.iter_mut().chain(m.iter_mut()) {
+                    v.eps[..6].fill(0.0);
+                }
+            };
         for (i, pr) in self.problems.iter().enumerate() {
             let xd: [Jet<6>; 6] = std::array::from_fn(|j| Jet::variable(x[6 * i + j], j));
             let tip = lift(&integrate(pr.rod, &pr.coeffs, pr.base_state(&xd), None));
@@ -323,8 +329,9 @@ impl Equations for Level<'_> {
         let ra = exp_so3(&[a[k], a[k + 1], a[k + 2]]);
         let rb = exp_so3(&[b[k], b[k + 1], b[k + 2]]);
         // exp(d) = Ra Rb^T
-        let rel: [[f64; 3]; 3] =
-            std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|q| ra[i][q] * rb[j][q]).sum()));
+        let rel: [[f64; 3]; 3] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| (0..3).map(|q| ra[i][q] * rb[j][q]).sum())
+        });
         out[k..k + 3].copy_from_slice(&log_so3(&rel));
         out
     }
@@ -396,7 +403,10 @@ pub fn solve_system(
         let mut v = std::mem::take(&mut violations[i]);
         let (tip, shape) = checked_shape(pr, xi, opts, &mut v)?;
         let target = matmul(&rp, &rods[i].attachment_rotation);
-        check_half_turn(&format!("rods[{i}].attachment_orientation"), &tmatmul(&target, &tip.rot))?;
+        check_half_turn(
+            &format!("rods[{i}].attachment_orientation"),
+            &tmatmul(&target, &tip.rot),
+        )?;
         let b: [f64; 6] = pr.residual_of_tip(&tip);
         let y0 = pr.base_state(xi);
         out.push(ConstrainedSolution {
@@ -441,7 +451,10 @@ pub fn system_residual_and_jacobian(
         return Err(SoftrodError::invalid(
             "x",
             format!("{} values", x.len()),
-            format!("this system has {} unknowns (6 per rod, 6 of the platform)", 6 * n + 6),
+            format!(
+                "this system has {} unknowns (6 per rod, 6 of the platform)",
+                6 * n + 6
+            ),
         ));
     }
     let ls = rods.iter().map(|r| r.rod.length).sum::<f64>() / n as f64;
@@ -464,7 +477,12 @@ pub fn system_residual_and_jacobian(
     };
     let (r, j) = level.eval_jac(x);
     let dim = 6 * n + 6;
-    Ok((r, (0..dim).map(|i| (0..dim).map(|k| j[(i, k)]).collect()).collect()))
+    Ok((
+        r,
+        (0..dim)
+            .map(|i| (0..dim).map(|k| j[(i, k)]).collect())
+            .collect(),
+    ))
 }
 
 /// Step `x` by `dx` as the solver does (the platform's rotation on the group), for tests
