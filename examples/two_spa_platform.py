@@ -50,7 +50,7 @@ for ax, name in zip(axes, ("x", "y"), strict=True):
 axes[0].set_ylabel("z (mm)")
 axes[0].set_title("front view (x-z)")
 axes[1].set_title("side view (y-z)")
-axes[0].legend(loc="lower left", fontsize=8)
+axes[0].legend(loc="center", fontsize=8)
 fig.suptitle("Two SPAs holding a 20 g platform: left actuator, channel 0 pressurised")
 fig.tight_layout()
 out = out_dir / "two_spa_platform.png"

@@ -58,20 +58,25 @@ def orientation(value: Any, field: str, cls: type[DesignError] = InputError) -> 
             [[V.real(x, f"{field}[{i}][{j}]", cls=cls) for j, x in enumerate(r)]
              for i, r in enumerate(arr)]
         )
-        worst = float(np.abs(m.T @ m - np.eye(3)).max())
-        det = float(np.linalg.det(m))
-        if worst > ROTATION_TOL or abs(det - 1.0) > ROTATION_TOL:
-            raise V.fail(
-                field,
-                value,
-                f"must be a rotation matrix (orthonormal with det +1 to {ROTATION_TOL:g}; "
-                f"max |R^T R - I| is {worst:.3g}, det is {det:.6g}); give a rotation vector "
-                "to avoid rounding",
-                cls,
-            )
-        return m
-    w = [V.quantity(x, "angle", f"{field}[{i}]", cls) for i, x in enumerate(arr)]
-    return rotation_from_vector(w)
+        rule = "must be a rotation matrix"
+    else:
+        w = [V.quantity(x, "angle", f"{field}[{i}]", cls) for i, x in enumerate(arr)]
+        if float(np.linalg.norm(w)) > 1e3:
+            raise V.fail(field, value, "a rotation vector's angle must be at most 1000 rad "
+                         "(one turn is 2 pi)", cls)
+        m = rotation_from_vector(w)
+        rule = "must give a rotation matrix"
+    worst = float(np.abs(m.T @ m - np.eye(3)).max())
+    det = float(np.linalg.det(m))
+    if not (worst <= ROTATION_TOL and abs(det - 1.0) <= ROTATION_TOL):
+        raise V.fail(
+            field,
+            value,
+            f"{rule} (orthonormal with det +1 to {ROTATION_TOL:g}; max |R^T R - I| is "
+            f"{worst:.3g}, det is {det:.6g}); give a rotation vector to avoid rounding",
+            cls,
+        )
+    return m
 
 
 def _position(value: Any, field: str, cls: type[DesignError]) -> tuple[float, float, float]:
