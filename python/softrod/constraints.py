@@ -14,6 +14,7 @@ the design file's ``[tip]`` table::
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -130,12 +131,12 @@ class TipConstraint:
         return cls("free")
 
     @classmethod
-    def pinned(cls, position) -> TipConstraint:
+    def pinned(cls, position: Sequence[Any]) -> TipConstraint:
         """Tip position (3 lengths, world) prescribed; moment free."""
         return cls("pinned", position=position)
 
     @classmethod
-    def clamped(cls, position, orientation) -> TipConstraint:
+    def clamped(cls, position: Sequence[Any], orientation: Any) -> TipConstraint:
         """Tip position and orientation (rotation vector of 3 angles, or a 3x3 matrix)."""
         return cls("clamped", position=position, rotation=orientation)
 
