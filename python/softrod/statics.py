@@ -23,7 +23,7 @@ from .errors import (
     ValidityWarning,
     design_error,
 )
-from .solution import BatchSolution, StaticSolution
+from .solution import BatchSolution, Contact, StaticSolution
 from .stiffness_map import StiffnessMap, _check_pressure_rows
 
 if TYPE_CHECKING:
@@ -198,8 +198,11 @@ def batch_tensions(design: Design, tensions, rows: int) -> np.ndarray | None:
 
 
 def _n_unknowns(design: Design, tf, tm) -> int:
-    """Shooting unknowns of a solve: 6 with follower loads (base force unknown), else 3."""
+    """Shooting unknowns of a solve: 6 with follower loads or obstacles (base force
+    unknown), else 3."""
     spec = design.spec
+    if spec.get("obstacles"):
+        return 6
     tip_body = spec["tip"].get("frame") == "body" and any(v != 0 for v in [*tf, *tm])
     line_body = any(
         ld.get("frame") == "body"
@@ -402,6 +405,7 @@ def solve_statics(
         violations=tuple(out["violations"]),
         tip_loads=(tuple(tf), tuple(tm)),
         tensions=np.array(t),
+        contact=Contact.from_core(out["contact"]) if "contact" in out else None,
     )
 
 

@@ -276,6 +276,13 @@ pub struct PointJacobian {
 /// shooting unknowns, the base moment; with follower loads the base force is unknown too
 /// and the loads are not conservative).
 pub(crate) fn dead_loads_only(rod: &Rod, loads: &Loads, what: &str) -> Result<()> {
+    if rod.obstacles.is_some() {
+        return Err(SoftrodError::invalid(
+            "obstacles",
+            format!("{} obstacles", rod.spec.obstacles.len()),
+            format!("{what} does not support contact yet; solve_statics does"),
+        ));
+    }
     if loads.has_follower(rod) {
         let (field, value) = if rod.spec.has_follower_line_loads() {
             let k = rod

@@ -1,0 +1,92 @@
+//! Contact in the statics (docs/contact.md): the frictionless rule and what a solution
+//! reports about its contacts. The penalty law itself is `crate::contact`; it enters the
+//! shooting ODE as a position-dependent line load, so the shooting Jacobian stays exact.
+
+use crate::contact::{node_contact, NodeContact};
+use crate::error::{Result, SoftrodError};
+use crate::ode::{integrate_with, step_quadrature, Loads, NodeAt, State};
+use crate::rod::Rod;
+use crate::statics::{Problem, Solution};
+
+/// The statics is frictionless: refuse an obstacle with a friction coefficient. Coulomb
+/// friction makes a static equilibrium depend on the loading path (a stuck contact holds
+/// whatever tangential force the history left in it), so a static solve has no unique
+/// answer to give.
+pub fn frictionless(rod: &Rod) -> Result<()> {
+    if let Some(k) = rod.spec.obstacles.iter().position(|o| o.friction != 0.0) {
+        return Err(SoftrodError::invalid(
+            format!("obstacles[{k}].friction"),
+            rod.spec.obstacles[k].friction,
+            "the static solve is frictionless (with Coulomb friction the equilibrium depends on the loading path); set friction = 0",
+        ));
+    }
+    Ok(())
+}
+
+/// The contacts of a static solution.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactReport {
+    /// One entry per node of the solution's shape (base, then every step's end): nearest
+    /// obstacle, gap, nearest obstacle point, contact force per unit length.
+    pub nodes: Vec<NodeContact>,
+    /// Resultant contact force of each obstacle on the rod, N (world frame): the integral
+    /// of its line force with the integrator's own quadrature (RK4 stages), i.e. exactly
+    /// the force the solve applied.
+    pub force: Vec<[f64; 3]>,
+    /// Moment of each obstacle's contact forces about the base position, N m.
+    pub moment: Vec<[f64; 3]>,
+    /// Deepest penetration of the rod's surface into any obstacle at a node, m (<= 0: no
+    /// node touches).
+    pub max_penetration: f64,
+}
+
+/// The contact report of a converged shooting solution `sol` of `loads`; None for a rod
+/// without obstacles.
+pub fn report(rod: &Rod, loads: &Loads, sol: &Solution) -> Option<ContactReport> {
+    let obstacles = rod.obstacles.as_ref()?;
+    let p = Problem::new(rod, loads, 1.0);
+    let y0: State<f64> = p.base_state(&sol.x);
+    let base = rod.base_position;
+    let mut nodes = Vec::new();
+    let mut force = vec![[0.0; 3]; obstacles.len()];
+    let mut moment = vec![[0.0; 3]; obstacles.len()];
+    let mut hook = |node: NodeAt, y: &mut State<f64>| {
+        let sec = &rod.sections[node.section];
+        if node.step > 0 || node.section == 0 {
+            let rho = sec.surface_radius(node.s - sec.s_start);
+            if let Some(nc) = node_contact(obstacles, &y.r, rho) {
+                nodes.push(nc);
+            }
+        }
+        step_quadrature(rod, &p.coeffs, node, y, &mut |ys, s, w| {
+            let rho = sec.surface_radius(s);
+            let arm: [f64; 3] = std::array::from_fn(|k| ys.r[k] - base[k]);
+            for (k, o) in obstacles.iter().enumerate() {
+                let f = o.line_force(&ys.r, rho);
+                for i in 0..3 {
+                    force[k][i] += w * f[i];
+                }
+                let m = [
+                    arm[1] * f[2] - arm[2] * f[1],
+                    arm[2] * f[0] - arm[0] * f[2],
+                    arm[0] * f[1] - arm[1] * f[0],
+                ];
+                for i in 0..3 {
+                    moment[k][i] += w * m[i];
+                }
+            }
+        });
+        false
+    };
+    integrate_with(rod, &p.coeffs, y0, &mut hook);
+    let max_penetration = nodes
+        .iter()
+        .map(|n| -n.gap)
+        .fold(f64::NEG_INFINITY, f64::max);
+    Some(ContactReport {
+        nodes,
+        force,
+        moment,
+        max_penetration,
+    })
+}
