@@ -27,10 +27,24 @@ use crate::spec::obstacle::{ObstacleKind, ObstacleSpec};
 /// A compiled obstacle's surface (directions normalised).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Surface {
-    Plane { point: [f64; 3], normal: [f64; 3] },
-    Sphere { center: [f64; 3], radius: f64 },
-    Cylinder { point: [f64; 3], axis: [f64; 3], radius: f64 },
-    Capsule { start: [f64; 3], end: [f64; 3], radius: f64 },
+    Plane {
+        point: [f64; 3],
+        normal: [f64; 3],
+    },
+    Sphere {
+        center: [f64; 3],
+        radius: f64,
+    },
+    Cylinder {
+        point: [f64; 3],
+        axis: [f64; 3],
+        radius: f64,
+    },
+    Capsule {
+        start: [f64; 3],
+        end: [f64; 3],
+        radius: f64,
+    },
 }
 
 /// A compiled obstacle with its penalty law.
@@ -127,7 +141,10 @@ impl Obstacle {
                 } else {
                     t
                 };
-                radial(std::array::from_fn(|k| r[k] - (t * ab[k] + start[k])), radius)
+                radial(
+                    std::array::from_fn(|k| r[k] - (t * ab[k] + start[k])),
+                    radius,
+                )
             }
         }
     }

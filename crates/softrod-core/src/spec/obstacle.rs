@@ -145,7 +145,9 @@ impl ObstacleSpec {
     pub fn validate(&self, k: usize) -> Result<()> {
         let f = |name: &str| format!("obstacles[{k}].{name}");
         let need = self.kind.fields();
-        for name in ["point", "normal", "center", "axis", "start", "end", "radius"] {
+        for name in [
+            "point", "normal", "center", "axis", "start", "end", "radius",
+        ] {
             if self.is_set(name) && !need.contains(&name) {
                 return Err(SoftrodError::invalid(
                     f(name),
