@@ -968,6 +968,12 @@ class Design:
             _set_path(doc, path, copy.deepcopy(value))
         return _build(doc, self.source)
 
+    def with_obstacles(self, obstacles: list[Mapping[str, Any]]) -> Design:
+        """A copy with the rigid obstacles ``obstacles`` (tables with the keys of the design
+        file's ``[[obstacles]]``, units as strings; docs/contact.md) in place of the file's;
+        ``[]`` removes them. Validated like a new file."""
+        return self.replace({"obstacles": list(obstacles)})
+
     def with_stiffness_map(self, path: str | Path | None) -> Design:
         """A copy whose ``[stiffness_map]`` references the map file ``path`` (a table CSV or
         a map saved with :meth:`softrod.StiffnessMap.save` / ``HybridStiffnessModel.save``;

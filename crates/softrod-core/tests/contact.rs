@@ -2,6 +2,9 @@
 //! the beam on a rigid support, a rod pressed onto a sphere, the penetration rule, global
 //! equilibrium, the exact shooting Jacobian, and bad obstacle input.
 
+// Index loops over 3-vectors read like the equations they check.
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
 use common::{design, direct_section, loads, HORIZONTAL};
