@@ -177,6 +177,7 @@ fn contact_dict<'py>(
     )?;
     d.set_item("total_force", array2(py, &rep.force)?)?;
     d.set_item("total_moment", array2(py, &rep.moment)?)?;
+    d.set_item("end_force", array2(py, &rep.end)?)?;
     d.set_item("max_penetration", rep.max_penetration)?;
     Ok(d)
 }

@@ -2,8 +2,9 @@
 //! reports about its contacts. The penalty law itself is `crate::contact`; it enters the
 //! shooting ODE as a position-dependent line load, so the shooting Jacobian stays exact.
 
-use crate::contact::{node_contact, NodeContact};
+use crate::contact::{node_contact, NodeContact, Obstacle};
 use crate::error::{Result, SoftrodError};
+use crate::jet::RodScalar;
 use crate::ode::{integrate_with, step_quadrature, Loads, NodeAt, State};
 use crate::rod::Rod;
 use crate::statics::{Problem, Solution};
@@ -23,6 +24,30 @@ pub fn frictionless(rod: &Rod) -> Result<()> {
     Ok(())
 }
 
+/// Contact force on the rod's rounded end (N, world frame), at the tip's centreline r(L):
+/// the end is a hemisphere of the tip's surface radius rho (the tube's closure), a point
+/// contact with the penalty of its obstacle over the cap's length, k rho ramp(delta). It has
+/// the tube's gap at s = L and acts along the normal through r(L) (no moment about it). It
+/// carries a contact that ends at the tip, which the line load alone resolves only with
+/// steps shorter than its contact length (docs/contact.md).
+pub fn end_force<D: RodScalar>(rod: &Rod, r: &[D; 3]) -> [D; 3] {
+    let mut f = [D::from(0.0); 3];
+    if let (Some(obstacles), Some(sec)) = (&rod.obstacles, rod.sections.last()) {
+        let rho = sec.surface_radius(sec.length);
+        for o in obstacles.iter() {
+            let g = end_force_of(o, r, rho);
+            for k in 0..3 {
+                f[k] += g[k];
+            }
+        }
+    }
+    f
+}
+
+fn end_force_of<D: RodScalar>(o: &Obstacle, r: &[D; 3], rho: f64) -> [D; 3] {
+    o.line_force(r, rho).map(|x| x * rho)
+}
+
 /// The contacts of a static solution.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactReport {
@@ -35,6 +60,8 @@ pub struct ContactReport {
     pub force: Vec<[f64; 3]>,
     /// Moment of each obstacle's contact forces about the base position, N m.
     pub moment: Vec<[f64; 3]>,
+    /// The part of `force` on the rod's rounded end (`end_force`), per obstacle, N.
+    pub end: Vec<[f64; 3]>,
     /// Deepest penetration of the rod's surface into any obstacle at a node, m (<= 0: no
     /// node touches).
     pub max_penetration: f64,
@@ -78,7 +105,25 @@ pub fn report(rod: &Rod, loads: &Loads, sol: &Solution) -> Option<ContactReport>
         });
         false
     };
-    integrate_with(rod, &p.coeffs, y0, &mut hook);
+    let tip = integrate_with(rod, &p.coeffs, y0, &mut hook);
+    let mut end = vec![[0.0; 3]; obstacles.len()];
+    if let Some(sec) = rod.sections.last() {
+        let rho = sec.surface_radius(sec.length);
+        let arm: [f64; 3] = std::array::from_fn(|k| tip.r[k] - base[k]);
+        for (k, o) in obstacles.iter().enumerate() {
+            let f = end_force_of(o, &tip.r, rho);
+            end[k] = f;
+            let m = [
+                arm[1] * f[2] - arm[2] * f[1],
+                arm[2] * f[0] - arm[0] * f[2],
+                arm[0] * f[1] - arm[1] * f[0],
+            ];
+            for i in 0..3 {
+                force[k][i] += f[i];
+                moment[k][i] += m[i];
+            }
+        }
+    }
     let max_penetration = nodes
         .iter()
         .map(|n| -n.gap)
@@ -87,6 +132,7 @@ pub fn report(rod: &Rod, loads: &Loads, sol: &Solution) -> Option<ContactReport>
         nodes,
         force,
         moment,
+        end,
         max_penetration,
     })
 }

@@ -388,10 +388,12 @@ impl<'a> Problem<'a> {
             (*f_tip, *m_tip)
         };
         let moment: [D; 3] = std::array::from_fn(|k| (tip.m[k] - cxw[k] - m[k]) * (1.0 / self.ms));
+        // The rod's rounded end presses on obstacles too (through the tip: no moment).
+        let end = contact::end_force(self.rod, &tip.r);
         if N == 6 {
             std::array::from_fn(|k| {
                 if k < 3 {
-                    (tip.n[k] - w[k] - f[k]) * (1.0 / self.fs)
+                    (tip.n[k] - w[k] - f[k] - end[k]) * (1.0 / self.fs)
                 } else {
                     moment[k - 3]
                 }
