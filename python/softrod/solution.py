@@ -59,6 +59,8 @@ class Contact:
     integral the solver applied, so base force + contact + loads balance to the solver's
     tolerance).
     total_moment: (k, 3) its moment about the base position, N m.
+    end_force: (k, 3) the part of total_force on the rod's rounded end (a point contact at
+    the tip, docs/contact.md), N.
     max_penetration: the deepest penetration at a node, m (<= 0: nothing touches).
     """
 
@@ -68,6 +70,7 @@ class Contact:
     obstacle: np.ndarray
     total_force: np.ndarray
     total_moment: np.ndarray
+    end_force: np.ndarray
     max_penetration: float
 
     @classmethod
@@ -79,6 +82,7 @@ class Contact:
             obstacle=d["obstacle"],
             total_force=d["total_force"],
             total_moment=d["total_moment"],
+            end_force=d["end_force"],
             max_penetration=float(d["max_penetration"]),
         )
 
