@@ -35,12 +35,12 @@ for p in pressures_kpa:
     free_drop.append((table_z - (tip_free[2] - radius)) * 1e3)
 force = np.array(force)
 print("pressure_kPa  contact_force_mN  free_finger_below_table_mm")
-for p, f, d in zip(pressures_kpa[::5], force[::5], free_drop[::5]):
+for p, f, d in zip(pressures_kpa[::5], force[::5], free_drop[::5], strict=True):
     print(f"{p:12.0f}  {f * 1e3:16.2f}  {d:26.2f}")
 
 fig, (ax_shape, ax_force) = plt.subplots(1, 2, figsize=(10, 4.2), constrained_layout=True)
 colours = plt.cm.viridis(np.linspace(0.0, 0.9, 4))
-for p, c in zip((0.0, 20.0, 35.0, 50.0), colours):
+for p, c in zip((0.0, 20.0, 35.0, 50.0), colours, strict=True):
     sol = softrod.solve_statics(design, [p * 1e3])
     x, z = sol.position[:, 0] * 1e3, sol.position[:, 2] * 1e3
     ax_shape.plot(x, z, color=c, label=f"{p:.0f} kPa")

@@ -106,7 +106,8 @@ def test_rod_on_a_sphere_cylinder_and_capsule_balance_and_point_through_the_cent
     totals = []
     for shape in shapes:
         ob = {**shape, "stiffness": "1e7 N/m^2", "tolerance": "0.1 mm"}
-        design = load_design(beam_over(ob, gravity=False) | {"tip": {"force": ["0 N", "0 N", "-0.1 N"]}})
+        doc = beam_over(ob, gravity=False) | {"tip": {"force": ["0 N", "0 N", "-0.1 N"]}}
+        design = load_design(doc)
         sol = solve_statics(design, [])
         ct = sol.contact
         f = ct.total_force[0]
