@@ -49,8 +49,8 @@ def run(args) -> dict:
         sol = softrod.solve_statics(design, pp)
         contact = sol.contact
         t_api = median(timed(lambda pp=pp: softrod.solve_statics(design, pp), reps))
-        t_bind = median(timed(binding_solver(design, pp), reps))
-        t_free = median(timed(binding_solver(free, pp), reps))
+        t_bind = median(timed(binding_solver(design, pp, tensions=[0.0]), reps))
+        t_free = median(timed(binding_solver(free, pp, tensions=[0.0]), reps))
         row = {
             "pressure_kPa": p,
             "contact_force_N": float(contact.total[2]),

@@ -38,26 +38,40 @@ print("pressure_kPa  contact_force_mN  free_finger_below_table_mm")
 for p, f, d in zip(pressures_kpa[::5], force[::5], free_drop[::5], strict=True):
     print(f"{p:12.0f}  {f * 1e3:16.2f}  {d:26.2f}")
 
-fig, (ax_shape, ax_force) = plt.subplots(1, 2, figsize=(10, 4.2), constrained_layout=True)
+fig, (ax_shape, ax_force) = plt.subplots(
+    1, 2, figsize=(10, 4.6), constrained_layout=True, gridspec_kw={"width_ratios": [1.1, 1.0]}
+)
 colours = plt.cm.viridis(np.linspace(0.0, 0.9, 4))
 for p, c in zip((0.0, 20.0, 35.0, 50.0), colours, strict=True):
     sol = softrod.solve_statics(design, [p * 1e3])
     x, z = sol.position[:, 0] * 1e3, sol.position[:, 2] * 1e3
-    ax_shape.plot(x, z, color=c, label=f"{p:.0f} kPa")
-    # The finger's surface below the centreline (its outer radius), where it meets the table.
-    ax_shape.plot(x, z - radius * 1e3, color=c, lw=0.8, ls=":")
+    ax_shape.plot(x, z, color=c, lw=0.8, ls="--")
+    # The finger's outline: the centreline -/+ its outer radius along d1 (the bending plane).
+    d1 = sol.rotation[:, :, 0]
+    for side in (-1.0, 1.0):
+        edge = sol.position + side * radius * d1
+        ax_shape.plot(edge[:, 0] * 1e3, edge[:, 2] * 1e3, color=c,
+                      label=f"{p:.0f} kPa" if side > 0 else None)
+    # The rounded end (a hemisphere of the outer radius about the tip), which meets the table.
+    t3 = sol.rotation[-1][:, 2]
+    t1 = d1[-1]
+    ang = np.linspace(-np.pi / 2, np.pi / 2, 40)
+    cap = sol.position[-1] + radius * (np.outer(np.cos(ang), t3) + np.outer(np.sin(ang), t1))
+    ax_shape.plot(cap[:, 0] * 1e3, cap[:, 2] * 1e3, color=c)
     touching = sol.contact.in_contact
     if touching.any():
         pts = sol.contact.point[touching] * 1e3
         ax_shape.plot(pts[:, 0], pts[:, 2], "o", color=c, ms=4)
 ax_shape.axhline(table_z * 1e3, color="0.3", lw=2)
-ax_shape.text(2.0, table_z * 1e3 - 4.0, "table", color="0.3")
+ax_shape.text(40.0, table_z * 1e3 - 5.0, "table", color="0.3")
 ax_shape.set_xlabel("x (mm)")
 ax_shape.set_ylabel("z (mm)")
 ax_shape.set_title("Finger hanging above the table (side view)")
 ax_shape.set_aspect("equal")
-ax_shape.set_ylim(table_z * 1e3 - 8.0, 5.0)
-ax_shape.legend(loc="upper right", fontsize=8, title="centreline; dots: contact", title_fontsize=8)
+ax_shape.set_xlim(-15.0, 70.0)
+ax_shape.set_ylim(table_z * 1e3 - 8.0, 10.0)
+ax_shape.legend(loc="upper right", fontsize=8, title="outline; dots: contact",
+                title_fontsize=8)
 
 ax_force.plot(pressures_kpa, force * 1e3, "o-", ms=3)
 ax_force.set_xlabel("chamber pressure (kPa)")

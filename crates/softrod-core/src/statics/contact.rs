@@ -48,6 +48,34 @@ fn end_force_of<D: RodScalar>(o: &Obstacle, r: &[D; 3], rho: f64) -> [D; 3] {
     o.line_force(r, rho).map(|x| x * rho)
 }
 
+/// A cold start for a rod with obstacles under dead loads: the equilibrium without the
+/// obstacles (3 unknowns, cheap), as the 6 unknowns (n(0), m(0)) of the contact problem.
+/// Where that shape touches nothing it is the answer (the penalty is exactly zero off
+/// contact) and Newton stops at once; where it touches, Newton starts from a shape close to
+/// the answer for light contacts. None when the free solve fails (the caller then follows
+/// the natural path from the unloaded rod).
+pub(crate) fn free_guess(
+    rod: &Rod,
+    loads: &Loads,
+    opts: &super::SolverOptions,
+) -> Option<Vec<f64>> {
+    if rod.obstacles.is_none() || loads.has_follower(rod) {
+        return None;
+    }
+    let mut free = rod.clone();
+    free.obstacles = None;
+    let opts = super::SolverOptions {
+        on_invalid: crate::validity::Policy::Ignore,
+        ..*opts
+    };
+    let sol = super::solve(&free, loads, None, &opts).ok()?;
+    let p = Problem::new(rod, loads, 1.0);
+    let (fs, ms) = (p.force_scale(), p.force_scale() * rod.length);
+    let mut x: Vec<f64> = sol.base_force.iter().map(|n| n / fs).collect();
+    x.extend(sol.base_moment.iter().map(|m| m / ms));
+    Some(x)
+}
+
 /// The contacts of a static solution.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactReport {

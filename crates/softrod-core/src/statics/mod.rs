@@ -322,6 +322,11 @@ impl<'a> Problem<'a> {
         p
     }
 
+    /// Force scale of the unknowns n(0) / F_s (6 unknowns), N.
+    pub(crate) fn force_scale(&self) -> f64 {
+        self.fs
+    }
+
     /// Unknowns of this problem (3 or 6).
     pub(crate) fn unknowns(&self) -> usize {
         if self.follower {
@@ -943,6 +948,11 @@ fn solve_inner(
         return by_collocation(rod, loads, opts, violations);
     }
     if loads.base_force_unknown(rod) {
+        let start = match guess {
+            None => contact::free_guess(rod, loads, opts),
+            Some(_) => None,
+        };
+        let guess = guess.or(start.as_deref());
         solve_n::<6, 7>(rod, loads, guess, opts, violations, want_shape)
     } else {
         solve_n::<3, 4>(rod, loads, guess, opts, violations, want_shape)
