@@ -1391,14 +1391,16 @@ pub fn step_quadrature(
         [c.local(); 3]
     };
     let mut scratch = Scratch::default();
-    let k1 = rhs(y, c, &locs[0], sec, s0, &mut scratch);
-    let y2 = y.axpy(0.5 * h, &k1);
-    let k2 = rhs(&y2, c, &locs[1], sec, s0 + 0.5 * h, &mut scratch);
-    let y3 = y.axpy(0.5 * h, &k2);
-    let k3 = rhs(&y3, c, &locs[1], sec, s0 + 0.5 * h, &mut scratch);
-    let y4 = y.axpy(h, &k3);
+    // The stages of `rk4_step`, with the same arithmetic.
+    let mut stage = *y;
     g(y, s0, h / 6.0);
-    g(&y2, s0 + 0.5 * h, h / 3.0);
-    g(&y3, s0 + 0.5 * h, h / 3.0);
-    g(&y4, s0 + h, h / 6.0);
+    let k1 = rhs(y, c, &locs[0], sec, s0, &mut scratch);
+    stage.set_axpy(y, 0.5 * h, &k1);
+    g(&stage, s0 + 0.5 * h, h / 3.0);
+    let k2 = rhs(&stage, c, &locs[1], sec, s0 + 0.5 * h, &mut scratch);
+    stage.set_axpy(y, 0.5 * h, &k2);
+    g(&stage, s0 + 0.5 * h, h / 3.0);
+    let k3 = rhs(&stage, c, &locs[1], sec, s0 + 0.5 * h, &mut scratch);
+    stage.set_axpy(y, h, &k3);
+    g(&stage, s0 + h, h / 6.0);
 }
