@@ -34,6 +34,8 @@ use crate::rod::Rod;
 use crate::statics::{self, SolverOptions};
 use crate::validity;
 
+pub mod sensitivity;
+
 /// v, u, q, w (body frame) at one stage point.
 pub const FIELDS: usize = NF;
 
@@ -519,6 +521,10 @@ pub struct Simulator {
     cache: Option<Cached>,
     /// Newton's contraction rate with the kept matrix at the last step.
     theta: f64,
+    /// How the run started.
+    initial: Initial,
+    /// Forward parameter sensitivities, when tracked (`sensitivity`).
+    sens: Option<Box<sensitivity::Tracker>>,
     pub stats: DynStats,
 }
 
@@ -619,6 +625,11 @@ struct Candidate {
     books: Books,
     /// Estimated local error of the node positions, m (None without enough history).
     error: Option<f64>,
+    /// The step's time formula, history terms and converged scaled unknowns (for the
+    /// parameter sensitivities).
+    bdf: Bdf,
+    hist: Vec<[f64; FIELDS]>,
+    z_scaled: Vec<f64>,
 }
 
 impl Simulator {
@@ -696,6 +707,8 @@ impl Simulator {
             books: Books::default(),
             cache: None,
             theta: 1.0,
+            initial,
+            sens: None,
             stats: DynStats::default(),
             grid,
             rod,
@@ -1061,6 +1074,7 @@ impl Simulator {
                         }
                         self.h_next = h * factor;
                     }
+                    self.advance_sensitivity(&c)?;
                     self.commit(c);
                     remaining -= h;
                     if remaining <= 1e-12 * dt {
@@ -1363,6 +1377,9 @@ impl Simulator {
             eval,
             books,
             error,
+            bdf,
+            hist,
+            z_scaled: z,
         })
     }
 
@@ -1915,6 +1932,8 @@ impl Simulator {
             jacobians: r.n()?,
         };
         next.cache = None;
+        // The saved state holds no sensitivities: a restored run tracks none.
+        next.sens = None;
         if r.f()? == 1.0 {
             let key = JacKey {
                 at: r.vec()?,
