@@ -95,6 +95,7 @@ _EXPORTS = {
     "Preset": ".presets",
     "list_presets": ".presets",
     "BatchSolution": ".statics",
+    "Contact": ".statics",
     "SolverOptions": ".statics",
     "StaticSolution": ".statics",
     "solve_statics": ".statics",
@@ -176,6 +177,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
     from .presets import Preset, list_presets
     from .statics import (
         BatchSolution,
+        Contact,
         SolverOptions,
         StaticSolution,
         solve_statics,
@@ -198,6 +200,7 @@ __all__ = [
     "BatchSolution",
     "CalibrationResult",
     "CalibrationWarning",
+    "Contact",
     "ConvergenceError",
     "Dataset",
     "Design",

@@ -11,6 +11,7 @@ MAX_SECTIONS = 1000  # sections of a design
 MAX_CHAMBERS = 64  # chambers of one section
 MAX_TENDONS = 64  # tendons of one section
 MAX_LOADS = 1000  # [[loads]] entries of a design
+MAX_OBSTACLES = 1000  # [[obstacles]] entries of a design
 MAX_TABLE_POINTS = 10_000  # points of a tabulated law (axial table, PCC k_theta table)
 MAX_SECTION_STEPS = 100_000  # integration steps of one section
 MAX_DESIGN_STEPS = 1_000_000  # integration steps of a whole design (nodes of its shape)
@@ -33,6 +34,7 @@ LIMITS = {
     "chambers per section": MAX_CHAMBERS,
     "tendons per section": MAX_TENDONS,
     "loads": MAX_LOADS,
+    "obstacles": MAX_OBSTACLES,
     "table points": MAX_TABLE_POINTS,
     "steps per section": MAX_SECTION_STEPS,
     "steps per design": MAX_DESIGN_STEPS,

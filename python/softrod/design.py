@@ -57,8 +57,23 @@ _SCHEMA: dict[str, set[str]] = {
         "pcc",
         "stiffness_map",
         "operating_range",
+        "obstacles",
     },
     "operating_range": {"pressure", "source"},
+    "obstacle": {
+        "kind",
+        "point",
+        "normal",
+        "center",
+        "axis",
+        "start",
+        "end",
+        "radius",
+        "stiffness",
+        "tolerance",
+        "smoothing",
+        "friction",
+    },
     "design": {"name", "citation", "description", "assumptions", "provenance"},
     "stiffness_map": {"file", "method", "outside"},
     "mounting": {"orientation", "roll", "base_position", "gravity", "base_rotation"},
@@ -738,7 +753,63 @@ def _spec(doc: dict) -> dict:
             if "operating_range" in doc
             else {}
         ),
+        **({"obstacles": _obstacles(doc["obstacles"])} if "obstacles" in doc else {}),
     }
+
+
+OBSTACLE_KINDS = ("plane", "sphere", "cylinder", "capsule")
+# The pose and size keys of each kind (the Rust core refuses any other and checks values).
+_OBSTACLE_POSE = {
+    "point": "length",
+    "center": "length",
+    "start": "length",
+    "end": "length",
+    "radius": "length",
+    "normal": None,
+    "axis": None,
+}
+
+
+def _obstacles(obstacles: Any) -> list[dict]:
+    """[[obstacles]]: rigid obstacles the rod may touch (docs/contact.md): kind, pose and
+    size with units, penalty stiffness (force per length per penetration, e.g.
+    "2e6 N/m^2"), penetration tolerance, optional smoothing length and friction
+    coefficient. Rules on values (positive radius, non-zero normal, smoothing within the
+    tolerance, ...) are the core's (``ObstacleSpec::validate``)."""
+    if not isinstance(obstacles, list):
+        raise V.fail("obstacles", obstacles, "must be an array of tables", DesignError)
+    if len(obstacles) > V.MAX_OBSTACLES:
+        rule = f"too many: at most {V.MAX_OBSTACLES}"
+        raise V.fail("obstacles", f"{len(obstacles)} obstacles", rule, DesignError)
+    out = []
+    for k, ob in enumerate(obstacles):
+        where = f"obstacles[{k}]"
+        ob = _check_keys(ob, "obstacle", where)
+        kind = V.choice(_require(ob, "kind", where), OBSTACLE_KINDS, f"{where}.kind", DesignError)
+        spec: dict[str, Any] = {"kind": kind}
+        for key, unit in _OBSTACLE_POSE.items():
+            if key not in ob:
+                continue
+            field = f"{where}.{key}"
+            if key == "radius":
+                spec[key] = _q(ob[key], "length", field)
+            elif unit is None:
+                if not isinstance(ob[key], (list, tuple)) or len(ob[key]) != 3:
+                    raise V.fail(field, ob[key], "must be a list of 3 numbers (a direction)",
+                                 DesignError)
+                spec[key] = [number(v, f"{field}[{i}]") for i, v in enumerate(ob[key])]
+            else:
+                spec[key] = _qvec(ob[key], unit, field)
+        spec["stiffness"] = _q(
+            _require(ob, "stiffness", where), "contact_stiffness", f"{where}.stiffness"
+        )
+        spec["tolerance"] = _q(_require(ob, "tolerance", where), "length", f"{where}.tolerance")
+        if "smoothing" in ob:
+            spec["smoothing"] = _q(ob["smoothing"], "length", f"{where}.smoothing")
+        if "friction" in ob:
+            spec["friction"] = number(ob["friction"], f"{where}.friction")
+        out.append(spec)
+    return out
 
 
 def _operating_range(table: Any) -> dict:
@@ -912,6 +983,12 @@ class Design:
         for path, value in changes.items():
             _set_path(doc, path, copy.deepcopy(value))
         return _build(doc, self.source)
+
+    def with_obstacles(self, obstacles: list[Mapping[str, Any]]) -> Design:
+        """A copy with the rigid obstacles ``obstacles`` (tables with the keys of the design
+        file's ``[[obstacles]]``, units as strings; docs/contact.md) in place of the file's;
+        ``[]`` removes them. Validated like a new file."""
+        return self.replace({"obstacles": list(obstacles)})
 
     def with_stiffness_map(self, path: str | Path | None) -> Design:
         """A copy whose ``[stiffness_map]`` references the map file ``path`` (a table CSV or
@@ -1126,6 +1203,16 @@ _KINDS: dict[str, dict[str, str]] = {
     },
     "pcc_table": {"angle": "angle", "stiffness": "moment"},
     "numerics": {"step_length": "length"},
+    "obstacle": {
+        "point": "length",
+        "center": "length",
+        "start": "length",
+        "end": "length",
+        "radius": "length",
+        "stiffness": "contact_stiffness",
+        "tolerance": "length",
+        "smoothing": "length",
+    },
 }
 
 
@@ -1178,6 +1265,11 @@ def _with_units(doc: dict) -> dict:
     if isinstance(doc.get("loads"), list):
         doc["loads"] = [
             _units_in(ld, "load") if isinstance(ld, Mapping) else ld for ld in doc["loads"]
+        ]
+    if isinstance(doc.get("obstacles"), list):
+        doc["obstacles"] = [
+            _units_in(ob, "obstacle") if isinstance(ob, Mapping) else ob
+            for ob in doc["obstacles"]
         ]
     sections = []
     for sec in doc.get("sections", []):

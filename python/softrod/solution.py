@@ -44,6 +44,60 @@ class Jacobian:
 
 
 @dataclass(frozen=True)
+class Contact:
+    """The contacts of a static solution with the design's obstacles (docs/contact.md),
+    per node of the solution (n nodes) and per obstacle (k obstacles), SI, world frame.
+
+    force: (n, 3) contact force per unit reference length on the rod at each node, N/m
+    (all obstacles together).
+    gap: (n,) gap between the rod's surface and the nearest obstacle, m; negative where
+    the surface sinks into it (the penalty's compliance, at most the obstacle's tolerance).
+    point: (n, 3) nearest point of that obstacle's surface (the contact point where the
+    node touches), m.
+    obstacle: (n,) index of that obstacle.
+    total_force: (k, 3) resultant contact force of each obstacle on the rod, N (the
+    integral the solver applied, so base force + contact + loads balance to the solver's
+    tolerance).
+    total_moment: (k, 3) its moment about the base position, N m.
+    end_force: (k, 3) the part of total_force on the rod's rounded end (a point contact at
+    the tip, docs/contact.md), N.
+    max_penetration: the deepest penetration at a node, m (<= 0: nothing touches).
+    """
+
+    force: np.ndarray
+    gap: np.ndarray
+    point: np.ndarray
+    obstacle: np.ndarray
+    total_force: np.ndarray
+    total_moment: np.ndarray
+    end_force: np.ndarray
+    max_penetration: float
+
+    @classmethod
+    def from_core(cls, d: dict) -> Contact:
+        return cls(
+            force=d["force"],
+            gap=d["gap"],
+            point=d["point"],
+            obstacle=d["obstacle"],
+            total_force=d["total_force"],
+            total_moment=d["total_moment"],
+            end_force=d["end_force"],
+            max_penetration=float(d["max_penetration"]),
+        )
+
+    @property
+    def in_contact(self) -> np.ndarray:
+        """(n,) True where the rod's surface touches an obstacle (gap < 0)."""
+        return self.gap < 0
+
+    @property
+    def total(self) -> np.ndarray:
+        """(3,) resultant contact force of all obstacles on the rod, N."""
+        return self.total_force.sum(axis=0)
+
+
+@dataclass(frozen=True)
 class StaticSolution:
     """A static equilibrium, sampled at every integration node (n nodes).
 
@@ -90,6 +144,8 @@ class StaticSolution:
     #: zeros for a free tip, a zero moment for a pinned one.
     tip_reaction_force: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)
     tip_reaction_moment: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)
+    #: Contacts with the design's obstacles (:class:`Contact`); None without obstacles.
+    contact: Contact | None = field(default=None, repr=False)
 
     @classmethod
     def failed(

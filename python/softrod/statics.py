@@ -26,7 +26,7 @@ from .errors import (
     ValidityWarning,
     design_error,
 )
-from .solution import BatchSolution, StaticSolution
+from .solution import BatchSolution, Contact, StaticSolution
 from .stiffness_map import StiffnessMap, _check_pressure_rows
 
 if TYPE_CHECKING:
@@ -201,8 +201,11 @@ def batch_tensions(design: Design, tensions, rows: int) -> np.ndarray | None:
 
 
 def _n_unknowns(design: Design, tf, tm) -> int:
-    """Shooting unknowns of a solve: 6 with follower loads (base force unknown), else 3."""
+    """Shooting unknowns of a solve: 6 with follower loads or obstacles (base force
+    unknown), else 3."""
     spec = design.spec
+    if spec.get("obstacles"):
+        return 6
     tip_body = spec["tip"].get("frame") == "body" and any(v != 0 for v in [*tf, *tm])
     line_body = any(
         ld.get("frame") == "body"
@@ -443,6 +446,7 @@ def solve_statics(
         tip_constraint=constraint.kind,
         tip_reaction_force=np.array(out.get("tip_reaction_force", np.zeros(3))),
         tip_reaction_moment=np.array(out.get("tip_reaction_moment", np.zeros(3))),
+        contact=Contact.from_core(out["contact"]) if "contact" in out else None,
     )
 
 

@@ -552,6 +552,9 @@ pub(crate) fn check_statics_only_with(
             ),
         )
     };
+    if !rod.spec.obstacles.is_empty() {
+        return Err(statics_only("obstacles".into(), "contact with obstacles"));
+    }
     if rod.spec.tip.frame == crate::spec::Frame::Body {
         return Err(statics_only(
             "tip.frame".into(),

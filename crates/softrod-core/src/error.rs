@@ -103,6 +103,9 @@ pub enum Rule {
     /// A dynamic run's energy balance E - E(0) - W_in + D does not grow beyond the
     /// integrator's tolerance (energy does not appear without input).
     EnergyBalance,
+    /// The rod's surface penetrates an obstacle deeper than the obstacle's tolerance
+    /// (`crate::contact`).
+    Penetration,
 }
 
 impl Rule {
@@ -117,6 +120,7 @@ impl Rule {
             Rule::StrainRange => "strain_range",
             Rule::OperatingRange => "operating_range",
             Rule::EnergyBalance => "energy_balance",
+            Rule::Penetration => "penetration",
         }
     }
 

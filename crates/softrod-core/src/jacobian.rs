@@ -276,6 +276,7 @@ pub struct PointJacobian {
 /// shooting unknowns, the base moment; with follower loads the base force is unknown too
 /// and the loads are not conservative).
 pub(crate) fn dead_loads_only(rod: &Rod, loads: &Loads, what: &str) -> Result<()> {
+    crate::statics::contact::refuse_obstacles(rod, what)?;
     if loads.has_follower(rod) {
         let (field, value) = if rod.spec.has_follower_line_loads() {
             let k = rod

@@ -15,7 +15,7 @@
 //!   and the scalar interfaces), [`interp`], [`validity`] (result checks);
 //! - spec: [`spec`] (the design in SI, validated; the `[pcc]` table in [`spec::pcc`]);
 //! - model: [`section`] (cross-sections), [`law`] (constitutive laws), [`rod`] (the
-//!   compiled rod);
+//!   compiled rod), [`contact`] (rigid obstacles and the penalty law);
 //! - discretisation: [`ode`] (the Cosserat ODE and its RK4 shooting), [`collocation`]
 //!   (Gauss-Legendre collocation) with [`banded`] (its linear algebra);
 //! - solvers: [`statics`] (shooting, and collocation in [`statics::collocation`]),
@@ -28,6 +28,7 @@
 pub mod banded;
 pub mod batch;
 pub mod collocation;
+pub mod contact;
 pub mod dynamics;
 pub mod error;
 pub mod interp;

@@ -20,6 +20,7 @@
 //! Jacobians) and the scalar `C` of the coefficients (f64, or dual numbers when derivatives
 //! with respect to pressures or parameters are wanted).
 
+use crate::contact::{total_line_force, Obstacle};
 use crate::jet::{Coeff, RodScalar, StateScalar};
 use crate::law::{ogden_from_stretch, ogden_initial_stretch, AxialTable};
 use crate::rod::{inverse3, stiffness_matrices, swelling_factors_with, AxialLaw, Rod, Section};
@@ -86,6 +87,9 @@ pub struct Coeffs<C> {
     pub tendons: Vec<TendonCoeff<C>>,
     /// What a varying section needs to rebuild its law at any s; None if uniform.
     pub inputs: Option<Box<LawInputs<C>>>,
+    /// The rod's obstacles (`crate::contact`): a line load that depends on the position.
+    /// Not scaled by the load factor (contact is a constraint, not a load).
+    pub obstacles: Option<Arc<[Obstacle]>>,
 }
 
 /// A tendon of a section in one solve: its tension (scaled by the load factor) and routing.
@@ -168,6 +172,12 @@ impl Loads {
             && (self.tip_force.iter().any(|x| *x != 0.0)
                 || self.tip_moment.iter().any(|x| *x != 0.0));
         tip || rod.spec.has_follower_line_loads()
+    }
+
+    /// The base force is unknown (6 shooting unknowns): a follower load, or obstacles,
+    /// whose contact forces depend on the shape.
+    pub fn base_force_unknown(&self, rod: &Rod) -> bool {
+        self.has_follower(rod) || rod.obstacles.is_some()
     }
 
     /// Tensions of this solve (slack where the caller gave none).
@@ -340,6 +350,7 @@ impl<C: RodScalar> Coeffs<C> {
                 .any(|x| *x != 0.0),
             tendons,
             inputs: s.is_varying().then(|| Box::new(inputs)),
+            obstacles: rod.obstacles.clone(),
         }
     }
 
@@ -1070,6 +1081,14 @@ fn rhs<C: Coeff, D: StateScalar<C>>(
             }
         }
     }
+    if let Some(obstacles) = &c.obstacles {
+        // Contact: a line load that depends on the position (normal, through the
+        // centreline: no moment; `crate::contact`).
+        let fc = total_line_force(obstacles, &y.r, sec.surface_radius(s));
+        for i in 0..3 {
+            dn[i] -= fc[i];
+        }
+    }
     // d(lambda^alpha)/ds = alpha lambda^alpha / lambda * d lambda/ds (Ogden sections).
     let dla = match &c.axial {
         AxialCoeffs::Ogden { alpha, .. } => dlam * y.aux[1] * y.aux[0].recip() * *alpha,
@@ -1336,4 +1355,52 @@ pub fn advance<C: Coeff, D: StateScalar<C>>(
         );
         out
     }
+}
+
+/// The quadrature the integrator applies to a line load over one RK4 step of an elastic
+/// section from the node state `y` at `node` (not the section's end): `g` sees the four
+/// stage states, their local arc lengths and their weights h/6, h/3, h/3, h/6. The sum of
+/// weight * load(stage) is exactly what the step added to n (e.g. the contact resultant of
+/// `crate::statics::contact`); rigid sections and a section's end node see nothing.
+pub fn step_quadrature(
+    rod: &Rod,
+    coeffs: &[Coeffs<f64>],
+    node: NodeAt,
+    y: &State<f64>,
+    g: &mut dyn FnMut(&State<f64>, f64, f64),
+) {
+    let sec = &rod.sections[node.section];
+    let c = &coeffs[node.section];
+    if sec.rigid || node.step >= sec.steps {
+        return;
+    }
+    let h = sec.length / sec.steps as f64;
+    let s0 = h * node.step as f64;
+    let end_s = if node.step + 1 == sec.steps {
+        sec.length
+    } else {
+        s0 + h
+    };
+    let locs = if c.inputs.is_some() {
+        [
+            c.local_at(sec, s0),
+            c.local_at(sec, s0 + 0.5 * h),
+            c.local_at(sec, end_s),
+        ]
+    } else {
+        [c.local(); 3]
+    };
+    let mut scratch = Scratch::default();
+    // The stages of `rk4_step`, with the same arithmetic.
+    let mut stage = *y;
+    g(y, s0, h / 6.0);
+    let k1 = rhs(y, c, &locs[0], sec, s0, &mut scratch);
+    stage.set_axpy(y, 0.5 * h, &k1);
+    g(&stage, s0 + 0.5 * h, h / 3.0);
+    let k2 = rhs(&stage, c, &locs[1], sec, s0 + 0.5 * h, &mut scratch);
+    stage.set_axpy(y, 0.5 * h, &k2);
+    g(&stage, s0 + 0.5 * h, h / 3.0);
+    let k3 = rhs(&stage, c, &locs[1], sec, s0 + 0.5 * h, &mut scratch);
+    stage.set_axpy(y, h, &k3);
+    g(&stage, s0 + h, h / 6.0);
 }

@@ -221,6 +221,17 @@ impl Section {
         a + t * (4.0 * m - 3.0 * a - b) + t * t * (2.0 * (a + b) - 4.0 * m)
     }
 
+    /// Radius of the surface that touches obstacles (`crate::contact`) at local arc length
+    /// `s`: the outer radius (a tapered section's at s), else (stiffnesses given directly)
+    /// the outermost fibre's radius, which may be 0 (the centreline touches).
+    #[inline]
+    pub fn surface_radius(&self, s: f64) -> f64 {
+        match &self.law.geometry {
+            Some(g) => g.outer_at(if self.tapered { s / self.length } else { 0.0 }),
+            None => self.fibre_radius,
+        }
+    }
+
     /// The section's properties change along s (taper or a reference table).
     pub fn is_varying(&self) -> bool {
         self.tapered || self.reference.is_varying()
@@ -242,6 +253,8 @@ pub struct Rod {
     pub gravity: [f64; 3],
     /// Force scale for the shooting unknowns and residual: a bending stiffness over L^2, N.
     pub force_scale: f64,
+    /// Rigid obstacles (`crate::contact`); None without any.
+    pub obstacles: Option<std::sync::Arc<[crate::contact::Obstacle]>>,
 }
 
 /// Inverse of a 3x3 matrix with positive determinant, else None.
@@ -474,6 +487,12 @@ impl Rod {
             gravity: spec.mounting.gravity,
             force_scale,
             sections,
+            obstacles: (!spec.obstacles.is_empty()).then(|| {
+                spec.obstacles
+                    .iter()
+                    .map(crate::contact::Obstacle::new)
+                    .collect()
+            }),
             spec,
         })
     }

@@ -82,6 +82,7 @@ pub fn design(sections: Vec<SectionSpec>, rotation: [[f64; 3]; 3], g: f64) -> De
         dynamics: Default::default(),
         pcc: None,
         operating_range: None,
+        obstacles: vec![],
     }
 }
 

@@ -158,6 +158,31 @@ fn array2<'py>(py: Python<'py>, rows: &[[f64; 3]]) -> PyResult<Bound<'py, PyAny>
         .into_any())
 }
 
+/// The contact report of a static solution as numpy arrays (SI).
+fn contact_dict<'py>(
+    py: Python<'py>,
+    rep: &statics::contact::ContactReport,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    let forces: Vec<[f64; 3]> = rep.nodes.iter().map(|n| n.force).collect();
+    let points: Vec<[f64; 3]> = rep.nodes.iter().map(|n| n.point).collect();
+    d.set_item("force", array2(py, &forces)?)?;
+    d.set_item("point", array2(py, &points)?)?;
+    d.set_item(
+        "gap",
+        PyArray1::from_vec(py, rep.nodes.iter().map(|n| n.gap).collect()),
+    )?;
+    d.set_item(
+        "obstacle",
+        PyArray1::from_vec(py, rep.nodes.iter().map(|n| n.obstacle as i64).collect()),
+    )?;
+    d.set_item("total_force", array2(py, &rep.force)?)?;
+    d.set_item("total_moment", array2(py, &rep.moment)?)?;
+    d.set_item("end_force", array2(py, &rep.end)?)?;
+    d.set_item("max_penetration", rep.max_penetration)?;
+    Ok(d)
+}
+
 fn array3<'py>(py: Python<'py>, mats: &[[[f64; 3]; 3]]) -> PyResult<Bound<'py, PyAny>> {
     let flat: Vec<f64> = mats.iter().flatten().flatten().copied().collect();
     Ok(PyArray1::from_vec(py, flat)
@@ -271,9 +296,13 @@ impl PyRod {
                 on_invalid,
             )?;
             let rod = &self.rod;
-            let result =
-                py.detach(|| statics::solve_with_shape(rod, &loads, guess.as_deref(), &opts));
-            let (sol, sh) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
+            let result = py.detach(|| {
+                statics::solve_with_shape(rod, &loads, guess.as_deref(), &opts).map(|(sol, sh)| {
+                    let contact = statics::contact::report(rod, &loads, &sol);
+                    (sol, sh, contact)
+                })
+            });
+            let (sol, sh, contact) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
             let d = PyDict::new(py);
             d.set_item("s", PyArray1::from_vec(py, sh.s))?;
             d.set_item(
@@ -286,6 +315,9 @@ impl PyRod {
             d.set_item("moment", array2(py, &sh.moment)?)?;
             d.set_item("v", array2(py, &sh.v)?)?;
             d.set_item("u", array2(py, &sh.u)?)?;
+            if let Some(rep) = &contact {
+                d.set_item("contact", contact_dict(py, rep)?)?;
+            }
             d.set_item("x", sol.x.to_vec())?;
             d.set_item("iterations", sol.iterations)?;
             d.set_item("residual", sol.residual)?;

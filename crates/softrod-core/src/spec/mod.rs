@@ -2,6 +2,7 @@
 //! `DesignSpec::validate` checks every rule a design must satisfy and names the offending
 //! field; `crate::rod::Rod::new` only accepts validated specs.
 
+pub mod obstacle;
 pub mod pcc;
 
 use crate::error::{Result, SoftrodError};
@@ -457,6 +458,9 @@ pub struct DesignSpec {
     /// The pressures the actuator is built for; `None`: no range is known.
     #[serde(default)]
     pub operating_range: Option<OperatingRangeSpec>,
+    /// Rigid obstacles the rod may touch (`crate::contact`).
+    #[serde(default)]
+    pub obstacles: Vec<obstacle::ObstacleSpec>,
 }
 
 fn finite(field: &str, x: f64) -> Result<()> {
@@ -1133,6 +1137,16 @@ impl DesignSpec {
                 format!("a design may have at most {MAX_SECTIONS} sections"),
             ));
         }
+        if self.obstacles.len() > obstacle::MAX_OBSTACLES {
+            return Err(SoftrodError::invalid(
+                "obstacles",
+                format!("{} obstacles", self.obstacles.len()),
+                format!(
+                    "a design may have at most {} obstacles",
+                    obstacle::MAX_OBSTACLES
+                ),
+            ));
+        }
         if self.loads.len() > MAX_LINE_LOADS {
             return Err(SoftrodError::invalid(
                 "loads",
@@ -1289,6 +1303,9 @@ impl DesignSpec {
                 &format!("loads[{k}].moment_per_length"),
                 &l.moment_per_length,
             )?;
+        }
+        for (k, o) in self.obstacles.iter().enumerate() {
+            o.validate(k)?;
         }
         if let Some(p) = &self.pcc {
             p.validate()?;

@@ -29,6 +29,7 @@
 
 pub mod collocation;
 pub mod constraint;
+pub mod contact;
 pub mod system;
 
 use crate::error::{Result, SoftrodError};
@@ -279,7 +280,7 @@ enum Start<const N: usize> {
 
 /// Number of shooting unknowns of a solve: 6 with follower loads, else 3.
 pub fn n_unknowns(rod: &Rod, loads: &Loads) -> usize {
-    if loads.has_follower(rod) {
+    if loads.base_force_unknown(rod) {
         6
     } else {
         3
@@ -310,7 +311,7 @@ impl<'a> Problem<'a> {
             dn0: [0.0; 3],
             fs: rod.force_scale,
             ms: rod.force_scale * rod.length,
-            follower: loads.has_follower(rod),
+            follower: loads.base_force_unknown(rod),
         };
         let w = p.tip_weight();
         let mt = rod.spec.tip.mass;
@@ -328,6 +329,11 @@ impl<'a> Problem<'a> {
             }
         }
         p
+    }
+
+    /// Force scale of the unknowns n(0) / F_s (6 unknowns), N.
+    pub(crate) fn force_scale(&self) -> f64 {
+        self.fs
     }
 
     /// Unknowns of this problem (3 or 6).
@@ -396,10 +402,12 @@ impl<'a> Problem<'a> {
             (*f_tip, *m_tip)
         };
         let moment: [D; 3] = std::array::from_fn(|k| (tip.m[k] - cxw[k] - m[k]) * (1.0 / self.ms));
+        // The rod's rounded end presses on obstacles too (through the tip: no moment).
+        let end = contact::end_force(self.rod, &tip.r);
         if N == 6 {
             std::array::from_fn(|k| {
                 if k < 3 {
-                    (tip.n[k] - w[k] - f[k]) * (1.0 / self.fs)
+                    (tip.n[k] - w[k] - f[k] - end[k]) * (1.0 / self.fs)
                 } else {
                     moment[k - 3]
                 }
@@ -754,6 +762,10 @@ impl<'a> Problem<'a> {
         validity::check_finite(node, &flat)?;
         validity::check_rotation(node, &y.rot)?;
         let sec = &self.rod.sections[node.section];
+        if let Some(obstacles) = &self.rod.obstacles {
+            let rho = sec.surface_radius(node.s - sec.s_start);
+            crate::contact::check_penetration(obstacles, node, &y.r, rho)?;
+        }
         if sec.rigid {
             return Ok(([0.0, 0.0, 1.0], [0.0; 3]));
         }
@@ -914,6 +926,7 @@ pub fn solve_with_shape(
 /// returns the operating-range violations to report (with `Policy::Warn`).
 pub fn check_inputs(rod: &Rod, loads: &Loads, opts: &SolverOptions) -> Result<Vec<SoftrodError>> {
     opts.validate()?;
+    contact::frictionless(rod)?;
     rod.check_loads(&loads.pressures, &loads.stiffness_scale)?;
     rod.check_tensions(&loads.tensions)?;
     for (name, v) in [
@@ -954,13 +967,20 @@ fn solve_inner(
     // under their own weight go to collocation (docs/model.md, "Collocation"), which
     // carries the features of docs/scope.md except a constant reference shape with the
     // linear law: the others stay with shooting.
+    // Contact needs the position in the state, which collocation does not carry: rods
+    // with obstacles are shot (docs/contact.md).
     if collocation::shooting_ill_conditioned(rod, loads)
-        && !loads.has_follower(rod)
+        && !loads.base_force_unknown(rod)
         && crate::dynamics::check_statics_only_with(rod, "collocation", true).is_ok()
     {
         return by_collocation(rod, loads, opts, violations);
     }
-    if loads.has_follower(rod) {
+    if loads.base_force_unknown(rod) {
+        let start = match guess {
+            None => contact::free_guess(rod, loads, opts),
+            Some(_) => None,
+        };
+        let guess = guess.or(start.as_deref());
         solve_n::<6, 7>(rod, loads, guess, opts, violations, want_shape)
     } else {
         solve_n::<3, 4>(rod, loads, guess, opts, violations, want_shape)

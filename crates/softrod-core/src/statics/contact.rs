@@ -1,0 +1,179 @@
+//! Contact in the statics (docs/contact.md): the frictionless rule and what a solution
+//! reports about its contacts. The penalty law itself is `crate::contact`; it enters the
+//! shooting ODE as a position-dependent line load, so the shooting Jacobian stays exact.
+
+use crate::contact::{node_contact, NodeContact, Obstacle};
+use crate::error::{Result, SoftrodError};
+use crate::jet::RodScalar;
+use crate::ode::{integrate_with, step_quadrature, Loads, NodeAt, State};
+use crate::rod::Rod;
+use crate::statics::{Problem, Solution};
+
+/// The statics is frictionless: refuse an obstacle with a friction coefficient. Coulomb
+/// friction makes a static equilibrium depend on the loading path (a stuck contact holds
+/// whatever tangential force the history left in it), so a static solve has no unique
+/// answer to give.
+pub fn frictionless(rod: &Rod) -> Result<()> {
+    if let Some(k) = rod.spec.obstacles.iter().position(|o| o.friction != 0.0) {
+        return Err(SoftrodError::invalid(
+            format!("obstacles[{k}].friction"),
+            rod.spec.obstacles[k].friction,
+            "the static solve is frictionless (with Coulomb friction the equilibrium depends on the loading path); set friction = 0",
+        ));
+    }
+    Ok(())
+}
+
+/// Refuse a rod with obstacles in `what`, whose equations do not carry contact yet (its
+/// penetration rule and contact report live in the free-tip statics).
+pub(crate) fn refuse_obstacles(rod: &Rod, what: &str) -> Result<()> {
+    if rod.obstacles.is_some() {
+        return Err(SoftrodError::invalid(
+            "obstacles",
+            format!("{} obstacles", rod.spec.obstacles.len()),
+            format!("{what} does not support contact yet; solve_statics with a free tip does"),
+        ));
+    }
+    Ok(())
+}
+
+/// Contact force on the rod's rounded end (N, world frame), at the tip's centreline r(L):
+/// the end is a hemisphere of the tip's surface radius rho (the tube's closure), a point
+/// contact with the penalty of its obstacle over the cap's length, k rho ramp(delta). It has
+/// the tube's gap at s = L and acts along the normal through r(L) (no moment about it). It
+/// carries a contact that ends at the tip, which the line load alone resolves only with
+/// steps shorter than its contact length (docs/contact.md).
+pub fn end_force<D: RodScalar>(rod: &Rod, r: &[D; 3]) -> [D; 3] {
+    let mut f = [D::from(0.0); 3];
+    if let (Some(obstacles), Some(sec)) = (&rod.obstacles, rod.sections.last()) {
+        let rho = sec.surface_radius(sec.length);
+        for o in obstacles.iter() {
+            let g = end_force_of(o, r, rho);
+            for k in 0..3 {
+                f[k] += g[k];
+            }
+        }
+    }
+    f
+}
+
+fn end_force_of<D: RodScalar>(o: &Obstacle, r: &[D; 3], rho: f64) -> [D; 3] {
+    o.line_force(r, rho).map(|x| x * rho)
+}
+
+/// A cold start for a rod with obstacles under dead loads: the equilibrium without the
+/// obstacles (3 unknowns, cheap), as the 6 unknowns (n(0), m(0)) of the contact problem.
+/// Where that shape touches nothing it is the answer (the penalty is exactly zero off
+/// contact) and Newton stops at once; where it touches, Newton starts from a shape close to
+/// the answer for light contacts. None when the free solve fails (the caller then follows
+/// the natural path from the unloaded rod).
+pub(crate) fn free_guess(
+    rod: &Rod,
+    loads: &Loads,
+    opts: &super::SolverOptions,
+) -> Option<Vec<f64>> {
+    if rod.obstacles.is_none() || loads.has_follower(rod) {
+        return None;
+    }
+    let mut free = rod.clone();
+    free.obstacles = None;
+    let opts = super::SolverOptions {
+        on_invalid: crate::validity::Policy::Ignore,
+        ..*opts
+    };
+    let sol = super::solve(&free, loads, None, &opts).ok()?;
+    let p = Problem::new(rod, loads, 1.0);
+    let (fs, ms) = (p.force_scale(), p.force_scale() * rod.length);
+    let mut x: Vec<f64> = sol.base_force.iter().map(|n| n / fs).collect();
+    x.extend(sol.base_moment.iter().map(|m| m / ms));
+    Some(x)
+}
+
+/// The contacts of a static solution.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactReport {
+    /// One entry per node of the solution's shape (base, then every step's end): nearest
+    /// obstacle, gap, nearest obstacle point, contact force per unit length.
+    pub nodes: Vec<NodeContact>,
+    /// Resultant contact force of each obstacle on the rod, N (world frame): the integral
+    /// of its line force with the integrator's own quadrature (RK4 stages), i.e. exactly
+    /// the force the solve applied.
+    pub force: Vec<[f64; 3]>,
+    /// Moment of each obstacle's contact forces about the base position, N m.
+    pub moment: Vec<[f64; 3]>,
+    /// The part of `force` on the rod's rounded end (`end_force`), per obstacle, N.
+    pub end: Vec<[f64; 3]>,
+    /// Deepest penetration of the rod's surface into any obstacle at a node, m (<= 0: no
+    /// node touches).
+    pub max_penetration: f64,
+}
+
+/// The contact report of a converged shooting solution `sol` of `loads`; None for a rod
+/// without obstacles.
+pub fn report(rod: &Rod, loads: &Loads, sol: &Solution) -> Option<ContactReport> {
+    let obstacles = rod.obstacles.as_ref()?;
+    let p = Problem::new(rod, loads, 1.0);
+    let y0: State<f64> = p.base_state(&sol.x);
+    let base = rod.base_position;
+    let mut nodes = Vec::new();
+    let mut force = vec![[0.0; 3]; obstacles.len()];
+    let mut moment = vec![[0.0; 3]; obstacles.len()];
+    let mut hook = |node: NodeAt, y: &mut State<f64>| {
+        let sec = &rod.sections[node.section];
+        if node.step > 0 || node.section == 0 {
+            let rho = sec.surface_radius(node.s - sec.s_start);
+            if let Some(nc) = node_contact(obstacles, &y.r, rho) {
+                nodes.push(nc);
+            }
+        }
+        step_quadrature(rod, &p.coeffs, node, y, &mut |ys, s, w| {
+            let rho = sec.surface_radius(s);
+            let arm: [f64; 3] = std::array::from_fn(|k| ys.r[k] - base[k]);
+            for (k, o) in obstacles.iter().enumerate() {
+                let f = o.line_force(&ys.r, rho);
+                for i in 0..3 {
+                    force[k][i] += w * f[i];
+                }
+                let m = [
+                    arm[1] * f[2] - arm[2] * f[1],
+                    arm[2] * f[0] - arm[0] * f[2],
+                    arm[0] * f[1] - arm[1] * f[0],
+                ];
+                for i in 0..3 {
+                    moment[k][i] += w * m[i];
+                }
+            }
+        });
+        false
+    };
+    let tip = integrate_with(rod, &p.coeffs, y0, &mut hook);
+    let mut end = vec![[0.0; 3]; obstacles.len()];
+    if let Some(sec) = rod.sections.last() {
+        let rho = sec.surface_radius(sec.length);
+        let arm: [f64; 3] = std::array::from_fn(|k| tip.r[k] - base[k]);
+        for (k, o) in obstacles.iter().enumerate() {
+            let f = end_force_of(o, &tip.r, rho);
+            end[k] = f;
+            let m = [
+                arm[1] * f[2] - arm[2] * f[1],
+                arm[2] * f[0] - arm[0] * f[2],
+                arm[0] * f[1] - arm[1] * f[0],
+            ];
+            for i in 0..3 {
+                force[k][i] += f[i];
+                moment[k][i] += m[i];
+            }
+        }
+    }
+    let max_penetration = nodes
+        .iter()
+        .map(|n| -n.gap)
+        .fold(f64::NEG_INFINITY, f64::max);
+    Some(ContactReport {
+        nodes,
+        force,
+        moment,
+        end,
+        max_penetration,
+    })
+}

@@ -1,0 +1,341 @@
+//! Contact with rigid obstacles (docs/contact.md): a cantilever resting on a plane against
+//! the beam on a rigid support, a rod pressed onto a sphere, the penetration rule, global
+//! equilibrium, the exact shooting Jacobian, and bad obstacle input.
+
+// Index loops over 3-vectors read like the equations they check.
+#![allow(clippy::needless_range_loop)]
+
+mod common;
+
+use common::{design, direct_section, loads, HORIZONTAL};
+use softrod_core::error::{Rule, SoftrodError};
+use softrod_core::spec::obstacle::{ObstacleKind, ObstacleSpec};
+use softrod_core::statics::contact::report;
+use softrod_core::statics::{residual, residual_and_jacobian, solve, SolverOptions};
+use softrod_core::{DesignSpec, Rod};
+
+fn obstacle(kind: ObstacleKind, stiffness: f64, tolerance: f64) -> ObstacleSpec {
+    ObstacleSpec {
+        kind,
+        point: None,
+        normal: None,
+        center: None,
+        axis: None,
+        start: None,
+        end: None,
+        radius: None,
+        stiffness,
+        tolerance,
+        smoothing: None,
+        friction: 0.0,
+    }
+}
+
+/// Nearly inextensible and unshearable (EA = GA = 1e8 N), so the Euler-Bernoulli beam is
+/// the right comparison.
+const EI: f64 = 10.0;
+const Q: f64 = 1.0; // weight per length, N/m
+const G: f64 = 9.81;
+
+/// A 1 m horizontal cantilever under its weight q = 1 N/m, clamped at height c above a
+/// plane (the rod's centreline touches: stiffnesses given directly, surface radius 0).
+fn cantilever_over_plane(c: f64, k: f64, steps: usize) -> DesignSpec {
+    let sec = direct_section("beam", 1.0, 1e8, 1e8, EI, EI, Q / G, steps);
+    let mut d = design(vec![sec], HORIZONTAL, G);
+    // Tolerance 60 % of c; the ramp's smoothing a fifth of the sinking q / k, so that the
+    // support is linear with stiffness k where the beam lies on it (delta = q/k + eps/2).
+    let mut plane = obstacle(ObstacleKind::Plane, k, 5e-5);
+    plane.smoothing = Some(0.2 * Q / k);
+    plane.point = Some([0.0, 0.0, -c]);
+    plane.normal = Some([0.0, 0.0, 1.0]);
+    d.obstacles = vec![plane];
+    d
+}
+
+/// The beam on a rigid support (Euler-Bernoulli, small deflection): clamped at x = 0 a
+/// height c above the support, uniform load q. It lies flat on the support from x = a on,
+/// where EI w = -q x^4/24 + A x^3 + B x^2 meets w = -c with w' = w'' = 0:
+/// A = q a / (9 EI), B = -q a^2 / (12 EI), a = (72 EI c / q)^(1/4). The support carries a
+/// point force q a / 3 at x = a and q per length beyond; the clamp carries 2 q a / 3 and
+/// the moment q a^2 / 6.
+fn rigid_support(c: f64) -> (f64, f64, f64) {
+    let a = (72.0 * EI * c / Q).powf(0.25);
+    (a, 2.0 * Q * a / 3.0, Q * a * a / 6.0)
+}
+
+#[test]
+fn cantilever_on_plane_matches_beam_on_rigid_support() {
+    // c puts the first contact at a = 0.5 m; w' <= c / a ~ 2e-4, so the small-deflection
+    // theory errs by ~1e-8 relative: what is left is the penalty's compliance.
+    let c = Q * 0.5f64.powi(4) / (72.0 * EI);
+    let (a, f0, m0) = rigid_support(c);
+    let mut errors = vec![];
+    for k in [1e5, 1e6] {
+        let rod = Rod::new(cantilever_over_plane(c, k, 400)).unwrap();
+        let l = loads(&[]);
+        let sol = solve(&rod, &l, None, &SolverOptions::default()).unwrap();
+        let rep = report(&rod, &l, &sol).unwrap();
+        // The penalty is a Winkler foundation of modulus k: near the first contact the
+        // beam's deflection decays over 1/beta = (4 EI / k)^(1/4), which smears the point
+        // reaction over that length and moves the clamp's reactions by O(1/(beta a)).
+        let ell = (4.0 * EI / k).powf(0.25);
+        let ef = (-sol.base_force[2] - f0).abs() / f0;
+        let em = (sol.base_moment[1].abs() - m0).abs() / m0;
+        println!(
+            "k {k:e}: 1/beta a {:.3e} force err {ef:.3e} moment err {em:.3e}",
+            ell / a
+        );
+        // Measured: second order or better in 1/(beta a) (the smeared reaction keeps its
+        // resultant and nearly its moment), with a constant below one.
+        let bound = (ell / a).powi(2);
+        assert!(ef < bound && em < bound, "k {k}: {ef} {em} > {bound}");
+        errors.push((ell, ef, em));
+        // The first contact lies within two decay lengths 1/beta of a (the Winkler
+        // foundation lets the beam sink before a and smears the point force over ~1/beta).
+        let first = rep.nodes.iter().position(|n| n.gap < 0.0).unwrap();
+        let s_first = first as f64 / 400.0;
+        println!("first contact at {s_first}, a = {a}");
+        assert!(
+            (s_first - a).abs() < 2.0 * ell,
+            "first contact {s_first}, a {a}"
+        );
+        // Force balance: n(0) = weight + contact, to the solver's tolerance.
+        let total: f64 = rep.force.iter().map(|f| f[2]).sum();
+        assert!((sol.base_force[2] - (total - Q)).abs() < 1e-9 * Q);
+    }
+    // The error falls at least like (1/beta)^2 ~ k^(-1/2) as the penalty stiffens: it
+    // converges to the rigid support (measured orders: 5.1 for the force, 4.0 for the
+    // moment, from k = 1e5 to 1e6).
+    let order_f = (errors[0].1 / errors[1].1).ln() / (errors[0].0 / errors[1].0).ln();
+    let order_m = (errors[0].2 / errors[1].2).ln() / (errors[0].0 / errors[1].0).ln();
+    assert!(order_f > 2.0 && order_m > 2.0, "orders {order_f} {order_m}");
+}
+
+/// A 0.5 m horizontal cantilever (EI = 1 N m^2, weightless) pushed down at its tip by P,
+/// with a sphere of radius 50 mm whose top lies d0 below the tip: the beam is clamped-free
+/// until the tip touches, then the sphere takes R = P - 3 EI d0 / L^3 at the tip (small
+/// deflection: the sphere falls away from the rod everywhere else).
+fn cantilever_over_sphere(k: f64, tolerance: f64) -> (DesignSpec, [f64; 3], f64) {
+    let (l, r_s, d0, p) = (0.5, 0.05, 2e-3, 0.1);
+    let sec = direct_section("beam", l, 1e8, 1e8, 1.0, 1.0, 0.0, 200);
+    let mut d = design(vec![sec], HORIZONTAL, 0.0);
+    d.tip.force = [0.0, 0.0, -p];
+    let center = [l, 0.0, -(d0 + r_s)];
+    let mut ball = obstacle(ObstacleKind::Sphere, k, tolerance);
+    ball.center = Some(center);
+    ball.radius = Some(r_s);
+    d.obstacles = vec![ball];
+    (d, center, p - 3.0 * d0 / l.powi(3))
+}
+
+fn tip_loads(rod: &Rod) -> softrod_core::ode::Loads {
+    softrod_core::ode::Loads {
+        tip_force: rod.spec.tip.force,
+        ..loads(&[])
+    }
+}
+
+#[test]
+fn rod_pressed_onto_a_sphere() {
+    let (spec, center, r_exact) = cantilever_over_sphere(1e7, 1e-4);
+    let rod = Rod::new(spec).unwrap();
+    let l = tip_loads(&rod);
+    let sol = solve(&rod, &l, None, &SolverOptions::default()).unwrap();
+    let rep = report(&rod, &l, &sol).unwrap();
+    let f = rep.force[0];
+    // The penalty spreads the tip reaction over the last ~(EI/k)^(1/4) = 18 mm, which
+    // moves its point of action inwards by a fraction of that: R errs by O(3 ell / (2 L))
+    // relative (the tip deflection's lever); small-deflection theory adds
+    // (P L^2 / EI)^2 ~ 6e-4.
+    let ell = (1.0f64 / 1e7).powf(0.25);
+    println!("R {} exact {r_exact} ell {ell}", f[2]);
+    assert!(
+        (f[2] - r_exact).abs() < 1.5 * ell / 0.5 * r_exact,
+        "R {}",
+        f[2]
+    );
+    // Global equilibrium: n(0) = F_tip + contact, to the solver's tolerance (1e-10 of
+    // the force scale EI / L^2 = 4 N).
+    for i in 0..3 {
+        let want = rod.spec.tip.force[i] + f[i];
+        assert!(
+            (sol.base_force[i] - want).abs() < 1e-9,
+            "{i}: {} {want}",
+            sol.base_force[i]
+        );
+    }
+    // Every contact force points along the sphere's radius, so about the base the contact
+    // moment is (c - r0) x F: exact up to round-off.
+    let c = center;
+    let m = [
+        c[1] * f[2] - c[2] * f[1],
+        c[2] * f[0] - c[0] * f[2],
+        c[0] * f[1] - c[1] * f[0],
+    ];
+    for i in 0..3 {
+        assert!(
+            (rep.moment[0][i] - m[i]).abs() < 1e-12,
+            "{:?} {m:?}",
+            rep.moment[0]
+        );
+    }
+    // No penetration beyond the tolerance, and the contact is near the tip.
+    assert!(rep.max_penetration > 0.0 && rep.max_penetration <= 1e-4);
+    let first = rep.nodes.iter().position(|n| n.gap < 0.0).unwrap();
+    assert!(first as f64 / 200.0 * 0.5 > 0.5 - 3.0 * ell);
+    // Contact points lie on the sphere.
+    for n in rep.nodes.iter().filter(|n| n.gap < 0.0) {
+        let d: f64 = (0..3)
+            .map(|i| (n.point[i] - c[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!((d - 0.05).abs() < 1e-12);
+    }
+}
+
+#[test]
+fn penetration_beyond_tolerance_is_an_error() {
+    // The same press with a soft penalty (k = 1e4 N/m^2): the tip sinks far beyond 10 um.
+    let (spec, _, _) = cantilever_over_sphere(1e4, 1e-5);
+    let rod = Rod::new(spec).unwrap();
+    match solve(&rod, &tip_loads(&rod), None, &SolverOptions::default()) {
+        Err(SoftrodError::InvalidState { rule, value, .. }) => {
+            assert_eq!(rule, Rule::Penetration);
+            assert!(value > 1e-5);
+        }
+        other => panic!("expected a penetration error, got {other:?}"),
+    }
+}
+
+#[test]
+fn contact_jacobian_is_exact() {
+    // The shooting Jacobian (dual numbers through the contact law) against central
+    // differences at the converged solution of the sphere press, and at a point off it.
+    let (spec, _, _) = cantilever_over_sphere(1e6, 1e-3);
+    let rod = Rod::new(spec).unwrap();
+    let l = tip_loads(&rod);
+    let sol = solve(&rod, &l, None, &SolverOptions::default()).unwrap();
+    assert_eq!(sol.x.len(), 6);
+    for shift in [0.0, 1e-3] {
+        let x: Vec<f64> = sol.x.iter().map(|v| v + shift).collect();
+        let (_, jac) = residual_and_jacobian(&rod, &l, &x).unwrap();
+        let scale = jac.iter().flatten().fold(0.0f64, |a, v| a.max(v.abs()));
+        for j in 0..6 {
+            let h = 1e-6;
+            let mut a = x.clone();
+            let mut b = x.clone();
+            a[j] += h;
+            b[j] -= h;
+            let (ra, rb) = (
+                residual(&rod, &l, &a).unwrap(),
+                residual(&rod, &l, &b).unwrap(),
+            );
+            for i in 0..6 {
+                let fd = (ra[i] - rb[i]) / (2.0 * h);
+                // Central differences err by h^2 R'''/6 (the ramp's curvature k / eps
+                // enters only where a stage lies in the smoothing zone) plus round-off
+                // 1e-16 |R| / h: 1e-5 of the largest entry bounds both here.
+                assert!(
+                    (fd - jac[i][j]).abs() <= 1e-5 * scale,
+                    "shift {shift} J[{i}][{j}] = {} vs fd {fd}",
+                    jac[i][j]
+                );
+            }
+        }
+    }
+}
+
+fn rejects(spec: DesignSpec, field: &str, rule_part: &str) {
+    match Rod::new(spec) {
+        Err(SoftrodError::InvalidParameter { field: f, rule, .. }) => {
+            assert_eq!(f, field, "rule: {rule}");
+            assert!(rule.contains(rule_part), "{rule}");
+        }
+        other => panic!("expected an error on {field}, got {other:?}"),
+    }
+}
+
+#[test]
+fn bad_obstacles_are_refused_with_field_and_rule() {
+    let (good, _, _) = cantilever_over_sphere(1e6, 1e-3);
+    let with = |f: &dyn Fn(&mut ObstacleSpec)| {
+        let mut d = good.clone();
+        f(&mut d.obstacles[0]);
+        d
+    };
+    rejects(
+        with(&|o| o.radius = Some(-0.01)),
+        "obstacles[0].radius",
+        "> 0",
+    );
+    rejects(
+        with(&|o| o.radius = None),
+        "obstacles[0].radius",
+        "required",
+    );
+    rejects(
+        with(&|o| o.stiffness = f64::NAN),
+        "obstacles[0].stiffness",
+        "finite",
+    );
+    rejects(
+        with(&|o| o.tolerance = 0.0),
+        "obstacles[0].tolerance",
+        "> 0",
+    );
+    rejects(
+        with(&|o| o.center = Some([0.0, f64::INFINITY, 0.0])),
+        "obstacles[0].center[1]",
+        "finite",
+    );
+    rejects(
+        with(&|o| o.normal = Some([0.0, 0.0, 1.0])),
+        "obstacles[0].normal",
+        "sphere obstacle has no normal",
+    );
+    rejects(
+        with(&|o| o.smoothing = Some(1.0)),
+        "obstacles[0].smoothing",
+        "at most the tolerance",
+    );
+    rejects(
+        with(&|o| o.friction = -0.1),
+        "obstacles[0].friction",
+        ">= 0",
+    );
+    let mut plane = obstacle(ObstacleKind::Plane, 1e6, 1e-3);
+    plane.point = Some([0.0; 3]);
+    plane.normal = Some([0.0; 3]);
+    let mut d = good.clone();
+    d.obstacles = vec![plane];
+    rejects(d, "obstacles[0].normal", "non-zero direction");
+    let mut cap = obstacle(ObstacleKind::Capsule, 1e6, 1e-3);
+    cap.start = Some([0.0; 3]);
+    cap.end = Some([0.0; 3]);
+    cap.radius = Some(0.1);
+    let mut d = good.clone();
+    d.obstacles = vec![cap];
+    rejects(d, "obstacles[0].end", "must differ from start");
+    // Friction: the statics is frictionless and says why.
+    let rod = Rod::new(with(&|o| o.friction = 0.3)).unwrap();
+    match solve(&rod, &loads(&[]), None, &SolverOptions::default()) {
+        Err(SoftrodError::InvalidParameter { field, rule, .. }) => {
+            assert_eq!(field, "obstacles[0].friction");
+            assert!(rule.contains("loading path"));
+        }
+        other => panic!("{other:?}"),
+    }
+    // Solvers without contact refuse obstacles instead of ignoring them.
+    let rod = Rod::new(good.clone()).unwrap();
+    let sim = softrod_core::dynamics::Simulator::new(
+        rod,
+        &[],
+        softrod_core::dynamics::Initial::Static,
+        Default::default(),
+    );
+    match sim {
+        Err(SoftrodError::InvalidParameter { field, .. }) => assert_eq!(field, "obstacles"),
+        Err(e) => panic!("{e}"),
+        Ok(_) => panic!("the dynamics accepted obstacles"),
+    }
+}

@@ -1,0 +1,254 @@
+"""Contact with rigid obstacles from the design file to the answer (docs/contact.md):
+the [[obstacles]] keys with units, the contact report of solve_statics (forces, points,
+gaps, resultants), global equilibrium, the penetration rule, the finger pressed onto a table,
+bad input, and a property test on the entry point."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from softrod import (
+    ConvergenceError,
+    DesignError,
+    InvalidStateError,
+    SoftrodError,
+    TipConstraint,
+    load_design,
+    simulate,
+    solve_statics,
+)
+
+pytestmark = pytest.mark.fast  # the whole module runs in seconds
+
+FINGER = "prebent_finger_on_table"
+EI = 1.0  # N m^2
+Q = 1.0  # N/m: the beam's weight per length
+G = 9.81
+
+
+def beam_over(obstacle: dict, *, length="500 mm", steps=200, gravity=True) -> dict:
+    """A horizontal cantilever (EI = 1 N m^2, nearly inextensible, centreline contact:
+    stiffnesses given directly) above an obstacle."""
+    return {
+        "design": {"name": "beam_over_obstacle", "citation": "closed-form check"},
+        "mounting": {
+            "orientation": "horizontal",
+            "gravity": "9.81 m/s^2" if gravity else "0 m/s^2",
+        },
+        "sections": [
+            {
+                "name": "beam",
+                "length": length,
+                "mass": f"{Q / G * 0.5} kg",
+                "EA": "1e8 N",
+                "GA": "1e8 N",
+                "EI": f"{EI} N*m^2",
+                "GJ": f"{EI} N*m^2",
+                "steps": steps,
+            }
+        ],
+        "obstacles": [obstacle],
+    }
+
+
+def plane(z_mm: float, **extra) -> dict:
+    ob = {
+        "kind": "plane",
+        "point": ["0 mm", "0 mm", f"{z_mm} mm"],
+        "normal": [0, 0, 1],
+        "stiffness": "1e6 N/m^2",
+        "tolerance": "0.05 mm",
+        "smoothing": "0.2 um",
+    }
+    ob.update(extra)
+    return ob
+
+
+def balance_error(sol) -> float:
+    """|n(0) - (weight + contact)| for a rod without tip loads: the global force balance."""
+    weight = np.array([0.0, 0.0, -sol.design.mass * G])
+    return float(np.abs(sol.base_force - (weight + sol.contact.total)).max())
+
+
+def test_cantilever_on_a_plane_matches_the_beam_on_a_rigid_support():
+    # Clamp 0.11 mm above the support: the beam on a rigid support lies flat from
+    # a = (72 EI c / q)^(1/4) = 0.3 m, the clamp taking 2 q a / 3 and q a^2 / 6.
+    c = Q * 0.3**4 / (72 * EI)
+    sol = solve_statics(load_design(beam_over(plane(-c * 1e3))), [])
+    a = (72 * EI * c / Q) ** 0.25
+    # The penalty (k = 1e6 N/m^2) is a Winkler foundation with 1/beta = (4 EI/k)^(1/4) =
+    # 45 mm, which smears the point reaction; the clamp's reactions err by
+    # < (1/(beta a))^2 (second order, measured in the Rust test), here 0.022.
+    bound = ((4 * EI / 1e6) ** 0.25 / a) ** 2
+    assert abs(-sol.base_force[2] - 2 * Q * a / 3) < bound * 2 * Q * a / 3
+    assert abs(abs(sol.base_moment[1]) - Q * a * a / 6) < bound * Q * a * a / 6
+    assert balance_error(sol) < 1e-9
+    ct = sol.contact
+    assert ct.force.shape == sol.position.shape and ct.gap.shape == sol.s.shape
+    assert ct.in_contact[-1] and not ct.in_contact[0]
+    # Contact points lie on the plane; the force pushes up.
+    assert np.allclose(ct.point[ct.in_contact, 2], -c, atol=1e-15)
+    assert np.all(ct.force[:, 2] >= 0) and np.all(ct.force[:, :2] == 0)
+    assert 0 < ct.max_penetration <= 0.05e-3
+
+
+def test_rod_on_a_sphere_cylinder_and_capsule_balance_and_point_through_the_centre():
+    centre = np.array([0.5, 0.0, -0.052])
+    shapes = [
+        {"kind": "sphere", "center": [f"{v * 1e3} mm" for v in centre], "radius": "50 mm"},
+        # A cylinder across the beam (axis y) and a capsule along y through the same
+        # centre touch it the same way.
+        {"kind": "cylinder", "point": [f"{v * 1e3} mm" for v in centre], "axis": [0, 1, 0],
+         "radius": "50 mm"},
+        {"kind": "capsule", "start": ["500 mm", "-30 mm", "-52 mm"],
+         "end": ["500 mm", "30 mm", "-52 mm"], "radius": "50 mm"},
+    ]
+    totals = []
+    for shape in shapes:
+        ob = {**shape, "stiffness": "1e7 N/m^2", "tolerance": "0.1 mm"}
+        doc = beam_over(ob, gravity=False) | {"tip": {"force": ["0 N", "0 N", "-0.1 N"]}}
+        design = load_design(doc)
+        sol = solve_statics(design, [])
+        ct = sol.contact
+        f = ct.total_force[0]
+        # Global balance: n(0) = F_tip + contact.
+        assert np.abs(sol.base_force - (np.array([0, 0, -0.1]) + f)).max() < 1e-9
+        # Every contact force points through the centre (sphere) or axis: the contact
+        # moment about the base is (c - r0) x F.
+        assert np.abs(ct.total_moment[0] - np.cross(centre, f)).max() < 1e-12
+        assert 0 < ct.max_penetration <= 1e-4
+        totals.append(f[2])
+    # Small deflection: the obstacle takes R = P - 3 EI d0 / L^3 at the tip (d0 = 2 mm);
+    # the penalty spreads it over ~(EI/k)^(1/4) = 18 mm: < 1.5 ell / L = 5 % (Rust test).
+    r = 0.1 - 3 * EI * 2e-3 / 0.5**3
+    for t in totals:
+        assert abs(t - r) < 0.054 * r
+    # The three shapes are the same circle in the beam's plane: the same answer.
+    assert max(totals) - min(totals) < 1e-9
+
+
+def test_finger_pressed_onto_the_table():
+    design = load_design(FINGER)
+    forces = []
+    for p_kpa in (0, 10, 20, 30, 40, 50):
+        sol = solve_statics(design, [p_kpa * 1e3])
+        ct = sol.contact
+        assert ct.max_penetration <= 0.2e-3
+        assert balance_error(sol) < 1e-9 * max(1.0, design.mass * G)
+        forces.append(ct.total[2])
+    forces = np.array(forces)
+    # Free above the table at zero pressure, then pressed harder as pressure opens it.
+    assert forces[0] == 0.0
+    assert forces[-1] > 0.0 and np.all(np.diff(forces) >= 0)
+    # The tip's contact is carried by the rounded end, so the answer does not hang on the
+    # steps: 40 (the design's) and 160 steps agree to 1e-4 (measured 4e-5; RK4's error
+    # falls as h^4, the contact's as the step's share of the penalty's decay length).
+    fine = design.replace({"sections[0].steps": 160})
+    f_fine = solve_statics(fine, [50e3]).contact.total[2]
+    assert abs(forces[-1] - f_fine) < 1e-4 * f_fine
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "words"),
+    [
+        ({"radius": "-5 mm"}, "obstacles[0].radius", "> 0"),
+        ({"kind": "cone"}, "obstacles[0].kind", "plane"),
+        ({"stiffness": "1e6"}, "obstacles[0].stiffness", "unit"),
+        ({"stiffness": "1e6 N/m"}, "obstacles[0].stiffness", "N/m^2"),
+        ({"tolerance": "nan mm"}, "obstacles[0].tolerance", "finite"),
+        ({"center": ["0 mm", "nan mm", "0 mm"]}, "obstacles[0].center[1]", "finite"),
+        ({"normal": [0, 0, 1]}, "obstacles[0].normal", "sphere obstacle has no normal"),
+        ({"colour": "red"}, "obstacles[0].colour", "unknown key"),
+        ({"smoothing": "1 m"}, "obstacles[0].smoothing", "at most the tolerance"),
+    ],
+)
+def test_bad_obstacles_name_field_value_and_rule(change, field, words):
+    ob = {"kind": "sphere", "center": ["0 mm", "0 mm", "-60 mm"], "radius": "50 mm",
+          "stiffness": "1e6 N/m^2", "tolerance": "0.1 mm"}
+    ob.update(change)
+    with pytest.raises(DesignError) as info:
+        load_design(beam_over(ob))
+    assert info.value.field == field, str(info.value)
+    assert words in str(info.value)
+
+
+def test_missing_obstacle_keys_and_friction_in_statics():
+    ob = {"kind": "sphere", "center": ["0 mm", "0 mm", "-60 mm"], "radius": "50 mm",
+          "tolerance": "0.1 mm"}
+    with pytest.raises(DesignError, match=r"obstacles\[0\]\.stiffness"):
+        load_design(beam_over(ob))
+    ob["stiffness"] = "1e6 N/m^2"
+    del ob["radius"]
+    with pytest.raises(DesignError, match=r"obstacles\[0\]\.radius"):
+        load_design(beam_over(ob))
+    design = load_design(beam_over(plane(-1.0, friction=0.4)))
+    with pytest.raises(DesignError, match="loading path") as info:
+        solve_statics(design, [])
+    assert info.value.field == "obstacles[0].friction"
+
+
+def test_penetration_beyond_the_tolerance_is_an_error():
+    soft = plane(-0.01, stiffness="1e3 N/m^2", tolerance="0.01 mm", smoothing="1 um")
+    with pytest.raises(InvalidStateError) as info:
+        solve_statics(load_design(beam_over(soft)), [])
+    assert info.value.rule == "penetration"
+
+
+def test_solvers_without_contact_refuse_obstacles():
+    design = load_design(FINGER)
+    with pytest.raises(DesignError) as info:
+        simulate(design, [0.0], 0.01, dt=0.001)
+    assert info.value.field == "obstacles"
+
+
+def test_constrained_tips_refuse_obstacles():
+    # The pinned/clamped solver carries no penetration rule or contact report: refused, not
+    # solved with contact forces that nothing checks.
+    design = load_design(FINGER)
+    free = solve_statics(design, [0.0])
+    with pytest.raises(SoftrodError) as info:
+        solve_statics(design, [0.0], tip_constraint=TipConstraint.pinned(free.tip_position))
+    assert info.value.field == "obstacles"
+    assert "pinned or clamped tip" in str(info.value)
+
+
+def test_design_with_obstacles_saves_and_reloads(tmp_path):
+    design = load_design(FINGER)
+    path = design.save(tmp_path / "finger.toml")
+    again = load_design(path)
+    assert again.spec["obstacles"] == design.spec["obstacles"]
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    height_mm=st.floats(-30.0, 5.0),
+    k_exp=st.floats(4.0, 7.0),
+    radius_mm=st.floats(5.0, 200.0),
+    x_mm=st.floats(0.0, 600.0),
+    kind=st.sampled_from(["plane", "sphere"]),
+)
+def test_property_contact_answers_are_balanced_or_errors(height_mm, k_exp, radius_mm, x_mm, kind):
+    """Any obstacle below the beam: a solution balances (base force = weight + contact to
+    1e-9) and sinks no deeper than the tolerance, or the solve raises a SoftrodError that
+    says why (never NaN, never a silent penetration)."""
+    tol_mm = 0.5
+    if kind == "plane":
+        ob = plane(height_mm, stiffness=f"{10**k_exp} N/m^2", tolerance=f"{tol_mm} mm",
+                   smoothing=f"{tol_mm / 10} mm")
+    else:
+        ob = {"kind": "sphere", "center": [f"{x_mm} mm", "0 mm", f"{height_mm - radius_mm} mm"],
+              "radius": f"{radius_mm} mm", "stiffness": f"{10**k_exp} N/m^2",
+              "tolerance": f"{tol_mm} mm"}
+    design = load_design(beam_over(ob, steps=100))
+    try:
+        sol = solve_statics(design, [])
+    except (ConvergenceError, InvalidStateError) as exc:
+        assert str(exc)
+        if isinstance(exc, InvalidStateError):
+            assert exc.rule in ("penetration", "strain_range", "stretch_limit")
+        return
+    assert np.all(np.isfinite(sol.position)) and np.all(np.isfinite(sol.contact.force))
+    assert sol.contact.max_penetration <= tol_mm * 1e-3
+    assert balance_error(sol) < 1e-9 * max(1.0, math.fabs(sol.base_force[2]))
