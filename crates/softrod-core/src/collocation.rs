@@ -1048,28 +1048,28 @@ fn lu_dense_inverse<const N: usize>(a: &[f64], piv: &[u8; N], x: &mut [f64]) {
     for (r, &p) in perm.iter().enumerate() {
         x[r * N + p] = 1.0;
     }
-    // Forward: X[i, :] -= L[i, k] X[k, :] for i > k.
+    // Forward: X[i, :] -= L[i, k] X[k, :] for i > k. Row k is copied first: reading it
+    // from a local array lets LLVM prove it distinct from the rows it updates, so the
+    // updates vectorise (from two halves of `x` they stayed scalar).
     for k in 0..N {
-        let (top, rest) = x.split_at_mut((k + 1) * N);
-        let xk = &top[k * N..];
-        for (i, row) in rest.chunks_exact_mut(N).enumerate() {
+        let xk: [f64; N] = std::array::from_fn(|c| x[k * N + c]);
+        for (i, row) in x[(k + 1) * N..].chunks_exact_mut(N).enumerate() {
             let l = a[k * N + k + 1 + i];
-            for (xi, v) in row.iter_mut().zip(xk) {
+            for (xi, v) in row.iter_mut().zip(&xk) {
                 *xi -= l * v;
             }
         }
     }
     // Backward: X[k, :] /= U[k, k]; X[i, :] -= U[i, k] X[k, :] for i < k.
     for k in (0..N).rev() {
-        let (top, rest) = x.split_at_mut(k * N);
-        let xk = &mut rest[..N];
         let d = a[k * N + k];
-        for v in xk.iter_mut() {
+        for v in x[k * N..(k + 1) * N].iter_mut() {
             *v /= d;
         }
-        for (i, row) in top.chunks_exact_mut(N).enumerate() {
+        let xk: [f64; N] = std::array::from_fn(|c| x[k * N + c]);
+        for (i, row) in x[..k * N].chunks_exact_mut(N).enumerate() {
             let u = a[k * N + i];
-            for (xi, v) in row.iter_mut().zip(xk.iter()) {
+            for (xi, v) in row.iter_mut().zip(&xk) {
                 *xi -= u * v;
             }
         }
