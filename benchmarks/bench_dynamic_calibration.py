@@ -16,8 +16,11 @@ A_nom = pi (10 mm)^2 / 4 (area_scale = 1 / 1.45 of the bundled area), as a user 
 before calibrating, and frees tau and area_scale. Every model evaluation replays all four
 experiments at dt = 5 ms (16 000 time steps).
 
-Methods: ``nelder-mead`` (the simplex of today's ``calibrate(..., dynamic=True)``), and, when
-the engine provides it, ``lm`` (Levenberg-Marquardt with exact trajectory sensitivities).
+Methods: ``nelder-mead`` (the explicit derivative-free fallback, the simplex the dynamic fit
+used before the core had trajectory sensitivities) and ``lm`` (Levenberg-Marquardt with the
+exact trajectory Jacobian: the core's forward sensitivities through every time step). An
+``lm`` evaluation replays every experiment with the sensitivities, so it costs more than a
+simplex one; the wall ratio counts that.
 The final costs are printed side by side: "equal final cost" means
 they agree to the noise floor's resolution (relative 1e-4).
 

@@ -21,6 +21,13 @@ def pytest_addoption(parser):
         help="run the fuzz suite (tests/test_fuzz.py) with many thousands of random cases "
         "instead of the few hundred fixed ones of the default run",
     )
+    parser.addoption(
+        "--long-calibration",
+        action="store_true",
+        default=False,
+        help="run the 20-seed coverage test of the dynamic calibration's standard errors "
+        "(tests/test_calibration_dynamic.py; about a minute) besides its quick 3-seed one",
+    )
 
 
 def pytest_terminal_summary(terminalreporter, exitstatus, config):

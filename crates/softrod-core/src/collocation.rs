@@ -40,7 +40,7 @@
 
 use crate::banded::{simd_dispatch, BandedLu};
 
-use crate::jet::{Jet, RodScalar};
+use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
 use crate::law::{ogden_derivatives, ogden_force, AxialTable};
 use crate::ode::{AxialCoeffs, Coeffs};
 use crate::rod::{inverse3, Rod};
@@ -140,67 +140,69 @@ fn node_index(j: usize) -> usize {
     6 + 48 * (j - 1) + 32
 }
 
-/// Axial and shear law of a section at one time step.
+/// Axial and shear law of a section at one time step (coefficients in `C`: f64, or a dual
+/// number carrying parameter derivatives for `crate::dynamics`' sensitivities).
 #[derive(Debug, Clone, PartialEq)]
-pub enum Axial {
+pub enum Axial<C = f64> {
     /// (K_se + c0 B_se) v = n_m + K_se v* - B_se v_h with n_m = R^T n + P e3 (diagonal).
-    Linear { a_se: [f64; 3], g_se: [f64; 3] },
+    Linear { a_se: [C; 3], g_se: [C; 3] },
     /// Ogden (paper 002 eq. 16) with shear stiffness k_s: n_og(v) + B (c0 v + v_h) = n_m.
-    Ogden { k_e: f64, alpha: f64, k_s: f64 },
+    Ogden { k_e: C, alpha: C, k_s: C },
     /// EA(F) table: elastic axial force F with v3 = 1 + F / (scale EA(F)), and
     /// F + b3 (c0 v3 + h3) = n_m3; shear linear.
     Table {
         table: Arc<AxialTable>,
-        scale: f64,
-        a_s: [f64; 2],
+        scale: C,
+        a_s: [C; 2],
     },
 }
 
 /// The law, loads and inertia of one section at one time step (or a static solve).
 #[derive(Debug, Clone, PartialEq)]
-pub struct SectionModel {
+pub struct SectionModel<C = f64> {
     pub rigid: bool,
-    pub axial: Axial,
+    pub axial: Axial<C>,
     /// Diagonal of K_se (N) and its damping B_se (N s); for a nonlinear law the
     /// small-strain stiffness.
-    pub k_se: [f64; 3],
-    pub b_se: [f64; 3],
+    pub k_se: [C; 3],
+    pub b_se: [C; 3],
     /// K_bt, its damping B_bt and (K_bt + c0 B_bt)^-1.
-    pub k_bt: [[f64; 3]; 3],
-    pub b_bt: [[f64; 3]; 3],
-    a_bt: [[f64; 3]; 3],
+    pub k_bt: [[C; 3]; 3],
+    pub b_bt: [[C; 3]; 3],
+    a_bt: [[C; 3]; 3],
     /// K_bt u_p = K_bt u* + M_p (the pressure moment, body frame).
-    pub g_bt: [f64; 3],
+    pub g_bt: [C; 3],
     /// Pressure-shifted stress-free strains of the linear law.
-    pub v_p: [f64; 3],
-    pub u_p: [f64; 3],
+    pub v_p: [C; 3],
+    pub u_p: [C; 3],
     /// Pressure force P = sum_k p_k A_k, N.
-    pub p_force: f64,
+    pub p_force: C,
     /// Bending stiffness times the stretch v3 (paper 004 eq. 29).
     pub stretch_bending: bool,
-    pub rho_a: f64,
-    pub rho_j: [f64; 3],
+    pub rho_a: C,
+    pub rho_j: [C; 3],
     /// Line force (weight included) and moment, world frame.
-    pub f: [f64; 3],
-    pub l: [f64; 3],
+    pub f: [C; 3],
+    pub l: [C; 3],
 }
 
-impl SectionModel {
+impl<C: Coeff> SectionModel<C> {
     /// From the static law's coefficients `c` (pressures, swelling and stiffness scale
     /// already applied), the section's line mass and rotary inertia, its damping (given
     /// diagonals, or B = tau K with K the law's small-strain stiffness) and the time
     /// integrator's c0 (0 for statics).
     pub fn new(
-        c: &Coeffs<f64>,
+        c: &Coeffs<C>,
         rigid: bool,
-        rho_a: f64,
-        rho_j: [f64; 3],
+        rho_a: C,
+        rho_j: [C; 3],
         damping: Option<([f64; 3], [f64; 3])>,
-        tau: f64,
+        tau: C,
         c0: f64,
     ) -> Self {
-        let z3 = [0.0; 3];
-        let z33 = [[0.0; 3]; 3];
+        let zero = C::from(0.0);
+        let z3 = [zero; 3];
+        let z33 = [[zero; 3]; 3];
         let mut out = SectionModel {
             rigid,
             axial: Axial::Linear { a_se: z3, g_se: z3 },
@@ -222,29 +224,34 @@ impl SectionModel {
         if rigid {
             return out;
         }
-        let mut k_se = c.c_se.map(|x| 1.0 / x);
+        let mut k_se = c.c_se.map(|x| x.recip());
         // The small-strain stiffness of the nonlinear axial laws (their tangent at the
         // stress-free state): W1''(1) = k_e for Ogden, scale EA(0) for a table.
         match &c.axial {
             AxialCoeffs::Ogden { k_e, k_s, .. } => k_se = [*k_s, *k_s, *k_e],
-            AxialCoeffs::Table { table, scale } => k_se[2] = scale * table.eval(0.0),
+            AxialCoeffs::Table { table, scale } => k_se[2] = *scale * table.eval(0.0),
             AxialCoeffs::Linear => {}
         }
-        let k_bt = inverse3(&c.c_bt).unwrap_or([[f64::NAN; 3]; 3]);
+        let nan = C::from(f64::NAN);
+        let k_bt = inverse3(&c.c_bt).unwrap_or([[nan; 3]; 3]);
         let (b_se, b_bt) = match damping {
             Some((se, bt)) => (
-                se,
-                std::array::from_fn(|i| std::array::from_fn(|j| if i == j { bt[i] } else { 0.0 })),
+                se.map(C::from),
+                std::array::from_fn(|i| {
+                    std::array::from_fn(|j| C::from(if i == j { bt[i] } else { 0.0 }))
+                }),
             ),
             None => (k_se.map(|k| k * tau), k_bt.map(|row| row.map(|k| k * tau))),
         };
-        let eff: [[f64; 3]; 3] =
-            std::array::from_fn(|i| std::array::from_fn(|j| k_bt[i][j] + c0 * b_bt[i][j]));
-        out.a_bt = inverse3(&eff).unwrap_or([[f64::NAN; 3]; 3]);
-        out.g_bt = std::array::from_fn(|i| (0..3).map(|j| k_bt[i][j] * c.u_shift[j]).sum());
+        let eff: [[C; 3]; 3] =
+            std::array::from_fn(|i| std::array::from_fn(|j| k_bt[i][j] + b_bt[i][j] * c0));
+        out.a_bt = inverse3(&eff).unwrap_or([[nan; 3]; 3]);
+        out.g_bt = std::array::from_fn(|i| {
+            k_bt[i][0] * c.u_shift[0] + k_bt[i][1] * c.u_shift[1] + k_bt[i][2] * c.u_shift[2]
+        });
         out.axial = match &c.axial {
             AxialCoeffs::Linear => Axial::Linear {
-                a_se: std::array::from_fn(|k| 1.0 / (k_se[k] + c0 * b_se[k])),
+                a_se: std::array::from_fn(|k| (k_se[k] + b_se[k] * c0).recip()),
                 g_se: std::array::from_fn(|k| k_se[k] * c.v_shift[k]),
             },
             AxialCoeffs::Ogden { k_e, alpha, k_s } => Axial::Ogden {
@@ -256,8 +263,8 @@ impl SectionModel {
                 table: table.clone(),
                 scale: *scale,
                 a_s: [
-                    1.0 / (k_se[0] + c0 * b_se[0]),
-                    1.0 / (k_se[1] + c0 * b_se[1]),
+                    (k_se[0] + b_se[0] * c0).recip(),
+                    (k_se[1] + b_se[1] * c0).recip(),
                 ],
             },
         };
@@ -270,14 +277,16 @@ impl SectionModel {
 
     /// Body-frame strains (v, u) from the body-frame total force and moment `nb`, `mb`,
     /// with the time integrator's c0 and this point's history terms `h` (v_h, u_h first).
-    /// Nonlinear laws are solved in f64 and linearised in the scalar type (implicit
-    /// function theorem), so dual numbers carry exact first derivatives.
+    /// Nonlinear laws are solved in f64 and linearised in the state's scalar type
+    /// (implicit function theorem), so dual numbers carry exact first derivatives in the
+    /// state; their coefficients enter by value only (parameter derivatives of the
+    /// dynamics support the linear law: `crate::dynamics::sensitivity` checks this).
     #[inline(always)]
-    pub fn strains<D: RodScalar>(
+    pub fn strains<D: StateScalar<C>>(
         &self,
         nb: &[D; 3],
         mb: &[D; 3],
-        h: &[f64; NF],
+        h: &[C; NF],
         c0: f64,
     ) -> ([D; 3], [D; 3]) {
         let zero = D::from(0.0);
@@ -291,37 +300,40 @@ impl SectionModel {
             }
             Axial::Table { table, scale, a_s } => {
                 let nm3 = nb[2] + self.p_force;
-                let v3 = table_stretch(table, *scale, b[2], c0, h[2], nm3);
+                let (bv, hv) = (b[2].value(), h[2].value());
+                let v3 = table_stretch(table, scale.value(), bv, c0, hv, nm3);
                 [
-                    (nb[0] - b[0] * h[0]) * a_s[0],
-                    (nb[1] - b[1] * h[1]) * a_s[1],
+                    (nb[0] + -(b[0] * h[0])) * a_s[0],
+                    (nb[1] + -(b[1] * h[1])) * a_s[1],
                     v3,
                 ]
             }
             Axial::Ogden { k_e, alpha, k_s } => {
                 let nm = [nb[0], nb[1], nb[2] + self.p_force];
-                ogden_strain(*k_e, *alpha, *k_s, b, c0, &h[0..3], &nm)
+                let bv = b.map(|x| x.value());
+                let hv = [h[0].value(), h[1].value(), h[2].value()];
+                ogden_strain(k_e.value(), alpha.value(), k_s.value(), &bv, c0, &hv, &nm)
             }
         };
         let hu = [h[3], h[4], h[5]];
-        let t: [f64; 3] = std::array::from_fn(|i| {
-            self.g_bt[i] - (0..3).map(|j| self.b_bt[i][j] * hu[j]).sum::<f64>()
+        let bb = &self.b_bt;
+        let t: [C; 3] = std::array::from_fn(|i| {
+            self.g_bt[i] - (bb[i][0] * hu[0] + bb[i][1] * hu[1] + bb[i][2] * hu[2])
         });
         let tm: [D; 3] = std::array::from_fn(|k| mb[k] + t[k]);
         let u: [D; 3] = if self.stretch_bending {
             // (v3 K_b + c0 B_b) u_b = m_b + K_b u_p - B_b u_h (paper 004 eq. 29 with the
             // stretch as L_c / L_c0); K_bt is block diagonal, so torsion stays linear.
             let kb = &self.k_bt;
-            let bb = &self.b_bt;
-            let a = v[2] * kb[0][0] + c0 * bb[0][0];
-            let bm = v[2] * kb[0][1] + c0 * bb[0][1];
-            let cm = v[2] * kb[1][0] + c0 * bb[1][0];
-            let d = v[2] * kb[1][1] + c0 * bb[1][1];
+            let a = v[2] * kb[0][0] + bb[0][0] * c0;
+            let bm = v[2] * kb[0][1] + bb[0][1] * c0;
+            let cm = v[2] * kb[1][0] + bb[1][0] * c0;
+            let d = v[2] * kb[1][1] + bb[1][1] * c0;
             let inv = (a * d - bm * cm).recip();
             [
                 (d * tm[0] - bm * tm[1]) * inv,
                 (a * tm[1] - cm * tm[0]) * inv,
-                tm[2] * (1.0 / (kb[2][2] + c0 * bb[2][2])),
+                tm[2] * (kb[2][2] + bb[2][2] * c0).recip(),
             ]
         } else {
             std::array::from_fn(|i| {
@@ -551,10 +563,10 @@ pub fn quaternion(r: &[[f64; 3]; 3]) -> [f64; 4] {
 ///   m' = R (rho J w_t + w x rho J w) - (R v) x n - l,
 ///   q' = v_t + w x v - u x q,   w' = u_t + w x u          (compatibility, eq. 13).
 #[inline(always)]
-pub fn rhs<D: RodScalar>(
+pub fn rhs<C: Coeff, D: StateScalar<C>>(
     y: &[D; NY],
-    m: &SectionModel,
-    h: &[f64; NF],
+    m: &SectionModel<C>,
+    h: &[C; NF],
     c0: f64,
 ) -> ([D; NY], [D; NF]) {
     let rot = rotation(&y[IQ..IQ + 4]);
@@ -595,8 +607,8 @@ pub fn rhs<D: RodScalar>(
     let uxq = cross(&u, &q);
     let wxu = cross(&w, &u);
     for k in 0..3 {
-        dy[IN + k] = acc_w[k] - m.f[k];
-        dy[IM + k] = ang_w[k] - rxn[k] - m.l[k];
+        dy[IN + k] = acc_w[k] + -m.f[k];
+        dy[IM + k] = ang_w[k] - rxn[k] + -m.l[k];
         dy[IV + k] = vt[k] + wxv[k] - uxq[k];
         dy[IW + k] = ut[k] + wxu[k];
     }
@@ -717,9 +729,13 @@ impl<'a> Problem<'a> {
 
     /// Scaled tip residual: n(L) = F + m_t (g - a_c), m(L) = M + c_w x m_t (g - a_c) -
     /// R (J w_t + w x J w), with a_c the acceleration of the tip body's centre of mass.
-    fn tip_residual<D: RodScalar>(&self, y: &[D; NY]) -> [D; 6] {
+    fn tip_residual<D: StateScalar<f64>>(&self, y: &[D; NY]) -> [D; 6] {
+        self.tip_residual_with(y, self.hist.last().expect("tip slot"))
+    }
+
+    /// [`Problem::tip_residual`] with the tip node's history terms `th` in any scalar.
+    fn tip_residual_with<C: Coeff, D: StateScalar<C>>(&self, y: &[D; NY], th: &[C; NF]) -> [D; 6] {
         let t = &self.tip;
-        let th = self.hist.last().expect("tip slot");
         let c0 = self.c0;
         let rot = rotation(&y[IQ..IQ + 4]);
         let q = [y[IV], y[IV + 1], y[IV + 2]];
@@ -1380,6 +1396,97 @@ pub fn newton_with(
         }
     }
     Err((opts.max_iter, norm))
+}
+
+/// The collocation equations with the section models and history terms in another scalar
+/// `C` (a dual number carrying parameter derivatives) and the unknowns in `D`: what the
+/// forward sensitivities of the dynamics (`crate::dynamics::sensitivity`) differentiate.
+/// The grid, scales and tip body are the f64 problem's.
+impl Problem<'_> {
+    /// Physical state of node j (0..=N) from scaled unknowns in any scalar.
+    fn node_with<D: RodScalar>(&self, z: &[D], j: usize) -> [D; NY] {
+        if j == 0 {
+            let mut y = [D::from(0.0); NY];
+            for k in 0..4 {
+                y[k] = D::from(self.base_q[k]);
+            }
+            for k in 0..3 {
+                y[IN + k] = z[k] * self.fs;
+                y[IM + k] = z[3 + k] * self.ms;
+            }
+            y
+        } else {
+            let o = node_index(j);
+            std::array::from_fn(|k| z[o + k] * self.scale[k])
+        }
+    }
+
+    fn stage_with<D: RodScalar>(&self, z: &[D], j: usize, i: usize) -> [D; NY] {
+        let o = stage_index(j, i);
+        std::array::from_fn(|k| z[o + k] * self.scale[k])
+    }
+
+    /// The scaled residual (the layout of [`Problem::residual`]) of scaled unknowns `z`
+    /// under `models` (one per section) and histories `hist` (2 per interval, then the tip).
+    pub fn residual_with<C: Coeff, D: StateScalar<C>>(
+        &self,
+        models: &[SectionModel<C>],
+        hist: &[[C; NF]],
+        z: &[D],
+    ) -> Vec<D> {
+        let inv: [f64; NY] = self.scale.map(|s| 1.0 / s);
+        let mut out = vec![D::from(0.0); z.len()];
+        let mut yj = self.node_with(z, 0);
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let model = &models[iv.section];
+            let y1 = self.stage_with(z, j, 0);
+            let y2 = self.stage_with(z, j, 1);
+            let (f1, _) = rhs(&y1, model, &hist[2 * j], self.c0);
+            let (f2, _) = rhs(&y2, model, &hist[2 * j + 1], self.c0);
+            let yn = self.node_with(z, j + 1);
+            let o = 48 * j;
+            let hh = iv.h;
+            let comb = |a: f64, b: f64, k: usize| (f1[k] * a + f2[k] * b) * hh;
+            for k in 0..NY {
+                out[o + k] = (y1[k] - yj[k] - comb(GAUSS_A[0][0], GAUSS_A[0][1], k)) * inv[k];
+                out[o + 16 + k] = (y2[k] - yj[k] - comb(GAUSS_A[1][0], GAUSS_A[1][1], k)) * inv[k];
+                out[o + 32 + k] = (yn[k] - yj[k] - comb(GAUSS_B[0], GAUSS_B[1], k)) * inv[k];
+            }
+            yj = yn;
+        }
+        let r = self.tip_residual_with(&yj, hist.last().expect("tip slot"));
+        let o = 48 * self.grid.len();
+        out[o..o + 6].copy_from_slice(&r);
+        out
+    }
+
+    /// The stage fields (v, u, q, w; 2 per interval), the tip node's state and the tip
+    /// position of scaled unknowns `z` under `models` and `hist` (as [`Problem::evaluate`]:
+    /// the centreline by the collocation quadrature).
+    pub fn fields_and_tip_with<C: Coeff, D: StateScalar<C>>(
+        &self,
+        models: &[SectionModel<C>],
+        hist: &[[C; NF]],
+        z: &[D],
+    ) -> (Vec<[D; NF]>, [D; NY], [D; 3]) {
+        let mut fields = Vec::with_capacity(2 * self.grid.len());
+        let mut r: [D; 3] = self.rod.base_position.map(D::from);
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let model = &models[iv.section];
+            let mut dr = [[D::from(0.0); 3]; 2];
+            for (i, d) in dr.iter_mut().enumerate() {
+                let y = self.stage_with(z, j, i);
+                let (_, fl) = rhs(&y, model, &hist[2 * j + i], self.c0);
+                let rot = rotation(&y[IQ..IQ + 4]);
+                *d = mat_vec(&rot, &[fl[0], fl[1], fl[2]]);
+                fields.push(fl);
+            }
+            r = std::array::from_fn(|k| {
+                r[k] + (dr[0][k] * GAUSS_B[0] + dr[1][k] * GAUSS_B[1]) * iv.h
+            });
+        }
+        (fields, self.node_with(z, self.grid.len()), r)
+    }
 }
 
 /// Node and stage states of a solution in physical units, with the centreline recovered

@@ -34,6 +34,8 @@ use crate::rod::Rod;
 use crate::statics::{self, SolverOptions};
 use crate::validity;
 
+pub mod sensitivity;
+
 /// v, u, q, w (body frame) at one stage point.
 pub const FIELDS: usize = NF;
 
@@ -526,6 +528,10 @@ pub struct Simulator {
     /// Scales of the unknowns for the c0 `scales_c0` (scratch, recomputed when c0 changes).
     scales: Vec<f64>,
     scales_c0: f64,
+    /// How the run started.
+    initial: Initial,
+    /// Forward parameter sensitivities, when tracked (`sensitivity`).
+    sens: Option<Box<sensitivity::Tracker>>,
     pub stats: DynStats,
 }
 
@@ -614,8 +620,6 @@ fn check_dynamic_laws(rod: &Rod, map: &SigmaMap) -> Result<()> {
 /// The candidate result of one time step, committed only if it passes every check.
 struct Candidate {
     h: f64,
-    /// c0 of `models`.
-    c0: f64,
     pressures: Vec<f64>,
     sigma: [f64; 3],
     z: Vec<f64>,
@@ -625,6 +629,11 @@ struct Candidate {
     books: Books,
     /// Estimated local error of the node positions, m (None without enough history).
     error: Option<f64>,
+    /// The step's time formula, history terms and converged scaled unknowns (for the
+    /// parameter sensitivities).
+    bdf: Bdf,
+    hist: Vec<[f64; FIELDS]>,
+    z_scaled: Vec<f64>,
 }
 
 impl Simulator {
@@ -706,6 +715,8 @@ impl Simulator {
             work: NewtonWork::default(),
             scales: vec![],
             scales_c0: f64::NAN,
+            initial,
+            sens: None,
             stats: DynStats::default(),
             grid,
             rod,
@@ -1072,6 +1083,7 @@ impl Simulator {
                         }
                         self.h_next = h * factor;
                     }
+                    self.advance_sensitivity(&c)?;
                     self.commit(c);
                     remaining -= h;
                     if remaining <= 1e-12 * dt {
@@ -1386,7 +1398,6 @@ impl Simulator {
         };
         Ok(Candidate {
             h,
-            c0: bdf.c0,
             pressures,
             sigma,
             z: zp,
@@ -1395,6 +1406,9 @@ impl Simulator {
             eval,
             books,
             error,
+            bdf,
+            hist,
+            z_scaled: z,
         })
     }
 
@@ -1544,7 +1558,7 @@ impl Simulator {
         self.z_prev2 = std::mem::replace(&mut self.z_prev, std::mem::replace(&mut self.z, c.z));
         self.slots = c.slots;
         self.models = c.models;
-        self.models_c0 = c.c0;
+        self.models_c0 = c.bdf.c0;
         self.eval = c.eval;
         self.books = c.books;
         self.step_tip = (self.tip_force, self.tip_moment);
@@ -1948,6 +1962,8 @@ impl Simulator {
             jacobians: r.n()?,
         };
         next.cache = None;
+        // The saved state holds no sensitivities: a restored run tracks none.
+        next.sens = None;
         if r.f()? == 1.0 {
             let key = JacKey {
                 at: r.vec()?,

@@ -123,11 +123,12 @@ pub struct InverseSolution {
     pub linearisation: Option<Linearisation>,
 }
 
-fn finite(field: &str, v: f64) -> Result<()> {
+/// The field's name is built only on failure (validation runs on every warm call).
+fn finite(field: impl FnOnce() -> String, v: f64) -> Result<()> {
     if v.is_finite() {
         Ok(())
     } else {
-        Err(SoftrodError::invalid(field, v, "must be a finite number"))
+        Err(SoftrodError::invalid(field(), v, "must be a finite number"))
     }
 }
 
@@ -163,8 +164,8 @@ fn validate(rod: &Rod, loads: &Loads, target: &InverseTarget, opts: &InverseOpti
         ));
     }
     for (c, b) in opts.bounds.iter().enumerate() {
-        finite(&format!("pressure_bounds[{c}][0]"), b[0])?;
-        finite(&format!("pressure_bounds[{c}][1]"), b[1])?;
+        finite(|| format!("pressure_bounds[{c}][0]"), b[0])?;
+        finite(|| format!("pressure_bounds[{c}][1]"), b[1])?;
         if b[0] > b[1] {
             return Err(SoftrodError::invalid(
                 format!("pressure_bounds[{c}]"),
@@ -188,7 +189,7 @@ fn validate(rod: &Rod, loads: &Loads, target: &InverseTarget, opts: &InverseOpti
         ));
     }
     for (c, (&r, b)) in opts.reference.iter().zip(&opts.bounds).enumerate() {
-        finite(&format!("reference[{c}]"), r)?;
+        finite(|| format!("reference[{c}]"), r)?;
         if r < b[0] || r > b[1] {
             return Err(SoftrodError::invalid(
                 format!("reference[{c}]"),
@@ -218,10 +219,10 @@ fn validate(rod: &Rod, loads: &Loads, target: &InverseTarget, opts: &InverseOpti
         return Err(SoftrodError::invalid("max_iter", 0, "must be >= 1"));
     }
     for (k, v) in target.position.iter().enumerate() {
-        finite(&format!("target[{k}]"), *v)?;
+        finite(|| format!("target[{k}]"), *v)?;
     }
     for (k, w) in target.position_weight.iter().enumerate() {
-        finite(&format!("weights.position[{k}]"), *w)?;
+        finite(|| format!("weights.position[{k}]"), *w)?;
         if *w < 0.0 {
             return Err(SoftrodError::invalid(
                 format!("weights.position[{k}]"),
@@ -230,7 +231,7 @@ fn validate(rod: &Rod, loads: &Loads, target: &InverseTarget, opts: &InverseOpti
             ));
         }
     }
-    finite("weights.orientation", target.orientation_weight)?;
+    finite(|| "weights.orientation".into(), target.orientation_weight)?;
     if target.orientation_weight < 0.0 {
         return Err(SoftrodError::invalid(
             "weights.orientation",
@@ -241,7 +242,7 @@ fn validate(rod: &Rod, loads: &Loads, target: &InverseTarget, opts: &InverseOpti
     if let Some(r) = &target.orientation {
         for row in r {
             for v in row {
-                finite("orientation", *v)?;
+                finite(|| "orientation".into(), *v)?;
             }
         }
         let err = validity::orthonormality_error(r);

@@ -450,20 +450,19 @@ fn local_law<C: RodScalar>(sec: &Section, inp: &LawInputs<C>, s: f64) -> Local<C
 }
 
 impl<D: RodScalar> State<D> {
+    /// self = base + h k, entry by entry (the arithmetic of `axpy`, in place).
     #[inline(always)]
-    fn axpy(&self, h: f64, k: &State<D>) -> State<D> {
-        let mut y = *self;
+    fn set_axpy(&mut self, base: &State<D>, h: f64, k: &State<D>) {
         for i in 0..3 {
-            y.r[i] += k.r[i] * h;
-            y.n[i] += k.n[i] * h;
-            y.m[i] += k.m[i] * h;
+            self.r[i] = base.r[i] + k.r[i] * h;
+            self.n[i] = base.n[i] + k.n[i] * h;
+            self.m[i] = base.m[i] + k.m[i] * h;
             for j in 0..3 {
-                y.rot[i][j] += k.rot[i][j] * h;
+                self.rot[i][j] = base.rot[i][j] + k.rot[i][j] * h;
             }
         }
-        y.aux[0] += k.aux[0] * h;
-        y.aux[1] += k.aux[1] * h;
-        y
+        self.aux[0] = base.aux[0] + k.aux[0] * h;
+        self.aux[1] = base.aux[1] + k.aux[1] * h;
     }
 
     /// Director d_j (column j of R).
@@ -1095,33 +1094,26 @@ fn neg<C: Coeff>(x: C) -> C {
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn rk4_step<C: Coeff, D: StateScalar<C>>(
-    y: &State<D>,
+    y: &mut State<D>,
     c: &Coeffs<C>,
     locs: [&Local<C>; 3],
     sec: &Section,
     s0: f64,
     h: f64,
     scratch: &mut Scratch,
-) -> State<D> {
-    let k1 = rhs(y, c, locs[0], sec, s0, scratch);
-    let k2 = rhs(
-        &y.axpy(0.5 * h, &k1),
-        c,
-        locs[1],
-        sec,
-        s0 + 0.5 * h,
-        scratch,
-    );
-    let k3 = rhs(
-        &y.axpy(0.5 * h, &k2),
-        c,
-        locs[1],
-        sec,
-        s0 + 0.5 * h,
-        scratch,
-    );
-    let k4 = rhs(&y.axpy(h, &k3), c, locs[2], sec, s0 + h, scratch);
-    let mut out = *y;
+) {
+    // One stage buffer, overwritten in place (State<Jet<N>> is hundreds of bytes: fresh
+    // temporaries per stage cost measurable copies in the dual passes).
+    let mut stage = *y;
+    let k1 = rhs(&*y, c, locs[0], sec, s0, scratch);
+    stage.set_axpy(y, 0.5 * h, &k1);
+    let k2 = rhs(&stage, c, locs[1], sec, s0 + 0.5 * h, scratch);
+    stage.set_axpy(y, 0.5 * h, &k2);
+    let k3 = rhs(&stage, c, locs[1], sec, s0 + 0.5 * h, scratch);
+    stage.set_axpy(y, h, &k3);
+    let k4 = rhs(&stage, c, locs[2], sec, s0 + h, scratch);
+    // Each entry of y is updated from its own old value only, so y is overwritten in place.
+    let out = y;
     let w = h / 6.0;
     // (R is re-projected onto SO(3) below.)
     for i in 0..3 {
@@ -1137,7 +1129,6 @@ fn rk4_step<C: Coeff, D: StateScalar<C>>(
         out.aux[i] += (k1.aux[i] + (k2.aux[i] + k3.aux[i]) * 2.0 + k4.aux[i]) * w;
     }
     out.rot = reproject(&out.rot);
-    out
 }
 
 /// One Newton-Schulz step R <- R (3I - R^T R) / 2 back towards SO(3). RK4 on the nine
@@ -1271,8 +1262,8 @@ pub fn integrate_with<C: Coeff, D: StateScalar<C>>(
         };
         for k in 0..sec.steps {
             let s0 = h * k as f64;
-            y = if sec.rigid {
-                rigid_step(&y, c, sec.length)
+            if sec.rigid {
+                y = rigid_step(&y, c, sec.length);
             } else if varying {
                 let mid = c.local_at(sec, s0 + 0.5 * h);
                 // The last step ends exactly at the section's length.
@@ -1282,12 +1273,11 @@ pub fn integrate_with<C: Coeff, D: StateScalar<C>>(
                     s0 + h
                 };
                 let end = c.local_at(sec, end_s);
-                let out = rk4_step(&y, c, [&start, &mid, &end], sec, s0, h, &mut scratch);
+                rk4_step(&mut y, c, [&start, &mid, &end], sec, s0, h, &mut scratch);
                 start = end;
-                out
             } else {
-                rk4_step(&y, c, [&uniform; 3], sec, s0, h, &mut scratch)
-            };
+                rk4_step(&mut y, c, [&uniform; 3], sec, s0, h, &mut scratch);
+            }
             let node = NodeAt {
                 section: i,
                 step: k + 1,
@@ -1334,14 +1324,16 @@ pub fn advance<C: Coeff, D: StateScalar<C>>(
             c.local_at(sec, (s0 + h).min(sec.length)),
         ];
         let mut scratch = Scratch::default();
+        let mut out = *y;
         rk4_step(
-            y,
+            &mut out,
             c,
             [&locs[0], &locs[1], &locs[2]],
             sec,
             s0,
             h,
             &mut scratch,
-        )
+        );
+        out
     }
 }

@@ -24,7 +24,7 @@ use crate::statics::{Problem, Solution};
 use nalgebra::{DMatrix, DVector};
 
 /// Parameters per dual integration.
-const CHUNK: usize = 4;
+pub(crate) const CHUNK: usize = 4;
 
 /// What a calibration parameter is. All derivatives are with respect to the parameter's
 /// value in SI, as written in a design file.
@@ -51,11 +51,14 @@ pub enum ParamKind {
     Density,
     /// Mass in kg of each listed section, for sections whose mass is given directly.
     Mass,
+    /// Kelvin-Voigt damping time tau in s of `[dynamics]` (B = tau K, paper 000 eq. 8):
+    /// dynamics only (`crate::dynamics::sensitivity`); no sections.
+    DampingTime,
 }
 
 impl ParamKind {
     /// Every kind with its name, as the Python layer spells them.
-    pub const ALL: [(&'static str, ParamKind); 15] = [
+    pub const ALL: [(&'static str, ParamKind); 16] = [
         ("c_s", ParamKind::CorrectionFactor(0)),
         ("c_e", ParamKind::CorrectionFactor(1)),
         ("c_b", ParamKind::CorrectionFactor(2)),
@@ -71,6 +74,7 @@ impl ParamKind {
         ("sigma_bend_2", ParamKind::StiffnessScale(2)),
         ("density", ParamKind::Density),
         ("mass", ParamKind::Mass),
+        ("damping_time", ParamKind::DampingTime),
     ];
 
     pub fn from_name(name: &str) -> Option<Self> {
@@ -100,6 +104,7 @@ impl Param {
         let Some(&i) = self.sections.first() else {
             return match self.kind {
                 ParamKind::StiffnessScale(k) => loads.stiffness_scale[k],
+                ParamKind::DampingTime => rod.spec.dynamics.damping_time,
                 _ => f64::NAN,
             };
         };
@@ -121,7 +126,7 @@ fn section_value(rod: &Rod, i: usize, kind: ParamKind) -> f64 {
         ParamKind::SwellingCp => knobs.c_p,
         ParamKind::ChamberOffset(k) => rod.spec.sections[i].law.chamber_offset[k],
         ParamKind::AreaScale => 1.0,
-        ParamKind::StiffnessScale(_) => f64::NAN,
+        ParamKind::StiffnessScale(_) | ParamKind::DampingTime => f64::NAN,
         ParamKind::Density => rod.spec.sections[i]
             .material
             .map_or(f64::NAN, |m| m.density),
@@ -135,6 +140,13 @@ pub fn validate_params(rod: &Rod, params: &[Param]) -> Result<()> {
     for (j, p) in params.iter().enumerate() {
         let name = p.kind.name();
         let field = format!("params[{j}] ({name})");
+        if p.kind == ParamKind::DampingTime {
+            return Err(SoftrodError::invalid(
+                field,
+                name,
+                "the damping time acts in dynamics only (calibrate it with a dynamic fit)",
+            ));
+        }
         if let ParamKind::StiffnessScale(_) = p.kind {
             if !p.sections.is_empty() {
                 return Err(SoftrodError::invalid(
@@ -402,21 +414,29 @@ pub struct TipSensitivity {
     pub markers: Vec<Vec<[f64; 3]>>,
 }
 
-type Dual = Jet<CHUNK>;
+pub(crate) type Dual = Jet<CHUNK>;
 
 /// Knobs and sigma of every section with the parameters of `chunk` seeded as dual
-/// directions 0..chunk.len().
-fn seeded(rod: &Rod, loads: &Loads, chunk: &[Param]) -> (Vec<SectionKnobs<Dual>>, [Dual; 3]) {
+/// directions 0..chunk.len() (the damping time is no knob: the dynamics seed it).
+pub(crate) fn seeded(
+    rod: &Rod,
+    stiffness_scale: &[f64; 3],
+    chunk: &[Param],
+) -> (Vec<SectionKnobs<Dual>>, [Dual; 3]) {
     let mut knobs: Vec<SectionKnobs<Dual>> = rod
         .sections
         .iter()
         .map(|s| SectionKnobs::of(s).lift())
         .collect();
-    let mut sigma = loads.stiffness_scale.map(Dual::from);
+    let mut sigma = stiffness_scale.map(Dual::from);
     for (q, p) in chunk.iter().enumerate() {
-        if let ParamKind::StiffnessScale(k) = p.kind {
-            sigma[k].eps[q] = 1.0;
-            continue;
+        match p.kind {
+            ParamKind::StiffnessScale(k) => {
+                sigma[k].eps[q] = 1.0;
+                continue;
+            }
+            ParamKind::DampingTime => continue,
+            _ => {}
         }
         for &i in &p.sections {
             let k = &mut knobs[i];
@@ -434,7 +454,9 @@ fn seeded(rod: &Rod, loads: &Loads, chunk: &[Param]) -> (Vec<SectionKnobs<Dual>>
                 ParamKind::Density | ParamKind::Mass => {
                     k.mass_scale.eps[q] = 1.0 / section_value(rod, i, p.kind)
                 }
-                ParamKind::StiffnessScale(_) => unreachable!("handled above"),
+                ParamKind::StiffnessScale(_) | ParamKind::DampingTime => {
+                    unreachable!("handled above")
+                }
             }
         }
     }
@@ -494,7 +516,7 @@ fn sensitivity_n<const N: usize>(
         .map(|(y, mk)| marker_position(y, &mk.offset))
         .collect();
     for chunk in params.chunks(CHUNK) {
-        let (knobs, sigma) = seeded(rod, loads, chunk);
+        let (knobs, sigma) = seeded(rod, &loads.stiffness_scale, chunk);
         let coeffs: Vec<Coeffs<Dual>> = (0..rod.sections.len())
             .map(|i| {
                 Coeffs::build_with(

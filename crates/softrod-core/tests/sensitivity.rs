@@ -84,7 +84,9 @@ fn set(spec: &mut DesignSpec, ld: &mut Loads, p: &Param, v: f64) {
             ParamKind::AreaScale => s.chambers.iter_mut().for_each(|c| c.area *= v),
             ParamKind::Density => s.material.as_mut().unwrap().density = v,
             ParamKind::Mass => s.mass = Some(v),
-            ParamKind::StiffnessScale(_) => unreachable!(),
+            // Neither belongs to the statics (sigma is handled above; validate_params
+            // refuses the damping time).
+            ParamKind::StiffnessScale(_) | ParamKind::DampingTime => unreachable!(),
         }
     }
 }

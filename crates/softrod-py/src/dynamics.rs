@@ -7,6 +7,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::dynamics::{CommandSchedule, DynOptions, Initial, Scheme, SigmaMap, Simulator};
 use softrod_core::interp::GridPchip;
+use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::{Rod, SoftrodError};
 
 /// A running simulation of a design (see `softrod.dynamics`).
@@ -28,6 +29,9 @@ struct Saved {
     books: Vec<[f64; 5]>,
     shape_time: Vec<f64>,
     shape: Vec<[f64; 3]>,
+    /// d tip / d theta per sample (3 x P, row-major) when sensitivities are tracked.
+    d_tip: Vec<f64>,
+    n_par: usize,
 }
 
 impl Saved {
@@ -45,6 +49,12 @@ impl Saved {
         } else {
             [f64::NAN; 5]
         });
+        if let Some(d) = sim.tip_sensitivity() {
+            self.n_par = d.len();
+            for a in 0..3 {
+                self.d_tip.extend(d.iter().map(|dj| dj[a]));
+            }
+        }
     }
 
     fn push_shape(&mut self, sim: &Simulator) {
@@ -83,6 +93,12 @@ impl Saved {
             "shape_position",
             PyArray1::from_vec(py, flat).reshape([k, nodes, 3])?,
         )?;
+        if self.n_par > 0 {
+            d.set_item(
+                "d_tip_position",
+                PyArray1::from_vec(py, self.d_tip).reshape([n, 3, self.n_par])?,
+            )?;
+        }
         Ok(d)
     }
 }
@@ -186,6 +202,40 @@ impl PySimulator {
             Ok(PySimulator {
                 sim: self.sim.clone(),
             })
+        })
+    }
+
+    /// Track the tip's derivatives with respect to `params` ((kind, sections) pairs, kinds
+    /// as in `softrod_core::sensitivity::ParamKind::ALL`) from now on (before the first
+    /// step); `run` then returns them as `d_tip_position` (k, 3, P).
+    fn track_sensitivities(
+        &mut self,
+        py: Python<'_>,
+        params: Vec<(String, Vec<usize>)>,
+    ) -> PyResult<()> {
+        crate::guarded(py, || {
+            let params: Vec<Param> = params
+                .into_iter()
+                .enumerate()
+                .map(|(j, (name, sections))| match ParamKind::from_name(&name) {
+                    Some(kind) => Ok(Param { kind, sections }),
+                    None => Err(to_py_err(
+                        py,
+                        SoftrodError::invalid(
+                            format!("params[{j}]"),
+                            &name,
+                            format!(
+                                "unknown parameter kind; known: {}",
+                                ParamKind::ALL.map(|(n, _)| n).join(", ")
+                            ),
+                        ),
+                        Context::Input,
+                    )),
+                })
+                .collect::<PyResult<_>>()?;
+            let sim = &mut self.sim;
+            py.detach(|| sim.track_sensitivities(&params))
+                .map_err(|e| to_py_err(py, e, Context::Input))
         })
     }
 

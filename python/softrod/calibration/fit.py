@@ -286,9 +286,10 @@ def calibrate(
     of the measurement frame, m), fitted jointly (paper 000 Sec. III-D).
     bounds: optional ``{name: (lower, upper)}`` in SI or with units ("40 kPa").
     method: "lm" (exact Jacobian; the default: Levenberg-Marquardt, trust-region reflective
-    with bounds) or "nelder-mead" (derivative-free simplex, an explicit fallback: no
-    standard errors). The rod's time series (``dynamic=True``) have no exact Jacobian yet
-    and need "nelder-mead"; "lm" is refused there with that reason.
+    with bounds) or "nelder-mead" (derivative-free simplex, an explicit fallback; the
+    standard errors come from the exact Jacobian at its optimum). The rod's time series
+    (``dynamic=True``) get their exact Jacobian from the core's forward sensitivities
+    through every time step (BDF-alpha, the linear axial law).
     weights: ``{quantity: standard deviation}`` per measured quantity ("tip", "markers"),
     e.g. ``{"tip": "0.2 mm", "markers": "0.5 mm"}``: each residual is divided by its
     quantity's value (default 1 mm), so that quantities measured with different noise

@@ -302,8 +302,8 @@ def _error_table(result):
     default="lm",
     show_default=True,
     help="lm: Levenberg-Marquardt with the exact Jacobian (trust-region reflective with "
-    "--bounds); nelder-mead: paper 002's simplex, no derivatives and no standard errors "
-    "(the rod's --dynamic fits need it).",
+    "--bounds); nelder-mead: paper 002's simplex, no derivatives during the fit (an "
+    "explicit fallback).",
 )
 @click.option(
     "--bounds",
@@ -371,8 +371,8 @@ def _error_table(result):
     "--dynamic",
     is_flag=True,
     help="Replay the time series of DATA (time column, one experiment per run) instead of "
-    "fitting equilibria (paper 000's tau: --params damping_time,area_scale --method "
-    "nelder-mead for the rod; the PCC model's time series take lm).",
+    "fitting equilibria (paper 000's tau: --params damping_time,area_scale; exact "
+    "trajectory sensitivities, so lm with standard errors).",
 )
 @click.option(
     "--dt",

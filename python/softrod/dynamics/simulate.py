@@ -791,3 +791,35 @@ def _simulate_pcc(
             progress=report,
             **kw,
         )
+
+
+def tip_sensitivities(
+    design: Design,
+    schedule: PressureSchedule,
+    t_end: float,
+    dt: float,
+    params: Sequence[tuple[str, list[int]]],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The tip trajectory of ``design`` under ``schedule`` from rest in equilibrium (BDF-alpha,
+    fixed steps ``dt``) and its exact derivatives with respect to ``params`` ((kind,
+    sections) pairs of the core, as :meth:`Parameter.core
+    <softrod.calibration.params.Parameter.core>` gives them), carried through every step by
+    the core's forward sensitivities (``softrod_core::dynamics::sensitivity``).
+
+    Returns (time (k,), tip position (k, 3), d tip / d theta (k, 3, P)), k = steps + 1 (the
+    start included); the derivatives are per SI unit of each parameter (area_scale: per unit
+    of the factor on the design's areas). The steps run in the core with the GIL released."""
+    n = step_count(t_end, dt)
+    p0 = schedule.sample([0.0])[0]
+    sim = Simulation(design, p0, dt=dt)
+    sim._sim.track_sensitivities([(k, list(s)) for k, s in params])
+    first = sim._sim.snapshot()
+    table = None
+    if schedule.kind in ("linear", "step"):
+        table = (schedule.times.tolist(), schedule.pressures.tolist(), schedule.kind == "step")
+    commands = np.ascontiguousarray(schedule.sample(dt * np.arange(1, n + 1)))
+    rest = sim._sim.run(commands, np.ones(n, dtype=np.uint8), False, None, table)
+    time = np.concatenate([first["time"], rest["time"]])
+    tip = np.vstack([first["tip_position"], rest["tip_position"]])
+    d_tip = np.concatenate([first["d_tip_position"], rest["d_tip_position"]])
+    return time, tip, d_tip

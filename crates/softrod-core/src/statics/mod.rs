@@ -242,6 +242,13 @@ fn rotate<D: RodScalar>(rot: &[[D; 3]; 3], v: &[D; 3]) -> [D; 3] {
     std::array::from_fn(|i| rot[i][0] * v[0] + rot[i][1] * v[1] + rot[i][2] * v[2])
 }
 
+/// Where a final pass concludes: a point the solver's Newton converged (its residual is
+/// known), or unknowns given by a caller (the pass checks that they are an equilibrium).
+enum At<'a, const N: usize> {
+    Converged(&'a Converged<N>),
+    Unchecked(&'a [f64; N]),
+}
+
 /// A Newton solve that reached the tolerance.
 struct Converged<const N: usize> {
     x: [f64; N],
@@ -623,16 +630,23 @@ impl<'a> Problem<'a> {
     /// conservative loads, giving J and the Jacobi fields of the stability test; in f64
     /// under follower loads, whose stability is not assessed) and at every node the validity
     /// rules are checked (and the shape kept, if wanted). A broken physical rule is an
-    /// error; a validity range broken under `Policy::Raise` too.
+    /// error; a validity range broken under `Policy::Raise` too. At an `Unchecked` x the
+    /// pass itself measures the residual, and an x that is not an equilibrium to `opts.tol`
+    /// is `NotConverged` (this saves the separate f64 pass that checking first would cost;
+    /// `conclude_at`).
     fn conclude<const N: usize>(
         &self,
-        c: &Converged<N>,
+        at: At<'_, N>,
         iterations: usize,
         load_steps: usize,
         opts: &SolverOptions,
         mut violations: Vec<SoftrodError>,
         want_shape: bool,
     ) -> Result<(Solution, Option<Shape>)> {
+        let (x, known_residual) = match at {
+            At::Converged(c) => (&c.x, Some(c.residual)),
+            At::Unchecked(x) => (x, None),
+        };
         let mut shape = want_shape.then(Shape::default);
         let mut broken: Option<SoftrodError> = None;
         let mut worst: Option<(f64, SoftrodError)> = None;
@@ -655,8 +669,8 @@ impl<'a> Problem<'a> {
                 sh.push(node, y, v, u);
             }
         };
-        let (tip, stable) = if N == 3 {
-            let xd: [Jet<3>; 3] = std::array::from_fn(|i| Jet::variable(c.x[i], i));
+        let (tip, stable, r) = if N == 3 {
+            let xd: [Jet<3>; 3] = std::array::from_fn(|i| Jet::variable(x[i], i));
             let mut jacobi = Jacobi::default();
             let mut visit = |i: usize, s: f64, y: &State<Jet<3>>| {
                 jacobi.visit(y);
@@ -670,16 +684,28 @@ impl<'a> Problem<'a> {
             );
             let rd: [Jet<3>; 3] = self.residual_of_tip(&tip);
             let jac = Matrix3::from_fn(|i, j| rd[i].eps[j]);
-            (tip.re(), Some(jacobi.stable(&jac)))
+            let r: Vec<f64> = rd.iter().map(|v| v.re).collect();
+            (tip.re(), Some(jacobi.stable(&jac)), r)
         } else {
             let mut visit = |i: usize, s: f64, y: &State<f64>| check(i, s, y);
-            let tip = integrate(
-                self.rod,
-                &self.coeffs,
-                self.base_state(&c.x),
-                Some(&mut visit),
-            );
-            (tip, None)
+            let tip = integrate(self.rod, &self.coeffs, self.base_state(x), Some(&mut visit));
+            let r: [f64; N] = self.residual_of_tip(&tip);
+            (tip, None, r.to_vec())
+        };
+        let residual = match known_residual {
+            Some(norm) => norm,
+            None => {
+                let norm = inf_norm(&r);
+                if norm.is_nan() || norm > opts.tol * inf_norm(x).max(1.0) {
+                    return Err(SoftrodError::NotConverged {
+                        iterations,
+                        residual: norm,
+                        load_factor: 1.0,
+                        reason: "the given unknowns are not an equilibrium to the tolerance".into(),
+                    });
+                }
+                norm
+            }
         };
         if let Some(e) = broken {
             return Err(e);
@@ -691,15 +717,15 @@ impl<'a> Problem<'a> {
                 Policy::Ignore => {}
             }
         }
-        let y0 = self.base_state(&c.x);
+        let y0 = self.base_state(x);
         Ok((
             Solution {
-                x: c.x.to_vec(),
+                x: x.to_vec(),
                 base_force: y0.n,
                 base_moment: y0.m,
                 tip,
                 iterations,
-                residual: c.residual,
+                residual,
                 load_steps,
                 stable,
                 violations,
@@ -957,7 +983,14 @@ fn solve_n<const N: usize, const M: usize>(
         let full = Problem::new(rod, loads, 1.0);
         match full.newton(g, Start::Guess, opts) {
             Ok(c) => {
-                let out = full.conclude(&c, c.iterations, 1, opts, violations.clone(), want_shape);
+                let out = full.conclude(
+                    At::Converged(&c),
+                    c.iterations,
+                    1,
+                    opts,
+                    violations.clone(),
+                    want_shape,
+                );
                 if rank(&out) == 3 {
                     return out;
                 }
@@ -1192,8 +1225,14 @@ fn natural_path<const N: usize, const M: usize>(
                 iterations += c.iterations;
                 last_res = c.residual;
                 if target >= 1.0 {
-                    let out =
-                        p.conclude(&c, iterations, levels, opts, violations.clone(), want_shape);
+                    let out = p.conclude(
+                        At::Converged(&c),
+                        iterations,
+                        levels,
+                        opts,
+                        violations.clone(),
+                        want_shape,
+                    );
                     let left_path = stable == Some(true) && rank(&out) == 2;
                     if !(left_path && h > MIN_STABLE_STEP && opts.continuation) {
                         return better(unstable_end, out);
@@ -1275,23 +1314,7 @@ pub fn conclude_at(
     crate::jacobian::dead_loads_only(rod, loads, "conclude_at")?;
     let violations = check_inputs(rod, loads, opts)?;
     let p = Problem::new(rod, loads, 1.0);
-    let r = p.eval(&x);
-    let residual = inf_norm(&r);
-    if residual.is_nan() || residual > opts.tol * inf_norm(&x).max(1.0) {
-        return Err(SoftrodError::NotConverged {
-            iterations,
-            residual,
-            load_factor: 1.0,
-            reason: "the given unknowns are not an equilibrium to the tolerance".into(),
-        });
-    }
-    let c = Converged {
-        x,
-        r,
-        residual,
-        iterations,
-    };
-    p.conclude(&c, iterations, 1, opts, violations, false)
+    p.conclude(At::Unchecked(&x), iterations, 1, opts, violations, false)
         .map(|(s, _)| s)
 }
 

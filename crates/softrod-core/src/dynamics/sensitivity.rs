@@ -1,0 +1,482 @@
+//! Forward sensitivities of a dynamic run with respect to design parameters: d x(t) / d
+//! theta along the whole trajectory, for dynamic calibration with exact Jacobians (issue
+//! 19; paper 000 Sec. III-D fits tau and A_eff to tip trajectories).
+//!
+//! Every step solves G(z_{n+1}; H_n, theta) = 0 for the collocation unknowns, with H_n the
+//! history terms X_h = c1 X_n + c2 X_{n-1} + d1 X_t,n of every stage slot (BDF-alpha). By
+//! the implicit function theorem
+//!
+//!   dz_{n+1}/dtheta = -G_z^-1 (d_theta G + G_H dH_n/dtheta),
+//!
+//! with G_z the exact Newton matrix at the converged z_{n+1} and the bracket one evaluation
+//! of the residual in `Jet<CHUNK>` with the section models built from dual parameters
+//! (`SectionModel<Dual>`) and dual histories carrying dH_n/dtheta. The step's Newton keeps
+//! an older matrix M as long as it contracts; factoring G_z at every step would cost
+//! several plain steps, so the linear equation is solved with M by iterative refinement,
+//! dz += -M^-1 (d_theta G + G_z dz), whose bracket is again one exact dual evaluation (at
+//! z_{n+1} + eps dz): it converges to the exact dz/dtheta as fast as Newton did, and stops
+//! when the corrections fall below 1e-9 of the derivative (it starts from dz/dtheta
+//! extrapolated from the last two steps); where M does not contract (or
+//! none is kept) G_z is factored at z_{n+1} and solved directly. The new slot values follow as X_{n+1} = fields(z_{n+1}) and X_t,n+1 = c0
+//! X_{n+1} + X_h, both differentiated by a second dual evaluation at z_{n+1} + eps
+//! dz_{n+1}/dtheta, which also gives the tip position's derivative. The start (at rest in
+//! equilibrium, c0 = 0) is differentiated the same way. No finite differences; the errors
+//! are that of the converged Newton solution (tol) propagated linearly and the refinement's
+//! 1e-9.
+//!
+//! What is supported: the BDF-alpha scheme with fixed steps (substeps where Newton fails
+//! are fine: the step sizes do not depend on theta), the static start, the linear axial
+//! law (with or without stretch-dependent bending). The parameters: correction factors,
+//! E, c_p, chamber offsets, area_scale, density, mass and the damping time.
+
+use super::{Bdf, Candidate, Initial, Scheme, Simulator, Slot, FIELDS};
+use crate::collocation::{Factorization, Problem, SectionModel, NF};
+use crate::error::{Result, SoftrodError};
+use crate::ode::Coeffs;
+use crate::sensitivity::{seeded, validate_params, Dual, Param, ParamKind, CHUNK};
+
+/// The sensitivities carried through the time loop.
+#[derive(Debug, Clone)]
+pub(crate) struct Tracker {
+    params: Vec<Param>,
+    /// d slot / d theta_j: `slots[j][k]` for history slot k (2 per interval, then the tip).
+    slots: Vec<Vec<Slot>>,
+    /// d r_tip / d theta_j now (world, m per unit of the parameter).
+    tip: Vec<[f64; 3]>,
+    /// dz/dtheta_j (scaled unknowns) of the last two steps, newest first: the refinement's
+    /// start is their linear extrapolation (empty before two steps).
+    dz: Vec<Vec<Vec<f64>>>,
+}
+
+const ZERO_SLOT: Slot = Slot {
+    x1: [0.0; FIELDS],
+    x2: [0.0; FIELDS],
+    xt: [0.0; FIELDS],
+};
+
+fn not_solvable(what: &str) -> SoftrodError {
+    SoftrodError::NotConverged {
+        iterations: 0,
+        residual: f64::NAN,
+        load_factor: 1.0,
+        reason: format!(
+            "the Newton matrix is singular at the converged {what}, so its parameter derivatives are undefined"
+        ),
+    }
+}
+
+impl Simulator {
+    /// Track d(state)/d(theta) from now on for `params` (checked against the rod; errors
+    /// name `params[j]`). Call it before the first step of a run started at rest in
+    /// equilibrium with the BDF-alpha scheme and fixed steps; afterwards
+    /// [`Simulator::tip_sensitivity`] gives the tip position's derivatives after every
+    /// step. A restored state tracks none.
+    pub fn track_sensitivities(&mut self, params: &[Param]) -> Result<()> {
+        let refuse =
+            |field: &str, value: String, rule: &str| Err(SoftrodError::invalid(field, value, rule));
+        if self.stats.internal_steps > 0 {
+            return refuse(
+                "track_sensitivities",
+                format!("t = {} s", self.time),
+                "start tracking before the first step (the start's derivatives come first)",
+            );
+        }
+        if self.initial != Initial::Static {
+            return refuse(
+                "initial",
+                "straight".into(),
+                "parameter sensitivities need the start at rest in equilibrium ('static')",
+            );
+        }
+        if self.opts.scheme != Scheme::BdfAlpha {
+            return refuse(
+                "scheme",
+                self.opts.scheme.name().into(),
+                "parameter sensitivities are implemented for 'bdf-alpha'",
+            );
+        }
+        if let Some(e) = self.opts.error_tol {
+            return refuse(
+                "error_tol",
+                format!("{e}"),
+                "parameter sensitivities need fixed steps (adaptive step sizes depend on the parameters): give no error_tol",
+            );
+        }
+        for (i, s) in self.rod.sections.iter().enumerate() {
+            if !s.rigid && !matches!(s.law.axial, crate::rod::AxialLaw::Linear) {
+                return refuse(
+                    &format!("sections[{i}].law.axial"),
+                    s.name.clone(),
+                    "dynamic parameter sensitivities support the linear axial law (Ogden and EA(F) tables: not yet)",
+                );
+            }
+        }
+        let (statics_params, rest): (Vec<Param>, Vec<(usize, &Param)>) = {
+            let mut st = vec![];
+            let mut other = vec![];
+            for (j, p) in params.iter().enumerate() {
+                match p.kind {
+                    ParamKind::DampingTime => other.push((j, p)),
+                    _ => st.push(p.clone()),
+                }
+            }
+            (st, other)
+        };
+        validate_params(&self.rod, &statics_params).map_err(|e| renumber(e, params))?;
+        for (j, p) in params.iter().enumerate() {
+            let field = format!("params[{j}] ({})", p.kind.name());
+            match p.kind {
+                ParamKind::StiffnessScale(_) => {
+                    return refuse(
+                        &field,
+                        p.kind.name().into(),
+                        "the dynamics take sigma from the stiffness map of the pressures: calibrate sigma in statics",
+                    )
+                }
+                ParamKind::OgdenAlpha => {
+                    return refuse(&field, p.kind.name().into(), "needs the Ogden law")
+                }
+                _ => {}
+            }
+        }
+        for (j, p) in rest {
+            let field = format!("params[{j}] (damping_time)");
+            if !p.sections.is_empty() {
+                return refuse(
+                    &field,
+                    format!("sections {:?}", p.sections),
+                    "the damping time is one value of [dynamics]: give no sections",
+                );
+            }
+            let damped = self
+                .rod
+                .sections
+                .iter()
+                .zip(&self.inertia)
+                .any(|(s, inr)| !s.rigid && inr.damping.is_none());
+            if !damped {
+                return refuse(
+                    &field,
+                    "damping_time".into(),
+                    "every elastic section gives its damping matrices, so tau acts nowhere",
+                );
+            }
+        }
+        let n_slots = self.slots.len();
+        let mut tr = Tracker {
+            params: params.to_vec(),
+            slots: vec![vec![ZERO_SLOT; n_slots]; params.len()],
+            tip: vec![[0.0; 3]; params.len()],
+            dz: vec![vec![]; params.len()],
+        };
+        // The start: equilibrium at rest (c0 = 0, no history) under the first pressures.
+        let models = self.models_at(&self.pressures, &self.sigma, 0.0);
+        let hist = vec![[0.0; FIELDS]; n_slots];
+        let tip = self.tip_body(self.tip_force, self.tip_moment);
+        let problem = Problem::new(&self.rod, &self.grid, &models, 0.0, &hist, tip);
+        let z = super::to_scaled(&problem, &self.z);
+        let fac = problem
+            .factorize(&z)
+            .ok_or_else(|| not_solvable("initial equilibrium"))?;
+        for (c, chunk) in params.chunks(CHUNK).enumerate() {
+            let models_d = self.dual_models(chunk, &self.pressures, &self.sigma, 0.0);
+            let hist_d = vec![[Dual::from(0.0); NF]; n_slots];
+            let zd = solve_exact(&problem, &fac, &models_d, &hist_d, &z, chunk.len())
+                .ok_or_else(|| not_solvable("initial equilibrium"))?;
+            let (fields, _, tip_r) = problem.fields_and_tip_with(&models_d, &hist_d, &zd);
+            for q in 0..chunk.len() {
+                let j = CHUNK * c + q;
+                for (k, f) in fields.iter().enumerate() {
+                    let x: [f64; FIELDS] = std::array::from_fn(|a| f[a].eps[q]);
+                    // At rest: X_n = X_{n-1}, X_t = 0 (the tip slot stays zero, as the
+                    // state's).
+                    tr.slots[j][k] = Slot {
+                        x1: x,
+                        x2: x,
+                        xt: [0.0; FIELDS],
+                    };
+                }
+                tr.tip[j] = std::array::from_fn(|a| tip_r[a].eps[q]);
+            }
+        }
+        self.sens = Some(Box::new(tr));
+        Ok(())
+    }
+
+    /// d r_tip / d theta_j now (world, m per unit of parameter j, in SI), one per tracked
+    /// parameter; None when no sensitivities are tracked.
+    pub fn tip_sensitivity(&self) -> Option<&[[f64; 3]]> {
+        self.sens.as_ref().map(|t| t.tip.as_slice())
+    }
+
+    /// The parameters tracked.
+    pub fn sensitivity_params(&self) -> Option<&[Param]> {
+        self.sens.as_ref().map(|t| t.params.as_slice())
+    }
+
+    /// Section models at `pressures`, `sigma` and c0 with the parameters of `chunk` seeded
+    /// as dual directions: the law through the knobs (`crate::sensitivity::seeded`), the
+    /// inertia through the mass knob (rotary inertia given directly stays), the damping
+    /// through tau.
+    fn dual_models(
+        &self,
+        chunk: &[Param],
+        pressures: &[f64],
+        sigma: &[f64; 3],
+        c0: f64,
+    ) -> Vec<SectionModel<Dual>> {
+        let (knobs, sigma_d) = seeded(&self.rod, sigma, chunk);
+        let mut tau = Dual::from(self.rod.spec.dynamics.damping_time);
+        for (q, p) in chunk.iter().enumerate() {
+            if p.kind == ParamKind::DampingTime {
+                tau.eps[q] = 1.0;
+            }
+        }
+        (0..self.rod.sections.len())
+            .map(|i| {
+                let k = &knobs[i];
+                let c = Coeffs::build_with(
+                    &self.rod,
+                    i,
+                    pressures,
+                    &[],
+                    &self.rod.gravity,
+                    Dual::from(1.0),
+                    &sigma_d,
+                    k,
+                );
+                let inr = &self.inertia[i];
+                let rho_j_given = self.rod.spec.sections[i].rotary_inertia.is_some();
+                let rho_j = inr.rho_j.map(|x| {
+                    if rho_j_given {
+                        Dual::from(x)
+                    } else {
+                        k.mass_scale * x
+                    }
+                });
+                SectionModel::new(
+                    &c,
+                    self.rod.sections[i].rigid,
+                    k.mass_scale * inr.rho_a,
+                    rho_j,
+                    inr.damping,
+                    tau,
+                    c0,
+                )
+            })
+            .collect()
+    }
+
+    /// Carry the sensitivities over the accepted step `c` (before it is committed: the
+    /// slots' sensitivities are still those of the step's start).
+    pub(super) fn advance_sensitivity(&mut self, c: &Candidate) -> Result<()> {
+        let Some(mut tr) = self.sens.take() else {
+            return Ok(());
+        };
+        let out = self.advance_tracker(&mut tr, c);
+        self.sens = Some(tr);
+        self.stats.jacobians += out?;
+        Ok(())
+    }
+
+    /// [`Simulator::advance_sensitivity`]; returns the Newton matrices factored.
+    fn advance_tracker(&self, tr: &mut Tracker, c: &Candidate) -> Result<usize> {
+        let Bdf { c0, c1, c2, d1 } = c.bdf;
+        let tip = self.tip_body(self.tip_force, self.tip_moment);
+        let problem = Problem::new(&self.rod, &self.grid, &c.models, c0, &c.hist, tip);
+        // The matrix Newton kept for this step (same c0), if any: the sensitivity equation
+        // is solved with it by iterative refinement, else with the exact matrix factored
+        // at the converged state.
+        let kept = self
+            .cache
+            .as_ref()
+            .filter(|k| k.key.c0 == c0)
+            .map(|k| &k.fac);
+        let mut exact: Option<Factorization> = None;
+        let n_slots = c.hist.len();
+        let params = tr.params.clone();
+        for (ci, chunk) in params.chunks(CHUNK).enumerate() {
+            let models_d = self.dual_models(chunk, &c.pressures, &c.sigma, c0);
+            // dH/dtheta = c1 dX_n + c2 dX_{n-1} + d1 dX_t,n.
+            let hist_d: Vec<[Dual; NF]> = (0..n_slots)
+                .map(|k| {
+                    std::array::from_fn(|a| {
+                        let mut h = Dual::from(c.hist[k][a]);
+                        for q in 0..chunk.len() {
+                            let s = &tr.slots[CHUNK * ci + q][k];
+                            h.eps[q] = c1 * s.x1[a] + c2 * s.x2[a] + d1 * s.xt[a];
+                        }
+                        h
+                    })
+                })
+                .collect();
+            let n_par = chunk.len();
+            let z = &c.z_scaled;
+            // Start: dz/dtheta extrapolated linearly from the last two steps (smooth motion:
+            // the refinement starts O(h^2) off instead of O(1)).
+            let mut start: Vec<Dual> = z.iter().map(|&x| Dual::from(x)).collect();
+            for q in 0..n_par {
+                if let [a, b] = tr.dz[CHUNK * ci + q].as_slice() {
+                    for (x, (da, db)) in start.iter_mut().zip(a.iter().zip(b)) {
+                        x.eps[q] = 2.0 * da - db;
+                    }
+                }
+            }
+            let mut zd = kept.and_then(|f| refine(&problem, f, &models_d, &hist_d, start, n_par));
+            if zd.is_none() {
+                if exact.is_none() {
+                    exact = Some(problem.factorize(z).ok_or_else(|| {
+                        not_solvable(&format!("step to t = {:.6} s", self.time + c.h))
+                    })?);
+                }
+                let fac = exact.as_ref().expect("factored above");
+                zd = Some(
+                    solve_exact(&problem, fac, &models_d, &hist_d, z, n_par)
+                        .ok_or_else(|| not_solvable("state"))?,
+                );
+            }
+            let zd = zd.expect("solved above");
+            let (fields, tip_node, tip_r) = problem.fields_and_tip_with(&models_d, &hist_d, &zd);
+            for q in 0..n_par {
+                let j = CHUNK * ci + q;
+                let mut old = std::mem::take(&mut tr.dz[j]);
+                let recycled = if old.len() == 2 { old.pop() } else { None };
+                let mut now = recycled.unwrap_or_else(|| vec![0.0; zd.len()]);
+                for (x, d) in now.iter_mut().zip(&zd) {
+                    *x = d.eps[q];
+                }
+                old.insert(0, now);
+                tr.dz[j] = old;
+                let slots = &mut tr.slots[j];
+                for (k, slot) in slots.iter_mut().enumerate() {
+                    let x1: [f64; FIELDS] = if k < fields.len() {
+                        std::array::from_fn(|a| fields[k][a].eps[q])
+                    } else {
+                        // The tip slot: the tip node's q, w.
+                        let mut x = [0.0; FIELDS];
+                        for a in 6..12 {
+                            x[a] = tip_node[a + 4].eps[q];
+                        }
+                        x
+                    };
+                    *slot = Slot {
+                        xt: std::array::from_fn(|a| c0 * x1[a] + hist_d[k][a].eps[q]),
+                        x2: slot.x1,
+                        x1,
+                    };
+                }
+                tr.tip[j] = std::array::from_fn(|a| tip_r[a].eps[q]);
+            }
+        }
+        Ok(usize::from(exact.is_some()))
+    }
+}
+
+/// Refinement steps with a kept Newton matrix before the exact one is factored.
+const MAX_REFINE: usize = 12;
+/// The refinement stops when every correction is below this fraction of the derivative it
+/// corrects (scaled unknowns): as fine as the state itself is solved (Newton's tol of 1e-9
+/// on the scaled unknowns), far below what a fit resolves.
+const REFINE_TOL: f64 = 1e-9;
+
+/// The chunk's unknowns with dz/dtheta in their dual parts, solved with the exact Newton
+/// matrix `fac` at `z`: dz/dtheta = -G_z^-1 dG/dtheta (models and histories dual).
+fn solve_exact(
+    problem: &Problem,
+    fac: &Factorization,
+    models: &[SectionModel<Dual>],
+    hist: &[[Dual; NF]],
+    z: &[f64],
+    n_par: usize,
+) -> Option<Vec<Dual>> {
+    let zc: Vec<Dual> = z.iter().map(|&x| Dual::from(x)).collect();
+    let r = problem.residual_with(models, hist, &zc);
+    let mut zd = zc;
+    let mut rhs = vec![0.0; z.len()];
+    let mut dz = vec![0.0; z.len()];
+    let mut scratch = vec![0.0; fac.scratch_len()];
+    for q in 0..n_par {
+        for (x, ri) in rhs.iter_mut().zip(&r) {
+            *x = ri.eps[q];
+        }
+        // The factorization solves J dz = -r.
+        fac.solve(&rhs, &mut dz, &mut scratch);
+        if !dz.iter().all(|x| x.is_finite()) {
+            return None;
+        }
+        for (x, d) in zd.iter_mut().zip(&dz) {
+            x.eps[q] = *d;
+        }
+    }
+    Some(zd)
+}
+
+/// The same with an approximate (kept) matrix M: iterative refinement
+/// dz += -M^-1 (dG/dtheta + G_z dz), the bracket one dual evaluation of the residual at
+/// z + eps dz (exact); it converges to the exact dz/dtheta as fast as Newton did with M.
+/// None when it does not contract to REFINE_TOL within MAX_REFINE steps.
+fn refine(
+    problem: &Problem,
+    fac: &Factorization,
+    models: &[SectionModel<Dual>],
+    hist: &[[Dual; NF]],
+    start: Vec<Dual>,
+    n_par: usize,
+) -> Option<Vec<Dual>> {
+    let mut zd = start;
+    let n = zd.len();
+    let mut rhs = vec![0.0; n];
+    let mut corr = vec![0.0; n];
+    let mut scratch = vec![0.0; fac.scratch_len()];
+    let mut last = [f64::INFINITY; CHUNK];
+    for _ in 0..MAX_REFINE {
+        let r = problem.residual_with(models, hist, &zd);
+        let mut done = true;
+        for q in 0..n_par {
+            for (x, ri) in rhs.iter_mut().zip(&r) {
+                *x = ri.eps[q];
+            }
+            fac.solve(&rhs, &mut corr, &mut scratch);
+            let step = corr.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            if !step.is_finite() || step > 0.5 * last[q] {
+                return None; // not contracting: the exact matrix is needed
+            }
+            last[q] = step;
+            let mut size = 0.0f64;
+            for (x, d) in zd.iter_mut().zip(&corr) {
+                x.eps[q] += *d;
+                size = size.max(x.eps[q].abs());
+            }
+            if step > REFINE_TOL * size {
+                done = false;
+            }
+        }
+        if done {
+            return Some(zd);
+        }
+    }
+    None
+}
+
+/// A section check's error with the index of the parameter in the full list.
+fn renumber(e: SoftrodError, params: &[Param]) -> SoftrodError {
+    // validate_params numbered the parameters without the damping time; map back.
+    let SoftrodError::InvalidParameter { field, value, rule } = e else {
+        return e;
+    };
+    let statics: Vec<usize> = params
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.kind != ParamKind::DampingTime)
+        .map(|(j, _)| j)
+        .collect();
+    let field = field
+        .strip_prefix("params[")
+        .and_then(|rest| rest.split_once(']'))
+        .and_then(|(k, tail)| {
+            let k: usize = k.parse().ok()?;
+            Some(format!("params[{}]{tail}", statics.get(k)?))
+        })
+        .unwrap_or(field);
+    SoftrodError::InvalidParameter { field, value, rule }
+}
