@@ -60,6 +60,7 @@ _EXPORTS = {
     "bundled_designs": ".catalog",
     "load_design": ".catalog",
     "compare_models": ".compare",
+    "TipConstraint": ".constraints",
     "InverseProblem": ".control",
     "InverseSolution": ".control",
     "LinearSystem": ".control",
@@ -99,6 +100,13 @@ _EXPORTS = {
     "solve_statics": ".statics",
     "solve_statics_batch": ".statics",
     "StiffnessMap": ".stiffness_map",
+    "Platform": ".system",
+    "System": ".system",
+    "SystemRod": ".system",
+    "SystemSolution": ".system",
+    "bundled_systems": ".system",
+    "load_system": ".system",
+    "solve_system": ".system",
     "view": ".viewer",
 }
 _SUBMODULES = ("pcc", "calibration", "control", "dynamics")
@@ -133,6 +141,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
     )
     from .catalog import bundled_designs, load_design
     from .compare import compare_models
+    from .constraints import TipConstraint
     from .control import (
         InverseProblem,
         InverseSolution,
@@ -174,6 +183,15 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
     )
     from .stiffness_map import StiffnessMap
     from .synthetic import synthesize_dataset
+    from .system import (
+        Platform,
+        System,
+        SystemRod,
+        SystemSolution,
+        bundled_systems,
+        load_system,
+        solve_system,
+    )
     from .viewer import view
 
 __all__ = [
@@ -198,8 +216,13 @@ __all__ = [
     "StaticSolution",
     "StiffnessIdentification",
     "StiffnessMap",
+    "System",
+    "SystemRod",
+    "SystemSolution",
     "TargetPath",
+    "TipConstraint",
     "TrackingController",
+    "Platform",
     "PressureSchedule",
     "Simulation",
     "SimulationState",
@@ -208,6 +231,7 @@ __all__ = [
     "Workspace",
     "__version__",
     "bundled_designs",
+    "bundled_systems",
     "calibrate",
     "calibration",
     "compare_hybrid",
@@ -223,11 +247,13 @@ __all__ = [
     "load_dataset",
     "pcc",
     "load_design",
+    "load_system",
     "solve_statics",
     "simulate",
     "run_closed_loop",
     "solve_inverse",
     "solve_statics_batch",
+    "solve_system",
     "synthesize_dataset",
     "view",
     "workspace",

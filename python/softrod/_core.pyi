@@ -260,3 +260,45 @@ def linearise_at(
     x: Sequence[float] | None,
     nodes: int,
 ) -> dict[str, Any]: ...
+
+def solve_constrained_tip(
+    rod: Rod,
+    pressures: Sequence[float],
+    tip_force: _Vec3,
+    tip_moment: _Vec3,
+    kind: str,
+    position: _Vec3 | None = None,
+    rotation: Sequence[Sequence[float]] | None = None,
+    guess: Sequence[float] | None = None,
+    tol: float = 1e-10,
+    max_iter: int = 25,
+    continuation: bool = True,
+    max_load_steps: int = 200,
+    stretch_range: tuple[float, float] = ...,
+    stiffness_scale: _Vec3 = ...,
+    on_invalid: str = "raise",
+    tensions: Sequence[float] | None = None,
+) -> dict[str, Any]: ...
+def solve_rod_system(
+    rods: Sequence[
+        tuple[
+            Rod,
+            Sequence[float],
+            Sequence[float],
+            _Vec3,
+            _Vec3,
+            _Vec3,
+            Sequence[Sequence[float]],
+        ]
+    ],
+    platform: tuple[
+        _Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3
+    ],
+    guess: Sequence[float] | None = None,
+    tol: float = 1e-10,
+    max_iter: int = 25,
+    continuation: bool = True,
+    max_load_steps: int = 200,
+    stretch_range: tuple[float, float] = ...,
+    on_invalid: str = "raise",
+) -> dict[str, Any]: ...

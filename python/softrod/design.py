@@ -26,6 +26,7 @@ import numpy as np
 
 from . import _core
 from . import _validate as V
+from .constraints import from_tip_table
 from .errors import DesignError, design_error
 
 if sys.version_info >= (3, 11):
@@ -111,7 +112,17 @@ _SCHEMA: dict[str, set[str]] = {
     },
     "partition": {"j", "E_I", "r_I", "E_II", "r_II", "E_III"},
     "chamber": {"radius", "area", "distance", "angle", "channel", "distance_end", "radius_end"},
-    "tip": {"mass", "com_offset", "force", "moment", "inertia", "frame"},
+    "tip": {
+        "mass",
+        "com_offset",
+        "force",
+        "moment",
+        "inertia",
+        "frame",
+        "constraint",
+        "position",
+        "orientation",
+    },
     "dynamics": {"damping_time", "pressure_time_constant", "pressure_rate_limit"},
     "load": {"section", "force_per_length", "moment_per_length", "frame"},
     "pcc": {
@@ -717,6 +728,9 @@ def _spec(doc: dict) -> dict:
             "frame": _frame(tip, "tip"),
         },
         "loads": load_specs,
+        # Popped by _build before the spec goes to the core (the constraint is a solve's
+        # boundary condition, kept on the Design).
+        "tip_constraint": from_tip_table(tip, _q, _qvec),
         "dynamics": _dynamics(_check_keys(doc.get("dynamics", {}), "dynamics", "dynamics")),
         **({"pcc": _pcc(_check_keys(doc["pcc"], "pcc", "pcc"))} if "pcc" in doc else {}),
         **(
@@ -846,6 +860,8 @@ class Design:
     stiffness_map: Any = field(default=None, repr=False, compare=False)
     #: The map's file, resolved (part of the design's identity: a design is its contents).
     stiffness_map_source: Path | None = field(default=None, repr=False)
+    #: How the tip is held (``[tip] constraint``; softrod.TipConstraint), None: free.
+    tip_constraint: Any = field(default=None, repr=False)
     # Compiled PCC models by tip loads, built on first use (softrod.pcc.pcc_model).
     _pcc: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -972,6 +988,7 @@ def _set_path(doc: dict, path: str, value: Any) -> None:
 
 def _build(doc: dict, source: Path | None) -> Design:
     spec = _to_spec(doc)
+    tip_constraint = spec.pop("tip_constraint")
     rod = _core.Rod(json.dumps(spec, allow_nan=False))
     meta = doc["design"]
     assumptions = meta.get("assumptions", [])
@@ -989,6 +1006,7 @@ def _build(doc: dict, source: Path | None) -> Design:
         _rod=rod,
         stiffness_map=smap,
         stiffness_map_source=smap_source,
+        tip_constraint=tip_constraint,
     )
 
 

@@ -83,6 +83,13 @@ class StaticSolution:
     tip_loads: tuple | None = field(default=None, repr=False)
     #: Tendon tensions (N, one per tendon channel) it was solved under; empty without tendons.
     tensions: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    #: How the tip was held: "free", "pinned" or "clamped" (docs/model.md, "End
+    #: constraints").
+    tip_constraint: str = "free"
+    #: The force (N) and moment (N m) the tip constraint applies to the tip (world frame);
+    #: zeros for a free tip, a zero moment for a pinned one.
+    tip_reaction_force: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)
+    tip_reaction_moment: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)
 
     @classmethod
     def failed(

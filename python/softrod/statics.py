@@ -12,8 +12,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from . import _core
 from . import _validate as V
 from .catalog import load_design
+from .constraints import TipConstraint, require_free_tip
+from .constraints import coerce as coerce_constraint
 from .design import Design
 from .errors import (
     ConvergenceError,
@@ -296,9 +299,17 @@ def solve_statics(
     on_unstable: str = "warn",
     on_invalid: str = "raise",
     tensions: ArrayLike | None = None,
+    tip_constraint: TipConstraint | str | dict | None = None,
 ) -> StaticSolution:
     """Static shape of ``design`` under chamber ``pressures`` (Pa gauge, one per channel)
     and tendon ``tensions`` (N, one per tendon channel, each >= 0; None: slack).
+
+    tip_constraint: how the tip is held (a :class:`TipConstraint`, "free", or a mapping
+    with ``type``, ``position``, ``orientation`` as the design file's ``[tip]`` keys);
+    None: the design's (``[tip] constraint``, free by default). A pinned or clamped tip
+    reports the wrench the constraint applies in ``tip_reaction_force`` and
+    ``tip_reaction_moment``; its stability is not assessed (``stable`` is None;
+    docs/model.md, "End constraints").
 
     model: "cosserat" (the rod) or "pcc" (paper 003's piecewise-constant-curvature model,
     docs/pcc.md): the same design and inputs; its shape is the chain of arcs, its ``force``
@@ -336,6 +347,15 @@ def solve_statics(
     V.boolean(check, "check")
     guess = _initial(initial, model)
     t = _tensions(design, tensions)
+    constraint = (
+        coerce_constraint(tip_constraint)
+        if tip_constraint is not None
+        else design.tip_constraint or TipConstraint()
+    )
+    if model == "pcc" and constraint.kind != "free":
+        raise design_error(
+            "tip_constraint", constraint.kind, "model='pcc' solves a free tip only", InputError
+        )
     if model == "pcc":
         if tensions is not None:
             raise design_error("tensions", tensions, "is not used by model='pcc'", InputError)
@@ -361,23 +381,41 @@ def solve_statics(
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
     opts = _options(options)
     try:
-        out = design._rod.solve(
-            p,
-            tf,
-            tm,
-            guess=guess,
-            stiffness_scale=sigma.tolist(),
-            on_invalid=on_invalid,
-            tensions=t,
-            **opts.as_kwargs(),
-        )
+        if constraint.kind == "free":
+            out = design._rod.solve(
+                p,
+                tf,
+                tm,
+                guess=guess,
+                stiffness_scale=sigma.tolist(),
+                on_invalid=on_invalid,
+                tensions=t,
+                **opts.as_kwargs(),
+            )
+        else:
+            kind, position, rotation = constraint.core_args()
+            out = _core.solve_constrained_tip(
+                design._rod,
+                p,
+                tf,
+                tm,
+                kind,
+                position=position,
+                rotation=rotation,
+                guess=guess,
+                stiffness_scale=sigma.tolist(),
+                on_invalid=on_invalid,
+                tensions=t,
+                **opts.as_kwargs(),
+            )
         _report_stability(out["stable"], on_unstable, f"the solution at pressures {p} Pa")
     except ConvergenceError as exc:
         if check:
             raise
         return StaticSolution.failed(
-            design, p, exc, _n_unknowns(design, tf, tm), stiffness_scale=sigma,
-            tensions=np.array(t),
+            design, p, exc,
+            _n_unknowns(design, tf, tm) if constraint.kind == "free" else 6,
+            stiffness_scale=sigma, tensions=np.array(t), tip_constraint=constraint.kind,
         )
     for v in out["violations"]:
         warnings.warn(ValidityWarning(v), stacklevel=2)
@@ -402,6 +440,9 @@ def solve_statics(
         violations=tuple(out["violations"]),
         tip_loads=(tuple(tf), tuple(tm)),
         tensions=np.array(t),
+        tip_constraint=constraint.kind,
+        tip_reaction_force=np.array(out.get("tip_reaction_force", np.zeros(3))),
+        tip_reaction_moment=np.array(out.get("tip_reaction_moment", np.zeros(3))),
     )
 
 
@@ -448,6 +489,7 @@ def solve_statics_batch(
     on_unstable = _policy("on_unstable", on_unstable)
     on_invalid = _policy("on_invalid", on_invalid)
     design = load_design(design)
+    require_free_tip(design, "solve_statics_batch")
     arr = batch_pressures(design, pressures)
     tens = batch_tensions(design, tensions, arr.shape[0])
     threads = V.threads(threads)

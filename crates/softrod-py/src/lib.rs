@@ -15,6 +15,7 @@ use softrod_core::{DesignSpec, Rod, SoftrodError};
 
 mod control;
 mod dynamics;
+mod ends;
 mod pcc;
 
 /// Which exception class a core `InvalidParameter` becomes.
@@ -627,6 +628,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(_panic_inside_guard, m)?)?;
     control::register(m)?;
     dynamics::register(m)?;
+    ends::register(m)?;
     pcc::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

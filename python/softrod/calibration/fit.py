@@ -30,6 +30,7 @@ import numpy as np
 from .. import _validate as V
 from .._threads import one_blas_thread
 from ..catalog import load_design
+from ..constraints import require_free_tip
 from ..datasets import Dataset, load_dataset
 from ..design import Design
 from ..errors import CalibrationWarning, ConvergenceError
@@ -336,6 +337,7 @@ def calibrate(
     threads = V.threads(threads)
     V.integer(max_evaluations, "max_evaluations", minimum=1, maximum=V.MAX_ITERATIONS)
     design0 = load_design(design)
+    require_free_tip(design0, "calibrate")
     if not isinstance(dataset, Dataset):
         dataset = load_dataset(dataset, design=design0)
     if dataset.n_channels != design0.n_channels:

@@ -50,6 +50,7 @@ import pandas as pd
 from .. import _validate as V
 from .._threads import one_blas_thread
 from ..catalog import load_design
+from ..constraints import require_free_tip
 from ..datasets import Dataset
 from ..design import Design
 from ..errors import InputError, design_error
@@ -129,6 +130,7 @@ def stiffness_mapped_design(design, sections: Sequence[str] | None = None) -> tu
     Raises :class:`~softrod.errors.InputError` naming the field, the value and the rule.
     """
     design = load_design(design)
+    require_free_tip(design, "identify_stiffness")
     secs = design.spec["sections"]
     names = [s["name"] for s in secs]
     if sections is None:

@@ -26,6 +26,7 @@ import numpy as np
 
 from .._validate import real
 from ..catalog import load_design
+from ..constraints import require_free_tip
 from ..errors import InputError, design_error
 from ..units import to_si
 
@@ -110,6 +111,7 @@ def run_closed_loop(
     from ..dynamics import PressureSchedule, Simulation, Trajectory
 
     design = load_design(design)
+    require_free_tip(design, "run_closed_loop")
     if not callable(controller):
         raise design_error("controller", type(controller).__name__,
                            "must be callable: controller(measurement) -> pressures (Pa)",
@@ -301,6 +303,7 @@ class TrackingController:
         from .inverse import InverseProblem
 
         self.design = load_design(design)
+        require_free_tip(self.design, "TrackingController")
         self.path = path
         self.rate = real(rate, "rate", minimum=0.0, exclusive=True, what="a control rate in Hz")
         self.kp = real(kp, "kp", minimum=0.0)

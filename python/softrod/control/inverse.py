@@ -21,6 +21,7 @@ from .. import _core
 from .. import _validate as V
 from .._validate import integer, real
 from ..catalog import load_design
+from ..constraints import require_free_tip
 from ..design import Design
 from ..errors import InputError, design_error
 from ..solution import StaticSolution
@@ -259,6 +260,7 @@ class InverseProblem:
         from ..statics import _policy, _vec3
 
         self.design: Design = load_design(design)
+        require_free_tip(self.design, "solve_inverse")
         d = self.design
         if d.n_channels == 0:
             raise design_error("design", d.name, "has no pressure channels to invert",

@@ -23,6 +23,7 @@ import numpy as np
 from .. import _core
 from .._validate import integer
 from ..catalog import load_design
+from ..constraints import require_free_tip
 from ..design import Design
 from ..errors import InputError, design_error
 from ..solution import Jacobian, StaticSolution
@@ -186,6 +187,7 @@ def linearise(
     if isinstance(design, StaticSolution):
         initial, design = design, design.design
     design = load_design(design)
+    require_free_tip(design, "linearise")
     nodes = integer(nodes, "nodes", minimum=1, maximum=200)
     if initial is None:
         p = _pressures(design, np.zeros(design.n_channels) if pressures is None else pressures)

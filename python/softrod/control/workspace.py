@@ -28,6 +28,7 @@ import numpy as np
 
 from .._validate import integer
 from ..catalog import load_design
+from ..constraints import require_free_tip
 from ..design import Design
 from ..errors import InputError, design_error
 from .inverse import pressure_bounds as _bounds
@@ -199,6 +200,7 @@ def workspace(
     from ..statics import solve_statics_batch
 
     design = load_design(design)
+    require_free_tip(design, "workspace")
     nc = design.n_channels
     if nc == 0:
         raise design_error("design", design.name, "has no pressure channels", InputError)

@@ -24,6 +24,7 @@ import numpy as np
 from .. import _core
 from .. import _validate as V
 from ..catalog import load_design
+from ..constraints import require_free_tip
 from ..design import Design
 from ..errors import InputError, design_error
 from ..progress import reporter
@@ -298,6 +299,7 @@ class Simulation:
         from ..statics import _pressures
 
         self.design: Design = load_design(design)
+        require_free_tip(self.design, "simulate")
         n = self.design.n_channels
         p = [0.0] * n if pressures is None else _pressures(self.design, pressures)
         V.choice(initial, ("static", "straight"), "initial")
@@ -710,6 +712,7 @@ def simulate(
         sim = initial.copy()
     else:
         d = load_design(design)
+        require_free_tip(d, "simulate")
         if pressure_schedule is None and d.n_channels == 0:
             schedule, p0 = None, np.zeros(0)
         else:
@@ -768,6 +771,7 @@ def _simulate_pcc(
             InputError,
         )
     d = load_design(design)
+    require_free_tip(d, "simulate")
     _no_stiffness_map(d)
     schedule = _schedule(pressure_schedule, d.n_channels)
     step = _seconds(dt, "dt")

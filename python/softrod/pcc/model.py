@@ -17,6 +17,7 @@ import numpy as np
 
 from .. import _core
 from ..catalog import load_design
+from ..constraints import require_free_tip
 from ..errors import InputError, design_error
 from ..units import to_si
 
@@ -32,6 +33,7 @@ def pcc_model(design, *, tip_force=None, tip_moment=None) -> _core.PccModel:
     Kept on the design for the next call with the same tip loads: compiling costs more than
     a PCC static solve (the spec's JSON text and the core's checks)."""
     design = load_design(design)
+    require_free_tip(design, "the PCC model")
     spec = design.spec
     force = None if tip_force is None else _vec3(tip_force, "force", "tip_force")
     moment = None if tip_moment is None else _vec3(tip_moment, "moment", "tip_moment")

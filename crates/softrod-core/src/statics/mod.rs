@@ -28,6 +28,8 @@
 //! along closed paths), so their equilibria are reported with `stable = None`, not assessed.
 
 pub mod collocation;
+pub mod constraint;
+pub mod system;
 
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};

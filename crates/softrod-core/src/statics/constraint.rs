@@ -1,0 +1,762 @@
+//! End constraints at the tip in statics: a pinned tip (position prescribed, moment free)
+//! and a clamped tip (position and orientation prescribed), beside today's free tip.
+//! docs/model.md "End constraints"; Till, Black & Rucker (IJRR 2019, doi
+//! 10.1177/0278364919842269) and Black, Till & Rucker (IEEE T-RO 2018, doi
+//! 10.1109/TRO.2017.2753829) use the same shooting formulation for the rods of parallel
+//! continuum robots.
+//!
+//! Shooting with 6 unknowns x = (n(0)/F_s, m(0)/(F_s L)) as under follower loads. The
+//! residual replaces the free tip's wrench balance by the constraint:
+//! - pinned: (r(L) - r_c)/L = 0 and the tip moment balance (m(L) - (R(L) c) x W - M)/(F_s L)
+//!   = 0 (the pin carries a force, no moment);
+//! - clamped: (r(L) - r_c)/L = 0 and the orientation error e(R_c^T R(L)) = 0 with
+//!   e(A) = vee(A - A^T)/2 (sin of the angle times the axis; A = I is checked at the end,
+//!   since e also vanishes at a half turn).
+//!
+//! The exact Jacobian comes from one integration in `Jet<6>`. The tip reaction (the
+//! wrench the constraint applies to the rod's tip body) is what is left of the tip wrench
+//! balance: F_r = n(L) - W - F, M_r = m(L) - (R(L) c) x W - M (zero moment when pinned).
+//!
+//! Continuation: a path from the unloaded reference shape (x = 0 at load factor 0, where
+//! the constraint is set at the reference tip pose) to the full loads and the prescribed
+//! pose, the loads ramped and the pose interpolated along the geodesic. Stability is not
+//! assessed (`stable = None`): the conjugate-point test of `super::Jacobi` is the free
+//! tip's; a constrained end needs the Jacobi test on the constraint's Jacobian along s
+//! (docs/model.md says so).
+
+use super::{inf_norm, Problem, Shape, Solution, SolverOptions};
+use crate::error::{Result, SoftrodError};
+use crate::jet::{Jet, RodScalar};
+use crate::ode::{integrate, Loads, State};
+use crate::rod::Rod;
+use crate::validity::{Node, Policy};
+use nalgebra::{DMatrix, DVector};
+
+/// How the tip is held.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum TipConstraint {
+    /// Free (the tip loads act on it): the solve of [`super::solve`].
+    Free,
+    /// Position prescribed (world frame, m); moment free.
+    Pinned { position: [f64; 3] },
+    /// Position (m) and orientation (row-major rotation, tip frame d1 d2 d3 as columns, in
+    /// the world) prescribed.
+    Clamped {
+        position: [f64; 3],
+        rotation: [[f64; 3]; 3],
+    },
+}
+
+/// How far from orthonormal (max |R^T R - I|, |det R - 1|) a given rotation may be: a
+/// matrix written out to 10 significant digits passes; a typo does not.
+pub const ROTATION_TOL: f64 = 1e-9;
+
+fn finite3(field: &str, v: &[f64; 3]) -> Result<()> {
+    for (i, x) in v.iter().enumerate() {
+        if !x.is_finite() {
+            return Err(SoftrodError::invalid(
+                format!("{field}[{i}]"),
+                x,
+                "must be a finite number",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// A rotation given as input: finite, orthonormal and proper to `ROTATION_TOL`.
+pub fn check_rotation(field: &str, r: &[[f64; 3]; 3]) -> Result<()> {
+    for (i, row) in r.iter().enumerate() {
+        finite3(&format!("{field}[{i}]"), row)?;
+    }
+    let mut worst: f64 = 0.0;
+    for i in 0..3 {
+        for j in 0..3 {
+            let dot: f64 = (0..3).map(|k| r[k][i] * r[k][j]).sum();
+            worst = worst.max((dot - if i == j { 1.0 } else { 0.0 }).abs());
+        }
+    }
+    let det = det3(r);
+    if worst > ROTATION_TOL || (det - 1.0).abs() > ROTATION_TOL {
+        return Err(SoftrodError::invalid(
+            field,
+            format!("{r:?}"),
+            format!(
+                "must be a rotation matrix (orthonormal with det +1 to {ROTATION_TOL:e}; \
+                 max |R^T R - I| is {worst:.3e}, det is {det:.6}); give a rotation vector \
+                 instead to avoid rounding"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+impl TipConstraint {
+    /// Finite position, a proper rotation (fields named `tip_constraint.*`).
+    pub fn validate(&self) -> Result<()> {
+        match self {
+            TipConstraint::Free => Ok(()),
+            TipConstraint::Pinned { position } => finite3("tip_constraint.position", position),
+            TipConstraint::Clamped { position, rotation } => {
+                finite3("tip_constraint.position", position)?;
+                check_rotation("tip_constraint.orientation", rotation)
+            }
+        }
+    }
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            TipConstraint::Free => "free",
+            TipConstraint::Pinned { .. } => "pinned",
+            TipConstraint::Clamped { .. } => "clamped",
+        }
+    }
+}
+
+/// A static equilibrium with a constrained tip.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConstrainedSolution {
+    /// The equilibrium (`x`: the 6 scaled base unknowns; `stable`: None, not assessed, for
+    /// a pinned or clamped tip).
+    pub solution: Solution,
+    pub shape: Shape,
+    /// Force the constraint applies to the tip (world frame), N; zero for a free tip.
+    pub tip_reaction_force: [f64; 3],
+    /// Moment the constraint applies to the tip (world frame), N m; zero unless clamped.
+    pub tip_reaction_moment: [f64; 3],
+}
+
+// ---- rotations (row-major 3x3) ----
+
+pub(crate) fn det3(r: &[[f64; 3]; 3]) -> f64 {
+    r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1])
+        - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0])
+        + r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0])
+}
+
+/// a b.
+pub(crate) fn matmul<D: RodScalar>(a: &[[D; 3]; 3], b: &[[D; 3]; 3]) -> [[D; 3]; 3] {
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j])
+    })
+}
+
+/// a^T b.
+pub(crate) fn tmatmul<D: RodScalar>(a: &[[D; 3]; 3], b: &[[D; 3]; 3]) -> [[D; 3]; 3] {
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| a[0][i] * b[0][j] + a[1][i] * b[1][j] + a[2][i] * b[2][j])
+    })
+}
+
+/// e(A) = vee(A - A^T)/2: sin(angle) times the axis of the rotation A (zero at A = I and at
+/// a half turn).
+pub(crate) fn orientation_error<D: RodScalar>(a: &[[D; 3]; 3]) -> [D; 3] {
+    [
+        (a[2][1] - a[1][2]) * 0.5,
+        (a[0][2] - a[2][0]) * 0.5,
+        (a[1][0] - a[0][1]) * 0.5,
+    ]
+}
+
+/// exp of the rotation vector w (Rodrigues, with the series near zero).
+pub fn exp_so3(w: &[f64; 3]) -> [[f64; 3]; 3] {
+    let t2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+    let t = t2.sqrt();
+    let (a, b) = if t < 1e-4 {
+        (1.0 - t2 / 6.0, 0.5 - t2 / 24.0)
+    } else {
+        (t.sin() / t, (1.0 - t.cos()) / t2)
+    };
+    let k = [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]];
+    let k2 = matmul(&k, &k);
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| (if i == j { 1.0 } else { 0.0 }) + a * k[i][j] + b * k2[i][j])
+    })
+}
+
+/// The rotation vector of a rotation R (log), angle in [0, pi].
+pub fn log_so3(r: &[[f64; 3]; 3]) -> [f64; 3] {
+    let c = (0.5 * (r[0][0] + r[1][1] + r[2][2] - 1.0)).clamp(-1.0, 1.0);
+    let theta = c.acos();
+    let s = [
+        0.5 * (r[2][1] - r[1][2]),
+        0.5 * (r[0][2] - r[2][0]),
+        0.5 * (r[1][0] - r[0][1]),
+    ];
+    if theta < 1e-6 {
+        return s;
+    }
+    if std::f64::consts::PI - theta > 1e-6 {
+        let f = theta / theta.sin();
+        return s.map(|v| v * f);
+    }
+    // Near a half turn: R ~ 2 a a^T - I; the largest diagonal gives the axis.
+    let k = (0..3)
+        .max_by(|&i, &j| r[i][i].total_cmp(&r[j][j]))
+        .unwrap_or(0);
+    let mut a = [0.0; 3];
+    a[k] = (0.5 * (r[k][k] + 1.0)).max(0.0).sqrt();
+    for i in 0..3 {
+        if i != k {
+            a[i] = 0.25 * (r[i][k] + r[k][i]) / a[k];
+        }
+    }
+    let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    a.map(|v| v / n * theta)
+}
+
+/// R0 exp(t log(R0^T R1)): the geodesic from R0 (t = 0) to R1 (t = 1).
+pub(crate) fn slerp(r0: &[[f64; 3]; 3], r1: &[[f64; 3]; 3], t: f64) -> [[f64; 3]; 3] {
+    let w = log_so3(&tmatmul(r0, r1));
+    matmul(r0, &exp_so3(&w.map(|v| v * t)))
+}
+
+// ---- a small Newton/continuation engine over dynamic sizes ----
+
+/// A square system of equations F(x) = 0 on unknowns that may include rotations (updated
+/// through `retract`).
+pub(crate) trait Equations {
+    fn eval(&self, x: &[f64]) -> Vec<f64>;
+    /// Residual and exact Jacobian with respect to the increments of `retract`.
+    fn eval_jac(&self, x: &[f64]) -> (Vec<f64>, DMatrix<f64>);
+    /// x moved by the increment dx (additive unless overridden).
+    fn retract(&self, x: &[f64], dx: &[f64]) -> Vec<f64> {
+        x.iter().zip(dx).map(|(a, b)| a + b).collect()
+    }
+    /// The increment from b to a (a = retract(b, difference(a, b))).
+    fn difference(&self, a: &[f64], b: &[f64]) -> Vec<f64> {
+        a.iter().zip(b).map(|(p, q)| p - q).collect()
+    }
+}
+
+pub(crate) struct NewtonOk {
+    pub x: Vec<f64>,
+    pub residual: f64,
+    pub iterations: usize,
+}
+
+fn norm2(v: &[f64]) -> f64 {
+    v.iter().map(|a| a * a).sum::<f64>().sqrt()
+}
+
+/// Damped Newton with the exact Jacobian at every iterate, a backtracking line search and
+/// a Levenberg-Marquardt step where J is singular. Err((iterations, residual)).
+pub(crate) fn newton(
+    eq: &impl Equations,
+    x0: Vec<f64>,
+    tol: f64,
+    max_iter: usize,
+) -> std::result::Result<NewtonOk, (usize, f64)> {
+    let mut x = x0;
+    let (mut r, mut jac) = eq.eval_jac(&x);
+    for it in 0..max_iter {
+        let norm = inf_norm(&r);
+        if !norm.is_finite() {
+            return Err((it + 1, norm));
+        }
+        if norm <= tol * inf_norm(&x).max(1.0) {
+            return Ok(NewtonOk {
+                x,
+                residual: norm,
+                iterations: it + 1,
+            });
+        }
+        let rv = DVector::from_column_slice(&r);
+        let step = jac
+            .clone()
+            .lu()
+            .solve(&(-&rv))
+            .filter(|s| s.iter().all(|v| v.is_finite()))
+            .unwrap_or_else(|| {
+                let jt = jac.transpose();
+                let mut a = &jt * &jac;
+                let mu = 1e-6 * a.diagonal().max().max(1e-300);
+                for i in 0..a.nrows() {
+                    a[(i, i)] += mu;
+                }
+                a.lu()
+                    .solve(&(-(jt * &rv)))
+                    .unwrap_or_else(|| DVector::zeros(r.len()))
+            });
+        let r2 = norm2(&r);
+        let mut alpha = 1.0;
+        let mut accepted = false;
+        while alpha >= 1.0 / 1024.0 {
+            let dx: Vec<f64> = step.iter().map(|v| alpha * v).collect();
+            let xt = eq.retract(&x, &dx);
+            let rt = eq.eval(&xt);
+            let r2t = norm2(&rt);
+            if r2t.is_finite() && r2t < (1.0 - 1e-4 * alpha) * r2 {
+                x = xt;
+                accepted = true;
+                break;
+            }
+            alpha *= 0.5;
+        }
+        if !accepted {
+            if norm <= 100.0 * tol * inf_norm(&x).max(1.0) {
+                return Ok(NewtonOk {
+                    x,
+                    residual: norm,
+                    iterations: it + 1,
+                });
+            }
+            return Err((it + 1, norm));
+        }
+        (r, jac) = eq.eval_jac(&x);
+    }
+    let norm = inf_norm(&r);
+    if norm <= tol * inf_norm(&x).max(1.0) {
+        Ok(NewtonOk {
+            x,
+            residual: norm,
+            iterations: max_iter,
+        })
+    } else {
+        Err((max_iter, norm))
+    }
+}
+
+/// The outcome of `follow_path`: the solution at load factor 1 and the effort.
+pub(crate) struct PathOk {
+    pub x: Vec<f64>,
+    pub residual: f64,
+    pub iterations: usize,
+    pub load_steps: usize,
+}
+
+/// Smallest continuation step before giving up.
+const MIN_STEP: f64 = 1e-5;
+/// Tolerance of intermediate levels (relative, as `SolverOptions::tol`): stepping stones.
+const LEVEL_TOL: f64 = 1e-6;
+
+/// Continuation in the load factor lambda from x = `x0` at lambda = 0 (an exact solution
+/// there) to lambda = 1: first the whole step, then halved on failure; a secant predictor
+/// from the last two levels. `at(lambda)` builds the equations of a level. A warm start
+/// `guess` of the full problem is tried first.
+pub(crate) fn follow_path<E: Equations>(
+    at: impl Fn(f64) -> E,
+    x0: Vec<f64>,
+    guess: Option<Vec<f64>>,
+    opts: &SolverOptions,
+) -> Result<PathOk> {
+    let mut iterations = 0;
+    if let Some(g) = guess {
+        match newton(&at(1.0), g, opts.tol, opts.max_iter) {
+            Ok(c) => {
+                return Ok(PathOk {
+                    x: c.x,
+                    residual: c.residual,
+                    iterations: c.iterations,
+                    load_steps: 1,
+                })
+            }
+            Err((it, res)) => {
+                iterations += it;
+                if !opts.continuation {
+                    return Err(not_converged(
+                        iterations,
+                        res,
+                        1.0,
+                        "Newton failed from the initial guess and continuation is off".into(),
+                    ));
+                }
+            }
+        }
+    }
+    let mut lam = 0.0;
+    let mut x = x0;
+    let mut prev: Option<(f64, Vec<f64>)> = None;
+    let mut step: f64 = 1.0;
+    let mut levels = 0;
+    loop {
+        if levels >= opts.max_load_steps {
+            return Err(not_converged(
+                iterations,
+                f64::NAN,
+                lam,
+                format!(
+                    "load continuation used all {} load steps",
+                    opts.max_load_steps
+                ),
+            ));
+        }
+        levels += 1;
+        let target = (lam + step).min(1.0);
+        let h = target - lam;
+        let predicted = match &prev {
+            Some((lp, xp)) => {
+                let d = at(target).difference(&x, xp);
+                let f = h / (lam - lp);
+                at(target).retract(&x, &d.iter().map(|v| v * f).collect::<Vec<_>>())
+            }
+            None => x.clone(),
+        };
+        let tol = if target < 1.0 {
+            opts.tol.max(LEVEL_TOL)
+        } else {
+            opts.tol
+        };
+        match newton(&at(target), predicted, tol, opts.max_iter) {
+            Ok(c) => {
+                iterations += c.iterations;
+                if target >= 1.0 {
+                    return Ok(PathOk {
+                        x: c.x,
+                        residual: c.residual,
+                        iterations,
+                        load_steps: levels,
+                    });
+                }
+                prev = Some((lam, std::mem::replace(&mut x, c.x)));
+                lam = target;
+                step = match c.iterations {
+                    0..=4 => 2.0 * h,
+                    5..=7 => h,
+                    _ => 0.5 * h,
+                };
+            }
+            Err((it, res)) => {
+                iterations += it;
+                if !opts.continuation {
+                    return Err(not_converged(
+                        iterations,
+                        res,
+                        lam,
+                        "Newton failed from the initial guess and continuation is off".into(),
+                    ));
+                }
+                step = 0.5 * h;
+                if step < MIN_STEP {
+                    return Err(not_converged(
+                        iterations,
+                        res,
+                        lam,
+                        "load step fell below 1e-5 (a limit point, or a prescribed pose the \
+                         rod cannot reach)"
+                            .into(),
+                    ));
+                }
+            }
+        }
+    }
+}
+
+fn not_converged(
+    iterations: usize,
+    residual: f64,
+    load_factor: f64,
+    reason: String,
+) -> SoftrodError {
+    SoftrodError::NotConverged {
+        iterations,
+        residual,
+        load_factor,
+        reason,
+    }
+}
+
+// ---- one rod with a constrained tip ----
+
+/// The reference tip pose: the tip of the unloaded rod (x = 0 at load factor 0).
+pub(crate) fn reference_tip(rod: &Rod, loads: &Loads) -> State<f64> {
+    let p = Problem::new(rod, loads, 0.0);
+    integrate(rod, &p.coeffs, p.base_state(&[0.0; 6]), None)
+}
+
+/// One load level of a constrained solve.
+struct Level<'a> {
+    p: Problem<'a>,
+    constraint: TipConstraint,
+    /// The prescribed tip pose at this level.
+    position: [f64; 3],
+    rotation: [[f64; 3]; 3],
+}
+
+impl Level<'_> {
+    /// The level at path parameter `lam`: the prescribed pose moved from `reference` (at
+    /// lam = 0) to the constraint's (at 1), the loads scaled by `load_factor`.
+    fn new<'a>(
+        rod: &'a Rod,
+        loads: &'a Loads,
+        constraint: TipConstraint,
+        reference: &State<f64>,
+        lam: f64,
+        load_factor: f64,
+    ) -> Level<'a> {
+        let (position, rotation) = match constraint {
+            TipConstraint::Pinned { position } => (position, reference.rot),
+            TipConstraint::Clamped { position, rotation } => {
+                (position, slerp(&reference.rot, &rotation, lam))
+            }
+            TipConstraint::Free => (reference.r, reference.rot),
+        };
+        let position =
+            std::array::from_fn(|k| reference.r[k] + lam * (position[k] - reference.r[k]));
+        Level {
+            p: Problem::new(rod, loads, load_factor),
+            constraint,
+            position,
+            rotation,
+        }
+    }
+
+    fn tip<D: RodScalar>(&self, x: &[D]) -> State<D> {
+        integrate(self.p.rod, &self.p.coeffs, self.p.base_state(x), None)
+    }
+
+    fn residual_of_tip<D: RodScalar>(&self, tip: &State<D>) -> [D; 6] {
+        let l = self.p.rod.length;
+        let second: [D; 3] = match self.constraint {
+            TipConstraint::Clamped { .. } => {
+                orientation_error(&tmatmul(&self.rotation.map(|r| r.map(D::from)), &tip.rot))
+            }
+            _ => {
+                let b: [D; 6] = self.p.residual_of_tip(tip);
+                [b[3], b[4], b[5]]
+            }
+        };
+        std::array::from_fn(|k| {
+            if k < 3 {
+                (tip.r[k] - self.position[k]) * (1.0 / l)
+            } else {
+                second[k - 3]
+            }
+        })
+    }
+}
+
+impl Equations for Level<'_> {
+    fn eval(&self, x: &[f64]) -> Vec<f64> {
+        self.residual_of_tip(&self.tip(x)).to_vec()
+    }
+
+    fn eval_jac(&self, x: &[f64]) -> (Vec<f64>, DMatrix<f64>) {
+        let xd: [Jet<6>; 6] = std::array::from_fn(|i| Jet::variable(x[i], i));
+        let r = self.residual_of_tip(&self.tip(&xd));
+        (
+            r.map(|v| v.re).to_vec(),
+            DMatrix::from_fn(6, 6, |i, j| r[i].eps[j]),
+        )
+    }
+}
+
+/// The tip wrench the constraint applies (world frame): what is left of the tip balance.
+fn reaction(p: &Problem, tip: &State<f64>) -> ([f64; 3], [f64; 3]) {
+    let b: [f64; 6] = p.residual_of_tip(tip);
+    (
+        std::array::from_fn(|k| b[k] * p.fs),
+        std::array::from_fn(|k| b[k + 3] * p.ms),
+    )
+}
+
+/// The validity rules of `Problem::check_node` at every node of the solution x (the shape
+/// kept); the tip state. Shared with `super::system`.
+pub(crate) fn checked_shape(
+    p: &Problem,
+    x: &[f64],
+    opts: &SolverOptions,
+    violations: &mut Vec<SoftrodError>,
+) -> Result<(State<f64>, Shape)> {
+    let mut shape = Shape::default();
+    let mut broken: Option<SoftrodError> = None;
+    let mut worst: Option<(f64, SoftrodError)> = None;
+    let mut index = 0;
+    let mut visit = |i: usize, s: f64, y: &State<f64>| {
+        let node = Node {
+            index,
+            s,
+            section: i,
+        };
+        index += 1;
+        match p.check_node(node, y, opts, &mut worst) {
+            Ok((v, u)) => shape.push(node, y, v, u),
+            Err(e) => {
+                broken.get_or_insert(e);
+            }
+        }
+    };
+    let tip = integrate(p.rod, &p.coeffs, p.base_state(x), Some(&mut visit));
+    if let Some(e) = broken {
+        return Err(e);
+    }
+    if let Some((_, e)) = worst {
+        match opts.on_invalid {
+            Policy::Raise => return Err(e),
+            Policy::Warn => violations.push(e),
+            Policy::Ignore => {}
+        }
+    }
+    Ok((tip, shape))
+}
+
+/// A clamped end that converged to a half turn from its target (e vanishes there too) is
+/// no solution.
+pub(crate) fn check_half_turn(field: &str, a: &[[f64; 3]; 3]) -> Result<()> {
+    let tr = a[0][0] + a[1][1] + a[2][2];
+    if tr > 1.0 {
+        Ok(())
+    } else {
+        Err(SoftrodError::NotConverged {
+            iterations: 0,
+            residual: tr,
+            load_factor: 1.0,
+            reason: format!(
+                "{field}: the orientation converged to a rotation {:.1} degrees from the \
+                 prescribed one, not to it",
+                (0.5 * (tr - 1.0)).clamp(-1.0, 1.0).acos().to_degrees()
+            ),
+        })
+    }
+}
+
+/// Static equilibrium with the tip held by `constraint` (a free tip: [`super::solve`] with
+/// zero reaction). `guess`: a previous solution's 6 unknowns.
+pub fn solve_constrained(
+    rod: &Rod,
+    loads: &Loads,
+    constraint: &TipConstraint,
+    guess: Option<&[f64]>,
+    opts: &SolverOptions,
+) -> Result<ConstrainedSolution> {
+    constraint.validate()?;
+    if let TipConstraint::Free = constraint {
+        let (solution, shape) = super::solve_with_shape(rod, loads, guess, opts)?;
+        return Ok(ConstrainedSolution {
+            solution,
+            shape,
+            tip_reaction_force: [0.0; 3],
+            tip_reaction_moment: [0.0; 3],
+        });
+    }
+    let mut violations = super::check_inputs(rod, loads, opts)?;
+    let c = *constraint;
+    let guess = guess
+        .filter(|g| g.len() == 6 && g.iter().all(|v| v.is_finite()))
+        .map(|g| g.to_vec());
+    // First path: the free equilibrium under the full loads (found on its natural path,
+    // stable where assessed), then the tip moved from its pose there to the prescribed
+    // one. If the free rod has no valid equilibrium (e.g. a soft beam that only the second
+    // support keeps from sagging beyond its validity range), the loads are ramped from the
+    // unloaded shape together with the pose.
+    let from_free = super::solve(
+        rod,
+        loads,
+        None,
+        &SolverOptions {
+            on_invalid: Policy::Ignore,
+            ..*opts
+        },
+    )
+    .ok()
+    .map(|free| {
+        let p = Problem::new(rod, loads, 1.0);
+        let x0: Vec<f64> = (0..6)
+            .map(|k| {
+                if k < 3 {
+                    free.base_force[k] / p.fs
+                } else {
+                    free.base_moment[k - 3] / p.ms
+                }
+            })
+            .collect();
+        (free.tip, x0)
+    });
+    let mut first_err = None;
+    if let Some((start, x0)) = from_free {
+        match follow_path(
+            |lam| Level::new(rod, loads, c, &start, lam, 1.0),
+            x0,
+            guess.clone(),
+            opts,
+        ) {
+            Ok(path) => return conclude(rod, loads, constraint, path, opts, &mut violations),
+            Err(e) => first_err = Some(e),
+        }
+    }
+    let reference = reference_tip(rod, loads);
+    let path = follow_path(
+        |lam| Level::new(rod, loads, c, &reference, lam, lam),
+        vec![0.0; 6],
+        guess,
+        opts,
+    )
+    .map_err(|e| first_err.unwrap_or(e))?;
+    conclude(rod, loads, constraint, path, opts, &mut violations)
+}
+
+/// The checked solution at the end of a path.
+fn conclude(
+    rod: &Rod,
+    loads: &Loads,
+    constraint: &TipConstraint,
+    path: PathOk,
+    opts: &SolverOptions,
+    violations: &mut Vec<SoftrodError>,
+) -> Result<ConstrainedSolution> {
+    let violations_out = violations;
+    let level = Problem::new(rod, loads, 1.0);
+    let (tip, shape) = checked_shape(&level, &path.x, opts, violations_out)?;
+    if let TipConstraint::Clamped { rotation, .. } = constraint {
+        check_half_turn("tip_constraint.orientation", &tmatmul(rotation, &tip.rot))?;
+    }
+    let (force, moment) = reaction(&level, &tip);
+    let moment = match constraint {
+        // The moment balance is a residual row: its leftover is round-off, not a reaction.
+        TipConstraint::Pinned { .. } => [0.0; 3],
+        _ => moment,
+    };
+    let y0 = level.base_state(&path.x);
+    Ok(ConstrainedSolution {
+        solution: Solution {
+            x: path.x,
+            base_force: y0.n,
+            base_moment: y0.m,
+            tip,
+            iterations: path.iterations,
+            residual: path.residual,
+            load_steps: path.load_steps,
+            stable: None,
+            violations: std::mem::take(violations_out),
+            collocation: None,
+        },
+        shape,
+        tip_reaction_force: force,
+        tip_reaction_moment: moment,
+    })
+}
+
+/// The scaled constraint residual and its exact Jacobian at 6 unknowns x under the full
+/// loads (exposed for tests: finite differences, and the pinned-pinned column's Jacobian
+/// vanishing at the Euler load). `constraint` must be pinned or clamped.
+pub fn constraint_residual_and_jacobian(
+    rod: &Rod,
+    loads: &Loads,
+    constraint: &TipConstraint,
+    x: &[f64],
+) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
+    constraint.validate()?;
+    if matches!(constraint, TipConstraint::Free) {
+        return Err(SoftrodError::invalid(
+            "constraint",
+            "free",
+            "must be pinned or clamped (a free tip: statics::residual_and_jacobian)",
+        ));
+    }
+    if x.len() != 6 {
+        return Err(SoftrodError::invalid(
+            "x",
+            format!("{} values", x.len()),
+            "a constrained tip has 6 shooting unknowns (base force and moment)",
+        ));
+    }
+    let reference = reference_tip(rod, loads);
+    let level = Level::new(rod, loads, *constraint, &reference, 1.0, 1.0);
+    let (r, j) = level.eval_jac(x);
+    Ok((
+        r,
+        (0..6)
+            .map(|i| (0..6).map(|k| j[(i, k)]).collect())
+            .collect(),
+    ))
+}

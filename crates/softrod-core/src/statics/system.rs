@@ -1,0 +1,499 @@
+//! A system of rods whose tips hold one rigid platform: a parallel continuum robot (Black,
+//! Till & Rucker, "Parallel continuum robots: modeling, analysis, and actuation-based force
+//! sensing", IEEE T-RO 2018, doi 10.1109/TRO.2017.2753829). docs/model.md "Systems of
+//! rods".
+//!
+//! Each rod is clamped at its own base (its design's mounting) and clamped at its tip to
+//! the platform at an attachment: an offset o_i and a rotation A_i of the rod's tip frame,
+//! both in the platform frame. Unknowns: each rod's scaled base wrench x_i = (n_i(0)/F_s,
+//! m_i(0)/(F_s L)) and the platform pose (position p / L_s, rotation R_p, updated on the
+//! group: R_p <- exp(psi) R_p). Residual, per rod: (r_i(L) - p - R_p o_i)/L_s and
+//! e((R_p A_i)^T R_i(L)) (`constraint::orientation_error`); then the platform's balance:
+//! F + m_p g - sum F_i = 0 and M + (R_p c) x m_p g - sum (M_i + (r_i(L) - p) x F_i) = 0
+//! about p, with (F_i, M_i) the wrench the platform applies to rod i's tip (its tip
+//! reaction), scaled by the sums of the rods' force and moment scales.
+//!
+//! Exact Jacobian: each rod is integrated in `Jet<6>` (its own unknowns), and the rows it
+//! enters are formed in `Jet<12>` (its unknowns and the platform's six increments), so the
+//! block-sparse Jacobian is exact at the cost of one dual integration per rod. Newton and
+//! continuation as `constraint::follow_path`: loads and the platform load ramped from zero,
+//! the attachments moved from where the unloaded rods' tips are (relative to the platform's
+//! nominal pose) to the given ones. Stability is not assessed (`stable = None`).
+
+use super::constraint::{
+    check_half_turn, check_rotation, checked_shape, exp_so3, follow_path, log_so3, matmul,
+    orientation_error, reference_tip, slerp, tmatmul, ConstrainedSolution, Equations,
+};
+use super::{Problem, Solution, SolverOptions};
+use crate::error::{Result, SoftrodError};
+use crate::jet::{Jet, RodScalar};
+use crate::ode::{integrate, Loads, State};
+use crate::rod::Rod;
+use nalgebra::DMatrix;
+
+/// Most rods in one system.
+pub const MAX_RODS: usize = 64;
+
+/// One rod of a system and where its tip holds the platform.
+#[derive(Debug, Clone)]
+pub struct SystemRod<'a> {
+    pub rod: &'a Rod,
+    /// Its loads (pressures, tensions, tip loads of its own tip body).
+    pub loads: Loads,
+    /// Tip position in the platform frame, m.
+    pub attachment: [f64; 3],
+    /// Tip frame in the platform frame (row-major rotation).
+    pub attachment_rotation: [[f64; 3]; 3],
+}
+
+/// The rigid platform the rods' tips hold.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Platform {
+    /// Nominal pose (world): where the platform starts; the unloaded rods' tips are
+    /// attached there at the start of continuation.
+    pub position: [f64; 3],
+    pub rotation: [[f64; 3]; 3],
+    /// External force on the platform (world, N) and moment about its origin (world, N m).
+    pub force: [f64; 3],
+    pub moment: [f64; 3],
+    /// Mass (kg), centre of mass in the platform frame (m) and gravity (m/s^2, world).
+    pub mass: f64,
+    pub com_offset: [f64; 3],
+    pub gravity: [f64; 3],
+}
+
+/// A converged system.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SystemSolution {
+    /// Per rod: its equilibrium and shape, and the wrench the platform applies to its tip.
+    pub rods: Vec<ConstrainedSolution>,
+    pub platform_position: [f64; 3],
+    pub platform_rotation: [[f64; 3]; 3],
+    /// Unknowns (6 per rod, then p / L_s and the platform's rotation vector); warm start.
+    pub x: Vec<f64>,
+    pub iterations: usize,
+    pub residual: f64,
+    pub load_steps: usize,
+}
+
+fn finite3(field: String, v: &[f64; 3]) -> Result<()> {
+    for (i, x) in v.iter().enumerate() {
+        if !x.is_finite() {
+            return Err(SoftrodError::invalid(
+                format!("{field}[{i}]"),
+                x,
+                "must be a finite number",
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn validate(rods: &[SystemRod], platform: &Platform) -> Result<()> {
+    if rods.is_empty() || rods.len() > MAX_RODS {
+        return Err(SoftrodError::invalid(
+            "rods",
+            format!("{} rods", rods.len()),
+            format!("a system has 1..={MAX_RODS} rods"),
+        ));
+    }
+    for (i, r) in rods.iter().enumerate() {
+        finite3(format!("rods[{i}].attachment"), &r.attachment)?;
+        check_rotation(
+            &format!("rods[{i}].attachment_orientation"),
+            &r.attachment_rotation,
+        )?;
+    }
+    for (name, v) in [
+        ("position", &platform.position),
+        ("force", &platform.force),
+        ("moment", &platform.moment),
+        ("com_offset", &platform.com_offset),
+        ("gravity", &platform.gravity),
+    ] {
+        finite3(format!("platform.{name}"), v)?;
+    }
+    check_rotation("platform.orientation", &platform.rotation)?;
+    if !(platform.mass.is_finite() && platform.mass >= 0.0) {
+        return Err(SoftrodError::invalid(
+            "platform.mass",
+            platform.mass,
+            "must be a finite number >= 0",
+        ));
+    }
+    Ok(())
+}
+
+/// One level of the continuation.
+struct Level<'a> {
+    problems: Vec<Problem<'a>>,
+    /// Attachment offsets and rotations at this level (platform frame).
+    attach: Vec<([f64; 3], [[f64; 3]; 3])>,
+    force: [f64; 3],
+    moment: [f64; 3],
+    weight: [f64; 3],
+    com: [f64; 3],
+    /// Length, force and moment scales.
+    ls: f64,
+    fs: f64,
+    ms: f64,
+}
+
+fn lift(s: &State<Jet<6>>) -> State<Jet<12>> {
+    let l = |v: &Jet<6>| {
+        let mut eps = [0.0; 12];
+        eps[..6].copy_from_slice(&v.eps);
+        Jet { re: v.re, eps }
+    };
+    State {
+        r: s.r.each_ref().map(l),
+        rot: s.rot.each_ref().map(|row| row.each_ref().map(l)),
+        n: s.n.each_ref().map(l),
+        m: s.m.each_ref().map(l),
+        aux: s.aux.each_ref().map(l),
+    }
+}
+
+fn cross<D: RodScalar>(a: &[D; 3], b: &[D; 3]) -> [D; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn rotate<D: RodScalar>(rot: &[[D; 3]; 3], v: &[D; 3]) -> [D; 3] {
+    std::array::from_fn(|i| rot[i][0] * v[0] + rot[i][1] * v[1] + rot[i][2] * v[2])
+}
+
+impl Level<'_> {
+    fn n_rods(&self) -> usize {
+        self.problems.len()
+    }
+
+    /// The platform's position and rotation from the unknowns.
+    fn platform(&self, x: &[f64]) -> ([f64; 3], [[f64; 3]; 3]) {
+        let k = 6 * self.n_rods();
+        (
+            std::array::from_fn(|i| x[k + i] * self.ls),
+            exp_so3(&[x[k + 3], x[k + 4], x[k + 5]]),
+        )
+    }
+
+    /// Rod i's 6 rows and the wrench it applies to the platform (force; moment about p).
+    #[allow(clippy::type_complexity)]
+    fn rod_terms<D: RodScalar>(
+        &self,
+        i: usize,
+        tip: &State<D>,
+        p: &[D; 3],
+        rp: &[[D; 3]; 3],
+    ) -> ([D; 6], [D; 3], [D; 3]) {
+        let (o, a) = &self.attach[i];
+        let arm = rotate(rp, &o.map(D::from));
+        let target_rot = matmul(rp, &a.map(|row| row.map(D::from)));
+        let e = orientation_error(&tmatmul(&target_rot, &tip.rot));
+        let rows = std::array::from_fn(|k| {
+            if k < 3 {
+                (tip.r[k] - p[k] - arm[k]) * (1.0 / self.ls)
+            } else {
+                e[k - 3]
+            }
+        });
+        let pr = &self.problems[i];
+        let b: [D; 6] = pr.residual_of_tip(tip);
+        let f: [D; 3] = std::array::from_fn(|k| -(b[k] * pr.fs));
+        let lever: [D; 3] = std::array::from_fn(|k| tip.r[k] - p[k]);
+        let lxf = cross(&lever, &f);
+        let m: [D; 3] = std::array::from_fn(|k| lxf[k] - b[k + 3] * pr.ms);
+        (rows, f, m)
+    }
+
+    /// The platform's own load: external force and weight; moment about p.
+    fn platform_terms<D: RodScalar>(&self, rp: &[[D; 3]; 3]) -> ([D; 3], [D; 3]) {
+        let w = self.weight.map(D::from);
+        let cw = rotate(rp, &self.com.map(D::from));
+        let cxw = cross(&cw, &w);
+        (
+            std::array::from_fn(|k| w[k] + self.force[k]),
+            std::array::from_fn(|k| cxw[k] + self.moment[k]),
+        )
+    }
+
+    fn balance_rows<D: RodScalar>(&self, f: &[D; 3], m: &[D; 3]) -> [D; 6] {
+        std::array::from_fn(|k| {
+            if k < 3 {
+                f[k] * (1.0 / self.fs)
+            } else {
+                m[k - 3] * (1.0 / self.ms)
+            }
+        })
+    }
+}
+
+impl Equations for Level<'_> {
+    fn eval(&self, x: &[f64]) -> Vec<f64> {
+        let n = self.n_rods();
+        let (p, rp) = self.platform(x);
+        let (mut f, mut m) = self.platform_terms(&rp);
+        let mut out = vec![0.0; 6 * n + 6];
+        for (i, pr) in self.problems.iter().enumerate() {
+            let tip = integrate(
+                pr.rod,
+                &pr.coeffs,
+                pr.base_state(&x[6 * i..6 * i + 6]),
+                None,
+            );
+            let (rows, fi, mi) = self.rod_terms(i, &tip, &p, &rp);
+            out[6 * i..6 * i + 6].copy_from_slice(&rows);
+            for k in 0..3 {
+                f[k] += fi[k];
+                m[k] += mi[k];
+            }
+        }
+        out[6 * n..].copy_from_slice(&self.balance_rows(&f, &m));
+        out
+    }
+
+    fn eval_jac(&self, x: &[f64]) -> (Vec<f64>, DMatrix<f64>) {
+        let n = self.n_rods();
+        let dim = 6 * n + 6;
+        let mut jac = DMatrix::zeros(dim, dim);
+        let mut r = vec![0.0; dim];
+        let (p0, r0) = self.platform(x);
+        // Platform unknowns in directions 6..12: position p/L_s and the increment psi of
+        // R_p = exp(psi) R0 (first order is exact for the Jacobian at psi = 0).
+        let p: [Jet<12>; 3] = std::array::from_fn(|k| {
+            let mut v = Jet::variable(p0[k], 6 + k);
+            v.eps[6 + k] = self.ls;
+            v
+        });
+        let psi: [Jet<12>; 3] = std::array::from_fn(|k| Jet::variable(0.0, 9 + k));
+        let one = Jet::<12>::from(1.0);
+        let w = [
+            [one, -psi[2], psi[1]],
+            [psi[2], one, -psi[0]],
+            [-psi[1], psi[0], one],
+        ];
+        let rp = matmul(&w, &r0.map(|row| row.map(Jet::from)));
+        let (mut f, mut m) = self.platform_terms(&rp);
+        // Rod columns of the balance rows go straight to the matrix; f, m carry the
+        // platform's.
+        let strip =
+            |f: &mut [Jet<12>; 3], m: &mut [Jet<12>; 3], i: usize, jac: &mut DMatrix<f64>| {
+                let rows = self.balance_rows(f, m);
+                for (k, v) in rows.iter().enumerate() {
+                    for j in 0..6 {
+                        jac[(6 * n + k, 6 * i + j)] += v.eps[j];
+                    }
+                }
+                for v in f.iter_mut().chain(m.iter_mut()) {
+                    v.eps[..6].fill(0.0);
+                }
+            };
+        for (i, pr) in self.problems.iter().enumerate() {
+            let xd: [Jet<6>; 6] = std::array::from_fn(|j| Jet::variable(x[6 * i + j], j));
+            let tip = lift(&integrate(pr.rod, &pr.coeffs, pr.base_state(&xd), None));
+            let (rows, fi, mi) = self.rod_terms(i, &tip, &p, &rp);
+            for (k, v) in rows.iter().enumerate() {
+                r[6 * i + k] = v.re;
+                for j in 0..6 {
+                    jac[(6 * i + k, 6 * i + j)] = v.eps[j];
+                    jac[(6 * i + k, 6 * n + j)] = v.eps[6 + j];
+                }
+            }
+            let (mut fr, mut mr) = (fi, mi);
+            strip(&mut fr, &mut mr, i, &mut jac);
+            for k in 0..3 {
+                f[k] += fr[k];
+                m[k] += mr[k];
+            }
+        }
+        let rows = self.balance_rows(&f, &m);
+        for (k, v) in rows.iter().enumerate() {
+            r[6 * n + k] = v.re;
+            for j in 0..6 {
+                jac[(6 * n + k, 6 * n + j)] = v.eps[6 + j];
+            }
+        }
+        (r, jac)
+    }
+
+    fn retract(&self, x: &[f64], dx: &[f64]) -> Vec<f64> {
+        system_retract(self.n_rods(), x, dx)
+    }
+
+    fn difference(&self, a: &[f64], b: &[f64]) -> Vec<f64> {
+        let k = 6 * self.n_rods() + 3;
+        let mut out: Vec<f64> = a.iter().zip(b).map(|(p, q)| p - q).collect();
+        let ra = exp_so3(&[a[k], a[k + 1], a[k + 2]]);
+        let rb = exp_so3(&[b[k], b[k + 1], b[k + 2]]);
+        // exp(d) = Ra Rb^T
+        let rel: [[f64; 3]; 3] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| (0..3).map(|q| ra[i][q] * rb[j][q]).sum())
+        });
+        out[k..k + 3].copy_from_slice(&log_so3(&rel));
+        out
+    }
+}
+
+/// Solve the system's static equilibrium. `guess`: a previous solution's `x`.
+pub fn solve_system(
+    rods: &[SystemRod],
+    platform: &Platform,
+    guess: Option<&[f64]>,
+    opts: &SolverOptions,
+) -> Result<SystemSolution> {
+    validate(rods, platform)?;
+    let mut violations: Vec<Vec<SoftrodError>> = rods
+        .iter()
+        .map(|r| super::check_inputs(r.rod, &r.loads, opts))
+        .collect::<Result<_>>()?;
+    let n = rods.len();
+    let ls = rods.iter().map(|r| r.rod.length).sum::<f64>() / n as f64;
+    let fs: f64 = rods.iter().map(|r| r.rod.force_scale).sum();
+    let ms: f64 = rods.iter().map(|r| r.rod.force_scale * r.rod.length).sum();
+    // Where the unloaded rods' tips are, in the platform's nominal frame.
+    let start: Vec<([f64; 3], [[f64; 3]; 3])> = rods
+        .iter()
+        .map(|r| {
+            let t = reference_tip(r.rod, &r.loads);
+            let d: [f64; 3] = std::array::from_fn(|k| t.r[k] - platform.position[k]);
+            let o = std::array::from_fn(|i| (0..3).map(|k| platform.rotation[k][i] * d[k]).sum());
+            (o, tmatmul(&platform.rotation, &t.rot))
+        })
+        .collect();
+    let level = |lam: f64| Level {
+        problems: rods
+            .iter()
+            .map(|r| Problem::new(r.rod, &r.loads, lam))
+            .collect(),
+        attach: rods
+            .iter()
+            .zip(&start)
+            .map(|(r, (o0, a0))| {
+                (
+                    std::array::from_fn(|k| o0[k] + lam * (r.attachment[k] - o0[k])),
+                    slerp(a0, &r.attachment_rotation, lam),
+                )
+            })
+            .collect(),
+        force: platform.force.map(|v| lam * v),
+        moment: platform.moment.map(|v| lam * v),
+        weight: platform.gravity.map(|g| lam * platform.mass * g),
+        com: platform.com_offset,
+        ls,
+        fs,
+        ms,
+    };
+    let mut x0 = vec![0.0; 6 * n + 6];
+    for k in 0..3 {
+        x0[6 * n + k] = platform.position[k] / ls;
+    }
+    x0[6 * n + 3..].copy_from_slice(&log_so3(&platform.rotation));
+    let guess = guess
+        .filter(|g| g.len() == 6 * n + 6 && g.iter().all(|v| v.is_finite()))
+        .map(|g| g.to_vec());
+    let path = follow_path(level, x0, guess, opts)?;
+    let full = level(1.0);
+    let (pp, rp) = full.platform(&path.x);
+    let mut out = Vec::with_capacity(n);
+    for (i, pr) in full.problems.iter().enumerate() {
+        let xi = &path.x[6 * i..6 * i + 6];
+        let mut v = std::mem::take(&mut violations[i]);
+        let (tip, shape) = checked_shape(pr, xi, opts, &mut v)?;
+        let target = matmul(&rp, &rods[i].attachment_rotation);
+        check_half_turn(
+            &format!("rods[{i}].attachment_orientation"),
+            &tmatmul(&target, &tip.rot),
+        )?;
+        let b: [f64; 6] = pr.residual_of_tip(&tip);
+        let y0 = pr.base_state(xi);
+        out.push(ConstrainedSolution {
+            solution: Solution {
+                x: xi.to_vec(),
+                base_force: y0.n,
+                base_moment: y0.m,
+                tip,
+                iterations: path.iterations,
+                residual: path.residual,
+                load_steps: path.load_steps,
+                stable: None,
+                violations: v,
+                collocation: None,
+            },
+            shape,
+            tip_reaction_force: std::array::from_fn(|k| b[k] * pr.fs),
+            tip_reaction_moment: std::array::from_fn(|k| b[k + 3] * pr.ms),
+        });
+    }
+    Ok(SystemSolution {
+        rods: out,
+        platform_position: pp,
+        platform_rotation: rp,
+        x: path.x,
+        iterations: path.iterations,
+        residual: path.residual,
+        load_steps: path.load_steps,
+    })
+}
+
+/// The scaled residual and exact Jacobian at unknowns x under the full loads (exposed for
+/// tests against finite differences).
+pub fn system_residual_and_jacobian(
+    rods: &[SystemRod],
+    platform: &Platform,
+    x: &[f64],
+) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
+    validate(rods, platform)?;
+    let n = rods.len();
+    if x.len() != 6 * n + 6 {
+        return Err(SoftrodError::invalid(
+            "x",
+            format!("{} values", x.len()),
+            format!(
+                "this system has {} unknowns (6 per rod, 6 of the platform)",
+                6 * n + 6
+            ),
+        ));
+    }
+    let ls = rods.iter().map(|r| r.rod.length).sum::<f64>() / n as f64;
+    let level = Level {
+        problems: rods
+            .iter()
+            .map(|r| Problem::new(r.rod, &r.loads, 1.0))
+            .collect(),
+        attach: rods
+            .iter()
+            .map(|r| (r.attachment, r.attachment_rotation))
+            .collect(),
+        force: platform.force,
+        moment: platform.moment,
+        weight: platform.gravity.map(|g| platform.mass * g),
+        com: platform.com_offset,
+        ls,
+        fs: rods.iter().map(|r| r.rod.force_scale).sum(),
+        ms: rods.iter().map(|r| r.rod.force_scale * r.rod.length).sum(),
+    };
+    let (r, j) = level.eval_jac(x);
+    let dim = 6 * n + 6;
+    Ok((
+        r,
+        (0..dim)
+            .map(|i| (0..dim).map(|k| j[(i, k)]).collect())
+            .collect(),
+    ))
+}
+
+/// Step `x` by `dx` as the solver does (the platform's rotation on the group), for tests
+/// of the Jacobian by finite differences along the solver's own increments.
+pub fn system_retract(rods_count: usize, x: &[f64], dx: &[f64]) -> Vec<f64> {
+    let k = 6 * rods_count + 3;
+    let mut out: Vec<f64> = x.iter().zip(dx).map(|(a, b)| a + b).collect();
+    let rot = matmul(
+        &exp_so3(&[dx[k], dx[k + 1], dx[k + 2]]),
+        &exp_so3(&[x[k], x[k + 1], x[k + 2]]),
+    );
+    out[k..k + 3].copy_from_slice(&log_so3(&rot));
+    out
+}
