@@ -916,8 +916,8 @@ impl<'a> Problem<'a> {
             for k in 0..32 {
                 m[k * 32 + k] += 1.0;
             }
-            // M^-1 column by column from M's LU (inlined here, so it shares this
-            // function's AVX2 copy), and G M^-1.
+            // M^-1 from M's LU (inlined here, so it shares this function's AVX2 copy),
+            // and G M^-1.
             let mut piv = [0u8; 32];
             if !lu_dense::<32>(&mut m, &mut piv) {
                 return None;
@@ -926,13 +926,14 @@ impl<'a> Problem<'a> {
                 minv: vec![0.0; 32 * 32],
                 gminv: vec![0.0; 16 * 32],
             };
+            let mut x = [0.0; 32 * 32];
+            lu_dense_inverse::<32>(&m, &piv, &mut x);
             for c in 0..32 {
-                let mut x = [0.0; 32];
-                x[c] = 1.0;
-                lu_dense_solve::<32>(&m, &piv, &mut x);
-                f.minv[32 * c..32 * c + 32].copy_from_slice(&x);
+                // Column c of M^-1 (X holds it in row-major order).
+                let col: [f64; 32] = std::array::from_fn(|r| x[32 * r + c]);
+                f.minv[32 * c..32 * c + 32].copy_from_slice(&col);
                 let mut y = [0.0; 16];
-                gemv_add(&mut y, &g, &x);
+                gemv_add(&mut y, &g, &col);
                 f.gminv[16 * c..16 * c + 16].copy_from_slice(&y);
             }
             if !f.minv.iter().all(|x| x.is_finite()) {
@@ -1046,29 +1047,46 @@ fn lu_dense<const N: usize>(a: &mut [f64], piv: &mut [u8; N]) -> bool {
     true
 }
 
-/// Solve with [`lu_dense`]'s factors in place (P A = L U, rows exchanged whole).
+/// The inverse of the matrix factored by [`lu_dense`], in row-major order in `x`: solves
+/// P A X = I for all N columns at once, one row of X at a time, so that every update is an
+/// N-wide axpy (vectorises, no dependency chain from one entry to the next). Each entry
+/// sees the same operations in the same order as a forward and back substitution of a unit
+/// vector that skips its zero entries (which change no value but the sign of a zero).
 #[inline(always)]
-fn lu_dense_solve<const N: usize>(a: &[f64], piv: &[u8; N], x: &mut [f64; N]) {
+fn lu_dense_inverse<const N: usize>(a: &[f64], piv: &[u8; N], x: &mut [f64]) {
+    let x = &mut x[..N * N];
+    // P I: the row exchanges applied to the identity's rows in order.
+    let mut perm: [usize; N] = std::array::from_fn(|k| k);
     for k in 0..N {
-        let p = piv[k] as usize;
-        if p != k {
-            x.swap(k, p);
-        }
+        perm.swap(k, piv[k] as usize);
     }
+    x.fill(0.0);
+    for (r, &p) in perm.iter().enumerate() {
+        x[r * N + p] = 1.0;
+    }
+    // Forward: X[i, :] -= L[i, k] X[k, :] for i > k. Row k is copied first: reading it
+    // from a local array lets LLVM prove it distinct from the rows it updates, so the
+    // updates vectorise (from two halves of `x` they stayed scalar).
     for k in 0..N {
-        let xk = x[k];
-        if xk != 0.0 {
-            for (xi, l) in x[k + 1..].iter_mut().zip(&a[k * N + k + 1..k * N + N]) {
-                *xi -= l * xk;
+        let xk: [f64; N] = std::array::from_fn(|c| x[k * N + c]);
+        for (i, row) in x[(k + 1) * N..].chunks_exact_mut(N).enumerate() {
+            let l = a[k * N + k + 1 + i];
+            for (xi, v) in row.iter_mut().zip(&xk) {
+                *xi -= l * v;
             }
         }
     }
+    // Backward: X[k, :] /= U[k, k]; X[i, :] -= U[i, k] X[k, :] for i < k.
     for k in (0..N).rev() {
-        x[k] /= a[k * N + k];
-        let xk = x[k];
-        if xk != 0.0 {
-            for (xi, u) in x[..k].iter_mut().zip(&a[k * N..k * N + k]) {
-                *xi -= u * xk;
+        let d = a[k * N + k];
+        for v in x[k * N..(k + 1) * N].iter_mut() {
+            *v /= d;
+        }
+        let xk: [f64; N] = std::array::from_fn(|c| x[k * N + c]);
+        for (i, row) in x[..k * N].chunks_exact_mut(N).enumerate() {
+            let u = a[k * N + i];
+            for (xi, v) in row.iter_mut().zip(&xk) {
+                *xi -= u * v;
             }
         }
     }
@@ -1097,14 +1115,20 @@ pub struct Factorization {
 
 impl Factorization {
     simd_dispatch! { Factorization:
-        /// The Newton step: solves J dz = -r for the scaled residual `r`.
-        pub fn solve(&self, r: &[f64], dz: &mut [f64]) => solve_impl
+        /// The Newton step: solves J dz = -r for the scaled residual `r`, with `rhs` (at
+        /// least as long as the node system: [`Factorization::scratch_len`]) as scratch.
+        pub fn solve(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) => solve_impl
+    }
+
+    /// The length of [`Factorization::solve`]'s scratch.
+    pub fn scratch_len(&self) -> usize {
+        self.band.n()
     }
 
     #[inline(always)]
-    fn solve_impl(&self, r: &[f64], dz: &mut [f64]) {
+    fn solve_impl(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) {
         let n_int = self.blocks.len();
-        let mut rhs = vec![0.0; self.band.n()];
+        let rhs = &mut rhs[..self.band.n()];
         // The node recurrences' right sides G M^-1 (-r_S) - r_N.
         for (j, b) in self.blocks.iter().enumerate() {
             let o = 48 * j;
@@ -1117,7 +1141,7 @@ impl Factorization {
         for k in 0..6 {
             rhs[16 * n_int + k] = -r[o + k];
         }
-        self.band.solve(&mut rhs);
+        self.band.solve(rhs);
         // Base unknowns, then per interval the stages M^-1 (-r_S + [dY_j; dY_j]) (one
         // product with M^-1 where s + P dY_j took two) and the end node.
         dz[..6].copy_from_slice(&rhs[..6]);
@@ -1184,6 +1208,32 @@ fn inf_norm(r: &[f64]) -> f64 {
     }
 }
 
+/// Buffers of [`newton_with`], kept between solves so that a time step allocates none,
+/// and the stage fields of the residual last evaluated at the returned solution.
+#[derive(Debug, Clone, Default)]
+pub struct NewtonWork {
+    r: Vec<f64>,
+    rt: Vec<f64>,
+    dz: Vec<f64>,
+    zt: Vec<f64>,
+    rhs: Vec<f64>,
+    /// Stage fields (v, u, q, w) at the solution, valid when `fields_at_solution`.
+    pub fields: Vec<[f64; NF]>,
+    /// Whether `fields` belong to the returned solution (the last residual was evaluated
+    /// there), so that [`Problem::evaluate_with_fields`] need not recompute them.
+    pub fields_at_solution: bool,
+}
+
+impl NewtonWork {
+    fn fit(&mut self, n: usize, n_stages: usize) {
+        for v in [&mut self.r, &mut self.rt, &mut self.dz, &mut self.zt] {
+            v.resize(n, 0.0);
+        }
+        self.fields.resize(n_stages, [0.0; NF]);
+        self.fields_at_solution = false;
+    }
+}
+
 /// Damped Newton on `p` from `z` (in place). Converged when a full Newton correction, or
 /// the error it leaves (theta / (1 - theta) of it at contraction rate theta < 1/2), is below
 /// `tol` (scaled unknowns, relative to max(1, |z|)): the correction measures
@@ -1202,7 +1252,8 @@ pub fn newton(
     stats: &mut NewtonStats,
 ) -> std::result::Result<f64, (usize, f64)> {
     let mut theta = 1.0;
-    newton_with(p, z, cache, opts, stats, &mut theta)
+    let mut work = NewtonWork::default();
+    newton_with(p, z, cache, opts, stats, &mut theta, &mut work)
 }
 
 /// [`newton`] with the contraction rate `theta` of the matrix's last use (updated on
@@ -1210,6 +1261,8 @@ pub fn newton(
 /// about the same rate, so the first correction's remaining error can be estimated as
 /// theta / (1 - theta) of it; when that is below tol, and the residual confirms the
 /// contraction, the step ends after one correction (Hairer and Wanner's device in Radau5).
+/// `work` holds the buffers (reused across calls) and, on that path, the stage fields at
+/// the solution.
 pub fn newton_with(
     p: &Problem,
     z: &mut [f64],
@@ -1217,15 +1270,22 @@ pub fn newton_with(
     opts: &NewtonOptions,
     stats: &mut NewtonStats,
     theta_hint: &mut f64,
+    work: &mut NewtonWork,
 ) -> std::result::Result<f64, (usize, f64)> {
     const REUSE: f64 = 0.25;
     let n = z.len();
-    let mut r = vec![0.0; n];
-    let mut rt = vec![0.0; n];
-    let mut dz = vec![0.0; n];
-    let mut zt = vec![0.0; n];
-    p.residual(z, &mut r, None);
-    let mut norm = inf_norm(&r);
+    work.fit(n, 2 * p.grid.len());
+    let NewtonWork {
+        r,
+        rt,
+        dz,
+        zt,
+        rhs,
+        fields,
+        fields_at_solution,
+    } = work;
+    p.residual(z, r, None);
+    let mut norm = inf_norm(r);
     let mut fresh = false;
     let mut last_step = f64::INFINITY;
     for it in 0..opts.max_iter {
@@ -1242,9 +1302,10 @@ pub fn newton_with(
             }
         }
         let fac = cache.as_ref().expect("factorization");
-        fac.solve(&r, &mut dz);
+        rhs.resize(fac.scratch_len(), 0.0);
+        fac.solve(r, dz, rhs);
         let scale = inf_norm(z).max(1.0);
-        let step = inf_norm(&dz) / scale;
+        let step = inf_norm(dz) / scale;
         if !step.is_finite() {
             if fresh {
                 return Err((it + 1, norm));
@@ -1268,8 +1329,8 @@ pub fn newton_with(
         if step <= opts.tol || (it > 0 && remaining <= opts.tol) {
             // Converged: apply the (tiny) correction and finish (the residual reported is
             // the one before it).
-            for k in 0..n {
-                z[k] += dz[k];
+            for (a, d) in z.iter_mut().zip(dz.iter()) {
+                *a += d;
             }
             if it > 0 && theta < 1.0 {
                 *theta_hint = theta;
@@ -1285,10 +1346,11 @@ pub fn newton_with(
                 for k in 0..n {
                     zt[k] = z[k] + dz[k];
                 }
-                p.residual(&zt, &mut rt, None);
-                let nt = inf_norm(&rt);
+                p.residual(zt, rt, Some(&mut fields[..]));
+                let nt = inf_norm(rt);
                 if nt.is_finite() && nt <= norm * (10.0 * th).min(0.5) {
-                    z.copy_from_slice(&zt);
+                    z.copy_from_slice(zt);
+                    *fields_at_solution = true;
                     return Ok(nt);
                 }
             }
@@ -1299,14 +1361,14 @@ pub fn newton_with(
             for k in 0..n {
                 zt[k] = z[k] + alpha * dz[k];
             }
-            p.residual(&zt, &mut rt, None);
-            let nt = inf_norm(&rt);
+            p.residual(zt, rt, None);
+            let nt = inf_norm(rt);
             if nt.is_finite() && nt < (1.0 - 1e-4 * alpha) * norm {
                 if alpha < 1.0 || (last_step.is_finite() && theta > REUSE) {
                     *cache = None; // refresh at the new iterate
                 }
-                z.copy_from_slice(&zt);
-                std::mem::swap(&mut r, &mut rt);
+                z.copy_from_slice(zt);
+                std::mem::swap(r, rt);
                 norm = nt;
                 accepted = true;
                 fresh = false;
@@ -1446,6 +1508,16 @@ pub struct Evaluated {
 impl Problem<'_> {
     /// States, fields and positions of the solution `z`.
     pub fn evaluate(&self, z: &[f64]) -> Evaluated {
+        self.evaluate_impl(z, None)
+    }
+
+    /// [`Problem::evaluate`] with the stage fields at `z` already known (from the residual
+    /// at `z`, [`NewtonWork::fields`]): the same result without evaluating f again.
+    pub fn evaluate_with_fields(&self, z: &[f64], fields: &[[f64; NF]]) -> Evaluated {
+        self.evaluate_impl(z, Some(fields))
+    }
+
+    fn evaluate_impl(&self, z: &[f64], known: Option<&[[f64; NF]]>) -> Evaluated {
         let n_int = self.grid.len();
         let mut out = Evaluated {
             nodes: Vec::with_capacity(n_int + 1),
@@ -1462,7 +1534,10 @@ impl Problem<'_> {
             let mut dr = [[0.0; 3]; 2];
             for i in 0..2 {
                 let y = self.stage(z, j, i);
-                let (_, fl) = rhs(&y, model, &self.hist[2 * j + i], self.c0);
+                let fl = match known {
+                    Some(f) => f[2 * j + i],
+                    None => rhs(&y, model, &self.hist[2 * j + i], self.c0).1,
+                };
                 let rot = rotation(&y[IQ..IQ + 4]);
                 dr[i] = mat_vec(&rot, &[fl[0], fl[1], fl[2]]);
                 out.fields.push(fl);

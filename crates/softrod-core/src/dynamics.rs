@@ -23,8 +23,8 @@
 //! time, the step and what to change.
 
 use crate::collocation::{
-    self, Evaluated, Factorization, Grid, NewtonOptions, NewtonStats, Problem, SectionModel,
-    TipBody, GAUSS_B, NF, NY,
+    self, Evaluated, Factorization, Grid, NewtonOptions, NewtonStats, NewtonWork, Problem,
+    SectionModel, TipBody, GAUSS_B, NF, NY,
 };
 use crate::error::{Result, SoftrodError};
 use crate::interp::GridPchip;
@@ -512,8 +512,10 @@ pub struct Simulator {
     z_prev: Vec<f64>,
     z_prev2: Vec<f64>,
     slots: Vec<Slot>,
-    /// Section models at the current pressures (for the energy).
+    /// Section models at the current pressures and sigma with the c0 `models_c0` (for the
+    /// energy, and the next step's problem when its inputs and c0 are the same).
     models: Vec<SectionModel>,
+    models_c0: f64,
     eval: Evaluated,
     /// (time, node positions) of the last three steps, newest first (error estimates).
     past: Vec<(f64, Vec<[f64; 3]>)>,
@@ -521,6 +523,11 @@ pub struct Simulator {
     cache: Option<Cached>,
     /// Newton's contraction rate with the kept matrix at the last step.
     theta: f64,
+    /// Newton's buffers (scratch: not part of the state).
+    work: NewtonWork,
+    /// Scales of the unknowns for the c0 `scales_c0` (scratch, recomputed when c0 changes).
+    scales: Vec<f64>,
+    scales_c0: f64,
     /// How the run started.
     initial: Initial,
     /// Forward parameter sensitivities, when tracked (`sensitivity`).
@@ -702,11 +709,15 @@ impl Simulator {
             z_prev2: vec![],
             slots: vec![zero; n_slots],
             models: vec![],
+            models_c0: 0.0,
             eval: Evaluated::default(),
             past: vec![],
             books: Books::default(),
             cache: None,
             theta: 1.0,
+            work: NewtonWork::default(),
+            scales: vec![],
+            scales_c0: f64::NAN,
             initial,
             sens: None,
             stats: DynStats::default(),
@@ -826,6 +837,7 @@ impl Simulator {
         }
         self.check_state(&eval, &self.z.clone())?;
         self.models = models;
+        self.models_c0 = 0.0;
         self.eval = eval;
         self.past = vec![(0.0, self.eval.node_r.clone())];
         let e = self.energy_now(&self.models, &self.eval, self.tip_force);
@@ -1160,7 +1172,13 @@ impl Simulator {
                 self.tip_body(self.tip_force, self.tip_moment),
             )
         };
-        let models = self.models_at(&solve_p, &solve_sigma, bdf.c0);
+        // Unchanged inputs and step: the models of the last step (the same numbers).
+        let models =
+            if self.models_c0 == bdf.c0 && solve_p == self.pressures && solve_sigma == self.sigma {
+                self.models.clone()
+            } else {
+                self.models_at(&solve_p, &solve_sigma, bdf.c0)
+            };
         let hist: Vec<[f64; FIELDS]> = self
             .slots
             .iter()
@@ -1204,7 +1222,11 @@ impl Simulator {
                 .map(|(a, b)| a + ratio * (a - b))
                 .collect()
         };
-        let mut z = to_scaled(&problem, &guess);
+        if self.scales_c0 != bdf.c0 || self.scales.len() != guess.len() {
+            self.scales = unknown_scales(&problem, guess.len());
+            self.scales_c0 = bdf.c0;
+        }
+        let mut z: Vec<f64> = guess.iter().zip(&self.scales).map(|(a, b)| a / b).collect();
         let old = self.cache.take().filter(|c| c.key.c0 == bdf.c0);
         let (mut cache, old_key) = match old {
             Some(c) => (Some(c.fac), Some(c.key)),
@@ -1222,6 +1244,7 @@ impl Simulator {
             &nopts,
             &mut ns,
             &mut self.theta,
+            &mut self.work,
         );
         self.stats.newton_iterations += ns.iterations;
         self.stats.jacobians += ns.jacobians;
@@ -1250,10 +1273,19 @@ impl Simulator {
                 ),
             });
         }
-        let solved = problem.evaluate(&z);
-        let zp = to_physical(&problem, &z);
+        let solved = if self.work.fields_at_solution {
+            problem.evaluate_with_fields(&z, &self.work.fields)
+        } else {
+            problem.evaluate(&z)
+        };
+        let zp: Vec<f64> = z.iter().zip(&self.scales).map(|(a, b)| a * b).collect();
         let (eval, models) = if midpoint {
-            let models_new = self.models_at(&pressures, &sigma, bdf.c0);
+            let models_new =
+                if self.models_c0 == bdf.c0 && pressures == self.pressures && sigma == self.sigma {
+                    self.models.clone()
+                } else {
+                    self.models_at(&pressures, &sigma, bdf.c0)
+                };
             (self.midpoint_end(&solved), models_new)
         } else {
             (solved, models)
@@ -1529,6 +1561,7 @@ impl Simulator {
         self.z_prev2 = std::mem::replace(&mut self.z_prev, std::mem::replace(&mut self.z, c.z));
         self.slots = c.slots;
         self.models = c.models;
+        self.models_c0 = c.bdf.c0;
         self.eval = c.eval;
         self.books = c.books;
         self.step_tip = (self.tip_force, self.tip_moment);
@@ -1967,6 +2000,7 @@ impl Simulator {
             return Err(bad_state("does not match this simulation's discretisation"));
         }
         next.models = next.models_at(&next.pressures, &next.sigma, 0.0);
+        next.models_c0 = 0.0;
         *self = next;
         Ok(())
     }

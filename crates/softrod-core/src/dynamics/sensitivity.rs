@@ -394,12 +394,13 @@ fn solve_exact(
     let mut zd = zc;
     let mut rhs = vec![0.0; z.len()];
     let mut dz = vec![0.0; z.len()];
+    let mut scratch = vec![0.0; fac.scratch_len()];
     for q in 0..n_par {
         for (x, ri) in rhs.iter_mut().zip(&r) {
             *x = ri.eps[q];
         }
         // The factorization solves J dz = -r.
-        fac.solve(&rhs, &mut dz);
+        fac.solve(&rhs, &mut dz, &mut scratch);
         if !dz.iter().all(|x| x.is_finite()) {
             return None;
         }
@@ -426,6 +427,7 @@ fn refine(
     let n = zd.len();
     let mut rhs = vec![0.0; n];
     let mut corr = vec![0.0; n];
+    let mut scratch = vec![0.0; fac.scratch_len()];
     let mut last = [f64::INFINITY; CHUNK];
     for _ in 0..MAX_REFINE {
         let r = problem.residual_with(models, hist, &zd);
@@ -434,7 +436,7 @@ fn refine(
             for (x, ri) in rhs.iter_mut().zip(&r) {
                 *x = ri.eps[q];
             }
-            fac.solve(&rhs, &mut corr);
+            fac.solve(&rhs, &mut corr, &mut scratch);
             let step = corr.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             if !step.is_finite() || step > 0.5 * last[q] {
                 return None; // not contracting: the exact matrix is needed
