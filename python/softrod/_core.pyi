@@ -16,6 +16,8 @@ __all__ = [
     "_panic_inside_guard",
     "linearise_at",
     "point_jacobian_of",
+    "solve_constrained_tip",
+    "solve_rod_system",
 ]
 __version__: str
 
