@@ -1,8 +1,7 @@
 //! Binding of the tip end constraints (`softrod_core::statics::constraint`) and of systems
 //! of rods sharing a platform (`softrod_core::statics::system`). No physics here.
 
-use crate::{array2, array3, guarded, options, to_py_err, Context, PyRod};
-use numpy::PyArray1;
+use crate::{guarded, options, solution_dict, to_py_err, Context, PyRod};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::ode::Loads;
@@ -10,35 +9,9 @@ use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, 
 use softrod_core::statics::system::{solve_system, Platform, SystemRod};
 use softrod_core::SoftrodError;
 
-/// The solution's shape and numbers as a dict (the keys of `Rod.solve`'s, and the tip
-/// reaction).
-fn solution_dict<'py>(py: Python<'py>, c: &ConstrainedSolution) -> PyResult<Bound<'py, PyDict>> {
-    let sh = &c.shape;
-    let sol = &c.solution;
-    let d = PyDict::new(py);
-    d.set_item("s", PyArray1::from_vec(py, sh.s.clone()))?;
-    d.set_item(
-        "section",
-        PyArray1::from_vec(py, sh.section.iter().map(|&i| i as i64).collect()),
-    )?;
-    d.set_item("position", array2(py, &sh.position)?)?;
-    d.set_item("rotation", array3(py, &sh.rotation)?)?;
-    d.set_item("force", array2(py, &sh.force)?)?;
-    d.set_item("moment", array2(py, &sh.moment)?)?;
-    d.set_item("v", array2(py, &sh.v)?)?;
-    d.set_item("u", array2(py, &sh.u)?)?;
-    d.set_item("x", sol.x.to_vec())?;
-    d.set_item("iterations", sol.iterations)?;
-    d.set_item("residual", sol.residual)?;
-    d.set_item("load_steps", sol.load_steps)?;
-    d.set_item("stable", sol.stable)?;
-    d.set_item(
-        "violations",
-        sol.violations
-            .iter()
-            .map(|e| e.to_string())
-            .collect::<Vec<_>>(),
-    )?;
+/// The solution as `Rod.solve` gives it, with the tip reaction.
+fn constrained_dict<'py>(py: Python<'py>, c: &ConstrainedSolution) -> PyResult<Bound<'py, PyDict>> {
+    let d = solution_dict(py, &c.solution, &c.shape)?;
     d.set_item("tip_reaction_force", c.tip_reaction_force.to_vec())?;
     d.set_item("tip_reaction_moment", c.tip_reaction_moment.to_vec())?;
     Ok(d)
@@ -134,7 +107,7 @@ fn solve_constrained_tip<'py>(
         let out = py
             .detach(|| solve_constrained(rod, &loads, &c, guess.as_deref(), &opts))
             .map_err(|e| to_py_err(py, e, Context::Input))?;
-        solution_dict(py, &out)
+        constrained_dict(py, &out)
     })
 }
 
@@ -221,7 +194,7 @@ fn solve_rod_system<'py>(
             "rods",
             out.rods
                 .iter()
-                .map(|c| solution_dict(py, c))
+                .map(|c| constrained_dict(py, c))
                 .collect::<PyResult<Vec<_>>>()?,
         )?;
         d.set_item("platform_position", out.platform_position.to_vec())?;

@@ -183,6 +183,40 @@ fn contact_dict<'py>(
     Ok(d)
 }
 
+/// A static solution's shape (arrays over the nodes) and numbers as a dict: the keys of
+/// `Rod.solve`, shared by every entry that returns one solution.
+fn solution_dict<'py>(
+    py: Python<'py>,
+    sol: &statics::Solution,
+    sh: &statics::Shape,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("s", PyArray1::from_vec(py, sh.s.clone()))?;
+    d.set_item(
+        "section",
+        PyArray1::from_vec(py, sh.section.iter().map(|&i| i as i64).collect()),
+    )?;
+    d.set_item("position", array2(py, &sh.position)?)?;
+    d.set_item("rotation", array3(py, &sh.rotation)?)?;
+    d.set_item("force", array2(py, &sh.force)?)?;
+    d.set_item("moment", array2(py, &sh.moment)?)?;
+    d.set_item("v", array2(py, &sh.v)?)?;
+    d.set_item("u", array2(py, &sh.u)?)?;
+    d.set_item("x", sol.x.to_vec())?;
+    d.set_item("iterations", sol.iterations)?;
+    d.set_item("residual", sol.residual)?;
+    d.set_item("load_steps", sol.load_steps)?;
+    d.set_item("stable", sol.stable)?;
+    d.set_item(
+        "violations",
+        sol.violations
+            .iter()
+            .map(|e| e.to_string())
+            .collect::<Vec<_>>(),
+    )?;
+    Ok(d)
+}
+
 fn array3<'py>(py: Python<'py>, mats: &[[[f64; 3]; 3]]) -> PyResult<Bound<'py, PyAny>> {
     let flat: Vec<f64> = mats.iter().flatten().flatten().copied().collect();
     Ok(PyArray1::from_vec(py, flat)
@@ -303,33 +337,10 @@ impl PyRod {
                 })
             });
             let (sol, sh, contact) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
-            let d = PyDict::new(py);
-            d.set_item("s", PyArray1::from_vec(py, sh.s))?;
-            d.set_item(
-                "section",
-                PyArray1::from_vec(py, sh.section.iter().map(|&i| i as i64).collect()),
-            )?;
-            d.set_item("position", array2(py, &sh.position)?)?;
-            d.set_item("rotation", array3(py, &sh.rotation)?)?;
-            d.set_item("force", array2(py, &sh.force)?)?;
-            d.set_item("moment", array2(py, &sh.moment)?)?;
-            d.set_item("v", array2(py, &sh.v)?)?;
-            d.set_item("u", array2(py, &sh.u)?)?;
+            let d = solution_dict(py, &sol, &sh)?;
             if let Some(rep) = &contact {
                 d.set_item("contact", contact_dict(py, rep)?)?;
             }
-            d.set_item("x", sol.x.to_vec())?;
-            d.set_item("iterations", sol.iterations)?;
-            d.set_item("residual", sol.residual)?;
-            d.set_item("load_steps", sol.load_steps)?;
-            d.set_item("stable", sol.stable)?;
-            d.set_item(
-                "violations",
-                sol.violations
-                    .iter()
-                    .map(|e| e.to_string())
-                    .collect::<Vec<_>>(),
-            )?;
             Ok(d)
         })
     }
