@@ -307,6 +307,37 @@ def test_pcc_model_refuses_a_constrained_tip():
     assert exc.value.field == "tip_constraint"
 
 
+FREE_TIP_ENTRIES = {
+    "solve_statics_batch": lambda d, ds: softrod.solve_statics_batch(d, [[1e4, 0, 0]]),
+    "synthesize_dataset": lambda d, ds: softrod.synthesize_dataset(d, [[1e4, 0, 0]]),
+    "calibrate": lambda d, ds: softrod.calibrate(d, ds, ["c_b"]),
+    "identify_stiffness": lambda d, ds: softrod.identify_stiffness(d, ds),
+    "compare_hybrid": lambda d, ds: softrod.compare_hybrid(d, ds, None),
+    "simulate": lambda d, ds: softrod.simulate(d, [0.0, 0.0, 0.0], 0.01),
+    "solve_inverse": lambda d, ds: softrod.solve_inverse(d, "0,5,-130 mm"),
+    "workspace": lambda d, ds: softrod.workspace(d),
+    "linearise": lambda d, ds: softrod.linearise(d, [0.0, 0.0, 0.0]),
+    "model='pcc'": lambda d, ds: solve_statics(d, [0.0, 0.0, 0.0], model="pcc"),
+}
+
+
+@pytest.mark.parametrize("entry", sorted(FREE_TIP_ENTRIES))
+def test_free_tip_entries_refuse_a_constrained_design_by_name(entry):
+    """Every entry point that solves a free tip only refuses a design whose file pins the
+    tip, naming itself and the field, before any work: never a free-tip answer to it."""
+    base = load_design("spa_three_chamber_130mm")
+    pinned = base.replace(
+        {"tip": {"constraint": "pinned", "position": ["0 mm", "10 mm", "-125 mm"]}}
+    )
+    # A valid two-row dataset of the free design (the guard must fire on the design alone).
+    data = softrod.synthesize_dataset(base, [[1e4, 0, 0], [0, 1e4, 0]], seed=0)
+    with pytest.raises(InputError) as exc:
+        FREE_TIP_ENTRIES[entry](pinned, data)
+    assert exc.value.field == "tip_constraint"
+    assert exc.value.value == "pinned"
+    assert f"{entry} solves a free tip only" in str(exc.value)
+
+
 def test_bundled_two_rod_system_solves_and_balances():
     assert "two_spa_platform" in softrod.bundled_systems()
     system = softrod.load_system("two_spa_platform")

@@ -12,6 +12,7 @@ import numpy as np
 
 from . import _validate as V
 from .catalog import load_design
+from .constraints import require_free_tip
 from .datasets import (
     _MAX_LISTED,
     MAX_MARKERS,
@@ -70,6 +71,7 @@ def synthesize_dataset(
     from . import __version__
 
     design = load_design(design)
+    require_free_tip(design, "synthesize_dataset")
     seed = noise_seed(noise_mm, seed)
     p = batch_pressures(design, pressures)
     batch = solve_statics_batch(

@@ -35,6 +35,7 @@ import pandas as pd
 
 from .._threads import one_blas_thread
 from ..catalog import load_design
+from ..constraints import require_free_tip
 from ..datasets import Dataset
 from ..errors import InputError, design_error
 from ..statics import SolverOptions, solve_statics_batch
@@ -519,6 +520,7 @@ def compare_hybrid(
     Errors are measured minus predicted, as in Fig. 7; radial and height are about the
     design's undeformed axis through its base. Failed solves are counted, never dropped.
     """
+    require_free_tip(load_design(design), "compare_hybrid")
     if not isinstance(hybrid, HybridStiffnessModel):
         raise design_error(
             "hybrid",
