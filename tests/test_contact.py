@@ -252,3 +252,20 @@ def test_property_contact_answers_are_balanced_or_errors(height_mm, k_exp, radiu
     assert np.all(np.isfinite(sol.position)) and np.all(np.isfinite(sol.contact.force))
     assert sol.contact.max_penetration <= tol_mm * 1e-3
     assert balance_error(sol) < 1e-9 * max(1.0, math.fabs(sol.base_force[2]))
+
+
+def test_cli_solve_reports_the_contacts(run):
+    """`softrod solve` on a design with obstacles shows each obstacle's contact force, the
+    nodes in contact and the deepest penetration (table and JSON), the API's numbers."""
+    import json
+
+    result = run("solve", "prebent_finger_on_table", "--pressure", "30kPa", "--json")
+    assert result.exit_code == 0, result.output
+    contact = json.loads(result.stdout)["contact"]
+    api = solve_statics("prebent_finger_on_table", [30e3]).contact
+    np.testing.assert_array_equal(contact["total_force_N"], api.total_force)
+    assert contact["max_penetration_m"] == api.max_penetration
+    assert contact["nodes_in_contact"] == int(api.in_contact.sum()) >= 1
+    table = run("solve", "prebent_finger_on_table", "--pressure", "30kPa").output
+    assert "contact force, obstacle 0" in table and "nodes in contact" in table
+    assert "deepest penetration" in table and "not assessed" in table

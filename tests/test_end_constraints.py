@@ -386,13 +386,19 @@ def test_bad_system_files_name_the_field(tmp_path, text, field):
 def test_constrained_solves_hold_the_pose_and_balance(dx, dz, angle, kind):
     """Any reachable pose near the unloaded tip: the tip is where it was told, and the
     reactions balance the line load to 1e-9 (the load is constant, so n' = -f is integrated
-    exactly)."""
+    exactly). Shortening the rod by up to 10 % is far beyond its Euler load (0.4 mm of
+    clamped-clamped shortening), so the far corners buckle into S shapes whose curvature the
+    steps may not resolve: there the answer must be the documented error, never a shape."""
     q = 20.0
-    d = load_design(rod(q=q, steps=24))
+    d = load_design(rod(q=q, steps=48))
     pos = [dx, 0.0, L + dz]
     c = (TipConstraint.pinned(pos) if kind == "pinned"
          else TipConstraint.clamped(pos, [0.0, angle, 0.0]))
-    sol = solve_statics(d, [], tip_constraint=c, options=TIGHT)
+    try:
+        sol = solve_statics(d, [], tip_constraint=c, options=TIGHT)
+    except softrod.InvalidStateError as exc:
+        assert exc.rule == "rotation" and "steps are too coarse" in str(exc), exc
+        return
     # The residual tolerance 1e-12 is relative to the unknowns (base force / (EI / L^2),
     # up to ~400 here): 1e-9 of L and 1e-9 rad leave a factor of two.
     np.testing.assert_allclose(sol.tip_position, pos, atol=1e-9 * L)

@@ -157,6 +157,41 @@ def test_pressures_beyond_the_operating_range_are_refused(bar):
         solve_statics_batch(d, [[0, 0, 0], [bar * 1e5, 0, 0]])
 
 
+def test_tensions_beyond_the_operating_range_are_refused():
+    """A design's [operating_range] tension (till_tendon_robot: 0-20 N) bounds every tendon
+    channel as the pressure range bounds the chambers: an error naming the channel before
+    any work, a warning when asked, a batch row named."""
+    d = load_design("till_tendon_robot")
+    assert d.spec["operating_range"] == {"tension": [0.0, 20.0]}
+    solve_statics(d, [], tensions=[20.0, 0, 0, 0])  # the bound itself is inside
+    with pytest.raises(InvalidStateError, match=r"tensions\[2\] = 25(\.0)? N") as err:
+        solve_statics(d, [], tensions=[0, 0, 25.0, 0])
+    assert err.value.rule == "operating_range" and err.value.value == 25.0
+    with pytest.warns(ValidityWarning):
+        sol = solve_statics(d, [], tensions=[0, 0, 25.0, 0], on_invalid="warn")
+    assert any("operating_range.tension" in v for v in sol.violations)
+    with pytest.raises(InvalidStateError, match="row 1"):
+        solve_statics_batch(d, np.zeros((2, 0)), tensions=[[1.0, 0, 0, 0], [0, 0, 0, 30.0]])
+
+
+@pytest.mark.parametrize(
+    "table, field",
+    [
+        ({"source": "x"}, "operating_range"),
+        ({"tension": ["-1 N", "20 N"]}, "operating_range.tension"),
+        ({"tension": ["20 N", "10 N"]}, "operating_range.tension"),
+        ({"tension": ["0 kPa", "20 kPa"]}, "operating_range.tension[0]"),
+        ({"tension": "20 N"}, "operating_range.tension"),
+    ],
+)
+def test_bad_operating_ranges_name_the_field(table, field):
+    doc = json.loads(json.dumps(load_design("till_tendon_robot").document))  # a deep copy
+    doc["operating_range"] = table
+    with pytest.raises(softrod.DesignError) as err:
+        load_design(doc)
+    assert err.value.field == field
+
+
 @pytest.mark.parametrize("pressure", [1e9, 1e12, 1e15, 1e19])
 def test_absurd_pressures_never_converge(pressure):
     # issue 13: 1e9 to 1e19 Pa "converged" with the tip 60 L to 1e12 L from the base. Even
@@ -205,18 +240,28 @@ def test_batch_reports_stability_and_validity_per_row():
     assert warned.converged.all() and "strain_range" in warned.violation[1]
 
 
-def _range_corners(design) -> list[list[float]]:
-    lo, hi = design.spec["operating_range"]["pressure"]
-    n = design.n_channels
-    corners = [[lo] * n, [hi] * n] + [[hi if k == j else lo for k in range(n)] for j in range(n)]
-    return corners + [[0.5 * (lo + hi)] * n]
+def _range_corners(design) -> tuple[np.ndarray, np.ndarray | None]:
+    """Pressure and tension rows at the corners of the operating range: all inputs low, all
+    high, each one high alone, all at mid-range (inputs without a stated range stay at 0)."""
+    rng = design.spec["operating_range"]
+    lows, highs = [], []
+    for key, n in (("pressure", design.n_channels), ("tension", design.n_tendons)):
+        lo, hi = rng.get(key, (0.0, 0.0))
+        lows += [lo] * n
+        highs += [hi] * n
+    n = len(lows)
+    rows = [lows, highs] + [[highs[k] if k == j else lows[k] for k in range(n)] for j in range(n)]
+    rows = np.array(rows + [[0.5 * (a + b) for a, b in zip(lows, highs, strict=True)]])
+    tensions = rows[:, design.n_channels :] if design.n_tendons else None
+    return rows[:, : design.n_channels], tensions
 
 
 @pytest.mark.parametrize("name", softrod.bundled_designs())
 def test_bundled_designs_are_stable_across_their_operating_range(name):
     d = load_design(name)
     assert "operating_range" in d.spec, f"{name} states no operating range"
-    out = solve_statics_batch(d, _range_corners(d), threads=1)
+    pressures, tensions = _range_corners(d)
+    out = solve_statics_batch(d, pressures, tensions=tensions, threads=1)
     assert out.converged.all(), out.violation
     if d.spec.get("obstacles"):
         return  # stability is not assessed with obstacles (docs/contact.md)

@@ -58,7 +58,7 @@ def design(steps: int) -> dict:
     }
 
 
-def routing(s: float) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+def helical_routing(s: float) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """(r_i, r_i', r_i'') of each tendon in the body frame at arc length s."""
     out = []
     for theta, dtheta in ((2 * np.pi * TURNS * s / L, 2 * np.pi * TURNS / L), (np.pi / 2, 0.0)):
@@ -77,70 +77,94 @@ def hat(w: np.ndarray) -> np.ndarray:
     return np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
 
 
-def rhs(s: float, y: np.ndarray) -> np.ndarray:
-    """y = (r, R row-major, v, u). Body-frame balance with the tendons as external loads:
-    K_se v' + u x K_se (v - v*) + sum tau (u x t + P q' / |q|) = 0,
-    K_bt u' + u x K_bt u + v x K_se (v - v*) + sum tau r_i x (u x t + P q' / |q|) = 0,
-    with q = v + u x r_i + r_i' (the tendon's tangent, body frame), t = q / |q|,
-    P = I - t t^T and q' = v' + u' x r_i + u x r_i' + r_i''. Linear in (v', u'): solved."""
-    rot = y[3:12].reshape(3, 3)
-    v, u = y[12:15], y[15:18]
-    ne = K_SE * (v - [0.0, 0.0, 1.0])
-    a = np.zeros((6, 6))
-    b = np.concatenate([-np.cross(u, ne), -np.cross(u, K_BT * u) - np.cross(v, ne)])
-    a[0:3, 0:3] += np.diag(K_SE)
-    a[3:6, 3:6] += np.diag(K_BT)
-    for tau, (ri, dri, ddri) in zip(TENSIONS, routing(s), strict=True):
-        q = v + np.cross(u, ri) + dri
-        nq = np.linalg.norm(q)
-        t = q / nq
-        proj = (np.eye(3) - np.outer(t, t)) / nq
-        # q' = v' - [r_i]x u' + (u x r_i' + r_i''): its (v', u') part and the rest.
-        dq = np.hstack([np.eye(3), -hat(ri)])
-        rest = np.cross(u, dri) + ddri
-        force_lin = tau * proj @ dq  # the tendon's force per length, linear part
-        force_0 = tau * (np.cross(u, t) + proj @ rest)
-        a[0:3] += force_lin
-        a[3:6] += hat(ri) @ force_lin
-        b[0:3] -= force_0
-        b[3:6] -= np.cross(ri, force_0)
-    dw = np.linalg.solve(a, b)
-    return np.concatenate([rot @ v, (rot @ hat(u)).ravel(), dw])
+class RuckerWebster:
+    """The reference: a uniform rod of length ``length`` with the linear law (``k_se``,
+    ``k_bt``, v* = e3, u* = 0), clamped at the origin with rotation ``base``, tendons with
+    body-frame ``routing(s) -> [(r_i, r_i', r_i'')]`` and ``tensions``, a dead ``tip_force``
+    and a dead world-frame ``line_load`` (N/m, e.g. the weight per length)."""
 
+    def __init__(self, length, k_se, k_bt, routing, tensions, tip_force, line_load, base):
+        self.length, self.k_se, self.k_bt = length, k_se, k_bt
+        self.routing, self.tensions = routing, np.asarray(tensions, dtype=float)
+        self.tip_force, self.line_load = np.asarray(tip_force), np.asarray(line_load)
+        self.base = np.asarray(base, dtype=float)
 
-def tip_residual(w0: np.ndarray, full: bool = False):
-    """The free tip's wrench balance: elastic n(L) = F - sum tau R t_i(L) and
-    m(L) = -sum (R r_i) x tau R t_i(L) (the terminations pull back along the tendons)."""
-    from scipy.integrate import solve_ivp
+    def rhs(self, s: float, y: np.ndarray) -> np.ndarray:
+        """y = (r, R row-major, v, u). Body-frame balance, tendons as external loads:
+        K_se v' + u x K_se (v - v*) + R^T f + sum tau (u x t + P q' / |q|) = 0,
+        K_bt u' + u x K_bt u + v x K_se (v - v*) + sum tau r_i x (u x t + P q' / |q|) = 0,
+        with q = v + u x r_i + r_i' (the tendon's tangent, body frame), t = q / |q|,
+        P = I - t t^T and q' = v' + u' x r_i + u x r_i' + r_i''. Linear in (v', u')."""
+        rot = y[3:12].reshape(3, 3)
+        v, u = y[12:15], y[15:18]
+        ne = self.k_se * (v - [0.0, 0.0, 1.0])
+        a = np.zeros((6, 6))
+        b = np.concatenate(
+            [
+                -np.cross(u, ne) - rot.T @ self.line_load,
+                -np.cross(u, self.k_bt * u) - np.cross(v, ne),
+            ]
+        )
+        a[0:3, 0:3] += np.diag(self.k_se)
+        a[3:6, 3:6] += np.diag(self.k_bt)
+        for tau, (ri, dri, ddri) in zip(self.tensions, self.routing(s), strict=True):
+            q = v + np.cross(u, ri) + dri
+            nq = np.linalg.norm(q)
+            t = q / nq
+            proj = (np.eye(3) - np.outer(t, t)) / nq
+            # q' = v' - [r_i]x u' + (u x r_i' + r_i''): its (v', u') part and the rest.
+            dq = np.hstack([np.eye(3), -hat(ri)])
+            rest = np.cross(u, dri) + ddri
+            force_lin = tau * proj @ dq  # the tendon's force per length, linear part
+            force_0 = tau * (np.cross(u, t) + proj @ rest)
+            a[0:3] += force_lin
+            a[3:6] += hat(ri) @ force_lin
+            b[0:3] -= force_0
+            b[3:6] -= np.cross(ri, force_0)
+        dw = np.linalg.solve(a, b)
+        return np.concatenate([rot @ v, (rot @ hat(u)).ravel(), dw])
 
-    y0 = np.concatenate([np.zeros(3), np.eye(3).ravel(), w0])
-    out = solve_ivp(rhs, (0.0, L), y0, method="DOP853", rtol=1e-13, atol=1e-14)
-    assert out.success, out.message
-    y = out.y[:, -1]
-    if full:
-        return y
-    rot = y[3:12].reshape(3, 3)
-    v, u = y[12:15], y[15:18]
-    n, m = rot @ (K_SE * (v - [0.0, 0.0, 1.0])), rot @ (K_BT * u)
-    pull_n, pull_m = np.zeros(3), np.zeros(3)
-    for tau, (ri, dri, _) in zip(TENSIONS, routing(L), strict=True):
-        q = v + np.cross(u, ri) + dri
-        t = rot @ (q / np.linalg.norm(q))
-        pull_n -= tau * t
-        pull_m -= np.cross(rot @ ri, tau * t)
-    # Scaled: forces by the largest tension, moments by tension x length.
-    return np.concatenate([(n - TIP_FORCE - pull_n), (m - pull_m) / L]) / TENSIONS.max()
+    def tip_state(self, w0: np.ndarray) -> np.ndarray:
+        from scipy.integrate import solve_ivp
+
+        y0 = np.concatenate([np.zeros(3), self.base.ravel(), w0])
+        out = solve_ivp(self.rhs, (0.0, self.length), y0, method="DOP853", rtol=1e-13, atol=1e-14)
+        assert out.success, out.message
+        return out.y[:, -1]
+
+    def tip_residual(self, w0: np.ndarray) -> np.ndarray:
+        """The free tip's wrench balance: elastic n(L) = F - sum tau R t_i(L) and
+        m(L) = -sum (R r_i) x tau R t_i(L) (the terminations pull back along the
+        tendons), scaled by the largest tension (and the length for moments)."""
+        y = self.tip_state(w0)
+        rot = y[3:12].reshape(3, 3)
+        v, u = y[12:15], y[15:18]
+        n, m = rot @ (self.k_se * (v - [0.0, 0.0, 1.0])), rot @ (self.k_bt * u)
+        pull_n, pull_m = np.zeros(3), np.zeros(3)
+        for tau, (ri, dri, _) in zip(self.tensions, self.routing(self.length), strict=True):
+            q = v + np.cross(u, ri) + dri
+            t = rot @ (q / np.linalg.norm(q))
+            pull_n -= tau * t
+            pull_m -= np.cross(rot @ ri, tau * t)
+        scale = max(self.tensions.max(), 1.0)
+        return np.concatenate([n - self.tip_force - pull_n, (m - pull_m) / self.length]) / scale
+
+    def tip(self) -> np.ndarray:
+        """The tip position, shot from the straight rod on the six base strains."""
+        from scipy.optimize import root
+
+        w0 = root(
+            self.tip_residual, np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), method="hybr", tol=1e-14
+        ).x
+        # MINPACK may stop at round-off; what counts is the residual it leaves (N, scaled).
+        assert np.abs(self.tip_residual(w0)).max() < 1e-10
+        return self.tip_state(w0)[0:3]
 
 
 @pytest.fixture(scope="module")
 def reference_tip() -> np.ndarray:
-    from scipy.optimize import root
-
-    w0 = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])  # straight
-    w0 = root(tip_residual, w0, method="hybr", tol=1e-14).x
-    # MINPACK may stop at round-off; what counts is the residual it leaves (N, scaled).
-    assert np.abs(tip_residual(w0)).max() < 1e-10
-    return tip_residual(w0, full=True)[0:3]
+    rw = RuckerWebster(L, K_SE, K_BT, helical_routing, TENSIONS, TIP_FORCE, np.zeros(3), np.eye(3))
+    return rw.tip()
 
 
 def test_helical_tendon_converges_at_fourth_order_to_rucker_webster(reference_tip):
@@ -166,3 +190,45 @@ def test_helical_tendon_converges_at_fourth_order_to_rucker_webster(reference_ti
     assert errors[2] < 1e-6 * L, errors
     # A real 3-D deflection, not a near-straight rod: the tip moves by over 10 % of L.
     assert np.linalg.norm(tips[-1] - [0.0, 0.0, L]) > 0.1 * L
+
+
+@pytest.mark.parametrize("tensions", [[15.0, 0.0, 0.0, 0.0], [10.0, 10.0, 0.0, 0.0]])
+def test_till_tendon_robot_matches_rucker_webster(tensions):
+    """The bundled tendon robot of Till, Aloi and Rucker's statics example (0.5 m steel
+    rod, four tendons 15.06 mm off the axis, horizontal under gravity) against the same
+    reference with its parameters read back from the loaded design."""
+    design = load_design("till_tendon_robot")
+    (sec,) = design.spec["sections"]
+    k = sec["stiffness"]
+    k_se = np.array([k["ga"], k["ga"], k["ea"]])
+    k_bt = np.array([k["ei1"], k["ei2"], k["gj"]])
+    weight = np.array(design.spec["mounting"]["gravity"]) * sec["mass"] / sec["length"]
+
+    def routing(_s):
+        return [
+            (
+                t["distance"] * np.array([np.cos(t["angle"]), np.sin(t["angle"]), 0.0]),
+                np.zeros(3),
+                np.zeros(3),
+            )
+            for t in sec["tendons"]
+        ]
+
+    rw = RuckerWebster(
+        sec["length"],
+        k_se,
+        k_bt,
+        routing,
+        tensions,
+        np.zeros(3),
+        weight,
+        design.spec["mounting"]["base_rotation"],
+    )
+    reference = rw.tip()
+    sol = solve_statics(design, [], tensions=tensions, options=SolverOptions(tol=1e-12))
+    assert sol.converged and sol.stable
+    # At the design's 40 steps (12.5 mm) RK4's error C L (|u| h)^4 with |u| <= 1.5 1/m is
+    # ~1e-9 m; 1e-6 of the length (0.5 um) bounds it with a wide margin.
+    np.testing.assert_allclose(sol.tip_position, reference, rtol=0, atol=1e-6 * sec["length"])
+    # The example's picture: tendon 0 (the lower side) pulls the tip down, tendon 1 sideways.
+    assert sol.tip_position[2] < -0.1 and (tensions[1] == 0) == (abs(sol.tip_position[1]) < 1e-9)

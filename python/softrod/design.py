@@ -59,7 +59,7 @@ _SCHEMA: dict[str, set[str]] = {
         "operating_range",
         "obstacles",
     },
-    "operating_range": {"pressure", "source"},
+    "operating_range": {"pressure", "tension", "source"},
     "obstacle": {
         "kind",
         "point",
@@ -813,21 +813,33 @@ def _obstacles(obstacles: Any) -> list[dict]:
 
 
 def _operating_range(table: Any) -> dict:
-    """[operating_range]: the gauge pressures the actuator is built and validated for,
-    ``pressure = ["0 kPa", "70 kPa"]`` for every channel, and the ``source`` of the range.
-    Solves outside it are refused or warned about (docs/model.md, "Validity and stability")."""
+    """[operating_range]: what the actuator is built and validated for: the gauge pressures
+    of every channel (``pressure = ["0 kPa", "70 kPa"]``), the tensions of every tendon
+    channel (``tension = ["0 N", "20 N"]``), or both, and the ``source`` of the range. Solves
+    outside it are refused or warned about (docs/model.md, "Validity and stability")."""
     table = _check_keys(table, "operating_range", "operating_range")
-    pressure = _require(table, "pressure", "operating_range")
-    if isinstance(pressure, str) or not isinstance(pressure, list) or len(pressure) != 2:
+    if "pressure" not in table and "tension" not in table:
         raise V.fail(
-            "operating_range.pressure",
-            pressure,
-            'must be [low, high], e.g. ["0 kPa", "70 kPa"]',
+            "operating_range",
+            sorted(table),
+            'must state pressure = ["low", "high"], tension = ["low", "high"] or both',
             DesignError,
         )
     if "source" in table and not isinstance(table["source"], str):
         raise V.fail("operating_range.source", table["source"], "must be a string", DesignError)
-    return {"pressure": _qvec(pressure, "pressure", "operating_range.pressure", length=2)}
+    out = {}
+    for key, kind, example in (("pressure", "pressure", '["0 kPa", "70 kPa"]'),
+                               ("tension", "force", '["0 N", "20 N"]')):
+        if key not in table:
+            continue
+        bounds = table[key]
+        if isinstance(bounds, str) or not isinstance(bounds, list) or len(bounds) != 2:
+            raise V.fail(
+                f"operating_range.{key}", bounds, f"must be [low, high], e.g. {example}",
+                DesignError,
+            )
+        out[key] = _qvec(bounds, kind, f"operating_range.{key}", length=2)
+    return out
 
 
 def _check_channels(secs: list[dict], key: str = "chambers", what: str = "pressure") -> None:

@@ -211,9 +211,11 @@ impl<'a> Rows<'a> {
             rod.check_loads(rows.pressures(r), &rows.sigma(r))
                 .and_then(|()| rod.check_tensions(&rows.tensions(r)))
                 .and_then(|()| match range {
-                    Some(range) => {
-                        validity::check_operating_range(rows.pressures(r), range.pressure)
-                    }
+                    Some(range) => validity::check_operating_range(
+                        rows.pressures(r),
+                        &rows.tensions(r),
+                        &range,
+                    ),
                     None => Ok(()),
                 })
                 .map_err(|e| match e {

@@ -322,19 +322,30 @@ pub fn check_strain_range(
     ))
 }
 
-/// Every pressure within the design's operating range [lo, hi] (Pa).
-pub fn check_operating_range(pressures: &[f64], range: [f64; 2]) -> Result<()> {
-    for (i, &p) in pressures.iter().enumerate() {
-        if p < range[0] || p > range[1] {
-            return Err(broken(
-                Rule::OperatingRange,
-                None,
-                p,
-                format!(
-                    "pressures[{i}] = {p} Pa is outside the design's operating_range [{}, {}] Pa (what the actuator is built and validated for)",
-                    range[0], range[1]
-                ),
-            ));
+/// Every pressure (Pa) and tendon tension (N) within the design's operating range, where
+/// it states one.
+pub fn check_operating_range(
+    pressures: &[f64],
+    tensions: &[f64],
+    range: &crate::spec::OperatingRangeSpec,
+) -> Result<()> {
+    let inputs = [
+        ("pressures", "pressure", "Pa", pressures, range.pressure),
+        ("tensions", "tension", "N", tensions, range.tension),
+    ];
+    for (name, key, unit, values, bounds) in inputs {
+        let Some([lo, hi]) = bounds else { continue };
+        for (i, &x) in values.iter().enumerate() {
+            if x < lo || x > hi {
+                return Err(broken(
+                    Rule::OperatingRange,
+                    None,
+                    x,
+                    format!(
+                        "{name}[{i}] = {x} {unit} is outside the design's operating_range.{key} [{lo}, {hi}] {unit} (what the actuator is built and validated for)"
+                    ),
+                ));
+            }
         }
     }
     Ok(())
@@ -450,10 +461,23 @@ mod tests {
             rule_of(check_finite(NODE, &[1.0, f64::NAN]).unwrap_err()),
             Rule::Finite
         );
-        assert!(check_operating_range(&[0.0, 7e4], [0.0, 7e4]).is_ok());
-        let e = check_operating_range(&[0.0, 5e5], [0.0, 7e4]).unwrap_err();
+        let range = crate::spec::OperatingRangeSpec {
+            pressure: Some([0.0, 7e4]),
+            tension: Some([0.0, 20.0]),
+        };
+        assert!(check_operating_range(&[0.0, 7e4], &[20.0], &range).is_ok());
+        let e = check_operating_range(&[0.0, 5e5], &[], &range).unwrap_err();
         assert!(e.to_string().contains("pressures[1]"), "{e}");
         assert_eq!(rule_of(e), Rule::OperatingRange);
+        let e = check_operating_range(&[0.0], &[1.0, 25.0], &range).unwrap_err();
+        assert!(e.to_string().contains("tensions[1] = 25 N"), "{e}");
+        assert_eq!(rule_of(e), Rule::OperatingRange);
+        // A range that states pressures only leaves tensions unchecked, and the reverse.
+        let pressure_only = crate::spec::OperatingRangeSpec {
+            tension: None,
+            ..range
+        };
+        assert!(check_operating_range(&[1e4], &[1e3], &pressure_only).is_ok());
         assert!(!Rule::OperatingRange.is_physical() && Rule::PositiveStretch.is_physical());
     }
 }

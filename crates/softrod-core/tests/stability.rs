@@ -269,7 +269,8 @@ fn stretch_through_zero_is_an_error_naming_the_node() {
 fn p002_with_range() -> DesignSpec {
     let mut spec = p002_actuator(IDENTITY, 9.81, 16);
     spec.operating_range = Some(OperatingRangeSpec {
-        pressure: [0.0, 60e3],
+        pressure: Some([0.0, 60e3]),
+        tension: None,
     });
     spec
 }

@@ -271,10 +271,31 @@ const CASES: &[(&str, Breaker, &str)] = &[
         "operating range upside down",
         |d| {
             d.operating_range = Some(softrod_core::spec::OperatingRangeSpec {
-                pressure: [7e4, 0.0],
+                pressure: Some([7e4, 0.0]),
+                tension: None,
             })
         },
         "operating_range.pressure",
+    ),
+    (
+        "negative tension range",
+        |d| {
+            d.operating_range = Some(softrod_core::spec::OperatingRangeSpec {
+                pressure: None,
+                tension: Some([-1.0, 10.0]),
+            })
+        },
+        "operating_range.tension",
+    ),
+    (
+        "empty operating range",
+        |d| {
+            d.operating_range = Some(softrod_core::spec::OperatingRangeSpec {
+                pressure: None,
+                tension: None,
+            })
+        },
+        "operating_range",
     ),
     (
         "non-contiguous channel indices",

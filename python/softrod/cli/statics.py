@@ -207,7 +207,10 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
     elapsed = time.perf_counter() - t0
     notes = list(sol.violations)
     if sol.stable is None:
-        notes.append("stability not assessed (follower loads are not conservative)")
+        notes.append(
+            "stability not assessed (follower loads, a pinned or clamped tip, or contact "
+            "with obstacles: docs/scope.md)"
+        )
     elif not sol.stable:
         notes.append(
             "the equilibrium is unstable: a small disturbance moves the rod away from it "
@@ -231,6 +234,12 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
         }
         if d.n_tendons:
             out["tensions_N"] = [float(x) for x in sol.tensions]
+        if sol.contact is not None:
+            out["contact"] = {
+                "total_force_N": sol.contact.total_force.tolist(),
+                "max_penetration_m": sol.contact.max_penetration,
+                "nodes_in_contact": int(sol.contact.in_contact.sum()),
+            }
         click.echo(json.dumps(out, indent=2))
     else:
         table = Table(title=f"{d.name}: static equilibrium", title_justify="left")
@@ -245,6 +254,13 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
         table.add_row("tip tangent d3", _fmt_vec(sol.tip_rotation[:, 2], 1.0, 4), "-")
         table.add_row("base force", _fmt_vec(sol.base_force, 1.0, 4), "N")
         table.add_row("base moment", _fmt_vec(sol.base_moment, 1e3, 3), "N mm")
+        if sol.contact is not None:
+            for k, force in enumerate(sol.contact.total_force):
+                table.add_row(f"contact force, obstacle {k}", _fmt_vec(force, 1.0, 4), "N")
+            touching = int(sol.contact.in_contact.sum())
+            depth = max(sol.contact.max_penetration, 0.0) * 1e3
+            table.add_row("nodes in contact", f"{touching} of {len(sol.s)}", "")
+            table.add_row("deepest penetration", f"{depth:.4f}", "mm")
         table.add_row("converged", "yes" if sol.converged else "no", "")
         stable = "not assessed" if sol.stable is None else "yes" if sol.stable else "NO"
         table.add_row("stable", stable, "")

@@ -434,8 +434,12 @@ pub struct LineLoadSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OperatingRangeSpec {
-    /// Lowest and highest gauge pressure of every channel, Pa.
-    pub pressure: [f64; 2],
+    /// Lowest and highest gauge pressure of every channel, Pa (`None`: not stated).
+    #[serde(default)]
+    pub pressure: Option<[f64; 2]>,
+    /// Lowest and highest tension of every tendon channel, N (`None`: not stated).
+    #[serde(default)]
+    pub tension: Option<[f64; 2]>,
 }
 
 /// A complete design in SI units.
@@ -1311,15 +1315,34 @@ impl DesignSpec {
             p.validate()?;
         }
         if let Some(r) = &self.operating_range {
-            let [lo, hi] = r.pressure;
-            finite("operating_range.pressure[0]", lo)?;
-            finite("operating_range.pressure[1]", hi)?;
-            if lo < -ATMOSPHERE || hi <= lo {
+            if r.pressure.is_none() && r.tension.is_none() {
                 return Err(SoftrodError::invalid(
-                    "operating_range.pressure",
-                    format!("[{lo}, {hi}] Pa"),
-                    "must be [low, high] gauge pressures with -101325 Pa <= low < high",
+                    "operating_range",
+                    "{}",
+                    "must state a pressure range, a tension range or both",
                 ));
+            }
+            if let Some([lo, hi]) = r.pressure {
+                finite("operating_range.pressure[0]", lo)?;
+                finite("operating_range.pressure[1]", hi)?;
+                if lo < -ATMOSPHERE || hi <= lo {
+                    return Err(SoftrodError::invalid(
+                        "operating_range.pressure",
+                        format!("[{lo}, {hi}] Pa"),
+                        "must be [low, high] gauge pressures with -101325 Pa <= low < high",
+                    ));
+                }
+            }
+            if let Some([lo, hi]) = r.tension {
+                finite("operating_range.tension[0]", lo)?;
+                finite("operating_range.tension[1]", hi)?;
+                if lo < 0.0 || hi <= lo {
+                    return Err(SoftrodError::invalid(
+                        "operating_range.tension",
+                        format!("[{lo}, {hi}] N"),
+                        "must be [low, high] tendon tensions with 0 N <= low < high",
+                    ));
+                }
             }
         }
         let n = self.n_channels();

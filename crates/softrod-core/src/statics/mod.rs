@@ -945,7 +945,7 @@ pub fn check_inputs(rod: &Rod, loads: &Loads, opts: &SolverOptions) -> Result<Ve
     }
     let mut violations = vec![];
     if let (Some(range), true) = (rod.spec.operating_range, opts.on_invalid != Policy::Ignore) {
-        if let Err(e) = validity::check_operating_range(&loads.pressures, range.pressure) {
+        if let Err(e) = validity::check_operating_range(&loads.pressures, &loads.tensions, &range) {
             if opts.on_invalid == Policy::Raise {
                 return Err(e);
             }
