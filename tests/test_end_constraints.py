@@ -422,3 +422,28 @@ def test_any_tip_constraint_value_is_accepted_or_refused_clearly(value):
         assert exc.field.startswith("tip_constraint")
     else:
         assert c.kind in ("free", "pinned", "clamped")
+
+
+def test_cli_solve_reports_the_tip_reaction(run, tmp_path):
+    """`softrod solve` on a design file with a clamped tip shows the constraint's reaction
+    force and moment (table and JSON, the API's numbers) and no empty pressure row."""
+    import json
+
+    doc = rod(q=10.0)
+    doc["tip"] = {
+        "constraint": "clamped",
+        "position": ["2 mm", "0 mm", "99 mm"],
+        "orientation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+    }
+    path = tmp_path / "clamped.toml"
+    load_design(doc).save(path)
+    result = run("solve", path, "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    api = solve_statics(load_design(path), [])
+    assert data["tip_constraint"] == "clamped"
+    np.testing.assert_array_equal(data["tip_reaction_force_N"], api.tip_reaction_force)
+    np.testing.assert_array_equal(data["tip_reaction_moment_Nm"], api.tip_reaction_moment)
+    table = run("solve", path).output
+    assert "tip reaction force (clamped)" in table and "tip reaction moment" in table
+    assert "pressures" not in table  # a rod without chambers has no pressure row

@@ -234,6 +234,10 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
         }
         if d.n_tendons:
             out["tensions_N"] = [float(x) for x in sol.tensions]
+        if sol.tip_constraint != "free":
+            out["tip_constraint"] = sol.tip_constraint
+            out["tip_reaction_force_N"] = sol.tip_reaction_force.tolist()
+            out["tip_reaction_moment_Nm"] = sol.tip_reaction_moment.tolist()
         if sol.contact is not None:
             out["contact"] = {
                 "total_force_N": sol.contact.total_force.tolist(),
@@ -246,7 +250,8 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
         table.add_column("quantity")
         table.add_column("value", justify="right")
         table.add_column("unit")
-        table.add_row(f"pressures p0..p{len(p) - 1}", _fmt_kpa(p), "kPa")
+        if len(p):
+            table.add_row(f"pressures p0..p{len(p) - 1}", _fmt_kpa(p), "kPa")
         if len(sol.tensions):
             t_all = sol.tensions
             table.add_row(f"tensions t0..t{len(t_all) - 1}", _fmt_vec(t_all, 1.0, 3), "N")
@@ -254,6 +259,12 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
         table.add_row("tip tangent d3", _fmt_vec(sol.tip_rotation[:, 2], 1.0, 4), "-")
         table.add_row("base force", _fmt_vec(sol.base_force, 1.0, 4), "N")
         table.add_row("base moment", _fmt_vec(sol.base_moment, 1e3, 3), "N mm")
+        if sol.tip_constraint != "free":
+            held = f"tip reaction force ({sol.tip_constraint})"
+            table.add_row(held, _fmt_vec(sol.tip_reaction_force, 1.0, 4), "N")
+            if sol.tip_constraint == "clamped":
+                moment = sol.tip_reaction_moment
+                table.add_row("tip reaction moment (clamped)", _fmt_vec(moment, 1e3, 3), "N mm")
         if sol.contact is not None:
             for k, force in enumerate(sol.contact.total_force):
                 table.add_row(f"contact force, obstacle {k}", _fmt_vec(force, 1.0, 4), "N")
