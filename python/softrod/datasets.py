@@ -4,6 +4,8 @@ A dataset is a table with one row per static equilibrium (or time sample). Colum
 names; kind; required or not):
 
 - ``p0``, ``p1``, ... ``p<c-1>`` (pressure, required): gauge pressure of each channel.
+- ``t0``, ``t1``, ... ``t<k-1>`` (force, optional): tension of each tendon channel (>= 0);
+  without them every tendon is slack, as ``tensions=None`` in a solve.
 - ``tip_x``, ``tip_y``, ``tip_z`` (length, required): tip position in the world frame of the
   design, the frame of ``StaticSolution.tip_position``.
 - ``tip_qw``, ``tip_qx``, ``tip_qy``, ``tip_qz`` (no unit, optional group): tip orientation
@@ -86,11 +88,12 @@ QUATERNION_TOLERANCE = 1e-6
 _ROTATION_TOLERANCE = 1e-6
 
 _NAME = re.compile(
-    r"^(?P<base>p(?:0|[1-9][0-9]*)|tip_[xyz]|tip_q[wxyz]|base_[fm][xyz]|experiment|mounting|time"
+    r"^(?P<base>p(?:0|[1-9][0-9]*)|t(?:0|[1-9][0-9]*)|tip_[xyz]|tip_q[wxyz]|base_[fm][xyz]|experiment|mounting|time"
     r"|marker(?:0|[1-9][0-9]*)_[xyz])"
     r"(?:_(?P<unit>.*))?$"
 )
 _MARKER = re.compile(r"^marker(0|[1-9][0-9]*)_([xyz])$")
+_TENSION = re.compile(r"^t(0|[1-9][0-9]*)$")
 #: Most markers a dataset may have (a motion-capture rig tracks tens).
 MAX_MARKERS = 256
 _XYZ = ("x", "y", "z")
@@ -99,8 +102,10 @@ _QUAT = ("tip_qw", "tip_qx", "tip_qy", "tip_qz")
 _FORCE = tuple(f"base_f{a}" for a in _XYZ)
 _MOMENT = tuple(f"base_m{a}" for a in _XYZ)
 _LABELS = ("experiment", "mounting")
-_KNOWN = "p0, p1, ... (channels), tip_x/y/z, tip_qw/qx/qy/qz, base_fx/fy/fz, base_mx/my/mz, " + (
-    "marker0_x/y/z, marker1_x/y/z, ..., experiment, mounting, time"
+_KNOWN = (
+    "p0, p1, ... (channels), t0, t1, ... (tendon tensions), tip_x/y/z, tip_qw/qx/qy/qz, "
+    "base_fx/fy/fz, base_mx/my/mz, marker0_x/y/z, marker1_x/y/z, ..., experiment, mounting, "
+    "time"
 )
 _MAX_LISTED = 10  # rows named in one error message before "and N more"
 
@@ -111,6 +116,8 @@ def _kind(base: str) -> str | None:
     """Quantity kind of a base column name (None: no unit allowed)."""
     if base[0] == "p":
         return "pressure"
+    if _TENSION.match(base):
+        return "force"
     if base in _TIP or _MARKER.match(base):
         return "length"
     if base in _FORCE:
@@ -177,6 +184,7 @@ class Dataset:
 
     pressures: (m, c) gauge pressures, Pa.     tip_position: (m, 3) tip position, m (world),
     or None when the dataset has markers instead.
+    tensions: (m, k) tendon tensions, N (>= 0), or None: every tendon slack.
     tip_rotation: (m, 3, 3) [d1 d2 d3] of the tip (world) or None.
     base_force, base_moment: (m, 3) force (N) and moment about the base point (N m) that the
     rod exerts on its mount, world frame, or None (``StaticSolution.base_force`` convention).
@@ -199,6 +207,7 @@ class Dataset:
 
     pressures: np.ndarray
     tip_position: np.ndarray | None = None
+    tensions: np.ndarray | None = None
     tip_rotation: np.ndarray | None = None
     base_force: np.ndarray | None = None
     base_moment: np.ndarray | None = None
@@ -216,10 +225,29 @@ class Dataset:
     def __post_init__(self):
         set_ = object.__setattr__
         p = V.real_array(self.pressures, "pressures", what="gauge pressures (Pa)")
-        if p.ndim != 2 or p.shape[1] < 1 or p.shape[1] > V.MAX_CHANNELS:
-            raise _fail("pressures", f"shape {p.shape}", "must be an (m, channels) array in Pa")
+        # Every row needs an input: pressures, or tensions for a design without chambers.
+        least = 0 if self.tensions is not None else 1
+        if p.ndim != 2 or p.shape[1] < least or p.shape[1] > V.MAX_CHANNELS:
+            raise _fail(
+                "pressures",
+                f"shape {p.shape}",
+                "must be an (m, channels) array in Pa (channels >= 1 unless tensions are given)",
+            )
         m = p.shape[0]
         set_(self, "pressures", _readonly(p))
+        if self.tensions is not None:
+            t = V.real_array(self.tensions, "tensions", what="tendon tensions (N)")
+            if t.ndim != 2 or t.shape[0] != m or not 1 <= t.shape[1] <= V.MAX_CHANNELS:
+                raise _fail(
+                    "tensions", f"shape {t.shape}", f"must be an (m, tendons) array in N (m = {m})"
+                )
+            bad = np.flatnonzero(~(np.isfinite(t) & (t >= 0)).all(axis=1))
+            if bad.size:
+                raise _fail(
+                    "tensions", "negative or non-finite",
+                    f"tendon tensions must be finite and >= 0 N (rows {_runs(bad)})",
+                )
+            set_(self, "tensions", _readonly(t))
         shapes = {
             "tip_position": (m, 3),
             "tip_rotation": (m, 3, 3),
@@ -378,6 +406,8 @@ class Dataset:
 
     def __repr__(self) -> str:
         parts = [f"{len(self)} rows", f"{self.n_channels} channels"]
+        if self.tensions is not None:
+            parts.append(f"{self.n_tendons} tendon channels")
         if self.experiment is not None:
             parts.append(f"experiments {list(self.experiments)}")
         optional = [
@@ -407,6 +437,22 @@ class Dataset:
     def n_channels(self) -> int:
         """Number of pressure channels (columns of ``pressures``)."""
         return self.pressures.shape[1]
+
+    @property
+    def n_tendons(self) -> int:
+        """Number of tendon tension channels (columns of ``tensions``; 0 without)."""
+        return 0 if self.tensions is None else self.tensions.shape[1]
+
+    def require_slack(self, what: str) -> None:
+        """Refuse a dataset with a tendon under tension in an entry point that solves with
+        slack tendons only: never a silent answer for other inputs than the measured ones."""
+        if self.tensions is not None and np.any(self.tensions != 0):
+            raise _fail(
+                "tensions",
+                f"{self.n_tendons} tension channel(s)",
+                f"{what} solves with slack tendons; the dataset records tendon tensions "
+                "(t0, t1, ... columns), which it cannot use",
+            )
 
     @property
     def synthetic(self) -> bool:
@@ -445,6 +491,7 @@ class Dataset:
 
         return Dataset(
             pressures=self.pressures[idx],
+            tensions=take(self.tensions),
             tip_position=take(self.tip_position),
             tip_rotation=take(self.tip_rotation),
             base_force=take(self.base_force),
@@ -499,6 +546,7 @@ class Dataset:
         described = dict(self.metadata.get("columns") or {})
         return schema_frame(
             pressures=self.pressures,
+            tensions=self.tensions,
             tip_position=self.tip_position,
             tip_rotation=self.tip_rotation,
             base_force=self.base_force,
@@ -735,6 +783,15 @@ def load_dataset(
                 f"shape {source.pressures.shape}",
                 f"the data has {source.n_channels} pressure channel(s) but {what}",
             )
+        if design is not None and source.tensions is not None:
+            d = load_design(design)
+            if source.n_tendons != d.n_tendons:
+                raise _fail(
+                    "tensions",
+                    f"shape {source.tensions.shape}",
+                    f"the data has {source.n_tendons} tendon tension channel(s) but design "
+                    f"{d.name!r} has {d.n_tendons}",
+                )
         return source
     V.choice(extra, ("error", "ignore"), "extra")
     V.choice(unconverged, ("error", "drop"), "unconverged")
@@ -918,7 +975,7 @@ def _from_frame(
             unknown.append(name)
             continue
         base, unit = m["base"], m["unit"]
-        if base[0] == "p":
+        if base[0] == "p" or _TENSION.match(base):
             channel_index(base, name)
         kind = _kind(base)
         if unit is not None and name in block:
@@ -956,13 +1013,14 @@ def _from_frame(
 
     # Required columns and complete groups.
     channels = sorted(int(b[1:]) for b in columns if b[0] == "p")
+    tendons = sorted(int(t[1]) for b in columns if (t := _TENSION.match(b)))
     marker_ids = sorted({int(m[1]) for b in columns if (m := _MARKER.match(b))})
     missing = [b for b in _TIP if b not in columns]
     if marker_ids and len(missing) == len(_TIP):
         missing = []  # markers instead of the tip
     for k in marker_ids:
         missing += [f"marker{k}_{a}" for a in _XYZ if f"marker{k}_{a}" not in columns]
-    if not channels:
+    if not channels and not tendons:
         missing.insert(0, "p0")
     for group in (_QUAT, _FORCE, _MOMENT):
         present = [b for b in group if b in columns]
@@ -974,7 +1032,8 @@ def _from_frame(
             "columns",
             names,
             f"missing column(s) {', '.join(missing)} (spelled e.g. {spelled}); required are "
-            "p0, p1, ... and tip_x, tip_y, tip_z (or markers marker0_x, ...); the tip_q*, "
+            "p0, p1, ... (or t0, t1, ... for a rod without chambers) and tip_x, tip_y, tip_z "
+            "(or markers marker0_x, ...); the tip_q*, "
             "base_f*, base_m* and marker* columns are optional but come in complete groups",
         )
     if marker_ids and marker_ids != list(range(len(marker_ids))):
@@ -988,7 +1047,7 @@ def _from_frame(
     if len(marker_ids) > MAX_MARKERS:
         raise _fail("columns", f"{len(marker_ids)} markers", f"at most {MAX_MARKERS} markers")
     sites = _marker_sites(meta.get("markers"), len(marker_ids))
-    gaps = sorted(set(range(channels[-1] + 1)) - set(channels))
+    gaps = sorted(set(range(channels[-1] + 1)) - set(channels)) if channels else []
     if gaps:
         raise _fail(
             "columns",
@@ -996,6 +1055,23 @@ def _from_frame(
             f"pressure channels must be numbered p0, p1, ... without gaps: "
             f"{', '.join(f'p{k}' for k in gaps)} missing",
         )
+    if tendons and tendons != list(range(len(tendons))):
+        gaps = sorted(set(range(tendons[-1] + 1)) - set(tendons))
+        raise _fail(
+            "columns",
+            [columns[f"t{k}"][0] for k in tendons],
+            f"tendon tension channels must be numbered t0, t1, ... without gaps: "
+            f"{', '.join(f't{k}' for k in gaps)} missing",
+        )
+    if tendons and design is not None:
+        d = load_design(design)
+        if len(tendons) != d.n_tendons:
+            raise _fail(
+                "columns",
+                [columns[f"t{k}"][0] for k in tendons],
+                f"the data has {len(tendons)} tendon tension channel(s) but design "
+                f"{d.name!r} has {d.n_tendons}",
+            )
     want, what = _expected_channels(n_channels, design)
     if want is not None and len(channels) != want:
         raise _fail(
@@ -1035,15 +1111,25 @@ def _from_frame(
         a = _number_column(df[col], col, where, missing_ok=optional)
         numeric[base] = a if factor is None else a * factor
 
-    low = np.flatnonzero(
-        np.column_stack([numeric[f"p{k}"] for k in channels]).min(axis=1) < V.VACUUM_PA
-    )
+    pressures = np.column_stack([numeric[f"p{k}"] for k in channels] or [np.zeros((len(df), 0))])
+    low = np.flatnonzero((pressures < V.VACUUM_PA).any(axis=1))
     if low.size:
         raise _fail(
             ", ".join(columns[f"p{k}"][0] for k in channels),
             [float(numeric[f"p{k}"][low[0]]) for k in channels],
             f"gauge pressures must be >= {V.VACUUM_PA:g} Pa (a perfect vacuum), at {where(low)}",
         )
+
+    tensions = None
+    if tendons:
+        tensions = np.column_stack([numeric[f"t{k}"] for k in tendons])
+        bad = np.flatnonzero((tensions < 0).any(axis=1))
+        if bad.size:
+            raise _fail(
+                ", ".join(columns[f"t{k}"][0] for k in tendons),
+                [float(v) for v in tensions[bad[0]]],
+                f"tendon tensions must be >= 0 N (a tendon pulls or is slack), at {where(bad)}",
+            )
 
     rotation = None
     if _QUAT[0] in columns:
@@ -1087,7 +1173,8 @@ def _from_frame(
             )
     meta = dict(meta)
     return Dataset(
-        pressures=np.column_stack([numeric[f"p{k}"] for k in channels]),
+        pressures=pressures,
+        tensions=tensions,
         markers=markers,
         marker_s=None if markers is None else sites[0],
         marker_offset=None if markers is None else sites[1],

@@ -1,9 +1,10 @@
 """The one table dialect softrod reads and writes (docs/datasets.md).
 
 Column names are ``<base>_<unit>``: ``p0_kPa`` ... (gauge pressure of each channel, channels
-numbered from 0), ``tip_x_mm`` ... (tip position, world frame), ``tip_qw`` ... (tip orientation
-as a unit quaternion, scalar first), ``base_fx_N`` ..., ``base_mx_Nmm`` ... (the wrench the rod
-exerts on its mount), ``time_s``, ``experiment``, ``mounting``. A table softrod writes may carry
+numbered from 0), ``t0_N`` ... (tension of each tendon channel, optional), ``tip_x_mm`` ...
+(tip position, world frame), ``tip_qw`` ... (tip orientation as a unit quaternion, scalar
+first), ``base_fx_N`` ..., ``base_mx_Nmm`` ... (the wrench the rod exerts on its mount),
+``time_s``, ``experiment``, ``mounting``. A table softrod writes may carry
 further *result columns* after these (``converged``, ``iterations``, ``cmd0_kPa``,
 ``sigma_ext``, ...); their names are declared, with a description, in the ``columns`` entry of
 the table's metadata block, so :func:`softrod.load_dataset` reads them back while an undeclared
@@ -239,6 +240,7 @@ def schema_frame(
     *,
     pressures,
     tip_position,
+    tensions=None,
     tip_rotation=None,
     base_force=None,
     base_moment=None,
@@ -254,7 +256,8 @@ def schema_frame(
 ):
     """A pandas DataFrame in the dataset schema from SI arrays (m rows).
 
-    Columns in order: experiment, mounting, time, p0..p<c-1>, tip_x/y/z (unless
+    Columns in order: experiment, mounting, time, p0..p<c-1>, t0..t<k-1> (tendon
+    tensions, from ``tensions`` (m, k); none when None), tip_x/y/z (unless
     ``tip_position`` is None), tip_qw..qz (from ``tip_rotation``), base_fx..fz,
     base_mx..mz, marker0_x/y/z ... (from ``markers`` (m, K, 3), NaN where not seen), then
     ``extras``. Units go into the names (:data:`DEFAULT_UNITS` or ``units``). NaN rows (a
@@ -276,6 +279,10 @@ def schema_frame(
     p = np.asarray(pressures, dtype=float)
     for k in range(p.shape[1]):
         cols[f"p{k}_{chosen['pressure']}"] = p[:, k] / factor["pressure"]
+    if tensions is not None:
+        t = np.asarray(tensions, dtype=float)
+        for k in range(t.shape[1]):
+            cols[f"t{k}_{chosen['force']}"] = t[:, k] / factor["force"]
     if tip_position is not None:
         tip = np.asarray(tip_position, dtype=float)
         for i, name in enumerate(TIP):
@@ -344,16 +351,17 @@ def provenance(generator: str, design=None, *, synthetic: bool = True, **setting
 
 
 def channel_index(base: str, column: str) -> int:
-    """The channel index of a ``p<k>`` base name, refused beyond MAX_CHANNELS before any
-    table of channels is built."""
+    """The channel index of a ``p<k>`` (pressure) or ``t<k>`` (tendon tension) base name,
+    refused beyond MAX_CHANNELS before any table of channels is built."""
     digits = base[1:]
     if len(digits) > 3 or int(digits) >= MAX_CHANNELS:
         shown = digits if len(digits) <= 12 else digits[:12] + "..."
+        kind = "pressure" if base[0] == "p" else "tension"
         raise design_error(
             column,
             column,
-            f"channel {shown} is beyond softrod's limit of {MAX_CHANNELS} pressure channels "
-            f"(p0 ... p{MAX_CHANNELS - 1})",
+            f"channel {shown} is beyond softrod's limit of {MAX_CHANNELS} {kind} channels "
+            f"({base[0]}0 ... {base[0]}{MAX_CHANNELS - 1})",
             InputError,
         )
     return int(digits)

@@ -308,10 +308,11 @@ class BatchSolution:
 
     def to_frame(self, units: Units = None) -> pd.DataFrame:
         """The results as a DataFrame in the dataset schema (docs/datasets.md), one row per
-        solve: ``p0_kPa`` ..., ``tip_x_mm`` ..., ``tip_qw`` ... ``tip_qz``, ``base_fx_N`` ...,
-        ``base_mx_Nmm`` ..., then the result columns ``converged``, ``iterations``,
-        ``residual`` and, with a stiffness map, ``sigma_ext``, ``sigma_bend_x``,
-        ``sigma_bend_y``. Rows that did not converge keep NaN (empty cells in a file).
+        solve: ``p0_kPa`` ..., ``t0_N`` ... (with tensions), ``tip_x_mm`` ..., ``tip_qw``
+        ... ``tip_qz``, ``base_fx_N`` ..., ``base_mx_Nmm`` ..., then the result columns
+        ``converged``, ``iterations``, ``residual`` and, with a stiffness map,
+        ``sigma_ext``, ``sigma_bend_x``, ``sigma_bend_y``. Rows that did not converge keep
+        NaN (empty cells in a file).
         ``units`` as in :meth:`softrod.Dataset.to_frame`. The metadata block
         (``frame.attrs["softrod.metadata"]``) is :attr:`metadata`: design, softrod version,
         solver settings. The same quantities get the same names as in
@@ -337,6 +338,7 @@ class BatchSolution:
             ]
         return schema_frame(
             pressures=self.pressures,
+            tensions=self.tensions,
             tip_position=self.tip_position,
             tip_rotation=self.tip_rotation,
             base_force=self.base_force,

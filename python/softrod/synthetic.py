@@ -49,6 +49,7 @@ def synthesize_dataset(
     threads: int = 0,
     markers: Sequence | None = None,
     tip: bool = True,
+    tensions: ArrayLike | None = None,
 ) -> Dataset:
     """A synthetic dataset: the model's equilibria at ``pressures`` plus measurement noise.
 
@@ -57,7 +58,9 @@ def synthesize_dataset(
     orientation and base wrench are the model's, noise-free. ``seed`` makes the noise
     reproducible; without one a seed is drawn and recorded. ``experiment``/``mounting``: one
     label for every row or one per row; ``time``: (m,) seconds. ``tip_force``, ``tip_moment``,
-    ``options`` and ``threads`` go to :func:`~softrod.solve_statics_batch`.
+    ``options`` and ``threads`` go to :func:`~softrod.solve_statics_batch`, and so do
+    ``tensions`` ((m, tendon channels) in N, each >= 0; None: slack), which the dataset
+    records in its ``t0``, ``t1``, ... columns.
     ``markers``: points on the body to record as motion-capture markers, each
     ``(s, offset)``: arc length from the base and offset in the cross-section frame
     (d1, d2[, d3]), SI numbers or strings with units (``("55 mm", ["12 mm", "0 mm"])``);
@@ -75,7 +78,8 @@ def synthesize_dataset(
     seed = noise_seed(noise_mm, seed)
     p = batch_pressures(design, pressures)
     batch = solve_statics_batch(
-        design, p, tip_force=tip_force, tip_moment=tip_moment, options=options, threads=threads
+        design, p, tip_force=tip_force, tip_moment=tip_moment, options=options, threads=threads,
+        tensions=tensions,
     )
     p = batch.pressures
     m = p.shape[0]
@@ -104,6 +108,7 @@ def synthesize_dataset(
             stiffness_scale=None if smap is None else np.ascontiguousarray(smap(p)),
             markers=[(float(a), [float(v) for v in b]) for a, b in zip(*sites, strict=True)],
             threads=threads,
+            tensions=batch.tensions,
             **_options(options).as_kwargs(),
         )
         marker_pos = out["marker_position"]
@@ -140,6 +145,7 @@ def synthesize_dataset(
     }
     return Dataset(
         pressures=p,
+        tensions=batch.tensions,
         tip_position=batch.tip_position + noise if tip else None,
         markers=marker_pos,
         marker_s=None if sites is None else sites[0],

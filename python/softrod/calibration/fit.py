@@ -346,6 +346,14 @@ def calibrate(
             f"{dataset.n_channels} channels",
             f"design {design0.name!r} has {design0.n_channels} pressure channels",
         )
+    if dataset.tensions is not None and dataset.n_tendons != design0.n_tendons:
+        raise V.fail(
+            "dataset.tensions",
+            f"{dataset.n_tendons} tension channels",
+            f"design {design0.name!r} has {design0.n_tendons} tendon channels",
+        )
+    if model == "pcc" or dynamic:
+        dataset.require_slack(f"calibrate({'dynamic=True' if dynamic else 'model=' + repr(model)})")
     names, registration = _split_params(params, design0, model)
     if experiments is not None and model != "pcc":
         raise V.fail("experiments", experiments, "applies to model='pcc' only")

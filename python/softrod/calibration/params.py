@@ -24,8 +24,8 @@ damping_time            Kelvin-Voigt damping time tau = B/K of ``[dynamics]`` (p
                         000 eq. 8); dynamic fits only
 ======================  ==============================================================  =====
 
-Without a selector a section parameter acts on every elastic section with chambers (the
-actuated part, where the papers' factors live); ``c_b[cap_a]`` or ``c_b[cap_a,cap_c]``
+Without a selector a section parameter acts on every elastic section with chambers or
+tendons (the actuated part, where the papers' factors live); ``c_b[cap_a]`` or ``c_b[cap_a,cap_c]``
 names sections, ``c_b[*]`` takes every elastic section, ``alpha`` every Ogden section,
 ``c_p`` every swelling section. One parameter has one value: the sections it names must
 share it (the core checks this).
@@ -131,9 +131,11 @@ def _default_sections(design: Design, kind: str) -> list[int]:
         ]
     if kind == "c_p":
         return [i for i in elastic if secs[i].get("law", {}).get("swelling")]
+    # The actuated part: sections with chambers or tendons.
+    actuated = [i for i in elastic if secs[i]["chambers"] or secs[i].get("tendons")]
     if kind == "mass":
-        return [i for i in elastic if secs[i]["chambers"] and "mass" in secs[i]]
-    return [i for i in elastic if secs[i]["chambers"]]
+        return [i for i in actuated if "mass" in secs[i]]
+    return actuated
 
 
 def parse_parameter(name: str, design: Design) -> Parameter:

@@ -720,6 +720,7 @@ def _check_dataset(dataset, design: Design) -> Dataset:
         )
     if len(dataset) == 0:
         raise design_error("dataset", "0 rows", "needs at least one sample", InputError)
+    dataset.require_slack("the per-sample identification (paper 001)")
     return dataset
 
 

@@ -716,7 +716,7 @@ def _measured_predicted(design: Design, calibration, dataset):
             "carries predictions for every mounting",
             InputError,
         )
-    out = solve_statics_batch(design, dataset.pressures)
+    out = solve_statics_batch(design, dataset.pressures, tensions=dataset.tensions)
     return (
         np.asarray(dataset.tip_position, float),
         out.tip_position,

@@ -69,6 +69,8 @@ class RodStatic(ModelAdapter):
         self.initial = np.array([p.value(design) for p in params])
         self.groups = mounting_groups(design, dataset)
         self.p = np.ascontiguousarray(dataset.pressures, dtype=float)
+        # Tendon tensions of each sample (N), None: every tendon slack.
+        self.t = None if dataset.tensions is None else np.asarray(dataset.tensions, dtype=float)
         self.options = options
         self.opts = _options(options).as_kwargs()
         self.threads = threads
@@ -134,6 +136,8 @@ class RodStatic(ModelAdapter):
             tip_f = d.spec["tip"]["force"]
             tip_m = d.spec["tip"]["moment"]
             kw = dict(stiffness_scale=self.sigma(theta, idx), threads=self.threads, **self.opts)
+            if self.t is not None:
+                kw["tensions"] = np.ascontiguousarray(self.t[idx])
             if jacobian or self.markers:
                 res = d._rod.sensitivity_batch(
                     self.p[idx],
@@ -199,6 +203,9 @@ class RodStatic(ModelAdapter):
                 [],
                 stiffness_scale=sigma,
                 markers=self.markers,
+                # Slack tendons (zero tension), given explicitly: a rod without chambers
+                # counts its batch rows by its tension rows.
+                tensions=np.zeros((1, design.n_tendons)) if design.n_tendons else None,
                 **_options(self.options).as_kwargs(),
             )
             out.tip[idx] = res["tip_position"][0]
