@@ -6,6 +6,7 @@ All inputs and outputs are SI: pressures in Pa (gauge), one per channel.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -79,6 +80,14 @@ class SolverOptions:
         }
 
 
+# Frozen, so one validated instance serves every call that passes no options (validating a
+# fresh one cost a fifth of a warm solve_statics).
+_DEFAULT_OPTIONS = SolverOptions()
+_FREE_TIP = TipConstraint()
+# sigma = 1 of a design without mapped sections, shared (read-only) by the solutions.
+_UNIT_SCALE = np.ones(3)
+_UNIT_SCALE.flags.writeable = False
+
 _POLICIES = ("raise", "warn", "ignore")
 
 
@@ -119,11 +128,31 @@ def _quantities(value, kind: str, name: str, count: int, rule: str) -> list[floa
     if isinstance(value, (list, tuple)):
         if len(value) != count:
             raise V.fail(name, value, rule)
+        # Plain finite floats and safe ints are SI as they are (what V.quantity returns for
+        # them); anything else (strings with units, numpy scalars, bools) takes the full path.
+        plain = [_plain_float(x) for x in value]
+        if None not in plain:
+            return plain
         return [V.quantity(x, kind, f"{name}[{i}]") for i, x in enumerate(value)]
     arr = V.real_array(value, name, what=f"{kind}s (SI)", max_size=V.MAX_CHANNELS * 4)
     if arr.ndim != 1 or arr.size != count:
         raise V.fail(name, f"shape {arr.shape}", rule)
     return arr.tolist()
+
+
+def _reaction(out: dict, key: str) -> np.ndarray:
+    """A constrained tip's reaction from the core's result; zeros for a free tip."""
+    return np.array(out[key]) if key in out else np.zeros(3)
+
+
+def _plain_float(x) -> float | None:
+    """``x`` as a float when it is a finite Python float or an int within 2^53, else None."""
+    t = type(x)
+    if t is float:
+        return x if math.isfinite(x) else None
+    if t is int and -V.MAX_ABS_INT <= x <= V.MAX_ABS_INT:
+        return float(x)
+    return None
 
 
 def _vec3(value, kind: str, name: str, default) -> list[float]:
@@ -230,7 +259,7 @@ def _initial(initial, model: str) -> list[float] | None:
 
 def _options(options: SolverOptions | None) -> SolverOptions:
     if options is None:
-        return SolverOptions()
+        return _DEFAULT_OPTIONS
     if not isinstance(options, SolverOptions):
         raise design_error("options", options, "must be a softrod.SolverOptions", InputError)
     return options
@@ -353,7 +382,7 @@ def solve_statics(
     constraint = (
         coerce_constraint(tip_constraint)
         if tip_constraint is not None
-        else design.tip_constraint or TipConstraint()
+        else design.tip_constraint or _FREE_TIP
     )
     if model == "pcc" and constraint.kind != "free":
         raise design_error(
@@ -378,7 +407,7 @@ def solve_statics(
             check=check,
         )
     smap = _stiffness_map(design, stiffness_map)
-    sigma = np.ones(3) if smap is None else smap(np.array([p]))[0]
+    sigma = _UNIT_SCALE if smap is None else smap(np.array([p]))[0]
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
@@ -444,8 +473,8 @@ def solve_statics(
         tip_loads=(tuple(tf), tuple(tm)),
         tensions=np.array(t),
         tip_constraint=constraint.kind,
-        tip_reaction_force=np.array(out.get("tip_reaction_force", np.zeros(3))),
-        tip_reaction_moment=np.array(out.get("tip_reaction_moment", np.zeros(3))),
+        tip_reaction_force=_reaction(out, "tip_reaction_force"),
+        tip_reaction_moment=_reaction(out, "tip_reaction_moment"),
         contact=Contact.from_core(out["contact"]) if "contact" in out else None,
     )
 
