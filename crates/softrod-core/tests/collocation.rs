@@ -348,7 +348,7 @@ fn collocation_statics_report_stability() {
 /// intervals) and paper 000's arm (16 and 64 intervals). The test is about one Newton
 /// factorisation (two dual evaluations and a 32 x 32 LU per interval), and a solve takes
 /// several: the bound (the test cheaper than the rest of the solve) is loose enough for a
-/// shared machine (measured 0.06 to 0.4).
+/// shared machine (measured 0.05 to 0.4).
 #[test]
 fn collocation_stability_costs_less_than_the_solve() {
     use softrod_core::collocation::{Grid, Problem};
