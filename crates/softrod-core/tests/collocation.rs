@@ -255,6 +255,30 @@ fn collocation_stability_agrees_with_shooting() {
             Some(want),
         ));
     }
+    // A rigid mount before the upright arm (Theta = 0 there: the test starts at the first
+    // elastic step) and a tip body 20 mm above the tip (its weight's moment enters the
+    // tip form). 0.3 kg (2.9 N) exceeds the arm's buckling load (about 2.3 N from Euler's
+    // P_cr with EI = 0.04466 N m^2 over 0.22 m, less with its own weight): on the axis
+    // the arm stays straight, unstable; 10 mm off the axis it bends over, stable, as
+    // with 0.05 kg.
+    for (mass, offset, want) in [(0.05, 0.01, true), (0.3, 0.01, true), (0.3, 0.0, false)] {
+        let mut spec = design(
+            vec![
+                rigid_section("mount", 0.03, 0.02),
+                direct_section("arm", 0.22, 262.8, 87.6, 0.04466, 0.02977, 0.165, 16),
+            ],
+            IDENTITY,
+            9.81,
+        );
+        spec.tip.mass = mass;
+        spec.tip.com_offset = [offset, 0.0, 0.02];
+        cases.push((
+            format!("upright arm on a rigid mount, {mass} kg tip body {offset} m off the axis"),
+            Rod::new(spec).unwrap(),
+            loads(&[]),
+            Some(want),
+        ));
+    }
     cases.push((
         "0.22 m soft cantilever under gravity".into(),
         soft_rod(0.22, HORIZONTAL, 16),
