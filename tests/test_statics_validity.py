@@ -127,6 +127,54 @@ def test_column_with_a_lateral_imperfection_bends_with_the_force(ratio, sign):
     assert abs(sol.tip_position[2] - z) < 1e-6 * L
 
 
+def soft_rod(length: float, orientation: str) -> softrod.Design:
+    """A soft silicone rod (E = 100 kPa, nu = 0.5, 1000 kg/m^3, r = 12.5 mm) under its own
+    weight, 32 steps. At 1 m single shooting's growth exponent int sqrt(|n| / EI) ds is 33
+    (beyond 12), so statics solves it by collocation (docs/model.md, "Collocation")."""
+    return load_design(
+        {
+            "design": {"name": "soft_rod", "citation": "a soft silicone rod"},
+            "mounting": {"orientation": orientation, "gravity": "9.81 m/s^2"},
+            "materials": {"soft": {"E": "100 kPa", "poisson": 0.5, "density": "1000 kg/m^3"}},
+            "sections": [
+                {
+                    "name": "rod",
+                    "length": f"{length} m",
+                    "material": "soft",
+                    "outer_radius": "12.5 mm",
+                    "steps": 32,
+                }
+            ],
+        }
+    )
+
+
+def test_collocation_solutions_report_stability():
+    # Upright, the 1 m soft rod stands at q L^3 / EI = 2510, 320 times Greenhill's
+    # self-weight load 7.837: the straight column is an equilibrium (the one continuation
+    # follows without an imperfection) and it is unstable, which a collocation solve now
+    # says as a shooting solve does. Hanging, the same rod is stable.
+    upright = soft_rod(1.0, "upright")
+    with pytest.warns(StabilityWarning, match="unstable equilibrium"):
+        sol = solve_statics(upright, [])
+    assert sol.stable is False
+    assert np.abs(sol.tip_position[:2]).max() < 1e-9  # straight
+    with pytest.raises(InvalidStateError, match="unstable") as err:
+        solve_statics(upright, [], on_unstable="raise")
+    assert err.value.rule == "stability"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StabilityWarning)
+        hanging = solve_statics(soft_rod(1.0, "hanging"), [])
+    # Clamped horizontally it hangs down (tip > 0.9 L below), bent at the clamp beyond
+    # the default fibre-stretch range (docs/model.md "Collocation"): a ValidityWarning, and
+    # no StabilityWarning.
+    with pytest.warns(ValidityWarning, match="strain_range") as record:
+        horizontal = solve_statics(soft_rod(1.0, "horizontal"), [], on_invalid="warn")
+    assert not [w for w in record if issubclass(w.category, StabilityWarning)]
+    assert hanging.stable is True and horizontal.stable is True
+    assert horizontal.tip_position[2] < -0.9
+
+
 def test_negative_stretch_is_refused_naming_the_node():
     # issue 14: the tip 94 mm below the base with v3 = -0.87 came back "converged"
     with pytest.raises(InvalidStateError, match="stretch v3") as err:

@@ -877,6 +877,57 @@ impl<'a> Problem<'a> {
         jac
     }
 
+    /// The linearised one-interval map of the collocation equations applied to a set of
+    /// node perturbations: dY_{j+1} = T_j dY_j for the columns of `b` (scaled variables),
+    /// with T_j = I + G M^-1 [I; I] as in [`Problem::factorize`], from the exact stage
+    /// Jacobians at `z`. None if the stage matrix is singular or the result not finite.
+    /// Used by the stability test of collocation statics (`crate::statics::collocation`),
+    /// which carries three Jacobi fields along the rod this way.
+    pub fn transfer<const K: usize>(
+        &self,
+        z: &[f64],
+        j: usize,
+        b: &SMatrix<f64, NY, K>,
+    ) -> Option<SMatrix<f64, NY, K>> {
+        let iv = &self.grid.intervals[j];
+        let model = &self.models[iv.section];
+        let j1 = self.point_jacobian(&self.stage(z, j, 0), model, &self.hist[2 * j]);
+        let j2 = self.point_jacobian(&self.stage(z, j, 1), model, &self.hist[2 * j + 1]);
+        let hh = iv.h;
+        // M = I - h (A (x) I) diag(J1, J2); the stages follow M dS = [dY_j; dY_j].
+        let mut m = SMatrix::<f64, 32, 32>::identity();
+        for r in 0..NY {
+            for c in 0..NY {
+                let (a, bb) = (j1[(r, c)], j2[(r, c)]);
+                m[(r, c)] -= hh * GAUSS_A[0][0] * a;
+                m[(NY + r, c)] -= hh * GAUSS_A[1][0] * a;
+                m[(r, NY + c)] -= hh * GAUSS_A[0][1] * bb;
+                m[(NY + r, NY + c)] -= hh * GAUSS_A[1][1] * bb;
+            }
+        }
+        let mut rhs = SMatrix::<f64, 32, K>::zeros();
+        rhs.fixed_view_mut::<NY, K>(0, 0).copy_from(b);
+        rhs.fixed_view_mut::<NY, K>(NY, 0).copy_from(b);
+        let s = m.lu().solve(&rhs)?;
+        let s1 = s.fixed_view::<NY, K>(0, 0);
+        let s2 = s.fixed_view::<NY, K>(NY, 0);
+        let out = b + (j1 * s1) * (hh * GAUSS_B[0]) + (j2 * s2) * (hh * GAUSS_B[1]);
+        out.iter().all(|v| v.is_finite()).then_some(out)
+    }
+
+    /// Jacobian of the scaled tip residual (6 rows: force, moment) with respect to the
+    /// tip node's scaled unknowns, at `z`.
+    pub fn tip_jacobian(&self, z: &[f64]) -> SMatrix<f64, 6, NY> {
+        let yn = self.node(z, self.grid.len());
+        let yjet: [Jet<NY>; NY] = std::array::from_fn(|k| {
+            let mut e = [0.0; NY];
+            e[k] = self.scale[k];
+            Jet { re: yn[k], eps: e }
+        });
+        let rt = self.tip_residual(&yjet);
+        SMatrix::<f64, 6, NY>::from_fn(|r, c| rt[r].eps[c])
+    }
+
     simd_dispatch! { Problem<'_>:
         /// Factor Newton's matrix at `z`: per interval the condensed stage block, then the
         /// banded node system. None if a block is singular.

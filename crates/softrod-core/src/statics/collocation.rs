@@ -4,12 +4,14 @@
 
 use crate::collocation::{
     force_scale, mat_t_vec, newton, rotation, Evaluated, Grid, NewtonOptions, NewtonStats, Problem,
-    SectionModel, TipBody, IM, IN, IQ, NF,
+    SectionModel, TipBody, IM, IN, IQ, NF, NY,
 };
 use crate::error::{Result, SoftrodError};
+use crate::jet::Jet;
 use crate::ode::Coeffs;
 use crate::rod::Rod;
-use crate::statics::SolverOptions;
+use crate::statics::{rotation_variations, Jacobi, SolverOptions, MIN_STABLE_STEP};
+use nalgebra::{Matrix3, SMatrix};
 
 /// A static equilibrium solved by collocation.
 #[derive(Debug, Clone, PartialEq)]
@@ -20,6 +22,9 @@ pub struct StaticSolution {
     pub iterations: usize,
     pub load_steps: usize,
     pub evaluated: Evaluated,
+    /// The conjugate-point test on the collocation solution ([`stability`]): None only
+    /// where the Jacobi fields could not be carried (a singular stage matrix).
+    pub stable: Option<bool>,
 }
 
 /// Section models of a static solve at load factor `factor` (pressures and gravity scaled
@@ -55,7 +60,12 @@ fn static_tip(rod: &Rod, loads: &crate::ode::Loads, factor: f64) -> TipBody {
 /// Static equilibrium by collocation (the dt -> infinity limit of the dynamic
 /// discretisation): Newton from `guess` (scaled unknowns of an earlier solution, or None
 /// for the straight rod), then, if that fails, load continuation from the unloaded
-/// straight rod with a secant predictor, as the shooting solver does.
+/// straight rod with a secant predictor, as the shooting solver does. The solution
+/// carries the conjugate-point test ([`stability`]). As on the shooting solver's natural
+/// path, continuation also runs when Newton from the straight rod (no guess) lands on an
+/// unstable equilibrium, a level that leaves the stable path is cut down to
+/// `MIN_STABLE_STEP` (shorter, the path itself loses stability and is followed), and an
+/// unstable equilibrium is returned only when no stable one was reached.
 pub fn solve_static(
     rod: &Rod,
     loads: &crate::ode::Loads,
@@ -83,22 +93,37 @@ pub fn solve_static(
     }
     let full_models = static_models(rod, loads, 1.0);
     let full = at(rod, &grid, &hist, loads, 1.0, &full_models);
-    let mut z = match guess {
-        Some(g) if g.len() == grid.unknowns() && g.iter().all(|x| x.is_finite()) => g.to_vec(),
-        _ => full.straight_unknowns(),
+    let warm = guess.filter(|g| g.len() == grid.unknowns() && g.iter().all(|x| x.is_finite()));
+    let mut z = match warm {
+        Some(g) => g.to_vec(),
+        None => full.straight_unknowns(),
     };
     let mut cache = None;
     let first = newton(&full, &mut z, &mut cache, &nopts, &mut stats);
-    if let Ok(res) = first {
-        return Ok(StaticSolution {
-            evaluated: full.evaluate(&z),
-            z,
-            residual: res,
-            iterations: stats.iterations,
-            load_steps: 1,
-        });
-    }
-    let (_, mut last_res) = first.unwrap_err();
+    // An equilibrium at full load off the stable path, kept in case no stable one is
+    // reached (as the shooting solver's natural path does).
+    let mut unstable_end: Option<StaticSolution> = None;
+    let mut last_res = match first {
+        Ok(res) => {
+            let sol = StaticSolution {
+                evaluated: full.evaluate(&z),
+                stable: stability(&full, &z),
+                z,
+                residual: res,
+                iterations: stats.iterations,
+                load_steps: 1,
+            };
+            // A caller's warm start picked its branch (dynamics starts from the static
+            // solver's equilibrium): its solution is returned with its verdict.
+            if sol.stable != Some(false) || !opts.continuation || warm.is_some() {
+                return Ok(sol);
+            }
+            let res = sol.residual;
+            unstable_end = Some(sol);
+            res
+        }
+        Err((_, res)) => res,
+    };
     if !opts.continuation {
         return Err(SoftrodError::NotConverged {
             iterations: stats.iterations,
@@ -108,25 +133,37 @@ pub fn solve_static(
                 .into(),
         });
     }
+    let give_up = |unstable_end: Option<StaticSolution>, e: SoftrodError| match unstable_end {
+        Some(sol) => Ok(sol),
+        None => Err(e),
+    };
     let mut lam = 0.0;
     let mut z = full.straight_unknowns();
     let mut prev: Option<(f64, Vec<f64>)> = None;
     let mut dlam: f64 = 0.25;
     let mut levels = 0;
+    // The unloaded rod in its reference shape is the energy's minimum: the path starts
+    // stable, and a level that loses stability is cut (down to `MIN_STABLE_STEP`) as on
+    // the shooting solver's natural path, so the path does not jump to another branch.
+    let mut stable = Some(true);
     while lam < 1.0 {
         if levels >= opts.max_load_steps {
-            return Err(SoftrodError::NotConverged {
-                iterations: stats.iterations,
-                residual: last_res,
-                load_factor: lam,
-                reason: format!(
-                    "collocation load continuation used all {} load steps",
-                    opts.max_load_steps
-                ),
-            });
+            return give_up(
+                unstable_end,
+                SoftrodError::NotConverged {
+                    iterations: stats.iterations,
+                    residual: last_res,
+                    load_factor: lam,
+                    reason: format!(
+                        "collocation load continuation used all {} load steps",
+                        opts.max_load_steps
+                    ),
+                },
+            );
         }
         levels += 1;
         let target = (lam + dlam).min(1.0);
+        let h = target - lam;
         let models = static_models(rod, loads, target);
         let p = at(rod, &grid, &hist, loads, target, &models);
         let mut trial: Vec<f64> = match &prev {
@@ -141,15 +178,36 @@ pub fn solve_static(
         match newton(&p, &mut trial, &mut cache, &nopts, &mut stats) {
             Ok(res) => {
                 last_res = res;
+                let st = stability(&p, &trial);
+                if stable == Some(true) && st == Some(false) && h > MIN_STABLE_STEP {
+                    if target >= 1.0 {
+                        unstable_end = Some(StaticSolution {
+                            evaluated: p.evaluate(&trial),
+                            z: trial,
+                            residual: res,
+                            iterations: stats.iterations,
+                            load_steps: levels,
+                            stable: st,
+                        });
+                    }
+                    dlam = 0.5 * h;
+                    continue;
+                }
                 prev = Some((lam, std::mem::replace(&mut z, trial)));
                 lam = target;
+                stable = st;
                 if lam >= 1.0 {
-                    return Ok(StaticSolution {
+                    let sol = StaticSolution {
                         evaluated: p.evaluate(&z),
                         z,
                         residual: res,
                         iterations: stats.iterations,
                         load_steps: levels,
+                        stable: st,
+                    };
+                    return Ok(match unstable_end {
+                        Some(u) if st == Some(false) && u.stable != Some(false) => u,
+                        _ => sol,
                     });
                 }
                 dlam = (dlam * 1.5).min(0.5);
@@ -158,17 +216,96 @@ pub fn solve_static(
                 last_res = res;
                 dlam *= 0.5;
                 if dlam < 1e-5 {
-                    return Err(SoftrodError::NotConverged {
-                        iterations: stats.iterations,
-                        residual: last_res,
-                        load_factor: lam,
-                        reason: "collocation load step fell below 1e-5 (the load may exceed a limit point such as buckling)".into(),
-                    });
+                    return give_up(
+                        unstable_end,
+                        SoftrodError::NotConverged {
+                            iterations: stats.iterations,
+                            residual: last_res,
+                            load_factor: lam,
+                            reason: "collocation load step fell below 1e-5 (the load may exceed a limit point such as buckling)".into(),
+                        },
+                    );
                 }
             }
         }
     }
     unreachable!("the continuation loop returns at load factor 1")
+}
+
+/// The conjugate-point test of the shooting solver (`super::Jacobi`; docs/model.md,
+/// "Validity and stability") on a collocation solution `z` of `p`, with dead loads.
+///
+/// The three Jacobi fields that start at the clamp (d theta(0) = 0, dn = 0, dm(0) = e_j
+/// in scaled units) are carried along the rod by the linearised collocation equations,
+/// interval by interval (`Problem::transfer`: exact stage Jacobians, one 32 x 32 LU per
+/// interval): they are the derivatives of the discrete solution with respect to the base
+/// moment, the collocation counterpart of the shooting test's dual numbers. Integrated
+/// as they are, they grow like the shooting sensitivity (the reason for collocation), so
+/// after every interval the three fields are replaced by an orthonormal basis of their
+/// span (Gram-Schmidt: F = B R, R upper triangular with a positive diagonal). That is a
+/// change of basis of the same space of fields, Theta -> Theta C with C invertible, under
+/// which both halves of the test are invariant:
+/// - a crossing between nodes k and k+1 is read from the eigenvalues of
+///   Theta_k+1^-1 Theta_k, and with both matrices taken in the basis of node k (the
+///   propagated fields, before their orthonormalisation) the matrix is similar to the
+///   unnormalised one;
+/// - the tip form sym(Theta(L)^T J) is congruent to sym((Theta(L) C)^T (J C)), so its
+///   definiteness is the same when J is taken in the same basis: J = D B_N, D the tip
+///   moment residual's derivative with respect to the tip node's unknowns.
+///
+/// det R > 0 keeps the sign of det Theta, which marks the first elastic step. Cost:
+/// two 16-direction dual evaluations of the ODE and one 32 x 32 LU per interval, about
+/// one Newton factorisation. None if a stage matrix is singular or the fields stop being
+/// finite (not assessed).
+pub fn stability(p: &Problem, z: &[f64]) -> Option<bool> {
+    let mut b = SMatrix::<f64, NY, 3>::zeros();
+    for k in 0..3 {
+        b[(IM + k, k)] = 1.0;
+    }
+    let mut jacobi = Jacobi::default();
+    for j in 0..p.grid.len() {
+        let f = p.transfer(z, j, &b)?;
+        let y = p.node(z, j + 1);
+        let q: [Jet<3>; 4] = std::array::from_fn(|k| Jet {
+            re: y[IQ + k],
+            eps: [f[(IQ + k, 0)], f[(IQ + k, 1)], f[(IQ + k, 2)]],
+        });
+        jacobi.visit_theta(rotation_variations(&rotation(&q)));
+        let (basis, r) = orthonormalise(&f)?;
+        jacobi.theta *= r.try_inverse()?;
+        b = basis;
+    }
+    let d = p.tip_jacobian(z);
+    let jac: Matrix3<f64> = d.fixed_rows::<3>(3) * b;
+    jac.iter()
+        .all(|v| v.is_finite())
+        .then(|| jacobi.stable(&jac))
+}
+
+/// Gram-Schmidt with re-orthogonalisation ("twice is enough"): F = B R with B's columns
+/// orthonormal and R upper triangular with a positive diagonal. None if the columns are
+/// (numerically) dependent or not finite.
+fn orthonormalise(f: &SMatrix<f64, NY, 3>) -> Option<(SMatrix<f64, NY, 3>, Matrix3<f64>)> {
+    let mut b = *f;
+    let mut r = Matrix3::zeros();
+    for c in 0..3 {
+        let norm0 = f.column(c).norm();
+        for _ in 0..2 {
+            for k in 0..c {
+                let d = b.column(k).dot(&b.column(c));
+                r[(k, c)] += d;
+                let bk = b.column(k).into_owned();
+                b.column_mut(c).axpy(-d, &bk, 1.0);
+            }
+        }
+        let n = b.column(c).norm();
+        if !(n.is_finite() && n > 1e-14 * norm0) {
+            return None;
+        }
+        r[(c, c)] = n;
+        b.column_mut(c).unscale_mut(n);
+    }
+    Some((b, r))
 }
 
 /// Base force and moment (world) of a solution, N and N m.

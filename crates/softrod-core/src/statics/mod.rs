@@ -26,6 +26,8 @@
 //! d theta(s)/dx, keeps its sign) and the tip form sym(Theta(L)^T J) is positive definite.
 //! The test needs a potential energy: follower loads are not conservative (they do work
 //! along closed paths), so their equilibria are reported with `stable = None`, not assessed.
+//! Collocation solutions run the same test with the Jacobi fields carried by the
+//! linearised collocation equations (`collocation::stability`).
 
 pub mod collocation;
 pub mod constraint;
@@ -824,19 +826,28 @@ struct Jacobi {
     theta: Matrix3<f64>,
 }
 
+/// The rotation variations d theta (world frame, dR R^T = [d theta]x) of a rotation carrying
+/// derivatives in 3 of its N >= 3 directions: column j is d theta / d x_j.
+fn rotation_variations<const N: usize>(rot: &[[Jet<N>; 3]; 3]) -> Matrix3<f64> {
+    Matrix3::from_fn(|a, j| {
+        // Omega = dR R^T (row-major R): Omega[p][q] = sum_k dR[p][k] R[q][k].
+        let om =
+            |p: usize, q: usize| -> f64 { (0..3).map(|k| rot[p][k].eps[j] * rot[q][k].re).sum() };
+        match a {
+            0 => 0.5 * (om(2, 1) - om(1, 2)),
+            1 => 0.5 * (om(0, 2) - om(2, 0)),
+            _ => 0.5 * (om(1, 0) - om(0, 1)),
+        }
+    })
+}
+
 impl Jacobi {
     fn visit<const N: usize>(&mut self, y: &State<Jet<N>>) {
-        let th = Matrix3::from_fn(|a, j| {
-            // Omega = dR R^T (row-major R): Omega[p][q] = sum_k dR[p][k] R[q][k].
-            let om = |p: usize, q: usize| -> f64 {
-                (0..3).map(|k| y.rot[p][k].eps[j] * y.rot[q][k].re).sum()
-            };
-            match a {
-                0 => 0.5 * (om(2, 1) - om(1, 2)),
-                1 => 0.5 * (om(0, 2) - om(2, 0)),
-                _ => 0.5 * (om(1, 0) - om(0, 1)),
-            }
-        });
+        self.visit_theta(rotation_variations(&y.rot));
+    }
+
+    /// The next node's Theta (columns in the basis of the last one's).
+    fn visit_theta(&mut self, th: Matrix3<f64>) {
         if self.elastic {
             if !self.conjugate && th != self.theta {
                 self.conjugate = match th.try_inverse() {
@@ -1039,10 +1050,10 @@ fn solve_n<const N: usize, const M: usize>(
 
 /// A static solve by collocation (`collocation::solve_static`), for rods whose
 /// single-shooting problem is ill-conditioned (docs/model.md, "Collocation"). Every node
-/// passes the same validity rules as a shooting solution's. The conjugate-point test
-/// integrates the Jacobi fields from the clamp, which is the same ill-conditioned initial
-/// value problem, so it is not run: `stable` is true without that test (the solution is an
-/// equilibrium that collocation's Newton reached from the straight rod by continuation).
+/// passes the same validity rules as a shooting solution's, and the solution carries the
+/// same conjugate-point test, its Jacobi fields carried along the collocation solution
+/// interval by interval in a re-orthonormalised basis (`collocation::stability`); its
+/// continuation cuts steps that leave the stable path as the shooting solver's does.
 fn by_collocation(
     rod: &Rod,
     loads: &Loads,
@@ -1102,8 +1113,7 @@ fn by_collocation(
             iterations: sol.iterations,
             residual: sol.residual,
             load_steps: sol.load_steps,
-            // The conjugate-point test is not run on collocation (docs/model.md).
-            stable: None,
+            stable: sol.stable,
             violations,
             collocation: Some(shape.clone()),
         },
