@@ -13,11 +13,13 @@ the new geometry has been drawn; and on the server: when the solve started (``se
 same machine's clock), the Rust solve (``solve``) and building and sending the scene update
 (``draw``). Medians over the clicks. Without a GPU the browser renders with SwiftShader
 (software WebGL), whose frame time dominates ``total``; ``frame_ms`` is the page's idle
-animation-frame interval.
+animation-frame interval, and ``renderer`` the WebGL renderer the page reports.
+$SOFTROD_CHROMIUM_ARGS adds Chromium flags (e.g. to render on a GPU; tests/browser_driver.py).
 """
 
 from __future__ import annotations
 
+import os
 import statistics
 import sys
 import time
@@ -52,6 +54,7 @@ def run(args) -> dict:
         try:
             with ViewerPage(viewer, chromium, *size) as page:
                 page.wait_rendered()
+                renderer = page.renderer()
                 frame = page.frame_interval_ms()
                 page.click_slider(0, 0.5)  # warm-up: first geometry upload
                 rows = [page.click_slider(k % 3, 0.1 + 0.8 * ((k * 7) % 11) / 10) for k in
@@ -65,16 +68,17 @@ def run(args) -> dict:
             viewer.close()
         key = f"{size[0]}x{size[1]}"
         out[key] = {
+            "renderer": renderer,
             "clicks": clicks,
             "frame_ms": frame,
             **{f"median_{k}_ms": statistics.median(r[k] for r in rows) for k in rows[0]},
             "max_total_ms": max(r["total"] for r in rows),
         }
-        print(key, {k: round(v, 2) for k, v in out[key].items()})
+        print(key, {k: round(v, 2) if isinstance(v, float) else v for k, v in out[key].items()})
     return {
         **result_header("viewer", args.quick, info, design=DESIGN),
         "browser": chromium,
-        "renderer": "SwiftShader (software WebGL), no GPU",
+        "chromium_args": os.environ.get("SOFTROD_CHROMIUM_ARGS", ""),
         **out,
         "load_average_after": load_average(),
         "wall_time_s": time.perf_counter() - t_start,

@@ -51,6 +51,15 @@ WAIT_DRAWN_JS = """
 """
 
 
+def chromium_args() -> list[str]:
+    """Extra Chromium flags from $SOFTROD_CHROMIUM_ARGS (shell words), e.g. to render WebGL
+    on a GPU: ``--use-angle=vulkan --enable-gpu --ignore-gpu-blocklist``. None by default:
+    headless Chromium then renders with SwiftShader (software WebGL)."""
+    import shlex
+
+    return shlex.split(os.environ.get("SOFTROD_CHROMIUM_ARGS", ""))
+
+
 def chromium_path() -> str | None:
     """Debian's Chromium (or $SOFTROD_CHROMIUM), or None when none is installed."""
     for candidate in (os.environ.get("SOFTROD_CHROMIUM"), "chromium", "chromium-browser"):
@@ -73,7 +82,9 @@ class ViewerPage:
         from playwright.sync_api import sync_playwright
 
         self._pw = sync_playwright().start()
-        self._browser = self._pw.chromium.launch(executable_path=self.chromium, headless=True)
+        self._browser = self._pw.chromium.launch(
+            executable_path=self.chromium, headless=True, args=chromium_args()
+        )
         w, h = self.size
         self.page = self._browser.new_page(viewport={"width": w, "height": h})
         # fixedDpr=1: the same state renders to the same pixels (viser otherwise lowers the
@@ -113,6 +124,22 @@ class ViewerPage:
 
         png = self.page.screenshot()
         return np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(np.int16)
+
+    def renderer(self) -> str:
+        """The WebGL renderer the page draws with (the unmasked GPU or software renderer's
+        name, e.g. "ANGLE (..., SwiftShader ...)" without a GPU)."""
+        return str(
+            self.page.evaluate(
+                """() => {
+                  const gl = document.createElement('canvas').getContext('webgl2')
+                    || document.createElement('canvas').getContext('webgl');
+                  if (!gl) return 'no WebGL';
+                  const ext = gl.getExtension('WEBGL_debug_renderer_info');
+                  return ext ? gl.getParameter(ext.UNMASKED_RENDERER_WEBGL)
+                             : gl.getParameter(gl.RENDERER);
+                }"""
+            )
+        )
 
     def frame_interval_ms(self, frames: int = 20) -> float:
         """Median time between animation frames of the idle page (the renderer's frame
