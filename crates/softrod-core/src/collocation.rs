@@ -1434,6 +1434,30 @@ impl Problem<'_> {
         hist: &[[C; NF]],
         z: &[D],
     ) -> Vec<D> {
+        self.residual_fields_with(models, hist, z, None)
+    }
+
+    /// [`Problem::residual_with`] and the stage fields (v, u, q, w; 2 per interval) of the
+    /// same evaluation: what [`Problem::fields_and_tip_with`] returns first, without
+    /// evaluating the rod equations again.
+    pub fn residual_and_fields_with<C: Coeff, D: StateScalar<C>>(
+        &self,
+        models: &[SectionModel<C>],
+        hist: &[[C; NF]],
+        z: &[D],
+    ) -> (Vec<D>, Vec<[D; NF]>) {
+        let mut fields = Vec::with_capacity(2 * self.grid.len());
+        let r = self.residual_fields_with(models, hist, z, Some(&mut fields));
+        (r, fields)
+    }
+
+    fn residual_fields_with<C: Coeff, D: StateScalar<C>>(
+        &self,
+        models: &[SectionModel<C>],
+        hist: &[[C; NF]],
+        z: &[D],
+        mut fields: Option<&mut Vec<[D; NF]>>,
+    ) -> Vec<D> {
         let inv: [f64; NY] = self.scale.map(|s| 1.0 / s);
         let mut out = vec![D::from(0.0); z.len()];
         let mut yj = self.node_with(z, 0);
@@ -1441,8 +1465,12 @@ impl Problem<'_> {
             let model = &models[iv.section];
             let y1 = self.stage_with(z, j, 0);
             let y2 = self.stage_with(z, j, 1);
-            let (f1, _) = rhs(&y1, model, &hist[2 * j], self.c0);
-            let (f2, _) = rhs(&y2, model, &hist[2 * j + 1], self.c0);
+            let (f1, fl1) = rhs(&y1, model, &hist[2 * j], self.c0);
+            let (f2, fl2) = rhs(&y2, model, &hist[2 * j + 1], self.c0);
+            if let Some(fl) = fields.as_mut() {
+                fl.push(fl1);
+                fl.push(fl2);
+            }
             let yn = self.node_with(z, j + 1);
             let o = 48 * j;
             let hh = iv.h;
@@ -1469,23 +1497,47 @@ impl Problem<'_> {
         hist: &[[C; NF]],
         z: &[D],
     ) -> (Vec<[D; NF]>, [D; NY], [D; 3]) {
+        let fields = self.fields_with(models, hist, z);
+        let (node, r) = self.tip_of_fields(z, &fields);
+        (fields, node, r)
+    }
+
+    /// The stage fields (v, u, q, w; 2 per interval) of scaled unknowns `z` under `models`
+    /// and `hist`.
+    pub fn fields_with<C: Coeff, D: StateScalar<C>>(
+        &self,
+        models: &[SectionModel<C>],
+        hist: &[[C; NF]],
+        z: &[D],
+    ) -> Vec<[D; NF]> {
         let mut fields = Vec::with_capacity(2 * self.grid.len());
-        let mut r: [D; 3] = self.rod.base_position.map(D::from);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
             let model = &models[iv.section];
+            for i in 0..2 {
+                let y = self.stage_with(z, j, i);
+                fields.push(rhs(&y, model, &hist[2 * j + i], self.c0).1);
+            }
+        }
+        fields
+    }
+
+    /// The tip node's state and the tip position of scaled unknowns `z` whose stage fields
+    /// `fields` are known (from [`Problem::residual_and_fields_with`] at the same `z`).
+    pub fn tip_of_fields<D: RodScalar>(&self, z: &[D], fields: &[[D; NF]]) -> ([D; NY], [D; 3]) {
+        let mut r: [D; 3] = self.rod.base_position.map(D::from);
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
             let mut dr = [[D::from(0.0); 3]; 2];
             for (i, d) in dr.iter_mut().enumerate() {
                 let y = self.stage_with(z, j, i);
-                let (_, fl) = rhs(&y, model, &hist[2 * j + i], self.c0);
+                let fl = &fields[2 * j + i];
                 let rot = rotation(&y[IQ..IQ + 4]);
                 *d = mat_vec(&rot, &[fl[0], fl[1], fl[2]]);
-                fields.push(fl);
             }
             r = std::array::from_fn(|k| {
                 r[k] + (dr[0][k] * GAUSS_B[0] + dr[1][k] * GAUSS_B[1]) * iv.h
             });
         }
-        (fields, self.node_with(z, self.grid.len()), r)
+        (self.node_with(z, self.grid.len()), r)
     }
 }
 
