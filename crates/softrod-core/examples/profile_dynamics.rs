@@ -45,11 +45,21 @@ fn main() {
     } else {
         Initial::Static
     };
+    // CMDS=FILE: the commands of every step from a text file (one row of pressures in Pa
+    // per step, the first row the start's).
+    let table: Option<Vec<Vec<f64>>> = std::env::var("CMDS").ok().map(|p| {
+        std::fs::read_to_string(p)
+            .unwrap()
+            .lines()
+            .map(|l| l.split_whitespace().map(|x| x.parse().unwrap()).collect())
+            .collect()
+    });
     let t0 = Instant::now();
     let sections: Vec<usize> = (0..rod.sections.len())
         .filter(|&i| !rod.sections[i].rigid)
         .collect();
-    let mut sim = Simulator::new(rod, &vec![0.0; nch], initial, opts).unwrap();
+    let p0 = table.as_ref().map_or(vec![0.0; nch], |t| t[0].clone());
+    let mut sim = Simulator::new(rod, &p0, initial, opts).unwrap();
     if let Ok(names) = std::env::var("SENS") {
         let params: Vec<Param> = names
             .split(',')
@@ -67,12 +77,16 @@ fn main() {
             .collect();
         sim.track_sensitivities(&params).unwrap();
     }
-    let n = (t_end / dt).round() as usize;
+    let n = table
+        .as_ref()
+        .map_or((t_end / dt).round() as usize, |t| t.len() - 1);
     let mut dout = std::env::var("DOUT")
         .ok()
         .map(|p| std::io::BufWriter::new(std::fs::File::create(p).unwrap()));
     for k in 0..n {
-        let c = if release {
+        let c = if let Some(t) = &table {
+            t[k + 1].clone()
+        } else if release {
             vec![0.0; nch]
         } else {
             command((k + 1) as f64 * dt, nch)

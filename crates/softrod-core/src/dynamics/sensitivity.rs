@@ -22,9 +22,9 @@
 //! z_{n+1} and solved directly, and that exact matrix serves the next steps' refinements
 //! in place of Newton's (which Newton keeps: tracking does not change the run). The same
 //! dual evaluation that confirms the last correction gives the stage fields X_{n+1} =
-//! fields(z_{n+1}) with their derivatives, so the new slot values (and X_t,n+1 = c0 X_{n+1}
-//! + X_h) and the tip position's derivative follow without evaluating the rod equations
-//! again. The start (at rest in equilibrium, c0 = 0) is differentiated the same way. No
+//! fields(z_{n+1}) with their derivatives, so the new slot values (and X_t,n+1 =
+//! c0 X_{n+1} + X_h) and the tip position's derivative follow without evaluating the rod
+//! equations again. The start (at rest in equilibrium, c0 = 0) is differentiated the same way. No
 //! finite differences; the errors are that of the converged Newton solution (tol)
 //! propagated linearly and the refinement's 1e-9.
 //!
