@@ -1120,9 +1120,70 @@ impl Factorization {
         pub fn solve(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) => solve_impl
     }
 
+    simd_dispatch! { Factorization:
+        /// [`Factorization::solve`] for two residuals at once: `r` holds them one after
+        /// the other (2 n), `dz` receives the two steps likewise, `rhs` is scratch of twice
+        /// [`Factorization::scratch_len`]. The same numbers as two solves (the band's
+        /// substitutions run both sides together: [`BandedLu::solve2`]).
+        pub fn solve2(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) => solve2_impl
+    }
+
     /// The length of [`Factorization::solve`]'s scratch.
     pub fn scratch_len(&self) -> usize {
         self.band.n()
+    }
+
+    #[inline(always)]
+    fn solve2_impl(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) {
+        let n_int = self.blocks.len();
+        let nb = self.band.n();
+        let n = r.len() / 2;
+        let rhs = &mut rhs[..2 * nb];
+        let (r0, r1) = r.split_at(n);
+        for (c, r) in [r0, r1].into_iter().enumerate() {
+            for (j, b) in self.blocks.iter().enumerate() {
+                let o = 48 * j;
+                let rs: [f64; 32] = std::array::from_fn(|k| -r[o + k]);
+                let mut t: [f64; 16] = std::array::from_fn(|k| -r[o + 32 + k]);
+                gemv_add(&mut t, &b.gminv, &rs);
+                for (k, x) in t.iter().enumerate() {
+                    rhs[2 * (16 * j + k) + c] = *x;
+                }
+            }
+            let o = 48 * n_int;
+            for k in 0..6 {
+                rhs[2 * (16 * n_int + k) + c] = -r[o + k];
+            }
+        }
+        self.band.solve2(rhs);
+        let (dz0, dz1) = dz.split_at_mut(n);
+        for (c, (r, dz)) in [(r0, dz0), (r1, dz1)].into_iter().enumerate() {
+            let x = |i: usize| rhs[2 * i + c];
+            for (k, d) in dz[..6].iter_mut().enumerate() {
+                *d = x(k);
+            }
+            for (j, b) in self.blocks.iter().enumerate() {
+                let dyj: [f64; 16] = if j == 0 {
+                    std::array::from_fn(|k| {
+                        if (IN..IN + 6).contains(&k) {
+                            x(k - IN)
+                        } else {
+                            0.0
+                        }
+                    })
+                } else {
+                    std::array::from_fn(|k| x(6 + 16 * (j - 1) + k))
+                };
+                let o = 48 * j;
+                let rs: [f64; 32] = std::array::from_fn(|k| dyj[k % 16] - r[o + k]);
+                let mut st = [0.0; 32];
+                gemv_add(&mut st, &b.minv, &rs);
+                dz[6 + o..6 + o + 32].copy_from_slice(&st);
+                for k in 0..16 {
+                    dz[6 + o + 32 + k] = x(6 + 16 * j + k);
+                }
+            }
+        }
     }
 
     #[inline(always)]

@@ -48,8 +48,8 @@ pub(crate) struct Tracker {
     slots: Vec<Vec<Slot>>,
     /// d r_tip / d theta_j now (world, m per unit of the parameter).
     tip: Vec<[f64; 3]>,
-    /// dz/dtheta_j (scaled unknowns) of the last two steps, newest first: the refinement's
-    /// start is their linear extrapolation (empty before two steps).
+    /// dz/dtheta_j (scaled unknowns) of the last DZ_KEPT steps, newest first: the
+    /// refinement's start is their extrapolation (none before two steps).
     dz: Vec<Vec<Vec<f64>>>,
     /// max |dz/dtheta_j| (scaled unknowns) over the run so far, and at least
     /// SCALE_FLOOR / |theta_j|: the scale the refinement's tolerance is relative to.
@@ -582,26 +582,40 @@ fn refine<const N: usize>(
 ) -> Option<(Vec<Jet<N>>, Vec<[Jet<N>; NF]>)> {
     let mut zd = start;
     let n = zd.len();
-    let mut rhs = vec![0.0; n];
-    let mut corr = vec![0.0; n];
-    let mut scratch = vec![0.0; fac.scratch_len()];
+    // Right sides and corrections of up to two parameters (solved together), and every
+    // parameter's correction.
+    let mut rhs = vec![0.0; 2 * n];
+    let mut out = vec![0.0; 2 * n];
+    let mut corr = vec![0.0; n * n_par];
+    let mut scratch = vec![0.0; 2 * fac.scratch_len()];
     let mut last = [f64::INFINITY; N];
     let mut done = [false; N];
     for _ in 0..MAX_REFINE {
         let (r, fields) = problem.residual_and_fields_with(models, hist, &zd);
-        let mut all = true;
         // Every correction is computed from this residual before any is applied: the
         // iterate returned is the one the residual (and fields) were evaluated at.
-        let mut pending: [Option<Vec<f64>>; N] = std::array::from_fn(|_| None);
-        for q in 0..n_par {
-            if done[q] {
-                continue;
+        let active: Vec<usize> = (0..n_par).filter(|&q| !done[q]).collect();
+        for pair in active.chunks(2) {
+            if let [a, b] = *pair {
+                for (i, ri) in r.iter().enumerate() {
+                    rhs[i] = ri.eps[a];
+                    rhs[n + i] = ri.eps[b];
+                }
+                fac.solve2(&rhs, &mut out, &mut scratch);
+                corr[a * n..(a + 1) * n].copy_from_slice(&out[..n]);
+                corr[b * n..(b + 1) * n].copy_from_slice(&out[n..]);
+            } else {
+                let a = pair[0];
+                for (x, ri) in rhs[..n].iter_mut().zip(&r) {
+                    *x = ri.eps[a];
+                }
+                fac.solve(&rhs[..n], &mut corr[a * n..(a + 1) * n], &mut scratch);
             }
-            for (x, ri) in rhs.iter_mut().zip(&r) {
-                *x = ri.eps[q];
-            }
-            fac.solve(&rhs, &mut corr, &mut scratch);
-            let step = corr.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        }
+        let mut apply = [false; N];
+        for &q in &active {
+            let cq = &corr[q * n..(q + 1) * n];
+            let step = cq.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             let size = zd.iter().fold(scale[q], |m, x| m.max(x.eps[q].abs()));
             if step <= REFINE_TOL * size {
                 done[q] = true;
@@ -611,17 +625,14 @@ fn refine<const N: usize>(
                 return None; // not contracting: the exact matrix is needed
             }
             last[q] = step;
-            all = false;
-            pending[q] = Some(corr.clone());
+            apply[q] = true;
         }
-        if all {
+        if !apply.contains(&true) {
             return Some((zd, fields));
         }
-        for (q, c) in pending.iter().enumerate() {
-            if let Some(c) = c {
-                for (x, d) in zd.iter_mut().zip(c) {
-                    x.eps[q] += *d;
-                }
+        for q in (0..n_par).filter(|&q| apply[q]) {
+            for (x, d) in zd.iter_mut().zip(&corr[q * n..(q + 1) * n]) {
+                x.eps[q] += *d;
             }
         }
     }
