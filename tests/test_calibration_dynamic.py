@@ -260,3 +260,43 @@ def test_experiments_replay_in_parallel_as_in_series(trajectory_data):
     # The tracked run is the plain run: the values do not depend on the derivatives.
     plain = RodDynamic(design, two, params, DT, 1).predict(theta, rows, False)
     assert np.array_equal(plain.tip, preds[0].tip)
+
+
+def test_lm_stops_within_a_fraction_of_the_standard_errors():
+    """The dynamic fit's extra stopping rule on a linear model: at the least-squares optimum
+    the Gauss-Newton step is zero (stop); 1e-2 standard errors away it is not below 1e-3 of
+    them (go on); undefined standard errors never stop."""
+    from softrod.calibration.solve import _within_standard_errors
+
+    rng = np.random.default_rng(0)
+    j = rng.normal(size=(200, 2))
+    y = j @ [1.0, -2.0] + rng.normal(size=200)
+    x_opt = np.linalg.lstsq(j, y, rcond=None)[0]
+    r_opt = j @ x_opt - y
+    assert _within_standard_errors(j, r_opt, 1e-3)
+    se = np.sqrt(r_opt @ r_opt / 198 * np.diag(np.linalg.inv(j.T @ j)))
+    x_off = x_opt + 1e-2 * se
+    assert not _within_standard_errors(j, j @ x_off - y, 1e-3)
+    assert _within_standard_errors(j, j @ x_off - y, 2e-2)
+    assert not _within_standard_errors(j[:2], r_opt[:2], 1e-3)  # m <= P
+
+
+def test_dynamic_lm_reuses_its_evaluations(trajectory_data):
+    """Replays are stateless: the Jacobian scipy asks for again at the best point, and the
+    one the standard errors need, come from the optimiser's cache (no repeated replays)."""
+    calls = []
+    predict = RodDynamic.predict
+
+    def counted(self, theta, rows, jacobian):
+        calls.append((tuple(np.asarray(theta)), jacobian))
+        return predict(self, theta, rows, jacobian)
+
+    RodDynamic.predict = counted
+    try:
+        res = softrod.calibrate(
+            ARM, trajectory_data, ["damping_time", "area_scale"], dynamic=True, dt=DT
+        )
+    finally:
+        RodDynamic.predict = predict
+    with_jacobian = [theta for theta, jac in calls if jac]
+    assert len(with_jacobian) == len(set(with_jacobian)) == res.evaluations

@@ -1171,9 +1171,70 @@ impl Factorization {
         pub fn solve(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) => solve_impl
     }
 
+    simd_dispatch! { Factorization:
+        /// [`Factorization::solve`] for two residuals at once: `r` holds them one after
+        /// the other (2 n), `dz` receives the two steps likewise, `rhs` is scratch of twice
+        /// [`Factorization::scratch_len`]. The same numbers as two solves (the band's
+        /// substitutions run both sides together: [`BandedLu::solve2`]).
+        pub fn solve2(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) => solve2_impl
+    }
+
     /// The length of [`Factorization::solve`]'s scratch.
     pub fn scratch_len(&self) -> usize {
         self.band.n()
+    }
+
+    #[inline(always)]
+    fn solve2_impl(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) {
+        let n_int = self.blocks.len();
+        let nb = self.band.n();
+        let n = r.len() / 2;
+        let rhs = &mut rhs[..2 * nb];
+        let (r0, r1) = r.split_at(n);
+        for (c, r) in [r0, r1].into_iter().enumerate() {
+            for (j, b) in self.blocks.iter().enumerate() {
+                let o = 48 * j;
+                let rs: [f64; 32] = std::array::from_fn(|k| -r[o + k]);
+                let mut t: [f64; 16] = std::array::from_fn(|k| -r[o + 32 + k]);
+                gemv_add(&mut t, &b.gminv, &rs);
+                for (k, x) in t.iter().enumerate() {
+                    rhs[2 * (16 * j + k) + c] = *x;
+                }
+            }
+            let o = 48 * n_int;
+            for k in 0..6 {
+                rhs[2 * (16 * n_int + k) + c] = -r[o + k];
+            }
+        }
+        self.band.solve2(rhs);
+        let (dz0, dz1) = dz.split_at_mut(n);
+        for (c, (r, dz)) in [(r0, dz0), (r1, dz1)].into_iter().enumerate() {
+            let x = |i: usize| rhs[2 * i + c];
+            for (k, d) in dz[..6].iter_mut().enumerate() {
+                *d = x(k);
+            }
+            for (j, b) in self.blocks.iter().enumerate() {
+                let dyj: [f64; 16] = if j == 0 {
+                    std::array::from_fn(|k| {
+                        if (IN..IN + 6).contains(&k) {
+                            x(k - IN)
+                        } else {
+                            0.0
+                        }
+                    })
+                } else {
+                    std::array::from_fn(|k| x(6 + 16 * (j - 1) + k))
+                };
+                let o = 48 * j;
+                let rs: [f64; 32] = std::array::from_fn(|k| dyj[k % 16] - r[o + k]);
+                let mut st = [0.0; 32];
+                gemv_add(&mut st, &b.minv, &rs);
+                dz[6 + o..6 + o + 32].copy_from_slice(&st);
+                for k in 0..16 {
+                    dz[6 + o + 32 + k] = x(6 + 16 * j + k);
+                }
+            }
+        }
     }
 
     #[inline(always)]
@@ -1485,6 +1546,30 @@ impl Problem<'_> {
         hist: &[[C; NF]],
         z: &[D],
     ) -> Vec<D> {
+        self.residual_fields_with(models, hist, z, None)
+    }
+
+    /// [`Problem::residual_with`] and the stage fields (v, u, q, w; 2 per interval) of the
+    /// same evaluation: what [`Problem::fields_and_tip_with`] returns first, without
+    /// evaluating the rod equations again.
+    pub fn residual_and_fields_with<C: Coeff, D: StateScalar<C>>(
+        &self,
+        models: &[SectionModel<C>],
+        hist: &[[C; NF]],
+        z: &[D],
+    ) -> (Vec<D>, Vec<[D; NF]>) {
+        let mut fields = Vec::with_capacity(2 * self.grid.len());
+        let r = self.residual_fields_with(models, hist, z, Some(&mut fields));
+        (r, fields)
+    }
+
+    fn residual_fields_with<C: Coeff, D: StateScalar<C>>(
+        &self,
+        models: &[SectionModel<C>],
+        hist: &[[C; NF]],
+        z: &[D],
+        mut fields: Option<&mut Vec<[D; NF]>>,
+    ) -> Vec<D> {
         let inv: [f64; NY] = self.scale.map(|s| 1.0 / s);
         let mut out = vec![D::from(0.0); z.len()];
         let mut yj = self.node_with(z, 0);
@@ -1492,8 +1577,12 @@ impl Problem<'_> {
             let model = &models[iv.section];
             let y1 = self.stage_with(z, j, 0);
             let y2 = self.stage_with(z, j, 1);
-            let (f1, _) = rhs(&y1, model, &hist[2 * j], self.c0);
-            let (f2, _) = rhs(&y2, model, &hist[2 * j + 1], self.c0);
+            let (f1, fl1) = rhs(&y1, model, &hist[2 * j], self.c0);
+            let (f2, fl2) = rhs(&y2, model, &hist[2 * j + 1], self.c0);
+            if let Some(fl) = fields.as_mut() {
+                fl.push(fl1);
+                fl.push(fl2);
+            }
             let yn = self.node_with(z, j + 1);
             let o = 48 * j;
             let hh = iv.h;
@@ -1520,23 +1609,47 @@ impl Problem<'_> {
         hist: &[[C; NF]],
         z: &[D],
     ) -> (Vec<[D; NF]>, [D; NY], [D; 3]) {
+        let fields = self.fields_with(models, hist, z);
+        let (node, r) = self.tip_of_fields(z, &fields);
+        (fields, node, r)
+    }
+
+    /// The stage fields (v, u, q, w; 2 per interval) of scaled unknowns `z` under `models`
+    /// and `hist`.
+    pub fn fields_with<C: Coeff, D: StateScalar<C>>(
+        &self,
+        models: &[SectionModel<C>],
+        hist: &[[C; NF]],
+        z: &[D],
+    ) -> Vec<[D; NF]> {
         let mut fields = Vec::with_capacity(2 * self.grid.len());
-        let mut r: [D; 3] = self.rod.base_position.map(D::from);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
             let model = &models[iv.section];
+            for i in 0..2 {
+                let y = self.stage_with(z, j, i);
+                fields.push(rhs(&y, model, &hist[2 * j + i], self.c0).1);
+            }
+        }
+        fields
+    }
+
+    /// The tip node's state and the tip position of scaled unknowns `z` whose stage fields
+    /// `fields` are known (from [`Problem::residual_and_fields_with`] at the same `z`).
+    pub fn tip_of_fields<D: RodScalar>(&self, z: &[D], fields: &[[D; NF]]) -> ([D; NY], [D; 3]) {
+        let mut r: [D; 3] = self.rod.base_position.map(D::from);
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
             let mut dr = [[D::from(0.0); 3]; 2];
             for (i, d) in dr.iter_mut().enumerate() {
                 let y = self.stage_with(z, j, i);
-                let (_, fl) = rhs(&y, model, &hist[2 * j + i], self.c0);
+                let fl = &fields[2 * j + i];
                 let rot = rotation(&y[IQ..IQ + 4]);
                 *d = mat_vec(&rot, &[fl[0], fl[1], fl[2]]);
-                fields.push(fl);
             }
             r = std::array::from_fn(|k| {
                 r[k] + (dr[0][k] * GAUSS_B[0] + dr[1][k] * GAUSS_B[1]) * iv.h
             });
         }
-        (fields, self.node_with(z, self.grid.len()), r)
+        (self.node_with(z, self.grid.len()), r)
     }
 }
 

@@ -112,7 +112,7 @@ impl Param {
     }
 }
 
-fn section_value(rod: &Rod, i: usize, kind: ParamKind) -> f64 {
+pub(crate) fn section_value(rod: &Rod, i: usize, kind: ParamKind) -> f64 {
     let s = &rod.sections[i];
     let knobs = SectionKnobs::of(s);
     match kind {
@@ -425,18 +425,20 @@ pub struct TipSensitivity {
 pub(crate) type Dual = Jet<CHUNK>;
 
 /// Knobs and sigma of every section with the parameters of `chunk` seeded as dual
-/// directions 0..chunk.len() (the damping time is no knob: the dynamics seed it).
-pub(crate) fn seeded(
+/// directions 0..chunk.len() (the damping time is no knob: the dynamics seed it), in
+/// `Jet<N>` with N >= chunk.len() (the dynamics size N to the chunk).
+pub(crate) fn seeded<const N: usize>(
     rod: &Rod,
     stiffness_scale: &[f64; 3],
     chunk: &[Param],
-) -> (Vec<SectionKnobs<Dual>>, [Dual; 3]) {
-    let mut knobs: Vec<SectionKnobs<Dual>> = rod
+) -> (Vec<SectionKnobs<Jet<N>>>, [Jet<N>; 3]) {
+    debug_assert!(chunk.len() <= N);
+    let mut knobs: Vec<SectionKnobs<Jet<N>>> = rod
         .sections
         .iter()
         .map(|s| SectionKnobs::of(s).lift())
         .collect();
-    let mut sigma = stiffness_scale.map(Dual::from);
+    let mut sigma = stiffness_scale.map(Jet::<N>::from);
     for (q, p) in chunk.iter().enumerate() {
         match p.kind {
             ParamKind::StiffnessScale(k) => {

@@ -403,10 +403,13 @@ def calibrate(
         message,
     )
 
-    # The Jacobian at the optimum (cold solves, as every start began).
+    # The Jacobian at the optimum (cold solves, as every start began): the optimiser's own
+    # where the adapter's predictions depend on theta alone and it has one there.
     adapter.reset()
     adapter.evaluations = sum(f["evaluations"] for f in fits)
-    pred = problem.predict(values, adapter.exact_jacobian)
+    pred = fits[best].get("prediction") if adapter.exact_jacobian else None
+    if pred is None:
+        pred = problem.predict(values, adapter.exact_jacobian)
     if not pred.ok[train].all():
         bad = train[~pred.ok[train]]
         raise ConvergenceError(

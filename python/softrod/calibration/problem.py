@@ -81,6 +81,14 @@ class ModelAdapter:
     #: relative to the starting cost when ``fatol_relative``) and the first simplex's step
     #: in u (None: scipy's 5 %).
     nelder_mead: dict = {"xatol": 1e-8, "fatol": 1e-10, "fatol_relative": False, "step": None}
+    #: Whether a prediction depends on theta alone (no warm starts from earlier
+    #: evaluations): then the optimiser's own evaluation at the optimum, with its Jacobian,
+    #: serves the standard errors instead of a repeated one.
+    stateless: bool = False
+    #: Levenberg-Marquardt also stops when its next Gauss-Newton step is below this
+    #: fraction of every parameter's standard error (None: MINPACK's xtol/ftol only); see
+    #: :func:`softrod.calibration.solve.optimise`.
+    lm_stop_fraction: float | None = None
 
     def __init__(self) -> None:
         self.evaluations = 0
@@ -176,6 +184,8 @@ class Registered(ModelAdapter):
         self.initial = np.concatenate([inner.initial, np.zeros(len(registration))])
         self.model, self.dynamic = inner.model, inner.dynamic
         self.exact_jacobian = inner.exact_jacobian
+        self.stateless = inner.stateless
+        self.lm_stop_fraction = inner.lm_stop_fraction
         # The inner model's stopping rules; scipy's first simplex (a step in log theta makes
         # no sense for an offset that starts at 0 m).
         self.nelder_mead = {**inner.nelder_mead, "step": None}

@@ -59,11 +59,17 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
     theta_start = np.asarray(theta_start, dtype=float)
     u0 = problem.u_of(theta_start)
     adapter.reset()
+    # The last point, or the last few where predictions depend on theta alone (a repeated
+    # evaluation would give the same numbers): scipy's MINPACK driver evaluates the
+    # Jacobian again at the best point after a rejected trial step, and the fit's standard
+    # errors need it too. Warm-started models keep evaluating again, as they always have.
     cache: dict = {}
+    kept = CACHED_POINTS if adapter.stateless else 1
 
     def evaluate(u, jacobian):
         key = u.tobytes()
         if key in cache and (cache[key][1] is not None or not jacobian):
+            cache[key] = cache.pop(key)  # most recent last
             return cache[key]
         theta = problem.theta_of(u)
         if problem.inside(theta):
@@ -76,35 +82,54 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
                 if pred.d_markers is not None:
                     pred.d_markers[:] = 0.0
         r = problem.residual.vector(pred)
-        cache.clear()
+        cache.pop(key, None)
+        while len(cache) >= kept:
+            cache.pop(next(iter(cache)))
         cache[key] = (r, pred if jacobian else None, pred)
         if progress is not None:
             progress(adapter.evaluations, _rms(r))
         return cache[key]
 
     def jac_u(u):
-        _, pred, _ = evaluate(u, True)
+        r, pred, _ = evaluate(u, True)
         j = problem.residual.jacobian(pred)
         # d/du = theta d/dtheta for the log-transformed parameters
-        return j * np.where(positive, problem.theta_of(u), 1.0)
+        j = j * np.where(positive, problem.theta_of(u), 1.0)
+        if stop_fraction is not None and _within_standard_errors(j, r, stop_fraction):
+            raise _Converged(np.array(u, dtype=float))
+        return j
+
+    stop_fraction = adapter.lm_stop_fraction
 
     bounds = problem.bounds
     ulo = np.where(positive, np.log(np.where(positive, bounds.lower, 1.0)), bounds.lower)
     uhi = np.where(positive, np.log(np.where(positive, bounds.upper, 1.0)), bounds.upper)
     if settings.method == "lm":
         use_bounds = bounds.any_given
-        sol = least_squares(
-            lambda u: evaluate(u, True)[0],
-            u0,
-            jac=jac_u,
-            method="trf" if use_bounds else "lm",
-            bounds=(ulo, uhi) if use_bounds else (-np.inf, np.inf),
-            x_scale=1.0,
-            xtol=1e-10,
-            ftol=1e-10,
-            gtol=1e-10,
-            max_nfev=settings.max_evaluations,
-        )
+        try:
+            sol = least_squares(
+                lambda u: evaluate(u, True)[0],
+                u0,
+                jac=jac_u,
+                method="trf" if use_bounds else "lm",
+                bounds=(ulo, uhi) if use_bounds else (-np.inf, np.inf),
+                x_scale=1.0,
+                xtol=1e-10,
+                ftol=1e-10,
+                gtol=1e-10,
+                max_nfev=settings.max_evaluations,
+            )
+        except _Converged as done:
+            # The Jacobian MINPACK asked for (at its current, accepted point) says the next
+            # step is below stop_fraction of every standard error: that point is the fit.
+            r = evaluate(done.u, True)[0]
+            sol = _Stopped(
+                x=done.u,
+                cost=0.5 * float(r @ r),
+                success=True,
+                message=f"the next Gauss-Newton step is below {stop_fraction:g} of every "
+                "parameter's standard error",
+            )
         method_used = "lm (MINPACK)" if not use_bounds else "trf (bounded, exact Jacobian)"
         cost = float(sol.cost)
     else:
@@ -127,9 +152,14 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
         )
         method_used = "nelder-mead"
         cost = float(sol.fun)
+    u_best = np.asarray(sol.x, dtype=float)
+    at_best = cache.get(u_best.tobytes())
     return {
         "start": theta_start,
-        "u": np.asarray(sol.x, dtype=float),
+        "u": u_best,
+        # The prediction with its Jacobian at the result, where the adapter's predictions
+        # depend on theta alone (None otherwise, or when the optimiser never asked for it).
+        "prediction": at_best[1] if adapter.stateless and at_best is not None else None,
         "values": problem.theta_of(np.asarray(sol.x, dtype=float)),
         "cost": cost,
         "success": bool(sol.success),
@@ -137,6 +167,45 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
         "method": method_used,
         "evaluations": adapter.evaluations,
     }
+
+
+#: Points the optimiser's evaluation cache keeps (see ``optimise``).
+CACHED_POINTS = 4
+
+
+class _Converged(Exception):
+    """Raised from the Jacobian callback to end MINPACK's iteration at ``u``."""
+
+    def __init__(self, u: np.ndarray):
+        super().__init__("converged")
+        self.u = u
+
+
+@dataclass
+class _Stopped:
+    x: np.ndarray
+    cost: float
+    success: bool
+    message: str
+
+
+def _within_standard_errors(j: np.ndarray, r: np.ndarray, fraction: float) -> bool:
+    """Whether the Gauss-Newton step from this point, -(J^T J)^-1 J^T r, is below
+    ``fraction`` of every parameter's standard error sqrt(s^2 (J^T J)^-1_ii), s^2 = r.r /
+    (m - P) (both in the optimiser's variables; the ratio does not depend on them). False
+    where the standard errors are undefined (m <= P, a singular J^T J)."""
+    m, n_par = j.shape
+    if m <= n_par or not (np.all(np.isfinite(j)) and np.all(np.isfinite(r))):
+        return False
+    try:
+        jtj_inv = np.linalg.inv(j.T @ j)
+    except np.linalg.LinAlgError:
+        return False
+    step = -jtj_inv @ (j.T @ r)
+    se = np.sqrt(float(r @ r) / (m - n_par) * np.diag(jtj_inv))
+    if not (np.all(np.isfinite(step)) and np.all(np.isfinite(se)) and np.all(se > 0)):
+        return False
+    return bool(np.all(np.abs(step) <= fraction * se))
 
 
 def _rows_of(problem: Problem) -> int:

@@ -9,20 +9,24 @@
 //!   dz_{n+1}/dtheta = -G_z^-1 (d_theta G + G_H dH_n/dtheta),
 //!
 //! with G_z the exact Newton matrix at the converged z_{n+1} and the bracket one evaluation
-//! of the residual in `Jet<CHUNK>` with the section models built from dual parameters
-//! (`SectionModel<Dual>`) and dual histories carrying dH_n/dtheta. The step's Newton keeps
-//! an older matrix M as long as it contracts; factoring G_z at every step would cost
-//! several plain steps, so the linear equation is solved with M by iterative refinement,
-//! dz += -M^-1 (d_theta G + G_z dz), whose bracket is again one exact dual evaluation (at
-//! z_{n+1} + eps dz): it converges to the exact dz/dtheta as fast as Newton did, and stops
-//! when the corrections fall below 1e-9 of the derivative (it starts from dz/dtheta
-//! extrapolated from the last two steps); where M does not contract (or
-//! none is kept) G_z is factored at z_{n+1} and solved directly. The new slot values follow as X_{n+1} = fields(z_{n+1}) and X_t,n+1 = c0
-//! X_{n+1} + X_h, both differentiated by a second dual evaluation at z_{n+1} + eps
-//! dz_{n+1}/dtheta, which also gives the tip position's derivative. The start (at rest in
-//! equilibrium, c0 = 0) is differentiated the same way. No finite differences; the errors
-//! are that of the converged Newton solution (tol) propagated linearly and the refinement's
-//! 1e-9.
+//! of the residual in `Jet<N>` (N = the parameters of the chunk, at most CHUNK: a dual
+//! number no wider than what it carries) with the section models built from dual
+//! parameters (`SectionModel<Jet<N>>`) and dual histories carrying dH_n/dtheta. The step's
+//! Newton keeps an older matrix M as long as it contracts; factoring G_z at every step
+//! would cost several plain steps, so the linear equation is solved with M by iterative
+//! refinement, dz += -M^-1 (d_theta G + G_z dz), whose bracket is again one exact dual
+//! evaluation (at z_{n+1} + eps dz): it converges to the exact dz/dtheta as fast as Newton
+//! did, and a parameter is done when its correction falls below 1e-9 of its derivative's
+//! size (it starts from dz/dtheta extrapolated quadratically from the last three steps).
+//! Where M does not contract by 0.25 per correction (or none is kept) G_z is factored at
+//! z_{n+1} and solved directly, and that exact matrix serves the next steps' refinements
+//! in place of Newton's (which Newton keeps: tracking does not change the run). The same
+//! dual evaluation that confirms the last correction gives the stage fields X_{n+1} =
+//! fields(z_{n+1}) with their derivatives, so the new slot values (and X_t,n+1 =
+//! c0 X_{n+1} + X_h) and the tip position's derivative follow without evaluating the rod
+//! equations again. The start (at rest in equilibrium, c0 = 0) is differentiated the same way. No
+//! finite differences; the errors are that of the converged Newton solution (tol)
+//! propagated linearly and the refinement's 1e-9.
 //!
 //! What is supported: the BDF-alpha scheme with fixed steps (substeps where Newton fails
 //! are fine: the step sizes do not depend on theta), the static start, the linear axial
@@ -32,8 +36,9 @@
 use super::{Bdf, Candidate, Initial, Scheme, Simulator, Slot, FIELDS};
 use crate::collocation::{Factorization, Problem, SectionModel, NF};
 use crate::error::{Result, SoftrodError};
+use crate::jet::Jet;
 use crate::ode::Coeffs;
-use crate::sensitivity::{seeded, validate_params, Dual, Param, ParamKind, CHUNK};
+use crate::sensitivity::{section_value, seeded, validate_params, Param, ParamKind, CHUNK};
 
 /// The sensitivities carried through the time loop.
 #[derive(Debug, Clone)]
@@ -43,9 +48,15 @@ pub(crate) struct Tracker {
     slots: Vec<Vec<Slot>>,
     /// d r_tip / d theta_j now (world, m per unit of the parameter).
     tip: Vec<[f64; 3]>,
-    /// dz/dtheta_j (scaled unknowns) of the last two steps, newest first: the refinement's
-    /// start is their linear extrapolation (empty before two steps).
+    /// dz/dtheta_j (scaled unknowns) of the last DZ_KEPT steps, newest first: the
+    /// refinement's start is their extrapolation (none before two steps).
     dz: Vec<Vec<Vec<f64>>>,
+    /// max |dz/dtheta_j| (scaled unknowns) over the run so far, and at least
+    /// SCALE_FLOOR / |theta_j|: the scale the refinement's tolerance is relative to.
+    scale: Vec<f64>,
+    /// The sensitivities' own Newton matrix and its c0: the exact one of the last step
+    /// that needed it (see `advance_tracker`).
+    own: Option<(Factorization, f64)>,
 }
 
 const ZERO_SLOT: Slot = Slot {
@@ -168,6 +179,23 @@ impl Simulator {
             slots: vec![vec![ZERO_SLOT; n_slots]; params.len()],
             tip: vec![[0.0; 3]; params.len()],
             dz: vec![vec![]; params.len()],
+            scale: params
+                .iter()
+                .map(|p| {
+                    let value = match (p.kind, p.sections.first()) {
+                        (ParamKind::DampingTime, _) => self.rod.spec.dynamics.damping_time,
+                        (kind, Some(&i)) => section_value(&self.rod, i, kind),
+                        (_, None) => f64::NAN,
+                    };
+                    let floor = SCALE_FLOOR / value.abs();
+                    if floor.is_finite() {
+                        floor
+                    } else {
+                        0.0
+                    }
+                })
+                .collect(),
+            own: None,
         };
         // The start: equilibrium at rest (c0 = 0, no history) under the first pressures.
         let models = self.models_at(&self.pressures, &self.sigma, 0.0);
@@ -179,25 +207,14 @@ impl Simulator {
             .factorize(&z)
             .ok_or_else(|| not_solvable("initial equilibrium"))?;
         for (c, chunk) in params.chunks(CHUNK).enumerate() {
-            let models_d = self.dual_models(chunk, &self.pressures, &self.sigma, 0.0);
-            let hist_d = vec![[Dual::from(0.0); NF]; n_slots];
-            let zd = solve_exact(&problem, &fac, &models_d, &hist_d, &z, chunk.len())
-                .ok_or_else(|| not_solvable("initial equilibrium"))?;
-            let (fields, _, tip_r) = problem.fields_and_tip_with(&models_d, &hist_d, &zd);
-            for q in 0..chunk.len() {
-                let j = CHUNK * c + q;
-                for (k, f) in fields.iter().enumerate() {
-                    let x: [f64; FIELDS] = std::array::from_fn(|a| f[a].eps[q]);
-                    // At rest: X_n = X_{n-1}, X_t = 0 (the tip slot stays zero, as the
-                    // state's).
-                    tr.slots[j][k] = Slot {
-                        x1: x,
-                        x2: x,
-                        xt: [0.0; FIELDS],
-                    };
-                }
-                tr.tip[j] = std::array::from_fn(|a| tip_r[a].eps[q]);
-            }
+            let j0 = CHUNK * c;
+            let ok = match chunk.len() {
+                1 => self.start_chunk::<1>(&mut tr, j0, chunk, &problem, &fac, &z),
+                2 => self.start_chunk::<2>(&mut tr, j0, chunk, &problem, &fac, &z),
+                3 => self.start_chunk::<3>(&mut tr, j0, chunk, &problem, &fac, &z),
+                _ => self.start_chunk::<CHUNK>(&mut tr, j0, chunk, &problem, &fac, &z),
+            };
+            ok.ok_or_else(|| not_solvable("initial equilibrium"))?;
         }
         self.sens = Some(Box::new(tr));
         Ok(())
@@ -214,19 +231,53 @@ impl Simulator {
         self.sens.as_ref().map(|t| t.params.as_slice())
     }
 
+    /// The start's derivatives of the parameters `chunk` (numbers j0..): `Jet<N>` with
+    /// N = chunk.len() (a dual number no wider than the parameters it carries). None when
+    /// the exact solve fails.
+    fn start_chunk<const N: usize>(
+        &self,
+        tr: &mut Tracker,
+        j0: usize,
+        chunk: &[Param],
+        problem: &Problem,
+        fac: &Factorization,
+        z: &[f64],
+    ) -> Option<()> {
+        let n_slots = self.slots.len();
+        let models_d = self.dual_models::<N>(chunk, &self.pressures, &self.sigma, 0.0);
+        let hist_d = vec![[Jet::<N>::from(0.0); NF]; n_slots];
+        let zd = solve_exact(problem, fac, &models_d, &hist_d, z, chunk.len())?;
+        let (fields, _, tip_r) = problem.fields_and_tip_with(&models_d, &hist_d, &zd);
+        for q in 0..chunk.len() {
+            let j = j0 + q;
+            for (k, f) in fields.iter().enumerate() {
+                let x: [f64; FIELDS] = std::array::from_fn(|a| f[a].eps[q]);
+                // At rest: X_n = X_{n-1}, X_t = 0 (the tip slot stays zero, as the
+                // state's).
+                tr.slots[j][k] = Slot {
+                    x1: x,
+                    x2: x,
+                    xt: [0.0; FIELDS],
+                };
+            }
+            tr.tip[j] = std::array::from_fn(|a| tip_r[a].eps[q]);
+        }
+        Some(())
+    }
+
     /// Section models at `pressures`, `sigma` and c0 with the parameters of `chunk` seeded
     /// as dual directions: the law through the knobs (`crate::sensitivity::seeded`), the
     /// inertia through the mass knob (rotary inertia given directly stays), the damping
     /// through tau.
-    fn dual_models(
+    fn dual_models<const N: usize>(
         &self,
         chunk: &[Param],
         pressures: &[f64],
         sigma: &[f64; 3],
         c0: f64,
-    ) -> Vec<SectionModel<Dual>> {
-        let (knobs, sigma_d) = seeded(&self.rod, sigma, chunk);
-        let mut tau = Dual::from(self.rod.spec.dynamics.damping_time);
+    ) -> Vec<SectionModel<Jet<N>>> {
+        let (knobs, sigma_d) = seeded::<N>(&self.rod, sigma, chunk);
+        let mut tau = Jet::<N>::from(self.rod.spec.dynamics.damping_time);
         for (q, p) in chunk.iter().enumerate() {
             if p.kind == ParamKind::DampingTime {
                 tau.eps[q] = 1.0;
@@ -241,7 +292,7 @@ impl Simulator {
                     pressures,
                     &[],
                     &self.rod.gravity,
-                    Dual::from(1.0),
+                    Jet::<N>::from(1.0),
                     &sigma_d,
                     k,
                 );
@@ -249,7 +300,7 @@ impl Simulator {
                 let rho_j_given = self.rod.spec.sections[i].rotary_inertia.is_some();
                 let rho_j = inr.rho_j.map(|x| {
                     if rho_j_given {
-                        Dual::from(x)
+                        Jet::<N>::from(x)
                     } else {
                         k.mass_scale * x
                     }
@@ -281,99 +332,195 @@ impl Simulator {
 
     /// [`Simulator::advance_sensitivity`]; returns the Newton matrices factored.
     fn advance_tracker(&self, tr: &mut Tracker, c: &Candidate) -> Result<usize> {
-        let Bdf { c0, c1, c2, d1 } = c.bdf;
         let tip = self.tip_body(self.tip_force, self.tip_moment);
-        let problem = Problem::new(&self.rod, &self.grid, &c.models, c0, &c.hist, tip);
+        let problem = Problem::new(&self.rod, &self.grid, &c.models, c.bdf.c0, &c.hist, tip);
         // The matrix Newton kept for this step (same c0), if any: the sensitivity equation
         // is solved with it by iterative refinement, else with the exact matrix factored
         // at the converged state.
-        let kept = self
-            .cache
-            .as_ref()
-            .filter(|k| k.key.c0 == c0)
-            .map(|k| &k.fac);
+        let own = tr.own.take().filter(|(_, c0)| *c0 == c.bdf.c0);
+        let kept = match &own {
+            Some((f, _)) => Some(f),
+            None => self
+                .cache
+                .as_ref()
+                .filter(|k| k.key.c0 == c.bdf.c0)
+                .map(|k| &k.fac),
+        };
         let mut exact: Option<Factorization> = None;
-        let n_slots = c.hist.len();
-        let params = tr.params.clone();
+        let params = std::mem::take(&mut tr.params);
+        let mut out = Ok(());
         for (ci, chunk) in params.chunks(CHUNK).enumerate() {
-            let models_d = self.dual_models(chunk, &c.pressures, &c.sigma, c0);
-            // dH/dtheta = c1 dX_n + c2 dX_{n-1} + d1 dX_t,n.
-            let hist_d: Vec<[Dual; NF]> = (0..n_slots)
-                .map(|k| {
-                    std::array::from_fn(|a| {
-                        let mut h = Dual::from(c.hist[k][a]);
-                        for q in 0..chunk.len() {
-                            let s = &tr.slots[CHUNK * ci + q][k];
-                            h.eps[q] = c1 * s.x1[a] + c2 * s.x2[a] + d1 * s.xt[a];
-                        }
-                        h
-                    })
+            let j0 = CHUNK * ci;
+            let mut step = Step {
+                problem: &problem,
+                kept,
+                exact: &mut exact,
+            };
+            // The dual number as wide as the chunk: every operation on it costs 1 + N
+            // numbers (and N more per product), so two parameters in Jet<4> pay for four.
+            out = match chunk.len() {
+                1 => self.advance_chunk::<1>(tr, j0, chunk, c, &mut step),
+                2 => self.advance_chunk::<2>(tr, j0, chunk, c, &mut step),
+                3 => self.advance_chunk::<3>(tr, j0, chunk, c, &mut step),
+                _ => self.advance_chunk::<CHUNK>(tr, j0, chunk, c, &mut step),
+            };
+            if out.is_err() {
+                break;
+            }
+        }
+        tr.params = params;
+        let factored = usize::from(exact.is_some());
+        // A matrix factored here is exact at this step's state: the next steps refine
+        // with it (Newton keeps its own, so that tracking does not change the run).
+        tr.own = match exact {
+            Some(f) => Some((f, c.bdf.c0)),
+            None => own,
+        };
+        out.map(|()| factored)
+    }
+
+    /// The sensitivities of the parameters `chunk` (numbers j0..) over the step `c`, in
+    /// `Jet<N>` with N = chunk.len().
+    fn advance_chunk<const N: usize>(
+        &self,
+        tr: &mut Tracker,
+        j0: usize,
+        chunk: &[Param],
+        c: &Candidate,
+        step: &mut Step,
+    ) -> Result<()> {
+        let Bdf { c0, c1, c2, d1 } = c.bdf;
+        let problem = step.problem;
+        let n_slots = c.hist.len();
+        let n_par = chunk.len();
+        let models_d = self.dual_models::<N>(chunk, &c.pressures, &c.sigma, c0);
+        // dH/dtheta = c1 dX_n + c2 dX_{n-1} + d1 dX_t,n.
+        let hist_d: Vec<[Jet<N>; NF]> = (0..n_slots)
+            .map(|k| {
+                std::array::from_fn(|a| {
+                    let mut h = Jet::<N>::from(c.hist[k][a]);
+                    for q in 0..n_par {
+                        let s = &tr.slots[j0 + q][k];
+                        h.eps[q] = c1 * s.x1[a] + c2 * s.x2[a] + d1 * s.xt[a];
+                    }
+                    h
                 })
-                .collect();
-            let n_par = chunk.len();
-            let z = &c.z_scaled;
-            // Start: dz/dtheta extrapolated linearly from the last two steps (smooth motion:
-            // the refinement starts O(h^2) off instead of O(1)).
-            let mut start: Vec<Dual> = z.iter().map(|&x| Dual::from(x)).collect();
-            for q in 0..n_par {
-                if let [a, b] = tr.dz[CHUNK * ci + q].as_slice() {
+            })
+            .collect();
+        let z = &c.z_scaled;
+        // Start: dz/dtheta extrapolated from the last steps, by the quadratic through the
+        // last three (the state's predictor does the same; with equal steps the weights are
+        // 3, -3, 1): on smooth motion the refinement starts O(h^3) off instead of O(1)
+        // (linear extrapolation, O(h^2), took 1.3x the evaluations on the arm). The steps
+        // are equal except for halvings where Newton fails, where the start is only worse:
+        // the refinement converges to the same derivative from any start.
+        let mut start: Vec<Jet<N>> = z.iter().map(|&x| Jet::<N>::from(x)).collect();
+        for q in 0..n_par {
+            match tr.dz[j0 + q].as_slice() {
+                [a, b, cc] => {
+                    for (k, x) in start.iter_mut().enumerate() {
+                        x.eps[q] = 3.0 * (a[k] - b[k]) + cc[k];
+                    }
+                }
+                [a, b] => {
                     for (x, (da, db)) in start.iter_mut().zip(a.iter().zip(b)) {
                         x.eps[q] = 2.0 * da - db;
                     }
                 }
+                _ => {}
             }
-            let mut zd = kept.and_then(|f| refine(&problem, f, &models_d, &hist_d, start, n_par));
-            if zd.is_none() {
-                if exact.is_none() {
-                    exact = Some(problem.factorize(z).ok_or_else(|| {
+        }
+        let scale: [f64; N] = std::array::from_fn(|q| tr.scale.get(j0 + q).copied().unwrap_or(0.0));
+        let refined = step
+            .kept
+            .and_then(|f| refine(problem, f, &models_d, &hist_d, start, n_par, &scale));
+        let (zd, fields) = match refined {
+            Some(solved) => solved,
+            None => {
+                if step.exact.is_none() {
+                    *step.exact = Some(problem.factorize(z).ok_or_else(|| {
                         not_solvable(&format!("step to t = {:.6} s", self.time + c.h))
                     })?);
                 }
-                let fac = exact.as_ref().expect("factored above");
-                zd = Some(
-                    solve_exact(&problem, fac, &models_d, &hist_d, z, n_par)
-                        .ok_or_else(|| not_solvable("state"))?,
-                );
+                let fac = step.exact.as_ref().expect("factored above");
+                let zd = solve_exact(problem, fac, &models_d, &hist_d, z, n_par)
+                    .ok_or_else(|| not_solvable("state"))?;
+                let fields = problem.fields_with(&models_d, &hist_d, &zd);
+                (zd, fields)
             }
-            let zd = zd.expect("solved above");
-            let (fields, tip_node, tip_r) = problem.fields_and_tip_with(&models_d, &hist_d, &zd);
-            for q in 0..n_par {
-                let j = CHUNK * ci + q;
-                let mut old = std::mem::take(&mut tr.dz[j]);
-                let recycled = if old.len() == 2 { old.pop() } else { None };
-                let mut now = recycled.unwrap_or_else(|| vec![0.0; zd.len()]);
-                for (x, d) in now.iter_mut().zip(&zd) {
-                    *x = d.eps[q];
-                }
-                old.insert(0, now);
-                tr.dz[j] = old;
-                let slots = &mut tr.slots[j];
-                for (k, slot) in slots.iter_mut().enumerate() {
-                    let x1: [f64; FIELDS] = if k < fields.len() {
-                        std::array::from_fn(|a| fields[k][a].eps[q])
-                    } else {
-                        // The tip slot: the tip node's q, w.
-                        let mut x = [0.0; FIELDS];
-                        for a in 6..12 {
-                            x[a] = tip_node[a + 4].eps[q];
-                        }
-                        x
-                    };
-                    *slot = Slot {
-                        xt: std::array::from_fn(|a| c0 * x1[a] + hist_d[k][a].eps[q]),
-                        x2: slot.x1,
-                        x1,
-                    };
-                }
-                tr.tip[j] = std::array::from_fn(|a| tip_r[a].eps[q]);
+        };
+        let (tip_node, tip_r) = problem.tip_of_fields(&zd, &fields);
+        for q in 0..n_par {
+            let j = j0 + q;
+            let mut old = std::mem::take(&mut tr.dz[j]);
+            let recycled = if old.len() == DZ_KEPT {
+                old.pop()
+            } else {
+                None
+            };
+            let mut now = recycled.unwrap_or_else(|| vec![0.0; zd.len()]);
+            let mut size = tr.scale[j];
+            for (x, d) in now.iter_mut().zip(&zd) {
+                *x = d.eps[q];
+                size = size.max(x.abs());
             }
+            tr.scale[j] = size;
+            old.insert(0, now);
+            tr.dz[j] = old;
+            let slots = &mut tr.slots[j];
+            for (k, slot) in slots.iter_mut().enumerate() {
+                let x1: [f64; FIELDS] = if k < fields.len() {
+                    std::array::from_fn(|a| fields[k][a].eps[q])
+                } else {
+                    // The tip slot: the tip node's q, w.
+                    let mut x = [0.0; FIELDS];
+                    for a in 6..12 {
+                        x[a] = tip_node[a + 4].eps[q];
+                    }
+                    x
+                };
+                *slot = Slot {
+                    xt: std::array::from_fn(|a| c0 * x1[a] + hist_d[k][a].eps[q]),
+                    x2: slot.x1,
+                    x1,
+                };
+            }
+            tr.tip[j] = std::array::from_fn(|a| tip_r[a].eps[q]);
         }
-        Ok(usize::from(exact.is_some()))
+        Ok(())
     }
 }
 
+/// What the chunks of one step share: the step's problem, the matrix Newton kept and the
+/// exact one once factored.
+struct Step<'a, 'p> {
+    problem: &'a Problem<'p>,
+    kept: Option<&'a Factorization>,
+    exact: &'a mut Option<Factorization>,
+}
+
+/// The smallest scale of a parameter's derivative, per unit of relative change of the
+/// parameter: 1e-3 of the scaled unknowns' O(1) size for theta -> 2 theta. A derivative
+/// smaller than that over the whole run so far (d/dtau is exactly zero while the arm rests
+/// before the first input; round-off makes it ~1e-13) is resolved to REFINE_TOL of this
+/// floor, 1e-12 per unit relative change, instead of to 1e-9 of its own round-off-sized
+/// value, which took the refinement to its limit of evaluations at every resting step.
+/// Derivatives that matter to a fit are far above it (the arm's are 0.1-1 per unit relative
+/// change), where the tolerance stays relative to their own size.
+const SCALE_FLOOR: f64 = 1e-3;
+
+/// dz/dtheta of the last steps kept for the refinement's start.
+const DZ_KEPT: usize = 3;
+
 /// Refinement steps with a kept Newton matrix before the exact one is factored.
 const MAX_REFINE: usize = 12;
+/// The refinement falls back to the exact matrix (factored at the step's state, and kept
+/// for the next steps' refinements) when a correction is not below this fraction of the
+/// last one: Newton's own rule for keeping its matrix (`collocation::newton_with`). On the
+/// arm (8 s of pulses, tau and area_scale) 0.5 took 4112 dual evaluations and 6
+/// factorisations in 1600 steps, 0.25 3883 and 15, 0.1 3653 and 38, the factorisation
+/// costing about ten evaluations.
+const RATE_MAX: f64 = 0.25;
 /// The refinement stops when every correction is below this fraction of the derivative it
 /// corrects (scaled unknowns): as fine as the state itself is solved (Newton's tol of 1e-9
 /// on the scaled unknowns), far below what a fit resolves.
@@ -381,15 +528,15 @@ const REFINE_TOL: f64 = 1e-9;
 
 /// The chunk's unknowns with dz/dtheta in their dual parts, solved with the exact Newton
 /// matrix `fac` at `z`: dz/dtheta = -G_z^-1 dG/dtheta (models and histories dual).
-fn solve_exact(
+fn solve_exact<const N: usize>(
     problem: &Problem,
     fac: &Factorization,
-    models: &[SectionModel<Dual>],
-    hist: &[[Dual; NF]],
+    models: &[SectionModel<Jet<N>>],
+    hist: &[[Jet<N>; NF]],
     z: &[f64],
     n_par: usize,
-) -> Option<Vec<Dual>> {
-    let zc: Vec<Dual> = z.iter().map(|&x| Dual::from(x)).collect();
+) -> Option<Vec<Jet<N>>> {
+    let zc: Vec<Jet<N>> = z.iter().map(|&x| Jet::<N>::from(x)).collect();
     let r = problem.residual_with(models, hist, &zc);
     let mut zd = zc;
     let mut rhs = vec![0.0; z.len()];
@@ -414,45 +561,79 @@ fn solve_exact(
 /// The same with an approximate (kept) matrix M: iterative refinement
 /// dz += -M^-1 (dG/dtheta + G_z dz), the bracket one dual evaluation of the residual at
 /// z + eps dz (exact); it converges to the exact dz/dtheta as fast as Newton did with M.
-/// None when it does not contract to REFINE_TOL within MAX_REFINE steps.
-fn refine(
+/// A parameter's derivative is done when its correction falls below REFINE_TOL of its
+/// size, the larger of max |dz/dtheta| now and `scale` (the largest it has been in the
+/// run: where a derivative decays towards zero, e.g. d/dtau at rest, 1e-9 of its own
+/// vanishing size would be below the round-off of the residual's terms, which are of the
+/// derivative's usual size); done parameters are not corrected further. Returns the
+/// iterate at which the last parameter was done, with the stage fields of that same
+/// evaluation (their derivatives are the slots' new values: no further evaluation). The
+/// contraction rate rho is held <= RATE_MAX = 0.25, so that iterate's error is at most
+/// correction / (1 - rho) <= 1.33 REFINE_TOL of the size.
+/// None when it does not contract, or not to REFINE_TOL within MAX_REFINE evaluations.
+fn refine<const N: usize>(
     problem: &Problem,
     fac: &Factorization,
-    models: &[SectionModel<Dual>],
-    hist: &[[Dual; NF]],
-    start: Vec<Dual>,
+    models: &[SectionModel<Jet<N>>],
+    hist: &[[Jet<N>; NF]],
+    start: Vec<Jet<N>>,
     n_par: usize,
-) -> Option<Vec<Dual>> {
+    scale: &[f64; N],
+) -> Option<(Vec<Jet<N>>, Vec<[Jet<N>; NF]>)> {
     let mut zd = start;
     let n = zd.len();
-    let mut rhs = vec![0.0; n];
-    let mut corr = vec![0.0; n];
-    let mut scratch = vec![0.0; fac.scratch_len()];
-    let mut last = [f64::INFINITY; CHUNK];
+    // Right sides and corrections of up to two parameters (solved together), and every
+    // parameter's correction.
+    let mut rhs = vec![0.0; 2 * n];
+    let mut out = vec![0.0; 2 * n];
+    let mut corr = vec![0.0; n * n_par];
+    let mut scratch = vec![0.0; 2 * fac.scratch_len()];
+    let mut last = [f64::INFINITY; N];
+    let mut done = [false; N];
     for _ in 0..MAX_REFINE {
-        let r = problem.residual_with(models, hist, &zd);
-        let mut done = true;
-        for q in 0..n_par {
-            for (x, ri) in rhs.iter_mut().zip(&r) {
-                *x = ri.eps[q];
+        let (r, fields) = problem.residual_and_fields_with(models, hist, &zd);
+        // Every correction is computed from this residual before any is applied: the
+        // iterate returned is the one the residual (and fields) were evaluated at.
+        let active: Vec<usize> = (0..n_par).filter(|&q| !done[q]).collect();
+        for pair in active.chunks(2) {
+            if let [a, b] = *pair {
+                for (i, ri) in r.iter().enumerate() {
+                    rhs[i] = ri.eps[a];
+                    rhs[n + i] = ri.eps[b];
+                }
+                fac.solve2(&rhs, &mut out, &mut scratch);
+                corr[a * n..(a + 1) * n].copy_from_slice(&out[..n]);
+                corr[b * n..(b + 1) * n].copy_from_slice(&out[n..]);
+            } else {
+                let a = pair[0];
+                for (x, ri) in rhs[..n].iter_mut().zip(&r) {
+                    *x = ri.eps[a];
+                }
+                fac.solve(&rhs[..n], &mut corr[a * n..(a + 1) * n], &mut scratch);
             }
-            fac.solve(&rhs, &mut corr, &mut scratch);
-            let step = corr.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            if !step.is_finite() || step > 0.5 * last[q] {
+        }
+        let mut apply = [false; N];
+        for &q in &active {
+            let cq = &corr[q * n..(q + 1) * n];
+            let step = cq.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let size = zd.iter().fold(scale[q], |m, x| m.max(x.eps[q].abs()));
+            if step <= REFINE_TOL * size {
+                done[q] = true;
+                continue;
+            }
+            if !step.is_finite() || step > RATE_MAX * last[q] {
                 return None; // not contracting: the exact matrix is needed
             }
             last[q] = step;
-            let mut size = 0.0f64;
-            for (x, d) in zd.iter_mut().zip(&corr) {
-                x.eps[q] += *d;
-                size = size.max(x.eps[q].abs());
-            }
-            if step > REFINE_TOL * size {
-                done = false;
-            }
+            apply[q] = true;
         }
-        if done {
-            return Some(zd);
+        if !apply.contains(&true) {
+            return Some((zd, fields));
+        }
+        for q in (0..n_par).filter(|&q| apply[q]) {
+            for (x, d) in zd.iter_mut().zip(&corr[q * n..(q + 1) * n]) {
+                x.eps[q] += *d;
+            }
         }
     }
     None

@@ -5,8 +5,8 @@ equilibrium under the experiment's first pressures, and the model's tip is read 
 sample time (linear between the steps). With ``jacobian`` the core carries the exact
 forward sensitivities of every step (``softrod_core::dynamics::sensitivity``: the implicit
 function theorem on each step's collocation equations), so the tip's derivatives come with
-the replay at about three times its cost, and Levenberg-Marquardt fits with standard
-errors."""
+the replay at about 3.5 times its cost (two parameters; benchmarks/README.md), and
+Levenberg-Marquardt fits with standard errors."""
 
 from __future__ import annotations
 
@@ -57,6 +57,16 @@ class RodDynamic(ModelAdapter):
     #: scale, not scipy's 5 %) and stops at 1e-4 in log theta (0.01 %, well below the
     #: scatter that measurement noise leaves) or a cost change of 1e-9 of the start's.
     nelder_mead = {"xatol": 1e-4, "fatol": 1e-9, "fatol_relative": True, "step": 0.2}
+    #: Every replay starts from rest in equilibrium: no warm starts.
+    stateless = True
+    #: An evaluation replays every experiment with its sensitivities, so LM stops once its
+    #: next step would move every parameter by less than 1e-3 of its standard error: the
+    #: point is then the least-squares optimum to 1e-3 of the uncertainty the noise leaves:
+    #: its cost exceeds the optimum's by about P (1e-3)^2 s^2 / 2 (P parameters, s^2 the
+    #: residual variance), 1e-6 s^2 against a cost of (m - P) s^2 / 2 over m residuals,
+    #: and the further steps MINPACK's xtol of 1e-10 would take move the result by nothing
+    #: the data resolve.
+    lm_stop_fraction = 1e-3
 
     def __init__(self, design: Design, dataset, params: list[Parameter], dt, threads: int):
         from ...dynamics.simulate import _seconds
