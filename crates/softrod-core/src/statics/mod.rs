@@ -824,19 +824,22 @@ struct Jacobi {
     theta: Matrix3<f64>,
 }
 
+/// Component a of the rotation field d theta/dx_j (world frame, dR R^T = [d theta]x) that
+/// the dual number direction j of the state y carries.
+pub(crate) fn rotation_field<const N: usize>(y: &State<Jet<N>>, a: usize, j: usize) -> f64 {
+    // Omega = dR R^T (row-major R): Omega[p][q] = sum_k dR[p][k] R[q][k].
+    let om =
+        |p: usize, q: usize| -> f64 { (0..3).map(|k| y.rot[p][k].eps[j] * y.rot[q][k].re).sum() };
+    match a {
+        0 => 0.5 * (om(2, 1) - om(1, 2)),
+        1 => 0.5 * (om(0, 2) - om(2, 0)),
+        _ => 0.5 * (om(1, 0) - om(0, 1)),
+    }
+}
+
 impl Jacobi {
     fn visit<const N: usize>(&mut self, y: &State<Jet<N>>) {
-        let th = Matrix3::from_fn(|a, j| {
-            // Omega = dR R^T (row-major R): Omega[p][q] = sum_k dR[p][k] R[q][k].
-            let om = |p: usize, q: usize| -> f64 {
-                (0..3).map(|k| y.rot[p][k].eps[j] * y.rot[q][k].re).sum()
-            };
-            match a {
-                0 => 0.5 * (om(2, 1) - om(1, 2)),
-                1 => 0.5 * (om(0, 2) - om(2, 0)),
-                _ => 0.5 * (om(1, 0) - om(0, 1)),
-            }
-        });
+        let th = Matrix3::from_fn(|a, j| rotation_field(y, a, j));
         if self.elastic {
             if !self.conjugate && th != self.theta {
                 self.conjugate = match th.try_inverse() {
@@ -878,6 +881,20 @@ fn right_half_plane(t: &Matrix3<f64>) -> bool {
         + t[(1, 1)] * t[(2, 2)]
         - t[(1, 2)] * t[(2, 1)];
     tr > 0.0 && det > 0.0 && tr * c2 > det
+}
+
+/// Every eigenvalue of the 6x6 matrix t has a positive real part (the test of
+/// `constraint::Conjugate`): its eigenvalues from the real Schur form. Should the QR
+/// iteration not converge (not seen on such small matrices), det t > 0, which still
+/// catches a single crossing.
+pub(crate) fn eigenvalues_right_half_plane(t: &nalgebra::Matrix6<f64>) -> bool {
+    if !t.iter().all(|v| v.is_finite()) {
+        return false;
+    }
+    match nalgebra::linalg::Schur::try_new(*t, f64::EPSILON, 10_000) {
+        Some(schur) => schur.complex_eigenvalues().iter().all(|z| z.re > 0.0),
+        None => t.determinant() > 0.0,
+    }
 }
 
 /// The best of two attempts: a stable solution, else an unstable one, else the more telling
