@@ -111,7 +111,7 @@ def test_clamped_clamped_rod_under_a_large_load_matches_a_bvp_solver():
             tip_constraint=TipConstraint.clamped(tip, [0.0, theta_t, 0.0]),
             options=TIGHT,
         )
-        assert sol.tip_constraint == "clamped" and sol.stable is None
+        assert sol.tip_constraint == "clamped" and sol.stable is True
 
         def bc(y0, y1):
             return np.array(
@@ -395,7 +395,7 @@ def test_constrained_solves_hold_the_pose_and_balance(dx, dz, angle, kind):
     c = (TipConstraint.pinned(pos) if kind == "pinned"
          else TipConstraint.clamped(pos, [0.0, angle, 0.0]))
     try:
-        sol = solve_statics(d, [], tip_constraint=c, options=TIGHT)
+        sol = solve_statics(d, [], tip_constraint=c, options=TIGHT, on_unstable="ignore")
     except softrod.InvalidStateError as exc:
         assert exc.rule == "rotation" and "steps are too coarse" in str(exc), exc
         return
@@ -406,6 +406,41 @@ def test_constrained_solves_hold_the_pose_and_balance(dx, dz, angle, kind):
         np.testing.assert_allclose(sol.tip_rotation, ry(angle), atol=1e-9)
     total = -sol.force[0] + np.array([q * L, 0.0, 0.0]) + sol.tip_reaction_force
     assert np.abs(total).max() < 1e-9 * q * L
+    # Dead loads: the stability of a held tip is assessed (shortened far enough, the rod may
+    # be on an unstable branch, which on_unstable="ignore" lets through).
+    assert sol.stable in (True, False)
+
+
+@pytest.mark.parametrize(
+    "kind, kl", [("clamped", 2 * math.pi), ("pinned", 4.493409457909064)]
+)
+def test_column_held_at_both_ends_is_flagged_beyond_its_euler_load(kind, kl):
+    """An upright column held at both ends and pressed along its axis (the tip prescribed at
+    z = L (1 - P/EA), the stretch of the linear law under P) stays straight by symmetry. Its
+    Euler load is P_E = (kL)^2 EI / L^2 with kL = 2 pi clamped-clamped and tan kL = kL
+    (4.4934) clamped-pinned; shear lowers it by about P/GA (0.8 % here). At 0.8 P_E the
+    straight column is stable; at 1.5 P_E it is unstable, and the policies apply as for a
+    free tip: a StabilityWarning by default, InvalidStateError (rule "stability") with
+    on_unstable="raise"."""
+    d = load_design(rod(steps=48))
+    pe = kl**2 * EI / L**2
+
+    def held(ratio):
+        pos = [0.0, 0.0, L * (1.0 - ratio * pe / EA)]
+        if kind == "pinned":
+            return TipConstraint.pinned(pos)
+        return TipConstraint.clamped(pos, [0.0, 0.0, 0.0])
+
+    below = solve_statics(d, [], tip_constraint=held(0.8), options=TIGHT)
+    assert below.stable is True
+    with pytest.warns(softrod.StabilityWarning):
+        above = solve_statics(d, [], tip_constraint=held(1.5), options=TIGHT)
+    assert above.stable is False
+    assert np.abs(above.position[:, :2]).max() < 1e-9 * L
+    np.testing.assert_allclose(-above.force[0, 2], 1.5 * pe, rtol=1e-6)
+    with pytest.raises(softrod.InvalidStateError) as exc:
+        solve_statics(d, [], tip_constraint=held(1.5), options=TIGHT, on_unstable="raise")
+    assert exc.value.rule == "stability"
 
 
 @settings(max_examples=25, deadline=None)

@@ -99,7 +99,8 @@ def _policy(name: str, value) -> str:
 
 def _report_stability(stable: bool | None, on_unstable: str, what: str) -> None:
     """Warn about (or raise for) an unstable equilibrium, as ``on_unstable`` says. None:
-    stability was not assessed (follower loads are not conservative; docs/scope.md)."""
+    stability was not assessed (follower loads are not conservative, contact, systems of
+    rods; docs/scope.md)."""
     if stable is None or stable or on_unstable == "ignore":
         return
     message = (
@@ -340,8 +341,9 @@ def solve_statics(
     with ``type``, ``position``, ``orientation`` as the design file's ``[tip]`` keys);
     None: the design's (``[tip] constraint``, free by default). A pinned or clamped tip
     reports the wrench the constraint applies in ``tip_reaction_force`` and
-    ``tip_reaction_moment``; its stability is not assessed (``stable`` is None;
-    docs/model.md, "End constraints").
+    ``tip_reaction_moment``; its stability is assessed with the tip held (``stable``,
+    ``on_unstable`` as for a free tip; None under follower line loads or a follower tip
+    moment on a pin: docs/model.md, "End constraints").
 
     model: "cosserat" (the rod) or "pcc" (paper 003's piecewise-constant-curvature model,
     docs/pcc.md): the same design and inputs; its shape is the chain of arcs, its ``force``

@@ -97,7 +97,8 @@ fn clamped_clamped_beam_matches_the_linear_solution_under_a_small_mid_span_load(
     assert!((sol.tip_reaction_force[2] - p / 2.0).abs() < 1e-9 * p);
     // The clamp applies -n(0) to the rod.
     assert!((-sol.solution.base_force[2] - p / 2.0).abs() < 1e-9 * p);
-    assert_eq!(sol.solution.stable, None);
+    // A lightly loaded beam held at both ends is stable.
+    assert_eq!(sol.solution.stable, Some(true));
 }
 
 /// The constraint's reactions and the base wrench balance the applied loads: force
@@ -313,6 +314,184 @@ fn constraint_jacobian_turns_singular_at_the_euler_loads() {
         );
         assert!(far * below > 0.0, "{name}: a root below 0.5..0.999 P_E");
     }
+}
+
+/// The tip pose of the straight column (along +z, length 1) compressed by P: the linear law
+/// gives the stretch v3 = 1 - P/EA, so the tip sits at z = L (1 - P/EA).
+fn compressed(rod: &Rod, ea: f64, p: f64, clamped: bool) -> TipConstraint {
+    let position = [0.0, 0.0, rod.length * (1.0 - p / ea)];
+    if clamped {
+        TipConstraint::Clamped {
+            position,
+            rotation: IDENTITY,
+        }
+    } else {
+        TipConstraint::Pinned { position }
+    }
+}
+
+/// A straight column held at both ends: stable below the Euler load of its end
+/// conditions, unstable above it. The Euler loads P_E = (kL)^2 EI_1 / L^2 (the weaker plane)
+/// come from EI w'''' + P w'' = 0 with w(0) = w'(0) = 0 and, at L, w = w' = 0
+/// (clamped-clamped: the symmetric mode, kL = 2 pi) or w = w'' = 0 (clamped-pinned:
+/// tan kL = kL, kL = 4.4934). The prescribed tip z = L (1 - P/EA) sets P; the straight column
+/// is an equilibrium at any P, and the path to it stays straight by symmetry. EA = GA =
+/// 1e7 EI / L^2 moves the thresholds by ~P/GA ~ 1e-5, far inside 0.95..1.05.
+/// - Clamped-clamped: only conjugate points decide (no tip form): the first, at k s = 2 pi,
+///   lies inside (0, L] exactly when P > P_E.
+/// - Clamped-pinned: below kL = 2 pi there is no conjugate point, and the tip form (the
+///   pin's rotational stiffness, EI k (sin kL - kL cos kL) / (2 - 2 cos kL - kL sin kL) on
+///   the straight column) changes sign at tan kL = kL; at kL = 6.5 (beyond 2 pi) it is
+///   positive again (numerator -6.1, denominator -1.35), and only the conjugate point at
+///   k s = 2 pi flags the column.
+///
+/// A round column (EI_1 = EI_2) buckles in both planes at once: a double conjugate point,
+/// or a tip form with a double negative eigenvalue, neither of which changes a det's sign.
+#[test]
+fn straight_columns_held_at_both_ends_change_stability_at_their_euler_loads() {
+    let ea = 1e7;
+    for (ei1, ei2) in [(1.0, 3.0), (1.0, 1.0)] {
+        let rod = column(ei1, ei2);
+        let cc = (2.0 * std::f64::consts::PI).powi(2) * ei1;
+        let cp = 4.493409457909064_f64.powi(2) * ei1;
+        let cases = [
+            ("clamped-clamped", true, cc, 0.8, true),
+            ("clamped-clamped", true, cc, 0.95, true),
+            ("clamped-clamped", true, cc, 1.05, false),
+            ("clamped-clamped", true, cc, 1.5, false),
+            ("clamped-pinned", false, cp, 0.8, true),
+            ("clamped-pinned", false, cp, 0.95, true),
+            ("clamped-pinned", false, cp, 1.05, false),
+            ("clamped-pinned", false, cp, 1.5, false),
+            // kL = 6.5 > 2 pi: the conjugate point alone.
+            ("clamped-pinned", false, 6.5_f64.powi(2) * ei1, 1.0, false),
+        ];
+        for (name, clamped, pe, ratio, want) in cases {
+            let c = compressed(&rod, ea, ratio * pe, clamped);
+            let sol = solve_constrained(&rod, &no_loads(), &c, None, &opts())
+                .unwrap_or_else(|e| panic!("{name} at {ratio} P_E: {e:?}"));
+            // Straight, and carrying P.
+            let tip = sol.solution.tip.r;
+            assert!(
+                tip[0].abs() < 1e-9 && tip[1].abs() < 1e-9,
+                "{name}: {tip:?}"
+            );
+            let p = -sol.solution.base_force[2];
+            assert!(
+                (p - ratio * pe).abs() < 1e-6 * pe,
+                "{name}: P = {p}, want {}",
+                ratio * pe
+            );
+            assert_eq!(
+                sol.solution.stable,
+                Some(want),
+                "{name}, EI = ({ei1}, {ei2}), {ratio} P_E"
+            );
+        }
+    }
+}
+
+/// A softer column (EA = GA = 2000 EI / L^2: the clamped-clamped Euler shortening P_E / EA
+/// is 2 %) shortened by 1.5 P_E / EA. Perfect, it stays straight under 1.5 P_E and is
+/// unstable; with a small lateral line load (q L^3 / EI_2 = 1e-2, in the plane of the weaker
+/// bending stiffness EI_2 = EI) the path bends it, and the
+/// buckled column carries about the Euler load (the post-buckled elastica's force rises with
+/// the square of the amplitude, ~1 % here; shear lowers the critical load by P/GA ~ 2 %),
+/// far below the straight column's 1.5 P_E. The side it bends to is the path's (the tip
+/// moves from where the load put the free tip), here against the load.
+/// - EI_1 = 3 EI_2 (bending about d1, out of the plane of the load, three times stiffer):
+///   the buckled column is stable.
+/// - A round column (EI_1 = EI_2): turning the buckled shape about the chord (r -> Q r,
+///   R -> Q R Q^T with Q a rotation about the axis through both ends) keeps both ends' poses
+///   and, the section being round, every strain's energy: without the load it is a neutral
+///   mode. The load makes it stable if the column bows with the load, unstable if against it
+///   (turning towards the load lowers the potential by q int x ds (1 - cos phi)). This is a
+///   spatial instability of a planar shape, which a planar test would miss.
+#[test]
+fn buckled_columns_held_at_both_ends_are_stable() {
+    let (ea, ei) = (2e3, 1.0);
+    for (clamped, ei1) in [(true, 3.0), (false, 3.0), (true, 1.0), (false, 1.0)] {
+        let name = if clamped {
+            "clamped-clamped"
+        } else {
+            "clamped-pinned"
+        };
+        let pe = if clamped {
+            (2.0 * std::f64::consts::PI).powi(2) * ei
+        } else {
+            4.493409457909064_f64.powi(2) * ei
+        };
+        let sec = |q: f64| {
+            let mut section = direct_section("rod", 1.0, ea, ea, ei, 2.0 * ei, 0.0, 100);
+            section.stiffness.ei1 = Some(ei1 * ei);
+            let mut spec = design(vec![section], IDENTITY, 0.0);
+            spec.loads = vec![LineLoadSpec {
+                section: 0,
+                frame: Frame::World,
+                force_per_length: [q, 0.0, 0.0],
+                moment_per_length: [0.0; 3],
+            }];
+            Rod::new(spec).unwrap()
+        };
+        let perfect = sec(0.0);
+        let c = compressed(&perfect, ea, 1.5 * pe, clamped);
+        let straight = solve_constrained(&perfect, &no_loads(), &c, None, &opts()).unwrap();
+        assert!(straight.solution.tip.r[0].abs() < 1e-9);
+        assert_eq!(straight.solution.stable, Some(false), "{name}: straight");
+        let rod = sec(1e-2 * ei);
+        let bent = solve_constrained(&rod, &no_loads(), &c, None, &opts())
+            .unwrap_or_else(|e| panic!("{name}: {e:?}"));
+        let x: Vec<f64> = bent.shape.position.iter().map(|r| r[0]).collect();
+        let sway = x.iter().fold(0.0, |a: f64, v| a.max(v.abs()));
+        let with_load = x.iter().sum::<f64>() > 0.0;
+        let p = -bent.solution.base_force[2];
+        assert!(sway > 0.03, "{name}: not buckled (sway {sway})");
+        assert!((p / pe - 1.0).abs() < 0.05, "{name}: P = {} P_E", p / pe);
+        let want = ei1 > 1.0 || with_load;
+        assert_eq!(
+            bent.solution.stable,
+            Some(want),
+            "{name}, EI_1 = {ei1}, with the load: {with_load}"
+        );
+    }
+}
+
+/// A clamped tip moved sideways by 0.3 L (the rod bends into an S) or pinned there (a C),
+/// the chord as long as the rod, so the rod is stretched (EA = GA = 1000 EI / L^2): the axial force
+/// at the base is a tension, and the equilibrium is stable. With a follower tip moment a
+/// pin's equilibrium is not assessed; a clamp takes any tip load into its reaction, so it
+/// still is.
+#[test]
+fn rods_bent_by_a_displaced_tip_are_stable() {
+    let rod = Rod::new(design(
+        vec![direct_section("rod", 1.0, 1e3, 1e3, 1.0, 2.0, 0.0, 100)],
+        IDENTITY,
+        0.0,
+    ))
+    .unwrap();
+    let tip = [0.3, 0.0, (1.0_f64 - 0.09).sqrt()];
+    let clamp = TipConstraint::Clamped {
+        position: tip,
+        rotation: IDENTITY,
+    };
+    let pin = TipConstraint::Pinned { position: tip };
+    for c in [clamp, pin] {
+        let sol = solve_constrained(&rod, &no_loads(), &c, None, &opts())
+            .unwrap_or_else(|e| panic!("{}: {e:?}", c.name()));
+        let n0 = sol.solution.base_force;
+        let t0 = sol.shape.rotation[0];
+        // n(0) . d3(0) > 0: tension (d3 = third column of the row-major rotation).
+        let axial: f64 = (0..3).map(|k| n0[k] * t0[k][2]).sum();
+        assert!(axial > 0.0, "{}: axial force {axial}", c.name());
+        assert_eq!(sol.solution.stable, Some(true), "{}", c.name());
+    }
+    let mut follower = no_loads();
+    follower.tip_frame = Frame::Body;
+    follower.tip_moment = [0.0, 0.1, 0.0];
+    let sol = solve_constrained(&rod, &follower, &pin, None, &opts()).unwrap();
+    assert_eq!(sol.solution.stable, None);
+    let sol = solve_constrained(&rod, &follower, &clamp, None, &opts()).unwrap();
+    assert_eq!(sol.solution.stable, Some(true));
 }
 
 fn two_rod_system(rod: &Rod, gap: f64) -> Vec<SystemRod<'_>> {

@@ -208,8 +208,8 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
     notes = list(sol.violations)
     if sol.stable is None:
         notes.append(
-            "stability not assessed (follower loads, a pinned or clamped tip, or contact "
-            "with obstacles: docs/scope.md)"
+            "stability not assessed (follower loads, or contact with obstacles: "
+            "docs/scope.md)"
         )
     elif not sol.stable:
         notes.append(

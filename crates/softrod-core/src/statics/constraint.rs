@@ -19,18 +19,32 @@
 //!
 //! Continuation: a path from the unloaded reference shape (x = 0 at load factor 0, where
 //! the constraint is set at the reference tip pose) to the full loads and the prescribed
-//! pose, the loads ramped and the pose interpolated along the geodesic. Stability is not
-//! assessed (`stable = None`): the conjugate-point test of `super::Jacobi` is the free
-//! tip's; a constrained end needs the Jacobi test on the constraint's Jacobian along s
-//! (docs/model.md says so).
+//! pose, the loads ramped and the pose interpolated along the geodesic.
+//!
+//! Stability (`Conjugate`, docs/model.md "End constraints"): the second variation with
+//! both ends' positions held. The six Jacobi fields that start at the clamp (columns: the
+//! derivatives with respect to the six base unknowns, carried by the `Jet<6>` pass) have
+//! position and rotation parts Y(s) = [dr(s)/L; dtheta(s)] (6x6). The equilibrium is stable
+//! iff Y stays non-singular on (0, L] (no point conjugate to the clamp: a Jacobi field that
+//! vanishes at s* < L, continued by zero, is an admissible variation of zero energy that is
+//! not smooth, so some nearby one lowers the energy; one that vanishes at L is a neutral
+//! mode) and, for a pinned tip, the tip form is positive definite: the Jacobi fields that
+//! reach the pin with dr(L) = 0 and dtheta(L) = xi are c = Y(L)^-1 [0; xi], their second
+//! variation (M_s / 2) xi^T J_m c with J_m the x-derivative of the scaled tip moment balance
+//! (the free tip's form restricted to dr(L) = 0), so sym(J_m Y(L)^-1 [0; I]) > 0. A
+//! clamped tip has no tip form (both ends' variations vanish). Assessed for conservative
+//! loads: not under follower line loads, nor with a follower tip moment on a pin (a
+//! follower tip force on a pin, or any tip load on a clamp, does no work).
 
-use super::{inf_norm, Problem, Shape, Solution, SolverOptions};
+use super::SolverOptions;
+use super::{eigenvalues_right_half_plane, inf_norm, rotation_field, Problem, Shape, Solution};
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
 use crate::ode::{integrate, Loads, State};
 use crate::rod::Rod;
+use crate::spec::Frame;
 use crate::validity::{Node, Policy};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, SMatrix};
 
 /// How the tip is held.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -116,8 +130,8 @@ impl TipConstraint {
 /// A static equilibrium with a constrained tip.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ConstrainedSolution {
-    /// The equilibrium (`x`: the 6 scaled base unknowns; `stable`: None, not assessed, for
-    /// a pinned or clamped tip).
+    /// The equilibrium (`x`: the 6 scaled base unknowns; `stable`: the conjugate-point test
+    /// of `Conjugate`, None under follower loads that do work).
     pub solution: Solution,
     pub shape: Shape,
     /// Force the constraint applies to the tip (world frame), N; zero for a free tip.
@@ -227,6 +241,11 @@ pub(crate) trait Equations {
     fn difference(&self, a: &[f64], b: &[f64]) -> Vec<f64> {
         a.iter().zip(b).map(|(p, q)| p - q).collect()
     }
+    /// Whether the solution x of these equations is a stable equilibrium (None: not
+    /// assessed). `follow_path` keeps to the stable path where it is known.
+    fn stable(&self, _x: &[f64]) -> Option<bool> {
+        None
+    }
 }
 
 pub(crate) struct NewtonOk {
@@ -329,11 +348,20 @@ pub(crate) struct PathOk {
 const MIN_STEP: f64 = 1e-5;
 /// Tolerance of intermediate levels (relative, as `SolverOptions::tol`): stepping stones.
 const LEVEL_TOL: f64 = 1e-6;
+/// A step that leaves the stable path (lands on an unstable equilibrium while the last level
+/// was stable) is cut until it is this short; a path that still loses stability then does so
+/// itself (a bifurcation, e.g. a perfect column pressed beyond its Euler load) and is
+/// followed. Shorter than the free tip's `super::MIN_STABLE_STEP`: the secant predictor is
+/// cruder than its exact tangent, and near a bifurcation only short steps stay on the
+/// branch that the imperfection picks.
+const MIN_STABLE_STEP: f64 = 1.0 / 1024.0;
 
 /// Continuation in the load factor lambda from x = `x0` at lambda = 0 (an exact solution
-/// there) to lambda = 1: first the whole step, then halved on failure; a secant predictor
+/// there) to lambda = 1: first the whole step, then halved on failure, or when it leaves
+/// the stable path (`Equations::stable`, down to `MIN_STABLE_STEP`); a secant predictor
 /// from the last two levels. `at(lambda)` builds the equations of a level. A warm start
-/// `guess` of the full problem is tried first.
+/// `guess` of the full problem is tried first; if it lands on an unstable equilibrium the
+/// path is followed too, and that one is kept in case the path ends no better.
 pub(crate) fn follow_path<E: Equations>(
     at: impl Fn(f64) -> E,
     x0: Vec<f64>,
@@ -341,15 +369,22 @@ pub(crate) fn follow_path<E: Equations>(
     opts: &SolverOptions,
 ) -> Result<PathOk> {
     let mut iterations = 0;
+    // An equilibrium at lambda = 1 off the stable path, kept in case no stable one is reached.
+    let mut unstable_end: Option<PathOk> = None;
     if let Some(g) = guess {
         match newton(&at(1.0), g, opts.tol, opts.max_iter) {
             Ok(c) => {
-                return Ok(PathOk {
+                let out = PathOk {
                     x: c.x,
                     residual: c.residual,
                     iterations: c.iterations,
                     load_steps: 1,
-                })
+                };
+                if !opts.continuation || at(1.0).stable(&out.x) != Some(false) {
+                    return Ok(out);
+                }
+                iterations += c.iterations;
+                unstable_end = Some(out);
             }
             Err((it, res)) => {
                 iterations += it;
@@ -365,21 +400,27 @@ pub(crate) fn follow_path<E: Equations>(
         }
     }
     let mut lam = 0.0;
+    let mut stable = at(0.0).stable(&x0);
     let mut x = x0;
     let mut prev: Option<(f64, Vec<f64>)> = None;
     let mut step: f64 = 1.0;
     let mut levels = 0;
+    // A failed path returns the unstable end it kept, if any.
+    let fallback = |unstable_end: Option<PathOk>, e: SoftrodError| unstable_end.ok_or(e);
     loop {
         if levels >= opts.max_load_steps {
-            return Err(not_converged(
-                iterations,
-                f64::NAN,
-                lam,
-                format!(
-                    "load continuation used all {} load steps",
-                    opts.max_load_steps
+            return fallback(
+                unstable_end,
+                not_converged(
+                    iterations,
+                    f64::NAN,
+                    lam,
+                    format!(
+                        "load continuation used all {} load steps",
+                        opts.max_load_steps
+                    ),
                 ),
-            ));
+            );
         }
         levels += 1;
         let target = (lam + step).min(1.0);
@@ -400,14 +441,27 @@ pub(crate) fn follow_path<E: Equations>(
         match newton(&at(target), predicted, tol, opts.max_iter) {
             Ok(c) => {
                 iterations += c.iterations;
+                let st = at(target).stable(&c.x);
+                let left_path = stable == Some(true) && st == Some(false);
                 if target >= 1.0 {
-                    return Ok(PathOk {
+                    let out = PathOk {
                         x: c.x,
                         residual: c.residual,
                         iterations,
                         load_steps: levels,
-                    });
+                    };
+                    if !(left_path && h > MIN_STABLE_STEP && opts.continuation) {
+                        return Ok(out);
+                    }
+                    unstable_end = Some(out);
+                    step = 0.5 * h;
+                    continue;
                 }
+                if left_path && h > MIN_STABLE_STEP {
+                    step = 0.5 * h;
+                    continue;
+                }
+                stable = st;
                 prev = Some((lam, std::mem::replace(&mut x, c.x)));
                 lam = target;
                 step = match c.iterations {
@@ -419,23 +473,29 @@ pub(crate) fn follow_path<E: Equations>(
             Err((it, res)) => {
                 iterations += it;
                 if !opts.continuation {
-                    return Err(not_converged(
-                        iterations,
-                        res,
-                        lam,
-                        "Newton failed from the initial guess and continuation is off".into(),
-                    ));
+                    return fallback(
+                        unstable_end,
+                        not_converged(
+                            iterations,
+                            res,
+                            lam,
+                            "Newton failed from the initial guess and continuation is off".into(),
+                        ),
+                    );
                 }
                 step = 0.5 * h;
                 if step < MIN_STEP {
-                    return Err(not_converged(
-                        iterations,
-                        res,
-                        lam,
-                        "load step fell below 1e-5 (a limit point, or a prescribed pose the \
+                    return fallback(
+                        unstable_end,
+                        not_converged(
+                            iterations,
+                            res,
+                            lam,
+                            "load step fell below 1e-5 (a limit point, or a prescribed pose the \
                          rod cannot reach)"
-                            .into(),
-                    ));
+                                .into(),
+                        ),
+                    );
                 }
             }
         }
@@ -539,6 +599,10 @@ impl Equations for Level<'_> {
             DMatrix::from_fn(6, 6, |i, j| r[i].eps[j]),
         )
     }
+
+    fn stable(&self, x: &[f64]) -> Option<bool> {
+        constrained_stability(&self.p, x, &self.constraint)
+    }
 }
 
 /// The tip wrench the constraint applies (world frame): what is left of the tip balance.
@@ -588,6 +652,108 @@ pub(crate) fn checked_shape(
         }
     }
     Ok((tip, shape))
+}
+
+/// The conjugate-point test of a rod whose tip position is held (module docs): Y(s) =
+/// [dr(s)/L; dtheta(s)], the position and rotation parts of the six Jacobi fields that
+/// start at the clamp. Near the clamp Y ~ s diag(R0 K_se^-1 R0^T F_s / L,
+/// R0 K_bt^-1 R0^T M_s) + O(s^2) is non-singular; a crossing between two nodes shows as an
+/// eigenvalue of T = Y(s_k+1)^-1 Y(s_k) with a non-positive real part (without one, T = I +
+/// O(h)). The eigenvalues count the double crossings of symmetric rods (a round column
+/// buckles in two planes at once), which leave det Y's sign unchanged, as the free tip's
+/// `super::Jacobi` does.
+#[derive(Default)]
+pub(crate) struct Conjugate {
+    /// An elastic step has been taken (Y = 0 on leading rigid sections).
+    elastic: bool,
+    conjugate: bool,
+    y: Matrix6<f64>,
+}
+
+impl Conjugate {
+    pub(crate) fn visit(&mut self, y: &State<Jet<6>>, length: f64) {
+        let m = Matrix6::from_fn(|a, j| {
+            if a < 3 {
+                y.r[a].eps[j] / length
+            } else {
+                rotation_field(y, a - 3, j)
+            }
+        });
+        if self.elastic {
+            if !self.conjugate && m != self.y {
+                self.conjugate = match m.lu().solve(&self.y) {
+                    Some(t) => !eigenvalues_right_half_plane(&t),
+                    None => true,
+                };
+            }
+        } else {
+            self.elastic = m.iter().any(|v| *v != 0.0);
+        }
+        self.y = m;
+    }
+
+    /// Clamped tip: no conjugate point in (0, L]. A rod without an elastic step cannot
+    /// deform and is stable.
+    pub(crate) fn stable_clamped(&self) -> bool {
+        !self.elastic || !self.conjugate
+    }
+
+    /// Pinned tip: no conjugate point in (0, L] and the tip form sym(J_m Y(L)^-1 [0; I])
+    /// positive definite, `jm` the x-derivative of the scaled tip moment balance (3x6).
+    pub(crate) fn stable_pinned(&self, jm: &SMatrix<f64, 3, 6>) -> bool {
+        if !self.elastic {
+            return true;
+        }
+        if self.conjugate {
+            return false;
+        }
+        let e = SMatrix::<f64, 6, 3>::from_fn(|i, j| if i == j + 3 { 1.0 } else { 0.0 });
+        let Some(c) = self.y.lu().solve(&e) else {
+            return false;
+        };
+        let k: Matrix3<f64> = jm * c;
+        let q = (k + k.transpose()) * 0.5;
+        q.iter().all(|v| v.is_finite()) && q.cholesky().is_some()
+    }
+}
+
+/// The loads of a constrained solve have a potential (stability is assessed): no follower
+/// line loads, and no follower tip moment on a pin (module docs).
+fn conservative(rod: &Rod, loads: &Loads, constraint: &TipConstraint) -> bool {
+    let follower_moment =
+        loads.tip_frame == Frame::Body && loads.tip_moment.iter().any(|m| *m != 0.0);
+    !rod.spec.has_follower_line_loads()
+        && match constraint {
+            TipConstraint::Pinned { .. } => !follower_moment,
+            TipConstraint::Clamped { .. } => true,
+            TipConstraint::Free => false,
+        }
+}
+
+/// The stability of the equilibrium x of a constrained tip under the full loads `p`: one
+/// integration in `Jet<6>` (the Jacobi fields) and the test of `Conjugate`. None where it is
+/// not assessed (non-conservative loads; a free tip has its own test).
+pub(crate) fn constrained_stability(
+    p: &Problem,
+    x: &[f64],
+    constraint: &TipConstraint,
+) -> Option<bool> {
+    if x.len() != 6 || !conservative(p.rod, p.loads, constraint) {
+        return None;
+    }
+    let xd: [Jet<6>; 6] = std::array::from_fn(|i| Jet::variable(x[i], i));
+    let mut conj = Conjugate::default();
+    let length = p.rod.length;
+    let mut visit = |_: usize, _: f64, y: &State<Jet<6>>| conj.visit(y, length);
+    let tip = integrate(p.rod, &p.coeffs, p.base_state(&xd), Some(&mut visit));
+    match constraint {
+        TipConstraint::Clamped { .. } => Some(conj.stable_clamped()),
+        TipConstraint::Pinned { .. } => {
+            let b: [Jet<6>; 6] = p.residual_of_tip(&tip);
+            Some(conj.stable_pinned(&SMatrix::<f64, 3, 6>::from_fn(|i, j| b[i + 3].eps[j])))
+        }
+        TipConstraint::Free => None,
+    }
 }
 
 /// A clamped end that converged to a half turn from its target (e vanishes there too) is
@@ -708,6 +874,7 @@ fn conclude(
         _ => moment,
     };
     let y0 = level.base_state(&path.x);
+    let stable = constrained_stability(&level, &path.x, constraint);
     Ok(ConstrainedSolution {
         solution: Solution {
             x: path.x,
@@ -717,7 +884,7 @@ fn conclude(
             iterations: path.iterations,
             residual: path.residual,
             load_steps: path.load_steps,
-            stable: None,
+            stable,
             violations: std::mem::take(violations_out),
             collocation: None,
         },

@@ -826,19 +826,27 @@ struct Jacobi {
     theta: Matrix3<f64>,
 }
 
-/// The rotation variations d theta (world frame, dR R^T = [d theta]x) of a rotation carrying
-/// derivatives in 3 of its N >= 3 directions: column j is d theta / d x_j.
+/// Component a of the rotation field d theta/dx_j (world frame, dR R^T = [d theta]x) that
+/// the dual number direction j of a rotation carries.
+fn rotation_component<const N: usize>(rot: &[[Jet<N>; 3]; 3], a: usize, j: usize) -> f64 {
+    // Omega = dR R^T (row-major R): Omega[p][q] = sum_k dR[p][k] R[q][k].
+    let om = |p: usize, q: usize| -> f64 { (0..3).map(|k| rot[p][k].eps[j] * rot[q][k].re).sum() };
+    match a {
+        0 => 0.5 * (om(2, 1) - om(1, 2)),
+        1 => 0.5 * (om(0, 2) - om(2, 0)),
+        _ => 0.5 * (om(1, 0) - om(0, 1)),
+    }
+}
+
+/// [`rotation_component`] of the state y's rotation.
+pub(crate) fn rotation_field<const N: usize>(y: &State<Jet<N>>, a: usize, j: usize) -> f64 {
+    rotation_component(&y.rot, a, j)
+}
+
+/// The rotation variations d theta (world frame) of a rotation carrying derivatives in 3 of
+/// its N >= 3 directions: column j is d theta / d x_j.
 fn rotation_variations<const N: usize>(rot: &[[Jet<N>; 3]; 3]) -> Matrix3<f64> {
-    Matrix3::from_fn(|a, j| {
-        // Omega = dR R^T (row-major R): Omega[p][q] = sum_k dR[p][k] R[q][k].
-        let om =
-            |p: usize, q: usize| -> f64 { (0..3).map(|k| rot[p][k].eps[j] * rot[q][k].re).sum() };
-        match a {
-            0 => 0.5 * (om(2, 1) - om(1, 2)),
-            1 => 0.5 * (om(0, 2) - om(2, 0)),
-            _ => 0.5 * (om(1, 0) - om(0, 1)),
-        }
-    })
+    Matrix3::from_fn(|a, j| rotation_component(rot, a, j))
 }
 
 impl Jacobi {
@@ -889,6 +897,20 @@ fn right_half_plane(t: &Matrix3<f64>) -> bool {
         + t[(1, 1)] * t[(2, 2)]
         - t[(1, 2)] * t[(2, 1)];
     tr > 0.0 && det > 0.0 && tr * c2 > det
+}
+
+/// Every eigenvalue of the 6x6 matrix t has a positive real part (the test of
+/// `constraint::Conjugate`): its eigenvalues from the real Schur form. Should the QR
+/// iteration not converge (not seen on such small matrices), det t > 0, which still
+/// catches a single crossing.
+pub(crate) fn eigenvalues_right_half_plane(t: &nalgebra::Matrix6<f64>) -> bool {
+    if !t.iter().all(|v| v.is_finite()) {
+        return false;
+    }
+    match nalgebra::linalg::Schur::try_new(*t, f64::EPSILON, 10_000) {
+        Some(schur) => schur.complex_eigenvalues().iter().all(|z| z.re > 0.0),
+        None => t.determinant() > 0.0,
+    }
 }
 
 /// The best of two attempts: a stable solution, else an unstable one, else the more telling
