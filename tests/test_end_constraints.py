@@ -467,7 +467,7 @@ def test_cli_solve_reports_the_tip_reaction(run, tmp_path):
     doc = rod(q=10.0)
     doc["tip"] = {
         "constraint": "clamped",
-        "position": ["2 mm", "0 mm", "99 mm"],
+        "position": ["2 mm", "0 mm", "100 mm"],  # sideways, not shortened: stable
         "orientation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
     }
     path = tmp_path / "clamped.toml"
