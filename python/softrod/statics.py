@@ -442,7 +442,8 @@ def solve_statics(
                 tensions=t,
                 **opts.as_kwargs(),
             )
-        _report_stability(out["stable"], on_unstable, f"the solution at pressures {p} Pa")
+        if out["stable"] is False:  # formatted only when there is something to report
+            _report_stability(False, on_unstable, f"the solution at pressures {p} Pa")
     except ConvergenceError as exc:
         if check:
             raise
