@@ -6,6 +6,8 @@ with slack tendons only."""
 import numpy as np
 import pytest
 import softrod
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from softrod import InputError, load_dataset, load_design
 
 ROBOT = "till_tendon_robot"  # 4 tendon channels, no pressure channels
@@ -101,3 +103,36 @@ def test_slack_only_entries_refuse_measured_tensions():
     # Zero tensions are the slack case: accepted.
     slack = softrod.synthesize_dataset(finger, [[1e4], [2e4]], tensions=[[0.0], [0.0]], seed=0)
     slack.require_slack("a test")
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    values=st.lists(
+        st.one_of(
+            st.floats(allow_nan=True, allow_infinity=True),
+            st.integers(min_value=-(10**30), max_value=10**30),
+            st.text(max_size=6),
+            st.none(),
+        ),
+        min_size=1,
+        max_size=4,
+    ),
+    unit=st.sampled_from(["N", "kN", "mN", "kPa", "mm", "", "Nm"]),
+)
+def test_any_tension_column_is_read_or_refused_by_name(values, unit):
+    """Hostile tension cells and units: either every value comes back finite, >= 0 and in
+    N, or an InputError names the column (or the rows); never a raw exception or a NaN."""
+    import pandas as pd
+
+    name = f"t0_{unit}" if unit else "t0"
+    n = len(values)
+    frame = pd.DataFrame(
+        {name: values, "tip_x_mm": [1.0] * n, "tip_y_mm": [0.0] * n, "tip_z_mm": [0.0] * n}
+    )
+    try:
+        data = load_dataset(frame)
+    except InputError as exc:
+        assert exc.field, exc
+        return
+    assert np.isfinite(data.tensions).all() and (data.tensions >= 0).all()
+    assert unit in ("N", "kN", "mN")  # a force unit was required to read them
