@@ -35,9 +35,11 @@ fn main() {
     let spec: DesignSpec = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     let rod = Rod::new(spec).unwrap();
     let nch = rod.n_channels;
+    // ERR=TOL: adaptive steps with that error tolerance (m); dt is then the longest step.
     let opts = DynOptions {
         dt,
         alpha,
+        error_tol: std::env::var("ERR").ok().map(|s| s.parse().unwrap()),
         ..Default::default()
     };
     let initial = if release {

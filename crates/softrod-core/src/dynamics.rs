@@ -116,6 +116,15 @@ pub const DEFAULT_ENERGY_TOL: f64 = 0.02;
 /// Newton matrix grows singular; a failure that survives 64 substeps is not a step size
 /// problem.
 const MAX_HALVINGS: u32 = 6;
+/// A kept Newton matrix serves a step whose c0 differs from its own by at most this
+/// fraction (CVODE's rule for its iteration matrix, dgmax = 0.3): modified Newton still
+/// contracts, and its rate test (`collocation::newton_with`) refreshes the matrix when it
+/// does not. Adaptive steps change c0 at nearly every step; refactoring at each change
+/// cost 0.25 ms per step on paper 000's arm, most of an adaptive run.
+const REUSE_C0: f64 = 0.3;
+/// An accepted adaptive step is not lengthened by less than this factor (Hairer and
+/// Wanner's Radau5, quot2 = 1.2): a step kept equal keeps c0 and the Newton matrix.
+const KEEP_STEP: f64 = 1.2;
 
 /// Commanded pressures as a table of knots, so that steps inside an output interval
 /// (substeps, adaptive steps) see the commands at their own end times: linear between the
@@ -525,9 +534,8 @@ pub struct Simulator {
     theta: f64,
     /// Newton's buffers (scratch: not part of the state).
     work: NewtonWork,
-    /// Scales of the unknowns for the c0 `scales_c0` (scratch, recomputed when c0 changes).
+    /// Scales of the unknowns (fixed for the run: `Simulator::scale_c0`).
     scales: Vec<f64>,
-    scales_c0: f64,
     /// How the run started.
     initial: Initial,
     /// Forward parameter sensitivities, when tracked (`sensitivity`).
@@ -717,7 +725,6 @@ impl Simulator {
             theta: 1.0,
             work: NewtonWork::default(),
             scales: vec![],
-            scales_c0: f64::NAN,
             initial,
             sens: None,
             stats: DynStats::default(),
@@ -726,6 +733,18 @@ impl Simulator {
         };
         sim.start(initial)?;
         Ok(sim)
+    }
+
+    /// The c0 of a step of the nominal length dt after one of the same length: the
+    /// velocity scale of the unknowns for the whole run (`collocation::point_scale`).
+    /// Fixed, so that a Newton matrix stays valid in the same coordinates across steps of
+    /// other lengths (adaptive steps, halvings); steps shorter than dt only tighten the
+    /// velocity tolerance (an error dq moves the rod by dq / c0 in a step).
+    fn scale_c0(&self) -> f64 {
+        match self.opts.scheme {
+            Scheme::Midpoint => 2.0 / self.opts.dt,
+            Scheme::BdfAlpha => Bdf::new(self.opts.alpha_eff(), self.opts.dt, self.opts.dt).c0,
+        }
     }
 
     /// Section models at `pressures` and `sigma` for the integrator's c0.
@@ -1058,7 +1077,19 @@ impl Simulator {
         };
         let mut halvings = 0;
         while remaining > 0.0 {
-            if h >= remaining * (1.0 - 1e-9) || remaining - h < 1e-3 * h {
+            if self.opts.error_tol.is_some() {
+                // Adaptive: equal steps, none longer than h, to the next boundary (the
+                // interval's end or a knot of the schedule inside it). A short last step
+                // instead would change c0 twice, each time a new Newton matrix.
+                let mut span = remaining;
+                if let Some(knot) = schedule.and_then(|sch| sch.next_knot(self.time)) {
+                    let k = knot - self.time;
+                    if k > 1e-3 * h && k < remaining * (1.0 - 1e-9) {
+                        span = k;
+                    }
+                }
+                h = span / (span / h * (1.0 - 1e-9)).ceil().max(1.0);
+            } else if h >= remaining * (1.0 - 1e-9) || remaining - h < 1e-3 * h {
                 h = remaining;
             }
             // Inside the interval: end on the schedule's next knot (a jump or a kink of the
@@ -1084,7 +1115,11 @@ impl Simulator {
                             h *= factor.min(0.7);
                             continue;
                         }
-                        self.h_next = h * factor;
+                        self.h_next = if (1.0..=KEEP_STEP).contains(&factor) {
+                            h
+                        } else {
+                            h * factor
+                        };
                     }
                     self.advance_sensitivity(&c)?;
                     self.commit(c);
@@ -1186,7 +1221,15 @@ impl Simulator {
                 std::array::from_fn(|k| bdf.c1 * s.x1[k] + bdf.c2 * s.x2[k] + bdf.d1 * s.xt[k])
             })
             .collect();
-        let problem = Problem::new(&self.rod, &self.grid, &models, bdf.c0, &hist, tip);
+        let problem = step_problem(
+            &self.rod,
+            &self.grid,
+            self.scale_c0(),
+            &models,
+            bdf.c0,
+            &hist,
+            tip,
+        );
         // Predictor. BDF-alpha damps the unresolved modes: linear extrapolation. The
         // trapezoidal and midpoint rules keep them, flipping sign every step
         // (amplification -> -1 for omega h >> 1): z_n + z_{n-1} - z_{n-2} extrapolates
@@ -1222,12 +1265,14 @@ impl Simulator {
                 .map(|(a, b)| a + ratio * (a - b))
                 .collect()
         };
-        if self.scales_c0 != bdf.c0 || self.scales.len() != guess.len() {
+        if self.scales.len() != guess.len() {
             self.scales = unknown_scales(&problem, guess.len());
-            self.scales_c0 = bdf.c0;
         }
         let mut z: Vec<f64> = guess.iter().zip(&self.scales).map(|(a, b)| a / b).collect();
-        let old = self.cache.take().filter(|c| c.key.c0 == bdf.c0);
+        let old = self
+            .cache
+            .take()
+            .filter(|c| (c.key.c0 / bdf.c0 - 1.0).abs() <= REUSE_C0);
         let (mut cache, old_key) = match old {
             Some(c) => (Some(c.fac), Some(c.key)),
             None => (None, None),
@@ -1587,7 +1632,15 @@ impl Simulator {
             })
             .collect();
         let tip = self.tip_body(self.tip_force, self.tip_moment);
-        let p = Problem::new(&self.rod, &self.grid, &models, bdf.c0, &hist, tip);
+        let p = step_problem(
+            &self.rod,
+            &self.grid,
+            self.scale_c0(),
+            &models,
+            bdf.c0,
+            &hist,
+            tip,
+        );
         let zs = to_scaled(&p, z);
         let n = zs.len();
         let mut r = vec![0.0; n];
@@ -1983,7 +2036,15 @@ impl Simulator {
             }
             let models = next.models_at(&key.pressures, &key.sigma, key.c0);
             let tip = next.tip_body(next.tip_force, next.tip_moment);
-            let p = Problem::new(&next.rod, &next.grid, &models, key.c0, &key.hist, tip);
+            let p = step_problem(
+                &next.rod,
+                &next.grid,
+                next.scale_c0(),
+                &models,
+                key.c0,
+                &key.hist,
+                tip,
+            );
             if let Some(fac) = p.factorize(&key.at) {
                 next.cache = Some(Cached { fac, key });
             }
@@ -2133,6 +2194,22 @@ fn static_guess(rod: &Rod, p: &Problem, loads: &Loads, sol: &statics::Solution) 
         return p.straight_unknowns();
     }
     p.unknowns_from_nodes(&nodes)
+}
+
+/// The collocation problem of a time step with the run's fixed velocity scale, that of c0
+/// `scale_c0` ([`Simulator::scale_c0`]).
+fn step_problem<'p>(
+    rod: &'p Rod,
+    grid: &'p Grid,
+    scale_c0: f64,
+    models: &'p [SectionModel],
+    c0: f64,
+    hist: &'p [[f64; FIELDS]],
+    tip: TipBody,
+) -> Problem<'p> {
+    let mut p = Problem::new(rod, grid, models, c0, hist, tip);
+    p.scale = collocation::point_scale(rod, scale_c0);
+    p
 }
 
 /// Scale of every unknown of a problem (base unknowns, then point blocks).

@@ -333,7 +333,15 @@ impl Simulator {
     /// [`Simulator::advance_sensitivity`]; returns the Newton matrices factored.
     fn advance_tracker(&self, tr: &mut Tracker, c: &Candidate) -> Result<usize> {
         let tip = self.tip_body(self.tip_force, self.tip_moment);
-        let problem = Problem::new(&self.rod, &self.grid, &c.models, c.bdf.c0, &c.hist, tip);
+        let problem = super::step_problem(
+            &self.rod,
+            &self.grid,
+            self.scale_c0(),
+            &c.models,
+            c.bdf.c0,
+            &c.hist,
+            tip,
+        );
         // The matrix Newton kept for this step (same c0), if any: the sensitivity equation
         // is solved with it by iterative refinement, else with the exact matrix factored
         // at the converged state.
