@@ -109,7 +109,7 @@ fn constrained_batch_equals_single_solves_bitwise() {
 }
 
 /// A pose the rod cannot reach: every row fails, and every row is kept, NaN, with the
-/// single solve's iterations and residual.
+/// single solve's iterations and residual, or the rule it broke.
 #[test]
 fn failed_constrained_rows_are_kept() {
     let rod = spa();
@@ -131,6 +131,8 @@ fn failed_constrained_rows_are_kept() {
         assert!(row.x.iter().all(|v| v.is_nan()));
         let mut ld = loads(&p[3 * k..3 * k + 3]);
         ld.tip_force = [0.0, 0.01, 0.0];
+        // the single solve's failure: no convergence, or (stretched out towards the pose)
+        // an invalid state whose rule the row names
         match solve_constrained(&rod, &ld, &far, None, &opts) {
             Err(SoftrodError::NotConverged {
                 iterations,
@@ -140,7 +142,10 @@ fn failed_constrained_rows_are_kept() {
                 assert_eq!(row.iterations, iterations);
                 assert_eq!(row.residual.to_bits(), residual.to_bits());
             }
-            other => panic!("row {k}: expected NotConverged, got {other:?}"),
+            Err(e @ SoftrodError::InvalidState { .. }) => {
+                assert_eq!(row.violation, e.to_string(), "row {k}");
+            }
+            other => panic!("row {k}: expected a failure, got {other:?}"),
         }
     }
 }
