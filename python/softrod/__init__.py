@@ -190,8 +190,8 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
     from .system import (
         Platform,
         System,
-        SystemRod,
         SystemBatchSolution,
+        SystemRod,
         SystemSolution,
         bundled_systems,
         load_system,

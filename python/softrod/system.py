@@ -29,7 +29,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,6 +41,11 @@ from .design import Design
 from .errors import ConvergenceError, DesignError, InputError
 from .solution import StaticSolution
 from .statics import SolverOptions, _options, _policy, _pressures, _tensions
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ._types import Units
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -371,7 +376,7 @@ class SystemBatchSolution:
     def __len__(self) -> int:
         return int(self.converged.shape[0])
 
-    def to_frame(self, units=None):
+    def to_frame(self, units: Units = None) -> pd.DataFrame:
         """The results as a DataFrame, one row per system equilibrium, units in the column
         names as in the dataset schema (docs/datasets.md; ``units`` as there): per rod i its
         inputs ``rod<i>_p<k>_kPa`` and ``rod<i>_t<k>_N``; the platform pose
@@ -489,7 +494,6 @@ def solve_system_batch(
     on_invalid = _policy("on_invalid", on_invalid)
     threads = V.threads(threads)
     opts = _options(options)
-    n = len(system.rods)
     for i, rod in enumerate(system.rods):
         if rod.design.tip_constraint is not None:
             raise V.fail(f"rods[{i}].design", rod.design.name,

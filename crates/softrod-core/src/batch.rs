@@ -398,11 +398,7 @@ fn in_pool<T: Send>(
         .num_threads(threads)
         .build()
         .map_err(|e| {
-            SoftrodError::invalid(
-                "threads",
-                threads,
-                format!("cannot build thread pool: {e}"),
-            )
+            SoftrodError::invalid("threads", threads, format!("cannot build thread pool: {e}"))
         })?;
     Ok(pool.install(work))
 }
@@ -486,11 +482,15 @@ pub fn solve_constrained_batch(
     let mut rows = Rows::new(rod, opts, inputs, None)?;
     rows.unknowns = 6;
     let rows = &rows;
-    in_pool(threads, rows.count, &|r| {
-        match solve_constrained(rod, &rows.loads(r), constraint, None, opts) {
-            Ok(c) => BatchRow::held(&c),
-            Err(e) => BatchRow::of_error(6, &e),
-        }
+    in_pool(threads, rows.count, &|r| match solve_constrained(
+        rod,
+        &rows.loads(r),
+        constraint,
+        None,
+        opts,
+    ) {
+        Ok(c) => BatchRow::held(&c),
+        Err(e) => BatchRow::of_error(6, &e),
     })
 }
 
@@ -670,10 +670,12 @@ pub fn solve_system_batch(
         }
     }
     let n = rods.len();
-    in_pool(threads, count, &|r| {
-        match solve_system(&row_rods(r), platform, None, opts) {
+    in_pool(
+        threads,
+        count,
+        &|r| match solve_system(&row_rods(r), platform, None, opts) {
             Ok(s) => SystemBatchRow::solved(&s),
             Err(e) => SystemBatchRow::failed(n, &e),
-        }
-    })
+        },
+    )
 }

@@ -265,7 +265,10 @@ fn system_batch_equals_single_solves_bitwise() {
                 assert_eq!(a.tip_rotation, b.solution.tip.rot, "{what} rod {i}");
                 assert_eq!(a.base_force, b.solution.base_force, "{what} rod {i}");
                 assert_eq!(a.tip_reaction_force, b.tip_reaction_force, "{what} rod {i}");
-                assert_eq!(a.tip_reaction_moment, b.tip_reaction_moment, "{what} rod {i}");
+                assert_eq!(
+                    a.tip_reaction_moment, b.tip_reaction_moment,
+                    "{what} rod {i}"
+                );
             }
         }
     };

@@ -1,7 +1,9 @@
 //! Binding of the tip end constraints (`softrod_core::statics::constraint`) and of systems
 //! of rods sharing a platform (`softrod_core::statics::system`). No physics here.
 
-use crate::{array2, array3, guarded, options, rows_dict, solution_dict, to_py_err, Context, PyRod};
+use crate::{
+    array2, array3, guarded, options, rows_dict, solution_dict, to_py_err, Context, PyRod,
+};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -399,17 +401,27 @@ fn solve_rod_system_batch<'py>(
                 .collect()
         };
         for (name, get) in [
-            ("tip_position", &(|r: &BatchRow| r.tip_position) as &dyn Fn(&BatchRow) -> [f64; 3]),
+            (
+                "tip_position",
+                &(|r: &BatchRow| r.tip_position) as &dyn Fn(&BatchRow) -> [f64; 3],
+            ),
             ("base_force", &|r: &BatchRow| r.base_force),
             ("base_moment", &|r: &BatchRow| r.base_moment),
             ("tip_reaction_force", &|r: &BatchRow| r.tip_reaction_force),
             ("tip_reaction_moment", &|r: &BatchRow| r.tip_reaction_moment),
         ] {
-            d.set_item(name, PyArray1::from_vec(py, per_rod(get)).reshape([m, n, 3])?)?;
+            d.set_item(
+                name,
+                PyArray1::from_vec(py, per_rod(get)).reshape([m, n, 3])?,
+            )?;
         }
         let rot: Vec<f64> = out
             .iter()
-            .flat_map(|r| r.rods.iter().flat_map(|k| k.tip_rotation.into_iter().flatten()))
+            .flat_map(|r| {
+                r.rods
+                    .iter()
+                    .flat_map(|k| k.tip_rotation.into_iter().flatten())
+            })
             .collect();
         d.set_item(
             "tip_rotation",

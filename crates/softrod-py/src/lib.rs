@@ -536,7 +536,11 @@ impl PyRod {
 }
 
 impl PyRod {
-    pub(crate) fn check_columns(&self, py: Python<'_>, pressures: &PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+    pub(crate) fn check_columns(
+        &self,
+        py: Python<'_>,
+        pressures: &PyReadonlyArray2<'_, f64>,
+    ) -> PyResult<()> {
         let shape = pressures.as_array().shape().to_vec();
         if shape[1] != self.rod.n_channels {
             return Err(to_py_err(
