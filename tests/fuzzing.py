@@ -272,6 +272,9 @@ def _check_batch(out, m: int) -> str:
     ok = np.asarray(out.converged, dtype=bool)
     if not np.all(np.isfinite(out.tip_position[ok])):
         return "a converged row is not finite"
+    held = getattr(out, "tip_reaction_force", None)
+    if held is not None and not np.all(np.isfinite(np.asarray(held)[ok])):
+        return "a converged row's tip reaction is not finite"
     r = out.tip_rotation[ok]
     if r.size:
         err = np.abs(np.einsum("nji,njk->nik", r, r) - np.eye(3)).max()

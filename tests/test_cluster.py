@@ -97,6 +97,20 @@ def test_sweep_on_the_cluster_equals_the_single_process_batch(client, design):
     assert [d for d, _ in seen] == sorted(d for d, _ in seen)
 
 
+def test_held_tip_batch_on_the_cluster_equals_the_local_batch(client, design):
+    """A pinned tip travels to the workers (as the binding's arguments): every row is solved
+    cold, so the cluster's chunks give bitwise the one local call, reactions included."""
+    pin = softrod.TipConstraint.pinned(["4 mm", "-2 mm", "-127 mm"])
+    p = grid(3)  # 27 rows in 4 chunks
+    out = solve_statics_batch(design, p, threads=1, executor=client, chunk_size=8,
+                              tip_constraint=pin, on_unstable="ignore")
+    ref = solve_statics_batch(design, p, threads=2, tip_constraint=pin, on_unstable="ignore")
+    assert out.converged.all() and out.tip_constraint == "pinned"
+    for k in (*BATCH_FIELDS, "tip_reaction_force", "tip_reaction_moment", "stable"):
+        np.testing.assert_array_equal(getattr(out, k), getattr(ref, k), err_msg=k)
+    assert out.metadata["tip_constraint"]["type"] == "pinned"
+
+
 def test_worker_killed_mid_sweep_changes_nothing(client, design):
     p = grid(12)  # 1728 rows in 36 chunks: each worker has several queued when one dies
     rows = 48

@@ -308,7 +308,6 @@ def test_pcc_model_refuses_a_constrained_tip():
 
 
 FREE_TIP_ENTRIES = {
-    "solve_statics_batch": lambda d, ds: softrod.solve_statics_batch(d, [[1e4, 0, 0]]),
     "synthesize_dataset": lambda d, ds: softrod.synthesize_dataset(d, [[1e4, 0, 0]]),
     "calibrate": lambda d, ds: softrod.calibrate(d, ds, ["c_b"]),
     "identify_stiffness": lambda d, ds: softrod.identify_stiffness(d, ds),

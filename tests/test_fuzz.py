@@ -498,7 +498,14 @@ def batch_cases(draw):
         draw,
         {},
         {"threads": st.one_of(st.sampled_from([0, 1, 2, 100000, -1, 1.5]), hostile()),
-         "tip_force": st.one_of(st.just([0.0, 0.0, -1.0]), hostile())},
+         "tip_force": st.one_of(st.just([0.0, 0.0, -1.0]), hostile()),
+         "tip_constraint": st.one_of(
+             st.just({"type": "pinned", "position": ["3 mm", "0 mm", "-127 mm"]}),
+             st.just({"type": "clamped", "position": [0.0, 0.0, -0.13],
+                      "orientation": ["0 deg", "3 deg", "0 deg"]}),
+             st.just("free"),
+             hostile(),
+         )},
     )
     return ("batch", {"design": design, "pressures": pressures, "kwargs": kwargs})
 

@@ -105,9 +105,11 @@ _EXPORTS = {
     "System": ".system",
     "SystemRod": ".system",
     "SystemSolution": ".system",
+    "SystemBatchSolution": ".system",
     "bundled_systems": ".system",
     "load_system": ".system",
     "solve_system": ".system",
+    "solve_system_batch": ".system",
     "view": ".viewer",
 }
 _SUBMODULES = ("pcc", "calibration", "control", "dynamics")
@@ -188,11 +190,13 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
     from .system import (
         Platform,
         System,
+        SystemBatchSolution,
         SystemRod,
         SystemSolution,
         bundled_systems,
         load_system,
         solve_system,
+        solve_system_batch,
     )
     from .viewer import view
 
@@ -222,6 +226,7 @@ __all__ = [
     "System",
     "SystemRod",
     "SystemSolution",
+    "SystemBatchSolution",
     "TargetPath",
     "TipConstraint",
     "TrackingController",
@@ -257,6 +262,7 @@ __all__ = [
     "solve_inverse",
     "solve_statics_batch",
     "solve_system",
+    "solve_system_batch",
     "synthesize_dataset",
     "view",
     "workspace",

@@ -17,7 +17,9 @@ __all__ = [
     "linearise_at",
     "point_jacobian_of",
     "solve_constrained_tip",
+    "solve_constrained_tip_batch",
     "solve_rod_system",
+    "solve_rod_system_batch",
 ]
 __version__: str
 
@@ -297,6 +299,39 @@ def solve_rod_system(
         _Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3
     ],
     guess: Sequence[float] | None = None,
+    tol: float = 1e-10,
+    max_iter: int = 25,
+    continuation: bool = True,
+    max_load_steps: int = 200,
+    stretch_range: tuple[float, float] = ...,
+    on_invalid: str = "raise",
+) -> dict[str, Any]: ...
+def solve_constrained_tip_batch(
+    rod: Rod,
+    pressures: _ArrayLike,
+    tip_force: _Vec3,
+    tip_moment: _Vec3,
+    kind: str,
+    position: _Vec3 | None = None,
+    rotation: Sequence[Sequence[float]] | None = None,
+    threads: int = 0,
+    tol: float = 1e-10,
+    max_iter: int = 25,
+    continuation: bool = True,
+    max_load_steps: int = 200,
+    stretch_range: tuple[float, float] = ...,
+    stiffness_scale: _ArrayLike | None = None,
+    on_invalid: str = "raise",
+    tensions: _ArrayLike | None = None,
+) -> dict[str, Any]: ...
+def solve_rod_system_batch(
+    rods: Sequence[tuple[Rod, _Vec3, _Vec3, _Vec3, Sequence[Sequence[float]]]],
+    platform: tuple[
+        _Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3
+    ],
+    pressures: _ArrayLike,
+    tensions: _ArrayLike | None = None,
+    threads: int = 0,
     tol: float = 1e-10,
     max_iter: int = 25,
     continuation: bool = True,

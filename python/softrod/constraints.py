@@ -1,7 +1,7 @@
 """How the tip of a rod is held: free, pinned or clamped (docs/model.md, "End constraints").
 
-A :class:`TipConstraint` is given to ``solve_statics(..., tip_constraint=...)`` or written in
-the design file's ``[tip]`` table::
+A :class:`TipConstraint` is given to ``solve_statics(..., tip_constraint=...)`` (and
+``solve_statics_batch``) or written in the design file's ``[tip]`` table::
 
     [tip]
     constraint = "clamped"                      # "free" (default), "pinned" or "clamped"
@@ -207,8 +207,9 @@ def from_tip_table(tip: dict, quantity, qvec) -> TipConstraint | None:
 
 def require_free_tip(design: Any, entry: str) -> None:
     """Refuse a design whose file clamps or pins the tip in an entry point that solves a
-    free tip only (every entry but ``solve_statics`` and ``solve_system``): never a silent
-    free-tip answer to a constrained design."""
+    free tip only (every entry but ``solve_statics``, ``solve_statics_batch`` and the
+    systems' ``solve_system`` / ``solve_system_batch``): never a silent free-tip answer to a
+    constrained design."""
     c = getattr(design, "tip_constraint", None)
     if c is not None:
         raise V.fail(

@@ -286,7 +286,11 @@ class BatchSolution:
     the tendon tensions of every row, N (None: slack tendons). violation (m,)
     str: the validity rule a row broke ("" if none; docs/model.md, "Validity and stability").
     metadata: design, softrod version and solver settings (the metadata block of
-    :meth:`to_frame`).
+    :meth:`to_frame`). tip_constraint: how the tips were held ("free", "pinned",
+    "clamped"); with a pinned or clamped tip, tip_reaction_force (m, 3) N and
+    tip_reaction_moment (m, 3) N m: the wrench the constraint applies to each tip (world
+    frame; zero moment when pinned; NaN on failed rows), None for a free tip; x is then
+    (m, 6).
     """
 
     pressures: np.ndarray
@@ -304,6 +308,9 @@ class BatchSolution:
     metadata: dict = field(default_factory=dict, compare=False)
     stability_assessed: np.ndarray | None = None
     tensions: np.ndarray | None = None
+    tip_constraint: str = "free"
+    tip_reaction_force: np.ndarray | None = None
+    tip_reaction_moment: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.pressures.shape[0]
@@ -312,9 +319,11 @@ class BatchSolution:
         """The results as a DataFrame in the dataset schema (docs/datasets.md), one row per
         solve: ``p0_kPa`` ..., ``t0_N`` ... (with tensions), ``tip_x_mm`` ..., ``tip_qw``
         ... ``tip_qz``, ``base_fx_N`` ..., ``base_mx_Nmm`` ..., then the result columns
-        ``converged``, ``iterations``, ``residual`` and, with a stiffness map,
-        ``sigma_ext``, ``sigma_bend_x``, ``sigma_bend_y``. Rows that did not converge keep
-        NaN (empty cells in a file).
+        ``converged``, ``iterations``, ``residual``, ``stable``, with a pinned or clamped
+        tip ``tip_reaction_fx_N`` ... ``tip_reaction_fz_N`` and ``tip_reaction_mx_Nmm`` ...
+        ``tip_reaction_mz_Nmm`` (the wrench the constraint applies to the tip, world frame)
+        and, with a stiffness map, ``sigma_ext``, ``sigma_bend_x``, ``sigma_bend_y``. Rows
+        that did not converge keep NaN (empty cells in a file).
         ``units`` as in :meth:`softrod.Dataset.to_frame`. The metadata block
         (``frame.attrs["softrod.metadata"]``) is :attr:`metadata`: design, softrod version,
         solver settings. The same quantities get the same names as in
@@ -331,6 +340,22 @@ class BatchSolution:
             extras.append(
                 Extra("stable", np.asarray(self.stable, dtype=bool), "the equilibrium is stable")
             )
+        for arr, kind, what in (
+            (self.tip_reaction_force, "force", "force"),
+            (self.tip_reaction_moment, "moment", "moment"),
+        ):
+            if arr is not None:
+                a = np.asarray(arr, dtype=float)
+                extras += [
+                    Extra(
+                        f"tip_reaction_{'f' if kind == 'force' else 'm'}{axis}",
+                        a[:, k],
+                        f"{axis} component of the {what} the {self.tip_constraint} tip's "
+                        "constraint applies to the tip (world frame)",
+                        kind,
+                    )
+                    for k, axis in enumerate("xyz")
+                ]
         if self.stiffness_scale is not None:
             from .stiffness_map import SIGMA_NAMES
 

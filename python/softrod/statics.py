@@ -16,7 +16,7 @@ import numpy as np
 from . import _core
 from . import _validate as V
 from .catalog import load_design
-from .constraints import TipConstraint, require_free_tip
+from .constraints import TipConstraint
 from .constraints import coerce as coerce_constraint
 from .design import Design
 from .errors import (
@@ -497,9 +497,19 @@ def solve_statics_batch(
     on_unstable: str = "warn",
     on_invalid: str = "raise",
     tensions: ArrayLike | None = None,
+    tip_constraint: TipConstraint | str | dict | None = None,
 ) -> BatchSolution:
     """Solve for every row of an (m, channels) pressure array (Pa) in parallel, with an
     optional (m, tendon channels) array of tendon ``tensions`` (N, >= 0; None: slack).
+
+    tip_constraint: how the tip of every row is held, as in :func:`solve_statics` (a
+    :class:`TipConstraint`, "free", or a mapping as the design file's ``[tip]`` keys); None:
+    the design's (``[tip] constraint``, free by default). With a pinned or clamped tip every
+    row is solved as :func:`solve_statics` solves it alone with that constraint (cold), so
+    a row is bitwise equal to the single solve; ``tip_reaction_force`` (m, 3) N and
+    ``tip_reaction_moment`` (m, 3) N m hold the wrench the constraint applies to each tip
+    (world frame; zero moment when pinned, NaN on failed rows), ``x`` (m, 6) the unknowns,
+    and ``stable`` the stability with the tip held (docs/model.md, "End constraints").
 
     Runs in Rust on ``threads`` cores (0 = all) with the GIL released. Every row is solved
     as :func:`solve_statics` solves it alone (cold), so a row is bitwise equal to the single
@@ -525,7 +535,11 @@ def solve_statics_batch(
     on_unstable = _policy("on_unstable", on_unstable)
     on_invalid = _policy("on_invalid", on_invalid)
     design = load_design(design)
-    require_free_tip(design, "solve_statics_batch")
+    constraint = (
+        coerce_constraint(tip_constraint)
+        if tip_constraint is not None
+        else design.tip_constraint or _FREE_TIP
+    )
     arr = batch_pressures(design, pressures)
     tens = batch_tensions(design, tensions, arr.shape[0])
     threads = V.threads(threads)
@@ -537,6 +551,8 @@ def solve_statics_batch(
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
     from .cluster import check_executor
 
+    held = None if constraint.kind == "free" else constraint.core_args()
+    meta = _batch_metadata(design, options, tf, tm, smap, constraint)
     if check_executor(executor) is not None:
         out = _batch_on_cluster(
             executor,
@@ -551,30 +567,41 @@ def solve_statics_batch(
             progress,
             on_invalid,
             tens,
+            held,
         )
-        meta = _batch_metadata(design, options, tf, tm, smap)
-        return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens)
+        return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens, constraint)
     if chunk_size is not None:
         raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
     if progress is not None:
         raise design_error("progress", progress, "applies with executor= only", InputError)
-    out = design._rod.solve_batch(
-        np.ascontiguousarray(arr),
-        tf,
-        tm,
-        threads=threads,
-        stiffness_scale=sigma,
-        on_invalid=on_invalid,
-        tensions=tens,
-        **opts.as_kwargs(),
+    out = _core_batch(
+        design._rod, np.ascontiguousarray(arr), tf, tm, threads, sigma, on_invalid, tens,
+        opts.as_kwargs(), held,
     )
-    meta = _batch_metadata(design, options, tf, tm, smap)
-    return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens)
+    return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens, constraint)
 
 
-def _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens=None) -> BatchSolution:
+def _core_batch(rod, arr, tf, tm, threads, sigma, on_invalid, tens, options: dict, held):
+    """One Rust batch call: the free tip's ``Rod.solve_batch``, or with ``held`` (a
+    constraint's ``core_args()``) the constrained batch."""
+    if held is None:
+        return rod.solve_batch(
+            arr, tf, tm, threads=threads, stiffness_scale=sigma, on_invalid=on_invalid,
+            tensions=tens, **options,
+        )
+    kind, position, rotation = held
+    return _core.solve_constrained_tip_batch(
+        rod, arr, tf, tm, kind, position=position, rotation=rotation, threads=threads,
+        stiffness_scale=sigma, on_invalid=on_invalid, tensions=tens, **options,
+    )
+
+
+def _batch_result(
+    arr, sigma, meta, out, on_unstable, on_invalid, tens=None, constraint=_FREE_TIP
+) -> BatchSolution:
     """The BatchSolution of the core's columns, with the stability and validity reports."""
     out = dict(out)
+    out["tip_constraint"] = constraint.kind
     out["violation"] = np.asarray(out["violation"], dtype=object)
     out["stability_assessed"] = np.asarray(out.pop("assessed"), dtype=bool)
     converged = np.asarray(out["converged"], dtype=bool)
@@ -604,10 +631,17 @@ def _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens=None) -> 
     )
 
 
-def _batch_metadata(design, options, tf, tm, smap) -> dict:
-    """The metadata block of a batch's table (BatchSolution.to_frame)."""
+def _batch_metadata(design, options, tf, tm, smap, constraint=_FREE_TIP) -> dict:
+    """The metadata block of a batch's table (BatchSolution.to_frame); a held tip adds
+    ``tip_constraint`` (its kind, position in m and rotation matrix)."""
     from .schema import provenance
 
+    extra = {}
+    if constraint.kind != "free":
+        held = {"type": constraint.kind, "position_m": list(constraint.position)}
+        if constraint.rotation is not None:
+            held["rotation"] = [list(r) for r in constraint.rotation]
+        extra["tip_constraint"] = held
     return provenance(
         "softrod.solve_statics_batch",
         design,
@@ -615,33 +649,28 @@ def _batch_metadata(design, options, tf, tm, smap) -> dict:
         tip_force_N=tf,
         tip_moment_Nm=tm,
         stiffness_map=None if smap is None else repr(smap),
+        **extra,
     )
 
 
 def _batch_chunk(
     text, pressures, tip_force, tip_moment, sigma, options, threads, per_host, on_invalid,
-    tensions=None,
+    tensions=None, held=None,
 ):
     """One chunk of a batch on a worker: the design rebuilt from its TOML text, one Rust
-    batch call."""
+    batch call (``held``: the tip constraint's ``core_args()``, None: free)."""
     from .cluster import design_from_text, worker_threads
 
     design = design_from_text(text)
-    return design._rod.solve_batch(
-        pressures,
-        tip_force,
-        tip_moment,
-        threads=worker_threads(per_host, threads),
-        stiffness_scale=sigma,
-        on_invalid=on_invalid,
-        tensions=tensions,
-        **options,
+    return _core_batch(
+        design._rod, pressures, tip_force, tip_moment, worker_threads(per_host, threads),
+        sigma, on_invalid, tensions, options, held,
     )
 
 
 def _batch_on_cluster(
     executor, design, arr, tf, tm, sigma, options, threads, chunk_size, progress, on_invalid,
-    tens=None,
+    tens=None, held=None,
 ):
     from .cluster import chunk_rows, design_text, run_chunks, task_slots
 
@@ -666,6 +695,7 @@ def _batch_on_cluster(
             per_host,
             on_invalid,
             None if tens is None else np.ascontiguousarray(tens[lo:hi]),
+            held,
         )
         for lo, hi in bounds
     ]
@@ -678,9 +708,8 @@ def _batch_on_cluster(
         name="softrod-batch",
     )
     if not parts:  # no rows: the core's empty result
-        return design._rod.solve_batch(
-            arr, tf, tm, threads=1, stiffness_scale=sigma, on_invalid=on_invalid,
-            tensions=tens, **options.as_kwargs()
+        return _core_batch(
+            design._rod, arr, tf, tm, 1, sigma, on_invalid, tens, options.as_kwargs(), held
         )
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 

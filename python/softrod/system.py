@@ -29,7 +29,7 @@ from __future__ import annotations
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,6 +41,11 @@ from .design import Design
 from .errors import ConvergenceError, DesignError, InputError
 from .solution import StaticSolution
 from .statics import SolverOptions, _options, _policy, _pressures, _tensions
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ._types import Units
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -277,21 +282,7 @@ def solve_system(
         entries.append((d._rod, pv, _tensions(d, t), list(tip["force"]), list(tip["moment"]),
                         [float(v) for v in rod.attachment],
                         np.asarray(rod.attachment_rotation, dtype=float).tolist()))
-    pf = system.platform
-    force = pf.force if platform_force is None else _load3(platform_force, "force",
-                                                            "platform_force")
-    moment = pf.moment if platform_moment is None else _load3(platform_moment, "moment",
-                                                               "platform_moment")
-    gravity = system.rods[0].design.spec["mounting"]["gravity"]
-    platform = (
-        [float(v) for v in pf.position],
-        np.asarray(pf.rotation, dtype=float).tolist(),
-        [float(v) for v in force],
-        [float(v) for v in moment],
-        float(pf.mass),
-        [float(v) for v in pf.com_offset],
-        list(gravity),
-    )
+    platform = _platform_args(system, platform_force, platform_moment)
     guess = None
     if initial is not None:
         if not isinstance(initial, SystemSolution):
@@ -344,3 +335,274 @@ def _load3(value, kind: str, name: str) -> np.ndarray:
         raise V.fail(name, value, f"must be 3 {kind} values (world frame)", InputError)
     return np.array([V.quantity(v, kind, f"{name}[{i}]", InputError)
                      for i, v in enumerate(value)])
+
+
+@dataclass(frozen=True)
+class SystemBatchSolution:
+    """Results of :func:`solve_system_batch`: one equilibrium of the whole system per input
+    row (n rods), failed rows kept (``converged`` False, NaN).
+
+    pressures, tensions: per rod, its (m, channels) gauge pressures (Pa) and (m, tendon
+    channels) tensions (N). converged (m,) bool; iterations (m,); residual (m,); load_steps
+    (m,). platform_position (m, 3) m and platform_rotation (m, 3, 3) (world). Per rod
+    (axis 1): tip_position (m, n, 3) m, tip_rotation (m, n, 3, 3), base_force (m, n, 3) N,
+    base_moment (m, n, 3) N m and the wrench the platform applies to its tip,
+    tip_reaction_force (m, n, 3) N and tip_reaction_moment (m, n, 3) N m (world frame).
+    unknowns (m, 6 n + 6): the solver's unknowns (``SystemSolution.unknowns`` of each row).
+    violation (m,) str: the validity rule a rod broke ("rods[i]: ...", "" if none). Stability
+    is not assessed for a system (as :func:`solve_system`). metadata: the metadata block of
+    :meth:`to_frame`.
+    """
+
+    system: System
+    pressures: tuple[np.ndarray, ...]
+    tensions: tuple[np.ndarray, ...]
+    converged: np.ndarray
+    iterations: np.ndarray
+    residual: np.ndarray
+    load_steps: np.ndarray
+    platform_position: np.ndarray
+    platform_rotation: np.ndarray
+    tip_position: np.ndarray
+    tip_rotation: np.ndarray
+    base_force: np.ndarray
+    base_moment: np.ndarray
+    tip_reaction_force: np.ndarray
+    tip_reaction_moment: np.ndarray
+    unknowns: np.ndarray = field(repr=False)
+    violation: np.ndarray = field(repr=False)
+    metadata: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __len__(self) -> int:
+        return int(self.converged.shape[0])
+
+    def to_frame(self, units: Units = None) -> pd.DataFrame:
+        """The results as a DataFrame, one row per system equilibrium, units in the column
+        names as in the dataset schema (docs/datasets.md; ``units`` as there): per rod i its
+        inputs ``rod<i>_p<k>_kPa`` and ``rod<i>_t<k>_N``; the platform pose
+        ``platform_x_mm`` ... ``platform_z_mm``, ``platform_qw`` ... ``platform_qz``; per rod
+        its tip position ``rod<i>_tip_x_mm`` ... and the platform's reaction on its tip
+        ``rod<i>_tip_reaction_fx_N`` ... ``rod<i>_tip_reaction_mz_Nmm`` (world frame); then
+        ``converged``, ``iterations``, ``residual``. Failed rows keep NaN. The metadata block
+        (``frame.attrs["softrod.metadata"]``) is :attr:`metadata`."""
+        import pandas as pd
+
+        from .schema import matrix_to_quat, table_units
+
+        chosen, factor = table_units(units)
+        cols: dict[str, Any] = {}
+        for i, p in enumerate(self.pressures):
+            for k in range(p.shape[1]):
+                cols[f"rod{i}_p{k}_{chosen['pressure']}"] = p[:, k] / factor["pressure"]
+        for i, t in enumerate(self.tensions):
+            for k in range(t.shape[1]):
+                cols[f"rod{i}_t{k}_{chosen['force']}"] = t[:, k] / factor["force"]
+        for k, a in enumerate("xyz"):
+            cols[f"platform_{a}_{chosen['length']}"] = (
+                self.platform_position[:, k] / factor["length"]
+            )
+        q = matrix_to_quat(self.platform_rotation)
+        for k, a in enumerate("wxyz"):
+            cols[f"platform_q{a}"] = q[:, k]
+        for i in range(len(self.system.rods)):
+            for k, a in enumerate("xyz"):
+                cols[f"rod{i}_tip_{a}_{chosen['length']}"] = (
+                    self.tip_position[:, i, k] / factor["length"]
+                )
+            for name, arr, kind in (("f", self.tip_reaction_force, "force"),
+                                    ("m", self.tip_reaction_moment, "moment")):
+                for k, a in enumerate("xyz"):
+                    cols[f"rod{i}_tip_reaction_{name}{a}_{chosen[kind]}"] = (
+                        arr[:, i, k] / factor[kind]
+                    )
+        cols["converged"] = np.asarray(self.converged, dtype=bool)
+        cols["iterations"] = np.asarray(self.iterations)
+        cols["residual"] = np.asarray(self.residual, dtype=float)
+        frame = pd.DataFrame(cols)
+        frame.attrs["softrod.metadata"] = dict(self.metadata)
+        return frame
+
+
+def _system_rows(system: System, value: Any, name: str, kind: str, widths: list[int]):
+    """Per rod, an (m, width_i) float array of the rows ``value``: m rows, each as
+    :func:`solve_system` takes it (one list per rod), e.g. an (m, n, width) array when every
+    rod has as many channels. Values are SI numbers or strings with units, finite."""
+    n = len(system.rods)
+    rule = (f"must be one row per equilibrium, each a list of {n} per-rod lists ({widths} "
+            f"{'channels' if kind == 'pressure' else 'tendon channels'}), e.g. an (m, {n}, "
+            f"{widths[0]}) array" if len(set(widths)) == 1 else
+            f"must be one row per equilibrium, each a list of {n} per-rod lists ({widths} "
+            f"{'channels' if kind == 'pressure' else 'tendon channels'})")
+    if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__len__"):
+        raise V.fail(name, value, rule, InputError)
+    limit = V.MAX_ROWS * max(sum(widths), 1)
+    if len(set(widths)) == 1:
+        arr = V.real_array(value, name, unit_kind=kind, max_size=limit)
+        if arr.ndim != 3 or arr.shape[1:] != (n, widths[0]):
+            if not (arr.ndim == 1 and arr.size == 0):
+                raise V.fail(name, f"shape {arr.shape}", rule, InputError)
+            arr = arr.reshape(0, n, widths[0])
+        return [np.ascontiguousarray(arr[:, i, :]) for i in range(n)]
+    rows = list(value)
+    if len(rows) > V.MAX_ROWS:
+        raise V.fail(name, f"{len(rows)} rows", f"too many rows: at most {V.MAX_ROWS:,}")
+    blocks = [np.empty((len(rows), w)) for w in widths]
+    for r, row in enumerate(rows):
+        if isinstance(row, (str, bytes, dict)) or not hasattr(row, "__len__") or len(row) != n:
+            raise V.fail(f"{name}[{r}]", row, rule, InputError)
+        for i, w in enumerate(widths):
+            a = V.real_array(row[i], f"{name}[{r}][{i}]", unit_kind=kind, max_size=64)
+            if a.shape != (w,):
+                raise V.fail(f"{name}[{r}][{i}]", f"shape {a.shape}",
+                             f"rod {i} has {w} channel(s): give {w} values", InputError)
+            blocks[i][r] = a
+    return blocks
+
+
+def solve_system_batch(
+    system: System | str | Path,
+    pressures: Any = None,
+    *,
+    tensions: Any = None,
+    platform_force: Any = None,
+    platform_moment: Any = None,
+    options: SolverOptions | None = None,
+    threads: int = 0,
+    on_invalid: str = "raise",
+) -> SystemBatchSolution:
+    """Static equilibria of a :class:`System` for many inputs at once, in parallel (Rust,
+    ``threads`` cores, 0 = all, GIL released).
+
+    pressures: one row per equilibrium, each as :func:`solve_system` takes it (one list of
+    gauge pressures per rod, Pa or strings with units), e.g. an (m, n_rods, channels) array
+    when every rod has as many channels; None: all zero (the rows then come from
+    ``tensions``). tensions likewise (N, each >= 0; None: slack). platform_force,
+    platform_moment, options and on_invalid as in :func:`solve_system`, shared by every
+    row. Every row is solved exactly as :func:`solve_system` solves it alone (cold), so a
+    row is bitwise equal to the single solve whatever the thread count or grouping of rows.
+    Rows that fail (no convergence, an invalid state) are kept with ``converged`` False, NaN
+    and the broken rule in ``violation``; with ``on_invalid="warn"`` rows outside the
+    validity range keep their values and one :class:`ValidityWarning` says how many. Bad
+    inputs raise :class:`InputError` naming the row, the rod and the rule before any work.
+    """
+    import warnings
+
+    from .errors import ValidityWarning
+
+    if not isinstance(system, System):
+        system = load_system(system)
+    on_invalid = _policy("on_invalid", on_invalid)
+    threads = V.threads(threads)
+    opts = _options(options)
+    for i, rod in enumerate(system.rods):
+        if rod.design.tip_constraint is not None:
+            raise V.fail(f"rods[{i}].design", rod.design.name,
+                         "its [tip] constraint is set; a system's rod tips hold the platform",
+                         InputError)
+    nc = [rod.design.n_channels for rod in system.rods]
+    nt = [rod.design.n_tendons for rod in system.rods]
+    if pressures is None and tensions is None:
+        raise V.fail("pressures", None, "give the rows: pressures (or tensions) of every rod "
+                     "for every equilibrium", InputError)
+    ps = None if pressures is None else _system_rows(system, pressures, "pressures",
+                                                     "pressure", nc)
+    if tensions is not None and sum(nt) == 0:
+        raise V.fail("tensions", "an array", "the system's rods have no tendons; leave "
+                     "tensions out", InputError)
+    ts = None if tensions is None else _system_rows(system, tensions, "tensions", "force", nt)
+    m = len(ps[0]) if ps is not None else len(ts[0])
+    if ps is None:
+        ps = [np.zeros((m, w)) for w in nc]
+    if ts is not None and len(ts[0]) != m:
+        raise V.fail("tensions", f"{len(ts[0])} rows",
+                     f"must have as many rows as pressures ({m})", InputError)
+    if ts is None:
+        ts = [np.zeros((m, w)) for w in nt]
+    for i, p in enumerate(ps):
+        low = np.argwhere(p < V.VACUUM_PA)
+        if low.size:
+            r, k = (int(v) for v in low[0])
+            raise V.fail(f"pressures[{r}][{i}][{k}]", float(p[r, k]),
+                         f"gauge pressures must be >= {V.VACUUM_PA:g} Pa (-1 atm, a perfect "
+                         "vacuum)", InputError)
+    for i, t in enumerate(ts):
+        bad = np.argwhere(~(t >= 0.0))
+        if bad.size:
+            r, k = (int(v) for v in bad[0])
+            raise V.fail(f"tensions[{r}][{i}][{k}]", f"{float(t[r, k])!r} N",
+                         "a tendon tension must be >= 0 (a tendon pulls or is slack, it "
+                         "cannot push)", InputError)
+    entries = []
+    for rod in system.rods:
+        tip = rod.design.spec["tip"]
+        entries.append((rod.design._rod, list(tip["force"]), list(tip["moment"]),
+                        [float(v) for v in rod.attachment],
+                        np.asarray(rod.attachment_rotation, dtype=float).tolist()))
+    platform = _platform_args(system, platform_force, platform_moment)
+    flat_p = np.ascontiguousarray(np.concatenate(ps, axis=1) if ps else np.zeros((m, 0)))
+    flat_t = np.ascontiguousarray(np.concatenate(ts, axis=1)) if sum(nt) else None
+    out = _core.solve_rod_system_batch(entries, platform, flat_p, tensions=flat_t,
+                                       threads=threads, on_invalid=on_invalid,
+                                       **opts.as_kwargs())
+    violation = np.asarray(out["violation"], dtype=object)
+    converged = np.asarray(out["converged"], dtype=bool)
+    outside = np.flatnonzero(converged & (violation != ""))
+    if outside.size and on_invalid == "warn":
+        warnings.warn(
+            ValidityWarning(
+                f"{outside.size} of {m} rows lie outside the validity range (first: row "
+                f"{outside[0]}: {violation[outside[0]]}); see SystemBatchSolution.violation"
+            ),
+            stacklevel=2,
+        )
+    from .schema import provenance
+
+    meta = provenance(
+        "softrod.solve_system_batch",
+        None,
+        system=system.name,
+        rods=[rod.design.name for rod in system.rods],
+        solver=opts.as_kwargs(),
+        platform_force_N=platform[2],
+        platform_moment_Nm=platform[3],
+    )
+    return SystemBatchSolution(
+        system=system,
+        pressures=tuple(ps),
+        tensions=tuple(ts),
+        converged=converged,
+        iterations=np.asarray(out["iterations"]),
+        residual=np.asarray(out["residual"]),
+        load_steps=np.asarray(out["load_steps"]),
+        platform_position=out["platform_position"],
+        platform_rotation=out["platform_rotation"],
+        tip_position=out["tip_position"],
+        tip_rotation=out["tip_rotation"],
+        base_force=out["base_force"],
+        base_moment=out["base_moment"],
+        tip_reaction_force=out["tip_reaction_force"],
+        tip_reaction_moment=out["tip_reaction_moment"],
+        unknowns=out["x"],
+        violation=violation,
+        metadata=meta,
+    )
+
+
+def _platform_args(system: System, platform_force, platform_moment) -> tuple:
+    """The binding's platform tuple: pose, load (given or the system's), mass, centre of
+    mass, gravity (of the first rod's design)."""
+    pf = system.platform
+    force = pf.force if platform_force is None else _load3(platform_force, "force",
+                                                            "platform_force")
+    moment = pf.moment if platform_moment is None else _load3(platform_moment, "moment",
+                                                               "platform_moment")
+    gravity = system.rods[0].design.spec["mounting"]["gravity"]
+    return (
+        [float(v) for v in pf.position],
+        np.asarray(pf.rotation, dtype=float).tolist(),
+        [float(v) for v in force],
+        [float(v) for v in moment],
+        float(pf.mass),
+        [float(v) for v in pf.com_offset],
+        list(gravity),
+    )

@@ -1,6 +1,10 @@
 //! Many static solves in parallel (rayon). Every row is solved exactly as [`solve`] solves
 //! it alone from the same start (cold, or the row's own warm start), so a batch row is
 //! bitwise equal to the single solve, whatever the thread count or the order of the rows.
+//! The same holds for a tip held by a constraint ([`solve_constrained_batch`]: every row is
+//! one [`solve_constrained`], cold) and for a system of rods holding a platform
+//! ([`solve_system_batch`]: every row is one [`solve_system`], cold): no row starts from
+//! another row's solution.
 
 use crate::error::{Result, SoftrodError};
 use crate::ode::Loads;
@@ -9,6 +13,8 @@ use crate::sensitivity::{
     locate_markers, marker_positions, pose_sensitivity, validate_params, Marker, Param,
     TipSensitivity,
 };
+use crate::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
+use crate::statics::system::{solve_system, Platform, SystemRod, SystemSolution};
 use crate::statics::{n_unknowns, solve, Solution, SolverOptions};
 use crate::validity::{self, Policy};
 
@@ -37,6 +43,10 @@ pub struct BatchRow {
     /// Marker positions, world frame ([`sensitivity_batch`] with markers; NaN on failed
     /// rows).
     pub markers: Vec<[f64; 3]>,
+    /// The wrench the tip constraint applies to the tip (world frame; N, N m): zero for a
+    /// free tip, zero moment for a pinned one, NaN on failed rows.
+    pub tip_reaction_force: [f64; 3],
+    pub tip_reaction_moment: [f64; 3],
 }
 
 impl BatchRow {
@@ -54,6 +64,34 @@ impl BatchRow {
             x: vec![f64::NAN; unknowns],
             sensitivity: None,
             markers: vec![],
+            tip_reaction_force: [f64::NAN; 3],
+            tip_reaction_moment: [f64::NAN; 3],
+        }
+    }
+
+    /// The row of a constrained (or system rod's) solution, with its tip reaction.
+    fn held(c: &ConstrainedSolution) -> Self {
+        BatchRow {
+            tip_reaction_force: c.tip_reaction_force,
+            tip_reaction_moment: c.tip_reaction_moment,
+            ..BatchRow::solved(&c.solution)
+        }
+    }
+
+    /// A failed row of an error: the iterations and residual of a non-convergence, the
+    /// broken rule of an invalid state.
+    fn of_error(unknowns: usize, e: &SoftrodError) -> Self {
+        match e {
+            SoftrodError::NotConverged {
+                iterations,
+                residual,
+                ..
+            } => BatchRow::failed(unknowns, *iterations, *residual),
+            SoftrodError::InvalidState { .. } => BatchRow {
+                violation: e.to_string(),
+                ..BatchRow::failed(unknowns, 0, f64::NAN)
+            },
+            _ => BatchRow::failed(unknowns, 0, f64::NAN),
         }
     }
 
@@ -75,6 +113,8 @@ impl BatchRow {
                 .unwrap_or_default(),
             sensitivity: None,
             markers: vec![],
+            tip_reaction_force: [0.0; 3],
+            tip_reaction_moment: [0.0; 3],
         }
     }
 }
@@ -168,6 +208,12 @@ impl<'a> Rows<'a> {
                 "the design has no pressure channels: give an (m, 0) array",
             ));
         }
+        for (name, v) in [
+            ("tip_force", &inputs.tip_force),
+            ("tip_moment", &inputs.tip_moment),
+        ] {
+            finite3(name, v)?;
+        }
         let template = Loads {
             pressures: vec![],
             tensions: vec![],
@@ -218,31 +264,7 @@ impl<'a> Rows<'a> {
                     ),
                     None => Ok(()),
                 })
-                .map_err(|e| match e {
-                    SoftrodError::InvalidParameter { field, value, rule } => {
-                        SoftrodError::InvalidParameter {
-                            field: format!("row {r}: {field}"),
-                            value,
-                            rule,
-                        }
-                    }
-                    SoftrodError::InvalidState {
-                        rule,
-                        node,
-                        s,
-                        time,
-                        value,
-                        message,
-                    } => SoftrodError::InvalidState {
-                        rule,
-                        node,
-                        s,
-                        time,
-                        value,
-                        message: format!("row {r}: {message}"),
-                    },
-                    other => other,
-                })?;
+                .map_err(|e| in_row(r, "", e))?;
         }
         Ok(rows)
     }
@@ -270,6 +292,16 @@ impl<'a> Rows<'a> {
             .filter(|g| g.iter().all(|v| v.is_finite()))
     }
 
+    /// The loads of row r: its pressures, tensions and sigma over the shared template.
+    fn loads(&self, r: usize) -> Loads {
+        Loads {
+            pressures: self.pressures(r).to_vec(),
+            tensions: self.tensions(r),
+            stiffness_scale: self.sigma(r),
+            ..self.template.clone()
+        }
+    }
+
     /// Solve every row (from its own warm start, else cold), then apply `after` to each
     /// converged one, in parallel. Rows are independent: no row starts from another's
     /// solution, so the result does not depend on how rows are shared among threads.
@@ -281,60 +313,94 @@ impl<'a> Rows<'a> {
         after: &(dyn Fn(&Loads, &Solution, &mut BatchRow) + Sync),
     ) -> Result<Vec<BatchRow>> {
         let n = self.unknowns;
-        let work = || -> Vec<BatchRow> {
-            use rayon::prelude::*;
-            (0..self.count)
-                .into_par_iter()
-                .map(|r| {
-                    let loads = Loads {
-                        pressures: self.pressures(r).to_vec(),
-                        tensions: self.tensions(r),
-                        stiffness_scale: self.sigma(r),
-                        ..self.template.clone()
-                    };
-                    match solve(rod, &loads, self.guess(r), opts) {
-                        Ok(sol) => {
-                            let mut row = BatchRow::solved(&sol);
-                            after(&loads, &sol, &mut row);
-                            row
-                        }
-                        Err(SoftrodError::NotConverged {
-                            iterations,
-                            residual,
-                            ..
-                        }) => BatchRow::failed(n, iterations, residual),
-                        Err(e @ SoftrodError::InvalidState { .. }) => BatchRow {
-                            violation: e.to_string(),
-                            ..BatchRow::failed(n, 0, f64::NAN)
-                        },
-                        Err(_) => BatchRow::failed(n, 0, f64::NAN),
-                    }
-                })
-                .collect()
-        };
-        if threads == 0 {
-            Ok(work())
-        } else {
-            if threads > MAX_THREADS {
-                return Err(SoftrodError::invalid(
-                    "threads",
-                    threads,
-                    format!("must be in 0..={MAX_THREADS} (0 = all cores)"),
-                ));
+        in_pool(threads, self.count, &|r| {
+            let loads = self.loads(r);
+            match solve(rod, &loads, self.guess(r), opts) {
+                Ok(sol) => {
+                    let mut row = BatchRow::solved(&sol);
+                    after(&loads, &sol, &mut row);
+                    row
+                }
+                Err(e) => BatchRow::of_error(n, &e),
             }
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .map_err(|e| {
-                    SoftrodError::invalid(
-                        "threads",
-                        threads,
-                        format!("cannot build thread pool: {e}"),
-                    )
-                })?;
-            Ok(pool.install(work))
+        })
+    }
+}
+
+/// An input error of row r named as such ("row 3: pressures[1]", with `prefix` before the
+/// field: "row 3: rods[1].pressures[0]").
+fn in_row(r: usize, prefix: &str, e: SoftrodError) -> SoftrodError {
+    match e {
+        SoftrodError::InvalidParameter { field, value, rule } => SoftrodError::InvalidParameter {
+            field: format!("row {r}: {prefix}{field}"),
+            value,
+            rule,
+        },
+        SoftrodError::InvalidState {
+            rule,
+            node,
+            s,
+            time,
+            value,
+            message,
+        } => SoftrodError::InvalidState {
+            rule,
+            node,
+            s,
+            time,
+            value,
+            message: if prefix.is_empty() {
+                format!("row {r}: {message}")
+            } else {
+                format!("row {r}: {}: {message}", prefix.trim_end_matches('.'))
+            },
+        },
+        other => other,
+    }
+}
+
+fn finite3(field: &str, v: &[f64; 3]) -> Result<()> {
+    for (i, x) in v.iter().enumerate() {
+        if !x.is_finite() {
+            return Err(SoftrodError::invalid(
+                format!("{field}[{i}]"),
+                x,
+                "must be a finite number",
+            ));
         }
     }
+    Ok(())
+}
+
+/// `one(r)` for every row r in 0..count on `threads` workers (0: rayon's global pool, all
+/// cores), in row order. Each row is computed by itself, so the result does not depend on
+/// the thread count.
+fn in_pool<T: Send>(
+    threads: usize,
+    count: usize,
+    one: &(dyn Fn(usize) -> T + Sync),
+) -> Result<Vec<T>> {
+    let work = || -> Vec<T> {
+        use rayon::prelude::*;
+        (0..count).into_par_iter().map(one).collect()
+    };
+    if threads == 0 {
+        return Ok(work());
+    }
+    if threads > MAX_THREADS {
+        return Err(SoftrodError::invalid(
+            "threads",
+            threads,
+            format!("must be in 0..={MAX_THREADS} (0 = all cores)"),
+        ));
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| {
+            SoftrodError::invalid("threads", threads, format!("cannot build thread pool: {e}"))
+        })?;
+    Ok(pool.install(work))
 }
 
 /// Most worker threads a batch may ask for.
@@ -390,4 +456,226 @@ pub fn sensitivity_batch(
         row.markers = vec![[f64::NAN; 3]; markers.len()];
     }
     Ok(out)
+}
+
+/// [`solve_batch`] with the tip held by `constraint` (docs/model.md, "End constraints"):
+/// every row is solved exactly as [`solve_constrained`] solves it alone, cold (the free
+/// equilibrium first, then the tip moved to the prescribed pose, else the loads ramped with
+/// the pose), so a row is bitwise equal to the single solve whatever the thread count or the
+/// grouping of rows. Every row has 6 unknowns (`x`) and its tip reaction; a pinned or
+/// clamped tip's stability is assessed as in the single solve. A free `constraint` is
+/// [`solve_batch`] (zero reactions). The constraint, the inputs and (with
+/// `Policy::Raise`) the operating range are checked before any work.
+pub fn solve_constrained_batch(
+    rod: &Rod,
+    inputs: &BatchInputs,
+    constraint: &TipConstraint,
+    opts: &SolverOptions,
+    threads: usize,
+) -> Result<Vec<BatchRow>> {
+    opts.validate()?;
+    constraint.validate()?;
+    if let TipConstraint::Free = constraint {
+        return solve_batch(rod, inputs, opts, threads);
+    }
+    crate::statics::contact::refuse_obstacles(rod, "a pinned or clamped tip")?;
+    let mut rows = Rows::new(rod, opts, inputs, None)?;
+    rows.unknowns = 6;
+    let rows = &rows;
+    in_pool(threads, rows.count, &|r| match solve_constrained(
+        rod,
+        &rows.loads(r),
+        constraint,
+        None,
+        opts,
+    ) {
+        Ok(c) => BatchRow::held(&c),
+        Err(e) => BatchRow::of_error(6, &e),
+    })
+}
+
+/// One row of a system batch ([`solve_system_batch`]). Failed rows are kept, with
+/// `converged = false` and NaNs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SystemBatchRow {
+    pub converged: bool,
+    /// Per rod: its tip pose, base wrench, 6 unknowns, the wrench the platform applies to
+    /// its tip (`tip_reaction_*`) and the validity rule it broke under `Policy::Warn`
+    /// (`stable` is None: not assessed for a system).
+    pub rods: Vec<BatchRow>,
+    pub platform_position: [f64; 3],
+    pub platform_rotation: [[f64; 3]; 3],
+    /// The system's unknowns (6 per rod, then the platform's 6); a warm start.
+    pub x: Vec<f64>,
+    pub iterations: usize,
+    pub residual: f64,
+    pub load_steps: usize,
+    /// The first validity rule a rod broke (a failed row, or a returned one under
+    /// `Policy::Warn`), "rods[i]: ..." where the rod is known, else empty.
+    pub violation: String,
+}
+
+impl SystemBatchRow {
+    fn solved(s: &SystemSolution) -> Self {
+        let rods: Vec<BatchRow> = s.rods.iter().map(BatchRow::held).collect();
+        let violation = rods
+            .iter()
+            .enumerate()
+            .find(|(_, r)| !r.violation.is_empty())
+            .map(|(i, r)| format!("rods[{i}]: {}", r.violation))
+            .unwrap_or_default();
+        SystemBatchRow {
+            converged: true,
+            rods,
+            platform_position: s.platform_position,
+            platform_rotation: s.platform_rotation,
+            x: s.x.clone(),
+            iterations: s.iterations,
+            residual: s.residual,
+            load_steps: s.load_steps,
+            violation,
+        }
+    }
+
+    fn failed(n_rods: usize, e: &SoftrodError) -> Self {
+        let first = BatchRow::of_error(6, e);
+        let rod = || BatchRow {
+            stable: None,
+            ..BatchRow::failed(6, 0, f64::NAN)
+        };
+        SystemBatchRow {
+            converged: false,
+            rods: (0..n_rods).map(|_| rod()).collect(),
+            platform_position: [f64::NAN; 3],
+            platform_rotation: [[f64::NAN; 3]; 3],
+            x: vec![f64::NAN; 6 * n_rods + 6],
+            iterations: first.iterations,
+            residual: first.residual,
+            load_steps: 0,
+            violation: first.violation,
+        }
+    }
+}
+
+/// The per-row inputs of a system batch: every rod's pressures, then every rod's tensions,
+/// each row the rods' values one after the other (row-major).
+#[derive(Debug, Clone, Copy)]
+pub struct SystemBatchInputs<'a> {
+    /// (m, sum of the rods' channels) gauge pressures, Pa: rod 0's channels, then rod 1's...
+    pub pressures: &'a [f64],
+    /// (m, sum of the rods' tendon channels) tensions, N; None: every tendon slack.
+    pub tensions: Option<&'a [f64]>,
+}
+
+/// Solve the system of `rods` holding `platform` for every row of `inputs` (each row one
+/// equilibrium of the whole system; the rods' other loads and the platform's are shared):
+/// every row is solved exactly as [`solve_system`] solves it alone, cold, so a row is
+/// bitwise equal to the single solve whatever the thread count or the grouping of rows.
+/// The system, the inputs and (with `Policy::Raise`) the rods' operating ranges are checked
+/// before any work; an input error names the row and the rod ("row 3:
+/// rods[1].pressures[0]").
+pub fn solve_system_batch(
+    rods: &[SystemRod],
+    platform: &Platform,
+    inputs: &SystemBatchInputs,
+    opts: &SolverOptions,
+    threads: usize,
+) -> Result<Vec<SystemBatchRow>> {
+    opts.validate()?;
+    crate::statics::system::validate(rods, platform)?;
+    let nc: Vec<usize> = rods.iter().map(|r| r.rod.n_channels).collect();
+    let nt: Vec<usize> = rods.iter().map(|r| r.rod.n_tendons).collect();
+    let (wc, wt) = (nc.iter().sum::<usize>(), nt.iter().sum::<usize>());
+    let given = inputs.pressures.len();
+    let count = if wc > 0 {
+        if given % wc != 0 {
+            return Err(SoftrodError::invalid(
+                "pressures",
+                format!("{given} values"),
+                format!(
+                    "must be an (m, {wc}) array: each row every rod's gauge pressures, rod \
+                     after rod ({nc:?} channels)"
+                ),
+            ));
+        }
+        given / wc
+    } else {
+        if given != 0 {
+            return Err(SoftrodError::invalid(
+                "pressures",
+                format!("{given} values"),
+                "the system's rods have no pressure channels: give an (m, 0) array",
+            ));
+        }
+        let t = inputs.tensions.map_or(0, <[f64]>::len);
+        if wt == 0 || t % wt != 0 {
+            return Err(SoftrodError::invalid(
+                "tensions",
+                format!("{t} values"),
+                format!(
+                    "the system's rods have no pressure channels: give an (m, {wt}) array \
+                     of tensions, rod after rod"
+                ),
+            ));
+        }
+        t / wt
+    };
+    if let Some(t) = inputs.tensions {
+        if t.len() != count * wt {
+            return Err(SoftrodError::invalid(
+                "tensions",
+                format!("{} values", t.len()),
+                format!(
+                    "must be an ({count}, {wt}) array: each row every rod's tendon tensions, \
+                     rod after rod ({nt:?} tendon channels)"
+                ),
+            ));
+        }
+    }
+    // Row r's loads of every rod.
+    let offsets = |w: &[usize]| -> Vec<usize> {
+        w.iter()
+            .scan(0, |acc, k| {
+                let o = *acc;
+                *acc += k;
+                Some(o)
+            })
+            .collect()
+    };
+    let (oc, ot) = (offsets(&nc), offsets(&nt));
+    let row_rods = |r: usize| -> Vec<SystemRod> {
+        rods.iter()
+            .enumerate()
+            .map(|(i, sr)| {
+                let p = &inputs.pressures[r * wc + oc[i]..r * wc + oc[i] + nc[i]];
+                let t = match inputs.tensions {
+                    Some(t) => t[r * wt + ot[i]..r * wt + ot[i] + nt[i]].to_vec(),
+                    None => vec![0.0; nt[i]],
+                };
+                SystemRod {
+                    loads: Loads {
+                        pressures: p.to_vec(),
+                        tensions: t,
+                        ..sr.loads.clone()
+                    },
+                    ..sr.clone()
+                }
+            })
+            .collect()
+    };
+    for r in 0..count {
+        for (i, sr) in row_rods(r).iter().enumerate() {
+            crate::statics::check_inputs(sr.rod, &sr.loads, opts)
+                .map_err(|e| in_row(r, &format!("rods[{i}]."), e))?;
+        }
+    }
+    let n = rods.len();
+    in_pool(
+        threads,
+        count,
+        &|r| match solve_system(&row_rods(r), platform, None, opts) {
+            Ok(s) => SystemBatchRow::solved(&s),
+            Err(e) => SystemBatchRow::failed(n, &e),
+        },
+    )
 }

@@ -1,9 +1,15 @@
 //! Binding of the tip end constraints (`softrod_core::statics::constraint`) and of systems
 //! of rods sharing a platform (`softrod_core::statics::system`). No physics here.
 
-use crate::{guarded, options, solution_dict, to_py_err, Context, PyRod};
+use crate::{
+    array2, array3, guarded, options, rows_dict, solution_dict, to_py_err, Context, PyRod,
+};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use softrod_core::batch::{
+    solve_constrained_batch, solve_system_batch, BatchInputs, BatchRow, SystemBatchInputs,
+};
 use softrod_core::ode::Loads;
 use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
 use softrod_core::statics::system::{solve_system, Platform, SystemRod};
@@ -111,6 +117,78 @@ fn solve_constrained_tip<'py>(
     })
 }
 
+/// `Rod.solve_batch` with the tip held by a constraint (`kind`, `position`, `rotation` as
+/// in `solve_constrained_tip`): every row of the (m, channels) pressure array (and the
+/// optional (m, tendon channels) tension array) solved in parallel, GIL released, each
+/// exactly as `solve_constrained_tip` solves it alone. The dict of `Rod.solve_batch` ("x"
+/// (m, 6)) plus "tip_reaction_force" and "tip_reaction_moment" (m, 3), NaN on failed rows.
+#[pyfunction]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, kind, position=None, rotation=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=None, on_invalid="raise", tensions=None))]
+#[allow(clippy::too_many_arguments)]
+fn solve_constrained_tip_batch<'py>(
+    py: Python<'py>,
+    rod: PyRef<'py, PyRod>,
+    pressures: PyReadonlyArray2<'py, f64>,
+    tip_force: [f64; 3],
+    tip_moment: [f64; 3],
+    kind: &str,
+    position: Option<[f64; 3]>,
+    rotation: Option<[[f64; 3]; 3]>,
+    threads: usize,
+    tol: f64,
+    max_iter: usize,
+    continuation: bool,
+    max_load_steps: usize,
+    stretch_range: (f64, f64),
+    stiffness_scale: Option<PyReadonlyArray2<'py, f64>>,
+    on_invalid: &str,
+    tensions: Option<PyReadonlyArray2<'py, f64>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    guarded(py, || {
+        let c = constraint(py, kind, position, rotation)?;
+        rod.check_columns(py, &pressures)?;
+        // Copy into owned Rust data before releasing the GIL.
+        let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
+        let sigma: Option<Vec<f64>> =
+            stiffness_scale.map(|s| s.as_array().iter().copied().collect());
+        let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
+        let opts = options(
+            py,
+            tol,
+            max_iter,
+            continuation,
+            max_load_steps,
+            stretch_range,
+            on_invalid,
+        )?;
+        let rod = &rod.rod;
+        let rows = py
+            .detach(|| {
+                let inputs = BatchInputs {
+                    pressures: &flat,
+                    tensions: tens.as_deref(),
+                    stiffness_scale: sigma.as_deref(),
+                    tip_force,
+                    tip_moment,
+                };
+                solve_constrained_batch(rod, &inputs, &c, &opts, threads)
+            })
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
+        let d = rows_dict(py, &rows)?;
+        reactions(py, &d, &rows)?;
+        Ok(d)
+    })
+}
+
+/// The tip reactions of batch rows as (m, 3) arrays.
+fn reactions(py: Python<'_>, d: &Bound<'_, PyDict>, rows: &[BatchRow]) -> PyResult<()> {
+    let f: Vec<[f64; 3]> = rows.iter().map(|r| r.tip_reaction_force).collect();
+    let m: Vec<[f64; 3]> = rows.iter().map(|r| r.tip_reaction_moment).collect();
+    d.set_item("tip_reaction_force", array2(py, &f)?)?;
+    d.set_item("tip_reaction_moment", array2(py, &m)?)?;
+    Ok(())
+}
+
 /// One rod of a system: (rod, pressures, tensions, tip force, tip moment, attachment
 /// offset, attachment rotation).
 type RodEntry<'py> = (
@@ -133,15 +211,7 @@ type RodEntry<'py> = (
 fn solve_rod_system<'py>(
     py: Python<'py>,
     rods: Vec<RodEntry<'py>>,
-    platform: (
-        [f64; 3],
-        [[f64; 3]; 3],
-        [f64; 3],
-        [f64; 3],
-        f64,
-        [f64; 3],
-        [f64; 3],
-    ),
+    platform: PlatformEntry,
     guess: Option<Vec<f64>>,
     tol: f64,
     max_iter: usize,
@@ -176,16 +246,7 @@ fn solve_rod_system<'py>(
                 attachment_rotation: *a,
             })
             .collect();
-        let (position, rotation, force, moment, mass, com_offset, gravity) = platform;
-        let pf = Platform {
-            position,
-            rotation,
-            force,
-            moment,
-            mass,
-            com_offset,
-            gravity,
-        };
+        let pf = platform_of(platform);
         let out = py
             .detach(|| solve_system(&system, &pf, guess.as_deref(), &opts))
             .map_err(|e| to_py_err(py, e, Context::Input))?;
@@ -213,7 +274,170 @@ fn solve_rod_system<'py>(
     })
 }
 
+/// One rod of a system batch: (rod, tip force, tip moment, attachment offset, attachment
+/// rotation); its pressures and tensions come from the rows.
+type BatchRodEntry<'py> = (
+    PyRef<'py, PyRod>,
+    [f64; 3],
+    [f64; 3],
+    [f64; 3],
+    [[f64; 3]; 3],
+);
+
+/// A system's platform: (position, rotation, force, moment, mass, com_offset, gravity).
+type PlatformEntry = (
+    [f64; 3],
+    [[f64; 3]; 3],
+    [f64; 3],
+    [f64; 3],
+    f64,
+    [f64; 3],
+    [f64; 3],
+);
+
+fn platform_of(p: PlatformEntry) -> Platform {
+    let (position, rotation, force, moment, mass, com_offset, gravity) = p;
+    Platform {
+        position,
+        rotation,
+        force,
+        moment,
+        mass,
+        com_offset,
+        gravity,
+    }
+}
+
+/// `solve_rod_system` for every row (GIL released, rows in parallel, each exactly as
+/// `solve_rod_system` solves it alone): `pressures` (m, sum of the rods' channels), each row
+/// rod 0's pressures, then rod 1's...; `tensions` likewise (None: slack). Returns
+/// "converged", "iterations", "residual", "load_steps" (m,), "x" (m, 6 n + 6),
+/// "platform_position" (m, 3), "platform_rotation" (m, 3, 3), per rod "tip_position",
+/// "base_force", "base_moment", "tip_reaction_force", "tip_reaction_moment" (m, n, 3),
+/// "tip_rotation" (m, n, 3, 3), and "violation" (m strings). NaN on failed rows.
+#[pyfunction]
+#[pyo3(signature = (rods, platform, pressures, tensions=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise"))]
+#[allow(clippy::too_many_arguments)]
+fn solve_rod_system_batch<'py>(
+    py: Python<'py>,
+    rods: Vec<BatchRodEntry<'py>>,
+    platform: PlatformEntry,
+    pressures: PyReadonlyArray2<'py, f64>,
+    tensions: Option<PyReadonlyArray2<'py, f64>>,
+    threads: usize,
+    tol: f64,
+    max_iter: usize,
+    continuation: bool,
+    max_load_steps: usize,
+    stretch_range: (f64, f64),
+    on_invalid: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    guarded(py, || {
+        let opts = options(
+            py,
+            tol,
+            max_iter,
+            continuation,
+            max_load_steps,
+            stretch_range,
+            on_invalid,
+        )?;
+        let system: Vec<SystemRod> = rods
+            .iter()
+            .map(|(r, f, m, o, a)| SystemRod {
+                rod: &r.rod,
+                loads: Loads {
+                    pressures: vec![],
+                    tensions: vec![],
+                    tip_force: *f,
+                    tip_moment: *m,
+                    tip_frame: r.rod.spec.tip.frame,
+                    stiffness_scale: [1.0; 3],
+                },
+                attachment: *o,
+                attachment_rotation: *a,
+            })
+            .collect();
+        let pf = platform_of(platform);
+        let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
+        let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
+        let out = py
+            .detach(|| {
+                let inputs = SystemBatchInputs {
+                    pressures: &flat,
+                    tensions: tens.as_deref(),
+                };
+                solve_system_batch(&system, &pf, &inputs, &opts, threads)
+            })
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
+        let m = out.len();
+        let n = system.len();
+        let d = PyDict::new(py);
+        d.set_item(
+            "converged",
+            PyArray1::from_vec(py, out.iter().map(|r| r.converged).collect()),
+        )?;
+        d.set_item(
+            "iterations",
+            PyArray1::from_vec(py, out.iter().map(|r| r.iterations as i64).collect()),
+        )?;
+        d.set_item(
+            "residual",
+            PyArray1::from_vec(py, out.iter().map(|r| r.residual).collect()),
+        )?;
+        d.set_item(
+            "load_steps",
+            PyArray1::from_vec(py, out.iter().map(|r| r.load_steps as i64).collect()),
+        )?;
+        let x: Vec<f64> = out.iter().flat_map(|r| r.x.iter().copied()).collect();
+        d.set_item("x", PyArray1::from_vec(py, x).reshape([m, 6 * n + 6])?)?;
+        let pp: Vec<[f64; 3]> = out.iter().map(|r| r.platform_position).collect();
+        let pr: Vec<[[f64; 3]; 3]> = out.iter().map(|r| r.platform_rotation).collect();
+        d.set_item("platform_position", array2(py, &pp)?)?;
+        d.set_item("platform_rotation", array3(py, &pr)?)?;
+        let per_rod = |get: &dyn Fn(&BatchRow) -> [f64; 3]| -> Vec<f64> {
+            out.iter()
+                .flat_map(|r| r.rods.iter().flat_map(get))
+                .collect()
+        };
+        for (name, get) in [
+            (
+                "tip_position",
+                &(|r: &BatchRow| r.tip_position) as &dyn Fn(&BatchRow) -> [f64; 3],
+            ),
+            ("base_force", &|r: &BatchRow| r.base_force),
+            ("base_moment", &|r: &BatchRow| r.base_moment),
+            ("tip_reaction_force", &|r: &BatchRow| r.tip_reaction_force),
+            ("tip_reaction_moment", &|r: &BatchRow| r.tip_reaction_moment),
+        ] {
+            d.set_item(
+                name,
+                PyArray1::from_vec(py, per_rod(get)).reshape([m, n, 3])?,
+            )?;
+        }
+        let rot: Vec<f64> = out
+            .iter()
+            .flat_map(|r| {
+                r.rods
+                    .iter()
+                    .flat_map(|k| k.tip_rotation.into_iter().flatten())
+            })
+            .collect();
+        d.set_item(
+            "tip_rotation",
+            PyArray1::from_vec(py, rot).reshape([m, n, 3, 3])?,
+        )?;
+        d.set_item(
+            "violation",
+            out.iter().map(|r| r.violation.as_str()).collect::<Vec<_>>(),
+        )?;
+        Ok(d)
+    })
+}
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(solve_constrained_tip_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(solve_rod_system_batch, m)?)?;
     m.add_function(wrap_pyfunction!(solve_constrained_tip, m)?)?;
     m.add_function(wrap_pyfunction!(solve_rod_system, m)?)?;
     Ok(())

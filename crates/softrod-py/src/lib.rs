@@ -151,7 +151,7 @@ fn parse_spec(py: Python<'_>, spec_json: &str) -> PyResult<DesignSpec> {
     })
 }
 
-fn array2<'py>(py: Python<'py>, rows: &[[f64; 3]]) -> PyResult<Bound<'py, PyAny>> {
+pub(crate) fn array2<'py>(py: Python<'py>, rows: &[[f64; 3]]) -> PyResult<Bound<'py, PyAny>> {
     let flat: Vec<f64> = rows.iter().flatten().copied().collect();
     Ok(PyArray1::from_vec(py, flat)
         .reshape([rows.len(), 3])?
@@ -217,7 +217,7 @@ fn solution_dict<'py>(
     Ok(d)
 }
 
-fn array3<'py>(py: Python<'py>, mats: &[[[f64; 3]; 3]]) -> PyResult<Bound<'py, PyAny>> {
+pub(crate) fn array3<'py>(py: Python<'py>, mats: &[[[f64; 3]; 3]]) -> PyResult<Bound<'py, PyAny>> {
     let flat: Vec<f64> = mats.iter().flatten().flatten().copied().collect();
     Ok(PyArray1::from_vec(py, flat)
         .reshape([mats.len(), 3, 3])?
@@ -536,7 +536,11 @@ impl PyRod {
 }
 
 impl PyRod {
-    fn check_columns(&self, py: Python<'_>, pressures: &PyReadonlyArray2<'_, f64>) -> PyResult<()> {
+    pub(crate) fn check_columns(
+        &self,
+        py: Python<'_>,
+        pressures: &PyReadonlyArray2<'_, f64>,
+    ) -> PyResult<()> {
         let shape = pressures.as_array().shape().to_vec();
         if shape[1] != self.rod.n_channels {
             return Err(to_py_err(
@@ -557,7 +561,7 @@ impl PyRod {
 }
 
 /// The per-row arrays of a batch result.
-fn rows_dict<'py>(py: Python<'py>, rows: &[BatchRow]) -> PyResult<Bound<'py, PyDict>> {
+pub(crate) fn rows_dict<'py>(py: Python<'py>, rows: &[BatchRow]) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     let tp: Vec<[f64; 3]> = rows.iter().map(|r| r.tip_position).collect();
     let tr: Vec<[[f64; 3]; 3]> = rows.iter().map(|r| r.tip_rotation).collect();

@@ -121,6 +121,7 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
         return np.concatenate([getattr(b, name) for b in parts])
 
     fields = ("tip_position", "tip_rotation", "base_force", "base_moment", "converged")
+    held = bool(parts) and parts[0].tip_reaction_force is not None
     batch = BatchSolution(
         pressures=np.asarray(pressures, dtype=float),
         **{name: stack(name) for name in fields},
@@ -129,6 +130,9 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
         stable=stack("stable"),
         violation=stack("violation"),
         metadata=parts[0].metadata if parts else {},
+        tip_constraint=parts[0].tip_constraint if parts else "free",
+        tip_reaction_force=stack("tip_reaction_force") if held else None,
+        tip_reaction_moment=stack("tip_reaction_moment") if held else None,
     )
     return batch, wall
 
@@ -322,7 +326,10 @@ def sweep(design, grids, out, threads, scheduler):
     p0_kPa, p1_kPa, ..., tip_x_mm, tip_y_mm, tip_z_mm, tip_qw..tip_qz, base_fx_N..,
     base_mx_Nmm.., then converged, iterations, residual and stable; its metadata block names the
     design, the softrod version and the grid. Rows that did not converge are kept with
-    empty tip cells.
+    empty tip cells. A design whose [tip] pins or clamps the tip is swept with the tip held
+    there (docs/model.md, "End constraints"): the table adds the constraint's reaction on
+    the tip, tip_reaction_fx_N..fz_N and tip_reaction_mx_Nmm..mz_Nmm (world frame; zero
+    moment when pinned), and its metadata block the constraint.
     """
     from ..catalog import load_design
     from ..io import check_table_path, write_table

@@ -89,7 +89,9 @@ fn finite3(field: String, v: &[f64; 3]) -> Result<()> {
     Ok(())
 }
 
-fn validate(rods: &[SystemRod], platform: &Platform) -> Result<()> {
+/// The system's own inputs: 1..=MAX_RODS rods without obstacles, finite attachments and
+/// platform, proper rotations, mass >= 0.
+pub(crate) fn validate(rods: &[SystemRod], platform: &Platform) -> Result<()> {
     if rods.is_empty() || rods.len() > MAX_RODS {
         return Err(SoftrodError::invalid(
             "rods",
