@@ -709,6 +709,17 @@ impl Simulator {
         check_dynamic_laws(&rod, &sigma_map)?;
         rod.check_pressures(pressures)?;
         rod.check_tensions(tensions)?;
+        if initial == Initial::Straight {
+            // The straight state with n = m = 0 is no state of a rod whose tendons pull
+            // (their tension is part of n): start slack and pull from the first step on.
+            if let Some(k) = tensions.iter().position(|t| *t != 0.0) {
+                return Err(SoftrodError::invalid(
+                    format!("tensions[{k}]"),
+                    tensions[k],
+                    "the 'straight' start is at rest with slack tendons: give tension 0 at t = 0 (and the tension from the first step on) or start 'static'",
+                ));
+            }
+        }
         let sigma = sigma_map.eval(pressures)?;
         rod.check_loads(pressures, &sigma)?;
         let inertia: Vec<SectionInertia> = (0..rod.sections.len())
@@ -878,9 +889,11 @@ impl Simulator {
                 // strain rates are zero. A consistent start keeps the schemes second order.
                 let m = &models[self.grid.intervals[k / 2].section];
                 if m.rho_a > 0.0 {
+                    // Dead line loads turned into the base frame; follower ones are body
+                    // loads already.
                     let fb = mat_t_vec(&self.rod.base_rotation, &m.f);
                     for a in 0..3 {
-                        xt[6 + a] = fb[a] / m.rho_a;
+                        xt[6 + a] = (fb[a] + m.f_body[a]) / m.rho_a;
                     }
                 }
             }

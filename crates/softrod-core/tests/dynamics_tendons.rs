@@ -268,6 +268,37 @@ fn bad_tensions_are_refused_with_the_field_named() {
     .unwrap_err()
     .to_string();
     assert!(err.contains("tensions[1]"), "{err}");
+    // The straight start is at rest with slack tendons.
+    let rod = Rod::new(tendon_arm(false, false, 2, 0.05)).unwrap();
+    let err = Simulator::with_tensions(
+        rod.clone(),
+        &[0.0; 3],
+        &[0.0, 0.5],
+        Initial::Straight,
+        DynOptions::default(),
+        SigmaMap::None,
+        f,
+        m,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("tensions[1]") && err.contains("straight"),
+        "{err}"
+    );
+    let mut sim = Simulator::with_tensions(
+        rod,
+        &[0.0; 3],
+        &[0.0, 0.0],
+        Initial::Straight,
+        DynOptions::default(),
+        SigmaMap::None,
+        f,
+        m,
+    )
+    .unwrap();
+    sim.set_tensions(&[0.0, 0.5]).unwrap();
+    sim.step(&[0.0; 3]).unwrap();
 }
 
 #[test]
