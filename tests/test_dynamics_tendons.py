@@ -186,3 +186,18 @@ def test_bundled_finger_simulates_with_its_tendon():
     traj = softrod.simulate(d, [0.0], 0.02, dt=5e-3, tensions=lambda t: [0.0 if t == 0 else 0.5])
     assert np.all(np.isfinite(traj.tip_position))
     assert np.linalg.norm(traj.tip_position[-1] - traj.tip_position[0]) > 0
+
+
+def test_cli_simulate_takes_held_tensions(run, tmp_path):
+    from conftest import assert_clean_error
+
+    out = tmp_path / "traj.npz"
+    finger = "prebent_tendon_finger"
+    args = ("simulate", finger, "--pulses", "paper000", "--t-end", "20 ms", "--dt", "5 ms")
+    result = run(*args, "--tension", "0.5N", "--out", str(out))
+    assert result.exit_code == 0, result.output
+    assert out.exists()
+    bad = tmp_path / "bad.npz"
+    assert_clean_error(run(*args, "--tension", "-1N", "--out", str(bad)), 2, "--tension[0]", ">= 0")
+    assert_clean_error(run(*args, "--tension", "1N,2N", "--out", str(bad)), 2, "1 tendon")
+    assert not bad.exists()

@@ -590,7 +590,9 @@ def _vector(value, field: str, kind: str) -> list[float]:
     from ..statics import _vec3
 
     if value is None:
-        raise design_error(field, value, f"must be 3 {kind} values (world frame)", InputError)
+        raise design_error(
+            field, value, f"must be 3 {kind} values (in the design's tip frame)", InputError
+        )
     return _vec3(value, kind, field, None)
 
 
