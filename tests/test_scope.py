@@ -286,11 +286,12 @@ def test_reference_table_round_trips_through_save(tmp_path):
     np.testing.assert_allclose(a.u[mid], [0, 10, 0], atol=1e-12)
 
 
-def test_dynamics_and_pcc_refuse_the_statics_only_keys():
+def test_dynamics_carries_the_finger_and_pcc_refuses_it():
     d = load_design(FINGER)
-    # The finger's constant precurvature is carried; its tendon is not.
-    with pytest.raises((InputError, DesignError), match=r"sections\[0\]\.tendons"):
-        softrod.simulate(d, softrod.PressureSchedule.constant([0.0]), 0.01)
+    # The finger's constant precurvature and its tendon are carried by the dynamics
+    # (tests/test_dynamics_tendons.py); the PCC model refuses them.
+    traj = softrod.simulate(d, softrod.PressureSchedule.constant([0.0]), 0.01, tensions=[0.5])
+    assert np.all(np.isfinite(traj.tip_position))
     with pytest.raises((InputError, DesignError), match="PCC model"):
         solve_statics(d, [0.0], model="pcc")
 

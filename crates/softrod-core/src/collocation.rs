@@ -42,7 +42,7 @@ use crate::banded::{simd_dispatch, BandedLu};
 
 use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
 use crate::law::{ogden_derivatives, ogden_force, AxialTable};
-use crate::ode::{AxialCoeffs, Coeffs};
+use crate::ode::{AxialCoeffs, Coeffs, TendonCoeff};
 use crate::rod::{inverse3, Rod};
 use nalgebra::SMatrix;
 use std::sync::Arc;
@@ -72,6 +72,17 @@ pub struct Interval {
     pub section: usize,
     pub s0: f64,
     pub h: f64,
+    /// Arc length of the interval's start from its section's start (where the section's
+    /// tendon routing is evaluated), m.
+    pub s_local: f64,
+}
+
+impl Interval {
+    /// Arc length of stage `i` from the section's start.
+    #[inline(always)]
+    pub fn stage_local(&self, i: usize) -> f64 {
+        self.s_local + GAUSS_C[i] * self.h
+    }
 }
 
 /// The intervals of a rod: each section's `steps` (a rigid section is one interval, exact
@@ -91,6 +102,7 @@ impl Grid {
                     section: i,
                     s0: sec.s_start + h * k as f64,
                     h,
+                    s_local: h * k as f64,
                 });
             }
         }
@@ -184,6 +196,16 @@ pub struct SectionModel<C = f64> {
     /// Line force (weight included) and moment, world frame.
     pub f: [C; 3],
     pub l: [C; 3],
+    /// Follower line force and moment (body frame), N/m and N m/m; `follower` when either
+    /// is not zero.
+    pub f_body: [C; 3],
+    pub l_body: [C; 3],
+    pub follower: bool,
+    /// The section's tendons under tension (`crate::tendon`): their tensions fold into the
+    /// law, solved implicitly at every stage ([`SectionModel::strains`]).
+    pub tendons: Vec<TendonCoeff<C>>,
+    /// Radius scaling curvatures to strains in the tendon law's convergence test, m.
+    pub tendon_radius: f64,
 }
 
 impl<C: Coeff> SectionModel<C> {
@@ -220,6 +242,11 @@ impl<C: Coeff> SectionModel<C> {
             rho_j,
             f: c.f,
             l: c.l,
+            f_body: c.f_body,
+            l_body: c.l_body,
+            follower: c.follower,
+            tendons: if rigid { Vec::new() } else { c.tendons.clone() },
+            tendon_radius: c.tendon_radius,
         };
         if rigid {
             return out;
@@ -281,8 +308,30 @@ impl<C: Coeff> SectionModel<C> {
     /// (implicit function theorem), so dual numbers carry exact first derivatives in the
     /// state; their coefficients enter by value only (parameter derivatives of the
     /// dynamics support the linear law: `crate::dynamics::sensitivity` checks this).
+    /// With tendons under tension the law is implicit (`crate::tendon`): the strains w
+    /// solve w = S(nb - F_t(w), mb - M_t(w)) with S this damped law at the stage's local
+    /// arc length `s` (where the routing is evaluated), by [`crate::tendon::solve_implicit`]
+    /// (the statics' solver) in f64 with S' exact (a `Jet<6>` evaluation of S), and dual
+    /// parts by the implicit function theorem.
     #[inline(always)]
     pub fn strains<D: StateScalar<C>>(
+        &self,
+        nb: &[D; 3],
+        mb: &[D; 3],
+        h: &[C; NF],
+        c0: f64,
+        s: f64,
+    ) -> ([D; 3], [D; 3]) {
+        if self.tendons.is_empty() {
+            self.plain_strains(nb, mb, h, c0)
+        } else {
+            self.tendon_strains(nb, mb, h, c0, s)
+        }
+    }
+
+    /// The law without tendons (see [`SectionModel::strains`]).
+    #[inline(always)]
+    fn plain_strains<D: StateScalar<C>>(
         &self,
         nb: &[D; 3],
         mb: &[D; 3],
@@ -341,6 +390,136 @@ impl<C: Coeff> SectionModel<C> {
             })
         };
         (v, u)
+    }
+
+    /// [`SectionModel::strains`] with tendons under tension.
+    fn tendon_strains<D: StateScalar<C>>(
+        &self,
+        nb: &[D; 3],
+        mb: &[D; 3],
+        h: &[C; NF],
+        c0: f64,
+        s: f64,
+    ) -> ([D; 3], [D; 3]) {
+        use crate::tendon::{implicit_step, load_with, solve_implicit, Mat6, TendonPoint};
+        let nan = D::from(f64::NAN);
+        // The law's values in f64 (the model itself when its coefficients are f64).
+        let owned;
+        let mv: &SectionModel<f64> =
+            match (self as &dyn std::any::Any).downcast_ref::<SectionModel<f64>>() {
+                Some(m) => m,
+                None => {
+                    owned = self.value_model();
+                    &owned
+                }
+            };
+        let hf: [f64; NF] = h.map(|x| x.value());
+        let nbf = nb.map(|x| x.value());
+        let mbf = mb.map(|x| x.value());
+        let points: Vec<TendonPoint> = self
+            .tendons
+            .iter()
+            .map(|t| {
+                let (r, dr) = t.route.at(s);
+                TendonPoint {
+                    tension: t.tension.value(),
+                    r,
+                    dr,
+                }
+            })
+            .collect();
+        let law = |ft: &[f64; 6]| -> [f64; 6] {
+            let nm = [nbf[0] - ft[0], nbf[1] - ft[1], nbf[2] - ft[2]];
+            let mm = [mbf[0] - ft[3], mbf[1] - ft[4], mbf[2] - ft[5]];
+            let (v, u) = mv.plain_strains::<f64>(&nm, &mm, &hf, c0);
+            [v[0], v[1], v[2], u[0], u[1], u[2]]
+        };
+        // S' exactly: the law in Jet<6> over the material force and moment.
+        let law_jacobian = |ft: &[f64; 6]| -> Mat6 {
+            let nm: [Jet<6>; 3] = std::array::from_fn(|k| Jet::variable(nbf[k] - ft[k], k));
+            let mm: [Jet<6>; 3] = std::array::from_fn(|k| Jet::variable(mbf[k] - ft[3 + k], 3 + k));
+            let (v, u) = mv.plain_strains::<Jet<6>>(&nm, &mm, &hf, c0);
+            Mat6::from_fn(|r, c| if r < 3 { v[r].eps[c] } else { u[r - 3].eps[c] })
+        };
+        let plain = std::any::TypeId::of::<D>() == std::any::TypeId::of::<f64>();
+        let mut tangents = Vec::with_capacity(points.len());
+        let Some((ws, jac)) = solve_implicit(
+            &points,
+            &mut tangents,
+            None,
+            self.tendon_radius,
+            plain,
+            law,
+            law_jacobian,
+        ) else {
+            return ([nan; 3], [nan; 3]);
+        };
+        if plain {
+            return (
+                [ws[0], ws[1], ws[2]].map(D::from),
+                [ws[3], ws[4], ws[5]].map(D::from),
+            );
+        }
+        let zero = D::from(0.0);
+        let ft: [D; 6] = load_with(self.tendons.iter().map(|t| zero + t.tension), &points, &ws);
+        let nm = [nb[0] - ft[0], nb[1] - ft[1], nb[2] - ft[2]];
+        let mm = [mb[0] - ft[3], mb[1] - ft[4], mb[2] - ft[5]];
+        let (v, u) = self.plain_strains(&nm, &mm, h, c0);
+        match implicit_step(&ws, &jac, &[v[0], v[1], v[2], u[0], u[1], u[2]]) {
+            Some(o) => ([o[0], o[1], o[2]], [o[3], o[4], o[5]]),
+            None => ([nan; 3], [nan; 3]),
+        }
+    }
+
+    /// The model's values (derivatives of dual coefficients dropped).
+    pub fn value_model(&self) -> SectionModel<f64> {
+        let v3 = |x: &[C; 3]| x.map(|c| c.value());
+        let v33 = |x: &[[C; 3]; 3]| x.map(|r| r.map(|c| c.value()));
+        SectionModel {
+            rigid: self.rigid,
+            axial: match &self.axial {
+                Axial::Linear { a_se, g_se } => Axial::Linear {
+                    a_se: v3(a_se),
+                    g_se: v3(g_se),
+                },
+                Axial::Ogden { k_e, alpha, k_s } => Axial::Ogden {
+                    k_e: k_e.value(),
+                    alpha: alpha.value(),
+                    k_s: k_s.value(),
+                },
+                Axial::Table { table, scale, a_s } => Axial::Table {
+                    table: table.clone(),
+                    scale: scale.value(),
+                    a_s: a_s.map(|c| c.value()),
+                },
+            },
+            k_se: v3(&self.k_se),
+            b_se: v3(&self.b_se),
+            k_bt: v33(&self.k_bt),
+            b_bt: v33(&self.b_bt),
+            a_bt: v33(&self.a_bt),
+            g_bt: v3(&self.g_bt),
+            v_p: v3(&self.v_p),
+            u_p: v3(&self.u_p),
+            p_force: self.p_force.value(),
+            stretch_bending: self.stretch_bending,
+            rho_a: self.rho_a.value(),
+            rho_j: v3(&self.rho_j),
+            f: v3(&self.f),
+            l: v3(&self.l),
+            f_body: v3(&self.f_body),
+            l_body: v3(&self.l_body),
+            follower: self.follower,
+            tendons: self
+                .tendons
+                .iter()
+                .map(|t| TendonCoeff {
+                    tension: t.tension.value(),
+                    route: t.route,
+                })
+                .collect(),
+            tendon_radius: self.tendon_radius,
+        }
     }
 }
 
@@ -559,8 +738,10 @@ pub fn quaternion(r: &[[f64; 3]; 3]) -> [f64; 4] {
 /// dY/ds at one point and its fields (v, u, q, w), given the point's history terms `h`
 /// (X_t = c0 X + X_h for X in v, u, q, w):
 ///   Q' = Q (0, u) / 2,
-///   n' = R rho A (q_t + w x q) - f,                       (paper 000 eq. 7)
-///   m' = R (rho J w_t + w x rho J w) - (R v) x n - l,
+///   n' = R rho A (q_t + w x q) - f - R f_b,               (paper 000 eq. 7)
+///   m' = R (rho J w_t + w x rho J w) - (R v) x n - l - R l_b,
+/// with f_b, l_b the follower (body-frame) line loads and `s` the point's arc length from
+/// its section's start (the tendon routing's argument),
 ///   q' = v_t + w x v - u x q,   w' = u_t + w x u          (compatibility, eq. 13).
 #[inline(always)]
 pub fn rhs<C: Coeff, D: StateScalar<C>>(
@@ -568,6 +749,7 @@ pub fn rhs<C: Coeff, D: StateScalar<C>>(
     m: &SectionModel<C>,
     h: &[C; NF],
     c0: f64,
+    s: f64,
 ) -> ([D; NY], [D; NF]) {
     let rot = rotation(&y[IQ..IQ + 4]);
     let n = [y[IN], y[IN + 1], y[IN + 2]];
@@ -576,7 +758,7 @@ pub fn rhs<C: Coeff, D: StateScalar<C>>(
     let w = [y[IW], y[IW + 1], y[IW + 2]];
     let nb = mat_t_vec(&rot, &n);
     let mb = mat_t_vec(&rot, &mo);
-    let (v, u) = m.strains(&nb, &mb, h, c0);
+    let (v, u) = m.strains(&nb, &mb, h, c0, s);
     let zero = D::from(0.0);
     let (vt, ut) = if m.rigid {
         ([zero; 3], [zero; 3])
@@ -612,13 +794,23 @@ pub fn rhs<C: Coeff, D: StateScalar<C>>(
         dy[IV + k] = vt[k] + wxv[k] - uxq[k];
         dy[IW + k] = ut[k] + wxu[k];
     }
+    if m.follower {
+        // Follower line loads (body frame) turned by R: n' = ... - R f_body, m' = ... - R l_body.
+        let fw = mat_vec(&rot, &m.f_body.map(|c| zero + c));
+        let lw = mat_vec(&rot, &m.l_body.map(|c| zero + c));
+        for k in 0..3 {
+            dy[IN + k] -= fw[k];
+            dy[IM + k] -= lw[k];
+        }
+    }
     let fields = [
         v[0], v[1], v[2], u[0], u[1], u[2], q[0], q[1], q[2], w[0], w[1], w[2],
     ];
     (dy, fields)
 }
 
-/// Rigid tip body and dead tip loads.
+/// Rigid tip body and tip loads: dead (world frame) and follower (body frame, turned with
+/// the tip's rotation R: R F_b, R M_b).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TipBody {
     pub mass: f64,
@@ -626,6 +818,8 @@ pub struct TipBody {
     pub inertia: [f64; 3],
     pub force: [f64; 3],
     pub moment: [f64; 3],
+    pub force_body: [f64; 3],
+    pub moment_body: [f64; 3],
 }
 
 /// One time step's (or a static solve's) collocation problem.
@@ -727,8 +921,9 @@ impl<'a> Problem<'a> {
         std::array::from_fn(|k| z[o + k] * self.scale[k])
     }
 
-    /// Scaled tip residual: n(L) = F + m_t (g - a_c), m(L) = M + c_w x m_t (g - a_c) -
-    /// R (J w_t + w x J w), with a_c the acceleration of the tip body's centre of mass.
+    /// Scaled tip residual: n(L) = F + R F_b + m_t (g - a_c), m(L) = M + R M_b +
+    /// c_w x m_t (g - a_c) - R (J w_t + w x J w), with a_c the acceleration of the tip
+    /// body's centre of mass and F_b, M_b the follower loads (body frame).
     fn tip_residual<D: StateScalar<f64>>(&self, y: &[D; NY]) -> [D; 6] {
         self.tip_residual_with(y, self.hist.last().expect("tip slot"))
     }
@@ -756,12 +951,14 @@ impl<'a> Problem<'a> {
         let wxjw = cross(&w, &jw);
         let torque: [D; 3] = std::array::from_fn(|k| wt[k] * t.inertia[k] + wxjw[k]);
         let torque_w = mat_vec(&rot, &torque);
+        let fb = mat_vec(&rot, &t.force_body.map(D::from));
+        let mb = mat_vec(&rot, &t.moment_body.map(D::from));
         std::array::from_fn(|k| {
             if k < 3 {
-                (y[IN + k] - body[k] - t.force[k]) * (1.0 / self.fs)
+                (y[IN + k] - body[k] - fb[k] - t.force[k]) * (1.0 / self.fs)
             } else {
                 let j = k - 3;
-                (y[IM + j] - cxb[j] + torque_w[j] - t.moment[j]) * (1.0 / self.ms)
+                (y[IM + j] - cxb[j] + torque_w[j] - mb[j] - t.moment[j]) * (1.0 / self.ms)
             }
         })
     }
@@ -780,8 +977,14 @@ impl<'a> Problem<'a> {
             let model = &self.models[iv.section];
             let y1 = self.stage(z, j, 0);
             let y2 = self.stage(z, j, 1);
-            let (f1, fl1) = rhs(&y1, model, &self.hist[2 * j], self.c0);
-            let (f2, fl2) = rhs(&y2, model, &self.hist[2 * j + 1], self.c0);
+            let (f1, fl1) = rhs(&y1, model, &self.hist[2 * j], self.c0, iv.stage_local(0));
+            let (f2, fl2) = rhs(
+                &y2,
+                model,
+                &self.hist[2 * j + 1],
+                self.c0,
+                iv.stage_local(1),
+            );
             if let Some(fl) = fields.as_mut() {
                 fl[2 * j] = fl1;
                 fl[2 * j + 1] = fl2;
@@ -805,13 +1008,13 @@ impl<'a> Problem<'a> {
     }
 
     /// Exact Jacobian of f at a point, in scaled variables and scaled rows.
-    fn point_jacobian(&self, y: &[f64; NY], model: &SectionModel, h: &[f64; NF]) -> Mat16 {
+    fn point_jacobian(&self, y: &[f64; NY], model: &SectionModel, h: &[f64; NF], s: f64) -> Mat16 {
         let yj: [Jet<NY>; NY] = std::array::from_fn(|k| {
             let mut e = [0.0; NY];
             e[k] = self.scale[k];
             Jet { re: y[k], eps: e }
         });
-        let (f, _) = rhs(&yj, model, h, self.c0);
+        let (f, _) = rhs(&yj, model, h, self.c0, s);
         Mat16::from_fn(|r, c| f[r].eps[c] / self.scale[r])
     }
 
@@ -823,8 +1026,18 @@ impl<'a> Problem<'a> {
         for (j, iv) in self.grid.intervals.iter().enumerate() {
             let model = &self.models[iv.section];
             let js = [
-                self.point_jacobian(&self.stage(z, j, 0), model, &self.hist[2 * j]),
-                self.point_jacobian(&self.stage(z, j, 1), model, &self.hist[2 * j + 1]),
+                self.point_jacobian(
+                    &self.stage(z, j, 0),
+                    model,
+                    &self.hist[2 * j],
+                    iv.stage_local(0),
+                ),
+                self.point_jacobian(
+                    &self.stage(z, j, 1),
+                    model,
+                    &self.hist[2 * j + 1],
+                    iv.stage_local(1),
+                ),
             ];
             let o = 48 * j;
             // Columns of node j: the base unknowns for j = 0 (slots IN..IN + 6).
@@ -891,8 +1104,18 @@ impl<'a> Problem<'a> {
     ) -> Option<SMatrix<f64, NY, K>> {
         let iv = &self.grid.intervals[j];
         let model = &self.models[iv.section];
-        let j1 = self.point_jacobian(&self.stage(z, j, 0), model, &self.hist[2 * j]);
-        let j2 = self.point_jacobian(&self.stage(z, j, 1), model, &self.hist[2 * j + 1]);
+        let j1 = self.point_jacobian(
+            &self.stage(z, j, 0),
+            model,
+            &self.hist[2 * j],
+            iv.stage_local(0),
+        );
+        let j2 = self.point_jacobian(
+            &self.stage(z, j, 1),
+            model,
+            &self.hist[2 * j + 1],
+            iv.stage_local(1),
+        );
         let hh = iv.h;
         // M = I - h (A (x) I) diag(J1, J2); the stages follow M dS = [dY_j; dY_j].
         let mut m = SMatrix::<f64, 32, 32>::identity();
@@ -946,8 +1169,18 @@ impl<'a> Problem<'a> {
         let mut band = BandedLu::zeros(n, kl, ku);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
             let model = &self.models[iv.section];
-            let j1 = self.point_jacobian(&self.stage(z, j, 0), model, &self.hist[2 * j]);
-            let j2 = self.point_jacobian(&self.stage(z, j, 1), model, &self.hist[2 * j + 1]);
+            let j1 = self.point_jacobian(
+                &self.stage(z, j, 0),
+                model,
+                &self.hist[2 * j],
+                iv.stage_local(0),
+            );
+            let j2 = self.point_jacobian(
+                &self.stage(z, j, 1),
+                model,
+                &self.hist[2 * j + 1],
+                iv.stage_local(1),
+            );
             let hh = iv.h;
             // Column-major M = I - h (A (x) I) diag(J1, J2) (32 x 32) and
             // G = h [b1 J1, b2 J2] (16 x 32).
@@ -1577,8 +1810,8 @@ impl Problem<'_> {
             let model = &models[iv.section];
             let y1 = self.stage_with(z, j, 0);
             let y2 = self.stage_with(z, j, 1);
-            let (f1, fl1) = rhs(&y1, model, &hist[2 * j], self.c0);
-            let (f2, fl2) = rhs(&y2, model, &hist[2 * j + 1], self.c0);
+            let (f1, fl1) = rhs(&y1, model, &hist[2 * j], self.c0, iv.stage_local(0));
+            let (f2, fl2) = rhs(&y2, model, &hist[2 * j + 1], self.c0, iv.stage_local(1));
             if let Some(fl) = fields.as_mut() {
                 fl.push(fl1);
                 fl.push(fl2);
@@ -1627,7 +1860,7 @@ impl Problem<'_> {
             let model = &models[iv.section];
             for i in 0..2 {
                 let y = self.stage_with(z, j, i);
-                fields.push(rhs(&y, model, &hist[2 * j + i], self.c0).1);
+                fields.push(rhs(&y, model, &hist[2 * j + i], self.c0, iv.stage_local(i)).1);
             }
         }
         fields
@@ -1700,7 +1933,7 @@ impl Problem<'_> {
                 let y = self.stage(z, j, i);
                 let fl = match known {
                     Some(f) => f[2 * j + i],
-                    None => rhs(&y, model, &self.hist[2 * j + i], self.c0).1,
+                    None => rhs(&y, model, &self.hist[2 * j + i], self.c0, iv.stage_local(i)).1,
                 };
                 let rot = rotation(&y[IQ..IQ + 4]);
                 dr[i] = mat_vec(&rot, &[fl[0], fl[1], fl[2]]);

@@ -483,6 +483,7 @@ fn rename_pressure_error(e: SoftrodError, name: &str) -> SoftrodError {
 struct JacKey {
     at: Vec<f64>,
     pressures: Vec<f64>,
+    tensions: Vec<f64>,
     sigma: [f64; 3],
     c0: f64,
     hist: Vec<[f64; FIELDS]>,
@@ -511,11 +512,16 @@ pub struct Simulator {
     /// Chamber pressures now, Pa (after the supply lag and rate limit).
     pressures: Vec<f64>,
     sigma: [f64; 3],
-    /// Dead tip loads now (world): the design's, until changed with `set_tip_loads`.
+    /// Tip loads now, in the design's tip frame (world: dead loads; body: follower loads):
+    /// the design's, until changed with `set_tip_loads`.
     tip_force: [f64; 3],
     tip_moment: [f64; 3],
     /// The tip loads of the last step taken.
     step_tip: ([f64; 3], [f64; 3]),
+    /// Tendon tensions now, N (one per tendon channel): from the next step on.
+    tensions: Vec<f64>,
+    /// The tensions of the last step taken.
+    step_tensions: Vec<f64>,
     /// Physical unknowns now and one step before (for the predictor).
     z: Vec<f64>,
     z_prev: Vec<f64>,
@@ -544,18 +550,20 @@ pub struct Simulator {
 }
 
 /// Refuse the statics-only features of a design (follower loads, reference shapes, tapered
-/// sections, tendons): `model` (the dynamics, its linearisation, the PCC model) does not
-/// carry them yet.
+/// sections, tendons): `model` (the linearisation, the PCC model) does not carry them yet.
 pub(crate) fn check_statics_only(rod: &Rod, model: &str) -> Result<()> {
-    check_statics_only_with(rod, model, false)
+    check_statics_only_with(rod, model, false, false)
 }
 
 /// [`check_statics_only`]; with `constant_reference` a constant reference shape of a
-/// section with the linear law is accepted (it enters the law's shifts).
+/// section with the linear law is accepted (it enters the law's shifts); with
+/// `tendons_and_followers` tendons and follower (body-frame) tip and line loads are
+/// accepted (the dynamics carries them: `crate::collocation`).
 pub(crate) fn check_statics_only_with(
     rod: &Rod,
     model: &str,
     constant_reference: bool,
+    tendons_and_followers: bool,
 ) -> Result<()> {
     // Statics-only features of issue 17 (dynamics follows on the collocation engine).
     let statics_only = |field: String, what: &str| {
@@ -570,7 +578,7 @@ pub(crate) fn check_statics_only_with(
     if !rod.spec.obstacles.is_empty() {
         return Err(statics_only("obstacles".into(), "contact with obstacles"));
     }
-    if rod.spec.tip.frame == crate::spec::Frame::Body {
+    if rod.spec.tip.frame == crate::spec::Frame::Body && !tendons_and_followers {
         return Err(statics_only(
             "tip.frame".into(),
             "a follower (body-frame) tip load",
@@ -581,6 +589,7 @@ pub(crate) fn check_statics_only_with(
         .loads
         .iter()
         .position(|l| l.frame == crate::spec::Frame::Body)
+        .filter(|_| !tendons_and_followers)
     {
         return Err(statics_only(
             format!("loads[{k}].frame"),
@@ -605,7 +614,7 @@ pub(crate) fn check_statics_only_with(
                 "a tapered section",
             ));
         }
-        if !s.tendons.is_empty() {
+        if !s.tendons.is_empty() && !tendons_and_followers {
             return Err(statics_only(format!("sections[{i}].tendons"), "tendons"));
         }
     }
@@ -615,7 +624,7 @@ pub(crate) fn check_statics_only_with(
 /// Check that every section's law has a dynamic counterpart and the map is given where
 /// needed.
 fn check_dynamic_laws(rod: &Rod, map: &SigmaMap) -> Result<()> {
-    check_statics_only_with(rod, "the dynamics", true)?;
+    check_statics_only_with(rod, "the dynamics", true, true)?;
     for (i, s) in rod.sections.iter().enumerate() {
         if s.law.stiffness_map && matches!(map, SigmaMap::None) {
             return Err(SoftrodError::invalid(
@@ -665,11 +674,30 @@ impl Simulator {
         Self::with_inputs(rod, pressures, initial, opts, sigma_map, f, m)
     }
 
-    /// [`Simulator::with_map`] with dead tip loads at t = 0 (world; the starting static
-    /// state balances them) other than the design's.
+    /// [`Simulator::with_map`] with tip loads at t = 0 (in the design's tip frame; the
+    /// starting static state balances them) other than the design's.
     pub fn with_inputs(
         rod: Rod,
         pressures: &[f64],
+        initial: Initial,
+        opts: DynOptions,
+        sigma_map: SigmaMap,
+        tip_force: [f64; 3],
+        tip_moment: [f64; 3],
+    ) -> Result<Self> {
+        let tensions = vec![0.0; rod.n_tendons];
+        Self::with_tensions(
+            rod, pressures, &tensions, initial, opts, sigma_map, tip_force, tip_moment,
+        )
+    }
+
+    /// [`Simulator::with_inputs`] with tendon tensions at t = 0 (N, one per tendon channel,
+    /// each finite and >= 0; the starting static state balances them).
+    #[allow(clippy::too_many_arguments)]
+    pub fn with_tensions(
+        rod: Rod,
+        pressures: &[f64],
+        tensions: &[f64],
         initial: Initial,
         opts: DynOptions,
         sigma_map: SigmaMap,
@@ -688,6 +716,18 @@ impl Simulator {
         opts.validate()?;
         check_dynamic_laws(&rod, &sigma_map)?;
         rod.check_pressures(pressures)?;
+        rod.check_tensions(tensions)?;
+        if initial == Initial::Straight {
+            // The straight state with n = m = 0 is no state of a rod whose tendons pull
+            // (their tension is part of n): start slack and pull from the first step on.
+            if let Some(k) = tensions.iter().position(|t| *t != 0.0) {
+                return Err(SoftrodError::invalid(
+                    format!("tensions[{k}]"),
+                    tensions[k],
+                    "the 'straight' start is at rest with slack tendons: give tension 0 at t = 0 (and the tension from the first step on) or start 'static'",
+                ));
+            }
+        }
         let sigma = sigma_map.eval(pressures)?;
         rod.check_loads(pressures, &sigma)?;
         let inertia: Vec<SectionInertia> = (0..rod.sections.len())
@@ -712,6 +752,8 @@ impl Simulator {
             tip_force,
             tip_moment,
             step_tip: (tip_force, tip_moment),
+            tensions: tensions.to_vec(),
+            step_tensions: tensions.to_vec(),
             z: vec![],
             z_prev: vec![],
             z_prev2: vec![],
@@ -747,12 +789,26 @@ impl Simulator {
         }
     }
 
-    /// Section models at `pressures` and `sigma` for the integrator's c0.
-    fn models_at(&self, pressures: &[f64], sigma: &[f64; 3], c0: f64) -> Vec<SectionModel> {
+    /// Section models at `pressures`, tendon `tensions` and `sigma` for the integrator's c0.
+    fn models_at(
+        &self,
+        pressures: &[f64],
+        tensions: &[f64],
+        sigma: &[f64; 3],
+        c0: f64,
+    ) -> Vec<SectionModel> {
         let tau = self.rod.spec.dynamics.damping_time;
         (0..self.rod.sections.len())
             .map(|i| {
-                let c = Coeffs::build(&self.rod, i, pressures, &[], &self.rod.gravity, 1.0, sigma);
+                let c = Coeffs::build(
+                    &self.rod,
+                    i,
+                    pressures,
+                    tensions,
+                    &self.rod.gravity,
+                    1.0,
+                    sigma,
+                );
                 let inr = &self.inertia[i];
                 SectionModel::new(
                     &c,
@@ -767,21 +823,31 @@ impl Simulator {
             .collect()
     }
 
+    /// The tip body with tip loads `force`, `moment` in the design's tip frame.
     fn tip_body(&self, force: [f64; 3], moment: [f64; 3]) -> TipBody {
         let t = &self.rod.spec.tip;
+        let z = [0.0; 3];
+        let body = self.follower_tip();
         TipBody {
             mass: t.mass,
             com: t.com_offset,
             inertia: t.inertia,
-            force,
-            moment,
+            force: if body { z } else { force },
+            moment: if body { z } else { moment },
+            force_body: if body { force } else { z },
+            moment_body: if body { moment } else { z },
         }
+    }
+
+    /// The tip loads follow the tip (the design's `tip.frame = "body"`).
+    fn follower_tip(&self) -> bool {
+        self.rod.spec.tip.frame == crate::spec::Frame::Body
     }
 
     fn start(&mut self, initial: Initial) -> Result<()> {
         let zero = [0.0; FIELDS];
         let hist0 = vec![zero; self.slots.len()];
-        let models = self.models_at(&self.pressures, &self.sigma, 0.0);
+        let models = self.models_at(&self.pressures, &self.tensions, &self.sigma, 0.0);
         let tip = self.tip_body(self.tip_force, self.tip_moment);
         let problem = Problem::new(&self.rod, &self.grid, &models, 0.0, &hist0, tip);
         let z_scaled = match initial {
@@ -790,10 +856,10 @@ impl Simulator {
                 // the static solver's solution (which picks shooting or collocation).
                 let loads = Loads {
                     pressures: self.pressures.clone(),
-                    tensions: vec![],
+                    tensions: self.tensions.clone(),
                     tip_force: self.tip_force,
                     tip_moment: self.tip_moment,
-                    tip_frame: crate::spec::Frame::World,
+                    tip_frame: self.rod.spec.tip.frame,
                     stiffness_scale: self.sigma,
                 };
                 let guess = statics::solve(&self.rod, &loads, None, &SolverOptions::default())
@@ -842,9 +908,11 @@ impl Simulator {
                 // strain rates are zero. A consistent start keeps the schemes second order.
                 let m = &models[self.grid.intervals[k / 2].section];
                 if m.rho_a > 0.0 {
+                    // Dead line loads turned into the base frame; follower ones are body
+                    // loads already.
                     let fb = mat_t_vec(&self.rod.base_rotation, &m.f);
                     for a in 0..3 {
-                        xt[6 + a] = fb[a] / m.rho_a;
+                        xt[6 + a] = (fb[a] + m.f_body[a]) / m.rho_a;
                     }
                 }
             }
@@ -954,7 +1022,7 @@ impl Simulator {
                         + (0..3).map(|a| m.rho_j[a] * w[a] * w[a]).sum::<f64>());
                 e.potential -= wgt * (0..3).map(|a| m.f[a] * r[a]).sum::<f64>();
                 if !m.rigid {
-                    e.elastic += wgt * elastic_density(m, &[f[0], f[1], f[2]], &[f[3], f[4], f[5]]);
+                    e.elastic += wgt * stored_density(m, f, iv.stage_local(i));
                 }
             }
         }
@@ -971,7 +1039,10 @@ impl Simulator {
         e.kinetic += 0.5 * t.mass * (vc[0] * vc[0] + vc[1] * vc[1] + vc[2] * vc[2]);
         e.kinetic += 0.5 * (0..3).map(|k| t.inertia[k] * w[k] * w[k]).sum::<f64>();
         e.potential -= t.mass * (0..3).map(|k| g[k] * (r[k] + cw[k])).sum::<f64>();
-        e.potential -= (0..3).map(|k| force[k] * r[k]).sum::<f64>();
+        if !self.follower_tip() {
+            // A dead tip force has a potential; a follower one does work (`rates`).
+            e.potential -= (0..3).map(|k| force[k] * r[k]).sum::<f64>();
+        }
         e
     }
 
@@ -1008,8 +1079,10 @@ impl Simulator {
         out
     }
 
-    /// Rates at one instant: Kelvin-Voigt dissipation, power of the dead moments (line and
-    /// tip), power of the non-potential part of stretch-dependent bending.
+    /// Rates at one instant: Kelvin-Voigt dissipation, power of the loads without a
+    /// potential (dead moments, line and tip; follower loads, line and tip, at the tip's
+    /// loads now: F_b . q + M_b . w with q, w the body-frame velocities), power of the
+    /// non-potential part of stretch-dependent bending.
     fn rates(
         &self,
         models: &[SectionModel],
@@ -1038,6 +1111,12 @@ impl Simulator {
                 out[0] += wgt * d;
                 let ww = mat_vec(&eval.stage_rot[k], &[f[9], f[10], f[11]]);
                 out[1] += wgt * (0..3).map(|a| m.l[a] * ww[a]).sum::<f64>();
+                if m.follower {
+                    out[1] += wgt
+                        * (0..3)
+                            .map(|a| m.f_body[a] * f[6 + a] + m.l_body[a] * f[9 + a])
+                            .sum::<f64>();
+                }
                 if m.stretch_bending {
                     // The law's axial force lacks d/dv3 of (1/2) v3 u_b K_b u_b.
                     let u = [f[3], f[4]];
@@ -1050,9 +1129,16 @@ impl Simulator {
             }
         }
         let y = eval.nodes.last().expect("tip node");
-        let rot = collocation::rotation(&y[..4]);
-        let ww = mat_vec(&rot, &[y[13], y[14], y[15]]);
-        out[1] += (0..3).map(|k| moment[k] * ww[k]).sum::<f64>();
+        if self.follower_tip() {
+            let f = self.tip_force;
+            out[1] += (0..3)
+                .map(|k| f[k] * y[10 + k] + moment[k] * y[13 + k])
+                .sum::<f64>();
+        } else {
+            let rot = collocation::rotation(&y[..4]);
+            let ww = mat_vec(&rot, &[y[13], y[14], y[15]]);
+            out[1] += (0..3).map(|k| moment[k] * ww[k]).sum::<f64>();
+        }
         out
     }
 
@@ -1207,13 +1293,17 @@ impl Simulator {
                 self.tip_body(self.tip_force, self.tip_moment),
             )
         };
+        let solve_t = self.solve_tensions(midpoint);
         // Unchanged inputs and step: the models of the last step (the same numbers).
-        let models =
-            if self.models_c0 == bdf.c0 && solve_p == self.pressures && solve_sigma == self.sigma {
-                self.models.clone()
-            } else {
-                self.models_at(&solve_p, &solve_sigma, bdf.c0)
-            };
+        let models = if self.models_c0 == bdf.c0
+            && solve_p == self.pressures
+            && solve_sigma == self.sigma
+            && solve_t == self.step_tensions
+        {
+            self.models.clone()
+        } else {
+            self.models_at(&solve_p, &solve_t, &solve_sigma, bdf.c0)
+        };
         let hist: Vec<[f64; FIELDS]> = self
             .slots
             .iter()
@@ -1300,6 +1390,7 @@ impl Simulator {
                 _ => JacKey {
                     at: fac.at.clone(),
                     pressures: solve_p.clone(),
+                    tensions: solve_t.clone(),
                     sigma: solve_sigma,
                     c0: bdf.c0,
                     hist: hist.clone(),
@@ -1325,12 +1416,15 @@ impl Simulator {
         };
         let zp: Vec<f64> = z.iter().zip(&self.scales).map(|(a, b)| a * b).collect();
         let (eval, models) = if midpoint {
-            let models_new =
-                if self.models_c0 == bdf.c0 && pressures == self.pressures && sigma == self.sigma {
-                    self.models.clone()
-                } else {
-                    self.models_at(&pressures, &sigma, bdf.c0)
-                };
+            let models_new = if self.models_c0 == bdf.c0
+                && pressures == self.pressures
+                && sigma == self.sigma
+                && self.tensions == self.step_tensions
+            {
+                self.models.clone()
+            } else {
+                self.models_at(&pressures, &self.tensions, &sigma, bdf.c0)
+            };
             (self.midpoint_end(&solved), models_new)
         } else {
             (solved, models)
@@ -1388,7 +1482,15 @@ impl Simulator {
         };
         let r0 = self.eval.node_r.last().expect("tip");
         let r1 = eval.node_r.last().expect("tip");
-        let df: [f64; 3] = std::array::from_fn(|k| self.tip_force[k] - self.step_tip.0[k]);
+        // (A follower tip force has no potential: its work is in `rates`.)
+        let follower = self.follower_tip();
+        let df: [f64; 3] = std::array::from_fn(|k| {
+            if follower {
+                0.0
+            } else {
+                self.tip_force[k] - self.step_tip.0[k]
+            }
+        });
         let fin = -(0..3)
             .map(|k| df[k] * ((1.0 - w_new) * r0[k] + w_new * r1[k]))
             .sum::<f64>();
@@ -1557,9 +1659,7 @@ impl Simulator {
             }
             for i in 0..2 {
                 let f = &eval.fields[2 * j + i];
-                e += iv.h
-                    * GAUSS_B[i]
-                    * elastic_density(m, &[f[0], f[1], f[2]], &[f[3], f[4], f[5]]);
+                e += iv.h * GAUSS_B[i] * stored_density(m, f, iv.stage_local(i));
             }
         }
         e
@@ -1610,6 +1710,7 @@ impl Simulator {
         self.eval = c.eval;
         self.books = c.books;
         self.step_tip = (self.tip_force, self.tip_moment);
+        self.step_tensions.clone_from(&self.tensions);
         self.stats.internal_steps += 1;
     }
 
@@ -1623,7 +1724,7 @@ impl Simulator {
     /// finite differences).
     pub fn step_residual_and_jacobian(&self, z: &[f64]) -> (Vec<f64>, Vec<Vec<f64>>) {
         let bdf = Bdf::new(self.opts.alpha_eff(), self.opts.dt, self.h_prev);
-        let models = self.models_at(&self.pressures, &self.sigma, bdf.c0);
+        let models = self.models_at(&self.pressures, &self.tensions, &self.sigma, bdf.c0);
         let hist: Vec<[f64; FIELDS]> = self
             .slots
             .iter()
@@ -1661,7 +1762,35 @@ impl Simulator {
         &self.z
     }
 
-    /// Change the dead tip force and moment (world, N and N m) from the next step on.
+    /// Change the tendon tensions (N, one per tendon channel, each finite and >= 0) from
+    /// the next step on; checked before anything changes.
+    pub fn set_tensions(&mut self, tensions: &[f64]) -> Result<()> {
+        self.rod.check_tensions(tensions)?;
+        self.tensions = tensions.to_vec();
+        Ok(())
+    }
+
+    /// Tendon tensions now (those of the next step), N.
+    pub fn tensions(&self) -> &[f64] {
+        &self.tensions
+    }
+
+    /// The tensions a step solves with: the new ones (BDF-alpha), or halfway between the
+    /// last step's and the new ones (midpoint rule).
+    fn solve_tensions(&self, midpoint: bool) -> Vec<f64> {
+        if midpoint {
+            self.step_tensions
+                .iter()
+                .zip(&self.tensions)
+                .map(|(a, b)| 0.5 * (a + b))
+                .collect()
+        } else {
+            self.tensions.clone()
+        }
+    }
+
+    /// Change the tip force and moment (N and N m, in the design's tip frame: world for
+    /// dead loads, body for follower loads) from the next step on.
     pub fn set_tip_loads(&mut self, force: [f64; 3], moment: [f64; 3]) -> Result<()> {
         for (name, v) in [("tip_force", &force), ("tip_moment", &moment)] {
             for (i, x) in v.iter().enumerate() {
@@ -1698,7 +1827,7 @@ impl Simulator {
     pub fn sigma(&self) -> [f64; 3] {
         self.sigma
     }
-    /// Dead tip force and moment now (world).
+    /// Tip force and moment now (in the design's tip frame).
     pub fn tip_loads(&self) -> ([f64; 3], [f64; 3]) {
         (self.tip_force, self.tip_moment)
     }
@@ -1758,7 +1887,7 @@ impl Simulator {
 }
 
 /// Layout version of [`Simulator::save`].
-const STATE_VERSION: f64 = 2.0;
+const STATE_VERSION: f64 = 3.0;
 /// First number of a saved state ("softrod" in a number; guards against foreign arrays).
 const STATE_MAGIC: f64 = 50_770_213.0;
 
@@ -1862,6 +1991,8 @@ impl Simulator {
         w.all(&self.tip_moment);
         w.all(&self.step_tip.0);
         w.all(&self.step_tip.1);
+        w.vec(&self.tensions);
+        w.vec(&self.step_tensions);
         w.vec(&self.z);
         w.vec(&self.z_prev);
         w.vec(&self.z_prev2);
@@ -1920,6 +2051,7 @@ impl Simulator {
                 w.f(1.0);
                 w.vec(&c.key.at);
                 w.vec(&c.key.pressures);
+                w.vec(&c.key.tensions);
                 w.all(&c.key.sigma);
                 w.f(c.key.c0);
                 w.arrays(&c.key.hist);
@@ -1960,6 +2092,15 @@ impl Simulator {
         next.tip_force = r.fixed()?;
         next.tip_moment = r.fixed()?;
         next.step_tip = (r.fixed()?, r.fixed()?);
+        next.tensions = r.vec()?;
+        next.step_tensions = r.vec()?;
+        let nt = self.rod.n_tendons;
+        if next.tensions.len() != nt || next.step_tensions.len() != nt {
+            return Err(bad_state(format!(
+                "holds {} tendon tensions; this simulation's rod has {nt} tendon channels",
+                next.tensions.len()
+            )));
+        }
         next.z = r.vec()?;
         next.z_prev = r.vec()?;
         next.z_prev2 = r.vec()?;
@@ -2024,17 +2165,19 @@ impl Simulator {
             let key = JacKey {
                 at: r.vec()?,
                 pressures: r.vec()?,
+                tensions: r.vec()?,
                 sigma: r.fixed()?,
                 c0: r.f()?,
                 hist: r.arrays()?,
             };
             if key.at.len() != self.z.len()
                 || key.pressures.len() != nc
+                || key.tensions.len() != self.rod.n_tendons
                 || key.hist.len() != n_slots
             {
                 return Err(bad_state("does not match this simulation's discretisation"));
             }
-            let models = next.models_at(&key.pressures, &key.sigma, key.c0);
+            let models = next.models_at(&key.pressures, &key.tensions, &key.sigma, key.c0);
             let tip = next.tip_body(next.tip_force, next.tip_moment);
             let p = step_problem(
                 &next.rod,
@@ -2060,7 +2203,7 @@ impl Simulator {
         {
             return Err(bad_state("does not match this simulation's discretisation"));
         }
-        next.models = next.models_at(&next.pressures, &next.sigma, 0.0);
+        next.models = next.models_at(&next.pressures, &next.step_tensions, &next.sigma, 0.0);
         next.models_c0 = 0.0;
         *self = next;
         Ok(())
@@ -2074,6 +2217,30 @@ pub struct TipState {
     pub rot: [[f64; 3]; 3],
     pub q: [f64; 3],
     pub w: [f64; 3],
+}
+
+/// The stored energy density at a stage with fields `f` (v, u first) at arc length `s`
+/// from its section's start: the law's ([`elastic_density`]) plus the tendons' potential
+/// sum tau_i (|q_i| - |q_i0|) (`crate::tendon::energy`), whose gradient is the tendons'
+/// part of the total internal force and moment.
+fn stored_density(m: &SectionModel, f: &[f64; FIELDS], s: f64) -> f64 {
+    let e = elastic_density(m, &[f[0], f[1], f[2]], &[f[3], f[4], f[5]]);
+    if m.tendons.is_empty() {
+        return e;
+    }
+    let points: Vec<crate::tendon::TendonPoint> = m
+        .tendons
+        .iter()
+        .map(|t| {
+            let (r, dr) = t.route.at(s);
+            crate::tendon::TendonPoint {
+                tension: t.tension,
+                r,
+                dr,
+            }
+        })
+        .collect();
+    e + crate::tendon::energy(&[f[0], f[1], f[2], f[3], f[4], f[5]], &points)
 }
 
 /// The stored energy density of a section's law at strains (v, u), J/m, such that its

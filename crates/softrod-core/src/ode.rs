@@ -85,6 +85,9 @@ pub struct Coeffs<C> {
     pub follower: bool,
     /// The section's tendons under tension in this solve.
     pub tendons: Vec<TendonCoeff<C>>,
+    /// Radius that scales curvatures to strains in the tendon law's convergence test: the
+    /// section's outermost fibre radius (1 % of its length without one), m.
+    pub tendon_radius: f64,
     /// What a varying section needs to rebuild its law at any s; None if uniform.
     pub inputs: Option<Box<LawInputs<C>>>,
     /// The rod's obstacles (`crate::contact`): a line load that depends on the position.
@@ -349,6 +352,11 @@ impl<C: RodScalar> Coeffs<C> {
                 .chain(&s.line_moment_body)
                 .any(|x| *x != 0.0),
             tendons,
+            tendon_radius: if s.fibre_radius > 0.0 {
+                s.fibre_radius
+            } else {
+                1e-2 * s.length
+            },
             inputs: s.is_varying().then(|| Box::new(inputs)),
             obstacles: rod.obstacles.clone(),
         }
@@ -863,7 +871,7 @@ fn general_tendon_strains<C: Coeff, D: StateScalar<C>>(
     s: f64,
     scratch: &mut Scratch,
 ) -> ([D; 3], [D; 3]) {
-    use crate::tendon::{load, load_jacobian, tangent, Mat6, Vec6};
+    use crate::tendon::{implicit_step, load_with, solve_implicit};
     let sb = c.stretch_bending;
     let lf = loc.value();
     let nbf = nb.map(|x| x.value());
@@ -891,72 +899,20 @@ fn general_tendon_strains<C: Coeff, D: StateScalar<C>>(
     } else {
         1e-2 * sec.length
     };
-    let size = |d: &[f64; 6]| -> f64 {
-        let mut m: f64 = 0.0;
-        for k in 0..6 {
-            let x = if k < 3 { d[k] } else { rho * d[k] };
-            m = if x.is_nan() { f64::NAN } else { m.max(x.abs()) };
-        }
-        m
-    };
-    let residual = |w: &[f64; 6], tangents: &mut Vec<([f64; 3], f64)>| -> [f64; 6] {
-        tangents.clear();
-        tangents.extend(points.iter().map(|p| tangent(w, p)));
-        let wn = law(&load(tangents, points));
-        std::array::from_fn(|k| w[k] - wn[k])
-    };
-    // The start: the last strains of this section, else straight tendons (t = e3).
-    let mut w = match scratch.hint {
-        Some(w) => w,
-        None => {
-            tangents.clear();
-            tangents.extend(points.iter().map(|_| ([0.0, 0.0, 1.0], 1.0)));
-            law(&load(tangents, points))
-        }
-    };
-    let mut r = residual(&w, tangents);
-    let mut rn = size(&r);
-    // Newton converges quadratically: a step of 1e-8 leaves ~1e-16.
-    const TOL: f64 = 1e-13;
     let plain = std::any::TypeId::of::<D>() == std::any::TypeId::of::<f64>();
-    let mut solved: Option<([f64; 6], Mat6)> = None;
-    for _ in 0..60 {
-        if !rn.is_finite() {
-            break;
-        }
-        // J = I + S' dT/dw at w.
-        let dt = load_jacobian(tangents, points);
-        let ft = load(tangents, points);
-        let sp = law_jacobian(&lf, sb, &nbf, &mbf, &ft);
-        let jac = Mat6::identity() + sp * dt;
-        let Some(step) = jac.lu().solve(&(-Vec6::from_column_slice(&r))) else {
-            break;
-        };
-        let d: [f64; 6] = std::array::from_fn(|k| step[k]);
-        let dn = size(&d);
-        if dn <= TOL || (plain && dn * dn <= 1e-2 * TOL) {
-            solved = Some((std::array::from_fn(|k| w[k] + d[k]), jac));
-            break;
-        }
-        // Backtrack on the residual (the law is the gradient of a convex function for the
-        // linear law, so a short enough Newton step always reduces it).
-        let mut alpha = 1.0;
-        loop {
-            let wt: [f64; 6] = std::array::from_fn(|k| w[k] + alpha * d[k]);
-            let rt = residual(&wt, tangents);
-            let rtn = size(&rt);
-            if rtn < rn || alpha < 1e-6 {
-                w = wt;
-                r = rt;
-                rn = rtn;
-                break;
-            }
-            alpha *= 0.5;
-        }
-    }
+    // Newton from the last strains of this section, else straight tendons (t = e3).
+    let solved = solve_implicit(
+        points,
+        tangents,
+        scratch.hint,
+        rho,
+        plain,
+        law,
+        |ft: &[f64; 6]| law_jacobian(&lf, sb, &nbf, &mbf, ft),
+    );
+    let nan = D::from(f64::NAN);
     let Some((ws, jac)) = solved else {
         scratch.hint = None;
-        let nan = D::from(f64::NAN);
         return ([nan; 3], [nan; 3]);
     };
     scratch.hint = Some(ws);
@@ -969,36 +925,15 @@ fn general_tendon_strains<C: Coeff, D: StateScalar<C>>(
     // Exact first derivatives (implicit function theorem): w_D = w* - J^-1 R_D(w*), with
     // R_D(w) = w - S_D(nb - F_t, mb - M_t) in the state's and coefficients' scalars at the
     // tangents of w* (their dependence on w is in J).
-    let Some(inv) = jac.try_inverse() else {
-        let nan = D::from(f64::NAN);
-        return ([nan; 3], [nan; 3]);
-    };
     let zero = D::from(0.0);
-    let mut ft = [zero; 6];
-    for (tc, p) in c.tendons.iter().zip(points.iter()) {
-        let (t, _) = tangent(&ws, p);
-        let (x, y) = (p.r[0], p.r[1]);
-        let tau = zero + tc.tension;
-        ft[0] += tau * t[0];
-        ft[1] += tau * t[1];
-        ft[2] += tau * t[2];
-        ft[3] += tau * (y * t[2]);
-        ft[4] -= tau * (x * t[2]);
-        ft[5] += tau * (x * t[1] - y * t[0]);
-    }
+    let ft: [D; 6] = load_with(c.tendons.iter().map(|tc| zero + tc.tension), points, &ws);
     let nm = [nb[0] - ft[0], nb[1] - ft[1], nb[2] - ft[2]];
     let mm = [mb[0] - ft[3], mb[1] - ft[4], mb[2] - ft[5]];
     let (v, u) = linear_strains(loc, sb, &nm, &mm);
-    let wd = [v[0], v[1], v[2], u[0], u[1], u[2]];
-    let rd: [D; 6] = std::array::from_fn(|k| D::from(0.0) + ws[k] - wd[k]);
-    let out: [D; 6] = std::array::from_fn(|i| {
-        let mut acc = D::from(ws[i]);
-        for k in 0..6 {
-            acc -= rd[k] * inv[(i, k)];
-        }
-        acc
-    });
-    ([out[0], out[1], out[2]], [out[3], out[4], out[5]])
+    match implicit_step(&ws, &jac, &[v[0], v[1], v[2], u[0], u[1], u[2]]) {
+        Some(out) => ([out[0], out[1], out[2]], [out[3], out[4], out[5]]),
+        None => ([nan; 3], [nan; 3]),
+    }
 }
 
 /// S' = d(v, u)/d(n_m, m_m) of the linear law (with stretch-dependent bending) at the

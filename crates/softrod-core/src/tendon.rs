@@ -259,3 +259,140 @@ impl Ldl6 {
         x
     }
 }
+
+/// The tendons' force and moment (F_t, M_t) = sum tau_i B_i^T t_i in any scalar: the
+/// tensions `taus` (one per point) in that scalar, the unit tangents t_i at the f64 strains
+/// `w` (their dependence on the strains is carried by the Jacobian of [`solve_implicit`]).
+#[inline]
+pub(crate) fn load_with<D: crate::jet::RodScalar>(
+    taus: impl Iterator<Item = D>,
+    points: &[TendonPoint],
+    w: &[f64; 6],
+) -> [D; 6] {
+    let zero = D::from(0.0);
+    let mut ft = [zero; 6];
+    for (tau, p) in taus.zip(points) {
+        let (t, _) = tangent(w, p);
+        let (x, y) = (p.r[0], p.r[1]);
+        ft[0] += tau * t[0];
+        ft[1] += tau * t[1];
+        ft[2] += tau * t[2];
+        ft[3] += tau * (y * t[2]);
+        ft[4] -= tau * (x * t[2]);
+        ft[5] += tau * (x * t[1] - y * t[0]);
+    }
+    ft
+}
+
+/// Newton's method in f64 on the implicit tendon law R(w) = w - S(F_t(w)) = 0, where
+/// `law(ft)` gives the strains S of the section's law without tendons from the body-frame
+/// force and moment less `ft` = (F_t, M_t), and `law_jacobian(ft)` its exact derivative S'
+/// with respect to that force and moment. The Jacobian is J = I + S' dT/dw
+/// ([`load_jacobian`]); steps are backtracked on the residual (for the linear law R is the
+/// gradient of a strictly convex function up to a positive definite factor, so a short
+/// enough Newton step always reduces it). Starts from `start`, else from straight tendons
+/// (t = e3). `rho` scales curvatures to strains in the convergence test (the section's
+/// outermost fibre radius); `plain` (f64 results only) accepts one step earlier, where the
+/// next step's size is below round-off. Returns the strains and J at them (for the
+/// implicit-function step of dual parts, [`implicit_step`]), None if Newton fails.
+/// Shared by the statics (`crate::ode`) and the collocation of dynamics
+/// (`crate::collocation`, where S is the Kelvin-Voigt law of a time step).
+pub(crate) fn solve_implicit(
+    points: &[TendonPoint],
+    tangents: &mut Vec<([f64; 3], f64)>,
+    start: Option<[f64; 6]>,
+    rho: f64,
+    plain: bool,
+    law: impl Fn(&[f64; 6]) -> [f64; 6],
+    law_jacobian: impl Fn(&[f64; 6]) -> Mat6,
+) -> Option<([f64; 6], Mat6)> {
+    let size = |d: &[f64; 6]| -> f64 {
+        let mut m: f64 = 0.0;
+        for k in 0..6 {
+            let x = if k < 3 { d[k] } else { rho * d[k] };
+            m = if x.is_nan() { f64::NAN } else { m.max(x.abs()) };
+        }
+        m
+    };
+    let residual = |w: &[f64; 6], tangents: &mut Vec<([f64; 3], f64)>| -> [f64; 6] {
+        tangents.clear();
+        tangents.extend(points.iter().map(|p| tangent(w, p)));
+        let wn = law(&load(tangents, points));
+        std::array::from_fn(|k| w[k] - wn[k])
+    };
+    let mut w = match start {
+        Some(w) => w,
+        None => {
+            tangents.clear();
+            tangents.extend(points.iter().map(|_| ([0.0, 0.0, 1.0], 1.0)));
+            law(&load(tangents, points))
+        }
+    };
+    let mut r = residual(&w, tangents);
+    let mut rn = size(&r);
+    // Newton converges quadratically: a step of 1e-8 leaves ~1e-16.
+    const TOL: f64 = 1e-13;
+    for _ in 0..60 {
+        if !rn.is_finite() {
+            break;
+        }
+        // J = I + S' dT/dw at w.
+        let dt = load_jacobian(tangents, points);
+        let ft = load(tangents, points);
+        let sp = law_jacobian(&ft);
+        let jac = Mat6::identity() + sp * dt;
+        let step = jac.lu().solve(&(-Vec6::from_column_slice(&r)))?;
+        let d: [f64; 6] = std::array::from_fn(|k| step[k]);
+        let dn = size(&d);
+        if dn <= TOL || (plain && dn * dn <= 1e-2 * TOL) {
+            return Some((std::array::from_fn(|k| w[k] + d[k]), jac));
+        }
+        let mut alpha = 1.0;
+        loop {
+            let wt: [f64; 6] = std::array::from_fn(|k| w[k] + alpha * d[k]);
+            let rt = residual(&wt, tangents);
+            let rtn = size(&rt);
+            if rtn < rn || alpha < 1e-6 {
+                w = wt;
+                r = rt;
+                rn = rtn;
+                break;
+            }
+            alpha *= 0.5;
+        }
+    }
+    None
+}
+
+/// Exact first derivatives of the implicit law's solution by the implicit function
+/// theorem: w_D = w* - J^-1 R_D(w*) with R_D = w* - `wd`, where `wd` is the law without
+/// tendons evaluated in the dual scalar at the force and moment less the tendons' load at
+/// w* ([`load_with`]). None if J is singular.
+pub(crate) fn implicit_step<D: crate::jet::RodScalar>(
+    ws: &[f64; 6],
+    jac: &Mat6,
+    wd: &[D; 6],
+) -> Option<[D; 6]> {
+    let inv = jac.try_inverse()?;
+    let rd: [D; 6] = std::array::from_fn(|k| D::from(0.0) + ws[k] - wd[k]);
+    Some(std::array::from_fn(|i| {
+        let mut acc = D::from(ws[i]);
+        for k in 0..6 {
+            acc -= rd[k] * inv[(i, k)];
+        }
+        acc
+    }))
+}
+
+/// The tendons' stored energy per unit length at strains w: sum tau_i (|q_i(w)| - |q_i0|),
+/// the work of the constant tensions on the tendons' extension relative to the straight
+/// rod (q_i0 = e3 + r_i'). Its gradient in w is (F_t, M_t), so with the elastic energy it
+/// is the potential whose gradient is the total internal force and moment (the dynamics'
+/// energy books).
+pub(crate) fn energy(w: &[f64; 6], points: &[TendonPoint]) -> f64 {
+    let straight = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
+    points
+        .iter()
+        .map(|p| p.tension * (tangent(w, p).1 - tangent(&straight, p).1))
+        .sum()
+}

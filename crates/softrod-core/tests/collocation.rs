@@ -410,6 +410,8 @@ fn collocation_stability_costs_less_than_the_solve() {
             inertia: [0.0; 3],
             force: ld.tip_force,
             moment: ld.tip_moment,
+            force_body: [0.0; 3],
+            moment_body: [0.0; 3],
         };
         let p = Problem::new(&rod, &grid, &models, 0.0, &hist, tip);
         let mut t_test = f64::INFINITY;

@@ -108,9 +108,11 @@ impl PySimulator {
     /// Start at t = 0 from `initial` ("static": at rest in equilibrium under `pressures`;
     /// "straight": at rest in the straight reference shape) with chamber pressures (Pa).
     /// `scheme`: "bdf-alpha" or "midpoint"; `error_tol` (m): adaptive steps; `sigma_const`
-    /// or `sigma_grid` = (axes, values, clamp): the stiffness map of mapped sections.
+    /// or `sigma_grid` = (axes, values, clamp): the stiffness map of mapped sections;
+    /// `tip_force`, `tip_moment`: tip loads at t = 0 in the design's tip frame; `tensions`:
+    /// tendon tensions at t = 0 (N, one per tendon channel; None: slack).
     #[new]
-    #[pyo3(signature = (spec_json, pressures, initial="static", dt=2e-3, alpha=-0.2, tol=1e-9, max_iter=25, scheme="bdf-alpha", error_tol=None, energy_tol=softrod_core::dynamics::DEFAULT_ENERGY_TOL, sigma_const=None, sigma_grid=None, tip_force=None, tip_moment=None))]
+    #[pyo3(signature = (spec_json, pressures, initial="static", dt=2e-3, alpha=-0.2, tol=1e-9, max_iter=25, scheme="bdf-alpha", error_tol=None, energy_tol=softrod_core::dynamics::DEFAULT_ENERGY_TOL, sigma_const=None, sigma_grid=None, tip_force=None, tip_moment=None, tensions=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -128,6 +130,7 @@ impl PySimulator {
         sigma_grid: Option<(Vec<Vec<f64>>, Vec<f64>, bool)>,
         tip_force: Option<[f64; 3]>,
         tip_moment: Option<[f64; 3]>,
+        tensions: Option<Vec<f64>>,
     ) -> PyResult<Self> {
         crate::guarded(py, || {
             let spec = crate::parse_spec(py, spec_json)?;
@@ -174,8 +177,11 @@ impl PySimulator {
             };
             let tf = tip_force.unwrap_or(rod.spec.tip.force);
             let tm = tip_moment.unwrap_or(rod.spec.tip.moment);
+            let tensions = tensions.unwrap_or_else(|| vec![0.0; rod.n_tendons]);
             let sim = py
-                .detach(|| Simulator::with_inputs(rod, &pressures, initial, opts, map, tf, tm))
+                .detach(|| {
+                    Simulator::with_tensions(rod, &pressures, &tensions, initial, opts, map, tf, tm)
+                })
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
             Ok(PySimulator { sim })
         })
@@ -262,6 +268,21 @@ impl PySimulator {
         self.sim.pressures().to_vec()
     }
 
+    /// Tendon tensions now (those of the next step), N.
+    #[getter]
+    fn tensions(&self) -> Vec<f64> {
+        self.sim.tensions().to_vec()
+    }
+
+    /// Tendon tensions (N, one per tendon channel, each >= 0) from the next step on.
+    fn set_tensions(&mut self, py: Python<'_>, tensions: Vec<f64>) -> PyResult<()> {
+        crate::guarded(py, || {
+            self.sim
+                .set_tensions(&tensions)
+                .map_err(|e| to_py_err(py, e, Context::Input))
+        })
+    }
+
     /// Steps taken, Newton iterations and exact Jacobians computed.
     #[getter]
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
@@ -277,7 +298,8 @@ impl PySimulator {
         })
     }
 
-    /// Dead tip force and moment (world, N and N m) from the next step on.
+    /// Tip force and moment (N and N m, in the design's tip frame: world for dead loads,
+    /// body for follower loads) from the next step on.
     fn set_tip_loads(&mut self, py: Python<'_>, force: [f64; 3], moment: [f64; 3]) -> PyResult<()> {
         crate::guarded(py, || {
             self.sim
@@ -301,18 +323,21 @@ impl PySimulator {
             let (tf, tm) = self.sim.tip_loads();
             d.set_item("tip_force", tf.to_vec())?;
             d.set_item("tip_moment", tm.to_vec())?;
+            d.set_item("tensions", self.sim.tensions().to_vec())?;
             d.set_item("energy_balance", self.sim.energy_balance())?;
             Ok(d)
         })
     }
 
     /// Take one step per row of `commands` (k, n_channels), Pa, the commanded pressures at
-    /// each new step time, with the dead tip loads of `tip_loads` (k, 6: force N, moment
-    /// N m, world) when given. After step j the state is kept when `keep[j]` is 1 (tip) or
-    /// 2 (tip and shape). Returns the kept samples as arrays.
+    /// each new step time, with the tip loads of `tip_loads` (k, 6: force N, moment N m, in
+    /// the design's tip frame) and the tendon tensions of `tensions` (k, tendon channels,
+    /// N) when given, held over each step. After step j the state is kept when `keep[j]` is
+    /// 1 (tip) or 2 (tip and shape). Returns the kept samples as arrays.
     /// `schedule` = (knot times, knot rows, step kind): the commands of steps inside an
     /// interval (substeps, adaptive steps) come from it at their own times.
-    #[pyo3(signature = (commands, keep, energy=true, tip_loads=None, schedule=None))]
+    #[pyo3(signature = (commands, keep, energy=true, tip_loads=None, schedule=None, tensions=None))]
+    #[allow(clippy::too_many_arguments)]
     fn run<'py>(
         &mut self,
         py: Python<'py>,
@@ -321,6 +346,7 @@ impl PySimulator {
         energy: bool,
         tip_loads: Option<PyReadonlyArray2<'_, f64>>,
         schedule: Option<(Vec<f64>, Vec<Vec<f64>>, bool)>,
+        tensions: Option<PyReadonlyArray2<'_, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         crate::guarded(py, || {
             let nc = self.sim.rod().n_channels;
@@ -370,10 +396,48 @@ impl PySimulator {
                     ));
                 }
             }
+            let tens = tensions.map(|a| a.as_array().to_owned());
+            let nt = self.sim.rod().n_tendons;
+            if let Some(t) = &tens {
+                if t.shape() != [shape[0], nt] {
+                    return Err(to_py_err(
+                        py,
+                        SoftrodError::invalid(
+                            "tensions",
+                            format!("shape {:?}", t.shape()),
+                            format!(
+                                "must be ({}, {nt}): one tension (N) per tendon channel per step",
+                                shape[0]
+                            ),
+                        ),
+                        Context::Input,
+                    ));
+                }
+                // Every row checked before any step (a bad value is refused before work).
+                for (j, row) in t.rows().into_iter().enumerate() {
+                    softrod_core::spec::validate_tensions(&row.to_vec(), nt).map_err(|e| {
+                        let e = match e {
+                            SoftrodError::InvalidParameter { field, value, rule } => {
+                                SoftrodError::InvalidParameter {
+                                    // Row j: "tensions[j][k]".
+                                    field: field.replacen("tensions", &format!("tensions[{j}]"), 1),
+                                    value,
+                                    rule,
+                                }
+                            }
+                            other => other,
+                        };
+                        to_py_err(py, e, Context::Input)
+                    })?;
+                }
+            }
             let sim = &mut self.sim;
             let result = py.detach(|| -> Result<Saved, SoftrodError> {
                 let mut saved = Saved::default();
                 for (j, (row, flag)) in cmd.rows().into_iter().zip(keep.iter()).enumerate() {
+                    if let Some(t) = &tens {
+                        sim.set_tensions(&t.row(j).to_vec())?;
+                    }
                     if let Some(l) = &loads {
                         sim.set_tip_loads(
                             [l[[j, 0]], l[[j, 1]], l[[j, 2]]],

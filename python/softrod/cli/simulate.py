@@ -108,6 +108,13 @@ def _seconds(text: str, option: str, *, positive: bool = True) -> float:
     "energy moved stops the run with an error.",
 )
 @click.option(
+    "--tension",
+    metavar="T1,T2,...",
+    help="Tendon tension per tendon channel (>= 0), comma-separated, e.g. 2N,0 (units "
+    "required, zero needs none), held over the run; the static start balances it. "
+    "Default: every tendon slack.",
+)
+@click.option(
     "--out",
     required=True,
     type=click.Path(dir_okay=False, path_type=Path),
@@ -162,6 +169,7 @@ def simulate_cmd(
     alpha,
     error_tol,
     energy_tol,
+    tension,
     out,
     animation,
     fps,
@@ -225,6 +233,7 @@ def simulate_cmd(
             "--alpha": (alpha, -0.2),
             "--error-tol": (error_tol, None),
             "--energy-tol": (energy_tol, 0.02),
+            "--tension": (tension, None),
         }
         for option, (value, default) in defaults.items():
             if value != default:
@@ -234,11 +243,14 @@ def simulate_cmd(
     else:
         what = f"Cosserat rod, damping time {d.spec['dynamics']['damping_time']:g} s"
         tol_m = None if error_tol is None else _quantity(error_tol, "length", "--error-tol")
+        from .statics import _parse_tensions
+
         rod_options = {
             "scheme": scheme,
             "alpha": alpha,
             "error_tol": tol_m,
             "energy_tol": energy_tol,
+            "tensions": _parse_tensions(tension, d),
         }
     _say(
         f"{d.name}: {duration:g} s at dt = {step * 1e3:g} ms "

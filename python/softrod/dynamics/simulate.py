@@ -9,6 +9,7 @@ runs can show progress, and packs the result into a :class:`~softrod.dynamics.Tr
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import logging
@@ -39,6 +40,8 @@ if TYPE_CHECKING:
     TipLoad = (
         tuple[ArrayLike, ArrayLike] | Callable[[float], tuple[ArrayLike, ArrayLike]]
     )
+    # Tendon tensions (N, one per tendon channel): held constant, or a function of t.
+    Tensions = ArrayLike | Callable[[float], ArrayLike]
 
 __all__ = ["METHOD", "SCHEMES", "Simulation", "SimulationState", "simulate"]
 
@@ -146,8 +149,9 @@ class SimulationState:
     controller reads; ``data`` holds everything the core needs to continue exactly
     (:meth:`Simulation.restore` reproduces the run from here bit for bit).
 
-    ``time`` s; ``pressure`` (c,) Pa (actual chamber pressures); ``tip_force``,
-    ``tip_moment`` (3,) N, N m (dead tip loads now, world); ``tip_position`` (3,) m,
+    ``time`` s; ``pressure`` (c,) Pa (actual chamber pressures); ``tensions`` (k,) N
+    (tendon tensions now); ``tip_force``, ``tip_moment`` (3,) N, N m (tip loads now, in the
+    design's tip frame: world for dead loads, body for follower loads); ``tip_position`` (3,) m,
     ``tip_rotation`` (3, 3) [d1 d2 d3], ``tip_velocity`` (3,) m/s; ``base_force``,
     ``base_moment`` (3,) N, N m; ``shape_s`` (p,) m and ``shape_position`` (p, 3) m (the
     centreline at the nodes); ``energy`` J (kinetic + elastic + potential) and its books
@@ -177,6 +181,7 @@ class SimulationState:
     dissipated: float
     energy_balance: float
     data: np.ndarray
+    tensions: np.ndarray = dataclasses.field(default_factory=lambda: _ro(np.zeros(0)))
 
     def __repr__(self) -> str:
         tip = ", ".join(f"{x * 1e3:.2f}" for x in self.tip_position)
@@ -277,7 +282,10 @@ class Simulation:
     the largest estimated local error of the node positions per step (m or a string such
     as "0.1 mm"); each ``dt`` is then split into as many steps as that needs. ``energy_tol``:
     the energy check's tolerance (fraction of the energy moved). ``stiffness_map``: the
-    StiffnessMap of a design with mapped sections (constant or PCHIP table).
+    StiffnessMap of a design with mapped sections (constant or PCHIP table). ``tensions``:
+    tendon tensions at t = 0 (N or strings with units, one per tendon channel, each >= 0;
+    None: slack); the static start balances them, and :meth:`set_tensions` or the
+    ``tensions`` of :meth:`step` and :meth:`run` change them.
     """
 
     def __init__(
@@ -294,14 +302,16 @@ class Simulation:
         error_tol: Quantity | None = None,
         energy_tol: float = DEFAULT_ENERGY_TOL,
         stiffness_map: StiffnessMap | None = None,
+        tensions: ArrayLike | None = None,
         _tip_loads0: Sequence[float] | None = None,
     ) -> None:
-        from ..statics import _pressures
+        from ..statics import _pressures, _tensions
 
         self.design: Design = load_design(design)
         require_free_tip(self.design, "simulate")
         n = self.design.n_channels
         p = [0.0] * n if pressures is None else _pressures(self.design, pressures)
+        t0 = _tensions(self.design, tensions)
         V.choice(initial, ("static", "straight"), "initial")
         opts = _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol)
         self._sim = _core.Simulator(
@@ -316,6 +326,7 @@ class Simulation:
                 if _tip_loads0 is None
                 else {"tip_force": list(_tip_loads0[:3]), "tip_moment": list(_tip_loads0[3:])}
             ),
+            tensions=t0,
         )
         self.initial = initial
         self.options = opts
@@ -351,6 +362,19 @@ class Simulation:
         return np.asarray(self._sim.pressures)
 
     @property
+    def tensions(self) -> np.ndarray:
+        """Tendon tensions now (those of the next step), N."""
+        return np.asarray(self._sim.tensions, dtype=float)
+
+    def set_tensions(self, tensions: ArrayLike | None) -> None:
+        """Tendon tensions (N or strings with units, one per tendon channel, each >= 0;
+        None: slack) from the next step on, held until changed. The energy books count
+        their work (docs/dynamics.md)."""
+        from ..statics import _tensions
+
+        self._sim.set_tensions(_tensions(self.design, tensions))
+
+    @property
     def stats(self) -> dict:
         """Steps (calls), internal (time) steps, rejected steps, Newton iterations and exact
         Jacobians so far."""
@@ -379,6 +403,7 @@ class Simulation:
             **{k: float(d[k][0]) for k in ENERGY_PARTS},
             energy_balance=float(d["energy_balance"]),
             data=ro(self._sim.save()),
+            tensions=ro(d["tensions"]),
         )
 
     def restore(self, state: SimulationState) -> None:
@@ -401,22 +426,27 @@ class Simulation:
     def set_tip_loads(
         self, force: ArrayLike = (0.0, 0.0, 0.0), moment: ArrayLike = (0.0, 0.0, 0.0)
     ) -> None:
-        """Dead tip force (N) and moment (N m), world frame, from the next step on."""
+        """Tip force (N) and moment (N m) from the next step on, in the design's tip frame
+        (``[tip] frame``: world for dead loads, body for follower loads)."""
         from ..statics import _vec3
 
         f = _vec3(force, "force", "force", None)
         m = _vec3(moment, "moment", "moment", None)
         self._sim.set_tip_loads(f, m)
 
-    def step(self, command: ArrayLike | None = None) -> None:
+    def step(self, command: ArrayLike | None = None, *, tensions: ArrayLike | None = None) -> None:
         """One time step towards the commanded pressures ``command`` (Pa; None for a design
-        without chambers)."""
-        from ..statics import _pressures
+        without chambers), with the tendon ``tensions`` (N, one per tendon channel) from
+        this step on when given (None keeps the current ones; see :meth:`set_tensions`)."""
+        from ..statics import _pressures, _tensions
 
         if command is None and self.design.n_channels == 0:
             c = np.zeros((1, 0))
         else:
             c = np.asarray([_pressures(self.design, command)], dtype=float)
+        if tensions is not None:
+            # Checked (with the pressures) before anything changes.
+            self._sim.set_tensions(_tensions(self.design, tensions))
         self._sim.run(c, np.zeros(1, dtype=np.uint8), False)
 
     def run(
@@ -428,11 +458,13 @@ class Simulation:
         shapes: str | float | Sequence[float] | None = None,
         energy: bool = True,
         tip_load: TipLoad | None = None,
+        tensions: Tensions | None = None,
         progress: Callable[[float, float, float], None] | None = None,
     ) -> Trajectory:
         """Advance by ``duration`` (s) under ``pressure_schedule`` (evaluated on this
         simulation's clock; None for a design without chambers) and return the trajectory
-        from the current time on; see :func:`simulate` for the arguments."""
+        from the current time on; see :func:`simulate` for the arguments (``tensions``:
+        None keeps the current tensions)."""
         dt = self.dt
         duration = _seconds(duration, "t_end")
         n = step_count(duration, dt)
@@ -476,6 +508,7 @@ class Simulation:
                 times = t0 + dt * np.arange(start + 1, stop + 1)
                 commands = commands_at(times)
                 loads = _tip_loads(tip_load, times)
+                tens = _tension_rows(self.design, tensions, times)
                 kept_commands.append(commands[keep[start:stop] >= 1])
                 parts.append(
                     self._sim.run(
@@ -484,6 +517,7 @@ class Simulation:
                         bool(energy),
                         None if loads is None else np.ascontiguousarray(loads),
                         table,
+                        None if tens is None else np.ascontiguousarray(tens),
                     )
                 )
                 spent = _time.perf_counter() - t_chunk
@@ -556,7 +590,9 @@ def _vector(value, field: str, kind: str) -> list[float]:
     from ..statics import _vec3
 
     if value is None:
-        raise design_error(field, value, f"must be 3 {kind} values (world frame)", InputError)
+        raise design_error(
+            field, value, f"must be 3 {kind} values (in the design's tip frame)", InputError
+        )
     return _vec3(value, kind, field, None)
 
 
@@ -591,6 +627,44 @@ def _tip_loads(tip_load, times: np.ndarray) -> np.ndarray | None:
         "must be None, a pair (force in N, moment in N m) or a function of t (s) returning one",
         InputError,
     )
+
+
+def _tension_rows(design: Design, tensions, times: np.ndarray) -> np.ndarray | None:
+    """(n, tendon channels) tendon tensions (N) at the step times, or None (keep the
+    current ones). ``tensions``: None, tensions held constant (N or strings with units, one
+    per tendon channel), or a function of t (s) returning them; every value finite and
+    >= 0, checked before any step."""
+    from ..statics import _check_tension_values, _tensions
+
+    if tensions is None:
+        return None
+    k = design.n_tendons
+    if callable(tensions):
+        rows = []
+        for t in times:
+            field = f"tensions(t = {t:g} s)"
+            raw = tensions(float(t))
+            if k == 0:
+                raise design_error(
+                    "tensions",
+                    "a function",
+                    f"design {design.name!r} has no tendons ([[sections.tendons]]); leave "
+                    "tensions out",
+                    InputError,
+                )
+            arr = V.real_array(raw, field, ndim=1, unit_kind="force", what="tendon tensions (N)")
+            if arr.shape != (k,):
+                raise design_error(
+                    field,
+                    f"{arr.size} values",
+                    f"the design has {k} tendon channel(s); return one tension (N) per channel",
+                    InputError,
+                )
+            _check_tension_values(arr, field)
+            rows.append(arr)
+        return np.array(rows, dtype=float).reshape(len(times), k)
+    row = _tensions(design, tensions)
+    return np.tile(np.array(row, dtype=float), (len(times), 1)).reshape(len(times), k)
 
 
 def _shape_steps(shapes, n: int, dt: float, save_every: int) -> tuple[np.ndarray, bool]:
@@ -635,6 +709,7 @@ def simulate(
     energy_tol: float = DEFAULT_ENERGY_TOL,
     stiffness_map: StiffnessMap | None = None,
     tip_load: TipLoad | None = None,
+    tensions: Tensions | None = None,
     energy: bool = True,
     progress: Callable[[float, float, float], None] | None = None,
 ) -> Trajectory:
@@ -663,10 +738,17 @@ def simulate(
       ``stiffness_map``: the rod's integrator settings, see :class:`Simulation` (the PCC
       model uses the implicit midpoint rule; its ``tol`` default is 1e-11 on the Newton
       update per coordinate scale, and it takes none of the others).
-    - ``tip_load``: dead tip force (N) and moment (N m), world frame, over time: None (the
+    - ``tip_load``: tip force (N) and moment (N m) over time, in the design's tip frame
+      (``[tip] frame``: world for dead loads, ``"body"`` for follower loads): None (the
       design's ``[tip]`` loads), a pair ``(force, moment)``, or a function of t (s)
       returning one (sampled at the step times, like the schedule). With it, designs
       without chambers simulate.
+    - ``tensions``: tendon tensions (N, one per tendon channel, each >= 0; Rucker and
+      Webster's frictionless tendons, docs/dynamics.md) over time: None (slack), tensions
+      held constant (numbers in N or strings with units), or a function of t (s)
+      returning them (sampled at the step times and held over each step). The static start
+      balances the tensions at t = 0; every value is checked before the first step. With
+      them, designs without chambers simulate.
     - ``energy``: also record the energy and its books (J).
     - ``progress``: None (a bar in interactive sessions), True, False, or a callable called
       after each chunk of steps as progress(t_done, t_end, wall_s); see
@@ -686,6 +768,7 @@ def simulate(
             "energy_tol": (energy_tol, DEFAULT_ENERGY_TOL),
             "stiffness_map": (stiffness_map, None),
             "tip_load": (tip_load, None),
+            "tensions": (tensions, None),
         }
         for name, (value, default) in rod_only.items():
             if value is not default and value != default:
@@ -726,6 +809,7 @@ def simulate(
                 InputError,
             )
         first = None if tip_load is None else _tip_loads(tip_load, np.zeros(1))[0]
+        tens0 = _tension_rows(d, tensions, np.zeros(1))
         sim = Simulation(
             d,
             p0,
@@ -738,6 +822,7 @@ def simulate(
             error_tol=error_tol,
             energy_tol=energy_tol,
             stiffness_map=stiffness_map,
+            tensions=None if tens0 is None else tens0[0],
             _tip_loads0=first,
         )
         pressure_schedule = schedule
@@ -748,6 +833,7 @@ def simulate(
         shapes=shapes,
         energy=energy,
         tip_load=tip_load,
+        tensions=tensions,
         progress=progress,
     )
 

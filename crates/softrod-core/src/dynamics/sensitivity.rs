@@ -106,6 +106,17 @@ impl Simulator {
                 "parameter sensitivities are implemented for 'bdf-alpha'",
             );
         }
+        if self.follower_tip() || self.rod.spec.has_follower_line_loads() {
+            return refuse(
+                if self.follower_tip() {
+                    "tip.frame"
+                } else {
+                    "loads.frame"
+                },
+                "body".into(),
+                "dynamic parameter sensitivities do not carry follower (body-frame) loads yet",
+            );
+        }
         if let Some(e) = self.opts.error_tol {
             return refuse(
                 "error_tol",
@@ -114,6 +125,13 @@ impl Simulator {
             );
         }
         for (i, s) in self.rod.sections.iter().enumerate() {
+            if !s.tendons.is_empty() {
+                return refuse(
+                    &format!("sections[{i}].tendons"),
+                    s.name.clone(),
+                    "dynamic parameter sensitivities do not carry tendons yet (the tendon law's parameter derivatives are not implemented)",
+                );
+            }
             if !s.rigid && !matches!(s.law.axial, crate::rod::AxialLaw::Linear) {
                 return refuse(
                     &format!("sections[{i}].law.axial"),
@@ -198,7 +216,7 @@ impl Simulator {
             own: None,
         };
         // The start: equilibrium at rest (c0 = 0, no history) under the first pressures.
-        let models = self.models_at(&self.pressures, &self.sigma, 0.0);
+        let models = self.models_at(&self.pressures, &self.tensions, &self.sigma, 0.0);
         let hist = vec![[0.0; FIELDS]; n_slots];
         let tip = self.tip_body(self.tip_force, self.tip_moment);
         let problem = Problem::new(&self.rod, &self.grid, &models, 0.0, &hist, tip);

@@ -48,12 +48,18 @@ pub fn static_models(rod: &Rod, loads: &crate::ode::Loads, factor: f64) -> Vec<S
 
 fn static_tip(rod: &Rod, loads: &crate::ode::Loads, factor: f64) -> TipBody {
     let t = &rod.spec.tip;
+    let force = loads.tip_force.map(|f| f * factor);
+    let moment = loads.tip_moment.map(|m| m * factor);
+    let z = [0.0; 3];
+    let body = loads.tip_frame == crate::spec::Frame::Body;
     TipBody {
         mass: t.mass,
         com: t.com_offset,
         inertia: [0.0; 3],
-        force: loads.tip_force.map(|f| f * factor),
-        moment: loads.tip_moment.map(|m| m * factor),
+        force: if body { z } else { force },
+        moment: if body { z } else { moment },
+        force_body: if body { force } else { z },
+        moment_body: if body { moment } else { z },
     }
 }
 
@@ -368,15 +374,17 @@ impl StaticSolution {
             .iter()
             .enumerate()
             .map(|(j, y)| {
-                let sec = if j == 0 {
-                    0
+                // Node j >= 1 ends interval j - 1 (its section's law, at its local end).
+                let (sec, s) = if j == 0 {
+                    (0, 0.0)
                 } else {
-                    grid.intervals[j - 1].section
+                    let iv = &grid.intervals[j - 1];
+                    (iv.section, iv.s_local + iv.h)
                 };
                 let rot = rotation(&y[IQ..IQ + 4]);
                 let nb = mat_t_vec(&rot, &[y[IN], y[IN + 1], y[IN + 2]]);
                 let mb = mat_t_vec(&rot, &[y[IM], y[IM + 1], y[IM + 2]]);
-                models[sec].strains(&nb, &mb, &zero, 0.0)
+                models[sec].strains(&nb, &mb, &zero, 0.0, s)
             })
             .collect()
     }

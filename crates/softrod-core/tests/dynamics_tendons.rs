@@ -1,0 +1,449 @@
+//! Tendons and follower loads in dynamics (issue 17): the collocation dynamics carries the
+//! implicit tendon law of the statics (Rucker and Webster 2011; `crate::tendon`) with
+//! Kelvin-Voigt damping, and follower (body-frame) tip and line loads. A damped run under
+//! constant tensions (or follower loads) settles on the static equilibrium of the same
+//! discretisation (collocation statics) to 1e-9 L; the exact Jacobian of a step matches
+//! finite differences; the energy balance E - E(0) = W_in - D holds with the tendons'
+//! potential and the work of changing tensions, and with the work of follower loads; bad
+//! tensions are refused with the field named.
+
+mod common;
+
+use common::*;
+use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
+use softrod_core::ode::Loads;
+use softrod_core::spec::{DesignSpec, Frame, LineLoadSpec, TendonSpec};
+use softrod_core::statics::collocation::solve_static;
+use softrod_core::statics::{solve, SolverOptions};
+use softrod_core::Rod;
+
+const HANGING: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
+const LENGTH: f64 = 0.134;
+const P: [f64; 3] = [20e3, 0.0, 10e3];
+const T: [f64; 2] = [4.0, 1.5];
+
+fn tendon(channel: usize, distance: f64, angle_deg: f64) -> TendonSpec {
+    TendonSpec {
+        channel,
+        distance,
+        angle: angle_deg.to_radians(),
+        distance_end: None,
+        angle_end: None,
+    }
+}
+
+/// Paper 002's hanging actuator with two tendons (as tests/tendons.rs' arm): tendon 0 in
+/// the base cap and the body (helical there when `helical`), tendon 1 through all three
+/// sections; `stretch_bending` sets the body's law to paper 004's (the tendon law's
+/// general, non-quadratic branch). Damping time `tau`.
+fn tendon_arm(helical: bool, stretch_bending: bool, steps: usize, tau: f64) -> DesignSpec {
+    let mut spec = p002_actuator(HANGING, 9.81, steps);
+    let mut spiral = tendon(0, 0.017, 30.0);
+    if helical {
+        spiral.angle_end = Some(330f64.to_radians());
+        spiral.distance_end = Some(0.014);
+    }
+    spec.sections[0].tendons = vec![tendon(0, 0.017, 30.0), tendon(1, 0.016, 150.0)];
+    spec.sections[1].tendons = vec![spiral, tendon(1, 0.016, 150.0)];
+    spec.sections[2].tendons = vec![tendon(1, 0.016, 150.0)];
+    spec.sections[1].law.stretch_bending = stretch_bending;
+    spec.sections[1].c_b = 1.31;
+    spec.dynamics.damping_time = tau;
+    spec
+}
+
+fn cases() -> [(&'static str, bool, bool); 3] {
+    [
+        ("straight", false, false),
+        ("helical", true, false),
+        ("helical, stretch bending", true, true),
+    ]
+}
+
+fn tensioned(p: &[f64], t: &[f64]) -> Loads {
+    Loads {
+        tensions: t.to_vec(),
+        ..loads(p)
+    }
+}
+
+fn tight() -> SolverOptions {
+    SolverOptions {
+        tol: 1e-12,
+        ..Default::default()
+    }
+}
+
+fn start(rod: &Rod, p: &[f64], t: &[f64], opts: DynOptions) -> Simulator {
+    let (f, m) = (rod.spec.tip.force, rod.spec.tip.moment);
+    Simulator::with_tensions(
+        rod.clone(),
+        p,
+        t,
+        Initial::Static,
+        opts,
+        SigmaMap::None,
+        f,
+        m,
+    )
+    .unwrap()
+}
+
+/// From rest, slack, to tensions T (and pressures P) held for 3 s with tau = 0.05 s: as
+/// tests/dynamics_laws.rs, the run settles on collocation statics with the same tensions to
+/// 1e-9 L, and on the shooting statics to the two discretisations' difference.
+#[test]
+fn damped_tendon_runs_settle_on_statics() {
+    for (name, helical, sb) in cases() {
+        let rod = Rod::new(tendon_arm(helical, sb, 8, 0.05)).unwrap();
+        let opts = DynOptions {
+            dt: 5e-3,
+            tol: 1e-12,
+            ..Default::default()
+        };
+        let mut sim = start(&rod, &[0.0; 3], &[0.0; 2], opts);
+        let begin = sim.tip().r;
+        sim.set_tensions(&T).unwrap();
+        for _ in 0..600 {
+            sim.step(&P).unwrap();
+        }
+        let ld = tensioned(&P, &T);
+        let st = solve_static(&rod, &ld, None, &tight()).unwrap();
+        let shot = solve(&rod, &ld, None, &tight()).unwrap();
+        let d = dist(&sim.tip().r, st.evaluated.node_r.last().unwrap());
+        let ds = dist(&sim.tip().r, &shot.tip.r);
+        let moved = dist(&sim.tip().r, &begin);
+        eprintln!(
+            "{name}: moved {moved:.4e} m; off collocation statics {d:.3e} m, off shooting {ds:.3e} m; balance {:.2e} J, work in {:.2e} J",
+            sim.energy_balance(),
+            sim.energy_books().work_in
+        );
+        assert!(moved > 2e-3, "{name}: the tensions move the tip");
+        assert!(d < 1e-9 * LENGTH, "{name}: {d}");
+        // Shooting (RK4) and collocation differ by their O(h^4) discretisation errors at 8
+        // steps per section (largest for the helical route: 5e-6 L).
+        assert!(ds < 2e-5 * LENGTH, "{name}: {ds}");
+    }
+}
+
+/// The full collocation residual of the next step with tendons under tension, at a point
+/// off the solution, against central differences (as tests/dynamics_laws.rs).
+fn check_step_jacobian(name: &str, sim: &Simulator) {
+    let z: Vec<f64> = sim
+        .unknowns()
+        .iter()
+        .enumerate()
+        .map(|(k, v)| v * 1.01 + 1e-3 * ((k % 7) as f64 - 3.0) * v.abs().max(1e-3))
+        .collect();
+    let (_, jac) = sim.step_residual_and_jacobian(&z);
+    let n = z.len();
+    let mut worst: f64 = 0.0;
+    for j in 0..n {
+        let h = 1e-6 * z[j].abs().max(1e-3);
+        let (mut zp, mut zm) = (z.clone(), z.clone());
+        zp[j] += h;
+        zm[j] -= h;
+        let (rp, _) = sim.step_residual_and_jacobian(&zp);
+        let (rm, _) = sim.step_residual_and_jacobian(&zm);
+        for i in 0..n {
+            let fd = (rp[i] - rm[i]) / (zp[j] - zm[j]);
+            let scale = (0..n)
+                .map(|k| (jac[i][k] * z[k].abs().max(1e-3)).abs())
+                .fold(0.0, f64::max);
+            let err = (fd - jac[i][j]).abs() * z[j].abs().max(1e-3) / scale.max(1e-300);
+            worst = worst.max(err);
+            assert!(
+                err <= 1e-6,
+                "{name}: J[{i}][{j}] = {} vs FD {fd}",
+                jac[i][j]
+            );
+        }
+    }
+    eprintln!("{name}: worst relative Jacobian error {worst:.2e} over {n} unknowns");
+}
+
+#[test]
+fn step_jacobian_with_tendons_matches_finite_differences() {
+    for (name, helical, sb) in cases() {
+        let rod = Rod::new(tendon_arm(helical, sb, 2, 0.05)).unwrap();
+        let mut sim = start(&rod, &[0.0; 3], &[0.0; 2], DynOptions::default());
+        sim.set_tensions(&T).unwrap();
+        for _ in 0..10 {
+            sim.step(&P).unwrap();
+        }
+        check_step_jacobian(name, &sim);
+    }
+}
+
+/// Undamped and lightly damped runs driven by the tendons: a jump of the tensions, a ramp
+/// and a release. The energy balance counts the tendons' potential sum tau (|q| - |q0|) and
+/// the work of changing tensions: with the midpoint rule (no numerical damping) |E - E(0) -
+/// W_in + D| stays within 1 % of the energy moved at every step (measured 0.1 %) and the
+/// swing under constant tensions keeps its energy to 1 %; BDF-alpha may only lose energy
+/// (its numerical damping of the modes the jump excites), never gain more than 1 %.
+#[test]
+fn tendon_runs_keep_their_energy_balance() {
+    for (scheme, alpha, tau) in [
+        (Scheme::Midpoint, -0.2, 0.0),
+        (Scheme::BdfAlpha, -0.2, 0.0),
+        (Scheme::BdfAlpha, -0.45, 0.005),
+    ] {
+        let rod = Rod::new(tendon_arm(true, false, 4, tau)).unwrap();
+        let opts = DynOptions {
+            dt: 2e-3,
+            scheme,
+            alpha,
+            ..Default::default()
+        };
+        let mut sim = start(&rod, &[0.0; 3], &[0.0; 2], opts);
+        let mut worst: f64 = 0.0;
+        let mut moved: f64 = 0.0;
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for k in 0..400 {
+            let t = (k + 1) as f64 * 2e-3;
+            // Jump to T at once, ramp tendon 1 up over 0.2-0.4 s, hold, release at 0.6 s.
+            let t1 = if t < 0.2 {
+                T[1]
+            } else {
+                T[1] * (1.0 + 2.0 * ((t - 0.2) / 0.2).min(1.0))
+            };
+            let tens = if t < 0.6 { [T[0], t1] } else { [0.0, 0.0] };
+            sim.set_tensions(&tens).unwrap();
+            sim.step(&[0.0; 3]).unwrap();
+            let b = sim.energy_books();
+            moved = moved.max(b.work_in.abs() + b.dissipated + b.kinetic);
+            // Growth is what the check forbids; BDF-alpha's numerical damping (a loss) is
+            // not, so only the midpoint rule is held to |balance|.
+            let b = sim.energy_balance();
+            worst = worst.max(if scheme == Scheme::Midpoint {
+                b.abs()
+            } else {
+                b
+            });
+            if (0.45..0.6).contains(&t) {
+                lo = lo.min(sim.energy());
+                hi = hi.max(sim.energy());
+            }
+        }
+        let b = sim.energy_books();
+        eprintln!(
+            "{}, alpha {alpha}, tau {tau}: worst |balance| {worst:.3e} J of {moved:.3e} J moved; work in {:.3e} J, dissipated {:.3e} J; constant-tension energy range {:.3e} J",
+            scheme.name(),
+            b.work_in,
+            b.dissipated,
+            hi - lo
+        );
+        assert!(b.work_in.abs() > 1e-4, "the tensions do work");
+        assert!(worst <= 1e-2 * moved, "balance {worst} of {moved}");
+        if scheme == Scheme::Midpoint {
+            assert!(hi - lo <= 1e-2 * moved, "{lo}..{hi}");
+        }
+    }
+}
+
+#[test]
+fn bad_tensions_are_refused_with_the_field_named() {
+    let rod = Rod::new(tendon_arm(false, false, 2, 0.05)).unwrap();
+    let mut sim = start(&rod, &[0.0; 3], &[0.0; 2], DynOptions::default());
+    for (t, field) in [
+        (vec![1.0, -0.5], "tensions[1]"),
+        (vec![f64::NAN, 0.0], "tensions[0]"),
+        (vec![1.0], "tensions"),
+    ] {
+        let err = sim.set_tensions(&t).unwrap_err().to_string();
+        assert!(err.contains(field), "{err}");
+    }
+    assert_eq!(sim.tensions(), &[0.0, 0.0]);
+    let (f, m) = (rod.spec.tip.force, rod.spec.tip.moment);
+    let err = Simulator::with_tensions(
+        rod,
+        &[0.0; 3],
+        &[0.5, f64::INFINITY],
+        Initial::Static,
+        DynOptions::default(),
+        SigmaMap::None,
+        f,
+        m,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("tensions[1]"), "{err}");
+    // The straight start is at rest with slack tendons.
+    let rod = Rod::new(tendon_arm(false, false, 2, 0.05)).unwrap();
+    let err = Simulator::with_tensions(
+        rod.clone(),
+        &[0.0; 3],
+        &[0.0, 0.5],
+        Initial::Straight,
+        DynOptions::default(),
+        SigmaMap::None,
+        f,
+        m,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("tensions[1]") && err.contains("straight"),
+        "{err}"
+    );
+    let mut sim = Simulator::with_tensions(
+        rod,
+        &[0.0; 3],
+        &[0.0, 0.0],
+        Initial::Straight,
+        DynOptions::default(),
+        SigmaMap::None,
+        f,
+        m,
+    )
+    .unwrap();
+    sim.set_tensions(&[0.0, 0.5]).unwrap();
+    sim.step(&[0.0; 3]).unwrap();
+}
+
+#[test]
+fn restored_tendon_run_continues_bit_for_bit() {
+    let rod = Rod::new(tendon_arm(true, false, 4, 0.05)).unwrap();
+    let mut sim = start(&rod, &[0.0; 3], &T, DynOptions::default());
+    sim.set_tensions(&[2.0, 0.1]).unwrap();
+    for _ in 0..5 {
+        sim.step(&P).unwrap();
+    }
+    let saved = sim.save();
+    let mut other = start(&rod, &[0.0; 3], &[0.0; 2], DynOptions::default());
+    other.restore(&saved).unwrap();
+    assert_eq!(other.tensions(), sim.tensions());
+    for _ in 0..5 {
+        sim.step(&P).unwrap();
+        other.step(&P).unwrap();
+    }
+    assert_eq!(sim.unknowns(), other.unknowns());
+}
+
+/// A soft cantilever along the horizontal under gravity (paper 002's actuator, damped).
+fn horizontal_actuator(steps: usize, tau: f64) -> DesignSpec {
+    let mut spec = p002_actuator(HORIZONTAL, 9.81, steps);
+    spec.sections[1].c_b = 1.31;
+    spec.dynamics.damping_time = tau;
+    spec
+}
+
+fn follower_cases() -> Vec<(&'static str, DesignSpec)> {
+    let mut tip = horizontal_actuator(8, 0.05);
+    tip.tip.frame = Frame::Body;
+    tip.tip.force = [0.05, -0.03, -0.02];
+    tip.tip.moment = [0.0, 2e-3, 1e-3];
+    let mut line = horizontal_actuator(8, 0.05);
+    line.loads = vec![LineLoadSpec {
+        section: 1,
+        force_per_length: [0.4, 0.0, -0.2],
+        moment_per_length: [0.0, 0.0, 0.01],
+        frame: Frame::Body,
+    }];
+    vec![
+        ("follower tip force and moment", tip),
+        ("follower line load", line),
+    ]
+}
+
+/// A damped run from rest in equilibrium under the follower loads at 0 kPa, driven to P,
+/// settles on
+/// collocation statics with the same follower loads (1e-9 L) and on the shooting statics
+/// (to the discretisations' difference).
+#[test]
+fn damped_follower_runs_settle_on_statics() {
+    for (name, spec) in follower_cases() {
+        let rod = Rod::new(spec).unwrap();
+        let opts = DynOptions {
+            dt: 5e-3,
+            tol: 1e-12,
+            ..Default::default()
+        };
+        let (f, m) = (rod.spec.tip.force, rod.spec.tip.moment);
+        let mut sim = start(&rod, &[0.0; 3], &[], opts);
+        let begin = sim.tip().r;
+        let ld = Loads {
+            tip_force: f,
+            tip_moment: m,
+            tip_frame: rod.spec.tip.frame,
+            ..loads(&P)
+        };
+        for _ in 0..600 {
+            sim.step(&P).unwrap();
+        }
+        let st = solve_static(&rod, &ld, None, &tight()).unwrap();
+        let shot = solve(&rod, &ld, None, &tight()).unwrap();
+        let d = dist(&sim.tip().r, st.evaluated.node_r.last().unwrap());
+        let ds = dist(&sim.tip().r, &shot.tip.r);
+        let moved = dist(&sim.tip().r, &begin);
+        eprintln!(
+            "{name}: moved {moved:.4e} m; off collocation statics {d:.3e} m, off shooting {ds:.3e} m; balance {:.2e} J, work in {:.2e} J",
+            sim.energy_balance(),
+            sim.energy_books().work_in
+        );
+        assert!(moved > 1e-3, "{name}: the pressures move the tip");
+        assert!(d < 1e-9 * LENGTH, "{name}: {d}");
+        // The discretisations' difference, as for tendons (measured 1.4e-6 L).
+        assert!(ds < 2e-5 * LENGTH, "{name}: {ds}");
+    }
+}
+
+#[test]
+fn step_jacobian_with_follower_loads_matches_finite_differences() {
+    for (name, mut spec) in follower_cases() {
+        for s in &mut spec.sections {
+            s.steps = 2;
+        }
+        let rod = Rod::new(spec).unwrap();
+        let mut sim = start(&rod, &[0.0; 3], &[], DynOptions::default());
+        for _ in 0..10 {
+            sim.step(&P).unwrap();
+        }
+        check_step_jacobian(name, &sim);
+    }
+}
+
+/// Follower loads are not conservative: their power F_b . q + M_b . w (tip) and
+/// f_b . q + l_b . w (line) is integrated into W_in (trapezoidal rule in time). Lightly
+/// damped runs driven from rest keep the balance: the midpoint rule to 1 % of the energy
+/// moved (measured 4e-5), BDF-alpha without growth beyond 1 % (it only loses energy).
+#[test]
+fn follower_runs_keep_their_energy_balance() {
+    for (name, spec) in follower_cases() {
+        let mut spec = spec;
+        spec.dynamics.damping_time = 0.002;
+        for s in &mut spec.sections {
+            s.steps = 4;
+        }
+        let rod = Rod::new(spec).unwrap();
+        for (scheme, alpha) in [(Scheme::Midpoint, -0.2), (Scheme::BdfAlpha, -0.3)] {
+            let opts = DynOptions {
+                dt: 2e-3,
+                scheme,
+                alpha,
+                ..Default::default()
+            };
+            let mut sim = start(&rod, &[0.0; 3], &[], opts);
+            let mut worst: f64 = 0.0;
+            let mut moved: f64 = 0.0;
+            for _ in 0..300 {
+                sim.step(&P).unwrap();
+                let b = sim.energy_books();
+                moved = moved.max(b.work_in.abs() + b.dissipated + b.kinetic);
+                let e = sim.energy_balance();
+                worst = worst.max(if scheme == Scheme::Midpoint {
+                    e.abs()
+                } else {
+                    e
+                });
+            }
+            eprintln!(
+                "{name}, {}: worst balance {worst:.3e} J of {moved:.3e} J moved, final {:.3e} J, work in {:.3e} J",
+                scheme.name(),
+                sim.energy_balance(),
+                sim.energy_books().work_in
+            );
+            assert!(worst <= 1e-2 * moved, "{name}: {worst} of {moved}");
+        }
+    }
+}
