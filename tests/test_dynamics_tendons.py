@@ -69,6 +69,34 @@ def test_tendon_run_settles_on_the_statics_with_the_same_tension():
     assert np.max(traj.energy_balance) <= 0.02 * moved
 
 
+def test_trajectory_records_the_tensions_and_keeps_them_in_files(tmp_path):
+    # The tensions are inputs like the pressures: every sample records the ones held over
+    # the step that ended there, the tables carry them as t0_N, and both file formats give
+    # them back exactly (a trajectory without them, as files before them, loads with none).
+    def ramp(t):
+        return [min(t, 0.02) * 100.0]  # 0 at t = 0, then up to 2 N at 20 ms
+
+    traj = softrod.simulate(rod(), None, 0.05, dt=5e-3, tensions=ramp)
+    assert traj.n_tendons == 1 and traj.tension.shape == (len(traj), 1)
+    np.testing.assert_allclose(traj.tension[:, 0], [ramp(t)[0] for t in traj.time], rtol=1e-15)
+    frame = traj.to_frame(units="SI")
+    np.testing.assert_array_equal(frame["t0_N"].to_numpy(), traj.tension[:, 0])
+    for suffix in (".npz", ".parquet"):
+        back = softrod.Trajectory.load(traj.save(tmp_path / f"run{suffix}"))
+        np.testing.assert_array_equal(back.tension, traj.tension)
+    plain = softrod.simulate(rod(tendon=False), None, 0.01, dt=5e-3)
+    assert plain.tension.shape == (len(plain), 0) and "t0_N" not in plain.to_frame().columns
+    with pytest.raises(InputError, match=r"tension\[0, 0\].*>= 0"):
+        softrod.Trajectory(**{**_fields(traj), "tension": -traj.tension[:, :1] - 1.0})
+
+
+def _fields(traj) -> dict:
+    """A trajectory's constructor arguments."""
+    import dataclasses
+
+    return {f.name: getattr(traj, f.name) for f in dataclasses.fields(traj)}
+
+
 def test_stepper_takes_tensions_and_restores_them():
     sim = Simulation(rod(), tensions=["1 N"], dt=5e-3)
     np.testing.assert_array_equal(sim.tensions, [1.0])

@@ -21,6 +21,8 @@ pub struct PySimulator {
 struct Saved {
     time: Vec<f64>,
     pressure: Vec<f64>,
+    /// Tendon tensions (N) per sample: those held over the step that ended there.
+    tension: Vec<f64>,
     tip_position: Vec<[f64; 3]>,
     tip_rotation: Vec<[[f64; 3]; 3]>,
     tip_velocity: Vec<[f64; 3]>,
@@ -39,6 +41,7 @@ impl Saved {
         let tip = sim.tip();
         self.time.push(sim.time());
         self.pressure.extend_from_slice(sim.pressures());
+        self.tension.extend_from_slice(sim.tensions());
         self.tip_position.push(tip.r);
         self.tip_rotation.push(tip.rot);
         self.tip_velocity.push(sim.tip_velocity());
@@ -66,6 +69,7 @@ impl Saved {
         self,
         py: Python<'py>,
         n_channels: usize,
+        n_tendons: usize,
         nodes: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
@@ -74,6 +78,10 @@ impl Saved {
         d.set_item(
             "pressure",
             PyArray1::from_vec(py, self.pressure).reshape([n, n_channels])?,
+        )?;
+        d.set_item(
+            "tension",
+            PyArray1::from_vec(py, self.tension).reshape([n, n_tendons])?,
         )?;
         d.set_item("tip_position", array2(py, &self.tip_position)?)?;
         d.set_item("tip_rotation", array3(py, &self.tip_rotation)?)?;
@@ -315,7 +323,8 @@ impl PySimulator {
             saved.push(&self.sim, true);
             saved.push_shape(&self.sim);
             let nodes = self.sim.shape().len();
-            let d = saved.into_dict(py, self.sim.rod().n_channels, nodes)?;
+            let rod = self.sim.rod();
+            let d = saved.into_dict(py, rod.n_channels, rod.n_tendons, nodes)?;
             let (f, m) = self.sim.base_wrench();
             d.set_item("base_force", f.to_vec())?;
             d.set_item("base_moment", m.to_vec())?;
@@ -457,7 +466,7 @@ impl PySimulator {
             });
             let saved = result.map_err(|e| to_py_err(py, e, Context::Input))?;
             let nodes = self.sim.shape().len();
-            saved.into_dict(py, nc, nodes)
+            saved.into_dict(py, nc, self.sim.rod().n_tendons, nodes)
         })
     }
 }

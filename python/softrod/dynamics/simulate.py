@@ -563,6 +563,7 @@ class Simulation:
             time=cat("time"),
             command=np.concatenate(kept_commands),
             pressure=cat("pressure"),
+            tension=cat("tension"),
             tip_position=cat("tip_position"),
             tip_rotation=cat("tip_rotation"),
             tip_velocity=cat("tip_velocity"),

@@ -138,6 +138,8 @@ class Trajectory:
     - ``time`` (n,) s, finite, strictly increasing (n >= 1);
     - ``command`` (n, c) Pa: commanded gauge pressures (the schedule);
     - ``pressure`` (n, c) Pa: actual chamber gauge pressures (after the supply's lag);
+    - ``tension`` (n, k) N: tendon tensions, those held over the step that ended at each
+      sample (k = 0 for a design without tendons; None gives that), each >= 0;
     - ``tip_position`` (n, 3) m, world frame; ``tip_rotation`` (n, 3, 3): the tip frame
       [d1 d2 d3] as columns in world coordinates; ``tip_velocity`` (n, 3) m/s;
     - ``energy`` (n,) J: total mechanical energy (kinetic + elastic + potential), NaN
@@ -173,6 +175,7 @@ class Trajectory:
     potential: np.ndarray | None = None
     work_in: np.ndarray | None = None
     dissipated: np.ndarray | None = None
+    tension: np.ndarray | None = None
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -196,6 +199,14 @@ class Trajectory:
             a = _array(value, name, shape, what)
             _finite(a, name)
             set_(self, name, _readonly(a))
+        tens = np.zeros((n, 0)) if self.tension is None else self.tension
+        tens = _array(tens, "tension", (n, None), f"(n = {n}, tendon channels) in N")
+        _finite(tens, "tension")
+        negative = np.argwhere(tens < 0)
+        if negative.size:
+            i, k = negative[0]
+            raise _fail(f"tension[{i}, {k}]", tens[i, k].item(), "must be >= 0 N (a tendon pulls)")
+        set_(self, "tension", _readonly(tens))
         for name in ("energy", *ENERGY_PARTS):
             v = getattr(self, name)
             e = np.full(n, np.nan) if v is None else v
@@ -254,6 +265,11 @@ class Trajectory:
         return self.command.shape[1]
 
     @property
+    def n_tendons(self) -> int:
+        """Number of tendon channels (columns of :attr:`tension`)."""
+        return self.tension.shape[1]
+
+    @property
     def energy_balance(self) -> np.ndarray:
         """(n,) J: energy - energy[0] - (work_in - work_in[0]) + (dissipated -
         dissipated[0]), zero for the exact motion (the simulation stops when it grows
@@ -275,7 +291,8 @@ class Trajectory:
     def to_frame(self, units: Units = None) -> pd.DataFrame:
         """The tip table in the dataset schema (docs/datasets.md), one row per sample.
 
-        Columns: ``time_s``; ``p0_kPa``, ... (actual chamber pressures); ``tip_x_mm``,
+        Columns: ``time_s``; ``p0_kPa``, ... (actual chamber pressures); ``t0_N``, ...
+        (tendon tensions, for a design with tendons); ``tip_x_mm``,
         ``tip_y_mm``, ``tip_z_mm``; ``tip_qw`` ... ``tip_qz`` (the tip frame as a unit
         quaternion, scalar first); then the result columns ``cmd0_kPa``, ... (commanded
         pressures), ``tip_vx_mm/s``, ``tip_vy_mm/s``, ``tip_vz_mm/s`` (tip velocity, world
@@ -288,6 +305,7 @@ class Trajectory:
         """
         return schema_frame(
             pressures=self.pressure,
+            tensions=self._tensions(),
             tip_position=self.tip_position,
             tip_rotation=self.tip_rotation,
             time=self.time,
@@ -295,6 +313,10 @@ class Trajectory:
             units=units,
             metadata=self._table_metadata(),
         )
+
+    def _tensions(self) -> np.ndarray | None:
+        """The tension columns of the tables (none without tendons)."""
+        return self.tension if self.n_tendons else None
 
     def _table_metadata(self) -> dict:
         """The metadata of the tables: the trajectory's, marked as made by the model."""
@@ -332,7 +354,9 @@ class Trajectory:
         meta = _metadata_json(self.metadata)
         with atomic_path(path) as tmp:
             if path.suffix.lower() == ".npz":
-                arrays = {name: getattr(self, name) for name in (*_FIELDS, *ENERGY_PARTS)}
+                arrays = {
+                    name: getattr(self, name) for name in (*_FIELDS, *ENERGY_PARTS, "tension")
+                }
                 with open(tmp, "wb") as fh:  # a file object: numpy would append ".npz"
                     np.savez_compressed(
                         fh,
@@ -355,6 +379,7 @@ class Trajectory:
         ]
         frame = schema_frame(
             pressures=self.pressure,
+            tensions=self._tensions(),
             tip_position=self.tip_position,
             tip_rotation=self.tip_rotation,
             time=self.time,
@@ -383,6 +408,7 @@ class Trajectory:
         layout = {
             "format": TRAJECTORY_FORMAT,
             "n_channels": self.n_channels,
+            "n_tendons": self.n_tendons,
             "n_nodes": p,
             "shape_s_m": self.shape_s.tolist(),  # JSON floats round-trip exactly
             "shape_layout": "shape_m: node-major (x0, y0, z0, x1, ...) in m; null: no shape",
@@ -862,7 +888,8 @@ def _load_npz(path: Path) -> Trajectory:
             raise _fail("arrays", sorted(data.files), f"missing {', '.join(missing)}")
         try:
             arrays = {n: data[n] for n in _FIELDS}
-            arrays.update({n: data[n] for n in ENERGY_PARTS if n in data.files})
+            # Optional: files written before they existed load with none.
+            arrays.update({n: data[n] for n in (*ENERGY_PARTS, "tension") if n in data.files})
             meta_text = str(data["metadata_json"])
         except Exception as exc:  # a damaged archive: zipfile, zlib and numpy errors
             raise _fail("file", str(path), f"is a damaged .npz file: {exc}") from None
@@ -888,6 +915,9 @@ def _load_parquet(path: Path) -> Trajectory:
     c = layout.get("n_channels")
     if not isinstance(c, int) or isinstance(c, bool) or c < 0:
         raise _fail("softrod.trajectory.n_channels", c, "must be an integer >= 0")
+    n_tendons = layout.get("n_tendons", 0)  # absent in files written before tensions
+    if not isinstance(n_tendons, int) or isinstance(n_tendons, bool) or n_tendons < 0:
+        raise _fail("softrod.trajectory.n_tendons", n_tendons, "must be an integer >= 0")
     names = set(table.column_names)
 
     def col(name: str) -> np.ndarray:
@@ -922,6 +952,7 @@ def _load_parquet(path: Path) -> Trajectory:
         time=time,
         command=cols("cmd{}_Pa", range(c)),
         pressure=cols("p{}_Pa", range(c)),
+        tension=cols("t{}_N", range(n_tendons)),
         tip_position=cols("tip_{}_m", _XYZ),
         tip_rotation=rotation,
         tip_velocity=cols("tip_v{}_m_s" if version == 1 else "tip_v{}_m/s", _XYZ),
