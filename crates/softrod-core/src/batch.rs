@@ -35,7 +35,8 @@ pub struct BatchRow {
     /// loads).
     pub stable: Option<bool>,
     /// The validity rule the row broke (a failed row under `Policy::Raise`, or a returned
-    /// one under `Policy::Warn`), else empty.
+    /// one under `Policy::Warn`), or the error that failed it (other than
+    /// non-convergence), else empty.
     pub violation: String,
     /// Tip-pose (and marker) derivatives with respect to the parameters
     /// ([`sensitivity_batch`] only).
@@ -78,8 +79,8 @@ impl BatchRow {
         }
     }
 
-    /// A failed row of an error: the iterations and residual of a non-convergence, the
-    /// broken rule of an invalid state.
+    /// A failed row of an error: the iterations and residual of a non-convergence, else
+    /// the error's message (the broken rule of an invalid state).
     fn of_error(unknowns: usize, e: &SoftrodError) -> Self {
         match e {
             SoftrodError::NotConverged {
@@ -87,11 +88,11 @@ impl BatchRow {
                 residual,
                 ..
             } => BatchRow::failed(unknowns, *iterations, *residual),
-            SoftrodError::InvalidState { .. } => BatchRow {
+            // A broken rule, or any other error: the row says why it failed.
+            _ => BatchRow {
                 violation: e.to_string(),
                 ..BatchRow::failed(unknowns, 0, f64::NAN)
             },
-            _ => BatchRow::failed(unknowns, 0, f64::NAN),
         }
     }
 

@@ -494,10 +494,16 @@ fn non_negative(field: &str, x: f64) -> Result<()> {
 }
 
 fn finite3(field: &str, v: &[f64; 3]) -> Result<()> {
-    for (i, x) in v.iter().enumerate() {
-        finite(&format!("{field}[{i}]"), *x)?;
+    finite_each(field, v)
+}
+
+/// Every entry finite; the field name `field[i]` is formatted only for an error (these
+/// checks run at every time step: formatting each name cost more than the check).
+fn finite_each(field: &str, xs: &[f64]) -> Result<()> {
+    match xs.iter().position(|x| !x.is_finite()) {
+        Some(i) => finite(&format!("{field}[{i}]"), xs[i]),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 /// Relative slack in the geometric containment checks, so that a chamber drawn exactly
@@ -1405,7 +1411,10 @@ pub fn validate_tensions(tensions: &[f64], n_tendons: usize) -> Result<()> {
         ));
     }
     for (i, &t) in tensions.iter().enumerate() {
-        finite(&format!("tensions[{i}]"), t)?;
+        if !t.is_finite() {
+            // Formatted only for the error: this runs at every time step.
+            return finite(&format!("tensions[{i}]"), t);
+        }
         if t < 0.0 {
             return Err(SoftrodError::invalid(
                 format!("tensions[{i}]"),
@@ -1427,7 +1436,10 @@ pub fn validate_pressures(pressures: &[f64], n_channels: usize) -> Result<()> {
         ));
     }
     for (i, &p) in pressures.iter().enumerate() {
-        finite(&format!("pressures[{i}]"), p)?;
+        if !p.is_finite() {
+            // Formatted only for the error: this runs at every time step.
+            return finite(&format!("pressures[{i}]"), p);
+        }
         if p < -ATMOSPHERE {
             return Err(SoftrodError::invalid(
                 format!("pressures[{i}]"),
