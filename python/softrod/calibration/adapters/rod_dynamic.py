@@ -5,7 +5,7 @@ equilibrium under the experiment's first pressures, and the model's tip is read 
 sample time (linear between the steps). With ``jacobian`` the core carries the exact
 forward sensitivities of every step (``softrod_core::dynamics::sensitivity``: the implicit
 function theorem on each step's collocation equations), so the tip's derivatives come with
-the replay at about 3.5 times its cost (two parameters; benchmarks/README.md), and
+the replay at about 3.3 times its cost (two parameters; benchmarks/README.md), and
 Levenberg-Marquardt fits with standard errors."""
 
 from __future__ import annotations
