@@ -283,7 +283,8 @@ def test_lm_stops_within_a_fraction_of_the_standard_errors():
 
 def test_dynamic_lm_reuses_its_evaluations(trajectory_data):
     """Replays are stateless: the Jacobian scipy asks for again at the best point, and the
-    one the standard errors need, come from the optimiser's cache (no repeated replays)."""
+    one the standard errors need, come from the optimiser's cache, and the result's positions
+    are those of the last replay (no repeated replays)."""
     calls = []
     predict = RodDynamic.predict
 
@@ -300,3 +301,4 @@ def test_dynamic_lm_reuses_its_evaluations(trajectory_data):
         RodDynamic.predict = predict
     with_jacobian = [theta for theta, jac in calls if jac]
     assert len(with_jacobian) == len(set(with_jacobian)) == res.evaluations
+    assert len(calls) == res.evaluations

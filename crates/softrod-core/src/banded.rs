@@ -226,33 +226,34 @@ impl BandedLu {
         let kv = self.kl + self.ku;
         let ld = self.ldab;
         let b = &mut b[..2 * n];
+        // SAFETY: [f64; 2] has f64's alignment and no padding, and the 2 n numbers are
+        // n pairs: row i of both sides as one value, so that the updates below are
+        // two-lane vector operations (on f64 pairs the loops stayed scalar).
+        let b: &mut [[f64; 2]] =
+            unsafe { std::slice::from_raw_parts_mut(b.as_mut_ptr().cast::<[f64; 2]>(), n) };
         for j in 0..n {
             let p = self.piv[j];
             if p != j {
-                b.swap(2 * p, 2 * j);
-                b.swap(2 * p + 1, 2 * j + 1);
+                b.swap(p, j);
             }
-            let (b0, b1) = (b[2 * j], b[2 * j + 1]);
+            let [b0, b1] = b[j];
             let lm = kl.min(n - 1 - j);
             if (b0 != 0.0 || b1 != 0.0) && lm > 0 {
                 let col = &self.ab[j * ld + kv + 1..j * ld + kv + 1 + lm];
-                let rows = &mut b[2 * (j + 1)..2 * (j + 1 + lm)];
-                for (bi, l) in rows.chunks_exact_mut(2).zip(col) {
-                    bi[0] -= l * b0;
-                    bi[1] -= l * b1;
+                for (bi, l) in b[j + 1..j + 1 + lm].iter_mut().zip(col) {
+                    *bi = [bi[0] - l * b0, bi[1] - l * b1];
                 }
             }
         }
         for j in (0..n).rev() {
-            b[2 * j] *= self.dinv[j];
-            b[2 * j + 1] *= self.dinv[j];
-            let (b0, b1) = (b[2 * j], b[2 * j + 1]);
+            let d = self.dinv[j];
+            b[j] = [b[j][0] * d, b[j][1] * d];
+            let [b0, b1] = b[j];
             let i0 = j.saturating_sub(kv);
             if (b0 != 0.0 || b1 != 0.0) && i0 < j {
                 let col = &self.ab[j * ld + kv - (j - i0)..j * ld + kv];
-                for (bi, u) in b[2 * i0..2 * j].chunks_exact_mut(2).zip(col) {
-                    bi[0] -= u * b0;
-                    bi[1] -= u * b1;
+                for (bi, u) in b[i0..j].iter_mut().zip(col) {
+                    *bi = [bi[0] - u * b0, bi[1] - u * b1];
                 }
             }
         }

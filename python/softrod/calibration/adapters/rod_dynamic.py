@@ -5,7 +5,7 @@ equilibrium under the experiment's first pressures, and the model's tip is read 
 sample time (linear between the steps). With ``jacobian`` the core carries the exact
 forward sensitivities of every step (``softrod_core::dynamics::sensitivity``: the implicit
 function theorem on each step's collocation equations), so the tip's derivatives come with
-the replay at about 3.5 times its cost (two parameters; benchmarks/README.md), and
+the replay at about 3.3 times its cost (two parameters; benchmarks/README.md), and
 Levenberg-Marquardt fits with standard errors."""
 
 from __future__ import annotations
@@ -103,6 +103,8 @@ class RodDynamic(ModelAdapter):
         self.time = dataset.time
         self.pressures = dataset.pressures
         self.m = len(dataset)
+        #: (theta, the experiments replayed, the prediction) of the last evaluation.
+        self._last = None
 
     def design_of(self, theta) -> Design:
         return self.design.replace(design_changes(self.params, theta, self.design))
@@ -146,7 +148,8 @@ class RodDynamic(ModelAdapter):
             return out
         wanted = np.zeros(self.m, dtype=bool)
         wanted[rows] = True
-        todo = [exp for exp in self.experiments if wanted[exp].any()]
+        replayed = [k for k, exp in enumerate(self.experiments) if wanted[exp].any()]
+        todo = [self.experiments[k] for k in replayed]
         # The experiments replay side by side: each run steps in the core with the GIL
         # released, so threads overlap the runs (in order: the same result on any count).
         workers = min(len(todo), self.threads or os.cpu_count() or 1)
@@ -155,6 +158,7 @@ class RodDynamic(ModelAdapter):
                 runs = list(pool.map(lambda exp: self._replay(d, exp, jacobian), todo))
         else:
             runs = [self._replay(d, exp, jacobian) for exp in todo]
+        self._last = (np.array(theta, dtype=float).tobytes(), set(replayed), out)
         for exp, run in zip(todo, runs, strict=True):
             if run is None:
                 if jacobian:
@@ -173,6 +177,23 @@ class RodDynamic(ModelAdapter):
 
     def calibrated_design(self, theta) -> Design:
         return self.design_of(theta)
+
+    def final_prediction(self, calibrated, theta, rows) -> Prediction:
+        """The positions at the fitted values: those of the last evaluation when it was at
+        ``theta`` and replayed every experiment of ``rows`` (a replay depends on theta
+        alone, and one with sensitivities gives the same positions), else a replay."""
+        if self._last is not None:
+            key, done, pred = self._last
+            wanted = np.zeros(self.m, dtype=bool)
+            wanted[rows] = True
+            needed = [k for k, exp in enumerate(self.experiments) if wanted[exp].any()]
+            if key == np.array(theta, dtype=float).tobytes() and done.issuperset(needed):
+                out = Prediction.empty(self.m, 0, 0, False)
+                for k in needed:
+                    exp = self.experiments[k]
+                    out.tip[exp], out.ok[exp] = pred.tip[exp], pred.ok[exp]
+                return out
+        return self.predict(theta, rows, False)
 
     def reference(self, calibrated: Design, theta) -> Prediction:
         from ...statics import solve_statics
