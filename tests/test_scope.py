@@ -179,7 +179,7 @@ def test_tapered_section_keeps_the_geometry_rules():
 
 def _tapered_arm() -> dict:
     """Dragon Skin rod tapering from 10 to 5 mm, horizontal under gravity, damped."""
-    design = rod(outer_radius_end="5 mm", steps=6)
+    design = rod(outer_radius_end="5 mm", steps=6, chambers=[{"radius": "1 mm", "distance": "3 mm", "angle": "0 deg", "channel": 0}])
     for key in ("EI", "EA", "GA", "GJ", "mass"):
         design["sections"][0].pop(key)
     design["sections"][0]["material"] = "dragon_skin_20"
@@ -195,30 +195,32 @@ def test_dynamics_carries_a_tapered_section():
     # differs from the uniform rod's by millimetres.
     design = load_design(_tapered_arm())
     traj = softrod.simulate(
-        design, softrod.PressureSchedule.constant([]), 1.5, dt=5e-3, initial="straight"
+        design, softrod.PressureSchedule.constant([0.0]), 1.5, dt=5e-3, initial="straight"
     )
     assert np.all(np.isfinite(traj.tip_position))
-    st_ = solve_statics(design, [], options=SolverOptions(tol=1e-12))
+    st_ = solve_statics(design, [0.0], options=SolverOptions(tol=1e-12))
     # tau = 10 ms and the slowest mode is well damped: after 1.5 s only round-off of the
     # solvers and the two discretisations' O(h^4) difference are left (1e-5 L).
     assert np.linalg.norm(traj.tip_position[-1] - st_.tip_position) < 1e-5 * L
     assert st_.tip_position[2] < -1e-3  # it sags
     uniform = _tapered_arm()
     uniform["sections"][0].pop("outer_radius_end")
-    su = solve_statics(load_design(uniform), [])
+    su = solve_statics(load_design(uniform), [0.0])
     assert np.linalg.norm(su.tip_position - st_.tip_position) > 1e-3
-    # Energy never grows beyond the check's tolerance in the undamped midpoint rule.
+    # Undamped, the midpoint rule keeps the energy balance.
     undamped = _tapered_arm()
     undamped["dynamics"] = {"damping_time": "0 s"}
     tr = softrod.simulate(
         load_design(undamped),
-        softrod.PressureSchedule.constant([]),
+        softrod.PressureSchedule.constant([0.0]),
         0.2,
         dt=1e-3,
         initial="straight",
         scheme="midpoint",
     )
-    moved = np.max(np.abs(tr.energy - tr.energy[0]))
+    # The swing under gravity trades potential for kinetic energy; the books (at every stage
+    # point's mass and stiffness) balance to well within 1 % of it.
+    moved = np.max(tr.kinetic)
     assert moved > 0 and np.max(np.abs(tr.energy_balance)) < 1e-2 * moved
 
 
@@ -227,13 +229,18 @@ def test_dynamics_carries_a_tabulated_reference_shape():
         "s": ["0 mm", "50 mm", "100 mm"],
         "curvature": [[0, "5 1/m", 0], [0, "10 1/m", 0], [0, "5 1/m", 0]],
     }
-    design = rod(reference_table=table, steps=8)
+    design = rod(reference_table=table, steps=8, chambers=[{"radius": "1 mm", "distance": "3 mm", "angle": "0 deg", "channel": 0}])
     design["dynamics"] = {"damping_time": "0.01 s"}
     d = load_design(design)
-    traj = softrod.simulate(d, softrod.PressureSchedule.constant([]), 0.05, dt=5e-3)
-    # Started at rest in equilibrium with no load: it stays on its unloaded arc.
-    st_ = solve_statics(d, [])
-    np.testing.assert_allclose(traj.tip_position[-1], st_.tip_position, atol=1e-6 * L)
+    traj = softrod.simulate(
+        d, softrod.PressureSchedule.constant([20e3]), 0.6, dt=5e-3, initial="straight"
+    )
+    # Released straight, the damped rod springs into its tabulated arc and settles on the
+    # static shape under the pressure: the two discretisations' O(h^4) difference is left
+    # (8 steps: 1.2e-6 L measured; 1e-5 L).
+    st_ = solve_statics(d, [20e3])
+    assert np.linalg.norm(traj.tip_position[-1] - traj.tip_position[0]) > 1e-2
+    np.testing.assert_allclose(traj.tip_position[-1], st_.tip_position, atol=1e-5 * L)
 
 
 def test_bundled_finger_runs_end_to_end():
