@@ -84,9 +84,7 @@ def test_bend_radius_equals_curvature_and_its_direction():
 
 def test_precurved_and_twisted_rod_is_a_helix():
     kappa, tau = 20.0, 10.0  # 1/m
-    sol = solve_statics(
-        load_design(rod(curvature=[0, f"{kappa} 1/m", f"{tau} 1/m"], steps=32)), []
-    )
+    sol = solve_statics(load_design(rod(curvature=[0, f"{kappa} 1/m", f"{tau} 1/m"], steps=32)), [])
     w = np.array([0.0, kappa, tau])  # the Darboux vector: constant, and R(0) = I
     norm2 = w @ w
     axis = w / math.sqrt(norm2)
@@ -124,9 +122,7 @@ def test_tendon_gives_the_constant_curvature_arc():
 
 
 def test_slack_tendon_is_the_plain_rod():
-    with_tendon = load_design(
-        rod(tendons=[{"channel": 0, "distance": "4 mm"}], chambers=[])
-    )
+    with_tendon = load_design(rod(tendons=[{"channel": 0, "distance": "4 mm"}], chambers=[]))
     plain = load_design(rod())
     a = solve_statics(with_tendon, [], tensions=[0.0])
     b = solve_statics(with_tendon, [])
@@ -177,9 +173,12 @@ def test_tapered_section_keeps_the_geometry_rules():
         load_design(design)
 
 
+CHAMBER = {"radius": "1 mm", "distance": "3 mm", "angle": "0 deg", "channel": 0}
+
+
 def _tapered_arm() -> dict:
     """Dragon Skin rod tapering from 10 to 5 mm, horizontal under gravity, damped."""
-    design = rod(outer_radius_end="5 mm", steps=6, chambers=[{"radius": "1 mm", "distance": "3 mm", "angle": "0 deg", "channel": 0}])
+    design = rod(outer_radius_end="5 mm", steps=6, chambers=[CHAMBER])
     for key in ("EI", "EA", "GA", "GJ", "mass"):
         design["sections"][0].pop(key)
     design["sections"][0]["material"] = "dragon_skin_20"
@@ -229,7 +228,7 @@ def test_dynamics_carries_a_tabulated_reference_shape():
         "s": ["0 mm", "50 mm", "100 mm"],
         "curvature": [[0, "5 1/m", 0], [0, "10 1/m", 0], [0, "5 1/m", 0]],
     }
-    design = rod(reference_table=table, steps=8, chambers=[{"radius": "1 mm", "distance": "3 mm", "angle": "0 deg", "channel": 0}])
+    design = rod(reference_table=table, steps=8, chambers=[CHAMBER])
     design["dynamics"] = {"damping_time": "0.01 s"}
     d = load_design(design)
     traj = softrod.simulate(
@@ -382,9 +381,7 @@ def test_any_bend_radius_gives_its_unloaded_arc(radius, direction):
 @settings(max_examples=15, deadline=None)
 @given(tension=st.floats(0.0, 3.0), angle=st.floats(0.0, 360.0))
 def test_any_straight_tendon_bends_towards_itself(tension, angle):
-    d = load_design(
-        rod(tendons=[{"channel": 0, "distance": "3 mm", "angle": f"{angle} deg"}])
-    )
+    d = load_design(rod(tendons=[{"channel": 0, "distance": "3 mm", "angle": f"{angle} deg"}]))
     sol = solve_statics(d, [], tensions=[tension], options=SolverOptions(tol=1e-12))
     a = math.radians(angle)
     # The tip load -T d3 at the offset (x, y) = d (cos a, sin a) has the moment
