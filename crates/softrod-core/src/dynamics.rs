@@ -1025,12 +1025,19 @@ impl Simulator {
             let j = k / 2;
             let sec = &self.rod.sections[self.grid.intervals[j].section];
             let (v, u) = ([f[0], f[1], f[2]], [f[3], f[4], f[5]]);
+            // A tapered section's chambers sit where the taper has moved them at the stage.
+            let tt = if sec.tapered {
+                self.grid.intervals[j].stage_local(k % 2) / sec.length
+            } else {
+                0.0
+            };
+            let centroid = |c: &crate::rod::Chamber| c.at(tt).2;
             let fine = v[2] > 0.0
                 && v[2] <= validity::MAX_STRETCH
                 && sec
                     .chambers
                     .iter()
-                    .all(|c| validity::fibre_stretch(&v, &u, c.centroid) > 0.0);
+                    .all(|c| validity::fibre_stretch(&v, &u, centroid(c)) > 0.0);
             if fine {
                 continue;
             }
@@ -1042,7 +1049,7 @@ impl Simulator {
             };
             validity::check_stretch(at, &v).map_err(|e| e.at_time(t))?;
             for (c, ch) in sec.chambers.iter().enumerate() {
-                validity::check_chamber(at, c, &v, &u, ch.centroid).map_err(|e| e.at_time(t))?;
+                validity::check_chamber(at, c, &v, &u, centroid(ch)).map_err(|e| e.at_time(t))?;
             }
         }
         Ok(())
