@@ -254,3 +254,47 @@ fn undamped_midpoint_run_of_a_tapered_rod_keeps_its_energy_balance() {
     assert!(b.dissipated == 0.0);
     assert!(worst <= 1e-2 * moved, "balance {worst} of {moved}");
 }
+
+/// Long soft rods whose single shooting is ill-conditioned go to collocation statics
+/// automatically, now also with taper and tabulated reference shapes: paper 000's 1 m arm
+/// (40 steps, made heavier) with its chambers moving inwards along the arm (a taper of the chamber
+/// distances) and a tabulated precurvature; `solve` answers with collocation's solution.
+#[test]
+fn long_tapered_tabulated_arm_goes_to_collocation_statics() {
+    // 2 kg: shooting's growth exponent int sqrt(|n| / EI) ds is ~14 (> 12).
+    let mut sec = direct_section("arm", 1.0, 262.8, 87.6, 0.04466, 0.02977, 2.0, 40);
+    sec.chambers = [0.0, 120.0, 240.0]
+        .iter()
+        .enumerate()
+        .map(|(k, a)| {
+            let mut c = chamber(6.02e-3, 0.0175, *a, k);
+            c.area = 113.88e-6;
+            c.distance_end = Some(0.0125);
+            c
+        })
+        .collect();
+    sec.reference = ReferenceSpec {
+        table: Some(ReferenceTable {
+            s: vec![0.0, 0.5, 1.0],
+            curvature: vec![[0.0, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 1.0, 0.0]],
+            strain: vec![[0.0, 0.0, 1.0]; 3],
+        }),
+        ..Default::default()
+    };
+    let rod = Rod::new(design(vec![sec], HANGING, 9.81)).unwrap();
+    assert!(rod.sections[0].tapered && rod.sections[0].reference.is_varying());
+    let p = [30e3, 0.0, 0.0];
+    let tight = SolverOptions {
+        tol: 1e-12,
+        ..Default::default()
+    };
+    let auto = solve(&rod, &loads(&p), None, &tight).unwrap();
+    assert!(auto.collocation.is_some(), "solved by collocation");
+    let coll = solve_static(&rod, &loads(&p), None, &tight).unwrap();
+    let d = dist(&auto.tip.r, coll.evaluated.node_r.last().unwrap());
+    eprintln!(
+        "1 m arm: automatic vs collocation statics {d:.3e} m; stable {:?}",
+        auto.stable
+    );
+    assert!(d < 1e-9);
+}
