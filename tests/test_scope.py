@@ -84,9 +84,7 @@ def test_bend_radius_equals_curvature_and_its_direction():
 
 def test_precurved_and_twisted_rod_is_a_helix():
     kappa, tau = 20.0, 10.0  # 1/m
-    sol = solve_statics(
-        load_design(rod(curvature=[0, f"{kappa} 1/m", f"{tau} 1/m"], steps=32)), []
-    )
+    sol = solve_statics(load_design(rod(curvature=[0, f"{kappa} 1/m", f"{tau} 1/m"], steps=32)), [])
     w = np.array([0.0, kappa, tau])  # the Darboux vector: constant, and R(0) = I
     norm2 = w @ w
     axis = w / math.sqrt(norm2)
@@ -124,9 +122,7 @@ def test_tendon_gives_the_constant_curvature_arc():
 
 
 def test_slack_tendon_is_the_plain_rod():
-    with_tendon = load_design(
-        rod(tendons=[{"channel": 0, "distance": "4 mm"}], chambers=[])
-    )
+    with_tendon = load_design(rod(tendons=[{"channel": 0, "distance": "4 mm"}], chambers=[]))
     plain = load_design(rod())
     a = solve_statics(with_tendon, [], tensions=[0.0])
     b = solve_statics(with_tendon, [])
@@ -175,6 +171,75 @@ def test_tapered_section_keeps_the_geometry_rules():
     design["sections"][0]["outer_radius_end"] = "-1 mm"
     with pytest.raises(DesignError, match="outer_radius_end"):
         load_design(design)
+
+
+CHAMBER = {"radius": "1 mm", "distance": "3 mm", "angle": "0 deg", "channel": 0}
+
+
+def _tapered_arm() -> dict:
+    """Dragon Skin rod tapering from 10 to 5 mm, horizontal under gravity, damped."""
+    design = rod(outer_radius_end="5 mm", steps=6, chambers=[CHAMBER])
+    for key in ("EI", "EA", "GA", "GJ", "mass"):
+        design["sections"][0].pop(key)
+    design["sections"][0]["material"] = "dragon_skin_20"
+    design["mounting"]["gravity"] = "9.81 m/s^2"
+    design["mounting"]["orientation"] = "horizontal"
+    design["dynamics"] = {"damping_time": "0.01 s"}
+    return design
+
+
+def test_dynamics_carries_a_tapered_section():
+    # Released straight, the damped tapered rod sags and settles on its static shape (the
+    # dynamics evaluates stiffness, mass and inertia at every stage point's radius), which
+    # differs from the uniform rod's by millimetres.
+    design = load_design(_tapered_arm())
+    traj = softrod.simulate(
+        design, softrod.PressureSchedule.constant([0.0]), 1.5, dt=5e-3, initial="straight"
+    )
+    assert np.all(np.isfinite(traj.tip_position))
+    st_ = solve_statics(design, [0.0], options=SolverOptions(tol=1e-12))
+    # tau = 10 ms and the slowest mode is well damped: after 1.5 s only round-off of the
+    # solvers and the two discretisations' O(h^4) difference are left (1e-5 L).
+    assert np.linalg.norm(traj.tip_position[-1] - st_.tip_position) < 1e-5 * L
+    assert st_.tip_position[2] < -1e-3  # it sags
+    uniform = _tapered_arm()
+    uniform["sections"][0].pop("outer_radius_end")
+    su = solve_statics(load_design(uniform), [0.0])
+    assert np.linalg.norm(su.tip_position - st_.tip_position) > 1e-3
+    # Undamped, the midpoint rule keeps the energy balance.
+    undamped = _tapered_arm()
+    undamped["dynamics"] = {"damping_time": "0 s"}
+    tr = softrod.simulate(
+        load_design(undamped),
+        softrod.PressureSchedule.constant([0.0]),
+        0.2,
+        dt=1e-3,
+        initial="straight",
+        scheme="midpoint",
+    )
+    # The swing under gravity trades potential for kinetic energy; the books (at every stage
+    # point's mass and stiffness) balance to well within 1 % of it.
+    moved = np.max(tr.kinetic)
+    assert moved > 0 and np.max(np.abs(tr.energy_balance)) < 1e-2 * moved
+
+
+def test_dynamics_carries_a_tabulated_reference_shape():
+    table = {
+        "s": ["0 mm", "50 mm", "100 mm"],
+        "curvature": [[0, "5 1/m", 0], [0, "10 1/m", 0], [0, "5 1/m", 0]],
+    }
+    design = rod(reference_table=table, steps=8, chambers=[CHAMBER])
+    design["dynamics"] = {"damping_time": "0.01 s"}
+    d = load_design(design)
+    traj = softrod.simulate(
+        d, softrod.PressureSchedule.constant([20e3]), 0.6, dt=5e-3, initial="straight"
+    )
+    # Released straight, the damped rod springs into its tabulated arc and settles on the
+    # static shape under the pressure: the two discretisations' O(h^4) difference is left
+    # (8 steps: 1.2e-6 L measured; 1e-5 L).
+    st_ = solve_statics(d, [20e3])
+    assert np.linalg.norm(traj.tip_position[-1] - traj.tip_position[0]) > 1e-2
+    np.testing.assert_allclose(traj.tip_position[-1], st_.tip_position, atol=1e-5 * L)
 
 
 def test_bundled_finger_runs_end_to_end():
@@ -316,9 +381,7 @@ def test_any_bend_radius_gives_its_unloaded_arc(radius, direction):
 @settings(max_examples=15, deadline=None)
 @given(tension=st.floats(0.0, 3.0), angle=st.floats(0.0, 360.0))
 def test_any_straight_tendon_bends_towards_itself(tension, angle):
-    d = load_design(
-        rod(tendons=[{"channel": 0, "distance": "3 mm", "angle": f"{angle} deg"}])
-    )
+    d = load_design(rod(tendons=[{"channel": 0, "distance": "3 mm", "angle": f"{angle} deg"}]))
     sol = solve_statics(d, [], tensions=[tension], options=SolverOptions(tol=1e-12))
     a = math.radians(angle)
     # The tip load -T d3 at the offset (x, y) = d (cos a, sin a) has the moment

@@ -75,6 +75,8 @@ pub struct Interval {
     /// Arc length of the interval's start from its section's start (where the section's
     /// tendon routing is evaluated), m.
     pub s_local: f64,
+    /// Index in [`Grid::models`] of each stage's section model.
+    pub model: [usize; 2],
 }
 
 impl Interval {
@@ -85,28 +87,80 @@ impl Interval {
     }
 }
 
+/// Where a section model of the grid holds: its section and the arc length from the
+/// section's start at which its law, loads and inertia are evaluated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelSlot {
+    pub section: usize,
+    /// Local arc length, m: 0 for a uniform section's one model (its law holds all along),
+    /// the stage point's for a varying section.
+    pub s: f64,
+}
+
 /// The intervals of a rod: each section's `steps` (a rigid section is one interval, exact
-/// there: its integrands are polynomials of degree <= 2 in s).
+/// there: its integrands are polynomials of degree <= 2 in s), and the section models the
+/// stages read: one per uniform section, one per stage point of a varying section (taper,
+/// reference shape tabulated along s), whose coefficients are evaluated once at the stage's
+/// arc length (the grid is fixed) and enter the stage Jacobians as constants.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Grid {
     pub intervals: Vec<Interval>,
+    pub models: Vec<ModelSlot>,
 }
 
 impl Grid {
     pub fn new(rod: &Rod) -> Self {
         let mut intervals = Vec::new();
+        let mut models = Vec::new();
         for (i, sec) in rod.sections.iter().enumerate() {
             let h = sec.length / sec.steps as f64;
+            let varying = sec.is_varying();
+            if !varying {
+                models.push(ModelSlot { section: i, s: 0.0 });
+            }
             for k in 0..sec.steps {
+                let s_local = h * k as f64;
+                let model = if varying {
+                    std::array::from_fn(|st| {
+                        models.push(ModelSlot {
+                            section: i,
+                            s: s_local + GAUSS_C[st] * h,
+                        });
+                        models.len() - 1
+                    })
+                } else {
+                    [models.len() - 1; 2]
+                };
                 intervals.push(Interval {
                     section: i,
                     s0: sec.s_start + h * k as f64,
                     h,
-                    s_local: h * k as f64,
+                    s_local,
+                    model,
                 });
             }
         }
-        Grid { intervals }
+        Grid { intervals, models }
+    }
+
+    /// One model per slot of [`Grid::models`] from the sections' coefficients `coeffs`:
+    /// a varying section's law, pressure terms, reference strains and line force at the
+    /// slot's arc length ([`Coeffs::at`]), in any coefficient scalar; `make` turns them
+    /// into the model (with the slot, for its inertia).
+    pub fn build_models<C: Coeff>(
+        &self,
+        rod: &Rod,
+        coeffs: &[Coeffs<C>],
+        mut make: impl FnMut(&Coeffs<C>, usize, &ModelSlot) -> SectionModel<C>,
+    ) -> Vec<SectionModel<C>> {
+        self.models
+            .iter()
+            .enumerate()
+            .map(|(k, slot)| {
+                let c = coeffs[slot.section].at(&rod.sections[slot.section], slot.s);
+                make(&c, k, slot)
+            })
+            .collect()
     }
 
     /// Number of intervals N (N + 1 nodes, 2N stage points).
@@ -827,7 +881,8 @@ pub struct TipBody {
 pub struct Problem<'a> {
     pub rod: &'a Rod,
     pub grid: &'a Grid,
-    /// One model per section.
+    /// One model per slot of [`Grid::models`] (per section, or per stage point of a
+    /// varying section).
     pub models: &'a [SectionModel],
     pub c0: f64,
     /// History terms: 2 per interval (stage order), then the tip node's.
@@ -974,13 +1029,13 @@ impl<'a> Problem<'a> {
         let inv: [f64; NY] = self.scale.map(|s| 1.0 / s);
         let mut yj = self.node(z, 0);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
-            let model = &self.models[iv.section];
+            let model = [&self.models[iv.model[0]], &self.models[iv.model[1]]];
             let y1 = self.stage(z, j, 0);
             let y2 = self.stage(z, j, 1);
-            let (f1, fl1) = rhs(&y1, model, &self.hist[2 * j], self.c0, iv.stage_local(0));
+            let (f1, fl1) = rhs(&y1, model[0], &self.hist[2 * j], self.c0, iv.stage_local(0));
             let (f2, fl2) = rhs(
                 &y2,
-                model,
+                model[1],
                 &self.hist[2 * j + 1],
                 self.c0,
                 iv.stage_local(1),
@@ -1024,17 +1079,17 @@ impl<'a> Problem<'a> {
         let n = z.len();
         let mut jac = vec![vec![0.0; n]; n];
         for (j, iv) in self.grid.intervals.iter().enumerate() {
-            let model = &self.models[iv.section];
+            let model = [&self.models[iv.model[0]], &self.models[iv.model[1]]];
             let js = [
                 self.point_jacobian(
                     &self.stage(z, j, 0),
-                    model,
+                    model[0],
                     &self.hist[2 * j],
                     iv.stage_local(0),
                 ),
                 self.point_jacobian(
                     &self.stage(z, j, 1),
-                    model,
+                    model[1],
                     &self.hist[2 * j + 1],
                     iv.stage_local(1),
                 ),
@@ -1103,16 +1158,16 @@ impl<'a> Problem<'a> {
         b: &SMatrix<f64, NY, K>,
     ) -> Option<SMatrix<f64, NY, K>> {
         let iv = &self.grid.intervals[j];
-        let model = &self.models[iv.section];
+        let model = [&self.models[iv.model[0]], &self.models[iv.model[1]]];
         let j1 = self.point_jacobian(
             &self.stage(z, j, 0),
-            model,
+            model[0],
             &self.hist[2 * j],
             iv.stage_local(0),
         );
         let j2 = self.point_jacobian(
             &self.stage(z, j, 1),
-            model,
+            model[1],
             &self.hist[2 * j + 1],
             iv.stage_local(1),
         );
@@ -1168,16 +1223,16 @@ impl<'a> Problem<'a> {
         let (kl, ku) = (25, 6);
         let mut band = BandedLu::zeros(n, kl, ku);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
-            let model = &self.models[iv.section];
+            let model = [&self.models[iv.model[0]], &self.models[iv.model[1]]];
             let j1 = self.point_jacobian(
                 &self.stage(z, j, 0),
-                model,
+                model[0],
                 &self.hist[2 * j],
                 iv.stage_local(0),
             );
             let j2 = self.point_jacobian(
                 &self.stage(z, j, 1),
-                model,
+                model[1],
                 &self.hist[2 * j + 1],
                 iv.stage_local(1),
             );
@@ -1772,7 +1827,7 @@ impl Problem<'_> {
     }
 
     /// The scaled residual (the layout of [`Problem::residual`]) of scaled unknowns `z`
-    /// under `models` (one per section) and histories `hist` (2 per interval, then the tip).
+    /// under `models` (one per slot of `Grid::models`) and histories `hist` (2 per interval, then the tip).
     pub fn residual_with<C: Coeff, D: StateScalar<C>>(
         &self,
         models: &[SectionModel<C>],
@@ -1807,11 +1862,11 @@ impl Problem<'_> {
         let mut out = vec![D::from(0.0); z.len()];
         let mut yj = self.node_with(z, 0);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
-            let model = &models[iv.section];
+            let model = [&models[iv.model[0]], &models[iv.model[1]]];
             let y1 = self.stage_with(z, j, 0);
             let y2 = self.stage_with(z, j, 1);
-            let (f1, fl1) = rhs(&y1, model, &hist[2 * j], self.c0, iv.stage_local(0));
-            let (f2, fl2) = rhs(&y2, model, &hist[2 * j + 1], self.c0, iv.stage_local(1));
+            let (f1, fl1) = rhs(&y1, model[0], &hist[2 * j], self.c0, iv.stage_local(0));
+            let (f2, fl2) = rhs(&y2, model[1], &hist[2 * j + 1], self.c0, iv.stage_local(1));
             if let Some(fl) = fields.as_mut() {
                 fl.push(fl1);
                 fl.push(fl2);
@@ -1857,10 +1912,19 @@ impl Problem<'_> {
     ) -> Vec<[D; NF]> {
         let mut fields = Vec::with_capacity(2 * self.grid.len());
         for (j, iv) in self.grid.intervals.iter().enumerate() {
-            let model = &models[iv.section];
+            let models_of = [&models[iv.model[0]], &models[iv.model[1]]];
             for i in 0..2 {
                 let y = self.stage_with(z, j, i);
-                fields.push(rhs(&y, model, &hist[2 * j + i], self.c0, iv.stage_local(i)).1);
+                fields.push(
+                    rhs(
+                        &y,
+                        models_of[i],
+                        &hist[2 * j + i],
+                        self.c0,
+                        iv.stage_local(i),
+                    )
+                    .1,
+                );
             }
         }
         fields
@@ -1927,13 +1991,22 @@ impl Problem<'_> {
         out.nodes.push(self.node(z, 0));
         out.node_r.push(r);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
-            let model = &self.models[iv.section];
+            let models_of = [&self.models[iv.model[0]], &self.models[iv.model[1]]];
             let mut dr = [[0.0; 3]; 2];
             for i in 0..2 {
                 let y = self.stage(z, j, i);
                 let fl = match known {
                     Some(f) => f[2 * j + i],
-                    None => rhs(&y, model, &self.hist[2 * j + i], self.c0, iv.stage_local(i)).1,
+                    None => {
+                        rhs(
+                            &y,
+                            models_of[i],
+                            &self.hist[2 * j + i],
+                            self.c0,
+                            iv.stage_local(i),
+                        )
+                        .1
+                    }
                 };
                 let rot = rotation(&y[IQ..IQ + 4]);
                 dr[i] = mat_vec(&rot, &[fl[0], fl[1], fl[2]]);

@@ -335,6 +335,44 @@ pub fn section_inertia(rod: &Rod, i: usize) -> SectionInertia {
     }
 }
 
+/// [`section_inertia`] at local arc length `s` of section `i`: a tapered section's line
+/// mass (the quadratic of its area, `Section::line_mass_at`) and rotary inertia there
+/// (rho A times the radii of gyration I/A of its cross-section at s, chambers and offsets
+/// moved with the taper; a given rotary inertia stays). Uniform sections: their constants.
+pub fn section_inertia_at(rod: &Rod, i: usize, s: f64) -> SectionInertia {
+    let sec = &rod.sections[i];
+    let spec = &rod.spec.sections[i];
+    if !sec.tapered {
+        return section_inertia(rod, i);
+    }
+    let t = s / sec.length;
+    let rho_a = sec.line_mass_at(t);
+    let rho_j = spec
+        .rotary_inertia
+        .unwrap_or_else(|| match &sec.law.geometry {
+            Some(geo) => {
+                let cs = crate::section::CrossSection::from_holes(
+                    geo.outer_at(t),
+                    geo.bore_radius,
+                    sec.chambers.iter().map(|c| {
+                        let (_, r, x) = c.at(t);
+                        (r, x)
+                    }),
+                );
+                let (a1, a2) = (cs.i11 / cs.area, cs.i22 / cs.area);
+                [rho_a * a1, rho_a * a2, rho_a * (a1 + a2)]
+            }
+            None => section_inertia(rod, i)
+                .rho_j
+                .map(|j| j * rho_a / sec.line_mass),
+        });
+    SectionInertia {
+        rho_a,
+        rho_j,
+        damping: spec.damping_se.zip(spec.damping_bt),
+    }
+}
+
 /// The stiffness scale sigma(p) of mapped sections (paper 001 eq. 13) during a run,
 /// evaluated in the core at the chamber pressures of every step.
 #[derive(Debug, Clone, PartialEq)]
@@ -502,6 +540,7 @@ struct Cached {
 pub struct Simulator {
     rod: Rod,
     grid: Grid,
+    /// Inertia and damping per model slot of `grid` (`Grid::models`).
     inertia: Vec<SectionInertia>,
     sigma_map: SigmaMap,
     opts: DynOptions,
@@ -555,14 +594,15 @@ pub(crate) fn check_statics_only(rod: &Rod, model: &str) -> Result<()> {
     check_statics_only_with(rod, model, false, false)
 }
 
-/// [`check_statics_only`]; with `constant_reference` a constant reference shape of a
-/// section with the linear law is accepted (it enters the law's shifts); with
-/// `tendons_and_followers` tendons and follower (body-frame) tip and line loads are
-/// accepted (the dynamics carries them: `crate::collocation`).
+/// [`check_statics_only`]; with `collocation` what the collocation discretisation carries
+/// is accepted: tapered sections, and reference shapes (constant or tabulated along s) of
+/// sections with the linear axial law (they enter the law's shifts, evaluated at every
+/// stage point: `crate::collocation::Grid`); with `tendons_and_followers` tendons and
+/// follower (body-frame) tip and line loads are accepted (`crate::collocation`).
 pub(crate) fn check_statics_only_with(
     rod: &Rod,
     model: &str,
-    constant_reference: bool,
+    collocation: bool,
     tendons_and_followers: bool,
 ) -> Result<()> {
     // Statics-only features of issue 17 (dynamics follows on the collocation engine).
@@ -597,18 +637,16 @@ pub(crate) fn check_statics_only_with(
         ));
     }
     for (i, s) in rod.sections.iter().enumerate() {
-        let carried = constant_reference
-            && matches!(s.reference, crate::reference::Reference::Constant { .. })
-            && matches!(s.law.axial, crate::rod::AxialLaw::Linear);
+        let carried = collocation && matches!(s.law.axial, crate::rod::AxialLaw::Linear);
         if !s.reference.is_straight() && !carried {
-            let what = if constant_reference {
-                "a reference shape tabulated along s, or one with a nonlinear axial law"
+            let what = if collocation {
+                "a reference shape with a nonlinear axial law (Ogden or an EA(F) table)"
             } else {
                 "a reference shape (precurvature or pre-strain)"
             };
             return Err(statics_only(format!("sections[{i}].reference"), what));
         }
-        if s.tapered {
+        if s.tapered && !collocation {
             return Err(statics_only(
                 format!("sections[{i}].outer_radius_end"),
                 "a tapered section",
@@ -730,10 +768,13 @@ impl Simulator {
         }
         let sigma = sigma_map.eval(pressures)?;
         rod.check_loads(pressures, &sigma)?;
-        let inertia: Vec<SectionInertia> = (0..rod.sections.len())
-            .map(|i| section_inertia(&rod, i))
-            .collect();
         let grid = Grid::new(&rod);
+        // Inertia per model slot of the grid (a tapered section's at each stage point).
+        let inertia: Vec<SectionInertia> = grid
+            .models
+            .iter()
+            .map(|m| section_inertia_at(&rod, m.section, m.s))
+            .collect();
         let n_slots = 2 * grid.len() + 1;
         let zero = Slot {
             x1: [0.0; FIELDS],
@@ -798,9 +839,9 @@ impl Simulator {
         c0: f64,
     ) -> Vec<SectionModel> {
         let tau = self.rod.spec.dynamics.damping_time;
-        (0..self.rod.sections.len())
+        let coeffs: Vec<Coeffs<f64>> = (0..self.rod.sections.len())
             .map(|i| {
-                let c = Coeffs::build(
+                Coeffs::build(
                     &self.rod,
                     i,
                     pressures,
@@ -808,19 +849,21 @@ impl Simulator {
                     &self.rod.gravity,
                     1.0,
                     sigma,
-                );
-                let inr = &self.inertia[i];
-                SectionModel::new(
-                    &c,
-                    self.rod.sections[i].rigid,
-                    inr.rho_a,
-                    inr.rho_j,
-                    inr.damping,
-                    tau,
-                    c0,
                 )
             })
-            .collect()
+            .collect();
+        self.grid.build_models(&self.rod, &coeffs, |c, k, slot| {
+            let inr = &self.inertia[k];
+            SectionModel::new(
+                c,
+                self.rod.sections[slot.section].rigid,
+                inr.rho_a,
+                inr.rho_j,
+                inr.damping,
+                tau,
+                c0,
+            )
+        })
     }
 
     /// The tip body with tip loads `force`, `moment` in the design's tip frame.
@@ -906,7 +949,7 @@ impl Simulator {
                 // accelerations at t = 0+ follow from n' = rho A R q_t - f with n uniform
                 // along a section (v = e3, u = 0): q_t = R^T f / (rho A); w_t = 0 and the
                 // strain rates are zero. A consistent start keeps the schemes second order.
-                let m = &models[self.grid.intervals[k / 2].section];
+                let m = &models[self.grid.intervals[k / 2].model[k % 2]];
                 if m.rho_a > 0.0 {
                     // Dead line loads turned into the base frame; follower ones are body
                     // loads already.
@@ -982,12 +1025,19 @@ impl Simulator {
             let j = k / 2;
             let sec = &self.rod.sections[self.grid.intervals[j].section];
             let (v, u) = ([f[0], f[1], f[2]], [f[3], f[4], f[5]]);
+            // A tapered section's chambers sit where the taper has moved them at the stage.
+            let tt = if sec.tapered {
+                self.grid.intervals[j].stage_local(k % 2) / sec.length
+            } else {
+                0.0
+            };
+            let centroid = |c: &crate::rod::Chamber| c.at(tt).2;
             let fine = v[2] > 0.0
                 && v[2] <= validity::MAX_STRETCH
                 && sec
                     .chambers
                     .iter()
-                    .all(|c| validity::fibre_stretch(&v, &u, c.centroid) > 0.0);
+                    .all(|c| validity::fibre_stretch(&v, &u, centroid(c)) > 0.0);
             if fine {
                 continue;
             }
@@ -999,7 +1049,7 @@ impl Simulator {
             };
             validity::check_stretch(at, &v).map_err(|e| e.at_time(t))?;
             for (c, ch) in sec.chambers.iter().enumerate() {
-                validity::check_chamber(at, c, &v, &u, ch.centroid).map_err(|e| e.at_time(t))?;
+                validity::check_chamber(at, c, &v, &u, centroid(ch)).map_err(|e| e.at_time(t))?;
             }
         }
         Ok(())
@@ -1009,8 +1059,8 @@ impl Simulator {
     fn energy_now(&self, models: &[SectionModel], eval: &Evaluated, force: [f64; 3]) -> Energy {
         let mut e = Energy::default();
         for (j, iv) in self.grid.intervals.iter().enumerate() {
-            let m = &models[iv.section];
             for i in 0..2 {
+                let m = &models[iv.model[i]];
                 let k = 2 * j + i;
                 let f = &eval.fields[k];
                 let r = &eval.stage_r[k];
@@ -1058,11 +1108,12 @@ impl Simulator {
     ) -> f64 {
         let mut out = 0.0;
         for (j, iv) in self.grid.intervals.iter().enumerate() {
-            let m = &models[iv.section];
+            let m = &models[iv.model[0]];
             if m.rigid {
                 continue;
             }
             for i in 0..2 {
+                let m = &models[iv.model[i]];
                 let k = 2 * j + i;
                 let (a, b) = (&old.fields[k], &new.fields[k]);
                 let dv: [f64; 3] = std::array::from_fn(|c| b[c] - a[c]);
@@ -1092,11 +1143,12 @@ impl Simulator {
     ) -> [f64; 3] {
         let mut out = [0.0; 3];
         for (j, iv) in self.grid.intervals.iter().enumerate() {
-            let m = &models[iv.section];
+            let m = &models[iv.model[0]];
             if m.rigid {
                 continue;
             }
             for i in 0..2 {
+                let m = &models[iv.model[i]];
                 let k = 2 * j + i;
                 let wgt = iv.h * GAUSS_B[i];
                 let xt = &slots[k].xt;
@@ -1653,11 +1705,12 @@ impl Simulator {
     fn elastic_of(&self, models: &[SectionModel], eval: &Evaluated) -> f64 {
         let mut e = 0.0;
         for (j, iv) in self.grid.intervals.iter().enumerate() {
-            let m = &models[iv.section];
+            let m = &models[iv.model[0]];
             if m.rigid {
                 continue;
             }
             for i in 0..2 {
+                let m = &models[iv.model[i]];
                 let f = &eval.fields[2 * j + i];
                 e += iv.h * GAUSS_B[i] * stored_density(m, f, iv.stage_local(i));
             }

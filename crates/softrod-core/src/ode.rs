@@ -378,6 +378,49 @@ impl<C: RodScalar> Coeffs<C> {
         }
     }
 
+    /// The coefficients of section `sec` as they hold at local arc length `s`: a varying
+    /// section's law, pressure force and moment, reference strains and line force there
+    /// ([`Coeffs::local_at`]; the Ogden law's k_e and k_s with them), the others as they
+    /// are. A uniform section's are borrowed. The result is uniform (no `inputs`): what a
+    /// collocation stage at `s` reads (`crate::collocation::Grid::build_models`).
+    pub fn at(&self, sec: &Section, s: f64) -> std::borrow::Cow<'_, Coeffs<C>> {
+        use std::borrow::Cow;
+        let Some(inp) = &self.inputs else {
+            return Cow::Borrowed(self);
+        };
+        let loc = local_law(sec, inp, s);
+        let axial = match &self.axial {
+            AxialCoeffs::Ogden { alpha, .. } => AxialCoeffs::Ogden {
+                k_e: loc.k_se[2],
+                alpha: *alpha,
+                k_s: loc.k_se[0],
+            },
+            other => other.clone(),
+        };
+        Cow::Owned(Coeffs {
+            c_se: loc.c_se,
+            c_bt: loc.c_bt,
+            v_shift: loc.v_shift,
+            u_shift: loc.u_shift,
+            f: loc.f,
+            l: self.l,
+            p_force: loc.p_force,
+            axial,
+            stretch_bending: self.stretch_bending,
+            v_star: loc.v_star,
+            u_star: loc.u_star,
+            k_se: loc.k_se,
+            k_bt: loc.k_bt,
+            f_body: self.f_body,
+            l_body: self.l_body,
+            follower: self.follower,
+            tendons: self.tendons.clone(),
+            tendon_radius: self.tendon_radius,
+            inputs: None,
+            obstacles: self.obstacles.clone(),
+        })
+    }
+
     /// The law of section `sec` at local arc length `s` (from its start).
     #[inline]
     pub fn local_at(&self, sec: &Section, s: f64) -> Local<C> {

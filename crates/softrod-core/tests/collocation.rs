@@ -402,7 +402,7 @@ fn collocation_stability_costs_less_than_the_solve() {
         }
         let sol = sol.unwrap();
         let grid = Grid::new(&rod);
-        let models = static_models(&rod, &ld, 1.0);
+        let models = static_models(&rod, &grid, &ld, 1.0);
         let hist = vec![[0.0; softrod_core::collocation::NF]; 2 * grid.len() + 1];
         let tip = softrod_core::collocation::TipBody {
             mass: rod.spec.tip.mass,

@@ -1,7 +1,8 @@
 //! Issue 17 part A in dynamics: a constant reference shape (precurvature, pre-strain) with
-//! the linear law enters the collocation dynamics through the law's shifts; the other
-//! statics-only features are refused with the field named (docs/scope.md). (Tendons and
-//! follower loads are carried: tests/dynamics_tendons.rs.)
+//! the linear law enters the collocation dynamics through the law's shifts; what it does
+//! not carry (a reference shape with a nonlinear axial law) is refused with the field named
+//! (docs/scope.md). (Tendons and follower loads are carried: tests/dynamics_tendons.rs;
+//! tapered sections and tabulated reference shapes: tests/dynamics_taper.rs.)
 
 mod common;
 use common::*;
@@ -69,15 +70,11 @@ fn precurved_arm_settles_on_the_statics() {
 #[test]
 fn dynamics_refuses_what_it_does_not_carry() {
     type Change = fn(&mut DesignSpec);
+    // A reference shape with a nonlinear axial law (Ogden): its pre-strain v* is not in
+    // the dynamic Ogden law yet. (Tapered sections and tabulated reference shapes are
+    // carried: tests/dynamics_taper.rs.)
     let cases: [(&str, Change); 1] = [("sections[0].reference", |s| {
-        s.sections[0].reference = softrod_core::spec::ReferenceSpec {
-            table: Some(softrod_core::spec::ReferenceTable {
-                s: vec![0.0, 0.11, 0.22],
-                curvature: vec![[0.0, 1.0, 0.0], [0.0, 2.0, 0.0], [0.0, 1.0, 0.0]],
-                strain: vec![[0.0, 0.0, 1.0]; 3],
-            }),
-            ..Default::default()
-        };
+        s.sections[0].law.axial = softrod_core::spec::AxialSpec::Ogden { alpha: 4.0 };
     })];
     for (field, change) in cases {
         let mut spec = precurved_arm();

@@ -35,7 +35,7 @@
 //! law (with or without stretch-dependent bending). The parameters: correction factors,
 //! E, c_p, chamber offsets, area_scale, density, mass and the damping time.
 
-use super::{Bdf, Candidate, Initial, Scheme, Simulator, Slot, FIELDS};
+use super::{section_inertia, Bdf, Candidate, Initial, Scheme, Simulator, Slot, FIELDS};
 use crate::collocation::{Factorization, Problem, SectionModel, NF};
 use crate::error::{Result, SoftrodError};
 use crate::jet::Jet;
@@ -134,6 +134,20 @@ impl Simulator {
             );
         }
         for (i, s) in self.rod.sections.iter().enumerate() {
+            if s.is_varying() {
+                return refuse(
+                    &format!(
+                        "sections[{i}].{}",
+                        if s.tapered {
+                            "outer_radius_end"
+                        } else {
+                            "reference"
+                        }
+                    ),
+                    s.name.clone(),
+                    "dynamic parameter sensitivities do not carry tapered sections or reference shapes tabulated along s yet (not tested)",
+                );
+            }
             if !s.tendons.is_empty() {
                 return refuse(
                     &format!("sections[{i}].tendons"),
@@ -190,8 +204,8 @@ impl Simulator {
                 .rod
                 .sections
                 .iter()
-                .zip(&self.inertia)
-                .any(|(s, inr)| !s.rigid && inr.damping.is_none());
+                .enumerate()
+                .any(|(i, s)| !s.rigid && section_inertia(&self.rod, i).damping.is_none());
             if !damped {
                 return refuse(
                     &field,
@@ -313,10 +327,9 @@ impl Simulator {
                 tau.eps[q] = 1.0;
             }
         }
-        (0..self.rod.sections.len())
+        let coeffs: Vec<Coeffs<Jet<N>>> = (0..self.rod.sections.len())
             .map(|i| {
-                let k = &knobs[i];
-                let c = Coeffs::build_with(
+                Coeffs::build_with(
                     &self.rod,
                     i,
                     pressures,
@@ -324,9 +337,15 @@ impl Simulator {
                     &self.rod.gravity,
                     Jet::<N>::from(1.0),
                     &sigma_d,
-                    k,
-                );
-                let inr = &self.inertia[i];
+                    &knobs[i],
+                )
+            })
+            .collect();
+        self.grid
+            .build_models(&self.rod, &coeffs, |c, slot_k, slot| {
+                let i = slot.section;
+                let k = &knobs[i];
+                let inr = &self.inertia[slot_k];
                 let rho_j_given = self.rod.spec.sections[i].rotary_inertia.is_some();
                 let rho_j = inr.rho_j.map(|x| {
                     if rho_j_given {
@@ -336,7 +355,7 @@ impl Simulator {
                     }
                 });
                 SectionModel::new(
-                    &c,
+                    c,
                     self.rod.sections[i].rigid,
                     k.mass_scale * inr.rho_a,
                     rho_j,
@@ -345,7 +364,6 @@ impl Simulator {
                     c0,
                 )
             })
-            .collect()
     }
 
     /// Carry the sensitivities over the accepted step `c` (before it is committed: the

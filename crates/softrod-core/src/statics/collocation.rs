@@ -29,21 +29,39 @@ pub struct StaticSolution {
 
 /// Section models of a static solve at load factor `factor` (pressures and gravity scaled
 /// by it, as in the shooting solver's continuation).
-pub fn static_models(rod: &Rod, loads: &crate::ode::Loads, factor: f64) -> Vec<SectionModel> {
-    (0..rod.sections.len())
-        .map(|i| {
-            let c = Coeffs::build(
-                rod,
-                i,
-                &loads.pressures,
-                &loads.tensions,
-                &rod.gravity,
-                factor,
-                &loads.stiffness_scale,
-            );
-            SectionModel::new(&c, rod.sections[i].rigid, 0.0, [0.0; 3], None, 0.0, 0.0)
-        })
-        .collect()
+/// One model per slot of `grid` (`Grid::models`).
+pub fn static_models(
+    rod: &Rod,
+    grid: &Grid,
+    loads: &crate::ode::Loads,
+    factor: f64,
+) -> Vec<SectionModel> {
+    let coeffs: Vec<Coeffs<f64>> = (0..rod.sections.len())
+        .map(|i| static_coeffs(rod, i, loads, factor))
+        .collect();
+    grid.build_models(rod, &coeffs, |c, _, slot| {
+        SectionModel::new(
+            c,
+            rod.sections[slot.section].rigid,
+            0.0,
+            [0.0; 3],
+            None,
+            0.0,
+            0.0,
+        )
+    })
+}
+
+fn static_coeffs(rod: &Rod, i: usize, loads: &crate::ode::Loads, factor: f64) -> Coeffs<f64> {
+    Coeffs::build(
+        rod,
+        i,
+        &loads.pressures,
+        &loads.tensions,
+        &rod.gravity,
+        factor,
+        &loads.stiffness_scale,
+    )
 }
 
 fn static_tip(rod: &Rod, loads: &crate::ode::Loads, factor: f64) -> TipBody {
@@ -97,7 +115,7 @@ pub fn solve_static(
         p.gravity = rod.gravity.map(|g| g * factor);
         p
     }
-    let full_models = static_models(rod, loads, 1.0);
+    let full_models = static_models(rod, &grid, loads, 1.0);
     let full = at(rod, &grid, &hist, loads, 1.0, &full_models);
     let warm = guess.filter(|g| g.len() == grid.unknowns() && g.iter().all(|x| x.is_finite()));
     let mut z = match warm {
@@ -170,7 +188,7 @@ pub fn solve_static(
         levels += 1;
         let target = (lam + dlam).min(1.0);
         let h = target - lam;
-        let models = static_models(rod, loads, target);
+        let models = static_models(rod, &grid, loads, target);
         let p = at(rod, &grid, &hist, loads, target, &models);
         let mut trial: Vec<f64> = match &prev {
             Some((lp, zp)) if lam > *lp => z
@@ -367,7 +385,9 @@ impl StaticSolution {
     /// Strains (v, u) at every node of a static solution (the law at rest: c0 = 0).
     pub fn node_strains(&self, rod: &Rod, loads: &crate::ode::Loads) -> Vec<([f64; 3], [f64; 3])> {
         let grid = Grid::new(rod);
-        let models = static_models(rod, loads, 1.0);
+        let coeffs: Vec<Coeffs<f64>> = (0..rod.sections.len())
+            .map(|i| static_coeffs(rod, i, loads, 1.0))
+            .collect();
         let zero = [0.0; NF];
         self.evaluated
             .nodes
@@ -384,7 +404,11 @@ impl StaticSolution {
                 let rot = rotation(&y[IQ..IQ + 4]);
                 let nb = mat_t_vec(&rot, &[y[IN], y[IN + 1], y[IN + 2]]);
                 let mb = mat_t_vec(&rot, &[y[IM], y[IM + 1], y[IM + 2]]);
-                models[sec].strains(&nb, &mb, &zero, 0.0, s)
+                // The law at the node's own arc length (a varying section's there).
+                let c = coeffs[sec].at(&rod.sections[sec], s);
+                let model =
+                    SectionModel::new(&c, rod.sections[sec].rigid, 0.0, [0.0; 3], None, 0.0, 0.0);
+                model.strains(&nb, &mb, &zero, 0.0, s)
             })
             .collect()
     }
