@@ -126,42 +126,6 @@ fn damped_tendon_runs_settle_on_statics() {
     }
 }
 
-/// The full collocation residual of the next step with tendons under tension, at a point
-/// off the solution, against central differences (as tests/dynamics_laws.rs).
-fn check_step_jacobian(name: &str, sim: &Simulator) {
-    let z: Vec<f64> = sim
-        .unknowns()
-        .iter()
-        .enumerate()
-        .map(|(k, v)| v * 1.01 + 1e-3 * ((k % 7) as f64 - 3.0) * v.abs().max(1e-3))
-        .collect();
-    let (_, jac) = sim.step_residual_and_jacobian(&z);
-    let n = z.len();
-    let mut worst: f64 = 0.0;
-    for j in 0..n {
-        let h = 1e-6 * z[j].abs().max(1e-3);
-        let (mut zp, mut zm) = (z.clone(), z.clone());
-        zp[j] += h;
-        zm[j] -= h;
-        let (rp, _) = sim.step_residual_and_jacobian(&zp);
-        let (rm, _) = sim.step_residual_and_jacobian(&zm);
-        for i in 0..n {
-            let fd = (rp[i] - rm[i]) / (zp[j] - zm[j]);
-            let scale = (0..n)
-                .map(|k| (jac[i][k] * z[k].abs().max(1e-3)).abs())
-                .fold(0.0, f64::max);
-            let err = (fd - jac[i][j]).abs() * z[j].abs().max(1e-3) / scale.max(1e-300);
-            worst = worst.max(err);
-            assert!(
-                err <= 1e-6,
-                "{name}: J[{i}][{j}] = {} vs FD {fd}",
-                jac[i][j]
-            );
-        }
-    }
-    eprintln!("{name}: worst relative Jacobian error {worst:.2e} over {n} unknowns");
-}
-
 #[test]
 fn step_jacobian_with_tendons_matches_finite_differences() {
     for (name, helical, sb) in cases() {
