@@ -1063,6 +1063,21 @@ impl<'a> Problem<'a> {
     }
 
     /// Exact Jacobian of f at a point, in scaled variables and scaled rows.
+    /// The exact Jacobians of f at interval j's two stages (each with its own section model
+    /// and arc length).
+    fn stage_jacobians(&self, z: &[f64], j: usize) -> (Mat16, Mat16) {
+        let iv = &self.grid.intervals[j];
+        let at = |k: usize| {
+            self.point_jacobian(
+                &self.stage(z, j, k),
+                &self.models[iv.model[k]],
+                &self.hist[2 * j + k],
+                iv.stage_local(k),
+            )
+        };
+        (at(0), at(1))
+    }
+
     fn point_jacobian(&self, y: &[f64; NY], model: &SectionModel, h: &[f64; NF], s: f64) -> Mat16 {
         let yj: [Jet<NY>; NY] = std::array::from_fn(|k| {
             let mut e = [0.0; NY];
@@ -1158,19 +1173,7 @@ impl<'a> Problem<'a> {
         b: &SMatrix<f64, NY, K>,
     ) -> Option<SMatrix<f64, NY, K>> {
         let iv = &self.grid.intervals[j];
-        let model = [&self.models[iv.model[0]], &self.models[iv.model[1]]];
-        let j1 = self.point_jacobian(
-            &self.stage(z, j, 0),
-            model[0],
-            &self.hist[2 * j],
-            iv.stage_local(0),
-        );
-        let j2 = self.point_jacobian(
-            &self.stage(z, j, 1),
-            model[1],
-            &self.hist[2 * j + 1],
-            iv.stage_local(1),
-        );
+        let (j1, j2) = self.stage_jacobians(z, j);
         let hh = iv.h;
         // M = I - h (A (x) I) diag(J1, J2); the stages follow M dS = [dY_j; dY_j].
         let mut m = SMatrix::<f64, 32, 32>::identity();
@@ -1223,19 +1226,7 @@ impl<'a> Problem<'a> {
         let (kl, ku) = (25, 6);
         let mut band = BandedLu::zeros(n, kl, ku);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
-            let model = [&self.models[iv.model[0]], &self.models[iv.model[1]]];
-            let j1 = self.point_jacobian(
-                &self.stage(z, j, 0),
-                model[0],
-                &self.hist[2 * j],
-                iv.stage_local(0),
-            );
-            let j2 = self.point_jacobian(
-                &self.stage(z, j, 1),
-                model[1],
-                &self.hist[2 * j + 1],
-                iv.stage_local(1),
-            );
+            let (j1, j2) = self.stage_jacobians(z, j);
             let hh = iv.h;
             // Column-major M = I - h (A (x) I) diag(J1, J2) (32 x 32) and
             // G = h [b1 J1, b2 J2] (16 x 32).
