@@ -245,6 +245,7 @@ class InverseSolver:
         self,
         position: _Vec3,
         pressures: Sequence[float],
+        tensions: Sequence[float],
         orientation: Sequence[Sequence[float]] | None = None,
         x: _Vec3 | None = None,
         reference: Sequence[float] | None = None,

@@ -1,7 +1,13 @@
-//! Inverse statics: the chamber pressures, within per-channel bounds, that bring a point of
-//! the rod (the tip by default) to a target position and optionally orientation.
+//! Inverse statics: the chamber pressures and tendon tensions, within per-input bounds, that
+//! bring a point of the rod (the tip by default) to a target position and optionally
+//! orientation.
 //!
-//! Problem (pressures p in the box [lo, hi], shooting unknowns x):
+//! The inputs p are the pressure channels (Pa) followed by the tendon channels (N); a tendon
+//! only pulls, so its bounds lie in [0, inf) and a slack tendon is the lower bound 0 (its
+//! derivative there is one-sided, which the box constraint respects). Below, "pressures"
+//! stands for all inputs.
+//!
+//! Problem (inputs p in the box [lo, hi], shooting unknowns x):
 //!   minimise  1/2 |e(x, p)|^2 + eps/2 |S (p - p_ref)|^2   subject to  g(x, p) = 0,
 //! with g the scaled shooting residual of `crate::statics` (the equilibrium), S = diag(1 /
 //! (hi - lo)) and the task residual e: w_i (r_i - r*_i) / L for the position and
@@ -64,9 +70,10 @@ pub struct InverseTarget {
 /// Settings of the inverse solver.
 #[derive(Debug, Clone, PartialEq)]
 pub struct InverseOptions {
-    /// [lo, hi] gauge pressure per channel, Pa (lo == hi pins a channel).
+    /// [lo, hi] per input: gauge pressure per pressure channel, Pa, then tension per
+    /// tendon channel, N (lo == hi pins an input).
     pub bounds: Vec<[f64; 2]>,
-    /// The regularisation's centre p_ref, Pa (one per channel, inside the bounds).
+    /// The regularisation's centre p_ref (one per input, inside the bounds).
     pub reference: Vec<f64>,
     /// eps of the regularisation (dimensionless; the task error is measured in L and rad,
     /// the pressures in fractions of their range). Used only with redundant channels.
@@ -101,6 +108,8 @@ impl InverseOptions {
 pub struct InverseSolution {
     /// Gauge pressure per channel, Pa, within the bounds.
     pub pressures: Vec<f64>,
+    /// Tension per tendon channel, N, within the bounds.
+    pub tensions: Vec<f64>,
     /// The converged equilibrium under those pressures, checked as a static solve's answer
     /// (`stable`, validity-range `violations`; `x` is a warm start).
     pub solution: Solution,
@@ -114,7 +123,8 @@ pub struct InverseSolution {
     pub angle: f64,
     /// Least-squares cost 1/2 |e|^2 (without the regularisation).
     pub cost: f64,
-    /// -1 at the lower bound, +1 at the upper, 0 inside, per channel.
+    /// -1 at the lower bound, +1 at the upper, 0 inside, per input (pressures, then
+    /// tensions).
     pub active: Vec<i8>,
     /// Levenberg-Marquardt iterations and dual passes.
     pub iterations: usize,
@@ -133,19 +143,20 @@ fn finite(field: impl FnOnce() -> String, v: f64) -> Result<()> {
 }
 
 fn validate(rod: &Rod, loads: &Loads, target: &InverseTarget, opts: &InverseOptions) -> Result<()> {
-    let nc = rod.n_channels;
-    if nc == 0 {
+    let (nc, nt) = (rod.n_channels, rod.n_tendons);
+    let nu = nc + nt;
+    if nu == 0 {
         return Err(SoftrodError::invalid(
             "design",
             &rod.spec.name,
-            "has no pressure channels, so there is nothing to invert",
+            "has neither pressure channels nor tendons, so there is nothing to invert",
         ));
     }
-    if nc > MAX_INVERSE_CHANNELS {
+    if nu > MAX_INVERSE_CHANNELS {
         return Err(SoftrodError::invalid(
             "design",
-            format!("{nc} channels"),
-            format!("the inverse handles at most {MAX_INVERSE_CHANNELS} channels"),
+            format!("{nc} pressure channels and {nt} tendons"),
+            format!("the inverse handles at most {MAX_INVERSE_CHANNELS} inputs"),
         ));
     }
     if rod.sections.iter().any(|s| s.law.stiffness_map) {
@@ -156,45 +167,65 @@ fn validate(rod: &Rod, loads: &Loads, target: &InverseTarget, opts: &InverseOpti
         ));
     }
     opts.statics.validate()?;
-    if opts.bounds.len() != nc {
+    // Field names of input u: pressure channels first, then tendon channels.
+    let name = |u: usize| {
+        if u < nc {
+            format!("pressure_bounds[{u}]")
+        } else {
+            format!("tension_bounds[{}]", u - nc)
+        }
+    };
+    if opts.bounds.len() != nu {
         return Err(SoftrodError::invalid(
-            "pressure_bounds",
+            "bounds",
             format!("{} pairs", opts.bounds.len()),
-            format!("give one [lo, hi] per channel ({nc})"),
+            format!("give one [lo, hi] per pressure channel ({nc}), then per tendon ({nt})"),
         ));
     }
-    for (c, b) in opts.bounds.iter().enumerate() {
-        finite(|| format!("pressure_bounds[{c}][0]"), b[0])?;
-        finite(|| format!("pressure_bounds[{c}][1]"), b[1])?;
+    for (u, b) in opts.bounds.iter().enumerate() {
+        finite(|| format!("{}[0]", name(u)), b[0])?;
+        finite(|| format!("{}[1]", name(u)), b[1])?;
         if b[0] > b[1] {
             return Err(SoftrodError::invalid(
-                format!("pressure_bounds[{c}]"),
+                name(u),
                 format!("[{}, {}]", b[0], b[1]),
                 "lo must be <= hi",
             ));
         }
-        if b[0] < -crate::spec::ATMOSPHERE {
+        if u < nc && b[0] < -crate::spec::ATMOSPHERE {
             return Err(SoftrodError::invalid(
-                format!("pressure_bounds[{c}][0]"),
+                format!("{}[0]", name(u)),
                 b[0],
                 "a gauge pressure cannot lie below -1 atm (vacuum)",
             ));
         }
+        if u >= nc && b[0] < 0.0 {
+            return Err(SoftrodError::invalid(
+                format!("{}[0]", name(u)),
+                b[0],
+                "a tendon can only pull: tension must be >= 0 (0 is a slack tendon)",
+            ));
+        }
     }
-    if opts.reference.len() != nc {
+    if opts.reference.len() != nu {
         return Err(SoftrodError::invalid(
             "reference",
             format!("{} values", opts.reference.len()),
-            format!("give one pressure per channel ({nc})"),
+            format!("give one value per input ({nc} pressures, then {nt} tensions)"),
         ));
     }
-    for (c, (&r, b)) in opts.reference.iter().zip(&opts.bounds).enumerate() {
-        finite(|| format!("reference[{c}]"), r)?;
+    for (u, (&r, b)) in opts.reference.iter().zip(&opts.bounds).enumerate() {
+        finite(|| format!("reference[{u}]"), r)?;
         if r < b[0] || r > b[1] {
             return Err(SoftrodError::invalid(
-                format!("reference[{c}]"),
+                format!("reference[{u}]"),
                 r,
-                format!("must lie inside the bounds [{}, {}] Pa", b[0], b[1]),
+                format!(
+                    "must lie inside the bounds [{}, {}] of {}",
+                    b[0],
+                    b[1],
+                    name(u)
+                ),
             ));
         }
     }
@@ -203,6 +234,13 @@ fn validate(rod: &Rod, loads: &Loads, target: &InverseTarget, opts: &InverseOpti
             "initial",
             format!("{:?}", loads.pressures),
             format!("the start needs {nc} finite pressures"),
+        ));
+    }
+    if loads.tensions.len() != nt || loads.tensions.iter().any(|t| !t.is_finite()) {
+        return Err(SoftrodError::invalid(
+            "initial",
+            format!("{:?}", loads.tensions),
+            format!("the start needs {nt} finite tensions"),
         ));
     }
     if !(opts.regularisation.is_finite() && opts.regularisation >= 0.0) {
@@ -462,7 +500,8 @@ fn inf(v: &[f64]) -> f64 {
 #[derive(Debug, Clone, PartialEq)]
 pub struct WarmStart {
     pub x: [f64; 3],
-    /// The converged equilibrium this warm start describes: pressures and the probe's state
+    /// The converged equilibrium this warm start describes: inputs (pressures, then
+    /// tensions) and the probe's state
     /// (when the start pressures equal these, no pass is needed to begin).
     pub equilibrium: Option<(Vec<f64>, State<f64>)>,
     pub linearisation: Option<Linearisation>,
@@ -481,7 +520,10 @@ impl InverseSolution {
     pub fn warm_start(&self) -> WarmStart {
         WarmStart {
             x: std::array::from_fn(|i| self.solution.x[i]),
-            equilibrium: Some((self.pressures.clone(), self.point)),
+            equilibrium: Some((
+                [&self.pressures[..], &self.tensions[..]].concat(),
+                self.point,
+            )),
             linearisation: self.linearisation.clone(),
         }
     }
@@ -500,7 +542,9 @@ pub fn solve_inverse(
     validate(rod, loads, target, opts)?;
     crate::jacobian::dead_loads_only(rod, loads, "inverse statics")?;
     let probe = Probe::at(rod, target.s)?;
-    let nc = rod.n_channels;
+    // Inputs: the pressure channels, then the tendon channels ("pressures" p below).
+    let n_p = rod.n_channels;
+    let nc = n_p + rod.n_tendons;
     let task = Task {
         target,
         length: rod.length,
@@ -514,10 +558,19 @@ pub fn solve_inverse(
         .map(|b| if b[1] > b[0] { b[1] - b[0] } else { 1.0 })
         .collect();
     let with_p = |p: &[f64]| Loads {
-        pressures: p.to_vec(),
+        pressures: p[..n_p].to_vec(),
+        tensions: p[n_p..].to_vec(),
         ..loads.clone()
     };
-    let inputs: Vec<Input> = (0..nc).map(Input::Pressure).collect();
+    let inputs: Vec<Input> = (0..nc)
+        .map(|u| {
+            if u < n_p {
+                Input::Pressure(u)
+            } else {
+                Input::Tension(u - n_p)
+            }
+        })
+        .collect();
     let z_ref: Vec<f64> = (0..nc)
         .map(|c| (opts.reference[c] - lo[c]) / range[c])
         .collect();
@@ -603,8 +656,12 @@ pub fn solve_inverse(
     // Start: the equilibrium at the clipped start pressures; from a cold start, the best of
     // it, the box's centre and (up to 4 channels) its corners, so that the local method
     // starts in the right basin of a non-convex distance.
-    let p0: Vec<f64> = (0..nc)
-        .map(|c| loads.pressures[c].clamp(lo[c], hi[c]))
+    let p0: Vec<f64> = loads
+        .pressures
+        .iter()
+        .chain(&loads.tensions)
+        .enumerate()
+        .map(|(c, v)| v.clamp(lo[c], hi[c]))
         .collect();
     let guess = warm.map(|w| &w.x);
     let known = warm.and_then(|w| {
@@ -910,7 +967,8 @@ pub fn solve_inverse(
         distance,
         angle: task.angle(&it.y),
         cost: cost_of(&it.y, &it.p, 0.0),
-        pressures: it.p,
+        tensions: it.p[n_p..].to_vec(),
+        pressures: it.p[..n_p].to_vec(),
         solution,
         iterations,
         passes,

@@ -15,7 +15,9 @@
 
 use crate::error::{Result, SoftrodError};
 use crate::jet::Jet;
-use crate::ode::{advance, integrate_with, Coeffs, Loads, NodeAt, SectionKnobs, State};
+use crate::ode::{
+    advance, integrate_with, Coeffs, Loads, NodeAt, SectionKnobs, State, TendonCoeff,
+};
 use crate::rod::Rod;
 use crate::statics::{Problem, Solution};
 use nalgebra::{DMatrix, Matrix3, Vector3};
@@ -29,6 +31,8 @@ pub enum Input {
     TipForce(usize),
     /// Component of the dead tip moment (world frame), N m.
     TipMoment(usize),
+    /// Tension of a tendon channel, N.
+    Tension(usize),
 }
 
 /// Where the state is read: at a node, or a partial step after it.
@@ -109,8 +113,8 @@ pub struct Pass {
     pub y_a: Vec<[f64; 12]>,
 }
 
-/// Pressures, knobs and sigma of the coefficients in `Jet<N>`, the listed pressures seeded
-/// as directions `3 + k`.
+/// Pressures, knobs and sigma of the coefficients in `Jet<N>`, the listed pressures and
+/// tensions seeded as directions `3 + k`.
 pub(crate) fn dual_coeffs<const N: usize>(
     rod: &Rod,
     loads: &Loads,
@@ -126,7 +130,7 @@ pub(crate) fn dual_coeffs<const N: usize>(
     (0..rod.sections.len())
         .map(|i| {
             let knobs = SectionKnobs::of(&rod.sections[i]).lift();
-            Coeffs::build_with(
+            let mut coeffs = Coeffs::build_with(
                 rod,
                 i,
                 &p,
@@ -135,9 +139,40 @@ pub(crate) fn dual_coeffs<const N: usize>(
                 Jet::from(1.0),
                 &sigma,
                 &knobs,
-            )
+            );
+            seed_tensions(rod, i, loads, inputs, &mut coeffs);
+            coeffs
         })
         .collect()
+}
+
+/// Seed the tension inputs among `inputs` in section `i`'s tendon coefficients. A slack
+/// tendon (tension 0) is left out of the coefficients (it carries no load), but its
+/// tension's derivative is not zero (pulling it bends the rod): it is added with value 0,
+/// where the law's tangent is still defined (the tendon's length is positive).
+fn seed_tensions<const N: usize>(
+    rod: &Rod,
+    i: usize,
+    loads: &Loads,
+    inputs: &[Input],
+    coeffs: &mut Coeffs<Jet<N>>,
+) {
+    for (k, a) in inputs.iter().enumerate() {
+        let Input::Tension(t) = a else { continue };
+        for route in rod.sections[i].tendons.iter().filter(|r| r.channel == *t) {
+            match coeffs.tendons.iter_mut().find(|c| c.route == *route) {
+                Some(c) => c.tension.eps[3 + k] = 1.0,
+                None => {
+                    let mut tension = Jet::from(loads.tensions[*t]);
+                    tension.eps[3 + k] = 1.0;
+                    coeffs.tendons.push(TendonCoeff {
+                        tension,
+                        route: *route,
+                    });
+                }
+            }
+        }
+    }
 }
 
 fn flatten<D: Copy>(st: &State<D>) -> [D; 12] {
@@ -384,6 +419,7 @@ pub fn check_inputs(rod: &Rod, inputs: &[Input]) -> Result<()> {
     for (k, a) in inputs.iter().enumerate() {
         let bad = match a {
             Input::Pressure(c) => *c >= rod.n_channels,
+            Input::Tension(t) => *t >= rod.n_tendons,
             Input::TipForce(j) | Input::TipMoment(j) => *j >= 3,
         };
         if bad {
@@ -391,8 +427,8 @@ pub fn check_inputs(rod: &Rod, inputs: &[Input]) -> Result<()> {
                 format!("inputs[{k}]"),
                 format!("{a:?}"),
                 format!(
-                    "pressure channels are 0..{} and load components 0..3",
-                    rod.n_channels
+                    "pressure channels are 0..{}, tendon channels 0..{} and load components 0..3",
+                    rod.n_channels, rod.n_tendons
                 ),
             ));
         }

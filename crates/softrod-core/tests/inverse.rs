@@ -361,6 +361,7 @@ fn pressure_and_load_jacobians_match_finite_differences() {
                     Input::TipMoment(j) => {
                         (1e-5, Box::new(move |l: &mut Loads, d| l.tip_moment[j] += d))
                     }
+                    Input::Tension(_) => unreachable!("no tendons on this rod"),
                 };
                 let eval = |d: f64| {
                     let mut l = base.clone();

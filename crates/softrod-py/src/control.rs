@@ -96,14 +96,16 @@ impl PyInverse {
     }
 
     /// Solve for `position` (m) and optionally `orientation` from the start `pressures`
-    /// (Pa) and, for a warm start, its shooting unknowns `x`. `reference` replaces the
-    /// regularisation's centre for this call. Returns a dict (SI).
-    #[pyo3(signature = (position, pressures, orientation=None, x=None, reference=None))]
+    /// (Pa) and `tensions` (N) and, for a warm start, its shooting unknowns `x`.
+    /// `reference` replaces the regularisation's centre for this call. Returns a dict (SI).
+    #[pyo3(signature = (position, pressures, tensions, orientation=None, x=None, reference=None))]
+    #[allow(clippy::too_many_arguments)]
     fn solve<'py>(
         &self,
         py: Python<'py>,
         position: [f64; 3],
         pressures: Vec<f64>,
+        tensions: Vec<f64>,
         orientation: Option<[[f64; 3]; 3]>,
         x: Option<[f64; 3]>,
         reference: Option<Vec<f64>>,
@@ -121,7 +123,7 @@ impl PyInverse {
                 tip_force: self.tip_force,
                 tip_moment: self.tip_moment,
                 stiffness_scale: [1.0; 3],
-                tensions: vec![],
+                tensions,
                 tip_frame: self.rod.spec.tip.frame,
             };
             let custom;
@@ -153,6 +155,7 @@ impl PyInverse {
             }
             let d = PyDict::new(py);
             d.set_item("pressures", out.pressures)?;
+            d.set_item("tensions", out.tensions)?;
             d.set_item("x", out.solution.x.to_vec())?;
             d.set_item("point_position", out.point.r.to_vec())?;
             d.set_item("point_rotation", out.point.rot.map(|r| r.to_vec()).to_vec())?;

@@ -27,18 +27,32 @@ def _bounds(design, text):
         raise design_error("--bounds", text, exc.rule, InputError) from None
 
 
+def _tension_bounds(design, text):
+    from ..control import tension_bounds
+    from ..errors import InputError, design_error
+
+    try:
+        return tension_bounds(design, text)
+    except InputError as exc:
+        raise design_error("--tension-bounds", text, exc.rule, InputError) from None
+
+
 @click.command("inverse")
 @click.argument("design")
 @click.option("--target", "-t", required=True, metavar="X,Y,Z",
               help="Target position of the tip (world frame), e.g. '10,5,-130 mm'.")
 @click.option("--bounds", "bounds", default=None, metavar="LO:HI", help=_BOUNDS_HELP)
+@click.option("--tension-bounds", "tension_bounds", default=None, metavar="LO:HI",
+              help="Tension bounds of every tendon as LO:HI with a unit, e.g. 0:20N (LO >= 0; "
+              "default: the design's [operating_range] tension).")
 @click.option("--point", default=None,
               help="Arc length of the rod point that should reach the target (default: the "
               "tip), e.g. '65 mm'.")
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @_handle_errors
-def inverse(design, target, bounds, point, as_json):
-    """Chamber pressures within the bounds that bring the tip of DESIGN to --target.
+def inverse(design, target, bounds, tension_bounds, point, as_json):
+    """Chamber pressures and tendon tensions within the bounds that bring the tip of DESIGN
+    to --target.
 
     An unreachable target gives the closest pose inside the bounds, marked NOT reached,
     with the distance left (exit code 0).
@@ -51,7 +65,8 @@ def inverse(design, target, bounds, point, as_json):
     d = load_design(design)
     position = _parse_vector(target, "length", "--target", 3)
     s = None if point is None else to_si(point, "length", "--point", InputError, bare="error")
-    sol = solve_inverse(d, position, pressure_bounds=_bounds(d, bounds), point=s)
+    sol = solve_inverse(d, position, pressure_bounds=_bounds(d, bounds),
+                        tension_bounds=_tension_bounds(d, tension_bounds), point=s)
     if as_json:
         out = {
             "design": d.name,
@@ -63,6 +78,9 @@ def inverse(design, target, bounds, point, as_json):
             "distance_mm": sol.distance * 1e3,
             "active_bounds": [int(a) for a in sol.active],
             "bounds_kPa": (sol.bounds / 1e3).tolist(),
+            "tensions_N": [float(t) for t in sol.tensions],
+            "tension_active_bounds": [int(a) for a in sol.tension_active],
+            "tension_bounds_N": sol.tension_bounds.tolist(),
             "iterations": sol.iterations,
         }
         click.echo(json.dumps(out, indent=2))

@@ -20,7 +20,13 @@ from .closed_loop import (
     tracking_frame,
     tracking_plot,
 )
-from .inverse import InverseProblem, InverseSolution, pressure_bounds, solve_inverse
+from .inverse import (
+    InverseProblem,
+    InverseSolution,
+    pressure_bounds,
+    solve_inverse,
+    tension_bounds,
+)
 from .linear import Jacobian, LinearSystem, Modes, jacobian, linearise
 from .workspace import Workspace, workspace
 
@@ -41,6 +47,7 @@ __all__ = [
     "pressure_bounds",
     "run_closed_loop",
     "solve_inverse",
+    "tension_bounds",
     "tracking_frame",
     "tracking_plot",
     "workspace",

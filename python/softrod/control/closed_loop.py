@@ -308,7 +308,18 @@ class TrackingController:
         self.rate = real(rate, "rate", minimum=0.0, exclusive=True, what="a control rate in Hz")
         self.kp = real(kp, "kp", minimum=0.0)
         self.ki = real(ki, "ki", minimum=0.0)
-        self.problem = InverseProblem(self.design, pressure_bounds=pressure_bounds, **problem)
+        if self.design.n_channels == 0:
+            raise design_error("design", self.design.name,
+                               "has no pressure channels: the tracking controller commands "
+                               "pressures", InputError)
+        if "tension_bounds" in problem:
+            raise design_error("tension_bounds", problem["tension_bounds"],
+                               "the tracking controller commands pressures only; its "
+                               "inverse holds the tendons slack", InputError)
+        # The loop applies pressures only, so its inverse must not count on tensions.
+        slack = (0.0, 0.0) if self.design.n_tendons else None
+        self.problem = InverseProblem(self.design, pressure_bounds=pressure_bounds,
+                                      tension_bounds=slack, **problem)
         self.integral = np.zeros(3)
         self.last = None
         self.history: list[tuple] = []

@@ -1,0 +1,276 @@
+//! Inverse statics with tendon tensions as inputs (crate::inverse, crate::jacobian): the
+//! exact tension Jacobian against finite differences (also at a slack tendon, where it is
+//! one-sided), round trips that recover known tensions, slack respected for a target that
+//! would need a tendon to push, a hybrid rod with chambers and tendons, and the input rules.
+
+// Index loops over inputs read like the equations they check.
+#![allow(clippy::needless_range_loop)]
+
+mod common;
+use common::*;
+use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget};
+use softrod_core::jacobian::{point_jacobian, Input, Probe};
+use softrod_core::ode::Loads;
+use softrod_core::spec::{DesignSpec, TendonSpec};
+use softrod_core::statics::{solve, SolverOptions};
+use softrod_core::{Rod, SoftrodError};
+
+/// The horizontal base of Till, Aloi and Rucker's tendon robot (d3 along world x, d1 down).
+const HORIZONTAL: [[f64; 3]; 3] = [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]];
+/// Tension range of the tests, N.
+const T_MAX: f64 = 20.0;
+
+fn tendon(channel: usize, angle_deg: f64) -> TendonSpec {
+    TendonSpec {
+        channel,
+        distance: 0.01506,
+        angle: angle_deg.to_radians(),
+        distance_end: None,
+        angle_end: None,
+    }
+}
+
+/// The 0.5 m steel backbone of Till, Aloi and Rucker (IJRR 2019) with tendons at the given
+/// angles, under gravity.
+fn till(angles: &[f64]) -> Rod {
+    let mut sec = direct_section(
+        "backbone", 0.5, 628318.5, 251327.4, 0.1570796, 0.1256637, 0.012566, 40,
+    );
+    sec.outer_radius = Some(0.016);
+    sec.tendons = angles
+        .iter()
+        .enumerate()
+        .map(|(c, a)| tendon(c, *a))
+        .collect();
+    Rod::new(design(vec![sec], HORIZONTAL, 9.81)).unwrap()
+}
+
+fn tensions(t: &[f64]) -> Loads {
+    Loads {
+        tensions: t.to_vec(),
+        ..loads(&[])
+    }
+}
+
+fn target(rod: &Rod, position: [f64; 3]) -> InverseTarget {
+    InverseTarget {
+        s: rod.length,
+        position,
+        orientation: None,
+        position_weight: [1.0; 3],
+        orientation_weight: 0.0,
+    }
+}
+
+fn tight() -> SolverOptions {
+    SolverOptions {
+        tol: 1e-13,
+        ..Default::default()
+    }
+}
+
+/// d(tip)/d(tension) from the dual pass against differences of whole solves: central
+/// differences (step 1e-3 N) at a pulled tendon; at a slack one (tension 0, where a tendon
+/// cannot be pushed) the second-order one-sided difference (-3 f(0) + 4 f(h) - f(2h)) / 2h.
+/// Both err by ~h^2 |y'''| (1e-6 relative for bending that is smooth on the scale of
+/// 1 N) plus the solves' noise 1e-13 / h; 1e-5 of the column keeps both well below.
+#[test]
+fn tension_jacobian_matches_finite_differences() {
+    let rod = till(&[0.0, 90.0, 180.0, 270.0]);
+    let base = tensions(&[6.0, 0.0, 2.5, 0.0]);
+    let sol = solve(&rod, &base, None, &tight()).unwrap();
+    let inputs: Vec<Input> = (0..4).map(Input::Tension).collect();
+    for probe in [Probe::tip(&rod), Probe::at(&rod, 0.2).unwrap()] {
+        let jac = point_jacobian(&rod, &base, &sol, &inputs, &probe).unwrap();
+        let at = |k: usize, d: f64| {
+            let mut l = base.clone();
+            l.tensions[k] += d;
+            let s = solve(&rod, &l, Some(&sol.x), &tight()).unwrap();
+            point_jacobian(&rod, &l, &s, &[], &probe).unwrap().position
+        };
+        let h = 1e-3;
+        for k in 0..4 {
+            let fd: [f64; 3] = if base.tensions[k] > 0.0 {
+                let (p, m) = (at(k, h), at(k, -h));
+                std::array::from_fn(|i| (p[i] - m[i]) / (2.0 * h))
+            } else {
+                let (f0, f1, f2) = (at(k, 0.0), at(k, h), at(k, 2.0 * h));
+                std::array::from_fn(|i| (-3.0 * f0[i] + 4.0 * f1[i] - f2[i]) / (2.0 * h))
+            };
+            let err = dist(&fd, &jac.d_position[k]) / norm(&fd);
+            println!("s = {}, tendon {k}: {err:.2e}", probe.s);
+            assert!(norm(&fd) > 1e-6, "tendon {k} should move the point");
+            assert!(err < 1e-5, "s = {}, tendon {k}: {err:.2e}", probe.s);
+        }
+    }
+}
+
+/// Two tendons 90 degrees apart and a position target made by a forward solve: three task
+/// components, two inputs, consistent, so the tensions come back (to 1e-6 of the range:
+/// the tip is reached to tol = 1e-10 L and the map's sensitivity is ~1e-3 L per N) and the
+/// tip to 1e-9 L.
+#[test]
+fn round_trip_recovers_tensions() {
+    let rod = till(&[0.0, 90.0]);
+    let opts = InverseOptions::new(vec![[0.0, T_MAX]; 2]);
+    let mut rng = Lcg(5);
+    for _ in 0..12 {
+        let t: Vec<f64> = (0..2)
+            .map(|_| (rng.uniform() + 1.0) * 0.5 * T_MAX)
+            .collect();
+        let fwd = solve(&rod, &tensions(&t), None, &SolverOptions::default()).unwrap();
+        let inv = solve_inverse(
+            &rod,
+            &tensions(&[0.0; 2]),
+            &target(&rod, fwd.tip.r),
+            &opts,
+            None,
+        )
+        .unwrap_or_else(|e| panic!("t = {t:?}: {e}"));
+        assert!(inv.reached, "t = {t:?}: distance {}", inv.distance);
+        assert!(inv.pressures.is_empty());
+        for k in 0..2 {
+            assert!(
+                (inv.tensions[k] - t[k]).abs() < 1e-6 * T_MAX,
+                "{:?} vs {t:?}",
+                inv.tensions
+            );
+        }
+        assert!(dist(&inv.solution.tip.r, &fwd.tip.r) < 1e-9 * rod.length);
+        assert_eq!(inv.solution.stable, Some(true));
+    }
+}
+
+/// Four tendons (redundant: four inputs for three position components): the least-tension
+/// answer reaches the target, and of each opposed pair at most one pulls (pulling both only
+/// compresses the rod, which the regularisation avoids; the compression this costs is
+/// 1e-5 of the length per 20 N, far below what the bending needs).
+#[test]
+fn redundant_tendons_reach_with_least_tension() {
+    let rod = till(&[0.0, 90.0, 180.0, 270.0]);
+    let opts = InverseOptions::new(vec![[0.0, T_MAX]; 4]);
+    let t = [9.0, 0.0, 0.0, 4.0];
+    let fwd = solve(&rod, &tensions(&t), None, &SolverOptions::default()).unwrap();
+    let inv = solve_inverse(
+        &rod,
+        &tensions(&[0.0; 4]),
+        &target(&rod, fwd.tip.r),
+        &opts,
+        None,
+    )
+    .unwrap();
+    assert!(inv.reached, "distance {}", inv.distance);
+    println!("tensions {:?}, active {:?}", inv.tensions, inv.active);
+    for (a, b) in [(0, 2), (1, 3)] {
+        assert!(
+            inv.tensions[a].min(inv.tensions[b]) < 1e-3 * T_MAX,
+            "opposed tendons {a} and {b} both pull: {:?}",
+            inv.tensions
+        );
+    }
+    assert!(inv.tensions.iter().all(|v| (0.0..=T_MAX).contains(v)));
+}
+
+/// A target that only a pushing tendon could reach (the mirror image of what pulling the
+/// one tendon gives, across the rod's unloaded plane): the tendon stays slack (tension 0,
+/// at its lower bound), the target is not reached, and the distance left is that of the
+/// slack rod's tip.
+#[test]
+fn slack_tendon_is_respected() {
+    let rod = till(&[90.0]);
+    let opts = InverseOptions::new(vec![[0.0, T_MAX]]);
+    let slack = solve(&rod, &tensions(&[0.0]), None, &tight()).unwrap();
+    let pulled = solve(&rod, &tensions(&[10.0]), None, &tight()).unwrap();
+    // Tendon at 90 deg from d1 bends the rod sideways (world y); mirror that across y = 0.
+    let mut goal = pulled.tip.r;
+    goal[1] = -goal[1];
+    assert!(
+        goal[1].abs() > 0.01,
+        "the tendon should bend sideways: {goal:?}"
+    );
+    let inv = solve_inverse(&rod, &tensions(&[5.0]), &target(&rod, goal), &opts, None).unwrap();
+    assert!(!inv.reached);
+    assert_eq!(inv.tensions, vec![0.0]);
+    assert_eq!(inv.active, vec![-1]);
+    let d = dist(&slack.tip.r, &goal);
+    assert!(
+        (inv.distance - d).abs() < 1e-9 * rod.length,
+        "{} vs {d}",
+        inv.distance
+    );
+}
+
+/// Paper 002's actuator with a tendon beside its chambers: the inputs are the three
+/// pressures then the tension; a forward solve's tip with pressures and a tension is
+/// reached, with every input inside its bounds.
+#[test]
+fn hybrid_pressures_and_tension() {
+    let mut spec: DesignSpec = p002_actuator(tilted(), 9.81, 12);
+    // The tendon runs from the base through the cap into the body, where it ends.
+    for sec in &mut spec.sections[..2] {
+        sec.tendons = vec![TendonSpec {
+            distance: 0.006,
+            ..tendon(0, 60.0)
+        }];
+    }
+    let rod = Rod::new(spec).unwrap();
+    let mut bounds = vec![[0.0, 70e3]; 3];
+    bounds.push([0.0, 2.0]);
+    let opts = InverseOptions::new(bounds);
+    let fwd_loads = Loads {
+        tensions: vec![1.2],
+        ..loads(&[20e3, 5e3, 40e3])
+    };
+    let fwd = solve(&rod, &fwd_loads, None, &SolverOptions::default()).unwrap();
+    let start = Loads {
+        tensions: vec![0.0],
+        ..loads(&[0.0; 3])
+    };
+    let inv = solve_inverse(&rod, &start, &target(&rod, fwd.tip.r), &opts, None).unwrap();
+    assert!(inv.reached, "distance {}", inv.distance);
+    assert_eq!(inv.pressures.len(), 3);
+    assert_eq!(inv.tensions.len(), 1);
+    assert_eq!(inv.active.len(), 4);
+    assert!((0.0..=2.0).contains(&inv.tensions[0]));
+    assert!(inv.pressures.iter().all(|p| (0.0..=70e3).contains(p)));
+}
+
+/// Input rules: a negative lower tension bound and a wrong count are refused by name.
+#[test]
+fn tension_bounds_rules() {
+    let rod = till(&[0.0, 90.0]);
+    let t = target(&rod, [0.5, 0.0, 0.0]);
+    let bad = InverseOptions::new(vec![[0.0, T_MAX], [-1.0, T_MAX]]);
+    match solve_inverse(&rod, &tensions(&[0.0; 2]), &t, &bad, None) {
+        Err(SoftrodError::InvalidParameter { field, .. }) => {
+            assert_eq!(field, "tension_bounds[1][0]")
+        }
+        other => panic!("{other:?}"),
+    }
+    let short = InverseOptions::new(vec![[0.0, T_MAX]]);
+    match solve_inverse(&rod, &tensions(&[0.0; 2]), &t, &short, None) {
+        Err(SoftrodError::InvalidParameter { field, .. }) => assert_eq!(field, "bounds"),
+        other => panic!("{other:?}"),
+    }
+    let none = Rod::new(design(
+        vec![direct_section(
+            "plain", 0.2, 500.0, 300.0, 0.02, 0.01, 0.01, 10,
+        )],
+        HORIZONTAL,
+        9.81,
+    ))
+    .unwrap();
+    let err = solve_inverse(
+        &none,
+        &loads(&[]),
+        &target(&none, [0.2, 0.0, 0.0]),
+        &InverseOptions::new(vec![]),
+        None,
+    )
+    .unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("neither pressure channels nor tendons"),
+        "{err}"
+    );
+}

@@ -1,0 +1,131 @@
+"""Inverse statics with tendon tensions as inputs (docs/control.md, "Tendons as inputs"):
+round trips through the Python API and the CLI, slack respected, bounds and their rules, a
+hybrid design with chambers and a tendon, and generated targets that never break a bound."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import softrod
+from conftest import DELETE, assert_clean_error, with_entries
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from softrod import InputError, InverseProblem, solve_inverse, solve_statics
+
+TILL = "till_tendon_robot"
+
+
+@pytest.fixture(scope="module")
+def till():
+    return softrod.load_design(TILL)
+
+
+def test_round_trip_recovers_the_tensions(till):
+    """Two tendons pulled, two slack: the least-tension answer is the one that made the
+    target (any other adds pull on an opposed tendon). Tensions to 1e-6 of the 20 N range:
+    the tip is reached to 1e-10 L and moves ~1e-3 L per N."""
+    t = np.array([8.0, 3.0, 0.0, 0.0])
+    tip = solve_statics(till, [], tensions=t).tip_position
+    sol = solve_inverse(till, tip)
+    assert sol.reached
+    assert sol.pressures.shape == (0,)
+    assert np.allclose(sol.tensions, t, atol=1e-6 * 20.0)
+    assert np.allclose(sol.tension_bounds, [[0.0, 20.0]] * 4)  # the operating range
+    again = sol.statics()
+    assert np.allclose(again.tip_position, tip, atol=1e-9 * till.length)
+    assert "tensions: [8.0000, 3.0000, 0.0000, 0.0000] N" in sol.summary()
+
+
+def test_a_target_that_needs_a_push_leaves_the_tendon_slack(till):
+    """Only tendon 0 may pull (the others held slack by their bounds); the target is the
+    mirror image of what pulling it does: the tendon stays at 0 and the target is not
+    reached."""
+    pulled = solve_statics(till, [], tensions=[10.0, 0, 0, 0]).tip_position
+    slack = solve_statics(till, [], tensions=[0.0, 0, 0, 0]).tip_position
+    goal = slack - (pulled - slack)
+    sol = solve_inverse(till, goal, tension_bounds=[(0, 20), (0, 0), (0, 0), (0, 0)])
+    assert not sol.reached
+    assert np.all(sol.tensions == 0.0)
+    assert np.all(sol.tension_active == -1)
+    assert "t0 lower (slack)" in sol.summary()
+    assert sol.distance == pytest.approx(np.linalg.norm(goal - slack), rel=1e-9)
+
+
+def test_warm_started_problem_follows_a_path(till):
+    """Targets along a path the robot can follow (its reachable set is almost a surface: the
+    steel backbone barely compresses), each warm-started from the last answer."""
+    problem = InverseProblem(till, tension_bounds="0:20 N")
+    prev = None
+    for k in range(6):
+        t = [6.0 + 0.3 * k, 6.0 - 0.2 * k, 0.0, 0.0]
+        tip = solve_statics(till, [], tensions=t).tip_position
+        prev = problem.solve(tip, initial=prev)
+        assert prev.reached
+        assert np.allclose(prev.tensions, t, atol=1e-6 * 20.0)
+
+
+def test_hybrid_design_inverts_pressures_and_tension():
+    """Paper 002's actuator with a tendon added in its cap and body: four inputs."""
+    spa = softrod.load_design("spa_three_chamber_130mm")
+    route = [{"channel": 0, "distance": "6 mm", "angle": "60 deg"}]
+    hybrid = spa.replace({"sections[0].tendons": route, "sections[1].tendons": route,
+                          "operating_range.tension": ["0 N", "2 N"]})
+    tip = solve_statics(hybrid, [20e3, 5e3, 40e3], tensions=[1.2]).tip_position
+    sol = solve_inverse(hybrid, tip)
+    assert sol.reached
+    assert sol.pressures.shape == (3,) and sol.tensions.shape == (1,)
+    assert 0.0 <= sol.tensions[0] <= 2.0
+
+
+def test_tension_bounds_rules(till):
+    with pytest.raises(InputError, match=r"tension_bounds\[1\].*only pull"):
+        solve_inverse(till, [0.5, 0, 0], tension_bounds=[(0, 20), (-1, 20), (0, 1), (0, 1)])
+    with pytest.raises(InputError, match="lo must be <= hi"):
+        solve_inverse(till, [0.5, 0, 0], tension_bounds=(20, 0))
+    with pytest.raises(InputError, match="tension_bounds"):
+        solve_inverse(till, [0.5, 0, 0], tension_bounds="0:20")  # no unit
+    with pytest.raises(InputError, match="no tendons"):
+        solve_inverse("spa_three_chamber_130mm", [0, 0, -0.13], tension_bounds=(0, 1))
+    bare = softrod.load_design(with_entries(TILL, {"operating_range": DELETE}))
+    with pytest.raises(InputError, match="tension_bounds"):
+        solve_inverse(bare, [0.5, 0, 0])  # no range known: the caller must say
+    with pytest.raises(InputError, match="4 tensions"):
+        InverseProblem(till).solve([0.5, 0, 0], initial=[1.0, 2.0])
+
+
+def test_tracking_controller_holds_tendons_slack():
+    """The closed loop commands pressures only: its inverse must not count on tensions."""
+    from softrod.control import TrackingController
+
+    with pytest.raises(InputError, match="no pressure channels"):
+        TrackingController(TILL, lambda t: [0.5, 0, 0], rate=100)
+
+
+def test_cli_inverse_with_tension_bounds(run, till):
+    tip = solve_statics(till, [], tensions=[8.0, 3.0, 0.0, 0.0]).tip_position * 1e3
+    target = ",".join(f"{v:.9f}" for v in tip) + " mm"
+    result = run("inverse", TILL, "--target", target, "--tension-bounds", "0:20N", "--json")
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.stdout)
+    assert out["reached"]
+    assert np.allclose(out["tensions_N"], [8.0, 3.0, 0.0, 0.0], atol=1e-5)
+    assert out["pressures_kPa"] == []
+    assert_clean_error(run("inverse", TILL, "--target", target, "--tension-bounds", "-1:20N"),
+                       2, "--tension-bounds")
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    y=st.floats(-0.3, 0.3), z=st.floats(-0.3, 0.3), x=st.floats(0.1, 0.6),
+    hi=st.floats(0.0, 25.0),
+)
+def test_tensions_never_leave_their_bounds(y, z, x, hi):
+    """Any target, any tension box [0, hi] (hi = 0 holds every tendon slack): the tensions
+    stay inside, and a reached answer is within tol of the target."""
+    design = softrod.load_design(TILL)
+    sol = solve_inverse(design, [x, y, z], tension_bounds=(0.0, hi), on_invalid="ignore")
+    assert np.all(sol.tensions >= 0.0) and np.all(sol.tensions <= hi)
+    if sol.reached:
+        assert sol.distance <= 1e-9 * design.length
