@@ -4,6 +4,7 @@ import copy
 import os
 import re
 
+import numpy as np
 import pytest
 
 # Tests never open windows: pick matplotlib's non-interactive backend before anything
@@ -90,3 +91,22 @@ def assert_clean_error(result, code: int, *fragments: str):
     assert "Traceback" not in result.output
     for f in fragments:
         assert f in err, (f, err)
+
+
+def ring_down_frequency(trajectory, t_start, axis=0):
+    """Damped frequency (Hz) and decay rate (1/s) of the tip's motion along world ``axis``
+    (0: x) after t_start, by a least-squares fit of a e^(-s t) cos(w t + phi) + c."""
+    from scipy.optimize import curve_fit
+
+    t, x = trajectory.time, trajectory.tip_position[:, axis]
+    m = t > t_start
+    xx = x[m] - x[m].mean()
+    freqs = np.fft.rfftfreq(len(xx), t[1] - t[0])
+    w0 = 2 * np.pi * freqs[np.argmax(np.abs(np.fft.rfft(xx)))]
+
+    def model(t, a, s, w, ph, c):
+        return a * np.exp(-s * t) * np.cos(w * t + ph) + c
+
+    p, _ = curve_fit(model, t[m], x[m], p0=[2 * xx.std(), 1.0, w0, 0.0, x[m].mean()],
+                     maxfev=20000)
+    return p[2] / (2 * np.pi), p[1]

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import softrod
-from conftest import DELETE, assert_clean_error, with_entries
+from conftest import DELETE, assert_clean_error, ring_down_frequency, with_entries
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from softrod import InputError, InverseProblem, solve_inverse, solve_statics
@@ -259,25 +259,6 @@ def test_jacobian_matches_finite_differences_of_whole_solves(spa):
     check(fd, jac.params[:, 0])
 
 
-def _ring_down_frequency(trajectory, t_start):
-    """Damped frequency (Hz) and decay rate (1/s) of the tip's x motion after t_start, by a
-    least-squares fit of a e^(-s t) cos(w t + phi) + c."""
-    from scipy.optimize import curve_fit
-
-    t, x = trajectory.time, trajectory.tip_position[:, 0]
-    m = t > t_start
-    xx = x[m] - x[m].mean()
-    freqs = np.fft.rfftfreq(len(xx), t[1] - t[0])
-    w0 = 2 * np.pi * freqs[np.argmax(np.abs(np.fft.rfft(xx)))]
-
-    def model(t, a, s, w, ph, c):
-        return a * np.exp(-s * t) * np.cos(w * t + ph) + c
-
-    p, _ = curve_fit(model, t[m], x[m], p0=[2 * xx.std(), 1.0, w0, 0.0, x[m].mean()],
-                     maxfev=20000)
-    return p[2] / (2 * np.pi), p[1]
-
-
 def test_linearised_frequency_matches_the_ring_down_of_the_simulation(spa):
     """The 130 mm actuator, lightly damped (tau = 2 ms), released from rest by a 2 mN tip
     force applied at t = 0: the first bending mode's damped frequency and decay rate from
@@ -290,7 +271,7 @@ def test_linearised_frequency_matches_the_ring_down_of_the_simulation(spa):
     sim = softrod.Simulation(design, [0, 0, 0], dt=1e-3, alpha=-0.2)
     sim.set_tip_loads(force, [0, 0, 0])
     traj = sim.run([0, 0, 0], 2.0)
-    f_sim, sigma_sim = _ring_down_frequency(traj, 0.3)
+    f_sim, sigma_sim = ring_down_frequency(traj, 0.3)
     modes = softrod.linearise(design, [0, 0, 0], tip_force=force, nodes=12).modes(4)
     f_lin = modes.damped_frequency[0]
     sigma_lin = modes.damping_ratio[0] * modes.omega[0]

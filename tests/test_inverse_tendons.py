@@ -129,3 +129,26 @@ def test_tensions_never_leave_their_bounds(y, z, x, hi):
     assert np.all(sol.tensions >= 0.0) and np.all(sol.tensions <= hi)
     if sol.reached:
         assert sol.distance <= 1e-9 * design.length
+
+
+def test_static_jacobian_has_tension_columns(till):
+    """jac.tensions against central differences of whole solves (step 1e-3 N: truncation
+    ~h^2 relative 1e-6, solve noise 1e-13 / h); at the slack tendons the one-sided
+    second-order difference. 1e-5 of the column's size bounds both."""
+    t = np.array([6.0, 0.0, 2.5, 0.0])
+    opts = softrod.SolverOptions(tol=1e-13)
+    st_ = solve_statics(till, [], tensions=t, options=opts)
+    jac = st_.jacobian()
+    assert jac.tensions.shape == (6, 4) and jac.pressures.shape == (6, 0)
+    h = 1e-3
+
+    def tip(dt):
+        return solve_statics(till, [], tensions=t + dt, options=opts).tip_position
+
+    for k in range(4):
+        e = np.eye(4)[k] * h
+        if t[k] > 0:
+            fd = (tip(e) - tip(-e)) / (2 * h)
+        else:
+            fd = (-3 * tip(0 * e) + 4 * tip(e) - tip(2 * e)) / (2 * h)
+        assert np.linalg.norm(jac.tensions[:3, k] - fd) <= 1e-5 * np.linalg.norm(fd), k

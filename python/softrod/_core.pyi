@@ -269,6 +269,7 @@ def linearise_at(
     tip_moment: _Vec3,
     x: Sequence[float] | None,
     nodes: int,
+    tensions: Sequence[float] | None = None,
 ) -> dict[str, Any]: ...
 
 def solve_constrained_tip(

@@ -30,7 +30,9 @@ class Jacobian:
     dR = [dtheta]x R).
 
     pressures (6, c) per Pa; tip_force (6, 3) per N; tip_moment (6, 3) per N m;
-    params (6, k) per unit of each named parameter (tip only), ``param_names`` their names.
+    tensions (6, t) per N of each tendon channel (at a slack tendon the derivative of
+    pulling it); params (6, k) per unit of each named parameter (tip only),
+    ``param_names`` their names.
     """
 
     point: float
@@ -41,6 +43,7 @@ class Jacobian:
     tip_moment: np.ndarray
     params: np.ndarray | None = None
     param_names: tuple[str, ...] = ()
+    tensions: np.ndarray = field(default_factory=lambda: np.zeros((6, 0)))
 
 
 @dataclass(frozen=True)
@@ -218,10 +221,10 @@ class StaticSolution:
         self, *, params: Sequence[str] = (), point: float | str | None = None
     ) -> Jacobian:
         """The exact Jacobian of the pose at arc length ``point`` (default the tip) with
-        respect to the pressures, the tip force and moment and, at the tip, the named
-        calibration parameters (``params``: names such as "E" or "c_b[body]", as in
-        :func:`softrod.calibrate`); docs/control.md. Implicit differentiation of the
-        shooting residual: no finite differences."""
+        respect to the pressures, the tip force and moment, the tendon tensions and, at the
+        tip, the named calibration parameters (``params``: names such as "E" or
+        "c_b[body]", as in :func:`softrod.calibrate`); docs/control.md. Implicit
+        differentiation of the shooting residual: no finite differences."""
         from .units import to_si
 
         if not self.converged:
@@ -253,6 +256,7 @@ class StaticSolution:
             tip_moment=out["tip_moment"],
             params=out.get("params"),
             param_names=tuple(names),
+            tensions=out["tensions"],
         )
 
     def _tip_load(self, kind: str):

@@ -1,8 +1,8 @@
 //! The linearised dynamics of the rod about a static equilibrium:
 //!   M q'' + D q' + K q = B u,
 //! with q the displacement dr and small rotation dtheta (world frame, dR = [dtheta]x R) of
-//! n nodes along the rod (the last one the tip), u the changes of the chamber pressures and
-//! of the dead tip force and moment.
+//! n nodes along the rod (the last one the tip), u the changes of the chamber pressures, of
+//! the dead tip force and moment and of the tendon tensions.
 //!
 //! Discretisation (a Ritz method with the rod's own static deflection shapes):
 //! - K is the exact static tangent condensed to the nodes: K = C^-1 with C the flexibility,
@@ -20,14 +20,18 @@
 //!   B = tau K_0 with K_0 the section's stiffness at the current pressure, or the section's
 //!   damping diagonals), both by the trapezoidal rule on the integration nodes (Simpson on
 //!   rigid parts, exact there).
-//! - B: pressure columns K dq/dp (a pressure change shifts the rest strains, so its static
-//!   response K^-1 B equals the equilibrium's derivative); tip load columns are unit
-//!   generalised forces at the tip node.
+//! - B: pressure and tension columns K dq/dp (a pressure change shifts the rest strains, a
+//!   tension change the tendon law's strains, so its static response K^-1 B equals the
+//!   equilibrium's derivative); tip load columns are unit generalised forces at the tip node.
+//!
+//! Tendons, reference shapes and tapered sections enter K, Phi and Psi through the static
+//! model; a tapered section's inertia and damping are evaluated at each quadrature point
+//! (`section_inertia_at`, `Coeffs::at`), as the dynamics evaluates them at its stages.
 //!
 //! This construction uses only the static model and the section inertia, so it does not
 //! depend on how the dynamic solver discretises space and time.
 
-use crate::dynamics::section_inertia;
+use crate::dynamics::section_inertia_at;
 use crate::error::{Result, SoftrodError};
 use crate::jacobian::{dual_coeffs, singular, Input};
 use crate::jet::Jet;
@@ -48,7 +52,8 @@ pub struct LinearSystem {
     pub mass: DMatrix<f64>,
     pub damping: DMatrix<f64>,
     pub stiffness: DMatrix<f64>,
-    /// Columns: pressures (Pa, one per channel), tip force (N, x y z), tip moment (N m).
+    /// Columns: pressures (Pa, one per channel), tip force (N, x y z), tip moment (N m),
+    /// tensions (N, one per tendon channel).
     pub input: DMatrix<f64>,
 }
 
@@ -201,8 +206,6 @@ fn pose6(y: &State<J9>, dir: usize) -> [f64; 6] {
 /// nodes (see the module docs).
 pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Result<LinearSystem> {
     crate::jacobian::dead_loads_only(rod, loads, "the linearisation")?;
-    // Its mass matrix is that of the dynamics (uniform sections, no tendons).
-    crate::dynamics::check_statics_only(rod, "the linearisation")?;
     let x = crate::jacobian::unknowns3(sol)?;
     let nodes = choose_nodes(rod, n_nodes)?;
     let n = nodes.len();
@@ -287,8 +290,11 @@ pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Re
     let mut gm = DMatrix::<f64>::zeros(nq, nq);
     let mut gd = DMatrix::<f64>::zeros(nq, nq);
     for (m, &(sec, a, b, rots)) in intervals_meta.iter().enumerate() {
-        let inertia = section_inertia(rod, sec);
-        let mass_at = |rot: &[[f64; 3]; 3]| -> DMatrix<f64> {
+        // Simpson's rule on [a, b] (exact on rigid parts, whose motion is linear in s).
+        let w = [(b - a) / 6.0, 4.0 * (b - a) / 6.0, (b - a) / 6.0];
+        let local = [a, 0.5 * (a + b), b].map(|s| s - rod.sections[sec].s_start);
+        let mass_at = |rot: &[[f64; 3]; 3], s: f64| -> DMatrix<f64> {
+            let inertia = section_inertia_at(rod, sec, s);
             let mut ms = DMatrix::zeros(6, 6);
             for i in 0..3 {
                 ms[(i, i)] = inertia.rho_a;
@@ -302,17 +308,16 @@ pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Re
             }
             ms
         };
-        // Simpson's rule on [a, b] (exact on rigid parts, whose motion is linear in s).
-        let w = [(b - a) / 6.0, 4.0 * (b - a) / 6.0, (b - a) / 6.0];
         for e in 0..3 {
-            let ms = mass_at(&rots[e]);
+            let ms = mass_at(&rots[e], local[e]);
             gm += phi[m][e].transpose() * &ms * &phi[m][e] * w[e];
         }
         if rod.sections[sec].rigid {
             continue;
         }
-        let bmat = damping_matrix(rod, &problem.coeffs[sec], sec, tau);
         for e in 0..3 {
+            let coeffs = problem.coeffs[sec].at(&rod.sections[sec], local[e]);
+            let bmat = damping_matrix(rod, &coeffs, sec, local[e], tau);
             gd += psi[m][e].transpose() * &bmat * &psi[m][e] * w[e];
         }
     }
@@ -364,11 +369,12 @@ pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Re
     })
 }
 
-/// Kelvin-Voigt damping of a section in the body frame (6 x 6): the given diagonals, else
-/// tau times the section's stiffness at this pressure (the inverse of its compliances).
-fn damping_matrix(rod: &Rod, c: &Coeffs<f64>, sec: usize, tau: f64) -> DMatrix<f64> {
+/// Kelvin-Voigt damping of a section at local arc length `s` in the body frame (6 x 6): the
+/// given diagonals, else tau times the section's stiffness there at this pressure (the
+/// inverse of its compliances `c`, the section's law at `s`).
+fn damping_matrix(rod: &Rod, c: &Coeffs<f64>, sec: usize, s: f64, tau: f64) -> DMatrix<f64> {
     let mut b = DMatrix::zeros(6, 6);
-    match section_inertia(rod, sec).damping {
+    match section_inertia_at(rod, sec, s).damping {
         Some((se, bt)) => {
             for i in 0..3 {
                 b[(i, i)] = se[i];
@@ -388,8 +394,9 @@ fn damping_matrix(rod: &Rod, c: &Coeffs<f64>, sec: usize, tau: f64) -> DMatrix<f
     b
 }
 
-/// Columns of B: K dq/dp for the pressures; unit generalised forces at the tip node for
-/// the tip force and moment.
+/// Columns of B: K dq/dp for the pressures and the tensions; unit generalised forces at the
+/// tip node for the tip force and moment. Column order: pressures, tip force, tip moment,
+/// tensions.
 fn input_matrix(
     rod: &Rod,
     loads: &Loads,
@@ -397,12 +404,20 @@ fn input_matrix(
     nodes: &[(usize, usize, f64)],
     stiffness: &DMatrix<f64>,
 ) -> Result<DMatrix<f64>> {
-    let nc = rod.n_channels;
+    let (nc, nt) = (rod.n_channels, rod.n_tendons);
     let nq = 6 * nodes.len();
-    let mut dq = DMatrix::<f64>::zeros(nq, nc);
+    // dq per input: the pressures, then the tensions.
+    let mut dq = DMatrix::<f64>::zeros(nq, nc + nt);
     let problem = Problem::new(rod, loads, 1.0);
-    for chunk in (0..nc).collect::<Vec<_>>().chunks(6) {
-        let inputs: Vec<Input> = chunk.iter().map(|&c| Input::Pressure(c)).collect();
+    let input = |u: usize| {
+        if u < nc {
+            Input::Pressure(u)
+        } else {
+            Input::Tension(u - nc)
+        }
+    };
+    for chunk in (0..nc + nt).collect::<Vec<_>>().chunks(6) {
+        let inputs: Vec<Input> = chunk.iter().map(|&u| input(u)).collect();
         let coeffs = dual_coeffs::<9>(rod, loads, &inputs);
         let xd: [J9; 3] = std::array::from_fn(|i| Jet::variable(sol.x[i], i));
         let y0 = problem.base_state(&xd);
@@ -439,14 +454,17 @@ fn input_matrix(
         }
     }
     let bp = stiffness * dq;
-    let mut input = DMatrix::<f64>::zeros(nq, nc + 6);
+    let mut b = DMatrix::<f64>::zeros(nq, nc + 6 + nt);
     for r in 0..nq {
         for c in 0..nc {
-            input[(r, c)] = bp[(r, c)];
+            b[(r, c)] = bp[(r, c)];
+        }
+        for t in 0..nt {
+            b[(r, nc + 6 + t)] = bp[(r, nc + t)];
         }
     }
     for j in 0..6 {
-        input[(nq - 6 + j, nc + j)] = 1.0;
+        b[(nq - 6 + j, nc + j)] = 1.0;
     }
-    Ok(input)
+    Ok(b)
 }

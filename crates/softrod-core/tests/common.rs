@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 use nalgebra::{Rotation3, Unit, Vector3};
+use softrod_core::inverse::InverseTarget;
 use softrod_core::ode::Loads;
 use softrod_core::spec::{
     ChamberSpec, DesignSpec, LawSpec, MaterialSpec, MountingSpec, SectionSpec, StiffnessSpec,
@@ -399,4 +400,16 @@ pub fn check_step_jacobian(name: &str, sim: &softrod_core::dynamics::Simulator) 
         }
     }
     eprintln!("{name}: worst relative Jacobian error {worst:.2e} over {n} unknowns");
+}
+
+/// An inverse-statics target: the tip at `position`, every component weighted 1, no
+/// orientation.
+pub fn tip_target(rod: &Rod, position: [f64; 3]) -> InverseTarget {
+    InverseTarget {
+        s: rod.length,
+        position,
+        orientation: None,
+        position_weight: [1.0; 3],
+        orientation_weight: 0.0,
+    }
 }

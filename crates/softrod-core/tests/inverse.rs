@@ -7,7 +7,7 @@
 
 mod common;
 use common::*;
-use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget};
+use softrod_core::inverse::{solve_inverse, InverseOptions};
 use softrod_core::jacobian::{point_jacobian, Input, Probe};
 use softrod_core::ode::Loads;
 use softrod_core::spec::Frame;
@@ -18,16 +18,6 @@ use softrod_core::Rod;
 const HANGING: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
 /// Paper 001's pressure range, Pa.
 const P_MAX: f64 = 70e3;
-
-fn target(rod: &Rod, position: [f64; 3]) -> InverseTarget {
-    InverseTarget {
-        s: rod.length,
-        position,
-        orientation: None,
-        position_weight: [1.0; 3],
-        orientation_weight: 0.0,
-    }
-}
 
 fn actuator() -> Rod {
     Rod::new(p002_actuator(HANGING, 9.81, 16)).unwrap()
@@ -70,7 +60,7 @@ fn round_trip_recovers_pressures() {
         let inv = solve_inverse(
             &rod,
             &loads(&[0.0; 3]),
-            &target(&rod, fwd.tip.r),
+            &tip_target(&rod, fwd.tip.r),
             &opts,
             None,
         )
@@ -127,7 +117,7 @@ fn round_trip_for_every_law() {
             let inv = solve_inverse(
                 &rod,
                 &loads(&[0.0; 3]),
-                &target(&rod, fwd.tip.r),
+                &tip_target(&rod, fwd.tip.r),
                 &opts,
                 None,
             )
@@ -153,8 +143,14 @@ fn warm_start_follows_a_moving_target() {
     let fwd = solve(&rod, &loads(&[35e3; 3]), None, &SolverOptions::default()).unwrap();
     let t = fwd.tip.r;
     let start = [t[0] + 10e-3, t[1], t[2]];
-    let mut prev =
-        solve_inverse(&rod, &loads(&[0.0; 3]), &target(&rod, start), &opts, None).unwrap();
+    let mut prev = solve_inverse(
+        &rod,
+        &loads(&[0.0; 3]),
+        &tip_target(&rod, start),
+        &opts,
+        None,
+    )
+    .unwrap();
     let mut passes = 0;
     for k in 1..=40 {
         let a = k as f64 * 0.5e-3 / 10e-3; // 0.5 mm per call on a 10 mm circle
@@ -162,7 +158,7 @@ fn warm_start_follows_a_moving_target() {
         let inv = solve_inverse(
             &rod,
             &loads(&prev.pressures),
-            &target(&rod, goal),
+            &tip_target(&rod, goal),
             &opts,
             Some(&prev.warm_start()),
         )
@@ -191,7 +187,14 @@ fn unreachable_target_gives_closest_pose_on_the_boundary() {
     let opts = InverseOptions::new(vec![[0.0, P_MAX]; 3]);
     // Far out to the side at the base's height: no pressure in 0-70 kPa bends this far.
     let goal = [0.3, 0.1, 0.0];
-    let inv = solve_inverse(&rod, &loads(&[0.0; 3]), &target(&rod, goal), &opts, None).unwrap();
+    let inv = solve_inverse(
+        &rod,
+        &loads(&[0.0; 3]),
+        &tip_target(&rod, goal),
+        &opts,
+        None,
+    )
+    .unwrap();
     assert!(!inv.reached);
     assert!(inv.active.iter().any(|a| *a != 0), "{:?}", inv.active);
     for p in &inv.pressures {
@@ -244,7 +247,7 @@ fn redundant_channels_take_least_pressure() {
     let inv = solve_inverse(
         &rod,
         &loads(&[0.0; 6]),
-        &target(&rod, fwd.tip.r),
+        &tip_target(&rod, fwd.tip.r),
         &opts,
         None,
     )
@@ -278,7 +281,7 @@ fn position_and_orientation_target() {
     let opts = InverseOptions::new(vec![[0.0, P_MAX]; 3]);
     let p = [40e3, 12e3, 3e3];
     let fwd = solve(&rod, &loads(&p), None, &SolverOptions::default()).unwrap();
-    let mut t = target(&rod, fwd.tip.r);
+    let mut t = tip_target(&rod, fwd.tip.r);
     t.orientation = Some(fwd.tip.rot);
     t.orientation_weight = 1.0;
     let inv = solve_inverse(&rod, &loads(&[0.0; 3]), &t, &opts, None).unwrap();
@@ -300,7 +303,7 @@ fn point_along_the_rod() {
     // The point's position from the exact Jacobian machinery (the same probe).
     let probe = Probe::at(&rod, s).unwrap();
     let at = point_jacobian(&rod, &loads(&p), &fwd, &[], &probe).unwrap();
-    let mut t = target(&rod, at.position);
+    let mut t = tip_target(&rod, at.position);
     t.s = s;
     let inv = solve_inverse(&rod, &loads(&[0.0; 3]), &t, &opts, None).unwrap();
     assert!(inv.reached);

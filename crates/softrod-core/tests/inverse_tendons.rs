@@ -8,7 +8,7 @@
 
 mod common;
 use common::*;
-use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget};
+use softrod_core::inverse::{solve_inverse, InverseOptions};
 use softrod_core::jacobian::{point_jacobian, Input, Probe};
 use softrod_core::ode::Loads;
 use softrod_core::spec::{DesignSpec, TendonSpec};
@@ -16,7 +16,7 @@ use softrod_core::statics::{solve, SolverOptions};
 use softrod_core::{Rod, SoftrodError};
 
 /// The horizontal base of Till, Aloi and Rucker's tendon robot (d3 along world x, d1 down).
-const HORIZONTAL: [[f64; 3]; 3] = [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]];
+const TILL_BASE: [[f64; 3]; 3] = [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]];
 /// Tension range of the tests, N.
 const T_MAX: f64 = 20.0;
 
@@ -42,23 +42,13 @@ fn till(angles: &[f64]) -> Rod {
         .enumerate()
         .map(|(c, a)| tendon(c, *a))
         .collect();
-    Rod::new(design(vec![sec], HORIZONTAL, 9.81)).unwrap()
+    Rod::new(design(vec![sec], TILL_BASE, 9.81)).unwrap()
 }
 
 fn tensions(t: &[f64]) -> Loads {
     Loads {
         tensions: t.to_vec(),
         ..loads(&[])
-    }
-}
-
-fn target(rod: &Rod, position: [f64; 3]) -> InverseTarget {
-    InverseTarget {
-        s: rod.length,
-        position,
-        orientation: None,
-        position_weight: [1.0; 3],
-        orientation_weight: 0.0,
     }
 }
 
@@ -122,7 +112,7 @@ fn round_trip_recovers_tensions() {
         let inv = solve_inverse(
             &rod,
             &tensions(&[0.0; 2]),
-            &target(&rod, fwd.tip.r),
+            &tip_target(&rod, fwd.tip.r),
             &opts,
             None,
         )
@@ -154,7 +144,7 @@ fn redundant_tendons_reach_with_least_tension() {
     let inv = solve_inverse(
         &rod,
         &tensions(&[0.0; 4]),
-        &target(&rod, fwd.tip.r),
+        &tip_target(&rod, fwd.tip.r),
         &opts,
         None,
     )
@@ -188,7 +178,14 @@ fn slack_tendon_is_respected() {
         goal[1].abs() > 0.01,
         "the tendon should bend sideways: {goal:?}"
     );
-    let inv = solve_inverse(&rod, &tensions(&[5.0]), &target(&rod, goal), &opts, None).unwrap();
+    let inv = solve_inverse(
+        &rod,
+        &tensions(&[5.0]),
+        &tip_target(&rod, goal),
+        &opts,
+        None,
+    )
+    .unwrap();
     assert!(!inv.reached);
     assert_eq!(inv.tensions, vec![0.0]);
     assert_eq!(inv.active, vec![-1]);
@@ -226,7 +223,7 @@ fn hybrid_pressures_and_tension() {
         tensions: vec![0.0],
         ..loads(&[0.0; 3])
     };
-    let inv = solve_inverse(&rod, &start, &target(&rod, fwd.tip.r), &opts, None).unwrap();
+    let inv = solve_inverse(&rod, &start, &tip_target(&rod, fwd.tip.r), &opts, None).unwrap();
     assert!(inv.reached, "distance {}", inv.distance);
     assert_eq!(inv.pressures.len(), 3);
     assert_eq!(inv.tensions.len(), 1);
@@ -239,7 +236,7 @@ fn hybrid_pressures_and_tension() {
 #[test]
 fn tension_bounds_rules() {
     let rod = till(&[0.0, 90.0]);
-    let t = target(&rod, [0.5, 0.0, 0.0]);
+    let t = tip_target(&rod, [0.5, 0.0, 0.0]);
     let bad = InverseOptions::new(vec![[0.0, T_MAX], [-1.0, T_MAX]]);
     match solve_inverse(&rod, &tensions(&[0.0; 2]), &t, &bad, None) {
         Err(SoftrodError::InvalidParameter { field, .. }) => {
@@ -256,14 +253,14 @@ fn tension_bounds_rules() {
         vec![direct_section(
             "plain", 0.2, 500.0, 300.0, 0.02, 0.01, 0.01, 10,
         )],
-        HORIZONTAL,
+        TILL_BASE,
         9.81,
     ))
     .unwrap();
     let err = solve_inverse(
         &none,
         &loads(&[]),
-        &target(&none, [0.2, 0.0, 0.0]),
+        &tip_target(&none, [0.2, 0.0, 0.0]),
         &InverseOptions::new(vec![]),
         None,
     )

@@ -133,6 +133,54 @@ fn static_response_of_the_linear_system_is_exact() {
     assert!(sys.mass.clone().cholesky().is_some());
 }
 
+/// A tendon's input column (after the pressures and tip loads): its static response is the
+/// exact tension derivative of the equilibrium, at a pulled and at a slack tendon.
+#[test]
+fn static_response_of_tension_columns_is_exact() {
+    let mut spec = p002_actuator(tilted(), 9.81, 12);
+    for sec in &mut spec.sections[..2] {
+        sec.tendons = vec![
+            softrod_core::spec::TendonSpec {
+                channel: 0,
+                distance: 0.006,
+                angle: 1.0,
+                distance_end: None,
+                angle_end: None,
+            },
+            softrod_core::spec::TendonSpec {
+                channel: 1,
+                distance: 0.006,
+                angle: 3.0,
+                distance_end: None,
+                angle_end: None,
+            },
+        ];
+    }
+    let rod = Rod::new(spec).unwrap();
+    let ld = Loads {
+        tensions: vec![1.5, 0.0],
+        ..loads(&[35e3, 12e3, 50e3])
+    };
+    let sol = solve(&rod, &ld, None, &SolverOptions::default()).unwrap();
+    let sys = linearise(&rod, &ld, &sol, 9).unwrap();
+    assert_eq!(sys.input.ncols(), 3 + 6 + 2);
+    let response = sys.stiffness.clone().try_inverse().unwrap() * &sys.input;
+    let inputs = [Input::Tension(0), Input::Tension(1)];
+    let jac = point_jacobian(&rod, &ld, &sol, &inputs, &Probe::tip(&rod)).unwrap();
+    let nq = sys.mass.nrows();
+    for k in 0..2 {
+        let col = [jac.d_position[k], jac.d_rotation[k]].concat();
+        let scale = col.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(scale > 0.0);
+        let err = (0..6)
+            .map(|r| (response[(nq - 6 + r, 9 + k)] - col[r]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        // Both from the same dual passes; an inverse of a 54 x 54 flexibility: round-off.
+        assert!(err <= 1e-8 * scale, "tendon {k}: {err:.2e} of {scale:.2e}");
+    }
+}
+
 /// Kelvin-Voigt damping B = tau K on an unstressed straight rod: D = tau K (the material
 /// stiffness is all of K there), up to the quadrature of D.
 #[test]

@@ -253,6 +253,7 @@ pub fn point_jacobian_of<'py>(
             let mut inputs: Vec<Input> = (0..nc).map(Input::Pressure).collect();
             inputs.extend((0..3).map(Input::TipForce));
             inputs.extend((0..3).map(Input::TipMoment));
+            inputs.extend((0..rod.n_tendons).map(Input::Tension));
             let jac = point_jacobian(rod, &loads, &sol, &inputs, &probe)?;
             let sens = if params.is_empty() {
                 None
@@ -284,6 +285,7 @@ pub fn point_jacobian_of<'py>(
         d.set_item("pressures", matrix(py, &block(0, nc))?)?;
         d.set_item("tip_force", matrix(py, &block(nc, 3))?)?;
         d.set_item("tip_moment", matrix(py, &block(nc + 3, 3))?)?;
+        d.set_item("tensions", matrix(py, &block(nc + 6, rod.n_tendons))?)?;
         if let Some(sens) = sens {
             let m = nalgebra::DMatrix::from_fn(6, sens.position.len(), |i, k| {
                 if i < 3 {
@@ -301,7 +303,8 @@ pub fn point_jacobian_of<'py>(
 /// The linearised dynamics at the equilibrium under `pressures` and tip loads (warm start
 /// `x`) with `nodes` nodes: dict of mass, damping, stiffness, input (numpy) and nodes (m).
 #[pyfunction]
-#[pyo3(signature = (rod, pressures, tip_force, tip_moment, x, nodes))]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, x, nodes, tensions=None))]
+#[allow(clippy::too_many_arguments)]
 pub fn linearise_at<'py>(
     py: Python<'py>,
     rod: PyRef<'_, PyRod>,
@@ -310,6 +313,7 @@ pub fn linearise_at<'py>(
     tip_moment: [f64; 3],
     x: Option<Vec<f64>>,
     nodes: usize,
+    tensions: Option<Vec<f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let rod = &rod.rod;
@@ -319,10 +323,11 @@ pub fn linearise_at<'py>(
             tip_force,
             tip_moment,
             stiffness_scale: [1.0; 3],
-            tensions: vec![],
+            tensions: tensions.unwrap_or_else(|| vec![0.0; rod.n_tendons]),
             tip_frame: rod.spec.tip.frame,
         };
         let result = py.detach(|| -> softrod_core::Result<_> {
+            rod.check_tensions(&loads.tensions)?;
             if rod.sections.iter().any(|s| s.law.stiffness_map) {
                 return Err(SoftrodError::invalid(
                     "design",

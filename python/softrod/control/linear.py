@@ -81,8 +81,9 @@ class LinearSystem:
 
     q = (dr_1, dtheta_1, ..., dr_n, dtheta_n): displacement (m) and small rotation (rad,
     world frame) of the nodes at arc lengths ``nodes`` (the last is the tip); u = changes of
-    the chamber pressures (Pa) and of the tip force (N) and moment (N m), named in
-    ``input_names``. ``equilibrium`` is the static solution it was taken at.
+    the chamber pressures (Pa), of the tip force (N) and moment (N m) and of the tendon
+    tensions (N), named in ``input_names`` (p0 ..., F_x ... M_z, t0 ...). ``equilibrium``
+    is the static solution it was taken at.
     """
 
     design: Design
@@ -177,10 +178,12 @@ def linearise(
     tip_force: ArrayLike | None = None,
     tip_moment: ArrayLike | None = None,
     initial: StaticSolution | None = None,
+    tensions: ArrayLike | None = None,
 ) -> LinearSystem:
     """The linearised dynamics of ``design`` about its equilibrium under ``pressures`` (Pa;
-    default zero) and the tip loads (default the design's), or about ``initial`` when it is
-    given (a :class:`StaticSolution`; its pressures and loads are used). ``nodes``: how
+    default zero), the tendon ``tensions`` (N; default slack) and the tip loads (default the
+    design's), or about ``initial`` when it is given (a :class:`StaticSolution`; its
+    pressures, tensions and loads are used). ``nodes``: how
     many nodes carry the coordinates (spread over the integration nodes, the tip last)."""
     from ..statics import _pressures, _vec3, solve_statics
 
@@ -194,15 +197,22 @@ def linearise(
         tip = design.spec["tip"]
         tf = _vec3(tip_force, "force", "tip_force", tip["force"])
         tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
-        initial = solve_statics(design, p, tip_force=tf, tip_moment=tm)
+        initial = solve_statics(design, p, tip_force=tf, tip_moment=tm, tensions=tensions)
+        t = [float(v) for v in initial.tensions]
     else:
+        if tensions is not None:
+            raise design_error("tensions", tensions, "the equilibrium `initial` fixes the "
+                               "tensions; leave tensions out", InputError)
         p = [float(v) for v in initial.pressures]
+        t = [float(v) for v in initial.tensions]
         tf = [float(v) for v in initial._tip_load("force")]
         tm = [float(v) for v in initial._tip_load("moment")]
     out = _core.linearise_at(
-        design._rod, p, tf, tm, [float(v) for v in initial.shooting_unknowns], nodes
+        design._rod, p, tf, tm, [float(v) for v in initial.shooting_unknowns], nodes,
+        tensions=t,
     )
-    names = tuple(f"p{c}" for c in range(design.n_channels)) + INPUT_NAMES_LOADS
+    names = (tuple(f"p{c}" for c in range(design.n_channels)) + INPUT_NAMES_LOADS
+             + tuple(f"t{k}" for k in range(design.n_tendons)))
     return LinearSystem(
         design=design,
         pressures=np.array(p),
