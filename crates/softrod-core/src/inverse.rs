@@ -789,7 +789,17 @@ pub fn solve_inverse(
                 0.5 * r.dot(&r) + 0.5 * eps * reg
             };
             let pred = cost - model(&dz);
-            if step_size <= 1e-12 || pred <= 1e-15 * cost.max(1e-300) {
+            // Stationary: no step, no predicted decrease, or (for the task alone) a full
+            // Gauss-Newton step that leaves the target out of reach (|e| after it above
+            // 10 tol) and brings the point closer by less than the reach tolerance tol:
+            // below the resolution the answer is judged at. Without it a flat valley of
+            // the distance (an unreachable target and a common-mode input that barely
+            // moves the point, such as opposed tendons compressing a steel backbone)
+            // takes a hundred steps of no use.
+            let (e_now, e_next) = ((2.0 * cost).sqrt(), (2.0 * model(&dz)).sqrt());
+            let resolved =
+                eps == 0.0 && mu == 0.0 && e_next > 10.0 * opts.tol && e_now - e_next <= opts.tol;
+            if step_size <= 1e-12 || pred <= 1e-15 * cost.max(1e-300) || resolved {
                 stationary = true;
                 break;
             }

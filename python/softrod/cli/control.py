@@ -15,6 +15,10 @@ _BOUNDS_HELP = (
     "Pressure bounds of every channel as LO:HI with a unit, e.g. 0:70kPa (default: the "
     "design's [operating_range])."
 )
+_TENSION_BOUNDS_HELP = (
+    "Tension bounds of every tendon as LO:HI with a unit, e.g. 0:20N (LO >= 0; default: the "
+    "design's [operating_range] tension)."
+)
 
 
 def _bounds(design, text):
@@ -43,8 +47,7 @@ def _tension_bounds(design, text):
               help="Target position of the tip (world frame), e.g. '10,5,-130 mm'.")
 @click.option("--bounds", "bounds", default=None, metavar="LO:HI", help=_BOUNDS_HELP)
 @click.option("--tension-bounds", "tension_bounds", default=None, metavar="LO:HI",
-              help="Tension bounds of every tendon as LO:HI with a unit, e.g. 0:20N (LO >= 0; "
-              "default: the design's [operating_range] tension).")
+              help=_TENSION_BOUNDS_HELP)
 @click.option("--point", default=None,
               help="Arc length of the rod point that should reach the target (default: the "
               "tip), e.g. '65 mm'.")
@@ -95,6 +98,8 @@ def inverse(design, target, bounds, tension_bounds, point, as_json):
 @click.command("workspace")
 @click.argument("design")
 @click.option("--bounds", "bounds", default=None, metavar="LO:HI", help=_BOUNDS_HELP)
+@click.option("--tension-bounds", "tension_bounds", default=None, metavar="LO:HI",
+              help=_TENSION_BOUNDS_HELP)
 @click.option("--samples", default=21, show_default=True, type=click.IntRange(min=2),
               help="Samples per free channel on each face of the pressure box.")
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
@@ -105,9 +110,9 @@ def inverse(design, target, bounds, tension_bounds, point, as_json):
               help="Cores for the batch (0 = all).")
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @_handle_errors
-def workspace_cmd(design, bounds, samples, output, figure, threads, as_json):
-    """Reachable tip positions of DESIGN under the pressure bounds: the images of the
-    faces of the pressure box, solved in parallel."""
+def workspace_cmd(design, bounds, tension_bounds, samples, output, figure, threads, as_json):
+    """Reachable tip positions of DESIGN under the pressure (and tension) bounds: the images
+    of the faces of the input box, solved in parallel."""
     from ..catalog import load_design
     from ..control import workspace
     from ..io import check_table_path, write_table
@@ -117,7 +122,9 @@ def workspace_cmd(design, bounds, samples, output, figure, threads, as_json):
         check_table_path(output)
     if figure is not None:
         _check_output(figure, "--figure", (".png", ".pdf", ".svg"), "a figure")
-    ws = workspace(d, pressure_bounds=_bounds(d, bounds), samples=samples, threads=threads)
+    ws = workspace(d, pressure_bounds=_bounds(d, bounds),
+                   tension_bounds=_tension_bounds(d, tension_bounds), samples=samples,
+                   threads=threads)
     summary = ws.summary()
     if output is not None:
         write_table(ws.to_frame(), output)
@@ -133,6 +140,7 @@ def workspace_cmd(design, bounds, samples, output, figure, threads, as_json):
         click.echo(json.dumps({
             "design": d.name,
             "bounds_kPa": (ws.bounds / 1e3).tolist(),
+            "tension_bounds_N": ws.tension_bounds.tolist(),
             "samples_per_face": samples,
             "solves": summary["samples"],
             "converged": summary["converged"],

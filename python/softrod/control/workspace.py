@@ -1,7 +1,9 @@
-"""The reachable workspace of a point of the rod under pressure bounds: the images of the
-faces of the pressure box, solved in parallel by the Rust batch (docs/control.md).
+"""The reachable workspace of a point of the rod under pressure (and tendon tension) bounds:
+the images of the faces of the input box, solved in parallel by the Rust batch
+(docs/control.md).
 
-For c channels the box [lo, hi]^c has 2c faces (one channel at a bound, the others free);
+The inputs are the pressure channels followed by the tendon channels. For c inputs the box
+[lo, hi]^c has 2c faces (one channel at a bound, the others free);
 each face is sampled on a grid of ``samples`` values per free channel, in serpentine order so
 that every row warm-starts from its neighbour. When the map from pressures to the tip is
 injective (three chambers and a position), the image of the box's boundary is the boundary of
@@ -32,6 +34,7 @@ from ..constraints import require_free_tip
 from ..design import Design
 from ..errors import InputError, design_error
 from .inverse import pressure_bounds as _bounds
+from .inverse import tension_bounds as _tension_bounds
 
 __all__ = ["MAX_WORKSPACE_SOLVES", "Workspace", "workspace"]
 
@@ -56,9 +59,11 @@ def _serpentine(samples: int, dims: int) -> np.ndarray:
 class Workspace:
     """Samples of the workspace boundary (SI).
 
-    pressures (m, c) Pa; tip_position (m, 3) m (NaN where a solve failed); converged (m,);
-    face (m,) index into ``faces``, a list of (channel, "lo" | "hi"); grid (m, c - 1) the
-    sample's indices on its face. ``bounds`` (c, 2) Pa, ``samples`` per free channel.
+    pressures (m, c) Pa; tensions (m, k) N (tendon designs; (m, 0) otherwise);
+    tip_position (m, 3) m (NaN where a solve failed); converged (m,); face (m,) index into
+    ``faces``, a list of (input, "lo" | "hi") with the inputs numbered pressures first, then
+    tendons (``input_names``: p0 ..., t0 ...); grid (m, c + k - 1) the sample's indices on
+    its face. ``bounds`` (c, 2) Pa, ``tension_bounds`` (k, 2) N, ``samples`` per free input.
     """
 
     design: Design
@@ -71,6 +76,14 @@ class Workspace:
     face: np.ndarray
     grid: np.ndarray
     wall_time_s: float = field(default=float("nan"), compare=False)
+    tensions: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    tension_bounds: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+    @property
+    def input_names(self) -> tuple[str, ...]:
+        """Names of the inputs the faces refer to: p0 ... (pressures), t0 ... (tensions)."""
+        return (tuple(f"p{c}" for c in range(self.pressures.shape[1]))
+                + tuple(f"t{k}" for k in range(len(self.tension_bounds))))
 
     @property
     def points(self) -> np.ndarray:
@@ -103,17 +116,21 @@ class Workspace:
         return float(np.min(np.linalg.norm(self.points - p, axis=1)))
 
     def to_frame(self) -> pd.DataFrame:
-        """One row per sample: face, channel and side, pressures (kPa), tip (mm),
-        converged."""
+        """One row per sample: face, the input held at a bound (its index ``channel`` and
+        name ``input``) and side, pressures (kPa), tensions (N), tip (mm), converged."""
         import pandas as pd
 
+        names = self.input_names
         cols = {
             "face": self.face,
             "channel": [self.faces[f][0] for f in self.face],
+            "input": [names[self.faces[f][0]] for f in self.face],
             "side": [self.faces[f][1] for f in self.face],
         }
         for c in range(self.pressures.shape[1]):
             cols[f"p{c}_kPa"] = self.pressures[:, c] / 1e3
+        for k in range(len(self.tension_bounds)):
+            cols[f"t{k}_N"] = self.tensions[:, k]
         for k, axis in enumerate("xyz"):
             cols[f"tip_{axis}_mm"] = self.tip_position[:, k] * 1e3
         cols["converged"] = self.converged
@@ -136,13 +153,13 @@ class Workspace:
         top = fig.add_subplot(grid[1])
         side = fig.add_subplot(grid[2])
         mm = self.tip_position * 1e3
-        nc = self.pressures.shape[1]
+        names = self.input_names
         colours = plt.cm.tab10(np.linspace(0, 1, 10))
         for f, (channel, sidename) in enumerate(self.faces):
             rows = self.face == f
-            label = f"p{channel} = {'lo' if sidename == 'lo' else 'hi'}"
+            label = f"{names[channel]} = {'lo' if sidename == 'lo' else 'hi'}"
             col = colours[f % 10]
-            if nc == 3:
+            if len(names) == 3:
                 g = self.grid[rows]
                 surf = np.full((self.samples, self.samples, 3), np.nan)
                 surf[g[:, 0], g[:, 1]] = mm[rows]
@@ -158,6 +175,11 @@ class Workspace:
         ax3.set_title("boundary of the workspace")
         span = np.nanmax(mm, axis=0) - np.nanmin(mm, axis=0)
         ax3.set_box_aspect(np.maximum(span, 0.25 * span.max()))
+        # A short axis of the box would crowd its tick labels into each other.
+        from matplotlib.ticker import MaxNLocator
+
+        for axis in (ax3.xaxis, ax3.yaxis, ax3.zaxis):
+            axis.set_major_locator(MaxNLocator(3))
         for ax, (a, b) in ((top, ("x", "y")), (side, ("x", "z"))):
             ax.set_aspect("equal", adjustable="datalim")
             ax.set_xlabel(f"{a} (mm)")
@@ -167,10 +189,16 @@ class Workspace:
         side.set_title("side view")
         handles, labels = top.get_legend_handles_labels()
         fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 6), fontsize=8,
-                   markerscale=4, title="face of the pressure box", title_fontsize=8)
-        lo, hi = self.bounds[0] / 1e3
-        fig.suptitle(title or f"{self.design.name}: tip workspace, {lo:g}-{hi:g} kPa, "
-                     f"{self.samples} x {self.samples} samples per face")
+                   markerscale=4, title="face of the input box", title_fontsize=8)
+        ranges = []
+        if len(self.bounds):
+            lo, hi = self.bounds[0] / 1e3
+            ranges.append(f"{lo:g}-{hi:g} kPa")
+        if len(self.tension_bounds):
+            lo, hi = self.tension_bounds[0]
+            ranges.append(f"{lo:g}-{hi:g} N")
+        fig.suptitle(title or f"{self.design.name}: tip workspace, {', '.join(ranges)}, "
+                     f"{self.samples} samples per free input and face")
         if path is not None:
             from pathlib import Path
 
@@ -185,32 +213,38 @@ def workspace(
     design: DesignLike,
     *,
     pressure_bounds: ArrayLike | str | None = None,
+    tension_bounds: ArrayLike | str | None = None,
     samples: int = 21,
     tip_force: ArrayLike | None = None,
     tip_moment: ArrayLike | None = None,
     threads: int = 0,
     options: SolverOptions | None = None,
 ) -> Workspace:
-    """Sample the boundary of the tip workspace of ``design`` under ``pressure_bounds``
-    (default: the design's operating range): ``samples`` values per free channel on each
-    face of the pressure box, solved in parallel by the Rust batch on ``threads`` cores
-    (0 = all). Failed solves are kept with ``converged=False``."""
+    """Sample the boundary of the tip workspace of ``design`` under ``pressure_bounds`` and,
+    for a design with tendons, ``tension_bounds`` (N, lo >= 0; default: the design's
+    operating range): ``samples`` values per free input on each face of the input box,
+    solved in parallel by the Rust batch on ``threads`` cores (0 = all). Failed solves are
+    kept with ``converged=False``."""
     import time
 
     from ..statics import solve_statics_batch
 
     design = load_design(design)
     require_free_tip(design, "workspace")
-    nc = design.n_channels
-    if nc == 0:
-        raise design_error("design", design.name, "has no pressure channels", InputError)
-    bounds = _bounds(design, pressure_bounds)
+    n_p = design.n_channels
+    if n_p == 0 and design.n_tendons == 0:
+        raise design_error("design", design.name, "has neither pressure channels nor tendons",
+                           InputError)
+    p_bounds = _bounds(design, pressure_bounds)
+    t_bounds = _tension_bounds(design, tension_bounds)
+    bounds = np.vstack([p_bounds, t_bounds])  # every input: pressures, then tensions
+    nc = len(bounds)
     samples = integer(samples, "samples", minimum=2, maximum=10_000)
     count = 2 * nc * samples ** (nc - 1) if nc > 1 else samples
     if count > MAX_WORKSPACE_SOLVES:
         raise design_error(
             "samples", samples,
-            f"gives {count} solves for {nc} channels (2 c samples^(c-1)); the limit is "
+            f"gives {count} solves for {nc} inputs (2 c samples^(c-1)); the limit is "
             f"{MAX_WORKSPACE_SOLVES}: lower samples", InputError)
     axes = [np.linspace(lo, hi, samples) for lo, hi in bounds]
     rows, face_of, grid_of, faces = [], [], [], []
@@ -232,14 +266,18 @@ def workspace(
             rows.append(p)
             face_of.append(np.full(len(idx), len(faces) - 1))
             grid_of.append(idx)
-    pressures = np.vstack(rows)
+    inputs = np.vstack(rows)
+    pressures, tensions = inputs[:, :n_p], inputs[:, n_p:]
     t0 = time.perf_counter()
     batch = solve_statics_batch(design, pressures, tip_force=tip_force, tip_moment=tip_moment,
-                                threads=threads, options=options)
+                                threads=threads, options=options,
+                                tensions=tensions if design.n_tendons else None)
     wall = time.perf_counter() - t0
     return Workspace(
         design=design,
-        bounds=bounds,
+        bounds=p_bounds,
+        tension_bounds=t_bounds,
+        tensions=tensions,
         samples=samples,
         faces=faces,
         pressures=pressures,

@@ -1,6 +1,7 @@
-"""Inverse statics with tendon tensions as inputs (docs/control.md, "Tendons as inputs"):
-round trips through the Python API and the CLI, slack respected, bounds and their rules, a
-hybrid design with chambers and a tendon, and generated targets that never break a bound."""
+"""Control tools with tendon tensions as inputs (docs/control.md, "Tendons as inputs"):
+inverse round trips through the Python API and the CLI, slack respected, bounds and their
+rules, a hybrid design with chambers and a tendon, generated targets that never break a
+bound, the Jacobian's tension columns, and the workspace over the tension box."""
 
 from __future__ import annotations
 
@@ -152,3 +153,27 @@ def test_static_jacobian_has_tension_columns(till):
         else:
             fd = (-3 * tip(0 * e) + 4 * tip(e) - tip(2 * e)) / (2 * h)
         assert np.linalg.norm(jac.tensions[:3, k] - fd) <= 1e-5 * np.linalg.norm(fd), k
+
+
+def test_workspace_over_the_tension_box(till, run):
+    """Four tendons, 3 samples per free input: 2 x 4 faces of 27 rows; each row is the
+    single solve at its tensions (bitwise: the batch runs the same cold solve), and the
+    robot's mirror symmetry about its vertical plane (tendons 1 and 3 opposed, gravity in
+    that plane) shows in the sideways extent to round-off."""
+    ws = softrod.workspace(till, samples=3)
+    assert ws.input_names == ("t0", "t1", "t2", "t3")
+    assert ws.tensions.shape == (8 * 27, 4) and ws.pressures.shape == (8 * 27, 0)
+    assert np.all(ws.converged)
+    assert np.all((ws.tensions >= 0) & (ws.tensions <= 20))
+    for row in (0, 40, 100):
+        single = solve_statics(till, [], tensions=ws.tensions[row])
+        assert np.array_equal(single.tip_position, ws.tip_position[row])
+    y = ws.tip_position[:, 1]
+    assert y.max() > 0.1 and abs(y.max() + y.min()) < 1e-9 * till.length
+    frame = ws.to_frame()
+    assert {"t0_N", "t3_N", "input"} <= set(frame.columns)
+    assert set(frame["input"]) == {"t0", "t1", "t2", "t3"}
+    result = run("workspace", TILL, "--tension-bounds", "0:10N", "--samples", "3", "--json")
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.stdout)
+    assert out["tension_bounds_N"] == [[0.0, 10.0]] * 4 and out["bounds_kPa"] == []
