@@ -565,6 +565,9 @@ pub(crate) struct Scratch {
     hint: Option<[f64; 6]>,
     /// The last factorised J_K (linear law): Newton's matrix for the next stage.
     factor: Option<crate::tendon::Ldl6>,
+    /// The tendons' load T = (F_t, M_t) at the last point where the linear law evaluated
+    /// the tangents (within a round-off-sized step of `hint`), when every route is straight.
+    load: Option<[f64; 6]>,
     points: Vec<TendonPoint>,
     tangents: Vec<([f64; 3], f64)>,
 }
@@ -781,11 +784,8 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
     } else {
         1e-2 * sec.length
     };
-    // G(w) = K (w - w_free) + T(w), with the tangents at w left in `tangents`.
-    let residual = |w: &[f64; 6], tangents: &mut Vec<([f64; 3], f64)>| -> [f64; 6] {
-        tangents.clear();
-        tangents.extend(points.iter().map(|p| tangent(w, p)));
-        let t = load(tangents, points);
+    // G(w) = K (w - w_free) + T for a given tendon load T.
+    let gradient = |w: &[f64; 6], t: &[f64; 6]| -> [f64; 6] {
         let d: [f64; 6] = std::array::from_fn(|k| w[k] - wfree[k]);
         let mut g = [0.0; 6];
         for a in 0..3 {
@@ -794,6 +794,13 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
                 lf.k_bt[a][0] * d[3] + lf.k_bt[a][1] * d[4] + lf.k_bt[a][2] * d[5] + t[3 + a];
         }
         g
+    };
+    // G(w) = K (w - w_free) + T(w) and T(w), with the tangents at w left in `tangents`.
+    let residual = |w: &[f64; 6], tangents: &mut Vec<([f64; 3], f64)>| {
+        tangents.clear();
+        tangents.extend(points.iter().map(|p| tangent(w, p)));
+        let t = load(tangents, points);
+        (gradient(w, &t), t)
     };
     let build = |tangents: &Vec<([f64; 3], f64)>| {
         Ldl6::new(&stiffness_with_tendons(
@@ -817,10 +824,28 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
     };
     let mut factor = scratch.factor;
     let mut refresh = factor.is_none();
+    // The first residual at the last stage's strains w* without new tangents: with straight
+    // routes the tendons' load there is the last stage's (the tangents depend on w alone),
+    // so G(w*) = K (w* - w_free) + T(w*) costs no square roots. T was evaluated one
+    // converged Newton step before w*, so this residual is off by a round-off-sized
+    // amount; every later step (and so the convergence test) uses the exact residual.
+    let fixed = c.tendons.iter().all(|t| t.route.is_fixed());
+    let mut known_load = match (scratch.hint, scratch.load) {
+        (Some(_), Some(t)) if fixed && !refresh => Some(t),
+        _ => None,
+    };
+    let mut last_load = None;
     let mut prev = f64::INFINITY;
     let mut converged = false;
     for _ in 0..60 {
-        let g = residual(&w, tangents);
+        let g = match known_load.take() {
+            Some(t) => gradient(&w, &t),
+            None => {
+                let (g, t) = residual(&w, tangents);
+                last_load = Some(t);
+                g
+            }
+        };
         if refresh {
             factor = build(tangents);
             refresh = false;
@@ -848,10 +873,12 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
     if !converged {
         scratch.hint = None;
         scratch.factor = None;
+        scratch.load = None;
         let nan = D::from(f64::NAN);
         return ([nan; 3], [nan; 3]);
     }
     scratch.hint = Some(w);
+    scratch.load = last_load.filter(|_| fixed);
     if plain {
         scratch.factor = factor;
         return (
@@ -862,9 +889,11 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
     // Exact first derivatives: J_K at the solution, then w_D = w* - J_K^-1 G_D(w*) with
     // G_D = K_C (w* - S_C(nb_D, mb_D) ...) written as K_C (w* - shift_C) + T_C - (nb, mb)_D
     // (the same G: K (w - w_free) = K (w - shift) - (nb, mb)).
-    let _ = residual(&w, tangents);
+    let (_, t_star) = residual(&w, tangents);
+    scratch.load = Some(t_star).filter(|_| fixed);
     let Some(f) = build(tangents) else {
         scratch.factor = None;
+        scratch.load = None;
         let nan = D::from(f64::NAN);
         return ([nan; 3], [nan; 3]);
     };

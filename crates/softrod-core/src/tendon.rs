@@ -60,6 +60,12 @@ impl Route {
         }
     }
 
+    /// Whether the offset is the same all along the section (a straight tendon).
+    #[inline]
+    pub fn is_fixed(&self) -> bool {
+        self.fixed.is_some()
+    }
+
     /// Largest distance from the centreline along the section, m.
     pub fn max_distance(&self) -> f64 {
         self.distance[0].max(self.distance[1])
@@ -106,7 +112,9 @@ pub(crate) fn tangent(w: &[f64; 6], p: &TendonPoint) -> ([f64; 3], f64) {
         w[2] + w[3] * y - w[4] * x,
     ];
     let len = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
-    ([q[0] / len, q[1] / len, q[2] / len], len)
+    // One division for the three components (the law's inner loop).
+    let inv = 1.0 / len;
+    ([q[0] * inv, q[1] * inv, q[2] * inv], len)
 }
 
 /// The tendons' total force and moment in the body frame, (F_t, M_t) = sum tau B^T t,
@@ -210,7 +218,8 @@ pub(crate) fn stiffness_with_tendons(
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Ldl6 {
     l: [[f64; 6]; 6],
-    d: [f64; 6],
+    /// Reciprocal pivots 1 / d (a solve multiplies by them).
+    d_inv: [f64; 6],
 }
 
 impl Ldl6 {
@@ -236,7 +245,10 @@ impl Ldl6 {
                 l[i][j] = v / dj;
             }
         }
-        Some(Ldl6 { l, d })
+        Some(Ldl6 {
+            l,
+            d_inv: d.map(|x| 1.0 / x),
+        })
     }
 
     /// Solve A x = b for a right-hand side in any scalar (f64 factors).
@@ -249,7 +261,7 @@ impl Ldl6 {
             }
         }
         for i in 0..6 {
-            x[i] = x[i] * (1.0 / self.d[i]);
+            x[i] = x[i] * self.d_inv[i];
         }
         for i in (0..6).rev() {
             for k in i + 1..6 {

@@ -151,6 +151,75 @@ fn jacobian_matches_finite_differences_with_tendons() {
     }
 }
 
+/// The tendon law starts each evaluation from the last one's strains and Newton matrix
+/// (and, with straight routes, from the last tendon load, saving the first tangents):
+/// integrating a section in one warm chain (`integrate_with`) and re-stepping each step
+/// alone from the same node (`advance`: its first stage solved cold) give the same nodes to
+/// round-off. Every law solve stops within about 1e-13 of a strain of its root, and a step
+/// of length h moves r, R, n, m by h times those strains (times n for m), so 1e-12 of each
+/// quantity's scale bounds what two correct solves can differ by; a stale start accepted
+/// as converged would show as a difference at the size of a stage's strain change (1e-5).
+#[test]
+fn warm_started_tendon_law_matches_cold_solves() {
+    use softrod_core::ode::{advance, integrate_with, Coeffs, NodeAt, State};
+    for helical in [false, true] {
+        let rod = Rod::new(tendon_arm(helical, false)).unwrap();
+        let ld = tensioned(&[20e3, 0.0, 10e3], &[1.5, 0.6]);
+        let coeffs: Vec<Coeffs<f64>> = (0..rod.sections.len())
+            .map(|i| {
+                Coeffs::build(
+                    &rod,
+                    i,
+                    &ld.pressures,
+                    &ld.tensions,
+                    &rod.gravity,
+                    1.0,
+                    &[1.0; 3],
+                )
+            })
+            .collect();
+        // A base state with force and moment of the size the arm carries.
+        let y0 = State {
+            r: [0.0; 3],
+            rot: rod.base_rotation,
+            n: [0.3, -0.2, 0.8],
+            m: [0.01, -0.02, 0.004],
+            aux: [0.0; 2],
+        };
+        let mut nodes: Vec<(NodeAt, State<f64>)> = Vec::new();
+        integrate_with(&rod, &coeffs, y0, &mut |node, y| {
+            nodes.push((node, *y));
+            false
+        });
+        let mut checked = 0;
+        for pair in nodes.windows(2) {
+            let ((a, ya), (b, yb)) = (&pair[0], &pair[1]);
+            if a.section != b.section || b.step != a.step + 1 {
+                continue;
+            }
+            let y = advance(&rod, &coeffs, *a, ya, b.s - a.s);
+            let scale = |x: &[f64]| x.iter().fold(1e-3_f64, |m, v| m.max(v.abs()));
+            let worst = |p: &[f64], q: &[f64]| {
+                p.iter()
+                    .zip(q)
+                    .fold(0.0_f64, |m, (u, v)| m.max((u - v).abs()))
+                    / scale(q)
+            };
+            let rot = |s: &State<f64>| s.rot.concat();
+            let err = worst(&y.r, &yb.r)
+                .max(worst(&rot(&y), &rot(yb)))
+                .max(worst(&y.n, &yb.n))
+                .max(worst(&y.m, &yb.m));
+            assert!(
+                err <= 1e-12,
+                "helical {helical}: node {b:?} differs by {err:e} of its scale"
+            );
+            checked += 1;
+        }
+        assert!(checked >= 20, "only {checked} steps compared");
+    }
+}
+
 /// The continuation tangent dx/dlambda with tendon tensions ramped with the other loads,
 /// against central differences of solutions at lambda -/+ eps.
 #[test]
