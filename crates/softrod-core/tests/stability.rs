@@ -399,3 +399,48 @@ fn too_coarse_steps_break_the_rotation_rule() {
         Some(true)
     );
 }
+
+/// Issue 14's soft cantilever (0.22 m, r 12.5 mm, E 100 kPa, nu 0.5, 1000 kg/m^3, clamped
+/// horizontally, 20 steps; its tip sags by 0.88 L): the tangent predicts the first load
+/// step well, so that step is lengthened and the cold solve takes 2 load levels (3 with the
+/// first step at its trial reach), and it lands on the equilibrium that a gentle path
+/// reaches: gravity raised in eighths, each Newton solve warm-started from the last one.
+#[test]
+fn soft_cantilever_takes_a_longer_first_step_to_the_same_equilibrium() {
+    let rod_at = |g: f64| {
+        let mat = softrod_core::spec::MaterialSpec {
+            youngs_modulus: 100e3,
+            shear_modulus: 100e3 / 3.0,
+            density: 1000.0,
+        };
+        let sec = geometry_section("rod", 0.22, 0.0125, 0.0, mat, vec![], 20);
+        Rod::new(design(vec![sec], HORIZONTAL, g)).unwrap()
+    };
+    let opts = SolverOptions::default();
+    let cold = solve(&rod_at(9.81), &loads(&[]), None, &opts).unwrap();
+    assert_eq!(cold.load_steps, 2, "load levels of the cold solve");
+    assert_eq!(cold.stable, Some(true));
+    let newton_only = SolverOptions {
+        continuation: false,
+        ..opts
+    };
+    let mut x: Option<Vec<f64>> = None;
+    let mut tip = [0.0; 3];
+    for k in 1..=8 {
+        let s = solve(
+            &rod_at(9.81 * k as f64 / 8.0),
+            &loads(&[]),
+            x.as_deref(),
+            &newton_only,
+        )
+        .unwrap();
+        tip = s.tip.r;
+        x = Some(s.x);
+    }
+    // Both solves meet tol = 1e-10 on the scaled residual, which moves the tip far less
+    // than 1e-9 L (`SolverOptions::tol`); another equilibrium would be centimetres away.
+    let d = (0..3)
+        .map(|k| (cold.tip.r[k] - tip[k]).abs())
+        .fold(0.0, f64::max);
+    assert!(d < 1e-9 * 0.22, "tips differ by {d:e} m");
+}

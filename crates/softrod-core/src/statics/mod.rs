@@ -1158,10 +1158,14 @@ const MIN_LOAD_STEP: f64 = 1e-5;
 /// buckling load) and is followed.
 const MIN_STABLE_STEP: f64 = 1.0 / 64.0;
 /// How far (infinity norm of the scaled unknowns, about the rod's rotation in rad) the
-/// first load step may move the solution along the tangent: further, the linear
-/// prediction is too poor for Newton; the full load is tried at once when its tangent
-/// prediction moves less.
+/// first load step moves the solution along the tangent before its prediction is measured
+/// (`FIRST_ERROR`); the full load is tried at once when its tangent prediction moves less.
 const FIRST_REACH: f64 = 2.0;
+/// The first step is lengthened until its tangent prediction's error (the residual at the
+/// predicted point) is about this fraction of the move it predicts.
+const FIRST_ERROR: f64 = 0.25;
+/// At most this many times longer.
+const MAX_FIRST_GROWTH: f64 = 4.0;
 /// Tolerance of the intermediate load levels (relative, as `SolverOptions::tol`): they are
 /// stepping stones, and the predictor does not need them exact.
 const LEVEL_TOL: f64 = 1e-2;
@@ -1170,7 +1174,8 @@ const LEVEL_TOL: f64 = 1e-2;
 /// reference shape), predicted along the exact tangent (for a straight reference and dead
 /// loads: the straight-rod guess, with J = I) and corrected by Newton. The step moves the
 /// predicted solution by a set reach, adapted to Newton's effort; Newton starts from the
-/// last level's exact Jacobian, updated by Broyden along the prediction.
+/// last level's exact Jacobian, updated by Broyden along the prediction. The first step is
+/// lengthened when its prediction turns out good (`FIRST_ERROR`).
 fn natural_path<const N: usize, const M: usize>(
     rod: &Rod,
     loads: &Loads,
@@ -1241,10 +1246,28 @@ fn natural_path<const N: usize, const M: usize>(
             return better(unstable_end, out);
         }
         levels += 1;
-        let target = (lam + step).min(1.0);
-        let h = target - lam;
-        let guess: [f64; N] = std::array::from_fn(|i| x[i] + tangent[i] * h);
-        let p = Problem::new(rod, loads, target);
+        let mut target = (lam + step).min(1.0);
+        let mut h = target - lam;
+        let mut guess: [f64; N] = std::array::from_fn(|i| x[i] + tangent[i] * h);
+        let mut p = Problem::new(rod, loads, target);
+        let mut r0 = p.eval(&guess);
+        if levels == 1 && target < 1.0 {
+            // A longer first step where the tangent predicts well: the prediction's error
+            // (measured by the residual there; J = I at zero load for a straight rod)
+            // grows like the square of the step, so the step whose error is FIRST_ERROR
+            // of its move is FIRST_ERROR rho / |r0| times this one (rho: its move). The
+            // residual at the longer step's prediction is then evaluated afresh.
+            let rho = h * inf_norm(&tangent);
+            let err = inf_norm(&r0);
+            let grow = (FIRST_ERROR * rho / err).min(MAX_FIRST_GROWTH);
+            if err.is_finite() && grow > 1.0 {
+                target = (lam + h * grow).min(1.0);
+                h = target - lam;
+                guess = std::array::from_fn(|i| x[i] + tangent[i] * h);
+                p = Problem::new(rod, loads, target);
+                r0 = p.eval(&guess);
+            }
+        }
         let level_opts = SolverOptions {
             tol: if target < 1.0 {
                 opts.tol.max(LEVEL_TOL)
@@ -1256,7 +1279,6 @@ fn natural_path<const N: usize, const M: usize>(
         // The augmented Jacobian [J, dR/dlambda] of the last level, updated by Broyden
         // along the prediction (dx, h): dR/dlambda = -J t, so the linear model predicts
         // r + J (dx - t h) at the guess.
-        let r0 = p.eval(&guess);
         let dx = SVector::<f64, N>::from_fn(|i, _| guess[i] - x[i]);
         let t = SVector::<f64, N>::from_column_slice(&tangent);
         let miss = SVector::<f64, N>::from_column_slice(&r0)
