@@ -73,6 +73,7 @@ _SCHEMA: dict[str, set[str]] = {
         "tolerance",
         "smoothing",
         "friction",
+        "slip_velocity",
     },
     "design": {"name", "citation", "description", "assumptions", "provenance"},
     "stiffness_map": {"file", "method", "outside"},
@@ -773,9 +774,10 @@ _OBSTACLE_POSE = {
 def _obstacles(obstacles: Any) -> list[dict]:
     """[[obstacles]]: rigid obstacles the rod may touch (docs/contact.md): kind, pose and
     size with units, penalty stiffness (force per length per penetration, e.g.
-    "2e6 N/m^2"), penetration tolerance, optional smoothing length and friction
-    coefficient. Rules on values (positive radius, non-zero normal, smoothing within the
-    tolerance, ...) are the core's (``ObstacleSpec::validate``)."""
+    "2e6 N/m^2"), penetration tolerance, optional smoothing length, friction
+    coefficient and the friction law's regularisation velocity ``slip_velocity`` (e.g.
+    "1 mm/s"; dynamics only). Rules on values (positive radius, non-zero normal, smoothing
+    within the tolerance, ...) are the core's (``ObstacleSpec::validate``)."""
     if not isinstance(obstacles, list):
         raise V.fail("obstacles", obstacles, "must be an array of tables", DesignError)
     if len(obstacles) > V.MAX_OBSTACLES:
@@ -808,6 +810,9 @@ def _obstacles(obstacles: Any) -> list[dict]:
             spec["smoothing"] = _q(ob["smoothing"], "length", f"{where}.smoothing")
         if "friction" in ob:
             spec["friction"] = number(ob["friction"], f"{where}.friction")
+        if "slip_velocity" in ob:
+            field = f"{where}.slip_velocity"
+            spec["slip_velocity"] = _q(ob["slip_velocity"], "velocity", field)
         out.append(spec)
     return out
 

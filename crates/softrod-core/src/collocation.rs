@@ -38,6 +38,11 @@
 //! Jacobian of f at each stage is exact: one evaluation in `Jet<16>` over the stage's own
 //! unknowns.
 
+mod contact;
+
+pub use contact::Contact;
+use contact::{full_to_residual, full_to_unknown, residual_to_full, unknown_to_full};
+
 use crate::banded::{simd_dispatch, BandedLu};
 
 use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
@@ -894,6 +899,9 @@ pub struct Problem<'a> {
     pub fs: f64,
     pub ms: f64,
     pub base_q: [f64; 4],
+    /// Contact with the rod's obstacles (dynamics: [`Problem::with_contact`]); None: the
+    /// centreline is no unknown.
+    pub contact: Option<Contact>,
 }
 
 /// The scales of a point's unknowns for a rod and a time integrator's c0: quaternion 1,
@@ -952,7 +960,26 @@ impl<'a> Problem<'a> {
             fs: force_scale(rod),
             ms: force_scale(rod) * rod.length,
             base_q: quaternion(&rod.base_rotation),
+            contact: None,
         }
+    }
+
+    /// This problem with contact against the rod's obstacles (none: unchanged): the node
+    /// positions join the unknowns (docs/model.md, "Collocation").
+    pub fn with_contact(mut self) -> Self {
+        self.contact = Contact::of(self.rod, self.grid);
+        self
+    }
+
+    /// Length of the unknown (and residual) vector: [`Grid::unknowns`], then with contact
+    /// the 3 N node positions r_1 .. r_N.
+    pub fn unknowns(&self) -> usize {
+        self.grid.unknowns()
+            + if self.contact.is_some() {
+                3 * self.grid.len()
+            } else {
+                0
+            }
     }
 
     /// The physical state of node j (0..=N) from the scaled unknowns.
@@ -1026,6 +1053,9 @@ impl<'a> Problem<'a> {
 
     #[inline(always)]
     fn residual_impl(&self, z: &[f64], out: &mut [f64], mut fields: Option<&mut [[f64; NF]]>) {
+        if let Some(c) = &self.contact {
+            return self.contact_residual(c, z, out, fields);
+        }
         let inv: [f64; NY] = self.scale.map(|s| 1.0 / s);
         let mut yj = self.node(z, 0);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
@@ -1093,6 +1123,13 @@ impl<'a> Problem<'a> {
     pub fn dense_jacobian(&self, z: &[f64]) -> Vec<Vec<f64>> {
         let n = z.len();
         let mut jac = vec![vec![0.0; n]; n];
+        if let Some(c) = &self.contact {
+            let n_int = self.grid.len();
+            self.contact_jacobian(c, z, |row, col, v| {
+                jac[full_to_residual(n_int, row)][full_to_unknown(n_int, col)] += v;
+            });
+            return jac;
+        }
         for (j, iv) in self.grid.intervals.iter().enumerate() {
             let model = [&self.models[iv.model[0]], &self.models[iv.model[1]]];
             let js = [
@@ -1217,6 +1254,9 @@ impl<'a> Problem<'a> {
 
     #[inline(always)]
     fn factorize_impl(&self, z: &[f64]) -> Option<Factorization> {
+        if let Some(c) = &self.contact {
+            return self.contact_factorize(c, z);
+        }
         let n_int = self.grid.len();
         let mut blocks = Vec::with_capacity(n_int);
         let n = 6 + 16 * n_int;
@@ -1317,6 +1357,7 @@ impl<'a> Problem<'a> {
         Some(Factorization {
             blocks,
             band,
+            contact: false,
             at: z.to_vec(),
         })
     }
@@ -1438,7 +1479,10 @@ fn gemv_add<const R: usize, const C: usize>(y: &mut [f64; R], a: &[f64], x: &[f6
 #[derive(Debug, Clone)]
 pub struct Factorization {
     blocks: Vec<IntervalFactor>,
+    /// The node system, or with contact (`blocks` empty) the whole banded system in the
+    /// order of [`residual_to_full`] and [`unknown_to_full`].
     band: BandedLu,
+    contact: bool,
     /// The scaled unknowns it was computed at.
     pub at: Vec<f64>,
 }
@@ -1465,6 +1509,13 @@ impl Factorization {
 
     #[inline(always)]
     fn solve2_impl(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) {
+        if self.contact {
+            let n = r.len() / 2;
+            let (dz0, dz1) = dz.split_at_mut(n);
+            self.solve_full(&r[..n], dz0, rhs);
+            self.solve_full(&r[n..], dz1, rhs);
+            return;
+        }
         let n_int = self.blocks.len();
         let nb = self.band.n();
         let n = r.len() / 2;
@@ -1516,8 +1567,25 @@ impl Factorization {
         }
     }
 
+    /// The Newton step of a contact problem: one banded solve of the whole system.
+    fn solve_full(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) {
+        let n = r.len();
+        let n_int = (n - 6) / 51;
+        let rhs = &mut rhs[..n];
+        for (i, x) in r.iter().enumerate() {
+            rhs[residual_to_full(n_int, i)] = -x;
+        }
+        self.band.solve(rhs);
+        for (i, d) in dz[..n].iter_mut().enumerate() {
+            *d = rhs[unknown_to_full(n_int, i)];
+        }
+    }
+
     #[inline(always)]
     fn solve_impl(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) {
+        if self.contact {
+            return self.solve_full(r, dz, rhs);
+        }
         let n_int = self.blocks.len();
         let rhs = &mut rhs[..self.band.n()];
         // The node recurrences' right sides G M^-1 (-r_S) - r_N.
@@ -2043,6 +2111,20 @@ impl Problem<'_> {
             let o = node_index(j + 1);
             for k in 0..NY {
                 z[o + k] = nodes[j + 1][k] / self.scale[k];
+            }
+        }
+        self.with_positions(z)
+    }
+
+    /// Scaled unknowns `z` of a problem without contact ([`Grid::unknowns`]) completed
+    /// for this problem: with contact the node positions by the collocation quadrature
+    /// (which the position equations then hold exactly).
+    pub fn with_positions(&self, mut z: Vec<f64>) -> Vec<f64> {
+        z.truncate(self.grid.unknowns());
+        if self.contact.is_some() {
+            let eval = self.evaluate(&z);
+            for r in &eval.node_r[1..] {
+                z.extend(r.iter().map(|x| x / self.rod.length));
             }
         }
         z

@@ -57,6 +57,10 @@ pub struct Obstacle {
     pub smoothing: f64,
     /// Largest penetration a solution may have, m.
     pub tolerance: f64,
+    /// Coulomb friction coefficient mu (dynamics only).
+    pub friction: f64,
+    /// Regularisation velocity of the friction law, m/s.
+    pub slip_velocity: f64,
 }
 
 fn unit(v: [f64; 3]) -> [f64; 3] {
@@ -94,6 +98,8 @@ impl Obstacle {
             stiffness: o.stiffness,
             smoothing: o.smoothing_length(),
             tolerance: o.tolerance,
+            friction: o.friction,
+            slip_velocity: o.slip_velocity(),
         }
     }
 
@@ -166,6 +172,122 @@ impl Obstacle {
         };
         nu.map(|n| n * p)
     }
+
+    /// The penalty potential Phi = k R_eps(delta) of a cross-section of outer radius `rho`
+    /// at r, J/m: R_eps(delta) = delta^3 / (6 eps) below eps, delta^2 / 2 - eps delta / 2 +
+    /// eps^2 / 6 beyond (R_eps' = ramp_eps, so f_c = -grad Phi).
+    pub fn potential(&self, r: &[f64; 3], rho: f64) -> f64 {
+        let (d, _) = self.distance(r);
+        let delta = rho - d;
+        let eps = self.smoothing;
+        let k = self.stiffness;
+        if delta <= 0.0 {
+            0.0
+        } else if delta < eps {
+            k * delta * delta * delta / (6.0 * eps)
+        } else {
+            k * (0.5 * delta * delta - 0.5 * eps * delta + eps * eps / 6.0)
+        }
+    }
+
+    /// The contact load on a cross-section of outer radius `rho` whose centreline is at r
+    /// and moves with velocity `vel` while the section turns at `omega` (world frame): the
+    /// normal penalty force f_n = k ramp_eps(delta) nu and the regularised Coulomb
+    /// friction at the contact point r - rho nu,
+    ///   v_s = vel + omega x (-rho nu),  v_t = v_s - (v_s . nu) nu,
+    ///   f_t = -mu |f_n| v_t / sqrt(|v_t|^2 + v_reg^2),
+    /// a smooth saturation that reaches the Coulomb bound mu |f_n| for |v_t| >> v_reg
+    /// (docs/contact.md, "Dynamics"). Force per unit length (normal and friction), the
+    /// friction's moment about the centreline (-rho nu) x f_t, and the friction force f_t.
+    #[inline]
+    pub fn section_load<D: RodScalar>(
+        &self,
+        r: &[D; 3],
+        vel: &[D; 3],
+        omega: &[D; 3],
+        rho: f64,
+    ) -> SectionLoad<D> {
+        let zero = D::from(0.0);
+        let mut out = SectionLoad {
+            force: [zero; 3],
+            moment: [zero; 3],
+            friction: [zero; 3],
+        };
+        let (d, nu) = self.distance(r);
+        let delta = -d + rho;
+        let eps = self.smoothing;
+        let p = if delta.value() <= 0.0 {
+            return out;
+        } else if delta.value() < eps {
+            delta * delta * (0.5 * self.stiffness / eps)
+        } else {
+            (delta - 0.5 * eps) * self.stiffness
+        };
+        out.force = nu.map(|n| n * p);
+        if self.friction > 0.0 {
+            let arm = nu.map(|n| n * -rho);
+            let oxa = cross(omega, &arm);
+            let vs: [D; 3] = std::array::from_fn(|k| vel[k] + oxa[k]);
+            let vn = vs[0] * nu[0] + vs[1] * nu[1] + vs[2] * nu[2];
+            let vt: [D; 3] = std::array::from_fn(|k| vs[k] - vn * nu[k]);
+            let v2 = vt[0] * vt[0] + vt[1] * vt[1] + vt[2] * vt[2];
+            let g = (v2 + self.slip_velocity * self.slip_velocity)
+                .sqrt()
+                .recip();
+            let ft: [D; 3] = std::array::from_fn(|k| vt[k] * g * p * -self.friction);
+            let m = cross(&arm, &ft);
+            for k in 0..3 {
+                out.force[k] += ft[k];
+            }
+            out.moment = m;
+            out.friction = ft;
+        }
+        out
+    }
+}
+
+/// A contact load on a cross-section ([`Obstacle::section_load`]): force (N/m) and moment
+/// about the centreline (N m/m), world frame, and the friction part of the force (N/m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SectionLoad<D> {
+    pub force: [D; 3],
+    pub moment: [D; 3],
+    pub friction: [D; 3],
+}
+
+/// The sum of all obstacles' [`Obstacle::section_load`].
+#[inline]
+pub fn total_section_load<D: RodScalar>(
+    obstacles: &[Obstacle],
+    r: &[D; 3],
+    vel: &[D; 3],
+    omega: &[D; 3],
+    rho: f64,
+) -> SectionLoad<D> {
+    let zero = D::from(0.0);
+    let mut out = SectionLoad {
+        force: [zero; 3],
+        moment: [zero; 3],
+        friction: [zero; 3],
+    };
+    for o in obstacles {
+        let g = o.section_load(r, vel, omega, rho);
+        for k in 0..3 {
+            out.force[k] += g.force[k];
+            out.moment[k] += g.moment[k];
+            out.friction[k] += g.friction[k];
+        }
+    }
+    out
+}
+
+#[inline]
+fn cross<D: RodScalar>(a: &[D; 3], b: &[D; 3]) -> [D; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 
 /// Distance and outward normal for a surface at distance `radius` from a point or an axis,
@@ -279,6 +401,7 @@ mod tests {
             tolerance: 1e-3,
             smoothing: Some(1e-4),
             friction: 0.0,
+            slip_velocity: None,
         }
     }
 

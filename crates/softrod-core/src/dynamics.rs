@@ -418,6 +418,18 @@ impl SigmaMap {
     }
 }
 
+/// The contact loads of a state with obstacles ([`Simulator::contact_state`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactState {
+    /// Total contact force on the rod (normal and friction, rounded end included), N,
+    /// world frame.
+    pub force: [f64; 3],
+    /// Penalty potential of the contacts, J (part of `Energy::potential`).
+    pub potential: f64,
+    /// Deepest penetration of the rod's surface into an obstacle, m (<= 0: no contact).
+    pub max_penetration: f64,
+}
+
 /// Energies at one instant and the cumulative exchanges since t = 0, J.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Energy {
@@ -427,12 +439,13 @@ pub struct Energy {
     /// (1/2)(v - v_p) K_se (v - v_p) + (1/2)(u - u_p) K_bt (u - u_p) about the
     /// pressure-shifted strains; for the others W(v, u) - P (v3 - 1) - M_p . u.
     pub elastic: f64,
-    /// Potential of gravity and of the dead forces (line and tip).
+    /// Potential of gravity and of the dead forces (line and tip), and the contacts'
+    /// penalty potential.
     pub potential: f64,
     /// Work done on the rod since t = 0 by changing pressures, stiffness scale and dead
     /// loads, by dead moments, and by the non-potential part of stretch-dependent bending.
     pub work_in: f64,
-    /// Kelvin-Voigt dissipation since t = 0.
+    /// Kelvin-Voigt and friction dissipation since t = 0.
     pub dissipated: f64,
 }
 
@@ -591,6 +604,13 @@ pub struct Simulator {
 /// Refuse the statics-only features of a design (follower loads, reference shapes, tapered
 /// sections, tendons): `model` (the linearisation, the PCC model) does not carry them yet.
 pub(crate) fn check_statics_only(rod: &Rod, model: &str) -> Result<()> {
+    if !rod.spec.obstacles.is_empty() {
+        return Err(SoftrodError::invalid(
+            "obstacles",
+            "contact with obstacles",
+            format!("is not supported by {model} yet; the Cosserat statics (solve_statics) and dynamics (simulate) support it"),
+        ));
+    }
     check_statics_only_with(rod, model, false, false)
 }
 
@@ -615,9 +635,6 @@ pub(crate) fn check_statics_only_with(
             ),
         )
     };
-    if !rod.spec.obstacles.is_empty() {
-        return Err(statics_only("obstacles".into(), "contact with obstacles"));
-    }
     if rod.spec.tip.frame == crate::spec::Frame::Body && !tendons_and_followers {
         return Err(statics_only(
             "tip.frame".into(),
@@ -892,19 +909,43 @@ impl Simulator {
         let hist0 = vec![zero; self.slots.len()];
         let models = self.models_at(&self.pressures, &self.tensions, &self.sigma, 0.0);
         let tip = self.tip_body(self.tip_force, self.tip_moment);
-        let problem = Problem::new(&self.rod, &self.grid, &models, 0.0, &hist0, tip);
+        let problem = Problem::new(&self.rod, &self.grid, &models, 0.0, &hist0, tip).with_contact();
+        let loads = Loads {
+            pressures: self.pressures.clone(),
+            tensions: self.tensions.clone(),
+            tip_force: self.tip_force,
+            tip_moment: self.tip_moment,
+            tip_frame: self.rod.spec.tip.frame,
+            stiffness_scale: self.sigma,
+        };
         let z_scaled = match initial {
+            Initial::Static if problem.contact.is_some() => {
+                // Equilibrium in contact: this discretisation's static problem with the
+                // contact loads (c0 = 0), from the static solver's (shooting, contact
+                // too) shape.
+                let mut z = statics::solve(&self.rod, &loads, None, &SolverOptions::default())
+                    .ok()
+                    .map(|sol| static_guess(&self.rod, &problem, &loads, &sol))
+                    .unwrap_or_else(|| problem.straight_unknowns());
+                let nopts = NewtonOptions {
+                    tol: self.opts.tol.min(1e-10),
+                    max_iter: 100,
+                };
+                let mut ns = NewtonStats::default();
+                collocation::newton(&problem, &mut z, &mut None, &nopts, &mut ns).map_err(
+                    |(iterations, residual)| SoftrodError::NotConverged {
+                        iterations,
+                        residual,
+                        load_factor: 1.0,
+                        reason: "the initial static state in contact did not solve".into(),
+                    },
+                )?;
+                self.stats.newton_iterations += ns.iterations;
+                z
+            }
             Initial::Static => {
                 // Equilibrium of this discretisation at rest (c0 = 0, no history), from
                 // the static solver's solution (which picks shooting or collocation).
-                let loads = Loads {
-                    pressures: self.pressures.clone(),
-                    tensions: self.tensions.clone(),
-                    tip_force: self.tip_force,
-                    tip_moment: self.tip_moment,
-                    tip_frame: self.rod.spec.tip.frame,
-                    stiffness_scale: self.sigma,
-                };
                 let guess = statics::solve(&self.rod, &loads, None, &SolverOptions::default())
                     .ok()
                     .map(|sol| static_guess(&self.rod, &problem, &loads, &sol));
@@ -951,9 +992,18 @@ impl Simulator {
                 // strain rates are zero. A consistent start keeps the schemes second order.
                 let m = &models[self.grid.intervals[k / 2].model[k % 2]];
                 if m.rho_a > 0.0 {
-                    // Dead line loads turned into the base frame; follower ones are body
-                    // loads already.
-                    let fb = mat_t_vec(&self.rod.base_rotation, &m.f);
+                    // Dead line loads (and contact loads, at rest: no friction) turned
+                    // into the base frame; follower ones are body loads already.
+                    let mut f = m.f;
+                    if let (Some(o), Some(c)) = (&self.rod.obstacles, &problem.contact) {
+                        let fc = crate::contact::total_line_force(
+                            o,
+                            &eval.stage_r[k],
+                            c.stage_radius[k],
+                        );
+                        f = std::array::from_fn(|a| f[a] + fc[a]);
+                    }
+                    let fb = mat_t_vec(&self.rod.base_rotation, &f);
                     for a in 0..3 {
                         xt[6 + a] = (fb[a] + m.f_body[a]) / m.rho_a;
                     }
@@ -1052,7 +1102,170 @@ impl Simulator {
                 validity::check_chamber(at, c, &v, &u, centroid(ch)).map_err(|e| e.at_time(t))?;
             }
         }
-        Ok(())
+        self.check_penetration(eval)
+    }
+
+    /// The penetration rule (`Rule::Penetration`) at every stage point and at the rounded
+    /// end: the rod's surface sinks into no obstacle deeper than its tolerance. In the
+    /// dynamics an impact sinks the rod deeper than its weight does: the error says so.
+    fn check_penetration(&self, eval: &Evaluated) -> Result<()> {
+        let (Some(obstacles), Some(c)) = (&self.rod.obstacles, self.contact()) else {
+            return Ok(());
+        };
+        let t = self.time;
+        let dynamic = |e: SoftrodError| {
+            match e.at_time(t) {
+            SoftrodError::InvalidState {
+                rule,
+                node,
+                s,
+                time,
+                value,
+                message,
+            } => SoftrodError::InvalidState {
+                rule,
+                node,
+                s,
+                time,
+                value,
+                message: format!(
+                    "{message}; in motion an impact sinks it deeper than a resting load: a stiffer penalty, a larger tolerance or a shorter step (dt) that resolves the impact"
+                ),
+            },
+            other => other,
+        }
+        };
+        for (k, r) in eval.stage_r.iter().enumerate() {
+            let j = k / 2;
+            let at = validity::Node {
+                index: j,
+                s: self.grid.stage_s(j, k % 2),
+                section: self.grid.intervals[j].section,
+            };
+            crate::contact::check_penetration(obstacles, at, r, c.stage_radius[k])
+                .map_err(dynamic)?;
+        }
+        let n = self.grid.len();
+        let at = validity::Node {
+            index: n,
+            s: self.grid.node_s(n),
+            section: self.grid.intervals[n - 1].section,
+        };
+        let r = eval.node_r.last().expect("tip node");
+        crate::contact::check_penetration(obstacles, at, r, c.tip_radius).map_err(dynamic)
+    }
+
+    /// The contact data of the rod on this run's grid (None without obstacles).
+    fn contact(&self) -> Option<collocation::Contact> {
+        collocation::Contact::of(&self.rod, &self.grid)
+    }
+
+    /// The contact loads of a state: the total contact force on the rod (N, world frame),
+    /// the penalty potential (J) and the deepest
+    /// penetration (m, <= 0: no contact), each a quadrature over the stage points (the
+    /// collocation's own) plus the rounded end.
+    fn contact_loads(&self, eval: &Evaluated) -> Option<ContactState> {
+        let c = self.contact()?;
+        let mut out = ContactState {
+            force: [0.0; 3],
+            potential: 0.0,
+            max_penetration: f64::NEG_INFINITY,
+        };
+        let mut add =
+            |r: &[f64; 3], rot: &[[f64; 3]; 3], q: &[f64], w: &[f64], rho: f64, wgt: f64| {
+                let vel = mat_vec(rot, &[q[0], q[1], q[2]]);
+                let omega = mat_vec(rot, &[w[0], w[1], w[2]]);
+                let l = crate::contact::total_section_load(&c.obstacles, r, &vel, &omega, rho);
+                for k in 0..3 {
+                    out.force[k] += wgt * l.force[k];
+                }
+                for o in c.obstacles.iter() {
+                    out.potential += wgt * o.potential(r, rho);
+                    out.max_penetration = out.max_penetration.max(rho - o.distance(r).0);
+                }
+            };
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            for i in 0..2 {
+                let k = 2 * j + i;
+                let f = &eval.fields[k];
+                add(
+                    &eval.stage_r[k],
+                    &eval.stage_rot[k],
+                    &f[6..9],
+                    &f[9..12],
+                    c.stage_radius[k],
+                    iv.h * GAUSS_B[i],
+                );
+            }
+        }
+        // The rounded end: the tip section's line load over the cap's length rho.
+        let y = eval.nodes.last().expect("tip node");
+        let rot = collocation::rotation(&y[..4]);
+        let r = eval.node_r.last().expect("tip node");
+        add(r, &rot, &y[10..13], &y[13..16], c.tip_radius, c.tip_radius);
+        Some(out)
+    }
+
+    /// Friction's dissipation over a step of length h from `old` to `new`: minus the work
+    /// of the new state's friction forces (those the implicit step applied) along the
+    /// step's slip of each stage point and of the rounded end, -f_t . dr - h l_t . omega
+    /// (l_t the friction's moment, so l_t . omega = f_t . (omega x arm)). Where friction
+    /// holds the rod this is minus the work of what it holds (the same displacements as the
+    /// potentials' change), so a sticking contact balances; the trapezoid of the end rates
+    /// would not where the regularised law is stiff (v_reg / (mu g) << h).
+    fn friction_work(&self, old: &Evaluated, new: &Evaluated, h: f64) -> f64 {
+        let Some(c) = self.contact() else {
+            return 0.0;
+        };
+        let mut out = 0.0;
+        let mut add = |r0: &[f64; 3],
+                       r: &[f64; 3],
+                       rot: &[[f64; 3]; 3],
+                       q: &[f64],
+                       w: &[f64],
+                       rho: f64,
+                       wgt: f64| {
+            let vel = mat_vec(rot, &[q[0], q[1], q[2]]);
+            let omega = mat_vec(rot, &[w[0], w[1], w[2]]);
+            let l = crate::contact::total_section_load(&c.obstacles, r, &vel, &omega, rho);
+            out -= wgt
+                * (0..3)
+                    .map(|k| l.friction[k] * (r[k] - r0[k]) + h * l.moment[k] * omega[k])
+                    .sum::<f64>();
+        };
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            for i in 0..2 {
+                let k = 2 * j + i;
+                let f = &new.fields[k];
+                add(
+                    &old.stage_r[k],
+                    &new.stage_r[k],
+                    &new.stage_rot[k],
+                    &f[6..9],
+                    &f[9..12],
+                    c.stage_radius[k],
+                    iv.h * GAUSS_B[i],
+                );
+            }
+        }
+        let y = new.nodes.last().expect("tip node");
+        let rot = collocation::rotation(&y[..4]);
+        add(
+            old.node_r.last().expect("tip node"),
+            new.node_r.last().expect("tip node"),
+            &rot,
+            &y[10..13],
+            &y[13..16],
+            c.tip_radius,
+            c.tip_radius,
+        );
+        out
+    }
+
+    /// The contact state now (None without obstacles): total contact force on the rod, N
+    /// (world frame), and the deepest penetration of its surface, m (<= 0: no contact).
+    pub fn contact_state(&self) -> Option<ContactState> {
+        self.contact_loads(&self.eval)
     }
 
     /// Kinetic, elastic and potential energy of a state.
@@ -1092,6 +1305,9 @@ impl Simulator {
         if !self.follower_tip() {
             // A dead tip force has a potential; a follower one does work (`rates`).
             e.potential -= (0..3).map(|k| force[k] * r[k]).sum::<f64>();
+        }
+        if let Some(c) = self.contact_loads(eval) {
+            e.potential += c.potential;
         }
         e
     }
@@ -1551,7 +1767,7 @@ impl Simulator {
         let win = 0.5 * h * (books.rates[1] + rates[1] + books.rates[2] + rates[2]);
         books.now = Energy {
             work_in: books.now.work_in + pin + fin + win,
-            dissipated: books.now.dissipated + d,
+            dissipated: books.now.dissipated + d + self.friction_work(&self.eval, &eval, h),
             ..e
         };
         books.rates = rates;
@@ -2427,7 +2643,7 @@ fn step_problem<'p>(
     hist: &'p [[f64; FIELDS]],
     tip: TipBody,
 ) -> Problem<'p> {
-    let mut p = Problem::new(rod, grid, models, c0, hist, tip);
+    let mut p = Problem::new(rod, grid, models, c0, hist, tip).with_contact();
     p.scale = collocation::point_scale(rod, scale_c0);
     p
 }
@@ -2439,9 +2655,12 @@ fn unknown_scales(p: &Problem, n: usize) -> Vec<f64> {
         s[k] = p.fs;
         s[3 + k] = p.ms;
     }
-    for (o, v) in s.iter_mut().enumerate().skip(6) {
+    // With contact the node positions follow (`collocation::Contact`), in units of L.
+    let points = p.grid.unknowns().min(n);
+    for (o, v) in s[..points].iter_mut().enumerate().skip(6) {
         *v = p.scale[(o - 6) % 16];
     }
+    s[points..].fill(p.rod.length);
     s
 }
 

@@ -29,6 +29,10 @@ struct Saved {
     energy: Vec<f64>,
     /// kinetic, elastic, potential, work in, dissipated (J) per sample.
     books: Vec<[f64; 5]>,
+    /// Total contact force (N, world frame) and deepest penetration (m, <= 0: none) per
+    /// sample, for a rod with obstacles.
+    contact_force: Vec<[f64; 3]>,
+    penetration: Vec<f64>,
     shape_time: Vec<f64>,
     shape: Vec<[f64; 3]>,
     /// d tip / d theta per sample (3 x P, row-major) when sensitivities are tracked.
@@ -52,6 +56,10 @@ impl Saved {
         } else {
             [f64::NAN; 5]
         });
+        if let Some(c) = sim.contact_state() {
+            self.contact_force.push(c.force);
+            self.penetration.push(c.max_penetration);
+        }
         if let Some(d) = sim.tip_sensitivity() {
             self.n_par = d.len();
             for a in 0..3 {
@@ -93,6 +101,10 @@ impl Saved {
         {
             let col: Vec<f64> = self.books.iter().map(|b| b[k]).collect();
             d.set_item(*name, PyArray1::from_vec(py, col))?;
+        }
+        if !self.penetration.is_empty() {
+            d.set_item("contact_force", array2(py, &self.contact_force)?)?;
+            d.set_item("penetration", PyArray1::from_vec(py, self.penetration))?;
         }
         let k = self.shape_time.len();
         d.set_item("shape_time", PyArray1::from_vec(py, self.shape_time))?;

@@ -564,6 +564,15 @@ class Simulation:
             command=np.concatenate(kept_commands),
             pressure=cat("pressure"),
             tension=cat("tension"),
+            # (A chunk that keeps no sample has no contact arrays.)
+            **(
+                {
+                    k: np.concatenate([p[k] for p in parts if k in p])
+                    for k in ("contact_force", "penetration")
+                }
+                if "penetration" in first
+                else {}
+            ),
             tip_position=cat("tip_position"),
             tip_rotation=cat("tip_rotation"),
             tip_velocity=cat("tip_velocity"),

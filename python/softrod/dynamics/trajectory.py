@@ -150,6 +150,10 @@ class Trajectory:
       changes, dead moments) and the Kelvin-Voigt dissipation since t = 0, NaN where not
       recorded; ``energy_balance`` = energy - energy[0] - (work_in - work_in[0]) +
       (dissipated - dissipated[0]) is zero for the exact motion;
+    - ``contact_force`` (n, 3) N: total contact force of the obstacles on the rod (normal
+      and friction, world frame), and ``penetration`` (n,) m: the deepest penetration of
+      the rod's surface into an obstacle (<= 0: no contact), for a design with obstacles
+      (None otherwise; docs/contact.md);
     - ``shape_time`` (k,) s: times of the stored centrelines, each exactly one of ``time``
       (k may be 0); ``shape_s`` (p,) m: reference arc length of the nodes, strictly
       increasing; ``shape_position`` (k, p, 3) m: the centrelines;
@@ -176,6 +180,8 @@ class Trajectory:
     work_in: np.ndarray | None = None
     dissipated: np.ndarray | None = None
     tension: np.ndarray | None = None
+    contact_force: np.ndarray | None = None
+    penetration: np.ndarray | None = None
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -207,6 +213,20 @@ class Trajectory:
             i, k = negative[0]
             raise _fail(f"tension[{i}, {k}]", tens[i, k].item(), "must be >= 0 N (a tendon pulls)")
         set_(self, "tension", _readonly(tens))
+        if (self.contact_force is None) != (self.penetration is None):
+            raise _fail(
+                "contact_force",
+                "given" if self.penetration is None else None,
+                "contact_force and penetration come together (a design with obstacles)",
+            )
+        if self.contact_force is not None:
+            for name, shape, what in (
+                ("contact_force", (n, 3), f"(n = {n}, 3) in N"),
+                ("penetration", (n,), f"(n = {n},) in m"),
+            ):
+                a = _array(getattr(self, name), name, shape, what)
+                _finite(a, name)
+                set_(self, name, _readonly(a))
         for name in ("energy", *ENERGY_PARTS):
             v = getattr(self, name)
             e = np.full(n, np.nan) if v is None else v
@@ -338,6 +358,14 @@ class Trajectory:
             Extra(name, getattr(self, name), what, "energy")
             for name, what in ENERGY_DESCRIPTIONS.items()
         ]
+        if self.contact_force is not None:
+            what = "total contact force on the rod, world frame"
+            extras += [
+                Extra(f"contact_f{a}", self.contact_force[:, i], what, "force")
+                for i, a in enumerate(_XYZ)
+            ]
+            what = "deepest penetration into an obstacle (<= 0: none)"
+            extras.append(Extra("penetration", self.penetration, what, "length"))
         return extras
 
     def save(self, path: str | os.PathLike) -> Path:
@@ -357,6 +385,8 @@ class Trajectory:
                 arrays = {
                     name: getattr(self, name) for name in (*_FIELDS, *ENERGY_PARTS, "tension")
                 }
+                if self.contact_force is not None:
+                    arrays.update(contact_force=self.contact_force, penetration=self.penetration)
                 with open(tmp, "wb") as fh:  # a file object: numpy would append ".npz"
                     np.savez_compressed(
                         fh,
@@ -889,7 +919,13 @@ def _load_npz(path: Path) -> Trajectory:
         try:
             arrays = {n: data[n] for n in _FIELDS}
             # Optional: files written before they existed load with none.
-            arrays.update({n: data[n] for n in (*ENERGY_PARTS, "tension") if n in data.files})
+            arrays.update(
+                {
+                    n: data[n]
+                    for n in (*ENERGY_PARTS, "tension", "contact_force", "penetration")
+                    if n in data.files
+                }
+            )
             meta_text = str(data["metadata_json"])
         except Exception as exc:  # a damaged archive: zipfile, zlib and numpy errors
             raise _fail("file", str(path), f"is a damaged .npz file: {exc}") from None
@@ -958,6 +994,11 @@ def _load_parquet(path: Path) -> Trajectory:
         tip_velocity=cols("tip_v{}_m_s" if version == 1 else "tip_v{}_m/s", _XYZ),
         energy=col("energy_J"),
         **{p: col(f"{p}_J") for p in ENERGY_PARTS if f"{p}_J" in names},
+        **(
+            {"contact_force": cols("contact_f{}_N", _XYZ), "penetration": col("penetration_m")}
+            if "penetration_m" in names
+            else {}
+        ),
         shape_time=time[has],
         shape_s=ss,
         shape_position=values.reshape(k, p, 3),

@@ -126,6 +126,13 @@ impl Simulator {
                 "dynamic parameter sensitivities do not carry follower (body-frame) loads yet",
             );
         }
+        if !self.rod.spec.obstacles.is_empty() {
+            return refuse(
+                "obstacles",
+                format!("{} obstacles", self.rod.spec.obstacles.len()),
+                "dynamic parameter sensitivities do not carry contact (the penalty's switch makes them non-smooth): remove the obstacles",
+            );
+        }
         if let Some(e) = self.opts.error_tol {
             return refuse(
                 "error_tol",

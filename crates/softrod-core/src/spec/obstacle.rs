@@ -78,7 +78,15 @@ pub struct ObstacleSpec {
     /// refuses a positive coefficient (docs/contact.md says why).
     #[serde(default)]
     pub friction: f64,
+    /// Regularisation velocity of the dynamics' Coulomb law, m/s (`None`: 1 mm/s): below
+    /// it friction grows linearly with the slip velocity (docs/contact.md, "Dynamics").
+    #[serde(default)]
+    pub slip_velocity: Option<f64>,
 }
+
+/// Default regularisation velocity of the dynamics' friction law, m/s: a rod that sticks
+/// creeps at most this fast (docs/contact.md, "Dynamics").
+pub const DEFAULT_SLIP_VELOCITY: f64 = 1e-3;
 
 /// Most obstacles a design may have.
 pub const MAX_OBSTACLES: usize = 1000;
@@ -132,6 +140,11 @@ impl ObstacleSpec {
             "end" => self.end.is_some(),
             _ => self.radius.is_some(),
         }
+    }
+
+    /// Regularisation velocity of the friction law, m/s.
+    pub fn slip_velocity(&self) -> f64 {
+        self.slip_velocity.unwrap_or(DEFAULT_SLIP_VELOCITY)
     }
 
     /// Smoothing length of the ramp, m.
@@ -211,6 +224,9 @@ impl ObstacleSpec {
                 self.friction,
                 "must be a finite number >= 0",
             ));
+        }
+        if let Some(v) = self.slip_velocity {
+            positive(&f("slip_velocity"), v)?;
         }
         Ok(())
     }

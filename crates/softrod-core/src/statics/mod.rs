@@ -1004,6 +1004,7 @@ fn solve_inner(
     // with obstacles are shot (docs/contact.md).
     if collocation::shooting_ill_conditioned(rod, loads)
         && !loads.base_force_unknown(rod)
+        && rod.obstacles.is_none()
         && crate::dynamics::check_statics_only_with(rod, "collocation", true, false).is_ok()
     {
         return by_collocation(rod, loads, opts, violations);
