@@ -766,6 +766,21 @@ pub fn solve_inverse(
         let cost = cost_of(&y_lin, &it.p, eps);
         let z: Vec<f64> = (0..nc).map(|c| (it.p[c] - lo[c]) / range[c]).collect();
         let jtj = jac.transpose() * &jac;
+        if let Some(c) = (0..nc).find(|&c| !(jtj[(c, c)].is_finite())) {
+            // The step works in fractions of each input's range: a range so wide that the
+            // derivative per range overflows leaves no step to take, and the answer would
+            // be the start, not the closest pose.
+            let field = if c < n_p {
+                format!("pressure_bounds[{c}]")
+            } else {
+                format!("tension_bounds[{}]", c - n_p)
+            };
+            return Err(SoftrodError::invalid(
+                field,
+                format!("[{}, {}]", lo[c], hi[c]),
+                "the range is too wide for the inverse to scale (its derivative per range overflows); give the range the actuator can use",
+            ));
+        }
         let scale = jtj.diagonal().max().max(1e-300);
         let grad_reg = DVector::from_fn(nc, |c, _| eps * (z[c] - z_ref[c]));
         let b = -(jac.transpose() * &e) - &grad_reg;

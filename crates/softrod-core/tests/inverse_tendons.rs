@@ -271,3 +271,16 @@ fn tension_bounds_rules() {
         "{err}"
     );
 }
+
+/// An absurdly wide range (1e300 N) would overflow the scaled derivatives: refused by name
+/// rather than answered with the start as the "closest pose".
+#[test]
+fn absurd_range_is_refused() {
+    let rod = till(&[0.0, 90.0]);
+    let opts = InverseOptions::new(vec![[0.0, T_MAX], [0.0, 1e300]]);
+    let t = tip_target(&rod, [0.45, 0.05, 0.0]);
+    match solve_inverse(&rod, &tensions(&[0.0; 2]), &t, &opts, None) {
+        Err(SoftrodError::InvalidParameter { field, .. }) => assert_eq!(field, "tension_bounds[1]"),
+        other => panic!("{other:?}"),
+    }
+}
