@@ -337,26 +337,13 @@ fn in_row(r: usize, prefix: &str, e: SoftrodError) -> SoftrodError {
             value,
             rule,
         },
-        SoftrodError::InvalidState {
-            rule,
-            node,
-            s,
-            time,
-            value,
-            message,
-        } => SoftrodError::InvalidState {
-            rule,
-            node,
-            s,
-            time,
-            value,
-            message: if prefix.is_empty() {
+        other => other.map_message(|message| {
+            if prefix.is_empty() {
                 format!("row {r}: {message}")
             } else {
                 format!("row {r}: {}: {message}", prefix.trim_end_matches('.'))
-            },
-        },
-        other => other,
+            }
+        }),
     }
 }
 

@@ -207,12 +207,7 @@ impl Obstacle {
         omega: &[D; 3],
         rho: f64,
     ) -> SectionLoad<D> {
-        let zero = D::from(0.0);
-        let mut out = SectionLoad {
-            force: [zero; 3],
-            moment: [zero; 3],
-            friction: [zero; 3],
-        };
+        let mut out = SectionLoad::zero();
         let (d, nu) = self.distance(r);
         let delta = -d + rho;
         let eps = self.smoothing;
@@ -255,6 +250,18 @@ pub struct SectionLoad<D> {
     pub friction: [D; 3],
 }
 
+impl<D: RodScalar> SectionLoad<D> {
+    /// No load (off contact).
+    pub fn zero() -> Self {
+        let zero = D::from(0.0);
+        SectionLoad {
+            force: [zero; 3],
+            moment: [zero; 3],
+            friction: [zero; 3],
+        }
+    }
+}
+
 /// The sum of all obstacles' [`Obstacle::section_load`].
 #[inline]
 pub fn total_section_load<D: RodScalar>(
@@ -264,12 +271,7 @@ pub fn total_section_load<D: RodScalar>(
     omega: &[D; 3],
     rho: f64,
 ) -> SectionLoad<D> {
-    let zero = D::from(0.0);
-    let mut out = SectionLoad {
-        force: [zero; 3],
-        moment: [zero; 3],
-        friction: [zero; 3],
-    };
+    let mut out = SectionLoad::zero();
     for o in obstacles {
         let g = o.section_load(r, vel, omega, rho);
         for k in 0..3 {

@@ -1114,26 +1114,11 @@ impl Simulator {
         };
         let t = self.time;
         let dynamic = |e: SoftrodError| {
-            match e.at_time(t) {
-            SoftrodError::InvalidState {
-                rule,
-                node,
-                s,
-                time,
-                value,
-                message,
-            } => SoftrodError::InvalidState {
-                rule,
-                node,
-                s,
-                time,
-                value,
-                message: format!(
-                    "{message}; in motion an impact sinks it deeper than a resting load: a stiffer penalty, a larger tolerance or a shorter step (dt) that resolves the impact"
-                ),
-            },
-            other => other,
-        }
+            e.at_time(t).map_message(|m| {
+                format!(
+                    "{m}; in motion an impact sinks it deeper than a resting load: a stiffer penalty, a larger tolerance or a shorter step (dt) that resolves the impact"
+                )
+            })
         };
         for (k, r) in eval.stage_r.iter().enumerate() {
             let j = k / 2;

@@ -79,6 +79,28 @@ impl SoftrodError {
             other => other,
         }
     }
+
+    /// An invalid-state error with its message rewritten by `f` (other errors unchanged).
+    pub fn map_message(self, f: impl FnOnce(String) -> String) -> Self {
+        match self {
+            SoftrodError::InvalidState {
+                rule,
+                node,
+                s,
+                time,
+                value,
+                message,
+            } => SoftrodError::InvalidState {
+                rule,
+                node,
+                s,
+                time,
+                value,
+                message: f(message),
+            },
+            other => other,
+        }
+    }
 }
 
 pub type Result<T> = std::result::Result<T, SoftrodError>;
