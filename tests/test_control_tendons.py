@@ -177,3 +177,13 @@ def test_workspace_over_the_tension_box(till, run):
     assert result.exit_code == 0, result.output
     out = json.loads(result.stdout)
     assert out["tension_bounds_N"] == [[0.0, 10.0]] * 4 and out["bounds_kPa"] == []
+
+
+def test_a_design_without_chambers_needs_no_pressures(till):
+    """Pressures may be left out only where there are none; a chambered design must state
+    them (no silent zero pressure)."""
+    a = solve_statics(till, tensions=[3.0, 0, 0, 0])
+    b = solve_statics(till, [], tensions=[3.0, 0, 0, 0])
+    assert np.array_equal(a.tip_position, b.tip_position)
+    with pytest.raises(InputError, match="pressures"):
+        solve_statics("spa_three_chamber_130mm")

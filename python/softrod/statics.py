@@ -320,7 +320,7 @@ def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
 
 def solve_statics(
     design: DesignLike,
-    pressures: ArrayLike,
+    pressures: ArrayLike | None = None,
     *,
     tip_force: ArrayLike | None = None,
     tip_moment: ArrayLike | None = None,
@@ -334,8 +334,9 @@ def solve_statics(
     tensions: ArrayLike | None = None,
     tip_constraint: TipConstraint | str | dict | None = None,
 ) -> StaticSolution:
-    """Static shape of ``design`` under chamber ``pressures`` (Pa gauge, one per channel)
-    and tendon ``tensions`` (N, one per tendon channel, each >= 0; None: slack).
+    """Static shape of ``design`` under chamber ``pressures`` (Pa gauge, one per channel;
+    None only for a design without chambers) and tendon ``tensions`` (N, one per tendon
+    channel, each >= 0; None: slack).
 
     tip_constraint: how the tip is held (a :class:`TipConstraint`, "free", or a mapping
     with ``type``, ``position``, ``orientation`` as the design file's ``[tip]`` keys);
@@ -376,6 +377,13 @@ def solve_statics(
     on_unstable = _policy("on_unstable", on_unstable)
     on_invalid = _policy("on_invalid", on_invalid)
     design = load_design(design)
+    if pressures is None:
+        # Only a design without chambers has nothing to state; a chambered one must say its
+        # pressures (no silent zero).
+        if design.n_channels:
+            raise V.fail("pressures", None, f"the design has {design.n_channels} pressure "
+                         "channels; give one gauge pressure per channel")
+        pressures = []
     p = _pressures(design, pressures)
     V.choice(model, ("cosserat", "pcc"), "model")
     V.boolean(check, "check")

@@ -711,6 +711,8 @@ pub fn solve_inverse(
     let mut mu = 0.0f64;
     let mut iterations = 0;
     let mut stationary = false;
+    // Accepted steps in a row that gained less than the reach tolerance.
+    let mut slow = 0usize;
     // The linearisation in use: fresh from a pass at the current iterate, or kept from an
     // earlier iterate (or the previous call) while its chord steps contract well.
     let mut lin: Option<Linearisation> = warm
@@ -804,17 +806,7 @@ pub fn solve_inverse(
                 0.5 * r.dot(&r) + 0.5 * eps * reg
             };
             let pred = cost - model(&dz);
-            // Stationary: no step, no predicted decrease, or (for the task alone) a full
-            // Gauss-Newton step that leaves the target out of reach (|e| after it above
-            // 10 tol) and brings the point closer by less than the reach tolerance tol:
-            // below the resolution the answer is judged at. Without it a flat valley of
-            // the distance (an unreachable target and a common-mode input that barely
-            // moves the point, such as opposed tendons compressing a steel backbone)
-            // takes a hundred steps of no use.
-            let (e_now, e_next) = ((2.0 * cost).sqrt(), (2.0 * model(&dz)).sqrt());
-            let resolved =
-                eps == 0.0 && mu == 0.0 && e_next > 10.0 * opts.tol && e_now - e_next <= opts.tol;
-            if step_size <= 1e-12 || pred <= 1e-15 * cost.max(1e-300) || resolved {
+            if step_size <= 1e-12 || pred <= 1e-15 * cost.max(1e-300) {
                 stationary = true;
                 break;
             }
@@ -921,6 +913,20 @@ pub fn solve_inverse(
                 accepted = true;
                 moved = true;
                 fresh = false;
+                // For the task alone, far from the target (|e| above 10 tol), a step that
+                // lowers |e| by less than the reach tolerance tol is below the resolution
+                // the answer is judged at; two in a row are a stationary point. A flat
+                // valley of the distance (an unreachable target and a common-mode input
+                // that barely moves the point, such as opposed tendons compressing a steel
+                // backbone) is a large-residual problem where Gauss-Newton converges only
+                // linearly, and would take a hundred such steps.
+                let (e_now, e_new) = ((2.0 * cost).sqrt(), (2.0 * cost_t).sqrt());
+                slow = if eps == 0.0 && e_new > 10.0 * opts.tol && e_now - e_new < opts.tol {
+                    slow + 1
+                } else {
+                    0
+                };
+                stationary = slow >= 2;
                 break;
             }
             if !fresh {
@@ -937,6 +943,12 @@ pub fn solve_inverse(
         if !accepted {
             stationary = true;
         }
+        // The regularised phase only picks a point among the redundant answers: it gets at
+        // most a quarter of the iterations (it converges in a few where the target is
+        // reachable; in a flat valley of an unreachable one it would crawl).
+        if eps > 0.0 && iterations >= opts.max_iter / 4 {
+            stationary = true;
+        }
         if stationary {
             if eps > 0.0 {
                 // The regularised problem has converged: now the task alone, with
@@ -944,6 +956,7 @@ pub fn solve_inverse(
                 eps = 0.0;
                 stationary = false;
                 mu = 0.0;
+                slow = 0;
                 continue;
             }
             break;

@@ -284,3 +284,26 @@ fn absurd_range_is_refused() {
         other => panic!("{other:?}"),
     }
 }
+
+/// A target far out of reach (inside the arc the robot cannot bend back to): the distance has
+/// a flat valley along the opposed tendons' common pull, which only compresses the steel
+/// backbone. The inverse stops at the closest pose it resolves (steps that gain less than
+/// tol L are below the answer's resolution) within the default 100 iterations, instead of
+/// raising at max_iter (found by tests/test_control_tendons.py's hypothesis test).
+#[test]
+fn flat_valley_of_an_unreachable_target_stops() {
+    let rod = till(&[0.0, 90.0, 180.0, 270.0]);
+    for hi in [2.0, 6.0] {
+        let opts = InverseOptions::new(vec![[0.0, hi]; 4]);
+        let t = tip_target(&rod, [0.171_809_581_362_631_97, 0.003_906_25, 0.0]);
+        let inv = solve_inverse(&rod, &tensions(&[0.0; 4]), &t, &opts, None)
+            .unwrap_or_else(|e| panic!("hi = {hi}: {e}"));
+        println!(
+            "hi {hi}: {:?}, distance {}, {} iterations",
+            inv.tensions, inv.distance, inv.iterations
+        );
+        assert!(!inv.reached);
+        assert!(inv.iterations < opts.max_iter);
+        assert!(inv.tensions.iter().all(|v| (0.0..=hi).contains(v)));
+    }
+}
