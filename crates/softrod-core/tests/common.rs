@@ -4,6 +4,7 @@
 use nalgebra::{Rotation3, Unit, Vector3};
 use softrod_core::inverse::InverseTarget;
 use softrod_core::ode::Loads;
+use softrod_core::spec::obstacle::{ObstacleKind, ObstacleSpec};
 use softrod_core::spec::{
     ChamberSpec, DesignSpec, LawSpec, MaterialSpec, MountingSpec, SectionSpec, StiffnessSpec,
     TipSpec,
@@ -411,5 +412,25 @@ pub fn tip_target(rod: &Rod, position: [f64; 3]) -> InverseTarget {
         orientation: None,
         position_weight: [1.0; 3],
         orientation_weight: 0.0,
+    }
+}
+
+/// A frictionless obstacle of `kind` with its penalty, every geometric key unset (the
+/// caller fills in the ones its kind needs).
+pub fn obstacle(kind: ObstacleKind, stiffness: f64, tolerance: f64) -> ObstacleSpec {
+    ObstacleSpec {
+        kind,
+        point: None,
+        normal: None,
+        center: None,
+        axis: None,
+        start: None,
+        end: None,
+        radius: None,
+        stiffness,
+        tolerance,
+        smoothing: None,
+        friction: 0.0,
+        slip_velocity: None,
     }
 }

@@ -7,30 +7,12 @@
 
 mod common;
 
-use common::{design, direct_section, loads, HORIZONTAL};
+use common::{design, direct_section, loads, obstacle, HORIZONTAL};
 use softrod_core::error::{Rule, SoftrodError};
 use softrod_core::spec::obstacle::{ObstacleKind, ObstacleSpec};
 use softrod_core::statics::contact::report;
 use softrod_core::statics::{residual, residual_and_jacobian, solve, SolverOptions};
 use softrod_core::{DesignSpec, Rod};
-
-fn obstacle(kind: ObstacleKind, stiffness: f64, tolerance: f64) -> ObstacleSpec {
-    ObstacleSpec {
-        kind,
-        point: None,
-        normal: None,
-        center: None,
-        axis: None,
-        start: None,
-        end: None,
-        radius: None,
-        stiffness,
-        tolerance,
-        smoothing: None,
-        friction: 0.0,
-        slip_velocity: None,
-    }
-}
 
 /// Nearly inextensible and unshearable (EA = GA = 1e8 N), so the Euler-Bernoulli beam is
 /// the right comparison.

@@ -24,19 +24,9 @@ const EI: f64 = 0.01;
 
 fn plane(z: f64, stiffness: f64, tolerance: f64) -> ObstacleSpec {
     ObstacleSpec {
-        kind: ObstacleKind::Plane,
         point: Some([0.0, 0.0, z]),
         normal: Some([0.0, 0.0, 1.0]),
-        center: None,
-        axis: None,
-        start: None,
-        end: None,
-        radius: None,
-        stiffness,
-        tolerance,
-        smoothing: None,
-        friction: 0.0,
-        slip_velocity: None,
+        ..obstacle(ObstacleKind::Plane, stiffness, tolerance)
     }
 }
 
