@@ -268,4 +268,4 @@ def test_cli_solve_reports_the_contacts(run):
     assert contact["nodes_in_contact"] == int(api.in_contact.sum()) >= 1
     table = run("solve", "prebent_finger_on_table", "--pressure", "30kPa").output
     assert "contact force, obstacle 0" in table and "nodes in contact" in table
-    assert "deepest penetration" in table and "not assessed" in table
+    assert "deepest penetration" in table and "not assessed" not in table

@@ -112,7 +112,7 @@ class StaticSolution:
     stiffness_scale: (3,) sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) applied to the
     mapped sections (docs/stiffness-map.md); ones when the design has none.
     stable: the equilibrium is stable (docs/model.md, "Validity and stability"); None where
-    it is not assessed (the PCC model, follower loads, contact: docs/scope.md) or the solve
+    it is not assessed (the PCC model, follower loads: docs/scope.md) or the solve
     failed. A pinned or clamped tip is assessed with the tip held (docs/model.md, "End
     constraints").
     violations: the validity ranges the solution lies outside (only with

@@ -246,6 +246,10 @@ pub struct SectionModel<C = f64> {
     /// Pressure-shifted stress-free strains of the linear law.
     pub v_p: [C; 3],
     pub u_p: [C; 3],
+    /// Reference strains v*, u* at this point (docs/laws.md: every law acts on the strain
+    /// relative to the reference, v - v* + e3 and u - u*).
+    pub v_star: [f64; 3],
+    pub u_star: [f64; 3],
     /// Pressure force P = sum_k p_k A_k, N.
     pub p_force: C,
     /// Bending stiffness times the stretch v3 (paper 004 eq. 29).
@@ -295,6 +299,8 @@ impl<C: Coeff> SectionModel<C> {
             g_bt: z3,
             v_p: c.v_shift,
             u_p: c.u_shift,
+            v_star: c.v_star,
+            u_star: c.u_star,
             p_force: c.p_force,
             stretch_bending: c.stretch_bending,
             rho_a,
@@ -406,21 +412,27 @@ impl<C: Coeff> SectionModel<C> {
             Axial::Linear { a_se, g_se } => {
                 std::array::from_fn(|k| (nb[k] + (g_se[k] - b[k] * h[k])) * a_se[k])
             }
+            // The nonlinear laws act on w = v - v* + e3 (as the statics' `ode::law_strains`);
+            // their damping on the rate of v: B (c0 v + h) = B (c0 w + h + c0 (v* - e3)).
             Axial::Table { table, scale, a_s } => {
                 let nm3 = nb[2] + self.p_force;
-                let (bv, hv) = (b[2].value(), h[2].value());
-                let v3 = table_stretch(table, scale.value(), bv, c0, hv, nm3);
+                let dv = self.v_star[2] - 1.0;
+                let (bv, hv) = (b[2].value(), h[2].value() + c0 * dv);
+                let w3 = table_stretch(table, scale.value(), bv, c0, hv, nm3);
+                let ks = &self.k_se;
                 [
-                    (nb[0] + -(b[0] * h[0])) * a_s[0],
-                    (nb[1] + -(b[1] * h[1])) * a_s[1],
-                    v3,
+                    (nb[0] + (ks[0] * self.v_star[0] - b[0] * h[0])) * a_s[0],
+                    (nb[1] + (ks[1] * self.v_star[1] - b[1] * h[1])) * a_s[1],
+                    w3 + dv,
                 ]
             }
             Axial::Ogden { k_e, alpha, k_s } => {
                 let nm = [nb[0], nb[1], nb[2] + self.p_force];
                 let bv = b.map(|x| x.value());
-                let hv = [h[0].value(), h[1].value(), h[2].value()];
-                ogden_strain(k_e.value(), alpha.value(), k_s.value(), &bv, c0, &hv, &nm)
+                let dv = [self.v_star[0], self.v_star[1], self.v_star[2] - 1.0];
+                let hv: [f64; 3] = std::array::from_fn(|k| h[k].value() + c0 * dv[k]);
+                let w = ogden_strain(k_e.value(), alpha.value(), k_s.value(), &bv, c0, &hv, &nm);
+                std::array::from_fn(|k| w[k] + dv[k])
             }
         };
         let hu = [h[3], h[4], h[5]];
@@ -430,13 +442,23 @@ impl<C: Coeff> SectionModel<C> {
         });
         let tm: [D; 3] = std::array::from_fn(|k| mb[k] + t[k]);
         let u: [D; 3] = if self.stretch_bending {
-            // (v3 K_b + c0 B_b) u_b = m_b + K_b u_p - B_b u_h (paper 004 eq. 29 with the
-            // stretch as L_c / L_c0); K_bt is block diagonal, so torsion stays linear.
+            // rho K_b (u_b - u*_b) + B_b (c0 u_b + u_h) = m_b + M_p (paper 004 eq. 29 with
+            // the stretch relative to the reference, rho = v3 - v3* + 1, as the statics'
+            // `ode::bending`), i.e. (rho K_b + c0 B_b) u_b = m_b + K_b u_p - B_b u_h
+            // + (rho - 1) K_b u*_b; K_bt is block diagonal, so torsion stays linear.
             let kb = &self.k_bt;
-            let a = v[2] * kb[0][0] + bb[0][0] * c0;
-            let bm = v[2] * kb[0][1] + bb[0][1] * c0;
-            let cm = v[2] * kb[1][0] + bb[1][0] * c0;
-            let d = v[2] * kb[1][1] + bb[1][1] * c0;
+            let rho = v[2] + D::from(1.0 - self.v_star[2]);
+            let (us, mut tm) = (&self.u_star, tm);
+            if us[0] != 0.0 || us[1] != 0.0 {
+                for i in 0..2 {
+                    let ku = kb[i][0] * us[0] + kb[i][1] * us[1];
+                    tm[i] = tm[i] + (rho - D::from(1.0)) * ku;
+                }
+            }
+            let a = rho * kb[0][0] + bb[0][0] * c0;
+            let bm = rho * kb[0][1] + bb[0][1] * c0;
+            let cm = rho * kb[1][0] + bb[1][0] * c0;
+            let d = rho * kb[1][1] + bb[1][1] * c0;
             let inv = (a * d - bm * cm).recip();
             [
                 (d * tm[0] - bm * tm[1]) * inv,
@@ -560,6 +582,8 @@ impl<C: Coeff> SectionModel<C> {
             g_bt: v3(&self.g_bt),
             v_p: v3(&self.v_p),
             u_p: v3(&self.u_p),
+            v_star: self.v_star,
+            u_star: self.u_star,
             p_force: self.p_force.value(),
             stretch_bending: self.stretch_bending,
             rho_a: self.rho_a.value(),

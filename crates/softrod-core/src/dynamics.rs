@@ -615,9 +615,9 @@ pub(crate) fn check_statics_only(rod: &Rod, model: &str) -> Result<()> {
 }
 
 /// [`check_statics_only`]; with `collocation` what the collocation discretisation carries
-/// is accepted: tapered sections, and reference shapes (constant or tabulated along s) of
-/// sections with the linear axial law (they enter the law's shifts, evaluated at every
-/// stage point: `crate::collocation::Grid`); with `tendons_and_followers` tendons and
+/// is accepted: tapered sections, and reference shapes (constant or tabulated along s;
+/// the laws act on the strains relative to them, evaluated at every stage point:
+/// `crate::collocation::Grid`); with `tendons_and_followers` tendons and
 /// follower (body-frame) tip and line loads are accepted (`crate::collocation`).
 pub(crate) fn check_statics_only_with(
     rod: &Rod,
@@ -654,14 +654,11 @@ pub(crate) fn check_statics_only_with(
         ));
     }
     for (i, s) in rod.sections.iter().enumerate() {
-        let carried = collocation && matches!(s.law.axial, crate::rod::AxialLaw::Linear);
-        if !s.reference.is_straight() && !carried {
-            let what = if collocation {
-                "a reference shape with a nonlinear axial law (Ogden or an EA(F) table)"
-            } else {
-                "a reference shape (precurvature or pre-strain)"
-            };
-            return Err(statics_only(format!("sections[{i}].reference"), what));
+        if !s.reference.is_straight() && !collocation {
+            return Err(statics_only(
+                format!("sections[{i}].reference"),
+                "a reference shape (precurvature or pre-strain)",
+            ));
         }
         if s.tapered && !collocation {
             return Err(statics_only(
@@ -1371,8 +1368,9 @@ impl Simulator {
                             .sum::<f64>();
                 }
                 if m.stretch_bending {
-                    // The law's axial force lacks d/dv3 of (1/2) v3 u_b K_b u_b.
-                    let u = [f[3], f[4]];
+                    // The law's axial force lacks d/dv3 of (1/2) rho (u_b - u*_b) K_b
+                    // (u_b - u*_b), rho = v3 - v3* + 1 (`elastic_density`).
+                    let u = [f[3] - m.u_star[0], f[4] - m.u_star[1]];
                     let ub = 0.5
                         * (0..2)
                             .map(|a| (0..2).map(|b| u[a] * m.k_bt[a][b] * u[b]).sum::<f64>())
@@ -2501,32 +2499,47 @@ fn stored_density(m: &SectionModel, f: &[f64; FIELDS], s: f64) -> f64 {
 /// gradient is the total internal force and moment in the body frame (see `Energy`).
 fn elastic_density(m: &SectionModel, v: &[f64; 3], u: &[f64; 3]) -> f64 {
     let p = m.p_force;
+    // The nonlinear laws act on w = v - v* + e3 (`collocation::SectionModel::strains`).
+    let w = [m.v_star[0], m.v_star[1], m.v_star[2] - 1.0];
+    let w: [f64; 3] = std::array::from_fn(|k| v[k] - w[k]);
     let mut e = match &m.axial {
         collocation::Axial::Linear { .. } => (0..3)
             .map(|k| 0.5 * m.k_se[k] * (v[k] - m.v_p[k]).powi(2))
             .sum::<f64>(),
         collocation::Axial::Ogden { k_e, alpha, k_s } => {
-            let lam = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            ogden_energy(*k_e, *alpha, lam) + 0.5 * k_s * (v[0] * v[0] + v[1] * v[1])
+            let lam = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+            ogden_energy(*k_e, *alpha, lam) + 0.5 * k_s * (w[0] * w[0] + w[1] * w[1])
                 - p * (v[2] - 1.0)
         }
         collocation::Axial::Table { table, scale, .. } => {
-            0.5 * (m.k_se[0] * v[0] * v[0] + m.k_se[1] * v[1] * v[1])
-                + table_energy(table, *scale, v[2])
+            0.5 * (m.k_se[0] * w[0] * w[0] + m.k_se[1] * w[1] * w[1])
+                + table_energy(table, *scale, w[2])
                 - p * (v[2] - 1.0)
         }
     };
-    // Bending and torsion: (1/2) u K u - M_p . u, K times v3 in the bending block with
-    // stretch-dependent bending (M_p = K u_p, the pressure moment).
-    let sb = if m.stretch_bending { v[2] } else { 1.0 };
+    if m.stretch_bending {
+        // (1/2) (u - u*) K (u - u*) - M_p . u with the bending block times the stretch
+        // relative to the reference, rho = v3 - v3* + 1 (M_p = K (u_p - u*), the pressure
+        // moment): its u-gradient is the law's moment.
+        let rho = v[2] + 1.0 - m.v_star[2];
+        for a in 0..3 {
+            let ka: f64 = (0..3).map(|b| m.k_bt[a][b] * m.u_star[b]).sum();
+            for b in 0..3 {
+                let s = if a < 2 && b < 2 { rho } else { 1.0 };
+                e += 0.5 * (u[a] - m.u_star[a]) * s * m.k_bt[a][b] * (u[b] - m.u_star[b]);
+            }
+            e -= (m.g_bt[a] - ka) * u[a];
+        }
+        return e;
+    }
+    // Bending and torsion: (1/2) u K u - K u_p . u (the square completed for the linear law).
     for a in 0..3 {
         for b in 0..3 {
-            let w = if a < 2 && b < 2 { sb } else { 1.0 };
-            e += 0.5 * u[a] * w * m.k_bt[a][b] * u[b];
+            e += 0.5 * u[a] * m.k_bt[a][b] * u[b];
         }
         e -= m.g_bt[a] * u[a];
     }
-    if matches!(m.axial, collocation::Axial::Linear { .. }) && !m.stretch_bending {
+    if matches!(m.axial, collocation::Axial::Linear { .. }) {
         // Complete the square so that the linear law's energy is (1/2)(u - u_p) K (u - u_p).
         e += 0.5 * (0..3).map(|a| m.g_bt[a] * m.u_p[a]).sum::<f64>();
     }

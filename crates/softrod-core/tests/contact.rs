@@ -57,6 +57,9 @@ fn cantilever_on_plane_matches_beam_on_rigid_support() {
         let rod = Rod::new(cantilever_over_plane(c, k, 400)).unwrap();
         let l = loads(&[]);
         let sol = solve(&rod, &l, None, &SolverOptions::default()).unwrap();
+        // A beam lying on a support under its weight is stable (the assessment of the
+        // six-unknown contact solve, docs/contact.md "Stability").
+        assert_eq!(sol.stable, Some(true), "k {k}");
         let rep = report(&rod, &l, &sol).unwrap();
         // The penalty is a Winkler foundation of modulus k: near the first contact the
         // beam's deflection decays over 1/beta = (4 EI / k)^(1/4), which smears the point
@@ -124,6 +127,11 @@ fn rod_pressed_onto_a_sphere() {
     let rod = Rod::new(spec).unwrap();
     let l = tip_loads(&rod);
     let sol = solve(&rod, &l, None, &SolverOptions::default()).unwrap();
+    assert_eq!(
+        sol.stable,
+        Some(true),
+        "a beam pressed onto a ball is stable"
+    );
     let rep = report(&rod, &l, &sol).unwrap();
     let f = rep.force[0];
     // The penalty spreads the tip reaction over the last ~(EI/k)^(1/4) = 18 mm, which

@@ -444,3 +444,113 @@ fn soft_cantilever_takes_a_longer_first_step_to_the_same_equilibrium() {
         .fold(0.0, f64::max);
     assert!(d < 1e-9 * 0.22, "tips differ by {d:e} m");
 }
+
+/// The column of `column` with spheres of radius `r_s` beside its tip: four (on +-x and
+/// +-y) whose surfaces reach `delta` into the straight rod's tip (its centreline: the
+/// section has no surface radius), or, with `delta` < 0, one 10 L away that never
+/// touches. Contact makes the base force an unknown (six shooting unknowns).
+fn column_beside_spheres(steps: usize, r_s: f64, delta: f64, k: f64) -> Rod {
+    use softrod_core::spec::obstacle::ObstacleKind;
+    let mut spec = column(steps, 0.0, 0.0).spec.clone();
+    let sphere = |center: [f64; 3]| {
+        // A tolerance 10 delta; a ramp a tenth of delta, so the penalty is linear at the
+        // pre-pressed depth.
+        let mut s = obstacle(ObstacleKind::Sphere, k, 10.0 * delta.abs());
+        s.smoothing = Some(0.1 * delta.abs());
+        s.center = Some(center);
+        s.radius = Some(r_s);
+        s
+    };
+    spec.obstacles = if delta > 0.0 {
+        let c = r_s - delta;
+        vec![
+            sphere([c, 0.0, L]),
+            sphere([-c, 0.0, L]),
+            sphere([0.0, c, L]),
+            sphere([0.0, -c, L]),
+        ]
+    } else {
+        vec![sphere([10.0 * L, 0.0, 0.0])]
+    };
+    Rod::new(spec).unwrap()
+}
+
+/// Contact has a potential (the penalty's), so its equilibria are assessed with all six
+/// Jacobi fields of the base unknowns. An obstacle that never touches only turns the
+/// 3-unknown solve into the 6-unknown one: the verdicts and the shapes must not change,
+/// across the Euler load (the tip form, just above it) and past kL = pi (the conjugate
+/// point, at 5 P_cr).
+#[test]
+fn distant_obstacle_keeps_the_euler_columns_stability() {
+    let free = column(200, 0.0, 0.0);
+    let far = column_beside_spheres(200, 0.1, -1.0, 1e3);
+    for (ratio, want) in [(0.97, true), (1.03, false), (5.0, false)] {
+        let l = tip_loaded([0.0, 0.0, -ratio * p_cr()]);
+        let a = solve(&free, &l, None, &opts()).unwrap();
+        let b = solve(&far, &l, None, &opts()).unwrap();
+        assert_eq!(b.x.len(), 6, "the obstacle makes the base force unknown");
+        assert_eq!(a.stable, Some(want), "P = {ratio} P_cr, no obstacle");
+        assert_eq!(b.stable, Some(want), "P = {ratio} P_cr, distant obstacle");
+        // Both straight: the same equilibrium to the solves' tolerance.
+        assert!(
+            dist(&a.tip.r, &b.tip.r) < 1e-10 * L,
+            "{:?} {:?}",
+            a.tip.r,
+            b.tip.r
+        );
+    }
+}
+
+/// With six unknowns the natural path is kept on the stable branch too: above the Euler
+/// load with a small lateral force, the column with a distant obstacle bends towards the
+/// force as the one without does (same tip to 1e-9 L: both solves converge to 1e-12).
+#[test]
+fn distant_obstacle_keeps_the_buckled_column_on_its_stable_branch() {
+    let free = column(400, 0.0, 0.0);
+    let far = column_beside_spheres(400, 0.1, -1.0, 1e3);
+    for ratio in [1.5, 2.0] {
+        let p = ratio * p_cr();
+        for sign in [1.0, -1.0] {
+            let l = tip_loaded([sign * 1e-3 * p, 0.0, -p]);
+            let a = solve(&free, &l, None, &opts()).unwrap();
+            let b = solve(&far, &l, None, &opts()).unwrap();
+            assert_eq!(b.stable, Some(true), "P = {ratio} P_cr, sign {sign}");
+            assert!(sign * b.tip.r[0] > 0.1 * L, "tip {:?}", b.tip.r);
+            assert!(
+                dist(&a.tip.r, &b.tip.r) < 1e-9 * L,
+                "{:?} {:?}",
+                a.tip.r,
+                b.tip.r
+            );
+        }
+    }
+}
+
+/// Spheres pressed lightly against the tip from four sides hold it like a lateral spring
+/// k_s: the straight column then stays stable above the free column's Euler load (the
+/// critical load rises towards the clamped-pinned one, (kL)^2 = 20.19, as k_s L^3 / EI
+/// grows; here k_s ~ 2 k sqrt(2 r_s delta) ~ 2e4 EI / L^3), and no tip support can hold it
+/// beyond the clamped-clamped load 4 pi^2 EI / L^2 (the contact patch, 1e-2 L, adds no
+/// rotational restraint to speak of). Without the assessment these were all None.
+#[test]
+fn spheres_at_the_tip_raise_the_columns_buckling_load() {
+    let held = column_beside_spheres(1000, 0.5, 1e-4, 1e6);
+    let free = column(1000, 0.0, 0.0);
+    for (p, want_held, want_free) in [
+        (0.5 * p_cr(), true, true),
+        (1.5 * p_cr(), true, false),
+        (4.0 * p_cr(), true, false),
+        (1.2 * 4.0 * PI * PI * EI / (L * L), false, false),
+    ] {
+        let l = tip_loaded([0.0, 0.0, -p]);
+        let h = solve(&held, &l, None, &opts()).unwrap_or_else(|e| panic!("P = {p}: {e}"));
+        let f = solve(&free, &l, None, &opts()).unwrap();
+        assert!(
+            h.tip.r[0].abs() < 1e-12 && h.tip.r[1].abs() < 1e-12,
+            "{:?}",
+            h.tip.r
+        );
+        assert_eq!(h.stable, Some(want_held), "P = {p} N, held by the spheres");
+        assert_eq!(f.stable, Some(want_free), "P = {p} N, free tip");
+    }
+}

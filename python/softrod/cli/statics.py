@@ -212,8 +212,7 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
     notes = list(sol.violations)
     if sol.stable is None:
         notes.append(
-            "stability not assessed (follower loads, or contact with obstacles: "
-            "docs/scope.md)"
+            "stability not assessed (follower loads are not conservative: docs/scope.md)"
         )
     elif not sol.stable:
         notes.append(

@@ -671,7 +671,9 @@ pub(crate) struct Conjugate {
 }
 
 impl Conjugate {
-    pub(crate) fn visit(&mut self, y: &State<Jet<6>>, length: f64) {
+    /// The node state y carries the six Jacobi fields in its first six dual directions
+    /// (N > 6: the further ones, e.g. a load-factor direction, are not read).
+    pub(crate) fn visit<const N: usize>(&mut self, y: &State<Jet<N>>, length: f64) {
         let m = Matrix6::from_fn(|a, j| {
             if a < 3 {
                 y.r[a].eps[j] / length
@@ -712,6 +714,29 @@ impl Conjugate {
             return false;
         };
         let k: Matrix3<f64> = jm * c;
+        let q = (k + k.transpose()) * 0.5;
+        q.iter().all(|v| v.is_finite()) && q.cholesky().is_some()
+    }
+
+    /// Free tip with the base force unknown (contact, docs/contact.md "Stability"): no
+    /// conjugate point in (0, L] and the tip form sym(J Y(L)^-1) positive definite, `jac`
+    /// the x-derivative of the scaled tip wrench balance (6x6). The Jacobi field reaching
+    /// the tip with (dr(L)/L, dtheta(L)) = xi is c = Y(L)^-1 xi, and its second variation is
+    /// the tip's boundary term dr(L) . dF_res + dtheta(L) . dM_res = M_s xi^T J c (the force
+    /// rows scaled by F_s, the moment rows by M_s = F_s L, dr by L): the pinned form with
+    /// the tip position free too. Position-dependent loads (the obstacles' penalty, the
+    /// rounded end's force in the tip balance) enter both Y and J through the dual numbers.
+    pub(crate) fn stable_free(&self, jac: &Matrix6<f64>) -> bool {
+        if !self.elastic {
+            return true;
+        }
+        if self.conjugate {
+            return false;
+        }
+        let Some(inv) = self.y.try_inverse() else {
+            return false;
+        };
+        let k = jac * inv;
         let q = (k + k.transpose()) * 0.5;
         q.iter().all(|v| v.is_finite()) && q.cholesky().is_some()
     }

@@ -26,6 +26,8 @@
 //! d theta(s)/dx, keeps its sign) and the tip form sym(Theta(L)^T J) is positive definite.
 //! The test needs a potential energy: follower loads are not conservative (they do work
 //! along closed paths), so their equilibria are reported with `stable = None`, not assessed.
+//! Contact has one (the obstacles' penalty): with its six unknowns the test is that of
+//! all six Jacobi fields from the clamp (`constraint::Conjugate::stable_free`).
 //! Collocation solutions run the same test with the Jacobi fields carried by the
 //! linearised collocation equations (`collocation::stability`).
 
@@ -40,7 +42,7 @@ use crate::ode::{integrate, strains, Coeffs, Loads, SectionKnobs, State};
 use crate::rod::Rod;
 use crate::spec::Frame;
 use crate::validity::{self, Node, Policy, StrainLimits};
-use nalgebra::{Matrix3, SMatrix, SVector};
+use nalgebra::{Matrix3, Matrix6, SMatrix, SVector};
 
 /// Solver settings (a validated value object with defaults).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -338,6 +340,12 @@ impl<'a> Problem<'a> {
         self.fs
     }
 
+    /// The loads have a potential, so stability is assessed: no follower load. (Contact
+    /// with obstacles has one, the penalty's; it only makes the base force unknown.)
+    pub(crate) fn assessed(&self) -> bool {
+        !self.loads.has_follower(self.rod)
+    }
+
     /// Unknowns of this problem (3 or 6).
     pub(crate) fn unknowns(&self) -> usize {
         if self.follower {
@@ -468,10 +476,14 @@ impl<'a> Problem<'a> {
             }
         }
         let mut jacobi = Jacobi::default();
-        let assess = N == 3;
+        let mut conj = constraint::Conjugate::default();
+        let assess = self.assessed();
+        let length = self.rod.length;
         let mut visit = |_: usize, _: f64, y: &State<Jet<M>>| {
-            if assess {
+            if assess && N == 3 {
                 jacobi.visit(y)
+            } else if assess {
+                conj.visit(y, length)
             }
         };
         let tip = integrate(self.rod, &coeffs, y0, Some(&mut visit));
@@ -483,7 +495,13 @@ impl<'a> Problem<'a> {
         let jac = SMatrix::<f64, N, N>::from_fn(|i, j| rd[i].eps[j]);
         let r_lam = SVector::<f64, N>::from_fn(|i, _| -rd[i].eps[N]);
         let t = solve_linear(&jac, &r_lam)?;
-        let stable = assess.then(|| jacobi.stable(&Matrix3::from_fn(|i, j| jac[(i, j)])));
+        let stable = assess.then(|| {
+            if N == 3 {
+                jacobi.stable(&Matrix3::from_fn(|i, j| jac[(i, j)]))
+            } else {
+                conj.stable_free(&Matrix6::from_fn(|i, j| jac[(i, j)]))
+            }
+        });
         t.iter()
             .all(|v| v.is_finite())
             .then(|| (std::array::from_fn(|i| t[i]), jac, stable))
@@ -638,9 +656,9 @@ impl<'a> Problem<'a> {
         }
     }
 
-    /// The final pass at a converged x of the full load: one integration (in `Jet<3>` for
-    /// conservative loads, giving J and the Jacobi fields of the stability test; in f64
-    /// under follower loads, whose stability is not assessed) and at every node the validity
+    /// The final pass at a converged x of the full load: one integration (in `Jet<3>` or
+    /// `Jet<6>` for conservative loads, giving J and the Jacobi fields of the stability
+    /// test; in f64 under follower loads, whose stability is not assessed) and at every node the validity
     /// rules are checked (and the shape kept, if wanted). A broken physical rule is an
     /// error; a validity range broken under `Policy::Raise` too. At an `Unchecked` x the
     /// pass itself measures the residual, and an x that is not an equilibrium to `opts.tol`
@@ -698,6 +716,26 @@ impl<'a> Problem<'a> {
             let jac = Matrix3::from_fn(|i, j| rd[i].eps[j]);
             let r: Vec<f64> = rd.iter().map(|v| v.re).collect();
             (tip.re(), Some(jacobi.stable(&jac)), r)
+        } else if self.assessed() {
+            // Six unknowns under conservative loads (contact): the Jacobi fields of all six
+            // base unknowns, tested as a free tip (`constraint::Conjugate::stable_free`).
+            let xd: [Jet<6>; 6] = std::array::from_fn(|i| Jet::variable(x[i], i));
+            let mut conj = constraint::Conjugate::default();
+            let length = self.rod.length;
+            let mut visit = |i: usize, s: f64, y: &State<Jet<6>>| {
+                conj.visit(y, length);
+                check(i, s, &y.re());
+            };
+            let tip = integrate(
+                self.rod,
+                &self.coeffs,
+                self.base_state(&xd),
+                Some(&mut visit),
+            );
+            let rd: [Jet<6>; 6] = self.residual_of_tip(&tip);
+            let jac = Matrix6::from_fn(|i, j| rd[i].eps[j]);
+            let r: Vec<f64> = rd.iter().map(|v| v.re).collect();
+            (tip.re(), Some(conj.stable_free(&jac)), r)
         } else {
             let mut visit = |i: usize, s: f64, y: &State<f64>| check(i, s, y);
             let tip = integrate(self.rod, &self.coeffs, self.base_state(x), Some(&mut visit));
@@ -1220,7 +1258,7 @@ fn natural_path<const N: usize, const M: usize>(
             }
         }
     };
-    let mut stable = (N == 3).then_some(true);
+    let mut stable = (!loads.has_follower(rod)).then_some(true);
     let mut step: f64 = (FIRST_REACH / inf_norm(&tangent)).min(1.0);
     if !step.is_finite() || !opts.continuation {
         step = 1.0;
