@@ -452,7 +452,7 @@ impl<C: Coeff> SectionModel<C> {
             if us[0] != 0.0 || us[1] != 0.0 {
                 for i in 0..2 {
                     let ku = kb[i][0] * us[0] + kb[i][1] * us[1];
-                    tm[i] = tm[i] + (rho - D::from(1.0)) * ku;
+                    tm[i] += (rho - D::from(1.0)) * ku;
                 }
             }
             let a = rho * kb[0][0] + bb[0][0] * c0;
