@@ -319,6 +319,7 @@ def test_system_batch_equals_single_solves_bitwise(system):
             np.testing.assert_array_equal(batch.platform_rotation[k], s.platform_rotation)
             np.testing.assert_array_equal(batch.unknowns[k], s.unknowns)
             assert batch.iterations[k] == s.iterations
+            assert s.stable is True and batch.stable[k] and batch.stability_assessed[k]
             for i, r in enumerate(s.rods):
                 np.testing.assert_array_equal(batch.tip_position[k, i], r.tip_position)
                 np.testing.assert_array_equal(batch.tip_rotation[k, i], r.tip_rotation)
@@ -346,7 +347,7 @@ def test_system_batch_table_and_failed_rows(system):
     frame = solve_system_batch(system, SYSTEM_ROWS[:2]).to_frame()
     for name in ("rod0_p0_kPa", "rod1_p2_kPa", "platform_x_mm", "platform_qw",
                  "rod1_tip_z_mm", "rod0_tip_reaction_fz_N", "rod1_tip_reaction_my_Nmm",
-                 "converged"):
+                 "converged", "stable"):
         assert name in frame.columns, name
     assert frame["rod0_p0_kPa"].tolist() == [0.0, 40.0]
     assert frame.attrs["softrod.metadata"]["system"] == "two_spa_platform"

@@ -161,7 +161,7 @@ def test_two_rod_parallel_mechanism_matches_a_bvp_solver():
     sol = solve_system(
         system, platform_force=force, platform_moment=[0.0, my, 0.0], options=TIGHT
     )
-    assert sol.converged and sol.stable is None
+    assert sol.converged and sol.stable is True  # a stiff pair, pushed sideways
     rhs1 = planar_rhs(0.0)
     offsets = (-half, half)
 
@@ -481,3 +481,36 @@ def test_cli_solve_reports_the_tip_reaction(run, tmp_path):
     table = run("solve", path).output
     assert "tip reaction force (clamped)" in table and "tip reaction moment" in table
     assert "pressures" not in table  # a rod without chambers has no pressure row
+
+
+def test_platform_on_three_columns_sways_at_the_guided_euler_load():
+    """Three upright rods at the corners of a triangle hold a platform pressed down by W.
+    Their axial stiffness keeps the platform from tilting, so it sways as three guided
+    columns (clamped at the base, at the tip free to translate but not to turn), each
+    buckling at pi^2 EI / L^2: W_cr = 3 pi^2 EI / L^2 (shear lowers it by about P/GA, 0.2 %;
+    the tilt's compliance by less). The system's stability says so (docs/model.md, "Systems
+    of rods"), with the policies of a single rod (the batch's ``stable`` column:
+    tests/test_batch_ends.py)."""
+    corners = [(0.03 * math.cos(a), 0.03 * math.sin(a))
+               for a in (0.0, 2 * math.pi / 3, 4 * math.pi / 3)]
+    rods = []
+    for x, y in corners:
+        doc = rod(base_x=x)
+        doc["mounting"]["base_position"][1] = f"{y} m"
+        rods.append(SystemRod(load_design(doc), attachment=np.array([x, y, 0.0])))
+    system = System("tripod", tuple(rods), Platform(position=np.array([0.0, 0.0, L])))
+    w_cr = 3 * math.pi**2 * EI / L**2
+
+    def solve(ratio, **kwargs):
+        return solve_system(system, platform_force=[0.0, 0.0, -ratio * w_cr], options=TIGHT,
+                            **kwargs)
+
+    below = solve(0.9)
+    assert below.stable is True and all(r.stable is True for r in below.rods)
+    with pytest.warns(softrod.StabilityWarning):
+        above = solve(1.1)
+    assert above.stable is False and all(r.stable is False for r in above.rods)
+    assert np.abs(above.platform_position[:2]).max() < 1e-9 * L  # straight by symmetry
+    with pytest.raises(softrod.InvalidStateError) as exc:
+        solve(1.1, on_unstable="raise")
+    assert exc.value.rule == "stability"

@@ -99,8 +99,7 @@ def _policy(name: str, value) -> str:
 
 def _report_stability(stable: bool | None, on_unstable: str, what: str) -> None:
     """Warn about (or raise for) an unstable equilibrium, as ``on_unstable`` says. None:
-    stability was not assessed (follower loads are not conservative, systems of rods;
-    docs/scope.md)."""
+    stability was not assessed (follower loads are not conservative; docs/scope.md)."""
     if stable is None or stable or on_unstable == "ignore":
         return
     message = (

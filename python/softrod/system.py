@@ -40,7 +40,14 @@ from .constraints import orientation as _orientation
 from .design import Design
 from .errors import ConvergenceError, DesignError, InputError
 from .solution import StaticSolution
-from .statics import SolverOptions, _options, _policy, _pressures, _tensions
+from .statics import (
+    SolverOptions,
+    _options,
+    _policy,
+    _pressures,
+    _report_stability,
+    _tensions,
+)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -129,7 +136,9 @@ class System:
 class SystemSolution:
     """A system's equilibrium: each rod's :class:`StaticSolution` (with the wrench the
     platform applies to its tip in ``tip_reaction_force`` / ``tip_reaction_moment``) and
-    the platform's pose. ``stable`` is None: not assessed for constrained ends."""
+    the platform's pose. ``stable``: the whole system's equilibrium is stable (docs/model.md,
+    "Systems of rods"; every rod's ``stable`` says the same), None where it is not assessed
+    (a follower load on some rod) or the solve failed."""
 
     system: System
     rods: tuple[StaticSolution, ...]
@@ -241,6 +250,7 @@ def solve_system(
     initial: SystemSolution | None = None,
     check: bool = True,
     on_invalid: str = "raise",
+    on_unstable: str = "warn",
 ) -> SystemSolution:
     """Static equilibrium of a :class:`System` (or a system file / bundled name).
 
@@ -251,12 +261,16 @@ def solve_system(
     tip body and tip loads act on its tip. ``initial`` warm-starts from a previous
     solution. On non-convergence raises :class:`ConvergenceError`, or with ``check=False``
     returns a solution with ``converged=False`` and NaN platform pose. Every rod passes the
-    validity checks of :func:`solve_statics` (``on_invalid`` as there); stability is not
-    assessed (``stable`` None).
+    validity checks of :func:`solve_statics` (``on_invalid`` as there). The whole system's
+    stability is assessed (``stable``; docs/model.md, "Systems of rods"); ``on_unstable``
+    says what an unstable equilibrium does, as for :func:`solve_statics`: "warn" (default, a
+    :class:`StabilityWarning`), "raise" (:class:`InvalidStateError` with rule "stability")
+    or "ignore".
     """
     if not isinstance(system, System):
         system = load_system(system)
     on_invalid = _policy("on_invalid", on_invalid)
+    on_unstable = _policy("on_unstable", on_unstable)
     V.boolean(check, "check")
     n = len(system.rods)
     opts = _options(options)
@@ -300,6 +314,7 @@ def solve_system(
                               platform_rotation=np.full((3, 3), np.nan), converged=False,
                               iterations=exc.iterations, residual=exc.residual, load_steps=0,
                               unknowns=np.full(6 * n + 6, np.nan))
+    _report_stability(out["stable"], on_unstable, f"the system {system.name!r}'s equilibrium")
     sols = []
     for (rod, entry, o) in zip(system.rods, entries, out["rods"], strict=True):
         sols.append(
@@ -308,7 +323,7 @@ def solve_system(
                 position=o["position"], rotation=o["rotation"], force=o["force"],
                 moment=o["moment"], v=o["v"], u=o["u"], converged=True,
                 iterations=o["iterations"], residual=o["residual"], load_steps=o["load_steps"],
-                shooting_unknowns=np.array(o["x"]), stable=None,
+                shooting_unknowns=np.array(o["x"]), stable=out["stable"],
                 violations=tuple(o["violations"]), tip_loads=(tuple(entry[3]), tuple(entry[4])),
                 tensions=np.array(entry[2]), tip_constraint="clamped",
                 tip_reaction_force=np.array(o["tip_reaction_force"]),
@@ -325,6 +340,7 @@ def solve_system(
         residual=out["residual"],
         load_steps=out["load_steps"],
         unknowns=np.array(out["x"]),
+        stable=out["stable"],
     )
 
 
@@ -349,9 +365,10 @@ class SystemBatchSolution:
     base_moment (m, n, 3) N m and the wrench the platform applies to its tip,
     tip_reaction_force (m, n, 3) N and tip_reaction_moment (m, n, 3) N m (world frame).
     unknowns (m, 6 n + 6): the solver's unknowns (``SystemSolution.unknowns`` of each row).
-    violation (m,) str: the validity rule a rod broke ("rods[i]: ...", "" if none). Stability
-    is not assessed for a system (as :func:`solve_system`). metadata: the metadata block of
-    :meth:`to_frame`.
+    violation (m,) str: the validity rule a rod broke ("rods[i]: ...", "" if none). stable
+    (m,) bool: the row's system equilibrium is stable (False on failed rows and where not
+    assessed); stability_assessed (m,) bool (as :func:`solve_system`). metadata: the
+    metadata block of :meth:`to_frame`.
     """
 
     system: System
@@ -371,6 +388,10 @@ class SystemBatchSolution:
     tip_reaction_moment: np.ndarray
     unknowns: np.ndarray = field(repr=False)
     violation: np.ndarray = field(repr=False)
+    stable: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool), repr=False)
+    stability_assessed: np.ndarray = field(
+        default_factory=lambda: np.zeros(0, dtype=bool), repr=False
+    )
     metadata: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __len__(self) -> int:
@@ -383,8 +404,8 @@ class SystemBatchSolution:
         ``platform_x_mm`` ... ``platform_z_mm``, ``platform_qw`` ... ``platform_qz``; per rod
         its tip position ``rod<i>_tip_x_mm`` ... and the platform's reaction on its tip
         ``rod<i>_tip_reaction_fx_N`` ... ``rod<i>_tip_reaction_mz_Nmm`` (world frame); then
-        ``converged``, ``iterations``, ``residual``. Failed rows keep NaN. The metadata block
-        (``frame.attrs["softrod.metadata"]``) is :attr:`metadata`."""
+        ``converged``, ``iterations``, ``residual``, ``stable``. Failed rows keep NaN. The
+        metadata block (``frame.attrs["softrod.metadata"]``) is :attr:`metadata`."""
         import pandas as pd
 
         from .schema import matrix_to_quat, table_units
@@ -418,6 +439,8 @@ class SystemBatchSolution:
         cols["converged"] = np.asarray(self.converged, dtype=bool)
         cols["iterations"] = np.asarray(self.iterations)
         cols["residual"] = np.asarray(self.residual, dtype=float)
+        if self.stable.shape == self.converged.shape:
+            cols["stable"] = np.asarray(self.stable, dtype=bool)
         frame = pd.DataFrame(cols)
         frame.attrs["softrod.metadata"] = dict(self.metadata)
         return frame
@@ -469,6 +492,7 @@ def solve_system_batch(
     options: SolverOptions | None = None,
     threads: int = 0,
     on_invalid: str = "raise",
+    on_unstable: str = "warn",
 ) -> SystemBatchSolution:
     """Static equilibria of a :class:`System` for many inputs at once, in parallel (Rust,
     ``threads`` cores, 0 = all, GIL released).
@@ -482,8 +506,11 @@ def solve_system_batch(
     row is bitwise equal to the single solve whatever the thread count or grouping of rows.
     Rows that fail (no convergence, an invalid state) are kept with ``converged`` False, NaN
     and the broken rule in ``violation``; with ``on_invalid="warn"`` rows outside the
-    validity range keep their values and one :class:`ValidityWarning` says how many. Bad
-    inputs raise :class:`InputError` naming the row, the rod and the rule before any work.
+    validity range keep their values and one :class:`ValidityWarning` says how many.
+    ``stable`` (m,) says which equilibria are stable (``stability_assessed`` False where not
+    assessed); ``on_unstable``: "warn" (default, one :class:`StabilityWarning` naming how
+    many rows are unstable), "raise" or "ignore". Bad inputs raise :class:`InputError`
+    naming the row, the rod and the rule before any work.
     """
     import warnings
 
@@ -492,6 +519,7 @@ def solve_system_batch(
     if not isinstance(system, System):
         system = load_system(system)
     on_invalid = _policy("on_invalid", on_invalid)
+    on_unstable = _policy("on_unstable", on_unstable)
     threads = V.threads(threads)
     opts = _options(options)
     for i, rod in enumerate(system.rods):
@@ -546,6 +574,17 @@ def solve_system_batch(
                                        **opts.as_kwargs())
     violation = np.asarray(out["violation"], dtype=object)
     converged = np.asarray(out["converged"], dtype=bool)
+    stable = np.asarray(out["stable"], dtype=bool)
+    assessed = np.asarray(out["assessed"], dtype=bool)
+    unstable = np.flatnonzero(converged & assessed & ~stable)
+    if unstable.size:
+        _report_stability(
+            False,
+            on_unstable,
+            f"{unstable.size} of {m} rows (first: row {unstable[0]})"
+            if unstable.size > 1
+            else f"row {unstable[0]}",
+        )
     outside = np.flatnonzero(converged & (violation != ""))
     if outside.size and on_invalid == "warn":
         warnings.warn(
@@ -584,6 +623,8 @@ def solve_system_batch(
         tip_reaction_moment=out["tip_reaction_moment"],
         unknowns=out["x"],
         violation=violation,
+        stable=stable,
+        stability_assessed=assessed,
         metadata=meta,
     )
 

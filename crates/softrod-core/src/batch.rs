@@ -489,8 +489,11 @@ pub struct SystemBatchRow {
     pub converged: bool,
     /// Per rod: its tip pose, base wrench, 6 unknowns, the wrench the platform applies to
     /// its tip (`tip_reaction_*`) and the validity rule it broke under `Policy::Warn`
-    /// (`stable` is None: not assessed for a system).
+    /// (`stable`: the whole system's, as `stable` below).
     pub rods: Vec<BatchRow>,
+    /// The system's equilibrium is stable (`SystemSolution::stable`); None where not
+    /// assessed or the row failed.
+    pub stable: Option<bool>,
     pub platform_position: [f64; 3],
     pub platform_rotation: [[f64; 3]; 3],
     /// The system's unknowns (6 per rod, then the platform's 6); a warm start.
@@ -515,6 +518,7 @@ impl SystemBatchRow {
         SystemBatchRow {
             converged: true,
             rods,
+            stable: s.stable,
             platform_position: s.platform_position,
             platform_rotation: s.platform_rotation,
             x: s.x.clone(),
@@ -534,6 +538,7 @@ impl SystemBatchRow {
         SystemBatchRow {
             converged: false,
             rods: (0..n_rods).map(|_| rod()).collect(),
+            stable: None,
             platform_position: [f64::NAN; 3],
             platform_rotation: [[f64::NAN; 3]; 3],
             x: vec![f64::NAN; 6 * n_rods + 6],

@@ -732,3 +732,95 @@ fn matmul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
 fn tmatmul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
     std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[k][i] * b[k][j]).sum()))
 }
+
+/// `column` (EI_1 = 1 < EI_2 = 3, EA = GA = 1e7 N, L = 1 m) with its base at `base`.
+fn column_at(base: [f64; 3]) -> Rod {
+    let mut spec = column(1.0, 3.0).spec.clone();
+    spec.mounting.base_position = base;
+    Rod::new(spec).unwrap()
+}
+
+/// The system's stability is assessed (docs/model.md "Systems of rods"): a one-rod system
+/// whose platform sits on the tip and carries a compressive load P is the free column under
+/// that tip load, whose verdict (the free tip's own test, 3 unknowns) it must repeat: just
+/// below and above the Euler load pi^2 EI_1 / (4 L^2) (the platform's tip form), and at
+/// 5 times it (kL = 3.5: past the free tip's conjugate point at kL = pi, which the
+/// platform's form must flag by itself since the rod held at both ends has no conjugate
+/// point before kL = 2 pi).
+#[test]
+fn one_rod_system_has_the_free_columns_stability() {
+    let rod = column_at([0.0; 3]);
+    let pe = std::f64::consts::PI.powi(2) / 4.0;
+    for (ratio, want) in [(0.9, true), (1.1, false), (5.0, false)] {
+        let f = [0.0, 0.0, -ratio * pe];
+        let rods = vec![SystemRod {
+            rod: &rod,
+            loads: no_loads(),
+            attachment: [0.0; 3],
+            attachment_rotation: IDENTITY,
+        }];
+        let sys = solve_system(
+            &rods,
+            &platform([0.0, 0.0, 1.0], f, [0.0; 3]),
+            None,
+            &opts(),
+        )
+        .unwrap_or_else(|e| panic!("{ratio} P_E: {e}"));
+        let mut ld = no_loads();
+        ld.tip_force = f;
+        let (free, _) = solve_with_shape(&rod, &ld, None, &opts()).unwrap();
+        assert_eq!(free.stable, Some(want), "free column at {ratio} P_E");
+        assert_eq!(sys.stable, Some(want), "one-rod system at {ratio} P_E");
+        assert_eq!(sys.rods[0].solution.stable, sys.stable);
+        assert!(dist(&sys.platform_position, &free.tip.r) < 1e-9, "straight");
+    }
+}
+
+/// Three equal columns at the corners of a triangle (circumradius 0.1 m) hold a platform
+/// loaded by W straight down. The rods' axial stiffness keeps the platform from tilting
+/// (EA a^2 / L = 1e5 N m against the rods' bending, ~EI / L = 1 N m), so it sways as a
+/// guided column: each rod is clamped at its base and at a tip that translates but does not
+/// turn, whose Euler load is pi^2 EI_1 / L^2 (the weaker plane; kL = pi). The platform
+/// sways at W = 3 pi^2 EI_1 / L^2, twelve times the load that buckles the same rods with free
+/// tips, and its yaw stays stiff there (3 GJ / L = 12 N m of twist). Two rods on a line
+/// instead let the platform roll about that line: in the plane across it each rod is a free
+/// cantilever again (pi^2 EI_1 / (4 L^2) each, the rods' d1 axis along the line). The
+/// thresholds move by ~P / GA ~ 3e-6 and by the tilt's compliance ~1e-5: far inside the
+/// +-3 % brackets.
+#[test]
+fn platform_systems_buckle_at_their_euler_loads() {
+    let pi2 = std::f64::consts::PI.powi(2);
+    let corners: Vec<[f64; 3]> = (0..3)
+        .map(|k| {
+            let a = 2.0 * std::f64::consts::PI * k as f64 / 3.0;
+            [0.1 * a.cos(), 0.1 * a.sin(), 0.0]
+        })
+        .collect();
+    let line: Vec<[f64; 3]> = vec![[-0.1, 0.0, 0.0], [0.1, 0.0, 0.0]];
+    for (name, bases, w_cr) in [
+        ("triangle", corners, 3.0 * pi2),
+        ("line", line, 2.0 * pi2 / 4.0),
+    ] {
+        let rods_of: Vec<Rod> = bases.iter().map(|b| column_at(*b)).collect();
+        let rods: Vec<SystemRod> = rods_of
+            .iter()
+            .zip(&bases)
+            .map(|(rod, b)| SystemRod {
+                rod,
+                loads: no_loads(),
+                attachment: [b[0], b[1], 0.0],
+                attachment_rotation: IDENTITY,
+            })
+            .collect();
+        for (ratio, want) in [(0.97, true), (1.03, false)] {
+            let pf = platform([0.0, 0.0, 1.0], [0.0, 0.0, -ratio * w_cr], [0.0; 3]);
+            let sys = solve_system(&rods, &pf, None, &opts())
+                .unwrap_or_else(|e| panic!("{name} at {ratio} W_cr: {e}"));
+            assert_eq!(sys.stable, Some(want), "{name} at {ratio} W_cr");
+            for r in &sys.rods {
+                let t = r.solution.tip.r;
+                assert!(t[0].hypot(t[1]) < 0.1 + 1e-9, "{name}: straight {t:?}");
+            }
+        }
+    }
+}

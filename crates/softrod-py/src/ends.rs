@@ -204,7 +204,8 @@ type RodEntry<'py> = (
 /// Solve a system of rods whose tips hold one platform (GIL released). `rods`: entries
 /// as `RodEntry`; `platform`: (position, rotation, force, moment, mass, com_offset,
 /// gravity). Returns {"rods": [dicts as `Rod.solve_constrained`], "platform_position",
-/// "platform_rotation", "x", "iterations", "residual", "load_steps"}.
+/// "platform_rotation", "x", "iterations", "residual", "load_steps", "stable" (None: not
+/// assessed)}.
 #[pyfunction]
 #[pyo3(signature = (rods, platform, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise"))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
@@ -270,6 +271,7 @@ fn solve_rod_system<'py>(
         d.set_item("iterations", out.iterations)?;
         d.set_item("residual", out.residual)?;
         d.set_item("load_steps", out.load_steps)?;
+        d.set_item("stable", out.stable)?;
         Ok(d)
     })
 }
@@ -314,7 +316,8 @@ fn platform_of(p: PlatformEntry) -> Platform {
 /// "converged", "iterations", "residual", "load_steps" (m,), "x" (m, 6 n + 6),
 /// "platform_position" (m, 3), "platform_rotation" (m, 3, 3), per rod "tip_position",
 /// "base_force", "base_moment", "tip_reaction_force", "tip_reaction_moment" (m, n, 3),
-/// "tip_rotation" (m, n, 3, 3), and "violation" (m strings). NaN on failed rows.
+/// "tip_rotation" (m, n, 3, 3), "stable" and "assessed" (m,) bool, and "violation" (m
+/// strings). NaN on failed rows.
 #[pyfunction]
 #[pyo3(signature = (rods, platform, pressures, tensions=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise"))]
 #[allow(clippy::too_many_arguments)]
@@ -388,6 +391,15 @@ fn solve_rod_system_batch<'py>(
         d.set_item(
             "load_steps",
             PyArray1::from_vec(py, out.iter().map(|r| r.load_steps as i64).collect()),
+        )?;
+        // "stable" is false where stability was not assessed: see "assessed".
+        d.set_item(
+            "stable",
+            PyArray1::from_vec(py, out.iter().map(|r| r.stable == Some(true)).collect()),
+        )?;
+        d.set_item(
+            "assessed",
+            PyArray1::from_vec(py, out.iter().map(|r| r.stable.is_some()).collect()),
         )?;
         let x: Vec<f64> = out.iter().flat_map(|r| r.x.iter().copied()).collect();
         d.set_item("x", PyArray1::from_vec(py, x).reshape([m, 6 * n + 6])?)?;

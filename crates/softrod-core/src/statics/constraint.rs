@@ -662,7 +662,7 @@ pub(crate) fn checked_shape(
 /// O(h)). The eigenvalues count the double crossings of symmetric rods (a round column
 /// buckles in two planes at once), which leave det Y's sign unchanged, as the free tip's
 /// `super::Jacobi` does.
-#[derive(Default)]
+#[derive(Default, Clone)]
 pub(crate) struct Conjugate {
     /// An elastic step has been taken (Y = 0 on leading rigid sections).
     elastic: bool,

@@ -18,18 +18,32 @@
 //! block-sparse Jacobian is exact at the cost of one dual integration per rod. Newton and
 //! continuation as `constraint::follow_path`: loads and the platform load ramped from zero,
 //! the attachments moved from where the unloaded rods' tips are (relative to the platform's
-//! nominal pose) to the given ones. Stability is not assessed (`stable = None`).
+//! nominal pose) to the given ones, kept on the stable path.
+//!
+//! Stability (`Level::stable`): the second variation of the system's energy (the rods' and
+//! the platform load's potential) over variations that keep every tip on its attachment.
+//! Those that hold the platform still are each rod's with both ends clamped: no point
+//! conjugate to its base in (0, L_i] (`constraint::Conjugate`). The rest are the Jacobi
+//! fields that follow a platform increment xi = (dp, psi): the linearised rod rows
+//! A_i dx_i + C_i xi = 0 give dx_i = -A_i^-1 C_i xi, and the second variation is
+//! -xi^T S xi with S = B_xi - sum_i B_i A_i^-1 C_i, the Schur complement of the Jacobian's
+//! rod blocks: the linearised platform balance (the rods' tip reactions and the platform
+//! load's change; the balance is a sum of forces on the platform, hence the sign). The
+//! equilibrium is stable iff every rod passes its test and sym(-S) is positive definite,
+//! S taken in forces and moments per metre and radian (the scales removed, so that the
+//! form is congruent to the Hessian). Assessed for conservative loads (no follower load
+//! on any rod).
 
 use super::constraint::{
     check_half_turn, check_rotation, checked_shape, exp_so3, follow_path, log_so3, matmul,
-    orientation_error, reference_tip, slerp, tmatmul, ConstrainedSolution, Equations,
+    orientation_error, reference_tip, slerp, tmatmul, Conjugate, ConstrainedSolution, Equations,
 };
 use super::{Problem, Solution, SolverOptions};
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
 use crate::ode::{integrate, Loads, State};
 use crate::rod::Rod;
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, Matrix6};
 
 /// Most rods in one system.
 pub const MAX_RODS: usize = 64;
@@ -74,6 +88,9 @@ pub struct SystemSolution {
     pub iterations: usize,
     pub residual: f64,
     pub load_steps: usize,
+    /// The whole system's equilibrium is stable (module docs); None where it is not
+    /// assessed (a follower load on some rod). Every rod's `solution.stable` says the same.
+    pub stable: Option<bool>,
 }
 
 fn finite3(field: String, v: &[f64; 3]) -> Result<()> {
@@ -259,6 +276,65 @@ impl Equations for Level<'_> {
     }
 
     fn eval_jac(&self, x: &[f64]) -> (Vec<f64>, DMatrix<f64>) {
+        self.jacobian(x, None)
+    }
+
+    fn retract(&self, x: &[f64], dx: &[f64]) -> Vec<f64> {
+        system_retract(self.n_rods(), x, dx)
+    }
+
+    fn difference(&self, a: &[f64], b: &[f64]) -> Vec<f64> {
+        let k = 6 * self.n_rods() + 3;
+        let mut out: Vec<f64> = a.iter().zip(b).map(|(p, q)| p - q).collect();
+        let ra = exp_so3(&[a[k], a[k + 1], a[k + 2]]);
+        let rb = exp_so3(&[b[k], b[k + 1], b[k + 2]]);
+        // exp(d) = Ra Rb^T
+        let rel: [[f64; 3]; 3] = std::array::from_fn(|i| {
+            std::array::from_fn(|j| (0..3).map(|q| ra[i][q] * rb[j][q]).sum())
+        });
+        out[k..k + 3].copy_from_slice(&log_so3(&rel));
+        out
+    }
+
+    fn stable(&self, x: &[f64]) -> Option<bool> {
+        if self.problems.iter().any(|p| !p.assessed()) {
+            return None;
+        }
+        let n = self.n_rods();
+        let mut held = vec![Conjugate::default(); n];
+        let (_, jac) = self.jacobian(x, Some(&mut held));
+        if !held.iter().all(|c| c.stable_clamped()) {
+            return Some(false);
+        }
+        let k = 6 * n;
+        let block = |r: usize, c: usize| Matrix6::from_fn(|a, b| jac[(r + a, c + b)]);
+        let mut s = block(k, k);
+        for i in 0..n {
+            // A rod whose tip rows are singular has a conjugate point at L: a neutral mode.
+            let Some(dx) = block(6 * i, 6 * i).lu().solve(&block(6 * i, k)) else {
+                return Some(false);
+            };
+            s -= block(k, 6 * i) * dx;
+        }
+        // Rows back to N and N m, columns to m and rad.
+        let h = Matrix6::from_fn(|a, b| {
+            let row = if a < 3 { self.fs } else { self.ms };
+            let col = if b < 3 { self.ls } else { 1.0 };
+            -s[(a, b)] * row / col
+        });
+        let q = (h + h.transpose()) * 0.5;
+        Some(q.iter().all(|v| v.is_finite()) && q.cholesky().is_some())
+    }
+}
+
+impl Level<'_> {
+    /// Residual and exact Jacobian (`Equations::eval_jac`); with `held`, each rod's
+    /// conjugate-point test from the same dual integration.
+    fn jacobian(
+        &self,
+        x: &[f64],
+        mut held: Option<&mut Vec<Conjugate>>,
+    ) -> (Vec<f64>, DMatrix<f64>) {
         let n = self.n_rods();
         let dim = 6 * n + 6;
         let mut jac = DMatrix::zeros(dim, dim);
@@ -296,7 +372,15 @@ impl Equations for Level<'_> {
             };
         for (i, pr) in self.problems.iter().enumerate() {
             let xd: [Jet<6>; 6] = std::array::from_fn(|j| Jet::variable(x[6 * i + j], j));
-            let tip = lift(&integrate(pr.rod, &pr.coeffs, pr.base_state(&xd), None));
+            let tip = match held.as_deref_mut() {
+                Some(tests) => {
+                    let (test, length) = (&mut tests[i], pr.rod.length);
+                    let mut visit = |_: usize, _: f64, y: &State<Jet<6>>| test.visit(y, length);
+                    integrate(pr.rod, &pr.coeffs, pr.base_state(&xd), Some(&mut visit))
+                }
+                None => integrate(pr.rod, &pr.coeffs, pr.base_state(&xd), None),
+            };
+            let tip = lift(&tip);
             let (rows, fi, mi) = self.rod_terms(i, &tip, &p, &rp);
             for (k, v) in rows.iter().enumerate() {
                 r[6 * i + k] = v.re;
@@ -320,23 +404,6 @@ impl Equations for Level<'_> {
             }
         }
         (r, jac)
-    }
-
-    fn retract(&self, x: &[f64], dx: &[f64]) -> Vec<f64> {
-        system_retract(self.n_rods(), x, dx)
-    }
-
-    fn difference(&self, a: &[f64], b: &[f64]) -> Vec<f64> {
-        let k = 6 * self.n_rods() + 3;
-        let mut out: Vec<f64> = a.iter().zip(b).map(|(p, q)| p - q).collect();
-        let ra = exp_so3(&[a[k], a[k + 1], a[k + 2]]);
-        let rb = exp_so3(&[b[k], b[k + 1], b[k + 2]]);
-        // exp(d) = Ra Rb^T
-        let rel: [[f64; 3]; 3] = std::array::from_fn(|i| {
-            std::array::from_fn(|j| (0..3).map(|q| ra[i][q] * rb[j][q]).sum())
-        });
-        out[k..k + 3].copy_from_slice(&log_so3(&rel));
-        out
     }
 }
 
@@ -399,6 +466,7 @@ pub fn solve_system(
         .map(|g| g.to_vec());
     let path = follow_path(level, x0, guess, opts)?;
     let full = level(1.0);
+    let stable = full.stable(&path.x);
     let (pp, rp) = full.platform(&path.x);
     let mut out = Vec::with_capacity(n);
     for (i, pr) in full.problems.iter().enumerate() {
@@ -421,7 +489,7 @@ pub fn solve_system(
                 iterations: path.iterations,
                 residual: path.residual,
                 load_steps: path.load_steps,
-                stable: None,
+                stable,
                 violations: v,
                 collocation: None,
             },
@@ -438,6 +506,7 @@ pub fn solve_system(
         iterations: path.iterations,
         residual: path.residual,
         load_steps: path.load_steps,
+        stable,
     })
 }
 
