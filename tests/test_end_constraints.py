@@ -514,3 +514,7 @@ def test_platform_on_three_columns_sways_at_the_guided_euler_load():
     with pytest.raises(softrod.InvalidStateError) as exc:
         solve(1.1, on_unstable="raise")
     assert exc.value.rule == "stability"
+    # Rods without inputs have nothing to vary per row: a batch is refused by name.
+    with pytest.raises(InputError) as exc:
+        softrod.solve_system_batch(system, np.zeros((2, 3, 0)))
+    assert exc.value.field == "pressures" and "solve_system" in str(exc.value)

@@ -468,9 +468,16 @@ def test_follower_force_cantilever_against_the_elastica():
     assert abs(math.atan2(sol.tip_rotation[0, 2], sol.tip_rotation[2, 2]) - ref.p[0]) < 1e-6
 
 
-def test_precurved_rod_in_dynamics_settles_on_its_statics():
+@pytest.mark.parametrize(
+    "law",
+    [None, {"axial": "ogden", "alpha": 8.89, "stretch_bending": True}],
+    ids=["linear", "ogden-stretch-bending"],
+)
+def test_precurved_rod_in_dynamics_settles_on_its_statics(law):
+    """Every law acts on the strains relative to the reference, in the dynamics as in the
+    statics (docs/dynamics.md): an Ogden body with stretch-dependent bending too."""
     chamber = {"radius": "2 mm", "distance": "4 mm", "angle": "90 deg", "channel": 0}
-    design = rod(curvature=[0, "10 1/m", 0], chambers=[chamber])
+    design = rod(curvature=[0, "10 1/m", 0], chambers=[chamber], **({"law": law} if law else {}))
     design["mounting"]["gravity"] = "9.81 m/s^2"
     design["dynamics"] = {"damping_time": "20 ms"}
     d = load_design(design)

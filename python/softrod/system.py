@@ -529,6 +529,10 @@ def solve_system_batch(
                          InputError)
     nc = [rod.design.n_channels for rod in system.rods]
     nt = [rod.design.n_tendons for rod in system.rods]
+    if not sum(nc) and not sum(nt):
+        raise V.fail("pressures", "no channels", "the system's rods have neither pressure "
+                     "channels nor tendons, so every row would be the same equilibrium: use "
+                     "solve_system", InputError)
     if pressures is None and tensions is None:
         raise V.fail("pressures", None, "give the rows: pressures (or tensions) of every rod "
                      "for every equilibrium", InputError)
