@@ -353,6 +353,8 @@ fn unsupported_settings_are_refused_with_the_rule() {
         sections: vec![],
     }];
     refused(&mut sim, &sigma, "params[0]");
+    // Ogden's alpha is a dynamic parameter of Ogden sections only (this arm is linear).
+    refused(&mut sim, &[param(ParamKind::OgdenAlpha, &[0])], "params[0]");
     // Contact stays refused: the penalty switches on and off, so the trajectory is not
     // differentiable where a node touches.
     let mut walled = pam_arm();

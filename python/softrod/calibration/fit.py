@@ -290,7 +290,8 @@ def calibrate(
     with bounds) or "nelder-mead" (derivative-free simplex, an explicit fallback; the
     standard errors come from the exact Jacobian at its optimum). The rod's time series
     (``dynamic=True``) get their exact Jacobian from the core's forward sensitivities
-    through every time step (BDF-alpha, the linear axial law).
+    through every time step (BDF-alpha with fixed steps; every design feature but contact:
+    docs/calibration.md).
     weights: ``{quantity: standard deviation}`` per measured quantity ("tip", "markers"),
     e.g. ``{"tip": "0.2 mm", "markers": "0.5 mm"}``: each residual is divided by its
     quantity's value (default 1 mm), so that quantities measured with different noise

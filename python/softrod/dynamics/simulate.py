@@ -932,4 +932,7 @@ def tip_sensitivities(
     commands = np.ascontiguousarray(schedule.sample(dt * np.arange(1, n + 1)))
     rows = None if tensions is None else np.ascontiguousarray(tensions[1:], dtype=float)
     rest = sim._sim.run(commands, np.ones(n, dtype=np.uint8), False, None, table, rows)
+    time = np.concatenate([first["time"], rest["time"]])
+    tip = np.vstack([first["tip_position"], rest["tip_position"]])
+    d_tip = np.concatenate([first["d_tip_position"], rest["d_tip_position"]])
     return time, tip, d_tip

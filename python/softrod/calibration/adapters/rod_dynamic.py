@@ -3,11 +3,11 @@
 measured positions) is replayed: the measured pressures and tensions drive the model
 (joined linearly between samples; the tensions are read at every time step), the arm starts
 at rest in equilibrium under the experiment's first pressures and tensions, and the model's
-tip is read at every sample time (linear between the steps). With ``jacobian`` the core carries the exact
-forward sensitivities of every step (``softrod_core::dynamics::sensitivity``: the implicit
-function theorem on each step's collocation equations), so the tip's derivatives come with
-the replay at about 3.3 times its cost (two parameters; benchmarks/README.md), and
-Levenberg-Marquardt fits with standard errors."""
+tip is read at every sample time (linear between the steps). With ``jacobian`` the core
+carries the exact forward sensitivities of every step (``softrod_core::dynamics::
+sensitivity``: the implicit function theorem on each step's collocation equations), so the
+tip's derivatives come with the replay at about 3.3 times its cost (two parameters;
+benchmarks/README.md), and Levenberg-Marquardt fits with standard errors."""
 
 from __future__ import annotations
 
