@@ -10,6 +10,8 @@ import numpy as np
 import pytest
 import softrod
 from conftest import assert_clean_error
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from softrod import PressureSchedule
 from softrod.calibration import CalibrationWarning, synthesize_trajectory_dataset
 from softrod.calibration.adapters.rod_dynamic import RodDynamic
@@ -302,3 +304,145 @@ def test_dynamic_lm_reuses_its_evaluations(trajectory_data):
     with_jacobian = [theta for theta, jac in calls if jac]
     assert len(with_jacobian) == len(set(with_jacobian)) == res.evaluations
     assert len(calls) == res.evaluations
+
+
+FINGER = "prebent_tendon_finger"
+FINGER_TAU, FINGER_CB = 0.06, 1.25  # truth: tau in s, the finger's bending factor
+
+
+def finger_tensions(t: float) -> list[float]:
+    """Tendon 0: 0.2 N at the start (the static start balances it), pulled to 0.8 N between
+    0.3 s and 0.9 s, released to 0.1 N after 1.3 s (ramps of 0.1 s)."""
+    ramp = lambda a, b: min(max((t - a) / 0.1, 0.0), 1.0) - min(max((t - b) / 0.1, 0.0), 1.0)  # noqa: E731
+    return [0.2 + 0.6 * ramp(0.3, 0.9) - 0.1 * min(max((t - 1.3) / 0.1, 0.0), 1.0)]
+
+
+@pytest.fixture(scope="module")
+def finger_data():
+    """2 s of the pre-bent finger (tau and c_b off the bundled values) under a pressure
+    pulse on its chamber and the tendon tension series above, at 50 Hz."""
+    truth = softrod.load_design(FINGER).replace(
+        {"dynamics.damping_time": f"{FINGER_TAU} s", "sections[0].c_b": FINGER_CB}
+    )
+    sched = PressureSchedule.square_pulses(1, [(0, 30e3, 0.4)], rest=0.2, start=1.0)
+    return synthesize_trajectory_dataset(
+        truth, sched, 2.0, noise_mm=0.2, seed=5, dt=DT, tensions=finger_tensions
+    )
+
+
+def test_tension_time_series_drive_the_dynamic_fit(finger_data):
+    """Issue 17 item 7: a dynamic dataset with tendon tension columns (inputs, not
+    parameters) replays with its tensions, and tau and c_b of the tendon finger come back
+    within 3 standard errors, through the exact sensitivities of the tendon law."""
+    assert finger_data.tensions is not None and finger_data.tensions.shape[1] == 1
+    start = softrod.load_design(FINGER).replace({"dynamics.damping_time": "0.1 s"})
+    res = softrod.calibrate(start, finger_data, ["damping_time", "c_b"], dynamic=True, dt=DT)
+    assert res.success and res.method.startswith("lm")
+    z = (res.values - [FINGER_TAU, FINGER_CB]) / res.std_errors
+    assert np.all(np.abs(z) < 3), z
+    # The residual is the noise: RMS of N(0, 0.2 mm) per coordinate, |e| over 3 axes
+    # (101 samples: the sample RMS is within ~10 % of it).
+    assert res.rms_error_mm == pytest.approx(0.2 * 3**0.5, rel=0.15)
+
+
+def test_tension_replay_with_and_without_sensitivities_agree(finger_data):
+    """The replay reads the tensions at the step ends in both paths (simulate's function of
+    t, the sensitivity run's rows): the same run, bit for bit; without the tension columns
+    the tip moves differently (the tensions are used)."""
+    design = softrod.load_design(FINGER).replace({"dynamics.damping_time": "0.1 s"})
+    params = parse_parameters(["damping_time", "c_b"], design)
+    rows = np.arange(len(finger_data))
+    adapter = RodDynamic(design, finger_data, params, DT, 1)
+    theta = adapter.initial
+    plain = adapter.predict(theta, rows, False)
+    tracked = adapter.predict(theta, rows, True)
+    assert plain.ok.all() and tracked.ok.all()
+    assert np.array_equal(plain.tip, tracked.tip)
+    slack = softrod.Dataset(
+        pressures=finger_data.pressures,
+        tip_position=finger_data.tip_position,
+        time=finger_data.time,
+    )
+    other = RodDynamic(design, slack, params, DT, 1).predict(theta, rows, False)
+    assert np.abs(other.tip - plain.tip).max() > 1e-3
+
+
+SPA = "spa_three_chamber_134mm_vertical"
+#: Paper 002's actuator with each feature whose dynamic sensitivities issues 17 and 19 add.
+FEATURES = {
+    "ogden (M3 preset)": ("paper002_M3_vertical", {}),
+    "tapered body": (
+        SPA,
+        {"sections[1].outer_radius_end": "17 mm", "sections[2].outer_radius": "17 mm"}
+        | {f"sections[1].chambers[{k}].distance_end": "10 mm" for k in range(3)},
+    ),
+    "follower tip force": (SPA, {"tip.frame": "body", "tip.force": ["0.05 N", "0 N", "-0.1 N"]}),
+}
+
+
+@pytest.mark.parametrize("feature", list(FEATURES))
+def test_round_trip_with_each_carried_feature(feature):
+    """tau and the body's c_b from 1.6 s of pulses on two chambers (0.2 mm noise), for an
+    Ogden body, a tapered body and a follower tip force: within 3 standard errors, through
+    the exact sensitivities of each feature (their refusals are gone)."""
+    base, changes = FEATURES[feature]
+    start = softrod.load_design(base).replace(changes | {"dynamics.damping_time": "0.1 s"})
+    truth = start.replace({"dynamics.damping_time": "0.06 s", "sections[1].c_b": 1.5})
+    sched = PressureSchedule.square_pulses(3, [(0, 40e3, 0.4), (1, 50e3, 0.4)], rest=0.3, start=0.1)
+    data = synthesize_trajectory_dataset(truth, sched, 1.6, noise_mm=0.2, seed=7, dt=DT)
+    res = softrod.calibrate(start, data, ["damping_time", "c_b"], dynamic=True, dt=DT)
+    assert res.success and res.method.startswith("lm")
+    z = (res.values - [0.06, 1.5]) / res.std_errors
+    assert np.all(np.abs(z) < 3), z
+
+
+def test_synthetic_tensions_must_be_a_function():
+    sched = PressureSchedule.constant([0.0])
+    with pytest.raises(InputError, match="tensions"):
+        synthesize_trajectory_dataset(FINGER, sched, 0.1, tensions=[0.5])
+
+
+def test_tension_rows_of_a_sensitivity_run_are_checked():
+    """One row per step and the start, one column per tendon channel, finite and >= 0:
+    else an error naming ``tensions`` before any step."""
+    from softrod.dynamics.simulate import tip_sensitivities
+
+    finger = softrod.load_design(FINGER).replace({"dynamics.damping_time": "0.1 s"})
+    sched = PressureSchedule.constant([0.0])
+    params = [p.core() for p in parse_parameters(["damping_time"], finger)]
+    # 0.02 s at 10 ms: 2 steps, so 3 rows.
+    for bad in (np.ones((2, 1)), np.ones((3, 2)), np.array([[1.0], [np.nan], [1.0]])):
+        with pytest.raises(InputError) as err:
+            tip_sensitivities(finger, sched, 0.02, 1e-2, params, bad)
+        assert "tensions" in err.value.field
+    time, tip, d_tip = tip_sensitivities(finger, sched, 0.02, 1e-2, params, np.ones((3, 1)))
+    assert time.shape == (3,) and tip.shape == (3, 3) and d_tip.shape == (3, 3, 1)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    values=st.lists(
+        st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just("x"), st.none()),
+        max_size=3,
+    )
+)
+def test_hostile_tension_series_are_refused_by_name(values):
+    """Whatever a tension function returns, the synthetic series is built from finite
+    tensions >= 0, one per tendon channel, or refused with an error naming ``tensions``
+    before the run."""
+    sched = PressureSchedule.constant([0.0])
+    well_formed = (
+        len(values) == 1
+        and isinstance(values[0], float)
+        and np.isfinite(values[0])
+        and values[0] >= 0.0
+    )
+    if not well_formed:
+        with pytest.raises(InputError) as err:
+            synthesize_trajectory_dataset(FINGER, sched, 0.02, dt=1e-2, tensions=lambda t: values)
+        assert "tensions" in err.value.field
+        return
+    if values[0] > 2.0:
+        return  # well formed; whether the finger follows 1e300 N is the solver's business
+    data = synthesize_trajectory_dataset(FINGER, sched, 0.02, dt=1e-2, tensions=lambda t: values)
+    assert np.array_equal(data.tensions, np.full((len(data), 1), values[0]))

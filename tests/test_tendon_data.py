@@ -1,7 +1,7 @@
 """Tendon tensions as data (issue 17, item 7): the ``t0_N``, ``t1_N``, ... columns of the
 dataset schema (docs/datasets.md), written by synthesize_dataset and BatchSolution.to_frame,
-read back by load_dataset, used by calibrate, and refused by name where an entry point solves
-with slack tendons only."""
+read back by load_dataset, used by calibrate (static and dynamic fits), and refused by name
+where an entry point solves with slack tendons only."""
 
 import numpy as np
 import pytest
@@ -91,9 +91,9 @@ def test_tension_channels_must_match_the_design(robot_data):
 
 
 def test_slack_only_entries_refuse_measured_tensions():
-    """The per-sample identification and the PCC and dynamic fits solve with slack
-    tendons: a dataset that records tensions is refused by name, never solved without
-    them."""
+    """The per-sample identification and the PCC fits solve with slack tendons (dynamic
+    fits replay the tensions: tests/test_calibration_dynamic.py): a dataset that records
+    tensions is refused by name, never solved without them."""
     finger = "prebent_tendon_finger"  # one chamber and one tendon
     data = softrod.synthesize_dataset(finger, [[1e4], [2e4]], tensions=[[1.0], [0.5]], seed=0)
     assert data.n_tendons == 1

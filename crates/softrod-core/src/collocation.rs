@@ -371,8 +371,8 @@ impl<C: Coeff> SectionModel<C> {
     /// with the time integrator's c0 and this point's history terms `h` (v_h, u_h first).
     /// Nonlinear laws are solved in f64 and linearised in the state's scalar type
     /// (implicit function theorem), so dual numbers carry exact first derivatives in the
-    /// state; their coefficients enter by value only (parameter derivatives of the
-    /// dynamics support the linear law: `crate::dynamics::sensitivity` checks this).
+    /// state, and with dual coefficients (`crate::dynamics::sensitivity`) in the
+    /// parameters and histories too.
     /// With tendons under tension the law is implicit (`crate::tendon`): the strains w
     /// solve w = S(nb - F_t(w), mb - M_t(w)) with S this damped law at the stage's local
     /// arc length `s` (where the routing is evaluated), by [`crate::tendon::solve_implicit`]
@@ -417,8 +417,8 @@ impl<C: Coeff> SectionModel<C> {
             Axial::Table { table, scale, a_s } => {
                 let nm3 = nb[2] + self.p_force;
                 let dv = self.v_star[2] - 1.0;
-                let (bv, hv) = (b[2].value(), h[2].value() + c0 * dv);
-                let w3 = table_stretch(table, scale.value(), bv, c0, hv, nm3);
+                let hv = h[2] + C::from(c0 * dv);
+                let w3 = table_stretch(table, *scale, b[2], c0, hv, nm3);
                 let ks = &self.k_se;
                 [
                     (nb[0] + (ks[0] * self.v_star[0] - b[0] * h[0])) * a_s[0],
@@ -428,10 +428,9 @@ impl<C: Coeff> SectionModel<C> {
             }
             Axial::Ogden { k_e, alpha, k_s } => {
                 let nm = [nb[0], nb[1], nb[2] + self.p_force];
-                let bv = b.map(|x| x.value());
                 let dv = [self.v_star[0], self.v_star[1], self.v_star[2] - 1.0];
-                let hv: [f64; 3] = std::array::from_fn(|k| h[k].value() + c0 * dv[k]);
-                let w = ogden_strain(k_e.value(), alpha.value(), k_s.value(), &bv, c0, &hv, &nm);
+                let hv: [C; 3] = std::array::from_fn(|k| h[k] + C::from(c0 * dv[k]));
+                let w = ogden_strain(*k_e, *alpha, *k_s, b, c0, &hv, &nm);
                 std::array::from_fn(|k| w[k] + dv[k])
             }
         };
@@ -607,11 +606,21 @@ impl<C: Coeff> SectionModel<C> {
 }
 
 /// The table law with damping: solve F + b (c0 v3(F) + h) = n_m3 for the elastic axial
-/// force F, v3(F) = 1 + F / (s EA(F)); exact first derivatives through the implicit
-/// function theorem (d/dF of the left side is > 0 while v3 grows with F).
+/// force F, v3(F) = 1 + F / (s EA(F)), in f64; exact first derivatives through the implicit
+/// function theorem (d/dF of the left side is > 0 while v3 grows with F): in the state
+/// through n_m3, and with dual coefficients in the parameters and histories through the
+/// scale s, the damping b and the history h (the dynamics' parameter sensitivities).
 #[inline(always)]
-fn table_stretch<D: RodScalar>(table: &AxialTable, s: f64, b: f64, c0: f64, h: f64, nm3: D) -> D {
+fn table_stretch<C: Coeff, D: StateScalar<C>>(
+    table: &AxialTable,
+    scale: C,
+    damping: C,
+    c0: f64,
+    history: C,
+    nm3: D,
+) -> D {
     let target = nm3.value();
+    let (s, b, h) = (scale.value(), damping.value(), history.value());
     let v3 = |f: f64| 1.0 + f / (s * table.eval(f));
     let dv3 = |f: f64| {
         let j = table.eval(Jet::<1>::variable(f, 0));
@@ -639,23 +648,35 @@ fn table_stretch<D: RodScalar>(table: &AxialTable, s: f64, b: f64, c0: f64, h: f
         return D::from(f64::NAN);
     }
     let dphi = 1.0 + bc * dv3(f);
-    let fj = (nm3 - target) * (1.0 / dphi) + f;
-    (fj * (table.eval(fj) * s).recip()) + 1.0
+    // dF = (dn_m3 - d_theta phi) / phi'(F): d_theta phi is the dual part of the left side
+    // at the solution with the coefficients' dual parts (zero for f64 coefficients).
+    let v3c = (scale * table.eval(f)).recip() * f + 1.0;
+    let phi = damping * (v3c * c0 + history) + f;
+    let fj = (nm3 - target + -(phi - phi.value())) * (1.0 / dphi) + f;
+    (fj * (table.eval(fj) * scale).recip()) + 1.0
 }
 
 /// The Ogden law with damping B = diag(b): solve n_og(v) + B (c0 v + h) = n_m in f64 by
-/// Newton from the linear law, then v = v* + (K_t + c0 B)^-1 (n_m - n_m*) in the scalar
-/// type (exact first derivatives). NaN when the law cannot be inverted.
+/// Newton from the linear law, then v = v* + (K_t + c0 B)^-1 (n_m - n_m* - d_theta r) in
+/// the scalar type (exact first derivatives, by the implicit function theorem on
+/// r(v) = n_og(v) + B (c0 v + h) - n_m = 0; d_theta r, the residual's dual part in the
+/// coefficients k_e, alpha, k_s, B and the history h, is there only with dual
+/// coefficients: the dynamics' parameter sensitivities). NaN when the law cannot be
+/// inverted.
 #[inline(always)]
-fn ogden_strain<D: RodScalar>(
-    k_e: f64,
-    alpha: f64,
-    k_s: f64,
-    b: &[f64; 3],
+fn ogden_strain<C: Coeff, D: StateScalar<C>>(
+    k_e: C,
+    alpha: C,
+    k_s: C,
+    damping: &[C; 3],
     c0: f64,
-    h: &[f64],
+    history: &[C; 3],
     nm: &[D; 3],
 ) -> [D; 3] {
+    let (law, damping_c, history_c) = ((k_e, alpha, k_s), damping, history);
+    let (k_e, alpha, k_s) = (k_e.value(), alpha.value(), k_s.value());
+    let b = &damping.map(|x| x.value());
+    let h = &history.map(|x| x.value());
     let target = nm.map(|x| x.value());
     let k0 = [k_s, k_s, k_e];
     let mut v: [f64; 3] = std::array::from_fn(|k| {
@@ -729,7 +750,14 @@ fn ogden_strain<D: RodScalar>(
     let Some(ki) = inverse3(&tangent(&v)) else {
         return [D::from(f64::NAN); 3];
     };
-    let dn: [D; 3] = std::array::from_fn(|k| nm[k] - target[k]);
+    let mut dn: [D; 3] = std::array::from_fn(|k| nm[k] - target[k]);
+    if std::any::TypeId::of::<C>() != std::any::TypeId::of::<f64>() {
+        let n_og = crate::law::ogden_force_with(law.0, law.1, law.2, &v);
+        for (k, d) in dn.iter_mut().enumerate() {
+            let r = n_og[k] + damping_c[k] * (history_c[k] + c0 * v[k]);
+            *d = *d + -(r - r.value());
+        }
+    }
     std::array::from_fn(|i| dn[0] * ki[i][0] + dn[1] * ki[i][1] + dn[2] * ki[i][2] + v[i])
 }
 

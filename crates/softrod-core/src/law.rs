@@ -177,7 +177,7 @@ pub fn ogden_from_stretch<P: Coeff, D: StateScalar<P>>(
 
 /// The Ogden contact force at the strain `v` (a value) with the parameters in scalar `P`:
 /// the parameter derivatives of n_m at fixed strain.
-fn ogden_force_with<P: Coeff>(k_e: P, alpha: P, k_s: P, v: &[f64; 3]) -> [P; 3] {
+pub(crate) fn ogden_force_with<P: Coeff>(k_e: P, alpha: P, k_s: P, v: &[f64; 3]) -> [P; 3] {
     let lam = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     let l = P::from(lam.ln());
     let a = (alpha * l).exp(); // lambda^alpha

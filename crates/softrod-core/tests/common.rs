@@ -6,8 +6,8 @@ use softrod_core::inverse::InverseTarget;
 use softrod_core::ode::Loads;
 use softrod_core::spec::obstacle::{ObstacleKind, ObstacleSpec};
 use softrod_core::spec::{
-    ChamberSpec, DesignSpec, LawSpec, MaterialSpec, MountingSpec, SectionSpec, StiffnessSpec,
-    TipSpec,
+    AxialSpec, ChamberSpec, DesignSpec, Frame, LawSpec, LineLoadSpec, MaterialSpec, MountingSpec,
+    ReferenceSpec, ReferenceTable, SectionSpec, StiffnessSpec, SwellingSpec, TendonSpec, TipSpec,
 };
 use softrod_core::statics::{residual, residual_and_jacobian, solve, SolverOptions};
 use softrod_core::Rod;
@@ -432,5 +432,164 @@ pub fn obstacle(kind: ObstacleKind, stiffness: f64, tolerance: f64) -> ObstacleS
         smoothing: None,
         friction: 0.0,
         slip_velocity: None,
+    }
+}
+
+/// Hanging mounting: d3 = -z_world (gravity along the arm).
+pub const HANGING: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
+
+/// A straight tendon of `channel` at `distance` (m) from the axis, at `angle_deg`.
+pub fn tendon(channel: usize, distance: f64, angle_deg: f64) -> TendonSpec {
+    TendonSpec {
+        channel,
+        distance,
+        angle: angle_deg.to_radians(),
+        distance_end: None,
+        angle_end: None,
+    }
+}
+
+/// Paper 002's hanging actuator with two tendons (as tests/tendons.rs' arm): tendon 0 in
+/// the base cap and the body (helical there when `helical`), tendon 1 through all three
+/// sections; `stretch_bending` sets the body's law to paper 004's (the tendon law's
+/// general, non-quadratic branch). Damping time `tau`.
+pub fn tendon_arm(helical: bool, stretch_bending: bool, steps: usize, tau: f64) -> DesignSpec {
+    let mut spec = p002_actuator(HANGING, 9.81, steps);
+    let mut spiral = tendon(0, 0.017, 30.0);
+    if helical {
+        spiral.angle_end = Some(330f64.to_radians());
+        spiral.distance_end = Some(0.014);
+    }
+    spec.sections[0].tendons = vec![tendon(0, 0.017, 30.0), tendon(1, 0.016, 150.0)];
+    spec.sections[1].tendons = vec![spiral, tendon(1, 0.016, 150.0)];
+    spec.sections[2].tendons = vec![tendon(1, 0.016, 150.0)];
+    spec.sections[1].law.stretch_bending = stretch_bending;
+    spec.sections[1].c_b = 1.31;
+    spec.dynamics.damping_time = tau;
+    spec
+}
+
+/// Paper 002's hanging actuator with its body tapered: outer radius 20 % smaller at the
+/// body's end, chambers closer to the axis and narrower there.
+pub fn tapered(steps: usize, tau: f64) -> DesignSpec {
+    let mut d = p002_actuator(HANGING, 9.81, steps);
+    let body = &mut d.sections[1];
+    body.outer_radius_end = Some(0.8 * P002_RO);
+    for ch in &mut body.chambers {
+        ch.distance_end = Some(0.85 * ch.distance);
+        ch.radius_end = Some(0.8 * ch.radius.unwrap_or(P002_RP));
+    }
+    d.sections[2].outer_radius = Some(0.8 * P002_RO);
+    d.dynamics.damping_time = tau;
+    d
+}
+
+/// Paper 000's arm (tests/dynamics_scope.rs, tests/dynamics_sensitivity.rs) moulded curved: the reference curvature and
+/// stretch given by a table along s, a helix (constant values, `helix`) or an arc whose
+/// curvature grows along the arm.
+pub fn tabulated_arm(helix: bool) -> DesignSpec {
+    let mut sec = direct_section("arm", 0.22, 262.8, 87.6, 0.04466, 0.02977, 0.165, 16);
+    sec.chambers = [0.0, 120.0, 240.0]
+        .iter()
+        .enumerate()
+        .map(|(k, a)| {
+            let mut c = chamber(6.02e-3, 0.0175, *a, k);
+            c.area = 113.88e-6;
+            c
+        })
+        .collect();
+    let s = vec![0.0, 0.07, 0.15, 0.22];
+    let curvature = if helix {
+        vec![[0.0, 3.0, 0.5]; 4]
+    } else {
+        vec![
+            [0.0, 1.0, 0.0],
+            [0.0, 2.0, 0.2],
+            [0.5, 3.5, 0.3],
+            [0.0, 4.0, 0.0],
+        ]
+    };
+    let strain = if helix {
+        vec![[0.0, 0.0, 1.02]; 4]
+    } else {
+        vec![
+            [0.0, 0.0, 1.0],
+            [0.0, 0.01, 1.02],
+            [0.0, 0.0, 1.03],
+            [0.0, 0.0, 1.0],
+        ]
+    };
+    sec.reference = ReferenceSpec {
+        table: Some(ReferenceTable {
+            s,
+            curvature,
+            strain,
+        }),
+        ..Default::default()
+    };
+    let mut spec = design(vec![sec], HANGING, 9.81);
+    spec.dynamics.damping_time = 0.19;
+    spec
+}
+
+/// A soft cantilever along the horizontal under gravity (paper 002's actuator, damped).
+pub fn horizontal_actuator(steps: usize, tau: f64) -> DesignSpec {
+    let mut spec = p002_actuator(HORIZONTAL, 9.81, steps);
+    spec.sections[1].c_b = 1.31;
+    spec.dynamics.damping_time = tau;
+    spec
+}
+
+/// The damped horizontal actuator (`steps` per section) with follower (body-frame) tip
+/// loads, and with a follower line load on its body.
+pub fn follower_cases(steps: usize) -> Vec<(&'static str, DesignSpec)> {
+    let mut tip = horizontal_actuator(steps, 0.05);
+    tip.tip.frame = Frame::Body;
+    tip.tip.force = [0.05, -0.03, -0.02];
+    tip.tip.moment = [0.0, 2e-3, 1e-3];
+    let mut line = horizontal_actuator(steps, 0.05);
+    line.loads = vec![LineLoadSpec {
+        section: 1,
+        force_per_length: [0.4, 0.0, -0.2],
+        moment_per_length: [0.0, 0.0, 0.01],
+        frame: Frame::Body,
+    }];
+    vec![
+        ("follower tip force and moment", tip),
+        ("follower line load", line),
+    ]
+}
+
+/// Paper 002's hanging actuator with the body's law `law` (c_b = 1.31, tau = 0.05 s).
+pub fn actuator(law: LawSpec, steps: usize) -> DesignSpec {
+    let mut d = p002_actuator(HANGING, 9.81, steps);
+    d.sections[1].law = law;
+    d.sections[1].c_b = 1.31;
+    d.dynamics.damping_time = 0.05;
+    d
+}
+
+/// Paper 002's model M3 on the body: Ogden (alpha = 8.89) with swelling and a chamber
+/// offset.
+pub fn ogden_m3_law() -> LawSpec {
+    LawSpec {
+        axial: AxialSpec::Ogden { alpha: 8.89 },
+        chamber_offset: [0.89e-3, 0.98e-3],
+        swelling: Some(SwellingSpec {
+            c_p: 0.48,
+            p_ref: 0.8e5,
+        }),
+        ..Default::default()
+    }
+}
+
+/// An EA(F) table softening under tension (N against N).
+pub fn ea_table_law() -> LawSpec {
+    LawSpec {
+        axial: AxialSpec::Table {
+            force: vec![-5.0, 0.0, 5.0, 20.0],
+            stiffness: vec![110.0, 100.0, 80.0, 65.0],
+        },
+        ..Default::default()
     }
 }

@@ -12,22 +12,13 @@ use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, SigmaMap, Simulator};
 use softrod_core::interp::GridPchip;
 use softrod_core::ode::Loads;
-use softrod_core::spec::{AxialSpec, DesignSpec, LawSpec, SwellingSpec};
+use softrod_core::spec::LawSpec;
 use softrod_core::statics::collocation::solve_static;
 use softrod_core::statics::SolverOptions;
 use softrod_core::Rod;
 
-const HANGING: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
 /// Pressures of the settling runs: within the actuator's 0-70 kPa.
 const P: [f64; 3] = [40e3, 10e3, 0.0];
-
-fn actuator(law: LawSpec, steps: usize) -> DesignSpec {
-    let mut d = p002_actuator(HANGING, 9.81, steps);
-    d.sections[1].law = law;
-    d.sections[1].c_b = 1.31;
-    d.dynamics.damping_time = 0.05;
-    d
-}
 
 /// The laws under test, with the stiffness map (if any) a run needs.
 fn laws() -> Vec<(&'static str, LawSpec, SigmaMap)> {
@@ -52,28 +43,10 @@ fn laws() -> Vec<(&'static str, LawSpec, SigmaMap)> {
         ("linear", LawSpec::default(), SigmaMap::None),
         (
             "ogden + swelling + offset (M3)",
-            LawSpec {
-                axial: AxialSpec::Ogden { alpha: 8.89 },
-                chamber_offset: [0.89e-3, 0.98e-3],
-                swelling: Some(SwellingSpec {
-                    c_p: 0.48,
-                    p_ref: 0.8e5,
-                }),
-                ..Default::default()
-            },
+            ogden_m3_law(),
             SigmaMap::None,
         ),
-        (
-            "EA(F) table",
-            LawSpec {
-                axial: AxialSpec::Table {
-                    force: vec![-5.0, 0.0, 5.0, 20.0],
-                    stiffness: vec![110.0, 100.0, 80.0, 65.0],
-                },
-                ..Default::default()
-            },
-            SigmaMap::None,
-        ),
+        ("EA(F) table", ea_table_law(), SigmaMap::None),
         (
             "stretch-dependent bending",
             LawSpec {

@@ -4,9 +4,10 @@
 mod common;
 
 use common::*;
-use softrod_core::dynamics::{DynOptions, Initial, Scheme, Simulator};
+use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
 use softrod_core::sensitivity::{Param, ParamKind};
-use softrod_core::spec::DesignSpec;
+use softrod_core::spec::obstacle::ObstacleKind;
+use softrod_core::spec::{AxialSpec, DesignSpec};
 use softrod_core::{Rod, SoftrodError};
 
 const BAR: f64 = 1e5;
@@ -48,16 +49,58 @@ fn command(t: f64) -> Vec<f64> {
     vec![(0.5 + 2.0 * (t / 0.1).min(1.0)) * BAR, 1.0 * BAR, 0.0]
 }
 
+/// Paper 002's actuator's commands: 10 kPa on chamber 0 at the start (the start depends
+/// on the law), ramped to 40 kPa over 0.1 s, with 15 kPa on chamber 2.
+fn p002_command(t: f64) -> Vec<f64> {
+    vec![10e3 + 30e3 * (t / 0.1).min(1.0), 0.0, 15e3]
+}
+
+/// A run's inputs as functions of t (s): chamber pressures (Pa) and tendon tensions (N).
+struct Inputs {
+    pressures: fn(f64) -> Vec<f64>,
+    tensions: fn(f64) -> Vec<f64>,
+}
+
+fn slack(_: f64) -> Vec<f64> {
+    vec![]
+}
+
+const PAM: Inputs = Inputs {
+    pressures: command,
+    tensions: slack,
+};
+
+const P002: Inputs = Inputs {
+    pressures: p002_command,
+    tensions: slack,
+};
+
 /// The tip after every step, and with `params` its derivatives.
-fn run(spec: DesignSpec, params: &[Param]) -> (Vec<[f64; 3]>, Vec<Vec<[f64; 3]>>) {
+fn run(spec: DesignSpec, params: &[Param], inputs: &Inputs) -> (Vec<[f64; 3]>, Vec<Vec<[f64; 3]>>) {
     let rod = Rod::new(spec).unwrap();
-    let mut sim = Simulator::new(rod, &command(0.0), Initial::Static, options()).unwrap();
+    let (f, m) = (rod.spec.tip.force, rod.spec.tip.moment);
+    let mut sim = Simulator::with_tensions(
+        rod,
+        &(inputs.pressures)(0.0),
+        &(inputs.tensions)(0.0),
+        Initial::Static,
+        options(),
+        SigmaMap::None,
+        f,
+        m,
+    )
+    .unwrap();
     if !params.is_empty() {
         sim.track_sensitivities(params).unwrap();
     }
     let (mut tip, mut d) = (vec![], vec![]);
     for k in 1..=STEPS {
-        sim.step(&command(k as f64 * DT)).unwrap();
+        let t = k as f64 * DT;
+        let tensions = (inputs.tensions)(t);
+        if !tensions.is_empty() {
+            sim.set_tensions(&tensions).unwrap();
+        }
+        sim.step(&(inputs.pressures)(t)).unwrap();
         tip.push(sim.tip().r);
         if !params.is_empty() {
             d.push(sim.tip_sensitivity().unwrap().to_vec());
@@ -66,57 +109,70 @@ fn run(spec: DesignSpec, params: &[Param]) -> (Vec<[f64; 3]>, Vec<Vec<[f64; 3]>>
     (tip, d)
 }
 
-/// The design with parameter `kind` moved by `delta` (relative for the area factor).
-fn moved(kind: ParamKind, delta: f64) -> DesignSpec {
-    let mut spec = pam_arm();
-    let sec = &mut spec.sections[0];
-    match kind {
-        ParamKind::DampingTime => spec.dynamics.damping_time += delta,
-        ParamKind::AreaScale => sec.chambers.iter_mut().for_each(|c| c.area *= 1.0 + delta),
-        ParamKind::Mass => *sec.mass.as_mut().unwrap() += delta,
-        ParamKind::CorrectionFactor(2) => sec.c_b += delta,
-        ParamKind::CorrectionFactor(1) => sec.c_e += delta,
-        other => panic!("no finite difference for {other:?}"),
+/// `spec` with parameter `p` moved by `delta` (relative for the area factor; E moves G with
+/// it, as the core's E does: a fixed Poisson ratio).
+fn moved(mut spec: DesignSpec, p: &Param, delta: f64) -> DesignSpec {
+    if p.kind == ParamKind::DampingTime {
+        spec.dynamics.damping_time += delta;
+        return spec;
+    }
+    for &i in &p.sections {
+        let sec = &mut spec.sections[i];
+        match p.kind {
+            ParamKind::AreaScale => sec.chambers.iter_mut().for_each(|c| c.area *= 1.0 + delta),
+            ParamKind::Mass => *sec.mass.as_mut().unwrap() += delta,
+            ParamKind::CorrectionFactor(k) => {
+                *[&mut sec.c_s, &mut sec.c_e, &mut sec.c_b, &mut sec.c_t][k] += delta
+            }
+            ParamKind::YoungsModulus => {
+                let m = sec.material.as_mut().unwrap();
+                let f = 1.0 + delta / m.youngs_modulus;
+                m.youngs_modulus *= f;
+                m.shear_modulus *= f;
+            }
+            ParamKind::Density => sec.material.as_mut().unwrap().density += delta,
+            ParamKind::OgdenAlpha => match &mut sec.law.axial {
+                AxialSpec::Ogden { alpha } => *alpha += delta,
+                other => panic!("alpha of {other:?}"),
+            },
+            other => panic!("no finite difference for {other:?}"),
+        }
     }
     spec
 }
 
-#[test]
-fn trajectory_sensitivities_match_central_differences() {
-    let kinds = [
-        (ParamKind::DampingTime, 0.19),
-        (ParamKind::AreaScale, 1.0),
-        (ParamKind::Mass, 0.165),
-        (ParamKind::CorrectionFactor(2), 1.0),
-        (ParamKind::CorrectionFactor(1), 1.0),
-    ];
-    // Five parameters: two dual chunks of four.
-    let params: Vec<Param> = kinds
-        .iter()
-        .map(|(k, _)| Param {
-            kind: *k,
-            sections: if *k == ParamKind::DampingTime {
-                vec![]
-            } else {
-                vec![0]
-            },
-        })
-        .collect();
-    let (tip0, exact) = run(pam_arm(), &params);
-    let (plain, _) = run(pam_arm(), &[]);
+/// A parameter of `sections` (none for the damping time).
+fn param(kind: ParamKind, sections: &[usize]) -> Param {
+    Param {
+        kind,
+        sections: sections.to_vec(),
+    }
+}
+
+/// The tracked tip derivatives of `params` (each with its value, the finite difference's
+/// scale) on `spec` against central differences of whole trajectories.
+fn check_against_central_differences(
+    name: &str,
+    spec: &DesignSpec,
+    params: &[(Param, f64)],
+    inputs: &Inputs,
+) {
+    let list: Vec<Param> = params.iter().map(|(p, _)| p.clone()).collect();
+    let (tip0, exact) = run(spec.clone(), &list, inputs);
+    let (plain, _) = run(spec.clone(), &[], inputs);
     // Tracking does not change the run.
-    assert_eq!(tip0, plain);
-    for (j, (kind, value)) in kinds.iter().enumerate() {
+    assert_eq!(tip0, plain, "{name}");
+    for (j, (p, value)) in params.iter().enumerate() {
         // Central differences with a relative step of 1e-4: truncation ~ (1e-4)^2 = 1e-8
         // of the derivative; the converged states' error (tol 1e-11 of the unknowns'
         // scales, ~1e-12 m at the tip) divided by the step (2e-4 of the value) adds
-        // ~1e-8 m per unit. The tolerance, 1e-5 of the largest derivative plus 1e-7 m,
-        // leaves two orders of magnitude above both.
+        // ~1e-8 m per unit. The tolerance, 1e-5 of the largest derivative plus 1e-7 m
+        // per `unit`, leaves two orders of magnitude above both.
         let h = 1e-4 * value;
-        let (up, _) = run(moved(*kind, h), &[]);
-        let (down, _) = run(moved(*kind, -h), &[]);
+        let (up, _) = run(moved(spec.clone(), p, h), &[], inputs);
+        let (down, _) = run(moved(spec.clone(), p, -h), &[], inputs);
         // The area factor's derivative is per unit of the factor (1 = as designed).
-        let scale = if *kind == ParamKind::AreaScale {
+        let scale = if p.kind == ParamKind::AreaScale {
             1.0 / value
         } else {
             1.0
@@ -125,22 +181,128 @@ fn trajectory_sensitivities_match_central_differences() {
             .iter()
             .flat_map(|d| d[j].iter().map(|x| x.abs()))
             .fold(0.0f64, f64::max);
+        // Per unit of the parameter, or per relative change for parameters of more than
+        // one unit (E in Pa, density in kg/m^3, whose per-unit derivatives are tiny).
+        let unit = value.abs().max(1.0);
+        // A derivative that is zero tests nothing.
         assert!(
-            largest > 1e-4,
-            "{kind:?}: the tip does not move ({largest})"
+            largest * unit > 1e-4,
+            "{name} {:?}: the tip does not move ({largest})",
+            p.kind
         );
+        let mut worst = 0.0f64;
         for (k, d) in exact.iter().enumerate() {
             for a in 0..3 {
                 let fd = (up[k][a] - down[k][a]) / (2.0 * h) * scale;
                 let err = (d[j][a] - fd).abs();
+                worst = worst.max(err / largest);
                 assert!(
-                    err <= 1e-5 * largest + 1e-7,
-                    "{kind:?} step {k} axis {a}: exact {} fd {fd} (largest {largest})",
+                    err <= 1e-5 * largest + 1e-7 / unit,
+                    "{name} {:?} step {k} axis {a}: exact {} fd {fd} (largest {largest})",
+                    p.kind,
                     d[j][a]
                 );
             }
         }
+        eprintln!(
+            "{name} {:?}: largest |d tip| {largest:.3e} per unit, worst error {worst:.1e} of it",
+            p.kind
+        );
     }
+}
+
+#[test]
+fn trajectory_sensitivities_match_central_differences() {
+    // Five parameters: two dual chunks of four.
+    let params = [
+        (param(ParamKind::DampingTime, &[]), 0.19),
+        (param(ParamKind::AreaScale, &[0]), 1.0),
+        (param(ParamKind::Mass, &[0]), 0.165),
+        (param(ParamKind::CorrectionFactor(2), &[0]), 1.0),
+        (param(ParamKind::CorrectionFactor(1), &[0]), 1.0),
+    ];
+    check_against_central_differences("PAM arm", &pam_arm(), &params, &PAM);
+}
+
+/// The material parameters of paper 002's body (section 1), its bending factor and tau.
+fn body_params() -> Vec<(Param, f64)> {
+    vec![
+        (param(ParamKind::DampingTime, &[]), 0.05),
+        (
+            param(ParamKind::YoungsModulus, &[1]),
+            ECOFLEX.youngs_modulus,
+        ),
+        (param(ParamKind::Density, &[1]), ECOFLEX.density),
+        (param(ParamKind::CorrectionFactor(2), &[1]), 1.31),
+    ]
+}
+
+/// Follower (body-frame) tip force and moment, and a follower line load (issue 17): the
+/// load turns with the rod, so it enters the step's residual through the state's rotation,
+/// which the dual evaluation differentiates with the rest.
+#[test]
+fn follower_load_sensitivities_match_central_differences() {
+    for (name, spec) in follower_cases(2) {
+        check_against_central_differences(name, &spec, &body_params(), &P002);
+    }
+}
+
+/// A tapered body and a reference shape tabulated along s: every stage point has its own
+/// section model (`Coeffs::at`), built from the dual parameters the same way.
+#[test]
+fn tapered_and_tabulated_sensitivities_match_central_differences() {
+    check_against_central_differences("tapered", &tapered(2, 0.05), &body_params(), &P002);
+    let mut arm = tabulated_arm(false);
+    arm.sections[0].steps = 4;
+    let params = [
+        (param(ParamKind::DampingTime, &[]), 0.19),
+        (param(ParamKind::Mass, &[0]), 0.165),
+        (param(ParamKind::CorrectionFactor(2), &[0]), 1.0),
+    ];
+    check_against_central_differences("tabulated reference", &arm, &params, &PAM);
+}
+
+/// Tendon tensions: 1 N and 0.5 N at the start (the start's equilibrium holds them),
+/// ramped to 4 N and 1.5 N over 0.1 s; no pressure.
+fn tendon_tensions(t: f64) -> Vec<f64> {
+    let r = (t / 0.1).min(1.0);
+    vec![1.0 + 3.0 * r, 0.5 + r]
+}
+
+fn no_pressure(_: f64) -> Vec<f64> {
+    vec![0.0; 3]
+}
+
+/// Tendons (the implicit tendon law of Rucker and Webster 2011): the parameters enter the
+/// law through the section's stiffness; its parameter derivative follows by the implicit
+/// function theorem on the converged strains (`SectionModel::strains`). Helical and
+/// straight routes, with the linear law and with paper 004's stretch-dependent bending.
+#[test]
+fn tendon_sensitivities_match_central_differences() {
+    let inputs = Inputs {
+        pressures: no_pressure,
+        tensions: tendon_tensions,
+    };
+    for (helical, sb) in [(false, false), (true, true)] {
+        let spec = tendon_arm(helical, sb, 2, 0.05);
+        let name = format!("tendons (helical {helical}, stretch bending {sb})");
+        check_against_central_differences(&name, &spec, &body_params(), &inputs);
+    }
+}
+
+/// The nonlinear axial laws: Ogden with swelling and a chamber offset (paper 002's M3) and
+/// an EA(F) table. Each is solved in f64 and linearised by the implicit function theorem,
+/// in the state and, with dual coefficients, in the parameters and the histories
+/// (`collocation::ogden_strain`, `table_stretch`).
+#[test]
+fn nonlinear_axial_law_sensitivities_match_central_differences() {
+    let mut ogden = body_params();
+    ogden[3] = (param(ParamKind::OgdenAlpha, &[1]), 8.89);
+    ogden.push((param(ParamKind::CorrectionFactor(1), &[1]), 1.0));
+    check_against_central_differences("Ogden (M3)", &actuator(ogden_m3_law(), 2), &ogden, &P002);
+    let mut table = body_params();
+    table.push((param(ParamKind::CorrectionFactor(1), &[1]), 1.0));
+    check_against_central_differences("EA(F) table", &actuator(ea_table_law(), 2), &table, &P002);
 }
 
 #[test]
@@ -191,4 +353,16 @@ fn unsupported_settings_are_refused_with_the_rule() {
         sections: vec![],
     }];
     refused(&mut sim, &sigma, "params[0]");
+    // Ogden's alpha is a dynamic parameter of Ogden sections only (this arm is linear).
+    refused(&mut sim, &[param(ParamKind::OgdenAlpha, &[0])], "params[0]");
+    // Contact stays refused: the penalty switches on and off, so the trajectory is not
+    // differentiable where a node touches.
+    let mut walled = pam_arm();
+    let mut floor = obstacle(ObstacleKind::Plane, 1e4, 1e-4);
+    floor.point = Some([0.0, 0.0, -1.0]);
+    floor.normal = Some([0.0, 0.0, 1.0]);
+    walled.obstacles = vec![floor];
+    let mut sim =
+        Simulator::new(Rod::new(walled).unwrap(), &p0, Initial::Static, options()).unwrap();
+    refused(&mut sim, &tau, "obstacles");
 }

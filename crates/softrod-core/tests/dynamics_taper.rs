@@ -10,76 +10,12 @@
 mod common;
 use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, Simulator};
-use softrod_core::spec::{DesignSpec, LawSpec, ReferenceSpec, ReferenceTable};
+use softrod_core::spec::{LawSpec, ReferenceSpec, ReferenceTable};
 use softrod_core::statics::collocation::solve_static;
 use softrod_core::statics::{solve, SolverOptions};
 use softrod_core::Rod;
 
-const HANGING: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
 const P: [f64; 3] = [40e3, 10e3, 0.0];
-
-/// Paper 002's hanging actuator with its body tapered: outer radius 20 % smaller at the
-/// body's end, chambers closer to the axis and narrower there.
-fn tapered(steps: usize, tau: f64) -> DesignSpec {
-    let mut d = p002_actuator(HANGING, 9.81, steps);
-    let body = &mut d.sections[1];
-    body.outer_radius_end = Some(0.8 * P002_RO);
-    for ch in &mut body.chambers {
-        ch.distance_end = Some(0.85 * ch.distance);
-        ch.radius_end = Some(0.8 * ch.radius.unwrap_or(P002_RP));
-    }
-    d.sections[2].outer_radius = Some(0.8 * P002_RO);
-    d.dynamics.damping_time = tau;
-    d
-}
-
-/// Paper 000's arm (tests/dynamics_scope.rs) moulded curved: the reference curvature and
-/// stretch given by a table along s, a helix (constant values, `helix`) or an arc whose
-/// curvature grows along the arm.
-fn tabulated_arm(helix: bool) -> DesignSpec {
-    let mut sec = direct_section("arm", 0.22, 262.8, 87.6, 0.04466, 0.02977, 0.165, 16);
-    sec.chambers = [0.0, 120.0, 240.0]
-        .iter()
-        .enumerate()
-        .map(|(k, a)| {
-            let mut c = chamber(6.02e-3, 0.0175, *a, k);
-            c.area = 113.88e-6;
-            c
-        })
-        .collect();
-    let s = vec![0.0, 0.07, 0.15, 0.22];
-    let curvature = if helix {
-        vec![[0.0, 3.0, 0.5]; 4]
-    } else {
-        vec![
-            [0.0, 1.0, 0.0],
-            [0.0, 2.0, 0.2],
-            [0.5, 3.5, 0.3],
-            [0.0, 4.0, 0.0],
-        ]
-    };
-    let strain = if helix {
-        vec![[0.0, 0.0, 1.02]; 4]
-    } else {
-        vec![
-            [0.0, 0.0, 1.0],
-            [0.0, 0.01, 1.02],
-            [0.0, 0.0, 1.03],
-            [0.0, 0.0, 1.0],
-        ]
-    };
-    sec.reference = ReferenceSpec {
-        table: Some(ReferenceTable {
-            s,
-            curvature,
-            strain,
-        }),
-        ..Default::default()
-    };
-    let mut spec = design(vec![sec], HANGING, 9.81);
-    spec.dynamics.damping_time = 0.19;
-    spec
-}
 
 fn settle(rod: &Rod, p: &[f64], n: usize) -> (f64, f64) {
     let opts = DynOptions {

@@ -12,45 +12,13 @@ mod common;
 use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
 use softrod_core::ode::Loads;
-use softrod_core::spec::{DesignSpec, Frame, LineLoadSpec, TendonSpec};
 use softrod_core::statics::collocation::solve_static;
 use softrod_core::statics::{solve, SolverOptions};
 use softrod_core::Rod;
 
-const HANGING: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
 const LENGTH: f64 = 0.134;
 const P: [f64; 3] = [20e3, 0.0, 10e3];
 const T: [f64; 2] = [4.0, 1.5];
-
-fn tendon(channel: usize, distance: f64, angle_deg: f64) -> TendonSpec {
-    TendonSpec {
-        channel,
-        distance,
-        angle: angle_deg.to_radians(),
-        distance_end: None,
-        angle_end: None,
-    }
-}
-
-/// Paper 002's hanging actuator with two tendons (as tests/tendons.rs' arm): tendon 0 in
-/// the base cap and the body (helical there when `helical`), tendon 1 through all three
-/// sections; `stretch_bending` sets the body's law to paper 004's (the tendon law's
-/// general, non-quadratic branch). Damping time `tau`.
-fn tendon_arm(helical: bool, stretch_bending: bool, steps: usize, tau: f64) -> DesignSpec {
-    let mut spec = p002_actuator(HANGING, 9.81, steps);
-    let mut spiral = tendon(0, 0.017, 30.0);
-    if helical {
-        spiral.angle_end = Some(330f64.to_radians());
-        spiral.distance_end = Some(0.014);
-    }
-    spec.sections[0].tendons = vec![tendon(0, 0.017, 30.0), tendon(1, 0.016, 150.0)];
-    spec.sections[1].tendons = vec![spiral, tendon(1, 0.016, 150.0)];
-    spec.sections[2].tendons = vec![tendon(1, 0.016, 150.0)];
-    spec.sections[1].law.stretch_bending = stretch_bending;
-    spec.sections[1].c_b = 1.31;
-    spec.dynamics.damping_time = tau;
-    spec
-}
 
 fn cases() -> [(&'static str, bool, bool); 3] {
     [
@@ -297,39 +265,13 @@ fn restored_tendon_run_continues_bit_for_bit() {
     assert_eq!(sim.unknowns(), other.unknowns());
 }
 
-/// A soft cantilever along the horizontal under gravity (paper 002's actuator, damped).
-fn horizontal_actuator(steps: usize, tau: f64) -> DesignSpec {
-    let mut spec = p002_actuator(HORIZONTAL, 9.81, steps);
-    spec.sections[1].c_b = 1.31;
-    spec.dynamics.damping_time = tau;
-    spec
-}
-
-fn follower_cases() -> Vec<(&'static str, DesignSpec)> {
-    let mut tip = horizontal_actuator(8, 0.05);
-    tip.tip.frame = Frame::Body;
-    tip.tip.force = [0.05, -0.03, -0.02];
-    tip.tip.moment = [0.0, 2e-3, 1e-3];
-    let mut line = horizontal_actuator(8, 0.05);
-    line.loads = vec![LineLoadSpec {
-        section: 1,
-        force_per_length: [0.4, 0.0, -0.2],
-        moment_per_length: [0.0, 0.0, 0.01],
-        frame: Frame::Body,
-    }];
-    vec![
-        ("follower tip force and moment", tip),
-        ("follower line load", line),
-    ]
-}
-
 /// A damped run from rest in equilibrium under the follower loads at 0 kPa, driven to P,
 /// settles on
 /// collocation statics with the same follower loads (1e-9 L) and on the shooting statics
 /// (to the discretisations' difference).
 #[test]
 fn damped_follower_runs_settle_on_statics() {
-    for (name, spec) in follower_cases() {
+    for (name, spec) in follower_cases(8) {
         let rod = Rod::new(spec).unwrap();
         let opts = DynOptions {
             dt: 5e-3,
@@ -354,7 +296,7 @@ fn damped_follower_runs_settle_on_statics() {
 
 #[test]
 fn step_jacobian_with_follower_loads_matches_finite_differences() {
-    for (name, mut spec) in follower_cases() {
+    for (name, mut spec) in follower_cases(8) {
         for s in &mut spec.sections {
             s.steps = 2;
         }
@@ -373,7 +315,7 @@ fn step_jacobian_with_follower_loads_matches_finite_differences() {
 /// moved (measured 4e-5), BDF-alpha without growth beyond 1 % (it only loses energy).
 #[test]
 fn follower_runs_keep_their_energy_balance() {
-    for (name, spec) in follower_cases() {
+    for (name, spec) in follower_cases(8) {
         let mut spec = spec;
         spec.dynamics.damping_time = 0.002;
         for s in &mut spec.sections {

@@ -290,14 +290,16 @@ def calibrate(
     with bounds) or "nelder-mead" (derivative-free simplex, an explicit fallback; the
     standard errors come from the exact Jacobian at its optimum). The rod's time series
     (``dynamic=True``) get their exact Jacobian from the core's forward sensitivities
-    through every time step (BDF-alpha, the linear axial law).
+    through every time step (BDF-alpha with fixed steps; every design feature but contact:
+    docs/calibration.md).
     weights: ``{quantity: standard deviation}`` per measured quantity ("tip", "markers"),
     e.g. ``{"tip": "0.2 mm", "markers": "0.5 mm"}``: each residual is divided by its
     quantity's value (default 1 mm), so that quantities measured with different noise
     combine.
     dynamic: fit time series instead of equilibria: each experiment of ``dataset`` (a
     ``time`` column, one experiment per run) is replayed from rest in equilibrium under its
-    first row's pressures, the pressures joined linearly, with time step ``dt``
+    first row's pressures and tendon tensions, both joined linearly between the samples
+    (tension columns ``t0_N``, ...: inputs, not parameters), with time step ``dt``
     (paper 000 Sec. III-D). model="pcc": ``experiments`` maps experiment ids to "static"
     (equilibria) or "dynamic" (replayed time series); by default the experiments called
     "step" and "free_decay" (as :func:`softrod.pcc.synthesize_pcc_experiments` names them)
@@ -352,8 +354,8 @@ def calibrate(
             f"{dataset.n_tendons} tension channels",
             f"design {design0.name!r} has {design0.n_tendons} tendon channels",
         )
-    if model == "pcc" or dynamic:
-        dataset.require_slack(f"calibrate({'dynamic=True' if dynamic else 'model=' + repr(model)})")
+    if model == "pcc":
+        dataset.require_slack("calibrate(model='pcc')")
     names, registration = _split_params(params, design0, model)
     if experiments is not None and model != "pcc":
         raise V.fail("experiments", experiments, "applies to model='pcc' only")

@@ -899,26 +899,39 @@ def tip_sensitivities(
     t_end: float,
     dt: float,
     params: Sequence[tuple[str, list[int]]],
+    tensions: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The tip trajectory of ``design`` under ``schedule`` from rest in equilibrium (BDF-alpha,
     fixed steps ``dt``) and its exact derivatives with respect to ``params`` ((kind,
     sections) pairs of the core, as :meth:`Parameter.core
     <softrod.calibration.params.Parameter.core>` gives them), carried through every step by
-    the core's forward sensitivities (``softrod_core::dynamics::sensitivity``).
+    the core's forward sensitivities (``softrod_core::dynamics::sensitivity``). ``tensions``:
+    None (slack tendons) or the tendon tensions (N) at the start and after every step,
+    (steps + 1, tendon channels), checked by the core (finite, >= 0); the tensions are
+    inputs, not parameters.
 
     Returns (time (k,), tip position (k, 3), d tip / d theta (k, 3, P)), k = steps + 1 (the
     start included); the derivatives are per SI unit of each parameter (area_scale: per unit
     of the factor on the design's areas). The steps run in the core with the GIL released."""
     n = step_count(t_end, dt)
+    if tensions is not None and tensions.shape != (n + 1, design.n_tendons):
+        raise design_error(
+            "tensions",
+            f"shape {tensions.shape}",
+            f"needs one row per step and the start ({n + 1}) and one column per tendon "
+            f"channel ({design.n_tendons})",
+            InputError,
+        )
     p0 = schedule.sample([0.0])[0]
-    sim = Simulation(design, p0, dt=dt)
+    sim = Simulation(design, p0, dt=dt, tensions=None if tensions is None else tensions[0])
     sim._sim.track_sensitivities([(k, list(s)) for k, s in params])
     first = sim._sim.snapshot()
     table = None
     if schedule.kind in ("linear", "step"):
         table = (schedule.times.tolist(), schedule.pressures.tolist(), schedule.kind == "step")
     commands = np.ascontiguousarray(schedule.sample(dt * np.arange(1, n + 1)))
-    rest = sim._sim.run(commands, np.ones(n, dtype=np.uint8), False, None, table)
+    rows = None if tensions is None else np.ascontiguousarray(tensions[1:], dtype=float)
+    rest = sim._sim.run(commands, np.ones(n, dtype=np.uint8), False, None, table, rows)
     time = np.concatenate([first["time"], rest["time"]])
     tip = np.vstack([first["tip_position"], rest["tip_position"]])
     d_tip = np.concatenate([first["d_tip_position"], rest["d_tip_position"]])

@@ -31,9 +31,19 @@
 //! propagated linearly and the refinement's 1e-9.
 //!
 //! What is supported: the BDF-alpha scheme with fixed steps (substeps where Newton fails
-//! are fine: the step sizes do not depend on theta), the static start, the linear axial
-//! law (with or without stretch-dependent bending). The parameters: correction factors,
-//! E, c_p, chamber offsets, area_scale, density, mass and the damping time.
+//! are fine: the step sizes do not depend on theta), the static start, every axial law
+//! (linear, with or without stretch-dependent bending; Ogden and EA(F) tables, solved in
+//! f64 and linearised by the implicit function theorem with dual coefficients and
+//! histories, `collocation::ogden_strain` and `table_stretch`), tapered sections and
+//! reference shapes tabulated along s (the dual section models are built per stage point
+//! through `Coeffs::at`, as the step's own), follower (body-frame) tip and line loads
+//! (they turn with the dual state in the residual), and tendons under tension (issue 17:
+//! the tensions are inputs, not parameters; the parameters reach the implicit tendon law
+//! through the section's law, whose dual evaluation at the converged strains is the
+//! law's implicit-function-theorem step, `SectionModel::strains`). The parameters:
+//! correction factors, E, Ogden's alpha, c_p, chamber offsets, area_scale, density, mass
+//! and the damping time. Refused: contact (the penalty's switch is not smooth), the
+//! midpoint scheme, adaptive steps, a straight start and the sigma factors.
 
 use super::{section_inertia, Bdf, Candidate, Initial, Scheme, Simulator, Slot, FIELDS};
 use crate::collocation::{Factorization, Problem, SectionModel, NF};
@@ -115,17 +125,6 @@ impl Simulator {
                 "parameter sensitivities are implemented for 'bdf-alpha'",
             );
         }
-        if self.follower_tip() || self.rod.spec.has_follower_line_loads() {
-            return refuse(
-                if self.follower_tip() {
-                    "tip.frame"
-                } else {
-                    "loads.frame"
-                },
-                "body".into(),
-                "dynamic parameter sensitivities do not carry follower (body-frame) loads yet",
-            );
-        }
         if !self.rod.spec.obstacles.is_empty() {
             return refuse(
                 "obstacles",
@@ -140,36 +139,6 @@ impl Simulator {
                 "parameter sensitivities need fixed steps (adaptive step sizes depend on the parameters): give no error_tol",
             );
         }
-        for (i, s) in self.rod.sections.iter().enumerate() {
-            if s.is_varying() {
-                return refuse(
-                    &format!(
-                        "sections[{i}].{}",
-                        if s.tapered {
-                            "outer_radius_end"
-                        } else {
-                            "reference"
-                        }
-                    ),
-                    s.name.clone(),
-                    "dynamic parameter sensitivities do not carry tapered sections or reference shapes tabulated along s yet (not tested)",
-                );
-            }
-            if !s.tendons.is_empty() {
-                return refuse(
-                    &format!("sections[{i}].tendons"),
-                    s.name.clone(),
-                    "dynamic parameter sensitivities do not carry tendons yet (the tendon law's parameter derivatives are not implemented)",
-                );
-            }
-            if !s.rigid && !matches!(s.law.axial, crate::rod::AxialLaw::Linear) {
-                return refuse(
-                    &format!("sections[{i}].law.axial"),
-                    s.name.clone(),
-                    "dynamic parameter sensitivities support the linear axial law (Ogden and EA(F) tables: not yet)",
-                );
-            }
-        }
         let (statics_params, rest): (Vec<Param>, Vec<(usize, &Param)>) = {
             let mut st = vec![];
             let mut other = vec![];
@@ -183,19 +152,12 @@ impl Simulator {
         };
         validate_params(&self.rod, &statics_params).map_err(|e| renumber(e, params))?;
         for (j, p) in params.iter().enumerate() {
-            let field = format!("params[{j}] ({})", p.kind.name());
-            match p.kind {
-                ParamKind::StiffnessScale(_) => {
-                    return refuse(
-                        &field,
-                        p.kind.name().into(),
-                        "the dynamics take sigma from the stiffness map of the pressures: calibrate sigma in statics",
-                    )
-                }
-                ParamKind::OgdenAlpha => {
-                    return refuse(&field, p.kind.name().into(), "needs the Ogden law")
-                }
-                _ => {}
+            if let ParamKind::StiffnessScale(_) = p.kind {
+                return refuse(
+                    &format!("params[{j}] ({})", p.kind.name()),
+                    p.kind.name().into(),
+                    "the dynamics take sigma from the stiffness map of the pressures: calibrate sigma in statics",
+                );
             }
         }
         for (j, p) in rest {
@@ -295,7 +257,8 @@ impl Simulator {
         z: &[f64],
     ) -> Option<()> {
         let n_slots = self.slots.len();
-        let models_d = self.dual_models::<N>(chunk, &self.pressures, &self.sigma, 0.0);
+        let models_d =
+            self.dual_models::<N>(chunk, &self.pressures, &self.tensions, &self.sigma, 0.0);
         let hist_d = vec![[Jet::<N>::from(0.0); NF]; n_slots];
         let zd = solve_exact(problem, fac, &models_d, &hist_d, z, chunk.len())?;
         let (fields, _, tip_r) = problem.fields_and_tip_with(&models_d, &hist_d, &zd);
@@ -316,14 +279,15 @@ impl Simulator {
         Some(())
     }
 
-    /// Section models at `pressures`, `sigma` and c0 with the parameters of `chunk` seeded
-    /// as dual directions: the law through the knobs (`crate::sensitivity::seeded`), the
+    /// Section models at `pressures`, tendon `tensions`, `sigma` and c0 with the parameters
+    /// of `chunk` seeded as dual directions: the law through the knobs (`crate::sensitivity::seeded`), the
     /// inertia through the mass knob (rotary inertia given directly stays), the damping
     /// through tau.
     fn dual_models<const N: usize>(
         &self,
         chunk: &[Param],
         pressures: &[f64],
+        tensions: &[f64],
         sigma: &[f64; 3],
         c0: f64,
     ) -> Vec<SectionModel<Jet<N>>> {
@@ -340,7 +304,7 @@ impl Simulator {
                     &self.rod,
                     i,
                     pressures,
-                    &[],
+                    tensions,
                     &self.rod.gravity,
                     Jet::<N>::from(1.0),
                     &sigma_d,
@@ -465,7 +429,8 @@ impl Simulator {
         let problem = step.problem;
         let n_slots = c.hist.len();
         let n_par = chunk.len();
-        let models_d = self.dual_models::<N>(chunk, &c.pressures, &c.sigma, c0);
+        // The step's tensions are the new ones (BDF-alpha): `self.tensions` until it commits.
+        let models_d = self.dual_models::<N>(chunk, &c.pressures, &self.tensions, &c.sigma, c0);
         // dH/dtheta = c1 dX_n + c2 dX_{n-1} + d1 dX_t,n.
         let hist_d: Vec<[Jet<N>; NF]> = (0..n_slots)
             .map(|k| {

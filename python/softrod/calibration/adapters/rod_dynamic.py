@@ -1,12 +1,13 @@
 """Cosserat-rod time series on a dataset (paper 000 Sec. III-D): every experiment (rows with
-``time``, the chamber pressures and the measured positions) is replayed: the measured
-pressures drive the model (joined linearly between samples), the arm starts at rest in
-equilibrium under the experiment's first pressures, and the model's tip is read at every
-sample time (linear between the steps). With ``jacobian`` the core carries the exact
-forward sensitivities of every step (``softrod_core::dynamics::sensitivity``: the implicit
-function theorem on each step's collocation equations), so the tip's derivatives come with
-the replay at about 3.3 times its cost (two parameters; benchmarks/README.md), and
-Levenberg-Marquardt fits with standard errors."""
+``time``, the chamber pressures, the tendon tensions if the dataset records them, and the
+measured positions) is replayed: the measured pressures and tensions drive the model
+(joined linearly between samples; the tensions are read at every time step), the arm starts
+at rest in equilibrium under the experiment's first pressures and tensions, and the model's
+tip is read at every sample time (linear between the steps). With ``jacobian`` the core
+carries the exact forward sensitivities of every step (``softrod_core::dynamics::
+sensitivity``: the implicit function theorem on each step's collocation equations), so the
+tip's derivatives come with the replay at about 3.3 times its cost (two parameters;
+benchmarks/README.md), and Levenberg-Marquardt fits with standard errors."""
 
 from __future__ import annotations
 
@@ -44,6 +45,13 @@ def experiment_rows(dataset) -> list[np.ndarray]:
             )
         out.append(rows)
     return out
+
+
+def _rows(tensions: np.ndarray, dt: float):
+    """The tensions at the step times k dt (rows k = 0, 1, ...) as ``simulate`` reads them: a
+    function of t (s), evaluated at the steps' ends (the same numbers as the sensitivity
+    run's rows)."""
+    return lambda t: tensions[int(round(t / dt))]
 
 
 class RodDynamic(ModelAdapter):
@@ -102,6 +110,8 @@ class RodDynamic(ModelAdapter):
         self.experiments = experiment_rows(dataset)
         self.time = dataset.time
         self.pressures = dataset.pressures
+        #: (m, tendon channels) N, or None: every tendon slack (calibrate checked the count).
+        self.tensions = dataset.tensions
         self.m = len(dataset)
         #: (theta, the experiments replayed, the prediction) of the last evaluation.
         self._last = None
@@ -117,18 +127,33 @@ class RodDynamic(ModelAdapter):
         ``jacobian``, its derivatives (k, 3, P) per SI unit of each parameter (None: the run
         failed)."""
         from ...dynamics import PressureSchedule, simulate
-        from ...dynamics.simulate import tip_sensitivities
+        from ...dynamics.simulate import step_count, tip_sensitivities
 
         t = self.time[exp] - self.time[exp][0]
         sched = PressureSchedule.piecewise_linear(t, self.pressures[exp])
+        tensions = None
+        if self.tensions is not None:
+            # The tensions at the start and at every step's end, joined linearly between
+            # the samples as the pressures are (the core reads a step's tensions at its end).
+            steps = self.dt * np.arange(step_count(t[-1], self.dt) + 1)
+            at = np.minimum(steps, t[-1])
+            knots = self.tensions[exp]
+            tensions = np.column_stack([np.interp(at, t, k) for k in knots.T])
         try:
             if not jacobian:
                 tr = simulate(
-                    design, sched, t[-1], dt=self.dt, save_every=1, energy=False, progress=False
+                    design,
+                    sched,
+                    t[-1],
+                    dt=self.dt,
+                    save_every=1,
+                    energy=False,
+                    progress=False,
+                    tensions=None if tensions is None else _rows(tensions, self.dt),
                 )
                 return tr.tip_position_at(np.minimum(t, tr.time[-1])), None
             time, tip, d_tip = tip_sensitivities(
-                design, sched, t[-1], self.dt, [p.core() for p in self.params]
+                design, sched, t[-1], self.dt, [p.core() for p in self.params], tensions
             )
         except ConvergenceError:  # InvalidStateError included
             return None
