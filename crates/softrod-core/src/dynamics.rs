@@ -31,9 +31,7 @@ use crate::interp::GridPchip;
 use crate::law::ogden_energy;
 use crate::ode::{Coeffs, Loads};
 use crate::rod::Rod;
-use crate::statics::constraint::{
-    log_so3, slerp, tmatmul, TipConstraint, ROTATION_TOL,
-};
+use crate::statics::constraint::{log_so3, slerp, tmatmul, TipConstraint, ROTATION_TOL};
 use crate::statics::{self, SolverOptions};
 use crate::validity;
 
@@ -1833,7 +1831,7 @@ impl Simulator {
         let rates = self.rates(&models, &eval, &slots, self.tip_moment);
         let d = self.dissipation(&models, &self.eval, &eval, h);
         let win = 0.5 * h * (books.rates[1] + rates[1] + books.rates[2] + rates[2])
-            + reaction_work(&self.end_now, &end, self.reaction, reaction);
+            + reaction_work(&self.end_now, &end, self.reaction, reaction, w_new);
         books.now = Energy {
             work_in: books.now.work_in + pin + fin + win,
             dissipated: books.now.dissipated + d + self.friction_work(&self.eval, &eval, h),
@@ -2655,7 +2653,9 @@ fn check_end(rod: &Rod, opts: &DynOptions, initial: Initial, c: &TipConstraint) 
             return Ok(());
         };
         // 1e-9 L: a position written out to 10 significant digits passes.
-        let off = (0..3).map(|k| (position[k] - tip[k]).abs()).fold(0.0, f64::max);
+        let off = (0..3)
+            .map(|k| (position[k] - tip[k]).abs())
+            .fold(0.0, f64::max);
         if off > 1e-9 * rod.length {
             return Err(SoftrodError::invalid(
                 "tip_constraint.position",
@@ -2727,21 +2727,25 @@ fn interpolate_pose(a: &TipConstraint, b: &TipConstraint, t: f64) -> TipConstrai
 }
 
 /// The work of the constraint's reaction over a step from pose `a` (reaction `fa`) to `b`
-/// (`fb`): the trapezoid of the reaction along the pose's path, (F_a + F_b)/2 . (r_b - r_a)
-/// + (M_a + M_b)/2 . theta, theta = R_a log(R_a^T R_b) the step's rotation (world); zero
-/// for a pose that does not move (a fixed support does no work).
+/// (`fb`): the reaction the scheme applies over the step, (1 - w) F_a + w F_b with w = 1 +
+/// alpha for BDF-alpha (its balance (1 + alpha) f_{n+1} - alpha f_n; the trapezoid at
+/// alpha = -0.5), along the pose's path: F . (r_b - r_a) + M . theta with
+/// theta = R_a log(R_a^T R_b) the step's rotation (world). Zero for a pose that does not
+/// move (a fixed support does no work).
 fn reaction_work(
     a: &TipConstraint,
     b: &TipConstraint,
     fa: ([f64; 3], [f64; 3]),
     fb: ([f64; 3], [f64; 3]),
+    w_old: f64,
 ) -> f64 {
     if a == b {
         return 0.0;
     }
+    let mix = |x: f64, y: f64| w_old * x + (1.0 - w_old) * y;
     let force = |p: &[f64; 3], q: &[f64; 3]| {
         (0..3)
-            .map(|k| 0.5 * (fa.0[k] + fb.0[k]) * (q[k] - p[k]))
+            .map(|k| mix(fa.0[k], fb.0[k]) * (q[k] - p[k]))
             .sum::<f64>()
     };
     match (a, b) {
@@ -2761,7 +2765,7 @@ fn reaction_work(
             let theta = mat_vec(ra, &log_so3(&tmatmul(ra, rb)));
             force(p, q)
                 + (0..3)
-                    .map(|k| 0.5 * (fa.1[k] + fb.1[k]) * theta[k])
+                    .map(|k| mix(fa.1[k], fb.1[k]) * theta[k])
                     .sum::<f64>()
         }
         _ => 0.0,

@@ -370,6 +370,12 @@ pub fn check_jacobian_against_fd(
 /// Jacobian within 1e-6 of its row's scale (truncation ~h^2, round-off ~1e-16 / h relative to
 /// that scale at h = 1e-6 of each unknown).
 pub fn check_step_jacobian(name: &str, sim: &softrod_core::dynamics::Simulator) {
+    check_step_jacobian_with(name, sim, 1e-6);
+}
+
+/// [`check_step_jacobian`] with central differences of relative step `rel` (truncation
+/// ~rel^2, round-off ~1e-16 / rel: the 1e-6 bound holds for rel in [1e-7, 1e-4]).
+pub fn check_step_jacobian_with(name: &str, sim: &softrod_core::dynamics::Simulator, rel: f64) {
     let z: Vec<f64> = sim
         .unknowns()
         .iter()
@@ -380,7 +386,7 @@ pub fn check_step_jacobian(name: &str, sim: &softrod_core::dynamics::Simulator) 
     let n = z.len();
     let mut worst: f64 = 0.0;
     for j in 0..n {
-        let h = 1e-6 * z[j].abs().max(1e-3);
+        let h = rel * z[j].abs().max(1e-3);
         let (mut zp, mut zm) = (z.clone(), z.clone());
         zp[j] += h;
         zm[j] -= h;
