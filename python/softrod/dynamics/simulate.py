@@ -546,7 +546,7 @@ class Simulation:
                 commands = commands_at(times)
                 loads = _tip_loads(tip_load, times)
                 tens = _tension_rows(self.design, tensions, times)
-                poses = _pose_rows(tip_constraint, times)
+                poses = _pose_rows(tip_constraint, times, str(first["tip_kind"]))
                 kept_commands.append(commands[keep[start:stop] >= 1])
                 parts.append(
                     self._sim.run(
@@ -647,10 +647,11 @@ def _hold_args(held: TipConstraint) -> dict:
     return {"tip_kind": kind, "tip_position": position, "tip_rotation": rotation}
 
 
-def _pose_rows(tip_constraint, times: np.ndarray) -> np.ndarray | None:
+def _pose_rows(tip_constraint, times: np.ndarray, kind: str) -> np.ndarray | None:
     """(n, 12) poses (position m, rotation row-major) of a held tip at the step times, or
     None (hold the tip where it is). ``tip_constraint``: None, a pose held from the next
-    step on, or a function of t (s) returning one (sampled at the step times)."""
+    step on, or a function of t (s) returning one (sampled at the step times); each of the
+    run's ``kind``."""
     if tip_constraint is None:
         return None
 
@@ -659,6 +660,13 @@ def _pose_rows(tip_constraint, times: np.ndarray) -> np.ndarray | None:
             c = coerce_constraint(value)
         except InputError as exc:
             raise design_error(field, value, str(exc), InputError) from None
+        if c.kind != kind:
+            raise design_error(
+                field,
+                c.kind,
+                f"this run's tip is {kind}: give a {kind} pose (the kind is fixed for a run)",
+                InputError,
+            )
         if c.kind == "free":
             return [0.0] * 12
         rot = np.eye(3) if c.rotation is None else np.asarray(c.rotation, dtype=float)
@@ -969,7 +977,7 @@ def _simulate_pcc(
             InputError,
         )
     d = load_design(design)
-    require_free_tip(d, "simulate")
+    require_free_tip(d, "simulate(model='pcc')")
     _no_stiffness_map(d)
     schedule = _schedule(pressure_schedule, d.n_channels)
     step = _seconds(dt, "dt")
