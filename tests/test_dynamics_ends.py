@@ -231,3 +231,22 @@ def test_hypothesis_any_held_run_is_finite_or_refused_by_name(kind, offset, turn
     if kind != "free":
         np.testing.assert_allclose(traj.tip_position[-1], pos, rtol=0, atol=1e-9 * L)
         assert np.all(np.isfinite(traj.tip_reaction_force))
+
+
+def test_cli_simulate_honours_the_design_files_constraint(run, tmp_path):
+    base = load_design("spa_three_chamber_130mm")
+    tip = softrod.solve_statics(base, [0, 0, 0]).tip_position
+    held = base.replace(
+        {"tip": {"constraint": "pinned", "position": [f"{x} m" for x in tip + [0.002, 0, 0]]}}
+    )
+    path = held.save(tmp_path / "held.toml")
+    inp = softrod.PressureSchedule.steps([0.0], [[0, 0, 0]]).write(tmp_path / "p.csv")
+    out = tmp_path / "t.npz"
+    res = run("simulate", path, "--input", inp, "--t-end", "10 ms", "--dt", "2 ms", "--out", out)
+    assert res.exit_code == 0, res.output
+    tr = Trajectory.load(out)
+    assert tr.metadata["tip_constraint"] == "pinned"
+    # The pin holds the tip 2 mm beside where it hangs, to the Newton tolerance.
+    np.testing.assert_allclose(tr.tip_position, np.tile(tip + [0.002, 0, 0], (len(tr.time), 1)),
+                               rtol=0, atol=1e-9)
+    assert np.all(np.isfinite(tr.tip_reaction_force))
