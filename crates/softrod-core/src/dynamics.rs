@@ -21,6 +21,12 @@
 //! energy, work of the inputs, Kelvin-Voigt dissipation) must not show growth beyond
 //! `energy_tol` of the energy moved; a violation stops the run with an error naming the
 //! time, the step and what to change.
+//!
+//! The tip may be held (`Simulator::with_constraint`, docs/dynamics.md "Held tip"): pinned
+//! or clamped at a pose that the caller moves from output step to output step
+//! (`set_tip_pose`); the step's collocation then carries the node positions and replaces
+//! the tip's balance by the pose (`collocation::EndTarget`), the reaction is reported
+//! (`tip_reaction`) and its work along the pose's path enters the energy books.
 
 use crate::collocation::{
     self, EndTarget, Evaluated, Factorization, Grid, NewtonOptions, NewtonStats, NewtonWork,
