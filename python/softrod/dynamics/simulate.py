@@ -659,7 +659,9 @@ def _pose_rows(tip_constraint, times: np.ndarray, kind: str) -> np.ndarray | Non
         try:
             c = coerce_constraint(value)
         except InputError as exc:
-            raise design_error(field, value, str(exc), InputError) from None
+            # tip_constraint.position -> tip_constraint(t = 0.1 s).position
+            at = exc.field.replace("tip_constraint", field, 1) if exc.field else field
+            raise design_error(at, exc.value, exc.rule or str(exc), InputError) from None
         if c.kind != kind:
             raise design_error(
                 field,
@@ -677,6 +679,15 @@ def _pose_rows(tip_constraint, times: np.ndarray, kind: str) -> np.ndarray | Non
     else:
         rows = [row(tip_constraint, "tip_constraint")] * len(times)
     return np.array(rows, dtype=float).reshape(len(times), 12)
+
+
+def coerce_constraint_at0(value) -> str:
+    """The kind of a moving pose's value at t = 0 (errors name ``tip_constraint(t = 0 s)``)."""
+    try:
+        return coerce_constraint(value).kind
+    except InputError as exc:
+        at = (exc.field or "tip_constraint").replace("tip_constraint", "tip_constraint(t = 0 s)", 1)
+        raise design_error(at, exc.value, exc.rule or str(exc), InputError) from None
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
@@ -921,10 +932,7 @@ def simulate(
         tens0 = _tension_rows(d, tensions, np.zeros(1))
         held0 = tip_constraint(0.0) if callable(tip_constraint) else tip_constraint
         if callable(tip_constraint):
-            try:
-                coerce_constraint(held0)
-            except InputError as exc:
-                raise design_error("tip_constraint(t = 0 s)", held0, str(exc), InputError) from None
+            _pose_rows(tip_constraint, np.zeros(1), coerce_constraint_at0(held0))
         sim = Simulation(
             d,
             p0,
