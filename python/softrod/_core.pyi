@@ -189,6 +189,9 @@ class Simulator:
         tip_force: _Vec3 | None = None,
         tip_moment: _Vec3 | None = None,
         tensions: Sequence[float] | None = None,
+        tip_kind: str = "free",
+        tip_position: _Vec3 | None = None,
+        tip_rotation: Sequence[Sequence[float]] | None = None,
     ) -> Simulator: ...
     def save(self) -> _Array: ...
     def restore(self, state: _ArrayLike) -> None: ...
@@ -208,6 +211,12 @@ class Simulator:
     @property
     def stats(self) -> dict[str, int]: ...
     def set_tip_loads(self, force: _Vec3, moment: _Vec3) -> None: ...
+    def set_tip_pose(
+        self,
+        kind: str,
+        position: _Vec3 | None = None,
+        rotation: Sequence[Sequence[float]] | None = None,
+    ) -> None: ...
     def snapshot(self) -> dict[str, Any]: ...
     def run(
         self,
@@ -217,6 +226,7 @@ class Simulator:
         tip_loads: _ArrayLike | None = None,
         schedule: tuple[Sequence[float], Sequence[Sequence[float]], bool] | None = None,
         tensions: _ArrayLike | None = None,
+        tip_poses: _ArrayLike | None = None,
     ) -> dict[str, Any]: ...
 
 @final

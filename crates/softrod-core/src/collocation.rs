@@ -954,6 +954,19 @@ pub struct Problem<'a> {
     /// Contact with the rod's obstacles (dynamics: [`Problem::with_contact`]); None: the
     /// centreline is no unknown.
     pub contact: Option<Contact>,
+    /// A pinned or clamped tip (dynamics: [`Problem::with_end`]); None: a free tip.
+    pub end: Option<EndTarget>,
+}
+
+/// The pose a constrained tip is held at (docs/model.md, "End constraints"): its position
+/// (world, m) and, for a clamped tip, its rotation (row-major, tip frame as columns). The
+/// tip's force balance becomes (r(L) - r_c)/L = 0 (the node positions join the unknowns,
+/// as with contact); a clamped tip's moment balance becomes e(R_c^T R(L)) = 0 with
+/// e(A) = vee(A - A^T)/2, as in the statics (`crate::statics::constraint`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EndTarget {
+    pub position: [f64; 3],
+    pub rotation: Option<[[f64; 3]; 3]>,
 }
 
 /// The scales of a point's unknowns for a rod and a time integrator's c0: quaternion 1,
@@ -1013,7 +1026,41 @@ impl<'a> Problem<'a> {
             ms: force_scale(rod) * rod.length,
             base_q: quaternion(&rod.base_rotation),
             contact: None,
+            end: None,
         }
+    }
+
+    /// This problem with the tip held at `end` (None: free, unchanged).
+    pub fn with_end(mut self, end: Option<EndTarget>) -> Self {
+        self.end = end;
+        self
+    }
+
+    /// The node positions are unknowns: with contact or a constrained tip.
+    pub fn has_positions(&self) -> bool {
+        self.contact.is_some() || self.end.is_some()
+    }
+
+    /// The free tip's balance (force N, moment N m, world) at the solution `z`: the wrench
+    /// the constraint applies to the tip (zero for a free tip; the moment is zero for a
+    /// pinned tip, whose moment balance is one of the equations).
+    pub fn tip_reaction(&self, z: &[f64]) -> ([f64; 3], [f64; 3]) {
+        let Some(end) = self.end else {
+            return ([0.0; 3], [0.0; 3]);
+        };
+        let n = self.grid.len();
+        let y = self.node(z, n);
+        let r = self.position(z, n);
+        let t = self.free_tip(self.contact.as_ref(), &y, &r);
+        let force = std::array::from_fn(|k| t[k] * self.fs);
+        let moment = std::array::from_fn(|k| {
+            if end.rotation.is_some() {
+                t[3 + k] * self.ms
+            } else {
+                0.0
+            }
+        });
+        (force, moment)
     }
 
     /// This problem with contact against the rod's obstacles (none: unchanged): the node
@@ -1024,10 +1071,10 @@ impl<'a> Problem<'a> {
     }
 
     /// Length of the unknown (and residual) vector: [`Grid::unknowns`], then with contact
-    /// the 3 N node positions r_1 .. r_N.
+    /// or a constrained tip the 3 N node positions r_1 .. r_N.
     pub fn unknowns(&self) -> usize {
         self.grid.unknowns()
-            + if self.contact.is_some() {
+            + if self.has_positions() {
                 3 * self.grid.len()
             } else {
                 0
@@ -1105,8 +1152,8 @@ impl<'a> Problem<'a> {
 
     #[inline(always)]
     fn residual_impl(&self, z: &[f64], out: &mut [f64], mut fields: Option<&mut [[f64; NF]]>) {
-        if let Some(c) = &self.contact {
-            return self.contact_residual(c, z, out, fields);
+        if self.has_positions() {
+            return self.contact_residual(self.contact.as_ref(), z, out, fields);
         }
         let inv: [f64; NY] = self.scale.map(|s| 1.0 / s);
         let mut yj = self.node(z, 0);
@@ -1175,9 +1222,9 @@ impl<'a> Problem<'a> {
     pub fn dense_jacobian(&self, z: &[f64]) -> Vec<Vec<f64>> {
         let n = z.len();
         let mut jac = vec![vec![0.0; n]; n];
-        if let Some(c) = &self.contact {
+        if self.has_positions() {
             let n_int = self.grid.len();
-            self.contact_jacobian(c, z, |row, col, v| {
+            self.contact_jacobian(self.contact.as_ref(), z, |row, col, v| {
                 jac[full_to_residual(n_int, row)][full_to_unknown(n_int, col)] += v;
             });
             return jac;
@@ -1306,8 +1353,8 @@ impl<'a> Problem<'a> {
 
     #[inline(always)]
     fn factorize_impl(&self, z: &[f64]) -> Option<Factorization> {
-        if let Some(c) = &self.contact {
-            return self.contact_factorize(c, z);
+        if self.has_positions() {
+            return self.contact_factorize(z);
         }
         let n_int = self.grid.len();
         let mut blocks = Vec::with_capacity(n_int);
@@ -2173,7 +2220,7 @@ impl Problem<'_> {
     /// (which the position equations then hold exactly).
     pub fn with_positions(&self, mut z: Vec<f64>) -> Vec<f64> {
         z.truncate(self.grid.unknowns());
-        if self.contact.is_some() {
+        if self.has_positions() {
             let eval = self.evaluate(&z);
             for r in &eval.node_r[1..] {
                 z.extend(r.iter().map(|x| x / self.rod.length));

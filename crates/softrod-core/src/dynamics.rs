@@ -21,16 +21,23 @@
 //! energy, work of the inputs, Kelvin-Voigt dissipation) must not show growth beyond
 //! `energy_tol` of the energy moved; a violation stops the run with an error naming the
 //! time, the step and what to change.
+//!
+//! The tip may be held (`Simulator::with_constraint`, docs/dynamics.md "Held tip"): pinned
+//! or clamped at a pose that the caller moves from output step to output step
+//! (`set_tip_pose`); the step's collocation then carries the node positions and replaces
+//! the tip's balance by the pose (`collocation::EndTarget`), the reaction is reported
+//! (`tip_reaction`) and its work along the pose's path enters the energy books.
 
 use crate::collocation::{
-    self, Evaluated, Factorization, Grid, NewtonOptions, NewtonStats, NewtonWork, Problem,
-    SectionModel, TipBody, GAUSS_B, NF, NY,
+    self, EndTarget, Evaluated, Factorization, Grid, NewtonOptions, NewtonStats, NewtonWork,
+    Problem, SectionModel, TipBody, GAUSS_B, NF, NY,
 };
 use crate::error::{Result, SoftrodError};
 use crate::interp::GridPchip;
 use crate::law::ogden_energy;
 use crate::ode::{Coeffs, Loads};
 use crate::rod::Rod;
+use crate::statics::constraint::{log_so3, slerp, tmatmul, TipConstraint, ROTATION_TOL};
 use crate::statics::{self, SolverOptions};
 use crate::validity;
 
@@ -538,6 +545,8 @@ struct JacKey {
     sigma: [f64; 3],
     c0: f64,
     hist: Vec<[f64; FIELDS]>,
+    /// The tip's pose (a clamped tip's rotation enters the Jacobian).
+    end: TipConstraint,
 }
 
 #[derive(Debug, Clone)]
@@ -598,6 +607,12 @@ pub struct Simulator {
     initial: Initial,
     /// Forward parameter sensitivities, when tracked (`sensitivity`).
     sens: Option<Box<sensitivity::Tracker>>,
+    /// How the tip is held: the pose at the end of the next output step (set with
+    /// `set_tip_pose`), and the pose now (that of the last step taken).
+    end: TipConstraint,
+    end_now: TipConstraint,
+    /// The wrench the constraint applies to the tip now (world), N and N m.
+    reaction: ([f64; 3], [f64; 3]),
     pub stats: DynStats,
 }
 
@@ -706,6 +721,9 @@ struct Candidate {
     bdf: Bdf,
     hist: Vec<[f64; FIELDS]>,
     z_scaled: Vec<f64>,
+    /// The tip's pose at the step's end and the constraint's reaction there.
+    end: TipConstraint,
+    reaction: ([f64; 3], [f64; 3]),
 }
 
 impl Simulator {
@@ -756,6 +774,30 @@ impl Simulator {
         tip_force: [f64; 3],
         tip_moment: [f64; 3],
     ) -> Result<Self> {
+        let free = TipConstraint::Free;
+        Self::with_constraint(
+            rod, pressures, tensions, initial, opts, sigma_map, tip_force, tip_moment, free,
+        )
+    }
+
+    /// [`Simulator::with_tensions`] with the tip held by `constraint` (docs/model.md, "End
+    /// constraints"): pinned or clamped at the given pose at t = 0, moved from step to step
+    /// with [`Simulator::set_tip_pose`]. A 'static' start is the constrained equilibrium
+    /// (`statics::constraint::solve_constrained`); a 'straight' one needs the pose of the
+    /// straight rod's tip. Not with obstacles nor the midpoint scheme (refused by name).
+    #[allow(clippy::too_many_arguments)]
+    pub fn with_constraint(
+        rod: Rod,
+        pressures: &[f64],
+        tensions: &[f64],
+        initial: Initial,
+        opts: DynOptions,
+        sigma_map: SigmaMap,
+        tip_force: [f64; 3],
+        tip_moment: [f64; 3],
+        constraint: TipConstraint,
+    ) -> Result<Self> {
+        check_end(&rod, &opts, initial, &constraint)?;
         for (name, v) in [("tip_force", &tip_force), ("tip_moment", &tip_moment)] {
             if !v.iter().all(|x| x.is_finite()) {
                 return Err(SoftrodError::invalid(
@@ -824,6 +866,9 @@ impl Simulator {
             scales: vec![],
             initial,
             sens: None,
+            end: constraint,
+            end_now: constraint,
+            reaction: ([0.0; 3], [0.0; 3]),
             stats: DynStats::default(),
             grid,
             rod,
@@ -906,7 +951,9 @@ impl Simulator {
         let hist0 = vec![zero; self.slots.len()];
         let models = self.models_at(&self.pressures, &self.tensions, &self.sigma, 0.0);
         let tip = self.tip_body(self.tip_force, self.tip_moment);
-        let problem = Problem::new(&self.rod, &self.grid, &models, 0.0, &hist0, tip).with_contact();
+        let problem = Problem::new(&self.rod, &self.grid, &models, 0.0, &hist0, tip)
+            .with_contact()
+            .with_end(end_target(&self.end));
         let loads = Loads {
             pressures: self.pressures.clone(),
             tensions: self.tensions.clone(),
@@ -916,13 +963,44 @@ impl Simulator {
             stiffness_scale: self.sigma,
         };
         let z_scaled = match initial {
+            Initial::Static if problem.end.is_some() => {
+                // The constrained equilibrium of this discretisation at rest (c0 = 0), from
+                // the static solver's (shooting, the same constraint).
+                let sol = statics::constraint::solve_constrained(
+                    &self.rod,
+                    &loads,
+                    &self.end,
+                    None,
+                    &SolverOptions::default(),
+                )
+                .map_err(|e| e.map_message(|m| format!("the initial static state: {m}")))?;
+                let mut z = static_guess(&problem, &sol.shape);
+                let nopts = NewtonOptions {
+                    tol: self.opts.tol.min(1e-10),
+                    max_iter: 100,
+                };
+                let mut ns = NewtonStats::default();
+                collocation::newton(&problem, &mut z, &mut None, &nopts, &mut ns).map_err(
+                    |(iterations, residual)| SoftrodError::NotConverged {
+                        iterations,
+                        residual,
+                        load_factor: 1.0,
+                        reason: format!(
+                            "the initial static state with a {} tip did not solve",
+                            self.end.name()
+                        ),
+                    },
+                )?;
+                self.stats.newton_iterations += ns.iterations;
+                z
+            }
             Initial::Static if problem.contact.is_some() => {
                 // Equilibrium in contact: this discretisation's static problem with the
                 // contact loads (c0 = 0), from the static solver's (shooting, contact
                 // too) shape.
                 let mut z = statics::solve(&self.rod, &loads, None, &SolverOptions::default())
                     .ok()
-                    .map(|sol| static_guess(&self.rod, &problem, &loads, &sol))
+                    .map(|sol| static_guess(&problem, &statics::shape(&self.rod, &loads, &sol)))
                     .unwrap_or_else(|| problem.straight_unknowns());
                 let nopts = NewtonOptions {
                     tol: self.opts.tol.min(1e-10),
@@ -945,7 +1023,7 @@ impl Simulator {
                 // the static solver's solution (which picks shooting or collocation).
                 let guess = statics::solve(&self.rod, &loads, None, &SolverOptions::default())
                     .ok()
-                    .map(|sol| static_guess(&self.rod, &problem, &loads, &sol));
+                    .map(|sol| static_guess(&problem, &statics::shape(&self.rod, &loads, &sol)));
                 let opts = SolverOptions {
                     tol: self.opts.tol.min(1e-10),
                     ..SolverOptions::default()
@@ -1008,10 +1086,12 @@ impl Simulator {
             }
             *slot = Slot { x1: *f, x2: *f, xt };
         }
-        if initial == Initial::Straight {
+        if initial == Initial::Straight && self.end == TipConstraint::Free {
+            // (A held tip does not accelerate.)
             let gb = mat_t_vec(&self.rod.base_rotation, &self.rod.gravity);
             self.slots[n - 1].xt[6..9].copy_from_slice(&gb);
         }
+        self.reaction = problem.tip_reaction(&z_scaled);
         self.check_state(&eval, &self.z.clone())?;
         self.models = models;
         self.models_c0 = 0.0;
@@ -1562,6 +1642,10 @@ impl Simulator {
                 std::array::from_fn(|k| bdf.c1 * s.x1[k] + bdf.c2 * s.x2[k] + bdf.d1 * s.xt[k])
             })
             .collect();
+        // The tip's pose at t_new: the set pose at the output step's end, interpolated
+        // from the pose now (linear in position, geodesic in rotation) inside it.
+        let t_end = (self.stats.steps + 1) as f64 * self.opts.dt;
+        let end = interpolate_pose(&self.end_now, &self.end, h / (t_end - self.time));
         let problem = step_problem(
             &self.rod,
             &self.grid,
@@ -1570,7 +1654,8 @@ impl Simulator {
             bdf.c0,
             &hist,
             tip,
-        );
+        )
+        .with_end(end_target(&end));
         // Predictor. BDF-alpha damps the unresolved modes: linear extrapolation. The
         // trapezoidal and midpoint rules keep them, flipping sign every step
         // (amplification -> -1 for omega h >> 1): z_n + z_{n-1} - z_{n-2} extrapolates
@@ -1645,6 +1730,7 @@ impl Simulator {
                     sigma: solve_sigma,
                     c0: bdf.c0,
                     hist: hist.clone(),
+                    end,
                 },
             };
             Cached { fac, key }
@@ -1665,6 +1751,7 @@ impl Simulator {
         } else {
             problem.evaluate(&z)
         };
+        let reaction = problem.tip_reaction(&z);
         let zp: Vec<f64> = z.iter().zip(&self.scales).map(|(a, b)| a * b).collect();
         let (eval, models) = if midpoint {
             let models_new = if self.models_c0 == bdf.c0
@@ -1747,7 +1834,8 @@ impl Simulator {
             .sum::<f64>();
         let rates = self.rates(&models, &eval, &slots, self.tip_moment);
         let d = self.dissipation(&models, &self.eval, &eval, h);
-        let win = 0.5 * h * (books.rates[1] + rates[1] + books.rates[2] + rates[2]);
+        let win = 0.5 * h * (books.rates[1] + rates[1] + books.rates[2] + rates[2])
+            + reaction_work(&self.end_now, &end, self.reaction, reaction, w_new);
         books.now = Energy {
             work_in: books.now.work_in + pin + fin + win,
             dissipated: books.now.dissipated + d + self.friction_work(&self.eval, &eval, h),
@@ -1810,6 +1898,8 @@ impl Simulator {
             bdf,
             hist,
             z_scaled: z,
+            end,
+            reaction,
         })
     }
 
@@ -1963,6 +2053,8 @@ impl Simulator {
         self.books = c.books;
         self.step_tip = (self.tip_force, self.tip_moment);
         self.step_tensions.clone_from(&self.tensions);
+        self.end_now = c.end;
+        self.reaction = c.reaction;
         self.stats.internal_steps += 1;
     }
 
@@ -1993,7 +2085,8 @@ impl Simulator {
             bdf.c0,
             &hist,
             tip,
-        );
+        )
+        .with_end(end_target(&self.end));
         let zs = to_scaled(&p, z);
         let n = zs.len();
         let mut r = vec![0.0; n];
@@ -2139,7 +2232,8 @@ impl Simulator {
 }
 
 /// Layout version of [`Simulator::save`].
-const STATE_VERSION: f64 = 3.0;
+/// 4: the tip constraint (its pose next and now, the reaction, the kept matrix's pose).
+const STATE_VERSION: f64 = 4.0;
 /// First number of a saved state ("softrod" in a number; guards against foreign arrays).
 const STATE_MAGIC: f64 = 50_770_213.0;
 
@@ -2245,6 +2339,10 @@ impl Simulator {
         w.all(&self.step_tip.1);
         w.vec(&self.tensions);
         w.vec(&self.step_tensions);
+        w.all(&pose_numbers(&self.end));
+        w.all(&pose_numbers(&self.end_now));
+        w.all(&self.reaction.0);
+        w.all(&self.reaction.1);
         w.vec(&self.z);
         w.vec(&self.z_prev);
         w.vec(&self.z_prev2);
@@ -2307,6 +2405,7 @@ impl Simulator {
                 w.all(&c.key.sigma);
                 w.f(c.key.c0);
                 w.arrays(&c.key.hist);
+                w.all(&pose_numbers(&c.key.end));
             }
         }
         w.0
@@ -2353,6 +2452,9 @@ impl Simulator {
                 next.tensions.len()
             )));
         }
+        next.end = self.saved_pose(r.fixed()?)?;
+        next.end_now = self.saved_pose(r.fixed()?)?;
+        next.reaction = (r.fixed()?, r.fixed()?);
         next.z = r.vec()?;
         next.z_prev = r.vec()?;
         next.z_prev2 = r.vec()?;
@@ -2421,6 +2523,7 @@ impl Simulator {
                 sigma: r.fixed()?,
                 c0: r.f()?,
                 hist: r.arrays()?,
+                end: self.saved_pose(r.fixed()?)?,
             };
             if key.at.len() != self.z.len()
                 || key.pressures.len() != nc
@@ -2439,7 +2542,8 @@ impl Simulator {
                 key.c0,
                 &key.hist,
                 tip,
-            );
+            )
+            .with_end(end_target(&key.end));
             if let Some(fac) = p.factorize(&key.at) {
                 next.cache = Some(Cached { fac, key });
             }
@@ -2460,6 +2564,237 @@ impl Simulator {
         *self = next;
         Ok(())
     }
+}
+
+impl Simulator {
+    /// Move a held tip: its pose at the end of the next output step (the kind of the run's
+    /// constraint, checked before anything changes); steps inside the output step
+    /// (substeps, adaptive steps) take the pose interpolated from the pose now, linear in
+    /// position and along the geodesic in rotation.
+    pub fn set_tip_pose(&mut self, pose: TipConstraint) -> Result<()> {
+        pose.validate()?;
+        if pose.name() != self.end.name() {
+            return Err(SoftrodError::invalid(
+                "tip_constraint",
+                pose.name(),
+                format!(
+                    "this run's tip is {}: give a {} pose (the kind of constraint is fixed for a run)",
+                    self.end.name(),
+                    self.end.name()
+                ),
+            ));
+        }
+        self.end = pose;
+        Ok(())
+    }
+
+    /// How the tip is held now (its pose at the current time).
+    pub fn tip_constraint(&self) -> TipConstraint {
+        self.end_now
+    }
+
+    /// The force (N) and moment (N m) the constraint applies to the tip now, world frame:
+    /// what is left of the free tip's balance n(L) = F + W, m(L) = M + ... (zero for a free
+    /// tip; zero moment for a pinned one).
+    pub fn tip_reaction(&self) -> ([f64; 3], [f64; 3]) {
+        self.reaction
+    }
+
+    /// A pose read back from a saved state: of this run's kind.
+    fn saved_pose(&self, x: [f64; 13]) -> Result<TipConstraint> {
+        let position = [x[1], x[2], x[3]];
+        let rotation = std::array::from_fn(|i| std::array::from_fn(|j| x[4 + 3 * i + j]));
+        let pose = match x[0] {
+            0.0 => TipConstraint::Free,
+            1.0 => TipConstraint::Pinned { position },
+            2.0 => TipConstraint::Clamped { position, rotation },
+            _ => return Err(bad_state("holds an unknown tip constraint")),
+        };
+        if pose.name() != self.end.name() {
+            return Err(bad_state(format!(
+                "was saved from a run with a {} tip; this simulation's tip is {}",
+                pose.name(),
+                self.end.name()
+            )));
+        }
+        Ok(pose)
+    }
+}
+
+/// Refuse a tip constraint that the dynamics cannot carry, or a 'straight' start that does
+/// not satisfy it (fields named).
+fn check_end(rod: &Rod, opts: &DynOptions, initial: Initial, c: &TipConstraint) -> Result<()> {
+    c.validate()?;
+    if *c == TipConstraint::Free {
+        return Ok(());
+    }
+    let held = format!("a {} tip", c.name());
+    if !rod.spec.obstacles.is_empty() {
+        return Err(SoftrodError::invalid(
+            "tip_constraint",
+            c.name(),
+            format!("{held} with obstacles is not supported (in statics neither): remove the obstacles or free the tip"),
+        ));
+    }
+    if opts.scheme == Scheme::Midpoint {
+        return Err(SoftrodError::invalid(
+            "scheme",
+            opts.scheme.name(),
+            format!("{held} is implemented for 'bdf-alpha' (the midpoint rule rebuilds the shape from the base and would not keep the tip's pose)"),
+        ));
+    }
+    if initial == Initial::Straight {
+        // The straight rod at rest: tip at r_0 + L d3(0), frame R_0.
+        let r0 = rod.base_position;
+        let d3 = [
+            rod.base_rotation[0][2],
+            rod.base_rotation[1][2],
+            rod.base_rotation[2][2],
+        ];
+        let tip: [f64; 3] = std::array::from_fn(|k| r0[k] + rod.length * d3[k]);
+        let (TipConstraint::Pinned { position } | TipConstraint::Clamped { position, .. }) = c
+        else {
+            return Ok(());
+        };
+        // 1e-9 L: a position written out to 10 significant digits passes.
+        let off = (0..3)
+            .map(|k| (position[k] - tip[k]).abs())
+            .fold(0.0, f64::max);
+        if off > 1e-9 * rod.length {
+            return Err(SoftrodError::invalid(
+                "tip_constraint.position",
+                format!("{position:?}"),
+                format!("the 'straight' start is at rest in the straight shape, whose tip is at {tip:?} m ({off:.3e} m away): hold the tip there at t = 0 or start 'static'"),
+            ));
+        }
+        if let TipConstraint::Clamped { rotation, .. } = c {
+            let a = tmatmul(rotation, &rod.base_rotation);
+            let off = (0..3)
+                .flat_map(|i| (0..3).map(move |j| (i, j)))
+                .map(|(i, j)| (a[i][j] - if i == j { 1.0 } else { 0.0 }).abs())
+                .fold(0.0, f64::max);
+            if off > ROTATION_TOL {
+                return Err(SoftrodError::invalid(
+                    "tip_constraint.orientation",
+                    format!("{rotation:?}"),
+                    "the 'straight' start is at rest in the straight shape, whose tip frame is the base's: clamp the tip in the base's orientation at t = 0 or start 'static'",
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The collocation's target of a constrained tip (None: free).
+fn end_target(c: &TipConstraint) -> Option<EndTarget> {
+    match *c {
+        TipConstraint::Free => None,
+        TipConstraint::Pinned { position } => Some(EndTarget {
+            position,
+            rotation: None,
+        }),
+        TipConstraint::Clamped { position, rotation } => Some(EndTarget {
+            position,
+            rotation: Some(rotation),
+        }),
+    }
+}
+
+/// The pose a fraction `t` of the way from `a` to `b` (same kind): linear in position,
+/// along the geodesic in rotation; `b` itself at t >= 1.
+fn interpolate_pose(a: &TipConstraint, b: &TipConstraint, t: f64) -> TipConstraint {
+    if t >= 1.0 || a == b {
+        return *b;
+    }
+    let lerp = |p: &[f64; 3], q: &[f64; 3]| std::array::from_fn(|k| p[k] + t * (q[k] - p[k]));
+    match (a, b) {
+        (TipConstraint::Pinned { position: p }, TipConstraint::Pinned { position: q }) => {
+            TipConstraint::Pinned {
+                position: lerp(p, q),
+            }
+        }
+        (
+            TipConstraint::Clamped {
+                position: p,
+                rotation: ra,
+            },
+            TipConstraint::Clamped {
+                position: q,
+                rotation: rb,
+            },
+        ) => TipConstraint::Clamped {
+            position: lerp(p, q),
+            rotation: slerp(ra, rb, t),
+        },
+        _ => *b,
+    }
+}
+
+/// The work of the constraint's reaction over a step from pose `a` (reaction `fa`) to `b`
+/// (`fb`): the reaction the scheme applies over the step, (1 - w) F_a + w F_b with w = 1 +
+/// alpha for BDF-alpha (its balance (1 + alpha) f_{n+1} - alpha f_n; the trapezoid at
+/// alpha = -0.5), along the pose's path: F . (r_b - r_a) + M . theta with
+/// theta = R_a log(R_a^T R_b) the step's rotation (world). Zero for a pose that does not
+/// move (a fixed support does no work).
+fn reaction_work(
+    a: &TipConstraint,
+    b: &TipConstraint,
+    fa: ([f64; 3], [f64; 3]),
+    fb: ([f64; 3], [f64; 3]),
+    w_old: f64,
+) -> f64 {
+    if a == b {
+        return 0.0;
+    }
+    let mix = |x: f64, y: f64| w_old * x + (1.0 - w_old) * y;
+    let force = |p: &[f64; 3], q: &[f64; 3]| {
+        (0..3)
+            .map(|k| mix(fa.0[k], fb.0[k]) * (q[k] - p[k]))
+            .sum::<f64>()
+    };
+    match (a, b) {
+        (TipConstraint::Pinned { position: p }, TipConstraint::Pinned { position: q }) => {
+            force(p, q)
+        }
+        (
+            TipConstraint::Clamped {
+                position: p,
+                rotation: ra,
+            },
+            TipConstraint::Clamped {
+                position: q,
+                rotation: rb,
+            },
+        ) => {
+            let theta = mat_vec(ra, &log_so3(&tmatmul(ra, rb)));
+            force(p, q)
+                + (0..3)
+                    .map(|k| mix(fa.1[k], fb.1[k]) * theta[k])
+                    .sum::<f64>()
+        }
+        _ => 0.0,
+    }
+}
+
+/// A pose as 13 numbers for a saved state: kind (0 free, 1 pinned, 2 clamped), position,
+/// rotation (row-major; zeros where absent).
+fn pose_numbers(c: &TipConstraint) -> [f64; 13] {
+    let mut x = [0.0; 13];
+    match c {
+        TipConstraint::Free => {}
+        TipConstraint::Pinned { position } => {
+            x[0] = 1.0;
+            x[1..4].copy_from_slice(position);
+        }
+        TipConstraint::Clamped { position, rotation } => {
+            x[0] = 2.0;
+            x[1..4].copy_from_slice(position);
+            for i in 0..3 {
+                x[4 + 3 * i..7 + 3 * i].copy_from_slice(&rotation[i]);
+            }
+        }
+    }
+    x
 }
 
 /// Tip state of a simulation.
@@ -2608,8 +2943,7 @@ fn table_energy(table: &crate::law::AxialTable, s: f64, v3: f64) -> f64 {
 
 /// An initial guess of the static collocation problem from a shooting solution: its node
 /// states (the grids share their nodes), with quaternion signs kept continuous.
-fn static_guess(rod: &Rod, p: &Problem, loads: &Loads, sol: &statics::Solution) -> Vec<f64> {
-    let shape = statics::shape(rod, loads, sol);
+fn static_guess(p: &Problem, shape: &statics::Shape) -> Vec<f64> {
     let mut nodes: Vec<[f64; NY]> = Vec::with_capacity(shape.s.len());
     let mut last = p.base_q;
     for k in 0..shape.s.len() {

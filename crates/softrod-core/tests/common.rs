@@ -370,6 +370,12 @@ pub fn check_jacobian_against_fd(
 /// Jacobian within 1e-6 of its row's scale (truncation ~h^2, round-off ~1e-16 / h relative to
 /// that scale at h = 1e-6 of each unknown).
 pub fn check_step_jacobian(name: &str, sim: &softrod_core::dynamics::Simulator) {
+    check_step_jacobian_with(name, sim, 1e-6);
+}
+
+/// [`check_step_jacobian`] with central differences of relative step `rel` (truncation
+/// ~rel^2, round-off ~1e-16 / rel: the 1e-6 bound holds for rel in [1e-7, 1e-4]).
+pub fn check_step_jacobian_with(name: &str, sim: &softrod_core::dynamics::Simulator, rel: f64) {
     let z: Vec<f64> = sim
         .unknowns()
         .iter()
@@ -380,7 +386,7 @@ pub fn check_step_jacobian(name: &str, sim: &softrod_core::dynamics::Simulator) 
     let n = z.len();
     let mut worst: f64 = 0.0;
     for j in 0..n {
-        let h = 1e-6 * z[j].abs().max(1e-3);
+        let h = rel * z[j].abs().max(1e-3);
         let (mut zp, mut zm) = (z.clone(), z.clone());
         zp[j] += h;
         zm[j] -= h;
@@ -592,4 +598,62 @@ pub fn ea_table_law() -> LawSpec {
         },
         ..Default::default()
     }
+}
+
+/// The tip conditions of [`timoshenko_first_frequency`]: indices into (w, psi, M, V) that
+/// vanish at s = L. Free: M = V = 0.
+pub const TIMOSHENKO_FREE: [usize; 2] = [2, 3];
+/// Pinned: w = M = 0.
+pub const TIMOSHENKO_PINNED: [usize; 2] = [0, 2];
+/// Clamped: w = psi = 0.
+pub const TIMOSHENKO_CLAMPED: [usize; 2] = [0, 1];
+
+/// First natural frequency (rad/s) of a uniform linear Timoshenko beam of length `l`
+/// clamped at s = 0 (shear coefficient 1, the Cosserat rod's c_s = 1, with rotary inertia),
+/// `k` = [EI, GA, rho A, rho I], with the tip conditions `tip`
+/// ([`TIMOSHENKO_FREE`], ...): shooting its ODE in s with RK4 (4000 steps) from the two
+/// base states (M, V) = (1, 0), (0, 1) and bisecting on the determinant of the tip
+/// conditions, in a bracket about the Euler-Bernoulli frequency of `beta1_l`:
+///   w' = psi + V/(GA),  psi' = M/EI,  M' = -V - rho I om^2 psi,  V' = -rho A om^2 w.
+pub fn timoshenko_first_frequency(l: f64, k: [f64; 4], beta1_l: f64, tip: [usize; 2]) -> f64 {
+    let [ei, ga, ra, ri] = k;
+    let det = |om: f64| -> f64 {
+        let f = |z: [f64; 4]| -> [f64; 4] {
+            [
+                z[1] + z[3] / ga,
+                z[2] / ei,
+                -z[3] - ri * om * om * z[1],
+                -ra * om * om * z[0],
+            ]
+        };
+        let n = 4000;
+        let h = l / n as f64;
+        let run = |mut z: [f64; 4]| {
+            for _ in 0..n {
+                let k1 = f(z);
+                let k2 = f(std::array::from_fn(|j| z[j] + 0.5 * h * k1[j]));
+                let k3 = f(std::array::from_fn(|j| z[j] + 0.5 * h * k2[j]));
+                let k4 = f(std::array::from_fn(|j| z[j] + h * k3[j]));
+                for j in 0..4 {
+                    z[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
+                }
+            }
+            z
+        };
+        let za = run([0.0, 0.0, 1.0, 0.0]);
+        let zb = run([0.0, 0.0, 0.0, 1.0]);
+        za[tip[0]] * zb[tip[1]] - za[tip[1]] * zb[tip[0]]
+    };
+    let eb = beta1_l.powi(2) * (ei / (ra * l.powi(4))).sqrt();
+    let (mut lo, mut hi) = (0.9 * eb, 1.01 * eb);
+    assert!(det(lo) * det(hi) < 0.0, "bracket the first root");
+    for _ in 0..80 {
+        let mid = 0.5 * (lo + hi);
+        if det(lo) * det(mid) <= 0.0 {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    0.5 * (lo + hi)
 }

@@ -32,55 +32,18 @@ fn cantilever(steps: usize, tau: f64) -> Rod {
 }
 
 /// First natural frequency of the linear Timoshenko cantilever (shear coefficient 1, the
-/// Cosserat rod's c_s = 1, with rotary inertia), by shooting its ODE in s with RK4 and
-/// bisecting on the determinant of the free-end conditions:
-///   w' = psi + V/(GA),  psi' = M/EI,  M' = -V - rho I om^2 psi,  V' = -rho A om^2 w.
+/// Cosserat rod's c_s = 1, with rotary inertia): `common::timoshenko_first_frequency`.
 fn timoshenko_first_frequency() -> f64 {
     let (a, i) = (
         std::f64::consts::PI * R * R,
         std::f64::consts::PI * R.powi(4) / 4.0,
     );
-    let (ei, ga) = (E * i, E / 3.0 * a);
-    let (ra, ri) = (RHO * a, RHO * i);
-    let det = |om: f64| -> f64 {
-        let f = |z: [f64; 4]| -> [f64; 4] {
-            [
-                z[1] + z[3] / ga,
-                z[2] / ei,
-                -z[3] - ri * om * om * z[1],
-                -ra * om * om * z[0],
-            ]
-        };
-        let n = 4000;
-        let h = L / n as f64;
-        let run = |mut z: [f64; 4]| {
-            for _ in 0..n {
-                let k1 = f(z);
-                let k2 = f(std::array::from_fn(|j| z[j] + 0.5 * h * k1[j]));
-                let k3 = f(std::array::from_fn(|j| z[j] + 0.5 * h * k2[j]));
-                let k4 = f(std::array::from_fn(|j| z[j] + h * k3[j]));
-                for j in 0..4 {
-                    z[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
-                }
-            }
-            z
-        };
-        let za = run([0.0, 0.0, 1.0, 0.0]);
-        let zb = run([0.0, 0.0, 0.0, 1.0]);
-        za[2] * zb[3] - za[3] * zb[2]
-    };
-    let eb = 1.875104068712f64.powi(2) * (ei / (ra * L.powi(4))).sqrt();
-    let (mut lo, mut hi) = (0.9 * eb, 1.01 * eb);
-    assert!(det(lo) * det(hi) < 0.0, "bracket the first root");
-    for _ in 0..80 {
-        let mid = 0.5 * (lo + hi);
-        if det(lo) * det(mid) <= 0.0 {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
-    0.5 * (lo + hi)
+    common::timoshenko_first_frequency(
+        L,
+        [E * i, E / 3.0 * a, RHO * a, RHO * i],
+        1.875104068712,
+        TIMOSHENKO_FREE,
+    )
 }
 
 /// Tip deflection along x after release from a static tip load, sampled every step.

@@ -8,6 +8,7 @@ use pyo3::types::PyDict;
 use softrod_core::dynamics::{CommandSchedule, DynOptions, Initial, Scheme, SigmaMap, Simulator};
 use softrod_core::interp::GridPchip;
 use softrod_core::sensitivity::{Param, ParamKind};
+use softrod_core::statics::constraint::TipConstraint;
 use softrod_core::{Rod, SoftrodError};
 
 /// A running simulation of a design (see `softrod.dynamics`).
@@ -26,6 +27,9 @@ struct Saved {
     tip_position: Vec<[f64; 3]>,
     tip_rotation: Vec<[[f64; 3]; 3]>,
     tip_velocity: Vec<[f64; 3]>,
+    /// The wrench a pinned or clamped tip's constraint applies (world, N and N m).
+    tip_reaction_force: Vec<[f64; 3]>,
+    tip_reaction_moment: Vec<[f64; 3]>,
     energy: Vec<f64>,
     /// kinetic, elastic, potential, work in, dissipated (J) per sample.
     books: Vec<[f64; 5]>,
@@ -49,6 +53,9 @@ impl Saved {
         self.tip_position.push(tip.r);
         self.tip_rotation.push(tip.rot);
         self.tip_velocity.push(sim.tip_velocity());
+        let (rf, rm) = sim.tip_reaction();
+        self.tip_reaction_force.push(rf);
+        self.tip_reaction_moment.push(rm);
         let b = sim.energy_books();
         self.energy.push(if energy { b.total() } else { f64::NAN });
         self.books.push(if energy {
@@ -94,6 +101,11 @@ impl Saved {
         d.set_item("tip_position", array2(py, &self.tip_position)?)?;
         d.set_item("tip_rotation", array3(py, &self.tip_rotation)?)?;
         d.set_item("tip_velocity", array2(py, &self.tip_velocity)?)?;
+        d.set_item("tip_reaction_force", array2(py, &self.tip_reaction_force)?)?;
+        d.set_item(
+            "tip_reaction_moment",
+            array2(py, &self.tip_reaction_moment)?,
+        )?;
         d.set_item("energy", PyArray1::from_vec(py, self.energy))?;
         for (k, name) in ["kinetic", "elastic", "potential", "work_in", "dissipated"]
             .iter()
@@ -130,9 +142,11 @@ impl PySimulator {
     /// `scheme`: "bdf-alpha" or "midpoint"; `error_tol` (m): adaptive steps; `sigma_const`
     /// or `sigma_grid` = (axes, values, clamp): the stiffness map of mapped sections;
     /// `tip_force`, `tip_moment`: tip loads at t = 0 in the design's tip frame; `tensions`:
-    /// tendon tensions at t = 0 (N, one per tendon channel; None: slack).
+    /// tendon tensions at t = 0 (N, one per tendon channel; None: slack); `tip_kind`
+    /// ("free", "pinned", "clamped") with `tip_position` (m, world) and `tip_rotation`
+    /// (row-major): how the tip is held at t = 0.
     #[new]
-    #[pyo3(signature = (spec_json, pressures, initial="static", dt=2e-3, alpha=-0.2, tol=1e-9, max_iter=25, scheme="bdf-alpha", error_tol=None, energy_tol=softrod_core::dynamics::DEFAULT_ENERGY_TOL, sigma_const=None, sigma_grid=None, tip_force=None, tip_moment=None, tensions=None))]
+    #[pyo3(signature = (spec_json, pressures, initial="static", dt=2e-3, alpha=-0.2, tol=1e-9, max_iter=25, scheme="bdf-alpha", error_tol=None, energy_tol=softrod_core::dynamics::DEFAULT_ENERGY_TOL, sigma_const=None, sigma_grid=None, tip_force=None, tip_moment=None, tensions=None, tip_kind="free", tip_position=None, tip_rotation=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -151,6 +165,9 @@ impl PySimulator {
         tip_force: Option<[f64; 3]>,
         tip_moment: Option<[f64; 3]>,
         tensions: Option<Vec<f64>>,
+        tip_kind: &str,
+        tip_position: Option<[f64; 3]>,
+        tip_rotation: Option<[[f64; 3]; 3]>,
     ) -> PyResult<Self> {
         crate::guarded(py, || {
             let spec = crate::parse_spec(py, spec_json)?;
@@ -198,9 +215,12 @@ impl PySimulator {
             let tf = tip_force.unwrap_or(rod.spec.tip.force);
             let tm = tip_moment.unwrap_or(rod.spec.tip.moment);
             let tensions = tensions.unwrap_or_else(|| vec![0.0; rod.n_tendons]);
+            let held = crate::ends::constraint(py, tip_kind, tip_position, tip_rotation)?;
             let sim = py
                 .detach(|| {
-                    Simulator::with_tensions(rod, &pressures, &tensions, initial, opts, map, tf, tm)
+                    Simulator::with_constraint(
+                        rod, &pressures, &tensions, initial, opts, map, tf, tm, held,
+                    )
                 })
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
             Ok(PySimulator { sim })
@@ -328,6 +348,24 @@ impl PySimulator {
         })
     }
 
+    /// Move a held tip: its pose (`kind` the run's, `position` m, `rotation` row-major) at
+    /// the end of the next step.
+    #[pyo3(signature = (kind, position=None, rotation=None))]
+    fn set_tip_pose(
+        &mut self,
+        py: Python<'_>,
+        kind: &str,
+        position: Option<[f64; 3]>,
+        rotation: Option<[[f64; 3]; 3]>,
+    ) -> PyResult<()> {
+        crate::guarded(py, || {
+            let pose = crate::ends::constraint(py, kind, position, rotation)?;
+            self.sim
+                .set_tip_pose(pose)
+                .map_err(|e| to_py_err(py, e, Context::Input))
+        })
+    }
+
     /// The state now: time, pressures, tip pose and velocity, energy, base wrench, shape.
     fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         crate::guarded(py, || {
@@ -346,6 +384,14 @@ impl PySimulator {
             d.set_item("tip_moment", tm.to_vec())?;
             d.set_item("tensions", self.sim.tensions().to_vec())?;
             d.set_item("energy_balance", self.sim.energy_balance())?;
+            let (kind, position, rotation) = match self.sim.tip_constraint() {
+                TipConstraint::Free => ("free", [0.0; 3], [[0.0; 3]; 3]),
+                TipConstraint::Pinned { position } => ("pinned", position, [[0.0; 3]; 3]),
+                TipConstraint::Clamped { position, rotation } => ("clamped", position, rotation),
+            };
+            d.set_item("tip_kind", kind)?;
+            d.set_item("tip_pose_position", position.to_vec())?;
+            d.set_item("tip_pose_rotation", rotation.map(|r| r.to_vec()).to_vec())?;
             Ok(d)
         })
     }
@@ -353,11 +399,13 @@ impl PySimulator {
     /// Take one step per row of `commands` (k, n_channels), Pa, the commanded pressures at
     /// each new step time, with the tip loads of `tip_loads` (k, 6: force N, moment N m, in
     /// the design's tip frame) and the tendon tensions of `tensions` (k, tendon channels,
-    /// N) when given, held over each step. After step j the state is kept when `keep[j]` is
+    /// N) when given, held over each step, and a held tip's poses of `tip_poses` (k, 12:
+    /// position m, rotation row-major, the run's kind) at each new step time. After step j
+    /// the state is kept when `keep[j]` is
     /// 1 (tip) or 2 (tip and shape). Returns the kept samples as arrays.
     /// `schedule` = (knot times, knot rows, step kind): the commands of steps inside an
     /// interval (substeps, adaptive steps) come from it at their own times.
-    #[pyo3(signature = (commands, keep, energy=true, tip_loads=None, schedule=None, tensions=None))]
+    #[pyo3(signature = (commands, keep, energy=true, tip_loads=None, schedule=None, tensions=None, tip_poses=None))]
     #[allow(clippy::too_many_arguments)]
     fn run<'py>(
         &mut self,
@@ -368,6 +416,7 @@ impl PySimulator {
         tip_loads: Option<PyReadonlyArray2<'_, f64>>,
         schedule: Option<(Vec<f64>, Vec<Vec<f64>>, bool)>,
         tensions: Option<PyReadonlyArray2<'_, f64>>,
+        tip_poses: Option<PyReadonlyArray2<'_, f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         crate::guarded(py, || {
             let nc = self.sim.rod().n_channels;
@@ -417,6 +466,56 @@ impl PySimulator {
                     ));
                 }
             }
+            let poses = tip_poses.map(|a| a.as_array().to_owned());
+            let held = self.sim.tip_constraint();
+            let mut pose_rows = Vec::new();
+            if let Some(p) = &poses {
+                if p.shape() != [shape[0], 12] {
+                    return Err(to_py_err(
+                        py,
+                        SoftrodError::invalid(
+                            "tip_poses",
+                            format!("shape {:?}", p.shape()),
+                            format!(
+                                "must be ({}, 12): position and rotation (row-major) per step",
+                                shape[0]
+                            ),
+                        ),
+                        Context::Input,
+                    ));
+                }
+                // Every pose checked before any step (a bad one is refused before work).
+                for (j, row) in p.rows().into_iter().enumerate() {
+                    let position = [row[0], row[1], row[2]];
+                    let rotation =
+                        std::array::from_fn(|i| std::array::from_fn(|k| row[3 + 3 * i + k]));
+                    let pose = match held {
+                        TipConstraint::Free => TipConstraint::Free,
+                        TipConstraint::Pinned { .. } => TipConstraint::Pinned { position },
+                        TipConstraint::Clamped { .. } => {
+                            TipConstraint::Clamped { position, rotation }
+                        }
+                    };
+                    pose.validate().map_err(|e| {
+                        let e = match e {
+                            SoftrodError::InvalidParameter { field, value, rule } => {
+                                SoftrodError::InvalidParameter {
+                                    field: field.replacen(
+                                        "tip_constraint",
+                                        &format!("tip_poses[{j}]"),
+                                        1,
+                                    ),
+                                    value,
+                                    rule,
+                                }
+                            }
+                            other => other,
+                        };
+                        to_py_err(py, e, Context::Input)
+                    })?;
+                    pose_rows.push(pose);
+                }
+            }
             let tens = tensions.map(|a| a.as_array().to_owned());
             let nt = self.sim.rod().n_tendons;
             if let Some(t) = &tens {
@@ -458,6 +557,9 @@ impl PySimulator {
                 for (j, (row, flag)) in cmd.rows().into_iter().zip(keep.iter()).enumerate() {
                     if let Some(t) = &tens {
                         sim.set_tensions(&t.row(j).to_vec())?;
+                    }
+                    if let Some(p) = pose_rows.get(j) {
+                        sim.set_tip_pose(*p)?;
                     }
                     if let Some(l) = &loads {
                         sim.set_tip_loads(

@@ -24,7 +24,7 @@ fn constrained_dict<'py>(py: Python<'py>, c: &ConstrainedSolution) -> PyResult<B
 }
 
 /// The core constraint of a kind name and its pose.
-fn constraint(
+pub(crate) fn constraint(
     py: Python<'_>,
     kind: &str,
     position: Option<[f64; 3]>,

@@ -25,7 +25,8 @@ import numpy as np
 from .. import _core
 from .. import _validate as V
 from ..catalog import load_design
-from ..constraints import require_free_tip
+from ..constraints import TipConstraint, require_free_tip
+from ..constraints import coerce as coerce_constraint
 from ..design import Design
 from ..errors import InputError, design_error
 from ..progress import reporter
@@ -42,6 +43,9 @@ if TYPE_CHECKING:
     )
     # Tendon tensions (N, one per tendon channel): held constant, or a function of t.
     Tensions = ArrayLike | Callable[[float], ArrayLike]
+    # How the tip is held: a TipConstraint, "free" or a mapping (fixed), or a function of
+    # t (s) returning one (a moving pose).
+    TipHold = TipConstraint | str | dict | Callable[[float], TipConstraint | str | dict]
 
 __all__ = ["METHOD", "SCHEMES", "Simulation", "SimulationState", "simulate"]
 
@@ -156,8 +160,10 @@ class SimulationState:
     ``base_moment`` (3,) N, N m; ``shape_s`` (p,) m and ``shape_position`` (p, 3) m (the
     centreline at the nodes); ``energy`` J (kinetic + elastic + potential) and its books
     ``kinetic``, ``elastic``, ``potential``, ``work_in``, ``dissipated`` J;
-    ``energy_balance`` J (zero for the exact motion); ``design`` and ``fingerprint`` (the
-    design it belongs to); ``data`` (read-only float array).
+    ``energy_balance`` J (zero for the exact motion); ``tip_reaction_force``,
+    ``tip_reaction_moment`` (3,) N, N m (the wrench a held tip's constraint applies, world;
+    zero for a free tip); ``design`` and ``fingerprint`` (the design it belongs to); ``data``
+    (read-only float array).
     """
 
     design: str
@@ -182,6 +188,8 @@ class SimulationState:
     energy_balance: float
     data: np.ndarray
     tensions: np.ndarray = dataclasses.field(default_factory=lambda: _ro(np.zeros(0)))
+    tip_reaction_force: np.ndarray = dataclasses.field(default_factory=lambda: _ro(np.zeros(3)))
+    tip_reaction_moment: np.ndarray = dataclasses.field(default_factory=lambda: _ro(np.zeros(3)))
 
     def __repr__(self) -> str:
         tip = ", ".join(f"{x * 1e3:.2f}" for x in self.tip_position)
@@ -285,7 +293,12 @@ class Simulation:
     StiffnessMap of a design with mapped sections (constant or PCHIP table). ``tensions``:
     tendon tensions at t = 0 (N or strings with units, one per tendon channel, each >= 0;
     None: slack); the static start balances them, and :meth:`set_tensions` or the
-    ``tensions`` of :meth:`step` and :meth:`run` change them.
+    ``tensions`` of :meth:`step` and :meth:`run` change them. ``tip_constraint``: how the
+    tip is held at t = 0 (a :class:`~softrod.TipConstraint`, "free" or a mapping as
+    :func:`~softrod.solve_statics` takes; None: the design's ``[tip] constraint``); a pinned
+    or clamped tip starts "static" in the constrained equilibrium, "straight" only at the
+    straight rod's tip pose, and moves with :meth:`set_tip_pose` or the ``tip_constraint``
+    of :meth:`run` (docs/dynamics.md, "Held tip").
     """
 
     def __init__(
@@ -303,12 +316,13 @@ class Simulation:
         energy_tol: float = DEFAULT_ENERGY_TOL,
         stiffness_map: StiffnessMap | None = None,
         tensions: ArrayLike | None = None,
+        tip_constraint: TipConstraint | str | dict | None = None,
         _tip_loads0: Sequence[float] | None = None,
     ) -> None:
         from ..statics import _pressures, _tensions
 
         self.design: Design = load_design(design)
-        require_free_tip(self.design, "simulate")
+        held = _held(self.design, tip_constraint)
         n = self.design.n_channels
         p = [0.0] * n if pressures is None else _pressures(self.design, pressures)
         t0 = _tensions(self.design, tensions)
@@ -327,6 +341,7 @@ class Simulation:
                 else {"tip_force": list(_tip_loads0[:3]), "tip_moment": list(_tip_loads0[3:])}
             ),
             tensions=t0,
+            **_hold_args(held),
         )
         self.initial = initial
         self.options = opts
@@ -375,6 +390,24 @@ class Simulation:
         self._sim.set_tensions(_tensions(self.design, tensions))
 
     @property
+    def tip_constraint(self) -> TipConstraint:
+        """How the tip is held (its kind is fixed for the run)."""
+        d = self._sim.snapshot()
+        kind = str(d["tip_kind"])
+        if kind == "free":
+            return TipConstraint.free()
+        pos = list(d["tip_pose_position"])
+        if kind == "pinned":
+            return TipConstraint.pinned(pos)
+        return TipConstraint.clamped(pos, np.asarray(d["tip_pose_rotation"]))
+
+    def set_tip_pose(self, pose: TipConstraint | str | dict) -> None:
+        """Move a held tip: its pose (a :class:`~softrod.TipConstraint` or mapping of the
+        run's kind; units accepted) at the end of the next step, reached linearly in
+        position and along the geodesic in rotation by the steps in between."""
+        self._sim.set_tip_pose(*coerce_constraint(pose).core_args())
+
+    @property
     def stats(self) -> dict:
         """Steps (calls), internal (time) steps, rejected steps, Newton iterations and exact
         Jacobians so far."""
@@ -404,6 +437,8 @@ class Simulation:
             energy_balance=float(d["energy_balance"]),
             data=ro(self._sim.save()),
             tensions=ro(d["tensions"]),
+            tip_reaction_force=ro(d["tip_reaction_force"][0]),
+            tip_reaction_moment=ro(d["tip_reaction_moment"][0]),
         )
 
     def restore(self, state: SimulationState) -> None:
@@ -459,12 +494,14 @@ class Simulation:
         energy: bool = True,
         tip_load: TipLoad | None = None,
         tensions: Tensions | None = None,
+        tip_constraint: TipHold | None = None,
         progress: Callable[[float, float, float], None] | None = None,
     ) -> Trajectory:
         """Advance by ``duration`` (s) under ``pressure_schedule`` (evaluated on this
         simulation's clock; None for a design without chambers) and return the trajectory
         from the current time on; see :func:`simulate` for the arguments (``tensions``:
-        None keeps the current tensions)."""
+        None keeps the current tensions; ``tip_constraint``: None holds the tip where it
+        is, a pose of the run's kind moves it there, a function of t moves it along)."""
         dt = self.dt
         duration = _seconds(duration, "t_end")
         n = step_count(duration, dt)
@@ -509,6 +546,7 @@ class Simulation:
                 commands = commands_at(times)
                 loads = _tip_loads(tip_load, times)
                 tens = _tension_rows(self.design, tensions, times)
+                poses = _pose_rows(tip_constraint, times, str(first["tip_kind"]))
                 kept_commands.append(commands[keep[start:stop] >= 1])
                 parts.append(
                     self._sim.run(
@@ -518,6 +556,7 @@ class Simulation:
                         None if loads is None else np.ascontiguousarray(loads),
                         table,
                         None if tens is None else np.ascontiguousarray(tens),
+                        None if poses is None else np.ascontiguousarray(poses),
                     )
                 )
                 spent = _time.perf_counter() - t_chunk
@@ -553,6 +592,7 @@ class Simulation:
             "error_tol_m": opts["error_tol"],
             "energy_tol": opts["energy_tol"],
             "initial": self.initial,
+            "tip_constraint": str(first["tip_kind"]),
             "damping_time_s": self.design.spec["dynamics"]["damping_time"],
             "steps": n,
             "wall_time_s": wall,
@@ -576,6 +616,11 @@ class Simulation:
             tip_position=cat("tip_position"),
             tip_rotation=cat("tip_rotation"),
             tip_velocity=cat("tip_velocity"),
+            **(
+                {k: cat(k) for k in ("tip_reaction_force", "tip_reaction_moment")}
+                if str(first["tip_kind"]) != "free"
+                else {}
+            ),
             energy=cat("energy") if energy else None,
             **({k: cat(k) for k in ENERGY_PARTS} if energy else {}),
             shape_time=np.concatenate([p["shape_time"] for p in shape_parts])
@@ -587,6 +632,62 @@ class Simulation:
             else None,
             metadata=metadata,
         )
+
+
+def _held(design: Design, value) -> TipConstraint:
+    """The tip constraint of a run: ``value`` (a TipConstraint, "free" or a mapping), or
+    the design's ``[tip] constraint`` when None."""
+    if value is not None:
+        return coerce_constraint(value)
+    return getattr(design, "tip_constraint", None) or TipConstraint.free()
+
+
+def _hold_args(held: TipConstraint) -> dict:
+    kind, position, rotation = held.core_args()
+    return {"tip_kind": kind, "tip_position": position, "tip_rotation": rotation}
+
+
+def _pose_rows(tip_constraint, times: np.ndarray, kind: str) -> np.ndarray | None:
+    """(n, 12) poses (position m, rotation row-major) of a held tip at the step times, or
+    None (hold the tip where it is). ``tip_constraint``: None, a pose held from the next
+    step on, or a function of t (s) returning one (sampled at the step times); each of the
+    run's ``kind``."""
+    if tip_constraint is None:
+        return None
+
+    def row(value, field: str) -> list[float]:
+        try:
+            c = coerce_constraint(value)
+        except InputError as exc:
+            # tip_constraint.position -> tip_constraint(t = 0.1 s).position
+            at = exc.field.replace("tip_constraint", field, 1) if exc.field else field
+            raise design_error(at, exc.value, exc.rule or str(exc), InputError) from None
+        if c.kind != kind:
+            raise design_error(
+                field,
+                c.kind,
+                f"this run's tip is {kind}: give a {kind} pose (the kind is fixed for a run)",
+                InputError,
+            )
+        if c.kind == "free":
+            return [0.0] * 12
+        rot = np.eye(3) if c.rotation is None else np.asarray(c.rotation, dtype=float)
+        return [*c.position, *rot.reshape(9).tolist()]
+
+    if callable(tip_constraint):
+        rows = [row(tip_constraint(float(t)), f"tip_constraint(t = {t:g} s)") for t in times]
+    else:
+        rows = [row(tip_constraint, "tip_constraint")] * len(times)
+    return np.array(rows, dtype=float).reshape(len(times), 12)
+
+
+def coerce_constraint_at0(value) -> str:
+    """The kind of a moving pose's value at t = 0 (errors name ``tip_constraint(t = 0 s)``)."""
+    try:
+        return coerce_constraint(value).kind
+    except InputError as exc:
+        at = (exc.field or "tip_constraint").replace("tip_constraint", "tip_constraint(t = 0 s)", 1)
+        raise design_error(at, exc.value, exc.rule or str(exc), InputError) from None
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
@@ -720,6 +821,7 @@ def simulate(
     stiffness_map: StiffnessMap | None = None,
     tip_load: TipLoad | None = None,
     tensions: Tensions | None = None,
+    tip_constraint: TipHold | None = None,
     energy: bool = True,
     progress: Callable[[float, float, float], None] | None = None,
 ) -> Trajectory:
@@ -759,6 +861,14 @@ def simulate(
       returning them (sampled at the step times and held over each step). The static start
       balances the tensions at t = 0; every value is checked before the first step. With
       them, designs without chambers simulate.
+    - ``tip_constraint``: how the tip is held (docs/dynamics.md, "Held tip"): None (the
+      design's ``[tip] constraint``), a :class:`~softrod.TipConstraint`, "free" or a mapping
+      as :func:`~softrod.solve_statics` takes (a fixed pose), or a function of t (s)
+      returning one (a moving pose: its value at t = 0 is the start's, then it is sampled
+      at the step times, the steps in between interpolating linearly in position and along
+      the geodesic in rotation). A held tip's reaction is recorded as the trajectory's
+      ``tip_reaction_force`` and ``tip_reaction_moment``, and its work enters the energy
+      books. Not with the midpoint scheme nor obstacles.
     - ``energy``: also record the energy and its books (J).
     - ``progress``: None (a bar in interactive sessions), True, False, or a callable called
       after each chunk of steps as progress(t_done, t_end, wall_s); see
@@ -779,6 +889,7 @@ def simulate(
             "stiffness_map": (stiffness_map, None),
             "tip_load": (tip_load, None),
             "tensions": (tensions, None),
+            "tip_constraint": (tip_constraint, None),
         }
         for name, (value, default) in rod_only.items():
             if value is not default and value != default:
@@ -805,7 +916,6 @@ def simulate(
         sim = initial.copy()
     else:
         d = load_design(design)
-        require_free_tip(d, "simulate")
         if pressure_schedule is None and d.n_channels == 0:
             schedule, p0 = None, np.zeros(0)
         else:
@@ -820,6 +930,9 @@ def simulate(
             )
         first = None if tip_load is None else _tip_loads(tip_load, np.zeros(1))[0]
         tens0 = _tension_rows(d, tensions, np.zeros(1))
+        held0 = tip_constraint(0.0) if callable(tip_constraint) else tip_constraint
+        if callable(tip_constraint):
+            _pose_rows(tip_constraint, np.zeros(1), coerce_constraint_at0(held0))
         sim = Simulation(
             d,
             p0,
@@ -833,6 +946,7 @@ def simulate(
             energy_tol=energy_tol,
             stiffness_map=stiffness_map,
             tensions=None if tens0 is None else tens0[0],
+            tip_constraint=held0,
             _tip_loads0=first,
         )
         pressure_schedule = schedule
@@ -844,6 +958,10 @@ def simulate(
         energy=energy,
         tip_load=tip_load,
         tensions=tensions,
+        # (A fixed pose is the start's; a Simulation continued is moved to it.)
+        tip_constraint=tip_constraint
+        if callable(tip_constraint) or isinstance(initial, Simulation)
+        else None,
         progress=progress,
     )
 
@@ -867,7 +985,7 @@ def _simulate_pcc(
             InputError,
         )
     d = load_design(design)
-    require_free_tip(d, "simulate")
+    require_free_tip(d, "simulate(model='pcc')")
     _no_stiffness_map(d)
     schedule = _schedule(pressure_schedule, d.n_channels)
     step = _seconds(dt, "dt")

@@ -154,6 +154,9 @@ class Trajectory:
       and friction, world frame), and ``penetration`` (n,) m: the deepest penetration of
       the rod's surface into an obstacle (<= 0: no contact), for a design with obstacles
       (None otherwise; docs/contact.md);
+    - ``tip_reaction_force`` (n, 3) N and ``tip_reaction_moment`` (n, 3) N m: the wrench a
+      pinned or clamped tip's constraint applies to the tip (world frame; zero moment when
+      pinned), for a run with a held tip (None otherwise; docs/model.md "End constraints");
     - ``shape_time`` (k,) s: times of the stored centrelines, each exactly one of ``time``
       (k may be 0); ``shape_s`` (p,) m: reference arc length of the nodes, strictly
       increasing; ``shape_position`` (k, p, 3) m: the centrelines;
@@ -182,6 +185,8 @@ class Trajectory:
     tension: np.ndarray | None = None
     contact_force: np.ndarray | None = None
     penetration: np.ndarray | None = None
+    tip_reaction_force: np.ndarray | None = None
+    tip_reaction_moment: np.ndarray | None = None
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -225,6 +230,20 @@ class Trajectory:
                 ("penetration", (n,), f"(n = {n},) in m"),
             ):
                 a = _array(getattr(self, name), name, shape, what)
+                _finite(a, name)
+                set_(self, name, _readonly(a))
+        if (self.tip_reaction_force is None) != (self.tip_reaction_moment is None):
+            raise _fail(
+                "tip_reaction_force",
+                "given" if self.tip_reaction_moment is None else None,
+                "tip_reaction_force and tip_reaction_moment come together (a held tip)",
+            )
+        if self.tip_reaction_force is not None:
+            for name, what in (
+                ("tip_reaction_force", f"(n = {n}, 3) in N"),
+                ("tip_reaction_moment", f"(n = {n}, 3) in N m"),
+            ):
+                a = _array(getattr(self, name), name, (n, 3), what)
                 _finite(a, name)
                 set_(self, name, _readonly(a))
         for name in ("energy", *ENERGY_PARTS):
@@ -366,6 +385,16 @@ class Trajectory:
             ]
             what = "deepest penetration into an obstacle (<= 0: none)"
             extras.append(Extra("penetration", self.penetration, what, "length"))
+        if self.tip_reaction_force is not None:
+            for key, arr, kind in (
+                ("f", self.tip_reaction_force, "force"),
+                ("m", self.tip_reaction_moment, "moment"),
+            ):
+                what = f"{kind} the tip's constraint applies to the tip, world frame"
+                extras += [
+                    Extra(f"tip_reaction_{key}{a}", arr[:, i], what, kind)
+                    for i, a in enumerate(_XYZ)
+                ]
         return extras
 
     def save(self, path: str | os.PathLike) -> Path:
@@ -387,6 +416,11 @@ class Trajectory:
                 }
                 if self.contact_force is not None:
                     arrays.update(contact_force=self.contact_force, penetration=self.penetration)
+                if self.tip_reaction_force is not None:
+                    arrays.update(
+                        tip_reaction_force=self.tip_reaction_force,
+                        tip_reaction_moment=self.tip_reaction_moment,
+                    )
                 with open(tmp, "wb") as fh:  # a file object: numpy would append ".npz"
                     np.savez_compressed(
                         fh,
@@ -922,7 +956,14 @@ def _load_npz(path: Path) -> Trajectory:
             arrays.update(
                 {
                     n: data[n]
-                    for n in (*ENERGY_PARTS, "tension", "contact_force", "penetration")
+                    for n in (
+                        *ENERGY_PARTS,
+                        "tension",
+                        "contact_force",
+                        "penetration",
+                        "tip_reaction_force",
+                        "tip_reaction_moment",
+                    )
                     if n in data.files
                 }
             )
@@ -997,6 +1038,14 @@ def _load_parquet(path: Path) -> Trajectory:
         **(
             {"contact_force": cols("contact_f{}_N", _XYZ), "penetration": col("penetration_m")}
             if "penetration_m" in names
+            else {}
+        ),
+        **(
+            {
+                "tip_reaction_force": cols("tip_reaction_f{}_N", _XYZ),
+                "tip_reaction_moment": cols("tip_reaction_m{}_Nm", _XYZ),
+            }
+            if "tip_reaction_fx_N" in names
             else {}
         ),
         shape_time=time[has],

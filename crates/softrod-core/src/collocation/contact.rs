@@ -15,6 +15,11 @@
 //! apply; the whole system (51 unknowns per interval) is one banded matrix of 63 sub- and
 //! 56 super-diagonals, still O(N). Rods without obstacles never come here and cost what
 //! they did.
+//!
+//! A pinned or clamped tip (`Problem::end`, docs/model.md "End constraints") takes the same
+//! path, with or without obstacles: its equation r(L) = r_c needs the tip's position as an
+//! unknown; it replaces the tip's force balance (and, clamped, the orientation error
+//! replaces the moment balance), the same 6 rows in the same place of the band.
 
 use super::{
     mat_vec, rotation, Factorization, Problem, GAUSS_A, GAUSS_B, IM, IN, IQ, IV, IW, NF, NY,
@@ -23,6 +28,7 @@ use crate::banded::BandedLu;
 use crate::contact::{total_section_load, Obstacle, SectionLoad};
 use crate::jet::{Jet, StateScalar};
 use crate::rod::Rod;
+use crate::statics::constraint::{orientation_error, tmatmul};
 use std::sync::Arc;
 
 /// Unknowns (and equations) per interval with contact: two stages, the end node, its
@@ -151,7 +157,7 @@ impl Problem<'_> {
     }
 
     /// Physical position of node j from scaled unknowns.
-    fn position(&self, z: &[f64], j: usize) -> [f64; 3] {
+    pub(super) fn position(&self, z: &[f64], j: usize) -> [f64; 3] {
         if j == 0 {
             return self.rod.base_position;
         }
@@ -165,7 +171,7 @@ impl Problem<'_> {
     #[allow(clippy::too_many_arguments)]
     fn contact_interval<D: StateScalar<f64>>(
         &self,
-        c: &Contact,
+        c: Option<&Contact>,
         j: usize,
         yj: &[D; NY],
         rj: &[D; 3],
@@ -193,6 +199,7 @@ impl Problem<'_> {
             fl[i] = fli;
         }
         for i in 0..2 {
+            let Some(c) = c else { break };
             // The stage position by the stage quadrature, and the contact load there as a
             // line force and moment: n' = ... - f_c, m' = ... - l_c.
             let ri: [D; 3] = std::array::from_fn(|k| {
@@ -219,13 +226,44 @@ impl Problem<'_> {
         (out, fl)
     }
 
-    /// The scaled tip residual with the rounded end's contact load.
-    fn contact_tip<D: StateScalar<f64>>(&self, c: &Contact, y: &[D; NY], r: &[D; 3]) -> [D; 6] {
+    /// The free tip's scaled wrench balance with the rounded end's contact load.
+    pub(super) fn free_tip<D: StateScalar<f64>>(
+        &self,
+        c: Option<&Contact>,
+        y: &[D; NY],
+        r: &[D; 3],
+    ) -> [D; 6] {
         let mut t = self.tip_residual(y);
-        let e = c.end_load(y, r);
-        for k in 0..3 {
-            t[k] -= e.force[k] * (1.0 / self.fs);
-            t[3 + k] -= e.moment[k] * (1.0 / self.ms);
+        if let Some(c) = c {
+            let e = c.end_load(y, r);
+            for k in 0..3 {
+                t[k] -= e.force[k] * (1.0 / self.fs);
+                t[3 + k] -= e.moment[k] * (1.0 / self.ms);
+            }
+        }
+        t
+    }
+
+    /// The tip's 6 scaled equations: the free tip's balance, or for a constrained tip
+    /// (`Problem::end`) the position (r(L) - r_c)/L in place of the force balance and, when
+    /// clamped, the orientation error e(R_c^T R(L)) in place of the moment balance.
+    fn contact_tip<D: StateScalar<f64>>(
+        &self,
+        c: Option<&Contact>,
+        y: &[D; NY],
+        r: &[D; 3],
+    ) -> [D; 6] {
+        let mut t = self.free_tip(c, y, r);
+        if let Some(end) = &self.end {
+            let il = 1.0 / self.rod.length;
+            for k in 0..3 {
+                t[k] = (r[k] - end.position[k]) * il;
+            }
+            if let Some(rc) = &end.rotation {
+                let rot = rotation(&y[IQ..IQ + 4]);
+                let e = orientation_error(&tmatmul(&rc.map(|row| row.map(D::from)), &rot));
+                t[3..].copy_from_slice(&e);
+            }
         }
         t
     }
@@ -233,7 +271,7 @@ impl Problem<'_> {
     /// [`Problem::residual`] with contact.
     pub(super) fn contact_residual(
         &self,
-        c: &Contact,
+        c: Option<&Contact>,
         z: &[f64],
         out: &mut [f64],
         mut fields: Option<&mut [[f64; NF]]>,
@@ -265,7 +303,7 @@ impl Problem<'_> {
     /// ([`residual_to_full`], [`unknown_to_full`]); every entry is given once.
     pub(super) fn contact_jacobian(
         &self,
-        c: &Contact,
+        c: Option<&Contact>,
         z: &[f64],
         mut put: impl FnMut(usize, usize, f64),
     ) {
@@ -336,10 +374,10 @@ impl Problem<'_> {
     }
 
     /// [`Problem::factorize`] with contact: the whole banded system.
-    pub(super) fn contact_factorize(&self, c: &Contact, z: &[f64]) -> Option<Factorization> {
+    pub(super) fn contact_factorize(&self, z: &[f64]) -> Option<Factorization> {
         let n = self.unknowns();
         let mut band = BandedLu::zeros(n, KL, KU);
-        self.contact_jacobian(c, z, |i, j, v| band.set(i, j, v));
+        self.contact_jacobian(self.contact.as_ref(), z, |i, j, v| band.set(i, j, v));
         if !band.factor() {
             return None;
         }

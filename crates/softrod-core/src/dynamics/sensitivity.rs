@@ -132,6 +132,13 @@ impl Simulator {
                 "dynamic parameter sensitivities do not carry contact (the penalty's switch makes them non-smooth): remove the obstacles",
             );
         }
+        if self.end != crate::statics::constraint::TipConstraint::Free {
+            return refuse(
+                "tip_constraint",
+                self.end.name().into(),
+                "dynamic parameter sensitivities do not carry a pinned or clamped tip yet: free the tip",
+            );
+        }
         if let Some(e) = self.opts.error_tol {
             return refuse(
                 "error_tol",
