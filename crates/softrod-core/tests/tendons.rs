@@ -9,7 +9,9 @@ use softrod_core::batch::{sensitivity_batch, solve_batch, BatchInputs};
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{tip_sensitivity, Param, ParamKind};
 use softrod_core::spec::{DesignSpec, SectionSpec, TendonSpec};
-use softrod_core::statics::{load_tangent, shape, solve, SolverOptions};
+use softrod_core::statics::{
+    load_tangent, residual, residual_passes, shape, solve, SolverOptions,
+};
 use softrod_core::{Rod, SoftrodError};
 
 fn opts() -> SolverOptions {
@@ -217,6 +219,53 @@ fn warm_started_tendon_law_matches_cold_solves() {
             checked += 1;
         }
         assert!(checked >= 20, "only {checked} steps compared");
+    }
+}
+
+/// The shooting solver's passes start the tendon law at every stage from the last pass's
+/// solution there when that is closer than the last stage's (`residual_passes`: one
+/// problem's f64 passes in order). Along iterates closing in on the solution, as Newton's
+/// do, every pass's residual equals a fresh pass's (no memory) at the same unknowns: each
+/// stage's law stops within about 1e-13 of a strain (u times the fibre radius) of its root,
+/// and an error d in a strain bends the rod's remaining length L by about L d / rho,
+/// moving the moment arms of the loads in the scaled residual (moments over F_s L) by
+/// about (L / rho) d, 10 d here; with some 100 stages' errors adding up that is 1e-10. A
+/// stale start accepted as converged would show at the size of the change from one pass
+/// to the next (1e-4 for the 1e-2 step). Passing the same unknowns again, every evaluation
+/// is done in one Newton step (its start is the root to round-off), where a fresh pass
+/// needs more: the count fails without the memory.
+#[test]
+fn tendon_law_memory_across_passes_matches_fresh_passes() {
+    for helical in [false, true] {
+        let rod = Rod::new(tendon_arm(helical, false)).unwrap();
+        let ld = tensioned(&[20e3, 0.0, 10e3], &[1.5, 0.6]);
+        let sol = solve(&rod, &ld, None, &opts()).unwrap();
+        let xs: Vec<Vec<f64>> = [1e-2, -3e-4, 1e-7, 0.0, 0.0]
+            .iter()
+            .map(|e| {
+                sol.x
+                    .iter()
+                    .enumerate()
+                    .map(|(i, v)| v + e * (1.0 + 0.5 * i as f64))
+                    .collect()
+            })
+            .collect();
+        let passes = residual_passes(&rod, &ld, &xs).unwrap();
+        for (k, (x, (r, _, _))) in xs.iter().zip(&passes).enumerate() {
+            let fresh = residual(&rod, &ld, x).unwrap();
+            let diff = r.iter().zip(&fresh).fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                diff <= 1e-10,
+                "helical {helical}: pass {k} differs from a fresh pass by {diff:e}"
+            );
+        }
+        let (_, evals, again) = passes[4];
+        assert!(evals >= 20, "helical {helical}: only {evals} law evaluations");
+        let fresh = residual_passes(&rod, &ld, &xs[4..5]).unwrap()[0].2;
+        eprintln!("helical {helical}: {evals} evaluations; Newton steps per pass {:?}, fresh at the solution {fresh}",
+            passes.iter().map(|p| p.2).collect::<Vec<_>>());
+        assert_eq!(again, evals, "helical {helical}: the repeated pass");
+        assert!(fresh > evals, "helical {helical}: fresh pass {fresh} steps");
     }
 }
 

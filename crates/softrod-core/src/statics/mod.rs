@@ -36,7 +36,7 @@ pub mod system;
 
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
-use crate::ode::{integrate, strains, Coeffs, Loads, SectionKnobs, State};
+use crate::ode::{integrate, integrate_remembering, strains, Coeffs, LawMemory, Loads, SectionKnobs, State};
 use crate::rod::Rod;
 use crate::spec::Frame;
 use crate::validity::{self, Node, Policy, StrainLimits};
@@ -177,6 +177,8 @@ pub(crate) struct Problem<'a> {
     ms: f64,
     /// Some load follows the body: 6 unknowns (base force and moment).
     follower: bool,
+    /// The tendon law's solutions of the last pass, the next pass's starts.
+    memory: std::cell::RefCell<LawMemory>,
 }
 
 fn inf_norm(r: &[f64]) -> f64 {
@@ -314,6 +316,7 @@ impl<'a> Problem<'a> {
             fs: rod.force_scale,
             ms: rod.force_scale * rod.length,
             follower: loads.base_force_unknown(rod),
+            memory: Default::default(),
         };
         let w = p.tip_weight();
         let mt = rod.spec.tip.mass;
@@ -419,15 +422,27 @@ impl<'a> Problem<'a> {
         }
     }
 
+    /// [`integrate`] of this problem's coefficients from `y0`, with the tendon law
+    /// started from the last pass's solutions (`LawMemory`).
+    fn pass<C: crate::jet::Coeff, D: crate::jet::StateScalar<C>>(
+        &self,
+        coeffs: &[Coeffs<C>],
+        y0: State<D>,
+        visit: Option<crate::ode::Visitor<'_, D>>,
+    ) -> State<D> {
+        let mut memory = self.memory.borrow_mut();
+        integrate_remembering(self.rod, coeffs, y0, visit, &mut memory)
+    }
+
     fn eval<const N: usize>(&self, x: &[f64; N]) -> [f64; N] {
-        let tip = integrate(self.rod, &self.coeffs, self.base_state(x), None);
+        let tip = self.pass(&self.coeffs, self.base_state(x), None);
         self.residual_of_tip(&tip)
     }
 
     /// Residual and exact Jacobian by forward-mode AD (N directions).
     fn eval_jac<const N: usize>(&self, x: &[f64; N]) -> ([f64; N], SMatrix<f64, N, N>) {
         let xd: [Jet<N>; N] = std::array::from_fn(|i| Jet::variable(x[i], i));
-        let tip = integrate(self.rod, &self.coeffs, self.base_state(&xd), None);
+        let tip = self.pass(&self.coeffs, self.base_state(&xd), None);
         let rd: [Jet<N>; N] = self.residual_of_tip(&tip);
         let jac = SMatrix::<f64, N, N>::from_fn(|i, j| rd[i].eps[j]);
         (rd.map(|r| r.re), jac)
@@ -474,7 +489,7 @@ impl<'a> Problem<'a> {
                 jacobi.visit(y)
             }
         };
-        let tip = integrate(self.rod, &coeffs, y0, Some(&mut visit));
+        let tip = self.pass(&coeffs, y0, Some(&mut visit));
         let mt = self.rod.spec.tip.mass;
         let w: [Jet<M>; 3] = std::array::from_fn(|k| lam * (mt * self.rod.gravity[k]));
         let f_tip: [Jet<M>; 3] = std::array::from_fn(|k| lam * self.loads.tip_force[k]);
@@ -688,19 +703,14 @@ impl<'a> Problem<'a> {
                 jacobi.visit(y);
                 check(i, s, &y.re());
             };
-            let tip = integrate(
-                self.rod,
-                &self.coeffs,
-                self.base_state(&xd),
-                Some(&mut visit),
-            );
+            let tip = self.pass(&self.coeffs, self.base_state(&xd), Some(&mut visit));
             let rd: [Jet<3>; 3] = self.residual_of_tip(&tip);
             let jac = Matrix3::from_fn(|i, j| rd[i].eps[j]);
             let r: Vec<f64> = rd.iter().map(|v| v.re).collect();
             (tip.re(), Some(jacobi.stable(&jac)), r)
         } else {
             let mut visit = |i: usize, s: f64, y: &State<f64>| check(i, s, y);
-            let tip = integrate(self.rod, &self.coeffs, self.base_state(x), Some(&mut visit));
+            let tip = self.pass(&self.coeffs, self.base_state(x), Some(&mut visit));
             let r: [f64; N] = self.residual_of_tip(&tip);
             (tip, None, r.to_vec())
         };
@@ -1482,6 +1492,32 @@ pub fn residual(rod: &Rod, loads: &Loads, x: &[f64]) -> Result<Vec<f64>> {
     } else {
         p.eval::<3>(&std::array::from_fn(|i| x[i])).to_vec()
     })
+}
+
+/// Scaled residuals at the unknowns `xs`, one f64 pass each, in order, by one problem (as
+/// the shooting Newton's passes: each pass starts the tendon law at every stage from the
+/// last pass's solution there, when closer), with the tendon law's evaluations and Newton
+/// steps in each pass. A cost counter for profiling, and for tests of that memory.
+#[doc(hidden)]
+pub fn residual_passes(
+    rod: &Rod,
+    loads: &Loads,
+    xs: &[Vec<f64>],
+) -> Result<Vec<(Vec<f64>, usize, usize)>> {
+    let p = Problem::new(rod, loads, 1.0);
+    let mut out = Vec::with_capacity(xs.len());
+    for x in xs {
+        check_unknowns(&p, x)?;
+        let before = p.memory.borrow().newton_steps();
+        let r = if x.len() == 6 {
+            p.eval::<6>(&std::array::from_fn(|i| x[i])).to_vec()
+        } else {
+            p.eval::<3>(&std::array::from_fn(|i| x[i])).to_vec()
+        };
+        let m = p.memory.borrow();
+        out.push((r, m.evaluations(), m.newton_steps() - before));
+    }
+    Ok(out)
 }
 
 /// The path tangent dx/dlambda, the Jacobian and the stability flag (None: not assessed)
