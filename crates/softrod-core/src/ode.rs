@@ -558,6 +558,19 @@ pub fn strains<C: Coeff, D: StateScalar<C>>(
     (v, u)
 }
 
+/// [`strains`] with the tendon law started from `scratch` (e.g. [`LawMemory::seeded`]).
+pub(crate) fn strains_with<C: Coeff, D: StateScalar<C>>(
+    sec: &Section,
+    y: &State<D>,
+    c: &Coeffs<C>,
+    s: f64,
+    scratch: &mut Scratch,
+) -> ([D; 3], [D; 3]) {
+    let loc = c.local_at(sec, s);
+    let (v, u, _) = law_strains(y, c, &loc, sec, s, scratch);
+    (v, u)
+}
+
 /// What the tendon law keeps from one evaluation to the next along a section: the last
 /// strains (Newton's starting point at the next stage) and buffers; in a [`LawMemory`],
 /// also every stage's solution of the last pass through the section.
@@ -569,8 +582,11 @@ pub(crate) struct Scratch {
     /// The last factorised J_K (linear law): Newton's matrix for the next stage.
     factor: Option<crate::tendon::Ldl6>,
     /// The tendons' load T = (F_t, M_t) at the last point where the linear law evaluated
-    /// the tangents (within a round-off-sized step of `hint`), when every route is straight.
+    /// the tangents (within a round-off-sized step of `hint`).
     load: Option<[f64; 6]>,
+    /// `hint` and `load` were solved at the arc length of the next evaluation (a seeded
+    /// scratch), so the load is valid there for any route.
+    here: bool,
     points: Vec<TendonPoint>,
     tangents: Vec<([f64; 3], f64)>,
     /// Keep every stage's solution in `memo` (a [`LawMemory`]'s section).
@@ -610,6 +626,26 @@ impl LawMemory {
     /// Evaluations of the linear tendon law in the last pass.
     pub(crate) fn evaluations(&self) -> usize {
         self.sections.iter().map(|s| s.stage).sum()
+    }
+
+    /// A scratch that starts the tendon law from the last pass's solution at stage `stage`
+    /// of section `section` (and its Newton matrix there), for a state at or near that
+    /// stage's; a plain cold start where there is none.
+    pub(crate) fn seeded(&self, section: usize, stage: usize) -> Scratch {
+        let Some(sc) = self.sections.get(section) else {
+            return Scratch::default();
+        };
+        let Some(m) = sc.memo.get(stage) else {
+            return Scratch::default();
+        };
+        Scratch {
+            hint: Some(m.w),
+            hint_free: m.free,
+            load: m.load,
+            here: true,
+            factor: sc.factor,
+            ..Scratch::default()
+        }
     }
 
     /// The section's scratch, made ready for a new pass (stage count and the last stage's
@@ -871,13 +907,18 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
     // through the tendons' tangents, so w* moves about as w_free does.
     let stage = scratch.stage;
     scratch.stage += 1;
-    let memo = scratch.memo.get(stage).copied().filter(|_| scratch.remember);
+    let memo = scratch
+        .memo
+        .get(stage)
+        .copied()
+        .filter(|_| scratch.remember);
     let gap = |a: &[f64; 6]| strain_size(&std::array::from_fn(|k| a[k] - wfree[k]), rho);
-    let (hint, hint_load) = match (memo, scratch.hint) {
-        (Some(m), Some(_)) if gap(&m.free) <= gap(&scratch.hint_free) => (Some(m.w), m.load),
-        (Some(m), None) => (Some(m.w), m.load),
-        _ => (scratch.hint, scratch.load),
+    let (hint, hint_load, here) = match (memo, scratch.hint) {
+        (Some(m), Some(_)) if gap(&m.free) <= gap(&scratch.hint_free) => (Some(m.w), m.load, true),
+        (Some(m), None) => (Some(m.w), m.load, true),
+        _ => (scratch.hint, scratch.load, scratch.here),
     };
+    scratch.here = false;
     // The start: the chosen hint, else straight tendons (t = e3: w = w_free - C T(e3),
     // which is exact for straight tendons without shear or twist).
     let mut w = match hint {
@@ -895,14 +936,15 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
     // Newton's matrix is kept in place (no copies of its 42 numbers per evaluation).
     let factor = &mut scratch.factor;
     let mut refresh = factor.is_none();
-    // The first residual at the last stage's strains w* without new tangents: with straight
-    // routes the tendons' load there is the last stage's (the tangents depend on w alone),
+    // The first residual at the hint's strains w* without new tangents: the tendons' load
+    // there is the hint's when it was solved at this arc length (the last pass's solution
+    // at this stage), or with straight routes anywhere (the tangents depend on w alone),
     // so G(w*) = K (w* - w_free) + T(w*) costs no square roots. T was evaluated one
     // converged Newton step before w*, so this residual is off by a round-off-sized
     // amount; every later step (and so the convergence test) uses the exact residual.
     let fixed = c.tendons.iter().all(|t| t.route.is_fixed());
     let mut known_load = match (hint, hint_load) {
-        (Some(_), Some(t)) if fixed && !refresh => Some(t),
+        (Some(_), Some(t)) if (fixed || here) && !refresh => Some(t),
         _ => None,
     };
     let mut last_load = None;
@@ -952,7 +994,7 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
     }
     scratch.hint = Some(w);
     scratch.hint_free = wfree;
-    scratch.load = last_load.filter(|_| fixed);
+    scratch.load = last_load;
     if plain {
         remember(scratch, stage);
         return (
@@ -964,7 +1006,7 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
     // G_D = K_C (w* - S_C(nb_D, mb_D) ...) written as K_C (w* - shift_C) + T_C - (nb, mb)_D
     // (the same G: K (w - w_free) = K (w - shift) - (nb, mb)).
     let (_, t_star) = residual(&w, tangents);
-    scratch.load = Some(t_star).filter(|_| fixed);
+    scratch.load = Some(t_star);
     let Some(f) = build(tangents) else {
         scratch.factor = None;
         scratch.load = None;

@@ -180,14 +180,7 @@ pub(crate) fn stiffness_with_tendons(
             continue;
         }
         let (x, y) = (p.r[0], p.r[1]);
-        let g = [
-            t[0],
-            t[1],
-            t[2],
-            y * t[2],
-            -x * t[2],
-            x * t[1] - y * t[0],
-        ];
+        let g = [t[0], t[1], t[2], y * t[2], -x * t[2], x * t[1] - y * t[0]];
         // B^T B, upper triangle: I, the -[r]x block and |r|^2 I - r r^T.
         let mut btb = [[0.0; 6]; 6];
         btb[0][0] = 1.0;

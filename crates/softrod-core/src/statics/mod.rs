@@ -36,7 +36,10 @@ pub mod system;
 
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
-use crate::ode::{integrate, integrate_remembering, strains, Coeffs, LawMemory, Loads, SectionKnobs, State};
+use crate::ode::{
+    integrate, integrate_remembering, strains, strains_with, Coeffs, LawMemory, Loads, Scratch,
+    SectionKnobs, State,
+};
 use crate::rod::Rod;
 use crate::spec::Frame;
 use crate::validity::{self, Node, Policy, StrainLimits};
@@ -678,14 +681,23 @@ impl<'a> Problem<'a> {
         let mut broken: Option<SoftrodError> = None;
         let mut worst: Option<(f64, SoftrodError)> = None;
         let mut index = 0;
-        let mut check = |i: usize, s: f64, y: &State<f64>| {
+        // The nodes are checked after the pass, with the tendon law at each started from the
+        // pass's own solution there (a node is the first stage of the next step; a section's
+        // end node is near the last step's last stage).
+        let mut nodes: Vec<(usize, f64, State<f64>)> = Vec::new();
+        let mut check = |i: usize, s: f64, y: &State<f64>, memory: &LawMemory| {
             let node = Node {
                 index,
                 s,
                 section: i,
             };
             index += 1;
-            let (v, u) = match self.check_node(node, y, opts, &mut worst) {
+            let sec = &self.rod.sections[i];
+            let h = sec.length / sec.steps as f64;
+            let k = (((s - sec.s_start) / h).round() as usize).min(sec.steps);
+            let stage = if k < sec.steps { 4 * k } else { 4 * k - 1 };
+            let mut scratch = memory.seeded(i, stage);
+            let (v, u) = match self.check_node(node, y, opts, &mut worst, &mut scratch) {
                 Ok(vu) => vu,
                 Err(e) => {
                     broken.get_or_insert(e);
@@ -701,7 +713,7 @@ impl<'a> Problem<'a> {
             let mut jacobi = Jacobi::default();
             let mut visit = |i: usize, s: f64, y: &State<Jet<3>>| {
                 jacobi.visit(y);
-                check(i, s, &y.re());
+                nodes.push((i, s, y.re()));
             };
             let tip = self.pass(&self.coeffs, self.base_state(&xd), Some(&mut visit));
             let rd: [Jet<3>; 3] = self.residual_of_tip(&tip);
@@ -709,11 +721,17 @@ impl<'a> Problem<'a> {
             let r: Vec<f64> = rd.iter().map(|v| v.re).collect();
             (tip.re(), Some(jacobi.stable(&jac)), r)
         } else {
-            let mut visit = |i: usize, s: f64, y: &State<f64>| check(i, s, y);
+            let mut visit = |i: usize, s: f64, y: &State<f64>| nodes.push((i, s, *y));
             let tip = self.pass(&self.coeffs, self.base_state(x), Some(&mut visit));
             let r: [f64; N] = self.residual_of_tip(&tip);
             (tip, None, r.to_vec())
         };
+        {
+            let memory = self.memory.borrow();
+            for (i, s, y) in &nodes {
+                check(*i, *s, y, &memory);
+            }
+        }
         let residual = match known_residual {
             Some(norm) => norm,
             None => {
@@ -764,6 +782,7 @@ impl<'a> Problem<'a> {
         y: &State<f64>,
         opts: &SolverOptions,
         worst: &mut Option<(f64, SoftrodError)>,
+        scratch: &mut Scratch,
     ) -> Result<([f64; 3], [f64; 3])> {
         let flat: [f64; 18] = std::array::from_fn(|k| match k {
             0..3 => y.r[k],
@@ -783,7 +802,7 @@ impl<'a> Problem<'a> {
         }
         let s = node.s - sec.s_start;
         let coeffs = &self.coeffs[node.section];
-        let (v, u) = strains(sec, y, coeffs, s);
+        let (v, u) = strains_with(sec, y, coeffs, s, scratch);
         validity::check_finite(node, &[v[0], v[1], v[2], u[0], u[1], u[2]])?;
         validity::check_stretch(node, &v)?;
         let t = if sec.tapered { s / sec.length } else { 0.0 };
@@ -1118,7 +1137,7 @@ fn by_collocation(
             m: [y[7], y[8], y[9]],
             aux: [1.0, 1.0],
         };
-        let (v, u) = p.check_node(node, &state, opts, &mut worst)?;
+        let (v, u) = p.check_node(node, &state, opts, &mut worst, &mut Scratch::default())?;
         shape.push(node, &state, v, u);
     }
     if let Some((_, e)) = worst {
