@@ -843,9 +843,11 @@ fn strain_size(d: &[f64; 6], rho: f64) -> f64 {
 /// G(w) = K (w - w_free) + T(w) = 0 with w_free = S(nb, mb) the strains without tendons
 /// and T = sum tau B^T t(w): the gradient of a strictly convex potential, whose Hessian
 /// J_K = K + sum (tau / |q|) B^T (I - t t^T) B is symmetric positive definite (LDL^T).
-/// Newton in f64 from the last stage's strains, keeping J_K from stage to stage (a chord
-/// method, refreshed when it contracts poorly); for dual scalars, J_K at the solution and
-/// one linearised step: w_D = w* - J_K^-1 G_D(w*) (the implicit function theorem).
+/// Newton in f64 from the last stage's strains, or from the last pass's at this stage when
+/// the scratch belongs to a [`LawMemory`] and those are closer, keeping J_K from stage to
+/// stage (a chord method, refreshed when it contracts poorly); for dual scalars, J_K at the
+/// solution and one linearised step: w_D = w* - J_K^-1 G_D(w*) (the implicit function
+/// theorem).
 fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
     nb: &[D; 3],
     mb: &[D; 3],
