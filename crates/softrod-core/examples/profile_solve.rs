@@ -1,4 +1,6 @@
-//! Time the pieces of one static solve (used while optimising; `cargo run --release --example profile_solve`).
+//! Time the pieces of one static solve (used while optimising; `cargo run --release --example
+//! profile_solve -- SPEC.json [TENSION_N [COLD_SOLVES]]`; with COLD_SOLVES it only runs that many
+//! cold solves, for `valgrind --tool=callgrind`).
 use softrod_core::ode::Loads;
 use softrod_core::statics::{residual, residual_and_jacobian, solve, SolverOptions};
 use softrod_core::{DesignSpec, Rod};
@@ -18,6 +20,15 @@ fn main() {
     }
     let opts = SolverOptions::default();
     let sol = solve(&rod, &loads, None, &opts).unwrap();
+    // Optional third argument: only that many cold solves (for callgrind's counts).
+    if let Some(k) = std::env::args().nth(3) {
+        let k: usize = k.parse().expect("number of cold solves");
+        for _ in 0..k {
+            std::hint::black_box(solve(&rod, &loads, None, &opts).unwrap());
+        }
+        println!("{k} cold solves, {} iterations each", sol.iterations);
+        return;
+    }
     let n = 2000;
     let t = Instant::now();
     for _ in 0..n {

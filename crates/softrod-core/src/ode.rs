@@ -558,18 +558,111 @@ pub fn strains<C: Coeff, D: StateScalar<C>>(
     (v, u)
 }
 
+/// [`strains`] with the tendon law started from `scratch` (e.g. [`LawMemory::seeded`]).
+pub(crate) fn strains_with<C: Coeff, D: StateScalar<C>>(
+    sec: &Section,
+    y: &State<D>,
+    c: &Coeffs<C>,
+    s: f64,
+    scratch: &mut Scratch,
+) -> ([D; 3], [D; 3]) {
+    let loc = c.local_at(sec, s);
+    let (v, u, _) = law_strains(y, c, &loc, sec, s, scratch);
+    (v, u)
+}
+
 /// What the tendon law keeps from one evaluation to the next along a section: the last
-/// strains (Newton's starting point at the next stage) and buffers.
+/// strains (Newton's starting point at the next stage) and buffers; in a [`LawMemory`],
+/// also every stage's solution of the last pass through the section.
 #[derive(Default)]
 pub(crate) struct Scratch {
     hint: Option<[f64; 6]>,
+    /// The strains without tendons, w_free, at the stage that left `hint`.
+    hint_free: [f64; 6],
     /// The last factorised J_K (linear law): Newton's matrix for the next stage.
     factor: Option<crate::tendon::Ldl6>,
     /// The tendons' load T = (F_t, M_t) at the last point where the linear law evaluated
-    /// the tangents (within a round-off-sized step of `hint`), when every route is straight.
+    /// the tangents (within a round-off-sized step of `hint`).
     load: Option<[f64; 6]>,
+    /// `hint` and `load` were solved at the arc length of the next evaluation (a seeded
+    /// scratch), so the load is valid there for any route.
+    here: bool,
     points: Vec<TendonPoint>,
     tangents: Vec<([f64; 3], f64)>,
+    /// Keep every stage's solution in `memo` (a [`LawMemory`]'s section).
+    remember: bool,
+    /// Stages (law evaluations) of the section in this pass so far.
+    stage: usize,
+    /// The last pass's solution at each stage.
+    memo: Vec<Memo>,
+    /// Newton steps of the linear tendon law taken with this scratch (its cost counter).
+    pub(crate) newton_steps: usize,
+}
+
+/// One stage's solution of the linear tendon law: strains, the strains without tendons
+/// there, and the tendons' load with it (see `Scratch::load`).
+#[derive(Clone, Copy)]
+struct Memo {
+    w: [f64; 6],
+    free: [f64; 6],
+    load: Option<[f64; 6]>,
+}
+
+/// The tendon law's solutions at every stage of the last integration, section by section,
+/// kept for the next integration of the same problem (the shooting solver's passes at
+/// successive Newton iterates, and its final pass at the solution): each stage starts
+/// Newton from the closer of the last pass's solution there and the last stage's.
+#[derive(Default)]
+pub(crate) struct LawMemory {
+    sections: Vec<Scratch>,
+}
+
+impl LawMemory {
+    /// Newton steps the linear tendon law took in all passes so far.
+    pub(crate) fn newton_steps(&self) -> usize {
+        self.sections.iter().map(|s| s.newton_steps).sum()
+    }
+
+    /// Evaluations of the linear tendon law in the last pass.
+    pub(crate) fn evaluations(&self) -> usize {
+        self.sections.iter().map(|s| s.stage).sum()
+    }
+
+    /// A scratch that starts the tendon law from the last pass's solution at stage `stage`
+    /// of section `section` (and its Newton matrix there), for a state at or near that
+    /// stage's; a plain cold start where there is none.
+    pub(crate) fn seeded(&self, section: usize, stage: usize) -> Scratch {
+        let Some(sc) = self.sections.get(section) else {
+            return Scratch::default();
+        };
+        let Some(m) = sc.memo.get(stage) else {
+            return Scratch::default();
+        };
+        Scratch {
+            hint: Some(m.w),
+            hint_free: m.free,
+            load: m.load,
+            here: true,
+            factor: sc.factor,
+            ..Scratch::default()
+        }
+    }
+
+    /// The section's scratch, made ready for a new pass (stage count and the last stage's
+    /// hint reset; the memo and Newton's matrix kept).
+    fn pass(&mut self, section: usize) -> &mut Scratch {
+        while self.sections.len() <= section {
+            self.sections.push(Scratch {
+                remember: true,
+                ..Scratch::default()
+            });
+        }
+        let sc = &mut self.sections[section];
+        sc.stage = 0;
+        sc.hint = None;
+        sc.load = None;
+        sc
+    }
 }
 
 impl<C: RodScalar> Local<C> {
@@ -750,9 +843,11 @@ fn strain_size(d: &[f64; 6], rho: f64) -> f64 {
 /// G(w) = K (w - w_free) + T(w) = 0 with w_free = S(nb, mb) the strains without tendons
 /// and T = sum tau B^T t(w): the gradient of a strictly convex potential, whose Hessian
 /// J_K = K + sum (tau / |q|) B^T (I - t t^T) B is symmetric positive definite (LDL^T).
-/// Newton in f64 from the last stage's strains, keeping J_K from stage to stage (a chord
-/// method, refreshed when it contracts poorly); for dual scalars, J_K at the solution and
-/// one linearised step: w_D = w* - J_K^-1 G_D(w*) (the implicit function theorem).
+/// Newton in f64 from the last stage's strains, or from the last pass's at this stage when
+/// the scratch belongs to a [`LawMemory`] and those are closer, keeping J_K from stage to
+/// stage (a chord method, refreshed when it contracts poorly); for dual scalars, J_K at the
+/// solution and one linearised step: w_D = w* - J_K^-1 G_D(w*) (the implicit function
+/// theorem).
 fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
     nb: &[D; 3],
     mb: &[D; 3],
@@ -808,9 +903,27 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
         ))
     };
     let plain = std::any::TypeId::of::<D>() == std::any::TypeId::of::<f64>();
-    // The start: the last stage's strains, else straight tendons (t = e3: w = w_free -
-    // C T(e3), which is exact for straight tendons without shear or twist).
-    let mut w = match scratch.hint {
+    // The last pass's solution at this stage, if kept: a start closer than the last
+    // stage's once the shooting iterates settle. Of the two, the one whose strains without
+    // tendons are closer to this stage's: w* = w_free - C T(w*), and T changes with w* only
+    // through the tendons' tangents, so w* moves about as w_free does.
+    let stage = scratch.stage;
+    scratch.stage += 1;
+    let memo = scratch
+        .memo
+        .get(stage)
+        .copied()
+        .filter(|_| scratch.remember);
+    let gap = |a: &[f64; 6]| strain_size(&std::array::from_fn(|k| a[k] - wfree[k]), rho);
+    let (hint, hint_load, here) = match (memo, scratch.hint) {
+        (Some(m), Some(_)) if gap(&m.free) <= gap(&scratch.hint_free) => (Some(m.w), m.load, true),
+        (Some(m), None) => (Some(m.w), m.load, true),
+        _ => (scratch.hint, scratch.load, scratch.here),
+    };
+    scratch.here = false;
+    // The start: the chosen hint, else straight tendons (t = e3: w = w_free - C T(e3),
+    // which is exact for straight tendons without shear or twist).
+    let mut w = match hint {
         Some(w) => w,
         None => {
             tangents.clear();
@@ -822,16 +935,18 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
             [v[0], v[1], v[2], u[0], u[1], u[2]]
         }
     };
-    let mut factor = scratch.factor;
+    // Newton's matrix is kept in place (no copies of its 42 numbers per evaluation).
+    let factor = &mut scratch.factor;
     let mut refresh = factor.is_none();
-    // The first residual at the last stage's strains w* without new tangents: with straight
-    // routes the tendons' load there is the last stage's (the tangents depend on w alone),
+    // The first residual at the hint's strains w* without new tangents: the tendons' load
+    // there is the hint's when it was solved at this arc length (the last pass's solution
+    // at this stage), or with straight routes anywhere (the tangents depend on w alone),
     // so G(w*) = K (w* - w_free) + T(w*) costs no square roots. T was evaluated one
     // converged Newton step before w*, so this residual is off by a round-off-sized
     // amount; every later step (and so the convergence test) uses the exact residual.
     let fixed = c.tendons.iter().all(|t| t.route.is_fixed());
-    let mut known_load = match (scratch.hint, scratch.load) {
-        (Some(_), Some(t)) if fixed && !refresh => Some(t),
+    let mut known_load = match (hint, hint_load) {
+        (Some(_), Some(t)) if (fixed || here) && !refresh => Some(t),
         _ => None,
     };
     let mut last_load = None;
@@ -847,11 +962,12 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
             }
         };
         if refresh {
-            factor = build(tangents);
+            *factor = build(tangents);
             refresh = false;
         }
         let Some(f) = factor.as_ref() else { break };
         let d = f.solve(&g);
+        scratch.newton_steps += 1;
         let dn = strain_size(&d, rho);
         if !dn.is_finite() {
             break;
@@ -874,13 +990,15 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
         scratch.hint = None;
         scratch.factor = None;
         scratch.load = None;
+        scratch.memo.truncate(stage);
         let nan = D::from(f64::NAN);
         return ([nan; 3], [nan; 3]);
     }
     scratch.hint = Some(w);
-    scratch.load = last_load.filter(|_| fixed);
+    scratch.hint_free = wfree;
+    scratch.load = last_load;
     if plain {
-        scratch.factor = factor;
+        remember(scratch, stage);
         return (
             [w[0], w[1], w[2]].map(D::from),
             [w[3], w[4], w[5]].map(D::from),
@@ -890,10 +1008,11 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
     // G_D = K_C (w* - S_C(nb_D, mb_D) ...) written as K_C (w* - shift_C) + T_C - (nb, mb)_D
     // (the same G: K (w - w_free) = K (w - shift) - (nb, mb)).
     let (_, t_star) = residual(&w, tangents);
-    scratch.load = Some(t_star).filter(|_| fixed);
+    scratch.load = Some(t_star);
     let Some(f) = build(tangents) else {
         scratch.factor = None;
         scratch.load = None;
+        scratch.memo.truncate(stage);
         let nan = D::from(f64::NAN);
         return ([nan; 3], [nan; 3]);
     };
@@ -926,8 +1045,28 @@ fn linear_tendon_strains<C: Coeff, D: StateScalar<C>>(
             + (loc.k_bt[a][0] * dw[3] + loc.k_bt[a][1] * dw[4] + loc.k_bt[a][2] * dw[5]);
     }
     let d = f.solve(&g);
+    remember(scratch, stage);
     let out: [D; 6] = std::array::from_fn(|k| -d[k] + w[k]);
     ([out[0], out[1], out[2]], [out[3], out[4], out[5]])
+}
+
+/// Keep the solution the scratch holds (hint, its w_free and load) as stage `stage`'s memo.
+#[inline]
+fn remember(scratch: &mut Scratch, stage: usize) {
+    if !scratch.remember {
+        return;
+    }
+    let Some(w) = scratch.hint else { return };
+    let m = Memo {
+        w,
+        free: scratch.hint_free,
+        load: scratch.load,
+    };
+    if stage < scratch.memo.len() {
+        scratch.memo[stage] = m;
+    } else if stage == scratch.memo.len() {
+        scratch.memo.push(m);
+    }
 }
 
 /// Strains of a section with tendons and stretch-dependent bending (a law that is not the
@@ -1230,19 +1369,47 @@ pub fn integrate<C: Coeff, D: StateScalar<C>>(
     rod: &Rod,
     coeffs: &[Coeffs<C>],
     y0: State<D>,
+    visit: Option<Visitor<'_, D>>,
+) -> State<D> {
+    integrate_in(rod, coeffs, y0, visit, None)
+}
+
+/// [`integrate`] with the tendon law's solutions kept in `memory` from one call to the next
+/// (successive integrations of one problem: same rod and coefficient values).
+pub(crate) fn integrate_remembering<C: Coeff, D: StateScalar<C>>(
+    rod: &Rod,
+    coeffs: &[Coeffs<C>],
+    y0: State<D>,
+    visit: Option<Visitor<'_, D>>,
+    memory: &mut LawMemory,
+) -> State<D> {
+    integrate_in(rod, coeffs, y0, visit, Some(memory))
+}
+
+fn integrate_in<C: Coeff, D: StateScalar<C>>(
+    rod: &Rod,
+    coeffs: &[Coeffs<C>],
+    y0: State<D>,
     mut visit: Option<Visitor<'_, D>>,
+    memory: Option<&mut LawMemory>,
 ) -> State<D> {
     match visit.as_mut() {
-        None => integrate_with(rod, coeffs, y0, &mut |_, _| false),
-        Some(v) => integrate_with(rod, coeffs, y0, &mut |node: NodeAt, y: &mut State<D>| {
-            // The base node is visited once the first section's carried stretch is set,
-            // so that its strains come from that section's law like every other node's;
-            // a later section's start is the previous section's end, already visited.
-            if node.step > 0 || node.section == 0 {
-                v(node.section, node.s, y);
-            }
-            false
-        }),
+        None => integrate_hooked(rod, coeffs, y0, &mut |_, _| false, memory),
+        Some(v) => integrate_hooked(
+            rod,
+            coeffs,
+            y0,
+            &mut |node: NodeAt, y: &mut State<D>| {
+                // The base node is visited once the first section's carried stretch is set,
+                // so that its strains come from that section's law like every other node's;
+                // a later section's start is the previous section's end, already visited.
+                if node.step > 0 || node.section == 0 {
+                    v(node.section, node.s, y);
+                }
+                false
+            },
+            memory,
+        ),
     }
 }
 
@@ -1266,7 +1433,18 @@ pub fn integrate_with<C: Coeff, D: StateScalar<C>>(
     y0: State<D>,
     at_node: &mut dyn FnMut(NodeAt, &mut State<D>) -> bool,
 ) -> State<D> {
+    integrate_hooked(rod, coeffs, y0, at_node, None)
+}
+
+fn integrate_hooked<C: Coeff, D: StateScalar<C>>(
+    rod: &Rod,
+    coeffs: &[Coeffs<C>],
+    y0: State<D>,
+    at_node: &mut dyn FnMut(NodeAt, &mut State<D>) -> bool,
+    mut memory: Option<&mut LawMemory>,
+) -> State<D> {
     let mut y = y0;
+    let mut own;
     for (i, (sec, c)) in rod.sections.iter().zip(coeffs).enumerate() {
         resolve_stretch(&mut y, c);
         let node = NodeAt {
@@ -1278,7 +1456,13 @@ pub fn integrate_with<C: Coeff, D: StateScalar<C>>(
             resolve_stretch(&mut y, c);
         }
         let h = sec.length / sec.steps as f64;
-        let mut scratch = Scratch::default();
+        let scratch = match memory.as_deref_mut() {
+            Some(m) => m.pass(i),
+            None => {
+                own = Scratch::default();
+                &mut own
+            }
+        };
         let uniform = c.local();
         let varying = c.inputs.is_some();
         let mut start = if varying {
@@ -1299,10 +1483,10 @@ pub fn integrate_with<C: Coeff, D: StateScalar<C>>(
                     s0 + h
                 };
                 let end = c.local_at(sec, end_s);
-                rk4_step(&mut y, c, [&start, &mid, &end], sec, s0, h, &mut scratch);
+                rk4_step(&mut y, c, [&start, &mid, &end], sec, s0, h, scratch);
                 start = end;
             } else {
-                rk4_step(&mut y, c, [&uniform; 3], sec, s0, h, &mut scratch);
+                rk4_step(&mut y, c, [&uniform; 3], sec, s0, h, scratch);
             }
             let node = NodeAt {
                 section: i,

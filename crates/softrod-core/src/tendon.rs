@@ -163,52 +163,52 @@ pub(crate) fn load_jacobian(tangents: &[([f64; 3], f64)], points: &[TendonPoint]
 
 /// J_K = K + sum_i (tau_i / |q_i|) B_i^T (I - t_i t_i^T) B_i for the linear law, K =
 /// diag(K_se) + K_bt: symmetric positive definite (the Hessian of the convex potential).
-/// B_i^T P B_i written out: B_i's columns are e1, e2, e3, y e3, -x e3, (-y, x, 0).
+/// Written as B^T B - g g^T with g = B^T t = (t, r x t) (the tendon's load per unit
+/// tension) and, B's columns being e1, e2, e3, y e3, -x e3, (-y, x, 0), B^T B = [[I, -[r]x],
+/// [[r]x, |r|^2 I - r r^T]]: its upper triangle is summed, then mirrored.
 pub(crate) fn stiffness_with_tendons(
     k_se: &[f64; 3],
     k_bt: &[[f64; 3]; 3],
     tangents: &[([f64; 3], f64)],
     points: &[TendonPoint],
 ) -> [[f64; 6]; 6] {
+    // The tendons' part (upper triangle), added to K below.
     let mut j = [[0.0; 6]; 6];
-    for a in 0..3 {
-        j[a][a] = k_se[a];
-        for b in 0..3 {
-            j[3 + a][3 + b] = k_bt[a][b];
-        }
-    }
     for ((t, len), p) in tangents.iter().zip(points) {
         let c = p.tension / len;
         if c == 0.0 {
             continue;
         }
         let (x, y) = (p.r[0], p.r[1]);
-        // P = I - t t^T
-        let pm = |a: usize, b: usize| (if a == b { 1.0 } else { 0.0 }) - t[a] * t[b];
-        let p5 = |a: usize| -y * pm(a, 0) + x * pm(a, 1); // (P b5)_a
-        let col: [[f64; 3]; 6] = [
-            [pm(0, 0), pm(1, 0), pm(2, 0)],
-            [pm(0, 1), pm(1, 1), pm(2, 1)],
-            [pm(0, 2), pm(1, 2), pm(2, 2)],
-            [y * pm(0, 2), y * pm(1, 2), y * pm(2, 2)],
-            [-x * pm(0, 2), -x * pm(1, 2), -x * pm(2, 2)],
-            [p5(0), p5(1), p5(2)],
-        ];
-        // b_j^T (P b_k): b_0..b_2 unit vectors, b_3 = y e3, b_4 = -x e3, b_5 = (-y, x, 0).
-        let dot = |jdx: usize, v: &[f64; 3]| match jdx {
-            0..=2 => v[jdx],
-            3 => y * v[2],
-            4 => -x * v[2],
-            _ => -y * v[0] + x * v[1],
-        };
+        let g = [t[0], t[1], t[2], y * t[2], -x * t[2], x * t[1] - y * t[0]];
+        // B^T B, upper triangle: I, the -[r]x block and |r|^2 I - r r^T.
+        let mut btb = [[0.0; 6]; 6];
+        btb[0][0] = 1.0;
+        btb[1][1] = 1.0;
+        btb[2][2] = 1.0;
+        btb[0][5] = -y;
+        btb[1][5] = x;
+        btb[2][3] = y;
+        btb[2][4] = -x;
+        btb[3][3] = y * y;
+        btb[3][4] = -x * y;
+        btb[4][4] = x * x;
+        btb[5][5] = x * x + y * y;
         for a in 0..6 {
             for b in a..6 {
-                let e = c * dot(a, &col[b]);
-                j[a][b] += e;
-                if a != b {
-                    j[b][a] += e;
-                }
+                j[a][b] += c * (btb[a][b] - g[a] * g[b]);
             }
+        }
+    }
+    for a in 0..6 {
+        for b in 0..a {
+            j[a][b] = j[b][a];
+        }
+    }
+    for a in 0..3 {
+        j[a][a] += k_se[a];
+        for b in 0..3 {
+            j[3 + a][3 + b] += k_bt[a][b];
         }
     }
     j
@@ -227,6 +227,7 @@ impl Ldl6 {
     pub(crate) fn new(a: &[[f64; 6]; 6]) -> Option<Self> {
         let mut l = [[0.0; 6]; 6];
         let mut d = [0.0; 6];
+        let mut d_inv = [0.0; 6];
         for j in 0..6 {
             let mut dj = a[j][j];
             for k in 0..j {
@@ -236,19 +237,18 @@ impl Ldl6 {
                 return None;
             }
             d[j] = dj;
+            d_inv[j] = 1.0 / dj;
             l[j][j] = 1.0;
             for i in j + 1..6 {
                 let mut v = a[i][j];
                 for k in 0..j {
                     v -= l[i][k] * l[j][k] * d[k];
                 }
-                l[i][j] = v / dj;
+                // One division per pivot, not per entry.
+                l[i][j] = v * d_inv[j];
             }
         }
-        Some(Ldl6 {
-            l,
-            d_inv: d.map(|x| 1.0 / x),
-        })
+        Some(Ldl6 { l, d_inv })
     }
 
     /// Solve A x = b for a right-hand side in any scalar (f64 factors).

@@ -9,7 +9,9 @@ use softrod_core::batch::{sensitivity_batch, solve_batch, BatchInputs};
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{tip_sensitivity, Param, ParamKind};
 use softrod_core::spec::{DesignSpec, SectionSpec, TendonSpec};
-use softrod_core::statics::{load_tangent, shape, solve, SolverOptions};
+use softrod_core::statics::{
+    load_tangent, residual, residual_passes, shape, solve, solve_with_shape, SolverOptions,
+};
 use softrod_core::{Rod, SoftrodError};
 
 fn opts() -> SolverOptions {
@@ -217,6 +219,85 @@ fn warm_started_tendon_law_matches_cold_solves() {
             checked += 1;
         }
         assert!(checked >= 20, "only {checked} steps compared");
+    }
+}
+
+/// The shooting solver's passes start the tendon law at every stage from the last pass's
+/// solution there when that is closer than the last stage's (`residual_passes`: one
+/// problem's f64 passes in order). Along iterates closing in on the solution, as Newton's
+/// do, every pass's residual equals a fresh pass's (no memory) at the same unknowns: each
+/// stage's law stops within about 1e-13 of a strain (u times the fibre radius) of its root,
+/// and an error d in a strain bends the rod's remaining length L by about L d / rho,
+/// moving the moment arms of the loads in the scaled residual (moments over F_s L) by
+/// about (L / rho) d, 10 d here; with some 100 stages' errors adding up that is 1e-10. A
+/// stale start accepted as converged would show at the size of the change from one pass
+/// to the next (1e-4 for the 1e-2 step). Passing the same unknowns again (the solver's
+/// final pass at its last iterate) the start at each stage is its root to the law's
+/// tolerance, so most evaluations take one Newton step (the rest a second, where the
+/// start's error from the last pass's tolerance is about the tolerance itself): at most
+/// 1.75 steps per evaluation on average, where a fresh pass from the last stage's strains
+/// takes over 2 (its first step is as large as the change from one stage to the next,
+/// and a second cannot show convergence below 1e-13), so the count fails without the memory.
+/// The solver's final pass checks every node with the law started from that pass's own
+/// solution there: its strains equal `shape`'s cold solves at the same solution to 1e-11
+/// (v, and u times the fibre radius: the law's 1e-13 at each node plus the two passes'
+/// states differing by the stages' law errors carried along, the 1e-10 above); a stale
+/// start accepted would be off by a stage's strain change, 1e-4.
+#[test]
+fn tendon_law_memory_across_passes_matches_fresh_passes() {
+    for helical in [false, true] {
+        let rod = Rod::new(tendon_arm(helical, false)).unwrap();
+        let ld = tensioned(&[20e3, 0.0, 10e3], &[1.5, 0.6]);
+        let (sol, seeded) = solve_with_shape(&rod, &ld, None, &opts()).unwrap();
+        let cold = shape(&rod, &ld, &sol);
+        assert_eq!(seeded.v.len(), cold.v.len());
+        for k in 0..cold.v.len() {
+            let rho = rod.sections[cold.section[k]].fibre_radius;
+            for a in 0..3 {
+                let dv = (seeded.v[k][a] - cold.v[k][a]).abs();
+                let du = rho * (seeded.u[k][a] - cold.u[k][a]).abs();
+                assert!(
+                    dv.max(du) <= 1e-11,
+                    "helical {helical}: node {k} strains differ by {dv:e}, {du:e}"
+                );
+            }
+        }
+        let xs: Vec<Vec<f64>> = [1e-2, -3e-4, 1e-7, 0.0, 0.0]
+            .iter()
+            .map(|e| {
+                sol.x
+                    .iter()
+                    .enumerate()
+                    .map(|(i, v)| v + e * (1.0 + 0.5 * i as f64))
+                    .collect()
+            })
+            .collect();
+        let passes = residual_passes(&rod, &ld, &xs).unwrap();
+        for (k, (x, (r, _, _))) in xs.iter().zip(&passes).enumerate() {
+            let fresh = residual(&rod, &ld, x).unwrap();
+            let diff = r
+                .iter()
+                .zip(&fresh)
+                .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                diff <= 1e-10,
+                "helical {helical}: pass {k} differs from a fresh pass by {diff:e}"
+            );
+        }
+        let (_, evals, again) = passes[4];
+        assert!(
+            evals >= 20,
+            "helical {helical}: only {evals} law evaluations"
+        );
+        let fresh = residual_passes(&rod, &ld, &xs[4..5]).unwrap()[0].2;
+        eprintln!(
+            "helical {helical}: {evals} evaluations; Newton steps per pass {:?}, fresh {fresh}",
+            passes.iter().map(|p| p.2).collect::<Vec<_>>()
+        );
+        assert!(
+            4 * again <= 7 * evals && fresh > 2 * evals,
+            "helical {helical}: {again} Newton steps again, {fresh} fresh, {evals} evaluations"
+        );
     }
 }
 

@@ -633,7 +633,13 @@ pub(crate) fn checked_shape(
             section: i,
         };
         index += 1;
-        match p.check_node(node, y, opts, &mut worst) {
+        match p.check_node(
+            node,
+            y,
+            opts,
+            &mut worst,
+            &mut crate::ode::Scratch::default(),
+        ) {
             Ok((v, u)) => shape.push(node, y, v, u),
             Err(e) => {
                 broken.get_or_insert(e);

@@ -38,7 +38,10 @@ pub mod system;
 
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
-use crate::ode::{integrate, strains, Coeffs, Loads, SectionKnobs, State};
+use crate::ode::{
+    integrate, integrate_remembering, strains, strains_with, Coeffs, LawMemory, Loads, Scratch,
+    SectionKnobs, State,
+};
 use crate::rod::Rod;
 use crate::spec::Frame;
 use crate::validity::{self, Node, Policy, StrainLimits};
@@ -179,6 +182,8 @@ pub(crate) struct Problem<'a> {
     ms: f64,
     /// Some load follows the body: 6 unknowns (base force and moment).
     follower: bool,
+    /// The tendon law's solutions of the last pass, the next pass's starts.
+    memory: std::cell::RefCell<LawMemory>,
 }
 
 fn inf_norm(r: &[f64]) -> f64 {
@@ -316,6 +321,7 @@ impl<'a> Problem<'a> {
             fs: rod.force_scale,
             ms: rod.force_scale * rod.length,
             follower: loads.base_force_unknown(rod),
+            memory: Default::default(),
         };
         let w = p.tip_weight();
         let mt = rod.spec.tip.mass;
@@ -427,15 +433,27 @@ impl<'a> Problem<'a> {
         }
     }
 
+    /// [`integrate`] of this problem's coefficients from `y0`, with the tendon law
+    /// started from the last pass's solutions (`LawMemory`).
+    fn pass<C: crate::jet::Coeff, D: crate::jet::StateScalar<C>>(
+        &self,
+        coeffs: &[Coeffs<C>],
+        y0: State<D>,
+        visit: Option<crate::ode::Visitor<'_, D>>,
+    ) -> State<D> {
+        let mut memory = self.memory.borrow_mut();
+        integrate_remembering(self.rod, coeffs, y0, visit, &mut memory)
+    }
+
     fn eval<const N: usize>(&self, x: &[f64; N]) -> [f64; N] {
-        let tip = integrate(self.rod, &self.coeffs, self.base_state(x), None);
+        let tip = self.pass(&self.coeffs, self.base_state(x), None);
         self.residual_of_tip(&tip)
     }
 
     /// Residual and exact Jacobian by forward-mode AD (N directions).
     fn eval_jac<const N: usize>(&self, x: &[f64; N]) -> ([f64; N], SMatrix<f64, N, N>) {
         let xd: [Jet<N>; N] = std::array::from_fn(|i| Jet::variable(x[i], i));
-        let tip = integrate(self.rod, &self.coeffs, self.base_state(&xd), None);
+        let tip = self.pass(&self.coeffs, self.base_state(&xd), None);
         let rd: [Jet<N>; N] = self.residual_of_tip(&tip);
         let jac = SMatrix::<f64, N, N>::from_fn(|i, j| rd[i].eps[j]);
         (rd.map(|r| r.re), jac)
@@ -486,7 +504,7 @@ impl<'a> Problem<'a> {
                 conj.visit(y, length)
             }
         };
-        let tip = integrate(self.rod, &coeffs, y0, Some(&mut visit));
+        let tip = self.pass(&coeffs, y0, Some(&mut visit));
         let mt = self.rod.spec.tip.mass;
         let w: [Jet<M>; 3] = std::array::from_fn(|k| lam * (mt * self.rod.gravity[k]));
         let f_tip: [Jet<M>; 3] = std::array::from_fn(|k| lam * self.loads.tip_force[k]);
@@ -681,14 +699,23 @@ impl<'a> Problem<'a> {
         let mut broken: Option<SoftrodError> = None;
         let mut worst: Option<(f64, SoftrodError)> = None;
         let mut index = 0;
-        let mut check = |i: usize, s: f64, y: &State<f64>| {
+        // The nodes are checked after the pass, with the tendon law at each started from the
+        // pass's own solution there (a node is the first stage of the next step; a section's
+        // end node is near the last step's last stage).
+        let mut nodes: Vec<(usize, f64, State<f64>)> = Vec::new();
+        let mut check = |i: usize, s: f64, y: &State<f64>, memory: &LawMemory| {
             let node = Node {
                 index,
                 s,
                 section: i,
             };
             index += 1;
-            let (v, u) = match self.check_node(node, y, opts, &mut worst) {
+            let sec = &self.rod.sections[i];
+            let h = sec.length / sec.steps as f64;
+            let k = (((s - sec.s_start) / h).round() as usize).min(sec.steps);
+            let stage = if k < sec.steps { 4 * k } else { 4 * k - 1 };
+            let mut scratch = memory.seeded(i, stage);
+            let (v, u) = match self.check_node(node, y, opts, &mut worst, &mut scratch) {
                 Ok(vu) => vu,
                 Err(e) => {
                     broken.get_or_insert(e);
@@ -704,14 +731,9 @@ impl<'a> Problem<'a> {
             let mut jacobi = Jacobi::default();
             let mut visit = |i: usize, s: f64, y: &State<Jet<3>>| {
                 jacobi.visit(y);
-                check(i, s, &y.re());
+                nodes.push((i, s, y.re()));
             };
-            let tip = integrate(
-                self.rod,
-                &self.coeffs,
-                self.base_state(&xd),
-                Some(&mut visit),
-            );
+            let tip = self.pass(&self.coeffs, self.base_state(&xd), Some(&mut visit));
             let rd: [Jet<3>; 3] = self.residual_of_tip(&tip);
             let jac = Matrix3::from_fn(|i, j| rd[i].eps[j]);
             let r: Vec<f64> = rd.iter().map(|v| v.re).collect();
@@ -737,11 +759,17 @@ impl<'a> Problem<'a> {
             let r: Vec<f64> = rd.iter().map(|v| v.re).collect();
             (tip.re(), Some(conj.stable_free(&jac)), r)
         } else {
-            let mut visit = |i: usize, s: f64, y: &State<f64>| check(i, s, y);
-            let tip = integrate(self.rod, &self.coeffs, self.base_state(x), Some(&mut visit));
+            let mut visit = |i: usize, s: f64, y: &State<f64>| nodes.push((i, s, *y));
+            let tip = self.pass(&self.coeffs, self.base_state(x), Some(&mut visit));
             let r: [f64; N] = self.residual_of_tip(&tip);
             (tip, None, r.to_vec())
         };
+        {
+            let memory = self.memory.borrow();
+            for (i, s, y) in &nodes {
+                check(*i, *s, y, &memory);
+            }
+        }
         let residual = match known_residual {
             Some(norm) => norm,
             None => {
@@ -792,6 +820,7 @@ impl<'a> Problem<'a> {
         y: &State<f64>,
         opts: &SolverOptions,
         worst: &mut Option<(f64, SoftrodError)>,
+        scratch: &mut Scratch,
     ) -> Result<([f64; 3], [f64; 3])> {
         let flat: [f64; 18] = std::array::from_fn(|k| match k {
             0..3 => y.r[k],
@@ -811,7 +840,7 @@ impl<'a> Problem<'a> {
         }
         let s = node.s - sec.s_start;
         let coeffs = &self.coeffs[node.section];
-        let (v, u) = strains(sec, y, coeffs, s);
+        let (v, u) = strains_with(sec, y, coeffs, s, scratch);
         validity::check_finite(node, &[v[0], v[1], v[2], u[0], u[1], u[2]])?;
         validity::check_stretch(node, &v)?;
         let t = if sec.tapered { s / sec.length } else { 0.0 };
@@ -1146,7 +1175,7 @@ fn by_collocation(
             m: [y[7], y[8], y[9]],
             aux: [1.0, 1.0],
         };
-        let (v, u) = p.check_node(node, &state, opts, &mut worst)?;
+        let (v, u) = p.check_node(node, &state, opts, &mut worst, &mut Scratch::default())?;
         shape.push(node, &state, v, u);
     }
     if let Some((_, e)) = worst {
@@ -1520,6 +1549,32 @@ pub fn residual(rod: &Rod, loads: &Loads, x: &[f64]) -> Result<Vec<f64>> {
     } else {
         p.eval::<3>(&std::array::from_fn(|i| x[i])).to_vec()
     })
+}
+
+/// Scaled residuals at the unknowns `xs`, one f64 pass each, in order, by one problem (as
+/// the shooting Newton's passes: each pass starts the tendon law at every stage from the
+/// last pass's solution there, when closer), with the tendon law's evaluations and Newton
+/// steps in each pass. A cost counter for profiling, and for tests of that memory.
+#[doc(hidden)]
+pub fn residual_passes(
+    rod: &Rod,
+    loads: &Loads,
+    xs: &[Vec<f64>],
+) -> Result<Vec<(Vec<f64>, usize, usize)>> {
+    let p = Problem::new(rod, loads, 1.0);
+    let mut out = Vec::with_capacity(xs.len());
+    for x in xs {
+        check_unknowns(&p, x)?;
+        let before = p.memory.borrow().newton_steps();
+        let r = if x.len() == 6 {
+            p.eval::<6>(&std::array::from_fn(|i| x[i])).to_vec()
+        } else {
+            p.eval::<3>(&std::array::from_fn(|i| x[i])).to_vec()
+        };
+        let m = p.memory.borrow();
+        out.push((r, m.evaluations(), m.newton_steps() - before));
+    }
+    Ok(out)
 }
 
 /// The path tangent dx/dlambda, the Jacobian and the stability flag (None: not assessed)
