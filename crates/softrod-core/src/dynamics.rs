@@ -974,48 +974,22 @@ impl Simulator {
                     &SolverOptions::default(),
                 )
                 .map_err(|e| e.map_message(|m| format!("the initial static state: {m}")))?;
-                let mut z = static_guess(&problem, &sol.shape);
-                let nopts = NewtonOptions {
-                    tol: self.opts.tol.min(1e-10),
-                    max_iter: 100,
-                };
-                let mut ns = NewtonStats::default();
-                collocation::newton(&problem, &mut z, &mut None, &nopts, &mut ns).map_err(
-                    |(iterations, residual)| SoftrodError::NotConverged {
-                        iterations,
-                        residual,
-                        load_factor: 1.0,
-                        reason: format!(
-                            "the initial static state with a {} tip did not solve",
-                            self.end.name()
-                        ),
-                    },
-                )?;
-                self.stats.newton_iterations += ns.iterations;
+                let z = static_guess(&problem, &sol.shape);
+                let what = format!("with a {} tip", self.end.name());
+                let (z, it) = refine_static(&problem, z, self.opts.tol, &what)?;
+                self.stats.newton_iterations += it;
                 z
             }
             Initial::Static if problem.contact.is_some() => {
                 // Equilibrium in contact: this discretisation's static problem with the
                 // contact loads (c0 = 0), from the static solver's (shooting, contact
                 // too) shape.
-                let mut z = statics::solve(&self.rod, &loads, None, &SolverOptions::default())
+                let z = statics::solve(&self.rod, &loads, None, &SolverOptions::default())
                     .ok()
                     .map(|sol| static_guess(&problem, &statics::shape(&self.rod, &loads, &sol)))
                     .unwrap_or_else(|| problem.straight_unknowns());
-                let nopts = NewtonOptions {
-                    tol: self.opts.tol.min(1e-10),
-                    max_iter: 100,
-                };
-                let mut ns = NewtonStats::default();
-                collocation::newton(&problem, &mut z, &mut None, &nopts, &mut ns).map_err(
-                    |(iterations, residual)| SoftrodError::NotConverged {
-                        iterations,
-                        residual,
-                        load_factor: 1.0,
-                        reason: "the initial static state in contact did not solve".into(),
-                    },
-                )?;
-                self.stats.newton_iterations += ns.iterations;
+                let (z, it) = refine_static(&problem, z, self.opts.tol, "in contact")?;
+                self.stats.newton_iterations += it;
                 z
             }
             Initial::Static => {
@@ -2943,6 +2917,31 @@ fn table_energy(table: &crate::law::AxialTable, s: f64, v3: f64) -> f64 {
 
 /// An initial guess of the static collocation problem from a shooting solution: its node
 /// states (the grids share their nodes), with quaternion signs kept continuous.
+/// Newton on a discretisation's static problem (c0 = 0) from `z`, a shape of the static
+/// solver: the exact rest state of a run (tolerance the run's, at most 1e-10). Returns it
+/// and the iterations; `what` names the case in the error.
+fn refine_static(
+    problem: &Problem,
+    mut z: Vec<f64>,
+    tol: f64,
+    what: &str,
+) -> Result<(Vec<f64>, usize)> {
+    let nopts = NewtonOptions {
+        tol: tol.min(1e-10),
+        max_iter: 100,
+    };
+    let mut ns = NewtonStats::default();
+    collocation::newton(problem, &mut z, &mut None, &nopts, &mut ns).map_err(
+        |(iterations, residual)| SoftrodError::NotConverged {
+            iterations,
+            residual,
+            load_factor: 1.0,
+            reason: format!("the initial static state {what} did not solve"),
+        },
+    )?;
+    Ok((z, ns.iterations))
+}
+
 fn static_guess(p: &Problem, shape: &statics::Shape) -> Vec<f64> {
     let mut nodes: Vec<[f64; NY]> = Vec::with_capacity(shape.s.len());
     let mut last = p.base_q;

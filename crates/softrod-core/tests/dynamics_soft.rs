@@ -157,33 +157,7 @@ fn timoshenko_frequencies(count: usize) -> Vec<f64> {
     let (a, i) = (PI * R * R, PI * R.powi(4) / 4.0);
     let (ei, ga) = (E * i, E / 3.0 * a);
     let (ra, ri) = (RHO * a, RHO * i);
-    let det = |om: f64| -> f64 {
-        let f = |z: [f64; 4]| -> [f64; 4] {
-            [
-                z[1] + z[3] / ga,
-                z[2] / ei,
-                -z[3] - ri * om * om * z[1],
-                -ra * om * om * z[0],
-            ]
-        };
-        let n = 4000;
-        let h = L / n as f64;
-        let run = |mut z: [f64; 4]| {
-            for _ in 0..n {
-                let k1 = f(z);
-                let k2 = f(std::array::from_fn(|j| z[j] + 0.5 * h * k1[j]));
-                let k3 = f(std::array::from_fn(|j| z[j] + 0.5 * h * k2[j]));
-                let k4 = f(std::array::from_fn(|j| z[j] + h * k3[j]));
-                for j in 0..4 {
-                    z[j] += h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]);
-                }
-            }
-            z
-        };
-        let za = run([0.0, 0.0, 1.0, 0.0]);
-        let zb = run([0.0, 0.0, 0.0, 1.0]);
-        za[2] * zb[3] - za[3] * zb[2]
-    };
+    let det = |om: f64| timoshenko_determinant(L, [ei, ga, ra, ri], om, TIMOSHENKO_FREE);
     // Scan for sign changes from below the first Euler-Bernoulli frequency.
     let eb1 = 1.875104068712f64.powi(2) * (ei / (ra * L.powi(4))).sqrt();
     let mut roots = Vec::new();
