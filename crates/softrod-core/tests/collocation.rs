@@ -16,16 +16,7 @@ fn pam_arm(steps: usize) -> Rod {
 
 /// Paper 000's arm of a length and mass (designs/pam_arm_220mm.toml, pam_arm_1m.toml).
 fn pam_arm_of(length: f64, mass: f64, steps: usize) -> Rod {
-    let mut sec = direct_section("arm", length, 262.8, 87.6, 0.04466, 0.02977, mass, steps);
-    sec.chambers = [0.0, 120.0, 240.0]
-        .iter()
-        .enumerate()
-        .map(|(k, a)| {
-            let mut c = chamber(6.02e-3, 0.0175, *a, k);
-            c.area = 113.88e-6;
-            c
-        })
-        .collect();
+    let sec = pam_arm_section(length, mass, steps);
     let hanging = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
     Rod::new(design(vec![sec], hanging, 9.81)).unwrap()
 }

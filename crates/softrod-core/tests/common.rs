@@ -490,11 +490,10 @@ pub fn tapered(steps: usize, tau: f64) -> DesignSpec {
     d
 }
 
-/// Paper 000's arm (tests/dynamics_scope.rs, tests/dynamics_sensitivity.rs) moulded curved: the reference curvature and
-/// stretch given by a table along s, a helix (constant values, `helix`) or an arc whose
-/// curvature grows along the arm.
-pub fn tabulated_arm(helix: bool) -> DesignSpec {
-    let mut sec = direct_section("arm", 0.22, 262.8, 87.6, 0.04466, 0.02977, 0.165, 16);
+/// Paper 000's arm body: `length`, `mass` (kg), three extending PAMs at 0, 120 and 240 deg
+/// (effective area 113.88 mm^2 at 17.5 mm), the stiffnesses of designs/pam_arm_220mm.toml.
+pub fn pam_arm_section(length: f64, mass: f64, steps: usize) -> SectionSpec {
+    let mut sec = direct_section("arm", length, 262.8, 87.6, 0.04466, 0.02977, mass, steps);
     sec.chambers = [0.0, 120.0, 240.0]
         .iter()
         .enumerate()
@@ -504,6 +503,14 @@ pub fn tabulated_arm(helix: bool) -> DesignSpec {
             c
         })
         .collect();
+    sec
+}
+
+/// Paper 000's arm (tests/dynamics_scope.rs, tests/dynamics_sensitivity.rs) moulded curved: the reference curvature and
+/// stretch given by a table along s, a helix (constant values, `helix`) or an arc whose
+/// curvature grows along the arm.
+pub fn tabulated_arm(helix: bool) -> DesignSpec {
+    let mut sec = pam_arm_section(0.22, 0.165, 16);
     let s = vec![0.0, 0.07, 0.15, 0.22];
     let curvature = if helix {
         vec![[0.0, 3.0, 0.5]; 4]

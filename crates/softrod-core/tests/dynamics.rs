@@ -138,16 +138,7 @@ fn kelvin_voigt_decay_ratio_is_tau_omega_over_two() {
 
 /// Paper 000's arm: hanging, three PAMs, tau = 0.19 s (Sec. IV-A).
 fn pam_arm(steps: usize, tau: f64) -> Rod {
-    let mut sec = direct_section("arm", 0.22, 262.8, 87.6, 0.04466, 0.02977, 0.165, steps);
-    sec.chambers = [0.0, 120.0, 240.0]
-        .iter()
-        .enumerate()
-        .map(|(k, a)| {
-            let mut c = chamber(6.02e-3, 0.0175, *a, k);
-            c.area = 113.88e-6;
-            c
-        })
-        .collect();
+    let sec = pam_arm_section(0.22, 0.165, steps);
     let hanging = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
     let mut spec = design(vec![sec], hanging, 9.81);
     spec.dynamics.damping_time = tau;

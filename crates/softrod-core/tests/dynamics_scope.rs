@@ -18,16 +18,7 @@ fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
 
 /// Paper 000's arm (as in tests/dynamics.rs), moulded curved and twisted.
 fn precurved_arm() -> DesignSpec {
-    let mut sec = direct_section("arm", 0.22, 262.8, 87.6, 0.04466, 0.02977, 0.165, 16);
-    sec.chambers = [0.0, 120.0, 240.0]
-        .iter()
-        .enumerate()
-        .map(|(k, a)| {
-            let mut c = chamber(6.02e-3, 0.0175, *a, k);
-            c.area = 113.88e-6;
-            c
-        })
-        .collect();
+    let mut sec = pam_arm_section(0.22, 0.165, 16);
     sec.reference.curvature = [0.0, 3.0, 0.5];
     sec.reference.strain = [0.0, 0.0, 1.02];
     let hanging = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
