@@ -466,7 +466,7 @@ pub fn solve_constrained_batch(
     if let TipConstraint::Free = constraint {
         return solve_batch(rod, inputs, opts, threads);
     }
-    crate::statics::contact::refuse_obstacles(rod, "a pinned or clamped tip")?;
+    crate::scope::refuse_obstacles(rod, "a pinned or clamped tip")?;
     let mut rows = Rows::new(rod, opts, inputs, None)?;
     rows.unknowns = 6;
     let rows = &rows;

@@ -616,82 +616,10 @@ pub struct Simulator {
     pub stats: DynStats,
 }
 
-/// Refuse the statics-only features of a design (follower loads, reference shapes, tapered
-/// sections, tendons): `model` (the linearisation, the PCC model) does not carry them yet.
-pub(crate) fn check_statics_only(rod: &Rod, model: &str) -> Result<()> {
-    if !rod.spec.obstacles.is_empty() {
-        return Err(SoftrodError::invalid(
-            "obstacles",
-            "contact with obstacles",
-            format!("is not supported by {model} yet; the Cosserat statics (solve_statics) and dynamics (simulate) support it"),
-        ));
-    }
-    check_statics_only_with(rod, model, false, false)
-}
-
-/// [`check_statics_only`]; with `collocation` what the collocation discretisation carries
-/// is accepted: tapered sections, and reference shapes (constant or tabulated along s;
-/// the laws act on the strains relative to them, evaluated at every stage point:
-/// `crate::collocation::Grid`); with `tendons_and_followers` tendons and
-/// follower (body-frame) tip and line loads are accepted (`crate::collocation`).
-pub(crate) fn check_statics_only_with(
-    rod: &Rod,
-    model: &str,
-    collocation: bool,
-    tendons_and_followers: bool,
-) -> Result<()> {
-    // Statics-only features of issue 17 (dynamics follows on the collocation engine).
-    let statics_only = |field: String, what: &str| {
-        SoftrodError::invalid(
-            field,
-            what,
-            format!(
-                "is not supported by {model} yet; the Cosserat statics (solve_statics) supports it"
-            ),
-        )
-    };
-    if rod.spec.tip.frame == crate::spec::Frame::Body && !tendons_and_followers {
-        return Err(statics_only(
-            "tip.frame".into(),
-            "a follower (body-frame) tip load",
-        ));
-    }
-    if let Some(k) = rod
-        .spec
-        .loads
-        .iter()
-        .position(|l| l.frame == crate::spec::Frame::Body)
-        .filter(|_| !tendons_and_followers)
-    {
-        return Err(statics_only(
-            format!("loads[{k}].frame"),
-            "a follower line load",
-        ));
-    }
-    for (i, s) in rod.sections.iter().enumerate() {
-        if !s.reference.is_straight() && !collocation {
-            return Err(statics_only(
-                format!("sections[{i}].reference"),
-                "a reference shape (precurvature or pre-strain)",
-            ));
-        }
-        if s.tapered && !collocation {
-            return Err(statics_only(
-                format!("sections[{i}].outer_radius_end"),
-                "a tapered section",
-            ));
-        }
-        if !s.tendons.is_empty() && !tendons_and_followers {
-            return Err(statics_only(format!("sections[{i}].tendons"), "tendons"));
-        }
-    }
-    Ok(())
-}
-
 /// Check that every section's law has a dynamic counterpart and the map is given where
 /// needed.
 fn check_dynamic_laws(rod: &Rod, map: &SigmaMap) -> Result<()> {
-    check_statics_only_with(rod, "the dynamics", true, true)?;
+    crate::scope::check_statics_only_with(rod, "the dynamics", true, true)?;
     for (i, s) in rod.sections.iter().enumerate() {
         if s.law.stiffness_map && matches!(map, SigmaMap::None) {
             return Err(SoftrodError::invalid(

@@ -540,7 +540,7 @@ pub fn solve_inverse(
     warm: Option<&WarmStart>,
 ) -> Result<InverseSolution> {
     validate(rod, loads, target, opts)?;
-    crate::jacobian::dead_loads_only(rod, loads, "inverse statics")?;
+    crate::scope::dead_loads_only(rod, loads, "inverse statics")?;
     let probe = Probe::at(rod, target.s)?;
     // Inputs: the pressure channels, then the tendon channels ("pressures" p below).
     let n_p = rod.n_channels;

@@ -307,32 +307,6 @@ pub struct PointJacobian {
     pub d_rotation: Vec<[f64; 3]>,
 }
 
-/// Refuse follower (body-frame) tip or line loads: `what` supports dead loads only (3
-/// shooting unknowns, the base moment; with follower loads the base force is unknown too
-/// and the loads are not conservative).
-pub(crate) fn dead_loads_only(rod: &Rod, loads: &Loads, what: &str) -> Result<()> {
-    crate::statics::contact::refuse_obstacles(rod, what)?;
-    if loads.has_follower(rod) {
-        let (field, value) = if rod.spec.has_follower_line_loads() {
-            let k = rod
-                .spec
-                .loads
-                .iter()
-                .position(|l| l.frame == crate::spec::Frame::Body)
-                .unwrap_or(0);
-            (format!("loads[{k}].frame"), "body")
-        } else {
-            ("tip.frame".to_string(), "body")
-        };
-        return Err(SoftrodError::invalid(
-            field,
-            value,
-            format!("{what} supports dead (world-frame) loads only; follower loads are not supported there yet"),
-        ));
-    }
-    Ok(())
-}
-
 /// The three shooting unknowns of a solution with dead loads.
 pub(crate) fn unknowns3(sol: &Solution) -> Result<[f64; 3]> {
     <[f64; 3]>::try_from(sol.x.as_slice()).map_err(|_| {
@@ -395,7 +369,7 @@ pub fn point_jacobian(
     probe: &Probe,
 ) -> Result<PointJacobian> {
     check_inputs(rod, inputs)?;
-    dead_loads_only(rod, loads, "the point Jacobian")?;
+    crate::scope::dead_loads_only(rod, loads, "the point Jacobian")?;
     let x = unknowns3(sol)?;
     let p = pass(rod, loads, &x, inputs, probe);
     let (dy, _) = total_derivatives(&p).ok_or_else(|| singular(sol))?;

@@ -18,6 +18,7 @@
 //!   compiled rod), [`contact`] (rigid obstacles and the penalty law);
 //! - discretisation: [`ode`] (the Cosserat ODE and its RK4 shooting), [`collocation`]
 //!   (Gauss-Legendre collocation) with [`banded`] (its linear algebra);
+//! - scope: [`scope`] (which features each model carries: the refusals the solvers share);
 //! - solvers: [`statics`] (shooting, and collocation in [`statics::collocation`]),
 //!   [`dynamics`], [`sensitivity`], [`jacobian`], [`inverse`], [`linearise`], [`pcc`];
 //! - [`batch`]: many statics in parallel.
@@ -41,6 +42,7 @@ pub mod ode;
 pub mod pcc;
 pub mod reference;
 pub mod rod;
+pub mod scope;
 pub mod section;
 pub mod sensitivity;
 pub mod spec;

@@ -205,7 +205,7 @@ fn pose6(y: &State<J9>, dir: usize) -> [f64; 6] {
 /// Linearise the dynamics at the converged equilibrium `sol` of `loads` with `n_nodes`
 /// nodes (see the module docs).
 pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Result<LinearSystem> {
-    crate::jacobian::dead_loads_only(rod, loads, "the linearisation")?;
+    crate::scope::dead_loads_only(rod, loads, "the linearisation")?;
     let x = crate::jacobian::unknowns3(sol)?;
     let nodes = choose_nodes(rod, n_nodes)?;
     let n = nodes.len();

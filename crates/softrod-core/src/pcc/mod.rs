@@ -212,7 +212,7 @@ impl PccModel {
     /// Validate the design and compile its PCC model.
     pub fn new(spec: &DesignSpec) -> Result<Self> {
         let rod = Rod::new(spec.clone())?;
-        crate::dynamics::check_statics_only(&rod, "the PCC model")?;
+        crate::scope::check_statics_only(&rod, "the PCC model")?;
         let pspec = spec.pcc.clone().unwrap_or_default();
         pspec.validate()?;
         let tau = spec.dynamics.damping_time;

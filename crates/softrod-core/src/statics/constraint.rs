@@ -826,7 +826,7 @@ pub fn solve_constrained(
             tip_reaction_moment: [0.0; 3],
         });
     }
-    super::contact::refuse_obstacles(rod, "a pinned or clamped tip")?;
+    crate::scope::refuse_obstacles(rod, "a pinned or clamped tip")?;
     let mut violations = super::check_inputs(rod, loads, opts)?;
     let c = *constraint;
     let guess = guess

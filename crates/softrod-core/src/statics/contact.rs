@@ -24,19 +24,6 @@ pub fn frictionless(rod: &Rod) -> Result<()> {
     Ok(())
 }
 
-/// Refuse a rod with obstacles in `what`, whose equations do not carry contact yet (its
-/// penetration rule and contact report live in the free-tip statics).
-pub(crate) fn refuse_obstacles(rod: &Rod, what: &str) -> Result<()> {
-    if rod.obstacles.is_some() {
-        return Err(SoftrodError::invalid(
-            "obstacles",
-            format!("{} obstacles", rod.spec.obstacles.len()),
-            format!("{what} does not support contact yet; solve_statics with a free tip does"),
-        ));
-    }
-    Ok(())
-}
-
 /// Contact force on the rod's rounded end (N, world frame), at the tip's centreline r(L):
 /// the end is a hemisphere of the tip's surface radius rho (the tube's closure), a point
 /// contact with the penalty of its obstacle over the cap's length, k rho ramp(delta). It has

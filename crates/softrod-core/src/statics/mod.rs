@@ -1067,7 +1067,7 @@ fn solve_inner(
     if collocation::shooting_ill_conditioned(rod, loads)
         && !loads.base_force_unknown(rod)
         && rod.obstacles.is_none()
-        && crate::dynamics::check_statics_only_with(rod, "collocation", true, false).is_ok()
+        && crate::scope::check_statics_only_with(rod, "collocation", true, false).is_ok()
     {
         return by_collocation(rod, loads, opts, violations);
     }
@@ -1450,7 +1450,7 @@ pub fn conclude_at(
     iterations: usize,
     opts: &SolverOptions,
 ) -> Result<Solution> {
-    crate::jacobian::dead_loads_only(rod, loads, "conclude_at")?;
+    crate::scope::dead_loads_only(rod, loads, "conclude_at")?;
     let violations = check_inputs(rod, loads, opts)?;
     let p = Problem::new(rod, loads, 1.0);
     p.conclude(At::Unchecked(&x), iterations, 1, opts, violations, false)

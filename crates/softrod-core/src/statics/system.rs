@@ -117,7 +117,7 @@ pub(crate) fn validate(rods: &[SystemRod], platform: &Platform) -> Result<()> {
         ));
     }
     for (i, r) in rods.iter().enumerate() {
-        super::contact::refuse_obstacles(r.rod, &format!("rods[{i}] of a system"))?;
+        crate::scope::refuse_obstacles(r.rod, &format!("rods[{i}] of a system"))?;
         finite3(format!("rods[{i}].attachment"), &r.attachment)?;
         check_rotation(
             &format!("rods[{i}].attachment_orientation"),
