@@ -1653,6 +1653,12 @@ impl Simulator {
         } else {
             problem.evaluate(&z)
         };
+        if let (TipConstraint::Clamped { rotation, .. }, Some(y)) = (&end, solved.nodes.last()) {
+            // e(R_c^T R(L)) vanishes at a half turn too: a step that lands there failed
+            // (it is retried shorter, as a step whose Newton fails).
+            let a = tmatmul(rotation, &collocation::rotation(&y[..4]));
+            crate::statics::constraint::check_half_turn("tip_constraint.orientation", &a)?;
+        }
         let reaction = problem.tip_reaction(&z);
         let zp: Vec<f64> = z.iter().zip(&self.scales).map(|(a, b)| a * b).collect();
         let (eval, models) = if midpoint {
