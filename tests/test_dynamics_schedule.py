@@ -53,6 +53,16 @@ def test_constant_and_channel_check():
     assert "pam_arm_220mm" in str(info.value) and "has 3" in str(info.value)
 
 
+def test_constant_pressures_with_units_are_read_in_their_unit():
+    # As solve_statics takes them: strings with units beside numbers in Pa.
+    s = PressureSchedule.constant(["1.5 bar", "20 kPa", 0.0])
+    np.testing.assert_array_equal(s.sample([0.0]), [[1.5e5, 2e4, 0.0]])
+    with pytest.raises(InputError, match=r"pressures\[1\] = '2 mm': wrong unit"):
+        PressureSchedule.constant([1e3, "2 mm"])
+    with pytest.raises(InputError, match=r"pressures\[0\] = \[-200000.0\]: .*>= -101325 Pa"):
+        PressureSchedule.constant(["-2 bar"])
+
+
 def test_is_immutable():
     s = PressureSchedule.steps([0.0, 1.0], [[0.0], [1.0]])
     with pytest.raises(AttributeError):

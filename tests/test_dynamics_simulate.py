@@ -258,6 +258,12 @@ def test_shapes_and_saved_samples():
     assert np.array_equal(tr.shape_time, tr.time)
     tr2 = simulate(ARM, sched, 0.1, dt=5e-3, shapes=[0.05, 0.1])
     np.testing.assert_allclose(tr2.shape_time, [0.05, 0.1])
+    # An instant after the run's end is refused, not moved to the last step (half a step
+    # past it is still the last step's: the nearest step).
+    with pytest.raises(InputError, match=r"shapes\[1\] = '2 s': is after the run's end"):
+        simulate(ARM, sched, 0.1, dt=5e-3, shapes=[0.05, 2.0])
+    tr3 = simulate(ARM, sched, 0.1, dt=5e-3, shapes=[0.1 + 2e-3])
+    np.testing.assert_allclose(tr3.shape_time, [0.1])
     assert tr2.metadata["real_time_factor"] > 0 and tr2.metadata["model"] == "cosserat"
 
 

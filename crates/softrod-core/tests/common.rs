@@ -455,12 +455,11 @@ pub fn tendon(channel: usize, distance: f64, angle_deg: f64) -> TendonSpec {
     }
 }
 
-/// Paper 002's hanging actuator with two tendons (as tests/tendons.rs' arm): tendon 0 in
-/// the base cap and the body (helical there when `helical`), tendon 1 through all three
-/// sections; `stretch_bending` sets the body's law to paper 004's (the tendon law's
-/// general, non-quadratic branch). Damping time `tau`.
-pub fn tendon_arm(helical: bool, stretch_bending: bool, steps: usize, tau: f64) -> DesignSpec {
-    let mut spec = p002_actuator(HANGING, 9.81, steps);
+/// Paper 002's actuator `spec` with two tendons: tendon 0 in the base cap and the body
+/// (helical there when `helical`: angle turning by 300 degrees, distance shrinking), tendon
+/// 1 through all three sections; `stretch_bending` sets the body's law to paper 004's (the
+/// tendon law's general, non-quadratic branch).
+pub fn two_tendons(mut spec: DesignSpec, helical: bool, stretch_bending: bool) -> DesignSpec {
     let mut spiral = tendon(0, 0.017, 30.0);
     if helical {
         spiral.angle_end = Some(330f64.to_radians());
@@ -470,6 +469,17 @@ pub fn tendon_arm(helical: bool, stretch_bending: bool, steps: usize, tau: f64) 
     spec.sections[1].tendons = vec![spiral, tendon(1, 0.016, 150.0)];
     spec.sections[2].tendons = vec![tendon(1, 0.016, 150.0)];
     spec.sections[1].law.stretch_bending = stretch_bending;
+    spec
+}
+
+/// The hanging actuator with `two_tendons` (as tests/tendons.rs' arm), c_b 1.31 on the body,
+/// damping time `tau`.
+pub fn tendon_arm(helical: bool, stretch_bending: bool, steps: usize, tau: f64) -> DesignSpec {
+    let mut spec = two_tendons(
+        p002_actuator(HANGING, 9.81, steps),
+        helical,
+        stretch_bending,
+    );
     spec.sections[1].c_b = 1.31;
     spec.dynamics.damping_time = tau;
     spec

@@ -183,17 +183,10 @@ fn undamped_midpoint_run_of_a_tapered_rod_keeps_its_energy_balance() {
 #[test]
 fn long_tapered_tabulated_arm_goes_to_collocation_statics() {
     // 2 kg: shooting's growth exponent int sqrt(|n| / EI) ds is ~14 (> 12).
-    let mut sec = direct_section("arm", 1.0, 262.8, 87.6, 0.04466, 0.02977, 2.0, 40);
-    sec.chambers = [0.0, 120.0, 240.0]
-        .iter()
-        .enumerate()
-        .map(|(k, a)| {
-            let mut c = chamber(6.02e-3, 0.0175, *a, k);
-            c.area = 113.88e-6;
-            c.distance_end = Some(0.0125);
-            c
-        })
-        .collect();
+    let mut sec = pam_arm_section(1.0, 2.0, 40);
+    for c in &mut sec.chambers {
+        c.distance_end = Some(0.0125);
+    }
     sec.reference = ReferenceSpec {
         table: Some(ReferenceTable {
             s: vec![0.0, 0.5, 1.0],

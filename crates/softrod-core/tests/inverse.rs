@@ -11,7 +11,7 @@ use softrod_core::inverse::{solve_inverse, InverseOptions};
 use softrod_core::jacobian::{point_jacobian, Input, Probe};
 use softrod_core::ode::Loads;
 use softrod_core::spec::Frame;
-use softrod_core::spec::{AxialSpec, DesignSpec, LawSpec, SwellingSpec};
+use softrod_core::spec::{AxialSpec, DesignSpec, SwellingSpec};
 use softrod_core::statics::{solve, SolverOptions};
 use softrod_core::Rod;
 
@@ -27,15 +27,7 @@ fn actuator() -> Rod {
 fn m3() -> DesignSpec {
     let mut d = p002_actuator(HANGING, 9.81, 12);
     d.sections[1].c_e = 2.82;
-    d.sections[1].law = LawSpec {
-        axial: AxialSpec::Ogden { alpha: 8.89 },
-        chamber_offset: [0.89e-3, 0.98e-3],
-        swelling: Some(SwellingSpec {
-            c_p: 0.48,
-            p_ref: 0.8e5,
-        }),
-        ..Default::default()
-    };
+    d.sections[1].law = ogden_m3_law();
     d.tip.mass = 6e-3;
     d.tip.com_offset = [1e-3, 0.0, 4e-3];
     d

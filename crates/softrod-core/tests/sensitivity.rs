@@ -11,7 +11,7 @@ use softrod_core::sensitivity::{
     locate_markers, marker_positions, pose_sensitivity, tip_sensitivity, validate_params, Marker,
     Param, ParamKind,
 };
-use softrod_core::spec::{AxialSpec, DesignSpec, LawSpec, SwellingSpec};
+use softrod_core::spec::{AxialSpec, DesignSpec};
 use softrod_core::statics::{shape, solve, SolverOptions};
 use softrod_core::{Rod, SoftrodError};
 
@@ -45,15 +45,7 @@ fn m3(rotation: [[f64; 3]; 3]) -> DesignSpec {
     let mut d = p002_actuator(rotation, 9.81, 12);
     d.sections[1].c_b = 1.31;
     d.sections[1].c_e = 2.82;
-    d.sections[1].law = LawSpec {
-        axial: AxialSpec::Ogden { alpha: 8.89 },
-        chamber_offset: [0.89e-3, 0.98e-3],
-        swelling: Some(SwellingSpec {
-            c_p: 0.48,
-            p_ref: 0.8e5,
-        }),
-        ..Default::default()
-    };
+    d.sections[1].law = ogden_m3_law();
     d.tip.mass = 6e-3;
     d.tip.com_offset = [1e-3, 0.0, 4e-3];
     d

@@ -121,17 +121,7 @@ fn tendon_terminated_inside_the_rod_bends_only_its_sections() {
 /// tilted mounting under gravity with a tip body; `helical` routes one tendon along a
 /// helix (angle turning by 300 degrees and distance shrinking along the body).
 fn tendon_arm(helical: bool, stretch_bending: bool) -> DesignSpec {
-    let mut spec = p002_actuator(tilted(), 9.81, 12);
-    let mut spiral = tendon(0, 0.017, 30.0);
-    if helical {
-        spiral.angle_end = Some(330f64.to_radians());
-        spiral.distance_end = Some(0.014);
-    }
-    // Tendon 0 runs through the cap and the body, tendon 1 through all three sections.
-    spec.sections[0].tendons = vec![tendon(0, 0.017, 30.0), tendon(1, 0.016, 150.0)];
-    spec.sections[1].tendons = vec![spiral, tendon(1, 0.016, 150.0)];
-    spec.sections[2].tendons = vec![tendon(1, 0.016, 150.0)];
-    spec.sections[1].law.stretch_bending = stretch_bending;
+    let mut spec = two_tendons(p002_actuator(tilted(), 9.81, 12), helical, stretch_bending);
     spec.tip.mass = 0.01;
     spec.tip.com_offset = [0.004, -0.002, 0.006];
     spec

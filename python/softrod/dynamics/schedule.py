@@ -204,8 +204,13 @@ class PressureSchedule:
 
     @classmethod
     def constant(cls, pressures: ArrayLike) -> PressureSchedule:
-        """The same pressures (one per channel, Pa) at all times: a step schedule with its
+        """The same pressures (one per channel: Pa, or strings with units as
+        :func:`~softrod.solve_statics` takes them) at all times: a step schedule with its
         single knot at t = 0 (so ``t_end`` is 0)."""
+        if isinstance(pressures, (list, tuple)) and any(isinstance(x, str) for x in pressures):
+            pressures = [
+                V.quantity(x, "pressure", f"pressures[{i}]") for i, x in enumerate(pressures)
+            ]
         if not _numeric(pressures) or np.ndim(pressures) != 1:
             raise _fail(
                 "pressures", pressures, "must be a 1-d sequence of pressures, one per channel (Pa)"

@@ -798,6 +798,17 @@ def _shape_steps(shapes, n: int, dt: float, save_every: int) -> tuple[np.ndarray
     arr = V.real_array(shapes, "shapes", ndim=1, max_size=V.MAX_SAVED_SAMPLES, what="times (s)")
     if np.any(arr < 0):
         raise design_error("shapes", "negative times", "times must be >= 0 s", InputError)
+    # The nearest step, so an instant up to half a step past the last one is that step's;
+    # a later one is not in the run (it is refused, not moved to the end).
+    late = np.flatnonzero(arr > (n + 0.5) * dt)
+    if late.size:
+        i = late[0]
+        raise design_error(
+            f"shapes[{i}]",
+            f"{arr[i]:g} s",
+            f"is after the run's end ({n} steps of {dt:g} s = {n * dt:g} s)",
+            InputError,
+        )
     steps = np.rint(np.minimum(arr / dt, n + 1)).astype(int)
     return np.unique(np.clip(steps[steps > 0] - 1, 0, n - 1)), bool(np.any(steps == 0))
 
@@ -837,7 +848,8 @@ def simulate(
       ceil(t_end / dt) steps.
     - ``save_every``: keep every n-th step (the last step is always kept).
     - ``shapes``: None (tip only), ``"saved"`` (the centreline at every kept sample), an
-      interval in s, or a list of instants (s, nearest step).
+      interval in s, or a list of instants (s, relative to the run's start; each gives the
+      nearest step's shape, and an instant after the run's end is refused).
     - ``initial``: ``"static"`` (at rest in equilibrium under the first commanded pressures),
       ``"straight"`` (at rest in the straight reference shape), or a :class:`Simulation`
       to continue from its state (it is not changed; the schedule is read on its clock).
