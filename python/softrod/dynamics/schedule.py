@@ -45,7 +45,8 @@ from ..io import metadata_json as _metadata_json
 from ..schema import channel_index
 
 if TYPE_CHECKING:
-    from .._types import ArrayLike
+    from numpy.typing import ArrayLike
+
     from ..design import Design
 
 __all__ = ["KINDS", "VACUUM_PA", "PressureSchedule"]
