@@ -7,8 +7,6 @@ nothing here is loaded at run time: the CLI's start-up stays free of numpy).
 - ``Quantity``: a number in SI units, or a string with its unit (``"30 kPa"``);
 - ``PathLike``: a ``str`` or ``os.PathLike`` path;
 - ``Progress``: ``None`` (a bar in interactive sessions), ``True``, ``False`` or a callable;
-- ``ScheduleLike``: a :class:`~softrod.PressureSchedule`, a CSV/Parquet file of commands, a
-  function of t (s) returning one pressure per channel (Pa), or constant pressures (Pa);
 - ``Units``: display units of a table (``None``: the defaults; ``"SI"``; or a mapping from a
   kind such as ``"pressure"`` to a unit).
 """
@@ -16,21 +14,17 @@ nothing here is loaded at run time: the CLI's start-up stays free of numpy).
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from numpy.typing import ArrayLike as ArrayLike  # re-exported for the annotations
 
     from .design import Design
-    from .dynamics.schedule import PressureSchedule
 
     DesignLike = Design | str | os.PathLike[str] | Mapping[str, Any]
     PathLike = str | os.PathLike[str]
     Quantity = float | str
     Progress = bool | None | Callable[..., Any]
     Units = str | Mapping[str, str] | None
-    ScheduleLike = (
-        PressureSchedule | str | os.PathLike[str] | Callable[[float], Sequence[float]] | ArrayLike
-    )
 

@@ -641,3 +641,12 @@ def _from_frame(df: pd.DataFrame, units: dict, where: _Where, extra: str):
             f"gauge pressures must be >= {VACUUM_PA:g} Pa (a perfect vacuum), at {where(bad)}",
         )
     return t, p
+
+
+if TYPE_CHECKING:
+    #: What ``simulate`` takes as a schedule: a PressureSchedule, a CSV/Parquet file of
+    #: commands, a function of t (s) returning one pressure per channel (Pa), or constant
+    #: pressures (Pa, or strings with units).
+    ScheduleLike = (
+        PressureSchedule | str | os.PathLike[str] | Callable[[float], Sequence[float]] | ArrayLike
+    )

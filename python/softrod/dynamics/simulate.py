@@ -34,8 +34,9 @@ from .schedule import PressureSchedule
 from .trajectory import ENERGY_PARTS, Trajectory
 
 if TYPE_CHECKING:
-    from .._types import ArrayLike, DesignLike, Quantity, ScheduleLike
+    from .._types import ArrayLike, DesignLike, Quantity
     from ..stiffness_map import StiffnessMap
+    from .schedule import ScheduleLike
 
     # Held (force, moment) in N and N m, or a function of t returning them.
     TipLoad = (
