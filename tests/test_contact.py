@@ -203,15 +203,23 @@ def test_solvers_without_contact_refuse_obstacles():
     assert info.value.field == "obstacles"
 
 
-def test_constrained_tips_refuse_obstacles():
-    # The pinned/clamped solver carries no penetration rule or contact report: refused, not
-    # solved with contact forces that nothing checks.
+def test_held_tip_with_obstacles_solves_with_contact():
+    # Pinned where the free finger's tip rests on the table at 50 kPa, the held solve finds
+    # the free equilibrium again: the pin carries nothing, the contacts are the free
+    # solve's, and the solution carries its contact report and stability verdict
+    # (docs/contact.md, "A held tip with obstacles").
     design = load_design(FINGER)
-    free = solve_statics(design, [0.0])
-    with pytest.raises(SoftrodError) as info:
-        solve_statics(design, [0.0], tip_constraint=TipConstraint.pinned(free.tip_position))
-    assert info.value.field == "obstacles"
-    assert "pinned or clamped tip" in str(info.value)
+    free = solve_statics(design, [50e3])
+    held = solve_statics(design, [50e3], tip_constraint=TipConstraint.pinned(free.tip_position))
+    assert held.contact is not None
+    pressed = float(np.abs(free.contact.total).max())
+    assert pressed > 0.0
+    # Both solves converge to 1e-10 of the scaled residual: the pin's force is round-off
+    # against the contact force.
+    assert np.abs(held.tip_reaction_force).max() < 1e-6 * pressed
+    np.testing.assert_allclose(held.contact.total, free.contact.total, rtol=1e-6, atol=1e-9)
+    assert held.contact.max_penetration <= 0.2e-3
+    assert held.stable is free.stable is True
 
 
 def test_design_with_obstacles_saves_and_reloads(tmp_path):

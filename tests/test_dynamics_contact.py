@@ -2,14 +2,23 @@
 simulate and Simulation accept designs with obstacles and report the contact force and the
 penetration per sample, which the npz and Parquet files keep; a rod dropped onto a plane
 rests with the plane and the clamp carrying its weight; friction and slip_velocity take
-units and hostile values are refused by name; dynamic sensitivities refuse obstacles; and
+units and hostile values are refused by name; dynamic sensitivities carry contact; and
 short runs with random obstacle placements never give NaN or a panic."""
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from softrod import DesignError, Simulation, SoftrodError, Trajectory, load_design, simulate
+from softrod import (
+    DesignError,
+    Simulation,
+    SoftrodError,
+    TipConstraint,
+    Trajectory,
+    load_design,
+    simulate,
+    solve_statics,
+)
 
 pytestmark = pytest.mark.fast  # the whole module runs in seconds
 
@@ -73,6 +82,32 @@ def test_dropped_rod_rests_on_the_plane_and_the_trajectory_keeps_the_contact(tmp
     assert free.contact_force is None and free.penetration is None
 
 
+def test_a_held_tip_rests_on_the_plane_with_the_contact_and_the_reaction():
+    # The cantilever's tip pinned at its base's height 0.5 mm above the plane: held there,
+    # it would sag by q L^4 / (185 EI) = 0.85 mm, so it rests on the plane between its
+    # held ends (docs/contact.md, "A held tip with obstacles"); at rest the base, the pin
+    # and the plane carry the weight, n(0) = F_r + F_c + W.
+    design = load_design(cantilever([plane(-0.5)], tau="0.02 s", steps=32))
+    tip = TipConstraint.pinned(["200 mm", "0 mm", "0 mm"])
+    statics = solve_statics(design, [], tip_constraint=tip)
+    assert statics.contact is not None and statics.contact.max_penetration > 0
+    sim = Simulation(design, dt=2e-3, tip_constraint=tip)
+    run = sim.run(None, 0.02, save_every=5)
+    np.testing.assert_allclose(run.tip_position[-1], [0.2, 0.0, 0.0], atol=1e-9 * 0.2)
+    state = sim.state()
+    w = MASS * G
+    balance = state.base_force - (run.tip_reaction_force[-1] + run.contact_force[-1]
+                                  + [0.0, 0.0, -w])
+    # Started at rest in the constrained static equilibrium with contact: nothing moves,
+    # and the balance holds to the Newton tolerance.
+    assert np.abs(balance).max() < 1e-9 * w
+    assert run.contact_force[-1][2] > 0.1 * w
+    # The collocation (32 intervals) and the shooting statics (32 RK4 steps) differ by their
+    # discretisation errors (measured 9.6e-3 at 8, 6.8e-5 at 32).
+    np.testing.assert_allclose(run.contact_force[-1], statics.contact.total_force.sum(axis=0),
+                               rtol=1e-3)
+
+
 def test_friction_takes_units_and_bad_values_are_refused_by_name():
     ok = load_design(cantilever([plane(-10.0, friction=0.5, slip_velocity="2 mm/s")]))
     assert ok.spec["obstacles"][0]["slip_velocity"] == pytest.approx(2e-3)
@@ -84,12 +119,31 @@ def test_friction_takes_units_and_bad_values_are_refused_by_name():
         assert info.value.field == f"obstacles[0].{key}"
 
 
-def test_dynamic_sensitivities_refuse_obstacles():
-    design = load_design(cantilever([plane(-30.0)]))
-    sim = Simulation(design)
-    with pytest.raises(SoftrodError) as info:
-        sim._sim.track_sensitivities([("damping_time", [])])
-    assert info.value.field == "obstacles"
+def test_dynamic_sensitivities_carry_contact():
+    # The rod rests on the plane from the start (its static start touches): the tracked
+    # derivatives of the resting tip with respect to the mass are those of the static
+    # contact solution, against central differences of the statics (the trajectory's
+    # own checks are crates/softrod-core/tests/dynamics_sensitivity.rs).
+    design = load_design(cantilever([plane(-10.0)]))
+    sim = Simulation(design, dt=2e-3)
+    sim._sim.track_sensitivities([("mass", [0])])
+    first = sim._sim.snapshot()
+    d = np.asarray(first["d_tip_position"])[0, :, 0]
+    assert first["penetration"][0] > 0
+    h = 1e-3 * MASS
+
+    def tip(m):
+        spec = cantilever([plane(-10.0)])
+        spec["sections"][0]["mass"] = f"{m} kg"
+        return Simulation(load_design(spec), dt=2e-3).state().tip_position
+
+    fd = (tip(MASS + h) - tip(MASS - h)) / (2 * h)
+    # Central differences of the converged static start over the step 2e-3 MASS: truncation
+    # ~1e-6 of the derivative, the start's error (1e-10 of the scaled unknowns, ~2e-11 m)
+    # over the step ~1e-6 m/kg, against a derivative of ~3e-2 m/kg (the tip lying on the
+    # plane sinks as the weight grows) checked to 1e-3 of it.
+    assert np.abs(d).max() > 1e-2
+    np.testing.assert_allclose(d, fd, rtol=0, atol=1e-3 * np.abs(d).max())
 
 
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -343,7 +343,10 @@ def solve_statics(
     reports the wrench the constraint applies in ``tip_reaction_force`` and
     ``tip_reaction_moment``; its stability is assessed with the tip held (``stable``,
     ``on_unstable`` as for a free tip; None under follower line loads or a follower tip
-    moment on a pin: docs/model.md, "End constraints").
+    moment on a pin: docs/model.md, "End constraints"). With the design's obstacles the
+    held tip's solution carries its ``contact`` report too, and the reaction is what the
+    pose adds to the rounded end's contact force (docs/contact.md, "A held tip with
+    obstacles").
 
     model: "cosserat" (the rod) or "pcc" (paper 003's piecewise-constant-curvature model,
     docs/pcc.md): the same design and inputs; its shape is the chain of arcs, its ``force``

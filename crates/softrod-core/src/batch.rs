@@ -170,6 +170,8 @@ impl<'a> Rows<'a> {
         inputs: &BatchInputs<'a>,
         guesses: Option<&'a [f64]>,
     ) -> Result<Self> {
+        // The statics is frictionless (obstacles with friction: refused before any row).
+        crate::statics::contact::frictionless(rod)?;
         let (pressures, tensions, stiffness_scale) =
             (inputs.pressures, inputs.tensions, inputs.stiffness_scale);
         let nc = rod.n_channels;
@@ -466,7 +468,6 @@ pub fn solve_constrained_batch(
     if let TipConstraint::Free = constraint {
         return solve_batch(rod, inputs, opts, threads);
     }
-    crate::scope::refuse_obstacles(rod, "a pinned or clamped tip")?;
     let mut rows = Rows::new(rod, opts, inputs, None)?;
     rows.unknowns = 6;
     let rows = &rows;

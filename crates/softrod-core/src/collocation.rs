@@ -2016,8 +2016,18 @@ impl Problem<'_> {
         z: &[D],
         mut fields: Option<&mut Vec<[D; NF]>>,
     ) -> Vec<D> {
-        let inv: [f64; NY] = self.scale.map(|s| 1.0 / s);
         let mut out = vec![D::from(0.0); z.len()];
+        if self.has_positions() {
+            let zero = [D::from(0.0); NF];
+            let slots = fields.map(|f| {
+                f.clear();
+                f.resize(2 * self.grid.len(), zero);
+                f.as_mut_slice()
+            });
+            self.contact_residual_with(models, hist, self.contact.as_ref(), z, &mut out, slots);
+            return out;
+        }
+        let inv: [f64; NY] = self.scale.map(|s| 1.0 / s);
         let mut yj = self.node_with(z, 0);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
             let model = [&models[iv.model[0]], &models[iv.model[1]]];
@@ -2046,17 +2056,17 @@ impl Problem<'_> {
         out
     }
 
-    /// The stage fields (v, u, q, w; 2 per interval), the tip node's state and the tip
-    /// position of scaled unknowns `z` under `models` and `hist` (as [`Problem::evaluate`]:
+    /// The stage fields (v, u, q, w; 2 per interval), the tip node's state and the node
+    /// positions of scaled unknowns `z` under `models` and `hist` (as [`Problem::evaluate`]:
     /// the centreline by the collocation quadrature).
-    pub fn fields_and_tip_with<C: Coeff, D: StateScalar<C>>(
+    pub fn fields_and_positions_with<C: Coeff, D: StateScalar<C>>(
         &self,
         models: &[SectionModel<C>],
         hist: &[[C; NF]],
         z: &[D],
-    ) -> (Vec<[D; NF]>, [D; NY], [D; 3]) {
+    ) -> (Vec<[D; NF]>, [D; NY], Vec<[D; 3]>) {
         let fields = self.fields_with(models, hist, z);
-        let (node, r) = self.tip_of_fields(z, &fields);
+        let (node, r) = self.positions_of_fields(z, &fields);
         (fields, node, r)
     }
 
@@ -2088,10 +2098,17 @@ impl Problem<'_> {
         fields
     }
 
-    /// The tip node's state and the tip position of scaled unknowns `z` whose stage fields
-    /// `fields` are known (from [`Problem::residual_and_fields_with`] at the same `z`).
-    pub fn tip_of_fields<D: RodScalar>(&self, z: &[D], fields: &[[D; NF]]) -> ([D; NY], [D; 3]) {
+    /// The tip node's state and the node positions (base first, tip last) of scaled
+    /// unknowns `z` whose stage fields `fields` are known (from
+    /// [`Problem::residual_and_fields_with`] at the same `z`).
+    pub fn positions_of_fields<D: RodScalar>(
+        &self,
+        z: &[D],
+        fields: &[[D; NF]],
+    ) -> ([D; NY], Vec<[D; 3]>) {
         let mut r: [D; 3] = self.rod.base_position.map(D::from);
+        let mut out = Vec::with_capacity(self.grid.len() + 1);
+        out.push(r);
         for (j, iv) in self.grid.intervals.iter().enumerate() {
             let mut dr = [[D::from(0.0); 3]; 2];
             for (i, d) in dr.iter_mut().enumerate() {
@@ -2103,8 +2120,9 @@ impl Problem<'_> {
             r = std::array::from_fn(|k| {
                 r[k] + (dr[0][k] * GAUSS_B[0] + dr[1][k] * GAUSS_B[1]) * iv.h
             });
+            out.push(r);
         }
-        (self.node_with(z, self.grid.len()), r)
+        (self.node_with(z, self.grid.len()), out)
     }
 }
 

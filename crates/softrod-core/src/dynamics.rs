@@ -712,7 +712,8 @@ impl Simulator {
     /// constraints"): pinned or clamped at the given pose at t = 0, moved from step to step
     /// with [`Simulator::set_tip_pose`]. A 'static' start is the constrained equilibrium
     /// (`statics::constraint::solve_constrained`); a 'straight' one needs the pose of the
-    /// straight rod's tip. Not with obstacles nor the midpoint scheme (refused by name).
+    /// straight rod's tip. With obstacles the step carries both (`collocation::contact`).
+    /// Not with the midpoint scheme (refused by name: docs/dynamics.md "Held tip").
     #[allow(clippy::too_many_arguments)]
     pub fn with_constraint(
         rod: Rod,
@@ -2536,19 +2537,15 @@ fn check_end(rod: &Rod, opts: &DynOptions, initial: Initial, c: &TipConstraint) 
     if *c == TipConstraint::Free {
         return Ok(());
     }
-    let held = format!("a {} tip", c.name());
-    if !rod.spec.obstacles.is_empty() {
-        return Err(SoftrodError::invalid(
-            "tip_constraint",
-            c.name(),
-            format!("{held} with obstacles is not supported (in statics neither): remove the obstacles or free the tip"),
-        ));
-    }
     if opts.scheme == Scheme::Midpoint {
+        // docs/dynamics.md "Held tip": the midpoint rule's energy identity needs the state
+        // at t_{n+1} to be the linear extrapolation 2 X_{n+1/2} - X_n of the fields, and
+        // the pose r(L) = r_c is nonlinear in them; the shape rebuilt from them misses the
+        // pose by O(h^2) per step, and holding it there as well over-determines the step.
         return Err(SoftrodError::invalid(
             "scheme",
             opts.scheme.name(),
-            format!("{held} is implemented for 'bdf-alpha' (the midpoint rule rebuilds the shape from the base and would not keep the tip's pose)"),
+            format!("a {} tip is not carried by the midpoint rule: its energy conservation rests on extrapolating the fields linearly over a step, and the held pose is nonlinear in them (the rebuilt tip would miss the pose by O(dt^2) at every step); use 'bdf-alpha' (alpha = -0.5, the trapezoidal rule, has no numerical damping)", c.name()),
         ));
     }
     if initial == Initial::Straight {

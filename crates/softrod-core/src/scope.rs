@@ -106,13 +106,13 @@ pub(crate) fn dead_loads_only(rod: &Rod, loads: &Loads, what: &str) -> Result<()
 }
 
 /// Refuse a rod with obstacles in `what`, whose equations do not carry contact yet (its
-/// penetration rule and contact report live in the free-tip statics).
+/// penetration rule and contact report live in the statics, free or held tip).
 pub(crate) fn refuse_obstacles(rod: &Rod, what: &str) -> Result<()> {
     if rod.obstacles.is_some() {
         return Err(SoftrodError::invalid(
             "obstacles",
             format!("{} obstacles", rod.spec.obstacles.len()),
-            format!("{what} does not support contact yet; solve_statics with a free tip does"),
+            format!("{what} does not support contact yet; solve_statics (free, pinned or clamped tip) does"),
         ));
     }
     Ok(())

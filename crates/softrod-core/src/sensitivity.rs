@@ -134,17 +134,24 @@ pub(crate) fn section_value(rod: &Rod, i: usize, kind: ParamKind) -> f64 {
     }
 }
 
-/// Check parameters against the rod: known sections, elastic, with the law the parameter
-/// belongs to, one shared value per parameter. Errors name `params[j]`.
+/// Check parameters of the static sensitivities against the rod: no obstacles, and
+/// [`check_params`]. Errors name `params[j]`.
 pub fn validate_params(rod: &Rod, params: &[Param]) -> Result<()> {
     if rod.obstacles.is_some() {
         // Not verified with contact yet: refused rather than trusted.
         return Err(SoftrodError::invalid(
             "obstacles",
             format!("{} obstacles", rod.spec.obstacles.len()),
-            "parameter sensitivities (calibration) do not support contact yet; solve_statics does",
+            "static parameter sensitivities (calibration) do not support contact yet; solve_statics and the dynamic sensitivities (dynamic calibration) do",
         ));
     }
+    check_params(rod, params)
+}
+
+/// Check parameters against the rod: known sections, elastic, with the law the parameter
+/// belongs to, one shared value per parameter (the dynamic sensitivities carry contact:
+/// `crate::dynamics::sensitivity`). Errors name `params[j]`.
+pub(crate) fn check_params(rod: &Rod, params: &[Param]) -> Result<()> {
     for (j, p) in params.iter().enumerate() {
         let name = p.kind.name();
         let field = format!("params[{j}] ({name})");

@@ -9,7 +9,9 @@ use softrod_core::batch::{
     solve_constrained_batch, solve_system_batch, BatchInputs, BatchRow, SystemBatchInputs,
     SystemBatchRow,
 };
+use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::statics::constraint::{solve_constrained, TipConstraint};
+use softrod_core::statics::contact::report;
 use softrod_core::statics::system::{solve_system, Platform, SystemRod};
 use softrod_core::statics::SolverOptions;
 use softrod_core::{Rod, SoftrodError};
@@ -105,6 +107,55 @@ fn constrained_batch_equals_single_solves_bitwise() {
         check(&rows, 10, "from row 10");
         let rows = solve_constrained_batch(&rod, &inputs(&p[3 * 4..3 * 5]), &c, &opts, 1).unwrap();
         check(&rows, 4, "row 4 alone");
+    }
+}
+
+/// With an obstacle (docs/contact.md, "A held tip with obstacles"): a wall 0.5 mm inside
+/// the pinned tip's surface, which every row presses against, some harder as the pressures
+/// bend the body towards it. Every row is bitwise the single solve, whatever the thread
+/// count; an obstacle with friction is refused before any row (the statics is
+/// frictionless), naming it.
+#[test]
+fn constrained_batch_with_an_obstacle_equals_single_solves_bitwise() {
+    let mut spec = p002_actuator(IDENTITY, 9.81, 16);
+    let mut wall = obstacle(ObstacleKind::Plane, 1e4, 2e-3);
+    wall.point = Some([0.004 + P002_RO - 5e-4, 0.0, 0.0]);
+    wall.normal = Some([-1.0, 0.0, 0.0]);
+    spec.obstacles = vec![wall];
+    let rod = Rod::new(spec.clone()).unwrap();
+    let p = grid();
+    let opts = SolverOptions::default();
+    let c = constraints(rod.length)[0];
+    let single: Vec<_> = p
+        .chunks(3)
+        .map(|row| {
+            let mut ld = loads(row);
+            ld.tip_force = [0.0, 0.01, 0.0];
+            let s = solve_constrained(&rod, &ld, &c, None, &opts).unwrap();
+            let rep = report(&rod, &ld, &s.solution).unwrap();
+            assert!(rep.max_penetration > 0.0 && rep.max_penetration <= 2e-3);
+            s
+        })
+        .collect();
+    let spread = single
+        .iter()
+        .map(|s| dist(&s.tip_reaction_force, &single[0].tip_reaction_force))
+        .fold(0.0, f64::max);
+    assert!(spread > 1e-3, "the rows differ: reaction spread {spread}");
+    for threads in [1, 3] {
+        let rows = solve_constrained_batch(&rod, &inputs(&p), &c, &opts, threads).unwrap();
+        for (k, (row, s)) in rows.iter().zip(&single).enumerate() {
+            assert!(row.converged, "row {k}");
+            assert_eq!(row.x, s.solution.x, "row {k}, {threads} threads");
+            assert_eq!(row.tip_reaction_force, s.tip_reaction_force, "row {k}");
+            assert_eq!(row.stable, s.solution.stable, "row {k}");
+        }
+    }
+    spec.obstacles[0].friction = 0.3;
+    let rough = Rod::new(spec).unwrap();
+    match solve_constrained_batch(&rough, &inputs(&p), &c, &opts, 2) {
+        Err(e) => assert_eq!(field_of(e), "obstacles[0].friction"),
+        Ok(_) => panic!("friction accepted"),
     }
 }
 

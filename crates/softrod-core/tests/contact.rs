@@ -10,6 +10,9 @@ mod common;
 use common::{design, direct_section, loads, obstacle, HORIZONTAL};
 use softrod_core::error::{Rule, SoftrodError};
 use softrod_core::spec::obstacle::{ObstacleKind, ObstacleSpec};
+use softrod_core::statics::constraint::{
+    constraint_residual_and_jacobian, solve_constrained, TipConstraint,
+};
 use softrod_core::statics::contact::report;
 use softrod_core::statics::{residual, residual_and_jacobian, solve, SolverOptions};
 use softrod_core::{DesignSpec, Rod};
@@ -95,6 +98,139 @@ fn cantilever_on_plane_matches_beam_on_rigid_support() {
     let order_f = (errors[0].1 / errors[1].1).ln() / (errors[0].0 / errors[1].0).ln();
     let order_m = (errors[0].2 / errors[1].2).ln() / (errors[0].0 / errors[1].0).ln();
     assert!(order_f > 2.0 && order_m > 2.0, "orders {order_f} {order_m}");
+}
+
+/// A 1.5 m horizontal beam under its weight q = 1 N/m, clamped at the base and held at the
+/// tip (pinned or clamped) at the base's height, a height c above a plane. Axially soft
+/// (EA = 1e4 N): between two held ends the sag stretches the beam by ~int w'^2 / 2 ~ 1e-8,
+/// and with EA = 1e8 N that tension (~1 N) would stiffen the beam by N a^2 / EI ~ 3 %;
+/// with 1e4 N by 3e-6.
+fn held_beam_over_plane(c: f64, k: f64, steps: usize) -> DesignSpec {
+    let mut d = cantilever_over_plane(c, k, steps);
+    d.sections[0] = direct_section("beam", 1.5, 1e4, 1e8, EI, EI, 1.5 * Q / G, steps);
+    d
+}
+
+/// The end of a lifted span of the beam on a rigid support (`rigid_support`), held pinned
+/// a height c above it: EI w = q x^4 / 24 + A x^3 from the touch-down point, with w'' = 0
+/// at the pin (no moment) instead of w' = 0: a = (24 EI c / q)^(1/4); the pin carries
+/// q a / 2, the touch-down point q a / 2.
+fn pinned_span(c: f64) -> (f64, f64) {
+    let a = (24.0 * EI * c / Q).powf(0.25);
+    (a, Q * a / 2.0)
+}
+
+/// A beam held at both ends (the base clamped, the tip pinned or clamped) lies on a plane
+/// between two lifted spans. The flat part carries no moment and no shear, so each span is
+/// the beam on a rigid support on its own: the base's and a clamped tip's as the
+/// cantilever's (`rigid_support`), a pinned tip's as `pinned_span`. The tip reaction, the
+/// base wrench and the contact report balance the weight to the solver's tolerance; no node
+/// sinks beyond the tolerance; the equilibrium is assessed stable; the constrained
+/// Jacobian with contact is exact.
+#[test]
+fn held_beam_on_plane_matches_beam_on_rigid_support() {
+    let c = Q * 0.5f64.powi(4) / (72.0 * EI); // the base's span a = 0.5 m
+    let (a, f0, m0) = rigid_support(c);
+    let (a_pin, f_pin) = pinned_span(c);
+    for kind in ["clamped", "pinned"] {
+        let mut errors = vec![];
+        for k in [1e5, 1e6] {
+            let rod = Rod::new(held_beam_over_plane(c, k, 600)).unwrap();
+            let l = loads(&[]);
+            let tip = [1.5, 0.0, 0.0];
+            let held = match kind {
+                "clamped" => TipConstraint::Clamped {
+                    position: tip,
+                    rotation: HORIZONTAL,
+                },
+                _ => TipConstraint::Pinned { position: tip },
+            };
+            let sol = solve_constrained(&rod, &l, &held, None, &SolverOptions::default())
+                .unwrap_or_else(|e| panic!("{kind} k {k}: {e}"));
+            // A beam lying on a support under its weight, both ends held: stable (the
+            // conjugate-point test with the penalty in the Jacobi fields).
+            assert_eq!(sol.solution.stable, Some(true), "{kind} k {k}");
+            let rep = report(&rod, &l, &sol.solution).unwrap();
+            assert!(
+                rep.max_penetration <= 5e-5,
+                "{kind}: {}",
+                rep.max_penetration
+            );
+            // Global balance: n(0) = tip reaction + contact + weight (world z down), to
+            // the solver's tolerance (1e-10 of the force scale EI / L^2 ~ 4 N).
+            for i in 0..3 {
+                let contact: f64 = rep.force.iter().map(|f| f[i]).sum();
+                let weight = if i == 2 { -Q * 1.5 } else { 0.0 };
+                let want = sol.tip_reaction_force[i] + contact + weight;
+                assert!(
+                    (sol.solution.base_force[i] - want).abs() < 1e-9 * Q,
+                    "{kind} {i}: n(0) {} want {want}",
+                    sol.solution.base_force[i]
+                );
+            }
+            let ell = (4.0 * EI / k).powf(0.25);
+            let eb = (-sol.solution.base_force[2] - f0).abs() / f0;
+            let em = (sol.solution.base_moment[1].abs() - m0).abs() / m0;
+            let (et, span) = if kind == "clamped" {
+                let ef = (sol.tip_reaction_force[2] - f0).abs() / f0;
+                let emt = (sol.tip_reaction_moment[1].abs() - m0).abs() / m0;
+                (ef.max(emt), a)
+            } else {
+                assert_eq!(sol.tip_reaction_moment, [0.0; 3]);
+                ((sol.tip_reaction_force[2] - f_pin).abs() / f_pin, a_pin)
+            };
+            println!(
+                "{kind} k {k:e}: base force {eb:.3e} moment {em:.3e}, tip {et:.3e} (1/beta a {:.3e})",
+                ell / span
+            );
+            // As the cantilever's (`cantilever_on_plane_matches_beam_on_rigid_support`):
+            // the Winkler foundation smears the touch-down point force over 1/beta,
+            // which moves the reactions by O((1/(beta a))^2).
+            let bound = |span: f64| (ell / span).powi(2);
+            assert!(
+                eb < bound(a) && em < bound(a),
+                "{kind} k {k}: base {eb} {em}"
+            );
+            assert!(et < bound(span), "{kind} k {k}: tip {et}");
+            errors.push((ell, eb.max(em), et));
+            if k == 1e5 {
+                // The exact Jacobian of the constrained residual with contact, against
+                // central differences at the solution (nodes in the penalty's linear and
+                // smoothing zones), at the softer penalty: shooting across the stiffer one
+                // amplifies the residual's curvature so much that the differences stop
+                // converging before round-off takes over. Here their error falls as h^2
+                // (measured worst entry, of the largest: 2e-4 at h = 1e-7, 4e-8 at 1e-8
+                // clamped; 5e-3, 4e-5 pinned) to 3e-9 at h = 1e-9; bound 1e-6 of it.
+                let x = &sol.solution.x;
+                let (_, jac) = constraint_residual_and_jacobian(&rod, &l, &held, x).unwrap();
+                let scale = jac.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+                let h = 1e-9;
+                for j in 0..6 {
+                    let at = |d: f64| {
+                        let mut y = x.clone();
+                        y[j] += d;
+                        constraint_residual_and_jacobian(&rod, &l, &held, &y)
+                            .unwrap()
+                            .0
+                    };
+                    let (up, down) = (at(h), at(-h));
+                    for i in 0..6 {
+                        let fd = (up[i] - down[i]) / (2.0 * h);
+                        assert!(
+                            (fd - jac[i][j]).abs() <= 1e-6 * scale,
+                            "{kind} J[{i}][{j}] = {} fd {fd}",
+                            jac[i][j]
+                        );
+                    }
+                }
+            }
+        }
+        // The errors fall as the penalty stiffens (towards the rigid support).
+        assert!(
+            errors[1].1 < errors[0].1 && errors[1].2 < errors[0].2,
+            "{kind}: {errors:?}"
+        );
+    }
 }
 
 /// A 0.5 m horizontal cantilever (EI = 1 N m^2, weightless) pushed down at its tip by P,

@@ -9,7 +9,6 @@ mod common;
 
 use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, Simulator};
-use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::spec::obstacle::{ObstacleKind, ObstacleSpec};
 use softrod_core::spec::DesignSpec;
 use softrod_core::statics::{solve, SolverOptions};
@@ -270,7 +269,7 @@ fn step_jacobian_with_contact_and_friction_matches_finite_differences() {
 
 type Mutate = Box<dyn Fn(&mut ObstacleSpec)>;
 
-/// Hostile obstacle values are refused by name; parameter sensitivities refuse contact.
+/// Hostile obstacle values are refused by name.
 #[test]
 fn bad_obstacles_are_refused_by_name() {
     let cases: Vec<(&str, Mutate)> = vec![
@@ -298,14 +297,4 @@ fn bad_obstacles_are_refused_by_name() {
         let err = err.to_string();
         assert!(err.contains(field), "{field}: {err}");
     }
-    let rod = Rod::new(cantilever_over_plane(4, 0.05)).unwrap();
-    let mut sim = Simulator::new(rod, &[], Initial::Static, DynOptions::default()).unwrap();
-    let Err(err) = sim.track_sensitivities(&[Param {
-        kind: ParamKind::DampingTime,
-        sections: vec![],
-    }]) else {
-        panic!("sensitivities with contact accepted")
-    };
-    let err = err.to_string();
-    assert!(err.contains("obstacles"), "{err}");
 }

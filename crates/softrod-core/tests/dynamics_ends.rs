@@ -7,7 +7,6 @@ mod common;
 
 use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
-use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::spec::MaterialSpec;
 use softrod_core::statics::constraint::{exp_so3, solve_constrained, TipConstraint};
 use softrod_core::statics::SolverOptions;
@@ -515,7 +514,7 @@ fn bad_poses_and_unsupported_combinations_are_refused_by_name() {
         ),
         "tip_constraint.orientation",
     );
-    // Unsupported: the midpoint scheme, obstacles, parameter sensitivities.
+    // Unsupported: the midpoint scheme (docs/dynamics.md "Held tip").
     let midpoint = DynOptions {
         scheme: Scheme::Midpoint,
         ..opts
@@ -524,27 +523,7 @@ fn bad_poses_and_unsupported_combinations_are_refused_by_name() {
         start(held("clamped", [L, 0.0, 0.0]), Initial::Static, midpoint),
         "scheme",
     );
-    let mut spec = rod.spec.clone();
-    spec.obstacles = vec![softrod_core::spec::obstacle::ObstacleSpec {
-        point: Some([0.0, 0.0, -0.1]),
-        normal: Some([0.0, 0.0, 1.0]),
-        ..obstacle(ObstacleKind::Plane, 1e4, 3e-3)
-    }];
-    refused(
-        sim(
-            Rod::new(spec).unwrap(),
-            Initial::Static,
-            opts,
-            held("pinned", [L, 0.0, 0.0]),
-        ),
-        "tip_constraint",
-    );
     let mut s = start(held("clamped", [L, 0.0, 0.0]), Initial::Static, opts).unwrap();
-    let tau = [softrod_core::sensitivity::Param {
-        kind: softrod_core::sensitivity::ParamKind::DampingTime,
-        sections: vec![],
-    }];
-    refused(s.track_sensitivities(&tau), "tip_constraint");
     // A moved pose: of the run's kind, finite; nothing changes on a refusal.
     let before = s.save();
     refused(

@@ -7,7 +7,8 @@ use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
 use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::spec::obstacle::ObstacleKind;
-use softrod_core::spec::{AxialSpec, DesignSpec};
+use softrod_core::spec::{AxialSpec, DesignSpec, MaterialSpec};
+use softrod_core::statics::constraint::TipConstraint;
 use softrod_core::{Rod, SoftrodError};
 
 const BAR: f64 = 1e5;
@@ -46,31 +47,43 @@ fn p002_command(t: f64) -> Vec<f64> {
     vec![10e3 + 30e3 * (t / 0.1).min(1.0), 0.0, 15e3]
 }
 
-/// A run's inputs as functions of t (s): chamber pressures (Pa) and tendon tensions (N).
+/// A run's inputs as functions of t (s): chamber pressures (Pa), tendon tensions (N) and
+/// the tip's pose (free, or pinned or clamped where the pose says).
 struct Inputs {
     pressures: fn(f64) -> Vec<f64>,
     tensions: fn(f64) -> Vec<f64>,
+    held: fn(f64) -> TipConstraint,
 }
 
 fn slack(_: f64) -> Vec<f64> {
     vec![]
 }
 
+fn free(_: f64) -> TipConstraint {
+    TipConstraint::Free
+}
+
 const PAM: Inputs = Inputs {
     pressures: command,
     tensions: slack,
+    held: free,
 };
 
 const P002: Inputs = Inputs {
     pressures: p002_command,
     tensions: slack,
+    held: free,
 };
 
-/// The tip after every step, and with `params` its derivatives.
-fn run(spec: DesignSpec, params: &[Param], inputs: &Inputs) -> (Vec<[f64; 3]>, Vec<Vec<[f64; 3]>>) {
+/// The node positions after every step (`[step][node]`), with `params` their derivatives
+/// (`[step][param][node]`), and the shallowest of the steps' deepest penetrations into an
+/// obstacle (m; -inf without obstacles: > 0 means in contact at every step).
+type Run = (Vec<Vec<[f64; 3]>>, Vec<Vec<Vec<[f64; 3]>>>, f64);
+
+fn run(spec: DesignSpec, params: &[Param], inputs: &Inputs) -> Run {
     let rod = Rod::new(spec).unwrap();
     let (f, m) = (rod.spec.tip.force, rod.spec.tip.moment);
-    let mut sim = Simulator::with_tensions(
+    let mut sim = Simulator::with_constraint(
         rod,
         &(inputs.pressures)(0.0),
         &(inputs.tensions)(0.0),
@@ -79,25 +92,37 @@ fn run(spec: DesignSpec, params: &[Param], inputs: &Inputs) -> (Vec<[f64; 3]>, V
         SigmaMap::None,
         f,
         m,
+        (inputs.held)(0.0),
     )
     .unwrap();
     if !params.is_empty() {
         sim.track_sensitivities(params).unwrap();
     }
-    let (mut tip, mut d) = (vec![], vec![]);
+    let (mut shape, mut d) = (vec![], vec![]);
+    let mut touching = f64::INFINITY;
     for k in 1..=STEPS {
         let t = k as f64 * DT;
         let tensions = (inputs.tensions)(t);
         if !tensions.is_empty() {
             sim.set_tensions(&tensions).unwrap();
         }
+        sim.set_tip_pose((inputs.held)(t)).unwrap();
         sim.step(&(inputs.pressures)(t)).unwrap();
-        tip.push(sim.tip().r);
+        shape.push(sim.shape().to_vec());
+        let deepest = sim
+            .contact_state()
+            .map_or(f64::NEG_INFINITY, |c| c.max_penetration);
+        touching = touching.min(deepest);
         if !params.is_empty() {
-            d.push(sim.tip_sensitivity().unwrap().to_vec());
+            d.push(sim.shape_sensitivity().unwrap().to_vec());
+            // The tip's derivatives are the last node's.
+            let tip = sim.tip_sensitivity().unwrap();
+            for (j, s) in d.last().unwrap().iter().enumerate() {
+                assert_eq!(s.last(), Some(&tip[j]));
+            }
         }
     }
-    (tip, d)
+    (shape, d, touching)
 }
 
 /// `spec` with parameter `p` moved by `delta` (relative for the area factor; E moves G with
@@ -149,10 +174,10 @@ fn check_against_central_differences(
     inputs: &Inputs,
 ) {
     let list: Vec<Param> = params.iter().map(|(p, _)| p.clone()).collect();
-    let (tip0, exact) = run(spec.clone(), &list, inputs);
-    let (plain, _) = run(spec.clone(), &[], inputs);
+    let (shape0, exact, _) = run(spec.clone(), &list, inputs);
+    let (plain, _, _) = run(spec.clone(), &[], inputs);
     // Tracking does not change the run.
-    assert_eq!(tip0, plain, "{name}");
+    assert_eq!(shape0, plain, "{name}");
     for (j, (p, value)) in params.iter().enumerate() {
         // Central differences with a relative step of 1e-4: truncation ~ (1e-4)^2 = 1e-8
         // of the derivative; the converged states' error (tol 1e-11 of the unknowns'
@@ -160,8 +185,8 @@ fn check_against_central_differences(
         // ~1e-8 m per unit. The tolerance, 1e-5 of the largest derivative plus 1e-7 m
         // per `unit`, leaves two orders of magnitude above both.
         let h = 1e-4 * value;
-        let (up, _) = run(moved(spec.clone(), p, h), &[], inputs);
-        let (down, _) = run(moved(spec.clone(), p, -h), &[], inputs);
+        let (up, _, _) = run(moved(spec.clone(), p, h), &[], inputs);
+        let (down, _, _) = run(moved(spec.clone(), p, -h), &[], inputs);
         // The area factor's derivative is per unit of the factor (1 = as designed).
         let scale = if p.kind == ParamKind::AreaScale {
             1.0 / value
@@ -170,7 +195,7 @@ fn check_against_central_differences(
         };
         let largest = exact
             .iter()
-            .flat_map(|d| d[j].iter().map(|x| x.abs()))
+            .flat_map(|d| d[j].iter().flatten().map(|x| x.abs()))
             .fold(0.0f64, f64::max);
         // Per unit of the parameter, or per relative change for parameters of more than
         // one unit (E in Pa, density in kg/m^3, whose per-unit derivatives are tiny).
@@ -178,25 +203,27 @@ fn check_against_central_differences(
         // A derivative that is zero tests nothing.
         assert!(
             largest * unit > 1e-4,
-            "{name} {:?}: the tip does not move ({largest})",
+            "{name} {:?}: the rod does not move ({largest})",
             p.kind
         );
         let mut worst = 0.0f64;
         for (k, d) in exact.iter().enumerate() {
-            for a in 0..3 {
-                let fd = (up[k][a] - down[k][a]) / (2.0 * h) * scale;
-                let err = (d[j][a] - fd).abs();
-                worst = worst.max(err / largest);
-                assert!(
-                    err <= 1e-5 * largest + 1e-7 / unit,
-                    "{name} {:?} step {k} axis {a}: exact {} fd {fd} (largest {largest})",
-                    p.kind,
-                    d[j][a]
-                );
+            for (node, dr) in d[j].iter().enumerate() {
+                for a in 0..3 {
+                    let fd = (up[k][node][a] - down[k][node][a]) / (2.0 * h) * scale;
+                    let err = (dr[a] - fd).abs();
+                    worst = worst.max(err / largest);
+                    assert!(
+                        err <= 1e-5 * largest + 1e-7 / unit,
+                        "{name} {:?} step {k} node {node} axis {a}: exact {} fd {fd} (largest {largest})",
+                        p.kind,
+                        dr[a]
+                    );
+                }
             }
         }
         eprintln!(
-            "{name} {:?}: largest |d tip| {largest:.3e} per unit, worst error {worst:.1e} of it",
+            "{name} {:?}: largest |d r| {largest:.3e} per unit, worst error {worst:.1e} of it",
             p.kind
         );
     }
@@ -273,6 +300,7 @@ fn tendon_sensitivities_match_central_differences() {
     let inputs = Inputs {
         pressures: no_pressure,
         tensions: tendon_tensions,
+        held: free,
     };
     for (helical, sb) in [(false, false), (true, true)] {
         let spec = tendon_arm(helical, sb, 2, 0.05);
@@ -294,6 +322,97 @@ fn nonlinear_axial_law_sensitivities_match_central_differences() {
     let mut table = body_params();
     table.push((param(ParamKind::CorrectionFactor(1), &[1]), 1.0));
     check_against_central_differences("EA(F) table", &actuator(ea_table_law(), 2), &table, &P002);
+}
+
+/// Paper 000's arm with its tip held: pinned where the straight arm's tip is (the PAMs'
+/// moment bends the rod between its ends while the tip stays put: its derivatives are
+/// zero, the shape's are what is checked), or clamped in the base's orientation and moved
+/// sideways by 20 mm over the run (a uniform moment alone would go into the clamps).
+fn clamped_arm_tip(t: f64) -> TipConstraint {
+    let s = (t / (STEPS as f64 * DT)).min(1.0);
+    TipConstraint::Clamped {
+        position: [0.02 * s * s * (3.0 - 2.0 * s), 0.0, -0.22],
+        rotation: [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]],
+    }
+}
+
+fn pinned_arm_tip(_: f64) -> TipConstraint {
+    TipConstraint::Pinned {
+        position: [0.0, 0.0, -0.22],
+    }
+}
+
+#[test]
+fn held_tip_sensitivities_match_central_differences() {
+    let params = [
+        (param(ParamKind::DampingTime, &[]), 0.19),
+        (param(ParamKind::AreaScale, &[0]), 1.0),
+        (param(ParamKind::Mass, &[0]), 0.165),
+        (param(ParamKind::CorrectionFactor(2), &[0]), 1.0),
+    ];
+    for (name, held) in [
+        ("clamped arm", clamped_arm_tip as fn(f64) -> TipConstraint),
+        ("pinned arm", pinned_arm_tip),
+    ] {
+        let inputs = Inputs {
+            pressures: command,
+            tensions: slack,
+            held,
+        };
+        check_against_central_differences(name, &pam_arm(), &params, &inputs);
+    }
+}
+
+/// A horizontal beam (0.5 m, radius 5 mm, E 1 MPa) clamped at the base, its tip pinned at
+/// the base's height and pressed down 1 mm over the run, over a plane 2 mm below its
+/// surface: gravity (0.15 m/s^2) sags it onto the plane (it would sag 4 mm without it), so
+/// it lies on the plane over its middle at every step while the pinned tip moves.
+fn beam_on_plane() -> DesignSpec {
+    let material = MaterialSpec {
+        youngs_modulus: 1e6,
+        shear_modulus: 1e6 / 3.0,
+        density: 1000.0,
+    };
+    let sec = geometry_section("beam", 0.5, 0.005, 0.0, material, vec![], 6);
+    let mut spec = design(vec![sec], HORIZONTAL, 0.15);
+    spec.dynamics.damping_time = 0.05;
+    let mut plane = obstacle(ObstacleKind::Plane, 50.0, 3e-3);
+    plane.point = Some([0.0, 0.0, -0.007]);
+    plane.normal = Some([0.0, 0.0, 1.0]);
+    spec.obstacles = vec![plane];
+    spec
+}
+
+fn pressed_tip(t: f64) -> TipConstraint {
+    let s = (t / (STEPS as f64 * DT)).min(1.0);
+    TipConstraint::Pinned {
+        position: [0.5, 0.0, -1e-3 * s * s * (3.0 - 2.0 * s)],
+    }
+}
+
+fn no_channels(_: f64) -> Vec<f64> {
+    vec![]
+}
+
+/// A held tip with an obstacle in contact over the whole run: the penalty's C1 ramp
+/// (docs/contact.md) keeps the trajectory differentiable, and the sensitivities carry the
+/// node positions of the contact equations.
+#[test]
+fn contact_sensitivities_match_central_differences() {
+    let inputs = Inputs {
+        pressures: no_channels,
+        tensions: slack,
+        held: pressed_tip,
+    };
+    let (_, _, touching) = run(beam_on_plane(), &[], &inputs);
+    assert!(touching > 0.0, "in contact at every step: {touching}");
+    let params = [
+        (param(ParamKind::DampingTime, &[]), 0.05),
+        (param(ParamKind::YoungsModulus, &[0]), 1e6),
+        (param(ParamKind::Density, &[0]), 1000.0),
+        (param(ParamKind::CorrectionFactor(2), &[0]), 1.0),
+    ];
+    check_against_central_differences("beam on a plane", &beam_on_plane(), &params, &inputs);
 }
 
 #[test]
@@ -346,14 +465,64 @@ fn unsupported_settings_are_refused_with_the_rule() {
     refused(&mut sim, &sigma, "params[0]");
     // Ogden's alpha is a dynamic parameter of Ogden sections only (this arm is linear).
     refused(&mut sim, &[param(ParamKind::OgdenAlpha, &[0])], "params[0]");
-    // Contact stays refused: the penalty switches on and off, so the trajectory is not
-    // differentiable where a node touches.
-    let mut walled = pam_arm();
-    let mut floor = obstacle(ObstacleKind::Plane, 1e4, 1e-4);
-    floor.point = Some([0.0, 0.0, -1.0]);
-    floor.normal = Some([0.0, 0.0, 1.0]);
-    walled.obstacles = vec![floor];
-    let mut sim =
-        Simulator::new(Rod::new(walled).unwrap(), &p0, Initial::Static, options()).unwrap();
-    refused(&mut sim, &tau, "obstacles");
+}
+
+/// A dynamic calibration round trip on a held tip: the PAM arm pinned at its straight tip
+/// position, whose own position does not move, is fitted by Gauss-Newton on its node
+/// positions along the run (`Simulator::shape_sensitivity`) from tau and the area factor
+/// 20 % and 10 % off to a synthetic run of the true values: six Gauss-Newton steps (the
+/// misfit is zero at the truth, so they converge quadratically) land on them to the
+/// replays' convergence.
+#[test]
+fn held_tip_calibration_round_trip_recovers_tau_and_area() {
+    let inputs = Inputs {
+        pressures: command,
+        tensions: slack,
+        held: pinned_arm_tip,
+    };
+    let tau = param(ParamKind::DampingTime, &[]);
+    let area = param(ParamKind::AreaScale, &[0]);
+    // The design with tau and the area factor a (relative to paper 000's areas).
+    let at = |theta: [f64; 2]| {
+        let spec = moved(pam_arm(), &tau, theta[0] - 0.19);
+        moved(spec, &area, theta[1] - 1.0)
+    };
+    let truth = [0.16, 1.15];
+    let (target, _, _) = run(at(truth), &[], &inputs);
+    let mut theta = [truth[0] * 1.2, truth[1] * 0.9];
+    for _ in 0..6 {
+        let (shape, d, _) = run(at(theta), &[tau.clone(), area.clone()], &inputs);
+        // Normal equations of the node positions' misfit; the area derivative is per unit
+        // of the factor on the design's (already scaled) areas: d/da = d/dfactor / a.
+        let (mut jtj, mut jtr) = ([[0.0; 2]; 2], [0.0; 2]);
+        for (k, nodes) in shape.iter().enumerate() {
+            for (n, r) in nodes.iter().enumerate() {
+                for a in 0..3 {
+                    let res = r[a] - target[k][n][a];
+                    let g = [d[k][0][n][a], d[k][1][n][a] / theta[1]];
+                    for i in 0..2 {
+                        jtr[i] += g[i] * res;
+                        for j in 0..2 {
+                            jtj[i][j] += g[i] * g[j];
+                        }
+                    }
+                }
+            }
+        }
+        let det = jtj[0][0] * jtj[1][1] - jtj[0][1] * jtj[1][0];
+        theta[0] -= (jtj[1][1] * jtr[0] - jtj[0][1] * jtr[1]) / det;
+        theta[1] -= (jtj[0][0] * jtr[1] - jtj[1][0] * jtr[0]) / det;
+    }
+    eprintln!(
+        "held-tip fit: tau {:.9} (truth {}), area {:.9} (truth {})",
+        theta[0], truth[0], theta[1], truth[1]
+    );
+    // The replays converge to 1e-11 of the unknowns' scales: the misfit's minimum lies
+    // that close to the truth, far inside 1e-6.
+    for i in 0..2 {
+        assert!(
+            ((theta[i] - truth[i]) / truth[i]).abs() < 1e-6,
+            "{theta:?} vs {truth:?}"
+        );
+    }
 }

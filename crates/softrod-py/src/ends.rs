@@ -2,7 +2,8 @@
 //! of rods sharing a platform (`softrod_core::statics::system`). No physics here.
 
 use crate::{
-    array2, array3, guarded, options, rows_dict, solution_dict, to_py_err, Context, PyRod,
+    array2, array3, contact_dict, guarded, options, rows_dict, solution_dict, to_py_err, Context,
+    PyRod,
 };
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -113,7 +114,12 @@ fn solve_constrained_tip<'py>(
         let out = py
             .detach(|| solve_constrained(rod, &loads, &c, guess.as_deref(), &opts))
             .map_err(|e| to_py_err(py, e, Context::Input))?;
-        constrained_dict(py, &out)
+        let d = constrained_dict(py, &out)?;
+        // With obstacles: the contact report, as `Rod.solve` gives it.
+        if let Some(rep) = softrod_core::statics::contact::report(rod, &loads, &out.solution) {
+            d.set_item("contact", contact_dict(py, &rep)?)?;
+        }
+        Ok(d)
     })
 }
 

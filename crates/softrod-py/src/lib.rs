@@ -159,7 +159,7 @@ pub(crate) fn array2<'py>(py: Python<'py>, rows: &[[f64; 3]]) -> PyResult<Bound<
 }
 
 /// The contact report of a static solution as numpy arrays (SI).
-fn contact_dict<'py>(
+pub(crate) fn contact_dict<'py>(
     py: Python<'py>,
     rep: &statics::contact::ContactReport,
 ) -> PyResult<Bound<'py, PyDict>> {

@@ -290,8 +290,10 @@ def calibrate(
     with bounds) or "nelder-mead" (derivative-free simplex, an explicit fallback; the
     standard errors come from the exact Jacobian at its optimum). The rod's time series
     (``dynamic=True``) get their exact Jacobian from the core's forward sensitivities
-    through every time step (BDF-alpha with fixed steps; every design feature but contact:
-    docs/calibration.md).
+    through every time step (BDF-alpha with fixed steps; every design feature, contact with
+    obstacles included: docs/calibration.md). A design whose ``[tip]`` pins or clamps the
+    tip is refused (``tip_constraint``): the fit reads the tip, which a held tip does not
+    move (the core's sensitivities of the other nodes are not read by it yet).
     weights: ``{quantity: standard deviation}`` per measured quantity ("tip", "markers"),
     e.g. ``{"tip": "0.2 mm", "markers": "0.5 mm"}``: each residual is divided by its
     quantity's value (default 1 mm), so that quantities measured with different noise

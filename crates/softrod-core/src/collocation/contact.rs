@@ -22,11 +22,12 @@
 //! replaces the moment balance), the same 6 rows in the same place of the band.
 
 use super::{
-    mat_vec, rotation, Factorization, Problem, GAUSS_A, GAUSS_B, IM, IN, IQ, IV, IW, NF, NY,
+    mat_vec, rotation, Factorization, Problem, SectionModel, GAUSS_A, GAUSS_B, IM, IN, IQ, IV, IW,
+    NF, NY,
 };
 use crate::banded::BandedLu;
 use crate::contact::{total_section_load, Obstacle, SectionLoad};
-use crate::jet::{Jet, StateScalar};
+use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
 use crate::rod::Rod;
 use crate::statics::constraint::{orientation_error, tmatmul};
 use std::sync::Arc;
@@ -158,8 +159,13 @@ impl Problem<'_> {
 
     /// Physical position of node j from scaled unknowns.
     pub(super) fn position(&self, z: &[f64], j: usize) -> [f64; 3] {
+        self.position_with(z, j)
+    }
+
+    /// [`Problem::position`] of unknowns in any scalar.
+    fn position_with<D: RodScalar>(&self, z: &[D], j: usize) -> [D; 3] {
         if j == 0 {
-            return self.rod.base_position;
+            return self.rod.base_position.map(D::from);
         }
         let o = self.position_index(j);
         std::array::from_fn(|k| z[o + k] * self.rod.length)
@@ -167,10 +173,13 @@ impl Problem<'_> {
 
     /// Interval j's scaled equations with contact (32 stage rows, 16 node rows, 3 position
     /// rows) from its start node (Y_j, r_j), stages and end node (Y_{j+1}, r_{j+1}), all
-    /// physical, and the stage fields.
+    /// physical, and the stage fields, under section `models` and histories `hist` (the
+    /// problem's own, or dual ones for parameter derivatives: `Problem::residual_with`).
     #[allow(clippy::too_many_arguments)]
-    fn contact_interval<D: StateScalar<f64>>(
+    fn contact_interval<C: Coeff, D: StateScalar<C>>(
         &self,
+        models: &[SectionModel<C>],
+        hist: &[[C; NF]],
         c: Option<&Contact>,
         j: usize,
         yj: &[D; NY],
@@ -188,8 +197,8 @@ impl Problem<'_> {
         for i in 0..2 {
             let (fi, fli) = super::rhs(
                 ys[i],
-                &self.models[iv.model[i]],
-                &self.hist[2 * j + i],
+                &models[iv.model[i]],
+                &hist[2 * j + i],
                 self.c0,
                 iv.stage_local(i),
             );
@@ -233,7 +242,18 @@ impl Problem<'_> {
         y: &[D; NY],
         r: &[D; 3],
     ) -> [D; 6] {
-        let mut t = self.tip_residual(y);
+        self.free_tip_with(c, y, r, self.hist.last().expect("tip slot"))
+    }
+
+    /// [`Problem::free_tip`] with the tip node's history terms `th` in any scalar.
+    fn free_tip_with<C: Coeff, D: StateScalar<C>>(
+        &self,
+        c: Option<&Contact>,
+        y: &[D; NY],
+        r: &[D; 3],
+        th: &[C; NF],
+    ) -> [D; 6] {
+        let mut t = self.tip_residual_with(y, th);
         if let Some(c) = c {
             let e = c.end_load(y, r);
             for k in 0..3 {
@@ -247,13 +267,14 @@ impl Problem<'_> {
     /// The tip's 6 scaled equations: the free tip's balance, or for a constrained tip
     /// (`Problem::end`) the position (r(L) - r_c)/L in place of the force balance and, when
     /// clamped, the orientation error e(R_c^T R(L)) in place of the moment balance.
-    fn contact_tip<D: StateScalar<f64>>(
+    fn contact_tip<C: Coeff, D: StateScalar<C>>(
         &self,
         c: Option<&Contact>,
         y: &[D; NY],
         r: &[D; 3],
+        th: &[C; NF],
     ) -> [D; 6] {
-        let mut t = self.free_tip(c, y, r);
+        let mut t = self.free_tip_with(c, y, r, th);
         if let Some(end) = &self.end {
             let il = 1.0 / self.rod.length;
             for k in 0..3 {
@@ -274,16 +295,31 @@ impl Problem<'_> {
         c: Option<&Contact>,
         z: &[f64],
         out: &mut [f64],
-        mut fields: Option<&mut [[f64; NF]]>,
+        fields: Option<&mut [[f64; NF]]>,
+    ) {
+        self.contact_residual_with(self.models, self.hist, c, z, out, fields);
+    }
+
+    /// [`Problem::contact_residual`] under section `models` and histories `hist`, in any
+    /// scalar (`Problem::residual_with`: the parameter derivatives of a run with contact
+    /// or a held tip).
+    pub(super) fn contact_residual_with<C: Coeff, D: StateScalar<C>>(
+        &self,
+        models: &[SectionModel<C>],
+        hist: &[[C; NF]],
+        c: Option<&Contact>,
+        z: &[D],
+        out: &mut [D],
+        mut fields: Option<&mut [[D; NF]]>,
     ) {
         let n_int = self.grid.len();
-        let mut yj = self.node(z, 0);
-        let mut rj = self.position(z, 0);
+        let mut yj = self.node_with(z, 0);
+        let mut rj = self.position_with(z, 0);
         for j in 0..n_int {
-            let (y1, y2) = (self.stage(z, j, 0), self.stage(z, j, 1));
-            let yn = self.node(z, j + 1);
-            let rn = self.position(z, j + 1);
-            let (r, fl) = self.contact_interval(c, j, &yj, &rj, [&y1, &y2], &yn, &rn);
+            let (y1, y2) = (self.stage_with(z, j, 0), self.stage_with(z, j, 1));
+            let yn = self.node_with(z, j + 1);
+            let rn = self.position_with(z, j + 1);
+            let (r, fl) = self.contact_interval(models, hist, c, j, &yj, &rj, [&y1, &y2], &yn, &rn);
             out[48 * j..48 * j + 48].copy_from_slice(&r[..48]);
             let o = 48 * n_int + 6 + 3 * j;
             out[o..o + 3].copy_from_slice(&r[48..]);
@@ -294,7 +330,7 @@ impl Problem<'_> {
             yj = yn;
             rj = rn;
         }
-        let t = self.contact_tip(c, &yj, &rj);
+        let t = self.contact_tip(c, &yj, &rj, hist.last().expect("tip slot"));
         out[48 * n_int..48 * n_int + 6].copy_from_slice(&t);
     }
 
@@ -336,7 +372,8 @@ impl Problem<'_> {
             let rn0 = self.position(z, j + 1);
             let yn: [Jet<PER>; NY] = std::array::from_fn(|k| var(yn0[k], 1.0, None));
             let rn: [Jet<PER>; 3] = std::array::from_fn(|k| var(rn0[k], 1.0, None));
-            let (res, _) = self.contact_interval(c, j, &yj, &rj, [&y1, &y2], &yn, &rn);
+            let (res, _) =
+                self.contact_interval(self.models, self.hist, c, j, &yj, &rj, [&y1, &y2], &yn, &rn);
             let col_of = |v: usize| -> Option<usize> {
                 match v {
                     0..=15 if j == 0 => Some(v - IN),
@@ -362,7 +399,7 @@ impl Problem<'_> {
         let rn0 = self.position(z, n_int);
         let y: [Jet<19>; NY] = std::array::from_fn(|k| var(yn0[k], self.scale[k], Some(k)));
         let r: [Jet<19>; 3] = std::array::from_fn(|k| var(rn0[k], l, Some(16 + k)));
-        let t = self.contact_tip(c, &y, &r);
+        let t = self.contact_tip(c, &y, &r, self.hist.last().expect("tip slot"));
         let node = 6 + PER * (n_int - 1) + 32;
         for (row, x) in t.iter().enumerate() {
             for (v, d) in x.eps.iter().enumerate() {

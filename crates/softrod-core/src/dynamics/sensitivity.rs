@@ -42,15 +42,24 @@
 //! through the section's law, whose dual evaluation at the converged strains is the
 //! law's implicit-function-theorem step, `SectionModel::strains`). The parameters:
 //! correction factors, E, Ogden's alpha, c_p, chamber offsets, area_scale, density, mass
-//! and the damping time. Refused: contact (the penalty's switch is not smooth), the
-//! midpoint scheme, adaptive steps, a straight start and the sigma factors.
+//! and the damping time. Contact with obstacles and a held (pinned or clamped) tip too: the
+//! step's unknowns then carry the node positions (`collocation::contact`) and the dual
+//! residual is that of the same equations (`Problem::residual_with`); the held pose is an
+//! input and carries no derivative. The penalty is C1 (docs/contact.md): its ramp's second
+//! derivative jumps where a surface point touches down or lifts off (delta = 0) and at
+//! delta = eps, so the step residual is C1 in (z, theta), the implicit function theorem
+//! holds at every step and the sensitivities are the exact derivatives of the discrete
+//! trajectory, continuous in theta; their own theta-derivative jumps where a change of theta
+//! moves a stage point across a switch (a central difference across one errs by O(h) of
+//! that jump, not O(h^2)). Regularised friction is smooth. Refused: the midpoint scheme,
+//! adaptive steps, a straight start and the sigma factors.
 
 use super::{section_inertia, Bdf, Candidate, Initial, Scheme, Simulator, Slot, FIELDS};
 use crate::collocation::{Factorization, Problem, SectionModel, NF};
 use crate::error::{Result, SoftrodError};
 use crate::jet::Jet;
 use crate::ode::Coeffs;
-use crate::sensitivity::{section_value, seeded, validate_params, Param, ParamKind, CHUNK};
+use crate::sensitivity::{check_params, section_value, seeded, Param, ParamKind, CHUNK};
 
 /// The sensitivities carried through the time loop.
 #[derive(Debug, Clone)]
@@ -60,6 +69,8 @@ pub(crate) struct Tracker {
     slots: Vec<Vec<Slot>>,
     /// d r_tip / d theta_j now (world, m per unit of the parameter).
     tip: Vec<[f64; 3]>,
+    /// d r(node k) / d theta_j now: `shape[j][k]` (the nodes of `Simulator::shape`).
+    shape: Vec<Vec<[f64; 3]>>,
     /// dz/dtheta_j (scaled unknowns) of the last DZ_KEPT steps, newest first: the
     /// refinement's start is their extrapolation (none before two steps).
     dz: Vec<Vec<Vec<f64>>>,
@@ -76,6 +87,16 @@ pub(crate) struct Tracker {
     rate_of: Option<(Vec<f64>, f64)>,
     /// The refinement's scratch (right sides, corrections), kept: a step allocates none.
     buf: Vec<f64>,
+}
+
+impl Tracker {
+    /// Parameter j's node position derivatives (dual direction q of `nodes_r`).
+    fn set_positions<const N: usize>(&mut self, j: usize, q: usize, nodes_r: &[[Jet<N>; 3]]) {
+        let shape = &mut self.shape[j];
+        shape.clear();
+        shape.extend(nodes_r.iter().map(|r| r.map(|x| x.eps[q])));
+        self.tip[j] = shape.last().copied().unwrap_or([0.0; 3]);
+    }
 }
 
 const ZERO_SLOT: Slot = Slot {
@@ -125,20 +146,6 @@ impl Simulator {
                 "parameter sensitivities are implemented for 'bdf-alpha'",
             );
         }
-        if !self.rod.spec.obstacles.is_empty() {
-            return refuse(
-                "obstacles",
-                format!("{} obstacles", self.rod.spec.obstacles.len()),
-                "dynamic parameter sensitivities do not carry contact (the penalty's switch makes them non-smooth): remove the obstacles",
-            );
-        }
-        if self.end != crate::statics::constraint::TipConstraint::Free {
-            return refuse(
-                "tip_constraint",
-                self.end.name().into(),
-                "dynamic parameter sensitivities do not carry a pinned or clamped tip yet: free the tip",
-            );
-        }
         if let Some(e) = self.opts.error_tol {
             return refuse(
                 "error_tol",
@@ -157,7 +164,7 @@ impl Simulator {
             }
             (st, other)
         };
-        validate_params(&self.rod, &statics_params).map_err(|e| renumber(e, params))?;
+        check_params(&self.rod, &statics_params).map_err(|e| renumber(e, params))?;
         for (j, p) in params.iter().enumerate() {
             if let ParamKind::StiffnessScale(_) = p.kind {
                 return refuse(
@@ -195,6 +202,7 @@ impl Simulator {
             params: params.to_vec(),
             slots: vec![vec![ZERO_SLOT; n_slots]; params.len()],
             tip: vec![[0.0; 3]; params.len()],
+            shape: vec![vec![]; params.len()],
             dz: vec![vec![]; params.len()],
             scale: params
                 .iter()
@@ -221,7 +229,9 @@ impl Simulator {
         let models = self.models_at(&self.pressures, &self.tensions, &self.sigma, 0.0);
         let hist = vec![[0.0; FIELDS]; n_slots];
         let tip = self.tip_body(self.tip_force, self.tip_moment);
-        let problem = Problem::new(&self.rod, &self.grid, &models, 0.0, &hist, tip);
+        let problem = Problem::new(&self.rod, &self.grid, &models, 0.0, &hist, tip)
+            .with_contact()
+            .with_end(super::end_target(&self.end));
         let z = super::to_scaled(&problem, &self.z);
         let fac = problem
             .factorize(&z)
@@ -246,6 +256,13 @@ impl Simulator {
         self.sens.as_ref().map(|t| t.tip.as_slice())
     }
 
+    /// d r / d theta_j at every node of [`Simulator::shape`] now (`[j][node]`, world, m
+    /// per unit of parameter j): with a held tip, whose own position is prescribed, what a
+    /// fit reads is the rest of the rod. None when no sensitivities are tracked.
+    pub fn shape_sensitivity(&self) -> Option<&[Vec<[f64; 3]>]> {
+        self.sens.as_ref().map(|t| t.shape.as_slice())
+    }
+
     /// The parameters tracked.
     pub fn sensitivity_params(&self) -> Option<&[Param]> {
         self.sens.as_ref().map(|t| t.params.as_slice())
@@ -268,7 +285,7 @@ impl Simulator {
             self.dual_models::<N>(chunk, &self.pressures, &self.tensions, &self.sigma, 0.0);
         let hist_d = vec![[Jet::<N>::from(0.0); NF]; n_slots];
         let zd = solve_exact(problem, fac, &models_d, &hist_d, z, chunk.len())?;
-        let (fields, _, tip_r) = problem.fields_and_tip_with(&models_d, &hist_d, &zd);
+        let (fields, _, nodes_r) = problem.fields_and_positions_with(&models_d, &hist_d, &zd);
         for q in 0..chunk.len() {
             let j = j0 + q;
             for (k, f) in fields.iter().enumerate() {
@@ -281,7 +298,7 @@ impl Simulator {
                     xt: [0.0; FIELDS],
                 };
             }
-            tr.tip[j] = std::array::from_fn(|a| tip_r[a].eps[q]);
+            tr.set_positions(j, q, &nodes_r);
         }
         Some(())
     }
@@ -367,7 +384,8 @@ impl Simulator {
             c.bdf.c0,
             &c.hist,
             tip,
-        );
+        )
+        .with_end(super::end_target(&c.end));
         // The matrix Newton kept for this step (same c0), if any: the sensitivity equation
         // is solved with it by iterative refinement, else with the exact matrix factored
         // at the converged state.
@@ -517,7 +535,7 @@ impl Simulator {
                 (zd, fields)
             }
         };
-        let (tip_node, tip_r) = problem.tip_of_fields(&zd, &fields);
+        let (tip_node, nodes_r) = problem.positions_of_fields(&zd, &fields);
         for q in 0..n_par {
             let j = j0 + q;
             let mut old = std::mem::take(&mut tr.dz[j]);
@@ -553,7 +571,7 @@ impl Simulator {
                     x1,
                 };
             }
-            tr.tip[j] = std::array::from_fn(|a| tip_r[a].eps[q]);
+            tr.set_positions(j, q, &nodes_r);
         }
         Ok(())
     }
@@ -750,7 +768,7 @@ fn refine<const N: usize>(
 
 /// A section check's error with the index of the parameter in the full list.
 fn renumber(e: SoftrodError, params: &[Param]) -> SoftrodError {
-    // validate_params numbered the parameters without the damping time; map back.
+    // check_params numbered the parameters without the damping time; map back.
     let SoftrodError::InvalidParameter { field, value, rule } = e else {
         return e;
     };

@@ -17,6 +17,12 @@
 //! wrench the constraint applies to the rod's tip body) is what is left of the tip wrench
 //! balance: F_r = n(L) - W - F, M_r = m(L) - (R(L) c) x W - M (zero moment when pinned).
 //!
+//! Obstacles (docs/contact.md, "A held tip with obstacles"): the penalty is a line load of
+//! the shooting ODE (`crate::ode`) and the rounded end's contact force enters the tip
+//! balance (`Problem::residual_of_tip`), so the same equations carry them, the reaction
+//! leaves that force out (F_r = n(L) - W - F - F_end), every node is checked for
+//! penetration (`checked_shape`) and `super::contact::report` reports the contacts.
+//!
 //! Continuation: a path from the unloaded reference shape (x = 0 at load factor 0, where
 //! the constraint is set at the reference tip pose) to the full loads and the prescribed
 //! pose, the loads ramped and the pose interpolated along the geodesic.
@@ -34,7 +40,10 @@
 //! (the free tip's form restricted to dr(L) = 0), so sym(J_m Y(L)^-1 [0; I]) > 0. A
 //! clamped tip has no tip form (both ends' variations vanish). Assessed for conservative
 //! loads: not under follower line loads, nor with a follower tip moment on a pin (a
-//! follower tip force on a pin, or any tip load on a clamp, does no work).
+//! follower tip force on a pin, or any tip load on a clamp, does no work). The obstacles'
+//! penalty is conservative (f_c = -grad Phi): it enters the Jacobi fields Y through the
+//! dual numbers, and the rounded end's force acts at the held point (dr(L) = 0), where it
+//! does no work and adds nothing to the tip form.
 
 use super::SolverOptions;
 use super::{eigenvalues_right_half_plane, inf_norm, rotation_field, Problem, Shape, Solution};
@@ -826,7 +835,6 @@ pub fn solve_constrained(
             tip_reaction_moment: [0.0; 3],
         });
     }
-    crate::scope::refuse_obstacles(rod, "a pinned or clamped tip")?;
     let mut violations = super::check_inputs(rod, loads, opts)?;
     let c = *constraint;
     let guess = guess
