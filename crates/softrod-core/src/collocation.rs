@@ -1759,7 +1759,7 @@ pub struct NewtonStats {
 }
 
 /// Largest |r_k|, NaN if any entry is NaN (4 lanes so that it vectorises).
-fn inf_norm(r: &[f64]) -> f64 {
+pub(crate) fn inf_norm(r: &[f64]) -> f64 {
     let mut m = [0.0f64; 4];
     let mut nan = false;
     let chunks = r.chunks_exact(4);

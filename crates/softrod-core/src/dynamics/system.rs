@@ -36,7 +36,7 @@ use super::{
     Candidate, DynOptions, DynStats, Energy, Initial, Prep, Reader, Scheme, SigmaMap, Simulator,
     Stepping, Writer,
 };
-use crate::collocation::{self, Problem, NY};
+use crate::collocation::{self, inf_norm, Problem, NY};
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
 use crate::ode::Loads;
@@ -385,13 +385,6 @@ fn tip_rows_jacobian(
         };
         v.eps
     })
-}
-
-fn inf_norm(x: &[f64]) -> f64 {
-    x.iter().fold(
-        0.0,
-        |m, v| if v.is_nan() { f64::NAN } else { m.max(v.abs()) },
-    )
 }
 
 /// The coupled equations of one step (or of the rest state): the rods' problems (their tip
@@ -1166,12 +1159,18 @@ impl SystemSimulator {
     /// unknowns `x` (layout of [`SystemSimulator::unknowns`]; the rotation as the Cayley
     /// increment from the current rotation) and the dense exact Jacobian with respect to x
     /// (for tests against finite differences).
-    pub fn step_residual_and_jacobian(&self, x: &[f64]) -> (Vec<f64>, Vec<Vec<f64>>) {
+    pub fn step_residual_and_jacobian(&self, x: &[f64]) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
         let mut me = self.clone();
+        let n: usize = me.rods.iter().map(|r| r.z.len()).sum::<usize>() + 6;
+        if x.len() != n {
+            return Err(SoftrodError::invalid(
+                "x",
+                format!("{} values", x.len()),
+                format!("this system's step has {n} unknowns (SystemSimulator::unknowns)"),
+            ));
+        }
         let command: Vec<f64> = me.rods.iter().flat_map(|r| r.pressures.clone()).collect();
-        let (preps, bdf) = me
-            .prepare(self.opts.dt, &command)
-            .expect("the current inputs");
+        let (preps, bdf) = me.prepare(self.opts.dt, &command)?;
         let eq = PlatformEq::step(&me.body, &bdf, &me.now, &me.prev);
         let problems: Vec<Problem> = preps
             .iter()
@@ -1237,7 +1236,7 @@ impl SystemSimulator {
         }
         let mut res: Vec<f64> = rs.into_iter().flatten().collect();
         res.extend_from_slice(&g);
-        (res, jac)
+        Ok((res, jac))
     }
 
     /// The complete state as a flat list of numbers (the rods' saved states, the
