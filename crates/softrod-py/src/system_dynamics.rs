@@ -3,7 +3,7 @@
 //! the GIL released while it steps.
 
 use crate::{to_py_err, Context, PyRod};
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1};
+use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::dynamics::system::{DynRod, SystemSimulator};
