@@ -430,8 +430,12 @@ impl Coupled<'_> {
 
     /// Newton on all unknowns together from `zs` (scaled) and `xi` (in place); the
     /// bordered matrix solved by the Schur complement on the platform's 6 unknowns (module
-    /// docs). Converged as `collocation::newton`: when the full correction is below `tol`
-    /// relative to max(1, |unknowns|). Err((iterations, residual)).
+    /// docs). The matrix (every rod's factorization, B_i's solves, the Schur complement's
+    /// LU) is kept across iterations while it contracts by at least `REUSE` per iteration
+    /// and refreshed otherwise, and converged as `collocation::newton_with`: when the
+    /// correction, or the error it leaves at contraction rate theta < 1/2 (theta / (1 -
+    /// theta) of it), is below `tol` relative to max(1, |unknowns|).
+    /// Err((iterations, residual)).
     fn newton(
         &mut self,
         zs: &mut [Vec<f64>],
@@ -440,24 +444,53 @@ impl Coupled<'_> {
         max_iter: usize,
         stats: &mut DynStats,
     ) -> std::result::Result<(), (usize, f64)> {
+        const REUSE: f64 = 0.25;
         let n = self.problems.len();
         let mut rs: Vec<Vec<f64>> = vec![vec![]; n];
         let (mut g, mut norm) = self.residual(zs, xi, &mut rs);
+        let mut matrix: Option<Bordered> = None;
+        let mut fresh = false;
+        let mut last_step = f64::INFINITY;
         for it in 0..max_iter {
             stats.newton_iterations += 1;
             if !norm.is_finite() {
                 return Err((it + 1, norm));
             }
-            let (dzs, dxi) = self.correction(zs, xi, &rs, &g).ok_or((it + 1, norm))?;
-            stats.jacobians += 1;
+            if matrix.is_none() {
+                matrix = Some(self.factor(zs, xi).ok_or((it + 1, norm))?);
+                stats.jacobians += 1;
+                fresh = true;
+            }
+            let m = matrix.as_ref().expect("matrix");
+            let Some((dzs, dxi)) = m.correction(&rs, &g) else {
+                if fresh {
+                    return Err((it + 1, norm));
+                }
+                matrix = None;
+                continue;
+            };
             let mut step = inf_norm(&dxi) / inf_norm(xi).max(1.0);
             for (z, dz) in zs.iter().zip(&dzs) {
                 step = step.max(inf_norm(dz) / inf_norm(z).max(1.0));
             }
             if !step.is_finite() {
-                return Err((it + 1, norm));
+                if fresh {
+                    return Err((it + 1, norm));
+                }
+                matrix = None;
+                continue;
             }
-            if step <= tol {
+            let theta = if last_step.is_finite() {
+                step / last_step
+            } else {
+                1.0
+            };
+            let remaining = if theta < 0.5 {
+                step * theta / (1.0 - theta)
+            } else {
+                step
+            };
+            if step <= tol || (it > 0 && remaining <= tol) {
                 for (z, dz) in zs.iter_mut().zip(&dzs) {
                     z.iter_mut().zip(dz).for_each(|(a, d)| *a += d);
                 }
@@ -465,10 +498,11 @@ impl Coupled<'_> {
                 self.place(xi);
                 return Ok(());
             }
-            // Backtracking on the largest residual entry.
+            // Backtracking on the largest residual entry (a kept matrix is refreshed
+            // first where its full correction does not reduce it).
             let mut alpha = 1.0;
             let mut rt: Vec<Vec<f64>> = vec![vec![]; n];
-            loop {
+            let accepted = loop {
                 let zt: Vec<Vec<f64>> = zs
                     .iter()
                     .zip(&dzs)
@@ -481,10 +515,18 @@ impl Coupled<'_> {
                     *xi = xt;
                     std::mem::swap(&mut rs, &mut rt);
                     (g, norm) = (gt, nt);
-                    break;
+                    break true;
+                }
+                if !fresh {
+                    break false;
                 }
                 alpha *= 0.5;
                 if alpha < 1.0 / 256.0 {
+                    break false;
+                }
+            };
+            if !accepted {
+                if fresh {
                     if step <= 100.0 * tol {
                         // At round-off already.
                         self.place(xi);
@@ -492,34 +534,33 @@ impl Coupled<'_> {
                     }
                     return Err((it + 1, norm));
                 }
+                matrix = None;
+                last_step = f64::INFINITY;
+                continue;
+            }
+            fresh = false;
+            if alpha < 1.0 || (last_step.is_finite() && theta > REUSE) {
+                matrix = None; // refresh at the new iterate
+                last_step = f64::INFINITY;
+            } else {
+                last_step = step;
             }
         }
         Err((max_iter, norm))
     }
 
-    /// The Newton correction at (zs, xi) with residuals `rs`, `g` (the problems placed at
-    /// xi): per rod w_i = -A_i^-1 r_i and Y_i = -A_i^-1 B_i from its factorization, then
-    /// (D + sum C_i Y_i) dxi = -g - sum C_i w_i and dz_i = w_i + Y_i dxi. None where a
-    /// matrix is singular.
-    #[allow(clippy::type_complexity)]
-    fn correction(
-        &self,
-        zs: &[Vec<f64>],
-        xi: &[f64; 6],
-        rs: &[Vec<f64>],
-        g: &[f64; 6],
-    ) -> Option<(Vec<Vec<f64>>, [f64; 6])> {
+    /// The Newton matrix at (zs, xi) (the problems placed at xi): per rod its
+    /// factorization, Y_i = -A_i^-1 B_i and C_i, and the Schur complement
+    /// S = D + sum C_i Y_i, factored. None where a matrix is singular.
+    fn factor(&self, zs: &[Vec<f64>], xi: &[f64; 6]) -> Option<Bordered> {
         let reactions = self.reactions(zs);
         let (_, d, dg) = self.eq.rows_jacobian(xi, &reactions);
         let mut s = d;
-        let mut rhs = Vector6::from_fn(|k, _| -g[k]);
-        let mut parts = Vec::with_capacity(zs.len());
+        let mut rods = Vec::with_capacity(zs.len());
         for (i, (p, z)) in self.problems.iter().zip(zs).enumerate() {
             let fac = p.factorize(z)?;
             let n = z.len();
             let mut scratch = vec![0.0; fac.scratch_len()];
-            let mut w = vec![0.0; n];
-            fac.solve(&rs[i], &mut w, &mut scratch);
             let b = tip_rows_jacobian(&self.eq, i, p, z, xi);
             let (row0, col0) = (p.tip_rows(), p.tip_offset());
             let mut ys = Vec::with_capacity(6);
@@ -540,26 +581,68 @@ impl Coupled<'_> {
                 tj[(r, c)] * if r < 3 { p.fs } else { p.ms }
             });
             let ci = dg[i] * dr;
-            let tip =
-                |v: &[f64]| nalgebra::SVector::<f64, NY>::from_column_slice(&v[col0..col0 + NY]);
-            rhs -= ci * tip(&w);
             for (c, y) in ys.iter().enumerate() {
-                let cy = ci * tip(y);
+                let cy = ci * tip_of(y, col0);
                 for r in 0..6 {
                     s[(r, c)] += cy[r];
                 }
             }
-            parts.push((w, ys));
+            rods.push(RodBlock {
+                fac,
+                ys,
+                ci,
+                col0,
+                scratch,
+            });
         }
-        let dxi = s.lu().solve(&rhs)?;
+        let lu = s.lu();
+        lu.is_invertible().then_some(Bordered { rods, schur: lu })
+    }
+}
+
+/// A rod's tip node's 16 scaled unknowns in a vector of its unknowns.
+fn tip_of(v: &[f64], col0: usize) -> nalgebra::SVector<f64, NY> {
+    nalgebra::SVector::<f64, NY>::from_column_slice(&v[col0..col0 + NY])
+}
+
+/// One rod's part of the bordered Newton matrix.
+struct RodBlock {
+    fac: collocation::Factorization,
+    ys: Vec<Vec<f64>>,
+    ci: nalgebra::SMatrix<f64, 6, NY>,
+    col0: usize,
+    scratch: Vec<f64>,
+}
+
+/// The bordered Newton matrix of a step, factored ([`Coupled::factor`]).
+struct Bordered {
+    rods: Vec<RodBlock>,
+    schur: nalgebra::LU<f64, nalgebra::U6, nalgebra::U6>,
+}
+
+impl Bordered {
+    /// The correction for residuals `rs`, `g`: w_i = -A_i^-1 r_i, then
+    /// S dxi = -g - sum C_i w_i and dz_i = w_i + Y_i dxi. None if not finite.
+    fn correction(&self, rs: &[Vec<f64>], g: &[f64; 6]) -> Option<(Vec<Vec<f64>>, [f64; 6])> {
+        let mut rhs = Vector6::from_fn(|k, _| -g[k]);
+        let mut ws = Vec::with_capacity(rs.len());
+        for (b, r) in self.rods.iter().zip(rs) {
+            let mut w = vec![0.0; r.len()];
+            let mut scratch = b.scratch.clone();
+            b.fac.solve(r, &mut w, &mut scratch);
+            rhs -= b.ci * tip_of(&w, b.col0);
+            ws.push(w);
+        }
+        let dxi = self.schur.solve(&rhs)?;
         let dxi: [f64; 6] = std::array::from_fn(|k| dxi[k]);
         if !dxi.iter().all(|v| v.is_finite()) {
             return None;
         }
-        let dzs = parts
+        let dzs = ws
             .into_iter()
-            .map(|(mut w, ys)| {
-                for (y, d) in ys.iter().zip(&dxi) {
+            .zip(&self.rods)
+            .map(|(mut w, b)| {
+                for (y, d) in b.ys.iter().zip(&dxi) {
                     w.iter_mut().zip(y).for_each(|(a, b)| *a += b * d);
                 }
                 w
