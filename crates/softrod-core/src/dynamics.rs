@@ -27,6 +27,9 @@
 //! (`set_tip_pose`); the step's collocation then carries the node positions and replaces
 //! the tip's balance by the pose (`collocation::EndTarget`), the reaction is reported
 //! (`tip_reaction`) and its work along the pose's path enters the energy books.
+//!
+//! Several rods whose tips hold one rigid platform move together in `system`
+//! (`SystemSimulator`; docs/dynamics.md "Systems of rods"), built on the held tip's step.
 
 use crate::collocation::{
     self, EndTarget, Evaluated, Factorization, Grid, NewtonOptions, NewtonStats, NewtonWork,

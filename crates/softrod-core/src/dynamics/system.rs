@@ -28,7 +28,8 @@
 //! bordered system is solved by the Schur complement on the platform's 6 unknowns:
 //! S = D - sum C_i A_i^-1 B_i with each rod's banded factorization reused for 7 right-hand
 //! sides (its residual and B_i), so a step costs what the rods' steps cost, linear in the
-//! nodes. The energy books add the platform's kinetic and potential energy to the rods';
+//! nodes; the factored matrix is kept within a step while Newton contracts with it
+//! (modified Newton, as `collocation::newton_with`). The energy books add the platform's kinetic and potential energy to the rods';
 //! the work of each tip reaction on its rod (its books) and on the platform cancel.
 
 use super::{
