@@ -110,6 +110,9 @@ _EXPORTS = {
     "load_system": ".system",
     "solve_system": ".system",
     "solve_system_batch": ".system",
+    "SystemSimulation": ".system_dynamics",
+    "SystemTrajectory": ".system_dynamics",
+    "simulate_system": ".system_dynamics",
     "view": ".viewer",
 }
 _SUBMODULES = ("pcc", "calibration", "control", "dynamics")
@@ -198,6 +201,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         solve_system,
         solve_system_batch,
     )
+    from .system_dynamics import SystemSimulation, SystemTrajectory, simulate_system
     from .viewer import view
 
 __all__ = [
@@ -227,6 +231,8 @@ __all__ = [
     "SystemRod",
     "SystemSolution",
     "SystemBatchSolution",
+    "SystemSimulation",
+    "SystemTrajectory",
     "TargetPath",
     "TipConstraint",
     "TrackingController",
@@ -263,6 +269,7 @@ __all__ = [
     "solve_statics_batch",
     "solve_system",
     "solve_system_batch",
+    "simulate_system",
     "synthesize_dataset",
     "view",
     "workspace",

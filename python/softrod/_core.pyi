@@ -230,6 +230,42 @@ class Simulator:
     ) -> dict[str, Any]: ...
 
 @final
+class SystemSimulator:
+    """A running simulation of a system of rods and its platform (see
+    ``softrod.SystemSimulation``)."""
+
+    def __new__(
+        cls,
+        rods: Sequence[
+            tuple[Rod, Sequence[float], Sequence[float], _Vec3, Sequence[Sequence[float]]]
+        ],
+        platform: tuple[
+            _Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3
+        ],
+        inertia: Sequence[Sequence[float]],
+        dt: float,
+        alpha: float,
+        tol: float,
+        max_iter: int,
+        scheme: str,
+        error_tol: float | None,
+        energy_tol: float,
+    ) -> SystemSimulator: ...
+    def time(self) -> float: ...
+    def snapshot(self) -> dict[str, Any]: ...
+    def run(
+        self,
+        commands: Sequence[Sequence[Sequence[float]]],
+        tensions: Sequence[Sequence[Sequence[float]]] | None = None,
+        platform_loads: Sequence[tuple[_Vec3, _Vec3]] | None = None,
+    ) -> dict[str, Any]: ...
+    def set_platform_loads(self, force: _Vec3, moment: _Vec3) -> None: ...
+    def stats(self) -> dict[str, int]: ...
+    def save(self) -> _Array: ...
+    def restore(self, state: _ArrayLike) -> None: ...
+    def copy(self) -> SystemSimulator: ...
+
+@final
 class InverseSolver:
     """An inverse problem of one design (see ``softrod.control.inverse``)."""
 

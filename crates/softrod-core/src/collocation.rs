@@ -1332,6 +1332,23 @@ impl<'a> Problem<'a> {
         out.iter().all(|v| v.is_finite()).then_some(out)
     }
 
+    /// Offset in the unknowns of the tip node's 16 scaled values.
+    pub fn tip_offset(&self) -> usize {
+        node_index(self.grid.len())
+    }
+
+    /// Offset in the residual of the tip's 6 rows (its balance, or its pose when held).
+    pub fn tip_rows(&self) -> usize {
+        48 * self.grid.len()
+    }
+
+    /// The tip's position (m) and rotation at scaled unknowns `z` of a problem whose node
+    /// positions are unknowns ([`Problem::has_positions`]).
+    pub fn tip_pose(&self, z: &[f64]) -> ([f64; 3], [[f64; 3]; 3]) {
+        let n = self.grid.len();
+        (self.position(z, n), rotation(&self.node(z, n)[..4]))
+    }
+
     /// Jacobian of the scaled tip residual (6 rows: force, moment) with respect to the
     /// tip node's scaled unknowns, at `z`.
     pub fn tip_jacobian(&self, z: &[f64]) -> SMatrix<f64, 6, NY> {
@@ -1742,7 +1759,7 @@ pub struct NewtonStats {
 }
 
 /// Largest |r_k|, NaN if any entry is NaN (4 lanes so that it vectorises).
-fn inf_norm(r: &[f64]) -> f64 {
+pub(crate) fn inf_norm(r: &[f64]) -> f64 {
     let mut m = [0.0f64; 4];
     let mut nan = false;
     let chunks = r.chunks_exact(4);

@@ -27,6 +27,9 @@
 //! (`set_tip_pose`); the step's collocation then carries the node positions and replaces
 //! the tip's balance by the pose (`collocation::EndTarget`), the reaction is reported
 //! (`tip_reaction`) and its work along the pose's path enters the energy books.
+//!
+//! Several rods whose tips hold one rigid platform move together in `system`
+//! (`SystemSimulator`; docs/dynamics.md "Systems of rods"), built on the held tip's step.
 
 use crate::collocation::{
     self, EndTarget, Evaluated, Factorization, Grid, NewtonOptions, NewtonStats, NewtonWork,
@@ -42,6 +45,7 @@ use crate::statics::{self, SolverOptions};
 use crate::validity;
 
 pub mod sensitivity;
+pub mod system;
 
 /// v, u, q, w (body frame) at one stage point.
 pub const FIELDS: usize = NF;
@@ -492,6 +496,48 @@ impl Books {
     fn balance(&self) -> f64 {
         self.now.total() - self.e0 - self.now.work_in + self.now.dissipated
     }
+
+    /// The books as numbers (saved states).
+    fn numbers(&self) -> [f64; 15] {
+        let b = self;
+        [
+            b.now.kinetic,
+            b.now.elastic,
+            b.now.potential,
+            b.now.work_in,
+            b.now.dissipated,
+            b.e0,
+            b.elastic0,
+            b.potential0,
+            b.max_kinetic,
+            b.max_elastic,
+            b.max_potential,
+            b.moved_in,
+            b.rates[0],
+            b.rates[1],
+            b.rates[2],
+        ]
+    }
+
+    fn from_numbers(b: &[f64; 15]) -> Self {
+        Books {
+            now: Energy {
+                kinetic: b[0],
+                elastic: b[1],
+                potential: b[2],
+                work_in: b[3],
+                dissipated: b[4],
+            },
+            e0: b[5],
+            elastic0: b[6],
+            potential0: b[7],
+            max_kinetic: b[8],
+            max_elastic: b[9],
+            max_potential: b[10],
+            moved_in: b[11],
+            rates: [b[12], b[13], b[14]],
+        }
+    }
 }
 
 /// History of one stage slot: X_n, X_{n-1} and X_t(t_n).
@@ -525,9 +571,14 @@ pub struct DynStats {
 }
 
 fn rename_pressure_error(e: SoftrodError, name: &str) -> SoftrodError {
+    rename_field(e, "pressures", name)
+}
+
+/// An invalid-parameter error with `from` in its field name replaced by `to`.
+fn rename_field(e: SoftrodError, from: &str, to: &str) -> SoftrodError {
     match e {
         SoftrodError::InvalidParameter { field, value, rule } => SoftrodError::InvalidParameter {
-            field: field.replacen("pressures", name, 1),
+            field: field.replacen(from, to, 1),
             value,
             rule,
         },
@@ -652,6 +703,57 @@ struct Candidate {
     /// The tip's pose at the step's end and the constraint's reaction there.
     end: TipConstraint,
     reaction: ([f64; 3], [f64; 3]),
+}
+
+/// A time step set up for its Newton solve ([`Simulator::prepare`]).
+struct Prep {
+    h: f64,
+    t_new: f64,
+    /// Pressures and sigma at the step's end.
+    pressures: Vec<f64>,
+    sigma: [f64; 3],
+    midpoint: bool,
+    bdf: Bdf,
+    /// The inputs the step's boundary-value problem is solved with.
+    solve_p: Vec<f64>,
+    solve_sigma: [f64; 3],
+    solve_t: Vec<f64>,
+    tip: TipBody,
+    models: Vec<SectionModel>,
+    hist: Vec<[f64; FIELDS]>,
+    /// The tip's pose at the step's end.
+    end: TipConstraint,
+    /// Predicted physical unknowns.
+    guess: Vec<f64>,
+}
+
+impl Prep {
+    /// The step's collocation problem.
+    fn problem<'a>(&'a self, rod: &'a Rod, grid: &'a Grid, scale_c0: f64) -> Problem<'a> {
+        step_problem(
+            rod,
+            grid,
+            scale_c0,
+            &self.models,
+            self.bdf.c0,
+            &self.hist,
+            self.tip,
+        )
+        .with_end(end_target(&self.end))
+    }
+
+    /// The error of a step from `time` whose Newton solve failed.
+    fn not_converged(&self, time: f64, iterations: usize, residual: f64) -> SoftrodError {
+        SoftrodError::NotConverged {
+            iterations,
+            residual,
+            load_factor: 1.0,
+            reason: format!(
+                "dynamic step from t = {time:.6} s to {:.6} s (h = {:.3e} s) did not converge",
+                self.t_new, self.h
+            ),
+        }
+    }
 }
 
 impl Simulator {
@@ -956,8 +1058,23 @@ impl Simulator {
             }
             Initial::Straight => problem.straight_unknowns(),
         };
-        let eval = problem.evaluate(&z_scaled);
-        self.z = to_physical(&problem, &z_scaled);
+        drop(problem);
+        self.rest_at(&z_scaled, initial)
+    }
+
+    /// Set the state at t = 0 to rest at the scaled unknowns `z_scaled` of the rest
+    /// problem (c0 = 0) under the current inputs and tip pose: the histories, reaction and
+    /// energy books of a start `initial`.
+    fn rest_at(&mut self, z_scaled: &[f64], initial: Initial) -> Result<()> {
+        let zero = [0.0; FIELDS];
+        let hist0 = vec![zero; self.slots.len()];
+        let models = self.models_at(&self.pressures, &self.tensions, &self.sigma, 0.0);
+        let tip = self.tip_body(self.tip_force, self.tip_moment);
+        let problem = Problem::new(&self.rod, &self.grid, &models, 0.0, &hist0, tip)
+            .with_contact()
+            .with_end(end_target(&self.end));
+        let eval = problem.evaluate(z_scaled);
+        self.z = to_physical(&problem, z_scaled);
         self.z_prev = self.z.clone();
         self.z_prev2 = self.z.clone();
         let n = self.slots.len();
@@ -994,7 +1111,8 @@ impl Simulator {
             let gb = mat_t_vec(&self.rod.base_rotation, &self.rod.gravity);
             self.slots[n - 1].xt[6..9].copy_from_slice(&gb);
         }
-        self.reaction = problem.tip_reaction(&z_scaled);
+        self.reaction = problem.tip_reaction(z_scaled);
+        drop(problem);
         self.check_state(&eval, &self.z.clone())?;
         self.models = models;
         self.models_c0 = 0.0;
@@ -1388,103 +1506,73 @@ impl Simulator {
     pub fn step_with(&mut self, command: &[f64], schedule: Option<&CommandSchedule>) -> Result<()> {
         crate::spec::validate_pressures(command, self.rod.n_channels)
             .map_err(|e| rename_pressure_error(e, "command"))?;
-        let dt = self.opts.dt;
-        let t_end = (self.stats.steps + 1) as f64 * dt;
-        let mut remaining = dt;
-        let mut h = match self.opts.error_tol {
-            Some(_) => self.h_next.min(dt),
-            None => dt,
-        };
-        let mut halvings = 0;
-        while remaining > 0.0 {
-            if self.opts.error_tol.is_some() {
-                // Adaptive: equal steps, none longer than h, to the next boundary (the
-                // interval's end or a knot of the schedule inside it). A short last step
-                // instead would change c0 twice, each time a new Newton matrix.
-                let mut span = remaining;
-                if let Some(knot) = schedule.and_then(|sch| sch.next_knot(self.time)) {
-                    let k = knot - self.time;
-                    if k > 1e-3 * h && k < remaining * (1.0 - 1e-9) {
-                        span = k;
-                    }
-                }
-                h = span / (span / h * (1.0 - 1e-9)).ceil().max(1.0);
-            } else if h >= remaining * (1.0 - 1e-9) || remaining - h < 1e-3 * h {
-                h = remaining;
-            }
-            // Inside the interval: end on the schedule's next knot (a jump or a kink of the
-            // commands) and take the commands there.
-            let mut cmd = command.to_vec();
-            if let Some(sch) = schedule {
-                if h < remaining {
-                    if let Some(knot) = sch.next_knot(self.time) {
-                        if knot < self.time + h && knot > self.time + 1e-3 * h {
-                            h = knot - self.time;
-                        }
-                    }
-                    cmd = sch.at(self.time + h);
-                }
-            }
-            match self.attempt(h, &cmd) {
-                Ok(c) => {
-                    if let (Some(tol), Some(err)) = (self.opts.error_tol, c.error) {
-                        let factor =
-                            (0.9 * (tol / err.max(1e-300)).powf(1.0 / 3.0)).clamp(0.2, 2.0);
-                        if err > tol && h > dt * 0.5f64.powi(20) {
-                            self.stats.rejected += 1;
-                            h *= factor.min(0.7);
-                            continue;
-                        }
-                        self.h_next = if (1.0..=KEEP_STEP).contains(&factor) {
-                            h
-                        } else {
-                            h * factor
-                        };
-                    }
-                    self.advance_sensitivity(&c)?;
-                    self.commit(c);
-                    remaining -= h;
-                    if remaining <= 1e-12 * dt {
-                        break;
-                    }
-                    if self.opts.error_tol.is_some() {
-                        h = self.h_next.min(dt);
-                    }
-                }
-                Err(SoftrodError::NotConverged {
-                    iterations,
-                    residual,
-                    reason,
-                    ..
-                }) => {
-                    self.stats.rejected += 1;
-                    halvings += 1;
-                    if halvings > MAX_HALVINGS {
-                        return Err(SoftrodError::NotConverged {
-                            iterations,
-                            residual,
-                            load_factor: 1.0,
-                            reason: format!(
-                                "{reason}; also in steps down to {:.3e} s (dt / {}): check the inputs (a pressure or load far beyond the design's range?) or loosen tol",
-                                dt / f64::from(1u32 << MAX_HALVINGS),
-                                1u32 << MAX_HALVINGS
-                            ),
-                        });
-                    }
-                    h *= 0.5;
-                    self.h_next = h;
-                }
-                Err(e) => return Err(e),
-            }
-        }
-        self.stats.steps += 1;
-        // Steps times dt, not a running sum: no round-off drift of the clock.
-        self.time = t_end;
-        Ok(())
+        drive(self, command, schedule)
     }
 
     /// Solve one time step of length h (not committed).
     fn attempt(&mut self, h: f64, command: &[f64]) -> Result<Candidate> {
+        let prep = self.prepare(h, command)?;
+        let problem = prep.problem(&self.rod, &self.grid, self.scale_c0());
+        let mut z: Vec<f64> = prep
+            .guess
+            .iter()
+            .zip(&self.scales)
+            .map(|(a, b)| a / b)
+            .collect();
+        let old = self
+            .cache
+            .take()
+            .filter(|c| (c.key.c0 / prep.bdf.c0 - 1.0).abs() <= REUSE_C0);
+        let (mut cache, old_key) = match old {
+            Some(c) => (Some(c.fac), Some(c.key)),
+            None => (None, None),
+        };
+        let nopts = NewtonOptions {
+            tol: self.opts.tol,
+            max_iter: self.opts.max_iter,
+        };
+        let mut ns = NewtonStats::default();
+        let result = collocation::newton_with(
+            &problem,
+            &mut z,
+            &mut cache,
+            &nopts,
+            &mut ns,
+            &mut self.theta,
+            &mut self.work,
+        );
+        self.stats.newton_iterations += ns.iterations;
+        self.stats.jacobians += ns.jacobians;
+        // Keep the factorization, and what it was computed from, for the next step.
+        self.cache = cache.map(|fac| {
+            let key = match old_key {
+                Some(k) if k.at == fac.at => k,
+                _ => JacKey {
+                    at: fac.at.clone(),
+                    pressures: prep.solve_p.clone(),
+                    tensions: prep.solve_t.clone(),
+                    sigma: prep.solve_sigma,
+                    c0: prep.bdf.c0,
+                    hist: prep.hist.clone(),
+                    end: prep.end,
+                },
+            };
+            Cached { fac, key }
+        });
+        if let Err((it, res)) = result {
+            return Err(prep.not_converged(self.time, it, res));
+        }
+        let fields = std::mem::take(&mut self.work.fields);
+        let at_solution = self.work.fields_at_solution;
+        let out = self.finish(prep, z, at_solution.then_some(&fields[..]));
+        self.work.fields = fields;
+        out
+    }
+
+    /// Everything of a step of length h before its Newton solve: the inputs advanced, the
+    /// time formula, section models, history terms, the held tip's pose and the predictor
+    /// (shared with the systems of rods, `system`).
+    fn prepare(&mut self, h: f64, command: &[f64]) -> Result<Prep> {
         let t_new = self.time + h;
         let mut pressures = self.pressures.clone();
         self.rod
@@ -1597,62 +1685,59 @@ impl Simulator {
         if self.scales.len() != guess.len() {
             self.scales = unknown_scales(&problem, guess.len());
         }
-        let mut z: Vec<f64> = guess.iter().zip(&self.scales).map(|(a, b)| a / b).collect();
-        let old = self
-            .cache
-            .take()
-            .filter(|c| (c.key.c0 / bdf.c0 - 1.0).abs() <= REUSE_C0);
-        let (mut cache, old_key) = match old {
-            Some(c) => (Some(c.fac), Some(c.key)),
-            None => (None, None),
-        };
-        let nopts = NewtonOptions {
-            tol: self.opts.tol,
-            max_iter: self.opts.max_iter,
-        };
-        let mut ns = NewtonStats::default();
-        let result = collocation::newton_with(
-            &problem,
-            &mut z,
-            &mut cache,
-            &nopts,
-            &mut ns,
-            &mut self.theta,
-            &mut self.work,
-        );
-        self.stats.newton_iterations += ns.iterations;
-        self.stats.jacobians += ns.jacobians;
-        // Keep the factorization, and what it was computed from, for the next step.
-        self.cache = cache.map(|fac| {
-            let key = match old_key {
-                Some(k) if k.at == fac.at => k,
-                _ => JacKey {
-                    at: fac.at.clone(),
-                    pressures: solve_p.clone(),
-                    tensions: solve_t.clone(),
-                    sigma: solve_sigma,
-                    c0: bdf.c0,
-                    hist: hist.clone(),
-                    end,
-                },
-            };
-            Cached { fac, key }
-        });
-        if let Err((it, res)) = result {
-            return Err(SoftrodError::NotConverged {
-                iterations: it,
-                residual: res,
-                load_factor: 1.0,
-                reason: format!(
-                    "dynamic step from t = {:.6} s to {:.6} s (h = {h:.3e} s) did not converge",
-                    self.time, t_new
-                ),
-            });
-        }
-        let solved = if self.work.fields_at_solution {
-            problem.evaluate_with_fields(&z, &self.work.fields)
-        } else {
-            problem.evaluate(&z)
+        drop(problem);
+        Ok(Prep {
+            h,
+            t_new,
+            pressures,
+            sigma,
+            midpoint,
+            bdf,
+            solve_p,
+            solve_sigma,
+            solve_t,
+            tip,
+            models,
+            hist,
+            end,
+            guess,
+        })
+    }
+
+    /// The rest of a step once its Newton solve converged at scaled unknowns `z` (`fields`:
+    /// the stage fields there, if known): the new state, its checks and energy books, and
+    /// the local error estimate.
+    fn finish(
+        &mut self,
+        prep: Prep,
+        z: Vec<f64>,
+        fields: Option<&[[f64; FIELDS]]>,
+    ) -> Result<Candidate> {
+        let Prep {
+            h,
+            t_new,
+            pressures,
+            sigma,
+            midpoint,
+            bdf,
+            models,
+            hist,
+            end,
+            ..
+        } = prep;
+        let problem = step_problem(
+            &self.rod,
+            &self.grid,
+            self.scale_c0(),
+            &models,
+            bdf.c0,
+            &hist,
+            prep.tip,
+        )
+        .with_end(end_target(&end));
+        let solved = match fields {
+            Some(f) => problem.evaluate_with_fields(&z, f),
+            None => problem.evaluate(&z),
         };
         if let (TipConstraint::Clamped { rotation, .. }, Some(y)) = (&end, solved.nodes.last()) {
             // e(R_c^T R(L)) vanishes at a half turn too: a step that lands there failed
@@ -1661,6 +1746,7 @@ impl Simulator {
             crate::statics::constraint::check_half_turn("tip_constraint.orientation", &a)?;
         }
         let reaction = problem.tip_reaction(&z);
+        drop(problem);
         let zp: Vec<f64> = z.iter().zip(&self.scales).map(|(a, b)| a * b).collect();
         let (eval, models) = if midpoint {
             let models_new = if self.models_c0 == bdf.c0
@@ -1916,34 +2002,11 @@ impl Simulator {
         e
     }
 
-    /// The energy check: the balance E - E(0) - W_in + D may not exceed `energy_tol` of the
-    /// energy moved (max kinetic + max |change of elastic| + max |change of potential| +
-    /// work in + dissipated), plus round-off (1e-10 F_s L, F_s = EI_min / L^2).
+    /// The energy check ([`check_energy`]) with the round-off floor 1e-10 F_s L
+    /// (F_s = EI_min / L^2).
     fn energy_check(&self, books: &Books, t: f64, h: f64) -> Result<()> {
-        let balance = books.balance();
-        let scale = books.scale();
         let floor = 1e-10 * self.rod.force_scale * self.rod.length;
-        if balance.is_finite() && balance <= self.opts.energy_tol * scale + floor {
-            return Ok(());
-        }
-        let hint = match self.opts.scheme {
-            Scheme::Midpoint => "the midpoint rule has no numerical damping, and unresolved modes can feed a large motion through the nonlinearity: use scheme 'bdf-alpha' (alpha -0.45 to 0), a smaller dt or adaptive stepping (error_tol)",
-            Scheme::BdfAlpha if self.opts.alpha < -0.45 => "alpha = -0.5 (the trapezoidal rule) has no numerical damping, and unresolved modes can feed a large motion through the nonlinearity: use alpha -0.45 to 0, a smaller dt or adaptive stepping (error_tol)",
-            Scheme::BdfAlpha => "use a smaller dt or adaptive stepping (error_tol), alpha closer to 0 (more numerical damping), or a tighter tol",
-        };
-        Err(SoftrodError::InvalidState {
-            rule: validity::Rule::EnergyBalance,
-            node: None,
-            s: f64::NAN,
-            time: Some(t),
-            value: balance,
-            message: format!(
-                "the energy balance E - E(0) - W_in + D grew to {balance:.4e} J, {:.3} % of the {scale:.4e} J moved, beyond energy_tol = {} (step {}, time step {h:.3e} s): energy may not appear without input; the time integration is unstable or too coarse here: {hint}",
-                100.0 * balance / scale.max(1e-300),
-                self.opts.energy_tol,
-                self.stats.steps + 1
-            ),
-        })
+        check_energy(books, &self.opts, floor, t, h, self.stats.steps + 1)
     }
 
     fn commit(&mut self, c: Candidate) {
@@ -2140,6 +2203,189 @@ impl Simulator {
     }
 }
 
+/// The energy check: the balance E - E(0) - W_in + D may not exceed `energy_tol` of the
+/// energy moved (max kinetic + max |change of elastic| + max |change of potential| +
+/// work in + dissipated), plus the round-off `floor`, J; `step` names the output step.
+fn check_energy(
+    books: &Books,
+    opts: &DynOptions,
+    floor: f64,
+    t: f64,
+    h: f64,
+    step: usize,
+) -> Result<()> {
+    let balance = books.balance();
+    let scale = books.scale();
+    if balance.is_finite() && balance <= opts.energy_tol * scale + floor {
+        return Ok(());
+    }
+    let hint = match opts.scheme {
+        Scheme::Midpoint => "the midpoint rule has no numerical damping, and unresolved modes can feed a large motion through the nonlinearity: use scheme 'bdf-alpha' (alpha -0.45 to 0), a smaller dt or adaptive stepping (error_tol)",
+        Scheme::BdfAlpha if opts.alpha < -0.45 => "alpha = -0.5 (the trapezoidal rule) has no numerical damping, and unresolved modes can feed a large motion through the nonlinearity: use alpha -0.45 to 0, a smaller dt or adaptive stepping (error_tol)",
+        Scheme::BdfAlpha => "use a smaller dt or adaptive stepping (error_tol), alpha closer to 0 (more numerical damping), or a tighter tol",
+    };
+    Err(SoftrodError::InvalidState {
+        rule: validity::Rule::EnergyBalance,
+        node: None,
+        s: f64::NAN,
+        time: Some(t),
+        value: balance,
+        message: format!(
+            "the energy balance E - E(0) - W_in + D grew to {balance:.4e} J, {:.3} % of the {scale:.4e} J moved, beyond energy_tol = {} (step {}, time step {h:.3e} s): energy may not appear without input; the time integration is unstable or too coarse here: {hint}",
+            100.0 * balance / scale.max(1e-300),
+            opts.energy_tol,
+            step
+        ),
+    })
+}
+
+/// What the step driver ([`drive`]) needs of a simulation: a single rod's or a system's.
+trait Stepping {
+    type Candidate;
+    fn options(&self) -> DynOptions;
+    fn clock(&self) -> f64;
+    fn time_mut(&mut self) -> &mut f64;
+    fn h_next(&mut self) -> &mut f64;
+    fn counters(&mut self) -> &mut DynStats;
+    /// Solve one time step of length h with commands `command` (not committed).
+    fn attempt(&mut self, h: f64, command: &[f64]) -> Result<Self::Candidate>;
+    /// Its estimated local error of the node positions, m.
+    fn error(c: &Self::Candidate) -> Option<f64>;
+    /// Commit an accepted step.
+    fn accept(&mut self, c: Self::Candidate) -> Result<()>;
+}
+
+/// One output step of dt with the commands `command` held over it: taken as one step, as
+/// substeps where Newton fails, or as error-controlled steps (adaptive); steps inside it
+/// take their commands from `schedule` at their own end times and end on its knots.
+fn drive<S: Stepping>(
+    s: &mut S,
+    command: &[f64],
+    schedule: Option<&CommandSchedule>,
+) -> Result<()> {
+    let dt = s.options().dt;
+    let t_end = (s.counters().steps + 1) as f64 * dt;
+    let mut remaining = dt;
+    let mut h = match s.options().error_tol {
+        Some(_) => s.h_next().min(dt),
+        None => dt,
+    };
+    let mut halvings = 0;
+    while remaining > 0.0 {
+        if s.options().error_tol.is_some() {
+            // Adaptive: equal steps, none longer than h, to the next boundary (the
+            // interval's end or a knot of the schedule inside it). A short last step
+            // instead would change c0 twice, each time a new Newton matrix.
+            let mut span = remaining;
+            if let Some(knot) = schedule.and_then(|sch| sch.next_knot(s.clock())) {
+                let k = knot - s.clock();
+                if k > 1e-3 * h && k < remaining * (1.0 - 1e-9) {
+                    span = k;
+                }
+            }
+            h = span / (span / h * (1.0 - 1e-9)).ceil().max(1.0);
+        } else if h >= remaining * (1.0 - 1e-9) || remaining - h < 1e-3 * h {
+            h = remaining;
+        }
+        // Inside the interval: end on the schedule's next knot (a jump or a kink of the
+        // commands) and take the commands there.
+        let mut cmd = command.to_vec();
+        if let Some(sch) = schedule {
+            if h < remaining {
+                if let Some(knot) = sch.next_knot(s.clock()) {
+                    if knot < s.clock() + h && knot > s.clock() + 1e-3 * h {
+                        h = knot - s.clock();
+                    }
+                }
+                cmd = sch.at(s.clock() + h);
+            }
+        }
+        match s.attempt(h, &cmd) {
+            Ok(c) => {
+                if let (Some(tol), Some(err)) = (s.options().error_tol, S::error(&c)) {
+                    let factor = (0.9 * (tol / err.max(1e-300)).powf(1.0 / 3.0)).clamp(0.2, 2.0);
+                    if err > tol && h > dt * 0.5f64.powi(20) {
+                        s.counters().rejected += 1;
+                        h *= factor.min(0.7);
+                        continue;
+                    }
+                    *s.h_next() = if (1.0..=KEEP_STEP).contains(&factor) {
+                        h
+                    } else {
+                        h * factor
+                    };
+                }
+                s.accept(c)?;
+                remaining -= h;
+                if remaining <= 1e-12 * dt {
+                    break;
+                }
+                if s.options().error_tol.is_some() {
+                    h = s.h_next().min(dt);
+                }
+            }
+            Err(SoftrodError::NotConverged {
+                iterations,
+                residual,
+                reason,
+                ..
+            }) => {
+                s.counters().rejected += 1;
+                halvings += 1;
+                if halvings > MAX_HALVINGS {
+                    return Err(SoftrodError::NotConverged {
+                            iterations,
+                            residual,
+                            load_factor: 1.0,
+                            reason: format!(
+                                "{reason}; also in steps down to {:.3e} s (dt / {}): check the inputs (a pressure or load far beyond the design's range?) or loosen tol",
+                                dt / f64::from(1u32 << MAX_HALVINGS),
+                                1u32 << MAX_HALVINGS
+                            ),
+                        });
+                }
+                h *= 0.5;
+                *s.h_next() = h;
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    s.counters().steps += 1;
+    // Steps times dt, not a running sum: no round-off drift of the clock.
+    *s.time_mut() = t_end;
+    Ok(())
+}
+
+impl Stepping for Simulator {
+    type Candidate = Candidate;
+    fn options(&self) -> DynOptions {
+        self.opts
+    }
+    fn clock(&self) -> f64 {
+        self.time
+    }
+    fn time_mut(&mut self) -> &mut f64 {
+        &mut self.time
+    }
+    fn h_next(&mut self) -> &mut f64 {
+        &mut self.h_next
+    }
+    fn counters(&mut self) -> &mut DynStats {
+        &mut self.stats
+    }
+    fn attempt(&mut self, h: f64, command: &[f64]) -> Result<Candidate> {
+        Simulator::attempt(self, h, command)
+    }
+    fn error(c: &Candidate) -> Option<f64> {
+        c.error
+    }
+    fn accept(&mut self, c: Candidate) -> Result<()> {
+        self.advance_sensitivity(&c)?;
+        self.commit(c);
+        Ok(())
+    }
+}
+
 /// Layout version of [`Simulator::save`].
 /// 4: the tip constraint (its pose next and now, the reaction, the kept matrix's pose).
 const STATE_VERSION: f64 = 4.0;
@@ -2277,22 +2523,7 @@ impl Simulator {
             w.f(*t);
             w.arrays(r);
         }
-        let b = &self.books;
-        w.all(&[
-            b.now.kinetic,
-            b.now.elastic,
-            b.now.potential,
-            b.now.work_in,
-            b.now.dissipated,
-            b.e0,
-            b.elastic0,
-            b.potential0,
-            b.max_kinetic,
-            b.max_elastic,
-            b.max_potential,
-            b.moved_in,
-        ]);
-        w.all(&b.rates);
+        w.all(&self.books.numbers());
         w.f(self.theta);
         let st = &self.stats;
         for c in [
@@ -2395,24 +2626,7 @@ impl Simulator {
         next.past = (0..n_past)
             .map(|_| -> Result<(f64, Vec<[f64; 3]>)> { Ok((r.f()?, r.arrays()?)) })
             .collect::<Result<_>>()?;
-        let b: [f64; 12] = r.fixed()?;
-        next.books = Books {
-            now: Energy {
-                kinetic: b[0],
-                elastic: b[1],
-                potential: b[2],
-                work_in: b[3],
-                dissipated: b[4],
-            },
-            e0: b[5],
-            elastic0: b[6],
-            potential0: b[7],
-            max_kinetic: b[8],
-            max_elastic: b[9],
-            max_potential: b[10],
-            moved_in: b[11],
-            rates: r.fixed()?,
-        };
+        next.books = Books::from_numbers(&r.fixed()?);
         next.theta = r.f()?;
         next.stats = DynStats {
             steps: r.n()?,

@@ -382,16 +382,28 @@ pub fn check_step_jacobian_with(name: &str, sim: &softrod_core::dynamics::Simula
         .enumerate()
         .map(|(k, v)| v * 1.01 + 1e-3 * ((k % 7) as f64 - 3.0) * v.abs().max(1e-3))
         .collect();
-    let (_, jac) = sim.step_residual_and_jacobian(&z);
+    check_jacobian_at(name, &z, |x| sim.step_residual_and_jacobian(x), rel);
+}
+
+/// The dense Jacobian `eval(z).1` against central differences of `eval(z).0` at `z`, entry
+/// by entry relative to the row's largest |J_ik z_k| (steps of relative size `rel`, as
+/// [`check_step_jacobian_with`]).
+pub fn check_jacobian_at(
+    name: &str,
+    z: &[f64],
+    eval: impl Fn(&[f64]) -> (Vec<f64>, Vec<Vec<f64>>),
+    rel: f64,
+) {
+    let (_, jac) = eval(z);
     let n = z.len();
     let mut worst: f64 = 0.0;
     for j in 0..n {
         let h = rel * z[j].abs().max(1e-3);
-        let (mut zp, mut zm) = (z.clone(), z.clone());
+        let (mut zp, mut zm) = (z.to_vec(), z.to_vec());
         zp[j] += h;
         zm[j] -= h;
-        let (rp, _) = sim.step_residual_and_jacobian(&zp);
-        let (rm, _) = sim.step_residual_and_jacobian(&zm);
+        let (rp, _) = eval(&zp);
+        let (rm, _) = eval(&zm);
         for i in 0..n {
             let fd = (rp[i] - rm[i]) / (zp[j] - zm[j]);
             let scale = (0..n)

@@ -17,6 +17,7 @@ mod control;
 mod dynamics;
 mod ends;
 mod pcc;
+mod system_dynamics;
 
 /// Which exception class a core `InvalidParameter` becomes.
 #[derive(Clone, Copy)]
@@ -677,6 +678,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     dynamics::register(m)?;
     ends::register(m)?;
     pcc::register(m)?;
+    system_dynamics::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

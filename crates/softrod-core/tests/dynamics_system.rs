@@ -1,0 +1,511 @@
+//! Dynamics of a system of rods holding one rigid platform (docs/dynamics.md "Systems of
+//! rods"): one rod on a massless platform against the single rod with the platform's
+//! loads at its free tip, settling on `solve_system`'s equilibrium, the energy books of an
+//! undamped run, a platform mass on three rods against the linear frequency from the
+//! system's static stiffness, the step Jacobian, save/restore and refusals.
+
+mod common;
+
+use common::*;
+use softrod_core::dynamics::system::{DynRod, SystemSimulator};
+use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
+use softrod_core::spec::obstacle::ObstacleKind;
+use softrod_core::spec::{DesignSpec, Frame, MaterialSpec};
+use softrod_core::statics::system::{solve_system, Platform, SystemRod};
+use softrod_core::statics::SolverOptions;
+use softrod_core::{Rod, SoftrodError};
+use std::f64::consts::PI;
+
+const E: f64 = 1.0e6;
+const RHO: f64 = 1000.0;
+const R: f64 = 0.008;
+const L: f64 = 0.1;
+/// The rods' bases: on a circle of this radius, m.
+const RING: f64 = 0.03;
+
+fn material() -> MaterialSpec {
+    MaterialSpec {
+        youngs_modulus: E,
+        shear_modulus: E / 3.0,
+        density: RHO,
+    }
+}
+
+/// A vertical rod with one chamber (channel 0, towards +x of its base frame) based at
+/// `base`, gravity g along -z, damping time `tau`.
+fn rod_spec(base: [f64; 3], g: f64, tau: f64) -> DesignSpec {
+    let sec = geometry_section(
+        "rod",
+        L,
+        R,
+        0.0,
+        material(),
+        vec![chamber(0.002, 0.004, 0.0, 0)],
+        10,
+    );
+    let mut spec = design(vec![sec], IDENTITY, g);
+    spec.mounting.base_position = base;
+    spec.dynamics.damping_time = tau;
+    spec
+}
+
+fn rod_mass() -> f64 {
+    RHO * PI * R * R * L
+}
+
+/// `n` identical rods on the ring, each tip at its base's offset on the platform.
+fn rods(n: usize, g: f64, tau: f64, pressures: &[f64]) -> Vec<DynRod> {
+    (0..n)
+        .map(|i| {
+            let a = 2.0 * PI * i as f64 / n as f64;
+            let off = [RING * a.cos(), RING * a.sin(), 0.0];
+            DynRod {
+                rod: Rod::new(rod_spec(off, g, tau)).unwrap(),
+                pressures: vec![pressures[i]],
+                tensions: vec![],
+                sigma_map: SigmaMap::None,
+                attachment: off,
+                attachment_rotation: IDENTITY,
+            }
+        })
+        .collect()
+}
+
+fn platform(mass: f64, g: f64, force: [f64; 3], moment: [f64; 3]) -> Platform {
+    Platform {
+        position: [0.0, 0.0, L],
+        rotation: IDENTITY,
+        force,
+        moment,
+        mass,
+        com_offset: [0.0; 3],
+        gravity: [0.0, 0.0, -g],
+    }
+}
+
+fn opts(dt: f64, alpha: f64) -> DynOptions {
+    DynOptions {
+        dt,
+        alpha,
+        ..DynOptions::default()
+    }
+}
+
+/// The static platform position of a system (shooting statics).
+fn static_position(rods: &[DynRod], p: &Platform) -> [f64; 3] {
+    let sys: Vec<SystemRod> = rods
+        .iter()
+        .map(|r| SystemRod {
+            rod: &r.rod,
+            loads: loads(&r.pressures),
+            attachment: r.attachment,
+            attachment_rotation: r.attachment_rotation,
+        })
+        .collect();
+    solve_system(&sys, p, None, &SolverOptions::default())
+        .unwrap()
+        .platform_position
+}
+
+fn commands(p: &[f64]) -> Vec<Vec<f64>> {
+    p.iter().map(|x| vec![*x]).collect()
+}
+
+#[test]
+fn one_rod_on_a_massless_platform_is_the_free_rod_with_its_loads() {
+    // A massless platform with no inertia transmits its loads to the tip: the free rod
+    // with the platform's force and moment at its tip (the rods' and the platform's
+    // Newton both converge to tol = 1e-12 of the scaled unknowns).
+    let force = [0.02, -0.01, 0.0];
+    let moment = [0.0, 0.0005, 0.0002];
+    let o = DynOptions {
+        tol: 1e-12,
+        ..opts(2e-3, -0.2)
+    };
+    let rod = Rod::new(rod_spec([0.0; 3], 9.81, 0.005)).unwrap();
+    let one = DynRod {
+        rod: rod.clone(),
+        pressures: vec![0.0],
+        tensions: vec![],
+        sigma_map: SigmaMap::None,
+        attachment: [0.0; 3],
+        attachment_rotation: IDENTITY,
+    };
+    let mut sys = SystemSimulator::new(
+        vec![one],
+        platform(0.0, 9.81, force, moment),
+        [[0.0; 3]; 3],
+        o,
+    )
+    .unwrap();
+    let mut free = Simulator::with_inputs(
+        rod,
+        &[0.0],
+        Initial::Static,
+        o,
+        SigmaMap::None,
+        force,
+        moment,
+    )
+    .unwrap();
+    let mut worst: f64 = 0.0;
+    for k in 0..40 {
+        let p = if k < 20 { 30e3 } else { 10e3 };
+        sys.step(&[vec![p]]).unwrap();
+        free.step(&[p]).unwrap();
+        let (pp, _) = sys.platform_pose();
+        let a = free.tip().r;
+        worst = worst.max(dist(&pp, &a));
+        for (x, y) in sys.rods()[0].shape().iter().zip(free.shape()) {
+            worst = worst.max(dist(x, y));
+        }
+    }
+    eprintln!("one rod: largest difference from the free rod {worst:.3e} m");
+    // Each step's Newton leaves errors ~1e-12 L in positions; 40 steps of them, carried
+    // on through the histories (damped), stay below 1e-10 L.
+    assert!(worst < 1e-10 * L, "{worst:e}");
+}
+
+#[test]
+fn damped_run_settles_on_the_static_equilibrium() {
+    // Three rods, a 20 g platform, gravity; the pressure of rod 0 stepped from 0 to 40 kPa
+    // at t = 0: the damped run ends at rest on solve_system's equilibrium under the new
+    // pressures.
+    let (n, g, tau) = (3, 9.81, 0.01);
+    let plat = platform(0.02, g, [0.0; 3], [0.0; 3]);
+    let p1 = [40e3, 0.0, 0.0];
+    let o = opts(5e-3, -0.2);
+    let mut sys = SystemSimulator::new(rods(n, g, tau, &[0.0; 3]), plat, [[0.0; 3]; 3], o).unwrap();
+    let at_rest0 = static_position(&rods(n, g, tau, &[0.0; 3]), &plat);
+    let target = static_position(&rods(n, g, tau, &p1), &plat);
+    let moved = dist(&target, &at_rest0);
+    // This discretisation's equilibrium under the new pressures: a run started there. It
+    // differs from the shooting statics' by the two discretisations' errors.
+    let rest1 = SystemSimulator::new(rods(n, g, tau, &p1), plat, [[0.0; 3]; 3], o).unwrap();
+    let own = rest1.platform_pose().0;
+    let disc = dist(&own, &target);
+    for _ in 0..320 {
+        sys.step(&commands(&p1)).unwrap();
+    }
+    let (end, _) = sys.platform_pose();
+    let (v, w) = sys.platform_velocity();
+    let off = dist(&end, &own);
+    eprintln!(
+        "settled: moved {moved:.3e} m, off its own equilibrium {off:.3e} m, discretisation {disc:.3e} m, |v| {:.2e} m/s, |w| {:.2e} rad/s",
+        norm(&v),
+        norm(&w)
+    );
+    assert!(
+        moved > 1e-3 * L,
+        "the pressure must move the platform: {moved:e}"
+    );
+    // Settled after 1.6 s (the slowest mode decays by ~e^-11 per second, measured): on
+    // its own equilibrium to the Newton tolerance (1e-9 of L in positions) ...
+    assert!(off <= 1e-9 * L, "{off:e}");
+    assert!(norm(&v) < 1e-8, "still moving: {v:?}");
+    // ... and so on solve_system's to the discretisations' difference.
+    assert!(dist(&end, &target) <= disc + 1e-9 * L);
+    assert!(disc < 1e-5 * L, "the grids' equilibria differ by {disc:e}");
+    assert!(
+        sys.energy_books().dissipated > 0.0,
+        "the damped run dissipates"
+    );
+}
+
+#[test]
+fn undamped_energy_balance_with_a_massive_platform() {
+    // A platform with mass, an offset centre of mass and a full inertia tensor on three
+    // undamped rods, released at t = 0 from a static load (force and moment) under gravity
+    // while rod 1's pressure steps up: the energy books (rods and platform, the
+    // pressures' work) balance.
+    let (n, g) = (3, 9.81);
+    let mut plat = platform(0.05, g, [0.05, 0.02, 0.0], [0.0, 0.0, 0.002]);
+    plat.com_offset = [0.01, -0.005, 0.008];
+    let inertia = [[2e-5, 3e-6, 0.0], [3e-6, 3e-5, 1e-6], [0.0, 1e-6, 4e-5]];
+    let mut sys =
+        SystemSimulator::new(rods(n, g, 0.0, &[0.0; 3]), plat, inertia, opts(1e-3, -0.5)).unwrap();
+    sys.set_platform_loads([0.0; 3], [0.0; 3]).unwrap();
+    let p = [0.0, 30e3, 0.0];
+    let mut worst: f64 = 0.0;
+    let mut scale: f64 = 0.0;
+    for _ in 0..200 {
+        sys.step(&commands(&p)).unwrap();
+        let b = sys.energy_books();
+        worst = worst.max(sys.energy_balance().abs());
+        scale = scale.max(b.kinetic);
+    }
+    let b = sys.energy_books();
+    eprintln!(
+        "undamped: |balance| <= {worst:.3e} J, max kinetic {scale:.3e} J, work in {:.3e} J, dissipated {:.3e}",
+        b.work_in, b.dissipated
+    );
+    assert!(scale > 1e-5, "the platform must move: {scale:e}");
+    assert_eq!(b.dissipated, 0.0);
+    // The trapezoidal rule (alpha = -0.5) conserves the linearised rods' energy; the
+    // platform's Cayley chart and the reactions' work along the pose path are second
+    // order: errors ~(omega dt)^2 / 12 of the energy moved, with the platform's sway at
+    // omega ~ sqrt(93 N/m / 0.05 kg) = 43 rad/s, omega dt = 0.043: 1.5e-4, within 1e-3.
+    assert!(worst <= 1e-3 * scale, "{worst:e} vs {scale:e}");
+}
+
+#[test]
+fn platform_mass_oscillates_at_the_static_stiffness_frequency() {
+    // A 3 kg platform on three rods, no gravity, released from a small lateral force:
+    // omega^2 = k / (m_p + m_eff), k the system's lateral stiffness (central difference of
+    // solve_system's platform position in the force), m_eff the rods' participating mass
+    // (Rayleigh, the clamped-guided beam's static shape: 13/35 of each rod's mass).
+    let (n, mp) = (3, 3.0);
+    let f0 = 0.02;
+    let dyn_rods = rods(n, 0.0, 0.0, &[0.0; 3]);
+    let xp = static_position(&dyn_rods, &platform(mp, 0.0, [f0, 0.0, 0.0], [0.0; 3]));
+    let xm = static_position(&dyn_rods, &platform(mp, 0.0, [-f0, 0.0, 0.0], [0.0; 3]));
+    let k = 2.0 * f0 / (xp[0] - xm[0]);
+    let m_rods = n as f64 * rod_mass();
+    let omega0 = (k / mp).sqrt();
+    let omega = (k / (mp + 13.0 / 35.0 * m_rods)).sqrt();
+    let dt = 2e-3;
+    let mut sys = SystemSimulator::new(
+        dyn_rods,
+        platform(mp, 0.0, [f0, 0.0, 0.0], [0.0; 3]),
+        [[0.0; 3]; 3],
+        opts(dt, -0.45),
+    )
+    .unwrap();
+    sys.set_platform_loads([0.0; 3], [0.0; 3]).unwrap();
+    let x0 = (xp[0] + xm[0]) / 2.0;
+    let mut last = sys.platform_pose().0[0] - x0;
+    let mut crossings = vec![];
+    let period = 2.0 * PI / omega;
+    while sys.time() < 1.6 * period {
+        sys.step(&commands(&[0.0; 3])).unwrap();
+        let x = sys.platform_pose().0[0] - x0;
+        if last * x < 0.0 {
+            crossings.push(sys.time() - dt * x / (x - last));
+        }
+        last = x;
+    }
+    assert!(crossings.len() >= 3, "{crossings:?}");
+    let measured = PI * (crossings.len() - 1) as f64 / (crossings.last().unwrap() - crossings[0]);
+    let err = (measured - omega).abs() / omega;
+    eprintln!(
+        "oscillation: k = {k:.4} N/m, omega measured {measured:.5} rad/s, sqrt(k/m_p) {omega0:.5}, with the rods' mass {omega:.5}: {:.3e} off (neglecting it: {:.3e})",
+        err,
+        (measured - omega0).abs() / omega0
+    );
+    // The rods' mass shifts omega by ~13/70 m_rods / m_p = 0.37 %, neglected in
+    // sqrt(k/m_p): that is the expected error of the massless estimate, and it must show.
+    assert!(measured < omega0);
+    // Left with the Rayleigh mass: its own error O((m_rods / m_p)^2) ~1e-5, BDF-alpha's
+    // period error O((omega dt)^2) ~1e-4 at omega dt = 0.012, and the zero crossings'
+    // linear interpolation (~(omega dt)^2 / 8 of a step): 1e-3.
+    assert!(err < 1e-3, "{err:e}");
+}
+
+#[test]
+fn step_jacobian_against_central_differences() {
+    let mut plat = platform(0.05, 9.81, [0.01, 0.0, 0.0], [0.0; 3]);
+    plat.com_offset = [0.005, 0.0, 0.01];
+    let inertia = [[2e-5, 1e-6, 0.0], [1e-6, 3e-5, 0.0], [0.0, 0.0, 4e-5]];
+    let mut sys = SystemSimulator::new(
+        rods(2, 9.81, 0.01, &[10e3, 0.0]),
+        plat,
+        inertia,
+        opts(2e-3, -0.2),
+    )
+    .unwrap();
+    for _ in 0..3 {
+        sys.step(&commands(&[30e3, 10e3])).unwrap();
+    }
+    let mut z = sys.unknowns();
+    let n = z.len();
+    // A platform rotation off the current one, so the Cayley chart is not at its origin.
+    z[n - 3] = 0.01;
+    z[n - 2] = -0.02;
+    z[n - 1] = 0.005;
+    check_jacobian_at(
+        "system step",
+        &z,
+        |x| sys.step_residual_and_jacobian(x).unwrap(),
+        1e-6,
+    );
+    refused(sys.step_residual_and_jacobian(&z[1..]), "x");
+}
+
+#[test]
+fn save_and_restore_continue_bit_for_bit() {
+    let mut plat = platform(0.05, 9.81, [0.01, 0.0, 0.0], [0.0; 3]);
+    plat.com_offset = [0.005, 0.0, 0.01];
+    let inertia = [[2e-5, 0.0, 0.0], [0.0, 3e-5, 0.0], [0.0, 0.0, 4e-5]];
+    let o = DynOptions {
+        error_tol: Some(1e-6),
+        ..opts(4e-3, -0.2)
+    };
+    let mut sys = SystemSimulator::new(rods(3, 9.81, 0.01, &[0.0; 3]), plat, inertia, o).unwrap();
+    for _ in 0..4 {
+        sys.step(&commands(&[20e3, 0.0, 5e3])).unwrap();
+    }
+    let saved = sys.save();
+    let run = |s: &mut SystemSimulator| -> Vec<f64> {
+        let mut out = vec![];
+        for k in 0..5 {
+            s.step(&commands(&[20e3, 10e3 * k as f64, 5e3])).unwrap();
+            let (p, r) = s.platform_pose();
+            out.extend_from_slice(&p);
+            out.extend(r.iter().flatten());
+            for rod in s.rods() {
+                out.extend(rod.shape().iter().flatten());
+            }
+            out.push(s.energy_balance());
+        }
+        out
+    };
+    let a = run(&mut sys);
+    let mut other = SystemSimulator::new(rods(3, 9.81, 0.01, &[0.0; 3]), plat, inertia, o).unwrap();
+    other.restore(&saved).unwrap();
+    let b = run(&mut other);
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(x.to_bits(), y.to_bits());
+    }
+    assert_eq!(sys.stats, other.stats);
+    // A state of another system is refused by name.
+    let mut two = SystemSimulator::new(
+        rods(2, 9.81, 0.01, &[0.0; 2]),
+        platform(0.05, 9.81, [0.0; 3], [0.0; 3]),
+        inertia,
+        o,
+    )
+    .unwrap();
+    refused(two.restore(&saved), "state");
+    refused(two.restore(&saved[..10]), "state");
+}
+
+fn refused<T>(r: Result<T, SoftrodError>, field: &str) {
+    match r {
+        Err(SoftrodError::InvalidParameter { field: f, .. }) => {
+            assert!(f.starts_with(field), "refused {f}, expected {field}")
+        }
+        Err(e) => panic!("expected a refusal of {field}, got {e}"),
+        Ok(_) => panic!("expected a refusal of {field}"),
+    }
+}
+
+#[test]
+fn refusals_by_name() {
+    let plat = platform(0.02, 9.81, [0.0; 3], [0.0; 3]);
+    let z3 = [[0.0; 3]; 3];
+    let o = opts(2e-3, -0.2);
+    let new = |r: Vec<DynRod>, p: Platform, j: [[f64; 3]; 3], o: DynOptions| {
+        SystemSimulator::new(r, p, j, o)
+    };
+    let midpoint = DynOptions {
+        scheme: Scheme::Midpoint,
+        ..o
+    };
+    refused(
+        new(rods(2, 9.81, 0.0, &[0.0; 2]), plat, z3, midpoint),
+        "scheme",
+    );
+    let mut rs = rods(2, 9.81, 0.0, &[0.0; 2]);
+    let mut spec = rs[0].rod.spec.clone();
+    spec.obstacles = vec![softrod_core::spec::obstacle::ObstacleSpec {
+        point: Some([0.0, 0.0, -0.1]),
+        normal: Some([0.0, 0.0, 1.0]),
+        ..obstacle(ObstacleKind::Plane, 1e4, 3e-3)
+    }];
+    rs[0].rod = Rod::new(spec).unwrap();
+    refused(new(rs, plat, z3, o), "obstacles");
+    let mut rs = rods(2, 9.81, 0.0, &[0.0; 2]);
+    let mut spec = rs[1].rod.spec.clone();
+    spec.tip.frame = Frame::Body;
+    rs[1].rod = Rod::new(spec).unwrap();
+    refused(new(rs, plat, z3, o), "rods[1].tip.frame");
+    let mut rs = rods(2, 9.81, 0.0, &[0.0; 2]);
+    rs[1].pressures = vec![0.0, 1.0];
+    refused(new(rs, plat, z3, o), "rods[1].pressures");
+    let mut rs = rods(2, 9.81, 0.0, &[0.0; 2]);
+    rs[0].tensions = vec![1.0];
+    refused(new(rs, plat, z3, o), "rods[0].tensions");
+    let mut j = z3;
+    j[0][1] = 1e-5;
+    refused(
+        new(rods(2, 9.81, 0.0, &[0.0; 2]), plat, j, o),
+        "platform_inertia",
+    );
+    let j = [[1e-5, 0.0, 0.0], [0.0, -1e-5, 0.0], [0.0, 0.0, 1e-5]];
+    refused(
+        new(rods(2, 9.81, 0.0, &[0.0; 2]), plat, j, o),
+        "platform_inertia",
+    );
+    let mut p = plat;
+    p.mass = -1.0;
+    refused(
+        new(rods(2, 9.81, 0.0, &[0.0; 2]), p, z3, o),
+        "platform.mass",
+    );
+    let mut sys = new(rods(2, 9.81, 0.0, &[0.0; 2]), plat, z3, o).unwrap();
+    refused(sys.step(&commands(&[0.0])), "commands");
+    refused(sys.step(&[vec![0.0], vec![0.0, 1.0]]), "commands[1]");
+    refused(sys.step(&[vec![0.0], vec![f64::NAN]]), "commands[1]");
+    refused(
+        sys.set_platform_loads([f64::NAN, 0.0, 0.0], [0.0; 3]),
+        "platform.force[0]",
+    );
+    refused(sys.set_tensions(5, &[]), "rod");
+    refused(sys.set_tensions(0, &[1.0]), "rods[0].tensions");
+    // Nothing changed: the run goes on.
+    sys.step(&commands(&[0.0, 0.0])).unwrap();
+}
+
+#[test]
+fn tendon_tensions_drive_a_system_and_their_work_is_booked() {
+    // Two of paper 002's hanging tendon arms 60 mm apart holding a 20 g platform,
+    // undamped; rod 0's tendon 0 pulls with 1 N from the first step on: the platform moves,
+    // and the books (the tension's work in the rods' stored energy) balance.
+    let arm = |x: f64| {
+        let mut spec = tendon_arm(false, false, 8, 0.0);
+        spec.mounting.base_position = [x, 0.0, 0.0];
+        Rod::new(spec).unwrap()
+    };
+    let rods: Vec<DynRod> = [-0.03, 0.03]
+        .into_iter()
+        .map(|x| {
+            let rod = arm(x);
+            DynRod {
+                pressures: vec![0.0; rod.n_channels],
+                tensions: vec![0.0; rod.n_tendons],
+                sigma_map: SigmaMap::None,
+                attachment: [x, 0.0, 0.0],
+                attachment_rotation: HANGING,
+                rod,
+            }
+        })
+        .collect();
+    let length = rods[0].rod.length;
+    let plat = Platform {
+        position: [0.0, 0.0, -length],
+        ..platform(0.02, 9.81, [0.0; 3], [0.0; 3])
+    };
+    let channels = rods[0].rod.n_channels;
+    let mut sys = SystemSimulator::new(rods, plat, [[0.0; 3]; 3], opts(1e-3, -0.5)).unwrap();
+    let start = sys.platform_pose().0;
+    sys.set_tensions(0, &[1.0, 0.0]).unwrap();
+    let mut worst: f64 = 0.0;
+    let mut scale: f64 = 0.0;
+    for _ in 0..60 {
+        sys.step(&[vec![0.0; channels], vec![0.0; channels]])
+            .unwrap();
+        worst = worst.max(sys.energy_balance().abs());
+        let b = sys.energy_books();
+        scale = scale.max(b.kinetic + b.work_in.abs());
+    }
+    let moved = dist(&sys.platform_pose().0, &start);
+    eprintln!("tendons: platform moved {moved:.3e} m, |balance| <= {worst:.3e} J of {scale:.3e} J");
+    assert!(
+        moved > 1e-4,
+        "the tension must move the platform: {moved:e}"
+    );
+    assert_eq!(sys.rods()[0].tensions(), &[1.0, 0.0]);
+    // The trapezoidal rule's second-order error, as in the undamped platform's test.
+    assert!(worst <= 1e-3 * scale, "{worst:e} vs {scale:e}");
+}

@@ -1,0 +1,307 @@
+"""Dynamics of a :class:`~softrod.System`: its rods' tips clamped to a rigid platform that
+moves under gravity, its load and the rods' tip reactions (docs/dynamics.md, "Systems of
+rods"). The physics is the core's (``softrod_core::dynamics::system``): every rod is the
+single rod's time step with its tip clamped at its attachment, the platform a rigid body
+(Newton-Euler) integrated with the same BDF-alpha formula, and one Newton per step solves
+everything together.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from . import _core
+from . import _validate as V
+from .dynamics.simulate import (
+    DEFAULT_ENERGY_TOL,
+    _seconds,
+    _solver_options,
+    step_count,
+)
+from .errors import InputError
+from .statics import _pressures, _tensions
+from .system import System, _platform_args, load_system
+
+__all__ = ["SystemSimulation", "SystemTrajectory", "simulate_system"]
+
+
+@dataclass(frozen=True)
+class SystemTrajectory:
+    """Samples of a system's motion, the start (t = 0) first, then one per output step (SI,
+    world frame). ``platform_position`` (n, 3) m, ``platform_rotation`` (n, 3, 3),
+    ``platform_velocity`` (n, 3) m/s (of the platform origin), ``platform_angular_velocity``
+    (n, 3) rad/s; per rod ``tip_position``, ``tip_reaction_force`` (N) and
+    ``tip_reaction_moment`` (N m), each (n, rods, 3), the reaction being the wrench the
+    platform applies to the rod's tip; ``shapes``: per rod its centreline (n, nodes, 3) m;
+    energies (n,) J: ``kinetic``, ``elastic``, ``potential`` (rods and platform),
+    ``work_in`` (the inputs' work since t = 0), ``dissipated`` and ``energy_balance``
+    (E - E(0) - W_in + D, zero for the exact motion)."""
+
+    system: System
+    time: np.ndarray
+    platform_position: np.ndarray
+    platform_rotation: np.ndarray
+    platform_velocity: np.ndarray
+    platform_angular_velocity: np.ndarray
+    tip_position: np.ndarray
+    tip_reaction_force: np.ndarray
+    tip_reaction_moment: np.ndarray
+    shapes: tuple[np.ndarray, ...]
+    kinetic: np.ndarray
+    elastic: np.ndarray
+    potential: np.ndarray
+    work_in: np.ndarray
+    dissipated: np.ndarray
+    energy_balance: np.ndarray
+
+    @staticmethod
+    def _concat(system: System, parts: list[dict]) -> SystemTrajectory:
+        n_rods = len(system.rods)
+        time = np.concatenate([np.asarray(p["time"], dtype=float) for p in parts])
+        k = time.size
+
+        def cat(key, shape):
+            return np.concatenate([np.asarray(p[key], dtype=float) for p in parts]).reshape(shape)
+
+        energy = cat("energy", (k, 6))
+        shapes = tuple(
+            np.concatenate([np.asarray(p["shapes"][i], dtype=float) for p in parts]).reshape(
+                k, -1, 3)
+            for i in range(n_rods)
+        )
+        return SystemTrajectory(
+            system=system,
+            time=time,
+            platform_position=cat("platform_position", (k, 3)),
+            platform_rotation=cat("platform_rotation", (k, 3, 3)),
+            platform_velocity=cat("platform_velocity", (k, 3)),
+            platform_angular_velocity=cat("platform_angular_velocity", (k, 3)),
+            tip_position=cat("tip_position", (k, n_rods, 3)),
+            tip_reaction_force=cat("tip_reaction_force", (k, n_rods, 3)),
+            tip_reaction_moment=cat("tip_reaction_moment", (k, n_rods, 3)),
+            shapes=shapes,
+            kinetic=energy[:, 0],
+            elastic=energy[:, 1],
+            potential=energy[:, 2],
+            work_in=energy[:, 3],
+            dissipated=energy[:, 4],
+            energy_balance=energy[:, 5],
+        )
+
+
+def _inertia(value) -> list[list[float]]:
+    """The platform's inertia about its centre of mass (platform frame, kg m^2): a 3x3
+    tensor, three principal values (a diagonal tensor) or None (zero)."""
+    if value is None:
+        return [[0.0] * 3 for _ in range(3)]
+    arr = V.real_array(value, "platform_inertia", unit_kind="inertia", max_size=9,
+                       what="moments of inertia (kg m^2)")
+    if arr.shape == (3,):
+        return np.diag(arr).tolist()
+    if arr.shape != (3, 3):
+        raise V.fail("platform_inertia", f"shape {arr.shape}",
+                     "must be a 3x3 tensor or 3 principal values (kg m^2)", InputError)
+    return arr.tolist()
+
+
+def _per_rod(system: System, value, name: str, convert) -> list[list[float]]:
+    n = len(system.rods)
+    if value is None:
+        return [convert(r.design, None) for r in system.rods]
+    if isinstance(value, np.ndarray):
+        value = list(value)
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise V.fail(name, value, f"must be a list of {n} entries, one per rod", InputError)
+    return [convert(r.design, v) for r, v in zip(system.rods, value, strict=True)]
+
+
+def _rod_pressures(design, p) -> list[float]:
+    return [0.0] * design.n_channels if p is None else _pressures(design, p)
+
+
+class SystemSimulation:
+    """A running simulation of a :class:`~softrod.System`, started at rest in its static
+    equilibrium (:func:`~softrod.solve_system`'s, refined on the dynamics' grids).
+
+    ``pressures``/``tensions``: at t = 0, one list per rod as :func:`~softrod.solve_system`
+    takes them (None: zero, slack). ``platform_force``/``platform_moment``: the platform's
+    load at t = 0 (N and N m, world; None: the system's). ``platform_inertia``: the
+    platform's inertia tensor about its centre of mass in the platform frame (kg m^2; a
+    3x3 tensor or three principal values; None: zero, so that a platform with mass is a
+    point mass at its centre of mass). ``dt``, ``alpha``, ``tol``, ``max_iter``,
+    ``error_tol``, ``energy_tol`` as for :class:`~softrod.Simulation`; the scheme is
+    BDF-alpha (the midpoint rule is refused: it does not carry held tips). Refused by name
+    before any work: obstacles, follower tip loads on a rod, inputs that do not match a rod,
+    a rod design with its own ``[tip] constraint``.
+    """
+
+    def __init__(
+        self,
+        system: System | str,
+        pressures: Any = None,
+        *,
+        tensions: Any = None,
+        platform_force: Any = None,
+        platform_moment: Any = None,
+        platform_inertia: Any = None,
+        dt: Any = 2e-3,
+        scheme: str = "bdf-alpha",
+        alpha: float = -0.2,
+        tol: float = 1e-9,
+        max_iter: int = 25,
+        error_tol: Any = None,
+        energy_tol: float = DEFAULT_ENERGY_TOL,
+    ) -> None:
+        if not isinstance(system, System):
+            system = load_system(system)
+        self.system = system
+        for i, rod in enumerate(system.rods):
+            if rod.design.tip_constraint is not None:
+                raise V.fail(f"rods[{i}].design", rod.design.name,
+                             "its [tip] constraint is set; a system's rod tips hold the platform",
+                             InputError)
+        ps = _per_rod(system, pressures, "pressures", _rod_pressures)
+        ts = _per_rod(system, tensions, "tensions", _tensions)
+        opts = _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol)
+        self.dt = _seconds(dt, "dt")
+        entries = [
+            (r.design._rod, p, t, [float(v) for v in r.attachment],
+             np.asarray(r.attachment_rotation, dtype=float).tolist())
+            for r, p, t in zip(system.rods, ps, ts, strict=True)
+        ]
+        platform = _platform_args(system, platform_force, platform_moment)
+        self._force, self._moment = platform[2], platform[3]
+        self._sim = _core.SystemSimulator(entries, platform, _inertia(platform_inertia),
+                                          self.dt, **opts)
+        self._pressures = ps
+
+    @property
+    def time(self) -> float:
+        """Time now, s."""
+        return self._sim.time()
+
+    @property
+    def stats(self) -> dict:
+        """Counters of the run so far (steps, internal steps, rejected, Newton iterations,
+        Jacobians)."""
+        return self._sim.stats()
+
+    def state(self) -> SystemTrajectory:
+        """The state now as a one-sample :class:`SystemTrajectory`."""
+        return SystemTrajectory._concat(self.system, [self._sim.snapshot()])
+
+    def save(self) -> np.ndarray:
+        """The complete state as numbers; :meth:`restore` continues from it bit for bit."""
+        return self._sim.save()
+
+    def restore(self, state: np.ndarray) -> None:
+        """Continue from a state saved by :meth:`save` of a simulation of the same system."""
+        self._sim.restore(np.ascontiguousarray(V.real_array(state, "state", what="numbers"),
+                                               dtype=float))
+
+    def copy(self) -> SystemSimulation:
+        """An independent simulation starting from this one's current state (exact)."""
+        obj = SystemSimulation.__new__(SystemSimulation)
+        obj.__dict__.update(self.__dict__)
+        obj._sim = self._sim.copy()
+        return obj
+
+    def run(
+        self,
+        duration: Any,
+        pressures: Any = None,
+        *,
+        tensions: Any = None,
+        platform_force: Any = None,
+        platform_moment: Any = None,
+    ) -> SystemTrajectory:
+        """Advance by ``duration`` (s or a string with units) in output steps of dt and
+        return the samples after each step (without the current state).
+
+        ``pressures``: one list per rod (held), or a function of t (s) returning them,
+        sampled at each step's end; None: the last ones. ``tensions``, ``platform_force``,
+        ``platform_moment`` likewise (None: unchanged)."""
+        out = self._run(duration, pressures, tensions, platform_force, platform_moment)
+        return SystemTrajectory._concat(self.system, [out])
+
+    def _run(self, duration, pressures, tensions, platform_force, platform_moment) -> dict:
+        steps = step_count(_seconds(duration, "duration"), self.dt, "duration")
+        t0 = self.time
+        times = [t0 + (k + 1) * self.dt for k in range(steps)]
+
+        def series(value, name, convert):
+            if value is None:
+                return None
+            if callable(value):
+                return [convert(value(t), name) for t in times]
+            once = convert(value, name)
+            return [once] * steps
+
+        def per_rod_p(v, name):
+            return _per_rod(self.system, v, name, _rod_pressures)
+
+        def per_rod_t(v, name):
+            return _per_rod(self.system, v, name, _tensions)
+
+        commands = series(pressures, "pressures", per_rod_p)
+        if commands is None:
+            commands = [self._pressures] * steps
+        tens = series(tensions, "tensions", per_rod_t)
+        loads = None
+        if platform_force is not None or platform_moment is not None:
+            fs = series(platform_force, "platform_force",
+                        lambda v, n: _platform_args(self.system, v, None)[2])
+            ms = series(platform_moment, "platform_moment",
+                        lambda v, n: _platform_args(self.system, None, v)[3])
+            fs = fs or [self._force] * steps
+            ms = ms or [self._moment] * steps
+            loads = list(zip(fs, ms, strict=True))
+        out = self._sim.run(commands, tensions=tens, platform_loads=loads)
+        self._pressures = commands[-1]
+        if loads is not None:
+            self._force, self._moment = loads[-1]
+        return out
+
+
+def simulate_system(
+    system: System | str,
+    duration: Any,
+    pressures: Any | Callable[[float], Any] = None,
+    *,
+    tensions: Any | Callable[[float], Any] = None,
+    platform_force: Any = None,
+    platform_moment: Any = None,
+    platform_inertia: Any = None,
+    dt: Any = 2e-3,
+    alpha: float = -0.2,
+    tol: float = 1e-9,
+    max_iter: int = 25,
+    error_tol: Any = None,
+    energy_tol: float = DEFAULT_ENERGY_TOL,
+) -> SystemTrajectory:
+    """Simulate a :class:`~softrod.System` for ``duration`` (s or a string with units),
+    starting at rest in its static equilibrium under the inputs at t = 0.
+
+    ``pressures``/``tensions``: one list per rod (Pa / N or strings with units, as
+    :func:`~softrod.solve_system` takes them), held, or a function of t (s) returning them
+    (its value at t = 0 is the start's; then sampled at each output step's end).
+    ``platform_force``/``platform_moment`` (N, N m, world) likewise (None: the system's).
+    ``platform_inertia``, ``dt``, ``alpha``, ``tol``, ``max_iter``, ``error_tol``,
+    ``energy_tol``: as :class:`SystemSimulation`. Returns a :class:`SystemTrajectory` from
+    t = 0 (docs/dynamics.md, "Systems of rods")."""
+
+    def at0(value):
+        return value(0.0) if callable(value) else value
+
+    sim = SystemSimulation(
+        system, at0(pressures), tensions=at0(tensions), platform_force=at0(platform_force),
+        platform_moment=at0(platform_moment), platform_inertia=platform_inertia, dt=dt,
+        alpha=alpha, tol=tol, max_iter=max_iter, error_tol=error_tol, energy_tol=energy_tol,
+    )
+    start = sim._sim.snapshot()
+    out = sim._run(duration, pressures, tensions, platform_force, platform_moment)
+    return SystemTrajectory._concat(sim.system, [start, out])
