@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import softrod
-from softrod import InputError
+from softrod import DesignError, InputError
 
 SYSTEM = "two_spa_platform"
 
@@ -21,8 +21,12 @@ def test_a_run_starts_on_the_static_equilibrium_and_keeps_its_books(system):
     # Rod 0's channel 0 ramps to 40 kPa in 0.05 s; the platform's inertia is a 3x3 tensor.
     steps = 25
     traj = softrod.simulate_system(
-        system, "50 ms", pressures=lambda t: [[min(t / 0.05, 1.0) * 40e3, 0, 0], [0, 0, 0]],
-        platform_inertia=[[2e-6, 0, 0], [0, 2e-6, 0], [0, 0, 4e-6]], dt="2 ms", alpha=-0.5,
+        system,
+        lambda t: [[min(t / 0.05, 1.0) * 40e3, 0, 0], [0, 0, 0]],
+        "50 ms",
+        platform_inertia=[[2e-6, 0, 0], [0, 2e-6, 0], [0, 0, 4e-6]],
+        dt="2 ms",
+        alpha=-0.5,
     )
     n = steps + 1
     assert traj.time.shape == (n,)
@@ -57,14 +61,15 @@ def test_a_run_starts_on_the_static_equilibrium_and_keeps_its_books(system):
     moved = traj.kinetic.max() + traj.work_in.max()
     assert np.abs(traj.energy_balance).max() <= 1e-3 * moved
 
+
 def test_units_and_the_stepping_object(system):
     sim = softrod.SystemSimulation(system, [["10 kPa", 0, 0], [0, 0, 0]], dt="2 ms")
     s0 = sim.state()
     assert s0.time.tolist() == [0.0]
     plain = softrod.SystemSimulation(system, [[10e3, 0, 0], [0, 0, 0]], dt=2e-3)
     assert np.array_equal(plain.state().platform_position, s0.platform_position)
-    a = sim.run("10 ms", [["30 kPa", 0, 0], [0, "5 kPa", 0]])
-    b = plain.run(0.01, [[30e3, 0, 0], [0, 5e3, 0]])
+    a = sim.run([["30 kPa", 0, 0], [0, "5 kPa", 0]], "10 ms")
+    b = plain.run([[30e3, 0, 0], [0, 5e3, 0]], 0.01)
     assert a.time.shape == (5,)
     assert np.array_equal(a.platform_position, b.platform_position)
     assert sim.time == pytest.approx(0.01, rel=1e-12)
@@ -73,14 +78,14 @@ def test_units_and_the_stepping_object(system):
 
 def test_save_restore_and_copy_continue_bit_for_bit(system):
     sim = softrod.SystemSimulation(system, dt=2e-3, platform_inertia=[2e-6, 2e-6, 4e-6])
-    sim.run(0.004, [[20e3, 0, 0], [0, 0, 0]])
+    sim.run([[20e3, 0, 0], [0, 0, 0]], 0.004)
     saved = sim.save()
     twin = sim.copy()
-    a = sim.run(0.006, [[20e3, 10e3, 0], [0, 0, 0]], platform_force=[0.0, 0.01, 0.0])
-    b = twin.run(0.006, [[20e3, 10e3, 0], [0, 0, 0]], platform_force=[0.0, 0.01, 0.0])
+    a = sim.run([[20e3, 10e3, 0], [0, 0, 0]], 0.006, platform_force=[0.0, 0.01, 0.0])
+    b = twin.run([[20e3, 10e3, 0], [0, 0, 0]], 0.006, platform_force=[0.0, 0.01, 0.0])
     other = softrod.SystemSimulation(system, dt=2e-3, platform_inertia=[2e-6, 2e-6, 4e-6])
     other.restore(saved)
-    c = other.run(0.006, [[20e3, 10e3, 0], [0, 0, 0]], platform_force=[0.0, 0.01, 0.0])
+    c = other.run([[20e3, 10e3, 0], [0, 0, 0]], 0.006, platform_force=[0.0, 0.01, 0.0])
     for t in (b, c):
         assert np.array_equal(a.platform_position, t.platform_position)
         assert np.array_equal(a.shapes[1], t.shapes[1])
@@ -93,8 +98,7 @@ def test_save_restore_and_copy_continue_bit_for_bit(system):
         ({"pressures": [[0, 0, 0]]}, "pressures"),
         ({"pressures": [[0, 0], [0, 0, 0]]}, "pressures"),
         ({"scheme": "midpoint"}, "scheme"),
-        ({"platform_inertia": [[1e-6, 1e-7, 0], [0, 1e-6, 0], [0, 0, 1e-6]]},
-         "platform_inertia"),
+        ({"platform_inertia": [[1e-6, 1e-7, 0], [0, 1e-6, 0], [0, 0, 1e-6]]}, "platform_inertia"),
         ({"platform_inertia": [1e-6, -1e-6, 1e-6]}, "platform_inertia"),
         ({"platform_inertia": [[1e-6, 0], [0, 1e-6]]}, "platform_inertia"),
         ({"dt": -1.0}, "dt"),
@@ -110,12 +114,43 @@ def test_bad_inputs_are_refused_by_name(system, kwargs, field):
 def test_bad_run_inputs_are_refused_by_name(system):
     sim = softrod.SystemSimulation(system, dt=2e-3)
     with pytest.raises(InputError) as exc:
-        sim.run(0.002, [[0, 0, 0], [0, 0, float("nan")]])
+        sim.run([[0, 0, 0], [0, 0, float("nan")]], 0.002)
     assert "pressures" in exc.value.field
     with pytest.raises(InputError) as exc:
-        sim.run(0.002, platform_force=[0, 0])
+        sim.run(None, 0.002, platform_force=[0, 0])
     assert "platform_force" in exc.value.field
     # Nothing changed: the run goes on from t = 0.
     assert sim.time == 0.0
-    sim.run(0.002)
+    sim.run(None, 0.002)
     assert sim.time == pytest.approx(0.002)
+
+
+def test_the_platform_inertia_of_a_system_file_is_the_runs_default(system, tmp_path):
+    text = (softrod.system.systems_dir() / f"{SYSTEM}.toml").read_text()
+    assert 'mass = "20 g"' in text
+    given = text.replace(
+        'mass = "20 g"', 'mass = "20 g"\ninertia = ["2e-6 kg*m^2", "2e-6 kg*m^2", "4e-6 kg*m^2"]'
+    )
+    (tmp_path / "with_inertia.toml").write_text(given)
+    from_file = softrod.load_system(tmp_path / "with_inertia.toml")
+    np.testing.assert_array_equal(from_file.platform.inertia, np.diag([2e-6, 2e-6, 4e-6]))
+    np.testing.assert_array_equal(system.platform.inertia, np.zeros((3, 3)))
+    push = [[20e3, 0, 0], [0, 0, 0]]
+    a = softrod.simulate_system(from_file, push, 0.006, dt=2e-3)
+    b = softrod.simulate_system(system, push, 0.006, dt=2e-3, platform_inertia=[2e-6, 2e-6, 4e-6])
+    c = softrod.simulate_system(system, push, 0.006, dt=2e-3)
+    np.testing.assert_array_equal(a.platform_rotation, b.platform_rotation)
+    # The inertia does act: without it the platform turns differently.
+    assert np.abs(a.platform_rotation - c.platform_rotation).max() > 0
+    for bad, rule in [
+        ('["1e-6 kg*m^2", "-1e-6 kg*m^2", "1e-6 kg*m^2"]', "semi-definite"),
+        ("[[1e-6, 1e-7, 0], [0, 1e-6, 0], [0, 0, 1e-6]]", "symmetric"),
+        ('["1 kg", "1 kg", "1 kg"]', "wrong unit"),
+        ("[1e-6, 1e-6]", "3 principal values"),
+    ]:
+        (tmp_path / "bad.toml").write_text(
+            text.replace('mass = "20 g"', f'mass = "20 g"\ninertia = {bad}')
+        )
+        with pytest.raises(DesignError, match=rule) as exc:
+            softrod.load_system(tmp_path / "bad.toml")
+        assert exc.value.field.startswith("platform.inertia")

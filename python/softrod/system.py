@@ -13,6 +13,9 @@ A system file (TOML) names its rods' designs and where they hold the platform::
     orientation = ["0 deg", "0 deg", "0 deg"] # rotation vector or 3x3 matrix (optional)
     mass = "20 g"                             # optional
     com_offset = ["0 mm", "0 mm", "0 mm"]     # platform frame (optional)
+    inertia = ["2e-6 kg*m^2", "2e-6 kg*m^2", "4e-6 kg*m^2"]  # about the centre of mass,
+                                              # platform frame: principal values or 3x3
+                                              # (optional, dynamics only)
     force = ["0 N", "0 N", "0 N"]             # external load, world frame (optional)
     moment = ["0 N*m", "0 N*m", "0 N*m"]      # about the platform origin (optional)
 
@@ -62,7 +65,7 @@ else:  # pragma: no cover
 _SCHEMA = {
     "": {"units", "system", "platform", "rods"},
     "system": {"name", "citation", "description"},
-    "platform": {"position", "orientation", "mass", "com_offset", "force", "moment"},
+    "platform": {"position", "orientation", "mass", "com_offset", "inertia", "force", "moment"},
     "rod": {"design", "base_position", "attachment", "attachment_orientation"},
 }
 
@@ -108,7 +111,8 @@ class SystemRod:
 class Platform:
     """The rigid platform (SI): nominal pose (world; continuation starts there), external
     force (world) and moment (about its origin, world), mass and centre of mass (platform
-    frame)."""
+    frame), and the inertia tensor about the centre of mass (platform frame, kg m^2; only
+    the dynamics reads it; zero: a point mass)."""
 
     position: np.ndarray
     rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
@@ -116,6 +120,49 @@ class Platform:
     moment: np.ndarray = field(default_factory=lambda: np.zeros(3))
     mass: float = 0.0
     com_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    inertia: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+
+
+def platform_inertia(value: Any, field: str, cls: type[DesignError] = DesignError) -> np.ndarray:
+    """A platform's inertia tensor about its centre of mass (kg m^2, platform frame) from
+    three principal values or a 3x3 tensor (numbers in SI or strings with units); it must be
+    symmetric and positive semi-definite (a rigid body's)."""
+    if value is None:
+        return np.zeros((3, 3))
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    rows = (
+        isinstance(value, (list, tuple))
+        and len(value) == 3
+        and all(isinstance(r, (list, tuple)) for r in value)
+    )
+    if not isinstance(value, (list, tuple)) or len(value) != 3:
+        raise V.fail(field, value, "must be 3 principal values or a 3x3 tensor (kg m^2)", cls)
+    if rows:
+        for i, row in enumerate(value):
+            if len(row) != 3:
+                raise V.fail(f"{field}[{i}]", row, "must be 3 values (kg m^2)", cls)
+        j = np.array(
+            [
+                [V.quantity(v, "inertia", f"{field}[{i}][{k}]", cls) for k, v in enumerate(row)]
+                for i, row in enumerate(value)
+            ]
+        )
+    else:
+        j = np.diag([V.quantity(v, "inertia", f"{field}[{i}]", cls) for i, v in enumerate(value)])
+    scale = max(np.abs(j).max(), 1e-300)
+    if np.abs(j - j.T).max() > 1e-12 * scale:
+        raise V.fail(field, j.tolist(), "must be symmetric (an inertia tensor)", cls)
+    low = np.linalg.eigvalsh(j).min()
+    if low < -1e-12 * scale:
+        raise V.fail(
+            field,
+            j.tolist(),
+            f"must be positive semi-definite (a rigid body's; its smallest principal "
+            f"value is {low:.3g} kg m^2)",
+            cls,
+        )
+    return j
 
 
 @dataclass(frozen=True)
@@ -172,9 +219,12 @@ def load_system(source: str | Path) -> System:
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise V.fail("system", str(source),
-                     f"no such file or bundled system ({', '.join(bundled_systems())})",
-                     DesignError) from None
+        raise V.fail(
+            "system",
+            str(source),
+            f"no such file or bundled system ({', '.join(bundled_systems())})",
+            DesignError,
+        ) from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise V.fail("system", str(source), f"cannot be read as TOML: {exc}", DesignError) from None
     doc = _keys(doc, "", "")
@@ -182,27 +232,34 @@ def load_system(source: str | Path) -> System:
     name = V.text(meta.get("name", path.stem), "system.name", DesignError, non_empty=True)
     pf = _keys(doc.get("platform"), "platform", "platform") if "platform" in doc else None
     if pf is None or "position" not in pf:
-        raise V.fail("platform.position", "(missing)",
-                     "the platform's nominal position is required (3 lengths, world frame)",
-                     DesignError)
+        raise V.fail(
+            "platform.position",
+            "(missing)",
+            "the platform's nominal position is required (3 lengths, world frame)",
+            DesignError,
+        )
     platform = Platform(
         position=_vec(pf["position"], "length", "platform.position"),
-        rotation=(_orientation(pf["orientation"], "platform.orientation", DesignError)
-                  if "orientation" in pf else np.eye(3)),
+        rotation=(
+            _orientation(pf["orientation"], "platform.orientation", DesignError)
+            if "orientation" in pf
+            else np.eye(3)
+        ),
         force=_vec(pf.get("force"), "force", "platform.force"),
         moment=_vec(pf.get("moment"), "moment", "platform.moment"),
         mass=V.quantity(pf.get("mass", 0.0), "mass", "platform.mass", DesignError),
         com_offset=_vec(pf.get("com_offset"), "length", "platform.com_offset"),
+        inertia=platform_inertia(pf.get("inertia"), "platform.inertia"),
     )
     if platform.mass < 0:
         raise V.fail("platform.mass", pf["mass"], "must be >= 0", DesignError)
     rods_doc = doc.get("rods")
     if not isinstance(rods_doc, list) or not rods_doc:
-        raise V.fail("rods", rods_doc, "must be a non-empty array of tables ([[rods]])",
-                     DesignError)
+        raise V.fail(
+            "rods", rods_doc, "must be a non-empty array of tables ([[rods]])", DesignError
+        )
     if len(rods_doc) > 64:
-        raise V.fail("rods", f"{len(rods_doc)} rods", "a system has at most 64 rods",
-                     DesignError)
+        raise V.fail("rods", f"{len(rods_doc)} rods", "a system has at most 64 rods", DesignError)
     rods = []
     for i, r in enumerate(rods_doc):
         where = f"rods[{i}]"
@@ -212,8 +269,9 @@ def load_system(source: str | Path) -> System:
             raise V.fail(f"{where}.{missing}", "(missing)", "is required", DesignError)
         given = r["design"]
         if not isinstance(given, str) or not given:
-            raise V.fail(f"{where}.design", given, "must be a design file or bundled name",
-                         DesignError)
+            raise V.fail(
+                f"{where}.design", given, "must be a design file or bundled name", DesignError
+            )
         local = path.parent / given
         design = load_design(local if local.exists() else given)
         if "base_position" in r:
@@ -223,9 +281,11 @@ def load_system(source: str | Path) -> System:
                 design=design,
                 attachment=_vec(r["attachment"], "length", f"{where}.attachment"),
                 attachment_rotation=(
-                    _orientation(r["attachment_orientation"],
-                                 f"{where}.attachment_orientation", DesignError)
-                    if "attachment_orientation" in r else np.eye(3)
+                    _orientation(
+                        r["attachment_orientation"], f"{where}.attachment_orientation", DesignError
+                    )
+                    if "attachment_orientation" in r
+                    else np.eye(3)
                 ),
             )
         )
@@ -288,14 +348,25 @@ def solve_system(
     for i, (rod, p, t) in enumerate(zip(system.rods, ps, ts, strict=True)):
         d = rod.design
         if d.tip_constraint is not None:
-            raise V.fail(f"rods[{i}].design", d.name,
-                         "its [tip] constraint is set; a system's rod tips hold the platform",
-                         InputError)
+            raise V.fail(
+                f"rods[{i}].design",
+                d.name,
+                "its [tip] constraint is set; a system's rod tips hold the platform",
+                InputError,
+            )
         pv = [0.0] * d.n_channels if p is None else _pressures(d, p)
         tip = d.spec["tip"]
-        entries.append((d._rod, pv, _tensions(d, t), list(tip["force"]), list(tip["moment"]),
-                        [float(v) for v in rod.attachment],
-                        np.asarray(rod.attachment_rotation, dtype=float).tolist()))
+        entries.append(
+            (
+                d._rod,
+                pv,
+                _tensions(d, t),
+                list(tip["force"]),
+                list(tip["moment"]),
+                [float(v) for v in rod.attachment],
+                np.asarray(rod.attachment_rotation, dtype=float).tolist(),
+            )
+        )
     platform = _platform_args(system, platform_force, platform_moment)
     guess = None
     if initial is not None:
@@ -304,28 +375,49 @@ def solve_system(
         if initial.converged:
             guess = initial.unknowns.tolist()
     try:
-        out = _core.solve_rod_system(entries, platform, guess=guess, on_invalid=on_invalid,
-                                     **opts.as_kwargs())
+        out = _core.solve_rod_system(
+            entries, platform, guess=guess, on_invalid=on_invalid, **opts.as_kwargs()
+        )
     except ConvergenceError as exc:
         if check:
             raise
         nan3 = np.full(3, np.nan)
-        return SystemSolution(system=system, rods=(), platform_position=nan3,
-                              platform_rotation=np.full((3, 3), np.nan), converged=False,
-                              iterations=exc.iterations, residual=exc.residual, load_steps=0,
-                              unknowns=np.full(6 * n + 6, np.nan))
+        return SystemSolution(
+            system=system,
+            rods=(),
+            platform_position=nan3,
+            platform_rotation=np.full((3, 3), np.nan),
+            converged=False,
+            iterations=exc.iterations,
+            residual=exc.residual,
+            load_steps=0,
+            unknowns=np.full(6 * n + 6, np.nan),
+        )
     _report_stability(out["stable"], on_unstable, f"the system {system.name!r}'s equilibrium")
     sols = []
-    for (rod, entry, o) in zip(system.rods, entries, out["rods"], strict=True):
+    for rod, entry, o in zip(system.rods, entries, out["rods"], strict=True):
         sols.append(
             StaticSolution(
-                design=rod.design, pressures=np.array(entry[1]), s=o["s"], section=o["section"],
-                position=o["position"], rotation=o["rotation"], force=o["force"],
-                moment=o["moment"], v=o["v"], u=o["u"], converged=True,
-                iterations=o["iterations"], residual=o["residual"], load_steps=o["load_steps"],
-                shooting_unknowns=np.array(o["x"]), stable=out["stable"],
-                violations=tuple(o["violations"]), tip_loads=(tuple(entry[3]), tuple(entry[4])),
-                tensions=np.array(entry[2]), tip_constraint="clamped",
+                design=rod.design,
+                pressures=np.array(entry[1]),
+                s=o["s"],
+                section=o["section"],
+                position=o["position"],
+                rotation=o["rotation"],
+                force=o["force"],
+                moment=o["moment"],
+                v=o["v"],
+                u=o["u"],
+                converged=True,
+                iterations=o["iterations"],
+                residual=o["residual"],
+                load_steps=o["load_steps"],
+                shooting_unknowns=np.array(o["x"]),
+                stable=out["stable"],
+                violations=tuple(o["violations"]),
+                tip_loads=(tuple(entry[3]), tuple(entry[4])),
+                tensions=np.array(entry[2]),
+                tip_constraint="clamped",
                 tip_reaction_force=np.array(o["tip_reaction_force"]),
                 tip_reaction_moment=np.array(o["tip_reaction_moment"]),
             )
@@ -349,8 +441,7 @@ def _load3(value, kind: str, name: str) -> np.ndarray:
         value = value.tolist()
     if not isinstance(value, (list, tuple)) or len(value) != 3:
         raise V.fail(name, value, f"must be 3 {kind} values (world frame)", InputError)
-    return np.array([V.quantity(v, kind, f"{name}[{i}]", InputError)
-                     for i, v in enumerate(value)])
+    return np.array([V.quantity(v, kind, f"{name}[{i}]", InputError) for i, v in enumerate(value)])
 
 
 @dataclass(frozen=True)
@@ -430,8 +521,10 @@ class SystemBatchSolution:
                 cols[f"rod{i}_tip_{a}_{chosen['length']}"] = (
                     self.tip_position[:, i, k] / factor["length"]
                 )
-            for name, arr, kind in (("f", self.tip_reaction_force, "force"),
-                                    ("m", self.tip_reaction_moment, "moment")):
+            for name, arr, kind in (
+                ("f", self.tip_reaction_force, "force"),
+                ("m", self.tip_reaction_moment, "moment"),
+            ):
                 for k, a in enumerate("xyz"):
                     cols[f"rod{i}_tip_reaction_{name}{a}_{chosen[kind]}"] = (
                         arr[:, i, k] / factor[kind]
@@ -451,11 +544,14 @@ def _system_rows(system: System, value: Any, name: str, kind: str, widths: list[
     :func:`solve_system` takes it (one list per rod), e.g. an (m, n, width) array when every
     rod has as many channels. Values are SI numbers or strings with units, finite."""
     n = len(system.rods)
-    rule = (f"must be one row per equilibrium, each a list of {n} per-rod lists ({widths} "
-            f"{'channels' if kind == 'pressure' else 'tendon channels'}), e.g. an (m, {n}, "
-            f"{widths[0]}) array" if len(set(widths)) == 1 else
-            f"must be one row per equilibrium, each a list of {n} per-rod lists ({widths} "
-            f"{'channels' if kind == 'pressure' else 'tendon channels'})")
+    rule = (
+        f"must be one row per equilibrium, each a list of {n} per-rod lists ({widths} "
+        f"{'channels' if kind == 'pressure' else 'tendon channels'}), e.g. an (m, {n}, "
+        f"{widths[0]}) array"
+        if len(set(widths)) == 1
+        else f"must be one row per equilibrium, each a list of {n} per-rod lists ({widths} "
+        f"{'channels' if kind == 'pressure' else 'tendon channels'})"
+    )
     if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__len__"):
         raise V.fail(name, value, rule, InputError)
     limit = V.MAX_ROWS * max(sum(widths), 1)
@@ -476,8 +572,12 @@ def _system_rows(system: System, value: Any, name: str, kind: str, widths: list[
         for i, w in enumerate(widths):
             a = V.real_array(row[i], f"{name}[{r}][{i}]", unit_kind=kind, max_size=64)
             if a.shape != (w,):
-                raise V.fail(f"{name}[{r}][{i}]", f"shape {a.shape}",
-                             f"rod {i} has {w} channel(s): give {w} values", InputError)
+                raise V.fail(
+                    f"{name}[{r}][{i}]",
+                    f"shape {a.shape}",
+                    f"rod {i} has {w} channel(s): give {w} values",
+                    InputError,
+                )
             blocks[i][r] = a
     return blocks
 
@@ -524,58 +624,95 @@ def solve_system_batch(
     opts = _options(options)
     for i, rod in enumerate(system.rods):
         if rod.design.tip_constraint is not None:
-            raise V.fail(f"rods[{i}].design", rod.design.name,
-                         "its [tip] constraint is set; a system's rod tips hold the platform",
-                         InputError)
+            raise V.fail(
+                f"rods[{i}].design",
+                rod.design.name,
+                "its [tip] constraint is set; a system's rod tips hold the platform",
+                InputError,
+            )
     nc = [rod.design.n_channels for rod in system.rods]
     nt = [rod.design.n_tendons for rod in system.rods]
     if not sum(nc) and not sum(nt):
-        raise V.fail("pressures", "no channels", "the system's rods have neither pressure "
-                     "channels nor tendons, so every row would be the same equilibrium: use "
-                     "solve_system", InputError)
+        raise V.fail(
+            "pressures",
+            "no channels",
+            "the system's rods have neither pressure "
+            "channels nor tendons, so every row would be the same equilibrium: use "
+            "solve_system",
+            InputError,
+        )
     if pressures is None and tensions is None:
-        raise V.fail("pressures", None, "give the rows: pressures (or tensions) of every rod "
-                     "for every equilibrium", InputError)
-    ps = None if pressures is None else _system_rows(system, pressures, "pressures",
-                                                     "pressure", nc)
+        raise V.fail(
+            "pressures",
+            None,
+            "give the rows: pressures (or tensions) of every rod for every equilibrium",
+            InputError,
+        )
+    ps = None if pressures is None else _system_rows(system, pressures, "pressures", "pressure", nc)
     if tensions is not None and sum(nt) == 0:
-        raise V.fail("tensions", "an array", "the system's rods have no tendons; leave "
-                     "tensions out", InputError)
+        raise V.fail(
+            "tensions",
+            "an array",
+            "the system's rods have no tendons; leave tensions out",
+            InputError,
+        )
     ts = None if tensions is None else _system_rows(system, tensions, "tensions", "force", nt)
     m = len(ps[0]) if ps is not None else len(ts[0])
     if ps is None:
         ps = [np.zeros((m, w)) for w in nc]
     if ts is not None and len(ts[0]) != m:
-        raise V.fail("tensions", f"{len(ts[0])} rows",
-                     f"must have as many rows as pressures ({m})", InputError)
+        raise V.fail(
+            "tensions",
+            f"{len(ts[0])} rows",
+            f"must have as many rows as pressures ({m})",
+            InputError,
+        )
     if ts is None:
         ts = [np.zeros((m, w)) for w in nt]
     for i, p in enumerate(ps):
         low = np.argwhere(p < V.VACUUM_PA)
         if low.size:
             r, k = (int(v) for v in low[0])
-            raise V.fail(f"pressures[{r}][{i}][{k}]", float(p[r, k]),
-                         f"gauge pressures must be >= {V.VACUUM_PA:g} Pa (-1 atm, a perfect "
-                         "vacuum)", InputError)
+            raise V.fail(
+                f"pressures[{r}][{i}][{k}]",
+                float(p[r, k]),
+                f"gauge pressures must be >= {V.VACUUM_PA:g} Pa (-1 atm, a perfect vacuum)",
+                InputError,
+            )
     for i, t in enumerate(ts):
         bad = np.argwhere(~(t >= 0.0))
         if bad.size:
             r, k = (int(v) for v in bad[0])
-            raise V.fail(f"tensions[{r}][{i}][{k}]", f"{float(t[r, k])!r} N",
-                         "a tendon tension must be >= 0 (a tendon pulls or is slack, it "
-                         "cannot push)", InputError)
+            raise V.fail(
+                f"tensions[{r}][{i}][{k}]",
+                f"{float(t[r, k])!r} N",
+                "a tendon tension must be >= 0 (a tendon pulls or is slack, it cannot push)",
+                InputError,
+            )
     entries = []
     for rod in system.rods:
         tip = rod.design.spec["tip"]
-        entries.append((rod.design._rod, list(tip["force"]), list(tip["moment"]),
-                        [float(v) for v in rod.attachment],
-                        np.asarray(rod.attachment_rotation, dtype=float).tolist()))
+        entries.append(
+            (
+                rod.design._rod,
+                list(tip["force"]),
+                list(tip["moment"]),
+                [float(v) for v in rod.attachment],
+                np.asarray(rod.attachment_rotation, dtype=float).tolist(),
+            )
+        )
     platform = _platform_args(system, platform_force, platform_moment)
     flat_p = np.ascontiguousarray(np.concatenate(ps, axis=1) if ps else np.zeros((m, 0)))
     flat_t = np.ascontiguousarray(np.concatenate(ts, axis=1)) if sum(nt) else None
-    out = _core.solve_rod_system_batch(entries, platform, flat_p, tensions=flat_t,
-                                       threads=threads, on_invalid=on_invalid,
-                                       **opts.as_kwargs())
+    out = _core.solve_rod_system_batch(
+        entries,
+        platform,
+        flat_p,
+        tensions=flat_t,
+        threads=threads,
+        on_invalid=on_invalid,
+        **opts.as_kwargs(),
+    )
     violation = np.asarray(out["violation"], dtype=object)
     converged = np.asarray(out["converged"], dtype=bool)
     stable = np.asarray(out["stable"], dtype=bool)
@@ -637,10 +774,14 @@ def _platform_args(system: System, platform_force, platform_moment) -> tuple:
     """The binding's platform tuple: pose, load (given or the system's), mass, centre of
     mass, gravity (of the first rod's design)."""
     pf = system.platform
-    force = pf.force if platform_force is None else _load3(platform_force, "force",
-                                                            "platform_force")
-    moment = pf.moment if platform_moment is None else _load3(platform_moment, "moment",
-                                                               "platform_moment")
+    force = (
+        pf.force if platform_force is None else _load3(platform_force, "force", "platform_force")
+    )
+    moment = (
+        pf.moment
+        if platform_moment is None
+        else _load3(platform_moment, "moment", "platform_moment")
+    )
     gravity = system.rods[0].design.spec["mounting"]["gravity"]
     return (
         [float(v) for v in pf.position],

@@ -25,6 +25,7 @@ from .dynamics.simulate import (
 from .errors import InputError
 from .statics import _pressures, _tensions
 from .system import System, _platform_args, load_system
+from .system import platform_inertia as _inertia_of
 
 __all__ = ["SystemSimulation", "SystemTrajectory", "simulate_system"]
 
@@ -70,7 +71,8 @@ class SystemTrajectory:
         energy = cat("energy", (k, 6))
         shapes = tuple(
             np.concatenate([np.asarray(p["shapes"][i], dtype=float) for p in parts]).reshape(
-                k, -1, 3)
+                k, -1, 3
+            )
             for i in range(n_rods)
         )
         return SystemTrajectory(
@@ -91,21 +93,6 @@ class SystemTrajectory:
             dissipated=energy[:, 4],
             energy_balance=energy[:, 5],
         )
-
-
-def _inertia(value) -> list[list[float]]:
-    """The platform's inertia about its centre of mass (platform frame, kg m^2): a 3x3
-    tensor, three principal values (a diagonal tensor) or None (zero)."""
-    if value is None:
-        return [[0.0] * 3 for _ in range(3)]
-    arr = V.real_array(value, "platform_inertia", unit_kind="inertia", max_size=9,
-                       what="moments of inertia (kg m^2)")
-    if arr.shape == (3,):
-        return np.diag(arr).tolist()
-    if arr.shape != (3, 3):
-        raise V.fail("platform_inertia", f"shape {arr.shape}",
-                     "must be a 3x3 tensor or 3 principal values (kg m^2)", InputError)
-    return arr.tolist()
 
 
 def _per_rod(system: System, value, name: str, convert) -> list[list[float]]:
@@ -131,12 +118,13 @@ class SystemSimulation:
     takes them (None: zero, slack). ``platform_force``/``platform_moment``: the platform's
     load at t = 0 (N and N m, world; None: the system's). ``platform_inertia``: the
     platform's inertia tensor about its centre of mass in the platform frame (kg m^2; a
-    3x3 tensor or three principal values; None: zero, so that a platform with mass is a
-    point mass at its centre of mass). ``dt``, ``alpha``, ``tol``, ``max_iter``,
-    ``error_tol``, ``energy_tol`` as for :class:`~softrod.Simulation`; the scheme is
-    BDF-alpha (the midpoint rule is refused: it does not carry held tips). Refused by name
-    before any work: obstacles, follower tip loads on a rod, inputs that do not match a rod,
-    a rod design with its own ``[tip] constraint``.
+    3x3 tensor or three principal values; None: the system's ``[platform] inertia``, zero
+    unless given, so that a platform with mass is a point mass at its centre of mass).
+    ``dt``, ``alpha``, ``tol``, ``max_iter``, ``error_tol``, ``energy_tol`` as for
+    :class:`~softrod.Simulation`; the scheme is BDF-alpha (the midpoint rule is refused: it
+    does not carry held tips). Refused by name before any work: obstacles, follower tip
+    loads on a rod, inputs that do not match a rod, a rod design with its own ``[tip]
+    constraint``.
     """
 
     def __init__(
@@ -161,22 +149,34 @@ class SystemSimulation:
         self.system = system
         for i, rod in enumerate(system.rods):
             if rod.design.tip_constraint is not None:
-                raise V.fail(f"rods[{i}].design", rod.design.name,
-                             "its [tip] constraint is set; a system's rod tips hold the platform",
-                             InputError)
+                raise V.fail(
+                    f"rods[{i}].design",
+                    rod.design.name,
+                    "its [tip] constraint is set; a system's rod tips hold the platform",
+                    InputError,
+                )
         ps = _per_rod(system, pressures, "pressures", _rod_pressures)
         ts = _per_rod(system, tensions, "tensions", _tensions)
         opts = _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol)
         self.dt = _seconds(dt, "dt")
         entries = [
-            (r.design._rod, p, t, [float(v) for v in r.attachment],
-             np.asarray(r.attachment_rotation, dtype=float).tolist())
+            (
+                r.design._rod,
+                p,
+                t,
+                [float(v) for v in r.attachment],
+                np.asarray(r.attachment_rotation, dtype=float).tolist(),
+            )
             for r, p, t in zip(system.rods, ps, ts, strict=True)
         ]
+        inertia = (
+            system.platform.inertia
+            if platform_inertia is None
+            else _inertia_of(platform_inertia, "platform_inertia", InputError)
+        )
         platform = _platform_args(system, platform_force, platform_moment)
         self._force, self._moment = platform[2], platform[3]
-        self._sim = _core.SystemSimulator(entries, platform, _inertia(platform_inertia),
-                                          self.dt, **opts)
+        self._sim = _core.SystemSimulator(entries, platform, inertia.tolist(), self.dt, **opts)
         self._pressures = ps
 
     @property
@@ -200,8 +200,9 @@ class SystemSimulation:
 
     def restore(self, state: np.ndarray) -> None:
         """Continue from a state saved by :meth:`save` of a simulation of the same system."""
-        self._sim.restore(np.ascontiguousarray(V.real_array(state, "state", what="numbers"),
-                                               dtype=float))
+        self._sim.restore(
+            np.ascontiguousarray(V.real_array(state, "state", what="numbers"), dtype=float)
+        )
 
     def copy(self) -> SystemSimulation:
         """An independent simulation starting from this one's current state (exact)."""
@@ -212,8 +213,8 @@ class SystemSimulation:
 
     def run(
         self,
+        pressures: Any,
         duration: Any,
-        pressures: Any = None,
         *,
         tensions: Any = None,
         platform_force: Any = None,
@@ -228,8 +229,16 @@ class SystemSimulation:
         out = self._run(duration, pressures, tensions, platform_force, platform_moment)
         return SystemTrajectory._concat(self.system, [out])
 
-    def _run(self, duration, pressures, tensions, platform_force, platform_moment) -> dict:
-        steps = step_count(_seconds(duration, "duration"), self.dt, "duration")
+    def _run(
+        self,
+        duration,
+        pressures,
+        tensions,
+        platform_force,
+        platform_moment,
+        field: str = "duration",
+    ) -> dict:
+        steps = step_count(_seconds(duration, field), self.dt, field)
         t0 = self.time
         times = [t0 + (k + 1) * self.dt for k in range(steps)]
 
@@ -253,10 +262,16 @@ class SystemSimulation:
         tens = series(tensions, "tensions", per_rod_t)
         loads = None
         if platform_force is not None or platform_moment is not None:
-            fs = series(platform_force, "platform_force",
-                        lambda v, n: _platform_args(self.system, v, None)[2])
-            ms = series(platform_moment, "platform_moment",
-                        lambda v, n: _platform_args(self.system, None, v)[3])
+            fs = series(
+                platform_force,
+                "platform_force",
+                lambda v, n: _platform_args(self.system, v, None)[2],
+            )
+            ms = series(
+                platform_moment,
+                "platform_moment",
+                lambda v, n: _platform_args(self.system, None, v)[3],
+            )
             fs = fs or [self._force] * steps
             ms = ms or [self._moment] * steps
             loads = list(zip(fs, ms, strict=True))
@@ -269,8 +284,8 @@ class SystemSimulation:
 
 def simulate_system(
     system: System | str,
-    duration: Any,
-    pressures: Any | Callable[[float], Any] = None,
+    pressures: Any | Callable[[float], Any],
+    t_end: Any,
     *,
     tensions: Any | Callable[[float], Any] = None,
     platform_force: Any = None,
@@ -283,7 +298,8 @@ def simulate_system(
     error_tol: Any = None,
     energy_tol: float = DEFAULT_ENERGY_TOL,
 ) -> SystemTrajectory:
-    """Simulate a :class:`~softrod.System` for ``duration`` (s or a string with units),
+    """Simulate a :class:`~softrod.System` until ``t_end`` (s or a string with units; the
+    run takes ceil(t_end / dt) output steps, as :func:`~softrod.simulate`),
     starting at rest in its static equilibrium under the inputs at t = 0.
 
     ``pressures``/``tensions``: one list per rod (Pa / N or strings with units, as
@@ -298,10 +314,19 @@ def simulate_system(
         return value(0.0) if callable(value) else value
 
     sim = SystemSimulation(
-        system, at0(pressures), tensions=at0(tensions), platform_force=at0(platform_force),
-        platform_moment=at0(platform_moment), platform_inertia=platform_inertia, dt=dt,
-        alpha=alpha, tol=tol, max_iter=max_iter, error_tol=error_tol, energy_tol=energy_tol,
+        system,
+        at0(pressures),
+        tensions=at0(tensions),
+        platform_force=at0(platform_force),
+        platform_moment=at0(platform_moment),
+        platform_inertia=platform_inertia,
+        dt=dt,
+        alpha=alpha,
+        tol=tol,
+        max_iter=max_iter,
+        error_tol=error_tol,
+        energy_tol=energy_tol,
     )
     start = sim._sim.snapshot()
-    out = sim._run(duration, pressures, tensions, platform_force, platform_moment)
+    out = sim._run(t_end, pressures, tensions, platform_force, platform_moment, "t_end")
     return SystemTrajectory._concat(sim.system, [start, out])
