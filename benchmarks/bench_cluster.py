@@ -63,9 +63,12 @@ def run(args) -> dict:
     softrod.solve_statics_batch(design, p[:1000])  # warm-up (page in, thread pool)
     times = {"in_process": [], "cluster": []}
     cpus = {"in_process": [], "cluster": []}
-    with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
-    ) as cluster, Client(cluster) as client:
+    with (
+        LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+        ) as cluster,
+        Client(cluster) as client,
+    ):
         softrod.solve_statics_batch(design, p[:1000], executor=client)  # design on workers
         for where in ("in_process", "cluster", "cluster", "in_process"):
             executor = client if where == "cluster" else None
@@ -74,8 +77,10 @@ def run(args) -> dict:
             out = softrod.solve_statics_batch(design, p, executor=executor)
             times[where].append(time.perf_counter() - t0)
             cpus[where].append((sum(client.run(cpu_s).values()) if executor else cpu_s()) - c0)
-            print(f"{where}: {m:,} rows in {times[where][-1]:.2f} s, {cpus[where][-1]:.2f} "
-                  f"CPU s, {int(out.converged.sum()):,} converged")
+            print(
+                f"{where}: {m:,} rows in {times[where][-1]:.2f} s, {cpus[where][-1]:.2f} "
+                f"CPU s, {int(out.converged.sum()):,} converged"
+            )
             if where == "cluster":
                 remote = out
             else:
@@ -83,8 +88,9 @@ def run(args) -> dict:
     t_local, t_cluster = sum(times["in_process"]), sum(times["cluster"])
     overhead = t_cluster / t_local - 1.0
     cpu_overhead = sum(cpus["cluster"]) / sum(cpus["in_process"]) - 1.0
-    print(f"overhead {100 * overhead:+.1f} % wall, {100 * cpu_overhead:+.1f} % CPU "
-          "(target <= 10 %)")
+    print(
+        f"overhead {100 * overhead:+.1f} % wall, {100 * cpu_overhead:+.1f} % CPU (target <= 10 %)"
+    )
     ok = local.converged & remote.converged
     diff = float(np.abs(local.tip_position[ok] - remote.tip_position[ok]).max())
     return {

@@ -53,8 +53,7 @@ RADIUS = 10e-3  # m
 
 def _targets(centre: np.ndarray, n: int) -> list[np.ndarray]:
     da = STEP / RADIUS
-    return [centre + RADIUS * np.array([math.cos(k * da), math.sin(k * da), 0.0])
-            for k in range(n)]
+    return [centre + RADIUS * np.array([math.cos(k * da), math.sin(k * da), 0.0]) for k in range(n)]
 
 
 def _inverse(design, n_calls: int, warmup: int) -> dict:
@@ -62,12 +61,12 @@ def _inverse(design, n_calls: int, warmup: int) -> dict:
     centre = softrod.solve_statics(design, [35e3] * 3).tip_position
     targets = _targets(centre, n_calls + warmup + 1)
     prev = problem.solve(targets[0])
-    for t in targets[1:warmup + 1]:
+    for t in targets[1 : warmup + 1]:
         prev = problem.solve(t, initial=prev)
     times, passes, worst = [], 0, 0.0
     with gc_disabled():
         cpu0 = time.thread_time()
-        for t in targets[warmup + 1:]:
+        for t in targets[warmup + 1 :]:
             t0 = time.perf_counter_ns()
             prev = problem.solve(t, initial=prev)
             times.append((time.perf_counter_ns() - t0) * 1e-9)
@@ -78,13 +77,20 @@ def _inverse(design, n_calls: int, warmup: int) -> dict:
     # The one-shot function (arguments read on every call).
     fn_times = []
     with gc_disabled():
-        for t in targets[1:min(len(targets), 1 + n_calls // 4)]:
+        for t in targets[1 : min(len(targets), 1 + n_calls // 4)]:
             t0 = time.perf_counter_ns()
             prev = softrod.solve_inverse(design, t, pressure_bounds=BOUNDS, initial=prev)
             fn_times.append((time.perf_counter_ns() - t0) * 1e-9)
     cold = []
-    for p in ([10e3, 0, 0], [70e3, 0, 0], [35e3, 35e3, 0], [20e3, 45e3, 70e3],
-              [70e3, 35e3, 10e3], [5e3, 5e3, 60e3], [50e3, 50e3, 50e3]):
+    for p in (
+        [10e3, 0, 0],
+        [70e3, 0, 0],
+        [35e3, 35e3, 0],
+        [20e3, 45e3, 70e3],
+        [70e3, 35e3, 10e3],
+        [5e3, 5e3, 60e3],
+        [50e3, 50e3, 50e3],
+    ):
         tip = softrod.solve_statics(design, p).tip_position
         with gc_disabled():
             t0 = time.perf_counter_ns()
@@ -139,16 +145,19 @@ def run(args) -> dict:
     result["wall_time_s"] = time.perf_counter() - t_start
     for key in ("inverse_design_steps", "inverse_13mm_steps"):
         r = result[key]
-        print(f"{key}: {r['steps']} steps: warm median {r['median_us']:.1f} us "
-              f"({r['rate_kHz']:.1f} kHz; CPU {r['cpu_per_call_us']:.1f} us = "
-              f"{r['rate_by_cpu_kHz']:.1f} kHz), {r['dual_passes_per_call']:.3f} dual passes "
-              f"per call; function {r['function_median_us']:.1f} us; cold "
-              f"{r['cold_median_us']:.0f} us")
+        print(
+            f"{key}: {r['steps']} steps: warm median {r['median_us']:.1f} us "
+            f"({r['rate_kHz']:.1f} kHz; CPU {r['cpu_per_call_us']:.1f} us = "
+            f"{r['rate_by_cpu_kHz']:.1f} kHz), {r['dual_passes_per_call']:.3f} dual passes "
+            f"per call; function {r['function_median_us']:.1f} us; cold "
+            f"{r['cold_median_us']:.0f} us"
+        )
     w = result["workspace"]
-    print(f"workspace: {w['solves']} solves, 2 cores {w['two_cores_median_s']:.3f} s, "
-          f"1 core {w['one_core_median_s']:.3f} s")
-    print(f"load average before {info['load_average_before']}, after "
-          f"{info['load_average_after']}")
+    print(
+        f"workspace: {w['solves']} solves, 2 cores {w['two_cores_median_s']:.3f} s, "
+        f"1 core {w['one_core_median_s']:.3f} s"
+    )
+    print(f"load average before {info['load_average_before']}, after {info['load_average_after']}")
     return result
 
 

@@ -195,7 +195,12 @@ def pcc_comparison(quick: bool) -> dict:
             warnings.simplefilter("ignore", CalibrationWarning)
             t0 = time.perf_counter()
             res = softrod.calibrate(
-                start, data, ["b_L", "b_theta"], model="pcc", dt="1 ms", method=method,
+                start,
+                data,
+                ["b_L", "b_theta"],
+                model="pcc",
+                dt="1 ms",
+                method=method,
                 max_evaluations=1000,
             )
             wall = time.perf_counter() - t0

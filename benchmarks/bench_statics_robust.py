@@ -75,8 +75,10 @@ def run(args) -> dict:
     info = machine()
     reps = 50 if quick else 1000
     print(f"softrod statics robustness benchmark, {'quick' if quick else 'full'} mode")
-    print(f"machine: {info['cpu_count']} CPUs, {info['platform']}, softrod {info['softrod']} "
-          f"({info['git_commit']}), load average {info['load_average_before']}")
+    print(
+        f"machine: {info['cpu_count']} CPUs, {info['platform']}, softrod {info['softrod']} "
+        f"({info['git_commit']}), load average {info['load_average_before']}"
+    )
 
     # 1. Soft cantilever cold solve ---------------------------------------------------------
     cant = soft_cantilever()
@@ -87,9 +89,11 @@ def run(args) -> dict:
     cant_api = median(timed(api, reps))
     cant_core = median(timed(core, reps))
     sag = float(-sol.tip_position[2]) / cant.length
-    print(f"\n[1] soft cantilever cold solve (20 RK4 steps): solve_statics {fmt_us(cant_api)}, "
-          f"_rod.solve {fmt_us(cant_core)}; {sol.iterations} Newton iterations over "
-          f"{sol.load_steps} load levels; tip sag {sag:.4f} L")
+    print(
+        f"\n[1] soft cantilever cold solve (20 RK4 steps): solve_statics {fmt_us(cant_api)}, "
+        f"_rod.solve {fmt_us(cant_core)}; {sol.iterations} Newton iterations over "
+        f"{sol.load_steps} load levels; tip sag {sag:.4f} L"
+    )
 
     # 2. spa_three_chamber_130mm cold solves ------------------------------------------------
     spa = softrod.load_design("spa_three_chamber_130mm")
@@ -106,11 +110,15 @@ def run(args) -> dict:
         }
     spa_api = median([v["api_s"] for v in spa_rows.values()])
     spa_core = median([v["binding_s"] for v in spa_rows.values()])
-    print(f"\n[2] spa_three_chamber_130mm cold solves ({len(spa_rows)} pressures): "
-          f"solve_statics {fmt_us(spa_api)}, _rod.solve {fmt_us(spa_core)} (medians)")
+    print(
+        f"\n[2] spa_three_chamber_130mm cold solves ({len(spa_rows)} pressures): "
+        f"solve_statics {fmt_us(spa_api)}, _rod.solve {fmt_us(spa_core)} (medians)"
+    )
     for p, v in spa_rows.items():
-        print(f"    {p:<20} {fmt_us(v['api_s']):>10} {fmt_us(v['binding_s']):>10} "
-              f"{v['iterations']:>3} iterations")
+        print(
+            f"    {p:<20} {fmt_us(v['api_s']):>10} {fmt_us(v['binding_s']):>10} "
+            f"{v['iterations']:>3} iterations"
+        )
 
     # 3. Sweep ------------------------------------------------------------------------------
     grid = np.linspace(0.0, 70.0 * KPA, 21)
@@ -128,8 +136,10 @@ def run(args) -> dict:
             "time_s": median(times),
             "converged": int(np.count_nonzero(b.converged)),
         }
-    print(f"\n[3] sweep 21^3 = 9261 points: threads=0 {sweep[0]['time_s']:.3f} s, threads=1 "
-          f"{sweep[1]['time_s']:.3f} s; converged {sweep[0]['converged']}/{len(pressures)}")
+    print(
+        f"\n[3] sweep 21^3 = 9261 points: threads=0 {sweep[0]['time_s']:.3f} s, threads=1 "
+        f"{sweep[1]['time_s']:.3f} s; converged {sweep[0]['converged']}/{len(pressures)}"
+    )
 
     # 4. Batch equals single ----------------------------------------------------------------
     rng = np.random.default_rng(1)
@@ -144,10 +154,12 @@ def run(args) -> dict:
             "rows_differing_over_1e-12_m": int(np.count_nonzero(diff > 1e-12)),
             "max_difference_m": float(diff.max()),
         }
-        print(f"\n[4] batch vs single, threads={threads}: "
-              f"{equal[threads]['rows_not_bitwise_equal']}/200 rows not bitwise equal, "
-              f"{equal[threads]['rows_differing_over_1e-12_m']} differ by > 1e-12 m, max "
-              f"{equal[threads]['max_difference_m']:.2e} m")
+        print(
+            f"\n[4] batch vs single, threads={threads}: "
+            f"{equal[threads]['rows_not_bitwise_equal']}/200 rows not bitwise equal, "
+            f"{equal[threads]['rows_differing_over_1e-12_m']} differ by > 1e-12 m, max "
+            f"{equal[threads]['max_difference_m']:.2e} m"
+        )
 
     checks = {
         "soft_cantilever": cant_api <= TARGETS["soft_cantilever_s"],

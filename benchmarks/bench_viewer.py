@@ -57,8 +57,9 @@ def run(args) -> dict:
                 renderer = page.renderer()
                 frame = page.frame_interval_ms()
                 page.click_slider(0, 0.5)  # warm-up: first geometry upload
-                rows = [page.click_slider(k % 3, 0.1 + 0.8 * ((k * 7) % 11) / 10) for k in
-                        range(clicks)]
+                rows = [
+                    page.click_slider(k % 3, 0.1 + 0.8 * ((k * 7) % 11) / 10) for k in range(clicks)
+                ]
                 if args.figures and size == (1280, 800):
                     viewer.set_inputs(pressures=[60e3, 25e3, 0], tip_force=[0.0, 0.0, 0.0])
                     time.sleep(1.0)

@@ -96,9 +96,7 @@ def hybrid_fit(pairs: int) -> dict:
         import numpy as np
 
         first = np.load(arrays["one"][0])
-        identical = all(
-            np.array_equal(first, np.load(p)) for mode in arrays for p in arrays[mode]
-        )
+        identical = all(np.array_equal(first, np.load(p)) for mode in arrays for p in arrays[mode])
     summary = {
         label: {
             "median_wall_s": median([r["wall_s"] for r in rs]),

@@ -31,12 +31,12 @@ def run(period: float = 4.0, periods: int = 3, kp: float = KP, ki: float = KI):
     design = softrod.load_design(DESIGN)
     centre = softrod.solve_statics(design, [CENTRE_PRESSURE] * 3).tip_position
     path = TargetPath.circle(centre, RADIUS, period, duration=periods * period)
-    controller = TrackingController(design, path, rate=RATE, kp=kp, ki=ki,
-                                    pressure_bounds=BOUNDS)
+    controller = TrackingController(design, path, rate=RATE, kp=kp, ki=ki, pressure_bounds=BOUNDS)
     start = controller.problem.solve(path.at(0.0))
     t0 = time.perf_counter()
-    result = softrod.run_closed_loop(design, controller, periods * period, rate=RATE,
-                                     pressures=start.pressures)
+    result = softrod.run_closed_loop(
+        design, controller, periods * period, rate=RATE, pressures=start.pressures
+    )
     wall = time.perf_counter() - t0
     err = controller.errors(result.trajectory)
     last = result.trajectory.time > (periods - 1) * period
@@ -52,19 +52,27 @@ def main(argv):
     out_dir = Path(args[0]) if args else Path(__file__).parent.parent / "docs" / "figures"
     controller, result, rms, predicted, wall = run(2.0, 2) if quick else run()
     tr = result.trajectory
-    print(f"{DESIGN}: circle of {2 * RADIUS * 1e3:.0f} mm diameter, period "
-          f"{tr.time[-1] / (2 if quick else 3):.1f} s, control at {RATE:.0f} Hz "
-          f"(kp {KP}, ki {KI} 1/s)")
-    print(f"simulated {tr.time[-1]:.1f} s ({len(tr.time) - 1} steps of {tr.time[1] * 1e3:.0f} ms, "
-          f"{len(result.control_time)} inverse solves) in {wall:.2f} s")
-    print(f"RMS tip error over the last period: {rms * 1e3:.3f} mm; the linearised model "
-          f"predicts {predicted * 1e3:.3f} mm")
+    print(
+        f"{DESIGN}: circle of {2 * RADIUS * 1e3:.0f} mm diameter, period "
+        f"{tr.time[-1] / (2 if quick else 3):.1f} s, control at {RATE:.0f} Hz "
+        f"(kp {KP}, ki {KI} 1/s)"
+    )
+    print(
+        f"simulated {tr.time[-1]:.1f} s ({len(tr.time) - 1} steps of {tr.time[1] * 1e3:.0f} ms, "
+        f"{len(result.control_time)} inverse solves) in {wall:.2f} s"
+    )
+    print(
+        f"RMS tip error over the last period: {rms * 1e3:.3f} mm; the linearised model "
+        f"predicts {predicted * 1e3:.3f} mm"
+    )
     ff = np.array([h[3] for h in controller.history])
     print(f"pressures used: {ff.min() / 1e5:.3f} - {ff.max() / 1e5:.3f} bar")
     if not quick:
         *_, rms_ff, predicted_ff, _ = run(kp=0.0, ki=0.0)
-        print(f"feed-forward alone (kp = ki = 0): {rms_ff * 1e3:.3f} mm (predicted "
-              f"{predicted_ff * 1e3:.3f} mm)")
+        print(
+            f"feed-forward alone (kp = ki = 0): {rms_ff * 1e3:.3f} mm (predicted "
+            f"{predicted_ff * 1e3:.3f} mm)"
+        )
         import matplotlib
 
         matplotlib.use("Agg")

@@ -50,8 +50,9 @@ for p, c in zip((0.0, 20.0, 35.0, 50.0), colours, strict=True):
     d1 = sol.rotation[:, :, 0]
     for side in (-1.0, 1.0):
         edge = sol.position + side * radius * d1
-        ax_shape.plot(edge[:, 0] * 1e3, edge[:, 2] * 1e3, color=c,
-                      label=f"{p:.0f} kPa" if side > 0 else None)
+        ax_shape.plot(
+            edge[:, 0] * 1e3, edge[:, 2] * 1e3, color=c, label=f"{p:.0f} kPa" if side > 0 else None
+        )
     # The rounded end (a hemisphere of the outer radius about the tip), which meets the table.
     t3 = sol.rotation[-1][:, 2]
     t1 = d1[-1]
@@ -70,8 +71,7 @@ ax_shape.set_title("Finger hanging above the table (side view)")
 ax_shape.set_aspect("equal")
 ax_shape.set_xlim(-15.0, 70.0)
 ax_shape.set_ylim(table_z * 1e3 - 8.0, 10.0)
-ax_shape.legend(loc="upper right", fontsize=8, title="outline; dots: contact",
-                title_fontsize=8)
+ax_shape.legend(loc="upper right", fontsize=8, title="outline; dots: contact", title_fontsize=8)
 
 ax_force.plot(pressures_kpa, force * 1e3, "o-", ms=3)
 ax_force.set_xlabel("chamber pressure (kPa)")

@@ -42,8 +42,7 @@ for (tensions, label), colour in zip(cases, colours, strict=True):
             offset = 15.06 * np.array([np.cos(angle), np.sin(angle), 0.0])
             path = r + np.einsum("nij,j->ni", sol.rotation, offset)
             side.plot(path[:, 0], path[:, 2], color=colour, lw=0.7, ls="--")
-for ax, (name, vertical) in zip((side, top), (("side view", "z"), ("top view", "y")),
-                                strict=True):
+for ax, (name, vertical) in zip((side, top), (("side view", "z"), ("top view", "y")), strict=True):
     ax.axvline(0.0, color="black", lw=3)  # the wall the base is clamped to
     ax.set_xlabel("x (mm)")
     ax.set_ylabel(f"{vertical} (mm)")

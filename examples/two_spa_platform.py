@@ -28,20 +28,27 @@ fig, axes = plt.subplots(1, 2, figsize=(9, 5.2), sharey=True)
 colours = plt.cm.viridis(np.linspace(0.0, 0.85, 4))
 previous = None
 for kpa, colour in zip((0, 20, 40, 60), colours, strict=True):
-    sol = softrod.solve_system(system, [[kpa * 1e3, 0.0, 0.0], [0.0, 0.0, 0.0]],
-                               initial=previous)
+    sol = softrod.solve_system(system, [[kpa * 1e3, 0.0, 0.0], [0.0, 0.0, 0.0]], initial=previous)
     previous = sol
     p = sol.platform_position
     tilt = math.degrees(math.acos(np.clip(sol.platform_rotation[2, 2], -1.0, 1.0)))
-    print(f"{kpa:3d} kPa: platform at {np.round(p * 1e3, 2)} mm, tilted {tilt:.2f} deg; "
-          f"tip reactions {[np.round(r.tip_reaction_force, 4).tolist() for r in sol.rods]} N")
+    print(
+        f"{kpa:3d} kPa: platform at {np.round(p * 1e3, 2)} mm, tilted {tilt:.2f} deg; "
+        f"tip reactions {[np.round(r.tip_reaction_force, 4).tolist() for r in sol.rods]} N"
+    )
     for ax, (a, b) in zip(axes, ((0, 2), (1, 2)), strict=True):
         for r in sol.rods:
             ax.plot(r.position[:, a] * 1e3, r.position[:, b] * 1e3, color=colour, lw=2)
         # The platform: the segment between the two attachments.
         ends = np.array([r.tip_position for r in sol.rods]) * 1e3
-        ax.plot(ends[:, a], ends[:, b], color=colour, lw=5, solid_capstyle="butt",
-                label=f"{kpa} kPa (tilt {tilt:.1f} deg)")
+        ax.plot(
+            ends[:, a],
+            ends[:, b],
+            color=colour,
+            lw=5,
+            solid_capstyle="butt",
+            label=f"{kpa} kPa (tilt {tilt:.1f} deg)",
+        )
 for ax, name in zip(axes, ("x", "y"), strict=True):
     ax.plot([-45, 45], [0, 0], color="black", lw=3)
     ax.set_xlabel(f"{name} (mm)")

@@ -26,7 +26,9 @@ echo "== installing softrod with its test and docs extras (builds the Rust core)
 "$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,docs]"
 echo "== format and lint"
 cargo fmt --all --check
-"$PY" -m ruff check python tests benchmarks
+cargo clippy --quiet -p softrod-core -p softrod-py --all-targets -- -D warnings
+"$PY" -m ruff format --check python tests benchmarks examples
+"$PY" -m ruff check python tests benchmarks examples
 echo "== Rust tests"
 cargo test -p softrod-core --quiet
 echo "== Python tests"

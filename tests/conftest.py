@@ -107,6 +107,5 @@ def ring_down_frequency(trajectory, t_start, axis=0):
     def model(t, a, s, w, ph, c):
         return a * np.exp(-s * t) * np.cos(w * t + ph) + c
 
-    p, _ = curve_fit(model, t[m], x[m], p0=[2 * xx.std(), 1.0, w0, 0.0, x[m].mean()],
-                     maxfev=20000)
+    p, _ = curve_fit(model, t[m], x[m], p0=[2 * xx.std(), 1.0, w0, 0.0, x[m].mean()], maxfev=20000)
     return p[2] / (2 * np.pi), p[1]

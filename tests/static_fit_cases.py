@@ -61,7 +61,8 @@ def run_case(name: str):
         sol = softrod.solve_statics_batch(mapped, p, stiffness_map=smap)
         rng = np.random.default_rng(5)
         data = softrod.Dataset(
-            pressures=p, tip_position=sol.tip_position + rng.normal(0, 1e-4, (len(p), 3)),
+            pressures=p,
+            tip_position=sol.tip_position + rng.normal(0, 1e-4, (len(p), 3)),
             experiment=exp,
         )
         return softrod.calibrate(m3, data, ["sigma_ext", "sigma_bend_1", "sigma_bend_2"])

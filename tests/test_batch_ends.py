@@ -34,8 +34,9 @@ COARSE = {"numerics": {"step_length": "13 mm"}}
 #: Hanging, its unloaded tip near (0, 0, -131 mm): pinned or clamped a little aside.
 PIN = TipConstraint.pinned(["4 mm", "-2 mm", "-127 mm"])
 #: The hanging tip frame (d3 down: Rx(pi)) turned by 5 degrees about y.
-TILTED = (softrod.constraints.rotation_from_vector([0.0, np.radians(5.0), 0.0])
-          @ np.diag([1.0, -1.0, -1.0]))
+TILTED = softrod.constraints.rotation_from_vector([0.0, np.radians(5.0), 0.0]) @ np.diag(
+    [1.0, -1.0, -1.0]
+)
 CLAMP = TipConstraint.clamped(["4 mm", "-2 mm", "-127 mm"], TILTED)
 HELD = {"pinned": PIN, "clamped": CLAMP}
 
@@ -88,23 +89,22 @@ def test_held_batch_equals_single_solves_bitwise(spa, kind):
     spread = np.ptp([s.tip_reaction_force for s in single], axis=0).max()
     assert spread > 1e-3  # the rows really differ
     for threads in (1, 2, 4):
-        batch = solve_statics_batch(spa, p, tip_constraint=c, threads=threads,
-                                    on_unstable="ignore")
+        batch = solve_statics_batch(spa, p, tip_constraint=c, threads=threads, on_unstable="ignore")
         assert batch.converged.all()
         assert batch.tip_constraint == kind and batch.x.shape == (len(p), 6)
         assert_rows_equal(batch, single)
     part = solve_statics_batch(spa, p[5:], tip_constraint=c, threads=3, on_unstable="ignore")
     assert_rows_equal(part, single[5:])
     # the tip is held where it was told
-    np.testing.assert_allclose(batch.tip_position, np.tile(c.position, (len(p), 1)),
-                               rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        batch.tip_position, np.tile(c.position, (len(p), 1)), rtol=0, atol=1e-9
+    )
     if kind == "pinned":
         assert (batch.tip_reaction_moment == 0).all()
 
 
 def test_design_file_constraint_is_the_default_and_free_overrides_it(spa):
-    held = spa.replace({"tip": {"constraint": "pinned",
-                                "position": ["4 mm", "-2 mm", "-127 mm"]}})
+    held = spa.replace({"tip": {"constraint": "pinned", "position": ["4 mm", "-2 mm", "-127 mm"]}})
     p = rows()[:4]
     batch = solve_statics_batch(held, p, on_unstable="ignore")
     assert batch.tip_constraint == "pinned"
@@ -123,8 +123,9 @@ def test_reaction_columns_in_the_table(spa, tmp_path):
     names = [f"tip_reaction_f{a}_N" for a in "xyz"] + [f"tip_reaction_m{a}_Nmm" for a in "xyz"]
     assert all(n in frame.columns for n in names)
     np.testing.assert_array_equal(frame[names[:3]].to_numpy(), batch.tip_reaction_force)
-    np.testing.assert_allclose(frame[names[3:]].to_numpy(), batch.tip_reaction_moment * 1e3,
-                               rtol=1e-15)
+    np.testing.assert_allclose(
+        frame[names[3:]].to_numpy(), batch.tip_reaction_moment * 1e3, rtol=1e-15
+    )
     meta = frame.attrs["softrod.metadata"]
     assert meta["tip_constraint"]["type"] == "clamped"
     assert all(n in meta["columns"] for n in names)
@@ -142,8 +143,9 @@ def test_failed_rows_are_kept_with_their_status(spa):
     they keep their values and one ValidityWarning says how many."""
     p = np.array([[0.0, 0.0, 0.0], [60e3, 0.0, 0.0], [5e3, 0.0, 0.0], [0.0, 60e3, 60e3]])
     opts = SolverOptions(stretch_range=(0.9, 1.1))
-    batch = solve_statics_batch(spa, p, tip_constraint=PIN, options=opts, threads=2,
-                                on_unstable="ignore")
+    batch = solve_statics_batch(
+        spa, p, tip_constraint=PIN, options=opts, threads=2, on_unstable="ignore"
+    )
     ok = batch.converged
     assert ok.any() and not ok.all(), batch.violation
     assert len(batch) == len(p)
@@ -157,13 +159,15 @@ def test_failed_rows_are_kept_with_their_status(spa):
     ok_rows = np.flatnonzero(ok)
     assert_rows_equal(batch, singles(spa, p[ok_rows], PIN, options=opts), rows=ok_rows)
     with pytest.warns(softrod.ValidityWarning, match="rows lie outside"):
-        warned = solve_statics_batch(spa, p, tip_constraint=PIN, options=opts,
-                                     on_invalid="warn", on_unstable="ignore")
+        warned = solve_statics_batch(
+            spa, p, tip_constraint=PIN, options=opts, on_invalid="warn", on_unstable="ignore"
+        )
     assert warned.converged.all()
     # a pose out of reach: every row fails, every row is kept
     far = TipConstraint.pinned(["0 mm", "0 mm", "-400 mm"])
-    out = solve_statics_batch(spa, p[:2], tip_constraint=far,
-                              options=SolverOptions(max_load_steps=8))
+    out = solve_statics_batch(
+        spa, p[:2], tip_constraint=far, options=SolverOptions(max_load_steps=8)
+    )
     assert len(out) == 2 and not out.converged.any()
     assert np.isnan(out.tip_reaction_force).all()
 
@@ -171,16 +175,26 @@ def test_failed_rows_are_kept_with_their_status(spa):
 def column_with_tendon():
     """An upright elastic column without gravity and one tendon (slack here): a design with
     no pressure channels, whose rows are tension rows."""
-    return load_design({
-        "design": {"name": "held_column", "citation": "closed-form check"},
-        "mounting": {"orientation": "upright", "gravity": "0 m/s^2"},
-        "sections": [{
-            "name": "rod", "length": "0.1 m", "mass": "10 g", "outer_radius": "5 mm",
-            "EA": "1e4 N", "GA": "5e3 N", "EI": "0.01 N*m^2", "GJ": "0.01 N*m^2",
-            "steps": 48,
-            "tendons": [{"channel": 0, "distance": "3 mm", "angle": "0 deg"}],
-        }],
-    })
+    return load_design(
+        {
+            "design": {"name": "held_column", "citation": "closed-form check"},
+            "mounting": {"orientation": "upright", "gravity": "0 m/s^2"},
+            "sections": [
+                {
+                    "name": "rod",
+                    "length": "0.1 m",
+                    "mass": "10 g",
+                    "outer_radius": "5 mm",
+                    "EA": "1e4 N",
+                    "GA": "5e3 N",
+                    "EI": "0.01 N*m^2",
+                    "GJ": "0.01 N*m^2",
+                    "steps": 48,
+                    "tendons": [{"channel": 0, "distance": "3 mm", "angle": "0 deg"}],
+                }
+            ],
+        }
+    )
 
 
 def test_stability_policies_apply_per_row():
@@ -192,26 +206,38 @@ def test_stability_policies_apply_per_row():
     c = TipConstraint.clamped([0.0, 0.0, 0.1 * (1 - 1.5 * pe / 1e4)], [0.0, 0.0, 0.0])
     t = np.zeros((2, 1))
     with pytest.warns(softrod.StabilityWarning, match="2 of 2 rows"):
-        batch = solve_statics_batch(d, np.zeros((2, 0)), tensions=t, tip_constraint=c,
-                                    options=SolverOptions(tol=1e-12))
+        batch = solve_statics_batch(
+            d, np.zeros((2, 0)), tensions=t, tip_constraint=c, options=SolverOptions(tol=1e-12)
+        )
     assert batch.converged.all() and batch.stability_assessed.all()
     assert not batch.stable.any()
     with pytest.raises(softrod.InvalidStateError) as exc:
-        solve_statics_batch(d, np.zeros((2, 0)), tensions=t, tip_constraint=c,
-                            options=SolverOptions(tol=1e-12), on_unstable="raise")
+        solve_statics_batch(
+            d,
+            np.zeros((2, 0)),
+            tensions=t,
+            tip_constraint=c,
+            options=SolverOptions(tol=1e-12),
+            on_unstable="raise",
+        )
     assert exc.value.rule == "stability"
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        solve_statics_batch(d, np.zeros((2, 0)), tensions=t, tip_constraint=c,
-                            options=SolverOptions(tol=1e-12), on_unstable="ignore")
+        solve_statics_batch(
+            d,
+            np.zeros((2, 0)),
+            tensions=t,
+            tip_constraint=c,
+            options=SolverOptions(tol=1e-12),
+            on_unstable="ignore",
+        )
 
 
 def test_tension_rows_equal_single_solves():
     d = column_with_tendon()
     c = TipConstraint.pinned(["1 mm", "0 mm", "99.8 mm"])
     t = np.array([[0.0], [0.5], [1.5]])
-    batch = solve_statics_batch(d, np.zeros((3, 0)), tensions=t, tip_constraint=c,
-                                threads=2)
+    batch = solve_statics_batch(d, np.zeros((3, 0)), tensions=t, tip_constraint=c, threads=2)
     single = [solve_statics(d, [], tensions=row, tip_constraint=c) for row in t]
     assert_rows_equal(batch, single)
     np.testing.assert_array_equal(batch.tensions, t)
@@ -224,11 +250,22 @@ def test_tension_rows_equal_single_solves():
         ({"pressures": [[0.0, float("nan"), 0.0]]}, "pressures[0][1]", "finite"),
         ({"tip_constraint": "glued"}, "tip_constraint.type", "glued"),
         ({"tip_constraint": {"type": "pinned"}}, "tip_constraint.position", "missing"),
-        ({"tip_constraint": {"type": "pinned", "position": [0, 0, 0], "x": 1}},
-         "tip_constraint", "unknown keys"),
-        ({"tip_constraint": {"type": "clamped", "position": [0, 0, -0.1],
-                             "orientation": [[1, 0.1, 0], [0, 1, 0], [0, 0, 1]]}},
-         "tip_constraint.orientation", "rotation matrix"),
+        (
+            {"tip_constraint": {"type": "pinned", "position": [0, 0, 0], "x": 1}},
+            "tip_constraint",
+            "unknown keys",
+        ),
+        (
+            {
+                "tip_constraint": {
+                    "type": "clamped",
+                    "position": [0, 0, -0.1],
+                    "orientation": [[1, 0.1, 0], [0, 1, 0], [0, 0, 1]],
+                }
+            },
+            "tip_constraint.orientation",
+            "rotation matrix",
+        ),
         ({"tensions": [[1.0]]}, "tensions", "no tendons"),
         ({"threads": -1}, "threads", ""),
     ],
@@ -245,8 +282,12 @@ def test_bad_inputs_are_refused_by_name(spa, kwargs, field, words):
 def test_negative_tension_is_refused_by_row():
     d = column_with_tendon()
     with pytest.raises(InputError) as exc:
-        solve_statics_batch(d, np.zeros((2, 0)), tensions=[[0.0], [-1.0]],
-                            tip_constraint=TipConstraint.pinned([0, 0, 0.1]))
+        solve_statics_batch(
+            d,
+            np.zeros((2, 0)),
+            tensions=[[0.0], [-1.0]],
+            tip_constraint=TipConstraint.pinned([0, 0, 0.1]),
+        )
     assert exc.value.field == "tensions[1, 0]" and ">= 0" in str(exc.value)
 
 
@@ -255,9 +296,15 @@ def test_cli_sweep_of_a_held_design(spa, run, tmp_path):
     reactions (the API's numbers) and the constraint in its metadata."""
     import pandas as pd
 
-    doc = spa.replace({"tip": {"constraint": "clamped",
-                               "position": ["4 mm", "-2 mm", "-127 mm"],
-                               "orientation": TILTED.tolist()}})
+    doc = spa.replace(
+        {
+            "tip": {
+                "constraint": "clamped",
+                "position": ["4 mm", "-2 mm", "-127 mm"],
+                "orientation": TILTED.tolist(),
+            }
+        }
+    )
     path = tmp_path / "held.toml"
     doc.save(path)
     out = tmp_path / "sweep.parquet"
@@ -265,8 +312,11 @@ def test_cli_sweep_of_a_held_design(spa, run, tmp_path):
     assert result.exit_code == 0, result.output
     frame = pd.read_parquet(out)
     assert len(frame) == 8
-    api = solve_statics_batch(load_design(path), frame[["p0_kPa", "p1_kPa", "p2_kPa"]]
-                              .to_numpy() * 1e3, on_unstable="ignore")
+    api = solve_statics_batch(
+        load_design(path),
+        frame[["p0_kPa", "p1_kPa", "p2_kPa"]].to_numpy() * 1e3,
+        on_unstable="ignore",
+    )
     np.testing.assert_array_equal(
         frame[[f"tip_reaction_f{a}_N" for a in "xyz"]].to_numpy(), api.tip_reaction_force
     )
@@ -324,10 +374,10 @@ def test_system_batch_equals_single_solves_bitwise(system):
                 np.testing.assert_array_equal(batch.tip_position[k, i], r.tip_position)
                 np.testing.assert_array_equal(batch.tip_rotation[k, i], r.tip_rotation)
                 np.testing.assert_array_equal(batch.base_force[k, i], r.force[0])
-                np.testing.assert_array_equal(batch.tip_reaction_force[k, i],
-                                              r.tip_reaction_force)
-                np.testing.assert_array_equal(batch.tip_reaction_moment[k, i],
-                                              r.tip_reaction_moment)
+                np.testing.assert_array_equal(batch.tip_reaction_force[k, i], r.tip_reaction_force)
+                np.testing.assert_array_equal(
+                    batch.tip_reaction_moment[k, i], r.tip_reaction_moment
+                )
     # an array of rows, and a platform load shared by every row
     arr = np.array(SYSTEM_ROWS)
     loaded = solve_system_batch(system, arr[1:3], platform_force=[0.0, 0.05, 0.0])
@@ -345,9 +395,17 @@ def test_system_batch_table_and_failed_rows(system):
         with pytest.raises(softrod.ConvergenceError):
             solve_system(system, SYSTEM_ROWS[k], options=tight)
     frame = solve_system_batch(system, SYSTEM_ROWS[:2]).to_frame()
-    for name in ("rod0_p0_kPa", "rod1_p2_kPa", "platform_x_mm", "platform_qw",
-                 "rod1_tip_z_mm", "rod0_tip_reaction_fz_N", "rod1_tip_reaction_my_Nmm",
-                 "converged", "stable"):
+    for name in (
+        "rod0_p0_kPa",
+        "rod1_p2_kPa",
+        "platform_x_mm",
+        "platform_qw",
+        "rod1_tip_z_mm",
+        "rod0_tip_reaction_fz_N",
+        "rod1_tip_reaction_my_Nmm",
+        "converged",
+        "stable",
+    ):
         assert name in frame.columns, name
     assert frame["rod0_p0_kPa"].tolist() == [0.0, 40.0]
     assert frame.attrs["softrod.metadata"]["system"] == "two_spa_platform"

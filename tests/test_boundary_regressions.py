@@ -28,6 +28,8 @@ from fuzzing import CliArgs, Pool
 SPA = "spa_three_chamber_130mm"
 BODY = "sections[1]"
 QUICK_S = 2.0  # a refusal is instant: well under this, even on a loaded 2-core machine
+
+
 def _doc(entries):
     return with_entries(SPA, entries)
 
@@ -54,140 +56,349 @@ CASES = [
         for c in (10**12, 2**63 - 1, 2**64 - 1)
     ),
     # --- hangs and memory exhaustion -------------------------------------------------------------
-    ("pint-expression-design", ("design", _doc({f"{BODY}.length": "10**10**10 mm"})), "error",
-     f"{BODY}.length"),
-    ("pint-expression-pressure",
-     ("statics", {"design": SPA, "pressures": ["10**10**10 Pa", 0, 0]}), "error", "pressures[0]"),
-    ("pint-expression-cli-pressure",
-     ("cli", CliArgs(["solve", SPA, "--pressure", "10**10**10 Pa,0,0"])), "error", "--pressure"),
-    ("pint-expression-cli-grid",
-     ("cli", CliArgs(["sweep", SPA, "--grid", "0:10**10**10 kPa:3", "--out", "o.csv"])),
-     "error", "--grid"),
-    ("pint-expression-dataset-header",
-     ("dataset_file", {"data": CSV_OK.replace("p0_kPa", "p0_10**10**10kPa").encode()}),
-     "error", "p0_10**10**10kPa"),
-    ("huge-channel-dataset-header",
-     ("dataset_file", {"data": CSV_OK.replace("p2_kPa", "p99999999999999999999_kPa").encode()}),
-     "error", "p99999999999999999999_kPa"),
-    ("huge-channel-calibrate",
-     ("cli", CliArgs(["calibrate", SPA, "d.csv", "--params", "c_b"],
-                     {"d.csv": CSV_OK.replace("p2_kPa", "p99999999999999999999_kPa").encode()})),
-     "error", "p99999999999999999999_kPa"),
-    ("threads-100000",
-     ("batch", {"design": SPA, "pressures": np.zeros((2, 3)), "kwargs": {"threads": 100000}}),
-     "error", "threads"),
-    ("threads-100000-cli",
-     ("cli", CliArgs(["sweep", SPA, "--grid", "0:1kPa:2", "--out", "o.csv", "--threads",
-                      "100000"])), "error", "--threads"),
-    ("dt-1e-9", ("simulate", {"design": SPA, "schedule": [0, 0, 0], "t_end": 1.0,
-                              "kwargs": {"dt": 1e-9}}), "error", "t_end"),
-    ("t_end-1e9", ("simulate", {"design": SPA, "schedule": [0, 0, 0], "t_end": 1e9}), "error",
-     "t_end"),
+    (
+        "pint-expression-design",
+        ("design", _doc({f"{BODY}.length": "10**10**10 mm"})),
+        "error",
+        f"{BODY}.length",
+    ),
+    (
+        "pint-expression-pressure",
+        ("statics", {"design": SPA, "pressures": ["10**10**10 Pa", 0, 0]}),
+        "error",
+        "pressures[0]",
+    ),
+    (
+        "pint-expression-cli-pressure",
+        ("cli", CliArgs(["solve", SPA, "--pressure", "10**10**10 Pa,0,0"])),
+        "error",
+        "--pressure",
+    ),
+    (
+        "pint-expression-cli-grid",
+        ("cli", CliArgs(["sweep", SPA, "--grid", "0:10**10**10 kPa:3", "--out", "o.csv"])),
+        "error",
+        "--grid",
+    ),
+    (
+        "pint-expression-dataset-header",
+        ("dataset_file", {"data": CSV_OK.replace("p0_kPa", "p0_10**10**10kPa").encode()}),
+        "error",
+        "p0_10**10**10kPa",
+    ),
+    (
+        "huge-channel-dataset-header",
+        ("dataset_file", {"data": CSV_OK.replace("p2_kPa", "p99999999999999999999_kPa").encode()}),
+        "error",
+        "p99999999999999999999_kPa",
+    ),
+    (
+        "huge-channel-calibrate",
+        (
+            "cli",
+            CliArgs(
+                ["calibrate", SPA, "d.csv", "--params", "c_b"],
+                {"d.csv": CSV_OK.replace("p2_kPa", "p99999999999999999999_kPa").encode()},
+            ),
+        ),
+        "error",
+        "p99999999999999999999_kPa",
+    ),
+    (
+        "threads-100000",
+        ("batch", {"design": SPA, "pressures": np.zeros((2, 3)), "kwargs": {"threads": 100000}}),
+        "error",
+        "threads",
+    ),
+    (
+        "threads-100000-cli",
+        (
+            "cli",
+            CliArgs(["sweep", SPA, "--grid", "0:1kPa:2", "--out", "o.csv", "--threads", "100000"]),
+        ),
+        "error",
+        "--threads",
+    ),
+    (
+        "dt-1e-9",
+        ("simulate", {"design": SPA, "schedule": [0, 0, 0], "t_end": 1.0, "kwargs": {"dt": 1e-9}}),
+        "error",
+        "t_end",
+    ),
+    (
+        "t_end-1e9",
+        ("simulate", {"design": SPA, "schedule": [0, 0, 0], "t_end": 1e9}),
+        "error",
+        "t_end",
+    ),
     # --- silently wrong values -------------------------------------------------------------------
-    ("deg-as-pressure", ("statics", {"design": SPA, "pressures": ["30 deg", 0, 0]}), "error",
-     "pressures[0]"),
+    (
+        "deg-as-pressure",
+        ("statics", {"design": SPA, "pressures": ["30 deg", 0, 0]}),
+        "error",
+        "pressures[0]",
+    ),
     ("deg-as-length", ("design", _doc({f"{BODY}.length": "30 deg"})), "error", f"{BODY}.length"),
     ("percent-as-length", ("design", _doc({f"{BODY}.length": "5 %"})), "error", f"{BODY}.length"),
-    ("mm-per-m-as-length", ("design", _doc({f"{BODY}.length": "5 mm/m"})), "error",
-     f"{BODY}.length"),
+    (
+        "mm-per-m-as-length",
+        ("design", _doc({f"{BODY}.length": "5 mm/m"})),
+        "error",
+        f"{BODY}.length",
+    ),
     ("percent-as-mass", ("design", _doc({"tip.mass": "0.5 %"})), "error", "tip.mass"),
-    ("bare-number-length", ("design", _doc({f"{BODY}.length": 90})), "error", "units = \"SI\""),
-    ("dict-of-pressures",
-     ("statics", {"design": SPA, "pressures": {0: 3e4, 1: 0.0, 2: 0.0}}), "error", "pressures"),
-    ("complex-pressures", ("statics", {"design": SPA, "pressures": [3e4 + 1j, 0, 0]}), "error",
-     "pressures[0]"),
-    ("complex-batch",
-     ("batch", {"design": SPA, "pressures": np.ones((2, 3), dtype=complex)}), "error", "complex"),
-    ("masked-row-batch",
-     ("batch", {"design": SPA,
-                "pressures": np.ma.masked_array(np.zeros((2, 3)), mask=[[1, 0, 0], [0, 0, 0]])}),
-     "error", "masked"),
-    ("bools-batch", ("batch", {"design": SPA, "pressures": np.ones((2, 3), dtype=bool)}),
-     "error", "booleans"),
-    ("numpy-scalars-batch",
-     ("batch", {"design": SPA, "pressures": [[np.float32(1e3), np.int64(0), 0.0]]}),
-     *ACCEPTED),
-    ("numpy-scalars-single",
-     ("statics", {"design": SPA, "pressures": [np.float32(1e3), np.int64(0), 0.0]}), *ACCEPTED),
-    ("timestamp-column",
-     ("dataset_frame", {"frame": pd.DataFrame({
-         "p0_kPa": pd.to_datetime(["2020-01-01"]), "p1_kPa": [0.0], "p2_kPa": [0.0],
-         "tip_x_mm": [0.0], "tip_y_mm": [0.0], "tip_z_mm": [-130.0]})}), "error", "p0_kPa"),
+    ("bare-number-length", ("design", _doc({f"{BODY}.length": 90})), "error", 'units = "SI"'),
+    (
+        "dict-of-pressures",
+        ("statics", {"design": SPA, "pressures": {0: 3e4, 1: 0.0, 2: 0.0}}),
+        "error",
+        "pressures",
+    ),
+    (
+        "complex-pressures",
+        ("statics", {"design": SPA, "pressures": [3e4 + 1j, 0, 0]}),
+        "error",
+        "pressures[0]",
+    ),
+    (
+        "complex-batch",
+        ("batch", {"design": SPA, "pressures": np.ones((2, 3), dtype=complex)}),
+        "error",
+        "complex",
+    ),
+    (
+        "masked-row-batch",
+        (
+            "batch",
+            {
+                "design": SPA,
+                "pressures": np.ma.masked_array(np.zeros((2, 3)), mask=[[1, 0, 0], [0, 0, 0]]),
+            },
+        ),
+        "error",
+        "masked",
+    ),
+    (
+        "bools-batch",
+        ("batch", {"design": SPA, "pressures": np.ones((2, 3), dtype=bool)}),
+        "error",
+        "booleans",
+    ),
+    (
+        "numpy-scalars-batch",
+        ("batch", {"design": SPA, "pressures": [[np.float32(1e3), np.int64(0), 0.0]]}),
+        *ACCEPTED,
+    ),
+    (
+        "numpy-scalars-single",
+        ("statics", {"design": SPA, "pressures": [np.float32(1e3), np.int64(0), 0.0]}),
+        *ACCEPTED,
+    ),
+    (
+        "timestamp-column",
+        (
+            "dataset_frame",
+            {
+                "frame": pd.DataFrame(
+                    {
+                        "p0_kPa": pd.to_datetime(["2020-01-01"]),
+                        "p1_kPa": [0.0],
+                        "p2_kPa": [0.0],
+                        "tip_x_mm": [0.0],
+                        "tip_y_mm": [0.0],
+                        "tip_z_mm": [-130.0],
+                    }
+                )
+            },
+        ),
+        "error",
+        "p0_kPa",
+    ),
     ("missing-orientation", ("design", _without_orientation()), "error", "mounting.orientation"),
-    ("max_iter-1.5", ("api", {"function": "SolverOptions", "kwargs": {"max_iter": 1.5}}),
-     "error", "max_iter"),
+    (
+        "max_iter-1.5",
+        ("api", {"function": "SolverOptions", "kwargs": {"max_iter": 1.5}}),
+        "error",
+        "max_iter",
+    ),
     # --- raw Python exceptions -------------------------------------------------------------------
     ("huge-int-mass", ("design", _doc({"tip.mass": 10**400})), "error", "tip.mass"),
     ("huge-radius", ("design", _doc({f"{BODY}.outer_radius": "1e300 mm"})), "error", None),
-    ("orientation-list", ("design", _doc({"mounting.orientation": ["hanging"]})), "error",
-     "mounting.orientation"),
-    ("simulate-save_every-huge",
-     ("simulate", {"design": SPA, "schedule": [0, 0, 0], "t_end": "20 ms",
-                   "kwargs": {"save_every": 2**70}}), "error", "save_every"),
-    ("simulate-shapes-huge",
-     ("simulate", {"design": SPA, "schedule": [0, 0, 0], "t_end": "20 ms",
-                   "kwargs": {"shapes": [1e300]}}), "error", "after the run's end"),
-    ("simulate-pressures-short",
-     ("simulate", {"design": SPA, "schedule": [0, 0], "t_end": "20 ms"}), "error", None),
-    ("binary-dataset", ("dataset_file", {"data": b"\x89PNG\r\n\x1a\n\x00\x00\xff"}), "error",
-     "file"),
+    (
+        "orientation-list",
+        ("design", _doc({"mounting.orientation": ["hanging"]})),
+        "error",
+        "mounting.orientation",
+    ),
+    (
+        "simulate-save_every-huge",
+        (
+            "simulate",
+            {
+                "design": SPA,
+                "schedule": [0, 0, 0],
+                "t_end": "20 ms",
+                "kwargs": {"save_every": 2**70},
+            },
+        ),
+        "error",
+        "save_every",
+    ),
+    (
+        "simulate-shapes-huge",
+        (
+            "simulate",
+            {"design": SPA, "schedule": [0, 0, 0], "t_end": "20 ms", "kwargs": {"shapes": [1e300]}},
+        ),
+        "error",
+        "after the run's end",
+    ),
+    (
+        "simulate-pressures-short",
+        ("simulate", {"design": SPA, "schedule": [0, 0], "t_end": "20 ms"}),
+        "error",
+        None,
+    ),
+    (
+        "binary-dataset",
+        ("dataset_file", {"data": b"\x89PNG\r\n\x1a\n\x00\x00\xff"}),
+        "error",
+        "file",
+    ),
     ("utf16-dataset", ("dataset_file", {"data": CSV_OK.encode("utf-16")}), "error", "UTF-16"),
     # Found by a --fuzz-long run: an integer of 401 digits in a cell (pandas overflowed).
-    ("schedule-huge-int-cell",
-     ("dataset_file", {"reader": "schedule", "suffix": ".csv",
-                       "data": f"time_s,p0_kPa,p1_kPa\n0,0,0\n1,1{'0' * 400},0\n".encode()}),
-     "error", "p0_kPa"),
-    ("dataset-huge-int-cell",
-     ("dataset_file", {"data": CSV_OK.replace("10,0,0,1", f"1{'0' * 400},0,0,1").encode()}),
-     "error", "p0_kPa"),
-    ("nested-metadata",
-     ("dataset_file", {"data": ("# metadata: " + "[" * 5000 + "]" * 5000 + "\n" + CSV_OK)
-                       .encode()}), "error", "metadata"),
-    ("calibrate-binary-data",
-     ("cli", CliArgs(["calibrate", SPA, "d.csv", "--params", "c_b"], {"d.csv": b"\xff\xfe\x00"})),
-     "error", "d.csv"),
-    ("simulate-input-binary",
-     ("cli", CliArgs(["simulate", SPA, "--input", "s.csv", "--out", "t.npz"], {"s.csv": b"\xff"})),
-     "error", "s.csv"),
-    ("sweep-bare-grid",
-     ("cli", CliArgs(["sweep", SPA, "--grid", "0:70000:3", "--out", "o.csv"])), "error",
-     "--grid"),
+    (
+        "schedule-huge-int-cell",
+        (
+            "dataset_file",
+            {
+                "reader": "schedule",
+                "suffix": ".csv",
+                "data": f"time_s,p0_kPa,p1_kPa\n0,0,0\n1,1{'0' * 400},0\n".encode(),
+            },
+        ),
+        "error",
+        "p0_kPa",
+    ),
+    (
+        "dataset-huge-int-cell",
+        ("dataset_file", {"data": CSV_OK.replace("10,0,0,1", f"1{'0' * 400},0,0,1").encode()}),
+        "error",
+        "p0_kPa",
+    ),
+    (
+        "nested-metadata",
+        (
+            "dataset_file",
+            {"data": ("# metadata: " + "[" * 5000 + "]" * 5000 + "\n" + CSV_OK).encode()},
+        ),
+        "error",
+        "metadata",
+    ),
+    (
+        "calibrate-binary-data",
+        (
+            "cli",
+            CliArgs(["calibrate", SPA, "d.csv", "--params", "c_b"], {"d.csv": b"\xff\xfe\x00"}),
+        ),
+        "error",
+        "d.csv",
+    ),
+    (
+        "simulate-input-binary",
+        (
+            "cli",
+            CliArgs(["simulate", SPA, "--input", "s.csv", "--out", "t.npz"], {"s.csv": b"\xff"}),
+        ),
+        "error",
+        "s.csv",
+    ),
+    (
+        "sweep-bare-grid",
+        ("cli", CliArgs(["sweep", SPA, "--grid", "0:70000:3", "--out", "o.csv"])),
+        "error",
+        "--grid",
+    ),
     # --- errors that say where -------------------------------------------------------------------
-    ("json-type-steps", ("design", _doc({"numerics.steps_per_section": 2**64})), "error",
-     "numerics.steps_per_section"),
-    ("json-type-partition",
-     ("design", with_entries("modular_two_module", {"sections[1].partition.j": 1.5})), "error",
-     "sections[1].partition.j"),
-    ("inline-material-E",
-     ("design", _doc({"materials.ecoflex_00_50_table1.E": "0 kPa"})), "error",
-     "materials.ecoflex_00_50_table1.E"),
-    ("calibrate-names-the-line",
-     ("cli", CliArgs(["calibrate", SPA, "d.csv", "--params", "c_b"],
-                     {"d.csv": ("# data\n" + CSV_OK.replace("10,0,0", "-200,0,0")).encode()})),
-     "error", "line 4"),
-    ("missing-target-folder",
-     ("cli", CliArgs(["sweep", SPA, "--grid", "0:1kPa:2", "--out", "nowhere/o.csv"])), "error",
-     "nowhere/o.csv"),
+    (
+        "json-type-steps",
+        ("design", _doc({"numerics.steps_per_section": 2**64})),
+        "error",
+        "numerics.steps_per_section",
+    ),
+    (
+        "json-type-partition",
+        ("design", with_entries("modular_two_module", {"sections[1].partition.j": 1.5})),
+        "error",
+        "sections[1].partition.j",
+    ),
+    (
+        "inline-material-E",
+        ("design", _doc({"materials.ecoflex_00_50_table1.E": "0 kPa"})),
+        "error",
+        "materials.ecoflex_00_50_table1.E",
+    ),
+    (
+        "calibrate-names-the-line",
+        (
+            "cli",
+            CliArgs(
+                ["calibrate", SPA, "d.csv", "--params", "c_b"],
+                {"d.csv": ("# data\n" + CSV_OK.replace("10,0,0", "-200,0,0")).encode()},
+            ),
+        ),
+        "error",
+        "line 4",
+    ),
+    (
+        "missing-target-folder",
+        ("cli", CliArgs(["sweep", SPA, "--grid", "0:1kPa:2", "--out", "nowhere/o.csv"])),
+        "error",
+        "nowhere/o.csv",
+    ),
 ]
 
 RUST_CASES = [
     # rotations that are not rotations, returned as converged (coarse steps, long module)
-    ("rotation-coarse-steps",
-     ("statics", {"design": "pam_arm_220mm", "pressures": [1e6, 0, 0],
-                  "changes": {"numerics": {"steps_per_section": 4}},
-                  "kwargs": {"options": "<default solver options>"}})),
+    (
+        "rotation-coarse-steps",
+        (
+            "statics",
+            {
+                "design": "pam_arm_220mm",
+                "pressures": [1e6, 0, 0],
+                "changes": {"numerics": {"steps_per_section": 4}},
+                "kwargs": {"options": "<default solver options>"},
+            },
+        ),
+    ),
     # the rod turned inside out (v3 < 0) under a compressive tip force
-    ("negative-stretch",
-     ("statics", {"design": SPA, "pressures": [0, 0, 0], "kwargs": {
-         "tip_force": [0.0, 0.0, 100.0], "options": "<default solver options>"}})),
+    (
+        "negative-stretch",
+        (
+            "statics",
+            {
+                "design": SPA,
+                "pressures": [0, 0, 0],
+                "kwargs": {"tip_force": [0.0, 0.0, 100.0], "options": "<default solver options>"},
+            },
+        ),
+    ),
 ]
 
 
 def test_dynamic_rotations_stay_rotations(pool):
     # A ramp to 10 MPa in 50 ms: the tip rotation came back with det 0.736.
     ramp = softrod.PressureSchedule.piecewise_linear([0, 0.05], [[0, 0, 0], [1e7, 0, 0]])
-    case = ("simulate", {"design": "pam_arm_220mm", "schedule": ramp, "t_end": 0.1,
-                         "kwargs": {"dt": 5e-3, "progress": False}})
+    case = (
+        "simulate",
+        {
+            "design": "pam_arm_220mm",
+            "schedule": ramp,
+            "t_end": 0.1,
+            "kwargs": {"dt": 5e-3, "progress": False},
+        },
+    )
     (out,) = pool.run([case])
     assert out.kind in ("ok", "error"), out
 

@@ -230,7 +230,11 @@ def test_cli_fits_time_series_with_standard_errors(trajectory_data, run, tmp_pat
 def test_the_fallback_reports_in_the_one_format(trajectory_data, tmp_path):
     with pytest.warns(CalibrationWarning):  # 8 evaluations: also "stopped without converging"
         res = softrod.calibrate(
-            ARM, trajectory_data, ["damping_time"], dynamic=True, method="nelder-mead",
+            ARM,
+            trajectory_data,
+            ["damping_time"],
+            dynamic=True,
+            method="nelder-mead",
             max_evaluations=8,
         )
     assert any("without converging" in w for w in res.warnings)

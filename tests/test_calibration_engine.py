@@ -64,9 +64,7 @@ def m3():
 
 def _ramps(n=4, top=50e3):
     ramp = top * np.arange(1, n + 1) / n
-    return np.vstack(
-        [np.outer(ramp, q) for q in ([1, 0, 0], [0, 1, 0], [0, 0, 1], [0.6, 0.4, 0])]
-    )
+    return np.vstack([np.outer(ramp, q) for q in ([1, 0, 0], [0, 1, 0], [0, 0, 1], [0.6, 0.4, 0])])
 
 
 def _null_vector(message: str) -> dict[str, float]:
@@ -154,7 +152,11 @@ def _measured(design, seed: int, tip: bool = False):
     params = parse_parameters([E_NAME, RHO_NAME], design)
     truth = design.replace(design_changes(params, [TRUTH_E, TRUTH_RHO], design))
     data = softrod.synthesize_dataset(
-        truth, _ramps(n=5, top=40e3), markers=MARKERS, tip=tip, noise_mm=MOCAP_NOISE_MM,
+        truth,
+        _ramps(n=5, top=40e3),
+        markers=MARKERS,
+        tip=tip,
+        noise_mm=MOCAP_NOISE_MM,
         seed=seed,
     )
     base = np.asarray(design.spec["mounting"]["base_position"])
@@ -323,7 +325,9 @@ def test_weights_scale_each_quantity():
     design = _mocap_design()
     data = _measured(design, 7, tip=True)
     res = calibrate(
-        design, data, [E_NAME, RHO_NAME, *REGISTRATION],
+        design,
+        data,
+        [E_NAME, RHO_NAME, *REGISTRATION],
         weights={"tip": f"{MOCAP_NOISE_MM} mm", "markers": f"{MOCAP_NOISE_MM} mm"},
     )
     n = 3 * (len(data) + data.markers.shape[0] * data.markers.shape[1])

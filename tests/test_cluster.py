@@ -87,7 +87,11 @@ def test_sweep_on_the_cluster_equals_the_single_process_batch(client, design):
     p = grid(8)  # 512 rows
     seen = []
     out = solve_statics_batch(
-        design, p, threads=1, executor=client, chunk_size=64,
+        design,
+        p,
+        threads=1,
+        executor=client,
+        chunk_size=64,
         progress=lambda done, total: seen.append((done, total)),
     )
     assert_batch_equal(out, in_chunks(design, p, 64))
@@ -102,8 +106,15 @@ def test_held_tip_batch_on_the_cluster_equals_the_local_batch(client, design):
     cold, so the cluster's chunks give bitwise the one local call, reactions included."""
     pin = softrod.TipConstraint.pinned(["4 mm", "-2 mm", "-127 mm"])
     p = grid(3)  # 27 rows in 4 chunks
-    out = solve_statics_batch(design, p, threads=1, executor=client, chunk_size=8,
-                              tip_constraint=pin, on_unstable="ignore")
+    out = solve_statics_batch(
+        design,
+        p,
+        threads=1,
+        executor=client,
+        chunk_size=8,
+        tip_constraint=pin,
+        on_unstable="ignore",
+    )
     ref = solve_statics_batch(design, p, threads=2, tip_constraint=pin, on_unstable="ignore")
     assert out.converged.all() and out.tip_constraint == "pinned"
     for k in (*BATCH_FIELDS, "tip_reaction_force", "tip_reaction_moment", "stable"):
@@ -146,7 +157,9 @@ def test_per_sample_identification_on_the_cluster(client, design):
     )
     batch = solve_statics_batch(mapped, p, stiffness_map=truth)
     data = softrod.Dataset(
-        pressures=p, tip_position=batch.tip_position, tip_rotation=batch.tip_rotation,
+        pressures=p,
+        tip_position=batch.tip_position,
+        tip_rotation=batch.tip_rotation,
         metadata={"synthetic": True},
     )
     rows = 16
@@ -155,8 +168,17 @@ def test_per_sample_identification_on_the_cluster(client, design):
         identify_stiffness(design, data.subset(np.arange(lo, lo + rows)), threads=1)
         for lo in range(0, len(p), rows)
     ]
-    for name in ("sigma", "sigma_solver", "sensitivity", "tip_position", "residual_mm",
-                 "iterations", "status", "identifiable", "at_bound"):
+    for name in (
+        "sigma",
+        "sigma_solver",
+        "sensitivity",
+        "tip_position",
+        "residual_mm",
+        "iterations",
+        "status",
+        "identifiable",
+        "at_bound",
+    ):
         ref = np.concatenate([getattr(r, name) for r in parts])
         np.testing.assert_array_equal(getattr(ident, name), ref, err_msg=name)
     assert ident.design.spec == parts[0].design.spec

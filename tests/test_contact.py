@@ -100,10 +100,18 @@ def test_rod_on_a_sphere_cylinder_and_capsule_balance_and_point_through_the_cent
         {"kind": "sphere", "center": [f"{v * 1e3} mm" for v in centre], "radius": "50 mm"},
         # A cylinder across the beam (axis y) and a capsule along y through the same
         # centre touch it the same way.
-        {"kind": "cylinder", "point": [f"{v * 1e3} mm" for v in centre], "axis": [0, 1, 0],
-         "radius": "50 mm"},
-        {"kind": "capsule", "start": ["500 mm", "-30 mm", "-52 mm"],
-         "end": ["500 mm", "30 mm", "-52 mm"], "radius": "50 mm"},
+        {
+            "kind": "cylinder",
+            "point": [f"{v * 1e3} mm" for v in centre],
+            "axis": [0, 1, 0],
+            "radius": "50 mm",
+        },
+        {
+            "kind": "capsule",
+            "start": ["500 mm", "-30 mm", "-52 mm"],
+            "end": ["500 mm", "30 mm", "-52 mm"],
+            "radius": "50 mm",
+        },
     ]
     totals = []
     for shape in shapes:
@@ -165,8 +173,13 @@ def test_finger_pressed_onto_the_table():
     ],
 )
 def test_bad_obstacles_name_field_value_and_rule(change, field, words):
-    ob = {"kind": "sphere", "center": ["0 mm", "0 mm", "-60 mm"], "radius": "50 mm",
-          "stiffness": "1e6 N/m^2", "tolerance": "0.1 mm"}
+    ob = {
+        "kind": "sphere",
+        "center": ["0 mm", "0 mm", "-60 mm"],
+        "radius": "50 mm",
+        "stiffness": "1e6 N/m^2",
+        "tolerance": "0.1 mm",
+    }
     ob.update(change)
     with pytest.raises(DesignError) as info:
         load_design(beam_over(ob))
@@ -175,8 +188,12 @@ def test_bad_obstacles_name_field_value_and_rule(change, field, words):
 
 
 def test_missing_obstacle_keys_and_friction_in_statics():
-    ob = {"kind": "sphere", "center": ["0 mm", "0 mm", "-60 mm"], "radius": "50 mm",
-          "tolerance": "0.1 mm"}
+    ob = {
+        "kind": "sphere",
+        "center": ["0 mm", "0 mm", "-60 mm"],
+        "radius": "50 mm",
+        "tolerance": "0.1 mm",
+    }
     with pytest.raises(DesignError, match=r"obstacles\[0\]\.stiffness"):
         load_design(beam_over(ob))
     ob["stiffness"] = "1e6 N/m^2"
@@ -243,12 +260,20 @@ def test_property_contact_answers_are_balanced_or_errors(height_mm, k_exp, radiu
     says why (never NaN, never a silent penetration)."""
     tol_mm = 0.5
     if kind == "plane":
-        ob = plane(height_mm, stiffness=f"{10**k_exp} N/m^2", tolerance=f"{tol_mm} mm",
-                   smoothing=f"{tol_mm / 10} mm")
+        ob = plane(
+            height_mm,
+            stiffness=f"{10**k_exp} N/m^2",
+            tolerance=f"{tol_mm} mm",
+            smoothing=f"{tol_mm / 10} mm",
+        )
     else:
-        ob = {"kind": "sphere", "center": [f"{x_mm} mm", "0 mm", f"{height_mm - radius_mm} mm"],
-              "radius": f"{radius_mm} mm", "stiffness": f"{10**k_exp} N/m^2",
-              "tolerance": f"{tol_mm} mm"}
+        ob = {
+            "kind": "sphere",
+            "center": [f"{x_mm} mm", "0 mm", f"{height_mm - radius_mm} mm"],
+            "radius": f"{radius_mm} mm",
+            "stiffness": f"{10**k_exp} N/m^2",
+            "tolerance": f"{tol_mm} mm",
+        }
     design = load_design(beam_over(ob, steps=100))
     try:
         sol = solve_statics(design, [])

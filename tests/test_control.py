@@ -102,8 +102,11 @@ def test_unreachable_target_closest_pose_is_on_the_workspace_boundary(spa, sweep
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
-    x=st.floats(-0.08, 0.08), y=st.floats(-0.08, 0.08), z=st.floats(-0.2, -0.05),
-    lo=st.floats(0.0, 30e3), width=st.floats(5e3, 60e3),
+    x=st.floats(-0.08, 0.08),
+    y=st.floats(-0.08, 0.08),
+    z=st.floats(-0.2, -0.05),
+    lo=st.floats(0.0, 30e3),
+    width=st.floats(5e3, 60e3),
 )
 def test_bounds_are_never_violated(x, y, z, lo, width):
     """Any target, any box: the pressures stay inside the bounds, and the answer either
@@ -115,7 +118,8 @@ def test_bounds_are_never_violated(x, y, z, lo, width):
     sol = solve_inverse(design, [x, y, z], pressure_bounds=(lo, hi), on_invalid="ignore")
     assert np.all(sol.pressures >= lo) and np.all(sol.pressures <= hi)
     assert sol.reached == (sol.distance <= math.sqrt(3) * 1e-10 * design.length) or (
-        not sol.reached)
+        not sol.reached
+    )
     if sol.reached:
         assert sol.distance <= 1e-9 * design.length
 
@@ -147,8 +151,9 @@ def test_stacked_modules_with_split_channels():
     sol = solve_inverse(design, st_.tip_position, pressure_bounds="0:100 kPa")
     assert sol.reached
     assert np.sum(sol.pressures**2) < np.sum(p**2)
-    pose = solve_inverse(design, st_.tip_position, orientation=st_.tip_rotation,
-                         pressure_bounds="0:100 kPa")
+    pose = solve_inverse(
+        design, st_.tip_position, orientation=st_.tip_rotation, pressure_bounds="0:100 kPa"
+    )
     assert pose.reached and pose.angle < 1e-9
     assert np.allclose(pose.pressures, p, atol=1e-6 * 100e3)
 
@@ -160,8 +165,9 @@ def test_an_unstable_answer_is_refused(spa):
     refuses the answer; with on_unstable="warn" it returns it marked unstable."""
     ei = min(min(s["k_bt"][0][0], s["k_bt"][1][1]) for s in spa.sections() if not s["rigid"])
     p_cr = math.pi**2 * ei / (4 * spa.length**2)  # below the true one: the softest section
-    up = spa.replace({"mounting.orientation": "upright",
-                      "tip.mass": f"{5 * p_cr / 9.81 * 1e3:.1f} g"})
+    up = spa.replace(
+        {"mounting.orientation": "upright", "tip.mass": f"{5 * p_cr / 9.81 * 1e3:.1f} g"}
+    )
     with pytest.warns(softrod.StabilityWarning):
         column = solve_statics(up, [0, 0, 0])
     assert not column.stable
@@ -200,8 +206,7 @@ def test_bad_inputs_are_named(spa):
 def test_orientation_target_and_point_along_the_rod(spa):
     p = np.array([40e3, 12e3, 3e3])
     st_ = solve_statics(spa, p)
-    sol = solve_inverse(spa, st_.tip_position, orientation=st_.tip_rotation,
-                        pressure_bounds=BOUNDS)
+    sol = solve_inverse(spa, st_.tip_position, orientation=st_.tip_rotation, pressure_bounds=BOUNDS)
     assert sol.reached and sol.angle < 1e-9
     assert np.allclose(sol.pressures, p, atol=1e-6 * P_MAX)
     s = 0.07  # inside the chambered body
@@ -229,33 +234,44 @@ def test_jacobian_matches_finite_differences_of_whole_solves(spa):
         dr = (rp - rm) / (2 * h)
         dR = (Rp - Rm) / (2 * h)
         w = dR @ base.tip_rotation.T
-        return np.concatenate([dr, 0.5 * np.array([w[2, 1] - w[1, 2], w[0, 2] - w[2, 0],
-                                                    w[1, 0] - w[0, 1]])])
+        return np.concatenate(
+            [dr, 0.5 * np.array([w[2, 1] - w[1, 2], w[0, 2] - w[2, 0], w[1, 0] - w[0, 1]])]
+        )
 
     def check(fd, exact):
         assert np.linalg.norm(fd - exact) <= 1e-5 * np.linalg.norm(fd), (fd, exact)
 
     for c in range(3):
         dp = np.eye(3)[c]
-        fd = column(solve_statics(spa, p + dp, tip_force=tf, tip_moment=tm, options=opts),
-                    solve_statics(spa, p - dp, tip_force=tf, tip_moment=tm, options=opts), 1.0)
+        fd = column(
+            solve_statics(spa, p + dp, tip_force=tf, tip_moment=tm, options=opts),
+            solve_statics(spa, p - dp, tip_force=tf, tip_moment=tm, options=opts),
+            1.0,
+        )
         check(fd, jac.pressures[:, c])
     for j in range(3):
         e = np.eye(3)[j]
-        fd = column(solve_statics(spa, p, tip_force=tf + 1e-4 * e, tip_moment=tm, options=opts),
-                    solve_statics(spa, p, tip_force=tf - 1e-4 * e, tip_moment=tm, options=opts),
-                    1e-4)
+        fd = column(
+            solve_statics(spa, p, tip_force=tf + 1e-4 * e, tip_moment=tm, options=opts),
+            solve_statics(spa, p, tip_force=tf - 1e-4 * e, tip_moment=tm, options=opts),
+            1e-4,
+        )
         check(fd, jac.tip_force[:, j])
-        fd = column(solve_statics(spa, p, tip_force=tf, tip_moment=tm + 1e-5 * e, options=opts),
-                    solve_statics(spa, p, tip_force=tf, tip_moment=tm - 1e-5 * e, options=opts),
-                    1e-5)
+        fd = column(
+            solve_statics(spa, p, tip_force=tf, tip_moment=tm + 1e-5 * e, options=opts),
+            solve_statics(spa, p, tip_force=tf, tip_moment=tm - 1e-5 * e, options=opts),
+            1e-5,
+        )
         check(fd, jac.tip_moment[:, j])
     cb = spa.spec["sections"][1].get("c_b", 1.0)
     h = 1e-4 * cb
     plus = spa.replace({"sections[1].c_b": cb + h})
     minus = spa.replace({"sections[1].c_b": cb - h})
-    fd = column(solve_statics(plus, p, tip_force=tf, tip_moment=tm, options=opts),
-                solve_statics(minus, p, tip_force=tf, tip_moment=tm, options=opts), h)
+    fd = column(
+        solve_statics(plus, p, tip_force=tf, tip_moment=tm, options=opts),
+        solve_statics(minus, p, tip_force=tf, tip_moment=tm, options=opts),
+        h,
+    )
     check(fd, jac.params[:, 0])
 
 
@@ -298,8 +314,9 @@ def test_linear_system_static_response_is_the_jacobian(spa):
 
 
 def _example():
-    spec = importlib.util.spec_from_file_location("closed_loop_circle",
-                                                  ROOT / "examples" / "closed_loop_circle.py")
+    spec = importlib.util.spec_from_file_location(
+        "closed_loop_circle", ROOT / "examples" / "closed_loop_circle.py"
+    )
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -323,8 +340,7 @@ def test_closed_loop_example_tracks_within_the_predicted_error():
     # The PI loop helps: feed-forward alone predicts a larger error at this speed.
     design = softrod.load_design(ARM)
     system = softrod.linearise(design, [1.5e5] * 3, nodes=8)
-    ff = softrod.control.predicted_circle_error(system, mod.RADIUS, 2.0, kp=0, ki=0,
-                                                rate=mod.RATE)
+    ff = softrod.control.predicted_circle_error(system, mod.RADIUS, 2.0, kp=0, ki=0, rate=mod.RATE)
     assert predicted < 0.8 * ff
 
 
@@ -359,16 +375,29 @@ def test_cli_inverse_json_and_table(run):
     result = run("inverse", SPA, "--target", "10,5,-130 mm", "--bounds", "0:70kPa")
     assert result.exit_code == 0
     assert "NOT reached" in result.stdout
-    assert_clean_error(run("inverse", SPA, "--target", "10,5 mm", "--bounds", "0:70kPa"), 2,
-                       "--target")
-    assert_clean_error(run("inverse", SPA, "--target", "1,2,3 mm", "--bounds", "70:0kPa"), 2,
-                       "--bounds")
+    assert_clean_error(
+        run("inverse", SPA, "--target", "10,5 mm", "--bounds", "0:70kPa"), 2, "--target"
+    )
+    assert_clean_error(
+        run("inverse", SPA, "--target", "1,2,3 mm", "--bounds", "70:0kPa"), 2, "--bounds"
+    )
 
 
 def test_cli_workspace_writes_table_and_figure(run, tmp_path):
     table, fig = tmp_path / "ws.csv", tmp_path / "ws.png"
-    result = run("workspace", SPA, "--bounds", "0:70kPa", "--samples", "5", "--output", table,
-                 "--figure", fig, "--json")
+    result = run(
+        "workspace",
+        SPA,
+        "--bounds",
+        "0:70kPa",
+        "--samples",
+        "5",
+        "--output",
+        table,
+        "--figure",
+        fig,
+        "--json",
+    )
     assert result.exit_code == 0, result.output
     out = json.loads(result.stdout)
     assert out["solves"] == 6 * 25 and out["converged"] == 150
@@ -385,8 +414,7 @@ def test_cli_track_a_short_path(run, tmp_path):
     csv = tmp_path / "circle.csv"
     path.to_frame().to_csv(csv, index=False)
     out = tmp_path / "track.csv"
-    result = run("track", ARM, "--path", csv, "--bounds", "0:3.6bar", "--output", out,
-                 "--json")
+    result = run("track", ARM, "--path", csv, "--bounds", "0:3.6bar", "--output", out, "--json")
     assert result.exit_code == 0, result.output
     summary = json.loads(result.stdout)
     assert summary["rms_error_mm"] > 0 and summary["max_error_mm"] < 10

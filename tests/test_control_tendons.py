@@ -71,8 +71,13 @@ def test_hybrid_design_inverts_pressures_and_tension():
     """Paper 002's actuator with a tendon added in its cap and body: four inputs."""
     spa = softrod.load_design("spa_three_chamber_130mm")
     route = [{"channel": 0, "distance": "6 mm", "angle": "60 deg"}]
-    hybrid = spa.replace({"sections[0].tendons": route, "sections[1].tendons": route,
-                          "operating_range.tension": ["0 N", "2 N"]})
+    hybrid = spa.replace(
+        {
+            "sections[0].tendons": route,
+            "sections[1].tendons": route,
+            "operating_range.tension": ["0 N", "2 N"],
+        }
+    )
     tip = solve_statics(hybrid, [20e3, 5e3, 40e3], tensions=[1.2]).tip_position
     sol = solve_inverse(hybrid, tip)
     assert sol.reached
@@ -113,13 +118,18 @@ def test_cli_inverse_with_tension_bounds(run, till):
     assert out["reached"]
     assert np.allclose(out["tensions_N"], [8.0, 3.0, 0.0, 0.0], atol=1e-5)
     assert out["pressures_kPa"] == []
-    assert_clean_error(run("inverse", TILL, "--target", target, "--tension-bounds", "-1:20N"),
-                       2, "--tension-bounds")
+    assert_clean_error(
+        run("inverse", TILL, "--target", target, "--tension-bounds", "-1:20N"),
+        2,
+        "--tension-bounds",
+    )
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
-    y=st.floats(-0.3, 0.3), z=st.floats(-0.3, 0.3), x=st.floats(0.1, 0.6),
+    y=st.floats(-0.3, 0.3),
+    z=st.floats(-0.3, 0.3),
+    x=st.floats(0.1, 0.6),
     hi=st.floats(0.0, 25.0),
 )
 def test_tensions_never_leave_their_bounds(y, z, x, hi):

@@ -112,9 +112,7 @@ def test_papers_link_to_their_reference(doc):
         return
     text = prose(doc)
     refs = "docs/references.md" if doc.name == "README.md" else "references.md"
-    missing = [
-        n for n in sorted(set(PAPER.findall(text))) if f"]({refs}#paper-{n})" not in text
-    ]
+    missing = [n for n in sorted(set(PAPER.findall(text))) if f"]({refs}#paper-{n})" not in text]
     assert not missing, (
         f"{doc.name} mentions paper(s) {missing} without a link [..]({refs}#paper-NNN) to the "
         "reference (link the first mention)"

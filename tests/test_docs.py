@@ -57,6 +57,7 @@ def _cpu_seconds() -> float:
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
     return time.process_time() + children.ru_utime + children.ru_stime
 
+
 FENCE = re.compile(r"^(?P<indent> {0,3})(?P<fence>`{3,}|~{3,})\s*(?P<lang>[\w+-]*)")
 MARKER = re.compile(r"^<!--\s*(?P<kind>not-run|file)\s*:\s*(?P<arg>.*?)\s*-->\s*$")
 OUTPUT_LANGS = ("", "text")

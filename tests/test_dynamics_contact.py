@@ -96,16 +96,18 @@ def test_a_held_tip_rests_on_the_plane_with_the_contact_and_the_reaction():
     np.testing.assert_allclose(run.tip_position[-1], [0.2, 0.0, 0.0], atol=1e-9 * 0.2)
     state = sim.state()
     w = MASS * G
-    balance = state.base_force - (run.tip_reaction_force[-1] + run.contact_force[-1]
-                                  + [0.0, 0.0, -w])
+    balance = state.base_force - (
+        run.tip_reaction_force[-1] + run.contact_force[-1] + [0.0, 0.0, -w]
+    )
     # Started at rest in the constrained static equilibrium with contact: nothing moves,
     # and the balance holds to the Newton tolerance.
     assert np.abs(balance).max() < 1e-9 * w
     assert run.contact_force[-1][2] > 0.1 * w
     # The collocation (32 intervals) and the shooting statics (32 RK4 steps) differ by their
     # discretisation errors (measured 9.6e-3 at 8, 6.8e-5 at 32).
-    np.testing.assert_allclose(run.contact_force[-1], statics.contact.total_force.sum(axis=0),
-                               rtol=1e-3)
+    np.testing.assert_allclose(
+        run.contact_force[-1], statics.contact.total_force.sum(axis=0), rtol=1e-3
+    )
 
 
 def test_friction_takes_units_and_bad_values_are_refused_by_name():

@@ -75,25 +75,36 @@ def test_a_damped_run_settles_on_the_constrained_statics(kind):
     d = beam()
     rest = Simulation(d, initial="static", dt=DT, tol=1e-12, tip_constraint=c).state()
     # 40 periods of the first mode at damping ratio 0.25: exp(-63) of the start's motion.
-    traj = simulate(d, None, 40 * 50 * DT, dt=DT, initial="straight", tol=1e-12,
-                    tip_constraint=c, shapes="saved", save_every=500)
+    traj = simulate(
+        d,
+        None,
+        40 * 50 * DT,
+        dt=DT,
+        initial="straight",
+        tol=1e-12,
+        tip_constraint=c,
+        shapes="saved",
+        save_every=500,
+    )
     # 1e-12 of the scaled residual in position (1e-12 L), x10 for the banded solve.
-    np.testing.assert_allclose(traj.shape_position[-1], rest.shape_position, rtol=0,
-                               atol=1e-11 * L)
+    np.testing.assert_allclose(traj.shape_position[-1], rest.shape_position, rtol=0, atol=1e-11 * L)
     # Reactions: a position error of 1e-11 L over an interval L / 8 strains the beam by
     # 8e-11 at its axial stiffness EA = 1e3 N.
-    np.testing.assert_allclose(traj.tip_reaction_force[-1], rest.tip_reaction_force, rtol=0,
-                               atol=8e-11 * 1e3)
+    np.testing.assert_allclose(
+        traj.tip_reaction_force[-1], rest.tip_reaction_force, rtol=0, atol=8e-11 * 1e3
+    )
     sol = softrod.solve_statics(d, [], tip_constraint=c)
     w = RHO_A * L * 9.81
     # Both fourth order on 8 intervals: (1/8)^4 = 2.4e-4 of the weight across the beam.
     # (Along it, the tension of the sag is a second-order effect of the deflection that the
     # discretisations resolve less well, 0.5 % apart here: the Rust tests show the
     # reactions' difference falling 16x per halving of the intervals.)
-    np.testing.assert_allclose(rest.tip_reaction_force[1:], sol.tip_reaction_force[1:],
-                               rtol=0, atol=2.4e-4 * w)
-    np.testing.assert_allclose(rest.tip_reaction_moment, sol.tip_reaction_moment, rtol=0,
-                               atol=2.4e-4 * w * L)
+    np.testing.assert_allclose(
+        rest.tip_reaction_force[1:], sol.tip_reaction_force[1:], rtol=0, atol=2.4e-4 * w
+    )
+    np.testing.assert_allclose(
+        rest.tip_reaction_moment, sol.tip_reaction_moment, rtol=0, atol=2.4e-4 * w * L
+    )
     # The reactions and the base's force balance the weight (round-off of the weight).
     total = rest.tip_reaction_force - rest.base_force + np.array([0.0, 0.0, -w])
     np.testing.assert_allclose(total, 0.0, atol=1e-12 * w)
@@ -169,19 +180,34 @@ def test_the_design_files_constraint_is_the_default():
 @pytest.mark.parametrize(
     ("kwargs", "field"),
     [
-        ({"tip_constraint": TipConstraint.pinned([0.09, 0, 0]), "initial": "straight"},
-         "tip_constraint.position"),
-        ({"tip_constraint": clamped(rotation=np.eye(3)), "initial": "straight"},
-         "tip_constraint.orientation"),
+        (
+            {"tip_constraint": TipConstraint.pinned([0.09, 0, 0]), "initial": "straight"},
+            "tip_constraint.position",
+        ),
+        (
+            {"tip_constraint": clamped(rotation=np.eye(3)), "initial": "straight"},
+            "tip_constraint.orientation",
+        ),
         ({"tip_constraint": clamped(), "scheme": "midpoint"}, "scheme"),
-        ({"tip_constraint": {"type": "pinned", "position": [math.nan, 0, 0]}},
-         "tip_constraint.position"),
-        ({"tip_constraint": {"type": "clamped", "position": TIP,
-                             "orientation": [[1, 0, 0], [0, 1, 0], [0, 0.5, 1]]}},
-         "tip_constraint.orientation"),
+        (
+            {"tip_constraint": {"type": "pinned", "position": [math.nan, 0, 0]}},
+            "tip_constraint.position",
+        ),
+        (
+            {
+                "tip_constraint": {
+                    "type": "clamped",
+                    "position": TIP,
+                    "orientation": [[1, 0, 0], [0, 1, 0], [0, 0.5, 1]],
+                }
+            },
+            "tip_constraint.orientation",
+        ),
         ({"tip_constraint": lambda t: "clamped"}, "tip_constraint(t = 0 s)"),
-        ({"tip_constraint": lambda t: TipConstraint.pinned([L, 0, 0]) if t == 0 else clamped()},
-         "tip_constraint"),
+        (
+            {"tip_constraint": lambda t: TipConstraint.pinned([L, 0, 0]) if t == 0 else clamped()},
+            "tip_constraint",
+        ),
         ({"tip_constraint": clamped(), "model": "pcc"}, "tip_constraint"),
     ],
 )
@@ -247,6 +273,7 @@ def test_cli_simulate_honours_the_design_files_constraint(run, tmp_path):
     tr = Trajectory.load(out)
     assert tr.metadata["tip_constraint"] == "pinned"
     # The pin holds the tip 2 mm beside where it hangs, to the Newton tolerance.
-    np.testing.assert_allclose(tr.tip_position, np.tile(tip + [0.002, 0, 0], (len(tr.time), 1)),
-                               rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        tr.tip_position, np.tile(tip + [0.002, 0, 0], (len(tr.time), 1)), rtol=0, atol=1e-9
+    )
     assert np.all(np.isfinite(tr.tip_reaction_force))

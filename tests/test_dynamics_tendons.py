@@ -51,9 +51,7 @@ def test_tendon_run_settles_on_the_statics_with_the_same_tension():
     # Slack at t = 0 (the static start), 2 N from the first step on: the damped rod settles
     # on the arc of curvature T d / EI (Rucker and Webster's straight tendon) that
     # solve_statics gives with the same tension, to the two discretisations' difference.
-    traj = softrod.simulate(
-        rod(), None, 1.5, dt=5e-3, tensions=lambda t: [0.0 if t == 0 else 2.0]
-    )
+    traj = softrod.simulate(rod(), None, 1.5, dt=5e-3, tensions=lambda t: [0.0 if t == 0 else 2.0])
     st_ = solve_statics(rod(), [], tensions=[2.0], options=SolverOptions(tol=1e-12))
     assert np.linalg.norm(traj.tip_position[0] - [0, 0, L]) < 1e-12
     moved = np.linalg.norm(traj.tip_position[-1] - traj.tip_position[0])
@@ -197,9 +195,7 @@ def test_bad_tensions_in_the_stepper_change_nothing():
 def test_any_tension_runs_or_is_refused_with_the_field(value):
     # Every held tension (within the rod's range: 5 N bends it by half a turn) is a finite,
     # non-negative force that runs, or an InputError that names tensions; never a crash.
-    ok = (
-        isinstance(value, float) and math.isfinite(value) and 0 <= value <= 5
-    ) or value == "1 N"
+    ok = (isinstance(value, float) and math.isfinite(value) and 0 <= value <= 5) or value == "1 N"
     try:
         traj = softrod.simulate(rod(), None, 0.01, dt=5e-3, tensions=[value])
     except InputError as e:

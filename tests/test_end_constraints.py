@@ -114,13 +114,19 @@ def test_clamped_clamped_rod_under_a_large_load_matches_a_bvp_solver():
         assert sol.tip_constraint == "clamped" and sol.stable is True
 
         def bc(y0, y1):
-            return np.array(
-                [y0[0], y0[1], y0[2], y1[0] - tip[0], y1[1] - tip[2], y1[2] - theta_t]
-            )
+            return np.array([y0[0], y0[1], y0[2], y1[0] - tip[0], y1[1] - tip[2], y1[2] - theta_t])
 
         theta = np.arctan2(sol.rotation[:, 0, 2], sol.rotation[:, 2, 2])
-        mine = np.vstack([sol.position[:, 0], sol.position[:, 2], theta, sol.force[:, 0],
-                          sol.force[:, 2], sol.moment[:, 1]])
+        mine = np.vstack(
+            [
+                sol.position[:, 0],
+                sol.position[:, 2],
+                theta,
+                sol.force[:, 0],
+                sol.force[:, 2],
+                sol.moment[:, 1],
+            ]
+        )
         mesh = np.linspace(0, L, 201)
         guess = np.array([np.interp(mesh, sol.s, row) for row in mine])
         ref = solve_bvp(planar_rhs(q), bc, mesh, guess, tol=1e-9, max_nodes=100_000)
@@ -158,9 +164,7 @@ def test_two_rod_parallel_mechanism_matches_a_bvp_solver():
         for bx in (-half, half)
     )
     system = System("two_rods", rods, Platform(position=np.array([0.0, 0.0, L])))
-    sol = solve_system(
-        system, platform_force=force, platform_moment=[0.0, my, 0.0], options=TIGHT
-    )
+    sol = solve_system(system, platform_force=force, platform_moment=[0.0, my, 0.0], options=TIGHT)
     assert sol.converged and sol.stable is True  # a stiff pair, pushed sideways
     rhs1 = planar_rhs(0.0)
     offsets = (-half, half)
@@ -172,13 +176,13 @@ def test_two_rod_parallel_mechanism_matches_a_bvp_solver():
         px, pz, th = p
         out = []
         for i, o in enumerate(offsets):
-            a, b = ya[6 * i:6 * i + 6], yb[6 * i:6 * i + 6]
+            a, b = ya[6 * i : 6 * i + 6], yb[6 * i : 6 * i + 6]
             out += [a[0] - o, a[1], a[2]]
             # tip = p + Ry(th) (o, 0, 0)
             out += [b[0] - (px + math.cos(th) * o), b[1] - (pz - math.sin(th) * o), b[2] - th]
         fx, fz, m = force[0], force[2], my
         for i in range(len(offsets)):
-            b = yb[6 * i:6 * i + 6]
+            b = yb[6 * i : 6 * i + 6]
             lx, lz = b[0] - px, b[1] - pz
             fx -= b[3]
             fz -= b[4]
@@ -197,8 +201,11 @@ def test_two_rod_parallel_mechanism_matches_a_bvp_solver():
     np.testing.assert_allclose(sol.platform_position, [px, 0.0, pz], atol=1e-9)
     np.testing.assert_allclose(sol.platform_rotation, ry(th), atol=1e-8)
     for r, i in zip(sol.rods, (0, 6), strict=True):
-        np.testing.assert_allclose(r.tip_reaction_force[[0, 2]], ref.sol(L)[[i + 3, i + 4]],
-                                   atol=1e-7 * np.abs(force).max())
+        np.testing.assert_allclose(
+            r.tip_reaction_force[[0, 2]],
+            ref.sol(L)[[i + 3, i + 4]],
+            atol=1e-7 * np.abs(force).max(),
+        )
     # The platform's balance with the rods' tip reactions, to 1e-9 of the load.
     p = sol.platform_position
     f = force.copy()
@@ -209,8 +216,9 @@ def test_two_rod_parallel_mechanism_matches_a_bvp_solver():
     assert np.abs(f).max() < 1e-9 * np.abs(force).max()
     assert np.abs(m).max() < 1e-9 * (my + L * np.abs(force).max())
     # A warm start from the solution converges at once.
-    again = solve_system(system, platform_force=force, platform_moment=[0.0, my, 0.0],
-                         options=TIGHT, initial=sol)
+    again = solve_system(
+        system, platform_force=force, platform_moment=[0.0, my, 0.0], options=TIGHT, initial=sol
+    )
     assert again.load_steps == 1
     np.testing.assert_allclose(again.platform_position, sol.platform_position, atol=1e-12)
 
@@ -230,9 +238,13 @@ def test_pinned_tip_turns_freely_and_the_reaction_holds_the_tip_load():
     np.testing.assert_allclose(pinned.tip_position, free.tip_position, atol=1e-12)
     np.testing.assert_array_equal(pinned.tip_reaction_moment, np.zeros(3))
     # Pinned at the unloaded tip: the pin takes the whole tip load, the rod stays straight.
-    held = solve_statics(d, [], tip_force=[0.5, 0.0, 0.0],
-                         tip_constraint={"type": "pinned", "position": ["0 mm", "0 mm", "100 mm"]},
-                         options=TIGHT)
+    held = solve_statics(
+        d,
+        [],
+        tip_force=[0.5, 0.0, 0.0],
+        tip_constraint={"type": "pinned", "position": ["0 mm", "0 mm", "100 mm"]},
+        options=TIGHT,
+    )
     np.testing.assert_allclose(held.tip_reaction_force, [-0.5, 0.0, 0.0], atol=1e-9)
     assert np.abs(held.position[:, 0]).max() < 1e-12
 
@@ -260,16 +272,39 @@ def test_design_file_keys_set_the_constraint():
     [
         ({"constraint": "welded"}, "tip.constraint", "must be one of"),
         ({"constraint": "pinned"}, "tip.position", "needs the tip position"),
-        ({"constraint": "clamped", "position": [0, 0, "100 mm"]}, "tip.orientation",
-         "needs the tip orientation"),
-        ({"constraint": "clamped", "position": ["0 m", "0 m", "0.1 m"],
-          "orientation": [[1, 0, 0], [0, 1, 0.1], [0, 0, 1]]}, "tip.orientation",
-         "must be a rotation matrix"),
-        ({"constraint": "pinned", "position": ["0 m", "0 m", "0.1 m"],
-          "orientation": ["0 deg", "0 deg", "0 deg"]}, "tip.orientation", "turns freely"),
+        (
+            {"constraint": "clamped", "position": [0, 0, "100 mm"]},
+            "tip.orientation",
+            "needs the tip orientation",
+        ),
+        (
+            {
+                "constraint": "clamped",
+                "position": ["0 m", "0 m", "0.1 m"],
+                "orientation": [[1, 0, 0], [0, 1, 0.1], [0, 0, 1]],
+            },
+            "tip.orientation",
+            "must be a rotation matrix",
+        ),
+        (
+            {
+                "constraint": "pinned",
+                "position": ["0 m", "0 m", "0.1 m"],
+                "orientation": ["0 deg", "0 deg", "0 deg"],
+            },
+            "tip.orientation",
+            "turns freely",
+        ),
         ({"position": ["0 m", "0 m", "0.1 m"]}, "tip.position", "only used with"),
-        ({"constraint": "clamped", "position": ["0 m", "0 m", "0.1 kg"],
-          "orientation": ["0 deg", "0 deg", "0 deg"]}, "tip.position[2]", ""),
+        (
+            {
+                "constraint": "clamped",
+                "position": ["0 m", "0 m", "0.1 kg"],
+                "orientation": ["0 deg", "0 deg", "0 deg"],
+            },
+            "tip.position[2]",
+            "",
+        ),
     ],
 )
 def test_bad_design_file_constraints_name_the_field(tip, field, words):
@@ -287,8 +322,10 @@ def test_bad_design_file_constraints_name_the_field(tip, field, words):
         (lambda: TipConstraint("welded"), "tip_constraint.type"),
         (lambda: TipConstraint("pinned"), "tip_constraint.position"),
         (lambda: TipConstraint("clamped", position=[0, 0, 0.1]), "tip_constraint.orientation"),
-        (lambda: TipConstraint.clamped([0, 0, 0.1], np.diag([1.0, 1.0, -1.0])),
-         "tip_constraint.orientation"),
+        (
+            lambda: TipConstraint.clamped([0, 0, 0.1], np.diag([1.0, 1.0, -1.0])),
+            "tip_constraint.orientation",
+        ),
         (lambda: TipConstraint.pinned([0, float("nan"), 0.1]), "tip_constraint.position[1]"),
         (lambda: TipConstraint.pinned([0, 0]), "tip_constraint.position"),
         (lambda: softrod.constraints.coerce({"type": "pinned", "where": 1}), "tip_constraint"),
@@ -302,8 +339,12 @@ def test_bad_constraints_name_the_field(make, field):
 
 def test_pcc_model_refuses_a_constrained_tip():
     with pytest.raises(InputError) as exc:
-        solve_statics("stiff_flop_pcc", [0.0] * 6, model="pcc",
-                      tip_constraint=TipConstraint.pinned([0, 0, 0.11]))
+        solve_statics(
+            "stiff_flop_pcc",
+            [0.0] * 6,
+            model="pcc",
+            tip_constraint=TipConstraint.pinned([0, 0, 0.11]),
+        )
     assert exc.value.field == "tip_constraint"
 
 
@@ -312,8 +353,7 @@ FREE_TIP_ENTRIES = {
     "calibrate": lambda d, ds: softrod.calibrate(d, ds, ["c_b"]),
     "identify_stiffness": lambda d, ds: softrod.identify_stiffness(d, ds),
     "compare_hybrid": lambda d, ds: softrod.compare_hybrid(d, ds, None),
-    "simulate(model='pcc')": lambda d, ds: softrod.simulate(d, [0.0, 0.0, 0.0], 0.01,
-                                                            model="pcc"),
+    "simulate(model='pcc')": lambda d, ds: softrod.simulate(d, [0.0, 0.0, 0.0], 0.01, model="pcc"),
     "solve_inverse": lambda d, ds: softrod.solve_inverse(d, "0,5,-130 mm"),
     "workspace": lambda d, ds: softrod.workspace(d),
     "linearise": lambda d, ds: softrod.linearise(d, [0.0, 0.0, 0.0]),
@@ -358,12 +398,17 @@ def test_bundled_two_rod_system_solves_and_balances():
     "text, field",
     [
         ("[platform]\nmass = '1 g'\n", "platform.position"),
-        ("[platform]\nposition = [0, 0, 0]\n[[rods]]\ndesign = 'nope_design'\n"
-         "attachment = [0, 0, 0]\n", "design"),
+        (
+            "[platform]\nposition = [0, 0, 0]\n[[rods]]\ndesign = 'nope_design'\n"
+            "attachment = [0, 0, 0]\n",
+            "design",
+        ),
         ("[platform]\nposition = [0, 0, 0]\nwobble = 1\n", "platform.wobble"),
         ("[platform]\nposition = [0, 0, 0]\n", "rods"),
-        ("[platform]\nposition = [0, 0, 0]\n[[rods]]\ndesign = 'spa_three_chamber_130mm'\n",
-         "rods[0].attachment"),
+        (
+            "[platform]\nposition = [0, 0, 0]\n[[rods]]\ndesign = 'spa_three_chamber_130mm'\n",
+            "rods[0].attachment",
+        ),
     ],
 )
 def test_bad_system_files_name_the_field(tmp_path, text, field):
@@ -392,8 +437,11 @@ def test_constrained_solves_hold_the_pose_and_balance(dx, dz, angle, kind):
     q = 20.0
     d = load_design(rod(q=q, steps=48))
     pos = [dx, 0.0, L + dz]
-    c = (TipConstraint.pinned(pos) if kind == "pinned"
-         else TipConstraint.clamped(pos, [0.0, angle, 0.0]))
+    c = (
+        TipConstraint.pinned(pos)
+        if kind == "pinned"
+        else TipConstraint.clamped(pos, [0.0, angle, 0.0])
+    )
     try:
         sol = solve_statics(d, [], tip_constraint=c, options=TIGHT, on_unstable="ignore")
     except softrod.InvalidStateError as exc:
@@ -411,9 +459,7 @@ def test_constrained_solves_hold_the_pose_and_balance(dx, dz, angle, kind):
     assert sol.stable in (True, False)
 
 
-@pytest.mark.parametrize(
-    "kind, kl", [("clamped", 2 * math.pi), ("pinned", 4.493409457909064)]
-)
+@pytest.mark.parametrize("kind, kl", [("clamped", 2 * math.pi), ("pinned", 4.493409457909064)])
 def test_column_held_at_both_ends_is_flagged_beyond_its_euler_load(kind, kl):
     """An upright column held at both ends and pressed along its axis (the tip prescribed at
     z = L (1 - P/EA), the stretch of the linear law under P) stays straight by symmetry. Its
@@ -444,12 +490,16 @@ def test_column_held_at_both_ends_is_flagged_beyond_its_euler_load(kind, kl):
 
 
 @settings(max_examples=25, deadline=None)
-@given(st.one_of(
-    st.text(max_size=8),
-    st.lists(st.one_of(st.floats(allow_nan=True), st.text(max_size=5)), max_size=4),
-    st.dictionaries(st.sampled_from(["type", "position", "orientation", "x"]),
-                    st.one_of(st.text(max_size=6), st.lists(st.floats(), max_size=4))),
-))
+@given(
+    st.one_of(
+        st.text(max_size=8),
+        st.lists(st.one_of(st.floats(allow_nan=True), st.text(max_size=5)), max_size=4),
+        st.dictionaries(
+            st.sampled_from(["type", "position", "orientation", "x"]),
+            st.one_of(st.text(max_size=6), st.lists(st.floats(), max_size=4)),
+        ),
+    )
+)
 def test_any_tip_constraint_value_is_accepted_or_refused_clearly(value):
     try:
         c = softrod.constraints.coerce(value)
@@ -492,8 +542,9 @@ def test_platform_on_three_columns_sways_at_the_guided_euler_load():
     the tilt's compliance by less). The system's stability says so (docs/model.md, "Systems
     of rods"), with the policies of a single rod (the batch's ``stable`` column:
     tests/test_batch_ends.py)."""
-    corners = [(0.03 * math.cos(a), 0.03 * math.sin(a))
-               for a in (0.0, 2 * math.pi / 3, 4 * math.pi / 3)]
+    corners = [
+        (0.03 * math.cos(a), 0.03 * math.sin(a)) for a in (0.0, 2 * math.pi / 3, 4 * math.pi / 3)
+    ]
     rods = []
     for x, y in corners:
         doc = rod(base_x=x)
@@ -503,8 +554,9 @@ def test_platform_on_three_columns_sways_at_the_guided_euler_load():
     w_cr = 3 * math.pi**2 * EI / L**2
 
     def solve(ratio, **kwargs):
-        return solve_system(system, platform_force=[0.0, 0.0, -ratio * w_cr], options=TIGHT,
-                            **kwargs)
+        return solve_system(
+            system, platform_force=[0.0, 0.0, -ratio * w_cr], options=TIGHT, **kwargs
+        )
 
     below = solve(0.9)
     assert below.stable is True and all(r.stable is True for r in below.rods)

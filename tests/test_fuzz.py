@@ -258,9 +258,17 @@ def design_files(draw):
         cut = draw(st.integers(0, len(text)))
         return text[:cut].encode()
     if choice == 2:
-        return draw(st.sampled_from([b"\xff\xfe[\x00d\x00", "[a]\nb = 1\n".encode("utf-16"),
-                                     b"a = " + b"[" * 5000 + b"]" * 5000, b"\x00\x01\x02",
-                                     b'x = "' + b"y" * 100 + b'"']))
+        return draw(
+            st.sampled_from(
+                [
+                    b"\xff\xfe[\x00d\x00",
+                    "[a]\nb = 1\n".encode("utf-16"),
+                    b"a = " + b"[" * 5000 + b"]" * 5000,
+                    b"\x00\x01\x02",
+                    b'x = "' + b"y" * 100 + b'"',
+                ]
+            )
+        )
     return draw(st.binary(max_size=200))
 
 
@@ -310,11 +318,16 @@ PREAMBLE = [
 VALID_TABLES = {
     "dataset": (
         ["experiment", "p0_kPa", "p1_kPa", "p2_kPa", "tip_x_mm", "tip_y_mm", "tip_z_mm"],
-        [["1", "0", "0", "0", "0", "0", "-130"], ["1", "30", "0", "0", "0", "15", "-131"],
-         ["2", "0", "30", "0", "13", "-7", "-131"]],
+        [
+            ["1", "0", "0", "0", "0", "0", "-130"],
+            ["1", "30", "0", "0", "0", "15", "-131"],
+            ["2", "0", "30", "0", "13", "-7", "-131"],
+        ],
     ),
-    "schedule": (["time_s", "p0_kPa", "p1_kPa", "p2_kPa"],
-                 [["0", "0", "0", "0"], ["0.5", "30", "0", "0"], ["1", "0", "0", "0"]]),
+    "schedule": (
+        ["time_s", "p0_kPa", "p1_kPa", "p2_kPa"],
+        [["0", "0", "0", "0"], ["0.5", "30", "0", "0"], ["1", "0", "0", "0"]],
+    ),
     "stiffness_map": (
         ["p0_kPa", "sigma_ext", "sigma_bend_x", "sigma_bend_y"],
         [["0", "1", "1", "1"], ["70", "0.9", "0.8", "0.8"]],
@@ -449,8 +462,9 @@ def statics_cases(draw):
         draw,
         {},
         {
-            "tip_force": st.one_of(st.just([0.0, 0.0, -1.0]), st.just(["0 N", "1 N", "0 N"]),
-                                   arrays(3), hostile()),
+            "tip_force": st.one_of(
+                st.just([0.0, 0.0, -1.0]), st.just(["0 N", "1 N", "0 N"]), arrays(3), hostile()
+            ),
             "tip_moment": st.one_of(st.just([0.0, 0.01, 0.0]), arrays(3), hostile()),
             "model": st.one_of(st.sampled_from(["cosserat", "pcc"]), hostile()),
             "check": st.one_of(st.booleans(), hostile()),
@@ -497,15 +511,22 @@ def batch_cases(draw):
     kwargs = _mutate(
         draw,
         {},
-        {"threads": st.one_of(st.sampled_from([0, 1, 2, 100000, -1, 1.5]), hostile()),
-         "tip_force": st.one_of(st.just([0.0, 0.0, -1.0]), hostile()),
-         "tip_constraint": st.one_of(
-             st.just({"type": "pinned", "position": ["3 mm", "0 mm", "-127 mm"]}),
-             st.just({"type": "clamped", "position": [0.0, 0.0, -0.13],
-                      "orientation": ["0 deg", "3 deg", "0 deg"]}),
-             st.just("free"),
-             hostile(),
-         )},
+        {
+            "threads": st.one_of(st.sampled_from([0, 1, 2, 100000, -1, 1.5]), hostile()),
+            "tip_force": st.one_of(st.just([0.0, 0.0, -1.0]), hostile()),
+            "tip_constraint": st.one_of(
+                st.just({"type": "pinned", "position": ["3 mm", "0 mm", "-127 mm"]}),
+                st.just(
+                    {
+                        "type": "clamped",
+                        "position": [0.0, 0.0, -0.13],
+                        "orientation": ["0 deg", "3 deg", "0 deg"],
+                    }
+                ),
+                st.just("free"),
+                hostile(),
+            ),
+        },
     )
     return ("batch", {"design": design, "pressures": pressures, "kwargs": kwargs})
 
@@ -530,8 +551,7 @@ def simulate_cases(draw):
     if kwargs.get("model") == "pcc":
         design = "stiff_flop_pcc"
     n = 6 if design == "stiff_flop_pcc" else 3
-    schedule = draw(st.one_of(plausible_pressures(n), plausible_pressures(n), arrays(n),
-                              hostile()))
+    schedule = draw(st.one_of(plausible_pressures(n), plausible_pressures(n), arrays(n), hostile()))
     t_end = draw(st.sampled_from(["20 ms", "20 ms", 0.02, *TIMES]))
     return ("simulate", {"design": design, "schedule": schedule, "t_end": t_end, "kwargs": kwargs})
 
@@ -541,36 +561,77 @@ def api_cases(draw):
     """Other public entry points with hostile arguments."""
     which = draw(st.integers(0, 5))
     if which == 0:
-        changes = draw(st.dictionaries(
-            st.one_of(st.sampled_from(["sections[1].c_b", "tip.mass", "sections[9].x",
-                                       "mounting.orientation", "a..b", "sections[99999999999]"]),
-                      st.text(max_size=8)),
-            hostile(), max_size=2))
+        changes = draw(
+            st.dictionaries(
+                st.one_of(
+                    st.sampled_from(
+                        [
+                            "sections[1].c_b",
+                            "tip.mass",
+                            "sections[9].x",
+                            "mounting.orientation",
+                            "a..b",
+                            "sections[99999999999]",
+                        ]
+                    ),
+                    st.text(max_size=8),
+                ),
+                hostile(),
+                max_size=2,
+            )
+        )
         return ("replace", {"design": "spa_three_chamber_130mm", "changes": changes})
     if which == 1:
-        return ("api", {"function": "synthesize_dataset",
-                        "args": ("spa_three_chamber_130mm", draw(st.one_of(arrays(3), hostile()))),
-                        "kwargs": {"noise_mm": draw(st.one_of(st.just(0.1), hostile())),
-                                   "seed": draw(st.one_of(st.just(0), hostile()))}})
+        return (
+            "api",
+            {
+                "function": "synthesize_dataset",
+                "args": ("spa_three_chamber_130mm", draw(st.one_of(arrays(3), hostile()))),
+                "kwargs": {
+                    "noise_mm": draw(st.one_of(st.just(0.1), hostile())),
+                    "seed": draw(st.one_of(st.just(0), hostile())),
+                },
+            },
+        )
     if which == 2:
         axes = st.one_of(
             st.just([[0, 1e4], [0, 1e4], [0, 1e4]]), st.lists(arrays(2), max_size=3), hostile()
         )
         sigma = st.one_of(st.just(np.ones((2, 2, 2, 3))), hostile())
-        return ("stiffness_map", {"axes": draw(axes),
-                                  "sigma": draw(sigma),
-                                  "kwargs": draw(st.sampled_from([{}, {"method": ["x"]},
-                                                                  {"outside": "clamp"}]))})
+        return (
+            "stiffness_map",
+            {
+                "axes": draw(axes),
+                "sigma": draw(sigma),
+                "kwargs": draw(st.sampled_from([{}, {"method": ["x"]}, {"outside": "clamp"}])),
+            },
+        )
     if which == 3:
         return ("schedule", draw(schedules()))
     if which == 4:
-        return ("quantity", {"value": draw(st.one_of(quantity_text(), hostile())),
-                             "kind": draw(st.sampled_from(["length", "pressure", "angle", "mass",
-                                                           "stiffness_bending", "time"]))})
-    return ("api", {"function": "Simulation", "args": ("spa_three_chamber_130mm",),
-                    "kwargs": {"pressures": draw(st.one_of(arrays(3), hostile())),
-                               "dt": draw(st.sampled_from(STEPS)),
-                               "max_iter": draw(st.one_of(st.just(5), hostile()))}})
+        return (
+            "quantity",
+            {
+                "value": draw(st.one_of(quantity_text(), hostile())),
+                "kind": draw(
+                    st.sampled_from(
+                        ["length", "pressure", "angle", "mass", "stiffness_bending", "time"]
+                    )
+                ),
+            },
+        )
+    return (
+        "api",
+        {
+            "function": "Simulation",
+            "args": ("spa_three_chamber_130mm",),
+            "kwargs": {
+                "pressures": draw(st.one_of(arrays(3), hostile())),
+                "dt": draw(st.sampled_from(STEPS)),
+                "max_iter": draw(st.one_of(st.just(5), hostile())),
+            },
+        },
+    )
 
 
 @st.composite
@@ -595,15 +656,19 @@ def fit_cases(draw):
         kwargs.pop("use_rotation", None)
         if isinstance(kwargs.get("bounds"), tuple):
             kwargs["bounds"] = {"c_b": kwargs["bounds"]}
-    return ("fit", {
-        "function": function,
-        "design": "spa_three_chamber_130mm",
-        "dataset": "spa130_synthetic",
-        "rows": draw(st.sampled_from([1, 3, 6])),
-        "params": draw(st.one_of(st.sampled_from(["c_b", ["c_b", "c_e"], "E[x]", "", []]),
-                                 hostile())),
-        "kwargs": kwargs,
-    })
+    return (
+        "fit",
+        {
+            "function": function,
+            "design": "spa_three_chamber_130mm",
+            "dataset": "spa130_synthetic",
+            "rows": draw(st.sampled_from([1, 3, 6])),
+            "params": draw(
+                st.one_of(st.sampled_from(["c_b", ["c_b", "c_e"], "E[x]", "", []]), hostile())
+            ),
+            "kwargs": kwargs,
+        },
+    )
 
 
 _TRAJECTORIES: list = []
@@ -647,18 +712,55 @@ def trajectory_files(draw):
 
 
 OUT = ["out.csv", "out.parquet", "missing/out.csv", "out.txt", "", ".", "out.csv/x.csv"]
-VECTORS = ["30kPa,0,0", "10,20,30kPa", "30000,0,0", "0,0,0", "10**10**10 mm,0,0", "1,2", "",
-           "nan kPa,0,0", "30 deg,0,0", "1e400kPa,0,0", ",,", "0,0,-1 N", "0,5,0 N*mm"]
-GRIDS = ["0:70kPa:3", "0:70kPa:2", "0:70:3", "0:10**10**10 kPa:3", "0:1kPa:0", "0:1kPa:-1",
-         "0:1kPa:100000000", "0:1kPa:x", "1:2", "0:1kPa:99999999999999999999", "a:b:c"]
+VECTORS = [
+    "30kPa,0,0",
+    "10,20,30kPa",
+    "30000,0,0",
+    "0,0,0",
+    "10**10**10 mm,0,0",
+    "1,2",
+    "",
+    "nan kPa,0,0",
+    "30 deg,0,0",
+    "1e400kPa,0,0",
+    ",,",
+    "0,0,-1 N",
+    "0,5,0 N*mm",
+]
+GRIDS = [
+    "0:70kPa:3",
+    "0:70kPa:2",
+    "0:70:3",
+    "0:10**10**10 kPa:3",
+    "0:1kPa:0",
+    "0:1kPa:-1",
+    "0:1kPa:100000000",
+    "0:1kPa:x",
+    "1:2",
+    "0:1kPa:99999999999999999999",
+    "a:b:c",
+]
 
 
 @st.composite
 def cli_cases(draw):
     design = draw(st.sampled_from([*BUNDLED[:2], "nope", "fuzz.toml", "data.csv"]))
     files = {"fuzz.toml": draw(design_files()), "data.csv": draw(table_files())["data"]}
-    cmd = draw(st.sampled_from(["solve", "sweep", "simulate", "calibrate", "designs", "identify",
-                                "compare-pcc", "pcc-identify", "bogus"]))
+    cmd = draw(
+        st.sampled_from(
+            [
+                "solve",
+                "sweep",
+                "simulate",
+                "calibrate",
+                "designs",
+                "identify",
+                "compare-pcc",
+                "pcc-identify",
+                "bogus",
+            ]
+        )
+    )
     args = [cmd]
     if cmd == "solve":
         args.append(design)
@@ -688,9 +790,15 @@ def cli_cases(draw):
     elif cmd == "identify":
         args += [design, "data.csv", "--out", draw(st.sampled_from(OUT))]
     elif cmd == "compare-pcc":
-        args += [design, "--channels", draw(st.sampled_from(["0", "0,1", "99999999999", "x", ""])),
-                 "--p-max", draw(st.sampled_from(["1 bar", "100000", "10**10**10 Pa", "1 m"])),
-                 "--steps", draw(st.sampled_from(["2", "0", "100000000", "x"]))]
+        args += [
+            design,
+            "--channels",
+            draw(st.sampled_from(["0", "0,1", "99999999999", "x", ""])),
+            "--p-max",
+            draw(st.sampled_from(["1 bar", "100000", "10**10**10 Pa", "1 m"])),
+            "--steps",
+            draw(st.sampled_from(["2", "0", "100000000", "x"])),
+        ]
     elif cmd == "pcc-identify":
         kind = draw(st.sampled_from(["all", "longitudinal-stiffness", "bending-damping", "x"]))
         args += [kind, "data.csv"]
@@ -780,5 +888,3 @@ def test_pending_classes_are_documented():
     # Every pending class names the branch that fixes it.
     for reason in PENDING.values():
         assert "branch" in reason
-
-

@@ -223,9 +223,16 @@ def test_bad_pcc_input_is_refused(clean):
         softrod.calibrate(d, clean, "k_L", model="pcc", experiments={"nope": "static"})
     with pytest.raises(softrod.InputError, match="'static' or 'dynamic'"):
         softrod.calibrate(
-            d, clean, "k_L", model="pcc",
-            experiments={"elongation": "slow", "bending": "static", "step": "dynamic",
-                         "free_decay": "dynamic"},
+            d,
+            clean,
+            "k_L",
+            model="pcc",
+            experiments={
+                "elongation": "slow",
+                "bending": "static",
+                "step": "dynamic",
+                "free_decay": "dynamic",
+            },
         )
     with pytest.raises(softrod.InputError, match="missing: 'bending'"):
         softrod.calibrate(d, clean, "k_L", model="pcc", experiments={"elongation": "static"})

@@ -105,9 +105,7 @@ def test_straight_column_above_the_buckling_load_is_flagged_unstable(ratio):
     with pytest.raises(InvalidStateError, match="unstable") as err:
         solve_statics(d, [], tip_force=[0, 0, -ratio * P_CR], on_unstable="raise")
     assert err.value.rule == "stability"
-    failed = solve_statics(
-        d, [], tip_force=[0, 0, -ratio * P_CR], on_unstable="raise", check=False
-    )
+    failed = solve_statics(d, [], tip_force=[0, 0, -ratio * P_CR], on_unstable="raise", check=False)
     assert failed.converged is False
     below = solve_statics(d, [], tip_force=[0, 0, -0.9 * P_CR])
     assert below.stable is True

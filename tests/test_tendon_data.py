@@ -36,7 +36,10 @@ def test_tensions_round_trip_through_files(robot_data, tensions, tmp_path, suffi
     # CSV stores the N values with repr precision and N is SI: exact.
     np.testing.assert_array_equal(back.tensions, tensions)
     assert [c for c in robot_data.to_frame().columns if c.startswith("t")][:4] == [
-        "t0_N", "t1_N", "t2_N", "t3_N"
+        "t0_N",
+        "t1_N",
+        "t2_N",
+        "t3_N",
     ]
 
 

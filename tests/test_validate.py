@@ -285,13 +285,20 @@ def test_cli_bare_numbers_need_units(run):
     )
     assert run("solve", SPA, "--pressure", "0,0,0").exit_code == 0
     assert run("solve", SPA, "--pressure", "30,0,0kPa").exit_code == 0
-    assert_clean_error(run("simulate", SPA, "--pulses", "paper000", "--t-end", "10",
-                           "--out", "t.npz"), 2, "--t-end", '"10 s"')
+    assert_clean_error(
+        run("simulate", SPA, "--pulses", "paper000", "--t-end", "10", "--out", "t.npz"),
+        2,
+        "--t-end",
+        '"10 s"',
+    )
 
 
 def test_cli_usage_errors_are_one_line(run):
-    assert_clean_error(run("sweep", SPA, "--grid", "0:1kPa:2", "--out", "o.csv",
-                           "--threads", "100000"), 2, "--threads")
+    assert_clean_error(
+        run("sweep", SPA, "--grid", "0:1kPa:2", "--out", "o.csv", "--threads", "100000"),
+        2,
+        "--threads",
+    )
     assert_clean_error(run("solve"), 2, "DESIGN")
 
 

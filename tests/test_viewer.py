@@ -81,8 +81,9 @@ def test_quaternion_and_transported_frames():
     # Frames rebuilt from a centreline alone: d3 is the tangent, and they are rotations.
     sol = solve_statics(SPA, [60e3, 20e3, 0])
     frames = geo.transport_frames(sol.position, sol.rotation[0])
-    np.testing.assert_allclose(frames @ np.transpose(frames, (0, 2, 1)), np.eye(3)[None].repeat(
-        len(frames), 0), atol=1e-12)
+    np.testing.assert_allclose(
+        frames @ np.transpose(frames, (0, 2, 1)), np.eye(3)[None].repeat(len(frames), 0), atol=1e-12
+    )
     # Central differences of a 16-step RK4 centreline: tangents within ~1e-2 rad of d3.
     assert np.abs(frames[:, :, 2] - sol.rotation[:, :, 2]).max() < 2e-2
 
@@ -137,9 +138,7 @@ def test_trajectory_playback_and_calibration_view(tmp_path):
         assert "t = " in v._t_note.content
         measured, predicted, pressures = v.calibration
         np.testing.assert_array_equal(measured, data.tip_position)
-        np.testing.assert_allclose(
-            predicted, softrod.solve_statics_batch(design, p).tip_position
-        )
+        np.testing.assert_allclose(predicted, softrod.solve_statics_batch(design, p).tip_position)
         v._show_sample(2)
         np.testing.assert_allclose(v.pressures, p[2])
     finally:

@@ -59,9 +59,7 @@ def test_slider_resolves_and_redraws_the_tube(viewer):
         assert sol.tip_position[1] - tip0[1] > 0.02
 
         after = page.screenshot()
-        changed = (np.abs(after - before).max(axis=2) > 40) & (
-            scene_pixels(after, left) | drawn
-        )
+        changed = (np.abs(after - before).max(axis=2) > 40) & (scene_pixels(after, left) | drawn)
         # The tube moved: a few thousand pixels of the scene changed (a 30 mm swing of a
         # 42 mm tube), and the change lies where the tube is drawn.
         assert changed.sum() > 2_000
@@ -69,8 +67,10 @@ def test_slider_resolves_and_redraws_the_tube(viewer):
         cy, cx = np.nonzero(changed)
         assert xs.min() - 50 <= np.median(cx) <= xs.max() + 50
         assert ys.min() - 50 <= np.median(cy) <= ys.max() + 50
-        print("\nslider-to-redraw latency (ms): " + ", ".join(
-            f"{k} {v:.1f}" for k, v in latency.items()))
+        print(
+            "\nslider-to-redraw latency (ms): "
+            + ", ".join(f"{k} {v:.1f}" for k, v in latency.items())
+        )
 
         if os.environ.get("SOFTROD_FIGURES"):
             viewer.screenshot(FIGURES / "viewer_spa_130mm.png", width=1000, height=700)

@@ -239,9 +239,7 @@ class SystemSimulator:
         rods: Sequence[
             tuple[Rod, Sequence[float], Sequence[float], _Vec3, Sequence[Sequence[float]]]
         ],
-        platform: tuple[
-            _Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3
-        ],
+        platform: tuple[_Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3],
         inertia: Sequence[Sequence[float]],
         dt: float,
         alpha: float,
@@ -317,7 +315,6 @@ def linearise_at(
     nodes: int,
     tensions: Sequence[float] | None = None,
 ) -> dict[str, Any]: ...
-
 def solve_constrained_tip(
     rod: Rod,
     pressures: Sequence[float],
@@ -348,9 +345,7 @@ def solve_rod_system(
             Sequence[Sequence[float]],
         ]
     ],
-    platform: tuple[
-        _Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3
-    ],
+    platform: tuple[_Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3],
     guess: Sequence[float] | None = None,
     tol: float = 1e-10,
     max_iter: int = 25,
@@ -379,9 +374,7 @@ def solve_constrained_tip_batch(
 ) -> dict[str, Any]: ...
 def solve_rod_system_batch(
     rods: Sequence[tuple[Rod, _Vec3, _Vec3, _Vec3, Sequence[Sequence[float]]]],
-    platform: tuple[
-        _Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3
-    ],
+    platform: tuple[_Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3],
     pressures: _ArrayLike,
     tensions: _ArrayLike | None = None,
     threads: int = 0,

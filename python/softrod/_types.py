@@ -27,4 +27,3 @@ if TYPE_CHECKING:
     Quantity = float | str
     Progress = bool | None | Callable[..., Any]
     Units = str | Mapping[str, str] | None
-

@@ -393,7 +393,7 @@ def parse_unit(unit: str) -> tuple[float, tuple, bool]:
         exp = sign * (int(m["exp"]) if m["exp"] else 1)
         if abs(exp) > 4:
             raise _UnitSyntaxError(f"exponent {exp} out of range (-4 ... 4)")
-        for part in (UNIT_ALIASES[sym].split("*") if sym in UNIT_ALIASES else [sym]):
+        for part in UNIT_ALIASES[sym].split("*") if sym in UNIT_ALIASES else [sym]:
             f, d, is_angle = _symbol(part)
             factor *= f**exp
             for k, v in d:
@@ -502,9 +502,7 @@ def _article(word: str) -> str:
 def _dim_text(dims: tuple, unit: str) -> str:
     if not dims:
         return f"{unit!r}, which has no dimension"
-    return f"{unit!r} of dimension " + " * ".join(
-        f"{k}" if v == 1 else f"{k}^{v}" for k, v in dims
-    )
+    return f"{unit!r} of dimension " + " * ".join(f"{k}" if v == 1 else f"{k}^{v}" for k, v in dims)
 
 
 def unit_factor(unit: str, kind: str, field: str, cls: type[DesignError] = InputError) -> float:

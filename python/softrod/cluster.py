@@ -75,14 +75,18 @@ def connect(address: str):
         from distributed import Client
     except ModuleNotFoundError:  # pragma: no cover (extra not installed)
         raise design_error(
-            "--scheduler", address, "needs dask.distributed: pip install 'softrod[cluster]'",
+            "--scheduler",
+            address,
+            "needs dask.distributed: pip install 'softrod[cluster]'",
             InputError,
         ) from None
     try:
         return Client(address, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError) as exc:
         raise design_error(
-            "--scheduler", address, f"cannot connect to a Dask scheduler there ({exc})",
+            "--scheduler",
+            address,
+            f"cannot connect to a Dask scheduler there ({exc})",
             InputError,
         ) from None
 
@@ -139,8 +143,10 @@ def design_from_text(text: str):
 
 def task_slots(executor) -> tuple[int, dict[str, int]]:
     """(task slots of the whole cluster, task slots per host)."""
-    info = executor.scheduler_info(n_workers=-1) if _takes_n_workers(executor) else (
-        executor.scheduler_info()
+    info = (
+        executor.scheduler_info(n_workers=-1)
+        if _takes_n_workers(executor)
+        else (executor.scheduler_info())
     )
     per_host: dict[str, int] = {}
     for w in info["workers"].values():

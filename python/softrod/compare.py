@@ -291,8 +291,7 @@ def compare_models(
         "softrod.compare_models",
         protocol="paper002",
         models={
-            label: {mounting: d.name for mounting, d in by.items()}
-            for label, by in designs.items()
+            label: {mounting: d.name for mounting, d in by.items()} for label, by in designs.items()
         },
         experiments=names,
         ramp_kPa=(ramp / 1e3).tolist(),

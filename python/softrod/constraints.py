@@ -56,15 +56,21 @@ def orientation(value: Any, field: str, cls: type[DesignError] = InputError) -> 
         if not all(len(r) == 3 for r in arr):
             raise V.fail(field, value, "a rotation matrix has 3 rows of 3 numbers", cls)
         m = np.array(
-            [[V.real(x, f"{field}[{i}][{j}]", cls=cls) for j, x in enumerate(r)]
-             for i, r in enumerate(arr)]
+            [
+                [V.real(x, f"{field}[{i}][{j}]", cls=cls) for j, x in enumerate(r)]
+                for i, r in enumerate(arr)
+            ]
         )
         rule = "must be a rotation matrix"
     else:
         w = [V.quantity(x, "angle", f"{field}[{i}]", cls) for i, x in enumerate(arr)]
         if float(np.linalg.norm(w)) > 1e3:
-            raise V.fail(field, value, "a rotation vector's angle must be at most 1000 rad "
-                         "(one turn is 2 pi)", cls)
+            raise V.fail(
+                field,
+                value,
+                "a rotation vector's angle must be at most 1000 rad (one turn is 2 pi)",
+                cls,
+            )
         m = rotation_from_vector(w)
         rule = "must give a rotation matrix"
     worst = float(np.abs(m.T @ m - np.eye(3)).max())
@@ -107,22 +113,35 @@ class TipConstraint:
         if self.kind == "free":
             for name in ("position", "rotation"):
                 if getattr(self, name) is not None:
-                    raise V.fail(f"tip_constraint.{name}", getattr(self, name),
-                                 "a free tip takes no position or orientation")
+                    raise V.fail(
+                        f"tip_constraint.{name}",
+                        getattr(self, name),
+                        "a free tip takes no position or orientation",
+                    )
             return
         if self.position is None:
-            raise V.fail("tip_constraint.position", "(missing)",
-                         f"a {self.kind} tip needs its position (3 lengths, world frame)")
-        object.__setattr__(self, "position",
-                           _position(self.position, "tip_constraint.position", InputError))
+            raise V.fail(
+                "tip_constraint.position",
+                "(missing)",
+                f"a {self.kind} tip needs its position (3 lengths, world frame)",
+            )
+        object.__setattr__(
+            self, "position", _position(self.position, "tip_constraint.position", InputError)
+        )
         if self.kind == "pinned":
             if self.rotation is not None:
-                raise V.fail("tip_constraint.orientation", self.rotation,
-                             "a pinned tip turns freely; leave the orientation out (or clamp it)")
+                raise V.fail(
+                    "tip_constraint.orientation",
+                    self.rotation,
+                    "a pinned tip turns freely; leave the orientation out (or clamp it)",
+                )
             return
         if self.rotation is None:
-            raise V.fail("tip_constraint.orientation", "(missing)",
-                         "a clamped tip needs its orientation (a rotation vector or matrix)")
+            raise V.fail(
+                "tip_constraint.orientation",
+                "(missing)",
+                "a clamped tip needs its orientation (a rotation vector or matrix)",
+            )
         m = orientation(self.rotation, "tip_constraint.orientation")
         object.__setattr__(self, "rotation", tuple(tuple(float(v) for v in r) for r in m))
 
@@ -159,12 +178,19 @@ def coerce(value: Any) -> TipConstraint:
     if isinstance(value, dict):
         unknown = set(value) - {"type", "position", "orientation"}
         if unknown:
-            raise V.fail("tip_constraint", sorted(unknown),
-                         "unknown keys; known: type, position, orientation")
-        return TipConstraint(value.get("type", "free"), value.get("position"),
-                             value.get("orientation"))
-    raise V.fail("tip_constraint", type(value).__name__,
-                 "must be a softrod.TipConstraint, 'free', 'pinned', 'clamped' or a mapping")
+            raise V.fail(
+                "tip_constraint",
+                sorted(unknown),
+                "unknown keys; known: type, position, orientation",
+            )
+        return TipConstraint(
+            value.get("type", "free"), value.get("position"), value.get("orientation")
+        )
+    raise V.fail(
+        "tip_constraint",
+        type(value).__name__,
+        "must be a softrod.TipConstraint, 'free', 'pinned', 'clamped' or a mapping",
+    )
 
 
 def from_tip_table(tip: dict, quantity, qvec) -> TipConstraint | None:
@@ -175,28 +201,43 @@ def from_tip_table(tip: dict, quantity, qvec) -> TipConstraint | None:
     has_pos, has_rot = "position" in tip, "orientation" in tip
     if kind == "free":
         if has_pos or has_rot:
-            raise V.fail("tip.position" if has_pos else "tip.orientation",
-                         tip.get("position", tip.get("orientation")),
-                         'is only used with constraint = "pinned" or "clamped"', DesignError)
+            raise V.fail(
+                "tip.position" if has_pos else "tip.orientation",
+                tip.get("position", tip.get("orientation")),
+                'is only used with constraint = "pinned" or "clamped"',
+                DesignError,
+            )
         return None
     if not has_pos:
-        raise V.fail("tip.position", "(missing)",
-                     f'constraint = "{kind}" needs the tip position (3 lengths, world frame)',
-                     DesignError)
+        raise V.fail(
+            "tip.position",
+            "(missing)",
+            f'constraint = "{kind}" needs the tip position (3 lengths, world frame)',
+            DesignError,
+        )
     pos = qvec(tip["position"], "length", "tip.position")
     if kind == "pinned":
         if has_rot:
-            raise V.fail("tip.orientation", tip["orientation"],
-                         'a pinned tip turns freely; leave it out (or use constraint = "clamped")',
-                         DesignError)
+            raise V.fail(
+                "tip.orientation",
+                tip["orientation"],
+                'a pinned tip turns freely; leave it out (or use constraint = "clamped")',
+                DesignError,
+            )
         return TipConstraint("pinned", position=pos)
     if not has_rot:
-        raise V.fail("tip.orientation", "(missing)",
-                     'constraint = "clamped" needs the tip orientation (a rotation vector of '
-                     "3 angles or a 3x3 matrix)", DesignError)
+        raise V.fail(
+            "tip.orientation",
+            "(missing)",
+            'constraint = "clamped" needs the tip orientation (a rotation vector of '
+            "3 angles or a 3x3 matrix)",
+            DesignError,
+        )
     rot = tip["orientation"]
-    if isinstance(rot, (list, tuple)) and len(rot) == 3 and not all(
-        isinstance(r, (list, tuple)) for r in rot
+    if (
+        isinstance(rot, (list, tuple))
+        and len(rot) == 3
+        and not all(isinstance(r, (list, tuple)) for r in rot)
     ):
         rot = rotation_from_vector(
             [quantity(x, "angle", f"tip.orientation[{i}]") for i, x in enumerate(rot)]

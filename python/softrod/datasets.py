@@ -244,7 +244,8 @@ class Dataset:
             bad = np.flatnonzero(~(np.isfinite(t) & (t >= 0)).all(axis=1))
             if bad.size:
                 raise _fail(
-                    "tensions", "negative or non-finite",
+                    "tensions",
+                    "negative or non-finite",
                     f"tendon tensions must be finite and >= 0 N (rows {_runs(bad)})",
                 )
             set_(self, "tensions", _readonly(t))
@@ -356,7 +357,7 @@ class Dataset:
                 missing,
                 None,
                 "say where each marker sits on the body: its arc length s from the base and "
-                "its offset in the cross-section frame (the metadata block's \"markers\" entry "
+                'its offset in the cross-section frame (the metadata block\'s "markers" entry '
                 "in a file)",
             )
         s = V.real_array(self.marker_s, "marker_s", what="arc lengths (m)")
@@ -1085,7 +1086,6 @@ def _from_frame(
         raise _fail("rows", len(df), f"too many rows: at most {V.MAX_ROWS:,}")
     if "converged" in extras:
         df, where = _converged_rows(df, where, unconverged)
-
 
     # Values: empty cells, text in number columns, non-finite numbers. A marker not seen
     # in a row leaves its cells empty.

@@ -195,9 +195,7 @@ def _check_keys(table: Any, kind: str, where: str) -> dict:
     if not isinstance(table, Mapping):
         raise design_error(where or "design", type(table).__name__, "must be a table")
     allowed = _SCHEMA[kind]
-    unknown = sorted(
-        (k for k in table if not isinstance(k, str) or k not in allowed), key=str
-    )
+    unknown = sorted((k for k in table if not isinstance(k, str) or k not in allowed), key=str)
     if unknown:
         key = unknown[0]
         name = key if isinstance(key, str) and key.isidentifier() else repr(key)
@@ -297,7 +295,7 @@ def _base_rotation(mount: Mapping) -> list[list[float]]:
         raise design_error(
             "mounting.orientation",
             "missing",
-            'is required: the mounting decides where gravity acts; write [mounting] '
+            "is required: the mounting decides where gravity acts; write [mounting] "
             'orientation = "hanging", "upright" or "horizontal" (or give base_rotation)',
         )
     orientation = V.choice(
@@ -417,9 +415,7 @@ def _reference(sec: Mapping, where: str, length: float) -> dict | None:
             f"give one of curvature, u_star or bend_radius, not {given[0]} and {given[1]}",
         )
     if "bend_direction" in sec and "bend_radius" not in sec:
-        raise design_error(
-            f"{where}.bend_direction", sec["bend_direction"], "needs bend_radius"
-        )
+        raise design_error(f"{where}.bend_direction", sec["bend_direction"], "needs bend_radius")
     out: dict[str, Any] = {}
     if given and given[0] in ("curvature", "u_star"):
         out["curvature"] = _qvec(sec[given[0]], "curvature", f"{where}.{given[0]}")
@@ -630,7 +626,7 @@ def _to_spec(doc: Mapping) -> dict:
             "units",
             units,
             'must be "SI" (bare numbers are then SI: m, kg, s, N, Pa, rad), or left out (every '
-            "dimensional quantity then carries its unit, e.g. \"110 mm\")",
+            'dimensional quantity then carries its unit, e.g. "110 mm")',
             DesignError,
         )
     token = _BARE.set("si" if units == "SI" else _BARE_FIX)
@@ -797,8 +793,9 @@ def _obstacles(obstacles: Any) -> list[dict]:
                 spec[key] = _q(ob[key], "length", field)
             elif unit is None:
                 if not isinstance(ob[key], (list, tuple)) or len(ob[key]) != 3:
-                    raise V.fail(field, ob[key], "must be a list of 3 numbers (a direction)",
-                                 DesignError)
+                    raise V.fail(
+                        field, ob[key], "must be a list of 3 numbers (a direction)", DesignError
+                    )
                 spec[key] = [number(v, f"{field}[{i}]") for i, v in enumerate(ob[key])]
             else:
                 spec[key] = _qvec(ob[key], unit, field)
@@ -833,14 +830,18 @@ def _operating_range(table: Any) -> dict:
     if "source" in table and not isinstance(table["source"], str):
         raise V.fail("operating_range.source", table["source"], "must be a string", DesignError)
     out = {}
-    for key, kind, example in (("pressure", "pressure", '["0 kPa", "70 kPa"]'),
-                               ("tension", "force", '["0 N", "20 N"]')):
+    for key, kind, example in (
+        ("pressure", "pressure", '["0 kPa", "70 kPa"]'),
+        ("tension", "force", '["0 N", "20 N"]'),
+    ):
         if key not in table:
             continue
         bounds = table[key]
         if isinstance(bounds, str) or not isinstance(bounds, list) or len(bounds) != 2:
             raise V.fail(
-                f"operating_range.{key}", bounds, f"must be [low, high], e.g. {example}",
+                f"operating_range.{key}",
+                bounds,
+                f"must be [low, high], e.g. {example}",
                 DesignError,
             )
         out[key] = _qvec(bounds, kind, f"operating_range.{key}", length=2)
@@ -1124,8 +1125,7 @@ def _stiffness_map(doc: Mapping, spec: Mapping, rod, source: Path | None):
         raise design_error(
             "stiffness_map.file",
             given,
-            "no section sets [sections.law] stiffness_map = true, so the map would have no "
-            "effect",
+            "no section sets [sections.law] stiffness_map = true, so the map would have no effect",
         )
     from .stiffness_map import load_stiffness_map
 
@@ -1137,8 +1137,7 @@ def _stiffness_map(doc: Mapping, spec: Mapping, rod, source: Path | None):
         raise design_error(
             "stiffness_map.file",
             given,
-            f"the map takes {smap.n_channels} pressure channel(s), the design has "
-            f"{rod.n_channels}",
+            f"the map takes {smap.n_channels} pressure channel(s), the design has {rod.n_channels}",
         )
     return smap, file.resolve()
 
@@ -1285,8 +1284,7 @@ def _with_units(doc: dict) -> dict:
         ]
     if isinstance(doc.get("obstacles"), list):
         doc["obstacles"] = [
-            _units_in(ob, "obstacle") if isinstance(ob, Mapping) else ob
-            for ob in doc["obstacles"]
+            _units_in(ob, "obstacle") if isinstance(ob, Mapping) else ob for ob in doc["obstacles"]
         ]
     sections = []
     for sec in doc.get("sections", []):

@@ -68,9 +68,7 @@ def check_target(path: str | os.PathLike) -> Path:
     if not folder.is_dir():
         raise design_error("path", str(path), f"folder {str(folder)!r} does not exist", InputError)
     if not os.access(folder, os.W_OK | os.X_OK):
-        raise design_error(
-            "path", str(path), f"folder {str(folder)!r} is not writable", InputError
-        )
+        raise design_error("path", str(path), f"folder {str(folder)!r} is not writable", InputError)
     if path.is_dir():
         raise design_error("path", str(path), "is a folder, not a file", InputError)
     return path

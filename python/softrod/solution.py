@@ -217,9 +217,7 @@ class StaticSolution:
     def strains(self) -> dict[str, np.ndarray]:
         return {"v": self.v, "u": self.u}
 
-    def jacobian(
-        self, *, params: Sequence[str] = (), point: float | str | None = None
-    ) -> Jacobian:
+    def jacobian(self, *, params: Sequence[str] = (), point: float | str | None = None) -> Jacobian:
         """The exact Jacobian of the pose at arc length ``point`` (default the tip) with
         respect to the pressures, the tip force and moment, the tendon tensions and, at the
         tip, the named calibration parameters (``params``: names such as "E" or
@@ -228,11 +226,16 @@ class StaticSolution:
         from .units import to_si
 
         if not self.converged:
-            raise design_error("solution", "converged = False",
-                               "must be a converged StaticSolution", InputError)
+            raise design_error(
+                "solution", "converged = False", "must be a converged StaticSolution", InputError
+            )
         if not np.all(np.isfinite(self.force)):
-            raise design_error("solution", "model='pcc'",
-                               "the Jacobian is available for the rod model only", InputError)
+            raise design_error(
+                "solution",
+                "model='pcc'",
+                "the Jacobian is available for the rod model only",
+                InputError,
+            )
         design = self.design
         s = design.length if point is None else to_si(point, "length", "point", InputError)
         pairs, names = _param_pairs(design, params)

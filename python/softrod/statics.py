@@ -117,9 +117,14 @@ def _pressures(design: Design, pressures) -> list[float]:
     """One gauge pressure per channel (Pa, or strings with units), checked like a batch row."""
     if V.is_real(pressures) or isinstance(pressures, str):
         pressures = [pressures]
-    return _quantities(pressures, "pressure", "pressures", design.n_channels,
-                       f"the design has {design.n_channels} pressure channels; give one gauge "
-                       "pressure per channel")
+    return _quantities(
+        pressures,
+        "pressure",
+        "pressures",
+        design.n_channels,
+        f"the design has {design.n_channels} pressure channels; give one gauge "
+        "pressure per channel",
+    )
 
 
 def _quantities(value, kind: str, name: str, count: int, rule: str) -> list[float]:
@@ -158,9 +163,7 @@ def _plain_float(x) -> float | None:
 def _vec3(value, kind: str, name: str, default) -> list[float]:
     if value is None:
         return list(default)
-    return _quantities(
-        value, kind, name, 3, f"must be 3 {kind} values (in the design's tip frame)"
-    )
+    return _quantities(value, kind, name, 3, f"must be 3 {kind} values (in the design's tip frame)")
 
 
 def _tensions(design: Design, tensions) -> list[float]:
@@ -214,9 +217,7 @@ def batch_tensions(design: Design, tensions, rows: int) -> np.ndarray | None:
             "an array",
             f"design {design.name!r} has no tendons ([[sections.tendons]]); leave tensions out",
         )
-    arr = V.real_array(
-        tensions, "tensions", unit_kind="force", max_size=V.MAX_ROWS * max(n, 1)
-    )
+    arr = V.real_array(tensions, "tensions", unit_kind="force", max_size=V.MAX_ROWS * max(n, 1))
     if arr.ndim == 1 and n == 1:
         arr = arr[:, None]
     if arr.ndim != 2 or arr.shape != (rows, n):
@@ -252,8 +253,11 @@ def _initial(initial, model: str) -> list[float] | None:
         return None
     warm_start = getattr(initial, "_warm_start", None)
     if warm_start is None:
-        raise V.fail("initial", type(initial).__name__,
-                     "must be a StaticSolution, an InverseSolution or None")
+        raise V.fail(
+            "initial",
+            type(initial).__name__,
+            "must be a StaticSolution, an InverseSolution or None",
+        )
     return warm_start(model)
 
 
@@ -383,8 +387,12 @@ def solve_statics(
         # Only a design without chambers has nothing to state; a chambered one must say its
         # pressures (no silent zero).
         if design.n_channels:
-            raise V.fail("pressures", None, f"the design has {design.n_channels} pressure "
-                         "channels; give one gauge pressure per channel")
+            raise V.fail(
+                "pressures",
+                None,
+                f"the design has {design.n_channels} pressure "
+                "channels; give one gauge pressure per channel",
+            )
         pressures = []
     p = _pressures(design, pressures)
     V.choice(model, ("cosserat", "pcc"), "model")
@@ -458,9 +466,13 @@ def solve_statics(
         if check:
             raise
         return StaticSolution.failed(
-            design, p, exc,
+            design,
+            p,
+            exc,
             _n_unknowns(design, tf, tm) if constraint.kind == "free" else 6,
-            stiffness_scale=sigma, tensions=np.array(t), tip_constraint=constraint.kind,
+            stiffness_scale=sigma,
+            tensions=np.array(t),
+            tip_constraint=constraint.kind,
         )
     for v in out["violations"]:
         warnings.warn(ValidityWarning(v), stacklevel=2)
@@ -585,8 +597,16 @@ def solve_statics_batch(
     if progress is not None:
         raise design_error("progress", progress, "applies with executor= only", InputError)
     out = _core_batch(
-        design._rod, np.ascontiguousarray(arr), tf, tm, threads, sigma, on_invalid, tens,
-        opts.as_kwargs(), held,
+        design._rod,
+        np.ascontiguousarray(arr),
+        tf,
+        tm,
+        threads,
+        sigma,
+        on_invalid,
+        tens,
+        opts.as_kwargs(),
+        held,
     )
     return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens, constraint)
 
@@ -596,13 +616,29 @@ def _core_batch(rod, arr, tf, tm, threads, sigma, on_invalid, tens, options: dic
     constraint's ``core_args()``) the constrained batch."""
     if held is None:
         return rod.solve_batch(
-            arr, tf, tm, threads=threads, stiffness_scale=sigma, on_invalid=on_invalid,
-            tensions=tens, **options,
+            arr,
+            tf,
+            tm,
+            threads=threads,
+            stiffness_scale=sigma,
+            on_invalid=on_invalid,
+            tensions=tens,
+            **options,
         )
     kind, position, rotation = held
     return _core.solve_constrained_tip_batch(
-        rod, arr, tf, tm, kind, position=position, rotation=rotation, threads=threads,
-        stiffness_scale=sigma, on_invalid=on_invalid, tensions=tens, **options,
+        rod,
+        arr,
+        tf,
+        tm,
+        kind,
+        position=position,
+        rotation=rotation,
+        threads=threads,
+        stiffness_scale=sigma,
+        on_invalid=on_invalid,
+        tensions=tens,
+        **options,
     )
 
 
@@ -636,9 +672,7 @@ def _batch_result(
             ),
             stacklevel=3,
         )
-    return BatchSolution(
-        pressures=arr, stiffness_scale=sigma, metadata=meta, tensions=tens, **out
-    )
+    return BatchSolution(pressures=arr, stiffness_scale=sigma, metadata=meta, tensions=tens, **out)
 
 
 def _batch_metadata(design, options, tf, tm, smap, constraint=_FREE_TIP) -> dict:
@@ -664,8 +698,17 @@ def _batch_metadata(design, options, tf, tm, smap, constraint=_FREE_TIP) -> dict
 
 
 def _batch_chunk(
-    text, pressures, tip_force, tip_moment, sigma, options, threads, per_host, on_invalid,
-    tensions=None, held=None,
+    text,
+    pressures,
+    tip_force,
+    tip_moment,
+    sigma,
+    options,
+    threads,
+    per_host,
+    on_invalid,
+    tensions=None,
+    held=None,
 ):
     """One chunk of a batch on a worker: the design rebuilt from its TOML text, one Rust
     batch call (``held``: the tip constraint's ``core_args()``, None: free)."""
@@ -673,14 +716,33 @@ def _batch_chunk(
 
     design = design_from_text(text)
     return _core_batch(
-        design._rod, pressures, tip_force, tip_moment, worker_threads(per_host, threads),
-        sigma, on_invalid, tensions, options, held,
+        design._rod,
+        pressures,
+        tip_force,
+        tip_moment,
+        worker_threads(per_host, threads),
+        sigma,
+        on_invalid,
+        tensions,
+        options,
+        held,
     )
 
 
 def _batch_on_cluster(
-    executor, design, arr, tf, tm, sigma, options, threads, chunk_size, progress, on_invalid,
-    tens=None, held=None,
+    executor,
+    design,
+    arr,
+    tf,
+    tm,
+    sigma,
+    options,
+    threads,
+    chunk_size,
+    progress,
+    on_invalid,
+    tens=None,
+    held=None,
 ):
     from .cluster import chunk_rows, design_text, run_chunks, task_slots
 

@@ -782,9 +782,7 @@ def _network(net: Any, where: str) -> dict:
         )
     weights, biases = net["weights"], net["biases"]
     if not isinstance(weights, (list, tuple)) or not isinstance(biases, (list, tuple)):
-        raise design_error(
-            f"{where}.weights", type(weights).__name__, "must be a list", InputError
-        )
+        raise design_error(f"{where}.weights", type(weights).__name__, "must be a list", InputError)
     if len(weights) != len(biases) or len(weights) < 1:
         raise design_error(
             f"{where}.weights",

@@ -78,7 +78,12 @@ def synthesize_dataset(
     seed = noise_seed(noise_mm, seed)
     p = batch_pressures(design, pressures)
     batch = solve_statics_batch(
-        design, p, tip_force=tip_force, tip_moment=tip_moment, options=options, threads=threads,
+        design,
+        p,
+        tip_force=tip_force,
+        tip_moment=tip_moment,
+        options=options,
+        threads=threads,
         tensions=tensions,
     )
     p = batch.pressures
@@ -167,9 +172,7 @@ def _synthetic_sites(markers):
     if markers is None:
         return None
     if not isinstance(markers, (list, tuple)) or not 1 <= len(markers) <= MAX_MARKERS:
-        raise _fail(
-            "markers", markers, f"must be a list of 1 to {MAX_MARKERS} pairs (s, offset)"
-        )
+        raise _fail("markers", markers, f"must be a list of 1 to {MAX_MARKERS} pairs (s, offset)")
     s, offset = np.zeros(len(markers)), np.zeros((len(markers), 3))
     for k, item in enumerate(markers):
         if not isinstance(item, (list, tuple)) or len(item) != 2:

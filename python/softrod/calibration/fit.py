@@ -125,9 +125,7 @@ def _bounds(params, bounds, initial: np.ndarray) -> Bounds:
         if params[j].positive and vals[0] <= 0:
             raise V.fail(f"bounds[{name}]", pair, f"{params[j].name} must stay > 0")
         if not vals[0] <= initial[j] <= vals[1]:
-            raise V.fail(
-                f"bounds[{name}]", pair, f"must contain the starting value {initial[j]:g}"
-            )
+            raise V.fail(f"bounds[{name}]", pair, f"must contain the starting value {initial[j]:g}")
         lo[j], hi[j] = vals
         given[j] = True
     return Bounds(lo, hi, given)
@@ -361,9 +359,7 @@ def calibrate(
     names, registration = _split_params(params, design0, model)
     if experiments is not None and model != "pcc":
         raise V.fail("experiments", experiments, "applies to model='pcc' only")
-    adapter = _adapter(
-        model, dynamic, design0, dataset, names, options, threads, dt, experiments
-    )
+    adapter = _adapter(model, dynamic, design0, dataset, names, options, threads, dt, experiments)
     if registration:
         adapter = Registered(adapter, registration)
     if method == "lm" and not adapter.exact_jacobian:

@@ -866,8 +866,16 @@ def identify_stiffness(
         )
         with reporter(progress, "identify_stiffness", len(dataset), _samples_done) as report:
             return _identify_on_cluster(
-                executor, mapped, names, dataset, np.exp(theta0), kwargs, threads, chunk_size,
-                report, t0,
+                executor,
+                mapped,
+                names,
+                dataset,
+                np.exp(theta0),
+                kwargs,
+                threads,
+                chunk_size,
+                report,
+                t0,
             )
     if chunk_size is not None:
         raise design_error("chunk_size", chunk_size, "applies with executor= only", InputError)
@@ -966,8 +974,7 @@ def _identify_on_cluster(
     bounds = [(lo, min(lo + rows, m)) for lo in range(0, m, rows)]
     text = design_text(mapped)
     chunks = [
-        (text, names, dataset.subset(np.arange(lo, hi)), initial[lo:hi], kwargs, threads,
-         per_host)
+        (text, names, dataset.subset(np.arange(lo, hi)), initial[lo:hi], kwargs, threads, per_host)
         for lo, hi in bounds
     ]
     report = None
@@ -986,9 +993,7 @@ def _identify_on_cluster(
         progress=report,
         name="softrod-identify",
     )
-    fields = {
-        name: _readonly(np.concatenate([p[name] for p in parts])) for name in _ROW_FIELDS
-    }
+    fields = {name: _readonly(np.concatenate([p[name] for p in parts])) for name in _ROW_FIELDS}
     return StiffnessIdentification(
         design=mapped,
         dataset=dataset,

@@ -57,9 +57,7 @@ class Prediction:
             ok=np.zeros(m, dtype=bool),
             d_tip=np.full((m, 3, n_par), np.nan) if jacobian else None,
             markers=np.full((m, n_markers, 3), np.nan) if n_markers else None,
-            d_markers=np.full((m, n_markers, 3, n_par), np.nan)
-            if n_markers and jacobian
-            else None,
+            d_markers=np.full((m, n_markers, 3, n_par), np.nan) if n_markers and jacobian else None,
         )
 
 
@@ -227,9 +225,7 @@ class Registered(ModelAdapter):
             ok=pred.ok,
             d_tip=None if pred.d_tip is None else derivatives(pred.tip, pred.d_tip),
             markers=None if pred.markers is None else points(pred.markers),
-            d_markers=None
-            if pred.d_markers is None
-            else derivatives(pred.markers, pred.d_markers),
+            d_markers=None if pred.d_markers is None else derivatives(pred.markers, pred.d_markers),
         )
 
     def predict(self, theta, rows, jacobian):

@@ -218,8 +218,10 @@ class CalibrationResult:
                 with np.errstate(invalid="ignore"):
                     dist = np.linalg.norm(ds.markers - pm, axis=2)
                     error = np.nanmean(np.where(np.isfinite(dist), dist, np.nan), axis=1)
-        label = "|measured - model tip|" if ds.tip_position is not None else (
-            "mean |measured - model marker|"
+        label = (
+            "|measured - model tip|"
+            if ds.tip_position is not None
+            else ("mean |measured - model marker|")
         )
         extras.append(Extra("error", error, label, "length"))
         meta = {
@@ -288,9 +290,7 @@ class CalibrationResult:
             param_names=self.names,
             length=d.length,
             axis=_axis(d) if one_mounting and self.registration is None else None,
-            base_position=_base_position(d)
-            if one_mounting and self.registration is None
-            else None,
+            base_position=_base_position(d) if one_mounting and self.registration is None else None,
             warning_rules=warning_thresholds(),
         )
 

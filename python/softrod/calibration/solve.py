@@ -51,8 +51,10 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
 
     adapter = problem.adapter
     n_par = len(problem.parameters)
-    n_markers = 0 if problem.residual.observed.markers is None else (
-        problem.residual.observed.markers.shape[1]
+    n_markers = (
+        0
+        if problem.residual.observed.markers is None
+        else (problem.residual.observed.markers.shape[1])
     )
     m = _rows_of(problem)
     positive = problem.positive

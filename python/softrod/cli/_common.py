@@ -261,7 +261,6 @@ def _fmt_kpa(pressures) -> str:
     return ", ".join(f"{p / 1e3:g}" for p in pressures)
 
 
-
 def _for_option(check, path: Path, option: str) -> Path:
     """Run a path check; name the command-line option in the error instead of 'path'."""
     try:
@@ -411,4 +410,3 @@ def _print_warnings(console, messages: list[str]) -> None:
 
     for message in messages:
         console.print(Text(f"warning: {message}", style="bold yellow"))
-

@@ -357,8 +357,13 @@ def _error_table(result):
     help="Extra fits from random starting points (within --bounds, or within a factor 3 of "
     "a positive parameter's value); the best fit wins.",
 )
-@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
-              help="Seed of the restarts' starting points.")
+@click.option(
+    "--seed",
+    default=0,
+    show_default=True,
+    type=click.IntRange(min=0),
+    help="Seed of the restarts' starting points.",
+)
 @click.option(
     "--model",
     type=click.Choice(["cosserat", "pcc"]),
@@ -398,8 +403,9 @@ def _error_table(result):
     "markers=0.5mm: each residual is divided by it (default 1 mm each).",
 )
 @_threads_option("Worker threads per model evaluation (0 = all cores).")
-@_scheduler_option("Run the restarts on the Dask cluster whose scheduler is at ADDRESS "
-                   "(docs/cluster.md).")
+@_scheduler_option(
+    "Run the restarts on the Dask cluster whose scheduler is at ADDRESS (docs/cluster.md)."
+)
 @_handle_errors
 def calibrate(
     design,
@@ -691,8 +697,9 @@ def calibrate_axial(
     help="Write an HTML report here (factors over the workspace, paper 001 Fig. 5).",
 )
 @_threads_option("Worker threads per core call (0 = all cores).")
-@_scheduler_option("Identify the samples on the Dask cluster whose scheduler is at ADDRESS "
-                   "(docs/cluster.md).")
+@_scheduler_option(
+    "Identify the samples on the Dask cluster whose scheduler is at ADDRESS (docs/cluster.md)."
+)
 @_handle_errors
 def identify(design, data, sections, out, report_path, threads, scheduler):
     """Identify the stiffness factors sigma of every sample in DATA (paper 001 eqs. 14-22).

@@ -43,14 +43,23 @@ def _tension_bounds(design, text):
 
 @click.command("inverse")
 @click.argument("design")
-@click.option("--target", "-t", required=True, metavar="X,Y,Z",
-              help="Target position of the tip (world frame), e.g. '10,5,-130 mm'.")
+@click.option(
+    "--target",
+    "-t",
+    required=True,
+    metavar="X,Y,Z",
+    help="Target position of the tip (world frame), e.g. '10,5,-130 mm'.",
+)
 @click.option("--bounds", "bounds", default=None, metavar="LO:HI", help=_BOUNDS_HELP)
-@click.option("--tension-bounds", "tension_bounds", default=None, metavar="LO:HI",
-              help=_TENSION_BOUNDS_HELP)
-@click.option("--point", default=None,
-              help="Arc length of the rod point that should reach the target (default: the "
-              "tip), e.g. '65 mm'.")
+@click.option(
+    "--tension-bounds", "tension_bounds", default=None, metavar="LO:HI", help=_TENSION_BOUNDS_HELP
+)
+@click.option(
+    "--point",
+    default=None,
+    help="Arc length of the rod point that should reach the target (default: the "
+    "tip), e.g. '65 mm'.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @_handle_errors
 def inverse(design, target, bounds, tension_bounds, point, as_json):
@@ -68,8 +77,13 @@ def inverse(design, target, bounds, tension_bounds, point, as_json):
     d = load_design(design)
     position = _parse_vector(target, "length", "--target", 3)
     s = None if point is None else to_si(point, "length", "--point", InputError, bare="error")
-    sol = solve_inverse(d, position, pressure_bounds=_bounds(d, bounds),
-                        tension_bounds=_tension_bounds(d, tension_bounds), point=s)
+    sol = solve_inverse(
+        d,
+        position,
+        pressure_bounds=_bounds(d, bounds),
+        tension_bounds=_tension_bounds(d, tension_bounds),
+        point=s,
+    )
     if as_json:
         out = {
             "design": d.name,
@@ -98,16 +112,34 @@ def inverse(design, target, bounds, tension_bounds, point, as_json):
 @click.command("workspace")
 @click.argument("design")
 @click.option("--bounds", "bounds", default=None, metavar="LO:HI", help=_BOUNDS_HELP)
-@click.option("--tension-bounds", "tension_bounds", default=None, metavar="LO:HI",
-              help=_TENSION_BOUNDS_HELP)
-@click.option("--samples", default=21, show_default=True, type=click.IntRange(min=2),
-              help="Samples per free channel on each face of the pressure box.")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write every boundary sample to a table (.csv or .parquet).")
-@click.option("--figure", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the 3-D, top and side views (.png, .pdf or .svg).")
-@click.option("--threads", default=0, show_default=True, type=click.IntRange(min=0),
-              help="Cores for the batch (0 = all).")
+@click.option(
+    "--tension-bounds", "tension_bounds", default=None, metavar="LO:HI", help=_TENSION_BOUNDS_HELP
+)
+@click.option(
+    "--samples",
+    default=21,
+    show_default=True,
+    type=click.IntRange(min=2),
+    help="Samples per free channel on each face of the pressure box.",
+)
+@click.option(
+    "--output",
+    "-o",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write every boundary sample to a table (.csv or .parquet).",
+)
+@click.option(
+    "--figure",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the 3-D, top and side views (.png, .pdf or .svg).",
+)
+@click.option(
+    "--threads",
+    default=0,
+    show_default=True,
+    type=click.IntRange(min=0),
+    help="Cores for the batch (0 = all).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @_handle_errors
 def workspace_cmd(design, bounds, tension_bounds, samples, output, figure, threads, as_json):
@@ -122,9 +154,13 @@ def workspace_cmd(design, bounds, tension_bounds, samples, output, figure, threa
         check_table_path(output)
     if figure is not None:
         _check_output(figure, "--figure", (".png", ".pdf", ".svg"), "a figure")
-    ws = workspace(d, pressure_bounds=_bounds(d, bounds),
-                   tension_bounds=_tension_bounds(d, tension_bounds), samples=samples,
-                   threads=threads)
+    ws = workspace(
+        d,
+        pressure_bounds=_bounds(d, bounds),
+        tension_bounds=_tension_bounds(d, tension_bounds),
+        samples=samples,
+        threads=threads,
+    )
     summary = ws.summary()
     if output is not None:
         write_table(ws.to_frame(), output)
@@ -137,19 +173,24 @@ def workspace_cmd(design, bounds, tension_bounds, samples, output, figure, threa
         fig = ws.plot(figure)
         plt.close(fig)
     if as_json:
-        click.echo(json.dumps({
-            "design": d.name,
-            "bounds_kPa": (ws.bounds / 1e3).tolist(),
-            "tension_bounds_N": ws.tension_bounds.tolist(),
-            "samples_per_face": samples,
-            "solves": summary["samples"],
-            "converged": summary["converged"],
-            "min_mm": (summary["min"] * 1e3).tolist(),
-            "max_mm": (summary["max"] * 1e3).tolist(),
-            "reach_xy_mm": summary["reach_xy"] * 1e3,
-            "hull_volume_cm3": summary["hull_volume"] * 1e6,
-            "wall_time_s": ws.wall_time_s,
-        }, indent=2))
+        click.echo(
+            json.dumps(
+                {
+                    "design": d.name,
+                    "bounds_kPa": (ws.bounds / 1e3).tolist(),
+                    "tension_bounds_N": ws.tension_bounds.tolist(),
+                    "samples_per_face": samples,
+                    "solves": summary["samples"],
+                    "converged": summary["converged"],
+                    "min_mm": (summary["min"] * 1e3).tolist(),
+                    "max_mm": (summary["max"] * 1e3).tolist(),
+                    "reach_xy_mm": summary["reach_xy"] * 1e3,
+                    "hull_volume_cm3": summary["hull_volume"] * 1e6,
+                    "wall_time_s": ws.wall_time_s,
+                },
+                indent=2,
+            )
+        )
         return
     from rich.table import Table
 
@@ -168,20 +209,46 @@ def workspace_cmd(design, bounds, tension_bounds, samples, output, figure, threa
 
 @click.command("track")
 @click.argument("design")
-@click.option("--path", "path_file", required=True,
-              type=click.Path(exists=True, dir_okay=False, path_type=Path),
-              help="Target path: CSV with time_s and x_mm, y_mm, z_mm (or x_m, ...).")
+@click.option(
+    "--path",
+    "path_file",
+    required=True,
+    type=click.Path(exists=True, dir_okay=False, path_type=Path),
+    help="Target path: CSV with time_s and x_mm, y_mm, z_mm (or x_m, ...).",
+)
 @click.option("--bounds", "bounds", default=None, metavar="LO:HI", help=_BOUNDS_HELP)
-@click.option("--rate", default=100.0, show_default=True, type=click.FloatRange(min=0,
-              min_open=True), help="Control rate, Hz.")
-@click.option("--kp", default=0.5, show_default=True, type=click.FloatRange(min=0),
-              help="Proportional gain on the tip error.")
-@click.option("--ki", default=2.0, show_default=True, type=click.FloatRange(min=0),
-              help="Integral gain on the tip error, 1/s.")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the tip, reference and error at every step (.csv or .parquet).")
-@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the tracking plot (.png, .pdf or .svg).")
+@click.option(
+    "--rate",
+    default=100.0,
+    show_default=True,
+    type=click.FloatRange(min=0, min_open=True),
+    help="Control rate, Hz.",
+)
+@click.option(
+    "--kp",
+    default=0.5,
+    show_default=True,
+    type=click.FloatRange(min=0),
+    help="Proportional gain on the tip error.",
+)
+@click.option(
+    "--ki",
+    default=2.0,
+    show_default=True,
+    type=click.FloatRange(min=0),
+    help="Integral gain on the tip error, 1/s.",
+)
+@click.option(
+    "--output",
+    "-o",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the tip, reference and error at every step (.csv or .parquet).",
+)
+@click.option(
+    "--plot",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the tracking plot (.png, .pdf or .svg).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 @_handle_errors
 def track(design, path_file, bounds, rate, kp, ki, output, plot, as_json):
@@ -198,11 +265,9 @@ def track(design, path_file, bounds, rate, kp, ki, output, plot, as_json):
     if plot is not None:
         _check_output(plot, "--plot", (".png", ".pdf", ".svg"), "a plot")
     path = TargetPath.from_file(path_file)
-    ctrl = TrackingController(d, path, rate=rate, kp=kp, ki=ki,
-                              pressure_bounds=_bounds(d, bounds))
+    ctrl = TrackingController(d, path, rate=rate, kp=kp, ki=ki, pressure_bounds=_bounds(d, bounds))
     start = ctrl.problem.solve(path.at(0.0))
-    result = run_closed_loop(d, ctrl, float(path.time[-1]), rate=rate,
-                             pressures=start.pressures)
+    result = run_closed_loop(d, ctrl, float(path.time[-1]), rate=rate, pressures=start.pressures)
     frame = tracking_frame(ctrl, result)
     err = frame["error_mm"].to_numpy()
     rms, worst = float((err**2).mean() ** 0.5), float(err.max())
@@ -217,9 +282,22 @@ def track(design, path_file, bounds, rate, kp, ki, output, plot, as_json):
         fig = tracking_plot(ctrl, result, plot)
         plt.close(fig)
     if as_json:
-        click.echo(json.dumps({"design": d.name, "duration_s": float(path.time[-1]),
-                               "rate_Hz": rate, "kp": kp, "ki": ki, "rms_error_mm": rms,
-                               "max_error_mm": worst}, indent=2))
+        click.echo(
+            json.dumps(
+                {
+                    "design": d.name,
+                    "duration_s": float(path.time[-1]),
+                    "rate_Hz": rate,
+                    "kp": kp,
+                    "ki": ki,
+                    "rms_error_mm": rms,
+                    "max_error_mm": worst,
+                },
+                indent=2,
+            )
+        )
         return
-    _stdout().print(f"{d.name}: tracked {path_file.name} for {path.time[-1]:.3g} s at "
-                    f"{rate:g} Hz; tip error RMS {rms:.3f} mm, max {worst:.3f} mm")
+    _stdout().print(
+        f"{d.name}: tracked {path_file.name} for {path.time[-1]:.3g} s at "
+        f"{rate:g} Hz; tip error RMS {rms:.3f} mm, max {worst:.3f} mm"
+    )

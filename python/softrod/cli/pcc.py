@@ -91,9 +91,7 @@ def _compare_dynamic(d, chans, pmax, force, input_path, t_end, dt):
             f"from 0.1 s to {duration / 2:g} s"
         )
     with _progress("runs", 6) as advance:
-        df = compare_pcc_dynamics(
-            d, schedule, duration, dt=step, tip_force=force, progress=advance
-        )
+        df = compare_pcc_dynamics(d, schedule, duration, dt=step, tip_force=force, progress=advance)
     _pyplot()
     fig = plot_pcc_dynamics_comparison(df, title=f"{d.name}: PCC vs Cosserat rod, {what}")
     return df, fig, f"dynamics, dt = {step * 1e3:g} ms"
@@ -202,9 +200,7 @@ def compare_pcc_cmd(
     "--chambers", default=3, show_default=True, help="Chambers pressurised (k_L, array CSV)."
 )
 @click.option("--k-L", "k_l", help="k_L for longitudinal-damping (default: the design's).")
-@click.option(
-    "--k-theta", "k_theta", help="k_theta for bending-damping (default: the design's)."
-)
+@click.option("--k-theta", "k_theta", help="k_theta for bending-damping (default: the design's).")
 @click.option(
     "--degree",
     type=int,
@@ -232,9 +228,7 @@ def compare_pcc_cmd(
     help="Write --design with the fitted values as this .toml design file.",
 )
 @_handle_errors
-def pcc_identify(
-    kind, data, design, chambers, k_l, k_theta, degree, experiment, dt, write_design
-):
+def pcc_identify(kind, data, design, chambers, k_l, k_theta, degree, experiment, dt, write_design):
     """Identify PCC parameters from DATA as in paper 003 Sec. V (docs/pcc.md).
 
     DATA is a softrod dataset (CSV/Parquet with tip_x/y/z and p0.. columns, as

@@ -26,7 +26,6 @@ def _seconds(text: str, option: str, *, positive: bool = True) -> float:
     return x
 
 
-
 @click.command("simulate")
 @click.argument("design")
 @click.option(

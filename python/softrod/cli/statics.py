@@ -37,7 +37,6 @@ DEMO_CASES_KPA = [(0, 0, 0), (35, 0, 0), (70, 0, 0), (70, 70, 0), (70, 70, 70)]
 DEMO_SWEEP = (0.0, 70e3, 7)  # Pa, Pa, points per channel: a 7^3 grid
 
 
-
 def _parse_tensions(text: str | None, design) -> list[float] | None:
     """--tension T1,T2,...: one tension per tendon channel (N, >= 0), or None (slack)."""
     if text is None:
@@ -49,8 +48,11 @@ def _parse_tensions(text: str | None, design) -> list[float] | None:
             "--tension",
             text,
             f"design {design.name} has {n} tendon channel{'s' if n != 1 else ''}"
-            + (f"; give {n} comma-separated tensions, e.g. " + ",".join(["2N"] + ["0"] * (n - 1))
-               if n else "; leave --tension out"),
+            + (
+                f"; give {n} comma-separated tensions, e.g. " + ",".join(["2N"] + ["0"] * (n - 1))
+                if n
+                else "; leave --tension out"
+            ),
             InputError,
         )
     from ._common import _parse_quantities
@@ -110,9 +112,7 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
         for lo in range(0, m, chunk):
             hi = min(lo + chunk, m)
             parts.append(
-                solve_statics_batch(
-                    design, pressures[lo:hi], threads=threads, on_unstable="ignore"
-                )
+                solve_statics_batch(design, pressures[lo:hi], threads=threads, on_unstable="ignore")
             )
             advance(hi - lo)
     wall = time.perf_counter() - t0
@@ -211,9 +211,7 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
     elapsed = time.perf_counter() - t0
     notes = list(sol.violations)
     if sol.stable is None:
-        notes.append(
-            "stability not assessed (follower loads are not conservative: docs/scope.md)"
-        )
+        notes.append("stability not assessed (follower loads are not conservative: docs/scope.md)")
     elif not sol.stable:
         notes.append(
             "the equilibrium is unstable: a small disturbance moves the rod away from it "
@@ -312,10 +310,14 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
     type=click.Path(dir_okay=False, path_type=Path),
     help="Output table, .csv or .parquet (written whole or not at all).",
 )
-@_threads_option("Worker threads (0 = all cores; with --scheduler: per task, 0 = the "
-                 "worker's share of its machine).")
-@_scheduler_option("Run on the Dask cluster whose scheduler is at ADDRESS, e.g. "
-                   "tcp://10.0.0.5:8786 (docs/cluster.md).")
+@_threads_option(
+    "Worker threads (0 = all cores; with --scheduler: per task, 0 = the "
+    "worker's share of its machine)."
+)
+@_scheduler_option(
+    "Run on the Dask cluster whose scheduler is at ADDRESS, e.g. "
+    "tcp://10.0.0.5:8786 (docs/cluster.md)."
+)
 @_handle_errors
 def sweep(design, grids, out, threads, scheduler):
     """Tip positions over a full-factorial pressure grid of DESIGN.

@@ -47,8 +47,12 @@ from ._common import (
     help="Show a dataset's measured tips against DESIGN's predictions (e.g. a calibrated "
     "design from `softrod calibrate --out`).",
 )
-@click.option("--host", default="127.0.0.1", show_default=True,
-              help="Interface to listen on (0.0.0.0: reachable from other machines).")
+@click.option(
+    "--host",
+    default="127.0.0.1",
+    show_default=True,
+    help="Interface to listen on (0.0.0.0: reachable from other machines).",
+)
 @click.option("--port", type=click.IntRange(1, 65535), help="Port (default: a free one).")
 @_handle_errors
 def view(design, pressure, pressure_range, max_force, trajectory, data, host, port):
@@ -95,6 +99,7 @@ def view(design, pressure, pressure_range, max_force, trajectory, data, host, po
         host=host,
         port=port,
     )
-    _stdout().print(Text(f"softrod viewer of {d.name}: open {viewer.url}  (Ctrl-C stops)"),
-                    soft_wrap=True)
+    _stdout().print(
+        Text(f"softrod viewer of {d.name}: open {viewer.url}  (Ctrl-C stops)"), soft_wrap=True
+    )
     viewer.wait()

@@ -81,9 +81,11 @@ def _period(rate, dt):
     steps = round(period / step)
     if steps < 1 or abs(steps * step - period) > 1e-9 * period:
         raise design_error(
-            "dt", dt,
+            "dt",
+            dt,
             f"the control period 1/rate = {period} s must be a whole number of time steps",
-            InputError)
+            InputError,
+        )
     return float(rate), period, step, steps
 
 
@@ -113,9 +115,12 @@ def run_closed_loop(
     design = load_design(design)
     require_free_tip(design, "run_closed_loop")
     if not callable(controller):
-        raise design_error("controller", type(controller).__name__,
-                           "must be callable: controller(measurement) -> pressures (Pa)",
-                           InputError)
+        raise design_error(
+            "controller",
+            type(controller).__name__,
+            "must be callable: controller(measurement) -> pressures (Pa)",
+            InputError,
+        )
     rate, period, step, steps = _period(rate, dt)
     duration = to_si(t_end, "time", "t_end", InputError)
     if not duration > 0:
@@ -138,8 +143,11 @@ def run_closed_loop(
         command = np.asarray(controller(meas), dtype=float)
         if command.shape != (nc,) or not np.all(np.isfinite(command)):
             raise design_error(
-                "controller", command.tolist() if command.ndim else command,
-                f"must return {nc} finite pressures (Pa) at t = {meas.time:.6g} s", InputError)
+                "controller",
+                command.tolist() if command.ndim else command,
+                f"must return {nc} finite pressures (Pa) at t = {meas.time:.6g} s",
+                InputError,
+            )
         times.append(meas.time)
         commands.append(command)
         piece = sim.run(PressureSchedule.constant(command), steps * step)
@@ -157,8 +165,13 @@ def run_closed_loop(
     cat = lambda name: np.concatenate([getattr(p, name) for p in pieces])  # noqa: E731
     energy = None if pieces[0].energy is None else cat("energy")
     metadata = dict(pieces[0].metadata)
-    metadata.update({"control_rate_Hz": rate, "steps": int(periods * steps),
-                     "controller": type(controller).__name__})
+    metadata.update(
+        {
+            "control_rate_Hz": rate,
+            "steps": int(periods * steps),
+            "controller": type(controller).__name__,
+        }
+    )
     trajectory = Trajectory(
         time=cat("time"),
         command=cat("command"),
@@ -206,8 +219,12 @@ class TargetPath:
         t = np.asarray(self.time, dtype=float)
         p = np.asarray(self.position, dtype=float)
         if t.ndim != 1 or t.size < 1 or p.shape != (t.size, 3):
-            raise design_error("path", f"time {t.shape}, position {p.shape}",
-                               "needs k times (s) and (k, 3) positions (m)", InputError)
+            raise design_error(
+                "path",
+                f"time {t.shape}, position {p.shape}",
+                "needs k times (s) and (k, 3) positions (m)",
+                InputError,
+            )
         if not (np.all(np.isfinite(t)) and np.all(np.isfinite(p))):
             raise design_error("path", "values", "must be finite", InputError)
         if np.any(np.diff(t) <= 0):
@@ -232,14 +249,19 @@ class TargetPath:
         """A circle in the horizontal (x-y) plane around ``center`` (3 values, m), run
         counter-clockwise seen from +z once per ``period`` (s) for ``duration`` (default one
         period)."""
-        c = np.asarray([to_si(v, "length", f"center[{i}]", InputError)
-                        for i, v in enumerate(center)])
+        c = np.asarray(
+            [to_si(v, "length", f"center[{i}]", InputError) for i, v in enumerate(center)]
+        )
         r = to_si(radius, "length", "radius", InputError)
         per = to_si(period, "time", "period", InputError)
         dur = per if duration is None else to_si(duration, "time", "duration", InputError)
         if not (r > 0 and per > 0 and dur > 0):
-            raise design_error("circle", (radius, period, duration),
-                               "radius, period and duration must be > 0", InputError)
+            raise design_error(
+                "circle",
+                (radius, period, duration),
+                "radius, period and duration must be > 0",
+                InputError,
+            )
         n = max(2, math.ceil(samples_per_period * dur / per) + 1)
         t = np.linspace(0.0, dur, n)
         a = start_angle + 2 * math.pi * t / per
@@ -263,16 +285,22 @@ class TargetPath:
                     cols.append(frame[name].to_numpy(float) * scale)
                     break
             else:
-                raise design_error("path", str(path),
-                                   f"needs a column {axis}_m or {axis}_mm", InputError)
+                raise design_error(
+                    "path", str(path), f"needs a column {axis}_m or {axis}_mm", InputError
+                )
         return cls(frame["time_s"].to_numpy(float), np.column_stack(cols))
 
     def to_frame(self) -> pd.DataFrame:
         import pandas as pd
 
-        return pd.DataFrame({"time_s": self.time, "x_mm": self.position[:, 0] * 1e3,
-                             "y_mm": self.position[:, 1] * 1e3,
-                             "z_mm": self.position[:, 2] * 1e3})
+        return pd.DataFrame(
+            {
+                "time_s": self.time,
+                "x_mm": self.position[:, 0] * 1e3,
+                "y_mm": self.position[:, 1] * 1e3,
+                "z_mm": self.position[:, 2] * 1e3,
+            }
+        )
 
 
 class TrackingController:
@@ -309,17 +337,25 @@ class TrackingController:
         self.kp = real(kp, "kp", minimum=0.0)
         self.ki = real(ki, "ki", minimum=0.0)
         if self.design.n_channels == 0:
-            raise design_error("design", self.design.name,
-                               "has no pressure channels: the tracking controller commands "
-                               "pressures", InputError)
+            raise design_error(
+                "design",
+                self.design.name,
+                "has no pressure channels: the tracking controller commands pressures",
+                InputError,
+            )
         if "tension_bounds" in problem:
-            raise design_error("tension_bounds", problem["tension_bounds"],
-                               "the tracking controller commands pressures only; its "
-                               "inverse holds the tendons slack", InputError)
+            raise design_error(
+                "tension_bounds",
+                problem["tension_bounds"],
+                "the tracking controller commands pressures only; its "
+                "inverse holds the tendons slack",
+                InputError,
+            )
         # The loop applies pressures only, so its inverse must not count on tensions.
         slack = (0.0, 0.0) if self.design.n_tendons else None
-        self.problem = InverseProblem(self.design, pressure_bounds=pressure_bounds,
-                                      tension_bounds=slack, **problem)
+        self.problem = InverseProblem(
+            self.design, pressure_bounds=pressure_bounds, tension_bounds=slack, **problem
+        )
         self.integral = np.zeros(3)
         self.last = None
         self.history: list[tuple] = []
@@ -361,8 +397,9 @@ def tracking_frame(controller: TrackingController, result: ClosedLoopResult):
     return pd.DataFrame(cols)
 
 
-def tracking_plot(controller: TrackingController, result: ClosedLoopResult, path=None, *,
-                  title: str | None = None):
+def tracking_plot(
+    controller: TrackingController, result: ClosedLoopResult, path=None, *, title: str | None = None
+):
     """Top view of the target and the tip, the tip error over time, and the chamber
     pressures; saved to ``path`` when given. Returns the figure."""
     import matplotlib.pyplot as plt
@@ -395,8 +432,11 @@ def tracking_plot(controller: TrackingController, result: ClosedLoopResult, path
     ax.set_title("pressures")
     ax.legend(fontsize=8)
     ax.grid(True, alpha=0.3)
-    fig.suptitle(title or f"{controller.design.name}: closed-loop tracking at "
-                 f"{result.rate:g} Hz (kp {controller.kp:g}, ki {controller.ki:g} 1/s)")
+    fig.suptitle(
+        title
+        or f"{controller.design.name}: closed-loop tracking at "
+        f"{result.rate:g} Hz (kp {controller.kp:g}, ki {controller.ki:g} 1/s)"
+    )
     if path is not None:
         from pathlib import Path
 
@@ -407,8 +447,9 @@ def tracking_plot(controller: TrackingController, result: ClosedLoopResult, path
     return fig
 
 
-def predicted_circle_error(system, radius: float, period: float, *, kp: float, ki: float,
-                           rate: float) -> float:
+def predicted_circle_error(
+    system, radius: float, period: float, *, kp: float, ki: float, rate: float
+) -> float:
     """The steady-state RMS tip error (m) that the linearised model ``system`` (a
     :class:`~softrod.control.LinearSystem` at the circle's centre) predicts for a
     :class:`TrackingController` on a horizontal circle of ``radius`` run once per

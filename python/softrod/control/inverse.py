@@ -45,19 +45,23 @@ def _quantity_list(value, kind: str, name: str, n: int) -> list[float]:
     if isinstance(value, str):
         parts = [p.strip() for p in value.split(",")]
         if len(parts) != n:
-            raise design_error(name, value, f"must hold {n} comma-separated {kind} values",
-                               InputError)
+            raise design_error(
+                name, value, f"must hold {n} comma-separated {kind} values", InputError
+            )
         m = re.fullmatch(r"([-+0-9.eE]+)\s*(\S.*)", parts[-1])
         unit = m.group(2) if m and not _is_number_text(parts[-1]) else ""
         items = [f"{p} {unit}" if unit and _is_number_text(p) else p for p in parts[:-1]]
         items.append(parts[-1])
-        return [to_si(v if not _is_number_text(v) else float(v), kind, f"{name}[{i}]",
-                      InputError) for i, v in enumerate(items)]
+        return [
+            to_si(v if not _is_number_text(v) else float(v), kind, f"{name}[{i}]", InputError)
+            for i, v in enumerate(items)
+        ]
     if isinstance(value, np.ndarray) and value.dtype.kind in "fiu":
         arr = value.astype(float).ravel()
         if arr.size != n or not np.all(np.isfinite(arr)):
-            raise design_error(name, value.tolist(), f"must be {n} finite {kind} values (SI)",
-                               InputError)
+            raise design_error(
+                name, value.tolist(), f"must be {n} finite {kind} values (SI)", InputError
+            )
         return arr.tolist()
     try:
         items = list(value)
@@ -76,16 +80,27 @@ def _is_number_text(text: str) -> bool:
     return True
 
 
-def _input_bounds(design: Design, bounds, *, name: str, kind: str, unit: str, n: int,
-                  range_key: str, example: str, what: str) -> np.ndarray:
+def _input_bounds(
+    design: Design,
+    bounds,
+    *,
+    name: str,
+    kind: str,
+    unit: str,
+    n: int,
+    range_key: str,
+    example: str,
+    what: str,
+) -> np.ndarray:
     """Per-input [lo, hi] (SI) of ``n`` inputs of one kind from ``bounds``: None (the
     design's operating range), a pair (every input), one pair per input, or a string
     "lo:hi unit"."""
     if n == 0:
         # (An empty array is what this function returns for no inputs: accept it back.)
         if bounds is not None and (isinstance(bounds, str) or np.size(bounds) != 0):
-            raise design_error(name, bounds, f"design {design.name!r} has no {what}; leave "
-                               f"{name} out", InputError)
+            raise design_error(
+                name, bounds, f"design {design.name!r} has no {what}; leave {name} out", InputError
+            )
         return np.zeros((0, 2))
     if bounds is None:
         rng = (design.spec.get("operating_range") or {}).get(range_key)
@@ -101,8 +116,9 @@ def _input_bounds(design: Design, bounds, *, name: str, kind: str, unit: str, n:
     if isinstance(bounds, str):
         m = re.fullmatch(r"\s*([-+0-9.eE]+)\s*:\s*([-+0-9.eE]+)\s*(\S.*)?", bounds)
         if m is None:
-            raise design_error(name, bounds, f"must read 'lo:hi unit', e.g. '0:70 {unit}'",
-                               InputError)
+            raise design_error(
+                name, bounds, f"must read 'lo:hi unit', e.g. '0:70 {unit}'", InputError
+            )
         text_unit = m.group(3) or ""
         if not text_unit:
             raise design_error(name, bounds, f"needs a unit, e.g. '0:70 {unit}'", InputError)
@@ -114,8 +130,12 @@ def _input_bounds(design: Design, bounds, *, name: str, kind: str, unit: str, n:
             pair = [to_si(v, kind, f"{name}[{i}]", InputError) for i, v in enumerate(arr)]
             out = np.tile(np.asarray(pair, dtype=float), (n, 1))
         elif arr.shape == (n, 2):
-            out = np.array([[to_si(v, kind, f"{name}[{c}][{i}]", InputError)
-                             for i, v in enumerate(row)] for c, row in enumerate(arr)])
+            out = np.array(
+                [
+                    [to_si(v, kind, f"{name}[{c}][{i}]", InputError) for i, v in enumerate(row)]
+                    for c, row in enumerate(arr)
+                ]
+            )
         else:
             raise design_error(
                 name,
@@ -134,24 +154,42 @@ def pressure_bounds(design: Design, bounds) -> np.ndarray:
     pair (every channel), one pair per channel, or a string "lo:hi unit" such as
     "0:70 kPa". A design without chambers has none: (0, 2). Raises InputError naming the
     rule."""
-    return _input_bounds(design, bounds, name="pressure_bounds", kind="pressure", unit="kPa",
-                         n=design.n_channels, range_key="pressure",
-                         example="pressure_bounds=(0, 70e3) or '0:70 kPa'",
-                         what="pressure channels")
+    return _input_bounds(
+        design,
+        bounds,
+        name="pressure_bounds",
+        kind="pressure",
+        unit="kPa",
+        n=design.n_channels,
+        range_key="pressure",
+        example="pressure_bounds=(0, 70e3) or '0:70 kPa'",
+        what="pressure channels",
+    )
 
 
 def tension_bounds(design: Design, bounds) -> np.ndarray:
     """Per-tendon [lo, hi] in N, like :func:`pressure_bounds` (default: the design's
     ``[operating_range] tension``). A tendon only pulls: lo >= 0, and lo = 0 lets it go
     slack. A design without tendons has none: (0, 2)."""
-    out = _input_bounds(design, bounds, name="tension_bounds", kind="force", unit="N",
-                        n=design.n_tendons, range_key="tension",
-                        example="tension_bounds=(0, 20) or '0:20 N'", what="tendons")
+    out = _input_bounds(
+        design,
+        bounds,
+        name="tension_bounds",
+        kind="force",
+        unit="N",
+        n=design.n_tendons,
+        range_key="tension",
+        example="tension_bounds=(0, 20) or '0:20 N'",
+        what="tendons",
+    )
     for k, (lo, _) in enumerate(out):
         if lo < 0.0:
-            raise design_error(f"tension_bounds[{k}]", tuple(out[k]),
-                               "a tendon can only pull: the lower bound must be >= 0 N (0 "
-                               "lets it go slack)", InputError)
+            raise design_error(
+                f"tension_bounds[{k}]",
+                tuple(out[k]),
+                "a tendon can only pull: the lower bound must be >= 0 N (0 lets it go slack)",
+                InputError,
+            )
     return out
 
 
@@ -172,8 +210,9 @@ def _weights(weights, orientation: bool) -> tuple[list[float], float]:
     if len(pos) != 3:
         raise design_error("weights.position", pos, "must be a number or 3 numbers", InputError)
     out = [real(w, f"weights.position[{i}]", minimum=0.0) for i, w in enumerate(pos)]
-    wo = real(weights.get("orientation", 1.0 if orientation else 0.0), "weights.orientation",
-              minimum=0.0)
+    wo = real(
+        weights.get("orientation", 1.0 if orientation else 0.0), "weights.orientation", minimum=0.0
+    )
     return out, float(wo)
 
 
@@ -242,8 +281,11 @@ class InverseSolution:
 
     def summary(self) -> str:
         mm = ", ".join(f"{v * 1e3:.3f}" for v in self.point_position)
-        where = "tip" if self.point >= self.design.length * (1 - 1e-12) else \
-            f"point s = {self.point * 1e3:.2f} mm"
+        where = (
+            "tip"
+            if self.point >= self.design.length * (1 - 1e-12)
+            else f"point s = {self.point * 1e3:.2f} mm"
+        )
         state = "reached" if self.reached else "NOT reached (closest pose in the bounds)"
         lines = []
         if len(self.pressures):
@@ -259,8 +301,11 @@ class InverseSolution:
         if not math.isnan(self.angle):
             lines.append(f"angle to the target orientation: {math.degrees(self.angle):.3g} deg")
         at = [f"p{c} {'lower' if a < 0 else 'upper'}" for c, a in enumerate(self.active) if a]
-        at += [f"t{k} {'lower (slack)' if a < 0 else 'upper'}"
-               for k, a in enumerate(self.tension_active) if a]
+        at += [
+            f"t{k} {'lower (slack)' if a < 0 else 'upper'}"
+            for k, a in enumerate(self.tension_active)
+            if a
+        ]
         lines.append("bounds active: " + (", ".join(at) if at else "none"))
         return "\n".join(lines)
 
@@ -318,8 +363,9 @@ class InverseProblem:
         require_free_tip(self.design, "solve_inverse")
         d = self.design
         if d.n_channels == 0 and d.n_tendons == 0:
-            raise design_error("design", d.name,
-                               "has neither pressure channels nor tendons to invert", InputError)
+            raise design_error(
+                "design", d.name, "has neither pressure channels nor tendons to invert", InputError
+            )
         self.bounds = globals()["pressure_bounds"](d, pressure_bounds)
         self.tension_bounds = globals()["tension_bounds"](d, tension_bounds)
         inputs = np.vstack([self.bounds, self.tension_bounds])
@@ -329,8 +375,12 @@ class InverseProblem:
                 "point", point, f"must lie on the rod: 0 <= s <= L = {d.length} m", InputError
             )
         if regularisation is not None and regularisation not in _REGULARISATIONS:
-            raise design_error("regularisation", regularisation,
-                               "must be 'least_pressure' or 'previous'", InputError)
+            raise design_error(
+                "regularisation",
+                regularisation,
+                "must be 'least_pressure' or 'previous'",
+                InputError,
+            )
         self.regularisation = regularisation
         self.orientation = bool(orientation)
         self.weights = _weights(weights, self.orientation)
@@ -381,24 +431,32 @@ class InverseProblem:
         if orientation is not None:
             rot = np.asarray(orientation, dtype=float)
             if rot.shape != (3, 3) or not np.all(np.isfinite(rot)):
-                raise design_error("orientation", orientation,
-                                   "must be a finite 3x3 rotation matrix", InputError)
+                raise design_error(
+                    "orientation", orientation, "must be a finite 3x3 rotation matrix", InputError
+                )
         elif self.orientation:
-            raise design_error("orientation", None,
-                               "this problem was built with orientation=True: give a target "
-                               "rotation", InputError)
+            raise design_error(
+                "orientation",
+                None,
+                "this problem was built with orientation=True: give a target rotation",
+                InputError,
+            )
         if rot is not None and not self.orientation:
-            raise design_error("orientation", "given",
-                               "this problem was built for positions only: build it with "
-                               "orientation=True", InputError)
+            raise design_error(
+                "orientation",
+                "given",
+                "this problem was built for positions only: build it with orientation=True",
+                InputError,
+            )
         x = None
         nc, nt = self.design.n_channels, self.design.n_tendons
         if initial is None:
             u0 = self._least
         elif isinstance(initial, (InverseSolution, StaticSolution)):
             t0 = np.asarray(initial.tensions, dtype=float)
-            u0 = np.concatenate([np.asarray(initial.pressures, dtype=float),
-                                 t0 if t0.size else np.zeros(nt)])
+            u0 = np.concatenate(
+                [np.asarray(initial.pressures, dtype=float), t0 if t0.size else np.zeros(nt)]
+            )
             x = np.asarray(initial.shooting_unknowns, dtype=float).tolist()
             if not all(map(math.isfinite, x)):
                 x = None
@@ -406,15 +464,22 @@ class InverseProblem:
             u0 = np.asarray(initial, dtype=float)
         # (math.isfinite over a list: a warm call's checks cost microseconds at 10 kHz.)
         if u0.shape != (nc + nt,) or not all(map(math.isfinite, u0.tolist())):
-            what = f"{nc} finite pressures (Pa)" if nt == 0 else \
-                f"{nc} pressures (Pa) then {nt} tensions (N), all finite"
+            what = (
+                f"{nc} finite pressures (Pa)"
+                if nt == 0
+                else f"{nc} pressures (Pa) then {nt} tensions (N), all finite"
+            )
             raise design_error("initial", initial, f"must be a solution or {what}", InputError)
         mode = self.regularisation or ("previous" if x is not None else "least_pressure")
         reference = None
         if mode == "previous":
             if initial is None:
-                raise design_error("regularisation", "previous",
-                                   "needs initial= (the previous command)", InputError)
+                raise design_error(
+                    "regularisation",
+                    "previous",
+                    "needs initial= (the previous command)",
+                    InputError,
+                )
             reference = np.clip(u0, self._inputs[:, 0], self._inputs[:, 1]).tolist()
         out = self._solver.solve(
             position,

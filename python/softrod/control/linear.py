@@ -39,8 +39,9 @@ def jacobian(
     """The exact Jacobian of the pose at arc length ``point`` (default the tip) of a
     converged rod equilibrium: :meth:`softrod.StaticSolution.jacobian`."""
     if not isinstance(solution, StaticSolution):
-        raise design_error("solution", type(solution).__name__,
-                           "must be a converged StaticSolution", InputError)
+        raise design_error(
+            "solution", type(solution).__name__, "must be a converged StaticSolution", InputError
+        )
     return solution.jacobian(params=params, point=point)
 
 
@@ -67,12 +68,14 @@ class Modes:
     def to_frame(self) -> pd.DataFrame:
         import pandas as pd
 
-        return pd.DataFrame({
-            "mode": np.arange(1, len(self.frequency) + 1),
-            "frequency_Hz": self.frequency,
-            "damping_ratio": self.damping_ratio,
-            "damped_frequency_Hz": self.damped_frequency,
-        })
+        return pd.DataFrame(
+            {
+                "mode": np.arange(1, len(self.frequency) + 1),
+                "frequency_Hz": self.frequency,
+                "damping_ratio": self.damping_ratio,
+                "damped_frequency_Hz": self.damped_frequency,
+            }
+        )
 
 
 @dataclass(frozen=True)
@@ -106,8 +109,9 @@ class LinearSystem:
         """(A, B) of x' = A x + B u with x = (q, q')."""
         n = self.mass.shape[0]
         minv = np.linalg.inv(self.mass)
-        a = np.block([[np.zeros((n, n)), np.eye(n)],
-                      [-minv @ self.stiffness, -minv @ self.damping]])
+        a = np.block(
+            [[np.zeros((n, n)), np.eye(n)], [-minv @ self.stiffness, -minv @ self.damping]]
+        )
         b = np.vstack([np.zeros_like(self.input), minv @ self.input])
         return a, b
 
@@ -135,15 +139,20 @@ class LinearSystem:
         w2, vecs = w2[order], vecs[:, order].real
         if np.any(w2 <= 0):
             raise design_error(
-                "equilibrium", "K", "has a non-positive eigenvalue: the equilibrium is not "
-                "stable, so it has no modes", InputError)
+                "equilibrium",
+                "K",
+                "has a non-positive eigenvalue: the equilibrium is not stable, so it has no modes",
+                InputError,
+            )
         omega = np.sqrt(w2)
         k = len(omega) if count is None else int(count)
         omega, vecs = omega[:k], vecs[:, :k]
-        zeta = np.array([
-            (v @ self.damping @ v) / (2 * w * (v @ self.mass @ v))
-            for v, w in zip(vecs.T, omega, strict=True)
-        ])
+        zeta = np.array(
+            [
+                (v @ self.damping @ v) / (2 * w * (v @ self.mass @ v))
+                for v, w in zip(vecs.T, omega, strict=True)
+            ]
+        )
         a, _ = self.state_space()
         poles = np.linalg.eigvals(a)
         damped = np.full(k, np.nan)
@@ -201,18 +210,30 @@ def linearise(
         t = [float(v) for v in initial.tensions]
     else:
         if tensions is not None:
-            raise design_error("tensions", tensions, "the equilibrium `initial` fixes the "
-                               "tensions; leave tensions out", InputError)
+            raise design_error(
+                "tensions",
+                tensions,
+                "the equilibrium `initial` fixes the tensions; leave tensions out",
+                InputError,
+            )
         p = [float(v) for v in initial.pressures]
         t = [float(v) for v in initial.tensions]
         tf = [float(v) for v in initial._tip_load("force")]
         tm = [float(v) for v in initial._tip_load("moment")]
     out = _core.linearise_at(
-        design._rod, p, tf, tm, [float(v) for v in initial.shooting_unknowns], nodes,
+        design._rod,
+        p,
+        tf,
+        tm,
+        [float(v) for v in initial.shooting_unknowns],
+        nodes,
         tensions=t,
     )
-    names = (tuple(f"p{c}" for c in range(design.n_channels)) + INPUT_NAMES_LOADS
-             + tuple(f"t{k}" for k in range(design.n_tendons)))
+    names = (
+        tuple(f"p{c}" for c in range(design.n_channels))
+        + INPUT_NAMES_LOADS
+        + tuple(f"t{k}" for k in range(design.n_tendons))
+    )
     return LinearSystem(
         design=design,
         pressures=np.array(p),

@@ -82,8 +82,9 @@ class Workspace:
     @property
     def input_names(self) -> tuple[str, ...]:
         """Names of the inputs the faces refer to: p0 ... (pressures), t0 ... (tensions)."""
-        return (tuple(f"p{c}" for c in range(self.pressures.shape[1]))
-                + tuple(f"t{k}" for k in range(len(self.tension_bounds))))
+        return tuple(f"p{c}" for c in range(self.pressures.shape[1])) + tuple(
+            f"t{k}" for k in range(len(self.tension_bounds))
+        )
 
     @property
     def points(self) -> np.ndarray:
@@ -147,8 +148,9 @@ class Workspace:
         import matplotlib.pyplot as plt
 
         fig = plt.figure(figsize=(14, 5.0))
-        grid = fig.add_gridspec(1, 3, width_ratios=[1.3, 1, 1], wspace=0.35, left=0.02,
-                                right=0.98, bottom=0.2, top=0.88)
+        grid = fig.add_gridspec(
+            1, 3, width_ratios=[1.3, 1, 1], wspace=0.35, left=0.02, right=0.98, bottom=0.2, top=0.88
+        )
         ax3 = fig.add_subplot(grid[0], projection="3d")
         top = fig.add_subplot(grid[1])
         side = fig.add_subplot(grid[2])
@@ -163,8 +165,15 @@ class Workspace:
                 g = self.grid[rows]
                 surf = np.full((self.samples, self.samples, 3), np.nan)
                 surf[g[:, 0], g[:, 1]] = mm[rows]
-                ax3.plot_surface(surf[..., 0], surf[..., 1], surf[..., 2], color=col,
-                                 alpha=0.45, linewidth=0, shade=True)
+                ax3.plot_surface(
+                    surf[..., 0],
+                    surf[..., 1],
+                    surf[..., 2],
+                    color=col,
+                    alpha=0.45,
+                    linewidth=0,
+                    shade=True,
+                )
             else:
                 ax3.scatter(*mm[rows].T, s=2, color=col)
             top.scatter(mm[rows, 0], mm[rows, 1], s=1.5, color=col, label=label)
@@ -188,8 +197,16 @@ class Workspace:
         top.set_title("top view")
         side.set_title("side view")
         handles, labels = top.get_legend_handles_labels()
-        fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 6), fontsize=8,
-                   markerscale=4, title="face of the input box", title_fontsize=8)
+        fig.legend(
+            handles,
+            labels,
+            loc="lower center",
+            ncol=min(len(labels), 6),
+            fontsize=8,
+            markerscale=4,
+            title="face of the input box",
+            title_fontsize=8,
+        )
         ranges = []
         if len(self.bounds):
             lo, hi = self.bounds[0] / 1e3
@@ -197,8 +214,11 @@ class Workspace:
         if len(self.tension_bounds):
             lo, hi = self.tension_bounds[0]
             ranges.append(f"{lo:g}-{hi:g} N")
-        fig.suptitle(title or f"{self.design.name}: tip workspace, {', '.join(ranges)}, "
-                     f"{self.samples} samples per free input and face")
+        fig.suptitle(
+            title
+            or f"{self.design.name}: tip workspace, {', '.join(ranges)}, "
+            f"{self.samples} samples per free input and face"
+        )
         if path is not None:
             from pathlib import Path
 
@@ -233,8 +253,9 @@ def workspace(
     require_free_tip(design, "workspace")
     n_p = design.n_channels
     if n_p == 0 and design.n_tendons == 0:
-        raise design_error("design", design.name, "has neither pressure channels nor tendons",
-                           InputError)
+        raise design_error(
+            "design", design.name, "has neither pressure channels nor tendons", InputError
+        )
     p_bounds = _bounds(design, pressure_bounds)
     t_bounds = _tension_bounds(design, tension_bounds)
     bounds = np.vstack([p_bounds, t_bounds])  # every input: pressures, then tensions
@@ -243,9 +264,12 @@ def workspace(
     count = 2 * nc * samples ** (nc - 1) if nc > 1 else samples
     if count > MAX_WORKSPACE_SOLVES:
         raise design_error(
-            "samples", samples,
+            "samples",
+            samples,
             f"gives {count} solves for {nc} inputs (2 c samples^(c-1)); the limit is "
-            f"{MAX_WORKSPACE_SOLVES}: lower samples", InputError)
+            f"{MAX_WORKSPACE_SOLVES}: lower samples",
+            InputError,
+        )
     axes = [np.linspace(lo, hi, samples) for lo, hi in bounds]
     rows, face_of, grid_of, faces = [], [], [], []
     if nc == 1:
@@ -269,9 +293,15 @@ def workspace(
     inputs = np.vstack(rows)
     pressures, tensions = inputs[:, :n_p], inputs[:, n_p:]
     t0 = time.perf_counter()
-    batch = solve_statics_batch(design, pressures, tip_force=tip_force, tip_moment=tip_moment,
-                                threads=threads, options=options,
-                                tensions=tensions if design.n_tendons else None)
+    batch = solve_statics_batch(
+        design,
+        pressures,
+        tip_force=tip_force,
+        tip_moment=tip_moment,
+        threads=threads,
+        options=options,
+        tensions=tensions if design.n_tendons else None,
+    )
     wall = time.perf_counter() - t0
     return Workspace(
         design=design,

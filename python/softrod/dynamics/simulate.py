@@ -39,9 +39,7 @@ if TYPE_CHECKING:
     from .schedule import ScheduleLike
 
     # Held (force, moment) in N and N m, or a function of t returning them.
-    TipLoad = (
-        tuple[ArrayLike, ArrayLike] | Callable[[float], tuple[ArrayLike, ArrayLike]]
-    )
+    TipLoad = tuple[ArrayLike, ArrayLike] | Callable[[float], tuple[ArrayLike, ArrayLike]]
     # Tendon tensions (N, one per tendon channel): held constant, or a function of t.
     Tensions = ArrayLike | Callable[[float], ArrayLike]
     # How the tip is held: a TipConstraint, "free" or a mapping (fixed), or a function of

@@ -743,9 +743,7 @@ class Trajectory:
         base = shapes[0, 0]
         ax.plot([base[0]], [base[1]], [base[2]], marker="s", color="black", linestyle="none")
         (rod,) = ax.plot([], [], [], color="C0", linewidth=3.0, animated=True)
-        (tip,) = ax.plot(
-            [], [], [], marker="o", color="C0", markeredgecolor="black", animated=True
-        )
+        (tip,) = ax.plot([], [], [], marker="o", color="C0", markeredgecolor="black", animated=True)
         (path_line,) = ax.plot([], [], [], color="C1", linewidth=1.0, alpha=0.8, animated=True)
         label = ax.text2D(0.02, 0.95, "", transform=ax.transAxes, animated=True)
         moving = (path_line, rod, tip, label)
@@ -769,7 +767,6 @@ class Trajectory:
             return np.asarray(canvas.buffer_rgba())
 
         return fig, canvas, draw
-
 
     def _render(self, out: Path, frames, fps, trail, elev, azim, dpi, figsize, report) -> None:
         _fig, canvas, draw = self._animation_scene(trail, elev, azim, dpi, figsize)
@@ -873,7 +870,8 @@ def animation_plan(
         ):
             raise _fail(name, value, "must be a finite number > 0")
     if max_frames is not None and (
-        isinstance(max_frames, bool) or not isinstance(max_frames, (int, np.integer))
+        isinstance(max_frames, bool)
+        or not isinstance(max_frames, (int, np.integer))
         or max_frames < 2
     ):
         raise _fail("max_frames", max_frames, "must be an integer >= 2 or None (no cap)")

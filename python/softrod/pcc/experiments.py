@@ -606,9 +606,7 @@ def synthesize_pcc_experiments(
                 [np.interp(t_k, t_s, samples[:, c]) for c in range(samples.shape[1])]
             )
             out = run_pcc(design, dt_s, p, save_every=save_every, initial="static")
-            parts.append(
-                (label, samples, out["tip_position"], out["tip_rotation"], out["time"])
-            )
+            parts.append((label, samples, out["tip_position"], out["tip_rotation"], out["time"]))
             settings[kind]["duration_s"] = n_steps * dt_s
     labels = [lab for lab, *_ in parts]
     if len(set(map(str, labels))) != len(labels):

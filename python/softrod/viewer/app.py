@@ -222,8 +222,9 @@ class Viewer:
         if path.suffix.lower() != ".png":
             raise design_error("path", str(path), "a screenshot is written as .png", InputError)
         client = self._first_client(timeout)
-        image = client.get_render(height=height, width=width, transport_format="png",
-                                  timeout=timeout)
+        image = client.get_render(
+            height=height, width=width, transport_format="png", timeout=timeout
+        )
         with atomic_path(path) as tmp:
             Image.fromarray(image).save(tmp, format="PNG")
         return path
@@ -316,17 +317,23 @@ class Viewer:
             np.asarray(ld["force_per_length"]) * d.spec["sections"][ld["section"]]["length"]
             for ld in d.spec["loads"]
         ]
-        f_ref = max([self.force_max, self._weight_n] + [float(np.linalg.norm(f)) for f in
-                                                        line_loads])
+        f_ref = max(
+            [self.force_max, self._weight_n] + [float(np.linalg.norm(f)) for f in line_loads]
+        )
         self._force_scale = 0.3 * L / f_ref
         arrow_kw = dict(shaft_radius=0.008 * L, head_radius=0.02 * L, head_length=0.04 * L)
         self._force_arrow = sc.add_arrows(
-            "/loads/tip_force", points=geo.arrow([0, 0, 0], [0, 0, 1e-9]), colors=FORCE_COLOUR,
+            "/loads/tip_force",
+            points=geo.arrow([0, 0, 0], [0, 0, 1e-9]),
+            colors=FORCE_COLOUR,
             **arrow_kw,
         )
         self._weight_arrow = sc.add_arrows(
-            "/loads/tip_weight", points=geo.arrow([0, 0, 0], [0, 0, 1e-9]), colors=WEIGHT_COLOUR,
-            visible=self._weight_n > 0, **arrow_kw,
+            "/loads/tip_weight",
+            points=geo.arrow([0, 0, 0], [0, 0, 1e-9]),
+            colors=WEIGHT_COLOUR,
+            visible=self._weight_n > 0,
+            **arrow_kw,
         )
         self._line_loads = []
         for k, (ld, f) in enumerate(zip(d.spec["loads"], line_loads, strict=True)):
@@ -347,10 +354,20 @@ class Viewer:
             measured, predicted, _ = self.calibration
             ok = np.isfinite(predicted).all(axis=1)
             pt = 0.012 * L
-            sc.add_point_cloud("/calibration/measured", points=measured.astype(np.float32),
-                               colors=MEASURED_COLOUR, point_size=pt, point_shape="circle")
-            sc.add_point_cloud("/calibration/predicted", points=predicted[ok].astype(np.float32),
-                               colors=PREDICTED_COLOUR, point_size=pt, point_shape="circle")
+            sc.add_point_cloud(
+                "/calibration/measured",
+                points=measured.astype(np.float32),
+                colors=MEASURED_COLOUR,
+                point_size=pt,
+                point_shape="circle",
+            )
+            sc.add_point_cloud(
+                "/calibration/predicted",
+                points=predicted[ok].astype(np.float32),
+                colors=PREDICTED_COLOUR,
+                point_size=pt,
+                point_shape="circle",
+            )
             sc.add_line_segments(
                 "/calibration/errors",
                 points=np.stack([measured[ok], predicted[ok]], axis=1).astype(np.float32),
@@ -393,9 +410,7 @@ class Viewer:
                 self._f_sliders.append(s)
         with gui.add_folder("Solver"):
             self._status = gui.add_markdown("starting...")
-        chambered = [
-            (k, sec) for k, sec in enumerate(d.spec["sections"]) if sec["chambers"]
-        ]
+        chambered = [(k, sec) for k, sec in enumerate(d.spec["sections"]) if sec["chambers"]]
         self._sections_html = []
         if chambered:
             with gui.add_folder("Cross-section (from the tip)"):
@@ -521,7 +536,8 @@ class Viewer:
             tip_force=f,
             options=self._options,
             stiffness_map=self._stiffness_map,
-            initial=self.solution if self.solution is not None and self.solution.converged
+            initial=self.solution
+            if self.solution is not None and self.solution.converged
             else None,
             check=False,
         )
@@ -557,7 +573,9 @@ class Viewer:
                 mesh.visible = False
                 continue
             verts = geo.tube_vertices(
-                position[a : b + 1], rotation[a : b + 1, :, 0], rotation[a : b + 1, :, 1],
+                position[a : b + 1],
+                rotation[a : b + 1, :, 0],
+                rotation[a : b + 1, :, 1],
                 lk.radius,
             )
             n = b - a + 1

@@ -98,9 +98,7 @@ def _kinds(dataset, experiments, dynamic: bool) -> dict:
             return dict.fromkeys(ids, "dynamic")
         return {e: ("dynamic" if e in DYNAMIC_EXPERIMENTS else "static") for e in ids}
     if not isinstance(experiments, Mapping):
-        raise V.fail(
-            "experiments", experiments, "must map experiment ids to 'static' or 'dynamic'"
-        )
+        raise V.fail("experiments", experiments, "must map experiment ids to 'static' or 'dynamic'")
     if dataset.experiment is None:
         raise V.fail("experiments", dict(experiments), "the dataset has no experiment column")
     out = {}
@@ -191,9 +189,7 @@ class PccAdapter(ModelAdapter):
         from ...pcc.model import pcc_parameters
 
         chambered = {s["name"] for s in self.design.spec["sections"] if s.get("chambers")}
-        seg = next(
-            (s for s in pcc_parameters(self.design) if s["name"] in chambered), None
-        )
+        seg = next((s for s in pcc_parameters(self.design) if s["name"] in chambered), None)
         if seg is None:
             raise V.fail("design.sections", "no chambers", "the PCC parameters act on chambers")
         value = seg[p.kind]

@@ -95,8 +95,7 @@ class RodDynamic(ModelAdapter):
                 raise V.fail(
                     "design.dynamics.damping_time",
                     tau0,
-                    "give a starting damping time > 0 s in [dynamics] (the fit works on "
-                    "log tau)",
+                    "give a starting damping time > 0 s in [dynamics] (the fit works on log tau)",
                 )
         for p in params:
             if not p.positive:
