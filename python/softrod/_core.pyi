@@ -12,6 +12,7 @@ __all__ = [
     "PccModel",
     "Rod",
     "Simulator",
+    "SystemSimulator",
     "__version__",
     "_panic_inside_guard",
     "linearise_at",
