@@ -4,6 +4,8 @@ save/restore and refusals; docs/dynamics.md, "Systems of rods")."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import softrod
@@ -90,6 +92,23 @@ def test_save_restore_and_copy_continue_bit_for_bit(system):
         assert np.array_equal(a.platform_position, t.platform_position)
         assert np.array_equal(a.shapes[1], t.shapes[1])
         assert np.array_equal(a.energy_balance, t.energy_balance)
+    assert saved.system == SYSTEM and saved.time == pytest.approx(0.004)
+    # A state restores only into the same system: not into one whose platform has another
+    # inertia or mass (the state would continue under other physics), nor from bare numbers.
+    for changed in (
+        softrod.SystemSimulation(system, dt=2e-3, platform_inertia=[3e-6, 2e-6, 4e-6]),
+        softrod.SystemSimulation(
+            dataclasses.replace(system, platform=dataclasses.replace(system.platform, mass=0.03)),
+            dt=2e-3,
+            platform_inertia=[2e-6, 2e-6, 4e-6],
+        ),
+    ):
+        with pytest.raises(InputError, match="not from this simulation's") as exc:
+            changed.restore(saved)
+        assert exc.value.field == "state"
+        assert changed.time == 0.0
+    with pytest.raises(InputError, match="must be a SystemSimulationState"):
+        other.restore(np.asarray(saved.data))
 
 
 @pytest.mark.parametrize(

@@ -111,6 +111,7 @@ _EXPORTS = {
     "solve_system": ".system",
     "solve_system_batch": ".system",
     "SystemSimulation": ".system_dynamics",
+    "SystemSimulationState": ".system_dynamics",
     "SystemTrajectory": ".system_dynamics",
     "simulate_system": ".system_dynamics",
     "view": ".viewer",
@@ -201,7 +202,12 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         solve_system,
         solve_system_batch,
     )
-    from .system_dynamics import SystemSimulation, SystemTrajectory, simulate_system
+    from .system_dynamics import (
+        SystemSimulation,
+        SystemSimulationState,
+        SystemTrajectory,
+        simulate_system,
+    )
     from .viewer import view
 
 __all__ = [
@@ -232,6 +238,7 @@ __all__ = [
     "SystemSolution",
     "SystemBatchSolution",
     "SystemSimulation",
+    "SystemSimulationState",
     "SystemTrajectory",
     "TargetPath",
     "TipConstraint",

@@ -8,8 +8,10 @@ everything together.
 
 from __future__ import annotations
 
+import hashlib
+import json
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -27,7 +29,7 @@ from .statics import _pressures, _tensions
 from .system import System, _platform_args, load_system
 from .system import platform_inertia as _inertia_of
 
-__all__ = ["SystemSimulation", "SystemTrajectory", "simulate_system"]
+__all__ = ["SystemSimulation", "SystemSimulationState", "SystemTrajectory", "simulate_system"]
 
 
 @dataclass(frozen=True)
@@ -93,6 +95,46 @@ class SystemTrajectory:
             dissipated=energy[:, 4],
             energy_balance=energy[:, 5],
         )
+
+
+@dataclass(frozen=True)
+class SystemSimulationState:
+    """A :class:`SystemSimulation`'s complete state at ``time`` (s): ``data`` (read-only
+    numbers) for :meth:`SystemSimulation.restore`, ``system`` (its name) and
+    ``fingerprint`` (a digest of the rods' designs, attachments and platform: a state only
+    restores into the same system)."""
+
+    system: str
+    fingerprint: str
+    time: float
+    data: np.ndarray = field(repr=False)
+
+
+def _system_fingerprint(system: System, inertia: np.ndarray) -> str:
+    """A digest of what a saved state belongs to: every rod's design document and
+    attachment, the platform's nominal pose, mass, centre of mass and inertia."""
+    doc = {
+        "rods": [
+            [
+                r.design.spec,
+                np.asarray(r.attachment, dtype=float).tolist(),
+                np.asarray(r.attachment_rotation, dtype=float).tolist(),
+            ]
+            for r in system.rods
+        ],
+        "platform": [
+            np.asarray(v, dtype=float).tolist()
+            for v in (
+                system.platform.position,
+                system.platform.rotation,
+                system.platform.mass,
+                system.platform.com_offset,
+                inertia,
+            )
+        ],
+    }
+    text = json.dumps(doc, sort_keys=True)
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
 def _per_rod(system: System, value, name: str, convert) -> list[list[float]]:
@@ -178,6 +220,7 @@ class SystemSimulation:
         self._force, self._moment = platform[2], platform[3]
         self._sim = _core.SystemSimulator(entries, platform, inertia.tolist(), self.dt, **opts)
         self._pressures = ps
+        self._fingerprint = _system_fingerprint(system, inertia)
 
     @property
     def time(self) -> float:
@@ -194,15 +237,29 @@ class SystemSimulation:
         """The state now as a one-sample :class:`SystemTrajectory`."""
         return SystemTrajectory._concat(self.system, [self._sim.snapshot()])
 
-    def save(self) -> np.ndarray:
-        """The complete state as numbers; :meth:`restore` continues from it bit for bit."""
-        return self._sim.save()
+    def save(self) -> SystemSimulationState:
+        """The complete state; :meth:`restore` continues from it bit for bit."""
+        data = np.array(self._sim.save(), dtype=float)
+        data.setflags(write=False)
+        return SystemSimulationState(self.system.name, self._fingerprint, self.time, data)
 
-    def restore(self, state: np.ndarray) -> None:
-        """Continue from a state saved by :meth:`save` of a simulation of the same system."""
-        self._sim.restore(
-            np.ascontiguousarray(V.real_array(state, "state", what="numbers"), dtype=float)
-        )
+    def restore(self, state: SystemSimulationState) -> None:
+        """Continue from a state saved by :meth:`save` of a simulation of the same system
+        (its rods' designs, attachments and platform, inertia included)."""
+        if not isinstance(state, SystemSimulationState):
+            raise V.fail(
+                "state", type(state).__name__, "must be a SystemSimulationState", InputError
+            )
+        if state.fingerprint != self._fingerprint:
+            raise V.fail(
+                "state",
+                repr(state),
+                f"was saved from system {state.system!r}, not from this simulation's "
+                f"{self.system.name!r} (or from another version of it: rods, attachments or "
+                "platform differ)",
+                InputError,
+            )
+        self._sim.restore(np.ascontiguousarray(state.data, dtype=float))
 
     def copy(self) -> SystemSimulation:
         """An independent simulation starting from this one's current state (exact)."""
