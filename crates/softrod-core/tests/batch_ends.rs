@@ -132,7 +132,7 @@ fn constrained_batch_with_an_obstacle_equals_single_solves_bitwise() {
             let mut ld = loads(row);
             ld.tip_force = [0.0, 0.01, 0.0];
             let s = solve_constrained(&rod, &ld, &c, None, &opts).unwrap();
-            let rep = report(&rod, &ld, &s.solution).unwrap();
+            let rep = report(&rod, &ld, &s.solution).unwrap().unwrap();
             assert!(rep.max_penetration > 0.0 && rep.max_penetration <= 2e-3);
             s
         })

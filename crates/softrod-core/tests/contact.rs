@@ -63,7 +63,7 @@ fn cantilever_on_plane_matches_beam_on_rigid_support() {
         // A beam lying on a support under its weight is stable (the assessment of the
         // six-unknown contact solve, docs/contact.md "Stability").
         assert_eq!(sol.stable, Some(true), "k {k}");
-        let rep = report(&rod, &l, &sol).unwrap();
+        let rep = report(&rod, &l, &sol).unwrap().unwrap();
         // The penalty is a Winkler foundation of modulus k: near the first contact the
         // beam's deflection decays over 1/beta = (4 EI / k)^(1/4), which smears the point
         // reaction over that length and moves the clamp's reactions by O(1/(beta a)).
@@ -150,7 +150,7 @@ fn held_beam_on_plane_matches_beam_on_rigid_support() {
             // A beam lying on a support under its weight, both ends held: stable (the
             // conjugate-point test with the penalty in the Jacobi fields).
             assert_eq!(sol.solution.stable, Some(true), "{kind} k {k}");
-            let rep = report(&rod, &l, &sol.solution).unwrap();
+            let rep = report(&rod, &l, &sol.solution).unwrap().unwrap();
             assert!(
                 rep.max_penetration <= 5e-5,
                 "{kind}: {}",
@@ -268,7 +268,7 @@ fn rod_pressed_onto_a_sphere() {
         Some(true),
         "a beam pressed onto a ball is stable"
     );
-    let rep = report(&rod, &l, &sol).unwrap();
+    let rep = report(&rod, &l, &sol).unwrap().unwrap();
     let f = rep.force[0];
     // The penalty spreads the tip reaction over the last ~(EI/k)^(1/4) = 18 mm, which
     // moves its point of action inwards by a fraction of that: R errs by O(3 ell / (2 L))
@@ -318,6 +318,16 @@ fn rod_pressed_onto_a_sphere() {
             .sqrt();
         assert!((d - 0.05).abs() < 1e-12);
     }
+    // The report checks what it is given: loads of another rod (a pressure it has no
+    // channel for) or unknowns that are no shooting solution's are refused, not a panic.
+    let mut wrong = l.clone();
+    wrong.pressures = vec![1e3];
+    let err = report(&rod, &wrong, &sol).unwrap_err();
+    assert!(format!("{err}").contains("pressures"), "{err}");
+    let mut short = sol.clone();
+    short.x.truncate(2);
+    let err = report(&rod, &l, &short).unwrap_err();
+    assert!(format!("{err}").contains("solution.x"), "{err}");
 }
 
 #[test]

@@ -116,7 +116,9 @@ fn solve_constrained_tip<'py>(
             .map_err(|e| to_py_err(py, e, Context::Input))?;
         let d = constrained_dict(py, &out)?;
         // With obstacles: the contact report, as `Rod.solve` gives it.
-        if let Some(rep) = softrod_core::statics::contact::report(rod, &loads, &out.solution) {
+        let rep = softrod_core::statics::contact::report(rod, &loads, &out.solution)
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
+        if let Some(rep) = rep {
             d.set_item("contact", contact_dict(py, &rep)?)?;
         }
         Ok(d)

@@ -332,10 +332,9 @@ impl PyRod {
             )?;
             let rod = &self.rod;
             let result = py.detach(|| {
-                statics::solve_with_shape(rod, &loads, guess.as_deref(), &opts).map(|(sol, sh)| {
-                    let contact = statics::contact::report(rod, &loads, &sol);
-                    (sol, sh, contact)
-                })
+                let (sol, sh) = statics::solve_with_shape(rod, &loads, guess.as_deref(), &opts)?;
+                let contact = statics::contact::report(rod, &loads, &sol)?;
+                Ok((sol, sh, contact))
             });
             let (sol, sh, contact) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
             let d = solution_dict(py, &sol, &sh)?;

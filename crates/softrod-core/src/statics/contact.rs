@@ -96,9 +96,21 @@ pub struct ContactReport {
 }
 
 /// The contact report of a converged shooting solution `sol` of `loads`; None for a rod
-/// without obstacles.
-pub fn report(rod: &Rod, loads: &Loads, sol: &Solution) -> Option<ContactReport> {
-    let obstacles = rod.obstacles.as_ref()?;
+/// without obstacles. The loads are checked against the rod (they must be those `sol` was
+/// solved with) and `sol`'s unknowns must be a shooting solution's (3 or 6).
+pub fn report(rod: &Rod, loads: &Loads, sol: &Solution) -> Result<Option<ContactReport>> {
+    let Some(obstacles) = rod.obstacles.as_ref() else {
+        return Ok(None);
+    };
+    rod.check_loads(&loads.pressures, &loads.stiffness_scale)?;
+    rod.check_tensions(&loads.tensions)?;
+    if !matches!(sol.x.len(), 3 | 6) {
+        return Err(SoftrodError::invalid(
+            "solution.x",
+            format!("{} numbers", sol.x.len()),
+            "must be a shooting solution's unknowns (3, or 6 with obstacles or follower loads)",
+        ));
+    }
     let p = Problem::new(rod, loads, 1.0);
     let y0: State<f64> = p.base_state(&sol.x);
     let base = rod.base_position;
@@ -156,11 +168,11 @@ pub fn report(rod: &Rod, loads: &Loads, sol: &Solution) -> Option<ContactReport>
         .iter()
         .map(|n| -n.gap)
         .fold(f64::NEG_INFINITY, f64::max);
-    Some(ContactReport {
+    Ok(Some(ContactReport {
         nodes,
         force,
         moment,
         end,
         max_penetration,
-    })
+    }))
 }
