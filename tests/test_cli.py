@@ -243,6 +243,8 @@ def test_designs_lists_all(run):
     for name in softrod.bundled_designs():
         assert name in result.stdout
     assert "3 channels" in result.stdout
+    for name in softrod.bundled_systems():
+        assert f"{name}  2 rods" in result.stdout
 
 
 # --------------------------------------------------------------------------- presets, compare

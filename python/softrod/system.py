@@ -29,6 +29,7 @@ A system file (TOML) names its rods' designs and where they hold the platform::
 
 from __future__ import annotations
 
+import os
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,6 +55,7 @@ from .statics import (
 
 if TYPE_CHECKING:
     import pandas as pd
+    from matplotlib.figure import Figure
 
     from ._types import Units
 
@@ -197,6 +199,14 @@ class SystemSolution:
     load_steps: int
     unknowns: np.ndarray = field(repr=False)
     stable: bool | None = None
+
+    def plot(self, path: str | os.PathLike | None = None, *, title: str | None = None) -> Figure:
+        """Front (x-z) and side (y-z) views of the equilibrium
+        (:func:`softrod.system_plots.plot_system`; several solutions in one figure: call
+        that function with a list). Written to ``path`` when given; returns the Figure."""
+        from .system_plots import plot_system
+
+        return plot_system(self, path, title=title)
 
 
 def systems_dir() -> Path:
@@ -499,36 +509,20 @@ class SystemBatchSolution:
         metadata block (``frame.attrs["softrod.metadata"]``) is :attr:`metadata`."""
         import pandas as pd
 
-        from .schema import matrix_to_quat, table_units
+        from .schema import table_units
 
         chosen, factor = table_units(units)
-        cols: dict[str, Any] = {}
-        for i, p in enumerate(self.pressures):
-            for k in range(p.shape[1]):
-                cols[f"rod{i}_p{k}_{chosen['pressure']}"] = p[:, k] / factor["pressure"]
-        for i, t in enumerate(self.tensions):
-            for k in range(t.shape[1]):
-                cols[f"rod{i}_t{k}_{chosen['force']}"] = t[:, k] / factor["force"]
-        for k, a in enumerate("xyz"):
-            cols[f"platform_{a}_{chosen['length']}"] = (
-                self.platform_position[:, k] / factor["length"]
-            )
-        q = matrix_to_quat(self.platform_rotation)
-        for k, a in enumerate("wxyz"):
-            cols[f"platform_q{a}"] = q[:, k]
-        for i in range(len(self.system.rods)):
-            for k, a in enumerate("xyz"):
-                cols[f"rod{i}_tip_{a}_{chosen['length']}"] = (
-                    self.tip_position[:, i, k] / factor["length"]
-                )
-            for name, arr, kind in (
-                ("f", self.tip_reaction_force, "force"),
-                ("m", self.tip_reaction_moment, "moment"),
-            ):
-                for k, a in enumerate("xyz"):
-                    cols[f"rod{i}_tip_reaction_{name}{a}_{chosen[kind]}"] = (
-                        arr[:, i, k] / factor[kind]
-                    )
+        cols = system_columns(
+            chosen,
+            factor,
+            self.pressures,
+            self.tensions,
+            self.platform_position,
+            self.platform_rotation,
+            self.tip_position,
+            self.tip_reaction_force,
+            self.tip_reaction_moment,
+        )
         cols["converged"] = np.asarray(self.converged, dtype=bool)
         cols["iterations"] = np.asarray(self.iterations)
         cols["residual"] = np.asarray(self.residual, dtype=float)
@@ -537,6 +531,48 @@ class SystemBatchSolution:
         frame = pd.DataFrame(cols)
         frame.attrs["softrod.metadata"] = dict(self.metadata)
         return frame
+
+
+def system_columns(
+    chosen: dict,
+    factor: dict,
+    pressures,
+    tensions,
+    platform_position: np.ndarray,
+    platform_rotation: np.ndarray,
+    tip_position: np.ndarray,
+    tip_reaction_force: np.ndarray,
+    tip_reaction_moment: np.ndarray,
+) -> dict[str, np.ndarray]:
+    """The columns a system's table has in common, equilibria or samples of a motion (units
+    ``chosen``/``factor`` from :func:`softrod.schema.table_units`): per rod i its inputs
+    ``rod<i>_p<k>_kPa`` and ``rod<i>_t<k>_N``, the platform pose ``platform_x_mm`` ...
+    ``platform_qw`` ... ``platform_qz``, per rod its tip ``rod<i>_tip_x_mm`` ... and the
+    platform's reaction on its tip ``rod<i>_tip_reaction_fx_N`` ... (world frame)."""
+    from .schema import matrix_to_quat
+
+    cols: dict[str, np.ndarray] = {}
+    for i, p in enumerate(pressures):
+        for k in range(p.shape[1]):
+            cols[f"rod{i}_p{k}_{chosen['pressure']}"] = p[:, k] / factor["pressure"]
+    for i, t in enumerate(tensions):
+        for k in range(t.shape[1]):
+            cols[f"rod{i}_t{k}_{chosen['force']}"] = t[:, k] / factor["force"]
+    for k, a in enumerate("xyz"):
+        cols[f"platform_{a}_{chosen['length']}"] = platform_position[:, k] / factor["length"]
+    q = matrix_to_quat(platform_rotation)
+    for k, a in enumerate("wxyz"):
+        cols[f"platform_q{a}"] = q[:, k]
+    for i in range(tip_position.shape[1]):
+        for k, a in enumerate("xyz"):
+            cols[f"rod{i}_tip_{a}_{chosen['length']}"] = tip_position[:, i, k] / factor["length"]
+        for name, arr, kind in (
+            ("f", tip_reaction_force, "force"),
+            ("m", tip_reaction_moment, "moment"),
+        ):
+            for k, a in enumerate("xyz"):
+                cols[f"rod{i}_tip_reaction_{name}{a}_{chosen[kind]}"] = arr[:, i, k] / factor[kind]
+    return cols
 
 
 def _system_rows(system: System, value: Any, name: str, kind: str, widths: list[int]):

@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -25,11 +27,49 @@ from .dynamics.simulate import (
     step_count,
 )
 from .errors import InputError
+from .io import atomic_path, check_target, write_table
 from .statics import _pressures, _tensions
 from .system import System, _platform_args, load_system
 from .system import platform_inertia as _inertia_of
 
+if TYPE_CHECKING:
+    import pandas as pd
+    from matplotlib.figure import Figure
+
+    from ._types import Units
+
 __all__ = ["SystemSimulation", "SystemSimulationState", "SystemTrajectory", "simulate_system"]
+
+# The energy books of a system's motion, in the order of the core's samples.
+ENERGY_NAMES = ("kinetic", "elastic", "potential", "work_in", "dissipated", "energy_balance")
+# The arrays of a system trajectory's .npz file besides the per-rod ones.
+_ARRAYS = (
+    "time",
+    "platform_position",
+    "platform_rotation",
+    "platform_velocity",
+    "platform_angular_velocity",
+    "tip_position",
+    "tip_reaction_force",
+    "tip_reaction_moment",
+    *ENERGY_NAMES,
+)
+_NPZ_FORMAT = "softrod-system-trajectory/1"
+_SUFFIXES = (".npz", ".csv", ".parquet")
+
+
+def _trajectory_path(path) -> Path:
+    """``path`` checked: a known suffix and a writable folder, before any work."""
+    path = Path(path)
+    if path.suffix.lower() not in _SUFFIXES:
+        raise V.fail(
+            "path",
+            str(path),
+            f"unknown format {path.suffix or '(no suffix)'!r}: the file name must end in "
+            f"{', '.join(_SUFFIXES)}",
+            InputError,
+        )
+    return check_target(path)
 
 
 @dataclass(frozen=True)
@@ -42,7 +82,12 @@ class SystemTrajectory:
     platform applies to the rod's tip; ``shapes``: per rod its centreline (n, nodes, 3) m;
     energies (n,) J: ``kinetic``, ``elastic``, ``potential`` (rods and platform),
     ``work_in`` (the inputs' work since t = 0), ``dissipated`` and ``energy_balance``
-    (E - E(0) - W_in + D, zero for the exact motion)."""
+    (E - E(0) - W_in + D, zero for the exact motion); per rod its commanded ``pressures``
+    (n, channels) Pa and ``tensions`` (n, tendon channels) N, those of the step that ended
+    at the sample (at t = 0: the start's).
+
+    Tables and files: :meth:`to_frame`, :meth:`save` (``.npz`` exact and read back by
+    :meth:`load`; ``.csv``/``.parquet`` the table), :meth:`plot`."""
 
     system: System
     time: np.ndarray
@@ -60,6 +105,8 @@ class SystemTrajectory:
     work_in: np.ndarray
     dissipated: np.ndarray
     energy_balance: np.ndarray
+    pressures: tuple[np.ndarray, ...] = ()
+    tensions: tuple[np.ndarray, ...] = ()
 
     @staticmethod
     def _concat(system: System, parts: list[dict]) -> SystemTrajectory:
@@ -71,12 +118,17 @@ class SystemTrajectory:
             return np.concatenate([np.asarray(p[key], dtype=float) for p in parts]).reshape(shape)
 
         energy = cat("energy", (k, 6))
-        shapes = tuple(
-            np.concatenate([np.asarray(p["shapes"][i], dtype=float) for p in parts]).reshape(
-                k, -1, 3
+
+        def per_rod(key, widths):
+            return tuple(
+                np.concatenate([np.asarray(p[key][i], dtype=float) for p in parts]).reshape(k, w)
+                for i, w in enumerate(widths)
             )
-            for i in range(n_rods)
-        )
+
+        designs = [r.design for r in system.rods]
+        shapes = tuple(a.reshape(k, -1, 3) for a in per_rod("shapes", [-1] * n_rods))
+        pressures = per_rod("pressures", [d.n_channels for d in designs])
+        tensions = per_rod("tensions", [d.n_tendons for d in designs])
         return SystemTrajectory(
             system=system,
             time=time,
@@ -94,7 +146,238 @@ class SystemTrajectory:
             work_in=energy[:, 3],
             dissipated=energy[:, 4],
             energy_balance=energy[:, 5],
+            pressures=pressures,
+            tensions=tensions,
         )
+
+    @staticmethod
+    def concat(parts: list[SystemTrajectory]) -> SystemTrajectory:
+        """One trajectory from consecutive pieces of the same system's motion (e.g. the
+        start's :meth:`SystemSimulation.state` and the runs after it), in order."""
+        parts = list(parts)
+        if not parts or not all(isinstance(p, SystemTrajectory) for p in parts):
+            raise V.fail(
+                "parts",
+                type(parts).__name__,
+                "must be a non-empty list of SystemTrajectory",
+                InputError,
+            )
+        first = parts[0]
+        for i, p in enumerate(parts[1:], 1):
+            if p.system is not first.system:
+                raise V.fail(
+                    f"parts[{i}]", p.system.name, "is a motion of another system", InputError
+                )
+            if not p.time[0] > parts[i - 1].time[-1]:
+                raise V.fail(
+                    f"parts[{i}]",
+                    float(p.time[0]),
+                    f"must start after parts[{i - 1}] ends ({parts[i - 1].time[-1]:g} s)",
+                    InputError,
+                )
+
+        def cat(name):
+            return np.concatenate([getattr(p, name) for p in parts])
+
+        def per_rod(name):
+            return tuple(
+                np.concatenate([getattr(p, name)[i] for p in parts])
+                for i in range(len(first.system.rods))
+            )
+
+        return SystemTrajectory(
+            system=first.system,
+            **{name: cat(name) for name in _ARRAYS},
+            shapes=per_rod("shapes"),
+            pressures=per_rod("pressures"),
+            tensions=per_rod("tensions"),
+        )
+
+    # --- tables, files and figures -----------------------------------------------------------
+
+    def __len__(self) -> int:
+        return int(self.time.size)
+
+    def to_frame(self, units: Units = None) -> pd.DataFrame:
+        """The motion as a table, one row per sample, units in the column names as in the
+        dataset schema (docs/datasets.md; ``units`` as there, also "velocity" and "energy";
+        "SI" for Pa, m, m/s): ``time_s``; the columns of
+        :meth:`softrod.SystemBatchSolution.to_frame` (per rod its inputs ``rod<i>_p<k>_kPa``
+        and ``rod<i>_t<k>_N``, the platform pose ``platform_x_mm`` ... ``platform_qz``, per
+        rod its tip ``rod<i>_tip_x_mm`` ... and the platform's reaction on it
+        ``rod<i>_tip_reaction_fx_N`` ...); the platform's velocity ``platform_vx_mm/s`` ...
+        and angular velocity ``platform_wx_rad/s`` ... (world frame); the energies
+        ``kinetic_J``, ``elastic_J``, ``potential_J``, ``work_in_J``, ``dissipated_J``,
+        ``energy_balance_J``. The metadata block (``frame.attrs["softrod.metadata"]``)
+        names the system and the softrod version."""
+        import pandas as pd
+
+        from . import __version__
+        from .schema import table_units
+        from .system import system_columns
+
+        chosen, factor = table_units(units)
+        cols: dict[str, Any] = {f"time_{chosen['time']}": self.time / factor["time"]}
+        cols.update(
+            system_columns(
+                chosen,
+                factor,
+                self.pressures,
+                self.tensions,
+                self.platform_position,
+                self.platform_rotation,
+                self.tip_position,
+                self.tip_reaction_force,
+                self.tip_reaction_moment,
+            )
+        )
+        for k, a in enumerate("xyz"):
+            cols[f"platform_v{a}_{chosen['velocity']}"] = (
+                self.platform_velocity[:, k] / factor["velocity"]
+            )
+        for k, a in enumerate("xyz"):
+            # Angular velocity has no unit choice in the schema: always rad/s.
+            cols[f"platform_w{a}_rad/s"] = self.platform_angular_velocity[:, k]
+        for name in ENERGY_NAMES:
+            cols[f"{name}_{chosen['energy']}"] = getattr(self, name) / factor["energy"]
+        frame = pd.DataFrame(cols)
+        frame.attrs["softrod.metadata"] = {
+            "system": self.system.name,
+            "synthetic": True,
+            "softrod_version": __version__,
+        }
+        return frame
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the motion to ``path``, atomically (whole or not at all); returns the path.
+
+        ``.npz``: every array exactly (SI), the shapes and inputs per rod, the system's name
+        and a fingerprint of it; :meth:`load` reads it back. ``.csv`` or ``.parquet``: the
+        table of :meth:`to_frame` (without the shapes), for pandas or a spreadsheet."""
+        path = _trajectory_path(path)
+        if path.suffix.lower() != ".npz":
+            return write_table(self.to_frame(), path)
+        arrays: dict[str, Any] = {name: getattr(self, name) for name in _ARRAYS}
+        for i in range(len(self.system.rods)):
+            arrays[f"shapes_{i}"] = self.shapes[i]
+            arrays[f"pressures_{i}"] = self.pressures[i]
+            arrays[f"tensions_{i}"] = self.tensions[i]
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:  # numpy would append ".npz"
+            np.savez_compressed(
+                fh,
+                **arrays,
+                format=np.array(_NPZ_FORMAT),
+                system_name=np.array(self.system.name),
+                fingerprint=np.array(_system_fingerprint(self.system)),
+            )
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike, system: System | str | os.PathLike) -> SystemTrajectory:
+        """Read a ``.npz`` file written by :meth:`save` of a motion of ``system`` (a
+        :class:`~softrod.System`, a system file or a bundled name), exactly. A file of
+        another system (or of another version of it: rods, attachments, platform) is
+        refused, as is a damaged file."""
+        path = Path(path)
+        if path.suffix.lower() != ".npz":
+            raise V.fail(
+                "path",
+                str(path),
+                "only .npz files are read back (.csv and .parquet are tables for pandas)",
+                InputError,
+            )
+        if not path.is_file():
+            raise V.fail("path", str(path), "no such file", InputError)
+        if not isinstance(system, System):
+            system = load_system(system)
+        try:
+            data = np.load(path, allow_pickle=False)
+        except Exception as exc:  # zipfile / numpy raise several types for broken files
+            raise V.fail(
+                "path", str(path), f"is not a readable .npz file: {exc}", InputError
+            ) from None
+        n = len(system.rods)
+        per_rod = [f"{key}_{i}" for i in range(n) for key in ("shapes", "pressures", "tensions")]
+        with data:
+            try:
+                fmt = str(data["format"]) if "format" in data.files else None
+                if fmt != _NPZ_FORMAT:
+                    raise V.fail(
+                        "format", fmt, f"not a system trajectory file ({_NPZ_FORMAT})", InputError
+                    )
+                missing = [
+                    k
+                    for k in (*_ARRAYS, *per_rod, "system_name", "fingerprint")
+                    if k not in data.files
+                ]
+                if missing:
+                    raise V.fail(
+                        "arrays",
+                        sorted(data.files),
+                        f"missing {', '.join(missing)} (a file of a system with {n} rods?)",
+                        InputError,
+                    )
+                name, print_ = str(data["system_name"]), str(data["fingerprint"])
+                values = {k: np.array(data[k], dtype=float) for k in (*_ARRAYS, *per_rod)}
+            except InputError:
+                raise
+            except Exception as exc:  # a damaged archive: zipfile, zlib and numpy errors
+                raise V.fail(
+                    "path", str(path), f"is a damaged .npz file: {exc}", InputError
+                ) from None
+        if print_ != _system_fingerprint(system):
+            raise V.fail(
+                "system",
+                system.name,
+                f"{path.name} holds a motion of system {name!r}, not of this one (or of "
+                "another version of it: rods, attachments or platform differ)",
+                InputError,
+            )
+        k = values["time"].shape[0] if values["time"].ndim == 1 else -1
+        expected = {
+            "time": (k,),
+            "platform_position": (k, 3),
+            "platform_rotation": (k, 3, 3),
+            "platform_velocity": (k, 3),
+            "platform_angular_velocity": (k, 3),
+            "tip_position": (k, n, 3),
+            "tip_reaction_force": (k, n, 3),
+            "tip_reaction_moment": (k, n, 3),
+            **{e: (k,) for e in ENERGY_NAMES},
+        }
+        for i, r in enumerate(system.rods):
+            expected[f"pressures_{i}"] = (k, r.design.n_channels)
+            expected[f"tensions_{i}"] = (k, r.design.n_tendons)
+        for key, shape in expected.items():
+            if k < 1 or values[key].shape != shape:
+                raise V.fail(
+                    key, values[key].shape, f"must have shape {shape} (a damaged file)", InputError
+                )
+        for i in range(n):
+            sh = values[f"shapes_{i}"]
+            if sh.ndim != 3 or sh.shape[0] != k or sh.shape[2] != 3:
+                raise V.fail(f"shapes_{i}", sh.shape, f"must be ({k}, nodes, 3)", InputError)
+        return cls(
+            system=system,
+            **{key: values[key] for key in _ARRAYS},
+            shapes=tuple(values[f"shapes_{i}"] for i in range(n)),
+            pressures=tuple(values[f"pressures_{i}"] for i in range(n)),
+            tensions=tuple(values[f"tensions_{i}"] for i in range(n)),
+        )
+
+    def plot(
+        self,
+        path: str | os.PathLike | None = None,
+        *,
+        reference: Any = None,
+        title: str | None = None,
+    ) -> Figure:
+        """The platform's displacement and tilt and the rods' pressures against time
+        (:func:`softrod.system_plots.plot_system_motion`; ``reference``: an equilibrium
+        drawn dashed). Written to ``path`` when given; returns the Figure."""
+        from .system_plots import plot_system_motion
+
+        return plot_system_motion(self, path, reference=reference, title=title)
 
 
 @dataclass(frozen=True)
@@ -110,9 +393,12 @@ class SystemSimulationState:
     data: np.ndarray = field(repr=False)
 
 
-def _system_fingerprint(system: System, inertia: np.ndarray) -> str:
-    """A digest of what a saved state belongs to: every rod's design document and
-    attachment, the platform's nominal pose, mass, centre of mass and inertia."""
+def _system_fingerprint(system: System, inertia: np.ndarray | None = None) -> str:
+    """A digest of what a saved state or file belongs to: every rod's design document and
+    attachment, the platform's nominal pose, mass, centre of mass and inertia (default: the
+    system's)."""
+    if inertia is None:
+        inertia = system.platform.inertia
     doc = {
         "rods": [
             [
@@ -260,6 +546,10 @@ class SystemSimulation:
                 InputError,
             )
         self._sim.restore(np.ascontiguousarray(state.data, dtype=float))
+        # The inputs held when a run gives none are the restored state's, not the last run's.
+        self._pressures = [list(p) for p in self._sim.snapshot()["pressures"]]
+        force, moment = self._sim.platform_loads()
+        self._force, self._moment = list(force), list(moment)
 
     def copy(self) -> SystemSimulation:
         """An independent simulation starting from this one's current state (exact)."""

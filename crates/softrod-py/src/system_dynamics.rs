@@ -50,6 +50,10 @@ struct Samples {
     tip_reaction_moment: Vec<f64>,
     /// Per rod: its node positions, sample after sample.
     shapes: Vec<Vec<f64>>,
+    /// Per rod: its commanded chamber pressures (Pa) and tendon tensions (N), sample
+    /// after sample (the inputs of the step that ended at the sample).
+    pressures: Vec<Vec<f64>>,
+    tensions: Vec<Vec<f64>>,
     /// kinetic, elastic, potential, work in, dissipated, balance (J) per sample.
     energy: Vec<f64>,
 }
@@ -63,13 +67,18 @@ impl Samples {
         self.platform_rotation.extend(r.iter().flatten());
         self.platform_velocity.extend_from_slice(&v);
         self.platform_angular_velocity.extend_from_slice(&w);
-        self.shapes.resize(sim.rods().len(), vec![]);
+        let n = sim.rods().len();
+        for list in [&mut self.shapes, &mut self.pressures, &mut self.tensions] {
+            list.resize(n, vec![]);
+        }
         for (k, rod) in sim.rods().iter().enumerate() {
             self.tip_position.extend_from_slice(&rod.tip().r);
             let (f, m) = rod.tip_reaction();
             self.tip_reaction_force.extend_from_slice(&f);
             self.tip_reaction_moment.extend_from_slice(&m);
             self.shapes[k].extend(rod.shape().iter().flatten());
+            self.pressures[k].extend_from_slice(rod.pressures());
+            self.tensions[k].extend_from_slice(rod.tensions());
         }
         let e = sim.energy_books();
         self.energy.extend_from_slice(&[
@@ -93,6 +102,8 @@ impl Samples {
         d.set_item("tip_reaction_force", self.tip_reaction_force)?;
         d.set_item("tip_reaction_moment", self.tip_reaction_moment)?;
         d.set_item("shapes", self.shapes)?;
+        d.set_item("pressures", self.pressures)?;
+        d.set_item("tensions", self.tensions)?;
         d.set_item("energy", self.energy)?;
         Ok(d)
     }
@@ -246,6 +257,11 @@ impl PySystemSimulator {
                 .set_platform_loads(force, moment)
                 .map_err(|e| to_py_err(py, e, Context::Input))
         })
+    }
+
+    /// The platform's external force (N, world) and moment (N m, world) now.
+    fn platform_loads(&self) -> ([f64; 3], [f64; 3]) {
+        self.sim.platform_loads()
     }
 
     /// Counters of the run so far.

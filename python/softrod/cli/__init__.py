@@ -1,10 +1,12 @@
 """``softrod`` command line: solve one equilibrium, sweep a pressure grid, compare models on
 a paper's experiments, calibrate parameters to measured tip positions, identify a design from
-axial measurements, simulate motion, run the PCC model, list designs and presets, run the demo,
-view a design in the browser, invert statics, map the workspace and track a path.
+axial measurements, simulate motion, solve and simulate systems of rods, run the PCC model,
+list designs and presets, run the demo, view a design in the browser, invert statics, map the
+workspace and track a path.
 
 One module per command group: ``statics`` (solve, sweep, demo), ``compare``, ``calibrate``
-(calibrate, calibrate-axial, identify), ``simulate``, ``pcc`` (compare-pcc, pcc-identify),
+(calibrate, calibrate-axial, identify), ``simulate``, ``system`` (solve-system,
+simulate-system), ``pcc`` (compare-pcc, pcc-identify),
 ``designs``, ``view``, ``control`` (inverse, workspace, track); shared parsing, error
 handling and output helpers in ``_common``.
 
@@ -40,6 +42,7 @@ from .designs import designs
 from .pcc import compare_pcc_cmd, pcc_identify
 from .simulate import simulate_cmd
 from .statics import demo, solve, sweep
+from .system import simulate_system_cmd, solve_system_cmd
 from .view import view
 
 
@@ -144,6 +147,8 @@ for _command in (
     identify,
     designs,
     simulate_cmd,
+    solve_system_cmd,
+    simulate_system_cmd,
     compare_pcc_cmd,
     pcc_identify,
     view,

@@ -10,13 +10,14 @@ from ._common import _handle_errors, _stdout
 @click.command()
 @_handle_errors
 def designs():
-    """List the bundled designs, the presets and the example datasets, with their channel
-    count and source."""
+    """List the bundled designs, the presets, the systems of rods and the example datasets,
+    with their channel count and source."""
     from rich.text import Text
 
     from ..catalog import bundled_designs
     from ..datasets import example_dataset_path, example_datasets
     from ..presets import list_presets
+    from ..system import bundled_systems, load_system
 
     console = _stdout()
     console.print(Text("bundled designs (use the name as DESIGN):", style="bold"))
@@ -32,6 +33,17 @@ def designs():
     summaries = {p.name: p.summary for p in list_presets()}
     for name, summary in summaries.items():
         _list_design(console, name, lambda d, s=summary: s)
+    console.print()
+    console.print(
+        Text(
+            "systems of rods (use the name as SYSTEM in solve-system and simulate-system):",
+            style="bold",
+        )
+    )
+    for name in bundled_systems():
+        system = load_system(name)
+        rods = ", ".join(r.design.name for r in system.rods)
+        console.print(Text.assemble((name, "bold cyan"), f"  {len(system.rods)} rods: {rods}"))
     console.print()
     console.print(Text("example datasets (SYNTHETIC; use the name as DATA):", style="bold"))
     for name in example_datasets():

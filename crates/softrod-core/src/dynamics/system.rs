@@ -1201,6 +1201,10 @@ impl SystemSimulator {
     pub fn energy_balance(&self) -> f64 {
         self.books.balance()
     }
+    /// The platform's external force (N, world, at its origin) and moment (N m, world) now.
+    pub fn platform_loads(&self) -> ([f64; 3], [f64; 3]) {
+        (self.body.force, self.body.moment)
+    }
 
     /// Change a rod's tendon tensions from the next step on (checked first).
     pub fn set_tensions(&mut self, rod: usize, tensions: &[f64]) -> Result<()> {
