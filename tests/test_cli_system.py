@@ -257,3 +257,19 @@ def test_simulate_system_refuses_bad_options_before_any_work(run, tmp_path):
     )
     assert_clean_error(result, 2, "not both")
     assert not out.exists()
+
+
+def test_hostile_system_files_are_design_errors(run, tmp_path):
+    # Found by the fuzz suite: a deeply nested file raised RecursionError from the TOML
+    # parser (an internal error at the command line); system files are now read as design
+    # files are (size, encoding, syntax, depth).
+    deep = tmp_path / "deep.toml"
+    deep.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(softrod.DesignError, match="nested too deeply"):
+        softrod.load_system(deep)
+    binary = tmp_path / "binary.toml"
+    binary.write_bytes(b"\xff\xfe\x00name")
+    with pytest.raises(softrod.DesignError, match="not UTF-8"):
+        softrod.load_system(binary)
+    result = run("solve-system", deep)
+    assert_clean_error(result, 2, "nested too deeply")

@@ -559,7 +559,7 @@ def simulate_cases(draw):
 @st.composite
 def api_cases(draw):
     """Other public entry points with hostile arguments."""
-    which = draw(st.integers(0, 5))
+    which = draw(st.integers(0, 7))
     if which == 0:
         changes = draw(
             st.dictionaries(
@@ -608,6 +608,20 @@ def api_cases(draw):
         )
     if which == 3:
         return ("schedule", draw(schedules()))
+    if which in (5, 6):
+        # A system: one list per rod (two rods of three channels), or hostile values.
+        per_rod = st.one_of(st.lists(arrays(3), min_size=2, max_size=2), hostile())
+        kwargs = {
+            "tensions": draw(st.one_of(st.none(), hostile())),
+            "platform_force": draw(st.one_of(st.none(), arrays(3), hostile())),
+            "platform_moment": draw(st.one_of(st.none(), hostile())),
+        }
+        if which == 6:
+            kwargs["dt"] = draw(st.sampled_from(STEPS))
+            kwargs["platform_inertia"] = draw(st.one_of(st.none(), arrays(3), hostile()))
+        function = "solve_system" if which == 5 else "SystemSimulation"
+        args = ("two_spa_platform", draw(per_rod))
+        return ("api", {"function": function, "args": args, "kwargs": kwargs})
     if which == 4:
         return (
             "quantity",
@@ -757,6 +771,8 @@ def cli_cases(draw):
                 "identify",
                 "compare-pcc",
                 "pcc-identify",
+                "solve-system",
+                "simulate-system",
                 "bogus",
             ]
         )
@@ -808,6 +824,22 @@ def cli_cases(draw):
             args += ["--write-design", draw(st.sampled_from(["o.toml", "o.csv", "m/o.toml"]))]
         if draw(st.booleans()):
             args += ["--k-theta", draw(st.sampled_from(["0.05 N*m", "0.05", "10**10**10 N*m"]))]
+    elif cmd in ("solve-system", "simulate-system"):
+        args.append(draw(st.sampled_from(["two_spa_platform", "nope", "fuzz.toml", "data.csv"])))
+        # --pressure once per rod is right (two rods); zero, one or three times is not.
+        for _ in range(draw(st.sampled_from([0, 1, 2, 2, 3]))):
+            args += ["-p", draw(st.one_of(st.sampled_from(VECTORS), st.text(max_size=10)))]
+        for opt in ("--platform-force", "--platform-moment"):
+            if draw(st.booleans()):
+                args += [opt, draw(st.one_of(st.sampled_from(VECTORS), st.text(max_size=10)))]
+        if cmd == "simulate-system":
+            args += ["--out", draw(st.sampled_from(["m.npz", "m.csv", "m.txt", "m/m.npz"]))]
+            if draw(st.booleans()):
+                args += ["--input", "data.csv"]
+            args += ["--t-end", draw(st.sampled_from(["4 ms", "10", "1e9 s", "0", "x"]))]
+            args += ["--dt", draw(st.sampled_from(["2 ms", "1e-9 s", "0.002", "0 s", "5 kPa"]))]
+        elif draw(st.booleans()):
+            args.append("--json")
     elif cmd == "bogus":
         args += draw(st.lists(st.text(max_size=6), max_size=3))
     return ("cli", CliArgs(args, files))

@@ -1329,7 +1329,7 @@ def read_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
             "must be a path, a bundled design name, a mapping or a Design",
         )
     path = Path(design)
-    doc = _read_toml(path)
+    doc = read_toml(path)
     try:
         return _build(doc, path)
     except DesignError as exc:
@@ -1337,9 +1337,9 @@ def read_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
         raise
 
 
-def _read_toml(path: Path) -> dict:
+def read_toml(path: Path) -> dict:
     """The document of a TOML file; DesignError naming the file for anything that is not a
-    readable, reasonably small, valid UTF-8 TOML document."""
+    readable, reasonably small, valid UTF-8 TOML document (design and system files)."""
     try:
         size = path.stat().st_size
         if size > MAX_FILE_BYTES:

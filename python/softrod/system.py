@@ -30,7 +30,6 @@ A system file (TOML) names its rods' designs and where they hold the platform::
 from __future__ import annotations
 
 import os
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -41,7 +40,7 @@ from . import _core
 from . import _validate as V
 from .catalog import load_design
 from .constraints import orientation as _orientation
-from .design import Design
+from .design import Design, read_toml
 from .errors import ConvergenceError, DesignError, InputError
 from .solution import StaticSolution
 from .statics import (
@@ -58,11 +57,6 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from ._types import Units
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 _SCHEMA = {
     "": {"units", "system", "platform", "rods"},
@@ -226,17 +220,15 @@ def load_system(source: str | Path) -> System:
     path = Path(source)
     if not path.exists() and path.suffix == "" and (systems_dir() / f"{source}.toml").exists():
         path = systems_dir() / f"{source}.toml"
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
+    if not path.is_file():
         raise V.fail(
             "system",
             str(source),
             f"no such file or bundled system ({', '.join(bundled_systems())})",
             DesignError,
-        ) from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise V.fail("system", str(source), f"cannot be read as TOML: {exc}", DesignError) from None
+        )
+    # Size, encoding, syntax and nesting depth checked as for design files.
+    doc = read_toml(path)
     doc = _keys(doc, "", "")
     meta = _keys(doc.get("system", {}), "system", "system")
     name = V.text(meta.get("name", path.stem), "system.name", DesignError, non_empty=True)

@@ -134,17 +134,11 @@ pub(crate) fn section_value(rod: &Rod, i: usize, kind: ParamKind) -> f64 {
     }
 }
 
-/// Check parameters of the static sensitivities against the rod: no obstacles, and
-/// [`check_params`]. Errors name `params[j]`.
+/// Check parameters of the static sensitivities against the rod ([`check_params`]; with
+/// obstacles too: the contact penalty is a line load of the shooting ODE and the rounded
+/// end's force a term of the tip balance, both carried by the dual passes like any load).
+/// Errors name `params[j]`.
 pub fn validate_params(rod: &Rod, params: &[Param]) -> Result<()> {
-    if rod.obstacles.is_some() {
-        // Not verified with contact yet: refused rather than trusted.
-        return Err(SoftrodError::invalid(
-            "obstacles",
-            format!("{} obstacles", rod.spec.obstacles.len()),
-            "static parameter sensitivities (calibration) do not support contact yet; solve_statics and the dynamic sensitivities (dynamic calibration) do",
-        ));
-    }
     check_params(rod, params)
 }
 

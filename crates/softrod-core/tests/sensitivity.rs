@@ -11,6 +11,7 @@ use softrod_core::sensitivity::{
     locate_markers, marker_positions, pose_sensitivity, tip_sensitivity, validate_params, Marker,
     Param, ParamKind,
 };
+use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::spec::{AxialSpec, DesignSpec};
 use softrod_core::statics::{shape, solve, SolverOptions};
 use softrod_core::{Rod, SoftrodError};
@@ -372,32 +373,19 @@ fn markers_between_nodes_converge_at_fourth_order() {
     assert!(order(errors[0], errors[1]) > 3.5 && order(errors[1], errors[2]) > 3.5);
 }
 
-#[test]
-fn marker_derivatives_match_finite_differences() {
-    let spec = m3(tilted());
+/// Compare the exact derivatives of every marker (and of the tip) with central differences
+/// of full solves; the base marker (markers()[0]) must not move.
+fn check_markers(spec: &DesignSpec, ld: &Loads, params: &[Param]) {
     let rod = Rod::new(spec.clone()).unwrap();
-    let ld = Loads {
-        pressures: vec![25e3, 5e3, 15e3],
-        ..loads(&[0.0; 3])
-    };
-    let params = [
-        param("c_b", &[1]),
-        param("alpha", &[1]),
-        param("c_p", &[1]),
-        param("offset_1", &[1]),
-        param("E", &[0, 2]),
-        param("area_scale", &[1]),
-        param("density", &[1]),
-    ];
-    let mks = markers(&spec);
+    let mks = markers(spec);
     let located = locate_markers(&rod, &mks).unwrap();
-    let sol = solve(&rod, &ld, None, &opts()).unwrap();
-    let sens = pose_sensitivity(&rod, &ld, &sol, &params, &located).unwrap();
+    let sol = solve(&rod, ld, None, &opts()).unwrap();
+    let sens = pose_sensitivity(&rod, ld, &sol, params, &located).unwrap();
     // The tip derivative is the same with or without markers.
-    let tip_only = tip_sensitivity(&rod, &ld, &sol, &params).unwrap();
+    let tip_only = tip_sensitivity(&rod, ld, &sol, params).unwrap();
     assert_eq!(sens.position, tip_only.position);
     for (j, p) in params.iter().enumerate() {
-        let v0 = p.value(&rod, &ld);
+        let v0 = p.value(&rod, ld);
         let step = match p.kind {
             ParamKind::ChamberOffset(_) => 1e-8,
             _ => H * v0.abs(),
@@ -429,6 +417,73 @@ fn marker_derivatives_match_finite_differences() {
         // The base marker does not move with any parameter.
         assert_eq!(sens.markers[j][0], [0.0; 3]);
     }
+}
+
+#[test]
+fn marker_derivatives_match_finite_differences() {
+    let spec = m3(tilted());
+    let ld = Loads {
+        pressures: vec![25e3, 5e3, 15e3],
+        ..loads(&[0.0; 3])
+    };
+    let params = [
+        param("c_b", &[1]),
+        param("alpha", &[1]),
+        param("c_p", &[1]),
+        param("offset_1", &[1]),
+        param("E", &[0, 2]),
+        param("area_scale", &[1]),
+        param("density", &[1]),
+    ];
+    check_markers(&spec, &ld, &params);
+}
+
+#[test]
+fn derivatives_with_an_obstacle_match_finite_differences() {
+    // The hanging M3 actuator bends sideways under channel 0 and presses on a wall whose
+    // face is half its free lateral tip deflection away from its surface: the contact
+    // penalty (a line load of the shooting ODE, docs/contact.md) and the rounded end's
+    // force enter the dual passes like any load, so the derivatives carry them. The
+    // penalty is C1 (its curvature jumps where a point touches down or reaches the ramp's
+    // end), so central differences are O(h^2) accurate unless a step moves an RK4 stage
+    // point across a switch; the same tolerance as without contact holds (and would not if
+    // the contact term were missing: the wall changes the tip's derivatives by tens of
+    // percent, asserted below).
+    let mut spec = m3(HANGING);
+    let ld = Loads {
+        pressures: vec![30e3, 0.0, 0.0],
+        ..loads(&[0.0; 3])
+    };
+    let free = solve(&Rod::new(spec.clone()).unwrap(), &ld, None, &opts()).unwrap();
+    let side = [free.tip.r[0], free.tip.r[1], 0.0];
+    let reach = norm(&side);
+    assert!(reach > 5e-3, "the free tip moves {reach} m sideways");
+    let dir = side.map(|v| v / reach);
+    let mut wall = obstacle(ObstacleKind::Plane, 1e5, 1e-3);
+    wall.point = Some(dir.map(|v| (P002_RO + 0.5 * reach) * v));
+    wall.normal = Some(dir.map(|v| -v));
+    spec.obstacles = vec![wall];
+    // The wall really holds the rod: its tip stops short of the free one by millimetres.
+    let rod = Rod::new(spec.clone()).unwrap();
+    let held = solve(&rod, &ld, None, &opts()).unwrap();
+    let gap = reach - (held.tip.r[0] * dir[0] + held.tip.r[1] * dir[1]);
+    assert!(gap > 2e-3, "the wall moved the tip by {gap} m only");
+    let params = [
+        param("c_b", &[1]),
+        param("alpha", &[1]),
+        param("E", &[0, 2]),
+        param("area_scale", &[1]),
+        param("density", &[1]),
+    ];
+    check_markers(&spec, &ld, &params);
+    // Not vacuous: the wall changes the tip's bending derivative by far more than the
+    // tolerance (measured: tens of percent).
+    let free_rod = Rod::new(m3(HANGING)).unwrap();
+    let without = tip_sensitivity(&free_rod, &ld, &free, &params[..1]).unwrap();
+    let with = tip_sensitivity(&rod, &ld, &held, &params[..1]).unwrap();
+    let change = dist(&with.position[0], &without.position[0]) / norm(&without.position[0]);
+    println!("the wall changes d tip / d c_b by {change:.2e} relative");
+    assert!(change > 0.1, "the wall changed d tip / d c_b by {change:.2e} only");
 }
 
 #[test]

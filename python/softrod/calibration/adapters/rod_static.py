@@ -75,7 +75,10 @@ class RodStatic(ModelAdapter):
         self.opts = _options(options).as_kwargs()
         self.threads = threads
         self.markers = marker_sites(dataset)
-        self.x0 = np.full((len(dataset), 3), np.nan)
+        self.m = len(dataset)
+        # Warm starts: the shooting unknowns of each row's last solve (NaN: cold), sized by
+        # the first solve's: 3 (base moment) or 6 (base force too: obstacles, followers).
+        self.x0: np.ndarray | None = None
         self.sigma_index = {
             j: SIGMA_KINDS.index(p.kind) for j, p in enumerate(params) if p.kind in SIGMA_KINDS
         }
@@ -100,7 +103,7 @@ class RodStatic(ModelAdapter):
 
     def reset(self) -> None:
         self.evaluations = 0
-        self.x0[:] = np.nan
+        self.x0 = None
 
     # ------------------------------------------------------------------------------------------
 
@@ -144,7 +147,7 @@ class RodStatic(ModelAdapter):
                     tip_f,
                     tip_m,
                     [p.core() for p in self.params] if jacobian else [],
-                    x0=np.ascontiguousarray(self.x0[idx]),
+                    x0=None if self.x0 is None else np.ascontiguousarray(self.x0[idx]),
                     markers=self.markers,
                     **kw,
                 )
@@ -166,6 +169,8 @@ class RodStatic(ModelAdapter):
             if out.markers is not None:
                 out.markers[idx] = res["marker_position"]
             out.ok[idx] = res["converged"]
+            if self.x0 is None:
+                self.x0 = np.full((self.m, res["x"].shape[1]), np.nan)
             good = idx[res["converged"]]
             self.x0[good] = res["x"][res["converged"]]
         return out
@@ -183,7 +188,7 @@ class RodStatic(ModelAdapter):
         clone.params = sigma
         clone.parameters = tuple(sigma)
         clone.sigma_index = {j: SIGMA_KINDS.index(p.kind) for j, p in enumerate(sigma)}
-        clone.x0 = np.full_like(self.x0, np.nan)
+        clone.x0 = None
         values = np.array([theta[self.params.index(p)] for p in sigma])
         return clone.predict(values, rows, False)
 
