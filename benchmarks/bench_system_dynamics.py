@@ -1,8 +1,8 @@
 """Cost of a time step of a system of rods in motion (``SystemSimulation``) against one held
 actuator alone (a script, not a test).
 
-    python benchmarks/bench_system_dynamics.py          # full (~25 s): system_dynamics.json
-    python benchmarks/bench_system_dynamics.py --quick  # smoke (~5 s): system_dynamics_quick.json
+    python benchmarks/bench_system_dynamics.py          # full (~5 s): system_dynamics.json
+    python benchmarks/bench_system_dynamics.py --quick  # smoke (~2 s): system_dynamics_quick.json
 
 One core: RAYON_NUM_THREADS = 1 is set before softrod is imported. Wall-clock times
 (time.perf_counter) of ``run`` only (the start, a static solve, is not timed), garbage

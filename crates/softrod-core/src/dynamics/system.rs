@@ -470,7 +470,9 @@ impl Coupled<'_> {
             };
         for it in 0..max_iter {
             stats.newton_iterations += 1;
-            if !norm.is_finite() && rate.fresh() {
+            // Only the start's residual can be NaN (a trial is accepted only where finite):
+            // no matrix helps there.
+            if !norm.is_finite() {
                 return Err((it + 1, norm));
             }
             if matrix.is_none() {
