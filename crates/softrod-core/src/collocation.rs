@@ -1816,7 +1816,7 @@ impl NewtonWork {
 /// velocities in L c0, so a velocity error moves the rod by that fraction of L in one
 /// step), where the residual's rows mix very different sensitivities. A factorization in
 /// `cache` (from an earlier iterate or step) is reused while it contracts by at least
-/// `REUSE` per iteration and refreshed otherwise. Ok(final scaled residual) or
+/// 1/4 per iteration and refreshed otherwise ([`Contraction`]). Ok(final scaled residual) or
 /// Err((iterations, residual)); on return `cache` holds the last factorization (None if
 /// it was discarded).
 pub fn newton(
@@ -1847,7 +1847,6 @@ pub fn newton_with(
     theta_hint: &mut f64,
     work: &mut NewtonWork,
 ) -> std::result::Result<f64, (usize, f64)> {
-    const REUSE: f64 = 0.25;
     let n = z.len();
     work.fit(n, 2 * p.grid.len());
     let NewtonWork {
@@ -1861,17 +1860,16 @@ pub fn newton_with(
     } = work;
     p.residual(z, r, None);
     let mut norm = inf_norm(r);
-    let mut fresh = false;
-    let mut last_step = f64::INFINITY;
+    let mut rate = Contraction::new(theta_hint);
     for it in 0..opts.max_iter {
         stats.iterations += 1;
-        if !norm.is_finite() && fresh {
+        if !norm.is_finite() && rate.fresh() {
             return Err((it + 1, norm));
         }
         if cache.is_none() {
             *cache = p.factorize(z);
             stats.jacobians += 1;
-            fresh = true;
+            rate.factored();
             if cache.is_none() {
                 return Err((it + 1, norm));
             }
@@ -1882,53 +1880,34 @@ pub fn newton_with(
         let scale = inf_norm(z).max(1.0);
         let step = inf_norm(dz) / scale;
         if !step.is_finite() {
-            if fresh {
+            if rate.fresh() {
                 return Err((it + 1, norm));
             }
             *cache = None;
             continue;
         }
-        // Contraction rate from the last two full corrections (1 when unknown).
-        let theta = if last_step.is_finite() {
-            step / last_step
-        } else {
-            1.0
-        };
-        // Remaining error after this correction: theta / (1 - theta) of it for a
-        // contracting iteration (Hairer and Wanner, Radau5); the first correction itself.
-        let remaining = if theta < 0.5 {
-            step * theta / (1.0 - theta)
-        } else {
-            step
-        };
-        if step <= opts.tol || (it > 0 && remaining <= opts.tol) {
-            // Converged: apply the (tiny) correction and finish (the residual reported is
-            // the one before it).
-            for (a, d) in z.iter_mut().zip(dz.iter()) {
-                *a += d;
+        match rate.judge(it, step, opts.tol) {
+            Judged::Converged => {
+                // Converged: apply the (tiny) correction and finish (the residual reported
+                // is the one before it).
+                for (a, d) in z.iter_mut().zip(dz.iter()) {
+                    *a += d;
+                }
+                return Ok(norm);
             }
-            if it > 0 && theta < 1.0 {
-                *theta_hint = theta;
-            }
-            return Ok(norm);
-        }
-        if it == 0 && !fresh && *theta_hint < 0.5 {
-            // The kept matrix's last rate predicts the remaining error; accept one
-            // correction if that is below tol and the residual falls at least as the rate
-            // says (by 10x the predicted factor at worst, and by half).
-            let th = *theta_hint;
-            if step * th / (1.0 - th) <= opts.tol {
+            Judged::Predicted => {
                 for k in 0..n {
                     zt[k] = z[k] + dz[k];
                 }
                 p.residual(zt, rt, Some(&mut fields[..]));
                 let nt = inf_norm(rt);
-                if nt.is_finite() && nt <= norm * (10.0 * th).min(0.5) {
+                if rate.confirms(nt, norm) {
                     z.copy_from_slice(zt);
                     *fields_at_solution = true;
                     return Ok(nt);
                 }
             }
+            Judged::Iterate => {}
         }
         let mut alpha = 1.0;
         let mut accepted = false;
@@ -1939,38 +1918,143 @@ pub fn newton_with(
             p.residual(zt, rt, None);
             let nt = inf_norm(rt);
             if nt.is_finite() && nt < (1.0 - 1e-4 * alpha) * norm {
-                if alpha < 1.0 || (last_step.is_finite() && theta > REUSE) {
+                if !rate.accepted(alpha, step) {
                     *cache = None; // refresh at the new iterate
                 }
                 z.copy_from_slice(zt);
                 std::mem::swap(r, rt);
                 norm = nt;
                 accepted = true;
-                fresh = false;
-                last_step = if alpha == 1.0 { step } else { f64::INFINITY };
                 break;
             }
-            if !fresh {
+            if !rate.fresh() {
                 break; // a stale matrix may be the problem: refresh and retry
             }
             alpha *= 0.5;
         }
         if !accepted {
-            if fresh {
+            if rate.fresh() {
                 if step <= 100.0 * opts.tol {
                     return Ok(norm); // at round-off already
                 }
                 return Err((it + 1, norm));
             }
             *cache = None;
-            last_step = f64::INFINITY;
-            *theta_hint = 1.0;
-        }
-        if cache.is_none() {
-            *theta_hint = 1.0; // a new matrix: its rate is unknown
+            rate.stale_failed();
         }
     }
     Err((opts.max_iter, norm))
+}
+
+/// What [`Contraction::judge`] makes of a Newton correction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Judged {
+    /// Below tol (or the error it leaves at the measured rate is): apply it and stop.
+    Converged,
+    /// A kept matrix's first correction whose remaining error, at the rate of the matrix's
+    /// last use, is below tol: apply it in full and stop if the residual confirms the rate
+    /// ([`Contraction::confirms`]); iterate on otherwise.
+    Predicted,
+    /// Take it (damped if need be) and iterate.
+    Iterate,
+}
+
+/// The contraction bookkeeping of a modified Newton iteration whose factored matrix may
+/// come from an earlier iterate or solve (`newton_with`; the systems of rods' bordered
+/// Newton, `dynamics::system`, with the same rules): the rate theta from the last two
+/// full corrections with the same matrix, convergence when a correction, or the error it
+/// leaves (theta / (1 - theta) of it for theta < 1/2; Hairer and Wanner, Radau5), is
+/// below tol, and a refresh when the matrix contracts by less than `REUSE` per iteration
+/// or needed damping. `hint` is the rate of the matrix's last use (1 when unknown),
+/// carried between solves by the caller.
+pub(crate) struct Contraction<'h> {
+    hint: &'h mut f64,
+    /// Whether the matrix was factored at the current iterate.
+    fresh: bool,
+    /// The last full correction with the current matrix (infinite: none).
+    last_step: f64,
+    /// The rate of the correction last judged.
+    theta: f64,
+}
+
+impl<'h> Contraction<'h> {
+    /// A matrix kept while it contracts by at least this factor per iteration.
+    const REUSE: f64 = 0.25;
+
+    pub(crate) fn new(hint: &'h mut f64) -> Self {
+        Contraction {
+            hint,
+            fresh: false,
+            last_step: f64::INFINITY,
+            theta: 1.0,
+        }
+    }
+
+    /// A matrix was factored at the current iterate.
+    pub(crate) fn factored(&mut self) {
+        self.fresh = true;
+    }
+
+    /// Whether the matrix is the current iterate's (failures are then final).
+    pub(crate) fn fresh(&self) -> bool {
+        self.fresh
+    }
+
+    /// The correction of (finite, relative) size `step` at iteration `it`.
+    pub(crate) fn judge(&mut self, it: usize, step: f64, tol: f64) -> Judged {
+        // Contraction rate from the last two full corrections (1 when unknown).
+        let theta = if self.last_step.is_finite() {
+            step / self.last_step
+        } else {
+            1.0
+        };
+        self.theta = theta;
+        // Remaining error after this correction: theta / (1 - theta) of it for a
+        // contracting iteration (Hairer and Wanner, Radau5); the first correction itself.
+        let remaining = if theta < 0.5 {
+            step * theta / (1.0 - theta)
+        } else {
+            step
+        };
+        if step <= tol || (it > 0 && remaining <= tol) {
+            if it > 0 && theta < 1.0 {
+                *self.hint = theta;
+            }
+            return Judged::Converged;
+        }
+        // The kept matrix's last rate predicts the remaining error of its first correction.
+        let th = *self.hint;
+        if it == 0 && !self.fresh && th < 0.5 && step * th / (1.0 - th) <= tol {
+            return Judged::Predicted;
+        }
+        Judged::Iterate
+    }
+
+    /// Whether a [`Judged::Predicted`] correction's residual `nt` (from `norm`) confirms
+    /// the rate: it falls at least as the rate says (by 10x the predicted factor at worst,
+    /// and by half).
+    pub(crate) fn confirms(&self, nt: f64, norm: f64) -> bool {
+        nt.is_finite() && nt <= norm * (10.0 * *self.hint).min(0.5)
+    }
+
+    /// The judged correction was taken with damping `alpha`: whether the matrix may be
+    /// kept (false: refresh it at the new iterate; it needed damping or contracts by less
+    /// than `REUSE`).
+    pub(crate) fn accepted(&mut self, alpha: f64, step: f64) -> bool {
+        let keep = !(alpha < 1.0 || (self.last_step.is_finite() && self.theta > Self::REUSE));
+        self.fresh = false;
+        self.last_step = if alpha == 1.0 { step } else { f64::INFINITY };
+        if !keep {
+            *self.hint = 1.0; // a new matrix: its rate is unknown
+        }
+        keep
+    }
+
+    /// A stale matrix's correction did not reduce the residual: it is refreshed.
+    pub(crate) fn stale_failed(&mut self) {
+        self.last_step = f64::INFINITY;
+        *self.hint = 1.0;
+    }
 }
 
 /// The collocation equations with the section models and history terms in another scalar

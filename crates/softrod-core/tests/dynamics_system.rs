@@ -509,3 +509,138 @@ fn tendon_tensions_drive_a_system_and_their_work_is_booked() {
     // The trapezoidal rule's second-order error, as in the undamped platform's test.
     assert!(worst <= 1e-3 * scale, "{worst:e} vs {scale:e}");
 }
+
+/// Platform position and rotation and every rod's centreline after each step of `run`
+/// (m), and the counters at the end.
+fn trajectory(
+    sys: &mut SystemSimulator,
+    steps: usize,
+    forget: bool,
+    pressure: impl Fn(usize) -> Vec<f64>,
+) -> Vec<Vec<f64>> {
+    (0..steps)
+        .map(|k| {
+            if forget {
+                sys.forget_matrix();
+            }
+            sys.step(&commands(&pressure(k))).unwrap();
+            let (p, r) = sys.platform_pose();
+            let mut out = p.to_vec();
+            out.extend(r.iter().flatten().map(|x| x * L));
+            for rod in sys.rods() {
+                out.extend(rod.shape().iter().flatten());
+            }
+            out
+        })
+        .collect()
+}
+
+/// The largest difference between two trajectories of [`trajectory`], m.
+fn largest_difference(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
+    a.iter()
+        .zip(b)
+        .flat_map(|(x, y)| x.iter().zip(y).map(|(p, q)| (p - q).abs()))
+        .fold(0.0, f64::max)
+}
+
+/// How far two runs of the same steps may part when each converges its steps' Newton
+/// to `tol` (DynOptions::tol, relative to max(1, |z|) of the scaled unknowns, positions
+/// in units of L): each step's solution is within ~tol max(1, |z|) L of the step's exact
+/// discrete solution in either run (the convergence test bounds the correction, or the
+/// error it leaves at the measured rate), so the two differ by at most twice that per
+/// step; the damped scheme does not amplify a perturbation (it decays), so over `steps`
+/// steps they part by at most 2 tol max(1, |z|) L steps. max(1, |z|) <= 2 here: node
+/// positions within 1.1 L of the origin, quaternions <= 1, the rods' forces (< 1 N: the
+/// platform's weight, the rods' own, 40 kPa on a chamber of 13 mm^2) below F_s (~8 N,
+/// `collocation::force_scale`) and velocities far below L c0.
+fn newton_bound(tol: f64, steps: usize) -> f64 {
+    2.0 * tol * 2.0 * L * steps as f64
+}
+
+/// A smooth pressure ramp on rod 0 over `ramp` steps (half a cosine), then held.
+fn ramp(k: usize, ramp: usize) -> Vec<f64> {
+    let s = ((k + 1) as f64 / ramp as f64).min(1.0);
+    vec![40e3 * 0.5 * (1.0 - (PI * s).cos()), 0.0, 10e3 * s]
+}
+
+#[test]
+fn kept_matrix_gives_the_refactored_trajectory_and_is_reused() {
+    // Three damped rods on a 20 g platform with inertia, a smooth pressure ramp: the run
+    // that keeps its bordered Newton matrix across steps against one that factors afresh
+    // at every step's start (`forget_matrix`, the system's behaviour before it kept it).
+    let plat = platform(0.02, 9.81, [0.0; 3], [0.0; 3]);
+    let inertia = [[2e-6, 0.0, 0.0], [0.0, 2e-6, 0.0], [0.0, 0.0, 4e-6]];
+    let o = opts(2e-3, -0.2);
+    let steps = 100;
+    let new = || SystemSimulator::new(rods(3, 9.81, 0.02, &[0.0; 3]), plat, inertia, o).unwrap();
+    let (mut kept, mut fresh) = (new(), new());
+    let a = trajectory(&mut kept, steps, false, |k| ramp(k, 50));
+    let b = trajectory(&mut fresh, steps, true, |k| ramp(k, 50));
+    let diff = largest_difference(&a, &b);
+    let moved = dist(
+        &a[steps - 1][..3].try_into().unwrap(),
+        &a[0][..3].try_into().unwrap(),
+    );
+    eprintln!(
+        "kept {:?}\nfresh {:?}\nlargest difference {diff:.3e} m (bound {:.3e} m), moved {moved:.3e} m",
+        kept.stats,
+        fresh.stats,
+        newton_bound(o.tol, steps)
+    );
+    assert!(
+        moved > 1e-3 * L,
+        "the ramp must move the platform: {moved:e}"
+    );
+    assert!(diff <= newton_bound(o.tol, steps), "{diff:e}");
+    // The refactoring run factors at least once per step; the kept matrix serves many
+    // steps of this smooth motion (a refresh only where it contracts by less than 1/4).
+    assert!(fresh.stats.jacobians >= steps, "{:?}", fresh.stats);
+    assert!(
+        10 * kept.stats.jacobians <= steps,
+        "the kept matrix is refactored {} times in {steps} steps",
+        kept.stats.jacobians
+    );
+}
+
+#[test]
+fn restore_at_another_step_refactors_and_continues_right() {
+    // A state saved from a run at dt = 2 ms restored into the same system at dt = 1 ms:
+    // the kept matrix (recomputed on restore from what it was computed from) belongs to
+    // another c0 (twice as small), so the first step refactors, and the run equals one
+    // that refactors at every step's start to the Newton tolerance.
+    let plat = platform(0.02, 9.81, [0.0; 3], [0.0; 3]);
+    let inertia = [[2e-6, 0.0, 0.0], [0.0, 2e-6, 0.0], [0.0, 0.0, 4e-6]];
+    let (o2, o1) = (opts(2e-3, -0.2), opts(1e-3, -0.2));
+    let new = |o| SystemSimulator::new(rods(3, 9.81, 0.02, &[0.0; 3]), plat, inertia, o).unwrap();
+    let mut first = new(o2);
+    trajectory(&mut first, 30, false, |k| ramp(k, 50));
+    let saved = first.save();
+    let (mut kept, mut fresh) = (new(o1), new(o1));
+    kept.restore(&saved).unwrap();
+    fresh.restore(&saved).unwrap();
+    let before = kept.stats.jacobians;
+    kept.step(&commands(&ramp(30, 50))).unwrap();
+    assert!(
+        kept.stats.jacobians > before,
+        "the first step at the new dt refactors: {:?}",
+        kept.stats
+    );
+    fresh.forget_matrix();
+    fresh.step(&commands(&ramp(30, 50))).unwrap();
+    let steps = 40;
+    let a = trajectory(&mut kept, steps, false, |k| ramp(k + 31, 50));
+    let b = trajectory(&mut fresh, steps, true, |k| ramp(k + 31, 50));
+    let diff = largest_difference(&a, &b);
+    eprintln!(
+        "kept {:?}\nfresh {:?}\nlargest difference {diff:.3e} m (bound {:.3e} m)",
+        kept.stats,
+        fresh.stats,
+        newton_bound(o1.tol, steps + 1)
+    );
+    assert!(diff <= newton_bound(o1.tol, steps + 1), "{diff:e}");
+    assert!(
+        kept.stats.jacobians < fresh.stats.jacobians,
+        "{:?}",
+        kept.stats
+    );
+}

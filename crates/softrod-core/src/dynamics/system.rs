@@ -28,16 +28,18 @@
 //! bordered system is solved by the Schur complement on the platform's 6 unknowns:
 //! S = D - sum C_i A_i^-1 B_i with each rod's banded factorization reused for 7 right-hand
 //! sides (its residual and B_i), so a step costs what the rods' steps cost, linear in the
-//! nodes; the factored matrix is kept within a step while Newton contracts with it
-//! (modified Newton, as `collocation::newton_with`). The energy books add the platform's kinetic and potential energy to the rods';
-//! the work of each tip reaction on its rod (its books) and on the platform cancel.
+//! nodes. The factored matrix is kept across iterations and steps while Newton contracts
+//! with it (modified Newton by `collocation::newton_with`'s rules, shared through
+//! `collocation::Contraction`), as the single rod keeps its own. The energy books add the
+//! platform's kinetic and potential energy to the rods'; the work of each tip reaction on
+//! its rod (its books) and on the platform cancel.
 
 use super::{
     check_energy, drive, reaction_work, rename_field, to_scaled, unknown_scales, Bdf, Books,
     Candidate, DynOptions, DynStats, Energy, Initial, Prep, Reader, Scheme, SigmaMap, Simulator,
     Stepping, Writer,
 };
-use crate::collocation::{self, inf_norm, Problem, NY};
+use crate::collocation::{self, inf_norm, Contraction, Judged, Problem, NY};
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
 use crate::ode::Loads;
@@ -431,103 +433,113 @@ impl Coupled<'_> {
 
     /// Newton on all unknowns together from `zs` (scaled) and `xi` (in place); the
     /// bordered matrix solved by the Schur complement on the platform's 6 unknowns (module
-    /// docs). The matrix (every rod's factorization, B_i's solves, the Schur complement's
-    /// LU) is kept across iterations while it contracts by at least `REUSE` per iteration
-    /// and refreshed otherwise, and converged as `collocation::newton_with`: when the
-    /// correction, or the error it leaves at contraction rate theta < 1/2 (theta / (1 -
-    /// theta) of it), is below `tol` relative to max(1, |unknowns|).
-    /// Err((iterations, residual)).
+    /// docs). `matrix` (every rod's factorization, B_i's solves, the Schur complement's
+    /// LU), possibly kept from an earlier step, serves while it contracts and is refreshed
+    /// otherwise, by `collocation::newton_with`'s rules (`collocation::Contraction`, with
+    /// `theta` the rate of the matrix's last use): converged when the correction, or the
+    /// error it leaves at contraction rate theta < 1/2 (theta / (1 - theta) of it), is
+    /// below `tol` relative to max(1, |unknowns|), always measured with the true residual.
+    /// On return `matrix` holds the last matrix (None if discarded). Err((iterations,
+    /// residual)).
+    #[allow(clippy::too_many_arguments)]
     fn newton(
         &mut self,
         zs: &mut [Vec<f64>],
         xi: &mut [f64; 6],
+        matrix: &mut Option<Bordered>,
+        theta: &mut f64,
         tol: f64,
         max_iter: usize,
         stats: &mut DynStats,
     ) -> std::result::Result<(), (usize, f64)> {
-        const REUSE: f64 = 0.25;
         let n = self.problems.len();
         let mut rs: Vec<Vec<f64>> = vec![vec![]; n];
+        let mut rt: Vec<Vec<f64>> = vec![vec![]; n];
         let (mut g, mut norm) = self.residual(zs, xi, &mut rs);
-        let mut matrix: Option<Bordered> = None;
-        let mut fresh = false;
-        let mut last_step = f64::INFINITY;
+        let mut rate = Contraction::new(theta);
+        // The unknowns plus alpha times the correction.
+        let trial =
+            |zs: &[Vec<f64>], xi: &[f64; 6], dzs: &[Vec<f64>], dxi: &[f64; 6], alpha: f64| {
+                let zt: Vec<Vec<f64>> = zs
+                    .iter()
+                    .zip(dzs)
+                    .map(|(z, dz)| z.iter().zip(dz).map(|(a, d)| a + alpha * d).collect())
+                    .collect();
+                let xt: [f64; 6] = std::array::from_fn(|k| xi[k] + alpha * dxi[k]);
+                (zt, xt)
+            };
         for it in 0..max_iter {
             stats.newton_iterations += 1;
+            // Only the start's residual can be NaN (a trial is accepted only where finite):
+            // no matrix helps there.
             if !norm.is_finite() {
                 return Err((it + 1, norm));
             }
             if matrix.is_none() {
-                matrix = Some(self.factor(zs, xi).ok_or((it + 1, norm))?);
+                *matrix = Some(self.factor(zs, xi).ok_or((it + 1, norm))?);
                 stats.jacobians += 1;
-                fresh = true;
+                rate.factored();
             }
             let m = matrix.as_ref().expect("matrix");
-            let Some((dzs, dxi)) = m.correction(&rs, &g) else {
-                if fresh {
+            let correction = m.correction(&rs, &g).and_then(|(dzs, dxi)| {
+                let mut step = inf_norm(&dxi) / inf_norm(xi).max(1.0);
+                for (z, dz) in zs.iter().zip(&dzs) {
+                    step = step.max(inf_norm(dz) / inf_norm(z).max(1.0));
+                }
+                step.is_finite().then_some((dzs, dxi, step))
+            });
+            let Some((dzs, dxi, step)) = correction else {
+                if rate.fresh() {
                     return Err((it + 1, norm));
                 }
-                matrix = None;
+                *matrix = None;
                 continue;
             };
-            let mut step = inf_norm(&dxi) / inf_norm(xi).max(1.0);
-            for (z, dz) in zs.iter().zip(&dzs) {
-                step = step.max(inf_norm(dz) / inf_norm(z).max(1.0));
-            }
-            if !step.is_finite() {
-                if fresh {
-                    return Err((it + 1, norm));
+            match rate.judge(it, step, tol) {
+                Judged::Converged => {
+                    for (z, dz) in zs.iter_mut().zip(&dzs) {
+                        z.iter_mut().zip(dz).for_each(|(a, d)| *a += d);
+                    }
+                    xi.iter_mut().zip(&dxi).for_each(|(a, d)| *a += d);
+                    self.place(xi);
+                    return Ok(());
                 }
-                matrix = None;
-                continue;
-            }
-            let theta = if last_step.is_finite() {
-                step / last_step
-            } else {
-                1.0
-            };
-            let remaining = if theta < 0.5 {
-                step * theta / (1.0 - theta)
-            } else {
-                step
-            };
-            if step <= tol || (it > 0 && remaining <= tol) {
-                for (z, dz) in zs.iter_mut().zip(&dzs) {
-                    z.iter_mut().zip(dz).for_each(|(a, d)| *a += d);
+                Judged::Predicted => {
+                    let (zt, xt) = trial(zs, xi, &dzs, &dxi, 1.0);
+                    let (_, nt) = self.residual(&zt, &xt, &mut rt);
+                    if rate.confirms(nt, norm) {
+                        zs.iter_mut().zip(zt).for_each(|(z, t)| *z = t);
+                        *xi = xt;
+                        return Ok(());
+                    }
                 }
-                xi.iter_mut().zip(&dxi).for_each(|(a, d)| *a += d);
-                self.place(xi);
-                return Ok(());
+                Judged::Iterate => {}
             }
             // Backtracking on the largest residual entry (a kept matrix is refreshed
             // first where its full correction does not reduce it).
             let mut alpha = 1.0;
-            let mut rt: Vec<Vec<f64>> = vec![vec![]; n];
-            let accepted = loop {
-                let zt: Vec<Vec<f64>> = zs
-                    .iter()
-                    .zip(&dzs)
-                    .map(|(z, dz)| z.iter().zip(dz).map(|(a, d)| a + alpha * d).collect())
-                    .collect();
-                let xt: [f64; 6] = std::array::from_fn(|k| xi[k] + alpha * dxi[k]);
+            let mut accepted = false;
+            while alpha >= 1.0 / 256.0 {
+                let (zt, xt) = trial(zs, xi, &dzs, &dxi, alpha);
                 let (gt, nt) = self.residual(&zt, &xt, &mut rt);
                 if nt.is_finite() && nt < (1.0 - 1e-4 * alpha) * norm {
+                    if !rate.accepted(alpha, step) {
+                        *matrix = None; // refresh at the new iterate
+                    }
                     zs.iter_mut().zip(zt).for_each(|(z, t)| *z = t);
                     *xi = xt;
                     std::mem::swap(&mut rs, &mut rt);
                     (g, norm) = (gt, nt);
-                    break true;
+                    accepted = true;
+                    break;
                 }
-                if !fresh {
-                    break false;
+                if !rate.fresh() {
+                    break; // a stale matrix may be the problem: refresh and retry
                 }
                 alpha *= 0.5;
-                if alpha < 1.0 / 256.0 {
-                    break false;
-                }
-            };
+            }
             if !accepted {
-                if fresh {
+                if rate.fresh() {
                     if step <= 100.0 * tol {
                         // At round-off already.
                         self.place(xi);
@@ -535,16 +547,8 @@ impl Coupled<'_> {
                     }
                     return Err((it + 1, norm));
                 }
-                matrix = None;
-                last_step = f64::INFINITY;
-                continue;
-            }
-            fresh = false;
-            if alpha < 1.0 || (last_step.is_finite() && theta > REUSE) {
-                matrix = None; // refresh at the new iterate
-                last_step = f64::INFINITY;
-            } else {
-                last_step = step;
+                *matrix = None;
+                rate.stale_failed();
             }
         }
         Err((max_iter, norm))
@@ -552,8 +556,12 @@ impl Coupled<'_> {
 
     /// The Newton matrix at (zs, xi) (the problems placed at xi): per rod its
     /// factorization, Y_i = -A_i^-1 B_i and C_i, and the Schur complement
-    /// S = D + sum C_i Y_i, factored. None where a matrix is singular.
-    fn factor(&self, zs: &[Vec<f64>], xi: &[f64; 6]) -> Option<Bordered> {
+    /// S = D + sum C_i Y_i, factored: the exact Jacobian at (zs, xi). None where a matrix
+    /// is singular.
+    fn factor(&mut self, zs: &[Vec<f64>], xi: &[f64; 6]) -> Option<Bordered> {
+        // The rods' tips where the platform at xi holds them (a rejected trial point may
+        // have moved them; a clamped tip's rotation enters the rods' blocks).
+        self.place(xi);
         let reactions = self.reactions(zs);
         let (_, d, dg) = self.eq.rows_jacobian(xi, &reactions);
         let mut s = d;
@@ -597,7 +605,12 @@ impl Coupled<'_> {
             });
         }
         let lu = s.lu();
-        lu.is_invertible().then_some(Bordered { rods, schur: lu })
+        lu.is_invertible().then(|| Bordered {
+            rods,
+            schur: lu,
+            at: zs.to_vec(),
+            at_xi: *xi,
+        })
     }
 }
 
@@ -607,6 +620,7 @@ fn tip_of(v: &[f64], col0: usize) -> nalgebra::SVector<f64, NY> {
 }
 
 /// One rod's part of the bordered Newton matrix.
+#[derive(Debug, Clone)]
 struct RodBlock {
     fac: collocation::Factorization,
     ys: Vec<Vec<f64>>,
@@ -615,10 +629,44 @@ struct RodBlock {
     scratch: Vec<f64>,
 }
 
-/// The bordered Newton matrix of a step, factored ([`Coupled::factor`]).
+/// The bordered Newton matrix of a step, factored ([`Coupled::factor`]), and the
+/// unknowns it was factored at.
+#[derive(Debug, Clone)]
 struct Bordered {
     rods: Vec<RodBlock>,
     schur: nalgebra::LU<f64, nalgebra::U6, nalgebra::U6>,
+    at: Vec<Vec<f64>>,
+    at_xi: [f64; 6],
+}
+
+/// What a kept bordered matrix was computed from, so that a restored state recomputes it
+/// bit for bit: the step's c0, the platform's history terms and chart base, and per rod
+/// the inputs and history terms of its problem (its tip pose follows from `at_xi`); the
+/// unknowns are the matrix's own (`Bordered::at`, `at_xi`).
+#[derive(Debug, Clone, PartialEq)]
+struct SysKey {
+    c0: f64,
+    hp: [f64; 3],
+    hphi: [f64; 3],
+    hv: [f64; 3],
+    hw: [f64; 3],
+    r_n: [[f64; 3]; 3],
+    rods: Vec<RodKey>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+struct RodKey {
+    pressures: Vec<f64>,
+    tensions: Vec<f64>,
+    sigma: [f64; 3],
+    hist: Vec<[f64; super::FIELDS]>,
+}
+
+/// The bordered Newton matrix kept across steps, with its key.
+#[derive(Debug, Clone)]
+struct Kept {
+    matrix: Bordered,
+    key: SysKey,
 }
 
 impl Bordered {
@@ -686,11 +734,15 @@ pub struct SystemSimulator {
     moved: f64,
     rate: f64,
     books: Books,
+    /// The bordered Newton matrix kept across steps (as the single rod keeps its own,
+    /// `Simulator`) and Newton's contraction rate with it at the last step.
+    kept: Option<Kept>,
+    theta: f64,
     pub stats: DynStats,
 }
 
-/// Layout version of [`SystemSimulator::save`].
-const SYSTEM_STATE_VERSION: f64 = 1.0;
+/// Layout version of [`SystemSimulator::save`]. 2: the kept Newton matrix's key and rate.
+const SYSTEM_STATE_VERSION: f64 = 2.0;
 /// First number of a saved system state ("softsys" in a number).
 const SYSTEM_STATE_MAGIC: f64 = 50_770_219.0;
 
@@ -866,13 +918,25 @@ impl SystemSimulator {
                 .map(|(p, s)| to_scaled(p, &s.z))
                 .collect();
             let mut c = Coupled { problems, eq: rest };
-            c.newton(&mut zs, &mut xi, opts.tol.min(1e-10), 100, &mut stats)
-                .map_err(|(iterations, residual)| SoftrodError::NotConverged {
-                    iterations,
-                    residual,
-                    load_factor: 1.0,
-                    reason: "the initial static state of the system did not solve on the collocation grids".into(),
-                })?;
+            // The rest state's matrix (c0 = 0) does not serve the steps: not kept.
+            let (mut matrix, mut theta) = (None, 1.0);
+            c.newton(
+                &mut zs,
+                &mut xi,
+                &mut matrix,
+                &mut theta,
+                opts.tol.min(1e-10),
+                100,
+                &mut stats,
+            )
+            .map_err(|(iterations, residual)| SoftrodError::NotConverged {
+                iterations,
+                residual,
+                load_factor: 1.0,
+                reason:
+                    "the initial static state of the system did not solve on the collocation grids"
+                        .into(),
+            })?;
         }
         let rest = PlatformEq::rest(&body, r0);
         for (i, (s, z)) in sims.iter_mut().zip(&zs).enumerate() {
@@ -897,6 +961,8 @@ impl SystemSimulator {
             moved: 0.0,
             rate: 0.0,
             books: Books::default(),
+            kept: None,
+            theta: 1.0,
             stats,
         };
         let (kinetic, potential) = out.platform_energy(&now);
@@ -1025,13 +1091,58 @@ impl SystemSimulator {
             .map(|(p, r)| p.problem(&r.rod, &r.grid, r.scale_c0()))
             .collect();
         let mut c = Coupled { problems, eq };
+        // The matrix kept from an earlier step serves a step whose c0 is within REUSE_C0
+        // of its own (the single rod's rule, `Simulator::attempt`): a changed step length
+        // (substeps, adaptive steps, a restored state of another dt) changes c0 and with
+        // it every rod's inertia and damping blocks and the platform's; past that the
+        // modified Newton would contract poorly, so the step refactors at once. The
+        // matrix of the rest state (c0 = 0) is never kept, so the first step factors its
+        // own. Smaller changes (c0, the history terms, the inputs) are left to the rate
+        // test, which refreshes the matrix when it contracts by less than 1/4.
+        let c0 = c.eq.c0;
+        let old = self
+            .kept
+            .take()
+            .filter(|k| (k.key.c0 / c0 - 1.0).abs() <= super::REUSE_C0);
+        let (mut matrix, old_key) = match old {
+            Some(k) => (Some(k.matrix), Some(k.key)),
+            None => (None, None),
+        };
+        let jacobians = self.stats.jacobians;
         let solved = c.newton(
             &mut zs,
             &mut xi,
+            &mut matrix,
+            &mut self.theta,
             self.opts.tol,
             self.opts.max_iter,
             &mut self.stats,
         );
+        // Keep the matrix, and what it was computed from, for the next step: the old key
+        // where this step factored none.
+        self.kept = matrix.map(|matrix| {
+            let key = match old_key {
+                Some(k) if self.stats.jacobians == jacobians => k,
+                _ => SysKey {
+                    c0,
+                    hp: c.eq.hp,
+                    hphi: c.eq.hphi,
+                    hv: c.eq.hv,
+                    hw: c.eq.hw,
+                    r_n: c.eq.r_n,
+                    rods: preps
+                        .iter()
+                        .map(|p| RodKey {
+                            pressures: p.solve_p.clone(),
+                            tensions: p.solve_t.clone(),
+                            sigma: p.solve_sigma,
+                            hist: p.hist.clone(),
+                        })
+                        .collect(),
+                },
+            };
+            Kept { matrix, key }
+        });
         let Coupled { problems, eq } = c;
         drop(problems);
         if let Err((it, res)) = solved {
@@ -1355,6 +1466,26 @@ impl SystemSimulator {
         ] {
             w.n(c);
         }
+        w.f(self.theta);
+        match &self.kept {
+            None => w.f(0.0),
+            Some(Kept { matrix, key }) => {
+                w.f(1.0);
+                w.f(key.c0);
+                for v in [&key.hp, &key.hphi, &key.hv, &key.hw] {
+                    w.all(v);
+                }
+                w.all(key.r_n.as_flattened());
+                w.all(&matrix.at_xi);
+                for (z, k) in matrix.at.iter().zip(&key.rods) {
+                    w.vec(z);
+                    w.vec(&k.pressures);
+                    w.vec(&k.tensions);
+                    w.all(&k.sigma);
+                    w.arrays(&k.hist);
+                }
+            }
+        }
         for r in &self.rods {
             w.vec(&r.save());
         }
@@ -1396,6 +1527,49 @@ impl SystemSimulator {
             newton_iterations: r.n()?,
             jacobians: r.n()?,
         };
+        next.theta = r.f()?;
+        let kept = if r.f()? == 1.0 {
+            let c0 = r.f()?;
+            let (hp, hphi, hv, hw) = (r.fixed()?, r.fixed()?, r.fixed()?, r.fixed()?);
+            let rn: [f64; 9] = r.fixed()?;
+            let r_n = std::array::from_fn(|i| std::array::from_fn(|j| rn[3 * i + j]));
+            let at_xi: [f64; 6] = r.fixed()?;
+            let mut at = Vec::with_capacity(next.rods.len());
+            let mut rods = Vec::with_capacity(next.rods.len());
+            for rod in &next.rods {
+                let z = r.vec()?;
+                let k = RodKey {
+                    pressures: r.vec()?,
+                    tensions: r.vec()?,
+                    sigma: r.fixed()?,
+                    hist: r.arrays()?,
+                };
+                if z.len() != rod.z.len()
+                    || k.pressures.len() != rod.rod.n_channels
+                    || k.tensions.len() != rod.rod.n_tendons
+                    || k.hist.len() != rod.slots.len()
+                {
+                    return Err(bad("does not match this system's discretisation"));
+                }
+                at.push(z);
+                rods.push(k);
+            }
+            Some((
+                SysKey {
+                    c0,
+                    hp,
+                    hphi,
+                    hv,
+                    hw,
+                    r_n,
+                    rods,
+                },
+                at,
+                at_xi,
+            ))
+        } else {
+            None
+        };
         for (i, rod) in next.rods.iter_mut().enumerate() {
             let v = r.vec()?;
             rod.restore(&v)
@@ -1407,8 +1581,61 @@ impl SystemSimulator {
                 "has trailing numbers: not a state saved by SystemSimulator::save",
             ));
         }
+        // The kept matrix is recomputed from what it was computed from (the same numbers,
+        // so the run continues bit for bit; none where it is singular now, which cannot
+        // happen for a state this system saved).
+        next.kept = kept.and_then(|(key, at, at_xi)| {
+            let matrix = next.factor_at(&key, &at, &at_xi)?;
+            Some(Kept { matrix, key })
+        });
         *self = next;
         Ok(())
+    }
+
+    /// The bordered matrix of the step described by `key`, factored at (`at`, `at_xi`).
+    fn factor_at(&self, key: &SysKey, at: &[Vec<f64>], at_xi: &[f64; 6]) -> Option<Bordered> {
+        let models: Vec<Vec<collocation::SectionModel>> = self
+            .rods
+            .iter()
+            .zip(&key.rods)
+            .map(|(s, k)| s.models_at(&k.pressures, &k.tensions, &k.sigma, key.c0))
+            .collect();
+        let problems: Vec<Problem> = self
+            .rods
+            .iter()
+            .zip(&models)
+            .zip(&key.rods)
+            .map(|((s, m), k)| {
+                super::step_problem(
+                    &s.rod,
+                    &s.grid,
+                    s.scale_c0(),
+                    m,
+                    key.c0,
+                    &k.hist,
+                    s.tip_body(s.tip_force, s.tip_moment),
+                )
+            })
+            .collect();
+        let eq = PlatformEq {
+            body: &self.body,
+            c0: key.c0,
+            hp: key.hp,
+            hphi: key.hphi,
+            hv: key.hv,
+            hw: key.hw,
+            r_n: key.r_n,
+        };
+        // `factor` holds each rod's tip where the platform at at_xi holds it.
+        Coupled { problems, eq }.factor(at, at_xi)
+    }
+
+    /// Drop the kept Newton matrix: the next step factors its own (a run that calls this
+    /// before every step refactors at every step's start, as the system did before it
+    /// kept its matrix; tests compare the two).
+    pub fn forget_matrix(&mut self) {
+        self.kept = None;
+        self.theta = 1.0;
     }
 }
 
