@@ -504,17 +504,7 @@ class SystemBatchSolution:
         from .schema import table_units
 
         chosen, factor = table_units(units)
-        cols = system_columns(
-            chosen,
-            factor,
-            self.pressures,
-            self.tensions,
-            self.platform_position,
-            self.platform_rotation,
-            self.tip_position,
-            self.tip_reaction_force,
-            self.tip_reaction_moment,
-        )
+        cols = system_columns(self, chosen, factor)
         cols["converged"] = np.asarray(self.converged, dtype=bool)
         cols["iterations"] = np.asarray(self.iterations)
         cols["residual"] = np.asarray(self.residual, dtype=float)
@@ -525,42 +515,36 @@ class SystemBatchSolution:
         return frame
 
 
-def system_columns(
-    chosen: dict,
-    factor: dict,
-    pressures,
-    tensions,
-    platform_position: np.ndarray,
-    platform_rotation: np.ndarray,
-    tip_position: np.ndarray,
-    tip_reaction_force: np.ndarray,
-    tip_reaction_moment: np.ndarray,
-) -> dict[str, np.ndarray]:
-    """The columns a system's table has in common, equilibria or samples of a motion (units
-    ``chosen``/``factor`` from :func:`softrod.schema.table_units`): per rod i its inputs
-    ``rod<i>_p<k>_kPa`` and ``rod<i>_t<k>_N``, the platform pose ``platform_x_mm`` ...
-    ``platform_qw`` ... ``platform_qz``, per rod its tip ``rod<i>_tip_x_mm`` ... and the
+def system_columns(result: Any, chosen: dict, factor: dict) -> dict[str, np.ndarray]:
+    """The columns a system's table has in common, equilibria (a
+    :class:`SystemBatchSolution`) or samples of a motion (a
+    :class:`~softrod.SystemTrajectory`), read from ``result``'s arrays of those names, in
+    the units ``chosen``/``factor`` of :func:`softrod.schema.table_units`: per rod i its
+    inputs ``rod<i>_p<k>_kPa`` and ``rod<i>_t<k>_N``, the platform pose ``platform_x_mm``
+    ... ``platform_qw`` ... ``platform_qz``, per rod its tip ``rod<i>_tip_x_mm`` ... and the
     platform's reaction on its tip ``rod<i>_tip_reaction_fx_N`` ... (world frame)."""
     from .schema import matrix_to_quat
 
     cols: dict[str, np.ndarray] = {}
-    for i, p in enumerate(pressures):
+    for i, p in enumerate(result.pressures):
         for k in range(p.shape[1]):
             cols[f"rod{i}_p{k}_{chosen['pressure']}"] = p[:, k] / factor["pressure"]
-    for i, t in enumerate(tensions):
+    for i, t in enumerate(result.tensions):
         for k in range(t.shape[1]):
             cols[f"rod{i}_t{k}_{chosen['force']}"] = t[:, k] / factor["force"]
     for k, a in enumerate("xyz"):
-        cols[f"platform_{a}_{chosen['length']}"] = platform_position[:, k] / factor["length"]
-    q = matrix_to_quat(platform_rotation)
+        cols[f"platform_{a}_{chosen['length']}"] = result.platform_position[:, k] / factor["length"]
+    q = matrix_to_quat(result.platform_rotation)
     for k, a in enumerate("wxyz"):
         cols[f"platform_q{a}"] = q[:, k]
-    for i in range(tip_position.shape[1]):
+    for i in range(result.tip_position.shape[1]):
         for k, a in enumerate("xyz"):
-            cols[f"rod{i}_tip_{a}_{chosen['length']}"] = tip_position[:, i, k] / factor["length"]
+            cols[f"rod{i}_tip_{a}_{chosen['length']}"] = (
+                result.tip_position[:, i, k] / factor["length"]
+            )
         for name, arr, kind in (
-            ("f", tip_reaction_force, "force"),
-            ("m", tip_reaction_moment, "moment"),
+            ("f", result.tip_reaction_force, "force"),
+            ("m", result.tip_reaction_moment, "moment"),
         ):
             for k, a in enumerate("xyz"):
                 cols[f"rod{i}_tip_reaction_{name}{a}_{chosen[kind]}"] = arr[:, i, k] / factor[kind]

@@ -218,19 +218,7 @@ class SystemTrajectory:
 
         chosen, factor = table_units(units)
         cols: dict[str, Any] = {f"time_{chosen['time']}": self.time / factor["time"]}
-        cols.update(
-            system_columns(
-                chosen,
-                factor,
-                self.pressures,
-                self.tensions,
-                self.platform_position,
-                self.platform_rotation,
-                self.tip_position,
-                self.tip_reaction_force,
-                self.tip_reaction_moment,
-            )
-        )
+        cols.update(system_columns(self, chosen, factor))
         for k, a in enumerate("xyz"):
             cols[f"platform_v{a}_{chosen['velocity']}"] = (
                 self.platform_velocity[:, k] / factor["velocity"]

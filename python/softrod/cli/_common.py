@@ -340,6 +340,25 @@ def _scheduler_option(help_text: str):
     return click.option("--scheduler", metavar="ADDRESS", default=None, help=help_text)
 
 
+# The time integrator's options shared by `simulate` and `simulate-system`.
+_alpha_option = click.option(
+    "--alpha",
+    default=-0.2,
+    show_default=True,
+    type=float,
+    help="BDF-alpha parameter in [-0.5, 0] (-0.5: the trapezoidal rule; 0: BDF2).",
+)
+_energy_tol_option = click.option(
+    "--energy-tol",
+    "energy_tol",
+    default=0.02,
+    show_default=True,
+    type=float,
+    help="The energy check: growth of the energy balance beyond this fraction of the "
+    "energy moved stops the run with an error.",
+)
+
+
 @contextlib.contextmanager
 def _scheduler(address: str | None):
     """A ``distributed.Client`` connected to ``address`` for the block (None: no cluster)."""

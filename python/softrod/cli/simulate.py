@@ -11,7 +11,17 @@ from pathlib import Path
 import click
 
 from ..errors import InputError, design_error
-from ._common import _check_output, _handle_errors, _quantity, _quiet, _say, _staged, _stdout
+from ._common import (
+    _alpha_option,
+    _check_output,
+    _energy_tol_option,
+    _handle_errors,
+    _quantity,
+    _quiet,
+    _say,
+    _staged,
+    _stdout,
+)
 
 TRAJECTORY_SUFFIXES = (".parquet", ".npz")
 ANIMATION_SUFFIXES = (".gif", ".mp4")
@@ -83,13 +93,7 @@ def _seconds(text: str, option: str, *, positive: bool = True) -> float:
     help="Time integrator of the rod: bdf-alpha (numerical damping of unresolved modes, "
     "--alpha) or midpoint (conserves the energy of undamped runs; docs/dynamics.md).",
 )
-@click.option(
-    "--alpha",
-    default=-0.2,
-    show_default=True,
-    type=float,
-    help="BDF-alpha parameter in [-0.5, 0] (-0.5: the trapezoidal rule; 0: BDF2).",
-)
+@_alpha_option
 @click.option(
     "--error-tol",
     "error_tol",
@@ -97,15 +101,7 @@ def _seconds(text: str, option: str, *, positive: bool = True) -> float:
     help="Adaptive time steps: the largest local error of the node positions per step, "
     "with its unit, e.g. '0.1 mm' (dt is then the output interval and the largest step).",
 )
-@click.option(
-    "--energy-tol",
-    "energy_tol",
-    default=0.02,
-    show_default=True,
-    type=float,
-    help="The energy check: growth of the energy balance beyond this fraction of the "
-    "energy moved stops the run with an error.",
-)
+@_energy_tol_option
 @click.option(
     "--tension",
     metavar="T1,T2,...",

@@ -12,7 +12,9 @@ import click
 
 from ..errors import DesignError, InputError, design_error
 from ._common import (
+    _alpha_option,
     _check_output,
+    _energy_tol_option,
     _fmt_kpa,
     _fmt_vec,
     _for_option,
@@ -264,22 +266,8 @@ def solve_system_cmd(
     "required with --pressure).",
 )
 @click.option("--dt", default="2 ms", show_default=True, help="Time step (output interval).")
-@click.option(
-    "--alpha",
-    default=-0.2,
-    show_default=True,
-    type=float,
-    help="BDF-alpha parameter in [-0.5, 0] (-0.5: the trapezoidal rule; 0: BDF2).",
-)
-@click.option(
-    "--energy-tol",
-    "energy_tol",
-    default=0.02,
-    show_default=True,
-    type=float,
-    help="The energy check: growth of the energy balance beyond this fraction of the "
-    "energy moved stops the run with an error.",
-)
+@_alpha_option
+@_energy_tol_option
 @click.option(
     "--out",
     required=True,
