@@ -114,6 +114,8 @@ _EXPORTS = {
     "SystemSimulationState": ".system_dynamics",
     "SystemTrajectory": ".system_dynamics",
     "simulate_system": ".system_dynamics",
+    "plot_system": ".system_plots",
+    "plot_system_motion": ".system_plots",
     "view": ".viewer",
 }
 _SUBMODULES = ("pcc", "calibration", "control", "dynamics")
@@ -208,6 +210,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         SystemTrajectory,
         simulate_system,
     )
+    from .system_plots import plot_system, plot_system_motion
     from .viewer import view
 
 __all__ = [
@@ -277,6 +280,8 @@ __all__ = [
     "solve_system",
     "solve_system_batch",
     "simulate_system",
+    "plot_system",
+    "plot_system_motion",
     "synthesize_dataset",
     "view",
     "workspace",

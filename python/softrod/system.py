@@ -196,7 +196,7 @@ class SystemSolution:
 
     def plot(self, path: str | os.PathLike | None = None, *, title: str | None = None) -> Figure:
         """Front (x-z) and side (y-z) views of the equilibrium
-        (:func:`softrod.system_plots.plot_system`; several solutions in one figure: call
+        (:func:`softrod.plot_system`; several solutions in one figure: call
         that function with a list). Written to ``path`` when given; returns the Figure."""
         from .system_plots import plot_system
 

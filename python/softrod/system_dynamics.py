@@ -361,7 +361,7 @@ class SystemTrajectory:
         title: str | None = None,
     ) -> Figure:
         """The platform's displacement and tilt and the rods' pressures against time
-        (:func:`softrod.system_plots.plot_system_motion`; ``reference``: an equilibrium
+        (:func:`softrod.plot_system_motion`; ``reference``: an equilibrium
         drawn dashed). Written to ``path`` when given; returns the Figure."""
         from .system_plots import plot_system_motion
 
