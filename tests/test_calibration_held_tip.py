@@ -186,3 +186,20 @@ def test_dynamic_fit_of_a_held_tip_is_refused_with_its_reason(held):
         calibrate(held, data, ["damping_time"], dynamic=True, dt=1e-3)
     assert exc.value.field == "tip_constraint"
     assert "tip trajectory" in str(exc.value)
+
+
+def test_held_sensitivity_batch_refuses_bad_constraints_naming_the_field(held):
+    rod = held._rod
+    p = np.array([[1e4, 0.0, 0.0], [0.0, 1e4, 0.0]])
+    zero = [0.0, 0.0, 0.0]
+    for kw, field in [
+        ({"tip_kind": "glued"}, "tip_constraint.type"),
+        ({"tip_kind": "pinned"}, "tip_constraint.position"),
+        ({"tip_kind": "clamped", "tip_position": zero}, "tip_constraint.orientation"),
+        ({"tip_kind": "pinned", "tip_position": [0.0, np.nan, 0.0]}, "tip_constraint.position[1]"),
+        # A held tip has 6 unknowns per row: a free tip's (m, 3) warm starts are refused.
+        ({"tip_kind": "pinned", "tip_position": zero, "x0": np.zeros((2, 3))}, "x0"),
+    ]:
+        with pytest.raises(InputError) as exc:
+            rod.sensitivity_batch(p, zero, zero, [("E", [1])], **kw)
+        assert exc.value.field == field, kw
