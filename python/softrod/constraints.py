@@ -257,8 +257,9 @@ def held_kwargs(constraint: TipConstraint | None) -> dict[str, Any]:
 
 def require_free_tip(design: Any, entry: str) -> None:
     """Refuse a design whose file clamps or pins the tip in an entry point that solves a
-    free tip only (every entry but ``solve_statics``, ``solve_statics_batch`` and the
-    systems' ``solve_system`` / ``solve_system_batch``): never a silent free-tip answer to a
+    free tip only (every entry but ``solve_statics``, ``solve_statics_batch``,
+    ``simulate``, the static ``calibrate``, ``synthesize_dataset`` and the systems'
+    ``solve_system`` / ``solve_system_batch``): never a silent free-tip answer to a
     constrained design."""
     c = getattr(design, "tip_constraint", None)
     if c is not None:
