@@ -91,6 +91,9 @@ class Rod:
         on_invalid: str = "ignore",
         tensions: _ArrayLike | None = None,
         markers: Sequence[tuple[float, Sequence[float]]] = ...,
+        tip_kind: str = "free",
+        tip_position: _Vec3 | None = None,
+        tip_rotation: Sequence[Sequence[float]] | None = None,
     ) -> dict[str, Any]: ...
 
 def _panic_inside_guard() -> None:

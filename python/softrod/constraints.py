@@ -246,10 +246,20 @@ def from_tip_table(tip: dict, quantity, qvec) -> TipConstraint | None:
     return TipConstraint("clamped", position=pos, rotation=m)
 
 
+def held_kwargs(constraint: TipConstraint | None) -> dict[str, Any]:
+    """``Rod.sensitivity_batch``'s tip arguments (``tip_kind``, ``tip_position``,
+    ``tip_rotation``) for a design's ``[tip]`` constraint; none for a free tip (or None)."""
+    if constraint is None or constraint.kind == "free":
+        return {}
+    kind, position, rotation = constraint.core_args()
+    return {"tip_kind": kind, "tip_position": position, "tip_rotation": rotation}
+
+
 def require_free_tip(design: Any, entry: str) -> None:
     """Refuse a design whose file clamps or pins the tip in an entry point that solves a
-    free tip only (every entry but ``solve_statics``, ``solve_statics_batch`` and the
-    systems' ``solve_system`` / ``solve_system_batch``): never a silent free-tip answer to a
+    free tip only (every entry but ``solve_statics``, ``solve_statics_batch``,
+    ``simulate``, the static ``calibrate``, ``synthesize_dataset`` and the systems'
+    ``solve_system`` / ``solve_system_batch``): never a silent free-tip answer to a
     constrained design."""
     c = getattr(design, "tip_constraint", None)
     if c is not None:

@@ -12,7 +12,7 @@ import numpy as np
 
 from . import _validate as V
 from .catalog import load_design
-from .constraints import require_free_tip
+from .constraints import held_kwargs
 from .datasets import (
     _MAX_LISTED,
     MAX_MARKERS,
@@ -67,6 +67,14 @@ def synthesize_dataset(
     their positions get the same noise. ``tip=False`` leaves the tip columns out (markers
     only).
 
+    A design whose ``[tip]`` pins or clamps the tip gives the held equilibria (as
+    :func:`~softrod.solve_statics_batch` solves them with that constraint): the markers are
+    read on the held rod, and the tip columns then hold the prescribed tip position (to the
+    solver's tolerance, plus the noise), which no parameter moves, so a fit of such a
+    dataset needs ``markers`` to see anything (:func:`~softrod.calibrate` refuses a held
+    tip's dataset without markers, naming ``dataset.markers``). The metadata records the
+    constraint (``tip_constraint``).
+
     Raises :class:`~softrod.errors.ConvergenceError` listing the rows that did not converge
     (nothing is dropped silently). ``metadata["synthetic"]`` is True and the metadata records
     the design, noise, seed and loads, so the data is never mistaken for measurements.
@@ -74,7 +82,7 @@ def synthesize_dataset(
     from . import __version__
 
     design = load_design(design)
-    require_free_tip(design, "synthesize_dataset")
+    held = design.tip_constraint
     seed = noise_seed(noise_mm, seed)
     p = batch_pressures(design, pressures)
     batch = solve_statics_batch(
@@ -115,6 +123,7 @@ def synthesize_dataset(
             threads=threads,
             tensions=batch.tensions,
             **_options(options).as_kwargs(),
+            **held_kwargs(held),
         )
         marker_pos = out["marker_position"]
         if noise_mm > 0:
@@ -148,6 +157,10 @@ def synthesize_dataset(
         "tip_force_N": tf,
         "tip_moment_Nm": tm,
     }
+    if held is not None:
+        meta["tip_constraint"] = {"type": held.kind, "position_m": list(held.position)}
+        if held.rotation is not None:
+            meta["tip_constraint"]["rotation"] = [list(r) for r in held.rotation]
     return Dataset(
         pressures=p,
         tensions=batch.tensions,

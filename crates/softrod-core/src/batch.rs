@@ -10,8 +10,8 @@ use crate::error::{Result, SoftrodError};
 use crate::ode::Loads;
 use crate::rod::Rod;
 use crate::sensitivity::{
-    locate_markers, marker_positions, pose_sensitivity, validate_params, Marker, Param,
-    TipSensitivity,
+    constrained_pose_sensitivity, locate_markers, marker_positions, pose_sensitivity,
+    validate_params, Marker, Param, TipSensitivity,
 };
 use crate::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
 use crate::statics::system::{solve_system, Platform, SystemRod, SystemSolution};
@@ -480,6 +480,78 @@ pub fn solve_constrained_batch(
     ) {
         Ok(c) => BatchRow::held(&c),
         Err(e) => BatchRow::of_error(6, &e),
+    })
+}
+
+/// [`sensitivity_batch`] with the tip held by `constraint`: every row is solved exactly as
+/// [`solve_constrained_batch`] solves it (one [`solve_constrained`], cold; or from the
+/// row's own warm start in `guesses`, 6 per row, NaN rows cold, as a single
+/// [`solve_constrained`] with that guess), so a row is bitwise equal to the single solve;
+/// then the marker positions and the exact derivatives of the tip pose and the markers
+/// with respect to `params` ([`constrained_pose_sensitivity`]). Rows carry their tip
+/// reaction. A row whose derivatives cannot be formed (singular Jacobian) is reported
+/// failed; failed rows have NaN marker positions. A free `constraint` is
+/// [`sensitivity_batch`].
+#[allow(clippy::too_many_arguments)]
+pub fn constrained_sensitivity_batch(
+    rod: &Rod,
+    inputs: &BatchInputs,
+    constraint: &TipConstraint,
+    guesses: Option<&[f64]>,
+    params: &[Param],
+    markers: &[Marker],
+    opts: &SolverOptions,
+    threads: usize,
+) -> Result<Vec<BatchRow>> {
+    opts.validate()?;
+    constraint.validate()?;
+    if let TipConstraint::Free = constraint {
+        return sensitivity_batch(rod, inputs, guesses, params, markers, opts, threads);
+    }
+    validate_params(rod, params)?;
+    let located = locate_markers(rod, markers)?;
+    let mut rows = Rows::new(rod, opts, inputs, None)?;
+    rows.unknowns = 6;
+    if let Some(g) = guesses {
+        if g.len() != 6 * rows.count {
+            return Err(SoftrodError::invalid(
+                "x0",
+                format!("{} values", g.len()),
+                format!(
+                    "must be an ({}, 6) array: a held tip has 6 unknowns for every input row",
+                    rows.count
+                ),
+            ));
+        }
+        rows.guesses = Some(g);
+    }
+    let rows = &rows;
+    in_pool(threads, rows.count, &|r| {
+        let loads = rows.loads(r);
+        let c = match solve_constrained(rod, &loads, constraint, rows.guess(r), opts) {
+            Ok(c) => c,
+            Err(e) => {
+                return BatchRow {
+                    markers: vec![[f64::NAN; 3]; markers.len()],
+                    ..BatchRow::of_error(6, &e)
+                }
+            }
+        };
+        let mut row = BatchRow::held(&c);
+        row.markers = marker_positions(rod, &loads, &c.solution, &located);
+        if params.is_empty() {
+            return row;
+        }
+        match constrained_pose_sensitivity(rod, &loads, constraint, &c.solution, params, &located) {
+            Ok(s) => row.sensitivity = Some(s),
+            Err(_) => {
+                row = BatchRow {
+                    markers: vec![[f64::NAN; 3]; markers.len()],
+                    ..BatchRow::failed(6, c.solution.iterations, c.solution.residual)
+                }
+            }
+        }
+        row
     })
 }
 

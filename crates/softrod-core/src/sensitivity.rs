@@ -11,6 +11,11 @@
 //! coefficients built from dual-valued parameters (`Coeffs::build_with`), gives d_theta R
 //! and d_theta y. No finite differences.
 //!
+//! A tip held by a constraint (pinned or clamped, `crate::statics::constraint`) has its
+//! own residual (`constraint::held_residual`, 6 unknowns): [`constrained_pose_sensitivity`]
+//! runs the same two passes with it (`Jet<6>` for J), so calibration works for held tips
+//! too; the held tip's position (clamped: and rotation) then has zero total derivative.
+//!
 //! A marker sits at reference arc length s with an offset o in the cross-section frame:
 //! its position is r(s) + R(s) o. The state at s is read during the same integration: the
 //! node before s, then one partial RK4 step (the exact transfer in a rigid section) of the
@@ -20,6 +25,7 @@ use crate::error::{Result, SoftrodError};
 use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
 use crate::ode::{advance, integrate, resolve_stretch, Coeffs, Loads, NodeAt, SectionKnobs, State};
 use crate::rod::{AxialLaw, Rod};
+use crate::statics::constraint::{tip_residual, TipConstraint};
 use crate::statics::{Problem, Solution};
 use nalgebra::{DMatrix, DVector};
 
@@ -496,15 +502,48 @@ pub fn pose_sensitivity(
     markers: &[MarkerAt],
 ) -> Result<TipSensitivity> {
     if sol.x.len() == 6 {
-        sensitivity_n::<6>(rod, loads, sol, params, markers)
+        sensitivity_n::<6>(rod, loads, &TipConstraint::Free, sol, params, markers)
     } else {
-        sensitivity_n::<3>(rod, loads, sol, params, markers)
+        sensitivity_n::<3>(rod, loads, &TipConstraint::Free, sol, params, markers)
     }
 }
 
+/// [`pose_sensitivity`] of an equilibrium whose tip is held by `constraint` (the converged
+/// solution of [`crate::statics::constraint::solve_constrained`], 6 unknowns): the same
+/// implicit differentiation with the held tip's residual (pinned: the tip position and the
+/// tip moment balance; clamped: the tip position and orientation). The held tip's position
+/// (and, clamped, its rotation) then has zero derivative up to round-off, since the
+/// residual fixes it. A free `constraint` is [`pose_sensitivity`]. The constraint must have
+/// been validated (`TipConstraint::validate`), the parameters with [`validate_params`].
+pub fn constrained_pose_sensitivity(
+    rod: &Rod,
+    loads: &Loads,
+    constraint: &TipConstraint,
+    sol: &Solution,
+    params: &[Param],
+    markers: &[MarkerAt],
+) -> Result<TipSensitivity> {
+    if let TipConstraint::Free = constraint {
+        return pose_sensitivity(rod, loads, sol, params, markers);
+    }
+    if sol.x.len() != 6 {
+        return Err(SoftrodError::invalid(
+            "solution.x",
+            format!("{} values", sol.x.len()),
+            "a held tip's equilibrium has 6 shooting unknowns (base force and moment): \
+             pass the solution of solve_constrained",
+        ));
+    }
+    sensitivity_n::<6>(rod, loads, constraint, sol, params, markers)
+}
+
+/// The implicit-function-theorem derivatives for the shooting residual of `constraint`
+/// (`crate::statics::constraint::tip_residual`: the free tip's wrench balance, or a held
+/// tip's residual) with N unknowns.
 fn sensitivity_n<const N: usize>(
     rod: &Rod,
     loads: &Loads,
+    constraint: &TipConstraint,
     sol: &Solution,
     params: &[Param],
     markers: &[MarkerAt],
@@ -513,7 +552,7 @@ fn sensitivity_n<const N: usize>(
     // J = d_x R and d_x y in one pass with x seeded.
     let xd: [Jet<N>; N] = std::array::from_fn(|i| Jet::variable(sol.x[i], i));
     let (tip_x, marks_x) = integrate_markers(rod, &p.coeffs, p.base_state(&xd), markers);
-    let r_x: [Jet<N>; N] = p.residual_of_tip(&tip_x);
+    let r_x: [Jet<N>; N] = tip_residual(&p, constraint, &tip_x);
     let jac = DMatrix::from_fn(N, N, |i, k| r_x[i].eps[k]);
     let lu = jac.lu();
     let mut out = TipSensitivity {
@@ -545,14 +584,16 @@ fn sensitivity_n<const N: usize>(
         let x: Vec<Dual> = sol.x.iter().map(|v| Dual::from(*v)).collect();
         let mut base = p.base_state(&x);
         // The base force carries the rod's whole weight (n(0) = F_tip + m_t g + int f ds):
-        // a mass parameter moves it by its sections' weight per unit of mass_scale.
+        // a mass parameter moves it by its sections' weight per unit of mass_scale. With 6
+        // unknowns (n(0) among them) this is a change of variables only: J dx/dtheta
+        // absorbs it and the total derivatives do not depend on it.
         for (sec, k) in rod.sections.iter().zip(&knobs) {
             for c in 0..3 {
                 base.n[c] += (k.mass_scale - 1.0) * (sec.line_mass * rod.gravity[c] * sec.length);
             }
         }
         let (tip, marks) = integrate_markers(rod, &coeffs, base, markers);
-        let r_t: [Dual; N] = p.residual_of_tip(&tip);
+        let r_t: [Dual; N] = tip_residual(&p, constraint, &tip);
         let pos_t: Vec<[Dual; 3]> = marks
             .iter()
             .zip(markers)

@@ -5,14 +5,15 @@
 
 mod common;
 use common::*;
-use softrod_core::batch::{sensitivity_batch, BatchInputs};
+use softrod_core::batch::{constrained_sensitivity_batch, sensitivity_batch, BatchInputs};
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{
-    locate_markers, marker_positions, pose_sensitivity, tip_sensitivity, validate_params, Marker,
-    Param, ParamKind,
+    constrained_pose_sensitivity, locate_markers, marker_positions, pose_sensitivity,
+    tip_sensitivity, validate_params, Marker, Param, ParamKind,
 };
 use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::spec::{AxialSpec, DesignSpec};
+use softrod_core::statics::constraint::{exp_so3, solve_constrained, TipConstraint};
 use softrod_core::statics::{shape, solve, SolverOptions};
 use softrod_core::{Rod, SoftrodError};
 
@@ -483,7 +484,10 @@ fn derivatives_with_an_obstacle_match_finite_differences() {
     let with = tip_sensitivity(&rod, &ld, &held, &params[..1]).unwrap();
     let change = dist(&with.position[0], &without.position[0]) / norm(&without.position[0]);
     println!("the wall changes d tip / d c_b by {change:.2e} relative");
-    assert!(change > 0.1, "the wall changed d tip / d c_b by {change:.2e} only");
+    assert!(
+        change > 0.1,
+        "the wall changed d tip / d c_b by {change:.2e} only"
+    );
 }
 
 #[test]
@@ -568,4 +572,228 @@ fn markers_and_mass_parameters_are_validated() {
     given.sections[1].mass = Some(0.1);
     let rod = Rod::new(given).unwrap();
     assert!(validate_params(&rod, &[param("density", &[1])]).is_err());
+}
+
+// ---- a tip held by a constraint (pinned or clamped) ----
+
+/// The held tips of the tests: the M3 actuator (tilted, gravity, Ogden body) under three
+/// channels, its tip pinned 8 mm off the free equilibrium's tip, or clamped there with the
+/// free tip's orientation turned by 0.15 rad (so both constraints carry a real reaction).
+fn held_tips(spec: &DesignSpec, ld: &Loads) -> [TipConstraint; 2] {
+    let rod = Rod::new(spec.clone()).unwrap();
+    let free = solve(&rod, ld, None, &opts()).unwrap();
+    let position = [
+        free.tip.r[0] + 6e-3,
+        free.tip.r[1] - 4e-3,
+        free.tip.r[2] + 3e-3,
+    ];
+    let turn = exp_so3(&[0.1, -0.05, 0.1]);
+    let rotation: [[f64; 3]; 3] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| (0..3).map(|k| free.tip.rot[i][k] * turn[k][j]).sum())
+    });
+    [
+        TipConstraint::Pinned { position },
+        TipConstraint::Clamped { position, rotation },
+    ]
+}
+
+/// Like [`check_markers`] for a held tip: every marker's exact derivative against central
+/// differences of full `solve_constrained` solves (warm-started at the unperturbed
+/// solution, so both stay on its branch), with the same step and tolerance (same
+/// derivation: the held solve converges to the same SOLVER_TOL); the base marker does not
+/// move; the held tip point does not move (`HELD_ROUNDOFF`), nor, when clamped, its
+/// rotation. Returns the worst relative marker error.
+fn check_held_markers(spec: &DesignSpec, ld: &Loads, c: &TipConstraint, params: &[Param]) -> f64 {
+    let rod = Rod::new(spec.clone()).unwrap();
+    let mut mks = markers(spec);
+    // The tip point itself, no offset (markers() has one at the tip with an axial offset,
+    // which turns with a pinned tip).
+    mks.push(Marker {
+        s: rod.length,
+        offset: [0.0; 3],
+    });
+    let held = mks.len() - 1;
+    let located = locate_markers(&rod, &mks).unwrap();
+    let sol = solve_constrained(&rod, ld, c, None, &opts()).unwrap();
+    // Not vacuous: the constraint holds the tip with a real force.
+    let reaction = norm(&sol.tip_reaction_force);
+    assert!(
+        reaction > 1e-2 * rod.force_scale,
+        "{c:?}: reaction {reaction} N"
+    );
+    let sens = constrained_pose_sensitivity(&rod, ld, c, &sol.solution, params, &located).unwrap();
+    let mut worst: f64 = 0.0;
+    for (j, p) in params.iter().enumerate() {
+        let v0 = p.value(&rod, ld);
+        let step = H * v0.abs();
+        let at = |v: f64| {
+            let (mut s, mut l) = (spec.clone(), ld.clone());
+            let v = if let ParamKind::AreaScale = p.kind {
+                v / v0
+            } else {
+                v
+            };
+            set(&mut s, &mut l, p, v);
+            let r = Rod::new(s).unwrap();
+            let h = solve_constrained(&r, &l, c, Some(&sol.solution.x), &opts()).unwrap();
+            marker_positions(&r, &l, &h.solution, &locate_markers(&r, &mks).unwrap())
+        };
+        let (plus, minus) = (at(v0 + step), at(v0 - step));
+        let mut largest: f64 = 0.0;
+        for k in 0..mks.len() {
+            let fd: [f64; 3] = std::array::from_fn(|i| (plus[k][i] - minus[k][i]) / (2.0 * step));
+            let ex = sens.markers[j][k];
+            largest = largest.max(norm(&ex));
+            if k == held {
+                continue;
+            }
+            let e = dist(&fd, &ex) / (norm(&fd) + TIP_NOISE / (COLUMN_TOL * step));
+            worst = worst.max(e);
+            println!(
+                "{} marker {k} d/d {}: rel. error {e:.2e}",
+                c.name(),
+                p.kind.name()
+            );
+            assert!(
+                e < COLUMN_TOL,
+                "{} marker {k} d/d {}: exact {ex:?} vs FD {fd:?} ({e:.2e})",
+                c.name(),
+                p.kind.name()
+            );
+        }
+        assert_eq!(sens.markers[j][0], [0.0; 3]);
+        // The held point: (r(L) - r_c)/L is a residual row, so J dx/dtheta = -d_theta R
+        // cancels its partial derivative up to the linear solve's round-off.
+        let moved = norm(&sens.markers[j][held]).max(norm(&sens.position[j]));
+        println!(
+            "{} held tip d/d {}: {moved:.2e} (largest marker {largest:.2e})",
+            c.name(),
+            p.kind.name()
+        );
+        assert!(
+            moved <= HELD_ROUNDOFF * largest,
+            "{}: the held tip moves with {}: {moved:.2e} vs {largest:.2e}",
+            c.name(),
+            p.kind.name()
+        );
+        if let TipConstraint::Clamped { .. } = c {
+            let turned = sens.rotation[j]
+                .iter()
+                .flatten()
+                .fold(0.0_f64, |a, v| a.max(v.abs()));
+            assert!(
+                turned * rod.length <= HELD_ROUNDOFF * largest,
+                "clamped: the tip turns with {}: {turned:.2e}",
+                p.kind.name()
+            );
+        }
+    }
+    worst
+}
+
+/// The held tip's derivative is round-off of the 6x6 linear solve: about eps cond(J)
+/// relative to the partial derivatives it cancels (measured |d tip| / |largest marker
+/// derivative|, printed: at most 2e-14 for both constraints and every parameter), so 1e-9
+/// leaves a margin of 1e4 for worse-conditioned equilibria; a missing or wrong term of the
+/// held residual would move the tip by O(1) of that scale.
+const HELD_ROUNDOFF: f64 = 1e-9;
+
+#[test]
+fn held_tip_marker_derivatives_match_finite_differences() {
+    let spec = m3(tilted());
+    let ld = Loads {
+        pressures: vec![25e3, 5e3, 15e3],
+        ..loads(&[0.0; 3])
+    };
+    let params = [
+        param("c_b", &[1]),
+        param("alpha", &[1]),
+        param("E", &[0, 2]),
+        param("area_scale", &[1]),
+        param("density", &[1]),
+    ];
+    for c in held_tips(&spec, &ld) {
+        let worst = check_held_markers(&spec, &ld, &c, &params);
+        println!("{}: worst relative marker error {worst:.2e}", c.name());
+    }
+}
+
+#[test]
+fn held_tip_derivatives_differ_from_the_free_tip_and_batch_equals_single() {
+    let spec = m3(tilted());
+    let rod = Rod::new(spec.clone()).unwrap();
+    let ld = Loads {
+        pressures: vec![25e3, 5e3, 15e3],
+        ..loads(&[0.0; 3])
+    };
+    let params = [param("E", &[0, 2]), param("area_scale", &[1])];
+    let mks = markers(&spec);
+    let located = locate_markers(&rod, &mks).unwrap();
+    let free = solve(&rod, &ld, None, &opts()).unwrap();
+    let free_sens = pose_sensitivity(&rod, &ld, &free, &params, &located).unwrap();
+    let mut pressures = vec![];
+    for k in 0..3 {
+        pressures.extend([25e3 - 5e3 * k as f64, 5e3, 15e3]);
+    }
+    for c in held_tips(&spec, &ld) {
+        // Holding the tip changes a mid-body marker's derivatives by O(1) (not vacuous).
+        let sol = solve_constrained(&rod, &ld, &c, None, &opts()).unwrap();
+        let s =
+            constrained_pose_sensitivity(&rod, &ld, &c, &sol.solution, &params, &located).unwrap();
+        let k = 5;
+        let change =
+            dist(&s.markers[0][k], &free_sens.markers[0][k]) / norm(&free_sens.markers[0][k]);
+        println!(
+            "{}: holding the tip changes d marker {k} / d E by {change:.2e}",
+            c.name()
+        );
+        assert!(change > 0.1, "{}: changed by {change:.2e} only", c.name());
+        // The batch: every row bitwise equal to the single solve and its sensitivities.
+        let rows = constrained_sensitivity_batch(
+            &rod,
+            &BatchInputs::pressures(&rod, &pressures),
+            &c,
+            None,
+            &params,
+            &mks,
+            &opts(),
+            2,
+        )
+        .unwrap();
+        assert_eq!(rows.len(), 3);
+        for (r, row) in rows.iter().enumerate() {
+            let l = loads(&pressures[3 * r..3 * r + 3]);
+            let single = solve_constrained(&rod, &l, &c, None, &opts()).unwrap();
+            assert!(row.converged, "row {r}");
+            assert_eq!(row.x, single.solution.x, "row {r}");
+            assert_eq!(row.tip_reaction_force, single.tip_reaction_force);
+            assert_eq!(
+                row.markers,
+                marker_positions(&rod, &l, &single.solution, &located)
+            );
+            let ss =
+                constrained_pose_sensitivity(&rod, &l, &c, &single.solution, &params, &located)
+                    .unwrap();
+            assert_eq!(row.sensitivity.as_ref(), Some(&ss), "row {r}");
+        }
+        // A warm start of the wrong size is refused naming x0.
+        match constrained_sensitivity_batch(
+            &rod,
+            &BatchInputs::pressures(&rod, &pressures),
+            &c,
+            Some(&[0.0; 9]),
+            &params,
+            &mks,
+            &opts(),
+            1,
+        ) {
+            Err(SoftrodError::InvalidParameter { field, .. }) => assert_eq!(field, "x0"),
+            other => panic!("expected an error, got {other:?}"),
+        }
+    }
+    // A free solution (3 unknowns) is refused for a held tip, naming the field.
+    match constrained_pose_sensitivity(&rod, &ld, &held_tips(&spec, &ld)[0], &free, &params, &[]) {
+        Err(SoftrodError::InvalidParameter { field, .. }) => assert_eq!(field, "solution.x"),
+        other => panic!("expected an error, got {other:?}"),
+    }
 }

@@ -5,10 +5,11 @@
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use softrod_core::batch::{sensitivity_batch, solve_batch, BatchInputs, BatchRow};
+use softrod_core::batch::{constrained_sensitivity_batch, solve_batch, BatchInputs, BatchRow};
 use softrod_core::interp::GridPchip;
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{Marker, Param, ParamKind};
+use softrod_core::statics::constraint::TipConstraint;
 use softrod_core::statics::{self, SolverOptions};
 use softrod_core::validity::{Policy, StrainLimits};
 use softrod_core::{DesignSpec, Rod, SoftrodError};
@@ -404,8 +405,11 @@ impl PyRod {
     /// starts (a previous call's "x"; NaN rows start cold). `markers`: (s, offset) pairs,
     /// points on the body (reference arc length in m, offset (d1, d2, d3) in m). Adds "x"
     /// (m, n), "d_tip_position" (m, 3, P), "d_tip_rotation" (m, 3, 3, P), "marker_position"
-    /// (m, K, 3) and "d_marker_position" (m, K, 3, P), NaN on failed rows.
-    #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore", tensions=None, markers=vec![]))]
+    /// (m, K, 3) and "d_marker_position" (m, K, 3, P), NaN on failed rows. `tip_kind`
+    /// "pinned" (with `tip_position`) or "clamped" (and `tip_rotation`) holds the tip as
+    /// `solve_constrained_tip_batch` does (rows solved as it solves them; `x0` then (m, 6))
+    /// and adds "tip_reaction_force" and "tip_reaction_moment" (m, 3).
+    #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore", tensions=None, markers=vec![], tip_kind="free", tip_position=None, tip_rotation=None))]
     #[allow(clippy::too_many_arguments)]
     fn sensitivity_batch<'py>(
         &self,
@@ -425,9 +429,13 @@ impl PyRod {
         on_invalid: &str,
         tensions: Option<PyReadonlyArray2<'py, f64>>,
         markers: Vec<(f64, [f64; 3])>,
+        tip_kind: &str,
+        tip_position: Option<[f64; 3]>,
+        tip_rotation: Option<[[f64; 3]; 3]>,
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(py, || {
             self.check_columns(py, &pressures)?;
+            let held = ends::constraint(py, tip_kind, tip_position, tip_rotation)?;
             let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
             let markers: Vec<Marker> = markers
                 .into_iter()
@@ -475,9 +483,10 @@ impl PyRod {
                         tip_force,
                         tip_moment,
                     };
-                    sensitivity_batch(
+                    constrained_sensitivity_batch(
                         rod,
                         &inputs,
+                        &held,
                         guesses.as_deref(),
                         &params,
                         &markers,
@@ -487,6 +496,9 @@ impl PyRod {
                 })
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
             let d = rows_dict(py, &rows)?;
+            if held != TipConstraint::Free {
+                ends::reactions(py, &d, &rows)?;
+            }
             let np = params.len();
             let nk = markers.len();
             let m = rows.len();

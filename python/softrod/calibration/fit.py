@@ -290,8 +290,11 @@ def calibrate(
     (``dynamic=True``) get their exact Jacobian from the core's forward sensitivities
     through every time step (BDF-alpha with fixed steps; every design feature, contact with
     obstacles included: docs/calibration.md). A design whose ``[tip]`` pins or clamps the
-    tip is refused (``tip_constraint``): the fit reads the tip, which a held tip does not
-    move (the core's sensitivities of the other nodes are not read by it yet).
+    tip is fitted in statics with the held tip's exact sensitivities (the tip stays at its
+    prescribed position, so the dataset must have markers; without them ``calibrate``
+    raises an InputError naming ``dataset.markers``, since no parameter moves a held tip);
+    the dynamic fit and ``model="pcc"`` refuse it (``tip_constraint``): the dynamic fit
+    reads the tip trajectory, which a held tip does not move.
     weights: ``{quantity: standard deviation}`` per measured quantity ("tip", "markers"),
     e.g. ``{"tip": "0.2 mm", "markers": "0.5 mm"}``: each residual is divided by its
     quantity's value (default 1 mm), so that quantities measured with different noise
@@ -339,9 +342,26 @@ def calibrate(
     threads = V.threads(threads)
     V.integer(max_evaluations, "max_evaluations", minimum=1, maximum=V.MAX_ITERATIONS)
     design0 = load_design(design)
-    require_free_tip(design0, "calibrate")
+    if model == "pcc":
+        require_free_tip(design0, "calibrate(model='pcc')")
+    if dynamic and design0.tip_constraint is not None:
+        raise V.fail(
+            "tip_constraint",
+            design0.tip_constraint.kind,
+            "calibrate(dynamic=True) fits the tip trajectory, which a held tip does not move "
+            "(the core's sensitivities of the other nodes are not read by it yet); a static "
+            "fit (dynamic=False) of a held tip fits its markers",
+        )
     if not isinstance(dataset, Dataset):
         dataset = load_dataset(dataset, design=design0)
+    if design0.tip_constraint is not None and dataset.markers is None:
+        raise V.fail(
+            "dataset.markers",
+            "(none)",
+            f"the design's [tip] constraint ({design0.tip_constraint.kind}) holds the tip at "
+            "its prescribed position, which no parameter moves: a fit of a held tip needs "
+            "markers on the rod (its tip columns carry no information)",
+        )
     if dataset.n_channels != design0.n_channels:
         raise V.fail(
             "dataset.pressures",

@@ -575,25 +575,60 @@ impl Level<'_> {
     }
 
     fn residual_of_tip<D: RodScalar>(&self, tip: &State<D>) -> [D; 6] {
-        let l = self.p.rod.length;
-        let second: [D; 3] = match self.constraint {
-            TipConstraint::Clamped { .. } => {
-                orientation_error(&tmatmul(&self.rotation.map(|r| r.map(D::from)), &tip.rot))
-            }
-            _ => {
-                let b: [D; 6] = self.p.residual_of_tip(tip);
-                [b[3], b[4], b[5]]
-            }
-        };
-        std::array::from_fn(|k| {
-            if k < 3 {
-                (tip.r[k] - self.position[k]) * (1.0 / l)
-            } else {
-                second[k - 3]
-            }
-        })
+        let clamped = matches!(self.constraint, TipConstraint::Clamped { .. });
+        held_residual(&self.p, clamped, &self.position, &self.rotation, tip)
     }
 }
+
+/// The held tip's scaled shooting residual (module docs) for the prescribed pose
+/// (`position`; `rotation`, read only when `clamped`): (r(L) - r_c)/L, then for a clamped
+/// tip the orientation error e(R_c^T R(L)), for a pinned one the tip moment balance of
+/// `Problem::residual_of_tip`. Generic over the scalar: the solve's Newton steps and its
+/// `Jet<6>` Jacobian, and the parameter sensitivities (`crate::sensitivity`, dual-valued
+/// parameters), evaluate this one function.
+pub(crate) fn held_residual<D: RodScalar>(
+    p: &Problem,
+    clamped: bool,
+    position: &[f64; 3],
+    rotation: &[[f64; 3]; 3],
+    tip: &State<D>,
+) -> [D; 6] {
+    let l = p.rod.length;
+    let second: [D; 3] = if clamped {
+        orientation_error(&tmatmul(&rotation.map(|r| r.map(D::from)), &tip.rot))
+    } else {
+        let b: [D; 6] = p.residual_of_tip(tip);
+        [b[3], b[4], b[5]]
+    };
+    std::array::from_fn(|k| {
+        if k < 3 {
+            (tip.r[k] - position[k]) * (1.0 / l)
+        } else {
+            second[k - 3]
+        }
+    })
+}
+
+/// The shooting residual of an equilibrium under the full loads `p` whose tip is held by
+/// `constraint` at its prescribed pose ([`held_residual`]), or free (the tip wrench
+/// balance, `Problem::residual_of_tip`, with N = 3 or 6 unknowns). A held tip has N = 6.
+pub(crate) fn tip_residual<D: RodScalar, const N: usize>(
+    p: &Problem,
+    constraint: &TipConstraint,
+    tip: &State<D>,
+) -> [D; N] {
+    let held = match constraint {
+        TipConstraint::Free => return p.residual_of_tip(tip),
+        TipConstraint::Pinned { position } => held_residual(p, false, position, &IDENTITY, tip),
+        TipConstraint::Clamped { position, rotation } => {
+            held_residual(p, true, position, rotation, tip)
+        }
+    };
+    debug_assert_eq!(N, 6, "a held tip has 6 shooting unknowns");
+    std::array::from_fn(|k| held[k])
+}
+
+const IDENTITY: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 impl Equations for Level<'_> {
     fn eval(&self, x: &[f64]) -> Vec<f64> {

@@ -1,13 +1,15 @@
 """Cosserat-rod equilibria on a dataset: the tip and the markers of every row, with their
 exact parameter derivatives (dual numbers through the shooting solve and the implicit
 function theorem, ``Rod.sensitivity_batch``; every evaluation is one parallel batch over
-the requested rows, GIL released)."""
+the requested rows, GIL released). A design whose ``[tip]`` pins or clamps the tip is
+solved and differentiated with the tip held (the held residual's sensitivities)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from ... import _validate as V
+from ...constraints import held_kwargs
 from ...design import Design
 from ...errors import DesignError
 from ...statics import _options
@@ -76,6 +78,9 @@ class RodStatic(ModelAdapter):
         self.threads = threads
         self.markers = marker_sites(dataset)
         self.m = len(dataset)
+        # A held tip ([tip] constraint, pinned or clamped): every solve and derivative is the
+        # held equilibrium's (``Rod.sensitivity_batch(..., tip_kind=...)``).
+        self.held = held_kwargs(design.tip_constraint)
         # Warm starts: the shooting unknowns of each row's last solve (NaN: cold), sized by
         # the first solve's: 3 (base moment) or 6 (base force too: obstacles, followers).
         self.x0: np.ndarray | None = None
@@ -141,7 +146,7 @@ class RodStatic(ModelAdapter):
             kw = dict(stiffness_scale=self.sigma(theta, idx), threads=self.threads, **self.opts)
             if self.t is not None:
                 kw["tensions"] = np.ascontiguousarray(self.t[idx])
-            if jacobian or self.markers:
+            if jacobian or self.markers or self.held:
                 res = d._rod.sensitivity_batch(
                     self.p[idx],
                     tip_f,
@@ -150,6 +155,7 @@ class RodStatic(ModelAdapter):
                     x0=None if self.x0 is None else np.ascontiguousarray(self.x0[idx]),
                     markers=self.markers,
                     **kw,
+                    **self.held,
                 )
             else:
                 res = d._rod.solve_batch(self.p[idx], tip_f, tip_m, **kw)
@@ -212,6 +218,7 @@ class RodStatic(ModelAdapter):
                 # counts its batch rows by its tension rows.
                 tensions=np.zeros((1, design.n_tendons)) if design.n_tendons else None,
                 **_options(self.options).as_kwargs(),
+                **self.held,
             )
             out.tip[idx] = res["tip_position"][0]
             if out.markers is not None:
