@@ -287,10 +287,87 @@ def test_lm_stops_within_a_fraction_of_the_standard_errors():
     assert not _within_standard_errors(j[:2], r_opt[:2], 1e-3)  # m <= P
 
 
+def test_gauss_newton_step_in_standard_errors():
+    """The Gauss-Newton step of a linear model and its size in standard errors: from the
+    optimum zero, from a point 1e-2 standard errors off (along the first parameter) the way
+    back, 1e-2 of them; undefined standard errors give None."""
+    from softrod.calibration.solve import _gauss_newton
+
+    rng = np.random.default_rng(0)
+    j = rng.normal(size=(200, 2))
+    y = j @ [1.0, -2.0] + rng.normal(size=200)
+    x_opt = np.linalg.lstsq(j, y, rcond=None)[0]
+    r_opt = j @ x_opt - y
+    se = np.sqrt(r_opt @ r_opt / 198 * np.diag(np.linalg.inv(j.T @ j)))
+    step, size = _gauss_newton(j, r_opt)
+    assert size < 1e-12
+    x_off = x_opt + [1e-2 * se[0], 0.0]
+    step, size = _gauss_newton(j, j @ x_off - y)
+    # Linear: one step lands on the optimum (to round-off, 1e-12 of the step).
+    assert np.allclose(x_off + step, x_opt, rtol=0.0, atol=1e-12 * np.abs(x_opt).max())
+    # The standard errors at x_off use the residual there, larger by (1e-2)^2 / 198 of it.
+    assert size == pytest.approx(1e-2, rel=1e-4)
+    assert _gauss_newton(j[:2], r_opt[:2]) is None  # m <= P
+
+
+def test_dynamic_lm_stops_after_its_last_gauss_newton_step(trajectory_data, monkeypatch):
+    """When two accepted points' Gauss-Newton steps say that the error left after the next
+    step is below 1e-3 of every standard error (rate / (1 - rate) of the step), the fit is
+    the point after that step, evaluated without the Jacobian: its cost is not above the
+    last point's, and its standard errors are those of the last point's Jacobian, which agree
+    with the Jacobian at the result to far below their own accuracy."""
+    import softrod.calibration.solve as solve
+
+    calls = []
+    sizes = []
+    predict = RodDynamic.predict
+    gauss_newton = solve._gauss_newton
+
+    def counted(self, theta, rows, jacobian):
+        calls.append((np.array(theta), jacobian))
+        return predict(self, theta, rows, jacobian)
+
+    def traced(j, r):
+        out = gauss_newton(j, r)
+        sizes.append(out[1])
+        return out
+
+    monkeypatch.setattr(RodDynamic, "predict", counted)
+    monkeypatch.setattr(solve, "_gauss_newton", traced)
+    # From tau = 0.1 s (truth 0.12 s) the fourth point's step is about 3e-3 standard errors,
+    # at a rate of about 1e-3: the point after it is the fit (from the bundled 0.19 s the
+    # fourth point's own step is below 1e-3 of them: the rule before).
+    design = softrod.load_design(ARM).replace({"dynamics.damping_time": "0.1 s"})
+    res = softrod.calibrate(
+        design, trajectory_data, ["damping_time", "area_scale"], dynamic=True, dt=DT
+    )
+    assert res.success
+    assert res.message.startswith("the error left after the last Gauss-Newton step"), res.message
+    # The last replay, the only one without the Jacobian, is at the result.
+    assert [jac for _, jac in calls] == [True] * (len(calls) - 1) + [False]
+    assert np.array_equal(calls[-1][0], res.values)
+    rate = sizes[-1] / sizes[-2]
+    assert rate <= solve.GN_RATE_MAX and sizes[-1] * rate / (1 - rate) <= 1e-3
+    # The Jacobian at the result itself: the standard errors agree to 1e-3 of themselves
+    # (their own accuracy is about 1 / sqrt(2 (m - P)), 2.4 % for these 3 x 286 residuals).
+    monkeypatch.setattr(RodDynamic, "predict", predict)
+    params = parse_parameters(["damping_time", "area_scale"], design)
+    at = RodDynamic(design, trajectory_data, params, DT, 0).predict(
+        res.values, np.arange(len(trajectory_data)), True
+    )
+    observed = Observations(tip=trajectory_data.tip_position, markers=None)
+    residual = Residual(observed, np.arange(len(trajectory_data)), {"tip": 1e-3})
+    jac = residual.jacobian(at)
+    r = residual.vector(at)
+    _, std, _, _ = diagnostics(params, res.values, jac, float(r @ r), r.size, "time series")
+    assert np.allclose(std, res.std_errors, rtol=1e-3, atol=0.0), (std, res.std_errors)
+
+
 def test_dynamic_lm_reuses_its_evaluations(trajectory_data):
     """Replays are stateless: the Jacobian scipy asks for again at the best point, and the
     one the standard errors need, come from the optimiser's cache, and the result's positions
-    are those of the last replay (no repeated replays)."""
+    are those of the last replay (no repeated replays; the last one, at the point after the
+    last Gauss-Newton step, without the Jacobian)."""
     calls = []
     predict = RodDynamic.predict
 
@@ -306,8 +383,11 @@ def test_dynamic_lm_reuses_its_evaluations(trajectory_data):
     finally:
         RodDynamic.predict = predict
     with_jacobian = [theta for theta, jac in calls if jac]
-    assert len(with_jacobian) == len(set(with_jacobian)) == res.evaluations
+    stepped = res.message.startswith("the error left after the last Gauss-Newton step")
+    assert len(with_jacobian) == len(set(with_jacobian)) == res.evaluations - stepped
     assert len(calls) == res.evaluations
+    if stepped:
+        assert calls[-1] == (tuple(res.values), False)
 
 
 FINGER = "prebent_tendon_finger"

@@ -1110,6 +1110,8 @@ impl<'a> Problem<'a> {
     }
 
     /// [`Problem::tip_residual`] with the tip node's history terms `th` in any scalar.
+    // Inlined into the sensitivities' AVX2 step (`dynamics::sensitivity`).
+    #[inline(always)]
     fn tip_residual_with<C: Coeff, D: StateScalar<C>>(&self, y: &[D; NY], th: &[C; NF]) -> [D; 6] {
         let t = &self.tip;
         let c0 = self.c0;
@@ -2063,6 +2065,8 @@ impl<'h> Contraction<'h> {
 /// The grid, scales and tip body are the f64 problem's.
 impl Problem<'_> {
     /// Physical state of node j (0..=N) from scaled unknowns in any scalar.
+    // Inlined into the sensitivities' AVX2 step (`dynamics::sensitivity`).
+    #[inline(always)]
     fn node_with<D: RodScalar>(&self, z: &[D], j: usize) -> [D; NY] {
         if j == 0 {
             let mut y = [D::from(0.0); NY];
@@ -2080,6 +2084,8 @@ impl Problem<'_> {
         }
     }
 
+    // Inlined into the sensitivities' AVX2 step (`dynamics::sensitivity`).
+    #[inline(always)]
     fn stage_with<D: RodScalar>(&self, z: &[D], j: usize, i: usize) -> [D; NY] {
         let o = stage_index(j, i);
         std::array::from_fn(|k| z[o + k] * self.scale[k])
@@ -2099,6 +2105,8 @@ impl Problem<'_> {
     /// [`Problem::residual_with`] and the stage fields (v, u, q, w; 2 per interval) of the
     /// same evaluation: what [`Problem::fields_and_tip_with`] returns first, without
     /// evaluating the rod equations again.
+    // Inlined into the sensitivities' AVX2 step (`dynamics::sensitivity`).
+    #[inline(always)]
     pub fn residual_and_fields_with<C: Coeff, D: StateScalar<C>>(
         &self,
         models: &[SectionModel<C>],
@@ -2110,6 +2118,8 @@ impl Problem<'_> {
         (r, fields)
     }
 
+    // Inlined into the sensitivities' AVX2 step (`dynamics::sensitivity`).
+    #[inline(always)]
     fn residual_fields_with<C: Coeff, D: StateScalar<C>>(
         &self,
         models: &[SectionModel<C>],
@@ -2173,6 +2183,8 @@ impl Problem<'_> {
 
     /// The stage fields (v, u, q, w; 2 per interval) of scaled unknowns `z` under `models`
     /// and `hist`.
+    // Inlined into the sensitivities' AVX2 step (`dynamics::sensitivity`).
+    #[inline(always)]
     pub fn fields_with<C: Coeff, D: StateScalar<C>>(
         &self,
         models: &[SectionModel<C>],
@@ -2202,6 +2214,8 @@ impl Problem<'_> {
     /// The tip node's state and the node positions (base first, tip last) of scaled
     /// unknowns `z` whose stage fields `fields` are known (from
     /// [`Problem::residual_and_fields_with`] at the same `z`).
+    // Inlined into the sensitivities' AVX2 step (`dynamics::sensitivity`).
+    #[inline(always)]
     pub fn positions_of_fields<D: RodScalar>(
         &self,
         z: &[D],

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -92,17 +92,39 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
             progress(adapter.evaluations, _rms(r))
         return cache[key]
 
+    # The largest Gauss-Newton step of the last accepted point, in standard errors.
+    last_step: list[float] = []
+
     def jac_u(u):
         r, pred, _ = evaluate(u, True)
         j = problem.residual.jacobian(pred)
         # d/du = theta d/dtheta for the log-transformed parameters
         j = j * np.where(positive, problem.theta_of(u), 1.0)
-        if stop_fraction is not None and _within_standard_errors(j, r, stop_fraction):
+        gn = None if stop_fraction is None else _gauss_newton(j, r)
+        if gn is None:
+            return j
+        step, size = gn
+        if size <= stop_fraction:
             raise _Converged(np.array(u, dtype=float))
+        # Gauss-Newton contracts near the optimum: from two accepted points, the rate is
+        # that of their steps and the error left after this step rate / (1 - rate) of it
+        # (Newton's estimate, as the core's refinement stops, ``dynamics::sensitivity``).
+        # Below stop_fraction of every standard error, the point after the step is the
+        # fit: one replay without the Jacobian there (its cost, which must not rise)
+        # instead of one with it that would only confirm the step.
+        rate = size / last_step[-1] if last_step else math.inf
+        last_step.append(size)
+        if rate <= GN_RATE_MAX and size * rate / (1.0 - rate) <= stop_fraction:
+            u_next = np.asarray(u, dtype=float) + step
+            if problem.inside(problem.theta_of(u_next)):
+                r_next, _, pred_next = evaluate(u_next, False)
+                if np.all(np.isfinite(r_next)) and r_next @ r_next <= r @ r:
+                    raise _Converged(u_next, jacobian_of=pred)
         return j
 
     stop_fraction = adapter.lm_stop_fraction
 
+    stepped = None  # the prediction with the Jacobian of the last step's start, if any
     bounds = problem.bounds
     ulo = np.where(positive, np.log(np.where(positive, bounds.lower, 1.0)), bounds.lower)
     uhi = np.where(positive, np.log(np.where(positive, bounds.upper, 1.0)), bounds.upper)
@@ -123,15 +145,18 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
             )
         except _Converged as done:
             # The Jacobian MINPACK asked for (at its current, accepted point) says the next
-            # step is below stop_fraction of every standard error: that point is the fit.
-            r = evaluate(done.u, True)[0]
-            sol = _Stopped(
-                x=done.u,
-                cost=0.5 * float(r @ r),
-                success=True,
-                message=f"the next Gauss-Newton step is below {stop_fraction:g} of every "
-                "parameter's standard error",
+            # step is below stop_fraction of every standard error: that point is the fit;
+            # or that the error left after the next step is: the point after it is.
+            r = evaluate(done.u, done.jacobian_of is None)[0]
+            message = (
+                f"the next Gauss-Newton step is below {stop_fraction:g} of every "
+                "parameter's standard error"
+                if done.jacobian_of is None
+                else f"the error left after the last Gauss-Newton step is below {stop_fraction:g} "
+                "of every parameter's standard error"
             )
+            sol = _Stopped(x=done.u, cost=0.5 * float(r @ r), success=True, message=message)
+            stepped = done.jacobian_of
         method_used = "lm (MINPACK)" if not use_bounds else "trf (bounded, exact Jacobian)"
         cost = float(sol.cost)
     else:
@@ -156,12 +181,20 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
         cost = float(sol.fun)
     u_best = np.asarray(sol.x, dtype=float)
     at_best = cache.get(u_best.tobytes())
+    prediction = at_best[1] if adapter.stateless and at_best is not None else None
+    if prediction is None and stepped is not None and at_best is not None:
+        # Stopped after a last Gauss-Newton step below stop_fraction of every standard
+        # error: the positions are the result's, their Jacobian that of the step's start,
+        # which the step moved by less than that; the standard errors and correlations
+        # change by the same small fraction (second order in it), far below their own
+        # accuracy, about 1 / sqrt(2 (m - P)) for m residuals.
+        prediction = replace(at_best[2], d_tip=stepped.d_tip, d_markers=stepped.d_markers)
     return {
         "start": theta_start,
         "u": u_best,
         # The prediction with its Jacobian at the result, where the adapter's predictions
         # depend on theta alone (None otherwise, or when the optimiser never asked for it).
-        "prediction": at_best[1] if adapter.stateless and at_best is not None else None,
+        "prediction": prediction,
         "values": problem.theta_of(np.asarray(sol.x, dtype=float)),
         "cost": cost,
         "success": bool(sol.success),
@@ -175,12 +208,20 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
 CACHED_POINTS = 4
 
 
-class _Converged(Exception):
-    """Raised from the Jacobian callback to end MINPACK's iteration at ``u``."""
+#: The largest contraction rate of Gauss-Newton's steps with which the error left after a
+#: step is estimated from the step (as Newton's matrix is kept, ``collocation::newton_with``).
+GN_RATE_MAX = 0.25
 
-    def __init__(self, u: np.ndarray):
+
+class _Converged(Exception):
+    """Raised from the Jacobian callback to end MINPACK's iteration at ``u`` (with
+    ``jacobian_of``: a Gauss-Newton step from that prediction's point, whose Jacobian the
+    result keeps)."""
+
+    def __init__(self, u: np.ndarray, jacobian_of: Prediction | None = None):
         super().__init__("converged")
         self.u = u
+        self.jacobian_of = jacobian_of
 
 
 @dataclass
@@ -191,23 +232,30 @@ class _Stopped:
     message: str
 
 
-def _within_standard_errors(j: np.ndarray, r: np.ndarray, fraction: float) -> bool:
-    """Whether the Gauss-Newton step from this point, -(J^T J)^-1 J^T r, is below
-    ``fraction`` of every parameter's standard error sqrt(s^2 (J^T J)^-1_ii), s^2 = r.r /
-    (m - P) (both in the optimiser's variables; the ratio does not depend on them). False
-    where the standard errors are undefined (m <= P, a singular J^T J)."""
+def _gauss_newton(j: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """The Gauss-Newton step from this point, -(J^T J)^-1 J^T r, and its largest size in
+    standard errors, max_i |step_i| / sqrt(s^2 (J^T J)^-1_ii), s^2 = r.r / (m - P) (both in
+    the optimiser's variables; the ratio does not depend on them). None where the standard
+    errors are undefined (m <= P, a singular J^T J)."""
     m, n_par = j.shape
     if m <= n_par or not (np.all(np.isfinite(j)) and np.all(np.isfinite(r))):
-        return False
+        return None
     try:
         jtj_inv = np.linalg.inv(j.T @ j)
     except np.linalg.LinAlgError:
-        return False
+        return None
     step = -jtj_inv @ (j.T @ r)
     se = np.sqrt(float(r @ r) / (m - n_par) * np.diag(jtj_inv))
     if not (np.all(np.isfinite(step)) and np.all(np.isfinite(se)) and np.all(se > 0)):
-        return False
-    return bool(np.all(np.abs(step) <= fraction * se))
+        return None
+    return step, float(np.max(np.abs(step) / se))
+
+
+def _within_standard_errors(j: np.ndarray, r: np.ndarray, fraction: float) -> bool:
+    """Whether the Gauss-Newton step from this point is below ``fraction`` of every
+    parameter's standard error (:func:`_gauss_newton`; False where they are undefined)."""
+    gn = _gauss_newton(j, r)
+    return gn is not None and gn[1] <= fraction
 
 
 def _rows_of(problem: Problem) -> int:

@@ -441,8 +441,45 @@ impl Simulator {
     }
 
     /// The sensitivities of the parameters `chunk` (numbers j0..) over the step `c`, in
-    /// `Jet<N>` with N = chunk.len().
+    /// `Jet<N>` with N = chunk.len(): [`Simulator::advance_chunk_impl`] compiled for AVX2
+    /// where the CPU has it (as the plain step's residual and solves,
+    /// `banded::simd_dispatch`): the dual residual evaluations, the refinement's loops and
+    /// the tracker's own are inlined into it. AVX2 without FMA changes no result: the
+    /// same operations in the same order, only several lanes at once.
+    #[inline(never)]
     fn advance_chunk<const N: usize>(
+        &self,
+        tr: &mut Tracker,
+        j0: usize,
+        chunk: &[Param],
+        c: &Candidate,
+        step: &mut Step,
+    ) -> Result<()> {
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx2")]
+            unsafe fn avx2<const N: usize>(
+                this: &Simulator,
+                tr: &mut Tracker,
+                j0: usize,
+                chunk: &[Param],
+                c: &Candidate,
+                step: &mut Step,
+            ) -> Result<()> {
+                this.advance_chunk_impl::<N>(tr, j0, chunk, c, step)
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU supports AVX2 (checked just above), the only
+                // requirement of calling a function compiled for it.
+                return unsafe { avx2::<N>(self, tr, j0, chunk, c, step) };
+            }
+        }
+        self.advance_chunk_impl::<N>(tr, j0, chunk, c, step)
+    }
+
+    /// [`Simulator::advance_chunk`].
+    #[inline(always)]
+    fn advance_chunk_impl<const N: usize>(
         &self,
         tr: &mut Tracker,
         j0: usize,
@@ -506,8 +543,10 @@ impl Simulator {
         let scale: [f64; N] = std::array::from_fn(|q| tr.scale.get(j0 + q).copied().unwrap_or(0.0));
         let mut hint: [f64; N] =
             std::array::from_fn(|q| tr.rate.get(j0 + q).copied().unwrap_or(f64::INFINITY));
-        let refined = step.kept.and_then(|f| {
-            refine(
+        // A match, not a closure: a closure would be compiled apart from this function, for
+        // the baseline CPU (`Simulator::advance_chunk`).
+        let refined = match step.kept {
+            Some(f) => refine(
                 problem,
                 f,
                 &models_d,
@@ -517,8 +556,9 @@ impl Simulator {
                 &scale,
                 &mut hint,
                 &mut tr.buf,
-            )
-        });
+            ),
+            None => None,
+        };
         tr.rate[j0..j0 + n_par].copy_from_slice(&hint[..n_par]);
         let (zd, fields) = match refined {
             Some(solved) => solved,
@@ -545,12 +585,10 @@ impl Simulator {
                 None
             };
             let mut now = recycled.unwrap_or_else(|| vec![0.0; zd.len()]);
-            let mut size = tr.scale[j];
             for (x, d) in now.iter_mut().zip(&zd) {
                 *x = d.eps[q];
-                size = size.max(x.abs());
             }
-            tr.scale[j] = size;
+            tr.scale[j] = max_abs(&now, tr.scale[j], |x| *x);
             old.insert(0, now);
             tr.dz[j] = old;
             let slots = &mut tr.slots[j];
@@ -665,6 +703,7 @@ fn solve_exact<const N: usize>(
 /// size. Updates `hint` with the rates measured. None when it does not contract, or not
 /// to REFINE_TOL within MAX_REFINE evaluations.
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn refine<const N: usize>(
     problem: &Problem,
     fac: &Factorization,
@@ -713,8 +752,8 @@ fn refine<const N: usize>(
         let mut on_hint = [false; N];
         for &q in &active {
             let cq = &corr[q * n..(q + 1) * n];
-            let step = cq.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-            let size = zd.iter().fold(scale[q], |m, x| m.max(x.eps[q].abs()));
+            let step = max_abs(cq, 0.0, |x| *x);
+            let size = max_abs(&zd, scale[q], |x| x.eps[q]);
             if step <= REFINE_TOL * size {
                 done[q] = true;
                 continue;
@@ -749,7 +788,7 @@ fn refine<const N: usize>(
         }
         let (r_new, f_new) = problem.residual_and_fields_with(models, hist, &zd);
         let confirmed = |q: usize| {
-            let norm = |r: &[Jet<N>]| r.iter().fold(0.0f64, |m, x| m.max(x.eps[q].abs()));
+            let norm = |r: &[Jet<N>]| max_abs(r, 0.0, |x| x.eps[q]);
             norm(&r_new) <= norm(&r) * (10.0 * hint[q]).min(0.5)
         };
         if finished && (0..n_par).filter(|&q| on_hint[q]).all(confirmed) {
@@ -764,6 +803,25 @@ fn refine<const N: usize>(
         fields = f_new;
     }
     None
+}
+
+/// max(start, max |f(x)| over `xs`), NaNs skipped (`f64::max`): the fold of `f64::max` from
+/// `start`, in four running maxima (max is exact, so the order does not change the result)
+/// instead of one chain whose every step waits for the last (the refinement takes several
+/// per step over all unknowns).
+#[inline(always)]
+fn max_abs<T>(xs: &[T], start: f64, f: impl Fn(&T) -> f64) -> f64 {
+    let mut acc = [start; 4];
+    let mut quads = xs.chunks_exact(4);
+    for c in &mut quads {
+        for (a, x) in acc.iter_mut().zip(c) {
+            *a = a.max(f(x).abs());
+        }
+    }
+    for x in quads.remainder() {
+        acc[0] = acc[0].max(f(x).abs());
+    }
+    acc[0].max(acc[1]).max(acc[2].max(acc[3]))
 }
 
 /// A section check's error with the index of the parameter in the full list.

@@ -6,8 +6,9 @@ at rest in equilibrium under the experiment's first pressures and tensions, and 
 tip is read at every sample time (linear between the steps). With ``jacobian`` the core
 carries the exact forward sensitivities of every step (``softrod_core::dynamics::
 sensitivity``: the implicit function theorem on each step's collocation equations), so the
-tip's derivatives come with the replay at about 3.3 times its cost (two parameters;
-benchmarks/README.md), and Levenberg-Marquardt fits with standard errors."""
+tip's derivatives come with the replay at about 3.3-3.6 times its cost (two parameters, CPU
+time on one thread; benchmarks/README.md), and Levenberg-Marquardt fits with standard
+errors."""
 
 from __future__ import annotations
 
@@ -73,7 +74,9 @@ class RodDynamic(ModelAdapter):
     #: its cost exceeds the optimum's by about P (1e-3)^2 s^2 / 2 (P parameters, s^2 the
     #: residual variance), 1e-6 s^2 against a cost of (m - P) s^2 / 2 over m residuals,
     #: and the further steps MINPACK's xtol of 1e-10 would take move the result by nothing
-    #: the data resolve.
+    #: the data resolve. Or once the error left after its next step, estimated from the
+    #: contraction of the last two points' steps, is below that: the point after the step
+    #: is then the fit, replayed without the sensitivities (``solve.optimise``).
     lm_stop_fraction = 1e-3
 
     def __init__(self, design: Design, dataset, params: list[Parameter], dt, threads: int):
