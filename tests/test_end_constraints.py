@@ -572,3 +572,43 @@ def test_platform_on_three_columns_sways_at_the_guided_euler_load():
     with pytest.raises(InputError) as exc:
         softrod.solve_system_batch(system, np.zeros((2, 3, 0)))
     assert exc.value.field == "pressures" and "solve_system" in str(exc.value)
+
+
+def test_a_rod_of_a_system_presses_on_its_own_obstacle():
+    """A rod's obstacles go with it into a system (docs/contact.md): the left actuator of
+    the bundled system, pressurised, swings towards +y and meets a wall its free swing
+    would cross by 4 mm. The wall holds the platform back, the left rod reports its
+    contact (the right one has none), the platform's balance still holds to 1e-9 N, and
+    the surface sinks no deeper than the stated tolerance. The system's motion refuses
+    obstacles by name (its rods' contact is not carried by the dynamics of a system)."""
+    import dataclasses
+
+    system = softrod.load_system("two_spa_platform")
+    p = [[40e3, 0.0, 0.0], [0.0, 0.0, 0.0]]
+    free = solve_system(system, p)
+    reach = free.rods[0].position[:, 1].max()  # the left rod's centreline, furthest +y
+    radius = system.rods[0].design.spec["sections"][0]["outer_radius"]
+    wall = {
+        "kind": "plane",
+        "point": ["0 mm", f"{(reach + radius) * 1e3 - 4.0} mm", "0 mm"],
+        "normal": [0, -1, 0],
+        "stiffness": "1e6 N/m^2",
+        "tolerance": "0.5 mm",
+    }
+    left = dataclasses.replace(
+        system.rods[0], design=system.rods[0].design.replace({"obstacles": [wall]})
+    )
+    walled = dataclasses.replace(system, rods=(left, system.rods[1]))
+    sol = solve_system(walled, p)
+    assert sol.rods[1].contact is None
+    contact = sol.rods[0].contact
+    assert contact is not None and contact.in_contact.any()
+    assert contact.total[1] < 0  # the wall pushes the rod back towards -y
+    assert contact.max_penetration <= 0.5e-3
+    assert sol.platform_position[1] < free.platform_position[1] - 1e-3
+    weight = system.platform.mass * np.array(system.rods[0].design.spec["mounting"]["gravity"])
+    f = weight - sum(r.tip_reaction_force for r in sol.rods)
+    assert np.abs(f).max() < 1e-9
+    with pytest.raises(InputError) as exc:
+        softrod.SystemSimulation(walled, p)
+    assert exc.value.field == "rods[0].obstacles"

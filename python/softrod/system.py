@@ -42,7 +42,7 @@ from .catalog import load_design
 from .constraints import orientation as _orientation
 from .design import Design, read_toml
 from .errors import ConvergenceError, DesignError, InputError
-from .solution import StaticSolution
+from .solution import Contact, StaticSolution
 from .statics import (
     SolverOptions,
     _options,
@@ -422,6 +422,7 @@ def solve_system(
                 tip_constraint="clamped",
                 tip_reaction_force=np.array(o["tip_reaction_force"]),
                 tip_reaction_moment=np.array(o["tip_reaction_moment"]),
+                contact=Contact.from_core(o["contact"]) if "contact" in o else None,
             )
         )
     return SystemSolution(

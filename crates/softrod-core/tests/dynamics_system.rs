@@ -414,7 +414,7 @@ fn refusals_by_name() {
         ..obstacle(ObstacleKind::Plane, 1e4, 3e-3)
     }];
     rs[0].rod = Rod::new(spec).unwrap();
-    refused(new(rs, plat, z3, o), "obstacles");
+    refused(new(rs, plat, z3, o), "rods[0].obstacles");
     let mut rs = rods(2, 9.81, 0.0, &[0.0; 2]);
     let mut spec = rs[1].rod.spec.clone();
     spec.tip.frame = Frame::Body;

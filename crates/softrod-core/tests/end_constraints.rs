@@ -11,6 +11,7 @@
 mod common;
 use common::*;
 use softrod_core::ode::Loads;
+use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::spec::{Frame, LineLoadSpec};
 use softrod_core::statics::constraint::{
     constraint_residual_and_jacobian, exp_so3, log_so3, solve_constrained, TipConstraint,
@@ -557,6 +558,54 @@ fn one_rod_system_equals_the_free_rod() {
     for k in 0..3 {
         assert!((sys.rods[0].tip_reaction_force[k] - force[k]).abs() < 1e-9);
         assert!((sys.rods[0].tip_reaction_moment[k] - moment[k]).abs() < 1e-9);
+    }
+}
+
+/// A rod's obstacles go with it into a system: one rod by a wall holding a massless,
+/// unloaded platform is the free rod by the same wall (the contact forces, the shape and a
+/// zero reaction), and the tip is held back by the wall.
+#[test]
+fn one_rod_system_by_a_wall_equals_the_free_rod_by_the_wall() {
+    let mut spec = p002_actuator(IDENTITY, 9.81, 40);
+    let ld = loads(&[25e3, 0.0, 0.0]);
+    let free = solve_with_shape(&Rod::new(spec.clone()).unwrap(), &ld, None, &opts())
+        .unwrap()
+        .0;
+    let side = [free.tip.r[0], free.tip.r[1], 0.0];
+    let reach = norm(&side);
+    let dir = side.map(|v| v / reach);
+    let mut wall = obstacle(ObstacleKind::Plane, 1e5, 1e-3);
+    wall.point = Some(dir.map(|v| (P002_RO + 0.5 * reach) * v));
+    wall.normal = Some(dir.map(|v| -v));
+    spec.obstacles = vec![wall];
+    let rod = Rod::new(spec).unwrap();
+    let (by_wall, _) = solve_with_shape(&rod, &ld, None, &opts()).unwrap();
+    let held_back = reach - (by_wall.tip.r[0] * dir[0] + by_wall.tip.r[1] * dir[1]);
+    assert!(
+        held_back > 2e-3,
+        "the wall held the tip back by {held_back:e} m only"
+    );
+    let rods = vec![SystemRod {
+        rod: &rod,
+        loads: ld.clone(),
+        attachment: [0.0; 3],
+        attachment_rotation: IDENTITY,
+    }];
+    let sys = solve_system(
+        &rods,
+        &platform(by_wall.tip.r, [0.0; 3], [0.0; 3]),
+        None,
+        &opts(),
+    )
+    .unwrap();
+    let got = &sys.rods[0];
+    // Both solves converge to 1e-10 of the scaled residual (opts): the same equilibrium to
+    // 1e-9 of the length, and a reaction of round-off against the rod's weight.
+    assert!(dist(&got.solution.tip.r, &by_wall.tip.r) < 1e-9 * rod.length);
+    assert!(norm(&got.tip_reaction_force) < 1e-9);
+    assert!(norm(&got.tip_reaction_moment) < 1e-9 * rod.length);
+    for k in 0..3 {
+        assert!((got.solution.base_force[k] - by_wall.base_force[k]).abs() < 1e-9);
     }
 }
 

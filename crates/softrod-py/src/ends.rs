@@ -260,13 +260,18 @@ fn solve_rod_system<'py>(
             .detach(|| solve_system(&system, &pf, guess.as_deref(), &opts))
             .map_err(|e| to_py_err(py, e, Context::Input))?;
         let d = PyDict::new(py);
-        d.set_item(
-            "rods",
-            out.rods
-                .iter()
-                .map(|c| constrained_dict(py, c))
-                .collect::<PyResult<Vec<_>>>()?,
-        )?;
+        let mut rods_out = Vec::with_capacity(out.rods.len());
+        for (c, r) in out.rods.iter().zip(&system) {
+            let rd = constrained_dict(py, c)?;
+            // A rod with obstacles: its contact report, as `Rod.solve` gives it.
+            let rep = softrod_core::statics::contact::report(r.rod, &r.loads, &c.solution)
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
+            if let Some(rep) = rep {
+                rd.set_item("contact", contact_dict(py, &rep)?)?;
+            }
+            rods_out.push(rd);
+        }
+        d.set_item("rods", rods_out)?;
         d.set_item("platform_position", out.platform_position.to_vec())?;
         d.set_item(
             "platform_rotation",

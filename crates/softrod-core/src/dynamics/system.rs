@@ -813,6 +813,11 @@ impl SystemSimulator {
             r.rod
                 .check_tensions(&r.tensions)
                 .map_err(|e| rename_field(e, "tensions", &format!("{name}tensions")))?;
+            // A rod's obstacles are carried by the statics of a system, not by its motion
+            // yet: a one-rod system pressed on a wall moved centimetres away from the
+            // free rod with the same wall (refused rather than trusted).
+            crate::scope::refuse_obstacles(&r.rod, &format!("rods[{i}] of a system in motion"))
+                .map_err(|e| rename_field(e, "obstacles", &format!("{name}obstacles")))?;
             if r.rod.spec.tip.frame == crate::spec::Frame::Body {
                 return Err(SoftrodError::invalid(
                     format!("{name}tip.frame"),

@@ -106,8 +106,10 @@ fn finite3(field: String, v: &[f64; 3]) -> Result<()> {
     Ok(())
 }
 
-/// The system's own inputs: 1..=MAX_RODS rods without obstacles, finite attachments and
-/// platform, proper rotations, mass >= 0.
+/// The system's own inputs: 1..=MAX_RODS rods, finite attachments and platform, proper
+/// rotations, mass >= 0. A rod's obstacles are its own (docs/contact.md): their penalty is a
+/// line load of its shooting ODE and its rounded end's force enters its tip balance, so the
+/// tip reaction the platform receives leaves that force out, as for a held tip.
 pub(crate) fn validate(rods: &[SystemRod], platform: &Platform) -> Result<()> {
     if rods.is_empty() || rods.len() > MAX_RODS {
         return Err(SoftrodError::invalid(
@@ -117,7 +119,6 @@ pub(crate) fn validate(rods: &[SystemRod], platform: &Platform) -> Result<()> {
         ));
     }
     for (i, r) in rods.iter().enumerate() {
-        crate::scope::refuse_obstacles(r.rod, &format!("rods[{i}] of a system"))?;
         finite3(format!("rods[{i}].attachment"), &r.attachment)?;
         check_rotation(
             &format!("rods[{i}].attachment_orientation"),
