@@ -609,6 +609,10 @@ def test_a_rod_of_a_system_presses_on_its_own_obstacle():
     weight = system.platform.mass * np.array(system.rods[0].design.spec["mounting"]["gravity"])
     f = weight - sum(r.tip_reaction_force for r in sol.rods)
     assert np.abs(f).max() < 1e-9
+    # The batch solves every row as solve_system does, the wall included (bitwise).
+    batch = softrod.solve_system_batch(walled, [p, [[20e3, 0.0, 0.0], [0.0, 0.0, 0.0]]])
+    assert batch.converged.all()
+    assert np.array_equal(batch.platform_position[0], sol.platform_position)
     with pytest.raises(InputError) as exc:
         softrod.SystemSimulation(walled, p)
     assert exc.value.field == "rods[0].obstacles"
