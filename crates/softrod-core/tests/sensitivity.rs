@@ -374,6 +374,48 @@ fn markers_between_nodes_converge_at_fourth_order() {
     assert!(order(errors[0], errors[1]) > 3.5 && order(errors[1], errors[2]) > 3.5);
 }
 
+/// Central differences of marker positions with respect to `p` (step: 1e-8 m for an
+/// offset, else H of its value), `solved(spec, loads)` giving the markers of the design and
+/// loads with the parameter changed; returns the difference quotient per marker and the
+/// step.
+fn fd_markers(
+    spec: &DesignSpec,
+    ld: &Loads,
+    rod: &Rod,
+    p: &Param,
+    solved: impl Fn(&DesignSpec, &Loads) -> Vec<[f64; 3]>,
+) -> (Vec<[f64; 3]>, f64) {
+    let v0 = p.value(rod, ld);
+    let step = match p.kind {
+        ParamKind::ChamberOffset(_) => 1e-8,
+        _ => H * v0.abs(),
+    };
+    let at = |v: f64| {
+        let (mut s, mut l) = (spec.clone(), ld.clone());
+        // The area factor is relative to the design's areas.
+        let v = if let ParamKind::AreaScale = p.kind {
+            v / v0
+        } else {
+            v
+        };
+        set(&mut s, &mut l, p, v);
+        solved(&s, &l)
+    };
+    let (plus, minus) = (at(v0 + step), at(v0 - step));
+    let fd = plus
+        .iter()
+        .zip(&minus)
+        .map(|(a, b)| std::array::from_fn(|i| (a[i] - b[i]) / (2.0 * step)))
+        .collect();
+    (fd, step)
+}
+
+/// Relative error of an exact marker derivative against its central difference, with the
+/// absolute allowance for nearly-zero columns (TIP_NOISE).
+fn marker_error(fd: &[f64; 3], exact: &[f64; 3], step: f64) -> f64 {
+    dist(fd, exact) / (norm(fd) + TIP_NOISE / (COLUMN_TOL * step))
+}
+
 /// Compare the exact derivatives of every marker (and of the tip) with central differences
 /// of full solves; the base marker (markers()[0]) must not move.
 fn check_markers(spec: &DesignSpec, ld: &Loads, params: &[Param]) {
@@ -386,28 +428,14 @@ fn check_markers(spec: &DesignSpec, ld: &Loads, params: &[Param]) {
     let tip_only = tip_sensitivity(&rod, ld, &sol, params).unwrap();
     assert_eq!(sens.position, tip_only.position);
     for (j, p) in params.iter().enumerate() {
-        let v0 = p.value(&rod, ld);
-        let step = match p.kind {
-            ParamKind::ChamberOffset(_) => 1e-8,
-            _ => H * v0.abs(),
-        };
-        let at = |v: f64| {
-            let (mut s, mut l) = (spec.clone(), ld.clone());
-            let v = if let ParamKind::AreaScale = p.kind {
-                v / v0
-            } else {
-                v
-            };
-            set(&mut s, &mut l, p, v);
-            let r = Rod::new(s).unwrap();
-            let sol = solve(&r, &l, Some(&sol.x), &opts()).unwrap();
-            marker_positions(&r, &l, &sol, &locate_markers(&r, &mks).unwrap())
-        };
-        let (plus, minus) = (at(v0 + step), at(v0 - step));
-        for k in 0..mks.len() {
-            let fd: [f64; 3] = std::array::from_fn(|i| (plus[k][i] - minus[k][i]) / (2.0 * step));
+        let (fd, step) = fd_markers(spec, ld, &rod, p, |s, l| {
+            let r = Rod::new(s.clone()).unwrap();
+            let sol = solve(&r, l, Some(&sol.x), &opts()).unwrap();
+            marker_positions(&r, l, &sol, &locate_markers(&r, &mks).unwrap())
+        });
+        for (k, fd) in fd.iter().enumerate() {
             let ex = sens.markers[j][k];
-            let e = dist(&fd, &ex) / (norm(&fd) + TIP_NOISE / (COLUMN_TOL * step));
+            let e = marker_error(fd, &ex, step);
             println!("marker {k} d/d {}: rel. error {e:.2e}", p.kind.name());
             assert!(
                 e < COLUMN_TOL,
@@ -624,30 +652,19 @@ fn check_held_markers(spec: &DesignSpec, ld: &Loads, c: &TipConstraint, params: 
     let sens = constrained_pose_sensitivity(&rod, ld, c, &sol.solution, params, &located).unwrap();
     let mut worst: f64 = 0.0;
     for (j, p) in params.iter().enumerate() {
-        let v0 = p.value(&rod, ld);
-        let step = H * v0.abs();
-        let at = |v: f64| {
-            let (mut s, mut l) = (spec.clone(), ld.clone());
-            let v = if let ParamKind::AreaScale = p.kind {
-                v / v0
-            } else {
-                v
-            };
-            set(&mut s, &mut l, p, v);
-            let r = Rod::new(s).unwrap();
-            let h = solve_constrained(&r, &l, c, Some(&sol.solution.x), &opts()).unwrap();
-            marker_positions(&r, &l, &h.solution, &locate_markers(&r, &mks).unwrap())
-        };
-        let (plus, minus) = (at(v0 + step), at(v0 - step));
+        let (fd, step) = fd_markers(spec, ld, &rod, p, |s, l| {
+            let r = Rod::new(s.clone()).unwrap();
+            let h = solve_constrained(&r, l, c, Some(&sol.solution.x), &opts()).unwrap();
+            marker_positions(&r, l, &h.solution, &locate_markers(&r, &mks).unwrap())
+        });
         let mut largest: f64 = 0.0;
-        for k in 0..mks.len() {
-            let fd: [f64; 3] = std::array::from_fn(|i| (plus[k][i] - minus[k][i]) / (2.0 * step));
+        for (k, fd) in fd.iter().enumerate() {
             let ex = sens.markers[j][k];
             largest = largest.max(norm(&ex));
             if k == held {
                 continue;
             }
-            let e = dist(&fd, &ex) / (norm(&fd) + TIP_NOISE / (COLUMN_TOL * step));
+            let e = marker_error(fd, &ex, step);
             worst = worst.max(e);
             println!(
                 "{} marker {k} d/d {}: rel. error {e:.2e}",
