@@ -129,10 +129,16 @@ struct Body {
     ms: f64,
 }
 
-/// The platform's equations in one step: its body, the time formula's c0 and history
-/// terms, the chart's base R_n.
+/// The platform's equations in one step: its body and the step's terms.
 struct PlatformEq<'a> {
     body: &'a Body,
+    t: StepTerms,
+}
+
+/// What a step's platform equations depend on besides the body: the time formula's c0 and
+/// history terms (position, chart, velocity, angular velocity), the chart's base R_n.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct StepTerms {
     c0: f64,
     hp: [f64; 3],
     hphi: [f64; 3],
@@ -222,12 +228,14 @@ impl<'a> PlatformEq<'a> {
         let w_n = rotate(&now.rot, &now.w);
         PlatformEq {
             body,
-            c0,
-            hp: h3(&now.p, &prev.p, &now.v),
-            hphi: h3(&[0.0; 3], &phi_prev, &w_n),
-            hv: h3(&now.v, &prev.v, &now.a),
-            hw: h3(&now.w, &prev.w, &now.wt),
-            r_n: now.rot,
+            t: StepTerms {
+                c0,
+                hp: h3(&now.p, &prev.p, &now.v),
+                hphi: h3(&[0.0; 3], &phi_prev, &w_n),
+                hv: h3(&now.v, &prev.v, &now.a),
+                hw: h3(&now.w, &prev.w, &now.wt),
+                r_n: now.rot,
+            },
         }
     }
 
@@ -237,25 +245,28 @@ impl<'a> PlatformEq<'a> {
         let z = [0.0; 3];
         PlatformEq {
             body,
-            c0: 0.0,
-            hp: z,
-            hphi: z,
-            hv: z,
-            hw: z,
-            r_n,
+            t: StepTerms {
+                c0: 0.0,
+                hp: z,
+                hphi: z,
+                hv: z,
+                hw: z,
+                r_n,
+            },
         }
     }
 
     fn kin<D: RodScalar>(&self, xi: &[D; 6]) -> Kin<D> {
-        let c0 = self.c0;
+        let t = &self.t;
+        let c0 = t.c0;
         let p: [D; 3] = std::array::from_fn(|k| xi[k] * self.body.ls);
         let phi = [xi[3], xi[4], xi[5]];
-        let rot = matmul(&cayley(&phi), &self.r_n.map(|row| row.map(D::from)));
-        let v: [D; 3] = std::array::from_fn(|k| p[k] * c0 + self.hp[k]);
-        let phi_t: [D; 3] = std::array::from_fn(|k| phi[k] * c0 + self.hphi[k]);
+        let rot = matmul(&cayley(&phi), &t.r_n.map(|row| row.map(D::from)));
+        let v: [D; 3] = std::array::from_fn(|k| p[k] * c0 + t.hp[k]);
+        let phi_t: [D; 3] = std::array::from_fn(|k| phi[k] * c0 + t.hphi[k]);
         let w = rotate_t(&rot, &cayley_rate(&phi, &phi_t));
-        let a = std::array::from_fn(|k| v[k] * c0 + self.hv[k]);
-        let wt = std::array::from_fn(|k| w[k] * c0 + self.hw[k]);
+        let a = std::array::from_fn(|k| v[k] * c0 + t.hv[k]);
+        let wt = std::array::from_fn(|k| w[k] * c0 + t.hw[k]);
         Kin {
             p,
             rot,
@@ -645,12 +656,7 @@ struct Bordered {
 /// unknowns are the matrix's own (`Bordered::at`, `at_xi`).
 #[derive(Debug, Clone, PartialEq)]
 struct SysKey {
-    c0: f64,
-    hp: [f64; 3],
-    hphi: [f64; 3],
-    hv: [f64; 3],
-    hw: [f64; 3],
-    r_n: [[f64; 3]; 3],
+    platform: StepTerms,
     rods: Vec<RodKey>,
 }
 
@@ -1104,11 +1110,11 @@ impl SystemSimulator {
         // matrix of the rest state (c0 = 0) is never kept, so the first step factors its
         // own. Smaller changes (c0, the history terms, the inputs) are left to the rate
         // test, which refreshes the matrix when it contracts by less than 1/4.
-        let c0 = c.eq.c0;
+        let c0 = c.eq.t.c0;
         let old = self
             .kept
             .take()
-            .filter(|k| (k.key.c0 / c0 - 1.0).abs() <= super::REUSE_C0);
+            .filter(|k| (k.key.platform.c0 / c0 - 1.0).abs() <= super::REUSE_C0);
         let (mut matrix, old_key) = match old {
             Some(k) => (Some(k.matrix), Some(k.key)),
             None => (None, None),
@@ -1129,12 +1135,7 @@ impl SystemSimulator {
             let key = match old_key {
                 Some(k) if self.stats.jacobians == jacobians => k,
                 _ => SysKey {
-                    c0,
-                    hp: c.eq.hp,
-                    hphi: c.eq.hphi,
-                    hv: c.eq.hv,
-                    hw: c.eq.hw,
-                    r_n: c.eq.r_n,
+                    platform: c.eq.t,
                     rods: preps
                         .iter()
                         .map(|p| RodKey {
@@ -1476,11 +1477,12 @@ impl SystemSimulator {
             None => w.f(0.0),
             Some(Kept { matrix, key }) => {
                 w.f(1.0);
-                w.f(key.c0);
-                for v in [&key.hp, &key.hphi, &key.hv, &key.hw] {
+                let t = &key.platform;
+                w.f(t.c0);
+                for v in [&t.hp, &t.hphi, &t.hv, &t.hw] {
                     w.all(v);
                 }
-                w.all(key.r_n.as_flattened());
+                w.all(t.r_n.as_flattened());
                 w.all(&matrix.at_xi);
                 for (z, k) in matrix.at.iter().zip(&key.rods) {
                     w.vec(z);
@@ -1561,12 +1563,14 @@ impl SystemSimulator {
             }
             Some((
                 SysKey {
-                    c0,
-                    hp,
-                    hphi,
-                    hv,
-                    hw,
-                    r_n,
+                    platform: StepTerms {
+                        c0,
+                        hp,
+                        hphi,
+                        hv,
+                        hw,
+                        r_n,
+                    },
                     rods,
                 },
                 at,
@@ -1603,7 +1607,7 @@ impl SystemSimulator {
             .rods
             .iter()
             .zip(&key.rods)
-            .map(|(s, k)| s.models_at(&k.pressures, &k.tensions, &k.sigma, key.c0))
+            .map(|(s, k)| s.models_at(&k.pressures, &k.tensions, &k.sigma, key.platform.c0))
             .collect();
         let problems: Vec<Problem> = self
             .rods
@@ -1616,7 +1620,7 @@ impl SystemSimulator {
                     &s.grid,
                     s.scale_c0(),
                     m,
-                    key.c0,
+                    key.platform.c0,
                     &k.hist,
                     s.tip_body(s.tip_force, s.tip_moment),
                 )
@@ -1624,12 +1628,7 @@ impl SystemSimulator {
             .collect();
         let eq = PlatformEq {
             body: &self.body,
-            c0: key.c0,
-            hp: key.hp,
-            hphi: key.hphi,
-            hv: key.hv,
-            hw: key.hw,
-            r_n: key.r_n,
+            t: key.platform,
         };
         // `factor` holds each rod's tip where the platform at at_xi holds it.
         Coupled { problems, eq }.factor(at, at_xi)
