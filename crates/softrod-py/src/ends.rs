@@ -300,7 +300,7 @@ type BatchRodEntry<'py> = (
 );
 
 /// A system's platform: (position, rotation, force, moment, mass, com_offset, gravity).
-type PlatformEntry = (
+pub(crate) type PlatformEntry = (
     [f64; 3],
     [[f64; 3]; 3],
     [f64; 3],
@@ -310,7 +310,7 @@ type PlatformEntry = (
     [f64; 3],
 );
 
-fn platform_of(p: PlatformEntry) -> Platform {
+pub(crate) fn platform_of(p: PlatformEntry) -> Platform {
     let (position, rotation, force, moment, mass, com_offset, gravity) = p;
     Platform {
         position,

@@ -2,13 +2,13 @@
 //! (`softrod_core::dynamics::system`): a stepper object that Python drives in chunks, with
 //! the GIL released while it steps.
 
+use crate::ends::{platform_of, PlatformEntry};
 use crate::{to_py_err, Context, PyRod};
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::dynamics::system::{DynRod, SystemSimulator};
 use softrod_core::dynamics::{DynOptions, Scheme, SigmaMap};
-use softrod_core::statics::system::Platform;
 use softrod_core::SoftrodError;
 
 /// A running simulation of a system (see `softrod.SystemSimulation`).
@@ -24,17 +24,6 @@ type DynRodEntry<'py> = (
     Vec<f64>,
     [f64; 3],
     [[f64; 3]; 3],
-);
-
-/// The platform: (position, rotation, force, moment, mass, com_offset, gravity).
-type PlatformEntry = (
-    [f64; 3],
-    [[f64; 3]; 3],
-    [f64; 3],
-    [f64; 3],
-    f64,
-    [f64; 3],
-    [f64; 3],
 );
 
 /// The samples of a chunk of steps, as flat lists.
@@ -160,16 +149,7 @@ impl PySystemSimulator {
                     attachment_rotation: *a,
                 })
                 .collect();
-            let (position, rotation, force, moment, mass, com_offset, gravity) = platform;
-            let pf = Platform {
-                position,
-                rotation,
-                force,
-                moment,
-                mass,
-                com_offset,
-                gravity,
-            };
+            let pf = platform_of(platform);
             let sim = py
                 .detach(|| SystemSimulator::new(rods, pf, inertia, opts))
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
