@@ -111,6 +111,69 @@ def test_save_restore_and_copy_continue_bit_for_bit(system):
         other.restore(np.asarray(saved.data))
 
 
+def _walled(system):
+    """The bundled system with a wall that its left actuator, pressurised at 40 kPa, would
+    cross by 4 mm (as tests/test_end_constraints.py's statics): penalty 1e6 N/m^2,
+    tolerance 0.5 mm."""
+    p = [[40e3, 0.0, 0.0], [0.0, 0.0, 0.0]]
+    reach = softrod.solve_system(system, p).rods[0].position[:, 1].max()
+    radius = system.rods[0].design.spec["sections"][0]["outer_radius"]
+    wall = {
+        "kind": "plane",
+        "point": ["0 mm", f"{(reach + radius) * 1e3 - 4.0} mm", "0 mm"],
+        "normal": [0, -1, 0],
+        "stiffness": "1e6 N/m^2",
+        "tolerance": "0.5 mm",
+    }
+    left = dataclasses.replace(
+        system.rods[0], design=system.rods[0].design.replace({"obstacles": [wall]})
+    )
+    return dataclasses.replace(system, rods=(left, system.rods[1]))
+
+
+def test_a_rod_pressed_on_a_wall_moves_with_its_contact(system, tmp_path):
+    """A rod's obstacles act in the system's motion (docs/dynamics.md "Systems of rods"; the
+    physics against the free rod by a wall: Rust's dynamics_system.rs). The run starts on the
+    walled equilibrium, a pressure step presses the rod harder on the wall, the books
+    balance with the penalty's potential, and the trajectory reports, files and tables
+    the left rod's contact (the right rod has no obstacles: None)."""
+    walled = _walled(system)
+    p40 = [[40e3, 0.0, 0.0], [0.0, 0.0, 0.0]]
+    rest = softrod.solve_system(walled, p40)
+    sim = softrod.SystemSimulation(walled, p40, dt="2 ms", alpha=-0.5)
+    start = sim.state()
+    # Shooting and collocation equilibria agree to the grids' O(h^4) (as the test above).
+    assert np.abs(start.platform_position[0] - rest.platform_position).max() < 1e-6
+    assert start.contact_force[1] is None and start.penetration[1] is None
+    f0 = start.contact_force[0][0]
+    assert f0[1] < 0  # the wall pushes back towards -y
+    assert f0 == pytest.approx(rest.rods[0].contact.total, rel=1e-4, abs=1e-6)
+    traj = sim.run([[55e3, 0.0, 0.0], [0.0, 0.0, 0.0]], "40 ms")
+    force, depth = traj.contact_force[0], traj.penetration[0]
+    assert force.shape == (20, 3) and depth.shape == (20,)
+    # Pressed harder: the wall pushes back harder; the surface stays within the tolerance
+    # (every step checks it).
+    assert force[-1, 1] < f0[1] - 1e-3
+    assert depth.max() <= 0.5e-3
+    # Undamped, trapezoidal rule: the books (the penalty's potential in `potential`)
+    # balance to the scheme's second-order error, as the free run above (1e-3 of the
+    # energy moved).
+    moved = traj.kinetic.max() + traj.work_in.max()
+    assert np.abs(traj.energy_balance).max() <= 1e-3 * moved
+    frame = traj.to_frame()
+    assert {"rod0_contact_fy_N", "rod0_penetration_mm"} <= set(frame.columns)
+    assert not any(c.startswith("rod1_contact") for c in frame.columns)
+    assert np.array_equal(frame["rod0_contact_fy_N"].to_numpy(), force[:, 1])
+    whole = softrod.SystemTrajectory.concat([start, traj])
+    back = softrod.SystemTrajectory.load(whole.save(tmp_path / "walled.npz"), walled)
+    assert np.array_equal(back.contact_force[0], whole.contact_force[0])
+    assert np.array_equal(back.penetration[0], whole.penetration[0])
+    assert back.contact_force[1] is None
+    # The file of the walled system is not one of the system without the wall.
+    with pytest.raises(InputError):
+        softrod.SystemTrajectory.load(tmp_path / "walled.npz", system)
+
+
 @pytest.mark.parametrize(
     ("kwargs", "field"),
     [

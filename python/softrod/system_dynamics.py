@@ -84,7 +84,10 @@ class SystemTrajectory:
     ``work_in`` (the inputs' work since t = 0), ``dissipated`` and ``energy_balance``
     (E - E(0) - W_in + D, zero for the exact motion); per rod its commanded ``pressures``
     (n, channels) Pa and ``tensions`` (n, tendon channels) N, those of the step that ended
-    at the sample (at t = 0: the start's).
+    at the sample (at t = 0: the start's); per rod with obstacles (None for a rod without)
+    ``contact_force`` (n, 3) N, the obstacles' total force on the rod (world frame), and
+    ``penetration`` (n,) m, its surface's deepest penetration (<= 0: no contact;
+    docs/contact.md).
 
     Tables and files: :meth:`to_frame`, :meth:`save` (``.npz`` exact and read back by
     :meth:`load`; ``.csv``/``.parquet`` the table), :meth:`plot`."""
@@ -107,6 +110,8 @@ class SystemTrajectory:
     energy_balance: np.ndarray
     pressures: tuple[np.ndarray, ...] = ()
     tensions: tuple[np.ndarray, ...] = ()
+    contact_force: tuple[np.ndarray | None, ...] = ()
+    penetration: tuple[np.ndarray | None, ...] = ()
 
     @staticmethod
     def _concat(system: System, parts: list[dict]) -> SystemTrajectory:
@@ -129,6 +134,9 @@ class SystemTrajectory:
         shapes = tuple(a.reshape(k, -1, 3) for a in per_rod("shapes", [-1] * n_rods))
         pressures = per_rod("pressures", [d.n_channels for d in designs])
         tensions = per_rod("tensions", [d.n_tendons for d in designs])
+        touching = [_has_obstacles(d) for d in designs]
+        force = per_rod("contact_force", [3 if t else 0 for t in touching])
+        depth = per_rod("penetration", [1 if t else 0 for t in touching])
         return SystemTrajectory(
             system=system,
             time=time,
@@ -148,6 +156,8 @@ class SystemTrajectory:
             energy_balance=energy[:, 5],
             pressures=pressures,
             tensions=tensions,
+            contact_force=tuple(f if t else None for f, t in zip(force, touching, strict=True)),
+            penetration=tuple(d[:, 0] if t else None for d, t in zip(depth, touching, strict=True)),
         )
 
     @staticmethod
@@ -181,7 +191,9 @@ class SystemTrajectory:
 
         def per_rod(name):
             return tuple(
-                np.concatenate([getattr(p, name)[i] for p in parts])
+                None
+                if getattr(first, name)[i] is None
+                else np.concatenate([getattr(p, name)[i] for p in parts])
                 for i in range(len(first.system.rods))
             )
 
@@ -191,6 +203,8 @@ class SystemTrajectory:
             shapes=per_rod("shapes"),
             pressures=per_rod("pressures"),
             tensions=per_rod("tensions"),
+            contact_force=per_rod("contact_force"),
+            penetration=per_rod("penetration"),
         )
 
     # --- tables, files and figures -----------------------------------------------------------
@@ -208,8 +222,10 @@ class SystemTrajectory:
         ``rod<i>_tip_reaction_fx_N`` ...); the platform's velocity ``platform_vx_mm/s`` ...
         and angular velocity ``platform_wx_rad/s`` ... (world frame); the energies
         ``kinetic_J``, ``elastic_J``, ``potential_J``, ``work_in_J``, ``dissipated_J``,
-        ``energy_balance_J``. The metadata block (``frame.attrs["softrod.metadata"]``)
-        names the system and the softrod version."""
+        ``energy_balance_J``; per rod with obstacles its contact force
+        ``rod<i>_contact_fx_N`` ... and penetration ``rod<i>_penetration_mm``. The metadata
+        block (``frame.attrs["softrod.metadata"]``) names the system and the softrod
+        version."""
         import pandas as pd
 
         from . import __version__
@@ -228,6 +244,12 @@ class SystemTrajectory:
             cols[f"platform_w{a}_rad/s"] = self.platform_angular_velocity[:, k]
         for name in ENERGY_NAMES:
             cols[f"{name}_{chosen['energy']}"] = getattr(self, name) / factor["energy"]
+        for i, (f, d) in enumerate(zip(self.contact_force, self.penetration, strict=True)):
+            if f is None:
+                continue
+            for k, a in enumerate("xyz"):
+                cols[f"rod{i}_contact_f{a}_{chosen['force']}"] = f[:, k] / factor["force"]
+            cols[f"rod{i}_penetration_{chosen['length']}"] = d / factor["length"]
         frame = pd.DataFrame(cols)
         frame.attrs["softrod.metadata"] = {
             "system": self.system.name,
@@ -250,6 +272,9 @@ class SystemTrajectory:
             arrays[f"shapes_{i}"] = self.shapes[i]
             arrays[f"pressures_{i}"] = self.pressures[i]
             arrays[f"tensions_{i}"] = self.tensions[i]
+            if self.contact_force[i] is not None:
+                arrays[f"contact_force_{i}"] = self.contact_force[i]
+                arrays[f"penetration_{i}"] = self.penetration[i]
         with atomic_path(path) as tmp, open(tmp, "wb") as fh:  # numpy would append ".npz"
             np.savez_compressed(
                 fh,
@@ -285,7 +310,14 @@ class SystemTrajectory:
                 "path", str(path), f"is not a readable .npz file: {exc}", InputError
             ) from None
         n = len(system.rods)
+        touching = [_has_obstacles(r.design) for r in system.rods]
         per_rod = [f"{key}_{i}" for i in range(n) for key in ("shapes", "pressures", "tensions")]
+        per_rod += [
+            f"{key}_{i}"
+            for i in range(n)
+            if touching[i]
+            for key in ("contact_force", "penetration")
+        ]
         with data:
             try:
                 fmt = str(data["format"]) if "format" in data.files else None
@@ -336,6 +368,9 @@ class SystemTrajectory:
         for i, r in enumerate(system.rods):
             expected[f"pressures_{i}"] = (k, r.design.n_channels)
             expected[f"tensions_{i}"] = (k, r.design.n_tendons)
+            if touching[i]:
+                expected[f"contact_force_{i}"] = (k, 3)
+                expected[f"penetration_{i}"] = (k,)
         for key, shape in expected.items():
             if k < 1 or values[key].shape != shape:
                 raise V.fail(
@@ -351,6 +386,12 @@ class SystemTrajectory:
             shapes=tuple(values[f"shapes_{i}"] for i in range(n)),
             pressures=tuple(values[f"pressures_{i}"] for i in range(n)),
             tensions=tuple(values[f"tensions_{i}"] for i in range(n)),
+            contact_force=tuple(
+                values[f"contact_force_{i}"] if touching[i] else None for i in range(n)
+            ),
+            penetration=tuple(
+                values[f"penetration_{i}"] if touching[i] else None for i in range(n)
+            ),
         )
 
     def plot(
@@ -422,6 +463,11 @@ def _per_rod(system: System, value, name: str, convert) -> list[list[float]]:
     return [convert(r.design, v) for r, v in zip(system.rods, value, strict=True)]
 
 
+def _has_obstacles(design) -> bool:
+    """Whether a rod's design has obstacles (its motion then reports its contact)."""
+    return bool(design.spec.get("obstacles"))
+
+
 def _rod_pressures(design, p) -> list[float]:
     return [0.0] * design.n_channels if p is None else _pressures(design, p)
 
@@ -438,9 +484,10 @@ class SystemSimulation:
     unless given, so that a platform with mass is a point mass at its centre of mass).
     ``dt``, ``alpha``, ``tol``, ``max_iter``, ``error_tol``, ``energy_tol`` as for
     :class:`~softrod.Simulation`; the scheme is BDF-alpha (the midpoint rule is refused: it
-    does not carry held tips). Refused by name before any work: obstacles, follower tip
-    loads on a rod, inputs that do not match a rod, a rod design with its own ``[tip]
-    constraint``.
+    does not carry held tips). A rod's obstacles act on it as on a free rod in motion
+    (docs/contact.md); the trajectory reports each such rod's contact. Refused by name
+    before any work: follower tip loads on a rod, inputs that do not match a rod, a rod
+    design with its own ``[tip] constraint``.
     """
 
     def __init__(

@@ -43,6 +43,10 @@ struct Samples {
     /// after sample (the inputs of the step that ended at the sample).
     pressures: Vec<Vec<f64>>,
     tensions: Vec<Vec<f64>>,
+    /// Per rod with obstacles: the total contact force on it (N, world) and its deepest
+    /// penetration (m, <= 0: none), sample after sample (empty for a rod without).
+    contact_force: Vec<Vec<f64>>,
+    penetration: Vec<Vec<f64>>,
     /// kinetic, elastic, potential, work in, dissipated, balance (J) per sample.
     energy: Vec<f64>,
 }
@@ -57,7 +61,13 @@ impl Samples {
         self.platform_velocity.extend_from_slice(&v);
         self.platform_angular_velocity.extend_from_slice(&w);
         let n = sim.rods().len();
-        for list in [&mut self.shapes, &mut self.pressures, &mut self.tensions] {
+        for list in [
+            &mut self.shapes,
+            &mut self.pressures,
+            &mut self.tensions,
+            &mut self.contact_force,
+            &mut self.penetration,
+        ] {
             list.resize(n, vec![]);
         }
         for (k, rod) in sim.rods().iter().enumerate() {
@@ -68,6 +78,10 @@ impl Samples {
             self.shapes[k].extend(rod.shape().iter().flatten());
             self.pressures[k].extend_from_slice(rod.pressures());
             self.tensions[k].extend_from_slice(rod.tensions());
+            if let Some(c) = rod.contact_state() {
+                self.contact_force[k].extend_from_slice(&c.force);
+                self.penetration[k].push(c.max_penetration);
+            }
         }
         let e = sim.energy_books();
         self.energy.extend_from_slice(&[
@@ -93,6 +107,8 @@ impl Samples {
         d.set_item("shapes", self.shapes)?;
         d.set_item("pressures", self.pressures)?;
         d.set_item("tensions", self.tensions)?;
+        d.set_item("contact_force", self.contact_force)?;
+        d.set_item("penetration", self.penetration)?;
         d.set_item("energy", self.energy)?;
         Ok(d)
     }

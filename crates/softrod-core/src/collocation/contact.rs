@@ -245,6 +245,43 @@ impl Problem<'_> {
         self.free_tip_with(c, y, r, self.hist.last().expect("tip slot"))
     }
 
+    /// Exact derivatives of the free tip's scaled balance ([`Problem::tip_reaction`]'s,
+    /// the rounded end's contact included) with respect to the tip node's 16 scaled
+    /// unknowns and to its 3 scaled position unknowns (zero where the positions are not
+    /// unknowns: then no contact term reads them).
+    pub fn reaction_jacobian(
+        &self,
+        z: &[f64],
+    ) -> (nalgebra::SMatrix<f64, 6, NY>, nalgebra::SMatrix<f64, 6, 3>) {
+        const NJ: usize = NY + 3;
+        let n = self.grid.len();
+        let yn = self.node(z, n);
+        // Seeded with the scales: derivatives with respect to the scaled unknowns.
+        let seed = |re: f64, i: usize, scale: f64| {
+            let mut eps = [0.0; NJ];
+            eps[i] = scale;
+            Jet { re, eps }
+        };
+        let y: [Jet<NJ>; NY] = std::array::from_fn(|k| seed(yn[k], k, self.scale[k]));
+        let rn = if self.has_positions() {
+            self.position(z, n)
+        } else {
+            [0.0; 3]
+        };
+        let r: [Jet<NJ>; 3] = std::array::from_fn(|k| seed(rn[k], NY + k, self.rod.length));
+        let t = self.free_tip(self.contact.as_ref(), &y, &r);
+        (
+            nalgebra::SMatrix::from_fn(|i, c| t[i].eps[c]),
+            nalgebra::SMatrix::from_fn(|i, c| t[i].eps[NY + c]),
+        )
+    }
+
+    /// Offset in the unknowns of the tip's 3 scaled position unknowns (a problem whose
+    /// node positions are unknowns, [`Problem::has_positions`]).
+    pub fn tip_position_offset(&self) -> usize {
+        self.position_index(self.grid.len())
+    }
+
     /// [`Problem::free_tip`] with the tip node's history terms `th` in any scalar.
     fn free_tip_with<C: Coeff, D: StateScalar<C>>(
         &self,

@@ -47,7 +47,7 @@ use crate::rod::Rod;
 use crate::statics::constraint::{matmul, orientation_error, tmatmul, TipConstraint};
 use crate::statics::system::{self as statics_system, solve_system, Platform, SystemRod};
 use crate::statics::SolverOptions;
-use nalgebra::{Matrix6, Vector6};
+use nalgebra::{Matrix6, Vector3, Vector6};
 
 /// One rod of a simulated system: the rod, its inputs at t = 0 and where its tip holds the
 /// platform (offset and rotation of its tip frame in the platform frame, as
@@ -594,15 +594,13 @@ impl Coupled<'_> {
                 fac.solve(&col, &mut y, &mut scratch);
                 ys.push(y);
             }
-            // C_i = dG/d(reaction_i) d(reaction_i)/d(tip node), the reaction being the
-            // scaled free balance times (F_s, M_s).
-            let tj = p.tip_jacobian(z);
-            let dr = nalgebra::SMatrix::<f64, 6, NY>::from_fn(|r, c| {
-                tj[(r, c)] * if r < 3 { p.fs } else { p.ms }
-            });
-            let ci = dg[i] * dr;
+            // C_i = dG/d(reaction_i) d(reaction_i)/d(tip node, tip position), the reaction
+            // being the scaled free balance (the rounded end's contact included) times
+            // (F_s, M_s).
+            let (ci, cr) = reaction_blocks(p, z, &dg[i]);
+            let pos0 = p.tip_position_offset();
             for (c, y) in ys.iter().enumerate() {
-                let cy = ci * tip_of(y, col0);
+                let cy = ci * tip_of(y, col0) + cr * position_of(y, pos0);
                 for r in 0..6 {
                     s[(r, c)] += cy[r];
                 }
@@ -611,7 +609,9 @@ impl Coupled<'_> {
                 fac,
                 ys,
                 ci,
+                cr,
                 col0,
+                pos0,
                 scratch,
             });
         }
@@ -630,13 +630,35 @@ fn tip_of(v: &[f64], col0: usize) -> nalgebra::SVector<f64, NY> {
     nalgebra::SVector::<f64, NY>::from_column_slice(&v[col0..col0 + NY])
 }
 
+/// A rod's tip position's 3 scaled unknowns in a vector of its unknowns.
+fn position_of(v: &[f64], pos0: usize) -> Vector3<f64> {
+    Vector3::from_column_slice(&v[pos0..pos0 + 3])
+}
+
+/// The platform rows' derivatives through rod `p`'s tip reaction: with respect to its tip
+/// node's scaled unknowns and to its tip position's (the rounded end's contact reads it),
+/// from `dg`, the rows' derivatives with respect to the reaction (force, moment).
+fn reaction_blocks(
+    p: &Problem,
+    z: &[f64],
+    dg: &Matrix6<f64>,
+) -> (nalgebra::SMatrix<f64, 6, NY>, nalgebra::SMatrix<f64, 6, 3>) {
+    let (ty, tr) = p.reaction_jacobian(z);
+    let unscale = |r: usize| if r < 3 { p.fs } else { p.ms };
+    let dy = nalgebra::SMatrix::<f64, 6, NY>::from_fn(|r, c| ty[(r, c)] * unscale(r));
+    let dr = nalgebra::SMatrix::<f64, 6, 3>::from_fn(|r, c| tr[(r, c)] * unscale(r));
+    (dg * dy, dg * dr)
+}
+
 /// One rod's part of the bordered Newton matrix.
 #[derive(Debug, Clone)]
 struct RodBlock {
     fac: collocation::Factorization,
     ys: Vec<Vec<f64>>,
     ci: nalgebra::SMatrix<f64, 6, NY>,
+    cr: nalgebra::SMatrix<f64, 6, 3>,
     col0: usize,
+    pos0: usize,
     scratch: Vec<f64>,
 }
 
@@ -685,7 +707,7 @@ impl Bordered {
             let mut w = vec![0.0; r.len()];
             let mut scratch = b.scratch.clone();
             b.fac.solve(r, &mut w, &mut scratch);
-            rhs -= b.ci * tip_of(&w, b.col0);
+            rhs -= b.ci * tip_of(&w, b.col0) + b.cr * position_of(&w, b.pos0);
             ws.push(w);
         }
         let dxi = self.schur.solve(&rhs)?;
@@ -819,11 +841,6 @@ impl SystemSimulator {
             r.rod
                 .check_tensions(&r.tensions)
                 .map_err(|e| rename_field(e, "tensions", &format!("{name}tensions")))?;
-            // A rod's obstacles are carried by the statics of a system, not by its motion
-            // yet: a one-rod system pressed on a wall moved centimetres away from the
-            // free rod with the same wall (refused rather than trusted).
-            crate::scope::refuse_obstacles(&r.rod, &format!("rods[{i}] of a system in motion"))
-                .map_err(|e| rename_field(e, "obstacles", &format!("{name}obstacles")))?;
             if r.rod.spec.tip.frame == crate::spec::Frame::Body {
                 return Err(SoftrodError::invalid(
                     format!("{name}tip.frame"),
@@ -912,6 +929,7 @@ impl SystemSimulator {
                 .zip(&models)
                 .zip(&hist0)
                 .map(|((s, m), h)| {
+                    // With the rod's obstacles, as its step and `rest_at` carry them.
                     Problem::new(
                         &s.rod,
                         &s.grid,
@@ -920,6 +938,7 @@ impl SystemSimulator {
                         h,
                         s.tip_body(s.tip_force, s.tip_moment),
                     )
+                    .with_contact()
                     .with_end(super::end_target(&s.end))
                 })
                 .collect();
@@ -1422,14 +1441,14 @@ impl SystemSimulator {
                     jac[o + p.tip_rows() + r][dim - 6 + k] = v * col_scale(k);
                 }
             }
-            let tj = p.tip_jacobian(z);
-            let t0 = p.tip_offset();
+            let (ci, cr) = reaction_blocks(p, z, &dg[i]);
+            let (t0, p0) = (p.tip_offset(), p.tip_position_offset());
             for r in 0..6 {
                 for k in 0..NY {
-                    let v: f64 = (0..6)
-                        .map(|q| dg[i][(r, q)] * tj[(q, k)] * if q < 3 { p.fs } else { p.ms })
-                        .sum();
-                    jac[dim - 6 + r][o + t0 + k] = v / scales[i][t0 + k];
+                    jac[dim - 6 + r][o + t0 + k] = ci[(r, k)] / scales[i][t0 + k];
+                }
+                for k in 0..3 {
+                    jac[dim - 6 + r][o + p0 + k] = cr[(r, k)] / scales[i][p0 + k];
                 }
             }
             o += n;
