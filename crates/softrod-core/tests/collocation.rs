@@ -452,3 +452,46 @@ fn collocation_stability_changes_at_the_critical_pressure() {
         assert_eq!(shot.stable, Some(want), "shooting at {ratio} p_c");
     }
 }
+
+/// `Factorization::solve2` (the dynamic sensitivities' two right sides, each block's
+/// matrices read once for both) gives the numbers of two `solve`s, bit for bit.
+#[test]
+fn two_right_sides_solve_as_two_solves() {
+    use softrod_core::collocation::{Grid, Problem};
+    use softrod_core::statics::collocation::static_models;
+    let rod = pam_arm(16);
+    let ld = loads(&[150e3, 0.0, 60e3]);
+    let sol = solve_static(&rod, &ld, None, &SolverOptions::default()).unwrap();
+    let grid = Grid::new(&rod);
+    let models = static_models(&rod, &grid, &ld, 1.0);
+    let hist = vec![[0.0; softrod_core::collocation::NF]; 2 * grid.len() + 1];
+    let tip = softrod_core::collocation::TipBody {
+        mass: rod.spec.tip.mass,
+        com: rod.spec.tip.com_offset,
+        inertia: [0.0; 3],
+        force: ld.tip_force,
+        moment: ld.tip_moment,
+        force_body: [0.0; 3],
+        moment_body: [0.0; 3],
+    };
+    let p = Problem::new(&rod, &grid, &models, 0.0, &hist, tip);
+    let fac = p.factorize(&sol.z).unwrap();
+    let n = sol.z.len();
+    let r: Vec<f64> = (0..2 * n)
+        .map(|k| ((k * 7919) % 1013) as f64 / 1013.0 - 0.5)
+        .collect();
+    let mut both = vec![0.0; 2 * n];
+    let mut scratch = vec![0.0; 2 * fac.scratch_len()];
+    fac.solve2(&r, &mut both, &mut scratch);
+    for c in 0..2 {
+        let mut one = vec![0.0; n];
+        fac.solve(&r[c * n..(c + 1) * n], &mut one, &mut scratch);
+        for (i, x) in one.iter().enumerate() {
+            assert_eq!(
+                x.to_bits(),
+                both[c * n + i].to_bits(),
+                "side {c}, unknown {i}"
+            );
+        }
+    }
+}
