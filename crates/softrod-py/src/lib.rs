@@ -498,10 +498,9 @@ impl PyRod {
                 })
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
             let d = rows_dict(py, &rows)?;
-            let np = params.len();
+            let (np, m) = (params.len(), rows.len());
             if held != TipConstraint::Free {
                 ends::reactions(py, &d, &rows)?;
-                let m = rows.len();
                 let (mut df, mut dmo) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 3 * np]);
                 for (r, row) in rows.iter().enumerate() {
                     let Some(sens) = &row.sensitivity else {
@@ -524,7 +523,6 @@ impl PyRod {
                 )?;
             }
             let nk = markers.len();
-            let m = rows.len();
             let (mut dp, mut dr) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 9 * np]);
             let mut mp = vec![f64::NAN; m * nk * 3];
             let mut dm = vec![f64::NAN; m * nk * 3 * np];

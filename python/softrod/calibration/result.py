@@ -201,12 +201,12 @@ class CalibrationResult:
         other columns), then ``set`` (train or test), ``converged``, the calibrated model's
         tip ``model_tip_x_mm`` ... and markers ``model_marker0_x_mm`` ... (empty where its
         solve failed) and ``error_mm`` (Euclidean distance measured - model tip, or the
-        mean over the seen markers without a tip; none without either), and with a measured
-        reaction the model's ``model_tip_reaction_fx_N`` ... (``_mx_Nmm`` ...) and
-        ``reaction_error_N`` (Euclidean norm over the measured force components). The
-        metadata block names the calibrated
-        and the initial design, the dataset, the fitted values with standard errors and the
-        softrod version; ``load_dataset`` reads the table back."""
+        mean over the seen markers without a tip; none without either); with a measured
+        reaction force the model's ``model_tip_reaction_fx_N`` ... and ``reaction_error_N``
+        (Euclidean over the measured components), with a measured moment
+        ``model_tip_reaction_mx_Nmm`` .... The metadata block names the calibrated and the
+        initial design, the dataset, the fitted values with standard errors and the softrod
+        version; ``load_dataset`` reads the table back."""
         from ..schema import Extra, schema_frame
 
         ds = self.dataset
