@@ -409,6 +409,10 @@ def target_dataset_frame(payload) -> str:
 
     if not (np.all(np.isfinite(ds.pressures)) and np.all(np.isfinite(ds.tip_position))):
         return "a dataset with non-finite values was accepted"
+    # A reaction component may be NaN (not measured), never infinite.
+    for reaction in (ds.tip_reaction_force, ds.tip_reaction_moment):
+        if reaction is not None and np.isinf(reaction).any():
+            return "a dataset with an infinite reaction was accepted"
     return ""
 
 

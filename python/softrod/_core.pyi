@@ -94,7 +94,12 @@ class Rod:
         tip_kind: str = "free",
         tip_position: _Vec3 | None = None,
         tip_rotation: Sequence[Sequence[float]] | None = None,
-    ) -> dict[str, Any]: ...
+    ) -> dict[str, Any]:
+        """solve_batch's keys plus "x", "d_tip_position" (m, 3, P), "d_tip_rotation"
+        (m, 3, 3, P), "marker_position" (m, K, 3) and "d_marker_position" (m, K, 3, P); with
+        a held tip (tip_kind "pinned" or "clamped") also "tip_reaction_force",
+        "tip_reaction_moment" (m, 3) and their derivatives "d_tip_reaction_force",
+        "d_tip_reaction_moment" (m, 3, P). NaN on failed rows."""
 
 def _panic_inside_guard() -> None:
     """Panics inside the binding's guard (tests: a panic becomes softrod.InternalError)."""

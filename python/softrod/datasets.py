@@ -18,8 +18,15 @@ names; kind; required or not):
   in a row leaves its three cells empty. Where each marker sits is given once, in the
   metadata block: ``{"markers": {"marker0": {"s": "55 mm", "offset": ["12 mm", "0 mm"]}}}``
   (reference arc length s from the base and an offset in the cross-section frame (d1, d2)
-  or (d1, d2, d3)). A dataset needs the tip columns, markers, or both.
+  or (d1, d2, d3)).
+- ``tip_reaction_fx``, ``tip_reaction_fy``, ``tip_reaction_fz`` (force) and
+  ``tip_reaction_mx``, ``tip_reaction_my``, ``tip_reaction_mz`` (moment), optional groups:
+  the measured wrench a held tip's constraint applies to the tip, world frame (the blocked
+  force; the names and convention of a held tip's sweep table, ``tip_reaction_fx_N`` ...).
+  A component not measured in a row (a one-axis load cell) leaves its cell empty.
 - ``experiment`` (integer or string id), ``mounting`` (string), ``time`` (time): optional.
+
+A dataset needs the tip columns, markers, the reaction, or a combination.
 
 Every column of a kind with a dimension carries its unit, either in its name
 (``<base>_<unit>``: ``p0_kPa``, ``tip_x_mm``, ``base_mx_Nmm``, ``time_s``) or in a metadata
@@ -89,7 +96,7 @@ _ROTATION_TOLERANCE = 1e-6
 
 _NAME = re.compile(
     r"^(?P<base>p(?:0|[1-9][0-9]*)|t(?:0|[1-9][0-9]*)|tip_[xyz]|tip_q[wxyz]|base_[fm][xyz]|experiment|mounting|time"
-    r"|marker(?:0|[1-9][0-9]*)_[xyz])"
+    r"|marker(?:0|[1-9][0-9]*)_[xyz]|tip_reaction_[fm][xyz])"
     r"(?:_(?P<unit>.*))?$"
 )
 _MARKER = re.compile(r"^marker(0|[1-9][0-9]*)_([xyz])$")
@@ -101,11 +108,13 @@ _TIP = tuple(f"tip_{a}" for a in _XYZ)
 _QUAT = ("tip_qw", "tip_qx", "tip_qy", "tip_qz")
 _FORCE = tuple(f"base_f{a}" for a in _XYZ)
 _MOMENT = tuple(f"base_m{a}" for a in _XYZ)
+_REACTION_FORCE = tuple(f"tip_reaction_f{a}" for a in _XYZ)
+_REACTION_MOMENT = tuple(f"tip_reaction_m{a}" for a in _XYZ)
 _LABELS = ("experiment", "mounting")
 _KNOWN = (
     "p0, p1, ... (channels), t0, t1, ... (tendon tensions), tip_x/y/z, tip_qw/qx/qy/qz, "
-    "base_fx/fy/fz, base_mx/my/mz, marker0_x/y/z, marker1_x/y/z, ..., experiment, mounting, "
-    "time"
+    "base_fx/fy/fz, base_mx/my/mz, marker0_x/y/z, marker1_x/y/z, ..., "
+    "tip_reaction_fx/fy/fz, tip_reaction_mx/my/mz, experiment, mounting, time"
 )
 _MAX_LISTED = 10  # rows named in one error message before "and N more"
 
@@ -120,9 +129,9 @@ def _kind(base: str) -> str | None:
         return "force"
     if base in _TIP or _MARKER.match(base):
         return "length"
-    if base in _FORCE:
+    if base in _FORCE or base in _REACTION_FORCE:
         return "force"
-    if base in _MOMENT:
+    if base in _MOMENT or base in _REACTION_MOMENT:
         return "moment"
     if base == "time":
         return "time"
@@ -172,6 +181,18 @@ def _json_block(body: str, key: str, where: str) -> dict:
 # --- the dataset -------------------------------------------------------------------------------
 
 
+def _real_or_nan(raw, field: str, what: str) -> np.ndarray:
+    """A float array of real numbers where NaN marks a value not measured (a marker not seen,
+    a reaction component not measured); any other bad entry is refused as
+    :func:`V.real_array` refuses it."""
+    if isinstance(raw, np.ndarray) and raw.dtype.kind == "f":
+        unmeasured = np.isnan(raw)
+        a = V.real_array(np.where(unmeasured, 0.0, raw), field, what=what)
+        a[unmeasured] = np.nan
+        return a
+    return V.real_array(raw, field, what=what)
+
+
 def _readonly(a: np.ndarray | None) -> np.ndarray | None:
     if a is not None:
         a.setflags(write=False)
@@ -200,6 +221,10 @@ class Dataset:
     seen, or None. marker_s: (K,) where each marker sits, reference arc length from the
     base (m); marker_offset: (K, 3) its offset in the cross-section frame (d1, d2, d3) at
     s, m ((K, 2) is read as (d1, d2)).
+    tip_reaction_force, tip_reaction_moment: (m, 3) the measured wrench a held tip's
+    constraint applies to the tip (N, N m; world frame, the blocked force), NaN where a
+    component was not measured, or None.
+    A dataset needs tip positions, markers, a reaction, or a combination.
 
     Arrays are read-only. Use :func:`load_dataset` to read a file, :meth:`to_frame` and
     :func:`write_dataset` to write one.
@@ -221,6 +246,8 @@ class Dataset:
     markers: np.ndarray | None = None
     marker_s: np.ndarray | None = None
     marker_offset: np.ndarray | None = None
+    tip_reaction_force: np.ndarray | None = None
+    tip_reaction_moment: np.ndarray | None = None
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -259,9 +286,12 @@ class Dataset:
         for name, shape in shapes.items():
             value = getattr(self, name)
             if value is None:
-                if name == "tip_position" and self.markers is None:
+                if name == "tip_position" and self.markers is None and not self._reactions:
                     raise _fail(
-                        name, None, "is required (an (m, 3) array in m) unless markers are given"
+                        name,
+                        None,
+                        "is required (an (m, 3) array in m) unless markers or a tip reaction "
+                        "(tip_reaction_force, tip_reaction_moment) are given",
                     )
                 continue
             a = V.real_array(value, name)
@@ -273,6 +303,7 @@ class Dataset:
             if a is not None and not np.isfinite(a).all():
                 bad = np.flatnonzero(~np.isfinite(a.reshape(m, -1)).all(axis=1))
                 raise _fail(name, "non-finite", f"must be finite (rows {_runs(bad)})")
+        self._check_reactions(m)
         self._check_markers(m)
         if self.tip_rotation is not None and m:
             r = self.tip_rotation
@@ -317,13 +348,7 @@ class Dataset:
                 if getattr(self, name) is not None:
                     raise _fail(name, "given", "needs markers (the measured marker positions)")
             return
-        raw = self.markers
-        if isinstance(raw, np.ndarray) and raw.dtype.kind == "f":
-            unseen = np.isnan(raw)
-            a = V.real_array(np.where(unseen, 0.0, raw), "markers", what="marker positions (m)")
-            a[unseen] = np.nan
-        else:
-            a = V.real_array(raw, "markers", what="marker positions (m)")
+        a = _real_or_nan(self.markers, "markers", "marker positions (m)")
         if a.ndim != 3 or a.shape[0] != m or a.shape[2] != 3 or not 1 <= a.shape[1] <= MAX_MARKERS:
             raise _fail(
                 "markers",
@@ -344,12 +369,16 @@ class Dataset:
                 "a marker is seen (x, y, z all given) or not (all three NaN)",
             )
         if self.tip_position is None:
-            empty = np.flatnonzero(~seen.all(axis=2).any(axis=1))
-            if empty.size:
+            empty = ~seen.all(axis=2).any(axis=1)
+            for r in (self.tip_reaction_force, self.tip_reaction_moment):
+                if r is not None:
+                    empty &= ~np.isfinite(r).any(axis=1)
+            if empty.any():
                 raise _fail(
                     "markers",
-                    f"no marker seen in rows {_runs(empty)}",
-                    "without tip columns every row needs at least one seen marker",
+                    f"no marker seen in rows {_runs(np.flatnonzero(empty))}",
+                    "without tip columns every row needs at least one seen marker (or a "
+                    "measured reaction component)",
                 )
         if self.marker_s is None or self.marker_offset is None:
             missing = "marker_s" if self.marker_s is None else "marker_offset"
@@ -376,6 +405,38 @@ class Dataset:
         set_(self, "marker_s", _readonly(s))
         set_(self, "marker_offset", _readonly(np.ascontiguousarray(o)))
 
+    @property
+    def _reactions(self) -> bool:
+        return self.tip_reaction_force is not None or self.tip_reaction_moment is not None
+
+    def _check_reactions(self, m: int) -> None:
+        """Each reaction (m, 3), finite numbers or NaN (a component not measured); without
+        tip columns and markers every row needs a measured component."""
+        for name, unit in (("tip_reaction_force", "N"), ("tip_reaction_moment", "N m")):
+            if getattr(self, name) is None:
+                continue
+            a = _real_or_nan(getattr(self, name), name, f"reaction components ({unit})")
+            if a.shape != (m, 3):
+                raise _fail(
+                    name,
+                    f"shape {a.shape}",
+                    f"must be an (m, 3) array in {unit} (m = {m} rows), NaN where a component "
+                    "was not measured",
+                )
+            object.__setattr__(self, name, _readonly(a))
+        if self._reactions and self.tip_position is None and self.markers is None:
+            measured = np.zeros(m, dtype=bool)
+            for r in (self.tip_reaction_force, self.tip_reaction_moment):
+                if r is not None:
+                    measured |= np.isfinite(r).any(axis=1)
+            if not measured.all():
+                force = self.tip_reaction_force is not None
+                raise _fail(
+                    "tip_reaction_force" if force else "tip_reaction_moment",
+                    f"nothing measured in rows {_runs(np.flatnonzero(~measured))}",
+                    "without tip columns and markers every row needs a measured reaction component",
+                )
+
     def require_tip(self, what: str) -> np.ndarray:
         """The tip positions, or an InputError saying that ``what`` needs them."""
         if self.tip_position is None:
@@ -383,7 +444,7 @@ class Dataset:
                 "tip_position",
                 None,
                 f"{what} needs the tip position (tip_x, tip_y, tip_z); this dataset has "
-                "markers only",
+                "none (markers or a tip reaction only)",
             )
         return self.tip_position
 
@@ -413,7 +474,14 @@ class Dataset:
             parts.append(f"experiments {list(self.experiments)}")
         optional = [
             n
-            for n in ("tip_rotation", "base_force", "base_moment", "time")
+            for n in (
+                "tip_rotation",
+                "base_force",
+                "base_moment",
+                "time",
+                "tip_reaction_force",
+                "tip_reaction_moment",
+            )
             if getattr(self, n) is not None
         ]
         if self.markers is not None:
@@ -506,6 +574,8 @@ class Dataset:
             markers=take(self.markers),
             marker_s=self.marker_s,
             marker_offset=self.marker_offset,
+            tip_reaction_force=take(self.tip_reaction_force),
+            tip_reaction_moment=take(self.tip_reaction_moment),
         )
 
     def split(self, by: str = "experiment", *, test: Any) -> tuple[Dataset, Dataset]:
@@ -558,6 +628,8 @@ class Dataset:
             markers=self.markers,
             marker_s=self.marker_s,
             marker_offset=self.marker_offset,
+            tip_reaction_force=self.tip_reaction_force,
+            tip_reaction_moment=self.tip_reaction_moment,
             extras=[Extra(n, v, str(described.get(n, ""))) for n, v in self.extra.items()],
             units=units,
             metadata=self.metadata,
@@ -1017,13 +1089,14 @@ def _from_frame(
     tendons = sorted(int(t[1]) for b in columns if (t := _TENSION.match(b)))
     marker_ids = sorted({int(m[1]) for b in columns if (m := _MARKER.match(b))})
     missing = [b for b in _TIP if b not in columns]
-    if marker_ids and len(missing) == len(_TIP):
-        missing = []  # markers instead of the tip
+    reactions = any(b in columns for b in _REACTION_FORCE + _REACTION_MOMENT)
+    if (marker_ids or reactions) and len(missing) == len(_TIP):
+        missing = []  # markers or a reaction instead of the tip
     for k in marker_ids:
         missing += [f"marker{k}_{a}" for a in _XYZ if f"marker{k}_{a}" not in columns]
     if not channels and not tendons:
         missing.insert(0, "p0")
-    for group in (_QUAT, _FORCE, _MOMENT):
+    for group in (_QUAT, _FORCE, _MOMENT, _REACTION_FORCE, _REACTION_MOMENT):
         present = [b for b in group if b in columns]
         if present:
             missing += [b for b in group if b not in columns]
@@ -1034,8 +1107,9 @@ def _from_frame(
             names,
             f"missing column(s) {', '.join(missing)} (spelled e.g. {spelled}); required are "
             "p0, p1, ... (or t0, t1, ... for a rod without chambers) and tip_x, tip_y, tip_z "
-            "(or markers marker0_x, ...); the tip_q*, "
-            "base_f*, base_m* and marker* columns are optional but come in complete groups",
+            "(or markers marker0_x, ..., or a held tip's reaction tip_reaction_fx, ...); the "
+            "tip_q*, base_f*, base_m*, marker* and tip_reaction_* columns are optional but "
+            "come in complete groups",
         )
     if marker_ids and marker_ids != list(range(len(marker_ids))):
         gaps = sorted(set(range(marker_ids[-1] + 1)) - set(marker_ids))
@@ -1088,8 +1162,11 @@ def _from_frame(
         df, where = _converged_rows(df, where, unconverged)
 
     # Values: empty cells, text in number columns, non-finite numbers. A marker not seen
-    # in a row leaves its cells empty.
-    used = [columns[b][0] for b in columns if not _MARKER.match(b)]
+    # in a row, or a reaction component not measured, leaves its cells empty.
+    def unmeasured_ok(base: str) -> bool:
+        return _MARKER.match(base) is not None or base in _REACTION_FORCE + _REACTION_MOMENT
+
+    used = [columns[b][0] for b in columns if not unmeasured_ok(b)]
     isna = df[used].isna().to_numpy()
     if isna.any():
         blank = isna.all(axis=1)
@@ -1107,8 +1184,7 @@ def _from_frame(
     for base, (col, factor) in columns.items():
         if base in _LABELS:
             continue
-        optional = _MARKER.match(base) is not None  # an unseen marker: empty cells
-        a = _number_column(df[col], col, where, missing_ok=optional)
+        a = _number_column(df[col], col, where, missing_ok=unmeasured_ok(base))
         numeric[base] = a if factor is None else a * factor
 
     pressures = np.column_stack([numeric[f"p{k}"] for k in channels] or [np.zeros((len(df), 0))])
@@ -1182,6 +1258,8 @@ def _from_frame(
         tip_rotation=rotation,
         base_force=stack(_FORCE),
         base_moment=stack(_MOMENT),
+        tip_reaction_force=stack(_REACTION_FORCE),
+        tip_reaction_moment=stack(_REACTION_MOMENT),
         experiment=labels.get("experiment"),
         mounting=labels.get("mounting"),
         time=numeric.get("time"),

@@ -4,7 +4,9 @@ Column names are ``<base>_<unit>``: ``p0_kPa`` ... (gauge pressure of each chann
 numbered from 0), ``t0_N`` ... (tension of each tendon channel, optional), ``tip_x_mm`` ...
 (tip position, world frame), ``tip_qw`` ... (tip orientation as a unit quaternion, scalar
 first), ``base_fx_N`` ..., ``base_mx_Nmm`` ... (the wrench the rod exerts on its mount),
-``time_s``, ``experiment``, ``mounting``. A table softrod writes may carry
+``tip_reaction_fx_N`` ..., ``tip_reaction_mx_Nmm`` ... (the wrench a held tip's constraint
+applies to the tip: measured, or a held tip's sweep), ``time_s``, ``experiment``,
+``mounting``. A table softrod writes may carry
 further *result columns* after these (``converged``, ``iterations``, ``cmd0_kPa``,
 ``sigma_ext``, ...); their names are declared, with a description, in the ``columns`` entry of
 the table's metadata block, so :func:`softrod.load_dataset` reads them back while an undeclared
@@ -223,6 +225,8 @@ TIP = tuple(f"tip_{a}" for a in _XYZ)
 QUAT = ("tip_qw", "tip_qx", "tip_qy", "tip_qz")
 FORCE = tuple(f"base_f{a}" for a in _XYZ)
 MOMENT = tuple(f"base_m{a}" for a in _XYZ)
+REACTION_FORCE = tuple(f"tip_reaction_f{a}" for a in _XYZ)
+REACTION_MOMENT = tuple(f"tip_reaction_m{a}" for a in _XYZ)
 
 
 @dataclass(frozen=True)
@@ -250,6 +254,8 @@ def schema_frame(
     markers=None,
     marker_s=None,
     marker_offset=None,
+    tip_reaction_force=None,
+    tip_reaction_moment=None,
     extras: Sequence[Extra] = (),
     units: Mapping[str, str] | str | None = None,
     metadata: Mapping[str, Any] | None = None,
@@ -259,12 +265,13 @@ def schema_frame(
     Columns in order: experiment, mounting, time, p0..p<c-1>, t0..t<k-1> (tendon
     tensions, from ``tensions`` (m, k); none when None), tip_x/y/z (unless
     ``tip_position`` is None), tip_qw..qz (from ``tip_rotation``), base_fx..fz,
-    base_mx..mz, marker0_x/y/z ... (from ``markers`` (m, K, 3), NaN where not seen), then
-    ``extras``. Units go into the names (:data:`DEFAULT_UNITS` or ``units``). NaN rows (a
-    failed solve) stay NaN. The metadata (``frame.attrs["softrod.metadata"]``) gets a
-    ``columns`` entry that declares every extra column by its name, and with markers a
-    ``markers`` entry with each marker's arc length ``marker_s`` (K,) and offset
-    ``marker_offset`` (K, 3), SI.
+    base_mx..mz, tip_reaction_fx..fz and tip_reaction_mx..mz (from ``tip_reaction_force``
+    and ``tip_reaction_moment`` (m, 3), NaN where not measured), marker0_x/y/z ... (from
+    ``markers`` (m, K, 3), NaN where not seen), then ``extras``. Units go into the names
+    (:data:`DEFAULT_UNITS` or ``units``). NaN rows (a failed solve) stay NaN. The metadata
+    (``frame.attrs["softrod.metadata"]``) gets a ``columns`` entry that declares every
+    extra column by its name, and with markers a ``markers`` entry with each marker's arc
+    length ``marker_s`` (K,) and offset ``marker_offset`` (K, 3), SI.
     """
     import pandas as pd
 
@@ -291,7 +298,12 @@ def schema_frame(
         q = matrix_to_quat(tip_rotation)
         for i, name in enumerate(QUAT):
             cols[name] = q[:, i]
-    for names, arr, kind in ((FORCE, base_force, "force"), (MOMENT, base_moment, "moment")):
+    for names, arr, kind in (
+        (FORCE, base_force, "force"),
+        (MOMENT, base_moment, "moment"),
+        (REACTION_FORCE, tip_reaction_force, "force"),
+        (REACTION_MOMENT, tip_reaction_moment, "moment"),
+    ):
         if arr is not None:
             a = np.asarray(arr, dtype=float)
             for i, name in enumerate(names):

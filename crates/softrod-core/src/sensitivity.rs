@@ -15,6 +15,9 @@
 //! own residual (`constraint::held_residual`, 6 unknowns): [`constrained_pose_sensitivity`]
 //! runs the same two passes with it (`Jet<6>` for J), so calibration works for held tips
 //! too; the held tip's position (clamped: and rotation) then has zero total derivative.
+//! The held tip's reaction (`constraint::reaction`, what is left of the tip wrench
+//! balance) is one more output y of the same passes: its derivatives cost no extra
+//! integration, and a free tip (no reaction) skips them.
 //!
 //! A marker sits at reference arc length s with an offset o in the cross-section frame:
 //! its position is r(s) + R(s) o. The state at s is read during the same integration: the
@@ -25,7 +28,7 @@ use crate::error::{Result, SoftrodError};
 use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
 use crate::ode::{advance, integrate, resolve_stretch, Coeffs, Loads, NodeAt, SectionKnobs, State};
 use crate::rod::{AxialLaw, Rod};
-use crate::statics::constraint::{tip_residual, TipConstraint};
+use crate::statics::constraint::{reaction, tip_residual, TipConstraint};
 use crate::statics::{Problem, Solution};
 use nalgebra::{DMatrix, DVector};
 
@@ -427,6 +430,12 @@ pub struct TipSensitivity {
     pub rotation: Vec<[[f64; 3]; 3]>,
     /// d marker_k / d theta_j (world frame): `markers[j][k]`.
     pub markers: Vec<Vec<[f64; 3]>>,
+    /// d F_r / d theta_j and d M_r / d theta_j of the held tip's reaction (world frame, the
+    /// wrench the constraint applies to the tip, as `ConstrainedSolution` reports it; N
+    /// and N m per unit of the parameter), one per parameter; zero moment for a pinned
+    /// tip. Empty for a free tip (it has no reaction).
+    pub reaction_force: Vec<[f64; 3]>,
+    pub reaction_moment: Vec<[f64; 3]>,
 }
 
 pub(crate) type Dual = Jet<CHUNK>;
@@ -559,7 +568,13 @@ fn sensitivity_n<const N: usize>(
         position: Vec::with_capacity(params.len()),
         rotation: Vec::with_capacity(params.len()),
         markers: Vec::with_capacity(params.len()),
+        reaction_force: vec![],
+        reaction_moment: vec![],
     };
+    // A held tip's reaction (a pin carries no moment: its moment balance is a residual row).
+    let pinned = matches!(constraint, TipConstraint::Pinned { .. });
+    let held = !matches!(constraint, TipConstraint::Free);
+    let reaction_x = held.then(|| reaction(&p, &tip_x));
     let pos_x: Vec<[Jet<N>; 3]> = marks_x
         .iter()
         .zip(markers)
@@ -594,6 +609,7 @@ fn sensitivity_n<const N: usize>(
         }
         let (tip, marks) = integrate_markers(rod, &coeffs, base, markers);
         let r_t: [Dual; N] = tip_residual(&p, constraint, &tip);
+        let reaction_t = held.then(|| reaction(&p, &tip));
         let pos_t: Vec<[Dual; 3]> = marks
             .iter()
             .zip(markers)
@@ -624,6 +640,15 @@ fn sensitivity_n<const N: usize>(
                     .map(|(pt, px)| std::array::from_fn(|i| total(&pt[i], &px[i])))
                     .collect(),
             );
+            if let (Some((ft, mt)), Some((fx, mx))) = (&reaction_t, &reaction_x) {
+                out.reaction_force
+                    .push(std::array::from_fn(|i| total(&ft[i], &fx[i])));
+                out.reaction_moment.push(if pinned {
+                    [0.0; 3]
+                } else {
+                    std::array::from_fn(|i| total(&mt[i], &mx[i]))
+                });
+            }
         }
     }
     Ok(out)

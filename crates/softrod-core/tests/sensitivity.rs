@@ -814,3 +814,94 @@ fn held_tip_derivatives_differ_from_the_free_tip_and_batch_equals_single() {
         other => panic!("expected an error, got {other:?}"),
     }
 }
+
+/// The held tip's reaction (force and moment, world frame) against central differences of
+/// full `solve_constrained` solves (warm-started at the unperturbed solution), for E, the
+/// area factor, the body's given mass, c_b and alpha. The reaction is compared in lengths,
+/// F L / F_s and M / F_s, so that `marker_error`'s allowance for nearly-zero columns
+/// (TIP_NOISE, 1e-14 m) is the solve's own noise, ~1e-13 F_s for this 0.1 m rod; the
+/// tolerance is COLUMN_TOL for the same reason as the markers': the solves converge to
+/// SOLVER_TOL (round-off ~1e-13 / H = 1e-8 relative) and the step H gives truncation
+/// ~H^2 = 1e-10 relative. Measured (printed): at most 2.2e-8 (clamped, mass and c_b) and
+/// 5.1e-9 (pinned); a derivative without the shooting unknowns' share (d_x F dx/dtheta)
+/// would be off by O(1). A pinned tip's moment and its derivative are zero.
+#[test]
+fn held_tip_reaction_derivatives_match_finite_differences() {
+    let mut spec = m3(tilted());
+    // The body's mass given directly, so that "mass" acts (the held tip carries part of its
+    // weight).
+    spec.sections[1].mass = Some(0.08);
+    let rod = Rod::new(spec.clone()).unwrap();
+    let ld = Loads {
+        pressures: vec![25e3, 5e3, 15e3],
+        ..loads(&[0.0; 3])
+    };
+    let params = [
+        param("E", &[0, 2]),
+        param("area_scale", &[1]),
+        param("mass", &[1]),
+        param("c_b", &[1]),
+        param("alpha", &[1]),
+    ];
+    validate_params(&rod, &params).unwrap();
+    let to_length = |w: &([f64; 3], [f64; 3])| -> Vec<[f64; 3]> {
+        vec![
+            w.0.map(|f| f * rod.length / rod.force_scale),
+            w.1.map(|m| m / rod.force_scale),
+        ]
+    };
+    for c in held_tips(&spec, &ld) {
+        let sol = solve_constrained(&rod, &ld, &c, None, &opts()).unwrap();
+        let sens =
+            constrained_pose_sensitivity(&rod, &ld, &c, &sol.solution, &params, &[]).unwrap();
+        assert_eq!(sens.reaction_force.len(), params.len());
+        assert_eq!(sens.reaction_moment.len(), params.len());
+        let mut worst: f64 = 0.0;
+        for (j, p) in params.iter().enumerate() {
+            let (fd, step) = fd_markers(&spec, &ld, &rod, p, |s, l| {
+                let r = Rod::new(s.clone()).unwrap();
+                let h = solve_constrained(&r, l, &c, Some(&sol.solution.x), &opts()).unwrap();
+                to_length(&(h.tip_reaction_force, h.tip_reaction_moment))
+            });
+            let exact = to_length(&(sens.reaction_force[j], sens.reaction_moment[j]));
+            // Not vacuous: every parameter moves the reaction force, by more than 1e-3 F_s
+            // per relative change of the parameter (theta dF/dtheta, in lengths).
+            let v0 = p.value(&rod, &ld).abs();
+            assert!(
+                v0 * norm(&exact[0]) > 1e-3 * rod.length,
+                "{}: {exact:?}",
+                p.kind.name()
+            );
+            for (what, fd, ex) in [("force", &fd[0], &exact[0]), ("moment", &fd[1], &exact[1])] {
+                let e = marker_error(fd, ex, step);
+                worst = worst.max(e);
+                println!(
+                    "{} d reaction {what} / d {}: rel. error {e:.2e}",
+                    c.name(),
+                    p.kind.name()
+                );
+                assert!(
+                    e < COLUMN_TOL,
+                    "{} d reaction {what} / d {}: exact {ex:?} vs FD {fd:?} ({e:.2e})",
+                    c.name(),
+                    p.kind.name()
+                );
+            }
+            if let TipConstraint::Pinned { .. } = c {
+                assert_eq!(sens.reaction_moment[j], [0.0; 3]);
+            } else {
+                // Not vacuous: the clamp's moment moves too.
+                assert!(
+                    v0 * norm(&exact[1]) > 1e-4 * rod.length,
+                    "{}: {exact:?}",
+                    p.kind.name()
+                );
+            }
+        }
+        println!("{}: worst relative reaction error {worst:.2e}", c.name());
+    }
+    // A free tip has no reaction: no derivatives.
+    let free = solve(&rod, &ld, None, &opts()).unwrap();
+    let s = pose_sensitivity(&rod, &ld, &free, &params, &[]).unwrap();
+    assert!(s.reaction_force.is_empty() && s.reaction_moment.is_empty());
+}

@@ -408,7 +408,9 @@ impl PyRod {
     /// (m, K, 3) and "d_marker_position" (m, K, 3, P), NaN on failed rows. `tip_kind`
     /// "pinned" (with `tip_position`) or "clamped" (and `tip_rotation`) holds the tip as
     /// `solve_constrained_tip_batch` does (rows solved as it solves them; `x0` then (m, 6))
-    /// and adds "tip_reaction_force" and "tip_reaction_moment" (m, 3).
+    /// and adds "tip_reaction_force" and "tip_reaction_moment" (m, 3) with their exact
+    /// derivatives "d_tip_reaction_force" and "d_tip_reaction_moment" (m, 3, P), NaN on
+    /// failed rows.
     #[pyo3(signature = (pressures, tip_force, tip_moment, params, stiffness_scale=None, x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore", tensions=None, markers=vec![], tip_kind="free", tip_position=None, tip_rotation=None))]
     #[allow(clippy::too_many_arguments)]
     fn sensitivity_batch<'py>(
@@ -496,12 +498,31 @@ impl PyRod {
                 })
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
             let d = rows_dict(py, &rows)?;
+            let (np, m) = (params.len(), rows.len());
             if held != TipConstraint::Free {
                 ends::reactions(py, &d, &rows)?;
+                let (mut df, mut dmo) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 3 * np]);
+                for (r, row) in rows.iter().enumerate() {
+                    let Some(sens) = &row.sensitivity else {
+                        continue;
+                    };
+                    for j in 0..np {
+                        for i in 0..3 {
+                            df[(r * 3 + i) * np + j] = sens.reaction_force[j][i];
+                            dmo[(r * 3 + i) * np + j] = sens.reaction_moment[j][i];
+                        }
+                    }
+                }
+                d.set_item(
+                    "d_tip_reaction_force",
+                    PyArray1::from_vec(py, df).reshape([m, 3, np])?,
+                )?;
+                d.set_item(
+                    "d_tip_reaction_moment",
+                    PyArray1::from_vec(py, dmo).reshape([m, 3, np])?,
+                )?;
             }
-            let np = params.len();
             let nk = markers.len();
-            let m = rows.len();
             let (mut dp, mut dr) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 9 * np]);
             let mut mp = vec![f64::NAN; m * nk * 3];
             let mut dm = vec![f64::NAN; m * nk * 3 * np];

@@ -45,6 +45,8 @@ from .diagnostics import (
 )
 from .problem import (
     DEFAULT_SCALE_M,
+    DEFAULT_SCALE_N,
+    DEFAULT_SCALE_NM,
     QUANTITIES,
     REGISTRATION,
     Bounds,
@@ -54,7 +56,13 @@ from .problem import (
     RegistrationParameter,
     Residual,
 )
-from .result import CalibrationResult, error_tables, record, result_json
+from .result import (
+    CalibrationResult,
+    error_tables,
+    reaction_error_table,
+    record,
+    result_json,
+)
 from .solve import METHODS, RESTART_SPREAD, Settings, default_bounds, run_starts, start_points
 from .solve import starts_table as _starts_table
 
@@ -164,17 +172,30 @@ def _split(dataset: Dataset, split, test) -> np.ndarray:
     return mask.copy()
 
 
+#: Per measured quantity: (its dataset field, the kind of its weight, default weight, SI).
+_WEIGHTS = {
+    "tip": ("tip_position", "length", DEFAULT_SCALE_M),
+    "markers": ("markers", "length", DEFAULT_SCALE_M),
+    "reaction": ("tip_reaction_force", "force", DEFAULT_SCALE_N),
+    "reaction_moment": ("tip_reaction_moment", "moment", DEFAULT_SCALE_NM),
+}
+
+
 def _scales(weights, dataset: Dataset) -> dict[str, float]:
-    """Residual scale (m) of each measured quantity: ``weights`` = {quantity: length}, the
-    standard deviation of its measurement (a residual reads in units of it), default 1 mm."""
-    arrays = {"tip": dataset.tip_position, "markers": dataset.markers}
-    present = [q for q in QUANTITIES if arrays[q] is not None]
-    scales = dict.fromkeys(present, DEFAULT_SCALE_M)
+    """Residual scale (SI) of each measured quantity: ``weights`` = {quantity: standard
+    deviation of its measurement} (a residual reads in units of it): lengths for "tip" and
+    "markers" (default 1 mm), a force for "reaction" (default 5 mN) and a moment for
+    "reaction_moment" (default 0.5 N mm)."""
+    present = [q for q in QUANTITIES if getattr(dataset, _WEIGHTS[q][0]) is not None]
+    scales = {q: _WEIGHTS[q][2] for q in present}
     if weights is None:
         return scales
     if not isinstance(weights, Mapping):
         raise V.fail(
-            "weights", weights, "must map measured quantities ('tip', 'markers') to lengths"
+            "weights",
+            weights,
+            "must map measured quantities ('tip', 'markers': lengths; 'reaction': a force; "
+            "'reaction_moment': a moment) to standard deviations",
         )
     for key, value in weights.items():
         if key not in QUANTITIES:
@@ -183,12 +204,14 @@ def _scales(weights, dataset: Dataset) -> dict[str, float]:
             )
         if key not in present:
             raise V.fail(f"weights[{key!r}]", value, f"the dataset has no {key} columns")
-        x = V.quantity(value, "length", f"weights[{key!r}]")
+        kind = _WEIGHTS[key][1]
+        x = V.quantity(value, kind, f"weights[{key!r}]")
         if not x > 0:
             raise V.fail(
                 f"weights[{key!r}]",
                 value,
-                "must be a length > 0 (the measurement's standard deviation)",
+                f"must be {'an' if kind[0] in 'aeiou' else 'a'} {kind} > 0 (the "
+                "measurement's standard deviation)",
             )
         scales[key] = x
     return scales
@@ -200,8 +223,10 @@ def _what(dataset: Dataset, dynamic: bool) -> str:
         parts.append("tip")
     if dataset.markers is not None:
         parts.append("marker")
-    text = f"the {' and '.join(parts)} positions"
-    return text + (" along the replayed trajectories" if dynamic else "")
+    texts = [f"the {' and '.join(parts)} positions"] if parts else []
+    if dataset.tip_reaction_force is not None or dataset.tip_reaction_moment is not None:
+        texts.append("the held tip's reactions")
+    return " and ".join(texts) + (" along the replayed trajectories" if dynamic else "")
 
 
 def _split_params(names, design: Design, model: str):
@@ -291,14 +316,18 @@ def calibrate(
     through every time step (BDF-alpha with fixed steps; every design feature, contact with
     obstacles included: docs/calibration.md). A design whose ``[tip]`` pins or clamps the
     tip is fitted in statics with the held tip's exact sensitivities (the tip stays at its
-    prescribed position, so the dataset must have markers; without them ``calibrate``
-    raises an InputError naming ``dataset.markers``, since no parameter moves a held tip);
-    the dynamic fit and ``model="pcc"`` refuse it (``tip_constraint``): the dynamic fit
-    reads the tip trajectory, which a held tip does not move.
-    weights: ``{quantity: standard deviation}`` per measured quantity ("tip", "markers"),
-    e.g. ``{"tip": "0.2 mm", "markers": "0.5 mm"}``: each residual is divided by its
-    quantity's value (default 1 mm), so that quantities measured with different noise
-    combine.
+    prescribed position, so the dataset must have markers or the measured reaction, the
+    blocked force: columns ``tip_reaction_fx_N`` ..., docs/datasets.md; without either
+    ``calibrate`` raises an InputError naming ``dataset.markers`` and the reaction columns,
+    since no parameter moves a held tip); the dynamic fit and ``model="pcc"`` refuse it
+    (``tip_constraint``): the dynamic fit reads the tip trajectory, which a held tip does
+    not move. A free tip has no reaction: a dataset with reaction columns is refused for
+    it (``dataset.tip_reaction_force``).
+    weights: ``{quantity: standard deviation}`` per measured quantity: "tip", "markers"
+    (lengths, default 1 mm), "reaction" (a force, default 5 mN) and "reaction_moment" (a
+    moment, default 0.5 N mm), e.g. ``{"tip": "0.2 mm", "reaction": "2 mN"}``: each
+    residual is divided by its quantity's value, so that quantities measured with
+    different noise and units combine.
     dynamic: fit time series instead of equilibria: each experiment of ``dataset`` (a
     ``time`` column, one experiment per run) is replayed from rest in equilibrium under its
     first row's pressures and tendon tensions, both joined linearly between the samples
@@ -354,13 +383,28 @@ def calibrate(
         )
     if not isinstance(dataset, Dataset):
         dataset = load_dataset(dataset, design=design0)
-    if design0.tip_constraint is not None and dataset.markers is None:
+    reactions = dataset.tip_reaction_force is not None or dataset.tip_reaction_moment is not None
+    if design0.tip_constraint is not None and dataset.markers is None and not reactions:
         raise V.fail(
             "dataset.markers",
             "(none)",
             f"the design's [tip] constraint ({design0.tip_constraint.kind}) holds the tip at "
             "its prescribed position, which no parameter moves: a fit of a held tip needs "
-            "markers on the rod (its tip columns carry no information)",
+            "markers on the rod or the measured reaction (tip_reaction_fx_N, ... columns, "
+            "dataset.tip_reaction_force; its tip columns carry no information)",
+        )
+    if design0.tip_constraint is None and reactions:
+        field = (
+            "tip_reaction_force"
+            if dataset.tip_reaction_force is not None
+            else "tip_reaction_moment"
+        )
+        raise V.fail(
+            f"dataset.{field}",
+            "given",
+            f"design {design0.name!r} has a free tip, which no constraint holds, so it has no "
+            "reaction to fit: give the design the [tip] constraint of the measurement "
+            "(pinned or clamped) or drop the tip_reaction_* columns",
         )
     if dataset.n_channels != design0.n_channels:
         raise V.fail(
@@ -394,7 +438,12 @@ def calibrate(
     test_mask = _split(dataset, split, test)
     train = np.flatnonzero(~test_mask)
     scales = _scales(weights, dataset)
-    observed = Observations(dataset.tip_position, dataset.markers)
+    observed = Observations(
+        dataset.tip_position,
+        dataset.markers,
+        dataset.tip_reaction_force,
+        dataset.tip_reaction_moment,
+    )
     residual = Residual(observed, train, scales)
     problem = Problem(adapter, residual, box)
     logger.info(
@@ -473,6 +522,9 @@ def calibrate(
         calibrated.length,
         None if registration else adapter.base_frame(),
     )
+    reaction_table = reaction_error_table(
+        dataset, final, final.ok, labels if test_mask.any() else None
+    )
     for w in found:
         warnings.warn(w, CalibrationWarning, stacklevel=3)  # past the BLAS-thread wrapper
     reg = None
@@ -508,6 +560,9 @@ def calibrate(
         registration=reg,
         scales=scales,
         cost=ssr,
+        reaction_error_table=reaction_table,
+        predicted_reaction=final.reaction,
+        predicted_reaction_moment=final.reaction_moment,
     )
 
 

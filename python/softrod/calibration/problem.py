@@ -7,13 +7,16 @@
   rod dynamics replaying time series, PCC statics and dynamics; :mod:`softrod.calibration.
   adapters`). Registration parameters (the measurement frame against the model's) wrap any
   adapter (:class:`Registered`).
-- **Observations** and their **weights**: the measured tip and marker positions, each
-  quantity divided by its own scale (a length: the residual of a position is its error in
-  units of that scale, default 1 mm), so that quantities with different noise combine.
+- **Observations** and their **weights**: the measured tip and marker positions, and a held
+  tip's measured reaction (the blocked force and moment), each quantity divided by its own
+  scale (the measurement's standard deviation: a length for positions, default 1 mm; a
+  force or moment for the reaction, default :data:`DEFAULT_SCALE_N` and
+  :data:`DEFAULT_SCALE_NM`), so that quantities with different noise and units combine.
 - **A split**: the training rows enter the residual; test rows are predicted at the end.
 
 The residual vector is, row by row, the tip block (x, y, z of every training row with a
-measured tip) followed by the marker block (every seen marker of every training row); a
+measured tip) followed by the marker block (every seen marker of every training row), then
+the reaction blocks (every measured component of the force, then of the moment); a
 row whose model evaluation failed gets :data:`FAILED_RESIDUAL` in each of its entries and
 zero derivatives, so that the optimiser steps back instead of stopping on a NaN.
 """
@@ -21,7 +24,7 @@ zero derivatives, so that the optimiser steps back instead of stopping on a NaN.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -29,19 +32,30 @@ import numpy as np
 #: failed at a trial point.
 FAILED_RESIDUAL = 1e3
 #: The measured quantities a model can predict: positions in the world (measurement) frame.
-QUANTITIES = ("tip", "markers")
+POSITIONS = ("tip", "markers")
+#: ... and a held tip's reaction (force, moment; world frame): the blocked force.
+REACTIONS = ("reaction", "reaction_moment")
+QUANTITIES = POSITIONS + REACTIONS
 #: Default scale of every position residual: 1 mm, so that the cost is O(1) for scipy's
 #: tolerances and the residuals read in mm.
 DEFAULT_SCALE_M = 1e-3
+#: Default scale of a reaction force residual: 5 mN, the noise of a bench load cell of a
+#: few newtons' range (about 0.1 % of its full scale).
+DEFAULT_SCALE_N = 5e-3
+#: Default scale of a reaction moment residual: 0.5 N mm (5 mN at a 100 mm arm).
+DEFAULT_SCALE_NM = 5e-4
 
 
 @dataclass
 class Prediction:
     """What a model adapter predicts for the dataset's rows (SI, world frame).
 
-    tip: (m, 3); markers: (m, K, 3) or None; d_tip (m, 3, P) and d_markers (m, K, 3, P) the
-    exact derivatives with respect to the parameters (None without ``jacobian``); ok: (m,)
-    the model evaluation of the row succeeded. Rows not asked for hold NaN and ok False.
+    tip: (m, 3); markers: (m, K, 3) or None; reaction, reaction_moment: (m, 3) the wrench a
+    held tip's constraint applies to the tip (N, N m), or None (a free tip's model, or a
+    model that does not predict it); d_tip (m, 3, P), d_markers (m, K, 3, P), d_reaction
+    and d_reaction_moment (m, 3, P) the exact derivatives with respect to the parameters
+    (None without ``jacobian``); ok: (m,) the model evaluation of the row succeeded. Rows
+    not asked for hold NaN and ok False.
     """
 
     tip: np.ndarray
@@ -49,16 +63,43 @@ class Prediction:
     d_tip: np.ndarray | None = None
     markers: np.ndarray | None = None
     d_markers: np.ndarray | None = None
+    reaction: np.ndarray | None = None
+    d_reaction: np.ndarray | None = None
+    reaction_moment: np.ndarray | None = None
+    d_reaction_moment: np.ndarray | None = None
+
+    #: The derivative fields.
+    JACOBIANS = ("d_tip", "d_markers", "d_reaction", "d_reaction_moment")
 
     @classmethod
-    def empty(cls, m: int, n_par: int, n_markers: int, jacobian: bool) -> Prediction:
+    def empty(
+        cls, m: int, n_par: int, n_markers: int, jacobian: bool, reactions: bool = False
+    ) -> Prediction:
+        def nan(*shape):
+            return np.full(shape, np.nan)
+
         return cls(
-            tip=np.full((m, 3), np.nan),
+            tip=nan(m, 3),
             ok=np.zeros(m, dtype=bool),
-            d_tip=np.full((m, 3, n_par), np.nan) if jacobian else None,
-            markers=np.full((m, n_markers, 3), np.nan) if n_markers else None,
-            d_markers=np.full((m, n_markers, 3, n_par), np.nan) if n_markers and jacobian else None,
+            d_tip=nan(m, 3, n_par) if jacobian else None,
+            markers=nan(m, n_markers, 3) if n_markers else None,
+            d_markers=nan(m, n_markers, 3, n_par) if n_markers and jacobian else None,
+            reaction=nan(m, 3) if reactions else None,
+            d_reaction=nan(m, 3, n_par) if reactions and jacobian else None,
+            reaction_moment=nan(m, 3) if reactions else None,
+            d_reaction_moment=nan(m, 3, n_par) if reactions and jacobian else None,
         )
+
+    def zero_jacobian(self) -> None:
+        """Set every derivative to zero (a failed point: the optimiser steps back)."""
+        for name in self.JACOBIANS:
+            d = getattr(self, name)
+            if d is not None:
+                d[:] = 0.0
+
+    def with_jacobian_of(self, other: Prediction) -> Prediction:
+        """These values with ``other``'s derivatives."""
+        return replace(self, **{name: getattr(other, name) for name in self.JACOBIANS})
 
 
 class ModelAdapter:
@@ -220,12 +261,29 @@ class Registered(ModelAdapter):
                     out[..., "xyz".index(p.kind), n_in + j] = 1.0
             return out
 
+        def vectors(v):  # a wrench component (..., 3): rotated, not moved
+            return None if v is None else v @ rot.T
+
+        def vector_derivatives(v, dv):  # d(Q v): Q dv, Q' v in the angle, 0 in the offset
+            if dv is None:
+                return None
+            out = np.zeros(v.shape + (n_par,))
+            out[..., :n_in] = np.einsum("ij,...jk->...ik", rot, dv)
+            for j, p in enumerate(self.registration):
+                if p.kind == "angle":
+                    out[..., n_in + j] = v @ d_rot.T
+            return out
+
         return Prediction(
             tip=points(pred.tip),
             ok=pred.ok,
             d_tip=None if pred.d_tip is None else derivatives(pred.tip, pred.d_tip),
             markers=None if pred.markers is None else points(pred.markers),
             d_markers=None if pred.d_markers is None else derivatives(pred.markers, pred.d_markers),
+            reaction=vectors(pred.reaction),
+            d_reaction=vector_derivatives(pred.reaction, pred.d_reaction),
+            reaction_moment=vectors(pred.reaction_moment),
+            d_reaction_moment=vector_derivatives(pred.reaction_moment, pred.d_reaction_moment),
         )
 
     def predict(self, theta, rows, jacobian):
@@ -268,16 +326,32 @@ class Registered(ModelAdapter):
 @dataclass(frozen=True)
 class Observations:
     """The measured positions (SI, measurement frame): ``tip`` (m, 3) or None, ``markers``
-    (m, K, 3) with NaN where a marker was not seen, or None."""
+    (m, K, 3) with NaN where a marker was not seen, or None; a held tip's measured reaction
+    ``reaction`` (N) and ``reaction_moment`` (N m), (m, 3) with NaN where a component was
+    not measured, or None."""
 
     tip: np.ndarray | None
     markers: np.ndarray | None
+    reaction: np.ndarray | None = None
+    reaction_moment: np.ndarray | None = None
+
+    @property
+    def rows(self) -> int:
+        """The number of rows (m)."""
+        present = (self.tip, self.markers, self.reaction, self.reaction_moment)
+        return next(len(a) for a in present if a is not None)
+
+    @property
+    def reactions(self) -> bool:
+        """Whether a reaction (force or moment) was measured."""
+        return self.reaction is not None or self.reaction_moment is not None
 
 
 class Residual:
     """Weighted residuals of a prediction against the observations on ``rows``.
 
-    ``scales``: {quantity: length in m}; residual = (predicted - measured) / scale."""
+    ``scales``: {quantity: its measurement's standard deviation, SI (m, N, N m)}; residual
+    = (predicted - measured) / scale."""
 
     def __init__(self, observed: Observations, rows: np.ndarray, scales: dict[str, float]):
         self.rows = np.asarray(rows)
@@ -289,13 +363,32 @@ class Residual:
             self.marker_seen = seen
         else:
             self.marker_seen = None
+        # The measured components (r, 3) of each reaction quantity, in REACTIONS order.
+        self.reaction_seen = {
+            q: np.isfinite(a[self.rows])
+            for q, a in zip(REACTIONS, (observed.reaction, observed.reaction_moment), strict=True)
+            if a is not None
+        }
 
     @property
-    def size(self) -> int:
+    def n_positions(self) -> int:
+        """The residual's position entries (the first ones)."""
         n = 3 * self.tip_rows.size
         if self.marker_seen is not None:
             n += 3 * int(self.marker_seen.sum())
         return n
+
+    @property
+    def size(self) -> int:
+        return self.n_positions + sum(int(s.sum()) for s in self.reaction_seen.values())
+
+    def _reaction_parts(self, pred: Prediction, jacobian: bool):
+        """(quantity, predicted or its derivative, measured, seen) of each reaction block."""
+        for q, seen in self.reaction_seen.items():
+            value = pred.reaction if q == "reaction" else pred.reaction_moment
+            d = pred.d_reaction if q == "reaction" else pred.d_reaction_moment
+            measured = self.observed.reaction if q == "reaction" else self.observed.reaction_moment
+            yield q, (d if jacobian else value), measured, seen
 
     def vector(self, pred: Prediction) -> np.ndarray:
         parts = []
@@ -309,6 +402,10 @@ class Residual:
             ]
             d[~pred.ok[self.rows]] = FAILED_RESIDUAL
             parts.append(d[self.marker_seen].ravel())
+        for q, value, measured, seen in self._reaction_parts(pred, False):
+            d = (value[self.rows] - measured[self.rows]) / self.scales[q]
+            d[~pred.ok[self.rows]] = FAILED_RESIDUAL
+            parts.append(d[seen])
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def jacobian(self, pred: Prediction) -> np.ndarray:
@@ -323,6 +420,10 @@ class Residual:
             j = pred.d_markers[self.rows] / self.scales["markers"]
             j[~pred.ok[self.rows]] = 0.0
             parts.append(j[self.marker_seen].reshape(-1, n_par))
+        for q, d, _, seen in self._reaction_parts(pred, True):
+            j = d[self.rows] / self.scales[q]
+            j[~pred.ok[self.rows]] = 0.0
+            parts.append(j[seen])
         return np.concatenate(parts) if parts else np.zeros((0, n_par))
 
     def position_errors_m2(self, pred: Prediction) -> float:

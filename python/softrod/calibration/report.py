@@ -491,6 +491,7 @@ def write_report(
     pressures=None,
     factors=None,
     factor_names=None,
+    reaction_table=None,
     warnings: Sequence[str] = (),
     correlation=None,
     param_names=None,
@@ -505,7 +506,9 @@ def write_report(
     date, ...). parameter_table, error_table: pandas DataFrames (e.g. from
     :func:`~softrod.calibration.metrics.tip_error_table`), shown with their column names
     (which carry the units). measured, predicted: (m, 3) tip positions in m (world frame),
-    NaN rows of ``predicted`` for failed predictions; labels: the set of each sample.
+    NaN rows of ``predicted`` for failed predictions; labels: the set of each sample; both
+    None without measured positions (no figures). reaction_table: a DataFrame of a held
+    tip's reaction errors (in mN), shown after the tip errors, or None.
     pressures: (m, channels) gauge pressures in Pa (adds the error-against-pressure figure).
     factors, factor_names: (m, k) identified dimensionless factors per sample, NaN where
     none was found (adds paper 001 Fig. 5). warnings: shown highlighted near the top, with
@@ -524,6 +527,8 @@ def write_report(
         ("Parameters", _table_html(parameter_table, "parameter_table")),
         ("Tip errors", _table_html(error_table, "error_table")),
     ]
+    if reaction_table is not None:
+        tables.append(("Reaction errors", _table_html(reaction_table, "reaction_table")))
     if correlation is not None:
         tables.insert(
             1, ("Parameter correlation", _correlation_html(*_correlation(correlation, param_names)))
@@ -531,16 +536,20 @@ def write_report(
     if isinstance(warnings, str):
         warnings = [warnings]
     with atomic_path(path) as tmp:
-        figures = _figures(
-            measured,
-            predicted,
-            labels=labels,
-            pressures=pressures,
-            factors=factors,
-            factor_names=factor_names,
-            length=length,
-            axis=axis,
-            base_position=base_position,
+        figures = (
+            []
+            if measured is None
+            else _figures(
+                measured,
+                predicted,
+                labels=labels,
+                pressures=pressures,
+                factors=factors,
+                factor_names=factor_names,
+                length=length,
+                axis=axis,
+                base_position=base_position,
+            )
         )
         images = "".join(
             f'<figure><img alt="{html.escape(stem)}" src="data:image/png;base64,'

@@ -18,7 +18,7 @@ from ..datasets import Dataset
 from ..design import Design
 from ..schema import DISPLAY_UNITS, display
 from .diagnostics import warning_thresholds
-from .metrics import tip_error_table
+from .metrics import TABLE_COLUMNS, tip_error_table
 from .params import SIGMA_KINDS
 
 if TYPE_CHECKING:
@@ -35,9 +35,13 @@ class CalibrationResult:
     predicted_markers: the calibrated model's positions of every row (tip (m, 3), markers
     (m, K, 3) or None), NaN where the model failed (``converged`` False); labels: "train" or
     "test" per row; error_table: the errors per measured quantity ("tip", "markers") and
-    set; registration: the fitted measurement frame (``{"angle": rad, "offset": (3,) m}``)
-    or None; scales: the residual scale of each quantity (m); cost: the weighted sum of
-    squared training residuals, cost_m2 the plain sum of squared position errors (m^2).
+    set (no rows without measured positions); reaction_error_table: the errors of a held
+    tip's measured reaction per quantity ("reaction" in mN, "reaction_moment" in N mm) and
+    set, or None; predicted_reaction, predicted_reaction_moment: the calibrated model's
+    reaction of every row (m, 3) (N, N m), or None for a free tip; registration: the
+    fitted measurement frame (``{"angle": rad, "offset": (3,) m}``) or None; scales: the
+    residual scale of each quantity (SI: m, N, N m); cost: the weighted sum of squared
+    training residuals, cost_m2 the plain sum of squared position errors (m^2).
     """
 
     design: Design
@@ -73,6 +77,9 @@ class CalibrationResult:
     #: A staged identification's stages (softrod.pcc.identify_pcc: per parameter its
     #: experiment, closed-form start and stage value), else None.
     stages: pd.DataFrame | None = field(default=None, repr=False)
+    reaction_error_table: pd.DataFrame | None = None
+    predicted_reaction: np.ndarray | None = field(default=None, repr=False)
+    predicted_reaction_moment: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def names(self) -> list[str]:
@@ -92,12 +99,15 @@ class CalibrationResult:
 
     @property
     def rms_error_mm(self) -> float:
-        """RMS position error (mm) over the training observations."""
+        """RMS position error (mm) over the training observations (NaN without measured
+        positions)."""
         table = self.error_table
         row = table[table.set.isin(["train", "all"])]
         n = row["n"].to_numpy() - row["failed"].to_numpy()
         rms = row["rms_error_mm"].to_numpy()
         keep = n > 0
+        if not keep.any():
+            return math.nan
         return float(np.sqrt(np.sum(n[keep] * rms[keep] ** 2) / np.sum(n[keep])))
 
     @property
@@ -152,7 +162,14 @@ class CalibrationResult:
             lines.append(f"  {p.name:<18} {v0:>12.6g} -> {v:>12.6g} {err}".rstrip())
         cols = ["quantity", "set", "n", "failed", "mean_error_mm", "median_error_mm"]
         cols.append("max_error_mm")
-        lines.append(self.error_table[cols].to_string(index=False, float_format="%.3f"))
+        if len(self.error_table):
+            lines.append(self.error_table[cols].to_string(index=False, float_format="%.3f"))
+        if self.reaction_error_table is not None:
+            cols = ["quantity", "set", "n", "failed", "unit", "mean_error", "median_error"]
+            cols.append("max_error")
+            lines.append(
+                self.reaction_error_table[cols].to_string(index=False, float_format="%.3f")
+            )
         lines += [f"  warning: {w}" for w in self.warnings]
         if not self.warnings:
             lines.append(f"  no warnings ({warning_thresholds()})")
@@ -184,9 +201,12 @@ class CalibrationResult:
         other columns), then ``set`` (train or test), ``converged``, the calibrated model's
         tip ``model_tip_x_mm`` ... and markers ``model_marker0_x_mm`` ... (empty where its
         solve failed) and ``error_mm`` (Euclidean distance measured - model tip, or the
-        mean over the seen markers without a tip). The metadata block names the calibrated
-        and the initial design, the dataset, the fitted values with standard errors and the
-        softrod version; ``load_dataset`` reads the table back."""
+        mean over the seen markers without a tip; none without either); with a measured
+        reaction force the model's ``model_tip_reaction_fx_N`` ... and ``reaction_error_N``
+        (Euclidean over the measured components), with a measured moment
+        ``model_tip_reaction_mx_Nmm`` .... The metadata block names the calibrated and the
+        initial design, the dataset, the fitted values with standard errors and the softrod
+        version; ``load_dataset`` reads the table back."""
         from ..schema import Extra, schema_frame
 
         ds = self.dataset
@@ -218,12 +238,38 @@ class CalibrationResult:
                 with np.errstate(invalid="ignore"):
                     dist = np.linalg.norm(ds.markers - pm, axis=2)
                     error = np.nanmean(np.where(np.isfinite(dist), dist, np.nan), axis=1)
-        label = (
-            "|measured - model tip|"
-            if ds.tip_position is not None
-            else ("mean |measured - model marker|")
-        )
-        extras.append(Extra("error", error, label, "length"))
+        if ds.tip_position is not None or self.predicted_markers is not None:
+            label = (
+                "|measured - model tip|"
+                if ds.tip_position is not None
+                else ("mean |measured - model marker|")
+            )
+            extras.append(Extra("error", error, label, "length"))
+        for key, measured, model, kind in (
+            ("f", ds.tip_reaction_force, self.predicted_reaction, "force"),
+            ("m", ds.tip_reaction_moment, self.predicted_reaction_moment, "moment"),
+        ):
+            if measured is None:
+                continue
+            model = np.where(ok[:, None], model, np.nan)
+            extras += [
+                Extra(
+                    f"model_tip_reaction_{key}{a}",
+                    model[:, i],
+                    f"calibrated model's tip reaction {kind}",
+                    kind,
+                )
+                for i, a in enumerate("xyz")
+            ]
+            if key == "f":
+                extras.append(
+                    Extra(
+                        "reaction_error",
+                        _reaction_errors(measured, model),
+                        "|measured - model tip reaction force| over the measured components",
+                        "force",
+                    )
+                )
         meta = {
             "generator": "softrod.calibrate",
             "synthetic": ds.synthetic,  # the measured columns are the dataset's
@@ -242,6 +288,8 @@ class CalibrationResult:
             markers=ds.markers,
             marker_s=ds.marker_s,
             marker_offset=ds.marker_offset,
+            tip_reaction_force=ds.tip_reaction_force,
+            tip_reaction_moment=ds.tip_reaction_moment,
             extras=extras,
             units=units,
             metadata=meta,
@@ -281,6 +329,7 @@ class CalibrationResult:
             summary=summary,
             parameter_table=display_table(self.parameter_table()),
             error_table=self.error_table,
+            reaction_table=self.reaction_error_table,
             measured=measured,
             predicted=predicted,
             labels=labels,
@@ -296,10 +345,13 @@ class CalibrationResult:
 
     def _report_points(self):
         """(measured, predicted, labels, pressures) of the figures: the tip, or every seen
-        marker when the dataset has no tip."""
+        marker when the dataset has no tip; all None without measured positions (a held
+        tip's reaction only)."""
         ds = self.dataset
         if ds.tip_position is not None:
             return ds.tip_position, self.predicted, self.labels, ds.pressures
+        if ds.markers is None:
+            return None, None, None, None
         seen = np.isfinite(ds.markers).all(axis=2)
         rows = np.nonzero(seen)[0]
         return (
@@ -319,8 +371,9 @@ def error_tables(
     length: float,
     base_frame,
 ) -> pd.DataFrame:
-    """The error table of every measured quantity ("tip", "markers": every seen marker of
-    every row is one sample), with a first column ``quantity``."""
+    """The error table of every measured position ("tip", "markers": every seen marker of
+    every row is one sample), with a first column ``quantity``; no rows without measured
+    positions."""
     base, axis = base_frame if base_frame is not None else (None, None)
     tables = []
     if dataset.tip_position is not None:
@@ -350,10 +403,77 @@ def error_tables(
         )
         t.insert(0, "quantity", "markers")
         tables.append(t)
+    if not tables:
+        return pd.DataFrame(columns=["quantity", *TABLE_COLUMNS])
     return pd.concat(tables, ignore_index=True)
 
 
-Prediction_like = object  # a softrod.calibration.problem.Prediction (tip, markers)
+#: Columns of the reaction error table: per quantity and set, the rows with a measured
+#: component (``n``), of which ``failed`` have no prediction, and the Euclidean error over
+#: the measured components (mean, median, max, RMS) in ``unit`` (mN, or N mm for moments).
+REACTION_COLUMNS = (
+    "quantity",
+    "set",
+    "n",
+    "failed",
+    "unit",
+    "mean_error",
+    "median_error",
+    "max_error",
+    "rms_error",
+)
+
+
+def _reaction_errors(measured: np.ndarray, predicted: np.ndarray) -> np.ndarray:
+    """Euclidean error (m,) over each row's measured components (NaN: none measured, or
+    no prediction)."""
+    seen = np.isfinite(measured)
+    diff = np.where(seen, predicted - np.where(seen, measured, 0.0), 0.0)
+    err = np.sqrt(np.sum(diff**2, axis=1))
+    return np.where(seen.any(axis=1), err, np.nan)
+
+
+def reaction_error_table(
+    dataset: Dataset, predicted: Prediction_like, converged: np.ndarray, labels
+) -> pd.DataFrame | None:
+    """The errors of a held tip's measured reaction (:data:`REACTION_COLUMNS`): one row per
+    quantity ("reaction", "reaction_moment") and set (then "all" when there are several),
+    or None when the dataset has no reaction."""
+    rows = []
+    m = len(dataset)
+    sets = labels if labels is not None else np.full(m, "all")
+    for quantity, measured, model, unit in (
+        ("reaction", dataset.tip_reaction_force, predicted.reaction, "mN"),
+        ("reaction_moment", dataset.tip_reaction_moment, predicted.reaction_moment, "N mm"),
+    ):
+        if measured is None:
+            continue
+        # mN and N mm: 1e3 times N and N m
+        err = 1e3 * _reaction_errors(measured, np.where(converged[:, None], model, np.nan))
+        has = np.isfinite(measured).any(axis=1)
+        names = list(dict.fromkeys(sets[has].tolist()))
+        groups = [(name, has & (sets == name)) for name in names]
+        if len(names) > 1:
+            groups.append(("all", has))
+        for name, mask in groups:
+            e = err[mask & converged]
+            rows.append(
+                {
+                    "quantity": quantity,
+                    "set": name,
+                    "n": int(mask.sum()),
+                    "failed": int((mask & ~converged).sum()),
+                    "unit": unit,
+                    "mean_error": float(np.mean(e)) if e.size else math.nan,
+                    "median_error": float(np.median(e)) if e.size else math.nan,
+                    "max_error": float(np.max(e)) if e.size else math.nan,
+                    "rms_error": float(np.sqrt(np.mean(e**2))) if e.size else math.nan,
+                }
+            )
+    return pd.DataFrame(rows, columns=list(REACTION_COLUMNS)) if rows else None
+
+
+Prediction_like = object  # a softrod.calibration.problem.Prediction (tip, markers, reaction)
 
 
 def display_table(table: pd.DataFrame) -> pd.DataFrame:
@@ -462,6 +582,8 @@ def result_json(result: CalibrationResult) -> str:
         "errors": result.error_table.to_dict(orient="records"),
         "warnings": list(result.warnings),
     }
+    if result.reaction_error_table is not None:
+        out["reaction_errors"] = result.reaction_error_table.to_dict(orient="records")
     if result.registration is not None:
         out["registration"] = {
             "angle_rad": result.registration["angle"],

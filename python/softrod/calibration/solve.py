@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -56,7 +56,8 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
         if problem.residual.observed.markers is None
         else (problem.residual.observed.markers.shape[1])
     )
-    m = _rows_of(problem)
+    m = problem.residual.observed.rows
+    reactions = problem.residual.observed.reactions
     positive = problem.positive
     theta_start = np.asarray(theta_start, dtype=float)
     u0 = problem.u_of(theta_start)
@@ -78,18 +79,15 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
             pred = problem.predict(theta, jacobian)
         else:
             # Outside the sanity box: a failed point.
-            pred = Prediction.empty(m, n_par, n_markers, jacobian)
-            if jacobian:
-                pred.d_tip[:] = 0.0
-                if pred.d_markers is not None:
-                    pred.d_markers[:] = 0.0
+            pred = Prediction.empty(m, n_par, n_markers, jacobian, reactions)
+            pred.zero_jacobian()
         r = problem.residual.vector(pred)
         cache.pop(key, None)
         while len(cache) >= kept:
             cache.pop(next(iter(cache)))
         cache[key] = (r, pred if jacobian else None, pred)
         if progress is not None:
-            progress(adapter.evaluations, _rms(r))
+            progress(adapter.evaluations, _rms(r[: problem.residual.n_positions]))
         return cache[key]
 
     # The largest Gauss-Newton step of the last accepted point, in standard errors.
@@ -188,7 +186,7 @@ def optimise(problem: Problem, settings: Settings, theta_start, progress=None) -
         # which the step moved by less than that; the standard errors and correlations
         # change by the same small fraction (second order in it), far below their own
         # accuracy, about 1 / sqrt(2 (m - P)) for m residuals.
-        prediction = replace(at_best[2], d_tip=stepped.d_tip, d_markers=stepped.d_markers)
+        prediction = at_best[2].with_jacobian_of(stepped)
     return {
         "start": theta_start,
         "u": u_best,
@@ -256,11 +254,6 @@ def _within_standard_errors(j: np.ndarray, r: np.ndarray, fraction: float) -> bo
     parameter's standard error (:func:`_gauss_newton`; False where they are undefined)."""
     gn = _gauss_newton(j, r)
     return gn is not None and gn[1] <= fraction
-
-
-def _rows_of(problem: Problem) -> int:
-    obs = problem.residual.observed
-    return len(obs.tip) if obs.tip is not None else obs.markers.shape[0]
 
 
 def _rms(r: np.ndarray) -> float:

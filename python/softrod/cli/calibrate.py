@@ -271,6 +271,26 @@ def _error_table(result):
     return table
 
 
+def _reaction_table(result):
+    """A held tip's reaction errors (Euclidean over the measured components)."""
+    from rich.table import Table
+
+    table = Table(title="tip reaction errors (Euclidean)", title_justify="left")
+    for header in ("quantity", "set", "n", "failed", "unit", "mean", "median", "max", "RMS"):
+        table.add_column(header, justify="left" if header in ("quantity", "set") else "right")
+    for row in result.reaction_error_table.to_dict(orient="records"):
+        stats = [row[k] for k in ("mean_error", "median_error", "max_error", "rms_error")]
+        table.add_row(
+            str(row["quantity"]),
+            str(row["set"]),
+            str(row["n"]),
+            str(row["failed"]),
+            str(row["unit"]),
+            *("n/a" if not math.isfinite(v) else _fmt(v, 3) for v in stats),
+        )
+    return table
+
+
 @click.command()
 @click.argument("design")
 @click.argument("data")
@@ -398,9 +418,10 @@ def _error_table(result):
     "--weights",
     "weight_items",
     multiple=True,
-    metavar="QUANTITY=LENGTH",
-    help="Standard deviation of a measured quantity (tip or markers), e.g. tip=0.2mm "
-    "markers=0.5mm: each residual is divided by it (default 1 mm each).",
+    metavar="QUANTITY=VALUE",
+    help="Standard deviation of a measured quantity, e.g. tip=0.2mm markers=0.5mm "
+    "reaction=5mN: each residual is divided by it (tip, markers: default 1 mm each; a held "
+    "tip's reaction: default 5 mN; reaction_moment: default 0.5 N*mm).",
 )
 @_threads_option("Worker threads per model evaluation (0 = all cores).")
 @_scheduler_option(
@@ -550,7 +571,10 @@ def calibrate(
             soft_wrap=True,
         )
         note.print(_parameter_table(result))
-        note.print(_error_table(result))
+        if len(result.error_table):
+            note.print(_error_table(result))
+        if result.reaction_error_table is not None:
+            note.print(_reaction_table(result))
     _print_warnings(note, found)
     if not as_json:
         from ..calibration.fit import warning_thresholds

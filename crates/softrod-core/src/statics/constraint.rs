@@ -650,8 +650,10 @@ impl Equations for Level<'_> {
 }
 
 /// The tip wrench the constraint applies (world frame): what is left of the tip balance.
-fn reaction(p: &Problem, tip: &State<f64>) -> ([f64; 3], [f64; 3]) {
-    let b: [f64; 6] = p.residual_of_tip(tip);
+/// Generic over the scalar: the parameter sensitivities (`crate::sensitivity`) take its
+/// derivatives through the same function.
+pub(crate) fn reaction<D: RodScalar>(p: &Problem, tip: &State<D>) -> ([D; 3], [D; 3]) {
+    let b: [D; 6] = p.residual_of_tip(tip);
     (
         std::array::from_fn(|k| b[k] * p.fs),
         std::array::from_fn(|k| b[k + 3] * p.ms),

@@ -2,7 +2,9 @@
 exact parameter derivatives (dual numbers through the shooting solve and the implicit
 function theorem, ``Rod.sensitivity_batch``; every evaluation is one parallel batch over
 the requested rows, GIL released). A design whose ``[tip]`` pins or clamps the tip is
-solved and differentiated with the tip held (the held residual's sensitivities)."""
+solved and differentiated with the tip held (the held residual's sensitivities), and the
+wrench its constraint applies to the tip (the blocked force) is predicted with its exact
+derivatives too."""
 
 from __future__ import annotations
 
@@ -58,7 +60,8 @@ def marker_sites(dataset) -> list[tuple[float, list[float]]]:
 
 
 class RodStatic(ModelAdapter):
-    """Tip and marker positions of the dataset's equilibria and their parameter derivatives."""
+    """Tip and marker positions of the dataset's equilibria (and a held tip's reaction) and
+    their parameter derivatives."""
 
     model = "cosserat"
     dynamic = False
@@ -129,7 +132,7 @@ class RodStatic(ModelAdapter):
 
     def predict(self, theta, rows, jacobian: bool) -> Prediction:
         m, n_par = len(self.p), len(self.params)
-        out = Prediction.empty(m, n_par, len(self.markers), jacobian)
+        out = Prediction.empty(m, n_par, len(self.markers), jacobian, bool(self.held))
         self.evaluations += 1
         try:
             designs = self.designs(theta)
@@ -160,20 +163,27 @@ class RodStatic(ModelAdapter):
             else:
                 res = d._rod.solve_batch(self.p[idx], tip_f, tip_m, **kw)
             if jacobian:
-                dj = res["d_tip_position"]
-                dm = res["d_marker_position"]
+                derivatives = ["d_tip_position", "d_marker_position"]
+                if self.held:
+                    derivatives += ["d_tip_reaction_force", "d_tip_reaction_moment"]
                 for j, p in enumerate(self.params):
                     if p.kind == "area_scale":
                         # The core differentiates by a factor on the current areas, which
                         # are theta_j times the design's: d/d theta_j = (1/theta_j) d/dk.
-                        dj[:, :, j] /= theta[j]
-                        dm[..., j] /= theta[j]
-                out.d_tip[idx] = dj
+                        for key in derivatives:
+                            res[key][..., j] /= theta[j]
+                out.d_tip[idx] = res["d_tip_position"]
                 if out.d_markers is not None:
-                    out.d_markers[idx] = dm
+                    out.d_markers[idx] = res["d_marker_position"]
+                if self.held:
+                    out.d_reaction[idx] = res["d_tip_reaction_force"]
+                    out.d_reaction_moment[idx] = res["d_tip_reaction_moment"]
             out.tip[idx] = res["tip_position"]
             if out.markers is not None:
                 out.markers[idx] = res["marker_position"]
+            if self.held:
+                out.reaction[idx] = res["tip_reaction_force"]
+                out.reaction_moment[idx] = res["tip_reaction_moment"]
             out.ok[idx] = res["converged"]
             if self.x0 is None:
                 self.x0 = np.full((self.m, res["x"].shape[1]), np.nan)
