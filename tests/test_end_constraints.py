@@ -581,24 +581,12 @@ def test_a_rod_of_a_system_presses_on_its_own_obstacle():
     contact (the right one has none), the platform's balance still holds to 1e-9 N, and
     the surface sinks no deeper than the stated tolerance (the motion by the same wall:
     tests/test_system_dynamics.py)."""
-    import dataclasses
+    from system_cases import LEFT_AT_40_KPA as p
+    from system_cases import walled as with_wall
 
     system = softrod.load_system("two_spa_platform")
-    p = [[40e3, 0.0, 0.0], [0.0, 0.0, 0.0]]
     free = solve_system(system, p)
-    reach = free.rods[0].position[:, 1].max()  # the left rod's centreline, furthest +y
-    radius = system.rods[0].design.spec["sections"][0]["outer_radius"]
-    wall = {
-        "kind": "plane",
-        "point": ["0 mm", f"{(reach + radius) * 1e3 - 4.0} mm", "0 mm"],
-        "normal": [0, -1, 0],
-        "stiffness": "1e6 N/m^2",
-        "tolerance": "0.5 mm",
-    }
-    left = dataclasses.replace(
-        system.rods[0], design=system.rods[0].design.replace({"obstacles": [wall]})
-    )
-    walled = dataclasses.replace(system, rods=(left, system.rods[1]))
+    walled = with_wall(system)
     sol = solve_system(walled, p)
     assert sol.rods[1].contact is None
     contact = sol.rods[0].contact

@@ -9,6 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 import softrod
+import system_cases
 from softrod import DesignError, InputError
 
 SYSTEM = "two_spa_platform"
@@ -111,34 +112,14 @@ def test_save_restore_and_copy_continue_bit_for_bit(system):
         other.restore(np.asarray(saved.data))
 
 
-def _walled(system):
-    """The bundled system with a wall that its left actuator, pressurised at 40 kPa, would
-    cross by 4 mm (as tests/test_end_constraints.py's statics): penalty 1e6 N/m^2,
-    tolerance 0.5 mm."""
-    p = [[40e3, 0.0, 0.0], [0.0, 0.0, 0.0]]
-    reach = softrod.solve_system(system, p).rods[0].position[:, 1].max()
-    radius = system.rods[0].design.spec["sections"][0]["outer_radius"]
-    wall = {
-        "kind": "plane",
-        "point": ["0 mm", f"{(reach + radius) * 1e3 - 4.0} mm", "0 mm"],
-        "normal": [0, -1, 0],
-        "stiffness": "1e6 N/m^2",
-        "tolerance": "0.5 mm",
-    }
-    left = dataclasses.replace(
-        system.rods[0], design=system.rods[0].design.replace({"obstacles": [wall]})
-    )
-    return dataclasses.replace(system, rods=(left, system.rods[1]))
-
-
 def test_a_rod_pressed_on_a_wall_moves_with_its_contact(system, tmp_path):
     """A rod's obstacles act in the system's motion (docs/dynamics.md "Systems of rods"; the
     physics against the free rod by a wall: Rust's dynamics_system.rs). The run starts on the
     walled equilibrium, a pressure step presses the rod harder on the wall, the books
     balance with the penalty's potential, and the trajectory reports, files and tables
     the left rod's contact (the right rod has no obstacles: None)."""
-    walled = _walled(system)
-    p40 = [[40e3, 0.0, 0.0], [0.0, 0.0, 0.0]]
+    walled = system_cases.walled(system)
+    p40 = system_cases.LEFT_AT_40_KPA
     rest = softrod.solve_system(walled, p40)
     sim = softrod.SystemSimulation(walled, p40, dt="2 ms", alpha=-0.5)
     start = sim.state()

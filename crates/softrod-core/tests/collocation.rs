@@ -395,16 +395,7 @@ fn collocation_stability_costs_less_than_the_solve() {
         let grid = Grid::new(&rod);
         let models = static_models(&rod, &grid, &ld, 1.0);
         let hist = vec![[0.0; softrod_core::collocation::NF]; 2 * grid.len() + 1];
-        let tip = softrod_core::collocation::TipBody {
-            mass: rod.spec.tip.mass,
-            com: rod.spec.tip.com_offset,
-            inertia: [0.0; 3],
-            force: ld.tip_force,
-            moment: ld.tip_moment,
-            force_body: [0.0; 3],
-            moment_body: [0.0; 3],
-        };
-        let p = Problem::new(&rod, &grid, &models, 0.0, &hist, tip);
+        let p = Problem::new(&rod, &grid, &models, 0.0, &hist, static_tip(&rod, &ld));
         let mut t_test = f64::INFINITY;
         let mut st = None;
         for _ in 0..reps {
@@ -424,6 +415,19 @@ fn collocation_stability_costs_less_than_the_solve() {
         );
         assert_eq!(st, sol.stable);
         assert!(t_test < t_newton, "{name}");
+    }
+}
+
+/// The tip body of a static collocation problem under dead tip loads `ld`.
+fn static_tip(rod: &Rod, ld: &softrod_core::ode::Loads) -> softrod_core::collocation::TipBody {
+    softrod_core::collocation::TipBody {
+        mass: rod.spec.tip.mass,
+        com: rod.spec.tip.com_offset,
+        inertia: [0.0; 3],
+        force: ld.tip_force,
+        moment: ld.tip_moment,
+        force_body: [0.0; 3],
+        moment_body: [0.0; 3],
     }
 }
 
@@ -465,16 +469,7 @@ fn two_right_sides_solve_as_two_solves() {
     let grid = Grid::new(&rod);
     let models = static_models(&rod, &grid, &ld, 1.0);
     let hist = vec![[0.0; softrod_core::collocation::NF]; 2 * grid.len() + 1];
-    let tip = softrod_core::collocation::TipBody {
-        mass: rod.spec.tip.mass,
-        com: rod.spec.tip.com_offset,
-        inertia: [0.0; 3],
-        force: ld.tip_force,
-        moment: ld.tip_moment,
-        force_body: [0.0; 3],
-        moment_body: [0.0; 3],
-    };
-    let p = Problem::new(&rod, &grid, &models, 0.0, &hist, tip);
+    let p = Problem::new(&rod, &grid, &models, 0.0, &hist, static_tip(&rod, &ld));
     let fac = p.factorize(&sol.z).unwrap();
     let n = sol.z.len();
     let r: Vec<f64> = (0..2 * n)

@@ -111,36 +111,38 @@ fn commands(p: &[f64]) -> Vec<Vec<f64>> {
     p.iter().map(|x| vec![*x]).collect()
 }
 
-#[test]
-fn one_rod_on_a_massless_platform_is_the_free_rod_with_its_loads() {
-    // A massless platform with no inertia transmits its loads to the tip: the free rod
-    // with the platform's force and moment at its tip (the rods' and the platform's
-    // Newton both converge to tol = 1e-12 of the scaled unknowns).
-    let force = [0.02, -0.01, 0.0];
-    let moment = [0.0, 0.0005, 0.0002];
+/// A one-rod system on a massless platform with no inertia loaded by `force`, `moment`,
+/// and the same rod free with those loads at its tip, both started at `pressure` with
+/// Newton's tol = 1e-12 of the scaled unknowns.
+fn one_rod_and_free_rod(
+    spec: DesignSpec,
+    pressure: f64,
+    force: [f64; 3],
+    moment: [f64; 3],
+) -> (SystemSimulator, Simulator) {
     let o = DynOptions {
         tol: 1e-12,
         ..opts(2e-3, -0.2)
     };
-    let rod = Rod::new(rod_spec([0.0; 3], 9.81, 0.005)).unwrap();
+    let rod = Rod::new(spec).unwrap();
     let one = DynRod {
         rod: rod.clone(),
-        pressures: vec![0.0],
+        pressures: vec![pressure],
         tensions: vec![],
         sigma_map: SigmaMap::None,
         attachment: [0.0; 3],
         attachment_rotation: IDENTITY,
     };
-    let mut sys = SystemSimulator::new(
+    let sys = SystemSimulator::new(
         vec![one],
         platform(0.0, 9.81, force, moment),
         [[0.0; 3]; 3],
         o,
     )
     .unwrap();
-    let mut free = Simulator::with_inputs(
+    let free = Simulator::with_inputs(
         rod,
-        &[0.0],
+        &[pressure],
         Initial::Static,
         o,
         SigmaMap::None,
@@ -148,6 +150,17 @@ fn one_rod_on_a_massless_platform_is_the_free_rod_with_its_loads() {
         moment,
     )
     .unwrap();
+    (sys, free)
+}
+
+#[test]
+fn one_rod_on_a_massless_platform_is_the_free_rod_with_its_loads() {
+    // A massless platform with no inertia transmits its loads to the tip: the free rod
+    // with the platform's force and moment at its tip.
+    let force = [0.02, -0.01, 0.0];
+    let moment = [0.0, 0.0005, 0.0002];
+    let spec = rod_spec([0.0; 3], 9.81, 0.005);
+    let (mut sys, mut free) = one_rod_and_free_rod(spec, 0.0, force, moment);
     let mut worst: f64 = 0.0;
     for k in 0..40 {
         let p = if k < 20 { 30e3 } else { 10e3 };
@@ -182,40 +195,9 @@ fn one_rod_by_a_wall_on_a_massless_platform_is_the_free_rod_by_the_wall() {
     // As the test above, with the rod pressed on a wall through the whole run (30 kPa,
     // then 40 kPa): the system's start and every step carry the rod's obstacles as the
     // free rod's do. Both Newtons converge to tol = 1e-12 of the scaled unknowns.
-    let force = [0.005, 0.0, 0.0];
-    let moment = [0.0; 3];
-    let o = DynOptions {
-        tol: 1e-12,
-        ..opts(2e-3, -0.2)
-    };
     let mut spec = rod_spec([0.0; 3], 9.81, 0.005);
     spec.obstacles = vec![wall()];
-    let rod = Rod::new(spec).unwrap();
-    let one = DynRod {
-        rod: rod.clone(),
-        pressures: vec![30e3],
-        tensions: vec![],
-        sigma_map: SigmaMap::None,
-        attachment: [0.0; 3],
-        attachment_rotation: IDENTITY,
-    };
-    let mut sys = SystemSimulator::new(
-        vec![one],
-        platform(0.0, 9.81, force, moment),
-        [[0.0; 3]; 3],
-        o,
-    )
-    .unwrap();
-    let mut free = Simulator::with_inputs(
-        rod,
-        &[30e3],
-        Initial::Static,
-        o,
-        SigmaMap::None,
-        force,
-        moment,
-    )
-    .unwrap();
+    let (mut sys, mut free) = one_rod_and_free_rod(spec, 30e3, [0.005, 0.0, 0.0], [0.0; 3]);
     // The wall holds the rod back: the free rod's contact force is far from zero.
     let contact = free.contact_state().expect("obstacles");
     assert!(contact.force[0] > 1e-3, "{:?}", contact.force);
