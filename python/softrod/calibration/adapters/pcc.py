@@ -139,6 +139,16 @@ class PccAdapter(ModelAdapter):
         from ...pcc.model import pcc_model
 
         super().__init__()
+        labels = [] if dataset.mounting is None else sorted(set(dataset.mounting.tolist()))
+        if len(labels) > 1:
+            # Each row would be predicted in the design's own mounting: refused, not fitted
+            # to a silent answer.
+            raise V.fail(
+                "dataset.mounting",
+                labels,
+                "model='pcc' fits rows of one mounting (the design's): fit each mounting "
+                "separately, or fit the rod model, which solves every row in its mounting",
+            )
         self.design = design
         self.params = parse_pcc_parameters(names)
         self.parameters = tuple(self.params)

@@ -1,0 +1,26 @@
+"""Datasets with several mountings (docs/datasets.md, ``mounting``): every fit predicts each
+row in its own mounting, or refuses by name; none predicts a row in another mounting than
+the one it was measured in."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import softrod
+from softrod import InputError
+from softrod.calibration import calibrate
+
+
+def test_a_pcc_fit_of_several_mountings_is_refused_by_name():
+    # The PCC model predicts every row in the design's mounting: rows measured hanging
+    # and horizontal cannot both be its predictions.
+    d = softrod.load_design("stiff_flop_pcc")
+    data = softrod.Dataset(
+        pressures=np.full((4, d.n_channels), 1e4),
+        tip_position=np.zeros((4, 3)),
+        mounting=np.array(["hanging", "hanging", "horizontal", "horizontal"]),
+    )
+    with pytest.raises(InputError) as exc:
+        calibrate(d, data, ["k_L"], model="pcc")
+    assert exc.value.field == "dataset.mounting"
+    assert "one mounting" in str(exc.value)
