@@ -24,3 +24,25 @@ def test_a_pcc_fit_of_several_mountings_is_refused_by_name():
         calibrate(d, data, ["k_L"], model="pcc")
     assert exc.value.field == "dataset.mounting"
     assert "one mounting" in str(exc.value)
+
+
+def test_a_held_tip_fit_of_several_mountings_is_refused_by_name():
+    # A held tip's pose is one world point: turning the base to another mounting would
+    # hold the tip there too, a different experiment from the one measured.
+    from test_calibration_held_tip import _base, _data, _held
+
+    held = _held(_base(), "clamped")
+    data = _data(held)
+    labels = np.array(["hanging", "horizontal"] * (len(data) // 2) + ["hanging"] * (len(data) % 2))
+    mixed = softrod.Dataset(
+        pressures=data.pressures,
+        tip_position=data.tip_position,
+        markers=data.markers,
+        marker_s=data.marker_s,
+        marker_offset=data.marker_offset,
+        mounting=labels,
+    )
+    with pytest.raises(InputError) as exc:
+        calibrate(held, mixed, ["E"])
+    assert exc.value.field == "dataset.mounting"
+    assert "one world pose" in str(exc.value)

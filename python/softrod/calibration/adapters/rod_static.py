@@ -31,6 +31,14 @@ def mounting_groups(design: Design, dataset) -> list[tuple[dict, np.ndarray]]:
     labels = list(dict.fromkeys(dataset.mounting.tolist()))
     if len(labels) == 1:  # one mounting: the design is mounted as the data were
         return [({}, np.arange(m))]
+    if design.tip_constraint is not None:
+        raise V.fail(
+            "dataset.mounting",
+            labels,
+            f"the design's [tip] constraint ({design.tip_constraint.kind}) holds the tip at "
+            "one world pose, which another mounting of the base would not share: fit each "
+            "mounting separately, with its own held pose",
+        )
     out = []
     for label in labels:
         if label not in ORIENTATIONS:
