@@ -46,3 +46,58 @@ def test_a_held_tip_fit_of_several_mountings_is_refused_by_name():
         calibrate(held, mixed, ["E"])
     assert exc.value.field == "dataset.mounting"
     assert "one world pose" in str(exc.value)
+
+
+def _two_mountings(design):
+    """Two short experiments of the paper 000 arm (noise-free): a pulse hanging, the same
+    pulse mounted horizontally (experiments 0 and 1)."""
+    from softrod import PressureSchedule
+    from softrod.calibration import synthesize_trajectory_dataset
+
+    pulse = PressureSchedule.square_pulses(3, [(0, 2e5, 0.2)], rest=0.2, start=0.05)
+    parts = [
+        synthesize_trajectory_dataset(
+            design.replace({"mounting.orientation": o}), pulse, 0.5, rate=50, seed=k, dt=5e-3
+        )
+        for k, o in enumerate(("hanging", "horizontal"))
+    ]
+    return softrod.Dataset(
+        pressures=np.vstack([p.pressures for p in parts]),
+        tip_position=np.vstack([p.tip_position for p in parts]),
+        time=np.concatenate([p.time for p in parts]),
+        experiment=np.concatenate([np.full(len(p), k) for k, p in enumerate(parts)]),
+        mounting=np.array(["hanging"] * len(parts[0]) + ["horizontal"] * len(parts[1])),
+    )
+
+
+def test_a_dynamic_fit_replays_each_experiment_in_its_mounting():
+    # Before, every experiment was replayed in the design's own mounting: the horizontal
+    # one hanging, 140 mm off, and tau ran to 190 s. Noise-free data of the truth in both
+    # mountings: tau comes back to the fit's tolerance (LM stops within 1e-3 of a
+    # standard error, and the standard error of noise-free data is round-off-sized), and
+    # the horizontal experiment's tips are the horizontal arm's.
+    truth = softrod.load_design("pam_arm_220mm")
+    data = _two_mountings(truth)
+    start = truth.replace({"dynamics.damping_time": "0.3 s"})
+    fit = calibrate(start, data, ["damping_time"], dynamic=True, dt=5e-3)
+    assert fit.values[0] == pytest.approx(0.19, rel=1e-6)
+    # Every tip within 1 um of the data (the replays are the same runs).
+    assert fit.error_table["max_error_mm"].max() < 1e-3
+
+
+def test_an_experiment_with_two_mountings_is_refused_by_name():
+    truth = softrod.load_design("pam_arm_220mm")
+    data = _two_mountings(truth)
+    mixed = np.array(data.mounting)
+    mixed[1] = "horizontal"  # one row of the hanging experiment
+    bad = softrod.Dataset(
+        pressures=data.pressures,
+        tip_position=data.tip_position,
+        time=data.time,
+        experiment=data.experiment,
+        mounting=mixed,
+    )
+    with pytest.raises(InputError) as exc:
+        calibrate(truth, bad, ["damping_time"], dynamic=True, dt=5e-3)
+    assert exc.value.field == "dataset.mounting"
+    assert "one mounting" in str(exc.value)

@@ -48,6 +48,31 @@ def experiment_rows(dataset) -> list[np.ndarray]:
     return out
 
 
+def experiment_mountings(design: Design, dataset, experiments) -> list[dict]:
+    """Each experiment's mounting as document changes ({}: the design's own), by the static
+    fits' rule (``rod_static.mounting_groups``); an experiment's rows share one mounting."""
+    from .rod_static import mounting_groups
+
+    changes = [{}] * len(experiments)
+    groups = mounting_groups(design, dataset)
+    if len(groups) == 1:
+        return changes
+    label_of = np.empty(len(dataset), dtype=int)
+    for g, (_, rows) in enumerate(groups):
+        label_of[rows] = g
+    for k, rows in enumerate(experiments):
+        mine = np.unique(label_of[rows])
+        if mine.size > 1:
+            e = dataset.experiment[rows[0]] if dataset.experiment is not None else None
+            raise V.fail(
+                "dataset.mounting",
+                f"experiment {e}",
+                "an experiment is one run in one mounting: its rows must share one label",
+            )
+        changes[k] = groups[mine[0]][0]
+    return changes
+
+
 def _rows(tensions: np.ndarray, dt: float):
     """The tensions at the step times k dt (rows k = 0, 1, ...) as ``simulate`` reads them: a
     function of t (s), evaluated at the steps' ends (the same numbers as the sensitivity
@@ -110,6 +135,9 @@ class RodDynamic(ModelAdapter):
         self.dt = _seconds(dt, "dt")
         self.threads = threads
         self.experiments = experiment_rows(dataset)
+        #: Each experiment's mounting (document changes; {} for the design's own), as a
+        #: static fit solves each row in its mounting.
+        self.mountings = experiment_mountings(design, dataset, self.experiments)
         self.time = dataset.time
         self.pressures = dataset.pressures
         #: (m, tendon channels) N, or None: every tendon slack (calibrate checked the count).
@@ -180,11 +208,16 @@ class RodDynamic(ModelAdapter):
         # The experiments replay side by side: each run steps in the core with the GIL
         # released, so threads overlap the runs (in order: the same result on any count).
         workers = min(len(todo), self.threads or os.cpu_count() or 1)
+        try:
+            mounted = [d.replace(self.mountings[k]) if self.mountings[k] else d for k in replayed]
+        except DesignError:
+            return out
+        jobs = list(zip(mounted, todo, strict=True))
         if workers > 1:
             with ThreadPoolExecutor(workers) as pool:
-                runs = list(pool.map(lambda exp: self._replay(d, exp, jacobian), todo))
+                runs = list(pool.map(lambda job: self._replay(*job, jacobian), jobs))
         else:
-            runs = [self._replay(d, exp, jacobian) for exp in todo]
+            runs = [self._replay(*job, jacobian) for job in jobs]
         self._last = (np.array(theta, dtype=float).tobytes(), set(replayed), out)
         for exp, run in zip(todo, runs, strict=True):
             if run is None:
@@ -226,12 +259,15 @@ class RodDynamic(ModelAdapter):
         from ...statics import solve_statics
 
         out = Prediction.empty(self.m, 0, 0, False)
-        sol = solve_statics(calibrated, np.zeros(calibrated.n_channels))
-        out.tip[:] = sol.tip_position
-        out.ok[:] = True
+        for changes, exp in zip(self.mountings, self.experiments, strict=True):
+            d = calibrated.replace(changes) if changes else calibrated
+            out.tip[exp] = solve_statics(d, np.zeros(d.n_channels)).tip_position
+            out.ok[exp] = True
         return out
 
     def base_frame(self):
+        if any(self.mountings):
+            return None  # several mountings: no one base frame
         mount = self.design.spec["mounting"]
         return (
             np.asarray(mount["base_position"], dtype=float),
