@@ -101,3 +101,27 @@ def test_an_experiment_with_two_mountings_is_refused_by_name():
         calibrate(truth, bad, ["damping_time"], dynamic=True, dt=5e-3)
     assert exc.value.field == "dataset.mounting"
     assert "one mounting" in str(exc.value)
+
+
+def test_a_per_sample_identification_of_several_mountings_is_refused_by_name():
+    # Before, the horizontal samples were solved hanging: "converged" with 50 mm residuals
+    # on noise-free data of the design itself.
+    from softrod.calibration import identify_stiffness
+
+    d = softrod.load_design("spa_three_chamber_130mm")
+    p = np.array([[20e3, 0, 0], [0, 30e3, 0]])
+    parts = [
+        softrod.synthesize_dataset(d.replace({"mounting.orientation": o}), p)
+        for o in ("hanging", "horizontal")
+    ]
+    data = softrod.Dataset(
+        pressures=np.vstack([x.pressures for x in parts]),
+        tip_position=np.vstack([x.tip_position for x in parts]),
+        mounting=np.array(["hanging"] * 2 + ["horizontal"] * 2),
+    )
+    with pytest.raises(InputError) as exc:
+        identify_stiffness(d, data)
+    assert exc.value.field == "dataset.mounting"
+    # One mounting is the design's: identified, every factor 1 on its own data.
+    one = identify_stiffness(d, parts[0])
+    assert np.nanmax(np.abs(one.sigma - 1.0)) < 1e-6

@@ -721,6 +721,17 @@ def _check_dataset(dataset, design: Design) -> Dataset:
     if len(dataset) == 0:
         raise design_error("dataset", "0 rows", "needs at least one sample", InputError)
     dataset.require_slack("the per-sample identification (paper 001)")
+    labels = [] if dataset.mounting is None else sorted(set(dataset.mounting.tolist()))
+    if len(labels) > 1:
+        # Every sample is solved with the design as mounted: samples of another mounting
+        # would be fitted to the wrong equilibrium (refused, not answered silently).
+        raise design_error(
+            "dataset.mounting",
+            labels,
+            "the per-sample identification solves every sample with the design as mounted: "
+            "identify each mounting separately, with the design mounted that way",
+            InputError,
+        )
     return dataset
 
 
