@@ -125,3 +125,16 @@ def test_a_per_sample_identification_of_several_mountings_is_refused_by_name():
     # One mounting is the design's: identified, every factor 1 on its own data.
     one = identify_stiffness(d, parts[0])
     assert np.nanmax(np.abs(one.sigma - 1.0)) < 1e-6
+
+
+def test_synthesize_dataset_refuses_several_mountings_by_name():
+    # It solves every row with the design as mounted; a row labelled with another
+    # orientation would contradict its label in a fit of several mountings.
+    d = softrod.load_design("spa_three_chamber_130mm")
+    p = np.array([[20e3, 0, 0], [0, 30e3, 0]])
+    with pytest.raises(InputError) as exc:
+        softrod.synthesize_dataset(d, p, mounting=["hanging", "horizontal"])
+    assert exc.value.field == "mounting"
+    # One label names the rows (the design as mounted), as a fit of one mounting reads it.
+    one = softrod.synthesize_dataset(d, p, mounting="bench")
+    assert one.mounting.tolist() == ["bench", "bench"]

@@ -56,11 +56,12 @@ def synthesize_dataset(
     ``pressures``: (m, channels) gauge pressures in Pa. The tip position gets isotropic
     Gaussian noise of standard deviation ``noise_mm`` (millimetres, per axis, independent);
     orientation and base wrench are the model's, noise-free. ``seed`` makes the noise
-    reproducible; without one a seed is drawn and recorded. ``experiment``/``mounting``: one
-    label for every row or one per row; ``time``: (m,) seconds. ``tip_force``, ``tip_moment``,
-    ``options`` and ``threads`` go to :func:`~softrod.solve_statics_batch`, and so do
-    ``tensions`` ((m, tendon channels) in N, each >= 0; None: slack), which the dataset
-    records in its ``t0``, ``t1``, ... columns.
+    reproducible; without one a seed is drawn and recorded. ``experiment``: one label for
+    every row or one per row; ``mounting``: one label (every row is solved with the design
+    as mounted, so several labels are refused); ``time``: (m,) seconds. ``tip_force``,
+    ``tip_moment``, ``options`` and ``threads`` go to :func:`~softrod.solve_statics_batch`,
+    and so do ``tensions`` ((m, tendon channels) in N, each >= 0; None: slack), which the
+    dataset records in its ``t0``, ``t1``, ... columns.
     ``markers``: points on the body to record as motion-capture markers, each
     ``(s, offset)``: arc length from the base and offset in the cross-section frame
     (d1, d2[, d3]), SI numbers or strings with units (``("55 mm", ["12 mm", "0 mm"])``);
@@ -85,6 +86,17 @@ def synthesize_dataset(
     held = design.tip_constraint
     seed = noise_seed(noise_mm, seed)
     p = batch_pressures(design, pressures)
+    labels = None if mounting is None else np.unique(np.asarray(mounting)).tolist()
+    if labels is not None and len(labels) > 1:
+        # Every row is solved with the design as mounted, while a fit solves the rows of
+        # several labels each in its orientation: such rows would contradict their label.
+        raise _fail(
+            "mounting",
+            labels,
+            "every row is solved with the design as mounted: synthesize each mounting with "
+            "the design mounted that way (design.replace({'mounting.orientation': ...})) "
+            "and join the rows",
+        )
     batch = solve_statics_batch(
         design,
         p,
