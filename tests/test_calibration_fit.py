@@ -234,3 +234,29 @@ def test_failed_write_leaves_nothing(m3, tmp_path):
     with pytest.raises(InputError):
         res.to_toml(tmp_path / "missing" / "out.toml")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_time_step_for_a_fit_without_time_series_is_refused(m3, tmp_path):
+    # dt acts on replayed time series only: given to a static fit it would be ignored, and
+    # a forgotten dynamic=True would fit the samples as equilibria without a word.
+    data = _data(m3, n=2)
+    with pytest.raises(InputError) as exc:
+        calibrate(m3, data, ["c_b"], dt="2 ms")
+    assert exc.value.field == "dt"
+    assert "dynamic=True" in str(exc.value)
+    # The PCC model's equilibria alike (its time series take dt).
+    pcc = softrod.load_design("stiff_flop_pcc")
+    still = softrod.synthesize_dataset(pcc, np.full((3, pcc.n_channels), 1e4), experiment=0)
+    with pytest.raises(InputError) as exc:
+        calibrate(pcc, still, ["k_L"], model="pcc", experiments={0: "static"}, dt="1 ms")
+    assert exc.value.field == "dt"
+    # And at the command line, --dt without --dynamic names the option.
+    from click.testing import CliRunner
+    from softrod.cli import main
+
+    path = softrod.write_dataset(data, tmp_path / "data.csv")
+    out = CliRunner().invoke(
+        main, ["calibrate", "paper002_M3_vertical", str(path), "--params", "c_b", "--dt", "2 ms"]
+    )
+    assert out.exit_code != 0
+    assert "--dt" in out.output

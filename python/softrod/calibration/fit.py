@@ -285,7 +285,7 @@ def calibrate(
     max_evaluations: int = 200,
     progress: Callable[[int, float], None] | None = None,
     dynamic: bool = False,
-    dt: Quantity = 5e-3,
+    dt: Quantity | None = None,
     model: str = "cosserat",
     experiments: Mapping | None = None,
     weights: Mapping[str, Quantity] | None = None,
@@ -332,7 +332,9 @@ def calibrate(
     ``time`` column, one experiment per run) is replayed from rest in equilibrium under its
     first row's pressures and tendon tensions, both joined linearly between the samples
     (tension columns ``t0_N``, ...: inputs, not parameters), with time step ``dt``
-    (paper 000 Sec. III-D). model="pcc": ``experiments`` maps experiment ids to "static"
+    (default :data:`DEFAULT_DT`; paper 000 Sec. III-D). ``dt`` of a fit that replays no time
+    series is refused (a forgotten ``dynamic=True`` would otherwise fit the samples as
+    equilibria). model="pcc": ``experiments`` maps experiment ids to "static"
     (equilibria) or "dynamic" (replayed time series); by default the experiments called
     "step" and "free_decay" (as :func:`softrod.pcc.synthesize_pcc_experiments` names them)
     are time series and the others equilibria, or every experiment is a time series with
@@ -566,19 +568,33 @@ def calibrate(
     )
 
 
+#: The time step of replayed time series when ``dt`` is not given, s.
+DEFAULT_DT = 5e-3
+_STATIC_DT = (
+    "is the time step of replayed time series; this fit replays none (it fits equilibria): "
+    "add dynamic=True to replay the experiments, or leave dt out"
+)
+
+
 def _adapter(model, dynamic, design0, dataset, names, options, threads, dt, experiments):
     """The model adapter of the call."""
+    step = DEFAULT_DT if dt is None else dt
     if model == "pcc":
         from .adapters.pcc import PccAdapter
 
-        return PccAdapter(design0, dataset, names, dynamic, experiments, dt, threads)
+        adapter = PccAdapter(design0, dataset, names, dynamic, experiments, step, threads)
+        if dt is not None and not adapter.dynamic:
+            raise V.fail("dt", dt, _STATIC_DT)
+        return adapter
     from .params import SIGMA_KINDS, parse_parameters
 
     params = parse_parameters(names, design0) if names else []
     if dynamic:
         from .adapters.rod_dynamic import RodDynamic
 
-        return RodDynamic(design0, dataset, params, dt, threads)
+        return RodDynamic(design0, dataset, params, step, threads)
+    if dt is not None:
+        raise V.fail("dt", dt, _STATIC_DT)
     dyn = [p.name for p in params if p.kind == "damping_time"]
     if dyn:
         raise V.fail("params", dyn, "damping_time acts in dynamic fits only (dynamic=True)")

@@ -401,9 +401,9 @@ def _reaction_table(result):
 )
 @click.option(
     "--dt",
-    default="5 ms",
-    show_default=True,
-    help="Time step of the replayed time series.",
+    default=None,
+    help="Time step of the replayed time series (default 5 ms; with --dynamic or the "
+    "PCC model's time series only).",
 )
 @click.option(
     "--experiments",

@@ -381,7 +381,8 @@ def identify_pcc(
             stage_params,
             model="pcc",
             **_replay(dataset, used, kind),
-            dt=dt,
+            # A stiffness stage replays no time series: no time step.
+            dt=dt if kind == "dynamic" else None,
             threads=threads,
             progress=False,
             # A stage's design keeps the name (the joint fit's result gets the new one).
@@ -411,7 +412,7 @@ def identify_pcc(
             fitted,
             model="pcc",
             experiments=kinds,
-            dt=dt,
+            dt=dt if "dynamic" in kinds.values() else None,
             threads=threads,
             progress=False,
         )
