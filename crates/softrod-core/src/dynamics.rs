@@ -1074,6 +1074,9 @@ impl Simulator {
             .with_contact()
             .with_end(end_target(&self.end));
         let eval = problem.evaluate(z_scaled);
+        if initial == Initial::Straight {
+            self.check_straight(&eval)?;
+        }
         self.z = to_physical(&problem, z_scaled);
         self.z_prev = self.z.clone();
         self.z_prev2 = self.z.clone();
@@ -1129,6 +1132,37 @@ impl Simulator {
         };
         self.books.rates = self.rates(&self.models, &self.eval, &self.slots, self.tip_moment);
         Ok(())
+    }
+
+    /// The 'straight' start is the rod at rest with no internal force (n = m = 0), with its
+    /// nodes on the straight line: a state of the rod only where the law's strains at zero
+    /// force are straight (v = e3, u = 0). A chamber pressure at t = 0 (its strains) or a
+    /// reference shape (u*, v*) makes them curved or stretched: the fields would disagree
+    /// with the straight nodes, and the first step would jump to the curved shape at no
+    /// cost in energy (a teleport, not a motion). Refused, naming what to change.
+    fn check_straight(&self, eval: &Evaluated) -> Result<()> {
+        // Exactly straight without shifts (0 times the compliance plus a zero shift); 1e-12
+        // of a strain is round-off of a shift that cancels.
+        let bent = eval.fields.iter().any(|f| {
+            (f[0].abs() + f[1].abs() + (f[2] - 1.0).abs()) > 1e-12
+                || (f[3].abs() + f[4].abs() + f[5].abs()) * self.rod.length > 1e-12
+        });
+        if !bent {
+            return Ok(());
+        }
+        let why = "the 'straight' start is the rod at rest with no internal force, which is straight only without chamber pressure at t = 0 and without a reference shape";
+        if let Some(k) = self.pressures.iter().position(|p| *p != 0.0) {
+            return Err(SoftrodError::invalid(
+                format!("pressures[{k}]"),
+                self.pressures[k],
+                format!("{why}: give pressure 0 at t = 0 (and the pressure from the first step on) or start 'static'"),
+            ));
+        }
+        Err(SoftrodError::invalid(
+            "initial",
+            "straight",
+            format!("{why} (or pre-strain): start 'static' (at rest in the reference shape's equilibrium)"),
+        ))
     }
 
     /// Finite values, rotations and quaternion norms at the nodes, stretch at the stages.

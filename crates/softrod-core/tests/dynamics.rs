@@ -7,7 +7,7 @@ use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, Simulator};
 use softrod_core::spec::MaterialSpec;
 use softrod_core::statics::{solve, SolverOptions};
-use softrod_core::Rod;
+use softrod_core::{Rod, SoftrodError};
 
 const E: f64 = 1.0e6;
 const RHO: f64 = 1000.0;
@@ -492,4 +492,45 @@ fn damped_run_settles_on_the_collocation_statics() {
     );
     // The slowest mode decays as exp(-5.8 t) (overdamped): after 5 s ~1e-13 of the motion.
     assert!(d < 1e-9 * 0.22);
+}
+
+/// The 'straight' start is the rod at rest with no internal force on the straight line:
+/// a state of the rod only where zero force means zero strain. A pressure at t = 0 (it
+/// bent the fields while the nodes stayed straight, and the first step jumped 6 mm at no
+/// energy cost on the bundled 3-chamber actuator) and a reference shape are refused,
+/// naming what to change; without them the start is the straight rod.
+#[test]
+fn straight_start_is_refused_where_zero_force_is_not_straight() {
+    let opts = DynOptions {
+        dt: 5e-3,
+        ..Default::default()
+    };
+    let rod = pam_arm(8, 0.05);
+    let refused = |r: Result<Simulator, SoftrodError>, field: &str| match r {
+        Err(SoftrodError::InvalidParameter { field: f, rule, .. }) => {
+            assert_eq!(f, field);
+            assert!(rule.contains("start 'static'"), "{rule}");
+        }
+        other => panic!("expected a refusal of {field}, got {:?}", other.map(|_| ())),
+    };
+    refused(
+        Simulator::new(rod.clone(), &[0.0, 1e5, 0.0], Initial::Straight, opts),
+        "pressures[1]",
+    );
+    refused(
+        Simulator::new(
+            Rod::new(tabulated_arm(false)).unwrap(),
+            &[0.0; 3],
+            Initial::Straight,
+            opts,
+        ),
+        "initial",
+    );
+    let sim = Simulator::new(rod.clone(), &[0.0; 3], Initial::Straight, opts).unwrap();
+    let tip = sim.tip().r;
+    // Hanging straight down from the base: the tip at -L along z.
+    assert!(
+        (tip[2] + rod.length).abs() < 1e-12 && tip[0].abs() < 1e-12,
+        "{tip:?}"
+    );
 }
