@@ -4,6 +4,8 @@ the one it was measured in."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import softrod
@@ -34,14 +36,7 @@ def test_a_held_tip_fit_of_several_mountings_is_refused_by_name():
     held = _held(_base(), "clamped")
     data = _data(held)
     labels = np.array(["hanging", "horizontal"] * (len(data) // 2) + ["hanging"] * (len(data) % 2))
-    mixed = softrod.Dataset(
-        pressures=data.pressures,
-        tip_position=data.tip_position,
-        markers=data.markers,
-        marker_s=data.marker_s,
-        marker_offset=data.marker_offset,
-        mounting=labels,
-    )
+    mixed = dataclasses.replace(data, mounting=labels)
     with pytest.raises(InputError) as exc:
         calibrate(held, mixed, ["E"])
     assert exc.value.field == "dataset.mounting"
@@ -90,13 +85,7 @@ def test_an_experiment_with_two_mountings_is_refused_by_name():
     data = _two_mountings(truth)
     mixed = np.array(data.mounting)
     mixed[1] = "horizontal"  # one row of the hanging experiment
-    bad = softrod.Dataset(
-        pressures=data.pressures,
-        tip_position=data.tip_position,
-        time=data.time,
-        experiment=data.experiment,
-        mounting=mixed,
-    )
+    bad = dataclasses.replace(data, mounting=mixed)
     with pytest.raises(InputError) as exc:
         calibrate(truth, bad, ["damping_time"], dynamic=True, dt=5e-3)
     assert exc.value.field == "dataset.mounting"
