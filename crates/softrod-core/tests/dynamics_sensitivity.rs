@@ -5,7 +5,7 @@ mod common;
 
 use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
-use softrod_core::sensitivity::{Param, ParamKind};
+use softrod_core::sensitivity::{Marker, Param, ParamKind};
 use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::spec::{AxialSpec, DesignSpec, MaterialSpec};
 use softrod_core::statics::constraint::TipConstraint;
@@ -48,12 +48,17 @@ fn p002_command(t: f64) -> Vec<f64> {
 }
 
 /// A run's inputs as functions of t (s): chamber pressures (Pa), tendon tensions (N) and
-/// the tip's pose (free, or pinned or clamped where the pose says).
+/// the tip's pose (free, or pinned or clamped where the pose says); and the markers read
+/// (their positions and derivatives follow the nodes' in `run`).
 struct Inputs {
     pressures: fn(f64) -> Vec<f64>,
     tensions: fn(f64) -> Vec<f64>,
     held: fn(f64) -> TipConstraint,
+    markers: &'static [Marker],
 }
+
+/// No markers: the nodes only.
+const NO_MARKERS: &[Marker] = &[];
 
 fn slack(_: f64) -> Vec<f64> {
     vec![]
@@ -67,16 +72,18 @@ const PAM: Inputs = Inputs {
     pressures: command,
     tensions: slack,
     held: free,
+    markers: ARM_MARKERS,
 };
 
 const P002: Inputs = Inputs {
     pressures: p002_command,
     tensions: slack,
     held: free,
+    markers: NO_MARKERS,
 };
 
-/// The node positions after every step (`[step][node]`), with `params` their derivatives
-/// (`[step][param][node]`), and the shallowest of the steps' deepest penetrations into an
+/// The node positions after every step followed by the markers' (`[step][point]`), with
+/// `params` their derivatives (`[step][param][point]`), and the shallowest of the steps' deepest penetrations into an
 /// obstacle (m; -inf without obstacles: > 0 means in contact at every step).
 type Run = (Vec<Vec<[f64; 3]>>, Vec<Vec<Vec<[f64; 3]>>>, f64);
 
@@ -95,6 +102,7 @@ fn run(spec: DesignSpec, params: &[Param], inputs: &Inputs) -> Run {
         (inputs.held)(0.0),
     )
     .unwrap();
+    sim.set_markers(inputs.markers).unwrap();
     if !params.is_empty() {
         sim.track_sensitivities(params).unwrap();
     }
@@ -108,17 +116,31 @@ fn run(spec: DesignSpec, params: &[Param], inputs: &Inputs) -> Run {
         }
         sim.set_tip_pose((inputs.held)(t)).unwrap();
         sim.step(&(inputs.pressures)(t)).unwrap();
-        shape.push(sim.shape().to_vec());
+        let nodes = sim.shape().len();
+        shape.push([sim.shape(), &sim.marker_positions()].concat());
         let deepest = sim
             .contact_state()
             .map_or(f64::NEG_INFINITY, |c| c.max_penetration);
         touching = touching.min(deepest);
         if !params.is_empty() {
-            d.push(sim.shape_sensitivity().unwrap().to_vec());
-            // The tip's derivatives are the last node's.
+            let (nodes_d, markers_d) = (
+                sim.shape_sensitivity().unwrap(),
+                sim.marker_sensitivity().unwrap(),
+            );
+            let both = nodes_d.iter().zip(markers_d);
+            d.push(both.map(|(a, b)| [&a[..], b].concat()).collect::<Vec<_>>());
+            // The tip's derivatives are the last node's, and those of a marker on the tip
+            // with no offset.
             let tip = sim.tip_sensitivity().unwrap();
+            let on_tip = inputs
+                .markers
+                .iter()
+                .position(|m| m.s == 0.22 && m.offset == [0.0; 3]);
             for (j, s) in d.last().unwrap().iter().enumerate() {
-                assert_eq!(s.last(), Some(&tip[j]));
+                assert_eq!(s[nodes - 1], tip[j]);
+                if let Some(k) = on_tip {
+                    assert_eq!(s[nodes + k], tip[j]);
+                }
             }
         }
     }
@@ -183,7 +205,8 @@ fn check_against_central_differences(
         // of the derivative; the converged states' error (tol 1e-11 of the unknowns'
         // scales, ~1e-12 m at the tip) divided by the step (2e-4 of the value) adds
         // ~1e-8 m per unit. The tolerance, 1e-5 of the largest derivative plus 1e-7 m
-        // per `unit`, leaves two orders of magnitude above both.
+        // per `unit`, leaves two orders of magnitude above both. Markers are points of
+        // the same state (the continuous extension, smooth in it), with the same errors.
         let h = 1e-4 * value;
         let (up, _, _) = run(moved(spec.clone(), p, h), &[], inputs);
         let (down, _, _) = run(moved(spec.clone(), p, -h), &[], inputs);
@@ -228,6 +251,28 @@ fn check_against_central_differences(
         );
     }
 }
+
+/// Markers on the arm (6 intervals of 36.7 mm): inside intervals with offsets in the
+/// cross-section (read by the continuous extension, which the dual evaluation
+/// differentiates), on a node (s = 2 L / 3) and at the tip.
+const ARM_MARKERS: &[Marker] = &[
+    Marker {
+        s: 0.1,
+        offset: [0.012, -0.004, 0.002],
+    },
+    Marker {
+        s: 0.22 * 2.0 / 3.0,
+        offset: [0.0, 0.01, 0.0],
+    },
+    Marker {
+        s: 0.205,
+        offset: [-0.006, 0.0, 0.0],
+    },
+    Marker {
+        s: 0.22,
+        offset: [0.0; 3],
+    },
+];
 
 #[test]
 fn trajectory_sensitivities_match_central_differences() {
@@ -301,6 +346,7 @@ fn tendon_sensitivities_match_central_differences() {
         pressures: no_pressure,
         tensions: tendon_tensions,
         held: free,
+        markers: NO_MARKERS,
     };
     for (helical, sb) in [(false, false), (true, true)] {
         let spec = tendon_arm(helical, sb, 2, 0.05);
@@ -358,6 +404,7 @@ fn held_tip_sensitivities_match_central_differences() {
             pressures: command,
             tensions: slack,
             held,
+            markers: ARM_MARKERS,
         };
         check_against_central_differences(name, &pam_arm(), &params, &inputs);
     }
@@ -403,6 +450,7 @@ fn contact_sensitivities_match_central_differences() {
         pressures: no_channels,
         tensions: slack,
         held: pressed_tip,
+        markers: NO_MARKERS,
     };
     let (_, _, touching) = run(beam_on_plane(), &[], &inputs);
     assert!(touching > 0.0, "in contact at every step: {touching}");
@@ -479,6 +527,7 @@ fn held_tip_calibration_round_trip_recovers_tau_and_area() {
         pressures: command,
         tensions: slack,
         held: pinned_arm_tip,
+        markers: NO_MARKERS,
     };
     let tau = param(ParamKind::DampingTime, &[]);
     let area = param(ParamKind::AreaScale, &[0]);
