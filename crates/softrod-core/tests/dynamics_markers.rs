@@ -6,7 +6,7 @@
 mod common;
 
 use common::*;
-use softrod_core::dynamics::{DynOptions, Initial, Simulator};
+use softrod_core::dynamics::{DynOptions, Initial, Scheme, Simulator};
 use softrod_core::sensitivity::{Marker, Param, ParamKind};
 use softrod_core::{Rod, SoftrodError};
 use std::f64::consts::PI;
@@ -20,6 +20,10 @@ const KAPPA: f64 = PI / 2.0 / L;
 /// equilibrium on `steps` intervals: the exact shape is the arc of curvature KAPPA in the
 /// y-z plane (tests/exact.rs), which every step keeps.
 fn arc(steps: usize) -> Simulator {
+    arc_with(steps, Scheme::BdfAlpha)
+}
+
+fn arc_with(steps: usize, scheme: Scheme) -> Simulator {
     let mut spec = design(
         vec![direct_section("rod", L, 1e3, 1e3, EI, 0.02, 0.02, steps)],
         IDENTITY,
@@ -31,6 +35,7 @@ fn arc(steps: usize) -> Simulator {
         // Newton's tolerance far below the discretisation error of the finest grid
         // (~1e-8 m), so that the measured errors are the extension's.
         tol: 1e-13,
+        scheme,
         ..DynOptions::default()
     };
     Simulator::new(Rod::new(spec).unwrap(), &[], Initial::Static, opts).unwrap()
@@ -49,7 +54,13 @@ fn exact(s: f64, o: [f64; 3]) -> [f64; 3] {
 
 #[test]
 fn markers_at_nodes_are_the_nodes_and_at_the_end_the_tip() {
-    let mut sim = arc(6);
+    for scheme in [Scheme::BdfAlpha, Scheme::Midpoint] {
+        markers_at_nodes_with(scheme);
+    }
+}
+
+fn markers_at_nodes_with(scheme: Scheme) {
+    let mut sim = arc_with(6, scheme);
     let s = sim.node_s();
     let markers: Vec<Marker> = s
         .iter()
@@ -129,6 +140,32 @@ fn interior_markers_converge_at_third_order_on_an_exact_arc() {
     );
     // And small: the coarsest grid (2 intervals on a quarter circle) is within 1 % of L.
     assert!(errors[0] < 1e-2 * L, "{errors:?}");
+}
+
+/// The saved state holds the stage quaternions the extension reads: a restored run reads
+/// the same markers bit for bit (midpoint scheme: its end state's stages are rebuilt from
+/// the strains, not the step's unknowns).
+#[test]
+fn restored_state_reads_the_same_markers() {
+    let markers = [
+        Marker {
+            s: 0.07,
+            offset: [0.0, 0.004, 0.0],
+        },
+        Marker {
+            s: 0.13,
+            offset: [0.002, 0.0, -0.001],
+        },
+    ];
+    for scheme in [Scheme::BdfAlpha, Scheme::Midpoint] {
+        let mut a = arc_with(4, scheme);
+        a.set_markers(&markers).unwrap();
+        a.step(&[]).unwrap();
+        let mut b = arc_with(4, scheme);
+        b.set_markers(&markers).unwrap();
+        b.restore(&a.save()).unwrap();
+        assert_eq!(a.marker_positions(), b.marker_positions(), "{scheme:?}");
+    }
 }
 
 #[test]
