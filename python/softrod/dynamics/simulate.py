@@ -1058,8 +1058,8 @@ def trajectory_sensitivities(
     """:func:`tip_sensitivities` with markers on the body: ``markers`` ((s, offset) pairs
     in m, the core's checks: s in [0, L], a finite offset in the cross-section frame) are
     read at every step (at a node the node's pose, between nodes the collocation's
-    continuous extension, docs/dynamics.md "Markers"), with their exact derivatives.
-    ``params`` may be empty: the run without sensitivities.
+    continuous extension, docs/dynamics.md "Markers on the moving rod"), with their exact
+    derivatives. ``params`` may be empty: the run without sensitivities.
 
     Returns {"time" (k,), "tip_position" (k, 3), and with markers "marker_position"
     (k, K, 3); with params "d_tip_position" (k, 3, P) and with markers

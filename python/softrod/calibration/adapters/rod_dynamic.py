@@ -4,9 +4,9 @@ measured positions) is replayed: the measured pressures and tensions drive the m
 (joined linearly between samples; the tensions are read at every time step), the arm starts
 at rest in equilibrium under the experiment's first pressures and tensions, and the model's
 tip and motion-capture markers anywhere on the body (``Simulator::set_markers``: between
-the nodes the collocation's continuous extension, docs/dynamics.md "Markers") are read at
-every sample time (linear between the steps). A design whose ``[tip]`` pins or clamps the
-tip is replayed held and fitted by its markers. With ``jacobian`` the core
+the nodes the collocation's continuous extension, docs/dynamics.md "Markers on the moving
+rod") are read at every sample time (linear between the steps). A design whose ``[tip]``
+pins or clamps the tip is replayed held and fitted by its markers. With ``jacobian`` the core
 carries the exact forward sensitivities of every step (``softrod_core::dynamics::
 sensitivity``: the implicit function theorem on each step's collocation equations), so the
 tip's and the markers' derivatives come with the replay at about 3.3-3.6 times its cost
