@@ -2310,8 +2310,7 @@ impl Problem<'_> {
 
     /// The positions of the body points `points` (grid point, offset in the cross-section
     /// frame) of scaled unknowns `z` whose stage fields `fields` and node positions
-    /// `nodes_r` are known ([`Problem::positions_of_fields`]): a node's own position and
-    /// rotation, between nodes the continuous extension ([`dense_point`]).
+    /// `nodes_r` are known ([`Problem::positions_of_fields`]): [`body_points`].
     pub fn points_with<D: RodScalar>(
         &self,
         z: &[D],
@@ -2320,29 +2319,13 @@ impl Problem<'_> {
         points: &[(GridPoint, [f64; 3])],
     ) -> Vec<[D; 3]> {
         let quat = |y: [D; NY]| [y[0], y[1], y[2], y[3]];
-        points
-            .iter()
-            .map(|(p, o)| {
-                let j = p.node;
-                let q0 = quat(self.node_with(z, j));
-                if p.theta == 0.0 {
-                    return offset_point(&nodes_r[j], &rotation(&q0), o);
-                }
-                let qs = [
-                    quat(self.stage_with(z, j, 0)),
-                    quat(self.stage_with(z, j, 1)),
-                ];
-                let stages = [(&qs[0], &fields[2 * j]), (&qs[1], &fields[2 * j + 1])];
-                dense_point(
-                    &nodes_r[j],
-                    &q0,
-                    stages,
-                    self.grid.intervals[j].h,
-                    p.theta,
-                    o,
-                )
-            })
-            .collect()
+        let states = PointStates {
+            node_r: nodes_r,
+            node_q: |j: usize| quat(self.node_with(z, j)),
+            stage_q: |k: usize| quat(self.stage_with(z, k / 2, k % 2)),
+            fields,
+        };
+        body_points(self.grid, &states, points)
     }
 
     /// The tip node's state and the node positions (base first, tip last) of scaled
@@ -2396,33 +2379,56 @@ pub struct Evaluated {
 
 impl Evaluated {
     /// The positions of the body points `points` (grid point of `grid`, offset in the
-    /// cross-section frame) of this state: as [`Problem::points_with`], from the nodes,
-    /// stage quaternions and fields kept here.
+    /// cross-section frame) of this state ([`body_points`]), from the nodes, stage
+    /// quaternions and fields kept here.
     pub fn points(&self, grid: &Grid, points: &[(GridPoint, [f64; 3])]) -> Vec<[f64; 3]> {
-        let quat = |y: &[f64; NY]| [y[0], y[1], y[2], y[3]];
-        points
-            .iter()
-            .map(|(p, o)| {
-                let j = p.node;
-                let q0 = quat(&self.nodes[j]);
-                if p.theta == 0.0 {
-                    return offset_point(&self.node_r[j], &rotation(&q0), o);
-                }
-                let stages = [
-                    (&self.stage_q[2 * j], &self.fields[2 * j]),
-                    (&self.stage_q[2 * j + 1], &self.fields[2 * j + 1]),
-                ];
-                dense_point(
-                    &self.node_r[j],
-                    &q0,
-                    stages,
-                    grid.intervals[j].h,
-                    p.theta,
-                    o,
-                )
-            })
-            .collect()
+        let states = PointStates {
+            node_r: &self.node_r,
+            node_q: |j: usize| {
+                let y: &[f64; NY] = &self.nodes[j];
+                [y[0], y[1], y[2], y[3]]
+            },
+            stage_q: |k: usize| self.stage_q[k],
+            fields: &self.fields,
+        };
+        body_points(grid, &states, points)
     }
+}
+
+/// What [`body_points`] reads of a state: node positions, node quaternions (by node),
+/// stage quaternions (by stage slot 2 j + i) and stage fields (v, u, q, w).
+pub struct PointStates<'a, D, N, S> {
+    pub node_r: &'a [[D; 3]],
+    pub node_q: N,
+    pub stage_q: S,
+    pub fields: &'a [[D; NF]],
+}
+
+/// The positions r + R o of body points (grid point, offset o in the cross-section frame)
+/// of a state, in any scalar: at a node the node's own position and rotation, between
+/// nodes the continuous extension ([`dense_point`]).
+pub fn body_points<D: RodScalar, N: Fn(usize) -> [D; 4], S: Fn(usize) -> [D; 4]>(
+    grid: &Grid,
+    states: &PointStates<'_, D, N, S>,
+    points: &[(GridPoint, [f64; 3])],
+) -> Vec<[D; 3]> {
+    points
+        .iter()
+        .map(|(p, o)| {
+            let j = p.node;
+            let q0 = (states.node_q)(j);
+            if p.theta == 0.0 {
+                return offset_point(&states.node_r[j], &rotation(&q0), o);
+            }
+            let qs = [(states.stage_q)(2 * j), (states.stage_q)(2 * j + 1)];
+            let stages = [
+                (&qs[0], &states.fields[2 * j]),
+                (&qs[1], &states.fields[2 * j + 1]),
+            ];
+            let h = grid.intervals[j].h;
+            dense_point(&states.node_r[j], &q0, stages, h, p.theta, o)
+        })
+        .collect()
 }
 
 impl Problem<'_> {
