@@ -49,6 +49,7 @@ use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
 use crate::law::{ogden_derivatives, ogden_force, AxialTable};
 use crate::ode::{AxialCoeffs, Coeffs, TendonCoeff};
 use crate::rod::{inverse3, Rod};
+use crate::sensitivity::NODE_SNAP;
 use nalgebra::SMatrix;
 use std::sync::Arc;
 
@@ -168,6 +169,33 @@ impl Grid {
             .collect()
     }
 
+    /// The grid point at reference arc length `s` in [0, L] (checked by the caller): node j
+    /// itself where s lies within `NODE_SNAP` of an interval's length of it (so that s = L
+    /// is the tip node exactly), else the interval holding s and the fraction of it.
+    pub fn locate(&self, s: f64) -> GridPoint {
+        let last = self.len() - 1;
+        let j = self
+            .intervals
+            .iter()
+            .position(|iv| s < iv.s0 + iv.h)
+            .unwrap_or(last);
+        let iv = &self.intervals[j];
+        let theta = ((s - iv.s0) / iv.h).clamp(0.0, 1.0);
+        if theta <= NODE_SNAP {
+            GridPoint {
+                node: j,
+                theta: 0.0,
+            }
+        } else if theta >= 1.0 - NODE_SNAP {
+            GridPoint {
+                node: j + 1,
+                theta: 0.0,
+            }
+        } else {
+            GridPoint { node: j, theta }
+        }
+    }
+
     /// Number of intervals N (N + 1 nodes, 2N stage points).
     pub fn len(&self) -> usize {
         self.intervals.len()
@@ -198,6 +226,67 @@ impl Grid {
             iv.s0 + iv.h
         }
     }
+}
+
+/// A point of the body on the grid: node `node` itself (`theta` = 0), or the fraction
+/// `theta` in (0, 1) of interval `node` (from node `node` towards node `node` + 1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GridPoint {
+    pub node: usize,
+    pub theta: f64,
+}
+
+/// Gauss-Legendre collocation's continuous extension on an interval: the collocation
+/// polynomial u(s_j + theta h) = Y_j + h sum_k b_k(theta) f(Y_k), with b_k(theta) the
+/// integrals from 0 to theta of the Lagrange polynomials on the stage points c_1, c_2
+/// (b_k(c_i) = a_ik, b_k(1) = b_k = 1/2). Its error is O(h^3) inside an interval (the
+/// collocation polynomial's uniform order s + 1 for s = 2 stages; the nodes' own are
+/// O(h^4)), with the factor theta (2 theta - 1) (theta - 1) / 6 in front: it vanishes at
+/// the nodes and, superconvergent, at the interval's midpoint.
+pub fn dense_weights(theta: f64) -> [f64; 2] {
+    // l_1 = (tau - c_2) / (c_1 - c_2), l_2 = (tau - c_1) / (c_2 - c_1), c_2 - c_1 = 1/sqrt(3).
+    let sqrt3 = 2.0 * 3.0 * SQRT3_6;
+    [
+        sqrt3 * (GAUSS_C[1] * theta - 0.5 * theta * theta),
+        sqrt3 * (0.5 * theta * theta - GAUSS_C[0] * theta),
+    ]
+}
+
+/// The position r + R o of the point with offset `o` (cross-section frame) at fraction
+/// `theta` of an interval of length `h`, from its start node's position `r0` and
+/// quaternion `q0`, and its stages' quaternions and fields (v, u, q, w) by the
+/// continuous extension ([`dense_weights`]): r = r0 + h sum_k b_k R(Q_k) v_k (the
+/// quadrature that recovers the nodes' r) and Q = Q0 + h sum_k b_k Q_k (0, u_k) / 2,
+/// whose rotation R(Q) / |Q|^2 ([`rotation`]) normalises it. In any scalar: the same
+/// numbers in dual numbers are the point's exact derivatives.
+pub fn dense_point<D: RodScalar>(
+    r0: &[D; 3],
+    q0: &[D; 4],
+    stages: [(&[D; 4], &[D; NF]); 2],
+    h: f64,
+    theta: f64,
+    o: &[f64; 3],
+) -> [D; 3] {
+    let b = dense_weights(theta).map(|x| x * h);
+    let mut r = *r0;
+    let mut q = *q0;
+    for ((qk, f), bk) in stages.iter().zip(b) {
+        let dr = mat_vec(&rotation(&qk[..]), &[f[0], f[1], f[2]]);
+        let dq = quaternion_rate(&qk[..], &[f[3], f[4], f[5]]);
+        for a in 0..3 {
+            r[a] += dr[a] * bk;
+        }
+        for a in 0..4 {
+            q[a] += dq[a] * bk;
+        }
+    }
+    offset_point(&r, &rotation(&q), o)
+}
+
+/// r + R o.
+#[inline(always)]
+pub fn offset_point<D: RodScalar>(r: &[D; 3], rot: &[[D; 3]; 3], o: &[f64; 3]) -> [D; 3] {
+    std::array::from_fn(|i| r[i] + rot[i][0] * o[0] + rot[i][1] * o[1] + rot[i][2] * o[2])
 }
 
 #[inline(always)]
@@ -846,6 +935,18 @@ pub fn quaternion(r: &[[f64; 3]; 3]) -> [f64; 4] {
     q.map(|x| x / n)
 }
 
+/// Q' = Q (0, u) / 2: the quaternion's rate along s with body curvature `u`.
+#[inline(always)]
+fn quaternion_rate<D: RodScalar>(q: &[D], u: &[D; 3]) -> [D; 4] {
+    let (qw, qx, qy, qz) = (q[0], q[1], q[2], q[3]);
+    [
+        (qx * u[0] + qy * u[1] + qz * u[2]) * -0.5,
+        (qw * u[0] + qy * u[2] - qz * u[1]) * 0.5,
+        (qw * u[1] + qz * u[0] - qx * u[2]) * 0.5,
+        (qw * u[2] + qx * u[1] - qy * u[0]) * 0.5,
+    ]
+}
+
 /// dY/ds at one point and its fields (v, u, q, w), given the point's history terms `h`
 /// (X_t = c0 X + X_h for X in v, u, q, w):
 ///   Q' = Q (0, u) / 2,
@@ -882,11 +983,7 @@ pub fn rhs<C: Coeff, D: StateScalar<C>>(
     let qt: [D; 3] = std::array::from_fn(|k| q[k] * c0 + h[6 + k]);
     let wt: [D; 3] = std::array::from_fn(|k| w[k] * c0 + h[9 + k]);
     let mut dy = [zero; NY];
-    let (qw, qx, qy, qz) = (y[0], y[1], y[2], y[3]);
-    dy[0] = (qx * u[0] + qy * u[1] + qz * u[2]) * -0.5;
-    dy[1] = (qw * u[0] + qy * u[2] - qz * u[1]) * 0.5;
-    dy[2] = (qw * u[1] + qz * u[0] - qx * u[2]) * 0.5;
-    dy[3] = (qw * u[2] + qx * u[1] - qy * u[0]) * 0.5;
+    dy[..4].copy_from_slice(&quaternion_rate(&y[IQ..IQ + 4], &u));
     let wxq = cross(&w, &q);
     let acc: [D; 3] = std::array::from_fn(|k| (qt[k] + wxq[k]) * m.rho_a);
     let acc_w = mat_vec(&rot, &acc);
@@ -2211,6 +2308,26 @@ impl Problem<'_> {
         fields
     }
 
+    /// The positions of the body points `points` (grid point, offset in the cross-section
+    /// frame) of scaled unknowns `z` whose stage fields `fields` and node positions
+    /// `nodes_r` are known ([`Problem::positions_of_fields`]): [`body_points`].
+    pub fn points_with<D: RodScalar>(
+        &self,
+        z: &[D],
+        fields: &[[D; NF]],
+        nodes_r: &[[D; 3]],
+        points: &[(GridPoint, [f64; 3])],
+    ) -> Vec<[D; 3]> {
+        let quat = |y: [D; NY]| [y[0], y[1], y[2], y[3]];
+        let states = PointStates {
+            node_r: nodes_r,
+            node_q: |j: usize| quat(self.node_with(z, j)),
+            stage_q: |k: usize| quat(self.stage_with(z, k / 2, k % 2)),
+            fields,
+        };
+        body_points(self.grid, &states, points)
+    }
+
     /// The tip node's state and the node positions (base first, tip last) of scaled
     /// unknowns `z` whose stage fields `fields` are known (from
     /// [`Problem::residual_and_fields_with`] at the same `z`).
@@ -2255,6 +2372,63 @@ pub struct Evaluated {
     pub stage_r: Vec<[f64; 3]>,
     /// Stage rotations.
     pub stage_rot: Vec<[[f64; 3]; 3]>,
+    /// Stage quaternions (of the norm the collocation gives them; `stage_rot` is their
+    /// rotation): what the continuous extension between the nodes reads.
+    pub stage_q: Vec<[f64; 4]>,
+}
+
+impl Evaluated {
+    /// The positions of the body points `points` (grid point of `grid`, offset in the
+    /// cross-section frame) of this state ([`body_points`]), from the nodes, stage
+    /// quaternions and fields kept here.
+    pub fn points(&self, grid: &Grid, points: &[(GridPoint, [f64; 3])]) -> Vec<[f64; 3]> {
+        let states = PointStates {
+            node_r: &self.node_r,
+            node_q: |j: usize| {
+                let y: &[f64; NY] = &self.nodes[j];
+                [y[0], y[1], y[2], y[3]]
+            },
+            stage_q: |k: usize| self.stage_q[k],
+            fields: &self.fields,
+        };
+        body_points(grid, &states, points)
+    }
+}
+
+/// What [`body_points`] reads of a state: node positions, node quaternions (by node),
+/// stage quaternions (by stage slot 2 j + i) and stage fields (v, u, q, w).
+pub struct PointStates<'a, D, N, S> {
+    pub node_r: &'a [[D; 3]],
+    pub node_q: N,
+    pub stage_q: S,
+    pub fields: &'a [[D; NF]],
+}
+
+/// The positions r + R o of body points (grid point, offset o in the cross-section frame)
+/// of a state, in any scalar: at a node the node's own position and rotation, between
+/// nodes the continuous extension ([`dense_point`]).
+pub fn body_points<D: RodScalar, N: Fn(usize) -> [D; 4], S: Fn(usize) -> [D; 4]>(
+    grid: &Grid,
+    states: &PointStates<'_, D, N, S>,
+    points: &[(GridPoint, [f64; 3])],
+) -> Vec<[D; 3]> {
+    points
+        .iter()
+        .map(|(p, o)| {
+            let j = p.node;
+            let q0 = (states.node_q)(j);
+            if p.theta == 0.0 {
+                return offset_point(&states.node_r[j], &rotation(&q0), o);
+            }
+            let qs = [(states.stage_q)(2 * j), (states.stage_q)(2 * j + 1)];
+            let stages = [
+                (&qs[0], &states.fields[2 * j]),
+                (&qs[1], &states.fields[2 * j + 1]),
+            ];
+            let h = grid.intervals[j].h;
+            dense_point(&states.node_r[j], &q0, stages, h, p.theta, o)
+        })
+        .collect()
 }
 
 impl Problem<'_> {
@@ -2277,6 +2451,7 @@ impl Problem<'_> {
             fields: Vec::with_capacity(2 * n_int),
             stage_r: Vec::with_capacity(2 * n_int),
             stage_rot: Vec::with_capacity(2 * n_int),
+            stage_q: Vec::with_capacity(2 * n_int),
         };
         let mut r = self.rod.base_position;
         out.nodes.push(self.node(z, 0));
@@ -2303,6 +2478,7 @@ impl Problem<'_> {
                 dr[i] = mat_vec(&rot, &[fl[0], fl[1], fl[2]]);
                 out.fields.push(fl);
                 out.stage_rot.push(rot);
+                out.stage_q.push([y[0], y[1], y[2], y[3]]);
             }
             for i in 0..2 {
                 out.stage_r.push(std::array::from_fn(|k| {

@@ -32,14 +32,15 @@
 //! (`SystemSimulator`; docs/dynamics.md "Systems of rods"), built on the held tip's step.
 
 use crate::collocation::{
-    self, EndTarget, Evaluated, Factorization, Grid, NewtonOptions, NewtonStats, NewtonWork,
-    Problem, SectionModel, TipBody, GAUSS_B, NF, NY,
+    self, EndTarget, Evaluated, Factorization, Grid, GridPoint, NewtonOptions, NewtonStats,
+    NewtonWork, Problem, SectionModel, TipBody, GAUSS_B, NF, NY,
 };
 use crate::error::{Result, SoftrodError};
 use crate::interp::GridPchip;
 use crate::law::ogden_energy;
 use crate::ode::{Coeffs, Loads};
 use crate::rod::Rod;
+use crate::sensitivity::{check_markers, Marker};
 use crate::statics::constraint::{log_so3, slerp, tmatmul, TipConstraint, ROTATION_TOL};
 use crate::statics::{self, SolverOptions};
 use crate::validity;
@@ -664,6 +665,8 @@ pub struct Simulator {
     end_now: TipConstraint,
     /// The wrench the constraint applies to the tip now (world), N and N m.
     reaction: ([f64; 3], [f64; 3]),
+    /// The body points read as markers (`set_markers`): grid point and offset.
+    markers: Vec<(GridPoint, [f64; 3])>,
     pub stats: DynStats,
 }
 
@@ -900,6 +903,7 @@ impl Simulator {
             end: constraint,
             end_now: constraint,
             reaction: ([0.0; 3], [0.0; 3]),
+            markers: vec![],
             stats: DynStats::default(),
             grid,
             rod,
@@ -1967,6 +1971,7 @@ impl Simulator {
             fields: Vec::with_capacity(2 * n_int),
             stage_r: Vec::with_capacity(2 * n_int),
             stage_rot: Vec::with_capacity(2 * n_int),
+            stage_q: Vec::with_capacity(2 * n_int),
         };
         let q0 = collocation::quaternion(&self.rod.base_rotation);
         let mut qj = nalgebra::Vector4::from_column_slice(&q0);
@@ -2010,6 +2015,8 @@ impl Simulator {
                 }));
                 out.stage_rot.push(rots[i]);
             }
+            out.stage_q.push([q1[0], q1[1], q1[2], q1[3]]);
+            out.stage_q.push([q2[0], q2[1], q2[2], q2[3]]);
             r = std::array::from_fn(|k| r[k] + iv.h * 0.5 * (dr[0][k] + dr[1][k]));
             qj = qn;
             out.nodes.push(node_at(j + 1, [qn[0], qn[1], qn[2], qn[3]]));
@@ -2221,6 +2228,41 @@ impl Simulator {
         &self.eval.fields
     }
 
+    /// Read the body points `markers` (reference arc length s in [0, L], offset in the
+    /// cross-section frame) from now on: [`Simulator::marker_positions`] gives their
+    /// positions and, when sensitivities are tracked, [`Simulator::marker_sensitivity`]
+    /// their derivatives. Checked as the statics' markers (errors name `markers[k]`);
+    /// set them before [`Simulator::track_sensitivities`], whose start differentiates them.
+    pub fn set_markers(&mut self, markers: &[Marker]) -> Result<()> {
+        check_markers(&self.rod, markers)?;
+        if self.sens.is_some() {
+            return Err(SoftrodError::invalid(
+                "markers",
+                format!("{} markers", markers.len()),
+                "set the markers before track_sensitivities (their derivatives start with the run's)",
+            ));
+        }
+        self.markers = markers
+            .iter()
+            .map(|m| (self.grid.locate(m.s), m.offset))
+            .collect();
+        Ok(())
+    }
+
+    /// The positions (world, m) of the markers of [`Simulator::set_markers`] now: r(s) +
+    /// R(s) o, at a node that node's own position and rotation (a marker at s = L with no
+    /// offset is the tip), between nodes the collocation's continuous extension
+    /// (`collocation::dense_point`), accurate to O(h^3) in the interval length h (the
+    /// nodes' own error is O(h^4)).
+    pub fn marker_positions(&self) -> Vec<[f64; 3]> {
+        self.eval.points(&self.grid, &self.markers)
+    }
+
+    /// The number of markers read ([`Simulator::set_markers`]).
+    pub fn marker_count(&self) -> usize {
+        self.markers.len()
+    }
+
     /// Energies now and the cumulative exchanges since t = 0, J.
     pub fn energy_books(&self) -> Energy {
         self.books.now
@@ -2422,7 +2464,8 @@ impl Stepping for Simulator {
 
 /// Layout version of [`Simulator::save`].
 /// 4: the tip constraint (its pose next and now, the reaction, the kept matrix's pose).
-const STATE_VERSION: f64 = 4.0;
+/// 5: the stage quaternions (the continuous extension between the nodes reads them).
+const STATE_VERSION: f64 = 5.0;
 /// First number of a saved state ("softrod" in a number; guards against foreign arrays).
 const STATE_MAGIC: f64 = 50_770_213.0;
 
@@ -2552,6 +2595,7 @@ impl Simulator {
             .map(|r| std::array::from_fn(|k| r[k / 3][k % 3]))
             .collect();
         w.arrays(&rot);
+        w.arrays(&self.eval.stage_q);
         w.n(self.past.len());
         for (t, r) in &self.past {
             w.f(*t);
@@ -2655,6 +2699,7 @@ impl Simulator {
                 .iter()
                 .map(|a| std::array::from_fn(|i| std::array::from_fn(|j| a[3 * i + j])))
                 .collect(),
+            stage_q: r.arrays()?,
         };
         let n_past = r.n()?;
         next.past = (0..n_past)
@@ -2713,6 +2758,7 @@ impl Simulator {
         if next.eval.nodes.len() != n_int + 1
             || next.eval.fields.len() != 2 * n_int
             || next.eval.stage_rot.len() != 2 * n_int
+            || next.eval.stage_q.len() != 2 * n_int
         {
             return Err(bad_state("does not match this simulation's discretisation"));
         }

@@ -282,12 +282,11 @@ pub struct MarkerAt {
 
 /// A marker closer than this fraction of a step to a node is read at that node (so a
 /// marker at s = L is read exactly at the tip).
-const NODE_SNAP: f64 = 1e-9;
+pub(crate) const NODE_SNAP: f64 = 1e-9;
 
-/// Check the markers against the rod and locate them on its integration grid. Errors name
-/// `markers[k]`.
-pub fn locate_markers(rod: &Rod, markers: &[Marker]) -> Result<Vec<MarkerAt>> {
-    let mut out = Vec::with_capacity(markers.len());
+/// Check the markers against the rod: an arc length in [0, L] and a finite offset. Errors
+/// name `markers[k]`.
+pub fn check_markers(rod: &Rod, markers: &[Marker]) -> Result<()> {
     for (k, mk) in markers.iter().enumerate() {
         if !(mk.s.is_finite() && mk.s >= 0.0 && mk.s <= rod.length * (1.0 + 1e-12)) {
             return Err(SoftrodError::invalid(
@@ -306,6 +305,16 @@ pub fn locate_markers(rod: &Rod, markers: &[Marker]) -> Result<Vec<MarkerAt>> {
                 "must be finite (m, cross-section frame)",
             ));
         }
+    }
+    Ok(())
+}
+
+/// Check the markers against the rod and locate them on its integration grid. Errors name
+/// `markers[k]`.
+pub fn locate_markers(rod: &Rod, markers: &[Marker]) -> Result<Vec<MarkerAt>> {
+    check_markers(rod, markers)?;
+    let mut out = Vec::with_capacity(markers.len());
+    for mk in markers {
         let mut node = 0;
         let mut at = None;
         for (i, sec) in rod.sections.iter().enumerate() {

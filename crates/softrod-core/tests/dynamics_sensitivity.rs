@@ -5,7 +5,7 @@ mod common;
 
 use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
-use softrod_core::sensitivity::{Param, ParamKind};
+use softrod_core::sensitivity::{Marker, Param, ParamKind};
 use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::spec::{AxialSpec, DesignSpec, MaterialSpec};
 use softrod_core::statics::constraint::TipConstraint;
@@ -29,8 +29,10 @@ fn options() -> DynOptions {
     DynOptions {
         dt: DT,
         // Far below the default so that the finite differences are not noise: the
-        // converged state's error ~ tol times the unknowns' scales.
-        tol: 1e-11,
+        // converged state's error ~ tol times the unknowns' scales. 1e-11 left a clamped
+        // tip's position (an unknown of the held step) 1e-11 m off its pose, 3e-7 m per
+        // unit in a difference quotient over 3.8e-5 s of tau: the size of the bound below.
+        tol: 1e-13,
         ..DynOptions::default()
     }
 }
@@ -48,12 +50,17 @@ fn p002_command(t: f64) -> Vec<f64> {
 }
 
 /// A run's inputs as functions of t (s): chamber pressures (Pa), tendon tensions (N) and
-/// the tip's pose (free, or pinned or clamped where the pose says).
+/// the tip's pose (free, or pinned or clamped where the pose says); and the markers read
+/// (their positions and derivatives follow the nodes' in `run`).
 struct Inputs {
     pressures: fn(f64) -> Vec<f64>,
     tensions: fn(f64) -> Vec<f64>,
     held: fn(f64) -> TipConstraint,
+    markers: &'static [Marker],
 }
+
+/// No markers: the nodes only.
+const NO_MARKERS: &[Marker] = &[];
 
 fn slack(_: f64) -> Vec<f64> {
     vec![]
@@ -67,16 +74,18 @@ const PAM: Inputs = Inputs {
     pressures: command,
     tensions: slack,
     held: free,
+    markers: ARM_MARKERS,
 };
 
 const P002: Inputs = Inputs {
     pressures: p002_command,
     tensions: slack,
     held: free,
+    markers: NO_MARKERS,
 };
 
-/// The node positions after every step (`[step][node]`), with `params` their derivatives
-/// (`[step][param][node]`), and the shallowest of the steps' deepest penetrations into an
+/// The node positions after every step followed by the markers' (`[step][point]`), with
+/// `params` their derivatives (`[step][param][point]`), and the shallowest of the steps' deepest penetrations into an
 /// obstacle (m; -inf without obstacles: > 0 means in contact at every step).
 type Run = (Vec<Vec<[f64; 3]>>, Vec<Vec<Vec<[f64; 3]>>>, f64);
 
@@ -95,6 +104,7 @@ fn run(spec: DesignSpec, params: &[Param], inputs: &Inputs) -> Run {
         (inputs.held)(0.0),
     )
     .unwrap();
+    sim.set_markers(inputs.markers).unwrap();
     if !params.is_empty() {
         sim.track_sensitivities(params).unwrap();
     }
@@ -108,17 +118,31 @@ fn run(spec: DesignSpec, params: &[Param], inputs: &Inputs) -> Run {
         }
         sim.set_tip_pose((inputs.held)(t)).unwrap();
         sim.step(&(inputs.pressures)(t)).unwrap();
-        shape.push(sim.shape().to_vec());
+        let nodes = sim.shape().len();
+        shape.push([sim.shape(), &sim.marker_positions()].concat());
         let deepest = sim
             .contact_state()
             .map_or(f64::NEG_INFINITY, |c| c.max_penetration);
         touching = touching.min(deepest);
         if !params.is_empty() {
-            d.push(sim.shape_sensitivity().unwrap().to_vec());
-            // The tip's derivatives are the last node's.
+            let (nodes_d, markers_d) = (
+                sim.shape_sensitivity().unwrap(),
+                sim.marker_sensitivity().unwrap(),
+            );
+            let both = nodes_d.iter().zip(markers_d);
+            d.push(both.map(|(a, b)| [&a[..], b].concat()).collect::<Vec<_>>());
+            // The tip's derivatives are the last node's, and those of a marker on the tip
+            // with no offset.
             let tip = sim.tip_sensitivity().unwrap();
+            let on_tip = inputs
+                .markers
+                .iter()
+                .position(|m| m.s == 0.22 && m.offset == [0.0; 3]);
             for (j, s) in d.last().unwrap().iter().enumerate() {
-                assert_eq!(s.last(), Some(&tip[j]));
+                assert_eq!(s[nodes - 1], tip[j]);
+                if let Some(k) = on_tip {
+                    assert_eq!(s[nodes + k], tip[j]);
+                }
             }
         }
     }
@@ -180,10 +204,11 @@ fn check_against_central_differences(
     assert_eq!(shape0, plain, "{name}");
     for (j, (p, value)) in params.iter().enumerate() {
         // Central differences with a relative step of 1e-4: truncation ~ (1e-4)^2 = 1e-8
-        // of the derivative; the converged states' error (tol 1e-11 of the unknowns'
-        // scales, ~1e-12 m at the tip) divided by the step (2e-4 of the value) adds
-        // ~1e-8 m per unit. The tolerance, 1e-5 of the largest derivative plus 1e-7 m
-        // per `unit`, leaves two orders of magnitude above both.
+        // of the derivative; the converged states' error (tol 1e-13 of the unknowns'
+        // scales, ~1e-13 m at the tip) divided by the step (2e-4 of the value) adds
+        // ~1e-9 m per unit. The tolerance, 1e-5 of the largest derivative plus 1e-7 m
+        // per `unit`, leaves two orders of magnitude above both. Markers are points of
+        // the same state (the continuous extension, smooth in it), with the same errors.
         let h = 1e-4 * value;
         let (up, _, _) = run(moved(spec.clone(), p, h), &[], inputs);
         let (down, _, _) = run(moved(spec.clone(), p, -h), &[], inputs);
@@ -228,6 +253,28 @@ fn check_against_central_differences(
         );
     }
 }
+
+/// Markers on the arm (6 intervals of 36.7 mm): inside intervals with offsets in the
+/// cross-section (read by the continuous extension, which the dual evaluation
+/// differentiates), on a node (s = 2 L / 3) and at the tip.
+const ARM_MARKERS: &[Marker] = &[
+    Marker {
+        s: 0.1,
+        offset: [0.012, -0.004, 0.002],
+    },
+    Marker {
+        s: 0.22 * 2.0 / 3.0,
+        offset: [0.0, 0.01, 0.0],
+    },
+    Marker {
+        s: 0.205,
+        offset: [-0.006, 0.0, 0.0],
+    },
+    Marker {
+        s: 0.22,
+        offset: [0.0; 3],
+    },
+];
 
 #[test]
 fn trajectory_sensitivities_match_central_differences() {
@@ -301,6 +348,7 @@ fn tendon_sensitivities_match_central_differences() {
         pressures: no_pressure,
         tensions: tendon_tensions,
         held: free,
+        markers: NO_MARKERS,
     };
     for (helical, sb) in [(false, false), (true, true)] {
         let spec = tendon_arm(helical, sb, 2, 0.05);
@@ -336,6 +384,16 @@ fn clamped_arm_tip(t: f64) -> TipConstraint {
     }
 }
 
+/// Clamped 20 mm aside of the straight tip in the base's orientation and held there: the
+/// arm starts S-shaped, and the PAMs' stretch changes that shape (markers move) while the
+/// tip stays put.
+fn clamped_aside_tip(_: f64) -> TipConstraint {
+    TipConstraint::Clamped {
+        position: [0.02, 0.0, -0.22],
+        rotation: [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]],
+    }
+}
+
 fn pinned_arm_tip(_: f64) -> TipConstraint {
     TipConstraint::Pinned {
         position: [0.0, 0.0, -0.22],
@@ -352,13 +410,30 @@ fn held_tip_sensitivities_match_central_differences() {
     ];
     for (name, held) in [
         ("clamped arm", clamped_arm_tip as fn(f64) -> TipConstraint),
+        ("clamped aside", clamped_aside_tip),
         ("pinned arm", pinned_arm_tip),
     ] {
         let inputs = Inputs {
             pressures: command,
             tensions: slack,
             held,
+            markers: ARM_MARKERS,
         };
+        if name == "clamped aside" {
+            // The tip (the last node, and the marker on it) stays; the other markers move.
+            let (points, _, _) = run(pam_arm(), &[], &inputs);
+            let (first, last) = (&points[0], &points[STEPS - 1]);
+            let nodes = first.len() - ARM_MARKERS.len();
+            // The held pose holds to Newton's tolerance (1e-13 of the unknowns' scales, the
+            // length for positions: 1e-19 m measured); the markers move (by 0.3 mm or more
+            // in the 0.2 s run, the one 15 mm from the clamp least).
+            let tip_moved = dist(&first[nodes - 1], &last[nodes - 1]);
+            assert!(tip_moved < 1e-13, "{name}: the tip moved {tip_moved}");
+            let moved = (nodes..nodes + 3).map(|k| dist(&first[k], &last[k]));
+            let least = moved.fold(f64::INFINITY, f64::min);
+            eprintln!("{name}: tip moved {tip_moved:.1e} m, the markers at least {least:.1e} m");
+            assert!(least > 1e-4, "{name}: the markers moved only {least} m");
+        }
         check_against_central_differences(name, &pam_arm(), &params, &inputs);
     }
 }
@@ -403,6 +478,7 @@ fn contact_sensitivities_match_central_differences() {
         pressures: no_channels,
         tensions: slack,
         held: pressed_tip,
+        markers: NO_MARKERS,
     };
     let (_, _, touching) = run(beam_on_plane(), &[], &inputs);
     assert!(touching > 0.0, "in contact at every step: {touching}");
@@ -480,6 +556,7 @@ fn held_tip_calibration_round_trip_recovers_tau_and_area() {
         pressures: command,
         tensions: slack,
         held: pinned_arm_tip,
+        markers: NO_MARKERS,
     };
     let tau = param(ParamKind::DampingTime, &[]);
     let area = param(ParamKind::AreaScale, &[0]);
@@ -518,7 +595,7 @@ fn held_tip_calibration_round_trip_recovers_tau_and_area() {
         "held-tip fit: tau {:.9} (truth {}), area {:.9} (truth {})",
         theta[0], truth[0], theta[1], truth[1]
     );
-    // The replays converge to 1e-11 of the unknowns' scales: the misfit's minimum lies
+    // The replays converge to 1e-13 of the unknowns' scales: the misfit's minimum lies
     // that close to the truth, far inside 1e-6.
     for i in 0..2 {
         assert!(

@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::dynamics::{CommandSchedule, DynOptions, Initial, Scheme, SigmaMap, Simulator};
 use softrod_core::interp::GridPchip;
-use softrod_core::sensitivity::{Param, ParamKind};
+use softrod_core::sensitivity::{Marker, Param, ParamKind};
 use softrod_core::statics::constraint::TipConstraint;
 use softrod_core::{Rod, SoftrodError};
 
@@ -42,6 +42,11 @@ struct Saved {
     /// d tip / d theta per sample (3 x P, row-major) when sensitivities are tracked.
     d_tip: Vec<f64>,
     n_par: usize,
+    /// The markers' positions per sample (`set_markers`; K per sample) and, when
+    /// sensitivities are tracked, their derivatives (K x 3 x P, row-major).
+    markers: Vec<[f64; 3]>,
+    d_markers: Vec<f64>,
+    n_markers: usize,
 }
 
 impl Saved {
@@ -71,6 +76,16 @@ impl Saved {
             self.n_par = d.len();
             for a in 0..3 {
                 self.d_tip.extend(d.iter().map(|dj| dj[a]));
+            }
+        }
+        if self.n_markers > 0 {
+            self.markers.extend(sim.marker_positions());
+            if let Some(d) = sim.marker_sensitivity() {
+                for k in 0..self.n_markers {
+                    for a in 0..3 {
+                        self.d_markers.extend(d.iter().map(|dj| dj[k][a]));
+                    }
+                }
             }
         }
     }
@@ -130,6 +145,20 @@ impl Saved {
                 "d_tip_position",
                 PyArray1::from_vec(py, self.d_tip).reshape([n, 3, self.n_par])?,
             )?;
+        }
+        let k = self.n_markers;
+        if k > 0 {
+            let flat: Vec<f64> = self.markers.iter().flatten().copied().collect();
+            d.set_item(
+                "marker_position",
+                PyArray1::from_vec(py, flat).reshape([n, k, 3])?,
+            )?;
+            if self.n_par > 0 {
+                d.set_item(
+                    "d_marker_position",
+                    PyArray1::from_vec(py, self.d_markers).reshape([n, k, 3, self.n_par])?,
+                )?;
+            }
         }
         Ok(d)
     }
@@ -285,6 +314,23 @@ impl PySimulator {
         })
     }
 
+    /// Read the markers `markers` ((s, offset) pairs: reference arc length in [0, L], m,
+    /// and offset in the cross-section frame, m) from now on (before
+    /// `track_sensitivities`): `run` and `snapshot` then return their positions as
+    /// `marker_position` (k, K, 3) and, with sensitivities, `d_marker_position`
+    /// (k, K, 3, P). Errors name `markers[k]`.
+    fn set_markers(&mut self, py: Python<'_>, markers: Vec<(f64, [f64; 3])>) -> PyResult<()> {
+        crate::guarded(py, || {
+            let markers: Vec<Marker> = markers
+                .into_iter()
+                .map(|(s, offset)| Marker { s, offset })
+                .collect();
+            self.sim
+                .set_markers(&markers)
+                .map_err(|e| to_py_err(py, e, Context::Input))
+        })
+    }
+
     /// Time now, s.
     #[getter]
     fn time(&self) -> f64 {
@@ -369,7 +415,10 @@ impl PySimulator {
     /// The state now: time, pressures, tip pose and velocity, energy, base wrench, shape.
     fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         crate::guarded(py, || {
-            let mut saved = Saved::default();
+            let mut saved = Saved {
+                n_markers: self.sim.marker_count(),
+                ..Saved::default()
+            };
             saved.push(&self.sim, true);
             saved.push_shape(&self.sim);
             let nodes = self.sim.shape().len();
@@ -553,7 +602,10 @@ impl PySimulator {
             }
             let sim = &mut self.sim;
             let result = py.detach(|| -> Result<Saved, SoftrodError> {
-                let mut saved = Saved::default();
+                let mut saved = Saved {
+                    n_markers: sim.marker_count(),
+                    ..Saved::default()
+                };
                 for (j, (row, flag)) in cmd.rows().into_iter().zip(keep.iter()).enumerate() {
                     if let Some(t) = &tens {
                         sim.set_tensions(&t.row(j).to_vec())?;

@@ -298,9 +298,10 @@ def calibrate(
 
     design: a design (path, bundled name, preset or :class:`~softrod.Design`).
     dataset: a :class:`~softrod.Dataset` or a path to one, with tip positions, markers
-    anywhere on the body (docs/datasets.md), or both. Rows with a ``mounting`` of "hanging",
-    "upright" or "horizontal" are solved with that orientation (paper 002 fits vertical and
-    horizontal experiments together). The design's tip loads apply to all rows.
+    anywhere on the body (docs/datasets.md; in time series too, ``dynamic=True``), or
+    both. Rows with a ``mounting`` of "hanging", "upright" or "horizontal" are solved with
+    that orientation (paper 002 fits vertical and horizontal experiments together). The
+    design's tip loads apply to all rows.
     params: names such as ``["c_b", "c_e", "alpha", "offset_1", "offset_2", "c_p"]`` (see
     :mod:`softrod.calibration.params`); with ``dynamic=True`` also ``"damping_time"``; with
     ``model="pcc"`` the PCC parameters ``"k_L"``, ``"k_theta"`` (or ``"k_theta[j]"``, the
@@ -319,10 +320,11 @@ def calibrate(
     prescribed position, so the dataset must have markers or the measured reaction, the
     blocked force: columns ``tip_reaction_fx_N`` ..., docs/datasets.md; without either
     ``calibrate`` raises an InputError naming ``dataset.markers`` and the reaction columns,
-    since no parameter moves a held tip); the dynamic fit and ``model="pcc"`` refuse it
-    (``tip_constraint``): the dynamic fit reads the tip trajectory, which a held tip does
-    not move. A free tip has no reaction: a dataset with reaction columns is refused for
-    it (``dataset.tip_reaction_force``).
+    since no parameter moves a held tip); the dynamic fit fits a held tip's markers along
+    the trajectories with the same exact derivatives (without markers it raises an
+    InputError naming ``dataset.markers``; it reads no reaction), and ``model="pcc"``
+    refuses it (``tip_constraint``). A free tip has no reaction: a dataset with reaction
+    columns is refused for it (``dataset.tip_reaction_force``).
     weights: ``{quantity: standard deviation}`` per measured quantity: "tip", "markers"
     (lengths, default 1 mm), "reaction" (a force, default 5 mN) and "reaction_moment" (a
     moment, default 0.5 N mm), e.g. ``{"tip": "0.2 mm", "reaction": "2 mN"}``: each
@@ -375,17 +377,11 @@ def calibrate(
     design0 = load_design(design)
     if model == "pcc":
         require_free_tip(design0, "calibrate(model='pcc')")
-    if dynamic and design0.tip_constraint is not None:
-        raise V.fail(
-            "tip_constraint",
-            design0.tip_constraint.kind,
-            "calibrate(dynamic=True) fits the tip trajectory, which a held tip does not move "
-            "(the core's sensitivities of the other nodes are not read by it yet); a static "
-            "fit (dynamic=False) of a held tip fits its markers",
-        )
     if not isinstance(dataset, Dataset):
         dataset = load_dataset(dataset, design=design0)
     reactions = dataset.tip_reaction_force is not None or dataset.tip_reaction_moment is not None
+    if dynamic and model == "cosserat" and design0.tip_constraint is not None:
+        _check_held_trajectories(design0, dataset, reactions)
     if design0.tip_constraint is not None and dataset.markers is None and not reactions:
         raise V.fail(
             "dataset.markers",
@@ -566,6 +562,33 @@ def calibrate(
         predicted_reaction=final.reaction,
         predicted_reaction_moment=final.reaction_moment,
     )
+
+
+def _check_held_trajectories(design: Design, dataset: Dataset, reactions: bool) -> None:
+    """A dynamic fit of a held tip reads the markers along the trajectories: the tip stays
+    at its prescribed pose, and the reaction's derivatives along a trajectory are not
+    carried."""
+    kind = design.tip_constraint.kind
+    if dataset.markers is None:
+        raise V.fail(
+            "dataset.markers",
+            "(none)",
+            f"the design's [tip] constraint ({kind}) holds the tip, whose trajectory no "
+            "parameter moves: calibrate(dynamic=True) of a held tip needs markers on the rod "
+            "(marker0_x, ... columns with their arc lengths and offsets, docs/datasets.md)",
+        )
+    if reactions:
+        field = (
+            "tip_reaction_force"
+            if dataset.tip_reaction_force is not None
+            else "tip_reaction_moment"
+        )
+        raise V.fail(
+            f"dataset.{field}",
+            "given",
+            "calibrate(dynamic=True) fits the markers of a held tip, not its reaction (fit the "
+            "reaction in statics, dynamic=False, or drop the tip_reaction_* columns)",
+        )
 
 
 #: The time step of replayed time series when ``dt`` is not given, s.

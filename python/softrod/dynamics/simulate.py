@@ -1042,6 +1042,28 @@ def tip_sensitivities(
     Returns (time (k,), tip position (k, 3), d tip / d theta (k, 3, P)), k = steps + 1 (the
     start included); the derivatives are per SI unit of each parameter (area_scale: per unit
     of the factor on the design's areas). The steps run in the core with the GIL released."""
+    out = trajectory_sensitivities(design, schedule, t_end, dt, params, tensions)
+    return out["time"], out["tip_position"], out["d_tip_position"]
+
+
+def trajectory_sensitivities(
+    design: Design,
+    schedule: PressureSchedule,
+    t_end: float,
+    dt: float,
+    params: Sequence[tuple[str, list[int]]],
+    tensions: np.ndarray | None = None,
+    markers: Sequence[tuple[float, list[float]]] = (),
+) -> dict[str, np.ndarray]:
+    """:func:`tip_sensitivities` with markers on the body: ``markers`` ((s, offset) pairs
+    in m, the core's checks: s in [0, L], a finite offset in the cross-section frame) are
+    read at every step (at a node the node's pose, between nodes the collocation's
+    continuous extension, docs/dynamics.md "Markers on the moving rod"), with their exact
+    derivatives. ``params`` may be empty: the run without sensitivities.
+
+    Returns {"time" (k,), "tip_position" (k, 3), and with markers "marker_position"
+    (k, K, 3); with params "d_tip_position" (k, 3, P) and with markers
+    "d_marker_position" (k, K, 3, P)}."""
     n = step_count(t_end, dt)
     if tensions is not None and tensions.shape != (n + 1, design.n_tendons):
         raise design_error(
@@ -1053,7 +1075,10 @@ def tip_sensitivities(
         )
     p0 = schedule.sample([0.0])[0]
     sim = Simulation(design, p0, dt=dt, tensions=None if tensions is None else tensions[0])
-    sim._sim.track_sensitivities([(k, list(s)) for k, s in params])
+    if markers:
+        sim._sim.set_markers([(s, list(o)) for s, o in markers])
+    if params:
+        sim._sim.track_sensitivities([(k, list(s)) for k, s in params])
     first = sim._sim.snapshot()
     table = None
     if schedule.kind in ("linear", "step"):
@@ -1061,7 +1086,5 @@ def tip_sensitivities(
     commands = np.ascontiguousarray(schedule.sample(dt * np.arange(1, n + 1)))
     rows = None if tensions is None else np.ascontiguousarray(tensions[1:], dtype=float)
     rest = sim._sim.run(commands, np.ones(n, dtype=np.uint8), False, None, table, rows)
-    time = np.concatenate([first["time"], rest["time"]])
-    tip = np.vstack([first["tip_position"], rest["tip_position"]])
-    d_tip = np.concatenate([first["d_tip_position"], rest["d_tip_position"]])
-    return time, tip, d_tip
+    keys = ["time", "tip_position", "marker_position", "d_tip_position", "d_marker_position"]
+    return {key: np.concatenate([first[key], rest[key]]) for key in keys if key in rest}

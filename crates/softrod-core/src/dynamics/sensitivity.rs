@@ -25,7 +25,9 @@
 //! evaluation at the final iterate (the last residual, or where the last correction was
 //! applied without a confirming one, the stage fields alone) gives the stage fields
 //! X_{n+1} = fields(z_{n+1}) with their derivatives, so the new slot values (and X_t,n+1 =
-//! c0 X_{n+1} + X_h) and the tip position's derivative follow without evaluating the rod
+//! c0 X_{n+1} + X_h) and the derivatives of the node positions, the tip's and the markers'
+//! (`Simulator::set_markers`: the collocation's continuous extension, `collocation::
+//! dense_point`, evaluated in the same dual numbers) follow without evaluating the rod
 //! equations again. The start (at rest in equilibrium, c0 = 0) is differentiated the same way. No
 //! finite differences; the errors are that of the converged Newton solution (tol)
 //! propagated linearly and the refinement's 1e-9.
@@ -71,6 +73,8 @@ pub(crate) struct Tracker {
     tip: Vec<[f64; 3]>,
     /// d r(node k) / d theta_j now: `shape[j][k]` (the nodes of `Simulator::shape`).
     shape: Vec<Vec<[f64; 3]>>,
+    /// d marker_k / d theta_j now: `markers[j][k]` (`Simulator::set_markers`).
+    markers: Vec<Vec<[f64; 3]>>,
     /// dz/dtheta_j (scaled unknowns) of the last DZ_KEPT steps, newest first: the
     /// refinement's start is their extrapolation (none before two steps).
     dz: Vec<Vec<Vec<f64>>>,
@@ -90,12 +94,22 @@ pub(crate) struct Tracker {
 }
 
 impl Tracker {
-    /// Parameter j's node position derivatives (dual direction q of `nodes_r`).
-    fn set_positions<const N: usize>(&mut self, j: usize, q: usize, nodes_r: &[[Jet<N>; 3]]) {
+    /// Parameter j's node and marker position derivatives (dual direction q of `nodes_r`
+    /// and `markers`).
+    fn set_positions<const N: usize>(
+        &mut self,
+        j: usize,
+        q: usize,
+        nodes_r: &[[Jet<N>; 3]],
+        markers: &[[Jet<N>; 3]],
+    ) {
         let shape = &mut self.shape[j];
         shape.clear();
         shape.extend(nodes_r.iter().map(|r| r.map(|x| x.eps[q])));
         self.tip[j] = shape.last().copied().unwrap_or([0.0; 3]);
+        let at = &mut self.markers[j];
+        at.clear();
+        at.extend(markers.iter().map(|r| r.map(|x| x.eps[q])));
     }
 }
 
@@ -203,6 +217,7 @@ impl Simulator {
             slots: vec![vec![ZERO_SLOT; n_slots]; params.len()],
             tip: vec![[0.0; 3]; params.len()],
             shape: vec![vec![]; params.len()],
+            markers: vec![vec![]; params.len()],
             dz: vec![vec![]; params.len()],
             scale: params
                 .iter()
@@ -263,6 +278,14 @@ impl Simulator {
         self.sens.as_ref().map(|t| t.shape.as_slice())
     }
 
+    /// d marker_k / d theta_j of the markers of [`Simulator::set_markers`] now (`[j][k]`,
+    /// world, m per unit of parameter j): the continuous extension's positions
+    /// ([`Simulator::marker_positions`]) evaluated in dual numbers, exact for the
+    /// discrete trajectory. None when no sensitivities are tracked.
+    pub fn marker_sensitivity(&self) -> Option<&[Vec<[f64; 3]>]> {
+        self.sens.as_ref().map(|t| t.markers.as_slice())
+    }
+
     /// The parameters tracked.
     pub fn sensitivity_params(&self) -> Option<&[Param]> {
         self.sens.as_ref().map(|t| t.params.as_slice())
@@ -286,6 +309,7 @@ impl Simulator {
         let hist_d = vec![[Jet::<N>::from(0.0); NF]; n_slots];
         let zd = solve_exact(problem, fac, &models_d, &hist_d, z, chunk.len())?;
         let (fields, _, nodes_r) = problem.fields_and_positions_with(&models_d, &hist_d, &zd);
+        let markers = problem.points_with(&zd, &fields, &nodes_r, &self.markers);
         for q in 0..chunk.len() {
             let j = j0 + q;
             for (k, f) in fields.iter().enumerate() {
@@ -298,7 +322,7 @@ impl Simulator {
                     xt: [0.0; FIELDS],
                 };
             }
-            tr.set_positions(j, q, &nodes_r);
+            tr.set_positions(j, q, &nodes_r, &markers);
         }
         Some(())
     }
@@ -576,6 +600,7 @@ impl Simulator {
             }
         };
         let (tip_node, nodes_r) = problem.positions_of_fields(&zd, &fields);
+        let markers = problem.points_with(&zd, &fields, &nodes_r, &self.markers);
         for q in 0..n_par {
             let j = j0 + q;
             let mut old = std::mem::take(&mut tr.dz[j]);
@@ -609,7 +634,7 @@ impl Simulator {
                     x1,
                 };
             }
-            tr.set_positions(j, q, &nodes_r);
+            tr.set_positions(j, q, &nodes_r, &markers);
         }
         Ok(())
     }

@@ -3,12 +3,15 @@
 measured positions) is replayed: the measured pressures and tensions drive the model
 (joined linearly between samples; the tensions are read at every time step), the arm starts
 at rest in equilibrium under the experiment's first pressures and tensions, and the model's
-tip is read at every sample time (linear between the steps). With ``jacobian`` the core
+tip and motion-capture markers anywhere on the body (``Simulator::set_markers``: between
+the nodes the collocation's continuous extension, docs/dynamics.md "Markers on the moving
+rod") are read at every sample time (linear between the steps). A design whose ``[tip]``
+pins or clamps the tip is replayed held and fitted by its markers. With ``jacobian`` the core
 carries the exact forward sensitivities of every step (``softrod_core::dynamics::
 sensitivity``: the implicit function theorem on each step's collocation equations), so the
-tip's derivatives come with the replay at about 3.3-3.6 times its cost (two parameters, CPU
-time on one thread; benchmarks/README.md), and Levenberg-Marquardt fits with standard
-errors."""
+tip's and the markers' derivatives come with the replay at about 3.3-3.6 times its cost
+(two parameters, CPU time on one thread; benchmarks/README.md), and Levenberg-Marquardt
+fits with standard errors."""
 
 from __future__ import annotations
 
@@ -22,6 +25,7 @@ from ...design import Design
 from ...errors import ConvergenceError, DesignError
 from ..params import SIGMA_KINDS, Parameter, design_changes
 from ..problem import ModelAdapter, Prediction
+from .rod_static import marker_sites, rest_prediction
 
 
 def experiment_rows(dataset) -> list[np.ndarray]:
@@ -80,8 +84,31 @@ def _rows(tensions: np.ndarray, dt: float):
     return lambda t: tensions[int(round(t / dt))]
 
 
+def step_tensions(t: np.ndarray, knots: np.ndarray, dt: float) -> np.ndarray:
+    """The tendon tensions ``knots`` (k, channels) sampled at the times ``t`` (from 0) at
+    the start and at every step's end (the core reads a step's tensions at its end), joined
+    linearly between the samples as the pressures are."""
+    from ...dynamics.simulate import step_count
+
+    at = np.minimum(dt * np.arange(step_count(t[-1], dt) + 1), t[-1])
+    return np.column_stack([np.interp(at, t, k) for k in knots.T])
+
+
+def sample_run(run: dict, key: str, t: np.ndarray) -> np.ndarray | None:
+    """``run[key]`` (one row per step, from :func:`~softrod.dynamics.simulate.
+    trajectory_sensitivities`) at the times ``t``, linear between the steps (derivatives
+    alike: the same weights); None when the run has no ``key``."""
+    if key not in run:
+        return None
+    time = run["time"]
+    at = np.minimum(t, time[-1])
+    flat = run[key].reshape(len(time), -1)
+    cols = [np.interp(at, time, flat[:, c]) for c in range(flat.shape[1])]
+    return np.column_stack(cols).reshape((len(at),) + run[key].shape[1:])
+
+
 class RodDynamic(ModelAdapter):
-    """The tip of every sample of every replayed experiment."""
+    """The tip (and the markers) of every sample of every replayed experiment."""
 
     model = "cosserat"
     dynamic = True
@@ -108,12 +135,6 @@ class RodDynamic(ModelAdapter):
         from ...dynamics.simulate import _seconds
 
         super().__init__()
-        if dataset.markers is not None:
-            raise V.fail(
-                "dataset.markers",
-                f"{dataset.n_markers} markers",
-                "dynamic fits read the tip position only (markers: static fits)",
-            )
         sigma = [p.name for p in params if p.kind in SIGMA_KINDS]
         if sigma:
             raise V.fail("params", sigma, "sigma factors belong to static fits")
@@ -142,6 +163,13 @@ class RodDynamic(ModelAdapter):
         self.pressures = dataset.pressures
         #: (m, tendon channels) N, or None: every tendon slack (calibrate checked the count).
         self.tensions = dataset.tensions
+        #: The core's (s, offset) of every marker (empty without markers: no marker work),
+        #: checked by the core against the rod before any replay.
+        self.markers = marker_sites(dataset)
+        if self.markers:
+            design._rod.sensitivity_batch(
+                np.zeros((0, design.n_channels)), [0.0] * 3, [0.0] * 3, [], markers=self.markers
+            )
         self.m = len(dataset)
         #: (theta, the experiments replayed, the prediction) of the last evaluation.
         self._last = None
@@ -153,24 +181,17 @@ class RodDynamic(ModelAdapter):
         self.threads = threads
 
     def _replay(self, design: Design, exp: np.ndarray, jacobian: bool):
-        """The model's tip (k, 3) at the sample times of one experiment and, with
-        ``jacobian``, its derivatives (k, 3, P) per SI unit of each parameter (None: the run
-        failed)."""
+        """The model's tip (k, 3) and markers (k, K, 3, or None) at the sample times of one
+        experiment and, with ``jacobian``, their derivatives (k, 3, P) and (k, K, 3, P) per
+        SI unit of each parameter (else None); None: the run failed."""
         from ...dynamics import PressureSchedule, simulate
-        from ...dynamics.simulate import step_count, tip_sensitivities
+        from ...dynamics.simulate import trajectory_sensitivities
 
         t = self.time[exp] - self.time[exp][0]
         sched = PressureSchedule.piecewise_linear(t, self.pressures[exp])
-        tensions = None
-        if self.tensions is not None:
-            # The tensions at the start and at every step's end, joined linearly between
-            # the samples as the pressures are (the core reads a step's tensions at its end).
-            steps = self.dt * np.arange(step_count(t[-1], self.dt) + 1)
-            at = np.minimum(steps, t[-1])
-            knots = self.tensions[exp]
-            tensions = np.column_stack([np.interp(at, t, k) for k in knots.T])
+        tensions = None if self.tensions is None else step_tensions(t, self.tensions[exp], self.dt)
         try:
-            if not jacobian:
+            if not jacobian and not self.markers:
                 tr = simulate(
                     design,
                     sched,
@@ -181,21 +202,18 @@ class RodDynamic(ModelAdapter):
                     progress=False,
                     tensions=None if tensions is None else _rows(tensions, self.dt),
                 )
-                return tr.tip_position_at(np.minimum(t, tr.time[-1])), None
-            time, tip, d_tip = tip_sensitivities(
-                design, sched, t[-1], self.dt, [p.core() for p in self.params], tensions
+                return tr.tip_position_at(np.minimum(t, tr.time[-1])), None, None, None
+            params = [p.core() for p in self.params] if jacobian else []
+            run = trajectory_sensitivities(
+                design, sched, t[-1], self.dt, params, tensions, self.markers
             )
         except ConvergenceError:  # InvalidStateError included
             return None
-        at = np.minimum(t, time[-1])
-        # Linear in time between the steps, the derivatives alike (the same weights).
-        pos = np.column_stack([np.interp(at, time, tip[:, a]) for a in range(3)])
-        flat = d_tip.reshape(len(time), -1)
-        d = np.column_stack([np.interp(at, time, flat[:, c]) for c in range(flat.shape[1])])
-        return pos, d.reshape(len(at), 3, -1)
+        keys = ("tip_position", "d_tip_position", "marker_position", "d_marker_position")
+        return tuple(sample_run(run, key, t) for key in keys)
 
     def predict(self, theta, rows, jacobian: bool) -> Prediction:
-        out = Prediction.empty(self.m, len(self.params), 0, jacobian)
+        out = Prediction.empty(self.m, len(self.params), len(self.markers), jacobian)
         self.evaluations += 1
         try:
             d = self.design_of(theta)
@@ -223,16 +241,24 @@ class RodDynamic(ModelAdapter):
             if run is None:
                 if jacobian:
                     out.d_tip[exp] = 0.0
+                    if out.d_markers is not None:
+                        out.d_markers[exp] = 0.0
                 continue
-            out.tip[exp], dj = run
+            out.tip[exp], dj, markers, dm = run
+            if markers is not None:
+                out.markers[exp] = markers
             out.ok[exp] = True
             if jacobian:
                 for j, p in enumerate(self.params):
                     if p.kind == "area_scale":
                         # The core differentiates by a factor on the current areas, which
                         # are theta_j times the design's: d/d theta_j = (1/theta_j) d/dk.
-                        dj[:, :, j] /= theta[j]
+                        dj[..., j] /= theta[j]
+                        if dm is not None:
+                            dm[..., j] /= theta[j]
                 out.d_tip[exp] = dj
+                if dm is not None:
+                    out.d_markers[exp] = dm
         return out
 
     def calibrated_design(self, theta) -> Design:
@@ -248,21 +274,25 @@ class RodDynamic(ModelAdapter):
             wanted[rows] = True
             needed = [k for k, exp in enumerate(self.experiments) if wanted[exp].any()]
             if key == np.array(theta, dtype=float).tobytes() and done.issuperset(needed):
-                out = Prediction.empty(self.m, 0, 0, False)
+                out = Prediction.empty(self.m, 0, len(self.markers), False)
                 for k in needed:
                     exp = self.experiments[k]
                     out.tip[exp], out.ok[exp] = pred.tip[exp], pred.ok[exp]
+                    if out.markers is not None:
+                        out.markers[exp] = pred.markers[exp]
                 return out
         return self.predict(theta, rows, False)
 
     def reference(self, calibrated: Design, theta) -> Prediction:
-        from ...statics import solve_statics
-
-        out = Prediction.empty(self.m, 0, 0, False)
+        """The unpressurised equilibrium's tip (and markers) for every row, in its
+        experiment's mounting."""
+        out = Prediction.empty(self.m, 0, len(self.markers), False)
         for changes, exp in zip(self.mountings, self.experiments, strict=True):
             d = calibrated.replace(changes) if changes else calibrated
-            out.tip[exp] = solve_statics(d, np.zeros(d.n_channels)).tip_position
-            out.ok[exp] = True
+            rest = rest_prediction(d, self.markers, 1)
+            out.tip[exp], out.ok[exp] = rest.tip[0], rest.ok[0]
+            if out.markers is not None:
+                out.markers[exp] = rest.markers[0]
         return out
 
     def base_frame(self):

@@ -218,30 +218,14 @@ class RodStatic(ModelAdapter):
 
     def reference(self, design: Design, theta) -> Prediction:
         """The model's unpressurised tip (and markers) of every row's mounting."""
-        m = len(self.p)
-        out = Prediction.empty(m, 0, len(self.markers), False)
-        zero = np.zeros((1, design.n_channels))
-        smap = design.stiffness_map
-        sigma = None if smap is None else np.ascontiguousarray(smap(zero))
+        out = Prediction.empty(len(self.p), 0, len(self.markers), False)
         for changes, idx in self.groups:
             d = design.replace(changes) if changes else design
-            res = d._rod.sensitivity_batch(
-                zero,
-                d.spec["tip"]["force"],
-                d.spec["tip"]["moment"],
-                [],
-                stiffness_scale=sigma,
-                markers=self.markers,
-                # Slack tendons (zero tension), given explicitly: a rod without chambers
-                # counts its batch rows by its tension rows.
-                tensions=np.zeros((1, design.n_tendons)) if design.n_tendons else None,
-                **_options(self.options).as_kwargs(),
-                **self.held,
-            )
-            out.tip[idx] = res["tip_position"][0]
+            rest = rest_prediction(d, self.markers, 1, self.options)
+            out.tip[idx] = rest.tip[0]
             if out.markers is not None:
-                out.markers[idx] = res["marker_position"][0]
-            out.ok[idx] = bool(res["converged"][0])
+                out.markers[idx] = rest.markers[0]
+            out.ok[idx] = rest.ok[0]
         return out
 
     def base_frame(self):
@@ -252,3 +236,30 @@ class RodStatic(ModelAdapter):
             np.asarray(mount["base_position"], dtype=float),
             np.asarray(mount["base_rotation"], dtype=float)[:, 2],
         )
+
+
+def rest_prediction(design: Design, markers, m: int, options=None) -> Prediction:
+    """The unpressurised equilibrium's tip and markers (the core's (s, offset) pairs) of
+    ``design`` (its tip loads and constraint, slack tendons, its stiffness map at zero
+    pressure), repeated for ``m`` rows."""
+    out = Prediction.empty(m, 0, len(markers), False)
+    zero = np.zeros((1, design.n_channels))
+    smap = design.stiffness_map
+    res = design._rod.sensitivity_batch(
+        zero,
+        design.spec["tip"]["force"],
+        design.spec["tip"]["moment"],
+        [],
+        stiffness_scale=None if smap is None else np.ascontiguousarray(smap(zero)),
+        markers=markers,
+        # Slack tendons (zero tension), given explicitly: a rod without chambers counts
+        # its batch rows by its tension rows.
+        tensions=np.zeros((1, design.n_tendons)) if design.n_tendons else None,
+        **_options(options).as_kwargs(),
+        **held_kwargs(design.tip_constraint),
+    )
+    out.tip[:] = res["tip_position"][0]
+    if out.markers is not None:
+        out.markers[:] = res["marker_position"][0]
+    out.ok[:] = bool(res["converged"][0])
+    return out
