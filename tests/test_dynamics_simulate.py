@@ -355,3 +355,27 @@ def test_cli_simulate_errors_write_nothing(run, tmp_path):
     res = run("simulate", ARM, "--pulses", "paper000", "--dt", "-1 ms", "--out", out)
     assert_clean_error(res, 2, "--dt")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_alpha_with_the_midpoint_rule_is_refused_not_ignored(tmp_path):
+    # The midpoint rule has no parameter: an alpha given with it was silently dropped.
+    for make in (
+        lambda: simulate(ARM, [0.0] * 3, 0.01, scheme="midpoint", alpha=-0.3),
+        lambda: Simulation(ARM, scheme="midpoint", alpha=-0.2),
+    ):
+        with pytest.raises(InputError) as exc:
+            make()
+        assert exc.value.field == "alpha"
+        assert "midpoint" in str(exc.value)
+    # Left out, BDF-alpha takes its default and the midpoint rule runs.
+    assert Simulation(ARM).alpha == -0.2
+    assert simulate(ARM, [0.0] * 3, 0.01, scheme="midpoint").time[-1] == pytest.approx(0.01)
+    from click.testing import CliRunner
+    from softrod.cli import main
+
+    out = CliRunner().invoke(
+        main,
+        ["simulate", ARM, "--pulses", "paper000", "--t-end", "10 ms", "--scheme", "midpoint"]
+        + ["--alpha", "-0.3", "--out", str(tmp_path / "run.npz")],
+    )
+    assert out.exit_code != 0 and "--alpha" in out.output

@@ -343,10 +343,10 @@ def _scheduler_option(help_text: str):
 # The time integrator's options shared by `simulate` and `simulate-system`.
 _alpha_option = click.option(
     "--alpha",
-    default=-0.2,
-    show_default=True,
+    default=None,
     type=float,
-    help="BDF-alpha parameter in [-0.5, 0] (-0.5: the trapezoidal rule; 0: BDF2).",
+    help="BDF-alpha parameter in [-0.5, 0] (default -0.2; -0.5: the trapezoidal rule; 0: "
+    "BDF2). Not with --scheme midpoint.",
 )
 _energy_tol_option = click.option(
     "--energy-tol",

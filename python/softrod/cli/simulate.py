@@ -225,7 +225,7 @@ def simulate_cmd(
         what = "PCC model (paper 003)"
         defaults = {
             "--scheme": (scheme, "bdf-alpha"),
-            "--alpha": (alpha, -0.2),
+            "--alpha": (alpha, None),
             "--error-tol": (error_tol, None),
             "--energy-tol": (energy_tol, 0.02),
             "--tension": (tension, None),
@@ -236,6 +236,13 @@ def simulate_cmd(
                     option, value, "is a setting of the rod model (--model cosserat)", InputError
                 )
     else:
+        if scheme == "midpoint" and alpha is not None:
+            raise design_error(
+                "--alpha",
+                alpha,
+                "is BDF-alpha's parameter; --scheme midpoint has none: leave --alpha out",
+                InputError,
+            )
         what = f"Cosserat rod, damping time {d.spec['dynamics']['damping_time']:g} s"
         tol_m = None if error_tol is None else _quantity(error_tol, "length", "--error-tol")
         from .statics import _parse_tensions

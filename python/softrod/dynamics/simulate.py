@@ -84,10 +84,24 @@ def _fingerprint(design: Design) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
+#: BDF-alpha's parameter when ``alpha`` is not given.
+DEFAULT_ALPHA = -0.2
+
+
 def _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol) -> dict:
-    """The integrator's keyword options, checked here (the core checks them again)."""
+    """The integrator's keyword options, checked here (the core checks them again).
+    ``alpha`` None: :data:`DEFAULT_ALPHA`; given with the midpoint rule, which has no
+    parameter, it is refused rather than ignored."""
     V.choice(scheme, SCHEMES, "scheme")
-    alpha = V.real(alpha, "alpha", minimum=-0.5, maximum=0.0)
+    if alpha is not None and scheme == "midpoint":
+        raise design_error(
+            "alpha",
+            alpha,
+            "is BDF-alpha's parameter; the midpoint rule (scheme='midpoint') has none: leave "
+            "alpha out",
+            InputError,
+        )
+    alpha = V.real(DEFAULT_ALPHA if alpha is None else alpha, "alpha", minimum=-0.5, maximum=0.0)
     tol = V.real(tol, "tol", minimum=0.0, exclusive=True, maximum=1.0)
     max_iter = V.integer(max_iter, "max_iter", minimum=1, maximum=V.MAX_ITERATIONS)
     if error_tol is not None:
@@ -282,8 +296,8 @@ class Simulation:
     ``"static"`` (at rest in equilibrium under those pressures, gravity and the design's tip
     loads) or ``"straight"`` (at rest in the straight reference shape, released at t = 0).
     ``dt``: time step (s or a string with units). ``scheme``: ``"bdf-alpha"`` (default;
-    ``alpha`` in [-0.5, 0]: -0.5 is paper 000's trapezoidal rule, 0 BDF2; below -0.45
-    unresolved modes are not damped) or ``"midpoint"`` (the implicit midpoint rule:
+    ``alpha`` in [-0.5, 0], default -0.2: -0.5 is paper 000's trapezoidal rule, 0 BDF2;
+    below -0.45 unresolved modes are not damped) or ``"midpoint"`` (the implicit midpoint rule:
     conserves the energy of undamped runs; docs/dynamics.md). ``tol``: Newton tolerance on
     the scaled collocation unknowns at each step. ``error_tol``: adaptive time stepping,
     the largest estimated local error of the node positions per step (m or a string such
@@ -308,7 +322,7 @@ class Simulation:
         initial: str = "static",
         dt: Quantity = 2e-3,
         scheme: str = "bdf-alpha",
-        alpha: float = -0.2,
+        alpha: float | None = None,
         tol: float = 1e-9,
         max_iter: int = 25,
         error_tol: Quantity | None = None,
@@ -823,7 +837,7 @@ def simulate(
     initial: str | Simulation = "static",
     model: str = "cosserat",
     scheme: str = "bdf-alpha",
-    alpha: float = -0.2,
+    alpha: float | None = None,
     tol: float | None = None,
     max_iter: int | None = None,
     error_tol: Quantity | None = None,
@@ -988,7 +1002,7 @@ def _simulate_pcc(
         raise design_error(
             "initial", what, "with model='pcc' must be 'static' or 'straight'", InputError
         )
-    if alpha != -0.2:
+    if alpha is not None:
         raise design_error(
             "alpha",
             alpha,
