@@ -392,13 +392,8 @@ def calibrate(
             "dataset.tip_reaction_force; its tip columns carry no information)",
         )
     if design0.tip_constraint is None and reactions:
-        field = (
-            "tip_reaction_force"
-            if dataset.tip_reaction_force is not None
-            else "tip_reaction_moment"
-        )
         raise V.fail(
-            f"dataset.{field}",
+            f"dataset.{_reaction_field(dataset)}",
             "given",
             f"design {design0.name!r} has a free tip, which no constraint holds, so it has no "
             "reaction to fit: give the design the [tip] constraint of the measurement "
@@ -564,6 +559,11 @@ def calibrate(
     )
 
 
+def _reaction_field(dataset: Dataset) -> str:
+    """The dataset's measured-reaction field an error names (the force's when it has both)."""
+    return "tip_reaction_force" if dataset.tip_reaction_force is not None else "tip_reaction_moment"
+
+
 def _check_held_trajectories(design: Design, dataset: Dataset, reactions: bool) -> None:
     """A dynamic fit of a held tip reads the markers along the trajectories: the tip stays
     at its prescribed pose, and the reaction's derivatives along a trajectory are not
@@ -578,13 +578,8 @@ def _check_held_trajectories(design: Design, dataset: Dataset, reactions: bool) 
             "(marker0_x, ... columns with their arc lengths and offsets, docs/datasets.md)",
         )
     if reactions:
-        field = (
-            "tip_reaction_force"
-            if dataset.tip_reaction_force is not None
-            else "tip_reaction_moment"
-        )
         raise V.fail(
-            f"dataset.{field}",
+            f"dataset.{_reaction_field(dataset)}",
             "given",
             "calibrate(dynamic=True) fits the markers of a held tip, not its reaction (fit the "
             "reaction in statics, dynamic=False, or drop the tip_reaction_* columns)",
