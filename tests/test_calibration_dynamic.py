@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 import pytest
 import softrod
+from adapter_checks import central_difference
 from conftest import assert_clean_error
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -98,13 +99,7 @@ def test_trajectory_jacobian_matches_central_differences(clean_three):
         # (1e-9 of the unknowns' scales, ~1e-10 m at the tip) over the step 2e-5 theta
         # adds ~1e-5 m per unit. 1e-3 of the largest derivative (>= 1e-2 m per unit
         # here) plus 1e-5 leaves an order of magnitude above both.
-        h = 1e-5 * theta[j]
-        up, down = theta.copy(), theta.copy()
-        up[j] += h
-        down[j] -= h
-        fd = (adapter.predict(up, rows, False).tip - adapter.predict(down, rows, False).tip) / (
-            2 * h
-        )
+        fd = central_difference(adapter, theta, rows, j, "tip")
         d = exact.d_tip[..., j]
         largest = np.abs(d).max()
         assert largest > 1e-2, params[j].name

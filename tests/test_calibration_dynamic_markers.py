@@ -7,6 +7,7 @@ own trajectory no parameter moves, is fitted by its markers."""
 import numpy as np
 import pytest
 import softrod
+from adapter_checks import central_difference
 from softrod import PressureSchedule
 from softrod.calibration import synthesize_trajectory_dataset
 from softrod.calibration.adapters.rod_dynamic import RodDynamic
@@ -101,13 +102,7 @@ def test_marker_jacobian_matches_central_differences(held):
         # (1e-9 of the unknowns' scales, ~1e-10 m on the body) over the step 2e-5 theta
         # adds ~1e-5 m per unit. 1e-3 of the largest derivative (>= 1e-3 m per unit here)
         # plus 1e-5 leaves an order of magnitude above both (the tip's test's bound).
-        h = 1e-5 * theta[j]
-        up, down = theta.copy(), theta.copy()
-        up[j] += h
-        down[j] -= h
-        fd = (
-            adapter.predict(up, rows, False).markers - adapter.predict(down, rows, False).markers
-        ) / (2 * h)
+        fd = central_difference(adapter, theta, rows, j, "markers")
         d = exact.d_markers[..., j]
         largest = np.abs(d).max()
         assert largest > 1e-3, params[j].name
