@@ -17,7 +17,7 @@ use softrod_core::statics::constraint::{
     constraint_residual_and_jacobian, exp_so3, log_so3, solve_constrained, TipConstraint,
 };
 use softrod_core::statics::system::{
-    solve_system, system_residual_and_jacobian, system_retract, Platform, SystemRod,
+    solve_system, system_residual_and_jacobian, system_retract, Platform, SystemRod, SystemSolution,
 };
 use softrod_core::statics::{solve_with_shape, SolverOptions};
 use softrod_core::{Rod, SoftrodError};
@@ -526,25 +526,24 @@ fn platform(position: [f64; 3], force: [f64; 3], moment: [f64; 3]) -> Platform {
 
 /// A one-rod system whose platform sits on the tip is the free rod with the platform's
 /// load as its tip load.
+/// `rod` alone under `ld`, its tip clamped at the platform's origin in the platform's frame.
+fn one_rod_system(rod: &Rod, ld: &Loads, platform: Platform) -> SystemSolution {
+    let rods = vec![SystemRod {
+        rod,
+        loads: ld.clone(),
+        attachment: [0.0; 3],
+        attachment_rotation: IDENTITY,
+    }];
+    solve_system(&rods, &platform, None, &opts()).unwrap()
+}
+
 #[test]
 fn one_rod_system_equals_the_free_rod() {
     let rod = Rod::new(p002_actuator(IDENTITY, 9.81, 40)).unwrap();
     let mut ld = loads(&[25e3, 0.0, 10e3]);
     let force = [0.3, -0.1, -0.2];
     let moment = [0.002, 0.004, -0.001];
-    let rods = vec![SystemRod {
-        rod: &rod,
-        loads: ld.clone(),
-        attachment: [0.0; 3],
-        attachment_rotation: IDENTITY,
-    }];
-    let sys = solve_system(
-        &rods,
-        &platform([0.0, 0.0, rod.length], force, moment),
-        None,
-        &opts(),
-    )
-    .unwrap();
+    let sys = one_rod_system(&rod, &ld, platform([0.0, 0.0, rod.length], force, moment));
     ld.tip_force = force;
     ld.tip_moment = moment;
     let (free, _) = solve_with_shape(&rod, &ld, None, &opts()).unwrap();
@@ -585,19 +584,7 @@ fn one_rod_system_by_a_wall_equals_the_free_rod_by_the_wall() {
         held_back > 2e-3,
         "the wall held the tip back by {held_back:e} m only"
     );
-    let rods = vec![SystemRod {
-        rod: &rod,
-        loads: ld.clone(),
-        attachment: [0.0; 3],
-        attachment_rotation: IDENTITY,
-    }];
-    let sys = solve_system(
-        &rods,
-        &platform(by_wall.tip.r, [0.0; 3], [0.0; 3]),
-        None,
-        &opts(),
-    )
-    .unwrap();
+    let sys = one_rod_system(&rod, &ld, platform(by_wall.tip.r, [0.0; 3], [0.0; 3]));
     let got = &sys.rods[0];
     // Both solves converge to 1e-10 of the scaled residual (opts): the same equilibrium to
     // 1e-9 of the length, and a reaction of round-off against the rod's weight.
