@@ -224,6 +224,40 @@ CASES = [
     # --- raw Python exceptions -------------------------------------------------------------------
     ("huge-int-mass", ("design", _doc({"tip.mass": 10**400})), "error", "tip.mass"),
     ("huge-radius", ("design", _doc({f"{BODY}.outer_radius": "1e300 mm"})), "error", None),
+    # pi r^2 overflowed (an OverflowError from Python's **) before the area was checked
+    (
+        "huge-chamber-radius",
+        ("design", _doc({f"{BODY}.chambers[0].radius": "1e200 m"})),
+        "error",
+        f"{BODY}.chambers[0].radius",
+    ),
+    # R^T R of a huge matrix and the norm of a huge rotation vector overflowed with numpy
+    # warnings before the rule refused them
+    *(
+        (
+            f"huge-tip-orientation-{kind}",
+            (
+                "statics",
+                {
+                    "design": SPA,
+                    "pressures": [0, 0, 0],
+                    "kwargs": {
+                        "tip_constraint": {
+                            "type": "clamped",
+                            "position": [0, 0, -0.13],
+                            "orientation": orientation,
+                        }
+                    },
+                },
+            ),
+            "error",
+            "tip_constraint.orientation",
+        )
+        for kind, orientation in (
+            ("vector", [1e300, 0, 0]),
+            ("matrix", [[1e300, 0, 0], [0, 1, 0], [0, 0, 1]]),
+        )
+    ),
     (
         "orientation-list",
         ("design", _doc({"mounting.orientation": ["hanging"]})),

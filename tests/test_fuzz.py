@@ -30,6 +30,15 @@ BUNDLED = [
     "pam_arm_220mm",
     "stiff_flop_pcc",
 ]
+# Bundled designs with issue 17's features (obstacles, tendons, precurvature): the design
+# document and file targets mutate them too, and the statics and simulation targets solve
+# them with hostile tensions and tip constraints. (name, pressure channels, tendon channels)
+FEATURED = [
+    ("prebent_finger_on_table", 1, 1),
+    ("prebent_tendon_finger", 1, 1),
+    ("till_tendon_robot", 0, 4),
+]
+DOCUMENTS = [*BUNDLED, *(name for name, _, _ in FEATURED)]
 BATCH = 16  # cases per hypothesis example, run in parallel by the pool
 
 # Rust-side defect classes that another branch fixes (see test_boundary_regressions.py):
@@ -222,7 +231,7 @@ def _places(doc) -> list[tuple[object, object]]:
 
 @st.composite
 def design_documents(draw):
-    doc = _doc(draw(st.sampled_from(BUNDLED)))
+    doc = _doc(draw(st.sampled_from(DOCUMENTS)))
     if draw(st.integers(0, 9)) == 0:
         doc["units"] = draw(st.sampled_from(["SI", "si", "mm", 1]))
     for _ in range(draw(st.integers(1, 3))):
@@ -254,7 +263,7 @@ def design_files(draw):
         except (TypeError, ValueError):  # not representable in TOML (None, complex, ...)
             return b"[design]\nname = 1\n"
     if choice == 1:
-        text = tomli_w.dumps(_doc(draw(st.sampled_from(BUNDLED))))
+        text = tomli_w.dumps(_doc(draw(st.sampled_from(DOCUMENTS))))
         cut = draw(st.integers(0, len(text)))
         return text[:cut].encode()
     if choice == 2:
@@ -458,8 +467,49 @@ def _mutate(draw, kwargs: dict, choices: dict, most: int = 2) -> dict:
     return kwargs
 
 
+def plausible_tensions(n: int):
+    """Tendon tensions a user might try: slack to far beyond any tendon, and negative."""
+    level = st.one_of(
+        st.sampled_from([0.0, 0.5, 2.0, 15.0, 100.0, 1e4, -1.0]),
+        st.floats(0.0, 20.0),
+        st.sampled_from(["2 N", "500 mN", "0", "1 kgf"]),
+    )
+    return st.lists(level, min_size=n, max_size=n)
+
+
+HELD_TIPS = [
+    {"type": "pinned", "position": ["3 mm", "0 mm", "-127 mm"]},
+    {"type": "clamped", "position": [0.0, 0.0, -0.13], "orientation": ["0 deg", "3 deg", "0 deg"]},
+    "free",
+]
+
+
+@st.composite
+def featured_statics_cases(draw):
+    """solve_statics on a design with obstacles, tendons or precurvature."""
+    design, n, n_tendons = draw(st.sampled_from(FEATURED))
+    pressures = draw(st.one_of(plausible_pressures(n), arrays(n)))
+    kwargs = {"tensions": draw(st.one_of(plausible_tensions(n_tendons), arrays(n_tendons)))}
+    kwargs = _mutate(
+        draw,
+        kwargs,
+        {
+            "tensions": st.one_of(st.none(), hostile()),
+            "tip_constraint": st.one_of(st.sampled_from(HELD_TIPS), hostile()),
+            "tip_force": st.one_of(st.just([0.0, 0.0, -1.0]), arrays(3), hostile()),
+        },
+    )
+    changes = {}
+    if draw(st.integers(0, 2)) == 0:
+        changes["numerics"] = {"steps_per_section": draw(st.sampled_from([1, 2, 4, 16, 64]))}
+    payload = {"design": design, "pressures": pressures, "kwargs": kwargs, "changes": changes}
+    return ("statics", payload)
+
+
 @st.composite
 def statics_cases(draw):
+    if draw(st.integers(0, 3)) == 0:
+        return draw(featured_statics_cases())
     design = draw(st.sampled_from(BUNDLED))
     n = 6 if design == "stiff_flop_pcc" else 3
     pressures = draw(st.one_of(plausible_pressures(n), plausible_pressures(n), arrays(n)))
@@ -556,6 +606,14 @@ def simulate_cases(draw):
     if kwargs.get("model") == "pcc":
         design = "stiff_flop_pcc"
     n = 6 if design == "stiff_flop_pcc" else 3
+    if kwargs.get("model") != "pcc" and draw(st.integers(0, 3)) == 0:
+        # Issue 17's features in motion: obstacles, tendon tensions, a held tip.
+        design, n, n_tendons = draw(st.sampled_from(FEATURED))
+        kwargs["tensions"] = draw(
+            st.one_of(plausible_tensions(n_tendons), arrays(n_tendons), st.none(), hostile())
+        )
+        if draw(st.integers(0, 2)) == 0:
+            kwargs["tip_constraint"] = draw(st.one_of(st.sampled_from(HELD_TIPS), hostile()))
     schedule = draw(st.one_of(plausible_pressures(n), plausible_pressures(n), arrays(n), hostile()))
     t_end = draw(st.sampled_from(["20 ms", "20 ms", 0.02, *TIMES]))
     return ("simulate", {"design": design, "schedule": schedule, "t_end": t_end, "kwargs": kwargs})

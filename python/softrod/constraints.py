@@ -62,9 +62,11 @@ def orientation(value: Any, field: str, cls: type[DesignError] = InputError) -> 
             ]
         )
         rule = "must be a rotation matrix"
+        if not np.abs(m).max() <= 1.0 + ROTATION_TOL:  # before R^T R could overflow
+            raise V.fail(field, value, f"{rule} (entries within [-1, 1])", cls)
     else:
         w = [V.quantity(x, "angle", f"{field}[{i}]", cls) for i, x in enumerate(arr)]
-        if float(np.linalg.norm(w)) > 1e3:
+        if math.hypot(*w) > 1e3:  # hypot: no overflow on huge angles
             raise V.fail(
                 field,
                 value,

@@ -572,7 +572,11 @@ def _chamber(ch: Any, where: str) -> dict:
     if "area" in ch:
         area = _q(ch["area"], "area", f"{where}.area")
     elif radius is not None:
-        area = math.pi * radius**2
+        area = math.pi * radius * radius  # (** raises OverflowError on a huge radius)
+        if not math.isfinite(area):
+            raise design_error(
+                f"{where}.radius", ch["radius"], "must give a finite area pi r^2 (m^2)"
+            )
     else:
         raise design_error(f"{where}.radius", "missing", "give radius or area")
     taper = {
