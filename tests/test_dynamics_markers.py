@@ -246,6 +246,17 @@ def test_set_markers_checks_everything_before_changing_anything():
     np.testing.assert_array_equal(sim.state().marker_position, [sim.state().tip_position])
 
 
+# A trajectory of two samples without chambers, for the constructor's checks.
+_BASE = {
+    "time": [0.0, 1.0],
+    "command": np.zeros((2, 0)),
+    "pressure": np.zeros((2, 0)),
+    "tip_position": np.zeros((2, 3)),
+    "tip_rotation": np.tile(np.eye(3), (2, 1, 1)),
+    "tip_velocity": np.zeros((2, 3)),
+}
+
+
 @pytest.mark.parametrize(
     ("kwargs", "field"),
     [
@@ -274,17 +285,21 @@ def test_set_markers_checks_everything_before_changing_anything():
     ],
 )
 def test_trajectory_checks_its_markers(kwargs, field):
-    base = {
-        "time": [0.0, 1.0],
-        "command": np.zeros((2, 0)),
-        "pressure": np.zeros((2, 0)),
-        "tip_position": np.zeros((2, 3)),
-        "tip_rotation": np.tile(np.eye(3), (2, 1, 1)),
-        "tip_velocity": np.zeros((2, 3)),
-    }
     with pytest.raises(InputError) as info:
-        Trajectory(**base, **kwargs)
+        Trajectory(**_BASE, **kwargs)
     assert info.value.field == field, str(info.value)
+
+
+def test_a_metadata_key_markers_is_kept_or_refused(tmp_path):
+    # Without markers a "markers" entry of the metadata is the user's, kept by the files;
+    # with markers that is where the tables put the sites, so it is refused, not overwritten.
+    mine = Trajectory(**_BASE, metadata={"markers": "glued by hand"})
+    for name in ("m.npz", "m.parquet"):
+        assert Trajectory.load(mine.save(tmp_path / name)).metadata["markers"] == "glued by hand"
+    sites = {"marker_position": np.zeros((2, 1, 3)), "marker_s": [0.1], "marker_offset": [[0] * 3]}
+    with pytest.raises(InputError) as info:
+        Trajectory(**_BASE, **sites, metadata={"markers": "glued by hand"})
+    assert info.value.field == "metadata.markers"
 
 
 def test_cli_simulate_records_markers(run, tmp_path):

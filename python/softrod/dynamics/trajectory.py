@@ -309,6 +309,13 @@ class Trajectory:
                 "marker_position, marker_s and marker_offset come together (the markers' "
                 "positions and where each sits on the body)",
             )
+        if isinstance(self.metadata, dict) and "markers" in self.metadata:
+            raise _fail(
+                "metadata.markers",
+                "given",
+                "is where the tables and files put the markers' sites (marker_s, "
+                "marker_offset): keep other information under another key",
+            )
         s = _array(self.marker_s, "marker_s", (None,), "the markers' arc lengths in m")
         k = s.size
         if not 1 <= k <= MAX_MARKERS:
@@ -378,17 +385,16 @@ class Trajectory:
         """The tip table in the dataset schema (docs/datasets.md), one row per sample.
 
         Columns: ``time_s``; ``p0_kPa``, ... (actual chamber pressures); ``t0_N``, ...
-        (tendon tensions, for a design with tendons); ``tip_x_mm``,
-        ``tip_y_mm``, ``tip_z_mm``; ``tip_qw`` ... ``tip_qz`` (the tip frame as a unit
-        quaternion, scalar first); ``tip_reaction_fx_N`` ... (a held tip's reaction);
-        ``marker0_x_mm``, ``marker0_y_mm``, ``marker0_z_mm``, ``marker1_x_mm``, ... (the
-        markers, world frame; where each sits is the metadata's ``markers`` block, as in a
-        dataset); then the result columns ``cmd0_kPa``, ... (commanded
-        pressures), ``tip_vx_mm/s``, ``tip_vy_mm/s``, ``tip_vz_mm/s`` (tip velocity, world
-        frame), ``energy_J`` and its books ``kinetic_J``, ``elastic_J``, ``potential_J``,
-        ``work_in_J``, ``dissipated_J``. ``units`` as in :meth:`softrod.Dataset.to_frame` (also
-        "velocity" and "energy"; ``units="SI"`` for Pa, m, m/s). The same quantities have the
-        same names as in :meth:`softrod.BatchSolution.to_frame`. The metadata block
+        (tendon tensions, for a design with tendons); ``tip_x_mm``, ``tip_y_mm``,
+        ``tip_z_mm``; ``tip_qw`` ... ``tip_qz`` (the tip frame as a unit quaternion, scalar
+        first); ``marker0_x_mm``, ``marker0_y_mm``, ``marker0_z_mm``, ``marker1_x_mm``, ...
+        (the markers, world frame; where each sits is the metadata's ``markers`` block, as
+        in a dataset); then the result columns ``cmd0_kPa``, ... (commanded pressures),
+        ``tip_vx_mm/s``, ``tip_vy_mm/s``, ``tip_vz_mm/s`` (tip velocity, world frame),
+        ``energy_J`` and its books ``kinetic_J``, ``elastic_J``, ``potential_J``,
+        ``work_in_J``, ``dissipated_J``. ``units`` as in :meth:`softrod.Dataset.to_frame`
+        (also "velocity" and "energy"; ``units="SI"`` for Pa, m, m/s). The same quantities
+        have the same names as in :meth:`softrod.BatchSolution.to_frame`. The metadata block
         (``frame.attrs["softrod.metadata"]``) is :attr:`metadata` with the result columns
         declared, so ``load_dataset(frame)`` reads it back.
         """
@@ -1077,7 +1083,7 @@ def _load_parquet(path: Path) -> Trajectory:
     }
     # Where the markers sit: the metadata block a dataset has, read by the dataset's reader
     # (its errors name metadata.markers.marker<k>).
-    sites = _marker_sites(meta.get("markers"), len(marker_ids))
+    sites = _marker_sites(meta.get("markers"), len(marker_ids)) if marker_ids else None
     for key in layout.get("table_metadata", ["columns"]):
         meta.pop(key, None)  # e.g. the declaration of the result columns, added by save
     c = layout.get("n_channels")
