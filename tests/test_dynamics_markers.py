@@ -71,6 +71,28 @@ def test_a_marker_at_a_node_is_the_shape_node_bitwise(swing):
     np.testing.assert_allclose(tr.marker_position_at(tr.time), tr.marker_position, atol=0.0)
 
 
+def test_marker_error_against_measured_markers(swing):
+    tr = swing
+    t = np.array([0.0125, 0.03, 0.06])  # between samples and at the end
+    measured = tr.marker_position_at(t) + [0.0, 0.003, 0.004]  # 5 mm off everywhere
+    measured[1, 2] = np.nan  # marker 2 not seen at 30 ms
+    err = tr.marker_error(t, measured)
+    assert err.shape == (3, 6)
+    assert np.isnan(err[1, 2]) and np.isfinite(np.delete(err.ravel(), 1 * 6 + 2)).all()
+    # 3-4-5: the distance is 5 mm to round-off of the subtraction (1e-15 m on 0.2 m).
+    np.testing.assert_allclose(np.delete(err.ravel(), 8), 5e-3, rtol=0, atol=1e-15)
+    half = measured.copy()
+    half[0, 1, 0] = np.nan  # a marker half seen
+    with pytest.raises(InputError) as info:
+        tr.marker_error(t, half)
+    assert info.value.field == "measured_position[0, 1]"
+    with pytest.raises(InputError, match="measured_time"):
+        tr.marker_error([0.1], measured[:1])  # after the run's end
+    with pytest.raises(InputError) as info:
+        tr.marker_error(t, measured[:, :5])
+    assert info.value.field == "measured_position"
+
+
 def test_simulation_markers_state_copy_and_continuation():
     sim = Simulation(ARM, dt=5e-3, markers=["220 mm"])
     s, o = sim.markers

@@ -583,6 +583,10 @@ class Trajectory:
         """Marker positions (m, K, 3) in m at ``times`` (m,) s, linear in time between
         samples, as :meth:`tip_position_at` (the same interval rule); an InputError naming
         ``marker_position`` for a trajectory without markers."""
+        return self._at(times, self._markers())
+
+    def _markers(self) -> np.ndarray:
+        """``marker_position``, or an InputError naming it for a trajectory without."""
         if self.marker_position is None:
             raise _fail(
                 "marker_position",
@@ -590,7 +594,7 @@ class Trajectory:
                 "this trajectory has no markers: simulate with markers=[...] "
                 "(docs/dynamics.md, 'Markers on the moving rod')",
             )
-        return self._at(times, self.marker_position)
+        return self.marker_position
 
     def _at(self, times: ArrayLike, values: np.ndarray) -> np.ndarray:
         """``values`` (n, ...) linear in time at ``times`` (m,): (m, ...)."""
@@ -621,12 +625,47 @@ class Trajectory:
         t = _array(measured_time, "measured_time", (None,), "sample times in s")
         pos = _array(measured_position, "measured_position", (t.size, 3), f"(m = {t.size}, 3) in m")
         _finite(pos, "measured_position")
+        return np.linalg.norm(self._measured_at(t, self.tip_position) - pos, axis=1)
+
+    def marker_error(self, measured_time: ArrayLike, measured_position: ArrayLike) -> np.ndarray:
+        """Euclidean marker errors (m, K) in m between measured marker positions and the
+        trajectory's markers, NaN where a marker was not seen.
+
+        ``measured_time`` (m,) s and ``measured_position`` (m, K, 3) m, world frame, the
+        markers in the trajectory's order, all three coordinates of a marker NaN where it
+        was not seen (as a dataset's ``markers``); the trajectory is interpolated linearly
+        at the measured times (:meth:`marker_position_at`; times outside the simulated
+        interval are an error)."""
+        markers = self._markers()
+        t = _array(measured_time, "measured_time", (None,), "sample times in s")
+        k = self.n_markers
+        pos = _array(
+            measured_position,
+            "measured_position",
+            (t.size, k, 3),
+            f"(m = {t.size}, K = {k}, 3) in m",
+        )
+        seen = np.isfinite(pos).all(axis=2)
+        bad = np.argwhere(~seen & ~np.isnan(pos).all(axis=2))
+        if bad.size:
+            i, j = bad[0]
+            raise _fail(
+                f"measured_position[{i}, {j}]",
+                pos[i, j].tolist(),
+                "a marker is seen (x, y, z all finite) or not (all three NaN)",
+            )
+        err = np.linalg.norm(
+            self._measured_at(t, markers) - np.where(seen[..., None], pos, 0.0), axis=2
+        )
+        return np.where(seen, err, np.nan)
+
+    def _measured_at(self, t: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """:meth:`_at` with errors naming ``measured_time``."""
         try:
-            model = self.tip_position_at(t)
+            return self._at(t, values)
         except InputError as exc:
             exc.args = (exc.args[0].replace("times[", "measured_time[", 1),)
             raise
-        return np.linalg.norm(model - pos, axis=1)
 
     # --- plots -------------------------------------------------------------------------------
 
