@@ -394,6 +394,41 @@ def target_simulate(payload) -> str:
     return _check_trajectory(traj, design)
 
 
+def target_markers(payload) -> str:
+    """Markers on the moving 130 mm SPA, free or with its tip pinned, through
+    ``simulate(markers=)``, ``Simulation(markers=)`` or ``Simulation.set_markers``: an
+    accepted set is recorded at every sample, finite, its sites in [0, L], and a bare
+    marker at s = L is the tip bit for bit."""
+    import softrod
+
+    design = softrod.load_design("spa_three_chamber_130mm")
+    kwargs = {"dt": "5 ms"}
+    if payload["held"]:
+        kwargs["tip_constraint"] = {"type": "pinned", "position": ["3 mm", "0 mm", "-127 mm"]}
+    how, markers = payload["how"], payload["markers"]
+    if how == "simulate":
+        traj = softrod.simulate(design, [0.0] * 3, "10 ms", markers=markers, **kwargs)
+    else:
+        sim = softrod.Simulation(design, markers=markers if how == "Simulation" else None, **kwargs)
+        if how == "set_markers":
+            sim.set_markers(markers)
+        traj = sim.run([0.0] * 3, "10 ms")
+    problem = _check_trajectory(traj)
+    if problem or markers is None:
+        return problem or ("" if traj.marker_position is None else "markers=None recorded some")
+    pos, s, offset = traj.marker_position, traj.marker_s, traj.marker_offset
+    if pos is None or pos.shape != (len(traj), s.size, 3) or offset.shape != (s.size, 3):
+        return f"accepted markers not recorded as (n, K, 3): {None if pos is None else pos.shape}"
+    if not (np.isfinite(pos).all() and np.isfinite(offset).all()):
+        return "marker positions or offsets not finite"
+    if not ((s >= 0) & (s <= design.length * (1 + 1e-12))).all():
+        return f"a marker's arc length outside [0, L]: {s.tolist()}"
+    at_tip = (s == design.length) & (offset == 0).all(axis=1)
+    if not all(np.array_equal(pos[:, k], traj.tip_position) for k in np.flatnonzero(at_tip)):
+        return "a bare marker at s = L is not the tip"
+    return ""
+
+
 def target_schedule(payload) -> str:
     """A PressureSchedule constructor with these arguments, then a sample."""
     from softrod import PressureSchedule

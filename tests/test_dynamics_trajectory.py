@@ -181,7 +181,7 @@ def test_parquet_layout(tmp_path):
         f"tip_v{a}_m/s" for a in "xyz"
     } | {f"tip_R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3)}
     layout = json.loads(kv[b"softrod.trajectory"])
-    assert layout["format"] == 2 and layout["n_channels"] == 2 and layout["n_nodes"] == 9
+    assert layout["format"] == 3 and layout["n_channels"] == 2 and layout["n_nodes"] == 9
     assert layout["shape_s_m"] == tr.shape_s.tolist()
     np.testing.assert_array_equal(table.column("tip_R23").to_numpy(), tr.tip_rotation[:, 1, 2])
 

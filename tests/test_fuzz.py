@@ -620,6 +620,33 @@ def simulate_cases(draw):
 
 
 @st.composite
+def marker_cases(draw):
+    """Markers on the moving rod given every way a user might: arc lengths inside, at and
+    beyond the 130 mm rod, with units right and wrong; offsets of every length and value;
+    lists, tuples, arrays and hostile values in place of the list."""
+    s = st.one_of(
+        st.sampled_from(
+            [0, 0.065, 0.13, "130 mm", "13 cm", "0.1300000001 m", -1e-9, "5 kPa", math.nan]
+        ),
+        hostile(),
+    )
+    offset = st.one_of(
+        st.lists(st.one_of(st.sampled_from([0.0, "2 mm", 1e-3]), hostile()), max_size=4),
+        st.sampled_from([np.zeros(2), np.full(3, np.nan), np.zeros((1, 3)), (0.0, 0.0)]),
+        hostile(),
+    )
+    marker = st.one_of(s, st.tuples(s, offset), st.lists(st.one_of(s, offset), max_size=3))
+    markers = st.one_of(
+        st.lists(marker, min_size=1, max_size=4),
+        st.lists(marker, max_size=4).map(tuple),
+        st.sampled_from([np.array([0.0, 0.13]), np.zeros((2, 2)), [0.0] * 257, None]),
+        hostile(),
+    )
+    how = draw(st.sampled_from(["simulate", "Simulation", "set_markers"]))
+    return ("markers", {"how": how, "held": draw(st.booleans()), "markers": draw(markers)})
+
+
+@st.composite
 def api_cases(draw):
     """Other public entry points with hostile arguments."""
     which = draw(st.integers(0, 7))
@@ -914,6 +941,7 @@ CASES = {
     "statics": statics_cases(),
     "batch": batch_cases(),
     "simulate": simulate_cases(),
+    "markers": marker_cases(),
     "dataset_file": st.builds(lambda p: ("dataset_file", p), table_files()),
     "dataset_frame": st.builds(lambda p: ("dataset_frame", p), frames()),
     "api": api_cases(),
@@ -922,7 +950,7 @@ CASES = {
     "trajectory_file": st.builds(lambda b: ("trajectory_file", b), trajectory_files()),
 }
 # Examples per target in the default run (each BATCH cases) and in --fuzz-long.
-EXAMPLES = {"cli": 2, "simulate": 2, "fit": 1, "trajectory_file": 1}
+EXAMPLES = {"cli": 2, "simulate": 2, "markers": 2, "fit": 1, "trajectory_file": 1}
 DEFAULT_EXAMPLES = 3
 LONG_FACTOR = 40
 

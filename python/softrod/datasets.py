@@ -1313,6 +1313,53 @@ def _marker_sites(entry, count: int):
     return s, offset
 
 
+def parse_marker_sites(markers, length: float | None = None, field: str = "markers"):
+    """(s (K,), offset (K, 3)) in m of markers given in the Python API, or None for None.
+
+    ``markers``: a list of 1 to :data:`MAX_MARKERS` markers, each ``(s, offset)`` (arc
+    length from the base and the offset in the cross-section frame, (d1, d2[, d3])) or ``s``
+    alone (no offset); SI numbers or strings with units (``("55 mm", ["12 mm", "0 mm"])``).
+    With ``length`` (the rod's L, m) every s must lie in [0, L] (the core's rule, with its
+    round-off slack of 1e-12 L); errors name ``markers[k].s``."""
+    if markers is None:
+        return None
+    if isinstance(markers, np.ndarray) and markers.ndim == 1:
+        markers = markers.tolist()  # arc lengths alone
+    if not isinstance(markers, (list, tuple)) or not 1 <= len(markers) <= MAX_MARKERS:
+        shown = f"{len(markers)} markers" if isinstance(markers, (list, tuple)) else markers
+        raise _fail(
+            field,
+            shown,
+            f"must be a list of 1 to {MAX_MARKERS} markers, each (s, offset) or s alone "
+            "(arc length from the base; offset (d1, d2[, d3]) in the cross-section frame)",
+        )
+    s, offset = np.zeros(len(markers)), np.zeros((len(markers), 3))
+    for k, item in enumerate(markers):
+        where = f"{field}[{k}]"
+        if isinstance(item, (list, tuple)):
+            if len(item) != 2:
+                raise _fail(where, item, "must be a pair (s, offset) or an arc length s")
+            raw_s, off = item
+            if not isinstance(off, (list, tuple, np.ndarray)) or len(off) not in (2, 3):
+                raise _fail(f"{where}.offset", off, "must be 2 or 3 lengths (d1, d2[, d3])")
+            for i, v in enumerate(off):
+                offset[k, i] = V.quantity(v, "length", f"{where}.offset[{i}]")
+        elif isinstance(item, str) or V.is_real(item):
+            raw_s = item
+        else:
+            raise _fail(where, item, "must be a pair (s, offset) or an arc length s")
+        s[k] = V.quantity(raw_s, "length", f"{where}.s")
+        top = math.inf if length is None else length * (1.0 + 1e-12)
+        if not 0.0 <= s[k] <= top:
+            rule = (
+                "must be an arc length >= 0 m"
+                if length is None
+                else f"must lie in [0, L] = [0, {length:g}] m (arc length from the base)"
+            )
+            raise _fail(f"{where}.s", raw_s, rule)
+    return s, offset
+
+
 def _extra_values(column: pd.Series) -> np.ndarray:
     """A result column as a numpy array: numbers as float (empty cells NaN), flags as bool,
     anything else as text."""

@@ -15,12 +15,12 @@ from .catalog import load_design
 from .constraints import held_kwargs
 from .datasets import (
     _MAX_LISTED,
-    MAX_MARKERS,
     Dataset,
     _fail,
     _matrix_to_quat,
     _quat_to_matrix,
     noise_seed,
+    parse_marker_sites,
 )
 from .design import Design
 from .errors import ConvergenceError, InputError
@@ -63,8 +63,9 @@ def synthesize_dataset(
     and so do ``tensions`` ((m, tendon channels) in N, each >= 0; None: slack), which the
     dataset records in its ``t0``, ``t1``, ... columns.
     ``markers``: points on the body to record as motion-capture markers, each
-    ``(s, offset)``: arc length from the base and offset in the cross-section frame
-    (d1, d2[, d3]), SI numbers or strings with units (``("55 mm", ["12 mm", "0 mm"])``);
+    ``(s, offset)``: arc length from the base in [0, L] and offset in the cross-section
+    frame (d1, d2[, d3]), or ``s`` alone, SI numbers or strings with units
+    (``("55 mm", ["12 mm", "0 mm"])``), checked before any solve;
     their positions get the same noise. ``tip=False`` leaves the tip columns out (markers
     only).
 
@@ -86,6 +87,7 @@ def synthesize_dataset(
     held = design.tip_constraint
     seed = noise_seed(noise_mm, seed)
     p = batch_pressures(design, pressures)
+    sites = parse_marker_sites(markers, design.length)  # checked before any solve
     labels = None if mounting is None else np.unique(np.asarray(mounting)).tolist()
     if labels is not None and len(labels) > 1:
         # Every row is solved with the design as mounted, while a fit solves the rows of
@@ -121,7 +123,6 @@ def synthesize_dataset(
         )
     rng = np.random.default_rng(int(seed))
     noise = rng.normal(0.0, noise_mm * 1e-3, size=(m, 3)) if noise_mm > 0 else np.zeros((m, 3))
-    sites = _synthetic_sites(markers)
     marker_pos = None
     if sites is not None:
         smap = design.stiffness_map
@@ -190,25 +191,6 @@ def synthesize_dataset(
         metadata=meta,
         source=None,
     )
-
-
-def _synthetic_sites(markers):
-    """(s (K,), offset (K, 3)) in m of synthesize_dataset's ``markers``, or None."""
-    if markers is None:
-        return None
-    if not isinstance(markers, (list, tuple)) or not 1 <= len(markers) <= MAX_MARKERS:
-        raise _fail("markers", markers, f"must be a list of 1 to {MAX_MARKERS} pairs (s, offset)")
-    s, offset = np.zeros(len(markers)), np.zeros((len(markers), 3))
-    for k, item in enumerate(markers):
-        if not isinstance(item, (list, tuple)) or len(item) != 2:
-            raise _fail(f"markers[{k}]", item, "must be a pair (s, offset)")
-        s[k] = V.quantity(item[0], "length", f"markers[{k}].s")
-        off = item[1]
-        if not isinstance(off, (list, tuple, np.ndarray)) or len(off) not in (2, 3):
-            raise _fail(f"markers[{k}].offset", off, "must be 2 or 3 lengths (d1, d2[, d3])")
-        for i, v in enumerate(off):
-            offset[k, i] = V.quantity(v, "length", f"markers[{k}].offset[{i}]")
-    return s, offset
 
 
 def _tip_load(design: Design, value, kind: str) -> list[float]:

@@ -10,10 +10,9 @@ from numpy.typing import ArrayLike
 
 from .. import _validate as V
 from ..catalog import load_design
-from ..datasets import Dataset
+from ..datasets import Dataset, parse_marker_sites
 from ..dynamics import PressureSchedule, simulate
 from ..dynamics.simulate import _seconds, trajectory_sensitivities
-from ..synthetic import _synthetic_sites
 from .adapters.rod_dynamic import sample_run, step_tensions
 
 __all__ = ["synthesize_trajectory_dataset"]
@@ -41,13 +40,13 @@ def synthesize_trajectory_dataset(
     function of t (s) returning the tendon tensions (N, one per tendon channel): sampled
     at ``rate`` Hz into the dataset's tension columns and, joined linearly, driving the
     model as the replay does. ``markers``: points on the body recorded as motion-capture
-    markers, as :func:`~softrod.synthesize_dataset` takes them (``(s, offset)`` pairs, SI or
-    strings with units), with the same noise; ``tip=False`` leaves the tip columns out
+    markers, as :func:`~softrod.synthesize_dataset` takes them (``(s, offset)`` pairs or ``s``
+    alone, SI or strings with units), with the same noise; ``tip=False`` leaves the tip columns out
     (markers only). A design whose ``[tip]`` pins or clamps the tip moves held (its tip
     columns hold the prescribed position plus the noise: a fit reads its markers). Marked
     synthetic in its metadata, with the seed."""
     d = load_design(design)
-    sites = _synthetic_sites(markers)
+    sites = parse_marker_sites(markers, d.length)
     if not tip and sites is None:
         raise V.fail("tip", tip, "a dataset without tip columns needs markers")
     rng = np.random.default_rng(seed)

@@ -16,6 +16,7 @@ from ._common import (
     _check_output,
     _energy_tol_option,
     _handle_errors,
+    _parse_quantities,
     _quantity,
     _quiet,
     _say,
@@ -110,6 +111,16 @@ def _seconds(text: str, option: str, *, positive: bool = True) -> float:
     "Default: every tendon slack.",
 )
 @click.option(
+    "--marker",
+    "marker_items",
+    multiple=True,
+    metavar="S[,D1,D2[,D3]]",
+    help="A motion-capture marker to record at every sample: its arc length from the base "
+    "and, optionally, its offset in the cross-section frame, with units, e.g. '100 mm' or "
+    "'220 mm,5 mm,0' (a unit on the last value alone applies to all). Repeat for several; "
+    "the trajectory gets marker0_x_m, ... columns.",
+)
+@click.option(
     "--out",
     required=True,
     type=click.Path(dir_okay=False, path_type=Path),
@@ -165,6 +176,7 @@ def simulate_cmd(
     error_tol,
     energy_tol,
     tension,
+    marker_items,
     out,
     animation,
     fps,
@@ -229,6 +241,7 @@ def simulate_cmd(
             "--error-tol": (error_tol, None),
             "--energy-tol": (energy_tol, 0.02),
             "--tension": (tension, None),
+            "--marker": (marker_items or None, None),
         }
         for option, (value, default) in defaults.items():
             if value != default:
@@ -253,6 +266,7 @@ def simulate_cmd(
             "error_tol": tol_m,
             "energy_tol": energy_tol,
             "tensions": _parse_tensions(tension, d),
+            "markers": _parse_markers(marker_items, d.length),
         }
     _say(
         f"{d.name}: {duration:g} s at dt = {step * 1e3:g} ms "
@@ -310,6 +324,31 @@ def simulate_cmd(
     console.print(f"largest tip excursion from the start: {reach * 1e3:.1f} mm")
     for p in outputs:
         _say(f"wrote {p}")
+
+
+def _parse_markers(items: tuple[str, ...], length: float) -> list | None:
+    """--marker S[,D1,D2[,D3]] (repeated): the markers as simulate takes them (SI), each
+    checked against the rod (s in [0, L]) with errors naming --marker[k]."""
+    from ..datasets import parse_marker_sites
+
+    if not items:
+        return None
+    markers = []
+    for k, text in enumerate(items):
+        parts = text.split(",")
+        if len(parts) not in (1, 3, 4):
+            raise design_error(
+                f"--marker[{k}]",
+                text,
+                "give S, S,D1,D2 or S,D1,D2,D3 (arc length and offset in the cross-section "
+                "frame, with units), e.g. '100 mm' or '220 mm,5 mm,0'",
+                InputError,
+            )
+        names = [f"--marker[{k}].s"] + [f"--marker[{k}].offset[{i}]" for i in range(3)]
+        values = _parse_quantities(parts, "length", names[: len(parts)])
+        markers.append((values[0], values[1:]) if len(values) > 1 else values[0])
+    parse_marker_sites(markers, length, field="--marker")  # s in [0, L], before any work
+    return markers
 
 
 def _stderr_is_terminal() -> bool:

@@ -27,6 +27,7 @@ from .. import _validate as V
 from ..catalog import load_design
 from ..constraints import TipConstraint, require_free_tip
 from ..constraints import coerce as coerce_constraint
+from ..datasets import parse_marker_sites
 from ..design import Design
 from ..errors import InputError, design_error
 from ..progress import reporter
@@ -175,8 +176,9 @@ class SimulationState:
     ``kinetic``, ``elastic``, ``potential``, ``work_in``, ``dissipated`` J;
     ``energy_balance`` J (zero for the exact motion); ``tip_reaction_force``,
     ``tip_reaction_moment`` (3,) N, N m (the wrench a held tip's constraint applies, world;
-    zero for a free tip); ``design`` and ``fingerprint`` (the design it belongs to); ``data``
-    (read-only float array).
+    zero for a free tip); ``marker_position`` (K, 3) m (the simulation's markers, world;
+    None without markers); ``design`` and
+    ``fingerprint`` (the design it belongs to); ``data`` (read-only float array).
     """
 
     design: str
@@ -203,6 +205,7 @@ class SimulationState:
     tensions: np.ndarray = dataclasses.field(default_factory=lambda: _ro(np.zeros(0)))
     tip_reaction_force: np.ndarray = dataclasses.field(default_factory=lambda: _ro(np.zeros(3)))
     tip_reaction_moment: np.ndarray = dataclasses.field(default_factory=lambda: _ro(np.zeros(3)))
+    marker_position: np.ndarray | None = None
 
     def __repr__(self) -> str:
         tip = ", ".join(f"{x * 1e3:.2f}" for x in self.tip_position)
@@ -311,7 +314,12 @@ class Simulation:
     :func:`~softrod.solve_statics` takes; None: the design's ``[tip] constraint``); a pinned
     or clamped tip starts "static" in the constrained equilibrium, "straight" only at the
     straight rod's tip pose, and moves with :meth:`set_tip_pose` or the ``tip_constraint``
-    of :meth:`run` (docs/dynamics.md, "Held tip").
+    of :meth:`run` (docs/dynamics.md, "Held tip"). ``markers``: motion-capture markers on
+    the body, read at every recorded sample into the trajectory's ``marker_position``: a
+    list of ``(s, offset)`` (arc length from the base in [0, L], offset (d1, d2[, d3]) in
+    the cross-section frame) or ``s`` alone, SI numbers or strings with units, checked
+    before the start is solved; :meth:`set_markers` changes them later (docs/dynamics.md,
+    "Markers on the moving rod").
     """
 
     def __init__(
@@ -330,12 +338,14 @@ class Simulation:
         stiffness_map: StiffnessMap | None = None,
         tensions: ArrayLike | None = None,
         tip_constraint: TipConstraint | str | dict | None = None,
+        markers: Sequence | None = None,
         _tip_loads0: Sequence[float] | None = None,
     ) -> None:
         from ..statics import _pressures, _tensions
 
         self.design: Design = load_design(design)
         held = _held(self.design, tip_constraint)
+        sites = parse_marker_sites(markers, self.design.length)
         n = self.design.n_channels
         p = [0.0] * n if pressures is None else _pressures(self.design, pressures)
         t0 = _tensions(self.design, tensions)
@@ -358,16 +368,42 @@ class Simulation:
         )
         self.initial = initial
         self.options = opts
+        self._markers = None
+        self._set_sites(sites)
 
     @classmethod
-    def _wrap(cls, design: Design, sim, initial: str, options: dict) -> Simulation:
+    def _wrap(cls, design: Design, sim, initial: str, options: dict, markers) -> Simulation:
         obj = cls.__new__(cls)
         obj.design, obj._sim, obj.initial, obj.options = design, sim, initial, options
+        obj._markers = markers
         return obj
 
     def copy(self) -> Simulation:
-        """An independent simulation starting from this one's current state (exact)."""
-        return Simulation._wrap(self.design, self._sim.copy(), self.initial, dict(self.options))
+        """An independent simulation starting from this one's current state (exact), with
+        the same markers."""
+        return Simulation._wrap(
+            self.design, self._sim.copy(), self.initial, dict(self.options), self._markers
+        )
+
+    @property
+    def markers(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The markers read at every sample: (s (K,), offset (K, 3)) in m, or None."""
+        return self._markers
+
+    def set_markers(self, markers: Sequence | None) -> None:
+        """Read these motion-capture markers from now on (None: none): as the constructor's
+        ``markers``, checked in full before anything changes. The next :meth:`run`'s
+        trajectory records their positions at every sample, and :meth:`state` reads them."""
+        self._set_sites(parse_marker_sites(markers, self.design.length))
+
+    def _set_sites(self, sites) -> None:
+        if sites is None and self._markers is None:
+            return
+        pairs = (
+            [] if sites is None else [(float(a), b.tolist()) for a, b in zip(*sites, strict=True)]
+        )
+        self._sim.set_markers(pairs)
+        self._markers = None if sites is None else (_ro(sites[0]), _ro(sites[1]))
 
     @property
     def alpha(self) -> float:
@@ -452,6 +488,7 @@ class Simulation:
             tensions=ro(d["tensions"]),
             tip_reaction_force=ro(d["tip_reaction_force"][0]),
             tip_reaction_moment=ro(d["tip_reaction_moment"][0]),
+            marker_position=ro(d["marker_position"][0]) if "marker_position" in d else None,
         )
 
     def restore(self, state: SimulationState) -> None:
@@ -643,6 +680,15 @@ class Simulation:
             shape_position=np.concatenate([p["shape_position"] for p in shape_parts])
             if shape_parts
             else None,
+            **(
+                {
+                    "marker_position": cat("marker_position"),
+                    "marker_s": self._markers[0],
+                    "marker_offset": self._markers[1],
+                }
+                if self._markers is not None
+                else {}
+            ),
             metadata=metadata,
         )
 
@@ -846,6 +892,7 @@ def simulate(
     tip_load: TipLoad | None = None,
     tensions: Tensions | None = None,
     tip_constraint: TipHold | None = None,
+    markers: Sequence | None = None,
     energy: bool = True,
     progress: Callable[[float, float, float], None] | None = None,
 ) -> Trajectory:
@@ -894,6 +941,13 @@ def simulate(
       the geodesic in rotation). A held tip's reaction is recorded as the trajectory's
       ``tip_reaction_force`` and ``tip_reaction_moment``, and its work enters the energy
       books. Not with the midpoint scheme nor obstacles.
+    - ``markers``: motion-capture markers on the body whose world positions are recorded at
+      every sample as the trajectory's ``marker_position`` (n, K, 3) m: a list of
+      ``(s, offset)`` (arc length from the base in [0, L], offset (d1, d2[, d3]) in the
+      cross-section frame) or ``s`` alone, SI numbers or strings with units, e.g.
+      ``["100 mm", ("220 mm", ["5 mm", "0 mm"])]`` (docs/dynamics.md, "Markers on the moving
+      rod"). Checked before any work; with a :class:`Simulation` as ``initial`` they replace
+      its markers (None keeps them). Rod model only.
     - ``energy``: also record the energy and its books (J).
     - ``progress``: None (a bar in interactive sessions), True, False, or a callable called
       after each chunk of steps as progress(t_done, t_end, wall_s); see
@@ -915,6 +969,7 @@ def simulate(
             "tip_load": (tip_load, None),
             "tensions": (tensions, None),
             "tip_constraint": (tip_constraint, None),
+            "markers": (None if markers is None else "given", None),
         }
         for name, (value, default) in rod_only.items():
             if value is not default and value != default:
@@ -939,6 +994,8 @@ def simulate(
     max_iter = 25 if max_iter is None else max_iter
     if isinstance(initial, Simulation):
         sim = initial.copy()
+        if markers is not None:
+            sim.set_markers(markers)
     else:
         d = load_design(design)
         if pressure_schedule is None and d.n_channels == 0:
@@ -972,6 +1029,7 @@ def simulate(
             stiffness_map=stiffness_map,
             tensions=None if tens0 is None else tens0[0],
             tip_constraint=held0,
+            markers=markers,
             _tip_loads0=first,
         )
         pressure_schedule = schedule

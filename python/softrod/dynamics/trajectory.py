@@ -2,8 +2,9 @@
 
 A :class:`Trajectory` holds, at n sample times, the commanded and actual chamber pressures,
 the tip pose and velocity, the mechanical energy and its books (kinetic, elastic, potential,
-work of the inputs, dissipation), plus the full centreline at k of those times (the
-"shapes"). Everything is SI (s, Pa, m, m/s, J). Files:
+work of the inputs, dissipation), the positions of motion-capture markers on the body if
+any, plus the full centreline at k of those times (the "shapes"). Everything is SI (s, Pa,
+m, m/s, J). Files:
 
 - Parquet (``.parquet``): one row per sample time, units in the column names (see
   :meth:`Trajectory.to_frame`), the shapes in a list column ``shape_m``, the metadata as JSON
@@ -31,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from .. import _validate as V
-from ..datasets import _fail
+from ..datasets import _MARKER, MAX_MARKERS, _fail, _marker_sites
 from ..errors import InputError
 from ..io import atomic_path, check_target
 from ..io import metadata_json as _metadata_json
@@ -56,9 +57,12 @@ logger = logging.getLogger(__name__)
 
 TRAJECTORY_SUFFIXES = (".parquet", ".npz")
 # Version of the file layout, written into every file. 2: the dataset schema's tip_q* columns
-# and velocity names tip_v*_m/s (version 1: tip_v*_m_s, no quaternion; still read).
-TRAJECTORY_FORMAT = 2
-_READABLE_FORMATS = (1, 2)
+# and velocity names tip_v*_m/s (version 1: tip_v*_m_s, no quaternion; still read). 3: the
+# markers (marker<k>_x_m ... columns and their sites in the metadata's "markers" block;
+# npz marker_position, marker_s, marker_offset), which a reader of version 2 would drop
+# without a word, so it is told to upgrade instead.
+TRAJECTORY_FORMAT = 3
+_READABLE_FORMATS = (1, 2, 3)
 ANIMATION_SUFFIXES = (".gif", ".mp4")
 # Animation defaults: a watchable clip, fast to render (docs/dynamics.md).
 DEFAULT_FPS = 20  # frames per second of clip
@@ -79,6 +83,7 @@ _FIELDS = (
     "shape_s",
     "shape_position",
 )
+_MARKER_FIELDS = ("marker_position", "marker_s", "marker_offset")
 # The energy books (J, (n,), NaN where not recorded): optional in files, so that
 # trajectories written before they existed still load.
 ENERGY_PARTS = ("kinetic", "elastic", "potential", "work_in", "dissipated")
@@ -157,6 +162,10 @@ class Trajectory:
     - ``tip_reaction_force`` (n, 3) N and ``tip_reaction_moment`` (n, 3) N m: the wrench a
       pinned or clamped tip's constraint applies to the tip (world frame; zero moment when
       pinned), for a run with a held tip (None otherwise; docs/model.md "End constraints");
+    - ``marker_position`` (n, K, 3) m: the world positions of K motion-capture markers on the
+      body (``simulate(..., markers=...)``), with their sites ``marker_s`` (K,) m (arc length
+      from the base, >= 0) and ``marker_offset`` (K, 3) m (offset in the cross-section frame
+      d1, d2, d3), all three or none (None: no markers);
     - ``shape_time`` (k,) s: times of the stored centrelines, each exactly one of ``time``
       (k may be 0); ``shape_s`` (p,) m: reference arc length of the nodes, strictly
       increasing; ``shape_position`` (k, p, 3) m: the centrelines;
@@ -187,6 +196,9 @@ class Trajectory:
     penetration: np.ndarray | None = None
     tip_reaction_force: np.ndarray | None = None
     tip_reaction_moment: np.ndarray | None = None
+    marker_position: np.ndarray | None = None
+    marker_s: np.ndarray | None = None
+    marker_offset: np.ndarray | None = None
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -246,6 +258,7 @@ class Trajectory:
                 a = _array(getattr(self, name), name, (n, 3), what)
                 _finite(a, name)
                 set_(self, name, _readonly(a))
+        self._check_markers(n)
         for name in ("energy", *ENERGY_PARTS):
             v = getattr(self, name)
             e = np.full(n, np.nan) if v is None else v
@@ -284,6 +297,46 @@ class Trajectory:
         meta = json.loads(_metadata_json(self.metadata))  # checks it, and a plain copy
         set_(self, "metadata", meta)
 
+    def _check_markers(self, n: int) -> None:
+        given = [name for name in _MARKER_FIELDS if getattr(self, name) is not None]
+        if not given:
+            return
+        if len(given) < len(_MARKER_FIELDS):
+            missing = [name for name in _MARKER_FIELDS if name not in given]
+            raise _fail(
+                missing[0],
+                None,
+                "marker_position, marker_s and marker_offset come together (the markers' "
+                "positions and where each sits on the body)",
+            )
+        if isinstance(self.metadata, dict) and "markers" in self.metadata:
+            raise _fail(
+                "metadata.markers",
+                "given",
+                "is where the tables and files put the markers' sites (marker_s, "
+                "marker_offset): keep other information under another key",
+            )
+        s = _array(self.marker_s, "marker_s", (None,), "the markers' arc lengths in m")
+        k = s.size
+        if not 1 <= k <= MAX_MARKERS:
+            raise _fail("marker_s", f"shape {s.shape}", f"needs 1 to {MAX_MARKERS} markers")
+        _finite(s, "marker_s")
+        if np.any(s < 0):
+            i = int(np.flatnonzero(s < 0)[0])
+            raise _fail(f"marker_s[{i}]", s[i].item(), "must be an arc length >= 0 m")
+        offset = _array(self.marker_offset, "marker_offset", (k, 3), f"(K = {k}, 3) in m")
+        pos = _array(
+            self.marker_position, "marker_position", (n, k, 3), f"(n = {n}, K = {k}, 3) in m"
+        )
+        for name, a in (("marker_s", s), ("marker_offset", offset), ("marker_position", pos)):
+            _finite(a, name)
+            object.__setattr__(self, name, _readonly(a))
+
+    @property
+    def n_markers(self) -> int:
+        """Number of markers (K; 0 without)."""
+        return 0 if self.marker_s is None else self.marker_s.size
+
     # --- basic facts -------------------------------------------------------------------------
 
     def __len__(self) -> int:
@@ -292,10 +345,11 @@ class Trajectory:
     def __repr__(self) -> str:
         name = self.metadata.get("design")
         what = f", design {name!r}" if name else ""
+        markers = f", {self.n_markers} markers" if self.n_markers else ""
         return (
             f"Trajectory({len(self)} samples, t = {self.time[0]:g} ... {self.time[-1]:g} s, "
             f"{self.n_channels} channels, {self.shape_time.size} shapes of "
-            f"{self.shape_s.size} nodes{what})"
+            f"{self.shape_s.size} nodes{markers}{what})"
         )
 
     @property
@@ -331,14 +385,16 @@ class Trajectory:
         """The tip table in the dataset schema (docs/datasets.md), one row per sample.
 
         Columns: ``time_s``; ``p0_kPa``, ... (actual chamber pressures); ``t0_N``, ...
-        (tendon tensions, for a design with tendons); ``tip_x_mm``,
-        ``tip_y_mm``, ``tip_z_mm``; ``tip_qw`` ... ``tip_qz`` (the tip frame as a unit
-        quaternion, scalar first); then the result columns ``cmd0_kPa``, ... (commanded
-        pressures), ``tip_vx_mm/s``, ``tip_vy_mm/s``, ``tip_vz_mm/s`` (tip velocity, world
-        frame), ``energy_J`` and its books ``kinetic_J``, ``elastic_J``, ``potential_J``,
-        ``work_in_J``, ``dissipated_J``. ``units`` as in :meth:`softrod.Dataset.to_frame` (also
-        "velocity" and "energy"; ``units="SI"`` for Pa, m, m/s). The same quantities have the
-        same names as in :meth:`softrod.BatchSolution.to_frame`. The metadata block
+        (tendon tensions, for a design with tendons); ``tip_x_mm``, ``tip_y_mm``,
+        ``tip_z_mm``; ``tip_qw`` ... ``tip_qz`` (the tip frame as a unit quaternion, scalar
+        first); ``marker0_x_mm``, ``marker0_y_mm``, ``marker0_z_mm``, ``marker1_x_mm``, ...
+        (the markers, world frame; where each sits is the metadata's ``markers`` block, as
+        in a dataset); then the result columns ``cmd0_kPa``, ... (commanded pressures),
+        ``tip_vx_mm/s``, ``tip_vy_mm/s``, ``tip_vz_mm/s`` (tip velocity, world frame),
+        ``energy_J`` and its books ``kinetic_J``, ``elastic_J``, ``potential_J``,
+        ``work_in_J``, ``dissipated_J``. ``units`` as in :meth:`softrod.Dataset.to_frame`
+        (also "velocity" and "energy"; ``units="SI"`` for Pa, m, m/s). The same quantities
+        have the same names as in :meth:`softrod.BatchSolution.to_frame`. The metadata block
         (``frame.attrs["softrod.metadata"]``) is :attr:`metadata` with the result columns
         declared, so ``load_dataset(frame)`` reads it back.
         """
@@ -348,10 +404,21 @@ class Trajectory:
             tip_position=self.tip_position,
             tip_rotation=self.tip_rotation,
             time=self.time,
+            **self._marker_columns(),
             extras=self._extras(),
             units=units,
             metadata=self._table_metadata(),
         )
+
+    def _marker_columns(self) -> dict:
+        """schema_frame's marker arguments (none without markers)."""
+        if self.marker_position is None:
+            return {}
+        return {
+            "markers": self.marker_position,
+            "marker_s": self.marker_s,
+            "marker_offset": self.marker_offset,
+        }
 
     def _tensions(self) -> np.ndarray | None:
         """The tension columns of the tables (none without tendons)."""
@@ -403,7 +470,8 @@ class Trajectory:
         Parquet: the columns of :meth:`to_frame` plus ``shape_m``, a list column holding the
         flattened centreline (p nodes x 3, node-major: x0, y0, z0, x1, ...) in m in the rows
         whose time is a shape time and null elsewhere; the schema metadata holds
-        ``softrod.metadata`` (the metadata as JSON) and ``softrod.trajectory`` (JSON with
+        ``softrod.metadata`` (the metadata as JSON, with the markers' sites in its
+        ``markers`` block as in a dataset) and ``softrod.trajectory`` (JSON with
         ``format``, ``n_channels``, ``n_nodes`` and ``shape_s_m``, the node arc lengths).
         NPZ: one array per field under its field name (SI), ``metadata_json`` and ``format``.
         """
@@ -421,6 +489,8 @@ class Trajectory:
                         tip_reaction_force=self.tip_reaction_force,
                         tip_reaction_moment=self.tip_reaction_moment,
                     )
+                if self.marker_position is not None:
+                    arrays.update({name: getattr(self, name) for name in _MARKER_FIELDS})
                 with open(tmp, "wb") as fh:  # a file object: numpy would append ".npz"
                     np.savez_compressed(
                         fh,
@@ -447,6 +517,7 @@ class Trajectory:
             tip_position=self.tip_position,
             tip_rotation=self.tip_rotation,
             time=self.time,
+            **self._marker_columns(),
             extras=self._extras() + exact,
             units="SI",
             metadata=self._table_metadata(),
@@ -506,6 +577,27 @@ class Trajectory:
         the duration: a clock of n * dt may end a few 1e-13 s off a nominal end); otherwise
         :class:`InputError` naming the first sample outside.
         """
+        return self._at(times, self.tip_position)
+
+    def marker_position_at(self, times: ArrayLike) -> np.ndarray:
+        """Marker positions (m, K, 3) in m at ``times`` (m,) s, linear in time between
+        samples, as :meth:`tip_position_at` (the same interval rule); an InputError naming
+        ``marker_position`` for a trajectory without markers."""
+        return self._at(times, self._markers())
+
+    def _markers(self) -> np.ndarray:
+        """``marker_position``, or an InputError naming it for a trajectory without."""
+        if self.marker_position is None:
+            raise _fail(
+                "marker_position",
+                None,
+                "this trajectory has no markers: simulate with markers=[...] "
+                "(docs/dynamics.md, 'Markers on the moving rod')",
+            )
+        return self.marker_position
+
+    def _at(self, times: ArrayLike, values: np.ndarray) -> np.ndarray:
+        """``values`` (n, ...) linear in time at ``times`` (m,): (m, ...)."""
         t = _array(times, "times", (None,), "the times in s")
         _finite(t, "times")
         lo, hi = self.time[0], self.time[-1]
@@ -519,7 +611,9 @@ class Trajectory:
                 f"outside the simulated interval [{lo:g}, {hi:g}] s "
                 f"({bad.size} of {t.size} times are); simulate longer or trim the measurements",
             )
-        return np.column_stack([np.interp(t, self.time, self.tip_position[:, i]) for i in range(3)])
+        flat = values.reshape(len(self), -1)
+        out = np.column_stack([np.interp(t, self.time, flat[:, i]) for i in range(flat.shape[1])])
+        return out.reshape(t.size, *values.shape[1:])
 
     def tip_error(self, measured_time: ArrayLike, measured_position: ArrayLike) -> np.ndarray:
         """Euclidean tip error (m,) in m between measured tip positions and the trajectory.
@@ -531,12 +625,47 @@ class Trajectory:
         t = _array(measured_time, "measured_time", (None,), "sample times in s")
         pos = _array(measured_position, "measured_position", (t.size, 3), f"(m = {t.size}, 3) in m")
         _finite(pos, "measured_position")
+        return np.linalg.norm(self._measured_at(t, self.tip_position) - pos, axis=1)
+
+    def marker_error(self, measured_time: ArrayLike, measured_position: ArrayLike) -> np.ndarray:
+        """Euclidean marker errors (m, K) in m between measured marker positions and the
+        trajectory's markers, NaN where a marker was not seen.
+
+        ``measured_time`` (m,) s and ``measured_position`` (m, K, 3) m, world frame, the
+        markers in the trajectory's order, all three coordinates of a marker NaN where it
+        was not seen (as a dataset's ``markers``); the trajectory is interpolated linearly
+        at the measured times (:meth:`marker_position_at`; times outside the simulated
+        interval are an error)."""
+        markers = self._markers()
+        t = _array(measured_time, "measured_time", (None,), "sample times in s")
+        k = self.n_markers
+        pos = _array(
+            measured_position,
+            "measured_position",
+            (t.size, k, 3),
+            f"(m = {t.size}, K = {k}, 3) in m",
+        )
+        seen = np.isfinite(pos).all(axis=2)
+        bad = np.argwhere(~seen & ~np.isnan(pos).all(axis=2))
+        if bad.size:
+            i, j = bad[0]
+            raise _fail(
+                f"measured_position[{i}, {j}]",
+                pos[i, j].tolist(),
+                "a marker is seen (x, y, z all finite) or not (all three NaN)",
+            )
+        err = np.linalg.norm(
+            self._measured_at(t, markers) - np.where(seen[..., None], pos, 0.0), axis=2
+        )
+        return np.where(seen, err, np.nan)
+
+    def _measured_at(self, t: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """:meth:`_at` with errors naming ``measured_time``."""
         try:
-            model = self.tip_position_at(t)
+            return self._at(t, values)
         except InputError as exc:
             exc.args = (exc.args[0].replace("times[", "measured_time[", 1),)
             raise
-        return np.linalg.norm(model - pos, axis=1)
 
     # --- plots -------------------------------------------------------------------------------
 
@@ -961,6 +1090,7 @@ def _load_npz(path: Path) -> Trajectory:
                         "penetration",
                         "tip_reaction_force",
                         "tip_reaction_moment",
+                        *_MARKER_FIELDS,
                     )
                     if n in data.files
                 }
@@ -985,6 +1115,14 @@ def _load_parquet(path: Path) -> Trajectory:
     layout = _json_block(kv[_PARQUET_KEY], _PARQUET_KEY.decode())
     version = _check_format(layout.get("format"), "softrod.trajectory.format")
     meta = _json_block(kv.get(_META_KEY, b"{}"), _META_KEY.decode())
+    marker_ids = {
+        int(m[1])
+        for name in table.column_names
+        if name.endswith("_m") and (m := _MARKER.match(name[:-2]))
+    }
+    # Where the markers sit: the metadata block a dataset has, read by the dataset's reader
+    # (its errors name metadata.markers.marker<k>).
+    sites = _marker_sites(meta.get("markers"), len(marker_ids)) if marker_ids else None
     for key in layout.get("table_metadata", ["columns"]):
         meta.pop(key, None)  # e.g. the declaration of the result columns, added by save
     c = layout.get("n_channels")
@@ -1049,6 +1187,17 @@ def _load_parquet(path: Path) -> Trajectory:
         shape_time=time[has],
         shape_s=ss,
         shape_position=values.reshape(k, p, 3),
+        **(
+            {
+                "marker_position": np.stack(
+                    [cols(f"marker{j}_{{}}_m", _XYZ) for j in range(len(marker_ids))], axis=1
+                ),
+                "marker_s": sites[0],
+                "marker_offset": sites[1],
+            }
+            if sites is not None
+            else {}
+        ),
         metadata=meta,
     )
 
