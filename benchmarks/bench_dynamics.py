@@ -40,6 +40,7 @@ for _var in ("RAYON_NUM_THREADS", "NUMBA_NUM_THREADS", "OMP_NUM_THREADS"):
 
 import contextlib  # noqa: E402
 import io  # noqa: E402
+import json  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -49,6 +50,7 @@ import softrod  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import (  # noqa: E402
+    RESULTS,
     bench_main,
     gc_disabled,
     load_average,
@@ -84,6 +86,14 @@ C_S = 27.0 / 28.0  # PyElastica's shear coefficient alpha_c, given to softrod as
 T_END = 1.0
 SAMPLE = 1e-3  # tip samples every 1 ms
 GRID = np.round(np.arange(0.0, T_END + SAMPLE / 2, SAMPLE), 12)
+# PyElastica: steps tried from the largest (each divides the 1 ms sample interval), elements
+# of PyElastica 1.0 as shipped and of PyElastica with softrod's law, and the small-amplitude
+# check's gravity (1 % of g: tip amplitude 15 mm, dilatation within 5e-5 of 1).
+PE_DTS = [1e-4, 5e-5, 4e-5, 2.5e-5, 2e-5, 1.25e-5, 1e-5, 5e-6, 2.5e-6]
+PE_ELEMS = [20, 40, 80, 160, 320]
+PE_ELEMS_SOFTROD_LAW = [20, 40, 80, 160, 320, 640, 1280]
+SMALL_G = 0.01 * G_ACC
+SMALL_ELEMS = [20, 40, 80, 160]
 
 
 def _pe_version():
@@ -165,22 +175,34 @@ def timed_runs(fn, reps: int, cpu: list | None = None):
 # ---------------------------------------------------------------------------------------------
 
 if ea is not None:
+    import pyelastica_laws
 
     class TipRecorder(ea.CallBackBaseClass):
-        def __init__(self, every: int, out: list):
+        def __init__(self, every: int, out: list, dil: list):
             super().__init__()
-            self.every, self.out = every, out
+            self.every, self.out, self.dil = every, out, dil
 
         def make_callback(self, system, time, current_step):
             if current_step % self.every == 0:
                 self.out.append(system.position_collection[:, -1].copy())
+                self.dil.append((float(system.dilatation.min()), float(system.dilatation.max())))
 
     class Cantilever(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.CallBacks):
         pass
 
 
-def pe_cantilever(n_elem: int, dt: float, t_end: float = T_END):
-    """PyElastica run: (wall s of the stepping loop, tip positions on the 1 ms grid)."""
+def blown_up(tip, dil) -> bool:
+    """Not finite, the tip beyond 1.5 L, or an element stretched or squeezed by 2x."""
+    return not (
+        np.all(np.isfinite(tip)) and np.abs(tip).max() < 1.5 * L and 0.5 < dil[0] and dil[1] < 2.0
+    )
+
+
+def pe_cantilever(
+    n_elem: int, dt: float, t_end: float = T_END, law: str = "pyelastica", g: float = G_ACC
+) -> dict:
+    """PyElastica run: wall s of the stepping loop, tip positions on the 1 ms grid, the time
+    of a blow-up (None if none; the run stops there) and the dilatation range."""
     sim = Cantilever()
     rod = ea.CosseratRod.straight_rod(
         n_elem,
@@ -197,26 +219,58 @@ def pe_cantilever(n_elem: int, dt: float, t_end: float = T_END):
     sim.constrain(rod).using(
         ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,)
     )
-    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -G_ACC]))
+    sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -g]))
     every = round(SAMPLE / dt)
     if abs(every * dt - SAMPLE) > 1e-12:
         raise ValueError(f"dt = {dt} must divide the sample interval {SAMPLE}")
     tips: list = []
-    sim.collect_diagnostics(rod).using(TipRecorder, every=every, out=tips)
+    dil: list = []
+    sim.collect_diagnostics(rod).using(TipRecorder, every=every, out=tips, dil=dil)
     sim.finalize()
     stepper = ea.PositionVerlet()
     steps = round(t_end / dt)
-    with gc_disabled():
-        t0 = time.perf_counter()
+    blew = None
+    with pyelastica_laws.law(law), gc_disabled():
+        t0, c0 = time.perf_counter(), time.process_time()
         t = np.float64(0.0)
-        for _ in range(steps):
+        for i in range(1, steps + 1):
             t = stepper.step(sim, t, np.float64(dt))
-        wall = time.perf_counter() - t0
-    return wall, np.array(tips)
+            if i % every == 0 and blown_up(tips[-1], dil[-1]):
+                blew = float(t)
+                break
+        wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    d = np.array(dil)
+    return {
+        "wall": wall,
+        "cpu": cpu,
+        "tips": np.array(tips),
+        "blew_up_at_s": blew,
+        "dilatation_range": [float(d[:, 0].min()), float(d[:, 1].max())],
+    }
 
 
-def stable(tips: np.ndarray) -> bool:
-    return bool(np.all(np.isfinite(tips)) and np.abs(tips).max() < 1.5 * L)
+def pe_largest_stable(n_elem: int, law: str, t_end: float = T_END, g: float = G_ACC):
+    """The run at the largest stable dt of PE_DTS, or None, and the unstable tries. A blow-up
+    after 0.1 s is no step-size limit (those blow up within a few ms): after the first one,
+    one more try at a quarter of the step or less, then give up."""
+    tried = []
+    late = None
+    for dt in PE_DTS:
+        if late is not None and dt > late / 4:
+            continue
+        r = pe_cantilever(n_elem, dt, t_end, law, g)
+        if r["blew_up_at_s"] is None:
+            return dt, r, tried
+        tried.append({"dt_s": dt, "blew_up_at_s": r["blew_up_at_s"]})
+        print(
+            f"      {law} law, {n_elem} elements, dt {dt * 1e6:g} us: blew up at "
+            f"{r['blew_up_at_s']:.3f} s (dilatation up to {r['dilatation_range'][1]:.3g})"
+        )
+        if r["blew_up_at_s"] > 0.1:
+            if late is not None:
+                break
+            late = dt
+    return None, None, tried
 
 
 # ---------------------------------------------------------------------------------------------
@@ -382,18 +436,21 @@ def run_cantilever(quick: bool) -> dict:
         d = cantilever(steps)
         for dt in (2e-3, 1e-3, 5e-4):
             sr_cantilever(d, dt)  # warm-up
-            wall, walls, tr = timed_runs(lambda d=d, dt=dt: sr_cantilever(d, dt), reps)
+            cpus: list[float] = []
+            wall, walls, tr = timed_runs(lambda d=d, dt=dt: sr_cantilever(d, dt), reps, cpus)
             row = {
                 "steps": steps,
                 "dt_s": dt,
                 "wall_s": wall,
                 "walls_s": walls,
+                "cpu_s": median(cpus),
                 "newton_iterations": int(tr.metadata["newton_iterations"]),
                 "tip_error_vs_ref": errors(tips(tr), ref),
             }
             sr_rows.append(row)
             print(
-                f"    softrod {steps} intervals, dt {dt * 1e3:g} ms: wall {fmt_t(wall)}, tip "
+                f"    softrod {steps} intervals, dt {dt * 1e3:g} ms: wall {fmt_t(wall)}, CPU "
+                f"{fmt_t(row['cpu_s'])}, tip "
                 f"error max {row['tip_error_vs_ref']['max_mm']:.3f} mm, RMS "
                 f"{row['tip_error_vs_ref']['rms_mm']:.3f} mm"
             )
@@ -407,92 +464,229 @@ def run_cantilever(quick: bool) -> dict:
 
     t0 = time.perf_counter()
     with contextlib.redirect_stdout(io.StringIO()):
-        pe_cantilever(20, 2e-5, t_end=0.01)
+        for law in ("pyelastica", "softrod"):
+            pe_cantilever(20, 1e-4, t_end=0.01, law=law)
     warm = time.perf_counter() - t0
-    print(f"    PyElastica warm-up (numba JIT): {warm:.1f} s (not timed)")
-    candidates = [5e-5, 4e-5, 2.5e-5, 2e-5, 1e-5, 8e-6, 5e-6, 4e-6, 2.5e-6, 2e-6, 1e-6]
-    pe_rows = []
-    for n_elem in [20] if quick else [20, 40, 80, 160]:
-        for dt in candidates:
-            t_probe = 0.05 if quick else T_END
-            wall, tip = pe_cantilever(n_elem, dt, t_end=t_probe)
-            if not stable(tip):
-                print(f"    PyElastica n_elem {n_elem}, dt {dt * 1e6:g} us: unstable")
+    print(f"    PyElastica warm-up (numba JIT, both laws): {warm:.1f} s (not timed)")
+    t_pe = 0.05 if quick else T_END
+    grid_pe = slice(0, round(t_pe / SAMPLE) + 1)
+
+    def pe_series(law, elems):
+        rows, tips_by_n = [], {}
+        for n in elems:
+            dt, r, tried = pe_largest_stable(n, law, t_pe)
+            row = {"n_elem": n, "unstable_tries": tried}
+            if r is None:
+                row["stable"] = False
+                print(f"    {law} law, {n} elements: no stable dt (tries above)")
+                rows.append(row)
                 continue
-            row = {"n_elem": n_elem, "dt_s": dt, "wall_s": wall, "t_end_s": t_probe}
-            if t_probe == T_END:
-                row["tip_error_vs_ref"] = errors(tip, ref)
-            pe_rows.append(row)
-            err = row.get("tip_error_vs_ref")
-            print(
-                f"    PyElastica n_elem {n_elem}, dt {dt * 1e6:g} us: wall {fmt_t(wall)}"
-                + (
-                    f", tip error max {err['max_mm']:.3f} mm, RMS {err['rms_mm']:.3f} mm"
-                    if err
-                    else " (quick: 0.05 s only)"
-                )
+            tips_by_n[n] = r["tips"]
+            err = errors(r["tips"], ref[grid_pe])
+            row.update(
+                {
+                    "stable": True,
+                    "dt_s": dt,
+                    "wall_s": r["wall"],
+                    "cpu_s": r["cpu"],
+                    "t_end_s": t_pe,
+                    "dilatation_range": r["dilatation_range"],
+                    "tip_error_vs_softrod_ref": err,
+                }
             )
-            break
-    # Equal accuracy: each PyElastica run against the cheapest softrod run at least as
-    # accurate, and the comparison at the issue's 1 mm.
-    for row in pe_rows:
-        if "tip_error_vs_ref" not in row:
-            continue
-        limit = row["tip_error_vs_ref"]["max_mm"]
-        ok = [r for r in sr_rows if r["tip_error_vs_ref"]["max_mm"] <= limit]
-        if ok:
-            best = min(ok, key=lambda r: r["wall_s"])
-            row["softrod_at_equal_accuracy"] = {
-                "steps": best["steps"],
-                "dt_s": best["dt_s"],
-                "wall_s": best["wall_s"],
-                "tip_error_max_mm": best["tip_error_vs_ref"]["max_mm"],
+            half = tips_by_n.get(n // 2)
+            if half is not None:
+                # first order (differences halve): t(n) - limit ~ t(n/2) - t(n)
+                row["difference_to_half_elements"] = errors(half, r["tips"])
+            rows.append(row)
+            extra = (
+                f", |t({n // 2}) - t({n})| max {row['difference_to_half_elements']['max_mm']:.2f}"
+                " mm"
+                if half is not None
+                else ""
+            )
+            print(
+                f"    {law} law, {n} elements, dt {dt * 1e6:g} us: wall {fmt_t(r['wall'])}, CPU "
+                f"{fmt_t(r['cpu'])}, vs "
+                f"softrod's reference max {err['max_mm']:.2f} mm, RMS {err['rms_mm']:.2f} mm{extra}"
+                f"; dilatation {r['dilatation_range'][0]:.3f} ... {r['dilatation_range'][1]:.3f}"
+            )
+        return rows, tips_by_n
+
+    def richardson(tips_by_n):
+        """First-order extrapolation 2 t(n) - t(n/2) of the two finest stable runs."""
+        ns = sorted(n for n in tips_by_n if n // 2 in tips_by_n)
+        if not ns:
+            return None
+        n = ns[-1]
+        return n, 2.0 * tips_by_n[n] - tips_by_n[n // 2]
+
+    print("    PyElastica 1.0 as shipped (its law: n / e, m / e^3, J / e):")
+    pe_rows, pe_tips = pe_series("pyelastica", [20] if quick else PE_ELEMS)
+    print("    PyElastica with softrod's law (pyelastica_laws.py; same continuum model):")
+    lin_rows, lin_tips = pe_series("softrod", [20, 40] if quick else PE_ELEMS_SOFTROD_LAW)
+    # The laws' difference at the same discretisation (their discretisation errors alike).
+    law_diff = [
+        {"n_elem": n, **errors(pe_tips[n], lin_tips[n])}
+        for n in sorted(set(pe_tips) & set(lin_tips))
+    ]
+    for d in law_diff:
+        print(
+            f"    law difference at {d['n_elem']} elements (PyElastica's law - softrod's): max "
+            f"{d['max_mm']:.2f} mm, RMS {d['rms_mm']:.2f} mm"
+        )
+    extrapolated = {}
+    for name, tips_by_n in (("pyelastica_law", pe_tips), ("softrod_law", lin_tips)):
+        rich = richardson(tips_by_n)
+        if rich is not None:
+            n, r_tip = rich
+            extrapolated[name] = {
+                "from_n_elem": [n // 2, n],
+                "vs_softrod_ref": errors(r_tip, ref[grid_pe]),
             }
-            row["speedup_at_equal_accuracy"] = row["wall_s"] / best["wall_s"]
-    goal_mm = TARGET_ACCURACY * 1e3
-    at_mm = [r for r in pe_rows if r.get("tip_error_vs_ref", {}).get("max_mm", 1e9) <= goal_mm]
-    sr_mm = [r for r in sr_rows if r["tip_error_vs_ref"]["max_mm"] <= TARGET_ACCURACY * 1e3]
-    summary = None
-    if at_mm and sr_mm:
-        pe_best = min(at_mm, key=lambda r: r["wall_s"])
-        sr_best = min(sr_mm, key=lambda r: r["wall_s"])
-        summary = {
-            "pyelastica": {k: pe_best[k] for k in ("n_elem", "dt_s", "wall_s")},
-            "softrod": {k: sr_best[k] for k in ("steps", "dt_s", "wall_s")},
-            "speedup": pe_best["wall_s"] / sr_best["wall_s"],
-            "target": TARGET_SPEEDUP,
+            print(
+                f"    {name}: 2 t({n}) - t({n // 2}) vs softrod's reference: max "
+                f"{extrapolated[name]['vs_softrod_ref']['max_mm']:.2f} mm"
+            )
+
+    # Small amplitude (1 % of g): the laws agree to first order in the strains, so PyElastica
+    # as shipped should converge to softrod's reference of that case.
+    small = None
+    if not quick:
+        saved_g = globals()["G_ACC"]
+        globals()["G_ACC"] = SMALL_G
+        try:
+            sa = tips(sr_cantilever(cantilever(n_ref), dt_ref))
+            sb = tips(sr_cantilever(cantilever(n_ref), dt_ref / 2))
+            ss = tips(sr_cantilever(cantilever(2 * n_ref), dt_ref))
+        finally:
+            globals()["G_ACC"] = saved_g
+        sref = (4.0 * sb - sa) / 3.0 + (ss - sa)
+        amp = float(np.linalg.norm(sref - sref[0], axis=1).max())
+        s_rows, s_tips = [], {}
+        for n in SMALL_ELEMS:
+            r = pe_cantilever(n, 2.5e-5, law="pyelastica", g=SMALL_G)
+            s_tips[n] = r["tips"]
+            s_rows.append(
+                {
+                    "n_elem": n,
+                    "dt_s": 2.5e-5,
+                    "blew_up_at_s": r["blew_up_at_s"],
+                    "dilatation_range": r["dilatation_range"],
+                    "tip_error_vs_softrod_ref": errors(r["tips"], sref),
+                }
+            )
+        n, r_tip = richardson(s_tips)
+        small = {
+            "gravity_m_s2": SMALL_G,
+            "softrod_ref_tip_amplitude_mm": amp * 1e3,
+            "pyelastica_as_shipped": s_rows,
+            "extrapolated_2t160_minus_t80_vs_softrod_ref": errors(r_tip, sref),
         }
         print(
-            f"    at <= {TARGET_ACCURACY * 1e3:g} mm: PyElastica {pe_best['n_elem']} elements, "
-            f"{fmt_t(pe_best['wall_s'])}; softrod {sr_best['steps']} intervals, dt "
-            f"{sr_best['dt_s'] * 1e3:g} ms, {fmt_t(sr_best['wall_s'])}: "
-            f"{summary['speedup']:.0f}x (target {TARGET_SPEEDUP:g}x)"
+            f"    small amplitude (g = {SMALL_G:g} m/s^2, tip amplitude {amp * 1e3:.1f} mm): "
+            "PyElastica as shipped vs softrod's reference, max "
+            + ", ".join(f"{r['tip_error_vs_softrod_ref']['max_mm']:.3f}" for r in s_rows)
+            + f" mm at {SMALL_ELEMS} elements; 2 t({n}) - t({n // 2}): "
+            f"{small['extrapolated_2t160_minus_t80_vs_softrod_ref']['max_mm']:.4f} mm"
+        )
+
+    # 1 mm: softrod against its reference; PyElastica with softrod's law against the same
+    # reference (the same continuum model). PyElastica as shipped converges to another model:
+    # its own error is estimated by |t(n/2) - t(n)| (first order).
+    goal_mm = TARGET_ACCURACY * 1e3
+    sr_mm = [r for r in sr_rows if r["tip_error_vs_ref"]["max_mm"] <= goal_mm]
+    lin_mm = [
+        r for r in lin_rows if r["stable"] and r["tip_error_vs_softrod_ref"]["max_mm"] <= goal_mm
+    ]
+    own_mm = [
+        r for r in pe_rows if r.get("difference_to_half_elements", {}).get("max_mm", 1e9) <= goal_mm
+    ]
+    summary = {"target": TARGET_SPEEDUP, "accuracy_mm": goal_mm}
+    sr_best = min(sr_mm, key=lambda r: r["wall_s"]) if sr_mm else None
+    if sr_best is not None:
+        summary["softrod"] = {k: sr_best[k] for k in ("steps", "dt_s", "wall_s")} | {
+            "tip_error_max_mm": sr_best["tip_error_vs_ref"]["max_mm"]
+        }
+    if lin_mm and sr_best is not None and not quick:
+        best = min(lin_mm, key=lambda r: r["wall_s"])
+        summary["pyelastica_softrod_law"] = {k: best[k] for k in ("n_elem", "dt_s", "wall_s")} | {
+            "tip_error_max_mm": best["tip_error_vs_softrod_ref"]["max_mm"]
+        }
+        summary["pyelastica_softrod_law"]["cpu_s"] = best["cpu_s"]
+        summary["softrod"]["cpu_s"] = sr_best["cpu_s"]
+        summary["speedup_same_model"] = best["wall_s"] / sr_best["wall_s"]
+        summary["speedup_same_model_cpu"] = best["cpu_s"] / sr_best["cpu_s"]
+        summary["target_met_same_model"] = summary["speedup_same_model"] >= TARGET_SPEEDUP
+        print(
+            f"    at <= {goal_mm:g} mm against softrod's reference: PyElastica with softrod's law "
+            f"{best['n_elem']} elements, dt {best['dt_s'] * 1e6:g} us, {fmt_t(best['wall_s'])}; "
+            f"softrod {sr_best['steps']} intervals, dt {sr_best['dt_s'] * 1e3:g} ms, "
+            f"{fmt_t(sr_best['wall_s'])}: {summary['speedup_same_model']:.0f}x in wall, "
+            f"{summary['speedup_same_model_cpu']:.0f}x in CPU time (target {TARGET_SPEEDUP:g}x)"
         )
     else:
-        print(f"    no PyElastica run reached {TARGET_ACCURACY * 1e3:g} mm (see the runs)")
+        print(f"    no PyElastica run with softrod's law reached {goal_mm:g} mm")
+    summary["pyelastica_as_shipped_reached_1mm_of_own_limit"] = bool(own_mm)
+    stable_pe = [r for r in pe_rows if r["stable"] and "difference_to_half_elements" in r]
+    if stable_pe:
+        finest = stable_pe[-1]
+        summary["pyelastica_as_shipped_finest_stable"] = {
+            "n_elem": finest["n_elem"],
+            "dt_s": finest["dt_s"],
+            "wall_s": finest["wall_s"],
+            "estimated_error_vs_own_limit_max_mm": finest["difference_to_half_elements"]["max_mm"],
+        }
+        print(
+            f"    PyElastica as shipped: finest stable run {finest['n_elem']} elements, its "
+            "error against its own limit about "
+            f"{finest['difference_to_half_elements']['max_mm']:.1f} mm (first order); "
+            + ("a run reached 1 mm" if own_mm else "none reached 1 mm")
+        )
     out["pyelastica"] = {
         "version": _pe_version(),
         "stepper": "PositionVerlet",
         "damping": "none",
         "warm_up_s": warm,
-        "dt_candidates_s": candidates,
-        "runs": pe_rows,
+        "dt_candidates_s": PE_DTS,
+        "as_shipped": pe_rows,
+        "softrod_law": lin_rows,
+        "law_difference_same_elements": law_diff,
+        "first_order_extrapolation": extrapolated,
+        "small_amplitude": small,
     }
     out["at_1mm"] = summary
     return out
 
 
-def run(quick: bool) -> dict:
+def run(quick: bool, cantilever_only: bool = False, output: Path | None = None) -> dict:
     t_start = time.perf_counter()
     info = machine()
     info["pyelastica"] = _pe_version()
     info["threads"] = "RAYON_NUM_THREADS = NUMBA_NUM_THREADS = OMP_NUM_THREADS = 1"
     print(
-        f"softrod dynamics benchmark, {'quick' if quick else 'full'} mode; machine: "
+        f"softrod dynamics benchmark, {'quick' if quick else 'full'} mode"
+        f"{', cantilever only' if cantilever_only else ''}; machine: "
         f"{info['cpu_count']} CPUs, {info['platform']}, softrod {info['softrod']} "
         f"({info['git_commit']}), PyElastica {info['pyelastica']}, load average "
         f"{info['load_average_before']}"
     )
+    if cantilever_only:
+        # Sections 1 and 2 stay those of the results file's last full run.
+        path = output or RESULTS / ("dynamics_quick.json" if quick else "dynamics.json")
+        previous = json.loads(path.read_text()) if path.exists() else {}
+        cant = run_cantilever(quick)
+        info["load_average_after"] = load_average()
+        print(f"load average now {info['load_average_after']}")
+        return {
+            **previous,
+            "cantilever": cant,
+            "cantilever_run": {
+                **result_header("dynamics, section 3 alone (--cantilever-only)", quick, info),
+                "wall_time_s": time.perf_counter() - t_start,
+            },
+            "wall_time_s": time.perf_counter() - t_start,
+        }
     arm = run_arm(quick)
     scaling = run_scaling(quick)
     cant = run_cantilever(quick)
@@ -514,7 +708,20 @@ def run(quick: bool) -> dict:
 
 
 def main(argv=None) -> int:
-    return bench_main(argv, __doc__, "dynamics", lambda args: run(args.quick))
+    def options(parser):
+        parser.add_argument(
+            "--cantilever-only",
+            action="store_true",
+            help="run section 3 alone; sections 1-2 are kept from the results file",
+        )
+
+    return bench_main(
+        argv,
+        __doc__,
+        "dynamics",
+        lambda args: run(args.quick, args.cantilever_only, args.output),
+        options,
+    )
 
 
 if __name__ == "__main__":
