@@ -94,6 +94,7 @@ PE_ELEMS = [20, 40, 80, 160, 320]
 PE_ELEMS_SOFTROD_LAW = [20, 40, 80, 160, 320, 640, 1280]
 SMALL_G = 0.01 * G_ACC
 SMALL_ELEMS = [20, 40, 80, 160]
+DECOMPOSE_ELEMS = 80
 
 
 def _pe_version():
@@ -128,10 +129,10 @@ def errors(tip: np.ndarray, ref: np.ndarray) -> dict:
 # ---------------------------------------------------------------------------------------------
 
 
-def cantilever(steps: int) -> softrod.Design:
+def cantilever(steps: int, g: float = G_ACC, length: float = L) -> softrod.Design:
     section = {
         "name": "rod",
-        "length": f"{L} m",
+        "length": f"{length} m",
         "outer_radius": f"{RADIUS * 1e3} mm",
         "material": "soft",
         "steps": steps,
@@ -142,7 +143,7 @@ def cantilever(steps: int) -> softrod.Design:
             "name": "soft_cantilever_220mm",
             "citation": "issue 14 benchmark: 0.22 m, E = 100 kPa, r = 12.5 mm, 1000 kg/m^3",
         },
-        "mounting": {"orientation": "horizontal", "gravity": f"{G_ACC} m/s^2"},
+        "mounting": {"orientation": "horizontal", "gravity": f"{g} m/s^2"},
         "materials": {"soft": {"E": f"{E_MOD} Pa", "G": f"{G_MOD} Pa", "density": f"{RHO} kg/m^3"}},
         "sections": [section],
     }
@@ -187,7 +188,7 @@ if ea is not None:
                 self.out.append(system.position_collection[:, -1].copy())
                 self.dil.append((float(system.dilatation.min()), float(system.dilatation.max())))
 
-    class Cantilever(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.CallBacks):
+    class Cantilever(ea.BaseSystemCollection, ea.Constraints, ea.Forcing, ea.Damping, ea.CallBacks):
         pass
 
 
@@ -199,10 +200,17 @@ def blown_up(tip, dil) -> bool:
 
 
 def pe_cantilever(
-    n_elem: int, dt: float, t_end: float = T_END, law: str = "pyelastica", g: float = G_ACC
+    n_elem: int,
+    dt: float,
+    t_end: float = T_END,
+    law: str = "pyelastica",
+    g: float = G_ACC,
+    damping: float | None = None,
 ) -> dict:
     """PyElastica run: wall s of the stepping loop, tip positions on the 1 ms grid, the time
-    of a blow-up (None if none; the run stops there) and the dilatation range."""
+    of a blow-up (None if none; the run stops there) and the dilatation range. ``damping``:
+    AnalyticalLinearDamper's uniform_damping_constant (1/s; None: undamped, as in the
+    benchmark; pyelastica_checks.py damps to reach rest states)."""
     sim = Cantilever()
     rod = ea.CosseratRod.straight_rod(
         n_elem,
@@ -220,6 +228,10 @@ def pe_cantilever(
         ea.OneEndFixedBC, constrained_position_idx=(0,), constrained_director_idx=(0,)
     )
     sim.add_forcing_to(rod).using(ea.GravityForces, acc_gravity=np.array([0.0, 0.0, -g]))
+    if damping is not None:
+        sim.dampen(rod).using(
+            ea.AnalyticalLinearDamper, uniform_damping_constant=damping, time_step=dt
+        )
     every = round(SAMPLE / dt)
     if abs(every * dt - SAMPLE) > 1e-12:
         raise ValueError(f"dt = {dt} must divide the sample interval {SAMPLE}")
@@ -535,6 +547,27 @@ def run_cantilever(quick: bool) -> dict:
             f"    law difference at {d['n_elem']} elements (PyElastica's law - softrod's): max "
             f"{d['max_mm']:.2f} mm, RMS {d['rms_mm']:.2f} mm"
         )
+    # Which of PyElastica's dilatation factors makes the difference: each alone (and force
+    # and couple together) at DECOMPOSE_ELEMS elements, against softrod's law there.
+    decomposition = []
+    if not quick and DECOMPOSE_ELEMS in lin_tips:
+        dt_d = next(r["dt_s"] for r in lin_rows if r["n_elem"] == DECOMPOSE_ELEMS)
+        for name in list(pyelastica_laws.VARIANTS)[1:] + ["pyelastica"]:
+            r = pe_cantilever(DECOMPOSE_ELEMS, dt_d, law=name)
+            row = {"variant": name, "dt_s": dt_d, "blew_up_at_s": r["blew_up_at_s"]}
+            if r["blew_up_at_s"] is None:
+                row["vs_softrod_law"] = errors(r["tips"], lin_tips[DECOMPOSE_ELEMS])
+                row["dilatation_range"] = r["dilatation_range"]
+            decomposition.append(row)
+            print(
+                f"    {DECOMPOSE_ELEMS} elements, {name}: "
+                + (
+                    f"vs softrod's law max {row['vs_softrod_law']['max_mm']:.2f} mm, RMS "
+                    f"{row['vs_softrod_law']['rms_mm']:.2f} mm"
+                    if "vs_softrod_law" in row
+                    else f"blew up at {r['blew_up_at_s']:.3f} s"
+                )
+            )
     extrapolated = {}
     for name, tips_by_n in (("pyelastica_law", pe_tips), ("softrod_law", lin_tips)):
         rich = richardson(tips_by_n)
@@ -553,14 +586,9 @@ def run_cantilever(quick: bool) -> dict:
     # as shipped should converge to softrod's reference of that case.
     small = None
     if not quick:
-        saved_g = globals()["G_ACC"]
-        globals()["G_ACC"] = SMALL_G
-        try:
-            sa = tips(sr_cantilever(cantilever(n_ref), dt_ref))
-            sb = tips(sr_cantilever(cantilever(n_ref), dt_ref / 2))
-            ss = tips(sr_cantilever(cantilever(2 * n_ref), dt_ref))
-        finally:
-            globals()["G_ACC"] = saved_g
+        sa = tips(sr_cantilever(cantilever(n_ref, SMALL_G), dt_ref))
+        sb = tips(sr_cantilever(cantilever(n_ref, SMALL_G), dt_ref / 2))
+        ss = tips(sr_cantilever(cantilever(2 * n_ref, SMALL_G), dt_ref))
         sref = (4.0 * sb - sa) / 3.0 + (ss - sa)
         amp = float(np.linalg.norm(sref - sref[0], axis=1).max())
         s_rows, s_tips = [], {}
@@ -652,6 +680,7 @@ def run_cantilever(quick: bool) -> dict:
         "as_shipped": pe_rows,
         "softrod_law": lin_rows,
         "law_difference_same_elements": law_diff,
+        "law_decomposition": decomposition,
         "first_order_extrapolation": extrapolated,
         "small_amplitude": small,
     }
