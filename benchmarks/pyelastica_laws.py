@@ -4,7 +4,9 @@ PyElastica 1.0 (``elastica/rod/cosserat_rod.py``) divides the internal force by 
 e = |r_s| (``cosserat_internal_stress /= dilatation``), the bending/twist couple by the Voronoi
 dilatation cubed (``internal_couple * 1 / voronoi_dilatation**3``), and the rotary inertia by
 e (``J omega / e``, the ``unsteady_dilatation`` term, ``alpha = J^-1 tau e``): the law of
-Gazzola et al. 2018 for an incompressible rod. softrod's law is n = R K_se (v - e3),
+Gazzola, Dudte, McCormick, Mahadevan, "Forward and inverse problems in the mechanics of soft
+filaments", Royal Society Open Science 5:171628, 2018, DOI 10.1098/rsos.171628, for an
+incompressible rod. softrod's law is n = R K_se (v - e3),
 m = R K_bt u with constant rho I. ``law("softrod")`` swaps PyElastica's three kernels for copies
 with those factors removed (everything else, the discretisation, the clamp, the lumped masses
 and PositionVerlet, stays PyElastica's), so that both codes model the same continuum rod.
