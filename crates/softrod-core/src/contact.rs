@@ -384,6 +384,225 @@ pub fn check_penetration(
     Ok(())
 }
 
+/// A piece of the centreline between two points where the solver feels the obstacles (its
+/// integration or collocation points), as a cubic in sigma in [0, 1]:
+/// r(sigma) = c[0] + c[1] sigma + c[2] sigma^2 + c[3] sigma^3, from arc length `s` over the
+/// length `h`, with the surface radius linear from `rho[0]` to `rho[1]` (exact for a
+/// tapered section). The penalty acts only at those points, so an obstacle smaller than
+/// the spacing can lie between two of them unfelt, with the rod passing through it:
+/// [`check_between`] finds that.
+#[derive(Debug, Clone, Copy)]
+pub struct Piece {
+    pub c: [[f64; 3]; 4],
+    pub s: f64,
+    pub h: f64,
+    pub rho: [f64; 2],
+}
+
+impl Piece {
+    /// The cubic Hermite piece through positions `ra`, `rb` with derivatives d r / d s
+    /// `da`, `db` (fourth-order accurate in h where the centreline is smooth).
+    pub fn hermite(
+        s: f64,
+        h: f64,
+        ra: &[f64; 3],
+        da: &[f64; 3],
+        rb: &[f64; 3],
+        db: &[f64; 3],
+        rho: [f64; 2],
+    ) -> Self {
+        let c = [
+            *ra,
+            std::array::from_fn(|i| h * da[i]),
+            std::array::from_fn(|i| 3.0 * (rb[i] - ra[i]) - h * (2.0 * da[i] + db[i])),
+            std::array::from_fn(|i| 2.0 * (ra[i] - rb[i]) + h * (da[i] + db[i])),
+        ];
+        Piece { c, s, h, rho }
+    }
+
+    /// The cubic through four points `r` at the parameters `sigma` (distinct, in [0, 1]),
+    /// by Lagrange interpolation written in monomials.
+    pub fn through(s: f64, h: f64, sigma: [f64; 4], r: [&[f64; 3]; 4], rho: [f64; 2]) -> Self {
+        let mut c = [[0.0; 3]; 4];
+        for k in 0..4 {
+            // l_k(x) = prod_{j != k} (x - sigma_j) / (sigma_k - sigma_j), expanded.
+            let mut poly = [1.0, 0.0, 0.0, 0.0];
+            let mut denom = 1.0;
+            for j in (0..4).filter(|&j| j != k) {
+                let mut next = [0.0; 4];
+                for d in 0..3 {
+                    next[d + 1] += poly[d];
+                    next[d] -= sigma[j] * poly[d];
+                }
+                poly = next;
+                denom *= sigma[k] - sigma[j];
+            }
+            for d in 0..4 {
+                for i in 0..3 {
+                    c[d][i] += r[k][i] * poly[d] / denom;
+                }
+            }
+        }
+        Piece { c, s, h, rho }
+    }
+
+    fn at(&self, x: f64) -> [f64; 3] {
+        std::array::from_fn(|i| {
+            self.c[0][i] + x * (self.c[1][i] + x * (self.c[2][i] + x * self.c[3][i]))
+        })
+    }
+
+    /// A bound on |d r / d sigma| over [0, 1]: |c1| + 2 |c2| + 3 |c3|.
+    fn speed_bound(&self) -> f64 {
+        let norm = |v: &[f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        norm(&self.c[1]) + 2.0 * norm(&self.c[2]) + 3.0 * norm(&self.c[3])
+    }
+}
+
+/// A node of a static solution for [`check_after`]: where it is, the centreline's
+/// derivative d r / d s = R v there, and the surface radius.
+#[derive(Debug, Clone, Copy)]
+pub struct Sample {
+    node: crate::validity::Node,
+    r: [f64; 3],
+    dr: [f64; 3],
+    rho: f64,
+}
+
+impl Sample {
+    /// The sample of a node with centreline r, rotation `rot` (body to world) and body
+    /// strain v.
+    pub fn of(
+        node: crate::validity::Node,
+        r: &[f64; 3],
+        rot: &[[f64; 3]; 3],
+        v: &[f64; 3],
+        rho: f64,
+    ) -> Self {
+        let dr = std::array::from_fn(|i| rot[i][0] * v[0] + rot[i][1] * v[1] + rot[i][2] * v[2]);
+        Sample {
+            node,
+            r: *r,
+            dr,
+            rho,
+        }
+    }
+}
+
+/// [`check_between`] on the cubic Hermite piece between consecutive nodes `a` and `b` of a
+/// static solution (the nodes are RK4 step ends; nothing to check where they coincide, at a
+/// section boundary).
+pub fn check_after(obstacles: &[Obstacle], a: &Sample, b: &Sample) -> Result<()> {
+    let h = b.node.s - a.node.s;
+    if h <= 0.0 {
+        return Ok(());
+    }
+    let piece = Piece::hermite(a.node.s, h, &a.r, &a.dr, &b.r, &b.dr, [a.rho, b.rho]);
+    check_between(obstacles, &piece, a.node)
+}
+
+/// The penetration rule between two points where the solver feels the obstacles (which
+/// [`check_penetration`] checks), along `piece`: the first obstacle found that the rod's
+/// surface sinks into deeper than its tolerance, as (obstacle, sigma, depth), or None. The
+/// gap g(sigma) = d(r(sigma)) - rho(sigma) changes by at most Lip = |dr/dsigma| +
+/// |rho1 - rho0| per unit sigma (d is 1-Lipschitz), so on a stretch [a, b] with end gaps
+/// ga, gb its minimum is at least (ga + gb) / 2 - Lip (b - a) / 2: stretches that cannot
+/// reach below -tolerance are done, the others are halved, down to a resolution where the
+/// bound is within 5 % of the tolerance (so a point found deeper is at least that deep on
+/// the piece, and one accepted at most 5 % deeper than allowed). To a plane the gap is a
+/// cubic in sigma, minimised exactly.
+pub fn deepest_between(obstacles: &[Obstacle], piece: &Piece) -> Option<(usize, f64, f64)> {
+    let lip = piece.speed_bound() + (piece.rho[1] - piece.rho[0]).abs();
+    let rho = |x: f64| piece.rho[0] + x * (piece.rho[1] - piece.rho[0]);
+    for (k, o) in obstacles.iter().enumerate() {
+        let tol = o.tolerance;
+        let gap = |x: f64| o.distance(&piece.at(x)).0 - rho(x);
+        let too_deep = |depth: f64| depth > tol || depth.is_nan();
+        if let Surface::Plane { normal, .. } = o.surface {
+            // The zeros of the gap's derivative a1 + 2 a2 x + 3 a3 x^2 and the ends.
+            let dot = |v: &[f64; 3]| v[0] * normal[0] + v[1] * normal[1] + v[2] * normal[2];
+            let (a1, a2, a3) = (
+                dot(&piece.c[1]) - (piece.rho[1] - piece.rho[0]),
+                dot(&piece.c[2]),
+                dot(&piece.c[3]),
+            );
+            let mut deepest = (f64::NEG_INFINITY, 0.0);
+            for x in [0.0, 1.0].into_iter().chain(stationary(a1, a2, a3)) {
+                let depth = -gap(x);
+                if depth > deepest.0 || depth.is_nan() {
+                    deepest = (depth, x);
+                }
+            }
+            if too_deep(deepest.0) {
+                return Some((k, deepest.1, deepest.0));
+            }
+            continue;
+        }
+        let resolution = 0.1 * tol;
+        let mut stack = vec![(0.0, 1.0, gap(0.0), gap(1.0))];
+        // Each halving shrinks Lip (b - a) by 2: at most log2(Lip / resolution) levels.
+        while let Some((a, b, ga, gb)) = stack.pop() {
+            if too_deep(-ga.min(gb)) {
+                let x = if ga <= gb { a } else { b };
+                return Some((k, x, -ga.min(gb)));
+            }
+            if 0.5 * (ga + gb) - 0.5 * lip * (b - a) >= -tol || lip * (b - a) <= resolution {
+                continue;
+            }
+            let m = 0.5 * (a + b);
+            let gm = gap(m);
+            stack.push((a, m, ga, gm));
+            stack.push((m, b, gm, gb));
+        }
+    }
+    None
+}
+
+/// [`deepest_between`] as the penetration rule along the centreline between two points
+/// where the solver feels the obstacles: an error that names the obstacle, the depth, the
+/// spacing and the fix (shorter steps along the rod). `node` is the piece's first point.
+pub fn check_between(
+    obstacles: &[Obstacle],
+    piece: &Piece,
+    node: crate::validity::Node,
+) -> Result<()> {
+    let Some((k, x, depth)) = deepest_between(obstacles, piece) else {
+        return Ok(());
+    };
+    let o = &obstacles[k];
+    Err(SoftrodError::InvalidState {
+        rule: Rule::Penetration,
+        node: Some(node.index),
+        s: piece.s + x * piece.h,
+        time: None,
+        value: depth,
+        message: format!(
+            "the rod passes {depth:.3e} m into obstacles[{k}] between the points where the solver feels the obstacles (s = {:.6} to {:.6} m), deeper than its tolerance {:.3e} m: the obstacle is too small for that spacing and its contact is not resolved; use shorter steps there (the section's `steps` or numerics.steps_per_section) so that several points fall inside the contact",
+            piece.s,
+            piece.s + piece.h,
+            o.tolerance
+        ),
+    })
+}
+
+/// The zeros in (0, 1) of a1 + 2 a2 x + 3 a3 x^2.
+fn stationary(a1: f64, a2: f64, a3: f64) -> impl Iterator<Item = f64> {
+    let (a, b, c) = (3.0 * a3, 2.0 * a2, a1);
+    let roots: [f64; 2] = if a.abs() <= 1e-14 * (b.abs() + c.abs()) {
+        [if b != 0.0 { -c / b } else { f64::NAN }, f64::NAN]
+    } else {
+        let disc = b * b - 4.0 * a * c;
+        if disc < 0.0 {
+            [f64::NAN; 2]
+        } else {
+            // The stable pair of roots: q = -(b + sign(b) sqrt(disc)) / 2.
+            let q = -0.5 * (b + b.signum() * disc.sqrt());
+            [q / a, if q != 0.0 { c / q } else { f64::NAN }]
+        }
+    };
+    roots.into_iter().filter(|x| *x > 0.0 && *x < 1.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1120,7 +1120,7 @@ impl Simulator {
         }
         self.reaction = problem.tip_reaction(z_scaled);
         drop(problem);
-        self.check_state(&eval, &self.z.clone())?;
+        self.check_state(&eval, &self.z.clone(), None)?;
         self.models = models;
         self.models_c0 = 0.0;
         self.eval = eval;
@@ -1169,8 +1169,10 @@ impl Simulator {
         ))
     }
 
-    /// Finite values, rotations and quaternion norms at the nodes, stretch at the stages.
-    fn check_state(&self, eval: &Evaluated, z: &[f64]) -> Result<()> {
+    /// Finite values, rotations and quaternion norms at the nodes, stretch at the stages;
+    /// the penetration rule, with the motion since `from` (the last step's state; None at
+    /// the start).
+    fn check_state(&self, eval: &Evaluated, z: &[f64], from: Option<&Evaluated>) -> Result<()> {
         let t = self.time;
         let node = |j: usize| validity::Node {
             index: j,
@@ -1238,13 +1240,14 @@ impl Simulator {
                 validity::check_chamber(at, c, &v, &u, centroid(ch)).map_err(|e| e.at_time(t))?;
             }
         }
-        self.check_penetration(eval)
+        self.check_penetration(eval, from)
     }
 
     /// The penetration rule (`Rule::Penetration`) at every stage point and at the rounded
-    /// end: the rod's surface sinks into no obstacle deeper than its tolerance. In the
+    /// end, and between the stage points (an obstacle smaller than an interval could lie
+    /// there unfelt): the rod's surface sinks into no obstacle deeper than its tolerance. In the
     /// dynamics an impact sinks the rod deeper than its weight does: the error says so.
-    fn check_penetration(&self, eval: &Evaluated) -> Result<()> {
+    fn check_penetration(&self, eval: &Evaluated, from: Option<&Evaluated>) -> Result<()> {
         let (Some(obstacles), Some(c)) = (&self.rod.obstacles, self.contact()) else {
             return Ok(());
         };
@@ -1273,7 +1276,73 @@ impl Simulator {
             section: self.grid.intervals[n - 1].section,
         };
         let r = eval.node_r.last().expect("tip node");
-        crate::contact::check_penetration(obstacles, at, r, c.tip_radius).map_err(dynamic)
+        crate::contact::check_penetration(obstacles, at, r, c.tip_radius).map_err(dynamic)?;
+        // Between the stage points, on the collocation's own centreline (the quadratic
+        // through the nodes and stages of each interval: the continuous extension).
+        let sigma = [0.0, collocation::GAUSS_C[0], collocation::GAUSS_C[1], 1.0];
+        for (j, iv) in self.grid.intervals.iter().enumerate() {
+            let sec = &self.rod.sections[iv.section];
+            let rho = [
+                sec.surface_radius(iv.s_local),
+                sec.surface_radius(iv.s_local + iv.h),
+            ];
+            let points = [
+                &eval.node_r[j],
+                &eval.stage_r[2 * j],
+                &eval.stage_r[2 * j + 1],
+                &eval.node_r[j + 1],
+            ];
+            let piece = crate::contact::Piece::through(iv.s0, iv.h, sigma, points, rho);
+            let at = validity::Node {
+                index: j,
+                s: iv.s0,
+                section: iv.section,
+            };
+            crate::contact::check_between(obstacles, &piece, at).map_err(|e| e.at_time(t))?;
+        }
+        // Over the step: each stage point and the rounded end moved from where the last
+        // step left it, along a path a step's length long that the penalty felt at its ends
+        // only. A thin obstacle crossed within one step leaves both ends outside it; the
+        // straight path between them (the motion to first order in dt) shows the crossing.
+        let Some(from) = from.filter(|f| f.stage_r.len() == eval.stage_r.len()) else {
+            return Ok(());
+        };
+        let last = (eval.node_r.last(), from.node_r.last());
+        let tip = match last {
+            (Some(b), Some(a)) => Some((a, b, c.tip_radius, n)),
+            _ => None,
+        };
+        let stages = (0..eval.stage_r.len())
+            .map(|k| (&from.stage_r[k], &eval.stage_r[k], c.stage_radius[k], k / 2));
+        for (k, (a, b, rho, j)) in stages.chain(tip).enumerate() {
+            let path = crate::contact::Piece {
+                c: [*a, std::array::from_fn(|i| b[i] - a[i]), [0.0; 3], [0.0; 3]],
+                s: if k < eval.stage_r.len() {
+                    self.grid.stage_s(j, k % 2)
+                } else {
+                    self.grid.node_s(n)
+                },
+                h: 0.0,
+                rho: [rho; 2],
+            };
+            if let Some((o, x, depth)) = crate::contact::deepest_between(obstacles, &path) {
+                return Err(SoftrodError::InvalidState {
+                    rule: validity::Rule::Penetration,
+                    node: Some(j),
+                    s: path.s,
+                    time: Some(t),
+                    value: depth,
+                    message: format!(
+                        "the rod's surface at s = {:.6} m passes {depth:.3e} m into obstacles[{o}] during the step to t = {t:.6} s (it moves {:.3e} m in one step, and the obstacle lies across that path {:.0} % of the way), deeper than its tolerance {:.3e} m: the step is too long to resolve this obstacle; use a shorter step (dt) or an adaptive one (error_tol)",
+                        path.s,
+                        (0..3).map(|i| (b[i] - a[i]).powi(2)).sum::<f64>().sqrt(),
+                        100.0 * x,
+                        obstacles[o].tolerance
+                    ),
+                });
+            }
+        }
+        Ok(())
     }
 
     /// The contact data of the rod on this run's grid (None without obstacles).
@@ -1802,7 +1871,7 @@ impl Simulator {
         };
         let saved_time = self.time;
         self.time = t_new;
-        let checked = self.check_state(&eval, &zp);
+        let checked = self.check_state(&eval, &zp, Some(&self.eval));
         self.time = saved_time;
         checked?;
         let n = self.slots.len();

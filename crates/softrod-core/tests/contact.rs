@@ -344,6 +344,72 @@ fn penetration_beyond_tolerance_is_an_error() {
     }
 }
 
+/// A 0.2 m horizontal cantilever along +x (EI = 1e-3 N m^2) in `steps` RK4 steps, sagging
+/// under a weight of 0.026 N/m by about 2 mm at x = 105 mm (small deflection: w = q x^2
+/// (6 L^2 - 4 L x + x^2) / (24 EI)) onto a ball (or a pin across it: a capsule along y) of
+/// radius 2 mm whose top is 1 mm below the clamp's height there (the rod's surface radius
+/// is 0: stiffnesses given directly).
+fn rod_over_small_ball(steps: usize, kind: ObstacleKind) -> DesignSpec {
+    let sec = direct_section("rod", 0.2, 1e3, 5e2, 1e-3, 1e-3, 0.026 * 0.2 / G, steps);
+    let mut d = design(vec![sec], HORIZONTAL, G);
+    let mut ball = obstacle(kind, 1e6, 2e-4);
+    match kind {
+        ObstacleKind::Sphere => ball.center = Some([0.105, 0.0, -3e-3]),
+        _ => {
+            ball.start = Some([0.105, -0.01, -3e-3]);
+            ball.end = Some([0.105, 0.01, -3e-3]);
+        }
+    }
+    ball.radius = Some(2e-3);
+    d.obstacles = vec![ball];
+    d
+}
+
+/// The penalty acts at the integration points only. With steps of 20 mm the 4 mm ball at
+/// x = 105 mm falls between the points of the step from 100 to 120 mm (its stages at 100,
+/// 110 and 120 mm are more than 5 mm from its centre), so no point feels it and the rod
+/// sags into it unhindered, about 1 mm deep: that shape is refused, naming the obstacle,
+/// the place and the fix. With 2 mm steps the contact is resolved: the rod rests on the
+/// ball and the rule holds everywhere.
+#[test]
+fn an_obstacle_between_integration_points_is_an_error_not_a_pass_through() {
+    for kind in [ObstacleKind::Sphere, ObstacleKind::Capsule] {
+        let rod = Rod::new(rod_over_small_ball(10, kind)).unwrap();
+        match solve(&rod, &loads(&[]), None, &SolverOptions::default()) {
+            Err(SoftrodError::InvalidState {
+                rule,
+                value,
+                s,
+                message,
+                ..
+            }) => {
+                assert_eq!(rule, Rule::Penetration);
+                // The search stops at a point deeper than the tolerance (0.2 mm) and at
+                // most as deep as the unhindered sag reaches (about 1 mm).
+                assert!(value > 2e-4 && value < 1.5e-3, "{value}");
+                assert!((s - 0.105).abs() < 2e-3, "{s}");
+                assert!(
+                    message.contains("obstacles[0]") && message.contains("steps"),
+                    "{message}"
+                );
+            }
+            other => panic!("{kind:?}: expected a penetration error, got {other:?}"),
+        }
+        let rod = Rod::new(rod_over_small_ball(100, kind)).unwrap();
+        let sol = solve(&rod, &loads(&[]), None, &SolverOptions::default()).unwrap();
+        let rep = report(&rod, &loads(&[]), &sol).unwrap().unwrap();
+        // The ball's contact is narrower than a step: the nodes may clear it while the
+        // integration points between them carry it, so the report's node gaps only bound it.
+        assert!(rep.max_penetration <= 2e-4);
+        // It carries part of the rod's weight (0.0052 N in all).
+        assert!(
+            rep.force[0][2] > 0.0 && rep.force[0][2] < 0.0052,
+            "{:?}",
+            rep.force[0]
+        );
+    }
+}
+
 #[test]
 fn contact_jacobian_is_exact() {
     // The shooting Jacobian (dual numbers through the contact law) against central

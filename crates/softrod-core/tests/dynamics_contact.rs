@@ -143,6 +143,83 @@ fn undamped_bounce_keeps_its_energy() {
     assert!(worst < 1e-2, "{worst}");
 }
 
+/// The cantilever of `cantilever_over_plane` (no plane) over a pin across its path: a
+/// capsule along y of radius 2 mm at x = 150 mm, its top 3 mm below the rod (which would
+/// sag about 12 mm there without it), with Kelvin-Voigt damping tau = 0.02 s. Penalty
+/// k = 1e6 N/m^2, tolerance 1 mm: a pin stops only a short piece of the rod, which the rest
+/// of the falling rod drives into it, so the landing sinks it several times deeper than the
+/// rod's line-contact estimate v sqrt(rho A / k) = 0.1 mm (0.54 mm at the deepest stage
+/// point, measured).
+fn cantilever_over_pin(steps: usize) -> DesignSpec {
+    let mut d = cantilever_over_plane(steps, 0.02);
+    d.obstacles = vec![ObstacleSpec {
+        start: Some([0.15, -0.01, -5e-3]),
+        end: Some([0.15, 0.01, -5e-3]),
+        radius: Some(2e-3),
+        ..obstacle(ObstacleKind::Capsule, 1e6, 1e-3)
+    }];
+    d
+}
+
+/// The penalty acts at the collocation points. (1) With 20 mm intervals the 4 mm pin lies
+/// between the stage points of the interval from 140 to 160 mm (5.8 mm from it), so
+/// released straight the rod would fall through it unhindered: the first step that leaves
+/// the rod more than the tolerance inside the pin (steps of 0.5 ms move it about 0.2 mm,
+/// so one does) is refused, saying the intervals are too long. (2) With 2 mm intervals
+/// but 20 ms steps the rod moves several mm per step, and a step that jumps into or
+/// through the pin is refused, saying dt is too long. (3) With 2 mm intervals and 1 ms steps the pin catches the rod, which
+/// comes to rest on it, pushed up by it.
+#[test]
+fn a_thin_obstacle_is_resolved_or_refused_never_passed_through() {
+    let run = |steps: usize, dt: f64, n: usize| {
+        let rod = Rod::new(cantilever_over_pin(steps)).unwrap();
+        let opts = DynOptions {
+            dt,
+            tol: 1e-12,
+            ..Default::default()
+        };
+        let mut sim = Simulator::new(rod, &[], Initial::Straight, opts).unwrap();
+        for _ in 0..n {
+            sim.step(&[])?;
+        }
+        Ok::<_, softrod_core::error::SoftrodError>(sim)
+    };
+    for (steps, dt, fix) in [(10, 5e-4, "steps"), (100, 2e-2, "dt")] {
+        match run(steps, dt, (0.3 / dt) as usize) {
+            Err(softrod_core::error::SoftrodError::InvalidState {
+                rule, s, message, ..
+            }) => {
+                assert_eq!(rule, softrod_core::error::Rule::Penetration, "{message}");
+                assert!((s - 0.15).abs() < 0.011, "{s}: {message}");
+                assert!(
+                    message.contains("obstacles[0]") && message.contains(fix),
+                    "{message}"
+                );
+            }
+            Err(e) => panic!("{steps} intervals, dt {dt}: expected a penetration error, got {e}"),
+            Ok(sim) => panic!(
+                "{steps} intervals, dt {dt}: passed through the pin, tip at {:?}",
+                sim.tip().r
+            ),
+        }
+    }
+    // Every step checks the rule, so the run itself shows the pin never went deeper than
+    // the tolerance; the deepest stage point is reported.
+    let mut sim = run(100, 1e-3, 0).unwrap();
+    let mut deepest: f64 = 0.0;
+    for _ in 0..300 {
+        sim.step(&[]).unwrap();
+        deepest = deepest.max(sim.contact_state().unwrap().max_penetration);
+    }
+    eprintln!("rod on a pin: deepest stage point {deepest:.3e} m");
+    let c = sim.contact_state().unwrap();
+    assert!(
+        deepest > 0.0 && c.force[2] > 0.0,
+        "the pin holds the rod up: {:?}",
+        c.force
+    );
+}
+
 /// A rod lying on a plane with gravity tilted by theta (the plane inclined): base clamped
 /// up-slope, d3 down-slope. The plane sits so that the rod starts sunk by its static depth
 /// (no normal transient). Axially soft (EA = 0.4 N, wave speed c = 2 m/s): the base's pull

@@ -940,7 +940,7 @@ def simulate(
       at the step times, the steps in between interpolating linearly in position and along
       the geodesic in rotation). A held tip's reaction is recorded as the trajectory's
       ``tip_reaction_force`` and ``tip_reaction_moment``, and its work enters the energy
-      books. Not with the midpoint scheme nor obstacles.
+      books. Not with the midpoint scheme (obstacles are carried: docs/contact.md).
     - ``markers``: motion-capture markers on the body whose world positions are recorded at
       every sample as the trajectory's ``marker_position`` (n, K, 3) m: a list of
       ``(s, offset)`` (arc length from the base in [0, L], offset (d1, d2[, d3]) in the

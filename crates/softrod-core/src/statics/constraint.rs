@@ -672,6 +672,7 @@ pub(crate) fn checked_shape(
     let mut broken: Option<SoftrodError> = None;
     let mut worst: Option<(f64, SoftrodError)> = None;
     let mut index = 0;
+    let mut last = None;
     let mut visit = |i: usize, s: f64, y: &State<f64>| {
         let node = Node {
             index,
@@ -685,6 +686,7 @@ pub(crate) fn checked_shape(
             opts,
             &mut worst,
             &mut crate::ode::Scratch::default(),
+            &mut last,
         ) {
             Ok((v, u)) => shape.push(node, y, v, u),
             Err(e) => {

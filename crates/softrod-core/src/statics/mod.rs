@@ -703,6 +703,7 @@ impl<'a> Problem<'a> {
         // pass's own solution there (a node is the first stage of the next step; a section's
         // end node is near the last step's last stage).
         let mut nodes: Vec<(usize, f64, State<f64>)> = Vec::new();
+        let mut last = None;
         let mut check = |i: usize, s: f64, y: &State<f64>, memory: &LawMemory| {
             let node = Node {
                 index,
@@ -715,7 +716,7 @@ impl<'a> Problem<'a> {
             let k = (((s - sec.s_start) / h).round() as usize).min(sec.steps);
             let stage = if k < sec.steps { 4 * k } else { 4 * k - 1 };
             let mut scratch = memory.seeded(i, stage);
-            let (v, u) = match self.check_node(node, y, opts, &mut worst, &mut scratch) {
+            let (v, u) = match self.check_node(node, y, opts, &mut worst, &mut scratch, &mut last) {
                 Ok(vu) => vu,
                 Err(e) => {
                     broken.get_or_insert(e);
@@ -808,7 +809,9 @@ impl<'a> Problem<'a> {
         ))
     }
 
-    /// The rules of `crate::validity` at one node; the strains (v, u) there.
+    /// The rules of `crate::validity` at one node; the strains (v, u) there. With obstacles
+    /// also the penetration rule between this node and the last one checked, `last` (the
+    /// penalty acts at the integration points only: `crate::contact::check_between`).
     fn check_node(
         &self,
         node: Node,
@@ -816,6 +819,7 @@ impl<'a> Problem<'a> {
         opts: &SolverOptions,
         worst: &mut Option<(f64, SoftrodError)>,
         scratch: &mut Scratch,
+        last: &mut Option<crate::contact::Sample>,
     ) -> Result<([f64; 3], [f64; 3])> {
         let flat: [f64; 18] = std::array::from_fn(|k| match k {
             0..3 => y.r[k],
@@ -830,7 +834,20 @@ impl<'a> Problem<'a> {
             let rho = sec.surface_radius(node.s - sec.s_start);
             crate::contact::check_penetration(obstacles, node, &y.r, rho)?;
         }
+        let between =
+            |v: &[f64; 3], last: &mut Option<crate::contact::Sample>| match &self.rod.obstacles {
+                Some(obstacles) => {
+                    let rho = sec.surface_radius(node.s - sec.s_start);
+                    let here = crate::contact::Sample::of(node, &y.r, &y.rot, v, rho);
+                    let seen = last.replace(here);
+                    seen.map_or(Ok(()), |a| {
+                        crate::contact::check_after(obstacles, &a, &here)
+                    })
+                }
+                None => Ok(()),
+            };
         if sec.rigid {
+            between(&[0.0, 0.0, 1.0], last)?;
             return Ok(([0.0, 0.0, 1.0], [0.0; 3]));
         }
         let s = node.s - sec.s_start;
@@ -838,6 +855,7 @@ impl<'a> Problem<'a> {
         let (v, u) = strains_with(sec, y, coeffs, s, scratch);
         validity::check_finite(node, &[v[0], v[1], v[2], u[0], u[1], u[2]])?;
         validity::check_stretch(node, &v)?;
+        between(&v, last)?;
         let t = if sec.tapered { s / sec.length } else { 0.0 };
         for (k, c) in sec.chambers.iter().enumerate() {
             let (_, _, centroid) = c.at(t);
@@ -1170,7 +1188,14 @@ fn by_collocation(
             m: [y[7], y[8], y[9]],
             aux: [1.0, 1.0],
         };
-        let (v, u) = p.check_node(node, &state, opts, &mut worst, &mut Scratch::default())?;
+        let (v, u) = p.check_node(
+            node,
+            &state,
+            opts,
+            &mut worst,
+            &mut Scratch::default(),
+            &mut None, // no obstacles on the collocation path (docs/contact.md)
+        )?;
         shape.push(node, &state, v, u);
     }
     if let Some((_, e)) = worst {
