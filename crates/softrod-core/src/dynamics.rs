@@ -565,7 +565,8 @@ pub struct DynStats {
     pub steps: usize,
     /// Time steps taken (more than `steps` where steps were subdivided or adapted).
     pub internal_steps: usize,
-    /// Steps rejected (Newton failure or, adaptive, error above the tolerance).
+    /// Steps rejected (Newton failure, a penetration beyond an obstacle's tolerance or,
+    /// adaptive, error above the tolerance).
     pub rejected: usize,
     pub newton_iterations: usize,
     pub jacobians: usize,
@@ -2488,6 +2489,30 @@ fn drive<S: Stepping>(
                                 1u32 << MAX_HALVINGS
                             ),
                         });
+                }
+                h *= 0.5;
+                *s.h_next() = h;
+            }
+            // A step whose rod went deeper into an obstacle than its tolerance, or jumped
+            // through one, was too long for the contact (`Simulator::check_penetration`):
+            // halved as a failed Newton solve is. An obstacle too thin for the intervals
+            // stays refused in every substep; that error says so.
+            Err(
+                e @ SoftrodError::InvalidState {
+                    rule: crate::error::Rule::Penetration,
+                    ..
+                },
+            ) => {
+                s.counters().rejected += 1;
+                halvings += 1;
+                if halvings > MAX_HALVINGS {
+                    return Err(e.map_message(|m| {
+                        format!(
+                            "{m} (also in steps down to {:.3e} s, dt / {})",
+                            dt / f64::from(1u32 << MAX_HALVINGS),
+                            1u32 << MAX_HALVINGS
+                        )
+                    }));
                 }
                 h *= 0.5;
                 *s.h_next() = h;
