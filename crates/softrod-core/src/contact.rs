@@ -512,10 +512,20 @@ pub fn check_after(obstacles: &[Obstacle], a: &Sample, b: &Sample) -> Result<()>
 /// the piece, and one accepted at most 5 % deeper than allowed). To a plane the gap is a
 /// cubic in sigma, minimised exactly.
 pub fn deepest_between(obstacles: &[Obstacle], piece: &Piece) -> Option<(usize, f64, f64)> {
+    deepest_beyond(obstacles, piece, |k| obstacles[k].tolerance)
+}
+
+/// [`deepest_between`] with the depth allowed in obstacle k given by `limit(k)` (m) in
+/// place of its tolerance.
+pub fn deepest_beyond(
+    obstacles: &[Obstacle],
+    piece: &Piece,
+    limit: impl Fn(usize) -> f64,
+) -> Option<(usize, f64, f64)> {
     let lip = piece.speed_bound() + (piece.rho[1] - piece.rho[0]).abs();
     let rho = |x: f64| piece.rho[0] + x * (piece.rho[1] - piece.rho[0]);
     for (k, o) in obstacles.iter().enumerate() {
-        let tol = o.tolerance;
+        let tol = limit(k);
         let gap = |x: f64| o.distance(&piece.at(x)).0 - rho(x);
         let too_deep = |depth: f64| depth > tol || depth.is_nan();
         if let Surface::Plane { normal, .. } = o.surface {

@@ -410,6 +410,49 @@ fn an_obstacle_between_integration_points_is_an_error_not_a_pass_through() {
     }
 }
 
+/// A soft cantilever (EI = 0.01 N m^2, 0.2 m, 20 g) over a pin across its path: a capsule
+/// along y of radius 2 mm at x = 150 mm whose top is 3 mm below the clamp's height. Without
+/// the pin the rod sags 13 mm there, wholly below it, and that free shape touches nothing:
+/// it is an equilibrium of the model, but one the rod cannot reach from its unloaded shape
+/// without passing through the pin. The solve returns the rod resting on the pin (found by
+/// the load path from the unloaded rod, each level's nodes checked for crossings), in 2 mm
+/// steps (the contact resolved).
+#[test]
+fn a_rod_sagging_onto_a_pin_rests_on_it_not_below_it() {
+    let sec = direct_section("rod", 0.2, 1e3, 5e2, 1e-2, 1e-2, 0.02, 100);
+    let mut d = design(vec![sec], HORIZONTAL, G);
+    let mut pin = obstacle(ObstacleKind::Capsule, 1e6, 1e-3);
+    pin.start = Some([0.15, -0.01, -5e-3]);
+    pin.end = Some([0.15, 0.01, -5e-3]);
+    pin.radius = Some(2e-3);
+    let free_rod = Rod::new(d.clone()).unwrap();
+    d.obstacles = vec![pin];
+    let free = solve(&free_rod, &loads(&[]), None, &SolverOptions::default()).unwrap();
+    let rod = Rod::new(d).unwrap();
+    let sol = solve(&rod, &loads(&[]), None, &SolverOptions::default()).unwrap();
+    let rep = report(&rod, &loads(&[]), &sol).unwrap().unwrap();
+    // The pin carries part of the weight (0.196 N in all) and the rod lies on top of it:
+    // its node at x = 150 mm no lower than the pin's top less the tolerance.
+    assert!(
+        rep.force[0][2] > 0.0 && rep.force[0][2] < 0.196,
+        "{:?}",
+        rep.force[0]
+    );
+    let shape = softrod_core::statics::shape(&rod, &loads(&[]), &sol);
+    let k = (0..shape.s.len())
+        .min_by(|&a, &b| {
+            (shape.s[a] - 0.15)
+                .abs()
+                .total_cmp(&(shape.s[b] - 0.15).abs())
+        })
+        .unwrap();
+    let r = shape.position[k];
+    assert!(r[2] > -3e-3 - 1e-3, "rests on the pin: {r:?}");
+    // Without the pin the same rod hangs below where the pin is.
+    let fs = softrod_core::statics::shape(&free_rod, &loads(&[]), &free);
+    assert!(fs.position[k][2] < -7e-3, "{:?}", fs.position[k]);
+}
+
 #[test]
 fn contact_jacobian_is_exact() {
     // The shooting Jacobian (dual numbers through the contact law) against central

@@ -76,6 +76,83 @@ pub(crate) fn free_guess(
     Some(x)
 }
 
+/// The nodes of the rod at the shooting unknowns `x` of problem `p`: arc length, position
+/// and surface radius, base first (for [`crossing`]).
+pub(crate) fn node_points(p: &Problem, x: &[f64]) -> Vec<(f64, [f64; 3], f64)> {
+    let rod = p.rod;
+    let mut out = Vec::with_capacity(rod.sections.iter().map(|s| s.steps + 1).sum());
+    let mut visit = |i: usize, s: f64, y: &State<f64>| {
+        let sec = &rod.sections[i];
+        out.push((s, y.r, sec.surface_radius(s - sec.s_start)));
+    };
+    crate::ode::integrate(rod, &p.coeffs, p.base_state(x), Some(&mut visit));
+    out
+}
+
+/// The first node whose straight path from shape `a` to shape `b` (the same nodes, from
+/// [`node_points`]) passes through an obstacle: goes deeper into it than its tolerance
+/// beyond the deeper of its two ends (the load path's intermediate levels are solved to a
+/// loose tolerance and may sink a little deeper than the answer; a crossing goes through):
+/// (obstacle, s, depth), or None. A static solve is an equilibrium, not a motion, and a pin
+/// or ball the rod hangs on has equilibria on both sides of it: the one the rod reaches
+/// from its unloaded shape does not cross it. To a plane a straight path cannot cross
+/// without ending inside it (the gap is linear along it); to a sphere, cylinder or capsule
+/// it can.
+pub(crate) fn crossing(
+    obstacles: &[Obstacle],
+    a: &[(f64, [f64; 3], f64)],
+    b: &[(f64, [f64; 3], f64)],
+) -> Option<(usize, f64, f64)> {
+    if a.len() != b.len() {
+        return None;
+    }
+    a.iter()
+        .zip(b)
+        .find_map(|((s, ra, rho_a), (_, rb, rho_b))| {
+            let path = crate::contact::Piece {
+                c: [
+                    *ra,
+                    std::array::from_fn(|i| rb[i] - ra[i]),
+                    [0.0; 3],
+                    [0.0; 3],
+                ],
+                s: *s,
+                h: 0.0,
+                rho: [*rho_a, *rho_b],
+            };
+            let ends = |k: usize| {
+                let o = &obstacles[k];
+                let depth = |r: &[f64; 3], rho: f64| rho - o.distance(r).0;
+                o.tolerance + depth(ra, *rho_a).max(depth(rb, *rho_b)).max(0.0)
+            };
+            crate::contact::deepest_beyond(obstacles, &path, ends)
+                .map(|(k, _, depth)| (k, *s, depth))
+        })
+}
+
+/// Whether no node of shape `a` is deeper in an obstacle than its tolerance (a shape from
+/// which paths can be followed; an unloaded rod placed into an obstacle has no side).
+pub(crate) fn clear(obstacles: &[Obstacle], a: &[(f64, [f64; 3], f64)]) -> bool {
+    a.iter().all(|(_, r, rho)| {
+        obstacles
+            .iter()
+            .all(|o| rho - o.distance(r).0 <= o.tolerance)
+    })
+}
+
+/// The error for a solve whose rod passes through obstacle `k` at arc length `s` (depth
+/// `depth`, m) on the way from its unloaded shape, in load steps down to `step`.
+pub(crate) fn crossing_error(k: usize, s: f64, depth: f64, step: f64) -> SoftrodError {
+    SoftrodError::NotConverged {
+        iterations: 0,
+        residual: f64::NAN,
+        load_factor: 0.0,
+        reason: format!(
+            "no equilibrium reached from the unloaded rod without passing through obstacles[{k}]: the node at s = {s:.6} m goes {depth:.3e} m into it between load levels even in load steps of {step:.3e} (the load pushes the rod through the penalty: raise the obstacle's stiffness, or its tolerance)"
+        ),
+    }
+}
+
 /// The contacts of a static solution.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactReport {

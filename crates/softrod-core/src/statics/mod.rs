@@ -1115,6 +1115,13 @@ fn solve_n<const N: usize, const M: usize>(
     let guess = guess
         .filter(|g| g.len() == N && g.iter().all(|v| v.is_finite()))
         .map(|g| -> [f64; N] { std::array::from_fn(|i| g[i]) });
+    // With obstacles: the unloaded rod's nodes, from which an equilibrium must be
+    // reachable without passing through an obstacle (`contact::crossing`); None where
+    // nothing is to be checked.
+    let unloaded = rod.obstacles.as_ref().and_then(|obstacles| {
+        let shape = contact::node_points(&Problem::new(rod, loads, 0.0), &[0.0; N]);
+        contact::clear(obstacles, &shape).then_some((&obstacles[..], shape))
+    });
     if let Some(g) = guess {
         let full = Problem::new(rod, loads, 1.0);
         match full.newton(g, Start::Guess, opts) {
@@ -1127,7 +1134,13 @@ fn solve_n<const N: usize, const M: usize>(
                     violations.clone(),
                     want_shape,
                 );
-                if rank(&out) == 3 {
+                // An equilibrium beyond an obstacle (a rod hanging below the pin it would
+                // rest on, as the shape without obstacles may be) is not the answer: the
+                // natural path from the unloaded rod finds the one on its side.
+                let crossed = unloaded.as_ref().and_then(|(obstacles, shape)| {
+                    contact::crossing(obstacles, shape, &contact::node_points(&full, &c.x))
+                });
+                if rank(&out) == 3 && crossed.is_none() {
                     return out;
                 }
                 iterations = c.iterations;
@@ -1147,7 +1160,9 @@ fn solve_n<const N: usize, const M: usize>(
             return first.unwrap_or_else(unreachable_attempt);
         }
     }
-    let path = natural_path::<N, M>(rod, loads, opts, violations, want_shape, iterations);
+    let path = natural_path::<N, M>(
+        rod, loads, opts, violations, want_shape, iterations, unloaded,
+    );
     better(first, path)
 }
 
@@ -1245,6 +1260,10 @@ const MIN_LOAD_STEP: f64 = 1e-5;
 /// so itself (a bifurcation or limit point on the path, e.g. a perfect column above its
 /// buckling load) and is followed.
 const MIN_STABLE_STEP: f64 = 1.0 / 64.0;
+/// A level whose rod passes through an obstacle is retried in half the load step, down to
+/// this one: below it the load pushes the rod through the penalty (its stiffness is too
+/// low for the load), not a too-long step.
+const MIN_CROSSING_STEP: f64 = 1e-4;
 /// How far (infinity norm of the scaled unknowns, about the rod's rotation in rad) the
 /// first load step moves the solution along the tangent before its prediction is measured
 /// (`FIRST_ERROR`); the full load is tried at once when its tangent prediction moves less.
@@ -1264,6 +1283,9 @@ const LEVEL_TOL: f64 = 1e-2;
 /// predicted solution by a set reach, adapted to Newton's effort; Newton starts from the
 /// last level's exact Jacobian, updated by Broyden along the prediction. The first step is
 /// lengthened when its prediction turns out good (`FIRST_ERROR`).
+/// With obstacles (`unloaded`: the obstacles and the unloaded rod's nodes) no node may
+/// pass through an obstacle between two levels (`contact::crossing`): a level that does is
+/// retried in half the step.
 fn natural_path<const N: usize, const M: usize>(
     rod: &Rod,
     loads: &Loads,
@@ -1271,7 +1293,12 @@ fn natural_path<const N: usize, const M: usize>(
     violations: Vec<SoftrodError>,
     want_shape: bool,
     spent: usize,
+    unloaded: Option<(&[crate::contact::Obstacle], Vec<(f64, [f64; 3], f64)>)>,
 ) -> Attempt {
+    let (obstacles, mut last_shape) = match unloaded {
+        Some((o, shape)) => (Some(o), shape),
+        None => (None, Vec::new()),
+    };
     let mut iterations = spent;
     let mut last_res = f64::NAN;
     let not_converged = |iterations, residual, load_factor, reason: String| {
@@ -1388,6 +1415,20 @@ fn natural_path<const N: usize, const M: usize>(
             Ok(c) => {
                 iterations += c.iterations;
                 last_res = c.residual;
+                // The level's nodes reached without passing through an obstacle.
+                let shape = obstacles.map(|o| (o, contact::node_points(&p, &c.x)));
+                if let Some((o, shape)) = &shape {
+                    if let Some((k, s, depth)) = contact::crossing(o, &last_shape, shape) {
+                        if h <= MIN_CROSSING_STEP || !opts.continuation {
+                            return better(
+                                unstable_end,
+                                Err(contact::crossing_error(k, s, depth, h)),
+                            );
+                        }
+                        step = 0.5 * h;
+                        continue;
+                    }
+                }
                 if target >= 1.0 {
                     let out = p.conclude(
                         At::Converged(&c),
@@ -1418,6 +1459,9 @@ fn natural_path<const N: usize, const M: usize>(
                 let reach = next_reach(h * inf_norm(&tangent), c.iterations);
                 lam = target;
                 x = c.x;
+                if let Some((_, shape)) = shape {
+                    last_shape = shape;
+                }
                 r = c.r;
                 tangent = t;
                 jac = j;
