@@ -76,9 +76,11 @@ pub(crate) fn free_guess(
     Some(x)
 }
 
-/// The nodes of the rod at the shooting unknowns `x` of problem `p`: arc length, position
-/// and surface radius, base first (for [`crossing`]).
-pub(crate) fn node_points(p: &Problem, x: &[f64]) -> Vec<(f64, [f64; 3], f64)> {
+/// A shape's nodes for [`crossing`]: arc length, position and surface radius, base first.
+pub(crate) type NodePoints = Vec<(f64, [f64; 3], f64)>;
+
+/// The nodes of the rod at the shooting unknowns `x` of problem `p`.
+pub(crate) fn node_points(p: &Problem, x: &[f64]) -> NodePoints {
     let rod = p.rod;
     let mut out = Vec::with_capacity(rod.sections.iter().map(|s| s.steps + 1).sum());
     let mut visit = |i: usize, s: f64, y: &State<f64>| {

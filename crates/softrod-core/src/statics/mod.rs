@@ -1293,7 +1293,7 @@ fn natural_path<const N: usize, const M: usize>(
     violations: Vec<SoftrodError>,
     want_shape: bool,
     spent: usize,
-    unloaded: Option<(&[crate::contact::Obstacle], Vec<(f64, [f64; 3], f64)>)>,
+    unloaded: Option<(&[crate::contact::Obstacle], contact::NodePoints)>,
 ) -> Attempt {
     let (obstacles, mut last_shape) = match unloaded {
         Some((o, shape)) => (Some(o), shape),
