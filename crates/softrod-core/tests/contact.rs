@@ -451,6 +451,18 @@ fn a_rod_sagging_onto_a_pin_rests_on_it_not_below_it() {
     // Without the pin the same rod hangs below where the pin is.
     let fs = softrod_core::statics::shape(&free_rod, &loads(&[]), &free);
     assert!(fs.position[k][2] < -7e-3, "{:?}", fs.position[k]);
+    // Without continuation only the cold start is tried: its equilibrium below the pin is
+    // refused, never returned.
+    let once = SolverOptions {
+        continuation: false,
+        ..SolverOptions::default()
+    };
+    match solve(&rod, &loads(&[]), None, &once) {
+        Err(SoftrodError::NotConverged { reason, .. }) => {
+            assert!(reason.contains("beyond obstacles[0]"), "{reason}")
+        }
+        other => panic!("expected the crossing to be refused, got {other:?}"),
+    }
 }
 
 #[test]

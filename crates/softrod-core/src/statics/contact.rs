@@ -143,15 +143,22 @@ pub(crate) fn clear(obstacles: &[Obstacle], a: &[(f64, [f64; 3], f64)]) -> bool 
 }
 
 /// The error for a solve whose rod passes through obstacle `k` at arc length `s` (depth
-/// `depth`, m) on the way from its unloaded shape, in load steps down to `step`.
-pub(crate) fn crossing_error(k: usize, s: f64, depth: f64, step: f64) -> SoftrodError {
+/// `depth`, m) on the way from its unloaded shape: in load steps down to `step`, or (None)
+/// to the equilibrium Newton found from the start it was given, without continuation.
+pub(crate) fn crossing_error(k: usize, s: f64, depth: f64, step: Option<f64>) -> SoftrodError {
+    let reason = match step {
+        Some(step) => format!(
+            "no equilibrium reached from the unloaded rod without passing through obstacles[{k}]: the node at s = {s:.6} m goes {depth:.3e} m into it between load levels even in load steps of {step:.3e} (the load pushes the rod through the penalty: raise the obstacle's stiffness, or its tolerance)"
+        ),
+        None => format!(
+            "the equilibrium found from the given start lies beyond obstacles[{k}]: the node at s = {s:.6} m would pass {depth:.3e} m into it on the way from the unloaded rod; turn continuation on to follow the load from the unloaded rod"
+        ),
+    };
     SoftrodError::NotConverged {
         iterations: 0,
         residual: f64::NAN,
         load_factor: 0.0,
-        reason: format!(
-            "no equilibrium reached from the unloaded rod without passing through obstacles[{k}]: the node at s = {s:.6} m goes {depth:.3e} m into it between load levels even in load steps of {step:.3e} (the load pushes the rod through the penalty: raise the obstacle's stiffness, or its tolerance)"
-        ),
+        reason,
     }
 }
 

@@ -1144,7 +1144,11 @@ fn solve_n<const N: usize, const M: usize>(
                     return out;
                 }
                 iterations = c.iterations;
-                first = Some(out);
+                // Never kept as a fallback: the path's own failure says more.
+                first = Some(match crossed {
+                    Some((k, s, depth)) => Err(contact::crossing_error(k, s, depth, None)),
+                    None => out,
+                });
             }
             Err((it, res)) => {
                 iterations = it;
@@ -1422,7 +1426,12 @@ fn natural_path<const N: usize, const M: usize>(
                         if h <= MIN_CROSSING_STEP || !opts.continuation {
                             return better(
                                 unstable_end,
-                                Err(contact::crossing_error(k, s, depth, h)),
+                                Err(contact::crossing_error(
+                                    k,
+                                    s,
+                                    depth,
+                                    opts.continuation.then_some(h),
+                                )),
                             );
                         }
                         step = 0.5 * h;
