@@ -356,10 +356,7 @@ class Dataset:
                 f"must be an (m, K, 3) array in m with m = {m} rows and 1 <= K <= {MAX_MARKERS}",
             )
         k = a.shape[1]
-        if np.isinf(a).any():
-            rows = np.flatnonzero(np.isinf(a).any(axis=(1, 2)))
-            raise _fail("markers", "inf", f"must be finite or NaN (not seen), rows {_runs(rows)}")
-        seen = np.isfinite(a)
+        seen = np.isfinite(a)  # (_real_or_nan has refused inf: NaN is "not seen")
         partial = seen.any(axis=2) & ~seen.all(axis=2)
         if partial.any():
             row, mk = np.argwhere(partial)[0]

@@ -493,7 +493,9 @@ class Simulation:
 
     def restore(self, state: SimulationState) -> None:
         """Continue from ``state`` (taken from a simulation of the same design): the next
-        steps are bit for bit those the original simulation would take."""
+        steps are bit for bit those the original simulation would take. The motion is the
+        state's; the markers read are this simulation's own (:meth:`set_markers`), whichever
+        the state was taken with."""
         if not isinstance(state, SimulationState):
             raise design_error(
                 "state", type(state).__name__, "must be a SimulationState", InputError
