@@ -9,6 +9,7 @@ crates/softrod-core/tests/dynamics_markers.rs and dynamics_sensitivity.rs.)
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -50,6 +51,27 @@ def test_a_marker_at_the_tip_is_the_tip_bitwise(swing):
     np.testing.assert_array_equal(tr.marker_s, [L, L, L, 0.11, 0.1, 0.1])
     np.testing.assert_array_equal(tr.marker_offset[:3], [[0, 0, 0], [D, 0, 0], [0, D, 0]])
     assert "6 markers" in repr(tr)
+
+
+def test_the_animation_draws_the_markers_of_the_shape_shown(swing):
+    # shapes="saved": every shape has its tip sample, so frame i's dots are that sample's
+    # markers exactly (in mm, as the axes); a trajectory without markers draws no dots.
+    fig, _canvas, draw = swing._animation_scene(
+        trail=True, elev=20.0, azim=-60.0, dpi=30, figsize=(2.0, 2.0)
+    )
+    ax = fig.axes[0]
+    dots = [line for line in ax.lines if line.get_color() == "C3"]
+    assert len(dots) == 1
+    for i in (0, len(swing.shape_time) - 1):
+        draw(i)
+        row = int(np.flatnonzero(swing.time == swing.shape_time[i])[0])
+        x, y, z = dots[0].get_data_3d()
+        np.testing.assert_array_equal(np.column_stack([x, y, z]), swing.marker_position[row] * 1e3)
+    bare = dataclasses.replace(swing, marker_position=None, marker_s=None, marker_offset=None)
+    fig, _canvas, _draw = bare._animation_scene(
+        trail=True, elev=20.0, azim=-60.0, dpi=30, figsize=(2.0, 2.0)
+    )
+    assert not [line for line in fig.axes[0].lines if line.get_color() == "C3"]
 
 
 def test_a_marker_at_a_node_is_the_shape_node_bitwise(swing):
@@ -225,6 +247,9 @@ def test_markers_with_obstacles(tmp_path):
         (["5 kPa"], "markers[0].s", "length"),
         ([(0.1, [0.0, math.inf])], "markers[0].offset[1]", "finite"),
         ([(0.1, [0.0])], "markers[0].offset", "2 or 3 lengths"),
+        # A bare number is metres: a 50 mm marker offset written as 50 is 50 m off the rod.
+        ([("50 mm", [50, 0])], "markers[0].offset", "within the rod's length L = 0.22 m"),
+        ([(0.1, [0.2, 0.2])], "markers[0].offset", "0.282843 m away"),
         ([(0.1, 0.0)], "markers[0].offset", "2 or 3 lengths"),
         ([(0.1, [0, 0], 0)], "markers[0]", "pair (s, offset)"),
         ([{"s": 0.1}], "markers[0]", "pair (s, offset)"),

@@ -319,3 +319,27 @@ def test_paper000_sequence():
     assert set(np.round(levels / 1e5, 6)) == {0.9, 1.8, 2.7, 3.6}
     np.testing.assert_array_equal(s.sample(115.0), [[0.0, 0.0, 3.6e5]])  # paper: 3.6 bar at 115 s
     assert s.sample(116.0).max() == 0.0
+
+
+def test_one_pressure_is_a_schedule_for_a_one_channel_design_only():
+    """simulate takes one pressure for a one-channel design as solve_statics and Simulation
+    do (a number in Pa or a string with units), and says how many channels otherwise; a
+    string is a pressure only when it names no file and starts with a number."""
+    from softrod import simulate
+
+    finger = load_design("prebent_finger_on_table")  # one channel
+    ref = simulate(finger, [3e4], 0.004)
+    for one in (3e4, 30000, "30 kPa", "0.3 bar"):
+        # The same constant pressure gives the same run bit for bit (one code path after
+        # parsing; 0.3 bar is exactly 3e4 Pa in binary64: 0.3 * 1e5 rounds to 30000.0).
+        got = simulate(finger, one, 0.004)
+        np.testing.assert_array_equal(got.tip_position, ref.tip_position)
+    arm = load_design("spa_three_chamber_130mm")  # three channels
+    for one, field in ((3e4, "pressure_schedule.n_channels"), ("30 m", "pressure_schedule")):
+        with pytest.raises(InputError) as info:
+            simulate(arm, one, 0.004)
+        assert info.value.field == field
+    with pytest.raises(InputError, match="must be a pressure"):
+        simulate(finger, "30 m", 0.004)  # a length is not read as a file name
+    with pytest.raises(InputError, match="no such file"):
+        simulate(finger, "30kPa.csv", 0.004)  # a table's name stays a file name

@@ -1317,7 +1317,9 @@ def parse_marker_sites(markers, length: float | None = None, field: str = "marke
     length from the base and the offset in the cross-section frame, (d1, d2[, d3])) or ``s``
     alone (no offset); SI numbers or strings with units (``("55 mm", ["12 mm", "0 mm"])``).
     With ``length`` (the rod's L, m) every s must lie in [0, L] (the core's rule, with its
-    round-off slack of 1e-12 L); errors name ``markers[k].s``."""
+    round-off slack of 1e-12 L) and every offset within L of the centreline (a farther one
+    is a unit slip, e.g. a bare 12 read as 12 m); errors name ``markers[k].s`` or
+    ``markers[k].offset``."""
     if markers is None:
         return None
     if isinstance(markers, np.ndarray) and markers.ndim == 1:
@@ -1341,6 +1343,16 @@ def parse_marker_sites(markers, length: float | None = None, field: str = "marke
                 raise _fail(f"{where}.offset", off, "must be 2 or 3 lengths (d1, d2[, d3])")
             for i, v in enumerate(off):
                 offset[k, i] = V.quantity(v, "length", f"{where}.offset[{i}]")
+            reach = float(np.linalg.norm(offset[k]))
+            if length is not None and reach > length:
+                # A marker farther from the centreline than the rod is long is a unit slip
+                # (a bare number is metres: [12, 0] is 12 m), not a marker on the body.
+                raise _fail(
+                    f"{where}.offset",
+                    off,
+                    f"must lie within the rod's length L = {length:g} m of the centreline "
+                    f"(it is {reach:g} m away; bare numbers are metres: write '12 mm')",
+                )
         elif isinstance(item, str) or V.is_real(item):
             raw_s = item
         else:

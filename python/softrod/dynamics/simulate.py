@@ -15,6 +15,7 @@ import json
 import logging
 import math
 import os
+import re
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -268,10 +269,31 @@ def _check_saved(n: int, save_every: int, shape_rows: int, nodes: int) -> None:
         )
 
 
+_NUMBER_FIRST = re.compile(r"\s*[-+]?(\d|\.\d)")
+
+
+def _pressure_text(value) -> bool:
+    """Whether ``value`` is a string that reads as one pressure ("30 kPa") and names no file:
+    a schedule's text is a file path otherwise."""
+    if not isinstance(value, str) or os.path.exists(value):
+        return False
+    if os.path.splitext(value)[1].lower() in (".csv", ".parquet"):
+        return False
+    if not _NUMBER_FIRST.match(value):
+        return False
+    V.quantity(value, "pressure", "pressure_schedule")  # '30 m' is refused: not a pressure
+    return True
+
+
 def _schedule(schedule, n_channels: int) -> PressureSchedule:
-    """A PressureSchedule from a schedule, a file path, a callable or constant pressures."""
+    """A PressureSchedule from a schedule, a file path, a callable, constant pressures or (for
+    a one-channel design) one constant pressure."""
     if isinstance(schedule, PressureSchedule):
         out = schedule
+    elif V.is_real(schedule) or _pressure_text(schedule):
+        # One constant pressure, as solve_statics and Simulation take it for a one-channel
+        # design; with more channels check_channels says how many are needed.
+        out = PressureSchedule.constant([schedule])
     elif isinstance(schedule, str | os.PathLike):
         out = PressureSchedule.from_file(schedule)
     elif callable(schedule):
@@ -905,7 +927,8 @@ def simulate(
       lag and rate limit; sections may give damping matrices and rotary inertia instead.
     - ``pressure_schedule``: a :class:`PressureSchedule`, a CSV/Parquet file of commands
       (``time_s``, ``p0_kPa``, ...), a function of t (s) returning one pressure per channel
-      (Pa), or constant pressures (Pa); None for a design without chambers.
+      (Pa), or constant pressures (Pa; a single number or ``"30 kPa"`` for a one-channel
+      design); None for a design without chambers.
     - ``t_end`` (s or a string with units) and ``dt`` (default 2 ms): the run takes
       ceil(t_end / dt) steps.
     - ``save_every``: keep every n-th step (the last step is always kept).

@@ -769,8 +769,10 @@ class Trajectory:
         ``frame_interval_s`` to store just the shapes the clip shows.
 
         Axes in mm with equal scale, fixed over the whole run; the base is a black square,
-        the tip a dot, ``trail`` draws the tip path so far (from the tip samples), and a label
-        gives the time of the shape shown. ``elev``, ``azim``: view angles in degrees. Only
+        the tip a dot, ``trail`` draws the tip path so far (from the tip samples), a
+        trajectory's markers are small red dots (kept with the tip samples, so shown at the
+        sample nearest the shape's time: exactly with ``shapes="saved"``), and a label gives
+        the time of the shape shown. ``elev``, ``azim``: view angles in degrees. Only
         the moving parts are redrawn per frame (the axes are drawn once), so a frame takes a
         few ms. ``progress``: see :mod:`softrod.progress`; a callable gets
         ``progress(frames_done, n_frames)``.
@@ -845,6 +847,14 @@ class Trajectory:
         lo = hi - 1
         return np.where(tf - st[lo] <= st[hi] - tf, lo, hi)
 
+    def _nearest_samples(self, times: np.ndarray) -> np.ndarray:
+        """Index of the tip sample nearest each of ``times`` (s)."""
+        hi = np.searchsorted(self.time, times).clip(1, max(self.time.size - 1, 1))
+        lo = hi - 1
+        if self.time.size == 1:
+            return np.zeros(np.shape(times), dtype=int)
+        return np.where(times - self.time[lo] <= self.time[hi] - times, lo, hi)
+
     def _animation_scene(self, trail, elev, azim, dpi, figsize):
         """(Figure, Agg canvas, draw) of an animation: ``draw(i)`` shows stored shape i and
         returns the frame's RGBA pixels."""
@@ -875,7 +885,15 @@ class Trajectory:
         (tip,) = ax.plot([], [], [], marker="o", color="C0", markeredgecolor="black", animated=True)
         (path_line,) = ax.plot([], [], [], color="C1", linewidth=1.0, alpha=0.8, animated=True)
         label = ax.text2D(0.02, 0.95, "", transform=ax.transAxes, animated=True)
-        moving = (path_line, rod, tip, label)
+        moving = [path_line, rod, tip, label]
+        markers = None if self.marker_position is None else self.marker_position * 1e3
+        if markers is not None:
+            # Markers are kept with the tip samples: shown at the sample nearest the shape.
+            (dots,) = ax.plot(
+                [], [], [], marker="o", markersize=3.0, color="C3", linestyle="none", animated=True
+            )
+            moving.append(dots)
+            nearest = self._nearest_samples(self.shape_time)
         # The view is fixed: draw the axes, panes and ticks once and keep the pixels; each
         # frame restores them and draws only the moving artists (blitting on the Agg canvas).
         canvas.draw()
@@ -890,6 +908,9 @@ class Trajectory:
                 past = tips[: upto[i]]
                 path_line.set_data_3d(past[:, 0], past[:, 1], past[:, 2])
             label.set_text(f"t = {self.shape_time[i]:.2f} s")
+            if markers is not None:
+                m = markers[nearest[i]]
+                dots.set_data_3d(m[:, 0], m[:, 1], m[:, 2])
             canvas.restore_region(background)
             for artist in moving:
                 ax.draw_artist(artist)
