@@ -257,6 +257,11 @@ def _fmt_vec(v, scale: float = 1.0, digits: int = 3) -> str:
     return "(" + ", ".join(_fmt(x * scale, digits) for x in v) + ")"
 
 
+def _channels(prefix: str, n: int) -> str:
+    """How a table names n inputs: 'p0' for one, 'p0..p2' for three."""
+    return f"{prefix}0" if n == 1 else f"{prefix}0..{prefix}{n - 1}"
+
+
 def _fmt_kpa(pressures) -> str:
     return ", ".join(f"{p / 1e3:g}" for p in pressures)
 

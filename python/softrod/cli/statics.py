@@ -11,6 +11,7 @@ import click
 
 from ..errors import InputError, design_error
 from ._common import (
+    _channels,
     _fmt,
     _fmt_kpa,
     _fmt_vec,
@@ -252,10 +253,11 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
         table.add_column("value", justify="right")
         table.add_column("unit")
         if len(p):
-            table.add_row(f"pressures p0..p{len(p) - 1}", _fmt_kpa(p), "kPa")
+            table.add_row(f"pressures {_channels('p', len(p))}", _fmt_kpa(p), "kPa")
         if len(sol.tensions):
             t_all = sol.tensions
-            table.add_row(f"tensions t0..t{len(t_all) - 1}", _fmt_vec(t_all, 1.0, 3), "N")
+            tensions = ", ".join(f"{x:g}" for x in t_all)
+            table.add_row(f"tensions {_channels('t', len(t_all))}", tensions, "N")
         table.add_row("tip position (x, y, z)", _fmt_vec(sol.tip_position, 1e3, 3), "mm")
         table.add_row("tip tangent d3", _fmt_vec(sol.tip_rotation[:, 2], 1.0, 4), "-")
         table.add_row("base force", _fmt_vec(sol.base_force, 1.0, 4), "N")
