@@ -13,7 +13,7 @@ import pytest
 import softrod
 from conftest import assert_clean_error
 from softrod import InputError, SystemTrajectory
-from softrod.system_plots import plot_system
+from softrod.system_plots import plot_system, plot_system_motion
 
 SYSTEM = "two_spa_platform"
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -136,6 +136,16 @@ def test_figures_of_a_motion_and_of_equilibria(motion, system, tmp_path):
         plot_system(sols, labels=["only one"])
     with pytest.raises(InputError, match="unknown figure format"):
         plot_system(sols, tmp_path / "eq.xyz")
+    # The figures tell the two results apart by their fields (system_plots imports neither
+    # class): a motion is not an equilibrium, nor the other way round.
+    for wrong in (motion, [sols[0], motion], "eq", []):
+        with pytest.raises(InputError, match="must be a SystemSolution or a non-empty list"):
+            plot_system(wrong)
+    with pytest.raises(InputError, match="must be a SystemTrajectory"):
+        plot_system_motion(sols[0])
+    with pytest.raises(InputError, match="must be a SystemSolution or None"):
+        plot_system_motion(motion, reference=motion)
+    assert not (tmp_path / "eq.xyz").exists()
 
 
 def test_restore_holds_the_restored_inputs(system):

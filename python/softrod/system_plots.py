@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -18,8 +18,37 @@ from .errors import InputError
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from .system import SystemSolution
-    from .system_dynamics import SystemTrajectory
+
+# The figures read results by their fields: softrod.system and softrod.system_dynamics
+# call them from their plot methods, so this module does not import those (no cycle).
+@runtime_checkable
+class SystemSolutionLike(Protocol):
+    """What plot_system reads of a system's equilibrium (a softrod.SystemSolution)."""
+
+    rods: Any
+    platform_position: np.ndarray
+    platform_rotation: np.ndarray
+    converged: bool
+
+
+@runtime_checkable
+class SystemTrajectoryLike(Protocol):
+    """What plot_system_motion reads of a system's motion (a softrod.SystemTrajectory)."""
+
+    system: Any
+    time: np.ndarray
+    platform_position: np.ndarray
+    platform_rotation: np.ndarray
+    pressures: Any
+
+
+def _is_solution(obj) -> bool:
+    return isinstance(obj, SystemSolutionLike)
+
+
+def _is_trajectory(obj) -> bool:
+    return isinstance(obj, SystemTrajectoryLike) and not _is_solution(obj)
+
 
 # The two views of plot_system: (horizontal axis, vertical axis) indices into (x, y, z).
 _VIEWS = (("front view (x-z)", 0, 2), ("side view (y-z)", 1, 2))
@@ -32,7 +61,7 @@ def platform_tilt_deg(rotation: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(r[..., 2, 2], -1.0, 1.0)))
 
 
-def _pressure_text(solution: SystemSolution) -> str:
+def _pressure_text(solution: SystemSolutionLike) -> str:
     """'rod 0: 40, 0, 0 | rod 1: 0, 0, 0 kPa' from the rods' pressures."""
     parts = [
         f"rod {i}: " + ", ".join(f"{p / 1e3:g}" for p in np.ravel(r.pressures))
@@ -42,7 +71,7 @@ def _pressure_text(solution: SystemSolution) -> str:
 
 
 def plot_system(
-    solutions: SystemSolution | Sequence[SystemSolution],
+    solutions: SystemSolutionLike | Sequence[SystemSolutionLike],
     path: str | os.PathLike | None = None,
     *,
     labels: Sequence[str] | None = None,
@@ -56,10 +85,14 @@ def plot_system(
     import matplotlib.pyplot as plt
 
     from .plotting import check_figure_path, save_figure
-    from .system import SystemSolution
 
-    sols = [solutions] if isinstance(solutions, SystemSolution) else list(solutions)
-    if not sols or not all(isinstance(s, SystemSolution) for s in sols):
+    if _is_solution(solutions):
+        sols = [solutions]
+    elif isinstance(solutions, Sequence) and not isinstance(solutions, str):
+        sols = list(solutions)
+    else:
+        sols = []
+    if not sols or not all(_is_solution(s) for s in sols):
         raise V.fail(
             "solutions",
             type(solutions).__name__,
@@ -109,10 +142,10 @@ def plot_system(
 
 
 def plot_system_motion(
-    trajectory: SystemTrajectory,
+    trajectory: SystemTrajectoryLike,
     path: str | os.PathLike | None = None,
     *,
-    reference: SystemSolution | None = None,
+    reference: SystemSolutionLike | None = None,
     title: str | None = None,
 ) -> Figure:
     """A system's motion against time in three panels: the platform's displacement from its
@@ -124,14 +157,12 @@ def plot_system_motion(
     import matplotlib.pyplot as plt
 
     from .plotting import check_figure_path, save_figure
-    from .system import SystemSolution
-    from .system_dynamics import SystemTrajectory
 
-    if not isinstance(trajectory, SystemTrajectory):
+    if not _is_trajectory(trajectory):
         raise V.fail(
             "trajectory", type(trajectory).__name__, "must be a SystemTrajectory", InputError
         )
-    if reference is not None and not isinstance(reference, SystemSolution):
+    if reference is not None and not _is_solution(reference):
         raise V.fail(
             "reference", type(reference).__name__, "must be a SystemSolution or None", InputError
         )

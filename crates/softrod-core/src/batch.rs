@@ -7,11 +7,12 @@
 //! another row's solution.
 
 use crate::error::{Result, SoftrodError};
+use crate::marker::Marker;
 use crate::ode::Loads;
 use crate::rod::Rod;
 use crate::sensitivity::{
     constrained_pose_sensitivity, locate_markers, marker_positions, pose_sensitivity,
-    validate_params, Marker, Param, TipSensitivity,
+    validate_params, Param, TipSensitivity,
 };
 use crate::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
 use crate::statics::system::{solve_system, Platform, SystemRod, SystemSolution};

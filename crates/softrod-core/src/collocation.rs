@@ -47,9 +47,9 @@ use crate::banded::{simd_dispatch, BandedLu};
 
 use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
 use crate::law::{ogden_derivatives, ogden_force, AxialTable};
+use crate::marker::NODE_SNAP;
 use crate::ode::{AxialCoeffs, Coeffs, TendonCoeff};
 use crate::rod::{inverse3, Rod};
-use crate::sensitivity::NODE_SNAP;
 use nalgebra::SMatrix;
 use std::sync::Arc;
 

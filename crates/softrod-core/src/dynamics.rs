@@ -38,9 +38,9 @@ use crate::collocation::{
 use crate::error::{Result, SoftrodError};
 use crate::interp::GridPchip;
 use crate::law::ogden_energy;
+use crate::marker::{check_markers, Marker};
 use crate::ode::{Coeffs, Loads};
 use crate::rod::Rod;
-use crate::sensitivity::{check_markers, Marker};
 use crate::statics::constraint::{log_so3, slerp, tmatmul, TipConstraint, ROTATION_TOL};
 use crate::statics::{self, SolverOptions};
 use crate::validity;

@@ -38,6 +38,7 @@ pub mod jacobian;
 pub mod jet;
 pub mod law;
 pub mod linearise;
+pub mod marker;
 pub mod ode;
 pub mod pcc;
 pub mod reference;

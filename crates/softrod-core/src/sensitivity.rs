@@ -26,6 +26,7 @@
 
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Coeff, Jet, RodScalar, StateScalar};
+use crate::marker::{check_markers, Marker, NODE_SNAP};
 use crate::ode::{advance, integrate, resolve_stretch, Coeffs, Loads, NodeAt, SectionKnobs, State};
 use crate::rod::{AxialLaw, Rod};
 use crate::statics::constraint::{reaction, tip_residual, TipConstraint};
@@ -256,14 +257,6 @@ pub(crate) fn check_params(rod: &Rod, params: &[Param]) -> Result<()> {
     Ok(())
 }
 
-/// A point on the body whose position is measured (a motion-capture marker): reference arc
-/// length `s` in [0, L] and an offset in the cross-section frame (d1, d2, d3) at s, m.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Marker {
-    pub s: f64,
-    pub offset: [f64; 3],
-}
-
 /// Where a marker is read during the integration: after visit `node` (the base is visit 0,
 /// then the end of every step), a partial step of length `h` in `section` (none when the
 /// marker sits on that node), from the section's start when `section_start` (an Ogden
@@ -278,35 +271,6 @@ pub struct MarkerAt {
     h: f64,
     section_start: bool,
     offset: [f64; 3],
-}
-
-/// A marker closer than this fraction of a step to a node is read at that node (so a
-/// marker at s = L is read exactly at the tip).
-pub(crate) const NODE_SNAP: f64 = 1e-9;
-
-/// Check the markers against the rod: an arc length in [0, L] and a finite offset. Errors
-/// name `markers[k]`.
-pub fn check_markers(rod: &Rod, markers: &[Marker]) -> Result<()> {
-    for (k, mk) in markers.iter().enumerate() {
-        if !(mk.s.is_finite() && mk.s >= 0.0 && mk.s <= rod.length * (1.0 + 1e-12)) {
-            return Err(SoftrodError::invalid(
-                format!("markers[{k}].s"),
-                mk.s,
-                format!(
-                    "a marker's arc length must lie in [0, L] = [0, {}] m",
-                    rod.length
-                ),
-            ));
-        }
-        if let Some(bad) = mk.offset.iter().find(|v| !v.is_finite()) {
-            return Err(SoftrodError::invalid(
-                format!("markers[{k}].offset"),
-                bad,
-                "must be finite (m, cross-section frame)",
-            ));
-        }
-    }
-    Ok(())
 }
 
 /// Check the markers against the rod and locate them on its integration grid. Errors name

@@ -7,7 +7,8 @@ mod common;
 
 use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, Simulator};
-use softrod_core::sensitivity::{Marker, Param, ParamKind};
+use softrod_core::marker::Marker;
+use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::{Rod, SoftrodError};
 use std::f64::consts::PI;
 

@@ -5,7 +5,8 @@ mod common;
 
 use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
-use softrod_core::sensitivity::{Marker, Param, ParamKind};
+use softrod_core::marker::Marker;
+use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::spec::{AxialSpec, DesignSpec, MaterialSpec};
 use softrod_core::statics::constraint::TipConstraint;

@@ -6,10 +6,11 @@
 mod common;
 use common::*;
 use softrod_core::batch::{constrained_sensitivity_batch, sensitivity_batch, BatchInputs};
+use softrod_core::marker::Marker;
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{
     constrained_pose_sensitivity, locate_markers, marker_positions, pose_sensitivity,
-    tip_sensitivity, validate_params, Marker, Param, ParamKind,
+    tip_sensitivity, validate_params, Param, ParamKind,
 };
 use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::spec::{AxialSpec, DesignSpec};

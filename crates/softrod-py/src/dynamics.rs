@@ -7,7 +7,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::dynamics::{CommandSchedule, DynOptions, Initial, Scheme, SigmaMap, Simulator};
 use softrod_core::interp::GridPchip;
-use softrod_core::sensitivity::{Marker, Param, ParamKind};
+use softrod_core::marker::Marker;
+use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::statics::constraint::TipConstraint;
 use softrod_core::{Rod, SoftrodError};
 
