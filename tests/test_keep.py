@@ -229,8 +229,9 @@ def test_calibrate_uses_the_designs_map(tmp_path):
 def test_map_reference_errors(tmp_path):
     doc = dict(mapped_spa().document)
     doc["stiffness_map"] = {"file": str(tmp_path / "missing.json")}
-    with pytest.raises(softrod.DesignError, match="stiffness_map"):
+    with pytest.raises(softrod.DesignError, match="no such file") as exc:
         load_design(doc)
+    assert exc.value.field == "stiffness_map.file"  # the design's key (docs/stiffness-map.md)
     table_map().save(tmp_path / "sigma.json")
     plain = dict(load_design(SPA).document)
     plain["stiffness_map"] = {"file": str(tmp_path / "sigma.json")}

@@ -1136,7 +1136,9 @@ def _stiffness_map(doc: Mapping, spec: Mapping, rod, source: Path | None):
     try:
         smap = load_stiffness_map(file, **options)
     except DesignError as exc:
-        raise design_error(f"stiffness_map.{exc.field or 'file'}", exc.value, exc.rule) from None
+        # The loader names its path argument "path"; in the design that is the key "file".
+        key = "file" if exc.field in ("", "path") else exc.field
+        raise design_error(f"stiffness_map.{key}", exc.value, exc.rule) from None
     if smap.n_channels != rod.n_channels:
         raise design_error(
             "stiffness_map.file",

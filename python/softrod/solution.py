@@ -236,6 +236,16 @@ class StaticSolution:
                 "the Jacobian is available for the rod model only",
                 InputError,
             )
+        if self.tip_constraint != "free":
+            # The core differentiates the free tip's residual: for a held tip (six base
+            # unknowns, the held pose) its numbers would be a free tip's, not this solution's.
+            raise design_error(
+                "tip_constraint",
+                self.tip_constraint,
+                "StaticSolution.jacobian solves a free tip only (docs/scope.md): the "
+                "Jacobian of a pinned or clamped tip's equilibrium is not implemented",
+                InputError,
+            )
         design = self.design
         s = design.length if point is None else to_si(point, "length", "point", InputError)
         pairs, names = _param_pairs(design, params)

@@ -300,8 +300,9 @@ def _reaction_table(result):
     metavar="NAMES",
     help="Comma-separated parameters to fit, e.g. c_b,c_e,alpha; a selector names sections or "
     "a material: c_b[cap_a,cap_c], E[ecoflex_00_50]. Kinds: c_s, c_e, c_b, c_t, E, alpha, c_p, "
-    "offset_1, offset_2, area_scale, sigma_ext, sigma_bend_1, sigma_bend_2 "
-    "(docs/calibration.md).",
+    "offset_1, offset_2, area_scale, density, mass, sigma_ext, sigma_bend_1, sigma_bend_2, "
+    "damping_time (with --dynamic), registration_angle, registration_x, registration_y, "
+    "registration_z (docs/calibration.md).",
 )
 @click.option(
     "--split",
