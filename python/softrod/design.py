@@ -958,6 +958,25 @@ class Design:
     # Compiled PCC models by tip loads, built on first use (softrod.pcc.pcc_model).
     _pcc: dict = field(default_factory=dict, repr=False, compare=False)
 
+    def __repr__(self) -> str:
+        # The whole spec and document are one attribute away; a REPL shows what tells
+        # designs apart.
+        def count(n: int, what: str) -> str:
+            return f"{n} {what}" + ("" if n == 1 else "s")
+
+        parts = [
+            f"L = {self.length * 1e3:g} mm",
+            count(len(self.spec["sections"]), "section"),
+            count(self.n_channels, "channel"),
+        ]
+        if self.n_tendons:
+            parts.append(count(self.n_tendons, "tendon"))
+        if self.spec.get("obstacles"):
+            parts.append(count(len(self.spec["obstacles"]), "obstacle"))
+        if self.tip_constraint is not None:
+            parts.append(f"tip {self.tip_constraint.kind}")
+        return f"Design({self.name!r}, {', '.join(parts)})"
+
     @property
     def n_channels(self) -> int:
         """Number of pressure channels (inputs)."""

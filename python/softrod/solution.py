@@ -100,6 +100,17 @@ class Contact:
         return self.total_force.sum(axis=0)
 
 
+def _mm(point) -> str:
+    """'(x, y, z) mm' of a point in m, for reprs."""
+    # + 0.0 turns a rounded -0.0 into 0.0 (no "-0.00" for a coordinate on an axis).
+    return "(" + ", ".join(f"{round(x * 1e3, 2) + 0.0:.2f}" for x in point) + ") mm"
+
+
+def _values(values, scale: float, unit: str) -> str:
+    """'[10, 0, 0] kPa' of inputs in SI, for reprs."""
+    return "[" + ", ".join(f"{x * scale:g}" for x in values) + f"] {unit}"
+
+
 @dataclass(frozen=True)
 class StaticSolution:
     """A static equilibrium, sampled at every integration node (n nodes).
@@ -151,6 +162,21 @@ class StaticSolution:
     tip_reaction_moment: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)
     #: Contacts with the design's obstacles (:class:`Contact`); None without obstacles.
     contact: Contact | None = field(default=None, repr=False)
+
+    def __repr__(self) -> str:
+        parts = [repr(self.design.name)]
+        if len(self.pressures):
+            parts.append(f"p = {_values(self.pressures, 1e-3, 'kPa')}")
+        if len(self.tensions):
+            parts.append(f"T = {_values(self.tensions, 1.0, 'N')}")
+        if self.tip_constraint != "free":
+            parts.append(f"tip {self.tip_constraint}")
+        if self.converged:
+            parts += [f"tip {_mm(self.tip_position)}", f"stable {self.stable}"]
+        else:
+            parts.append("not converged")
+        parts.append(f"{self.iterations} iteration" + ("" if self.iterations == 1 else "s"))
+        return f"StaticSolution({', '.join(parts)})"
 
     @classmethod
     def failed(
@@ -331,6 +357,14 @@ class BatchSolution:
 
     def __len__(self) -> int:
         return self.pressures.shape[0]
+
+    def __repr__(self) -> str:
+        name = self.metadata.get("design")
+        what = f"{name!r}, " if name else ""
+        held = f", tip {self.tip_constraint}" if self.tip_constraint != "free" else ""
+        return (
+            f"BatchSolution({what}{len(self)} rows, {int(np.sum(self.converged))} converged{held})"
+        )
 
     def to_frame(self, units: Units = None) -> pd.DataFrame:
         """The results as a DataFrame in the dataset schema (docs/datasets.md), one row per

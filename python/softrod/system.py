@@ -42,7 +42,7 @@ from .catalog import load_design
 from .constraints import orientation as _orientation
 from .design import Design, read_toml
 from .errors import ConvergenceError, DesignError, InputError
-from .solution import Contact, StaticSolution
+from .solution import Contact, StaticSolution, _mm
 from .statics import (
     SolverOptions,
     _options,
@@ -174,6 +174,13 @@ class System:
     description: str = ""
     source: Path | None = field(default=None, compare=False)
 
+    def __repr__(self) -> str:
+        rods = ", ".join(r.design.name for r in self.rods)
+        return (
+            f"System({self.name!r}, {len(self.rods)} rods: {rods}; platform "
+            f"{self.platform.mass * 1e3:g} g at {_mm(self.platform.position)})"
+        )
+
 
 @dataclass(frozen=True)
 class SystemSolution:
@@ -193,6 +200,17 @@ class SystemSolution:
     load_steps: int
     unknowns: np.ndarray = field(repr=False)
     stable: bool | None = None
+
+    def __repr__(self) -> str:
+        if not self.converged:
+            return f"SystemSolution({self.system.name!r}, not converged)"
+        from .system_plots import platform_tilt_deg
+
+        tilt = float(platform_tilt_deg(self.platform_rotation))
+        return (
+            f"SystemSolution({self.system.name!r}, platform at {_mm(self.platform_position)}, "
+            f"tilt {tilt:.2f} deg, stable {self.stable}, {self.iterations} iterations)"
+        )
 
     def plot(self, path: str | os.PathLike | None = None, *, title: str | None = None) -> Figure:
         """Front (x-z) and side (y-z) views of the equilibrium
@@ -490,6 +508,12 @@ class SystemBatchSolution:
 
     def __len__(self) -> int:
         return int(self.converged.shape[0])
+
+    def __repr__(self) -> str:
+        return (
+            f"SystemBatchSolution({self.system.name!r}, {len(self)} rows, "
+            f"{int(np.sum(self.converged))} converged)"
+        )
 
     def to_frame(self, units: Units = None) -> pd.DataFrame:
         """The results as a DataFrame, one row per system equilibrium, units in the column

@@ -212,6 +212,12 @@ class SystemTrajectory:
     def __len__(self) -> int:
         return int(self.time.size)
 
+    def __repr__(self) -> str:
+        return (
+            f"SystemTrajectory({self.system.name!r}, {len(self)} samples, "
+            f"t = {self.time[0]:g} ... {self.time[-1]:g} s, {len(self.system.rods)} rods)"
+        )
+
     def to_frame(self, units: Units = None) -> pd.DataFrame:
         """The motion as a table, one row per sample, units in the column names as in the
         dataset schema (docs/datasets.md; ``units`` as there, also "velocity" and "energy";

@@ -79,6 +79,12 @@ class Workspace:
     tensions: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     tension_bounds: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
+    def __repr__(self) -> str:
+        return (
+            f"Workspace({self.design.name!r}, {len(self.tip_position)} boundary samples, "
+            f"{int(np.sum(self.converged))} converged, {self.samples} per free input)"
+        )
+
     @property
     def input_names(self) -> tuple[str, ...]:
         """Names of the inputs the faces refer to: p0 ... (pressures), t0 ... (tensions)."""

@@ -427,6 +427,12 @@ class Simulation:
         self._sim.set_markers(pairs)
         self._markers = None if sites is None else (_ro(sites[0]), _ro(sites[1]))
 
+    def __repr__(self) -> str:
+        return (
+            f"Simulation({self.design.name!r}, t = {self.time:g} s, dt = {self.dt * 1e3:g} ms, "
+            f"{self.options['scheme']})"
+        )
+
     @property
     def alpha(self) -> float:
         """The BDF-alpha parameter."""
