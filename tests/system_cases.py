@@ -27,3 +27,20 @@ def walled(system):
         system.rods[0], design=system.rods[0].design.replace({"obstacles": [wall]})
     )
     return dataclasses.replace(system, rods=(left, system.rods[1]))
+
+
+def follower(system):
+    """``system`` (the bundled ``two_spa_platform``) with a follower tip load on its left
+    actuator (``[tip] frame = "body"``): 0.05 N along the tip's d1 and 2 N mm about its d2,
+    in the tip frame, so that they turn with the tip (and the platform that holds it)."""
+    left = dataclasses.replace(
+        system.rods[0],
+        design=system.rods[0].design.replace(
+            {
+                "tip.frame": "body",
+                "tip.force": ["0.05 N", "0 N", "0 N"],
+                "tip.moment": ["0 N*mm", "2 N*mm", "0 N*mm"],
+            }
+        ),
+    )
+    return dataclasses.replace(system, rods=(left, system.rods[1]))

@@ -155,6 +155,40 @@ def test_a_rod_pressed_on_a_wall_moves_with_its_contact(system, tmp_path):
         softrod.SystemTrajectory.load(tmp_path / "walled.npz", system)
 
 
+def test_a_follower_tip_load_on_a_rod_starts_at_rest_and_moves_with_a_pressure_step(system):
+    """A follower tip load on a rod (``[tip] frame = "body"``) acts in the system's motion
+    (docs/dynamics.md "Systems of rods"; the physics against the free rod with the same
+    follower load: Rust's dynamics_system.rs). The run starts at rest on the equilibrium
+    under the follower load, stays there while the inputs are held, and a pressure step
+    moves it with the books balanced (the follower's work in ``work_in``)."""
+    loaded = system_cases.follower(system)
+    rest = softrod.solve_system(loaded)
+    # The load acts: the equilibrium is not the unloaded system's.
+    unloaded = softrod.solve_system(system)
+    assert np.abs(rest.platform_position - unloaded.platform_position).max() > 1e-4
+    tol = 1e-12
+    sim = softrod.SystemSimulation(loaded, dt="2 ms", alpha=-0.5, tol=tol)
+    start = sim.state()
+    # Shooting and collocation equilibria agree to the grids' O(h^4) (as the tests above).
+    assert np.abs(start.platform_position[0] - rest.platform_position).max() < 1e-6
+    assert np.abs(start.platform_velocity[0]).max() == 0.0
+    held = sim.run(None, "10 ms")
+    # At rest under held inputs: each step may move it by its Newton error only, 2 tol of
+    # the scaled unknowns (max(1, |z|) <= 2, positions in units of L = 130 mm), after the
+    # start's tol: (1 + 2 steps) tol 2 L = 2.9e-12 m over 5 steps.
+    length = 0.13
+    bound = (1 + 2 * 5) * tol * 2 * length
+    assert np.abs(held.platform_position - start.platform_position[0]).max() <= bound
+    for i, shape in enumerate(held.shapes):
+        assert np.abs(shape - start.shapes[i][0]).max() <= bound
+    traj = sim.run(system_cases.LEFT_AT_40_KPA, "40 ms")
+    assert np.linalg.norm(traj.platform_position[-1] - start.platform_position[0]) > 1e-4
+    # Undamped, trapezoidal rule: the books balance to the scheme's second-order error, as
+    # the first test's (1e-3 of the energy moved).
+    moved = traj.kinetic.max() + np.abs(traj.work_in).max()
+    assert np.abs(traj.energy_balance).max() <= 1e-3 * moved
+
+
 @pytest.mark.parametrize(
     ("kwargs", "field"),
     [

@@ -491,9 +491,10 @@ class SystemSimulation:
     ``dt``, ``alpha``, ``tol``, ``max_iter``, ``error_tol``, ``energy_tol`` as for
     :class:`~softrod.Simulation`; the scheme is BDF-alpha (the midpoint rule is refused: it
     does not carry held tips). A rod's obstacles act on it as on a free rod in motion
-    (docs/contact.md); the trajectory reports each such rod's contact. Refused by name
-    before any work: follower tip loads on a rod, inputs that do not match a rod, a rod
-    design with its own ``[tip] constraint``.
+    (docs/contact.md); the trajectory reports each such rod's contact. A rod design's tip
+    loads, dead or follower (``[tip] frame = "body"``: they turn with the tip the platform
+    holds), act on its tip as in :func:`~softrod.solve_system`. Refused by name before any
+    work: inputs that do not match a rod, a rod design with its own ``[tip] constraint``.
     """
 
     def __init__(

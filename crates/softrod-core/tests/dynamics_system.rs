@@ -2,13 +2,15 @@
 //! rods"): one rod on a massless platform against the single rod with the platform's
 //! loads at its free tip, settling on `solve_system`'s equilibrium, the energy books of an
 //! undamped run, a platform mass on three rods against the linear frequency from the
-//! system's static stiffness, the step Jacobian, save/restore and refusals.
+//! system's static stiffness, the step Jacobian, save/restore and refusals; a follower tip
+//! load on a rod (against the free rod, at rest, the step Jacobian).
 
 mod common;
 
 use common::*;
 use softrod_core::dynamics::system::{DynRod, SystemSimulator};
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
+use softrod_core::ode::Loads;
 use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::spec::{DesignSpec, Frame, MaterialSpec};
 use softrod_core::statics::system::{solve_system, Platform, SystemRod};
@@ -112,14 +114,22 @@ fn commands(p: &[f64]) -> Vec<Vec<f64>> {
 }
 
 /// A one-rod system on a massless platform with no inertia loaded by `force`, `moment`,
-/// and the same rod free with those loads at its tip, both started at `pressure` with
-/// Newton's tol = 1e-12 of the scaled unknowns.
+/// and the same rod free with those loads at its tip (with a follower tip load of the
+/// design, `spec.tip.frame = Body`: the platform unloaded and the free rod's tip carrying
+/// the design's follower load), both started at `pressure` with Newton's tol = 1e-12 of
+/// the scaled unknowns.
 fn one_rod_and_free_rod(
     spec: DesignSpec,
     pressure: f64,
     force: [f64; 3],
     moment: [f64; 3],
 ) -> (SystemSimulator, Simulator) {
+    let (tip_force, tip_moment) = if spec.tip.frame == Frame::Body {
+        assert_eq!((force, moment), ([0.0; 3], [0.0; 3]), "one load at a time");
+        (spec.tip.force, spec.tip.moment)
+    } else {
+        (force, moment)
+    };
     let o = DynOptions {
         tol: 1e-12,
         ..opts(2e-3, -0.2)
@@ -146,8 +156,8 @@ fn one_rod_and_free_rod(
         Initial::Static,
         o,
         SigmaMap::None,
-        force,
-        moment,
+        tip_force,
+        tip_moment,
     )
     .unwrap();
     (sys, free)
@@ -229,6 +239,177 @@ fn one_rod_by_a_wall_on_a_massless_platform_is_the_free_rod_by_the_wall() {
         |x| sys.step_residual_and_jacobian(x).unwrap(),
         1e-6,
     );
+}
+
+/// Rod `spec` with a follower tip load (`[tip] frame = "body"`): a force along the tip's
+/// d1 and d3 and a moment about its d2, in the tip frame (small against the rod's bending
+/// scales EI / L^2 ~ 0.3 N and EI / L ~ 0.03 N m, yet bending it visibly).
+fn with_follower(mut spec: DesignSpec) -> DesignSpec {
+    spec.tip.frame = Frame::Body;
+    spec.tip.force = [0.02, 0.0, -0.01];
+    spec.tip.moment = [0.0, 0.0005, 0.0];
+    spec
+}
+
+#[test]
+fn one_rod_with_a_follower_tip_load_on_a_massless_platform_is_the_free_rod() {
+    // A massless platform with no inertia and no load imposes nothing on the tip it holds:
+    // the system's rod carries the design's follower tip load (R_tip f_b, R_tip m_b in
+    // the platform's tip reaction) and moves as the free rod with the same follower load,
+    // through a pressure step up and down that turns the tip (and the load with it).
+    let spec = with_follower(rod_spec([0.0; 3], 9.81, 0.005));
+    let (mut sys, mut free) = one_rod_and_free_rod(spec, 0.0, [0.0; 3], [0.0; 3]);
+    // The same rod with the same load dead (world frame): what the system would do if
+    // its rod's load did not turn with the tip.
+    let mut dead_spec = with_follower(rod_spec([0.0; 3], 9.81, 0.005));
+    dead_spec.tip.frame = Frame::World;
+    let (f, m) = (dead_spec.tip.force, dead_spec.tip.moment);
+    let (_, mut dead) = one_rod_and_free_rod(dead_spec, 0.0, f, m);
+    let mut worst = dist(&sys.platform_pose().0, &free.tip().r);
+    let mut apart = dist(&dead.tip().r, &free.tip().r);
+    let start = free.tip().rot;
+    let mut turned: f64 = 0.0;
+    for k in 0..40 {
+        let p = if k < 20 { 30e3 } else { 10e3 };
+        sys.step(&[vec![p]]).unwrap();
+        free.step(&[p]).unwrap();
+        dead.step(&[p]).unwrap();
+        let (pp, rp) = sys.platform_pose();
+        let tip = free.tip();
+        worst = worst.max(dist(&pp, &tip.r));
+        apart = apart.max(dist(&dead.tip().r, &tip.r));
+        for i in 0..3 {
+            for j in 0..3 {
+                // Rotation entries times L: the same units as the positions.
+                worst = worst.max((rp[i][j] - tip.rot[i][j]).abs() * L);
+                turned = turned.max((tip.rot[i][j] - start[i][j]).abs());
+            }
+        }
+        for (x, y) in sys.rods()[0].shape().iter().zip(free.shape()) {
+            worst = worst.max(dist(x, y));
+        }
+    }
+    eprintln!(
+        "one rod, follower tip load: largest difference from the free rod {worst:.3e} m, tip turned by {turned:.3e}, the dead load's tip {apart:.3e} m away"
+    );
+    // The tip turns (the load with it), and a dead load moves the tip elsewhere by far
+    // more than the tolerance below: the comparison sees the load's rotation.
+    assert!(turned > 0.02, "{turned:e}");
+    assert!(apart > 1e-4 * L, "{apart:e}");
+    // As the test with dead loads: Newton errors ~1e-12 L per step (both runs converge to
+    // tol = 1e-12 of the scaled unknowns), carried through 40 damped steps, stay below
+    // 1e-10 L.
+    assert!(worst < 1e-10 * L, "{worst:e}");
+}
+
+#[test]
+fn step_jacobian_with_a_follower_tip_load_against_central_differences() {
+    // Rod 1's follower tip load reaches the platform's rows through its tip reaction, a
+    // function of its tip node's rotation (R_tip f_b, R_tip m_b): the exact Jacobian
+    // (those columns included) against central differences, with the platform's rotation
+    // off the chart's origin and a massive platform with inertia, as
+    // `step_jacobian_against_central_differences`.
+    let mut plat = platform(0.05, 9.81, [0.01, 0.0, 0.0], [0.0; 3]);
+    plat.com_offset = [0.005, 0.0, 0.01];
+    let inertia = [[2e-5, 1e-6, 0.0], [1e-6, 3e-5, 0.0], [0.0, 0.0, 4e-5]];
+    let mut rs = rods(2, 9.81, 0.01, &[10e3, 0.0]);
+    rs[1].rod = Rod::new(with_follower(rs[1].rod.spec.clone())).unwrap();
+    let mut sys = SystemSimulator::new(rs, plat, inertia, opts(2e-3, -0.2)).unwrap();
+    for _ in 0..3 {
+        sys.step(&commands(&[30e3, 10e3])).unwrap();
+    }
+    let mut z = sys.unknowns();
+    let n = z.len();
+    z[n - 3] = 0.01;
+    z[n - 2] = -0.02;
+    z[n - 1] = 0.005;
+    check_jacobian_at(
+        "system step with a follower tip load",
+        &z,
+        |x| sys.step_residual_and_jacobian(x).unwrap(),
+        1e-6,
+    );
+}
+
+#[test]
+fn a_system_with_a_follower_tip_load_at_rest_stays_at_rest() {
+    // Three damped rods on a 20 g platform with inertia under gravity, rod 1 with a
+    // follower tip load: started at rest in its static equilibrium, held inputs keep it
+    // there for 20 steps.
+    let (n, g, tau) = (3, 9.81, 0.01);
+    let plat = platform(0.02, g, [0.0; 3], [0.0; 3]);
+    let inertia = [[2e-6, 0.0, 0.0], [0.0, 2e-6, 0.0], [0.0, 0.0, 4e-6]];
+    let p = [20e3, 0.0, 10e3];
+    let o = DynOptions {
+        tol: 1e-14,
+        ..opts(2e-3, -0.2)
+    };
+    let follower = || {
+        let mut rs = rods(n, g, tau, &p);
+        rs[1].rod = Rod::new(with_follower(rs[1].rod.spec.clone())).unwrap();
+        rs
+    };
+    let mut sys = SystemSimulator::new(follower(), plat, inertia, o).unwrap();
+    let (p0, r0) = sys.platform_pose();
+    let shapes0: Vec<Vec<[f64; 3]>> = sys.rods().iter().map(|r| r.shape().to_vec()).collect();
+    // The follower load acts: the start is not the unloaded system's ...
+    let dead = SystemSimulator::new(rods(n, g, tau, &p), plat, inertia, o).unwrap();
+    let moved = dist(&p0, &dead.platform_pose().0);
+    // ... and it is solve_system's equilibrium under the same follower load, to the
+    // difference of the two discretisations (shooting and collocation; < 1e-5 L, as in
+    // the damped run's test).
+    let statics: Vec<DynRod> = follower();
+    let sys_rods: Vec<SystemRod> = statics
+        .iter()
+        .map(|r| SystemRod {
+            rod: &r.rod,
+            loads: Loads::from_design(&r.rod, r.pressures.clone()),
+            attachment: r.attachment,
+            attachment_rotation: r.attachment_rotation,
+        })
+        .collect();
+    let shooting = solve_system(&sys_rods, &plat, None, &SolverOptions::default()).unwrap();
+    let disc = dist(&p0, &shooting.platform_position);
+    let steps = 20;
+    let mut drift: f64 = 0.0;
+    let mut speed: f64 = 0.0;
+    for _ in 0..steps {
+        sys.step(&commands(&p)).unwrap();
+        let (pp, rp) = sys.platform_pose();
+        drift = drift.max(dist(&pp, &p0));
+        for i in 0..3 {
+            for j in 0..3 {
+                drift = drift.max((rp[i][j] - r0[i][j]).abs() * L);
+            }
+        }
+        for (rod, s0) in sys.rods().iter().zip(&shapes0) {
+            for (x, y) in rod.shape().iter().zip(s0) {
+                drift = drift.max(dist(x, y));
+            }
+        }
+        let (v, w) = sys.platform_velocity();
+        speed = speed.max(norm(&v)).max(norm(&w) * L);
+    }
+    let bound = (1.0 + 2.0 * steps as f64) * o.tol * 2.0 * L;
+    eprintln!(
+        "follower at rest: drift {drift:.3e} m (bound {bound:.3e} m), speed {speed:.3e} m/s, \
+         follower moved the start by {moved:.3e} m, shooting vs collocation {disc:.3e} m, \
+         |balance| {:.3e} J",
+        sys.energy_balance().abs()
+    );
+    assert!(moved > 1e-3 * L, "the follower load must act: {moved:e}");
+    assert!(disc < 1e-5 * L, "{disc:e}");
+    // Newton runs at tol = 1e-14 of the scaled unknowns, a hundred times double
+    // precision's 1e-16: round-off level. The start solves the rest state's Newton to
+    // min(tol, 1e-10) = tol (relative to max(1, |z|) <= 2, positions in units of L:
+    // `newton_bound`), and the exact step from an exact rest state is that rest state
+    // (zero velocities and history terms); so each step may add at most its own Newton
+    // error (2 tol L; the damped scheme does not amplify a perturbation):
+    // (tol + 2 tol steps) 2 L = 8.2e-14 m.
+    assert!(drift <= bound, "{drift:e} vs {bound:e}");
+    // Velocities are c0 (~1 / (0.6 dt) ~ 800 / s at alpha = -0.2) times those position
+    // errors, at most: c0 bound <= 1e3 / s * bound.
+    assert!(speed <= 1e3 * bound, "{speed:e}");
 }
 
 #[test]
@@ -471,11 +652,6 @@ fn refusals_by_name() {
         new(rods(2, 9.81, 0.0, &[0.0; 2]), plat, z3, midpoint),
         "scheme",
     );
-    let mut rs = rods(2, 9.81, 0.0, &[0.0; 2]);
-    let mut spec = rs[1].rod.spec.clone();
-    spec.tip.frame = Frame::Body;
-    rs[1].rod = Rod::new(spec).unwrap();
-    refused(new(rs, plat, z3, o), "rods[1].tip.frame");
     let mut rs = rods(2, 9.81, 0.0, &[0.0; 2]);
     rs[1].pressures = vec![0.0, 1.0];
     refused(new(rs, plat, z3, o), "rods[1].pressures");

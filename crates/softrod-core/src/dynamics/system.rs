@@ -33,6 +33,12 @@
 //! `collocation::Contraction`), as the single rod keeps its own. The energy books add the
 //! platform's kinetic and potential energy to the rods'; the work of each tip reaction on
 //! its rod (its books) and on the platform cancel.
+//!
+//! A rod's follower tip load (`[tip] frame = "body"`: world force R_tip f_b and moment
+//! R_tip m_b, R_tip its tip node's rotation, which the clamp holds at R A_i) is part of
+//! its tip reaction (the free tip's balance, `Problem::tip_reaction`), as in the statics:
+//! C_i (`Problem::reaction_jacobian`) carries its exact derivative with respect to the
+//! tip node's rotation, and the rod's books take its power as a free rod's do.
 
 use super::{
     check_energy, drive, reaction_work, rename_field, to_scaled, unknown_scales, Bdf, Books,
@@ -815,8 +821,10 @@ impl SystemSimulator {
     /// (`solve_system`'s, refined on the collocation grids). `platform`: as in the
     /// statics (its nominal pose seeds the equilibrium's search); `inertia`: the
     /// platform's inertia tensor about its centre of mass in the platform frame, kg m^2
-    /// (zero: none). Refused by name: obstacles, follower tip loads, the midpoint scheme, a
-    /// tip design's own load frame other than world, inputs that do not match a rod.
+    /// (zero: none). A rod's obstacles and its design's tip loads, dead or follower
+    /// (`[tip] frame`), act on it as on a held tip (module docs). Refused by name: the
+    /// midpoint scheme, an inertia that is not symmetric positive semidefinite, inputs that
+    /// do not match a rod.
     pub fn new(
         rods: Vec<DynRod>,
         platform: Platform,
@@ -841,13 +849,6 @@ impl SystemSimulator {
             r.rod
                 .check_tensions(&r.tensions)
                 .map_err(|e| rename_field(e, "tensions", &format!("{name}tensions")))?;
-            if r.rod.spec.tip.frame == crate::spec::Frame::Body {
-                return Err(SoftrodError::invalid(
-                    format!("{name}tip.frame"),
-                    "body",
-                    "follower tip loads on a rod of a system are not supported: load the platform instead",
-                ));
-            }
             let sigma = r.sigma_map.eval(&r.pressures)?;
             loads.push(Loads {
                 pressures: r.pressures.clone(),
