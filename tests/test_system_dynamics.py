@@ -206,6 +206,11 @@ def test_bad_inputs_are_refused_by_name(system, kwargs, field):
     with pytest.raises(InputError) as exc:
         softrod.SystemSimulation(system, **kwargs)
     assert field in exc.value.field
+    # simulate_system takes the same settings and refuses them the same way.
+    args = {"pressures": None, **kwargs}
+    with pytest.raises(InputError) as exc:
+        softrod.simulate_system(system, args.pop("pressures"), "4 ms", **args)
+    assert field in exc.value.field
 
 
 def test_bad_run_inputs_are_refused_by_name(system):

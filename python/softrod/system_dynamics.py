@@ -681,6 +681,7 @@ def simulate_system(
     platform_moment: Any = None,
     platform_inertia: Any = None,
     dt: Any = 2e-3,
+    scheme: str = "bdf-alpha",
     alpha: float | None = None,
     tol: float = 1e-9,
     max_iter: int = 25,
@@ -695,9 +696,10 @@ def simulate_system(
     :func:`~softrod.solve_system` takes them), held, or a function of t (s) returning them
     (its value at t = 0 is the start's; then sampled at each output step's end).
     ``platform_force``/``platform_moment`` (N, N m, world) likewise (None: the system's).
-    ``platform_inertia``, ``dt``, ``alpha``, ``tol``, ``max_iter``, ``error_tol``,
-    ``energy_tol``: as :class:`SystemSimulation`. Returns a :class:`SystemTrajectory` from
-    t = 0 (docs/dynamics.md, "Systems of rods")."""
+    ``platform_inertia``, ``dt``, ``scheme``, ``alpha``, ``tol``, ``max_iter``,
+    ``error_tol``, ``energy_tol``: as :class:`SystemSimulation` (whose only scheme is
+    BDF-alpha: the midpoint rule is refused by name, as for a held tip). Returns a
+    :class:`SystemTrajectory` from t = 0 (docs/dynamics.md, "Systems of rods")."""
 
     def at0(value):
         return value(0.0) if callable(value) else value
@@ -710,6 +712,7 @@ def simulate_system(
         platform_moment=at0(platform_moment),
         platform_inertia=platform_inertia,
         dt=dt,
+        scheme=scheme,
         alpha=alpha,
         tol=tol,
         max_iter=max_iter,
