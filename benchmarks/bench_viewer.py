@@ -3,6 +3,8 @@
     python benchmarks/bench_viewer.py          # 25 slider clicks -> results/viewer.json
     python benchmarks/bench_viewer.py --quick  # 7 clicks
     python benchmarks/bench_viewer.py --figures  # also write docs/figures/viewer_*.png
+    python -c "import bench_viewer; bench_viewer.contact_figure()"  # that figure alone
+                                                     # (from benchmarks/)
 
 The viewer of ``spa_three_chamber_130mm`` (sliders 0-70 kPa) in Debian's Chromium, driven by
 playwright through the browser's executable path, exactly as tests/test_viewer_browser.py
@@ -41,6 +43,26 @@ def add_arguments(parser) -> None:
     parser.add_argument("--figures", action="store_true", help="write docs/figures/viewer_*.png")
 
 
+def contact_figure(chromium: str | None = None) -> Path:
+    """docs/figures/viewer_finger_on_table.png: the page of the pre-bent finger pressed on
+    its table at 30 kPa (the table, the contact force, the tension slider and the panel's
+    contact lines), as headless Chromium shows it."""
+    chromium = chromium or chromium_path()
+    if chromium is None:
+        raise SystemExit("no Chromium installed (Debian: apt-get install chromium)")
+    path = FIGURES / "viewer_finger_on_table.png"
+    viewer = softrod.view("prebent_finger_on_table", environment_map=False)
+    try:
+        with ViewerPage(viewer, chromium, 1280, 800) as page:
+            page.wait_rendered()
+            viewer.set_inputs(pressures=[30e3])
+            time.sleep(1.0)  # a few software-rendered frames
+            page.page.screenshot(path=str(path))
+    finally:
+        viewer.close()
+    return path
+
+
 def run(args) -> dict:
     t_start = time.perf_counter()
     chromium = chromium_path()
@@ -76,6 +98,8 @@ def run(args) -> dict:
             "max_total_ms": max(r["total"] for r in rows),
         }
         print(key, {k: round(v, 2) if isinstance(v, float) else v for k, v in out[key].items()})
+    if args.figures:
+        contact_figure(chromium)
     return {
         **result_header("viewer", args.quick, info, design=DESIGN),
         "browser": chromium,

@@ -96,6 +96,17 @@ def test_cross_section_marks_the_pressurised_chambers():
     assert svg.count('fill="#ffffff"') == 2  # the two others at 0
 
 
+def test_cross_section_marks_the_tendons_by_their_tension():
+    sec = load_design("till_tendon_robot").spec["sections"][0]
+    svg = geo.cross_section_svg(
+        sec, np.zeros(0), 1.0, 20e-3, tensions=np.array([20.0, 0.0, 0.0, 10.0]), t_max=20.0
+    )
+    assert [f"t{k}</text>" in svg for k in range(4)] == [True] * 4
+    assert svg.count('fill="#1e64ff"') == 1  # full tension: blue
+    assert svg.count('fill="#ffffff"') == 2  # slack
+    assert svg.count('fill="#8eb1ff"') == 1  # half: (255 - 225 / 2, 255 - 155 / 2) = (142, 177)
+
+
 def test_viewer_solves_like_solve_statics(viewer):
     n = viewer.solves
     sol = viewer.set_inputs(pressures=[35e3, 10e3, 0], tip_force=[0.0, 0.1, 0.0])
@@ -145,6 +156,89 @@ def test_trajectory_playback_and_calibration_view(tmp_path):
         v.close()
 
 
+def test_tendon_sliders_solve_like_solve_statics():
+    """A tendon design gets one tension slider per tendon channel, 0 (slack) to the design's
+    [operating_range] tension top (Till's robot: 20 N), and the re-solve takes them."""
+    v = softrod.view("till_tendon_robot", environment_map=False)
+    try:
+        assert v.tension_max == 20.0 and len(v._t_sliders) == 4
+        assert all(s.min == 0.0 and s.max == 20.0 for s in v._t_sliders)
+        sol = v.set_inputs(tensions=[5.0, 0.0, 0.0, 0.0])
+        ref = solve_statics("till_tendon_robot", [], tensions=[5.0, 0.0, 0.0, 0.0])
+        np.testing.assert_array_equal(v.tensions, [5.0, 0.0, 0.0, 0.0])
+        np.testing.assert_array_equal(sol.tensions, [5.0, 0.0, 0.0, 0.0])
+        # Warm-started from the straight rod: the same equilibrium to the solver tolerance.
+        np.testing.assert_allclose(sol.position, ref.position, atol=1e-9)
+        assert sol.tip_position[0] > 0.1  # 5 N on tendon 0 bends the 0.5 m rod strongly
+    finally:
+        v.close()
+
+
+def test_default_tension_range_bends_the_softest_tendon_section_half_a_turn():
+    # The finger on the table has a tendon and no [operating_range] tension: T = pi EI / (d L)
+    # rounded up to 1, 1.5, 2, 3, 5 or 7 times a power of ten.
+    from softrod.viewer.app import _nice_ceiling, default_tension_max
+
+    d = load_design("prebent_finger_on_table")
+    sec, spec = d.sections()[0], d.spec["sections"][0]
+    ei = min(sec["k_bt"][0][0], sec["k_bt"][1][1])
+    t = np.pi * ei / (spec["tendons"][0]["distance"] * spec["length"])
+    assert default_tension_max(d) == _nice_ceiling(t)
+    assert t <= default_tension_max(d) < 1.5 * t
+
+
+def test_obstacles_are_drawn_and_the_contact_force_is_shown():
+    """The finger pressed on its table: the table is drawn with its surface at the plane,
+    the contact force arrow starts on the table and is the solution's total contact force
+    at the loads' common scale, and the panel gives it in mN."""
+    v = softrod.view("prebent_finger_on_table", environment_map=False)
+    try:
+        sol = v.set_inputs(pressures=[30e3])
+        total = sol.contact.total_force[0]
+        assert total[2] > 0.01  # the table pushes the finger up
+        arrow = v._contact_arrows[0]
+        assert arrow.visible
+        start, end = np.asarray(arrow.points, float)[0]
+        # float32 points: coordinates below 0.1 m round by at most 0.1 * 2^-24 = 6e-9 m each,
+        # so their difference is good to 1.2e-8 m.
+        np.testing.assert_allclose(end - start, total * v._force_scale, rtol=0, atol=1.2e-8)
+        assert start[2] == pytest.approx(-0.082, abs=1e-7)  # on the table's surface
+        assert f"contact with plane 0: {np.linalg.norm(total) * 1e3:.1f} mN" in v._status.content
+        assert "deepest penetration" in v._status.content
+    finally:
+        v.close()
+
+
+def test_obstacle_solids_sit_where_the_obstacles_are():
+    centre, size = np.array([0.0, 0.0, -0.05]), 0.1
+    ((kind, box),) = geo.obstacle_solids(
+        {"kind": "plane", "point": [0, 0, -0.08], "normal": [0, 0, 2.0]}, centre, size
+    )
+    assert kind == "box"
+    top = box["position"] + 0.5 * box["dimensions"][2] * np.array([0, 0, 1.0])
+    np.testing.assert_allclose(top, [0, 0, -0.08], atol=1e-15)  # surface at the plane
+    tilted = {"kind": "plane", "point": [0, 0, 0], "normal": [1.0, 0, 1.0]}
+    ((_, slab),) = geo.obstacle_solids(tilted, centre, size)
+    rot = np.array(slab["wxyz"])
+    # The slab's local z (the quaternion's third column) is the unit normal.
+    w, x, y, z = rot
+    zcol = [2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)]
+    np.testing.assert_allclose(zcol, np.array([1, 0, 1]) / np.sqrt(2), atol=1e-12)
+    ((kind, ball),) = geo.obstacle_solids(
+        {"kind": "sphere", "center": [0.01, 0, -0.1], "radius": 0.004}, centre, size
+    )
+    assert kind == "sphere" and ball["radius"] == 0.004
+    cyl = {"kind": "cylinder", "point": [0, 0.02, 0], "axis": [1, 0, 0], "radius": 0.003}
+    ((kind, c),) = geo.obstacle_solids(cyl, centre, size)
+    np.testing.assert_allclose(c["position"], [0, 0.02, 0])  # the centre's foot on the axis
+    assert kind == "cylinder" and c["height"] == pytest.approx(3 * size)
+    cap = {"kind": "capsule", "start": [0, 0, 0], "end": [0, 0.03, 0.04], "radius": 0.002}
+    parts = geo.obstacle_solids(cap, centre, size)
+    assert [k for k, _ in parts] == ["cylinder", "sphere", "sphere"]
+    assert parts[0][1]["height"] == pytest.approx(0.05)
+    np.testing.assert_allclose(parts[0][1]["position"], [0, 0.015, 0.02])
+
+
 def test_bad_viewer_inputs_are_rejected():
     with pytest.raises(softrod.InputError, match="pressure_range"):
         softrod.view(SPA, pressure_range=(10e3, 0))
@@ -152,6 +246,11 @@ def test_bad_viewer_inputs_are_rejected():
         softrod.view(SPA, force_max=-1)
     with pytest.raises(softrod.InputError, match="pressures"):
         softrod.view(SPA, pressures=[1.0, 2.0])
+    for bad in ([-1.0, 0, 0, 0], [1.0], [float("nan")] * 4):
+        with pytest.raises(softrod.InputError, match="tensions"):
+            softrod.view("till_tendon_robot", tensions=bad)
+    with pytest.raises(softrod.InputError, match="tension_max"):
+        softrod.view("till_tendon_robot", tension_max=0)
 
 
 def test_view_command_help_and_errors(run):
@@ -159,6 +258,10 @@ def test_view_command_help_and_errors(run):
     assert res.exit_code == 0 and "Ctrl-C" in res.output
     res = run("view", SPA, "--pressure-range", "70kPa:0")
     assert res.exit_code == 2 and "--pressure-range" in res.output
+    res = run("view", SPA, "--tension", "2N")
+    assert res.exit_code == 2 and "--tension" in res.output and "0 tendon channels" in res.output
+    res = run("view", "till_tendon_robot", "--max-tension", "-1N")
+    assert res.exit_code == 2 and "--max-tension" in res.output
 
 
 def test_cli_help_does_not_import_viser_or_distributed():

@@ -31,6 +31,18 @@ from ._common import (
     "the softest chambered section by about half a turn).",
 )
 @click.option(
+    "--tension",
+    "-t",
+    metavar="T1,T2,...",
+    help="Initial tension per tendon channel, e.g. 2N,0 (>= 0; default 0: slack).",
+)
+@click.option(
+    "--max-tension",
+    metavar="T",
+    help="Top of the tension sliders, e.g. 5N (default: the design's [operating_range] "
+    "tension, else the tension that bends the softest tendon section by about half a turn).",
+)
+@click.option(
     "--max-force",
     metavar="F",
     help="Range of the tip-force sliders, +-F, e.g. 0.5N (default: the force that deflects the "
@@ -55,12 +67,15 @@ from ._common import (
 )
 @click.option("--port", type=click.IntRange(1, 65535), help="Port (default: a free one).")
 @_handle_errors
-def view(design, pressure, pressure_range, max_force, trajectory, data, host, port):
+def view(
+    design, pressure, pressure_range, tension, max_tension, max_force, trajectory, data, host, port
+):
     """Serve an interactive 3-D view of DESIGN in the browser (Ctrl-C stops it).
 
-    One slider per pressure channel and per tip-force component re-solves the shape live;
-    the solver's state (converged, iterations, tip position) shows beside it. Needs the
-    viewer extra: pip install 'softrod[viewer]'.
+    One slider per pressure channel, per tendon and per tip-force component re-solves the
+    shape live; the solver's state (converged, iterations, tip position, contact forces on
+    the design's obstacles) shows beside it. Needs the viewer extra:
+    pip install 'softrod[viewer]'.
     """
     from rich.text import Text
 
@@ -82,6 +97,14 @@ def view(design, pressure, pressure_range, max_force, trajectory, data, host, po
             raise design_error(
                 "--pressure-range", pressure_range, "LOW must be below HIGH", InputError
             )
+    from .statics import _parse_tensions
+
+    t = _parse_tensions(tension, d)
+    t_max = None
+    if max_tension is not None:
+        (t_max,) = _parse_vector(max_tension, "force", "--max-tension", 1)
+        if not t_max > 0:
+            raise design_error("--max-tension", max_tension, "must be a positive force", InputError)
     f_max = None
     if max_force is not None:
         (f_max,) = _parse_vector(max_force, "force", "--max-force", 1)
@@ -93,6 +116,8 @@ def view(design, pressure, pressure_range, max_force, trajectory, data, host, po
         d,
         pressures=p,
         pressure_range=p_range,
+        tensions=t,
+        tension_max=t_max,
         force_max=f_max,
         trajectory=trajectory,
         dataset=data,

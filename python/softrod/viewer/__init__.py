@@ -21,6 +21,8 @@ def view(
     *,
     pressures: ArrayLike | None = None,
     pressure_range: tuple[Quantity, Quantity] | None = None,
+    tensions: ArrayLike | None = None,
+    tension_max: Quantity | None = None,
     force_max: Quantity | None = None,
     trajectory: Any = None,
     calibration: Any = None,
@@ -38,8 +40,13 @@ def view(
     pressures: initial gauge pressures (Pa, one per channel; default 0).
     pressure_range: (low, high) of the pressure sliders in Pa; default 0 to the pressure that
         bends the softest chambered section by about half a turn (docs/viewer.md).
-    force_max: range (N, +-) of the tip-force sliders; default: the force that deflects the
-        rod by about half its length.
+    tensions: initial tendon tensions (N, one per tendon channel, >= 0; default 0: slack).
+    tension_max: top of the tension sliders (N); default: the design's
+        ``[operating_range] tension`` top, else the tension that bends the softest tendon
+        section by about half a turn (docs/viewer.md).
+    force_max: range (N, +-) of the tip-force sliders (in the design's tip frame: world, or
+        the tip's frame for a follower load); default: the force that deflects the rod by
+        about half its length.
     trajectory: a :class:`~softrod.Trajectory` (or its file) to play back with a time slider.
     calibration: a :class:`~softrod.CalibrationResult`: its measured and predicted tips are
         drawn; or dataset: a :class:`~softrod.Dataset` (or its file) whose measured tips are
@@ -66,6 +73,8 @@ def view(
         design,
         pressures=pressures,
         pressure_range=pressure_range,
+        tensions=tensions,
+        tension_max=tension_max,
         force_max=force_max,
         trajectory=trajectory,
         calibration=calibration,

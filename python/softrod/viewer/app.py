@@ -1,11 +1,12 @@
 """The interactive viewer: a viser server that draws a design's static shape and re-solves it
-live as the user moves the pressure and tip-force sliders (docs/viewer.md).
+live as the user moves the pressure, tendon-tension and tip-force sliders (docs/viewer.md).
 
 Every slider move is one ``solve_statics`` call (the Rust shooting solve, warm-started from
 the shape on screen) and one redraw: the tube of every section, the tip frame, the load
-arrows, the chamber cross-section and the solver's state, sent to the browser as one
-message batch. Moves that arrive while a solve runs are merged: the next solve takes the
-sliders' latest values, so a fast drag never queues stale work.
+arrows, the contact forces on the design's obstacles, the chamber cross-section and the
+solver's state, sent to the browser as one message batch. Moves that arrive while a solve
+runs are merged: the next solve takes the sliders' latest values, so a fast drag never
+queues stale work.
 """
 
 from __future__ import annotations
@@ -34,6 +35,8 @@ FORCE_COLOUR = (220, 40, 40)
 WEIGHT_COLOUR = (150, 60, 200)
 MEASURED_COLOUR = (30, 160, 60)
 PREDICTED_COLOUR = (230, 120, 20)
+OBSTACLE_COLOUR = (170, 170, 160)
+CONTACT_COLOUR = (20, 170, 170)
 
 
 @dataclass(frozen=True)
@@ -67,11 +70,15 @@ def _nice_ceiling(x: float) -> float:
 
 
 def default_pressure_max(design: Design) -> float:
-    """Default top of the pressure sliders (Pa): the pressure at which one channel's chambers
-    alone bend the softest chambered section by about half a turn, p = pi EI / (A d L) (the
-    pressure moment p A d over the bending stiffness EI gives the curvature; a bend angle of
-    pi over the section length L), rounded up to a round number (1, 1.5, 2, 3, 5 or 7 times
-    a power of ten)."""
+    """Default top of the pressure sliders (Pa): the design's ``[operating_range] pressure``
+    top when it has one (solves beyond it are refused), else the pressure at which one
+    channel's chambers alone bend the softest chambered section by about half a turn,
+    p = pi EI / (A d L) (the pressure moment p A d over the bending stiffness EI gives the
+    curvature; a bend angle of pi over the section length L), rounded up to a round number
+    (1, 1.5, 2, 3, 5 or 7 times a power of ten)."""
+    rng = design.spec.get("operating_range", {}).get("pressure")
+    if rng is not None and rng[1] > 0:
+        return float(rng[1])
     best = math.inf
     for sec, spec in zip(design.sections(), design.spec["sections"], strict=True):
         if spec["rigid"] or not spec["chambers"]:
@@ -86,6 +93,26 @@ def default_pressure_max(design: Design) -> float:
         if ad > 0:
             best = min(best, math.pi * ei / (ad * spec["length"]))
     return _nice_ceiling(best) if math.isfinite(best) else 100e3
+
+
+def default_tension_max(design: Design) -> float:
+    """Default top of the tension sliders (N): the design's ``[operating_range] tension``
+    top when it has one, else the tension at which one tendon alone bends the softest
+    tendon-carrying section by about half a turn, T = pi EI / (d L) (the tendon's moment T d
+    over EI gives the curvature, as the chambers' p A d does), rounded up like the
+    pressure range."""
+    rng = design.spec.get("operating_range", {}).get("tension")
+    if rng is not None:
+        return float(rng[1])
+    best = math.inf
+    for sec, spec in zip(design.sections(), design.spec["sections"], strict=True):
+        if spec["rigid"] or not spec.get("tendons"):
+            continue
+        ei = min(float(sec["k_bt"][0][0]), float(sec["k_bt"][1][1]))
+        d = max(max(t["distance"], t.get("distance_end", 0.0)) for t in spec["tendons"])
+        if d > 0:
+            best = min(best, math.pi * ei / (d * spec["length"]))
+    return _nice_ceiling(best) if math.isfinite(best) else 10.0
 
 
 def default_force_max(design: Design) -> float:
@@ -107,7 +134,7 @@ class Viewer:
 
     Attributes for scripts and tests: :attr:`url`, :attr:`solution` (the shape on screen),
     :attr:`solves` (re-solves so far), :attr:`timings` (one :class:`Timing` per re-solve),
-    :attr:`pressures` and :attr:`tip_force` (the sliders' values, SI).
+    :attr:`pressures`, :attr:`tensions` and :attr:`tip_force` (the sliders' values, SI).
     """
 
     def __init__(
@@ -117,6 +144,8 @@ class Viewer:
         pressures=None,
         pressure_range=None,
         force_max=None,
+        tensions=None,
+        tension_max=None,
         trajectory=None,
         calibration=None,
         dataset=None,
@@ -144,8 +173,19 @@ class Viewer:
             raise design_error(
                 "pressures", pressures, f"must be {nc} gauge pressures (Pa)", InputError
             )
+        nt = d.n_tendons
+        self.tension_max = (
+            default_tension_max(d) if tension_max is None else _positive(tension_max, "tension_max")
+        )
+        t0 = np.zeros(nt) if tensions is None else np.array(tensions, dtype=float)
+        if t0.shape != (nt,) or not (np.isfinite(t0).all() and (t0 >= 0).all()):
+            raise design_error(
+                "tensions", tensions, f"must be {nt} tendon tensions >= 0 (N)", InputError
+            )
         self.trajectory = _trajectory(d, trajectory)
-        self.calibration = _measured_predicted(d, calibration, dataset)
+        shown = _measured_predicted(d, calibration, dataset)
+        self.calibration = None if shown is None else shown[:3]
+        self._sample_tensions = None if shown is None else shown[3]
 
         self.solution: StaticSolution | None = None
         self.solves = 0
@@ -172,7 +212,7 @@ class Viewer:
             sc.add_light_ambient("/lights/fill", intensity=1.2)
         self._set_camera()
         self._build_scene()
-        self._build_gui(p0)
+        self._build_gui(p0, t0)
         self._request_solve()
 
     # ------------------------------------------------------------------ public API
@@ -190,12 +230,18 @@ class Viewer:
         return np.array([s.value * 1e3 for s in self._p_sliders])
 
     @property
+    def tensions(self) -> np.ndarray:
+        """The tendon-tension sliders' values, N (one per tendon channel; 0: slack)."""
+        return np.array([s.value for s in self._t_sliders])
+
+    @property
     def tip_force(self) -> np.ndarray:
-        """The tip-force sliders' values, N (world frame)."""
+        """The tip-force sliders' values, N (in the design's tip frame: world, or the tip's
+        body frame for a follower load)."""
         return np.array([s.value for s in self._f_sliders])
 
-    def set_inputs(self, pressures=None, tip_force=None) -> StaticSolution | None:
-        """Move the sliders from Python (Pa, N) and wait for the re-solve; returns the
+    def set_inputs(self, pressures=None, tip_force=None, tensions=None) -> StaticSolution | None:
+        """Move the sliders from Python (Pa, N, N) and wait for the re-solve; returns the
         solution on screen."""
         self._quiet = True
         try:
@@ -203,6 +249,9 @@ class Viewer:
                 if pressures is not None:
                     for s, p in zip(self._p_sliders, np.asarray(pressures, float), strict=True):
                         s.value = float(p) / 1e3
+                if tensions is not None:
+                    for s, t in zip(self._t_sliders, np.asarray(tensions, float), strict=True):
+                        s.value = float(t)
                 if tip_force is not None:
                     for s, f in zip(self._f_sliders, np.asarray(tip_force, float), strict=True):
                         s.value = float(f)
@@ -350,6 +399,29 @@ class Viewer:
                     ),
                 )
             )
+        # The obstacles (docs/contact.md), translucent so the rod shows through where it
+        # presses in, and one arrow per obstacle for the contact force on the rod.
+        mid = base + 0.5 * L * base_rot[:, 2]
+        self._contact_arrows = []
+        for k, ob in enumerate(d.spec.get("obstacles", [])):
+            for j, (solid, args) in enumerate(geo.obstacle_solids(ob, mid, L)):
+                name = f"/obstacles/{k}_{ob['kind']}/{j}"
+                look = dict(color=OBSTACLE_COLOUR, opacity=0.55, cast_shadow=False)
+                if solid == "box":
+                    sc.add_box(name, receive_shadow=False, **look, **args)
+                elif solid == "sphere":
+                    sc.add_icosphere(name, receive_shadow=False, **look, **args)
+                else:
+                    sc.add_cylinder(name, receive_shadow=False, **look, **args)
+            self._contact_arrows.append(
+                sc.add_arrows(
+                    f"/loads/contact_{k}",
+                    points=geo.arrow([0, 0, 0], [0, 0, 1e-9]),
+                    colors=CONTACT_COLOUR,
+                    visible=False,
+                    **arrow_kw,
+                )
+            )
         if self.calibration is not None:
             measured, predicted, _ = self.calibration
             ok = np.isfinite(predicted).all(axis=1)
@@ -377,13 +449,17 @@ class Viewer:
                 "/calibration/sample", radius=0.02 * L, color=MEASURED_COLOUR, visible=False
             )
 
-    def _build_gui(self, p0: np.ndarray) -> None:
+    def _build_gui(self, p0: np.ndarray, t0: np.ndarray) -> None:
         gui, d = self.server.gui, self.design
-        gui.add_markdown(f"**{d.name}**  \n{d.length * 1e3:.0f} mm, {d.n_channels} channel(s)")
+        inputs = [f"{d.n_channels} channel(s)"] if d.n_channels else []
+        inputs += [f"{d.n_tendons} tendon(s)"] if d.n_tendons else []
+        gui.add_markdown(f"**{d.name}**  \n{d.length * 1e3:.0f} mm, {', '.join(inputs)}")
         lo, hi = self.pressure_range
         step = _nice_ceiling((hi - lo) / 1000.0) / 1e3
         self._p_sliders = []
-        with gui.add_folder("Pressures (kPa)"):
+        # A design without chambers (tendons only) gets no empty pressure folder.
+        folder = gui.add_folder("Pressures (kPa)") if d.n_channels else contextlib.nullcontext()
+        with folder:
             for k in range(d.n_channels):
                 s = gui.add_slider(
                     f"channel {k}",
@@ -394,10 +470,25 @@ class Viewer:
                 )
                 s.on_update(self._on_slider)
                 self._p_sliders.append(s)
+        self._t_sliders = []
+        if d.n_tendons:
+            tm = self.tension_max
+            with gui.add_folder("Tendon tensions (N)"):
+                for k in range(d.n_tendons):
+                    s = gui.add_slider(
+                        f"tendon {k}",
+                        min=0.0,  # a tendon pulls or is slack (docs/scope.md)
+                        max=tm,
+                        step=_nice_ceiling(tm / 1000.0),
+                        initial_value=float(np.clip(t0[k], 0.0, tm)),
+                    )
+                    s.on_update(self._on_slider)
+                    self._t_sliders.append(s)
         self._f_sliders = []
         f0 = np.asarray(d.spec["tip"]["force"], float)
         fm = self.force_max
-        with gui.add_folder("Tip force (N, world)", expand_by_default=False):
+        frame = "tip frame" if d.spec["tip"].get("frame") == "body" else "world"
+        with gui.add_folder(f"Tip force (N, {frame})", expand_by_default=False):
             for k, axis in enumerate("xyz"):
                 s = gui.add_slider(
                     f"F{axis}",
@@ -410,7 +501,11 @@ class Viewer:
                 self._f_sliders.append(s)
         with gui.add_folder("Solver"):
             self._status = gui.add_markdown("starting...")
-        chambered = [(k, sec) for k, sec in enumerate(d.spec["sections"]) if sec["chambers"]]
+        chambered = [
+            (k, sec)
+            for k, sec in enumerate(d.spec["sections"])
+            if sec["chambers"] or sec.get("tendons")
+        ]
         self._sections_html = []
         if chambered:
             with gui.add_folder("Cross-section (from the tip)"):
@@ -528,11 +623,13 @@ class Viewer:
         if self._closed:
             return
         p, f = self.pressures, self.tip_force
+        tensions = self.tensions if self.design.n_tendons else None
         at = time.time()
         t0 = time.perf_counter()
         sol = solve_statics(
             self.design,
             p,
+            tensions=tensions,
             tip_force=f,
             options=self._options,
             stiffness_map=self._stiffness_map,
@@ -556,7 +653,8 @@ class Viewer:
                 self._draw_rod(sol.position, sol.rotation, sol.section)
                 self._draw_tip(sol.position[-1], sol.rotation[-1], f)
                 self._draw_line_loads(sol.s, sol.position)
-            self._draw_sections(p)
+                self._draw_contact(sol)
+            self._draw_sections(p, tensions)
             self._status.content = self._status_text(sol, t1 - t0)
         self.server.flush()  # send now, not at the end of viser's 1/60 s batching window
         self.timings.append(Timing(t1 - t0, time.perf_counter() - t1, at))
@@ -599,10 +697,34 @@ class Viewer:
             at = np.array([np.interp(s_mid, s, position[:, i]) for i in range(3)])
             handle.points = geo.arrow(at, f * self._force_scale).astype(np.float32)
 
-    def _draw_sections(self, pressures) -> None:
+    def _draw_contact(self, sol: StaticSolution) -> None:
+        """Each obstacle's total contact force on the rod, drawn from the contact's centre
+        on the obstacle's surface: the contact points weighted by the force they carry (line
+        force times the node's share of the length, and the rounded end's point force)."""
+        contact = sol.contact
+        if contact is None:
+            return
+        share = np.gradient(sol.s)  # m of rod per node
+        for k, handle in enumerate(self._contact_arrows):
+            total = contact.total_force[k]
+            on = contact.obstacle == k
+            w = np.where(on, np.linalg.norm(contact.force, axis=1) * share, 0.0)
+            w_end = float(np.linalg.norm(contact.end_force[k]))
+            if not np.linalg.norm(total) > 0 or w.sum() + w_end <= 0:
+                handle.visible = False
+                continue
+            # The rounded end presses at its node's surface point on this obstacle.
+            end = contact.point[-1] if contact.obstacle[-1] == k else sol.position[-1]
+            at = (w @ contact.point + w_end * end) / (w.sum() + w_end)
+            handle.points = geo.arrow(at, total * self._force_scale).astype(np.float32)
+            handle.visible = True
+
+    def _draw_sections(self, pressures, tensions=None) -> None:
         hi = self.pressure_range[1]
         for sec, radius, handle, _name in self._sections_html:
-            handle.content = geo.cross_section_svg(sec, pressures, hi, radius)
+            handle.content = geo.cross_section_svg(
+                sec, pressures, hi, radius, tensions=tensions, t_max=self.tension_max
+            )
 
     def _status_text(self, sol: StaticSolution, solve_s: float) -> str:
         lines = [f"solve {self.solves}: {solve_s * 1e3:.2f} ms"]
@@ -617,6 +739,17 @@ class Viewer:
             stable = getattr(sol, "stable", None)
             if stable is not None:
                 lines.append(f"stable: **{'yes' if stable else 'NO (unstable branch)'}**")
+            if sol.tip_constraint != "free":
+                r = sol.tip_reaction_force * 1e3
+                lines.append(
+                    f"tip {sol.tip_constraint}: reaction (mN) {r[0]:.1f}, {r[1]:.1f}, {r[2]:.1f}"
+                )
+            if sol.contact is not None:
+                for k, force in enumerate(sol.contact.total_force):
+                    kind = self.design.spec["obstacles"][k]["kind"]
+                    lines.append(f"contact with {kind} {k}: {np.linalg.norm(force) * 1e3:.1f} mN")
+                depth = max(sol.contact.max_penetration, 0.0) * 1e3
+                lines.append(f"deepest penetration: {depth:.3f} mm")
         else:
             lines += ["converged: **NO**", self.error or ""]
         return "  \n".join(lines)
@@ -642,7 +775,7 @@ class Viewer:
             else:
                 note += "  \n(the trajectory stores no shapes: tip only)"
             self._draw_tip(tr.tip_position[i], tr.tip_rotation[i], np.zeros(3))
-            self._draw_sections(tr.pressure[i])
+            self._draw_sections(tr.pressure[i], tr.tension[i] if tr.n_tendons else None)
             self._t_note.content = note
 
     def _toggle_play(self) -> None:
@@ -673,7 +806,8 @@ class Viewer:
         measured, _, pressures = self.calibration
         self._sample_marker.position = tuple(measured[k])
         self._sample_marker.visible = True
-        self.set_inputs(pressures=pressures[k])
+        tensions = None if self._sample_tensions is None else self._sample_tensions[k]
+        self.set_inputs(pressures=pressures[k], tensions=tensions)
 
 
 def _range(value) -> tuple[float, float]:
@@ -688,19 +822,20 @@ def _range(value) -> tuple[float, float]:
     return lo, hi
 
 
-def _positive(value) -> float:
+def _positive(value, field: str = "force_max") -> float:
     try:
         x = float(value)
     except (TypeError, ValueError):
         x = math.nan
     if not (math.isfinite(x) and x > 0):
-        raise design_error("force_max", value, "must be a positive force in N", InputError)
+        raise design_error(field, value, "must be a positive force in N", InputError)
     return x
 
 
 def _measured_predicted(design: Design, calibration, dataset):
-    """(measured, predicted, pressures): tip positions (m, 3) and pressures (m, c) of a
-    calibration result, or of a dataset against ``design`` (one batch solve), or None."""
+    """(measured, predicted, pressures, tensions): tip positions (m, 3), pressures (m, c)
+    and tendon tensions (m, k; None: slack) of a calibration result, or of a dataset
+    against ``design`` (one batch solve), or None."""
     if calibration is not None and dataset is not None:
         raise design_error(
             "dataset", "given", "give calibration= or dataset=, not both", InputError
@@ -714,10 +849,12 @@ def _measured_predicted(design: Design, calibration, dataset):
                     "must be a softrod.CalibrationResult (from softrod.calibrate)",
                     InputError,
                 )
+        tensions = getattr(calibration.dataset, "tensions", None)
         return (
             np.asarray(calibration.dataset.tip_position, float),
             np.asarray(calibration.predicted, float),
             np.asarray(calibration.dataset.pressures, float),
+            None if tensions is None else np.asarray(tensions, float),
         )
     if dataset is None:
         return None
@@ -739,6 +876,7 @@ def _measured_predicted(design: Design, calibration, dataset):
         np.asarray(dataset.tip_position, float),
         out.tip_position,
         np.asarray(dataset.pressures, float),
+        None if dataset.tensions is None else np.asarray(dataset.tensions, float),
     )
 
 

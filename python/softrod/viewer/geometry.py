@@ -173,6 +173,57 @@ def wxyz(rotation: np.ndarray) -> np.ndarray:
     return q / np.linalg.norm(q)
 
 
+def frame_along(direction) -> np.ndarray:
+    """A rotation whose third column is the unit ``direction`` (viser's cylinders and the
+    plane's slab have their axis along the local z)."""
+    z = np.asarray(direction, dtype=float)
+    z = z / np.linalg.norm(z)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+def obstacle_solids(obstacle: dict, centre, size: float) -> list[tuple[str, dict]]:
+    """The solids that draw one obstacle of a design (its spec: SI, docs/contact.md), as
+    (kind, arguments) with kind "box", "sphere" or "cylinder": a plane is a square slab of
+    side ``2 size`` below its surface centred under ``centre`` (the rod's middle), an
+    infinite cylinder a cylinder of length ``3 size`` centred at ``centre``'s foot on its
+    axis, a capsule its segment's cylinder and the two end balls."""
+    kind = obstacle["kind"]
+    if kind == "plane":
+        n = np.asarray(obstacle["normal"], float)
+        n /= np.linalg.norm(n)
+        p = np.asarray(obstacle["point"], float)
+        c = np.asarray(centre, float)
+        foot = c - np.dot(c - p, n) * n
+        thick = 0.02 * size
+        rot = frame_along(n)
+        box = {"dimensions": (2 * size, 2 * size, thick), "position": foot - 0.5 * thick * n}
+        return [("box", {**box, "wxyz": wxyz(rot)})]
+    if kind == "sphere":
+        return [("sphere", {"radius": obstacle["radius"], "position": obstacle["center"]})]
+    if kind == "cylinder":
+        a = np.asarray(obstacle["axis"], float)
+        a /= np.linalg.norm(a)
+        p = np.asarray(obstacle["point"], float)
+        foot = p + np.dot(np.asarray(centre, float) - p, a) * a
+        rot = frame_along(a)
+        args = {"radius": obstacle["radius"], "height": 3 * size, "position": foot}
+        return [("cylinder", {**args, "wxyz": wxyz(rot)})]
+    if kind == "capsule":
+        a, b = (np.asarray(obstacle[k], float) for k in ("start", "end"))
+        r = obstacle["radius"]
+        rot = frame_along(b - a)
+        body = {"radius": r, "height": float(np.linalg.norm(b - a)), "position": 0.5 * (a + b)}
+        return [
+            ("cylinder", {**body, "wxyz": wxyz(rot)}),
+            ("sphere", {"radius": r, "position": a}),
+            ("sphere", {"radius": r, "position": b}),
+        ]
+    raise ValueError(f"unknown obstacle kind {kind!r}")
+
+
 def arrow(start, vector) -> np.ndarray:
     """One arrow as viser's (1, 2, 3) start/end points."""
     start = np.asarray(start, dtype=float)
@@ -180,12 +231,22 @@ def arrow(start, vector) -> np.ndarray:
 
 
 def cross_section_svg(
-    section: dict, pressures: np.ndarray, p_max: float, radius: float, size: int = 150
+    section: dict,
+    pressures: np.ndarray,
+    p_max: float,
+    radius: float,
+    size: int = 150,
+    tensions: np.ndarray | None = None,
+    t_max: float = 1.0,
 ) -> str:
-    """The chambered cross-section seen from the tip towards the base (d1 to the right, d2
-    up): outer disc, bore and chambers, each chamber filled by its channel's pressure
-    (white 0 to orange at ``p_max``) and labelled with its channel."""
-    scale = 0.45 * size / radius
+    """The cross-section seen from the tip towards the base (d1 to the right, d2 up): outer
+    disc, bore and chambers, each chamber filled by its channel's pressure (white 0 to
+    orange at ``p_max``) and labelled with its channel; each tendon a small disc where its
+    route starts in the section, filled by its tension (white 0 to blue at ``t_max``) and
+    labelled t and its channel."""
+    # The disc leaves a margin for the axis labels outside it (no label over a tendon on
+    # the rim).
+    scale = 0.40 * size / radius
     cx = cy = size / 2
 
     def xy(r, angle):
@@ -210,10 +271,24 @@ def cross_section_svg(
             f'stroke="#333"/><text x="{x:.2f}" y="{y + 4:.2f}" font-size="11" '
             f'text-anchor="middle" font-family="sans-serif">{ch["channel"]}</text>'
         )
+    for td in section.get("tendons", []):
+        x, y = xy(td["distance"], td["angle"])
+        k = td["channel"]
+        t = float(tensions[k]) if tensions is not None and k < len(tensions) else 0.0
+        f = min(max(t / t_max, 0.0), 1.0) if t_max > 0 else 0.0
+        fill = f"#{int(255 - 225 * f):02x}{int(255 - 155 * f):02x}ff"
+        # The label beside the disc, a quarter turn on (counter-clockwise along the rim): off
+        # the radial line where the chambers and the axis labels are.
+        lx, ly = x - 10 * math.sin(td["angle"]), y - 10 * math.cos(td["angle"])
+        parts.append(
+            f'<circle cx="{x:.2f}" cy="{y:.2f}" r="4" fill="{fill}" stroke="#1f3c88"/>'
+            f'<text x="{lx:.2f}" y="{ly + 3:.2f}" font-size="9" text-anchor="middle" '
+            f'font-family="sans-serif" fill="#1f3c88">t{k}</text>'
+        )
     parts.append(
-        f'<text x="{size - 4}" y="{cy - 4}" font-size="9" text-anchor="end" '
+        f'<text x="{size - 2}" y="{cy + 14}" font-size="9" text-anchor="end" '
         f'font-family="sans-serif" fill="#555">d1</text>'
-        f'<text x="{cx + 4}" y="10" font-size="9" font-family="sans-serif" fill="#555">d2</text>'
+        f'<text x="{cx + 14}" y="8" font-size="9" font-family="sans-serif" fill="#555">d2</text>'
         "</svg>"
     )
     return "".join(parts)
