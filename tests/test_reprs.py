@@ -26,6 +26,7 @@ def objects():
         "tendon design": load_design("prebent_finger_on_table"),
         "solution": sol,
         "tendon solution": solve_statics("prebent_tendon_finger", [20e3], tensions=[1.0]),
+        "finger": solve_statics("prebent_finger_on_table", [30e3]),
         "pinned solution": solve_statics(design, [0, 0, 0], tip_constraint=pin),
         "batch": softrod.solve_statics_batch(design, [[10e3, 0, 0], [0, 0, 0]]),
         "system": system,
@@ -39,7 +40,7 @@ def objects():
 
 
 def test_every_result_shows_one_short_line(objects):
-    for what, obj in objects.items():
+    for what, obj in [*objects.items(), ("contact", objects["finger"].contact)]:
         text = repr(obj)
         assert len(text) <= MAX_REPR, (what, len(text), text)
         assert "\n" not in text and "array(" not in text, (what, text)
@@ -60,6 +61,13 @@ def test_reprs_say_what_tells_results_apart(objects):
         f"{tip[2]:.2f}) mm, stable True, {sol.iterations} iterations)"
     )
     assert "T = [1] N" in repr(objects["tendon solution"])
+    contact = objects["finger"].contact
+    force = np.linalg.norm(contact.total_force[0]) * 1e3
+    assert repr(contact) == (
+        f"Contact(1 obstacle, force [{force:.4g}] mN, {int(contact.in_contact.sum())} node"
+        f"{'s' if contact.in_contact.sum() != 1 else ''} touching, deepest "
+        f"{contact.max_penetration * 1e3:.3g} mm)"
+    )
     assert "tip pinned, tip (5.00, 0.00, -125.00) mm" in repr(objects["pinned solution"])
     assert repr(objects["batch"]) == f"BatchSolution('{ARM}', 2 rows, 2 converged)"
     assert "2 rods: spa_three_chamber_130mm, spa_three_chamber_130mm" in repr(objects["system"])

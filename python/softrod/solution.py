@@ -99,6 +99,16 @@ class Contact:
         """(3,) resultant contact force of all obstacles on the rod, N."""
         return self.total_force.sum(axis=0)
 
+    def __repr__(self) -> str:
+        k = len(self.total_force)
+        forces = ", ".join(f"{np.linalg.norm(f) * 1e3:.4g}" for f in self.total_force)
+        touching = int(self.in_contact.sum())
+        depth = max(self.max_penetration, 0.0) * 1e3
+        return (
+            f"Contact({k} obstacle{'s' if k != 1 else ''}, force [{forces}] mN, "
+            f"{touching} node{'s' if touching != 1 else ''} touching, deepest {depth:.3g} mm)"
+        )
+
 
 def _mm(point) -> str:
     """'(x, y, z) mm' of a point in m, for reprs."""
