@@ -412,7 +412,8 @@ pub(crate) fn follow_path<E: Equations>(
     let mut iterations = 0;
     // An equilibrium at lambda = 1 off the stable path, kept in case no stable one is reached.
     let mut unstable_end: Option<PathOk> = None;
-    let start = Sides::start(&at(0.0).rods(&x0));
+    let origin = at(0.0);
+    let start = Sides::start(&origin.rods(&x0));
     if let Some(g) = guess {
         let full = at(1.0);
         match newton(&full, g, opts.tol, opts.max_iter) {
@@ -451,7 +452,7 @@ pub(crate) fn follow_path<E: Equations>(
         }
     }
     let mut lam = 0.0;
-    let mut stable = at(0.0).stable(&x0);
+    let mut stable = origin.stable(&x0);
     // The last level's rods, from which the next level's nodes must not cross an obstacle.
     let mut last = start;
     let mut x = x0;
