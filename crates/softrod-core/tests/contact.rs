@@ -14,6 +14,7 @@ use softrod_core::statics::constraint::{
     constraint_residual_and_jacobian, solve_constrained, TipConstraint,
 };
 use softrod_core::statics::contact::report;
+use softrod_core::statics::system::{solve_system, Platform, SystemRod};
 use softrod_core::statics::{residual, residual_and_jacobian, solve, SolverOptions};
 use softrod_core::{DesignSpec, Rod};
 
@@ -462,6 +463,172 @@ fn a_rod_sagging_onto_a_pin_rests_on_it_not_below_it() {
             assert!(reason.contains("beyond obstacles[0]"), "{reason}")
         }
         other => panic!("expected the crossing to be refused, got {other:?}"),
+    }
+}
+
+/// The top of the pin of `rod_over_pin`, 3 mm below the rod's base, and its axis (m).
+const PIN_TOP: f64 = -3e-3;
+const PIN_AXIS: f64 = PIN_TOP - 2e-3;
+
+/// A soft rod (0.2 m, EI = `ei`, 20 g) mounted horizontally along +x at (0, `y`, 0), in
+/// 2 mm steps, with (`pin`) or without a pin across its path: a capsule along y of radius
+/// 2 mm at x = 100 mm whose top is at `PIN_TOP` (k = 1e6 N/m^2, tolerance 1 mm).
+fn rod_over_pin(ei: f64, y: f64, pin: bool) -> Rod {
+    let sec = direct_section("rod", 0.2, 1e3, 5e2, ei, ei, 0.02, 100);
+    let mut d = design(vec![sec], HORIZONTAL, G);
+    d.mounting.base_position = [0.0, y, 0.0];
+    if pin {
+        let mut o = obstacle(ObstacleKind::Capsule, 1e6, 1e-3);
+        o.start = Some([0.1, y - 0.01, PIN_AXIS]);
+        o.end = Some([0.1, y + 0.01, PIN_AXIS]);
+        o.radius = Some(2e-3);
+        d.obstacles = vec![o];
+    }
+    Rod::new(d).unwrap()
+}
+
+/// The height of the node of `shape` nearest x = 0.1 m (over the pin).
+fn height_over_pin(shape: &softrod_core::statics::Shape) -> f64 {
+    let k = (0..shape.s.len())
+        .min_by(|&a, &b| {
+            (shape.position[a][0] - 0.1)
+                .abs()
+                .total_cmp(&(shape.position[b][0] - 0.1).abs())
+        })
+        .unwrap();
+    shape.position[k][2]
+}
+
+/// The soft rod of `rod_over_pin` (EI = 3e-3 N m^2) clamped at its base and held at its tip
+/// (clamped level, or pinned) 20 mm below the base at x = 0.2 m. Without the pin it passes
+/// wholly below the pin at x = 0.1 m, touching nothing: an equilibrium of the model with
+/// the pin too, but one the rod cannot reach from its unloaded shape without passing
+/// through the pin. The solve returns the rod resting on the pin, from a cold start and
+/// from a warm start at that shape; without continuation the warm start's equilibrium
+/// beyond the pin is refused, never returned. A softer rod (EI = 1e-3 N m^2) clamped level
+/// 10 mm below the base rests on the pin from a cold start too, where the solve's first
+/// path (from the free rod lying on the pin, the tip moved to its pose) lands against the
+/// pin's underside unless its levels are checked.
+#[test]
+fn a_held_rod_sagging_onto_a_pin_rests_on_it_not_below_it() {
+    let soft = rod_over_pin(1e-3, 0.0, true);
+    let clamp = TipConstraint::Clamped {
+        position: [0.2, 0.0, -0.01],
+        rotation: HORIZONTAL,
+    };
+    let sol =
+        solve_constrained(&soft, &loads(&[]), &clamp, None, &SolverOptions::default()).unwrap();
+    let z = height_over_pin(&sol.shape);
+    assert!(z > PIN_AXIS, "soft rod: below the pin at z = {z}");
+    let (free_rod, rod) = (
+        rod_over_pin(3e-3, 0.0, false),
+        rod_over_pin(3e-3, 0.0, true),
+    );
+    let l = loads(&[]);
+    let opts = SolverOptions::default();
+    let once = SolverOptions {
+        continuation: false,
+        ..opts
+    };
+    let tip = [0.2, 0.0, -0.02];
+    for held in [
+        TipConstraint::Clamped {
+            position: tip,
+            rotation: HORIZONTAL,
+        },
+        TipConstraint::Pinned { position: tip },
+    ] {
+        let free = solve_constrained(&free_rod, &l, &held, None, &opts).unwrap();
+        // Below the pin's bottom (its axis less its radius).
+        assert!(height_over_pin(&free.shape) < PIN_AXIS - 2e-3, "{held:?}");
+        for guess in [None, Some(&free.solution.x[..])] {
+            let sol = solve_constrained(&rod, &l, &held, guess, &opts)
+                .unwrap_or_else(|e| panic!("{held:?} guess {}: {e}", guess.is_some()));
+            // On top of the pin: above its axis, which parts its two sides (resting on it
+            // the rod sinks at most the tolerance, 1 mm, into its 2 mm radius), and the
+            // pin carries part of the weight.
+            let z = height_over_pin(&sol.shape);
+            assert!(
+                z > PIN_AXIS,
+                "{held:?} guess {}: below the pin at z = {z}",
+                guess.is_some()
+            );
+            let rep = report(&rod, &l, &sol.solution).unwrap().unwrap();
+            assert!(rep.force[0][2] > 0.0, "{held:?}: {:?}", rep.force[0]);
+        }
+        match solve_constrained(&rod, &l, &held, Some(&free.solution.x), &once) {
+            Err(SoftrodError::NotConverged { reason, .. }) => {
+                assert!(reason.contains("beyond obstacles[0]"), "{reason}")
+            }
+            Ok(sol) => panic!(
+                "{held:?}: expected the crossing to be refused, got z = {}",
+                height_over_pin(&sol.shape)
+            ),
+            Err(e) => panic!("{held:?}: expected the crossing to be refused, got {e}"),
+        }
+    }
+}
+
+/// Two soft rods of `rod_over_pin` (EI = 3e-3 N m^2) side by side, 40 mm apart, carry a
+/// massless platform at their tips (each tip clamped to it where it is unloaded), with the
+/// pin under one of them (rods[1]). Under their weight the rods sag 23 mm at x = 0.1 m
+/// without the pin, wholly below where it is; the system's equilibrium found from the
+/// unloaded rods has that rod resting on the pin, the other sagging freely. Without
+/// continuation the equilibrium below the pin is refused, naming the rod and the obstacle.
+#[test]
+fn a_system_rod_sagging_onto_a_pin_rests_on_it_not_below_it() {
+    let other = rod_over_pin(3e-3, -0.02, false);
+    let (free_rod, rod) = (
+        rod_over_pin(3e-3, 0.02, false),
+        rod_over_pin(3e-3, 0.02, true),
+    );
+    // The platform frame is the rods' base frame (HORIZONTAL: y_platform = -y_world) at
+    // the unloaded tips' midpoint, so the attachments are where the unloaded tips are.
+    fn system<'a>(other: &'a Rod, second: &'a Rod) -> Vec<SystemRod<'a>> {
+        let at = |rod, y: f64| SystemRod {
+            rod,
+            loads: loads(&[]),
+            attachment: [0.0, -y, 0.0],
+            attachment_rotation: common::IDENTITY,
+        };
+        vec![at(other, -0.02), at(second, 0.02)]
+    }
+    let platform = Platform {
+        position: [0.2, 0.0, 0.0],
+        rotation: HORIZONTAL,
+        force: [0.0; 3],
+        moment: [0.0; 3],
+        mass: 0.0,
+        com_offset: [0.0; 3],
+        gravity: [0.0, 0.0, -G],
+    };
+    let opts = SolverOptions::default();
+    let free = solve_system(&system(&other, &free_rod), &platform, None, &opts).unwrap();
+    assert!(height_over_pin(&free.rods[1].shape) < PIN_AXIS - 2e-3);
+    let rods = system(&other, &rod);
+    let sys = solve_system(&rods, &platform, None, &opts).unwrap();
+    // On top of the pin (above its axis, as for the held rod above), the pin carrying part
+    // of its weight; the rod without the pin hangs lower.
+    let z = height_over_pin(&sys.rods[1].shape);
+    assert!(z > PIN_AXIS, "below the pin at z = {z}");
+    let rep = report(&rod, &loads(&[]), &sys.rods[1].solution)
+        .unwrap()
+        .unwrap();
+    assert!(rep.force[0][2] > 0.0, "{:?}", rep.force[0]);
+    assert!(height_over_pin(&sys.rods[0].shape) < z);
+    let once = SolverOptions {
+        continuation: false,
+        ..opts
+    };
+    match solve_system(&rods, &platform, None, &once) {
+        Err(SoftrodError::NotConverged { reason, .. }) => {
+            assert!(reason.contains("beyond rods[1].obstacles[0]"), "{reason}")
+        }
+        Ok(sys) => panic!(
+            "expected the crossing to be refused, got z = {}",
+            height_over_pin(&sys.rods[1].shape)
+        ),
+        Err(e) => panic!("expected the crossing to be refused, got {e}"),
     }
 }
 

@@ -25,7 +25,9 @@
 //!
 //! Continuation: a path from the unloaded reference shape (x = 0 at load factor 0, where
 //! the constraint is set at the reference tip pose) to the full loads and the prescribed
-//! pose, the loads ramped and the pose interpolated along the geodesic.
+//! pose, the loads ramped and the pose interpolated along the geodesic. With obstacles no
+//! node may pass through one on the way (`follow_path`; docs/contact.md, "The side an
+//! obstacle is on").
 //!
 //! Stability (`Conjugate`, docs/model.md "End constraints"): the second variation with
 //! both ends' positions held. The six Jacobi fields that start at the clamp (columns: the
@@ -45,6 +47,7 @@
 //! dual numbers, and the rounded end's force acts at the held point (dr(L) = 0), where it
 //! does no work and adds nothing to the tip form.
 
+use super::contact::{crossing_error, Sides};
 use super::SolverOptions;
 use super::{eigenvalues_right_half_plane, inf_norm, rotation_field, Problem, Shape, Solution};
 use crate::error::{Result, SoftrodError};
@@ -255,6 +258,30 @@ pub(crate) trait Equations {
     fn stable(&self, _x: &[f64]) -> Option<bool> {
         None
     }
+    /// Whether the rods are a system's (a crossing names the rod).
+    const SYSTEM: bool = false;
+    /// The rods' problems and each one's unknowns in x, for the crossing check
+    /// (`contact::Sides`); none by default.
+    fn rods<'s>(&'s self, _x: &'s [f64]) -> Vec<(&'s Problem<'s>, &'s [f64])> {
+        Vec::new()
+    }
+}
+
+/// The rods of `eq` at the solution x as seen from `from` (`contact::Sides`), and the first
+/// node path between them that passes through an obstacle. Nothing is computed where no
+/// rod is checked.
+fn sides_at<E: Equations>(
+    eq: &E,
+    from: &Sides,
+    x: &[f64],
+) -> (Sides, Option<super::contact::Crossing>) {
+    if from.unchecked() {
+        return (Sides::start(&[]), None);
+    }
+    let rods = eq.rods(x);
+    let to = from.at(&rods);
+    let crossed = from.crossing(&to, &rods, E::SYSTEM);
+    (to, crossed)
 }
 
 pub(crate) struct NewtonOk {
@@ -371,6 +398,11 @@ const MIN_STABLE_STEP: f64 = 1.0 / 1024.0;
 /// from the last two levels. `at(lambda)` builds the equations of a level. A warm start
 /// `guess` of the full problem is tried first; if it lands on an unstable equilibrium the
 /// path is followed too, and that one is kept in case the path ends no better.
+/// With obstacles (docs/contact.md, "The side an obstacle is on") the answer must be
+/// reached from x0 (the unloaded rods, or a shape reached from them) without a node's path
+/// passing through an obstacle: each level is checked against the last and retried in
+/// half the step where it crosses (down to `super::MIN_CROSSING_STEP`); a warm start's
+/// equilibrium is checked against x0 and never kept when it crosses.
 pub(crate) fn follow_path<E: Equations>(
     at: impl Fn(f64) -> E,
     x0: Vec<f64>,
@@ -380,20 +412,31 @@ pub(crate) fn follow_path<E: Equations>(
     let mut iterations = 0;
     // An equilibrium at lambda = 1 off the stable path, kept in case no stable one is reached.
     let mut unstable_end: Option<PathOk> = None;
+    let origin = at(0.0);
+    let start = Sides::start(&origin.rods(&x0));
     if let Some(g) = guess {
-        match newton(&at(1.0), g, opts.tol, opts.max_iter) {
+        let full = at(1.0);
+        match newton(&full, g, opts.tol, opts.max_iter) {
             Ok(c) => {
-                let out = PathOk {
-                    x: c.x,
-                    residual: c.residual,
-                    iterations: c.iterations,
-                    load_steps: 1,
-                };
-                if !opts.continuation || at(1.0).stable(&out.x) != Some(false) {
-                    return Ok(out);
-                }
                 iterations += c.iterations;
-                unstable_end = Some(out);
+                // An equilibrium beyond an obstacle is not the answer, nor a fallback: the
+                // path from x0 finds the one on its side.
+                if let (_, Some(crossed)) = sides_at(&full, &start, &c.x) {
+                    if !opts.continuation {
+                        return Err(crossing_error(crossed, None));
+                    }
+                } else {
+                    let out = PathOk {
+                        x: c.x,
+                        residual: c.residual,
+                        iterations: c.iterations,
+                        load_steps: 1,
+                    };
+                    if !opts.continuation || full.stable(&out.x) != Some(false) {
+                        return Ok(out);
+                    }
+                    unstable_end = Some(out);
+                }
             }
             Err((it, res)) => {
                 iterations += it;
@@ -409,7 +452,9 @@ pub(crate) fn follow_path<E: Equations>(
         }
     }
     let mut lam = 0.0;
-    let mut stable = at(0.0).stable(&x0);
+    let mut stable = origin.stable(&x0);
+    // The last level's rods, from which the next level's nodes must not cross an obstacle.
+    let mut last = start;
     let mut x = x0;
     let mut prev: Option<(f64, Vec<f64>)> = None;
     let mut step: f64 = 1.0;
@@ -447,10 +492,22 @@ pub(crate) fn follow_path<E: Equations>(
         } else {
             opts.tol
         };
-        match newton(&at(target), predicted, tol, opts.max_iter) {
+        let level = at(target);
+        match newton(&level, predicted, tol, opts.max_iter) {
             Ok(c) => {
                 iterations += c.iterations;
-                let st = at(target).stable(&c.x);
+                let (sides, crossed) = sides_at(&level, &last, &c.x);
+                if let Some(crossed) = crossed {
+                    if h <= super::MIN_CROSSING_STEP || !opts.continuation {
+                        return fallback(
+                            unstable_end,
+                            crossing_error(crossed, opts.continuation.then_some(h)),
+                        );
+                    }
+                    step = 0.5 * h;
+                    continue;
+                }
+                let st = level.stable(&c.x);
                 let left_path = stable == Some(true) && st == Some(false);
                 if target >= 1.0 {
                     let out = PathOk {
@@ -471,6 +528,7 @@ pub(crate) fn follow_path<E: Equations>(
                     continue;
                 }
                 stable = st;
+                last = sides;
                 prev = Some((lam, std::mem::replace(&mut x, c.x)));
                 lam = target;
                 step = match c.iterations {
@@ -646,6 +704,10 @@ impl Equations for Level<'_> {
 
     fn stable(&self, x: &[f64]) -> Option<bool> {
         constrained_stability(&self.p, x, &self.constraint)
+    }
+
+    fn rods<'s>(&'s self, x: &'s [f64]) -> Vec<(&'s Problem<'s>, &'s [f64])> {
+        vec![(&self.p, x)]
     }
 }
 

@@ -2,7 +2,7 @@
 //! reports about its contacts. The penalty law itself is `crate::contact`; it enters the
 //! shooting ODE as a position-dependent line load, so the shooting Jacobian stays exact.
 
-use crate::contact::{node_contact, NodeContact, Obstacle};
+use crate::contact::{node_contact, NodeContact, Obstacle, Surface};
 use crate::error::{Result, SoftrodError};
 use crate::jet::RodScalar;
 use crate::ode::{integrate_with, step_quadrature, Loads, NodeAt, State};
@@ -142,16 +142,114 @@ pub(crate) fn clear(obstacles: &[Obstacle], a: &[(f64, [f64; 3], f64)]) -> bool 
     })
 }
 
-/// The error for a solve whose rod passes through obstacle `k` at arc length `s` (depth
-/// `depth`, m) on the way from its unloaded shape: in load steps down to `step`, or (None)
-/// to the equilibrium Newton found from the start it was given, without continuation.
-pub(crate) fn crossing_error(k: usize, s: f64, depth: f64, step: Option<f64>) -> SoftrodError {
+/// The nodes of the rod of problem `p` at the unknowns `x` of the shape a solve starts from
+/// (its unloaded rod), from which its answer must be reachable without a node's path
+/// crossing an obstacle ([`crossing`]); None where nothing is to be checked: no obstacle
+/// a straight path can cross without ending inside it (planes only: the gap is linear along
+/// the path, so tables and walls cost no extra pass), or a start already inside one.
+pub(crate) fn start_nodes(p: &Problem, x: &[f64]) -> Option<NodePoints> {
+    let obstacles = p.rod.obstacles.as_deref().filter(|o| crossable(o))?;
+    let shape = node_points(p, x);
+    clear(obstacles, &shape).then_some(shape)
+}
+
+/// Whether a straight node path could pass through one of `obstacles` and end outside it:
+/// not through a plane.
+pub(crate) fn crossable(obstacles: &[Obstacle]) -> bool {
+    obstacles
+        .iter()
+        .any(|o| !matches!(o.surface, Surface::Plane { .. }))
+}
+
+/// A node path that passes through an obstacle ([`crossing`]): the rod (its index in a
+/// system; None for a lone rod), the obstacle, the node's arc length s (m) and how deep the
+/// path goes (m).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Crossing {
+    pub rod: Option<usize>,
+    pub obstacle: usize,
+    pub s: f64,
+    pub depth: f64,
+}
+
+impl Crossing {
+    /// A lone rod's crossing, from [`crossing`]'s (obstacle, s, depth).
+    pub(crate) fn lone((obstacle, s, depth): (usize, f64, f64)) -> Self {
+        Crossing {
+            rod: None,
+            obstacle,
+            s,
+            depth,
+        }
+    }
+}
+
+/// The rods of a held-tip or system solve at one shape, for the crossing check: per rod,
+/// its nodes (None where its crossings are not checked, [`start_nodes`]).
+pub(crate) struct Sides(Vec<Option<NodePoints>>);
+
+impl Sides {
+    /// At the shape a path starts from: each rod's problem and unknowns.
+    pub(crate) fn start(rods: &[(&Problem, &[f64])]) -> Self {
+        Sides(rods.iter().map(|(p, x)| start_nodes(p, x)).collect())
+    }
+
+    /// Whether no rod's crossings are checked (nothing to compute along the path).
+    pub(crate) fn unchecked(&self) -> bool {
+        self.0.iter().all(Option::is_none)
+    }
+
+    /// The same rods at another shape (the rods checked at the start only).
+    pub(crate) fn at(&self, rods: &[(&Problem, &[f64])]) -> Self {
+        Sides(
+            self.0
+                .iter()
+                .zip(rods)
+                .map(|(a, (p, x))| a.as_ref().map(|_| node_points(p, x)))
+                .collect(),
+        )
+    }
+
+    /// The first node path from `self` to `to` that passes through an obstacle; `rods`
+    /// gives the obstacles, and `system` whether the rods are a system's (named by index).
+    pub(crate) fn crossing(
+        &self,
+        to: &Sides,
+        rods: &[(&Problem, &[f64])],
+        system: bool,
+    ) -> Option<Crossing> {
+        self.0
+            .iter()
+            .zip(&to.0)
+            .zip(rods)
+            .enumerate()
+            .find_map(|(i, ((a, b), (p, _)))| {
+                let (a, b, obstacles) = (a.as_ref()?, b.as_ref()?, p.rod.obstacles.as_deref()?);
+                crossing(obstacles, a, b).map(|(obstacle, s, depth)| Crossing {
+                    rod: system.then_some(i),
+                    obstacle,
+                    s,
+                    depth,
+                })
+            })
+    }
+}
+
+/// The error for a solve whose rod passes through an obstacle (`c`) on the way from its
+/// unloaded shape: in load steps down to `step`, or (None) to the equilibrium Newton found
+/// from the start it was given, without continuation.
+pub(crate) fn crossing_error(c: Crossing, step: Option<f64>) -> SoftrodError {
+    let (k, s, depth) = (c.obstacle, c.s, c.depth);
+    let name = match c.rod {
+        Some(i) => format!("rods[{i}].obstacles[{k}]"),
+        None => format!("obstacles[{k}]"),
+    };
     let reason = match step {
         Some(step) => format!(
-            "no equilibrium reached from the unloaded rod without passing through obstacles[{k}]: the node at s = {s:.6} m goes {depth:.3e} m into it between load levels even in load steps of {step:.3e} (the load pushes the rod through the penalty: raise the obstacle's stiffness, or its tolerance)"
+            "no equilibrium reached from the unloaded rod without passing through {name}: the node at s = {s:.6} m goes {depth:.3e} m into it between load levels even in load steps of {step:.3e} (the load pushes the rod through the penalty: raise the obstacle's stiffness, or its tolerance)"
         ),
         None => format!(
-            "the equilibrium found from the given start lies beyond obstacles[{k}]: the node at s = {s:.6} m would pass {depth:.3e} m into it on the way from the unloaded rod; turn continuation on to follow the load from the unloaded rod"
+            "the equilibrium found from the given start lies beyond {name}: the node at s = {s:.6} m would pass {depth:.3e} m into it on the way from the unloaded rod; turn continuation on to follow the load from the unloaded rod"
         ),
     };
     SoftrodError::NotConverged {

@@ -1117,11 +1117,14 @@ fn solve_n<const N: usize, const M: usize>(
         .map(|g| -> [f64; N] { std::array::from_fn(|i| g[i]) });
     // With obstacles: the unloaded rod's nodes, from which an equilibrium must be
     // reachable without passing through an obstacle (`contact::crossing`); None where
-    // nothing is to be checked.
-    let unloaded = rod.obstacles.as_ref().and_then(|obstacles| {
-        let shape = contact::node_points(&Problem::new(rod, loads, 0.0), &[0.0; N]);
-        contact::clear(obstacles, &shape).then_some((&obstacles[..], shape))
-    });
+    // nothing is to be checked (planes only: not even the unloaded problem is built).
+    let unloaded = rod
+        .obstacles
+        .as_deref()
+        .filter(|o| contact::crossable(o))
+        .and_then(|o| {
+            contact::start_nodes(&Problem::new(rod, loads, 0.0), &[0.0; N]).map(|s| (o, s))
+        });
     if let Some(g) = guess {
         let full = Problem::new(rod, loads, 1.0);
         match full.newton(g, Start::Guess, opts) {
@@ -1146,7 +1149,7 @@ fn solve_n<const N: usize, const M: usize>(
                 iterations = c.iterations;
                 // Never kept as a fallback: the path's own failure says more.
                 first = Some(match crossed {
-                    Some((k, s, depth)) => Err(contact::crossing_error(k, s, depth, None)),
+                    Some(c) => Err(contact::crossing_error(contact::Crossing::lone(c), None)),
                     None => out,
                 });
             }
@@ -1267,7 +1270,7 @@ const MIN_STABLE_STEP: f64 = 1.0 / 64.0;
 /// A level whose rod passes through an obstacle is retried in half the load step, down to
 /// this one: below it the load pushes the rod through the penalty (its stiffness is too
 /// low for the load), not a too-long step.
-const MIN_CROSSING_STEP: f64 = 1e-4;
+pub(crate) const MIN_CROSSING_STEP: f64 = 1e-4;
 /// How far (infinity norm of the scaled unknowns, about the rod's rotation in rad) the
 /// first load step moves the solution along the tangent before its prediction is measured
 /// (`FIRST_ERROR`); the full load is tried at once when its tangent prediction moves less.
@@ -1422,14 +1425,12 @@ fn natural_path<const N: usize, const M: usize>(
                 // The level's nodes reached without passing through an obstacle.
                 let shape = obstacles.map(|o| (o, contact::node_points(&p, &c.x)));
                 if let Some((o, shape)) = &shape {
-                    if let Some((k, s, depth)) = contact::crossing(o, &last_shape, shape) {
+                    if let Some(cr) = contact::crossing(o, &last_shape, shape) {
                         if h <= MIN_CROSSING_STEP || !opts.continuation {
                             return better(
                                 unstable_end,
                                 Err(contact::crossing_error(
-                                    k,
-                                    s,
-                                    depth,
+                                    contact::Crossing::lone(cr),
                                     opts.continuation.then_some(h),
                                 )),
                             );

@@ -18,7 +18,8 @@
 //! block-sparse Jacobian is exact at the cost of one dual integration per rod. Newton and
 //! continuation as `constraint::follow_path`: loads and the platform load ramped from zero,
 //! the attachments moved from where the unloaded rods' tips are (relative to the platform's
-//! nominal pose) to the given ones, kept on the stable path.
+//! nominal pose) to the given ones, kept on the stable path and on the side of each rod's
+//! obstacles that the unloaded rods are on (docs/contact.md, "The side an obstacle is on").
 //!
 //! Stability (`Level::stable`): the second variation of the system's energy (the rods' and
 //! the platform load's potential) over variations that keep every tip on its attachment.
@@ -295,6 +296,16 @@ impl Equations for Level<'_> {
         });
         out[k..k + 3].copy_from_slice(&log_so3(&rel));
         out
+    }
+
+    const SYSTEM: bool = true;
+
+    fn rods<'s>(&'s self, x: &'s [f64]) -> Vec<(&'s Problem<'s>, &'s [f64])> {
+        self.problems
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (p, &x[6 * i..6 * i + 6]))
+            .collect()
     }
 
     fn stable(&self, x: &[f64]) -> Option<bool> {
