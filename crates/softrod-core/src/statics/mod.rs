@@ -1078,8 +1078,8 @@ fn solve_inner(
     let violations = check_inputs(rod, loads, opts)?;
     // Single shooting's sensitivity grows like exp(int sqrt(|n| / EI) ds): long, soft rods
     // under their own weight go to collocation (docs/model.md, "Collocation"), which
-    // carries the features of docs/scope.md except a constant reference shape with the
-    // linear law: the others stay with shooting.
+    // carries reference shapes (constant or tabulated) and tapers; rods with tendons or
+    // follower loads stay with shooting (`scope::check_statics_only_with`).
     // Contact needs the position in the state, which collocation does not carry: rods
     // with obstacles are shot (docs/contact.md).
     if collocation::shooting_ill_conditioned(rod, loads)
