@@ -6,6 +6,7 @@ import matplotlib
 import numpy as np
 import pandas as pd
 import pytest
+import softrod
 from softrod import InputError, SolverOptions, load_design, solve_statics
 from softrod.io import write_table
 from softrod.plotting import plot_shape, save_figure
@@ -79,6 +80,37 @@ def test_plot_shape_many_solutions_with_frames(tmp_path):
     np.testing.assert_allclose(aspect / aspect.max(), spans / spans.max(), rtol=1e-9)
     path = save_figure(fig, tmp_path / "shapes.pdf")
     assert path.read_bytes()[:5] == b"%PDF-"
+
+
+def test_plot_shape_draws_the_applied_tip_force_not_reactions_or_contact():
+    """The arrow is the tip load the solve was given: a held tip's reaction (4.8 N here) and
+    the table's push on the finger's rounded end (46 mN) are in the tip's total force but
+    are not tip forces; a follower force is drawn turned with the tip."""
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    pin = softrod.TipConstraint.pinned(["5 mm", "0 mm", "-125 mm"])
+    held = solve_statics("spa_three_chamber_130mm", [0, 0, 0], tip_constraint=pin)
+    pressed = solve_statics("prebent_finger_on_table", [30e3])
+    assert np.linalg.norm(held.tip_reaction_force) > 1.0
+    assert pressed.contact.end_force[0][2] > 0.01
+    for sol in (held, pressed):
+        fig = plot_shape(sol)
+        ax3d = fig.axes[0]
+        assert not [c for c in ax3d.collections if isinstance(c, Line3DCollection)]
+        assert not any("tip force" in t.get_text() for t in fig.legends[0].get_texts())
+    follower = load_design("spa_three_chamber_130mm").replace(
+        {"tip.frame": "body", "tip.force": ["0.5 N", "0 N", "0 N"]}
+    )
+    sol = solve_statics(follower, [30e3, 0, 0])
+    fig = plot_shape(sol)
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert "tip force 0.5 N (arrows to scale)" in labels
+    top = fig.axes[1]
+    start, end = np.asarray(top.texts[0].xyann), np.asarray(top.texts[0].xy)
+    # Along the tip's d1 (its horizontal part, as the top view draws it).
+    d1 = sol.tip_rotation[:2, 0]
+    arrow = end - start
+    assert abs(arrow @ d1) / (np.linalg.norm(arrow) * np.linalg.norm(d1)) > 1 - 1e-9
 
 
 def test_plot_shape_draws_tip_forces_to_scale():

@@ -108,11 +108,15 @@ def style_3d_axes(ax) -> None:
 
 
 def _tip_force(solution: StaticSolution) -> np.ndarray:
-    """The dead tip force applied at the rod tip (world frame, N): the total force at the
-    tip minus the tip body's weight (the rod's tip balance, docs/model.md)."""
+    """The tip force the solution was solved under (world frame, N): the call's or the
+    design's, turned by the tip's rotation for a follower load. Not the total force at the
+    tip, which also holds a held tip's reaction and the contact force on the rounded end."""
     design = solution.design
-    gravity = np.asarray(design.spec["mounting"]["gravity"], dtype=float)
-    return np.asarray(solution.force[-1], dtype=float) - design.tip_mass * gravity
+    loads = solution.tip_loads
+    force = np.asarray(design.spec["tip"]["force"] if loads is None else loads[0], dtype=float)
+    if design.spec["tip"].get("frame") == "body":
+        return np.asarray(solution.rotation[-1], dtype=float) @ force
+    return force
 
 
 def _magnitude_label(newtons: float) -> str:
@@ -137,8 +141,11 @@ def plot_shape(
     each shape's chamber pressures in kPa. A dead tip force (the call's ``tip_force`` or the
     design's ``[tip] force``) is an arrow at the tip, in the shape's colour, with its
     magnitude in the legend; the arrows share one scale, the largest as long as a quarter of
-    the shape. ``show_frames`` adds the director triads d1, d2, d3 (red, green, blue) at a
-    few nodes. Solutions that did not converge are listed but not drawn.
+    the shape (a follower load is drawn as it acts, turned with the tip; a held tip's
+    reaction and contact forces are not tip forces: :attr:`StaticSolution.tip_reaction_force`
+    and :attr:`StaticSolution.contact` give them). ``show_frames`` adds the director triads
+    d1, d2, d3 (red, green, blue) at a few nodes. Solutions that did not converge are listed
+    but not drawn.
     """
     import matplotlib as mpl
     from matplotlib.lines import Line2D
