@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from softrod import (
     ConvergenceError,
     DesignError,
+    InputError,
     InvalidStateError,
     SoftrodError,
     TipConstraint,
@@ -213,6 +214,23 @@ def test_penetration_beyond_the_tolerance_is_an_error():
     assert info.value.rule == "penetration"
 
 
+def test_an_obstacle_through_the_unloaded_rod_is_refused_before_any_solve():
+    # The 130 mm actuator hangs to z = -131 mm: a table at -100 mm cuts it, a pin 20 mm off
+    # its axis lies inside its 21.1 mm radius. Named, with the depth and the fix (before:
+    # a singular Jacobian, or a failed load step blamed on snap-through).
+    arm = load_design("spa_three_chamber_130mm")
+    table = {"kind": "plane", "point": ["0 mm", "0 mm", "-100 mm"], "normal": [0, 0, 1]}
+    pin = {"kind": "capsule", "start": ["-30 mm", "20 mm", "-90 mm"], "radius": "4 mm"}
+    pin["end"] = ["30 mm", "20 mm", "-90 mm"]
+    for ob in (table, pin):
+        design = arm.with_obstacles([{**ob, "stiffness": "1e7 N/m^2", "tolerance": "0.2 mm"}])
+        for p in ([0, 0, 0], [40e3, 0, 0]):
+            with pytest.raises(InputError) as info:
+                solve_statics(design, p)
+            assert info.value.field == "obstacles[0]"
+            assert "the unloaded rod" in str(info.value) and "move the obstacle" in str(info.value)
+
+
 def test_solvers_without_contact_refuse_obstacles():
     design = load_design(beam_over(plane(-1.0), steps=20))
     with pytest.raises(SoftrodError) as info:
@@ -275,6 +293,23 @@ def test_property_contact_answers_are_balanced_or_errors(height_mm, k_exp, radiu
             "tolerance": f"{tol_mm} mm",
         }
     design = load_design(beam_over(ob, steps=100))
+    # The unloaded beam (straight along +x at z = 0, centreline contact) at its 101 nodes:
+    # an obstacle it already sinks into beyond the tolerance has no load path and is
+    # refused by name before any solve.
+    x = np.linspace(0.0, 0.5, 101)
+    if kind == "plane":
+        depth = height_mm * 1e-3
+    else:
+        centre = np.array([x_mm, 0.0, height_mm - radius_mm]) * 1e-3
+        gaps = np.hypot(x - centre[0], centre[2])
+        depth = float(np.max(radius_mm * 1e-3 - gaps))
+    if abs(depth - tol_mm * 1e-3) < 1e-12:
+        return  # on the rule's edge to round-off: either answer is right
+    if depth > tol_mm * 1e-3:
+        with pytest.raises(InputError) as info:
+            solve_statics(design, [])
+        assert info.value.field == "obstacles[0]" and "unloaded rod" in str(info.value)
+        return
     try:
         sol = solve_statics(design, [])
     except (ConvergenceError, InvalidStateError) as exc:

@@ -148,6 +148,28 @@ def test_dynamic_sensitivities_carry_contact():
     np.testing.assert_allclose(d, fd, rtol=0, atol=1e-3 * np.abs(d).max())
 
 
+def test_an_obstacle_through_the_unloaded_rod_is_refused_before_the_start():
+    # A table at z = -100 mm cuts the 130 mm actuator hanging at rest: both starts begin
+    # at that shape, so neither has a state to start from; the error names the obstacle
+    # (before: a penetration error at t = 0 suggesting a stiffer penalty).
+    arm = load_design("spa_three_chamber_130mm").with_obstacles(
+        [
+            {
+                "kind": "plane",
+                "point": ["0 mm", "0 mm", "-100 mm"],
+                "normal": [0, 0, 1],
+                "stiffness": "1e7 N/m^2",
+                "tolerance": "0.2 mm",
+            }
+        ]
+    )
+    for initial in ("static", "straight"):
+        with pytest.raises(SoftrodError) as info:
+            simulate(arm, [0, 0, 0], 0.01, initial=initial)
+        assert info.value.field == "obstacles[0]"
+        assert "the unloaded rod" in str(info.value)
+
+
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     kind=st.sampled_from(["plane", "sphere", "cylinder", "capsule"]),

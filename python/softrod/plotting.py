@@ -23,6 +23,7 @@ _PASSIVE = {"color": "0.55", "linewidth": 3.0, "solid_capstyle": "butt"}
 _RIGID = {"color": "0.15", "linewidth": 5.0, "solid_capstyle": "butt"}
 _CHAMBER_WIDTH = 3.0
 _FRAME_COLOURS = ("tab:red", "tab:green", "tab:blue")  # d1, d2, d3
+_OBSTACLE = {"color": "0.55", "alpha": 0.3}  # the design's obstacles (docs/contact.md)
 _N_FRAMES = 7  # director triads drawn along each rod with show_frames=True
 
 
@@ -143,7 +144,9 @@ def plot_shape(
     magnitude in the legend; the arrows share one scale, the largest as long as a quarter of
     the shape (a follower load is drawn as it acts, turned with the tip; a held tip's
     reaction and contact forces are not tip forces: :attr:`StaticSolution.tip_reaction_force`
-    and :attr:`StaticSolution.contact` give them). ``show_frames`` adds the director triads
+    and :attr:`StaticSolution.contact` give them). The designs' obstacles are drawn
+    translucent grey in the 3-D view: planes and infinite cylinders cut to the view, spheres
+    and capsules whole. ``show_frames`` adds the director triads
     d1, d2, d3 (red, green, blue) at a few nodes. Solutions that did not converge are listed
     but not drawn.
     """
@@ -253,10 +256,20 @@ def plot_shape(
                 label=f"tip force {', '.join(magnitudes)} (arrows to scale)",
             )
         )
+    obstacles = _obstacles(sols) if points is not None else []
+    if obstacles:
+        points = np.concatenate([points, _finite_obstacle_points(obstacles)])
     if points is not None:
         _equal_box(ax, points)
     else:
         style_3d_axes(ax)
+    if obstacles:
+        lo = np.array([ax.get_xlim()[0], ax.get_ylim()[0], ax.get_zlim()[0]])
+        hi = np.array([ax.get_xlim()[1], ax.get_ylim()[1], ax.get_zlim()[1]])
+        _draw_obstacles(ax, obstacles, lo, hi)
+        from matplotlib.patches import Patch
+
+        handles.append(Patch(label="obstacle (3-D view)", **_OBSTACLE))
     handles.append(Line2D([], [], color="black", marker="s", linestyle="none", label="base"))
     if "passive" in kinds_seen:
         handles.append(Line2D([], [], label="passive section (cap)", **_PASSIVE))
@@ -282,6 +295,121 @@ def plot_shape(
         ax.set_title(title)
         ax.legend(handles=handles, loc="upper left", fontsize="small", framealpha=0.85)
     return fig
+
+
+def _obstacles(sols: list[StaticSolution]) -> list[dict]:
+    """The obstacles of the designs drawn (SI, as in the spec), each once."""
+    out: list[dict] = []
+    for sol in sols:
+        for ob in sol.design.spec.get("obstacles", []):
+            if ob not in out:
+                out.append(ob)
+    return out
+
+
+def _finite_obstacle_points(obstacles: list[dict]) -> np.ndarray:
+    """Corners (mm) of the boxes around the spheres and capsules, so the view holds them
+    (planes and infinite cylinders are cut to the view instead)."""
+    pts = []
+    for ob in obstacles:
+        ends = {"sphere": ["center"], "capsule": ["start", "end"]}.get(ob["kind"], [])
+        for key in ends:
+            c = np.asarray(ob[key], float)
+            pts += [c - ob["radius"], c + ob["radius"]]
+    return np.array(pts).reshape(-1, 3) * 1e3
+
+
+def _normal_basis(axis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(unit axis, e1, e2): a right-handed basis with e1, e2 across the axis."""
+    z = np.asarray(axis, float) / np.linalg.norm(axis)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(helper, z)
+    e1 /= np.linalg.norm(e1)
+    return z, e1, np.cross(z, e1)
+
+
+def _plane_in_box(point, normal, lo, hi) -> np.ndarray:
+    """The polygon (m, 3) where a plane cuts the box [lo, hi], ordered around its centre
+    (empty when the plane misses the box)."""
+    n = np.asarray(normal, float)
+    corners = np.array(
+        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    )
+    dist = (corners - np.asarray(point, float)) @ n
+    pts = []
+    for i in range(8):
+        for j in range(i + 1, 8):
+            if np.count_nonzero(corners[i] != corners[j]) != 1:
+                continue  # not an edge of the box
+            if dist[i] * dist[j] < 0 or (dist[i] == 0.0):
+                t = dist[i] / (dist[i] - dist[j]) if dist[i] != dist[j] else 0.0
+                pts.append(corners[i] + t * (corners[j] - corners[i]))
+    if len(pts) < 3:
+        return np.zeros((0, 3))
+    pts = np.array(pts)
+    _, e1, e2 = _normal_basis(n)
+    c = pts.mean(axis=0)
+    order = np.argsort(np.arctan2((pts - c) @ e2, (pts - c) @ e1))
+    return pts[order]
+
+
+def _tube_surface(ax, a, b, radius) -> None:
+    """A cylinder of ``radius`` from a to b (mm), as a translucent surface."""
+    z, e1, e2 = _normal_basis(np.asarray(b) - np.asarray(a))
+    th = np.linspace(0.0, 2.0 * np.pi, 25)
+    ring = radius * (np.outer(np.cos(th), e1) + np.outer(np.sin(th), e2))
+    grid = np.stack([np.asarray(a) + ring, np.asarray(b) + ring])  # (2, 25, 3)
+    ax.plot_surface(grid[..., 0], grid[..., 1], grid[..., 2], linewidth=0, **_OBSTACLE)
+
+
+def _ball_surface(ax, centre, radius) -> None:
+    u, v = np.meshgrid(np.linspace(0, 2 * np.pi, 25), np.linspace(0, np.pi, 13))
+    x = centre[0] + radius * np.cos(u) * np.sin(v)
+    y = centre[1] + radius * np.sin(u) * np.sin(v)
+    z = centre[2] + radius * np.cos(v)
+    ax.plot_surface(x, y, z, linewidth=0, **_OBSTACLE)
+
+
+def _draw_obstacles(ax, obstacles: list[dict], lo, hi) -> None:
+    """Draw the obstacles (mm) in the 3-D view whose limits are [lo, hi]: planes and
+    infinite cylinders as their part inside the view, spheres and capsules whole."""
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    for ob in obstacles:
+        kind = ob["kind"]
+        if kind == "plane":
+            poly = _plane_in_box(np.asarray(ob["point"]) * 1e3, ob["normal"], lo, hi)
+            if len(poly):
+                ax.add_collection3d(
+                    Poly3DCollection(
+                        [poly],
+                        facecolor=_OBSTACLE["color"],
+                        edgecolor="0.4",
+                        alpha=_OBSTACLE["alpha"],
+                    )
+                )
+        elif kind == "sphere":
+            _ball_surface(ax, np.asarray(ob["center"]) * 1e3, ob["radius"] * 1e3)
+        elif kind == "capsule":
+            a, b, r = np.asarray(ob["start"]) * 1e3, np.asarray(ob["end"]) * 1e3, ob["radius"] * 1e3
+            _tube_surface(ax, a, b, r)
+            _ball_surface(ax, a, r)
+            _ball_surface(ax, b, r)
+        elif kind == "cylinder":
+            # The axis cut to the view (slab method on the box widened by the radius).
+            p, d = np.asarray(ob["point"]) * 1e3, np.asarray(ob["axis"], float)
+            d = d / np.linalg.norm(d)
+            r = ob["radius"] * 1e3
+            t0, t1 = -np.inf, np.inf
+            for i in range(3):
+                if abs(d[i]) < 1e-12:
+                    if not lo[i] - r <= p[i] <= hi[i] + r:
+                        t0, t1 = 1.0, 0.0  # parallel to this slab and outside it
+                    continue
+                ta, tb = sorted(((lo[i] - r - p[i]) / d[i], (hi[i] + r - p[i]) / d[i]))
+                t0, t1 = max(t0, ta), min(t1, tb)
+            if t0 < t1:
+                _tube_surface(ax, p + t0 * d, p + t1 * d, r)
 
 
 def _draw_frames(ax, pos_mm: np.ndarray, rot: np.ndarray) -> None:

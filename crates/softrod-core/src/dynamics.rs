@@ -859,6 +859,17 @@ impl Simulator {
         }
         let sigma = sigma_map.eval(pressures)?;
         rod.check_loads(pressures, &sigma)?;
+        // Both starts begin at the unloaded rod (the 'straight' one is it, the 'static' one
+        // follows the loads from it): an obstacle it already sinks into is refused by name.
+        let at_rest = Loads {
+            pressures: pressures.to_vec(),
+            tensions: tensions.to_vec(),
+            tip_force,
+            tip_moment,
+            tip_frame: rod.spec.tip.frame,
+            stiffness_scale: sigma,
+        };
+        statics::contact::clear_at_rest(&rod, &at_rest)?;
         let grid = Grid::new(&rod);
         // Inertia per model slot of the grid (a tapered section's at each stage point).
         let inertia: Vec<SectionInertia> = grid

@@ -345,6 +345,43 @@ fn penetration_beyond_tolerance_is_an_error() {
     }
 }
 
+#[test]
+fn an_obstacle_through_the_unloaded_rod_is_refused_by_name() {
+    // The 1 m horizontal beam with a plane 0.1 mm above its centreline (the unloaded rod
+    // sinks 0.1 mm into the half-space below it, tolerance 50 um) and with a ball around its
+    // middle: no load path starts there. Before any solve, every entry refuses it naming
+    // the obstacle and the unloaded rod (it was a singular Jacobian or a failed load step).
+    let mut through_plane = cantilever_over_plane(-1e-4, 1e6, 20);
+    through_plane.obstacles[0].point = Some([0.0, 0.0, 1e-4]);
+    let (mut through_ball, _, _) = cantilever_over_sphere(1e6, 1e-3);
+    through_ball.obstacles[0].center = Some([0.5 * through_ball.sections[0].length, 0.0, 0.0]);
+    for spec in [through_plane, through_ball] {
+        let rod = Rod::new(spec).unwrap();
+        let loads = tip_loads(&rod);
+        let held = TipConstraint::Pinned {
+            position: [1.0, 0.0, 0.0],
+        };
+        let results = [
+            solve(&rod, &loads, None, &SolverOptions::default()).map(|_| ()),
+            solve_constrained(&rod, &loads, &held, None, &SolverOptions::default()).map(|_| ()),
+        ];
+        for result in results {
+            match result {
+                Err(SoftrodError::InvalidParameter { field, rule, .. }) => {
+                    assert_eq!(field, "obstacles[0]");
+                    assert!(rule.contains("the unloaded rod"), "{rule}");
+                }
+                other => panic!("expected an error naming obstacles[0], got {other:?}"),
+            }
+        }
+    }
+    // Touching within the tolerance is a start like any other.
+    let mut touching = cantilever_over_plane(-1e-5, 1e6, 20);
+    touching.obstacles[0].point = Some([0.0, 0.0, 1e-5]);
+    let rod = Rod::new(touching).unwrap();
+    assert!(softrod_core::statics::contact::clear_at_rest(&rod, &tip_loads(&rod)).is_ok());
+}
+
 /// A 0.2 m horizontal cantilever along +x (EI = 1e-3 N m^2) in `steps` RK4 steps, sagging
 /// under a weight of 0.026 N/m by about 2 mm at x = 105 mm (small deflection: w = q x^2
 /// (6 L^2 - 4 L x + x^2) / (24 EI)) onto a ball (or a pin across it: a capsule along y) of

@@ -24,6 +24,35 @@ pub fn frictionless(rod: &Rod) -> Result<()> {
     Ok(())
 }
 
+/// Refuse an obstacle that the unloaded rod (its reference shape, no loads) already sinks
+/// into deeper than the obstacle's tolerance. Every static solve follows the loads from the
+/// unloaded rod, so such a start has no load path: Newton would report a singular Jacobian
+/// or a failed load step instead of the cause (a table through the hanging actuator, a pin
+/// inside its body).
+pub fn clear_at_rest(rod: &Rod, loads: &Loads) -> Result<()> {
+    let Some(obstacles) = rod.obstacles.as_deref() else {
+        return Ok(());
+    };
+    let n = if loads.base_force_unknown(rod) { 6 } else { 3 };
+    let unloaded = node_points(&Problem::new(rod, loads, 0.0), &[0.0; 6][..n]);
+    for (s, r, rho) in unloaded {
+        for (k, o) in obstacles.iter().enumerate() {
+            let depth = rho - o.distance(&r).0;
+            if depth > o.tolerance {
+                return Err(SoftrodError::invalid(
+                    format!("obstacles[{k}]"),
+                    format!("{:?}", rod.spec.obstacles[k].kind).to_lowercase(),
+                    format!(
+                        "the unloaded rod (its reference shape) sinks {depth:.3e} m into it at s = {s:.6} m, deeper than its tolerance {:.3e} m: the statics follows the loads from the unloaded rod, which must start clear of every obstacle; move the obstacle or the mounting",
+                        o.tolerance
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Contact force on the rod's rounded end (N, world frame), at the tip's centreline r(L):
 /// the end is a hemisphere of the tip's surface radius rho (the tube's closure), a point
 /// contact with the penalty of its obstacle over the cap's length, k rho ramp(delta). It has

@@ -1042,6 +1042,7 @@ pub fn check_inputs(rod: &Rod, loads: &Loads, opts: &SolverOptions) -> Result<Ve
     contact::frictionless(rod)?;
     rod.check_loads(&loads.pressures, &loads.stiffness_scale)?;
     rod.check_tensions(&loads.tensions)?;
+    contact::clear_at_rest(rod, loads)?;
     for (name, v) in [
         ("tip_force", &loads.tip_force),
         ("tip_moment", &loads.tip_moment),
