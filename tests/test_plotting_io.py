@@ -113,6 +113,37 @@ def test_plot_shape_draws_the_applied_tip_force_not_reactions_or_contact():
     assert abs(arrow @ d1) / (np.linalg.norm(arrow) * np.linalg.norm(d1)) > 1 - 1e-9
 
 
+def test_plot_shape_draws_the_obstacles_near_the_rod():
+    """The finger's table is in the 3-D view at its height (the view reaches down to it),
+    a floor two metres below the 130 mm arm is not (it would shrink the arm to a dot), and
+    a pin beside the arm is drawn as a surface."""
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    fig = plot_shape(solve_statics("prebent_finger_on_table", [30e3]))
+    ax3d = fig.axes[0]
+    planes = [c for c in ax3d.collections if type(c) is Poly3DCollection]
+    assert planes, "the table is drawn"
+    assert ax3d.get_zlim()[0] <= -82.0  # the view holds the table (z = -82 mm)
+    labels = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert "obstacle (3-D view; rods as centrelines)" in labels
+    plt.close(fig)
+
+    common = {"stiffness": "1e7 N/m^2", "tolerance": "0.2 mm"}
+    floor = {"kind": "plane", "point": ["0 mm", "0 mm", "-2 m"], "normal": [0, 0, 1], **common}
+    pin = {"kind": "cylinder", "point": ["0 mm", "0 mm", "-160 mm"], "axis": [1, 0, 0]}
+    arm = load_design("spa_three_chamber_130mm")
+    fig = plot_shape(solve_statics(arm.with_obstacles([floor]), [40e3, 0, 0]))
+    assert fig.axes[0].get_zlim()[0] > -300.0  # the floor is far: not in the view
+    assert not [c for c in fig.axes[0].collections if type(c) is Poly3DCollection]
+    plt.close(fig)
+    fig = plot_shape(
+        solve_statics(arm.with_obstacles([{**pin, "radius": "5 mm", **common}]), [0, 0, 0])
+    )
+    assert fig.axes[0].get_zlim()[0] <= -165.0  # the pin's axis and radius are in the view
+    assert [c for c in fig.axes[0].collections if type(c) is Poly3DCollection]
+    plt.close(fig)
+
+
 def test_plot_shape_draws_tip_forces_to_scale():
     d = load_design("spa_three_chamber_130mm")
     pushed = solve_statics(d, [30e3, 0, 0], tip_force=[0.3, 0, -0.4])  # 0.5 N

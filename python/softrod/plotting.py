@@ -144,11 +144,12 @@ def plot_shape(
     magnitude in the legend; the arrows share one scale, the largest as long as a quarter of
     the shape (a follower load is drawn as it acts, turned with the tip; a held tip's
     reaction and contact forces are not tip forces: :attr:`StaticSolution.tip_reaction_force`
-    and :attr:`StaticSolution.contact` give them). The designs' obstacles are drawn
-    translucent grey in the 3-D view: planes and infinite cylinders cut to the view, spheres
-    and capsules whole. ``show_frames`` adds the director triads
-    d1, d2, d3 (red, green, blue) at a few nodes. Solutions that did not converge are listed
-    but not drawn.
+    and :attr:`StaticSolution.contact` give them). The designs' obstacles within half the
+    shapes' extent of them are drawn translucent grey in the 3-D view, at their true size
+    beside the centrelines (a rod touching one is its radius away from it): planes and
+    infinite cylinders cut to the view, spheres and capsules whole. ``show_frames`` adds the
+    director triads d1, d2, d3 (red, green, blue) at a few nodes. Solutions that did not
+    converge are listed but not drawn.
     """
     import matplotlib as mpl
     from matplotlib.lines import Line2D
@@ -258,7 +259,8 @@ def plot_shape(
         )
     obstacles = _obstacles(sols) if points is not None else []
     if obstacles:
-        points = np.concatenate([points, _finite_obstacle_points(obstacles)])
+        obstacles, extra = _near_obstacles(obstacles, points)
+        points = np.concatenate([points, extra])
     if points is not None:
         _equal_box(ax, points)
     else:
@@ -269,7 +271,7 @@ def plot_shape(
         _draw_obstacles(ax, obstacles, lo, hi)
         from matplotlib.patches import Patch
 
-        handles.append(Patch(label="obstacle (3-D view)", **_OBSTACLE))
+        handles.append(Patch(label="obstacle (3-D view; rods as centrelines)", **_OBSTACLE))
     handles.append(Line2D([], [], color="black", marker="s", linestyle="none", label="base"))
     if "passive" in kinds_seen:
         handles.append(Line2D([], [], label="passive section (cap)", **_PASSIVE))
@@ -307,16 +309,39 @@ def _obstacles(sols: list[StaticSolution]) -> list[dict]:
     return out
 
 
-def _finite_obstacle_points(obstacles: list[dict]) -> np.ndarray:
-    """Corners (mm) of the boxes around the spheres and capsules, so the view holds them
-    (planes and infinite cylinders are cut to the view instead)."""
-    pts = []
+def _near_obstacles(obstacles: list[dict], points_mm: np.ndarray) -> tuple[list[dict], np.ndarray]:
+    """The obstacles within half the shapes' extent of them, and points (mm) the view must
+    hold to show them: a sphere's or capsule's bounding corners, the feet of the shapes'
+    points on a plane, or on a cylinder's axis and the box of its radius around them (so a
+    table under a finger is in the view, a floor a metre below a 13 cm arm is not)."""
+    reach = 0.5 * max(float(np.ptp(points_mm, axis=0).max()), 1.0)
+    near, extra = [], []
     for ob in obstacles:
-        ends = {"sphere": ["center"], "capsule": ["start", "end"]}.get(ob["kind"], [])
-        for key in ends:
-            c = np.asarray(ob[key], float)
-            pts += [c - ob["radius"], c + ob["radius"]]
-    return np.array(pts).reshape(-1, 3) * 1e3
+        kind = ob["kind"]
+        if kind == "plane":
+            n = np.asarray(ob["normal"], float)
+            n /= np.linalg.norm(n)
+            gap = (points_mm - np.asarray(ob["point"]) * 1e3) @ n
+            feet = points_mm - np.outer(gap, n)
+            pts = feet
+        elif kind == "cylinder":
+            a = np.asarray(ob["axis"], float)
+            a /= np.linalg.norm(a)
+            p = np.asarray(ob["point"]) * 1e3
+            feet = p + np.outer((points_mm - p) @ a, a)
+            r = ob["radius"] * 1e3
+            gap = np.linalg.norm(points_mm - feet, axis=1) - r
+            pts = np.concatenate([feet - r, feet + r])  # its surface around those feet
+        else:
+            ends = [ob["center"]] if kind == "sphere" else [ob["start"], ob["end"]]
+            r = ob["radius"] * 1e3
+            centres = np.asarray(ends, float) * 1e3
+            gap = np.min(np.linalg.norm(points_mm[:, None] - centres[None], axis=2), axis=1) - r
+            pts = np.concatenate([centres - r, centres + r])
+        if np.min(gap) <= reach:
+            near.append(ob)
+            extra.append(pts)
+    return near, (np.concatenate(extra) if extra else np.zeros((0, 3)))
 
 
 def _normal_basis(axis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -121,6 +121,16 @@ def _values(values, scale: float, unit: str) -> str:
     return "[" + ", ".join(f"{x * scale:g}" for x in values) + f"] {unit}"
 
 
+def _inputs(name: str, pressures, tensions) -> list[str]:
+    """The start of a solution's repr: the design's name, its pressures and tensions."""
+    parts = [repr(name)]
+    if len(pressures):
+        parts.append(f"p = {_values(pressures, 1e-3, 'kPa')}")
+    if len(tensions):
+        parts.append(f"T = {_values(tensions, 1.0, 'N')}")
+    return parts
+
+
 @dataclass(frozen=True)
 class StaticSolution:
     """A static equilibrium, sampled at every integration node (n nodes).
@@ -174,11 +184,7 @@ class StaticSolution:
     contact: Contact | None = field(default=None, repr=False)
 
     def __repr__(self) -> str:
-        parts = [repr(self.design.name)]
-        if len(self.pressures):
-            parts.append(f"p = {_values(self.pressures, 1e-3, 'kPa')}")
-        if len(self.tensions):
-            parts.append(f"T = {_values(self.tensions, 1.0, 'N')}")
+        parts = _inputs(self.design.name, self.pressures, self.tensions)
         if self.tip_constraint != "free":
             parts.append(f"tip {self.tip_constraint}")
         if self.converged:

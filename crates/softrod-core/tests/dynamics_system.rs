@@ -309,11 +309,25 @@ fn step_jacobian_with_a_follower_tip_load_against_central_differences() {
     // (those columns included) against central differences, with the platform's rotation
     // off the chart's origin and a massive platform with inertia, as
     // `step_jacobian_against_central_differences`.
+    let mut rs = rods(2, 9.81, 0.01, &[10e3, 0.0]);
+    rs[1].rod = Rod::new(with_follower(rs[1].rod.spec.clone())).unwrap();
+    let (sys, z) = stepped_off_the_chart(rs);
+    check_jacobian_at(
+        "system step with a follower tip load",
+        &z,
+        |x| sys.step_residual_and_jacobian(x).unwrap(),
+        1e-6,
+    );
+}
+
+/// A system of `rs` on a 50 g platform with inertia and an offset centre of mass, after
+/// three steps (30 and 10 kPa), and its unknowns with the platform's rotation moved off the
+/// current one, so that the Cayley chart is not at its origin: where the step Jacobian's
+/// tests check it.
+fn stepped_off_the_chart(rs: Vec<DynRod>) -> (SystemSimulator, Vec<f64>) {
     let mut plat = platform(0.05, 9.81, [0.01, 0.0, 0.0], [0.0; 3]);
     plat.com_offset = [0.005, 0.0, 0.01];
     let inertia = [[2e-5, 1e-6, 0.0], [1e-6, 3e-5, 0.0], [0.0, 0.0, 4e-5]];
-    let mut rs = rods(2, 9.81, 0.01, &[10e3, 0.0]);
-    rs[1].rod = Rod::new(with_follower(rs[1].rod.spec.clone())).unwrap();
     let mut sys = SystemSimulator::new(rs, plat, inertia, opts(2e-3, -0.2)).unwrap();
     for _ in 0..3 {
         sys.step(&commands(&[30e3, 10e3])).unwrap();
@@ -323,12 +337,7 @@ fn step_jacobian_with_a_follower_tip_load_against_central_differences() {
     z[n - 3] = 0.01;
     z[n - 2] = -0.02;
     z[n - 1] = 0.005;
-    check_jacobian_at(
-        "system step with a follower tip load",
-        &z,
-        |x| sys.step_residual_and_jacobian(x).unwrap(),
-        1e-6,
-    );
+    (sys, z)
 }
 
 #[test]
@@ -549,25 +558,7 @@ fn platform_mass_oscillates_at_the_static_stiffness_frequency() {
 
 #[test]
 fn step_jacobian_against_central_differences() {
-    let mut plat = platform(0.05, 9.81, [0.01, 0.0, 0.0], [0.0; 3]);
-    plat.com_offset = [0.005, 0.0, 0.01];
-    let inertia = [[2e-5, 1e-6, 0.0], [1e-6, 3e-5, 0.0], [0.0, 0.0, 4e-5]];
-    let mut sys = SystemSimulator::new(
-        rods(2, 9.81, 0.01, &[10e3, 0.0]),
-        plat,
-        inertia,
-        opts(2e-3, -0.2),
-    )
-    .unwrap();
-    for _ in 0..3 {
-        sys.step(&commands(&[30e3, 10e3])).unwrap();
-    }
-    let mut z = sys.unknowns();
-    let n = z.len();
-    // A platform rotation off the current one, so the Cayley chart is not at its origin.
-    z[n - 3] = 0.01;
-    z[n - 2] = -0.02;
-    z[n - 1] = 0.005;
+    let (sys, z) = stepped_off_the_chart(rods(2, 9.81, 0.01, &[10e3, 0.0]));
     check_jacobian_at(
         "system step",
         &z,

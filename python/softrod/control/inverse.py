@@ -25,7 +25,7 @@ from ..catalog import load_design
 from ..constraints import require_free_tip
 from ..design import Design
 from ..errors import InputError, design_error
-from ..solution import StaticSolution, _values
+from ..solution import StaticSolution, _inputs
 from ..units import to_si
 
 __all__ = [
@@ -260,11 +260,7 @@ class InverseSolution:
     tension_bounds: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
 
     def __repr__(self) -> str:
-        parts = [repr(self.design.name)]
-        if len(self.pressures):
-            parts.append(f"p = {_values(self.pressures, 1e-3, 'kPa')}")
-        if len(self.tensions):
-            parts.append(f"T = {_values(self.tensions, 1.0, 'N')}")
+        parts = _inputs(self.design.name, self.pressures, self.tensions)
         reached = "reached" if self.reached else "not reached"
         parts.append(f"{reached}, {self.distance * 1e3:.3g} mm from the target")
         return f"InverseSolution({', '.join(parts)})"
