@@ -355,7 +355,14 @@ fn an_obstacle_through_the_unloaded_rod_is_refused_by_name() {
     through_plane.obstacles[0].point = Some([0.0, 0.0, 1e-4]);
     let (mut through_ball, _, _) = cantilever_over_sphere(1e6, 1e-3);
     through_ball.obstacles[0].center = Some([0.5 * through_ball.sections[0].length, 0.0, 0.0]);
-    for spec in [through_plane, through_ball] {
+    // The deepest node is named: the plane is 0.1 mm into every node (the first, s = 0, is
+    // reported), the rod passes through the ball's centre at s = 0.25 m (a node of 200 steps
+    // over 0.5 m), 50 mm deep.
+    let deepest = [
+        "up to 1.000e-4 m into it (at s = 0.000000 m)",
+        "up to 5.000e-2 m into it (at s = 0.250000 m)",
+    ];
+    for (spec, deepest) in [through_plane, through_ball].into_iter().zip(deepest) {
         let rod = Rod::new(spec).unwrap();
         let loads = tip_loads(&rod);
         let held = TipConstraint::Pinned {
@@ -370,6 +377,7 @@ fn an_obstacle_through_the_unloaded_rod_is_refused_by_name() {
                 Err(SoftrodError::InvalidParameter { field, rule, .. }) => {
                     assert_eq!(field, "obstacles[0]");
                     assert!(rule.contains("the unloaded rod"), "{rule}");
+                    assert!(rule.contains(deepest), "{rule}");
                 }
                 other => panic!("expected an error naming obstacles[0], got {other:?}"),
             }

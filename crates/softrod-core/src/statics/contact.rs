@@ -35,19 +35,25 @@ pub fn clear_at_rest(rod: &Rod, loads: &Loads) -> Result<()> {
     };
     let n = if loads.base_force_unknown(rod) { 6 } else { 3 };
     let unloaded = node_points(&Problem::new(rod, loads, 0.0), &[0.0; 6][..n]);
-    for (s, r, rho) in unloaded {
-        for (k, o) in obstacles.iter().enumerate() {
-            let depth = rho - o.distance(&r).0;
-            if depth > o.tolerance {
-                return Err(SoftrodError::invalid(
-                    format!("obstacles[{k}]"),
-                    format!("{:?}", rod.spec.obstacles[k].kind).to_lowercase(),
-                    format!(
-                        "the unloaded rod (its reference shape) sinks {depth:.3e} m into it at s = {s:.6} m, deeper than its tolerance {:.3e} m: the statics follows the loads from the unloaded rod, which must start clear of every obstacle; move the obstacle or the mounting",
-                        o.tolerance
-                    ),
-                ));
-            }
+    // The first obstacle sunk into beyond its tolerance, at its deepest node.
+    for (k, o) in obstacles.iter().enumerate() {
+        let deepest = unloaded
+            .iter()
+            .map(|(s, r, rho)| (*s, rho - o.distance(r).0))
+            .fold(
+                (0.0, f64::NEG_INFINITY),
+                |a, b| if b.1 > a.1 { b } else { a },
+            );
+        let (s, depth) = deepest;
+        if depth > o.tolerance {
+            return Err(SoftrodError::invalid(
+                format!("obstacles[{k}]"),
+                format!("{:?}", rod.spec.obstacles[k].kind).to_lowercase(),
+                format!(
+                    "the unloaded rod (its reference shape) sinks up to {depth:.3e} m into it (at s = {s:.6} m), deeper than its tolerance {:.3e} m: the statics follows the loads from the unloaded rod, which must start clear of every obstacle; move the obstacle or the mounting",
+                    o.tolerance
+                ),
+            ));
         }
     }
     Ok(())
