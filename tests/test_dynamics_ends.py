@@ -277,3 +277,34 @@ def test_cli_simulate_honours_the_design_files_constraint(run, tmp_path):
         tr.tip_position, np.tile(tip + [0.002, 0, 0], (len(tr.time), 1)), rtol=0, atol=1e-9
     )
     assert np.all(np.isfinite(tr.tip_reaction_force))
+
+
+def test_a_static_start_at_an_unstable_equilibrium_warns_raises_or_is_ignored():
+    """A straight finger (gravity off) pinned 30 mm short of its length is compressed far
+    past its Euler load: the straight rod is an equilibrium, and an unstable one. Started
+    there, a run stays until disturbed, and a coarse fixed step damps the disturbance away
+    (it stayed straight at dt = 20 ms with a 23.9 N reaction instead of buckling to 3.4 N):
+    the start says so, as solve_statics does."""
+    from softrod import InvalidStateError, StabilityWarning
+
+    d = load_design("prebent_tendon_finger")
+    sec = dict(d.document["sections"][0])
+    sec.pop("bend_radius")
+    sec.pop("bend_direction")
+    straight = d.replace({"sections": [sec], "mounting.gravity": "0 m/s^2"})
+    short = softrod.TipConstraint.pinned([0.0, 0.0, 0.05])
+    with pytest.warns(StabilityWarning, match="initial static state .* unstable"):
+        sim = softrod.Simulation(straight, [0.0], tip_constraint=short, dt=0.02)
+    assert sim.start_stable is False
+    with pytest.raises(InvalidStateError) as info:
+        softrod.simulate(straight, [0.0], 0.04, tip_constraint=short, on_unstable="raise")
+    assert info.value.rule == "stability"
+    quiet = softrod.Simulation(straight, [0.0], tip_constraint=short, on_unstable="ignore")
+    assert quiet.start_stable is False
+    # Barely shortened (0.1 mm), below the Euler load: stable, no warning (the suite turns
+    # warnings into errors). A 'straight' start is no equilibrium test: None.
+    mild = softrod.TipConstraint.pinned([0.0, 0.0, 0.0799])
+    assert softrod.Simulation(straight, [0.0], tip_constraint=mild).start_stable is True
+    assert softrod.Simulation("spa_three_chamber_130mm", initial="straight").start_stable is None
+    with pytest.raises(InputError, match="on_unstable"):
+        softrod.Simulation("spa_three_chamber_130mm", on_unstable="maybe")

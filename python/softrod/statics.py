@@ -106,7 +106,9 @@ def _report_stability(stable: bool | None, on_unstable: str, what: str) -> None:
         f"{what} is an unstable equilibrium (the second variation of the energy is not positive "
         "definite: a small disturbance moves the rod away; docs/model.md, 'Validity and "
         "stability'). Above a buckling load add the imperfection that decides the side (a "
-        "small lateral force), or pass on_unstable='ignore'"
+        "small lateral force; near the buckling load a tiny one may not be enough for the "
+        "load path to follow it: a larger one, or initial= a stable solution at a nearby "
+        "load), or pass on_unstable='ignore'"
     )
     if on_unstable == "raise":
         raise InvalidStateError(message, rule="stability")

@@ -658,6 +658,10 @@ pub struct Simulator {
     scales: Vec<f64>,
     /// How the run started.
     initial: Initial,
+    /// The 'static' start's stability verdict (the static solver's conjugate-point test of
+    /// the equilibrium it started from; None for the 'straight' start or where not
+    /// assessed): a fixed step may hold an unstable equilibrium, so the caller is told.
+    start_stable: Option<bool>,
     /// Forward parameter sensitivities, when tracked (`sensitivity`).
     sens: Option<Box<sensitivity::Tracker>>,
     /// How the tip is held: the pose at the end of the next output step (set with
@@ -911,6 +915,7 @@ impl Simulator {
             work: NewtonWork::default(),
             scales: vec![],
             initial,
+            start_stable: None,
             sens: None,
             end: constraint,
             end_now: constraint,
@@ -1021,6 +1026,7 @@ impl Simulator {
                     &SolverOptions::default(),
                 )
                 .map_err(|e| e.map_message(|m| format!("the initial static state: {m}")))?;
+                self.start_stable = sol.solution.stable;
                 let z = static_guess(&problem, &sol.shape);
                 let what = format!("with a {} tip", self.end.name());
                 let (z, it) = refine_static(&problem, z, self.opts.tol, &what)?;
@@ -1031,8 +1037,10 @@ impl Simulator {
                 // Equilibrium in contact: this discretisation's static problem with the
                 // contact loads (c0 = 0), from the static solver's (shooting, contact
                 // too) shape.
-                let z = statics::solve(&self.rod, &loads, None, &SolverOptions::default())
-                    .ok()
+                let solved =
+                    statics::solve(&self.rod, &loads, None, &SolverOptions::default()).ok();
+                self.start_stable = solved.as_ref().and_then(|sol| sol.stable);
+                let z = solved
                     .map(|sol| static_guess(&problem, &statics::shape(&self.rod, &loads, &sol)))
                     .unwrap_or_else(|| problem.straight_unknowns());
                 let (z, it) = refine_static(&problem, z, self.opts.tol, "in contact")?;
@@ -1070,9 +1078,13 @@ impl Simulator {
                     other => other,
                 })?;
                 self.stats.newton_iterations += sol.iterations;
+                self.start_stable = sol.stable;
                 sol.z
             }
-            Initial::Straight => problem.straight_unknowns(),
+            Initial::Straight => {
+                self.start_stable = None;
+                problem.straight_unknowns()
+            }
         };
         drop(problem);
         self.rest_at(&z_scaled, initial)
@@ -2150,6 +2162,13 @@ impl Simulator {
         self.end_now = c.end;
         self.reaction = c.reaction;
         self.stats.internal_steps += 1;
+    }
+
+    /// The 'static' start's stability verdict: Some(false) when the equilibrium the run
+    /// started from is unstable (a small disturbance grows; a coarse step may still hold
+    /// it), None for the 'straight' start or where the static solver did not assess it.
+    pub fn start_stable(&self) -> Option<bool> {
+        self.start_stable
     }
 
     pub fn time(&self) -> f64 {

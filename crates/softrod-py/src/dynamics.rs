@@ -338,6 +338,12 @@ impl PySimulator {
         self.sim.time()
     }
 
+    /// The 'static' start's stability verdict (None: not assessed or a 'straight' start).
+    #[getter]
+    fn start_stable(&self) -> Option<bool> {
+        self.sim.start_stable()
+    }
+
     /// Time step, s.
     #[getter]
     fn dt(&self) -> f64 {

@@ -341,7 +341,9 @@ class Simulation:
     list of ``(s, offset)`` (arc length from the base in [0, L], offset (d1, d2[, d3]) in
     the cross-section frame) or ``s`` alone, SI numbers or strings with units, checked
     before the start is solved; :meth:`set_markers` changes them later (docs/dynamics.md,
-    "Markers on the moving rod").
+    "Markers on the moving rod"). ``on_unstable``: what a "static" start at an unstable
+    equilibrium does, as :func:`simulate` says ("warn", "raise" or "ignore");
+    :attr:`start_stable` keeps the verdict.
     """
 
     def __init__(
@@ -361,9 +363,10 @@ class Simulation:
         tensions: ArrayLike | None = None,
         tip_constraint: TipConstraint | str | dict | None = None,
         markers: Sequence | None = None,
+        on_unstable: str = "warn",
         _tip_loads0: Sequence[float] | None = None,
     ) -> None:
-        from ..statics import _pressures, _tensions
+        from ..statics import _policy, _pressures, _report_stability, _tensions
 
         self.design: Design = load_design(design)
         held = _held(self.design, tip_constraint)
@@ -372,6 +375,7 @@ class Simulation:
         p = [0.0] * n if pressures is None else _pressures(self.design, pressures)
         t0 = _tensions(self.design, tensions)
         V.choice(initial, ("static", "straight"), "initial")
+        on_unstable = _policy("on_unstable", on_unstable)
         opts = _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol)
         self._sim = _core.Simulator(
             json.dumps(self.design.spec, allow_nan=False),
@@ -392,6 +396,19 @@ class Simulation:
         self.options = opts
         self._markers = None
         self._set_sites(sites)
+        if initial == "static":
+            # An unstable start is still a start, but a coarse step can hold it there for
+            # ever (implicit steps damp the growing mode): say so, as solve_statics does.
+            _report_stability(
+                self._sim.start_stable, on_unstable, f"the initial static state at pressures {p} Pa"
+            )
+
+    @property
+    def start_stable(self) -> bool | None:
+        """The 'static' start's stability (False: the run started from an unstable
+        equilibrium, which a small disturbance leaves, though a coarse time step may hold
+        it); None for a 'straight' start or where it is not assessed (follower loads)."""
+        return self._sim.start_stable
 
     @classmethod
     def _wrap(cls, design: Design, sim, initial: str, options: dict, markers) -> Simulation:
@@ -925,6 +942,7 @@ def simulate(
     markers: Sequence | None = None,
     energy: bool = True,
     progress: Callable[[float, float, float], None] | None = None,
+    on_unstable: str = "warn",
 ) -> Trajectory:
     """Simulate the motion of ``design`` under ``pressure_schedule`` from t = 0 to ``t_end``.
 
@@ -983,6 +1001,12 @@ def simulate(
     - ``progress``: None (a bar in interactive sessions), True, False, or a callable called
       after each chunk of steps as progress(t_done, t_end, wall_s); see
       :mod:`softrod.progress`.
+    - ``on_unstable``: what a 'static' start at an unstable equilibrium does (the static
+      solver's stability test, as :func:`~softrod.solve_statics`): "warn" (default,
+      :class:`~softrod.StabilityWarning`), "raise" (:class:`~softrod.InvalidStateError`,
+      rule "stability") or "ignore". Such a run starts at rest there and leaves only when
+      disturbed, and a coarse fixed step (implicit steps damp the growing mode) may hold it
+      there: a wrong answer that the energy check cannot see.
 
     Returns a :class:`Trajectory`; its metadata records the method, the wall time and the
     real-time factor. A step that does not converge raises ``ConvergenceError`` with the
@@ -1061,6 +1085,7 @@ def simulate(
             tensions=None if tens0 is None else tens0[0],
             tip_constraint=held0,
             markers=markers,
+            on_unstable=on_unstable,
             _tip_loads0=first,
         )
         pressure_schedule = schedule
