@@ -407,6 +407,18 @@ def test_bundled_two_rod_system_solves_and_balances():
     assert tilt > 1.0
 
 
+def test_system_pressures_as_an_array_of_rows_equal_the_list():
+    # simulate_system takes an (n_rods, n_channels) array; solve_system refused it with
+    # "must be a list of 2 entries, one per rod" although it had 2 rows.
+    system = softrod.load_system("two_spa_platform")
+    rows = [[30e3, 0.0, 10e3], [0.0, 20e3, 5e3]]
+    a = solve_system(system, np.array(rows))
+    b = solve_system(system, rows)
+    assert np.array_equal(a.platform_position, b.platform_position)
+    with pytest.raises(softrod.InputError, match="one per rod"):
+        solve_system(system, np.zeros((3, 3)))
+
+
 @pytest.mark.parametrize(
     "text, field",
     [

@@ -358,6 +358,8 @@ def solve_system(
     def per_rod(value, name):
         if value is None:
             return [None] * n
+        if isinstance(value, np.ndarray) and value.ndim >= 1:
+            value = list(value)  # one row per rod, as simulate_system takes
         if not isinstance(value, (list, tuple)) or len(value) != n:
             raise V.fail(name, value, f"must be a list of {n} entries, one per rod", InputError)
         return list(value)
