@@ -32,4 +32,4 @@ cargo clippy --quiet -p softrod-core -p softrod-py --all-targets -- -D warnings
 echo "== Rust tests"
 cargo test -p softrod-core --quiet
 echo "== Python tests"
-"$PY" -m pytest -q
+"$PY" -m pytest -q --hypothesis-profile=reproducible

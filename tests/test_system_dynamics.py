@@ -256,3 +256,24 @@ def test_the_platform_inertia_of_a_system_file_is_the_runs_default(system, tmp_p
         with pytest.raises(DesignError, match=rule) as exc:
             softrod.load_system(tmp_path / "bad.toml")
         assert exc.value.field.startswith("platform.inertia")
+
+
+def test_an_unstable_start_warns_raises_or_is_ignored(system):
+    """Pushed up by 10 N, the two actuators holding the platform are compressed past
+    buckling and solve_system flags the straight equilibrium unstable (from 5 N on): a
+    run started there would stay until disturbed, so the start says so, as a single rod's
+    does (softrod.Simulation)."""
+    from softrod import InvalidStateError, StabilityWarning
+
+    up = [0.0, 0.0, 10.0]
+    with pytest.warns(StabilityWarning, match="system's initial static state"):
+        sim = softrod.SystemSimulation(system, platform_force=up)
+    assert sim.start_stable is False
+    with pytest.raises(InvalidStateError) as info:
+        softrod.simulate_system(system, None, "4 ms", platform_force=up, on_unstable="raise")
+    assert info.value.rule == "stability"
+    assert (
+        softrod.SystemSimulation(system, platform_force=up, on_unstable="ignore").start_stable
+        is False
+    )
+    assert softrod.SystemSimulation(system).start_stable is True  # hanging: stable, quiet

@@ -488,9 +488,11 @@ class SystemSimulation:
     platform's inertia tensor about its centre of mass in the platform frame (kg m^2; a
     3x3 tensor or three principal values; None: the system's ``[platform] inertia``, zero
     unless given, so that a platform with mass is a point mass at its centre of mass).
-    ``dt``, ``alpha``, ``tol``, ``max_iter``, ``error_tol``, ``energy_tol`` as for
-    :class:`~softrod.Simulation`; the scheme is BDF-alpha (the midpoint rule is refused: it
-    does not carry held tips). A rod's obstacles act on it as on a free rod in motion
+    ``dt``, ``alpha``, ``tol``, ``max_iter``, ``error_tol``, ``energy_tol`` and
+    ``on_unstable`` (an unstable start: "warn", "raise" or "ignore"; :attr:`start_stable`
+    keeps the verdict) as for :class:`~softrod.Simulation`; the scheme is BDF-alpha (the
+    midpoint rule is refused: it does not carry held tips). A rod's obstacles act on it as
+    on a free rod in motion
     (docs/contact.md); the trajectory reports each such rod's contact. A rod design's tip
     loads, dead or follower (``[tip] frame = "body"``: they turn with the tip the platform
     holds), act on its tip as in :func:`~softrod.solve_system`. Refused by name before any
@@ -513,10 +515,14 @@ class SystemSimulation:
         max_iter: int = 25,
         error_tol: Any = None,
         energy_tol: float = DEFAULT_ENERGY_TOL,
+        on_unstable: str = "warn",
     ) -> None:
+        from .statics import _policy, _report_stability
+
         if not isinstance(system, System):
             system = load_system(system)
         self.system = system
+        on_unstable = _policy("on_unstable", on_unstable)
         for i, rod in enumerate(system.rods):
             if rod.design.tip_constraint is not None:
                 raise V.fail(
@@ -549,6 +555,15 @@ class SystemSimulation:
         self._sim = _core.SystemSimulator(entries, platform, inertia.tolist(), self.dt, **opts)
         self._pressures = ps
         self._fingerprint = _system_fingerprint(system, inertia)
+        # As a single rod's static start: a coarse step may hold an unstable start.
+        _report_stability(self._sim.start_stable, on_unstable, "the system's initial static state")
+
+    @property
+    def start_stable(self) -> bool | None:
+        """The start's stability (False: the system started from an unstable equilibrium,
+        which a small disturbance leaves, though a coarse step may hold it); None where it is
+        not assessed (a follower load on some rod)."""
+        return self._sim.start_stable
 
     @property
     def time(self) -> float:
@@ -687,6 +702,7 @@ def simulate_system(
     max_iter: int = 25,
     error_tol: Any = None,
     energy_tol: float = DEFAULT_ENERGY_TOL,
+    on_unstable: str = "warn",
 ) -> SystemTrajectory:
     """Simulate a :class:`~softrod.System` until ``t_end`` (s or a string with units; the
     run takes ceil(t_end / dt) output steps, as :func:`~softrod.simulate`),
@@ -697,9 +713,10 @@ def simulate_system(
     (its value at t = 0 is the start's; then sampled at each output step's end).
     ``platform_force``/``platform_moment`` (N, N m, world) likewise (None: the system's).
     ``platform_inertia``, ``dt``, ``scheme``, ``alpha``, ``tol``, ``max_iter``,
-    ``error_tol``, ``energy_tol``: as :class:`SystemSimulation` (whose only scheme is
-    BDF-alpha: the midpoint rule is refused by name, as for a held tip). Returns a
-    :class:`SystemTrajectory` from t = 0 (docs/dynamics.md, "Systems of rods")."""
+    ``error_tol``, ``energy_tol``, ``on_unstable``: as :class:`SystemSimulation` (whose
+    only scheme is BDF-alpha: the midpoint rule is refused by name, as for a held tip).
+    Returns a :class:`SystemTrajectory` from t = 0 (docs/dynamics.md, "Systems of
+    rods")."""
 
     def at0(value):
         return value(0.0) if callable(value) else value
@@ -718,6 +735,7 @@ def simulate_system(
         max_iter=max_iter,
         error_tol=error_tol,
         energy_tol=energy_tol,
+        on_unstable=on_unstable,
     )
     start = sim._sim.snapshot()
     out = sim._run(t_end, pressures, tensions, platform_force, platform_moment, "t_end")

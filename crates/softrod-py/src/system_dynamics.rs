@@ -178,6 +178,12 @@ impl PySystemSimulator {
         self.sim.time()
     }
 
+    /// The start's stability verdict (None: not assessed).
+    #[getter]
+    fn start_stable(&self) -> Option<bool> {
+        self.sim.start_stable()
+    }
+
     /// The state now as one sample (keys as `run`'s).
     fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         crate::guarded(py, || {

@@ -772,6 +772,9 @@ pub struct SystemSimulator {
     /// `Simulator`) and Newton's contraction rate with it at the last step.
     kept: Option<Kept>,
     theta: f64,
+    /// The start's stability verdict (`solve_system`'s test of the whole system's
+    /// equilibrium; None where not assessed): a fixed step may hold an unstable start.
+    start_stable: Option<bool>,
     pub stats: DynStats,
 }
 
@@ -874,6 +877,7 @@ impl SystemSimulator {
             e.map_message(|m| format!("the initial static state of the system: {m}"))
         })?;
         drop(sys);
+        let start_stable = sol.stable;
         let n = rods.len();
         let body = Body {
             mass: platform.mass,
@@ -994,6 +998,7 @@ impl SystemSimulator {
             books: Books::default(),
             kept: None,
             theta: 1.0,
+            start_stable,
             stats,
         };
         let (kinetic, potential) = out.platform_energy(&now);
@@ -1310,6 +1315,13 @@ impl Stepping for SystemSimulator {
 }
 
 impl SystemSimulator {
+    /// The start's stability verdict: Some(false) when the system started from an unstable
+    /// equilibrium (a small disturbance grows; a coarse step may still hold it), None where
+    /// `solve_system` did not assess it.
+    pub fn start_stable(&self) -> Option<bool> {
+        self.start_stable
+    }
+
     pub fn time(&self) -> f64 {
         self.time
     }
