@@ -142,6 +142,14 @@ def test_plot_shape_draws_the_obstacles_near_the_rod():
     assert fig.axes[0].get_zlim()[0] <= -165.0  # the pin's axis and radius are in the view
     assert [c for c in fig.axes[0].collections if type(c) is Poly3DCollection]
     plt.close(fig)
+    # A metre-long capsule across the arm, 10 mm beside its surface: drawn, and the view
+    # widened by its radius, not its length.
+    rail = {"kind": "capsule", "start": ["-500 mm", "35 mm", "-90 mm"], "radius": "4 mm"}
+    rail["end"] = ["500 mm", "35 mm", "-90 mm"]
+    fig = plot_shape(solve_statics(arm.with_obstacles([{**rail, **common}]), [0, 0, 0]))
+    assert [c for c in fig.axes[0].collections if type(c) is Poly3DCollection]
+    assert np.ptp(fig.axes[0].get_xlim()) < 300.0  # mm: the arm's view, not the rail's 1 m
+    plt.close(fig)
 
 
 def test_plot_shape_draws_tip_forces_to_scale():

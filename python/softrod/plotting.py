@@ -147,7 +147,7 @@ def plot_shape(
     and :attr:`StaticSolution.contact` give them). The designs' obstacles within half the
     shapes' extent of them are drawn translucent grey in the 3-D view, at their true size
     beside the centrelines (a rod touching one is its radius away from it): planes and
-    infinite cylinders cut to the view, spheres and capsules whole. ``show_frames`` adds the
+    infinite cylinders and capsules cut to the view, spheres whole. ``show_frames`` adds the
     director triads d1, d2, d3 (red, green, blue) at a few nodes. Solutions that did not
     converge are listed but not drawn.
     """
@@ -312,8 +312,9 @@ def _obstacles(sols: list[StaticSolution]) -> list[dict]:
 def _near_obstacles(obstacles: list[dict], points_mm: np.ndarray) -> tuple[list[dict], np.ndarray]:
     """The obstacles within half the shapes' extent of them, and points (mm) the view must
     hold to show them: a sphere's or capsule's bounding corners, the feet of the shapes'
-    points on a plane, or on a cylinder's axis and the box of its radius around them (so a
-    table under a finger is in the view, a floor a metre below a 13 cm arm is not)."""
+    points on a plane, or on a cylinder's axis or a capsule's segment and the box of its
+    radius around them (so a table under a finger is in the view, a floor a metre below a
+    13 cm arm is not)."""
     reach = 0.5 * max(float(np.ptp(points_mm, axis=0).max()), 1.0)
     near, extra = [], []
     for ob in obstacles:
@@ -333,11 +334,17 @@ def _near_obstacles(obstacles: list[dict], points_mm: np.ndarray) -> tuple[list[
             gap = np.linalg.norm(points_mm - feet, axis=1) - r
             pts = np.concatenate([feet - r, feet + r])  # its surface around those feet
         else:
-            ends = [ob["center"]] if kind == "sphere" else [ob["start"], ob["end"]]
+            ends = [ob["center"]] * 2 if kind == "sphere" else [ob["start"], ob["end"]]
             r = ob["radius"] * 1e3
-            centres = np.asarray(ends, float) * 1e3
-            gap = np.min(np.linalg.norm(points_mm[:, None] - centres[None], axis=2), axis=1) - r
-            pts = np.concatenate([centres - r, centres + r])
+            a, b = (np.asarray(e, float) * 1e3 for e in ends)
+            # The nearest points of the segment a-b (a sphere's is a point) and the box of
+            # the radius around them: a long pin across the arm widens the view by its
+            # radius, not its length (it is cut to the view when drawn).
+            ab = b - a
+            t = np.clip((points_mm - a) @ ab / max(float(ab @ ab), 1e-300), 0.0, 1.0)
+            feet = a + np.outer(t, ab)
+            gap = np.linalg.norm(points_mm - feet, axis=1) - r
+            pts = np.concatenate([feet - r, feet + r])
         if np.min(gap) <= reach:
             near.append(ob)
             extra.append(pts)
@@ -396,8 +403,8 @@ def _ball_surface(ax, centre, radius) -> None:
 
 
 def _draw_obstacles(ax, obstacles: list[dict], lo, hi) -> None:
-    """Draw the obstacles (mm) in the 3-D view whose limits are [lo, hi]: planes and
-    infinite cylinders as their part inside the view, spheres and capsules whole."""
+    """Draw the obstacles (mm) in the 3-D view whose limits are [lo, hi]: planes, cylinders
+    and capsules as their part inside the view, spheres whole."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     for ob in obstacles:
@@ -415,17 +422,18 @@ def _draw_obstacles(ax, obstacles: list[dict], lo, hi) -> None:
                 )
         elif kind == "sphere":
             _ball_surface(ax, np.asarray(ob["center"]) * 1e3, ob["radius"] * 1e3)
-        elif kind == "capsule":
-            a, b, r = np.asarray(ob["start"]) * 1e3, np.asarray(ob["end"]) * 1e3, ob["radius"] * 1e3
-            _tube_surface(ax, a, b, r)
-            _ball_surface(ax, a, r)
-            _ball_surface(ax, b, r)
-        elif kind == "cylinder":
-            # The axis cut to the view (slab method on the box widened by the radius).
-            p, d = np.asarray(ob["point"]) * 1e3, np.asarray(ob["axis"], float)
+        elif kind in ("capsule", "cylinder"):
+            # The axis cut to the view (slab method on the box widened by the radius); a
+            # capsule's segment also to its ends, whose balls are drawn where in the view.
+            if kind == "capsule":
+                p, end = np.asarray(ob["start"]) * 1e3, np.asarray(ob["end"]) * 1e3
+                d = end - p
+                span = (0.0, float(np.linalg.norm(d)))
+            else:
+                p, d, span = np.asarray(ob["point"]) * 1e3, np.asarray(ob["axis"], float), None
             d = d / np.linalg.norm(d)
             r = ob["radius"] * 1e3
-            t0, t1 = -np.inf, np.inf
+            t0, t1 = (-np.inf, np.inf) if span is None else span
             for i in range(3):
                 if abs(d[i]) < 1e-12:
                     if not lo[i] - r <= p[i] <= hi[i] + r:
@@ -435,6 +443,10 @@ def _draw_obstacles(ax, obstacles: list[dict], lo, hi) -> None:
                 t0, t1 = max(t0, ta), min(t1, tb)
             if t0 < t1:
                 _tube_surface(ax, p + t0 * d, p + t1 * d, r)
+            if span is not None:
+                for c in (p, p + span[1] * d):
+                    if np.all(c >= lo - r) and np.all(c <= hi + r):
+                        _ball_surface(ax, c, r)
 
 
 def _draw_frames(ax, pos_mm: np.ndarray, rot: np.ndarray) -> None:
