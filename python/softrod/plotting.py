@@ -16,6 +16,7 @@ import numpy as np
 from .errors import InputError, design_error
 from .io import atomic_path, check_target
 from .statics import StaticSolution
+from .viewer.geometry import frame_along  # plain numpy: no viewer dependency is loaded
 
 # Styles of the parts of a rod. Chambered (actuated) sections take the colour of their
 # solution so several shapes stay distinguishable; passive and rigid parts are grey.
@@ -351,15 +352,6 @@ def _near_obstacles(obstacles: list[dict], points_mm: np.ndarray) -> tuple[list[
     return near, (np.concatenate(extra) if extra else np.zeros((0, 3)))
 
 
-def _normal_basis(axis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(unit axis, e1, e2): a right-handed basis with e1, e2 across the axis."""
-    z = np.asarray(axis, float) / np.linalg.norm(axis)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(helper, z)
-    e1 /= np.linalg.norm(e1)
-    return z, e1, np.cross(z, e1)
-
-
 def _plane_in_box(point, normal, lo, hi) -> np.ndarray:
     """The polygon (m, 3) where a plane cuts the box [lo, hi], ordered around its centre
     (empty when the plane misses the box)."""
@@ -379,7 +371,8 @@ def _plane_in_box(point, normal, lo, hi) -> np.ndarray:
     if len(pts) < 3:
         return np.zeros((0, 3))
     pts = np.array(pts)
-    _, e1, e2 = _normal_basis(n)
+    rot = frame_along(n)
+    e1, e2 = rot[:, 0], rot[:, 1]
     c = pts.mean(axis=0)
     order = np.argsort(np.arctan2((pts - c) @ e2, (pts - c) @ e1))
     return pts[order]
@@ -387,7 +380,8 @@ def _plane_in_box(point, normal, lo, hi) -> np.ndarray:
 
 def _tube_surface(ax, a, b, radius) -> None:
     """A cylinder of ``radius`` from a to b (mm), as a translucent surface."""
-    z, e1, e2 = _normal_basis(np.asarray(b) - np.asarray(a))
+    rot = frame_along(np.asarray(b) - np.asarray(a))
+    e1, e2 = rot[:, 0], rot[:, 1]
     th = np.linspace(0.0, 2.0 * np.pi, 25)
     ring = radius * (np.outer(np.cos(th), e1) + np.outer(np.sin(th), e2))
     grid = np.stack([np.asarray(a) + ring, np.asarray(b) + ring])  # (2, 25, 3)
