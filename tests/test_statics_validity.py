@@ -125,6 +125,66 @@ def test_column_with_a_lateral_imperfection_bends_with_the_force(ratio, sign):
     assert abs(sol.tip_position[2] - z) < 1e-6 * L
 
 
+@pytest.mark.parametrize(("ratio", "rel"), [(1.01, 1e-4), (1.05, 1e-6), (2.0, 1e-8), (3.0, 1e-6)])
+def test_column_with_a_tiny_imperfection_still_bends_with_the_force(ratio, rel):
+    """Just past the Euler load, or far past it, a lateral force of 1e-4 to 1e-8 of the axial
+    one turns the path off the straight branch within about rel^(2/3) of the buckling load
+    (Koiter): the continuation resolves that turn and returns the stable elastica, not the
+    straight column (at 2 P_cr with rel = 1e-8 it returned the straight, unstable one)."""
+    p = ratio * P_CR
+    sol = solve_statics(column(), [], tip_force=[rel * p, 0, -p])
+    assert sol.stable is True
+    x, z = elastica_tip(p, rel * p)
+    # 1e-6 L, as in the test above: RK4 and the extensibility are far below it.
+    assert abs(sol.tip_position[0] - x) < 1e-6 * L
+    assert abs(sol.tip_position[2] - z) < 1e-6 * L
+
+
+def straight_finger() -> softrod.Design:
+    """The bundled tendon finger without its pre-bend and without gravity: an 80 mm silicone
+    column whose Euler load under a dead tip force is about 0.39 N."""
+    d = load_design("prebent_tendon_finger")
+    sec = dict(d.document["sections"][0])
+    sec.pop("bend_radius")
+    sec.pop("bend_direction")
+    return d.replace({"sections": [sec], "mounting.gravity": "0 m/s^2"})
+
+
+@pytest.mark.parametrize("axial", [0.5, 1.0])
+@pytest.mark.parametrize("lateral", [1e-4, 1e-6])
+def test_soft_finger_past_its_buckling_load_takes_the_stable_branch(axial, lateral):
+    """1.3 and 2.6 times the Euler load with a lateral force of 1e-4 or 1e-6 of it: the
+    finger buckles towards the force. (It returned the straight, unstable equilibrium: the
+    continuation's loose intermediate levels strayed 0.3 rad from the path near the
+    critical load, where the Jacobian is nearly singular, and the step cut stopped at 1/64.)
+    Independent check of the branch: Newton warm-started from the solution under a 1000
+    times larger lateral force lands on the same equilibrium."""
+    d = straight_finger()
+    force = [lateral * axial, 0.0, -axial]
+    sol = solve_statics(d, [0.0], tip_force=force)
+    assert sol.stable is True
+    assert sol.tip_position[0] > 0.5 * d.length  # buckled, towards the force
+    nearby = solve_statics(d, [0.0], tip_force=[1e3 * lateral * axial, 0.0, -axial])
+    warm = solve_statics(d, [0.0], tip_force=force, initial=nearby)
+    # Both are the same equilibrium solved to tol = 1e-10 (relative, scaled unknowns):
+    # 1e-9 of the length bounds their difference with room for the conditioning.
+    assert np.abs(warm.tip_position - sol.tip_position).max() < 1e-9 * d.length
+
+
+def test_a_stable_path_ending_outside_the_validity_range_is_not_replaced_by_the_straight_one():
+    """Five times its Euler load, the finger buckles so far that fibres at its base stretch
+    below the strain range: the answer is that error (rule strain_range), not the straight,
+    unstable equilibrium met on the way, which was returned with only a stability warning."""
+    d = straight_finger()
+    force = [1e-4 * 2.0, 0.0, -2.0]
+    with pytest.raises(InvalidStateError) as err:
+        solve_statics(d, [0.0], tip_force=force)
+    assert err.value.rule == "strain_range"
+    with pytest.warns(ValidityWarning):
+        sol = solve_statics(d, [0.0], tip_force=force, on_invalid="warn")
+    assert sol.stable is True and sol.tip_position[0] > 0.4 * d.length
+
+
 def soft_rod(length: float, orientation: str) -> softrod.Design:
     """A soft silicone rod (E = 100 kPa, nu = 0.5, 1000 kg/m^3, r = 12.5 mm) under its own
     weight, 32 steps. At 1 m single shooting's growth exponent int sqrt(|n| / EI) ds is 33

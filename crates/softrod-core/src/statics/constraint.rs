@@ -48,7 +48,11 @@
 //! does no work and adds nothing to the tip form.
 
 use super::contact::{crossing_error, Sides};
+// A step that leaves the stable path is cut down to the free tip's shortest step (its
+// doc says why so short); the levels here are solved to LEVEL_TOL = 1e-6, close enough
+// for the stability test.
 use super::SolverOptions;
+use super::MIN_STABLE_STEP;
 use super::{eigenvalues_right_half_plane, inf_norm, rotation_field, Problem, Shape, Solution};
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
@@ -384,13 +388,6 @@ pub(crate) struct PathOk {
 const MIN_STEP: f64 = 1e-5;
 /// Tolerance of intermediate levels (relative, as `SolverOptions::tol`): stepping stones.
 const LEVEL_TOL: f64 = 1e-6;
-/// A step that leaves the stable path (lands on an unstable equilibrium while the last level
-/// was stable) is cut until it is this short; a path that still loses stability then does so
-/// itself (a bifurcation, e.g. a perfect column pressed beyond its Euler load) and is
-/// followed. Shorter than the free tip's `super::MIN_STABLE_STEP`: the secant predictor is
-/// cruder than its exact tangent, and near a bifurcation only short steps stay on the
-/// branch that the imperfection picks.
-const MIN_STABLE_STEP: f64 = 1.0 / 1024.0;
 
 /// Continuation in the load factor lambda from x = `x0` at lambda = 0 (an exact solution
 /// there) to lambda = 1: first the whole step, then halved on failure, or when it leaves

@@ -993,18 +993,27 @@ pub(crate) fn eigenvalues_right_half_plane(t: &nalgebra::Matrix6<f64>) -> bool {
     }
 }
 
-/// The best of two attempts: a stable solution, else an unstable one, else the more telling
-/// error (a broken validity rule over non-convergence). Ties go to `b`.
+/// The best of two attempts: a stable solution, else a broken validity rule, else an
+/// unstable solution, else non-convergence. A broken rule outranks an unstable
+/// equilibrium: where the stable path ends outside the model's validity range (a finger
+/// buckled so far that its fibres stretch below the range), the unstable equilibrium met
+/// on the way (the straight column) is not what the rod does, and returning it would hide
+/// the reason. Ties go to `b`.
 type Attempt = Result<(Solution, Option<Shape>)>;
 
 fn rank(a: &Attempt) -> u8 {
     match a {
         // (Equilibria under follower loads are not assessed: no attempt does better.)
         Ok((s, _)) if s.stable != Some(false) => 3,
-        Ok(_) => 2,
-        Err(SoftrodError::InvalidState { .. }) => 1,
+        Err(SoftrodError::InvalidState { .. }) => 2,
+        Ok(_) => 1,
         Err(_) => 0,
     }
+}
+
+/// An equilibrium found unstable.
+fn is_unstable(a: &Attempt) -> bool {
+    matches!(a, Ok((s, _)) if s.stable == Some(false))
 }
 
 fn better(a: Option<Attempt>, b: Attempt) -> Attempt {
@@ -1266,8 +1275,14 @@ const MIN_LOAD_STEP: f64 = 1e-5;
 /// A step that leaves the stable path (lands on an unstable equilibrium while the last level
 /// was stable) is cut until it is this short; a path that still loses stability then does
 /// so itself (a bifurcation or limit point on the path, e.g. a perfect column above its
-/// buckling load) and is followed.
-const MIN_STABLE_STEP: f64 = 1.0 / 64.0;
+/// buckling load) and is followed. A small imperfection eps (a lateral force eps times the
+/// axial one) turns the path away from the straight branch within about eps^(2/3) of the
+/// buckling load (Koiter's imperfection law for a symmetric stable bifurcation), so the
+/// cut must reach below that: 1/4096 resolves eps down to about 1e-6 (the straight finger
+/// of tests/test_statics_validity.py; at 1/64 it returned the straight, unstable branch
+/// for lateral forces up to 1e-4 of the axial one). Cheap: only a step that lands on an
+/// unstable equilibrium is halved.
+const MIN_STABLE_STEP: f64 = 1.0 / 4096.0;
 /// A level whose rod passes through an obstacle is retried in half the load step, down to
 /// this one: below it the load pushes the rod through the penalty (its stiffness is too
 /// low for the load), not a too-long step.
@@ -1420,7 +1435,7 @@ fn natural_path<const N: usize, const M: usize>(
         };
         let attempt = p.newton(guess, start, &level_opts);
         match attempt {
-            Ok(c) => {
+            Ok(mut c) => {
                 iterations += c.iterations;
                 last_res = c.residual;
                 // The level's nodes reached without passing through an obstacle.
@@ -1449,7 +1464,7 @@ fn natural_path<const N: usize, const M: usize>(
                         violations.clone(),
                         want_shape,
                     );
-                    let left_path = stable == Some(true) && rank(&out) == 2;
+                    let left_path = stable == Some(true) && is_unstable(&out);
                     if !(left_path && h > MIN_STABLE_STEP && opts.continuation) {
                         return better(unstable_end, out);
                     }
@@ -1457,10 +1472,39 @@ fn natural_path<const N: usize, const M: usize>(
                     step = 0.5 * h;
                     continue;
                 }
-                let Some((t, j, st)) = p.tangent::<N, M>(&c.x) else {
+                let Some((mut t, mut j, mut st)) = p.tangent::<N, M>(&c.x) else {
                     step = 0.5 * h;
                     continue;
                 };
+                let mut shape = shape;
+                // A level's residual bounds its error only where J is well conditioned. Near
+                // a critical load (J nearly singular) a residual of LEVEL_TOL can leave x far
+                // from the path (a column just past its Euler load, 0.3 rad off: the next
+                // prediction then lands on the unstable straight branch), and the stability
+                // test turns on small differences there: where the Newton correction
+                // J^-1 r says the level is further than LEVEL_TOL from its equilibrium, or
+                // the level seems to leave the stable path, solve it to the solve's own
+                // tolerance and look again.
+                let off = solve_linear(&j, &SVector::<f64, N>::from_column_slice(&c.r))
+                    .map_or(f64::INFINITY, |d| d.amax());
+                let doubtful = off > LEVEL_TOL * inf_norm(&c.x).max(1.0)
+                    || (stable == Some(true) && st == Some(false));
+                if doubtful && level_opts.tol > opts.tol {
+                    let polish = Start::Predicted {
+                        jac: j,
+                        r: c.r,
+                        fail_fast: false,
+                    };
+                    if let Ok(c2) = p.newton(c.x, polish, opts) {
+                        iterations += c2.iterations;
+                        if let Some((t2, j2, st2)) = p.tangent::<N, M>(&c2.x) {
+                            if clear_of(obstacles, &last_shape, &p, &c2.x) {
+                                shape = obstacles.map(|o| (o, contact::node_points(&p, &c2.x)));
+                                (c, t, j, st) = (c2, t2, j2, st2);
+                            }
+                        }
+                    }
+                }
                 if stable == Some(true) && st == Some(false) && h > MIN_STABLE_STEP {
                     step = 0.5 * h;
                     continue;
@@ -1506,6 +1550,17 @@ fn natural_path<const N: usize, const M: usize>(
             }
         }
     }
+}
+
+/// Whether the nodes at `x` were reached from the last level's (`last`) without passing
+/// through an obstacle (always, without obstacles).
+fn clear_of<const N: usize>(
+    obstacles: Option<&[crate::contact::Obstacle]>,
+    last: &contact::NodePoints,
+    p: &Problem,
+    x: &[f64; N],
+) -> bool {
+    obstacles.is_none_or(|o| contact::crossing(o, last, &contact::node_points(p, x)).is_none())
 }
 
 /// The next step's reach from the last one and the Newton iterations it needed: longer
