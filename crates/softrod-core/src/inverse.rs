@@ -735,6 +735,10 @@ pub fn solve_inverse(
     // the last steps' decrease better than J^T J alone (then the next step uses it).
     let mut s2 = DMatrix::<f64>::zeros(nc, nc);
     let mut augmented = false;
+    // Fletcher and Xu's test for a large residual: the last accepted step lowered the cost
+    // by less than a fifth. Near a reachable target Gauss-Newton converges quadratically
+    // (each step removes far more) and a stale M would only spoil its steps.
+    let mut large_residual = false;
     // The last fresh linearisation's (z, J, J^T e) and the actual and Gauss-Newton-predicted
     // decreases of the cost accepted since.
     let mut last_exact: Option<(DVector<f64>, DMatrix<f64>, DVector<f64>)> = None;
@@ -873,7 +877,11 @@ pub fn solve_inverse(
             .cholesky()
             .is_some()
         };
-        let curvature = if augmented && convex { Some(&s2) } else { None };
+        let curvature = if augmented && large_residual && convex {
+            Some(&s2)
+        } else {
+            None
+        };
         let pin = |c: usize| curvature.is_some() && held[c];
         let zlo: Vec<f64> = (0..nc).map(|c| if pin(c) { 0.0 } else { -z[c] }).collect();
         let zhi: Vec<f64> = (0..nc)
@@ -980,6 +988,7 @@ pub fn solve_inverse(
             if cost_t.is_finite() && cost_t < cost {
                 let rho = (cost - cost_t) / pred;
                 since.0 += cost - cost_t;
+                large_residual = cost - cost_t < 0.2 * cost;
                 since.1 += pred_gn;
                 mu = if rho > 0.75 {
                     mu / 3.0
