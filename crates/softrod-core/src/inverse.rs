@@ -46,12 +46,12 @@
 //! barely changes along it, and Gauss-Newton converges linearly at a rate near 1). The step
 //! then adds a structured secant estimate M of the second-order term (Dennis, Gay and
 //! Welsch's NL2SOL update from the exact Jacobians of successive passes: M s = (J - J0)^T
-//! e), used when J^T J + M predicted the last decrease better than J^T J, as a projected
-//! Newton step (Bertsekas): the inputs held at a bound by the gradient stay, the others
-//! step with J^T J + M on their face where it is positive definite.
+//! e), used while the residual is large (the last step lowered the cost by less than a
+//! fifth: Fletcher and Xu) and J^T J + M predicted the last decrease better than J^T J, as a
+//! projected Newton step (Bertsekas): the inputs held at a bound by the gradient stay, the
+//! others step with J^T J + M on their face where it is positive definite.
 //!
-//! The returned equilibrium is always
-//! converged and concluded as a static solve's answer (`statics::conclude_at`): checked
+//! The returned equilibrium is always converged and concluded as a static solve's answer (`statics::conclude_at`): checked
 //! against the validity rules (`crate::validity`), with its stability (`Solution::stable`)
 //! for the caller to refuse an unstable one.
 
