@@ -866,18 +866,20 @@ pub fn solve_inverse(
         // where they are, the others take the step of J^T J + M on their face, where that
         // is convex (the box QP needs a positive definite H). J^T J alone is singular with
         // more inputs than task rows, so convexity is judged on the free face only.
-        let free_face: Vec<usize> = (0..nc).filter(|&c| !held[c]).collect();
-        let convex = !free_face.is_empty() && {
+        let convex = || {
+            let free_face: Vec<usize> = (0..nc).filter(|&c| !held[c]).collect();
             let k = free_face.len();
             let ridge = eps + mu + 1e-14 * scale;
-            DMatrix::from_fn(k, k, |a, b| {
-                let (i, j) = (free_face[a], free_face[b]);
-                jtj[(i, j)] + s2[(i, j)] + if a == b { ridge } else { 0.0 }
-            })
-            .cholesky()
-            .is_some()
+            k > 0
+                && DMatrix::from_fn(k, k, |a, b| {
+                    let (i, j) = (free_face[a], free_face[b]);
+                    jtj[(i, j)] + s2[(i, j)] + if a == b { ridge } else { 0.0 }
+                })
+                .cholesky()
+                .is_some()
         };
-        let curvature = if augmented && large_residual && convex {
+        // (The Cholesky factorisation only when the model is wanted: warm calls stay cheap.)
+        let curvature = if augmented && large_residual && convex() {
             Some(&s2)
         } else {
             None
