@@ -33,10 +33,25 @@
 //! sets eps = 0 and continues with minimum-norm steps, which reach the target exactly while
 //! staying next to the regularised point. Without redundancy eps is 0 throughout.
 //!
-//! Unreachable targets: the iteration stops at a stationary point of the distance inside the
-//! box (a local minimum: some bounds active, the projected gradient zero) and the solution
-//! says `reached = false` with the distance left. The returned equilibrium is always
-//! converged and concluded as a static solve's answer (`statics::conclude_at`): checked
+//! Unreachable targets: the iteration stops at a first-order stationary point of the cost
+//! in the box and the solution says `reached = false` with the distance left. The test, at
+//! exact Jacobians, is the box's Frank-Wolfe gap of the gradient g = J^T e (+ eps (z - z_ref)) in
+//! scaled pressures z: gap = sum_c max(g_c z_c, -g_c (1 - z_c), 0), the most
+//! the linearised cost can fall in the box. Where the cost is locally convex,
+//! cost - cost* <= gap, and a fall of gap moves |e| by gap / |e|: the iteration stops at
+//! gap <= tol |e| (closer poses are below the reach resolution), or when the step or its
+//! predicted decrease vanishes or no step lowers the cost (the solves' noise floor).
+//! Far out of reach |e| stays large and J^T J misjudges the Hessian J^T J + sum_i e_i
+//! d2e_i/dz2 (the point moves on an arc whose centre lies near the target: the distance
+//! barely changes along it, and Gauss-Newton converges linearly at a rate near 1). The step
+//! then adds a structured secant estimate M of the second-order term (Dennis, Gay and
+//! Welsch's NL2SOL update from the exact Jacobians of successive passes: M s = (J - J0)^T
+//! e), used while the residual is large (the last step lowered the cost by less than a
+//! fifth: Fletcher and Xu) and J^T J + M predicted the last decrease better than J^T J, as a
+//! projected Newton step (Bertsekas): the inputs held at a bound by the gradient stay, the
+//! others step with J^T J + M on their face where it is positive definite.
+//!
+//! The returned equilibrium is always converged and concluded as a static solve's answer (`statics::conclude_at`): checked
 //! against the validity rules (`crate::validity`), with its stability (`Solution::stable`)
 //! for the caller to refuse an unstable one.
 
@@ -711,8 +726,23 @@ pub fn solve_inverse(
     let mut mu = 0.0f64;
     let mut iterations = 0;
     let mut stationary = false;
-    // Accepted steps in a row that gained less than the reach tolerance.
-    let mut slow = 0usize;
+    // Structured secant estimate M of the part of the cost's Hessian that Gauss-Newton drops,
+    // sum_i e_i d2e_i/dz2 (Dennis, Gay and Welsch's NL2SOL), learnt from the exact Jacobians
+    // of successive fresh passes. Far out of reach it is not small: the point moves along a
+    // curve whose centre of curvature lies near the target, the distance barely changes along
+    // it, and J^T J overstates the curvature so much that Gauss-Newton crawls (linear
+    // convergence at a rate near 1). `augmented` says whether the model J^T J + M predicted
+    // the last steps' decrease better than J^T J alone (then the next step uses it).
+    let mut s2 = DMatrix::<f64>::zeros(nc, nc);
+    let mut augmented = false;
+    // Fletcher and Xu's test for a large residual: the last accepted step lowered the cost
+    // by less than a fifth. Near a reachable target Gauss-Newton converges quadratically
+    // (each step removes far more) and a stale M would only spoil its steps.
+    let mut large_residual = false;
+    // The last fresh linearisation's (z, J, J^T e) and the actual and Gauss-Newton-predicted
+    // decreases of the cost accepted since.
+    let mut last_exact: Option<(DVector<f64>, DMatrix<f64>, DVector<f64>)> = None;
+    let mut since = (0.0f64, 0.0f64);
     // The linearisation in use: fresh from a pass at the current iterate, or kept from an
     // earlier iterate (or the previous call) while its chord steps contract well.
     let mut lin: Option<Linearisation> = warm
@@ -785,14 +815,98 @@ pub fn solve_inverse(
         }
         let scale = jtj.diagonal().max().max(1e-300);
         let grad_reg = DVector::from_fn(nc, |c, _| eps * (z[c] - z_ref[c]));
-        let b = -(jac.transpose() * &e) - &grad_reg;
-        let zlo: Vec<f64> = (0..nc).map(|c| -z[c]).collect();
+        let grad_task = jac.transpose() * &e;
+        let b = -&grad_task - &grad_reg;
+        let zv = DVector::from_column_slice(&z);
+        // First-order optimality, judged at exact Jacobians only.
+        let mut first_order = false;
+        // M lives on the inputs that may move: a pinned one or one held at a bound by the
+        // gradient has no curvature to learn (M is part of the reduced Hessian).
+        let grad = &grad_task + &grad_reg;
+        let held: Vec<bool> = (0..nc)
+            .map(|c| {
+                hi[c] == lo[c] || (z[c] <= 0.0 && grad[c] > 0.0) || (z[c] >= 1.0 && grad[c] < 0.0)
+            })
+            .collect();
+        if fresh {
+            let free_only =
+                |v: DVector<f64>| DVector::from_fn(nc, |c, _| if held[c] { 0.0 } else { v[c] });
+            for c in (0..nc).filter(|&c| held[c]) {
+                s2.row_mut(c).fill(0.0);
+                s2.column_mut(c).fill(0.0);
+            }
+            if let Some((z0, j0, g0)) = &last_exact {
+                let step = free_only(&zv - z0);
+                if step.norm() > 0.0 {
+                    // y# = (J - J0)^T e: M's secant condition M s = y#; y = grad - grad0.
+                    let y_sharp = free_only((&jac - j0).transpose() * &e);
+                    let y = free_only(&grad_task - g0);
+                    let (actual, pred_gn) = since;
+                    // Would J^T J + M (M updated) have predicted the decrease better?
+                    if secant_update(&mut s2, &step, &y, &y_sharp) {
+                        let pred_aug = pred_gn - 0.5 * step.dot(&y_sharp);
+                        augmented = (actual - pred_aug).abs() < (actual - pred_gn).abs();
+                    }
+                }
+            }
+            last_exact = Some((zv.clone(), jac.clone(), grad_task.clone()));
+            since = (0.0, 0.0);
+            // The first-order decrease the linearisation offers anywhere in the box (the
+            // Frank-Wolfe gap): max over feasible z' of grad . (z - z'). Where the cost is
+            // locally convex it bounds the decrease left, cost - cost* <= gap, and a decrease
+            // of the cost by gap moves |e| by gap / |e|: below tol (the reach resolution, in
+            // L and rad) the closest pose is resolved.
+            let gap: f64 = (0..nc)
+                .filter(|&c| hi[c] > lo[c])
+                .map(|c| (grad[c] * z[c]).max(-grad[c] * (1.0 - z[c])).max(0.0))
+                .sum();
+            first_order = gap <= opts.tol * (2.0 * cost).sqrt();
+        }
+        // The augmented model is a projected Newton step (Bertsekas): the held inputs stay
+        // where they are, the others take the step of J^T J + M on their face, where that
+        // is convex (the box QP needs a positive definite H). J^T J alone is singular with
+        // more inputs than task rows, so convexity is judged on the free face only.
+        let convex = || {
+            let free_face: Vec<usize> = (0..nc).filter(|&c| !held[c]).collect();
+            let k = free_face.len();
+            let ridge = eps + mu + 1e-14 * scale;
+            k > 0
+                && DMatrix::from_fn(k, k, |a, b| {
+                    let (i, j) = (free_face[a], free_face[b]);
+                    jtj[(i, j)] + s2[(i, j)] + if a == b { ridge } else { 0.0 }
+                })
+                .cholesky()
+                .is_some()
+        };
+        // (The Cholesky factorisation only when the model is wanted: warm calls stay cheap.)
+        let curvature = if augmented && large_residual && convex() {
+            Some(&s2)
+        } else {
+            None
+        };
+        let pin = |c: usize| curvature.is_some() && held[c];
+        let zlo: Vec<f64> = (0..nc).map(|c| if pin(c) { 0.0 } else { -z[c] }).collect();
         let zhi: Vec<f64> = (0..nc)
-            .map(|c| if hi[c] > lo[c] { 1.0 - z[c] } else { 0.0 })
+            .map(|c| {
+                if hi[c] > lo[c] && !pin(c) {
+                    1.0 - z[c]
+                } else {
+                    0.0
+                }
+            })
             .collect();
         let mut accepted = false;
+        if first_order {
+            stationary = true;
+        }
         for _attempt in 0..12 {
-            let mut h = jtj.clone();
+            if first_order {
+                break;
+            }
+            let mut h = match curvature {
+                Some(s2) => &jtj + s2,
+                None => jtj.clone(),
+            };
             let ridge = eps + mu + 1e-14 * scale;
             for c in 0..nc {
                 h[(c, c)] += ridge;
@@ -805,7 +919,11 @@ pub fn solve_inverse(
                 let reg: f64 = (0..nc).map(|c| (z[c] + d[c] - z_ref[c]).powi(2)).sum();
                 0.5 * r.dot(&r) + 0.5 * eps * reg
             };
-            let pred = cost - model(&dz);
+            let pred_gn = cost - model(&dz);
+            let pred = match curvature {
+                Some(s2) => pred_gn - 0.5 * dz.dot(&(s2 * &dz)),
+                None => pred_gn,
+            };
             if step_size <= 1e-12 || pred <= 1e-15 * cost.max(1e-300) {
                 stationary = true;
                 break;
@@ -871,6 +989,9 @@ pub fn solve_inverse(
             let cost_t = cost_of(&y_corr_t, &p_t, eps);
             if cost_t.is_finite() && cost_t < cost {
                 let rho = (cost - cost_t) / pred;
+                since.0 += cost - cost_t;
+                large_residual = cost - cost_t < 0.2 * cost;
+                since.1 += pred_gn;
                 mu = if rho > 0.75 {
                     mu / 3.0
                 } else if rho < 0.25 {
@@ -913,20 +1034,6 @@ pub fn solve_inverse(
                 accepted = true;
                 moved = true;
                 fresh = false;
-                // For the task alone, far from the target (|e| above 10 tol), a step that
-                // lowers |e| by less than the reach tolerance tol is below the resolution
-                // the answer is judged at; two in a row are a stationary point. A flat
-                // valley of the distance (an unreachable target and a common-mode input
-                // that barely moves the point, such as opposed tendons compressing a steel
-                // backbone) is a large-residual problem where Gauss-Newton converges only
-                // linearly, and would take a hundred such steps.
-                let (e_now, e_new) = ((2.0 * cost).sqrt(), (2.0 * cost_t).sqrt());
-                slow = if eps == 0.0 && e_new > 10.0 * opts.tol && e_now - e_new < opts.tol {
-                    slow + 1
-                } else {
-                    0
-                };
-                stationary = slow >= 2;
                 break;
             }
             if !fresh {
@@ -956,7 +1063,6 @@ pub fn solve_inverse(
                 eps = 0.0;
                 stationary = false;
                 mu = 0.0;
-                slow = 0;
                 continue;
             }
             break;
@@ -1014,10 +1120,57 @@ pub fn solve_inverse(
     })
 }
 
+/// Dennis, Gay and Welsch's update of the structured secant term M (NL2SOL): sized down by
+/// min(1, |s^T y#| / |s^T M s|) (M fades where the residual's curvature does), then the
+/// least change weighted by the Hessian that gives M s = y#. Skipped (false) unless the
+/// step met positive curvature, y^T s > 0.
+fn secant_update(
+    s2: &mut DMatrix<f64>,
+    s: &DVector<f64>,
+    y: &DVector<f64>,
+    y_sharp: &DVector<f64>,
+) -> bool {
+    let sy = s.dot(y);
+    if !(sy > 0.0 && sy.is_finite() && y_sharp.iter().all(|v| v.is_finite())) {
+        return false;
+    }
+    let sss = s.dot(&(&*s2 * s));
+    if sss != 0.0 {
+        *s2 *= (s.dot(y_sharp).abs() / sss.abs()).min(1.0);
+    }
+    let r = y_sharp - &*s2 * s;
+    let rs = r.dot(s);
+    *s2 += (&r * y.transpose() + y * r.transpose()) / sy - (y * y.transpose()) * (rs / (sy * sy));
+    true
+}
+
 fn flatten(st: &State<f64>) -> [f64; 12] {
     let r = &st.rot;
     [
         st.r[0], st.r[1], st.r[2], r[0][0], r[0][1], r[0][2], r[1][0], r[1][1], r[1][2], r[2][0],
         r[2][1], r[2][2],
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The secant update meets its condition M s = y# exactly (to rounding, 1e-14 of |y#|),
+    /// stays symmetric, and is skipped where the step met no positive curvature (y^T s <= 0).
+    #[test]
+    fn secant_update_meets_the_secant_condition() {
+        let mut s2 =
+            DMatrix::from_row_slice(3, 3, &[0.3, 0.1, 0.0, 0.1, -0.2, 0.05, 0.0, 0.05, 0.4]);
+        let s = DVector::from_column_slice(&[0.2, -0.1, 0.05]);
+        let y = DVector::from_column_slice(&[0.5, -0.3, 0.2]);
+        let y_sharp = DVector::from_column_slice(&[-0.04, 0.01, 0.03]);
+        assert!(secant_update(&mut s2, &s, &y, &y_sharp));
+        let miss = (&s2 * &s - &y_sharp).amax();
+        assert!(miss <= 1e-14 * y_sharp.amax(), "{miss:e}");
+        assert!((&s2 - s2.transpose()).amax() == 0.0);
+        let before = s2.clone();
+        assert!(!secant_update(&mut s2, &s, &(-&y), &y_sharp));
+        assert_eq!(s2, before);
+    }
 }
