@@ -232,11 +232,13 @@ def test_a_pose_of_another_kind_is_refused_and_nothing_changes():
     offset=st.lists(st.floats(-0.5, 0.5), min_size=3, max_size=3),
     turn=st.lists(st.floats(-1.0, 1.0), min_size=3, max_size=3),
     scale=st.sampled_from([1e-3, 1e-1, 1.0, 1e3, math.inf]),
-    initial=st.sampled_from(["static", "straight"]),
+    initial=st.sampled_from(["static", "straight", "reference"]),
 )
 def test_hypothesis_any_held_run_is_finite_or_refused_by_name(kind, offset, turn, scale, initial):
     """Each kind at any pose near or far from the tip (or non-finite), from either start:
-    a finite trajectory whose tip holds the pose, or the library's error naming a field."""
+    a finite trajectory whose tip holds the pose, or the library's error naming a field. (A
+    pose that compresses the beam past its buckling load starts at an unstable equilibrium:
+    that warning is the start's honest verdict, tested elsewhere, so it is not asked for.)"""
     pos = [TIP[k] + scale * L * offset[k] for k in range(3)]
     c = {"type": kind}
     if kind != "free":
@@ -244,7 +246,9 @@ def test_hypothesis_any_held_run_is_finite_or_refused_by_name(kind, offset, turn
     if kind == "clamped":
         c["orientation"] = [f"{x} rad" for x in turn]
     try:
-        traj = simulate(beam(), None, 3 * DT, dt=DT, initial=initial, tip_constraint=c)
+        traj = simulate(
+            beam(), None, 3 * DT, dt=DT, initial=initial, tip_constraint=c, on_unstable="ignore"
+        )
     except (InputError, DesignError) as exc:
         assert exc.field, exc
         return

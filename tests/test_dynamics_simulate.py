@@ -379,3 +379,56 @@ def test_alpha_with_the_midpoint_rule_is_refused_not_ignored(tmp_path):
         + ["--alpha", "-0.3", "--out", str(tmp_path / "run.npz")],
     )
     assert out.exit_code != 0 and "--alpha" in out.output
+
+
+def test_reference_start_releases_a_prebent_finger_from_its_reference_shape():
+    """initial='reference': at rest in the reference shape with no internal force, released
+    at t = 0. Without gravity that is an equilibrium: the state equals the 'static' start's
+    (the same rest problem, every load off) and a run stays there exactly. With gravity
+    every point of a rod with n = m = 0 starts in free fall: the midpoint rule's first step
+    moves the tip by g dt^2 / 2 (the consistent start accelerations, with the gravity turned
+    into each stage's curved frame) to O(dt) relative (1.2e-6 at dt = 0.1 ms; 1e-4 bounds
+    it); a damped run settles on the 'static' start's equilibrium (1e-9 L: the Newton
+    tolerance; the slowest mode decays by 100 in 0.25 s, 2 s is ample)."""
+    d = softrod.load_design("prebent_tendon_finger")
+    weightless = d.replace({"mounting.gravity": "0 m/s^2"})
+    ref = softrod.Simulation(weightless, [0.0], initial="reference", dt=1e-3)
+    static = softrod.Simulation(weightless, [0.0], initial="static", dt=1e-3)
+    assert np.array_equal(ref.state().tip_position, static.state().tip_position)
+    assert np.hypot(*ref.state().tip_position[:2]) > 0.02  # the pre-bend, not straight
+    tr = softrod.simulate(weightless, [0.0], 0.05, initial="reference", dt=1e-3)
+    assert np.abs(tr.tip_position - tr.tip_position[0]).max() == 0.0
+
+    dt = 1e-4
+    sim = softrod.Simulation(d, [0.0], initial="reference", dt=dt, scheme="midpoint")
+    r0 = sim.state().tip_position.copy()
+    sim.step([0.0])
+    fall = 0.5 * np.array([0.0, 0.0, -9.81]) * dt**2
+    assert np.abs(sim.state().tip_position - r0 - fall).max() < 1e-4 * np.abs(fall).max()
+
+    damped = d.replace({"dynamics": {"damping_time": "0.02 s"}})
+    tr = softrod.simulate(damped, [0.0], 2.0, initial="reference", dt=5e-3)
+    rest = softrod.Simulation(damped, [0.0], initial="static").state().tip_position
+    assert np.abs(tr.tip_position[-1] - rest).max() < 1e-9 * d.length
+    assert np.abs(tr.tip_position[0] - rest).max() > 1e-3  # it did fall
+
+
+def test_reference_start_refusals_name_the_field():
+    """A pressure at t = 0 shifts the strains of zero force (the rest state would carry an
+    internal force the free tip cannot): refused naming pressures[k]; 'straight' on a
+    pre-bent rod has no state at rest (refused, pointing to 'reference'); a held tip on a
+    pre-bent rod starts 'static'."""
+    d = softrod.load_design("prebent_tendon_finger")
+    with pytest.raises(softrod.InputError, match=r"pressures\[0\]"):
+        softrod.Simulation(d, [20e3], initial="reference")
+    with pytest.raises(softrod.InputError, match="'reference'"):
+        softrod.Simulation(d, [0.0], initial="straight")
+    with pytest.raises(softrod.InputError, match="initial"):
+        softrod.Simulation(
+            d,
+            [0.0],
+            initial="reference",
+            tip_constraint=softrod.TipConstraint.pinned([0.03, 0.0, 0.07]),
+        )
+    with pytest.raises(softrod.InputError, match="initial"):
+        softrod.Simulation(d, [0.0], initial="curved")

@@ -601,7 +601,9 @@ def simulate_cases(draw):
             "alpha": st.one_of(st.sampled_from([-0.2, -0.5, 0.0, 1.0]), hostile()),
             "tol": hostile(),
             "max_iter": st.one_of(st.sampled_from([1, 5, 1.5, 0]), hostile()),
-            "initial": st.one_of(st.sampled_from(["static", "straight", ["static"]]), hostile()),
+            "initial": st.one_of(
+                st.sampled_from(["static", "straight", "reference", ["static"]]), hostile()
+            ),
             "model": st.sampled_from(["cosserat", "pcc", "x"]),
         },
     )
@@ -646,7 +648,7 @@ def valid_simulate_cases(draw):
     kwargs = {
         "dt": draw(st.sampled_from([1e-3, 2e-3, "5 ms"])),
         "scheme": draw(st.sampled_from(["bdf-alpha", "bdf-alpha", "midpoint"])),
-        "initial": draw(st.sampled_from(["static", "static", "straight"])),
+        "initial": draw(st.sampled_from(["static", "static", "straight", "reference"])),
     }
     if kwargs["scheme"] == "bdf-alpha":
         kwargs["alpha"] = draw(st.sampled_from([None, -0.2, -0.45, 0.0]))

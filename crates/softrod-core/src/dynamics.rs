@@ -554,8 +554,28 @@ struct Slot {
 pub enum Initial {
     /// At rest in static equilibrium under the first pressures (and gravity, tip loads).
     Static,
-    /// At rest in the straight reference shape (v = e3, u = 0), released at t = 0.
+    /// At rest in the straight shape (v = e3, u = 0) with no internal force, released at
+    /// t = 0: only for a rod whose reference shape is straight.
     Straight,
+    /// At rest in the reference shape with no internal force (the unloaded rod: for a
+    /// straight reference, `Straight`), released at t = 0: a pre-bent finger let go.
+    Reference,
+}
+
+impl Initial {
+    /// Released from rest with no internal force (not in equilibrium under the loads).
+    fn released(self) -> bool {
+        matches!(self, Initial::Straight | Initial::Reference)
+    }
+
+    /// The name users give it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Initial::Static => "static",
+            Initial::Straight => "straight",
+            Initial::Reference => "reference",
+        }
+    }
 }
 
 /// Counters of a run.
@@ -850,14 +870,21 @@ impl Simulator {
         check_dynamic_laws(&rod, &sigma_map)?;
         rod.check_pressures(pressures)?;
         rod.check_tensions(tensions)?;
-        if initial == Initial::Straight {
-            // The straight state with n = m = 0 is no state of a rod whose tendons pull
+        if initial == Initial::Straight && !rod.sections.iter().all(|s| s.reference.is_straight()) {
+            return Err(SoftrodError::invalid(
+                "initial",
+                "straight",
+                "the rod's reference shape is not straight, and held straight it carries an internal moment its free tip cannot (no state at rest): start 'reference' (at rest in the reference shape) or start 'static'",
+            ));
+        }
+        if initial.released() {
+            // The unloaded state with n = m = 0 is no state of a rod whose tendons pull
             // (their tension is part of n): start slack and pull from the first step on.
             if let Some(k) = tensions.iter().position(|t| *t != 0.0) {
                 return Err(SoftrodError::invalid(
                     format!("tensions[{k}]"),
                     tensions[k],
-                    "the 'straight' start is at rest with slack tendons: give tension 0 at t = 0 (and the tension from the first step on) or start 'static'",
+                    format!("the '{}' start is at rest with slack tendons: give tension 0 at t = 0 (and the tension from the first step on) or start 'static'", initial.name()),
                 ));
             }
         }
@@ -949,6 +976,19 @@ impl Simulator {
         sigma: &[f64; 3],
         c0: f64,
     ) -> Vec<SectionModel> {
+        self.models_scaled(pressures, tensions, sigma, c0, 1.0)
+    }
+
+    /// [`Self::models_at`] with every load (pressure, tension, gravity, line loads) scaled
+    /// by `factor` (0: the unloaded rod).
+    fn models_scaled(
+        &self,
+        pressures: &[f64],
+        tensions: &[f64],
+        sigma: &[f64; 3],
+        c0: f64,
+        factor: f64,
+    ) -> Vec<SectionModel> {
         let tau = self.rod.spec.dynamics.damping_time;
         let coeffs: Vec<Coeffs<f64>> = (0..self.rod.sections.len())
             .map(|i| {
@@ -958,7 +998,7 @@ impl Simulator {
                     pressures,
                     tensions,
                     &self.rod.gravity,
-                    1.0,
+                    factor,
                     sigma,
                 )
             })
@@ -996,6 +1036,26 @@ impl Simulator {
     /// The tip loads follow the tip (the design's `tip.frame = "body"`).
     fn follower_tip(&self) -> bool {
         self.rod.spec.tip.frame == crate::spec::Frame::Body
+    }
+
+    /// The rest problem of the unloaded rod (every load off: `models0` from
+    /// `models_scaled` at factor 0, no gravity, no tip loads; frictionless contact as in
+    /// the run), whose solution is the reference shape with no internal force.
+    fn unloaded_problem<'a>(
+        &'a self,
+        models0: &'a [SectionModel],
+        hist0: &'a [[f64; FIELDS]],
+    ) -> Problem<'a> {
+        let tip0 = TipBody {
+            force: [0.0; 3],
+            moment: [0.0; 3],
+            force_body: [0.0; 3],
+            moment_body: [0.0; 3],
+            ..self.tip_body([0.0; 3], [0.0; 3])
+        };
+        let mut p0 = Problem::new(&self.rod, &self.grid, models0, 0.0, hist0, tip0).with_contact();
+        p0.gravity = [0.0; 3];
+        p0
     }
 
     fn start(&mut self, initial: Initial) -> Result<()> {
@@ -1085,6 +1145,29 @@ impl Simulator {
                 self.start_stable = None;
                 problem.straight_unknowns()
             }
+            Initial::Reference if self.rod.sections.iter().all(|s| s.reference.is_straight()) => {
+                self.start_stable = None;
+                problem.straight_unknowns()
+            }
+            Initial::Reference => {
+                // The unloaded rod in its reference shape, n = m = 0: this discretisation's
+                // rest problem with every load off, whose kinematics Newton solves from the
+                // straight rod (with m = 0, u = u*: Q' = Q u*/2 is linear in Q).
+                self.start_stable = None;
+                let models0 =
+                    self.models_scaled(&self.pressures, &self.tensions, &self.sigma, 0.0, 0.0);
+                let p0 = self.unloaded_problem(&models0, &hist0);
+                let (z0, it) = refine_static(
+                    &p0,
+                    p0.straight_unknowns(),
+                    self.opts.tol,
+                    "in the reference shape",
+                )?;
+                let z = problem.rescale_from(&p0, &z0);
+                drop(p0);
+                self.stats.newton_iterations += it;
+                z
+            }
         };
         drop(problem);
         self.rest_at(&z_scaled, initial)
@@ -1102,8 +1185,17 @@ impl Simulator {
             .with_contact()
             .with_end(end_target(&self.end));
         let eval = problem.evaluate(z_scaled);
-        if initial == Initial::Straight {
-            self.check_straight(&eval)?;
+        let straight = self.rod.sections.iter().all(|s| s.reference.is_straight());
+        if initial.released() {
+            // The fields at rest with no internal force: the straight ones, or those of the
+            // unloaded rod's rest problem at the same state.
+            let unloaded = (!straight).then(|| {
+                let models0 =
+                    self.models_scaled(&self.pressures, &self.tensions, &self.sigma, 0.0, 0.0);
+                let p0 = self.unloaded_problem(&models0, &hist0);
+                p0.evaluate(&p0.rescale_from(&problem, z_scaled)).fields
+            });
+            self.check_released(&eval, unloaded.as_deref(), initial)?;
         }
         self.z = to_physical(&problem, z_scaled);
         self.z_prev = self.z.clone();
@@ -1111,11 +1203,12 @@ impl Simulator {
         let n = self.slots.len();
         for (k, (slot, f)) in self.slots[..n - 1].iter_mut().zip(&eval.fields).enumerate() {
             let mut xt = zero;
-            if initial == Initial::Straight {
+            if initial.released() {
                 // Released from rest in a state that is no equilibrium: the stage
-                // accelerations at t = 0+ follow from n' = rho A R q_t - f with n uniform
-                // along a section (v = e3, u = 0): q_t = R^T f / (rho A); w_t = 0 and the
-                // strain rates are zero. A consistent start keeps the schemes second order.
+                // accelerations at t = 0+ follow from n' + u x n = rho A q_t - R^T f (body
+                // frame) with n = m = 0 along the rod: q_t = R^T f / (rho A); w_t = 0 and
+                // the strain rates are zero. A consistent start keeps the schemes second
+                // order.
                 let m = &models[self.grid.intervals[k / 2].model[k % 2]];
                 if m.rho_a > 0.0 {
                     // Dead line loads (and contact loads, at rest: no friction) turned
@@ -1129,7 +1222,12 @@ impl Simulator {
                         );
                         f = std::array::from_fn(|a| f[a] + fc[a]);
                     }
-                    let fb = mat_t_vec(&self.rod.base_rotation, &f);
+                    let rot = if straight {
+                        &self.rod.base_rotation
+                    } else {
+                        &eval.stage_rot[k]
+                    };
+                    let fb = mat_t_vec(rot, &f);
                     for a in 0..3 {
                         xt[6 + a] = (fb[a] + m.f_body[a]) / m.rho_a;
                     }
@@ -1137,9 +1235,16 @@ impl Simulator {
             }
             *slot = Slot { x1: *f, x2: *f, xt };
         }
-        if initial == Initial::Straight && self.end == TipConstraint::Free {
+        if initial.released() && self.end == TipConstraint::Free {
             // (A held tip does not accelerate.)
-            let gb = mat_t_vec(&self.rod.base_rotation, &self.rod.gravity);
+            let tip_rot = if straight {
+                self.rod.base_rotation
+            } else {
+                eval.nodes.last().map_or(self.rod.base_rotation, |y| {
+                    crate::collocation::rotation(&y[..4])
+                })
+            };
+            let gb = mat_t_vec(&tip_rot, &self.rod.gravity);
             self.slots[n - 1].xt[6..9].copy_from_slice(&gb);
         }
         self.reaction = problem.tip_reaction(z_scaled);
@@ -1168,17 +1273,33 @@ impl Simulator {
     /// reference shape (u*, v*) makes them curved or stretched: the fields would disagree
     /// with the straight nodes, and the first step would jump to the curved shape at no
     /// cost in energy (a teleport, not a motion). Refused, naming what to change.
-    fn check_straight(&self, eval: &Evaluated) -> Result<()> {
-        // Exactly straight without shifts (0 times the compliance plus a zero shift); 1e-12
-        // of a strain is round-off of a shift that cancels.
-        let bent = eval.fields.iter().any(|f| {
-            (f[0].abs() + f[1].abs() + (f[2] - 1.0).abs()) > 1e-12
-                || (f[3].abs() + f[4].abs() + f[5].abs()) * self.rod.length > 1e-12
+    /// A start released from rest with no internal force (`initial`) must be a state of
+    /// the rod: its fields under the inputs at t = 0 are those with n = m = 0 (straight, or
+    /// `unloaded`: the unloaded rod's at the same state). A chamber pressure at t = 0 shifts
+    /// them (the rest state would carry an internal force the free tip cannot), so it is
+    /// refused by name; so is any other shift.
+    fn check_released(
+        &self,
+        eval: &Evaluated,
+        unloaded: Option<&[[f64; FIELDS]]>,
+        initial: Initial,
+    ) -> Result<()> {
+        // Exactly the unloaded strains without shifts (0 times the compliance plus a zero
+        // shift); 1e-12 of a strain is round-off of a shift that cancels.
+        let bent = eval.fields.iter().enumerate().any(|(k, f)| {
+            let r = unloaded.map_or([0.0, 0.0, 1.0, 0.0, 0.0, 0.0], |u| {
+                std::array::from_fn(|a| u[k][a])
+            });
+            ((f[0] - r[0]).abs() + (f[1] - r[1]).abs() + (f[2] - r[2]).abs()) > 1e-12
+                || ((f[3] - r[3]).abs() + (f[4] - r[4]).abs() + (f[5] - r[5]).abs())
+                    * self.rod.length
+                    > 1e-12
         });
         if !bent {
             return Ok(());
         }
-        let why = "the 'straight' start is the rod at rest with no internal force, which is straight only without chamber pressure at t = 0 and without a reference shape";
+        let name = initial.name();
+        let why = format!("the '{name}' start is the rod at rest in its reference shape with no internal force, which is a state of the rod only without chamber pressure at t = 0");
         if let Some(k) = self.pressures.iter().position(|p| *p != 0.0) {
             return Err(SoftrodError::invalid(
                 format!("pressures[{k}]"),
@@ -1188,8 +1309,8 @@ impl Simulator {
         }
         Err(SoftrodError::invalid(
             "initial",
-            "straight",
-            format!("{why} (or pre-strain): start 'static' (at rest in the reference shape's equilibrium)"),
+            name,
+            format!("{why}: the inputs at t = 0 shift the strains of zero force; start 'static'"),
         ))
     }
 
@@ -2966,7 +3087,14 @@ fn check_end(rod: &Rod, opts: &DynOptions, initial: Initial, c: &TipConstraint) 
             format!("a {} tip is not carried by the midpoint rule: its energy conservation rests on extrapolating the fields linearly over a step, and the held pose is nonlinear in them (the rebuilt tip would miss the pose by O(dt^2) at every step); use 'bdf-alpha' (alpha = -0.5, the trapezoidal rule, has no numerical damping)", c.name()),
         ));
     }
-    if initial == Initial::Straight {
+    if initial == Initial::Reference && !rod.sections.iter().all(|s| s.reference.is_straight()) {
+        return Err(SoftrodError::invalid(
+            "initial",
+            "reference",
+            format!("a {} tip on a rod with a curved reference shape starts 'static' (the 'reference' start is not carried with a held tip)", c.name()),
+        ));
+    }
+    if initial.released() {
         // The straight rod at rest: tip at r_0 + L d3(0), frame R_0.
         let r0 = rod.base_position;
         let d3 = [

@@ -498,7 +498,8 @@ fn damped_run_settles_on_the_collocation_statics() {
 /// a state of the rod only where zero force means zero strain. A pressure at t = 0 (it
 /// bent the fields while the nodes stayed straight, and the first step jumped 6 mm at no
 /// energy cost on the bundled 3-chamber actuator) and a reference shape are refused,
-/// naming what to change; without them the start is the straight rod.
+/// naming what to change (a curved rod starts 'reference', at rest in its reference shape);
+/// without them the start is the straight rod.
 #[test]
 fn straight_start_is_refused_where_zero_force_is_not_straight() {
     let opts = DynOptions {
@@ -526,6 +527,13 @@ fn straight_start_is_refused_where_zero_force_is_not_straight() {
         ),
         "initial",
     );
+    assert!(Simulator::new(
+        Rod::new(tabulated_arm(false)).unwrap(),
+        &[0.0; 3],
+        Initial::Reference,
+        opts
+    )
+    .is_ok());
     let sim = Simulator::new(rod.clone(), &[0.0; 3], Initial::Straight, opts).unwrap();
     let tip = sim.tip().r;
     // Hanging straight down from the base: the tip at -L along z.

@@ -168,7 +168,8 @@ impl Saved {
 #[pymethods]
 impl PySimulator {
     /// Start at t = 0 from `initial` ("static": at rest in equilibrium under `pressures`;
-    /// "straight": at rest in the straight reference shape) with chamber pressures (Pa).
+    /// "straight": at rest in the straight shape; "reference": at rest in the reference
+    /// shape, the two released at t = 0 with no internal force) with chamber pressures (Pa).
     /// `scheme`: "bdf-alpha" or "midpoint"; `error_tol` (m): adaptive steps; `sigma_const`
     /// or `sigma_grid` = (axes, values, clamp): the stiffness map of mapped sections;
     /// `tip_force`, `tip_moment`: tip loads at t = 0 in the design's tip frame; `tensions`:
@@ -206,11 +207,12 @@ impl PySimulator {
             let initial = match initial {
                 "static" => Initial::Static,
                 "straight" => Initial::Straight,
+                "reference" => Initial::Reference,
                 other => {
                     return Err(input(SoftrodError::invalid(
                         "initial",
                         other,
-                        "must be 'static' or 'straight'",
+                        "must be 'static', 'straight' or 'reference'",
                     )))
                 }
             };

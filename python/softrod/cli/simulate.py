@@ -73,10 +73,11 @@ def _seconds(text: str, option: str, *, positive: bool = True) -> float:
 )
 @click.option(
     "--initial",
-    type=click.Choice(["static", "straight"]),
+    type=click.Choice(["static", "straight", "reference"]),
     default="static",
     show_default=True,
-    help="Start at rest in equilibrium under the first pressures, or straight.",
+    help="Start at rest in equilibrium under the first pressures, straight, or in the "
+    "reference shape (the last two released at t = 0 with no internal force).",
 )
 @click.option(
     "--model",

@@ -317,34 +317,33 @@ class Simulation:
     the integrator's history) advanced step by step. Use it for control loops; use
     :func:`simulate` for a whole schedule.
 
-    ``pressures``: chamber pressures at t = 0 in Pa (default zero). ``initial``:
-    ``"static"`` (at rest in equilibrium under those pressures, gravity and the design's tip
-    loads) or ``"straight"`` (at rest in the straight reference shape, released at t = 0).
-    ``dt``: time step (s or a string with units). ``scheme``: ``"bdf-alpha"`` (default;
-    ``alpha`` in [-0.5, 0], default -0.2: -0.5 is paper 000's trapezoidal rule, 0 BDF2;
-    below -0.45 unresolved modes are not damped) or ``"midpoint"`` (the implicit midpoint rule:
-    conserves the energy of undamped runs; docs/dynamics.md). ``tol``: Newton tolerance on
-    the scaled collocation unknowns at each step. ``error_tol``: adaptive time stepping,
-    the largest estimated local error of the node positions per step (m or a string such
-    as "0.1 mm"); each ``dt`` is then split into as many steps as that needs. ``energy_tol``:
-    the energy check's tolerance (fraction of the energy moved). ``stiffness_map``: the
-    StiffnessMap of a design with mapped sections (constant or PCHIP table). ``tensions``:
-    tendon tensions at t = 0 (N or strings with units, one per tendon channel, each >= 0;
-    None: slack); the static start balances them, and :meth:`set_tensions` or the
-    ``tensions`` of :meth:`step` and :meth:`run` change them. ``tip_constraint``: how the
-    tip is held at t = 0 (a :class:`~softrod.TipConstraint`, "free" or a mapping as
-    :func:`~softrod.solve_statics` takes; None: the design's ``[tip] constraint``); a pinned
-    or clamped tip starts "static" in the constrained equilibrium, "straight" only at the
-    straight rod's tip pose, and moves with :meth:`set_tip_pose` or the ``tip_constraint``
-    of :meth:`run` (docs/dynamics.md, "Held tip"). ``markers``: motion-capture markers on
-    the body, read at every recorded sample into the trajectory's ``marker_position``: a
-    list of ``(s, offset)`` (arc length from the base in [0, L], offset (d1, d2[, d3]) in
-    the cross-section frame) or ``s`` alone, SI numbers or strings with units, checked
-    before the start is solved; :meth:`set_markers` changes them later (docs/dynamics.md,
-    "Markers on the moving rod"). ``on_unstable``: what a "static" start at an unstable
-    equilibrium does, as :func:`simulate` says ("warn", "raise" or "ignore");
-    :attr:`start_stable` keeps the verdict.
-    """
+    ``pressures``: chamber pressures at t = 0 in Pa (default zero). ``initial``: ``"static"`` (at
+    rest in equilibrium under those pressures, gravity and the design's tip loads), ``"straight"``
+    (at rest in the straight shape, released at t = 0: a rod whose reference shape is straight) or
+    ``"reference"`` (at rest in the reference shape with no internal force, released at t = 0: a
+    pre-bent finger let go; for a straight reference the same as ``"straight"``). ``dt``: time step
+    (s or a string with units). ``scheme``: ``"bdf-alpha"`` (default; ``alpha`` in [-0.5, 0],
+    default -0.2: -0.5 is paper 000's trapezoidal rule, 0 BDF2; below -0.45 unresolved modes are not
+    damped) or ``"midpoint"`` (the implicit midpoint rule: conserves the energy of undamped runs;
+    docs/dynamics.md). ``tol``: Newton tolerance on the scaled collocation unknowns at each step.
+    ``error_tol``: adaptive time stepping, the largest estimated local error of the node positions
+    per step (m or a string such as "0.1 mm"); each ``dt`` is then split into as many steps as that
+    needs. ``energy_tol``: the energy check's tolerance (fraction of the energy moved).
+    ``stiffness_map``: the StiffnessMap of a design with mapped sections (constant or PCHIP table).
+    ``tensions``: tendon tensions at t = 0 (N or strings with units, one per tendon channel, each >=
+    0; None: slack); the static start balances them, and :meth:`set_tensions` or the ``tensions`` of
+    :meth:`step` and :meth:`run` change them. ``tip_constraint``: how the tip is held at t = 0 (a
+    :class:`~softrod.TipConstraint`, "free" or a mapping as :func:`~softrod.solve_statics` takes;
+    None: the design's ``[tip] constraint``); a pinned or clamped tip starts "static" in the
+    constrained equilibrium, "straight" (or "reference" of a straight rod) only at the straight
+    rod's tip pose, and moves with :meth:`set_tip_pose` or the ``tip_constraint`` of :meth:`run`
+    (docs/dynamics.md, "Held tip"). ``markers``: motion-capture markers on the body, read at every
+    recorded sample into the trajectory's ``marker_position``: a list of ``(s, offset)`` (arc length
+    from the base in [0, L], offset (d1, d2[, d3]) in the cross-section frame) or ``s`` alone, SI
+    numbers or strings with units, checked before the start is solved; :meth:`set_markers` changes
+    them later (docs/dynamics.md, "Markers on the moving rod"). ``on_unstable``: what a "static"
+    start at an unstable equilibrium does, as :func:`simulate` says ("warn", "raise" or "ignore");
+    :attr:`start_stable` keeps the verdict."""
 
     def __init__(
         self,
@@ -374,7 +373,7 @@ class Simulation:
         n = self.design.n_channels
         p = [0.0] * n if pressures is None else _pressures(self.design, pressures)
         t0 = _tensions(self.design, tensions)
-        V.choice(initial, ("static", "straight"), "initial")
+        V.choice(initial, ("static", "straight", "reference"), "initial")
         on_unstable = _policy("on_unstable", on_unstable)
         opts = _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol)
         self._sim = _core.Simulator(
@@ -960,7 +959,8 @@ def simulate(
       interval in s, or a list of instants (s, relative to the run's start; each gives the
       nearest step's shape, and an instant after the run's end is refused).
     - ``initial``: ``"static"`` (at rest in equilibrium under the first commanded pressures),
-      ``"straight"`` (at rest in the straight reference shape), or a :class:`Simulation`
+      ``"straight"`` (at rest in the straight shape), ``"reference"`` (at rest in the
+      reference shape, a pre-bent finger let go), or a :class:`Simulation`
       to continue from its state (it is not changed; the schedule is read on its clock).
     - ``model``: ``"cosserat"`` (paper 000's viscoelastic rod) or ``"pcc"`` (paper 003's
       piecewise-constant-curvature Lagrangian model, one arc per deformable section, with
@@ -1062,7 +1062,7 @@ def simulate(
             raise design_error(
                 "initial",
                 type(initial).__name__,
-                "must be 'static', 'straight' or a Simulation",
+                "must be 'static', 'straight', 'reference' or a Simulation",
                 InputError,
             )
         first = None if tip_load is None else _tip_loads(tip_load, np.zeros(1))[0]
