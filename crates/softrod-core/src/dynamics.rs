@@ -870,7 +870,7 @@ impl Simulator {
         check_dynamic_laws(&rod, &sigma_map)?;
         rod.check_pressures(pressures)?;
         rod.check_tensions(tensions)?;
-        if initial == Initial::Straight && !rod.sections.iter().all(|s| s.reference.is_straight()) {
+        if initial == Initial::Straight && !rod.is_straight() {
             return Err(SoftrodError::invalid(
                 "initial",
                 "straight",
@@ -1145,7 +1145,7 @@ impl Simulator {
                 self.start_stable = None;
                 problem.straight_unknowns()
             }
-            Initial::Reference if self.rod.sections.iter().all(|s| s.reference.is_straight()) => {
+            Initial::Reference if self.rod.is_straight() => {
                 self.start_stable = None;
                 problem.straight_unknowns()
             }
@@ -1185,7 +1185,7 @@ impl Simulator {
             .with_contact()
             .with_end(end_target(&self.end));
         let eval = problem.evaluate(z_scaled);
-        let straight = self.rod.sections.iter().all(|s| s.reference.is_straight());
+        let straight = self.rod.is_straight();
         if initial.released() {
             // The fields at rest with no internal force: the straight ones, or those of the
             // unloaded rod's rest problem at the same state.
@@ -3087,7 +3087,7 @@ fn check_end(rod: &Rod, opts: &DynOptions, initial: Initial, c: &TipConstraint) 
             format!("a {} tip is not carried by the midpoint rule: its energy conservation rests on extrapolating the fields linearly over a step, and the held pose is nonlinear in them (the rebuilt tip would miss the pose by O(dt^2) at every step); use 'bdf-alpha' (alpha = -0.5, the trapezoidal rule, has no numerical damping)", c.name()),
         ));
     }
-    if initial == Initial::Reference && !rod.sections.iter().all(|s| s.reference.is_straight()) {
+    if initial == Initial::Reference && !rod.is_straight() {
         return Err(SoftrodError::invalid(
             "initial",
             "reference",

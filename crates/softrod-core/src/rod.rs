@@ -502,6 +502,12 @@ impl Rod {
         self.sections.iter().map(|s| s.line_mass * s.length).sum()
     }
 
+    /// Whether every section's reference shape is straight (no precurvature, no pre-strain):
+    /// the unloaded rod is the straight line.
+    pub fn is_straight(&self) -> bool {
+        self.sections.iter().all(|s| s.reference.is_straight())
+    }
+
     pub fn check_pressures(&self, pressures: &[f64]) -> Result<()> {
         validate_pressures(pressures, self.n_channels)
     }

@@ -1337,7 +1337,7 @@ fn natural_path<const N: usize, const M: usize>(
     let mut lam = 0.0;
     let mut x = [0.0; N];
     let mut r = [0.0; N];
-    let straight = rod.sections.iter().all(|s| s.reference.is_straight());
+    let straight = rod.is_straight();
     let (mut tangent, mut jac) = if N == 3 && straight {
         let t = Problem::new(rod, loads, 1.0).straight_guess();
         (
