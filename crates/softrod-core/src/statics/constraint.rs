@@ -1027,6 +1027,7 @@ fn conclude(
             stable,
             violations: std::mem::take(violations_out),
             collocation: None,
+            friction: None,
         },
         shape,
         tip_reaction_force: force,
