@@ -200,3 +200,17 @@ def test_property_frictional_answers_are_balanced_or_errors(rough, mu, steps, p_
     assert balance_error(sol) < 1e-9 * max(1.0, design.mass * G)
     f_t, f_n = sol.contact.friction_force[0], sol.contact.total_force[0]
     assert abs(f_t[0]) <= mu * f_n[2] * (1 + 1e-12) + 1e-15
+
+
+def test_cli_solves_a_frictional_design_and_says_why_stability_is_not_assessed(run, tmp_path):
+    from softrod.design import designs_dir
+
+    text = (designs_dir() / f"{FINGER}.toml").read_text()
+    rough_file = tmp_path / "rough_finger.toml"
+    rough_file.write_text(
+        text.replace('tolerance = "0.2 mm"', 'tolerance = "0.2 mm"\nfriction = 0.5', 1)
+    )
+    result = run("solve", str(rough_file), "--pressure", "40kPa")
+    assert result.exit_code == 0, result.output
+    assert "friction has no potential" in result.output
+    assert "follower" not in result.output

@@ -104,7 +104,8 @@ def _policy(name: str, value) -> str:
 
 def _report_stability(stable: bool | None, on_unstable: str, what: str) -> None:
     """Warn about (or raise for) an unstable equilibrium, as ``on_unstable`` says. None:
-    stability was not assessed (follower loads are not conservative; docs/scope.md)."""
+    stability was not assessed (follower loads are not conservative, docs/scope.md; friction
+    has no potential, docs/contact.md)."""
     if stable is None or stable or on_unstable == "ignore":
         return
     message = (
