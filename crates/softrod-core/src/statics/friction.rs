@@ -386,7 +386,7 @@ fn solve_inner(
                 res,
                 t,
                 format!(
-                    "the frictional load path failed at {:.4} of the path: {why}, even in an increment of {:.3e} (1/{SUB} of the {} requested; more friction_steps, or a stiffer penalty, may help)",
+                    "the frictional load path failed at {:.4} of the path: {why}, even in an increment of {:.3e} (1/{SUB} of one of the {} requested): the stick/slip switches are too sharp for Newton there; a softer penalty stiffness (whose elastic slip mu delta is longer; raise the tolerance with it) or more max_iter may help",
                     t, dt, steps
                 ),
             )
