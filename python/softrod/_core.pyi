@@ -31,6 +31,21 @@ _Array = Any
 _Vec3 = Sequence[float]
 
 @final
+class FrictionState:
+    """Where a frictional static load path stands: its loads and every contact point's
+    friction memory (opaque; it belongs to the design it was solved with)."""
+
+    @property
+    def max_elastic_slip(self) -> float: ...
+    @property
+    def pressures(self) -> list[float]: ...
+    @property
+    def tip_force(self) -> list[float]: ...
+    @property
+    def tip_moment(self) -> list[float]: ...
+    @property
+    def tensions(self) -> list[float]: ...
+
 class Rod:
     """A validated, compiled design (immutable)."""
 
@@ -58,6 +73,8 @@ class Rod:
         stiffness_scale: _Vec3 = ...,
         on_invalid: str = "raise",
         tensions: Sequence[float] | None = None,
+        friction_steps: int = 80,
+        history: FrictionState | None = None,
     ) -> dict[str, Any]: ...
     def solve_batch(
         self,

@@ -65,6 +65,9 @@ class Contact:
     end_force: (k, 3) the part of total_force on the rod's rounded end (a point contact at
     the tip, docs/contact.md), N.
     max_penetration: the deepest penetration at a node, m (<= 0: nothing touches).
+    friction_force: (k, 3) the tangential (Coulomb friction) part of total_force, N; zero
+    without friction (docs/contact.md, "Friction in the statics"). With friction, force
+    and total_force include it.
     """
 
     force: np.ndarray
@@ -75,6 +78,11 @@ class Contact:
     total_moment: np.ndarray
     end_force: np.ndarray
     max_penetration: float
+    friction_force: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.friction_force is None:
+            object.__setattr__(self, "friction_force", np.zeros_like(self.total_force))
 
     @classmethod
     def from_core(cls, d: dict) -> Contact:
@@ -87,6 +95,7 @@ class Contact:
             total_moment=d["total_moment"],
             end_force=d["end_force"],
             max_penetration=float(d["max_penetration"]),
+            friction_force=d.get("friction_force"),
         )
 
     @property
@@ -143,11 +152,15 @@ class StaticSolution:
     stiffness_scale: (3,) sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) applied to the
     mapped sections (docs/stiffness-map.md); ones when the design has none.
     stable: the equilibrium is stable (docs/model.md, "Validity and stability"); None where
-    it is not assessed (the PCC model, follower loads: docs/scope.md) or the solve
-    failed. A pinned or clamped tip is assessed with the tip held (docs/model.md, "End
-    constraints").
+    it is not assessed (the PCC model, follower loads: docs/scope.md; friction, which has
+    no potential: docs/contact.md) or the solve failed. A pinned or clamped tip is
+    assessed with the tip held (docs/model.md, "End constraints").
     violations: the validity ranges the solution lies outside (only with
     ``on_invalid="warn"``; otherwise such a solution is refused).
+    friction_state: where a frictional load path stands (a ``softrod._core.FrictionState``:
+    its loads and every contact's friction memory), for ``solve_statics(...,
+    history=solution)`` to continue the path; None without friction (docs/contact.md,
+    "Friction in the statics").
     """
 
     design: Design
@@ -182,6 +195,7 @@ class StaticSolution:
     tip_reaction_moment: np.ndarray = field(default_factory=lambda: np.zeros(3), repr=False)
     #: Contacts with the design's obstacles (:class:`Contact`); None without obstacles.
     contact: Contact | None = field(default=None, repr=False)
+    friction_state: Any = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         parts = _inputs(self.design.name, self.pressures, self.tensions)
@@ -276,6 +290,16 @@ class StaticSolution:
                 "solution",
                 "model='pcc'",
                 "the Jacobian is available for the rod model only",
+                InputError,
+            )
+        if self.friction_state is not None:
+            k = _frictional_obstacle(self.design)
+            raise design_error(
+                f"obstacles[{k}].friction",
+                self.design.spec["obstacles"][k]["friction"],
+                "StaticSolution.jacobian is not available for a frictional equilibrium: it "
+                "depends on the load path, and the return map's stick/slip switch has no "
+                "derivative there (docs/contact.md, 'Friction in the statics')",
                 InputError,
             )
         if self.tip_constraint != "free":
@@ -441,3 +465,11 @@ class BatchSolution:
             units=units,
             metadata=self.metadata,
         )
+
+
+def _frictional_obstacle(design: Design) -> int:
+    """Index of the design's first obstacle with friction > 0 (0 if none)."""
+    for k, o in enumerate(design.spec.get("obstacles", [])):
+        if float(o.get("friction", 0.0)) > 0:
+            return k
+    return 0

@@ -46,6 +46,10 @@ class SolverOptions:
     stretch_range: (min, max) validity range of the fibre stretch (docs/model.md, "Validity
         and stability"); a solution outside it is refused, or warned about with
         ``on_invalid="warn"``.
+    friction_steps: equal load increments of a frictional static solve (an obstacle with
+        friction > 0; docs/contact.md, "Friction in the statics"), each halved while it
+        fails (down to 1/1024 of it). The answer depends on the increment size to first
+        order; 80 leaves about 1 % of the friction force of the bundled finger example.
     """
 
     tol: float = 1e-10
@@ -53,12 +57,13 @@ class SolverOptions:
     continuation: bool = True
     max_load_steps: int = 200
     stretch_range: tuple[float, float] = (1 / 3, 3.0)
+    friction_steps: int = 80
 
     def __post_init__(self):
         tol = V.real(self.tol, "tol", minimum=0.0, exclusive=True)
         if not tol < 1:
             raise design_error("tol", self.tol, "must be in (0, 1)", InputError)
-        for name in ("max_iter", "max_load_steps"):
+        for name in ("max_iter", "max_load_steps", "friction_steps"):
             V.integer(getattr(self, name), name, minimum=1, maximum=V.MAX_ITERATIONS)
         V.boolean(self.continuation, "continuation")
         r = self.stretch_range
@@ -99,7 +104,8 @@ def _policy(name: str, value) -> str:
 
 def _report_stability(stable: bool | None, on_unstable: str, what: str) -> None:
     """Warn about (or raise for) an unstable equilibrium, as ``on_unstable`` says. None:
-    stability was not assessed (follower loads are not conservative; docs/scope.md)."""
+    stability was not assessed (follower loads are not conservative, docs/scope.md; friction
+    has no potential, docs/contact.md)."""
     if stable is None or stable or on_unstable == "ignore":
         return
     message = (
@@ -338,10 +344,20 @@ def solve_statics(
     on_invalid: str = "raise",
     tensions: ArrayLike | None = None,
     tip_constraint: TipConstraint | str | dict | None = None,
+    history: StaticSolution | None = None,
 ) -> StaticSolution:
     """Static shape of ``design`` under chamber ``pressures`` (Pa gauge, one per channel;
     None only for a design without chambers) and tendon ``tensions`` (N, one per tendon
     channel, each >= 0; None: slack).
+
+    Friction (an obstacle with ``friction`` > 0; docs/contact.md, "Friction in the
+    statics"): the equilibrium depends on the load path, so the solve follows one, in
+    ``options.friction_steps`` equal load increments with elastic-slip Coulomb friction,
+    from the unloaded rod, or with ``history`` (a frictional StaticSolution of the same
+    design) from that solution's loads and friction state: pull, then
+    ``solve_statics(design, p, history=pulled)`` to release. The answer depends on the
+    increment size to first order; ``stable`` is None (friction has no potential) and
+    ``friction_state`` carries the path on. A free tip of the rod model only.
 
     tip_constraint: how the tip is held (a :class:`TipConstraint`, "free", or a mapping
     with ``type``, ``position``, ``orientation`` as the design file's ``[tip]`` keys);
@@ -385,6 +401,24 @@ def solve_statics(
     on_unstable = _policy("on_unstable", on_unstable)
     on_invalid = _policy("on_invalid", on_invalid)
     design = load_design(design)
+    friction_at = _frictional(design)
+    state = _history(history, design, friction_at)
+    if friction_at is not None and initial is not None:
+        raise design_error(
+            "initial",
+            type(initial).__name__,
+            f"obstacles[{friction_at}].friction > 0: a frictional solve follows its load "
+            "path from the unloaded rod, not from a warm start; pass history= a frictional "
+            "solution to continue a path from it",
+            InputError,
+        )
+    if friction_at is not None and model == "pcc":
+        raise design_error(
+            f"obstacles[{friction_at}].friction",
+            design.spec["obstacles"][friction_at]["friction"],
+            "model='pcc' has no contact with friction (docs/contact.md); use model='cosserat'",
+            InputError,
+        )
     if pressures is None:
         # Only a design without chambers has nothing to state; a chambered one must say its
         # pressures (no silent zero).
@@ -444,6 +478,8 @@ def solve_statics(
                 stiffness_scale=sigma.tolist(),
                 on_invalid=on_invalid,
                 tensions=t,
+                friction_steps=int(opts.friction_steps),
+                history=state,
                 **opts.as_kwargs(),
             )
         else:
@@ -503,7 +539,48 @@ def solve_statics(
         tip_reaction_force=_reaction(out, "tip_reaction_force"),
         tip_reaction_moment=_reaction(out, "tip_reaction_moment"),
         contact=Contact.from_core(out["contact"]) if "contact" in out else None,
+        friction_state=out.get("friction_state"),
     )
+
+
+def _frictional(design: Design) -> int | None:
+    """Index of the design's first obstacle with friction > 0, or None."""
+    for k, o in enumerate(design.spec.get("obstacles", [])):
+        if float(o.get("friction", 0.0)) > 0:
+            return k
+    return None
+
+
+def _history(history, design: Design, friction_at: int | None):
+    """The friction state a frictional path continues from (``history=``), checked: a
+    converged frictional StaticSolution of this design (the core checks the design and
+    obstacles it was solved with again)."""
+    if history is None:
+        return None
+    if not isinstance(history, StaticSolution):
+        raise design_error(
+            "history",
+            type(history).__name__,
+            "must be a frictional StaticSolution (from solve_statics) or None",
+            InputError,
+        )
+    if friction_at is None:
+        raise design_error(
+            "history",
+            history.design.name,
+            f"design {design.name!r} has no obstacle with friction > 0: a frictionless "
+            "equilibrium does not depend on the load path",
+            InputError,
+        )
+    if history.friction_state is None:
+        raise design_error(
+            "history",
+            history.design.name,
+            "must be a converged frictional StaticSolution (its friction_state is None: "
+            "frictionless, failed, or not a free tip's)",
+            InputError,
+        )
+    return history.friction_state
 
 
 def solve_statics_batch(

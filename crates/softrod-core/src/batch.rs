@@ -171,7 +171,8 @@ impl<'a> Rows<'a> {
         inputs: &BatchInputs<'a>,
         guesses: Option<&'a [f64]>,
     ) -> Result<Self> {
-        // The statics is frictionless (obstacles with friction: refused before any row).
+        // A batch is frictionless (obstacles with friction: refused before any row; each
+        // row is solved cold and alone, and with friction each would be its own path).
         crate::statics::contact::frictionless(rod)?;
         let (pressures, tensions, stiffness_scale) =
             (inputs.pressures, inputs.tensions, inputs.stiffness_scale);

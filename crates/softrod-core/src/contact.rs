@@ -241,6 +241,142 @@ impl Obstacle {
     }
 }
 
+/// What one contact point of the frictional statics remembers from the last converged
+/// load increment (docs/contact.md, "Friction in the statics"): the section's centreline
+/// position and rotation there (so the material surface point r + R b, b fixed in the
+/// body, is tracked through the rod's rotation: rolling is not slip) and, per obstacle, the
+/// elastic tangential displacement e of the penalty's tangential spring (m).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StickPoint {
+    pub r: [f64; 3],
+    pub rot: [[f64; 3]; 3],
+    /// One per obstacle (zero off contact).
+    pub e: Vec<[f64; 3]>,
+}
+
+/// The frictional contact load of the statics on one point ([`Obstacle::stick_load`]):
+/// the total force (normal and tangential), the friction's moment about the centreline,
+/// the tangential part, and the elastic tangential displacement after the return map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StickLoad<D> {
+    pub force: [D; 3],
+    pub moment: [D; 3],
+    pub friction: [D; 3],
+    pub e: [D; 3],
+}
+
+impl Obstacle {
+    /// The statics' contact load with elastic-slip Coulomb friction on a cross-section of
+    /// outer radius `rho` at centreline r with rotation `rot` (body to world, row-major),
+    /// given the point's state `old` of the last converged increment (`k`: this
+    /// obstacle's index in it). `scale` turns the line law into the load: 1 for a line load
+    /// (N/m), rho for the rounded end (a point force, N: the penalty over the cap's
+    /// length, as `end_force`). With the contact offset a = -rho nu (the surface point of
+    /// the section that touches) and b = R^T a fixed in the body, the slip of that
+    /// material point over the increment is
+    ///   ds = (r + R b) - (r_old + R_old b) = r - r_old + a - R_old R^T a,
+    /// and the return map (Wriggers, "Computational Contact Mechanics", Springer 2006,
+    /// DOI 10.1007/978-3-540-32609-0, Sec. 5.2 on the elastic-slip friction law) is
+    ///   e_tr = P_t (e_old + ds),  f_tr = -k_t e_tr,  P_t = I - nu nu^T,
+    ///   stick (|f_tr| <= mu |f_n|):  f_t = f_tr,                   e = e_tr,
+    ///   slip:                        f_t = mu |f_n| f_tr / |f_tr|,  e = -f_t / k_t,
+    /// with k_t = k scale (the normal penalty stiffness). The moment about the centreline
+    /// is a x f_t. A point that lands on the obstacle during the increment is anchored
+    /// where its material point was at the increment's start (its flight before touching
+    /// counts as slip: first order in the increment, as the rest of the path). Continuous in the state, with a kink at the stick/slip switch (Newton
+    /// is semi-smooth there); generic over the scalar, so the shooting Jacobian is exact
+    /// on either side.
+    #[inline]
+    pub fn stick_load<D: RodScalar>(
+        &self,
+        r: &[D; 3],
+        rot: &[[D; 3]; 3],
+        rho: f64,
+        scale: f64,
+        old: &StickPoint,
+        k: usize,
+    ) -> StickLoad<D> {
+        let zero = D::from(0.0);
+        let mut out = StickLoad {
+            force: [zero; 3],
+            moment: [zero; 3],
+            friction: [zero; 3],
+            e: [zero; 3],
+        };
+        let (d, nu) = self.distance(r);
+        let delta = -d + rho;
+        let eps = self.smoothing;
+        let p = if delta.value() <= 0.0 {
+            return out;
+        } else if delta.value() < eps {
+            delta * delta * (0.5 * self.stiffness * scale / eps)
+        } else {
+            (delta - 0.5 * eps) * (self.stiffness * scale)
+        };
+        out.force = nu.map(|n| n * p);
+        if self.friction == 0.0 {
+            return out;
+        }
+        let e_old = &old.e[k];
+        let kt = self.stiffness * scale;
+        let a = nu.map(|n| n * -rho);
+        // b = R^T a (body frame), then R_old b.
+        let b: [D; 3] =
+            std::array::from_fn(|j| rot[0][j] * a[0] + rot[1][j] * a[1] + rot[2][j] * a[2]);
+        let a_old: [D; 3] = std::array::from_fn(|i| {
+            b[0] * old.rot[i][0] + b[1] * old.rot[i][1] + b[2] * old.rot[i][2]
+        });
+        let trial: [D; 3] = std::array::from_fn(|i| r[i] - old.r[i] + a[i] - a_old[i] + e_old[i]);
+        let tn = trial[0] * nu[0] + trial[1] * nu[1] + trial[2] * nu[2];
+        let et: [D; 3] = std::array::from_fn(|i| trial[i] - tn * nu[i]);
+        let n2 = et[0] * et[0] + et[1] * et[1] + et[2] * et[2];
+        let cap = p * self.friction;
+        let (ft, e) = if n2.value() * kt * kt <= cap.value() * cap.value() {
+            (et.map(|x| x * -kt), et)
+        } else {
+            // |f_tr| > mu |f_n| >= 0, so |e_tr| > 0.
+            let shrink = cap * (n2.sqrt() * kt).recip();
+            (et.map(|x| x * shrink * -kt), et.map(|x| x * shrink))
+        };
+        let m = cross(&a, &ft);
+        for k in 0..3 {
+            out.force[k] += ft[k];
+        }
+        out.moment = m;
+        out.friction = ft;
+        out.e = e;
+        out
+    }
+}
+
+/// The sum of all obstacles' [`Obstacle::stick_load`] at a point with state `old`.
+#[inline]
+pub fn total_stick_load<D: RodScalar>(
+    obstacles: &[Obstacle],
+    r: &[D; 3],
+    rot: &[[D; 3]; 3],
+    rho: f64,
+    scale: f64,
+    old: &StickPoint,
+) -> StickLoad<D> {
+    let zero = D::from(0.0);
+    let mut out = StickLoad {
+        force: [zero; 3],
+        moment: [zero; 3],
+        friction: [zero; 3],
+        e: [zero; 3],
+    };
+    for (k, o) in obstacles.iter().enumerate() {
+        let g = o.stick_load(r, rot, rho, scale, old, k);
+        for i in 0..3 {
+            out.force[i] += g.force[i];
+            out.moment[i] += g.moment[i];
+            out.friction[i] += g.friction[i];
+        }
+    }
+    out
+}
+
 /// A contact load on a cross-section ([`Obstacle::section_load`]): force (N/m) and moment
 /// about the centreline (N m/m), world frame, and the friction part of the force (N/m).
 #[derive(Debug, Clone, Copy, PartialEq)]

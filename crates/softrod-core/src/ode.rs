@@ -20,7 +20,7 @@
 //! Jacobians) and the scalar `C` of the coefficients (f64, or dual numbers when derivatives
 //! with respect to pressures or parameters are wanted).
 
-use crate::contact::{total_line_force, Obstacle};
+use crate::contact::{total_line_force, total_stick_load, Obstacle, StickPoint};
 use crate::jet::{Coeff, RodScalar, StateScalar};
 use crate::law::{ogden_from_stretch, ogden_initial_stretch, AxialTable};
 use crate::rod::{inverse3, stiffness_matrices, swelling_factors_with, AxialLaw, Rod, Section};
@@ -93,6 +93,10 @@ pub struct Coeffs<C> {
     /// The rod's obstacles (`crate::contact`): a line load that depends on the position.
     /// Not scaled by the load factor (contact is a constraint, not a load).
     pub obstacles: Option<Arc<[Obstacle]>>,
+    /// The frictional statics' contact points of this section from the last converged
+    /// increment, one per RK4 stage (4 per step; `crate::statics::friction`): with them
+    /// the contact load carries elastic-slip friction. None: frictionless.
+    pub friction: Option<Arc<[StickPoint]>>,
 }
 
 /// A tendon of a section in one solve: its tension (scaled by the load factor) and routing.
@@ -359,6 +363,7 @@ impl<C: RodScalar> Coeffs<C> {
             },
             inputs: s.is_varying().then(|| Box::new(inputs)),
             obstacles: rod.obstacles.clone(),
+            friction: None,
         }
     }
 
@@ -418,6 +423,7 @@ impl<C: RodScalar> Coeffs<C> {
             tendon_radius: self.tendon_radius,
             inputs: None,
             obstacles: self.obstacles.clone(),
+            friction: self.friction.clone(),
         })
     }
 
@@ -1190,6 +1196,7 @@ fn rhs<C: Coeff, D: StateScalar<C>>(
     loc: &Local<C>,
     sec: &Section,
     s: f64,
+    stage: usize,
     scratch: &mut Scratch,
 ) -> State<D> {
     let (v, u, dlam) = law_strains(y, c, loc, sec, s, scratch);
@@ -1228,11 +1235,25 @@ fn rhs<C: Coeff, D: StateScalar<C>>(
         }
     }
     if let Some(obstacles) = &c.obstacles {
-        // Contact: a line load that depends on the position (normal, through the
-        // centreline: no moment; `crate::contact`).
-        let fc = total_line_force(obstacles, &y.r, sec.surface_radius(s));
-        for i in 0..3 {
-            dn[i] -= fc[i];
+        match c.friction.as_deref().and_then(|f| f.get(stage)) {
+            // Elastic-slip friction of the frictional statics: the contact point's load
+            // from its state of the last increment, with the friction's moment about the
+            // centreline (`crate::contact::Obstacle::stick_load`).
+            Some(old) => {
+                let g = total_stick_load(obstacles, &y.r, &y.rot, sec.surface_radius(s), 1.0, old);
+                for i in 0..3 {
+                    dn[i] -= g.force[i];
+                    dm[i] -= g.moment[i];
+                }
+            }
+            None => {
+                // Contact: a line load that depends on the position (normal, through the
+                // centreline: no moment; `crate::contact`).
+                let fc = total_line_force(obstacles, &y.r, sec.surface_radius(s));
+                for i in 0..3 {
+                    dn[i] -= fc[i];
+                }
+            }
         }
     }
     // d(lambda^alpha)/ds = alpha lambda^alpha / lambda * d lambda/ds (Ogden sections).
@@ -1265,18 +1286,20 @@ fn rk4_step<C: Coeff, D: StateScalar<C>>(
     sec: &Section,
     s0: f64,
     h: f64,
+    step: usize,
     scratch: &mut Scratch,
 ) {
+    let at = 4 * step;
     // One stage buffer, overwritten in place (State<Jet<N>> is hundreds of bytes: fresh
     // temporaries per stage cost measurable copies in the dual passes).
     let mut stage = *y;
-    let k1 = rhs(&*y, c, locs[0], sec, s0, scratch);
+    let k1 = rhs(&*y, c, locs[0], sec, s0, at, scratch);
     stage.set_axpy(y, 0.5 * h, &k1);
-    let k2 = rhs(&stage, c, locs[1], sec, s0 + 0.5 * h, scratch);
+    let k2 = rhs(&stage, c, locs[1], sec, s0 + 0.5 * h, at + 1, scratch);
     stage.set_axpy(y, 0.5 * h, &k2);
-    let k3 = rhs(&stage, c, locs[1], sec, s0 + 0.5 * h, scratch);
+    let k3 = rhs(&stage, c, locs[1], sec, s0 + 0.5 * h, at + 2, scratch);
     stage.set_axpy(y, h, &k3);
-    let k4 = rhs(&stage, c, locs[2], sec, s0 + h, scratch);
+    let k4 = rhs(&stage, c, locs[2], sec, s0 + h, at + 3, scratch);
     // Each entry of y is updated from its own old value only, so y is overwritten in place.
     let out = y;
     let w = h / 6.0;
@@ -1483,10 +1506,10 @@ fn integrate_hooked<C: Coeff, D: StateScalar<C>>(
                     s0 + h
                 };
                 let end = c.local_at(sec, end_s);
-                rk4_step(&mut y, c, [&start, &mid, &end], sec, s0, h, scratch);
+                rk4_step(&mut y, c, [&start, &mid, &end], sec, s0, h, k, scratch);
                 start = end;
             } else {
-                rk4_step(&mut y, c, [&uniform; 3], sec, s0, h, scratch);
+                rk4_step(&mut y, c, [&uniform; 3], sec, s0, h, k, scratch);
             }
             let node = NodeAt {
                 section: i,
@@ -1542,6 +1565,9 @@ pub fn advance<C: Coeff, D: StateScalar<C>>(
             sec,
             s0,
             h,
+            // Not a step of the grid: no stage of the frictional statics (which the
+            // point readers that call this refuse).
+            usize::MAX / 8,
             &mut scratch,
         );
         out
@@ -1584,14 +1610,15 @@ pub fn step_quadrature(
     let mut scratch = Scratch::default();
     // The stages of `rk4_step`, with the same arithmetic.
     let mut stage = *y;
+    let at = 4 * node.step;
     g(y, s0, h / 6.0);
-    let k1 = rhs(y, c, &locs[0], sec, s0, &mut scratch);
+    let k1 = rhs(y, c, &locs[0], sec, s0, at, &mut scratch);
     stage.set_axpy(y, 0.5 * h, &k1);
     g(&stage, s0 + 0.5 * h, h / 3.0);
-    let k2 = rhs(&stage, c, &locs[1], sec, s0 + 0.5 * h, &mut scratch);
+    let k2 = rhs(&stage, c, &locs[1], sec, s0 + 0.5 * h, at + 1, &mut scratch);
     stage.set_axpy(y, 0.5 * h, &k2);
     g(&stage, s0 + 0.5 * h, h / 3.0);
-    let k3 = rhs(&stage, c, &locs[1], sec, s0 + 0.5 * h, &mut scratch);
+    let k3 = rhs(&stage, c, &locs[1], sec, s0 + 0.5 * h, at + 2, &mut scratch);
     stage.set_axpy(y, h, &k3);
     g(&stage, s0 + h, h / 6.0);
 }

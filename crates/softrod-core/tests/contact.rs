@@ -786,7 +786,8 @@ fn bad_obstacles_are_refused_with_field_and_rule() {
     let mut d = good.clone();
     d.obstacles = vec![cap];
     rejects(d, "obstacles[0].end", "must differ from start");
-    // Friction: the statics is frictionless and says why.
+    // Friction: statics::solve refuses it and says why (the frictional load path is
+    // statics::friction::solve, tests/friction.rs).
     let rod = Rod::new(with(&|o| o.friction = 0.3)).unwrap();
     match solve(&rod, &loads(&[]), None, &SolverOptions::default()) {
         Err(SoftrodError::InvalidParameter { field, rule, .. }) => {

@@ -74,6 +74,56 @@ pub(crate) struct PyRod {
     pub(crate) rod: Rod,
 }
 
+/// Where a frictional static solve's load path stands (`statics::friction::FrictionPath`):
+/// its loads and every contact point's friction memory, for `Rod.solve(history=...)` to
+/// continue the path from. Opaque; it belongs to the design it was solved with.
+#[pyclass(name = "FrictionState", module = "softrod._core", frozen)]
+pub(crate) struct PyFrictionState {
+    pub(crate) path: std::sync::Arc<statics::friction::FrictionPath>,
+}
+
+#[pymethods]
+impl PyFrictionState {
+    /// Largest elastic tangential displacement stored in a contact (m; 0: no tangential
+    /// load held).
+    #[getter]
+    fn max_elastic_slip(&self) -> f64 {
+        self.path.max_elastic_slip()
+    }
+
+    /// The pressures (Pa) of the path's end.
+    #[getter]
+    fn pressures(&self) -> Vec<f64> {
+        self.path.loads.pressures.clone()
+    }
+
+    /// The tip force (N, the design's tip frame) of the path's end.
+    #[getter]
+    fn tip_force(&self) -> [f64; 3] {
+        self.path.loads.tip_force
+    }
+
+    /// The tip moment (N m) of the path's end.
+    #[getter]
+    fn tip_moment(&self) -> [f64; 3] {
+        self.path.loads.tip_moment
+    }
+
+    /// The tendon tensions (N) of the path's end.
+    #[getter]
+    fn tensions(&self) -> Vec<f64> {
+        self.path.loads.tensions.clone()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "FrictionState(pressures={:?}, max_elastic_slip={:.3e} m)",
+            self.path.loads.pressures,
+            self.path.max_elastic_slip()
+        )
+    }
+}
+
 /// The solver options of a call; `on_invalid` is "raise", "warn" or "ignore".
 fn options(
     py: Python<'_>,
@@ -182,6 +232,7 @@ pub(crate) fn contact_dict<'py>(
     d.set_item("total_force", array2(py, &rep.force)?)?;
     d.set_item("total_moment", array2(py, &rep.moment)?)?;
     d.set_item("end_force", array2(py, &rep.end)?)?;
+    d.set_item("friction_force", array2(py, &rep.friction)?)?;
     d.set_item("max_penetration", rep.max_penetration)?;
     Ok(d)
 }
@@ -293,10 +344,13 @@ impl PyRod {
     }
 
     /// Solve one static equilibrium; returns a dict of numpy arrays (SI), the stability
-    /// flag "stable" (None where not assessed: follower loads) and the validity-range
-    /// violations "violations" (with on_invalid="warn"). `tensions`: one per tendon channel,
-    /// N (None: slack); the tip loads act in the design's tip frame.
-    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise", tensions=None))]
+    /// flag "stable" (None where not assessed: follower loads, friction) and the
+    /// validity-range violations "violations" (with on_invalid="warn"). `tensions`: one
+    /// per tendon channel, N (None: slack); the tip loads act in the design's tip frame.
+    /// With an obstacle's friction > 0 the solve follows the frictional load path
+    /// (`statics::friction`) in `friction_steps` increments from the unloaded rod or from
+    /// `history` (a `FrictionState` of this design), and the dict has "friction_state".
+    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise", tensions=None, friction_steps=statics::friction::DEFAULT_FRICTION_STEPS, history=None))]
     #[allow(clippy::too_many_arguments)]
     fn solve<'py>(
         &self,
@@ -313,8 +367,23 @@ impl PyRod {
         stiffness_scale: [f64; 3],
         on_invalid: &str,
         tensions: Option<Vec<f64>>,
+        friction_steps: usize,
+        history: Option<PyRef<'py, PyFrictionState>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(py, || {
+            let frictional = statics::friction::has_friction(&self.rod);
+            if history.is_some() && !frictional {
+                return Err(to_py_err(
+                    py,
+                    SoftrodError::invalid(
+                        "history",
+                        "a friction state",
+                        "this design has no obstacle with friction > 0: a frictionless equilibrium does not depend on the load path",
+                    ),
+                    Context::Input,
+                ));
+            }
+            let history = history.map(|h| h.path.clone());
             let loads = Loads {
                 pressures,
                 tensions: tensions.unwrap_or_default(),
@@ -334,7 +403,17 @@ impl PyRod {
             )?;
             let rod = &self.rod;
             let result = py.detach(|| {
-                let (sol, sh) = statics::solve_with_shape(rod, &loads, guess.as_deref(), &opts)?;
+                let (sol, sh) = if frictional {
+                    statics::friction::solve_with_shape(
+                        rod,
+                        &loads,
+                        history.as_deref(),
+                        friction_steps,
+                        &opts,
+                    )?
+                } else {
+                    statics::solve_with_shape(rod, &loads, guess.as_deref(), &opts)?
+                };
                 let contact = statics::contact::report(rod, &loads, &sol)?;
                 Ok((sol, sh, contact))
             });
@@ -342,6 +421,12 @@ impl PyRod {
             let d = solution_dict(py, &sol, &sh)?;
             if let Some(rep) = &contact {
                 d.set_item("contact", contact_dict(py, rep)?)?;
+            }
+            if let Some(path) = &sol.friction {
+                d.set_item(
+                    "friction_state",
+                    Py::new(py, PyFrictionState { path: path.clone() })?,
+                )?;
             }
             Ok(d)
         })
@@ -705,6 +790,7 @@ fn _panic_inside_guard(py: Python<'_>) -> PyResult<()> {
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyRod>()?;
+    m.add_class::<PyFrictionState>()?;
     m.add_class::<PyGridPchip>()?;
     m.add_function(wrap_pyfunction!(_panic_inside_guard, m)?)?;
     control::register(m)?;

@@ -211,7 +211,12 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
     )
     elapsed = time.perf_counter() - t0
     notes = list(sol.violations)
-    if sol.stable is None:
+    if sol.stable is None and sol.friction_state is not None:
+        notes.append(
+            "stability not assessed (friction has no potential; the answer follows a load "
+            "path from the unloaded rod: docs/contact.md, 'Friction in the statics')"
+        )
+    elif sol.stable is None:
         notes.append("stability not assessed (follower loads are not conservative: docs/scope.md)")
     elif not sol.stable:
         notes.append(

@@ -74,8 +74,9 @@ pub struct ObstacleSpec {
     /// Smoothing length eps of the ramp, m (`None`: a tenth of the tolerance).
     #[serde(default)]
     pub smoothing: Option<f64>,
-    /// Coulomb friction coefficient (0: frictionless). The statics is frictionless and
-    /// refuses a positive coefficient (docs/contact.md says why).
+    /// Coulomb friction coefficient (0: frictionless). The free tip's static solve follows
+    /// a load path with it (`statics::friction`); the other static solves refuse a
+    /// positive coefficient (docs/contact.md, "Friction in the statics", says why).
     #[serde(default)]
     pub friction: f64,
     /// Regularisation velocity of the dynamics' Coulomb law, m/s (`None`: 1 mm/s): below

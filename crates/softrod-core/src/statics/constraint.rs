@@ -1024,6 +1024,7 @@ fn conclude(
             stable,
             violations: std::mem::take(violations_out),
             collocation: None,
+            friction: None,
         },
         shape,
         tip_reaction_force: force,

@@ -2,23 +2,24 @@
 //! reports about its contacts. The penalty law itself is `crate::contact`; it enters the
 //! shooting ODE as a position-dependent line load, so the shooting Jacobian stays exact.
 
-use crate::contact::{node_contact, NodeContact, Obstacle, Surface};
+use crate::contact::{node_contact, NodeContact, Obstacle, StickPoint, Surface};
 use crate::error::{Result, SoftrodError};
 use crate::jet::RodScalar;
 use crate::ode::{integrate_with, step_quadrature, Loads, NodeAt, State};
 use crate::rod::Rod;
 use crate::statics::{Problem, Solution};
 
-/// The statics is frictionless: refuse an obstacle with a friction coefficient. Coulomb
-/// friction makes a static equilibrium depend on the loading path (a stuck contact holds
-/// whatever tangential force the history left in it), so a static solve has no unique
-/// answer to give.
+/// Refuse an obstacle with a friction coefficient in a static solve that does not carry
+/// friction (a held tip, a system, a batch, the sensitivities, inverse statics, the
+/// linearisation): Coulomb friction makes a static equilibrium depend on the loading
+/// path (a stuck contact holds whatever tangential force the history left in it), and
+/// only the free tip's solve (`friction::solve`) follows a frictional load path.
 pub fn frictionless(rod: &Rod) -> Result<()> {
     if let Some(k) = rod.spec.obstacles.iter().position(|o| o.friction != 0.0) {
         return Err(SoftrodError::invalid(
             format!("obstacles[{k}].friction"),
             rod.spec.obstacles[k].friction,
-            "the static solve is frictionless (with Coulomb friction the equilibrium depends on the loading path); set friction = 0",
+            "this static solve is frictionless (with Coulomb friction the equilibrium depends on the loading path, which only solve_statics of a free tip follows: docs/contact.md, \"Friction in the statics\"); set friction = 0 here",
         ));
     }
     Ok(())
@@ -309,6 +310,9 @@ pub struct ContactReport {
     pub moment: Vec<[f64; 3]>,
     /// The part of `force` on the rod's rounded end (`end_force`), per obstacle, N.
     pub end: Vec<[f64; 3]>,
+    /// The tangential (friction) part of `force`, per obstacle, N (zero without friction;
+    /// the frictional statics, `crate::statics::friction`).
+    pub friction: Vec<[f64; 3]>,
     /// Deepest penetration of the rod's surface into any obstacle at a node, m (<= 0: no
     /// node touches).
     pub max_penetration: f64,
@@ -330,57 +334,88 @@ pub fn report(rod: &Rod, loads: &Loads, sol: &Solution) -> Result<Option<Contact
             "must be a shooting solution's unknowns (3, or 6 with obstacles or follower loads)",
         ));
     }
-    let p = Problem::new(rod, loads, 1.0);
+    let p = Problem::for_solution(rod, loads, sol);
+    let points = sol.friction.as_ref().map(|f| &f.state);
     let y0: State<f64> = p.base_state(&sol.x);
     let base = rod.base_position;
     let mut nodes = Vec::new();
-    let mut force = vec![[0.0; 3]; obstacles.len()];
-    let mut moment = vec![[0.0; 3]; obstacles.len()];
+    let n_obs = obstacles.len();
+    let mut force = vec![[0.0; 3]; n_obs];
+    let mut moment = vec![[0.0; 3]; n_obs];
+    let mut friction = vec![[0.0; 3]; n_obs];
+    // Obstacle k's load on a point at state y (surface radius rho, `scale` 1 for the line
+    // load, rho for the rounded end): force, moment about the centreline, friction part.
+    let load = |k: usize, y: &State<f64>, rho: f64, scale: f64, old: Option<&StickPoint>| {
+        let o = &obstacles[k];
+        match old {
+            Some(old) => {
+                let g = o.stick_load(&y.r, &y.rot, rho, scale, old, k);
+                (g.force, g.moment, g.friction)
+            }
+            None => (
+                o.line_force(&y.r, rho).map(|f| f * scale),
+                [0.0; 3],
+                [0.0; 3],
+            ),
+        }
+    };
+    let mut add = |k: usize, w: f64, at: &[f64; 3], (f, m, t): ([f64; 3], [f64; 3], [f64; 3])| {
+        let arm: [f64; 3] = std::array::from_fn(|i| at[i] - base[i]);
+        let mo = [
+            arm[1] * f[2] - arm[2] * f[1],
+            arm[2] * f[0] - arm[0] * f[2],
+            arm[0] * f[1] - arm[1] * f[0],
+        ];
+        for i in 0..3 {
+            force[k][i] += w * f[i];
+            moment[k][i] += w * (mo[i] + m[i]);
+            friction[k][i] += w * t[i];
+        }
+    };
     let mut hook = |node: NodeAt, y: &mut State<f64>| {
         let sec = &rod.sections[node.section];
+        let stage_points = points.map(|st| &st.sections[node.section]);
         if node.step > 0 || node.section == 0 {
             let rho = sec.surface_radius(node.s - sec.s_start);
-            if let Some(nc) = node_contact(obstacles, &y.r, rho) {
+            if let Some(mut nc) = node_contact(obstacles, &y.r, rho) {
+                // With friction: the load of the stage point at the node (the step's
+                // first, or the section's last step's last).
+                let stage = if node.step < sec.steps {
+                    4 * node.step
+                } else {
+                    (4 * node.step).saturating_sub(1)
+                };
+                if let Some(old) = stage_points.and_then(|pts| pts.get(stage)) {
+                    nc.force = [0.0; 3];
+                    for k in 0..n_obs {
+                        let (f, _, _) = load(k, y, rho, 1.0, Some(old));
+                        for i in 0..3 {
+                            nc.force[i] += f[i];
+                        }
+                    }
+                }
                 nodes.push(nc);
             }
         }
+        let mut j = 4 * node.step;
         step_quadrature(rod, &p.coeffs, node, y, &mut |ys, s, w| {
             let rho = sec.surface_radius(s);
-            let arm: [f64; 3] = std::array::from_fn(|k| ys.r[k] - base[k]);
-            for (k, o) in obstacles.iter().enumerate() {
-                let f = o.line_force(&ys.r, rho);
-                for i in 0..3 {
-                    force[k][i] += w * f[i];
-                }
-                let m = [
-                    arm[1] * f[2] - arm[2] * f[1],
-                    arm[2] * f[0] - arm[0] * f[2],
-                    arm[0] * f[1] - arm[1] * f[0],
-                ];
-                for i in 0..3 {
-                    moment[k][i] += w * m[i];
-                }
+            let old = stage_points.and_then(|pts| pts.get(j));
+            j += 1;
+            for k in 0..n_obs {
+                add(k, w, &ys.r, load(k, ys, rho, 1.0, old));
             }
         });
         false
     };
     let tip = integrate_with(rod, &p.coeffs, y0, &mut hook);
-    let mut end = vec![[0.0; 3]; obstacles.len()];
+    let mut end = vec![[0.0; 3]; n_obs];
     if let Some(sec) = rod.sections.last() {
         let rho = sec.surface_radius(sec.length);
-        let arm: [f64; 3] = std::array::from_fn(|k| tip.r[k] - base[k]);
-        for (k, o) in obstacles.iter().enumerate() {
-            let f = end_force_of(o, &tip.r, rho);
-            end[k] = f;
-            let m = [
-                arm[1] * f[2] - arm[2] * f[1],
-                arm[2] * f[0] - arm[0] * f[2],
-                arm[0] * f[1] - arm[1] * f[0],
-            ];
-            for i in 0..3 {
-                force[k][i] += f[i];
-                moment[k][i] += m[i];
-            }
+        for (k, e) in end.iter_mut().enumerate() {
+            let l = load(k, &tip, rho, rho, points.map(|st| &st.end));
+            *e = l.0;
+            add(k, 1.0, &tip.r, l);
         }
     }
     let max_penetration = nodes
@@ -392,6 +427,7 @@ pub fn report(rod: &Rod, loads: &Loads, sol: &Solution) -> Result<Option<Contact
         force,
         moment,
         end,
+        friction,
         max_penetration,
     }))
 }

@@ -34,6 +34,7 @@
 pub mod collocation;
 pub mod constraint;
 pub mod contact;
+pub mod friction;
 pub mod system;
 
 use crate::error::{Result, SoftrodError};
@@ -137,6 +138,10 @@ pub struct Solution {
     /// The shape, when the solve used collocation (`crate::collocation`): re-integrating
     /// from `x` by shooting is what that rod's conditioning forbids.
     pub collocation: Option<std::sync::Arc<Shape>>,
+    /// The frictional statics' path state at this equilibrium (`friction`): its loads and
+    /// every contact point's friction memory, from which a further path may start. None
+    /// for a frictionless solve.
+    pub friction: Option<std::sync::Arc<friction::FrictionPath>>,
 }
 
 /// The rod's shape at every integration node.
@@ -184,6 +189,9 @@ pub(crate) struct Problem<'a> {
     follower: bool,
     /// The tendon law's solutions of the last pass, the next pass's starts.
     memory: std::cell::RefCell<LawMemory>,
+    /// The frictional statics' rounded-end contact point from the last converged
+    /// increment (`friction`); its stage points ride in `coeffs`. None: frictionless.
+    friction_end: Option<crate::contact::StickPoint>,
 }
 
 fn inf_norm(r: &[f64]) -> f64 {
@@ -322,6 +330,7 @@ impl<'a> Problem<'a> {
             ms: rod.force_scale * rod.length,
             follower: loads.base_force_unknown(rod),
             memory: Default::default(),
+            friction_end: None,
         };
         let w = p.tip_weight();
         let mt = rod.spec.tip.mass;
@@ -341,6 +350,32 @@ impl<'a> Problem<'a> {
         p
     }
 
+    /// The full-load problem of a solution `sol` of `loads`: with the friction state it
+    /// carries (the frictional statics), whose contact loads are then those it converged
+    /// with (to round-off: the state after the return map at the same shape).
+    pub(crate) fn for_solution(rod: &'a Rod, loads: &'a Loads, sol: &Solution) -> Self {
+        match &sol.friction {
+            Some(f) => Problem::with_friction(rod, loads, 1.0, &f.state),
+            None => Problem::new(rod, loads, 1.0),
+        }
+    }
+
+    /// [`Problem::new`] whose contact carries elastic-slip friction from the points'
+    /// state `state` of the last converged increment (`friction`).
+    pub(crate) fn with_friction(
+        rod: &'a Rod,
+        loads: &'a Loads,
+        factor: f64,
+        state: &friction::FrictionState,
+    ) -> Self {
+        let mut p = Problem::new(rod, loads, factor);
+        for (c, points) in p.coeffs.iter_mut().zip(&state.sections) {
+            c.friction = Some(points.clone());
+        }
+        p.friction_end = Some(state.end.clone());
+        p
+    }
+
     /// Force scale of the unknowns n(0) / F_s (6 unknowns), N.
     pub(crate) fn force_scale(&self) -> f64 {
         self.fs
@@ -349,7 +384,7 @@ impl<'a> Problem<'a> {
     /// The loads have a potential, so stability is assessed: no follower load. (Contact
     /// with obstacles has one, the penalty's; it only makes the base force unknown.)
     pub(crate) fn assessed(&self) -> bool {
-        !self.loads.has_follower(self.rod)
+        !self.loads.has_follower(self.rod) && self.friction_end.is_none()
     }
 
     /// Unknowns of this problem (3 or 6).
@@ -417,9 +452,14 @@ impl<'a> Problem<'a> {
         } else {
             (*f_tip, *m_tip)
         };
-        let moment: [D; 3] = std::array::from_fn(|k| (tip.m[k] - cxw[k] - m[k]) * (1.0 / self.ms));
-        // The rod's rounded end presses on obstacles too (through the tip: no moment).
-        let end = contact::end_force(self.rod, &tip.r);
+        // The rod's rounded end presses on obstacles too (through the tip: no moment, but
+        // for the frictional statics' friction at its surface point).
+        let (end, end_moment) = match &self.friction_end {
+            Some(old) => friction::end_load(self.rod, &tip.r, &tip.rot, old),
+            None => (contact::end_force(self.rod, &tip.r), [D::from(0.0); 3]),
+        };
+        let moment: [D; 3] =
+            std::array::from_fn(|k| (tip.m[k] - cxw[k] - m[k] - end_moment[k]) * (1.0 / self.ms));
         if N == 6 {
             std::array::from_fn(|k| {
                 if k < 3 {
@@ -804,6 +844,7 @@ impl<'a> Problem<'a> {
                 stable,
                 violations,
                 collocation: None,
+                friction: None,
             },
             shape,
         ))
@@ -1047,8 +1088,17 @@ pub fn solve_with_shape(
 /// Check a solve's loads (pressures, tensions, stiffness scale, tip loads) and options;
 /// returns the operating-range violations to report (with `Policy::Warn`).
 pub fn check_inputs(rod: &Rod, loads: &Loads, opts: &SolverOptions) -> Result<Vec<SoftrodError>> {
-    opts.validate()?;
     contact::frictionless(rod)?;
+    check_inputs_any_friction(rod, loads, opts)
+}
+
+/// [`check_inputs`] for the frictional statics (`friction::solve`), which carries friction.
+pub(crate) fn check_inputs_any_friction(
+    rod: &Rod,
+    loads: &Loads,
+    opts: &SolverOptions,
+) -> Result<Vec<SoftrodError>> {
+    opts.validate()?;
     rod.check_loads(&loads.pressures, &loads.stiffness_scale)?;
     rod.check_tensions(&loads.tensions)?;
     contact::clear_at_rest(rod, loads)?;
@@ -1258,6 +1308,7 @@ fn by_collocation(
             stable: sol.stable,
             violations,
             collocation: Some(shape.clone()),
+            friction: None,
         },
         Some((*shape).clone()),
     ))
@@ -1597,7 +1648,7 @@ pub fn shape(rod: &Rod, loads: &Loads, sol: &Solution) -> Shape {
     if let Some(sh) = &sol.collocation {
         return (**sh).clone();
     }
-    let p = Problem::new(rod, loads, 1.0);
+    let p = Problem::for_solution(rod, loads, sol);
     let mut out = Shape::default();
     let mut index = 0;
     let mut visit = |i: usize, s: f64, y: &State<f64>| {

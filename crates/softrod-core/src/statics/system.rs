@@ -504,6 +504,7 @@ pub fn solve_system(
                 stable,
                 violations: v,
                 collocation: None,
+                friction: None,
             },
             shape,
             tip_reaction_force: std::array::from_fn(|k| b[k] * pr.fs),

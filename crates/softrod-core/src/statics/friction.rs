@@ -1,0 +1,467 @@
+//! Coulomb friction in the statics (docs/contact.md, "Friction in the statics"): a
+//! quasi-static load path with elastic-slip (penalty) friction and a return map.
+//!
+//! With friction an equilibrium depends on how the loads got there: a stuck contact keeps
+//! whatever tangential force its history left in it. So the solve follows a load path in
+//! equal increments, from the unloaded rod (no tangential load stored anywhere) or from
+//! a previous frictional solution (`FrictionPath`: its loads and contact memory), to the
+//! requested loads. Every contact point (each RK4 stage point of the shooting integration,
+//! and the rounded end) keeps, from the last converged increment, its section's position
+//! and rotation and the elastic tangential displacement e of each obstacle's tangential
+//! penalty spring. Within an increment's Newton solve the friction is the return map of
+//! the trial state (`crate::contact::Obstacle::stick_load`); after convergence the state
+//! is updated. This is the standard incremental treatment of Wriggers, "Computational
+//! Contact Mechanics", Springer 2006, DOI 10.1007/978-3-540-32609-0 (ch. 5, friction and
+//! its return mapping), with the tangential stiffness equal to the normal penalty's.
+//!
+//! Within an increment the slip is measured from the increment's start: a point that
+//! comes into contact during an increment is anchored where its material point was at the
+//! start, and a stick/slip change is resolved at the increment's end. The answer is
+//! therefore first order in the increment size (docs/contact.md). Friction has no
+//! potential, so stability is not assessed (`stable` is None).
+
+use std::sync::Arc;
+
+use super::{
+    check_inputs_any_friction, contact, At, Attempt, Problem, Shape, Solution, SolverOptions,
+    Start, MIN_CROSSING_STEP,
+};
+use crate::contact::{Obstacle, StickPoint};
+use crate::error::{Result, SoftrodError};
+use crate::jet::RodScalar;
+use crate::ode::{integrate_with, step_quadrature, Loads, NodeAt, State};
+use crate::rod::Rod;
+
+/// Default number of equal load increments of a frictional static solve. The answer's
+/// dependence on the increment size is first order (measured on the bundled finger
+/// pressed onto a table with mu = 0.5 at 35 kPa: the friction force changes by 6.2, 1.5
+/// and 0.37 mN from 5 to 20, 80 and 320 increments, a ratio of 4.1 per quadrupling);
+/// 80 increments leave about 1 % of the friction force (0.5 of 45 mN), and cost about
+/// as much as 20, which need more halved increments where the tip lands.
+pub const DEFAULT_FRICTION_STEPS: usize = 80;
+/// Most increments a caller may ask for (each is a Newton solve).
+pub const MAX_FRICTION_STEPS: usize = 100_000;
+/// A failed increment is halved down to 1/SUB of the requested one.
+const SUB: u32 = 1024;
+
+/// Every contact point's friction memory: per section, one point per RK4 stage (4 per
+/// step; none in a rigid section, which carries no contact force), and the rounded end.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrictionState {
+    pub sections: Vec<Arc<[StickPoint]>>,
+    pub end: StickPoint,
+}
+
+/// Where a frictional path stands at a converged equilibrium: the loads reached, the
+/// friction state and the shooting unknowns there, and the design it belongs to. A
+/// further path (unloading, say) starts from it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrictionPath {
+    pub loads: Loads,
+    pub state: FrictionState,
+    pub x: Vec<f64>,
+    spec: crate::spec::DesignSpec,
+}
+
+impl FrictionPath {
+    /// Largest |e| over all contact points and obstacles (m): the elastic tangential
+    /// displacement stored in the contacts (0: no tangential load held).
+    pub fn max_elastic_slip(&self) -> f64 {
+        self.state
+            .sections
+            .iter()
+            .flat_map(|s| s.iter())
+            .chain(std::iter::once(&self.state.end))
+            .flat_map(|p| p.e.iter())
+            .map(|e| (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt())
+            .fold(0.0, f64::max)
+    }
+}
+
+/// Whether some obstacle of the rod has friction > 0 (the static solve then follows the
+/// frictional path).
+pub fn has_friction(rod: &Rod) -> bool {
+    rod.spec.obstacles.iter().any(|o| o.friction != 0.0)
+}
+
+/// The rounded end's contact load with friction (`crate::statics::contact::end_force`
+/// plus its tangential part): the total force and the friction's moment about the tip's
+/// centreline.
+pub(crate) fn end_load<D: RodScalar>(
+    rod: &Rod,
+    r: &[D; 3],
+    rot: &[[D; 3]; 3],
+    old: &StickPoint,
+) -> ([D; 3], [D; 3]) {
+    let mut f = [D::from(0.0); 3];
+    let mut m = [D::from(0.0); 3];
+    if let (Some(obstacles), Some(sec)) = (&rod.obstacles, rod.sections.last()) {
+        let rho = sec.surface_radius(sec.length);
+        let g = crate::contact::total_stick_load(obstacles, r, rot, rho, rho, old);
+        f = g.force;
+        m = g.moment;
+    }
+    (f, m)
+}
+
+/// A point with no stored tangential displacement at state y.
+fn fresh(y: &State<f64>, n_obstacles: usize) -> StickPoint {
+    StickPoint {
+        r: y.r,
+        rot: y.rot,
+        e: vec![[0.0; 3]; n_obstacles],
+    }
+}
+
+/// The friction state of the unloaded rod (its reference shape; x = 0 at zero load):
+/// every point where the rod is, nothing stored.
+fn unloaded_state(rod: &Rod, loads: &Loads, obstacles: &[Obstacle]) -> FrictionState {
+    // The reference shape, without the obstacles: a bed the rod touches within its
+    // tolerance already pushes on it at zero load, and x = 0 is then not its equilibrium.
+    let mut free = rod.clone();
+    free.obstacles = None;
+    let rod = &free;
+    let p = Problem::new(rod, loads, 0.0);
+    let k = obstacles.len();
+    let mut sections: Vec<Vec<StickPoint>> = vec![Vec::new(); rod.sections.len()];
+    let mut hook = |node: NodeAt, y: &mut State<f64>| {
+        step_quadrature(rod, &p.coeffs, node, y, &mut |ys, _, _| {
+            sections[node.section].push(fresh(ys, k));
+        });
+        false
+    };
+    let tip = integrate_with(rod, &p.coeffs, p.base_state(&[0.0; 6]), &mut hook);
+    FrictionState {
+        sections: sections.into_iter().map(Arc::from).collect(),
+        end: fresh(&tip, k),
+    }
+}
+
+/// The state after a converged increment: problem `p` (built on `old`) at its solution
+/// x, each point's return map (`Obstacle::stick_load`) at its new position.
+fn advance(p: &Problem, x: &[f64], old: &FrictionState, obstacles: &[Obstacle]) -> FrictionState {
+    let rod = p.rod;
+    let mut sections: Vec<Vec<StickPoint>> = vec![Vec::new(); rod.sections.len()];
+    let update = |ys: &State<f64>, rho: f64, scale: f64, was: &StickPoint| StickPoint {
+        r: ys.r,
+        rot: ys.rot,
+        e: (0..obstacles.len())
+            .map(|k| {
+                obstacles[k]
+                    .stick_load(&ys.r, &ys.rot, rho, scale, was, k)
+                    .e
+            })
+            .collect(),
+    };
+    let mut hook = |node: NodeAt, y: &mut State<f64>| {
+        let sec = &rod.sections[node.section];
+        let points = &old.sections[node.section];
+        let mut j = 4 * node.step;
+        step_quadrature(rod, &p.coeffs, node, y, &mut |ys, s, _| {
+            if let Some(was) = points.get(j) {
+                sections[node.section].push(update(ys, sec.surface_radius(s), 1.0, was));
+            }
+            j += 1;
+        });
+        false
+    };
+    let tip = integrate_with(rod, &p.coeffs, p.base_state(x), &mut hook);
+    let end = match rod.sections.last() {
+        Some(sec) => {
+            let rho = sec.surface_radius(sec.length);
+            update(&tip, rho, rho, &old.end)
+        }
+        None => old.end.clone(),
+    };
+    FrictionState {
+        sections: sections.into_iter().map(Arc::from).collect(),
+        end,
+    }
+}
+
+/// Check that `history` belongs to this rod (same design, same obstacles) and that its
+/// loads can be joined to `loads` by a straight path.
+fn check_history(rod: &Rod, loads: &Loads, history: &FrictionPath) -> Result<()> {
+    if history.spec.obstacles != rod.spec.obstacles {
+        return Err(SoftrodError::invalid(
+            "history",
+            "a frictional solution",
+            "its obstacles differ from this design's: a friction state belongs to the design and obstacles it was solved with",
+        ));
+    }
+    if history.spec != rod.spec {
+        return Err(SoftrodError::invalid(
+            "history",
+            format!("a frictional solution of design {:?}", history.spec.name),
+            format!(
+                "it belongs to another design than {:?} (a friction state belongs to the design it was solved with)",
+                rod.spec.name
+            ),
+        ));
+    }
+    let h = &history.loads;
+    if h.tip_frame != loads.tip_frame {
+        return Err(SoftrodError::invalid(
+            "history",
+            format!("tip frame {:?}", h.tip_frame),
+            "its tip loads act in another frame than this solve's",
+        ));
+    }
+    if h.stiffness_scale != loads.stiffness_scale {
+        return Err(SoftrodError::invalid(
+            "history",
+            format!("stiffness scale {:?}", h.stiffness_scale),
+            format!(
+                "differs from this solve's {:?}: the path changes the loads, not the material",
+                loads.stiffness_scale
+            ),
+        ));
+    }
+    if h.pressures.len() != loads.pressures.len() || h.tensions.len() != loads.tensions.len() {
+        return Err(SoftrodError::invalid(
+            "history",
+            "a frictional solution",
+            "its pressures or tensions have another number of channels than this solve's",
+        ));
+    }
+    Ok(())
+}
+
+/// The loads at path parameter t in [0, 1] from `a` to `b` (straight), with the load
+/// factor of the problem: from the unloaded rod (`a` None) the loads `b` scaled by t, else
+/// `a + t (b - a)` at full factor (gravity and the tip body's weight are on already).
+fn loads_at(a: Option<&Loads>, b: &Loads, t: f64) -> (Loads, f64) {
+    match a {
+        None => (b.clone(), t),
+        Some(a) => {
+            let mix = |x: f64, y: f64| if t >= 1.0 { y } else { x + t * (y - x) };
+            let lerp = |x: &[f64], y: &[f64]| -> Vec<f64> {
+                x.iter().zip(y).map(|(x, y)| mix(*x, *y)).collect()
+            };
+            let lerp3 = |x: &[f64; 3], y: &[f64; 3]| -> [f64; 3] {
+                std::array::from_fn(|i| mix(x[i], y[i]))
+            };
+            (
+                Loads {
+                    pressures: lerp(&a.pressures, &b.pressures),
+                    tensions: lerp(&a.tensions, &b.tensions),
+                    tip_force: lerp3(&a.tip_force, &b.tip_force),
+                    tip_moment: lerp3(&a.tip_moment, &b.tip_moment),
+                    tip_frame: b.tip_frame,
+                    stiffness_scale: b.stiffness_scale,
+                },
+                1.0,
+            )
+        }
+    }
+}
+
+/// Check the number of increments of a frictional solve.
+pub fn check_steps(steps: usize) -> Result<()> {
+    if steps == 0 || steps > MAX_FRICTION_STEPS {
+        return Err(SoftrodError::invalid(
+            "friction_steps",
+            steps,
+            format!("must be in 1..={MAX_FRICTION_STEPS}"),
+        ));
+    }
+    Ok(())
+}
+
+/// The frictional static solve of a free tip: from `history` (a previous frictional
+/// solution of this rod; None: the unloaded rod) to `loads` in `steps` equal increments
+/// of the path, each halved while its Newton solve fails (down to 1/1024 of it). The
+/// solution carries its `FrictionPath`; `stable` is None. Errors name what is wrong:
+/// `friction_steps`, `history`, an obstacle crossed, or the increment that failed.
+pub fn solve(
+    rod: &Rod,
+    loads: &Loads,
+    history: Option<&FrictionPath>,
+    steps: usize,
+    opts: &SolverOptions,
+) -> Result<Solution> {
+    solve_inner(rod, loads, history, steps, opts, false).map(|(s, _)| s)
+}
+
+/// [`solve`] and the shape at every integration node.
+pub fn solve_with_shape(
+    rod: &Rod,
+    loads: &Loads,
+    history: Option<&FrictionPath>,
+    steps: usize,
+    opts: &SolverOptions,
+) -> Result<(Solution, Shape)> {
+    solve_inner(rod, loads, history, steps, opts, true).map(|(s, sh)| (s, sh.unwrap_or_default()))
+}
+
+fn solve_inner(
+    rod: &Rod,
+    loads: &Loads,
+    history: Option<&FrictionPath>,
+    steps: usize,
+    opts: &SolverOptions,
+    want_shape: bool,
+) -> Attempt {
+    check_steps(steps)?;
+    let violations = check_inputs_any_friction(rod, loads, opts)?;
+    let Some(obstacles) = rod.obstacles.as_deref() else {
+        return Err(SoftrodError::invalid(
+            "obstacles",
+            "none",
+            "the frictional static solve needs obstacles (a design without any is frictionless)",
+        ));
+    };
+    if let Some(h) = history {
+        check_history(rod, loads, h)?;
+    }
+    let not_converged =
+        |iterations, residual, load_factor, reason: String| SoftrodError::NotConverged {
+            iterations,
+            residual,
+            load_factor,
+            reason,
+        };
+    let (mut state, mut x): (FrictionState, [f64; 6]) = match history {
+        Some(h) if h.x.len() == 6 => (h.state.clone(), std::array::from_fn(|i| h.x[i])),
+        Some(_) => {
+            return Err(SoftrodError::invalid(
+                "history",
+                "a frictional solution",
+                "its shooting unknowns are not a free tip's six",
+            ))
+        }
+        None => (unloaded_state(rod, loads, obstacles), [0.0; 6]),
+    };
+    let start = history.map(|h| &h.loads);
+    let check_crossing = contact::crossable(obstacles);
+    let mut last_shape = if check_crossing {
+        let (l, f) = loads_at(start, loads, 0.0);
+        contact::node_points(&Problem::with_friction(rod, &l, f, &state), &x)
+    } else {
+        Vec::new()
+    };
+    // Where the path stands, in units of 1/SUB of a requested increment: increment i,
+    // position `at` in it. A failed increment is halved (level `depth`: length
+    // SUB >> depth), and after a success the length doubles again where the position
+    // allows, so that sub-increments are dyadic and end on the requested grid: the path
+    // depends on `steps` and on where Newton needed shorter increments, nothing else.
+    let mut i = 0usize;
+    let mut at = 0u32;
+    let mut depth = 0u32;
+    let param = |i: usize, at: u32| -> f64 {
+        if i >= steps {
+            1.0
+        } else {
+            (i as f64 + at as f64 / SUB as f64) / steps as f64
+        }
+    };
+    let mut t = 0.0;
+    // The last converged increment's move (for a secant predictor) and length.
+    let mut last_move: Option<([f64; 6], f64)> = None;
+    let mut iterations = 0;
+    let mut levels = 0;
+    loop {
+        let len = SUB >> depth;
+        let (next_i, next_at) = if at + len >= SUB {
+            (i + 1, 0)
+        } else {
+            (i, at + len)
+        };
+        let target = param(next_i, next_at);
+        let dt = target - t;
+        let (l, factor) = loads_at(start, loads, target);
+        let p = Problem::with_friction(rod, &l, factor, &state);
+        let guess: [f64; 6] = match last_move {
+            Some((dx, dt_last)) => std::array::from_fn(|i| x[i] + dx[i] * (dt / dt_last)),
+            None => x,
+        };
+        // Newton with the exact Jacobian (updated by Broyden between exact passes). The
+        // residual is continuous, its derivative jumps where a point switches between
+        // stick and slip (semi-smooth: Newton converges locally, and a failed increment
+        // is halved).
+        let attempt = p.newton(guess, Start::Guess, opts);
+        let failed = |it: usize, res: f64, why: &str| {
+            not_converged(
+                it,
+                res,
+                t,
+                format!(
+                    "the frictional load path failed at {:.4} of the path: {why}, even in an increment of {:.3e} (1/{SUB} of one of the {} requested): the stick/slip switches are too sharp for Newton there; a softer penalty stiffness (whose elastic slip mu delta is longer; raise the tolerance with it) or more max_iter may help",
+                    t, dt, steps
+                ),
+            )
+        };
+        levels += 1;
+        match attempt {
+            Ok(c) => {
+                iterations += c.iterations;
+                if check_crossing {
+                    let shape = contact::node_points(&p, &c.x);
+                    if let Some(cr) = contact::crossing(obstacles, &last_shape, &shape) {
+                        if len == 1 || dt <= MIN_CROSSING_STEP {
+                            return Err(contact::crossing_error(
+                                contact::Crossing::lone(cr),
+                                Some(dt),
+                            ));
+                        }
+                        depth += 1;
+                        continue;
+                    }
+                    last_shape = shape;
+                }
+                let next = advance(&p, &c.x, &state, obstacles);
+                if target >= 1.0 {
+                    let (mut sol, shape) = p.conclude(
+                        At::Converged(&c),
+                        iterations,
+                        levels,
+                        opts,
+                        violations,
+                        want_shape,
+                    )?;
+                    sol.friction = Some(Arc::new(FrictionPath {
+                        loads: loads.clone(),
+                        state: next,
+                        x: c.x.to_vec(),
+                        spec: rod.spec.clone(),
+                    }));
+                    return Ok((sol, shape));
+                }
+                last_move = Some((std::array::from_fn(|k| c.x[k] - x[k]), dt));
+                x = c.x;
+                state = next;
+                t = target;
+                (i, at) = (next_i, next_at);
+                // Back to the longer increment once the position is on its grid.
+                if depth > 0 && at % (2 * len) == 0 {
+                    depth -= 1;
+                }
+            }
+            Err((it, res)) => {
+                iterations += it;
+                if len == 1 {
+                    return Err(failed(iterations, res, "Newton did not converge"));
+                }
+                depth += 1;
+            }
+        }
+    }
+}
+
+/// The scaled residual and its exact Jacobian (dual numbers) of the frictional problem
+/// at the unknowns `x` (6) of `loads`, with the friction state of `path` as the last
+/// converged increment's: exposed for tests against finite differences.
+#[doc(hidden)]
+pub fn residual_and_jacobian(
+    rod: &Rod,
+    loads: &Loads,
+    path: &FrictionPath,
+    x: &[f64; 6],
+) -> ([f64; 6], [[f64; 6]; 6]) {
+    let p = Problem::with_friction(rod, loads, 1.0, &path.state);
+    let (r, j) = p.eval_jac(x);
+    (
+        r,
+        std::array::from_fn(|i| std::array::from_fn(|k| j[(i, k)])),
+    )
+}
