@@ -383,6 +383,24 @@ fn an_obstacle_through_the_unloaded_rod_is_refused_by_name() {
             }
         }
     }
+    // A plane tilted so that it cuts into the outer half of the unloaded beam, 0.2 mm deep
+    // at the tip (four times the tolerance): the reported depth is the reference shape's
+    // own (the unloaded integration used to carry the penalty, which bent the beam up out
+    // of the plane and reported it shallower than it is).
+    let mut tilted = cantilever_over_plane(0.0, 1e6, 20);
+    tilted.obstacles[0].point = Some([0.5, 0.0, 0.0]);
+    tilted.obstacles[0].normal = Some([-2e-4, 0.0, 0.5]);
+    let rod = Rod::new(tilted).unwrap();
+    match softrod_core::statics::contact::clear_at_rest(&rod, &tip_loads(&rod)) {
+        Err(SoftrodError::InvalidParameter { rule, .. }) => {
+            // Depth at the tip: 0.5 m x 2e-4 / sqrt(0.5^2 + 2e-4^2) = 2.000e-4 m.
+            assert!(
+                rule.contains("up to 2.000e-4 m into it (at s = 1.000000 m)"),
+                "{rule}"
+            );
+        }
+        other => panic!("expected a refusal, got {other:?}"),
+    }
     // Touching within the tolerance is a start like any other.
     let mut touching = cantilever_over_plane(-1e-5, 1e6, 20);
     touching.obstacles[0].point = Some([0.0, 0.0, 1e-5]);

@@ -35,7 +35,7 @@ pub fn clear_at_rest(rod: &Rod, loads: &Loads) -> Result<()> {
         return Ok(());
     };
     let n = if loads.base_force_unknown(rod) { 6 } else { 3 };
-    let unloaded = node_points(&Problem::new(rod, loads, 0.0), &[0.0; 6][..n]);
+    let unloaded = node_points(&unloaded_problem(rod, loads), &[0.0; 6][..n]);
     // The first obstacle sunk into beyond its tolerance, at its deepest node.
     for (k, o) in obstacles.iter().enumerate() {
         let deepest = unloaded
@@ -110,6 +110,18 @@ pub(crate) fn free_guess(
     let mut x: Vec<f64> = sol.base_force.iter().map(|n| n / fs).collect();
     x.extend(sol.base_moment.iter().map(|m| m / ms));
     Some(x)
+}
+
+/// The unloaded problem (load factor 0) integrated without the obstacles' line loads: at
+/// x = 0 it is the rod's reference shape even where that already sinks into an obstacle
+/// (the penalty would otherwise bend the integration away from the obstacle and hide how
+/// deep the reference shape lies in it).
+pub(crate) fn unloaded_problem<'a>(rod: &'a Rod, loads: &'a Loads) -> Problem<'a> {
+    let mut p = Problem::new(rod, loads, 0.0);
+    for c in &mut p.coeffs {
+        c.obstacles = None;
+    }
+    p
 }
 
 /// A shape's nodes for [`crossing`]: arc length, position and surface radius, base first.

@@ -1183,7 +1183,7 @@ fn solve_n<const N: usize, const M: usize>(
         .as_deref()
         .filter(|o| contact::crossable(o))
         .and_then(|o| {
-            contact::start_nodes(&Problem::new(rod, loads, 0.0), &[0.0; N]).map(|s| (o, s))
+            contact::start_nodes(&contact::unloaded_problem(rod, loads), &[0.0; N]).map(|s| (o, s))
         });
     if let Some(g) = guess {
         let full = Problem::new(rod, loads, 1.0);
