@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from typing import Any, final
 
 __all__ = [
+    "FrictionState",
     "GridPchip",
     "InverseSolver",
     "PccModel",
@@ -46,6 +47,7 @@ class FrictionState:
     @property
     def tensions(self) -> list[float]: ...
 
+@final
 class Rod:
     """A validated, compiled design (immutable)."""
 
@@ -73,7 +75,7 @@ class Rod:
         stiffness_scale: _Vec3 = ...,
         on_invalid: str = "raise",
         tensions: Sequence[float] | None = None,
-        friction_steps: int = 80,
+        friction_steps: int = ...,
         history: FrictionState | None = None,
     ) -> dict[str, Any]: ...
     def solve_batch(
