@@ -160,17 +160,24 @@ impl Obstacle {
     #[inline]
     pub fn line_force<D: RodScalar>(&self, r: &[D; 3], rho: f64) -> [D; 3] {
         let (d, nu) = self.distance(r);
-        let delta = -d + rho;
-        let zero = D::from(0.0);
-        let eps = self.smoothing;
-        let p = if delta.value() <= 0.0 {
-            return [zero; 3];
-        } else if delta.value() < eps {
-            delta * delta * (0.5 * self.stiffness / eps)
-        } else {
-            (delta - 0.5 * eps) * self.stiffness
+        let Some(p) = self.penalty(-d + rho) else {
+            return [D::from(0.0); 3];
         };
         nu.map(|n| n * p)
+    }
+
+    /// The normal penalty per unit length k ramp_eps(delta) at the penetration `delta`
+    /// (module docs); None off contact, where the force is exactly zero.
+    #[inline]
+    fn penalty<D: RodScalar>(&self, delta: D) -> Option<D> {
+        let eps = self.smoothing;
+        if delta.value() <= 0.0 {
+            None
+        } else if delta.value() < eps {
+            Some(delta * delta * (0.5 * self.stiffness / eps))
+        } else {
+            Some((delta - 0.5 * eps) * self.stiffness)
+        }
     }
 
     /// The penalty potential Phi = k R_eps(delta) of a cross-section of outer radius `rho`
@@ -209,14 +216,8 @@ impl Obstacle {
     ) -> SectionLoad<D> {
         let mut out = SectionLoad::zero();
         let (d, nu) = self.distance(r);
-        let delta = -d + rho;
-        let eps = self.smoothing;
-        let p = if delta.value() <= 0.0 {
+        let Some(p) = self.penalty(-d + rho) else {
             return out;
-        } else if delta.value() < eps {
-            delta * delta * (0.5 * self.stiffness / eps)
-        } else {
-            (delta - 0.5 * eps) * self.stiffness
         };
         out.force = nu.map(|n| n * p);
         if self.friction > 0.0 {
@@ -265,6 +266,19 @@ pub struct StickLoad<D> {
     pub e: [D; 3],
 }
 
+impl<D: RodScalar> StickLoad<D> {
+    /// No load and nothing stored (off contact).
+    pub fn zero() -> Self {
+        let zero = D::from(0.0);
+        StickLoad {
+            force: [zero; 3],
+            moment: [zero; 3],
+            friction: [zero; 3],
+            e: [zero; 3],
+        }
+    }
+}
+
 impl Obstacle {
     /// The statics' contact load with elastic-slip Coulomb friction on a cross-section of
     /// outer radius `rho` at centreline r with rotation `rot` (body to world, row-major),
@@ -296,22 +310,10 @@ impl Obstacle {
         old: &StickPoint,
         k: usize,
     ) -> StickLoad<D> {
-        let zero = D::from(0.0);
-        let mut out = StickLoad {
-            force: [zero; 3],
-            moment: [zero; 3],
-            friction: [zero; 3],
-            e: [zero; 3],
-        };
+        let mut out = StickLoad::zero();
         let (d, nu) = self.distance(r);
-        let delta = -d + rho;
-        let eps = self.smoothing;
-        let p = if delta.value() <= 0.0 {
+        let Some(p) = self.penalty(-d + rho).map(|p| p * scale) else {
             return out;
-        } else if delta.value() < eps {
-            delta * delta * (0.5 * self.stiffness * scale / eps)
-        } else {
-            (delta - 0.5 * eps) * (self.stiffness * scale)
         };
         out.force = nu.map(|n| n * p);
         if self.friction == 0.0 {
@@ -359,13 +361,7 @@ pub fn total_stick_load<D: RodScalar>(
     scale: f64,
     old: &StickPoint,
 ) -> StickLoad<D> {
-    let zero = D::from(0.0);
-    let mut out = StickLoad {
-        force: [zero; 3],
-        moment: [zero; 3],
-        friction: [zero; 3],
-        e: [zero; 3],
-    };
+    let mut out = StickLoad::zero();
     for (k, o) in obstacles.iter().enumerate() {
         let g = o.stick_load(r, rot, rho, scale, old, k);
         for i in 0..3 {
