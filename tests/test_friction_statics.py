@@ -214,3 +214,28 @@ def test_cli_solves_a_frictional_design_and_says_why_stability_is_not_assessed(r
     assert result.exit_code == 0, result.output
     assert "friction has no potential" in result.output
     assert "follower" not in result.output
+
+
+def test_cli_friction_steps_set_the_increments(run, tmp_path):
+    """--friction-steps reaches the solve: 5 increments give the Python API's answer with
+    SolverOptions(friction_steps=5) (bitwise: the same solve), not the default's; on a
+    frictionless design the option is refused by name (it would be silently ignored)."""
+    import json
+
+    from softrod.design import designs_dir
+
+    text = (designs_dir() / f"{FINGER}.toml").read_text()
+    rough_file = tmp_path / "rough_finger.toml"
+    rough_file.write_text(
+        text.replace('tolerance = "0.2 mm"', 'tolerance = "0.2 mm"\nfriction = 0.5', 1)
+    )
+    result = run("solve", str(rough_file), "--pressure", "40kPa", "--friction-steps", "5", "--json")
+    assert result.exit_code == 0, result.output
+    tip = np.array(json.loads(result.stdout)["tip_position_m"])
+    rough = load_design(str(rough_file))
+    five = solve_statics(rough, [40e3], options=SolverOptions(friction_steps=5))
+    default = solve_statics(rough, [40e3])
+    assert np.array_equal(tip, five.tip_position)
+    assert not np.array_equal(tip, default.tip_position)
+    smooth = run("solve", FINGER, "--pressure", "40kPa", "--friction-steps", "5")
+    assert smooth.exit_code != 0 and "--friction-steps" in smooth.output

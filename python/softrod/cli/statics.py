@@ -175,6 +175,13 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
     "pressures beyond the design's operating_range): an error, or a warning with the "
     "result (docs/model.md, 'Validity and stability').",
 )
+@click.option(
+    "--friction-steps",
+    type=click.IntRange(1, 100_000),
+    help="Load increments of a frictional solve (an obstacle with friction > 0; the answer "
+    "follows the load path to first order in the increment, docs/contact.md 'Friction in "
+    "the statics'). Default: SolverOptions' (80).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object with SI values.")
 @click.option(
     "--plot",
@@ -183,14 +190,25 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
     help="Write the 3-D shape figure here (format from the suffix: .png, .pdf, .svg).",
 )
 @_handle_errors
-def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json, plot_path):
+def solve(
+    design, pressure, tip_force, tip_moment, tension, on_invalid, friction_steps, as_json, plot_path
+):
     """Static shape of DESIGN under the given chamber pressures."""
     from rich.table import Table
 
     from ..catalog import load_design
-    from ..statics import solve_statics
+    from ..statics import SolverOptions, solve_statics
 
     d = load_design(design)
+    options = None
+    if friction_steps is not None:
+        if not any(float(o.get("friction", 0.0)) > 0 for o in d.document.get("obstacles", [])):
+            raise click.BadParameter(
+                f"{friction_steps}: the design has no obstacle with friction > 0, so its "
+                "solve has no load increments",
+                param_hint="--friction-steps",
+            )
+        options = SolverOptions(friction_steps=friction_steps)
     if plot_path is not None:
         from ..plotting import check_figure_path
 
@@ -208,6 +226,7 @@ def solve(design, pressure, tip_force, tip_moment, tension, on_invalid, as_json,
         tensions=tensions,
         on_unstable="ignore",
         on_invalid=on_invalid,
+        options=options,
     )
     elapsed = time.perf_counter() - t0
     notes = list(sol.violations)
