@@ -3,20 +3,24 @@
     python benchmarks/bench_viewer.py          # 25 slider clicks -> results/viewer.json
     python benchmarks/bench_viewer.py --quick  # 7 clicks
     python benchmarks/bench_viewer.py --figures  # also write docs/figures/viewer_*.png
+    python benchmarks/bench_viewer.py --designs  # also every bundled design's first slider
     python -c "import bench_viewer; bench_viewer.contact_figure()"  # that figure alone
                                                      # (from benchmarks/)
 
 The viewer of ``spa_three_chamber_130mm`` (sliders 0-70 kPa) in Debian's Chromium, driven by
 playwright through the browser's executable path, exactly as tests/test_viewer_browser.py
 does (tests/browser_driver.py). Each click on a pressure slider's track is timed in the
-page's clock: ``shown`` when the page has applied the server's update (the new tube and the
-solver panel arrive in one batch), ``total`` two animation frames later, when the frame with
-the new geometry has been drawn; and on the server: when the solve started (``server``,
-same machine's clock), the Rust solve (``solve``) and building and sending the scene update
-(``draw``). Medians over the clicks. Without a GPU the browser renders with SwiftShader
-(software WebGL), whose frame time dominates ``total``; ``frame_ms`` is the page's idle
-animation-frame interval, and ``renderer`` the WebGL renderer the page reports.
-$SOFTROD_CHROMIUM_ARGS adds Chromium flags (e.g. to render on a GPU; tests/browser_driver.py).
+page's clock: ``total`` when the first frame that shows the whole new scene reaches the
+screen (the frames after the click are read back from the WebGL canvas until they settle;
+the first one equal to the settled image was drawn, and is shown at the next animation
+frame), ``shown`` when the page has applied the server's update to its panel (the solve
+number); and on the server: when the solve started (``server``, same machine's clock), the
+Rust solve (``solve``) and building and sending the scene update (``draw``). Medians over the
+clicks. Without a GPU the browser renders with SwiftShader (software WebGL), whose frame time
+dominates ``total``; ``frame_ms`` is the page's idle animation-frame interval, and
+``renderer`` the WebGL renderer the page reports. ``--designs`` adds every bundled design
+(its first slider, 1280 x 800). $SOFTROD_CHROMIUM_ARGS adds Chromium flags (e.g. to render on
+a GPU; tests/browser_driver.py).
 """
 
 from __future__ import annotations
@@ -41,6 +45,33 @@ FIGURES = HERE.parent / "docs" / "figures"
 
 def add_arguments(parser) -> None:
     parser.add_argument("--figures", action="store_true", help="write docs/figures/viewer_*.png")
+    parser.add_argument(
+        "--designs",
+        action="store_true",
+        help="also every bundled design: 9 clicks on its first slider at 1280 x 800",
+    )
+
+
+def design_latencies(chromium: str, clicks: int = 9) -> dict:
+    """Median latencies (ms) of clicks on the first slider of every bundled design (a
+    pressure, a tension or the tip force, in that order), alternating between 20 % and 80 %
+    of the track so that every click moves the rod."""
+    out = {}
+    for name in softrod.bundled_designs():
+        viewer = softrod.view(name, environment_map=False)
+        try:
+            with ViewerPage(viewer, chromium, 1280, 800) as page:
+                page.wait_rendered()
+                page.click_slider(0, 0.5)  # warm-up: first geometry upload
+                rows = [page.click_slider(0, 0.2 if k % 2 else 0.8) for k in range(clicks)]
+        finally:
+            viewer.close()
+        out[name] = {
+            **{f"median_{k}_ms": statistics.median(r[k] for r in rows) for k in rows[0]},
+            "max_total_ms": max(r["total"] for r in rows),
+        }
+        print(name, {k: round(v, 2) for k, v in out[name].items()})
+    return out
 
 
 def contact_figure(chromium: str | None = None) -> Path:
@@ -100,6 +131,8 @@ def run(args) -> dict:
         print(key, {k: round(v, 2) if isinstance(v, float) else v for k, v in out[key].items()})
     if args.figures:
         contact_figure(chromium)
+    if args.designs:
+        out["designs"] = design_latencies(chromium, 5 if args.quick else 9)
     return {
         **result_header("viewer", args.quick, info, design=DESIGN),
         "browser": chromium,

@@ -2,11 +2,17 @@
 Python package and the browser's executable path: nothing is downloaded). Used by
 tests/test_viewer_browser.py and benchmarks/bench_viewer.py.
 
-Latency probe: a capture-phase ``pointerdown`` listener stamps the click; a MutationObserver
-waits for the solver panel to show the next solve number (the server sends the new tube and
-that text in one message batch, applied together); two animation frames later the frame
-with the new geometry has been drawn. click-to-drawn is the slider-to-redraw latency as the
-user sees it, in the page's own clock.
+Latency probe, in the page's own clock. A capture-phase ``pointerdown`` listener stamps the
+click and starts watching frames: after every animation frame (a task queued from the
+frame's callbacks runs once the frame's rendering callbacks are done) a reduced copy of the
+WebGL canvas is taken (the context keeps its drawing buffer for this: an init script asks
+for ``preserveDrawingBuffer``). A MutationObserver notes when the solver panel shows the
+next solve number (``shown``: the server's update applied; the new tube and that text come
+in one message batch). Once the frames have settled (three equal copies after ``shown``),
+the first frame equal to the settled one is the first with the whole new scene (tube, tip
+frame, arrows); it reaches the screen at the next animation frame, whose time is ``total``:
+click-to-redrawn, the slider-to-redraw latency as the user sees it. This times the pixels,
+not a guess of how many frames the page needs.
 """
 
 from __future__ import annotations
@@ -18,35 +24,97 @@ import time
 
 import numpy as np
 
+# Before any page script: keep the WebGL drawing buffer after a frame so the probe can read
+# what the frame drew.
+INIT_JS = """
+(() => {
+  const get = HTMLCanvasElement.prototype.getContext;
+  HTMLCanvasElement.prototype.getContext = function (type, attrs) {
+    if (type === 'webgl' || type === 'webgl2') {
+      attrs = Object.assign({}, attrs || {}, {preserveDrawingBuffer: true});
+    }
+    return get.call(this, type, attrs);
+  };
+})();
+"""
+
 PROBE_JS = """
 () => {
-  window.__softrod = {down: null, shown: null, drawn: null};
+  const S = window.__softrod = {down: null, shown: null, frames: [], watching: false, before: null};
+  const small = document.createElement('canvas');
+  const ctx2d = small.getContext('2d', {willReadFrequently: true});
+  const copy = () => {
+    const gl = [...document.querySelectorAll('canvas')]
+      .sort((a, b) => b.width * b.height - a.width * a.height)[0];
+    small.width = Math.max(1, gl.width >> 2);
+    small.height = Math.max(1, gl.height >> 2);
+    ctx2d.drawImage(gl, 0, 0, small.width, small.height);
+    return ctx2d.getImageData(0, 0, small.width, small.height).data;
+  };
+  const tick = () => {
+    if (!S.watching) return;
+    const at = performance.now();
+    setTimeout(() => S.frames.push({at, image: copy()}), 0);
+    requestAnimationFrame(tick);
+  };
   document.addEventListener('pointerdown', () => {
-    window.__softrod.down = performance.now();
-    window.__softrod.shown = window.__softrod.drawn = null;
+    S.down = performance.now();
+    S.shown = null;
+    S.frames = [];
+    S.before = copy();
+    if (!S.watching) { S.watching = true; requestAnimationFrame(tick); }
   }, true);
 }
 """
 
-# Resolves when the solver panel shows "solve N" with N >= want, two frames later.
+# Resolves when the solver panel shows "solve N" with N >= want and the frames after it
+# have settled: {total, shown, frames_after_shown, down_epoch}.
 WAIT_DRAWN_JS = """
-(want) => new Promise((resolve) => {
+(want) => new Promise((resolve, reject) => {
+  const S = window.__softrod;
+  const same = (a, b) => {
+    if (a.length !== b.length) return false;
+    for (let i = 0; i < a.length; i++) if (a[i] !== b[i]) return false;
+    return true;
+  };
   const shown = () => {
     const m = document.body.innerText.match(/solve (\\d+):/);
     return m && parseInt(m[1]) >= want;
   };
-  const finish = () => {
-    window.__softrod.shown = performance.now();
-    requestAnimationFrame(() => requestAnimationFrame(() => {
-      const s = window.__softrod;
-      s.drawn = performance.now();
-      resolve({total: s.drawn - s.down, shown: s.shown - s.down,
-               down_epoch: performance.timeOrigin + s.down});
-    }));
-  };
-  if (shown()) { finish(); return; }
-  const obs = new MutationObserver(() => { if (shown()) { obs.disconnect(); finish(); } });
+  const deadline = performance.now() + 10000;
+  if (shown()) S.shown = performance.now();
+  const obs = new MutationObserver(() => {
+    if (S.shown === null && shown()) { S.shown = performance.now(); obs.disconnect(); }
+  });
   obs.observe(document.body, {subtree: true, childList: true, characterData: true});
+  const poll = () => {
+    const f = S.frames;
+    const after = S.shown === null ? [] : f.filter((x) => x.at > S.shown);
+    if (after.length >= 3) {
+      const last = after[after.length - 1].image;
+      if (same(after[after.length - 2].image, last) && same(after[after.length - 3].image, last)) {
+        const k = f.findIndex((x) => same(x.image, last));
+        S.watching = false;
+        obs.disconnect();
+        if (same(S.before, last)) {
+          reject(new Error('the click changed nothing on the canvas'));
+          return;
+        }
+        if (k + 1 >= f.length) { reject(new Error('no frame after the settled one')); return; }
+        resolve({total: f[k + 1].at - S.down, shown: S.shown - S.down,
+                 down_epoch: performance.timeOrigin + S.down});
+        return;
+      }
+    }
+    if (performance.now() > deadline) {
+      S.watching = false;
+      obs.disconnect();
+      reject(new Error('no redraw within 10 s'));
+      return;
+    }
+    setTimeout(poll, 5);
+  };
+  poll();
 })
 """
 
@@ -87,6 +155,7 @@ class ViewerPage:
         )
         w, h = self.size
         self.page = self._browser.new_page(viewport={"width": w, "height": h})
+        self.page.add_init_script(INIT_JS)
         # fixedDpr=1: the same state renders to the same pixels (viser otherwise lowers the
         # resolution when frames are slow, as they are in software rendering).
         self.page.goto(self.viewer.url + "/?fixedDpr=1")

@@ -26,6 +26,31 @@ def viewer():
     v.close()
 
 
+def quaternion_matrix(q) -> np.ndarray:
+    w, x, y, z = q
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def skinned_vertices(mesh) -> np.ndarray:
+    """A skinned tube's vertices as the browser draws them: each vertex moved from the bind
+    pose by its one bone (weight 1): v = p + R R_bind^T (v_bind - p_bind)."""
+    out = np.empty(mesh.vertices.shape)
+    for v, (idx, wt) in enumerate(zip(mesh.skin_indices, mesh.skin_weights, strict=True)):
+        i = int(idx[np.argmax(wt)])
+        assert np.isclose(wt.max(), 1.0) and np.isclose(wt.sum(), 1.0)
+        r_bind = quaternion_matrix(mesh.bone_wxyzs[i])
+        r_now = quaternion_matrix(mesh.bones[i].wxyz)
+        local = r_bind.T @ (mesh.vertices[v] - mesh.bone_positions[i])
+        out[v] = mesh.bones[i].position + r_now @ local
+    return out
+
+
 def test_tube_vertices_lie_at_the_outer_radius_around_the_centreline():
     sol = solve_statics(SPA, [40e3, 0, 0])
     r = 21.1e-3  # the design's outer radius
@@ -66,18 +91,16 @@ def test_node_ranges_join_neighbouring_sections():
 
 def test_quaternion_and_transported_frames():
     rng = np.random.default_rng(0)
+    rots = []
     for _ in range(20):
         q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
-        q *= np.sign(np.linalg.det(q))
-        w, x, y, z = geo.wxyz(q)
-        back = np.array(
-            [
-                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-            ]
-        )
-        np.testing.assert_allclose(back, q, atol=1e-12)
+        rots.append(q * np.sign(np.linalg.det(q)))
+    # Half turns about each axis: 1 + trace = 0, where only Shepperd's other branches work.
+    rots += [np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0])]
+    stacked = geo.wxyz(np.array(rots))
+    for q, w in zip(rots, stacked, strict=True):
+        np.testing.assert_allclose(quaternion_matrix(geo.wxyz(q)), q, atol=1e-12)
+        np.testing.assert_array_equal(geo.wxyz(q), w)  # one rotation or a stack: the same
     # Frames rebuilt from a centreline alone: d3 is the tangent, and they are rotations.
     sol = solve_statics(SPA, [60e3, 20e3, 0])
     frames = geo.transport_frames(sol.position, sol.rotation[0])
@@ -116,10 +139,19 @@ def test_viewer_solves_like_solve_statics(viewer):
     # Warm-started from the previous shape: the same equilibrium to the solver tolerance.
     np.testing.assert_allclose(sol.position, ref.position, atol=1e-9)
     assert viewer.timings[-1].solve_s < 0.05
-    # The drawn tube of the body follows the new shape.
-    body = viewer._tubes[1].vertices[: geo.RING].mean(axis=0)
-    a = int(np.flatnonzero(sol.section == 1)[0])
-    np.testing.assert_allclose(body, sol.position[a], atol=1e-6)
+    # The drawn tube of the body is the tube of the new shape: its bind-pose vertices moved
+    # by the bones as the browser skins them (linear blend skinning with one bone per vertex).
+    a, b = geo.node_ranges(sol.section, len(viewer.looks))[1]
+    want = geo.tube_vertices(
+        sol.position[a : b + 1],
+        sol.rotation[a : b + 1, :, 0],
+        sol.rotation[a : b + 1, :, 1],
+        viewer.looks[1].radius,
+    )
+    # float32 vertices and bind poses (as sent to the browser) at ~0.1 m: ~1e-8 m; the bone
+    # poses are skipped by viser when within 1e-5 relative of the last (np.allclose):
+    # 1e-5 * 0.13 m about a rotation with a 13 mm arm, well under 1e-6 m.
+    np.testing.assert_allclose(skinned_vertices(viewer._tubes[1]), want, atol=2e-6)
     viewer.set_inputs(pressures=[0, 0, 0], tip_force=[0, 0, 0])
 
 
@@ -144,6 +176,11 @@ def test_trajectory_playback_and_calibration_view(tmp_path):
     v = softrod.view(design, trajectory=traj, dataset=data, environment_map=False)
     try:
         v._show_trajectory(len(traj) - 1)
+        # The trajectory's stored shapes are drawn on its own grid: the tube's last ring
+        # rides on the stored tip (float32 bind pose at ~0.2 m: ~1e-8 m).
+        tube = [m for m in v._tubes if m is not None and m.visible][-1]
+        end = skinned_vertices(tube)[-1]  # the end centre
+        np.testing.assert_allclose(end, traj.shape_position[-1][-1], atol=1e-6)
         tip = v._tip_frame.position
         np.testing.assert_allclose(tip, traj.tip_position[-1], atol=1e-6)
         assert "t = " in v._t_note.content

@@ -327,21 +327,9 @@ class Viewer:
             position=base - base_rot[:, 2] * 0.075 * rmax,
             wxyz=geo.wxyz(base_rot),
         )
-        self._tubes = []
-        for k, lk in enumerate(self.looks):
-            self._tubes.append(
-                sc.add_mesh_simple(
-                    f"/rod/{k}_{lk.name}",
-                    vertices=np.zeros((3, 3), np.float32),
-                    faces=np.array([[0, 1, 2]], np.uint32),
-                    color=lk.colour,
-                    side="double",
-                    # No shadow maps: each one is another pass over the scene per frame,
-                    # which software WebGL pays for on every redraw.
-                    cast_shadow=False,
-                    receive_shadow=False,
-                )
-            )
+        # One skinned tube per section, made at its first draw (its bones: the section's
+        # nodes; see _draw_rod).
+        self._tubes: list = [None] * len(self.looks)
         # Axes that reach out of the tube (the frame sits on the centreline).
         axes = max(0.15 * L, 1.8 * self.looks[-1].radius)
         self._tip_frame = sc.add_frame(
@@ -660,26 +648,48 @@ class Viewer:
         self.timings.append(Timing(t1 - t0, time.perf_counter() - t1, at))
 
     def _draw_rod(self, position, rotation, section) -> None:
+        """Each section's tube as a skinned mesh with one bone per node: a new shape moves
+        the bones only (each ring rides rigidly on its node's frame, so the tube is exact).
+        The browser applies bone poses in the animation frame that receives them, while new
+        vertex arrays go through the page's React tree and reach the screen one frame later
+        (docs/viewer.md, "Responsiveness"). A section whose node count changes (another grid:
+        a trajectory's stored shapes) gets a new mesh."""
         ranges = geo.node_ranges(np.asarray(section), len(self.looks))
+        q = geo.wxyz(rotation)
         for k, (lk, rng) in enumerate(zip(self.looks, ranges, strict=True)):
             mesh = self._tubes[k]
-            if rng is None:
-                mesh.visible = False
+            if rng is None or rng[1] == rng[0]:  # none, or one node: no tube (not a disc)
+                if mesh is not None:
+                    mesh.visible = False
                 continue
             a, b = rng
-            if b == a:  # a section of one node: draw nothing rather than a disc
-                mesh.visible = False
-                continue
-            verts = geo.tube_vertices(
-                position[a : b + 1],
-                rotation[a : b + 1, :, 0],
-                rotation[a : b + 1, :, 1],
-                lk.radius,
-            )
             n = b - a + 1
-            if mesh.faces.shape[0] != geo.tube_faces(n).shape[0]:
-                mesh.faces = geo.tube_faces(n)
-            mesh.vertices = verts
+            if mesh is None or len(mesh.bones) != n:
+                if mesh is not None:
+                    mesh.remove()
+                self._tubes[k] = self.server.scene.add_mesh_skinned(
+                    f"/rod/{k}_{lk.name}",
+                    vertices=geo.tube_vertices(
+                        position[a : b + 1],
+                        rotation[a : b + 1, :, 0],
+                        rotation[a : b + 1, :, 1],
+                        lk.radius,
+                    ),
+                    faces=geo.tube_faces(n),
+                    bone_wxyzs=q[a : b + 1],
+                    bone_positions=position[a : b + 1],
+                    skin_weights=geo.tube_skin_weights(n),
+                    color=lk.colour,
+                    side="double",
+                    # No shadow maps: each one is another pass over the scene per frame,
+                    # which software WebGL pays for on every redraw.
+                    cast_shadow=False,
+                    receive_shadow=False,
+                )
+                continue
+            for bone, w, p in zip(mesh.bones, q[a : b + 1], position[a : b + 1], strict=True):
+                bone.wxyz = w
+                bone.position = p
             mesh.visible = True
 
     def _draw_tip(self, tip, rot, force) -> None:

@@ -154,23 +154,49 @@ def transport_frames(position: np.ndarray, base_rotation: np.ndarray) -> np.ndar
 
 
 def wxyz(rotation: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method)."""
+    """Unit quaternions (w, x, y, z), shape (..., 4), of rotation matrices (..., 3, 3), by
+    Shepperd's method: from the largest of 1 + trace and the 1 + 2 m_ii - trace, so that
+    no division is by a small number."""
     m = np.asarray(rotation, dtype=float)
-    tr = np.trace(m)
-    if tr > 0:
-        s = 2.0 * math.sqrt(tr + 1.0)
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * math.sqrt(max(1.0 + m[i, i] - m[j, j] - m[k, k], 1e-300))
-        q = [0.0] * 4
-        q[0] = (m[k, j] - m[j, k]) / s
-        q[1 + i] = 0.25 * s
-        q[1 + j] = (m[j, i] + m[i, j]) / s
-        q[1 + k] = (m[k, i] + m[i, k]) / s
-    q = np.array(q)
-    return q / np.linalg.norm(q)
+    tr = np.trace(m, axis1=-2, axis2=-1)
+    diag = np.diagonal(m, axis1=-2, axis2=-1)
+    # 4 q_k^2 for k = w, x, y, z: 1 + tr, and 1 + 2 m_ii - tr.
+    big = np.concatenate([(1.0 + tr)[..., None], 1.0 + 2.0 * diag - tr[..., None]], axis=-1)
+    k = np.argmax(big, axis=-1)
+    s = 2.0 * np.sqrt(np.maximum(np.take_along_axis(big, k[..., None], -1)[..., 0], 1e-300))
+    # Sums and differences of off-diagonal pairs: 4 q_a q_b for each pair (a, b).
+    wx, wy, wz = (
+        m[..., 2, 1] - m[..., 1, 2],
+        m[..., 0, 2] - m[..., 2, 0],
+        m[..., 1, 0] - m[..., 0, 1],
+    )
+    xy, xz, yz = (
+        m[..., 0, 1] + m[..., 1, 0],
+        m[..., 0, 2] + m[..., 2, 0],
+        m[..., 1, 2] + m[..., 2, 1],
+    )
+    quarter = 0.25 * s
+    rows = [
+        [quarter, wx / s, wy / s, wz / s],  # from w
+        [wx / s, quarter, xy / s, xz / s],  # from x
+        [wy / s, xy / s, quarter, yz / s],  # from y
+        [wz / s, xz / s, yz / s, quarter],  # from z
+    ]
+    q = np.zeros(m.shape[:-2] + (4,))
+    for j, row in enumerate(rows):
+        q = np.where((k == j)[..., None], np.stack(row, axis=-1), q)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def tube_skin_weights(n: int, ring: int = RING) -> np.ndarray:
+    """Skin weights (n * ring + 2, n) of :func:`tube_vertices`' tube on one bone per node:
+    every ring, and each end centre, rides rigidly on its node's frame, so posing bone i
+    at node i's position and rotation redraws the tube of the new shape exactly (the
+    ring's points are fixed in the node's cross-section frame)."""
+    w = np.zeros((n * ring + 2, n), dtype=np.float32)
+    w[np.arange(n * ring), np.repeat(np.arange(n), ring)] = 1.0
+    w[n * ring, 0] = w[n * ring + 1, n - 1] = 1.0
+    return w
 
 
 def frame_along(direction) -> np.ndarray:
