@@ -48,11 +48,11 @@ def add_arguments(parser) -> None:
     parser.add_argument(
         "--designs",
         action="store_true",
-        help="also every bundled design: 9 clicks on its first slider at 1280 x 800",
+        help="also every bundled design: 15 clicks on its first slider at 1280 x 800",
     )
 
 
-def design_latencies(chromium: str, clicks: int = 9) -> dict:
+def design_latencies(chromium: str, clicks: int = 15) -> dict:
     """Median latencies (ms) of clicks on the first slider of every bundled design (a
     pressure, a tension or the tip force, in that order), alternating between 20 % and 80 %
     of the track so that every click moves the rod."""
@@ -132,7 +132,7 @@ def run(args) -> dict:
     if args.figures:
         contact_figure(chromium)
     if args.designs:
-        out["designs"] = design_latencies(chromium, 5 if args.quick else 9)
+        out["designs"] = design_latencies(chromium, 5 if args.quick else 15)
     return {
         **result_header("viewer", args.quick, info, design=DESIGN),
         "browser": chromium,

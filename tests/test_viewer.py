@@ -13,6 +13,7 @@ import pytest
 import softrod
 from softrod import load_design, solve_statics
 from softrod.viewer import geometry as geo
+from softrod.viewer.app import place_arrow
 
 pytest.importorskip("viser", reason="needs the viewer extra (viser)")
 
@@ -235,7 +236,9 @@ def test_obstacles_are_drawn_and_the_contact_force_is_shown():
         assert total[2] > 0.01  # the table pushes the finger up
         arrow = v._contact_arrows[0]
         assert arrow.visible
-        start, end = np.asarray(arrow.points, float)[0]
+        # The arrow's points run from its node's origin, and the node sits where it starts
+        # (a pose: it reaches the screen with the tube, docs/viewer.md).
+        start, end = np.asarray(arrow.points, float)[0] + np.asarray(arrow.position)
         # float32 points: coordinates below 0.1 m round by at most 0.1 * 2^-24 = 6e-9 m each,
         # so their difference is good to 1.2e-8 m.
         np.testing.assert_allclose(end - start, total * v._force_scale, rtol=0, atol=1.2e-8)
@@ -310,3 +313,28 @@ def test_cli_help_does_not_import_viser_or_distributed():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_place_arrow_moves_the_node_and_resends_points_only_for_a_new_vector():
+    class Arrow:  # records what the viewer sends: points (a redraw) and the node's position
+        sent = 0
+        position = (0.0, 0.0, 0.0)
+        _points = np.zeros((1, 2, 3), np.float32)
+
+        @property
+        def points(self):
+            return self._points
+
+        @points.setter
+        def points(self, value):
+            self.sent += 1
+            self._points = value
+
+    arrow = Arrow()
+    place_arrow(arrow, [0.1, 0.2, 0.3], [0.0, 0.0, -0.05])
+    place_arrow(arrow, [0.2, 0.2, 0.3], [0.0, 0.0, -0.05])  # the rod moved, the load did not
+    assert arrow.sent == 1 and arrow.position == (0.2, 0.2, 0.3)
+    # float32 points: 0.05 rounds by at most 0.05 * 2^-24 = 3e-9.
+    np.testing.assert_allclose(arrow.points[0], [[0, 0, 0], [0, 0, -0.05]], rtol=0, atol=3e-9)
+    place_arrow(arrow, [0.2, 0.2, 0.3], [0.01, 0.0, -0.05])
+    assert arrow.sent == 2

@@ -39,6 +39,18 @@ OBSTACLE_COLOUR = (170, 170, 160)
 CONTACT_COLOUR = (20, 170, 170)
 
 
+def place_arrow(handle, at, vector) -> None:
+    """Draw an arrow of ``vector`` from ``at``: its points start at its node's origin, and
+    the node is moved to ``at``. A node's pose reaches the screen in the animation frame
+    that receives it, new points one frame later (docs/viewer.md, "Responsiveness"), so a
+    load that keeps its vector (gravity's, a tip weight's, a dead line load's) follows the
+    rod as fast as the tube; only a changed vector resends the points."""
+    points = geo.arrow(np.zeros(3), vector).astype(np.float32)
+    if not np.array_equal(handle.points, points):
+        handle.points = points
+    handle.position = tuple(float(x) for x in at)
+
+
 @dataclass(frozen=True)
 class Timing:
     """One re-solve and redraw, measured on the server (s): the solve in Rust, building and
@@ -696,16 +708,15 @@ class Viewer:
         self._tip_frame.position = tuple(tip)
         self._tip_frame.wxyz = tuple(geo.wxyz(rot))
         fvec = np.asarray(force, float) * self._force_scale
-        self._force_arrow.points = geo.arrow(tip, fvec).astype(np.float32)
+        place_arrow(self._force_arrow, tip, fvec)
         self._force_arrow.visible = bool(np.linalg.norm(force) > 0)
         if self._weight_n > 0:
-            w = np.array([0.0, 0.0, -self._weight_n]) * self._force_scale
-            self._weight_arrow.points = geo.arrow(tip, w).astype(np.float32)
+            place_arrow(self._weight_arrow, tip, [0.0, 0.0, -self._weight_n * self._force_scale])
 
     def _draw_line_loads(self, s, position) -> None:
         for s_mid, f, handle in self._line_loads:
             at = np.array([np.interp(s_mid, s, position[:, i]) for i in range(3)])
-            handle.points = geo.arrow(at, f * self._force_scale).astype(np.float32)
+            place_arrow(handle, at, f * self._force_scale)
 
     def _draw_contact(self, sol: StaticSolution) -> None:
         """Each obstacle's total contact force on the rod, drawn from the contact's centre
@@ -726,7 +737,7 @@ class Viewer:
             # The rounded end presses at its node's surface point on this obstacle.
             end = contact.point[-1] if contact.obstacle[-1] == k else sol.position[-1]
             at = (w @ contact.point + w_end * end) / (w.sum() + w_end)
-            handle.points = geo.arrow(at, total * self._force_scale).astype(np.float32)
+            place_arrow(handle, at, total * self._force_scale)
             handle.visible = True
 
     def _draw_sections(self, pressures, tensions=None) -> None:
