@@ -338,3 +338,35 @@ def test_place_arrow_moves_the_node_and_resends_points_only_for_a_new_vector():
     np.testing.assert_allclose(arrow.points[0], [[0, 0, 0], [0, 0, -0.05]], rtol=0, atol=3e-9)
     place_arrow(arrow, [0.2, 0.2, 0.3], [0.01, 0.0, -0.05])
     assert arrow.sent == 2
+
+
+def test_a_tapered_section_is_drawn_with_its_radius_along_s():
+    """A section tapering from 10 to 5 mm (outer_radius_end) is drawn with the radius of
+    every node's arc length, linear between the two, and the panel gives both."""
+    design = {
+        "design": {"name": "tapered", "citation": "viewer check"},
+        "mounting": {"orientation": "upright", "gravity": "0 m/s^2"},
+        "sections": [
+            {
+                "name": "cone",
+                "length": "100 mm",
+                "outer_radius": "10 mm",
+                "outer_radius_end": "5 mm",
+                "material": "dragon_skin_20",
+            }
+        ],
+    }
+    (look,) = geo.section_looks(load_design(design))
+    np.testing.assert_allclose(look.radius_at([0.0, 0.05, 0.1]), [0.010, 0.0075, 0.005])
+    v = softrod.view(design, environment_map=False)
+    try:
+        sol = v.solution
+        verts = skinned_vertices(v._tubes[0])
+        ring = geo.RING
+        for i in (0, len(sol.s) - 1):
+            r = np.linalg.norm(verts[i * ring : (i + 1) * ring] - sol.position[i], axis=1)
+            # float32 vertices at ~0.1 m: radii good to ~1e-8 m.
+            np.testing.assert_allclose(r, 0.010 - 0.05 * sol.s[i], atol=1e-7)
+        assert "10.0 to 5.0 mm" in v._sections_note.content
+    finally:
+        v.close()

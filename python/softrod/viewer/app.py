@@ -327,7 +327,7 @@ class Viewer:
     def _build_scene(self) -> None:
         d, sc = self.design, self.server.scene
         L = d.length
-        rmax = max(lk.radius for lk in self.looks)
+        rmax = max(max(lk.radius, lk.radius_end or 0.0) for lk in self.looks)
         self._scale = L
         base = np.asarray(d.spec["mounting"]["base_position"], float)
         base_rot = np.asarray(d.spec["mounting"]["base_rotation"], float)
@@ -517,8 +517,11 @@ class Viewer:
             rows = ["| section | kind | outer radius |", "|---|---|---|"]
             for lk in self.looks:
                 note = "" if lk.radius_from_design else " (drawn; not in the design)"
-                rows.append(f"| {lk.name} | {lk.kind} | {lk.radius * 1e3:.1f} mm{note} |")
-            gui.add_markdown("\n".join(rows))
+                r = f"{lk.radius * 1e3:.1f}"
+                if lk.radius_end is not None:
+                    r += f" to {lk.radius_end * 1e3:.1f}"
+                rows.append(f"| {lk.name} | {lk.kind} | {r} mm{note} |")
+            self._sections_note = gui.add_markdown("\n".join(rows))
         if self.trajectory is not None:
             self._build_trajectory_gui()
         if self.calibration is not None:
@@ -650,7 +653,7 @@ class Viewer:
             )
         with self.server.atomic():
             if sol.converged:
-                self._draw_rod(sol.position, sol.rotation, sol.section)
+                self._draw_rod(sol.s, sol.position, sol.rotation, sol.section)
                 self._draw_tip(sol.position[-1], sol.rotation[-1], f)
                 self._draw_line_loads(sol.s, sol.position)
                 self._draw_contact(sol)
@@ -659,7 +662,7 @@ class Viewer:
         self.server.flush()  # send now, not at the end of viser's 1/60 s batching window
         self.timings.append(Timing(t1 - t0, time.perf_counter() - t1, at))
 
-    def _draw_rod(self, position, rotation, section) -> None:
+    def _draw_rod(self, s, position, rotation, section) -> None:
         """Each section's tube as a skinned mesh with one bone per node: a new shape moves
         the bones only (each ring rides rigidly on its node's frame, so the tube is exact).
         The browser applies bone poses in the animation frame that receives them, while new
@@ -685,7 +688,7 @@ class Viewer:
                         position[a : b + 1],
                         rotation[a : b + 1, :, 0],
                         rotation[a : b + 1, :, 1],
-                        lk.radius,
+                        lk.radius_at(s[a : b + 1]),
                     ),
                     faces=geo.tube_faces(n),
                     bone_wxyzs=q[a : b + 1],
@@ -791,7 +794,7 @@ class Viewer:
                 pos = tr.shape_position[j]
                 rot = geo.transport_frames(pos, np.asarray(d.spec["mounting"]["base_rotation"]))
                 sec = geo.section_of_arclength(self.looks, tr.shape_s)
-                self._draw_rod(pos, rot, sec)
+                self._draw_rod(tr.shape_s, pos, rot, sec)
                 note += f"  \nshape at t = {tr.shape_time[j]:.3f} s"
             else:
                 note += "  \n(the trajectory stores no shapes: tip only)"

@@ -34,8 +34,9 @@ ENVELOPE_MARGIN = 1.15
 @dataclass(frozen=True)
 class SectionLook:
     """How one section is drawn: kind ("cap", "chambered", "rigid"), colour, outer radius
-    (m) and whether that radius is the design's own (False: drawn from the chambers or a
-    neighbour, because the design gives none)."""
+    (m) at its start and its end (a tapered section: linear in s between them) and whether
+    that radius is the design's own (False: drawn from the chambers or a neighbour, because
+    the design gives none)."""
 
     name: str
     kind: str
@@ -44,37 +45,58 @@ class SectionLook:
     radius_from_design: bool
     s0: float
     s1: float
+    radius_end: float | None = None  # None: the section is not tapered
+
+    def radius_at(self, s) -> np.ndarray:
+        """Outer radius (m) at arc lengths ``s``: linear from ``radius`` at s0 to
+        ``radius_end`` at s1 (the design's taper, docs/design-format.md), clamped."""
+        s = np.asarray(s, dtype=float)
+        if self.radius_end is None or self.s1 <= self.s0:
+            return np.full(s.shape, self.radius)
+        u = np.clip((s - self.s0) / (self.s1 - self.s0), 0.0, 1.0)
+        return self.radius + u * (self.radius_end - self.radius)
 
 
 def section_looks(design: Design) -> list[SectionLook]:
     """Kind, colour, radius and arc-length span of every section of ``design``."""
     secs = design.spec["sections"]
     radii: list[float | None] = []
+    ends: list[float | None] = []  # at the section's end, where it tapers
     own: list[bool] = []
     for sec in secs:
         if sec.get("outer_radius"):
             radii.append(float(sec["outer_radius"]))
+            ends.append(float(sec["outer_radius_end"]) if "outer_radius_end" in sec else None)
             own.append(True)
         elif sec["chambers"]:
-            reach = max(
-                c["distance"] + (c["radius"] or math.sqrt(c["area"] / math.pi))
-                for c in sec["chambers"]
-            )
-            radii.append(ENVELOPE_MARGIN * reach)
+            cs = sec["chambers"]
+
+            def reach(c, end=False):
+                r = c["radius"] or math.sqrt(c["area"] / math.pi)
+                if end:
+                    return c.get("distance_end", c["distance"]) + c.get("radius_end", r)
+                return c["distance"] + r
+
+            radii.append(ENVELOPE_MARGIN * max(reach(c) for c in cs))
+            tapered = any("distance_end" in c or "radius_end" in c for c in cs)
+            ends.append(ENVELOPE_MARGIN * max(reach(c, True) for c in cs) if tapered else None)
             own.append(False)
         else:
             radii.append(None)
+            ends.append(None)
             own.append(False)
     known = [i for i, r in enumerate(radii) if r is not None]
     fallback = design.length / 20.0  # no section says anything about its size
     looks, s = [], 0.0
     for i, sec in enumerate(secs):
-        r = radii[i]
+        r, r_end = radii[i], ends[i]
         if r is None:
             r = radii[min(known, key=lambda k: abs(k - i))] if known else fallback
         kind = "rigid" if sec["rigid"] else ("chambered" if sec["chambers"] else "cap")
         looks.append(
-            SectionLook(sec["name"], kind, COLOURS[kind], float(r), own[i], s, s + sec["length"])
+            SectionLook(
+                sec["name"], kind, COLOURS[kind], float(r), own[i], s, s + sec["length"], r_end
+            )
         )
         s += sec["length"]
     return looks
