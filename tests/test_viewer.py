@@ -236,12 +236,9 @@ def test_obstacles_are_drawn_and_the_contact_force_is_shown():
         assert total[2] > 0.01  # the table pushes the finger up
         arrow = v._contact_arrows[0]
         assert arrow.visible
-        # The arrow's points run from its node's origin, and the node sits where it starts
-        # (a pose: it reaches the screen with the tube, docs/viewer.md).
-        start, end = np.asarray(arrow.points, float)[0] + np.asarray(arrow.position)
-        # float32 points: coordinates below 0.1 m round by at most 0.1 * 2^-24 = 6e-9 m each,
-        # so their difference is good to 1.2e-8 m.
-        np.testing.assert_allclose(end - start, total * v._force_scale, rtol=0, atol=1.2e-8)
+        # The arrow is drawn by its two bones: at its start and its end (docs/viewer.md).
+        start, end = (np.asarray(b.position) for b in arrow.bones)
+        np.testing.assert_allclose(end - start, total * v._force_scale, rtol=0, atol=1e-15)
         assert start[2] == pytest.approx(-0.082, abs=1e-7)  # on the table's surface
         assert f"contact with plane 0: {np.linalg.norm(total) * 1e3:.1f} mN" in v._status.content
         assert "deepest penetration" in v._status.content
@@ -315,29 +312,37 @@ def test_cli_help_does_not_import_viser_or_distributed():
     assert out.stdout.strip().splitlines()[-1] == "[]"
 
 
-def test_place_arrow_moves_the_node_and_resends_points_only_for_a_new_vector():
-    class Arrow:  # records what the viewer sends: points (a redraw) and the node's position
-        sent = 0
-        position = (0.0, 0.0, 0.0)
-        _points = np.zeros((1, 2, 3), np.float32)
+def test_arrows_are_drawn_by_posing_two_bones():
+    """An arrow of any length and direction: its skinned mesh's foot on bone 0 at the start,
+    its shaft top and head on bone 1 at the end, the head of fixed size, all along the
+    vector."""
+    size = dict(shaft_radius=0.001, head_radius=0.003, head_length=0.006)
+    vertices, faces, weights = geo.arrow_mesh(**size)
 
-        @property
-        def points(self):
-            return self._points
+    class Mesh:  # what the browser draws: the bind vertices moved by their bones
+        def __init__(self):
+            self.vertices = vertices
+            self.skin_indices = np.stack([np.argmax(weights, 1)] + [np.zeros(len(weights))] * 3, 1)
+            self.skin_weights = np.pad(weights.max(1, keepdims=True), ((0, 0), (0, 3)))
+            self.bone_wxyzs = np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]])
+            self.bone_positions = np.array([[0.0, 0, 0], [0, 0, geo.ARROW_BIND_LENGTH]])
+            self.bones = [type("Bone", (), {})() for _ in range(2)]
 
-        @points.setter
-        def points(self, value):
-            self.sent += 1
-            self._points = value
-
-    arrow = Arrow()
-    place_arrow(arrow, [0.1, 0.2, 0.3], [0.0, 0.0, -0.05])
-    place_arrow(arrow, [0.2, 0.2, 0.3], [0.0, 0.0, -0.05])  # the rod moved, the load did not
-    assert arrow.sent == 1 and arrow.position == (0.2, 0.2, 0.3)
-    # float32 points: 0.05 rounds by at most 0.05 * 2^-24 = 3e-9.
-    np.testing.assert_allclose(arrow.points[0], [[0, 0, 0], [0, 0, -0.05]], rtol=0, atol=3e-9)
-    place_arrow(arrow, [0.2, 0.2, 0.3], [0.01, 0.0, -0.05])
-    assert arrow.sent == 2
+    mesh = Mesh()
+    for at, vec in [([0.1, 0.2, 0.3], [0.0, 0.0, -0.05]), ([0, 0, 0], [0.02, -0.03, 0.01])]:
+        place_arrow(mesh, at, vec)
+        drawn = skinned_vertices(mesh)
+        at, vec = np.asarray(at), np.asarray(vec)
+        unit = vec / np.linalg.norm(vec)
+        along = (drawn - at) @ unit
+        across = np.linalg.norm((drawn - at) - np.outer(along, unit), axis=1)
+        # float32 bind vertices: ~1e-7 relative of 1 m bind length
+        assert along.min() == pytest.approx(0.0, abs=1e-7)  # the foot at the start
+        assert along.max() == pytest.approx(np.linalg.norm(vec), abs=1e-7)  # the apex at the end
+        assert across.max() == pytest.approx(size["head_radius"], abs=1e-7)
+        head = drawn[2 * geo.ARROW_RING : 3 * geo.ARROW_RING]  # the head's base ring
+        np.testing.assert_allclose(head @ unit - at @ unit, np.linalg.norm(vec) - 0.006, atol=1e-7)
+    assert len(faces) == 5 * geo.ARROW_RING
 
 
 def test_a_tapered_section_is_drawn_with_its_radius_along_s():

@@ -40,15 +40,16 @@ CONTACT_COLOUR = (20, 170, 170)
 
 
 def place_arrow(handle, at, vector) -> None:
-    """Draw an arrow of ``vector`` from ``at``: its points start at its node's origin, and
-    the node is moved to ``at``. A node's pose reaches the screen in the animation frame
-    that receives it, new points one frame later (docs/viewer.md, "Responsiveness"), so a
-    load that keeps its vector (gravity's, a tip weight's, a dead line load's) follows the
-    rod as fast as the tube; only a changed vector resends the points."""
-    points = geo.arrow(np.zeros(3), vector).astype(np.float32)
-    if not np.array_equal(handle.points, points):
-        handle.points = points
-    handle.position = tuple(float(x) for x in at)
+    """Draw an arrow of ``vector`` from ``at`` by posing the two bones of its skinned mesh
+    (geometry.arrow_mesh): the start's and the end's, both turned from z to the vector. A
+    node's or bone's pose reaches the screen in the animation frame that receives it, new
+    vertex arrays or arrow points one frame later (docs/viewer.md, "Responsiveness"), so an
+    arrow follows the rod, and changes its length, as fast as the tube."""
+    v = np.asarray(vector, dtype=float)
+    q = geo.wxyz(geo.frame_along(v)) if np.linalg.norm(v) > 0 else np.array([1.0, 0, 0, 0])
+    start, (b0, b1) = np.asarray(at, dtype=float), handle.bones
+    b0.wxyz, b1.wxyz = q, q
+    b0.position, b1.position = start, start + v
 
 
 @dataclass(frozen=True)
@@ -370,19 +371,10 @@ class Viewer:
             [self.force_max, self._weight_n] + [float(np.linalg.norm(f)) for f in line_loads]
         )
         self._force_scale = 0.3 * L / f_ref
-        arrow_kw = dict(shaft_radius=0.008 * L, head_radius=0.02 * L, head_length=0.04 * L)
-        self._force_arrow = sc.add_arrows(
-            "/loads/tip_force",
-            points=geo.arrow([0, 0, 0], [0, 0, 1e-9]),
-            colors=FORCE_COLOUR,
-            **arrow_kw,
-        )
-        self._weight_arrow = sc.add_arrows(
-            "/loads/tip_weight",
-            points=geo.arrow([0, 0, 0], [0, 0, 1e-9]),
-            colors=WEIGHT_COLOUR,
-            visible=self._weight_n > 0,
-            **arrow_kw,
+        self._arrow_size = dict(shaft_radius=0.008 * L, head_radius=0.02 * L, head_length=0.04 * L)
+        self._force_arrow = self._add_arrow("/loads/tip_force", FORCE_COLOUR)
+        self._weight_arrow = self._add_arrow(
+            "/loads/tip_weight", WEIGHT_COLOUR, visible=self._weight_n > 0
         )
         self._line_loads = []
         for k, (ld, f) in enumerate(zip(d.spec["loads"], line_loads, strict=True)):
@@ -391,12 +383,7 @@ class Viewer:
                 (
                     0.5 * (lk.s0 + lk.s1),
                     f,
-                    sc.add_arrows(
-                        f"/loads/line_{k}",
-                        points=geo.arrow([0, 0, 0], [0, 0, 1e-9]),
-                        colors=WEIGHT_COLOUR,
-                        **arrow_kw,
-                    ),
+                    self._add_arrow(f"/loads/line_{k}", WEIGHT_COLOUR),
                 )
             )
         # The obstacles (docs/contact.md), translucent so the rod shows through where it
@@ -414,13 +401,7 @@ class Viewer:
                 else:
                     sc.add_cylinder(name, receive_shadow=False, **look, **args)
             self._contact_arrows.append(
-                sc.add_arrows(
-                    f"/loads/contact_{k}",
-                    points=geo.arrow([0, 0, 0], [0, 0, 1e-9]),
-                    colors=CONTACT_COLOUR,
-                    visible=False,
-                    **arrow_kw,
-                )
+                self._add_arrow(f"/loads/contact_{k}", CONTACT_COLOUR, visible=False)
             )
         if self.calibration is not None:
             measured, predicted, _ = self.calibration
@@ -661,6 +642,23 @@ class Viewer:
             self._status.content = self._status_text(sol, t1 - t0)
         self.server.flush()  # send now, not at the end of viser's 1/60 s batching window
         self.timings.append(Timing(t1 - t0, time.perf_counter() - t1, at))
+
+    def _add_arrow(self, name: str, colour, visible: bool = True):
+        """A load arrow as a skinned mesh of two bones (geometry.arrow_mesh), drawn by
+        :func:`place_arrow`."""
+        vertices, faces, weights = geo.arrow_mesh(**self._arrow_size)
+        return self.server.scene.add_mesh_skinned(
+            name,
+            vertices=vertices,
+            faces=faces,
+            bone_wxyzs=np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]]),
+            bone_positions=np.array([[0.0, 0, 0], [0.0, 0, geo.ARROW_BIND_LENGTH]]),
+            skin_weights=weights,
+            color=colour,
+            cast_shadow=False,
+            receive_shadow=False,
+            visible=visible,
+        )
 
     def _draw_rod(self, s, position, rotation, section) -> None:
         """Each section's tube as a skinned mesh with one bone per node: a new shape moves

@@ -278,6 +278,51 @@ def arrow(start, vector) -> np.ndarray:
     return np.stack([start, start + np.asarray(vector, dtype=float)])[None]
 
 
+#: Bind length (m) of :func:`arrow_mesh`'s arrow; any length is drawn by posing its bones.
+ARROW_BIND_LENGTH = 1.0
+#: Points around :func:`arrow_mesh`'s shaft and head.
+ARROW_RING = 16
+
+
+def arrow_mesh(
+    shaft_radius: float, head_radius: float, head_length: float, ring: int = ARROW_RING
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An arrow along +z as a skinned mesh of two bones: (vertices, faces, skin weights).
+    Bone 0 sits at the arrow's start, bone 1 at its end (bind pose: the origin and
+    (0, 0, ARROW_BIND_LENGTH), both unrotated). The shaft's foot rides on bone 0; its top
+    ring, the head's base and the apex ride on bone 1, a fixed head_length behind the end:
+    posing bone 0 at the start and bone 1 at start + vector, both turned from z to the
+    vector, draws an arrow of any length and direction with a head of fixed size."""
+    theta = 2.0 * np.pi * np.arange(ring) / ring
+    circle = np.stack([np.cos(theta), np.sin(theta), np.zeros(ring)], axis=1)
+    top = ARROW_BIND_LENGTH - head_length
+    z = np.array([0.0, 0.0, 1.0])
+    verts = np.concatenate(
+        [
+            shaft_radius * circle,  # 0: shaft foot (bone 0)
+            shaft_radius * circle + top * z,  # ring: shaft top (bone 1)
+            head_radius * circle + top * z,  # 2 ring: head base (bone 1)
+            [np.zeros(3), top * z, ARROW_BIND_LENGTH * z],  # foot centre, base centre, apex
+        ]
+    )
+    k = np.arange(ring)
+    nxt = (k + 1) % ring
+    foot, base, apex = 3 * ring, 3 * ring + 1, 3 * ring + 2
+    faces = np.concatenate(
+        [
+            np.stack([k, nxt, ring + nxt], -1),  # shaft side
+            np.stack([k, ring + nxt, ring + k], -1),
+            np.stack([np.full(ring, foot), nxt, k], -1),  # foot disc
+            np.stack([np.full(ring, base), 2 * ring + k, 2 * ring + nxt], -1),  # head base
+            np.stack([np.full(ring, apex), 2 * ring + nxt, 2 * ring + k], -1),  # cone
+        ]
+    ).astype(np.uint32)
+    weights = np.zeros((verts.shape[0], 2), np.float32)
+    weights[:ring, 0] = weights[foot, 0] = 1.0
+    weights[ring : 3 * ring, 1] = weights[base, 1] = weights[apex, 1] = 1.0
+    return verts.astype(np.float32), faces, weights
+
+
 def cross_section_svg(
     section: dict,
     pressures: np.ndarray,
