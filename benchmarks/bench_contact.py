@@ -10,6 +10,11 @@ no Python validation or result object); medians of wall-clock times with the gar
 collector off. The same solves without the table give the cost of contact (the design's
 obstacle removed: 3 shooting unknowns instead of 6, no contact law). Target (issue 17): under
 1 ms per cold solve.
+
+Frictional batch: the table with friction 0.5, 64 rows from 5 to 50 kPa (8 with --quick),
+each row its own load path of 80 increments (docs/contact.md, "Friction in the statics"):
+one ``solve_statics_batch`` on 1 and 2 threads against a loop of ``solve_statics`` calls
+(the same answers, bitwise); medians of 3 runs (1 with --quick).
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import softrod
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -34,6 +40,29 @@ from common import (  # noqa: E402  (sibling module of this script)
 DESIGN = "prebent_finger_on_table"
 PRESSURES_KPA = [0.0, 10.0, 20.0, 30.0, 40.0, 50.0]
 TARGET_S = 1e-3
+MU = 0.5
+FRICTION_ROWS = 64
+
+
+def frictional_batch(design, quick: bool) -> dict:
+    """Wall-clock seconds of a frictional batch on 1 and 2 threads and of its rows as
+    single solves (medians)."""
+    rough = design.replace({"obstacles[0].friction": MU})
+    m = 8 if quick else FRICTION_ROWS
+    p = [[x] for x in np.linspace(5e3, 50e3, m)]
+    reps = 1 if quick else 3
+    out = {"rows": m, "friction": MU}
+    out["singles_s"] = median(timed(lambda: [softrod.solve_statics(rough, row) for row in p], reps))
+    for threads in (1, 2):
+        out[f"batch_{threads}_thread_s"] = median(
+            timed(lambda t=threads: softrod.solve_statics_batch(rough, p, threads=t), reps)
+        )
+    print(
+        f"frictional batch, {m} rows (mu = {MU}): {m} solve_statics {out['singles_s']:.3f} s, "
+        f"batch {out['batch_1_thread_s']:.3f} s (1 thread), "
+        f"{out['batch_2_thread_s']:.3f} s (2 threads)"
+    )
+    return out
 
 
 def run(args) -> dict:
@@ -69,6 +98,7 @@ def run(args) -> dict:
         )
     worst = max(r["solve_statics_s"] for r in rows)
     print(f"slowest cold solve {worst * 1e6:.1f} us (target < {TARGET_S * 1e6:.0f} us)")
+    friction = frictional_batch(design, args.quick)
     return {
         **result_header("contact", args.quick, info, design=DESIGN),
         "repetitions": reps,
@@ -76,6 +106,7 @@ def run(args) -> dict:
         "slowest_cold_solve_s": worst,
         "target_s": TARGET_S,
         "target_met": worst < TARGET_S,
+        "frictional_batch": friction,
         "wall_time_s": time.perf_counter() - t_start,
     }
 

@@ -122,6 +122,30 @@ def test_held_tip_batch_on_the_cluster_equals_the_local_batch(client, design):
     assert out.metadata["tip_constraint"]["type"] == "pinned"
 
 
+def test_frictional_batch_on_the_cluster_equals_the_local_batch(client):
+    """With friction every row follows its own load path in friction_steps increments,
+    which travel to the workers: the cluster's chunks give bitwise the one local call,
+    contact and friction forces included, and progress still counts the chunks' rows."""
+    rough = load_design("prebent_finger_on_table").replace({"obstacles[0].friction": 0.5})
+    opts = softrod.SolverOptions(friction_steps=10)
+    p = np.linspace(0.0, 45e3, 6)[:, None]
+    seen = []
+    out = solve_statics_batch(
+        rough,
+        p,
+        options=opts,
+        threads=1,
+        executor=client,
+        chunk_size=2,
+        progress=lambda done, total: seen.append((done, total)),
+    )
+    ref = solve_statics_batch(rough, p, options=opts, threads=2)
+    assert out.converged.all()
+    for k in (*BATCH_FIELDS, "contact_force", "friction_force"):
+        np.testing.assert_array_equal(getattr(out, k), getattr(ref, k), err_msg=k)
+    assert len(seen) == 3 and seen[-1] == (6, 6)
+
+
 def test_worker_killed_mid_sweep_changes_nothing(client, design):
     p = grid(12)  # 1728 rows in 36 chunks: each worker has several queued when one dies
     rows = 48

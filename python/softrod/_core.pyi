@@ -92,6 +92,7 @@ class Rod:
         stiffness_scale: _ArrayLike | None = None,
         on_invalid: str = "raise",
         tensions: _ArrayLike | None = None,
+        friction_steps: int = ...,
     ) -> dict[str, Any]: ...
     def sensitivity_batch(
         self,

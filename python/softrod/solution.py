@@ -373,7 +373,11 @@ class BatchSolution:
     "clamped"); with a pinned or clamped tip, tip_reaction_force (m, 3) N and
     tip_reaction_moment (m, 3) N m: the wrench the constraint applies to each tip (world
     frame; zero moment when pinned; NaN on failed rows), None for a free tip; x is then
-    (m, 6).
+    (m, 6). With an obstacle's friction > 0 (every row its own load path, docs/contact.md,
+    "Friction in the statics"): contact_force (m, obstacles, 3) N, each obstacle's resultant
+    contact force on the rod (world frame), and friction_force (m, obstacles, 3) N, its
+    tangential part (NaN on failed rows; None without friction); x is then (m, 6) and
+    stability is not assessed.
     """
 
     pressures: np.ndarray
@@ -394,6 +398,8 @@ class BatchSolution:
     tip_constraint: str = "free"
     tip_reaction_force: np.ndarray | None = None
     tip_reaction_moment: np.ndarray | None = None
+    contact_force: np.ndarray | None = None
+    friction_force: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.pressures.shape[0]
@@ -413,8 +419,11 @@ class BatchSolution:
         ``converged``, ``iterations``, ``residual``, ``stable``, with a pinned or clamped
         tip ``tip_reaction_fx_N`` ... ``tip_reaction_fz_N`` and ``tip_reaction_mx_Nmm`` ...
         ``tip_reaction_mz_Nmm`` (the wrench the constraint applies to the tip, world frame)
-        and, with a stiffness map, ``sigma_ext``, ``sigma_bend_x``, ``sigma_bend_y``. Rows
-        that did not converge keep NaN (empty cells in a file).
+        and, with a stiffness map, ``sigma_ext``, ``sigma_bend_x``, ``sigma_bend_y``; with
+        friction ``contact0_fx_N`` ... ``contact0_fz_N`` and ``friction0_fx_N`` ...
+        ``friction0_fz_N`` per obstacle (0, 1, ...: :attr:`contact_force` and
+        :attr:`friction_force`). Rows that did not converge keep NaN (empty cells in a
+        file).
         ``units`` as in :meth:`softrod.Dataset.to_frame`. The metadata block
         (``frame.attrs["softrod.metadata"]``) is :attr:`metadata`: design, softrod version,
         solver settings. The same quantities get the same names as in
@@ -446,6 +455,22 @@ class BatchSolution:
                         kind,
                     )
                     for k, axis in enumerate("xyz")
+                ]
+        for arr, name, what in (
+            (self.contact_force, "contact", "contact force (normal and friction)"),
+            (self.friction_force, "friction", "friction force (tangential contact force)"),
+        ):
+            if arr is not None:
+                a = np.asarray(arr, dtype=float)
+                extras += [
+                    Extra(
+                        f"{name}{k}_f{axis}",
+                        a[:, k, i],
+                        f"{axis} component of obstacle {k}'s {what} on the rod (world frame)",
+                        "force",
+                    )
+                    for k in range(a.shape[1])
+                    for i, axis in enumerate("xyz")
                 ]
         if self.stiffness_scale is not None:
             from .stiffness_map import SIGMA_NAMES

@@ -615,7 +615,19 @@ def solve_statics_batch(
     Runs in Rust on ``threads`` cores (0 = all) with the GIL released. Every row is solved
     as :func:`solve_statics` solves it alone (cold), so a row is bitwise equal to the single
     solve whatever the thread count or chunking. Rows that fail to converge are kept with
-    ``converged = False`` and NaN results. ``stiffness_map`` as in :func:`solve_statics`,
+    ``converged = False`` and NaN results.
+
+    Friction (an obstacle with ``friction`` > 0; docs/contact.md, "Friction in the
+    statics"): every row follows its own load path from the unloaded rod to its inputs in
+    ``options.friction_steps`` increments, exactly as :func:`solve_statics` solves it alone
+    (same increments, same halvings; no row starts from another's solution), so a row is
+    bitwise equal to the single frictional solve. ``x`` is then (m, 6), ``stable`` False
+    with ``stability_assessed`` False (friction has no potential), and ``contact_force``
+    and ``friction_force`` (m, obstacles, 3) N hold each obstacle's resultant contact force
+    and its tangential part (``StaticSolution.contact``'s ``total_force`` and
+    ``friction_force``; NaN on failed rows). A row whose path fails is kept failed as any
+    row. A held tip (``tip_constraint``) with friction is refused naming
+    ``obstacles[k].friction``. ``stiffness_map`` as in :func:`solve_statics`,
     evaluated in one call for all rows.
 
     ``stable`` (m,) says which equilibria are stable (``stability_assessed`` (m,) is False
@@ -653,6 +665,8 @@ def solve_statics_batch(
     from .cluster import check_executor
 
     held = None if constraint.kind == "free" else constraint.core_args()
+    # A frictional path's increments (the core ignores them on a frictionless design).
+    steps = int(opts.friction_steps)
     meta = _batch_metadata(design, options, tf, tm, smap, constraint)
     if check_executor(executor) is not None:
         out = _batch_on_cluster(
@@ -669,6 +683,7 @@ def solve_statics_batch(
             on_invalid,
             tens,
             held,
+            steps,
         )
         return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens, constraint)
     if chunk_size is not None:
@@ -686,13 +701,17 @@ def solve_statics_batch(
         tens,
         opts.as_kwargs(),
         held,
+        steps,
     )
     return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens, constraint)
 
 
-def _core_batch(rod, arr, tf, tm, threads, sigma, on_invalid, tens, options: dict, held):
-    """One Rust batch call: the free tip's ``Rod.solve_batch``, or with ``held`` (a
-    constraint's ``core_args()``) the constrained batch."""
+def _core_batch(
+    rod, arr, tf, tm, threads, sigma, on_invalid, tens, options: dict, held, friction_steps
+):
+    """One Rust batch call: the free tip's ``Rod.solve_batch`` (with friction, one load
+    path of ``friction_steps`` increments per row), or with ``held`` (a constraint's
+    ``core_args()``) the constrained batch (which refuses friction)."""
     if held is None:
         return rod.solve_batch(
             arr,
@@ -702,6 +721,7 @@ def _core_batch(rod, arr, tf, tm, threads, sigma, on_invalid, tens, options: dic
             stiffness_scale=sigma,
             on_invalid=on_invalid,
             tensions=tens,
+            friction_steps=friction_steps,
             **options,
         )
     kind, position, rotation = held
@@ -765,10 +785,13 @@ def _batch_metadata(design, options, tf, tm, smap, constraint=_FREE_TIP) -> dict
         if constraint.rotation is not None:
             held["rotation"] = [list(r) for r in constraint.rotation]
         extra["tip_constraint"] = held
+    solver = _options(options).as_kwargs()
+    if _frictional(design) is not None:
+        solver["friction_steps"] = int(_options(options).friction_steps)
     return provenance(
         "softrod.solve_statics_batch",
         design,
-        solver=_options(options).as_kwargs(),
+        solver=solver,
         tip_force_N=tf,
         tip_moment_Nm=tm,
         stiffness_map=None if smap is None else repr(smap),
@@ -788,9 +811,11 @@ def _batch_chunk(
     on_invalid,
     tensions=None,
     held=None,
+    friction_steps=_DEFAULT_OPTIONS.friction_steps,
 ):
     """One chunk of a batch on a worker: the design rebuilt from its TOML text, one Rust
-    batch call (``held``: the tip constraint's ``core_args()``, None: free)."""
+    batch call (``held``: the tip constraint's ``core_args()``, None: free;
+    ``friction_steps``: a frictional path's increments)."""
     from .cluster import design_from_text, worker_threads
 
     design = design_from_text(text)
@@ -805,6 +830,7 @@ def _batch_chunk(
         tensions,
         options,
         held,
+        friction_steps,
     )
 
 
@@ -822,6 +848,7 @@ def _batch_on_cluster(
     on_invalid,
     tens=None,
     held=None,
+    friction_steps=_DEFAULT_OPTIONS.friction_steps,
 ):
     from .cluster import chunk_rows, design_text, run_chunks, task_slots
 
@@ -847,6 +874,7 @@ def _batch_on_cluster(
             on_invalid,
             None if tens is None else np.ascontiguousarray(tens[lo:hi]),
             held,
+            friction_steps,
         )
         for lo, hi in bounds
     ]
@@ -860,7 +888,17 @@ def _batch_on_cluster(
     )
     if not parts:  # no rows: the core's empty result
         return _core_batch(
-            design._rod, arr, tf, tm, 1, sigma, on_invalid, tens, options.as_kwargs(), held
+            design._rod,
+            arr,
+            tf,
+            tm,
+            1,
+            sigma,
+            on_invalid,
+            tens,
+            options.as_kwargs(),
+            held,
+            friction_steps,
         )
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 

@@ -3,8 +3,9 @@
 //! bitwise equal to the single solve, whatever the thread count or the order of the rows.
 //! The same holds for a tip held by a constraint ([`solve_constrained_batch`]: every row is
 //! one [`solve_constrained`], cold) and for a system of rods holding a platform
-//! ([`solve_system_batch`]: every row is one [`solve_system`], cold): no row starts from
-//! another row's solution.
+//! ([`solve_system_batch`]: every row is one [`solve_system`], cold) and for obstacles with
+//! friction ([`solve_friction_batch`]: every row is one [`friction::solve`], its own load
+//! path from the unloaded rod): no row starts from another row's solution.
 
 use crate::error::{Result, SoftrodError};
 use crate::marker::Marker;
@@ -15,6 +16,7 @@ use crate::sensitivity::{
     validate_params, Param, TipSensitivity,
 };
 use crate::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
+use crate::statics::friction;
 use crate::statics::system::{solve_system, Platform, SystemRod, SystemSolution};
 use crate::statics::{n_unknowns, solve, Solution, SolverOptions};
 use crate::validity::{self, Policy};
@@ -49,6 +51,13 @@ pub struct BatchRow {
     /// free tip, zero moment for a pinned one, NaN on failed rows.
     pub tip_reaction_force: [f64; 3],
     pub tip_reaction_moment: [f64; 3],
+    /// Resultant contact force of each obstacle on the rod (normal and friction), N, world
+    /// frame (`statics::contact::ContactReport::force`; [`solve_friction_batch`] only, NaN
+    /// on failed rows; empty otherwise).
+    pub contact_force: Vec<[f64; 3]>,
+    /// The tangential (friction) part of `contact_force`, per obstacle, N
+    /// (`ContactReport::friction`; as `contact_force`).
+    pub friction_force: Vec<[f64; 3]>,
 }
 
 impl BatchRow {
@@ -68,6 +77,8 @@ impl BatchRow {
             markers: vec![],
             tip_reaction_force: [f64::NAN; 3],
             tip_reaction_moment: [f64::NAN; 3],
+            contact_force: vec![],
+            friction_force: vec![],
         }
     }
 
@@ -117,6 +128,8 @@ impl BatchRow {
             markers: vec![],
             tip_reaction_force: [0.0; 3],
             tip_reaction_moment: [0.0; 3],
+            contact_force: vec![],
+            friction_force: vec![],
         }
     }
 }
@@ -171,9 +184,19 @@ impl<'a> Rows<'a> {
         inputs: &BatchInputs<'a>,
         guesses: Option<&'a [f64]>,
     ) -> Result<Self> {
-        // A batch is frictionless (obstacles with friction: refused before any row; each
-        // row is solved cold and alone, and with friction each would be its own path).
+        // Only the frictional batch carries friction (obstacles with friction: refused
+        // before any row here; each row of it follows its own load path).
         crate::statics::contact::frictionless(rod)?;
+        Self::any_friction(rod, opts, inputs, guesses)
+    }
+
+    /// [`Rows::new`] without the frictionless rule ([`solve_friction_batch`]).
+    fn any_friction(
+        rod: &Rod,
+        opts: &SolverOptions,
+        inputs: &BatchInputs<'a>,
+        guesses: Option<&'a [f64]>,
+    ) -> Result<Self> {
         let (pressures, tensions, stiffness_scale) =
             (inputs.pressures, inputs.tensions, inputs.stiffness_scale);
         let nc = rod.n_channels;
@@ -482,6 +505,65 @@ pub fn solve_constrained_batch(
     ) {
         Ok(c) => BatchRow::held(&c),
         Err(e) => BatchRow::of_error(6, &e),
+    })
+}
+
+/// [`solve_batch`] of a rod whose obstacles have friction (docs/contact.md, "Friction in
+/// the statics"): every row follows its own load path from the unloaded rod to its inputs
+/// in `steps` equal increments, exactly as [`friction::solve`] solves it alone (same
+/// increments, same halvings; no history, no warm start: no row starts from another's
+/// solution or state), so a row is bitwise equal to the single solve whatever the thread
+/// count or the grouping of rows. Every row has 6 unknowns (`x`), `stable` None (friction
+/// has no potential), and each obstacle's contact force and its friction part
+/// (`contact_force`, `friction_force`, as `statics::contact::report` gives them). A row
+/// that fails (an increment that does not converge even halved, an obstacle crossed, a
+/// broken validity rule) is kept failed as in [`solve_batch`]. `steps`, the inputs and
+/// (with `Policy::Raise`) the operating range are checked before any work; a design
+/// without friction is refused (`solve_batch` solves it).
+pub fn solve_friction_batch(
+    rod: &Rod,
+    inputs: &BatchInputs,
+    steps: usize,
+    opts: &SolverOptions,
+    threads: usize,
+) -> Result<Vec<BatchRow>> {
+    opts.validate()?;
+    friction::check_steps(steps)?;
+    if !friction::has_friction(rod) {
+        return Err(SoftrodError::invalid(
+            "obstacles",
+            "no friction",
+            "the frictional batch follows a load path per row for obstacles with friction > 0; this design has none (solve_batch solves it)",
+        ));
+    }
+    let mut rows = Rows::any_friction(rod, opts, inputs, None)?;
+    rows.unknowns = 6;
+    let rows = &rows;
+    let k = rod.spec.obstacles.len();
+    in_pool(threads, rows.count, &|r| {
+        let loads = rows.loads(r);
+        // The contact report of the single solve (`softrod.solve_statics`), row by row.
+        let solved = friction::solve(rod, &loads, None, steps, opts).and_then(|sol| {
+            let rep = crate::statics::contact::report(rod, &loads, &sol)?;
+            Ok((sol, rep))
+        });
+        match solved {
+            Ok((sol, rep)) => {
+                // A frictional rod has obstacles, so its report is there.
+                let (contact_force, friction_force) =
+                    rep.map_or_else(Default::default, |c| (c.force, c.friction));
+                BatchRow {
+                    contact_force,
+                    friction_force,
+                    ..BatchRow::solved(&sol)
+                }
+            }
+            Err(e) => BatchRow {
+                contact_force: vec![[f64::NAN; 3]; k],
+                friction_force: vec![[f64::NAN; 3]; k],
+                ..BatchRow::of_error(6, &e)
+            },
+        }
     })
 }
 

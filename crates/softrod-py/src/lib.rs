@@ -5,7 +5,9 @@
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use softrod_core::batch::{constrained_sensitivity_batch, solve_batch, BatchInputs, BatchRow};
+use softrod_core::batch::{
+    constrained_sensitivity_batch, solve_batch, solve_friction_batch, BatchInputs, BatchRow,
+};
 use softrod_core::interp::GridPchip;
 use softrod_core::marker::Marker;
 use softrod_core::ode::Loads;
@@ -433,8 +435,11 @@ impl PyRod {
     }
 
     /// Solve every row of an (m, channels) pressure array in parallel (GIL released), with
-    /// an optional (m, tendon channels) tension array (N; None: slack).
-    #[pyo3(signature = (pressures, tip_force, tip_moment, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=None, on_invalid="raise", tensions=None))]
+    /// an optional (m, tendon channels) tension array (N; None: slack). With an obstacle's
+    /// friction > 0 every row follows its own frictional load path from the unloaded rod
+    /// in `friction_steps` increments (`batch::solve_friction_batch`, as `solve` does for
+    /// one row), and the dict adds "contact_force" and "friction_force" (m, obstacles, 3).
+    #[pyo3(signature = (pressures, tip_force, tip_moment, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=None, on_invalid="raise", tensions=None, friction_steps=statics::friction::DEFAULT_FRICTION_STEPS))]
     #[allow(clippy::too_many_arguments)]
     fn solve_batch<'py>(
         &self,
@@ -451,6 +456,7 @@ impl PyRod {
         stiffness_scale: Option<PyReadonlyArray2<'py, f64>>,
         on_invalid: &str,
         tensions: Option<PyReadonlyArray2<'py, f64>>,
+        friction_steps: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(py, || {
             self.check_columns(py, &pressures)?;
@@ -469,6 +475,7 @@ impl PyRod {
                 on_invalid,
             )?;
             let rod = &self.rod;
+            let frictional = statics::friction::has_friction(rod);
             let rows = py
                 .detach(|| {
                     let inputs = BatchInputs {
@@ -478,10 +485,29 @@ impl PyRod {
                         tip_force,
                         tip_moment,
                     };
-                    solve_batch(rod, &inputs, &opts, threads)
+                    if frictional {
+                        solve_friction_batch(rod, &inputs, friction_steps, &opts, threads)
+                    } else {
+                        solve_batch(rod, &inputs, &opts, threads)
+                    }
                 })
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
-            rows_dict(py, &rows)
+            let d = rows_dict(py, &rows)?;
+            if frictional {
+                // Per row, per obstacle, a force: (m, obstacles, 3).
+                let k = rod.spec.obstacles.len();
+                let stack = |of: &dyn Fn(&BatchRow) -> &[[f64; 3]]| {
+                    let flat: Vec<f64> = rows
+                        .iter()
+                        .flat_map(|r| of(r).as_flattened())
+                        .copied()
+                        .collect();
+                    PyArray1::from_vec(py, flat).reshape([rows.len(), k, 3])
+                };
+                d.set_item("contact_force", stack(&|r| &r.contact_force)?)?;
+                d.set_item("friction_force", stack(&|r| &r.friction_force)?)?;
+            }
+            Ok(d)
         })
     }
 

@@ -70,6 +70,32 @@ def _parse_tensions(text: str | None, design) -> list[float] | None:
     return values
 
 
+def _friction_options(design, friction_steps: int | None):
+    """SolverOptions with --friction-steps N (None: the defaults), refused on a design
+    without friction, where it would be ignored."""
+    from ..statics import SolverOptions
+
+    if friction_steps is None:
+        return None
+    if not any(float(o.get("friction", 0.0)) > 0 for o in design.document.get("obstacles", [])):
+        raise click.BadParameter(
+            f"{friction_steps}: the design has no obstacle with friction > 0, so its "
+            "solve has no load increments",
+            param_hint="--friction-steps",
+        )
+    return SolverOptions(friction_steps=friction_steps)
+
+
+def _friction_steps_option(what: str):
+    return click.option(
+        "--friction-steps",
+        type=click.IntRange(1, 100_000),
+        help=f"Load increments of {what} (an obstacle with friction > 0; the answer "
+        "follows the load path to first order in the increment, docs/contact.md 'Friction "
+        "in the statics'). Default: SolverOptions' (80).",
+    )
+
+
 def _lateral(sol) -> float:
     """Tip distance from the base tangent line (the straight reference axis), m."""
     import numpy as np
@@ -79,10 +105,10 @@ def _lateral(sol) -> float:
     return float(np.linalg.norm(d - np.dot(d, t0) * t0))
 
 
-def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=None):
+def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=None, options=None):
     """Solve every row in chunks under a progress bar; return (BatchSolution, wall time s).
     With a Dask ``client`` the chunks run on its cluster (chunk size by softrod.cluster's
-    rule)."""
+    rule). ``options``: the batch's SolverOptions (None: the defaults)."""
     import numpy as np
 
     from ..solution import BatchSolution
@@ -105,6 +131,7 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
                 executor=client,
                 progress=chunks_done,
                 on_unstable="ignore",
+                options=options,
             )
         return batch, time.perf_counter() - t0
     parts = []
@@ -113,7 +140,13 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
         for lo in range(0, m, chunk):
             hi = min(lo + chunk, m)
             parts.append(
-                solve_statics_batch(design, pressures[lo:hi], threads=threads, on_unstable="ignore")
+                solve_statics_batch(
+                    design,
+                    pressures[lo:hi],
+                    threads=threads,
+                    on_unstable="ignore",
+                    options=options,
+                )
             )
             advance(hi - lo)
     wall = time.perf_counter() - t0
@@ -123,17 +156,21 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
 
     fields = ("tip_position", "tip_rotation", "base_force", "base_moment", "converged")
     held = bool(parts) and parts[0].tip_reaction_force is not None
+    frictional = bool(parts) and parts[0].contact_force is not None
     batch = BatchSolution(
         pressures=np.asarray(pressures, dtype=float),
         **{name: stack(name) for name in fields},
         iterations=stack("iterations"),
         residual=stack("residual"),
         stable=stack("stable"),
+        stability_assessed=stack("stability_assessed"),
         violation=stack("violation"),
         metadata=parts[0].metadata if parts else {},
         tip_constraint=parts[0].tip_constraint if parts else "free",
         tip_reaction_force=stack("tip_reaction_force") if held else None,
         tip_reaction_moment=stack("tip_reaction_moment") if held else None,
+        contact_force=stack("contact_force") if frictional else None,
+        friction_force=stack("friction_force") if frictional else None,
     )
     return batch, wall
 
@@ -175,13 +212,7 @@ def _run_sweep(design, pressures, threads: int, chunk: int, label: str, client=N
     "pressures beyond the design's operating_range): an error, or a warning with the "
     "result (docs/model.md, 'Validity and stability').",
 )
-@click.option(
-    "--friction-steps",
-    type=click.IntRange(1, 100_000),
-    help="Load increments of a frictional solve (an obstacle with friction > 0; the answer "
-    "follows the load path to first order in the increment, docs/contact.md 'Friction in "
-    "the statics'). Default: SolverOptions' (80).",
-)
+@_friction_steps_option("a frictional solve")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object with SI values.")
 @click.option(
     "--plot",
@@ -197,18 +228,10 @@ def solve(
     from rich.table import Table
 
     from ..catalog import load_design
-    from ..statics import SolverOptions, solve_statics
+    from ..statics import solve_statics
 
     d = load_design(design)
-    options = None
-    if friction_steps is not None:
-        if not any(float(o.get("friction", 0.0)) > 0 for o in d.document.get("obstacles", [])):
-            raise click.BadParameter(
-                f"{friction_steps}: the design has no obstacle with friction > 0, so its "
-                "solve has no load increments",
-                param_hint="--friction-steps",
-            )
-        options = SolverOptions(friction_steps=friction_steps)
+    options = _friction_options(d, friction_steps)
     if plot_path is not None:
         from ..plotting import check_figure_path
 
@@ -344,8 +367,9 @@ def solve(
     "Run on the Dask cluster whose scheduler is at ADDRESS, e.g. "
     "tcp://10.0.0.5:8786 (docs/cluster.md)."
 )
+@_friction_steps_option("every row's frictional load path")
 @_handle_errors
-def sweep(design, grids, out, threads, scheduler):
+def sweep(design, grids, out, threads, scheduler, friction_steps):
     """Tip positions over a full-factorial pressure grid of DESIGN.
 
     Rows run with channel 0 slowest and the last channel fastest; every row is solved cold,
@@ -356,12 +380,17 @@ def sweep(design, grids, out, threads, scheduler):
     empty tip cells. A design whose [tip] pins or clamps the tip is swept with the tip held
     there (docs/model.md, "End constraints"): the table adds the constraint's reaction on
     the tip, tip_reaction_fx_N..fz_N and tip_reaction_mx_Nmm..mz_Nmm (world frame; zero
-    moment when pinned), and its metadata block the constraint.
+    moment when pinned), and its metadata block the constraint. A design whose obstacle
+    has friction > 0 is swept with every row its own load path from the unloaded rod, as
+    `softrod solve` follows it (--friction-steps increments; docs/contact.md, "Friction in
+    the statics"): the table adds each obstacle's contact force contact0_fx_N.. and its
+    friction part friction0_fx_N.., and stability is not assessed.
     """
     from ..catalog import load_design
     from ..io import check_table_path, write_table
 
     d = load_design(design)
+    options = _friction_options(d, friction_steps)
     n = d.n_channels
     if n == 0:
         raise design_error(
@@ -397,14 +426,17 @@ def sweep(design, grids, out, threads, scheduler):
     with _scheduler(scheduler) as client:
         if client is not None:
             _say(f"on the Dask cluster at {scheduler}")
-        batch, wall = _run_sweep(d, pressures, threads, SWEEP_CHUNK, "sweep", client)
+        batch, wall = _run_sweep(
+            d, pressures, threads, SWEEP_CHUNK, "sweep", client, options=options
+        )
     frame = batch.to_frame()
     frame.attrs["softrod.metadata"].update(
         generator="softrod sweep", grid=list(grids), chunk_rows=SWEEP_CHUNK
     )
     write_table(frame, out)
     n_ok = int(batch.converged.sum())
-    n_unstable = int((batch.converged & ~batch.stable).sum())
+    # Rows whose stability was not assessed (friction, follower loads) are not unstable.
+    n_unstable = int((batch.converged & batch.stability_assessed & ~batch.stable).sum())
     style = "green" if n_ok == rows and n_unstable == 0 else "yellow"
     console.print(
         f"{rows:,} rows, [{style}]{n_ok:,} converged, {n_unstable:,} unstable[/{style}], "
