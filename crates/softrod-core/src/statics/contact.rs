@@ -19,7 +19,7 @@ pub fn frictionless(rod: &Rod) -> Result<()> {
         return Err(SoftrodError::invalid(
             format!("obstacles[{k}].friction"),
             rod.spec.obstacles[k].friction,
-            "this static solve is frictionless (with Coulomb friction the equilibrium depends on the loading path, which only solve_statics of a free tip follows: docs/contact.md, \"Friction in the statics\"); set friction = 0 here",
+            "this static solve is frictionless (with Coulomb friction the equilibrium depends on the loading path, which only solve_statics of one rod, its tip free or held, follows: docs/contact.md, \"Friction in the statics\"); set friction = 0 here",
         ));
     }
     Ok(())
