@@ -182,6 +182,47 @@ def test_clamped_finger_on_a_frictional_table_follows_its_path(finger, rough):
     # The flip moves the clamp's reaction by about 2 mu f_n (measured 60.2 mN).
     gap = back.tip_reaction_force[0] - direct.tip_reaction_force[0]
     assert gap > 1.5 * MU * back.contact.total_force[0][2]
+    # A held path continues held the same way: not free, not pinned.
+    with pytest.raises(InputError, match="history.*clamped tip.*free"):
+        solve_statics(rough, [35e3], history=sol)
+    pin = TipConstraint.pinned(smooth.tip_position)
+    with pytest.raises(InputError, match="history.*clamped tip.*pinned"):
+        solve_statics(rough, [35e3], tip_constraint=pin, history=sol)
+
+
+@settings(
+    max_examples=10,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
+@given(
+    mu=st.floats(0.0, 2.0),
+    dx_mm=st.floats(-1.0, 1.0),
+    dz_mm=st.floats(-0.1, 0.5),
+    p_kpa=st.floats(0.0, 50.0),
+)
+def test_property_held_frictional_answers_are_balanced_or_errors(rough, mu, dx_mm, dz_mm, p_kpa):
+    """Any friction coefficient, clamp pose near the finger's tip at 35 kPa (down by at most
+    0.1 mm, which the table's 0.2 mm tolerance takes) and pressure: a solution that holds
+    the pose, balances and obeys the Coulomb bound, or a SoftrodError that says why."""
+    design = rough.replace({"obstacles[0].friction": mu})
+    smooth = solve_statics(rough.replace({"obstacles[0].friction": 0.0}), [35e3])
+    at = smooth.tip_position + np.array([dx_mm, 0.0, dz_mm]) * 1e-3
+    clamp = TipConstraint.clamped(at, smooth.tip_rotation)
+    try:
+        sol = solve_statics(
+            design, [p_kpa * 1e3], tip_constraint=clamp, options=SolverOptions(friction_steps=20)
+        )
+    except SoftrodError as exc:
+        assert str(exc)
+        return
+    # The pose to the position residual (1e-10 of L, x 10 for the unknowns' size in the
+    # tolerance); the balance to the solver's tolerance (1e-10 of F_s, far below 1e-9 of
+    # the weight); Coulomb on the totals of a plane's contacts, to round-off.
+    assert np.abs(sol.tip_position - at).max() < 1e-10 * design.length * 10
+    assert balance_error(sol) < 1e-9 * max(1.0, design.mass * G)
+    f_t, f_n = sol.contact.friction_force[0], sol.contact.total_force[0]
+    assert abs(f_t[0]) <= mu * f_n[2] * (1 + 1e-12) + 1e-15
 
 
 @pytest.mark.parametrize("steps", [0, -1, 1.5, math.nan, "20", True, 10**9])
