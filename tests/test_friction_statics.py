@@ -17,6 +17,7 @@ from softrod import (
     InputError,
     SoftrodError,
     SolverOptions,
+    TipConstraint,
     load_design,
     solve_statics,
 )
@@ -39,10 +40,12 @@ def rough(finger):
 
 
 def balance_error(sol) -> float:
-    """|n(0) - (weight + contact)| for a rod without tip loads: the global force balance,
-    the contact's normal and friction parts together."""
+    """|n(0) - (weight + contact + tip reaction)| for a rod without tip loads: the global
+    force balance, the contact's normal and friction parts together (a free tip has no
+    reaction)."""
     weight = np.array([0.0, 0.0, -sol.design.mass * G])
-    return float(np.abs(sol.base_force - (weight + sol.contact.total)).max())
+    reaction = np.zeros(3) if sol.tip_reaction_force is None else sol.tip_reaction_force
+    return float(np.abs(sol.base_force - (weight + sol.contact.total + reaction)).max())
 
 
 def test_finger_with_friction_solves_balances_and_differs(finger, rough):
@@ -134,6 +137,93 @@ def test_zero_friction_on_the_frictional_path_is_the_frictionless_solve(finger):
         assert np.abs(fr.base_force - plain.base_force).max() < 1e-10 * fs
 
 
+def test_clamped_finger_on_a_frictional_table_follows_its_path(finger, rough):
+    """A held tip carries friction: the finger clamped where the frictionless finger's tip
+    rests at 35 kPa, its pose moved there from the unloaded tip along the path with the
+    pressure. That motion carries the tip 0.2 mm towards the base (-x) over the table, so
+    its contact slides and the table's friction points +x at the Coulomb cap mu f_n, which
+    the clamp takes up (frictionless, it has nothing to hold there). The clamp then moved
+    0.05 mm back out (+x) from there (``history``) slides the contact the other way: the
+    friction flips to -mu f_n, where the same clamp pose reached directly from the
+    unloaded rod has it at +mu f_n."""
+    smooth = solve_statics(finger, [35e3])
+    clamp = TipConstraint.clamped(smooth.tip_position, smooth.tip_rotation)
+    # The frictionless held solve at the free tip's pose: a reaction at the solvers'
+    # tolerance (1e-10 of the force scale F_s = EI / L^2 = 0.16 N, times the Jacobian's
+    # conditioning; 1e-8 N leaves a factor 600).
+    plain = solve_statics(finger, [35e3], tip_constraint=clamp)
+    assert np.abs(plain.tip_reaction_force).max() < 1e-8
+    sol = solve_statics(rough, [35e3], tip_constraint=clamp)
+    assert sol.stable is None and sol.friction_state is not None
+    assert sol.friction_state.tip_constraint == "clamped"
+    assert sol.tip_constraint == "clamped"
+    # The clamp holds the pose (the position residual 1e-10 of L = 80 mm, x 10 for the
+    # scaled unknowns' size in the tolerance) ...
+    assert np.abs(sol.tip_position - smooth.tip_position).max() < 1e-10 * finger.length * 10
+    # ... and the base force balances weight, contact and reaction (the solver's
+    # tolerance, 1e-10 of F_s, far below 1e-9 of the weight).
+    assert balance_error(sol) < 1e-9 * max(1.0, finger.mass * G)
+
+    def sliding(s, sign):
+        """Every contact point slides one way on the plane: the friction total is
+        sign mu f_n to round-off (the return map caps each point at mu |f_n|)."""
+        f_t, f_n = s.contact.friction_force[0][0], s.contact.total_force[0][2]
+        return f_n > 0 and abs(f_t - sign * MU * f_n) <= 1e-12 * f_n
+
+    assert sliding(sol, +1), sol.contact.friction_force
+    assert sol.tip_reaction_force[0] < -0.5 * MU * sol.contact.total_force[0][2]
+    out = TipConstraint.clamped(smooth.tip_position + [0.05e-3, 0, 0], smooth.tip_rotation)
+    back = solve_statics(rough, [35e3], tip_constraint=out, history=sol)
+    direct = solve_statics(rough, [35e3], tip_constraint=out)
+    assert back.friction_state.tip_constraint == "clamped"
+    assert balance_error(back) < 1e-9 * max(1.0, finger.mass * G)
+    assert sliding(back, -1) and sliding(direct, +1)
+    # The flip moves the clamp's reaction by about 2 mu f_n (measured 60.2 mN).
+    gap = back.tip_reaction_force[0] - direct.tip_reaction_force[0]
+    assert gap > 1.5 * MU * back.contact.total_force[0][2]
+    # A held path continues held the same way: not free, not pinned.
+    with pytest.raises(InputError, match="history.*clamped tip.*free"):
+        solve_statics(rough, [35e3], history=sol)
+    pin = TipConstraint.pinned(smooth.tip_position)
+    with pytest.raises(InputError, match="history.*clamped tip.*pinned"):
+        solve_statics(rough, [35e3], tip_constraint=pin, history=sol)
+
+
+@settings(
+    max_examples=10,
+    deadline=None,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
+@given(
+    mu=st.floats(0.0, 2.0),
+    dx_mm=st.floats(-1.0, 1.0),
+    dz_mm=st.floats(-0.1, 0.5),
+    p_kpa=st.floats(0.0, 50.0),
+)
+def test_property_held_frictional_answers_are_balanced_or_errors(rough, mu, dx_mm, dz_mm, p_kpa):
+    """Any friction coefficient, clamp pose near the finger's tip at 35 kPa (down by at most
+    0.1 mm, which the table's 0.2 mm tolerance takes) and pressure: a solution that holds
+    the pose, balances and obeys the Coulomb bound, or a SoftrodError that says why."""
+    design = rough.replace({"obstacles[0].friction": mu})
+    smooth = solve_statics(rough.replace({"obstacles[0].friction": 0.0}), [35e3])
+    at = smooth.tip_position + np.array([dx_mm, 0.0, dz_mm]) * 1e-3
+    clamp = TipConstraint.clamped(at, smooth.tip_rotation)
+    try:
+        sol = solve_statics(
+            design, [p_kpa * 1e3], tip_constraint=clamp, options=SolverOptions(friction_steps=20)
+        )
+    except SoftrodError as exc:
+        assert str(exc)
+        return
+    # The pose to the position residual (1e-10 of L, x 10 for the unknowns' size in the
+    # tolerance); the balance to the solver's tolerance (1e-10 of F_s, far below 1e-9 of
+    # the weight); Coulomb on the totals of a plane's contacts, to round-off.
+    assert np.abs(sol.tip_position - at).max() < 1e-10 * design.length * 10
+    assert balance_error(sol) < 1e-9 * max(1.0, design.mass * G)
+    f_t, f_n = sol.contact.friction_force[0], sol.contact.total_force[0]
+    assert abs(f_t[0]) <= mu * f_n[2] * (1 + 1e-12) + 1e-15
+
+
 @pytest.mark.parametrize("steps", [0, -1, 1.5, math.nan, "20", True, 10**9])
 def test_bad_friction_steps_are_refused_by_name(steps):
     with pytest.raises(InputError, match="friction_steps"):
@@ -161,12 +251,10 @@ def test_what_friction_refuses_and_why(finger, rough):
     # What does not carry friction says so, naming the obstacle's friction.
     with pytest.raises(InputError, match=r"obstacles\[0\]\.friction.*pcc"):
         solve_statics(rough, [1e3], model="pcc")
-    with pytest.raises(InputError, match=r"obstacles\[0\]\.friction"):
-        solve_statics(
-            rough,
-            [1e3],
-            tip_constraint={"type": "pinned", "position": ["20 mm", "0 mm", "-70 mm"]},
-        )
+    # A held tip carries friction, but a path continues with the end condition it had.
+    pin = {"type": "pinned", "position": ["20 mm", "0 mm", "-70 mm"]}
+    with pytest.raises(InputError, match="history.*free tip.*pinned"):
+        solve_statics(rough, [1e3], tip_constraint=pin, history=pressed)
     with pytest.raises(InputError, match=r"obstacles\[0\]\.friction.*jacobian"):
         pressed.jacobian()
     # A friction coefficient must be a finite number >= 0 (the design's own rule).

@@ -46,6 +46,8 @@ class FrictionState:
     def tip_moment(self) -> list[float]: ...
     @property
     def tensions(self) -> list[float]: ...
+    @property
+    def tip_constraint(self) -> str: ...
 
 @final
 class Rod:
@@ -367,6 +369,8 @@ def solve_constrained_tip(
     stiffness_scale: _Vec3 = ...,
     on_invalid: str = "raise",
     tensions: Sequence[float] | None = None,
+    friction_steps: int = ...,
+    history: FrictionState | None = None,
 ) -> dict[str, Any]: ...
 def solve_rod_system(
     rods: Sequence[

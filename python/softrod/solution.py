@@ -158,9 +158,10 @@ class StaticSolution:
     violations: the validity ranges the solution lies outside (only with
     ``on_invalid="warn"``; otherwise such a solution is refused).
     friction_state: where a frictional load path stands (a ``softrod._core.FrictionState``:
-    its loads and every contact's friction memory), for ``solve_statics(...,
-    history=solution)`` to continue the path; None without friction (docs/contact.md,
-    "Friction in the statics").
+    its loads, every contact's friction memory and how the tip was held, its
+    ``tip_constraint``), for ``solve_statics(..., history=solution)`` to continue the path
+    with the same kind of tip; None without friction (docs/contact.md, "Friction in the
+    statics").
     """
 
     design: Design

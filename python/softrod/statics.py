@@ -357,7 +357,12 @@ def solve_statics(
     design) from that solution's loads and friction state: pull, then
     ``solve_statics(design, p, history=pulled)`` to release. The answer depends on the
     increment size to first order; ``stable`` is None (friction has no potential) and
-    ``friction_state`` carries the path on. A free tip of the rod model only.
+    ``friction_state`` carries the path on. A held (pinned or clamped) tip follows the
+    same path, its prescribed pose moved in the same increments from where the path
+    starts (the unloaded rod's tip, or ``history``'s held pose: a history continues with
+    the same kind of tip) to ``tip_constraint``'s, the position on a straight line and the
+    orientation on the geodesic: if the unloaded tip is not at the prescribed pose, moving
+    it there is part of the loading. The rod model only (not ``model="pcc"``).
 
     tip_constraint: how the tip is held (a :class:`TipConstraint`, "free", or a mapping
     with ``type``, ``position``, ``orientation`` as the design file's ``[tip]`` keys);
@@ -496,6 +501,8 @@ def solve_statics(
                 stiffness_scale=sigma.tolist(),
                 on_invalid=on_invalid,
                 tensions=t,
+                friction_steps=int(opts.friction_steps),
+                history=state,
                 **opts.as_kwargs(),
             )
         if out["stable"] is False:  # formatted only when there is something to report
@@ -577,7 +584,7 @@ def _history(history, design: Design, friction_at: int | None):
             "history",
             history.design.name,
             "must be a converged frictional StaticSolution (its friction_state is None: "
-            "frictionless, failed, or not a free tip's)",
+            "frictionless, or failed)",
             InputError,
         )
     return history.friction_state

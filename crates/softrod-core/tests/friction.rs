@@ -1,7 +1,8 @@
 //! Coulomb friction in the statics (docs/contact.md, "Friction in the statics"): a bar
 //! pulled along a frictional bed against the rigid-plastic and elastic-slip closed forms,
 //! path dependence (loading then unloading), global balance, mu = 0 against the
-//! frictionless solve, and hostile input.
+//! frictionless solve, and hostile input; the same for a held (pinned or clamped) tip,
+//! whose pose moves along the path, against the free tip's path.
 
 // Index loops over 3-vectors read like the equations they check.
 #![allow(clippy::needless_range_loop)]
@@ -12,9 +13,10 @@ use common::{design, direct_section, geometry_section, loads, obstacle, HORIZONT
 use softrod_core::ode::Loads;
 use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::spec::MaterialSpec;
+use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
 use softrod_core::statics::contact::report;
 use softrod_core::statics::friction::{self, FrictionPath};
-use softrod_core::statics::{shape, Solution, SolverOptions};
+use softrod_core::statics::{shape, Shape, Solution, SolverOptions};
 use softrod_core::{DesignSpec, Rod};
 
 const G: f64 = 9.81;
@@ -104,7 +106,11 @@ fn solve(rod: &Rod, l: &Loads, history: Option<&FrictionPath>, steps: usize) -> 
 
 /// Largest |n_x(s) - N(s)| over the nodes.
 fn axial_error(rod: &Rod, l: &Loads, sol: &Solution, n: &dyn Fn(f64) -> f64) -> f64 {
-    let sh = shape(rod, l, sol);
+    axial_error_of(&shape(rod, l, sol), n)
+}
+
+/// Largest |n_x(s) - N(s)| over the nodes of a shape.
+fn axial_error_of(sh: &Shape, n: &dyn Fn(f64) -> f64) -> f64 {
     sh.s.iter()
         .zip(&sh.force)
         .map(|(s, f)| (f[0] - n(*s)).abs())
@@ -312,20 +318,7 @@ fn frictional_solve_refuses_bad_input_by_name() {
 /// strictly in stick or in slip).
 #[test]
 fn frictional_shooting_jacobian_matches_central_differences() {
-    let material = MaterialSpec {
-        youngs_modulus: 1e6,
-        shear_modulus: 1e6 / 3.0,
-        density: 1300.0,
-    };
-    let r0 = 5e-3;
-    let sec = geometry_section("bar", 0.2, r0, 0.0, material, vec![], 40);
-    let mut d = design(vec![sec], HORIZONTAL, G);
-    let mut plane = obstacle(ObstacleKind::Plane, K, 1e-3);
-    plane.point = Some([0.0, 0.0, -r0]);
-    plane.normal = Some([0.0, 0.0, 1.0]);
-    plane.friction = 0.4;
-    d.obstacles = vec![plane];
-    let rod = Rod::new(d).unwrap();
+    let rod = round_bar();
     let laid = solve(&rod, &pulled(0.0), None, 2);
     let history = laid.friction.as_deref().unwrap();
     let mut l = pulled(0.02);
@@ -350,4 +343,385 @@ fn frictional_shooting_jacobian_matches_central_differences() {
     // below 1e-6 of a row's scale at h = 1e-7.
     println!("worst Jacobian error {worst:.2e} of a row's scale");
     assert!(worst < 1e-6, "{worst:e}");
+}
+
+// ---- a held (pinned or clamped) tip ----
+
+fn held(
+    rod: &Rod,
+    l: &Loads,
+    c: &TipConstraint,
+    history: Option<&FrictionPath>,
+    steps: usize,
+) -> ConstrainedSolution {
+    friction::solve_held(rod, l, c, history, steps, &SolverOptions::default()).unwrap()
+}
+
+/// A pinned (`clamped` false) or clamped tip at the pose (r, rot).
+fn hold(clamped: bool, r: [f64; 3], rot: [[f64; 3]; 3]) -> TipConstraint {
+    if clamped {
+        TipConstraint::Clamped {
+            position: r,
+            rotation: rot,
+        }
+    } else {
+        TipConstraint::Pinned { position: r }
+    }
+}
+
+fn max_diff(a: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    a.iter()
+        .zip(b)
+        .flat_map(|(p, q)| (0..3).map(move |i| (p[i] - q[i]).abs()))
+        .fold(0.0, f64::max)
+}
+
+/// The bar laid on its bed with the tip held where the free laid bar's tip is (from the
+/// unloaded rod, gravity ramped in 4 increments), for a held path to continue from.
+fn laid_held(rod: &Rod, clamped: bool) -> (Solution, ConstrainedSolution) {
+    let free_laid = solve(rod, &pulled(0.0), None, 4);
+    let c = hold(clamped, free_laid.tip.r, free_laid.tip.rot);
+    let laid = held(rod, &pulled(0.0), &c, None, 4);
+    (free_laid, laid)
+}
+
+/// Consistency with the free tip: the laid bar pulled by F = 0.3 N in one increment ends
+/// at the tip pose P; the same bar laid with its tip held and moved to P in one increment
+/// (the same friction state at the start, the same pose at the end) is the same
+/// equilibrium, with the tip reaction the pull F. In 4 increments the held path (the pose
+/// moved in equal steps, not the force) is still a monotonic pull, and matches the
+/// elastic-slip closed form with F = the reaction.
+#[test]
+fn held_tip_on_a_frictional_bed_matches_the_free_tip_and_the_closed_form() {
+    let mu = 0.5;
+    let f = 0.3;
+    let rod = Rod::new(bar_on_bed(mu)).unwrap();
+    let (ea, q) = ea_q(&rod);
+    let h = L / STEPS as f64;
+    let l0 = pulled(0.0);
+    let tol = SolverOptions::default().tol;
+    for clamped in [false, true] {
+        let (free_laid, laid) = laid_held(&rod, clamped);
+        // The held laid bar is the free one: nothing to react (to the solves' tolerance,
+        // 1e-10 of the force scale F_s = 1 N; the bar's axial stiffness EA/L = 100 N/m
+        // turns the position residual 1e-10 L into 1e-8 N).
+        let r0 = laid.tip_reaction_force;
+        println!("clamped {clamped}: laid reaction {r0:?}");
+        assert!(r0.iter().all(|v| v.abs() <= 2.0 * tol * EA), "{r0:?}");
+        assert!(laid.solution.stable.is_none(), "friction: not assessed");
+        let free = solve(&rod, &pulled(f), free_laid.friction.as_deref(), 1);
+        let target = hold(clamped, free.tip.r, free.tip.rot);
+        let one = held(&rod, &l0, &target, laid.solution.friction.as_deref(), 1);
+        // Both solves end within tol (scaled residual) of the exact equilibrium: the free
+        // one's force balance to tol F_s, the held one's position to tol L, which the
+        // bar's tip stiffness (at most EA / (L - a), the sliding length L - a of the
+        // closed form) turns into a force; 4 times that sum bounds the reaction's error
+        // (the two laid states differ by as much again).
+        let (a, _, _, _) = elastic_slip(f, mu, ea, q);
+        let tol_f = 4.0 * (tol * rod.force_scale + ea / (L - a) * tol * L);
+        let rf = one.tip_reaction_force;
+        let e_f = (rf[0] - f).abs().max(rf[1].abs()).max(rf[2].abs());
+        let e_m = one
+            .tip_reaction_moment
+            .iter()
+            .fold(0.0f64, |m, v| m.max(v.abs()));
+        let free_shape = shape(&rod, &pulled(f), &free);
+        let e_r = max_diff(&one.shape.position, &free_shape.position);
+        let e_n = max_diff(&one.shape.force, &free_shape.force);
+        let fr_free = report(&rod, &pulled(f), &free).unwrap().unwrap().friction[0];
+        let fr_held = report(&rod, &l0, &one.solution).unwrap().unwrap().friction[0];
+        let e_t = max_diff(&[fr_free], &[fr_held]);
+        println!(
+            "clamped {clamped}: reaction {rf:?} (F {f}; error {e_f:.2e}, tol {tol_f:.2e}), moment {e_m:.2e}; shape {e_r:.2e} m, n {e_n:.2e} N, friction {e_t:.2e} N"
+        );
+        assert!(e_f <= tol_f, "reaction {rf:?}");
+        // A moment error tol_f L from the same bound (the clamp's moment balances the
+        // force's arm); the pin carries none.
+        assert!(e_m <= tol_f * L);
+        // The internal force and the friction (the bed's load integrated) are forces like
+        // the reaction; positions move by force / (EA / L).
+        assert!(e_n <= tol_f && e_t <= tol_f);
+        assert!(e_r <= tol_f * L / ea + 4.0 * tol * L);
+        // Four increments of the pose: the closed form with F = the reaction.
+        let four = held(&rod, &l0, &target, laid.solution.friction.as_deref(), 4);
+        let fr = four.tip_reaction_force[0];
+        let (a4, _, n, u) = elastic_slip(fr, mu, ea, q);
+        let tol_n = kink_error(n(a4), h);
+        let e_n4 = axial_error_of(&four.shape, &n);
+        let tip = free.tip.r[0] - L;
+        println!(
+            "clamped {clamped}, 4 increments: reaction {fr:.6e}, |N - N_elastic| {e_n4:.2e} (tol {tol_n:.2e}); tip {tip:.6e} (elastic {u:.6e})"
+        );
+        assert!(e_n4 <= tol_n, "N against the elastic-slip bar");
+        assert!((tip - u).abs() <= L * tol_n / ea, "tip displacement");
+        assert!((four.solution.base_force[0] - n(0.0)).abs() <= tol_n);
+    }
+}
+
+/// Global balance with a held tip and friction: the base wrench (n(0), m(0)) equals the
+/// tip reaction, the weight and every obstacle's contact wrench (normal and friction,
+/// `report`) to the solver's tolerance. The clamp moved sideways too, so the bar bends on
+/// the bed and the friction has a lateral part and a moment.
+#[test]
+fn held_frictional_contact_balances_the_base_wrench() {
+    let rod = Rod::new(bar_on_bed(0.5)).unwrap();
+    let (_, q) = ea_q(&rod);
+    let l0 = pulled(0.0);
+    for clamped in [false, true] {
+        let (free_laid, laid) = laid_held(&rod, clamped);
+        let r = free_laid.tip.r;
+        let c = hold(clamped, [r[0] + 2e-3, r[1] + 0.05, r[2]], free_laid.tip.rot);
+        let sol = held(&rod, &l0, &c, laid.solution.friction.as_deref(), 8);
+        let rep = report(&rod, &l0, &sol.solution).unwrap().unwrap();
+        let (fr, mr) = (sol.tip_reaction_force, sol.tip_reaction_moment);
+        let tip = sol.solution.tip.r;
+        // The weight's moment about the base: int (r(s) - r(0)) x (0, 0, -q) ds by
+        // Simpson's rule over the nodes (uniform steps h, an even number of them): exact
+        // for r cubic in s; the bar's bending within a step leaves h^4 |r''''| L q / 180,
+        // far below the tolerance.
+        let sh = &sol.shape;
+        let n = sh.s.len() - 1;
+        assert_eq!(n % 2, 0);
+        let h = L / n as f64;
+        let mut wm = [0.0; 3];
+        for (k, p) in sh.position.iter().enumerate() {
+            let w = if k == 0 || k == n {
+                1.0
+            } else if k % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            } * h
+                / 3.0;
+            // (p x (0, 0, -q))
+            wm[0] += w * (-q * p[1]);
+            wm[1] += w * (q * p[0]);
+        }
+        let txf = [
+            tip[1] * fr[2] - tip[2] * fr[1],
+            tip[2] * fr[0] - tip[0] * fr[2],
+            tip[0] * fr[1] - tip[1] * fr[0],
+        ];
+        let scale = rod.force_scale;
+        for i in 0..3 {
+            let weight = if i == 2 { -q * L } else { 0.0 };
+            let ef = (sol.solution.base_force[i] - (fr[i] + weight + rep.force[0][i])).abs();
+            let em =
+                (sol.solution.base_moment[i] - (txf[i] + mr[i] + wm[i] + rep.moment[0][i])).abs();
+            println!(
+                "clamped {clamped} [{i}]: n(0) {:.6e} error {ef:.2e}; m(0) {:.6e} error {em:.2e}; friction {:.4e}",
+                sol.solution.base_force[i], sol.solution.base_moment[i], rep.friction[0][i]
+            );
+            // The residual 1e-10 of F_s, and of F_s L for moments, each; 1e-9 leaves a
+            // factor 10 for the reaction's round-off sum.
+            assert!(ef <= 1e-9 * scale, "force {i}: {ef:e}");
+            assert!(em <= 1e-9 * scale * L, "moment {i}: {em:e}");
+        }
+        // The bed resists the sideways move: friction along -y.
+        assert!(rep.friction[0][1] < 0.0);
+    }
+}
+
+/// mu = 0 on the frictional held path is the frictionless held solve (the constrained
+/// solver's own path): the same equilibrium to the solvers' tolerance.
+#[test]
+fn zero_friction_on_the_held_frictional_path_is_the_frictionless_held_solve() {
+    let rod = Rod::new(bar_on_bed(0.0)).unwrap();
+    let l0 = pulled(0.0);
+    let opts = SolverOptions::default();
+    let tilt = [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]];
+    // The clamp turned 0.2 rad about z from HORIZONTAL (its columns rotated).
+    let (c, s) = (0.2f64.cos(), 0.2f64.sin());
+    let rz = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]];
+    let rot: [[f64; 3]; 3] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| (0..3).map(|k| rz[i][k] * tilt[k][j]).sum())
+    });
+    for clamped in [false, true] {
+        let con = hold(clamped, [L + 2e-3, 0.05, 0.0], rot);
+        let plain = solve_constrained(&rod, &l0, &con, None, &opts).unwrap();
+        for steps in [1, 7] {
+            let fr = held(&rod, &l0, &con, None, steps);
+            let d_f = max_diff(&[fr.tip_reaction_force], &[plain.tip_reaction_force]);
+            let d_m = max_diff(&[fr.tip_reaction_moment], &[plain.tip_reaction_moment]);
+            let d_r = max_diff(&fr.shape.position, &plain.shape.position);
+            println!("clamped {clamped}, steps {steps}: reaction {d_f:.2e} N, {d_m:.2e} N m, shape {d_r:.2e} m");
+            // Both end within tol = 1e-10 (scaled) of the equilibrium; the held residual's
+            // position rows become forces through the bed's and the bar's stiffness
+            // (EA / L = 100 N/m axially, less in bending): 1e-10 L x 100 N/m = 1e-8 N, x 10
+            // for the two solves and the Jacobian's conditioning.
+            assert!(d_f <= 1e-7 && d_m <= 1e-7 * L, "{d_f:e} {d_m:e}");
+            assert!(d_r <= 1e-9 * L);
+            assert!(fr.solution.stable.is_none() && plain.solution.stable.is_some());
+        }
+    }
+}
+
+/// Path dependence with a held tip: the laid bar's clamp pulled out by the closed form's
+/// tip displacement under F, then moved back (`history`) to where it lay, leaves a
+/// locked-in compressive reaction (the tip's zone slid back, the base's stays stretched);
+/// without friction the bar returns to rest and nothing is locked in. The free tip's path
+/// through the same friction states (pulled by F, released to the held reaction) returns
+/// its tip to where it lay.
+#[test]
+fn held_tip_moved_back_keeps_a_locked_in_reaction_unless_frictionless() {
+    let f = 0.3;
+    let l0 = pulled(0.0);
+    for mu in [0.5, 0.0] {
+        let rod = Rod::new(bar_on_bed(mu)).unwrap();
+        let (ea, q) = ea_q(&rod);
+        let (free_laid, laid) = laid_held(&rod, true);
+        let free = solve(&rod, &pulled(f), free_laid.friction.as_deref(), 1);
+        let rest = hold(true, free_laid.tip.r, free_laid.tip.rot);
+        let out = hold(true, free.tip.r, free.tip.rot);
+        let pulled_h = held(&rod, &l0, &out, laid.solution.friction.as_deref(), 1);
+        let back = held(&rod, &l0, &rest, pulled_h.solution.friction.as_deref(), 1);
+        let locked = back.tip_reaction_force[0];
+        // The free tip released to the held reaction, through the same states.
+        let released = solve(&rod, &pulled(locked), free.friction.as_deref(), 1);
+        let dx = (released.tip.r[0] - free_laid.tip.r[0]).abs();
+        println!("mu {mu}: locked-in reaction {locked:.4e} N; free tip released to it: {dx:.2e} m from rest");
+        // The two paths are the same equations within the solves' tolerance (the held
+        // reaction's error tol (F_s + EA) turns into a tip error of that over EA / L).
+        assert!(dx <= 4.0 * SolverOptions::default().tol * L * (1.0 + rod.force_scale / EA) * 10.0);
+        if mu > 0.0 {
+            // Rigid-plastic (derived in docs/contact.md): the tip's zone of length c slides
+            // back with the friction reversed, N = F' + mu q y there (y from the tip), the
+            // loaded N = F - mu q y beyond; the tip back at rest needs int N ds = 0, so
+            // c = F / (sqrt(2) mu q) and the reaction F' = (1 - sqrt 2) F. The elastic
+            // slip moves the zone boundaries by about ell = sqrt(EA / k_t), changing N
+            // near them, and the reaction that zeroes int N ds, by about mu q ell (as the
+            // free tip's locked-in tension above).
+            let ell = (ea / K).sqrt();
+            let rigid = (1.0 - 2f64.sqrt()) * f;
+            assert!(
+                locked < 0.0 && (locked - rigid).abs() <= mu * q * ell,
+                "{locked}"
+            );
+        } else {
+            // Elastic: back at rest, no reaction (the clamp's position residual 1e-10 L
+            // through EA / L).
+            assert!(locked.abs() <= 1e-10 * L * EA * 10.0, "{locked}");
+        }
+    }
+}
+
+/// The held frictional residual's exact Jacobian (the constrained solver's dual-number
+/// pass sees the friction loads) against central differences, for a pinned and a clamped
+/// round bar moved off its laid pose (as `frictional_shooting_jacobian_matches_central_
+/// differences`, the unknowns 1 % off the laid ones so every point is strictly in stick
+/// or in slip).
+#[test]
+fn held_frictional_jacobian_matches_central_differences() {
+    let rod = round_bar();
+    for clamped in [false, true] {
+        let free_laid = solve(&rod, &pulled(0.0), None, 2);
+        let r = free_laid.tip.r;
+        let rest = hold(clamped, r, free_laid.tip.rot);
+        let laid = held(&rod, &pulled(0.0), &rest, None, 2);
+        let history = laid.solution.friction.as_deref().unwrap();
+        let c = hold(clamped, [r[0] + 1e-3, r[1] + 2e-3, r[2]], free_laid.tip.rot);
+        let l = pulled(0.0);
+        let x: [f64; 6] = std::array::from_fn(|i| history.x[i] * 1.01 + 1e-4);
+        let (_, jac) = friction::held_residual_and_jacobian(&rod, &l, &c, history, &x).unwrap();
+        let mut worst: f64 = 0.0;
+        let h = 1e-7;
+        for k in 0..6 {
+            let (mut a, mut b) = (x, x);
+            a[k] += h;
+            b[k] -= h;
+            let (ra, _) = friction::held_residual_and_jacobian(&rod, &l, &c, history, &a).unwrap();
+            let (rb, _) = friction::held_residual_and_jacobian(&rod, &l, &c, history, &b).unwrap();
+            for i in 0..6 {
+                let fd = (ra[i] - rb[i]) / (2.0 * h);
+                let scale = jac[i].iter().fold(1.0f64, |m, v| m.max(v.abs()));
+                worst = worst.max((fd - jac[i][k]).abs() / scale);
+            }
+        }
+        // Central differences err by h^2 |r'''| / 6 plus round-off ~1e-16 |r| / h, both
+        // below 1e-6 of a row's scale at h = 1e-7.
+        println!("clamped {clamped}: worst Jacobian error {worst:.2e} of a row's scale");
+        assert!(worst < 1e-6, "{worst:e}");
+    }
+}
+
+/// Hostile input for a held tip: a history of another end condition (free for held, held
+/// for free, pinned for clamped), a free "held" tip, a rotation that is not one, and bad
+/// increments are refused by name; the frictionless constrained solve still refuses
+/// friction, naming the obstacle's friction and where friction is carried.
+#[test]
+fn held_frictional_solve_refuses_bad_input_by_name() {
+    let rod = Rod::new(bar_on_bed(0.5)).unwrap();
+    let opts = SolverOptions::default();
+    let l0 = pulled(0.0);
+    let (free_laid, pinned_laid) = laid_held(&rod, false);
+    let r = free_laid.tip.r;
+    let clamp = hold(true, r, free_laid.tip.rot);
+    let pin = hold(false, r, free_laid.tip.rot);
+    let msg = |e: softrod_core::SoftrodError| e.to_string();
+    let e = msg(
+        friction::solve_held(&rod, &l0, &clamp, free_laid.friction.as_deref(), 2, &opts)
+            .unwrap_err(),
+    );
+    assert!(
+        e.contains("history") && e.contains("free tip") && e.contains("clamped"),
+        "{e}"
+    );
+    let e = msg(friction::solve(
+        &rod,
+        &l0,
+        pinned_laid.solution.friction.as_deref(),
+        2,
+        &opts,
+    )
+    .unwrap_err());
+    assert!(e.contains("history") && e.contains("pinned tip"), "{e}");
+    let e = msg(friction::solve_held(
+        &rod,
+        &l0,
+        &clamp,
+        pinned_laid.solution.friction.as_deref(),
+        2,
+        &opts,
+    )
+    .unwrap_err());
+    assert!(
+        e.contains("history") && e.contains("pinned tip") && e.contains("clamped"),
+        "{e}"
+    );
+    let e = msg(friction::solve_held(&rod, &l0, &TipConstraint::Free, None, 2, &opts).unwrap_err());
+    assert!(
+        e.contains("constraint") && e.contains("pinned or clamped"),
+        "{e}"
+    );
+    let bad = hold(true, r, [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 2.0]]);
+    let e = msg(friction::solve_held(&rod, &l0, &bad, None, 2, &opts).unwrap_err());
+    assert!(e.contains("tip_constraint.orientation"), "{e}");
+    let nan = hold(false, [f64::NAN, 0.0, 0.0], free_laid.tip.rot);
+    let e = msg(friction::solve_held(&rod, &l0, &nan, None, 2, &opts).unwrap_err());
+    assert!(e.contains("tip_constraint.position[0]"), "{e}");
+    for steps in [0, friction::MAX_FRICTION_STEPS + 1] {
+        let e = msg(friction::solve_held(&rod, &l0, &pin, None, steps, &opts).unwrap_err());
+        assert!(e.contains("friction_steps"), "{e}");
+    }
+    let e = msg(solve_constrained(&rod, &l0, &pin, None, &opts).unwrap_err());
+    assert!(e.contains("obstacles[0].friction"), "{e}");
+}
+
+/// A round bar (surface radius 5 mm, so the friction has a moment and the contact points
+/// roll with the sections) of 0.2 m, clamped horizontally on a plane with mu = 0.4.
+fn round_bar() -> Rod {
+    let material = MaterialSpec {
+        youngs_modulus: 1e6,
+        shear_modulus: 1e6 / 3.0,
+        density: 1300.0,
+    };
+    let r0 = 5e-3;
+    let sec = geometry_section("bar", 0.2, r0, 0.0, material, vec![], 40);
+    let mut d = design(vec![sec], HORIZONTAL, G);
+    let mut plane = obstacle(ObstacleKind::Plane, K, 1e-3);
+    plane.point = Some([0.0, 0.0, -r0]);
+    plane.normal = Some([0.0, 0.0, 1.0]);
+    plane.friction = 0.4;
+    d.obstacles = vec![plane];
+    Rod::new(d).unwrap()
 }

@@ -3,7 +3,7 @@
 
 use crate::{
     array2, array3, contact_dict, guarded, options, rows_dict, solution_dict, to_py_err, Context,
-    PyRod,
+    PyFrictionState, PyRod,
 };
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -13,6 +13,7 @@ use softrod_core::batch::{
 };
 use softrod_core::ode::Loads;
 use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
+use softrod_core::statics::friction;
 use softrod_core::statics::system::{solve_system, Platform, SystemRod};
 use softrod_core::SoftrodError;
 
@@ -69,8 +70,12 @@ pub(crate) fn constraint(
 /// "pinned" (needs `position`, world, m) or "clamped" (and `rotation`, row-major, the
 /// tip frame's columns in the world). The dict of `solve` plus "tip_reaction_force"
 /// and "tip_reaction_moment" (the wrench the constraint applies to the tip, world).
+/// With an obstacle's friction > 0 a held tip follows the frictional load path
+/// (`statics::friction::solve_held`: the loads and the held pose in `friction_steps`
+/// increments from the unloaded rod or from `history`, a `FrictionState` of this design
+/// with the same kind of tip), and the dict has "friction_state".
 #[pyfunction]
-#[pyo3(signature = (rod, pressures, tip_force, tip_moment, kind, position=None, rotation=None, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise", tensions=None))]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, kind, position=None, rotation=None, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise", tensions=None, friction_steps=softrod_core::statics::friction::DEFAULT_FRICTION_STEPS, history=None))]
 #[allow(clippy::too_many_arguments)]
 fn solve_constrained_tip<'py>(
     py: Python<'py>,
@@ -90,9 +95,24 @@ fn solve_constrained_tip<'py>(
     stiffness_scale: [f64; 3],
     on_invalid: &str,
     tensions: Option<Vec<f64>>,
+    friction_steps: usize,
+    history: Option<PyRef<'py, PyFrictionState>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let c = constraint(py, kind, position, rotation)?;
+        let frictional = friction::has_friction(&rod.rod);
+        if history.is_some() && !frictional {
+            return Err(to_py_err(
+                py,
+                SoftrodError::invalid(
+                    "history",
+                    "a friction state",
+                    "this design has no obstacle with friction > 0: a frictionless equilibrium does not depend on the load path",
+                ),
+                Context::Input,
+            ));
+        }
+        let history = history.map(|h| h.path.clone());
         let loads = Loads {
             pressures,
             tensions: tensions.unwrap_or_default(),
@@ -112,9 +132,35 @@ fn solve_constrained_tip<'py>(
         )?;
         let rod = &rod.rod;
         let out = py
-            .detach(|| solve_constrained(rod, &loads, &c, guess.as_deref(), &opts))
+            .detach(|| match (frictional, c) {
+                (true, TipConstraint::Free) => {
+                    let (solution, shape) = friction::solve_with_shape(
+                        rod,
+                        &loads,
+                        history.as_deref(),
+                        friction_steps,
+                        &opts,
+                    )?;
+                    Ok(ConstrainedSolution {
+                        solution,
+                        shape,
+                        tip_reaction_force: [0.0; 3],
+                        tip_reaction_moment: [0.0; 3],
+                    })
+                }
+                (true, _) => {
+                    friction::solve_held(rod, &loads, &c, history.as_deref(), friction_steps, &opts)
+                }
+                (false, _) => solve_constrained(rod, &loads, &c, guess.as_deref(), &opts),
+            })
             .map_err(|e| to_py_err(py, e, Context::Input))?;
         let d = constrained_dict(py, &out)?;
+        if let Some(path) = &out.solution.friction {
+            d.set_item(
+                "friction_state",
+                Py::new(py, PyFrictionState { path: path.clone() })?,
+            )?;
+        }
         // With obstacles: the contact report, as `Rod.solve` gives it.
         let rep = softrod_core::statics::contact::report(rod, &loads, &out.solution)
             .map_err(|e| to_py_err(py, e, Context::Input))?;

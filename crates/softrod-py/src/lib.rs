@@ -117,6 +117,13 @@ impl PyFrictionState {
         self.path.loads.tensions.clone()
     }
 
+    /// How the tip was held on the path: "free", "pinned" or "clamped" (a further path
+    /// continues with the same).
+    #[getter]
+    fn tip_constraint(&self) -> &'static str {
+        self.path.held.name()
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "FrictionState(pressures={:?}, max_elastic_slip={:.3e} m)",

@@ -588,13 +588,88 @@ pub(crate) fn reference_tip(rod: &Rod, loads: &Loads) -> State<f64> {
     integrate(rod, &p.coeffs, p.base_state(&[0.0; 6]), None)
 }
 
+/// A held tip's prescribed pose at one level of a path: the position, and for a clamped
+/// tip the rotation.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Pose {
+    clamped: bool,
+    position: [f64; 3],
+    rotation: [[f64; 3]; 3],
+}
+
+impl Pose {
+    /// The pose at path parameter `lam` in [0, 1] from (`r0`, `rot0`) (lam = 0) to the
+    /// constraint's (lam = 1, exactly): the position on the straight line, the rotation on
+    /// the geodesic (`slerp`). A pinned tip's rotation is not prescribed (kept at `rot0`).
+    pub(crate) fn along(
+        constraint: &TipConstraint,
+        r0: &[f64; 3],
+        rot0: &[[f64; 3]; 3],
+        lam: f64,
+    ) -> Pose {
+        let (clamped, position, rotation) = match *constraint {
+            TipConstraint::Pinned { position } => (false, position, *rot0),
+            TipConstraint::Clamped { position, rotation } => (
+                true,
+                position,
+                if lam >= 1.0 {
+                    rotation
+                } else {
+                    slerp(rot0, &rotation, lam)
+                },
+            ),
+            TipConstraint::Free => (false, *r0, *rot0),
+        };
+        let position = if lam >= 1.0 {
+            position
+        } else {
+            std::array::from_fn(|k| r0[k] + lam * (position[k] - r0[k]))
+        };
+        Pose {
+            clamped,
+            position,
+            rotation,
+        }
+    }
+}
+
+/// The equations of a held tip: problem `p` (its loads, and the friction state of the last
+/// converged increment where it carries one) with the tip at `pose` ([`held_residual`]).
+/// The frictional statics (`super::friction`) solves its increments with these.
+pub(crate) struct Held<'p, 'a> {
+    pub(crate) p: &'p Problem<'a>,
+    pub(crate) pose: Pose,
+}
+
+impl Held<'_, '_> {
+    fn residual<D: RodScalar>(&self, x: &[D]) -> [D; 6] {
+        let tip = integrate(self.p.rod, &self.p.coeffs, self.p.base_state(x), None);
+        let pose = &self.pose;
+        held_residual(self.p, pose.clamped, &pose.position, &pose.rotation, &tip)
+    }
+}
+
+impl Equations for Held<'_, '_> {
+    fn eval(&self, x: &[f64]) -> Vec<f64> {
+        self.residual(x).to_vec()
+    }
+
+    fn eval_jac(&self, x: &[f64]) -> (Vec<f64>, DMatrix<f64>) {
+        let xd: [Jet<6>; 6] = std::array::from_fn(|i| Jet::variable(x[i], i));
+        let r = self.residual(&xd);
+        (
+            r.map(|v| v.re).to_vec(),
+            DMatrix::from_fn(6, 6, |i, j| r[i].eps[j]),
+        )
+    }
+}
+
 /// One load level of a constrained solve.
 struct Level<'a> {
     p: Problem<'a>,
     constraint: TipConstraint,
     /// The prescribed tip pose at this level.
-    position: [f64; 3],
-    rotation: [[f64; 3]; 3],
+    pose: Pose,
 }
 
 impl Level<'_> {
@@ -608,30 +683,18 @@ impl Level<'_> {
         lam: f64,
         load_factor: f64,
     ) -> Level<'a> {
-        let (position, rotation) = match constraint {
-            TipConstraint::Pinned { position } => (position, reference.rot),
-            TipConstraint::Clamped { position, rotation } => {
-                (position, slerp(&reference.rot, &rotation, lam))
-            }
-            TipConstraint::Free => (reference.r, reference.rot),
-        };
-        let position =
-            std::array::from_fn(|k| reference.r[k] + lam * (position[k] - reference.r[k]));
         Level {
             p: Problem::new(rod, loads, load_factor),
             constraint,
-            position,
-            rotation,
+            pose: Pose::along(&constraint, &reference.r, &reference.rot, lam),
         }
     }
 
-    fn tip<D: RodScalar>(&self, x: &[D]) -> State<D> {
-        integrate(self.p.rod, &self.p.coeffs, self.p.base_state(x), None)
-    }
-
-    fn residual_of_tip<D: RodScalar>(&self, tip: &State<D>) -> [D; 6] {
-        let clamped = matches!(self.constraint, TipConstraint::Clamped { .. });
-        held_residual(&self.p, clamped, &self.position, &self.rotation, tip)
+    fn held(&self) -> Held<'_, '_> {
+        Held {
+            p: &self.p,
+            pose: self.pose,
+        }
     }
 }
 
@@ -683,20 +746,15 @@ pub(crate) fn tip_residual<D: RodScalar, const N: usize>(
     std::array::from_fn(|k| held[k])
 }
 
-const IDENTITY: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+pub(crate) const IDENTITY: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 impl Equations for Level<'_> {
     fn eval(&self, x: &[f64]) -> Vec<f64> {
-        self.residual_of_tip(&self.tip(x)).to_vec()
+        self.held().eval(x)
     }
 
     fn eval_jac(&self, x: &[f64]) -> (Vec<f64>, DMatrix<f64>) {
-        let xd: [Jet<6>; 6] = std::array::from_fn(|i| Jet::variable(x[i], i));
-        let r = self.residual_of_tip(&self.tip(&xd));
-        (
-            r.map(|v| v.re).to_vec(),
-            DMatrix::from_fn(6, 6, |i, j| r[i].eps[j]),
-        )
+        self.held().eval_jac(x)
     }
 
     fn stable(&self, x: &[f64]) -> Option<bool> {
@@ -876,7 +934,8 @@ pub(crate) fn constrained_stability(
     x: &[f64],
     constraint: &TipConstraint,
 ) -> Option<bool> {
-    if x.len() != 6 || !conservative(p.rod, p.loads, constraint) {
+    // Friction (`super::friction`) has no potential: not assessed.
+    if x.len() != 6 || !conservative(p.rod, p.loads, constraint) || p.friction_end.is_some() {
         return None;
     }
     let xd: [Jet<6>; 6] = std::array::from_fn(|i| Jet::variable(x[i], i));
@@ -998,20 +1057,39 @@ fn conclude(
     opts: &SolverOptions,
     violations: &mut Vec<SoftrodError>,
 ) -> Result<ConstrainedSolution> {
+    conclude_at(
+        &Problem::new(rod, loads, 1.0),
+        constraint,
+        path,
+        opts,
+        violations,
+    )
+}
+
+/// The checked solution at the end of a path whose last level is the full-load problem
+/// `level` (with the frictional statics' friction state, `super::friction`, where it
+/// carries one): the shape checked, a clamp's half turn refused, the tip reaction, and
+/// the stability where assessed.
+pub(crate) fn conclude_at(
+    level: &Problem,
+    constraint: &TipConstraint,
+    path: PathOk,
+    opts: &SolverOptions,
+    violations: &mut Vec<SoftrodError>,
+) -> Result<ConstrainedSolution> {
     let violations_out = violations;
-    let level = Problem::new(rod, loads, 1.0);
-    let (tip, shape) = checked_shape(&level, &path.x, opts, violations_out)?;
+    let (tip, shape) = checked_shape(level, &path.x, opts, violations_out)?;
     if let TipConstraint::Clamped { rotation, .. } = constraint {
         check_half_turn("tip_constraint.orientation", &tmatmul(rotation, &tip.rot))?;
     }
-    let (force, moment) = reaction(&level, &tip);
+    let (force, moment) = reaction(level, &tip);
     let moment = match constraint {
         // The moment balance is a residual row: its leftover is round-off, not a reaction.
         TipConstraint::Pinned { .. } => [0.0; 3],
         _ => moment,
     };
     let y0 = level.base_state(&path.x);
-    let stable = constrained_stability(&level, &path.x, constraint);
+    let stable = constrained_stability(level, &path.x, constraint);
     Ok(ConstrainedSolution {
         solution: Solution {
             x: path.x,

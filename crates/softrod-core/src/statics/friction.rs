@@ -14,6 +14,12 @@
 //! Contact Mechanics", Springer 2006, DOI 10.1007/978-3-540-32609-0 (ch. 5, friction and
 //! its return mapping), with the tangential stiffness equal to the normal penalty's.
 //!
+//! A held (pinned or clamped) tip (`solve_held`) follows the same path with its
+//! prescribed pose moved along it in the same increments, from the unloaded rod's tip
+//! (or the history's held pose) to the requested one, each increment the constrained
+//! Newton solve (`constraint::Held`); one increment loop (`follow`), generic over the
+//! inner solve, serves both.
+//!
 //! Within an increment the slip is measured from the increment's start: a point that
 //! comes into contact during an increment is anchored where its material point was at the
 //! start, and a stick/slip change is resolved at the increment's end. The answer is
@@ -22,15 +28,19 @@
 
 use std::sync::Arc;
 
+use super::constraint::{
+    self, conclude_at, ConstrainedSolution, Held, NewtonOk, PathOk, Pose, IDENTITY,
+};
 use super::{
-    check_inputs_any_friction, contact, At, Attempt, Problem, Shape, Solution, SolverOptions,
-    Start, MIN_CROSSING_STEP,
+    check_inputs_any_friction, contact, At, Attempt, Converged, Problem, Shape, Solution,
+    SolverOptions, Start, MIN_CROSSING_STEP,
 };
 use crate::contact::{Obstacle, StickPoint};
 use crate::error::{Result, SoftrodError};
 use crate::jet::RodScalar;
 use crate::ode::{integrate_with, step_quadrature, Loads, NodeAt, State};
 use crate::rod::Rod;
+use constraint::TipConstraint;
 
 /// Default number of equal load increments of a frictional static solve. The answer's
 /// dependence on the increment size is first order (measured on the bundled finger
@@ -53,13 +63,15 @@ pub struct FrictionState {
 }
 
 /// Where a frictional path stands at a converged equilibrium: the loads reached, the
-/// friction state and the shooting unknowns there, and the design it belongs to. A
-/// further path (unloading, say) starts from it.
+/// friction state and the shooting unknowns there, how the tip was held (and where), and
+/// the design it belongs to. A further path (unloading, say) starts from it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FrictionPath {
     pub loads: Loads,
     pub state: FrictionState,
     pub x: Vec<f64>,
+    /// The tip's end condition at the path's end: free, or held at the pose reached.
+    pub held: TipConstraint,
     spec: crate::spec::DesignSpec,
 }
 
@@ -114,8 +126,9 @@ fn fresh(y: &State<f64>, n_obstacles: usize) -> StickPoint {
 }
 
 /// The friction state of the unloaded rod (its reference shape; x = 0 at zero load):
-/// every point where the rod is, nothing stored.
-fn unloaded_state(rod: &Rod, loads: &Loads, obstacles: &[Obstacle]) -> FrictionState {
+/// every point where the rod is, nothing stored; and its tip (where a held tip's path
+/// starts).
+fn unloaded_state(rod: &Rod, loads: &Loads, obstacles: &[Obstacle]) -> (FrictionState, State<f64>) {
     // The reference shape, without the obstacles: a bed the rod touches within its
     // tolerance already pushes on it at zero load, and x = 0 is then not its equilibrium.
     let mut free = rod.clone();
@@ -131,10 +144,11 @@ fn unloaded_state(rod: &Rod, loads: &Loads, obstacles: &[Obstacle]) -> FrictionS
         false
     };
     let tip = integrate_with(rod, &p.coeffs, p.base_state(&[0.0; 6]), &mut hook);
-    FrictionState {
+    let state = FrictionState {
         sections: sections.into_iter().map(Arc::from).collect(),
         end: fresh(&tip, k),
-    }
+    };
+    (state, tip)
 }
 
 /// The state after a converged increment: problem `p` (built on `old`) at its solution
@@ -179,9 +193,15 @@ fn advance(p: &Problem, x: &[f64], old: &FrictionState, obstacles: &[Obstacle]) 
     }
 }
 
-/// Check that `history` belongs to this rod (same design, same obstacles) and that its
-/// loads can be joined to `loads` by a straight path.
-fn check_history(rod: &Rod, loads: &Loads, history: &FrictionPath) -> Result<()> {
+/// Check that `history` belongs to this rod (same design, same obstacles) and to a path
+/// with the same end condition (`held`: free, pinned or clamped), and that its loads can
+/// be joined to `loads` by a straight path.
+fn check_history(
+    rod: &Rod,
+    loads: &Loads,
+    held: &TipConstraint,
+    history: &FrictionPath,
+) -> Result<()> {
     if history.spec.obstacles != rod.spec.obstacles {
         return Err(SoftrodError::invalid(
             "history",
@@ -196,6 +216,16 @@ fn check_history(rod: &Rod, loads: &Loads, history: &FrictionPath) -> Result<()>
             format!(
                 "it belongs to another design than {:?} (a friction state belongs to the design it was solved with)",
                 rod.spec.name
+            ),
+        ));
+    }
+    if history.held.name() != held.name() {
+        return Err(SoftrodError::invalid(
+            "history",
+            format!("a frictional solution with a {} tip", history.held.name()),
+            format!(
+                "this solve's tip is {}: a friction path continues with the end condition it was solved with (the contacts' memory belongs to that path; a held tip's pose moves along the path, a free tip's loads do)",
+                held.name()
             ),
         ));
     }
@@ -302,6 +332,105 @@ fn solve_inner(
     opts: &SolverOptions,
     want_shape: bool,
 ) -> Attempt {
+    let free = TipConstraint::Free;
+    let b = begin(rod, loads, &free, history, steps, opts)?;
+    let end = follow(
+        rod,
+        loads,
+        history,
+        b.state,
+        b.x,
+        steps,
+        b.obstacles,
+        |p, _, guess| p.newton(guess, Start::Guess, opts),
+    )?;
+    let p = Problem::with_friction(rod, loads, 1.0, &end.state);
+    let (mut sol, shape) = p.conclude(
+        At::Converged(&end.last),
+        end.iterations,
+        end.levels,
+        opts,
+        b.violations,
+        want_shape,
+    )?;
+    sol.friction = Some(end.path(rod, loads, free));
+    Ok((sol, shape))
+}
+
+/// The frictional static solve of a tip held by `constraint` (pinned or clamped,
+/// `super::constraint`): the path of [`solve`], along which the held pose moves too, from
+/// where the path starts (the unloaded rod's tip, or `history`'s held pose) to the
+/// prescribed one in the same increments (the position on a straight line, the rotation
+/// on the geodesic). Each increment is the constrained Newton solve
+/// (`constraint::Held`). The solution carries its `FrictionPath` and the tip reaction
+/// (as `constraint::solve_constrained` reports it); `stable` is None.
+pub fn solve_held(
+    rod: &Rod,
+    loads: &Loads,
+    constraint: &TipConstraint,
+    history: Option<&FrictionPath>,
+    steps: usize,
+    opts: &SolverOptions,
+) -> Result<ConstrainedSolution> {
+    constraint.validate()?;
+    if matches!(constraint, TipConstraint::Free) {
+        return Err(SoftrodError::invalid(
+            "constraint",
+            "free",
+            "must be pinned or clamped (a free tip: friction::solve)",
+        ));
+    }
+    let b = begin(rod, loads, constraint, history, steps, opts)?;
+    let (r0, rot0) = b.pose;
+    let end = follow(
+        rod,
+        loads,
+        history,
+        b.state,
+        b.x,
+        steps,
+        b.obstacles,
+        |p, t, guess| {
+            let eq = Held {
+                p,
+                pose: Pose::along(constraint, &r0, &rot0, t),
+            };
+            constraint::newton(&eq, guess.to_vec(), opts.tol, opts.max_iter)
+        },
+    )?;
+    let p = Problem::with_friction(rod, loads, 1.0, &end.state);
+    let done = PathOk {
+        x: end.x.to_vec(),
+        residual: end.last.residual,
+        iterations: end.iterations,
+        load_steps: end.levels,
+    };
+    let mut violations = b.violations;
+    let mut out = conclude_at(&p, constraint, done, opts, &mut violations)?;
+    out.solution.friction = Some(end.path(rod, loads, *constraint));
+    Ok(out)
+}
+
+/// Where a frictional path starts, its inputs checked.
+struct Begin<'r> {
+    violations: Vec<SoftrodError>,
+    obstacles: &'r [Obstacle],
+    state: FrictionState,
+    x: [f64; 6],
+    /// The held tip's pose there (the unloaded rod's tip, or `history`'s held pose).
+    pose: ([f64; 3], [[f64; 3]; 3]),
+}
+
+/// Check the inputs of a frictional solve whose tip is `held` (free, pinned or clamped)
+/// and find where its path starts.
+fn begin<'r>(
+    rod: &'r Rod,
+    loads: &Loads,
+    held: &TipConstraint,
+    history: Option<&FrictionPath>,
+    steps: usize,
+    opts: &SolverOptions,
+) -> Result<Begin<'r>> {
     check_steps(steps)?;
     let violations = check_inputs_any_friction(rod, loads, opts)?;
     let Some(obstacles) = rod.obstacles.as_deref() else {
@@ -311,9 +440,105 @@ fn solve_inner(
             "the frictional static solve needs obstacles (a design without any is frictionless)",
         ));
     };
-    if let Some(h) = history {
-        check_history(rod, loads, h)?;
+    let Some(h) = history else {
+        let (state, tip) = unloaded_state(rod, loads, obstacles);
+        return Ok(Begin {
+            violations,
+            obstacles,
+            state,
+            x: [0.0; 6],
+            pose: (tip.r, tip.rot),
+        });
+    };
+    check_history(rod, loads, held, h)?;
+    if h.x.len() != 6 {
+        return Err(SoftrodError::invalid(
+            "history",
+            "a frictional solution",
+            "its shooting unknowns are not the six of a path with obstacles",
+        ));
     }
+    let pose = match h.held {
+        TipConstraint::Free => ([0.0; 3], IDENTITY),
+        // A pin prescribes no rotation (`Pose` does not read it).
+        TipConstraint::Pinned { position } => (position, IDENTITY),
+        TipConstraint::Clamped { position, rotation } => (position, rotation),
+    };
+    Ok(Begin {
+        violations,
+        obstacles,
+        state: h.state.clone(),
+        x: std::array::from_fn(|i| h.x[i]),
+        pose,
+    })
+}
+
+/// What an increment's inner Newton solve reached.
+trait Reached {
+    fn x(&self) -> [f64; 6];
+    fn iterations(&self) -> usize;
+}
+
+impl Reached for Converged<6> {
+    fn x(&self) -> [f64; 6] {
+        self.x
+    }
+    fn iterations(&self) -> usize {
+        self.iterations
+    }
+}
+
+impl Reached for NewtonOk {
+    fn x(&self) -> [f64; 6] {
+        std::array::from_fn(|i| self.x[i])
+    }
+    fn iterations(&self) -> usize {
+        self.iterations
+    }
+}
+
+/// The end of a frictional path: the last increment's solve (at the full loads), the
+/// friction state it was solved with and the one advanced at its solution, the effort.
+struct PathEnd<C> {
+    last: C,
+    state: FrictionState,
+    next: FrictionState,
+    x: [f64; 6],
+    iterations: usize,
+    levels: usize,
+}
+
+impl<C> PathEnd<C> {
+    /// Where the path stands at its end, for a further path to start from.
+    fn path(self, rod: &Rod, loads: &Loads, held: TipConstraint) -> Arc<FrictionPath> {
+        Arc::new(FrictionPath {
+            loads: loads.clone(),
+            state: self.next,
+            x: self.x.to_vec(),
+            held,
+            spec: rod.spec.clone(),
+        })
+    }
+}
+
+/// The increment loop shared by the free and the held tip: from `state` and unknowns `x`
+/// at the path's start (`history`'s loads, or the unloaded rod) to `loads`, in `steps`
+/// equal increments, each halved while `inner` fails (down to 1/SUB of it). `inner(p, t,
+/// guess)` is one increment's Newton solve: the problem `p` at the loads of path
+/// parameter t, with the friction state of the last converged increment, from `guess`.
+/// After each converged increment the nodes are checked for crossing an obstacle and the
+/// state is advanced (`advance`).
+#[allow(clippy::too_many_arguments)]
+fn follow<C: Reached>(
+    rod: &Rod,
+    loads: &Loads,
+    history: Option<&FrictionPath>,
+    mut state: FrictionState,
+    mut x: [f64; 6],
+    steps: usize,
+    obstacles: &[Obstacle],
+    mut inner: impl FnMut(&Problem, f64, [f64; 6]) -> std::result::Result<C, (usize, f64)>,
+) -> Result<PathEnd<C>> {
     let not_converged =
         |iterations, residual, load_factor, reason: String| SoftrodError::NotConverged {
             iterations,
@@ -321,17 +546,6 @@ fn solve_inner(
             load_factor,
             reason,
         };
-    let (mut state, mut x): (FrictionState, [f64; 6]) = match history {
-        Some(h) if h.x.len() == 6 => (h.state.clone(), std::array::from_fn(|i| h.x[i])),
-        Some(_) => {
-            return Err(SoftrodError::invalid(
-                "history",
-                "a frictional solution",
-                "its shooting unknowns are not a free tip's six",
-            ))
-        }
-        None => (unloaded_state(rod, loads, obstacles), [0.0; 6]),
-    };
     let start = history.map(|h| &h.loads);
     let check_crossing = contact::crossable(obstacles);
     let mut last_shape = if check_crossing {
@@ -375,11 +589,10 @@ fn solve_inner(
             Some((dx, dt_last)) => std::array::from_fn(|i| x[i] + dx[i] * (dt / dt_last)),
             None => x,
         };
-        // Newton with the exact Jacobian (updated by Broyden between exact passes). The
-        // residual is continuous, its derivative jumps where a point switches between
-        // stick and slip (semi-smooth: Newton converges locally, and a failed increment
-        // is halved).
-        let attempt = p.newton(guess, Start::Guess, opts);
+        // Newton with the exact Jacobian. The residual is continuous, its derivative
+        // jumps where a point switches between stick and slip (semi-smooth: Newton
+        // converges locally, and a failed increment is halved).
+        let attempt = inner(&p, target, guess);
         let failed = |it: usize, res: f64, why: &str| {
             not_converged(
                 it,
@@ -394,9 +607,10 @@ fn solve_inner(
         levels += 1;
         match attempt {
             Ok(c) => {
-                iterations += c.iterations;
+                iterations += c.iterations();
+                let cx = c.x();
                 if check_crossing {
-                    let shape = contact::node_points(&p, &c.x);
+                    let shape = contact::node_points(&p, &cx);
                     if let Some(cr) = contact::crossing(obstacles, &last_shape, &shape) {
                         if len == 1 || dt <= MIN_CROSSING_STEP {
                             return Err(contact::crossing_error(
@@ -409,26 +623,19 @@ fn solve_inner(
                     }
                     last_shape = shape;
                 }
-                let next = advance(&p, &c.x, &state, obstacles);
+                let next = advance(&p, &cx, &state, obstacles);
                 if target >= 1.0 {
-                    let (mut sol, shape) = p.conclude(
-                        At::Converged(&c),
+                    return Ok(PathEnd {
+                        last: c,
+                        state,
+                        next,
+                        x: cx,
                         iterations,
                         levels,
-                        opts,
-                        violations,
-                        want_shape,
-                    )?;
-                    sol.friction = Some(Arc::new(FrictionPath {
-                        loads: loads.clone(),
-                        state: next,
-                        x: c.x.to_vec(),
-                        spec: rod.spec.clone(),
-                    }));
-                    return Ok((sol, shape));
+                    });
                 }
-                last_move = Some((std::array::from_fn(|k| c.x[k] - x[k]), dt));
-                x = c.x;
+                last_move = Some((std::array::from_fn(|k| cx[k] - x[k]), dt));
+                x = cx;
                 state = next;
                 t = target;
                 (i, at) = (next_i, next_at);
@@ -464,4 +671,36 @@ pub fn residual_and_jacobian(
         r,
         std::array::from_fn(|i| std::array::from_fn(|k| j[(i, k)])),
     )
+}
+
+/// [`residual_and_jacobian`] of a tip held by `constraint` (pinned or clamped) at its
+/// prescribed pose: the residual of `constraint::Held` (the constrained solve's, the
+/// friction loads of `path`'s state in its dual-number pass), for tests against finite
+/// differences.
+#[doc(hidden)]
+pub fn held_residual_and_jacobian(
+    rod: &Rod,
+    loads: &Loads,
+    constraint: &TipConstraint,
+    path: &FrictionPath,
+    x: &[f64; 6],
+) -> Result<([f64; 6], [[f64; 6]; 6])> {
+    constraint.validate()?;
+    if matches!(constraint, TipConstraint::Free) {
+        return Err(SoftrodError::invalid(
+            "constraint",
+            "free",
+            "must be pinned or clamped (a free tip: friction::residual_and_jacobian)",
+        ));
+    }
+    let p = Problem::with_friction(rod, loads, 1.0, &path.state);
+    let eq = Held {
+        p: &p,
+        pose: Pose::along(constraint, &[0.0; 3], &IDENTITY, 1.0),
+    };
+    let (r, j) = constraint::Equations::eval_jac(&eq, x);
+    Ok((
+        std::array::from_fn(|i| r[i]),
+        std::array::from_fn(|i| std::array::from_fn(|k| j[(i, k)])),
+    ))
 }
