@@ -144,6 +144,11 @@ def test_to_frame_has_the_contact_and_friction_columns(rough):
     np.testing.assert_array_equal(
         frame[[f"contact0_f{a}_N" for a in "xyz"]].to_numpy(), batch.contact_force[:, 0]
     )
+    # Friction has no potential: no verdict on stability, so the table's cell is empty
+    # (a False would read as "unstable"), and the metadata says what empty means.
+    assert not batch.stability_assessed.any()
+    assert frame["stable"].isna().all()
+    assert "empty: not assessed" in frame.attrs["softrod.metadata"]["columns"]["stable"]
 
 
 def test_friction_batch_refuses_bad_input_by_name(rough):

@@ -366,7 +366,8 @@ class BatchSolution:
     stiffness_scale (m, 3): sigma of every row when the design has mapped sections
     (docs/stiffness-map.md), else None. x (m, 3): the solver's scaled unknowns (warm starts).
     stable (m,) bool: the row's equilibrium is stable (False on failed rows and where not
-    assessed: see stability_assessed (m,) bool, False with follower loads). tensions (m, k):
+    assessed: see stability_assessed (m,) bool, False with follower loads and friction;
+    :meth:`to_frame` leaves such cells empty). tensions (m, k):
     the tendon tensions of every row, N (None: slack tendons). violation (m,)
     str: the validity rule a row broke ("" if none; docs/model.md, "Validity and stability").
     metadata: design, softrod version and solver settings (the metadata block of
@@ -417,7 +418,8 @@ class BatchSolution:
         """The results as a DataFrame in the dataset schema (docs/datasets.md), one row per
         solve: ``p0_kPa`` ..., ``t0_N`` ... (with tensions), ``tip_x_mm`` ..., ``tip_qw``
         ... ``tip_qz``, ``base_fx_N`` ..., ``base_mx_Nmm`` ..., then the result columns
-        ``converged``, ``iterations``, ``residual``, ``stable``, with a pinned or clamped
+        ``converged``, ``iterations``, ``residual``, ``stable`` (empty where stability was
+        not assessed: friction, follower loads), with a pinned or clamped
         tip ``tip_reaction_fx_N`` ... ``tip_reaction_fz_N`` and ``tip_reaction_mx_Nmm`` ...
         ``tip_reaction_mz_Nmm`` (the wrench the constraint applies to the tip, world frame)
         and, with a stiffness map, ``sigma_ext``, ``sigma_bend_x``, ``sigma_bend_y``; with
@@ -438,9 +440,17 @@ class BatchSolution:
             Extra("residual", np.asarray(self.residual, dtype=float), "scaled final residual"),
         ]
         if self.stable is not None:
-            extras.append(
-                Extra("stable", np.asarray(self.stable, dtype=bool), "the equilibrium is stable")
-            )
+            stable = np.asarray(self.stable, dtype=bool)
+            what = "the equilibrium is stable"
+            assessed = self.stability_assessed
+            if assessed is not None and not np.all(assessed):
+                import pandas as pd
+
+                # Not assessed (friction, follower loads) is no verdict: an empty cell, never
+                # a False that a reader would take for "unstable".
+                stable = pd.array(np.where(assessed, stable, None), dtype="boolean")
+                what += " (empty: not assessed)"
+            extras.append(Extra("stable", stable, what))
         for arr, kind, what in (
             (self.tip_reaction_force, "force", "force"),
             (self.tip_reaction_moment, "moment", "moment"),
