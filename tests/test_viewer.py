@@ -375,3 +375,28 @@ def test_a_tapered_section_is_drawn_with_its_radius_along_s():
         assert "10.0 to 5.0 mm" in v._sections_note.content
     finally:
         v.close()
+
+
+def test_a_frictional_design_continues_its_load_path_from_the_shape_shown():
+    """With friction every slider move loads the rod from the shape on screen (history=):
+    pressing to 30 kPa via 50 kPa leaves the tip where solve_statics' same path leaves it,
+    not where a direct load to 30 kPa does (path dependence, docs/contact.md)."""
+    rough = load_design("prebent_finger_on_table").replace({"obstacles[0].friction": 0.5})
+    v = softrod.view(rough, environment_map=False)
+    try:
+        v.set_inputs(pressures=[50e3])
+        sol = v.set_inputs(pressures=[30e3])
+        assert sol.converged and v.error is None
+        # The viewer's path: its first shape (0 kPa: the weight loaded onto the table),
+        # then 50 kPa, then 30 kPa, each from the last.
+        path = None
+        for p in (0.0, 50e3, 30e3):
+            path = solve_statics(rough, [p], tensions=[0.0], tip_force=[0, 0, 0], history=path)
+        via = path
+        direct = solve_statics(rough, [30e3])
+        # The same path in the same increments: the same numbers.
+        np.testing.assert_array_equal(sol.tip_position, via.tip_position)
+        assert np.abs(sol.tip_position - direct.tip_position).max() > 1e-5
+        assert "friction:" in v._status.content
+    finally:
+        v.close()

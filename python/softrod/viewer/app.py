@@ -173,6 +173,10 @@ class Viewer:
         self.design = load_design(design)
         d = self.design
         self._options = options
+        #: An obstacle with friction: every solve continues the load path from the shape shown.
+        self.frictional = any(
+            float(o.get("friction", 0.0)) > 0 for o in d.spec.get("obstacles", [])
+        )
         self._stiffness_map = stiffness_map
         self.looks = geo.section_looks(d)
         nc = d.n_channels
@@ -610,6 +614,11 @@ class Viewer:
         tensions = self.tensions if self.design.n_tendons else None
         at = time.time()
         t0 = time.perf_counter()
+        shown = self.solution if self.solution is not None and self.solution.converged else None
+        # The shape on screen starts the solve: a warm start, or with friction (docs/contact.md,
+        # "Friction in the statics") the load path continued from it, so a slider move loads
+        # or unloads the rod from where it stands, with what its contacts hold.
+        start = {"history" if self.frictional else "initial": shown}
         sol = solve_statics(
             self.design,
             p,
@@ -617,10 +626,8 @@ class Viewer:
             tip_force=f,
             options=self._options,
             stiffness_map=self._stiffness_map,
-            initial=self.solution
-            if self.solution is not None and self.solution.converged
-            else None,
             check=False,
+            **start,
         )
         t1 = time.perf_counter()
         self.solves += 1
@@ -772,6 +779,9 @@ class Viewer:
                     lines.append(f"contact with {kind} {k}: {np.linalg.norm(force) * 1e3:.1f} mN")
                 depth = max(sol.contact.max_penetration, 0.0) * 1e3
                 lines.append(f"deepest penetration: {depth:.3f} mm")
+                if self.frictional:
+                    ft = np.linalg.norm(sol.contact.friction_force, axis=1).max() * 1e3
+                    lines.append(f"friction: {ft:.1f} mN (loaded from the shape shown)")
         else:
             lines += ["converged: **NO**", self.error or ""]
         return "  \n".join(lines)
