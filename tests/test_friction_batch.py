@@ -151,7 +151,7 @@ def test_to_frame_has_the_contact_and_friction_columns(rough):
     assert "empty: not assessed" in frame.attrs["softrod.metadata"]["columns"]["stable"]
 
 
-def test_friction_batch_refuses_bad_input_by_name(rough):
+def test_friction_batch_refuses_bad_input_by_name(rough, monkeypatch):
     for bad in (0, -1, 100_001, 2.5, "80", True, None):
         with pytest.raises(InputError, match="friction_steps"):
             solve_statics_batch(rough, P, options=SolverOptions(friction_steps=bad))
@@ -174,6 +174,18 @@ def test_friction_batch_refuses_bad_input_by_name(rough):
         solve_statics_batch(rough, P, tensions=T[:2], options=STEPS)
     with pytest.raises(InputError, match=r"pressures\[1\]"):
         solve_statics_batch(rough, [[0.0], [-2e5]], options=STEPS)
+    # Markers come from the frictionless sensitivity solve: refused before any row is solved
+    # (a million rows would otherwise run their frictional paths first).
+    import softrod.synthetic
+
+    calls = []
+    real = softrod.synthetic.solve_statics_batch
+    monkeypatch.setattr(
+        softrod.synthetic, "solve_statics_batch", lambda *a, **k: calls.append(1) or real(*a, **k)
+    )
+    with pytest.raises(InputError, match=r"obstacles\[0\]\.friction.*markers"):
+        softrod.synthesize_dataset(rough, P[:2], markers=[0.04])
+    assert calls == []
 
 
 def _rough_file(tmp_path):

@@ -24,7 +24,7 @@ from .datasets import (
 )
 from .design import Design
 from .errors import ConvergenceError, InputError
-from .statics import _options, batch_pressures, solve_statics_batch
+from .statics import _frictional, _options, batch_pressures, solve_statics_batch
 from .units import vector_to_si
 
 if TYPE_CHECKING:
@@ -88,6 +88,17 @@ def synthesize_dataset(
     seed = noise_seed(noise_mm, seed)
     p = batch_pressures(design, pressures)
     sites = parse_marker_sites(markers, design.length)  # checked before any solve
+    rough = _frictional(design)
+    if sites is not None and rough is not None:
+        # Refused before the (frictional) batch runs: the markers are read off the
+        # sensitivity solve, which has no load path (docs/contact.md).
+        raise _fail(
+            f"obstacles[{rough}].friction",
+            design.spec["obstacles"][rough]["friction"],
+            "markers are read off the parameter-sensitivity solve, which is frictionless "
+            "(a frictional equilibrium depends on its load path): synthesize the tip only, "
+            "or set friction = 0",
+        )
     labels = None if mounting is None else np.unique(np.asarray(mounting)).tolist()
     if labels is not None and len(labels) > 1:
         # Every row is solved with the design as mounted, while a fit solves the rows of
