@@ -235,6 +235,13 @@ def test_what_friction_refuses_and_why(finger, rough):
     # history: a frictional solution of this very design, nothing else.
     with pytest.raises(InputError, match="history.*no obstacle with friction"):
         solve_statics(finger, [1e3], history=pressed)
+    with pytest.raises(InputError, match="history.*no obstacle with friction"):
+        solve_statics(
+            finger,
+            [1e3],
+            tip_constraint={"type": "pinned", "position": ["20 mm", "0 mm", "-70 mm"]},
+            history=pressed,
+        )
     with pytest.raises(InputError, match="history.*friction_state is None"):
         solve_statics(rough, [1e3], history=solve_statics(finger, [1e3]))
     with pytest.raises(InputError, match="history.*StaticSolution"):

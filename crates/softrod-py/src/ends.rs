@@ -101,17 +101,8 @@ fn solve_constrained_tip<'py>(
     guarded(py, || {
         let c = constraint(py, kind, position, rotation)?;
         let frictional = friction::has_friction(&rod.rod);
-        if history.is_some() && !frictional {
-            return Err(to_py_err(
-                py,
-                SoftrodError::invalid(
-                    "history",
-                    "a friction state",
-                    "this design has no obstacle with friction > 0: a frictionless equilibrium does not depend on the load path",
-                ),
-                Context::Input,
-            ));
-        }
+        friction::check_history_wanted(&rod.rod, history.is_some())
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
         let history = history.map(|h| h.path.clone());
         let loads = Loads {
             pressures,

@@ -381,17 +381,8 @@ impl PyRod {
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(py, || {
             let frictional = statics::friction::has_friction(&self.rod);
-            if history.is_some() && !frictional {
-                return Err(to_py_err(
-                    py,
-                    SoftrodError::invalid(
-                        "history",
-                        "a friction state",
-                        "this design has no obstacle with friction > 0: a frictionless equilibrium does not depend on the load path",
-                    ),
-                    Context::Input,
-                ));
-            }
+            statics::friction::check_history_wanted(&self.rod, history.is_some())
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
             let history = history.map(|h| h.path.clone());
             let loads = Loads {
                 pressures,

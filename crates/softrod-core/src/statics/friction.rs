@@ -96,6 +96,19 @@ pub fn has_friction(rod: &Rod) -> bool {
     rod.spec.obstacles.iter().any(|o| o.friction != 0.0)
 }
 
+/// Refuse a `history` (a friction state to continue a path from) on a rod without
+/// friction, whose equilibrium does not depend on the load path.
+pub fn check_history_wanted(rod: &Rod, history_given: bool) -> Result<()> {
+    if history_given && !has_friction(rod) {
+        return Err(SoftrodError::invalid(
+            "history",
+            "a friction state",
+            "this design has no obstacle with friction > 0: a frictionless equilibrium does not depend on the load path",
+        ));
+    }
+    Ok(())
+}
+
 /// The rounded end's contact load with friction (`crate::statics::contact::end_force`
 /// plus its tangential part): the total force and the friction's moment about the tip's
 /// centreline.
