@@ -14,7 +14,14 @@ import pytest
 import softrod
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from softrod import InputError, SolverOptions, load_design, solve_statics, solve_statics_batch
+from softrod import (
+    InputError,
+    SolverOptions,
+    TipConstraint,
+    load_design,
+    solve_statics,
+    solve_statics_batch,
+)
 
 pytestmark = pytest.mark.fast
 
@@ -71,6 +78,27 @@ def test_friction_batch_equals_single_solves_bitwise(rough, singles):
     assert np.all(batch.contact_force[0] == 0.0)
     assert (np.abs(batch.friction_force[:, 0, 0]) > 1e-4).sum() >= 3
     assert batch.metadata["solver"]["friction_steps"] == 20
+
+
+def test_held_friction_batch_equals_single_held_solves_bitwise(finger, rough):
+    """A clamped tip: every row its own path with the clamp moved from the unloaded rod's
+    tip to its pose, bitwise the single held frictional solve, tip reactions included."""
+    rest = solve_statics(finger, [35e3])
+    clamp = TipConstraint.clamped(rest.tip_position, rest.tip_rotation)
+    rows = P[1:5]
+    singles = [solve_statics(rough, p, tip_constraint=clamp, options=STEPS) for p in rows]
+    for threads in (1, 2):
+        batch = solve_statics_batch(
+            rough, rows, tip_constraint=clamp, options=STEPS, threads=threads
+        )
+        assert batch.tip_constraint == "clamped" and batch.x.shape == (len(rows), 6)
+        for k, s in enumerate(singles):
+            assert_row_is_single(batch, k, s)
+            np.testing.assert_array_equal(batch.tip_reaction_force[k], s.tip_reaction_force)
+            np.testing.assert_array_equal(batch.tip_reaction_moment[k], s.tip_reaction_moment)
+    # Not vacuous: the clamp takes up friction and contact (tens of mN) on the pressed rows.
+    assert (np.abs(batch.friction_force[:, 0, 0]) > 1e-4).sum() >= 2
+    assert (np.linalg.norm(batch.tip_reaction_force, axis=1) > 1e-3).all()
 
 
 def test_friction_steps_reach_the_batch(rough, singles):
@@ -155,13 +183,6 @@ def test_friction_batch_refuses_bad_input_by_name(rough, monkeypatch):
     for bad in (0, -1, 100_001, 2.5, "80", True, None):
         with pytest.raises(InputError, match="friction_steps"):
             solve_statics_batch(rough, P, options=SolverOptions(friction_steps=bad))
-    # A held tip does not follow a frictional path: refused naming the friction.
-    with pytest.raises(InputError, match=r"obstacles\[0\]\.friction"):
-        solve_statics_batch(
-            rough,
-            P,
-            tip_constraint={"type": "pinned", "position": ["20 mm", "0 mm", "-70 mm"]},
-        )
     # Warm starts have no place on a path: the core's batch with guesses (x0, as the
     # calibrations pass them) refuses a frictional design by name, and so do the
     # parameter sensitivities without them.

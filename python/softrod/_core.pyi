@@ -410,6 +410,7 @@ def solve_constrained_tip_batch(
     stiffness_scale: _ArrayLike | None = None,
     on_invalid: str = "raise",
     tensions: _ArrayLike | None = None,
+    friction_steps: int = ...,
 ) -> dict[str, Any]: ...
 def solve_rod_system_batch(
     rods: Sequence[tuple[Rod, _Vec3, _Vec3, _Vec3, Sequence[Sequence[float]]]],

@@ -633,8 +633,9 @@ def solve_statics_batch(
     and ``friction_force`` (m, obstacles, 3) N hold each obstacle's resultant contact force
     and its tangential part (``StaticSolution.contact``'s ``total_force`` and
     ``friction_force``; NaN on failed rows). A row whose path fails is kept failed as any
-    row. A held tip (``tip_constraint``) with friction is refused naming
-    ``obstacles[k].friction``. ``stiffness_map`` as in :func:`solve_statics`,
+    row. With a held tip (``tip_constraint``) every row's path also moves the held pose
+    from the unloaded rod's tip to the prescribed one, as the single held frictional solve
+    does, and the rows carry their tip reactions. ``stiffness_map`` as in :func:`solve_statics`,
     evaluated in one call for all rows.
 
     ``stable`` (m,) says which equilibria are stable (``stability_assessed`` (m,) is False
@@ -716,9 +717,9 @@ def solve_statics_batch(
 def _core_batch(
     rod, arr, tf, tm, threads, sigma, on_invalid, tens, options: dict, held, friction_steps
 ):
-    """One Rust batch call: the free tip's ``Rod.solve_batch`` (with friction, one load
-    path of ``friction_steps`` increments per row), or with ``held`` (a constraint's
-    ``core_args()``) the constrained batch (which refuses friction)."""
+    """One Rust batch call: the free tip's ``Rod.solve_batch``, or with ``held`` (a
+    constraint's ``core_args()``) the constrained batch; with friction either follows one
+    load path of ``friction_steps`` increments per row."""
     if held is None:
         return rod.solve_batch(
             arr,
@@ -744,6 +745,7 @@ def _core_batch(
         stiffness_scale=sigma,
         on_invalid=on_invalid,
         tensions=tens,
+        friction_steps=friction_steps,
         **options,
     )
 

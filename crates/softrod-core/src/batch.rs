@@ -4,8 +4,9 @@
 //! The same holds for a tip held by a constraint ([`solve_constrained_batch`]: every row is
 //! one [`solve_constrained`], cold) and for a system of rods holding a platform
 //! ([`solve_system_batch`]: every row is one [`solve_system`], cold) and for obstacles with
-//! friction ([`solve_friction_batch`]: every row is one [`friction::solve`], its own load
-//! path from the unloaded rod): no row starts from another row's solution.
+//! friction ([`solve_friction_batch`] and [`solve_held_friction_batch`]: every row is one
+//! [`friction::solve`] or [`friction::solve_held`], its own load path from the unloaded
+//! rod): no row starts from another row's solution.
 
 use crate::error::{Result, SoftrodError};
 use crate::marker::Marker;
@@ -527,6 +528,45 @@ pub fn solve_friction_batch(
     opts: &SolverOptions,
     threads: usize,
 ) -> Result<Vec<BatchRow>> {
+    friction_rows(rod, inputs, steps, opts, threads, &|loads| {
+        friction::solve(rod, loads, None, steps, opts).map(|sol| (BatchRow::solved(&sol), sol))
+    })
+}
+
+/// [`solve_friction_batch`] with the tip held by `constraint` (pinned or clamped): every
+/// row is one [`friction::solve_held`] from the unloaded rod, its held pose moved along
+/// the row's path, bitwise the single held frictional solve; rows carry their tip
+/// reactions as in [`solve_constrained_batch`] and each obstacle's contact and friction
+/// force. A free `constraint` is [`solve_friction_batch`].
+pub fn solve_held_friction_batch(
+    rod: &Rod,
+    inputs: &BatchInputs,
+    constraint: &TipConstraint,
+    steps: usize,
+    opts: &SolverOptions,
+    threads: usize,
+) -> Result<Vec<BatchRow>> {
+    constraint.validate()?;
+    if let TipConstraint::Free = constraint {
+        return solve_friction_batch(rod, inputs, steps, opts, threads);
+    }
+    friction_rows(rod, inputs, steps, opts, threads, &|loads| {
+        friction::solve_held(rod, loads, constraint, None, steps, opts)
+            .map(|c| (BatchRow::held(&c), c.solution))
+    })
+}
+
+/// The frictional batches' rows: inputs and `steps` checked before any work, then every
+/// row solved by `solve_row` (one load path, cold) with the single solve's contact report
+/// (`softrod.solve_statics`'s), failed rows kept as in [`solve_batch`].
+fn friction_rows(
+    rod: &Rod,
+    inputs: &BatchInputs,
+    steps: usize,
+    opts: &SolverOptions,
+    threads: usize,
+    solve_row: &(dyn Fn(&Loads) -> Result<(BatchRow, Solution)> + Sync),
+) -> Result<Vec<BatchRow>> {
     opts.validate()?;
     friction::check_steps(steps)?;
     if !friction::has_friction(rod) {
@@ -542,20 +582,19 @@ pub fn solve_friction_batch(
     let k = rod.spec.obstacles.len();
     in_pool(threads, rows.count, &|r| {
         let loads = rows.loads(r);
-        // The contact report of the single solve (`softrod.solve_statics`), row by row.
-        let solved = friction::solve(rod, &loads, None, steps, opts).and_then(|sol| {
+        let solved = solve_row(&loads).and_then(|(row, sol)| {
             let rep = crate::statics::contact::report(rod, &loads, &sol)?;
-            Ok((sol, rep))
+            Ok((row, rep))
         });
         match solved {
-            Ok((sol, rep)) => {
+            Ok((row, rep)) => {
                 // A frictional rod has obstacles, so its report is there.
                 let (contact_force, friction_force) =
                     rep.map_or_else(Default::default, |c| (c.force, c.friction));
                 BatchRow {
                     contact_force,
                     friction_force,
-                    ..BatchRow::solved(&sol)
+                    ..row
                 }
             }
             Err(e) => BatchRow {

@@ -217,3 +217,76 @@ fn friction_batch_refuses_bad_input_by_name() {
             .unwrap_err(),
     );
 }
+
+/// A clamped tip: every row is one `friction::solve_held` (its clamp moved along its own
+/// path from the unloaded rod's tip), bitwise on 1 and 2 threads, tip reactions included;
+/// a free constraint is the free frictional batch.
+#[test]
+fn held_friction_batch_equals_single_held_solves_bitwise() {
+    use softrod_core::batch::solve_held_friction_batch;
+
+    let rod = Rod::new(finger(MU)).unwrap();
+    let opts = SolverOptions::default();
+    // Clamped where the frictionless finger's tip rests at 35 kPa (on the table).
+    let smooth = Rod::new(finger(0.0)).unwrap();
+    let mut at_rest = common::loads(&[35e3]);
+    at_rest.tensions = vec![0.0];
+    let rest = softrod_core::statics::solve(&smooth, &at_rest, None, &opts).unwrap();
+    let clamp = TipConstraint::Clamped {
+        position: rest.tip.r,
+        rotation: rest.tip.rot,
+    };
+    let (p, t) = columns();
+    let (p, t) = (&p[1..5], &t[1..5]);
+    let mut first: Option<Vec<BatchRow>> = None;
+    for threads in [1, 2] {
+        let rows =
+            solve_held_friction_batch(&rod, &inputs(p, t), &clamp, STEPS, &opts, threads).unwrap();
+        match &first {
+            None => {
+                for (r, row) in rows.iter().enumerate() {
+                    let mut loads = common::loads(&p[r..r + 1]);
+                    loads.tensions = vec![t[r]];
+                    let c = friction::solve_held(&rod, &loads, &clamp, None, STEPS, &opts).unwrap();
+                    let rep = report(&rod, &loads, &c.solution).unwrap().unwrap();
+                    assert!(row.converged, "row {r}");
+                    assert_eq!(
+                        bits3(&row.tip_position),
+                        bits3(&c.solution.tip.r),
+                        "row {r}"
+                    );
+                    assert_eq!(
+                        bits3(&row.base_force),
+                        bits3(&c.solution.base_force),
+                        "row {r}"
+                    );
+                    assert_eq!(bits3(&row.tip_reaction_force), bits3(&c.tip_reaction_force));
+                    assert_eq!(
+                        bits3(&row.tip_reaction_moment),
+                        bits3(&c.tip_reaction_moment)
+                    );
+                    let f: Vec<_> = row.friction_force.iter().map(bits3).collect();
+                    let g: Vec<_> = rep.friction.iter().map(bits3).collect();
+                    assert_eq!(f, g, "row {r}");
+                    assert_eq!(row.stable, None, "row {r}");
+                }
+                first = Some(rows);
+            }
+            Some(a) => assert_eq!(&rows, a, "threads = {threads}"),
+        }
+    }
+    // Not vacuous: the clamp carries friction on pressed rows (tens of mN).
+    let rows = first.unwrap();
+    assert!(
+        rows.iter()
+            .filter(|r| r.friction_force[0][0].abs() > 1e-4)
+            .count()
+            >= 2
+    );
+    // Free: the free frictional batch, row for row.
+    let free =
+        solve_held_friction_batch(&rod, &inputs(p, t), &TipConstraint::Free, STEPS, &opts, 1)
+            .unwrap();
+    let plain = solve_friction_batch(&rod, &inputs(p, t), STEPS, &opts, 1).unwrap();
+    assert_eq!(free, plain);
+}

@@ -2,14 +2,15 @@
 //! of rods sharing a platform (`softrod_core::statics::system`). No physics here.
 
 use crate::{
-    array2, array3, contact_dict, guarded, options, rows_dict, solution_dict, to_py_err, Context,
-    PyFrictionState, PyRod,
+    array2, array3, contact_dict, contact_forces, guarded, options, rows_dict, solution_dict,
+    to_py_err, Context, PyFrictionState, PyRod,
 };
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::batch::{
-    solve_constrained_batch, solve_system_batch, BatchInputs, BatchRow, SystemBatchInputs,
+    solve_constrained_batch, solve_held_friction_batch, solve_system_batch, BatchInputs, BatchRow,
+    SystemBatchInputs,
 };
 use softrod_core::ode::Loads;
 use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
@@ -167,8 +168,11 @@ fn solve_constrained_tip<'py>(
 /// optional (m, tendon channels) tension array) solved in parallel, GIL released, each
 /// exactly as `solve_constrained_tip` solves it alone. The dict of `Rod.solve_batch` ("x"
 /// (m, 6)) plus "tip_reaction_force" and "tip_reaction_moment" (m, 3), NaN on failed rows.
+/// With an obstacle's friction > 0 every row follows its own frictional load path in
+/// `friction_steps` increments (`batch::solve_held_friction_batch`), and the dict adds
+/// "contact_force" and "friction_force" (m, obstacles, 3).
 #[pyfunction]
-#[pyo3(signature = (rod, pressures, tip_force, tip_moment, kind, position=None, rotation=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=None, on_invalid="raise", tensions=None))]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, kind, position=None, rotation=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=None, on_invalid="raise", tensions=None, friction_steps=friction::DEFAULT_FRICTION_STEPS))]
 #[allow(clippy::too_many_arguments)]
 fn solve_constrained_tip_batch<'py>(
     py: Python<'py>,
@@ -188,6 +192,7 @@ fn solve_constrained_tip_batch<'py>(
     stiffness_scale: Option<PyReadonlyArray2<'py, f64>>,
     on_invalid: &str,
     tensions: Option<PyReadonlyArray2<'py, f64>>,
+    friction_steps: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let c = constraint(py, kind, position, rotation)?;
@@ -207,6 +212,7 @@ fn solve_constrained_tip_batch<'py>(
             on_invalid,
         )?;
         let rod = &rod.rod;
+        let frictional = friction::has_friction(rod);
         let rows = py
             .detach(|| {
                 let inputs = BatchInputs {
@@ -216,11 +222,18 @@ fn solve_constrained_tip_batch<'py>(
                     tip_force,
                     tip_moment,
                 };
-                solve_constrained_batch(rod, &inputs, &c, &opts, threads)
+                if frictional {
+                    solve_held_friction_batch(rod, &inputs, &c, friction_steps, &opts, threads)
+                } else {
+                    solve_constrained_batch(rod, &inputs, &c, &opts, threads)
+                }
             })
             .map_err(|e| to_py_err(py, e, Context::Input))?;
         let d = rows_dict(py, &rows)?;
         reactions(py, &d, &rows)?;
+        if frictional {
+            contact_forces(py, &d, &rows, rod.spec.obstacles.len())?;
+        }
         Ok(d)
     })
 }

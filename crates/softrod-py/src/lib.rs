@@ -492,18 +492,7 @@ impl PyRod {
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
             let d = rows_dict(py, &rows)?;
             if frictional {
-                // Per row, per obstacle, a force: (m, obstacles, 3).
-                let k = rod.spec.obstacles.len();
-                let stack = |of: &dyn Fn(&BatchRow) -> &[[f64; 3]]| {
-                    let flat: Vec<f64> = rows
-                        .iter()
-                        .flat_map(|r| of(r).as_flattened())
-                        .copied()
-                        .collect();
-                    PyArray1::from_vec(py, flat).reshape([rows.len(), k, 3])
-                };
-                d.set_item("contact_force", stack(&|r| &r.contact_force)?)?;
-                d.set_item("friction_force", stack(&|r| &r.friction_force)?)?;
+                contact_forces(py, &d, &rows, rod.spec.obstacles.len())?;
             }
             Ok(d)
         })
@@ -746,6 +735,27 @@ pub(crate) fn rows_dict<'py>(py: Python<'py>, rows: &[BatchRow]) -> PyResult<Bou
             .collect::<Vec<_>>(),
     )?;
     Ok(d)
+}
+
+/// A frictional batch's "contact_force" and "friction_force": per row, per obstacle, a
+/// force, (m, obstacles, 3).
+pub(crate) fn contact_forces(
+    py: Python<'_>,
+    d: &Bound<'_, PyDict>,
+    rows: &[BatchRow],
+    obstacles: usize,
+) -> PyResult<()> {
+    let stack = |of: &dyn Fn(&BatchRow) -> &[[f64; 3]]| {
+        let flat: Vec<f64> = rows
+            .iter()
+            .flat_map(|r| of(r).as_flattened())
+            .copied()
+            .collect();
+        PyArray1::from_vec(py, flat).reshape([rows.len(), obstacles, 3])
+    };
+    d.set_item("contact_force", stack(&|r| &r.contact_force)?)?;
+    d.set_item("friction_force", stack(&|r| &r.friction_force)?)?;
+    Ok(())
 }
 
 /// Tensor-product PCHIP on a regular grid (the interpolation of table stiffness maps).

@@ -13,15 +13,15 @@ use crate::statics::{Problem, Solution};
 /// friction (a system, the batches but the frictional one, the sensitivities, inverse
 /// statics, the linearisation): Coulomb friction makes a static equilibrium depend on the
 /// loading path (a stuck contact holds whatever tangential force the history left in it),
-/// and only the single rod's solves (`friction::solve`, also one per row in
-/// `crate::batch::solve_friction_batch`, and `friction::solve_held`) follow a frictional
-/// load path.
+/// and only the single rod's solves (`friction::solve` and `friction::solve_held`, also one
+/// per row in `crate::batch::solve_friction_batch` and `solve_held_friction_batch`) follow
+/// a frictional load path.
 pub fn frictionless(rod: &Rod) -> Result<()> {
     if let Some(k) = rod.spec.obstacles.iter().position(|o| o.friction != 0.0) {
         return Err(SoftrodError::invalid(
             format!("obstacles[{k}].friction"),
             rod.spec.obstacles[k].friction,
-            "this static solve is frictionless (with Coulomb friction the equilibrium depends on the loading path, which only solve_statics of one rod, its tip free or held, and solve_statics_batch of a free tip follow: docs/contact.md, \"Friction in the statics\"); set friction = 0 here",
+            "this static solve is frictionless (with Coulomb friction the equilibrium depends on the loading path, which only solve_statics and solve_statics_batch of one rod, its tip free or held, follow: docs/contact.md, \"Friction in the statics\"); set friction = 0 here",
         ));
     }
     Ok(())
