@@ -274,3 +274,20 @@ def test_any_rows_any_threads_friction_batch_equals_single(p, threads, steps):
             assert np.isnan(batch.friction_force[k]).all()
             continue
         assert_row_is_single(batch, k, s)
+
+
+def test_workspace_of_a_frictional_design_is_its_rows_loaded_from_rest(rough):
+    """The control workspace samples its box with the frictional batch: each sample is
+    the single frictional solve of its inputs from the unloaded rod, bitwise."""
+    ws = softrod.workspace(
+        rough,
+        pressure_bounds=[[0.0, 45e3]],
+        tension_bounds=[[0.0, 0.0]],
+        samples=3,
+        options=STEPS,
+        threads=2,
+    )
+    assert ws.converged.all()
+    for p, t, tip in zip(ws.pressures, ws.tensions, ws.tip_position, strict=True):
+        s = solve_statics(rough, p, tensions=t, options=STEPS)
+        np.testing.assert_array_equal(tip, s.tip_position)

@@ -250,7 +250,10 @@ def workspace(
     for a design with tendons, ``tension_bounds`` (N, lo >= 0; default: the design's
     operating range): ``samples`` values per free input on each face of the input box,
     solved in parallel by the Rust batch on ``threads`` cores (0 = all). Failed solves are
-    kept with ``converged=False``."""
+    kept with ``converged=False``. With an obstacle's friction > 0 every sample is its own
+    load path from the unloaded rod (``options.friction_steps`` increments, as
+    :func:`~softrod.solve_statics_batch` solves it): the workspace reached by loading from
+    rest."""
     import time
 
     from ..statics import solve_statics_batch
