@@ -116,3 +116,20 @@ def ring_down_frequency(trajectory, t_start, axis=0):
 
     p, _ = curve_fit(model, t[m], x[m], p0=[2 * xx.std(), 1.0, w0, 0.0, x[m].mean()], maxfev=20000)
     return p[2] / (2 * np.pi), p[1]
+
+
+@pytest.fixture(scope="module")
+def finger():
+    """The bundled finger pressed onto its table (tests/friction_designs.py)."""
+    from friction_designs import FINGER
+    from softrod import load_design
+
+    return load_design(FINGER)
+
+
+@pytest.fixture(scope="module")
+def rough(finger):
+    """The same finger on a table with Coulomb friction MU (tests/friction_designs.py)."""
+    from friction_designs import MU
+
+    return finger.replace({"obstacles[0].friction": MU})

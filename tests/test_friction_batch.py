@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import softrod
+from friction_designs import FINGER, MU
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from softrod import (
@@ -25,8 +26,6 @@ from softrod import (
 
 pytestmark = pytest.mark.fast
 
-FINGER = "prebent_finger_on_table"
-MU = 0.5
 #: Few increments keep the tests short; the increment count changes the answer (first
 #: order), never whether batch and single agree.
 STEPS = SolverOptions(friction_steps=20)
@@ -35,16 +34,6 @@ STEPS = SolverOptions(friction_steps=20)
 P = [[0.0], [15e3], [25e3], [35e3], [45e3], [35e3]]
 T = [[0.0], [0.0], [0.0], [0.0], [0.0], [0.05]]
 FIELDS = ("tip_position", "tip_rotation", "base_force", "base_moment")
-
-
-@pytest.fixture(scope="module")
-def finger():
-    return load_design(FINGER)
-
-
-@pytest.fixture(scope="module")
-def rough(finger):
-    return finger.replace({"obstacles[0].friction": MU})
 
 
 @pytest.fixture(scope="module")

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from friction_designs import FINGER, MU
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from softrod import (
@@ -24,19 +25,7 @@ from softrod import (
 
 pytestmark = pytest.mark.fast
 
-FINGER = "prebent_finger_on_table"
 G = 9.81
-MU = 0.5
-
-
-@pytest.fixture(scope="module")
-def finger():
-    return load_design(FINGER)
-
-
-@pytest.fixture(scope="module")
-def rough(finger):
-    return finger.replace({"obstacles[0].friction": MU})
 
 
 def balance_error(sol) -> float:
