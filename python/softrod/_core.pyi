@@ -13,6 +13,7 @@ __all__ = [
     "PccModel",
     "Rod",
     "Simulator",
+    "SystemFrictionState",
     "SystemSimulator",
     "__version__",
     "_panic_inside_guard",
@@ -48,6 +49,23 @@ class FrictionState:
     def tensions(self) -> list[float]: ...
     @property
     def tip_constraint(self) -> str: ...
+
+@final
+class SystemFrictionState:
+    """Where a system's frictional static load path stands: every rod's loads and contact
+    memory, the attachments and the platform's load (opaque; it belongs to the system it
+    was solved with)."""
+
+    @property
+    def max_elastic_slip(self) -> float: ...
+    @property
+    def pressures(self) -> list[list[float]]: ...
+    @property
+    def tensions(self) -> list[list[float]]: ...
+    @property
+    def platform_force(self) -> list[float]: ...
+    @property
+    def platform_moment(self) -> list[float]: ...
 
 @final
 class Rod:
@@ -392,6 +410,8 @@ def solve_rod_system(
     max_load_steps: int = 200,
     stretch_range: tuple[float, float] = ...,
     on_invalid: str = "raise",
+    friction_steps: int = 80,
+    history: SystemFrictionState | None = None,
 ) -> dict[str, Any]: ...
 def solve_constrained_tip_batch(
     rod: Rod,
@@ -424,4 +444,5 @@ def solve_rod_system_batch(
     max_load_steps: int = 200,
     stretch_range: tuple[float, float] = ...,
     on_invalid: str = "raise",
+    friction_steps: int = 80,
 ) -> dict[str, Any]: ...

@@ -188,7 +188,10 @@ class SystemSolution:
     platform applies to its tip in ``tip_reaction_force`` / ``tip_reaction_moment``) and
     the platform's pose. ``stable``: the whole system's equilibrium is stable (docs/model.md,
     "Systems of rods"; every rod's ``stable`` says the same), None where it is not assessed
-    (a follower load on some rod) or the solve failed."""
+    (a follower load on some rod, friction) or the solve failed. ``friction_state``: where
+    a frictional load path stands (a ``softrod._core.SystemFrictionState``: every rod's
+    loads and contact memory, the platform's load), for ``solve_system(...,
+    history=this)`` to go on from; None without friction."""
 
     system: System
     rods: tuple[StaticSolution, ...]
@@ -200,6 +203,7 @@ class SystemSolution:
     load_steps: int
     unknowns: np.ndarray = field(repr=False)
     stable: bool | None = None
+    friction_state: Any = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         if not self.converged:
@@ -328,6 +332,7 @@ def solve_system(
     platform_moment: Any = None,
     options: SolverOptions | None = None,
     initial: SystemSolution | None = None,
+    history: SystemSolution | None = None,
     check: bool = True,
     on_invalid: str = "raise",
     on_unstable: str = "warn",
@@ -346,6 +351,14 @@ def solve_system(
     says what an unstable equilibrium does, as for :func:`solve_statics`: "warn" (default, a
     :class:`StabilityWarning`), "raise" (:class:`InvalidStateError` with rule "stability")
     or "ignore".
+
+    Where some rod's design has an obstacle with friction > 0 the system follows a load
+    path (docs/contact.md, "Friction in the statics", "Systems of rods"): from the
+    unloaded rods, or with ``history`` (a frictional SystemSolution of this system) from
+    that solution's loads and contact memory, to the requested pressures, tensions,
+    platform load and attachments in ``options.friction_steps`` equal increments; the
+    answer depends on the path, ``stable`` is None, ``friction_state`` carries the path
+    on, and a warm start (``initial``) is refused.
     """
     if not isinstance(system, System):
         system = load_system(system)
@@ -396,9 +409,16 @@ def solve_system(
             raise V.fail("initial", type(initial).__name__, "must be a SystemSolution or None")
         if initial.converged:
             guess = initial.unknowns.tolist()
+    state = _system_history(history)
     try:
         out = _core.solve_rod_system(
-            entries, platform, guess=guess, on_invalid=on_invalid, **opts.as_kwargs()
+            entries,
+            platform,
+            guess=guess,
+            on_invalid=on_invalid,
+            friction_steps=int(opts.friction_steps),
+            history=state,
+            **opts.as_kwargs(),
         )
     except ConvergenceError as exc:
         if check:
@@ -443,6 +463,7 @@ def solve_system(
                 tip_reaction_force=np.array(o["tip_reaction_force"]),
                 tip_reaction_moment=np.array(o["tip_reaction_moment"]),
                 contact=Contact.from_core(o["contact"]) if "contact" in o else None,
+                friction_state=o.get("friction_state"),
             )
         )
     return SystemSolution(
@@ -456,7 +477,32 @@ def solve_system(
         load_steps=out["load_steps"],
         unknowns=np.array(out["x"]),
         stable=out["stable"],
+        friction_state=out.get("friction_state"),
     )
+
+
+def _system_history(history):
+    """The friction state a system's frictional path continues from (``history=``): a
+    converged frictional SystemSolution (the core checks that it belongs to this system's
+    designs, obstacles and platform, and that the system has friction)."""
+    if history is None:
+        return None
+    if not isinstance(history, SystemSolution):
+        raise V.fail(
+            "history",
+            type(history).__name__,
+            "must be a frictional SystemSolution (from solve_system) or None",
+            InputError,
+        )
+    if history.friction_state is None:
+        raise V.fail(
+            "history",
+            history.system.name,
+            "must be a converged frictional SystemSolution (its friction_state is None: "
+            "frictionless, or failed)",
+            InputError,
+        )
+    return history.friction_state
 
 
 def _load3(value, kind: str, name: str) -> np.ndarray:
@@ -649,7 +695,9 @@ def solve_system_batch(
     ``stable`` (m,) says which equilibria are stable (``stability_assessed`` False where not
     assessed); ``on_unstable``: "warn" (default, one :class:`StabilityWarning` naming how
     many rows are unstable), "raise" or "ignore". Bad inputs raise :class:`InputError`
-    naming the row, the rod and the rule before any work.
+    naming the row, the rod and the rule before any work. Where some rod's obstacle has
+    friction > 0 every row is its own load path from the unloaded rods in
+    ``options.friction_steps`` increments, exactly as :func:`solve_system` solves it alone.
     """
     import warnings
 
@@ -750,6 +798,7 @@ def solve_system_batch(
         tensions=flat_t,
         threads=threads,
         on_invalid=on_invalid,
+        friction_steps=int(opts.friction_steps),
         **opts.as_kwargs(),
     )
     violation = np.asarray(out["violation"], dtype=object)

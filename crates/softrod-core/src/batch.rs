@@ -18,7 +18,9 @@ use crate::sensitivity::{
 };
 use crate::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
 use crate::statics::friction;
-use crate::statics::system::{solve_system, Platform, SystemRod, SystemSolution};
+use crate::statics::system::{
+    solve_system, solve_system_friction, Platform, SystemRod, SystemSolution,
+};
 use crate::statics::{n_unknowns, solve, Solution, SolverOptions};
 use crate::validity::{self, Policy};
 
@@ -760,6 +762,9 @@ pub struct SystemBatchInputs<'a> {
 /// equilibrium of the whole system; the rods' other loads and the platform's are shared):
 /// every row is solved exactly as [`solve_system`] solves it alone, cold, so a row is
 /// bitwise equal to the single solve whatever the thread count or the grouping of rows.
+/// Where some rod's obstacle has friction, every row is one [`solve_system_friction`]
+/// from the unloaded rods in `friction_steps` increments (its own load path; checked in
+/// 1..=`friction::MAX_FRICTION_STEPS` then, unused otherwise).
 /// The system, the inputs and (with `Policy::Raise`) the rods' operating ranges are checked
 /// before any work; an input error names the row and the rod ("row 3:
 /// rods[1].pressures[0]").
@@ -767,11 +772,16 @@ pub fn solve_system_batch(
     rods: &[SystemRod],
     platform: &Platform,
     inputs: &SystemBatchInputs,
+    friction_steps: usize,
     opts: &SolverOptions,
     threads: usize,
 ) -> Result<Vec<SystemBatchRow>> {
     opts.validate()?;
     crate::statics::system::validate(rods, platform)?;
+    let frictional = rods.iter().any(|r| friction::has_friction(r.rod));
+    if frictional {
+        friction::check_steps(friction_steps)?;
+    }
     let nc: Vec<usize> = rods.iter().map(|r| r.rod.n_channels).collect();
     let nt: Vec<usize> = rods.iter().map(|r| r.rod.n_tendons).collect();
     let (wc, wt) = (nc.iter().sum::<usize>(), nt.iter().sum::<usize>());
@@ -852,19 +862,26 @@ pub fn solve_system_batch(
             })
             .collect()
     };
+    let check = if frictional {
+        crate::statics::check_inputs_any_friction
+    } else {
+        crate::statics::check_inputs
+    };
     for r in 0..count {
         for (i, sr) in row_rods(r).iter().enumerate() {
-            crate::statics::check_inputs(sr.rod, &sr.loads, opts)
-                .map_err(|e| in_row(r, &format!("rods[{i}]."), e))?;
+            check(sr.rod, &sr.loads, opts).map_err(|e| in_row(r, &format!("rods[{i}]."), e))?;
         }
     }
     let n = rods.len();
-    in_pool(
-        threads,
-        count,
-        &|r| match solve_system(&row_rods(r), platform, None, opts) {
-            Ok(s) => SystemBatchRow::solved(&s),
-            Err(e) => SystemBatchRow::failed(n, &e),
-        },
-    )
+    let solve = |rods: &[SystemRod]| {
+        if frictional {
+            solve_system_friction(rods, platform, None, friction_steps, opts)
+        } else {
+            solve_system(rods, platform, None, opts)
+        }
+    };
+    in_pool(threads, count, &|r| match solve(&row_rods(r)) {
+        Ok(s) => SystemBatchRow::solved(&s),
+        Err(e) => SystemBatchRow::failed(n, &e),
+    })
 }

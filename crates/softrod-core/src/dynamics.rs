@@ -1074,12 +1074,16 @@ impl Simulator {
             tip_frame: self.rod.spec.tip.frame,
             stiffness_scale: self.sigma,
         };
+        // At rest the regularised friction carries no force: the static start is the
+        // frictionless equilibrium (`statics::contact::without_friction`).
+        let smooth = statics::contact::without_friction(&self.rod);
+        let rest_rod = smooth.as_ref().unwrap_or(&self.rod);
         let z_scaled = match initial {
             Initial::Static if problem.end.is_some() => {
                 // The constrained equilibrium of this discretisation at rest (c0 = 0), from
                 // the static solver's (shooting, the same constraint).
                 let sol = statics::constraint::solve_constrained(
-                    &self.rod,
+                    rest_rod,
                     &loads,
                     &self.end,
                     None,
@@ -1097,11 +1101,10 @@ impl Simulator {
                 // Equilibrium in contact: this discretisation's static problem with the
                 // contact loads (c0 = 0), from the static solver's (shooting, contact
                 // too) shape.
-                let solved =
-                    statics::solve(&self.rod, &loads, None, &SolverOptions::default()).ok();
+                let solved = statics::solve(rest_rod, &loads, None, &SolverOptions::default()).ok();
                 self.start_stable = solved.as_ref().and_then(|sol| sol.stable);
                 let z = solved
-                    .map(|sol| static_guess(&problem, &statics::shape(&self.rod, &loads, &sol)))
+                    .map(|sol| static_guess(&problem, &statics::shape(rest_rod, &loads, &sol)))
                     .unwrap_or_else(|| problem.straight_unknowns());
                 let (z, it) = refine_static(&problem, z, self.opts.tol, "in contact")?;
                 self.stats.newton_iterations += it;

@@ -12,6 +12,7 @@ use softrod_core::batch::{
 use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::statics::constraint::{solve_constrained, TipConstraint};
 use softrod_core::statics::contact::report;
+use softrod_core::statics::friction::DEFAULT_FRICTION_STEPS;
 use softrod_core::statics::system::{solve_system, Platform, SystemRod};
 use softrod_core::statics::SolverOptions;
 use softrod_core::{Rod, SoftrodError};
@@ -330,7 +331,15 @@ fn system_batch_equals_single_solves_bitwise() {
             pressures: &flat,
             tensions: None,
         };
-        let out = solve_system_batch(&rods, &platform, &inputs, &opts, threads).unwrap();
+        let out = solve_system_batch(
+            &rods,
+            &platform,
+            &inputs,
+            DEFAULT_FRICTION_STEPS,
+            &opts,
+            threads,
+        )
+        .unwrap();
         assert_eq!(out.len(), rows_in.len());
         check(&out, 0, &format!("threads = {threads}"));
     }
@@ -338,7 +347,8 @@ fn system_batch_equals_single_solves_bitwise() {
         pressures: &flat[6 * 2..],
         tensions: None,
     };
-    let out = solve_system_batch(&rods, &platform, &inputs, &opts, 2).unwrap();
+    let out =
+        solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &opts, 2).unwrap();
     check(&out, 2, "from row 2");
 
     // Bad inputs name the row and the rod, before any work.
@@ -348,19 +358,22 @@ fn system_batch_equals_single_solves_bitwise() {
         pressures: &bad,
         tensions: None,
     };
-    let e = solve_system_batch(&rods, &platform, &inputs, &opts, 1).unwrap_err();
+    let e = solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &opts, 1)
+        .unwrap_err();
     assert_eq!(field_of(e), "row 3: rods[1].pressures[1]");
     let inputs = SystemBatchInputs {
         pressures: &flat[..7],
         tensions: None,
     };
-    let e = solve_system_batch(&rods, &platform, &inputs, &opts, 1).unwrap_err();
+    let e = solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &opts, 1)
+        .unwrap_err();
     assert_eq!(field_of(e), "pressures");
     let inputs = SystemBatchInputs {
         pressures: &flat,
         tensions: Some(&[1.0]),
     };
-    let e = solve_system_batch(&rods, &platform, &inputs, &opts, 1).unwrap_err();
+    let e = solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &opts, 1)
+        .unwrap_err();
     assert_eq!(field_of(e), "tensions");
 
     // A row that cannot converge is kept failed, the others solved.
@@ -373,7 +386,8 @@ fn system_batch_equals_single_solves_bitwise() {
         pressures: &flat,
         tensions: None,
     };
-    let out = solve_system_batch(&rods, &platform, &inputs, &tight, 2).unwrap();
+    let out =
+        solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &tight, 2).unwrap();
     assert_eq!(out.len(), rows_in.len());
     let failed: Vec<_> = out.iter().filter(|r| !r.converged).collect();
     assert!(!failed.is_empty());

@@ -168,6 +168,49 @@ fn damped_held_runs_in_contact_settle_on_the_static_equilibrium() {
     }
 }
 
+/// On a plane with Coulomb friction the held beam's static start is the frictionless one
+/// (the regularised friction carries no force at rest; the start once refused to run,
+/// its frictionless statics seeing the friction): bitwise the same shape, and then the
+/// friction acts as the beam moves (the tip pose is moved along the plane over 20 steps,
+/// dragging the beam over it).
+#[test]
+fn held_run_on_a_frictional_plane_starts_from_the_frictionless_rest() {
+    let om = omega1();
+    let opts = DynOptions {
+        dt: 0.1 / om,
+        ..Default::default()
+    };
+    let mut runs: Vec<Simulator> = [0.5, 0.0]
+        .iter()
+        .map(|mu| {
+            sim(
+                beam_over_plane(16, 0.5 / om, *mu),
+                Initial::Static,
+                opts,
+                held("pinned"),
+            )
+        })
+        .collect();
+    assert_eq!(runs[0].shape(), runs[1].shape());
+    for s in &mut runs {
+        for k in 1..=20 {
+            s.set_tip_pose(TipConstraint::Pinned {
+                position: [L, 1e-3 * k as f64, 0.0],
+            })
+            .unwrap();
+            s.step(&[]).unwrap();
+        }
+    }
+    let (rough, smooth) = (runs[0].shape(), runs[1].shape());
+    let mid = rough.len() / 2;
+    // The friction holds the middle back against the drag.
+    eprintln!(
+        "mid-span y: rough {:.4e} m, smooth {:.4e} m",
+        rough[mid][1], smooth[mid][1]
+    );
+    assert!(rough[mid][1] < smooth[mid][1]);
+}
+
 /// Undamped and frictionless (the trapezoidal rule, alpha = -0.5: no numerical damping),
 /// the clamped beam released straight falls onto the plane and swings on it. The energy
 /// books (kinetic, elastic, gravity, penalty potential; no work: the held pose is fixed)

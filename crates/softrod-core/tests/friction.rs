@@ -7,59 +7,16 @@
 // Index loops over 3-vectors read like the equations they check.
 #![allow(clippy::needless_range_loop)]
 
+mod bars;
 mod common;
 
-use common::{design, direct_section, geometry_section, loads, obstacle, HORIZONTAL};
+use bars::{bar_on_bed, pulled, round_bar, EA, G, K, L, STEPS};
 use softrod_core::ode::Loads;
-use softrod_core::spec::obstacle::ObstacleKind;
-use softrod_core::spec::MaterialSpec;
 use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
 use softrod_core::statics::contact::report;
 use softrod_core::statics::friction::{self, FrictionPath};
 use softrod_core::statics::{shape, Shape, Solution, SolverOptions};
-use softrod_core::{DesignSpec, Rod};
-
-const G: f64 = 9.81;
-const L: f64 = 1.0;
-/// Line weight q, N/m.
-const Q: f64 = 1.0;
-/// Axial stiffness EA, N.
-const EA: f64 = 100.0;
-/// Penalty stiffness k = k_t, N/m^2. Single shooting needs the stuck zone's decay length
-/// sqrt(EA / k_t) = 0.1 m and the bed's Winkler length (4 EI / k)^(1/4) = 0.14 m to be
-/// a good fraction of L (the shooting ODE grows like exp(L / length): docs/contact.md,
-/// "Which solver").
-const K: f64 = 1e4;
-const STEPS: usize = 200;
-
-/// Smoothing length of the bed's ramp, m: a tenth of the sinking q / k, so the bed is
-/// linear where the bar lies on it.
-const EPS: f64 = 1e-5;
-/// Where the bar lies under its weight: its axis sinks q / k + eps / 2 into the bed.
-const SINK: f64 = Q / K + 0.5 * EPS;
-
-/// A 1 m bar (EA = GA = 100 N, EI = 1 N m^2, q = 1 N/m; stiffnesses given directly, so
-/// its surface radius is 0), clamped horizontally with its axis at the depth where it
-/// lies on a plane with friction `mu` under its weight: straight, the bed carrying q all
-/// along and the clamp none of the weight (with the clamp at the bed's surface it would
-/// carry a share over the Winkler length, which the closed forms leave out).
-fn bar_on_bed(mu: f64) -> DesignSpec {
-    let sec = direct_section("bar", L, EA, EA, 1.0, 1.0, Q / G, STEPS);
-    let mut d = design(vec![sec], HORIZONTAL, G);
-    let mut plane = obstacle(ObstacleKind::Plane, K, 1e-3);
-    plane.point = Some([0.0, 0.0, SINK]);
-    plane.normal = Some([0.0, 0.0, 1.0]);
-    plane.smoothing = Some(EPS);
-    plane.friction = mu;
-    d.obstacles = vec![plane];
-    d
-}
-
-fn pulled(f: f64) -> Loads {
-    let mut l = loads(&[]);
-    l.tip_force = [f, 0.0, 0.0];
-    l
-}
+use softrod_core::Rod;
 
 /// EA (N) and q (N/m) of the compiled bar.
 fn ea_q(rod: &Rod) -> (f64, f64) {
@@ -705,23 +662,4 @@ fn held_frictional_solve_refuses_bad_input_by_name() {
     }
     let e = msg(solve_constrained(&rod, &l0, &pin, None, &opts).unwrap_err());
     assert!(e.contains("obstacles[0].friction"), "{e}");
-}
-
-/// A round bar (surface radius 5 mm, so the friction has a moment and the contact points
-/// roll with the sections) of 0.2 m, clamped horizontally on a plane with mu = 0.4.
-fn round_bar() -> Rod {
-    let material = MaterialSpec {
-        youngs_modulus: 1e6,
-        shear_modulus: 1e6 / 3.0,
-        density: 1300.0,
-    };
-    let r0 = 5e-3;
-    let sec = geometry_section("bar", 0.2, r0, 0.0, material, vec![], 40);
-    let mut d = design(vec![sec], HORIZONTAL, G);
-    let mut plane = obstacle(ObstacleKind::Plane, K, 1e-3);
-    plane.point = Some([0.0, 0.0, -r0]);
-    plane.normal = Some([0.0, 0.0, 1.0]);
-    plane.friction = 0.4;
-    d.obstacles = vec![plane];
-    Rod::new(d).unwrap()
 }

@@ -15,8 +15,11 @@ use softrod_core::batch::{
 use softrod_core::ode::Loads;
 use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
 use softrod_core::statics::friction;
-use softrod_core::statics::system::{solve_system, Platform, SystemRod};
+use softrod_core::statics::system::{
+    solve_system, solve_system_friction, Platform, SystemFrictionPath, SystemRod,
+};
 use softrod_core::SoftrodError;
+use std::sync::Arc;
 
 /// The solution as `Rod.solve` gives it, with the tip reaction.
 fn constrained_dict<'py>(py: Python<'py>, c: &ConstrainedSolution) -> PyResult<Bound<'py, PyDict>> {
@@ -259,13 +262,75 @@ type RodEntry<'py> = (
     [[f64; 3]; 3],
 );
 
+/// A system's frictional path at a converged equilibrium
+/// (`softrod_core::statics::system::SystemFrictionPath`): every rod's loads and contact
+/// memory, the attachments and the platform's load, for `solve_rod_system(history=...)` to
+/// continue the path from. Opaque; it belongs to the system it was solved with.
+#[pyclass(name = "SystemFrictionState", module = "softrod._core", frozen)]
+pub(crate) struct PySystemFrictionState {
+    path: Arc<SystemFrictionPath>,
+}
+
+#[pymethods]
+impl PySystemFrictionState {
+    /// Largest elastic tangential displacement stored in any rod's contact (m; 0: no
+    /// tangential load held).
+    #[getter]
+    fn max_elastic_slip(&self) -> f64 {
+        self.path.max_elastic_slip()
+    }
+
+    /// Every rod's pressures (Pa) at the path's end.
+    #[getter]
+    fn pressures(&self) -> Vec<Vec<f64>> {
+        self.path
+            .rods
+            .iter()
+            .map(|r| r.loads.pressures.clone())
+            .collect()
+    }
+
+    /// Every rod's tendon tensions (N) at the path's end.
+    #[getter]
+    fn tensions(&self) -> Vec<Vec<f64>> {
+        self.path
+            .rods
+            .iter()
+            .map(|r| r.loads.tensions.clone())
+            .collect()
+    }
+
+    /// The platform's force (N, world) at the path's end.
+    #[getter]
+    fn platform_force(&self) -> [f64; 3] {
+        self.path.platform.force
+    }
+
+    /// The platform's moment (N m, about its origin, world) at the path's end.
+    #[getter]
+    fn platform_moment(&self) -> [f64; 3] {
+        self.path.platform.moment
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "SystemFrictionState(rods={}, max_elastic_slip={:.3e} m)",
+            self.path.rods.len(),
+            self.path.max_elastic_slip()
+        )
+    }
+}
+
 /// Solve a system of rods whose tips hold one platform (GIL released). `rods`: entries
 /// as `RodEntry`; `platform`: (position, rotation, force, moment, mass, com_offset,
 /// gravity). Returns {"rods": [dicts as `Rod.solve_constrained`], "platform_position",
 /// "platform_rotation", "x", "iterations", "residual", "load_steps", "stable" (None: not
-/// assessed)}.
+/// assessed)}. With an obstacle's friction > 0 on some rod the system follows the
+/// frictional load path (`statics::system::solve_system_friction`: `friction_steps`
+/// increments from the unloaded rods, or from `history`, a `SystemFrictionState` of this
+/// system; `guess` is refused), and the dict has "friction_state".
 #[pyfunction]
-#[pyo3(signature = (rods, platform, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise"))]
+#[pyo3(signature = (rods, platform, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise", friction_steps=friction::DEFAULT_FRICTION_STEPS, history=None))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn solve_rod_system<'py>(
     py: Python<'py>,
@@ -278,6 +343,8 @@ fn solve_rod_system<'py>(
     max_load_steps: usize,
     stretch_range: (f64, f64),
     on_invalid: &str,
+    friction_steps: usize,
+    history: Option<PyRef<'py, PySystemFrictionState>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let opts = options(
@@ -306,13 +373,37 @@ fn solve_rod_system<'py>(
             })
             .collect();
         let pf = platform_of(platform);
+        let history = history.map(|h| h.path.clone());
+        let frictional =
+            softrod_core::statics::system::frictional(&system, history.is_some(), guess.is_some())
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
         let out = py
-            .detach(|| solve_system(&system, &pf, guess.as_deref(), &opts))
+            .detach(|| {
+                if frictional {
+                    solve_system_friction(&system, &pf, history.as_deref(), friction_steps, &opts)
+                } else {
+                    solve_system(&system, &pf, guess.as_deref(), &opts)
+                }
+            })
             .map_err(|e| to_py_err(py, e, Context::Input))?;
         let d = PyDict::new(py);
+        if let Some(path) = &out.friction {
+            d.set_item(
+                "friction_state",
+                Py::new(py, PySystemFrictionState { path: path.clone() })?,
+            )?;
+        }
         let mut rods_out = Vec::with_capacity(out.rods.len());
         for (c, r) in out.rods.iter().zip(&system) {
             let rd = constrained_dict(py, c)?;
+            // A rod of a frictional system: its path as a clamped rod's (held where the
+            // platform holds it), for `Rod.solve_constrained(history=...)`.
+            if let Some(path) = &c.solution.friction {
+                rd.set_item(
+                    "friction_state",
+                    Py::new(py, PyFrictionState { path: path.clone() })?,
+                )?;
+            }
             // A rod with obstacles: its contact report, as `Rod.solve` gives it.
             let rep = softrod_core::statics::contact::report(r.rod, &r.loads, &c.solution)
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
@@ -382,7 +473,7 @@ pub(crate) fn platform_of(p: PlatformEntry) -> Platform {
 /// "tip_rotation" (m, n, 3, 3), "stable" and "assessed" (m,) bool, and "violation" (m
 /// strings). NaN on failed rows.
 #[pyfunction]
-#[pyo3(signature = (rods, platform, pressures, tensions=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise"))]
+#[pyo3(signature = (rods, platform, pressures, tensions=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise", friction_steps=friction::DEFAULT_FRICTION_STEPS))]
 #[allow(clippy::too_many_arguments)]
 fn solve_rod_system_batch<'py>(
     py: Python<'py>,
@@ -397,6 +488,7 @@ fn solve_rod_system_batch<'py>(
     max_load_steps: usize,
     stretch_range: (f64, f64),
     on_invalid: &str,
+    friction_steps: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let opts = options(
@@ -433,7 +525,7 @@ fn solve_rod_system_batch<'py>(
                     pressures: &flat,
                     tensions: tens.as_deref(),
                 };
-                solve_system_batch(&system, &pf, &inputs, &opts, threads)
+                solve_system_batch(&system, &pf, &inputs, friction_steps, &opts, threads)
             })
             .map_err(|e| to_py_err(py, e, Context::Input))?;
         let m = out.len();
@@ -515,5 +607,6 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solve_rod_system_batch, m)?)?;
     m.add_function(wrap_pyfunction!(solve_constrained_tip, m)?)?;
     m.add_function(wrap_pyfunction!(solve_rod_system, m)?)?;
+    m.add_class::<PySystemFrictionState>()?;
     Ok(())
 }

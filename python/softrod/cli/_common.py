@@ -434,3 +434,13 @@ def _print_warnings(console, messages: list[str]) -> None:
 
     for message in messages:
         console.print(Text(f"warning: {message}", style="bold yellow"))
+
+
+def _friction_steps_option(what: str):
+    return click.option(
+        "--friction-steps",
+        type=click.IntRange(1, 100_000),
+        help=f"Load increments of {what} (an obstacle with friction > 0; the answer "
+        "follows the load path to first order in the increment, docs/contact.md 'Friction "
+        "in the statics'). Default: SolverOptions' (80).",
+    )

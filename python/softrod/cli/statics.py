@@ -16,6 +16,7 @@ from ._common import (
     _fmt_kpa,
     _fmt_vec,
     _for_option,
+    _friction_steps_option,
     _full_factorial,
     _handle_errors,
     _parse_grid,
@@ -84,16 +85,6 @@ def _friction_options(design, friction_steps: int | None):
             param_hint="--friction-steps",
         )
     return SolverOptions(friction_steps=friction_steps)
-
-
-def _friction_steps_option(what: str):
-    return click.option(
-        "--friction-steps",
-        type=click.IntRange(1, 100_000),
-        help=f"Load increments of {what} (an obstacle with friction > 0; the answer "
-        "follows the load path to first order in the increment, docs/contact.md 'Friction "
-        "in the statics'). Default: SolverOptions' (80).",
-    )
 
 
 def _lateral(sol) -> float:

@@ -18,6 +18,7 @@ from ._common import (
     _fmt_kpa,
     _fmt_vec,
     _for_option,
+    _friction_steps_option,
     _handle_errors,
     _parse_pressures,
     _parse_vector,
@@ -121,6 +122,7 @@ _moment_option = click.option(
     show_default=True,
     help="A rod outside its validity range: an error, or a warning with the result.",
 )
+@_friction_steps_option("the system's frictional solve")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object with SI values.")
 @click.option(
     "--plot",
@@ -130,19 +132,30 @@ _moment_option = click.option(
 )
 @_handle_errors
 def solve_system_cmd(
-    system, pressures, tensions, platform_force, platform_moment, on_invalid, as_json, plot_path
+    system,
+    pressures,
+    tensions,
+    platform_force,
+    platform_moment,
+    on_invalid,
+    friction_steps,
+    as_json,
+    plot_path,
 ):
     """Static equilibrium of SYSTEM: rods clamped at their bases and holding one platform.
 
     SYSTEM is a system file (TOML, docs/model.md "Systems of rods") or the name of a bundled
     system (two_spa_platform). Prints the platform's pose, every rod's tip and the wrench
-    the platform applies to it, and whether the whole system's equilibrium is stable.
+    the platform applies to it, and whether the whole system's equilibrium is stable. Where
+    a rod's obstacle has friction the system follows a load path from the unloaded rods in
+    --friction-steps increments (docs/contact.md, "Friction in the statics").
     """
     from rich.table import Table
 
     from ..system import solve_system
 
     sysm = _system_argument(system)
+    options = _system_friction_options(sysm, friction_steps)
     if plot_path is not None:
         _check_output(plot_path, "--plot", PLOT_SUFFIXES, "figure")
     ps = _per_rod(pressures, sysm, "--pressure", _parse_pressures)
@@ -155,6 +168,7 @@ def solve_system_cmd(
         tensions=ts,
         platform_force=force,
         platform_moment=moment,
+        options=options,
         on_invalid=on_invalid,
         on_unstable="ignore",
     )
@@ -233,6 +247,26 @@ def solve_system_cmd(
         plt.close(sol.plot(plot_path))  # written atomically
         # Keep stdout pure JSON with --json: say where the figure went on stderr instead.
         _say(f"wrote {plot_path}", stderr=as_json)
+
+
+def _system_friction_options(sysm, friction_steps: int | None):
+    """SolverOptions with --friction-steps N (None: the defaults), refused on a system
+    without friction, where it would be ignored."""
+    from ..statics import SolverOptions
+
+    if friction_steps is None:
+        return None
+    if not any(
+        float(o.get("friction", 0.0)) > 0
+        for r in sysm.rods
+        for o in r.design.document.get("obstacles", [])
+    ):
+        raise click.BadParameter(
+            f"{friction_steps}: no rod of the system has an obstacle with friction > 0, so "
+            "its solve has no load increments",
+            param_hint="--friction-steps",
+        )
+    return SolverOptions(friction_steps=friction_steps)
 
 
 @click.command("simulate-system")

@@ -862,11 +862,18 @@ impl SystemSimulator {
                 stiffness_scale: sigma,
             });
         }
+        // At rest the regularised friction carries no force: the start is the frictionless
+        // system's equilibrium (`statics::contact::without_friction`).
+        let smooth: Vec<Option<Rod>> = rods
+            .iter()
+            .map(|r| crate::statics::contact::without_friction(&r.rod))
+            .collect();
         let sys: Vec<SystemRod> = rods
             .iter()
             .zip(&loads)
-            .map(|(r, l)| SystemRod {
-                rod: &r.rod,
+            .zip(&smooth)
+            .map(|((r, l), s)| SystemRod {
+                rod: s.as_ref().unwrap_or(&r.rod),
                 loads: l.clone(),
                 attachment: r.attachment,
                 attachment_rotation: r.attachment_rotation,

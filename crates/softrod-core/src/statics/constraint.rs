@@ -262,6 +262,13 @@ pub(crate) trait Equations {
     fn stable(&self, _x: &[f64]) -> Option<bool> {
         None
     }
+    /// Whether the solution x holds every clamped tip on the branch of its prescribed
+    /// orientation (`on_quarter_turn`): the orientation error e(A) = vee(A - A^T) / 2
+    /// vanishes at a half turn too, and Newton may land there from a far predictor.
+    /// `newton` does not accept a solution off it (a path halves the step instead).
+    fn on_branch(&self, _x: &[f64]) -> bool {
+        true
+    }
     /// Whether the rods are a system's (a crossing names the rod).
     const SYSTEM: bool = false;
     /// The rods' problems and each one's unknowns in x, for the crossing check
@@ -314,11 +321,7 @@ pub(crate) fn newton(
             return Err((it + 1, norm));
         }
         if norm <= tol * inf_norm(&x).max(1.0) {
-            return Ok(NewtonOk {
-                x,
-                residual: norm,
-                iterations: it + 1,
-            });
+            return on_branch(eq, x, norm, it + 1);
         }
         let rv = DVector::from_column_slice(&r);
         let step = jac
@@ -354,11 +357,7 @@ pub(crate) fn newton(
         }
         if !accepted {
             if norm <= 100.0 * tol * inf_norm(&x).max(1.0) {
-                return Ok(NewtonOk {
-                    x,
-                    residual: norm,
-                    iterations: it + 1,
-                });
+                return on_branch(eq, x, norm, it + 1);
             }
             return Err((it + 1, norm));
         }
@@ -366,14 +365,37 @@ pub(crate) fn newton(
     }
     let norm = inf_norm(&r);
     if norm <= tol * inf_norm(&x).max(1.0) {
-        Ok(NewtonOk {
-            x,
-            residual: norm,
-            iterations: max_iter,
-        })
+        on_branch(eq, x, norm, max_iter)
     } else {
         Err((max_iter, norm))
     }
+}
+
+/// Newton's converged solution x, unless it is off the prescribed orientation's branch
+/// (`Equations::on_branch`): then a failure, whose residual is the half turn's (the
+/// error's size there is 0, so the path's message reports the step, not a residual).
+fn on_branch(
+    eq: &impl Equations,
+    x: Vec<f64>,
+    residual: f64,
+    iterations: usize,
+) -> std::result::Result<NewtonOk, (usize, f64)> {
+    if eq.on_branch(&x) {
+        Ok(NewtonOk {
+            x,
+            residual,
+            iterations,
+        })
+    } else {
+        Err((iterations, residual))
+    }
+}
+
+/// Whether the rotation `a` (prescribed^T actual) is within a quarter turn of the identity
+/// (trace > 1), the branch on which the orientation error e(a) has the prescribed pose as
+/// its zero; `check_half_turn` refuses an answer off it.
+pub(crate) fn on_quarter_turn(a: &[[f64; 3]; 3]) -> bool {
+    a[0][0] + a[1][1] + a[2][2] > 1.0
 }
 
 /// The outcome of `follow_path`: the solution at load factor 1 and the effort.
@@ -582,9 +604,15 @@ fn not_converged(
 
 // ---- one rod with a constrained tip ----
 
-/// The reference tip pose: the tip of the unloaded rod (x = 0 at load factor 0).
+/// The reference tip pose: the tip of the unloaded rod (x = 0 at load factor 0), without
+/// its obstacles: a bed the rod lies on within its tolerance already pushes on it at zero
+/// load, and integrating that push from a zero base wrench is not the rod's reference
+/// shape.
 pub(crate) fn reference_tip(rod: &Rod, loads: &Loads) -> State<f64> {
-    let p = Problem::new(rod, loads, 0.0);
+    let mut p = Problem::new(rod, loads, 0.0);
+    for c in &mut p.coeffs {
+        c.obstacles = None;
+    }
     integrate(rod, &p.coeffs, p.base_state(&[0.0; 6]), None)
 }
 
@@ -652,6 +680,14 @@ impl Held<'_, '_> {
 impl Equations for Held<'_, '_> {
     fn eval(&self, x: &[f64]) -> Vec<f64> {
         self.residual(x).to_vec()
+    }
+
+    fn on_branch(&self, x: &[f64]) -> bool {
+        if !self.pose.clamped {
+            return true;
+        }
+        let tip = integrate(self.p.rod, &self.p.coeffs, self.p.base_state(x), None);
+        on_quarter_turn(&tmatmul(&self.pose.rotation, &tip.rot))
     }
 
     fn eval_jac(&self, x: &[f64]) -> (Vec<f64>, DMatrix<f64>) {
@@ -759,6 +795,10 @@ impl Equations for Level<'_> {
 
     fn stable(&self, x: &[f64]) -> Option<bool> {
         constrained_stability(&self.p, x, &self.constraint)
+    }
+
+    fn on_branch(&self, x: &[f64]) -> bool {
+        self.held().on_branch(x)
     }
 
     fn rods<'s>(&'s self, x: &'s [f64]) -> Vec<(&'s Problem<'s>, &'s [f64])> {
@@ -957,7 +997,7 @@ pub(crate) fn constrained_stability(
 /// no solution.
 pub(crate) fn check_half_turn(field: &str, a: &[[f64; 3]; 3]) -> Result<()> {
     let tr = a[0][0] + a[1][1] + a[2][2];
-    if tr > 1.0 {
+    if on_quarter_turn(a) {
         Ok(())
     } else {
         Err(SoftrodError::NotConverged {

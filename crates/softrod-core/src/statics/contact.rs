@@ -10,21 +10,45 @@ use crate::rod::Rod;
 use crate::statics::{Problem, Solution};
 
 /// Refuse an obstacle with a friction coefficient in a static solve that does not carry
-/// friction (a system, the batches but the frictional one, the sensitivities, inverse
-/// statics, the linearisation): Coulomb friction makes a static equilibrium depend on the
-/// loading path (a stuck contact holds whatever tangential force the history left in it),
-/// and only the single rod's solves (`friction::solve` and `friction::solve_held`, also one
-/// per row in `crate::batch::solve_friction_batch` and `solve_held_friction_batch`) follow
-/// a frictional load path.
+/// friction (the frictionless solves, the sensitivities, inverse statics, the
+/// linearisation): Coulomb friction makes a static equilibrium depend on the loading path
+/// (a stuck contact holds whatever tangential force the history left in it), and only the
+/// path solves (`friction::solve` and `friction::solve_held`, also one per row in
+/// `crate::batch::solve_friction_batch` and `solve_held_friction_batch`, and a system's
+/// `system::solve_system_friction`) follow a frictional load path.
 pub fn frictionless(rod: &Rod) -> Result<()> {
     if let Some(k) = rod.spec.obstacles.iter().position(|o| o.friction != 0.0) {
         return Err(SoftrodError::invalid(
             format!("obstacles[{k}].friction"),
             rod.spec.obstacles[k].friction,
-            "this static solve is frictionless (with Coulomb friction the equilibrium depends on the loading path, which only solve_statics and solve_statics_batch of one rod, its tip free or held, follow: docs/contact.md, \"Friction in the statics\"); set friction = 0 here",
+            "this static solve is frictionless (with Coulomb friction the equilibrium depends on the loading path, which only solve_statics, solve_statics_batch, solve_system and solve_system_batch follow: docs/contact.md, \"Friction in the statics\"); set friction = 0 here",
         ));
     }
     Ok(())
+}
+
+/// The rod with every obstacle's friction set to 0 (None: it has none to remove): the
+/// dynamics' static start. In motion friction is regularised (docs/contact.md,
+/// "Dynamics"): at rest, with every velocity zero, it carries no force, so the state a
+/// run starts from is the frictionless equilibrium, which the frictionless statics
+/// solves.
+pub(crate) fn without_friction(rod: &Rod) -> Option<Rod> {
+    if !rod.spec.obstacles.iter().any(|o| o.friction != 0.0) {
+        return None;
+    }
+    let mut out = rod.clone();
+    for o in &mut out.spec.obstacles {
+        o.friction = 0.0;
+    }
+    out.obstacles = rod.obstacles.as_ref().map(|obs| {
+        obs.iter()
+            .map(|o| crate::contact::Obstacle {
+                friction: 0.0,
+                ..*o
+            })
+            .collect()
+    });
+    Some(out)
 }
 
 /// Refuse an obstacle that the unloaded rod (its reference shape, no loads) already sinks

@@ -79,11 +79,38 @@ impl FrictionPath {
     /// Largest |e| over all contact points and obstacles (m): the elastic tangential
     /// displacement stored in the contacts (0: no tangential load held).
     pub fn max_elastic_slip(&self) -> f64 {
-        self.state
-            .sections
+        self.state.max_elastic_slip()
+    }
+
+    /// The path of a rod whose tip a system's platform held at `tip` (a clamp there): its
+    /// loads, state and unknowns, so that it can go on as a lone clamped rod.
+    pub(crate) fn clamped_at(
+        rod: &Rod,
+        loads: &Loads,
+        state: FrictionState,
+        x: &[f64],
+        tip: &State<f64>,
+    ) -> Self {
+        FrictionPath {
+            loads: loads.clone(),
+            state,
+            x: x.to_vec(),
+            held: TipConstraint::Clamped {
+                position: tip.r,
+                rotation: tip.rot,
+            },
+            spec: rod.spec.clone(),
+        }
+    }
+}
+
+impl FrictionState {
+    /// Largest |e| over all contact points and obstacles (m).
+    pub fn max_elastic_slip(&self) -> f64 {
+        self.sections
             .iter()
             .flat_map(|s| s.iter())
-            .chain(std::iter::once(&self.state.end))
+            .chain(std::iter::once(&self.end))
             .flat_map(|p| p.e.iter())
             .map(|e| (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt())
             .fold(0.0, f64::max)
@@ -141,7 +168,11 @@ fn fresh(y: &State<f64>, n_obstacles: usize) -> StickPoint {
 /// The friction state of the unloaded rod (its reference shape; x = 0 at zero load):
 /// every point where the rod is, nothing stored; and its tip (where a held tip's path
 /// starts).
-fn unloaded_state(rod: &Rod, loads: &Loads, obstacles: &[Obstacle]) -> (FrictionState, State<f64>) {
+pub(crate) fn unloaded_state(
+    rod: &Rod,
+    loads: &Loads,
+    obstacles: &[Obstacle],
+) -> (FrictionState, State<f64>) {
     // The reference shape, without the obstacles: a bed the rod touches within its
     // tolerance already pushes on it at zero load, and x = 0 is then not its equilibrium.
     let mut free = rod.clone();
@@ -215,23 +246,7 @@ fn check_history(
     held: &TipConstraint,
     history: &FrictionPath,
 ) -> Result<()> {
-    if history.spec.obstacles != rod.spec.obstacles {
-        return Err(SoftrodError::invalid(
-            "history",
-            "a frictional solution",
-            "its obstacles differ from this design's: a friction state belongs to the design and obstacles it was solved with",
-        ));
-    }
-    if history.spec != rod.spec {
-        return Err(SoftrodError::invalid(
-            "history",
-            format!("a frictional solution of design {:?}", history.spec.name),
-            format!(
-                "it belongs to another design than {:?} (a friction state belongs to the design it was solved with)",
-                rod.spec.name
-            ),
-        ));
-    }
+    check_design("history", &history.spec, rod)?;
     if history.held.name() != held.name() {
         return Err(SoftrodError::invalid(
             "history",
@@ -242,17 +257,46 @@ fn check_history(
             ),
         ));
     }
-    let h = &history.loads;
+    check_joinable("history", &history.loads, loads)
+}
+
+/// Check that a friction state solved with design `spec` (in the `field` named) belongs
+/// to `rod`: the same design, the same obstacles.
+pub(crate) fn check_design(field: &str, spec: &crate::spec::DesignSpec, rod: &Rod) -> Result<()> {
+    if spec.obstacles != rod.spec.obstacles {
+        return Err(SoftrodError::invalid(
+            field,
+            "a frictional solution",
+            "its obstacles differ from this design's: a friction state belongs to the design and obstacles it was solved with",
+        ));
+    }
+    if *spec != rod.spec {
+        return Err(SoftrodError::invalid(
+            field,
+            format!("a frictional solution of design {:?}", spec.name),
+            format!(
+                "it belongs to another design than {:?} (a friction state belongs to the design it was solved with)",
+                rod.spec.name
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Check that a path can go from the loads `h` of a previous frictional solution (in the
+/// `field` named) to `loads` along a straight line: the same tip frame, stiffness scale
+/// and numbers of channels.
+pub(crate) fn check_joinable(field: &str, h: &Loads, loads: &Loads) -> Result<()> {
     if h.tip_frame != loads.tip_frame {
         return Err(SoftrodError::invalid(
-            "history",
+            field,
             format!("tip frame {:?}", h.tip_frame),
             "its tip loads act in another frame than this solve's",
         ));
     }
     if h.stiffness_scale != loads.stiffness_scale {
         return Err(SoftrodError::invalid(
-            "history",
+            field,
             format!("stiffness scale {:?}", h.stiffness_scale),
             format!(
                 "differs from this solve's {:?}: the path changes the loads, not the material",
@@ -262,7 +306,7 @@ fn check_history(
     }
     if h.pressures.len() != loads.pressures.len() || h.tensions.len() != loads.tensions.len() {
         return Err(SoftrodError::invalid(
-            "history",
+            field,
             "a frictional solution",
             "its pressures or tensions have another number of channels than this solve's",
         ));
@@ -346,24 +390,18 @@ fn solve_inner(
     want_shape: bool,
 ) -> Attempt {
     let free = TipConstraint::Free;
-    let b = begin(rod, loads, &free, history, steps, opts)?;
-    let end = follow(
-        rod,
-        loads,
-        history,
-        b.state,
-        b.x,
-        steps,
-        b.obstacles,
-        |p, _, guess| p.newton(guess, Start::Guess, opts),
-    )?;
-    let p = Problem::with_friction(rod, loads, 1.0, &end.state);
+    let mut b = begin(rod, loads, &free, history, steps, opts)?;
+    let violations = std::mem::take(&mut b.violations);
+    let end = b.follow(rod, loads, history, steps, |p, _, guess| {
+        p[0].newton(std::array::from_fn(|i| guess[i]), Start::Guess, opts)
+    })?;
+    let p = end.problem(0, rod, loads);
     let (mut sol, shape) = p.conclude(
         At::Converged(&end.last),
         end.iterations,
         end.levels,
         opts,
-        b.violations,
+        violations,
         want_shape,
     )?;
     sol.friction = Some(end.path(rod, loads, free));
@@ -393,57 +431,73 @@ pub fn solve_held(
             "must be pinned or clamped (a free tip: friction::solve)",
         ));
     }
-    let b = begin(rod, loads, constraint, history, steps, opts)?;
+    let mut b = begin(rod, loads, constraint, history, steps, opts)?;
+    let mut violations = std::mem::take(&mut b.violations);
     let (r0, rot0) = b.pose;
-    let end = follow(
-        rod,
-        loads,
-        history,
-        b.state,
-        b.x,
-        steps,
-        b.obstacles,
-        |p, t, guess| {
-            let eq = Held {
-                p,
-                pose: Pose::along(constraint, &r0, &rot0, t),
-            };
-            constraint::newton(&eq, guess.to_vec(), opts.tol, opts.max_iter)
-        },
-    )?;
-    let p = Problem::with_friction(rod, loads, 1.0, &end.state);
+    let end = b.follow(rod, loads, history, steps, |p, t, guess| {
+        let eq = Held {
+            p: &p[0],
+            pose: Pose::along(constraint, &r0, &rot0, t),
+        };
+        constraint::newton(&eq, guess, opts.tol, opts.max_iter)
+    })?;
+    let p = end.problem(0, rod, loads);
     let done = PathOk {
-        x: end.x.to_vec(),
+        x: end.x.clone(),
         residual: end.last.residual,
         iterations: end.iterations,
         load_steps: end.levels,
     };
-    let mut violations = b.violations;
     let mut out = conclude_at(&p, constraint, done, opts, &mut violations)?;
     out.solution.friction = Some(end.path(rod, loads, *constraint));
     Ok(out)
 }
 
-/// Where a frictional path starts, its inputs checked.
-struct Begin<'r> {
+/// Where a lone rod's frictional path starts, its inputs checked.
+struct Begin {
     violations: Vec<SoftrodError>,
-    obstacles: &'r [Obstacle],
     state: FrictionState,
     x: [f64; 6],
     /// The held tip's pose there (the unloaded rod's tip, or `history`'s held pose).
     pose: ([f64; 3], [[f64; 3]; 3]),
 }
 
+impl Begin {
+    /// The lone rod's path from here to `loads` (`follow`).
+    fn follow<C: Reached>(
+        self,
+        rod: &Rod,
+        loads: &Loads,
+        history: Option<&FrictionPath>,
+        steps: usize,
+        inner: impl FnMut(&mut Vec<Problem>, f64, Vec<f64>) -> std::result::Result<C, (usize, f64)>,
+    ) -> Result<PathEnd<C>> {
+        let leg = Leg {
+            rod,
+            loads,
+            start: history.map(|h| &h.loads),
+        };
+        follow(
+            &[leg],
+            vec![Some(self.state)],
+            self.x.to_vec(),
+            steps,
+            false,
+            inner,
+        )
+    }
+}
+
 /// Check the inputs of a frictional solve whose tip is `held` (free, pinned or clamped)
 /// and find where its path starts.
-fn begin<'r>(
-    rod: &'r Rod,
+fn begin(
+    rod: &Rod,
     loads: &Loads,
     held: &TipConstraint,
     history: Option<&FrictionPath>,
     steps: usize,
     opts: &SolverOptions,
-) -> Result<Begin<'r>> {
+) -> Result<Begin> {
     check_steps(steps)?;
     let violations = check_inputs_any_friction(rod, loads, opts)?;
     let Some(obstacles) = rod.obstacles.as_deref() else {
@@ -457,7 +511,6 @@ fn begin<'r>(
         let (state, tip) = unloaded_state(rod, loads, obstacles);
         return Ok(Begin {
             violations,
-            obstacles,
             state,
             x: [0.0; 6],
             pose: (tip.r, tip.rot),
@@ -479,7 +532,6 @@ fn begin<'r>(
     };
     Ok(Begin {
         violations,
-        obstacles,
         state: h.state.clone(),
         x: std::array::from_fn(|i| h.x[i]),
         pose,
@@ -487,14 +539,14 @@ fn begin<'r>(
 }
 
 /// What an increment's inner Newton solve reached.
-trait Reached {
-    fn x(&self) -> [f64; 6];
+pub(crate) trait Reached {
+    fn x(&self) -> Vec<f64>;
     fn iterations(&self) -> usize;
 }
 
 impl Reached for Converged<6> {
-    fn x(&self) -> [f64; 6] {
-        self.x
+    fn x(&self) -> Vec<f64> {
+        self.x.to_vec()
     }
     fn iterations(&self) -> usize {
         self.iterations
@@ -502,55 +554,107 @@ impl Reached for Converged<6> {
 }
 
 impl Reached for NewtonOk {
-    fn x(&self) -> [f64; 6] {
-        std::array::from_fn(|i| self.x[i])
+    fn x(&self) -> Vec<f64> {
+        self.x.clone()
     }
     fn iterations(&self) -> usize {
         self.iterations
     }
 }
 
-/// The end of a frictional path: the last increment's solve (at the full loads), the
-/// friction state it was solved with and the one advanced at its solution, the effort.
-struct PathEnd<C> {
-    last: C,
-    state: FrictionState,
-    next: FrictionState,
-    x: [f64; 6],
-    iterations: usize,
-    levels: usize,
+/// One rod on a frictional path: its design, the loads the path goes to, and the loads it
+/// starts from (None: the unloaded rod, whose gravity comes on with the loads).
+pub(crate) struct Leg<'r> {
+    pub rod: &'r Rod,
+    pub loads: &'r Loads,
+    pub start: Option<&'r Loads>,
+}
+
+impl Leg<'_> {
+    /// Its problem at path parameter t with the friction state `state` of the last
+    /// converged increment (None: a rod without obstacles, which carries none).
+    fn problem<'p>(&'p self, at: &'p (Loads, f64), state: Option<&FrictionState>) -> Problem<'p> {
+        match state {
+            Some(s) => Problem::with_friction(self.rod, &at.0, at.1, s),
+            None => Problem::new(self.rod, &at.0, at.1),
+        }
+    }
+}
+
+/// The end of a frictional path: the last increment's solve (at the full loads), each
+/// rod's friction state it was solved with and the one advanced at its solution, the
+/// unknowns (6 per rod, then whatever else the inner solve carries) and the effort.
+pub(crate) struct PathEnd<C> {
+    pub last: C,
+    pub states: Vec<Option<FrictionState>>,
+    pub next: Vec<Option<FrictionState>>,
+    pub x: Vec<f64>,
+    pub iterations: usize,
+    pub levels: usize,
 }
 
 impl<C> PathEnd<C> {
-    /// Where the path stands at its end, for a further path to start from.
-    fn path(self, rod: &Rod, loads: &Loads, held: TipConstraint) -> Arc<FrictionPath> {
+    /// Where a lone rod's path stands at its end, for a further path to start from.
+    fn path(mut self, rod: &Rod, loads: &Loads, held: TipConstraint) -> Arc<FrictionPath> {
         Arc::new(FrictionPath {
             loads: loads.clone(),
-            state: self.next,
-            x: self.x.to_vec(),
+            state: self
+                .next
+                .swap_remove(0)
+                .expect("a frictional rod has a friction state"),
+            x: self.x[..6].to_vec(),
             held,
             spec: rod.spec.clone(),
         })
     }
+
+    /// Rod i's solve problem at the path's end (its friction state of the last increment).
+    pub(crate) fn problem<'a>(&self, i: usize, rod: &'a Rod, loads: &'a Loads) -> Problem<'a> {
+        match &self.states[i] {
+            Some(s) => Problem::with_friction(rod, loads, 1.0, s),
+            None => Problem::new(rod, loads, 1.0),
+        }
+    }
 }
 
-/// The increment loop shared by the free and the held tip: from `state` and unknowns `x`
-/// at the path's start (`history`'s loads, or the unloaded rod) to `loads`, in `steps`
-/// equal increments, each halved while `inner` fails (down to 1/SUB of it). `inner(p, t,
-/// guess)` is one increment's Newton solve: the problem `p` at the loads of path
-/// parameter t, with the friction state of the last converged increment, from `guess`.
-/// After each converged increment the nodes are checked for crossing an obstacle and the
-/// state is advanced (`advance`).
-#[allow(clippy::too_many_arguments)]
-fn follow<C: Reached>(
-    rod: &Rod,
-    loads: &Loads,
-    history: Option<&FrictionPath>,
-    mut state: FrictionState,
-    mut x: [f64; 6],
+/// The legs' problems at one path level (`levels`: each leg's loads and load factor) with
+/// the friction states of the last converged increment.
+fn problems_at<'p>(
+    legs: &'p [Leg],
+    levels: &'p [(Loads, f64)],
+    states: &[Option<FrictionState>],
+) -> Vec<Problem<'p>> {
+    legs.iter()
+        .zip(levels)
+        .zip(states)
+        .map(|((leg, at), s)| leg.problem(at, s.as_ref()))
+        .collect()
+}
+
+/// Each rod's problem with its six unknowns (the first 6 per rod of `x`).
+fn rods_of<'p>(problems: &'p [Problem<'p>], x: &'p [f64]) -> Vec<(&'p Problem<'p>, &'p [f64])> {
+    problems
+        .iter()
+        .enumerate()
+        .map(|(i, p)| (p, &x[6 * i..6 * i + 6]))
+        .collect()
+}
+
+/// The increment loop shared by the free and the held tip and by systems of rods: from
+/// each rod's `states` and the unknowns `x` (6 per rod first) at the path's start to the
+/// legs' loads, in `steps` equal increments, each halved while `inner` fails (down to
+/// 1/SUB of it). `inner(problems, t, guess)` is one increment's Newton solve: the rods'
+/// problems at the loads of path parameter t, with the friction state of the last
+/// converged increment, from `guess` (it may take the problems and must leave them in
+/// place). After each converged increment the nodes are checked for crossing an obstacle
+/// (rods named by index where `system`) and the states are advanced (`advance`).
+pub(crate) fn follow<C: Reached>(
+    legs: &[Leg],
+    mut states: Vec<Option<FrictionState>>,
+    mut x: Vec<f64>,
     steps: usize,
-    obstacles: &[Obstacle],
-    mut inner: impl FnMut(&Problem, f64, [f64; 6]) -> std::result::Result<C, (usize, f64)>,
+    system: bool,
+    mut inner: impl FnMut(&mut Vec<Problem>, f64, Vec<f64>) -> std::result::Result<C, (usize, f64)>,
 ) -> Result<PathEnd<C>> {
     let not_converged =
         |iterations, residual, load_factor, reason: String| SoftrodError::NotConverged {
@@ -559,14 +663,15 @@ fn follow<C: Reached>(
             load_factor,
             reason,
         };
-    let start = history.map(|h| &h.loads);
-    let check_crossing = contact::crossable(obstacles);
-    let mut last_shape = if check_crossing {
-        let (l, f) = loads_at(start, loads, 0.0);
-        contact::node_points(&Problem::with_friction(rod, &l, f, &state), &x)
-    } else {
-        Vec::new()
+    let loads_of = |t: f64| -> Vec<(Loads, f64)> {
+        legs.iter().map(|l| loads_at(l.start, l.loads, t)).collect()
     };
+    let mut last = {
+        let levels = loads_of(0.0);
+        let problems = problems_at(legs, &levels, &states);
+        contact::Sides::start(&rods_of(&problems, &x))
+    };
+    let check_crossing = !last.unchecked();
     // Where the path stands, in units of 1/SUB of a requested increment: increment i,
     // position `at` in it. A failed increment is halved (level `depth`: length
     // SUB >> depth), and after a success the length doubles again where the position
@@ -584,7 +689,7 @@ fn follow<C: Reached>(
     };
     let mut t = 0.0;
     // The last converged increment's move (for a secant predictor) and length.
-    let mut last_move: Option<([f64; 6], f64)> = None;
+    let mut last_move: Option<(Vec<f64>, f64)> = None;
     let mut iterations = 0;
     let mut levels = 0;
     loop {
@@ -596,16 +701,20 @@ fn follow<C: Reached>(
         };
         let target = param(next_i, next_at);
         let dt = target - t;
-        let (l, factor) = loads_at(start, loads, target);
-        let p = Problem::with_friction(rod, &l, factor, &state);
-        let guess: [f64; 6] = match last_move {
-            Some((dx, dt_last)) => std::array::from_fn(|i| x[i] + dx[i] * (dt / dt_last)),
-            None => x,
+        let level = loads_of(target);
+        let mut problems = problems_at(legs, &level, &states);
+        let guess: Vec<f64> = match &last_move {
+            Some((dx, dt_last)) => x
+                .iter()
+                .zip(dx)
+                .map(|(x, d)| x + d * (dt / dt_last))
+                .collect(),
+            None => x.clone(),
         };
         // Newton with the exact Jacobian. The residual is continuous, its derivative
         // jumps where a point switches between stick and slip (semi-smooth: Newton
         // converges locally, and a failed increment is halved).
-        let attempt = inner(&p, target, guess);
+        let attempt = inner(&mut problems, target, guess);
         let failed = |it: usize, res: f64, why: &str| {
             not_converged(
                 it,
@@ -622,34 +731,40 @@ fn follow<C: Reached>(
             Ok(c) => {
                 iterations += c.iterations();
                 let cx = c.x();
+                let rods = rods_of(&problems, &cx);
                 if check_crossing {
-                    let shape = contact::node_points(&p, &cx);
-                    if let Some(cr) = contact::crossing(obstacles, &last_shape, &shape) {
+                    let shape = last.at(&rods);
+                    if let Some(cr) = last.crossing(&shape, &rods, system) {
                         if len == 1 || dt <= MIN_CROSSING_STEP {
-                            return Err(contact::crossing_error(
-                                contact::Crossing::lone(cr),
-                                Some(dt),
-                            ));
+                            return Err(contact::crossing_error(cr, Some(dt)));
                         }
                         depth += 1;
                         continue;
                     }
-                    last_shape = shape;
+                    last = shape;
                 }
-                let next = advance(&p, &cx, &state, obstacles);
+                let next: Vec<Option<FrictionState>> = rods
+                    .iter()
+                    .zip(&states)
+                    .map(|((p, xi), s)| {
+                        let (s, obstacles) = (s.as_ref()?, p.rod.obstacles.as_deref()?);
+                        Some(advance(p, xi, s, obstacles))
+                    })
+                    .collect();
+                drop(rods);
                 if target >= 1.0 {
                     return Ok(PathEnd {
                         last: c,
-                        state,
+                        states,
                         next,
                         x: cx,
                         iterations,
                         levels,
                     });
                 }
-                last_move = Some((std::array::from_fn(|k| cx[k] - x[k]), dt));
+                last_move = Some((cx.iter().zip(&x).map(|(a, b)| a - b).collect(), dt));
                 x = cx;
-                state = next;
+                states = next;
                 t = target;
                 (i, at) = (next_i, next_at);
                 // Back to the longer increment once the position is on its grid.

@@ -6,9 +6,9 @@
 //! Each rod is clamped at its own base (its design's mounting) and clamped at its tip to
 //! the platform at an attachment: an offset o_i and a rotation A_i of the rod's tip frame,
 //! both in the platform frame. Unknowns: each rod's scaled base wrench x_i = (n_i(0)/F_s,
-//! m_i(0)/(F_s L)) and the platform pose (position p / L_s, rotation R_p, updated on the
-//! group: R_p <- exp(psi) R_p). Residual, per rod: (r_i(L) - p - R_p o_i)/L_s and
-//! e((R_p A_i)^T R_i(L)) (`constraint::orientation_error`); then the platform's balance:
+//! m_i(0)/(F_s L)) and the platform pose (position p / L_s, rotation R_p = exp(phi) R_0
+//! from its nominal rotation R_0, updated on the group: R_p <- exp(psi) R_p). Residual,
+//! per rod: (r_i(L) - p - R_p o_i)/L_s and e((R_p A_i)^T R_i(L)) (`constraint::orientation_error`); then the platform's balance:
 //! F + m_p g - sum F_i = 0 and M + (R_p c) x m_p g - sum (M_i + (r_i(L) - p) x F_i) = 0
 //! about p, with (F_i, M_i) the wrench the platform applies to rod i's tip (its tip
 //! reaction), scaled by the sums of the rods' force and moment scales.
@@ -36,15 +36,18 @@
 //! on any rod).
 
 use super::constraint::{
-    check_half_turn, check_rotation, checked_shape, exp_so3, follow_path, log_so3, matmul,
-    orientation_error, reference_tip, slerp, tmatmul, Conjugate, ConstrainedSolution, Equations,
+    check_half_turn, check_rotation, checked_shape, exp_so3, follow_path, log_so3, matmul, newton,
+    on_quarter_turn, orientation_error, reference_tip, slerp, tmatmul, Conjugate,
+    ConstrainedSolution, Equations, PathOk,
 };
+use super::friction::{self, FrictionPath, FrictionState, Leg};
 use super::{Problem, Solution, SolverOptions};
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
 use crate::ode::{integrate, Loads, State};
 use crate::rod::Rod;
 use nalgebra::{DMatrix, Matrix6};
+use std::sync::Arc;
 
 /// Most rods in one system.
 pub const MAX_RODS: usize = 64;
@@ -84,14 +87,51 @@ pub struct SystemSolution {
     pub rods: Vec<ConstrainedSolution>,
     pub platform_position: [f64; 3],
     pub platform_rotation: [[f64; 3]; 3],
-    /// Unknowns (6 per rod, then p / L_s and the platform's rotation vector); warm start.
+    /// Unknowns (6 per rod, then p / L_s and the rotation vector phi of the platform's
+    /// rotation from its nominal one, R_p = exp(phi) R_0); warm start.
     pub x: Vec<f64>,
     pub iterations: usize,
     pub residual: f64,
     pub load_steps: usize,
     /// The whole system's equilibrium is stable (module docs); None where it is not
-    /// assessed (a follower load on some rod). Every rod's `solution.stable` says the same.
+    /// assessed (a follower load on some rod, friction). Every rod's `solution.stable`
+    /// says the same.
     pub stable: Option<bool>,
+    /// The frictional path's state at this equilibrium (`solve_system_friction`), from
+    /// which a further path may start. None for a frictionless solve.
+    pub friction: Option<Arc<SystemFrictionPath>>,
+}
+
+/// Where a system's frictional path stands at a converged equilibrium: every rod's loads
+/// and friction state (None: a rod without obstacles), the attachments and the platform
+/// (its loads) reached, and the unknowns there. A further path (unloading, say) starts
+/// from it (`solve_system_friction`'s `history`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SystemFrictionPath {
+    pub rods: Vec<RodPath>,
+    pub platform: Platform,
+    pub x: Vec<f64>,
+}
+
+/// One rod's part of a [`SystemFrictionPath`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RodPath {
+    pub loads: Loads,
+    pub state: Option<FrictionState>,
+    pub attachment: [f64; 3],
+    pub attachment_rotation: [[f64; 3]; 3],
+    spec: crate::spec::DesignSpec,
+}
+
+impl SystemFrictionPath {
+    /// Largest |e| over every rod's contact points (m; 0: no tangential load held).
+    pub fn max_elastic_slip(&self) -> f64 {
+        self.rods
+            .iter()
+            .filter_map(|r| r.state.as_ref())
+            .map(FrictionState::max_elastic_slip)
+            .fold(0.0, f64::max)
+    }
 }
 
 fn finite3(field: String, v: &[f64; 3]) -> Result<()> {
@@ -159,6 +199,11 @@ struct Level<'a> {
     ls: f64,
     fs: f64,
     ms: f64,
+    /// The platform's nominal rotation, from which its unknown rotation vector turns it
+    /// (R_p = exp(phi) R_0): phi stays near zero, away from the half turn where the
+    /// rotation vector is singular (a platform set in a frame turned by pi, as
+    /// horizontal rods' frames are, would otherwise sit on that singularity).
+    nominal: [[f64; 3]; 3],
 }
 
 fn lift(s: &State<Jet<6>>) -> State<Jet<12>> {
@@ -198,7 +243,7 @@ impl Level<'_> {
         let k = 6 * self.n_rods();
         (
             std::array::from_fn(|i| x[k + i] * self.ls),
-            exp_so3(&[x[k + 3], x[k + 4], x[k + 5]]),
+            matmul(&exp_so3(&[x[k + 3], x[k + 4], x[k + 5]]), &self.nominal),
         )
     }
 
@@ -296,6 +341,20 @@ impl Equations for Level<'_> {
         });
         out[k..k + 3].copy_from_slice(&log_so3(&rel));
         out
+    }
+
+    fn on_branch(&self, x: &[f64]) -> bool {
+        let (_, rp) = self.platform(x);
+        self.problems.iter().enumerate().all(|(i, pr)| {
+            let tip = integrate(
+                pr.rod,
+                &pr.coeffs,
+                pr.base_state(&x[6 * i..6 * i + 6]),
+                None,
+            );
+            let target = matmul(&rp, &self.attach[i].1);
+            on_quarter_turn(&tmatmul(&target, &tip.rot))
+        })
     }
 
     const SYSTEM: bool = true;
@@ -419,7 +478,102 @@ impl Level<'_> {
     }
 }
 
-/// Solve the system's static equilibrium. `guess`: a previous solution's `x`.
+/// Where a system's path goes: each rod's attachment from where the path starts to the
+/// given one, the platform's load from its start (None: from rest, the load and the
+/// platform's weight coming on with the path) to the given one, and the scales.
+struct Course {
+    attach: Vec<Span>,
+    from: Option<([f64; 3], [f64; 3])>,
+    platform: Platform,
+    ls: f64,
+    fs: f64,
+    ms: f64,
+}
+
+/// An attachment (offset, rotation; platform frame) at the path's start and end.
+type Span = (([f64; 3], [[f64; 3]; 3]), ([f64; 3], [[f64; 3]; 3]));
+
+impl Course {
+    fn new(rods: &[SystemRod], platform: &Platform, start: Vec<([f64; 3], [[f64; 3]; 3])>) -> Self {
+        let n = rods.len();
+        Course {
+            attach: start
+                .into_iter()
+                .zip(rods)
+                .map(|(a, r)| (a, (r.attachment, r.attachment_rotation)))
+                .collect(),
+            from: None,
+            platform: *platform,
+            ls: rods.iter().map(|r| r.rod.length).sum::<f64>() / n as f64,
+            fs: rods.iter().map(|r| r.rod.force_scale).sum(),
+            ms: rods.iter().map(|r| r.rod.force_scale * r.rod.length).sum(),
+        }
+    }
+
+    /// The level at path parameter `lam` with the rods' problems there.
+    fn level<'a>(&self, problems: Vec<Problem<'a>>, lam: f64) -> Level<'a> {
+        let pf = &self.platform;
+        let (force, moment, weight) = match self.from {
+            None => (
+                pf.force.map(|v| lam * v),
+                pf.moment.map(|v| lam * v),
+                pf.gravity.map(|g| lam * pf.mass * g),
+            ),
+            Some((f0, m0)) => (
+                std::array::from_fn(|k| f0[k] + lam * (pf.force[k] - f0[k])),
+                std::array::from_fn(|k| m0[k] + lam * (pf.moment[k] - m0[k])),
+                pf.gravity.map(|g| pf.mass * g),
+            ),
+        };
+        Level {
+            problems,
+            attach: self
+                .attach
+                .iter()
+                .map(|((o0, a0), (o, a))| {
+                    (
+                        std::array::from_fn(|k| o0[k] + lam * (o[k] - o0[k])),
+                        slerp(a0, a, lam),
+                    )
+                })
+                .collect(),
+            force,
+            moment,
+            weight,
+            com: pf.com_offset,
+            ls: self.ls,
+            fs: self.fs,
+            ms: self.ms,
+            nominal: pf.rotation,
+        }
+    }
+}
+
+/// Where the unloaded rods' tips are, in the platform's nominal frame: the attachments a
+/// path from rest starts from.
+fn rest_attachments(rods: &[SystemRod], platform: &Platform) -> Vec<([f64; 3], [[f64; 3]; 3])> {
+    rods.iter()
+        .map(|r| {
+            let t = reference_tip(r.rod, &r.loads);
+            let d: [f64; 3] = std::array::from_fn(|k| t.r[k] - platform.position[k]);
+            let o = std::array::from_fn(|i| (0..3).map(|k| platform.rotation[k][i] * d[k]).sum());
+            (o, tmatmul(&platform.rotation, &t.rot))
+        })
+        .collect()
+}
+
+/// The unknowns of the unloaded rods under the platform at its nominal pose (phi = 0).
+fn rest_unknowns(n: usize, platform: &Platform, ls: f64) -> Vec<f64> {
+    let mut x0 = vec![0.0; 6 * n + 6];
+    for k in 0..3 {
+        x0[6 * n + k] = platform.position[k] / ls;
+    }
+    x0
+}
+
+/// Solve the system's static equilibrium. `guess`: a previous solution's `x`. A rod with
+/// an obstacle with friction is refused (naming it): `solve_system_friction` follows the
+/// load path that friction needs.
 pub fn solve_system(
     rods: &[SystemRod],
     platform: &Platform,
@@ -427,60 +581,203 @@ pub fn solve_system(
     opts: &SolverOptions,
 ) -> Result<SystemSolution> {
     validate(rods, platform)?;
-    let mut violations: Vec<Vec<SoftrodError>> = rods
+    let violations: Vec<Vec<SoftrodError>> = rods
         .iter()
         .map(|r| super::check_inputs(r.rod, &r.loads, opts))
         .collect::<Result<_>>()?;
     let n = rods.len();
-    let ls = rods.iter().map(|r| r.rod.length).sum::<f64>() / n as f64;
-    let fs: f64 = rods.iter().map(|r| r.rod.force_scale).sum();
-    let ms: f64 = rods.iter().map(|r| r.rod.force_scale * r.rod.length).sum();
-    // Where the unloaded rods' tips are, in the platform's nominal frame.
-    let start: Vec<([f64; 3], [[f64; 3]; 3])> = rods
-        .iter()
-        .map(|r| {
-            let t = reference_tip(r.rod, &r.loads);
-            let d: [f64; 3] = std::array::from_fn(|k| t.r[k] - platform.position[k]);
-            let o = std::array::from_fn(|i| (0..3).map(|k| platform.rotation[k][i] * d[k]).sum());
-            (o, tmatmul(&platform.rotation, &t.rot))
-        })
-        .collect();
-    let level = |lam: f64| Level {
-        problems: rods
-            .iter()
-            .map(|r| Problem::new(r.rod, &r.loads, lam))
-            .collect(),
-        attach: rods
-            .iter()
-            .zip(&start)
-            .map(|(r, (o0, a0))| {
-                (
-                    std::array::from_fn(|k| o0[k] + lam * (r.attachment[k] - o0[k])),
-                    slerp(a0, &r.attachment_rotation, lam),
-                )
-            })
-            .collect(),
-        force: platform.force.map(|v| lam * v),
-        moment: platform.moment.map(|v| lam * v),
-        weight: platform.gravity.map(|g| lam * platform.mass * g),
-        com: platform.com_offset,
-        ls,
-        fs,
-        ms,
+    let course = Course::new(rods, platform, rest_attachments(rods, platform));
+    let level = |lam: f64| {
+        course.level(
+            rods.iter()
+                .map(|r| Problem::new(r.rod, &r.loads, lam))
+                .collect(),
+            lam,
+        )
     };
-    let mut x0 = vec![0.0; 6 * n + 6];
-    for k in 0..3 {
-        x0[6 * n + k] = platform.position[k] / ls;
-    }
-    x0[6 * n + 3..].copy_from_slice(&log_so3(&platform.rotation));
+    let x0 = rest_unknowns(n, platform, course.ls);
     let guess = guess
         .filter(|g| g.len() == 6 * n + 6 && g.iter().all(|v| v.is_finite()))
         .map(|g| g.to_vec());
     let path = follow_path(level, x0, guess, opts)?;
     let full = level(1.0);
     let stable = full.stable(&path.x);
+    conclude(rods, &full, path, stable, violations, None, opts)
+}
+
+/// The system's frictional static solve (docs/contact.md, "Friction in the statics",
+/// "Systems of rods"): the load path of `friction::solve` for every rod at once, from
+/// `history` (a previous frictional solution of this system; None: the unloaded rods under
+/// the platform at its nominal pose) to the rods' loads, the platform's load and the
+/// attachments, in `steps` equal increments of one path parameter. Each increment is the
+/// system's Newton solve (every rod's friction of the last converged increment in its
+/// ODE and on its rounded end, the Jacobian exact), halved while it fails; after it
+/// converges every rod's friction state is advanced. `stable` is None (friction has no
+/// potential); each rod's solution carries its path as a clamped rod's (its tip held
+/// where the platform holds it), and the system's solution the whole path.
+pub fn solve_system_friction(
+    rods: &[SystemRod],
+    platform: &Platform,
+    history: Option<&SystemFrictionPath>,
+    steps: usize,
+    opts: &SolverOptions,
+) -> Result<SystemSolution> {
+    validate(rods, platform)?;
+    friction::check_steps(steps)?;
+    let violations: Vec<Vec<SoftrodError>> = rods
+        .iter()
+        .map(|r| super::check_inputs_any_friction(r.rod, &r.loads, opts))
+        .collect::<Result<_>>()?;
+    if !rods.iter().any(|r| friction::has_friction(r.rod)) {
+        return Err(SoftrodError::invalid(
+            "rods",
+            format!("{} rods", rods.len()),
+            "no rod has an obstacle with friction > 0: a frictionless equilibrium does not depend on the load path (solve_system)",
+        ));
+    }
+    let n = rods.len();
+    let (course, states, x0) = match history {
+        None => {
+            let course = Course::new(rods, platform, rest_attachments(rods, platform));
+            let states = rods
+                .iter()
+                .map(|r| {
+                    let obstacles = r.rod.obstacles.as_deref()?;
+                    Some(friction::unloaded_state(r.rod, &r.loads, obstacles).0)
+                })
+                .collect();
+            let x0 = rest_unknowns(n, platform, course.ls);
+            (course, states, x0)
+        }
+        Some(h) => {
+            check_history(rods, platform, h)?;
+            let start = h
+                .rods
+                .iter()
+                .map(|r| (r.attachment, r.attachment_rotation))
+                .collect();
+            let mut course = Course::new(rods, platform, start);
+            course.from = Some((h.platform.force, h.platform.moment));
+            let states = h.rods.iter().map(|r| r.state.clone()).collect();
+            (course, states, h.x.clone())
+        }
+    };
+    let legs: Vec<Leg> = rods
+        .iter()
+        .enumerate()
+        .map(|(i, r)| Leg {
+            rod: r.rod,
+            loads: &r.loads,
+            start: history.map(|h| &h.rods[i].loads),
+        })
+        .collect();
+    let end = friction::follow(&legs, states, x0, steps, true, |problems, t, guess| {
+        let level = course.level(std::mem::take(problems), t);
+        let out = newton(&level, guess, opts.tol, opts.max_iter);
+        *problems = level.problems;
+        out
+    })?;
+    let full = course.level(
+        rods.iter()
+            .enumerate()
+            .map(|(i, r)| end.problem(i, r.rod, &r.loads))
+            .collect(),
+        1.0,
+    );
+    let path = PathOk {
+        x: end.x.clone(),
+        residual: end.last.residual,
+        iterations: end.iterations,
+        load_steps: end.levels,
+    };
+    let mut out = conclude(rods, &full, path, None, violations, Some(&end.next), opts)?;
+    out.friction = Some(Arc::new(SystemFrictionPath {
+        rods: rods
+            .iter()
+            .zip(end.next)
+            .map(|(r, state)| RodPath {
+                loads: r.loads.clone(),
+                state,
+                attachment: r.attachment,
+                attachment_rotation: r.attachment_rotation,
+                spec: r.rod.spec.clone(),
+            })
+            .collect(),
+        platform: *platform,
+        x: out.x.clone(),
+    }));
+    Ok(out)
+}
+
+/// Whether the system of `rods` is solved on a frictional path (some rod's obstacle has
+/// friction > 0), refusing what has no place there: a `history` (a friction state) for a
+/// frictionless system, whose equilibrium does not depend on the path, and a warm start
+/// (`guess`) for a frictional one, which follows its path from the unloaded rods or from
+/// a history.
+pub fn frictional(rods: &[SystemRod], history_given: bool, guess_given: bool) -> Result<bool> {
+    let frictional = rods.iter().any(|r| friction::has_friction(r.rod));
+    if history_given && !frictional {
+        return Err(SoftrodError::invalid(
+            "history",
+            "a friction state",
+            "no rod of this system has an obstacle with friction > 0: a frictionless equilibrium does not depend on the load path",
+        ));
+    }
+    if guess_given && frictional {
+        return Err(SoftrodError::invalid(
+            "initial",
+            "a previous solution",
+            "a frictional system follows its load path from the unloaded rods or from history= (a warm start has no place on a path)",
+        ));
+    }
+    Ok(frictional)
+}
+
+/// Check that `history` belongs to this system (the same designs and obstacles rod by
+/// rod, the same platform but its loads) and that its rods' loads can be joined to these.
+fn check_history(rods: &[SystemRod], platform: &Platform, h: &SystemFrictionPath) -> Result<()> {
+    if h.rods.len() != rods.len() || h.x.len() != 6 * rods.len() + 6 {
+        return Err(SoftrodError::invalid(
+            "history",
+            format!("a frictional solution of a system of {} rods", h.rods.len()),
+            format!("this system has {} rods", rods.len()),
+        ));
+    }
+    for (i, (r, hr)) in rods.iter().zip(&h.rods).enumerate() {
+        let field = format!("history.rods[{i}]");
+        friction::check_design(&field, &hr.spec, r.rod)?;
+        friction::check_joinable(&field, &hr.loads, &r.loads)?;
+    }
+    let (a, b) = (&h.platform, platform);
+    if a.mass != b.mass
+        || a.com_offset != b.com_offset
+        || a.gravity != b.gravity
+        || a.position != b.position
+        || a.rotation != b.rotation
+    {
+        return Err(SoftrodError::invalid(
+            "history",
+            "a frictional solution of another platform",
+            "its platform's mass, centre of mass, gravity or nominal pose differ from this one's: a path changes the loads and the attachments, not the platform",
+        ));
+    }
+    Ok(())
+}
+
+/// The system's solution at the converged unknowns of `path` (`full`: the level at the
+/// full loads), every rod's shape checked; with `friction` (each rod's state at the end
+/// of a frictional path), each rod's solution carries its path as a clamped rod's.
+fn conclude(
+    rods: &[SystemRod],
+    full: &Level,
+    path: PathOk,
+    stable: Option<bool>,
+    mut violations: Vec<Vec<SoftrodError>>,
+    friction: Option<&[Option<FrictionState>]>,
+    opts: &SolverOptions,
+) -> Result<SystemSolution> {
     let (pp, rp) = full.platform(&path.x);
-    let mut out = Vec::with_capacity(n);
+    let mut out = Vec::with_capacity(rods.len());
     for (i, pr) in full.problems.iter().enumerate() {
         let xi = &path.x[6 * i..6 * i + 6];
         let mut v = std::mem::take(&mut violations[i]);
@@ -492,6 +789,15 @@ pub fn solve_system(
         )?;
         let b: [f64; 6] = pr.residual_of_tip(&tip);
         let y0 = pr.base_state(xi);
+        let rod_path = friction.and_then(|f| f[i].clone()).map(|s| {
+            Arc::new(FrictionPath::clamped_at(
+                rods[i].rod,
+                &rods[i].loads,
+                s,
+                xi,
+                &tip,
+            ))
+        });
         out.push(ConstrainedSolution {
             solution: Solution {
                 x: xi.to_vec(),
@@ -504,7 +810,7 @@ pub fn solve_system(
                 stable,
                 violations: v,
                 collocation: None,
-                friction: None,
+                friction: rod_path,
             },
             shape,
             tip_reaction_force: std::array::from_fn(|k| b[k] * pr.fs),
@@ -520,6 +826,7 @@ pub fn solve_system(
         residual: path.residual,
         load_steps: path.load_steps,
         stable,
+        friction: None,
     })
 }
 
@@ -531,6 +838,44 @@ pub fn system_residual_and_jacobian(
     x: &[f64],
 ) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
     validate(rods, platform)?;
+    let problems = rods
+        .iter()
+        .map(|r| Problem::new(r.rod, &r.loads, 1.0))
+        .collect();
+    full_residual_and_jacobian(rods, platform, problems, x)
+}
+
+/// [`system_residual_and_jacobian`] of the frictional system with every rod's friction
+/// state of `path` as the last converged increment's (each rod's problem as
+/// `solve_system_friction` solves an increment), for tests against finite differences.
+#[doc(hidden)]
+pub fn system_friction_residual_and_jacobian(
+    rods: &[SystemRod],
+    platform: &Platform,
+    path: &SystemFrictionPath,
+    x: &[f64],
+) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
+    validate(rods, platform)?;
+    check_history(rods, platform, path)?;
+    let problems = rods
+        .iter()
+        .zip(&path.rods)
+        .map(|(r, h)| match &h.state {
+            Some(s) => Problem::with_friction(r.rod, &r.loads, 1.0, s),
+            None => Problem::new(r.rod, &r.loads, 1.0),
+        })
+        .collect();
+    full_residual_and_jacobian(rods, platform, problems, x)
+}
+
+/// The residual and Jacobian of the level with the given attachments and the platform's
+/// full load, the rods' `problems` given.
+fn full_residual_and_jacobian(
+    rods: &[SystemRod],
+    platform: &Platform,
+    problems: Vec<Problem>,
+    x: &[f64],
+) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
     let n = rods.len();
     if x.len() != 6 * n + 6 {
         return Err(SoftrodError::invalid(
@@ -544,10 +889,7 @@ pub fn system_residual_and_jacobian(
     }
     let ls = rods.iter().map(|r| r.rod.length).sum::<f64>() / n as f64;
     let level = Level {
-        problems: rods
-            .iter()
-            .map(|r| Problem::new(r.rod, &r.loads, 1.0))
-            .collect(),
+        problems,
         attach: rods
             .iter()
             .map(|r| (r.attachment, r.attachment_rotation))
@@ -559,6 +901,7 @@ pub fn system_residual_and_jacobian(
         ls,
         fs: rods.iter().map(|r| r.rod.force_scale).sum(),
         ms: rods.iter().map(|r| r.rod.force_scale * r.rod.length).sum(),
+        nominal: platform.rotation,
     };
     let (r, j) = level.eval_jac(x);
     let dim = 6 * n + 6;
