@@ -392,6 +392,97 @@ CASES = [
     ),
 ]
 
+# compare_models of a frictional design (the fuzz suite's friction target): values that
+# raised AttributeError or TypeError deep inside, now named before any solve.
+_COMPARE = {"design": "spa_wall", "call": "compare"}
+_COMPARE_ARGS = {"experiments": "i-0", "pressures": [0.0], "progress": False}
+CASES += [
+    (
+        "compare-options-not-solver-options",
+        ("friction", {**_COMPARE, "options": 2, "kwargs": _COMPARE_ARGS}),
+        "error",
+        "options = 2",
+    ),
+    (
+        "compare-experiments-a-number",
+        ("friction", {**_COMPARE, "kwargs": {**_COMPARE_ARGS, "experiments": 3}}),
+        "error",
+        "experiments = 3",
+    ),
+    (
+        "compare-pressures-text",
+        ("friction", {**_COMPARE, "kwargs": {**_COMPARE_ARGS, "pressures": "abc"}}),
+        "error",
+        "pressures = 'abc'",
+    ),
+    (
+        "compare-pressures-with-units",
+        ("friction", {**_COMPARE, "kwargs": {**_COMPARE_ARGS, "pressures": ["0 kPa", "30 kPa"]}}),
+        "ok",
+        None,
+    ),
+]
+
+# softrod.view and Viewer.set_inputs (the fuzz suite's viewer target): values that raised
+# ValueError, TypeError or OverflowError from numpy, or were taken silently (a bool as 1 N).
+VIEWER_CASES = [
+    (
+        "viewer-scalar-pressure-move",
+        ("viewer", {"design": SPA, "moves": [{"pressures": 1.5}]}),
+        "error",
+        "pressures",
+    ),
+    (
+        "viewer-text-tensions",
+        ("viewer", {"design": "till_tendon_robot", "kwargs": {"tensions": "obstacles"}}),
+        "error",
+        "tensions",
+    ),
+    (
+        "viewer-complex-tip-force",
+        ("viewer", {"design": SPA, "moves": [{"tip_force": [1j, 0, 0]}]}),
+        "error",
+        "tip_force",
+    ),
+    (
+        "viewer-huge-integer-tension",
+        ("viewer", {"design": "till_tendon_robot", "moves": [{"tensions": [10**400, 0, 0, 0]}]}),
+        "error",
+        "tensions[0]",
+    ),
+    (
+        "viewer-nested-pressures",
+        ("viewer", {"design": SPA, "kwargs": {"pressures": [[1], 0, 0]}}),
+        "error",
+        "pressures",
+    ),
+    (
+        "viewer-bool-tension-max",
+        ("viewer", {"design": "till_tendon_robot", "kwargs": {"tension_max": True}}),
+        "error",
+        "tension_max",
+    ),
+    (
+        "viewer-options-not-solver-options",
+        ("viewer", {"design": SPA, "kwargs": {"options": 5}}),
+        "error",
+        "options = 5",
+    ),
+    (
+        "viewer-quantities-with-units",
+        (
+            "viewer",
+            {
+                "design": SPA,
+                "kwargs": {"pressures": ["10 kPa", 0, 0], "pressure_range": ["0 kPa", "70 kPa"]},
+                "moves": [{"tip_force": ["0 N", "10 mN", "0 N"]}],
+            },
+        ),
+        "ok",
+        None,
+    ),
+]
+
 RUST_CASES = [
     # rotations that are not rotations, returned as converged (coarse steps, long module)
     (
@@ -453,6 +544,14 @@ def test_regression(pool, case, kind, fragment):
         assert fragment in out.detail, out.detail
     if kind == "error":
         assert out.seconds < QUICK_S, f"a refusal took {out.seconds:.2f} s"
+
+
+@pytest.mark.parametrize(
+    ("case", "kind", "fragment"), [c[1:] for c in VIEWER_CASES], ids=[c[0] for c in VIEWER_CASES]
+)
+def test_viewer_regression(pool, case, kind, fragment):
+    pytest.importorskip("viser", reason="needs the viewer extra (viser)")
+    test_regression(pool, case, kind, fragment)
 
 
 @pytest.mark.parametrize("case", [c[1] for c in RUST_CASES], ids=[c[0] for c in RUST_CASES])
@@ -556,3 +655,45 @@ def test_failed_write_leaves_no_temporary(tmp_path):
     with pytest.raises(RuntimeError):
         softrod.io.write_table(Broken(), tmp_path / "t.csv")
     assert list(tmp_path.iterdir()) == []
+
+
+def _random_networks(seed: int, hidden=(12, 10)):
+    """Three tanh networks of fixed random weights on three pressure channels."""
+    rng = np.random.default_rng(seed)
+    nets = []
+    for _ in range(3):
+        sizes = [3, *hidden, 1]
+        nets.append(
+            {
+                "input_mean": [2e4, 2e4, 2e4],
+                "input_scale": [2e4, 2e4, 2e4],
+                "weights": [
+                    rng.normal(size=(a, b)) for a, b in zip(sizes[:-1], sizes[1:], strict=True)
+                ],
+                "biases": [rng.normal(size=b) for b in sizes[1:]],
+                "activation": "tanh",
+                "target_mean": 0.0,
+                "target_scale": 0.1,
+            }
+        )
+    return nets
+
+
+def test_mlp_map_rows_do_not_depend_on_the_batch():
+    """A network stiffness map (the hybrid model's) gave a row of a batch other last bits
+    than the same row alone (one matrix product of all rows), so compare_hybrid's and
+    solve_statics_batch's rows were not the single solves bitwise; each row is now
+    multiplied on its own."""
+    smap = softrod.StiffnessMap.from_networks(_random_networks(0))
+    p = np.random.default_rng(1).uniform(0.0, 7e4, size=(200, 3))
+    whole = smap(p)
+    for k in range(len(p)):
+        np.testing.assert_array_equal(whole[k], smap(p[k : k + 1])[0])
+    from softrod.calibration.per_sample import stiffness_mapped_design
+
+    design, _ = stiffness_mapped_design(SPA)  # the chambered body scaled by the map
+    rows = p[:6]
+    batch = softrod.solve_statics_batch(design, rows, stiffness_map=smap, threads=1)
+    for k, row in enumerate(rows):
+        single = softrod.solve_statics(design, row, stiffness_map=smap)
+        np.testing.assert_array_equal(batch.tip_position[k], single.tip_position)
