@@ -392,6 +392,8 @@ CASES = [
     ),
 ]
 
+LONG_NAME = "9" * 400 + " mm"  # 403 bytes: beyond the file system's 255 per name
+
 # compare_models of a frictional design (the fuzz suite's friction target): values that
 # raised AttributeError or TypeError deep inside, now named before any solve.
 _COMPARE = {"design": "spa_wall", "call": "compare"}
@@ -414,6 +416,34 @@ CASES += [
         ("friction", {**_COMPARE, "kwargs": {**_COMPARE_ARGS, "pressures": "abc"}}),
         "error",
         "pressures = 'abc'",
+    ),
+    (
+        # found through the viewer's trajectory= (TypeError from pathlib)
+        "trajectory-load-not-a-path",
+        ("api", {"function": "Trajectory.load", "args": ({},)}),
+        "error",
+        "path = 'dict'",
+    ),
+    # A file name too long for the file system: pathlib's exists()/is_file() raised OSError
+    # (ENAMETOOLONG) out of every reader; now "no such file" naming the path (found through
+    # the viewer's dataset=).
+    *(
+        (
+            f"name-too-long-{fn}",
+            ("api", {"function": fn, "args": (LONG_NAME + suffix,)}),
+            "error",
+            "no such file",
+        )
+        for fn, suffix in (
+            ("load_dataset", ""),
+            ("load_dataset", ".csv"),
+            ("load_design", ""),
+            ("load_system", ""),
+            ("Trajectory.load", ".npz"),
+            ("StiffnessMap.from_csv", ".csv"),
+            ("PressureSchedule.from_file", ".csv"),
+            ("HybridStiffnessModel.load", ".json"),
+        )
     ),
     (
         "compare-pressures-with-units",
@@ -467,6 +497,12 @@ VIEWER_CASES = [
         ("viewer", {"design": SPA, "kwargs": {"options": 5}}),
         "error",
         "options = 5",
+    ),
+    (
+        "viewer-trajectory-not-a-path",
+        ("viewer", {"design": SPA, "kwargs": {"trajectory": [1.5]}}),
+        "error",
+        "path = 'list'",
     ),
     (
         "viewer-quantities-with-units",

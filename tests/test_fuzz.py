@@ -1038,6 +1038,10 @@ def viewer_cases(draw):
             "tension_max": st.one_of(st.sampled_from([20.0, "20 N", 0, -1, True]), hostile()),
             "force_max": st.one_of(st.sampled_from([0.5, "0.5 N", 0, True]), hostile()),
             "options": st.one_of(st.just(None), hostile()),
+            "stiffness_map": hostile(),
+            "trajectory": st.one_of(st.sampled_from(["nope.npz", "t.csv"]), hostile()),
+            "dataset": st.one_of(st.sampled_from(["spa130_synthetic", "nope.csv"]), hostile()),
+            "calibration": hostile(),
         },
     )
     moves = []
