@@ -547,8 +547,8 @@ _FRICTION_CACHE: dict = {}
 
 def friction_design(payload):
     """The design of a friction case: the finger (or ``payload["design"]``), its obstacle 0's
-        friction set to ``payload["friction"]`` through ``Design.replace`` or in the document
-        (``payload["how"]``); "spa_wall" is the SPA beside its rough wall
+    friction set to ``payload["friction"]`` through ``Design.replace`` or in the document
+    (``payload["how"]``); "spa_wall" is the SPA beside its rough wall
     (tests/friction_designs.py), for compare_models."""
     import softrod
 
@@ -607,7 +607,10 @@ def friction_history(kind, design):
             design, [20e3], tip_constraint=pin, options=_quick_friction()
         ),
         "@failed": lambda: softrod.solve_statics(
-            design, [20e3], options=softrod.SolverOptions(max_iter=1), check=False
+            design,
+            [20e3],
+            options=softrod.SolverOptions(max_iter=1, continuation=False, friction_steps=1),
+            check=False,
         ),
         "@state": lambda: (
             softrod.solve_statics(design, [20e3], options=_quick_friction()).friction_state

@@ -843,17 +843,12 @@ def _network(net: Any, where: str) -> dict:
 def _forward(net: dict, p: np.ndarray) -> np.ndarray:
     """sigma_k at pressures p (m, c) Pa: standardise, hidden layers, linear output, then
     undo the target's standardisation and the log. The same operations, in the same order,
-    as scikit-learn's StandardScaler, MLPRegressor and TransformedTargetRegressor.
-
-    Each row is multiplied by the weights on its own (a vector-matrix product): a matrix
-    product of all rows rounds a row differently with the number of rows (BLAS blocks
-    them), and a batch row must be bitwise the single solve of that row, whose map sees one
-    row (solve_statics_batch's rule)."""
+    as scikit-learn's StandardScaler, MLPRegressor and TransformedTargetRegressor."""
     x = (p - net["input_mean"]) / net["input_scale"]
     act = _ACTIVATIONS[net["activation"]]
     last = len(net["weights"]) - 1
     for i, (w, b) in enumerate(zip(net["weights"], net["biases"], strict=True)):
-        x = np.array([row @ w for row in x]).reshape(len(x), w.shape[1]) + b
+        x = x @ w + b
         if i < last:
             x = act(x)
     return np.exp(x[:, 0] * net["target_scale"] + net["target_mean"])

@@ -248,8 +248,8 @@ class Viewer:
             self._build_gui(p0, t0)
             self._request_solve()
         except BaseException:
-            # A first solve that is refused (pressures beyond the operating range, ...)
-            # leaves no server running behind the error.
+            # An error while the scene is built or in the first solve (a refused or
+            # unconverged one is shown on the panel, not raised) leaves no server running.
             self.close()
             raise
 
@@ -296,8 +296,9 @@ class Viewer:
                     (self._t_sliders, t, 1.0),
                     (self._f_sliders, f, 1.0),
                 ):
-                    for slider, x in zip(sliders, values or (), strict=False):
-                        slider.value = x / scale
+                    if values is not None:
+                        for slider, x in zip(sliders, values, strict=True):
+                            slider.value = x / scale
         finally:
             self._quiet = False
         self._request_solve()
