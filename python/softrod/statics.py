@@ -636,7 +636,9 @@ def solve_statics_batch(
     row. With a held tip (``tip_constraint``) every row's path also moves the held pose
     from the unloaded rod's tip to the prescribed one, as the single held frictional solve
     does, and the rows carry their tip reactions. ``stiffness_map`` as in :func:`solve_statics`,
-    evaluated in one call for all rows.
+    evaluated for every row as the single solve evaluates it (a table or constant map in
+    one call for all rows; networks, regressors and callables one row at a time, since a
+    matrix product of all rows rounds a row differently).
 
     ``stable`` (m,) says which equilibria are stable (``stability_assessed`` (m,) is False
     where it was not assessed: follower loads) and ``violation`` (m,) which validity
