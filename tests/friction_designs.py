@@ -1,7 +1,10 @@
 """The frictional finger of the friction tests (tests/test_friction_statics.py and
 tests/test_friction_batch.py; their fixtures ``finger`` and ``rough`` are in
 tests/conftest.py): the bundled finger pressed onto its table, and with Coulomb friction
-MU on the table."""
+MU on the table; two of them holding one platform (tests/test_friction_system.py,
+benchmarks/bench_system_statics.py); and the three-chamber SPA hanging beside a rough
+wall (compare_models and compare_hybrid need paper 002's three channels;
+tests/test_compare.py, the fuzz suite)."""
 
 FINGER = "prebent_finger_on_table"
 MU = 0.5
@@ -27,3 +30,26 @@ def two_fingers(design, name: str = "two_fingers"):
     second = design.replace({"mounting.base_position": ["0 mm", f"{GAP * 1e3:g} mm", "0 mm"]})
     rods = (SystemRod(design, tip - origin, rot), SystemRod(second, tip + side - origin, rot))
     return System(name, rods, Platform(position=origin))
+
+
+#: A rough wall beside the hanging three-chamber SPA (outer radius 21.1 mm): 9 mm clear of
+#: its surface at rest, reached by the bend of channel 0 (towards +y) above about 18 kPa.
+SPA_WALL = {
+    "kind": "plane",
+    "point": ["0 mm", "30 mm", "0 mm"],
+    "normal": [0.0, -1.0, 0.0],
+    "stiffness": "2e6 N/m^2",
+    "tolerance": "0.05 mm",
+    "friction": MU,
+}
+
+
+def spa_beside_rough_wall():
+    """spa_three_chamber_130mm with SPA_WALL as its one obstacle."""
+    import copy
+
+    from softrod import load_design
+
+    doc = copy.deepcopy(load_design("spa_three_chamber_130mm").document)
+    doc["obstacles"] = [dict(SPA_WALL)]
+    return load_design(doc)

@@ -20,6 +20,7 @@ out on stdout. :class:`Pool` starts and restarts the workers.
 from __future__ import annotations
 
 import contextlib
+import copy
 import os
 import pickle
 import select
@@ -536,6 +537,169 @@ def target_api(payload) -> str:
         fn = getattr(fn, part)
     fn(*payload.get("args", ()), **payload.get("kwargs", {}))
     return ""
+
+
+# --- friction (docs/contact.md, "Friction in the statics") --------------------------------------
+
+FINGER = "prebent_finger_on_table"  # the bundled finger on its table (1 channel, 1 tendon)
+_FRICTION_CACHE: dict = {}
+
+
+def friction_design(payload):
+    """The design of a friction case: the finger (or ``payload["design"]``), its obstacle 0's
+    friction set to ``payload["friction"]`` through ``Design.replace`` or in the document
+    (``payload["how"]``); "spa_wall" is the SPA beside its rough wall
+    (tests/friction_designs.py), for compare_models."""
+    import softrod
+
+    name = payload.get("design", FINGER)
+    if name == "spa_wall":
+        from friction_designs import spa_beside_rough_wall
+
+        base = spa_beside_rough_wall()
+    else:
+        base = softrod.load_design(name)
+    if "friction" not in payload:
+        return base
+    mu = payload["friction"]
+    if payload.get("how") == "document":
+        doc = copy.deepcopy(base.document)
+        doc["obstacles"][0]["friction"] = mu
+        return softrod.load_design(doc)
+    return base.replace({"obstacles[0].friction": mu})
+
+
+def _quick_friction(steps=8):
+    from softrod import SolverOptions
+
+    return SolverOptions(max_iter=12, max_load_steps=8, friction_steps=steps)
+
+
+HISTORY_KINDS = (
+    "@frictionless",
+    "@rough",
+    "@other",
+    "@held",
+    "@failed",
+    "@state",
+    "@batch",
+    "@spa",
+)
+
+
+def friction_history(kind, design):
+    """What a case passes as ``history=``: a name of HISTORY_KINDS is a solution made here (of
+    this design, of another, frictionless, held, failed, its raw friction state, a batch);
+    anything else is passed as it is."""
+    import softrod
+
+    if not (isinstance(kind, str) and kind in HISTORY_KINDS):
+        return kind
+    finger = softrod.load_design(FINGER)
+    pin = {"type": "pinned", "position": ["27 mm", "0 mm", "-74 mm"]}  # near its rest tip
+    makers = {
+        "@frictionless": lambda: softrod.solve_statics(finger, [20e3], tensions=[0.0]),
+        "@rough": lambda: softrod.solve_statics(design, [20e3], options=_quick_friction()),
+        "@other": lambda: softrod.solve_statics(
+            finger.replace({"obstacles[0].friction": 0.3}), [20e3], options=_quick_friction()
+        ),
+        "@held": lambda: softrod.solve_statics(
+            design, [20e3], tip_constraint=pin, options=_quick_friction()
+        ),
+        "@failed": lambda: softrod.solve_statics(
+            design,
+            [20e3],
+            options=softrod.SolverOptions(max_iter=1, continuation=False, friction_steps=1),
+            check=False,
+        ),
+        "@state": lambda: (
+            softrod.solve_statics(design, [20e3], options=_quick_friction()).friction_state
+        ),
+        "@batch": lambda: softrod.solve_statics_batch(design, [[20e3]], options=_quick_friction()),
+        "@spa": lambda: softrod.solve_statics("spa_three_chamber_130mm", [0.0, 0.0, 0.0]),
+    }
+    key = (kind, repr(design.document))
+    if key not in _FRICTION_CACHE:
+        _FRICTION_CACHE.clear()  # one design's histories at a time: the worker stays small
+        _FRICTION_CACHE[key] = makers[kind]()
+    return _FRICTION_CACHE[key]
+
+
+def _check_friction(sol) -> str:
+    """A converged frictional solution carries its path's state and finite contact forces."""
+    problem = _check_solution(sol)
+    if problem:
+        return problem
+    if sol.friction_state is None:
+        return "a frictional solve returned no friction_state"
+    if sol.contact is None or not np.all(np.isfinite(sol.contact.friction_force)):
+        return "a frictional solve's friction force is missing or not finite"
+    return ""
+
+
+def target_friction(payload) -> str:
+    """A design with Coulomb friction (hostile friction values), solved by ``call``: "solve"
+    (solve_statics with hostile history, friction_steps, tip_constraint), "batch"
+    (solve_statics_batch), "workspace" (softrod.workspace) or "compare"
+    (softrod.compare_models of the SPA beside its rough wall)."""
+    import softrod
+
+    design = friction_design(payload)
+    if "options" in payload:  # a hostile value in place of SolverOptions
+        options = payload["options"]
+    else:
+        options = _quick_friction(payload.get("friction_steps", 8))
+    kwargs = dict(payload.get("kwargs", {}))
+    call = payload["call"]
+    if call == "solve":
+        kwargs["history"] = friction_history(kwargs.get("history"), design)
+        sol = softrod.solve_statics(design, payload["pressures"], options=options, **kwargs)
+        if kwargs.get("check", True) is False and not sol.converged:
+            return ""
+        if sol.friction_state is None and not any(
+            float(o.get("friction", 0.0)) > 0 for o in design.spec["obstacles"]
+        ):
+            return _check_solution(sol)  # friction 0: the frictionless solve
+        return _check_friction(sol)
+    if call == "batch":
+        out = softrod.solve_statics_batch(design, payload["pressures"], options=options, **kwargs)
+        problem = _check_batch(out, len(np.asarray(out.pressures)))
+        ok = np.asarray(out.converged, dtype=bool)
+        if not problem and out.friction_force is not None:
+            if not np.all(np.isfinite(out.friction_force[ok])):
+                return "a converged row's friction force is not finite"
+        return problem
+    if call == "workspace":
+        ws = softrod.workspace(design, options=options, **kwargs)
+        if not np.all(np.isfinite(ws.tip_position[ws.converged])):
+            return "a converged workspace sample is not finite"
+        return ""
+    if call == "compare":
+        table = softrod.compare_models({"rough": {"vertical": design}}, options=options, **kwargs)
+        ok = table["converged"].to_numpy(dtype=bool)
+        if not np.all(np.isfinite(table.loc[ok, ["tip_x_mm", "tip_y_mm", "tip_z_mm"]])):
+            return "a converged compare row is not finite"
+        return ""
+    raise ValueError(f"unknown friction call {call!r}")
+
+
+def target_viewer(payload) -> str:
+    """softrod.view (headless: the server alone, no browser) of a design with hostile
+    start values and slider ranges, then set_inputs with hostile values; the shape shown
+    must be valid."""
+    import softrod
+
+    design = friction_design(payload) if "friction" in payload else payload["design"]
+    v = softrod.view(design, environment_map=False, **payload.get("kwargs", {}))
+    try:
+        for move in payload.get("moves", []):
+            v.set_inputs(**move)
+        sol = v.solution
+        if sol is not None and sol.converged:
+            return _check_solution(sol)
+        return ""
+    finally:
+        v.close()
 
 
 def target_cli(args) -> str:

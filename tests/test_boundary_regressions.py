@@ -392,6 +392,133 @@ CASES = [
     ),
 ]
 
+LONG_NAME = "9" * 400 + " mm"  # 403 bytes: beyond the file system's 255 per name
+
+# compare_models of a frictional design (the fuzz suite's friction target): values that
+# raised AttributeError or TypeError deep inside, now named before any solve.
+_COMPARE = {"design": "spa_wall", "call": "compare"}
+_COMPARE_ARGS = {"experiments": "i-0", "pressures": [0.0], "progress": False}
+CASES += [
+    (
+        "compare-options-not-solver-options",
+        ("friction", {**_COMPARE, "options": 2, "kwargs": _COMPARE_ARGS}),
+        "error",
+        "options = 2",
+    ),
+    (
+        "compare-experiments-a-number",
+        ("friction", {**_COMPARE, "kwargs": {**_COMPARE_ARGS, "experiments": 3}}),
+        "error",
+        "experiments = 3",
+    ),
+    (
+        "compare-pressures-text",
+        ("friction", {**_COMPARE, "kwargs": {**_COMPARE_ARGS, "pressures": "abc"}}),
+        "error",
+        "pressures = 'abc'",
+    ),
+    (
+        # found through the viewer's trajectory= (TypeError from pathlib)
+        "trajectory-load-not-a-path",
+        ("api", {"function": "Trajectory.load", "args": ({},)}),
+        "error",
+        "path = 'dict'",
+    ),
+    # A file name too long for the file system: pathlib's exists()/is_file() raised OSError
+    # (ENAMETOOLONG) out of every reader; now "no such file" naming the path (found through
+    # the viewer's dataset=).
+    *(
+        (
+            f"name-too-long-{fn}",
+            ("api", {"function": fn, "args": (LONG_NAME + suffix,)}),
+            "error",
+            "no such file",
+        )
+        for fn, suffix in (
+            ("load_dataset", ""),
+            ("load_dataset", ".csv"),
+            ("load_design", ""),
+            ("load_system", ""),
+            ("Trajectory.load", ".npz"),
+            ("StiffnessMap.from_csv", ".csv"),
+            ("PressureSchedule.from_file", ".csv"),
+            ("HybridStiffnessModel.load", ".json"),
+        )
+    ),
+    (
+        "compare-pressures-with-units",
+        ("friction", {**_COMPARE, "kwargs": {**_COMPARE_ARGS, "pressures": ["0 kPa", "30 kPa"]}}),
+        "ok",
+        None,
+    ),
+]
+
+# softrod.view and Viewer.set_inputs (the fuzz suite's viewer target): values that raised
+# ValueError, TypeError or OverflowError from numpy, or were taken silently (a bool as 1 N).
+VIEWER_CASES = [
+    (
+        "viewer-scalar-pressure-move",
+        ("viewer", {"design": SPA, "moves": [{"pressures": 1.5}]}),
+        "error",
+        "pressures",
+    ),
+    (
+        "viewer-text-tensions",
+        ("viewer", {"design": "till_tendon_robot", "kwargs": {"tensions": "obstacles"}}),
+        "error",
+        "tensions",
+    ),
+    (
+        "viewer-complex-tip-force",
+        ("viewer", {"design": SPA, "moves": [{"tip_force": [1j, 0, 0]}]}),
+        "error",
+        "tip_force",
+    ),
+    (
+        "viewer-huge-integer-tension",
+        ("viewer", {"design": "till_tendon_robot", "moves": [{"tensions": [10**400, 0, 0, 0]}]}),
+        "error",
+        "tensions[0]",
+    ),
+    (
+        "viewer-nested-pressures",
+        ("viewer", {"design": SPA, "kwargs": {"pressures": [[1], 0, 0]}}),
+        "error",
+        "pressures",
+    ),
+    (
+        "viewer-bool-tension-max",
+        ("viewer", {"design": "till_tendon_robot", "kwargs": {"tension_max": True}}),
+        "error",
+        "tension_max",
+    ),
+    (
+        "viewer-options-not-solver-options",
+        ("viewer", {"design": SPA, "kwargs": {"options": 5}}),
+        "error",
+        "options = 5",
+    ),
+    (
+        "viewer-trajectory-not-a-path",
+        ("viewer", {"design": SPA, "kwargs": {"trajectory": [1.5]}}),
+        "error",
+        "path = 'list'",
+    ),
+    (
+        "viewer-quantities-with-units",
+        (
+            "viewer",
+            {
+                "design": SPA,
+                "kwargs": {"pressures": ["10 kPa", 0, 0], "pressure_range": ["0 kPa", "70 kPa"]},
+                "moves": [{"tip_force": ["0 N", "10 mN", "0 N"]}],
+            },
+        ),
+        "ok",
+        None,
+    ),
+]
+
 RUST_CASES = [
     # rotations that are not rotations, returned as converged (coarse steps, long module)
     (
@@ -453,6 +580,14 @@ def test_regression(pool, case, kind, fragment):
         assert fragment in out.detail, out.detail
     if kind == "error":
         assert out.seconds < QUICK_S, f"a refusal took {out.seconds:.2f} s"
+
+
+@pytest.mark.parametrize(
+    ("case", "kind", "fragment"), [c[1:] for c in VIEWER_CASES], ids=[c[0] for c in VIEWER_CASES]
+)
+def test_viewer_regression(pool, case, kind, fragment):
+    pytest.importorskip("viser", reason="needs the viewer extra (viser)")
+    test_regression(pool, case, kind, fragment)
 
 
 @pytest.mark.parametrize("case", [c[1] for c in RUST_CASES], ids=[c[0] for c in RUST_CASES])
@@ -556,3 +691,46 @@ def test_failed_write_leaves_no_temporary(tmp_path):
     with pytest.raises(RuntimeError):
         softrod.io.write_table(Broken(), tmp_path / "t.csv")
     assert list(tmp_path.iterdir()) == []
+
+
+def _random_networks(seed: int, hidden=(12, 10)):
+    """Three tanh networks of fixed random weights on three pressure channels."""
+    rng = np.random.default_rng(seed)
+    nets = []
+    for _ in range(3):
+        sizes = [3, *hidden, 1]
+        nets.append(
+            {
+                "input_mean": [2e4, 2e4, 2e4],
+                "input_scale": [2e4, 2e4, 2e4],
+                "weights": [
+                    rng.normal(size=(a, b)) for a, b in zip(sizes[:-1], sizes[1:], strict=True)
+                ],
+                "biases": [rng.normal(size=b) for b in sizes[1:]],
+                "activation": "tanh",
+                "target_mean": 0.0,
+                "target_scale": 0.1,
+            }
+        )
+    return nets
+
+
+def test_network_map_batch_rows_are_the_single_solves():
+    """A network stiffness map (the hybrid model's) evaluated on all rows of a batch at
+    once gave a row other last bits of sigma than the single solve's evaluation of that row
+    (one matrix product of all rows, which BLAS rounds differently with the row count), so
+    solve_statics_batch's and compare_hybrid's rows were not the single solves bitwise; the
+    batch now evaluates such a map one row at a time."""
+    from softrod.calibration.per_sample import stiffness_mapped_design
+
+    smap = softrod.StiffnessMap.from_networks(_random_networks(0))
+    p = np.random.default_rng(1).uniform(0.0, 7e4, size=(64, 3))
+    # Not vacuous: the map of all rows at once differs from the rows alone somewhere.
+    whole = smap(p)
+    assert any(not np.array_equal(whole[k], smap(p[k : k + 1])[0]) for k in range(len(p)))
+    design, _ = stiffness_mapped_design(SPA)  # the chambered body scaled by the map
+    batch = softrod.solve_statics_batch(design, p, stiffness_map=smap, threads=2)
+    for k, row in enumerate(p):
+        single = softrod.solve_statics(design, row, stiffness_map=smap)
+        np.testing.assert_array_equal(batch.stiffness_scale[k], single.stiffness_scale)
+        np.testing.assert_array_equal(batch.tip_position[k], single.tip_position)

@@ -1,5 +1,7 @@
 """compare_models: paper 002's experiments (Sec. V) for several models, tables and figure."""
 
+import copy
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -204,3 +206,127 @@ def test_figure(table, tmp_path):
 
 def test_public_names():
     assert softrod.compare_models is compare_models
+
+
+# --------------------------------------------------------------------------- friction
+
+#: Few increments keep the frictional tests short; the count changes the answer (first
+#: order), never whether a row equals its single solve.
+STEPS = softrod.SolverOptions(friction_steps=10)
+#: Off the wall, touching (from about 18 kPa on channel 0), pressed, pressed harder.
+WALL_RAMP = [0.0, 20e3, 40e3, 60e3]
+
+
+@pytest.fixture(scope="module")
+def walled():
+    from friction_designs import spa_beside_rough_wall
+
+    return spa_beside_rough_wall()
+
+
+def _spy_batches(monkeypatch, module):
+    """Every solve_statics_batch call made through ``module``: (design, pressures, kwargs,
+    out)."""
+    calls = []
+    real = module.solve_statics_batch
+
+    def spy(design, pressures, **kwargs):
+        out = real(design, pressures, **kwargs)
+        calls.append((design, pressures, kwargs, out))
+        return out
+
+    monkeypatch.setattr(module, "solve_statics_batch", spy)
+    return calls
+
+
+def assert_rows_are_single_solves(calls) -> int:
+    """Each row of each batch bitwise the single frictional solve of that row (same
+    increments, same stiffness map); returns how many rows rub (friction force > 0.1 mN,
+    far above the solver's resolution of it: a pressed row carries tens of mN)."""
+    rubbing = 0
+    for design, pressures, kwargs, out in calls:
+        assert out.friction_force is not None  # the frictional batch ran
+        for k, p in enumerate(pressures):
+            single = softrod.solve_statics(
+                design, p, stiffness_map=kwargs.get("stiffness_map"), options=STEPS
+            )
+            for name in ("tip_position", "tip_rotation", "base_force", "base_moment"):
+                np.testing.assert_array_equal(getattr(out, name)[k], getattr(single, name))
+            np.testing.assert_array_equal(out.friction_force[k], single.contact.friction_force)
+            rubbing += np.abs(single.contact.friction_force).max() > 1e-4
+    return rubbing
+
+
+def test_frictional_rows_are_the_single_frictional_solves(walled, monkeypatch):
+    """A design whose obstacle has friction: every (experiment, level) row is its own load
+    path from rest, so it is bitwise solve_statics of that row alone."""
+    from softrod import compare as module
+
+    calls = _spy_batches(monkeypatch, module)
+    df = compare_models(
+        {"rough": {"vertical": walled}},
+        experiments="i-0,ii-1",
+        pressures=WALL_RAMP,
+        options=STEPS,
+        threads=2,
+        progress=False,
+    )
+    assert df["converged"].all() and len(df) == 2 * len(WALL_RAMP) and len(calls) == 2
+    assert assert_rows_are_single_solves(calls) >= 3  # not vacuous: pressed rows rub
+    # The table holds those batches (up to the mm scaling, as for any design).
+    tips = np.vstack([out.tip_position for _, _, _, out in calls])
+    np.testing.assert_allclose(df[["tip_x_mm", "tip_y_mm", "tip_z_mm"]], tips * 1e3, rtol=1e-15)
+
+
+def test_frictional_compare_errors_name_the_field(walled):
+    # A negative friction coefficient in a model's design document is named by its field.
+    doc = copy.deepcopy(walled.document)
+    doc["obstacles"][0]["friction"] = -0.5
+    with pytest.raises(softrod.DesignError) as err:
+        compare_models({"rough": {"vertical": doc}}, experiments="i-0", pressures=[0.0])
+    assert err.value.field == "obstacles[0].friction"
+    # Hostile increments are refused by SolverOptions, before compare_models runs.
+    for steps in (0, 2.5, "80"):
+        with pytest.raises(InputError, match="friction_steps"):
+            softrod.SolverOptions(friction_steps=steps)
+    # options must be SolverOptions (named before any solve, not an AttributeError after).
+    with pytest.raises(InputError) as err:
+        compare_models({"rough": {"vertical": walled}}, experiments="i-0", options=80)
+    assert err.value.field == "options"
+
+
+@pytest.fixture(scope="module")
+def hybrid():
+    """A small hybrid model of the frictionless SPA (as tests/test_keep.py fits it)."""
+    data = load_dataset("spa130_synthetic").subset(np.arange(72))
+    ident = softrod.identify_stiffness("spa_three_chamber_130mm", data)
+    return softrod.fit_stiffness_map(ident, hidden=(12, 10), seed=3)
+
+
+def test_compare_hybrid_on_a_frictional_design_solves_each_row_from_rest(
+    walled, hybrid, monkeypatch
+):
+    """compare_hybrid of the SPA beside its rough wall: the hybrid's and the literature's
+    rows are each the single frictional solve of that row (with its stiffness map)."""
+    from softrod.calibration import hybrid as module
+
+    calls = _spy_batches(monkeypatch, module)
+    data = hybrid.identification.dataset
+    table = softrod.compare_hybrid(walled, data, hybrid, constant=None, options=STEPS)
+    assert len(calls) == 2 and (table["failed"] == 0).all()
+    # Not vacuous: the held-out rows with 70 kPa on channel 0 press on the wall.
+    assert assert_rows_are_single_solves(calls) >= 2
+
+
+def test_compare_hybrid_refuses_the_constant_fit_on_a_frictional_design_first(
+    walled, hybrid, monkeypatch
+):
+    """The constant-sigma fit is a calibration (frictionless): refused by the obstacle's
+    friction before any batch runs."""
+    from softrod.calibration import hybrid as module
+
+    calls = _spy_batches(monkeypatch, module)
+    with pytest.raises(InputError) as err:
+        softrod.compare_hybrid(walled, hybrid.identification.dataset, hybrid, options=STEPS)
+    assert err.value.field == "obstacles[0].friction" and "constant=None" in str(err.value)
+    assert calls == []

@@ -400,3 +400,95 @@ def test_a_frictional_design_continues_its_load_path_from_the_shape_shown():
         assert "friction:" in v._status.content
     finally:
         v.close()
+
+
+def test_bad_values_are_refused_before_the_server_starts(monkeypatch):
+    """Every start value is checked as solve_statics checks it before viser starts: an
+    options that is not SolverOptions, a bool as a force, text and NaN pressures are named
+    (no server is started for them; options=5 used to fail at the first solve)."""
+    import viser
+
+    def no_server(*args, **kwargs):
+        raise AssertionError("a server was started for a refused value")
+
+    monkeypatch.setattr(viser, "ViserServer", no_server)
+    for kwargs, field in (
+        ({"options": 5}, "options"),
+        ({"force_max": True}, "force_max"),
+        ({"pressures": ["x", 0, 0]}, "pressures[0]"),
+        ({"pressures": [float("nan"), 0, 0]}, "pressures[0]"),
+        ({"pressure_range": ("0 kPa", "70 m")}, "pressure_range[1]"),
+    ):
+        with pytest.raises(softrod.InputError) as err:
+            softrod.view(SPA, environment_map=False, **kwargs)
+        assert err.value.field == field, kwargs
+
+
+def test_a_failing_first_solve_stops_the_server(monkeypatch):
+    """An error out of the first solve (after the server started) stops the server before
+    it goes up: no server is left running behind the error."""
+    from softrod.viewer import app
+
+    closed = []
+    real_close = app.Viewer.close
+
+    def close(self):
+        closed.append(self)
+        real_close(self)
+
+    def broken_solve(*args, **kwargs):
+        raise RuntimeError("the solver broke")
+
+    monkeypatch.setattr(app.Viewer, "close", close)
+    monkeypatch.setattr(app, "solve_statics", broken_solve)
+    with pytest.raises(RuntimeError, match="the solver broke"):
+        softrod.view(SPA, environment_map=False)
+    assert len(closed) == 1 and closed[0]._closed
+
+
+def test_inputs_beyond_the_operating_range_say_so():
+    """Pressures on the sliders but beyond the finger's operating range (0-50 kPa) are
+    refused by the solve: the panel gives that reason (it said "no convergence (0
+    iterations, residual nan)"), and the next move inside the range solves."""
+    v = softrod.view(
+        "prebent_finger_on_table",
+        pressures=[100e3],
+        pressure_range=(0.0, 200e3),
+        environment_map=False,
+    )
+    try:
+        assert v.solution is None
+        assert v.error.startswith("refused at these inputs") and "operating" in v.error
+        assert "operating" in v._status.content and "NO" in v._status.content
+        sol = v.set_inputs(pressures=[30e3])
+        assert sol is not None and sol.converged and v.error is None
+    finally:
+        v.close()
+
+
+def test_values_beyond_the_sliders_are_refused_not_clipped():
+    """A slider cannot hold a value beyond its ends: viser clipped it silently (1 GPa
+    became the 50 kPa of the slider's top); now the entry and the range to widen are named,
+    at the start and from set_inputs, and nothing moves."""
+    with pytest.raises(softrod.InputError, match="pressure_range") as err:
+        softrod.view("prebent_finger_on_table", pressures=[1e9], environment_map=False)
+    assert err.value.field == "pressures[0]"
+    # The design's own tip force (0.5 N down) beyond sliders of +-1 mN.
+    loaded = load_design(SPA).replace({"tip.force": ["0 N", "0 N", "-0.5 N"]})
+    with pytest.raises(softrod.InputError, match=r"\[tip\] force") as err:
+        softrod.view(loaded, force_max="1 mN", environment_map=False)
+    assert err.value.field == "force_max"
+    v = softrod.view("till_tendon_robot", environment_map=False)
+    try:
+        before = v.solves
+        for kwargs, field in (
+            ({"tensions": [25.0, 0, 0, 0]}, "tensions[0]"),  # the sliders end at 20 N
+            ({"tip_force": [0, 0, -2 * v.force_max]}, "tip_force[2]"),
+        ):
+            with pytest.raises(softrod.InputError) as err:
+                v.set_inputs(**kwargs)
+            assert err.value.field == field
+        assert v.solves == before
+        np.testing.assert_array_equal(v.tensions, 0.0)
+    finally:
+        v.close()

@@ -11,6 +11,7 @@ from typing import Any
 
 from .design import Design, designs_dir, read_design
 from .errors import design_error
+from .io import exists as _exists
 from .presets import PRESETS
 
 
@@ -34,12 +35,12 @@ def load_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
             )
         path = Path(design)
         try:
-            exists = path.exists()
+            exists = _exists(path)
         except (OSError, ValueError):  # a name too long for the file system, for one
             exists = False
         if not exists:
             bundled = designs_dir() / f"{design}.toml"
-            if path.suffix == "" and bundled.exists():
+            if path.suffix == "" and _exists(bundled):
                 return read_design(bundled)
             if str(design) in PRESETS:
                 return PRESETS[str(design)].load()

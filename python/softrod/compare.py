@@ -36,11 +36,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from . import _validate as V
 from .catalog import load_design
 from .design import Design
 from .errors import DesignError, InputError, design_error
 from .presets import PAPER002_MODELS, paper002_preset
-from .statics import SolverOptions, solve_statics_batch
+from .statics import SolverOptions, _options, solve_statics_batch
 from .units import to_si
 
 if TYPE_CHECKING:
@@ -154,7 +155,17 @@ def resolve_experiments(experiments: str | Sequence[str] | None = None) -> list[
     """
     if experiments is None:
         return list(EXPERIMENTS)
-    items = experiments.split(",") if isinstance(experiments, str) else list(experiments)
+    if isinstance(experiments, str):
+        items = experiments.split(",")
+    elif isinstance(experiments, (list, tuple)):
+        items = list(experiments)
+    else:
+        raise design_error(
+            "experiments",
+            experiments,
+            "must be None, a comma-separated string or a list of experiment names",
+            InputError,
+        )
     chosen: set[str] = set()
     for item in items:
         name = str(item).strip()
@@ -278,8 +289,13 @@ def compare_models(
     from .schema import Extra, provenance, schema_frame
 
     names = resolve_experiments(experiments)
-    ramp = pressure_ramp() if pressures is None else np.asarray(pressures, dtype=float)
-    if ramp.ndim != 1 or ramp.size == 0 or not np.all(np.isfinite(ramp)):
+    solver = _options(options).as_kwargs()  # a bad one is named here, before any solve
+    ramp = (
+        pressure_ramp()
+        if pressures is None
+        else V.real_array(pressures, "pressures", unit_kind="pressure", what="ramp levels (Pa)")
+    )
+    if ramp.ndim != 1 or ramp.size == 0:
         raise design_error(
             "pressures",
             f"shape {ramp.shape}",
@@ -295,7 +311,7 @@ def compare_models(
         },
         experiments=names,
         ramp_kPa=(ramp / 1e3).tolist(),
-        solver=(options or SolverOptions()).as_kwargs(),
+        solver=solver,
     )
     frames = []
     total = len(designs) * len(names) * len(ramp)

@@ -61,6 +61,8 @@ from .catalog import load_design
 from .design import PACKAGE_DIR
 from .errors import InputError, design_error
 from .io import TABLE_SUFFIXES, check_table_path, read_text_file, write_table
+from .io import exists as _exists
+from .io import is_file as _is_file
 from .schema import (
     DEFAULT_UNITS,
     UNIT_ALIASES,
@@ -880,10 +882,10 @@ def load_dataset(
         where = _Where("index", labels=tuple(source.index))
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
-        if path.suffix == "" and not path.exists() and str(source) in example_datasets():
+        if path.suffix == "" and not _exists(path) and str(source) in example_datasets():
             path = example_dataset_path(str(source))
         if path.suffix.lower() not in TABLE_SUFFIXES:
-            if path.suffix == "" and not path.exists():
+            if path.suffix == "" and not _exists(path):
                 raise _fail(
                     "path",
                     str(path),
@@ -891,7 +893,7 @@ def load_dataset(
                     f"{', '.join(example_datasets())}; files end in .csv or .parquet)",
                 )
             check_table_path(path)  # raises with the list of formats
-        if not path.is_file():
+        if not _is_file(path):
             raise _fail("path", str(path), "no such file")
         reader = _read_csv if path.suffix.lower() == ".csv" else _read_parquet
         try:
@@ -1464,7 +1466,7 @@ def example_dataset_path(name: str) -> Path:
     """Path of a bundled example dataset, e.g. ``example_dataset_path("spa130_synthetic")``."""
     for suffix in ("", *TABLE_SUFFIXES):
         candidate = _EXAMPLES_DIR / f"{name}{suffix}"
-        if isinstance(name, str) and name and candidate.is_file():
+        if isinstance(name, str) and name and _is_file(candidate):
             return candidate
     raise _fail(
         "name", name, f"no bundled example dataset (known: {', '.join(example_datasets())})"

@@ -53,6 +53,32 @@ def check_table_path(path: str | os.PathLike) -> Path:
     return check_target(path)
 
 
+def is_file(path: str | os.PathLike) -> bool:
+    """``Path(path).is_file()``, False where the file system cannot look the name up at all
+    (a name too long for it: pathlib raises OSError for that on Python 3.11), so a reader
+    says "no such file" instead of raising OSError."""
+    try:
+        return Path(path).is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def exists(path: str | os.PathLike) -> bool:
+    """``Path(path).exists()``, False where the name cannot be looked up (see is_file)."""
+    try:
+        return Path(path).exists()
+    except (OSError, ValueError):
+        return False
+
+
+def is_dir(path: str | os.PathLike) -> bool:
+    """``Path(path).is_dir()``, False where the name cannot be looked up (see is_file)."""
+    try:
+        return Path(path).is_dir()
+    except (OSError, ValueError):
+        return False
+
+
 def check_target(path: str | os.PathLike) -> Path:
     """``path`` as a Path if a file can be written there: its folder exists and is writable,
     and the path is not a folder. Otherwise InputError naming the target (not a temporary
@@ -65,11 +91,11 @@ def check_target(path: str | os.PathLike) -> Path:
         raise design_error(
             "path", str(path), f"the file name is too long ({_MAX_NAME} bytes at most)", InputError
         )
-    if not folder.is_dir():
+    if not is_dir(folder):
         raise design_error("path", str(path), f"folder {str(folder)!r} does not exist", InputError)
     if not os.access(folder, os.W_OK | os.X_OK):
         raise design_error("path", str(path), f"folder {str(folder)!r} is not writable", InputError)
-    if path.is_dir():
+    if is_dir(path):
         raise design_error("path", str(path), "is a folder, not a file", InputError)
     return path
 

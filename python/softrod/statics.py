@@ -636,7 +636,9 @@ def solve_statics_batch(
     row. With a held tip (``tip_constraint``) every row's path also moves the held pose
     from the unloaded rod's tip to the prescribed one, as the single held frictional solve
     does, and the rows carry their tip reactions. ``stiffness_map`` as in :func:`solve_statics`,
-    evaluated in one call for all rows.
+    evaluated for every row as the single solve evaluates it (a table or constant map in
+    one call for all rows; networks, regressors and callables one row at a time, since a
+    matrix product of all rows rounds a row differently).
 
     ``stable`` (m,) says which equilibria are stable (``stability_assessed`` (m,) is False
     where it was not assessed: follower loads) and ``violation`` (m,) which validity
@@ -666,7 +668,7 @@ def solve_statics_batch(
     threads = V.threads(threads)
     opts = _options(options)
     smap = _stiffness_map(design, stiffness_map)
-    sigma = None if smap is None else np.ascontiguousarray(smap(arr), dtype=float)
+    sigma = None if smap is None else np.ascontiguousarray(_sigma_rows(smap, arr), dtype=float)
     tip = design.spec["tip"]
     tf = _vec3(tip_force, "force", "tip_force", tip["force"])
     tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
@@ -712,6 +714,19 @@ def solve_statics_batch(
         steps,
     )
     return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens, constraint)
+
+
+def _sigma_rows(smap: StiffnessMap, arr: np.ndarray) -> np.ndarray:
+    """sigma of every row of ``arr`` as solve_statics evaluates it for that row alone: a
+    table or constant map is one call (its rows are computed point by point), any other
+    (networks, regressors, callables) one row at a time, since a matrix product of all rows
+    (BLAS blocks them) rounds a row differently with the number of rows, and a batch row is
+    bitwise the single solve of that row. All rows are evaluated together first: that
+    call checks them and names a bad one by its row."""
+    whole = smap(arr)
+    if smap.kind in ("table", "constant") or len(arr) <= 1:
+        return whole
+    return np.vstack([smap(arr[k : k + 1]) for k in range(len(arr))])
 
 
 def _core_batch(

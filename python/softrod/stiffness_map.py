@@ -30,6 +30,7 @@ import numpy as np
 from . import _core
 from . import _validate as V
 from .errors import InputError, design_error
+from .io import is_file as _is_file
 
 SIGMA_NAMES = ("sigma_ext", "sigma_bend_x", "sigma_bend_y")
 METHODS = ("pchip", "linear")
@@ -278,7 +279,7 @@ class StiffnessMap:
         name the line of the file. ``method`` and ``outside`` as in :meth:`from_table`.
         """
         path = Path(path)
-        if not path.is_file():
+        if not _is_file(path):
             raise design_error("path", str(path), "no such file", InputError)
         from .io import read_text_file
 
@@ -872,7 +873,7 @@ def read_map_document(path: str | Path) -> dict:
     path = Path(path)
     if path.suffix.lower() != ".json":
         raise design_error("path", str(path), "a saved map file ends in .json", InputError)
-    if not path.is_file():
+    if not _is_file(path):
         raise design_error("path", str(path), "no such file", InputError)
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))

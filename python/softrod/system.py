@@ -42,6 +42,8 @@ from .catalog import load_design
 from .constraints import orientation as _orientation
 from .design import Design, read_toml
 from .errors import ConvergenceError, DesignError, InputError
+from .io import exists as _exists
+from .io import is_file as _is_file
 from .solution import Contact, StaticSolution, _mm
 from .statics import (
     SolverOptions,
@@ -240,9 +242,9 @@ def load_system(source: str | Path) -> System:
     designs are files relative to the system file, or bundled designs. Raises
     :class:`DesignError` naming the field, the value and the rule."""
     path = Path(source)
-    if not path.exists() and path.suffix == "" and (systems_dir() / f"{source}.toml").exists():
+    if not _exists(path) and path.suffix == "" and _exists(systems_dir() / f"{source}.toml"):
         path = systems_dir() / f"{source}.toml"
-    if not path.is_file():
+    if not _is_file(path):
         raise V.fail(
             "system",
             str(source),
@@ -297,7 +299,7 @@ def load_system(source: str | Path) -> System:
                 f"{where}.design", given, "must be a design file or bundled name", DesignError
             )
         local = path.parent / given
-        design = load_design(local if local.exists() else given)
+        design = load_design(local if _exists(local) else given)
         if "base_position" in r:
             design = design.replace({"mounting.base_position": r["base_position"]})
         rods.append(

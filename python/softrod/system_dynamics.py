@@ -28,6 +28,7 @@ from .dynamics.simulate import (
 )
 from .errors import InputError
 from .io import atomic_path, check_target, write_table
+from .io import is_file as _is_file
 from .statics import _pressures, _tensions
 from .system import System, _platform_args, load_system
 from .system import platform_inertia as _inertia_of
@@ -305,7 +306,7 @@ class SystemTrajectory:
                 "only .npz files are read back (.csv and .parquet are tables for pandas)",
                 InputError,
             )
-        if not path.is_file():
+        if not _is_file(path):
             raise V.fail("path", str(path), "no such file", InputError)
         if not isinstance(system, System):
             system = load_system(system)

@@ -58,6 +58,8 @@ from ..datasets import (
 from ..design import PACKAGE_DIR, Design
 from ..errors import InputError
 from ..io import atomic_path, check_target
+from ..io import exists as _exists
+from ..io import is_file as _is_file
 from ..io import metadata_json as _metadata_json
 from ..units import to_si
 
@@ -268,11 +270,11 @@ def _read_table(source, value: str, n_chambers: int, extra: str, rtol: float):
     elif isinstance(source, (str, os.PathLike)):
         path = Path(source)
         bundled = _EXAMPLES_DIR / f"{source}.csv"
-        if path.suffix == "" and not path.exists() and bundled.is_file():
+        if path.suffix == "" and not _exists(path) and _is_file(bundled):
             path = bundled  # a bundled example by name, e.g. modular_axial_force_synthetic
         if path.suffix.lower() != ".csv":
             raise _fail("path", str(path), "must be a .csv file (or pass a DataFrame)")
-        if not path.is_file():
+        if not _is_file(path):
             raise _fail("path", str(path), "no such file")
         df, block, meta, where = _read_csv(path)
     else:

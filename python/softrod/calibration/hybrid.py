@@ -38,7 +38,7 @@ from ..catalog import load_design
 from ..constraints import require_free_tip
 from ..datasets import Dataset
 from ..errors import InputError, design_error
-from ..statics import SolverOptions, solve_statics_batch
+from ..statics import SolverOptions, _frictional, solve_statics_batch
 from ..stiffness_map import SIGMA_NAMES, StiffnessMap
 from .fit import calibrate
 from .metrics import tip_error_table
@@ -537,6 +537,18 @@ def compare_hybrid(
             InputError,
         )
     mapped, _ = stiffness_mapped_design(design, hybrid.identification.sections)
+    rough = _frictional(mapped)
+    if rough is not None and isinstance(constant, str) and constant == "fit":
+        # The constant-stiffness fit is a calibration, whose solves are frictionless: said
+        # here, before the hybrid's and the literature's frictional batches run.
+        raise design_error(
+            f"obstacles[{rough}].friction",
+            mapped.spec["obstacles"][rough]["friction"],
+            "constant='fit' calibrates one sigma, and calibration is frictionless (a "
+            "frictional equilibrium depends on its load path; docs/contact.md, 'Friction in "
+            "the statics'): pass constant=None or a (3,) sigma, or set friction = 0",
+            InputError,
+        )
     dataset = _check_dataset(dataset, mapped)
     idx = _rows(rows, hybrid, dataset)
     p = np.asarray(dataset.pressures, dtype=float)[idx]

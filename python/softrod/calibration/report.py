@@ -33,6 +33,7 @@ import numpy as np
 
 from ..errors import InputError, design_error
 from ..io import atomic_path
+from ..io import is_dir as _is_dir
 from ..plotting import save_figure
 from .diagnostics import STRONG_CORRELATION
 from .metrics import ALL, _length, per_sample_errors
@@ -582,7 +583,7 @@ def save_figures(
     """Write the report's figures as ``<folder>/<name>.png`` (names in the module
     docstring), each atomically; arguments as in :func:`write_report`. Returns the paths."""
     folder = Path(folder)
-    if not folder.is_dir():
+    if not _is_dir(folder):
         raise design_error("folder", str(folder), "folder does not exist", InputError)
     figures = _figures(
         measured,

@@ -7,6 +7,8 @@ from pathlib import Path
 import click
 
 from ..errors import InputError, design_error
+from ..io import exists as _exists
+from ..io import is_file as _is_file
 from ._common import (
     _check_output,
     _for_option,
@@ -247,9 +249,9 @@ def pcc_identify(kind, data, design, chambers, k_l, k_theta, degree, experiment,
     from ..pcc import identify as idf
     from ..pcc.model import pcc_parameters
 
-    if not data.exists() and data.suffix == "" and str(data) in example_datasets():
+    if not _exists(data) and data.suffix == "" and str(data) in example_datasets():
         data = example_dataset_path(str(data))
-    if not data.is_file():
+    if not _is_file(data):
         raise design_error("DATA", str(data), "no such file or bundled dataset", InputError)
     d = load_design(design) if design else None
 

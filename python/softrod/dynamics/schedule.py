@@ -41,6 +41,7 @@ from ..datasets import (
 )
 from ..errors import InputError
 from ..io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
+from ..io import is_file as _is_file
 from ..io import metadata_json as _metadata_json
 from ..schema import channel_index
 
@@ -385,7 +386,7 @@ class PressureSchedule:
         path = Path(path)
         if path.suffix.lower() not in TABLE_SUFFIXES:
             check_table_path(path)  # raises with the list of formats
-        if not path.is_file():
+        if not _is_file(path):
             raise _fail("path", str(path), "no such file")
         reader = _read_csv if path.suffix.lower() == ".csv" else _read_parquet
         try:

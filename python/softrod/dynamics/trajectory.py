@@ -35,6 +35,7 @@ from .. import _validate as V
 from ..datasets import _MARKER, MAX_MARKERS, _fail, _marker_sites
 from ..errors import InputError
 from ..io import atomic_path, check_target
+from ..io import is_file as _is_file
 from ..io import metadata_json as _metadata_json
 from ..schema import Extra, schema_frame
 from ..schema import unit_factor as _unit_factor
@@ -1036,6 +1037,8 @@ def animation_plan(
 
 
 def _check_path(path, *, must_exist: bool = False) -> Path:
+    if not isinstance(path, (str, os.PathLike)) or isinstance(path, bytes):
+        raise _fail("path", type(path).__name__, "must be a file path (a str or a Path)")
     path = Path(path)
     if path.suffix.lower() not in TRAJECTORY_SUFFIXES:
         raise _fail(
@@ -1044,7 +1047,7 @@ def _check_path(path, *, must_exist: bool = False) -> Path:
             f"unknown trajectory format {path.suffix or '(no suffix)'!r}: the file name must "
             f"end in {' or '.join(TRAJECTORY_SUFFIXES)}",
         )
-    if must_exist and not path.is_file():
+    if must_exist and not _is_file(path):
         raise _fail("path", str(path), "no such file")
     return path if must_exist else check_target(path)
 

@@ -22,11 +22,20 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import _validate as V
 from ..catalog import load_design
 from ..design import Design
-from ..errors import InputError, design_error
+from ..errors import ConvergenceError, InputError, InvalidStateError, design_error
 from ..solution import StaticSolution
-from ..statics import SolverOptions, solve_statics
+from ..statics import (
+    SolverOptions,
+    _options,
+    _pressures,
+    _stiffness_map,
+    _tensions,
+    _vec3,
+    solve_statics,
+)
 from . import geometry as geo
 
 #: Colours (RGB) of the arrows and markers.
@@ -172,11 +181,14 @@ class Viewer:
 
         self.design = load_design(design)
         d = self.design
-        self._options = options
+        # Every value is checked here, as solve_statics checks it, before the server starts:
+        # a bad one is named at once, never at the first solve with a server left running.
+        self._options = None if options is None else _options(options)
         #: An obstacle with friction: every solve continues the load path from the shape shown.
         self.frictional = any(
             float(o.get("friction", 0.0)) > 0 for o in d.spec.get("obstacles", [])
         )
+        _stiffness_map(d, stiffness_map)
         self._stiffness_map = stiffness_map
         self.looks = geo.section_looks(d)
         nc = d.n_channels
@@ -185,19 +197,22 @@ class Viewer:
         else:
             self.pressure_range = _range(pressure_range)
         self.force_max = default_force_max(d) if force_max is None else _positive(force_max)
-        p0 = np.zeros(nc) if pressures is None else np.array(pressures, dtype=float)
-        if p0.shape != (nc,):
-            raise design_error(
-                "pressures", pressures, f"must be {nc} gauge pressures (Pa)", InputError
-            )
+        p0 = np.zeros(nc) if pressures is None else np.array(_pressures(d, pressures))
         nt = d.n_tendons
         self.tension_max = (
             default_tension_max(d) if tension_max is None else _positive(tension_max, "tension_max")
         )
-        t0 = np.zeros(nt) if tensions is None else np.array(tensions, dtype=float)
-        if t0.shape != (nt,) or not (np.isfinite(t0).all() and (t0 >= 0).all()):
+        t0 = np.zeros(nt) if tensions is None else np.array(_tensions(d, tensions))
+        # A slider cannot show a value beyond its ends (viser would clip it silently).
+        self._check_on_sliders(p0, t0, None)
+        f0 = np.asarray(d.spec["tip"]["force"], float)
+        if not np.all(np.abs(f0) <= self.force_max):
             raise design_error(
-                "tensions", tensions, f"must be {nt} tendon tensions >= 0 (N)", InputError
+                "force_max",
+                self.force_max,
+                f"the design's [tip] force {f0.tolist()} N is beyond the tip-force sliders' "
+                "range +-force_max: give a larger force_max",
+                InputError,
             )
         self.trajectory = _trajectory(d, trajectory)
         shown = _measured_predicted(d, calibration, dataset)
@@ -227,10 +242,16 @@ class Viewer:
             sc.configure_environment_map(hdri=None)
             sc.add_light_directional("/lights/key", intensity=2.5, position=(1.0, -1.5, 2.0))
             sc.add_light_ambient("/lights/fill", intensity=1.2)
-        self._set_camera()
-        self._build_scene()
-        self._build_gui(p0, t0)
-        self._request_solve()
+        try:
+            self._set_camera()
+            self._build_scene()
+            self._build_gui(p0, t0)
+            self._request_solve()
+        except BaseException:
+            # An error while the scene is built or in the first solve (a refused or
+            # unconverged one is shown on the panel, not raised) leaves no server running.
+            self.close()
+            raise
 
     # ------------------------------------------------------------------ public API
 
@@ -260,22 +281,47 @@ class Viewer:
     def set_inputs(self, pressures=None, tip_force=None, tensions=None) -> StaticSolution | None:
         """Move the sliders from Python (Pa, N, N) and wait for the re-solve; returns the
         solution on screen."""
+        # Checked as solve_statics checks them (units, counts, finite, tensions >= 0), all
+        # before any slider moves.
+        d = self.design
+        p = None if pressures is None else _pressures(d, pressures)
+        t = None if tensions is None else _tensions(d, tensions)
+        f = None if tip_force is None else _vec3(tip_force, "force", "tip_force", None)
+        self._check_on_sliders(p, t, f)
         self._quiet = True
         try:
             with self.server.atomic():
-                if pressures is not None:
-                    for s, p in zip(self._p_sliders, np.asarray(pressures, float), strict=True):
-                        s.value = float(p) / 1e3
-                if tensions is not None:
-                    for s, t in zip(self._t_sliders, np.asarray(tensions, float), strict=True):
-                        s.value = float(t)
-                if tip_force is not None:
-                    for s, f in zip(self._f_sliders, np.asarray(tip_force, float), strict=True):
-                        s.value = float(f)
+                for sliders, values, scale in (
+                    (self._p_sliders, p, 1e3),
+                    (self._t_sliders, t, 1.0),
+                    (self._f_sliders, f, 1.0),
+                ):
+                    if values is not None:
+                        for slider, x in zip(sliders, values, strict=True):
+                            slider.value = x / scale
         finally:
             self._quiet = False
         self._request_solve()
         return self.solution
+
+    def _check_on_sliders(self, pressures, tensions, tip_force) -> None:
+        """Values within their sliders' ranges (None: not given), else an InputError naming
+        the entry and the range to widen."""
+        lo, hi = self.pressure_range
+        for values, field, a, b, unit, widen in (
+            (pressures, "pressures", lo, hi, "Pa", "pressure_range"),
+            (tensions, "tensions", 0.0, self.tension_max, "N", "tension_max"),
+            (tip_force, "tip_force", -self.force_max, self.force_max, "N", "force_max"),
+        ):
+            for k, x in enumerate([] if values is None else values):
+                if not a <= x <= b:
+                    raise design_error(
+                        f"{field}[{k}]",
+                        float(x),
+                        f"must be within its slider's range [{a:g}, {b:g}] {unit} (a slider "
+                        f"cannot hold it): give a wider {widen}",
+                        InputError,
+                    )
 
     def screenshot(self, path, *, width: int = 1280, height: int = 800, timeout: float = 60.0):
         """Render the scene in a connected browser and write it as PNG (whole or not at all).
@@ -619,28 +665,32 @@ class Viewer:
         # "Friction in the statics") the load path continued from it, so a slider move loads
         # or unloads the rod from where it stands, with what its contacts hold.
         start = {"history" if self.frictional else "initial": shown}
-        sol = solve_statics(
-            self.design,
-            p,
-            tensions=tensions,
-            tip_force=f,
-            options=self._options,
-            stiffness_map=self._stiffness_map,
-            check=False,
-            **start,
-        )
+        try:
+            sol = solve_statics(
+                self.design,
+                p,
+                tensions=tensions,
+                tip_force=f,
+                options=self._options,
+                stiffness_map=self._stiffness_map,
+                **start,
+            )
+        except ConvergenceError as exc:
+            # Not converged, or refused by a validity rule (InvalidStateError: beyond the
+            # operating range, ...): the panel says which and why; the last converged shape
+            # stays drawn.
+            sol = None
+            what = "refused" if isinstance(exc, InvalidStateError) else "no convergence"
+            reason = f"{what} at these inputs: {exc}"
         t1 = time.perf_counter()
         self.solves += 1
-        if sol.converged:
+        if sol is not None:
             self.solution = sol
             self.error = None
         else:
-            self.error = (
-                f"no convergence at these inputs ({sol.iterations} iterations, residual "
-                f"{sol.residual:.2e}): the last converged shape stays drawn"
-            )
+            self.error = f"{reason} (the last converged shape stays drawn)"
         with self.server.atomic():
-            if sol.converged:
+            if sol is not None:
                 self._draw_rod(sol.s, sol.position, sol.rotation, sol.section)
                 self._draw_tip(sol.position[-1], sol.rotation[-1], f)
                 self._draw_line_loads(sol.s, sol.position)
@@ -755,9 +805,9 @@ class Viewer:
                 sec, pressures, hi, radius, tensions=tensions, t_max=self.tension_max
             )
 
-    def _status_text(self, sol: StaticSolution, solve_s: float) -> str:
+    def _status_text(self, sol: StaticSolution | None, solve_s: float) -> str:
         lines = [f"solve {self.solves}: {solve_s * 1e3:.2f} ms"]
-        if sol.converged:
+        if sol is not None:
             tip = sol.tip_position * 1e3
             lines += [
                 "converged: **yes**",
@@ -843,23 +893,23 @@ class Viewer:
 
 
 def _range(value) -> tuple[float, float]:
-    try:
-        lo, hi = (float(v) for v in value)
-    except (TypeError, ValueError):
+    """(low, high) gauge pressures: numbers in Pa or strings with units, finite, low < high."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist() if value.ndim == 1 else value
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
         raise design_error(
             "pressure_range", value, "must be (low, high) gauge pressures in Pa", InputError
-        ) from None
-    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        )
+    lo, hi = (V.quantity(v, "pressure", f"pressure_range[{i}]") for i, v in enumerate(value))
+    if not lo < hi:
         raise design_error("pressure_range", value, "must be finite with low < high", InputError)
     return lo, hi
 
 
 def _positive(value, field: str = "force_max") -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        x = math.nan
-    if not (math.isfinite(x) and x > 0):
+    """A positive force: a number in N or a string with units (not a bool)."""
+    x = V.quantity(value, "force", field)
+    if not x > 0:
         raise design_error(field, value, "must be a positive force in N", InputError)
     return x
 
