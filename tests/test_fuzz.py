@@ -754,6 +754,9 @@ def api_cases(draw):
             "platform_force": draw(st.one_of(st.none(), arrays(3), hostile())),
             "platform_moment": draw(st.one_of(st.none(), hostile())),
         }
+        if which == 5:
+            # A frictional path's history on a frictionless system, or no SystemSolution.
+            kwargs["history"] = draw(st.one_of(st.none(), hostile()))
         if which == 6:
             kwargs["dt"] = draw(st.sampled_from(STEPS))
             kwargs["platform_inertia"] = draw(st.one_of(st.none(), arrays(3), hostile()))

@@ -663,3 +663,66 @@ fn held_frictional_solve_refuses_bad_input_by_name() {
     let e = msg(solve_constrained(&rod, &l0, &pin, None, &opts).unwrap_err());
     assert!(e.contains("obstacles[0].friction"), "{e}");
 }
+
+/// Jumping over a path's contact-free stretch (`friction::follow`) leaves the answer as
+/// solving every increment gives it: the round bar, weightless, held 3 mm above its
+/// frictional plane and pushed down and sideways at the tip, lands on the plane about half
+/// way along the path; before that nothing touches, nothing is stored, and the equilibria do not depend
+/// on the path. Both paths meet the contact in the same increments, each solved to the
+/// tolerance tol (relative to L and the force scale), so they agree to steps * tol; the
+/// jumps take fewer increments. A load that never brings the bar down is the
+/// frictionless equilibrium, reached in a few jumps.
+#[test]
+fn contact_free_stretches_are_jumped_without_changing_the_answer() {
+    // Weightless (its weight alone would lay the soft bar on the plane): only the tip load
+    // (1 mN down: 5.4 mm of deflection at the tip without the plane) brings it down.
+    let mut spec = round_bar().spec;
+    spec.obstacles[0].point = Some([0.0, 0.0, -8e-3]);
+    spec.mounting.gravity = [0.0; 3];
+    let rod = Rod::new(spec).unwrap();
+    let opts = SolverOptions::default();
+    let steps = 80;
+    let bound = steps as f64 * opts.tol;
+    let mut l = pulled(0.0);
+    l.tip_force = [0.0, 3e-4, -1e-3];
+    let jumped = friction::solve(&rod, &l, None, steps, &opts).unwrap();
+    let every = friction::solve_every_increment(&rod, &l, None, steps, &opts).unwrap();
+    let (a, b) = (
+        report(&rod, &l, &jumped).unwrap().unwrap(),
+        report(&rod, &l, &every).unwrap().unwrap(),
+    );
+    let dr = (0..3)
+        .map(|k| (jumped.tip.r[k] - every.tip.r[k]).abs())
+        .fold(0.0, f64::max);
+    let df = (0..3)
+        .map(|k| (a.force[0][k] - b.force[0][k]).abs())
+        .fold(0.0, f64::max);
+    println!(
+        "touching: tip {dr:.2e} m, contact force {df:.2e} N apart; friction {:?} N; increments {} against {}",
+        a.friction[0], jumped.load_steps, every.load_steps
+    );
+    assert!(
+        a.force[0][2] > 0.0 && a.friction[0][1].abs() > 0.0,
+        "{:?}",
+        a.force[0]
+    );
+    assert!(dr <= bound * rod.length, "{dr:e}");
+    assert!(df <= bound * rod.force_scale, "{df:e}");
+    assert!(jumped.load_steps < every.load_steps);
+    // Never touching: the frictionless equilibrium, in a handful of increments.
+    l.tip_force = [0.0, 3e-4, -2e-4];
+    let free = friction::solve(&rod, &l, None, steps, &opts).unwrap();
+    let mut smooth_spec = rod.spec.clone();
+    smooth_spec.obstacles[0].friction = 0.0;
+    let plain =
+        softrod_core::statics::solve(&Rod::new(smooth_spec).unwrap(), &l, None, &opts).unwrap();
+    let dr = (0..3)
+        .map(|k| (free.tip.r[k] - plain.tip.r[k]).abs())
+        .fold(0.0, f64::max);
+    println!(
+        "clear: tip {dr:.2e} m from the frictionless solve, {} increments",
+        free.load_steps
+    );
+    assert!(dr <= bound * rod.length, "{dr:e}");
+    assert!(free.load_steps <= 10, "{}", free.load_steps);
+}

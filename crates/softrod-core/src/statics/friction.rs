@@ -53,6 +53,8 @@ pub const DEFAULT_FRICTION_STEPS: usize = 80;
 pub const MAX_FRICTION_STEPS: usize = 100_000;
 /// A failed increment is halved down to 1/SUB of the requested one.
 const SUB: u32 = 1024;
+/// Contact-free stretches of a path are jumped over (`follow`).
+pub(crate) const JUMPS: bool = true;
 
 /// Every contact point's friction memory: per section, one point per RK4 stage (4 per
 /// step; none in a rigid section, which carries no contact force), and the rounded end.
@@ -367,7 +369,7 @@ pub fn solve(
     steps: usize,
     opts: &SolverOptions,
 ) -> Result<Solution> {
-    solve_inner(rod, loads, history, steps, opts, false).map(|(s, _)| s)
+    solve_inner(rod, loads, history, steps, opts, false, JUMPS).map(|(s, _)| s)
 }
 
 /// [`solve`] and the shape at every integration node.
@@ -378,7 +380,21 @@ pub fn solve_with_shape(
     steps: usize,
     opts: &SolverOptions,
 ) -> Result<(Solution, Shape)> {
-    solve_inner(rod, loads, history, steps, opts, true).map(|(s, sh)| (s, sh.unwrap_or_default()))
+    solve_inner(rod, loads, history, steps, opts, true, JUMPS)
+        .map(|(s, sh)| (s, sh.unwrap_or_default()))
+}
+
+/// [`solve`] without jumping over the path's contact-free stretches (every requested
+/// increment solved): for tests that the jumps leave the answer as it was.
+#[doc(hidden)]
+pub fn solve_every_increment(
+    rod: &Rod,
+    loads: &Loads,
+    history: Option<&FrictionPath>,
+    steps: usize,
+    opts: &SolverOptions,
+) -> Result<Solution> {
+    solve_inner(rod, loads, history, steps, opts, false, false).map(|(s, _)| s)
 }
 
 fn solve_inner(
@@ -388,11 +404,12 @@ fn solve_inner(
     steps: usize,
     opts: &SolverOptions,
     want_shape: bool,
+    jumps: bool,
 ) -> Attempt {
     let free = TipConstraint::Free;
     let mut b = begin(rod, loads, &free, history, steps, opts)?;
     let violations = std::mem::take(&mut b.violations);
-    let end = b.follow(rod, loads, history, steps, |p, _, guess| {
+    let end = b.follow(rod, loads, history, steps, jumps, |p, _, guess| {
         p[0].newton(std::array::from_fn(|i| guess[i]), Start::Guess, opts)
     })?;
     let p = end.problem(0, rod, loads);
@@ -434,7 +451,7 @@ pub fn solve_held(
     let mut b = begin(rod, loads, constraint, history, steps, opts)?;
     let mut violations = std::mem::take(&mut b.violations);
     let (r0, rot0) = b.pose;
-    let end = b.follow(rod, loads, history, steps, |p, t, guess| {
+    let end = b.follow(rod, loads, history, steps, JUMPS, |p, t, guess| {
         let eq = Held {
             p: &p[0],
             pose: Pose::along(constraint, &r0, &rot0, t),
@@ -470,6 +487,7 @@ impl Begin {
         loads: &Loads,
         history: Option<&FrictionPath>,
         steps: usize,
+        jumps: bool,
         inner: impl FnMut(&mut Vec<Problem>, f64, Vec<f64>) -> std::result::Result<C, (usize, f64)>,
     ) -> Result<PathEnd<C>> {
         let leg = Leg {
@@ -483,6 +501,7 @@ impl Begin {
             self.x.to_vec(),
             steps,
             false,
+            jumps,
             inner,
         )
     }
@@ -640,6 +659,38 @@ fn rods_of<'p>(problems: &'p [Problem<'p>], x: &'p [f64]) -> Vec<(&'p Problem<'p
         .collect()
 }
 
+/// Whether no rod of `rods` (each problem at its unknowns) touches an obstacle: every
+/// contact point's penetration delta = rho - d <= 0 (the penalty, and with it the
+/// friction, is zero there) and nothing is stored in its contacts (`states`: a stored
+/// elastic slip e != 0 needs a normal force, so it is checked first, without a pass).
+fn untouched(rods: &[(&Problem, &[f64])], states: &[Option<FrictionState>]) -> bool {
+    let stored = states.iter().flatten().any(|s| s.max_elastic_slip() > 0.0);
+    !stored
+        && rods.iter().all(|(p, x)| {
+            let Some(obstacles) = p.rod.obstacles.as_deref() else {
+                return true;
+            };
+            let rod = p.rod;
+            let clear = |r: &[f64; 3], rho: f64| obstacles.iter().all(|o| rho <= o.distance(r).0);
+            let mut touched = false;
+            let mut hook = |node: NodeAt, y: &mut State<f64>| {
+                let sec = &rod.sections[node.section];
+                if !sec.rigid {
+                    step_quadrature(rod, &p.coeffs, node, y, &mut |ys, s, _| {
+                        touched |= !clear(&ys.r, sec.surface_radius(s));
+                    });
+                }
+                touched
+            };
+            let tip = integrate_with(rod, &p.coeffs, p.base_state(x), &mut hook);
+            let end = rod
+                .sections
+                .last()
+                .map(|sec| clear(&tip.r, sec.surface_radius(sec.length)));
+            !touched && end.unwrap_or(true)
+        })
+}
+
 /// The increment loop shared by the free and the held tip and by systems of rods: from
 /// each rod's `states` and the unknowns `x` (6 per rod first) at the path's start to the
 /// legs' loads, in `steps` equal increments, each halved while `inner` fails (down to
@@ -654,6 +705,7 @@ pub(crate) fn follow<C: Reached>(
     mut x: Vec<f64>,
     steps: usize,
     system: bool,
+    jumps: bool,
     mut inner: impl FnMut(&mut Vec<Problem>, f64, Vec<f64>) -> std::result::Result<C, (usize, f64)>,
 ) -> Result<PathEnd<C>> {
     let not_converged =
@@ -666,12 +718,23 @@ pub(crate) fn follow<C: Reached>(
     let loads_of = |t: f64| -> Vec<(Loads, f64)> {
         legs.iter().map(|l| loads_at(l.start, l.loads, t)).collect()
     };
-    let mut last = {
+    let (mut last, mut clear) = {
         let levels = loads_of(0.0);
         let problems = problems_at(legs, &levels, &states);
-        contact::Sides::start(&rods_of(&problems, &x))
+        let rods = rods_of(&problems, &x);
+        let clear = jumps && untouched(&rods, &states);
+        (contact::Sides::start(&rods), clear)
     };
     let check_crossing = !last.unchecked();
+    // Contact-free stretches are jumped over: where no rod touches an obstacle, nothing is
+    // stored in a contact (a point that lifts off forgets its slip), and the next
+    // equilibrium does not depend on how the loads got there. So from an untouched state
+    // on the grid an increment of `stride` requested ones is tried: one that lands
+    // untouched is kept (and the stride doubles), one that lands touching an obstacle,
+    // crosses one or fails is discarded and tried in half the stride, down to the single
+    // increment, from which the path goes on as without jumps. The contact that follows is
+    // therefore met in the same increments as without jumps (to the solver's tolerance).
+    let mut stride = 1usize;
     // Where the path stands, in units of 1/SUB of a requested increment: increment i,
     // position `at` in it. A failed increment is halved (level `depth`: length
     // SUB >> depth), and after a success the length doubles again where the position
@@ -694,7 +757,15 @@ pub(crate) fn follow<C: Reached>(
     let mut levels = 0;
     loop {
         let len = SUB >> depth;
-        let (next_i, next_at) = if at + len >= SUB {
+        let span = if clear && depth == 0 && at == 0 {
+            stride.min(steps - i)
+        } else {
+            1
+        };
+        let jump = span > 1;
+        let (next_i, next_at) = if jump {
+            (i + span, 0)
+        } else if at + len >= SUB {
             (i + 1, 0)
         } else {
             (i, at + len)
@@ -735,6 +806,10 @@ pub(crate) fn follow<C: Reached>(
                 if check_crossing {
                     let shape = last.at(&rods);
                     if let Some(cr) = last.crossing(&shape, &rods, system) {
+                        if jump {
+                            stride = span / 2;
+                            continue;
+                        }
                         if len == 1 || dt <= MIN_CROSSING_STEP {
                             return Err(contact::crossing_error(cr, Some(dt)));
                         }
@@ -751,7 +826,18 @@ pub(crate) fn follow<C: Reached>(
                         Some(advance(p, xi, s, obstacles))
                     })
                     .collect();
+                let lands_clear = jumps && untouched(&rods, &next);
                 drop(rods);
+                if jump && !lands_clear {
+                    stride = span / 2;
+                    continue;
+                }
+                if lands_clear {
+                    stride = (2 * span).min(steps);
+                } else {
+                    stride = 1;
+                }
+                clear = lands_clear;
                 if target >= 1.0 {
                     return Ok(PathEnd {
                         last: c,
@@ -774,6 +860,10 @@ pub(crate) fn follow<C: Reached>(
             }
             Err((it, res)) => {
                 iterations += it;
+                if jump {
+                    stride = span / 2;
+                    continue;
+                }
                 if len == 1 {
                     return Err(failed(iterations, res, "Newton did not converge"));
                 }

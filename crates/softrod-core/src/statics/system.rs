@@ -671,12 +671,20 @@ pub fn solve_system_friction(
             start: history.map(|h| &h.rods[i].loads),
         })
         .collect();
-    let end = friction::follow(&legs, states, x0, steps, true, |problems, t, guess| {
-        let level = course.level(std::mem::take(problems), t);
-        let out = newton(&level, guess, opts.tol, opts.max_iter);
-        *problems = level.problems;
-        out
-    })?;
+    let end = friction::follow(
+        &legs,
+        states,
+        x0,
+        steps,
+        true,
+        friction::JUMPS,
+        |problems, t, guess| {
+            let level = course.level(std::mem::take(problems), t);
+            let out = newton(&level, guess, opts.tol, opts.max_iter);
+            *problems = level.problems;
+            out
+        },
+    )?;
     let full = course.level(
         rods.iter()
             .enumerate()
