@@ -146,7 +146,8 @@ def test_cli_solve_system_takes_friction_steps(rough, finger, tmp_path):
     ]
     out = run(main, [*args, "--friction-steps", "20", "--json"])
     assert out.exit_code == 0, out.output
-    doc = json.loads(out.output)
+    doc = json.loads(out.stdout)  # the note that stability is not assessed: on stderr
+    assert "stability not assessed" in out.stderr
     assert doc["stable"] is None and doc["converged"]
     api = solve_system(
         softrod.system.load_system(tmp_path / "rough_pair.toml"),
@@ -154,6 +155,11 @@ def test_cli_solve_system_takes_friction_steps(rough, finger, tmp_path):
         options=SolverOptions(friction_steps=20),
     )
     assert np.allclose(doc["platform_position_m"], api.platform_position, rtol=0, atol=1e-12)
+    for got, r in zip(doc["rods"], api.rods, strict=True):
+        assert np.allclose(got["contact"]["friction_force_N"], r.contact.friction_force, atol=1e-12)
+        assert got["contact"]["friction_force_N"][0][0] < 0
+    table = run(main, args + ["--friction-steps", "20"])
+    assert table.exit_code == 0 and "its friction part" in table.output, table.output
     smooth = ["solve-system", str(tmp_path / "smooth_pair.toml"), "--friction-steps", "20"]
     out = run(main, smooth)
     assert out.exit_code != 0 and "--friction-steps" in out.output

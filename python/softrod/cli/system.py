@@ -177,6 +177,11 @@ def solve_system_cmd(
 
     tilt = float(platform_tilt_deg(sol.platform_rotation))
     notes = [v for r in sol.rods for v in r.violations]
+    if sol.friction_state is not None:
+        notes.append(
+            "stability not assessed (friction has no potential; the answer follows a load "
+            "path from the unloaded rods: docs/contact.md, 'Friction in the statics')"
+        )
     if sol.stable is False:
         notes.append(
             "the system's equilibrium is unstable: a small disturbance moves it away "
@@ -198,6 +203,7 @@ def solve_system_cmd(
                     "tip_reaction_moment_Nm": r.tip_reaction_moment.tolist(),
                     "base_force_N": r.base_force.tolist(),
                     "base_moment_Nm": r.base_moment.tolist(),
+                    **_contact_json(r),
                 }
                 for rod, r in zip(sysm.rods, sol.rods, strict=True)
             ],
@@ -228,6 +234,15 @@ def solve_system_cmd(
                 _fmt_vec(r.tip_reaction_moment, 1e3, 3),
                 "N mm",
             )
+            if r.contact is not None:
+                for k, (force, fric) in enumerate(
+                    zip(r.contact.total_force, r.contact.friction_force, strict=True)
+                ):
+                    table.add_row(
+                        f"rod {i}: contact force, obstacle {k}", _fmt_vec(force, 1.0, 4), "N"
+                    )
+                    if sol.friction_state is not None:
+                        table.add_row(f"rod {i}:   its friction part", _fmt_vec(fric, 1.0, 4), "N")
         stable = "not assessed" if sol.stable is None else "yes" if sol.stable else "NO"
         table.add_row("stable", stable, "")
         table.add_row("iterations", f"{sol.iterations}", "")
@@ -247,6 +262,19 @@ def solve_system_cmd(
         plt.close(sol.plot(plot_path))  # written atomically
         # Keep stdout pure JSON with --json: say where the figure went on stderr instead.
         _say(f"wrote {plot_path}", stderr=as_json)
+
+
+def _contact_json(r) -> dict:
+    """A rod's contact with its obstacles for --json (nothing without obstacles)."""
+    if r.contact is None:
+        return {}
+    return {
+        "contact": {
+            "total_force_N": r.contact.total_force.tolist(),
+            "friction_force_N": r.contact.friction_force.tolist(),
+            "max_penetration_m": r.contact.max_penetration,
+        }
+    }
 
 
 def _system_friction_options(sysm, friction_steps: int | None):
