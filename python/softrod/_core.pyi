@@ -410,7 +410,7 @@ def solve_rod_system(
     max_load_steps: int = 200,
     stretch_range: tuple[float, float] = ...,
     on_invalid: str = "raise",
-    friction_steps: int = 80,
+    friction_steps: int = ...,
     history: SystemFrictionState | None = None,
 ) -> dict[str, Any]: ...
 def solve_constrained_tip_batch(
@@ -444,5 +444,5 @@ def solve_rod_system_batch(
     max_load_steps: int = 200,
     stretch_range: tuple[float, float] = ...,
     on_invalid: str = "raise",
-    friction_steps: int = 80,
+    friction_steps: int = ...,
 ) -> dict[str, Any]: ...
