@@ -930,6 +930,9 @@ fn a_cold_solve_that_touches_nothing_concludes_from_the_free_equilibrium() {
         l.tensions = vec![0.0];
         let what = format!("{p} Pa");
         assert!(assert_same_as_full_solve(&rod, &l, &what) > 0.0, "{what}");
-        assert!(solve(&rod, &l, None, &opts).unwrap().iterations > 1, "{what}");
+        assert!(
+            solve(&rod, &l, None, &opts).unwrap().iterations > 1,
+            "{what}"
+        );
     }
 }
