@@ -453,6 +453,39 @@ pub fn obstacle(kind: ObstacleKind, stiffness: f64, tolerance: f64) -> ObstacleS
     }
 }
 
+/// designs/prebent_finger_on_table.toml built here: an 80 mm Dragon Skin 20 finger
+/// (E = 337.8 kPa, Poisson 0.5) moulded on a 100 mm arc towards d1, a chamber and a
+/// tendon on the inside of the bend, hanging above a plane 82 mm below its base with
+/// friction `mu`. Pressure opens the finger and presses its tip onto the table.
+pub fn finger(mu: f64) -> DesignSpec {
+    let ds20 = MaterialSpec {
+        youngs_modulus: 337.8e3,
+        shear_modulus: 337.8e3 / 3.0,
+        density: 1080.0,
+    };
+    let mut sec = geometry_section(
+        "finger",
+        0.08,
+        8e-3,
+        0.0,
+        ds20,
+        vec![chamber(2e-3, 3.5e-3, 0.0, 0)],
+        40,
+    );
+    sec.reference = ReferenceSpec {
+        curvature: [0.0, 1.0 / 0.1, 0.0],
+        ..Default::default()
+    };
+    sec.tendons = vec![tendon(0, 6.5e-3, 0.0)];
+    let mut d = design(vec![sec], HANGING, 9.81);
+    let mut table = obstacle(ObstacleKind::Plane, 1e7, 2e-4);
+    table.point = Some([0.0, 0.0, -0.082]);
+    table.normal = Some([0.0, 0.0, 1.0]);
+    table.friction = mu;
+    d.obstacles = vec![table];
+    d
+}
+
 /// Hanging mounting: d3 = -z_world (gravity along the arm).
 pub const HANGING: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
 

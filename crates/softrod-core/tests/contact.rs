@@ -515,6 +515,17 @@ fn a_rod_sagging_onto_a_pin_rests_on_it_not_below_it() {
     // Without the pin the same rod hangs below where the pin is.
     let fs = softrod_core::statics::shape(&free_rod, &loads(&[]), &free);
     assert!(fs.position[k][2] < -7e-3, "{:?}", fs.position[k]);
+    // That free shape touches nothing, so it is an equilibrium of the rod with the pin
+    // too, to the tolerance: the cold start's first test accepts it, and only the crossing
+    // check sends the solve along the load path above (`contact::crossing`).
+    let scale = rod.force_scale;
+    let x6: Vec<f64> = (free.base_force.iter().map(|n| n / scale))
+        .chain(free.base_moment.iter().map(|m| m / (scale * rod.length)))
+        .collect();
+    let xmax = x6.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+    let r = residual(&rod, &loads(&[]), &x6).unwrap();
+    let tol = SolverOptions::default().tol;
+    assert!(r.iter().all(|v| v.abs() <= tol * xmax), "{r:?}");
     // Without continuation only the cold start is tried: its equilibrium below the pin is
     // refused, never returned.
     let once = SolverOptions {
@@ -822,5 +833,106 @@ fn bad_obstacles_are_refused_with_field_and_rule() {
         Err(SoftrodError::InvalidParameter { field, .. }) => assert_eq!(field, "obstacles"),
         Err(e) => panic!("{e}"),
         Ok(_) => panic!("the linearisation accepted obstacles"),
+    }
+}
+
+/// Inf-norm of the inverse of the shooting Jacobian at `x` (6 unknowns).
+fn inverse_jacobian_norm(rod: &Rod, l: &softrod_core::ode::Loads, x: &[f64]) -> f64 {
+    let (_, j) = residual_and_jacobian(rod, l, x).unwrap();
+    let inv = nalgebra::Matrix6::from_fn(|i, k| j[i][k])
+        .try_inverse()
+        .unwrap();
+    inv.row_iter()
+        .map(|r| r.iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0, f64::max)
+}
+
+/// The cold solve of the finger on its table (`common::finger`) against the full contact
+/// solve: the same loads with an unusable guess (not finite), which the solve ignores and
+/// so follows the natural path from the unloaded rod in all six unknowns, without the
+/// obstacle-free start. Both answers are equilibria to the solver's tolerance (the scaled
+/// residual at most tol max(1, |x|)), so they differ by at most |J^-1| times the sum of
+/// those residuals, to first order (the second order, |dx|^2, is far below): the bound
+/// asserted. The stability verdict and the report's forces are the same.
+fn assert_same_as_full_solve(rod: &Rod, l: &softrod_core::ode::Loads, what: &str) -> f64 {
+    let opts = SolverOptions::default();
+    let cold = solve(rod, l, None, &opts).unwrap();
+    let full = solve(rod, l, Some(&[f64::NAN; 6]), &opts).unwrap();
+    let xmax = cold.x.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+    let bound = inverse_jacobian_norm(rod, l, &cold.x) * 2.0 * opts.tol * xmax;
+    let dx = cold
+        .x
+        .iter()
+        .zip(&full.x)
+        .fold(0.0f64, |a, (u, v)| a.max((u - v).abs()));
+    assert!(dx <= bound, "{what}: |dx| = {dx:e} > {bound:e}");
+    for sol in [&cold, &full] {
+        let r = residual(rod, l, &sol.x).unwrap();
+        assert!(
+            r.iter().all(|v| v.abs() <= opts.tol * xmax),
+            "{what}: {r:?}"
+        );
+    }
+    assert_eq!(cold.stable, Some(true), "{what}");
+    assert_eq!(cold.stable, full.stable, "{what}");
+    assert_eq!(cold.violations, full.violations, "{what}");
+    let (a, b) = (
+        report(rod, l, &cold).unwrap().unwrap(),
+        report(rod, l, &full).unwrap().unwrap(),
+    );
+    let force = a.force[0][2];
+    assert!(
+        (force - b.force[0][2]).abs() <= 1e-6 * force.abs().max(1e-9),
+        "{what}"
+    );
+    assert!(
+        (a.max_penetration - b.max_penetration).abs() < 1e-9,
+        "{what}"
+    );
+    force
+}
+
+/// Off the table (0 and 10 kPa: the finger's free equilibrium touches nothing, the penalty
+/// adds exactly zero) a cold solve concludes from the equilibrium without the table after
+/// one residual test: one Newton iteration, one load level, every contact force zero, the
+/// penetration the (negative) gap; it is the full contact solve's answer and the answer of
+/// Newton warm-started there. Touching it lightly (11 kPa: the free equilibrium sinks into
+/// the table by less than its tolerance, so only the residual refuses it) or pressed on it
+/// (30 kPa), Newton solves the contact from there, to the full solve's answer as before.
+#[test]
+fn a_cold_solve_that_touches_nothing_concludes_from_the_free_equilibrium() {
+    let rod = Rod::new(common::finger(0.0)).unwrap();
+    let opts = SolverOptions::default();
+    for p in [0.0, 10e3] {
+        let mut l = loads(&[p]);
+        l.tensions = vec![0.0];
+        let what = format!("{p} Pa");
+        assert_eq!(assert_same_as_full_solve(&rod, &l, &what), 0.0, "{what}");
+        let cold = solve(&rod, &l, None, &opts).unwrap();
+        assert_eq!((cold.iterations, cold.load_steps), (1, 1), "{what}");
+        let rep = report(&rod, &l, &cold).unwrap().unwrap();
+        assert!(rep.force[0].iter().chain(&rep.end[0]).all(|f| *f == 0.0));
+        assert!(rep.nodes.iter().all(|n| n.force == [0.0; 3]), "{what}");
+        let gap = rep
+            .nodes
+            .iter()
+            .map(|n| n.gap)
+            .fold(f64::INFINITY, f64::min);
+        assert!(gap > 0.0 && rep.max_penetration == -gap, "{what}");
+        // Warm-started at the answer, Newton stops at its first test after its dual pass:
+        // the same x, bit for bit, and the same verdict.
+        let warm = solve(&rod, &l, Some(&cold.x), &opts).unwrap();
+        assert_eq!(warm.x, cold.x, "{what}");
+        assert_eq!((warm.iterations, warm.stable), (1, cold.stable), "{what}");
+    }
+    for p in [11e3, 30e3] {
+        let mut l = loads(&[p]);
+        l.tensions = vec![0.0];
+        let what = format!("{p} Pa");
+        assert!(assert_same_as_full_solve(&rod, &l, &what) > 0.0, "{what}");
+        assert!(
+            solve(&rod, &l, None, &opts).unwrap().iterations > 1,
+            "{what}"
+        );
     }
 }

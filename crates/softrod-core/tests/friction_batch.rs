@@ -4,14 +4,12 @@
 
 mod common;
 
-use common::{chamber, design, geometry_section, obstacle, tendon, HANGING};
+use common::finger;
 use softrod_core::batch::{
     constrained_sensitivity_batch, sensitivity_batch, solve_batch, solve_constrained_batch,
     solve_friction_batch, BatchInputs, BatchRow,
 };
 use softrod_core::ode::Loads;
-use softrod_core::spec::obstacle::ObstacleKind;
-use softrod_core::spec::{DesignSpec, MaterialSpec, ReferenceSpec};
 use softrod_core::statics::constraint::TipConstraint;
 use softrod_core::statics::contact::report;
 use softrod_core::statics::friction::{self, DEFAULT_FRICTION_STEPS, MAX_FRICTION_STEPS};
@@ -22,39 +20,6 @@ const MU: f64 = 0.5;
 /// Load increments per row: few, to keep the test short (the increments' size changes
 /// the answer, not whether batch and single agree).
 const STEPS: usize = 20;
-
-/// designs/prebent_finger_on_table.toml built here: an 80 mm Dragon Skin 20 finger
-/// (E = 337.8 kPa, Poisson 0.5) moulded on a 100 mm arc towards d1, a chamber and a
-/// tendon on the inside of the bend, hanging above a plane 82 mm below its base with
-/// friction `mu`. Pressure opens the finger and presses its tip onto the table.
-fn finger(mu: f64) -> DesignSpec {
-    let ds20 = MaterialSpec {
-        youngs_modulus: 337.8e3,
-        shear_modulus: 337.8e3 / 3.0,
-        density: 1080.0,
-    };
-    let mut sec = geometry_section(
-        "finger",
-        0.08,
-        8e-3,
-        0.0,
-        ds20,
-        vec![chamber(2e-3, 3.5e-3, 0.0, 0)],
-        40,
-    );
-    sec.reference = ReferenceSpec {
-        curvature: [0.0, 1.0 / 0.1, 0.0],
-        ..Default::default()
-    };
-    sec.tendons = vec![tendon(0, 6.5e-3, 0.0)];
-    let mut d = design(vec![sec], HANGING, 9.81);
-    let mut table = obstacle(ObstacleKind::Plane, 1e7, 2e-4);
-    table.point = Some([0.0, 0.0, -0.082]);
-    table.normal = Some([0.0, 0.0, 1.0]);
-    table.friction = mu;
-    d.obstacles = vec![table];
-    d
-}
 
 /// Rows of (pressure, tension): the finger off the table, touching, pressed harder, and
 /// pulled back by its tendon.

@@ -113,9 +113,9 @@ fn end_force_of<D: RodScalar>(o: &Obstacle, r: &[D; 3], rho: f64) -> [D; 3] {
 /// A cold start for a rod with obstacles under dead loads: the equilibrium without the
 /// obstacles (3 unknowns, cheap), as the 6 unknowns (n(0), m(0)) of the contact problem.
 /// Where that shape touches nothing it is the answer (the penalty is exactly zero off
-/// contact) and Newton stops at once; where it touches, Newton starts from a shape close to
-/// the answer for light contacts. None when the free solve fails (the caller then follows
-/// the natural path from the unloaded rod).
+/// contact) and Newton's first test, an f64 pass, accepts it without a Jacobian; where it
+/// touches, Newton starts from a shape close to the answer for light contacts. None when the
+/// free solve fails (the caller then follows the natural path from the unloaded rod).
 pub(crate) fn free_guess(
     rod: &Rod,
     loads: &Loads,

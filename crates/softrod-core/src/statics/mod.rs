@@ -614,6 +614,24 @@ impl<'a> Problem<'a> {
         })
     }
 
+    /// `x` as Newton's answer where it is an equilibrium already: Newton's first test
+    /// (`newton`, which stops there after one iteration) from an f64 pass, without the dual
+    /// pass for a Jacobian it would not use. None where Newton has work to do.
+    fn converged_at<const N: usize>(
+        &self,
+        x: &[f64; N],
+        opts: &SolverOptions,
+    ) -> Option<Converged<N>> {
+        let r = self.eval(x);
+        let norm = inf_norm(&r);
+        (norm <= opts.tol * inf_norm(x).max(1.0)).then_some(Converged {
+            x: *x,
+            r,
+            residual: norm,
+            iterations: 1,
+        })
+    }
+
     /// Damped Newton from `x0`. Err((iterations, residual)) when it fails.
     ///
     /// Trial points are evaluated with the cheap f64 pass. The exact Jacobian (a dual pass,
@@ -1021,17 +1039,55 @@ fn right_half_plane(t: &Matrix3<f64>) -> bool {
 }
 
 /// Every eigenvalue of the 6x6 matrix t has a positive real part (the test of
-/// `constraint::Conjugate`): its eigenvalues from the real Schur form. Should the QR
-/// iteration not converge (not seen on such small matrices), det t > 0, which still
-/// catches a single crossing.
+/// `constraint::Conjugate`): at once where Gershgorin's discs say so ([`gershgorin_right`]),
+/// else from the eigenvalues of the real Schur form. Should the QR iteration not converge
+/// (not seen on such small matrices), det t > 0, which still catches a single crossing.
 pub(crate) fn eigenvalues_right_half_plane(t: &nalgebra::Matrix6<f64>) -> bool {
     if !t.iter().all(|v| v.is_finite()) {
         return false;
     }
+    gershgorin_right(t) || schur_right(t)
+}
+
+/// [`eigenvalues_right_half_plane`] from the eigenvalues of the real Schur form.
+fn schur_right(t: &nalgebra::Matrix6<f64>) -> bool {
     match nalgebra::linalg::Schur::try_new(*t, f64::EPSILON, 10_000) {
         Some(schur) => schur.complex_eigenvalues().iter().all(|z| z.re > 0.0),
         None => t.determinant() > 0.0,
     }
+}
+
+/// Whether every Gershgorin disc of t, balanced, lies in the right half-plane: every
+/// eigenvalue lies in a disc about some diagonal entry of radius the sum of |.| over its
+/// row's other entries, for t and for its diagonal similarity D^-1 t D alike, which a few
+/// sweeps of Osborne's balancing (each row's radius made its column's) chooses; without it
+/// the fields' ill-scaled columns (forces and moments, positions and rotations) spread the
+/// discs of T = I + O(h) far beyond its eigenvalues. The discs must clear the imaginary
+/// axis by 1e-6 of the largest, far above the round-off of the Schur form's eigenvalues,
+/// so that test agrees wherever this one answers. It answers on most steps of the
+/// conjugate-point test and saves the Schur form there, most of that test's cost.
+fn gershgorin_right(t: &nalgebra::Matrix6<f64>) -> bool {
+    let mut a = *t;
+    let radius = |a: &nalgebra::Matrix6<f64>, i: usize| -> (f64, f64) {
+        (0..6).filter(|&j| j != i).fold((0.0, 0.0), |(r, c), j| {
+            (r + a[(i, j)].abs(), c + a[(j, i)].abs())
+        })
+    };
+    for _ in 0..3 {
+        for i in 0..6 {
+            let (r, c) = radius(&a, i);
+            if r > 0.0 && c > 0.0 {
+                let f = (c / r).sqrt();
+                for j in (0..6).filter(|&j| j != i) {
+                    a[(i, j)] *= f;
+                    a[(j, i)] /= f;
+                }
+            }
+        }
+    }
+    let discs: [(f64, f64); 6] = std::array::from_fn(|i| (a[(i, i)], radius(&a, i).0));
+    let scale = discs.iter().map(|(c, r)| c.abs() + r).fold(0.0, f64::max);
+    discs.iter().all(|(c, r)| c - r > 1e-6 * scale)
 }
 
 /// The best of two attempts: a stable solution, else a broken validity rule, else an
@@ -1154,10 +1210,34 @@ fn solve_inner(
             None => contact::free_guess(rod, loads, opts),
             Some(_) => None,
         };
-        let guess = guess.or(start.as_deref());
+        let guess = match guess {
+            Some(g) => Some(Guess::Given(g)),
+            None => start.as_deref().map(Guess::Free),
+        };
         solve_n::<6, 7>(rod, loads, guess, opts, violations, want_shape)
     } else {
+        let guess = guess.map(Guess::Given);
         solve_n::<3, 4>(rod, loads, guess, opts, violations, want_shape)
+    }
+}
+
+/// Where a solve's first Newton start comes from.
+#[derive(Clone, Copy)]
+enum Guess<'a> {
+    /// The caller's (a warm start).
+    Given(&'a [f64]),
+    /// The equilibrium without the obstacles (`contact::free_guess`): where that shape
+    /// touches nothing, the penalty adds exactly zero to the residual (and to its
+    /// derivatives), so it is the contact problem's equilibrium already, and Newton's first
+    /// test is all there is to do (`Problem::converged_at`).
+    Free(&'a [f64]),
+}
+
+impl<'a> Guess<'a> {
+    fn x(self) -> &'a [f64] {
+        match self {
+            Guess::Given(x) | Guess::Free(x) => x,
+        }
     }
 }
 
@@ -1165,14 +1245,16 @@ fn solve_inner(
 fn solve_n<const N: usize, const M: usize>(
     rod: &Rod,
     loads: &Loads,
-    guess: Option<&[f64]>,
+    guess: Option<Guess>,
     opts: &SolverOptions,
     violations: Vec<SoftrodError>,
     want_shape: bool,
 ) -> Attempt {
     let mut iterations = 0;
     let mut first: Option<Attempt> = None;
+    let free = matches!(guess, Some(Guess::Free(_)));
     let guess = guess
+        .map(Guess::x)
         .filter(|g| g.len() == N && g.iter().all(|v| v.is_finite()))
         .map(|g| -> [f64; N] { std::array::from_fn(|i| g[i]) });
     // With obstacles: the unloaded rod's nodes, from which an equilibrium must be
@@ -1187,7 +1269,16 @@ fn solve_n<const N: usize, const M: usize>(
         });
     if let Some(g) = guess {
         let full = Problem::new(rod, loads, 1.0);
-        match full.newton(g, Start::Guess, opts) {
+        // The free equilibrium is accepted on Newton's own test (the residual, judged as
+        // Newton judges it, so the answer is Newton's), without its Jacobian: where the
+        // shape touches nothing, the answer is then concluded at once (the stability test
+        // of all six unknowns in `conclude`). Its crossing is checked below as any start's:
+        // a free shape beyond an obstacle touches nothing too.
+        let newton = match free.then(|| full.converged_at(&g, opts)).flatten() {
+            Some(c) => Ok(c),
+            None => full.newton(g, Start::Guess, opts),
+        };
+        match newton {
             Ok(c) => {
                 let out = full.conclude(
                     At::Converged(&c),
@@ -1788,4 +1879,66 @@ pub fn load_tangent(
     } else {
         go::<3, 4>(&p, x)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{gershgorin_right, schur_right};
+    use nalgebra::Matrix6;
+
+    /// Uniform numbers in [-1, 1) (a fixed linear congruential sequence).
+    fn numbers(seed: u64) -> impl FnMut() -> f64 {
+        let mut state = seed;
+        move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        }
+    }
+
+    /// The balanced discs answer for matrices like the conjugate-point test's steps (near
+    /// a multiple of I, in bases scaled over six decades), and wherever they answer the
+    /// Schur form agrees, also for matrices with eigenvalues within 1e-3 of the imaginary
+    /// axis on either side of it (a complex pair in a random basis), where they must not
+    /// answer for those in the left half-plane.
+    #[test]
+    fn balanced_gershgorin_discs_agree_with_the_schur_form() {
+        let mut u = numbers(7);
+        for case in 0..2000 {
+            let s =
+                Matrix6::from_diagonal(&nalgebra::Vector6::from_fn(|_, _| 10f64.powf(3.0 * u())));
+            let inv = s.try_inverse().unwrap();
+            let near = case % 2 == 0;
+            let a = if near {
+                Matrix6::identity() * (0.6 + 0.3 * u()) + Matrix6::from_fn(|_, _| 0.02 * u())
+            } else {
+                let mut a = Matrix6::from_fn(|_, _| 0.3 * u());
+                let (re, im) = (1e-3 * u(), 1.0 + u());
+                a[(0, 0)] = re;
+                a[(1, 1)] = re;
+                a[(0, 1)] = im;
+                a[(1, 0)] = -im;
+                for i in 2..6 {
+                    a[(i, i)] = 2.0 + u();
+                    for j in 0..2 {
+                        a[(i, j)] = 0.0;
+                    }
+                }
+                let q = Matrix6::identity() + Matrix6::from_fn(|_, _| 0.2 * u());
+                q.try_inverse().unwrap() * a * q
+            };
+            let t = inv * a * s;
+            let fast = gershgorin_right(&t);
+            if near {
+                assert!(fast, "case {case}: {t}");
+            }
+            if fast {
+                assert!(schur_right(&t), "case {case}: {t}");
+            }
+            if !near && a[(0, 0)] < 0.0 {
+                assert!(!fast, "case {case}: {t}");
+            }
+        }
+    }
 }
