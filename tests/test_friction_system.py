@@ -190,3 +190,24 @@ def test_motion_with_friction_starts_from_the_frictionless_rest(rough, finger):
     ]
     assert np.array_equal(pairs[0].platform_position[0], pairs[1].platform_position[0])
     assert not np.array_equal(pairs[0].platform_position[-1], pairs[1].platform_position[-1])
+
+
+def test_system_batch_table_has_each_rods_contact_and_no_false_stability(rough_pair, smooth_pair):
+    rows = [_both(20e3), _both(35e3)]
+    batch = solve_system_batch(rough_pair, rows)
+    frame = batch.to_frame()
+    for i in range(2):
+        single = solve_system(rough_pair, rows[1])
+        # The table's last row: the single solve's contact and friction, rod by rod.
+        assert np.array_equal(batch.contact_force[i][1], single.rods[i].contact.total_force)
+        assert np.array_equal(batch.friction_force[i][1], single.rods[i].contact.friction_force)
+        assert (
+            frame[f"rod{i}_friction0_fx_N"].iloc[1] == single.rods[i].contact.friction_force[0][0]
+        )
+        assert frame[f"rod{i}_contact0_fz_N"].iloc[1] > 0
+    # Friction has no potential: the stability cells are empty, never False.
+    assert frame["stable"].isna().all()
+    assert batch.metadata["friction_steps"] == SolverOptions().friction_steps
+    # Frictionless: assessed, stable, and contact columns all the same.
+    smooth = solve_system_batch(smooth_pair, rows).to_frame()
+    assert smooth["stable"].all() and "rod1_contact0_fz_N" in smooth

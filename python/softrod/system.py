@@ -47,6 +47,7 @@ from .io import is_file as _is_file
 from .solution import Contact, StaticSolution, _mm
 from .statics import (
     SolverOptions,
+    _frictional,
     _options,
     _policy,
     _pressures,
@@ -529,8 +530,10 @@ class SystemBatchSolution:
     unknowns (m, 6 n + 6): the solver's unknowns (``SystemSolution.unknowns`` of each row).
     violation (m,) str: the validity rule a rod broke ("rods[i]: ...", "" if none). stable
     (m,) bool: the row's system equilibrium is stable (False on failed rows and where not
-    assessed); stability_assessed (m,) bool (as :func:`solve_system`). metadata: the
-    metadata block of :meth:`to_frame`.
+    assessed); stability_assessed (m,) bool (as :func:`solve_system`). contact_force and
+    friction_force: per rod, None (no obstacles) or its obstacles' resultant contact forces
+    and their tangential (friction) parts, (m, obstacles, 3) N (world frame; NaN on failed
+    rows). metadata: the metadata block of :meth:`to_frame`.
     """
 
     system: System
@@ -554,6 +557,8 @@ class SystemBatchSolution:
     stability_assessed: np.ndarray = field(
         default_factory=lambda: np.zeros(0, dtype=bool), repr=False
     )
+    contact_force: tuple = field(default=(), repr=False)
+    friction_force: tuple = field(default=(), repr=False)
     metadata: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __len__(self) -> int:
@@ -571,20 +576,38 @@ class SystemBatchSolution:
         inputs ``rod<i>_p<k>_kPa`` and ``rod<i>_t<k>_N``; the platform pose
         ``platform_x_mm`` ... ``platform_z_mm``, ``platform_qw`` ... ``platform_qz``; per rod
         its tip position ``rod<i>_tip_x_mm`` ... and the platform's reaction on its tip
-        ``rod<i>_tip_reaction_fx_N`` ... ``rod<i>_tip_reaction_mz_Nmm`` (world frame); then
-        ``converged``, ``iterations``, ``residual``, ``stable``. Failed rows keep NaN. The
-        metadata block (``frame.attrs["softrod.metadata"]``) is :attr:`metadata`."""
+        ``rod<i>_tip_reaction_fx_N`` ... ``rod<i>_tip_reaction_mz_Nmm`` (world frame); per
+        rod with obstacles its contact forces ``rod<i>_contact<k>_fx_N`` ... and their
+        friction parts ``rod<i>_friction<k>_fx_N`` ...; then ``converged``, ``iterations``,
+        ``residual``, ``stable`` (empty where stability was not assessed: friction,
+        follower loads). Failed rows keep NaN. The metadata block
+        (``frame.attrs["softrod.metadata"]``) is :attr:`metadata`."""
         import pandas as pd
 
         from .schema import table_units
 
         chosen, factor = table_units(units)
         cols = system_columns(self, chosen, factor)
+        for i, (fc, ff) in enumerate(zip(self.contact_force, self.friction_force, strict=True)):
+            for arr, name in ((fc, "contact"), (ff, "friction")):
+                if arr is None:
+                    continue
+                for k in range(arr.shape[1]):
+                    for j, a in enumerate("xyz"):
+                        cols[f"rod{i}_{name}{k}_f{a}_{chosen['force']}"] = (
+                            arr[:, k, j] / factor["force"]
+                        )
         cols["converged"] = np.asarray(self.converged, dtype=bool)
         cols["iterations"] = np.asarray(self.iterations)
         cols["residual"] = np.asarray(self.residual, dtype=float)
         if self.stable.shape == self.converged.shape:
-            cols["stable"] = np.asarray(self.stable, dtype=bool)
+            stable = np.asarray(self.stable, dtype=bool)
+            assessed = np.asarray(self.stability_assessed, dtype=bool)
+            if assessed.shape == stable.shape and not assessed.all():
+                # Not assessed is no verdict: an empty cell, never a False that a reader
+                # would take for "unstable".
+                stable = pd.array(np.where(assessed, stable, None), dtype="boolean")
+            cols["stable"] = stable
         frame = pd.DataFrame(cols)
         frame.attrs["softrod.metadata"] = dict(self.metadata)
         return frame
@@ -836,6 +859,9 @@ def solve_system_batch(
         platform_force_N=platform[2],
         platform_moment_Nm=platform[3],
     )
+    contact = out["contact"]
+    if any(_frictional(r.design) is not None for r in system.rods):
+        meta["friction_steps"] = int(opts.friction_steps)  # every row's load path
     return SystemBatchSolution(
         system=system,
         pressures=tuple(ps),
@@ -856,6 +882,8 @@ def solve_system_batch(
         violation=violation,
         stable=stable,
         stability_assessed=assessed,
+        contact_force=tuple(None if c is None else c["contact_force"] for c in contact),
+        friction_force=tuple(None if c is None else c["friction_force"] for c in contact),
         metadata=meta,
     )
 

@@ -17,6 +17,7 @@ use crate::sensitivity::{
     validate_params, Param, TipSensitivity,
 };
 use crate::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
+use crate::statics::contact::ContactReport;
 use crate::statics::friction;
 use crate::statics::system::{
     solve_system, solve_system_friction, Platform, SystemRod, SystemSolution,
@@ -686,8 +687,10 @@ pub fn constrained_sensitivity_batch(
 pub struct SystemBatchRow {
     pub converged: bool,
     /// Per rod: its tip pose, base wrench, 6 unknowns, the wrench the platform applies to
-    /// its tip (`tip_reaction_*`) and the validity rule it broke under `Policy::Warn`
-    /// (`stable`: the whole system's, as `stable` below).
+    /// its tip (`tip_reaction_*`), its obstacles' contact and friction forces
+    /// (`contact_force`, `friction_force`: one per obstacle, NaN on a failed row, empty
+    /// without obstacles) and the validity rule it broke under `Policy::Warn` (`stable`:
+    /// the whole system's, as `stable` below).
     pub rods: Vec<BatchRow>,
     /// The system's equilibrium is stable (`SystemSolution::stable`); None where not
     /// assessed or the row failed.
@@ -880,8 +883,41 @@ pub fn solve_system_batch(
             solve_system(rods, platform, None, opts)
         }
     };
-    in_pool(threads, count, &|r| match solve(&row_rods(r)) {
-        Ok(s) => SystemBatchRow::solved(&s),
-        Err(e) => SystemBatchRow::failed(n, &e),
+    // A rod with obstacles: its contact report per row (`statics::contact::report`, as
+    // `solve_system` gives it), NaN on failed rows.
+    let with_contact = |row: &mut SystemBatchRow, reports: Option<Vec<Option<ContactReport>>>| {
+        for (i, (b, sr)) in row.rods.iter_mut().zip(rods).enumerate() {
+            let k = sr.rod.spec.obstacles.len();
+            if k == 0 {
+                continue;
+            }
+            match reports.as_ref().and_then(|r| r[i].as_ref()) {
+                Some(rep) => {
+                    b.contact_force = rep.force.clone();
+                    b.friction_force = rep.friction.clone();
+                }
+                None => {
+                    b.contact_force = vec![[f64::NAN; 3]; k];
+                    b.friction_force = vec![[f64::NAN; 3]; k];
+                }
+            }
+        }
+    };
+    in_pool(threads, count, &|r| {
+        let row_rods = row_rods(r);
+        let solved = solve(&row_rods).and_then(|s| {
+            let reports = row_rods
+                .iter()
+                .zip(&s.rods)
+                .map(|(sr, c)| crate::statics::contact::report(sr.rod, &sr.loads, &c.solution))
+                .collect::<Result<Vec<_>>>()?;
+            Ok((s, reports))
+        });
+        let (mut row, reports) = match solved {
+            Ok((s, reports)) => (SystemBatchRow::solved(&s), Some(reports)),
+            Err(e) => (SystemBatchRow::failed(n, &e), None),
+        };
+        with_contact(&mut row, reports);
+        row
     })
 }

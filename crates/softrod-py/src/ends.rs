@@ -470,8 +470,10 @@ pub(crate) fn platform_of(p: PlatformEntry) -> Platform {
 /// "converged", "iterations", "residual", "load_steps" (m,), "x" (m, 6 n + 6),
 /// "platform_position" (m, 3), "platform_rotation" (m, 3, 3), per rod "tip_position",
 /// "base_force", "base_moment", "tip_reaction_force", "tip_reaction_moment" (m, n, 3),
-/// "tip_rotation" (m, n, 3, 3), "stable" and "assessed" (m,) bool, and "violation" (m
-/// strings). NaN on failed rows.
+/// "tip_rotation" (m, n, 3, 3), "stable" and "assessed" (m,) bool, "violation" (m
+/// strings), and "contact": per rod, None or (a rod with obstacles) {"contact_force",
+/// "friction_force"} (m, obstacles, 3). NaN on failed rows. With friction on some rod's
+/// obstacle every row is its own load path (`friction_steps` increments).
 #[pyfunction]
 #[pyo3(signature = (rods, platform, pressures, tensions=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise", friction_steps=friction::DEFAULT_FRICTION_STEPS))]
 #[allow(clippy::too_many_arguments)]
@@ -598,6 +600,21 @@ fn solve_rod_system_batch<'py>(
             "violation",
             out.iter().map(|r| r.violation.as_str()).collect::<Vec<_>>(),
         )?;
+        // Per rod with obstacles, its contact and friction forces (m, obstacles, 3); None
+        // for a rod without any.
+        let mut contact = Vec::with_capacity(n);
+        for (i, sr) in system.iter().enumerate() {
+            let k = sr.rod.spec.obstacles.len();
+            if k == 0 {
+                contact.push(None);
+                continue;
+            }
+            let rows: Vec<BatchRow> = out.iter().map(|r| r.rods[i].clone()).collect();
+            let rd = PyDict::new(py);
+            contact_forces(py, &rd, &rows, k)?;
+            contact.push(Some(rd));
+        }
+        d.set_item("contact", contact)?;
         Ok(d)
     })
 }
