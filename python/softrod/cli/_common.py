@@ -444,3 +444,19 @@ def _friction_steps_option(what: str):
         "follows the load path to first order in the increment, docs/contact.md 'Friction "
         "in the statics'). Default: SolverOptions' (80).",
     )
+
+
+def _contact_json(sol) -> dict:
+    """A solution's contact with its obstacles for --json: {"contact": {...}} with each
+    obstacle's resultant force and its friction part (N, world frame), the deepest
+    penetration (m) and the nodes in contact; nothing without obstacles."""
+    if sol.contact is None:
+        return {}
+    return {
+        "contact": {
+            "total_force_N": sol.contact.total_force.tolist(),
+            "friction_force_N": sol.contact.friction_force.tolist(),
+            "max_penetration_m": sol.contact.max_penetration,
+            "nodes_in_contact": int(sol.contact.in_contact.sum()),
+        }
+    }

@@ -12,6 +12,7 @@ import click
 from ..errors import InputError, design_error
 from ._common import (
     _channels,
+    _contact_json,
     _fmt,
     _fmt_kpa,
     _fmt_vec,
@@ -278,12 +279,7 @@ def solve(
             out["tip_constraint"] = sol.tip_constraint
             out["tip_reaction_force_N"] = sol.tip_reaction_force.tolist()
             out["tip_reaction_moment_Nm"] = sol.tip_reaction_moment.tolist()
-        if sol.contact is not None:
-            out["contact"] = {
-                "total_force_N": sol.contact.total_force.tolist(),
-                "max_penetration_m": sol.contact.max_penetration,
-                "nodes_in_contact": int(sol.contact.in_contact.sum()),
-            }
+        out.update(_contact_json(sol))
         click.echo(json.dumps(out, indent=2))
     else:
         table = Table(title=f"{d.name}: static equilibrium", title_justify="left")

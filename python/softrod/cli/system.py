@@ -14,6 +14,7 @@ from ..errors import DesignError, InputError, design_error
 from ._common import (
     _alpha_option,
     _check_output,
+    _contact_json,
     _energy_tol_option,
     _fmt_kpa,
     _fmt_vec,
@@ -262,19 +263,6 @@ def solve_system_cmd(
         plt.close(sol.plot(plot_path))  # written atomically
         # Keep stdout pure JSON with --json: say where the figure went on stderr instead.
         _say(f"wrote {plot_path}", stderr=as_json)
-
-
-def _contact_json(r) -> dict:
-    """A rod's contact with its obstacles for --json (nothing without obstacles)."""
-    if r.contact is None:
-        return {}
-    return {
-        "contact": {
-            "total_force_N": r.contact.total_force.tolist(),
-            "friction_force_N": r.contact.friction_force.tolist(),
-            "max_penetration_m": r.contact.max_penetration,
-        }
-    }
 
 
 def _system_friction_options(sysm, friction_steps: int | None):
