@@ -211,3 +211,29 @@ def test_system_batch_table_has_each_rods_contact_and_no_false_stability(rough_p
     # Frictionless: assessed, stable, and contact columns all the same.
     smooth = solve_system_batch(smooth_pair, rows).to_frame()
     assert smooth["stable"].all() and "rod1_contact0_fz_N" in smooth
+
+
+def test_the_system_figure_shows_the_table_and_the_contacts(rough_pair):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from softrod.system_plots import plot_system
+    from test_figures import assert_readable
+
+    sol = solve_system(rough_pair, _both(35e3))
+    fig = plot_system(sol)
+    try:
+        assert_readable(fig)
+        table_mm = rough_pair.rods[0].design.spec["obstacles"][0]["point"][2] * 1e3
+        for ax in fig.axes[:2]:
+            # The table seen edge-on (an infinite line at its height) in the view...
+            lines = [ln for ln in ax.get_lines() if type(ln).__name__ == "AxLine"]
+            assert lines and ax.get_ylim()[0] < table_mm
+            # ... and the fingers' contact points on it.
+            dots = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]
+            assert dots and all(np.allclose(d.get_ydata(), table_mm, atol=0.3) for d in dots)
+        labels = [t.get_text() for t in fig.legends[0].get_texts()]
+        assert "contact" in labels and "obstacle (seen edge-on)" in labels
+    finally:
+        plt.close(fig)

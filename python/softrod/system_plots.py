@@ -79,7 +79,8 @@ def plot_system(
 ) -> Figure:
     """Front (x-z) and side (y-z) views of one or more equilibria of a system: every rod's
     centreline, the platform as the outline through the rods' tips, the bases as black
-    squares; one colour per solution, labelled with ``labels`` (default: the rods'
+    squares, the rods' obstacles near them (planes seen edge-on, spheres) and their contact
+    points; one colour per solution, labelled with ``labels`` (default: the rods'
     pressures and the platform's tilt). Written to ``path`` when given (format from the
     suffix, atomically). Returns the Figure (pyplot's: close it when done)."""
     import matplotlib.pyplot as plt
@@ -125,6 +126,7 @@ def plot_system(
                 label=label if ax is axes[0] else None,
             )
     bases = np.array([r.position[0] for r in sols[0].rods]) * 1e3
+    extra = _draw_contacts(axes, sols, colours)
     for ax, (name, a, b) in zip(axes, _VIEWS, strict=True):
         ax.plot(bases[:, a], bases[:, b], "s", color="black", ms=7)
         ax.set_title(name)
@@ -133,12 +135,61 @@ def plot_system(
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("z (mm)")
     # The legend below the views: long labels never cover the rods.
-    fig.legend(loc="lower center", ncol=1, fontsize=8, frameon=False)
+    handles, _ = axes[0].get_legend_handles_labels()
+    fig.legend(handles=handles + extra, loc="lower center", ncol=1, fontsize=8, frameon=False)
     fig.suptitle(title or f"{sols[0].system.name}: equilibria")
-    fig.tight_layout(rect=(0.0, 0.04 + 0.035 * len(sols), 1.0, 1.0))
+    fig.tight_layout(rect=(0.0, 0.04 + 0.035 * (len(sols) + len(extra)), 1.0, 1.0))
     if path is not None:
         save_figure(fig, path)
     return fig
+
+
+def _draw_contacts(axes, sols, colours) -> list:
+    """The rods' obstacles near the shapes in both views (a plane seen edge-on as a line, a
+    sphere as its outline; others are not drawn in these views) and each solution's
+    contact points (docs/contact.md); returns legend entries for what was drawn."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Circle
+
+    from .plotting import _OBSTACLE, _near_obstacles
+
+    specs: list[dict] = []
+    for sol in sols:
+        for r in sol.rods:
+            for ob in r.design.spec.get("obstacles", []):
+                if ob not in specs:
+                    specs.append(ob)
+    points = np.concatenate([r.position for sol in sols for r in sol.rods]) * 1e3
+    near, extra = _near_obstacles(specs, points) if specs else ([], np.zeros((0, 3)))
+    drawn = False
+    for ax, (_, a, b) in zip(axes, _VIEWS, strict=True):
+        for ob in near:
+            if ob["kind"] == "plane":
+                n = np.asarray(ob["normal"], float)
+                n = n / np.linalg.norm(n)
+                if np.hypot(n[a], n[b]) < 0.99:
+                    continue  # not edge-on in this view
+                c = np.asarray(ob["point"], float)[[a, b]] * 1e3
+                ax.axline(tuple(c), tuple(c + [-n[b], n[a]]), lw=3, **_OBSTACLE)
+                # Hold the plane in the view where the shapes' points meet it.
+                ax.update_datalim(extra[:, [a, b]])
+                drawn = True
+            elif ob["kind"] == "sphere":
+                c = np.asarray(ob["center"], float)[[a, b]] * 1e3
+                ax.add_patch(Circle(tuple(c), ob["radius"] * 1e3, **_OBSTACLE))
+                ax.update_datalim(extra[:, [a, b]])
+                drawn = True
+        for k, sol in enumerate(sols):
+            for r in sol.rods:
+                if r.contact is not None and r.contact.in_contact.any():
+                    pts = r.contact.point[r.contact.in_contact] * 1e3
+                    ax.plot(pts[:, a], pts[:, b], "o", color=colours[k], ms=4)
+    handles = []
+    if drawn:
+        handles.append(Line2D([], [], lw=3, label="obstacle (seen edge-on)", **_OBSTACLE))
+    if any(r.contact is not None and r.contact.in_contact.any() for s in sols for r in s.rods):
+        handles.append(Line2D([], [], marker="o", ls="none", color="0.3", label="contact"))
+    return handles
 
 
 def plot_system_motion(
