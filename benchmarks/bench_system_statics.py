@@ -5,28 +5,28 @@ frictionless and on a frictional load path.
     python benchmarks/bench_system_statics.py --quick    # smoke run (< 20 s)
 
 Systems: the bundled ``two_spa_platform`` (two of paper 001's actuators holding a 20 g
-platform, the left one's channel 0 at 0, 30 and 60 kPa), and two bundled fingers
-(``prebent_finger_on_table``) 30 mm apart whose tips hold one massless platform, pressed
-onto their table at 10 to 40 kPa (the system of tests/test_friction_system.py, built by
-tests/friction_designs.py), without and with Coulomb friction mu = 0.5 on the table
-(``SolverOptions().friction_steps`` increments), against one rough finger alone. Medians of
+platform, the left one's channel 0 at 0, 30 and 60 kPa), and the bundled
+``two_fingers_on_table`` (two ``prebent_finger_on_table`` fingers 30 mm apart whose tips
+hold one clip) pressed onto their table at 10 to 40 kPa, without and with Coulomb friction
+mu = 0.5 on the table (``SolverOptions().friction_steps`` increments), against one rough
+finger alone. Medians of
 wall-clock times of cold solves, garbage collector off.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from pathlib import Path
 
 import softrod
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
-sys.path.insert(0, str(HERE.parent / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 from common import bench_main, load_average, machine, median, result_header, timed  # noqa: E402
-from friction_designs import MU, two_fingers  # noqa: E402  (the tests' system)
 from softrod.system import solve_system  # noqa: E402
+
+MU = 0.5
 
 PLATFORM_KPA = [0.0, 30.0, 60.0]
 FINGER_KPA = [10.0, 20.0, 30.0, 40.0]
@@ -50,9 +50,13 @@ def run(args) -> dict:
     info = machine()
     print(f"cold solve_system, median of {reps} (load {load_average()})")
     platform = softrod.load_system("two_spa_platform")
-    finger = softrod.load_design("prebent_finger_on_table")
-    rough = finger.replace({"obstacles[0].friction": MU})
-    smooth_pair, rough_pair = two_fingers(finger), two_fingers(rough)
+    rough = softrod.load_design("prebent_finger_on_table").replace({"obstacles[0].friction": MU})
+    smooth_pair = softrod.load_system("two_fingers_on_table")
+    rough_rods = tuple(
+        dataclasses.replace(r, design=r.design.replace({"obstacles[0].friction": MU}))
+        for r in smooth_pair.rods
+    )
+    rough_pair = dataclasses.replace(smooth_pair, rods=rough_rods)
     rows = []
     for p in PLATFORM_KPA:
         ps = [[p * 1e3, 0.0, 0.0], [0.0, 0.0, 0.0]]

@@ -1,35 +1,34 @@
 """The frictional finger of the friction tests (tests/test_friction_statics.py and
 tests/test_friction_batch.py; their fixtures ``finger`` and ``rough`` are in
 tests/conftest.py): the bundled finger pressed onto its table, and with Coulomb friction
-MU on the table; two of them holding one platform (tests/test_friction_system.py,
-benchmarks/bench_system_statics.py); and the three-chamber SPA hanging beside a rough
+MU on the table; two of them holding one clip (the bundled system two_fingers_on_table,
+tests/test_friction_system.py); and the three-chamber SPA hanging beside a rough
 wall (compare_models and compare_hybrid need paper 002's three channels;
 tests/test_compare.py, the fuzz suite)."""
 
 FINGER = "prebent_finger_on_table"
 MU = 0.5
 
-# The two fingers of the frictional system (tests/test_friction_system.py): the second
-# finger's base GAP to the side (world y) of the first; a massless platform holds both tips
-# where the unloaded fingers have them, its origin midway.
-GAP = 0.03
+# The two fingers of the frictional system tests (tests/test_friction_system.py): the bundled
+# system two_fingers_on_table, its table with Coulomb friction.
+PAIR = "two_fingers_on_table"
 
 
-def two_fingers(design, name: str = "two_fingers"):
-    """A system of two copies of ``design`` (the bundled finger over its table, smooth or
-    rough) GAP apart, their tips clamped to one massless platform at the unloaded tips."""
-    import numpy as np
-    from softrod import solve_statics
-    from softrod.system import Platform, System, SystemRod
+def two_fingers(friction: float = 0.0):
+    """The bundled two-finger system (two prebent_finger_on_table fingers whose tips hold one
+    clip), every finger's table with Coulomb friction ``friction`` (0: as bundled)."""
+    import dataclasses
 
-    unloaded = design.replace({"mounting.gravity": "0 m/s^2"}).with_obstacles([])
-    ref = solve_statics(unloaded, [0.0])
-    tip, rot = ref.tip_position, ref.rotation[-1]
-    side = np.array([0.0, GAP, 0.0])
-    origin = tip + 0.5 * side
-    second = design.replace({"mounting.base_position": ["0 mm", f"{GAP * 1e3:g} mm", "0 mm"]})
-    rods = (SystemRod(design, tip - origin, rot), SystemRod(second, tip + side - origin, rot))
-    return System(name, rods, Platform(position=origin))
+    from softrod import load_system
+
+    system = load_system(PAIR)
+    if friction == 0.0:
+        return system
+    rods = tuple(
+        dataclasses.replace(r, design=r.design.replace({"obstacles[0].friction": friction}))
+        for r in system.rods
+    )
+    return dataclasses.replace(system, rods=rods)
 
 
 #: A rough wall beside the hanging three-chamber SPA (outer radius 21.1 mm): 9 mm clear of

@@ -19,13 +19,13 @@ from softrod.system import solve_system, solve_system_batch
 
 
 @pytest.fixture(scope="module")
-def rough_pair(rough):
-    return two_fingers(rough, "rough_fingers")
+def rough_pair():
+    return two_fingers(MU)
 
 
 @pytest.fixture(scope="module")
-def smooth_pair(finger):
-    return two_fingers(finger, "smooth_fingers")
+def smooth_pair():
+    return two_fingers()
 
 
 def _both(p):
@@ -49,7 +49,7 @@ def test_a_frictional_system_follows_its_path_and_reports_the_friction(rough_pai
     assert np.allclose(a, b, rtol=0, atol=1e-9 * np.abs(a).max())
     # A path of increments (the contact-free stretch before the tips land jumped over).
     assert 1 < sol.load_steps and sol.friction_state.pressures == [[35e3], [35e3]]
-    assert "rough_fingers" in repr(sol)
+    assert "two_fingers_on_table" in repr(sol)
 
 
 def test_released_system_keeps_the_friction_reversed_unlike_the_direct_path(rough_pair):
@@ -110,7 +110,7 @@ def test_bad_history_and_warm_starts_are_refused_by_name(rough_pair, smooth_pair
     with pytest.raises(InputError, match="history"):
         solve_system(smooth_pair, _both(30e3), history=pressed)
     # Another system's path: its rods are other designs.
-    other = two_fingers(rough_pair.rods[0].design.replace({"obstacles[0].friction": 0.3}))
+    other = two_fingers(0.3)
     with pytest.raises(InputError, match=r"history\.rods\[0\]"):
         solve_system(other, _both(30e3), history=pressed)
 
@@ -118,7 +118,7 @@ def test_bad_history_and_warm_starts_are_refused_by_name(rough_pair, smooth_pair
 def test_cli_solve_system_takes_friction_steps(rough, finger, tmp_path):
     rough.save(tmp_path / "rough.toml")
     finger.save(tmp_path / "smooth.toml")
-    pair = two_fingers(rough)
+    pair = two_fingers(MU)
 
     def mm(v):
         return [f"{x * 1e3:.12g} mm" for x in v]
@@ -185,8 +185,7 @@ def test_motion_with_friction_starts_from_the_frictionless_rest(rough, finger):
     assert np.array_equal(runs[0].tip_reaction_force[0], runs[1].tip_reaction_force[0])
     assert not np.array_equal(runs[0].tip_reaction_force[-1], runs[1].tip_reaction_force[-1])
     pairs = [
-        simulate_system(two_fingers(d), lambda t: _both(20e3 + 5e5 * t), 0.01)
-        for d in (rough, finger)
+        simulate_system(two_fingers(mu), lambda t: _both(20e3 + 5e5 * t), 0.01) for mu in (MU, 0.0)
     ]
     assert np.array_equal(pairs[0].platform_position[0], pairs[1].platform_position[0])
     assert not np.array_equal(pairs[0].platform_position[-1], pairs[1].platform_position[-1])
