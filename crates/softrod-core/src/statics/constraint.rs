@@ -371,6 +371,86 @@ pub(crate) fn newton(
     }
 }
 
+/// Newton's method that keeps its matrix from one solve to the next (a chord method), for
+/// a sequence of nearby problems such as the increments of a frictional load path
+/// (`super::friction`): the exact Jacobian is factored where there is none yet and again
+/// wherever a step with the kept one contracts the residual by less than half; a step
+/// that does not reduce the residual is retried with a fresh matrix, and where even that
+/// one fails, or max_iter steps do not converge, the damped [`newton`] takes over. Convergence is judged as [`newton`] judges
+/// it (on the true residual, and on the prescribed orientation's branch), so the answer
+/// is an equilibrium to the same tolerance; only the matrices factored differ.
+#[derive(Default)]
+pub(crate) struct Chord {
+    lu: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>>,
+    /// Exact Jacobians factored so far.
+    pub(crate) factored: usize,
+}
+
+impl Chord {
+    pub(crate) fn solve(
+        &mut self,
+        eq: &impl Equations,
+        x0: Vec<f64>,
+        tol: f64,
+        max_iter: usize,
+    ) -> std::result::Result<NewtonOk, (usize, f64)> {
+        let mut x = x0;
+        let mut r = eq.eval(&x);
+        let mut refresh = self.lu.is_none();
+        let mut fresh = false;
+        for it in 0..max_iter {
+            let norm = inf_norm(&r);
+            if !norm.is_finite() {
+                return Err((it + 1, norm));
+            }
+            if norm <= tol * inf_norm(&x).max(1.0) {
+                return on_branch(eq, x, norm, it + 1);
+            }
+            if refresh {
+                let (rj, jac) = eq.eval_jac(&x);
+                r = rj;
+                self.lu = Some(jac.lu());
+                self.factored += 1;
+                fresh = true;
+            }
+            let rv = DVector::from_column_slice(&r);
+            let step = self
+                .lu
+                .as_ref()
+                .and_then(|lu| lu.solve(&(-&rv)))
+                .filter(|s| s.iter().all(|v| v.is_finite()));
+            let Some(step) = step else {
+                self.lu = None;
+                return newton(eq, x, tol, max_iter - it);
+            };
+            let dx: Vec<f64> = step.iter().copied().collect();
+            let xt = eq.retract(&x, &dx);
+            let rt = eq.eval(&xt);
+            let nt = inf_norm(&rt);
+            if nt.is_nan() || nt >= norm {
+                if fresh {
+                    // Not even the exact step reduces it: damped Newton from here.
+                    self.lu = None;
+                    return newton(eq, x, tol, max_iter - it);
+                }
+                refresh = true;
+                continue;
+            }
+            refresh = nt > 0.5 * norm;
+            fresh = false;
+            x = xt;
+            r = rt;
+        }
+        // The kept matrices did not get there in max_iter steps: damped Newton from here,
+        // with its own budget, so that the chord never fails where Newton would not.
+        self.lu = None;
+        newton(eq, x, tol, max_iter).map(|ok| NewtonOk {
+            iterations: ok.iterations + max_iter,
+            ..ok
+        })
+    }
+}
+
 /// Newton's converged solution x, unless it is off the prescribed orientation's branch
 /// (`Equations::on_branch`): then a failure, whose residual is the half turn's (the
 /// error's size there is 0, so the path's message reports the step, not a residual).

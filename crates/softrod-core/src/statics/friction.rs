@@ -451,12 +451,14 @@ pub fn solve_held(
     let mut b = begin(rod, loads, constraint, history, steps, opts)?;
     let mut violations = std::mem::take(&mut b.violations);
     let (r0, rot0) = b.pose;
+    // One kept matrix along the path: consecutive increments are nearby problems.
+    let mut chord = constraint::Chord::default();
     let end = b.follow(rod, loads, history, steps, JUMPS, |p, t, guess| {
         let eq = Held {
             p: &p[0],
             pose: Pose::along(constraint, &r0, &rot0, t),
         };
-        constraint::newton(&eq, guess, opts.tol, opts.max_iter)
+        chord.solve(&eq, guess, opts.tol, opts.max_iter)
     })?;
     let p = end.problem(0, rod, loads);
     let done = PathOk {

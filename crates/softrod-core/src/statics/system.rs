@@ -36,8 +36,8 @@
 //! on any rod).
 
 use super::constraint::{
-    check_half_turn, check_rotation, checked_shape, exp_so3, follow_path, log_so3, matmul, newton,
-    on_quarter_turn, orientation_error, reference_tip, slerp, tmatmul, Conjugate,
+    check_half_turn, check_rotation, checked_shape, exp_so3, follow_path, log_so3, matmul,
+    on_quarter_turn, orientation_error, reference_tip, slerp, tmatmul, Chord, Conjugate,
     ConstrainedSolution, Equations, PathOk,
 };
 use super::friction::{self, FrictionPath, FrictionState, Leg};
@@ -671,6 +671,8 @@ pub fn solve_system_friction(
             start: history.map(|h| &h.rods[i].loads),
         })
         .collect();
+    // One kept matrix along the path: consecutive increments are nearby problems.
+    let mut chord = Chord::default();
     let end = friction::follow(
         &legs,
         states,
@@ -680,7 +682,7 @@ pub fn solve_system_friction(
         friction::JUMPS,
         |problems, t, guess| {
             let level = course.level(std::mem::take(problems), t);
-            let out = newton(&level, guess, opts.tol, opts.max_iter);
+            let out = chord.solve(&level, guess, opts.tol, opts.max_iter);
             *problems = level.problems;
             out
         },
