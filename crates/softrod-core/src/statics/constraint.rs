@@ -316,13 +316,10 @@ pub(crate) fn newton(
     let mut x = x0;
     let (mut r, mut jac) = eq.eval_jac(&x);
     for it in 0..max_iter {
+        if let Some(out) = stop(eq, &mut x, &r, tol, it + 1) {
+            return out;
+        }
         let norm = inf_norm(&r);
-        if !norm.is_finite() {
-            return Err((it + 1, norm));
-        }
-        if norm <= tol * inf_norm(&x).max(1.0) {
-            return on_branch(eq, x, norm, it + 1);
-        }
         let rv = DVector::from_column_slice(&r);
         let step = jac
             .clone()
@@ -399,13 +396,10 @@ impl Chord {
         let mut refresh = self.lu.is_none();
         let mut fresh = false;
         for it in 0..max_iter {
+            if let Some(out) = stop(eq, &mut x, &r, tol, it + 1) {
+                return out;
+            }
             let norm = inf_norm(&r);
-            if !norm.is_finite() {
-                return Err((it + 1, norm));
-            }
-            if norm <= tol * inf_norm(&x).max(1.0) {
-                return on_branch(eq, x, norm, it + 1);
-            }
             if refresh {
                 let (rj, jac) = eq.eval_jac(&x);
                 r = rj;
@@ -449,6 +443,23 @@ impl Chord {
             ..ok
         })
     }
+}
+
+/// Newton's stopping test at x with residual r after `iterations`: a residual that is not
+/// finite fails, one within tol (relative to the unknowns' size) is the answer where it is
+/// on the prescribed orientation's branch ([`on_branch`]); None: go on.
+fn stop(
+    eq: &impl Equations,
+    x: &mut Vec<f64>,
+    r: &[f64],
+    tol: f64,
+    iterations: usize,
+) -> Option<std::result::Result<NewtonOk, (usize, f64)>> {
+    let norm = inf_norm(r);
+    if !norm.is_finite() {
+        return Some(Err((iterations, norm)));
+    }
+    (norm <= tol * inf_norm(x).max(1.0)).then(|| on_branch(eq, std::mem::take(x), norm, iterations))
 }
 
 /// Newton's converged solution x, unless it is off the prescribed orientation's branch
