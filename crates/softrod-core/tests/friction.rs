@@ -10,7 +10,7 @@
 mod bars;
 mod common;
 
-use bars::{bar_on_bed, pulled, round_bar, EA, G, K, L, STEPS};
+use bars::{bar_on_bed, pulled, round_bar, worst_central_difference_error, EA, G, K, L, STEPS};
 use softrod_core::ode::Loads;
 use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
 use softrod_core::statics::contact::report;
@@ -282,22 +282,14 @@ fn frictional_shooting_jacobian_matches_central_differences() {
     l.tip_force[1] = 0.01;
     let x: [f64; 6] = std::array::from_fn(|i| history.x[i] * 1.01 + 1e-4);
     let (_, jac) = friction::residual_and_jacobian(&rod, &l, history, &x);
-    let mut worst: f64 = 0.0;
-    for k in 0..6 {
-        let h = 1e-7;
-        let (mut a, mut b) = (x, x);
-        a[k] += h;
-        b[k] -= h;
-        let (ra, _) = friction::residual_and_jacobian(&rod, &l, history, &a);
-        let (rb, _) = friction::residual_and_jacobian(&rod, &l, history, &b);
-        for i in 0..6 {
-            let fd = (ra[i] - rb[i]) / (2.0 * h);
-            let scale = jac[i].iter().fold(1.0f64, |m, v| m.max(v.abs()));
-            worst = worst.max((fd - jac[i][k]).abs() / scale);
-        }
-    }
-    // Central differences err by h^2 |r'''| / 6 plus round-off ~1e-16 |r| / h, both
-    // below 1e-6 of a row's scale at h = 1e-7.
+    let worst = worst_central_difference_error(&rows(&jac), 6, |k, s| {
+        let mut a = x;
+        a[k] += s;
+        friction::residual_and_jacobian(&rod, &l, history, &a)
+            .0
+            .to_vec()
+    });
+    // Bound: bars::worst_central_difference_error says why.
     println!("worst Jacobian error {worst:.2e} of a row's scale");
     assert!(worst < 1e-6, "{worst:e}");
 }
@@ -580,22 +572,13 @@ fn held_frictional_jacobian_matches_central_differences() {
         let l = pulled(0.0);
         let x: [f64; 6] = std::array::from_fn(|i| history.x[i] * 1.01 + 1e-4);
         let (_, jac) = friction::held_residual_and_jacobian(&rod, &l, &c, history, &x).unwrap();
-        let mut worst: f64 = 0.0;
-        let h = 1e-7;
-        for k in 0..6 {
-            let (mut a, mut b) = (x, x);
-            a[k] += h;
-            b[k] -= h;
-            let (ra, _) = friction::held_residual_and_jacobian(&rod, &l, &c, history, &a).unwrap();
-            let (rb, _) = friction::held_residual_and_jacobian(&rod, &l, &c, history, &b).unwrap();
-            for i in 0..6 {
-                let fd = (ra[i] - rb[i]) / (2.0 * h);
-                let scale = jac[i].iter().fold(1.0f64, |m, v| m.max(v.abs()));
-                worst = worst.max((fd - jac[i][k]).abs() / scale);
-            }
-        }
-        // Central differences err by h^2 |r'''| / 6 plus round-off ~1e-16 |r| / h, both
-        // below 1e-6 of a row's scale at h = 1e-7.
+        let worst = worst_central_difference_error(&rows(&jac), 6, |k, s| {
+            let mut a = x;
+            a[k] += s;
+            let (r, _) = friction::held_residual_and_jacobian(&rod, &l, &c, history, &a).unwrap();
+            r.to_vec()
+        });
+        // Bound: bars::worst_central_difference_error says why.
         println!("clamped {clamped}: worst Jacobian error {worst:.2e} of a row's scale");
         assert!(worst < 1e-6, "{worst:e}");
     }
@@ -725,4 +708,9 @@ fn contact_free_stretches_are_jumped_without_changing_the_answer() {
     );
     assert!(dr <= bound * rod.length, "{dr:e}");
     assert!(free.load_steps <= 10, "{}", free.load_steps);
+}
+
+/// A 6x6 Jacobian as rows (for `bars::worst_central_difference_error`).
+fn rows(jac: &[[f64; 6]; 6]) -> Vec<Vec<f64>> {
+    jac.iter().map(|r| r.to_vec()).collect()
 }

@@ -10,7 +10,7 @@
 mod bars;
 mod common;
 
-use bars::{bar_on_bed, pulled, round_bar, EA, G, K, L, Q, SINK};
+use bars::{bar_on_bed, pulled, round_bar, worst_central_difference_error, EA, G, K, L, Q, SINK};
 use common::{chamber, loads, obstacle, HORIZONTAL, IDENTITY};
 use softrod_core::batch::{solve_system_batch, SystemBatchInputs};
 use softrod_core::spec::obstacle::ObstacleKind;
@@ -270,26 +270,15 @@ fn frictional_system_jacobian_matches_central_differences() {
     pf.force = [0.02, 0.01, 0.0];
     let x: Vec<f64> = path.x.iter().map(|v| v * 1.01 + 1e-4).collect();
     let (_, jac) = system_friction_residual_and_jacobian(&sr, &pf, path, &x).unwrap();
-    let mut worst: f64 = 0.0;
-    let h = 1e-7;
-    for k in 0..x.len() {
-        let step = |s: f64| {
-            let mut d = vec![0.0; x.len()];
-            d[k] = s;
-            let y = system_retract(2, &x, &d);
-            system_friction_residual_and_jacobian(&sr, &pf, path, &y)
-                .unwrap()
-                .0
-        };
-        let (ra, rb) = (step(h), step(-h));
-        for i in 0..x.len() {
-            let fd = (ra[i] - rb[i]) / (2.0 * h);
-            let scale = jac[i].iter().fold(1.0f64, |m, v| m.max(v.abs()));
-            worst = worst.max((fd - jac[i][k]).abs() / scale);
-        }
-    }
-    // Central differences err by h^2 |r'''| / 6 plus round-off ~1e-16 |r| / h, both
-    // below 1e-6 of a row's scale at h = 1e-7.
+    let worst = worst_central_difference_error(&jac, x.len(), |k, s| {
+        let mut d = vec![0.0; x.len()];
+        d[k] = s;
+        let y = system_retract(2, &x, &d);
+        system_friction_residual_and_jacobian(&sr, &pf, path, &y)
+            .unwrap()
+            .0
+    });
+    // Bound: bars::worst_central_difference_error says why.
     println!("worst Jacobian error {worst:.2e} of a row's scale");
     assert!(worst < 1e-6, "{worst:e}");
 }

@@ -70,3 +70,29 @@ pub fn round_bar() -> Rod {
     d.obstacles = vec![plane];
     Rod::new(d).unwrap()
 }
+
+/// Step of the central differences of [`worst_central_difference_error`].
+pub const FD_H: f64 = 1e-7;
+
+/// The largest error of the Jacobian `jac` (rows of `n` columns) against central
+/// differences, each entry relative to its row's largest (at least 1): column k is
+/// (residual(k, FD_H) - residual(k, -FD_H)) / (2 FD_H), with `residual(k, s)` the residual
+/// at the unknowns stepped by s along k as the solver steps them. The differences err by
+/// h^2 |r'''| / 6 plus round-off ~1e-16 |r| / h, both below 1e-6 of a row's scale at
+/// h = 1e-7: the bound the friction tests assert.
+pub fn worst_central_difference_error(
+    jac: &[Vec<f64>],
+    n: usize,
+    residual: impl Fn(usize, f64) -> Vec<f64>,
+) -> f64 {
+    let mut worst: f64 = 0.0;
+    for k in 0..n {
+        let (ra, rb) = (residual(k, FD_H), residual(k, -FD_H));
+        for (i, row) in jac.iter().enumerate() {
+            let fd = (ra[i] - rb[i]) / (2.0 * FD_H);
+            let scale = row.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+            worst = worst.max((fd - row[k]).abs() / scale);
+        }
+    }
+    worst
+}
