@@ -6,18 +6,23 @@
 //! ([`solve_system_batch`]: every row is one [`solve_system`], cold) and for obstacles with
 //! friction ([`solve_friction_batch`] and [`solve_held_friction_batch`]: every row is one
 //! [`friction::solve`] or [`friction::solve_held`], its own load path from the unloaded
-//! rod): no row starts from another row's solution.
+//! rod): no row starts from another row's solution. [`system_sensitivity_batch`] adds a
+//! system's parameter derivatives to its rows (each row one [`solve_system`] from its own
+//! warm start, if any).
 
 use crate::error::{Result, SoftrodError};
 use crate::marker::Marker;
 use crate::ode::Loads;
 use crate::rod::Rod;
+use crate::sensitivity::system::{
+    locate_system_markers, system_marker_positions, system_sensitivity, validate_system_params,
+    SystemMarker, SystemParam, SystemSensitivity,
+};
 use crate::sensitivity::{
     constrained_pose_sensitivity, locate_markers, marker_positions, pose_sensitivity,
     validate_params, Param, TipSensitivity,
 };
 use crate::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
-use crate::statics::contact::ContactReport;
 use crate::statics::friction;
 use crate::statics::system::{
     solve_system, solve_system_friction, Platform, SystemRod, SystemSolution,
@@ -702,6 +707,12 @@ pub struct SystemBatchRow {
     pub iterations: usize,
     pub residual: f64,
     pub load_steps: usize,
+    /// Marker positions, world frame ([`system_sensitivity_batch`] only; NaN on failed
+    /// rows).
+    pub markers: Vec<[f64; 3]>,
+    /// The platform pose's and the markers' derivatives with respect to the parameters
+    /// ([`system_sensitivity_batch`] with parameters, converged rows only).
+    pub sensitivity: Option<SystemSensitivity>,
     /// The first validity rule a rod broke (a failed row, or a returned one under
     /// `Policy::Warn`), "rods[i]: ..." where the rod is known, else empty.
     pub violation: String,
@@ -726,6 +737,8 @@ impl SystemBatchRow {
             iterations: s.iterations,
             residual: s.residual,
             load_steps: s.load_steps,
+            markers: vec![],
+            sensitivity: None,
             violation,
         }
     }
@@ -746,8 +759,137 @@ impl SystemBatchRow {
             iterations: first.iterations,
             residual: first.residual,
             load_steps: 0,
+            markers: vec![],
+            sensitivity: None,
             violation: first.violation,
         }
+    }
+}
+
+/// The rows of a system batch: the inputs checked against the rods (their shapes, then
+/// every row's loads against each rod's rules), and each row's rods with their loads.
+struct SystemRows<'r, 'a> {
+    rods: &'r [SystemRod<'a>],
+    inputs: &'r SystemBatchInputs<'r>,
+    /// Channels and tendon channels per rod, and their offsets in a row.
+    nc: Vec<usize>,
+    nt: Vec<usize>,
+    oc: Vec<usize>,
+    ot: Vec<usize>,
+    count: usize,
+}
+
+impl<'r, 'a> SystemRows<'r, 'a> {
+    fn new(
+        rods: &'r [SystemRod<'a>],
+        inputs: &'r SystemBatchInputs<'r>,
+        frictional: bool,
+        opts: &SolverOptions,
+    ) -> Result<Self> {
+        let nc: Vec<usize> = rods.iter().map(|r| r.rod.n_channels).collect();
+        let nt: Vec<usize> = rods.iter().map(|r| r.rod.n_tendons).collect();
+        let (wc, wt) = (nc.iter().sum::<usize>(), nt.iter().sum::<usize>());
+        let given = inputs.pressures.len();
+        let count = if wc > 0 {
+            if given % wc != 0 {
+                return Err(SoftrodError::invalid(
+                    "pressures",
+                    format!("{given} values"),
+                    format!(
+                        "must be an (m, {wc}) array: each row every rod's gauge pressures, rod \
+                         after rod ({nc:?} channels)"
+                    ),
+                ));
+            }
+            given / wc
+        } else {
+            if given != 0 {
+                return Err(SoftrodError::invalid(
+                    "pressures",
+                    format!("{given} values"),
+                    "the system's rods have no pressure channels: give an (m, 0) array",
+                ));
+            }
+            let t = inputs.tensions.map_or(0, <[f64]>::len);
+            if wt == 0 || t % wt != 0 {
+                return Err(SoftrodError::invalid(
+                    "tensions",
+                    format!("{t} values"),
+                    format!(
+                        "the system's rods have no pressure channels: give an (m, {wt}) array \
+                         of tensions, rod after rod"
+                    ),
+                ));
+            }
+            t / wt
+        };
+        if let Some(t) = inputs.tensions {
+            if t.len() != count * wt {
+                return Err(SoftrodError::invalid(
+                    "tensions",
+                    format!("{} values", t.len()),
+                    format!(
+                        "must be an ({count}, {wt}) array: each row every rod's tendon tensions, \
+                         rod after rod ({nt:?} tendon channels)"
+                    ),
+                ));
+            }
+        }
+        let offsets = |w: &[usize]| -> Vec<usize> {
+            w.iter()
+                .scan(0, |acc, k| {
+                    let o = *acc;
+                    *acc += k;
+                    Some(o)
+                })
+                .collect()
+        };
+        let (oc, ot) = (offsets(&nc), offsets(&nt));
+        let rows = SystemRows {
+            rods,
+            inputs,
+            nc,
+            nt,
+            oc,
+            ot,
+            count,
+        };
+        let check = if frictional {
+            crate::statics::check_inputs_any_friction
+        } else {
+            crate::statics::check_inputs
+        };
+        for r in 0..rows.count {
+            for (i, sr) in rows.rods(r).iter().enumerate() {
+                check(sr.rod, &sr.loads, opts).map_err(|e| in_row(r, &format!("rods[{i}]."), e))?;
+            }
+        }
+        Ok(rows)
+    }
+
+    /// Row r's rods with their loads.
+    fn rods(&self, r: usize) -> Vec<SystemRod<'a>> {
+        let (wc, wt) = (self.nc.iter().sum::<usize>(), self.nt.iter().sum::<usize>());
+        self.rods
+            .iter()
+            .enumerate()
+            .map(|(i, sr)| {
+                let (oc, nc) = (self.oc[i], self.nc[i]);
+                let p = &self.inputs.pressures[r * wc + oc..r * wc + oc + nc];
+                let t = match self.inputs.tensions {
+                    Some(t) => t[r * wt + self.ot[i]..r * wt + self.ot[i] + self.nt[i]].to_vec(),
+                    None => vec![0.0; self.nt[i]],
+                };
+                SystemRod {
+                    loads: Loads {
+                        pressures: p.to_vec(),
+                        tensions: t,
+                        ..sr.loads.clone()
+                    },
+                    ..sr.clone()
+                }
+            })
+            .collect()
     }
 }
 
@@ -785,97 +927,7 @@ pub fn solve_system_batch(
     if frictional {
         friction::check_steps(friction_steps)?;
     }
-    let nc: Vec<usize> = rods.iter().map(|r| r.rod.n_channels).collect();
-    let nt: Vec<usize> = rods.iter().map(|r| r.rod.n_tendons).collect();
-    let (wc, wt) = (nc.iter().sum::<usize>(), nt.iter().sum::<usize>());
-    let given = inputs.pressures.len();
-    let count = if wc > 0 {
-        if given % wc != 0 {
-            return Err(SoftrodError::invalid(
-                "pressures",
-                format!("{given} values"),
-                format!(
-                    "must be an (m, {wc}) array: each row every rod's gauge pressures, rod \
-                     after rod ({nc:?} channels)"
-                ),
-            ));
-        }
-        given / wc
-    } else {
-        if given != 0 {
-            return Err(SoftrodError::invalid(
-                "pressures",
-                format!("{given} values"),
-                "the system's rods have no pressure channels: give an (m, 0) array",
-            ));
-        }
-        let t = inputs.tensions.map_or(0, <[f64]>::len);
-        if wt == 0 || t % wt != 0 {
-            return Err(SoftrodError::invalid(
-                "tensions",
-                format!("{t} values"),
-                format!(
-                    "the system's rods have no pressure channels: give an (m, {wt}) array \
-                     of tensions, rod after rod"
-                ),
-            ));
-        }
-        t / wt
-    };
-    if let Some(t) = inputs.tensions {
-        if t.len() != count * wt {
-            return Err(SoftrodError::invalid(
-                "tensions",
-                format!("{} values", t.len()),
-                format!(
-                    "must be an ({count}, {wt}) array: each row every rod's tendon tensions, \
-                     rod after rod ({nt:?} tendon channels)"
-                ),
-            ));
-        }
-    }
-    // Row r's loads of every rod.
-    let offsets = |w: &[usize]| -> Vec<usize> {
-        w.iter()
-            .scan(0, |acc, k| {
-                let o = *acc;
-                *acc += k;
-                Some(o)
-            })
-            .collect()
-    };
-    let (oc, ot) = (offsets(&nc), offsets(&nt));
-    let row_rods = |r: usize| -> Vec<SystemRod> {
-        rods.iter()
-            .enumerate()
-            .map(|(i, sr)| {
-                let p = &inputs.pressures[r * wc + oc[i]..r * wc + oc[i] + nc[i]];
-                let t = match inputs.tensions {
-                    Some(t) => t[r * wt + ot[i]..r * wt + ot[i] + nt[i]].to_vec(),
-                    None => vec![0.0; nt[i]],
-                };
-                SystemRod {
-                    loads: Loads {
-                        pressures: p.to_vec(),
-                        tensions: t,
-                        ..sr.loads.clone()
-                    },
-                    ..sr.clone()
-                }
-            })
-            .collect()
-    };
-    let check = if frictional {
-        crate::statics::check_inputs_any_friction
-    } else {
-        crate::statics::check_inputs
-    };
-    for r in 0..count {
-        for (i, sr) in row_rods(r).iter().enumerate() {
-            check(sr.rod, &sr.loads, opts).map_err(|e| in_row(r, &format!("rods[{i}]."), e))?;
-        }
-    }
-    let n = rods.len();
+    let rows = SystemRows::new(rods, inputs, frictional, opts)?;
     let solve = |rods: &[SystemRod]| {
         if frictional {
             solve_system_friction(rods, platform, None, friction_steps, opts)
@@ -883,41 +935,126 @@ pub fn solve_system_batch(
             solve_system(rods, platform, None, opts)
         }
     };
-    // A rod with obstacles: its contact report per row (`statics::contact::report`, as
-    // `solve_system` gives it), NaN on failed rows.
-    let with_contact = |row: &mut SystemBatchRow, reports: Option<Vec<Option<ContactReport>>>| {
-        for (i, (b, sr)) in row.rods.iter_mut().zip(rods).enumerate() {
-            let k = sr.rod.spec.obstacles.len();
-            if k == 0 {
-                continue;
+    in_pool(threads, rows.count, &|r| {
+        let row_rods = rows.rods(r);
+        system_row(&row_rods, solve(&row_rods)).0
+    })
+}
+
+/// A system batch row from one row's solve (`row_rods`: the rods with the row's loads):
+/// the solution with each rod's contact report (`statics::contact::report`, as
+/// `solve_system` gives it; NaN on a failed row), and the solution itself; or the failure.
+fn system_row(
+    row_rods: &[SystemRod],
+    solved: Result<SystemSolution>,
+) -> (SystemBatchRow, Option<SystemSolution>) {
+    let reported = solved.and_then(|s| {
+        let reports = row_rods
+            .iter()
+            .zip(&s.rods)
+            .map(|(sr, c)| crate::statics::contact::report(sr.rod, &sr.loads, &c.solution))
+            .collect::<Result<Vec<_>>>()?;
+        Ok((s, reports))
+    });
+    let (mut row, reports, sol) = match reported {
+        Ok((s, reports)) => (SystemBatchRow::solved(&s), Some(reports), Some(s)),
+        Err(e) => (SystemBatchRow::failed(row_rods.len(), &e), None, None),
+    };
+    for (i, (b, sr)) in row.rods.iter_mut().zip(row_rods).enumerate() {
+        let k = sr.rod.spec.obstacles.len();
+        if k == 0 {
+            continue;
+        }
+        match reports.as_ref().and_then(|r| r[i].as_ref()) {
+            Some(rep) => {
+                b.contact_force = rep.force.clone();
+                b.friction_force = rep.friction.clone();
             }
-            match reports.as_ref().and_then(|r| r[i].as_ref()) {
-                Some(rep) => {
-                    b.contact_force = rep.force.clone();
-                    b.friction_force = rep.friction.clone();
-                }
-                None => {
-                    b.contact_force = vec![[f64::NAN; 3]; k];
-                    b.friction_force = vec![[f64::NAN; 3]; k];
-                }
+            None => {
+                b.contact_force = vec![[f64::NAN; 3]; k];
+                b.friction_force = vec![[f64::NAN; 3]; k];
             }
         }
-    };
-    in_pool(threads, count, &|r| {
-        let row_rods = row_rods(r);
-        let solved = solve(&row_rods).and_then(|s| {
-            let reports = row_rods
-                .iter()
-                .zip(&s.rods)
-                .map(|(sr, c)| crate::statics::contact::report(sr.rod, &sr.loads, &c.solution))
-                .collect::<Result<Vec<_>>>()?;
-            Ok((s, reports))
-        });
-        let (mut row, reports) = match solved {
-            Ok((s, reports)) => (SystemBatchRow::solved(&s), Some(reports)),
-            Err(e) => (SystemBatchRow::failed(n, &e), None),
+    }
+    (row, sol)
+}
+
+/// [`solve_system_batch`] plus, on every converged row, the markers' positions and the
+/// exact derivatives of the platform's pose and of the markers with respect to `params`
+/// (`sensitivity::system`), for calibrating a system. Every row is solved exactly as
+/// [`solve_system`] solves it alone from its warm start (`guesses`: an (m, 6n+6) array of
+/// previous rows' `x`, a row with a NaN starting cold; None: every row cold), so a row is
+/// bitwise the single solve. A system with friction is refused (its equilibria depend on
+/// the load path). A row whose derivatives are undefined (a singular Jacobian) fails.
+/// Markers are NaN on failed rows.
+#[allow(clippy::too_many_arguments)]
+pub fn system_sensitivity_batch(
+    rods: &[SystemRod],
+    platform: &Platform,
+    inputs: &SystemBatchInputs,
+    guesses: Option<&[f64]>,
+    params: &[SystemParam],
+    markers: &[SystemMarker],
+    opts: &SolverOptions,
+    threads: usize,
+) -> Result<Vec<SystemBatchRow>> {
+    opts.validate()?;
+    crate::statics::system::validate(rods, platform)?;
+    if let Some(i) = rods.iter().position(|r| friction::has_friction(r.rod)) {
+        return Err(SoftrodError::invalid(
+            format!("rods[{i}]"),
+            "an obstacle with friction > 0",
+            "friction makes a system's equilibrium depend on its load path, so its parameter derivatives are not defined at one point: calibrate with frictionless obstacles",
+        ));
+    }
+    validate_system_params(rods, params)?;
+    let located = locate_system_markers(rods, markers)?;
+    let rows = SystemRows::new(rods, inputs, false, opts)?;
+    let dim = 6 * rods.len() + 6;
+    if let Some(g) = guesses {
+        if g.len() != rows.count * dim {
+            return Err(SoftrodError::invalid(
+                "x0",
+                format!("{} values", g.len()),
+                format!(
+                    "must be an ({}, {dim}) array: a system's unknowns (6 per rod and the \
+                     platform's 6) for every input row",
+                    rows.count
+                ),
+            ));
+        }
+    }
+    in_pool(threads, rows.count, &|r| {
+        let row_rods = rows.rods(r);
+        let guess = guesses
+            .map(|g| &g[r * dim..(r + 1) * dim])
+            .filter(|g| g.iter().all(|v| v.is_finite()));
+        let (mut row, sol) = system_row(&row_rods, solve_system(&row_rods, platform, guess, opts));
+        let lost = |n: usize| vec![[f64::NAN; 3]; n];
+        let Some(sol) = sol else {
+            row.markers = lost(markers.len());
+            return row;
         };
-        with_contact(&mut row, reports);
+        let derived = system_marker_positions(&row_rods, &sol, &located).and_then(|at| {
+            let sens = if params.is_empty() {
+                None
+            } else {
+                Some(system_sensitivity(
+                    &row_rods, platform, &sol, params, &located,
+                )?)
+            };
+            Ok((at, sens))
+        });
+        match derived {
+            Ok((at, sens)) => {
+                row.markers = at;
+                row.sensitivity = sens;
+            }
+            Err(e) => {
+                row = SystemBatchRow::failed(rods.len(), &e);
+                row.markers = lost(markers.len());
+            }
+        }
         row
     })
 }

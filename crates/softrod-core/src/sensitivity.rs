@@ -19,6 +19,9 @@
 //! balance) is one more output y of the same passes: its derivatives cost no extra
 //! integration, and a free tip (no reaction) skips them.
 //!
+//! A system of rods holding a platform has the same derivatives of its platform pose and
+//! of markers on the platform and the rods (`system`).
+//!
 //! A marker sits at reference arc length s with an offset o in the cross-section frame:
 //! its position is r(s) + R(s) o. The state at s is read during the same integration: the
 //! node before s, then one partial RK4 step (the exact transfer in a rigid section) of the
@@ -32,6 +35,8 @@ use crate::rod::{AxialLaw, Rod};
 use crate::statics::constraint::{reaction, tip_residual, TipConstraint};
 use crate::statics::{Problem, Solution};
 use nalgebra::{DMatrix, DVector};
+
+pub mod system;
 
 /// Parameters per dual integration.
 pub(crate) const CHUNK: usize = 4;
@@ -329,7 +334,7 @@ pub fn locate_markers(rod: &Rod, markers: &[Marker]) -> Result<Vec<MarkerAt>> {
 }
 
 /// Integrate like [`integrate`] and return the tip state and the state at every marker.
-fn integrate_markers<C: Coeff, D: StateScalar<C>>(
+pub(crate) fn integrate_markers<C: Coeff, D: StateScalar<C>>(
     rod: &Rod,
     coeffs: &[Coeffs<C>],
     y0: State<D>,
@@ -369,7 +374,7 @@ fn integrate_markers<C: Coeff, D: StateScalar<C>>(
 }
 
 /// r(s) + R(s) o.
-fn marker_position<D: RodScalar>(y: &State<D>, offset: &[f64; 3]) -> [D; 3] {
+pub(crate) fn marker_position<D: RodScalar>(y: &State<D>, offset: &[f64; 3]) -> [D; 3] {
     std::array::from_fn(|i| {
         y.r[i] + y.rot[i][0] * offset[0] + y.rot[i][1] * offset[1] + y.rot[i][2] * offset[2]
     })
@@ -422,13 +427,23 @@ pub(crate) fn seeded<const N: usize>(
     chunk: &[Param],
 ) -> (Vec<SectionKnobs<Jet<N>>>, [Jet<N>; 3]) {
     debug_assert!(chunk.len() <= N);
+    seeded_in(rod, stiffness_scale, chunk.iter().enumerate())
+}
+
+/// [`seeded`] with each parameter's dual direction given: `(q, param)` seeds `param` as
+/// direction q < N (a system's parameter that acts on some rods only skips the others).
+pub(crate) fn seeded_in<'p, const N: usize>(
+    rod: &Rod,
+    stiffness_scale: &[f64; 3],
+    directions: impl IntoIterator<Item = (usize, &'p Param)>,
+) -> (Vec<SectionKnobs<Jet<N>>>, [Jet<N>; 3]) {
     let mut knobs: Vec<SectionKnobs<Jet<N>>> = rod
         .sections
         .iter()
         .map(|s| SectionKnobs::of(s).lift())
         .collect();
     let mut sigma = stiffness_scale.map(Jet::<N>::from);
-    for (q, p) in chunk.iter().enumerate() {
+    for (q, p) in directions {
         match p.kind {
             ParamKind::StiffnessScale(k) => {
                 sigma[k].eps[q] = 1.0;

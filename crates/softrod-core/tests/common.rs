@@ -4,6 +4,7 @@
 use nalgebra::{Rotation3, Unit, Vector3};
 use softrod_core::inverse::InverseTarget;
 use softrod_core::ode::Loads;
+use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::spec::obstacle::{ObstacleKind, ObstacleSpec};
 use softrod_core::spec::{
     AxialSpec, ChamberSpec, DesignSpec, Frame, LawSpec, LineLoadSpec, MaterialSpec, MountingSpec,
@@ -725,4 +726,43 @@ pub fn timoshenko_determinant(l: f64, k: [f64; 4], om: f64, tip: [usize; 2]) -> 
     let za = run([0.0, 0.0, 1.0, 0.0]);
     let zb = run([0.0, 0.0, 0.0, 1.0]);
     za[tip[0]] * zb[tip[1]] - za[tip[1]] * zb[tip[0]]
+}
+
+/// Set a parameter's value in the design (or the loads, for sigma).
+pub fn set_param(spec: &mut DesignSpec, ld: &mut Loads, p: &Param, v: f64) {
+    if let ParamKind::StiffnessScale(k) = p.kind {
+        ld.stiffness_scale[k] = v;
+        return;
+    }
+    for &i in &p.sections {
+        let s = &mut spec.sections[i];
+        match p.kind {
+            ParamKind::CorrectionFactor(0) => s.c_s = v,
+            ParamKind::CorrectionFactor(1) => s.c_e = v,
+            ParamKind::CorrectionFactor(2) => s.c_b = v,
+            ParamKind::CorrectionFactor(_) => s.c_t = v,
+            ParamKind::YoungsModulus => {
+                let m = s.material.as_mut().unwrap();
+                m.shear_modulus *= v / m.youngs_modulus; // Poisson's ratio held fixed
+                m.youngs_modulus = v;
+            }
+            ParamKind::OgdenAlpha => s.law.axial = AxialSpec::Ogden { alpha: v },
+            ParamKind::SwellingCp => s.law.swelling.as_mut().unwrap().c_p = v,
+            ParamKind::ChamberOffset(a) => s.law.chamber_offset[a] = v,
+            // relative to the design's areas: v is the factor on the current areas
+            ParamKind::AreaScale => s.chambers.iter_mut().for_each(|c| c.area *= v),
+            ParamKind::Density => s.material.as_mut().unwrap().density = v,
+            ParamKind::Mass => s.mass = Some(v),
+            // Neither belongs to the statics (sigma is handled above; validate_params
+            // refuses the damping time).
+            ParamKind::StiffnessScale(_) | ParamKind::DampingTime => unreachable!(),
+        }
+    }
+}
+
+pub fn param(name: &str, sections: &[usize]) -> Param {
+    Param {
+        kind: ParamKind::from_name(name).unwrap(),
+        sections: sections.to_vec(),
+    }
 }

@@ -54,45 +54,6 @@ fn m3(rotation: [[f64; 3]; 3]) -> DesignSpec {
     d
 }
 
-/// Set a parameter's value in the design (or the loads, for sigma).
-fn set(spec: &mut DesignSpec, ld: &mut Loads, p: &Param, v: f64) {
-    if let ParamKind::StiffnessScale(k) = p.kind {
-        ld.stiffness_scale[k] = v;
-        return;
-    }
-    for &i in &p.sections {
-        let s = &mut spec.sections[i];
-        match p.kind {
-            ParamKind::CorrectionFactor(0) => s.c_s = v,
-            ParamKind::CorrectionFactor(1) => s.c_e = v,
-            ParamKind::CorrectionFactor(2) => s.c_b = v,
-            ParamKind::CorrectionFactor(_) => s.c_t = v,
-            ParamKind::YoungsModulus => {
-                let m = s.material.as_mut().unwrap();
-                m.shear_modulus *= v / m.youngs_modulus; // Poisson's ratio held fixed
-                m.youngs_modulus = v;
-            }
-            ParamKind::OgdenAlpha => s.law.axial = AxialSpec::Ogden { alpha: v },
-            ParamKind::SwellingCp => s.law.swelling.as_mut().unwrap().c_p = v,
-            ParamKind::ChamberOffset(a) => s.law.chamber_offset[a] = v,
-            // relative to the design's areas: v is the factor on the current areas
-            ParamKind::AreaScale => s.chambers.iter_mut().for_each(|c| c.area *= v),
-            ParamKind::Density => s.material.as_mut().unwrap().density = v,
-            ParamKind::Mass => s.mass = Some(v),
-            // Neither belongs to the statics (sigma is handled above; validate_params
-            // refuses the damping time).
-            ParamKind::StiffnessScale(_) | ParamKind::DampingTime => unreachable!(),
-        }
-    }
-}
-
-fn param(name: &str, sections: &[usize]) -> Param {
-    Param {
-        kind: ParamKind::from_name(name).unwrap(),
-        sections: sections.to_vec(),
-    }
-}
-
 /// Compare every parameter's exact derivative of the tip position and rotation with
 /// central differences; returns the worst relative column error.
 fn check(name: &str, spec: DesignSpec, ld: Loads, params: &[Param]) -> f64 {
@@ -111,9 +72,9 @@ fn check(name: &str, spec: DesignSpec, ld: Loads, params: &[Param]) -> f64 {
         let at = |v: f64| {
             let (mut s, mut l) = (spec.clone(), ld.clone());
             if let ParamKind::AreaScale = p.kind {
-                set(&mut s, &mut l, p, v / v0); // factor on the design's areas
+                set_param(&mut s, &mut l, p, v / v0); // factor on the design's areas
             } else {
-                set(&mut s, &mut l, p, v);
+                set_param(&mut s, &mut l, p, v);
             }
             let r = Rod::new(s).unwrap();
             solve(&r, &l, Some(&sol.x), &opts()).unwrap().tip
@@ -399,7 +360,7 @@ fn fd_markers(
         } else {
             v
         };
-        set(&mut s, &mut l, p, v);
+        set_param(&mut s, &mut l, p, v);
         solved(&s, &l)
     };
     let (plus, minus) = (at(v0 + step), at(v0 - step));

@@ -187,8 +187,8 @@ pub(crate) fn validate(rods: &[SystemRod], platform: &Platform) -> Result<()> {
 }
 
 /// One level of the continuation.
-struct Level<'a> {
-    problems: Vec<Problem<'a>>,
+pub(crate) struct Level<'a> {
+    pub(crate) problems: Vec<Problem<'a>>,
     /// Attachment offsets and rotations at this level (platform frame).
     attach: Vec<([f64; 3], [[f64; 3]; 3])>,
     force: [f64; 3],
@@ -196,7 +196,7 @@ struct Level<'a> {
     weight: [f64; 3],
     com: [f64; 3],
     /// Length, force and moment scales.
-    ls: f64,
+    pub(crate) ls: f64,
     fs: f64,
     ms: f64,
     /// The platform's nominal rotation, from which its unknown rotation vector turns it
@@ -234,12 +234,12 @@ fn rotate<D: RodScalar>(rot: &[[D; 3]; 3], v: &[D; 3]) -> [D; 3] {
 }
 
 impl Level<'_> {
-    fn n_rods(&self) -> usize {
+    pub(crate) fn n_rods(&self) -> usize {
         self.problems.len()
     }
 
     /// The platform's position and rotation from the unknowns.
-    fn platform(&self, x: &[f64]) -> ([f64; 3], [[f64; 3]; 3]) {
+    pub(crate) fn platform(&self, x: &[f64]) -> ([f64; 3], [[f64; 3]; 3]) {
         let k = 6 * self.n_rods();
         (
             std::array::from_fn(|i| x[k + i] * self.ls),
@@ -249,7 +249,7 @@ impl Level<'_> {
 
     /// Rod i's 6 rows and the wrench it applies to the platform (force; moment about p).
     #[allow(clippy::type_complexity)]
-    fn rod_terms<D: RodScalar>(
+    pub(crate) fn rod_terms<D: RodScalar>(
         &self,
         i: usize,
         tip: &State<D>,
@@ -278,7 +278,16 @@ impl Level<'_> {
 
     /// The platform's own load: external force and weight; moment about p.
     fn platform_terms<D: RodScalar>(&self, rp: &[[D; 3]; 3]) -> ([D; 3], [D; 3]) {
-        let w = self.weight.map(D::from);
+        self.platform_terms_weighing(rp, self.weight.map(D::from))
+    }
+
+    /// [`Self::platform_terms`] with the platform's weight `w` (world, N) given: a mass
+    /// derivative carries it.
+    pub(crate) fn platform_terms_weighing<D: RodScalar>(
+        &self,
+        rp: &[[D; 3]; 3],
+        w: [D; 3],
+    ) -> ([D; 3], [D; 3]) {
         let cw = rotate(rp, &self.com.map(D::from));
         let cxw = cross(&cw, &w);
         (
@@ -287,7 +296,7 @@ impl Level<'_> {
         )
     }
 
-    fn balance_rows<D: RodScalar>(&self, f: &[D; 3], m: &[D; 3]) -> [D; 6] {
+    pub(crate) fn balance_rows<D: RodScalar>(&self, f: &[D; 3], m: &[D; 3]) -> [D; 6] {
         std::array::from_fn(|k| {
             if k < 3 {
                 f[k] * (1.0 / self.fs)
@@ -401,7 +410,7 @@ impl Equations for Level<'_> {
 impl Level<'_> {
     /// Residual and exact Jacobian (`Equations::eval_jac`); with `held`, each rod's
     /// conjugate-point test from the same dual integration.
-    fn jacobian(
+    pub(crate) fn jacobian(
         &self,
         x: &[f64],
         mut held: Option<&mut Vec<Conjugate>>,
@@ -475,6 +484,33 @@ impl Level<'_> {
             }
         }
         (r, jac)
+    }
+}
+
+impl<'a> Level<'a> {
+    /// The level of the whole load (the path's end): the given attachments and the
+    /// platform's full load, the rods' `problems` given.
+    pub(crate) fn full(
+        rods: &[SystemRod],
+        platform: &Platform,
+        problems: Vec<Problem<'a>>,
+    ) -> Self {
+        let n = rods.len();
+        Level {
+            problems,
+            attach: rods
+                .iter()
+                .map(|r| (r.attachment, r.attachment_rotation))
+                .collect(),
+            force: platform.force,
+            moment: platform.moment,
+            weight: platform.gravity.map(|g| platform.mass * g),
+            com: platform.com_offset,
+            ls: rods.iter().map(|r| r.rod.length).sum::<f64>() / n as f64,
+            fs: rods.iter().map(|r| r.rod.force_scale).sum(),
+            ms: rods.iter().map(|r| r.rod.force_scale * r.rod.length).sum(),
+            nominal: platform.rotation,
+        }
     }
 }
 
@@ -897,22 +933,7 @@ fn full_residual_and_jacobian(
             ),
         ));
     }
-    let ls = rods.iter().map(|r| r.rod.length).sum::<f64>() / n as f64;
-    let level = Level {
-        problems,
-        attach: rods
-            .iter()
-            .map(|r| (r.attachment, r.attachment_rotation))
-            .collect(),
-        force: platform.force,
-        moment: platform.moment,
-        weight: platform.gravity.map(|g| platform.mass * g),
-        com: platform.com_offset,
-        ls,
-        fs: rods.iter().map(|r| r.rod.force_scale).sum(),
-        ms: rods.iter().map(|r| r.rod.force_scale * r.rod.length).sum(),
-        nominal: platform.rotation,
-    };
+    let level = Level::full(rods, platform, problems);
     let (r, j) = level.eval_jac(x);
     let dim = 6 * n + 6;
     Ok((
