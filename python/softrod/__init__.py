@@ -18,6 +18,9 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
 - :func:`synthesize_dataset`: synthetic datasets from the model, marked as such
 - :func:`calibrate` -> :class:`CalibrationResult`: fit parameters to measured tip positions
   (``dynamic=True``: to tip trajectories, e.g. tau and A_eff of paper 000)
+- :func:`calibrate_system` -> :class:`SystemCalibrationResult`: fit a system of rods (a
+  parallel continuum robot) to its platform's positions and markers
+  (:func:`synthesize_system_dataset` makes such data from the model)
 - :func:`identify_stiffness` -> :class:`StiffnessIdentification`: sigma per sample (paper 001)
 - :func:`fit_stiffness_map` -> :class:`HybridStiffnessModel`, :func:`compare_hybrid`: the
   hybrid neural stiffness map of paper 001 and its tip errors
@@ -54,6 +57,8 @@ _EXPORTS = {
     "HybridStiffnessModel": ".calibration",
     "StiffnessIdentification": ".calibration",
     "calibrate": ".calibration",
+    "calibrate_system": ".calibration",
+    "SystemCalibrationResult": ".calibration",
     "compare_hybrid": ".calibration",
     "fit_stiffness_map": ".calibration",
     "identify_stiffness": ".calibration",
@@ -75,6 +80,7 @@ _EXPORTS = {
     "example_datasets": ".datasets",
     "load_dataset": ".datasets",
     "synthesize_dataset": ".synthetic",
+    "synthesize_system_dataset": ".synthetic",
     "write_dataset": ".datasets",
     "Design": ".design",
     "designs_dir": ".design",
@@ -143,7 +149,9 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         CalibrationResult,
         HybridStiffnessModel,
         StiffnessIdentification,
+        SystemCalibrationResult,
         calibrate,
+        calibrate_system,
         compare_hybrid,
         fit_stiffness_map,
         identify_stiffness,
@@ -192,7 +200,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         solve_statics_batch,
     )
     from .stiffness_map import StiffnessMap
-    from .synthetic import synthesize_dataset
+    from .synthetic import synthesize_dataset, synthesize_system_dataset
     from .system import (
         Platform,
         System,
@@ -257,6 +265,8 @@ __all__ = [
     "bundled_designs",
     "bundled_systems",
     "calibrate",
+    "calibrate_system",
+    "SystemCalibrationResult",
     "calibration",
     "compare_hybrid",
     "compare_models",
@@ -283,6 +293,7 @@ __all__ = [
     "plot_system",
     "plot_system_motion",
     "synthesize_dataset",
+    "synthesize_system_dataset",
     "view",
     "workspace",
     "write_dataset",

@@ -23,6 +23,7 @@ __all__ = [
     "solve_constrained_tip_batch",
     "solve_rod_system",
     "solve_rod_system_batch",
+    "rod_system_sensitivity_batch",
 ]
 __version__: str
 
@@ -445,4 +446,20 @@ def solve_rod_system_batch(
     stretch_range: tuple[float, float] = ...,
     on_invalid: str = "raise",
     friction_steps: int = ...,
+) -> dict[str, Any]: ...
+def rod_system_sensitivity_batch(
+    rods: Sequence[tuple[Rod, _Vec3, _Vec3, _Vec3, Sequence[Sequence[float]]]],
+    platform: tuple[_Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3],
+    pressures: _ArrayLike,
+    params: Sequence[tuple[str, Sequence[tuple[int, Sequence[int]]]]],
+    tensions: _ArrayLike | None = None,
+    markers: Sequence[tuple[int | None, float, _Vec3]] = ...,
+    x0: _ArrayLike | None = None,
+    threads: int = 0,
+    tol: float = 1e-10,
+    max_iter: int = 25,
+    continuation: bool = True,
+    max_load_steps: int = 200,
+    stretch_range: tuple[float, float] = ...,
+    on_invalid: str = "ignore",
 ) -> dict[str, Any]: ...

@@ -48,7 +48,7 @@ import json
 import math
 import os
 import re
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -65,6 +65,7 @@ from .io import exists as _exists
 from .io import is_file as _is_file
 from .schema import (
     DEFAULT_UNITS,
+    PLATFORM_BODY,
     UNIT_ALIASES,
     Extra,
     channel_index,
@@ -222,7 +223,10 @@ class Dataset:
     markers: (m, K, 3) measured marker positions, m (world), NaN where a marker was not
     seen, or None. marker_s: (K,) where each marker sits, reference arc length from the
     base (m); marker_offset: (K, 3) its offset in the cross-section frame (d1, d2, d3) at
-    s, m ((K, 2) is read as (d1, d2)).
+    s, m ((K, 2) is read as (d1, d2)). marker_body: (K,) int, the body each marker sits
+    on in a system of rods (:func:`softrod.calibrate_system`): -1 the platform (offset in
+    the platform frame, s = 0), i >= 0 rod i (s and offset on that rod); None: the
+    markers sit on one design's rod.
     tip_reaction_force, tip_reaction_moment: (m, 3) the measured wrench a held tip's
     constraint applies to the tip (N, N m; world frame, the blocked force), NaN where a
     component was not measured, or None.
@@ -250,6 +254,7 @@ class Dataset:
     marker_offset: np.ndarray | None = None
     tip_reaction_force: np.ndarray | None = None
     tip_reaction_moment: np.ndarray | None = None
+    marker_body: np.ndarray | None = None
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -346,7 +351,7 @@ class Dataset:
     def _check_markers(self, m: int) -> None:
         set_ = object.__setattr__
         if self.markers is None:
-            for name in ("marker_s", "marker_offset"):
+            for name in ("marker_s", "marker_offset", "marker_body"):
                 if getattr(self, name) is not None:
                     raise _fail(name, "given", "needs markers (the measured marker positions)")
             return
@@ -400,6 +405,29 @@ class Dataset:
             )
         if o.shape[1] == 2:
             o = np.column_stack([o, np.zeros(k)])
+        if self.marker_body is not None:
+            body = np.asarray(self.marker_body)
+            if (
+                body.shape != (k,)
+                or not np.issubdtype(body.dtype, np.integer)
+                or (body < PLATFORM_BODY).any()
+            ):
+                raise _fail(
+                    "marker_body",
+                    body.tolist(),
+                    f"must be {k} integers: -1 for a marker on the platform, i >= 0 for one "
+                    "on rod i",
+                )
+            on_platform = body == PLATFORM_BODY
+            if (s[on_platform] != 0).any():
+                j = int(np.flatnonzero(on_platform & (s != 0))[0])
+                raise _fail(
+                    f"marker_s[{j}]",
+                    float(s[j]),
+                    "a marker on the platform has no arc length: give 0 (its offset is in "
+                    "the platform frame)",
+                )
+            set_(self, "marker_body", _readonly(body.astype(np.int64)))
         set_(self, "markers", _readonly(a))
         set_(self, "marker_s", _readonly(s))
         set_(self, "marker_offset", _readonly(np.ascontiguousarray(o)))
@@ -496,7 +524,10 @@ class Dataset:
                 "result columns " + ", ".join(shown) + (f" and {more} more" if more > 0 else "")
             )
         if self.synthetic:
-            parts.append(f"SYNTHETIC from {self.metadata.get('design', '?')}")
+            made = self.metadata.get("design") or (
+                f"system {self.metadata['system']}" if "system" in self.metadata else "?"
+            )
+            parts.append(f"SYNTHETIC from {made}")
         if self.source is not None:
             parts.append(f"source={str(self.source)!r}")
         return f"Dataset({'; '.join(parts)})"
@@ -575,6 +606,7 @@ class Dataset:
             marker_offset=self.marker_offset,
             tip_reaction_force=take(self.tip_reaction_force),
             tip_reaction_moment=take(self.tip_reaction_moment),
+            marker_body=self.marker_body,
         )
 
     def split(self, by: str = "experiment", *, test: Any) -> tuple[Dataset, Dataset]:
@@ -627,6 +659,7 @@ class Dataset:
             markers=self.markers,
             marker_s=self.marker_s,
             marker_offset=self.marker_offset,
+            marker_body=self.marker_body,
             tip_reaction_force=self.tip_reaction_force,
             tip_reaction_moment=self.tip_reaction_moment,
             extras=[Extra(n, v, str(described.get(n, ""))) for n, v in self.extra.items()],
@@ -1120,7 +1153,7 @@ def _from_frame(
         )
     if len(marker_ids) > MAX_MARKERS:
         raise _fail("columns", f"{len(marker_ids)} markers", f"at most {MAX_MARKERS} markers")
-    sites = _marker_sites(meta.get("markers"), len(marker_ids))
+    sites = _marker_sites(meta.get("markers"), len(marker_ids), bodies=True)
     gaps = sorted(set(range(channels[-1] + 1)) - set(channels)) if channels else []
     if gaps:
         raise _fail(
@@ -1253,6 +1286,7 @@ def _from_frame(
         markers=markers,
         marker_s=None if markers is None else sites[0],
         marker_offset=None if markers is None else sites[1],
+        marker_body=None if markers is None else sites[2],
         tip_position=stack(_TIP),
         tip_rotation=rotation,
         base_force=stack(_FORCE),
@@ -1268,9 +1302,12 @@ def _from_frame(
     )
 
 
-def _marker_sites(entry, count: int):
+def _marker_sites(entry, count: int, bodies: bool = False):
     """(s (K,), offset (K, 3)) in m from the metadata's ``markers`` entry
-    ``{"marker0": {"s": "55 mm", "offset": ["12 mm", "0 mm"]}, ...}``; None without markers."""
+    ``{"marker0": {"s": "55 mm", "offset": ["12 mm", "0 mm"]}, ...}``; None without markers.
+    With ``bodies`` (a dataset's table) an entry may say the body it sits on in a system
+    of rods: ``{"body": "platform", "offset": [x, y, z]}`` (platform frame) or
+    ``{"body": "rod1", "s": ..., "offset": ...}``; then (s, offset, body (K,) or None)."""
     if count == 0:
         if entry:
             raise _fail(
@@ -1291,25 +1328,74 @@ def _marker_sites(entry, count: int):
     if extra:
         raise _fail(f"metadata.markers.{extra[0]}", entry[extra[0]], "has no marker columns")
     s, offset = np.zeros(count), np.zeros((count, 3))
+    body = np.zeros(count, dtype=np.int64)
+    keys = {"s", "offset", "body"} if bodies else {"s", "offset"}
     for k in range(count):
         key = f"marker{k}"
         site = entry.get(key)
         where = f"metadata.markers.{key}"
-        if not isinstance(site, Mapping) or set(site) - {"s", "offset"} or "s" not in site:
+        if not isinstance(site, Mapping) or set(site) - keys:
             raise _fail(
                 where,
                 site,
-                'must be {"s": "<arc length>", "offset": ["<d1>", "<d2>"(, "<d3>")]} with units',
+                'must be {"s": "<arc length>", "offset": ["<d1>", "<d2>"(, "<d3>")]} with units'
+                + (
+                    ', or on a system\'s platform {"body": "platform", "offset": ["<x>", "<y>", '
+                    '"<z>"]} (platform frame), or on its rod i {"body": "rod<i>", "s": ..., '
+                    '"offset": ...}'
+                    if bodies
+                    else ""
+                ),
             )
-        s[k] = V.quantity(site["s"], "length", f"{where}.s", bare="error")
-        if s[k] < 0:
-            raise _fail(f"{where}.s", site["s"], "must be an arc length >= 0")
-        off = site.get("offset", [0.0, 0.0])
-        if not isinstance(off, (list, tuple)) or len(off) not in (2, 3):
-            raise _fail(f"{where}.offset", off, "must be 2 or 3 lengths (d1, d2[, d3])")
+        named = site.get("body")
+        if named is not None:
+            body[k] = _body_index(named, f"{where}.body")
+        if body[k] == PLATFORM_BODY:
+            if "s" in site:
+                raise _fail(
+                    f"{where}.s",
+                    site["s"],
+                    "a marker on the platform has no arc length: give only its offset",
+                )
+            off = site.get("offset")
+            if not isinstance(off, (list, tuple)) or len(off) != 3:
+                raise _fail(
+                    f"{where}.offset", off, "must be 3 lengths (x, y, z in the platform frame)"
+                )
+        else:
+            if "s" not in site:
+                raise _fail(where, site, 'needs "s", its arc length from the base (with a unit)')
+            s[k] = V.quantity(site["s"], "length", f"{where}.s", bare="error")
+            if s[k] < 0:
+                raise _fail(f"{where}.s", site["s"], "must be an arc length >= 0")
+            off = site.get("offset", [0.0, 0.0])
+            if not isinstance(off, (list, tuple)) or len(off) not in (2, 3):
+                raise _fail(f"{where}.offset", off, "must be 2 or 3 lengths (d1, d2[, d3])")
         for i, v in enumerate(off):
             offset[k, i] = V.quantity(v, "length", f"{where}.offset[{i}]", bare="error")
-    return s, offset
+    if not bodies:
+        return s, offset
+    given = any(
+        isinstance(entry.get(f"marker{k}"), Mapping) and "body" in entry[f"marker{k}"]
+        for k in range(count)
+    )
+    if given and not all("body" in entry[f"marker{k}"] for k in range(count)):
+        k = next(k for k in range(count) if "body" not in entry[f"marker{k}"])
+        raise _fail(
+            f"metadata.markers.marker{k}",
+            entry[f"marker{k}"],
+            'needs a "body" too: in a system\'s dataset every marker says the body it sits on',
+        )
+    return s, offset, body if given else None
+
+
+def _body_index(name, field: str) -> int:
+    """-1 for "platform", i for "rod<i>"."""
+    if name == "platform":
+        return PLATFORM_BODY
+    if isinstance(name, str) and name.startswith("rod") and name[3:].isdigit():
+        return int(name[3:])
+    raise _fail(field, name, 'must be "platform" or "rod<i>" (rod0, rod1, ...)')
 
 
 def parse_marker_sites(markers, length: float | None = None, field: str = "markers"):
@@ -1369,6 +1455,48 @@ def parse_marker_sites(markers, length: float | None = None, field: str = "marke
             )
             raise _fail(f"{where}.s", raw_s, rule)
     return s, offset
+
+
+def parse_system_marker_sites(markers, lengths: Sequence[float], field: str = "markers"):
+    """(s (K,), offset (K, 3), body (K,)) in m of a system's markers given in the Python
+    API, or None for None. Each marker is ``("platform", offset)`` (a point fixed to the
+    platform: 3 lengths in the platform frame) or ``("rod<i>", s, offset)`` (a point on
+    rod i, as :func:`parse_marker_sites` reads ``(s, offset)``, checked against that
+    rod's length ``lengths[i]``). Errors name ``markers[k]``."""
+    if markers is None:
+        return None
+    if not isinstance(markers, (list, tuple)) or not 1 <= len(markers) <= MAX_MARKERS:
+        raise _fail(
+            field,
+            markers,
+            f"must be a list of 1 to {MAX_MARKERS} markers, each ('platform', offset) or "
+            "('rod<i>', s, offset)",
+        )
+    s, offset = np.zeros(len(markers)), np.zeros((len(markers), 3))
+    body = np.zeros(len(markers), dtype=np.int64)
+    for k, item in enumerate(markers):
+        where = f"{field}[{k}]"
+        if not isinstance(item, (list, tuple)) or len(item) not in (2, 3):
+            raise _fail(where, item, "must be ('platform', offset) or ('rod<i>', s, offset)")
+        b = _body_index(item[0], f"{where}[0]")
+        body[k] = b
+        if b == PLATFORM_BODY:
+            off = item[1] if len(item) == 2 else None
+            if not isinstance(off, (list, tuple, np.ndarray)) or len(off) != 3:
+                raise _fail(
+                    where,
+                    item,
+                    "a platform marker is ('platform', [x, y, z]): 3 lengths in the platform frame",
+                )
+            for i, v in enumerate(off):
+                offset[k, i] = V.quantity(v, "length", f"{where}.offset[{i}]")
+            continue
+        if b >= len(lengths):
+            raise _fail(f"{where}[0]", item[0], f"the system has {len(lengths)} rods")
+        site = (item[1], item[2]) if len(item) == 3 else item[1]
+        one = parse_marker_sites([site], lengths[b], field=where)
+        s[k], offset[k] = one[0][0], one[1][0]
+    return s, offset, body
 
 
 def _extra_values(column: pd.Series) -> np.ndarray:

@@ -240,6 +240,15 @@ class Extra:
     kind: str | None = None
 
 
+#: ``Dataset.marker_body`` of a marker on a system's platform.
+PLATFORM_BODY = -1
+
+
+def body_name(index: int) -> str:
+    """The metadata's name of ``Dataset.marker_body`` value ``index``."""
+    return "platform" if index == PLATFORM_BODY else f"rod{int(index)}"
+
+
 def schema_frame(
     *,
     pressures,
@@ -254,6 +263,7 @@ def schema_frame(
     markers=None,
     marker_s=None,
     marker_offset=None,
+    marker_body=None,
     tip_reaction_force=None,
     tip_reaction_moment=None,
     extras: Sequence[Extra] = (),
@@ -271,7 +281,8 @@ def schema_frame(
     (:data:`DEFAULT_UNITS` or ``units``). NaN rows (a failed solve) stay NaN. The metadata
     (``frame.attrs["softrod.metadata"]``) gets a ``columns`` entry that declares every
     extra column by its name, and with markers a ``markers`` entry with each marker's arc
-    length ``marker_s`` (K,) and offset ``marker_offset`` (K, 3), SI.
+    length ``marker_s`` (K,) and offset ``marker_offset`` (K, 3), SI (and, for a system's
+    markers, the body ``marker_body`` (K,) each sits on).
     """
     import pandas as pd
 
@@ -321,6 +332,12 @@ def schema_frame(
             }
             for k, (s, o) in enumerate(zip(marker_s, marker_offset, strict=True))
         }
+        if marker_body is not None:  # a system's markers: the body each sits on
+            for k, b in enumerate(marker_body):
+                site = sites[f"marker{k}"]
+                site["body"] = body_name(b)
+                if b == PLATFORM_BODY:
+                    del site["s"]
     declared: dict[str, str] = {}
     for extra in extras:
         values = np.asarray(extra.values)

@@ -21,6 +21,7 @@ from .datasets import (
     _quat_to_matrix,
     noise_seed,
     parse_marker_sites,
+    parse_system_marker_sites,
 )
 from .design import Design
 from .errors import ConvergenceError, InputError
@@ -28,10 +29,11 @@ from .statics import _frictional, _options, batch_pressures, solve_statics_batch
 from .units import vector_to_si
 
 if TYPE_CHECKING:
-    from ._types import ArrayLike, DesignLike
+    from ._types import ArrayLike, DesignLike, PathLike
     from .statics import SolverOptions
+    from .system import System
 
-__all__ = ["synthesize_dataset"]
+__all__ = ["synthesize_dataset", "synthesize_system_dataset"]
 
 
 def synthesize_dataset(
@@ -209,3 +211,131 @@ def _tip_load(design: Design, value, kind: str) -> list[float]:
     if value is None:
         return [float(x) for x in design.spec["tip"][kind]]
     return vector_to_si(list(value), kind, f"tip_{kind}", InputError)
+
+
+def synthesize_system_dataset(
+    system: System | str | PathLike,
+    pressures: ArrayLike | None = None,
+    *,
+    tensions: ArrayLike | None = None,
+    markers: Sequence | None = None,
+    noise_mm: float = 0.0,
+    seed: int | None = None,
+    experiment: ArrayLike | None = None,
+    options: SolverOptions | None = None,
+    threads: int = 0,
+    tip: bool = True,
+) -> Dataset:
+    """A synthetic dataset of a :class:`~softrod.System`: its equilibria plus measurement
+    noise, for :func:`~softrod.calibrate_system`.
+
+    ``pressures`` and ``tensions``: the rows as :func:`~softrod.solve_system_batch` takes
+    them (one list per rod per row); the dataset's p columns are rod 0's channels, then
+    rod 1's, ... (t columns likewise). The tip columns hold the platform origin's position
+    (``tip=False`` leaves them out). ``markers``: points to record, each
+    ``("platform", offset)`` (platform frame) or ``("rod<i>", s, offset)`` (on rod i),
+    SI numbers or strings with units, checked before any solve. Positions get isotropic
+    Gaussian noise of ``noise_mm`` (per axis); ``seed`` makes it reproducible (drawn and
+    recorded when None). Frictional systems are refused (their equilibria depend on the
+    load path). Raises :class:`~softrod.errors.ConvergenceError` listing rows that did not
+    converge. ``metadata["synthetic"]`` is True and records the system, noise and seed.
+    """
+    from . import __version__, _core
+    from .system import System, _batch_entries, _platform_args, _system_rows, load_system
+
+    if not isinstance(system, System):
+        system = load_system(system)
+    seed = noise_seed(noise_mm, seed)
+    V.boolean(tip, "tip")
+    lengths = [rod.design.length for rod in system.rods]
+    sites = parse_system_marker_sites(markers, lengths)
+    if not tip and sites is None:
+        raise _fail("tip", False, "leaves nothing to record: give markers or keep the tip")
+    for i, rod in enumerate(system.rods):
+        rough = _frictional(rod.design)
+        if rough is not None:
+            raise _fail(
+                f"system.rods[{i}].design.obstacles[{rough}].friction",
+                rod.design.spec["obstacles"][rough]["friction"],
+                "a frictional system's equilibria depend on their load path: synthesize "
+                "with frictionless obstacles",
+            )
+    nc = [rod.design.n_channels for rod in system.rods]
+    nt = [rod.design.n_tendons for rod in system.rods]
+    if pressures is None and tensions is None:
+        raise _fail("pressures", None, "give the rows: pressures (or tensions) of every rod")
+    ps = None if pressures is None else _system_rows(system, pressures, "pressures", "pressure", nc)
+    ts = None if tensions is None else _system_rows(system, tensions, "tensions", "force", nt)
+    m = len(ps[0]) if ps is not None else len(ts[0])
+    if ts is not None and len(ts[0]) != m:
+        raise _fail("tensions", f"{len(ts[0])} rows", f"must have as many rows as pressures ({m})")
+    flat_p = np.concatenate(ps, axis=1) if ps is not None and sum(nc) else np.zeros((m, sum(nc)))
+    flat_t = None if ts is None or not sum(nt) else np.concatenate(ts, axis=1)
+    if flat_t is not None and not (flat_t >= 0).all():
+        r, k = (int(v) for v in np.argwhere(~(flat_t >= 0))[0])
+        raise _fail(f"tensions[{r}]", float(flat_t[r, k]), "a tendon tension must be >= 0")
+    if (flat_p < V.VACUUM_PA).any():
+        r, k = (int(v) for v in np.argwhere(flat_p < V.VACUUM_PA)[0])
+        raise _fail(
+            f"pressures[{r}]", float(flat_p[r, k]), f"gauge pressures must be >= {V.VACUUM_PA:g} Pa"
+        )
+    core_markers = (
+        []
+        if sites is None
+        else [
+            (None if int(b) < 0 else int(b), float(s), [float(v) for v in o])
+            for s, o, b in zip(*sites, strict=True)
+        ]
+    )
+    out = _core.rod_system_sensitivity_batch(
+        _batch_entries(system),
+        _platform_args(system, None, None),
+        np.ascontiguousarray(flat_p, dtype=float),
+        [],
+        tensions=None if flat_t is None else np.ascontiguousarray(flat_t, dtype=float),
+        markers=core_markers,
+        threads=V.threads(threads),
+        **_options(options).as_kwargs(),
+    )
+    failed = np.flatnonzero(~np.asarray(out["converged"], dtype=bool))
+    if failed.size:
+        rows = ", ".join(str(int(i)) for i in failed[:_MAX_LISTED])
+        more = f" and {failed.size - _MAX_LISTED} more" if failed.size > _MAX_LISTED else ""
+        raise ConvergenceError(
+            f"synthesize_system_dataset: {failed.size} of {m} rows did not converge (rows "
+            f"{rows}{more}); nothing is dropped silently: remove them or change the inputs"
+        )
+    rng = np.random.default_rng(int(seed))
+    sd = noise_mm * 1e-3
+
+    def noisy(x):
+        return x + rng.normal(0.0, sd, size=x.shape) if noise_mm > 0 else x
+
+    platform = noisy(np.asarray(out["platform_position"]))
+    marker_pos = None if sites is None else noisy(np.asarray(out["marker_position"]))
+    meta = {
+        "synthetic": True,
+        "system": system.name,
+        "rods": [rod.design.name for rod in system.rods],
+        "softrod_version": __version__,
+        "noise_mm": float(noise_mm),
+        "noise": "isotropic Gaussian on the platform position and markers (per axis, independent)",
+        "seed": int(seed),
+        "tip": "the platform origin's position",
+    }
+    exp = None
+    if experiment is not None:
+        exp = np.asarray(experiment)
+        if exp.ndim == 0:
+            exp = np.full(m, exp.item())
+    return Dataset(
+        pressures=flat_p,
+        tensions=flat_t,
+        tip_position=platform if tip else None,
+        experiment=exp,
+        metadata=meta,
+        markers=marker_pos,
+        marker_s=None if sites is None else sites[0],
+        marker_offset=None if sites is None else sites[1],
+        marker_body=None if sites is None else sites[2],
+    )

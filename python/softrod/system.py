@@ -801,18 +801,7 @@ def solve_system_batch(
                 "a tendon tension must be >= 0 (a tendon pulls or is slack, it cannot push)",
                 InputError,
             )
-    entries = []
-    for rod in system.rods:
-        tip = rod.design.spec["tip"]
-        entries.append(
-            (
-                rod.design._rod,
-                list(tip["force"]),
-                list(tip["moment"]),
-                [float(v) for v in rod.attachment],
-                np.asarray(rod.attachment_rotation, dtype=float).tolist(),
-            )
-        )
+    entries = _batch_entries(system)
     platform = _platform_args(system, platform_force, platform_moment)
     flat_p = np.ascontiguousarray(np.concatenate(ps, axis=1) if ps else np.zeros((m, 0)))
     flat_t = np.ascontiguousarray(np.concatenate(ts, axis=1)) if sum(nt) else None
@@ -886,6 +875,24 @@ def solve_system_batch(
         friction_force=tuple(None if c is None else c["friction_force"] for c in contact),
         metadata=meta,
     )
+
+
+def _batch_entries(system: System) -> list[tuple]:
+    """The binding's rods of a system batch: each rod's core rod, its design's tip loads
+    and its attachment (the rows give the pressures and tensions)."""
+    entries = []
+    for rod in system.rods:
+        tip = rod.design.spec["tip"]
+        entries.append(
+            (
+                rod.design._rod,
+                list(tip["force"]),
+                list(tip["moment"]),
+                [float(v) for v in rod.attachment],
+                np.asarray(rod.attachment_rotation, dtype=float).tolist(),
+            )
+        )
+    return entries
 
 
 def _platform_args(system: System, platform_force, platform_moment) -> tuple:

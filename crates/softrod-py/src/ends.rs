@@ -9,10 +9,13 @@ use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::batch::{
-    solve_constrained_batch, solve_held_friction_batch, solve_system_batch, BatchInputs, BatchRow,
-    SystemBatchInputs,
+    solve_constrained_batch, solve_held_friction_batch, solve_system_batch,
+    system_sensitivity_batch, BatchInputs, BatchRow, SystemBatchInputs, SystemBatchRow,
 };
+use softrod_core::marker::Marker;
 use softrod_core::ode::Loads;
+use softrod_core::sensitivity::system::{SystemMarker, SystemParam};
+use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
 use softrod_core::statics::friction;
 use softrod_core::statics::system::{
@@ -502,22 +505,7 @@ fn solve_rod_system_batch<'py>(
             stretch_range,
             on_invalid,
         )?;
-        let system: Vec<SystemRod> = rods
-            .iter()
-            .map(|(r, f, m, o, a)| SystemRod {
-                rod: &r.rod,
-                loads: Loads {
-                    pressures: vec![],
-                    tensions: vec![],
-                    tip_force: *f,
-                    tip_moment: *m,
-                    tip_frame: r.rod.spec.tip.frame,
-                    stiffness_scale: [1.0; 3],
-                },
-                attachment: *o,
-                attachment_rotation: *a,
-            })
-            .collect();
+        let system = batch_rods(&rods);
         let pf = platform_of(platform);
         let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
         let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
@@ -530,91 +518,284 @@ fn solve_rod_system_batch<'py>(
                 solve_system_batch(&system, &pf, &inputs, friction_steps, &opts, threads)
             })
             .map_err(|e| to_py_err(py, e, Context::Input))?;
-        let m = out.len();
-        let n = system.len();
-        let d = PyDict::new(py);
+        system_rows_dict(py, &system, &out)
+    })
+}
+
+/// The arrays of a system batch's rows (`solve_rod_system_batch`'s dict).
+fn system_rows_dict<'py>(
+    py: Python<'py>,
+    system: &[SystemRod],
+    out: &[SystemBatchRow],
+) -> PyResult<Bound<'py, PyDict>> {
+    let m = out.len();
+    let n = system.len();
+    let d = PyDict::new(py);
+    d.set_item(
+        "converged",
+        PyArray1::from_vec(py, out.iter().map(|r| r.converged).collect()),
+    )?;
+    d.set_item(
+        "iterations",
+        PyArray1::from_vec(py, out.iter().map(|r| r.iterations as i64).collect()),
+    )?;
+    d.set_item(
+        "residual",
+        PyArray1::from_vec(py, out.iter().map(|r| r.residual).collect()),
+    )?;
+    d.set_item(
+        "load_steps",
+        PyArray1::from_vec(py, out.iter().map(|r| r.load_steps as i64).collect()),
+    )?;
+    // "stable" is false where stability was not assessed: see "assessed".
+    d.set_item(
+        "stable",
+        PyArray1::from_vec(py, out.iter().map(|r| r.stable == Some(true)).collect()),
+    )?;
+    d.set_item(
+        "assessed",
+        PyArray1::from_vec(py, out.iter().map(|r| r.stable.is_some()).collect()),
+    )?;
+    let x: Vec<f64> = out.iter().flat_map(|r| r.x.iter().copied()).collect();
+    d.set_item("x", PyArray1::from_vec(py, x).reshape([m, 6 * n + 6])?)?;
+    let pp: Vec<[f64; 3]> = out.iter().map(|r| r.platform_position).collect();
+    let pr: Vec<[[f64; 3]; 3]> = out.iter().map(|r| r.platform_rotation).collect();
+    d.set_item("platform_position", array2(py, &pp)?)?;
+    d.set_item("platform_rotation", array3(py, &pr)?)?;
+    let per_rod = |get: &dyn Fn(&BatchRow) -> [f64; 3]| -> Vec<f64> {
+        out.iter()
+            .flat_map(|r| r.rods.iter().flat_map(get))
+            .collect()
+    };
+    for (name, get) in [
+        (
+            "tip_position",
+            &(|r: &BatchRow| r.tip_position) as &dyn Fn(&BatchRow) -> [f64; 3],
+        ),
+        ("base_force", &|r: &BatchRow| r.base_force),
+        ("base_moment", &|r: &BatchRow| r.base_moment),
+        ("tip_reaction_force", &|r: &BatchRow| r.tip_reaction_force),
+        ("tip_reaction_moment", &|r: &BatchRow| r.tip_reaction_moment),
+    ] {
         d.set_item(
-            "converged",
-            PyArray1::from_vec(py, out.iter().map(|r| r.converged).collect()),
+            name,
+            PyArray1::from_vec(py, per_rod(get)).reshape([m, n, 3])?,
         )?;
-        d.set_item(
-            "iterations",
-            PyArray1::from_vec(py, out.iter().map(|r| r.iterations as i64).collect()),
-        )?;
-        d.set_item(
-            "residual",
-            PyArray1::from_vec(py, out.iter().map(|r| r.residual).collect()),
-        )?;
-        d.set_item(
-            "load_steps",
-            PyArray1::from_vec(py, out.iter().map(|r| r.load_steps as i64).collect()),
-        )?;
-        // "stable" is false where stability was not assessed: see "assessed".
-        d.set_item(
-            "stable",
-            PyArray1::from_vec(py, out.iter().map(|r| r.stable == Some(true)).collect()),
-        )?;
-        d.set_item(
-            "assessed",
-            PyArray1::from_vec(py, out.iter().map(|r| r.stable.is_some()).collect()),
-        )?;
-        let x: Vec<f64> = out.iter().flat_map(|r| r.x.iter().copied()).collect();
-        d.set_item("x", PyArray1::from_vec(py, x).reshape([m, 6 * n + 6])?)?;
-        let pp: Vec<[f64; 3]> = out.iter().map(|r| r.platform_position).collect();
-        let pr: Vec<[[f64; 3]; 3]> = out.iter().map(|r| r.platform_rotation).collect();
-        d.set_item("platform_position", array2(py, &pp)?)?;
-        d.set_item("platform_rotation", array3(py, &pr)?)?;
-        let per_rod = |get: &dyn Fn(&BatchRow) -> [f64; 3]| -> Vec<f64> {
-            out.iter()
-                .flat_map(|r| r.rods.iter().flat_map(get))
-                .collect()
-        };
-        for (name, get) in [
-            (
-                "tip_position",
-                &(|r: &BatchRow| r.tip_position) as &dyn Fn(&BatchRow) -> [f64; 3],
-            ),
-            ("base_force", &|r: &BatchRow| r.base_force),
-            ("base_moment", &|r: &BatchRow| r.base_moment),
-            ("tip_reaction_force", &|r: &BatchRow| r.tip_reaction_force),
-            ("tip_reaction_moment", &|r: &BatchRow| r.tip_reaction_moment),
-        ] {
-            d.set_item(
-                name,
-                PyArray1::from_vec(py, per_rod(get)).reshape([m, n, 3])?,
-            )?;
+    }
+    let rot: Vec<f64> = out
+        .iter()
+        .flat_map(|r| {
+            r.rods
+                .iter()
+                .flat_map(|k| k.tip_rotation.into_iter().flatten())
+        })
+        .collect();
+    d.set_item(
+        "tip_rotation",
+        PyArray1::from_vec(py, rot).reshape([m, n, 3, 3])?,
+    )?;
+    d.set_item(
+        "violation",
+        out.iter().map(|r| r.violation.as_str()).collect::<Vec<_>>(),
+    )?;
+    // Per rod with obstacles, its contact and friction forces (m, obstacles, 3); None
+    // for a rod without any.
+    let mut contact = Vec::with_capacity(n);
+    for (i, sr) in system.iter().enumerate() {
+        let k = sr.rod.spec.obstacles.len();
+        if k == 0 {
+            contact.push(None);
+            continue;
         }
-        let rot: Vec<f64> = out
-            .iter()
-            .flat_map(|r| {
-                r.rods
-                    .iter()
-                    .flat_map(|k| k.tip_rotation.into_iter().flatten())
+        let rows: Vec<BatchRow> = out.iter().map(|r| r.rods[i].clone()).collect();
+        let rd = PyDict::new(py);
+        contact_forces(py, &rd, &rows, k)?;
+        contact.push(Some(rd));
+    }
+    d.set_item("contact", contact)?;
+    Ok(d)
+}
+
+/// The rods of a system batch: each with its tip loads and attachment; the rows give the
+/// pressures and tensions.
+fn batch_rods<'a>(rods: &'a [BatchRodEntry<'_>]) -> Vec<SystemRod<'a>> {
+    rods.iter()
+        .map(|(r, f, m, o, a)| SystemRod {
+            rod: &r.rod,
+            loads: Loads {
+                pressures: vec![],
+                tensions: vec![],
+                tip_force: *f,
+                tip_moment: *m,
+                tip_frame: r.rod.spec.tip.frame,
+                stiffness_scale: [1.0; 3],
+            },
+            attachment: *o,
+            attachment_rotation: *a,
+        })
+        .collect()
+}
+
+/// A system parameter: (kind, [(rod, sections)]), kinds as `ParamKind::ALL` names, or
+/// ("platform_mass", []).
+type SystemParamEntry = (String, Vec<(usize, Vec<usize>)>);
+
+/// `solve_rod_system_batch` (frictionless systems) plus the markers and the exact
+/// derivatives of the platform pose and the markers with respect to `params`
+/// (`softrod_core::batch::system_sensitivity_batch`; GIL released). `markers`: (rod, s,
+/// offset) with rod None for a point fixed to the platform (offset in the platform frame;
+/// s must be 0) or a rod's index (s its reference arc length, offset in its cross-section
+/// frame); m. `x0`: optional (m, 6 n + 6) warm starts (a previous call's "x"; NaN rows
+/// start cold). Adds "marker_position" (m, K, 3), "d_platform_position" (m, 3, P),
+/// "d_platform_rotation" (m, 3, 3, P) and "d_marker_position" (m, K, 3, P), NaN on failed
+/// rows.
+#[pyfunction]
+#[pyo3(signature = (rods, platform, pressures, params, tensions=None, markers=vec![], x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore"))]
+#[allow(clippy::too_many_arguments)]
+fn rod_system_sensitivity_batch<'py>(
+    py: Python<'py>,
+    rods: Vec<BatchRodEntry<'py>>,
+    platform: PlatformEntry,
+    pressures: PyReadonlyArray2<'py, f64>,
+    params: Vec<SystemParamEntry>,
+    tensions: Option<PyReadonlyArray2<'py, f64>>,
+    markers: Vec<(Option<usize>, f64, [f64; 3])>,
+    x0: Option<PyReadonlyArray2<'py, f64>>,
+    threads: usize,
+    tol: f64,
+    max_iter: usize,
+    continuation: bool,
+    max_load_steps: usize,
+    stretch_range: (f64, f64),
+    on_invalid: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    guarded(py, || {
+        let input = |e: SoftrodError| to_py_err(py, e, Context::Input);
+        let opts = options(
+            py,
+            tol,
+            max_iter,
+            continuation,
+            max_load_steps,
+            stretch_range,
+            on_invalid,
+        )?;
+        let system = batch_rods(&rods);
+        let params: Vec<SystemParam> = params
+            .into_iter()
+            .enumerate()
+            .map(|(j, (name, entries))| {
+                if name == "platform_mass" {
+                    return if entries.is_empty() {
+                        Ok(SystemParam::PlatformMass)
+                    } else {
+                        Err(SoftrodError::invalid(
+                            format!("params[{j}]"),
+                            format!("{} rods", entries.len()),
+                            "the platform's mass acts on no rod: give no rods",
+                        ))
+                    };
+                }
+                let Some(kind) = ParamKind::from_name(&name) else {
+                    return Err(SoftrodError::invalid(
+                        format!("params[{j}]"),
+                        &name,
+                        format!(
+                            "unknown parameter kind; known: platform_mass, {}",
+                            ParamKind::ALL.map(|(n, _)| n).join(", ")
+                        ),
+                    ));
+                };
+                Ok(SystemParam::Rods(
+                    entries
+                        .into_iter()
+                        .map(|(rod, sections)| (rod, Param { kind, sections }))
+                        .collect(),
+                ))
             })
-            .collect();
-        d.set_item(
-            "tip_rotation",
-            PyArray1::from_vec(py, rot).reshape([m, n, 3, 3])?,
-        )?;
-        d.set_item(
-            "violation",
-            out.iter().map(|r| r.violation.as_str()).collect::<Vec<_>>(),
-        )?;
-        // Per rod with obstacles, its contact and friction forces (m, obstacles, 3); None
-        // for a rod without any.
-        let mut contact = Vec::with_capacity(n);
-        for (i, sr) in system.iter().enumerate() {
-            let k = sr.rod.spec.obstacles.len();
-            if k == 0 {
-                contact.push(None);
-                continue;
+            .collect::<Result<_, _>>()
+            .map_err(input)?;
+        let markers: Vec<SystemMarker> = markers
+            .into_iter()
+            .enumerate()
+            .map(|(k, (rod, s, offset))| match rod {
+                None if s != 0.0 => Err(SoftrodError::invalid(
+                    format!("markers[{k}].s"),
+                    s,
+                    "a marker fixed to the platform has no arc length: give 0",
+                )),
+                None => Ok(SystemMarker::Platform(offset)),
+                Some(rod) => Ok(SystemMarker::Rod {
+                    rod,
+                    marker: Marker { s, offset },
+                }),
+            })
+            .collect::<Result<_, _>>()
+            .map_err(input)?;
+        let pf = platform_of(platform);
+        let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
+        let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
+        let guesses: Option<Vec<f64>> = x0.map(|s| s.as_array().iter().copied().collect());
+        let out = py
+            .detach(|| {
+                let inputs = SystemBatchInputs {
+                    pressures: &flat,
+                    tensions: tens.as_deref(),
+                };
+                system_sensitivity_batch(
+                    &system,
+                    &pf,
+                    &inputs,
+                    guesses.as_deref(),
+                    &params,
+                    &markers,
+                    &opts,
+                    threads,
+                )
+            })
+            .map_err(input)?;
+        let d = system_rows_dict(py, &system, &out)?;
+        let (m, np, nk) = (out.len(), params.len(), markers.len());
+        let mut mp = vec![f64::NAN; m * nk * 3];
+        let (mut dp, mut dr) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 9 * np]);
+        let mut dm = vec![f64::NAN; m * nk * 3 * np];
+        for (r, row) in out.iter().enumerate() {
+            for (k, pos) in row.markers.iter().enumerate() {
+                mp[(r * nk + k) * 3..(r * nk + k) * 3 + 3].copy_from_slice(pos);
             }
-            let rows: Vec<BatchRow> = out.iter().map(|r| r.rods[i].clone()).collect();
-            let rd = PyDict::new(py);
-            contact_forces(py, &rd, &rows, k)?;
-            contact.push(Some(rd));
+            let Some(sens) = &row.sensitivity else {
+                continue;
+            };
+            for j in 0..np {
+                for i in 0..3 {
+                    dp[(r * 3 + i) * np + j] = sens.platform_position[j][i];
+                    for c in 0..3 {
+                        dr[((r * 3 + i) * 3 + c) * np + j] = sens.platform_rotation[j][i][c];
+                    }
+                }
+                for k in 0..nk {
+                    for i in 0..3 {
+                        dm[((r * nk + k) * 3 + i) * np + j] = sens.markers[j][k][i];
+                    }
+                }
+            }
         }
-        d.set_item("contact", contact)?;
+        d.set_item(
+            "marker_position",
+            PyArray1::from_vec(py, mp).reshape([m, nk, 3])?,
+        )?;
+        d.set_item(
+            "d_platform_position",
+            PyArray1::from_vec(py, dp).reshape([m, 3, np])?,
+        )?;
+        d.set_item(
+            "d_platform_rotation",
+            PyArray1::from_vec(py, dr).reshape([m, 3, 3, np])?,
+        )?;
+        d.set_item(
+            "d_marker_position",
+            PyArray1::from_vec(py, dm).reshape([m, nk, 3, np])?,
+        )?;
         Ok(d)
     })
 }
@@ -622,6 +803,7 @@ fn solve_rod_system_batch<'py>(
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solve_constrained_tip_batch, m)?)?;
     m.add_function(wrap_pyfunction!(solve_rod_system_batch, m)?)?;
+    m.add_function(wrap_pyfunction!(rod_system_sensitivity_batch, m)?)?;
     m.add_function(wrap_pyfunction!(solve_constrained_tip, m)?)?;
     m.add_function(wrap_pyfunction!(solve_rod_system, m)?)?;
     m.add_class::<PySystemFrictionState>()?;

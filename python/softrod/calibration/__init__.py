@@ -23,11 +23,14 @@ from .metrics import per_sample_errors, tip_error_table
 from .per_sample import StiffnessIdentification, identify_stiffness, stiffness_mapped_design
 from .report import save_figures, write_report
 from .synthetic import synthesize_trajectory_dataset
+from .system import SystemCalibrationResult, calibrate_system
 
 __all__ = [
     "CalibrationResult",
     "CalibrationWarning",
     "calibrate",
+    "calibrate_system",
+    "SystemCalibrationResult",
     "synthesize_trajectory_dataset",
     "AxialData",
     "AxialIdentification",

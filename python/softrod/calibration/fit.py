@@ -379,6 +379,13 @@ def calibrate(
         require_free_tip(design0, "calibrate(model='pcc')")
     if not isinstance(dataset, Dataset):
         dataset = load_dataset(dataset, design=design0)
+    if dataset.marker_body is not None:
+        raise V.fail(
+            "dataset.marker_body",
+            dataset.marker_body.tolist(),
+            "the markers sit on the bodies of a system of rods (its platform, rod<i>): fit "
+            "a system with calibrate_system",
+        )
     reactions = dataset.tip_reaction_force is not None or dataset.tip_reaction_moment is not None
     if dynamic and model == "cosserat" and design0.tip_constraint is not None:
         _check_held_trajectories(design0, dataset, reactions)

@@ -512,10 +512,23 @@ def shown(value: float, std: float, unit: str) -> str:
     return f"{v:.6g} +- {s:.2g}" + (f" {shown_unit}" if shown_unit else "")
 
 
-def record(design, initial, name, params, values, std, method, dataset, n_train, what) -> Design:
+def record(
+    design,
+    initial,
+    name,
+    params,
+    values,
+    std,
+    method,
+    dataset,
+    n_train,
+    what,
+    tool: str = "softrod.calibrate",
+) -> Design:
     """The calibrated design under its new name, with ``[design.provenance]`` (what was
     fitted to what, by which softrod, when) and a sentence in ``[design].assumptions``.
-    ``what``: the model and data in words (e.g. "tip positions of equilibria")."""
+    ``what``: the model and data in words (e.g. "tip positions of equilibria"); ``tool``
+    the fitting function."""
     import datetime
 
     from .. import __version__
@@ -529,7 +542,7 @@ def record(design, initial, name, params, values, std, method, dataset, n_train,
     ]
     source = dataset.source
     provenance = {
-        "tool": "softrod.calibrate",
+        "tool": tool,
         "softrod_version": __version__,
         "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "initial_design": initial.name,
@@ -551,7 +564,7 @@ def record(design, initial, name, params, values, std, method, dataset, n_train,
     if fitted:
         parts = ", ".join(f"{p.name} = {shown(v, s, p.unit)}" for p, v, s in fitted)
         line = (
-            f"Calibrated with softrod.calibrate ({method}) on {dataset_name(dataset)}, "
+            f"Calibrated with {tool} ({method}) on {dataset_name(dataset)}, "
             f"{n_train} training samples ({what}): {parts} (standard errors from the "
             "Jacobian)."
         )
