@@ -637,8 +637,9 @@ def _with_provenance(fitted, initial, params, values, std, method, dataset, n_tr
     own parameters (:func:`~softrod.calibration.result.record`)."""
     rods = list(fitted.rods)
     for i in range(len(rods)):
+        # The rod's parameters under the system's names ("rods[1].c_e", "E").
         own = [
-            (q, v, s)
+            (dataclasses.replace(q, name=p.name), v, s)
             for p, v, s in zip(params, values, std, strict=True)
             for k, q in p.rods
             if k == i

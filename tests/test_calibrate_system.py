@@ -1,0 +1,249 @@
+"""Calibration of a system of rods (``softrod.calibrate_system``): the adapter's exact
+Jacobian (``_core.rod_system_sensitivity_batch``: the implicit function theorem on the
+system's residual) against central differences of whole predictions for every kind of
+system parameter; round trips that recover the body's Young's modulus, one rod's extension
+factor and the platform's mass from the platform position and markers on the platform and
+the rods (noise-free: to the solver's accuracy; noisy: within three standard errors);
+datasets with markers on a system's bodies (``Dataset.marker_body``) through files; and the
+refusals by name."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import softrod
+from adapter_checks import central_difference
+from softrod import InputError
+from softrod.calibration.system import (
+    SystemStatic,
+    calibrate_system,
+    calibrated_system,
+    parse_system_parameters,
+)
+from softrod.datasets import Dataset, load_dataset, write_dataset
+
+pytestmark = pytest.mark.filterwarnings("error")
+
+SYSTEM = "two_spa_platform"
+#: One rod's bending factor would correlate with the platform's mass at |r| > 0.9 on these
+#: rows (both mostly lower the platform); its extension factor does not.
+NAMES = ["E[ecoflex_00_50_table1]", "rods[1].c_e", "platform_mass"]
+#: The truth of the round trips, relative to the bundled system's values.
+SCALE = np.array([1.15, 0.9, 1.25])
+#: Noise-free fits stop on scipy's xtol/ftol of 1e-10 with solves converged to 1e-10:
+#: the values agree to ~1e-9 relative; 1e-6 leaves three digits for the conditioning.
+EXACT = 1e-6
+MARKERS = [
+    ("platform", ["20 mm", "0 mm", "5 mm"]),
+    ("platform", ["-20 mm", "10 mm", "0 mm"]),
+    ("rod0", "60 mm", ["21.1 mm", "0 mm"]),
+    ("rod1", "90 mm", ["0 mm", "21.1 mm"]),
+]
+
+
+@pytest.fixture(scope="module")
+def system():
+    return softrod.load_system(SYSTEM)
+
+
+def _pressures(m: int = 18, seed: int = 1) -> np.ndarray:
+    """(m, 2 rods, 3 channels): each rod's chambers on or off at up to 30 kPa."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(5e3, 30e3, size=(m, 2, 3)) * (rng.random((m, 2, 3)) < 0.5)
+
+
+def _truth(system):
+    params = parse_system_parameters(NAMES, system)
+    values = SCALE * np.array([p.value(system) for p in params])
+    return calibrated_system(system, params, values), values
+
+
+def test_system_jacobian_matches_central_differences(system):
+    """Every parameter kind's column of the platform position and the markers: a rod
+    parameter on both rods, one on one rod, a relative one (area_scale: the core's factor
+    on the current areas, rescaled), and the platform's mass."""
+    names = ["E", "rods[0].c_b", "area_scale", "platform_mass"]
+    params = parse_system_parameters(names, system)
+    ds = softrod.synthesize_system_dataset(system, _pressures(4), markers=MARKERS, seed=0)
+    # Solves to 1e-13 (scaled): their error over the 2 h step stays ~1e-7 of a column.
+    adapter = SystemStatic(system, ds, params, softrod.SolverOptions(tol=1e-13), 1)
+    theta = np.array([p.value(system) for p in params]) * np.array([1.1, 0.95, 1.05, 1.2])
+    rows = np.arange(len(ds))
+    exact = adapter.predict(theta, rows, True)
+    assert exact.ok.all()
+    for quantity, d in (("tip", exact.d_tip), ("markers", exact.d_markers)):
+        for j in range(len(params)):
+            fd = central_difference(adapter, theta, rows, j, quantity)
+            # Relative step 1e-5 (truncation ~1e-10 of the column), solve error over the
+            # step ~1e-7: 1e-5 of the column's size is two digits above both; a missing
+            # term (the 1/theta of area_scale, a rod's share) is off by percent.
+            scale = np.abs(fd).max()
+            err = np.abs(d[..., j] - fd).max()
+            assert err < 1e-5 * scale, f"{quantity} / {names[j]}: {err:.2e} of {scale:.2e}"
+
+
+def test_noise_free_round_trip_recovers_the_truth(system):
+    truth, values = _truth(system)
+    ds = softrod.synthesize_system_dataset(truth, _pressures(), markers=MARKERS, seed=0)
+    res = calibrate_system(system, ds, NAMES, progress=False)
+    assert res.success
+    np.testing.assert_allclose(res.values, values, rtol=EXACT)
+    assert res.converged.all()
+    # The calibrated system predicts the data it was fitted to.
+    assert np.abs(res.predicted - ds.tip_position).max() < 1e-9
+    # Each rod carries its own calibrated design (rods of one file differ in mounting).
+    bases = [r.design.spec["mounting"]["base_position"][0] for r in res.system.rods]
+    assert bases == pytest.approx([-0.03, 0.03])
+    assert res.system.rods[1].design.provenance["tool"] == "softrod.calibrate_system"
+    fitted = {p["name"] for p in res.system.rods[1].design.provenance["parameters"]}
+    assert fitted == {"E[ecoflex_00_50_table1]", "rods[1].c_e"}
+    fitted0 = {p["name"] for p in res.system.rods[0].design.provenance["parameters"]}
+    assert fitted0 == {"E[ecoflex_00_50_table1]"}
+    assert res.system.platform.mass == pytest.approx(values[2], rel=EXACT)
+    frame = res.to_frame()
+    assert list(frame["parameter"]) == NAMES
+    assert list(frame["unit"]) == ["Pa", "1", "kg"]
+
+
+def test_noisy_round_trip_lies_within_three_standard_errors(system):
+    """0.1 mm of noise on every coordinate: the estimate is Gaussian about the truth with
+    the reported standard errors (linearised least squares), so each parameter lies
+    within 3 of them (a fixed seed makes the check reproducible; the chance that one of
+    three fails by bad luck is below 1 %)."""
+    truth, values = _truth(system)
+    ds = softrod.synthesize_system_dataset(
+        truth, _pressures(30, seed=4), markers=MARKERS, noise_mm=0.1, seed=7
+    )
+    res = calibrate_system(system, ds, NAMES, progress=False)
+    z = (res.values - values) / res.std_errors
+    assert np.abs(z).max() < 3.0, z
+    # The platform's 30 points: their RMS distance error reads the noise, sqrt(3) x 0.1 mm
+    # per point (three parameters absorb little of 450 residuals). Its estimate from 90
+    # coordinates has a relative standard deviation of 1/sqrt(2 x 90) = 7.5 %: 3 of them
+    # allow 0.173 mm +- 22 %.
+    rms = float(res.error_table.set_index("quantity")["rms_error_mm"]["tip"])
+    assert 0.135 < rms < 0.211, rms
+
+
+def test_split_predicts_the_test_rows(system):
+    truth, values = _truth(system)
+    p = _pressures(12)
+    ds = softrod.synthesize_system_dataset(
+        truth, p, markers=MARKERS[:2], seed=0, experiment=np.repeat([0, 1, 2], 4)
+    )
+    res = calibrate_system(system, ds, NAMES[:1], split="experiment", test=2, progress=False)
+    assert list(res.labels) == ["train"] * 8 + ["test"] * 4
+    # One parameter cannot explain the others' change: the model errs on both sets, and
+    # the test rows are predicted by the calibrated system too.
+    assert {"train", "test"} <= set(res.error_table["set"])
+    assert np.isfinite(res.predicted).all()
+
+
+def test_system_datasets_round_trip_through_files(system, tmp_path):
+    ds = softrod.synthesize_system_dataset(system, _pressures(3), markers=MARKERS, seed=0)
+    assert list(ds.marker_body) == [-1, -1, 0, 1]
+    assert list(ds.marker_s) == [0.0, 0.0, 0.06, 0.09]
+    assert "SYNTHETIC from system two_spa_platform" in repr(ds)
+    for name in ("d.csv", "d.parquet"):
+        write_dataset(ds, tmp_path / name)
+        back = load_dataset(tmp_path / name)
+        np.testing.assert_array_equal(back.marker_body, ds.marker_body)
+        np.testing.assert_allclose(back.marker_offset, ds.marker_offset, rtol=1e-15)
+        np.testing.assert_allclose(back.markers, ds.markers, rtol=1e-12)
+        np.testing.assert_allclose(back.tip_position, ds.tip_position, rtol=1e-12)
+    sub = ds.subset([0, 2])
+    np.testing.assert_array_equal(sub.marker_body, ds.marker_body)
+
+
+def _csv(tmp_path, markers: str) -> str:
+    path = tmp_path / "bad.csv"
+    path.write_text(
+        "# softrod dataset\n"
+        f'# metadata: {{"markers": {markers}}}\n'
+        "p0_kPa,tip_x_mm,tip_y_mm,tip_z_mm,marker0_x_mm,marker0_y_mm,marker0_z_mm\n"
+        "0,0,0,-130,0,0,-130\n"
+    )
+    return path
+
+
+@pytest.mark.parametrize(
+    ("markers", "field"),
+    [
+        ('{"marker0": {"body": "table", "offset": ["1 mm", "0 mm", "0 mm"]}}', "body"),
+        (
+            '{"marker0": {"body": "platform", "s": "1 mm", "offset": ["1 mm", "0 mm", "0 mm"]}}',
+            ".s",
+        ),
+        ('{"marker0": {"body": "platform", "offset": ["1 mm", "0 mm"]}}', "offset"),
+        ('{"marker0": {"body": "rod0", "offset": ["1 mm", "0 mm"]}}', "marker0"),
+    ],
+)
+def test_bad_marker_bodies_in_files_are_refused_by_name(tmp_path, markers, field):
+    with pytest.raises(InputError) as e:
+        load_dataset(_csv(tmp_path, markers))
+    assert "metadata.markers.marker0" in e.value.field and field in e.value.field
+
+
+def test_refusals_name_the_field(system):
+    ds = softrod.synthesize_system_dataset(system, _pressures(3), markers=MARKERS, seed=0)
+
+    def field(**kw):
+        args = {"system": system, "dataset": ds, "params": ["E"], "progress": False} | kw
+        with pytest.raises(InputError) as e:
+            calibrate_system(**args)
+        return e.value.field
+
+    assert field(params=["rods[2].E"]) == "params"
+    assert field(params=["registration_angle"]) == "params"
+    assert field(params=["damping_time"]) == "params"
+    one_rod = Dataset(pressures=ds.pressures[:, :3], tip_position=ds.tip_position)
+    assert field(dataset=one_rod) == "dataset.pressures"
+    far = dataclasses.replace(ds, marker_body=np.array([-1, -1, 0, 5]))
+    assert field(dataset=far) == "dataset.marker_body[3]"
+    no_body = Dataset(
+        pressures=ds.pressures,
+        tip_position=ds.tip_position,
+        markers=ds.markers,
+        marker_s=ds.marker_s,
+        marker_offset=ds.marker_offset,
+    )
+    assert field(dataset=no_body) == "dataset.marker_body"
+    massless = dataclasses.replace(system, platform=dataclasses.replace(system.platform, mass=0.0))
+    assert field(system=massless, params=["platform_mass"]) == "params"
+    # A lone design's fit refuses markers on a system's bodies.
+    with pytest.raises(InputError) as e:
+        softrod.calibrate(system.rods[0].design, ds.subset([0]), ["E"], progress=False)
+    assert e.value.field == "dataset.marker_body"
+    # Markers given in the API are checked before any solve.
+    with pytest.raises(InputError) as e:
+        softrod.synthesize_system_dataset(
+            system, _pressures(1), markers=[("rod0", "200 mm", [0, 0])]
+        )
+    assert e.value.field.startswith("markers[0]")
+    with pytest.raises(InputError) as e:
+        softrod.synthesize_system_dataset(system, _pressures(1), markers=[("platform", [0, 0])])
+    assert e.value.field == "markers[0]"
+
+
+def test_frictional_systems_are_refused(system):
+    table = softrod.load_system("two_fingers_on_table")
+    rough = dataclasses.replace(
+        table,
+        rods=tuple(
+            dataclasses.replace(r, design=r.design.replace({"obstacles[0].friction": 0.5}))
+            for r in table.rods
+        ),
+    )
+    p = np.zeros((1, len(rough.rods), rough.rods[0].design.n_channels))
+    with pytest.raises(InputError) as e:
+        softrod.synthesize_system_dataset(rough, p)
+    assert "friction" in e.value.field
+    ds = Dataset(
+        pressures=np.zeros((1, sum(r.design.n_channels for r in rough.rods))),
+        tip_position=np.zeros((1, 3)),
+    )
+    with pytest.raises(InputError) as e:
+        calibrate_system(rough, ds, ["E"], progress=False)
+    assert e.value.field == "system.rods[0].design"
