@@ -515,6 +515,26 @@ def target_fit(payload) -> str:
     return ""
 
 
+def target_system_fit(payload) -> str:
+    """synthesize_system_dataset and calibrate_system on the bundled two-rod platform with
+    hostile markers, rows and arguments."""
+    import softrod
+
+    system = softrod.load_system("two_spa_platform")
+    ds = softrod.synthesize_system_dataset(system, payload["pressures"], **payload.get("synth", {}))
+    if not np.isfinite(ds.pressures).all():
+        return "a system dataset with non-finite pressures was made"
+    if ds.markers is not None and not np.isfinite(ds.markers).all():
+        return "a converged system dataset has non-finite markers"
+    if payload.get("fit"):
+        kwargs = dict(payload.get("kwargs", {}))
+        kwargs.setdefault("max_evaluations", 3)
+        res = softrod.calibrate_system(system, ds, payload["params"], progress=False, **kwargs)
+        if not np.isfinite(res.values).all():
+            return "calibrate_system returned non-finite values"
+    return ""
+
+
 def target_trajectory_file(data: bytes) -> str:
     """Trajectory.load of these bytes as .npz and as .parquet."""
     import softrod

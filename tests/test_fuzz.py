@@ -826,6 +826,72 @@ def fit_cases(draw):
     )
 
 
+@st.composite
+def system_fit_cases(draw):
+    """A system dataset from the two-rod platform (hostile rows and markers), then, half
+    the time, calibrate_system with hostile parameters and arguments."""
+    rows = draw(st.sampled_from([1, 2]))
+    pressures = draw(
+        st.one_of(
+            st.just([[[1e4, 0.0, 0.0], [0.0, 2e4, 0.0]]] * rows),
+            st.lists(
+                st.lists(plausible_pressures(3), min_size=2, max_size=2), min_size=1, max_size=2
+            ),
+            hostile(),
+        )
+    )
+    marker = st.one_of(
+        st.just(("platform", ["20 mm", "0 mm", "5 mm"])),
+        st.just(("rod0", "60 mm", ["21.1 mm", "0 mm"])),
+        st.just(("rod1", 0.2, [0, 0])),
+        st.just(("rod7", "1 mm", [0, 0])),
+        st.just(("platform", [0, 0])),
+        st.just(("table", [0, 0, 0])),
+        hostile(),
+    )
+    synth = _mutate(
+        draw,
+        {},
+        {
+            "markers": st.one_of(st.lists(marker, min_size=0, max_size=3), hostile()),
+            "noise_mm": st.one_of(st.sampled_from([0.0, 0.1, -1.0, math.nan]), hostile()),
+            "seed": st.one_of(st.sampled_from([0, 1, -1, 2**200]), hostile()),
+            "tip": st.one_of(st.booleans(), hostile()),
+            "tensions": hostile(),
+        },
+    )
+    kwargs = _mutate(
+        draw,
+        {},
+        {
+            "bounds": st.one_of(st.just({"E": (1e4, 1e6)}), st.just({"E": (1e6, 1e4)}), hostile()),
+            "method": st.one_of(st.sampled_from(["lm", "nelder-mead", "x"]), hostile()),
+            "weights": st.one_of(
+                st.just({"tip": "0.1 mm"}), st.just({"reaction": "1 N"}), hostile()
+            ),
+            "max_evaluations": st.one_of(st.sampled_from([1, 2, 0]), hostile()),
+            "threads": st.one_of(st.sampled_from([0, 1]), hostile()),
+        },
+    )
+    return (
+        "system_fit",
+        {
+            "pressures": pressures,
+            "synth": synth,
+            "fit": draw(st.booleans()),
+            "params": draw(
+                st.one_of(
+                    st.sampled_from(
+                        [["E"], ["platform_mass"], ["rods[1].c_e"], ["rods[5].c_e"], "E, c_b", []]
+                    ),
+                    hostile(),
+                )
+            ),
+            "kwargs": kwargs,
+        },
+    )
+
+
 _TRAJECTORIES: list = []
 
 
@@ -1251,12 +1317,20 @@ CASES = {
     "api": api_cases(),
     "cli": cli_cases(),
     "fit": fit_cases(),
+    "system_fit": system_fit_cases(),
     "trajectory_file": st.builds(lambda b: ("trajectory_file", b), trajectory_files()),
     "friction": friction_cases(),
     "viewer": viewer_cases(),
 }
 # Examples per target in the default run (each BATCH cases) and in --fuzz-long.
-EXAMPLES = {"cli": 2, "simulate": 2, "markers": 2, "fit": 1, "trajectory_file": 1}
+EXAMPLES = {
+    "cli": 2,
+    "simulate": 2,
+    "markers": 2,
+    "fit": 1,
+    "system_fit": 2,
+    "trajectory_file": 1,
+}
 DEFAULT_EXAMPLES = 3
 LONG_FACTOR = 40
 
