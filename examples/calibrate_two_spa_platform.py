@@ -55,7 +55,7 @@ print("parameter                unit     initial      fitted   std_error       t
 for p, v0, v, sd, t in zip(params, fit.initial, fit.values, fit.std_errors, truths, strict=True):
     print(f"{p.name:24s} {p.unit:4s} {v0:11.4g} {v:11.4g} {sd:11.2g} {t:11.4g}")
 rms = fit.error_table.set_index("quantity")["rms_error_mm"]
-print(f"RMS error after calibration: platform {rms['tip']:.3f} mm, markers {rms['markers']:.3f} mm")
+print(f"RMS error after calibration: platform {rms['platform']:.3f} mm, markers {rms['markers']:.3f} mm")
 
 # The bundled system's prediction (no fit) for the "before" picture.
 initial = softrod.solve_system_batch(system, pressures, on_unstable="ignore").platform_position

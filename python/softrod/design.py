@@ -1051,10 +1051,20 @@ class Design:
         written ``"0.01 kg"``). A stiffness map file keeps its reference, rewritten relative
         to the new file's folder.
         """
+        from .io import atomic_path
+
+        path = Path(path)
+        text = self.toml_text(path)
+        with atomic_path(path) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+        return path
+
+    def toml_text(self, path: str | Path) -> str:
+        """The text :meth:`save` writes to ``path`` (a .toml file: a stiffness map's
+        reference is written relative to its folder)."""
         import tomli_w
 
         from .errors import InputError
-        from .io import atomic_path
 
         path = Path(path)
         if path.suffix.lower() != ".toml":
@@ -1067,10 +1077,7 @@ class Design:
             except ValueError:  # another drive (Windows)
                 rel = self.stiffness_map_source
             doc["stiffness_map"]["file"] = rel.as_posix()
-        text = tomli_w.dumps(doc)
-        with atomic_path(path) as tmp:
-            tmp.write_text(text, encoding="utf-8")
-        return path
+        return tomli_w.dumps(doc)
 
 
 _KEY = r"[A-Za-z_][A-Za-z0-9_]*(?:\[\d{1,9}\])*"  # a key with optional [index] parts

@@ -177,6 +177,57 @@ class System:
     description: str = ""
     source: Path | None = field(default=None, compare=False)
 
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the system as a system file (``path``, .toml) and each rod's design beside
+        it (``<stem>_rod<i>.toml``, the mounting included), all files or none; returns
+        ``path``. :func:`load_system` reads it back to an equal system (e.g. the calibrated
+        system of :func:`softrod.calibrate_system`)."""
+        import tomli_w
+
+        from .io import staged_paths
+
+        path = Path(path)
+        if path.suffix.lower() != ".toml":
+            raise V.fail("path", str(path), "a system file must end in .toml", InputError)
+        files = [path.with_name(f"{path.stem}_rod{i}.toml") for i in range(len(self.rods))]
+        texts = [rod.design.toml_text(f) for rod, f in zip(self.rods, files, strict=True)]
+
+        def lengths(v, unit="m"):
+            return [f"{float(x)!r} {unit}" for x in v]
+
+        def rows(m):
+            return [[float(x) for x in row] for row in np.asarray(m, dtype=float)]
+
+        pf = self.platform
+        doc: dict[str, Any] = {
+            "system": {"name": self.name},
+            "platform": {
+                "position": lengths(pf.position),
+                "orientation": rows(pf.rotation),
+                "mass": f"{float(pf.mass)!r} kg",
+                "com_offset": lengths(pf.com_offset),
+                "inertia": [lengths(r, "kg*m^2") for r in np.asarray(pf.inertia)],
+                "force": lengths(pf.force, "N"),
+                "moment": lengths(pf.moment, "N*m"),
+            },
+            "rods": [
+                {
+                    "design": f.name,
+                    "attachment": lengths(rod.attachment),
+                    "attachment_orientation": rows(rod.attachment_rotation),
+                }
+                for rod, f in zip(self.rods, files, strict=True)
+            ],
+        }
+        if self.citation:
+            doc["system"]["citation"] = self.citation
+        if self.description:
+            doc["system"]["description"] = self.description
+        with staged_paths([*files, path]) as staged:
+            for tmp, text in zip(staged, [*texts, tomli_w.dumps(doc)], strict=True):
+                tmp.write_text(text, encoding="utf-8")
+        return path
+
     def __repr__(self) -> str:
         rods = ", ".join(r.design.name for r in self.rods)
         return (

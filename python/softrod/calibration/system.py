@@ -312,8 +312,8 @@ class SystemCalibrationResult:
     with ``[design.provenance]`` of this fit; the platform's fitted mass); predicted,
     predicted_markers: the calibrated model's platform positions (m, 3) and markers (m, K,
     3) or None, NaN where the model failed (``converged`` False); labels: "train" or
-    "test" per row; error_table: the errors per measured quantity ("tip": the platform's
-    position, "markers") and set; cost: the weighted sum of squared training residuals,
+    "test" per row; error_table: the errors per measured quantity ("platform": its
+    position, the dataset's tip columns; "markers") and set; cost: the weighted sum of squared training residuals,
     cost_m2 the plain sum of squared position errors (m^2)."""
 
     system: System
@@ -346,11 +346,11 @@ class SystemCalibrationResult:
         """Each parameter's SI unit."""
         return {p.name: p.unit for p in self.parameters}
 
-    def to_frame(self) -> pd.DataFrame:
-        """One row per parameter: initial and fitted values, standard error and relative
-        standard error (SI, unit column)."""
+    def parameter_table(self) -> pd.DataFrame:
+        """One row per parameter: initial and fitted values, standard error (SI, unit
+        column) and the standard error in % of the value."""
         with np.errstate(divide="ignore", invalid="ignore"):
-            rel = np.abs(self.std_errors / self.values)
+            rel = np.abs(self.std_errors / np.where(self.values == 0, np.nan, self.values))
         return pd.DataFrame(
             {
                 "parameter": [p.name for p in self.parameters],
@@ -358,9 +358,25 @@ class SystemCalibrationResult:
                 "initial": self.initial,
                 "value": self.values,
                 "std_error": self.std_errors,
-                "relative_std_error": rel,
+                "rel_std_error_pct": 100 * rel,
             }
         )
+
+    def to_frame(self) -> pd.DataFrame:
+        """One row per sample: the measured and the calibrated model's platform position
+        (m), the distance between them (mm; NaN where not measured or the model failed)
+        and the set ("train" or "test")."""
+        measured = self.dataset.tip_position
+        cols: dict[str, Any] = {}
+        for i, a in enumerate("xyz"):
+            if measured is not None:
+                cols[f"platform_{a}_m"] = measured[:, i]
+            cols[f"model_platform_{a}_m"] = self.predicted[:, i]
+        if measured is not None:
+            cols["error_mm"] = 1e3 * np.linalg.norm(self.predicted - measured, axis=1)
+        cols["converged"] = self.converged
+        cols["set"] = self.labels
+        return pd.DataFrame(cols)
 
     def __repr__(self) -> str:
         parts = ", ".join(
@@ -602,6 +618,8 @@ def _calibrate_system(
     table = error_tables(
         dataset, final, final.ok, reference, labels if test_mask.any() else None, length, None
     )
+    # The dataset's tip columns are the platform's position.
+    table["quantity"] = table["quantity"].replace({"tip": "platform"})
     for w in found:
         warnings.warn(w, CalibrationWarning, stacklevel=3)
     return SystemCalibrationResult(

@@ -5,7 +5,7 @@ list designs and presets, run the demo, view a design in the browser, invert sta
 workspace and track a path.
 
 One module per command group: ``statics`` (solve, sweep, demo), ``compare``, ``calibrate``
-(calibrate, calibrate-axial, identify), ``simulate``, ``system`` (solve-system,
+(calibrate, calibrate-axial, calibrate-system, identify), ``simulate``, ``system`` (solve-system,
 simulate-system), ``pcc`` (compare-pcc, pcc-identify),
 ``designs``, ``view``, ``control`` (inverse, workspace, track); shared parsing, error
 handling and output helpers in ``_common``.
@@ -35,7 +35,7 @@ import sys
 import click
 
 from .. import __version__
-from .calibrate import calibrate, calibrate_axial, identify
+from .calibrate import calibrate, calibrate_axial, calibrate_system_cmd, identify
 from .compare import compare
 from .control import inverse, track, workspace_cmd
 from .designs import designs
@@ -144,6 +144,7 @@ for _command in (
     compare,
     calibrate,
     calibrate_axial,
+    calibrate_system_cmd,
     identify,
     designs,
     simulate_cmd,

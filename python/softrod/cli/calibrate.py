@@ -236,13 +236,13 @@ def _parameter_table(result):
     return table
 
 
-def _error_table(result):
+def _error_table(result, length_m: float | None = None, what: str = "the length"):
     from rich.table import Table
     from rich.text import Text
 
-    length_mm = result.design.length * 1e3
+    length_mm = (result.design.length if length_m is None else length_m) * 1e3
     table = Table(
-        title=f"position errors (Euclidean; % of the length L = {length_mm:.4g} mm)",
+        title=f"position errors (Euclidean; % of {what} L = {length_mm:.4g} mm)",
         title_justify="left",
     )
     columns = (
@@ -595,6 +595,188 @@ def calibrate(
                     result.write_report(tmp)
         for path in paths:
             _say(f"wrote {path}", stderr=as_json)
+
+
+@click.command("calibrate-system")
+@click.argument("system")
+@click.argument("data")
+@click.option(
+    "--params",
+    required=True,
+    metavar="NAMES",
+    help="Comma-separated parameters to fit: the rods' kinds on every rod (E, c_b[body], "
+    "...), rods[i].KIND on rod i alone, and platform_mass (docs/calibration.md, 'Systems "
+    "of rods').",
+)
+@click.option(
+    "--split",
+    type=click.Choice(["experiment"]),
+    help="Hold out a test set by the dataset's experiment column (default: fit on all rows).",
+)
+@click.option(
+    "--test",
+    "test_ids",
+    metavar="ID[,ID...]",
+    help="The test experiment(s) with --split (default: the last experiment).",
+)
+@click.option(
+    "--method",
+    type=click.Choice(["lm", "nelder-mead"]),
+    default="lm",
+    show_default=True,
+    help="lm: Levenberg-Marquardt with the exact Jacobian; nelder-mead: derivative-free.",
+)
+@click.option(
+    "--bounds",
+    "bounds_items",
+    multiple=True,
+    metavar="NAME=LO:HI",
+    help='Bounds of one parameter, e.g. "platform_mass=5g:50g". Repeat for several.',
+)
+@click.option(
+    "--weights",
+    "weight_items",
+    multiple=True,
+    metavar="QUANTITY=VALUE",
+    help="Standard deviation of a measured quantity, e.g. tip=0.2mm markers=0.5mm (the "
+    "tip is the platform's position; default 1 mm each).",
+)
+@click.option(
+    "--max-evaluations",
+    default=200,
+    show_default=True,
+    type=click.IntRange(min=1),
+    help="Stop after this many model evaluations (one evaluation solves every training row).",
+)
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the calibrated system here (.toml) and its rods' designs beside it "
+    "(<stem>_rod<i>.toml, with their [design.provenance]); all files or none.",
+)
+@click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print the parameter and error tables as JSON (SI values) instead of tables.",
+)
+@_threads_option("Worker threads per model evaluation (0 = all cores).")
+@_handle_errors
+def calibrate_system_cmd(
+    system,
+    data,
+    params,
+    split,
+    test_ids,
+    method,
+    bounds_items,
+    weight_items,
+    max_evaluations,
+    out,
+    as_json,
+    threads,
+):
+    """Fit parameters of a SYSTEM of rods (a system file or a bundled system) to the
+    equilibria in DATA: the platform's position (the tip columns) and markers on the
+    platform and the rods (docs/calibration.md, "Systems of rods"). The p columns are rod
+    0's channels, then rod 1's, ... Prints the fitted values with standard errors, the
+    errors on the training and test sets, and warnings about parameters that the data
+    cannot determine.
+    """
+    import json
+
+    import numpy as np
+    from rich.console import Console
+    from rich.text import Text
+
+    from ..calibration.fit import warning_thresholds
+    from ..calibration.system import calibrate_system, parse_system_parameters
+    from ..datasets import load_dataset
+    from ..errors import CalibrationWarning
+    from ..system import load_system
+
+    sysm = load_system(system)
+    parsed = _renamed("--params", parse_system_parameters, params, sysm)
+    bounds, typed = _parse_bounds(bounds_items, parsed)
+    weights = _parse_pairs(weight_items, "--weights", "tip=0.2mm") or None
+    if out is not None:
+        out = _check_output(out, "--out", (".toml",), "a system file")
+    try:
+        dataset = load_dataset(data)
+    except InputError as exc:
+        raise _as_option(exc, {"path": "DATA"}) from None
+    test = _parse_test_ids(test_ids, split, dataset)
+    note = Console(stderr=True, highlight=False) if as_json else _stdout()
+    if not as_json and not _quiet():
+        src = dataset.source.name if dataset.source is not None else str(data)
+        src += " (SYNTHETIC)" if dataset.synthetic else ""
+        note.print(
+            Text(
+                f"calibrate {', '.join(p.name for p in parsed)} of system {sysm.name} on "
+                f"{src}: {len(dataset)} samples, method {method}"
+            ),
+            soft_wrap=True,
+        )
+    renames = {**_CALIBRATE_OPTIONS, **{k: "--bounds" for k in typed}}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", CalibrationWarning)
+        try:
+            with _FitProgress() as progress:
+                result = calibrate_system(
+                    sysm,
+                    dataset,
+                    params,
+                    bounds=bounds or None,
+                    method=method,
+                    split=split,
+                    test=test,
+                    weights=weights,
+                    threads=threads,
+                    max_evaluations=max_evaluations,
+                    progress=progress,
+                )
+        except InputError as exc:
+            raise _as_option(exc, renames, typed) from None
+    found = [str(w.message) for w in caught if issubclass(w.category, CalibrationWarning)]
+    for w in caught:
+        if not issubclass(w.category, CalibrationWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    length = float(np.mean([rod.design.length for rod in sysm.rods]))
+    if as_json:
+        click.echo(
+            json.dumps(
+                {
+                    "system": sysm.name,
+                    "method": result.method,
+                    "success": bool(result.success),
+                    "evaluations": int(result.evaluations),
+                    "parameters": result.parameter_table().to_dict(orient="records"),
+                    "errors": result.error_table.to_dict(orient="records"),
+                    "warnings": found,
+                },
+                default=float,
+            )
+        )
+    else:
+        style = "green" if result.success else "yellow"
+        note.print(
+            Text.assemble(
+                (f"{result.method}: ", style),
+                f"{result.evaluations} model evaluations, {result.elapsed_s:.2f} s; ",
+                (result.message, style),
+            ),
+            soft_wrap=True,
+        )
+        note.print(_parameter_table(result))
+        if len(result.error_table):
+            note.print(_error_table(result, length, "the rods' mean length"))
+    _print_warnings(note, found)
+    if not as_json:
+        lead = "no warnings" if not found else "rules"
+        note.print(Text(f"{lead}: {warning_thresholds()}", style="dim"))
+    if out is not None:
+        result.system.save(out)
+        _say(f"wrote {out} and its rods' designs", stderr=as_json)
 
 
 @click.command("calibrate-axial")
