@@ -311,3 +311,26 @@ def test_a_system_is_saved_whole_or_not_at_all(system, tmp_path):
     for a, b in zip(back.rods, system.rods, strict=True):
         assert a.design.spec == b.design.spec
         np.testing.assert_array_equal(a.attachment_rotation, b.attachment_rotation)
+
+
+def test_stiffness_mapped_rods_are_refused_in_systems(system):
+    """sigma is never assumed to be 1: a system's statics does not evaluate stiffness maps,
+    so a mapped section is refused by name in every entry point (it once solved with
+    sigma = 1 silently)."""
+    mapped = system.rods[0].design.replace({"sections[1].law": {"stiffness_map": True}})
+    sysm = dataclasses.replace(
+        system, rods=(dataclasses.replace(system.rods[0], design=mapped), system.rods[1])
+    )
+    field = "rods[0].design.sections[1].law.stiffness_map"
+    p = np.zeros((2, 2, 3))
+    for call in (
+        lambda: softrod.solve_system(sysm, p[0]),
+        lambda: softrod.solve_system_batch(sysm, p),
+        lambda: softrod.synthesize_system_dataset(sysm, p),
+        lambda: calibrate_system(
+            sysm, Dataset(pressures=np.zeros((1, 6)), tip_position=np.zeros((1, 3))), ["E"]
+        ),
+    ):
+        with pytest.raises(InputError) as e:
+            call()
+        assert e.value.field == field

@@ -431,18 +431,12 @@ def solve_system(
             raise V.fail(name, value, f"must be a list of {n} entries, one per rod", InputError)
         return list(value)
 
+    check_rods(system)
     ps = per_rod(pressures, "pressures")
     ts = per_rod(tensions, "tensions")
     entries = []
-    for i, (rod, p, t) in enumerate(zip(system.rods, ps, ts, strict=True)):
+    for rod, p, t in zip(system.rods, ps, ts, strict=True):
         d = rod.design
-        if d.tip_constraint is not None:
-            raise V.fail(
-                f"rods[{i}].design",
-                d.name,
-                "its [tip] constraint is set; a system's rod tips hold the platform",
-                InputError,
-            )
         pv = [0.0] * d.n_channels if p is None else _pressures(d, p)
         tip = d.spec["tip"]
         entries.append(
@@ -785,14 +779,7 @@ def solve_system_batch(
     on_unstable = _policy("on_unstable", on_unstable)
     threads = V.threads(threads)
     opts = _options(options)
-    for i, rod in enumerate(system.rods):
-        if rod.design.tip_constraint is not None:
-            raise V.fail(
-                f"rods[{i}].design",
-                rod.design.name,
-                "its [tip] constraint is set; a system's rod tips hold the platform",
-                InputError,
-            )
+    check_rods(system)
     nc = [rod.design.n_channels for rod in system.rods]
     nt = [rod.design.n_tendons for rod in system.rods]
     if not sum(nc) and not sum(nt):
@@ -928,9 +915,38 @@ def solve_system_batch(
     )
 
 
+def check_rods(system: System) -> None:
+    """Refuse, naming the rod, what a system's statics cannot carry: a rod whose design
+    holds its own tip ([tip] constraint: the platform holds it), and a stiffness-mapped
+    section (sigma is never assumed to be 1, and the system's statics does not evaluate
+    stiffness maps)."""
+    for i, rod in enumerate(system.rods):
+        d = rod.design
+        if d.tip_constraint is not None:
+            raise V.fail(
+                f"rods[{i}].design",
+                d.name,
+                "its [tip] constraint is set; a system's rod tips hold the platform",
+                InputError,
+            )
+        for k, sec in enumerate(d.spec["sections"]):
+            if (sec.get("law") or {}).get("stiffness_map", False):
+                raise V.fail(
+                    f"rods[{i}].design.sections[{k}].law.stiffness_map",
+                    True,
+                    f"section {sec['name']!r} of design {d.name!r} is stiffness-mapped: a "
+                    "system's statics does not evaluate stiffness maps (sigma is never "
+                    "assumed to be 1); solve the rod alone with its map, or give the "
+                    "section its stiffness without a map",
+                    InputError,
+                )
+
+
 def _batch_entries(system: System) -> list[tuple]:
     """The binding's rods of a system batch: each rod's core rod, its design's tip loads
-    and its attachment (the rows give the pressures and tensions)."""
+    and its attachment (the rows give the pressures and tensions); the rods checked
+    (:func:`check_rods`)."""
+    check_rods(system)
     entries = []
     for rod in system.rods:
         tip = rod.design.spec["tip"]

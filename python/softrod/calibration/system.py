@@ -313,8 +313,8 @@ class SystemCalibrationResult:
     predicted_markers: the calibrated model's platform positions (m, 3) and markers (m, K,
     3) or None, NaN where the model failed (``converged`` False); labels: "train" or
     "test" per row; error_table: the errors per measured quantity ("platform": its
-    position, the dataset's tip columns; "markers") and set; cost: the weighted sum of squared training residuals,
-    cost_m2 the plain sum of squared position errors (m^2)."""
+    position, the dataset's tip columns; "markers") and set; cost: the weighted sum of
+    squared training residuals, cost_m2 the plain sum of squared position errors (m^2)."""
 
     system: System
     initial_system: System
