@@ -882,7 +882,16 @@ def system_fit_cases(draw):
             "params": draw(
                 st.one_of(
                     st.sampled_from(
-                        [["E"], ["platform_mass"], ["rods[1].c_e"], ["rods[5].c_e"], "E, c_b", []]
+                        [
+                            ["E"],
+                            ["platform_mass"],
+                            ["rods[1].c_e"],
+                            ["rods[5].c_e"],
+                            "E, c_b",
+                            [],
+                            ["registration_angle"],
+                            ["E", "registration_x", "registration_x"],
+                        ]
                     ),
                     hostile(),
                 )

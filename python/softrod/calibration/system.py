@@ -15,6 +15,9 @@ Parameters are the rods' (:mod:`softrod.calibration.params`) and the platform's 
   rods must share its starting value.
 - ``"rods[1].c_b"``: rod 1's alone.
 - ``"platform_mass"``: the platform's mass (kg; it must start > 0).
+- ``"registration_angle"``, ``"registration_x"``, ``"_y"``, ``"_z"``: the measurement
+  frame, a rotation about the rods' mean base axis through the centroid of their bases,
+  then an offset (as :func:`softrod.calibrate` fits a lone rod's, paper 000 Sec. III-D).
 """
 
 from __future__ import annotations
@@ -42,9 +45,9 @@ from ..schema import PLATFORM_BODY
 from ..statics import SolverOptions, _frictional, _options
 from ..system import System, _batch_entries, _platform_args, load_system
 from .diagnostics import diagnostics
-from .fit import _bounds, _evaluations, _scales, _split
+from .fit import _bounds, _evaluations, _scales, _split, _split_params
 from .params import DYNAMIC_KINDS, KINDS, SIGMA_KINDS, Parameter, design_changes, parse_parameter
-from .problem import ModelAdapter, Observations, Prediction, Problem, Residual
+from .problem import ModelAdapter, Observations, Prediction, Problem, Registered, Residual
 from .result import error_tables, record
 from .solve import METHODS, Settings, run_starts, start_points
 
@@ -131,8 +134,7 @@ def parse_system_parameters(names: Sequence[str] | str, system: System) -> list[
                 name,
                 f"unknown parameter; a system takes {PLATFORM_MASS} and the rods' kinds "
                 f"({', '.join(k for k in KINDS if k not in SIGMA_KINDS + DYNAMIC_KINDS)}), "
-                "on every rod or on one as rods[i].kind (registration parameters are not "
-                "fitted on systems)",
+                "on every rod or on one as rods[i].kind, and the registration parameters",
             )
         entries = []
         for i in rods:
@@ -288,6 +290,18 @@ class SystemStatic(ModelAdapter):
     def final_prediction(self, calibrated: System, theta, rows) -> Prediction:
         return self._solve(calibrated, [], np.asarray(rows), False, warm=False)
 
+    def base_frame(self):
+        """(the centroid of the rods' base points, their mean base axis): the axis a
+        registration turns the measurement frame about; None where the base axes cancel
+        (rods mounted against each other)."""
+        mounts = [rod.design.spec["mounting"] for rod in self.system.rods]
+        base = np.mean([m["base_position"] for m in mounts], axis=0)
+        axis = np.sum([np.asarray(m["base_rotation"])[:, 2] for m in mounts], axis=0)
+        norm = float(np.linalg.norm(axis))
+        if norm < 1e-6 * len(mounts):
+            return None
+        return base, axis / norm
+
     def reference(self, calibrated: System, theta) -> Prediction:
         """The unactuated system's platform and markers (zero pressures, slack tendons)."""
         m = len(self.p)
@@ -340,6 +354,7 @@ class SystemCalibrationResult:
     scales: Mapping[str, float]
     elapsed_s: float
     metadata: dict = field(default_factory=dict)
+    registration: dict | None = None
 
     @property
     def units(self) -> dict[str, str]:
@@ -550,8 +565,12 @@ def _calibrate_system(
     if not isinstance(dataset, Dataset):
         dataset = load_dataset(dataset)
     _check_dataset(system, dataset)
-    parameters = parse_system_parameters(params, system)
-    adapter = SystemStatic(system, dataset, parameters, options, threads)
+    names, registration = _split_params(params, None, "cosserat")
+    parameters = parse_system_parameters(names, system) if names else []
+    inner = SystemStatic(system, dataset, parameters, options, threads)
+    # The measurement frame (registration_*): the engine's wrapper of any adapter.
+    adapter = Registered(inner, registration) if registration else inner
+    params_all = list(adapter.parameters)
     # The core checks every parameter against its rods (one value, known sections) on an
     # empty batch, before any solve.
     _core.rod_system_sensitivity_batch(
@@ -562,7 +581,7 @@ def _calibrate_system(
         tensions=None if dataset.tensions is None else np.zeros((0, dataset.n_tendons)),
     )
     theta0 = np.asarray(adapter.initial, dtype=float)
-    box = _bounds(parameters, bounds, theta0)
+    box = _bounds(params_all, bounds, theta0)
     test_mask = _split(dataset, split, test)
     train = np.flatnonzero(~test_mask)
     scales = _scales(weights, dataset)
@@ -572,12 +591,12 @@ def _calibrate_system(
     logger.info(
         "calibrate_system %s: %s on %d training samples (%d test), method %s",
         system.name,
-        ", ".join(p.name for p in parameters),
+        ", ".join(p.name for p in params_all),
         train.size,
         int(test_mask.sum()),
         method,
     )
-    starts = start_points(parameters, theta0, box, restarts, seed)
+    starts = start_points(params_all, theta0, box, restarts, seed)
     settings = Settings(method, int(max_evaluations))
     with reporter(progress, "calibrate_system", None, _evaluations) as report:
         fits = run_starts(problem, settings, starts, report, None, threads)
@@ -602,13 +621,21 @@ def _calibrate_system(
     ssr = float(r @ r)
     what = "the platform" + (" and marker" if dataset.markers is not None else "") + " positions"
     cov, std, corr, found = diagnostics(
-        parameters, values, residual.jacobian(pred), ssr, r.size, what
+        params_all, values, residual.jacobian(pred), ssr, r.size, what
     )
     if not success:
         found.insert(0, f"the optimiser stopped without converging: {message}")
-    fitted = calibrated_system(system, parameters, values)
+    n_in = len(parameters)
+    fitted = calibrated_system(system, parameters, values[:n_in])
     fitted = _with_provenance(
-        fitted, system, parameters, values, std, fits[best]["method"], dataset, train.size
+        fitted,
+        system,
+        parameters,
+        values[:n_in],
+        std[:n_in],
+        fits[best]["method"],
+        dataset,
+        train.size,
     )
     all_rows = np.arange(len(dataset))
     final = adapter.final_prediction(fitted, values, all_rows)
@@ -622,10 +649,14 @@ def _calibrate_system(
     table["quantity"] = table["quantity"].replace({"tip": "platform"})
     for w in found:
         warnings.warn(w, CalibrationWarning, stacklevel=3)
+    reg = None
+    if registration:
+        angle, offset = adapter.values(values)
+        reg = {"angle": angle, "offset": offset}
     return SystemCalibrationResult(
         system=fitted,
         initial_system=system,
-        parameters=tuple(parameters),
+        parameters=tuple(params_all),
         initial=theta0,
         values=values,
         std_errors=std,
@@ -647,6 +678,7 @@ def _calibrate_system(
         scales=scales,
         elapsed_s=time.perf_counter() - start,
         metadata={"system": system.name, "training_samples": int(train.size)},
+        registration=reg,
     )
 
 
