@@ -11,6 +11,13 @@ hold one clip) pressed onto their table at 10 to 40 kPa, without and with Coulom
 mu = 0.5 on the table (``SolverOptions().friction_steps`` increments), against one rough
 finger alone. Medians of
 wall-clock times of cold solves, garbage collector off.
+
+Calibration of a system (``calibrate_system``): 30 equilibria of ``two_spa_platform``
+(each chamber off or at 5-30 kPa) with the platform and four markers, one thread: a batch
+of cold solves against the same batch with the exact derivatives of the platform and the
+markers with respect to three parameters (the body's E, rod 1's c_e, the platform's mass;
+``_core.rod_system_sensitivity_batch``), and the whole fit from the bundled values
+(examples/calibrate_two_spa_platform.py's, 0.1 mm of noise).
 """
 
 from __future__ import annotations
@@ -41,6 +48,70 @@ def _row(label: str, fn, reps: int) -> dict:
         "solve_s": t,
         "load_steps": int(sol.load_steps),
         "iterations": int(sol.iterations),
+    }
+
+
+def _calibration(system, reps: int) -> dict:
+    """The system's batch with and without parameter derivatives, and one whole fit."""
+    import numpy as np
+    from softrod import _core
+    from softrod.calibration.system import calibrated_system, parse_system_parameters
+    from softrod.system import _batch_entries, _platform_args
+
+    names = ["E[ecoflex_00_50_table1]", "rods[1].c_e", "platform_mass"]
+    params = parse_system_parameters(names, system)
+    bundled = np.array([p.value(system) for p in params])
+    truth = calibrated_system(system, params, bundled * [1.15, 0.9, 1.25])
+    rng = np.random.default_rng(4)
+    pressures = rng.uniform(5e3, 30e3, size=(30, 2, 3)) * (rng.random((30, 2, 3)) < 0.5)
+    markers = [
+        ("platform", ["20 mm", "0 mm", "5 mm"]),
+        ("platform", ["-20 mm", "10 mm", "0 mm"]),
+        ("rod0", "60 mm", ["21.1 mm", "0 mm"]),
+        ("rod1", "90 mm", ["0 mm", "21.1 mm"]),
+    ]
+    data = softrod.synthesize_system_dataset(
+        truth, pressures, markers=markers, noise_mm=0.1, seed=7
+    )
+    core_markers = [
+        (None, 0.0, [0.02, 0.0, 0.005]),
+        (None, 0.0, [-0.02, 0.01, 0.0]),
+        (0, 0.06, [0.0211, 0.0, 0.0]),
+        (1, 0.09, [0.0, 0.0211, 0.0]),
+    ]
+    flat = np.ascontiguousarray(data.pressures)
+
+    def batch(with_params: bool):
+        return _core.rod_system_sensitivity_batch(
+            _batch_entries(system),
+            _platform_args(system, None, None),
+            flat,
+            [p.core() for p in params] if with_params else [],
+            markers=core_markers,
+            threads=1,
+        )
+
+    plain = median(timed(lambda: batch(False), reps))
+    derived = median(timed(lambda: batch(True), reps))
+    fit = median(
+        timed(
+            lambda: softrod.calibrate_system(system, data, names, threads=1, progress=False),
+            max(1, reps // 3),
+        )
+    )
+    result = softrod.calibrate_system(system, data, names, threads=1, progress=False)
+    print(f"  30-row batch, cold, 1 thread       {plain * 1e3:8.2f} ms")
+    print(f"  ... with 3 parameters' derivatives  {derived * 1e3:8.2f} ms ({derived / plain:.2f}x)")
+    evals = result.evaluations
+    print(f"  calibrate_system, 3 parameters      {fit * 1e3:8.2f} ms ({evals} evaluations)")
+    return {
+        "rows": 30,
+        "parameters": names,
+        "batch_s": plain,
+        "batch_with_derivatives_s": derived,
+        "derivative_ratio": derived / plain,
+        "fit_s": fit,
+        "fit_evaluations": int(result.evaluations),
     }
 
 
@@ -82,6 +153,7 @@ def run(args) -> dict:
                 reps,
             )
         )
+    calibration = _calibration(platform, reps)
     info["load_average_after"] = load_average()
     return {
         **result_header("system_statics", args.quick, info),
@@ -89,6 +161,7 @@ def run(args) -> dict:
         "friction": MU,
         "friction_steps": softrod.SolverOptions().friction_steps,
         "rows": rows,
+        "calibration": calibration,
         "wall_time_s": time.perf_counter() - t_start,
     }
 
