@@ -359,3 +359,33 @@ def test_registration_of_the_measurement_frame_is_recovered(system):
     assert [p.name for p in res.parameters][3:] == names[3:]
     # The calibrated system itself carries no frame: its designs hold the rods' values.
     assert res.system.platform.mass == pytest.approx(values[2], rel=EXACT)
+
+
+def test_tendon_driven_system_round_trip():
+    """Tendon tensions as the rows' inputs (two of Till's tendon robots side by side
+    holding a 10 g platform; 0 pressure channels, 8 tendon channels): the bending factor
+    and the platform's mass are recovered noise-free."""
+    from softrod.system import Platform, System, SystemRod
+
+    till = softrod.load_design("till_tendon_robot")
+    turn = np.asarray(till.spec["mounting"]["base_rotation"])
+    rods = tuple(
+        SystemRod(
+            design=till.replace({"mounting.base_position": ["0 m", f"{y} m", "0 m"]}),
+            attachment=np.array([0.0, y, 0.0]),
+            attachment_rotation=turn,
+        )
+        for y in (-0.05, 0.05)
+    )
+    pair = System("two_tills", rods, Platform(position=np.array([0.5, 0.0, 0.0]), mass=0.01))
+    rng = np.random.default_rng(0)
+    tensions = rng.uniform(0, 3, size=(12, 2, 4)) * (rng.random((12, 2, 4)) < 0.5)
+    names = ["c_b", "platform_mass"]
+    params = parse_system_parameters(names, pair)
+    values = np.array([p.value(pair) for p in params]) * [1.2, 1.3]
+    truth = calibrated_system(pair, params, values)
+    markers = [("platform", ["0 m", "0.05 m", "0 m"]), ("rod0", "0.25 m", [0, 0])]
+    ds = softrod.synthesize_system_dataset(truth, tensions=tensions, markers=markers, seed=0)
+    assert ds.n_channels == 0 and ds.n_tendons == 8
+    res = calibrate_system(pair, ds, names, progress=False)
+    np.testing.assert_allclose(res.values, values, rtol=EXACT)
