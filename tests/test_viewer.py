@@ -152,7 +152,7 @@ def test_viewer_solves_like_solve_statics(viewer):
     # float32 vertices and bind poses (as sent to the browser) at ~0.1 m: ~1e-8 m; the bone
     # poses are skipped by viser when within 1e-5 relative of the last (np.allclose):
     # 1e-5 * 0.13 m about a rotation with a 13 mm arm, well under 1e-6 m.
-    np.testing.assert_allclose(skinned_vertices(viewer._tubes[1]), want, atol=2e-6)
+    np.testing.assert_allclose(skinned_vertices(viewer._tubes.meshes[1]), want, atol=2e-6)
     viewer.set_inputs(pressures=[0, 0, 0], tip_force=[0, 0, 0])
 
 
@@ -179,7 +179,7 @@ def test_trajectory_playback_and_calibration_view(tmp_path):
         v._show_trajectory(len(traj) - 1)
         # The trajectory's stored shapes are drawn on its own grid: the tube's last ring
         # rides on the stored tip (float32 bind pose at ~0.2 m: ~1e-8 m).
-        tube = [m for m in v._tubes if m is not None and m.visible][-1]
+        tube = [m for m in v._tubes.meshes if m is not None and m.visible][-1]
         end = skinned_vertices(tube)[-1]  # the end centre
         np.testing.assert_allclose(end, traj.shape_position[-1][-1], atol=1e-6)
         tip = v._tip_frame.position
@@ -366,7 +366,7 @@ def test_a_tapered_section_is_drawn_with_its_radius_along_s():
     v = softrod.view(design, environment_map=False)
     try:
         sol = v.solution
-        verts = skinned_vertices(v._tubes[0])
+        verts = skinned_vertices(v._tubes.meshes[0])
         ring = geo.RING
         for i in (0, len(sol.s) - 1):
             r = np.linalg.norm(verts[i * ring : (i + 1) * ring] - sol.position[i], axis=1)
