@@ -94,6 +94,25 @@ def contact_figure(chromium: str | None = None) -> Path:
     return path
 
 
+def system_figure(chromium: str | None = None) -> Path:
+    """docs/figures/viewer_two_spa_platform.png: the page of the two-rod platform with rod
+    0's channel 0 at 50 kPa and rod 1's channel 1 at 25 kPa, as headless Chromium shows it."""
+    chromium = chromium or chromium_path()
+    if chromium is None:
+        raise SystemExit("no Chromium installed (Debian: apt-get install chromium)")
+    path = FIGURES / "viewer_two_spa_platform.png"
+    viewer = softrod.view_system("two_spa_platform", environment_map=False)
+    try:
+        with ViewerPage(viewer, chromium, 1280, 800) as page:
+            page.wait_rendered()
+            viewer.set_inputs(pressures=[[50e3, 0, 0], [0, 25e3, 0]])
+            time.sleep(1.0)  # a few software-rendered frames
+            page.page.screenshot(path=str(path))
+    finally:
+        viewer.close()
+    return path
+
+
 def run(args) -> dict:
     t_start = time.perf_counter()
     chromium = chromium_path()
@@ -131,6 +150,7 @@ def run(args) -> dict:
         print(key, {k: round(v, 2) if isinstance(v, float) else v for k, v in out[key].items()})
     if args.figures:
         contact_figure(chromium)
+        system_figure(chromium)
     if args.designs:
         out["designs"] = design_latencies(chromium, 5 if args.quick else 15)
     return {

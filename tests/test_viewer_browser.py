@@ -86,3 +86,30 @@ def test_server_screenshot_is_a_png_of_the_scene(viewer, tmp_path):
     assert image.shape == (240, 320, 3)
     # The render is not one flat colour: the tube, the mount and the arrows are in it.
     assert image.reshape(-1, 3).std(axis=0).max() > 10
+
+
+def test_system_viewer_slider_moves_the_platform():
+    """softrod.view_system in the browser: a rod's pressure slider re-solves the system,
+    and the redrawn scene changes where the rods and the platform are."""
+    import softrod
+
+    with softrod.view_system(
+        "two_spa_platform", pressure_range=(0, P_MAX), environment_map=False
+    ) as v:
+        with ViewerPage(v, CHROMIUM) as page:
+            left = page.panel_left()
+            before = page.wait_rendered()
+            drawn = scene_pixels(before, left)
+            # Two 42 mm tubes and the platform cover thousands of pixels.
+            assert drawn.sum() > 5_000, "the scene shows (almost) nothing"
+            solves, p0 = v.solves, v.solution.platform_position.copy()
+            page.click_slider(0, 0.8)  # rod 0, channel 0
+            assert v.solves == solves + 1
+            sol = v.solution
+            assert sol.converged
+            assert v.pressures[0][0] == pytest.approx(0.8 * P_MAX, abs=0.02 * P_MAX)
+            # ~56 kPa on one actuator tilts and shifts the platform by millimetres.
+            assert np.linalg.norm(sol.platform_position - p0) > 2e-3
+            after = page.screenshot()
+            changed = (np.abs(after - before).max(axis=2) > 40) & scene_pixels(after, left)
+            assert changed.sum() > 1_000

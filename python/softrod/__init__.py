@@ -28,7 +28,8 @@ Public API (everything inside is SI: m, N, Pa, kg, s, rad):
   ``pcc_shape``, identification, ``compare_pcc``); statics via
   ``solve_statics(..., model="pcc")``
 - :func:`view` -> :class:`~softrod.viewer.Viewer`: the interactive 3-D viewer in the browser
-  (``pip install 'softrod[viewer]'``; docs/viewer.md)
+  (``pip install 'softrod[viewer]'``; docs/viewer.md); :func:`view_system` for a system of
+  rods
 - ``executor=`` (a ``distributed.Client``) on ``solve_statics_batch``, ``identify_stiffness``
   and ``calibrate(restarts=...)``: the work runs on a Dask cluster (docs/cluster.md)
 - exceptions :class:`DesignError`, :class:`InputError`, :class:`ConvergenceError` (and its
@@ -123,6 +124,7 @@ _EXPORTS = {
     "plot_system": ".system_plots",
     "plot_system_motion": ".system_plots",
     "view": ".viewer",
+    "view_system": ".viewer",
 }
 _SUBMODULES = ("pcc", "calibration", "control", "dynamics")
 
@@ -219,7 +221,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         simulate_system,
     )
     from .system_plots import plot_system, plot_system_motion
-    from .viewer import view
+    from .viewer import view, view_system
 
 __all__ = [
     "BatchSolution",
@@ -295,6 +297,7 @@ __all__ = [
     "synthesize_dataset",
     "synthesize_system_dataset",
     "view",
+    "view_system",
     "workspace",
     "write_dataset",
 ]

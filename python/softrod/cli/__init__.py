@@ -1,13 +1,13 @@
 """``softrod`` command line: solve one equilibrium, sweep a pressure grid, compare models on
-a paper's experiments, calibrate parameters to measured tip positions, identify a design from
-axial measurements, simulate motion, solve and simulate systems of rods, run the PCC model,
-list designs and presets, run the demo, view a design in the browser, invert statics, map the
-workspace and track a path.
+a paper's experiments, calibrate parameters to measured tip positions (of a design or a
+system of rods), identify a design from axial measurements, simulate motion, solve and
+simulate systems of rods, run the PCC model, list designs and presets, run the demo, view a
+design or a system in the browser, invert statics, map the workspace and track a path.
 
 One module per command group: ``statics`` (solve, sweep, demo), ``compare``, ``calibrate``
-(calibrate, calibrate-axial, calibrate-system, identify), ``simulate``, ``system`` (solve-system,
-simulate-system), ``pcc`` (compare-pcc, pcc-identify),
-``designs``, ``view``, ``control`` (inverse, workspace, track); shared parsing, error
+(calibrate, calibrate-axial, calibrate-system, identify), ``simulate``, ``system``
+(solve-system, simulate-system), ``pcc`` (compare-pcc, pcc-identify), ``designs``, ``view``
+(view, view-system), ``control`` (inverse, workspace, track); shared parsing, error
 handling and output helpers in ``_common``.
 
 Units at the boundary: quantities carry their units ("30kPa", "0.3bar", "-1 N", "2 ms"),
@@ -43,7 +43,7 @@ from .pcc import compare_pcc_cmd, pcc_identify
 from .simulate import simulate_cmd
 from .statics import demo, solve, sweep
 from .system import simulate_system_cmd, solve_system_cmd
-from .view import view
+from .view import view, view_system_cmd
 
 
 class _StderrHandler(logging.Handler):
@@ -153,6 +153,7 @@ for _command in (
     compare_pcc_cmd,
     pcc_identify,
     view,
+    view_system_cmd,
     inverse,
     workspace_cmd,
     track,

@@ -16,6 +16,19 @@ from ._common import (
 )
 
 
+def _pressure_range(text: str) -> tuple[float, float]:
+    """--pressure-range LOW:HIGH in Pa."""
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise design_error("--pressure-range", text, "must read LOW:HIGH, e.g. 0:70kPa", InputError)
+    low, high = _parse_quantities(
+        parts, "pressure", ["--pressure-range.low", "--pressure-range.high"]
+    )
+    if not low < high:
+        raise design_error("--pressure-range", text, "LOW must be below HIGH", InputError)
+    return low, high
+
+
 @click.command("view")
 @click.argument("design")
 @click.option(
@@ -83,20 +96,7 @@ def view(
 
     d = load_design(design)
     p = None if pressure is None else _parse_pressures(pressure, d)
-    p_range = None
-    if pressure_range is not None:
-        parts = pressure_range.split(":")
-        if len(parts) != 2:
-            raise design_error(
-                "--pressure-range", pressure_range, "must read LOW:HIGH, e.g. 0:70kPa", InputError
-            )
-        p_range = tuple(
-            _parse_quantities(parts, "pressure", ["--pressure-range.low", "--pressure-range.high"])
-        )
-        if not p_range[0] < p_range[1]:
-            raise design_error(
-                "--pressure-range", pressure_range, "LOW must be below HIGH", InputError
-            )
+    p_range = None if pressure_range is None else _pressure_range(pressure_range)
     from .statics import _parse_tensions
 
     t = _parse_tensions(tension, d)
@@ -126,5 +126,41 @@ def view(
     )
     _stdout().print(
         Text(f"softrod viewer of {d.name}: open {viewer.url}  (Ctrl-C stops)"), soft_wrap=True
+    )
+    viewer.wait()
+
+
+@click.command("view-system")
+@click.argument("system")
+@click.option(
+    "--pressure-range",
+    metavar="LOW:HIGH",
+    help="Range of every pressure slider, e.g. 0:70kPa (default: 0 to the largest of the "
+    "rods' defaults, as `softrod view` chooses them).",
+)
+@click.option(
+    "--host",
+    default="127.0.0.1",
+    show_default=True,
+    help="Interface to listen on (0.0.0.0: reachable from other machines).",
+)
+@click.option("--port", type=click.IntRange(1, 65535), help="Port (default: a free one).")
+@_handle_errors
+def view_system_cmd(system, pressure_range, host, port):
+    """Serve an interactive 3-D view of a SYSTEM of rods holding one platform (a system file
+    or a bundled system) in the browser (Ctrl-C stops it): one slider per rod's pressure
+    channel and tendon re-solves the whole system live; the platform's pose and the
+    solver's state show beside it (docs/viewer.md, "Systems of rods")."""
+    from rich.text import Text
+
+    from ..system import load_system
+    from ..viewer import view_system
+
+    sysm = load_system(system)
+    p_range = None if pressure_range is None else _pressure_range(pressure_range)
+    viewer = view_system(sysm, pressure_range=p_range, host=host, port=port)
+    _stdout().print(
+        Text(f"softrod viewer of {sysm.name}: open {viewer.url}  (Ctrl-C stops)"),
+        soft_wrap=True,
     )
     viewer.wait()

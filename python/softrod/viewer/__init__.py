@@ -12,8 +12,9 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:  # pragma: no cover
     from .._types import ArrayLike, DesignLike, Quantity
     from .app import Viewer
+    from .system import SystemViewer
 
-__all__ = ["Viewer", "view"]
+__all__ = ["SystemViewer", "Viewer", "view", "view_system"]
 
 
 def view(
@@ -87,9 +88,64 @@ def view(
     )
 
 
+def _viewer_class(module: str, name: str):
+    """The viewer class, or the InputError that names the missing extra."""
+    import importlib
+
+    try:
+        return getattr(importlib.import_module(module, __name__), name)
+    except ModuleNotFoundError as exc:  # pragma: no cover (viser missing)
+        if exc.name and exc.name.split(".")[0] == "viser":
+            from ..errors import InputError
+
+            raise InputError(
+                "softrod.view needs the viewer extra: pip install 'softrod[viewer]' (viser)",
+                "viser",
+                None,
+                "not installed",
+            ) from None
+        raise
+
+
+def view_system(
+    system: Any,
+    *,
+    pressures: Any = None,
+    tensions: Any = None,
+    pressure_range: tuple[Quantity, Quantity] | None = None,
+    tension_max: Quantity | None = None,
+    options: Any = None,
+    host: str = "127.0.0.1",
+    port: int | None = None,
+    environment_map: bool = True,
+) -> SystemViewer:
+    """Serve an interactive view of a system of rods holding one platform
+    (:class:`~softrod.System`, a system file or a bundled system name) and return the
+    :class:`SystemViewer` (docs/viewer.md, "Systems of rods").
+
+    pressures, tensions: each rod's initial inputs, one list per rod (Pa, N; default 0).
+    pressure_range: (low, high) of every pressure slider in Pa (default: 0 to the largest of
+        the rods' defaults, as :func:`view` chooses them). tension_max: top of the tension
+        sliders (N). options: as in :func:`softrod.solve_system`. host, port,
+        environment_map: as in :func:`view`.
+    """
+    cls = _viewer_class(".system", "SystemViewer")
+    return cls(
+        system,
+        pressures=pressures,
+        tensions=tensions,
+        pressure_range=pressure_range,
+        tension_max=tension_max,
+        options=options,
+        host=host,
+        port=port,
+        environment_map=environment_map,
+    )
+
+
 def __getattr__(name):
     if name == "Viewer":
-        from .app import Viewer
-
-        return Viewer
+        return _viewer_class(".app", "Viewer")
+    if name == "SystemViewer":
+        return _viewer_class(".system", "SystemViewer")
     raise AttributeError(name)
