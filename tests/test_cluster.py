@@ -258,3 +258,23 @@ def test_sweep_command_with_scheduler(client, run, tmp_path, monkeypatch):
     monkeypatch.setattr(softrod.cluster, "CONNECT_TIMEOUT", "1s")  # nothing listens there
     bad = run(*args, "--out", tmp_path / "x.csv", "--scheduler", "tcp://127.0.0.1:9")
     assert bad.exit_code == 2 and "--scheduler" in bad.stderr
+
+
+def test_system_calibration_restarts_on_the_cluster(client):
+    """calibrate_system's starts as cluster tasks (the system's rods travel as TOML text):
+    the same fits as in process."""
+    from softrod.calibration.system import calibrated_system, parse_system_parameters
+
+    pcr = softrod.load_system("two_spa_platform")
+    params = parse_system_parameters(["E", "platform_mass"], pcr)
+    truth = calibrated_system(pcr, params, [95e3, 0.025])
+    p = np.array(
+        [[[20e3, 0, 0], [0, 0, 0]], [[0, 15e3, 0], [0, 0, 25e3]], [[0, 0, 0], [10e3, 0, 0]]]
+    )
+    data = softrod.synthesize_system_dataset(truth, p, markers=[("platform", [0.02, 0, 0])])
+    kw = dict(restarts=2, seed=3, threads=1, progress=False)
+    remote = softrod.calibrate_system(pcr, data, ["E", "platform_mass"], executor=client, **kw)
+    local = softrod.calibrate_system(pcr, data, ["E", "platform_mass"], **kw)
+    np.testing.assert_array_equal(remote.values, local.values)
+    assert remote.starts.equals(local.starts) and len(remote.starts) == 3
+    np.testing.assert_allclose(remote.values, [95e3, 0.025], rtol=1e-6)  # noise-free

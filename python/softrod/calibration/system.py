@@ -49,7 +49,7 @@ from .fit import _bounds, _evaluations, _scales, _split, _split_params
 from .params import DYNAMIC_KINDS, KINDS, SIGMA_KINDS, Parameter, design_changes, parse_parameter
 from .problem import ModelAdapter, Observations, Prediction, Problem, Registered, Residual
 from .result import error_tables, record
-from .solve import METHODS, Settings, run_starts, start_points
+from .solve import METHODS, Settings, run_starts, start_points, starts_table
 
 if TYPE_CHECKING:
     from .._types import PathLike, Quantity
@@ -225,6 +225,24 @@ class SystemStatic(ModelAdapter):
         self.threads = threads
         self.x0: np.ndarray | None = None
 
+    # --- pickling for Dask workers: the rods' designs travel as TOML text ---------------------
+
+    def __getstate__(self):
+        from ..cluster import design_text
+
+        state = dict(self.__dict__)
+        rods = tuple(dataclasses.replace(r, design=design_text(r.design)) for r in self.system.rods)
+        state["system"] = dataclasses.replace(self.system, rods=rods)
+        return state
+
+    def __setstate__(self, state):
+        from ..cluster import design_from_text
+
+        sysm = state["system"]
+        rods = tuple(dataclasses.replace(r, design=design_from_text(r.design)) for r in sysm.rods)
+        state["system"] = dataclasses.replace(sysm, rods=rods)
+        self.__dict__.update(state)
+
     def set_threads(self, threads: int) -> None:
         self.threads = threads
 
@@ -355,6 +373,7 @@ class SystemCalibrationResult:
     elapsed_s: float
     metadata: dict = field(default_factory=dict)
     registration: dict | None = None
+    starts: pd.DataFrame | None = None
 
     @property
     def units(self) -> dict[str, str]:
@@ -428,6 +447,7 @@ def calibrate_system(
     restarts: int = 0,
     seed: int = 0,
     progress: Callable[[int, float], None] | bool | None = None,
+    executor: Any = None,
 ) -> SystemCalibrationResult:
     """Fit ``params`` of a :class:`~softrod.System` to measured equilibria.
 
@@ -440,7 +460,8 @@ def calibrate_system(
     friction makes an equilibrium depend on its load path).
     params: rod parameters (acting on every rod, or ``"rods[i].kind"`` on one) and
     ``"platform_mass"`` (see :mod:`softrod.calibration.system`). bounds, method, split,
-    test, weights, options, threads, max_evaluations, restarts, seed and progress as in
+    test, weights, options, threads, max_evaluations, restarts, seed, progress and executor
+    (a ``distributed.Client``: the starts run on its cluster, one task each) as in
     :func:`~softrod.calibrate` (weights: "tip" and "markers").
 
     Returns a :class:`SystemCalibrationResult`; a :class:`CalibrationWarning` for each
@@ -462,6 +483,7 @@ def calibrate_system(
         restarts,
         seed,
         progress,
+        executor,
     )
 
 
@@ -545,6 +567,7 @@ def _calibrate_system(
     restarts,
     seed,
     progress,
+    executor,
 ) -> SystemCalibrationResult:
     start = time.perf_counter()
     method = "lm" if method is None else method
@@ -599,7 +622,7 @@ def _calibrate_system(
     starts = start_points(params_all, theta0, box, restarts, seed)
     settings = Settings(method, int(max_evaluations))
     with reporter(progress, "calibrate_system", None, _evaluations) as report:
-        fits = run_starts(problem, settings, starts, report, None, threads)
+        fits = run_starts(problem, settings, starts, report, executor, threads)
     best = min(
         range(len(fits)),
         key=lambda k: (fits[k]["cost"] if math.isfinite(fits[k]["cost"]) else math.inf, k),
@@ -679,6 +702,7 @@ def _calibrate_system(
         elapsed_s=time.perf_counter() - start,
         metadata={"system": system.name, "training_samples": int(train.size)},
         registration=reg,
+        starts=starts_table(params_all, fits, best) if len(fits) > 1 else None,
     )
 
 
