@@ -21,7 +21,6 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import softrod  # noqa: E402
 from softrod.calibration.system import (  # noqa: E402
@@ -55,30 +54,11 @@ print("parameter                unit     initial      fitted   std_error       t
 for p, v0, v, sd, t in zip(params, fit.initial, fit.values, fit.std_errors, truths, strict=True):
     print(f"{p.name:24s} {p.unit:4s} {v0:11.4g} {v:11.4g} {sd:11.2g} {t:11.4g}")
 rms = fit.error_table.set_index("quantity")["rms_error_mm"]
-print(f"RMS error after calibration: platform {rms['platform']:.3f} mm, markers {rms['markers']:.3f} mm")
+print(f"RMS error after calibration: platform {rms['platform']:.3f} mm, ", end="")
+print(f"markers {rms['markers']:.3f} mm")
 
 # The bundled system's prediction (no fit) for the "before" picture.
 initial = softrod.solve_system_batch(system, pressures, on_unstable="ignore").platform_position
-measured, after = data.tip_position, fit.predicted
-fig, (top, err) = plt.subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
-top.plot(measured[:, 0] * 1e3, measured[:, 2] * 1e3, "o", mfc="none", color="k", label="measured")
-top.plot(initial[:, 0] * 1e3, initial[:, 2] * 1e3, "x", color="tab:red", label="bundled model")
-top.plot(after[:, 0] * 1e3, after[:, 2] * 1e3, "+", color="tab:blue", ms=9, label="calibrated")
-top.set_xlabel("platform x (mm)")
-top.set_ylabel("platform z (mm)")
-top.set_title("platform positions, front view")
-top.legend(loc="best")
-rows = np.arange(len(measured))
-e0 = np.linalg.norm(initial - measured, axis=1) * 1e3
-e1 = np.linalg.norm(after - measured, axis=1) * 1e3
-err.bar(rows - 0.2, e0, width=0.4, color="tab:red", label="bundled model")
-err.bar(rows + 0.2, e1, width=0.4, color="tab:blue", label="calibrated")
-err.set_xlabel("equilibrium (row)")
-err.set_ylabel("platform position error (mm)")
-err.set_title("error per row (noise: 0.1 mm per axis)")
-err.set_ylim(0, 1.35 * max(e0.max(), e1.max()))  # room for the legend
-err.legend(loc="upper right")
-fig.suptitle("two_spa_platform: calibrate_system on the platform and four markers")
 out_dir.mkdir(parents=True, exist_ok=True)
-fig.savefig(out_dir / "calibrate_two_spa_platform.png", dpi=110)
+fit.plot(out_dir / "calibrate_two_spa_platform.png", initial=initial)
 print(f"wrote {out_dir / 'calibrate_two_spa_platform.png'}")

@@ -307,3 +307,20 @@ def test_pcc_figures():
     ylabels = {ax.get_ylabel() for ax in fig.axes}
     assert ylabels == {"elongation L - L0 (mm)", "bending angle theta (deg)"}  # one per quantity
     assert_readable(fig)
+
+
+def test_system_calibration_figure():
+    """SystemCalibrationResult.plot: front view and per-row errors, with an initial model
+    and test rows marked."""
+    import numpy as np
+    from softrod.calibration.system import calibrate_system
+
+    pcr = softrod.load_system("two_spa_platform")
+    rng = np.random.default_rng(4)
+    p = rng.uniform(5e3, 30e3, size=(12, 2, 3)) * (rng.random((12, 2, 3)) < 0.5)
+    data = softrod.synthesize_system_dataset(
+        pcr, p, noise_mm=0.1, seed=1, experiment=np.repeat([0, 1, 2], 4)
+    )
+    fit = calibrate_system(pcr, data, ["E"], split="experiment", test=2, progress=False)
+    initial = data.tip_position + 1e-3
+    assert_readable(fit.plot(initial=initial))

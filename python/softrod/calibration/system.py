@@ -39,7 +39,13 @@ from .. import _core
 from .. import _validate as V
 from .._threads import one_blas_thread
 from ..datasets import Dataset, load_dataset
-from ..errors import CalibrationWarning, ConvergenceError, DesignError, InputError
+from ..errors import (
+    CalibrationWarning,
+    ConvergenceError,
+    DesignError,
+    InputError,
+    design_error,
+)
 from ..progress import reporter
 from ..schema import PLATFORM_BODY
 from ..statics import SolverOptions, _frictional, _options
@@ -411,6 +417,79 @@ class SystemCalibrationResult:
         cols["converged"] = self.converged
         cols["set"] = self.labels
         return pd.DataFrame(cols)
+
+    def plot(self, path=None, *, initial: np.ndarray | None = None):
+        """Measured against predicted platform positions (front view, x-z) and each row's
+        platform error, train and test rows marked; ``initial``: (m, 3) platform positions
+        of another model (e.g. the system before calibration) drawn and compared too.
+        Written to ``path`` when given (.png, .pdf, .svg); returns the Figure."""
+        import matplotlib.pyplot as plt
+
+        measured = self.dataset.tip_position
+        if measured is None:
+            raise design_error(
+                "dataset.tip_position",
+                None,
+                "plot draws the platform's measured positions; this dataset has markers only",
+                InputError,
+            )
+        after = self.predicted
+        fig, (front, err) = plt.subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
+        rows = np.arange(len(measured))
+        test = self.labels == "test"
+        front.plot(*(measured[:, [0, 2]] * 1e3).T, "o", mfc="none", color="k", label="measured")
+        bars = [(after, "tab:blue", "calibrated")]
+        if initial is not None:
+            initial = np.asarray(initial, dtype=float)
+            if initial.shape != measured.shape:
+                raise design_error(
+                    "initial",
+                    f"shape {initial.shape}",
+                    f"must be {measured.shape}: one platform position per row (m)",
+                    InputError,
+                )
+            front.plot(*(initial[:, [0, 2]] * 1e3).T, "x", color="tab:red", label="initial")
+            bars.insert(0, (initial, "tab:red", "initial"))
+        front.plot(*(after[:, [0, 2]] * 1e3).T, "+", ms=9, color="tab:blue", label="calibrated")
+        if test.any():
+            front.plot(
+                *(measured[test][:, [0, 2]] * 1e3).T,
+                "s",
+                mfc="none",
+                ms=10,
+                color="tab:gray",
+                label="test rows",
+            )
+        front.set_xlabel("platform x (mm)")
+        front.set_ylabel("platform z (mm)")
+        front.set_title("platform positions, front view")
+        front.legend(loc="best")
+        width = 0.8 / len(bars)
+        top = 0.0
+        for k, (pred, colour, label) in enumerate(bars):
+            e = np.linalg.norm(pred - measured, axis=1) * 1e3
+            top = max(top, float(np.nanmax(e)) if np.isfinite(e).any() else 0.0)
+            err.bar(
+                rows + (k - (len(bars) - 1) / 2) * width, e, width=width, color=colour, label=label
+            )
+        err.set_ylim(0, 1.35 * top if top > 0 else 1.0)  # room for the legend
+        err.set_xlabel(
+            "row"
+            + (
+                " (test rows: " + ", ".join(map(str, rows[test])) + ")"
+                if 0 < test.sum() <= 6
+                else ""
+            )
+        )
+        err.set_ylabel("platform position error (mm)")
+        err.set_title("error per row")
+        err.legend(loc="upper right")
+        fig.suptitle(f"calibrate_system: {self.initial_system.name}")
+        if path is not None:
+            from ..plotting import save_figure
+
+            save_figure(fig, path)
+        return fig
 
     def __repr__(self) -> str:
         parts = ", ".join(
