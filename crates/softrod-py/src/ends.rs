@@ -3,7 +3,7 @@
 
 use crate::{
     array2, array3, contact_dict, contact_forces, guarded, options, rows_dict, solution_dict,
-    to_py_err, Context, PyFrictionState, PyRod,
+    to_py_err, Context, PoseArrays, PyFrictionState, PyRod,
 };
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
@@ -755,47 +755,19 @@ fn rod_system_sensitivity_batch<'py>(
             })
             .map_err(input)?;
         let d = system_rows_dict(py, &system, &out)?;
-        let (m, np, nk) = (out.len(), params.len(), markers.len());
-        let mut mp = vec![f64::NAN; m * nk * 3];
-        let (mut dp, mut dr) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 9 * np]);
-        let mut dm = vec![f64::NAN; m * nk * 3 * np];
+        let mut arrays = PoseArrays::new(out.len(), params.len(), markers.len());
         for (r, row) in out.iter().enumerate() {
-            for (k, pos) in row.markers.iter().enumerate() {
-                mp[(r * nk + k) * 3..(r * nk + k) * 3 + 3].copy_from_slice(pos);
-            }
-            let Some(sens) = &row.sensitivity else {
-                continue;
-            };
-            for j in 0..np {
-                for i in 0..3 {
-                    dp[(r * 3 + i) * np + j] = sens.platform_position[j][i];
-                    for c in 0..3 {
-                        dr[((r * 3 + i) * 3 + c) * np + j] = sens.platform_rotation[j][i][c];
-                    }
-                }
-                for k in 0..nk {
-                    for i in 0..3 {
-                        dm[((r * nk + k) * 3 + i) * np + j] = sens.markers[j][k][i];
-                    }
-                }
+            arrays.markers(r, &row.markers);
+            if let Some(sens) = &row.sensitivity {
+                arrays.derivatives(
+                    r,
+                    &sens.platform_position,
+                    &sens.platform_rotation,
+                    &sens.markers,
+                );
             }
         }
-        d.set_item(
-            "marker_position",
-            PyArray1::from_vec(py, mp).reshape([m, nk, 3])?,
-        )?;
-        d.set_item(
-            "d_platform_position",
-            PyArray1::from_vec(py, dp).reshape([m, 3, np])?,
-        )?;
-        d.set_item(
-            "d_platform_rotation",
-            PyArray1::from_vec(py, dr).reshape([m, 3, 3, np])?,
-        )?;
-        d.set_item(
-            "d_marker_position",
-            PyArray1::from_vec(py, dm).reshape([m, nk, 3, np])?,
-        )?;
+        arrays.into_dict(py, &d, "d_platform_position", "d_platform_rotation")?;
         Ok(d)
     })
 }

@@ -621,47 +621,14 @@ impl PyRod {
                     PyArray1::from_vec(py, dmo).reshape([m, 3, np])?,
                 )?;
             }
-            let nk = markers.len();
-            let (mut dp, mut dr) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 9 * np]);
-            let mut mp = vec![f64::NAN; m * nk * 3];
-            let mut dm = vec![f64::NAN; m * nk * 3 * np];
+            let mut arrays = PoseArrays::new(m, np, markers.len());
             for (r, row) in rows.iter().enumerate() {
-                for (k, pos) in row.markers.iter().enumerate() {
-                    mp[(r * nk + k) * 3..(r * nk + k) * 3 + 3].copy_from_slice(pos);
-                }
-                let Some(sens) = &row.sensitivity else {
-                    continue;
-                };
-                for j in 0..np {
-                    for i in 0..3 {
-                        dp[(r * 3 + i) * np + j] = sens.position[j][i];
-                        for k in 0..3 {
-                            dr[((r * 3 + i) * 3 + k) * np + j] = sens.rotation[j][i][k];
-                        }
-                    }
-                    for k in 0..nk {
-                        for i in 0..3 {
-                            dm[((r * nk + k) * 3 + i) * np + j] = sens.markers[j][k][i];
-                        }
-                    }
+                arrays.markers(r, &row.markers);
+                if let Some(sens) = &row.sensitivity {
+                    arrays.derivatives(r, &sens.position, &sens.rotation, &sens.markers);
                 }
             }
-            d.set_item(
-                "marker_position",
-                PyArray1::from_vec(py, mp).reshape([m, nk, 3])?,
-            )?;
-            d.set_item(
-                "d_marker_position",
-                PyArray1::from_vec(py, dm).reshape([m, nk, 3, np])?,
-            )?;
-            d.set_item(
-                "d_tip_position",
-                PyArray1::from_vec(py, dp).reshape([m, 3, np])?,
-            )?;
-            d.set_item(
-                "d_tip_rotation",
-                PyArray1::from_vec(py, dr).reshape([m, 3, 3, np])?,
-            )?;
+            arrays.into_dict(py, &d, "d_tip_position", "d_tip_rotation")?;
             Ok(d)
         })
     }
@@ -688,6 +655,94 @@ impl PyRod {
                 Context::Input,
             ));
         }
+        Ok(())
+    }
+}
+
+/// The per-row arrays of a pose's parameter derivatives (a tip's or a platform's) and of the
+/// markers: positions (m, K, 3), their derivatives (m, K, 3, P), the pose's (m, 3, P) and
+/// (m, 3, 3, P); NaN on rows without them.
+pub(crate) struct PoseArrays {
+    m: usize,
+    np: usize,
+    nk: usize,
+    marker: Vec<f64>,
+    d_marker: Vec<f64>,
+    d_position: Vec<f64>,
+    d_rotation: Vec<f64>,
+}
+
+impl PoseArrays {
+    pub(crate) fn new(m: usize, np: usize, nk: usize) -> Self {
+        PoseArrays {
+            m,
+            np,
+            nk,
+            marker: vec![f64::NAN; m * nk * 3],
+            d_marker: vec![f64::NAN; m * nk * 3 * np],
+            d_position: vec![f64::NAN; m * 3 * np],
+            d_rotation: vec![f64::NAN; m * 9 * np],
+        }
+    }
+
+    /// Row r's marker positions.
+    pub(crate) fn markers(&mut self, r: usize, at: &[[f64; 3]]) {
+        for (k, pos) in at.iter().enumerate() {
+            let i = (r * self.nk + k) * 3;
+            self.marker[i..i + 3].copy_from_slice(pos);
+        }
+    }
+
+    /// Row r's derivatives, one entry per parameter (`markers[j][k]`).
+    pub(crate) fn derivatives(
+        &mut self,
+        r: usize,
+        position: &[[f64; 3]],
+        rotation: &[[[f64; 3]; 3]],
+        markers: &[Vec<[f64; 3]>],
+    ) {
+        let (np, nk) = (self.np, self.nk);
+        for j in 0..np {
+            for i in 0..3 {
+                self.d_position[(r * 3 + i) * np + j] = position[j][i];
+                for c in 0..3 {
+                    self.d_rotation[((r * 3 + i) * 3 + c) * np + j] = rotation[j][i][c];
+                }
+            }
+            for k in 0..nk {
+                for i in 0..3 {
+                    self.d_marker[((r * nk + k) * 3 + i) * np + j] = markers[j][k][i];
+                }
+            }
+        }
+    }
+
+    /// Into `d`: "marker_position", "d_marker_position" and the pose's two under the given
+    /// names.
+    pub(crate) fn into_dict(
+        self,
+        py: Python<'_>,
+        d: &Bound<'_, PyDict>,
+        position: &str,
+        rotation: &str,
+    ) -> PyResult<()> {
+        let (m, np, nk) = (self.m, self.np, self.nk);
+        d.set_item(
+            "marker_position",
+            PyArray1::from_vec(py, self.marker).reshape([m, nk, 3])?,
+        )?;
+        d.set_item(
+            "d_marker_position",
+            PyArray1::from_vec(py, self.d_marker).reshape([m, nk, 3, np])?,
+        )?;
+        d.set_item(
+            position,
+            PyArray1::from_vec(py, self.d_position).reshape([m, 3, np])?,
+        )?;
+        d.set_item(
+            rotation,
+            PyArray1::from_vec(py, self.d_rotation).reshape([m, 3, 3, np])?,
+        )?;
         Ok(())
     }
 }

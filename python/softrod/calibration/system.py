@@ -547,107 +547,6 @@ def calibrate_system(
     identifiability problem, as :func:`~softrod.calibrate` does. Bad input raises
     :class:`~softrod.errors.InputError` naming the field before any solve.
     """
-    return _calibrate_system(
-        system,
-        dataset,
-        params,
-        bounds,
-        method,
-        split,
-        test,
-        weights,
-        options,
-        threads,
-        max_evaluations,
-        restarts,
-        seed,
-        progress,
-        executor,
-    )
-
-
-def _check_dataset(system: System, dataset: Dataset) -> None:
-    nc = [r.design.n_channels for r in system.rods]
-    nt = [r.design.n_tendons for r in system.rods]
-    if dataset.n_channels != sum(nc):
-        raise V.fail(
-            "dataset.pressures",
-            f"{dataset.n_channels} channels",
-            f"system {system.name!r} has {sum(nc)} pressure channels ({nc} per rod): the "
-            "p columns are rod 0's channels, then rod 1's, ...",
-        )
-    if dataset.tensions is not None and dataset.n_tendons != sum(nt):
-        raise V.fail(
-            "dataset.tensions",
-            f"{dataset.n_tendons} tension channels",
-            f"system {system.name!r} has {sum(nt)} tendon channels ({nt} per rod)",
-        )
-    if dataset.markers is not None:
-        if dataset.marker_body is None:
-            raise V.fail(
-                "dataset.marker_body",
-                None,
-                "say which body each marker sits on (-1 the platform, i rod i; in a file the "
-                'markers\' metadata "body": "platform" or "rod<i>")',
-            )
-        for k, (b, s) in enumerate(zip(dataset.marker_body, dataset.marker_s, strict=True)):
-            if b >= len(system.rods):
-                raise V.fail(
-                    f"dataset.marker_body[{k}]",
-                    int(b),
-                    f"system {system.name!r} has {len(system.rods)} rods",
-                )
-            if b >= 0 and s > system.rods[b].design.length * (1 + 1e-12):
-                raise V.fail(
-                    f"dataset.marker_s[{k}]",
-                    float(s),
-                    f"must lie in [0, L] = [0, {system.rods[b].design.length:g}] m on rods[{b}]",
-                )
-    if (
-        (
-            dataset.tip_rotation is not None
-            or dataset.tip_reaction_force is not None
-            or dataset.tip_reaction_moment is not None
-        )
-        and dataset.tip_position is None
-        and dataset.markers is None
-    ):
-        raise V.fail(
-            "dataset",
-            "no positions",
-            "a system's fit needs the platform's position (tip columns) or markers",
-        )
-    if dataset.tip_reaction_force is not None or dataset.tip_reaction_moment is not None:
-        raise V.fail(
-            "dataset.tip_reaction_force",
-            "given",
-            "a system's rods hold the platform: a tip reaction has no place in its dataset",
-        )
-    if dataset.mounting is not None and len(set(dataset.mounting.tolist())) > 1:
-        raise V.fail(
-            "dataset.mounting",
-            sorted(set(dataset.mounting.tolist())),
-            "a system is mounted as its file says: fit each mounting separately",
-        )
-
-
-def _calibrate_system(
-    system,
-    dataset,
-    params,
-    bounds,
-    method,
-    split,
-    test,
-    weights,
-    options,
-    threads,
-    max_evaluations,
-    restarts,
-    seed,
-    progress,
-    executor,
-) -> SystemCalibrationResult:
     start = time.perf_counter()
     method = "lm" if method is None else method
     V.choice(method, METHODS, "method")
@@ -783,6 +682,71 @@ def _calibrate_system(
         registration=reg,
         starts=starts_table(params_all, fits, best) if len(fits) > 1 else None,
     )
+
+
+def _check_dataset(system: System, dataset: Dataset) -> None:
+    nc = [r.design.n_channels for r in system.rods]
+    nt = [r.design.n_tendons for r in system.rods]
+    if dataset.n_channels != sum(nc):
+        raise V.fail(
+            "dataset.pressures",
+            f"{dataset.n_channels} channels",
+            f"system {system.name!r} has {sum(nc)} pressure channels ({nc} per rod): the "
+            "p columns are rod 0's channels, then rod 1's, ...",
+        )
+    if dataset.tensions is not None and dataset.n_tendons != sum(nt):
+        raise V.fail(
+            "dataset.tensions",
+            f"{dataset.n_tendons} tension channels",
+            f"system {system.name!r} has {sum(nt)} tendon channels ({nt} per rod)",
+        )
+    if dataset.markers is not None:
+        if dataset.marker_body is None:
+            raise V.fail(
+                "dataset.marker_body",
+                None,
+                "say which body each marker sits on (-1 the platform, i rod i; in a file the "
+                'markers\' metadata "body": "platform" or "rod<i>")',
+            )
+        for k, (b, s) in enumerate(zip(dataset.marker_body, dataset.marker_s, strict=True)):
+            if b >= len(system.rods):
+                raise V.fail(
+                    f"dataset.marker_body[{k}]",
+                    int(b),
+                    f"system {system.name!r} has {len(system.rods)} rods",
+                )
+            if b >= 0 and s > system.rods[b].design.length * (1 + 1e-12):
+                raise V.fail(
+                    f"dataset.marker_s[{k}]",
+                    float(s),
+                    f"must lie in [0, L] = [0, {system.rods[b].design.length:g}] m on rods[{b}]",
+                )
+    if (
+        (
+            dataset.tip_rotation is not None
+            or dataset.tip_reaction_force is not None
+            or dataset.tip_reaction_moment is not None
+        )
+        and dataset.tip_position is None
+        and dataset.markers is None
+    ):
+        raise V.fail(
+            "dataset",
+            "no positions",
+            "a system's fit needs the platform's position (tip columns) or markers",
+        )
+    if dataset.tip_reaction_force is not None or dataset.tip_reaction_moment is not None:
+        raise V.fail(
+            "dataset.tip_reaction_force",
+            "given",
+            "a system's rods hold the platform: a tip reaction has no place in its dataset",
+        )
+    if dataset.mounting is not None and len(set(dataset.mounting.tolist())) > 1:
+        raise V.fail(
+            "dataset.mounting",
+            sorted(set(dataset.mounting.tolist())),
+            "a system is mounted as its file says: fit each mounting separately",
+        )
 
 
 def _with_provenance(fitted, initial, params, values, std, method, dataset, n_train) -> System:

@@ -48,6 +48,30 @@ _CALIBRATE_OPTIONS = {
 }
 
 
+# Options that calibrate and calibrate-system share.
+_max_evaluations_option = click.option(
+    "--max-evaluations",
+    default=200,
+    show_default=True,
+    type=click.IntRange(min=1),
+    help="Stop after this many model evaluations (one evaluation solves every training row).",
+)
+_json_option = click.option(
+    "--json",
+    "as_json",
+    is_flag=True,
+    help="Print the parameter and error tables as JSON (SI values) instead of tables.",
+)
+_bounds_option = click.option(
+    "--bounds",
+    "bounds_items",
+    multiple=True,
+    metavar="NAME=LO:HI",
+    help='Bounds of one parameter, e.g. c_b=0.5:3 or "E=40kPa:200kPa" (a unit on HI alone '
+    "applies to both; a bare number needs its unit). Repeat for several parameters.",
+)
+
+
 def _parse_pairs(items: tuple[str, ...], option: str, example: str) -> dict[str, str]:
     """KEY=VALUE items -> {key: value} (a key once)."""
     out: dict[str, str] = {}
@@ -326,21 +350,8 @@ def _reaction_table(result):
     "--bounds); nelder-mead: paper 002's simplex, no derivatives during the fit (an "
     "explicit fallback).",
 )
-@click.option(
-    "--bounds",
-    "bounds_items",
-    multiple=True,
-    metavar="NAME=LO:HI",
-    help='Bounds of one parameter, e.g. c_b=0.5:3 or "E=40kPa:200kPa" (a unit on HI alone '
-    "applies to both; a bare number needs its unit). Repeat for several parameters.",
-)
-@click.option(
-    "--max-evaluations",
-    default=200,
-    show_default=True,
-    type=click.IntRange(min=1),
-    help="Stop after this many model evaluations (one evaluation solves every training row).",
-)
+@_bounds_option
+@_max_evaluations_option
 @click.option(
     "--out",
     type=click.Path(dir_okay=False, path_type=Path),
@@ -364,12 +375,7 @@ def _reaction_table(result):
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write an HTML report here (.html: tables, correlations, figures).",
 )
-@click.option(
-    "--json",
-    "as_json",
-    is_flag=True,
-    help="Print the parameter and error tables as JSON (SI values) instead of tables.",
-)
+@_json_option
 @click.option(
     "--restarts",
     default=0,
@@ -626,13 +632,7 @@ def calibrate(
     show_default=True,
     help="lm: Levenberg-Marquardt with the exact Jacobian; nelder-mead: derivative-free.",
 )
-@click.option(
-    "--bounds",
-    "bounds_items",
-    multiple=True,
-    metavar="NAME=LO:HI",
-    help='Bounds of one parameter, e.g. "platform_mass=5g:50g". Repeat for several.',
-)
+@_bounds_option
 @click.option(
     "--weights",
     "weight_items",
@@ -641,25 +641,14 @@ def calibrate(
     help="Standard deviation of a measured quantity, e.g. tip=0.2mm markers=0.5mm (the "
     "tip is the platform's position; default 1 mm each).",
 )
-@click.option(
-    "--max-evaluations",
-    default=200,
-    show_default=True,
-    type=click.IntRange(min=1),
-    help="Stop after this many model evaluations (one evaluation solves every training row).",
-)
+@_max_evaluations_option
 @click.option(
     "--out",
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write the calibrated system here (.toml) and its rods' designs beside it "
     "(<stem>_rod<i>.toml, with their [design.provenance]); all files or none.",
 )
-@click.option(
-    "--json",
-    "as_json",
-    is_flag=True,
-    help="Print the parameter and error tables as JSON (SI values) instead of tables.",
-)
+@_json_option
 @_threads_option("Worker threads per model evaluation (0 = all cores).")
 @_handle_errors
 def calibrate_system_cmd(

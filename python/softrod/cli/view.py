@@ -15,6 +15,16 @@ from ._common import (
     _stdout,
 )
 
+_host_option = click.option(
+    "--host",
+    default="127.0.0.1",
+    show_default=True,
+    help="Interface to listen on (0.0.0.0: reachable from other machines).",
+)
+_port_option = click.option(
+    "--port", type=click.IntRange(1, 65535), help="Port (default: a free one)."
+)
+
 
 def _pressure_range(text: str) -> tuple[float, float]:
     """--pressure-range LOW:HIGH in Pa."""
@@ -72,13 +82,8 @@ def _pressure_range(text: str) -> tuple[float, float]:
     help="Show a dataset's measured tips against DESIGN's predictions (e.g. a calibrated "
     "design from `softrod calibrate --out`).",
 )
-@click.option(
-    "--host",
-    default="127.0.0.1",
-    show_default=True,
-    help="Interface to listen on (0.0.0.0: reachable from other machines).",
-)
-@click.option("--port", type=click.IntRange(1, 65535), help="Port (default: a free one).")
+@_host_option
+@_port_option
 @_handle_errors
 def view(
     design, pressure, pressure_range, tension, max_tension, max_force, trajectory, data, host, port
@@ -138,13 +143,8 @@ def view(
     help="Range of every pressure slider, e.g. 0:70kPa (default: 0 to the largest of the "
     "rods' defaults, as `softrod view` chooses them).",
 )
-@click.option(
-    "--host",
-    default="127.0.0.1",
-    show_default=True,
-    help="Interface to listen on (0.0.0.0: reachable from other machines).",
-)
-@click.option("--port", type=click.IntRange(1, 65535), help="Port (default: a free one).")
+@_host_option
+@_port_option
 @_handle_errors
 def view_system_cmd(system, pressure_range, host, port):
     """Serve an interactive 3-D view of a SYSTEM of rods holding one platform (a system file

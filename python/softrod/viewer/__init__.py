@@ -57,19 +57,7 @@ def view(
     environment_map: viser's image-based lighting (turn off for software rendering, where
         the first frame takes seconds).
     """
-    try:
-        from .app import Viewer
-    except ModuleNotFoundError as exc:  # pragma: no cover (viser missing)
-        if exc.name and exc.name.split(".")[0] == "viser":
-            from ..errors import InputError
-
-            raise InputError(
-                "softrod.view needs the viewer extra: pip install 'softrod[viewer]' (viser)",
-                "viser",
-                None,
-                "not installed",
-            ) from None
-        raise
+    Viewer = _viewer_class(".app", "Viewer")  # noqa: N806 (a class)
     return Viewer(
         design,
         pressures=pressures,
