@@ -48,8 +48,9 @@ class SolverOptions:
         ``on_invalid="warn"``.
     friction_steps: equal load increments of a frictional static solve (an obstacle with
         friction > 0; docs/contact.md, "Friction in the statics"), each halved while it
-        fails (down to 1/1024 of it). The answer depends on the increment size to first
-        order; 80 leaves about 1 % of the friction force of the bundled finger example.
+        fails (down to 1/1024 of it, or of 1/80 of the path when fewer are requested). The
+        answer depends on the increment size to first order; 80 leaves about 1 % of the
+        friction force of the bundled finger example.
     """
 
     tol: float = 1e-10
