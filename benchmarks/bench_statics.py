@@ -13,7 +13,10 @@ For the design ``spa_three_chamber_130mm`` (paper 001's actuator, 0-70 kPa per c
 3. single cold solves (``solve_statics`` without ``initial``), median over many repetitions,
    and the same solve through the binding directly (``design._rod.solve``) without the Python
    wrapper's validation and result object;
-4. the 21^3 = 9261-point sweep 0-70 kPa with ``solve_statics_batch(threads=0)``;
+4. the 21^3 = 9261-point sweep 0-70 kPa with ``solve_statics_batch(threads=0)``; and the
+   same sweep with a network stiffness map on the body (``law.stiffness_map``; three
+   SYNTHETIC random 3-12-10-1 tanh networks, the hybrid model's size): the batch and, apart,
+   the map's evaluation for all rows as the batch does it (one call);
 5. the baseline per cold solve, and the sweep time extrapolated from it.
 All times are medians of wall-clock times (time.perf_counter_ns) with the garbage collector off.
 """
@@ -69,6 +72,39 @@ def fmt_t(seconds: float) -> str:
     if seconds < 1.0:
         return f"{seconds * 1e3:.2f} ms"
     return f"{seconds:.3f} s"
+
+
+def network_map_sweep(design, pressures: np.ndarray, runs: int) -> tuple[float, float]:
+    """Median times of the sweep with a network stiffness map on the body, and of the map's
+    evaluation for all rows as solve_statics_batch does it. The networks are SYNTHETIC
+    (random weights, 3-12-10-1 tanh, sigma = exp(0.1 net(p)) near 1): the cost depends on
+    their size, not their values."""
+    from softrod.statics import _sigma_rows
+
+    rng = np.random.default_rng(0)
+    sizes = [3, 12, 10, 1]
+    nets = [
+        {
+            "input_mean": [35e3] * 3,
+            "input_scale": [20e3] * 3,
+            "weights": [
+                rng.normal(size=(a, b)) for a, b in zip(sizes[:-1], sizes[1:], strict=True)
+            ],
+            "biases": [rng.normal(size=b) for b in sizes[1:]],
+            "activation": "tanh",
+            "target_mean": 0.0,
+            "target_scale": 0.1,
+        }
+        for _ in range(3)
+    ]
+    smap = softrod.StiffnessMap.from_networks(nets)
+    mapped = design.replace({"sections[1].law": {"stiffness_map": True}})
+    softrod.solve_statics_batch(mapped, pressures[:200], stiffness_map=smap, threads=0)
+    batch = timed(
+        lambda: softrod.solve_statics_batch(mapped, pressures, stiffness_map=smap, threads=0), runs
+    )
+    evaluation = timed(lambda: _sigma_rows(smap, pressures), max(runs, 5))
+    return median(batch), median(evaluation)
 
 
 def run(quick: bool) -> dict:
@@ -196,6 +232,7 @@ def run(quick: bool) -> dict:
         sweep_times.append((time.perf_counter_ns() - t0) * 1e-9)
         converged = int(np.count_nonzero(batch.converged))
     sweep = median(sweep_times)
+    mapped_sweep, map_eval = network_map_sweep(design, pressures, runs)
 
     # 5. Baseline ---------------------------------------------------------------------------
     b_reps = 2 if quick else 15
@@ -295,6 +332,10 @@ def run(quick: bool) -> dict:
             f"{bvp_fd / api_all:>7.0f}x"
         )
     print(
+        f"{'sweep with a network stiffness map':<{w}} {fmt_t(mapped_sweep):>12}"
+        f"   (the map's evaluation for all rows: {fmt_t(map_eval)})"
+    )
+    print(
         f"{'sweep 21^3 = 9261 points (threads=0)':<{w}} {fmt_t(sweep):>12} "
         f"{fmt_t(bvp_sweep) + '*':>12} {ratio_sweep:>7.0f}x  <= 0.3 s: {ok(checks['sweep'])}"
         f"; >= 100x: {ok(checks['speedup_sweep'])}"
@@ -357,6 +398,8 @@ def run(quick: bool) -> dict:
             "median_s": sweep,
             "times_s": sweep_times,
             "converged": converged,
+            "network_map_median_s": mapped_sweep,
+            "network_map_evaluation_median_s": map_eval,
         },
         "baseline": {
             "repetitions_per_pressure": b_reps,

@@ -719,15 +719,23 @@ def test_network_map_batch_rows_are_the_single_solves():
     """A network stiffness map (the hybrid model's) evaluated on all rows of a batch at
     once gave a row other last bits of sigma than the single solve's evaluation of that row
     (one matrix product of all rows, which BLAS rounds differently with the row count), so
-    solve_statics_batch's and compare_hybrid's rows were not the single solves bitwise; the
-    batch now evaluates such a map one row at a time."""
+    solve_statics_batch's and compare_hybrid's rows were not the single solves bitwise. The
+    map's forward pass now sums its products in one fixed order, row by row, so all rows
+    at once are each row alone, bit for bit, and the batch evaluates the map in one call."""
     from softrod.calibration.per_sample import stiffness_mapped_design
 
-    smap = softrod.StiffnessMap.from_networks(_random_networks(0))
+    nets = _random_networks(0)
+    smap = softrod.StiffnessMap.from_networks(nets)
     p = np.random.default_rng(1).uniform(0.0, 7e4, size=(64, 3))
-    # Not vacuous: the map of all rows at once differs from the rows alone somewhere.
+    # Not vacuous: a BLAS product of the hidden layer over all rows rounds some row
+    # differently from that row alone (the hazard), while the map's rows are their own.
+    x = np.tanh(np.random.default_rng(2).normal(size=(len(p), 12)))
+    w = np.asarray(nets[0]["weights"][1])
+    blas = x @ w
+    assert any(not np.array_equal(blas[k], (x[k : k + 1] @ w)[0]) for k in range(len(p)))
     whole = smap(p)
-    assert any(not np.array_equal(whole[k], smap(p[k : k + 1])[0]) for k in range(len(p)))
+    for k in range(len(p)):
+        np.testing.assert_array_equal(whole[k], smap(p[k : k + 1])[0])
     design, _ = stiffness_mapped_design(SPA)  # the chambered body scaled by the map
     batch = softrod.solve_statics_batch(design, p, stiffness_map=smap, threads=2)
     for k, row in enumerate(p):

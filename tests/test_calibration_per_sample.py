@@ -286,7 +286,10 @@ def test_hybrid_beats_constant_stiffness_on_held_out_samples(design, mapped):
     assert not np.isin(hybrid.test_rows, hybrid.train_rows).any()
     sigma = hybrid.predict(data.pressures)
     assert sigma.shape == (len(data), 3) and (sigma > 0).all()
-    np.testing.assert_array_equal(hybrid.stiffness_map(data.pressures[:5]), sigma[:5])
+    # The map's numpy forward pass is scikit-learn's network with the matrix products
+    # summed in a fixed order instead of BLAS's: equal to round-off (a few ulp per layer of
+    # three, turned relative by exp; tests/test_keep.py's _FORWARD_RTOL).
+    np.testing.assert_allclose(hybrid.stiffness_map(data.pressures[:5]), sigma[:5], rtol=1e-13)
 
     table = compare_hybrid(design, data, hybrid)
     rows = table[table["set"] == "all"].set_index("model")["mean_error_mm"]

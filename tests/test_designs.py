@@ -116,6 +116,25 @@ def test_load_design_from_mapping():
     )
 
 
+def test_editing_a_design_document_cannot_change_the_design(tmp_path):
+    d = load_design(SPA)
+    before = copy.deepcopy(d.document)
+    edited = d.document
+    edited["design"]["name"] = "edited"
+    edited["sections"][1]["length"] = "1 m"
+    del edited["sections"][0]
+    assert d.document == before  # each read is a new copy of the file as loaded
+    # What replace() and save() build from is the design's own document, not the edit.
+    again = d.replace({})
+    assert again == d and again.document == before
+    renamed = d.replace({"design.name": "renamed"})
+    assert renamed.name == "renamed" and d.name == SPA and d.document == before
+    saved = load_design(d.save(tmp_path / "spa.toml"))
+    assert saved == d
+    # The copy is a plain document: edited and loaded, it is a new design.
+    assert load_design(d.document | {"design": {**before["design"], "name": "x"}}).name == "x"
+
+
 def test_load_design_accepts_path_and_design():
     path = softrod.designs_dir() / f"{SPA}.toml"
     d = load_design(path)

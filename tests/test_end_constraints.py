@@ -407,6 +407,28 @@ def test_bundled_two_rod_system_solves_and_balances():
     assert tilt > 1.0
 
 
+def test_a_system_cannot_be_changed_through_its_arrays_or_rod_list():
+    system = softrod.load_system("two_spa_platform")
+    for array in (
+        system.platform.position,
+        system.platform.rotation,
+        system.platform.force,
+        system.rods[0].attachment,
+        system.rods[0].attachment_rotation,
+    ):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 1.0
+    # Arrays and lists the caller keeps are copied: editing them later changes nothing.
+    position = np.array([0.0, 0.0, 0.1])
+    platform = Platform(position=position)
+    position[2] = 5.0
+    assert platform.position[2] == 0.1
+    rods = list(system.rods)
+    built = System("copy", rods, platform)
+    rods.pop()
+    assert isinstance(built.rods, tuple) and len(built.rods) == 2
+
+
 def test_system_pressures_as_an_array_of_rows_equal_the_list():
     # simulate_system takes an (n_rods, n_channels) array; solve_system refused it with
     # "must be a list of 2 entries, one per rod" although it had 2 rows.

@@ -82,6 +82,19 @@ def test_the_answer_converges_at_first_order_in_the_increments(rough):
     assert d[2] / 3 < 0.01 * abs(forces[-1])
 
 
+@pytest.mark.parametrize("steps", [1, 2, 3, 4, 5, 6])
+def test_coarse_paths_reach_the_pressed_finger(rough, steps):
+    """Regression: at 25 kPa, 3 increments failed at 2/3 of the path while 2, 4, 5, 6 and
+    80 solved it. The path lands on the table at 2/3 with the tip barely in the penalty's
+    smoothing zone, and Newton reaches the next equilibrium only in sub-increments of about
+    1.6e-4 of the path (every request halves that far there): finer than 1/1024 of a third,
+    where the halving stopped. Now no request halves less finely than the default path
+    does (crates/softrod-core/tests/friction.rs has the same check in Rust)."""
+    sol = solve_statics(rough, [25e3], options=SolverOptions(friction_steps=steps))
+    assert balance_error(sol) < 1e-9 * max(1.0, rough.mass * G)
+    assert sol.contact.total_force[0][2] > 0  # pressed on the table
+
+
 def test_released_finger_keeps_its_history(rough):
     """Path dependence: pressed at 50 kPa and released to 20 kPa (``history``), the tip
     is held out by friction reversed, unlike the finger brought to 20 kPa directly; at 0

@@ -135,9 +135,10 @@ def hybrid():
     return fit_stiffness_map(ident, hidden=(12, 10), seed=3)
 
 
-# The numpy forward pass does the scikit-learn operations in the same order (scaling, matrix
-# products with the same BLAS, tanh, exp), so it agrees to round-off: each of the three
-# layers adds a few ulp, and exp turns an absolute error in log sigma into a relative one.
+# The numpy forward pass does the scikit-learn operations (scaling, matrix products, tanh,
+# exp), its products summed in a fixed order rather than BLAS's, so it agrees to round-off:
+# each of the three layers adds a few ulp, and exp turns an absolute error in log sigma
+# into a relative one.
 _FORWARD_RTOL = 1e-13
 
 

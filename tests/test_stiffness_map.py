@@ -200,6 +200,74 @@ def test_batch_with_map_equals_single_solves():
     assert plain.stiffness_scale is None
 
 
+def _networks(seed: int, activation: str, hidden=(12, 10)) -> list[dict]:
+    """Three random networks (3 channels, pressures standardised around 30 kPa)."""
+    rng = np.random.default_rng(seed)
+    sizes = [3, *hidden, 1]
+    return [
+        {
+            "input_mean": [3e4, 3e4, 3e4],
+            "input_scale": [2e4, 2e4, 2e4],
+            "weights": [
+                rng.normal(size=(a, b)) for a, b in zip(sizes[:-1], sizes[1:], strict=True)
+            ],
+            "biases": [rng.normal(size=b) for b in sizes[1:]],
+            "activation": activation,
+            "target_mean": 0.0,
+            "target_scale": 0.1,
+        }
+        for _ in range(3)
+    ]
+
+
+@pytest.mark.parametrize("activation", ["tanh", "relu", "logistic"])
+def test_network_map_rows_are_their_own_bits_in_any_block(activation):
+    """A network map's row is the same double whether it is evaluated alone or in a block
+    of any size (the batch evaluates all rows in one call, the single solve one row): odd
+    sizes against the vector width, and past the forward pass's block of rows."""
+    from softrod.stiffness_map import _FORWARD_BLOCK
+
+    smap = StiffnessMap.from_networks(_networks(4, activation))
+    p = np.random.default_rng(5).uniform(0.0, 7e4, size=(_FORWARD_BLOCK + 37, 3))
+    alone = np.vstack([smap(p[k : k + 1]) for k in range(len(p))])
+    for m in (1, 2, 3, 5, 8, 17, 64, 1000, len(p)):
+        np.testing.assert_array_equal(smap(p[:m]), alone[:m], err_msg=f"{m} rows")
+    # A block that starts elsewhere: rows do not depend on their position either.
+    np.testing.assert_array_equal(smap(p[3:70]), alone[3:70])
+
+
+def test_network_map_batch_evaluates_the_map_once(monkeypatch):
+    """solve_statics_batch evaluates a network map in one call for all its rows (each row
+    still bitwise the single solve's, tests/test_boundary_regressions.py), not one call per
+    row; a callable map, whose rows softrod cannot know to be independent, row by row after
+    one checking call."""
+    import softrod.stiffness_map as sm
+
+    calls = []
+    forward = sm._forward
+
+    def counted(net, p):
+        calls.append(len(p))
+        return forward(net, p)
+
+    monkeypatch.setattr(sm, "_forward", counted)
+    design = mapped_spa()
+    smap = StiffnessMap.from_networks(_networks(6, "tanh"))
+    p = np.random.default_rng(7).uniform(0.0, 5e4, size=(40, 3))
+    batch = solve_statics_batch(design, p, stiffness_map=smap, threads=2)
+    assert batch.converged.all()
+    assert calls == [40, 40, 40]  # one forward pass of all rows per network (three)
+    np.testing.assert_array_equal(batch.stiffness_scale, smap(p))
+    rows = []
+
+    def sigma(q):
+        rows.append(len(q))
+        return np.ones((len(q), 3))
+
+    solve_statics_batch(design, p[:5], stiffness_map=StiffnessMap.from_callable(sigma, 3))
+    assert rows == [5, 1, 1, 1, 1, 1]
+
+
 def test_map_without_mapped_section_raises():
     with pytest.raises(InputError, match="stiffness_map") as info:
         solve_statics(SPA, [0, 0, 0], stiffness_map=StiffnessMap.constant((1, 1, 1), 3))

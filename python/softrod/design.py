@@ -935,7 +935,9 @@ class Design:
     """A validated design (immutable). All numbers are SI.
 
     ``spec`` is the SI description handed to the Rust core; ``document`` the parsed file
-    (units as written). Use :func:`load_design` to make one, :meth:`save` to write one.
+    (units as written), a fresh copy on every read: editing it cannot change the design (use
+    :meth:`replace` for a changed copy). Use :func:`load_design` to make one, :meth:`save`
+    to write one.
     Two designs are equal when they describe the same model (name, citation, description,
     assumptions, the SI spec and the stiffness map file), whatever file they came from and
     however their units were written.
@@ -946,7 +948,9 @@ class Design:
     description: str
     assumptions: tuple[str, ...]
     spec: dict
-    document: dict = field(compare=False)
+    # The parsed file, private: ``document`` hands out copies, so that no caller can change
+    # what a later replace(), save() or cluster transfer builds from it.
+    _document: dict = field(repr=False, compare=False)
     source: Path | None = field(default=None, compare=False)
     _rod: Any = field(default=None, repr=False, compare=False)
     #: The stiffness map the file references (``[stiffness_map] file = ...``), loaded.
@@ -1002,6 +1006,13 @@ class Design:
         """Mass of the rigid tip body, kg."""
         return self.spec["tip"]["mass"]
 
+    @property
+    def document(self) -> dict:
+        """The parsed design file (units as written) as a new deep copy on each read: a
+        plain dict to read, serialise or edit and pass to :func:`load_design`; editing it
+        leaves this design unchanged (:meth:`replace` makes a changed copy)."""
+        return copy.deepcopy(self._document)
+
     def sections(self) -> list[dict]:
         """Compiled section properties (SI): stiffness matrices, line mass, chambers."""
         return self._rod.sections()
@@ -1011,7 +1022,7 @@ class Design:
         """``[design.provenance]``: how the design was made (e.g. by ``calibrate``: the
         dataset, the fitted values with standard errors, the softrod version, the date), or
         None for a hand-written design."""
-        value = self.document["design"].get("provenance")
+        value = self._document["design"].get("provenance")
         return None if value is None else copy.deepcopy(value)
 
     def replace(self, changes: Mapping[str, Any]) -> Design:
@@ -1020,7 +1031,7 @@ class Design:
         if not isinstance(changes, Mapping):
             raise V.fail("changes", changes, "must be a mapping {entry path: value}", DesignError)
         V.check_depth(changes, "changes", DesignError)
-        doc = copy.deepcopy(self.document)
+        doc = self.document
         for path, value in changes.items():
             _set_path(doc, path, copy.deepcopy(value))
         return _build(doc, self.source)
@@ -1035,7 +1046,7 @@ class Design:
         """A copy whose ``[stiffness_map]`` references the map file ``path`` (a table CSV or
         a map saved with :meth:`softrod.StiffnessMap.save` / ``HybridStiffnessModel.save``;
         a relative path is relative to the current folder), or has none (None)."""
-        doc = copy.deepcopy(self.document)
+        doc = self.document
         if path is None:
             doc.pop("stiffness_map", None)
         else:
@@ -1069,7 +1080,7 @@ class Design:
         path = Path(path)
         if path.suffix.lower() != ".toml":
             raise design_error("path", str(path), "a design file must end in .toml", InputError)
-        doc = _with_units(_plain(copy.deepcopy(self.document)))
+        doc = _with_units(_plain(self.document))
         if self.stiffness_map_source is not None:
             target = Path(path).resolve().parent
             try:
@@ -1126,7 +1137,7 @@ def _build(doc: dict, source: Path | None) -> Design:
         description=str(meta.get("description", "")),
         assumptions=tuple(assumptions),
         spec=spec,
-        document=doc,
+        _document=doc,
         source=source,
         _rod=rod,
         stiffness_map=smap,

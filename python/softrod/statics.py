@@ -48,8 +48,9 @@ class SolverOptions:
         ``on_invalid="warn"``.
     friction_steps: equal load increments of a frictional static solve (an obstacle with
         friction > 0; docs/contact.md, "Friction in the statics"), each halved while it
-        fails (down to 1/1024 of it). The answer depends on the increment size to first
-        order; 80 leaves about 1 % of the friction force of the bundled finger example.
+        fails (down to 1/1024 of it, or of 1/80 of the path when fewer are requested). The
+        answer depends on the increment size to first order; 80 leaves about 1 % of the
+        friction force of the bundled finger example.
     """
 
     tol: float = 1e-10
@@ -636,9 +637,10 @@ def solve_statics_batch(
     row. With a held tip (``tip_constraint``) every row's path also moves the held pose
     from the unloaded rod's tip to the prescribed one, as the single held frictional solve
     does, and the rows carry their tip reactions. ``stiffness_map`` as in :func:`solve_statics`,
-    evaluated for every row as the single solve evaluates it (a table or constant map in
-    one call for all rows; networks, regressors and callables one row at a time, since a
-    matrix product of all rows rounds a row differently).
+    evaluated for every row as the single solve evaluates it (tables, constants and
+    networks in one call for all rows, each row's bits its own; regressors and callables
+    one row at a time, since softrod cannot know that their rows do not round differently
+    in a block).
 
     ``stable`` (m,) says which equilibria are stable (``stability_assessed`` (m,) is False
     where it was not assessed: follower loads) and ``violation`` (m,) which validity
@@ -716,15 +718,23 @@ def solve_statics_batch(
     return _batch_result(arr, sigma, meta, out, on_unstable, on_invalid, tens, constraint)
 
 
+# Map kinds whose rows are computed each from its own pressures alone, bit for bit: a
+# table or constant (point by point) and networks as arrays (stiffness_map._forward sums
+# its matrix products in a fixed order, row by row). A whole block in one call equals
+# every row evaluated alone.
+_ROW_EXACT_KINDS = ("table", "constant", "mlp")
+
+
 def _sigma_rows(smap: StiffnessMap, arr: np.ndarray) -> np.ndarray:
-    """sigma of every row of ``arr`` as solve_statics evaluates it for that row alone: a
-    table or constant map is one call (its rows are computed point by point), any other
-    (networks, regressors, callables) one row at a time, since a matrix product of all rows
-    (BLAS blocks them) rounds a row differently with the number of rows, and a batch row is
-    bitwise the single solve of that row. All rows are evaluated together first: that
-    call checks them and names a bad one by its row."""
+    """sigma of every row of ``arr`` as solve_statics evaluates it for that row alone (a
+    batch row is bitwise the single solve of that row). Tables, constants and networks
+    (``_ROW_EXACT_KINDS``) are one call for all rows. Regressors and callables are code
+    softrod cannot see into: a scikit-learn model's matrix products (BLAS) round a row
+    differently in a block of another size, and a callable may do anything, so those are
+    evaluated one row at a time, after one call for all rows that checks them and names a
+    bad one by its row."""
     whole = smap(arr)
-    if smap.kind in ("table", "constant") or len(arr) <= 1:
+    if smap.kind in _ROW_EXACT_KINDS or len(arr) <= 1:
         return whole
     return np.vstack([smap(arr[k : k + 1]) for k in range(len(arr))])
 

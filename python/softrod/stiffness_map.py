@@ -840,18 +840,50 @@ def _network(net: Any, where: str) -> dict:
     }
 
 
+# Rows per block of the forward pass: its temporaries (rows x layer width) stay in cache.
+# Blocks cannot change a row's bits (see _forward).
+_FORWARD_BLOCK = 4096
+
+
 def _forward(net: dict, p: np.ndarray) -> np.ndarray:
     """sigma_k at pressures p (m, c) Pa: standardise, hidden layers, linear output, then
-    undo the target's standardisation and the log. The same operations, in the same order,
-    as scikit-learn's StandardScaler, MLPRegressor and TransformedTargetRegressor."""
-    x = (p - net["input_mean"]) / net["input_scale"]
+    undo the target's standardisation and the log. The same operations as scikit-learn's
+    StandardScaler, MLPRegressor and TransformedTargetRegressor, with each layer's matrix
+    product summed in one fixed order (``_row_product``).
+
+    Every row's result depends on that row alone, bit for bit, whatever the other rows:
+    every operation is elementwise on contiguous arrays (+, -, *, / are correctly rounded
+    in IEEE arithmetic; tanh and exp are numpy's elementwise loops, the same for a row alone
+    and in a block). So a batch evaluates all its rows in one call and each row equals the
+    single solve's one-row evaluation (tests/test_stiffness_map.py checks it on blocks of
+    many sizes)."""
+    m = p.shape[0]
+    if m > _FORWARD_BLOCK:
+        return np.concatenate(
+            [_forward(net, p[k : k + _FORWARD_BLOCK]) for k in range(0, m, _FORWARD_BLOCK)]
+        )
+    x = np.ascontiguousarray((p - net["input_mean"]) / net["input_scale"])
     act = _ACTIVATIONS[net["activation"]]
     last = len(net["weights"]) - 1
     for i, (w, b) in enumerate(zip(net["weights"], net["biases"], strict=True)):
-        x = x @ w + b
+        x = _row_product(x, w)
+        x += b
         if i < last:
             x = act(x)
-    return np.exp(x[:, 0] * net["target_scale"] + net["target_mean"])
+    out = np.ascontiguousarray(x[:, 0])
+    return np.exp(out * net["target_scale"] + net["target_mean"])
+
+
+def _row_product(x: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """x @ w (x (m, n), w (n, k)) with every entry summed over n in the order 0, 1, ...
+    by elementwise products and sums, so that a row's entries do not depend on the other
+    rows. (A BLAS matrix product blocks and vectorises its sums by the matrix sizes: a row
+    rounds differently alone than in a block, which is why batches once evaluated network
+    maps one row at a time.)"""
+    out = x[:, 0:1] * w[0]
+    for j in range(1, w.shape[0]):
+        out += x[:, j : j + 1] * w[j]
+    return out
 
 
 def _write_json(doc: dict, path: str | Path) -> Path:

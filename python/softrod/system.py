@@ -95,6 +95,21 @@ def _vec(value: Any, kind: str, field: str, default=(0.0, 0.0, 0.0)) -> np.ndarr
     )
 
 
+def _read_only(obj: Any, names: tuple[str, ...]) -> None:
+    """Replace the array fields ``names`` of the frozen dataclass ``obj`` by read-only float
+    copies, so that neither the caller's array nor ``obj.field[...] = x`` can change the
+    model after it is built. A value that is not numeric is left as given: the solve's
+    checks name it."""
+    for name in names:
+        value = getattr(obj, name)
+        try:
+            frozen = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            continue
+        frozen.flags.writeable = False
+        object.__setattr__(obj, name, frozen)
+
+
 @dataclass(frozen=True)
 class SystemRod:
     """One rod of a system: its design (with its own mounting: the base pose) and where its
@@ -104,6 +119,9 @@ class SystemRod:
     design: Design
     attachment: np.ndarray
     attachment_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+
+    def __post_init__(self) -> None:
+        _read_only(self, ("attachment", "attachment_rotation"))
 
 
 @dataclass(frozen=True)
@@ -120,6 +138,9 @@ class Platform:
     mass: float = 0.0
     com_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
     inertia: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+
+    def __post_init__(self) -> None:
+        _read_only(self, ("position", "rotation", "force", "moment", "com_offset", "inertia"))
 
 
 def platform_inertia(value: Any, field: str, cls: type[DesignError] = DesignError) -> np.ndarray:
@@ -176,6 +197,11 @@ class System:
     citation: str = ""
     description: str = ""
     source: Path | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        # A list of rods would stay the caller's: appending to it would change the system.
+        if isinstance(self.rods, list):
+            object.__setattr__(self, "rods", tuple(self.rods))
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the system as a system file (``path``, .toml) and each rod's design beside

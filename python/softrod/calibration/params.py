@@ -159,10 +159,11 @@ def parse_parameter(name: str, design: Design) -> Parameter:
             raise V.fail("params", name, f"{kind} is one value of [dynamics]: no selector")
         return Parameter(name.strip(), kind, ())
     if kind in _MATERIAL_KINDS:
+        doc_secs = design.document["sections"]  # one copy, read only
         mats = {
-            i: design.document["sections"][i].get("material")
+            i: doc_secs[i].get("material")
             for i in _elastic(design)
-            if "material" in design.document["sections"][i] and "outer_radius" in secs[i]
+            if "material" in doc_secs[i] and "outer_radius" in secs[i]
         }
         if selector:
             material = selector.strip()

@@ -51,8 +51,10 @@ use constraint::TipConstraint;
 pub const DEFAULT_FRICTION_STEPS: usize = 80;
 /// Most increments a caller may ask for (each is a Newton solve).
 pub const MAX_FRICTION_STEPS: usize = 100_000;
-/// A failed increment is halved down to 1/SUB of the requested one.
-const SUB: u32 = 1024;
+/// A failed increment is halved down to 1/SUB of the requested one, or of the default
+/// path's increment (1/DEFAULT_FRICTION_STEPS of the path) where the request is coarser
+/// (`sub_increments`).
+const SUB: u64 = 1024;
 /// Contact-free stretches of a path are jumped over (`follow`).
 pub(crate) const JUMPS: bool = true;
 
@@ -359,7 +361,8 @@ pub fn check_steps(steps: usize) -> Result<()> {
 
 /// The frictional static solve of a free tip: from `history` (a previous frictional
 /// solution of this rod; None: the unloaded rod) to `loads` in `steps` equal increments
-/// of the path, each halved while its Newton solve fails (down to 1/1024 of it). The
+/// of the path, each halved while its Newton solve fails (down to 1/1024 of it, or of the
+/// default path's increment where `steps` is smaller than the default: `sub_increments`). The
 /// solution carries its `FrictionPath`; `stable` is None. Errors name what is wrong:
 /// `friction_steps`, `history`, an obstacle crossed, or the increment that failed.
 pub fn solve(
@@ -696,7 +699,7 @@ fn untouched(rods: &[(&Problem, &[f64])], states: &[Option<FrictionState>]) -> b
 /// The increment loop shared by the free and the held tip and by systems of rods: from
 /// each rod's `states` and the unknowns `x` (6 per rod first) at the path's start to the
 /// legs' loads, in `steps` equal increments, each halved while `inner` fails (down to
-/// 1/SUB of it). `inner(problems, t, guess)` is one increment's Newton solve: the rods'
+/// 1/`sub_increments(steps)` of it). `inner(problems, t, guess)` is one increment's Newton solve: the rods'
 /// problems at the loads of path parameter t, with the friction state of the last
 /// converged increment, from `guess` (it may take the problems and must leave them in
 /// place). After each converged increment the nodes are checked for crossing an obstacle
@@ -737,19 +740,20 @@ pub(crate) fn follow<C: Reached>(
     // increment, from which the path goes on as without jumps. The contact that follows is
     // therefore met in the same increments as without jumps (to the solver's tolerance).
     let mut stride = 1usize;
-    // Where the path stands, in units of 1/SUB of a requested increment: increment i,
+    // Where the path stands, in units of 1/sub of a requested increment: increment i,
     // position `at` in it. A failed increment is halved (level `depth`: length
-    // SUB >> depth), and after a success the length doubles again where the position
+    // sub >> depth), and after a success the length doubles again where the position
     // allows, so that sub-increments are dyadic and end on the requested grid: the path
     // depends on `steps` and on where Newton needed shorter increments, nothing else.
+    let sub = sub_increments(steps);
     let mut i = 0usize;
-    let mut at = 0u32;
+    let mut at = 0u64;
     let mut depth = 0u32;
-    let param = |i: usize, at: u32| -> f64 {
+    let param = |i: usize, at: u64| -> f64 {
         if i >= steps {
             1.0
         } else {
-            (i as f64 + at as f64 / SUB as f64) / steps as f64
+            (i as f64 + at as f64 / sub as f64) / steps as f64
         }
     };
     let mut t = 0.0;
@@ -758,7 +762,7 @@ pub(crate) fn follow<C: Reached>(
     let mut iterations = 0;
     let mut levels = 0;
     loop {
-        let len = SUB >> depth;
+        let len = sub >> depth;
         let span = if clear && depth == 0 && at == 0 {
             stride.min(steps - i)
         } else {
@@ -767,7 +771,7 @@ pub(crate) fn follow<C: Reached>(
         let jump = span > 1;
         let (next_i, next_at) = if jump {
             (i + span, 0)
-        } else if at + len >= SUB {
+        } else if at + len >= sub {
             (i + 1, 0)
         } else {
             (i, at + len)
@@ -794,7 +798,7 @@ pub(crate) fn follow<C: Reached>(
                 res,
                 t,
                 format!(
-                    "the frictional load path failed at {:.4} of the path: {why}, even in an increment of {:.3e} (1/{SUB} of one of the {} requested): the stick/slip switches are too sharp for Newton there; a softer penalty stiffness (whose elastic slip mu delta is longer; raise the tolerance with it) or more max_iter may help",
+                    "the frictional load path failed at {:.4} of the path: {why}, even in an increment of {:.3e} (1/{sub} of one of the {} requested): the stick/slip switches are too sharp for Newton there; a softer penalty stiffness (whose elastic slip mu delta is longer; raise the tolerance with it) or more max_iter may help",
                     t, dt, steps
                 ),
             )
@@ -805,6 +809,9 @@ pub(crate) fn follow<C: Reached>(
                 iterations += c.iterations();
                 let cx = c.x();
                 let rods = rods_of(&problems, &cx);
+                // The nodes where this increment lands, kept as the reference of the next
+                // crossing check once the increment is accepted (not for a discarded jump).
+                let mut landed = None;
                 if check_crossing {
                     let shape = last.at(&rods);
                     if let Some(cr) = last.crossing(&shape, &rods, system) {
@@ -818,7 +825,7 @@ pub(crate) fn follow<C: Reached>(
                         depth += 1;
                         continue;
                     }
-                    last = shape;
+                    landed = Some(shape);
                 }
                 let next: Vec<Option<FrictionState>> = rods
                     .iter()
@@ -833,6 +840,9 @@ pub(crate) fn follow<C: Reached>(
                 if jump && !lands_clear {
                     stride = span / 2;
                     continue;
+                }
+                if let Some(shape) = landed {
+                    last = shape;
                 }
                 if lands_clear {
                     stride = (2 * span).min(steps);
@@ -873,6 +883,19 @@ pub(crate) fn follow<C: Reached>(
             }
         }
     }
+}
+
+/// The finest subdivision of a requested increment (a power of two, so that halvings stay
+/// dyadic and end on the requested grid): 1/SUB of it, and, for a path coarser than the
+/// default, fine enough that the smallest sub-increment is at most 1/SUB of the default
+/// path's increment. Where Newton needs short increments is set by the contact (e.g.
+/// just after a point lands in the penalty's smoothing zone, where the bundled finger on
+/// a table with mu = 0.5 needs 1.6e-4 to 1e-3 of the path whatever the request), not by
+/// how many increments were requested; a floor relative to a coarse request (1/1024 of a
+/// third of the path is 3.3e-4) would refuse paths that finer requests solve.
+fn sub_increments(steps: usize) -> u64 {
+    let coarse = DEFAULT_FRICTION_STEPS.div_ceil(steps.max(1)) as u64;
+    SUB * coarse.next_power_of_two()
 }
 
 /// The scaled residual and its exact Jacobian (dual numbers) of the frictional problem
