@@ -13,6 +13,7 @@ import dataclasses
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 import softrod
 from adapter_checks import central_difference
@@ -277,6 +278,21 @@ def test_calibrate_system_command_writes_a_system_that_loads(system, run, tmp_pa
         softrod.solve_system_batch(back, p).platform_position,
         softrod.solve_system_batch(api.system, p).platform_position,
     )
+    result = run(
+        "calibrate-system",
+        SYSTEM,
+        tmp_path / "pcr.csv",
+        "--params",
+        "E",
+        "--predictions",
+        tmp_path / "pred.csv",
+        "--plot",
+        tmp_path / "fit.png",
+    )
+    assert result.exit_code == 0, result.output
+    pred = pd.read_csv(tmp_path / "pred.csv", comment="#")
+    assert len(pred) == len(ds) and {"error_mm", "set"} <= set(pred.columns)
+    assert (tmp_path / "fit.png").read_bytes().startswith(b"\x89PNG")
     result = run("calibrate-system", SYSTEM, tmp_path / "pcr.csv", "--params", "E", "--json")
     assert result.exit_code == 0, result.output
     parsed = json.loads(result.stdout)

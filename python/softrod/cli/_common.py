@@ -26,6 +26,9 @@ from ..io import check_target, staged_paths
 
 ATM = 101_325.0  # Pa; gauge pressures below -1 atm are impossible
 
+#: The figure formats the commands write.
+PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+
 
 def _settings() -> dict:
     """The group options of this invocation (--quiet, --verbose)."""

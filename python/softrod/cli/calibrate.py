@@ -12,6 +12,7 @@ import click
 
 from ..errors import InputError, design_error
 from ._common import (
+    PLOT_SUFFIXES,
     _as_option,
     _check_output,
     _fmt,
@@ -648,6 +649,19 @@ def calibrate(
     help="Write the calibrated system here (.toml) and its rods' designs beside it "
     "(<stem>_rod<i>.toml, with their [design.provenance]); all files or none.",
 )
+@click.option(
+    "--predictions",
+    "predictions_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the measured and predicted platform of every sample here (.csv or .parquet).",
+)
+@click.option(
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Draw the measured against the predicted platform positions and each row's error "
+    "(.png, .pdf or .svg).",
+)
 @_json_option
 @_threads_option("Worker threads per model evaluation (0 = all cores).")
 @_handle_errors
@@ -662,6 +676,8 @@ def calibrate_system_cmd(
     weight_items,
     max_evaluations,
     out,
+    predictions_path,
+    plot_path,
     as_json,
     threads,
 ):
@@ -674,6 +690,7 @@ def calibrate_system_cmd(
     """
     import json
 
+    import matplotlib.pyplot as plt
     import numpy as np
     from rich.console import Console
     from rich.text import Text
@@ -682,6 +699,7 @@ def calibrate_system_cmd(
     from ..calibration.system import calibrate_system, parse_system_parameters
     from ..datasets import load_dataset
     from ..errors import CalibrationWarning
+    from ..io import TABLE_SUFFIXES, write_table
     from ..system import load_system
 
     sysm = load_system(system)
@@ -690,6 +708,13 @@ def calibrate_system_cmd(
     weights = _parse_pairs(weight_items, "--weights", "tip=0.2mm") or None
     if out is not None:
         out = _check_output(out, "--out", (".toml",), "a system file")
+    outputs = {}
+    if predictions_path is not None:
+        outputs["predictions"] = _check_output(
+            predictions_path, "--predictions", TABLE_SUFFIXES, "a table"
+        )
+    if plot_path is not None:
+        outputs["plot"] = _check_output(plot_path, "--plot", PLOT_SUFFIXES, "a figure")
     try:
         dataset = load_dataset(data)
     except InputError as exc:
@@ -763,6 +788,15 @@ def calibrate_system_cmd(
     if not as_json:
         lead = "no warnings" if not found else "rules"
         note.print(Text(f"{lead}: {warning_thresholds()}", style="dim"))
+    if outputs:
+        with _staged(list(outputs.values())) as staged:
+            for tmp, kind in zip(staged, outputs, strict=True):
+                if kind == "predictions":
+                    write_table(result.to_frame(), tmp)
+                else:
+                    plt.close(result.plot(tmp))
+        for path in outputs.values():
+            _say(f"wrote {path}", stderr=as_json)
     if out is not None:
         result.system.save(out)
         _say(f"wrote {out} and its rods' designs", stderr=as_json)

@@ -12,6 +12,7 @@ import click
 
 from ..errors import InputError, design_error
 from ._common import (
+    PLOT_SUFFIXES,
     _alpha_option,
     _check_output,
     _energy_tol_option,
@@ -26,7 +27,6 @@ from ._common import (
 
 TRAJECTORY_SUFFIXES = (".parquet", ".npz")
 ANIMATION_SUFFIXES = (".gif", ".mp4")
-PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 BUILTIN_PULSES = {"paper000": "paper 000 Fig. 3 style square pulses (116 s, 3 channels)"}
 
 

@@ -12,6 +12,7 @@ import click
 
 from ..errors import DesignError, InputError, design_error
 from ._common import (
+    PLOT_SUFFIXES,
     _alpha_option,
     _check_output,
     _contact_json,
@@ -32,7 +33,6 @@ from ._common import (
 )
 
 SYSTEM_TRAJECTORY_SUFFIXES = (".npz", ".csv", ".parquet")
-PLOT_SUFFIXES = (".png", ".pdf", ".svg")
 
 _PER_ROD = "Give it once per rod, in the system file's order ({n} rods); default: {default}."
 
