@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import os
 import re
 import time
 import warnings
@@ -58,6 +59,8 @@ from .result import error_tables, record
 from .solve import METHODS, Settings, run_starts, start_points, starts_table
 
 if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
     from .._types import PathLike, Quantity
 
 logger = logging.getLogger("softrod.calibrate")
@@ -418,7 +421,9 @@ class SystemCalibrationResult:
         cols["set"] = self.labels
         return pd.DataFrame(cols)
 
-    def plot(self, path=None, *, initial: np.ndarray | None = None):
+    def plot(
+        self, path: str | os.PathLike | None = None, *, initial: np.ndarray | None = None
+    ) -> Figure:
         """Measured against predicted platform positions (front view, x-z) and each row's
         platform error, train and test rows marked; ``initial``: (m, 3) platform positions
         of another model (e.g. the system before calibration) drawn and compared too.
