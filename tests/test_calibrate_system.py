@@ -433,3 +433,27 @@ def test_tendon_driven_system_round_trip():
     assert ds.n_channels == 0 and ds.n_tendons == 8
     res = calibrate_system(pair, ds, names, progress=False)
     np.testing.assert_allclose(res.values, values, rtol=EXACT)
+
+
+def test_system_jacobian_with_contact_matches_central_differences():
+    """Two fingers pressed onto their (frictionless) table holding one clip: the contact
+    penalty is a line load of each rod's shooting ODE and its rounded end's force a term of
+    its tip balance, both carried by the dual passes. E's column of the clip's position
+    and of markers against central differences (C1 penalty, no contact switch within the
+    step): the same bound as the contact-free test."""
+    pair = softrod.load_system("two_fingers_on_table")
+    params = parse_system_parameters(["E"], pair)
+    p = np.array([[[30e3], [30e3]], [[40e3], [35e3]], [[45e3], [20e3]]])
+    ds = softrod.synthesize_system_dataset(
+        pair, p, markers=[("platform", [0.01, 0, 0]), ("rod0", 0.04, [0, 0])], seed=0
+    )
+    assert all(r.contact.total_force[0][2] > 0 for r in softrod.solve_system(pair, p[0]).rods)
+    adapter = SystemStatic(pair, ds, params, softrod.SolverOptions(tol=1e-13), 1)
+    theta = np.array([params[0].value(pair)])
+    rows = np.arange(len(ds))
+    exact = adapter.predict(theta, rows, True)
+    assert exact.ok.all()
+    for quantity, d in (("tip", exact.d_tip), ("markers", exact.d_markers)):
+        fd = central_difference(adapter, theta, rows, 0, quantity)
+        scale = np.abs(fd).max()
+        assert np.abs(d[..., 0] - fd).max() < 1e-5 * scale, quantity
