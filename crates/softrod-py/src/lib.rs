@@ -694,6 +694,8 @@ impl PoseArrays {
     }
 
     /// Row r's derivatives, one entry per parameter (`markers[j][k]`).
+    // The indices address three strided layouts at once: iterators would hide them.
+    #[allow(clippy::needless_range_loop)]
     pub(crate) fn derivatives(
         &mut self,
         r: usize,
