@@ -22,17 +22,25 @@
 //!   t_{n-1} with their derivatives) and the rods' dual tip reactions (the tip slot's
 //!   history carries derivatives, `Problem::tip_reaction_with`).
 //!
-//! The exact G_x is factored at every step's converged state (one factorization of the
-//! system per step besides Newton's; Newton keeps its own matrix, so tracking does not
-//! change the run). The dual evaluation at x_{n+1} + eps dx/dtheta then gives every rod's
-//! stage fields (its slots' new derivatives, as the lone rod's, `dynamics::sensitivity`),
-//! node and marker positions, and the platform's pose and motion (`kin_of`), whose
-//! derivatives are the next step's history. The start (at rest in equilibrium: c0 = 0, no
-//! history, the chart based at the rest rotation) is differentiated the same way, on the
-//! collocation grids the run starts from (the static system's derivatives,
+//! Factoring G_x at every step would cost more than the step itself (Newton keeps its
+//! matrix over many steps), so the linear equation is solved as the lone rod's is, by
+//! iterative refinement with a kept matrix M (the exact one of an earlier step, else the
+//! one Newton kept for this step): dx += -M^-1 (d_theta G + G_x dx), whose bracket is
+//! again one exact dual evaluation (at x_{n+1} + eps dx), from the last step's dx. It
+//! converges to the exact dx/dtheta as fast as Newton did with M; a parameter is done when
+//! its correction, or the error left after it at the measured contraction rate, is below
+//! 1e-9 of its derivative's size. Where M does not contract by 1/4 per correction (or none
+//! is kept, as at the start) the exact G_x is factored at the converged state and solved
+//! once, and it serves the next steps' refinements (Newton keeps its own, so tracking does
+//! not change the run). The dual evaluation at the final x_{n+1} + eps dx/dtheta then gives
+//! every rod's stage fields (its slots' new derivatives, as the lone rod's,
+//! `dynamics::sensitivity`), node and marker positions, and the platform's pose and motion
+//! (`kin_of`), whose derivatives are the next step's history. The start (at rest in
+//! equilibrium: c0 = 0, no history, the chart based at the rest rotation) is
+//! differentiated with the exact matrix, on the collocation grids the run starts from (the static system's derivatives,
 //! `sensitivity::system`, to the difference of the two discretisations). No finite
-//! differences; the error is that of the converged Newton solutions (tol) propagated
-//! linearly.
+//! differences; the errors are that of the converged Newton solutions (tol) propagated
+//! linearly and the refinement's 1e-9.
 //!
 //! Supported: what the lone rod supports (`dynamics::sensitivity`: BDF-alpha with fixed
 //! steps, section parameters, the damping time) on any rod, one value shared by several
@@ -68,7 +76,19 @@ pub(in crate::dynamics) struct SysTracker {
     shape: Vec<Vec<Vec<[f64; 3]>>>,
     /// d marker / d theta_j of rod i's markers now: `rod_markers[i][j][k]`.
     rod_markers: Vec<Vec<Vec<[f64; 3]>>>,
+    /// dx/dtheta_j of the last step (scaled unknowns: every rod's, the platform's 6): the
+    /// refinement's start.
+    last: Vec<Option<Derivative>>,
+    /// The largest |dx/dtheta_j| (scaled) so far: the refinement's tolerance is relative
+    /// to it.
+    scale: Vec<f64>,
+    /// The exact matrix factored at an earlier step and its c0: the next steps refine with
+    /// it (Newton keeps its own, so that tracking does not change the run).
+    own: Option<(Bordered, f64)>,
 }
+
+/// dx/dtheta of one parameter (scaled unknowns): every rod's, then the platform's 6.
+type Derivative = (Vec<Vec<f64>>, [f64; 6]);
 
 const ZERO_SLOT: Slot = Slot {
     x1: [0.0; FIELDS],
@@ -92,14 +112,43 @@ fn not_solvable(what: &str) -> SoftrodError {
 /// needs besides the tracker.
 struct At<'a, 'p> {
     coupled: &'a Coupled<'p>,
+    /// The matrix the linear equation is solved with: the exact one at the converged
+    /// state (`refine` false: one solve), or one kept from earlier (`refine` true: the
+    /// iterative refinement, module docs).
     matrix: &'a Bordered,
+    refine: bool,
     zs: &'a [Vec<f64>],
     xi: &'a [f64; 6],
     /// The step's time formula; None at rest (c0 = 0, no history).
     bdf: Option<Bdf>,
     /// Per rod: pressures, tensions and sigma of its models.
-    inputs: Vec<(&'a [f64], &'a [f64], [f64; 3])>,
+    inputs: &'a [(&'a [f64], &'a [f64], [f64; 3])],
 }
+
+/// What one solve needs besides the matrix (`SystemSimulator::run_chunks`).
+struct Solve<'a, 'p> {
+    coupled: &'a mut Coupled<'p>,
+    zs: &'a [Vec<f64>],
+    xi: &'a [f64; 6],
+    bdf: Option<Bdf>,
+    inputs: Vec<(&'a [f64], &'a [f64], [f64; 3])>,
+    /// A matrix kept from earlier steps (None: factor the exact one).
+    kept: Option<&'a Bordered>,
+    /// What the solve is of, for the error of a singular matrix.
+    what: String,
+}
+
+/// Refinement steps with a kept matrix before the exact one is factored.
+const MAX_REFINE: usize = 12;
+/// The refinement falls back to the exact matrix when a correction is not below this
+/// fraction of the last one (Newton's rule for keeping its matrix, as the lone rod's
+/// sensitivities, `dynamics::sensitivity`).
+const RATE_MAX: f64 = 0.25;
+/// The refinement stops when a correction, or the error it leaves at the measured
+/// contraction rate (rate / (1 - rate) of it), is below this fraction of the derivative's
+/// size (scaled unknowns; the largest the derivative has been in the run): as fine as the
+/// state itself is solved, the lone rod's REFINE_TOL.
+const REFINE_TOL: f64 = 1e-9;
 
 impl SystemSimulator {
     /// Track d(state)/d(theta) from now on for `params` (checked against the rods and the
@@ -138,6 +187,9 @@ impl SystemSimulator {
             prev: vec![[0.0; 24]; np],
             shape: vec![vec![vec![]; np]; n],
             rod_markers: vec![vec![vec![]; np]; n],
+            last: vec![None; np],
+            scale: vec![0.0; np],
+            own: None,
         };
         // The rest state's equations (as `SystemSimulator::new` solved them), the chart
         // based at the rest rotation (phi = 0 there).
@@ -185,12 +237,8 @@ impl SystemSimulator {
             problems,
             eq: PlatformEq::rest(&self.body, self.now.rot),
         };
-        let matrix = coupled
-            .factor(&zs, &xi)
-            .ok_or_else(|| not_solvable("initial equilibrium"))?;
-        let at = At {
-            coupled: &coupled,
-            matrix: &matrix,
+        let solve = Solve {
+            coupled: &mut coupled,
             zs: &zs,
             xi: &xi,
             bdf: None,
@@ -199,8 +247,10 @@ impl SystemSimulator {
                 .iter()
                 .map(|s| (s.pressures.as_slice(), s.tensions.as_slice(), s.sigma))
                 .collect(),
+            kept: None,
+            what: "initial equilibrium".into(),
         };
-        self.run_chunks(&mut tr, &at)?;
+        self.run_chunks(&mut tr, solve)?;
         self.sens = Some(Box::new(tr));
         Ok(())
     }
@@ -433,13 +483,12 @@ impl SystemSimulator {
         };
         let out = self.advance_tracker(&mut tr, c);
         self.sens = Some(tr);
-        out?;
-        self.stats.jacobians += 1;
+        self.stats.jacobians += out?;
         Ok(())
     }
 
-    /// [`SystemSimulator::advance_sensitivity`].
-    fn advance_tracker(&self, tr: &mut SysTracker, c: &SystemCandidate) -> Result<()> {
+    /// [`SystemSimulator::advance_sensitivity`]; returns the matrices factored (0 or 1).
+    fn advance_tracker(&self, tr: &mut SysTracker, c: &SystemCandidate) -> Result<usize> {
         let problems: Vec<Problem> = self
             .rods
             .iter()
@@ -465,12 +514,20 @@ impl SystemSimulator {
             },
         };
         let zs: Vec<Vec<f64>> = c.rods.iter().map(|rc| rc.z_scaled.clone()).collect();
-        let matrix = coupled
-            .factor(&zs, &c.xi)
-            .ok_or_else(|| not_solvable(&format!("step to t = {:.6} s", self.time + c.h)))?;
-        let at = At {
-            coupled: &coupled,
-            matrix: &matrix,
+        let c0 = c.terms.c0;
+        // The matrix to refine with: the exact one of an earlier step with this c0, else
+        // the one Newton kept for this step.
+        let own = tr.own.take().filter(|(_, k)| *k == c0);
+        let kept = match &own {
+            Some((m, _)) => Some(m),
+            None => self
+                .kept
+                .as_ref()
+                .filter(|k| k.key.platform.c0 == c0)
+                .map(|k| &k.matrix),
+        };
+        let solve = Solve {
+            coupled: &mut coupled,
             zs: &zs,
             xi: &c.xi,
             bdf: Some(c.rods[0].bdf),
@@ -480,28 +537,78 @@ impl SystemSimulator {
                 .zip(&c.rods)
                 .map(|(r, rc)| (rc.pressures.as_slice(), r.tensions.as_slice(), rc.sigma))
                 .collect(),
+            kept,
+            what: format!("step to t = {:.6} s", self.time + c.h),
         };
-        self.run_chunks(tr, &at)
+        let exact = self.run_chunks(tr, solve)?;
+        let factored = usize::from(exact.is_some());
+        tr.own = match exact {
+            Some(m) => Some((m, c0)),
+            None => own,
+        };
+        Ok(factored)
     }
 
-    /// Every chunk of parameters through one solve `at`.
-    fn run_chunks(&self, tr: &mut SysTracker, at: &At) -> Result<()> {
+    /// Every chunk of parameters through one solve: refined with the kept matrix where one
+    /// is given and contracts, else with the exact matrix, factored at the converged state
+    /// once (and returned).
+    fn run_chunks(&self, tr: &mut SysTracker, solve: Solve) -> Result<Option<Bordered>> {
+        let Solve {
+            coupled,
+            zs,
+            xi,
+            bdf,
+            inputs,
+            kept,
+            what,
+        } = solve;
         let np = tr.params.len();
+        let mut exact: Option<Bordered> = None;
         for j0 in (0..np).step_by(CHUNK) {
             let n_par = (np - j0).min(CHUNK);
             // The dual number as wide as the chunk (as the lone rod's).
-            match n_par {
+            let dispatch = |tr: &mut SysTracker, at: &At| match n_par {
                 1 => self.chunk::<1>(tr, j0, at),
                 2 => self.chunk::<2>(tr, j0, at),
                 3 => self.chunk::<3>(tr, j0, at),
                 _ => self.chunk::<CHUNK>(tr, j0, at),
-            }?;
+            };
+            let mut solved = false;
+            if let (None, Some(m)) = (&exact, kept) {
+                let at = At {
+                    coupled: &*coupled,
+                    matrix: m,
+                    refine: true,
+                    zs,
+                    xi,
+                    bdf,
+                    inputs: &inputs,
+                };
+                solved = dispatch(tr, &at)?;
+            }
+            if !solved {
+                if exact.is_none() {
+                    exact = Some(coupled.factor(zs, xi).ok_or_else(|| not_solvable(&what))?);
+                }
+                let at = At {
+                    coupled: &*coupled,
+                    matrix: exact.as_ref().expect("factored above"),
+                    refine: false,
+                    zs,
+                    xi,
+                    bdf,
+                    inputs: &inputs,
+                };
+                dispatch(tr, &at)?;
+            }
         }
-        Ok(())
+        Ok(exact)
     }
 
     /// The derivatives of the parameters j0..j0 + N over the solve `at` (module docs).
-    fn chunk<const N: usize>(&self, tr: &mut SysTracker, j0: usize, at: &At) -> Result<()> {
+    /// Ok(false), the tracker untouched, where the refinement with a kept matrix does not
+    /// contract (the exact matrix is needed).
+    fn chunk<const N: usize>(&self, tr: &mut SysTracker, j0: usize, at: &At) -> Result<bool> {
         let n_par = N.min(tr.params.len() - j0);
         let coupled = at.coupled;
         let body = coupled.eq.body;
@@ -572,53 +679,102 @@ impl SystemSimulator {
                 mass.eps[q] = 1.0;
             }
         }
-        // d_theta G (with G_H dH/dtheta): every rod's residual at its converged unknowns,
-        // its held rows with the dual held pose, its dual tip reaction; the platform's rows.
-        let xi_c: [Jet<N>; 6] = at.xi.map(Jet::<N>::from);
-        let pose = kin_of(body.ls, &terms_d, &xi_c);
-        let mut rs_d = Vec::with_capacity(self.rods.len());
-        let mut reactions = Vec::with_capacity(self.rods.len());
-        for (i, (p, z)) in coupled.problems.iter().zip(at.zs).enumerate() {
-            let zc: Vec<Jet<N>> = z.iter().map(|&x| Jet::<N>::from(x)).collect();
-            let mut r = p.residual_with(&models_d[i], &hist_d[i], &zc);
-            // The residual's held rows read the f64 pose: add the pose's derivative.
-            let (rt, rot) = p.tip_pose(z);
-            let held = held_rows(&pose, &body.attach[i], &rt, &rot, 1.0 / p.rod.length);
-            let row0 = p.tip_rows();
-            for (k, h) in held.iter().enumerate() {
-                for q in 0..n_par {
-                    r[row0 + k].eps[q] += h.eps[q];
-                }
-            }
-            reactions.push(p.tip_reaction_with(&hist_d[i], &zc));
-            rs_d.push(r);
-        }
-        let g_d = rows_of(body, mass, &terms_d, &xi_c, &reactions);
-        // dx/dtheta = -G_x^-1 d_theta G, parameter by parameter.
+        // dx/dtheta = -G_x^-1 (d_theta G + G_H dH/dtheta): with the exact G_x one solve
+        // from dx = 0; with a kept matrix M, dx += -M^-1 (d_theta G + G_x dx) from the last
+        // step's dx, the bracket one exact dual evaluation at x + eps dx.
         let mut zd: Vec<Vec<Jet<N>>> = at
             .zs
             .iter()
             .map(|z| z.iter().map(|&x| Jet::<N>::from(x)).collect())
             .collect();
-        let mut xid = xi_c;
-        for q in 0..n_par {
-            let rs: Vec<Vec<f64>> = rs_d
-                .iter()
-                .map(|r| r.iter().map(|x| x.eps[q]).collect())
-                .collect();
-            let g: [f64; 6] = std::array::from_fn(|k| g_d[k].eps[q]);
-            let (dzs, dxi) = at
-                .matrix
-                .correction(&rs, &g)
-                .ok_or_else(|| not_solvable("state"))?;
-            for (zi, dz) in zd.iter_mut().zip(&dzs) {
-                for (x, d) in zi.iter_mut().zip(dz) {
-                    x.eps[q] = *d;
+        let mut xid: [Jet<N>; 6] = at.xi.map(Jet::<N>::from);
+        if at.refine {
+            for q in 0..n_par {
+                if let Some((dzs, dxi)) = &tr.last[j0 + q] {
+                    for (zi, dz) in zd.iter_mut().zip(dzs) {
+                        for (x, d) in zi.iter_mut().zip(dz) {
+                            x.eps[q] = *d;
+                        }
+                    }
+                    for k in 0..6 {
+                        xid[k].eps[q] = dxi[k];
+                    }
                 }
             }
-            for k in 0..6 {
-                xid[k].eps[q] = dxi[k];
+        }
+        let size_of = |zd: &[Vec<Jet<N>>], xid: &[Jet<N>; 6], q: usize| {
+            let mut m = xid.iter().fold(0.0f64, |m, x| m.max(x.eps[q].abs()));
+            for z in zd {
+                m = z.iter().fold(m, |m, x| m.max(x.eps[q].abs()));
             }
+            m
+        };
+        let mut last = [f64::INFINITY; N];
+        let mut done = [false; N];
+        for _ in 0..if at.refine { MAX_REFINE } else { 1 } {
+            let (rs_d, g_d) = dual_residual(
+                coupled, &models_d, &hist_d, &terms_d, mass, at.zs, &zd, &xid,
+            );
+            for q in 0..n_par {
+                if done[q] {
+                    continue;
+                }
+                let rs: Vec<Vec<f64>> = rs_d
+                    .iter()
+                    .map(|r| r.iter().map(|x| x.eps[q]).collect())
+                    .collect();
+                let g: [f64; 6] = std::array::from_fn(|k| g_d[k].eps[q]);
+                let (dzs, dxi) = at
+                    .matrix
+                    .correction(&rs, &g)
+                    .ok_or_else(|| not_solvable("state"))?;
+                let mut step = dxi.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                for (zi, dz) in zd.iter_mut().zip(&dzs) {
+                    for (x, d) in zi.iter_mut().zip(dz) {
+                        x.eps[q] += *d;
+                        step = step.max(d.abs());
+                    }
+                }
+                for k in 0..6 {
+                    xid[k].eps[q] += dxi[k];
+                }
+                if !at.refine {
+                    done[q] = true;
+                    continue;
+                }
+                if !step.is_finite() || step > RATE_MAX * last[q] {
+                    return Ok(false); // not contracting: the exact matrix is needed
+                }
+                let size = size_of(&zd, &xid, q).max(tr.scale[j0 + q]);
+                // The error left after this correction at the measured rate (none
+                // measured on the first correction).
+                let left = if last[q].is_finite() {
+                    let rate = step / last[q];
+                    step * rate / (1.0 - rate)
+                } else {
+                    f64::INFINITY
+                };
+                if step <= REFINE_TOL * size || left <= REFINE_TOL * size {
+                    done[q] = true;
+                }
+                last[q] = step;
+            }
+            if done[..n_par].iter().all(|d| *d) {
+                break;
+            }
+        }
+        if !done[..n_par].iter().all(|d| *d) {
+            return Ok(false);
+        }
+        for q in 0..n_par {
+            let j = j0 + q;
+            tr.scale[j] = tr.scale[j].max(size_of(&zd, &xid, q));
+            tr.last[j] = Some((
+                zd.iter()
+                    .map(|z| z.iter().map(|x| x.eps[q]).collect())
+                    .collect(),
+                std::array::from_fn(|k| xid[k].eps[q]),
+            ));
         }
         // The new state's derivatives: the platform's motion, every rod's slots, nodes
         // and markers.
@@ -678,6 +834,43 @@ impl SystemSimulator {
                 tr.rod_markers[i][j] = markers.iter().map(|v| v.map(|x| x.eps[q])).collect();
             }
         }
-        Ok(())
+        Ok(true)
     }
+}
+
+/// The step's residual in `Jet<N>` at the dual unknowns (`zd`, `xid`; their f64 parts the
+/// converged `zs` and xi): every rod's residual with its dual models and histories, its
+/// held rows with the dual held pose added (the residual's own read the f64 pose: the two
+/// dual parts add up to the rows' full linearisation), its dual tip reaction; the
+/// platform's rows with the dual mass and step terms.
+#[allow(clippy::too_many_arguments)]
+fn dual_residual<const N: usize>(
+    coupled: &Coupled,
+    models_d: &[Vec<SectionModel<Jet<N>>>],
+    hist_d: &[Vec<[Jet<N>; NF]>],
+    terms_d: &StepTerms<Jet<N>>,
+    mass: Jet<N>,
+    zs: &[Vec<f64>],
+    zd: &[Vec<Jet<N>>],
+    xid: &[Jet<N>; 6],
+) -> (Vec<Vec<Jet<N>>>, [Jet<N>; 6]) {
+    let body = coupled.eq.body;
+    let pose = kin_of(body.ls, terms_d, xid);
+    let mut rs_d = Vec::with_capacity(zd.len());
+    let mut reactions = Vec::with_capacity(zd.len());
+    for (i, (p, z)) in coupled.problems.iter().zip(zd).enumerate() {
+        let mut r = p.residual_with(&models_d[i], &hist_d[i], z);
+        let (rt, rot) = p.tip_pose(&zs[i]);
+        let held = held_rows(&pose, &body.attach[i], &rt, &rot, 1.0 / p.rod.length);
+        let row0 = p.tip_rows();
+        for (k, h) in held.iter().enumerate() {
+            for q in 0..N {
+                r[row0 + k].eps[q] += h.eps[q];
+            }
+        }
+        reactions.push(p.tip_reaction_with(&hist_d[i], z));
+        rs_d.push(r);
+    }
+    let g_d = rows_of(body, mass, terms_d, xid, &reactions);
+    (rs_d, g_d)
 }
