@@ -18,7 +18,7 @@ import pytest
 import softrod
 from adapter_checks import central_difference
 from conftest import assert_clean_error
-from softrod import InputError
+from softrod import InputError, StiffnessMap
 from softrod.calibration.system import (
     SystemStatic,
     calibrate_system,
@@ -328,15 +328,19 @@ def test_a_system_is_saved_whole_or_not_at_all(system, tmp_path):
         np.testing.assert_array_equal(a.attachment_rotation, b.attachment_rotation)
 
 
-def test_stiffness_mapped_rods_are_refused_in_systems(system):
-    """sigma is never assumed to be 1: a system's statics does not evaluate stiffness maps,
-    so a mapped section is refused by name in every entry point (it once solved with
-    sigma = 1 silently)."""
+def test_stiffness_mapped_rods_are_refused_in_systems(system, tmp_path):
+    """sigma is never assumed to be 1: a mapped rod whose design names no stiffness map is
+    refused by name in every system entry point (it once solved with sigma = 1 silently).
+    With a map file the rod takes its sigma from it: synthetic data and a noise-free fit
+    of the system recover the truth, and the sigma_* parameters stay refused."""
     mapped = system.rods[0].design.replace({"sections[1].law": {"stiffness_map": True}})
-    sysm = dataclasses.replace(
-        system, rods=(dataclasses.replace(system.rods[0], design=mapped), system.rods[1])
-    )
-    field = "rods[0].design.sections[1].law.stiffness_map"
+
+    def with_rod0(design):
+        rod0 = dataclasses.replace(system.rods[0], design=design)
+        return dataclasses.replace(system, rods=(rod0, system.rods[1]))
+
+    sysm = with_rod0(mapped)
+    field = "rods[0].design.stiffness_map"
     p = np.zeros((2, 2, 3))
     for call in (
         lambda: softrod.solve_system(sysm, p[0]),
@@ -346,9 +350,33 @@ def test_stiffness_mapped_rods_are_refused_in_systems(system):
             sysm, Dataset(pressures=np.zeros((1, 6)), tip_position=np.zeros((1, 3))), ["E"]
         ),
     ):
-        with pytest.raises(InputError) as e:
+        with pytest.raises(InputError, match="never assumed to be 1") as e:
             call()
         assert e.value.field == field
+    # A table over the rows' pressures (0..30 kPa per channel), saved and named by the
+    # rod's design.
+    axes = [np.array([0.0, 15e3, 30e3])] * 3
+    table = np.random.default_rng(2).uniform(0.5, 1.6, (3, 3, 3, 3))
+    sysm = with_rod0(
+        mapped.with_stiffness_map(StiffnessMap.from_table(axes, table).save(tmp_path / "s.json"))
+    )
+    names = ["E[ecoflex_00_50_table1]", "platform_mass"]
+    params = parse_system_parameters(names, sysm)
+    values = np.array([1.15, 1.25]) * np.array([q.value(sysm) for q in params])
+    truth = calibrated_system(sysm, params, values)
+    rows = _pressures(8)
+    ds = softrod.synthesize_system_dataset(truth, rows, seed=0)
+    # sigma acts: rod 0 with sigma = 1 would hold the platform up to ~1 mm away, five
+    # orders above the 1e-9 m the fit reproduces the data to below.
+    ones = softrod.StiffnessMap.constant((1.0, 1.0, 1.0), 3)
+    unit = softrod.solve_system_batch(truth, rows, stiffness_maps=[ones, None])
+    assert np.abs(unit.platform_position - ds.tip_position).max() > 1e-4
+    res = calibrate_system(sysm, ds, names, progress=False)
+    assert res.success and res.converged.all()
+    np.testing.assert_allclose(res.values, values, rtol=EXACT)
+    assert np.abs(res.predicted - ds.tip_position).max() < 1e-9
+    with pytest.raises(InputError, match="not fitted on systems"):
+        calibrate_system(sysm, ds, ["sigma_ext"], progress=False)
 
 
 def test_registration_of_the_measurement_frame_is_recovered(system):
@@ -405,3 +433,27 @@ def test_tendon_driven_system_round_trip():
     assert ds.n_channels == 0 and ds.n_tendons == 8
     res = calibrate_system(pair, ds, names, progress=False)
     np.testing.assert_allclose(res.values, values, rtol=EXACT)
+
+
+def test_system_jacobian_with_contact_matches_central_differences():
+    """Two fingers pressed onto their (frictionless) table holding one clip: the contact
+    penalty is a line load of each rod's shooting ODE and its rounded end's force a term of
+    its tip balance, both carried by the dual passes. E's column of the clip's position
+    and of markers against central differences (C1 penalty, no contact switch within the
+    step): the same bound as the contact-free test."""
+    pair = softrod.load_system("two_fingers_on_table")
+    params = parse_system_parameters(["E"], pair)
+    p = np.array([[[30e3], [30e3]], [[40e3], [35e3]], [[45e3], [20e3]]])
+    ds = softrod.synthesize_system_dataset(
+        pair, p, markers=[("platform", [0.01, 0, 0]), ("rod0", 0.04, [0, 0])], seed=0
+    )
+    assert all(r.contact.total_force[0][2] > 0 for r in softrod.solve_system(pair, p[0]).rods)
+    adapter = SystemStatic(pair, ds, params, softrod.SolverOptions(tol=1e-13), 1)
+    theta = np.array([params[0].value(pair)])
+    rows = np.arange(len(ds))
+    exact = adapter.predict(theta, rows, True)
+    assert exact.ok.all()
+    for quantity, d in (("tip", exact.d_tip), ("markers", exact.d_markers)):
+        fd = central_difference(adapter, theta, rows, 0, quantity)
+        scale = np.abs(fd).max()
+        assert np.abs(d[..., 0] - fd).max() < 1e-5 * scale, quantity

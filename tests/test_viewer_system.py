@@ -88,6 +88,32 @@ def test_a_frictional_system_continues_its_load_path():
         assert "rod 0 contact" in v._status.content
 
 
+def test_a_stiffness_mapped_rod_is_shown_with_its_designs_map(tmp_path):
+    """A rod whose section is stiffness-mapped takes its design's map in the viewer's
+    re-solves, as in solve_system; without a map the viewer refuses it before the server
+    starts, naming the rod."""
+    system = softrod.load_system(SYSTEM)
+    mapped = system.rods[0].design.replace({"sections[1].law": {"stiffness_map": True}})
+    smap = softrod.StiffnessMap.constant((1.4, 0.6, 0.8), 3)
+    rod0 = dataclasses.replace(
+        system.rods[0], design=mapped.with_stiffness_map(smap.save(tmp_path / "sigma.json"))
+    )
+    with_map = dataclasses.replace(system, rods=(rod0, system.rods[1]))
+    p = [[30e3, 0.0, 0.0], [0.0, 10e3, 0.0]]
+    with softrod.view_system(with_map, environment_map=False) as v:
+        shown = v.solution
+        sol = v.set_inputs(pressures=p)
+        same = softrod.solve_system(with_map, p, initial=shown, on_unstable="ignore")
+        np.testing.assert_array_equal(sol.platform_position, same.platform_position)
+        np.testing.assert_array_equal(sol.rods[0].stiffness_scale, [1.4, 0.6, 0.8])
+    bare = dataclasses.replace(
+        system, rods=(dataclasses.replace(system.rods[0], design=mapped), system.rods[1])
+    )
+    with pytest.raises(InputError, match="never assumed to be 1") as e:
+        softrod.view_system(bare, environment_map=False)
+    assert e.value.field == "rods[0].design.stiffness_map"
+
+
 def test_view_system_command_refuses_a_bad_range(run):
     result = run("view-system", SYSTEM, "--pressure-range", "70kPa:0")
     assert result.exit_code == 2 and "--pressure-range" in result.stderr

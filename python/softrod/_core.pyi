@@ -417,6 +417,7 @@ def solve_rod_system(
     on_invalid: str = "raise",
     friction_steps: int = ...,
     history: SystemFrictionState | None = None,
+    stiffness_scale: Sequence[Sequence[float] | None] | None = None,
 ) -> dict[str, Any]: ...
 def solve_constrained_tip_batch(
     rod: Rod,
@@ -450,6 +451,7 @@ def solve_rod_system_batch(
     stretch_range: tuple[float, float] = ...,
     on_invalid: str = "raise",
     friction_steps: int = ...,
+    stiffness_scale: _ArrayLike | None = None,
 ) -> dict[str, Any]: ...
 def rod_system_sensitivity_batch(
     rods: Sequence[tuple[Rod, _Vec3, _Vec3, _Vec3, Sequence[Sequence[float]]]],
@@ -466,4 +468,5 @@ def rod_system_sensitivity_batch(
     max_load_steps: int = 200,
     stretch_range: tuple[float, float] = ...,
     on_invalid: str = "ignore",
+    stiffness_scale: _ArrayLike | None = None,
 ) -> dict[str, Any]: ...

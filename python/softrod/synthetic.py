@@ -238,10 +238,21 @@ def synthesize_system_dataset(
     Gaussian noise of ``noise_mm`` (per axis); ``seed`` makes it reproducible (drawn and
     recorded when None). Frictional systems are refused (their equilibria depend on the
     load path). Raises :class:`~softrod.errors.ConvergenceError` listing rows that did not
-    converge. ``metadata["synthetic"]`` is True and records the system, noise and seed.
+    converge. ``metadata["synthetic"]`` is True and records the system, noise and seed. A
+    stiffness-mapped rod's sigma comes from its design's map (``[stiffness_map] file``),
+    for every row as :func:`~softrod.solve_system_batch` evaluates it.
     """
     from . import __version__, _core
-    from .system import System, _batch_entries, _platform_args, _system_rows, load_system
+    from .system import (
+        System,
+        _batch_entries,
+        _platform_args,
+        _system_rows,
+        check_rods,
+        load_system,
+        rod_blocks,
+        system_sigma,
+    )
 
     if not isinstance(system, System):
         system = load_system(system)
@@ -260,6 +271,8 @@ def synthesize_system_dataset(
                 "a frictional system's equilibria depend on their load path: synthesize "
                 "with frictionless obstacles",
             )
+    # Each stiffness-mapped rod's design map (sigma never assumed to be 1).
+    maps = check_rods(system)
     nc = [rod.design.n_channels for rod in system.rods]
     nt = [rod.design.n_tendons for rod in system.rods]
     if pressures is None and tensions is None:
@@ -279,6 +292,7 @@ def synthesize_system_dataset(
         raise _fail(
             f"pressures[{r}]", float(flat_p[r, k]), f"gauge pressures must be >= {V.VACUUM_PA:g} Pa"
         )
+    sigma = system_sigma(maps, rod_blocks(np.asarray(flat_p, dtype=float), nc))
     core_markers = (
         []
         if sites is None
@@ -295,6 +309,7 @@ def synthesize_system_dataset(
         tensions=None if flat_t is None else np.ascontiguousarray(flat_t, dtype=float),
         markers=core_markers,
         threads=V.threads(threads),
+        stiffness_scale=sigma,
         **_options(options).as_kwargs(),
     )
     failed = np.flatnonzero(~np.asarray(out["converged"], dtype=bool))
@@ -323,6 +338,8 @@ def synthesize_system_dataset(
         "seed": int(seed),
         "tip": "the platform origin's position",
     }
+    if sigma is not None:
+        meta["stiffness_maps"] = [None if smap is None else repr(smap) for smap in maps]
     exp = None
     if experiment is not None:
         exp = np.asarray(experiment)

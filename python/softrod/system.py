@@ -46,14 +46,19 @@ from .io import exists as _exists
 from .io import is_file as _is_file
 from .solution import Contact, StaticSolution, _mm
 from .statics import (
+    _UNIT_SCALE,
     SolverOptions,
     _frictional,
+    _mapped_sections,
     _options,
     _policy,
     _pressures,
     _report_stability,
+    _sigma_rows,
+    _stiffness_map,
     _tensions,
 )
+from .stiffness_map import SIGMA_NAMES, StiffnessMap
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -416,6 +421,7 @@ def solve_system(
     check: bool = True,
     on_invalid: str = "raise",
     on_unstable: str = "warn",
+    stiffness_maps: Any = None,
 ) -> SystemSolution:
     """Static equilibrium of a :class:`System` (or a system file / bundled name).
 
@@ -431,6 +437,14 @@ def solve_system(
     says what an unstable equilibrium does, as for :func:`solve_statics`: "warn" (default, a
     :class:`StabilityWarning`), "raise" (:class:`InvalidStateError` with rule "stability")
     or "ignore".
+
+    A rod whose design has a stiffness-mapped section (``[sections.law] stiffness_map =
+    true``, docs/stiffness-map.md) has its stiffness scaled by sigma of its own pressures,
+    evaluated once as :func:`solve_statics` evaluates it for that rod alone: from its
+    design's map (``[stiffness_map] file``), or from ``stiffness_maps`` (one
+    :class:`StiffnessMap` or None per rod; a map given replaces the design's). A mapped
+    rod without a map is refused (sigma is never assumed to be 1). Each rod's solution
+    reports its sigma in ``stiffness_scale``.
 
     Where some rod's design has an obstacle with friction > 0 the system follows a load
     path (docs/contact.md, "Friction in the statics", "Systems of rods"): from the
@@ -457,13 +471,15 @@ def solve_system(
             raise V.fail(name, value, f"must be a list of {n} entries, one per rod", InputError)
         return list(value)
 
-    check_rods(system)
+    maps = check_rods(system, stiffness_maps, argument=True)
     ps = per_rod(pressures, "pressures")
     ts = per_rod(tensions, "tensions")
     entries = []
-    for rod, p, t in zip(system.rods, ps, ts, strict=True):
+    sigmas = []
+    for i, (rod, p, t, smap) in enumerate(zip(system.rods, ps, ts, maps, strict=True)):
         d = rod.design
         pv = [0.0] * d.n_channels if p is None else _pressures(d, p)
+        sigmas.append(None if smap is None else _rod_sigma(i, smap, np.array([pv]))[0])
         tip = d.spec["tip"]
         entries.append(
             (
@@ -492,6 +508,7 @@ def solve_system(
             on_invalid=on_invalid,
             friction_steps=int(opts.friction_steps),
             history=state,
+            stiffness_scale=[None if sg is None else sg.tolist() for sg in sigmas],
             **opts.as_kwargs(),
         )
     except ConvergenceError as exc:
@@ -511,7 +528,7 @@ def solve_system(
         )
     _report_stability(out["stable"], on_unstable, f"the system {system.name!r}'s equilibrium")
     sols = []
-    for rod, entry, o in zip(system.rods, entries, out["rods"], strict=True):
+    for rod, entry, o, sg in zip(system.rods, entries, out["rods"], sigmas, strict=True):
         sols.append(
             StaticSolution(
                 design=rod.design,
@@ -529,6 +546,7 @@ def solve_system(
                 residual=o["residual"],
                 load_steps=o["load_steps"],
                 shooting_unknowns=np.array(o["x"]),
+                stiffness_scale=_UNIT_SCALE if sg is None else sg,
                 stable=out["stable"],
                 violations=tuple(o["violations"]),
                 tip_loads=(tuple(entry[3]), tuple(entry[4])),
@@ -604,7 +622,9 @@ class SystemBatchSolution:
     assessed); stability_assessed (m,) bool (as :func:`solve_system`). contact_force and
     friction_force: per rod, None (no obstacles) or its obstacles' resultant contact forces
     and their tangential (friction) parts, (m, obstacles, 3) N (world frame; NaN on failed
-    rows). metadata: the metadata block of :meth:`to_frame`.
+    rows). stiffness_scale: per rod, None (no stiffness-mapped section) or its (m, 3) sigma
+    (sigma_ext, sigma_bend_x, sigma_bend_y; docs/stiffness-map.md). metadata: the metadata
+    block of :meth:`to_frame`.
     """
 
     system: System
@@ -630,6 +650,7 @@ class SystemBatchSolution:
     )
     contact_force: tuple = field(default=(), repr=False)
     friction_force: tuple = field(default=(), repr=False)
+    stiffness_scale: tuple = field(default=(), repr=False)
     metadata: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __len__(self) -> int:
@@ -649,9 +670,10 @@ class SystemBatchSolution:
         its tip position ``rod<i>_tip_x_mm`` ... and the platform's reaction on its tip
         ``rod<i>_tip_reaction_fx_N`` ... ``rod<i>_tip_reaction_mz_Nmm`` (world frame); per
         rod with obstacles its contact forces ``rod<i>_contact<k>_fx_N`` ... and their
-        friction parts ``rod<i>_friction<k>_fx_N`` ...; then ``converged``, ``iterations``,
-        ``residual``, ``stable`` (empty where stability was not assessed: friction,
-        follower loads). Failed rows keep NaN. The metadata block
+        friction parts ``rod<i>_friction<k>_fx_N`` ...; per stiffness-mapped rod its sigma
+        ``rod<i>_sigma_ext``, ``rod<i>_sigma_bend_x``, ``rod<i>_sigma_bend_y``; then
+        ``converged``, ``iterations``, ``residual``, ``stable`` (empty where stability was
+        not assessed: friction, follower loads). Failed rows keep NaN. The metadata block
         (``frame.attrs["softrod.metadata"]``) is :attr:`metadata`."""
         import pandas as pd
 
@@ -668,6 +690,10 @@ class SystemBatchSolution:
                         cols[f"rod{i}_{name}{k}_f{a}_{chosen['force']}"] = (
                             arr[:, k, j] / factor["force"]
                         )
+        for i, sigma in enumerate(self.stiffness_scale):
+            if sigma is not None:
+                for k, name in enumerate(SIGMA_NAMES):
+                    cols[f"rod{i}_{name}"] = sigma[:, k]
         cols["converged"] = np.asarray(self.converged, dtype=bool)
         cols["iterations"] = np.asarray(self.iterations)
         cols["residual"] = np.asarray(self.residual, dtype=float)
@@ -774,6 +800,7 @@ def solve_system_batch(
     threads: int = 0,
     on_invalid: str = "raise",
     on_unstable: str = "warn",
+    stiffness_maps: Any = None,
 ) -> SystemBatchSolution:
     """Static equilibria of a :class:`System` for many inputs at once, in parallel (Rust,
     ``threads`` cores, 0 = all, GIL released).
@@ -794,6 +821,10 @@ def solve_system_batch(
     naming the row, the rod and the rule before any work. Where some rod's obstacle has
     friction > 0 every row is its own load path from the unloaded rods in
     ``options.friction_steps`` increments, exactly as :func:`solve_system` solves it alone.
+    Stiffness-mapped rods and ``stiffness_maps`` as in :func:`solve_system`: each rod's map
+    is evaluated on its block of rows as :func:`solve_statics_batch` evaluates a map, each
+    row's sigma bitwise the single solve's (``stiffness_scale``: per rod, None or its (m, 3)
+    sigma).
     """
     import warnings
 
@@ -805,7 +836,7 @@ def solve_system_batch(
     on_unstable = _policy("on_unstable", on_unstable)
     threads = V.threads(threads)
     opts = _options(options)
-    check_rods(system)
+    maps = check_rods(system, stiffness_maps, argument=True)
     nc = [rod.design.n_channels for rod in system.rods]
     nt = [rod.design.n_tendons for rod in system.rods]
     if not sum(nc) and not sum(nt):
@@ -865,6 +896,7 @@ def solve_system_batch(
                 "a tendon tension must be >= 0 (a tendon pulls or is slack, it cannot push)",
                 InputError,
             )
+    sigma = system_sigma(maps, ps)
     entries = _batch_entries(system)
     platform = _platform_args(system, platform_force, platform_moment)
     flat_p = np.ascontiguousarray(np.concatenate(ps, axis=1) if ps else np.zeros((m, 0)))
@@ -877,6 +909,7 @@ def solve_system_batch(
         threads=threads,
         on_invalid=on_invalid,
         friction_steps=int(opts.friction_steps),
+        stiffness_scale=sigma,
         **opts.as_kwargs(),
     )
     violation = np.asarray(out["violation"], dtype=object)
@@ -912,6 +945,8 @@ def solve_system_batch(
         platform_force_N=platform[2],
         platform_moment_Nm=platform[3],
     )
+    if sigma is not None:
+        meta["stiffness_maps"] = [None if smap is None else repr(smap) for smap in maps]
     contact = out["contact"]
     if any(_frictional(r.design) is not None for r in system.rods):
         meta["friction_steps"] = int(opts.friction_steps)  # every row's load path
@@ -937,15 +972,86 @@ def solve_system_batch(
         stability_assessed=assessed,
         contact_force=tuple(None if c is None else c["contact_force"] for c in contact),
         friction_force=tuple(None if c is None else c["friction_force"] for c in contact),
+        stiffness_scale=tuple(
+            None if smap is None else _read_only_rows(sigma[:, i, :]) for i, smap in enumerate(maps)
+        ),
         metadata=meta,
     )
 
 
-def check_rods(system: System) -> None:
-    """Refuse, naming the rod, what a system's statics cannot carry: a rod whose design
-    holds its own tip ([tip] constraint: the platform holds it), and a stiffness-mapped
-    section (sigma is never assumed to be 1, and the system's statics does not evaluate
-    stiffness maps)."""
+def _read_only_rows(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.flags.writeable = False
+    return a
+
+
+def check_rods(
+    system: System, stiffness_maps: Any = None, *, argument: bool = False
+) -> list[StiffnessMap | None]:
+    """Check what a system's statics can carry, naming the rod, and return each rod's
+    stiffness map (None for a rod without stiffness-mapped sections). A rod whose design
+    holds its own tip ([tip] constraint: the platform holds it) is refused. A rod with a
+    mapped section uses the map of ``stiffness_maps`` (one :class:`StiffnessMap` or None
+    per rod; ``argument``: the entry point takes that argument) or else its design's
+    (``[stiffness_map] file``); one with neither is refused (sigma is never assumed to be
+    1), as is a map given for a rod without mapped sections or for another number of
+    channels."""
+    n = len(system.rods)
+    _check_tips(system)
+    if stiffness_maps is None:
+        given = [None] * n
+    else:
+        if isinstance(stiffness_maps, (str, bytes, dict, StiffnessMap)) or not isinstance(
+            stiffness_maps, (list, tuple)
+        ):
+            raise V.fail(
+                "stiffness_maps",
+                stiffness_maps,
+                f"must be a list of {n} entries, one per rod: a softrod.StiffnessMap or None",
+                InputError,
+            )
+        if len(stiffness_maps) != n:
+            raise V.fail(
+                "stiffness_maps",
+                f"{len(stiffness_maps)} entries",
+                f"must be a list of {n} entries, one per rod: a softrod.StiffnessMap or None",
+                InputError,
+            )
+        given = list(stiffness_maps)
+    maps: list[StiffnessMap | None] = []
+    for i, (rod, smap) in enumerate(zip(system.rods, given, strict=True)):
+        d = rod.design
+        if smap is None and d.stiffness_map is None:
+            mapped = _mapped_sections(d)
+            if mapped:
+                hint = (
+                    "give it a map in stiffness_maps= (one softrod.StiffnessMap or None per "
+                    "rod, e.g. StiffnessMap.from_table or from_csv) or reference"
+                    if argument
+                    else "reference"
+                )
+                raise V.fail(
+                    f"rods[{i}].design.stiffness_map",
+                    None,
+                    f"section(s) {', '.join(mapped)} of design {d.name!r} set [sections.law] "
+                    f"stiffness_map = true: {hint} a map file in the rod's design "
+                    '([stiffness_map] file = "sigma.json"); sigma is never assumed to be 1',
+                    InputError,
+                )
+            maps.append(None)
+            continue
+        try:
+            maps.append(_stiffness_map(d, smap))
+        except DesignError as e:
+            raise V.fail(
+                f"stiffness_maps[{i}]", e.value, f"rods[{i}]: {e.rule}", InputError
+            ) from None
+    return maps
+
+
+def _check_tips(system: System) -> None:
+    """Refuse, naming the rod, a rod whose design holds its own tip ([tip] constraint: the
+    platform holds it)."""
     for i, rod in enumerate(system.rods):
         d = rod.design
         if d.tip_constraint is not None:
@@ -955,24 +1061,47 @@ def check_rods(system: System) -> None:
                 "its [tip] constraint is set; a system's rod tips hold the platform",
                 InputError,
             )
-        for k, sec in enumerate(d.spec["sections"]):
-            if (sec.get("law") or {}).get("stiffness_map", False):
-                raise V.fail(
-                    f"rods[{i}].design.sections[{k}].law.stiffness_map",
-                    True,
-                    f"section {sec['name']!r} of design {d.name!r} is stiffness-mapped: a "
-                    "system's statics does not evaluate stiffness maps (sigma is never "
-                    "assumed to be 1); solve the rod alone with its map, or give the "
-                    "section its stiffness without a map",
-                    InputError,
-                )
+
+
+def _rod_sigma(i: int, smap: StiffnessMap, pressures: np.ndarray) -> np.ndarray:
+    """sigma (m, 3) of rod ``i``'s pressure rows (m, channels), each row as
+    :func:`solve_statics` evaluates it for that row alone (``statics._sigma_rows``: so a
+    batch row is bitwise the single solve's); a map's refusal names the rod."""
+    try:
+        return np.ascontiguousarray(_sigma_rows(smap, pressures), dtype=float)
+    except DesignError as e:
+        raise V.fail(
+            f"rods[{i}].{e.field}", e.value, f"{e.rule} (rod {i}'s {smap!r})", InputError
+        ) from None
+
+
+def rod_blocks(flat: np.ndarray, widths: list[int]) -> list[np.ndarray]:
+    """Per rod, its (m, width_i) columns of an (m, sum of widths) array whose rows hold rod
+    0's values, then rod 1's, ... (a system dataset's pressure columns)."""
+    edges = np.cumsum([0, *widths])
+    return [np.ascontiguousarray(flat[:, a:b]) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+
+
+def system_sigma(maps: list[StiffnessMap | None], pressures: list[np.ndarray]) -> np.ndarray | None:
+    """The (m, n, 3) sigma of every row and rod of a system batch from each rod's map
+    (:func:`check_rods`) and its (m, channels) pressure block, each row as
+    :func:`solve_system` evaluates it alone (a rod without a map: 1, which acts nowhere);
+    None when no rod has a map."""
+    if all(smap is None for smap in maps):
+        return None
+    m = len(pressures[0]) if pressures else 0
+    out = np.ones((m, len(maps), 3))
+    for i, (smap, p) in enumerate(zip(maps, pressures, strict=True)):
+        if smap is not None:
+            out[:, i, :] = _rod_sigma(i, smap, p)
+    return out
 
 
 def _batch_entries(system: System) -> list[tuple]:
     """The binding's rods of a system batch: each rod's core rod, its design's tip loads
-    and its attachment (the rows give the pressures and tensions); the rods checked
-    (:func:`check_rods`)."""
-    check_rods(system)
+    and its attachment (the rows give the pressures, tensions and sigma: :func:`check_rods`
+    and :func:`system_sigma`); no rod may hold its own tip."""
+    _check_tips(system)
     entries = []
     for rod in system.rods:
         tip = rod.design.spec["tip"]

@@ -844,6 +844,22 @@ impl<'r, 'a> SystemRows<'r, 'a> {
                 })
                 .collect()
         };
+        let n = rods.len();
+        match inputs.stiffness_scale {
+            Some(s) if s.len() != count * n * 3 => {
+                return Err(SoftrodError::invalid(
+                    "stiffness_scale",
+                    format!("{} values", s.len()),
+                    format!("must be an ({count}, {n}, 3) array: every row's sigma of every rod"),
+                ));
+            }
+            Some(_) => {}
+            None => {
+                for (i, sr) in rods.iter().enumerate() {
+                    crate::statics::system::rod_sigma(i, sr.rod, None)?;
+                }
+            }
+        }
         let (oc, ot) = (offsets(&nc), offsets(&nt));
         let rows = SystemRows {
             rods,
@@ -867,7 +883,7 @@ impl<'r, 'a> SystemRows<'r, 'a> {
         Ok(rows)
     }
 
-    /// Row r's rods with their loads.
+    /// Row r's rods with their loads: the row's pressures, tensions and sigma.
     fn rods(&self, r: usize) -> Vec<SystemRod<'a>> {
         let (wc, wt) = (self.nc.iter().sum::<usize>(), self.nt.iter().sum::<usize>());
         self.rods
@@ -880,10 +896,16 @@ impl<'r, 'a> SystemRows<'r, 'a> {
                     Some(t) => t[r * wt + self.ot[i]..r * wt + self.ot[i] + self.nt[i]].to_vec(),
                     None => vec![0.0; self.nt[i]],
                 };
+                let k = 3 * (r * self.rods.len() + i);
+                let sigma = self
+                    .inputs
+                    .stiffness_scale
+                    .map_or([1.0; 3], |s| [s[k], s[k + 1], s[k + 2]]);
                 SystemRod {
                     loads: Loads {
                         pressures: p.to_vec(),
                         tensions: t,
+                        stiffness_scale: sigma,
                         ..sr.loads.clone()
                     },
                     ..sr.clone()
@@ -894,13 +916,30 @@ impl<'r, 'a> SystemRows<'r, 'a> {
 }
 
 /// The per-row inputs of a system batch: every rod's pressures, then every rod's tensions,
-/// each row the rods' values one after the other (row-major).
+/// each row the rods' values one after the other (row-major), and every rod's stiffness
+/// scale.
 #[derive(Debug, Clone, Copy)]
 pub struct SystemBatchInputs<'a> {
     /// (m, sum of the rods' channels) gauge pressures, Pa: rod 0's channels, then rod 1's...
     pub pressures: &'a [f64],
     /// (m, sum of the rods' tendon channels) tensions, N; None: every tendon slack.
     pub tensions: Option<&'a [f64]>,
+    /// (m, n_rods, 3) stiffness scaling factors sigma (paper 001, eq. 13) of every row and
+    /// rod, each finite and > 0 (a rod without stiffness-mapped sections ignores its
+    /// entries). None: 1, which only a system without mapped sections accepts (sigma is
+    /// never assumed to be 1: a rod with a mapped section is refused).
+    pub stiffness_scale: Option<&'a [f64]>,
+}
+
+impl<'a> SystemBatchInputs<'a> {
+    /// Pressures only: slack tendons, no stiffness scale.
+    pub fn pressures(pressures: &'a [f64]) -> Self {
+        SystemBatchInputs {
+            pressures,
+            tensions: None,
+            stiffness_scale: None,
+        }
+    }
 }
 
 /// Solve the system of `rods` holding `platform` for every row of `inputs` (each row one
@@ -910,9 +949,10 @@ pub struct SystemBatchInputs<'a> {
 /// Where some rod's obstacle has friction, every row is one [`solve_system_friction`]
 /// from the unloaded rods in `friction_steps` increments (its own load path; checked in
 /// 1..=`friction::MAX_FRICTION_STEPS` then, unused otherwise).
-/// The system, the inputs and (with `Policy::Raise`) the rods' operating ranges are checked
-/// before any work; an input error names the row and the rod ("row 3:
-/// rods[1].pressures[0]").
+/// Each row's rods take their sigma from `inputs.stiffness_scale` (a rod with a
+/// stiffness-mapped section needs it). The system, the inputs and (with `Policy::Raise`)
+/// the rods' operating ranges are checked before any work; an input error names the row
+/// and the rod ("row 3: rods[1].pressures[0]", "row 2: rods[0].stiffness_scale[1]").
 pub fn solve_system_batch(
     rods: &[SystemRod],
     platform: &Platform,

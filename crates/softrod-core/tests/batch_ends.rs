@@ -6,14 +6,14 @@
 mod common;
 use common::*;
 use softrod_core::batch::{
-    solve_constrained_batch, solve_system_batch, BatchInputs, BatchRow, SystemBatchInputs,
-    SystemBatchRow,
+    solve_constrained_batch, solve_system_batch, system_sensitivity_batch, BatchInputs, BatchRow,
+    SystemBatchInputs, SystemBatchRow,
 };
 use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::statics::constraint::{solve_constrained, TipConstraint};
 use softrod_core::statics::contact::report;
 use softrod_core::statics::friction::DEFAULT_FRICTION_STEPS;
-use softrod_core::statics::system::{solve_system, Platform, SystemRod};
+use softrod_core::statics::system::{rod_sigma, solve_system, Platform, SystemRod};
 use softrod_core::statics::SolverOptions;
 use softrod_core::{Rod, SoftrodError};
 
@@ -330,6 +330,7 @@ fn system_batch_equals_single_solves_bitwise() {
         let inputs = SystemBatchInputs {
             pressures: &flat,
             tensions: None,
+            stiffness_scale: None,
         };
         let out = solve_system_batch(
             &rods,
@@ -346,6 +347,7 @@ fn system_batch_equals_single_solves_bitwise() {
     let inputs = SystemBatchInputs {
         pressures: &flat[6 * 2..],
         tensions: None,
+        stiffness_scale: None,
     };
     let out =
         solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &opts, 2).unwrap();
@@ -357,6 +359,7 @@ fn system_batch_equals_single_solves_bitwise() {
     let inputs = SystemBatchInputs {
         pressures: &bad,
         tensions: None,
+        stiffness_scale: None,
     };
     let e = solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &opts, 1)
         .unwrap_err();
@@ -364,6 +367,7 @@ fn system_batch_equals_single_solves_bitwise() {
     let inputs = SystemBatchInputs {
         pressures: &flat[..7],
         tensions: None,
+        stiffness_scale: None,
     };
     let e = solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &opts, 1)
         .unwrap_err();
@@ -371,6 +375,7 @@ fn system_batch_equals_single_solves_bitwise() {
     let inputs = SystemBatchInputs {
         pressures: &flat,
         tensions: Some(&[1.0]),
+        stiffness_scale: None,
     };
     let e = solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &opts, 1)
         .unwrap_err();
@@ -385,6 +390,7 @@ fn system_batch_equals_single_solves_bitwise() {
     let inputs = SystemBatchInputs {
         pressures: &flat,
         tensions: None,
+        stiffness_scale: None,
     };
     let out =
         solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &tight, 2).unwrap();
@@ -397,4 +403,155 @@ fn system_batch_equals_single_solves_bitwise() {
         assert!(r.rods.iter().all(|k| k.tip_reaction_force[0].is_nan()));
         assert_eq!(r.x.len(), 18);
     }
+}
+
+#[test]
+fn system_batch_carries_every_rows_sigma_per_rod() {
+    // Rod 0's chambered section is stiffness-mapped (paper 001 eq. 13), rod 1 is plain.
+    let mapped = Rod::new({
+        let mut s = p002_actuator(IDENTITY, 9.81, 12);
+        s.mounting.base_position = [-0.02, 0.0, 0.0];
+        s.sections[1].law.stiffness_map = true;
+        s
+    })
+    .unwrap();
+    let plain = Rod::new({
+        let mut s = p002_actuator(IDENTITY, 9.81, 12);
+        s.mounting.base_position = [0.02, 0.0, 0.0];
+        s
+    })
+    .unwrap();
+    let (mut rods, platform) = system(&mapped);
+    rods[1].rod = &plain;
+    let rows_in: [[f64; 6]; 3] = [
+        [30e3, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [0.0, 20e3, 10e3, 10e3, 0.0, 0.0],
+        [35e3, 35e3, 0.0, 0.0, 0.0, 20e3],
+    ];
+    // Per row, rod 0's sigma then rod 1's (which acts nowhere: rod 1 has no mapped
+    // section, so any valid value gives the same bits as 1).
+    let sigma_in: [[f64; 6]; 3] = [
+        [1.0, 1.0, 1.0, 1.0, 1.0, 1.0],
+        [0.8, 1.3, 0.9, 2.0, 2.0, 2.0],
+        [1.5, 0.7, 1.1, 0.5, 0.5, 0.5],
+    ];
+    let flat: Vec<f64> = rows_in.iter().flatten().copied().collect();
+    let sigma: Vec<f64> = sigma_in.iter().flatten().copied().collect();
+    let opts = SolverOptions::default();
+    let single = |k: usize, sigma0: [f64; 3]| {
+        let mut rs = rods.clone();
+        rs[0].loads.pressures = rows_in[k][..3].to_vec();
+        rs[1].loads.pressures = rows_in[k][3..].to_vec();
+        rs[0].loads.stiffness_scale = sigma0;
+        solve_system(&rs, &platform, None, &opts).unwrap()
+    };
+    let inputs = SystemBatchInputs {
+        pressures: &flat,
+        tensions: None,
+        stiffness_scale: Some(&sigma),
+    };
+    for threads in [1, 2] {
+        let out = solve_system_batch(
+            &rods,
+            &platform,
+            &inputs,
+            DEFAULT_FRICTION_STEPS,
+            &opts,
+            threads,
+        )
+        .unwrap();
+        for (k, row) in out.iter().enumerate() {
+            let s = single(
+                k,
+                rod_sigma(0, &mapped, Some(sigma_in[k][..3].try_into().unwrap())).unwrap(),
+            );
+            assert!(row.converged, "row {k}");
+            assert_eq!(row.platform_position, s.platform_position, "row {k}");
+            assert_eq!(row.platform_rotation, s.platform_rotation, "row {k}");
+            assert_eq!(row.x, s.x, "row {k}");
+        }
+        // The sensitivity batch's rows are the same solves.
+        let sens =
+            system_sensitivity_batch(&rods, &platform, &inputs, None, &[], &[], &opts, threads)
+                .unwrap();
+        for (k, (a, b)) in sens.iter().zip(&out).enumerate() {
+            assert_eq!(a.x, b.x, "row {k}");
+        }
+    }
+    // sigma matters: a stiffer and softer rod 0 moves the platform (by millimetres here;
+    // 1e-4 m is far above the solver's 1e-10 relative tolerance).
+    let out =
+        solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &opts, 1).unwrap();
+    for k in [1, 2] {
+        let unit = single(k, [1.0; 3]);
+        let moved = dist(&out[k].platform_position, &unit.platform_position);
+        assert!(
+            moved > 1e-4,
+            "row {k}: sigma moved the platform by {moved} m"
+        );
+    }
+
+    // Refusals, before any work, naming the row and the rod.
+    let with = |s: &[f64]| {
+        let inputs = SystemBatchInputs {
+            pressures: &flat,
+            tensions: None,
+            stiffness_scale: Some(s),
+        };
+        field_of(
+            solve_system_batch(&rods, &platform, &inputs, DEFAULT_FRICTION_STEPS, &opts, 1)
+                .unwrap_err(),
+        )
+    };
+    assert_eq!(with(&sigma[..17]), "stiffness_scale");
+    for (at, bad, field) in [
+        (6 * 2 + 1, f64::NAN, "row 2: rods[0].stiffness_scale[1]"),
+        (6 + 2, 0.0, "row 1: rods[0].stiffness_scale[2]"),
+        (3, -1.0, "row 0: rods[1].stiffness_scale[0]"),
+        (
+            6 * 2 + 5,
+            f64::INFINITY,
+            "row 2: rods[1].stiffness_scale[2]",
+        ),
+    ] {
+        let mut s = sigma.clone();
+        s[at] = bad;
+        assert_eq!(with(&s), field, "sigma {bad}");
+    }
+    // No sigma for a system with a mapped rod: refused (never assumed to be 1), in both
+    // batches; a system without mapped rods needs none.
+    let none = SystemBatchInputs::pressures(&flat);
+    let e =
+        solve_system_batch(&rods, &platform, &none, DEFAULT_FRICTION_STEPS, &opts, 1).unwrap_err();
+    assert_eq!(field_of(e), "rods[0].stiffness_scale");
+    let e =
+        system_sensitivity_batch(&rods, &platform, &none, None, &[], &[], &opts, 1).unwrap_err();
+    assert_eq!(field_of(e), "rods[0].stiffness_scale");
+    let mut unmapped = rods.clone();
+    unmapped[0].rod = &plain;
+    assert!(solve_system_batch(
+        &unmapped,
+        &platform,
+        &none,
+        DEFAULT_FRICTION_STEPS,
+        &opts,
+        1
+    )
+    .unwrap()
+    .iter()
+    .all(|r| r.converged));
+    // A rod's sigma in the single solve: checked and named by its rod.
+    assert_eq!(
+        field_of(rod_sigma(0, &mapped, None).unwrap_err()),
+        "rods[0].stiffness_scale"
+    );
+    assert_eq!(rod_sigma(1, &plain, None).unwrap(), [1.0; 3]);
+    assert_eq!(
+        field_of(rod_sigma(1, &plain, Some([1.0, f64::NAN, 1.0])).unwrap_err()),
+        "rods[1].stiffness_scale[1]"
+    );
+    let mut rs = rods.clone();
+    rs[1].loads.stiffness_scale = [1.0, 1.0, -0.5];
+    let e = solve_system(&rs, &platform, None, &opts).unwrap_err();
+    assert_eq!(field_of(e), "rods[1].stiffness_scale[2]");
 }

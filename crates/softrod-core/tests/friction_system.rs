@@ -310,6 +310,7 @@ fn frictional_system_batch_rows_are_the_single_solves() {
     let inputs = SystemBatchInputs {
         pressures: &flat,
         tensions: None,
+        stiffness_scale: None,
     };
     for threads in [1, 2] {
         let out = solve_system_batch(&sr, &pf, &inputs, STEPS, &opts(), threads).unwrap();

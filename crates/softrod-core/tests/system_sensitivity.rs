@@ -298,6 +298,7 @@ fn system_batch_rows_are_the_single_solves() {
     let inputs = SystemBatchInputs {
         pressures: &pressures,
         tensions: None,
+        stiffness_scale: None,
     };
     let params = vec![
         SystemParam::Rods(vec![(0, param("E", &[1])), (1, param("E", &[1]))]),
@@ -427,6 +428,7 @@ fn bad_system_parameters_and_markers_are_refused_by_name() {
     let inputs = SystemBatchInputs {
         pressures: &p,
         tensions: None,
+        stiffness_scale: None,
     };
     let e = system_sensitivity_batch(
         &sys,

@@ -5,7 +5,7 @@ use crate::{
     array2, array3, contact_dict, contact_forces, guarded, options, rows_dict, solution_dict,
     to_py_err, Context, PoseArrays, PyFrictionState, PyRod,
 };
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::batch::{
@@ -19,7 +19,7 @@ use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
 use softrod_core::statics::friction;
 use softrod_core::statics::system::{
-    solve_system, solve_system_friction, Platform, SystemFrictionPath, SystemRod,
+    rod_sigma, solve_system, solve_system_friction, Platform, SystemFrictionPath, SystemRod,
 };
 use softrod_core::SoftrodError;
 use std::sync::Arc;
@@ -331,9 +331,11 @@ impl PySystemFrictionState {
 /// assessed)}. With an obstacle's friction > 0 on some rod the system follows the
 /// frictional load path (`statics::system::solve_system_friction`: `friction_steps`
 /// increments from the unloaded rods, or from `history`, a `SystemFrictionState` of this
-/// system; `guess` is refused), and the dict has "friction_state".
+/// system; `guess` is refused), and the dict has "friction_state". `stiffness_scale`: per
+/// rod, its sigma (3 factors > 0, paper 001 eq. 13) or None; None for all: no rod has one.
+/// A rod with a stiffness-mapped section needs its sigma (`statics::system::rod_sigma`).
 #[pyfunction]
-#[pyo3(signature = (rods, platform, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise", friction_steps=friction::DEFAULT_FRICTION_STEPS, history=None))]
+#[pyo3(signature = (rods, platform, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise", friction_steps=friction::DEFAULT_FRICTION_STEPS, history=None, stiffness_scale=None))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn solve_rod_system<'py>(
     py: Python<'py>,
@@ -348,8 +350,10 @@ fn solve_rod_system<'py>(
     on_invalid: &str,
     friction_steps: usize,
     history: Option<PyRef<'py, PySystemFrictionState>>,
+    stiffness_scale: Option<Vec<Option<[f64; 3]>>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
+        let input = |e: SoftrodError| to_py_err(py, e, Context::Input);
         let opts = options(
             py,
             tol,
@@ -359,22 +363,38 @@ fn solve_rod_system<'py>(
             stretch_range,
             on_invalid,
         )?;
+        let sigma = stiffness_scale.unwrap_or_else(|| vec![None; rods.len()]);
+        if sigma.len() != rods.len() {
+            return Err(input(SoftrodError::invalid(
+                "stiffness_scale",
+                format!("{} entries", sigma.len()),
+                format!(
+                    "must be a list of {} entries, one per rod: its sigma (3 factors) or None",
+                    rods.len()
+                ),
+            )));
+        }
         let system: Vec<SystemRod> = rods
             .iter()
-            .map(|(r, p, t, f, m, o, a)| SystemRod {
-                rod: &r.rod,
-                loads: Loads {
-                    pressures: p.clone(),
-                    tensions: t.clone(),
-                    tip_force: *f,
-                    tip_moment: *m,
-                    tip_frame: r.rod.spec.tip.frame,
-                    stiffness_scale: [1.0; 3],
-                },
-                attachment: *o,
-                attachment_rotation: *a,
+            .zip(&sigma)
+            .enumerate()
+            .map(|(i, ((r, p, t, f, m, o, a), s))| {
+                Ok(SystemRod {
+                    rod: &r.rod,
+                    loads: Loads {
+                        pressures: p.clone(),
+                        tensions: t.clone(),
+                        tip_force: *f,
+                        tip_moment: *m,
+                        tip_frame: r.rod.spec.tip.frame,
+                        stiffness_scale: rod_sigma(i, &r.rod, *s)?,
+                    },
+                    attachment: *o,
+                    attachment_rotation: *a,
+                })
             })
-            .collect();
+            .collect::<Result<_, SoftrodError>>()
+            .map_err(input)?;
         let pf = platform_of(platform);
         let history = history.map(|h| h.path.clone());
         let frictional =
@@ -477,8 +497,10 @@ pub(crate) fn platform_of(p: PlatformEntry) -> Platform {
 /// strings), and "contact": per rod, None or (a rod with obstacles) {"contact_force",
 /// "friction_force"} (m, obstacles, 3). NaN on failed rows. With friction on some rod's
 /// obstacle every row is its own load path (`friction_steps` increments).
+/// `stiffness_scale`: (m, n, 3) every row's sigma of every rod (paper 001 eq. 13); None:
+/// no rod has a stiffness-mapped section (`batch::SystemBatchInputs`).
 #[pyfunction]
-#[pyo3(signature = (rods, platform, pressures, tensions=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise", friction_steps=friction::DEFAULT_FRICTION_STEPS))]
+#[pyo3(signature = (rods, platform, pressures, tensions=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="raise", friction_steps=friction::DEFAULT_FRICTION_STEPS, stiffness_scale=None))]
 #[allow(clippy::too_many_arguments)]
 fn solve_rod_system_batch<'py>(
     py: Python<'py>,
@@ -494,6 +516,7 @@ fn solve_rod_system_batch<'py>(
     stretch_range: (f64, f64),
     on_invalid: &str,
     friction_steps: usize,
+    stiffness_scale: Option<PyReadonlyArray3<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let opts = options(
@@ -509,17 +532,42 @@ fn solve_rod_system_batch<'py>(
         let pf = platform_of(platform);
         let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
         let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
+        let sigma = sigma_rows(py, stiffness_scale, rods.len())?;
         let out = py
             .detach(|| {
                 let inputs = SystemBatchInputs {
                     pressures: &flat,
                     tensions: tens.as_deref(),
+                    stiffness_scale: sigma.as_deref(),
                 };
                 solve_system_batch(&system, &pf, &inputs, friction_steps, &opts, threads)
             })
             .map_err(|e| to_py_err(py, e, Context::Input))?;
         system_rows_dict(py, &system, &out)
     })
+}
+
+/// A system batch's (m, n, 3) sigma array as owned row-major data (copied before the GIL
+/// is released), its rod and component axes checked (the core checks the rows).
+fn sigma_rows(
+    py: Python<'_>,
+    sigma: Option<PyReadonlyArray3<'_, f64>>,
+    n: usize,
+) -> PyResult<Option<Vec<f64>>> {
+    let Some(s) = sigma else { return Ok(None) };
+    let shape = s.shape();
+    if shape[1] != n || shape[2] != 3 {
+        return Err(to_py_err(
+            py,
+            SoftrodError::invalid(
+                "stiffness_scale",
+                format!("shape {shape:?}"),
+                format!("must be an (m, {n}, 3) array: every row's sigma of every rod"),
+            ),
+            Context::Input,
+        ));
+    }
+    Ok(Some(s.as_array().iter().copied().collect()))
 }
 
 /// The arrays of a system batch's rows (`solve_rod_system_batch`'s dict).
@@ -617,7 +665,7 @@ fn system_rows_dict<'py>(
 }
 
 /// The rods of a system batch: each with its tip loads and attachment; the rows give the
-/// pressures and tensions.
+/// pressures, tensions and sigma.
 fn batch_rods<'a>(rods: &'a [BatchRodEntry<'_>]) -> Vec<SystemRod<'a>> {
     rods.iter()
         .map(|(r, f, m, o, a)| SystemRod {
@@ -646,11 +694,11 @@ pub(crate) type SystemParamEntry = (String, Vec<(usize, Vec<usize>)>);
 /// offset) with rod None for a point fixed to the platform (offset in the platform frame;
 /// s must be 0) or a rod's index (s its reference arc length, offset in its cross-section
 /// frame); m. `x0`: optional (m, 6 n + 6) warm starts (a previous call's "x"; NaN rows
-/// start cold). Adds "marker_position" (m, K, 3), "d_platform_position" (m, 3, P),
-/// "d_platform_rotation" (m, 3, 3, P) and "d_marker_position" (m, K, 3, P), NaN on failed
-/// rows.
+/// start cold). `stiffness_scale` as in `solve_rod_system_batch`. Adds "marker_position"
+/// (m, K, 3), "d_platform_position" (m, 3, P), "d_platform_rotation" (m, 3, 3, P) and
+/// "d_marker_position" (m, K, 3, P), NaN on failed rows.
 #[pyfunction]
-#[pyo3(signature = (rods, platform, pressures, params, tensions=None, markers=vec![], x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore"))]
+#[pyo3(signature = (rods, platform, pressures, params, tensions=None, markers=vec![], x0=None, threads=0, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), on_invalid="ignore", stiffness_scale=None))]
 #[allow(clippy::too_many_arguments)]
 fn rod_system_sensitivity_batch<'py>(
     py: Python<'py>,
@@ -668,6 +716,7 @@ fn rod_system_sensitivity_batch<'py>(
     max_load_steps: usize,
     stretch_range: (f64, f64),
     on_invalid: &str,
+    stiffness_scale: Option<PyReadonlyArray3<'py, f64>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let input = |e: SoftrodError| to_py_err(py, e, Context::Input);
@@ -687,11 +736,13 @@ fn rod_system_sensitivity_batch<'py>(
         let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
         let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
         let guesses: Option<Vec<f64>> = x0.map(|s| s.as_array().iter().copied().collect());
+        let sigma = sigma_rows(py, stiffness_scale, rods.len())?;
         let out = py
             .detach(|| {
                 let inputs = SystemBatchInputs {
                     pressures: &flat,
                     tensions: tens.as_deref(),
+                    stiffness_scale: sigma.as_deref(),
                 };
                 system_sensitivity_batch(
                     &system,

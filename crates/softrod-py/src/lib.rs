@@ -694,8 +694,6 @@ impl PoseArrays {
     }
 
     /// Row r's derivatives, one entry per parameter (`markers[j][k]`).
-    // The indices address three strided layouts at once: iterators would hide them.
-    #[allow(clippy::needless_range_loop)]
     pub(crate) fn derivatives(
         &mut self,
         r: usize,
@@ -707,13 +705,13 @@ impl PoseArrays {
         for j in 0..np {
             for i in 0..3 {
                 self.d_position[(r * 3 + i) * np + j] = position[j][i];
-                for c in 0..3 {
-                    self.d_rotation[((r * 3 + i) * 3 + c) * np + j] = rotation[j][i][c];
+                for (c, v) in rotation[j][i].iter().enumerate() {
+                    self.d_rotation[((r * 3 + i) * 3 + c) * np + j] = *v;
                 }
             }
-            for k in 0..nk {
-                for i in 0..3 {
-                    self.d_marker[((r * nk + k) * 3 + i) * np + j] = markers[j][k][i];
+            for (k, m) in markers[j][..nk].iter().enumerate() {
+                for (i, v) in m.iter().enumerate() {
+                    self.d_marker[((r * nk + k) * 3 + i) * np + j] = *v;
                 }
             }
         }

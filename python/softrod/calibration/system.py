@@ -60,7 +60,15 @@ from ..errors import (
 from ..progress import reporter
 from ..schema import PLATFORM_BODY
 from ..statics import SolverOptions, _frictional, _options
-from ..system import System, _batch_entries, _platform_args, load_system
+from ..system import (
+    System,
+    _batch_entries,
+    _platform_args,
+    check_rods,
+    load_system,
+    rod_blocks,
+    system_sigma,
+)
 from .diagnostics import diagnostics
 from .fit import _bounds, _evaluations, _scales, _split, _split_params
 from .params import DYNAMIC_KINDS, KINDS, SIGMA_KINDS, Parameter, design_changes, parse_parameter
@@ -242,6 +250,13 @@ class SystemStatic(ModelAdapter):
         self.initial = np.array([p.value(system) for p in params])
         self.p = np.ascontiguousarray(dataset.pressures, dtype=float)
         self.t = None if dataset.tensions is None else np.ascontiguousarray(dataset.tensions)
+        # sigma of the stiffness-mapped rods depends on the pressures alone, not on the
+        # fitted parameters: every row's, and the unactuated system's, evaluated once from
+        # the rods' design maps.
+        maps = check_rods(system)
+        widths = [rod.design.n_channels for rod in system.rods]
+        self.sigma = system_sigma(maps, rod_blocks(self.p, widths))
+        self.sigma_rest = system_sigma(maps, rod_blocks(np.zeros((1, self.p.shape[1])), widths))
         self.markers = _markers_core(dataset)
         self.opts = _options(options).as_kwargs()
         self.threads = threads
@@ -288,6 +303,7 @@ class SystemStatic(ModelAdapter):
             markers=self.markers,
             x0=x0,
             threads=self.threads,
+            stiffness_scale=None if self.sigma is None else np.ascontiguousarray(self.sigma[rows]),
             **self.opts,
         )
         ok = np.asarray(res["converged"], dtype=bool)
@@ -349,6 +365,7 @@ class SystemStatic(ModelAdapter):
         rest.__dict__.update(self.__dict__)
         rest.p = np.zeros((1, self.p.shape[1]))
         rest.t = None if self.t is None else np.zeros((1, self.t.shape[1]))
+        rest.sigma = self.sigma_rest
         one = rest._solve(calibrated, [], np.arange(1), False, warm=False)
         out = Prediction.empty(m, 0, len(self.markers), False)
         out.tip[:] = one.tip[0]
@@ -615,7 +632,9 @@ class SystemCalibrationResult:
         cols["set"] = self.labels
         return pd.DataFrame(cols)
 
-    def plot(self, path: PathLike | None = None, *, initial: np.ndarray | None = None) -> Figure:
+    def plot(
+        self, path: str | os.PathLike | None = None, *, initial: np.ndarray | None = None
+    ) -> Figure:
         """Measured against predicted platform positions (front view, x-z) and each row's
         platform error, train and test rows marked; ``initial``: (m, 3) platform positions
         of another model (e.g. the system before calibration) drawn and compared too.
@@ -735,7 +754,9 @@ def calibrate_system(
     markers sit on the platform or on a rod (``Dataset.marker_body``; in a file each
     marker's metadata names its ``body``, "platform" or "rod<i>", docs/datasets.md). Rows
     are solved as :func:`~softrod.solve_system` solves them (frictionless obstacles only:
-    friction makes an equilibrium depend on its load path).
+    friction makes an equilibrium depend on its load path). A stiffness-mapped rod takes
+    each row's sigma from its design's map (``[stiffness_map] file``; sigma depends on the
+    pressures alone, not on the fitted parameters, and is not itself fitted on a system).
     params: rod parameters (acting on every rod, or ``"rods[i].kind"`` on one) and
     ``"platform_mass"`` (see :mod:`softrod.calibration.system`). bounds, method, split,
     test, weights, options, threads, max_evaluations, restarts, seed, progress and executor
@@ -803,6 +824,7 @@ def calibrate_system(
             np.zeros((0, dataset.n_channels)),
             [p.core() for p in parameters],
             tensions=None if dataset.tensions is None else np.zeros((0, dataset.n_tendons)),
+            stiffness_scale=None if inner.sigma is None else np.ones((0, len(system.rods), 3)),
         )
     # The measurement frame (registration_*): the engine's wrapper of any adapter.
     adapter = Registered(inner, registration) if registration else inner

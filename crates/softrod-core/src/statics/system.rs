@@ -147,10 +147,54 @@ fn finite3(field: String, v: &[f64; 3]) -> Result<()> {
     Ok(())
 }
 
+/// Stiffness scaling factors sigma (paper 001, eq. 13): finite and > 0.
+pub(crate) fn check_sigma(field: &str, sigma: &[f64; 3]) -> Result<()> {
+    for (k, s) in sigma.iter().enumerate() {
+        if !(s.is_finite() && *s > 0.0) {
+            return Err(SoftrodError::invalid(
+                format!("{field}[{k}]"),
+                s,
+                "stiffness scaling factors must be finite and > 0",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The first section of `rod` whose stiffnesses are scaled by sigma (`[sections.law]
+/// stiffness_map`, paper 001 eq. 13), if any.
+pub fn mapped_section(rod: &Rod) -> Option<usize> {
+    rod.sections.iter().position(|s| s.law.stiffness_map)
+}
+
+/// Rod `i`'s sigma in a system: `given` (checked: finite and > 0), or, where none is given,
+/// 1 for a rod without stiffness-mapped sections, on which sigma acts nowhere. A rod with a
+/// mapped section and no sigma is refused: sigma is never assumed to be 1.
+pub fn rod_sigma(i: usize, rod: &Rod, given: Option<[f64; 3]>) -> Result<[f64; 3]> {
+    let field = format!("rods[{i}].stiffness_scale");
+    match (given, mapped_section(rod)) {
+        (Some(s), _) => {
+            check_sigma(&field, &s)?;
+            Ok(s)
+        }
+        (None, None) => Ok([1.0; 3]),
+        (None, Some(k)) => Err(SoftrodError::invalid(
+            field,
+            "None",
+            format!(
+                "sections[{k}] of rods[{i}] is stiffness-mapped ([sections.law] \
+                 stiffness_map): give the rod's sigma (3 factors > 0, from its stiffness \
+                 map); sigma is never assumed to be 1"
+            ),
+        )),
+    }
+}
+
 /// The system's own inputs: 1..=MAX_RODS rods, finite attachments and platform, proper
-/// rotations, mass >= 0. A rod's obstacles are its own (docs/contact.md): their penalty is a
-/// line load of its shooting ODE and its rounded end's force enters its tip balance, so the
-/// tip reaction the platform receives leaves that force out, as for a held tip.
+/// rotations, mass >= 0, every rod's sigma finite and > 0 (named by its rod). A rod's
+/// obstacles are its own (docs/contact.md): their penalty is a line load of its shooting
+/// ODE and its rounded end's force enters its tip balance, so the tip reaction the
+/// platform receives leaves that force out, as for a held tip.
 pub(crate) fn validate(rods: &[SystemRod], platform: &Platform) -> Result<()> {
     if rods.is_empty() || rods.len() > MAX_RODS {
         return Err(SoftrodError::invalid(
@@ -164,6 +208,10 @@ pub(crate) fn validate(rods: &[SystemRod], platform: &Platform) -> Result<()> {
         check_rotation(
             &format!("rods[{i}].attachment_orientation"),
             &r.attachment_rotation,
+        )?;
+        check_sigma(
+            &format!("rods[{i}].stiffness_scale"),
+            &r.loads.stiffness_scale,
         )?;
     }
     for (name, v) in [
