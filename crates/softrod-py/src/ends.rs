@@ -686,7 +686,7 @@ fn batch_rods<'a>(rods: &'a [BatchRodEntry<'_>]) -> Vec<SystemRod<'a>> {
 
 /// A system parameter: (kind, [(rod, sections)]), kinds as `ParamKind::ALL` names, or
 /// ("platform_mass", []).
-type SystemParamEntry = (String, Vec<(usize, Vec<usize>)>);
+pub(crate) type SystemParamEntry = (String, Vec<(usize, Vec<usize>)>);
 
 /// `solve_rod_system_batch` (frictionless systems) plus the markers and the exact
 /// derivatives of the platform pose and the markers with respect to `params`
@@ -730,57 +730,8 @@ fn rod_system_sensitivity_batch<'py>(
             on_invalid,
         )?;
         let system = batch_rods(&rods);
-        let params: Vec<SystemParam> = params
-            .into_iter()
-            .enumerate()
-            .map(|(j, (name, entries))| {
-                if name == "platform_mass" {
-                    return if entries.is_empty() {
-                        Ok(SystemParam::PlatformMass)
-                    } else {
-                        Err(SoftrodError::invalid(
-                            format!("params[{j}]"),
-                            format!("{} rods", entries.len()),
-                            "the platform's mass acts on no rod: give no rods",
-                        ))
-                    };
-                }
-                let Some(kind) = ParamKind::from_name(&name) else {
-                    return Err(SoftrodError::invalid(
-                        format!("params[{j}]"),
-                        &name,
-                        format!(
-                            "unknown parameter kind; known: platform_mass, {}",
-                            ParamKind::ALL.map(|(n, _)| n).join(", ")
-                        ),
-                    ));
-                };
-                Ok(SystemParam::Rods(
-                    entries
-                        .into_iter()
-                        .map(|(rod, sections)| (rod, Param { kind, sections }))
-                        .collect(),
-                ))
-            })
-            .collect::<Result<_, _>>()
-            .map_err(input)?;
-        let markers: Vec<SystemMarker> = markers
-            .into_iter()
-            .enumerate()
-            .map(|(k, (rod, s, offset))| match rod {
-                None if s != 0.0 => Err(SoftrodError::invalid(
-                    format!("markers[{k}].s"),
-                    s,
-                    "a marker fixed to the platform has no arc length: give 0",
-                )),
-                None => Ok(SystemMarker::Platform(offset)),
-                Some(rod) => Ok(SystemMarker::Rod {
-                    rod,
-                    marker: Marker { s, offset },
-                }),
-            })
-            .collect::<Result<_, _>>()
-            .map_err(input)?;
+        let params = system_params(params).map_err(input)?;
+        let markers = system_markers(markers).map_err(input)?;
         let pf = platform_of(platform);
         let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
         let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
@@ -831,4 +782,67 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solve_rod_system, m)?)?;
     m.add_class::<PySystemFrictionState>()?;
     Ok(())
+}
+
+/// A system's parameters from (kind, [(rod, sections)]) entries ("platform_mass" with no
+/// rods); errors name `params[j]`.
+pub(crate) fn system_params(
+    params: Vec<SystemParamEntry>,
+) -> Result<Vec<SystemParam>, SoftrodError> {
+    params
+        .into_iter()
+        .enumerate()
+        .map(|(j, (name, entries))| {
+            if name == "platform_mass" {
+                return if entries.is_empty() {
+                    Ok(SystemParam::PlatformMass)
+                } else {
+                    Err(SoftrodError::invalid(
+                        format!("params[{j}]"),
+                        format!("{} rods", entries.len()),
+                        "the platform's mass acts on no rod: give no rods",
+                    ))
+                };
+            }
+            let Some(kind) = ParamKind::from_name(&name) else {
+                return Err(SoftrodError::invalid(
+                    format!("params[{j}]"),
+                    &name,
+                    format!(
+                        "unknown parameter kind; known: platform_mass, {}",
+                        ParamKind::ALL.map(|(n, _)| n).join(", ")
+                    ),
+                ));
+            };
+            Ok(SystemParam::Rods(
+                entries
+                    .into_iter()
+                    .map(|(rod, sections)| (rod, Param { kind, sections }))
+                    .collect(),
+            ))
+        })
+        .collect()
+}
+
+/// A system's markers from (rod, or None for the platform; s; offset) entries; errors
+/// name `markers[k]`.
+pub(crate) fn system_markers(
+    markers: Vec<(Option<usize>, f64, [f64; 3])>,
+) -> Result<Vec<SystemMarker>, SoftrodError> {
+    markers
+        .into_iter()
+        .enumerate()
+        .map(|(k, (rod, s, offset))| match rod {
+            None if s != 0.0 => Err(SoftrodError::invalid(
+                format!("markers[{k}].s"),
+                s,
+                "a marker fixed to the platform has no arc length: give 0",
+            )),
+            None => Ok(SystemMarker::Platform(offset)),
+            Some(rod) => Ok(SystemMarker::Rod {
+                rod,
+                marker: Marker { s, offset },
+            }),
+        })
+        .collect()
 }

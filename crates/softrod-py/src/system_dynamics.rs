@@ -2,7 +2,7 @@
 //! (`softrod_core::dynamics::system`): a stepper object that Python drives in chunks, with
 //! the GIL released while it steps.
 
-use crate::ends::{platform_of, PlatformEntry};
+use crate::ends::{platform_of, system_markers, system_params, PlatformEntry, SystemParamEntry};
 use crate::{to_py_err, Context, PyRod};
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::prelude::*;
@@ -49,6 +49,13 @@ struct Samples {
     penetration: Vec<Vec<f64>>,
     /// kinetic, elastic, potential, work in, dissipated, balance (J) per sample.
     energy: Vec<f64>,
+    /// The markers' positions (K x 3 per sample) and, with sensitivities tracked, the
+    /// derivatives of the platform's position (3 x P), rotation (3 x 3 x P) and the markers
+    /// (K x 3 x P) per sample.
+    marker_position: Vec<f64>,
+    d_platform_position: Vec<f64>,
+    d_platform_rotation: Vec<f64>,
+    d_marker_position: Vec<f64>,
 }
 
 impl Samples {
@@ -83,6 +90,29 @@ impl Samples {
                 self.penetration[k].push(c.max_penetration);
             }
         }
+        for m in sim.marker_positions() {
+            self.marker_position.extend_from_slice(&m);
+        }
+        if let (Some(dp), Some(dr), Some(dm)) = (
+            sim.platform_position_sensitivity(),
+            sim.platform_rotation_sensitivity(),
+            sim.marker_sensitivity(),
+        ) {
+            for a in 0..3 {
+                self.d_platform_position.extend(dp.iter().map(|d| d[a]));
+            }
+            for a in 0..3 {
+                for c in 0..3 {
+                    self.d_platform_rotation.extend(dr.iter().map(|d| d[a][c]));
+                }
+            }
+            let k = dm.first().map_or(0, Vec::len);
+            for m in 0..k {
+                for a in 0..3 {
+                    self.d_marker_position.extend(dm.iter().map(|d| d[m][a]));
+                }
+            }
+        }
         let e = sim.energy_books();
         self.energy.extend_from_slice(&[
             e.kinetic,
@@ -110,6 +140,10 @@ impl Samples {
         d.set_item("contact_force", self.contact_force)?;
         d.set_item("penetration", self.penetration)?;
         d.set_item("energy", self.energy)?;
+        d.set_item("marker_position", self.marker_position)?;
+        d.set_item("d_platform_position", self.d_platform_position)?;
+        d.set_item("d_platform_rotation", self.d_platform_rotation)?;
+        d.set_item("d_marker_position", self.d_marker_position)?;
         Ok(d)
     }
 }
@@ -176,6 +210,41 @@ impl PySystemSimulator {
     /// Time now, s.
     fn time(&self) -> f64 {
         self.sim.time()
+    }
+
+    /// Track the derivatives of the platform's pose and the markers with respect to
+    /// `params` ((kind, [(rod, sections)]) entries, kinds as
+    /// `softrod_core::sensitivity::ParamKind::ALL` or "platform_mass" with no rods) from
+    /// now on (before the first step): `run` and `snapshot` then return
+    /// "d_platform_position" (3 x P per sample), "d_platform_rotation" (3 x 3 x P) and
+    /// "d_marker_position" (K x 3 x P). Errors name `params[j]`.
+    fn track_sensitivities(
+        &mut self,
+        py: Python<'_>,
+        params: Vec<SystemParamEntry>,
+    ) -> PyResult<()> {
+        crate::guarded(py, || {
+            let params = system_params(params).map_err(|e| to_py_err(py, e, Context::Input))?;
+            let sim = &mut self.sim;
+            py.detach(|| sim.track_sensitivities(&params))
+                .map_err(|e| to_py_err(py, e, Context::Input))
+        })
+    }
+
+    /// Read `markers` ((rod or None for the platform, s, offset) entries, m; a platform
+    /// marker's s is 0) from now on (before `track_sensitivities`): "marker_position"
+    /// (K x 3 per sample). Errors name `markers[k]`.
+    fn set_markers(
+        &mut self,
+        py: Python<'_>,
+        markers: Vec<(Option<usize>, f64, [f64; 3])>,
+    ) -> PyResult<()> {
+        crate::guarded(py, || {
+            let markers = system_markers(markers).map_err(|e| to_py_err(py, e, Context::Input))?;
+            self.sim
+                .set_markers(&markers)
+                .map_err(|e| to_py_err(py, e, Context::Input))
+        })
     }
 
     /// The start's stability verdict (None: not assessed).

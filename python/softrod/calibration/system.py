@@ -18,6 +18,15 @@ Parameters are the rods' (:mod:`softrod.calibration.params`) and the platform's 
 - ``"registration_angle"``, ``"registration_x"``, ``"_y"``, ``"_z"``: the measurement
   frame, a rotation about the rods' mean base axis through the centroid of their bases,
   then an offset (as :func:`softrod.calibrate` fits a lone rod's, paper 000 Sec. III-D).
+- ``"damping_time"`` (time series only, ``dynamic=True``): the rods' damping time, on
+  every rod (they must share it) or ``"rods[i].damping_time"``.
+
+With ``dynamic=True`` the rows are time series (:class:`SystemDynamic`): every experiment
+is replayed from rest in equilibrium under its first pressures, the measured pressures
+joined linearly between the samples, and the core carries the exact forward
+sensitivities of every step of the system (``SystemSimulator::track_sensitivities``:
+the implicit function theorem on each step's coupled equations, docs/calibration.md
+"Systems of rods").
 """
 
 from __future__ import annotations
@@ -30,6 +39,7 @@ import re
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -108,9 +118,11 @@ class SystemParameter:
         return p.value(system.rods[i].design)
 
 
-def parse_system_parameters(names: Sequence[str] | str, system: System) -> list[SystemParameter]:
-    """Resolve parameter names of a system (see the module's docstring). Errors name the
-    parameter, the rod and the rule."""
+def parse_system_parameters(
+    names: Sequence[str] | str, system: System, *, dynamic: bool = False
+) -> list[SystemParameter]:
+    """Resolve parameter names of a system (see the module's docstring; the damping time
+    only with ``dynamic``). Errors name the parameter, the rod and the rule."""
     if isinstance(names, str):
         names = [n for n in re.split(r",(?![^\[]*\])", names) if n.strip()]
     if not isinstance(names, (list, tuple)) or not names:
@@ -168,12 +180,13 @@ def parse_system_parameters(names: Sequence[str] | str, system: System) -> list[
                         else f"; a parameter of one rod alone is written rods[i].{inner.strip()}"
                     ),
                 ) from None
-            if p.kind in SIGMA_KINDS or p.kind in DYNAMIC_KINDS:
+            if p.kind in SIGMA_KINDS or (p.kind in DYNAMIC_KINDS and not dynamic):
                 raise V.fail(
                     "params",
                     name,
                     "a system's static fit takes the rods' design parameters and platform_mass "
-                    "(stiffness scaling factors and the damping time are not fitted on systems)",
+                    "(stiffness scaling factors are not fitted on systems; the damping time "
+                    "only in time series, dynamic=True)",
                 )
             entries.append((i, p))
         out.append(SystemParameter(name.strip(), entries[0][1].kind, tuple(entries)))
@@ -355,6 +368,187 @@ class SystemStatic(ModelAdapter):
         rest.sigma = self.sigma_rest
         one = rest._solve(calibrated, [], np.arange(1), False, warm=False)
         out = Prediction.empty(m, 0, len(self.markers), False)
+        out.tip[:] = one.tip[0]
+        if out.markers is not None:
+            out.markers[:] = one.markers[0]
+        out.ok[:] = one.ok[0]
+        return out
+
+
+class SystemDynamic(ModelAdapter):
+    """The platform position (the dataset's "tip") and the markers of every sample of every
+    replayed experiment (rows with ``time``; experiment ids split them), with their exact
+    parameter derivatives: each experiment starts at rest in the system's equilibrium
+    under its first pressures, the measured pressures (rod 0's channels, then rod 1's, ...)
+    drive it joined linearly between the samples, and the model is read at the sample
+    times (linear between the steps of dt). The core carries the forward sensitivities of
+    every step (``SystemSimulator::track_sensitivities``)."""
+
+    model = "cosserat"
+    dynamic = True
+    exact_jacobian = True
+    #: As :class:`~softrod.calibration.adapters.rod_dynamic.RodDynamic`: every evaluation
+    #: replays every experiment (the same reasons for each setting).
+    nelder_mead = {"xatol": 1e-4, "fatol": 1e-9, "fatol_relative": True, "step": 0.2}
+    stateless = True
+    lm_stop_fraction = 1e-3
+
+    def __init__(self, system: System, dataset: Dataset, params, dt: float, tol: float, threads):
+        from .adapters.rod_dynamic import experiment_rows
+
+        super().__init__()
+        if dataset.tensions is not None:
+            raise V.fail(
+                "dataset.tensions",
+                "given",
+                "a system's time series are replayed with slack tendons; fit tendon-driven "
+                "systems in statics (dynamic=False)",
+            )
+        for p in params:
+            if not p.positive:
+                raise V.fail("params", p.name, "dynamic calibration fits positive parameters only")
+            if p.kind == "damping_time" and not p.value(system) > 0:
+                raise V.fail(
+                    f"system.rods[{p.rods[0][0]}].design.dynamics.damping_time",
+                    p.value(system),
+                    "give a starting damping time > 0 s in [dynamics] (the fit works on log tau)",
+                )
+        self.system = system
+        self.params = list(params)
+        self.parameters = tuple(params)
+        self.initial = np.array([p.value(system) for p in params])
+        self.dt = dt
+        self.tol = tol
+        self.threads = threads
+        self.experiments = experiment_rows(dataset)
+        self.time = np.asarray(dataset.time, dtype=float)
+        self.p = np.ascontiguousarray(dataset.pressures, dtype=float)
+        self.markers = _markers_core(dataset)
+        self.m = len(dataset)
+        self.widths = [r.design.n_channels for r in system.rods]
+
+    def set_threads(self, threads: int) -> None:
+        self.threads = threads
+
+    def _commands(self, p: np.ndarray) -> list[list[float]]:
+        """One row of pressures (all channels) as one list per rod."""
+        out, o = [], 0
+        for w in self.widths:
+            out.append([float(v) for v in p[o : o + w]])
+            o += w
+        return out
+
+    def _replay(self, system: System, exp: np.ndarray, jacobian: bool):
+        """The platform position (k, 3), markers (k, K, 3) and, with ``jacobian``, their
+        derivatives (k, 3, P), (k, K, 3, P) at the sample times of one experiment; None: the
+        run failed."""
+        from ..dynamics.simulate import step_count
+        from ..system_dynamics import SystemSimulation
+
+        t = self.time[exp] - self.time[exp][0]
+        p = self.p[exp]
+        steps = step_count(t[-1], self.dt, "dataset.time")
+        at = self.dt * np.arange(1, steps + 1)
+        # The pressures joined linearly between the samples (held after the last), read at
+        # every step's end, as the sample times' function would be.
+        knots = np.column_stack([np.interp(at, t, p[:, c]) for c in range(p.shape[1])])
+        try:
+            sim = SystemSimulation(
+                system, self._commands(p[0]), dt=self.dt, tol=self.tol, on_unstable="ignore"
+            )
+            core = sim._sim
+            if self.markers:
+                core.set_markers(self.markers)
+            if jacobian:
+                core.track_sensitivities([q.core() for q in self.params])
+            start = core.snapshot()
+            run = core.run([self._commands(row) for row in knots])
+        except ConvergenceError:  # InvalidStateError included
+            return None
+        n_par, n_mk = len(self.params) if jacobian else 0, len(self.markers)
+        time_s = np.concatenate([[0.0], np.asarray(run["time"], dtype=float)])
+        k = time_s.size
+
+        def series(key, shape):
+            a = np.concatenate([np.asarray(start[key]), np.asarray(run[key])], dtype=float)
+            return a.reshape((k,) + shape)
+
+        def sample(a):
+            flat = a.reshape(k, -1)
+            cols = [
+                np.interp(np.minimum(t, time_s[-1]), time_s, flat[:, c])
+                for c in range(flat.shape[1])
+            ]
+            return np.column_stack(cols).reshape((len(t),) + a.shape[1:])
+
+        pos = sample(series("platform_position", (3,)))
+        mk = sample(series("marker_position", (n_mk, 3))) if n_mk else None
+        if not jacobian:
+            return pos, None, mk, None
+        dp = sample(series("d_platform_position", (3, n_par)))
+        dm = sample(series("d_marker_position", (n_mk, 3, n_par))) if n_mk else None
+        return pos, dp, mk, dm
+
+    def predict(self, theta, rows, jacobian: bool) -> Prediction:
+        out = Prediction.empty(self.m, len(self.params), len(self.markers), jacobian)
+        self.evaluations += 1
+        try:
+            system = calibrated_system(self.system, self.params, theta)
+        except DesignError:
+            return out
+        wanted = np.zeros(self.m, dtype=bool)
+        wanted[rows] = True
+        todo = [exp for exp in self.experiments if wanted[exp].any()]
+        # Each replay steps in the core with the GIL released: threads overlap the runs (in
+        # order: the same result on any count).
+        workers = min(len(todo), self.threads or os.cpu_count() or 1)
+        if workers > 1:
+            with ThreadPoolExecutor(workers) as pool:
+                runs = list(pool.map(lambda exp: self._replay(system, exp, jacobian), todo))
+        else:
+            runs = [self._replay(system, exp, jacobian) for exp in todo]
+        for exp, run in zip(todo, runs, strict=True):
+            if run is None:
+                if jacobian:
+                    out.d_tip[exp] = 0.0
+                    if out.d_markers is not None:
+                        out.d_markers[exp] = 0.0
+                continue
+            out.tip[exp], dp, markers, dm = run
+            if markers is not None:
+                out.markers[exp] = markers
+            out.ok[exp] = True
+            if jacobian:
+                for j, p in enumerate(self.params):
+                    if p.kind == "area_scale":
+                        # The core differentiates by a factor on the current areas, which
+                        # are theta_j times the design's: d/d theta_j = (1/theta_j) d/dk.
+                        dp[..., j] /= theta[j]
+                        if dm is not None:
+                            dm[..., j] /= theta[j]
+                out.d_tip[exp] = dp
+                if dm is not None:
+                    out.d_markers[exp] = dm
+        return out
+
+    def calibrated_design(self, theta) -> System:
+        return calibrated_system(self.system, self.params, theta)
+
+    def final_prediction(self, calibrated: System, theta, rows) -> Prediction:
+        return self.predict(theta, rows, False)
+
+    def base_frame(self):
+        return SystemStatic.base_frame(self)  # type: ignore[arg-type]
+
+    def reference(self, calibrated: System, theta) -> Prediction:
+        """The unactuated system's platform and markers (zero pressures), as the static
+        fit's reference."""
+        rest = SystemStatic(
+            calibrated, Dataset(pressures=self.p[:1], tip_position=np.zeros((1, 3))), [], None, 1
+        )
+        rest.markers = self.markers
+        one = SystemStatic.reference(rest, calibrated, theta)
+        out = Prediction.empty(self.m, 0, len(self.markers), False)
         out.tip[:] = one.tip[0]
         if out.markers is not None:
             out.markers[:] = one.markers[0]
@@ -549,6 +743,8 @@ def calibrate_system(
     seed: int = 0,
     progress: Callable[[int, float], None] | bool | None = None,
     executor: Any = None,
+    dynamic: bool = False,
+    dt: Any = None,
 ) -> SystemCalibrationResult:
     """Fit ``params`` of a :class:`~softrod.System` to measured equilibria.
 
@@ -566,6 +762,13 @@ def calibrate_system(
     test, weights, options, threads, max_evaluations, restarts, seed, progress and executor
     (a ``distributed.Client``: the starts run on its cluster, one task each) as in
     :func:`~softrod.calibrate` (weights: "tip" and "markers").
+    dynamic: fit time series instead of equilibria (:class:`SystemDynamic`): each
+    experiment of ``dataset`` (rows with ``time``; ``experiment`` ids split them) is
+    replayed from rest in equilibrium under its first pressures with time step ``dt``
+    (s or a string with units; default :data:`~softrod.calibration.fit.DEFAULT_DT`), the
+    measured pressures joined linearly between the samples, with the exact Jacobians of
+    the system's forward sensitivities; ``"damping_time"`` may then be fitted. ``dt``
+    without ``dynamic`` is refused.
 
     Returns a :class:`SystemCalibrationResult`; a :class:`CalibrationWarning` for each
     identifiability problem, as :func:`~softrod.calibrate` does. Bad input raises
@@ -590,22 +793,42 @@ def calibrate_system(
     if not isinstance(dataset, Dataset):
         dataset = load_dataset(dataset)
     _check_dataset(system, dataset)
+    V.boolean(dynamic, "dynamic")
+    if dt is not None and not dynamic:
+        from .fit import _STATIC_DT
+
+        raise V.fail("dt", dt, _STATIC_DT)
     names, registration = _split_params(params, None, "cosserat")
-    parameters = parse_system_parameters(names, system) if names else []
-    inner = SystemStatic(system, dataset, parameters, options, threads)
+    parameters = parse_system_parameters(names, system, dynamic=dynamic) if names else []
+    if dynamic:
+        from ..dynamics.simulate import _seconds
+        from ..system_dynamics import SystemSimulation
+        from .fit import DEFAULT_DT
+
+        step = _seconds(DEFAULT_DT if dt is None else dt, "dt")
+        tol = _options(options).tol
+        inner: ModelAdapter = SystemDynamic(system, dataset, parameters, step, tol, threads)
+        # The core checks every parameter against its rods (one value, known sections, a
+        # damping time that acts) when it starts tracking, before any step.
+        probe = SystemSimulation(
+            system, inner._commands(inner.p[0]), dt=step, tol=tol, on_unstable="ignore"
+        )
+        probe._sim.track_sensitivities([p.core() for p in parameters])
+    else:
+        inner = SystemStatic(system, dataset, parameters, options, threads)
+        # The core checks every parameter against its rods (one value, known sections) on
+        # an empty batch, before any solve.
+        _core.rod_system_sensitivity_batch(
+            _batch_entries(system),
+            _platform_args(system, None, None),
+            np.zeros((0, dataset.n_channels)),
+            [p.core() for p in parameters],
+            tensions=None if dataset.tensions is None else np.zeros((0, dataset.n_tendons)),
+            stiffness_scale=None if inner.sigma is None else np.ones((0, len(system.rods), 3)),
+        )
     # The measurement frame (registration_*): the engine's wrapper of any adapter.
     adapter = Registered(inner, registration) if registration else inner
     params_all = list(adapter.parameters)
-    # The core checks every parameter against its rods (one value, known sections) on an
-    # empty batch, before any solve.
-    _core.rod_system_sensitivity_batch(
-        _batch_entries(system),
-        _platform_args(system, None, None),
-        np.zeros((0, dataset.n_channels)),
-        [p.core() for p in parameters],
-        tensions=None if dataset.tensions is None else np.zeros((0, dataset.n_tendons)),
-        stiffness_scale=None if inner.sigma is None else np.ones((0, len(system.rods), 3)),
-    )
     theta0 = np.asarray(adapter.initial, dtype=float)
     box = _bounds(params_all, bounds, theta0)
     test_mask = _split(dataset, split, test)

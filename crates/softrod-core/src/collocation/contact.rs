@@ -276,6 +276,32 @@ impl Problem<'_> {
         )
     }
 
+    /// [`Problem::tip_reaction`] of scaled unknowns `z` and histories `hist` in any scalar
+    /// (the parameter sensitivities of a system of rods, `dynamics::system`: the tip
+    /// slot's history carries its derivatives).
+    pub fn tip_reaction_with<C: Coeff, D: StateScalar<C>>(
+        &self,
+        hist: &[[C; NF]],
+        z: &[D],
+    ) -> ([D; 3], [D; 3]) {
+        let zero = [D::from(0.0); 3];
+        let Some(end) = self.end else {
+            return (zero, zero);
+        };
+        let n = self.grid.len();
+        let y = self.node_with(z, n);
+        let r = self.position_with(z, n);
+        let th = hist.last().expect("tip slot");
+        let t = self.free_tip_with(self.contact.as_ref(), &y, &r, th);
+        let force = std::array::from_fn(|k| t[k] * self.fs);
+        let moment = if end.rotation.is_some() {
+            std::array::from_fn(|k| t[3 + k] * self.ms)
+        } else {
+            zero
+        };
+        (force, moment)
+    }
+
     /// Offset in the unknowns of the tip's 3 scaled position unknowns (a problem whose
     /// node positions are unknowns, [`Problem::has_positions`]).
     pub fn tip_position_offset(&self) -> usize {

@@ -61,7 +61,7 @@ use crate::collocation::{Factorization, Problem, SectionModel, NF};
 use crate::error::{Result, SoftrodError};
 use crate::jet::Jet;
 use crate::ode::Coeffs;
-use crate::sensitivity::{check_params, section_value, seeded, Param, ParamKind, CHUNK};
+use crate::sensitivity::{check_params, section_value, seeded_in, Param, ParamKind, CHUNK};
 
 /// The sensitivities carried through the time loop.
 #[derive(Debug, Clone)]
@@ -167,50 +167,7 @@ impl Simulator {
                 "parameter sensitivities need fixed steps (adaptive step sizes depend on the parameters): give no error_tol",
             );
         }
-        let (statics_params, rest): (Vec<Param>, Vec<(usize, &Param)>) = {
-            let mut st = vec![];
-            let mut other = vec![];
-            for (j, p) in params.iter().enumerate() {
-                match p.kind {
-                    ParamKind::DampingTime => other.push((j, p)),
-                    _ => st.push(p.clone()),
-                }
-            }
-            (st, other)
-        };
-        check_params(&self.rod, &statics_params).map_err(|e| renumber(e, params))?;
-        for (j, p) in params.iter().enumerate() {
-            if let ParamKind::StiffnessScale(_) = p.kind {
-                return refuse(
-                    &format!("params[{j}] ({})", p.kind.name()),
-                    p.kind.name().into(),
-                    "the dynamics take sigma from the stiffness map of the pressures: calibrate sigma in statics",
-                );
-            }
-        }
-        for (j, p) in rest {
-            let field = format!("params[{j}] (damping_time)");
-            if !p.sections.is_empty() {
-                return refuse(
-                    &field,
-                    format!("sections {:?}", p.sections),
-                    "the damping time is one value of [dynamics]: give no sections",
-                );
-            }
-            let damped = self
-                .rod
-                .sections
-                .iter()
-                .enumerate()
-                .any(|(i, s)| !s.rigid && section_inertia(&self.rod, i).damping.is_none());
-            if !damped {
-                return refuse(
-                    &field,
-                    "damping_time".into(),
-                    "every elastic section gives its damping matrices, so tau acts nowhere",
-                );
-            }
-        }
+        self.check_tracked(params)?;
         let n_slots = self.slots.len();
         let mut tr = Tracker {
             params: params.to_vec(),
@@ -262,6 +219,59 @@ impl Simulator {
             ok.ok_or_else(|| not_solvable("initial equilibrium"))?;
         }
         self.sens = Some(Box::new(tr));
+        Ok(())
+    }
+
+    /// Check `params` as parameters of this rod's dynamics (errors name `params[j]`): the
+    /// section parameters as the statics check them, sigma refused (the dynamics take it
+    /// from the stiffness map), the damping time without sections and acting somewhere.
+    pub(super) fn check_tracked(&self, params: &[Param]) -> Result<()> {
+        let refuse =
+            |field: &str, value: String, rule: &str| Err(SoftrodError::invalid(field, value, rule));
+        let (statics_params, rest): (Vec<Param>, Vec<(usize, &Param)>) = {
+            let mut st = vec![];
+            let mut other = vec![];
+            for (j, p) in params.iter().enumerate() {
+                match p.kind {
+                    ParamKind::DampingTime => other.push((j, p)),
+                    _ => st.push(p.clone()),
+                }
+            }
+            (st, other)
+        };
+        check_params(&self.rod, &statics_params).map_err(|e| renumber(e, params))?;
+        for (j, p) in params.iter().enumerate() {
+            if let ParamKind::StiffnessScale(_) = p.kind {
+                return refuse(
+                    &format!("params[{j}] ({})", p.kind.name()),
+                    p.kind.name().into(),
+                    "the dynamics take sigma from the stiffness map of the pressures: calibrate sigma in statics",
+                );
+            }
+        }
+        for (j, p) in rest {
+            let field = format!("params[{j}] (damping_time)");
+            if !p.sections.is_empty() {
+                return refuse(
+                    &field,
+                    format!("sections {:?}", p.sections),
+                    "the damping time is one value of [dynamics]: give no sections",
+                );
+            }
+            let damped = self
+                .rod
+                .sections
+                .iter()
+                .enumerate()
+                .any(|(i, s)| !s.rigid && section_inertia(&self.rod, i).damping.is_none());
+            if !damped {
+                return refuse(
+                    &field,
+                    "damping_time".into(),
+                    "every elastic section gives its damping matrices, so tau acts nowhere",
+                );
+            }
+        }
         Ok(())
     }
 
@@ -339,9 +349,25 @@ impl Simulator {
         sigma: &[f64; 3],
         c0: f64,
     ) -> Vec<SectionModel<Jet<N>>> {
-        let (knobs, sigma_d) = seeded::<N>(&self.rod, sigma, chunk);
+        debug_assert!(chunk.len() <= N);
+        let dirs: Vec<(usize, &Param)> = chunk.iter().enumerate().collect();
+        self.dual_models_in::<N>(&dirs, pressures, tensions, sigma, c0)
+    }
+
+    /// [`Simulator::dual_models`] with each parameter's dual direction given: `(q, param)`
+    /// seeds `param` as direction q < N (a system's parameter that acts on some rods only
+    /// leaves the others' models without it, `dynamics::system`).
+    pub(super) fn dual_models_in<const N: usize>(
+        &self,
+        dirs: &[(usize, &Param)],
+        pressures: &[f64],
+        tensions: &[f64],
+        sigma: &[f64; 3],
+        c0: f64,
+    ) -> Vec<SectionModel<Jet<N>>> {
+        let (knobs, sigma_d) = seeded_in::<N>(&self.rod, sigma, dirs.iter().copied());
         let mut tau = Jet::<N>::from(self.rod.spec.dynamics.damping_time);
-        for (q, p) in chunk.iter().enumerate() {
+        for &(q, p) in dirs {
             if p.kind == ParamKind::DampingTime {
                 tau.eps[q] = 1.0;
             }

@@ -55,6 +55,8 @@ use crate::statics::system::{self as statics_system, solve_system, Platform, Sys
 use crate::statics::SolverOptions;
 use nalgebra::{Matrix6, Vector3, Vector6};
 
+mod sensitivity;
+
 /// One rod of a simulated system: the rod, its inputs at t = 0 and where its tip holds the
 /// platform (offset and rotation of its tip frame in the platform frame, as
 /// [`SystemRod`]).
@@ -143,14 +145,58 @@ struct PlatformEq<'a> {
 
 /// What a step's platform equations depend on besides the body: the time formula's c0 and
 /// history terms (position, chart, velocity, angular velocity), the chart's base R_n.
+/// (In any scalar: the parameter sensitivities carry their derivatives, `sensitivity`.)
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct StepTerms {
+struct StepTerms<D = f64> {
     c0: f64,
-    hp: [f64; 3],
-    hphi: [f64; 3],
-    hv: [f64; 3],
-    hw: [f64; 3],
-    r_n: [[f64; 3]; 3],
+    hp: [D; 3],
+    hphi: [D; 3],
+    hv: [D; 3],
+    hw: [D; 3],
+    r_n: [[D; 3]; 3],
+}
+
+impl StepTerms {
+    /// These terms in the scalar D (no derivatives).
+    fn lift<D: RodScalar>(&self) -> StepTerms<D> {
+        StepTerms {
+            c0: self.c0,
+            hp: self.hp.map(D::from),
+            hphi: self.hphi.map(D::from),
+            hv: self.hv.map(D::from),
+            hw: self.hw.map(D::from),
+            r_n: self.r_n.map(|row| row.map(D::from)),
+        }
+    }
+}
+
+/// The step terms of a step with time formula `bdf` from the motion `now` and `prev` (one
+/// step before) in [`Motion::numbers`]' layout, in any scalar: [`PlatformEq::step`]'s
+/// formulas, for the parameter sensitivities (dual motions carry dH/dtheta).
+fn terms_of<D: RodScalar>(bdf: &Bdf, now: &[D; 24], prev: &[D; 24]) -> StepTerms<D> {
+    let Bdf { c0, c1, c2, d1 } = *bdf;
+    let v3 = |x: &[D; 24], o: usize| -> [D; 3] { [x[o], x[o + 1], x[o + 2]] };
+    let rot = |x: &[D; 24]| -> [[D; 3]; 3] { std::array::from_fn(|i| v3(x, 3 + 3 * i)) };
+    let h3 = |x1: &[D; 3], x2: &[D; 3], xt: &[D; 3]| -> [D; 3] {
+        std::array::from_fn(|k| x1[k] * c1 + x2[k] * c2 + xt[k] * d1)
+    };
+    let (r_now, r_prev) = (rot(now), rot(prev));
+    let rel: [[D; 3]; 3] = std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            r_prev[i][0] * r_now[j][0] + r_prev[i][1] * r_now[j][1] + r_prev[i][2] * r_now[j][2]
+        })
+    });
+    let phi_prev = cayley_inverse_of(&rel);
+    let w_n = rotate(&r_now, &v3(now, 15));
+    let zero = [D::from(0.0); 3];
+    StepTerms {
+        c0,
+        hp: h3(&v3(now, 0), &v3(prev, 0), &v3(now, 12)),
+        hphi: h3(&zero, &phi_prev, &w_n),
+        hv: h3(&v3(now, 12), &v3(prev, 12), &v3(now, 18)),
+        hw: h3(&v3(now, 15), &v3(prev, 15), &v3(now, 21)),
+        r_n: r_now,
+    }
 }
 
 /// The platform's pose and motion as functions of its unknowns.
@@ -204,6 +250,16 @@ pub fn cayley_rate<D: RodScalar>(phi: &[D; 3], phi_t: &[D; 3]) -> [D; 3] {
     let f = (n2 + 4.0).recip() * 4.0;
     let c = cross(phi, phi_t);
     std::array::from_fn(|k| (phi_t[k] + c[k] * 0.5) * f)
+}
+
+/// [`cayley_inverse`] in any scalar.
+fn cayley_inverse_of<D: RodScalar>(q: &[[D; 3]; 3]) -> [D; 3] {
+    let f = (q[0][0] + q[1][1] + q[2][2] + 1.0).recip() * 2.0;
+    [
+        (q[2][1] - q[1][2]) * f,
+        (q[0][2] - q[2][0]) * f,
+        (q[1][0] - q[0][1]) * f,
+    ]
 }
 
 /// The inverse of [`cayley`] (a rotation of less than a half turn): 2 vee(Q - Q^T) /
@@ -263,24 +319,7 @@ impl<'a> PlatformEq<'a> {
     }
 
     fn kin<D: RodScalar>(&self, xi: &[D; 6]) -> Kin<D> {
-        let t = &self.t;
-        let c0 = t.c0;
-        let p: [D; 3] = std::array::from_fn(|k| xi[k] * self.body.ls);
-        let phi = [xi[3], xi[4], xi[5]];
-        let rot = matmul(&cayley(&phi), &t.r_n.map(|row| row.map(D::from)));
-        let v: [D; 3] = std::array::from_fn(|k| p[k] * c0 + t.hp[k]);
-        let phi_t: [D; 3] = std::array::from_fn(|k| phi[k] * c0 + t.hphi[k]);
-        let w = rotate_t(&rot, &cayley_rate(&phi, &phi_t));
-        let a = std::array::from_fn(|k| v[k] * c0 + t.hv[k]);
-        let wt = std::array::from_fn(|k| w[k] * c0 + t.hw[k]);
-        Kin {
-            p,
-            rot,
-            v,
-            w,
-            a,
-            wt,
-        }
+        kin_of(self.body.ls, &self.t.lift::<D>(), xi)
     }
 
     /// The pose where rod i's tip is held with the platform at `xi`.
@@ -297,43 +336,13 @@ impl<'a> PlatformEq<'a> {
     /// The platform's 6 scaled balance rows with the platform at `xi` and the rods' tip
     /// reactions (force, moment; world) `reactions`.
     fn rows<D: RodScalar>(&self, xi: &[D; 6], reactions: &[([D; 3], [D; 3])]) -> [D; 6] {
-        let b = self.body;
-        let k = self.kin(xi);
-        let com = b.com.map(D::from);
-        let wxc = cross(&k.w, &com);
-        let wxwxc = cross(&k.w, &wxc);
-        let wtxc = cross(&k.wt, &com);
-        let rel: [D; 3] = std::array::from_fn(|j| wtxc[j] + wxwxc[j]);
-        let rel_w = rotate(&k.rot, &rel);
-        // m (g - a_c): gravity less the inertial force, at the centre of mass.
-        let net: [D; 3] = std::array::from_fn(|j| (-(k.a[j] + rel_w[j]) + b.gravity[j]) * b.mass);
-        let cw = rotate(&k.rot, &com);
-        let cxn = cross(&cw, &net);
-        let jw: [D; 3] = std::array::from_fn(|i| {
-            k.w[0] * b.inertia[i][0] + k.w[1] * b.inertia[i][1] + k.w[2] * b.inertia[i][2]
-        });
-        let jwt: [D; 3] = std::array::from_fn(|i| {
-            k.wt[0] * b.inertia[i][0] + k.wt[1] * b.inertia[i][1] + k.wt[2] * b.inertia[i][2]
-        });
-        let wxjw = cross(&k.w, &jw);
-        let euler = rotate(&k.rot, &std::array::from_fn(|j| jwt[j] + wxjw[j]));
-        let mut f: [D; 3] = std::array::from_fn(|j| net[j] + b.force[j]);
-        let mut m: [D; 3] = std::array::from_fn(|j| cxn[j] - euler[j] + b.moment[j]);
-        for (i, (fi, mi)) in reactions.iter().enumerate() {
-            let arm = rotate(&k.rot, &b.attach[i].0.map(D::from));
-            let axf = cross(&arm, fi);
-            for j in 0..3 {
-                f[j] -= fi[j];
-                m[j] -= mi[j] + axf[j];
-            }
-        }
-        std::array::from_fn(|j| {
-            if j < 3 {
-                f[j] * (1.0 / b.fs)
-            } else {
-                m[j - 3] * (1.0 / b.ms)
-            }
-        })
+        rows_of(
+            self.body,
+            D::from(self.body.mass),
+            &self.t.lift::<D>(),
+            xi,
+            reactions,
+        )
     }
 
     /// The rows and their exact derivatives: with respect to the platform's unknowns (D)
@@ -380,6 +389,75 @@ impl<'a> PlatformEq<'a> {
     }
 }
 
+/// The platform's pose and motion at unknowns `xi` under step terms `t` (length scale
+/// `ls`), in any scalar.
+fn kin_of<D: RodScalar>(ls: f64, t: &StepTerms<D>, xi: &[D; 6]) -> Kin<D> {
+    let c0 = t.c0;
+    let p: [D; 3] = std::array::from_fn(|k| xi[k] * ls);
+    let phi = [xi[3], xi[4], xi[5]];
+    let rot = matmul(&cayley(&phi), &t.r_n);
+    let v: [D; 3] = std::array::from_fn(|k| p[k] * c0 + t.hp[k]);
+    let phi_t: [D; 3] = std::array::from_fn(|k| phi[k] * c0 + t.hphi[k]);
+    let w = rotate_t(&rot, &cayley_rate(&phi, &phi_t));
+    let a = std::array::from_fn(|k| v[k] * c0 + t.hv[k]);
+    let wt = std::array::from_fn(|k| w[k] * c0 + t.hw[k]);
+    Kin {
+        p,
+        rot,
+        v,
+        w,
+        a,
+        wt,
+    }
+}
+
+/// [`PlatformEq::rows`] of a body of mass `mass` under step terms `t`, in any scalar (the
+/// parameter sensitivities carry the mass's and the terms' derivatives).
+fn rows_of<D: RodScalar>(
+    b: &Body,
+    mass: D,
+    t: &StepTerms<D>,
+    xi: &[D; 6],
+    reactions: &[([D; 3], [D; 3])],
+) -> [D; 6] {
+    let k = kin_of(b.ls, t, xi);
+    let com = b.com.map(D::from);
+    let wxc = cross(&k.w, &com);
+    let wxwxc = cross(&k.w, &wxc);
+    let wtxc = cross(&k.wt, &com);
+    let rel: [D; 3] = std::array::from_fn(|j| wtxc[j] + wxwxc[j]);
+    let rel_w = rotate(&k.rot, &rel);
+    // m (g - a_c): gravity less the inertial force, at the centre of mass.
+    let net: [D; 3] = std::array::from_fn(|j| (-(k.a[j] + rel_w[j]) + b.gravity[j]) * mass);
+    let cw = rotate(&k.rot, &com);
+    let cxn = cross(&cw, &net);
+    let jw: [D; 3] = std::array::from_fn(|i| {
+        k.w[0] * b.inertia[i][0] + k.w[1] * b.inertia[i][1] + k.w[2] * b.inertia[i][2]
+    });
+    let jwt: [D; 3] = std::array::from_fn(|i| {
+        k.wt[0] * b.inertia[i][0] + k.wt[1] * b.inertia[i][1] + k.wt[2] * b.inertia[i][2]
+    });
+    let wxjw = cross(&k.w, &jw);
+    let euler = rotate(&k.rot, &std::array::from_fn(|j| jwt[j] + wxjw[j]));
+    let mut f: [D; 3] = std::array::from_fn(|j| net[j] + b.force[j]);
+    let mut m: [D; 3] = std::array::from_fn(|j| cxn[j] - euler[j] + b.moment[j]);
+    for (i, (fi, mi)) in reactions.iter().enumerate() {
+        let arm = rotate(&k.rot, &b.attach[i].0.map(D::from));
+        let axf = cross(&arm, fi);
+        for j in 0..3 {
+            f[j] -= fi[j];
+            m[j] -= mi[j] + axf[j];
+        }
+    }
+    std::array::from_fn(|j| {
+        if j < 3 {
+            f[j] * (1.0 / b.fs)
+        } else {
+            m[j - 3] * (1.0 / b.ms)
+        }
+    })
+}
+
 /// Rod i's held-tip rows (scaled, as `collocation`'s: (r(L) - r_c) / L and
 /// e(R_c^T R(L))) and their derivatives with respect to the platform's unknowns.
 fn tip_rows_jacobian(
@@ -392,18 +470,29 @@ fn tip_rows_jacobian(
     let (r, rot) = p.tip_pose(z);
     let x: [Jet<6>; 6] = std::array::from_fn(|k| Jet::variable(xi[k], k));
     let k = eq.kin(&x);
-    let (o, a) = &eq.body.attach[i];
-    let arm = rotate(&k.rot, &o.map(Jet::from));
-    let target = matmul(&k.rot, &a.map(|row| row.map(Jet::from)));
-    let e = orientation_error(&tmatmul(&target, &rot.map(|row| row.map(Jet::from))));
-    let il = 1.0 / p.rod.length;
+    held_rows(&k, &eq.body.attach[i], &r, &rot, 1.0 / p.rod.length).map(|v| v.eps)
+}
+
+/// The held-tip rows of a rod attached at `attach` (offset, rotation in the platform
+/// frame) whose tip is at (`r`, `rot`) with the platform's pose `k` in any scalar:
+/// ((r - r_c) il, e(R_c^T rot)), r_c = p + R o, R_c = R A.
+fn held_rows<D: RodScalar>(
+    k: &Kin<D>,
+    attach: &([f64; 3], [[f64; 3]; 3]),
+    r: &[f64; 3],
+    rot: &[[f64; 3]; 3],
+    il: f64,
+) -> [D; 6] {
+    let (o, a) = attach;
+    let arm = rotate(&k.rot, &o.map(D::from));
+    let target = matmul(&k.rot, &a.map(|row| row.map(D::from)));
+    let e = orientation_error(&tmatmul(&target, &rot.map(|row| row.map(D::from))));
     std::array::from_fn(|row| {
-        let v = if row < 3 {
+        if row < 3 {
             (-(k.p[row] + arm[row]) + r[row]) * il
         } else {
             e[row - 3]
-        };
-        v.eps
+        }
     })
 }
 
@@ -745,6 +834,10 @@ pub(super) struct SystemCandidate {
     moved: f64,
     rate: f64,
     error: Option<f64>,
+    /// The platform's converged unknowns and the step's terms (for the parameter
+    /// sensitivities, `sensitivity`).
+    xi: [f64; 6],
+    terms: StepTerms,
 }
 
 /// A running simulation of a system of rods and their platform (module docs). Clone it to
@@ -775,6 +868,11 @@ pub struct SystemSimulator {
     /// The start's stability verdict (`solve_system`'s test of the whole system's
     /// equilibrium; None where not assessed): a fixed step may hold an unstable start.
     start_stable: Option<bool>,
+    /// Forward parameter sensitivities, when tracked (`sensitivity`).
+    sens: Option<Box<sensitivity::SysTracker>>,
+    /// The points read as markers (`SystemSimulator::set_markers`; a rod's are its
+    /// simulator's markers too, in this order).
+    markers: Vec<crate::sensitivity::system::SystemMarker>,
     pub stats: DynStats,
 }
 
@@ -1006,6 +1104,8 @@ impl SystemSimulator {
             kept: None,
             theta: 1.0,
             start_stable,
+            sens: None,
+            markers: vec![],
             stats,
         };
         let (kinetic, potential) = out.platform_energy(&now);
@@ -1187,6 +1287,7 @@ impl SystemSimulator {
             return Err(preps[0].not_converged(self.time, it, res));
         }
         let k = eq.kin(&xi);
+        let terms = eq.t;
         let motion = Motion {
             p: k.p,
             rot: k.rot,
@@ -1271,6 +1372,8 @@ impl SystemSimulator {
             moved,
             rate,
             error,
+            xi,
+            terms,
         })
     }
 
@@ -1316,6 +1419,7 @@ impl Stepping for SystemSimulator {
         c.error
     }
     fn accept(&mut self, c: SystemCandidate) -> Result<()> {
+        self.advance_sensitivity(&c)?;
         self.commit(c);
         Ok(())
     }
@@ -1555,6 +1659,8 @@ impl SystemSimulator {
             return Err(bad("was saved from a system with another number of rods"));
         }
         let mut next = self.clone();
+        // A restored state tracks no sensitivities (as a rod's, `Simulator::restore`).
+        next.sens = None;
         next.time = r.f()?;
         next.h_prev = r.f()?;
         next.h_next = r.f()?;
