@@ -314,12 +314,16 @@ def test_property_contact_answers_are_balanced_or_errors(height_mm, k_exp, radiu
         assert info.value.field == "obstacles[0]" and "unloaded rod" in str(info.value)
         return
     try:
-        sol = solve_statics(design, [])
+        # A beam resting on a small stiff sphere can be an unstable equilibrium (it rolls
+        # off sideways; e.g. a 5 mm sphere at x = 365 mm): an honest answer, reported in
+        # `stable`, and it balances like any other.
+        sol = solve_statics(design, [], on_unstable="ignore")
     except (ConvergenceError, InvalidStateError) as exc:
         assert str(exc)
         if isinstance(exc, InvalidStateError):
             assert exc.rule in ("penetration", "strain_range", "stretch_limit")
         return
+    assert sol.stable in (True, False)
     assert np.all(np.isfinite(sol.position)) and np.all(np.isfinite(sol.contact.force))
     assert sol.contact.max_penetration <= tol_mm * 1e-3
     assert balance_error(sol) < 1e-9 * max(1.0, math.fabs(sol.base_force[2]))
