@@ -17,6 +17,10 @@ recorded too (on a shared machine the wall adds the waits for the core).
 2. **One held actuator**: the system's left actuator alone, its tip clamped where the
    platform holds it at rest, the same step and dt: the cost a rod's share of the system
    would have on its own. The ratio of (1) to (2) is reported.
+3. **Sensitivities** (``calibrate_system(dynamic=True)``'s engine): the damped two-rod
+   system of (1) run with the exact forward sensitivities of one parameter (the body's E
+   on both rods) and of two (E and the platform's mass) tracked, against the same run
+   untracked; ratios reported.
 """
 
 from __future__ import annotations
@@ -146,6 +150,38 @@ def run_held(quick: bool) -> dict:
     return {"design": rod.design.name, "dt_s": DT, "repetitions": reps, **row}
 
 
+def run_tracked(quick: bool) -> dict:
+    print("\n[3] forward parameter sensitivities (damped system, tau 50 ms)")
+    from softrod.calibration.system import parse_system_parameters
+
+    system = _damped(softrod.load_system(SYSTEM), "50 ms")
+    reps = 2 if quick else 5
+    t_end = 0.1 if quick else 0.3
+    rows = []
+    for names in ([], ["E"], ["E", "platform_mass"]):
+        params = [p.core() for p in parse_system_parameters(names, system)] if names else []
+
+        def make(params=params):
+            sim = softrod.SystemSimulation(system, [[0.0] * 3, [0.0] * 3], dt=DT)
+            if params:
+                sim._sim.track_sensitivities(params)
+            return sim
+
+        def go(sim):
+            sim.run(_commands(), t_end)
+            return sim.stats["steps"], sim.stats
+
+        label = "untracked" if not names else "tracked: " + ", ".join(names)
+        row = {"setting": label, "t_end_s": t_end, **_timed(make, go, reps)}
+        rows.append(row)
+        _report(label, row, reps)
+    base = rows[0]["cpu_s"]
+    ratios = {r["setting"]: r["cpu_s"] / base for r in rows[1:]}
+    for name, x in ratios.items():
+        print(f"    {name}: {x:.2f}x the untracked run (CPU)")
+    return {"system": SYSTEM, "dt_s": DT, "repetitions": reps, "runs": rows, "ratio": ratios}
+
+
 def run(quick: bool) -> dict:
     t_start = time.perf_counter()
     info = machine()
@@ -157,6 +193,7 @@ def run(quick: bool) -> dict:
     )
     system = run_system(quick)
     held = run_held(quick)
+    tracked = run_tracked(quick)
     ratio = {r["setting"]: r["ms_per_step"] / held["ms_per_step"] for r in system["runs"]}
     for name, x in ratio.items():
         print(f"    {name}: {x:.1f}x the held actuator's cost per step")
@@ -167,6 +204,7 @@ def run(quick: bool) -> dict:
         "system": system,
         "held_actuator": held,
         "system_to_held_ratio": ratio,
+        "sensitivities": tracked,
         "wall_time_s": time.perf_counter() - t_start,
     }
 

@@ -298,6 +298,18 @@ def test_calibrate_system_command_writes_a_system_that_loads(system, run, tmp_pa
     parsed = json.loads(result.stdout)
     assert parsed["parameters"][0]["parameter"] == "E"
     assert {e["quantity"] for e in parsed["errors"]} == {"platform", "markers"}
+    # Registration parameters through the command line (units known for --bounds).
+    result = run(
+        "calibrate-system",
+        SYSTEM,
+        tmp_path / "pcr.csv",
+        "--params",
+        "E,registration_x",
+        "--bounds",
+        "registration_x=-5mm:5mm",
+    )
+    assert result.exit_code == 0, result.output
+    assert "registration_x" in result.stdout
     result = run("calibrate-system", SYSTEM, tmp_path / "pcr.csv", "--params", "rods[4].c_b")
     assert_clean_error(result, 2, "--params", "rods[4].c_b", "2 rods")
     result = run(

@@ -171,3 +171,29 @@ def test_refusals_name_the_field(system):
     other = calibrated_system(system, params, [1.3])
     with pytest.raises(InputError, match=r"params\[0\]"):
         calibrate_system(other, ds, ["c_b"], dynamic=True, dt=DT)
+
+
+def test_calibrate_system_command_replays_time_series(system, run, tmp_path):
+    """``softrod calibrate-system --dynamic --dt``: the time series through a dataset file,
+    the API's fit of the same file."""
+    from softrod.datasets import write_dataset
+
+    ds = _series(system, seeds=(5,))
+    write_dataset(ds, tmp_path / "series.csv")
+    result = run(
+        "calibrate-system",
+        SYSTEM,
+        tmp_path / "series.csv",
+        "--params",
+        "E",
+        "--dynamic",
+        "--dt",
+        "2 ms",
+        "--json",
+    )
+    assert result.exit_code == 0, result.output
+    import json
+
+    fitted = json.loads(result.stdout)["parameters"][0]["value"]
+    api = calibrate_system(system, tmp_path / "series.csv", ["E"], dynamic=True, dt=DT)
+    assert fitted == api.values[0]

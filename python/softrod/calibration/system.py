@@ -200,6 +200,15 @@ def parse_system_parameters(
     return out
 
 
+def resolve_system_parameters(names, system: System, *, dynamic: bool = False) -> list:
+    """The parameter objects (name, unit, positive) that ``names`` gives a system's fit, in
+    order: the system's (:func:`parse_system_parameters`), then the registration's (for
+    messages and the command line's units)."""
+    rest, registration = _split_params(names, None, "cosserat")
+    found = parse_system_parameters(rest, system, dynamic=dynamic) if rest else []
+    return [*found, *registration]
+
+
 def calibrated_system(system: System, params: Sequence[SystemParameter], values) -> System:
     """``system`` with the parameters set to ``values`` (SI): each rod's design rewritten
     (:func:`~softrod.calibration.params.design_changes`), the platform's mass replaced."""

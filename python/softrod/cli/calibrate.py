@@ -662,6 +662,18 @@ def calibrate(
     help="Draw the measured against the predicted platform positions and each row's error "
     "(.png, .pdf or .svg).",
 )
+@click.option(
+    "--dynamic",
+    is_flag=True,
+    help="Replay the time series of DATA (time column, one experiment per run) instead of "
+    "fitting equilibria (exact trajectory sensitivities of the whole system; "
+    "--params may then include damping_time).",
+)
+@click.option(
+    "--dt",
+    default=None,
+    help="Time step of the replayed time series (default 5 ms; with --dynamic only).",
+)
 @_json_option
 @_threads_option("Worker threads per model evaluation (0 = all cores).")
 @_handle_errors
@@ -678,6 +690,8 @@ def calibrate_system_cmd(
     out,
     predictions_path,
     plot_path,
+    dynamic,
+    dt,
     as_json,
     threads,
 ):
@@ -696,14 +710,16 @@ def calibrate_system_cmd(
     from rich.text import Text
 
     from ..calibration.fit import warning_thresholds
-    from ..calibration.system import calibrate_system, parse_system_parameters
+    from ..calibration.system import calibrate_system, resolve_system_parameters
     from ..datasets import load_dataset
     from ..errors import CalibrationWarning
     from ..io import TABLE_SUFFIXES, write_table
     from ..system import load_system
 
     sysm = load_system(system)
-    parsed = _renamed("--params", parse_system_parameters, params, sysm)
+    parsed = _renamed(
+        "--params", lambda *a: resolve_system_parameters(*a, dynamic=dynamic), params, sysm
+    )
     bounds, typed = _parse_bounds(bounds_items, parsed)
     weights = _parse_pairs(weight_items, "--weights", "tip=0.2mm") or None
     if out is not None:
@@ -748,6 +764,8 @@ def calibrate_system_cmd(
                     threads=threads,
                     max_evaluations=max_evaluations,
                     progress=progress,
+                    dynamic=dynamic,
+                    dt=dt,
                 )
         except InputError as exc:
             raise _as_option(exc, renames, typed) from None
