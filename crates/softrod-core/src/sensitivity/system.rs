@@ -69,6 +69,24 @@ pub struct SystemSensitivity {
 /// parameter is (`check_params`), one kind and one value per parameter, no rod twice.
 /// Errors name `params[j]` (and the rod).
 pub fn validate_system_params(rods: &[SystemRod], params: &[SystemParam]) -> Result<()> {
+    check_system_params(
+        rods.len(),
+        params,
+        |i, p| check_params(rods[i].rod, std::slice::from_ref(p)),
+        |i, p| p.value(rods[i].rod, &rods[i].loads),
+    )
+}
+
+/// The rules every system's parameters follow, in statics and in motion: each rod entry
+/// names one of the `n_rods` rods once, one kind and (`value`) one value per parameter, and
+/// each entry passes `check` (its rod's own rules: the statics' or the dynamics'). Errors
+/// name `params[j]` and the rod.
+pub(crate) fn check_system_params(
+    n_rods: usize,
+    params: &[SystemParam],
+    check: impl Fn(usize, &Param) -> Result<()>,
+    value: impl Fn(usize, &Param) -> f64,
+) -> Result<()> {
     for (j, p) in params.iter().enumerate() {
         let SystemParam::Rods(entries) = p else {
             continue;
@@ -81,15 +99,15 @@ pub fn validate_system_params(rods: &[SystemRod], params: &[SystemParam]) -> Res
                 "name at least one rod the parameter acts on",
             ));
         };
-        let mut value: Option<(usize, f64)> = None;
+        let mut seen: Option<(usize, f64)> = None;
         for (e, (i, param)) in entries.iter().enumerate() {
-            let Some(sr) = rods.get(*i) else {
+            if *i >= n_rods {
                 return Err(SoftrodError::invalid(
                     format!("{field}.rods[{e}]"),
                     format!("rod {i}"),
-                    format!("the system has {} rods", rods.len()),
+                    format!("the system has {n_rods} rods"),
                 ));
-            };
+            }
             if entries[..e].iter().any(|(k, _)| k == i) {
                 return Err(SoftrodError::invalid(
                     format!("{field}.rods[{e}]"),
@@ -107,22 +125,23 @@ pub fn validate_system_params(rods: &[SystemRod], params: &[SystemParam]) -> Res
                     ),
                 ));
             }
-            check_params(sr.rod, std::slice::from_ref(param)).map_err(|err| match err {
+            let named = format!("{field} ({}) of rods[{i}]", param.kind.name());
+            check(*i, param).map_err(|err| match err {
                 SoftrodError::InvalidParameter { value, rule, .. } => {
                     SoftrodError::InvalidParameter {
-                        field: format!("{field} ({}) of rods[{i}]", param.kind.name()),
+                        field: named.clone(),
                         value,
                         rule,
                     }
                 }
                 other => other,
             })?;
-            let v = param.value(sr.rod, &sr.loads);
-            match value {
-                None => value = Some((*i, v)),
+            let v = value(*i, param);
+            match seen {
+                None => seen = Some((*i, v)),
                 Some((k, v0)) if v != v0 => {
                     return Err(SoftrodError::invalid(
-                        format!("{field} ({}) of rods[{i}]", param.kind.name()),
+                        named,
                         v,
                         format!(
                             "one parameter needs one value: rods[{k}] has {v0}; calibrate them as separate parameters"

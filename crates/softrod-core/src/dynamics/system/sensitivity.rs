@@ -57,7 +57,7 @@ use crate::dynamics::{end_target, step_problem, to_scaled, Bdf, Slot, FIELDS};
 use crate::error::{Result, SoftrodError};
 use crate::jet::Jet;
 use crate::marker::check_markers;
-use crate::sensitivity::system::{SystemMarker, SystemParam};
+use crate::sensitivity::system::{check_system_params, SystemMarker, SystemParam};
 use crate::sensitivity::{section_value, Param, ParamKind, CHUNK};
 
 /// The sensitivities carried through a system's time loop.
@@ -260,75 +260,25 @@ impl SystemSimulator {
     /// parameter is (`Simulator::check_tracked`). Returns, per rod, the parameters acting
     /// on it.
     fn check_params(&self, params: &[SystemParam]) -> Result<Vec<Vec<(usize, Param)>>> {
-        let mut on_rod = vec![vec![]; self.rods.len()];
-        for (j, p) in params.iter().enumerate() {
-            let SystemParam::Rods(entries) = p else {
-                continue;
-            };
-            let field = format!("params[{j}]");
-            let Some((_, first)) = entries.first() else {
-                return Err(SoftrodError::invalid(
-                    field,
-                    "no rods",
-                    "name at least one rod the parameter acts on",
-                ));
-            };
-            let mut value: Option<(usize, f64)> = None;
-            for (e, (i, param)) in entries.iter().enumerate() {
-                let Some(sim) = self.rods.get(*i) else {
-                    return Err(SoftrodError::invalid(
-                        format!("{field}.rods[{e}]"),
-                        format!("rod {i}"),
-                        format!("the system has {} rods", self.rods.len()),
-                    ));
-                };
-                if entries[..e].iter().any(|(k, _)| k == i) {
-                    return Err(SoftrodError::invalid(
-                        format!("{field}.rods[{e}]"),
-                        format!("rod {i}"),
-                        "names a rod twice: list each rod once with all its sections",
-                    ));
-                }
-                if param.kind != first.kind {
-                    return Err(SoftrodError::invalid(
-                        format!("{field}.rods[{e}]"),
-                        param.kind.name(),
-                        format!(
-                            "one parameter has one kind: the first entry is {}",
-                            first.kind.name()
-                        ),
-                    ));
-                }
-                sim.check_tracked(std::slice::from_ref(param))
-                    .map_err(|err| match err {
-                        SoftrodError::InvalidParameter { value, rule, .. } => {
-                            SoftrodError::InvalidParameter {
-                                field: format!("{field} ({}) of rods[{i}]", param.kind.name()),
-                                value,
-                                rule,
-                            }
-                        }
-                        other => other,
-                    })?;
-                let v = match (param.kind, param.sections.first()) {
+        check_system_params(
+            self.rods.len(),
+            params,
+            |i, p| self.rods[i].check_tracked(std::slice::from_ref(p)),
+            |i, p| {
+                let sim = &self.rods[i];
+                match (p.kind, p.sections.first()) {
                     (ParamKind::DampingTime, _) => sim.rod.spec.dynamics.damping_time,
                     (kind, Some(&s)) => section_value(&sim.rod, s, kind),
                     (_, None) => f64::NAN,
-                };
-                match value {
-                    None => value = Some((*i, v)),
-                    Some((k, v0)) if v != v0 => {
-                        return Err(SoftrodError::invalid(
-                            format!("{field} ({}) of rods[{i}]", param.kind.name()),
-                            v,
-                            format!(
-                                "one parameter needs one value: rods[{k}] has {v0}; calibrate them as separate parameters"
-                            ),
-                        ))
-                    }
-                    Some(_) => {}
                 }
-                on_rod[*i].push((j, param.clone()));
+            },
+        )?;
+        let mut on_rod = vec![vec![]; self.rods.len()];
+        for (j, p) in params.iter().enumerate() {
+            if let SystemParam::Rods(entries) = p {
+                for (i, param) in entries {
+                    on_rod[*i].push((j, param.clone()));
+                }
             }
         }
         Ok(on_rod)
