@@ -516,29 +516,9 @@ class SystemDynamic(ModelAdapter):
                 runs = list(pool.map(lambda exp: self._replay(system, exp, jacobian), todo))
         else:
             runs = [self._replay(system, exp, jacobian) for exp in todo]
-        for exp, run in zip(todo, runs, strict=True):
-            if run is None:
-                if jacobian:
-                    out.d_tip[exp] = 0.0
-                    if out.d_markers is not None:
-                        out.d_markers[exp] = 0.0
-                continue
-            out.tip[exp], dp, markers, dm = run
-            if markers is not None:
-                out.markers[exp] = markers
-            out.ok[exp] = True
-            if jacobian:
-                for j, p in enumerate(self.params):
-                    if p.kind == "area_scale":
-                        # The core differentiates by a factor on the current areas, which
-                        # are theta_j times the design's: d/d theta_j = (1/theta_j) d/dk.
-                        dp[..., j] /= theta[j]
-                        if dm is not None:
-                            dm[..., j] /= theta[j]
-                out.d_tip[exp] = dp
-                if dm is not None:
-                    out.d_markers[exp] = dm
-        return out
+        from .adapters.rod_dynamic import fill_replays
+
+        return fill_replays(out, todo, runs, self.params, theta, jacobian)
 
     def calibrated_design(self, theta) -> System:
         return calibrated_system(self.system, self.params, theta)

@@ -237,29 +237,7 @@ class RodDynamic(ModelAdapter):
         else:
             runs = [self._replay(*job, jacobian) for job in jobs]
         self._last = (np.array(theta, dtype=float).tobytes(), set(replayed), out)
-        for exp, run in zip(todo, runs, strict=True):
-            if run is None:
-                if jacobian:
-                    out.d_tip[exp] = 0.0
-                    if out.d_markers is not None:
-                        out.d_markers[exp] = 0.0
-                continue
-            out.tip[exp], dj, markers, dm = run
-            if markers is not None:
-                out.markers[exp] = markers
-            out.ok[exp] = True
-            if jacobian:
-                for j, p in enumerate(self.params):
-                    if p.kind == "area_scale":
-                        # The core differentiates by a factor on the current areas, which
-                        # are theta_j times the design's: d/d theta_j = (1/theta_j) d/dk.
-                        dj[..., j] /= theta[j]
-                        if dm is not None:
-                            dm[..., j] /= theta[j]
-                out.d_tip[exp] = dj
-                if dm is not None:
-                    out.d_markers[exp] = dm
-        return out
+        return fill_replays(out, todo, runs, self.params, theta, jacobian)
 
     def calibrated_design(self, theta) -> Design:
         return self.design_of(theta)
@@ -303,3 +281,32 @@ class RodDynamic(ModelAdapter):
             np.asarray(mount["base_position"], dtype=float),
             np.asarray(mount["base_rotation"], dtype=float)[:, 2],
         )
+
+
+def fill_replays(out: Prediction, todo, runs, params, theta, jacobian: bool) -> Prediction:
+    """``out`` with each replayed experiment's samples (``runs``: (position, its
+    derivatives, markers, theirs) per experiment of ``todo``, None where the replay failed:
+    zero derivatives, so the optimiser steps back). The core differentiates ``area_scale``
+    by a factor on the current areas, which are theta_j times the design's: d/d theta_j =
+    (1/theta_j) d/dk."""
+    for exp, run in zip(todo, runs, strict=True):
+        if run is None:
+            if jacobian:
+                out.d_tip[exp] = 0.0
+                if out.d_markers is not None:
+                    out.d_markers[exp] = 0.0
+            continue
+        out.tip[exp], dj, markers, dm = run
+        if markers is not None:
+            out.markers[exp] = markers
+        out.ok[exp] = True
+        if jacobian:
+            for j, p in enumerate(params):
+                if p.kind == "area_scale":
+                    dj[..., j] /= theta[j]
+                    if dm is not None:
+                        dm[..., j] /= theta[j]
+            out.d_tip[exp] = dj
+            if dm is not None:
+                out.d_markers[exp] = dm
+    return out
