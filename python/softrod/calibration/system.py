@@ -406,13 +406,6 @@ class SystemDynamic(ModelAdapter):
         from .adapters.rod_dynamic import experiment_rows
 
         super().__init__()
-        if dataset.tensions is not None:
-            raise V.fail(
-                "dataset.tensions",
-                "given",
-                "a system's time series are replayed with slack tendons; fit tendon-driven "
-                "systems in statics (dynamic=False)",
-            )
         for p in params:
             if not p.positive:
                 raise V.fail("params", p.name, "dynamic calibration fits positive parameters only")
@@ -432,17 +425,22 @@ class SystemDynamic(ModelAdapter):
         self.experiments = experiment_rows(dataset)
         self.time = np.asarray(dataset.time, dtype=float)
         self.p = np.ascontiguousarray(dataset.pressures, dtype=float)
+        # Tendon tensions (N) of every sample, inputs joined linearly as the pressures are;
+        # None: every tendon slack.
+        self.t = None if dataset.tensions is None else np.asarray(dataset.tensions, dtype=float)
         self.markers = _markers_core(dataset)
         self.m = len(dataset)
         self.widths = [r.design.n_channels for r in system.rods]
+        self.tendon_widths = [r.design.n_tendons for r in system.rods]
 
     def set_threads(self, threads: int) -> None:
         self.threads = threads
 
-    def _commands(self, p: np.ndarray) -> list[list[float]]:
-        """One row of pressures (all channels) as one list per rod."""
+    def _commands(self, p: np.ndarray, widths=None) -> list[list[float]]:
+        """One row of inputs (all channels: pressures, or tensions with the tendon widths)
+        as one list per rod."""
         out, o = [], 0
-        for w in self.widths:
+        for w in self.widths if widths is None else widths:
             out.append([float(v) for v in p[o : o + w]])
             o += w
         return out
@@ -460,10 +458,29 @@ class SystemDynamic(ModelAdapter):
         at = self.dt * np.arange(1, steps + 1)
         # The pressures joined linearly between the samples (held after the last), read at
         # every step's end, as the sample times' function would be.
-        knots = np.column_stack([np.interp(at, t, p[:, c]) for c in range(p.shape[1])])
+        knots = (
+            np.stack([np.interp(at, t, p[:, c]) for c in range(p.shape[1])], axis=1)
+            if (p.shape[1])
+            else np.zeros((steps, 0))
+        )
+        tw = self.tendon_widths
+        tensions = steps_t = None
+        if self.t is not None:
+            tensions = self.t[exp]
+            steps_t = [
+                self._commands(row, tw)
+                for row in np.column_stack(
+                    [np.interp(at, t, tensions[:, c]) for c in range(tensions.shape[1])]
+                )
+            ]
         try:
             sim = SystemSimulation(
-                system, self._commands(p[0]), dt=self.dt, tol=self.tol, on_unstable="ignore"
+                system,
+                self._commands(p[0]),
+                tensions=None if tensions is None else self._commands(tensions[0], tw),
+                dt=self.dt,
+                tol=self.tol,
+                on_unstable="ignore",
             )
             core = sim._sim
             if self.markers:
@@ -471,7 +488,7 @@ class SystemDynamic(ModelAdapter):
             if jacobian:
                 core.track_sensitivities([q.core() for q in self.params])
             start = core.snapshot()
-            run = core.run([self._commands(row) for row in knots])
+            run = core.run([self._commands(row) for row in knots], tensions=steps_t)
         except ConvergenceError:  # InvalidStateError included
             return None
         n_par, n_mk = len(self.params) if jacobian else 0, len(self.markers)
@@ -530,11 +547,14 @@ class SystemDynamic(ModelAdapter):
         return SystemStatic.base_frame(self)  # type: ignore[arg-type]
 
     def reference(self, calibrated: System, theta) -> Prediction:
-        """The unactuated system's platform and markers (zero pressures), as the static
-        fit's reference."""
-        rest = SystemStatic(
-            calibrated, Dataset(pressures=self.p[:1], tip_position=np.zeros((1, 3))), [], None, 1
+        """The unactuated system's platform and markers (zero pressures, slack tendons), as
+        the static fit's reference."""
+        first = Dataset(
+            pressures=self.p[:1],
+            tensions=None if self.t is None else self.t[:1],
+            tip_position=np.zeros((1, 3)),
         )
+        rest = SystemStatic(calibrated, first, [], None, 1)
         rest.markers = self.markers
         one = SystemStatic.reference(rest, calibrated, theta)
         out = Prediction.empty(self.m, 0, len(self.markers), False)
