@@ -316,6 +316,52 @@ def _reaction_table(result):
     return table
 
 
+def _captured_fit(go, typed: dict):
+    """Run the fit ``go()`` recording its calibration warnings whatever the filters (they are
+    printed once, by :func:`_print_fit`; others keep the caller's filters and are passed on
+    after the fit); an InputError names the command's option. Returns (result, warnings)."""
+    from ..errors import CalibrationWarning
+
+    renames = {**_CALIBRATE_OPTIONS, **{k: "--bounds" for k in typed}}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", CalibrationWarning)
+        try:
+            result = go()
+        except InputError as exc:
+            raise _as_option(exc, renames, typed) from None
+    found = [str(w.message) for w in caught if issubclass(w.category, CalibrationWarning)]
+    for w in caught:
+        if not issubclass(w.category, CalibrationWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return result, found
+
+
+def _print_fit(note, result, found: list[str], as_json: bool, tables: list) -> None:
+    """A fit's summary line, parameter table and ``tables`` (not with --json), then its
+    warnings and the rules they follow."""
+    from rich.text import Text
+
+    from ..calibration.fit import warning_thresholds
+
+    if not as_json:
+        style = "green" if result.success else "yellow"
+        note.print(
+            Text.assemble(
+                (f"{result.method}: ", style),
+                f"{result.evaluations} model evaluations, {result.elapsed_s:.2f} s; ",
+                (result.message, style),
+            ),
+            soft_wrap=True,
+        )
+        note.print(_parameter_table(result))
+        for table in tables:
+            note.print(table)
+    _print_warnings(note, found)
+    if not as_json:
+        lead = "no warnings" if not found else "rules"
+        note.print(Text(f"{lead}: {warning_thresholds()}", style="dim"))
+
+
 @click.command()
 @click.argument("design")
 @click.argument("data")
@@ -481,7 +527,6 @@ def calibrate(
     from ..calibration.report import REPORT_SUFFIXES
     from ..catalog import load_design
     from ..datasets import load_dataset
-    from ..errors import CalibrationWarning
     from ..io import TABLE_SUFFIXES, write_table
 
     d = load_design(design)
@@ -531,64 +576,37 @@ def calibrate(
                 soft_wrap=True,
             )
 
-    renames = {**_CALIBRATE_OPTIONS, **{k: "--bounds" for k in typed}}
-    with warnings.catch_warnings(record=True) as caught:
-        # Record calibration warnings whatever the filters (print them once, below); others
-        # keep the caller's filters and are passed on after the fit.
-        warnings.simplefilter("always", CalibrationWarning)
-        try:
-            with _scheduler(scheduler) as client, _FitProgress(header) as progress:
-                result = fit(
-                    d,
-                    dataset,
-                    params,
-                    bounds=bounds or None,
-                    method=method,
-                    split=split,
-                    test=test,
-                    threads=threads,
-                    max_evaluations=max_evaluations,
-                    progress=progress,
-                    restarts=restarts,
-                    seed=seed,
-                    executor=client,
-                    name=name,
-                    model=model,
-                    dynamic=dynamic,
-                    dt=dt,
-                    experiments=_experiment_kinds(experiments, dataset),
-                    weights=weights,
-                )
-        except InputError as exc:
-            raise _as_option(exc, renames, typed) from None
-    found = [str(w.message) for w in caught if issubclass(w.category, CalibrationWarning)]
-    for w in caught:
-        if not issubclass(w.category, CalibrationWarning):
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    def go():
+        with _scheduler(scheduler) as client, _FitProgress(header) as progress:
+            return fit(
+                d,
+                dataset,
+                params,
+                bounds=bounds or None,
+                method=method,
+                split=split,
+                test=test,
+                threads=threads,
+                max_evaluations=max_evaluations,
+                progress=progress,
+                restarts=restarts,
+                seed=seed,
+                executor=client,
+                name=name,
+                model=model,
+                dynamic=dynamic,
+                dt=dt,
+                experiments=_experiment_kinds(experiments, dataset),
+                weights=weights,
+            )
 
+    result, found = _captured_fit(go, typed)
     if as_json:
         click.echo(result_json(result))
-    else:
-        style = "green" if result.success else "yellow"
-        note.print(
-            Text.assemble(
-                (f"{result.method}: ", style),
-                f"{result.evaluations} model evaluations, {result.elapsed_s:.2f} s; ",
-                (result.message, style),
-            ),
-            soft_wrap=True,
-        )
-        note.print(_parameter_table(result))
-        if len(result.error_table):
-            note.print(_error_table(result))
-        if result.reaction_error_table is not None:
-            note.print(_reaction_table(result))
-    _print_warnings(note, found)
-    if not as_json:
-        from ..calibration.fit import warning_thresholds
-
-        lead = "no warnings" if not found else "rules"
-        note.print(Text(f"{lead}: {warning_thresholds()}", style="dim"))
+    tables = [_error_table(result)] if len(result.error_table) else []
+    if result.reaction_error_table is not None:
+        tables.append(_reaction_table(result))
+    _print_fit(note, result, found, as_json, tables)
 
     if outputs:
         paths = list(outputs.values())
@@ -709,10 +727,8 @@ def calibrate_system_cmd(
     from rich.console import Console
     from rich.text import Text
 
-    from ..calibration.fit import warning_thresholds
     from ..calibration.system import calibrate_system, resolve_system_parameters
     from ..datasets import load_dataset
-    from ..errors import CalibrationWarning
     from ..io import TABLE_SUFFIXES, write_table
     from ..system import load_system
 
@@ -747,32 +763,26 @@ def calibrate_system_cmd(
             ),
             soft_wrap=True,
         )
-    renames = {**_CALIBRATE_OPTIONS, **{k: "--bounds" for k in typed}}
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", CalibrationWarning)
-        try:
-            with _FitProgress() as progress:
-                result = calibrate_system(
-                    sysm,
-                    dataset,
-                    params,
-                    bounds=bounds or None,
-                    method=method,
-                    split=split,
-                    test=test,
-                    weights=weights,
-                    threads=threads,
-                    max_evaluations=max_evaluations,
-                    progress=progress,
-                    dynamic=dynamic,
-                    dt=dt,
-                )
-        except InputError as exc:
-            raise _as_option(exc, renames, typed) from None
-    found = [str(w.message) for w in caught if issubclass(w.category, CalibrationWarning)]
-    for w in caught:
-        if not issubclass(w.category, CalibrationWarning):
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+    def go():
+        with _FitProgress() as progress:
+            return calibrate_system(
+                sysm,
+                dataset,
+                params,
+                bounds=bounds or None,
+                method=method,
+                split=split,
+                test=test,
+                weights=weights,
+                threads=threads,
+                max_evaluations=max_evaluations,
+                progress=progress,
+                dynamic=dynamic,
+                dt=dt,
+            )
+
+    result, found = _captured_fit(go, typed)
     length = float(np.mean([rod.design.length for rod in sysm.rods]))
     if as_json:
         click.echo(
@@ -789,23 +799,10 @@ def calibrate_system_cmd(
                 default=float,
             )
         )
-    else:
-        style = "green" if result.success else "yellow"
-        note.print(
-            Text.assemble(
-                (f"{result.method}: ", style),
-                f"{result.evaluations} model evaluations, {result.elapsed_s:.2f} s; ",
-                (result.message, style),
-            ),
-            soft_wrap=True,
-        )
-        note.print(_parameter_table(result))
-        if len(result.error_table):
-            note.print(_error_table(result, length, "the rods' mean length"))
-    _print_warnings(note, found)
-    if not as_json:
-        lead = "no warnings" if not found else "rules"
-        note.print(Text(f"{lead}: {warning_thresholds()}", style="dim"))
+    tables = (
+        [_error_table(result, length, "the rods' mean length")] if len(result.error_table) else []
+    )
+    _print_fit(note, result, found, as_json, tables)
     if outputs:
         with _staged(list(outputs.values())) as staged:
             for tmp, kind in zip(staged, outputs, strict=True):
