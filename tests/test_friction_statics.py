@@ -66,20 +66,44 @@ def test_finger_with_friction_solves_balances_and_differs(finger, rough):
 
 def test_the_answer_converges_at_first_order_in_the_increments(rough):
     """The increments' first-order error: the friction force changes by a quarter as
-    often from 5 to 20, 80 and 320 increments (a first-order error C / n changes by
-    (3/4) C / n per quadrupling; measured ratios 4.1 and 4.2). The bounds 2 and 8 allow
-    the O(1/n) correction of the ratio at these n."""
+    often from 80 to 320 and 1280 increments (a first-order error C / n changes by
+    (3/4) C / n per quadrupling; measured ratio 4.3). The bounds 2 and 8 allow the O(1/n)
+    correction of the ratio at these n. Coarser requests than the default land on the
+    table in the default's increments (``test_coarse_paths_land_like_the_default``), so
+    the convergence is measured from the default up."""
     forces = []
-    for n in (5, 20, 80, 320):
+    for n in (80, 320, 1280):
         sol = solve_statics(rough, [35e3], options=SolverOptions(friction_steps=n))
         forces.append(sol.contact.friction_force[0][0])
     d = np.abs(np.diff(forces))
-    ratios = d[:-1] / d[1:]
-    assert np.all((ratios > 2) & (ratios < 8)), (forces, ratios)
+    ratio = d[0] / d[1]
+    assert 2 < ratio < 8, (forces, ratio)
     # The default (80) is within about 1 % of the limit: the first-order error at 80 is
-    # d[2] / 3 (the geometric tail 1/4 + 1/16 + ... of the last change), measured 0.3 %.
+    # (4/3) d[0] (the change to 320 and its geometric tail 1/4 + 1/16 + ...), measured
+    # 1.1 %; "about 1 %" is held to below 2 %.
     assert SolverOptions().friction_steps == 80
-    assert d[2] / 3 < 0.01 * abs(forces[-1])
+    assert 4 / 3 * d[0] < 0.02 * abs(forces[-1])
+
+
+@pytest.mark.parametrize("pressure", [25e3, 35e3])
+@pytest.mark.parametrize("steps", [1, 2, 3])
+def test_coarse_paths_land_like_the_default(rough, pressure, steps):
+    """Regression: one or two increments carried the tip from the air onto the table in
+    one increment, whose whole travel counted as slip: the tip swings back (-x) before
+    it lands and slides out (+x) once pressed, so the net travel pointed back and the
+    friction the wrong way (+8.4 mN at 25 kPa,
+    +14 mN at 35 kPa, against -23.7 and -45.4 mN on fine paths). Now a landing increment
+    is never longer than the default path's, so a coarse request resolves the landing as
+    the default does: the friction has the fine path's sign, and its size is within 5 %
+    of the 320-increment path's (the default's own first-order error is about 1 %, and
+    after the landing a coarse request goes on in longer increments, each first order:
+    measured 0.1-1.9 %; 1.7 % with 5 increments at 25 kPa in the Rust test)."""
+    sol = solve_statics(rough, [pressure], options=SolverOptions(friction_steps=steps))
+    fine = solve_statics(rough, [pressure], options=SolverOptions(friction_steps=320))
+    f, f_fine = sol.contact.friction_force[0][0], fine.contact.friction_force[0][0]
+    assert f < 0 and f_fine < 0
+    assert abs(f - f_fine) <= 0.05 * abs(f_fine), (f, f_fine)
+    assert balance_error(sol) < 1e-9 * max(1.0, rough.mass * G)
 
 
 @pytest.mark.parametrize("steps", [1, 2, 3, 4, 5, 6])

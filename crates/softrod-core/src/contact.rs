@@ -297,7 +297,9 @@ impl Obstacle {
     /// with k_t = k scale (the normal penalty stiffness). The moment about the centreline
     /// is a x f_t. A point that lands on the obstacle during the increment is anchored
     /// where its material point was at the increment's start (its flight before touching
-    /// counts as slip: first order in the increment, as the rest of the path). Continuous in the state, with a kink at the stick/slip switch (Newton
+    /// counts as slip: first order in the increment, as the rest of the path; so the path
+    /// lands in increments no longer than the default path's, `statics::friction::follow`).
+    /// Continuous in the state, with a kink at the stick/slip switch (Newton
     /// is semi-smooth there); generic over the scalar, so the shooting Jacobian is exact
     /// on either side.
     #[inline]

@@ -44,10 +44,10 @@ use constraint::TipConstraint;
 
 /// Default number of equal load increments of a frictional static solve. The answer's
 /// dependence on the increment size is first order (measured on the bundled finger
-/// pressed onto a table with mu = 0.5 at 35 kPa: the friction force changes by 6.2, 1.5
-/// and 0.37 mN from 5 to 20, 80 and 320 increments, a ratio of 4.1 per quadrupling);
-/// 80 increments leave about 1 % of the friction force (0.5 of 45 mN), and cost about
-/// as much as 20, which need more halved increments where the tip lands.
+/// pressed onto a table with mu = 0.5 at 35 kPa: the friction force changes by 0.37 and
+/// 0.084 mN from 80 to 320 and 1280 increments, a ratio of 4.3 per quadrupling); 80
+/// increments leave about 1 % of the friction force (0.5 of 45 mN). Coarser requests land
+/// on an obstacle in increments of the default's length (`LANDING_STEP`).
 pub const DEFAULT_FRICTION_STEPS: usize = 80;
 /// Most increments a caller may ask for (each is a Newton solve).
 pub const MAX_FRICTION_STEPS: usize = 100_000;
@@ -57,6 +57,10 @@ pub const MAX_FRICTION_STEPS: usize = 100_000;
 const SUB: u64 = 1024;
 /// Contact-free stretches of a path are jumped over (`follow`).
 pub(crate) const JUMPS: bool = true;
+/// The longest increment (fraction of the path) in which a contact point may land on an
+/// obstacle: the default path's (`follow`), with a margin for the round-off of the
+/// dyadic positions.
+const LANDING_STEP: f64 = (1.0 + 1e-9) / DEFAULT_FRICTION_STEPS as f64;
 
 /// Every contact point's friction memory: per section, one point per RK4 stage (4 per
 /// step; none in a rigid section, which carries no contact force), and the rounded end.
@@ -200,18 +204,28 @@ pub(crate) fn unloaded_state(
 }
 
 /// The state after a converged increment: problem `p` (built on `old`) at its solution
-/// x, each point's return map (`Obstacle::stick_load`) at its new position.
-fn advance(p: &Problem, x: &[f64], old: &FrictionState, obstacles: &[Obstacle]) -> FrictionState {
+/// x, each point's return map (`Obstacle::stick_load`) at its new position; and whether a
+/// point landed on an obstacle in the increment (clear of it at the start, penetrating it
+/// now).
+fn advance(
+    p: &Problem,
+    x: &[f64],
+    old: &FrictionState,
+    obstacles: &[Obstacle],
+) -> (FrictionState, bool) {
     let rod = p.rod;
     let mut sections: Vec<Vec<StickPoint>> = vec![Vec::new(); rod.sections.len()];
+    let landed = std::cell::Cell::new(false);
     let update = |ys: &State<f64>, rho: f64, scale: f64, was: &StickPoint| StickPoint {
         r: ys.r,
         rot: ys.rot,
         e: (0..obstacles.len())
             .map(|k| {
-                obstacles[k]
-                    .stick_load(&ys.r, &ys.rot, rho, scale, was, k)
-                    .e
+                let o = &obstacles[k];
+                if rho > o.distance(&ys.r).0 && rho < o.distance(&was.r).0 {
+                    landed.set(true);
+                }
+                o.stick_load(&ys.r, &ys.rot, rho, scale, was, k).e
             })
             .collect(),
     };
@@ -235,10 +249,11 @@ fn advance(p: &Problem, x: &[f64], old: &FrictionState, obstacles: &[Obstacle]) 
         }
         None => old.end.clone(),
     };
-    FrictionState {
+    let state = FrictionState {
         sections: sections.into_iter().map(Arc::from).collect(),
         end,
-    }
+    };
+    (state, landed.get())
 }
 
 /// Check that `history` belongs to this rod (same design, same obstacles) and to a path
@@ -827,18 +842,31 @@ pub(crate) fn follow<C: Reached>(
                     }
                     landed = Some(shape);
                 }
+                let mut touchdown = false;
                 let next: Vec<Option<FrictionState>> = rods
                     .iter()
                     .zip(&states)
                     .map(|((p, xi), s)| {
                         let (s, obstacles) = (s.as_ref()?, p.rod.obstacles.as_deref()?);
-                        Some(advance(p, xi, s, obstacles))
+                        let (next, landed) = advance(p, xi, s, obstacles);
+                        touchdown |= landed;
+                        Some(next)
                     })
                     .collect();
                 let lands_clear = jumps && untouched(&rods, &next);
                 drop(rods);
                 if jump && !lands_clear {
                     stride = span / 2;
+                    continue;
+                }
+                // A point that lands in an increment is anchored as if it moved straight
+                // over it (`Obstacle::stick_load`); its path before landing is not
+                // resolved inside the increment, so a landing increment is never longer
+                // than the default path's (1/DEFAULT_FRICTION_STEPS of the path): a coarse
+                // request that lands in one increment would otherwise count a flight that
+                // turned back before touching as slip, and get the friction's sign wrong.
+                if touchdown && dt > LANDING_STEP && len > 1 {
+                    depth += 1;
                     continue;
                 }
                 if let Some(shape) = landed {
