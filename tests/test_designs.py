@@ -135,6 +135,48 @@ def test_editing_a_design_document_cannot_change_the_design(tmp_path):
     assert load_design(d.document | {"design": {**before["design"], "name": "x"}}).name == "x"
 
 
+def test_the_spec_is_read_only():
+    """Design.spec is what the compiled rod was built from: an edit in place would leave
+    Python's readers of it (tip_mass, the PCC model, calibration's parameters) and the
+    solver disagreeing, so every in-place change is refused, at any depth, naming the way
+    to a changed copy; a deep copy is a plain editable dict."""
+    import json
+    import pickle
+
+    d = load_design(SPA)
+    spec = d.spec
+    edits = [
+        lambda: spec.__setitem__("name", "x"),
+        lambda: spec["tip"].__setitem__("mass", 1.0),
+        lambda: spec["tip"].update(mass=1.0),
+        lambda: spec["tip"].pop("mass"),
+        lambda: spec["sections"].append({}),
+        lambda: spec["sections"].__delitem__(0),
+        lambda: spec["sections"][0].setdefault("new", 1),
+        lambda: spec["sections"][0]["chambers"].clear(),
+        lambda: spec["mounting"].clear(),
+    ]
+    for edit in edits:
+        with pytest.raises(TypeError, match=r"read-only.*Design\.replace"):
+            edit()
+    assert d.spec == load_design(SPA).spec and d.tip_mass == spec["tip"]["mass"]
+    # Still a dict to read and serialise (the cluster and the saved states use JSON).
+    assert isinstance(spec, dict) and json.loads(json.dumps(spec)) == spec
+    editable = copy.deepcopy(spec)
+    editable["tip"]["mass"] = 1.0
+    editable["sections"].append({})
+    assert type(editable) is dict and type(editable["sections"]) is list
+    assert d.spec != editable
+    # Pickled (a process pool's arguments), the copy is read-only too.
+    back = pickle.loads(pickle.dumps(spec))
+    assert back == spec
+    with pytest.raises(TypeError, match="read-only"):
+        back["tip"]["mass"] = 1.0
+    # replace() builds a new design with its own read-only spec.
+    heavier = d.replace({"tip.mass": "50 g"})
+    assert heavier.tip_mass == pytest.approx(0.05) and d.tip_mass == spec["tip"]["mass"]
+
+
 def test_load_design_accepts_path_and_design():
     path = softrod.designs_dir() / f"{SPA}.toml"
     d = load_design(path)

@@ -26,6 +26,7 @@ import numpy as np
 
 from . import _core
 from . import _validate as V
+from ._frozen import freeze
 from .constraints import from_tip_table
 from .errors import DesignError, design_error
 
@@ -934,9 +935,10 @@ def _pcc(pcc: Mapping) -> dict:
 class Design:
     """A validated design (immutable). All numbers are SI.
 
-    ``spec`` is the SI description handed to the Rust core; ``document`` the parsed file
-    (units as written), a fresh copy on every read: editing it cannot change the design (use
-    :meth:`replace` for a changed copy). Use :func:`load_design` to make one, :meth:`save`
+    ``spec`` is the SI description handed to the Rust core, read-only (an edit in place
+    raises a TypeError; ``copy.deepcopy`` gives an editable dict); ``document`` the parsed
+    file (units as written), a fresh copy on every read: editing it cannot change the design
+    (use :meth:`replace` for a changed copy). Use :func:`load_design` to make one, :meth:`save`
     to write one.
     Two designs are equal when they describe the same model (name, citation, description,
     assumptions, the SI spec and the stiffness map file), whatever file they came from and
@@ -961,6 +963,11 @@ class Design:
     tip_constraint: Any = field(default=None, repr=False)
     # Compiled PCC models by tip loads, built on first use (softrod.pcc.pcc_model).
     _pcc: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        # The compiled rod was built from the spec: it is read-only, so that no edit in
+        # place can make Python's readers of it and the solver disagree (softrod._frozen).
+        object.__setattr__(self, "spec", freeze(self.spec))
 
     def __repr__(self) -> str:
         # The whole spec and document are one attribute away; a REPL shows what tells
