@@ -288,8 +288,11 @@ def test_calibrate_system_command_writes_a_system_that_loads(system, run, tmp_pa
         tmp_path / "pred.csv",
         "--plot",
         tmp_path / "fit.png",
+        "--report",
+        tmp_path / "fit.html",
     )
     assert result.exit_code == 0, result.output
+    assert "softrod system calibration" in (tmp_path / "fit.html").read_text(encoding="utf-8")
     pred = pd.read_csv(tmp_path / "pred.csv", comment="#")
     assert len(pred) == len(ds) and {"error_mm", "set"} <= set(pred.columns)
     assert (tmp_path / "fit.png").read_bytes().startswith(b"\x89PNG")
@@ -310,6 +313,10 @@ def test_calibrate_system_command_writes_a_system_that_loads(system, run, tmp_pa
     )
     assert result.exit_code == 0, result.output
     assert "registration_x" in result.stdout
+    result = run(
+        "calibrate-system", SYSTEM, tmp_path / "pcr.csv", "--params", "E", "--report", "r.txt"
+    )
+    assert_clean_error(result, 2, "--report", "r.txt")
     result = run("calibrate-system", SYSTEM, tmp_path / "pcr.csv", "--params", "rods[4].c_b")
     assert_clean_error(result, 2, "--params", "rods[4].c_b", "2 rods")
     result = run(
@@ -391,7 +398,7 @@ def test_stiffness_mapped_rods_are_refused_in_systems(system, tmp_path):
         calibrate_system(sysm, ds, ["sigma_ext"], progress=False)
 
 
-def test_registration_of_the_measurement_frame_is_recovered(system):
+def test_registration_of_the_measurement_frame_is_recovered(system, tmp_path):
     """Noise-free data seen in a tracker frame turned 3 degrees about the rods' mean base
     axis (through the centroid of their bases) and offset by (2, -1, 0.5) mm: the fit
     recovers the frame with E and the platform's mass."""
@@ -415,6 +422,31 @@ def test_registration_of_the_measurement_frame_is_recovered(system):
     assert [p.name for p in res.parameters][3:] == names[3:]
     # The calibrated system itself carries no frame: its designs hold the rods' values.
     assert res.system.platform.mass == pytest.approx(values[2], rel=EXACT)
+    # The HTML report says what was fitted, the frame included, in one file.
+    text = res.write_report(tmp_path / "pcr.html").read_text(encoding="utf-8")
+    assert f"softrod system calibration: {SYSTEM}" in text
+    assert "registration (measurement frame)" in text and "3 deg about the base axis" in text
+    assert "Platform and marker errors" in text and "registration_angle" in text
+    assert "Parameter correlation" in text
+    assert text.count("data:image/png;base64,") >= 2  # positions and errors per set
+
+
+def test_system_report_of_markers_only_and_its_refusals(system, tmp_path):
+    """A dataset without the platform's position: the report's figures draw the markers;
+    a report into a missing folder or not .html is refused by name, leaving no file."""
+    truth, _ = _truth(system)
+    ds = softrod.synthesize_system_dataset(truth, _pressures(6), markers=MARKERS, seed=0)
+    res = calibrate_system(
+        system, dataclasses.replace(ds, tip_position=None), ["E"], progress=False
+    )
+    text = res.write_report(tmp_path / "markers.html").read_text(encoding="utf-8")
+    assert "(equilibria)" in text and "markers" in text
+    assert text.count("data:image/png;base64,") >= 2
+    for bad in (tmp_path / "missing" / "r.html", tmp_path / "r.txt"):
+        with pytest.raises(InputError) as e:
+            res.write_report(bad)
+        assert e.value.field == "path"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["markers.html"]
 
 
 def test_tendon_driven_system_round_trip():

@@ -143,8 +143,9 @@ def _set_styles(sets: np.ndarray) -> dict[str, dict]:
     }
 
 
-def _positions_figure(meas: np.ndarray, pred: np.ndarray, samples):
-    """Measured and predicted tips in top and side view (paper 001 Fig. 5 shows the tips)."""
+def _positions_figure(meas: np.ndarray, pred: np.ndarray, samples, point: str = "tip"):
+    """Measured and predicted tips (or ``point``s) in top and side view (paper 001 Fig. 5
+    shows the tips)."""
     from matplotlib.collections import LineCollection
 
     fig = _new_figure(10.0, 4.8)
@@ -182,7 +183,7 @@ def _positions_figure(meas: np.ndarray, pred: np.ndarray, samples):
         ax.set_title("top view (x-y)" if j == 1 else "side view (x-z)")
         ax.grid(True, alpha=0.3)
     fig.axes[0].legend(fontsize="small", framealpha=0.85)
-    fig.suptitle("Tip positions: measured (filled) and predicted (open)")
+    fig.suptitle(f"{point.capitalize()} positions: measured (filled) and predicted (open)")
     return fig
 
 
@@ -221,13 +222,14 @@ def _box(ax, samples, column: str, ylabel: str, length_mm: float | None) -> None
         sec.set_ylabel(f"% of L (L = {length_mm:g} mm)")
 
 
-def _error_box_figure(samples, length_mm: float | None):
-    """Box plots of the tip error per set; radial and height errors as in paper 001 Fig. 7."""
+def _error_box_figure(samples, length_mm: float | None, point: str = "tip"):
+    """Box plots of the tip (``point``) error per set; radial and height errors as in
+    paper 001 Fig. 7."""
     split = bool(samples["radial_error_mm"].notna().any())
     fig = _new_figure(12.0 if split else 5.5, 4.5)
     axes = fig.subplots(1, 3 if split else 1, squeeze=False)[0]
     _box(axes[0], samples, "error_mm", "|measured - predicted| (mm)", length_mm)
-    axes[0].set_title("Euclidean tip error")
+    axes[0].set_title(f"Euclidean {point} error")
     if split:
         for ax, col, what in zip(
             axes[1:], ("radial_error_mm", "height_error_mm"), ("radial", "height"), strict=True
@@ -267,14 +269,14 @@ def _map_views(fig, axes, points: np.ndarray, values: np.ndarray, label: str, **
         fig.colorbar(sc, ax=list(axes), shrink=0.9, label=label)
 
 
-def _residual_figure(meas: np.ndarray, samples):
-    """Measured tips coloured by the tip error (like paper 001 Fig. 6, bottom)."""
+def _residual_figure(meas: np.ndarray, samples, point: str = "tip"):
+    """Measured tips (``point``s) coloured by their error (like paper 001 Fig. 6, bottom)."""
     fig = _new_figure(10.0, 4.6)
     axes = fig.subplots(1, 2)
     failed = samples["failed"].to_numpy()
     err = samples["error_mm"].to_numpy()
     ok = ~failed
-    _map_views(fig, axes, meas[ok], err[ok], "Euclidean tip error (mm)")
+    _map_views(fig, axes, meas[ok], err[ok], f"Euclidean {point} error (mm)")
     if failed.any():
         for ax, (i, j, _) in zip(axes, _VIEWS, strict=True):
             ax.scatter(
@@ -286,7 +288,7 @@ def _residual_figure(meas: np.ndarray, samples):
                 label=f"prediction failed ({int(failed.sum())})",
             )
         axes[0].legend(fontsize="small")
-    fig.suptitle("Tip error over the workspace (at the measured tips)")
+    fig.suptitle(f"{point.capitalize()} error over the workspace (at the measured {point}s)")
     return fig
 
 
@@ -309,8 +311,8 @@ def _factor_figure(meas: np.ndarray, factors: np.ndarray, names: list[str]):
     return fig
 
 
-def _pressure_figure(samples, pressures_pa: np.ndarray):
-    """Tip error against each chamber pressure."""
+def _pressure_figure(samples, pressures_pa: np.ndarray, point: str = "tip"):
+    """Tip (``point``) error against each chamber pressure."""
     k = pressures_pa.shape[1]
     fig = _new_figure(min(4.0 * k, 12.0), 3.8)
     sets = samples["set"].to_numpy()
@@ -324,9 +326,9 @@ def _pressure_figure(samples, pressures_pa: np.ndarray):
             ax.scatter(pressures_pa[s, c] / 1e3, err[s], s=16, alpha=0.8, label=name, **style)
         ax.set_xlabel(f"p{c} (kPa)")
         ax.grid(True, alpha=0.3)
-    axes[0].set_ylabel("Euclidean tip error (mm)")
+    axes[0].set_ylabel(f"Euclidean {point} error (mm)")
     axes[0].legend(fontsize="small")
-    fig.suptitle("Tip error against chamber pressure (gauge)")
+    fig.suptitle(f"{point.capitalize()} error against chamber pressure (gauge)")
     return fig
 
 
@@ -341,9 +343,11 @@ def _figures(
     length=None,
     axis=None,
     base_position=None,
+    point: str = "tip",
 ) -> list[tuple[str, str, object]]:
     """(file stem, caption, Figure) of every figure the inputs allow; inputs are checked
-    before any figure is made."""
+    before any figure is made. ``point`` names what was measured in titles and captions
+    ("tip", "platform", "marker"); the file stems stay."""
     samples = per_sample_errors(
         measured, predicted, length=length, axis=axis, base_position=base_position, labels=labels
     )
@@ -364,21 +368,21 @@ def _figures(
     out = [
         (
             "tip_positions",
-            "Measured (filled) and predicted (open) tip positions, top and side views; "
+            f"Measured (filled) and predicted (open) {point} positions, top and side views; "
             "grey lines join each pair.",
-            _positions_figure(meas, pred, samples),
+            _positions_figure(meas, pred, samples, point),
         ),
         (
             "tip_error_boxes",
-            "Tip error per set (box: quartiles, whiskers: 1.5 IQR); radial and height errors "
-            "as in paper 001 Fig. 7 when the base and axis are given.",
-            _error_box_figure(samples, length_mm),
+            f"{point.capitalize()} error per set (box: quartiles, whiskers: 1.5 IQR); radial "
+            "and height errors as in paper 001 Fig. 7 when the base and axis are given.",
+            _error_box_figure(samples, length_mm, point),
         ),
         (
             "tip_error_map",
-            "Tip error at the measured tip positions, top and side view (like paper 001 Fig. 6, "
-            "bottom).",
-            _residual_figure(meas, samples),
+            f"{point.capitalize()} error at the measured {point} positions, top and side view "
+            "(like paper 001 Fig. 6, bottom).",
+            _residual_figure(meas, samples, point),
         ),
     ]
     if factors is not None:
@@ -394,8 +398,8 @@ def _figures(
         out.append(
             (
                 "error_vs_pressure",
-                "Tip error against each chamber pressure.",
-                _pressure_figure(samples, p),
+                f"{point.capitalize()} error against each chamber pressure.",
+                _pressure_figure(samples, p, point),
             )
         )
     return out
@@ -500,6 +504,8 @@ def write_report(
     axis=None,
     base_position=None,
     warning_rules: str | None = None,
+    error_title: str = "Tip errors",
+    point: str = "tip",
 ) -> Path:
     """Write a calibration report to ``path`` (``.html``): one self-contained file.
 
@@ -508,7 +514,9 @@ def write_report(
     :func:`~softrod.calibration.metrics.tip_error_table`), shown with their column names
     (which carry the units). measured, predicted: (m, 3) tip positions in m (world frame),
     NaN rows of ``predicted`` for failed predictions; labels: the set of each sample; both
-    None without measured positions (no figures). reaction_table: a DataFrame of a held
+    None without measured positions (no figures); ``error_title`` heads the error table,
+    ``point`` names what was measured in the figures ("tip", "platform", "marker").
+    reaction_table: a DataFrame of a held
     tip's reaction errors (in mN), shown after the tip errors, or None.
     pressures: (m, channels) gauge pressures in Pa (adds the error-against-pressure figure).
     factors, factor_names: (m, k) identified dimensionless factors per sample, NaN where
@@ -526,7 +534,7 @@ def write_report(
     path = _check_report_path(path)
     tables = [
         ("Parameters", _table_html(parameter_table, "parameter_table")),
-        ("Tip errors", _table_html(error_table, "error_table")),
+        (error_title, _table_html(error_table, "error_table")),
     ]
     if reaction_table is not None:
         tables.append(("Reaction errors", _table_html(reaction_table, "reaction_table")))
@@ -550,6 +558,7 @@ def write_report(
                 length=length,
                 axis=axis,
                 base_position=base_position,
+                point=point,
             )
         )
         images = "".join(

@@ -301,28 +301,13 @@ class CalibrationResult:
 
         d = self.design
         one_mounting = len(set(self._mountings())) <= 1
-        measured, predicted, labels, pressures = self._report_points()
+        points = report_points(self.dataset, self.predicted, self.predicted_markers, self.labels)
         title = "softrod dynamic calibration" if self.dynamic else "softrod calibration"
         summary = {
             "design": self.initial_design.name,
             "model": self.model + (" (time series replayed)" if self.dynamic else ""),
-            "dataset": dataset_name(self.dataset),
-            "synthetic data": self.dataset.synthetic,
-            "samples (train / test)": f"{(self.labels == 'train').sum()} / "
-            f"{(self.labels == 'test').sum()}",
-            "method": self.method,
-            "model evaluations": self.evaluations,
-            "final cost (sum of squared position errors)": f"{self.cost_m2 * 1e6:.4g} mm^2",
-            "status": self.message,
-            "time": f"{self.elapsed_s:.2f} s",
+            **fit_summary(self),
         }
-        if self.registration is not None:
-            angle = math.degrees(self.registration["angle"])
-            offset = 1e3 * np.asarray(self.registration["offset"])
-            summary["registration (measurement frame)"] = (
-                f"{angle:.4g} deg about the base axis, offset "
-                f"({offset[0]:.4g}, {offset[1]:.4g}, {offset[2]:.4g}) mm"
-            )
         return write_report(
             path,
             title=f"{title}: {self.initial_design.name}",
@@ -330,10 +315,7 @@ class CalibrationResult:
             parameter_table=display_table(self.parameter_table()),
             error_table=self.error_table,
             reaction_table=self.reaction_error_table,
-            measured=measured,
-            predicted=predicted,
-            labels=labels,
-            pressures=pressures,
+            **points,
             warnings=self.warnings,
             correlation=self.correlation,
             param_names=self.names,
@@ -343,23 +325,56 @@ class CalibrationResult:
             warning_rules=warning_thresholds(),
         )
 
-    def _report_points(self):
-        """(measured, predicted, labels, pressures) of the figures: the tip, or every seen
-        marker when the dataset has no tip; all None without measured positions (a held
-        tip's reaction only)."""
-        ds = self.dataset
-        if ds.tip_position is not None:
-            return ds.tip_position, self.predicted, self.labels, ds.pressures
-        if ds.markers is None:
-            return None, None, None, None
-        seen = np.isfinite(ds.markers).all(axis=2)
-        rows = np.nonzero(seen)[0]
-        return (
-            ds.markers[seen],
-            self.predicted_markers[seen],
-            self.labels[rows],
-            ds.pressures[rows],
+
+def fit_summary(result) -> dict:
+    """The report's summary lines that every fit has (a CalibrationResult's or a
+    SystemCalibrationResult's): dataset, samples, method, evaluations, cost, status, time
+    and the registration where one was fitted."""
+    labels = result.labels
+    summary = {
+        "dataset": dataset_name(result.dataset),
+        "synthetic data": result.dataset.synthetic,
+        "samples (train / test)": f"{(labels == 'train').sum()} / {(labels == 'test').sum()}",
+        "method": result.method,
+        "model evaluations": result.evaluations,
+        "final cost (sum of squared position errors)": f"{result.cost_m2 * 1e6:.4g} mm^2",
+        "status": result.message,
+        "time": f"{result.elapsed_s:.2f} s",
+    }
+    if result.registration is not None:
+        angle = math.degrees(result.registration["angle"])
+        offset = 1e3 * np.asarray(result.registration["offset"])
+        summary["registration (measurement frame)"] = (
+            f"{angle:.4g} deg about the base axis, offset "
+            f"({offset[0]:.4g}, {offset[1]:.4g}, {offset[2]:.4g}) mm"
         )
+    return summary
+
+
+def report_points(dataset: Dataset, predicted, predicted_markers, labels, tip: str = "tip"):
+    """The keywords of a report's figures (measured, predicted, labels, pressures, point):
+    the tip (named ``tip``: a system's "platform") where the dataset measures it, else every
+    seen marker; no figures without measured positions (a held tip's reaction only)."""
+    ds = dataset
+    if ds.tip_position is not None:
+        return {
+            "measured": ds.tip_position,
+            "predicted": predicted,
+            "labels": labels,
+            "pressures": ds.pressures,
+            "point": tip,
+        }
+    if ds.markers is None:
+        return {"measured": None, "predicted": None}
+    seen = np.isfinite(ds.markers).all(axis=2)
+    rows = np.nonzero(seen)[0]
+    return {
+        "measured": ds.markers[seen],
+        "predicted": predicted_markers[seen],
+        "labels": labels[rows],
+        "pressures": ds.pressures[rows],
+        "point": "marker",
+    }
 
 
 def error_tables(

@@ -41,6 +41,7 @@ import warnings
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -69,11 +70,11 @@ from ..system import (
     rod_blocks,
     system_sigma,
 )
-from .diagnostics import diagnostics
+from .diagnostics import diagnostics, warning_thresholds
 from .fit import _bounds, _evaluations, _scales, _split, _split_params
 from .params import DYNAMIC_KINDS, KINDS, SIGMA_KINDS, Parameter, design_changes, parse_parameter
 from .problem import ModelAdapter, Observations, Prediction, Problem, Registered, Residual
-from .result import error_tables, record
+from .result import display_table, error_tables, fit_summary, record, report_points
 from .solve import METHODS, Settings, run_starts, start_points, starts_table
 
 if TYPE_CHECKING:
@@ -716,6 +717,43 @@ class SystemCalibrationResult:
             save_figure(fig, path)
         return fig
 
+    def write_report(self, path: str | os.PathLike) -> Path:
+        """An HTML report in one self-contained file, written whole or not at all: the
+        summary (system, dataset, method, cost, registration), the parameters with their
+        standard errors and correlations, the errors per measured quantity (the platform's
+        position, the markers) and set, and the figures of a rod's calibration report
+        (measured against predicted positions, errors per set and against the pressures)
+        for the platform's positions, or the markers' where the dataset has no platform
+        position. Returns the path."""
+        from .report import write_report
+
+        points = report_points(
+            self.dataset, self.predicted, self.predicted_markers, self.labels, "platform"
+        )
+        rods = self.initial_system.rods
+        dynamic = bool(self.metadata.get("dynamic", False))
+        summary = {
+            "system": self.initial_system.name,
+            "rods": ", ".join(r.design.name for r in rods),
+            "model": "Cosserat rods held by one rigid platform"
+            + (" (time series replayed)" if dynamic else " (equilibria)"),
+            **fit_summary(self),
+        }
+        return write_report(
+            path,
+            title=f"softrod system calibration: {self.initial_system.name}",
+            summary=summary,
+            parameter_table=display_table(self.parameter_table()),
+            error_table=self.error_table,
+            error_title="Platform and marker errors",
+            **points,
+            warnings=self.warnings,
+            correlation=self.correlation,
+            param_names=[p.name for p in self.parameters],
+            length=float(np.mean([r.design.length for r in rods])),
+            warning_rules=warning_thresholds(),
+        )
+
     def __repr__(self) -> str:
         parts = ", ".join(
             f"{p.name} = {v:.4g} +- {s:.2g} {p.unit}"
@@ -935,7 +973,11 @@ def calibrate_system(
         error_table=table,
         scales=scales,
         elapsed_s=time.perf_counter() - start,
-        metadata={"system": system.name, "training_samples": int(train.size)},
+        metadata={
+            "system": system.name,
+            "training_samples": int(train.size),
+            "dynamic": bool(dynamic),
+        },
         registration=reg,
         starts=starts_table(params_all, fits, best) if len(fits) > 1 else None,
     )

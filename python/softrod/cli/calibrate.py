@@ -681,6 +681,12 @@ def calibrate(
     "(.png, .pdf or .svg).",
 )
 @click.option(
+    "--report",
+    "report_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write an HTML report here (.html: tables, correlations, figures).",
+)
+@click.option(
     "--dynamic",
     is_flag=True,
     help="Replay the time series of DATA (time column, one experiment per run) instead of "
@@ -708,6 +714,7 @@ def calibrate_system_cmd(
     out,
     predictions_path,
     plot_path,
+    report_path,
     dynamic,
     dt,
     as_json,
@@ -727,6 +734,7 @@ def calibrate_system_cmd(
     from rich.console import Console
     from rich.text import Text
 
+    from ..calibration.report import REPORT_SUFFIXES
     from ..calibration.system import calibrate_system, resolve_system_parameters
     from ..datasets import load_dataset
     from ..io import TABLE_SUFFIXES, write_table
@@ -747,6 +755,10 @@ def calibrate_system_cmd(
         )
     if plot_path is not None:
         outputs["plot"] = _check_output(plot_path, "--plot", PLOT_SUFFIXES, "a figure")
+    if report_path is not None:
+        outputs["report"] = _check_output(
+            report_path, "--report", REPORT_SUFFIXES, "a report is HTML"
+        )
     try:
         dataset = load_dataset(data)
     except InputError as exc:
@@ -808,6 +820,8 @@ def calibrate_system_cmd(
             for tmp, kind in zip(staged, outputs, strict=True):
                 if kind == "predictions":
                     write_table(result.to_frame(), tmp)
+                elif kind == "report":
+                    result.write_report(tmp)
                 else:
                     plt.close(result.plot(tmp))
         for path in outputs.values():
