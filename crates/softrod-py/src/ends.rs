@@ -2,21 +2,20 @@
 //! of rods sharing a platform (`softrod_core::statics::system`). No physics here.
 
 use crate::{
-    array2, array3, contact_dict, contact_forces, guarded, options, rows_dict, solution_dict,
-    to_py_err, Context, PoseArrays, PyFrictionState, PyRod,
+    array2, array3, contact_dict, contact_forces, guarded, options, solution_dict, to_py_err,
+    Context, PoseArrays, PyFrictionState, PyRod,
 };
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::batch::{
-    solve_constrained_batch, solve_held_friction_batch, solve_system_batch,
-    system_sensitivity_batch, BatchInputs, BatchRow, SystemBatchInputs, SystemBatchRow,
+    solve_system_batch, system_sensitivity_batch, BatchRow, SystemBatchInputs, SystemBatchRow,
 };
 use softrod_core::marker::Marker;
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::system::{SystemMarker, SystemParam};
 use softrod_core::sensitivity::{Param, ParamKind};
-use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
+use softrod_core::statics::constraint::{ConstrainedSolution, TipConstraint};
 use softrod_core::statics::friction;
 use softrod_core::statics::system::{
     rod_sigma, solve_system, solve_system_friction, Platform, SystemFrictionPath, SystemRod,
@@ -107,18 +106,6 @@ fn solve_constrained_tip<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let c = constraint(py, kind, position, rotation)?;
-        let frictional = friction::has_friction(&rod.rod);
-        friction::check_history_wanted(&rod.rod, history.is_some())
-            .map_err(|e| to_py_err(py, e, Context::Input))?;
-        let history = history.map(|h| h.path.clone());
-        let loads = Loads {
-            pressures,
-            tensions: tensions.unwrap_or_default(),
-            tip_force,
-            tip_moment,
-            tip_frame: rod.rod.spec.tip.frame,
-            stiffness_scale,
-        };
         let opts = options(
             py,
             tol,
@@ -128,44 +115,17 @@ fn solve_constrained_tip<'py>(
             stretch_range,
             on_invalid,
         )?;
-        let rod = &rod.rod;
-        let out = py
-            .detach(|| match (frictional, c) {
-                (true, TipConstraint::Free) => {
-                    let (solution, shape) = friction::solve_with_shape(
-                        rod,
-                        &loads,
-                        history.as_deref(),
-                        friction_steps,
-                        &opts,
-                    )?;
-                    Ok(ConstrainedSolution {
-                        solution,
-                        shape,
-                        tip_reaction_force: [0.0; 3],
-                        tip_reaction_moment: [0.0; 3],
-                    })
-                }
-                (true, _) => {
-                    friction::solve_held(rod, &loads, &c, history.as_deref(), friction_steps, &opts)
-                }
-                (false, _) => solve_constrained(rod, &loads, &c, guess.as_deref(), &opts),
-            })
-            .map_err(|e| to_py_err(py, e, Context::Input))?;
-        let d = constrained_dict(py, &out)?;
-        if let Some(path) = &out.solution.friction {
-            d.set_item(
-                "friction_state",
-                Py::new(py, PyFrictionState { path: path.clone() })?,
-            )?;
-        }
-        // With obstacles: the contact report, as `Rod.solve` gives it.
-        let rep = softrod_core::statics::contact::report(rod, &loads, &out.solution)
-            .map_err(|e| to_py_err(py, e, Context::Input))?;
-        if let Some(rep) = rep {
-            d.set_item("contact", contact_dict(py, &rep)?)?;
-        }
-        Ok(d)
+        let input = crate::solve::One {
+            pressures,
+            tensions,
+            tip_force,
+            tip_moment,
+            stiffness_scale,
+            guess,
+            friction_steps,
+            history,
+        };
+        crate::solve::solve_one(py, &rod, c, input, &opts, true)
     })
 }
 
@@ -202,12 +162,6 @@ fn solve_constrained_tip_batch<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let c = constraint(py, kind, position, rotation)?;
-        rod.check_columns(py, &pressures)?;
-        // Copy into owned Rust data before releasing the GIL.
-        let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
-        let sigma: Option<Vec<f64>> =
-            stiffness_scale.map(|s| s.as_array().iter().copied().collect());
-        let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
         let opts = options(
             py,
             tol,
@@ -217,30 +171,15 @@ fn solve_constrained_tip_batch<'py>(
             stretch_range,
             on_invalid,
         )?;
-        let rod = &rod.rod;
-        let frictional = friction::has_friction(rod);
-        let rows = py
-            .detach(|| {
-                let inputs = BatchInputs {
-                    pressures: &flat,
-                    tensions: tens.as_deref(),
-                    stiffness_scale: sigma.as_deref(),
-                    tip_force,
-                    tip_moment,
-                };
-                if frictional {
-                    solve_held_friction_batch(rod, &inputs, &c, friction_steps, &opts, threads)
-                } else {
-                    solve_constrained_batch(rod, &inputs, &c, &opts, threads)
-                }
-            })
-            .map_err(|e| to_py_err(py, e, Context::Input))?;
-        let d = rows_dict(py, &rows)?;
-        reactions(py, &d, &rows)?;
-        if frictional {
-            contact_forces(py, &d, &rows, rod.spec.obstacles.len())?;
-        }
-        Ok(d)
+        let input = crate::solve::Rows {
+            pressures,
+            stiffness_scale,
+            tensions,
+            tip_force,
+            tip_moment,
+            friction_steps,
+        };
+        crate::solve::solve_rows(py, &rod, c, input, &opts, threads, true)
     })
 }
 

@@ -5,12 +5,9 @@
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use softrod_core::batch::{
-    constrained_sensitivity_batch, solve_batch, solve_friction_batch, BatchInputs, BatchRow,
-};
+use softrod_core::batch::{constrained_sensitivity_batch, BatchInputs, BatchRow};
 use softrod_core::interp::GridPchip;
 use softrod_core::marker::Marker;
-use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::statics::constraint::TipConstraint;
 use softrod_core::statics::{self, SolverOptions};
@@ -21,6 +18,7 @@ mod control;
 mod dynamics;
 mod ends;
 mod pcc;
+mod solve;
 mod system_dynamics;
 
 /// Which exception class a core `InvalidParameter` becomes.
@@ -380,18 +378,6 @@ impl PyRod {
         history: Option<PyRef<'py, PyFrictionState>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(py, || {
-            let frictional = statics::friction::has_friction(&self.rod);
-            statics::friction::check_history_wanted(&self.rod, history.is_some())
-                .map_err(|e| to_py_err(py, e, Context::Input))?;
-            let history = history.map(|h| h.path.clone());
-            let loads = Loads {
-                pressures,
-                tensions: tensions.unwrap_or_default(),
-                tip_force,
-                tip_moment,
-                tip_frame: self.rod.spec.tip.frame,
-                stiffness_scale,
-            };
             let opts = options(
                 py,
                 tol,
@@ -401,34 +387,17 @@ impl PyRod {
                 stretch_range,
                 on_invalid,
             )?;
-            let rod = &self.rod;
-            let result = py.detach(|| {
-                let (sol, sh) = if frictional {
-                    statics::friction::solve_with_shape(
-                        rod,
-                        &loads,
-                        history.as_deref(),
-                        friction_steps,
-                        &opts,
-                    )?
-                } else {
-                    statics::solve_with_shape(rod, &loads, guess.as_deref(), &opts)?
-                };
-                let contact = statics::contact::report(rod, &loads, &sol)?;
-                Ok((sol, sh, contact))
-            });
-            let (sol, sh, contact) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
-            let d = solution_dict(py, &sol, &sh)?;
-            if let Some(rep) = &contact {
-                d.set_item("contact", contact_dict(py, rep)?)?;
-            }
-            if let Some(path) = &sol.friction {
-                d.set_item(
-                    "friction_state",
-                    Py::new(py, PyFrictionState { path: path.clone() })?,
-                )?;
-            }
-            Ok(d)
+            let input = solve::One {
+                pressures,
+                tensions,
+                tip_force,
+                tip_moment,
+                stiffness_scale,
+                guess,
+                friction_steps,
+                history,
+            };
+            solve::solve_one(py, self, TipConstraint::Free, input, &opts, false)
         })
     }
 
@@ -457,12 +426,6 @@ impl PyRod {
         friction_steps: usize,
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(py, || {
-            self.check_columns(py, &pressures)?;
-            // Copy into owned Rust data before releasing the GIL.
-            let flat: Vec<f64> = pressures.as_array().iter().copied().collect();
-            let sigma: Option<Vec<f64>> =
-                stiffness_scale.map(|s| s.as_array().iter().copied().collect());
-            let tens: Option<Vec<f64>> = tensions.map(|s| s.as_array().iter().copied().collect());
             let opts = options(
                 py,
                 tol,
@@ -472,29 +435,15 @@ impl PyRod {
                 stretch_range,
                 on_invalid,
             )?;
-            let rod = &self.rod;
-            let frictional = statics::friction::has_friction(rod);
-            let rows = py
-                .detach(|| {
-                    let inputs = BatchInputs {
-                        pressures: &flat,
-                        tensions: tens.as_deref(),
-                        stiffness_scale: sigma.as_deref(),
-                        tip_force,
-                        tip_moment,
-                    };
-                    if frictional {
-                        solve_friction_batch(rod, &inputs, friction_steps, &opts, threads)
-                    } else {
-                        solve_batch(rod, &inputs, &opts, threads)
-                    }
-                })
-                .map_err(|e| to_py_err(py, e, Context::Input))?;
-            let d = rows_dict(py, &rows)?;
-            if frictional {
-                contact_forces(py, &d, &rows, rod.spec.obstacles.len())?;
-            }
-            Ok(d)
+            let input = solve::Rows {
+                pressures,
+                stiffness_scale,
+                tensions,
+                tip_force,
+                tip_moment,
+                friction_steps,
+            };
+            solve::solve_rows(py, self, TipConstraint::Free, input, &opts, threads, false)
         })
     }
 
