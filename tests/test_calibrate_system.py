@@ -301,6 +301,24 @@ def test_calibrate_system_command_writes_a_system_that_loads(system, run, tmp_pa
     parsed = json.loads(result.stdout)
     assert parsed["parameters"][0]["parameter"] == "E"
     assert {e["quantity"] for e in parsed["errors"]} == {"platform", "markers"}
+    # Restarts from the command line: the starts table of the API (the best fit wins).
+    result = run(
+        "calibrate-system",
+        SYSTEM,
+        tmp_path / "pcr.csv",
+        "--params",
+        "E",
+        "--restarts",
+        "1",
+        "--seed",
+        "3",
+        "--json",
+    )
+    assert result.exit_code == 0, result.output
+    starts = calibrate_system(
+        system, tmp_path / "pcr.csv", ["E"], restarts=1, seed=3, progress=False
+    )
+    assert json.loads(result.stdout)["parameters"][0]["value"] == starts.values[0]
     # Registration parameters through the command line (units known for --bounds).
     result = run(
         "calibrate-system",

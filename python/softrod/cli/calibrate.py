@@ -63,6 +63,21 @@ _json_option = click.option(
     is_flag=True,
     help="Print the parameter and error tables as JSON (SI values) instead of tables.",
 )
+_restarts_option = click.option(
+    "--restarts",
+    default=0,
+    show_default=True,
+    type=click.IntRange(min=0),
+    help="Extra fits from random starting points (within --bounds, or within a factor 3 of "
+    "a positive parameter's value); the best fit wins.",
+)
+_seed_option = click.option(
+    "--seed",
+    default=0,
+    show_default=True,
+    type=click.IntRange(min=0),
+    help="Seed of the restarts' starting points.",
+)
 _bounds_option = click.option(
     "--bounds",
     "bounds_items",
@@ -423,21 +438,8 @@ def _print_fit(note, result, found: list[str], as_json: bool, tables: list) -> N
     help="Write an HTML report here (.html: tables, correlations, figures).",
 )
 @_json_option
-@click.option(
-    "--restarts",
-    default=0,
-    show_default=True,
-    type=click.IntRange(min=0),
-    help="Extra fits from random starting points (within --bounds, or within a factor 3 of "
-    "a positive parameter's value); the best fit wins.",
-)
-@click.option(
-    "--seed",
-    default=0,
-    show_default=True,
-    type=click.IntRange(min=0),
-    help="Seed of the restarts' starting points.",
-)
+@_restarts_option
+@_seed_option
 @click.option(
     "--model",
     type=click.Choice(["cosserat", "pcc"]),
@@ -699,7 +701,12 @@ def calibrate(
     help="Time step of the replayed time series (default 5 ms; with --dynamic only).",
 )
 @_json_option
+@_restarts_option
+@_seed_option
 @_threads_option("Worker threads per model evaluation (0 = all cores).")
+@_scheduler_option(
+    "Run the restarts on the Dask cluster whose scheduler is at ADDRESS (docs/cluster.md)."
+)
 @_handle_errors
 def calibrate_system_cmd(
     system,
@@ -718,7 +725,10 @@ def calibrate_system_cmd(
     dynamic,
     dt,
     as_json,
+    restarts,
+    seed,
     threads,
+    scheduler,
 ):
     """Fit parameters of a SYSTEM of rods (a system file or a bundled system) to the
     equilibria in DATA: the platform's position (the tip columns) and markers on the
@@ -777,7 +787,7 @@ def calibrate_system_cmd(
         )
 
     def go():
-        with _FitProgress() as progress:
+        with _scheduler(scheduler) as client, _FitProgress() as progress:
             return calibrate_system(
                 sysm,
                 dataset,
@@ -790,6 +800,9 @@ def calibrate_system_cmd(
                 threads=threads,
                 max_evaluations=max_evaluations,
                 progress=progress,
+                restarts=restarts,
+                seed=seed,
+                executor=client,
                 dynamic=dynamic,
                 dt=dt,
             )
