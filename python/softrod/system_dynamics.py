@@ -24,13 +24,15 @@ from .dynamics.simulate import (
     DEFAULT_ENERGY_TOL,
     _seconds,
     _solver_options,
+    core_sigma,
     step_count,
 )
 from .errors import InputError
 from .io import atomic_path, check_target, write_table
 from .io import is_file as _is_file
 from .statics import _pressures, _tensions
-from .system import System, _platform_args, load_system
+from .stiffness_map import StiffnessMap
+from .system import System, _platform_args, check_rods, load_system
 from .system import platform_inertia as _inertia_of
 
 if TYPE_CHECKING:
@@ -475,6 +477,25 @@ def _has_obstacles(design) -> bool:
     return bool(design.spec.get("obstacles"))
 
 
+def _sigma_maps(system: System, maps: list, given: Any) -> list[tuple] | None:
+    """The binding's per-rod (sigma_const, sigma_grid) of the rods' checked maps
+    (:func:`~softrod.system.check_rods`); None when no rod has one. A map the core cannot
+    evaluate at every step is refused naming ``stiffness_maps[i]`` (given) or the rod's
+    design map."""
+    if all(m is None for m in maps):
+        return None
+    out = []
+    for i, (rod, smap) in enumerate(zip(system.rods, maps, strict=True)):
+        field = (
+            f"stiffness_maps[{i}]"
+            if given is not None and given[i] is not None
+            else f"rods[{i}].design.stiffness_map"
+        )
+        args = core_sigma(smap, rod.design.n_channels, field)
+        out.append((args.get("sigma_const"), args.get("sigma_grid")))
+    return out
+
+
 def _rod_pressures(design, p) -> list[float]:
     return [0.0] * design.n_channels if p is None else _pressures(design, p)
 
@@ -496,8 +517,20 @@ class SystemSimulation:
     on a free rod in motion
     (docs/contact.md); the trajectory reports each such rod's contact. A rod design's tip
     loads, dead or follower (``[tip] frame = "body"``: they turn with the tip the platform
-    holds), act on its tip as in :func:`~softrod.solve_system`. Refused by name before any
-    work: inputs that do not match a rod, a rod design with its own ``[tip] constraint``.
+    holds), act on its tip as in :func:`~softrod.solve_system`.
+
+    ``stiffness_maps``: as :func:`~softrod.solve_system` takes it (one
+    :class:`~softrod.StiffnessMap` or None per rod, a map replacing the design's): a rod
+    with stiffness-mapped sections runs with its map (its design's ``[stiffness_map]`` or
+    the one given), sigma evaluated in the core at every step's chamber pressures (those
+    after the design's pressure supply), as :class:`~softrod.Simulation` evaluates it; the
+    map must be one the core evaluates (``StiffnessMap.constant`` or a PCHIP
+    ``from_table``). :attr:`stiffness_maps` keeps each rod's map.
+
+    Refused by name before any work: inputs that do not match a rod, a rod design with its
+    own ``[tip] constraint``, a mapped rod without a map (``rods[i].design.stiffness_map``:
+    sigma is never assumed to be 1), a map for a rod without mapped sections or of another
+    channel count, or one the core cannot evaluate at every step (``stiffness_maps[i]``).
     """
 
     def __init__(
@@ -517,6 +550,7 @@ class SystemSimulation:
         error_tol: Any = None,
         energy_tol: float = DEFAULT_ENERGY_TOL,
         on_unstable: str = "warn",
+        stiffness_maps: Any = None,
     ) -> None:
         from .statics import _policy, _report_stability
 
@@ -524,14 +558,10 @@ class SystemSimulation:
             system = load_system(system)
         self.system = system
         on_unstable = _policy("on_unstable", on_unstable)
-        for i, rod in enumerate(system.rods):
-            if rod.design.tip_constraint is not None:
-                raise V.fail(
-                    f"rods[{i}].design",
-                    rod.design.name,
-                    "its [tip] constraint is set; a system's rod tips hold the platform",
-                    InputError,
-                )
+        # What the statics refuse, named as there: a rod holding its own tip, a mapped rod
+        # without a map, a map that does not fit its rod.
+        maps = check_rods(system, stiffness_maps, argument=True)
+        sigma = _sigma_maps(system, maps, stiffness_maps)
         ps = _per_rod(system, pressures, "pressures", _rod_pressures)
         ts = _per_rod(system, tensions, "tensions", _tensions)
         opts = _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol)
@@ -553,7 +583,10 @@ class SystemSimulation:
         )
         platform = _platform_args(system, platform_force, platform_moment)
         self._force, self._moment = platform[2], platform[3]
-        self._sim = _core.SystemSimulator(entries, platform, inertia.tolist(), self.dt, **opts)
+        self._sim = _core.SystemSimulator(
+            entries, platform, inertia.tolist(), self.dt, **opts, sigma_maps=sigma
+        )
+        self.stiffness_maps: tuple[StiffnessMap | None, ...] = tuple(maps)
         self._pressures = ps
         self._fingerprint = _system_fingerprint(system, inertia)
         # As a single rod's static start: a coarse step may hold an unstable start.
@@ -704,6 +737,7 @@ def simulate_system(
     error_tol: Any = None,
     energy_tol: float = DEFAULT_ENERGY_TOL,
     on_unstable: str = "warn",
+    stiffness_maps: Any = None,
 ) -> SystemTrajectory:
     """Simulate a :class:`~softrod.System` until ``t_end`` (s or a string with units; the
     run takes ceil(t_end / dt) output steps, as :func:`~softrod.simulate`),
@@ -714,7 +748,9 @@ def simulate_system(
     (its value at t = 0 is the start's; then sampled at each output step's end).
     ``platform_force``/``platform_moment`` (N, N m, world) likewise (None: the system's).
     ``platform_inertia``, ``dt``, ``scheme``, ``alpha``, ``tol``, ``max_iter``,
-    ``error_tol``, ``energy_tol``, ``on_unstable``: as :class:`SystemSimulation` (whose
+    ``error_tol``, ``energy_tol``, ``on_unstable``, ``stiffness_maps`` (one
+    :class:`~softrod.StiffnessMap` or None per rod, as :func:`~softrod.solve_system` takes
+    it; sigma evaluated at every step's pressures): as :class:`SystemSimulation` (whose
     only scheme is BDF-alpha: the midpoint rule is refused by name, as for a held tip).
     Returns a :class:`SystemTrajectory` from t = 0 (docs/dynamics.md, "Systems of
     rods")."""
@@ -737,6 +773,7 @@ def simulate_system(
         error_tol=error_tol,
         energy_tol=energy_tol,
         on_unstable=on_unstable,
+        stiffness_maps=stiffness_maps,
     )
     start = sim._sim.snapshot()
     out = sim._run(t_end, pressures, tensions, platform_force, platform_moment, "t_end")

@@ -950,7 +950,10 @@ impl SystemSimulator {
             r.rod
                 .check_tensions(&r.tensions)
                 .map_err(|e| rename_field(e, "tensions", &format!("{name}tensions")))?;
-            let sigma = r.sigma_map.eval(&r.pressures)?;
+            let sigma = r
+                .sigma_map
+                .eval(&r.pressures)
+                .map_err(|e| rename_field(e, "pressures", &format!("{name}pressures")))?;
             loads.push(Loads {
                 pressures: r.pressures.clone(),
                 tensions: r.tensions.clone(),
@@ -1190,9 +1193,13 @@ impl SystemSimulator {
     fn prepare(&mut self, h: f64, command: &[f64]) -> Result<(Vec<Prep>, Bdf)> {
         let mut preps = Vec::with_capacity(self.rods.len());
         let mut o = 0;
-        for r in &mut self.rods {
+        for (i, r) in self.rods.iter_mut().enumerate() {
             let nc = r.rod.n_channels;
-            preps.push(r.prepare(h, &command[o..o + nc])?);
+            // A rod's stiffness map may refuse the step's pressures: name the rod.
+            preps.push(
+                r.prepare(h, &command[o..o + nc])
+                    .map_err(|e| rename_field(e, "pressures", &format!("rods[{i}].pressures")))?,
+            );
             o += nc;
         }
         let bdf = preps[0].bdf;
