@@ -3,8 +3,6 @@ design's map or ``stiffness_maps=``): a one-rod system equals the free mapped ro
 platform's load, batch rows are bitwise the single solves for table and network maps, and
 a mapped rod without a map is refused by name (sigma is never assumed to be 1)."""
 
-import dataclasses
-
 import numpy as np
 import pytest
 import softrod
@@ -14,54 +12,19 @@ from softrod import (
     StiffnessMap,
     System,
     SystemRod,
-    load_design,
     solve_statics,
     solve_system,
     solve_system_batch,
 )
+from system_cases import mapped, network_map, table_map, two_mapped_rods
 
 pytestmark = pytest.mark.filterwarnings("error")
 
-SPA = "spa_three_chamber_130mm"
 #: Both solves stop at a scaled residual of 1e-10 (SolverOptions.tol) on a 130 mm rod:
 #: their tips agree to ~1e-11 m; 1e-9 m leaves two digits for the different unknowns
 #: (the system's 12 against the free rod's 3) and conditioning. A missing sigma moves the
 #: tip by millimetres.
 SAME_EQUILIBRIUM = 1e-9  # m
-
-
-def mapped(design=SPA):
-    """The bundled SPA with its chambered body section stiffness-mapped."""
-    return load_design(design).replace({"sections[1].law": {"stiffness_map": True}})
-
-
-def table_map() -> StiffnessMap:
-    """A smooth 3-channel table over 0..60 kPa, sigma between 0.4 and 1.8."""
-    rng = np.random.default_rng(3)
-    axes = [np.array([0.0, 15e3, 30e3, 60e3])] * 3
-    return StiffnessMap.from_table(axes, rng.uniform(0.4, 1.8, (4, 4, 4, 3)))
-
-
-def network_map() -> StiffnessMap:
-    """Three random networks (paper 001's hybrid model as arrays), 3 channels."""
-    rng = np.random.default_rng(9)
-    sizes = [3, 8, 6, 1]
-    return StiffnessMap.from_networks(
-        [
-            {
-                "input_mean": [2e4, 2e4, 2e4],
-                "input_scale": [1.5e4, 1.5e4, 1.5e4],
-                "weights": [
-                    rng.normal(size=(a, b)) for a, b in zip(sizes[:-1], sizes[1:], strict=True)
-                ],
-                "biases": [rng.normal(size=b) for b in sizes[1:]],
-                "activation": "tanh",
-                "target_mean": 0.0,
-                "target_scale": 0.15,
-            }
-            for _ in range(3)
-        ]
-    )
 
 
 def one_rod_system(design) -> System:
@@ -70,18 +33,6 @@ def one_rod_system(design) -> System:
     rest = solve_statics(design, [0.0, 0.0, 0.0], stiffness_map=StiffnessMap.constant((1, 1, 1), 3))
     platform = Platform(position=rest.tip_position, rotation=rest.tip_rotation, mass=0.0)
     return System("one_rod", (SystemRod(design, attachment=np.zeros(3)),), platform)
-
-
-def two_mapped_rods() -> System:
-    """The bundled two-rod platform with both rods' body sections mapped."""
-    system = softrod.load_system("two_spa_platform")
-    rods = tuple(
-        dataclasses.replace(
-            r, design=r.design.replace({"sections[1].law": {"stiffness_map": True}})
-        )
-        for r in system.rods
-    )
-    return dataclasses.replace(system, rods=rods)
 
 
 def test_one_rod_system_equals_the_free_mapped_rod_under_the_platform_load():

@@ -121,6 +121,7 @@ _EXPORTS = {
     "SystemSimulationState": ".system_dynamics",
     "SystemTrajectory": ".system_dynamics",
     "simulate_system": ".system_dynamics",
+    "system_trajectory_sensitivities": ".system_dynamics",
     "plot_system": ".system_plots",
     "plot_system_motion": ".system_plots",
     "view": ".viewer",
@@ -219,6 +220,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         SystemSimulationState,
         SystemTrajectory,
         simulate_system,
+        system_trajectory_sensitivities,
     )
     from .system_plots import plot_system, plot_system_motion
     from .viewer import view, view_system
@@ -292,6 +294,7 @@ __all__ = [
     "solve_system",
     "solve_system_batch",
     "simulate_system",
+    "system_trajectory_sensitivities",
     "plot_system",
     "plot_system_motion",
     "synthesize_dataset",

@@ -301,6 +301,10 @@ class SystemSimulator:
         scheme: str,
         error_tol: float | None,
         energy_tol: float,
+        sigma_maps: Sequence[
+            tuple[_Vec3 | None, tuple[Sequence[Sequence[float]], Sequence[float], bool] | None]
+        ]
+        | None = None,
     ) -> SystemSimulator: ...
     def time(self) -> float: ...
     def track_sensitivities(

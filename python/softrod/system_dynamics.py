@@ -11,7 +11,8 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from collections.abc import Callable
+import re
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -24,13 +25,15 @@ from .dynamics.simulate import (
     DEFAULT_ENERGY_TOL,
     _seconds,
     _solver_options,
+    core_sigma,
     step_count,
 )
 from .errors import InputError
 from .io import atomic_path, check_target, write_table
 from .io import is_file as _is_file
 from .statics import _pressures, _tensions
-from .system import System, _platform_args, load_system
+from .stiffness_map import StiffnessMap
+from .system import System, _platform_args, check_rods, load_system
 from .system import platform_inertia as _inertia_of
 
 if TYPE_CHECKING:
@@ -39,7 +42,13 @@ if TYPE_CHECKING:
 
     from ._types import Units
 
-__all__ = ["SystemSimulation", "SystemSimulationState", "SystemTrajectory", "simulate_system"]
+__all__ = [
+    "SystemSimulation",
+    "SystemSimulationState",
+    "SystemTrajectory",
+    "simulate_system",
+    "system_trajectory_sensitivities",
+]
 
 # The energy books of a system's motion, in the order of the core's samples.
 ENERGY_NAMES = ("kinetic", "elastic", "potential", "work_in", "dissipated", "energy_balance")
@@ -475,6 +484,25 @@ def _has_obstacles(design) -> bool:
     return bool(design.spec.get("obstacles"))
 
 
+def _sigma_maps(system: System, maps: list, given: Any) -> list[tuple] | None:
+    """The binding's per-rod (sigma_const, sigma_grid) of the rods' checked maps
+    (:func:`~softrod.system.check_rods`); None when no rod has one. A map the core cannot
+    evaluate at every step is refused naming ``stiffness_maps[i]`` (given) or the rod's
+    design map."""
+    if all(m is None for m in maps):
+        return None
+    out = []
+    for i, (rod, smap) in enumerate(zip(system.rods, maps, strict=True)):
+        field = (
+            f"stiffness_maps[{i}]"
+            if given is not None and given[i] is not None
+            else f"rods[{i}].design.stiffness_map"
+        )
+        args = core_sigma(smap, rod.design.n_channels, field)
+        out.append((args.get("sigma_const"), args.get("sigma_grid")))
+    return out
+
+
 def _rod_pressures(design, p) -> list[float]:
     return [0.0] * design.n_channels if p is None else _pressures(design, p)
 
@@ -496,8 +524,20 @@ class SystemSimulation:
     on a free rod in motion
     (docs/contact.md); the trajectory reports each such rod's contact. A rod design's tip
     loads, dead or follower (``[tip] frame = "body"``: they turn with the tip the platform
-    holds), act on its tip as in :func:`~softrod.solve_system`. Refused by name before any
-    work: inputs that do not match a rod, a rod design with its own ``[tip] constraint``.
+    holds), act on its tip as in :func:`~softrod.solve_system`.
+
+    ``stiffness_maps``: as :func:`~softrod.solve_system` takes it (one
+    :class:`~softrod.StiffnessMap` or None per rod, a map replacing the design's): a rod
+    with stiffness-mapped sections runs with its map (its design's ``[stiffness_map]`` or
+    the one given), sigma evaluated in the core at every step's chamber pressures (those
+    after the design's pressure supply), as :class:`~softrod.Simulation` evaluates it; the
+    map must be one the core evaluates (``StiffnessMap.constant`` or a PCHIP
+    ``from_table``). :attr:`stiffness_maps` keeps each rod's map.
+
+    Refused by name before any work: inputs that do not match a rod, a rod design with its
+    own ``[tip] constraint``, a mapped rod without a map (``rods[i].design.stiffness_map``:
+    sigma is never assumed to be 1), a map for a rod without mapped sections or of another
+    channel count, or one the core cannot evaluate at every step (``stiffness_maps[i]``).
     """
 
     def __init__(
@@ -517,6 +557,7 @@ class SystemSimulation:
         error_tol: Any = None,
         energy_tol: float = DEFAULT_ENERGY_TOL,
         on_unstable: str = "warn",
+        stiffness_maps: Any = None,
     ) -> None:
         from .statics import _policy, _report_stability
 
@@ -524,14 +565,10 @@ class SystemSimulation:
             system = load_system(system)
         self.system = system
         on_unstable = _policy("on_unstable", on_unstable)
-        for i, rod in enumerate(system.rods):
-            if rod.design.tip_constraint is not None:
-                raise V.fail(
-                    f"rods[{i}].design",
-                    rod.design.name,
-                    "its [tip] constraint is set; a system's rod tips hold the platform",
-                    InputError,
-                )
+        # What the statics refuse, named as there: a rod holding its own tip, a mapped rod
+        # without a map, a map that does not fit its rod.
+        maps = check_rods(system, stiffness_maps, argument=True)
+        sigma = _sigma_maps(system, maps, stiffness_maps)
         ps = _per_rod(system, pressures, "pressures", _rod_pressures)
         ts = _per_rod(system, tensions, "tensions", _tensions)
         opts = _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol)
@@ -553,7 +590,10 @@ class SystemSimulation:
         )
         platform = _platform_args(system, platform_force, platform_moment)
         self._force, self._moment = platform[2], platform[3]
-        self._sim = _core.SystemSimulator(entries, platform, inertia.tolist(), self.dt, **opts)
+        self._sim = _core.SystemSimulator(
+            entries, platform, inertia.tolist(), self.dt, **opts, sigma_maps=sigma
+        )
+        self.stiffness_maps: tuple[StiffnessMap | None, ...] = tuple(maps)
         self._pressures = ps
         self._fingerprint = _system_fingerprint(system, inertia)
         # As a single rod's static start: a coarse step may hold an unstable start.
@@ -704,6 +744,7 @@ def simulate_system(
     error_tol: Any = None,
     energy_tol: float = DEFAULT_ENERGY_TOL,
     on_unstable: str = "warn",
+    stiffness_maps: Any = None,
 ) -> SystemTrajectory:
     """Simulate a :class:`~softrod.System` until ``t_end`` (s or a string with units; the
     run takes ceil(t_end / dt) output steps, as :func:`~softrod.simulate`),
@@ -714,7 +755,9 @@ def simulate_system(
     (its value at t = 0 is the start's; then sampled at each output step's end).
     ``platform_force``/``platform_moment`` (N, N m, world) likewise (None: the system's).
     ``platform_inertia``, ``dt``, ``scheme``, ``alpha``, ``tol``, ``max_iter``,
-    ``error_tol``, ``energy_tol``, ``on_unstable``: as :class:`SystemSimulation` (whose
+    ``error_tol``, ``energy_tol``, ``on_unstable``, ``stiffness_maps`` (one
+    :class:`~softrod.StiffnessMap` or None per rod, as :func:`~softrod.solve_system` takes
+    it; sigma evaluated at every step's pressures): as :class:`SystemSimulation` (whose
     only scheme is BDF-alpha: the midpoint rule is refused by name, as for a held tip).
     Returns a :class:`SystemTrajectory` from t = 0 (docs/dynamics.md, "Systems of
     rods")."""
@@ -737,7 +780,197 @@ def simulate_system(
         error_tol=error_tol,
         energy_tol=energy_tol,
         on_unstable=on_unstable,
+        stiffness_maps=stiffness_maps,
     )
     start = sim._sim.snapshot()
     out = sim._run(t_end, pressures, tensions, platform_force, platform_moment, "t_end")
     return SystemTrajectory._concat(sim.system, [start, out])
+
+
+def _system_markers(system: System, markers: Any) -> list[tuple[int | None, float, list[float]]]:
+    """The binding's markers ((rod or None for the platform, s, offset), m) of
+    ``markers``: (body, s, offset) triples, body "platform" (s = 0) or a rod's index. The
+    core checks s and the offset, naming ``markers[k]``."""
+    if markers is None:
+        return []
+    if isinstance(markers, (str, bytes)) or not isinstance(markers, (list, tuple)):
+        raise V.fail(
+            "markers",
+            markers,
+            "must be a list of (body, s, offset): body 'platform' or a rod's index, s (m) "
+            "and an offset (3,) in m",
+            InputError,
+        )
+    n = len(system.rods)
+    out: list[tuple[int | None, float, list[float]]] = []
+    for k, m in enumerate(markers):
+        if not isinstance(m, (list, tuple)) or len(m) != 3:
+            raise V.fail(
+                f"markers[{k}]",
+                m,
+                "must be (body, s, offset): body 'platform' or a rod's index, s (m) and an "
+                "offset (3,) in m",
+                InputError,
+            )
+        body, s, offset = m
+        if isinstance(body, str) and body == "platform":
+            rod = None
+        elif V.is_real(body) and float(body).is_integer() and 0 <= int(body) < n:
+            rod = int(body)
+        else:
+            raise V.fail(
+                f"markers[{k}].body",
+                body,
+                f"must be 'platform' or a rod's index (0 ... {n - 1})",
+                InputError,
+            )
+        s = V.real(s, f"markers[{k}].s")
+        off = V.real_array(offset, f"markers[{k}].offset", ndim=1, unit_kind="length")
+        if off.shape != (3,):
+            raise V.fail(f"markers[{k}].offset", offset, "must be 3 numbers (m)", InputError)
+        out.append((rod, float(s), [float(v) for v in off]))
+    return out
+
+
+def system_trajectory_sensitivities(
+    system: System | str,
+    pressures: Any | Callable[[float], Any],
+    t_end: Any,
+    params: Sequence[str] | str,
+    *,
+    markers: Sequence[tuple[Any, float, Any]] = (),
+    tensions: Any | Callable[[float], Any] = None,
+    platform_force: Any = None,
+    platform_moment: Any = None,
+    platform_inertia: Any = None,
+    dt: Any = 2e-3,
+    alpha: float | None = None,
+    tol: float = 1e-9,
+    max_iter: int = 25,
+    energy_tol: float = DEFAULT_ENERGY_TOL,
+    on_unstable: str = "warn",
+    stiffness_maps: Any = None,
+) -> dict[str, Any]:
+    """The motion of a :class:`~softrod.System`'s platform and of markers on it or on its
+    rods, run as :func:`simulate_system` runs it (from rest in equilibrium under the inputs
+    at t = 0, BDF-alpha with fixed steps ``dt``), with its exact derivatives with respect to
+    the model parameters ``params``, carried through every step by the core's forward
+    sensitivities (``SystemSimulator::track_sensitivities``: the implicit function theorem
+    on each step's coupled equations, docs/dynamics.md "Systems of rods").
+
+    ``params``: names as :func:`~softrod.calibrate_system` takes them with
+    ``dynamic=True`` (a list or a comma-separated string): a rod parameter acting on every
+    rod (``"E"``, ``"c_b[body]"``, the rods must share its value) or on one
+    (``"rods[1].c_b"``), the damping time (``"damping_time"``) and ``"platform_mass"``;
+    an empty list: the run without derivatives. ``markers``: (body, s, offset) triples,
+    body ``"platform"`` (s = 0, offset in the platform frame) or a rod's index (s in
+    [0, L] of that rod, offset in its cross-section frame), m. ``pressures``,
+    ``tensions``, ``platform_force``, ``platform_moment`` (held or functions of t),
+    ``platform_inertia``, ``alpha``, ``tol``, ``max_iter``, ``energy_tol``,
+    ``on_unstable`` and ``stiffness_maps``: as :func:`simulate_system` (the inputs are
+    inputs, not parameters; adaptive steps are not offered: the step sizes would depend on
+    the parameters).
+
+    Returns a dict of arrays, k = steps + 1 samples (the start included), P parameters, K
+    markers, derivatives per SI unit of each parameter: "time" (k,) s,
+    "platform_position" (k, 3) m, "platform_rotation" (k, 3, 3), "marker_position"
+    (k, K, 3) m, "d_platform_position" (k, 3, P), "d_platform_rotation" (k, 3, 3, P),
+    "d_marker_position" (k, K, 3, P), and "params" and "units": the parameters' names and
+    SI units, in the order of the last axis. Bad input raises
+    :class:`~softrod.errors.InputError` naming the field (``params``, ``markers[k]``, ...)
+    before any step; a run that fails raises as :func:`simulate_system` does."""
+    from .calibration.problem import REGISTRATION
+    from .calibration.system import parse_system_parameters
+
+    def at0(value):
+        return value(0.0) if callable(value) else value
+
+    if not isinstance(system, System):
+        system = load_system(system)
+    names = params
+    if isinstance(names, str):
+        names = re.split(r",(?![^\[]*\])", names)
+    if isinstance(names, (list, tuple)):
+        for name in names:
+            if isinstance(name, str) and name.strip() in REGISTRATION:
+                raise V.fail(
+                    "params",
+                    name,
+                    "is a fit's measurement frame, not a parameter of the model's motion: "
+                    "name the rods' parameters, damping_time and platform_mass",
+                    InputError,
+                )
+    parsed = (
+        parse_system_parameters(params, system, dynamic=True)
+        if not (isinstance(params, (list, tuple)) and len(params) == 0)
+        else []
+    )
+    core_markers = _system_markers(system, markers)
+    sim = SystemSimulation(
+        system,
+        at0(pressures),
+        tensions=at0(tensions),
+        platform_force=at0(platform_force),
+        platform_moment=at0(platform_moment),
+        platform_inertia=platform_inertia,
+        dt=dt,
+        alpha=alpha,
+        tol=tol,
+        max_iter=max_iter,
+        energy_tol=energy_tol,
+        on_unstable=on_unstable,
+        stiffness_maps=stiffness_maps,
+    )
+    out = tracked_run(
+        sim, parsed, core_markers, t_end, pressures, tensions, platform_force, platform_moment
+    )
+    out["params"] = tuple(p.name for p in parsed)
+    out["units"] = tuple(p.unit for p in parsed)
+    return out
+
+
+def tracked_run(
+    sim: SystemSimulation,
+    params: Sequence[Any],
+    markers: list[tuple[int | None, float, list[float]]],
+    t_end: Any,
+    pressures: Any,
+    tensions: Any = None,
+    platform_force: Any = None,
+    platform_moment: Any = None,
+    field: str = "t_end",
+) -> dict[str, np.ndarray]:
+    """Run a fresh ``sim`` (before its first step) until ``t_end`` as
+    :meth:`SystemSimulation.run` runs it, with the binding's ``markers`` and the
+    derivatives with respect to ``params`` (parsed :class:`~softrod.calibration.system.
+    SystemParameter`; empty: none), from the start on: the arrays of
+    :func:`system_trajectory_sensitivities` (without the names). Shared with
+    ``calibrate_system(dynamic=True)``'s replays."""
+    if markers:
+        sim._sim.set_markers(markers)
+    if params:
+        sim._sim.track_sensitivities([p.core() for p in params])
+    start = sim._sim.snapshot()
+    run = sim._run(t_end, pressures, tensions, platform_force, platform_moment, field)
+    n_par, n_mk = len(params), len(markers)
+    time = np.concatenate([np.asarray(start["time"]), np.asarray(run["time"])], dtype=float)
+    k = time.size
+
+    def series(key, shape):
+        a = np.concatenate([np.asarray(start[key]), np.asarray(run[key])], dtype=float)
+        return a.reshape((k, *shape))
+
+    def derivative(key, shape):
+        if not n_par:
+            return np.zeros((k, *shape, 0))
+        return series(key, (*shape, n_par))
+
+    return {
+        "time": time,
+        "platform_position": series("platform_position", (3,)),
+        "platform_rotation": series("platform_rotation", (3, 3)),
+        "marker_position": series("marker_position", (n_mk, 3)),
+        "d_platform_position": derivative("d_platform_position", (3,)),
+        "d_platform_rotation": derivative("d_platform_rotation", (3, 3)),
+        "d_marker_position": derivative("d_marker_position", (n_mk, 3)),
+    }

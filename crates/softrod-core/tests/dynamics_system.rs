@@ -3,13 +3,15 @@
 //! loads at its free tip, settling on `solve_system`'s equilibrium, the energy books of an
 //! undamped run, a platform mass on three rods against the linear frequency from the
 //! system's static stiffness, the step Jacobian, save/restore and refusals; a follower tip
-//! load on a rod (against the free rod, at rest, the step Jacobian).
+//! load on a rod (against the free rod, at rest, the step Jacobian); a stiffness-mapped rod
+//! (a constant map against the rod with its stiffness factors multiplied, refusals).
 
 mod common;
 
 use common::*;
 use softrod_core::dynamics::system::{DynRod, SystemSimulator};
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, SigmaMap, Simulator};
+use softrod_core::interp::GridPchip;
 use softrod_core::ode::Loads;
 use softrod_core::spec::obstacle::ObstacleKind;
 use softrod_core::spec::{DesignSpec, Frame, MaterialSpec};
@@ -866,4 +868,97 @@ fn restore_at_another_step_refactors_and_continues_right() {
         "{:?}",
         kept.stats
     );
+}
+
+/// `rods(2, ..)` with rod 0's section stiffness-mapped (`law.stiffness_map`), with `map`.
+fn mapped_rods(tau: f64, pressures: &[f64], map: SigmaMap) -> Vec<DynRod> {
+    let mut rs = rods(2, 9.81, tau, pressures);
+    let mut spec = rs[0].rod.spec.clone();
+    spec.sections[0].law.stiffness_map = true;
+    rs[0].rod = Rod::new(spec).unwrap();
+    rs[0].sigma_map = map;
+    rs
+}
+
+#[test]
+fn a_constant_stiffness_map_is_the_rod_with_its_stiffness_factors_multiplied() {
+    // sigma = (c, c, c) scales c_e EA and c_b EI of the mapped section (shear and torsion
+    // stay): the same rod unmapped with c_e = c_b = c is an independent model of it, damped
+    // (B = tau K follows the scaled K in both).
+    let c = 1.4;
+    let o = DynOptions {
+        tol: 1e-12,
+        ..opts(2e-3, -0.2)
+    };
+    let plat = platform(0.02, 9.81, [0.0; 3], [0.0; 3]);
+    let z3 = [[0.0; 3]; 3];
+    let mut mapped = SystemSimulator::new(
+        mapped_rods(0.05, &[0.0; 2], SigmaMap::Constant([c; 3])),
+        plat,
+        z3,
+        o,
+    )
+    .unwrap();
+    let mut rs = rods(2, 9.81, 0.05, &[0.0; 2]);
+    let mut spec = rs[0].rod.spec.clone();
+    spec.sections[0].c_e = c;
+    spec.sections[0].c_b = c;
+    rs[0].rod = Rod::new(spec).unwrap();
+    let mut scaled = SystemSimulator::new(rs, plat, z3, o).unwrap();
+    let steps = 30;
+    let pressure = |k: usize| vec![40e3 * ((k + 1) as f64 / 10.0).min(1.0), 0.0];
+    let a = trajectory(&mut mapped, steps, false, pressure);
+    let b = trajectory(&mut scaled, steps, false, pressure);
+    let diff = largest_difference(&a, &b);
+    let moved = (a[steps - 1][0] - a[0][0]).abs() + (a[steps - 1][1] - a[0][1]).abs();
+    eprintln!("constant map against scaled factors: {diff:.3e} m (moved {moved:.3e} m)");
+    // The two differ only in the rounding of c EA sigma against (c c_e) EA: within the
+    // Newton tolerance's bound of two runs.
+    assert!(diff <= newton_bound(o.tol, steps), "{diff:e}");
+    // The ramp moves the platform (measured 1.1e-4 m), far beyond the bound.
+    assert!(moved > 1e-5, "the ramp moves the platform: {moved:e} m");
+    // sigma acts: sigma = 1 is another motion.
+    let mut unit = SystemSimulator::new(
+        mapped_rods(0.05, &[0.0; 2], SigmaMap::Constant([1.0; 3])),
+        plat,
+        z3,
+        o,
+    )
+    .unwrap();
+    let u = trajectory(&mut unit, steps, false, pressure);
+    assert!(largest_difference(&a, &u) > 1e-5);
+}
+
+#[test]
+fn stiffness_map_refusals_name_the_rod() {
+    let plat = platform(0.02, 9.81, [0.0; 3], [0.0; 3]);
+    let z3 = [[0.0; 3]; 3];
+    let o = opts(2e-3, -0.2);
+    // No map for a mapped section: never sigma = 1.
+    refused(
+        SystemSimulator::new(mapped_rods(0.0, &[0.0; 2], SigmaMap::None), plat, z3, o),
+        "rods[0].sections[0].law.stiffness_map",
+    );
+    // A table over 0..30 kPa that refuses beyond it: at the start and at a step.
+    let grid = || SigmaMap::Grid {
+        grid: GridPchip::new(vec![vec![0.0, 30e3]], vec![1.0, 1.0, 1.0, 0.8, 0.9, 1.2], 3).unwrap(),
+        clamp: false,
+    };
+    refused(
+        SystemSimulator::new(mapped_rods(0.0, &[40e3, 0.0], grid()), plat, z3, o),
+        "rods[0].pressures[0]",
+    );
+    let mut sys = SystemSimulator::new(mapped_rods(0.0, &[0.0; 2], grid()), plat, z3, o).unwrap();
+    sys.step(&commands(&[20e3, 0.0])).unwrap();
+    refused(sys.step(&commands(&[40e3, 0.0])), "rods[0].pressures[0]");
+    // Nothing changed: the run goes on within the table.
+    sys.step(&commands(&[25e3, 0.0])).unwrap();
+    // Clamped, the same table holds sigma beyond it.
+    let clamped = SigmaMap::Grid {
+        grid: GridPchip::new(vec![vec![0.0, 30e3]], vec![1.0, 1.0, 1.0, 0.8, 0.9, 1.2], 3).unwrap(),
+        clamp: true,
+    };
+    let mut sys =
+        SystemSimulator::new(mapped_rods(0.0, &[40e3, 0.0], clamped), plat, z3, o).unwrap();
+    sys.step(&commands(&[50e3, 0.0])).unwrap();
 }

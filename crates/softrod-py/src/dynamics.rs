@@ -12,6 +12,25 @@ use softrod_core::sensitivity::{Param, ParamKind};
 use softrod_core::statics::constraint::TipConstraint;
 use softrod_core::{Rod, SoftrodError};
 
+/// The binding's stiffness map of a rod's mapped sections: `sigma_const` (sigma for every
+/// pressure) or `sigma_grid` = (axes, values, clamp), a PCHIP table over the channels'
+/// pressures (values row-major, 3 per grid point); neither: no map.
+pub(crate) type SigmaGrid = (Vec<Vec<f64>>, Vec<f64>, bool);
+
+pub(crate) fn sigma_map(
+    sigma_const: Option<[f64; 3]>,
+    sigma_grid: Option<SigmaGrid>,
+) -> Result<SigmaMap, SoftrodError> {
+    Ok(match (sigma_const, sigma_grid) {
+        (Some(s), _) => SigmaMap::Constant(s),
+        (None, Some((axes, values, clamp))) => SigmaMap::Grid {
+            grid: GridPchip::new(axes, values, 3)?,
+            clamp,
+        },
+        (None, None) => SigmaMap::None,
+    })
+}
+
 /// A running simulation of a design (see `softrod.dynamics`).
 #[pyclass(name = "Simulator", module = "softrod._core")]
 pub struct PySimulator {
@@ -192,7 +211,7 @@ impl PySimulator {
         error_tol: Option<f64>,
         energy_tol: f64,
         sigma_const: Option<[f64; 3]>,
-        sigma_grid: Option<(Vec<Vec<f64>>, Vec<f64>, bool)>,
+        sigma_grid: Option<SigmaGrid>,
         tip_force: Option<[f64; 3]>,
         tip_moment: Option<[f64; 3]>,
         tensions: Option<Vec<f64>>,
@@ -227,14 +246,7 @@ impl PySimulator {
                     )))
                 }
             };
-            let map = match (sigma_const, sigma_grid) {
-                (Some(s), _) => SigmaMap::Constant(s),
-                (None, Some((axes, values, clamp))) => SigmaMap::Grid {
-                    grid: GridPchip::new(axes, values, 3).map_err(input)?,
-                    clamp,
-                },
-                (None, None) => SigmaMap::None,
-            };
+            let map = sigma_map(sigma_const, sigma_grid).map_err(input)?;
             let opts = DynOptions {
                 dt,
                 scheme,

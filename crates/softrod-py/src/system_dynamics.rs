@@ -2,6 +2,7 @@
 //! (`softrod_core::dynamics::system`): a stepper object that Python drives in chunks, with
 //! the GIL released while it steps.
 
+use crate::dynamics::{sigma_map, SigmaGrid};
 use crate::ends::{platform_of, system_markers, system_params, PlatformEntry, SystemParamEntry};
 use crate::{to_py_err, Context, PyRod};
 use numpy::{PyArray1, PyReadonlyArray1};
@@ -25,6 +26,9 @@ type DynRodEntry<'py> = (
     [f64; 3],
     [[f64; 3]; 3],
 );
+
+/// One rod's stiffness map: (`sigma_const`, `sigma_grid`) as `Simulator` takes them.
+type SigmaEntry = (Option<[f64; 3]>, Option<SigmaGrid>);
 
 /// The samples of a chunk of steps, as flat lists.
 #[derive(Default)]
@@ -151,8 +155,11 @@ impl Samples {
 #[pymethods]
 impl PySystemSimulator {
     /// Start at rest in the system's static equilibrium (`SystemSimulator::new`).
+    /// `sigma_maps`: per rod, the stiffness map of its mapped sections as
+    /// (`sigma_const`, `sigma_grid`) of `Simulator` ((None, None): no map; None: no rod has
+    /// one); sigma is evaluated in the core at every step's pressures.
     #[new]
-    #[pyo3(signature = (rods, platform, inertia, dt, alpha, tol, max_iter, scheme, error_tol, energy_tol))]
+    #[pyo3(signature = (rods, platform, inertia, dt, alpha, tol, max_iter, scheme, error_tol, energy_tol, sigma_maps=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -166,6 +173,7 @@ impl PySystemSimulator {
         scheme: &str,
         error_tol: Option<f64>,
         energy_tol: f64,
+        sigma_maps: Option<Vec<SigmaEntry>>,
     ) -> PyResult<Self> {
         crate::guarded(py, || {
             let scheme = match scheme {
@@ -188,13 +196,43 @@ impl PySystemSimulator {
                 error_tol,
                 energy_tol,
             };
+            let input = |e: SoftrodError| to_py_err(py, e, Context::Input);
+            let maps: Vec<SigmaMap> = match sigma_maps {
+                None => vec![SigmaMap::None; rods.len()],
+                Some(m) if m.len() != rods.len() => {
+                    return Err(input(SoftrodError::invalid(
+                        "sigma_maps",
+                        format!("{} entries", m.len()),
+                        format!("one entry per rod: {} rods", rods.len()),
+                    )))
+                }
+                Some(m) => m
+                    .into_iter()
+                    .enumerate()
+                    .map(|(i, (c, g))| {
+                        sigma_map(c, g).map_err(|e| {
+                            input(match e {
+                                SoftrodError::InvalidParameter { field, value, rule } => {
+                                    SoftrodError::InvalidParameter {
+                                        field: format!("sigma_maps[{i}].{field}"),
+                                        value,
+                                        rule,
+                                    }
+                                }
+                                other => other,
+                            })
+                        })
+                    })
+                    .collect::<PyResult<_>>()?,
+            };
             let rods: Vec<DynRod> = rods
                 .iter()
-                .map(|(r, p, t, o, a)| DynRod {
+                .zip(maps)
+                .map(|((r, p, t, o, a), sigma_map)| DynRod {
                     rod: r.rod.clone(),
                     pressures: p.clone(),
                     tensions: t.clone(),
-                    sigma_map: SigmaMap::None,
+                    sigma_map,
                     attachment: *o,
                     attachment_rotation: *a,
                 })

@@ -392,7 +392,9 @@ class SystemDynamic(ModelAdapter):
     under its first pressures, the measured pressures (rod 0's channels, then rod 1's, ...)
     drive it joined linearly between the samples, and the model is read at the sample
     times (linear between the steps of dt). The core carries the forward sensitivities of
-    every step (``SystemSimulator::track_sensitivities``)."""
+    every step (``SystemSimulator::track_sensitivities``), run as
+    :func:`softrod.system_trajectory_sensitivities` runs them (its
+    ``system_dynamics.tracked_run``)."""
 
     model = "cosserat"
     dynamic = True
@@ -450,30 +452,22 @@ class SystemDynamic(ModelAdapter):
         """The platform position (k, 3), markers (k, K, 3) and, with ``jacobian``, their
         derivatives (k, 3, P), (k, K, 3, P) at the sample times of one experiment; None: the
         run failed."""
-        from ..dynamics.simulate import step_count
-        from ..system_dynamics import SystemSimulation
+        from ..system_dynamics import SystemSimulation, tracked_run
 
         t = self.time[exp] - self.time[exp][0]
+
+        def joined(values: np.ndarray, widths=None):
+            # The inputs joined linearly between the samples (held after the last), read
+            # at every step's end.
+            def at(time: float) -> list[list[float]]:
+                row = [np.interp(time, t, values[:, c]) for c in range(values.shape[1])]
+                return self._commands(np.array(row), widths)
+
+            return at
+
         p = self.p[exp]
-        steps = step_count(t[-1], self.dt, "dataset.time")
-        at = self.dt * np.arange(1, steps + 1)
-        # The pressures joined linearly between the samples (held after the last), read at
-        # every step's end, as the sample times' function would be.
-        knots = (
-            np.stack([np.interp(at, t, p[:, c]) for c in range(p.shape[1])], axis=1)
-            if (p.shape[1])
-            else np.zeros((steps, 0))
-        )
+        tensions = None if self.t is None else self.t[exp]
         tw = self.tendon_widths
-        tensions = steps_t = None
-        if self.t is not None:
-            tensions = self.t[exp]
-            steps_t = [
-                self._commands(row, tw)
-                for row in np.column_stack(
-                    [np.interp(at, t, tensions[:, c]) for c in range(tensions.shape[1])]
-                )
-            ]
         try:
             sim = SystemSimulation(
                 system,
@@ -483,37 +477,33 @@ class SystemDynamic(ModelAdapter):
                 tol=self.tol,
                 on_unstable="ignore",
             )
-            core = sim._sim
-            if self.markers:
-                core.set_markers(self.markers)
-            if jacobian:
-                core.track_sensitivities([q.core() for q in self.params])
-            start = core.snapshot()
-            run = core.run([self._commands(row) for row in knots], tensions=steps_t)
+            run = tracked_run(
+                sim,
+                self.params if jacobian else [],
+                self.markers,
+                t[-1],
+                joined(p),
+                None if tensions is None else joined(tensions, tw),
+                field="dataset.time",
+            )
         except ConvergenceError:  # InvalidStateError included
             return None
-        n_par, n_mk = len(self.params) if jacobian else 0, len(self.markers)
-        time_s = np.concatenate([[0.0], np.asarray(run["time"], dtype=float)])
-        k = time_s.size
-
-        def series(key, shape):
-            a = np.concatenate([np.asarray(start[key]), np.asarray(run[key])], dtype=float)
-            return a.reshape((k,) + shape)
+        time_s = run["time"]
 
         def sample(a):
-            flat = a.reshape(k, -1)
+            flat = a.reshape(a.shape[0], -1)
             cols = [
                 np.interp(np.minimum(t, time_s[-1]), time_s, flat[:, c])
                 for c in range(flat.shape[1])
             ]
             return np.column_stack(cols).reshape((len(t),) + a.shape[1:])
 
-        pos = sample(series("platform_position", (3,)))
-        mk = sample(series("marker_position", (n_mk, 3))) if n_mk else None
+        pos = sample(run["platform_position"])
+        mk = sample(run["marker_position"]) if self.markers else None
         if not jacobian:
             return pos, None, mk, None
-        dp = sample(series("d_platform_position", (3, n_par)))
-        dm = sample(series("d_marker_position", (n_mk, 3, n_par))) if n_mk else None
+        dp = sample(run["d_platform_position"])
+        dm = sample(run["d_marker_position"]) if self.markers else None
         return pos, dp, mk, dm
 
     def predict(self, theta, rows, jacobian: bool) -> Prediction:

@@ -135,11 +135,18 @@ def _sigma_args(design: Design, stiffness_map) -> dict:
     (constant, PCHIP table) run in dynamics."""
     from ..statics import _stiffness_map
 
-    smap = _stiffness_map(design, stiffness_map)
+    return core_sigma(_stiffness_map(design, stiffness_map), design.n_channels)
+
+
+def core_sigma(smap, n_channels: int, field: str = "stiffness_map") -> dict:
+    """The core's arguments (``sigma_const`` or ``sigma_grid``) of a checked stiffness map
+    (None: none) of a design with ``n_channels``; a map the core cannot evaluate at every
+    step (a network, a regressor, a callable, a non-PCHIP table) is refused naming
+    ``field``."""
     if smap is None:
         return {}
     if smap.kind == "constant":
-        sigma = smap(np.zeros((1, design.n_channels)))[0]
+        sigma = smap(np.zeros((1, n_channels)))[0]
         return {"sigma_const": [float(x) for x in sigma]}
     axes = smap.axes
     two_point = axes is not None and all(len(a) == 2 for a in axes)
@@ -153,7 +160,7 @@ def _sigma_args(design: Design, stiffness_map) -> dict:
             )
         }
     raise design_error(
-        "stiffness_map",
+        field,
         repr(smap),
         "dynamics evaluates sigma in the core at every step: use StiffnessMap.constant or "
         "StiffnessMap.from_table(..., method='pchip') (tabulate a trained regressor over "

@@ -917,6 +917,21 @@ fn check_inertia(j: &[[f64; 3]; 3]) -> Result<()> {
     Ok(())
 }
 
+/// `e` of rod `i` named by the rod: a field gets the prefix `rods[i].` (unless it has one),
+/// a state's message `rods[i]: `.
+fn on_rod(e: SoftrodError, i: usize) -> SoftrodError {
+    match e {
+        SoftrodError::InvalidParameter { field, value, rule } if !field.starts_with("rods[") => {
+            SoftrodError::InvalidParameter {
+                field: format!("rods[{i}].{field}"),
+                value,
+                rule,
+            }
+        }
+        other => other.map_message(|m| format!("rods[{i}]: {m}")),
+    }
+}
+
 impl SystemSimulator {
     /// Start a system at rest in its static equilibrium under the inputs at t = 0
     /// (`solve_system`'s, refined on the collocation grids). `platform`: as in the
@@ -925,7 +940,10 @@ impl SystemSimulator {
     /// (zero: none). A rod's obstacles and its design's tip loads, dead or follower
     /// (`[tip] frame`), act on it as on a held tip (module docs). Refused by name: the
     /// midpoint scheme, an inertia that is not symmetric positive semidefinite, inputs that
-    /// do not match a rod.
+    /// do not match a rod, a rod with a stiffness-mapped section and no map
+    /// (`rods[i].sections[k].law.stiffness_map`), pressures its map refuses
+    /// (`rods[i].pressures[k]`; at a step too). A rod's map is evaluated at every step's
+    /// pressures, as a lone rod's.
     pub fn new(
         rods: Vec<DynRod>,
         platform: Platform,
@@ -950,7 +968,10 @@ impl SystemSimulator {
             r.rod
                 .check_tensions(&r.tensions)
                 .map_err(|e| rename_field(e, "tensions", &format!("{name}tensions")))?;
-            let sigma = r.sigma_map.eval(&r.pressures)?;
+            // A mapped section needs its map (sigma is never assumed to be 1): refused
+            // before the statics, naming the rod.
+            super::check_dynamic_laws(&r.rod, &r.sigma_map).map_err(|e| on_rod(e, i))?;
+            let sigma = r.sigma_map.eval(&r.pressures).map_err(|e| on_rod(e, i))?;
             loads.push(Loads {
                 pressures: r.pressures.clone(),
                 tensions: r.tensions.clone(),
@@ -1019,7 +1040,7 @@ impl SystemSimulator {
                 m,
                 rest.target(i, &xi),
             )
-            .map_err(|e| e.map_message(|m| format!("rods[{i}]: {m}")))?;
+            .map_err(|e| on_rod(e, i))?;
             sims.push(sim);
         }
         // The rest state of this discretisation: the rods' collocation equilibria and the
@@ -1190,9 +1211,13 @@ impl SystemSimulator {
     fn prepare(&mut self, h: f64, command: &[f64]) -> Result<(Vec<Prep>, Bdf)> {
         let mut preps = Vec::with_capacity(self.rods.len());
         let mut o = 0;
-        for r in &mut self.rods {
+        for (i, r) in self.rods.iter_mut().enumerate() {
             let nc = r.rod.n_channels;
-            preps.push(r.prepare(h, &command[o..o + nc])?);
+            // A rod's stiffness map may refuse the step's pressures: name the rod.
+            preps.push(
+                r.prepare(h, &command[o..o + nc])
+                    .map_err(|e| on_rod(e, i))?,
+            );
             o += nc;
         }
         let bdf = preps[0].bdf;
