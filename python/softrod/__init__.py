@@ -121,7 +121,7 @@ _EXPORTS = {
     "SystemSimulationState": ".system_dynamics",
     "SystemTrajectory": ".system_dynamics",
     "simulate_system": ".system_dynamics",
-    "system_trajectory_sensitivities": ".system_dynamics",
+    "system_trajectory_sensitivities": ".system_sensitivities",
     "plot_system": ".system_plots",
     "plot_system_motion": ".system_plots",
     "view": ".viewer",
@@ -220,9 +220,9 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         SystemSimulationState,
         SystemTrajectory,
         simulate_system,
-        system_trajectory_sensitivities,
     )
     from .system_plots import plot_system, plot_system_motion
+    from .system_sensitivities import system_trajectory_sensitivities
     from .viewer import view, view_system
 
 __all__ = [

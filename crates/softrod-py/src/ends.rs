@@ -183,15 +183,6 @@ fn solve_constrained_tip_batch<'py>(
     })
 }
 
-/// The tip reactions of batch rows as (m, 3) arrays.
-pub(crate) fn reactions(py: Python<'_>, d: &Bound<'_, PyDict>, rows: &[BatchRow]) -> PyResult<()> {
-    let f: Vec<[f64; 3]> = rows.iter().map(|r| r.tip_reaction_force).collect();
-    let m: Vec<[f64; 3]> = rows.iter().map(|r| r.tip_reaction_moment).collect();
-    d.set_item("tip_reaction_force", array2(py, &f)?)?;
-    d.set_item("tip_reaction_moment", array2(py, &m)?)?;
-    Ok(())
-}
-
 /// One rod of a system: (rod, pressures, tensions, tip force, tip moment, attachment
 /// offset, attachment rotation).
 type RodEntry<'py> = (

@@ -548,7 +548,7 @@ impl PyRod {
             let d = rows_dict(py, &rows)?;
             let (np, m) = (params.len(), rows.len());
             if held != TipConstraint::Free {
-                ends::reactions(py, &d, &rows)?;
+                solve::reactions(py, &d, &rows)?;
                 let (mut df, mut dmo) = (vec![f64::NAN; m * 3 * np], vec![f64::NAN; m * 3 * np]);
                 for (r, row) in rows.iter().enumerate() {
                     let Some(sens) = &row.sensitivity else {

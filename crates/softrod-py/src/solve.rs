@@ -3,13 +3,15 @@
 //! equilibrium and for a batch, the tip's constraint an argument. No physics here.
 
 use crate::{
-    contact_dict, contact_forces, ends::reactions, rows_dict, solution_dict, to_py_err, Context,
+    array2, contact_dict, contact_forces, rows_dict, solution_dict, to_py_err, Context,
     PyFrictionState, PyRod,
 };
 use numpy::PyReadonlyArray2;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use softrod_core::batch::{solve_constrained_batch, solve_held_friction_batch, BatchInputs};
+use softrod_core::batch::{
+    solve_constrained_batch, solve_held_friction_batch, BatchInputs, BatchRow,
+};
 use softrod_core::ode::Loads;
 use softrod_core::statics::constraint::{solve_constrained, ConstrainedSolution, TipConstraint};
 use softrod_core::statics::{friction, SolverOptions};
@@ -149,4 +151,13 @@ pub(crate) fn solve_rows<'py>(
         contact_forces(py, &d, &rows, rod.spec.obstacles.len())?;
     }
     Ok(d)
+}
+
+/// The tip reactions of batch rows as (m, 3) arrays.
+pub(crate) fn reactions(py: Python<'_>, d: &Bound<'_, PyDict>, rows: &[BatchRow]) -> PyResult<()> {
+    let f: Vec<[f64; 3]> = rows.iter().map(|r| r.tip_reaction_force).collect();
+    let m: Vec<[f64; 3]> = rows.iter().map(|r| r.tip_reaction_moment).collect();
+    d.set_item("tip_reaction_force", array2(py, &f)?)?;
+    d.set_item("tip_reaction_moment", array2(py, &m)?)?;
+    Ok(())
 }
