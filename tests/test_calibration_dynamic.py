@@ -484,7 +484,7 @@ def test_synthetic_tensions_must_be_a_function():
 def test_tension_rows_of_a_sensitivity_run_are_checked():
     """One row per step and the start, one column per tendon channel, finite and >= 0:
     else an error naming ``tensions`` before any step."""
-    from softrod.dynamics.simulate import tip_sensitivities
+    from softrod.dynamics.simulate import tracked_trajectory
 
     finger = softrod.load_design(FINGER).replace({"dynamics.damping_time": "0.1 s"})
     sched = PressureSchedule.constant([0.0])
@@ -492,10 +492,11 @@ def test_tension_rows_of_a_sensitivity_run_are_checked():
     # 0.02 s at 10 ms: 2 steps, so 3 rows.
     for bad in (np.ones((2, 1)), np.ones((3, 2)), np.array([[1.0], [np.nan], [1.0]])):
         with pytest.raises(InputError) as err:
-            tip_sensitivities(finger, sched, 0.02, 1e-2, params, bad)
+            tracked_trajectory(finger, sched, 0.02, 1e-2, params, bad)
         assert "tensions" in err.value.field
-    time, tip, d_tip = tip_sensitivities(finger, sched, 0.02, 1e-2, params, np.ones((3, 1)))
-    assert time.shape == (3,) and tip.shape == (3, 3) and d_tip.shape == (3, 3, 1)
+    run = tracked_trajectory(finger, sched, 0.02, 1e-2, params, np.ones((3, 1)))
+    assert run["time"].shape == (3,) and run["tip_position"].shape == (3, 3)
+    assert run["d_tip_position"].shape == (3, 3, 1)
 
 
 @settings(max_examples=25, deadline=None)

@@ -121,7 +121,8 @@ _EXPORTS = {
     "SystemSimulationState": ".system_dynamics",
     "SystemTrajectory": ".system_dynamics",
     "simulate_system": ".system_dynamics",
-    "system_trajectory_sensitivities": ".system_sensitivities",
+    "system_trajectory_sensitivities": ".sensitivities",
+    "trajectory_sensitivities": ".sensitivities",
     "plot_system": ".system_plots",
     "plot_system_motion": ".system_plots",
     "view": ".viewer",
@@ -194,6 +195,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         ValidityWarning,
     )
     from .presets import Preset, list_presets
+    from .sensitivities import system_trajectory_sensitivities, trajectory_sensitivities
     from .statics import (
         BatchSolution,
         Contact,
@@ -222,7 +224,6 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         simulate_system,
     )
     from .system_plots import plot_system, plot_system_motion
-    from .system_sensitivities import system_trajectory_sensitivities
     from .viewer import view, view_system
 
 __all__ = [
@@ -295,6 +296,7 @@ __all__ = [
     "solve_system_batch",
     "simulate_system",
     "system_trajectory_sensitivities",
+    "trajectory_sensitivities",
     "plot_system",
     "plot_system_motion",
     "synthesize_dataset",

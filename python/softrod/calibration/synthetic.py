@@ -12,7 +12,7 @@ from .. import _validate as V
 from ..catalog import load_design
 from ..datasets import Dataset, parse_marker_sites
 from ..dynamics import PressureSchedule, simulate
-from ..dynamics.simulate import _seconds, trajectory_sensitivities
+from ..dynamics.simulate import _seconds, tracked_trajectory
 from .adapters.rod_dynamic import sample_run, step_tensions
 
 __all__ = ["synthesize_trajectory_dataset"]
@@ -70,7 +70,7 @@ def synthesize_trajectory_dataset(
         step = _seconds(dt, "dt")
         rows = None if knots is None else step_tensions(times, knots, step)
         pairs = [(float(s), [float(v) for v in o]) for s, o in zip(*sites, strict=True)]
-        run = trajectory_sensitivities(d, sampled, times[-1], step, [], rows, pairs)
+        run = tracked_trajectory(d, sampled, times[-1], step, [], rows, pairs)
         tip_pos = sample_run(run, "tip_position", times)
         marker_pos = sample_run(run, "marker_position", times)
         marker_pos = marker_pos + rng.normal(0.0, noise_mm * _MM, marker_pos.shape)

@@ -1157,48 +1157,34 @@ def _simulate_pcc(
         )
 
 
-def tip_sensitivities(
+def tracked_trajectory(
     design: Design,
-    schedule: PressureSchedule,
-    t_end: float,
-    dt: float,
-    params: Sequence[tuple[str, list[int]]],
-    tensions: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The tip trajectory of ``design`` under ``schedule`` from rest in equilibrium (BDF-alpha,
-    fixed steps ``dt``) and its exact derivatives with respect to ``params`` ((kind,
-    sections) pairs of the core, as :meth:`Parameter.core
-    <softrod.calibration.params.Parameter.core>` gives them), carried through every step by
-    the core's forward sensitivities (``softrod_core::dynamics::sensitivity``). ``tensions``:
-    None (slack tendons) or the tendon tensions (N) at the start and after every step,
-    (steps + 1, tendon channels), checked by the core (finite, >= 0); the tensions are
-    inputs, not parameters.
-
-    Returns (time (k,), tip position (k, 3), d tip / d theta (k, 3, P)), k = steps + 1 (the
-    start included); the derivatives are per SI unit of each parameter (area_scale: per unit
-    of the factor on the design's areas). The steps run in the core with the GIL released."""
-    out = trajectory_sensitivities(design, schedule, t_end, dt, params, tensions)
-    return out["time"], out["tip_position"], out["d_tip_position"]
-
-
-def trajectory_sensitivities(
-    design: Design,
-    schedule: PressureSchedule,
+    schedule: PressureSchedule | None,
     t_end: float,
     dt: float,
     params: Sequence[tuple[str, list[int]]],
     tensions: np.ndarray | None = None,
     markers: Sequence[tuple[float, list[float]]] = (),
+    tol: float = 1e-9,
+    max_iter: int = 25,
 ) -> dict[str, np.ndarray]:
-    """:func:`tip_sensitivities` with markers on the body: ``markers`` ((s, offset) pairs
-    in m, the core's checks: s in [0, L], a finite offset in the cross-section frame) are
-    read at every step (at a node the node's pose, between nodes the collocation's
-    continuous extension, docs/dynamics.md "Markers on the moving rod"), with their exact
-    derivatives. ``params`` may be empty: the run without sensitivities.
+    """The tip trajectory of ``design`` under ``schedule`` from rest in equilibrium (BDF-alpha,
+    fixed steps ``dt``) and its exact derivatives with respect to ``params`` ((kind,
+    sections) pairs of the core, as :meth:`Parameter.core
+    <softrod.calibration.params.Parameter.core>` gives them), carried through every step by
+    the core's forward sensitivities (``softrod_core::dynamics::sensitivity``; the public
+    form with names: :func:`softrod.trajectory_sensitivities`). ``tensions``: None (slack
+    tendons) or the tendon tensions (N) at the start and after every step, (steps + 1,
+    tendon channels), checked by the core (finite, >= 0). With markers on the body:
+    ``markers`` ((s, offset) pairs in m, the core's checks: s in [0, L], a finite offset in
+    the cross-section frame) are read at every step (at a node the node's pose, between
+    nodes the collocation's continuous extension, docs/dynamics.md "Markers on the moving
+    rod"), with their exact derivatives. ``params`` may be empty: the run without
+    sensitivities. ``tol``, ``max_iter``: each step's Newton settings (:class:`Simulation`).
 
-    Returns {"time" (k,), "tip_position" (k, 3), and with markers "marker_position"
-    (k, K, 3); with params "d_tip_position" (k, 3, P) and with markers
-    "d_marker_position" (k, K, 3, P)}."""
+    Returns {"time" (k,), "tip_position" (k, 3), and with markers "marker_position" (k, K,
+    3); with params "d_tip_position" (k, 3, P) and with markers "d_marker_position" (k, K,
+    3, P)}."""
     n = step_count(t_end, dt)
     if tensions is not None and tensions.shape != (n + 1, design.n_tendons):
         raise design_error(
@@ -1208,17 +1194,28 @@ def trajectory_sensitivities(
             f"channel ({design.n_tendons})",
             InputError,
         )
-    p0 = schedule.sample([0.0])[0]
-    sim = Simulation(design, p0, dt=dt, tensions=None if tensions is None else tensions[0])
+    # A design without chambers has no schedule (None): no pressures to command.
+    p0 = np.zeros(0) if schedule is None else schedule.sample([0.0])[0]
+    sim = Simulation(
+        design,
+        p0,
+        dt=dt,
+        tol=tol,
+        max_iter=max_iter,
+        tensions=None if tensions is None else tensions[0],
+    )
     if markers:
         sim._sim.set_markers([(s, list(o)) for s, o in markers])
     if params:
         sim._sim.track_sensitivities([(k, list(s)) for k, s in params])
     first = sim._sim.snapshot()
     table = None
-    if schedule.kind in ("linear", "step"):
+    if schedule is not None and schedule.kind in ("linear", "step"):
         table = (schedule.times.tolist(), schedule.pressures.tolist(), schedule.kind == "step")
-    commands = np.ascontiguousarray(schedule.sample(dt * np.arange(1, n + 1)))
+    times = dt * np.arange(1, n + 1)
+    commands = np.ascontiguousarray(
+        np.zeros((n, 0)) if schedule is None else schedule.sample(times)
+    )
     rows = None if tensions is None else np.ascontiguousarray(tensions[1:], dtype=float)
     rest = sim._sim.run(commands, np.ones(n, dtype=np.uint8), False, None, table, rows)
     keys = ["time", "tip_position", "marker_position", "d_tip_position", "d_marker_position"]

@@ -96,7 +96,7 @@ def step_tensions(t: np.ndarray, knots: np.ndarray, dt: float) -> np.ndarray:
 
 def sample_run(run: dict, key: str, t: np.ndarray) -> np.ndarray | None:
     """``run[key]`` (one row per step, from :func:`~softrod.dynamics.simulate.
-    trajectory_sensitivities`) at the times ``t``, linear between the steps (derivatives
+    tracked_trajectory`) at the times ``t``, linear between the steps (derivatives
     alike: the same weights); None when the run has no ``key``."""
     if key not in run:
         return None
@@ -185,7 +185,7 @@ class RodDynamic(ModelAdapter):
         experiment and, with ``jacobian``, their derivatives (k, 3, P) and (k, K, 3, P) per
         SI unit of each parameter (else None); None: the run failed."""
         from ...dynamics import PressureSchedule, simulate
-        from ...dynamics.simulate import trajectory_sensitivities
+        from ...dynamics.simulate import tracked_trajectory
 
         t = self.time[exp] - self.time[exp][0]
         sched = PressureSchedule.piecewise_linear(t, self.pressures[exp])
@@ -204,9 +204,7 @@ class RodDynamic(ModelAdapter):
                 )
                 return tr.tip_position_at(np.minimum(t, tr.time[-1])), None, None, None
             params = [p.core() for p in self.params] if jacobian else []
-            run = trajectory_sensitivities(
-                design, sched, t[-1], self.dt, params, tensions, self.markers
-            )
+            run = tracked_trajectory(design, sched, t[-1], self.dt, params, tensions, self.markers)
         except ConvergenceError:  # InvalidStateError included
             return None
         keys = ("tip_position", "d_tip_position", "marker_position", "d_marker_position")

@@ -1,26 +1,122 @@
-"""Exact forward sensitivities of a system's motion (``softrod.system_trajectory_
-sensitivities``): the platform pose and markers on the platform and the rods, with their
-derivatives with respect to named model parameters, from the core's tracked run.
+"""Exact forward sensitivities of motion: a rod's tip and markers
+(:func:`trajectory_sensitivities`) and a system's platform pose and markers
+(:func:`system_trajectory_sensitivities`), with their derivatives with respect to named
+model parameters, carried through every step by the core (the implicit function theorem on
+each step's equations; docs/dynamics.md, "Parameter sensitivities of the motion").
 
-Above both :mod:`softrod.system_dynamics` (the run, ``tracked_run``) and
-:mod:`softrod.calibration.system` (the parameters' names, ``parse_system_parameters``),
-which calibrate_system(dynamic=True) shares with it."""
+Above both the dynamics (the runs: ``tracked_trajectory``, ``tracked_run``) and the
+calibration (the parameters' names: ``parse_parameters``, ``parse_system_parameters``),
+which the dynamic calibrations share with it."""
 
 from __future__ import annotations
 
 import re
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 from . import _validate as V
+from .calibration.params import parse_parameters
 from .calibration.problem import REGISTRATION
 from .calibration.system import parse_system_parameters
-from .dynamics.simulate import DEFAULT_ENERGY_TOL
+from .catalog import load_design
+from .datasets import parse_marker_sites
+from .dynamics.simulate import (
+    DEFAULT_ENERGY_TOL,
+    _schedule,
+    _seconds,
+    _tension_rows,
+    step_count,
+    tracked_trajectory,
+)
 from .errors import InputError
 from .system import System, load_system
 from .system_dynamics import SystemSimulation, tracked_run
 
-__all__ = ["system_trajectory_sensitivities"]
+if TYPE_CHECKING:
+    from ._types import DesignLike
+
+__all__ = ["system_trajectory_sensitivities", "trajectory_sensitivities"]
+
+
+def _names(params: Sequence[str] | str) -> list[str] | Any:
+    """``params`` as a list of names (a comma-separated string split outside brackets),
+    with the registration parameters of a fit refused: they turn the measurement frame,
+    not the model's motion."""
+    names = params
+    if isinstance(names, str):
+        names = [n for n in re.split(r",(?![^\[]*\])", names) if n.strip()]
+    if isinstance(names, (list, tuple)):
+        for name in names:
+            if isinstance(name, str) and name.strip() in REGISTRATION:
+                raise V.fail(
+                    "params",
+                    name,
+                    "is a fit's measurement frame, not a parameter of the model's motion: "
+                    "name the model's parameters",
+                    InputError,
+                )
+    return names
+
+
+def trajectory_sensitivities(
+    design: DesignLike,
+    pressure_schedule: Any,
+    t_end: Any,
+    params: Sequence[str] | str,
+    *,
+    markers: Sequence | None = None,
+    tensions: Any = None,
+    dt: Any = 2e-3,
+    tol: float = 1e-9,
+    max_iter: int = 25,
+) -> dict[str, Any]:
+    """The motion of a rod's tip and of markers on its body, run as :func:`~softrod.simulate` runs
+    it (from rest in equilibrium under the inputs at t = 0, BDF-alpha with fixed steps
+    ``dt``, the design's integrator defaults), with the exact derivatives with respect to
+    the model parameters ``params``, carried through every step by the core's forward
+    sensitivities (``softrod_core::dynamics::sensitivity``, docs/dynamics.md).
+
+    ``params``: names as :func:`~softrod.calibrate` takes them with ``dynamic=True`` (a list
+    or a comma-separated string): ``"E"``, ``"c_b[body]"``, ``"area_scale"``,
+    ``"damping_time"``, ...; an empty list: the run without derivatives.
+    ``pressure_schedule`` (None for a design without chambers), ``t_end``, ``dt``,
+    ``tensions`` (held or a function of t), ``markers`` (``(s, offset)`` or ``s``, SI or
+    strings with units), ``tol`` and ``max_iter`` (each step's Newton settings): as
+    :func:`~softrod.simulate` takes them (the inputs are inputs, not parameters; adaptive
+    steps are not offered: the step sizes would depend on the parameters).
+
+    Returns a dict of arrays, k = steps + 1 samples (the start included), P parameters, K
+    markers, derivatives per SI unit of each parameter (area_scale: per unit of the factor
+    on the design's areas): "time" (k,) s, "tip_position" (k, 3) m, with parameters
+    "d_tip_position" (k, 3, P), with markers "marker_position" (k, K, 3) m (and with both
+    "d_marker_position" (k, K, 3, P)); "params" and "units", the parameters' names and SI
+    units in the order of the last axis. Bad input raises
+    :class:`~softrod.errors.InputError` naming the field before any step; a run that fails
+    raises as :func:`~softrod.simulate` does."""
+    d = load_design(design)
+    names = _names(params)
+    parsed = (
+        parse_parameters(names, d) if not (isinstance(names, (list, tuple)) and not names) else []
+    )
+    sites = parse_marker_sites(markers, d.length)
+    pairs = [] if sites is None else [(float(a), b.tolist()) for a, b in zip(*sites, strict=True)]
+    schedule = (
+        None
+        if pressure_schedule is None and d.n_channels == 0
+        else _schedule(pressure_schedule, d.n_channels)
+    )
+    step = _seconds(dt, "dt")
+    duration = _seconds(t_end, "t_end")
+    n = step_count(duration, step)
+    rows = _tension_rows(d, tensions, step * np.arange(n + 1))
+    out = tracked_trajectory(
+        d, schedule, duration, step, [p.core() for p in parsed], rows, pairs, tol, max_iter
+    )
+    out["params"] = tuple(p.name for p in parsed)
+    out["units"] = tuple(p.unit for p in parsed)
+    return out
 
 
 def _system_markers(system: System, markers: Any) -> list[tuple[int | None, float, list[float]]]:
@@ -121,22 +217,10 @@ def system_trajectory_sensitivities(
 
     if not isinstance(system, System):
         system = load_system(system)
-    names = params
-    if isinstance(names, str):
-        names = re.split(r",(?![^\[]*\])", names)
-    if isinstance(names, (list, tuple)):
-        for name in names:
-            if isinstance(name, str) and name.strip() in REGISTRATION:
-                raise V.fail(
-                    "params",
-                    name,
-                    "is a fit's measurement frame, not a parameter of the model's motion: "
-                    "name the rods' parameters, damping_time and platform_mass",
-                    InputError,
-                )
+    names = _names(params)
     parsed = (
-        parse_system_parameters(params, system, dynamic=True)
-        if not (isinstance(params, (list, tuple)) and len(params) == 0)
+        parse_system_parameters(names, system, dynamic=True)
+        if not (isinstance(names, (list, tuple)) and len(names) == 0)
         else []
     )
     core_markers = _system_markers(system, markers)
