@@ -101,6 +101,7 @@ def test_tensions_drive_a_tendon_finger():
         ({"params": ["registration_angle"]}, "params"),
         ({"params": ["no_such_kind"]}, "params"),
         ({"params": "c_b[no_such_section]"}, "params"),
+        ({"params": ""}, "params"),  # no names: the empty list runs without derivatives
         ({"markers": ["1 m"]}, "markers"),
         ({"tensions": [1.0]}, "tensions"),  # no tendons
         ({"dt": "0 s"}, "dt"),

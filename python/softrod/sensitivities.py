@@ -98,7 +98,7 @@ def trajectory_sensitivities(
     d = load_design(design)
     names = _names(params)
     parsed = (
-        parse_parameters(names, d) if not (isinstance(names, (list, tuple)) and not names) else []
+        parse_parameters(names, d) if not (isinstance(params, (list, tuple)) and not params) else []
     )
     sites = parse_marker_sites(markers, d.length)
     pairs = [] if sites is None else [(float(a), b.tolist()) for a, b in zip(*sites, strict=True)]
@@ -220,7 +220,7 @@ def system_trajectory_sensitivities(
     names = _names(params)
     parsed = (
         parse_system_parameters(names, system, dynamic=True)
-        if not (isinstance(names, (list, tuple)) and len(names) == 0)
+        if not (isinstance(params, (list, tuple)) and len(params) == 0)
         else []
     )
     core_markers = _system_markers(system, markers)
