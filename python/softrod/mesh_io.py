@@ -214,7 +214,7 @@ def write_stl(path: str | Path, vertices, faces, *, binary: bool = True) -> Path
         payload = b"softrod mesh".ljust(80, b" ") + struct.pack("<I", len(f)) + out.tobytes()
     else:
         lines = ["solid softrod"]
-        for n, t in zip(normal, tri, strict=True):
+        for n, t in zip(normal.tolist(), tri.tolist(), strict=True):
             lines.append(f"  facet normal {n[0]!r} {n[1]!r} {n[2]!r}")
             lines.append("    outer loop")
             lines.extend(f"      vertex {p[0]!r} {p[1]!r} {p[2]!r}" for p in t)
