@@ -17,13 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ._limits import MAX_MESH_FILE_BYTES, MAX_MESH_TRIANGLES
 from .errors import DesignError, design_error
 
-#: Most triangles a mesh obstacle may have (the core's ``mesh::MAX_MESH_TRIANGLES``).
-MAX_MESH_TRIANGLES = 200_000
-#: Mesh files larger than this are refused before reading (an ASCII STL of
-#: MAX_MESH_TRIANGLES triangles takes about 50 MB).
-MAX_MESH_FILE_BYTES = 128 * 2**20
+__all__ = ["MAX_MESH_FILE_BYTES", "MAX_MESH_TRIANGLES", "read_mesh", "write_stl"]
 
 _SUFFIXES = (".stl", ".obj")
 
