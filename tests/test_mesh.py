@@ -337,3 +337,56 @@ def test_property_hostile_mesh_files_are_design_errors(tmp_path_factory, data, s
         return
     assert v.ndim == 2 and v.shape[1] == 3 and f.shape[1] == 3 and np.all(np.isfinite(v))
     assert math.isfinite(float(np.abs(v).sum()))
+
+
+def _finger_on_mesh_table(**extra):
+    v, f = patch(-82.0)
+    table = mesh_ob(vertices=v.tolist(), faces=f.tolist(), units="mm")
+    table.update(stiffness="1e7 N/m^2", tolerance="0.2 mm", **extra)
+    return load_design(FINGER).with_obstacles([table])
+
+
+def test_a_mesh_table_moves_the_finger_as_the_plane_does():
+    # The dynamics with the table as two triangles: the same penalty and friction, so the
+    # same motion to round-off (pressure ramped onto the table, with friction).
+    from softrod import simulate
+
+    def schedule(t):
+        return [20e3 + 30e3 * min(t / 0.05, 1.0)]
+
+    plane_run = simulate(
+        load_design(FINGER).replace({"obstacles[0].friction": 0.3}), schedule, 0.05
+    )
+    mesh_run = simulate(_finger_on_mesh_table(friction=0.3), schedule, 0.05)
+    np.testing.assert_allclose(mesh_run.tip_position, plane_run.tip_position, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(mesh_run.contact_force, plane_run.contact_force, atol=1e-10)
+    assert mesh_run.contact_force[-1, 2] > 0 and mesh_run.penetration.max() <= 0.2e-3
+
+
+def test_plots_and_viewer_draw_a_mesh():
+    import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    from softrod.plotting import plot_shape
+    from softrod.viewer import geometry as geo
+
+    design = _finger_on_mesh_table()
+    fig = plot_shape(solve_statics(design, [30e3]))
+    ax3d = fig.axes[0]
+    (tris,) = [c for c in ax3d.collections if type(c) is Poly3DCollection]
+    assert ax3d.get_zlim()[0] <= -82.0  # the view holds the mesh table
+    # The table's 4 m square is held in the view only near the finger.
+    assert np.ptp(ax3d.get_xlim()) < 500.0
+    plt.close(fig)
+    ((kind, args),) = geo.obstacle_solids(design.spec["obstacles"][0], np.zeros(3), 0.1)
+    assert kind == "mesh" and args["vertices"].shape == (6, 3) and args["faces"].shape == (2, 3)
+    np.testing.assert_allclose(args["vertices"][:, 2], -0.082, rtol=1e-7)
+    # A big mesh is drawn by an evenly spread subset of at most MAX_DRAWN_TRIANGLES.
+    v, f = icosphere(7)  # 327,680 triangles (only drawn here, never solved)
+    big = geo.drawn_triangles({"vertices": v, "faces": f})
+    assert len(big) <= geo.MAX_DRAWN_TRIANGLES and len(big) > geo.MAX_DRAWN_TRIANGLES // 2
+    view = __import__("softrod").view(design, environment_map=False)
+    try:
+        sol = view.set_inputs(pressures=[30e3])
+        assert sol.contact.total_force[0][2] > 0
+    finally:
+        view.close()
