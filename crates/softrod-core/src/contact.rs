@@ -167,10 +167,25 @@ impl Obstacle {
         }
     }
 
+    /// Whether a cross-section of outer radius `rho` at r is certainly off this obstacle
+    /// without computing its distance (a point far outside a closed mesh's box: one box
+    /// test instead of a hierarchy query). The penalty is exactly zero there, so skipping
+    /// it changes nothing.
+    #[inline]
+    fn surely_clear<D: RodScalar>(&self, r: &[D; 3], rho: f64) -> bool {
+        match &self.surface {
+            Surface::Mesh(m) => m.surely_outside_by(&r.map(|x| x.value()), rho),
+            _ => false,
+        }
+    }
+
     /// Contact force per unit reference length on a rod cross-section of outer radius `rho`
     /// whose centreline is at r (world frame, N/m).
     #[inline]
     pub fn line_force<D: RodScalar>(&self, r: &[D; 3], rho: f64) -> [D; 3] {
+        if self.surely_clear(r, rho) {
+            return [D::from(0.0); 3];
+        }
         let (d, nu) = self.distance(r);
         let Some(p) = self.penalty(-d + rho) else {
             return [D::from(0.0); 3];
@@ -227,6 +242,9 @@ impl Obstacle {
         rho: f64,
     ) -> SectionLoad<D> {
         let mut out = SectionLoad::zero();
+        if self.surely_clear(r, rho) {
+            return out;
+        }
         let (d, nu) = self.distance(r);
         let Some(p) = self.penalty(-d + rho) else {
             return out;
@@ -325,6 +343,9 @@ impl Obstacle {
         k: usize,
     ) -> StickLoad<D> {
         let mut out = StickLoad::zero();
+        if self.surely_clear(r, rho) {
+            return out;
+        }
         let (d, nu) = self.distance(r);
         let Some(p) = self.penalty(-d + rho).map(|p| p * scale) else {
             return out;

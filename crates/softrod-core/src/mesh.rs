@@ -94,6 +94,12 @@ pub struct TriMesh {
     /// Edges on one face only, and their ends: an open mesh's border.
     border_edge: Vec<bool>,
     border_vertex: Vec<bool>,
+    closed: bool,
+    /// The faces on each edge (the second `usize::MAX` on a border), and the faces
+    /// around each vertex: `vertex_faces[vertex_start[v]..vertex_start[v + 1]]`.
+    edge_faces: Vec<[usize; 2]>,
+    vertex_start: Vec<usize>,
+    vertex_faces: Vec<usize>,
     nodes: Vec<Node>,
     order: Vec<u32>,
 }
@@ -313,7 +319,32 @@ impl TriMesh {
             }
             vertex_normals.push(s.map(|x| x / l));
         }
+        let mut edge_faces = vec![[usize::MAX; 2]; edges.len()];
+        let mut vertex_start = vec![0usize; vertices.len() + 1];
+        for (f, t) in faces.iter().enumerate() {
+            for k in 0..3 {
+                let slot = &mut edge_faces[face_edges[f][k]];
+                if slot[0] == usize::MAX {
+                    slot[0] = f;
+                } else {
+                    slot[1] = f;
+                }
+                vertex_start[t[k] + 1] += 1;
+            }
+        }
+        for i in 0..vertices.len() {
+            vertex_start[i + 1] += vertex_start[i];
+        }
+        let mut fill = vertex_start.clone();
+        let mut vertex_faces = vec![0usize; 3 * faces.len()];
+        for (f, t) in faces.iter().enumerate() {
+            for &v in t {
+                vertex_faces[fill[v]] = f;
+                fill[v] += 1;
+            }
+        }
         let border_edge: Vec<bool> = uses.iter().map(|&u| u == 1).collect();
+        let border_edge_any = border_edge.iter().any(|&b| b);
         let mut border_vertex = vec![false; vertices.len()];
         for (e, &b) in edges.iter().zip(&border_edge) {
             if b {
@@ -331,6 +362,10 @@ impl TriMesh {
             vertex_normals,
             border_edge,
             border_vertex,
+            closed: !border_edge_any,
+            edge_faces,
+            vertex_start,
+            vertex_faces,
             nodes: Vec::new(),
             order: (0..faces.len() as u32).collect(),
         };
@@ -524,6 +559,58 @@ impl TriMesh {
         out(q, Feature::Face(f))
     }
 
+    /// The feature whose own distance is the mesh's on a neighbourhood's side of p: the
+    /// nearest point's feature, or a face or an edge around it when p - q is along that
+    /// face's normal, or across that edge. An edge between two coplanar faces, or a vertex
+    /// inside a flat patch, has a region of no volume (p sits on its border with a face's):
+    /// the face's plane is then the distance on both sides, with the plane's derivatives
+    /// (the edge's line or the vertex's point would give the right value and gradient but a
+    /// curvature 1 / d the mesh does not have, which Newton's matrix and the stability
+    /// assessment would see). At a genuine edge or corner the choice changes nothing but
+    /// the side whose one-sided curvature is taken.
+    pub fn exact_feature(&self, p: &[f64; 3], near: &Nearest) -> Feature {
+        let w = sub(p, &near.point);
+        let l2 = dot(&w, &w);
+        // Parallel or perpendicular to 1e-10 (round-off in q is ~1e-16 relative).
+        let tiny = 1e-20 * l2;
+        if l2 == 0.0 {
+            return near.feature;
+        }
+        let along_face = |f: usize| {
+            let c = cross(&w, &self.face_normals[f]);
+            dot(&c, &c) <= tiny
+        };
+        let across_edge = |e: usize| {
+            let [i, j] = self.edges[e];
+            let d = sub(&self.vertices[j], &self.vertices[i]);
+            let a = dot(&w, &d);
+            a * a <= tiny * dot(&d, &d)
+        };
+        match near.feature {
+            Feature::Face(_) => near.feature,
+            Feature::Edge(e) => self.edge_faces[e]
+                .iter()
+                .find(|&&f| f != usize::MAX && along_face(f))
+                .map_or(near.feature, |&f| Feature::Face(f)),
+            Feature::Vertex(v) => {
+                let around = &self.vertex_faces[self.vertex_start[v]..self.vertex_start[v + 1]];
+                if let Some(&f) = around.iter().find(|&&f| along_face(f)) {
+                    return Feature::Face(f);
+                }
+                for &f in around {
+                    let t = self.faces[f];
+                    for k in 0..3 {
+                        let e = self.face_edges[f][k];
+                        if (t[k] == v || t[(k + 1) % 3] == v) && across_edge(e) {
+                            return Feature::Edge(e);
+                        }
+                    }
+                }
+                near.feature
+            }
+        }
+    }
+
     /// Whether a feature is on an open mesh's border (an edge of one face, or its end):
     /// a point nearest to it is outside (module docs).
     pub fn on_border(&self, feature: Feature) -> bool {
@@ -536,7 +623,7 @@ impl TriMesh {
 
     /// Whether the mesh is closed (every edge shared by two faces).
     pub fn is_closed(&self) -> bool {
-        !self.border_edge.iter().any(|&b| b)
+        self.closed
     }
 
     /// The pseudo-normal of a feature (unit).
@@ -557,7 +644,8 @@ impl TriMesh {
             let nan = D::from(f64::NAN);
             return (nan, [nan; 3]);
         }
-        let near = self.nearest(&p);
+        let mut near = self.nearest(&p);
+        near.feature = self.exact_feature(&p, &near);
         let pn = self.pseudo_normal(near.feature);
         let side = if !self.on_border(near.feature) && dot(&sub(&p, &near.point), &pn) < 0.0 {
             -1.0
@@ -592,6 +680,24 @@ impl TriMesh {
                 signed(std::array::from_fn(|k| r[k] - a[k]), side, pn)
             }
         }
+    }
+
+    /// Whether p is certainly farther than `c` outside a closed mesh: outside its box by at
+    /// least c (a point outside the box of a closed mesh is outside the mesh, at least its
+    /// distance from the box away). Never for an open mesh, whose inside (under it) reaches
+    /// beyond its box.
+    #[inline]
+    pub fn surely_outside_by(&self, p: &[f64; 3], c: f64) -> bool {
+        if !self.closed {
+            return false;
+        }
+        let n = &self.nodes[0];
+        let mut d2 = 0.0;
+        for i in 0..3 {
+            let d = (n.lo[i] - p[i]).max(p[i] - n.hi[i]).max(0.0);
+            d2 += d * d;
+        }
+        d2 >= c * c && c >= 0.0
     }
 
     /// The axis-aligned box of the whole mesh (lower and upper corners), m.
@@ -802,6 +908,11 @@ mod tests {
             // The nearest point r - d nu is on the box's surface.
             let q: [f64; 3] = std::array::from_fn(|i| p[i] - d * nu[i]);
             assert!(box_sdf(&q, &h).abs() < 1e-14);
+            // The box test that skips far points never skips a nearer one.
+            let c = rng.uniform(0.0, 0.5);
+            if m.surely_outside_by(&p, c) {
+                assert!(d >= c, "{p:?} skipped at {c} but d = {d}");
+            }
             match m.nearest(&p).feature {
                 Feature::Face(_) => regions[0] += 1,
                 Feature::Edge(_) => regions[1] += 1,
@@ -917,12 +1028,67 @@ mod tests {
         let (d, nu) = m.distance::<f64>(&[1.3, 0.0, -0.4]);
         assert!((d - 0.5).abs() < 1e-15 && (nu[2] + 0.8).abs() < 1e-15);
         assert!(!m.is_closed());
+        // Under an open patch, beyond its box, is still inside: never skipped.
+        assert!(!m.surely_outside_by(&[0.0, 0.0, -5.0], 1.0));
+        assert!(m.distance::<f64>(&[0.0, 0.0, -5.0]).0 == -5.0);
         // Value and slope agree on both sides of the border x = 1 (z = 0.2 above).
         let g = |x: f64| m.distance::<f64>(&[x, 0.1, 0.2]).0;
         let e = 1e-9;
         assert!((g(1.0 - e) - g(1.0 + e)).abs() < 1e-12);
         let slope = |x: f64| (g(x + 1e-7) - g(x - 1e-7)) / 2e-7;
         assert!((slope(1.0 - 1e-6) - slope(1.0 + 1e-6)).abs() < 1e-4);
+    }
+
+    /// Above a flat grid's edges and vertices (regions of no volume) the distance is the
+    /// plane's, with its derivatives: the normal does not turn (the line's or the point's
+    /// distance would curve by 1 / d there). Across a genuine ridge it does.
+    #[test]
+    fn flat_edges_and_vertices_are_the_plane() {
+        let n = 4;
+        let mut v = vec![];
+        for j in 0..=n {
+            for i in 0..=n {
+                v.push([i as f64 - 2.0, j as f64 - 2.0, 0.0]);
+            }
+        }
+        let mut f = vec![];
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * (n + 1) + i;
+                f.push([a, a + 1, a + n + 2]);
+                f.push([a, a + n + 2, a + n + 1]);
+            }
+        }
+        let m = mesh((v, f));
+        // Above a grid line (edge), a diagonal (edge) and a grid point (vertex), outside
+        // and inside.
+        for p in [
+            [0.3, 0.0, 0.2],
+            [0.5, 0.5, 0.2],
+            [1.0, 1.0, 0.2],
+            [0.0, 1.0, -0.1],
+        ] {
+            let r: [Jet<3>; 3] = std::array::from_fn(|i| Jet::variable(p[i], i));
+            let (d, nu) = m.distance(&r);
+            assert_eq!(d.re, p[2]);
+            assert_eq!(d.eps, [0.0, 0.0, 1.0], "{p:?}");
+            for k in 0..3 {
+                assert_eq!(nu[k].eps, [0.0; 3], "{p:?}");
+            }
+        }
+        // A roof ridge along y (faces tilted +-45 degrees): above it the normal turns.
+        let roof = vec![
+            [-1.0, -1.0, 0.0],
+            [0.0, -1.0, 1.0],
+            [1.0, -1.0, 0.0],
+            [-1.0, 1.0, 0.0],
+            [0.0, 1.0, 1.0],
+            [1.0, 1.0, 0.0],
+        ];
+        let m = mesh((roof, vec![[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]]));
+        let r: [Jet<3>; 3] = std::array::from_fn(|i| Jet::variable([0.0, 0.0, 1.5][i], i));
+        let (d, nu) = m.distance(&r);
+        assert!((d.re - 0.5).abs() < 1e-15 && (nu[0].eps[0] - 2.0).abs() < 1e-12);
     }
 
     /// The rules, each named with its field.
