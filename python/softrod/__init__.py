@@ -64,6 +64,8 @@ _EXPORTS = {
     "fit_stiffness_map": ".calibration",
     "identify_stiffness": ".calibration",
     "bundled_designs": ".catalog",
+    "read_mesh": ".mesh_io",
+    "write_stl": ".mesh_io",
     "load_design": ".catalog",
     "compare_models": ".compare",
     "TipConstraint": ".constraints",
@@ -161,6 +163,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         identify_stiffness,
     )
     from .catalog import bundled_designs, load_design
+    from .mesh_io import read_mesh, write_stl
     from .compare import compare_models
     from .constraints import TipConstraint
     from .control import (
@@ -305,4 +308,6 @@ __all__ = [
     "view_system",
     "workspace",
     "write_dataset",
+    "read_mesh",
+    "write_stl",
 ]

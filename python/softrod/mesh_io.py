@@ -14,11 +14,15 @@ from __future__ import annotations
 
 import struct
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ._limits import MAX_MESH_FILE_BYTES, MAX_MESH_TRIANGLES
 from .errors import DesignError, design_error
+
+if TYPE_CHECKING:
+    from ._types import ArrayLike
 
 __all__ = ["MAX_MESH_FILE_BYTES", "MAX_MESH_TRIANGLES", "read_mesh", "write_stl"]
 
@@ -191,7 +195,9 @@ def _obj(data: bytes, field: str) -> tuple[np.ndarray, np.ndarray]:
     return v, np.array(faces, dtype=np.int64).reshape(-1, 3)
 
 
-def write_stl(path: str | Path, vertices, faces, *, binary: bool = True) -> Path:
+def write_stl(
+    path: str | Path, vertices: ArrayLike, faces: ArrayLike, *, binary: bool = True
+) -> Path:
     """Write triangles (``vertices`` (n, 3), ``faces`` (m, 3) indices) as an STL file
     (binary or ASCII), whole or not at all; returns the path."""
     from .io import atomic_path

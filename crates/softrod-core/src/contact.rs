@@ -163,7 +163,7 @@ impl Obstacle {
                     radius,
                 )
             }
-            Surface::Mesh(mesh) => mesh.distance(r),
+            Surface::Mesh(mesh) => mesh.distance(r, self.smoothing),
         }
     }
 

@@ -100,6 +100,9 @@ pub struct TriMesh {
     edge_faces: Vec<[usize; 2]>,
     vertex_start: Vec<usize>,
     vertex_faces: Vec<usize>,
+    /// Whether a face has a concave neighbour around its corners (`concave`): only those
+    /// blend (`blend_creases`).
+    creased: Vec<bool>,
     nodes: Vec<Node>,
     order: Vec<u32>,
 }
@@ -366,9 +369,19 @@ impl TriMesh {
             edge_faces,
             vertex_start,
             vertex_faces,
+            creased: Vec::new(),
             nodes: Vec::new(),
             order: (0..faces.len() as u32).collect(),
         };
+        mesh.creased = (0..faces.len())
+            .map(|a| {
+                faces[a].iter().any(|&v| {
+                    mesh.vertex_faces[mesh.vertex_start[v]..mesh.vertex_start[v + 1]]
+                        .iter()
+                        .any(|&f| f != a && mesh.concave(a, f))
+                })
+            })
+            .collect();
         mesh.build();
         Ok(mesh)
     }
@@ -635,10 +648,12 @@ impl TriMesh {
         }
     }
 
-    /// Signed distance of r from the mesh (positive outside) and the outward unit normal at
-    /// its nearest point (module docs), generic in the scalar.
+    /// Signed distance of r from the mesh (positive outside) and the outward normal at its
+    /// nearest point (module docs), generic in the scalar; within `blend` (m) of a concave
+    /// crease's bisector, the smooth minimum of the faces there ([`TriMesh::blend_creases`];
+    /// 0: the exact distance everywhere).
     #[inline]
-    pub fn distance<D: RodScalar>(&self, r: &[D; 3]) -> (D, [D; 3]) {
+    pub fn distance<D: RodScalar>(&self, r: &[D; 3], blend: f64) -> (D, [D; 3]) {
         let p = r.map(|x| x.value());
         if !p.iter().all(|x| x.is_finite()) {
             let nan = D::from(f64::NAN);
@@ -652,7 +667,26 @@ impl TriMesh {
         } else {
             1.0
         };
+        let (d, nu) = self.feature_distance(r, near.feature, side);
         match near.feature {
+            Feature::Face(a) if blend > 0.0 && d.value() > 0.0 && self.creased[a] => {
+                self.blend_creases(r, &p, a, (d, nu), blend)
+            }
+            _ => (d, nu),
+        }
+    }
+
+    /// The distance of r from one feature (face: its plane's; edge: its line's; vertex: its
+    /// point's) with the sign `side`, and its gradient.
+    #[inline]
+    fn feature_distance<D: RodScalar>(
+        &self,
+        r: &[D; 3],
+        feature: Feature,
+        side: f64,
+    ) -> (D, [D; 3]) {
+        let pn = self.pseudo_normal(feature);
+        match feature {
             Feature::Face(f) => {
                 let n = self.face_normals[f];
                 let a = self.vertices[self.faces[f][0]];
@@ -682,6 +716,91 @@ impl TriMesh {
         }
     }
 
+    /// Whether faces a and b bend towards each other on the outward side (a crease or a
+    /// hollow between them): each one's centroid lies above the other's plane.
+    fn concave(&self, a: usize, b: usize) -> bool {
+        let c = |f: usize| -> [f64; 3] {
+            let [x, y, z] = self.faces[f].map(|i| self.vertices[i]);
+            std::array::from_fn(|k| (x[k] + y[k] + z[k]) / 3.0)
+        };
+        let (ca, cb) = (c(a), c(b));
+        let ab = sub(&cb, &ca);
+        let tol = 1e-9 * norm(&ab);
+        dot(&self.face_normals[a], &ab) > tol && -dot(&self.face_normals[b], &ab) > tol
+    }
+
+    /// The distance outside a concave crease, made C1 across its bisector. There the
+    /// nearest point jumps from one face to the other and the normal with it (the bisector
+    /// is the medial axis), which no single contact point per cross-section can balance (a
+    /// rod along a V-groove). Within `beta` of the nearest face a's distance d, each face
+    /// around a's corners that is concave with it (`concave`) and has p on its outward side
+    /// enters a polynomial smooth minimum, smin(x, y) = min - h^2 beta / 4 with
+    /// h = max(beta - |x - y|, 0) / beta, taken in order of the faces' indices (so the
+    /// nearest face's neighbours agree about it where the nearest face changes). It is the
+    /// exact distance wherever no other face is within beta, at most beta / 4 smaller per
+    /// face within it, and its gradient, the force's direction, turns continuously from one
+    /// face's normal to the other's. At most 64 other faces enter (those found first, around
+    /// a's corners in order).
+    fn blend_creases<D: RodScalar>(
+        &self,
+        r: &[D; 3],
+        p: &[f64; 3],
+        a: usize,
+        exact: (D, [D; 3]),
+        beta: f64,
+    ) -> (D, [D; 3]) {
+        // Other faces, plus a itself.
+        const MOST: usize = 64;
+        let mut ids = [usize::MAX; MOST + 1];
+        let mut feats = [Feature::Face(a); MOST + 1];
+        let mut n = 0;
+        let reach = exact.0.value() + beta;
+        for &v in &self.faces[a] {
+            for &f in &self.vertex_faces[self.vertex_start[v]..self.vertex_start[v + 1]] {
+                if f == a || n == MOST || ids[..n].contains(&f) || !self.concave(a, f) {
+                    continue;
+                }
+                let near = self.closest_on_face(f, p);
+                if near.dist2 >= reach * reach {
+                    continue;
+                }
+                let feature = self.exact_feature(p, &near);
+                if dot(&sub(p, &near.point), &self.pseudo_normal(feature)) <= 0.0 {
+                    continue;
+                }
+                ids[n] = f;
+                feats[n] = feature;
+                n += 1;
+            }
+        }
+        if n == 0 {
+            return exact;
+        }
+        ids[n] = a;
+        n += 1;
+        // In order of face index: insertion sort of at most MOST entries.
+        let mut order: [usize; MOST + 1] = std::array::from_fn(|k| k);
+        for i in 1..n {
+            let mut j = i;
+            while j > 0 && ids[order[j - 1]] > ids[order[j]] {
+                order.swap(j - 1, j);
+                j -= 1;
+            }
+        }
+        let value = |k: usize| {
+            if ids[k] == a {
+                exact
+            } else {
+                self.feature_distance(r, feats[k], 1.0)
+            }
+        };
+        let mut acc = value(order[0]);
+        for &k in &order[1..n] {
+            acc = smin(acc, value(k), beta);
+        }
+        acc
+    }
+
     /// Whether p is certainly farther than `c` outside a closed mesh: outside its box by at
     /// least c (a point outside the box of a closed mesh is outside the mesh, at least its
     /// distance from the box away). Never for an open mesh, whose inside (under it) reaches
@@ -697,13 +816,39 @@ impl TriMesh {
             let d = (n.lo[i] - p[i]).max(p[i] - n.hi[i]).max(0.0);
             d2 += d * d;
         }
-        d2 >= c * c && c >= 0.0
+        // Outside the box (d2 > 0: then outside the mesh, d > 0) and by at least c.
+        d2 > 0.0 && d2 >= c * c
     }
 
     /// The axis-aligned box of the whole mesh (lower and upper corners), m.
     pub fn bounding_box(&self) -> ([f64; 3], [f64; 3]) {
         (self.nodes[0].lo, self.nodes[0].hi)
     }
+}
+
+/// The polynomial smooth minimum of two distances with their gradients (Quilez): the
+/// smaller one where they differ by beta or more, else min - h^2 beta / 4 with
+/// h = (beta - |x - y|) / beta, whose gradient (1 - h/2) grad min + (h/2) grad max is
+/// continuous.
+#[inline]
+fn smin<D: RodScalar>(x: (D, [D; 3]), y: (D, [D; 3]), beta: f64) -> (D, [D; 3]) {
+    let (lo, hi) = if x.0.value() <= y.0.value() {
+        (x, y)
+    } else {
+        (y, x)
+    };
+    let gap = hi.0 - lo.0;
+    if gap.value() >= beta {
+        return lo;
+    }
+    let h = (gap * -1.0 + beta) / beta;
+    let w = h * 0.5;
+    let d = lo.0 - h * h * (0.25 * beta);
+    let one = D::from(1.0);
+    (
+        d,
+        std::array::from_fn(|k| lo.1[k] * (one - w) + hi.1[k] * w),
+    )
 }
 
 /// Signed distance `side` |w| and outward normal `side` w / |w| from w, the offset of the
@@ -825,6 +970,10 @@ mod tests {
     use super::*;
     use crate::jet::Jet;
 
+    /// The crease blending width the tests pass: it must change nothing on convex and flat
+    /// meshes (no concave pair of faces), which the exact checks below then confirm.
+    const B: f64 = 0.01;
+
     /// A xorshift generator: reproducible points without a dependency.
     struct Rng(u64);
     impl Rng {
@@ -899,7 +1048,7 @@ mod tests {
         let mut regions = [0usize; 3];
         for _ in 0..20000 {
             let p = rng.point(-1.2, 1.2);
-            let (d, nu) = m.distance::<f64>(&p);
+            let (d, nu) = m.distance::<f64>(&p, B);
             assert!(
                 (d - box_sdf(&p, &h)).abs() < 1e-14,
                 "{p:?}: {d} vs {}",
@@ -909,9 +1058,14 @@ mod tests {
             let q: [f64; 3] = std::array::from_fn(|i| p[i] - d * nu[i]);
             assert!(box_sdf(&q, &h).abs() < 1e-14);
             // The box test that skips far points never skips a nearer one.
-            let c = rng.uniform(0.0, 0.5);
+            // (c = 0 too: a centreline without a surface radius.)
+            let c = if rng.uniform(0.0, 1.0) < 0.2 {
+                0.0
+            } else {
+                rng.uniform(0.0, 0.5)
+            };
             if m.surely_outside_by(&p, c) {
-                assert!(d >= c, "{p:?} skipped at {c} but d = {d}");
+                assert!(d >= c && d > 0.0, "{p:?} skipped at {c} but d = {d}");
             }
             match m.nearest(&p).feature {
                 Feature::Face(_) => regions[0] += 1,
@@ -946,7 +1100,7 @@ mod tests {
                 let p = rng.point(-0.12, 0.12);
                 let p = std::array::from_fn(|i| c[i] + p[i]);
                 let exact = norm(&sub(&p, &c)) - radius;
-                let (d, _) = m.distance::<f64>(&p);
+                let (d, _) = m.distance::<f64>(&p, B);
                 let gap = d - exact;
                 assert!(
                     gap >= -1e-15 && gap <= bound + 1e-15,
@@ -986,13 +1140,13 @@ mod tests {
             };
             assert!(want, "{what}: {kind:?}");
             let r: [Jet<3>; 3] = std::array::from_fn(|i| Jet::variable(p[i], i));
-            let (d, nu) = m.distance(&r);
+            let (d, nu) = m.distance(&r, B);
             for j in 0..3 {
                 let step = 1e-6;
                 let (mut a, mut b) = (p, p);
                 a[j] += step;
                 b[j] -= step;
-                let fd = (m.distance::<f64>(&a).0 - m.distance::<f64>(&b).0) / (2.0 * step);
+                let fd = (m.distance::<f64>(&a, B).0 - m.distance::<f64>(&b, B).0) / (2.0 * step);
                 assert!(
                     (fd - d.eps[j]).abs() < 1e-8,
                     "{what} d/d{j}: {fd} {}",
@@ -1000,8 +1154,8 @@ mod tests {
                 );
                 assert!((nu[j].re - d.eps[j]).abs() < 1e-12, "{what}: normal {j}");
                 for i in 0..3 {
-                    let fd =
-                        (m.distance::<f64>(&a).1[i] - m.distance::<f64>(&b).1[i]) / (2.0 * step);
+                    let fd = (m.distance::<f64>(&a, B).1[i] - m.distance::<f64>(&b, B).1[i])
+                        / (2.0 * step);
                     assert!((fd - nu[i].eps[j]).abs() < 1e-7, "{what} dnu{i}/d{j}");
                 }
             }
@@ -1020,19 +1174,19 @@ mod tests {
         ];
         let f = vec![[0, 1, 2], [0, 2, 3]];
         let m = mesh((v, f));
-        assert_eq!(m.distance::<f64>(&[0.2, 0.3, 0.1]).0, 0.1);
-        assert_eq!(m.distance::<f64>(&[0.2, 0.3, -0.1]).0, -0.1);
-        let (d, nu) = m.distance::<f64>(&[1.3, 0.0, 0.4]);
+        assert_eq!(m.distance::<f64>(&[0.2, 0.3, 0.1], B).0, 0.1);
+        assert_eq!(m.distance::<f64>(&[0.2, 0.3, -0.1], B).0, -0.1);
+        let (d, nu) = m.distance::<f64>(&[1.3, 0.0, 0.4], B);
         assert!((d - 0.5).abs() < 1e-15 && (nu[0] - 0.6).abs() < 1e-15);
         // Beyond the border a point is outside from any side (the edge of a sheet).
-        let (d, nu) = m.distance::<f64>(&[1.3, 0.0, -0.4]);
+        let (d, nu) = m.distance::<f64>(&[1.3, 0.0, -0.4], B);
         assert!((d - 0.5).abs() < 1e-15 && (nu[2] + 0.8).abs() < 1e-15);
         assert!(!m.is_closed());
         // Under an open patch, beyond its box, is still inside: never skipped.
         assert!(!m.surely_outside_by(&[0.0, 0.0, -5.0], 1.0));
-        assert!(m.distance::<f64>(&[0.0, 0.0, -5.0]).0 == -5.0);
+        assert!(m.distance::<f64>(&[0.0, 0.0, -5.0], B).0 == -5.0);
         // Value and slope agree on both sides of the border x = 1 (z = 0.2 above).
-        let g = |x: f64| m.distance::<f64>(&[x, 0.1, 0.2]).0;
+        let g = |x: f64| m.distance::<f64>(&[x, 0.1, 0.2], B).0;
         let e = 1e-9;
         assert!((g(1.0 - e) - g(1.0 + e)).abs() < 1e-12);
         let slope = |x: f64| (g(x + 1e-7) - g(x - 1e-7)) / 2e-7;
@@ -1069,7 +1223,7 @@ mod tests {
             [0.0, 1.0, -0.1],
         ] {
             let r: [Jet<3>; 3] = std::array::from_fn(|i| Jet::variable(p[i], i));
-            let (d, nu) = m.distance(&r);
+            let (d, nu) = m.distance(&r, B);
             assert_eq!(d.re, p[2]);
             assert_eq!(d.eps, [0.0, 0.0, 1.0], "{p:?}");
             for k in 0..3 {
@@ -1087,8 +1241,103 @@ mod tests {
         ];
         let m = mesh((roof, vec![[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]]));
         let r: [Jet<3>; 3] = std::array::from_fn(|i| Jet::variable([0.0, 0.0, 1.5][i], i));
-        let (d, nu) = m.distance(&r);
+        let (d, nu) = m.distance(&r, B);
         assert!((d.re - 0.5).abs() < 1e-15 && (nu[0].eps[0] - 2.0).abs() < 1e-12);
+    }
+
+    /// A V-groove (two slopes of 0.2 over 1 meeting in a crease along y): the exact distance
+    /// above it has a kink on the bisector x = 0, the normal jumping from one slope's to
+    /// the other's; blended over beta it is the exact distance wherever the slopes'
+    /// distances differ by beta or more, within beta / 4 below it elsewhere, C1 across the
+    /// bisector (the normal there the mean of the two), with exact dual derivatives.
+    #[test]
+    fn concave_creases_are_blended() {
+        let v = vec![
+            [-1.0, -1.0, 0.2],
+            [0.0, -1.0, 0.0],
+            [1.0, -1.0, 0.2],
+            [-1.0, 1.0, 0.2],
+            [0.0, 1.0, 0.0],
+            [1.0, 1.0, 0.2],
+        ];
+        let f = vec![[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]];
+        let m = mesh((v, f));
+        let beta = 0.02;
+        let at = |x: f64, b: f64| m.distance::<f64>(&[x, 0.1, 0.3], b);
+        let mut inside = 0;
+        for k in -200..=200 {
+            let x = 1e-3 * k as f64;
+            let (exact, blended) = (at(x, 0.0).0, at(x, beta).0);
+            assert!(
+                blended <= exact && blended >= exact - 0.25 * beta,
+                "{x}: {blended} {exact}"
+            );
+            if blended < exact {
+                inside += 1;
+            }
+        }
+        // The band is narrow: |d_A - d_B| = 2 |x| sin(atan 0.2) < beta for |x| < 0.051.
+        assert!(inside > 50 && inside < 110, "{inside}");
+        // Far from the bisector, exact to the bit.
+        assert_eq!(at(0.15, beta).0, at(0.15, 0.0).0);
+        // C1 across the bisector: the exact slope jumps by -2 sin(atan 0.2) (from the left
+        // slope's normal, tilted to +x, to the right one's, tilted to -x), the blended one
+        // is continuous (0 at x = 0 by symmetry).
+        let slope = |x: f64, b: f64| (at(x + 1e-7, b).0 - at(x - 1e-7, b).0) / 2e-7;
+        let jump = 2.0 * 0.2f64.atan().sin();
+        assert!((slope(1e-5, 0.0) - slope(-1e-5, 0.0) + jump).abs() < 1e-6);
+        assert!((slope(1e-5, beta) - slope(-1e-5, beta)).abs() < 1e-2);
+        assert!(at(0.0, beta).1[0].abs() < 1e-15);
+        // The gradient is the normal, and the duals are exact, inside the band.
+        for x in [-0.02, 0.004, 0.03] {
+            let p = [x, 0.1, 0.3];
+            let r: [Jet<3>; 3] = std::array::from_fn(|i| Jet::variable(p[i], i));
+            let (d, nu) = m.distance(&r, beta);
+            for j in 0..3 {
+                let (mut a, mut b) = (p, p);
+                a[j] += 1e-6;
+                b[j] -= 1e-6;
+                let fd = (m.distance::<f64>(&a, beta).0 - m.distance::<f64>(&b, beta).0) / 2e-6;
+                assert!(
+                    (fd - d.eps[j]).abs() < 1e-7,
+                    "{x} d/d{j}: {fd} {}",
+                    d.eps[j]
+                );
+                assert!((nu[j].re - d.eps[j]).abs() < 1e-12);
+                for i in 0..3 {
+                    let fd = (m.distance::<f64>(&a, beta).1[i] - m.distance::<f64>(&b, beta).1[i])
+                        / 2e-6;
+                    assert!(
+                        (fd - nu[i].eps[j]).abs() < 1e-5 * (1.0 + fd.abs()),
+                        "{x} dnu{i}/d{j}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// A hollow cone of 100 faces around its apex (a bowl's bottom): above the apex every
+    /// face is within the blending width, more than enter the blend (64): finite, no
+    /// deeper than the exact distance and within (64 beta / 4) of it.
+    #[test]
+    fn a_hollow_apex_with_many_faces_blends_within_bounds() {
+        let n = 100;
+        let mut v = vec![[0.0, 0.0, 0.0]];
+        for k in 0..n {
+            let t = 2.0 * std::f64::consts::PI * k as f64 / n as f64;
+            v.push([t.cos(), t.sin(), 0.3]);
+        }
+        let f: Vec<[usize; 3]> = (0..n).map(|k| [0, 1 + k, 1 + (k + 1) % n]).collect();
+        let m = mesh((v, f));
+        let beta = 0.01;
+        for p in [[0.0, 0.0, 0.1], [1e-4, -2e-4, 0.05], [0.01, 0.0, 0.2]] {
+            let (exact, blended) = (m.distance::<f64>(&p, 0.0), m.distance::<f64>(&p, beta));
+            assert!(blended.0.is_finite() && blended.1.iter().all(|x| x.is_finite()));
+            assert!(
+                blended.0 <= exact.0 && blended.0 >= exact.0 - 16.0 * beta,
+                "{p:?}"
+            );
+        }
     }
 
     /// The rules, each named with its field.

@@ -254,3 +254,36 @@ fn mesh_refusals() {
     let err = Rod::new(cantilever_over(other)).unwrap_err();
     assert!(format!("{err}").contains("obstacles[0].faces"), "{err}");
 }
+
+/// A cantilever along the crease of a V-groove (slopes of 0.2 across y, the crease along x
+/// 0.5 mm below the clamp), in its bisecting plane y = 0: the nearest point per cross-section
+/// jumps from one slope to the other across that plane, so the exact distance gives no
+/// equilibrium there; blended over the smoothing length (docs/contact.md, "Triangle
+/// meshes") the rod settles into the groove on both slopes: it converges, stays in the plane
+/// y = 0 by symmetry, balances its weight to 1e-9 and sinks no deeper than the tolerance.
+#[test]
+fn a_rod_along_a_v_groove_settles_in_it() {
+    let v = vec![
+        [-1.0, -1.0, 0.2 - 5e-4],
+        [-1.0, 0.0, -5e-4],
+        [-1.0, 1.0, 0.2 - 5e-4],
+        [2.0, -1.0, 0.2 - 5e-4],
+        [2.0, 0.0, -5e-4],
+        [2.0, 1.0, 0.2 - 5e-4],
+    ];
+    // Counter-clockwise seen from above (normals up, into the groove's open side).
+    let f = vec![[0, 3, 4], [0, 4, 1], [1, 4, 5], [1, 5, 2]];
+    let (k, tol) = (1e6, 5e-5);
+    let mut groove = mesh_obstacle((v, f), k, tol);
+    groove.smoothing = Some(2e-6);
+    let rod = Rod::new(cantilever_over(groove)).unwrap();
+    let l = loads(&[]);
+    let sol = solve(&rod, &l, None, &SolverOptions::default()).unwrap();
+    let rep = report(&rod, &l, &sol).unwrap().unwrap();
+    let f = rep.force[0];
+    eprintln!("groove: contact {f:?} N, tip {:?}", sol.tip.r);
+    assert!((sol.base_force[2] - (f[2] - 1.0)).abs() < 1e-9);
+    assert!(f[2] > 0.1, "the groove carries part of the weight");
+    assert!(f[1].abs() < 1e-9 && sol.tip.r[1].abs() < 1e-9);
+    assert!(rep.max_penetration > 0.0 && rep.max_penetration <= tol);
+}
