@@ -163,7 +163,6 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         identify_stiffness,
     )
     from .catalog import bundled_designs, load_design
-    from .mesh_io import read_mesh, write_stl
     from .compare import compare_models
     from .constraints import TipConstraint
     from .control import (
@@ -197,6 +196,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         StabilityWarning,
         ValidityWarning,
     )
+    from .mesh_io import read_mesh, write_stl
     from .presets import Preset, list_presets
     from .sensitivities import system_trajectory_sensitivities, trajectory_sensitivities
     from .statics import (
