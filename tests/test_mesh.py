@@ -139,6 +139,11 @@ def test_save_and_reload_keep_the_file_reference_and_inline_meshes(tmp_path):
     again = load_design(saved)
     assert again == design
     assert again.spec["obstacles"] == design.spec["obstacles"]
+    # What travels to a cluster's workers names the mesh file by its absolute path.
+    from softrod.cluster import design_text
+
+    block = str((tmp_path / "meshes" / "block.stl").resolve())
+    assert f"file = {block!r}".replace("'", '"') in design_text(design)
     # A units = "SI" document's inline vertices are written with their unit.
     si = {"units": "SI", **beam_over(plane(-1.0))}
     si["obstacles"] = [mesh_ob(vertices=(v * 1e-3).tolist(), faces=f.tolist())]
