@@ -4,6 +4,9 @@
 //! refined, the contact forces balance the load, and a rod dropped onto a mesh table settles
 //! on the static equilibrium.
 
+// Index loops over 3-vectors read like the equations they check.
+#![allow(clippy::needless_range_loop)]
+
 mod common;
 
 use common::*;
