@@ -337,12 +337,15 @@ def _near_obstacles(obstacles: list[dict], points_mm: np.ndarray) -> tuple[list[
             pts = np.concatenate([feet - r, feet + r])  # its surface around those feet
         elif kind == "mesh":
             # The mesh's bounding box: its nearest points to the shapes' points bound the
-            # mesh's distance from below, and hold in the view the part of a big mesh (a
-            # terrain) near the rod, not all of it.
+            # mesh's distance from below. The view holds those feet and the mesh's vertices
+            # within reach of the shapes' box: the part of a big mesh (a terrain, a bowl)
+            # near the rod, not all of it.
             v = np.asarray(ob["vertices"], float) * 1e3
             feet = np.clip(points_mm, v.min(axis=0), v.max(axis=0))
             gap = np.linalg.norm(points_mm - feet, axis=1)
-            pts = feet
+            lo, hi = points_mm.min(axis=0) - reach, points_mm.max(axis=0) + reach
+            close = v[np.all((v >= lo) & (v <= hi), axis=1)]
+            pts = np.concatenate([feet, close[:: max(1, len(close) // 5000)]])
         else:
             ends = [ob["center"]] * 2 if kind == "sphere" else [ob["start"], ob["end"]]
             r = ob["radius"] * 1e3
