@@ -64,6 +64,8 @@ _EXPORTS = {
     "fit_stiffness_map": ".calibration",
     "identify_stiffness": ".calibration",
     "bundled_designs": ".catalog",
+    "read_mesh": ".mesh_io",
+    "write_stl": ".mesh_io",
     "load_design": ".catalog",
     "compare_models": ".compare",
     "TipConstraint": ".constraints",
@@ -194,6 +196,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
         StabilityWarning,
         ValidityWarning,
     )
+    from .mesh_io import read_mesh, write_stl
     from .presets import Preset, list_presets
     from .sensitivities import system_trajectory_sensitivities, trajectory_sensitivities
     from .statics import (
@@ -305,4 +308,6 @@ __all__ = [
     "view_system",
     "workspace",
     "write_dataset",
+    "read_mesh",
+    "write_stl",
 ]

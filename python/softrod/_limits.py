@@ -12,6 +12,8 @@ MAX_CHAMBERS = 64  # chambers of one section
 MAX_TENDONS = 64  # tendons of one section
 MAX_LOADS = 1000  # [[loads]] entries of a design
 MAX_OBSTACLES = 1000  # [[obstacles]] entries of a design
+MAX_MESH_TRIANGLES = 200_000  # triangles of one mesh obstacle (the core's mesh::MAX_MESH_TRIANGLES)
+MAX_MESH_FILE_BYTES = 128 * 2**20  # size of a mesh file (STL, OBJ)
 MAX_TABLE_POINTS = 10_000  # points of a tabulated law (axial table, PCC k_theta table)
 MAX_SECTION_STEPS = 100_000  # integration steps of one section
 MAX_DESIGN_STEPS = 1_000_000  # integration steps of a whole design (nodes of its shape)
@@ -35,6 +37,8 @@ LIMITS = {
     "tendons per section": MAX_TENDONS,
     "loads": MAX_LOADS,
     "obstacles": MAX_OBSTACLES,
+    "mesh triangles": MAX_MESH_TRIANGLES,
+    "mesh file bytes": MAX_MESH_FILE_BYTES,
     "table points": MAX_TABLE_POINTS,
     "steps per section": MAX_SECTION_STEPS,
     "steps per design": MAX_DESIGN_STEPS,

@@ -93,7 +93,7 @@ def connect(address: str):
 
 def design_text(design) -> str:
     """The TOML text of a design's document (what travels to the workers): units on every
-    value (as Design.save writes them), a stiffness map file by its absolute path."""
+    value (as Design.save writes them), a stiffness map or mesh file by its absolute path."""
     import tomli_w
 
     from .design import _with_units
@@ -101,6 +101,8 @@ def design_text(design) -> str:
     doc = _with_units(_plain(design.document))
     if design.stiffness_map_source is not None:
         doc["stiffness_map"] = {**doc["stiffness_map"], "file": str(design.stiffness_map_source)}
+    for k, file in design.mesh_sources:
+        doc["obstacles"][k] = {**doc["obstacles"][k], "file": str(file)}
     return tomli_w.dumps(doc)
 
 

@@ -43,6 +43,10 @@ MAX_FILE_BYTES = 16 * 2**20  # design files larger than this are refused before 
 # (whose message suggests the fix). Set by _to_spec for the document being read.
 _BARE: ContextVar[str] = ContextVar("softrod_design_bare", default="si")
 _BARE_FIX = '(or put units = "SI" at the top of the file to read bare numbers as SI)'
+# The folder a design file's relative paths start from (mesh files), and the mesh files
+# read for the document being built (obstacle index -> resolved path). Set by _build.
+_FOLDER: ContextVar[Path | None] = ContextVar("softrod_design_folder", default=None)
+_MESH_FILES: ContextVar[dict | None] = ContextVar("softrod_mesh_files", default=None)
 
 _SCHEMA: dict[str, set[str]] = {
     "": {
@@ -75,6 +79,12 @@ _SCHEMA: dict[str, set[str]] = {
         "smoothing",
         "friction",
         "slip_velocity",
+        "file",
+        "vertices",
+        "faces",
+        "units",
+        "position",
+        "rotation",
     },
     "design": {"name", "citation", "description", "assumptions", "provenance"},
     "stiffness_map": {"file", "method", "outside"},
@@ -759,7 +769,9 @@ def _spec(doc: dict) -> dict:
     }
 
 
-OBSTACLE_KINDS = ("plane", "sphere", "cylinder", "capsule")
+OBSTACLE_KINDS = ("plane", "sphere", "cylinder", "capsule", "mesh")
+# The keys only a mesh takes (checked here: the core sees its vertices and faces in metres).
+_MESH_KEYS = ("file", "vertices", "faces", "units", "position", "rotation")
 # The pose and size keys of each kind (the Rust core refuses any other and checks values).
 _OBSTACLE_POSE = {
     "point": "length",
@@ -790,6 +802,17 @@ def _obstacles(obstacles: Any) -> list[dict]:
         ob = _check_keys(ob, "obstacle", where)
         kind = V.choice(_require(ob, "kind", where), OBSTACLE_KINDS, f"{where}.kind", DesignError)
         spec: dict[str, Any] = {"kind": kind}
+        if kind == "mesh":
+            spec.update(_mesh(ob, k))
+        else:
+            for key in _MESH_KEYS:
+                if key in ob:
+                    raise V.fail(
+                        f"{where}.{key}",
+                        ob[key],
+                        f'only a mesh obstacle (kind = "mesh") takes {key}',
+                        DesignError,
+                    )
         for key, unit in _OBSTACLE_POSE.items():
             if key not in ob:
                 continue
@@ -817,6 +840,139 @@ def _obstacles(obstacles: Any) -> list[dict]:
             spec["slip_velocity"] = _q(ob["slip_velocity"], "velocity", field)
         out.append(spec)
     return out
+
+
+def _mesh(ob: Mapping, k: int) -> dict:
+    """A mesh obstacle's ``vertices`` (m, world frame) and ``faces``: from ``file`` (STL or
+    OBJ, relative to the design file's folder, in the length unit ``units``: required, as
+    neither format records one) or inline (``vertices`` as lengths with units, or bare
+    numbers in ``units``; ``faces`` as 0-based index triples), then placed by the optional
+    ``rotation`` (a 3x3 matrix) and ``position``: x_world = rotation @ x + position. The
+    core checks the values (docs/contact.md, "Triangle meshes")."""
+    from .mesh_io import MAX_MESH_TRIANGLES, read_mesh
+
+    where = f"obstacles[{k}]"
+    if ("file" in ob) == ("vertices" in ob):
+        raise V.fail(
+            where,
+            sorted(ob),
+            "a mesh obstacle takes either file (an STL or OBJ file) or inline vertices and faces",
+            DesignError,
+        )
+    scale = None
+    if "units" in ob:
+        unit = ob["units"]
+        if not isinstance(unit, str) or not unit.strip() or any(c.isdigit() for c in unit):
+            raise V.fail(
+                f"{where}.units",
+                unit,
+                'must be a length unit such as "mm" or "m" (the unit of the mesh\'s numbers)',
+                DesignError,
+            )
+        scale = V.quantity(f"1 {unit}", "length", f"{where}.units", DesignError)
+    if "file" in ob:
+        given = ob["file"]
+        if "faces" in ob:
+            raise V.fail(
+                f"{where}.faces", ob["faces"], "comes from the file: leave it out", DesignError
+            )
+        if not isinstance(given, str) or not given.strip():
+            raise V.fail(f"{where}.file", given, "must be a file name (a string)", DesignError)
+        if scale is None:
+            raise V.fail(
+                f"{where}.units",
+                "missing",
+                "is required with a mesh file: STL and OBJ carry no unit, so say which length "
+                'unit the file is in (e.g. units = "mm")',
+                DesignError,
+            )
+        path = Path(given)
+        if not path.is_absolute():
+            path = (_FOLDER.get() or Path.cwd()) / path
+        vertices, faces = read_mesh(path, f"{where}.file")
+        files = _MESH_FILES.get()
+        if files is not None:
+            files[k] = path.resolve()
+        vertices = vertices * scale
+    else:
+        raw = ob["vertices"]
+        if not isinstance(raw, list) or not raw:
+            raise V.fail(
+                f"{where}.vertices",
+                raw,
+                "must be a non-empty list of [x, y, z] points",
+                DesignError,
+            )
+        if len(raw) > 3 * MAX_MESH_TRIANGLES:
+            rule = f"has too many vertices: at most {3 * MAX_MESH_TRIANGLES}"
+            raise V.fail(f"{where}.vertices", f"{len(raw)} vertices", rule, DesignError)
+        rows = []
+        for i, v in enumerate(raw):
+            field = f"{where}.vertices[{i}]"
+            if scale is None:
+                rows.append(_qvec(v, "length", field))
+            else:
+                if not isinstance(v, (list, tuple)) or len(v) != 3:
+                    raise V.fail(field, v, "must be a list of 3 numbers", DesignError)
+                rows.append([number(x, f"{field}[{j}]") * scale for j, x in enumerate(v)])
+        vertices = np.array(rows, dtype=float)
+        rawf = _require(ob, "faces", where)
+        if not isinstance(rawf, list) or not rawf:
+            raise V.fail(
+                f"{where}.faces",
+                rawf,
+                "must be a non-empty list of [i, j, k] vertex index triples",
+                DesignError,
+            )
+        if len(rawf) > MAX_MESH_TRIANGLES:
+            rule = f"a mesh obstacle may have at most {MAX_MESH_TRIANGLES} triangles"
+            raise V.fail(f"{where}.faces", f"{len(rawf)} triangles", rule, DesignError)
+        faces = []
+        for i, f in enumerate(rawf):
+            field = f"{where}.faces[{i}]"
+            if not isinstance(f, (list, tuple)) or len(f) != 3:
+                raise V.fail(field, f, "must be a list of 3 vertex indices", DesignError)
+            faces.append(
+                [_integer(x, f"{field}[{j}]", 0, len(vertices) - 1) for j, x in enumerate(f)]
+            )
+        faces = np.array(faces, dtype=np.int64)
+    rotation = np.eye(3)
+    if "rotation" in ob:
+        rot = ob["rotation"]
+        if not (
+            isinstance(rot, (list, tuple))
+            and len(rot) == 3
+            and all(isinstance(r, (list, tuple)) and len(r) == 3 for r in rot)
+        ):
+            raise V.fail(
+                f"{where}.rotation", rot, "must be a 3x3 matrix (list of rows)", DesignError
+            )
+        rotation = np.array(
+            [
+                [number(x, f"{where}.rotation[{i}][{j}]") for j, x in enumerate(r)]
+                for i, r in enumerate(rot)
+            ]
+        )
+        if (
+            not np.allclose(rotation.T @ rotation, np.eye(3), rtol=0.0, atol=1e-9)
+            or np.linalg.det(rotation) < 0
+        ):
+            raise V.fail(
+                f"{where}.rotation",
+                rot,
+                "must be a rotation matrix (orthonormal columns, determinant +1)",
+                DesignError,
+            )
+    position = np.array(_qvec(ob.get("position", [0, 0, 0]), "length", f"{where}.position"))
+    with np.errstate(all="ignore"):
+        vertices = vertices @ rotation.T + position
+    bad = np.argwhere(~np.isfinite(vertices))
+    if len(bad):
+        i, j = (int(x) for x in bad[0])
+        field = f"{where}.file" if "file" in ob else f"{where}.vertices[{i}][{j}]"
+        rule = f"vertex {i} coordinate {j} must be a finite number (got {vertices[i, j]} m)"
+        raise V.fail(field, str(vertices[i].tolist()), rule, DesignError)
+    return {"vertices": vertices.tolist(), "faces": faces.tolist()}
 
 
 def _operating_range(table: Any) -> dict:
@@ -961,6 +1117,9 @@ class Design:
     stiffness_map_source: Path | None = field(default=None, repr=False)
     #: How the tip is held (``[tip] constraint``; softrod.TipConstraint), None: free.
     tip_constraint: Any = field(default=None, repr=False)
+    #: The mesh files of ``kind = "mesh"`` obstacles, resolved: (obstacle index, path)
+    #: pairs (the design's identity is the meshes' contents, in ``spec``).
+    mesh_sources: tuple = field(default=(), repr=False, compare=False)
     # Compiled PCC models by tip loads, built on first use (softrod.pcc.pcc_model).
     _pcc: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -1095,6 +1254,12 @@ class Design:
             except ValueError:  # another drive (Windows)
                 rel = self.stiffness_map_source
             doc["stiffness_map"]["file"] = rel.as_posix()
+        for k, file in self.mesh_sources:
+            try:
+                rel = Path(os.path.relpath(file, Path(path).resolve().parent))
+            except ValueError:  # another drive (Windows)
+                rel = file
+            doc["obstacles"][k]["file"] = rel.as_posix()
         return tomli_w.dumps(doc)
 
 
@@ -1130,9 +1295,21 @@ def _set_path(doc: dict, path: str, value: Any) -> None:
 
 
 def _build(doc: dict, source: Path | None) -> Design:
-    spec = _to_spec(doc)
+    files: dict[int, Path] = {}
+    tokens = (
+        _FOLDER.set(source.resolve().parent if source is not None else None),
+        _MESH_FILES.set(files),
+    )
+    try:
+        spec = _to_spec(doc)
+    finally:
+        _MESH_FILES.reset(tokens[1])
+        _FOLDER.reset(tokens[0])
     tip_constraint = spec.pop("tip_constraint")
-    rod = _core.Rod(json.dumps(spec, allow_nan=False))
+    try:
+        rod = _core.Rod(json.dumps(spec, allow_nan=False))
+    except DesignError as exc:
+        raise _from_mesh_file(exc, doc, files) from None
     meta = doc["design"]
     assumptions = meta.get("assumptions", [])
     if "provenance" in meta and not isinstance(meta["provenance"], Mapping):
@@ -1150,7 +1327,20 @@ def _build(doc: dict, source: Path | None) -> Design:
         stiffness_map=smap,
         stiffness_map_source=smap_source,
         tip_constraint=tip_constraint,
+        mesh_sources=tuple(sorted(files.items())),
     )
+
+
+def _from_mesh_file(exc: DesignError, doc: Mapping, files: Mapping[int, Path]) -> DesignError:
+    """The core's error about the vertices or faces of a mesh read from a file, told about
+    the design's key ``file`` (which the user wrote) with the mesh entry it concerns."""
+    m = re.fullmatch(r"obstacles\[(\d+)\]\.((?:vertices|faces).*)", exc.field or "")
+    if m is None or int(m.group(1)) not in files:
+        return exc
+    k = int(m.group(1))
+    given = doc["obstacles"][k]["file"]
+    rule = f"its mesh's {m.group(2)} = {exc.value}: {exc.rule}"
+    return design_error(f"obstacles[{k}].file", given, rule)
 
 
 def _stiffness_map(doc: Mapping, spec: Mapping, rod, source: Path | None):
@@ -1275,6 +1465,7 @@ _KINDS: dict[str, dict[str, str]] = {
         "start": "length",
         "end": "length",
         "radius": "length",
+        "position": "length",
         "stiffness": "contact_stiffness",
         "tolerance": "length",
         "smoothing": "length",
@@ -1336,6 +1527,11 @@ def _with_units(doc: dict) -> dict:
         doc["obstacles"] = [
             _units_in(ob, "obstacle") if isinstance(ob, Mapping) else ob for ob in doc["obstacles"]
         ]
+        for ob in doc["obstacles"]:
+            # Inline mesh vertices are lengths, unless the obstacle's units key gives them
+            # as plain numbers in its unit.
+            if isinstance(ob, dict) and "vertices" in ob and "units" not in ob:
+                ob["vertices"] = _with_unit(ob["vertices"], "length")
     sections = []
     for sec in doc.get("sections", []):
         if not isinstance(sec, Mapping):

@@ -16,7 +16,7 @@ import numpy as np
 from .errors import InputError, design_error
 from .io import atomic_path, check_target
 from .statics import StaticSolution
-from .viewer.geometry import frame_along  # plain numpy: no viewer dependency is loaded
+from .viewer.geometry import drawn_triangles, frame_along  # plain numpy: no viewer dependency
 
 # Styles of the parts of a rod. Chambered (actuated) sections take the colour of their
 # solution so several shapes stay distinguishable; passive and rigid parts are grey.
@@ -148,7 +148,8 @@ def plot_shape(
     and :attr:`StaticSolution.contact` give them). The designs' obstacles within half the
     shapes' extent of them are drawn translucent grey in the 3-D view, at their true size
     beside the centrelines (a rod touching one is its radius away from it): planes and
-    infinite cylinders and capsules cut to the view, spheres whole. ``show_frames`` adds the
+    infinite cylinders and capsules cut to the view, spheres whole, meshes as their
+    triangles cut to the view. ``show_frames`` adds the
     director triads d1, d2, d3 (red, green, blue) at a few nodes. Solutions that did not
     converge are listed but not drawn.
     """
@@ -334,6 +335,17 @@ def _near_obstacles(obstacles: list[dict], points_mm: np.ndarray) -> tuple[list[
             r = ob["radius"] * 1e3
             gap = np.linalg.norm(points_mm - feet, axis=1) - r
             pts = np.concatenate([feet - r, feet + r])  # its surface around those feet
+        elif kind == "mesh":
+            # The mesh's bounding box: its nearest points to the shapes' points bound the
+            # mesh's distance from below. The view holds those feet and the mesh's vertices
+            # within reach of the shapes' box: the part of a big mesh (a terrain, a bowl)
+            # near the rod, not all of it.
+            v = np.asarray(ob["vertices"], float) * 1e3
+            feet = np.clip(points_mm, v.min(axis=0), v.max(axis=0))
+            gap = np.linalg.norm(points_mm - feet, axis=1)
+            lo, hi = points_mm.min(axis=0) - reach, points_mm.max(axis=0) + reach
+            close = v[np.all((v >= lo) & (v <= hi), axis=1)]
+            pts = np.concatenate([feet, close[:: max(1, len(close) // 5000)]])
         else:
             ends = [ob["center"]] * 2 if kind == "sphere" else [ob["start"], ob["end"]]
             r = ob["radius"] * 1e3
@@ -378,6 +390,26 @@ def _plane_in_box(point, normal, lo, hi) -> np.ndarray:
     return pts[order]
 
 
+def _clip_to_box(poly: np.ndarray, lo, hi) -> np.ndarray:
+    """The convex polygon (m, 3) cut to the box [lo, hi] (Sutherland and Hodgman: one side
+    of the box after the other)."""
+    pts = [np.asarray(p, float) for p in poly]
+    for axis in range(3):
+        for bound, sign in ((lo[axis], 1.0), (hi[axis], -1.0)):
+            out = []
+            for k, p in enumerate(pts):
+                q = pts[k - 1]
+                dp, dq = sign * (p[axis] - bound), sign * (q[axis] - bound)
+                if (dp >= 0) != (dq >= 0):
+                    out.append(q + dq / (dq - dp) * (p - q))
+                if dp >= 0:
+                    out.append(p)
+            pts = out
+            if not pts:
+                return np.zeros((0, 3))
+    return np.array(pts)
+
+
 def _tube_surface(ax, a, b, radius) -> None:
     """A cylinder of ``radius`` from a to b (mm), as a translucent surface."""
     rot = frame_along(np.asarray(b) - np.asarray(a))
@@ -416,6 +448,28 @@ def _draw_obstacles(ax, obstacles: list[dict], lo, hi) -> None:
                 )
         elif kind == "sphere":
             _ball_surface(ax, np.asarray(ob["center"]) * 1e3, ob["radius"] * 1e3)
+        elif kind == "mesh":
+            # The triangles (at most MAX_DRAWN_TRIANGLES of them) cut to the view: those
+            # inside whole, those across its border clipped to it.
+            tri = drawn_triangles(ob) * 1e3
+            inside = np.all((tri >= lo) & (tri <= hi), axis=(1, 2))
+            across = ~inside & np.all(tri.max(axis=1) >= lo, axis=1)
+            across &= np.all(tri.min(axis=1) <= hi, axis=1)
+            polys = list(tri[inside])
+            for t in tri[across]:
+                poly = _clip_to_box(t, lo, hi)
+                if len(poly) >= 3:
+                    polys.append(poly)
+            if polys:
+                ax.add_collection3d(
+                    Poly3DCollection(
+                        polys,
+                        facecolor=_OBSTACLE["color"],
+                        edgecolor="0.55",
+                        linewidth=0.2,
+                        alpha=_OBSTACLE["alpha"],
+                    )
+                )
         elif kind in ("capsule", "cylinder"):
             # The axis cut to the view (slab method on the box widened by the radius); a
             # capsule's segment also to its ends, whose balls are drawn where in the view.

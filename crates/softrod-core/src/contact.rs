@@ -22,10 +22,12 @@
 
 use crate::error::{Result, Rule, SoftrodError};
 use crate::jet::RodScalar;
+use crate::mesh::TriMesh;
 use crate::spec::obstacle::{ObstacleKind, ObstacleSpec};
+use std::sync::Arc;
 
 /// A compiled obstacle's surface (directions normalised).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum Surface {
     Plane {
         point: [f64; 3],
@@ -45,10 +47,13 @@ pub enum Surface {
         end: [f64; 3],
         radius: f64,
     },
+    /// A rigid triangle mesh with its hierarchy (`crate::mesh`), shared by the copies of
+    /// a rod.
+    Mesh(Arc<TriMesh>),
 }
 
 /// A compiled obstacle with its penalty law.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Obstacle {
     pub surface: Surface,
     /// Penalty stiffness k, N/m^2.
@@ -69,8 +74,9 @@ fn unit(v: [f64; 3]) -> [f64; 3] {
 }
 
 impl Obstacle {
-    /// Compile a validated spec.
-    pub fn new(o: &ObstacleSpec) -> Self {
+    /// Compile the validated spec of obstacle `k` (a mesh's topology is checked here: its
+    /// errors name `obstacles[k]`).
+    pub fn new(o: &ObstacleSpec, k: usize) -> Result<Self> {
         let z = [0.0; 3];
         let radius = o.radius.unwrap_or(0.0);
         let surface = match o.kind {
@@ -92,33 +98,38 @@ impl Obstacle {
                 end: o.end.unwrap_or(z),
                 radius,
             },
+            ObstacleKind::Mesh => Surface::Mesh(Arc::new(TriMesh::new(
+                &format!("obstacles[{k}]"),
+                o.vertices.as_deref().unwrap_or(&[]),
+                o.faces.as_deref().unwrap_or(&[]),
+            )?)),
         };
-        Obstacle {
+        Ok(Obstacle {
             surface,
             stiffness: o.stiffness,
             smoothing: o.smoothing_length(),
             tolerance: o.tolerance,
             friction: o.friction,
             slip_velocity: o.slip_velocity(),
-        }
+        })
     }
 
     /// Signed distance d of point r from the surface (positive outside) and the outward
     /// unit normal at the nearest surface point.
     #[inline]
     pub fn distance<D: RodScalar>(&self, r: &[D; 3]) -> (D, [D; 3]) {
-        match self.surface {
-            Surface::Plane { point, normal } => {
+        match &self.surface {
+            &Surface::Plane { point, normal } => {
                 let mut d = D::from(0.0);
                 for k in 0..3 {
                     d += (r[k] - point[k]) * normal[k];
                 }
                 (d, normal.map(D::from))
             }
-            Surface::Sphere { center, radius } => {
+            &Surface::Sphere { center, radius } => {
                 radial(std::array::from_fn(|k| r[k] - center[k]), radius)
             }
-            Surface::Cylinder {
+            &Surface::Cylinder {
                 point,
                 axis,
                 radius,
@@ -130,7 +141,7 @@ impl Obstacle {
                 }
                 radial(std::array::from_fn(|k| w[k] - along * axis[k]), radius)
             }
-            Surface::Capsule { start, end, radius } => {
+            &Surface::Capsule { start, end, radius } => {
                 let ab: [f64; 3] = std::array::from_fn(|k| end[k] - start[k]);
                 let len2 = ab[0] * ab[0] + ab[1] * ab[1] + ab[2] * ab[2];
                 let mut t = D::from(0.0);
@@ -152,6 +163,19 @@ impl Obstacle {
                     radius,
                 )
             }
+            Surface::Mesh(mesh) => mesh.distance(r, self.smoothing),
+        }
+    }
+
+    /// Whether a cross-section of outer radius `rho` at r is certainly off this obstacle
+    /// without computing its distance (a point far outside a closed mesh's box: one box
+    /// test instead of a hierarchy query). The penalty is exactly zero there, so skipping
+    /// it changes nothing.
+    #[inline]
+    fn surely_clear<D: RodScalar>(&self, r: &[D; 3], rho: f64) -> bool {
+        match &self.surface {
+            Surface::Mesh(m) => m.surely_outside_by(&r.map(|x| x.value()), rho),
+            _ => false,
         }
     }
 
@@ -159,6 +183,9 @@ impl Obstacle {
     /// whose centreline is at r (world frame, N/m).
     #[inline]
     pub fn line_force<D: RodScalar>(&self, r: &[D; 3], rho: f64) -> [D; 3] {
+        if self.surely_clear(r, rho) {
+            return [D::from(0.0); 3];
+        }
         let (d, nu) = self.distance(r);
         let Some(p) = self.penalty(-d + rho) else {
             return [D::from(0.0); 3];
@@ -215,6 +242,9 @@ impl Obstacle {
         rho: f64,
     ) -> SectionLoad<D> {
         let mut out = SectionLoad::zero();
+        if self.surely_clear(r, rho) {
+            return out;
+        }
         let (d, nu) = self.distance(r);
         let Some(p) = self.penalty(-d + rho) else {
             return out;
@@ -313,6 +343,9 @@ impl Obstacle {
         k: usize,
     ) -> StickLoad<D> {
         let mut out = StickLoad::zero();
+        if self.surely_clear(r, rho) {
+            return out;
+        }
         let (d, nu) = self.distance(r);
         let Some(p) = self.penalty(-d + rho).map(|p| p * scale) else {
             return out;
@@ -662,7 +695,7 @@ pub fn deepest_beyond(
         let tol = limit(k);
         let gap = |x: f64| o.distance(&piece.at(x)).0 - rho(x);
         let too_deep = |depth: f64| depth > tol || depth.is_nan();
-        if let Surface::Plane { normal, .. } = o.surface {
+        if let Surface::Plane { normal, .. } = &o.surface {
             // The zeros of the gap's derivative a1 + 2 a2 x + 3 a3 x^2 and the ends.
             let dot = |v: &[f64; 3]| v[0] * normal[0] + v[1] * normal[1] + v[2] * normal[2];
             let (a1, a2, a3) = (
@@ -762,6 +795,8 @@ mod tests {
             start: None,
             end: None,
             radius: None,
+            vertices: None,
+            faces: None,
             stiffness: 1e4,
             tolerance: 1e-3,
             smoothing: Some(1e-4),
@@ -775,21 +810,21 @@ mod tests {
         let mut s = spec(ObstacleKind::Plane);
         s.point = Some([0.1, -0.2, 0.05]);
         s.normal = Some([0.3, -0.4, 1.2]);
-        out.push(Obstacle::new(&s));
+        out.push(Obstacle::new(&s, 0).unwrap());
         let mut s = spec(ObstacleKind::Sphere);
         s.center = Some([0.02, 0.01, -0.03]);
         s.radius = Some(0.04);
-        out.push(Obstacle::new(&s));
+        out.push(Obstacle::new(&s, 0).unwrap());
         let mut s = spec(ObstacleKind::Cylinder);
         s.point = Some([0.0, 0.01, 0.0]);
         s.axis = Some([1.0, 2.0, -0.5]);
         s.radius = Some(0.03);
-        out.push(Obstacle::new(&s));
+        out.push(Obstacle::new(&s, 0).unwrap());
         let mut s = spec(ObstacleKind::Capsule);
         s.start = Some([-0.02, 0.0, 0.0]);
         s.end = Some([0.03, 0.02, -0.01]);
         s.radius = Some(0.025);
-        out.push(Obstacle::new(&s));
+        out.push(Obstacle::new(&s, 0).unwrap());
         out
     }
 
@@ -801,24 +836,30 @@ mod tests {
         let mut s = spec(ObstacleKind::Plane);
         s.point = Some([0.0; 3]);
         s.normal = Some([0.0, 0.0, 2.0]);
-        let (d, n) = Obstacle::new(&s).distance::<f64>(&[0.3, -0.1, 0.005]);
+        let (d, n) = Obstacle::new(&s, 0)
+            .unwrap()
+            .distance::<f64>(&[0.3, -0.1, 0.005]);
         assert!((d - 0.005).abs() < 1e-15 && n == [0.0, 0.0, 1.0]);
         let mut s = spec(ObstacleKind::Sphere);
         s.center = Some([1.0, 0.0, 0.0]);
         s.radius = Some(0.5);
-        let (d, n) = Obstacle::new(&s).distance::<f64>(&[1.0, 0.0, 0.8]);
+        let (d, n) = Obstacle::new(&s, 0)
+            .unwrap()
+            .distance::<f64>(&[1.0, 0.0, 0.8]);
         assert!((d - 0.3).abs() < 1e-15 && (n[2] - 1.0).abs() < 1e-15);
         let mut s = spec(ObstacleKind::Cylinder);
         s.point = Some([0.0; 3]);
         s.axis = Some([0.0, 0.0, 1.0]);
         s.radius = Some(0.1);
-        let (d, _) = Obstacle::new(&s).distance::<f64>(&[0.3, 0.4, 7.0]);
+        let (d, _) = Obstacle::new(&s, 0)
+            .unwrap()
+            .distance::<f64>(&[0.3, 0.4, 7.0]);
         assert!((d - 0.4).abs() < 1e-15);
         let mut s = spec(ObstacleKind::Capsule);
         s.start = Some([0.0; 3]);
         s.end = Some([1.0, 0.0, 0.0]);
         s.radius = Some(0.1);
-        let o = Obstacle::new(&s);
+        let o = Obstacle::new(&s, 0).unwrap();
         let (d, _) = o.distance::<f64>(&[1.3, 0.4, 0.0]);
         assert!((d - 0.4).abs() < 1e-15);
         let (d, _) = o.distance::<f64>(&[0.5, 0.0, -0.3]);
@@ -869,7 +910,7 @@ mod tests {
         let mut s = spec(ObstacleKind::Plane);
         s.point = Some([0.0; 3]);
         s.normal = Some([0.0, 0.0, 1.0]);
-        let o = Obstacle::new(&s);
+        let o = Obstacle::new(&s, 0).unwrap();
         let f = |z: f64| o.line_force(&[0.0, 0.0, z], 0.0)[2];
         let eps = o.smoothing;
         let tiny = 1e-12;

@@ -39,6 +39,7 @@ pub mod jet;
 pub mod law;
 pub mod linearise;
 pub mod marker;
+pub mod mesh;
 pub mod ode;
 pub mod pcc;
 pub mod reference;

@@ -487,12 +487,17 @@ impl Rod {
             gravity: spec.mounting.gravity,
             force_scale,
             sections,
-            obstacles: (!spec.obstacles.is_empty()).then(|| {
-                spec.obstacles
-                    .iter()
-                    .map(crate::contact::Obstacle::new)
-                    .collect()
-            }),
+            obstacles: if spec.obstacles.is_empty() {
+                None
+            } else {
+                Some(
+                    spec.obstacles
+                        .iter()
+                        .enumerate()
+                        .map(|(k, o)| crate::contact::Obstacle::new(o, k))
+                        .collect::<Result<_>>()?,
+                )
+            },
             spec,
         })
     }

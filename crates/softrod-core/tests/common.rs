@@ -446,6 +446,8 @@ pub fn obstacle(kind: ObstacleKind, stiffness: f64, tolerance: f64) -> ObstacleS
         start: None,
         end: None,
         radius: None,
+        vertices: None,
+        faces: None,
         stiffness,
         tolerance,
         smoothing: None,

@@ -297,10 +297,14 @@ def _records(frame: pd.DataFrame) -> list[dict]:
 
 
 def _design_document(design) -> dict:
-    """A design's document with units on every value, as JSON values."""
+    """A design's document with units on every value, as JSON values; a mesh obstacle's
+    file by its absolute path (the model file may be read from another folder)."""
     from ..design import _plain, _with_units
 
-    return json.loads(json.dumps(_with_units(_plain(design.document))))
+    doc = json.loads(json.dumps(_with_units(_plain(design.document))))
+    for k, file in design.mesh_sources:
+        doc["obstacles"][k]["file"] = str(file)
+    return doc
 
 
 def _split(m: int, test_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:

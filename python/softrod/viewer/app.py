@@ -373,6 +373,8 @@ class Viewer(Served):
                     sc.add_box(name, receive_shadow=False, **look, **args)
                 elif solid == "sphere":
                     sc.add_icosphere(name, receive_shadow=False, **look, **args)
+                elif solid == "mesh":
+                    sc.add_mesh_simple(name, receive_shadow=False, side="double", **look, **args)
                 else:
                     sc.add_cylinder(name, receive_shadow=False, **look, **args)
             self._contact_arrows.append(

@@ -232,13 +232,33 @@ def frame_along(direction) -> np.ndarray:
     return np.column_stack([x, np.cross(z, x), z])
 
 
+#: Most triangles of a mesh obstacle the viewer and the plots draw: a bigger mesh is drawn
+#: by an evenly spread subset of its triangles (every k-th), which keeps the browser and
+#: matplotlib responsive; the contact always uses the whole mesh.
+MAX_DRAWN_TRIANGLES = 20_000
+
+
+def drawn_triangles(obstacle: dict, limit: int = MAX_DRAWN_TRIANGLES) -> np.ndarray:
+    """A mesh obstacle's triangles to draw, as corners (m, 3, 3) in metres: all of them, or
+    every k-th when there are more than ``limit``."""
+    v = np.asarray(obstacle["vertices"], dtype=float)
+    f = np.asarray(obstacle["faces"], dtype=np.int64)
+    stride = max(1, -(-len(f) // limit))
+    return v[f[::stride]]
+
+
 def obstacle_solids(obstacle: dict, centre, size: float) -> list[tuple[str, dict]]:
     """The solids that draw one obstacle of a design (its spec: SI, docs/contact.md), as
-    (kind, arguments) with kind "box", "sphere" or "cylinder": a plane is a square slab of
-    side ``2 size`` below its surface centred under ``centre`` (the rod's middle), an
-    infinite cylinder a cylinder of length ``3 size`` centred at ``centre``'s foot on its
-    axis, a capsule its segment's cylinder and the two end balls."""
+    (kind, arguments) with kind "box", "sphere", "cylinder" or "mesh": a plane is a square
+    slab of side ``2 size`` below its surface centred under ``centre`` (the rod's middle),
+    an infinite cylinder a cylinder of length ``3 size`` centred at ``centre``'s foot on its
+    axis, a capsule its segment's cylinder and the two end balls, a mesh its triangles
+    (:func:`drawn_triangles`: at most MAX_DRAWN_TRIANGLES)."""
     kind = obstacle["kind"]
+    if kind == "mesh":
+        tri = drawn_triangles(obstacle)
+        faces = np.arange(3 * len(tri), dtype=np.uint32).reshape(-1, 3)
+        return [("mesh", {"vertices": tri.reshape(-1, 3).astype(np.float32), "faces": faces})]
     if kind == "plane":
         n = np.asarray(obstacle["normal"], float)
         n /= np.linalg.norm(n)

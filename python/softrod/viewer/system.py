@@ -223,9 +223,11 @@ class SystemViewer(Served):
                     for j, (solid, args) in enumerate(geo.obstacle_solids(ob, mid, d.length)):
                         name = f"/obstacles/{len(drawn) - 1}_{ob['kind']}/{j}"
                         look = dict(color=OBSTACLE_COLOUR, opacity=0.55, cast_shadow=False)
-                        add = {"box": sc.add_box, "sphere": sc.add_icosphere}.get(
-                            solid, sc.add_cylinder
-                        )
+                        add = {
+                            "box": sc.add_box,
+                            "sphere": sc.add_icosphere,
+                            "mesh": sc.add_mesh_simple,
+                        }.get(solid, sc.add_cylinder)
                         add(name, receive_shadow=False, **look, **args)
                 arrows.append(self._add_arrow(f"/loads/rod{i}_contact_{k}", CONTACT_COLOUR, False))
             self._contact_arrows.append(arrows)

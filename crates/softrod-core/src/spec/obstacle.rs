@@ -17,6 +17,9 @@ pub enum ObstacleKind {
     Cylinder,
     /// A segment from `start` to `end` swept by a ball of `radius`.
     Capsule,
+    /// A rigid triangle mesh: `vertices` (m) and `faces` (vertex indices, counter-clockwise
+    /// seen from outside), `crate::mesh`.
+    Mesh,
 }
 
 impl ObstacleKind {
@@ -26,6 +29,7 @@ impl ObstacleKind {
             ObstacleKind::Sphere => "sphere",
             ObstacleKind::Cylinder => "cylinder",
             ObstacleKind::Capsule => "capsule",
+            ObstacleKind::Mesh => "mesh",
         }
     }
 
@@ -36,13 +40,14 @@ impl ObstacleKind {
             ObstacleKind::Sphere => &["center", "radius"],
             ObstacleKind::Cylinder => &["point", "axis", "radius"],
             ObstacleKind::Capsule => &["start", "end", "radius"],
+            ObstacleKind::Mesh => &["vertices", "faces"],
         }
     }
 }
 
 /// A rigid obstacle. The penalty law pushes the rod's surface out of it with a force per
 /// unit length k * ramp(penetration) along the obstacle's outward normal (`crate::contact`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ObstacleSpec {
     pub kind: ObstacleKind,
@@ -66,6 +71,13 @@ pub struct ObstacleSpec {
     /// Radius of a sphere, cylinder or capsule, m.
     #[serde(default)]
     pub radius: Option<f64>,
+    /// A mesh's vertices, m (world frame).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub vertices: Option<Vec<[f64; 3]>>,
+    /// A mesh's triangles: three indices into `vertices` each, counter-clockwise seen from
+    /// outside (`crate::mesh`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub faces: Option<Vec<[usize; 3]>>,
     /// Penalty stiffness k: contact force per unit rod length per metre of penetration,
     /// N/m^2.
     pub stiffness: f64,
@@ -139,6 +151,8 @@ impl ObstacleSpec {
             "axis" => self.axis.is_some(),
             "start" => self.start.is_some(),
             "end" => self.end.is_some(),
+            "vertices" => self.vertices.is_some(),
+            "faces" => self.faces.is_some(),
             _ => self.radius.is_some(),
         }
     }
@@ -160,7 +174,7 @@ impl ObstacleSpec {
         let f = |name: &str| format!("obstacles[{k}].{name}");
         let need = self.kind.fields();
         for name in [
-            "point", "normal", "center", "axis", "start", "end", "radius",
+            "point", "normal", "center", "axis", "start", "end", "radius", "vertices", "faces",
         ] {
             if self.is_set(name) && !need.contains(&name) {
                 return Err(SoftrodError::invalid(
@@ -196,6 +210,15 @@ impl ObstacleSpec {
                         "must differ from start (a capsule with one point is a sphere)",
                     ));
                 }
+            }
+            ObstacleKind::Mesh => {
+                let missing = |name: &str| SoftrodError::invalid(f(name), "missing", "is required");
+                let vertices = self
+                    .vertices
+                    .as_deref()
+                    .ok_or_else(|| missing("vertices"))?;
+                let faces = self.faces.as_deref().ok_or_else(|| missing("faces"))?;
+                crate::mesh::check(&format!("obstacles[{k}]"), vertices, faces)?;
             }
         }
         if need.contains(&"radius") {

@@ -44,7 +44,7 @@ pub(crate) fn without_friction(rod: &Rod) -> Option<Rod> {
         obs.iter()
             .map(|o| crate::contact::Obstacle {
                 friction: 0.0,
-                ..*o
+                ..o.clone()
             })
             .collect()
     });
