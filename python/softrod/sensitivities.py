@@ -32,7 +32,7 @@ from .dynamics.simulate import (
 )
 from .errors import InputError
 from .system import System, load_system
-from .system_dynamics import SystemSimulation, tracked_run
+from .system_dynamics import started, tracked_run
 
 if TYPE_CHECKING:
     from ._types import DesignLike
@@ -212,9 +212,6 @@ def system_trajectory_sensitivities(
     :class:`~softrod.errors.InputError` naming the field (``params``, ``markers[k]``, ...)
     before any step; a run that fails raises as :func:`simulate_system` does."""
 
-    def at0(value):
-        return value(0.0) if callable(value) else value
-
     if not isinstance(system, System):
         system = load_system(system)
     names = _names(params)
@@ -224,12 +221,12 @@ def system_trajectory_sensitivities(
         else []
     )
     core_markers = _system_markers(system, markers)
-    sim = SystemSimulation(
+    sim = started(
         system,
-        at0(pressures),
-        tensions=at0(tensions),
-        platform_force=at0(platform_force),
-        platform_moment=at0(platform_moment),
+        pressures,
+        tensions,
+        platform_force,
+        platform_moment,
         platform_inertia=platform_inertia,
         dt=dt,
         alpha=alpha,

@@ -760,15 +760,12 @@ def simulate_system(
     Returns a :class:`SystemTrajectory` from t = 0 (docs/dynamics.md, "Systems of
     rods")."""
 
-    def at0(value):
-        return value(0.0) if callable(value) else value
-
-    sim = SystemSimulation(
+    sim = started(
         system,
-        at0(pressures),
-        tensions=at0(tensions),
-        platform_force=at0(platform_force),
-        platform_moment=at0(platform_moment),
+        pressures,
+        tensions,
+        platform_force,
+        platform_moment,
         platform_inertia=platform_inertia,
         dt=dt,
         scheme=scheme,
@@ -783,6 +780,31 @@ def simulate_system(
     start = sim._sim.snapshot()
     out = sim._run(t_end, pressures, tensions, platform_force, platform_moment, "t_end")
     return SystemTrajectory._concat(sim.system, [start, out])
+
+
+def started(
+    system: System | str,
+    pressures: Any,
+    tensions: Any = None,
+    platform_force: Any = None,
+    platform_moment: Any = None,
+    **options: Any,
+) -> SystemSimulation:
+    """A :class:`SystemSimulation` at rest in equilibrium under the inputs at t = 0 (each
+    held or a function of t, read there), with ``options`` as it takes them: the start of
+    :func:`simulate_system` and of :func:`~softrod.system_trajectory_sensitivities`."""
+
+    def at0(value):
+        return value(0.0) if callable(value) else value
+
+    return SystemSimulation(
+        system,
+        at0(pressures),
+        tensions=at0(tensions),
+        platform_force=at0(platform_force),
+        platform_moment=at0(platform_moment),
+        **options,
+    )
 
 
 def tracked_run(
