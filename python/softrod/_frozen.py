@@ -59,6 +59,9 @@ class FrozenList(list):
         return self
 
 
+_PLAIN = frozenset({int, float, str, bool, type(None)})
+
+
 def freeze(obj: Any) -> Any:
     """``obj`` with every nested dict and list frozen (tuples stay tuples, of frozen
     items)."""
@@ -67,7 +70,10 @@ def freeze(obj: Any) -> Any:
     if isinstance(obj, dict):
         return FrozenDict({k: freeze(v) for k, v in obj.items()})
     if isinstance(obj, list):
-        return FrozenList(freeze(v) for v in obj)
+        # Lists of plain numbers (a mesh's thousands of vertex rows) in one go.
+        if all(type(v) in _PLAIN for v in obj):
+            return FrozenList(obj)
+        return FrozenList([freeze(v) for v in obj])
     if isinstance(obj, tuple):
         return tuple(freeze(v) for v in obj)
     return obj
