@@ -395,3 +395,40 @@ def test_plots_and_viewer_draw_a_mesh():
         assert sol.contact.total_force[0][2] > 0
     finally:
         view.close()
+
+
+def test_a_system_on_a_mesh_table_solves_and_draws_as_on_the_plane():
+    """The bundled two fingers holding a clip, their table as two triangles: the same
+    equilibrium as on the plane to round-off (same distance and normal), and the system's
+    figure draws the mesh projected in both views with the contact points on it."""
+    import dataclasses
+
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+    from softrod import load_system, solve_system
+    from softrod.system_plots import plot_system
+
+    pair = load_system("two_fingers_on_table")
+    z_mm = pair.rods[0].design.spec["obstacles"][0]["point"][2] * 1e3
+    v, f = patch(z_mm)
+    table = mesh_ob(vertices=v.tolist(), faces=f.tolist(), units="mm")
+    table.update(stiffness="1e7 N/m^2", tolerance="0.2 mm")
+    on_mesh = dataclasses.replace(
+        pair,
+        rods=tuple(
+            dataclasses.replace(r, design=r.design.with_obstacles([table])) for r in pair.rods
+        ),
+    )
+    inputs = [[35e3], [35e3]]
+    plane, mesh = solve_system(pair, inputs), solve_system(on_mesh, inputs)
+    np.testing.assert_allclose(mesh.platform_position, plane.platform_position, rtol=0, atol=1e-12)
+    assert all(r.contact.in_contact.any() for r in mesh.rods)
+    fig = plot_system(mesh)
+    try:
+        for ax in fig.axes[:2]:
+            shadows = [c for c in ax.collections if type(c) is PolyCollection]
+            assert shadows and ax.get_ylim()[0] < z_mm  # the table in the view
+            dots = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]
+            assert dots and all(np.allclose(d.get_ydata(), z_mm, atol=0.3) for d in dots)
+    finally:
+        plt.close(fig)

@@ -79,8 +79,8 @@ def plot_system(
 ) -> Figure:
     """Front (x-z) and side (y-z) views of one or more equilibria of a system: every rod's
     centreline, the platform as the outline through the rods' tips, the bases as black
-    squares, the rods' obstacles near them (planes seen edge-on, spheres) and their contact
-    points; one colour per solution, labelled with ``labels`` (default: the rods'
+    squares, the rods' obstacles near them (planes seen edge-on, spheres, meshes projected)
+    and their contact points; one colour per solution, labelled with ``labels`` (default: the rods'
     pressures and the platform's tilt). Written to ``path`` when given (format from the
     suffix, atomically). Returns the Figure (pyplot's: close it when done)."""
     import matplotlib.pyplot as plt
@@ -146,12 +146,15 @@ def plot_system(
 
 def _draw_contacts(axes, sols, colours) -> list:
     """The rods' obstacles near the shapes in both views (a plane seen edge-on as a line, a
-    sphere as its outline; others are not drawn in these views) and each solution's
+    sphere as its outline, a mesh as its projected triangles; others are not drawn in these
+    views) and each solution's
     contact points (docs/contact.md); returns legend entries for what was drawn."""
+    from matplotlib.collections import PolyCollection
     from matplotlib.lines import Line2D
     from matplotlib.patches import Circle
 
     from .plotting import _OBSTACLE, _near_obstacles
+    from .viewer.geometry import drawn_triangles
 
     specs: list[dict] = []
     for sol in sols:
@@ -177,6 +180,24 @@ def _draw_contacts(axes, sols, colours) -> list:
             elif ob["kind"] == "sphere":
                 c = np.asarray(ob["center"], float)[[a, b]] * 1e3
                 ax.add_patch(Circle(tuple(c), ob["radius"] * 1e3, **_OBSTACLE))
+                ax.update_datalim(extra[:, [a, b]])
+                drawn = True
+            elif ob["kind"] == "mesh":
+                # Its triangles projected onto the view (at most MAX_DRAWN_TRIANGLES): the
+                # mesh's shadow, a table's edge-on strip; the view holds its part near the
+                # shapes (`_near_obstacles`' points), not a big mesh's far corners.
+                tri = drawn_triangles(ob)[:, :, [a, b]] * 1e3
+                # Edges drawn too: a flat mesh seen edge-on (a table) is a line.
+                ax.add_collection(
+                    PolyCollection(
+                        list(tri),
+                        facecolor=_OBSTACLE["color"],
+                        edgecolor=_OBSTACLE["color"],
+                        linewidth=1.5,
+                        alpha=_OBSTACLE["alpha"],
+                    ),
+                    autolim=False,
+                )
                 ax.update_datalim(extra[:, [a, b]])
                 drawn = True
         for k, sol in enumerate(sols):
