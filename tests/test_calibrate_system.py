@@ -519,3 +519,20 @@ def test_system_jacobian_with_contact_matches_central_differences():
         fd = central_difference(adapter, theta, rows, 0, quantity)
         scale = np.abs(fd).max()
         assert np.abs(d[..., 0] - fd).max() < 1e-5 * scale, quantity
+
+
+def test_a_shared_parameter_on_rods_that_differ_is_refused_before_any_solve(system):
+    """A parameter named on every rod is one value; where the rods' values differ the
+    name is refused at parsing, naming both values and the per-rod names, for the static
+    and dynamic fits and the system's motion sensitivities alike."""
+    r1 = system.rods[1]
+    other = dataclasses.replace(r1, design=r1.design.replace({"sections[1].c_b": 1.2}))
+    mixed = dataclasses.replace(system, rods=(system.rods[0], other))
+    for dynamic in (False, True):
+        with pytest.raises(InputError, match=r"rods\[1\] has 1\.2.*rods\[1\]\.c_b") as e:
+            parse_system_parameters(["c_b[body]"], mixed, dynamic=dynamic)
+        assert e.value.field == "params"
+    with pytest.raises(InputError, match="the rods differ"):
+        softrod.system_trajectory_sensitivities(mixed, [[0, 0, 0], [0, 0, 0]], 0.004, "c_b[body]")
+    # One per rod is fine.
+    assert len(parse_system_parameters(["rods[0].c_b[body]", "rods[1].c_b[body]"], mixed)) == 2

@@ -166,10 +166,10 @@ def test_refusals_name_the_field(system):
     # Sigma factors are no system parameters.
     with pytest.raises(InputError, match="params"):
         calibrate_system(system, ds, ["sigma_ext"], dynamic=True, dt=DT)
-    # The core names a parameter its rods do not share a value of.
+    # A parameter its rods do not share a value of, named before any replay.
     params = parse_system_parameters(["rods[1].c_b"], system, dynamic=True)
     other = calibrated_system(system, params, [1.3])
-    with pytest.raises(InputError, match=r"params\[0\]"):
+    with pytest.raises(InputError, match=r"the rods differ \(rods\[0\] has 1, rods\[1\] has 1.3\)"):
         calibrate_system(other, ds, ["c_b"], dynamic=True, dt=DT)
 
 

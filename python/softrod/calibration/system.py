@@ -190,6 +190,19 @@ def parse_system_parameters(
                     "only in time series, dynamic=True)",
                 )
             entries.append((i, p))
+        # A parameter on several rods is one value: rods that differ need one each. Checked
+        # here, before any solve (the core refuses it too, at its first evaluation).
+        values = [p.value(system.rods[i].design) for i, p in entries]
+        if any(v != values[0] for v in values):
+            listed = ", ".join(
+                f"rods[{i}] has {v:g}" for (i, _), v in zip(entries, values, strict=True)
+            )
+            raise V.fail(
+                "params",
+                name,
+                f"is one value on every rod, but the rods differ ({listed}): name one per rod, "
+                f"e.g. rods[0].{inner.strip()} and rods[1].{inner.strip()}",
+            )
         out.append(SystemParameter(name.strip(), entries[0][1].kind, tuple(entries)))
     seen: dict[tuple, str] = {}
     for p in out:
