@@ -31,13 +31,15 @@ BUNDLED = [
     "pam_arm_220mm",
     "stiff_flop_pcc",
 ]
-# Bundled designs with issue 17's features (obstacles, tendons, precurvature): the design
-# document and file targets mutate them too, and the statics and simulation targets solve
-# them with hostile tensions and tip constraints. (name, pressure channels, tendon channels)
+# Bundled designs with issue 17's features (obstacles, a mesh among them, tendons,
+# precurvature): the design document and file targets mutate them too, and the statics and
+# simulation targets solve them with hostile tensions and tip constraints. (name, pressure
+# channels, tendon channels)
 FEATURED = [
     ("prebent_finger_on_table", 1, 1),
     ("prebent_tendon_finger", 1, 1),
     ("till_tendon_robot", 0, 4),
+    ("prebent_finger_in_mesh_bowl", 1, 1),  # a triangle-mesh obstacle (STL file)
 ]
 DOCUMENTS = [*BUNDLED, *(name for name, _, _ in FEATURED)]
 BATCH = 16  # cases per hypothesis example, run in parallel by the pool
