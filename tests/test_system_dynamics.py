@@ -277,3 +277,27 @@ def test_an_unstable_start_warns_raises_or_is_ignored(system):
         is False
     )
     assert softrod.SystemSimulation(system).start_stable is True  # hanging: stable, quiet
+
+
+def test_long_runs_report_progress_and_their_chunks_change_nothing(system):
+    """A run goes through the core in chunks of about 0.2 s of work, reporting
+    progress(t_done, t_end, wall_s) after each; where the chunks end changes nothing: the
+    same run as three SystemSimulation.run calls is the same to the last bit."""
+
+    def ramp(t):
+        return [[min(t / 0.02, 1.0) * 30e3, 0.0, 0.0], [0.0, 0.0, 0.0]]
+
+    seen = []
+    whole = softrod.simulate_system(
+        system, ramp, 0.06, progress=lambda done, total, wall: seen.append((done, total))
+    )
+    assert seen and all(total == pytest.approx(0.06) for _, total in seen)
+    assert np.all(np.diff([d for d, _ in seen]) > 0) and seen[-1][0] == pytest.approx(0.06)
+    sim = softrod.SystemSimulation(system, ramp(0.0))
+    pieces = [sim.run(ramp, 0.02, progress=False) for _ in range(3)]
+    np.testing.assert_array_equal(
+        np.concatenate([p.platform_position for p in pieces]), whole.platform_position[1:]
+    )
+    np.testing.assert_array_equal(
+        np.concatenate([p.shapes[0] for p in pieces]), whole.shapes[0][1:]
+    )

@@ -120,3 +120,14 @@ def test_bad_input_is_refused_by_name(design, kwargs, field):
             **args,
         )
     assert e.value.field.startswith(field), e.value.field
+
+
+def test_progress_reports_the_simulated_time(design):
+    """Long runs show progress as simulate's do: a callable gets (t_done, t_end, wall_s)
+    after each chunk of steps, t_done rising to t_end."""
+    seen = []
+    softrod.trajectory_sensitivities(
+        design, ramp, T_END, PARAMS, dt=DT, progress=lambda done, total, wall: seen.append(done)
+    )
+    assert seen and np.all(np.diff(seen) > 0)
+    assert seen[-1] == pytest.approx(T_END, rel=1e-12)

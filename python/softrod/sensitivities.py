@@ -71,6 +71,7 @@ def trajectory_sensitivities(
     dt: Any = 2e-3,
     tol: float = 1e-9,
     max_iter: int = 25,
+    progress: Callable[[float, float, float], None] | bool | None = None,
 ) -> dict[str, Any]:
     """The motion of a rod's tip and of markers on its body, run as :func:`~softrod.simulate` runs
     it (from rest in equilibrium under the inputs at t = 0, BDF-alpha with fixed steps
@@ -83,7 +84,8 @@ def trajectory_sensitivities(
     ``"damping_time"``, ...; an empty list: the run without derivatives.
     ``pressure_schedule`` (None for a design without chambers), ``t_end``, ``dt``,
     ``tensions`` (held or a function of t), ``markers`` (``(s, offset)`` or ``s``, SI or
-    strings with units), ``tol`` and ``max_iter`` (each step's Newton settings): as
+    strings with units), ``tol`` and ``max_iter`` (each step's Newton settings) and
+    ``progress`` (None: a bar in interactive sessions): as
     :func:`~softrod.simulate` takes them (the inputs are inputs, not parameters; adaptive
     steps are not offered: the step sizes would depend on the parameters).
 
@@ -112,7 +114,16 @@ def trajectory_sensitivities(
     n = step_count(duration, step)
     rows = _tension_rows(d, tensions, step * np.arange(n + 1))
     out = tracked_trajectory(
-        d, schedule, duration, step, [p.core() for p in parsed], rows, pairs, tol, max_iter
+        d,
+        schedule,
+        duration,
+        step,
+        [p.core() for p in parsed],
+        rows,
+        pairs,
+        tol,
+        max_iter,
+        progress,
     )
     out["params"] = tuple(p.name for p in parsed)
     out["units"] = tuple(p.unit for p in parsed)
@@ -182,6 +193,7 @@ def system_trajectory_sensitivities(
     energy_tol: float = DEFAULT_ENERGY_TOL,
     on_unstable: str = "warn",
     stiffness_maps: Any = None,
+    progress: Callable[[float, float, float], None] | bool | None = None,
 ) -> dict[str, Any]:
     """The motion of a :class:`~softrod.System`'s platform and of markers on it or on its
     rods, run as :func:`simulate_system` runs it (from rest in equilibrium under the inputs
@@ -199,9 +211,9 @@ def system_trajectory_sensitivities(
     [0, L] of that rod, offset in its cross-section frame), m. ``pressures``,
     ``tensions``, ``platform_force``, ``platform_moment`` (held or functions of t),
     ``platform_inertia``, ``alpha``, ``tol``, ``max_iter``, ``energy_tol``,
-    ``on_unstable`` and ``stiffness_maps``: as :func:`simulate_system` (the inputs are
-    inputs, not parameters; adaptive steps are not offered: the step sizes would depend on
-    the parameters).
+    ``on_unstable``, ``stiffness_maps`` and ``progress``: as :func:`simulate_system` (the
+    inputs are inputs, not parameters; adaptive steps are not offered: the step sizes would
+    depend on the parameters).
 
     Returns a dict of arrays, k = steps + 1 samples (the start included), P parameters, K
     markers, derivatives per SI unit of each parameter: "time" (k,) s,
@@ -237,7 +249,15 @@ def system_trajectory_sensitivities(
         stiffness_maps=stiffness_maps,
     )
     out = tracked_run(
-        sim, parsed, core_markers, t_end, pressures, tensions, platform_force, platform_moment
+        sim,
+        parsed,
+        core_markers,
+        t_end,
+        pressures,
+        tensions,
+        platform_force,
+        platform_moment,
+        progress=progress,
     )
     out["params"] = tuple(p.name for p in parsed)
     out["units"] = tuple(p.unit for p in parsed)

@@ -11,8 +11,10 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from itertools import chain
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -21,15 +23,18 @@ import numpy as np
 from . import _core
 from . import _validate as V
 from .dynamics.simulate import (
+    _CHUNK_WALL_S,
     DEFAULT_ENERGY_TOL,
     _seconds,
     _solver_options,
     core_sigma,
+    simulated_time,
     step_count,
 )
 from .errors import InputError
 from .io import atomic_path, check_target, write_table
 from .io import is_file as _is_file
+from .progress import reporter
 from .statics import _pressures, _tensions
 from .stiffness_map import StiffnessMap
 from .system import System, _platform_args, check_rods, load_system
@@ -662,14 +667,19 @@ class SystemSimulation:
         tensions: Any = None,
         platform_force: Any = None,
         platform_moment: Any = None,
+        progress: Callable[[float, float, float], None] | bool | None = None,
     ) -> SystemTrajectory:
         """Advance by ``duration`` (s or a string with units) in output steps of dt and
         return the samples after each step (without the current state).
 
         ``pressures``: one list per rod (held), or a function of t (s) returning them,
         sampled at each step's end; None: the last ones. ``tensions``, ``platform_force``,
-        ``platform_moment`` likewise (None: unchanged)."""
-        out = self._run(duration, pressures, tensions, platform_force, platform_moment)
+        ``platform_moment`` likewise (None: unchanged). ``progress``: None (a bar in
+        interactive sessions), True, False, or a callable called after each chunk of steps
+        as progress(t_done, duration, wall_s) (:mod:`softrod.progress`)."""
+        out = self._run(
+            duration, pressures, tensions, platform_force, platform_moment, progress=progress
+        )
         return SystemTrajectory._concat(self.system, [out])
 
     def _run(
@@ -680,6 +690,7 @@ class SystemSimulation:
         platform_force,
         platform_moment,
         field: str = "duration",
+        progress: Callable[[float, float, float], None] | bool | None = False,
     ) -> dict:
         steps = step_count(_seconds(duration, field), self.dt, field)
         t0 = self.time
@@ -718,11 +729,31 @@ class SystemSimulation:
             fs = fs or [self._force] * steps
             ms = ms or [self._moment] * steps
             loads = list(zip(fs, ms, strict=True))
-        out = self._sim.run(commands, tensions=tens, platform_loads=loads)
+        # In chunks of about _CHUNK_WALL_S of work, as a lone rod's run, so that a long run
+        # shows its progress; the core carries its state across calls exactly.
+        parts = []
+        wall0 = _time.perf_counter()
+        start, chunk = 0, 8
+        with reporter(progress, "simulate_system", steps * self.dt, simulated_time) as report:
+            while start < steps:
+                stop = min(steps, start + chunk)
+                t_chunk = _time.perf_counter()
+                parts.append(
+                    self._sim.run(
+                        commands[start:stop],
+                        tensions=None if tens is None else tens[start:stop],
+                        platform_loads=None if loads is None else loads[start:stop],
+                    )
+                )
+                spent = _time.perf_counter() - t_chunk
+                chunk = int(np.clip(chunk * _CHUNK_WALL_S / max(spent, 1e-6), 4, 100_000))
+                start = stop
+                if report is not None:
+                    report(stop * self.dt, steps * self.dt, _time.perf_counter() - wall0)
         self._pressures = commands[-1]
         if loads is not None:
             self._force, self._moment = loads[-1]
-        return out
+        return _joined(parts)
 
 
 def simulate_system(
@@ -743,6 +774,7 @@ def simulate_system(
     energy_tol: float = DEFAULT_ENERGY_TOL,
     on_unstable: str = "warn",
     stiffness_maps: Any = None,
+    progress: Callable[[float, float, float], None] | bool | None = None,
 ) -> SystemTrajectory:
     """Simulate a :class:`~softrod.System` until ``t_end`` (s or a string with units; the
     run takes ceil(t_end / dt) output steps, as :func:`~softrod.simulate`),
@@ -757,6 +789,8 @@ def simulate_system(
     :class:`~softrod.StiffnessMap` or None per rod, as :func:`~softrod.solve_system` takes
     it; sigma evaluated at every step's pressures): as :class:`SystemSimulation` (whose
     only scheme is BDF-alpha: the midpoint rule is refused by name, as for a held tip).
+    ``progress``: None (a bar in interactive sessions), True, False, or a callable called
+    after each chunk of steps as progress(t_done, t_end, wall_s) (:mod:`softrod.progress`).
     Returns a :class:`SystemTrajectory` from t = 0 (docs/dynamics.md, "Systems of
     rods")."""
 
@@ -778,8 +812,24 @@ def simulate_system(
         stiffness_maps=stiffness_maps,
     )
     start = sim._sim.snapshot()
-    out = sim._run(t_end, pressures, tensions, platform_force, platform_moment, "t_end")
+    out = sim._run(t_end, pressures, tensions, platform_force, platform_moment, "t_end", progress)
     return SystemTrajectory._concat(sim.system, [start, out])
+
+
+def _joined(parts: list[dict]) -> dict:
+    """The binding's samples of consecutive chunks as one: flat lists joined, per-rod lists
+    (lists of lists) joined rod by rod."""
+    if len(parts) == 1:
+        return parts[0]
+    out = {}
+    for key, first in parts[0].items():
+        if first and isinstance(first[0], list):
+            out[key] = [
+                list(chain.from_iterable(p[key][i] for p in parts)) for i in range(len(first))
+            ]
+        else:
+            out[key] = list(chain.from_iterable(p[key] for p in parts))
+    return out
 
 
 def started(
@@ -817,6 +867,7 @@ def tracked_run(
     platform_force: Any = None,
     platform_moment: Any = None,
     field: str = "t_end",
+    progress: Callable[[float, float, float], None] | bool | None = False,
 ) -> dict[str, np.ndarray]:
     """Run a fresh ``sim`` (before its first step) until ``t_end`` as
     :meth:`SystemSimulation.run` runs it, with the binding's ``markers`` and the
@@ -829,7 +880,7 @@ def tracked_run(
     if params:
         sim._sim.track_sensitivities([p.core() for p in params])
     start = sim._sim.snapshot()
-    run = sim._run(t_end, pressures, tensions, platform_force, platform_moment, field)
+    run = sim._run(t_end, pressures, tensions, platform_force, platform_moment, field, progress)
     n_par, n_mk = len(params), len(markers)
     time = np.concatenate([np.asarray(start["time"]), np.asarray(run["time"])], dtype=float)
     k = time.size

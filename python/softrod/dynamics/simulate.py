@@ -1167,6 +1167,7 @@ def tracked_trajectory(
     markers: Sequence[tuple[float, list[float]]] = (),
     tol: float = 1e-9,
     max_iter: int = 25,
+    progress: Callable[[float, float, float], None] | bool | None = False,
 ) -> dict[str, np.ndarray]:
     """The tip trajectory of ``design`` under ``schedule`` from rest in equilibrium (BDF-alpha,
     fixed steps ``dt``) and its exact derivatives with respect to ``params`` ((kind,
@@ -1180,7 +1181,9 @@ def tracked_trajectory(
     the cross-section frame) are read at every step (at a node the node's pose, between
     nodes the collocation's continuous extension, docs/dynamics.md "Markers on the moving
     rod"), with their exact derivatives. ``params`` may be empty: the run without
-    sensitivities. ``tol``, ``max_iter``: each step's Newton settings (:class:`Simulation`).
+    sensitivities. ``tol``, ``max_iter``: each step's Newton settings (:class:`Simulation`);
+    ``progress`` as :func:`simulate`'s (default False: none; the steps run in chunks of about
+    0.2 s of work either way).
 
     Returns {"time" (k,), "tip_position" (k, 3), and with markers "marker_position" (k, K,
     3); with params "d_tip_position" (k, 3, P) and with markers "d_marker_position" (k, K,
@@ -1212,11 +1215,31 @@ def tracked_trajectory(
     table = None
     if schedule is not None and schedule.kind in ("linear", "step"):
         table = (schedule.times.tolist(), schedule.pressures.tolist(), schedule.kind == "step")
-    times = dt * np.arange(1, n + 1)
-    commands = np.ascontiguousarray(
-        np.zeros((n, 0)) if schedule is None else schedule.sample(times)
-    )
-    rows = None if tensions is None else np.ascontiguousarray(tensions[1:], dtype=float)
-    rest = sim._sim.run(commands, np.ones(n, dtype=np.uint8), False, None, table, rows)
+    parts = [first]
+    wall0 = _time.perf_counter()
+    start, chunk = 0, 32
+    with reporter(progress, "trajectory sensitivities", t_end, simulated_time) as report:
+        while start < n:
+            stop = min(n, start + chunk)
+            t_chunk = _time.perf_counter()
+            times = dt * np.arange(start + 1, stop + 1)
+            commands = np.zeros((times.size, 0)) if schedule is None else schedule.sample(times)
+            rows = None if tensions is None else tensions[start + 1 : stop + 1]
+            parts.append(
+                sim._sim.run(
+                    np.ascontiguousarray(commands),
+                    np.ones(stop - start, dtype=np.uint8),
+                    False,
+                    None,
+                    table,
+                    None if rows is None else np.ascontiguousarray(rows, dtype=float),
+                )
+            )
+            # Chunks of about _CHUNK_WALL_S of work, as Simulation.run's.
+            spent = _time.perf_counter() - t_chunk
+            chunk = int(np.clip(chunk * _CHUNK_WALL_S / max(spent, 1e-6), 8, 100_000))
+            start = stop
+            if report is not None:
+                report(stop * dt, t_end, _time.perf_counter() - wall0)
     keys = ["time", "tip_position", "marker_position", "d_tip_position", "d_marker_position"]
-    return {key: np.concatenate([first[key], rest[key]]) for key in keys if key in rest}
+    return {key: np.concatenate([p[key] for p in parts]) for key in keys if key in parts[-1]}
