@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import math
 import os
 import pickle
 import select
@@ -556,6 +557,174 @@ def target_api(payload) -> str:
     for part in payload["function"].split("."):
         fn = getattr(fn, part)
     fn(*payload.get("args", ()), **payload.get("kwargs", {}))
+    return ""
+
+
+def _finite_arrays(out: dict, what: str) -> str:
+    """'' if every array in ``out`` is finite, else the first that is not."""
+    for key, value in out.items():
+        a = np.asarray(value)
+        if a.dtype.kind == "f" and not np.all(np.isfinite(a)):
+            return f"{what}[{key!r}] is not finite"
+    return ""
+
+
+def target_sensitivities(payload) -> str:
+    """trajectory_sensitivities or system_trajectory_sensitivities with these arguments:
+    every returned array finite, one derivative per named parameter at every sample."""
+    import softrod
+
+    fn = getattr(softrod, payload["function"])
+    reports: list = []
+    progress = {
+        # A callback of the right arity records the reports; one of the wrong arity must be
+        # refused by name before the run.
+        "three": lambda done, total, wall: reports.append((done, total)),
+        "one": lambda done: None,
+        "none": None,
+        "false": False,
+    }[payload["progress"]]
+    out = fn(*payload["args"], **payload["kwargs"], progress=progress)
+    if payload["progress"] == "one":
+        return "a progress callback of one argument was accepted"
+    done = [r[0] for r in reports]
+    # The reports rise to t_end (the last within round-off of the steps' sum).
+    if reports and not (np.all(np.diff(done) > 0) and math.isclose(*reports[-1], rel_tol=1e-9)):
+        return f"the progress reports {reports} do not rise to t_end"
+    problem = _finite_arrays(out, payload["function"])
+    if problem:
+        return problem
+    n, k = len(out["time"]), len(out["params"])
+    for key, value in out.items():
+        if key.startswith("d_") and (value.shape[0] != n or value.shape[-1] != k):
+            return f"{key} has shape {value.shape} for {n} samples and {k} parameters"
+    if not np.all(np.diff(out["time"]) > 0):
+        return "the samples' times do not increase"
+    return ""
+
+
+def target_control(payload) -> str:
+    """The control entry points (solve_inverse, InverseProblem.solve, linearise,
+    TargetPath, TrackingController) with these arguments: a reached inverse solution is a
+    valid static equilibrium, a linearisation's matrices are finite."""
+    import softrod
+
+    function = payload["function"]
+    args, kwargs = payload["args"], payload["kwargs"]
+    if function == "InverseProblem.solve":
+        problem = softrod.InverseProblem(*args, **kwargs)
+        out = problem.solve(*payload["solve_args"], **payload["solve_kwargs"])
+    else:
+        out = getattr(softrod, function)(*args, **kwargs)
+    if isinstance(out, softrod.InverseSolution):
+        return _check_solution(out.statics()) if out.reached else ""
+    if isinstance(out, softrod.LinearSystem):
+        for name in ("mass", "stiffness", "damping", "input"):
+            if not np.all(np.isfinite(np.asarray(getattr(out, name)))):
+                return f"the linearisation's {name} matrix is not finite"
+    return ""
+
+
+# --- methods of the public classes -----------------------------------------------------------
+
+SPA = "spa_three_chamber_130mm"
+TWO = "two_spa_platform"
+_OBJECTS: dict = {}
+
+
+def _spa_data(rows: int):
+    import softrod
+
+    return softrod.load_dataset("spa130_synthetic").subset(range(rows))
+
+
+def _build(kind: str):
+    """One small instance of a public class (a few seconds at most), built once per worker."""
+    import softrod
+
+    p = [2e4, 0.0, 0.0]
+    two = [[1e4, 0.0, 0.0], [0.0, 0.0, 0.0]]
+    if kind == "StaticSolution":
+        return softrod.solve_statics(SPA, p)
+    if kind == "BatchSolution":
+        return softrod.solve_statics_batch(SPA, [[0.0] * 3, p])
+    if kind == "LinearSystem":
+        return softrod.linearise(SPA, p, nodes=3)
+    if kind == "Trajectory":
+        return softrod.simulate(SPA, p, "4 ms", dt="2 ms", markers=[(0.065, [0, 0, 0])])
+    if kind == "InverseSolution":
+        return softrod.solve_inverse(SPA, softrod.solve_statics(SPA, p).tip_position)
+    if kind == "InverseProblem":
+        return softrod.InverseProblem(SPA)
+    if kind == "Design":
+        return softrod.load_design(SPA)
+    if kind == "SystemSolution":
+        return softrod.solve_system(TWO, two)
+    if kind == "SystemBatchSolution":
+        return softrod.solve_system_batch(TWO, [two])
+    if kind == "SystemTrajectory":
+        return softrod.simulate_system(TWO, two, "4 ms", dt="2 ms")
+    if kind == "CalibrationResult":
+        return softrod.calibrate(SPA, _spa_data(6), "c_b", progress=False)
+    if kind == "StiffnessMap":
+        return softrod.StiffnessMap.from_table([[0, 1e4]] * 3, np.ones((2, 2, 2, 3)))
+    if kind == "Dataset":
+        return _spa_data(6)
+    if kind == "PressureSchedule":
+        return softrod.PressureSchedule.piecewise_linear([0.0, 0.01], [[0.0] * 3, p])
+    if kind == "Simulation":
+        return softrod.Simulation(SPA, p, dt="2 ms")
+    if kind == "SystemSimulation":
+        return softrod.SystemSimulation(TWO, two, dt="2 ms")
+    if kind == "TrackingController":
+        path = softrod.TargetPath([0.0, 0.01], [softrod.solve_statics(SPA, p).tip_position] * 2)
+        return softrod.TrackingController(SPA, path, rate=200.0)
+    if kind == "Workspace":
+        return softrod.workspace(SPA, samples=3)
+    if kind == "StiffnessIdentification":
+        return softrod.identify_stiffness(SPA, _spa_data(4))
+    if kind == "HybridStiffnessModel":
+        ident = softrod.identify_stiffness(SPA, _spa_data(60))
+        return softrod.fit_stiffness_map(ident, hidden=(4,), max_iter=200, progress=False)
+    if kind == "SystemCalibrationResult":
+        system = softrod.load_system(TWO)
+        data = softrod.synthesize_system_dataset(system, [two, [[0.0] * 3, [2e4, 0.0, 0.0]]])
+        return softrod.calibrate_system(system, data, ["platform_mass"], progress=False)
+    raise KeyError(kind)
+
+
+def _instance(kind: str):
+    if kind not in _OBJECTS:
+        _OBJECTS[kind] = _build(kind)
+    obj = _OBJECTS[kind]
+    # A case may move a simulation on: each starts from the same state.
+    return obj.copy() if hasattr(obj, "copy") and kind.endswith("Simulation") else obj
+
+
+def target_method(payload) -> str:
+    """A public method of a public class (``kind``) with hostile values for ``params`` (the
+    method's other required arguments hostile too, the optional ones at their defaults),
+    in an empty folder (a method that writes writes there)."""
+    import inspect
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import softrod
+
+    kind, name = payload["kind"], payload["method"]
+    cls = getattr(softrod, kind)
+    static = isinstance(inspect.getattr_static(cls, name), (staticmethod, classmethod))
+    target = getattr(cls if static else _instance(kind), name)
+    cwd = os.getcwd()
+    with tempfile.TemporaryDirectory() as folder:
+        os.chdir(folder)
+        try:
+            target(**payload["kwargs"])
+        finally:
+            os.chdir(cwd)
+            plt.close("all")
     return ""
 
 

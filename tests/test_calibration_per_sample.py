@@ -8,6 +8,8 @@ import math
 import numpy as np
 import pytest
 from conftest import DELETE, with_entries
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from softrod import (
     Dataset,
     InputError,
@@ -309,6 +311,40 @@ def test_fit_needs_enough_identified_samples(design, noisy):
     with pytest.raises(InputError, match="needs at least 10") as err:
         fit_stiffness_map(ident)
     assert err.value.field.startswith("identification.")
+
+
+_HOSTILE = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(2**70), 2**70),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=6),
+    st.lists(st.one_of(st.integers(-3, 10**12), st.floats(), st.text(max_size=3)), max_size=20),
+    st.just(np.zeros((2, 2))),
+    st.just({"a": 1}),
+    st.just(1j),
+)
+
+
+@pytest.fixture(scope="module")
+def few(design, noisy):
+    """An identification of too few samples to train on: every call ends in an error."""
+    return identify_stiffness(design, noisy.subset(np.arange(8)))
+
+
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    key=st.sampled_from(["hidden", "activation", "alpha", "test_fraction", "seed", "max_iter"]),
+    value=_HOSTILE,
+)
+def test_any_network_setting_is_checked_before_training(few, key, value):
+    # Hostile network settings (a layer of 10**12 neurons, an array as the activation) are
+    # refused by name before any network is built; settings that pass end at the sample count.
+    with pytest.raises(InputError) as err:
+        fit_stiffness_map(few, **{key: value})
+    assert err.value.field.split("[")[0] in (key, "identification.sigma_ext", "identification")
 
 
 # --------------------------------------------------------------------------- bad inputs

@@ -201,6 +201,47 @@ def test_bad_inputs_are_named(spa):
         solve_inverse(spa, [0, 0, -0.13], pressure_bounds=BOUNDS, orientation=np.ones((3, 3)))
     with pytest.raises(InputError, match="-1 atm"):
         solve_inverse(spa, [0, 0, -0.13], pressure_bounds=(-2e5, 0))
+    # Values of the wrong type are named too (they once escaped as ValueError or TypeError).
+    target = [0, 0, -0.13]
+    wrong = [
+        ({"initial": "x"}, "initial"),
+        ({"initial": {"a": 1}}, "initial"),
+        ({"orientation": "x"}, "orientation"),
+        ({"orientation": 1j}, "orientation"),
+        ({"regularisation": np.zeros((2, 2))}, "regularisation"),
+    ]
+    for kwargs, field in wrong:
+        with pytest.raises(InputError) as err:
+            solve_inverse(spa, target, pressure_bounds=BOUNDS, **kwargs)
+        assert err.value.field == field, kwargs
+    with pytest.raises(InputError) as err:
+        softrod.InverseProblem(spa, pressure_bounds=BOUNDS, orientation=np.zeros((2, 2)))
+    assert err.value.field == "orientation"
+
+
+def test_bad_linearisation_starts_and_paths_are_named(spa):
+    sol = solve_statics(spa, [20e3, 0, 0])
+    with pytest.raises(InputError) as err:
+        softrod.linearise(spa, initial=3)
+    assert err.value.field == "initial"
+    # An equilibrium of another design would linearise the wrong rod.
+    with pytest.raises(InputError, match="another design") as err:
+        softrod.linearise("pam_arm_220mm", initial=sol)
+    assert err.value.field == "initial"
+    # What the equilibrium fixes is not given again (it would be ignored).
+    for key, value in (("pressures", [0, 0, 0]), ("tip_force", [0, 0, 0.1])):
+        with pytest.raises(InputError, match="fixes") as err:
+            softrod.linearise(spa, initial=sol, **{key: value})
+        assert err.value.field == key
+    assert softrod.linearise(sol, nodes=3).stiffness.shape[0] > 0
+    for time, position, field in (
+        ("x", [[0, 0, 0]], "path.time"),
+        ([0.0], "y", "path.position"),
+        ([0.0, 1j], [[0, 0, 0]] * 2, "path.time"),
+    ):
+        with pytest.raises(InputError) as err:
+            softrod.TargetPath(time, position)
+        assert err.value.field == field
 
 
 def test_orientation_target_and_point_along_the_rod(spa):
@@ -351,6 +392,21 @@ def test_run_closed_loop_checks_its_arguments(spa):
         softrod.run_closed_loop(spa, lambda m: [0, 0, 0], 0.1, rate=100, dt=3e-3)
     with pytest.raises(InputError, match="controller"):
         softrod.run_closed_loop(spa, lambda m: [0, 0], 0.02, rate=100)
+    zero = lambda m: [0, 0, 0]  # noqa: E731
+    for kwargs, field in (
+        # 1e300 s would run for ever: refused by its step count before the first step.
+        ({"t_end": 1e300}, "t_end"),
+        ({"pressures": "x"}, "pressures"),
+        ({"progress": 3}, "progress"),
+        ({"progress": lambda t: None}, "progress"),  # it is called with (t_done, t_end)
+    ):
+        args = {"t_end": 0.02, **kwargs}
+        with pytest.raises(InputError) as err:
+            softrod.run_closed_loop(spa, zero, args.pop("t_end"), rate=100, **args)
+        assert err.value.field == field, kwargs
+    with pytest.raises(InputError, match="3 finite pressures") as err:
+        softrod.run_closed_loop(spa, lambda m: "x", 0.02, rate=100)
+    assert err.value.field == "controller"
     # A controller sees the state at each sample.
     seen = []
 

@@ -466,6 +466,33 @@ def test_bad_system_files_name_the_field(tmp_path, text, field):
     assert exc.value.field == field
 
 
+@pytest.mark.parametrize("value", [None, 3, 1.5, ["two_spa_platform"], b"two_spa_platform"])
+def test_a_system_that_is_neither_a_system_nor_a_name_is_named(value):
+    # Every entry taking a system (solve, simulate, sensitivities) goes through load_system.
+    for call in (
+        lambda: softrod.load_system(value),
+        lambda: solve_system(value, [[0, 0, 0]] * 2),
+        lambda: softrod.simulate_system(value, [[0, 0, 0]] * 2, 0.004),
+    ):
+        with pytest.raises(DesignError) as exc:
+            call()
+        assert exc.value.field == "system"
+
+
+def test_bad_system_figure_arguments_are_named(tmp_path):
+    sol = solve_system("two_spa_platform", [[10e3, 0, 0], [0, 0, 0]])
+    for kwargs, field in (
+        ({"path": True}, "path"),
+        ({"path": 3}, "path"),
+        ({"labels": 3}, "labels"),
+        ({"labels": ["a", "b"]}, "labels"),
+        ({"labels": {"a": 1}}, "labels"),
+    ):
+        with pytest.raises(softrod.InputError) as exc:
+            softrod.plot_system(sol, **kwargs)
+        assert exc.value.field == field
+
+
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     dx=st.floats(-0.01, 0.01),

@@ -15,6 +15,7 @@ from softrod import (
     solve_statics,
     solve_statics_batch,
 )
+from softrod.plotting import plot_shape
 
 pytestmark = pytest.mark.fast  # the whole module runs in seconds
 
@@ -143,7 +144,30 @@ INPUT_CASES = [
     ("options-tol", lambda d: SolverOptions(tol=2.0), "tol"),
     ("batch-shape", lambda d: solve_statics_batch(d, np.zeros((4, 2))), "pressures"),
     ("batch-threads", lambda d: solve_statics_batch(d, np.zeros((4, 3)), threads=-1), "threads"),
+    # Methods of results and designs (values of the wrong type once escaped as TypeError,
+    # ValueError or OverflowError from inside numpy or pathlib).
+    ("jacobian-params", lambda d: _sol(d).jacobian(params=np.zeros((2, 2))), "params"),
+    ("modes-count-zero", lambda d: _lin(d).modes(0), "count"),
+    ("modes-count-text", lambda d: _lin(d).modes("2"), "count"),
+    ("modes-count-inf", lambda d: _lin(d).modes(math.inf), "count"),
+    ("response-omega-text", lambda d: _lin(d).frequency_response("x"), "omega"),
+    ("response-omega-huge", lambda d: _lin(d).frequency_response(1e300), "omega"),
+    ("save-path-none", lambda d: d.save(None), "path"),
+    ("save-path-bytes", lambda d: d.save(b"x.toml"), "path"),
+    ("toml-path-number", lambda d: d.toml_text(3), "path"),
+    ("map-path-number", lambda d: d.with_stiffness_map(3), "path"),
+    ("obstacles-number", lambda d: d.with_obstacles(3), "obstacles"),
+    ("shape-title", lambda d: plot_shape(_sol(d), title=np.zeros((2, 2))), "title"),
+    ("table-path", lambda d: softrod.io.check_table_path(3), "path"),
 ]
+
+
+def _sol(design):
+    return solve_statics(design, [20e3, 0.0, 0.0])
+
+
+def _lin(design):
+    return softrod.linearise(design, [20e3, 0.0, 0.0], nodes=3)
 
 
 @pytest.mark.parametrize(
@@ -182,3 +206,46 @@ def test_convergence_failure_without_check_returns_nan_solution():
     for arr in (sol.position, sol.rotation, sol.force, sol.moment, sol.v, sol.u):
         assert np.all(np.isnan(arr))
     assert np.all(np.isnan(sol.tip_position))
+
+
+# Methods of datasets, schedules, maps and system runs: an argument of the wrong type is an
+# InputError naming it (these once escaped as TypeError or ValueError).
+METHOD_CASES = [
+    ("rows-text-number", lambda: _data().rows_text(3), "rows"),
+    ("rows-text-names", lambda: _data().rows_text(["a"]), "rows[0]"),
+    ("rows-text-beyond", lambda: _data().rows_text([0, 10**6]), "rows[1]"),
+    ("split-test-float", lambda: _data().split(test=1.5), "test"),
+    (
+        "schedule-times-text",
+        lambda: softrod.PressureSchedule.constant([0.0]).to_frame("x"),
+        "times",
+    ),
+    ("map-networks-number", lambda: softrod.StiffnessMap.from_networks(3), "networks"),
+    ("system-concat-number", lambda: softrod.SystemTrajectory.concat(3), "parts"),
+    ("reference-time-text", lambda: _tracker().reference("x"), "t"),
+    ("errors-not-a-trajectory", lambda: _tracker().errors(3), "trajectory"),
+    ("distance-text", lambda: _workspace().distance_to("x"), "point"),
+    ("workspace-figure-name", lambda: _workspace().plot(path=""), "path"),
+]
+
+
+def _tracker():
+    tip = solve_statics(SPA, [20e3, 0.0, 0.0]).tip_position
+    return softrod.TrackingController(SPA, softrod.TargetPath([0.0, 1.0], [tip, tip]), rate=100.0)
+
+
+def _workspace():
+    return softrod.workspace(SPA, samples=3)
+
+
+def _data():
+    return softrod.load_dataset("spa130_synthetic").subset(range(4))
+
+
+@pytest.mark.parametrize(
+    ("call", "field"), [c[1:] for c in METHOD_CASES], ids=[c[0] for c in METHOD_CASES]
+)
+def test_bad_method_arguments_raise_input_error(call, field):
+    with pytest.raises(InputError) as info:
+        call()
+    assert info.value.field == field

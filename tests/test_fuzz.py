@@ -696,6 +696,228 @@ def marker_cases(draw):
     return ("markers", {"how": how, "held": draw(st.booleans()), "markers": draw(markers)})
 
 
+PARAMS = st.one_of(
+    st.sampled_from(["c_b", "c_b,c_e", ["c_b", "density"], "E[body]", "c_b,c_b", "", [], "x"]),
+    st.sampled_from(["yaw", ["c_b", "base_x"], "c_b[", "E[nope]", ["c_b"] * 40]),
+    hostile(),
+)
+T_END = st.one_of(st.sampled_from(["4 ms", 0.004, "6 ms", "0 s", -1, "1 kPa"]), hostile())
+
+
+@st.composite
+def sensitivity_cases(draw):
+    """trajectory_sensitivities (the actuator, the tendon finger) and
+    system_trajectory_sensitivities (two actuators on a platform): short runs (two or three
+    steps) with hostile parameter names, times, steps, markers, inputs and options."""
+    kind = draw(st.sampled_from(["rod", "tendon", "system"]))
+    progress = draw(st.sampled_from(["three", "one", "none", "false"]))
+    if kind == "system":
+        args = [
+            "two_spa_platform",
+            draw(st.one_of(st.just([[1e4, 0, 0], [0, 0, 0]]), st.lists(arrays(3), max_size=3))),
+        ]
+        choices = {
+            "markers": st.one_of(
+                st.sampled_from([[(0, 0.065, [0, 0, 0])], [(1, "130 mm", ["2 mm", 0, 0])]]),
+                st.lists(st.tuples(hostile(), hostile(), hostile()), max_size=2),
+                hostile(),
+            ),
+            "tensions": hostile(),
+            "platform_force": st.one_of(arrays(3), hostile()),
+            "platform_moment": st.one_of(arrays(3), hostile()),
+            "platform_inertia": st.one_of(arrays(3), hostile()),
+            "alpha": st.one_of(st.sampled_from([-0.5, 0.0, 0.1, -0.6]), hostile()),
+            "energy_tol": hostile(),
+            "on_unstable": st.one_of(st.sampled_from(["raise", "warn", "x"]), hostile()),
+            "stiffness_maps": hostile(),
+        }
+        function = "system_trajectory_sensitivities"
+    else:
+        design, n, n_tendons = (
+            ("spa_three_chamber_130mm", 3, 0) if kind == "rod" else ("prebent_tendon_finger", 1, 1)
+        )
+        args = [design, draw(st.one_of(plausible_pressures(n), arrays(n)))]
+        choices = {
+            "markers": st.one_of(
+                st.sampled_from([[(0.05, [0, 0, 0])], [("65 mm", ["2 mm", 0, 0])], [0.05]]),
+                st.lists(st.tuples(hostile(), hostile()), max_size=2),
+                hostile(),
+            ),
+            "tensions": st.one_of(plausible_tensions(n_tendons), arrays(n_tendons), hostile()),
+        }
+        function = "trajectory_sensitivities"
+    choices.update(
+        {
+            "dt": st.sampled_from(STEPS),
+            "tol": st.one_of(st.sampled_from([1e-9, 0.5, 0.0]), hostile()),
+            "max_iter": st.one_of(st.sampled_from([25, 1, 0]), hostile()),
+        }
+    )
+    kwargs = _mutate(draw, {"dt": "2 ms"}, choices)
+    args += [draw(T_END), draw(PARAMS)]
+    payload = {"function": function, "args": tuple(args), "kwargs": kwargs, "progress": progress}
+    return ("sensitivities", payload)
+
+
+@st.composite
+def control_cases(draw):
+    """The control entry points on the actuator (three channels) and Till's tendon robot
+    (four tendons): inverse statics one-off and warm, linearisation, target paths and
+    tracking controllers, with hostile targets, bounds, weights, starts and options."""
+    design, n, n_tendons = draw(
+        st.sampled_from([("spa_three_chamber_130mm", 3, 0), ("till_tendon_robot", 0, 4)])
+    )
+    target = st.one_of(
+        st.sampled_from(
+            [[0.01, 0.0, -0.125], "10,0,-125 mm", ["10 mm", 0, "-125 mm"], [0, 0, 1.0]]
+        ),
+        arrays(3),
+        hostile(),
+    )
+    if design == "till_tendon_robot":
+        target = st.one_of(st.just([0.3, 0.1, 0.0]), target)
+    inverse = {
+        "pressure_bounds": st.one_of(st.sampled_from([[0, 7e4], "0..70 kPa"]), hostile()),
+        "tension_bounds": st.one_of(st.sampled_from([[0, 20.0], "0..20 N"]), hostile()),
+        "point": st.one_of(st.sampled_from(["65 mm", 0.0, "1 m", -1]), hostile()),
+        "weights": st.one_of(
+            st.sampled_from([{"position": 1.0}, {"position": (1, 1, 0)}, {"x": 1}]), hostile()
+        ),
+        "regularisation": st.one_of(
+            st.sampled_from(["least_pressure", "previous", "x"]), hostile()
+        ),
+        "tip_force": st.one_of(arrays(3), hostile()),
+        "tol": st.one_of(st.sampled_from([1e-10, 0.2, 0]), hostile()),
+        "max_iter": st.one_of(st.sampled_from([100, 1, 0]), hostile()),
+        "on_unstable": st.one_of(st.sampled_from(["raise", "warn", "x"]), hostile()),
+    }
+    which = draw(st.integers(0, 3))
+    if which == 0:
+        kwargs = _mutate(
+            draw,
+            {},
+            {
+                **inverse,
+                "initial": st.one_of(arrays(n + n_tendons), hostile()),
+                "orientation": st.one_of(
+                    st.sampled_from([np.eye(3), np.zeros((3, 3)), np.eye(2)]), hostile()
+                ),
+            },
+        )
+        payload = {"function": "solve_inverse", "args": (design, draw(target)), "kwargs": kwargs}
+    elif which == 1:
+        kwargs = _mutate(draw, {}, {**inverse, "orientation": st.one_of(st.booleans(), hostile())})
+        payload = {
+            "function": "InverseProblem.solve",
+            "args": (design,),
+            "kwargs": kwargs,
+            "solve_args": (draw(target),),
+            "solve_kwargs": _mutate(
+                draw,
+                {},
+                {
+                    "initial": st.one_of(arrays(n + n_tendons), hostile()),
+                    "orientation": st.one_of(st.just(np.eye(3)), hostile()),
+                },
+            ),
+        }
+    elif which == 2:
+        kwargs = _mutate(
+            draw,
+            {},
+            {
+                "nodes": st.one_of(st.sampled_from([1, 6, 201, 0]), hostile()),
+                "tip_force": st.one_of(arrays(3), hostile()),
+                "tip_moment": st.one_of(arrays(3), hostile()),
+                "initial": hostile(),
+                "tensions": st.one_of(arrays(n_tendons), hostile()),
+            },
+        )
+        kwargs.setdefault("nodes", 4)
+        pressures = draw(st.one_of(plausible_pressures(n), arrays(n), st.none()))
+        payload = {"function": "linearise", "args": (design, pressures), "kwargs": kwargs}
+    else:
+        times = st.one_of(st.sampled_from([[0.0, 0.01], [0.0], [0.01, 0.0]]), arrays(2), hostile())
+        positions = st.one_of(
+            st.just([[0.01, 0.0, -0.125]] * 2), st.lists(arrays(3), max_size=3), hostile()
+        )
+        payload = {
+            "function": "TargetPath",
+            "args": (draw(times), draw(positions)),
+            "kwargs": {},
+        }
+    return ("control", payload)
+
+
+# Public classes whose methods the "method" target calls (tests/fuzzing.py builds one small
+# instance of each); methods that open a server or a browser are left to the viewer target.
+METHOD_CLASSES = [
+    "StaticSolution",
+    "BatchSolution",
+    "LinearSystem",
+    "Trajectory",
+    "InverseSolution",
+    "InverseProblem",
+    "Design",
+    "SystemSolution",
+    "SystemBatchSolution",
+    "SystemTrajectory",
+    "CalibrationResult",
+    "StiffnessMap",
+    "Dataset",
+    "PressureSchedule",
+    "Simulation",
+    "SystemSimulation",
+    "TrackingController",
+    "Workspace",
+    "StiffnessIdentification",
+    "HybridStiffnessModel",
+    "SystemCalibrationResult",
+]
+
+
+def _public_methods() -> list[tuple[str, str, tuple[str, ...], tuple[str, ...]]]:
+    """(class, method, required parameters, optional parameters) of every public method
+    that takes arguments, read from the classes (a method added later is fuzzed too)."""
+    import inspect
+
+    import softrod
+
+    out = []
+    for kind in METHOD_CLASSES:
+        cls = getattr(softrod, kind)
+        for name, member in inspect.getmembers(cls):
+            if name.startswith("_") or isinstance(inspect.getattr_static(cls, name), property):
+                continue
+            if not callable(member) or inspect.isclass(member):
+                continue
+            params = [
+                p
+                for p in inspect.signature(member).parameters.values()
+                if p.name not in ("self", "cls")
+                and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+            ]
+            required = tuple(p.name for p in params if p.default is p.empty)
+            optional = tuple(p.name for p in params if p.default is not p.empty)
+            if required or optional:
+                out.append((kind, name, required, optional))
+    return out
+
+
+PUBLIC_METHODS = _public_methods()
+
+
+@st.composite
+def method_cases(draw):
+    """A public method of a public class with hostile arguments: every required one and,
+    usually, one optional one."""
+    kind, name, required, optional = draw(st.sampled_from(PUBLIC_METHODS))
+    kwargs = {p: draw(hostile()) for p in required}
+    if optional and draw(st.integers(0, 3)):
+        kwargs[draw(st.sampled_from(optional))] = draw(hostile())
+    return ("method", {"kind": kind, "method": name, "kwargs": kwargs})
+
+
 @st.composite
 def api_cases(draw):
     """Other public entry points with hostile arguments."""
@@ -1332,6 +1554,9 @@ CASES = {
     "trajectory_file": st.builds(lambda b: ("trajectory_file", b), trajectory_files()),
     "friction": friction_cases(),
     "viewer": viewer_cases(),
+    "sensitivities": sensitivity_cases(),
+    "control": control_cases(),
+    "method": method_cases(),
 }
 # Examples per target in the default run (each BATCH cases) and in --fuzz-long.
 EXAMPLES = {
@@ -1341,6 +1566,8 @@ EXAMPLES = {
     "fit": 1,
     "system_fit": 2,
     "trajectory_file": 1,
+    "sensitivities": 2,
+    "method": 6,
 }
 DEFAULT_EXAMPLES = 3
 LONG_FACTOR = 40

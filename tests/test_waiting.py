@@ -124,6 +124,19 @@ def test_progress_argument_is_checked():
         softrod.simulate("pam_arm_220mm", [0.0, 0.0, 0.0], 0.01, progress=1)
 
 
+def test_a_progress_callback_that_cannot_take_the_reports_is_refused_before_the_run():
+    # simulate reports (t_done, t_end, wall_s): a one-argument callback would fail with a
+    # TypeError at the first report, after the work; it is refused by name before.
+    calls = []
+    with pytest.raises(InputError, match="3 positional arguments") as err:
+        softrod.simulate("pam_arm_220mm", [0.0] * 3, 0.01, progress=lambda t: calls.append(t))
+    assert err.value.field == "progress" and not calls
+    # Defaults and *args take the three arguments: accepted.
+    for ok in (lambda a, b=0, c=0, d=0: calls.append(a), lambda *a: calls.append(a[0])):
+        softrod.simulate("pam_arm_220mm", [0.0] * 3, 0.01, dt=0.005, progress=ok)
+    assert len(calls) >= 2
+
+
 def test_default_progress_is_off_in_scripts_and_on_by_request(monkeypatch, capsys):
     monkeypatch.delenv("SOFTROD_PROGRESS", raising=False)
     with reporter(None, "x", 1.0, lambda d: (d, "")) as report:

@@ -218,6 +218,13 @@ def text(
     return value
 
 
+def figure_title(value: object) -> str | None:
+    """A figure's ``title``: None (the default title) or text."""
+    if value is not None and not isinstance(value, str):
+        raise fail("title", value, f"must be text or None, not {_type_name(value)}", InputError)
+    return value
+
+
 def choice(value: object, options, field: str, cls: type[DesignError] = InputError) -> str:
     """One of ``options`` (strings); anything else, including unhashable values, is an error."""
     if not isinstance(value, str) or value not in options:

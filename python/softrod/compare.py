@@ -393,6 +393,7 @@ def plot_comparison(df, *, experiments: str | Sequence[str] | None = None, title
     each model has its own colour, marker and line style (M1 o, M2 +, M3 x as in the paper).
     ``experiments`` picks and orders the rows (default: those in ``df``).
     """
+    title = V.figure_title(title)
     import matplotlib as mpl
     import matplotlib.pyplot as plt
 

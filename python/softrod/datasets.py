@@ -188,12 +188,22 @@ def _real_or_nan(raw, field: str, what: str) -> np.ndarray:
     """A float array of real numbers where NaN marks a value not measured (a marker not seen,
     a reaction component not measured); any other bad entry is refused as
     :func:`V.real_array` refuses it."""
-    if isinstance(raw, np.ndarray) and raw.dtype.kind == "f":
+    if type(raw) is np.ndarray and raw.dtype.kind == "f":  # (a masked array: refused below)
         unmeasured = np.isnan(raw)
         a = V.real_array(np.where(unmeasured, 0.0, raw), field, what=what)
         a[unmeasured] = np.nan
         return a
     return V.real_array(raw, field, what=what)
+
+
+def _row_indices(rows: object, n: int) -> list[int]:
+    """0-based row indices of a dataset of ``n`` rows (an iterable of integers), each named
+    by its position when it is not one."""
+    if isinstance(rows, (str, bytes, Mapping)) or not isinstance(rows, Iterable):
+        raise _fail("rows", type(rows).__name__, "must be a list of 0-based row indices")
+    return [
+        V.integer(r, f"rows[{i}]", minimum=0, maximum=max(n - 1, 0)) for i, r in enumerate(rows)
+    ]
 
 
 def _readonly(a: np.ndarray | None) -> np.ndarray | None:
@@ -485,7 +495,7 @@ class Dataset:
     def rows_text(self, rows: Iterable[int]) -> str:
         """Rows (0-based indices) as a message names them: by file line for a CSV source
         ("d.csv lines 3-5, 9"), by 0-based row for a Parquet source, else by index."""
-        rows = sorted(int(r) for r in rows)
+        rows = sorted(_row_indices(rows, len(self)))
         many = len(rows) > 1
         if self.source is not None and self.first_line is not None:
             noun = "lines" if many else "line"
@@ -617,7 +627,12 @@ class Dataset:
         labels = getattr(self, by)
         if labels is None:
             raise _fail("by", by, f"the dataset has no {by} column to split by")
-        ids = [test] if isinstance(test, (str, int, np.integer)) else list(test)
+        if isinstance(test, (str, int, np.integer)) and not isinstance(test, (bool, np.bool_)):
+            ids = [test]
+        elif isinstance(test, (list, tuple, set, frozenset, np.ndarray, range)):
+            ids = list(np.asarray(test).ravel()) if isinstance(test, np.ndarray) else list(test)
+        else:
+            raise _fail("test", type(test).__name__, f"must be a {by} id or a list of them")
         if not ids:
             raise _fail("test", test, f"name at least one {by} id")
         known = self.experiments if by == "experiment" else tuple(dict.fromkeys(labels.tolist()))

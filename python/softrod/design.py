@@ -28,7 +28,8 @@ from . import _core
 from . import _validate as V
 from ._frozen import freeze
 from .constraints import from_tip_table
-from .errors import DesignError, design_error
+from .errors import DesignError, InputError, design_error
+from .io import as_path
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -1206,6 +1207,13 @@ class Design:
         """A copy with the rigid obstacles ``obstacles`` (tables with the keys of the design
         file's ``[[obstacles]]``, units as strings; docs/contact.md) in place of the file's;
         ``[]`` removes them. Validated like a new file."""
+        if not isinstance(obstacles, (list, tuple)):
+            raise design_error(
+                "obstacles",
+                type(obstacles).__name__,
+                "must be a list of obstacle tables ([] for none)",
+                InputError,
+            )
         return self.replace({"obstacles": list(obstacles)})
 
     def with_stiffness_map(self, path: str | Path | None) -> Design:
@@ -1216,7 +1224,7 @@ class Design:
         if path is None:
             doc.pop("stiffness_map", None)
         else:
-            doc["stiffness_map"] = {"file": str(Path(path).resolve())}
+            doc["stiffness_map"] = {"file": str(as_path(path).resolve())}
         return _build(doc, self.source)
 
     def save(self, path: str | Path) -> Path:
@@ -1230,7 +1238,7 @@ class Design:
         """
         from .io import atomic_path
 
-        path = Path(path)
+        path = as_path(path)
         text = self.toml_text(path)
         with atomic_path(path) as tmp:
             tmp.write_text(text, encoding="utf-8")
@@ -1241,9 +1249,7 @@ class Design:
         reference is written relative to its folder)."""
         import tomli_w
 
-        from .errors import InputError
-
-        path = Path(path)
+        path = as_path(path)
         if path.suffix.lower() != ".toml":
             raise design_error("path", str(path), "a design file must end in .toml", InputError)
         doc = _with_units(_plain(self.document))

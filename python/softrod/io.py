@@ -22,7 +22,7 @@ import logging
 import os
 import re
 import secrets
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 from .errors import InputError, design_error
@@ -35,13 +35,28 @@ _MAX_NAME = 255 - 40  # room for the temporary prefix within a file name's 255 b
 logger = logging.getLogger(__name__)
 
 
+def as_path(path: object, field: str = "path") -> Path:
+    """``path`` (text or an os.PathLike) as a Path; InputError naming ``field`` for anything
+    else (None, a number, bytes, a list), before any work."""
+    if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)):
+        raise design_error(
+            field,
+            type(path).__name__,
+            "must be a file name: text or a path (pathlib.Path)",
+            InputError,
+        )
+    if isinstance(path, str) and (not path.strip() or "\0" in path):
+        raise design_error(field, path, "must be a non-empty file name", InputError)
+    return Path(path)
+
+
 def check_table_path(path: str | os.PathLike) -> Path:
     """The path as a Path if its suffix is a table format softrod writes and its folder
     exists and is writable, else InputError.
 
     Call it before a long computation so a typo in the output name fails at once.
     """
-    path = Path(path)
+    path = as_path(path)
     if path.suffix.lower() not in TABLE_SUFFIXES:
         raise design_error(
             "path",
@@ -83,7 +98,7 @@ def check_target(path: str | os.PathLike) -> Path:
     """``path`` as a Path if a file can be written there: its folder exists and is writable,
     and the path is not a folder. Otherwise InputError naming the target (not a temporary
     file), raised before any work."""
-    path = Path(path)
+    path = as_path(path)
     folder = path.parent
     if not path.name or path.name in (".", ".."):
         raise design_error("path", str(path), "must name a file, not a folder", InputError)
@@ -202,6 +217,10 @@ def _json_default(x):
 def metadata_json(meta) -> str:
     """The metadata block as one line of standard JSON (numpy scalars and arrays, paths
     allowed; NaN and infinity are not JSON: an InputError)."""
+    if not isinstance(meta, Mapping):
+        raise design_error(
+            "metadata", type(meta).__name__, "must be a mapping (a dict of names)", InputError
+        )
     try:
         return json.dumps(dict(meta), default=_json_default, allow_nan=False)
     except (TypeError, ValueError) as exc:

@@ -20,9 +20,12 @@ import numpy as np
 
 from ._limits import MAX_MESH_FILE_BYTES, MAX_MESH_TRIANGLES
 from .errors import DesignError, design_error
+from .io import as_path
 
 if TYPE_CHECKING:
-    from ._types import ArrayLike
+    from numpy.typing import (
+        ArrayLike,  # (not ._types: that module names Design, which reads meshes)
+    )
 
 __all__ = ["MAX_MESH_FILE_BYTES", "MAX_MESH_TRIANGLES", "read_mesh", "write_stl"]
 
@@ -33,7 +36,7 @@ def read_mesh(path: str | Path, field: str = "file") -> tuple[np.ndarray, np.nda
     """The vertices (float, shape (n, 3), in the file's unit) and triangles (int, shape
     (m, 3)) of an STL or OBJ file; :class:`DesignError` naming ``field`` for a missing,
     unreadable, oversized or malformed file."""
-    path = Path(path)
+    path = as_path(path, field)
     suffix = path.suffix.lower()
     if suffix not in _SUFFIXES:
         raise design_error(
@@ -208,7 +211,7 @@ def write_stl(
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(normal, axis=1, keepdims=True)
     normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
-    path = Path(path)
+    path = as_path(path)
     if binary:
         rec = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
         out = np.zeros(len(f), dtype=rec)

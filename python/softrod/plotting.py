@@ -13,8 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
+from . import _validate as V
 from .errors import InputError, design_error
-from .io import atomic_path, check_target
+from .io import as_path, atomic_path, check_target
 from .statics import StaticSolution
 from .viewer.geometry import drawn_triangles, frame_along  # plain numpy: no viewer dependency
 
@@ -153,6 +154,7 @@ def plot_shape(
     director triads d1, d2, d3 (red, green, blue) at a few nodes. Solutions that did not
     converge are listed but not drawn.
     """
+    title = V.figure_title(title)
     import matplotlib as mpl
     from matplotlib.lines import Line2D
 
@@ -525,7 +527,11 @@ def check_figure_path(path: str | os.PathLike) -> Path:
     """
     from matplotlib.backend_bases import FigureCanvasBase
 
-    path = Path(path)
+    if not isinstance(path, (str, os.PathLike)):
+        raise design_error(
+            "path", type(path).__name__, "must be a file name (text or a path) or None", InputError
+        )
+    path = as_path(path)
     supported = FigureCanvasBase.get_supported_filetypes()
     if path.suffix.lower().lstrip(".") not in supported:
         raise design_error(

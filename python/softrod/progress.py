@@ -17,6 +17,7 @@ Bars are drawn with rich, imported only when one is shown.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import os
 import sys
 from collections.abc import Callable, Iterator
@@ -52,6 +53,30 @@ def check_progress(progress: Any, field: str = "progress") -> Any:
     )
 
 
+def _check_arguments(progress: Callable, update: Callable, field: str) -> None:
+    """Refuse, before any work, a callable that cannot take the arguments the call will pass
+    (as many as ``update`` takes), rather than fail with a TypeError at its first report.
+    Callables without a signature (some builtins) are let through."""
+    try:
+        wanted = inspect.signature(update).parameters.values()
+        given = inspect.signature(progress)
+    except (TypeError, ValueError):
+        return
+    if any(p.kind is p.VAR_POSITIONAL for p in wanted):
+        return
+    n = sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in wanted)
+    try:
+        given.bind(*([0.0] * n))
+    except TypeError:
+        raise design_error(
+            field,
+            getattr(progress, "__name__", type(progress).__name__),
+            f"must be callable with {n} positional argument{'s' if n != 1 else ''} (see the "
+            "function's documentation of progress=)",
+            InputError,
+        ) from None
+
+
 def _wants_bar(progress: Any) -> bool:
     if progress is True:
         return True
@@ -82,6 +107,7 @@ def reporter(
     """
     progress = check_progress(progress, field)
     if callable(progress) and not isinstance(progress, bool):
+        _check_arguments(progress, update, field)
         yield progress
         return
     if not _wants_bar(progress):

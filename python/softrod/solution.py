@@ -210,7 +210,7 @@ class StaticSolution:
         return f"StaticSolution({', '.join(parts)})"
 
     @classmethod
-    def failed(
+    def _failed(
         cls,
         design: Design,
         pressures: ArrayLike,
@@ -349,7 +349,7 @@ class StaticSolution:
 
 def _param_pairs(design: Design, params) -> tuple[list, list[str]]:
     """The core's (parameter, section) pairs and the names of calibration parameters."""
-    if not params:
+    if params is None or (isinstance(params, (str, list, tuple)) and len(params) == 0):
         return [], []
     from .calibration.params import parse_parameters
 

@@ -511,7 +511,7 @@ def solve_statics(
     except ConvergenceError as exc:
         if check:
             raise
-        return StaticSolution.failed(
+        return StaticSolution._failed(
             design,
             p,
             exc,

@@ -30,6 +30,7 @@ import numpy as np
 from . import _core
 from . import _validate as V
 from .errors import InputError, design_error
+from .io import as_path
 from .io import is_file as _is_file
 
 SIGMA_NAMES = ("sigma_ext", "sigma_bend_x", "sigma_bend_y")
@@ -278,7 +279,7 @@ class StiffnessMap:
         (every combination of the distinct pressures of each column) exactly once. Errors
         name the line of the file. ``method`` and ``outside`` as in :meth:`from_table`.
         """
-        path = Path(path)
+        path = as_path(path)
         if not _is_file(path):
             raise design_error("path", str(path), "no such file", InputError)
         from .io import read_text_file
@@ -500,7 +501,7 @@ class StiffnessMap:
         ``activation`` of the hidden layers ("tanh", "relu" or "logistic"; the output layer
         is linear), and ``target_mean``, ``target_scale``: sigma = exp(target_mean +
         target_scale * net(p)) (a standardised log sigma, so sigma > 0 everywhere)."""
-        if isinstance(networks, (str, bytes)) or len(networks) != 3:
+        if not isinstance(networks, (list, tuple)) or len(networks) != 3:
             raise design_error(
                 "networks",
                 f"{len(networks) if hasattr(networks, '__len__') else networks!r}",
@@ -891,7 +892,7 @@ def _write_json(doc: dict, path: str | Path) -> Path:
     decimals, so reading gives the same doubles."""
     from .io import atomic_path
 
-    path = Path(path)
+    path = as_path(path)
     if path.suffix.lower() != ".json":
         raise design_error("path", str(path), "a stiffness map file must end in .json", InputError)
     text = json.dumps(doc, allow_nan=False)
@@ -902,7 +903,7 @@ def _write_json(doc: dict, path: str | Path) -> Path:
 
 def read_map_document(path: str | Path) -> dict:
     """The JSON object of a saved map, its format and version checked."""
-    path = Path(path)
+    path = as_path(path)
     if path.suffix.lower() != ".json":
         raise design_error("path", str(path), "a saved map file ends in .json", InputError)
     if not _is_file(path):
@@ -964,7 +965,7 @@ def load_stiffness_map(path: str | Path, **options) -> StiffnessMap:
     ``HybridStiffnessModel.save``) or a table CSV (:meth:`StiffnessMap.from_csv`; ``options``
     ``method`` and ``outside`` apply to CSV tables only). A JSON file of a newer format
     version, or not a softrod map at all, is an InputError that says so."""
-    path = Path(path)
+    path = as_path(path)
     if path.suffix.lower() == ".csv":
         return StiffnessMap.from_csv(path, **options)
     if path.suffix.lower() != ".json":

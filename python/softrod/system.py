@@ -42,6 +42,7 @@ from .catalog import load_design
 from .constraints import orientation as _orientation
 from .design import Design, read_toml
 from .errors import ConvergenceError, DesignError, InputError
+from .io import as_path
 from .io import exists as _exists
 from .io import is_file as _is_file
 from .solution import Contact, StaticSolution, _mm
@@ -217,7 +218,7 @@ class System:
 
         from .io import staged_paths
 
-        path = Path(path)
+        path = as_path(path)
         if path.suffix.lower() != ".toml":
             raise V.fail("path", str(path), "a system file must end in .toml", InputError)
         files = [path.with_name(f"{path.stem}_rod{i}.toml") for i in range(len(self.rods))]
@@ -324,6 +325,14 @@ def load_system(source: str | Path) -> System:
     """Read a system file (see the module's docstring), or a bundled one by name. Rod
     designs are files relative to the system file, or bundled designs. Raises
     :class:`DesignError` naming the field, the value and the rule."""
+    if not isinstance(source, (str, os.PathLike)):
+        raise V.fail(
+            "system",
+            type(source).__name__,
+            "must be a System, a system file's path or a bundled system's name "
+            f"({', '.join(bundled_systems())})",
+            DesignError,
+        )
     path = Path(source)
     if not _exists(path) and path.suffix == "" and _exists(systems_dir() / f"{source}.toml"):
         path = systems_dir() / f"{source}.toml"

@@ -32,7 +32,7 @@ from .dynamics.simulate import (
     step_count,
 )
 from .errors import InputError
-from .io import atomic_path, check_target, write_table
+from .io import as_path, atomic_path, check_target, write_table
 from .io import is_file as _is_file
 from .progress import reporter
 from .statics import _pressures, _tensions
@@ -73,7 +73,7 @@ _SUFFIXES = (".npz", ".csv", ".parquet")
 
 def _trajectory_path(path) -> Path:
     """``path`` checked: a known suffix and a writable folder, before any work."""
-    path = Path(path)
+    path = as_path(path)
     if path.suffix.lower() not in _SUFFIXES:
         raise V.fail(
             "path",
@@ -177,7 +177,7 @@ class SystemTrajectory:
     def concat(parts: list[SystemTrajectory]) -> SystemTrajectory:
         """One trajectory from consecutive pieces of the same system's motion (e.g. the
         start's :meth:`SystemSimulation.state` and the runs after it), in order."""
-        parts = list(parts)
+        parts = list(parts) if isinstance(parts, (list, tuple)) else []
         if not parts or not all(isinstance(p, SystemTrajectory) for p in parts):
             raise V.fail(
                 "parts",
@@ -310,7 +310,7 @@ class SystemTrajectory:
         :class:`~softrod.System`, a system file or a bundled name), exactly. A file of
         another system (or of another version of it: rods, attachments, platform) is
         refused, as is a damaged file."""
-        path = Path(path)
+        path = as_path(path)
         if path.suffix.lower() != ".npz":
             raise V.fail(
                 "path",

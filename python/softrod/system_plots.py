@@ -83,6 +83,7 @@ def plot_system(
     and their contact points; one colour per solution, labelled with ``labels`` (default: the rods'
     pressures and the platform's tilt). Written to ``path`` when given (format from the
     suffix, atomically). Returns the Figure (pyplot's: close it when done)."""
+    title = V.figure_title(title)
     import matplotlib.pyplot as plt
 
     from .plotting import check_figure_path, save_figure
@@ -100,9 +101,16 @@ def plot_system(
             "must be a SystemSolution or a non-empty list of them",
             InputError,
         )
-    if labels is not None and len(labels) != len(sols):
+    if labels is not None and not (
+        isinstance(labels, (list, tuple))
+        and len(labels) == len(sols)
+        and all(isinstance(x, str) for x in labels)
+    ):
         raise V.fail(
-            "labels", len(labels), f"must give one label per solution ({len(sols)})", InputError
+            "labels",
+            labels,
+            f"must give one label per solution ({len(sols)}): a list of text",
+            InputError,
         )
     if path is not None:
         check_figure_path(path)
@@ -226,6 +234,7 @@ def plot_system_motion(
     the final inputs) drawn dashed in the first two panels. Written to ``path`` when given
     (format from the suffix, atomically). Returns the Figure (pyplot's: close it when
     done)."""
+    title = V.figure_title(title)
     import matplotlib.pyplot as plt
 
     from .plotting import check_figure_path, save_figure

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from .. import _validate as V
 from .._threads import one_blas_thread
 from ..catalog import load_design
 from ..constraints import require_free_tip
@@ -60,6 +61,10 @@ logger = logging.getLogger(__name__)
 # A network needs at least this many identified training samples of its factor: below it a
 # 3-45-50-1 network (about 2,600 weights) is not even constrained in shape by the data.
 MIN_TRAINING_SAMPLES = 10
+# Largest networks accepted: far above paper 001's 45-50 (a few layers of thousands of neurons
+# train for hours), small enough that a typo (10**9 neurons) is refused, not allocated.
+MAX_LAYERS = 16
+MAX_NEURONS = 10_000
 # Default L2 penalty of the networks (scikit-learn's alpha, on standardised data; scikit-learn
 # divides it by the number of samples, so it weakens as the data grow). Chosen on synthetic
 # data (216-9261 samples, 0.1-0.3 mm noise): alpha <= 0.3 fits the noise of the identified
@@ -188,7 +193,7 @@ class HybridStiffnessModel:
 
     def predict(self, pressures: ArrayLike) -> np.ndarray:
         """sigma (m, 3) at gauge pressures (m, c) in Pa; every entry finite and > 0."""
-        p = np.asarray(pressures, dtype=float)
+        p = V.real_array(pressures, "pressures", what="gauge pressures (Pa)")
         if p.ndim != 2 or p.shape[1] != self.n_channels:
             raise design_error(
                 "pressures",
@@ -352,30 +357,31 @@ def fit_stiffness_map(
             "must be the result of identify_stiffness",
             InputError,
         )
-    try:
-        hidden = tuple(int(h) for h in hidden)
-    except (TypeError, ValueError):
+    if not isinstance(hidden, (list, tuple)) or not 1 <= len(hidden) <= MAX_LAYERS:
         raise design_error(
-            "hidden", hidden, "must be a list of neuron counts per hidden layer", InputError
-        ) from None
-    if not hidden or min(hidden) < 1:
-        raise design_error("hidden", hidden, "needs at least one layer of >= 1 neuron", InputError)
-    if activation not in ("tanh", "relu", "logistic"):
+            "hidden",
+            hidden,
+            f"must be a list of 1 to {MAX_LAYERS} neuron counts, one per hidden layer",
+            InputError,
+        )
+    hidden = tuple(
+        V.integer(h, f"hidden[{i}]", minimum=1, maximum=MAX_NEURONS) for i, h in enumerate(hidden)
+    )
+    if not (isinstance(activation, str) and activation in ("tanh", "relu", "logistic")):
         raise design_error(
             "activation",
             activation,
             "must be 'tanh' (paper 001), 'relu' or 'logistic'",
             InputError,
         )
-    if isinstance(alpha, bool) or not isinstance(alpha, (int, float)) or not alpha >= 0:
-        raise design_error("alpha", alpha, "must be a number >= 0", InputError)
+    alpha = V.real(alpha, "alpha", minimum=0.0)
     if isinstance(test_fraction, bool) or not (
         isinstance(test_fraction, (int, float)) and 0 <= test_fraction < 1
     ):
         raise design_error("test_fraction", test_fraction, "must lie in [0, 1)", InputError)
-    for name, value, low in (("seed", seed, 0), ("max_iter", max_iter, 1)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-            raise design_error(name, value, f"must be an integer >= {low}", InputError)
+    # scikit-learn's random_state is a 32-bit seed; network k is seeded with seed + k.
+    seed = V.integer(seed, "seed", minimum=0, maximum=2**32 - 1 - len(SIGMA_NAMES))
+    max_iter = V.integer(max_iter, "max_iter", minimum=1)
 
     from ..progress import check_progress, reporter
 

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, design_error
-from ..io import atomic_path
+from ..io import as_path, atomic_path
 from ..io import is_dir as _is_dir
 from ..plotting import save_figure
 from .diagnostics import STRONG_CORRELATION
@@ -63,7 +63,7 @@ footer { color: #777; font-size: 0.8em; margin-top: 2em; }
 
 
 def _check_report_path(path) -> Path:
-    path = Path(path)
+    path = as_path(path)
     if path.suffix.lower() not in REPORT_SUFFIXES:
         raise design_error(
             "path",

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import _validate as V
 from .._validate import real
 from ..catalog import load_design
 from ..constraints import require_free_tip
@@ -110,7 +111,10 @@ def run_closed_loop(
     :class:`softrod.Simulation` (default: at rest in equilibrium at zero pressure).
     ``progress(t_done, t_end)`` is called after every control period.
     """
-    from ..dynamics import PressureSchedule, Simulation, Trajectory
+    from ..dynamics import Simulation, Trajectory
+    from ..dynamics.simulate import step_count
+    from ..progress import reporter
+    from ..statics import _pressures
 
     design = load_design(design)
     require_free_tip(design, "run_closed_loop")
@@ -125,8 +129,11 @@ def run_closed_loop(
     duration = to_si(t_end, "time", "t_end", InputError)
     if not duration > 0:
         raise design_error("t_end", t_end, "must be > 0 s", InputError)
+    periods = max(1, math.ceil(duration / period - 1e-9))
+    # The whole run's steps are bounded as simulate's are, before the first one.
+    step_count(periods * period, step)
     nc = design.n_channels
-    p0 = np.zeros(nc) if pressures is None else np.asarray(pressures, dtype=float)
+    p0 = np.zeros(nc) if pressures is None else np.array(_pressures(design, pressures))
     sim = Simulation(design, p0, initial=initial, dt=step, alpha=alpha)
     state = sim.state()
     meas = Measurement(
@@ -137,31 +144,12 @@ def run_closed_loop(
         pressure=np.array(state.pressure),
         command=p0.copy(),
     )
-    periods = max(1, math.ceil(duration / period - 1e-9))
     pieces, times, commands = [], [], []
-    for k in range(periods):
-        command = np.asarray(controller(meas), dtype=float)
-        if command.shape != (nc,) or not np.all(np.isfinite(command)):
-            raise design_error(
-                "controller",
-                command.tolist() if command.ndim else command,
-                f"must return {nc} finite pressures (Pa) at t = {meas.time:.6g} s",
-                InputError,
-            )
-        times.append(meas.time)
-        commands.append(command)
-        piece = sim.run(PressureSchedule.constant(command), steps * step)
-        pieces.append(piece if k == 0 else _drop_first(piece))
-        meas = Measurement(
-            time=float(piece.time[-1]),
-            tip_position=piece.tip_position[-1],
-            tip_rotation=piece.tip_rotation[-1],
-            tip_velocity=piece.tip_velocity[-1],
-            pressure=piece.pressure[-1],
-            command=command,
-        )
-        if progress is not None:
-            progress(min(meas.time, duration), duration)
+    with reporter(progress, "closed loop", duration, _simulated) as report:
+        for k in range(periods):
+            meas = _period_run(controller, meas, sim, nc, steps * step, k, pieces, times, commands)
+            if report is not None:
+                report(min(meas.time, duration), duration)
     cat = lambda name: np.concatenate([getattr(p, name) for p in pieces])  # noqa: E731
     energy = None if pieces[0].energy is None else cat("energy")
     metadata = dict(pieces[0].metadata)
@@ -191,6 +179,38 @@ def run_closed_loop(
     )
 
 
+def _simulated(done: float, total: float) -> tuple[float, str]:
+    """A progress bar's position and text for run_closed_loop's progress(t_done, t_end)."""
+    return done, f"{done:.3g} / {total:.3g} s"
+
+
+def _period_run(controller, meas, sim, nc: int, span: float, k: int, pieces, times, commands):
+    """One control period: the controller's command at the measurement ``meas``, held for
+    ``span`` seconds of simulation; returns the next measurement."""
+    from ..dynamics import PressureSchedule
+
+    given = controller(meas)
+    rule = f"must return {nc} finite pressures (Pa) at t = {meas.time:.6g} s"
+    try:
+        command = V.real_array(given, "controller", what="pressures (Pa)")
+    except InputError as exc:
+        raise design_error("controller", exc.value, f"{rule} ({exc.rule})", InputError) from None
+    if command.shape != (nc,):
+        raise design_error("controller", command.tolist(), rule, InputError)
+    times.append(meas.time)
+    commands.append(command)
+    piece = sim.run(PressureSchedule.constant(command), span)
+    pieces.append(piece if k == 0 else _drop_first(piece))
+    return Measurement(
+        time=float(piece.time[-1]),
+        tip_position=piece.tip_position[-1],
+        tip_rotation=piece.tip_rotation[-1],
+        tip_velocity=piece.tip_velocity[-1],
+        pressure=piece.pressure[-1],
+        command=command,
+    )
+
+
 def _drop_first(piece):
     """A trajectory piece without its first sample (the previous piece's last)."""
     from ..dynamics import Trajectory
@@ -216,8 +236,8 @@ class TargetPath:
     position: np.ndarray
 
     def __post_init__(self):
-        t = np.asarray(self.time, dtype=float)
-        p = np.asarray(self.position, dtype=float)
+        t = V.real_array(self.time, "path.time", what="times (s)")
+        p = V.real_array(self.position, "path.position", what="positions (m)")
         if t.ndim != 1 or t.size < 1 or p.shape != (t.size, 3):
             raise design_error(
                 "path",
@@ -233,6 +253,8 @@ class TargetPath:
         object.__setattr__(self, "position", p)
 
     def at(self, t: float) -> np.ndarray:
+        """The target position (m) at time ``t`` (s)."""
+        t = V.real(t, "t", what="a time (s)")
         return np.array([np.interp(t, self.time, self.position[:, k]) for k in range(3)])
 
     @classmethod
@@ -361,7 +383,13 @@ class TrackingController:
         self.history: list[tuple] = []
 
     def reference(self, t: float) -> np.ndarray:
-        return self.path.at(t) if hasattr(self.path, "at") else np.asarray(self.path(t), float)
+        """The target position (m) at time ``t`` (s): the path's, or the callable's value."""
+        if hasattr(self.path, "at"):
+            return self.path.at(t)
+        r = V.real_array(self.path(V.real(t, "t", what="a time (s)")), "path", what="positions (m)")
+        if r.shape != (3,):
+            raise design_error("path", r.tolist(), "must return 3 positions (m)", InputError)
+        return r
 
     def __call__(self, m: Measurement) -> np.ndarray:
         r = self.reference(m.time)
@@ -375,6 +403,12 @@ class TrackingController:
 
     def errors(self, trajectory: Trajectory) -> np.ndarray:
         """Tip error |r(t) - r_tip(t)| (m) at every sample of a trajectory."""
+        from ..dynamics import Trajectory
+
+        if not isinstance(trajectory, Trajectory):
+            raise design_error(
+                "trajectory", type(trajectory).__name__, "must be a Trajectory", InputError
+            )
         ref = np.array([self.reference(t) for t in trajectory.time])
         return np.linalg.norm(ref - trajectory.tip_position, axis=1)
 
@@ -402,6 +436,7 @@ def tracking_plot(
 ):
     """Top view of the target and the tip, the tip error over time, and the chamber
     pressures; saved to ``path`` when given. Returns the figure."""
+    title = V.figure_title(title)
     import matplotlib.pyplot as plt
 
     traj = result.trajectory

@@ -56,6 +56,9 @@ def _quantity_list(value, kind: str, name: str, n: int) -> list[float]:
             to_si(v if not _is_number_text(v) else float(v), kind, f"{name}[{i}]", InputError)
             for i, v in enumerate(items)
         ]
+    if isinstance(value, np.ma.MaskedArray):
+        # (real_array's rule: the hidden values would be used.)
+        V.real_array(value, name)
     if isinstance(value, np.ndarray) and value.dtype.kind in "fiu":
         arr = value.astype(float).ravel()
         if arr.size != n or not np.all(np.isfinite(arr)):
@@ -380,7 +383,9 @@ class InverseProblem:
             raise design_error(
                 "point", point, f"must lie on the rod: 0 <= s <= L = {d.length} m", InputError
             )
-        if regularisation is not None and regularisation not in _REGULARISATIONS:
+        if regularisation is not None and not (
+            isinstance(regularisation, str) and regularisation in _REGULARISATIONS
+        ):
             raise design_error(
                 "regularisation",
                 regularisation,
@@ -388,7 +393,7 @@ class InverseProblem:
                 InputError,
             )
         self.regularisation = regularisation
-        self.orientation = bool(orientation)
+        self.orientation = V.boolean(orientation, "orientation")
         self.weights = _weights(weights, self.orientation)
         tip = d.spec["tip"]
         self.tip_force = tuple(_vec3(tip_force, "force", "tip_force", tip["force"]))
@@ -427,7 +432,9 @@ class InverseProblem:
         start: its pressures, tensions and shooting unknowns), or the start inputs: the
         pressures (Pa) followed by the tensions (N), one per channel.
         """
-        if isinstance(target, np.ndarray) and target.dtype == float and target.shape == (3,):
+        # The fast path of a warm loop: a plain float array (not a masked one, whose hidden
+        # values tolist() turns into None).
+        if type(target) is np.ndarray and target.dtype == float and target.shape == (3,):
             position = target.tolist()
             if not all(map(math.isfinite, position)):
                 raise design_error("target", position, "must be finite (m)", InputError)
@@ -435,8 +442,8 @@ class InverseProblem:
             position = _quantity_list(target, "length", "target", 3)
         rot = None
         if orientation is not None:
-            rot = np.asarray(orientation, dtype=float)
-            if rot.shape != (3, 3) or not np.all(np.isfinite(rot)):
+            rot = V.real_array(orientation, "orientation", what="rotation matrix entries")
+            if rot.shape != (3, 3):
                 raise design_error(
                     "orientation", orientation, "must be a finite 3x3 rotation matrix", InputError
                 )
@@ -467,7 +474,7 @@ class InverseProblem:
             if not all(map(math.isfinite, x)):
                 x = None
         else:
-            u0 = np.asarray(initial, dtype=float)
+            u0 = V.real_array(initial, "initial", what="pressures (Pa) and tensions (N)")
         # (math.isfinite over a list: a warm call's checks cost microseconds at 10 kHz.)
         if u0.shape != (nc + nt,) or not all(map(math.isfinite, u0.tolist())):
             what = (

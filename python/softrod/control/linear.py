@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import _core
+from .. import _validate as V
 from .._validate import integer
 from ..catalog import load_design
 from ..constraints import require_free_tip
@@ -118,11 +119,16 @@ class LinearSystem:
     def frequency_response(self, omega: float) -> np.ndarray:
         """The tip pose (6 rows) per unit input at angular frequency ``omega`` (rad/s):
         T (K - w^2 M + i w D)^-1 B."""
+        # 1e12 rad/s is far beyond any mode of a rod; w^2 M then stays finite.
+        omega = V.real(omega, "omega", minimum=0.0, maximum=1e12)
         z = self.stiffness - omega**2 * self.mass + 1j * omega * self.damping
         return np.linalg.solve(z, self.input)[self.tip_rows]
 
     def modes(self, count: int | None = None) -> Modes:
         """The ``count`` lowest modes (default all)."""
+        if count is not None:
+            n = self.mass.shape[0]
+            count = V.integer(count, "count", minimum=1, maximum=n, hint=f" (the {n} coordinates)")
         from threadpoolctl import threadpool_limits
 
         # Dense eigenproblems of a few hundred unknowns: one BLAS thread is fastest (and
@@ -209,13 +215,35 @@ def linearise(
         initial = solve_statics(design, p, tip_force=tf, tip_moment=tm, tensions=tensions)
         t = [float(v) for v in initial.tensions]
     else:
-        if tensions is not None:
+        if not isinstance(initial, StaticSolution):
             raise design_error(
-                "tensions",
-                tensions,
-                "the equilibrium `initial` fixes the tensions; leave tensions out",
+                "initial",
+                initial,
+                "must be a StaticSolution (the equilibrium to linearise about) or None",
                 InputError,
             )
+        if initial.design is not design and initial.design.spec != design.spec:
+            raise design_error(
+                "initial",
+                initial.design.name,
+                f"is an equilibrium of another design than {design.name!r}",
+                InputError,
+            )
+        given = {
+            "pressures": pressures,
+            "tensions": tensions,
+            "tip_force": tip_force,
+            "tip_moment": tip_moment,
+        }
+        for name, value in given.items():
+            if value is not None:
+                raise design_error(
+                    name,
+                    value,
+                    f"the equilibrium `initial` fixes the {name.replace('_', ' ')}; leave "
+                    f"{name} out",
+                    InputError,
+                )
         p = [float(v) for v in initial.pressures]
         t = [float(v) for v in initial.tensions]
         tf = [float(v) for v in initial._tip_load("force")]

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import _validate as V
 from .._validate import integer
 from ..catalog import load_design
 from ..constraints import require_free_tip
@@ -119,7 +120,9 @@ class Workspace:
 
     def distance_to(self, point: ArrayLike) -> float:
         """Distance (m) from ``point`` to the nearest sampled boundary point."""
-        p = np.asarray(point, dtype=float)
+        p = V.real_array(point, "point", what="positions (m)")
+        if p.shape != (3,):
+            raise design_error("point", p.tolist(), "must be 3 positions (m)", InputError)
         return float(np.min(np.linalg.norm(self.points - p, axis=1)))
 
     def to_frame(self) -> pd.DataFrame:
@@ -147,9 +150,13 @@ class Workspace:
         """3-D view of the boundary (one surface per face for three channels, points
         otherwise) beside top (x-y) and side (x-z) views at equal scale; saved to ``path``
         when given. Returns the figure."""
+        title = V.figure_title(title)
         import matplotlib
 
         if path is not None:
+            from ..plotting import check_figure_path
+
+            path = check_figure_path(path)  # before drawing: a bad name fails at once
             matplotlib.use("Agg", force=False)
         import matplotlib.pyplot as plt
 
@@ -226,12 +233,10 @@ class Workspace:
             f"{self.samples} samples per free input and face"
         )
         if path is not None:
-            from pathlib import Path
-
             from ..io import atomic_path
 
             with atomic_path(path) as tmp:
-                fig.savefig(tmp, dpi=130, format=Path(path).suffix[1:])
+                fig.savefig(tmp, dpi=130, format=path.suffix[1:])
         return fig
 
 

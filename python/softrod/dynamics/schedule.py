@@ -40,7 +40,7 @@ from ..datasets import (
     _Where,
 )
 from ..errors import InputError
-from ..io import TABLE_SUFFIXES, atomic_path, check_table_path, write_parquet_with_metadata
+from ..io import TABLE_SUFFIXES, as_path, atomic_path, check_table_path, write_parquet_with_metadata
 from ..io import is_file as _is_file
 from ..io import metadata_json as _metadata_json
 from ..schema import channel_index
@@ -383,7 +383,7 @@ class PressureSchedule:
             raise _fail("kind", kind, f"must be one of {', '.join(map(repr, KINDS))} or None")
         if extra not in ("error", "ignore"):
             raise _fail("extra", extra, "must be 'error' or 'ignore'")
-        path = Path(path)
+        path = as_path(path)
         if path.suffix.lower() not in TABLE_SUFFIXES:
             check_table_path(path)  # raises with the list of formats
         if not _is_file(path):
@@ -510,7 +510,7 @@ class PressureSchedule:
             t = np.array(self._times)
             p = np.array(self._pressures)
         else:
-            t = np.atleast_1d(np.array(times, dtype=float))
+            t = np.atleast_1d(V.real_array(times, "times", what="times (s)"))
             p = self.sample(t)
         cols = {"time_s": t}
         for k in range(self._n):

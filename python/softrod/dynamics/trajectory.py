@@ -34,7 +34,7 @@ import pandas as pd
 from .. import _validate as V
 from ..datasets import _MARKER, MAX_MARKERS, _fail, _marker_sites
 from ..errors import InputError
-from ..io import atomic_path, check_target
+from ..io import as_path, atomic_path, check_target
 from ..io import is_file as _is_file
 from ..io import metadata_json as _metadata_json
 from ..schema import Extra, schema_frame
@@ -687,6 +687,7 @@ class Trajectory:
         (solid) and commands (dotted) per channel. With ``path`` the figure is also written
         atomically (format from the suffix). Made with pyplot: close it when done.
         """
+        title = V.figure_title(title)
         from ..plotting import check_figure_path, save_figure
 
         if path is not None:
@@ -784,7 +785,7 @@ class Trajectory:
         """
         from ..progress import check_progress, reporter
 
-        path = Path(path)
+        path = as_path(path)
         suffix = path.suffix.lower()
         if suffix not in ANIMATION_SUFFIXES:
             raise _fail(
@@ -1039,7 +1040,7 @@ def animation_plan(
 def _check_path(path, *, must_exist: bool = False) -> Path:
     if not isinstance(path, (str, os.PathLike)) or isinstance(path, bytes):
         raise _fail("path", type(path).__name__, "must be a file path (a str or a Path)")
-    path = Path(path)
+    path = as_path(path)
     if path.suffix.lower() not in TRAJECTORY_SUFFIXES:
         raise _fail(
             "path",

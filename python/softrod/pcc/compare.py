@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
+from .. import _validate as V
 from ..catalog import load_design
 from ..errors import InputError, design_error
 from ..statics import solve_statics
@@ -199,6 +200,7 @@ def _models(df, case):
 def plot_pcc_dynamics_comparison(df, title: str | None = None):
     """Figure: tip error vs time per case (left) and both models' lateral tip distance
     from the axis over time (right: rod solid, PCC dashed)."""
+    title = V.figure_title(title)
     import matplotlib.pyplot as plt
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
@@ -227,6 +229,7 @@ def plot_pcc_dynamics_comparison(df, title: str | None = None):
 
 def plot_pcc_comparison(df, title: str | None = None):
     """Figure: tip error vs pressure per case (left) and both models' tip paths (right)."""
+    title = V.figure_title(title)
     import matplotlib.pyplot as plt
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4.2))
@@ -262,6 +265,7 @@ def plot_pcc_step_response(runs, rest_length: float, title: str | None = None):
     Top row: elongation L - ``rest_length`` (mm); bottom row: bending angle theta (deg); one
     axis per quantity, shared time axis (s).
     """
+    title = V.figure_title(title)
     import matplotlib.pyplot as plt
 
     if not runs:

@@ -28,7 +28,7 @@ from .._validate import si_text
 from ..catalog import load_design
 from ..design import Design
 from ..errors import ConvergenceError, InputError, design_error
-from ..io import atomic_path
+from ..io import as_path, atomic_path
 from ..units import SI_UNIT
 
 __all__ = [
@@ -121,7 +121,7 @@ class PccFit:
             raise design_error(
                 "design", None, "name the design to write the fitted values into", InputError
             )
-        path = Path(path)
+        path = as_path(path)
         if path.suffix.lower() != ".toml":
             raise design_error("path", str(path), "a design file must end in .toml", InputError)
         out = self.to_design(base)

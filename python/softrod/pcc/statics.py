@@ -37,7 +37,7 @@ def solve_pcc_statics(
     except ConvergenceError as exc:
         if check:
             raise
-        return StaticSolution.failed(design, pressures, exc, model.ndof)
+        return StaticSolution._failed(design, pressures, exc, model.ndof)
     x = out["x"]
     s, pos, rot = model.shape(x, N_PER_SECTION)
     v, u, section = _strains(design, model, x, len(s))

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, design_error
+from ..io import as_path
 from . import geometry as geo
 
 
@@ -119,7 +120,7 @@ class Served:
 
         from ..io import atomic_path
 
-        path = Path(path)
+        path = as_path(path)
         if path.suffix.lower() != ".png":
             raise design_error("path", str(path), "a screenshot is written as .png", InputError)
         client = self._first_client(timeout)
