@@ -728,6 +728,82 @@ def target_method(payload) -> str:
     return ""
 
 
+def _valid(function: str, param: str):
+    """A valid value of a public function's required argument, so that a case can make one
+    other argument hostile (None where there is none: that argument is hostile too)."""
+
+    system = function.startswith(("solve_system", "simulate_system", "system_", "calibrate_sys"))
+    system = system or function.endswith("system_dataset") or function == "view_system"
+    two = [[1e4, 0.0, 0.0], [0.0, 0.0, 0.0]]
+    values = {
+        "design": lambda: SPA,
+        "system": lambda: TWO,
+        "source": lambda: TWO if function == "load_system" else "spa130_synthetic",
+        "pressures": lambda: (
+            two
+            if system
+            else [[0.0, 0.0, 0.0], [2e4, 0.0, 0.0]]
+            if "batch" in function or "dataset" in function
+            else [2e4, 0.0, 0.0]
+        ),
+        "pressure_schedule": lambda: [2e4, 0.0, 0.0],
+        "t_end": lambda: "4 ms",
+        "params": lambda: "c_b",
+        "dataset": lambda: _spa_data(4),
+        "identification": lambda: _instance("StiffnessIdentification"),
+        "hybrid": lambda: _instance("HybridStiffnessModel"),
+        "target": lambda: [0.01, 0.0, -0.125],
+        "controller": lambda: _hold_controller,
+        "rate": lambda: 200.0,
+        "solutions": lambda: _instance("SystemSolution"),
+        "trajectory": lambda: _instance("SystemTrajectory"),
+        "path": lambda: "out.stl" if function == "write_stl" else "out.csv",
+        "vertices": lambda: [[0, 0, 0], [1, 0, 0], [0, 1, 0]],
+        "faces": lambda: [[0, 1, 2]],
+    }
+    make = values.get(param)
+    return None if make is None else make()
+
+
+def _hold_controller(measurement):
+    return [0.0, 0.0, 0.0]
+
+
+def target_function(payload) -> str:
+    """A public function with one hostile argument (``hostile``: its name and value) and
+    valid values for its other required arguments, in an empty folder; a solution it
+    returns must be valid."""
+    import inspect
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import softrod
+
+    name = payload["function"]
+    fn = getattr(softrod, name)
+    kwargs = {}
+    for p in inspect.signature(fn).parameters.values():
+        if p.default is p.empty and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY):
+            value = _valid(name, p.name)
+            kwargs[p.name] = payload["fallback"] if value is None else value
+    kwargs[payload["hostile"]] = payload["value"]
+    if "progress" in inspect.signature(fn).parameters and payload["hostile"] != "progress":
+        kwargs.setdefault("progress", False)
+    cwd = os.getcwd()
+    with tempfile.TemporaryDirectory() as folder:
+        os.chdir(folder)
+        try:
+            out = fn(**kwargs)
+        finally:
+            os.chdir(cwd)
+            plt.close("all")
+    if isinstance(out, softrod.StaticSolution):
+        return _check_solution(out)
+    return ""
+
+
 # --- friction (docs/contact.md, "Friction in the statics") --------------------------------------
 
 FINGER = "prebent_finger_on_table"  # the bundled finger on its table (1 channel, 1 tendon)

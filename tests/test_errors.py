@@ -226,6 +226,9 @@ METHOD_CASES = [
     ("errors-not-a-trajectory", lambda: _tracker().errors(3), "trajectory"),
     ("distance-text", lambda: _workspace().distance_to("x"), "point"),
     ("workspace-figure-name", lambda: _workspace().plot(path=""), "path"),
+    ("compare-models-number", lambda: softrod.compare_models(models=0), "models"),
+    ("mesh-field-number", lambda: softrod.read_mesh("m.stl", field=3), "field"),
+    ("stl-faces-number", lambda: softrod.write_stl("m.stl", [[0, 0, 0]] * 3, 5), "faces"),
 ]
 
 

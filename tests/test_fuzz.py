@@ -701,6 +701,27 @@ PARAMS = st.one_of(
     st.sampled_from(["yaw", ["c_b", "base_x"], "c_b[", "E[nope]", ["c_b"] * 40]),
     hostile(),
 )
+# Run lengths: short, invalid, or far beyond the step limit (refused before any step).
+RUN_LENGTHS = st.sampled_from(
+    [
+        "4 ms",
+        0.004,
+        "0 s",
+        -1,
+        "1 kPa",
+        math.nan,
+        math.inf,
+        "x",
+        None,
+        [1],
+        True,
+        1e300,
+        "1e300 s",
+        "10**10**10 ms",
+        np.int64(-3),
+        1j,
+    ]
+)
 T_END = st.one_of(st.sampled_from(["4 ms", 0.004, "6 ms", "0 s", -1, "1 kPa"]), hostile())
 
 
@@ -916,6 +937,52 @@ def method_cases(draw):
     if optional and draw(st.integers(0, 3)):
         kwargs[draw(st.sampled_from(optional))] = draw(hostile())
     return ("method", {"kind": kind, "method": name, "kwargs": kwargs})
+
+
+# Public functions the "function" target calls: all but the viewers (servers, fuzzed by
+# the viewer target) and those without arguments.
+SKIPPED_FUNCTIONS = {"view", "view_system"}
+
+
+def _public_functions() -> list[tuple[str, tuple[str, ...]]]:
+    """(function, its parameters) of every public function of softrod that takes any."""
+    import inspect
+
+    import softrod
+
+    out = []
+    for name in softrod.__all__:
+        fn = getattr(softrod, name)
+        if name in SKIPPED_FUNCTIONS or inspect.isclass(fn) or not callable(fn):
+            continue
+        params = tuple(
+            p.name
+            for p in inspect.signature(fn).parameters.values()
+            if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
+        )
+        if params:
+            out.append((name, params))
+    return out
+
+
+PUBLIC_FUNCTIONS = _public_functions()
+
+
+@st.composite
+def function_cases(draw):
+    """A public function with one hostile argument, the others valid (tests/fuzzing.py)."""
+    name, params = draw(st.sampled_from(PUBLIC_FUNCTIONS))
+    param = draw(st.sampled_from(params))
+    # A run's length is the caller's to choose: a valid but long one (4 h of motion) is work,
+    # not a hang, so lengths are drawn short or invalid.
+    value = draw(RUN_LENGTHS if param in ("t_end", "duration") else hostile())
+    payload = {
+        "function": name,
+        "hostile": param,
+        "value": value,
+        "fallback": draw(hostile()),  # a required argument without a valid value
+    }
+    return ("function", payload)
 
 
 @st.composite
@@ -1557,6 +1624,7 @@ CASES = {
     "sensitivities": sensitivity_cases(),
     "control": control_cases(),
     "method": method_cases(),
+    "function": function_cases(),
 }
 # Examples per target in the default run (each BATCH cases) and in --fuzz-long.
 EXAMPLES = {
@@ -1568,6 +1636,7 @@ EXAMPLES = {
     "trajectory_file": 1,
     "sensitivities": 2,
     "method": 6,
+    "function": 6,
 }
 DEFAULT_EXAMPLES = 3
 LONG_FACTOR = 40

@@ -432,3 +432,30 @@ def test_a_system_on_a_mesh_table_solves_and_draws_as_on_the_plane():
             assert dots and all(np.allclose(d.get_ydata(), z_mm, atol=0.3) for d in dots)
     finally:
         plt.close(fig)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    vertices=st.one_of(
+        st.just([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+        st.lists(st.lists(st.floats(), min_size=3, max_size=3), min_size=3, max_size=4),
+        st.one_of(st.integers(), st.floats(), st.text(max_size=3), st.none()),
+    ),
+    faces=st.one_of(
+        st.just([[0, 1, 2]]),
+        st.lists(st.lists(st.one_of(st.integers(-2, 4), st.floats()), min_size=3, max_size=3)),
+        st.one_of(st.integers(), st.floats(), st.text(max_size=3), st.none()),
+    ),
+)
+def test_write_stl_writes_or_names_the_bad_argument(tmp_path_factory, vertices, faces):
+    """Whatever it is given, write_stl writes a file that reads back to its triangles or
+    raises an error naming vertices or faces (never IndexError, never a numpy warning)."""
+    path = tmp_path_factory.mktemp("w") / "m.stl"
+    try:
+        write_stl(path, vertices, faces)
+    except DesignError as exc:
+        assert exc.field.split("[")[0] in ("vertices", "faces")
+        assert not path.exists()
+        return
+    v, f = read_mesh(path)
+    assert len(f) == len(faces) and np.all(np.isfinite(v))

@@ -197,8 +197,15 @@ def _model_designs(models, mountings: set[str]) -> dict[str, dict[str, Design]]:
         models = models.split(",")
     if isinstance(models, Mapping):
         items = list(models.items())
-    else:
+    elif isinstance(models, (list, tuple)):
         items = [(str(m).strip(), None) for m in models]
+    else:
+        raise design_error(
+            "models",
+            type(models).__name__,
+            "must be model names (a list or a comma-separated text) or a mapping",
+            InputError,
+        )
     if not items:
         raise design_error("models", models, "name at least one model", InputError)
     out: dict[str, dict[str, Design]] = {}

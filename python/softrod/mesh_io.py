@@ -18,8 +18,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from . import _validate as V
 from ._limits import MAX_MESH_FILE_BYTES, MAX_MESH_TRIANGLES
-from .errors import DesignError, design_error
+from .errors import DesignError, InputError, design_error
 from .io import as_path
 
 if TYPE_CHECKING:
@@ -36,6 +37,10 @@ def read_mesh(path: str | Path, field: str = "file") -> tuple[np.ndarray, np.nda
     """The vertices (float, shape (n, 3), in the file's unit) and triangles (int, shape
     (m, 3)) of an STL or OBJ file; :class:`DesignError` naming ``field`` for a missing,
     unreadable, oversized or malformed file."""
+    if not (isinstance(field, str) and field.strip()):
+        raise design_error(
+            "field", type(field).__name__, "must be text: the name errors give the file", InputError
+        )
     path = as_path(path, field)
     suffix = path.suffix.lower()
     if suffix not in _SUFFIXES:
@@ -198,6 +203,9 @@ def _obj(data: bytes, field: str) -> tuple[np.ndarray, np.ndarray]:
     return v, np.array(faces, dtype=np.int64).reshape(-1, 3)
 
 
+MAX_COORDINATE = 1e15
+
+
 def write_stl(
     path: str | Path, vertices: ArrayLike, faces: ArrayLike, *, binary: bool = True
 ) -> Path:
@@ -205,13 +213,37 @@ def write_stl(
     (binary or ASCII), whole or not at all; returns the path."""
     from .io import atomic_path
 
-    v = np.asarray(vertices, dtype=float)
-    f = np.asarray(faces, dtype=np.int64)
+    v = V.real_array(vertices, "vertices", what="coordinates")
+    if v.ndim != 2 or v.shape[1] != 3 or len(v) < 3:
+        raise design_error(
+            "vertices", f"shape {v.shape}", "must be (n, 3) coordinates, n >= 3", InputError
+        )
+    # STL stores 32-bit floats; 1e15 (in any unit) is beyond every mesh and keeps the
+    # normals' products far inside them.
+    if np.abs(v).max() > MAX_COORDINATE:
+        raise design_error(
+            "vertices", float(np.abs(v).max()), f"must be within +-{MAX_COORDINATE:g}", InputError
+        )
+    raw = V.real_array(faces, "faces", what="vertex indices")
+    if raw.ndim != 2 or raw.shape[1] != 3 or len(raw) < 1:
+        raise design_error(
+            "faces", f"shape {raw.shape}", "must be (m, 3) indices, m >= 1", InputError
+        )
+    bad = np.flatnonzero((raw != np.round(raw)) | (raw < 0) | (raw >= len(v)))
+    if bad.size:
+        i = int(bad[0])
+        raise design_error(
+            f"faces[{i // 3}][{i % 3}]",
+            raw.flat[i],
+            f"must be a whole index of a vertex, 0 <= i < {len(v)}",
+            InputError,
+        )
+    f = raw.astype(np.int64)
+    path = as_path(path)
     tri = v[f]
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     length = np.linalg.norm(normal, axis=1, keepdims=True)
     normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)
-    path = as_path(path)
     if binary:
         rec = np.dtype([("normal", "<f4", 3), ("corners", "<f4", (3, 3)), ("attribute", "<u2")])
         out = np.zeros(len(f), dtype=rec)

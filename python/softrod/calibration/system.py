@@ -662,14 +662,9 @@ class SystemCalibrationResult:
                 "plot draws the platform's measured positions; this dataset has markers only",
                 InputError,
             )
-        after = self.predicted
-        fig, (front, err) = plt.subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
-        rows = np.arange(len(measured))
-        test = self.labels == "test"
-        front.plot(*(measured[:, [0, 2]] * 1e3).T, "o", mfc="none", color="k", label="measured")
-        bars = [(after, "tab:blue", "calibrated")]
+        # The arguments are checked before anything is drawn.
         if initial is not None:
-            initial = np.asarray(initial, dtype=float)
+            initial = V.real_array(initial, "initial", what="platform positions (m)")
             if initial.shape != measured.shape:
                 raise design_error(
                     "initial",
@@ -677,6 +672,17 @@ class SystemCalibrationResult:
                     f"must be {measured.shape}: one platform position per row (m)",
                     InputError,
                 )
+        if path is not None:
+            from ..plotting import check_figure_path
+
+            path = check_figure_path(path)
+        after = self.predicted
+        fig, (front, err) = plt.subplots(1, 2, figsize=(11, 4.4), constrained_layout=True)
+        rows = np.arange(len(measured))
+        test = self.labels == "test"
+        front.plot(*(measured[:, [0, 2]] * 1e3).T, "o", mfc="none", color="k", label="measured")
+        bars = [(after, "tab:blue", "calibrated")]
+        if initial is not None:
             front.plot(*(initial[:, [0, 2]] * 1e3).T, "x", color="tab:red", label="initial")
             bars.insert(0, (initial, "tab:red", "initial"))
         front.plot(*(after[:, [0, 2]] * 1e3).T, "+", ms=9, color="tab:blue", label="calibrated")

@@ -1038,8 +1038,6 @@ def animation_plan(
 
 
 def _check_path(path, *, must_exist: bool = False) -> Path:
-    if not isinstance(path, (str, os.PathLike)) or isinstance(path, bytes):
-        raise _fail("path", type(path).__name__, "must be a file path (a str or a Path)")
     path = as_path(path)
     if path.suffix.lower() not in TRAJECTORY_SUFFIXES:
         raise _fail(
