@@ -717,15 +717,57 @@ def target_method(payload) -> str:
     cls = getattr(softrod, kind)
     static = isinstance(inspect.getattr_static(cls, name), (staticmethod, classmethod))
     target = getattr(cls if static else _instance(kind), name)
+    kwargs = dict(payload["kwargs"])
+    if "hostile" in payload:
+        # One hostile argument, the other required ones valid where a value is known.
+        for p in inspect.signature(target).parameters.values():
+            if p.default is p.empty and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY):
+                value = _valid_argument(kind, name, p.name)
+                kwargs[p.name] = payload["fallback"] if value is None else value
+        kwargs[payload["hostile"]] = payload["value"]
     cwd = os.getcwd()
     with tempfile.TemporaryDirectory() as folder:
         os.chdir(folder)
         try:
-            target(**payload["kwargs"])
+            target(**kwargs)
         finally:
             os.chdir(cwd)
             plt.close("all")
     return ""
+
+
+def _valid_argument(kind: str, method: str, param: str):
+    """A valid value of a method's required argument (None where none is known)."""
+    suffix = {
+        "save": ".json" if kind in ("StiffnessMap", "HybridStiffnessModel") else ".npz",
+        "to_toml": ".toml",
+        "toml_text": ".toml",
+        "write": ".csv",
+        "write_report": ".html",
+    }.get(method, ".png" if method.startswith("plot") else None)
+    if kind == "Design" and method == "save":
+        suffix = ".toml"
+    values = {
+        "times": lambda: [0.0, 0.002],
+        "t": lambda: 0.001,
+        "point": lambda: [0.01, 0.0, -0.125],
+        "pressures": lambda: [[0.0, 0.0, 0.0], [1e4, 0.0, 0.0]],
+        "pressure_schedule": lambda: [1e4, 0.0, 0.0],
+        "duration": lambda: "4 ms",
+        "command": lambda: [1e4, 0.0, 0.0],
+        "target": lambda: [0.01, 0.0, -0.125],
+        "rows": lambda: [0, 1],
+        "count": lambda: 1,
+        "omega": lambda: 10.0,
+        "changes": lambda: {},
+        "obstacles": lambda: [],
+        "n": lambda: 3,
+        "trajectory": lambda: _instance("Trajectory"),
+        "state": lambda: _instance(kind).save() if hasattr(_instance(kind), "save") else None,
+        "path": lambda: None if suffix is None else f"out{suffix}",
+    }
+    make = values.get(param)
+    return None if make is None else make()
 
 
 def _valid(function: str, param: str):

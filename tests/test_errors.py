@@ -229,6 +229,7 @@ METHOD_CASES = [
     ("compare-models-number", lambda: softrod.compare_models(models=0), "models"),
     ("mesh-field-number", lambda: softrod.read_mesh("m.stl", field=3), "field"),
     ("stl-faces-number", lambda: softrod.write_stl("m.stl", [[0, 0, 0]] * 3, 5), "faces"),
+    ("tip-loads-none", lambda: softrod.Simulation(SPA).set_tip_loads(force=None), "force"),
 ]
 
 

@@ -930,9 +930,20 @@ PUBLIC_METHODS = _public_methods()
 
 @st.composite
 def method_cases(draw):
-    """A public method of a public class with hostile arguments: every required one and,
-    usually, one optional one."""
+    """A public method of a public class with hostile arguments: one, the other required
+    ones valid; or every required one and, usually, one optional one."""
     kind, name, required, optional = draw(st.sampled_from(PUBLIC_METHODS))
+    if draw(st.booleans()):
+        # One hostile argument, the other required ones valid (tests/fuzzing.py).
+        payload = {
+            "kind": kind,
+            "method": name,
+            "kwargs": {},
+            "hostile": draw(st.sampled_from(required + optional)),
+            "value": draw(hostile()),
+            "fallback": draw(hostile()),
+        }
+        return ("method", payload)
     kwargs = {p: draw(hostile()) for p in required}
     if optional and draw(st.integers(0, 3)):
         kwargs[draw(st.sampled_from(optional))] = draw(hostile())

@@ -1,7 +1,8 @@
 """Progress of the calls that can take more than a few seconds.
 
-``simulate``, ``Trajectory.animate``, ``calibrate``, ``identify_stiffness``,
-``fit_stiffness_map`` and ``compare_models`` take ``progress=``:
+``simulate``, ``simulate_system``, ``run_closed_loop``, the sensitivities of motion,
+``Trajectory.animate``, ``calibrate``, ``identify_stiffness``, ``fit_stiffness_map`` and
+``compare_models`` take ``progress=``:
 
 - ``None`` (the default): a progress bar on stderr in an interactive session (the Python
   prompt, IPython, Jupyter), nothing in a script, so that batch jobs and their logs stay
@@ -9,7 +10,8 @@
   off) everywhere.
 - ``True``: always a bar; ``False``: never.
 - a callable: called instead of drawing a bar, with the arguments each function documents
-  (e.g. ``simulate`` calls ``progress(t_done, t_end, wall_s)``).
+  (e.g. ``simulate`` calls ``progress(t_done, t_end, wall_s)``); one that cannot take them
+  is refused before the work starts.
 
 Bars are drawn with rich, imported only when one is shown.
 """

@@ -100,7 +100,7 @@ def run_closed_loop(
     pressures: ArrayLike | None = None,
     initial: str = "static",
     alpha: float = -0.2,
-    progress: Callable[[float, float], None] | None = None,
+    progress: Callable[[float, float], None] | bool | None = None,
 ) -> ClosedLoopResult:
     """Simulate ``design`` for ``t_end`` (s) with ``controller`` in the loop.
 
@@ -109,7 +109,8 @@ def run_closed_loop(
     call. ``dt``: the simulation's time step, a whole fraction of the control period
     (default: the largest one <= 2 ms). ``pressures`` and ``initial`` set the start as in
     :class:`softrod.Simulation` (default: at rest in equilibrium at zero pressure).
-    ``progress(t_done, t_end)`` is called after every control period.
+    ``progress(t_done, t_end)`` is called after every control period (None: a bar in
+    interactive sessions; True or False: always or never a bar; softrod.progress).
     """
     from ..dynamics import Simulation, Trajectory
     from ..dynamics.simulate import step_count

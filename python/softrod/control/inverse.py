@@ -442,8 +442,11 @@ class InverseProblem:
             position = _quantity_list(target, "length", "target", 3)
         rot = None
         if orientation is not None:
-            rot = V.real_array(orientation, "orientation", what="rotation matrix entries")
-            if rot.shape != (3, 3):
+            if type(orientation) is np.ndarray and orientation.dtype == float:
+                rot = orientation  # the warm loop's fast path, as the target's
+            else:
+                rot = V.real_array(orientation, "orientation", what="rotation matrix entries")
+            if rot.shape != (3, 3) or not np.all(np.isfinite(rot)):
                 raise design_error(
                     "orientation", orientation, "must be a finite 3x3 rotation matrix", InputError
                 )

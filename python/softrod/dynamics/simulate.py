@@ -568,6 +568,9 @@ class Simulation:
         (``[tip] frame``: world for dead loads, body for follower loads)."""
         from ..statics import _vec3
 
+        for name, value in (("force", force), ("moment", moment)):
+            if value is None:
+                raise V.fail(name, None, f"must be 3 {name} values; [0, 0, 0] for none")
         f = _vec3(force, "force", "force", None)
         m = _vec3(moment, "moment", "moment", None)
         self._sim.set_tip_loads(f, m)
