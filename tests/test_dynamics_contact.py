@@ -207,3 +207,19 @@ def test_random_obstacles_never_give_nan_or_panic(kind, x_mm, z_mm, radius_mm, k
     assert np.isfinite(run.tip_position).all()
     assert np.isfinite(run.contact_force).all() and np.isfinite(run.penetration).all()
     assert run.penetration.max() <= 5e-3
+
+
+@pytest.mark.parametrize("tension", [1e4, 3e4])
+def test_an_overflowing_tendon_pull_against_an_obstacle_is_an_error_not_a_panic(tension):
+    # Found by the long fuzz run: tens of kN on the finger's tendon pressed it through the
+    # table so hard that the contact Jacobian's derivatives were not finite, and an entry
+    # was written outside the band (a panic in the core, reported as an InternalError).
+    # Now the broken Jacobian fails the factorization and the start is not converged.
+    from softrod.errors import InternalError
+
+    try:
+        traj = simulate("prebent_finger_on_table", 0.0, "20 ms", tensions=[tension])
+    except SoftrodError as exc:
+        assert not isinstance(exc, InternalError), exc
+        return
+    assert np.all(np.isfinite(traj.tip_position))

@@ -722,6 +722,9 @@ RUN_LENGTHS = st.sampled_from(
         1j,
     ]
 )
+CONTROL_RATES = st.sampled_from(
+    [200.0, 1000, 0, -1, math.nan, math.inf, "x", None, True, 1e300, 1e-300, "200 Hz", 1j]
+)
 T_END = st.one_of(st.sampled_from(["4 ms", 0.004, "6 ms", "0 s", -1, "1 kPa"]), hostile())
 
 
@@ -985,8 +988,13 @@ def function_cases(draw):
     name, params = draw(st.sampled_from(PUBLIC_FUNCTIONS))
     param = draw(st.sampled_from(params))
     # A run's length is the caller's to choose: a valid but long one (4 h of motion) is work,
-    # not a hang, so lengths are drawn short or invalid.
-    value = draw(RUN_LENGTHS if param in ("t_end", "duration") else hostile())
+    # not a hang, so lengths (and control rates) are drawn short or invalid.
+    if param in ("t_end", "duration"):
+        value = draw(RUN_LENGTHS)
+    elif param == "rate":  # a control rate: MHz over a valid run is work too, not a hang
+        value = draw(CONTROL_RATES)
+    else:
+        value = draw(hostile())
     payload = {
         "function": name,
         "hostile": param,

@@ -437,9 +437,12 @@ impl Problem<'_> {
             let rn: [Jet<PER>; 3] = std::array::from_fn(|k| var(rn0[k], 1.0, None));
             let (res, _) =
                 self.contact_interval(self.models, self.hist, c, j, &yj, &rj, [&y1, &y2], &yn, &rn);
+            // The unknown of local variable v; None for the base values the problem holds
+            // fixed (interval 0's node outside IN..IN + 6 and its position: not seeded).
             let col_of = |v: usize| -> Option<usize> {
                 match v {
-                    0..=15 if j == 0 => Some(v - IN),
+                    0..=15 if j == 0 => (IN..IN + 6).contains(&v).then(|| v - IN),
+                    16..=18 if j == 0 => None,
                     0..=15 => Some(6 + PER * (j - 1) + 32 + v),
                     16..=18 => Some(6 + PER * (j - 1) + 48 + (v - 16)),
                     _ => Some(6 + PER * j + (v - 19)),
@@ -447,9 +450,7 @@ impl Problem<'_> {
             };
             for (row, r) in res.iter().enumerate() {
                 for (v, d) in r.eps.iter().enumerate() {
-                    if *d != 0.0 {
-                        put(PER * j + row, col_of(v).expect("column"), *d);
-                    }
+                    put_entry(&mut put, PER * j + row, col_of(v), *d);
                 }
             }
             // The end node and its position enter their rows with unit weight.
@@ -466,9 +467,7 @@ impl Problem<'_> {
         let node = 6 + PER * (n_int - 1) + 32;
         for (row, x) in t.iter().enumerate() {
             for (v, d) in x.eps.iter().enumerate() {
-                if *d != 0.0 {
-                    put(PER * n_int + row, node + v, *d);
-                }
+                put_entry(&mut put, PER * n_int + row, Some(node + v), *d);
             }
         }
     }
@@ -477,8 +476,12 @@ impl Problem<'_> {
     pub(super) fn contact_factorize(&self, z: &[f64]) -> Option<Factorization> {
         let n = self.unknowns();
         let mut band = BandedLu::zeros(n, KL, KU);
-        self.contact_jacobian(self.contact.as_ref(), z, |i, j, v| band.set(i, j, v));
-        if !band.factor() {
+        let mut broken = false;
+        self.contact_jacobian(self.contact.as_ref(), z, |i, j, v| {
+            broken |= v.is_nan();
+            band.set(i, j, v)
+        });
+        if broken || !band.factor() {
             return None;
         }
         Some(Factorization {
@@ -487,5 +490,23 @@ impl Problem<'_> {
             contact: true,
             at: z.to_vec(),
         })
+    }
+}
+
+/// One entry of the contact Jacobian: `d` at (`row`, `col`) when it is a finite derivative
+/// with respect to an unknown. A derivative that is not finite (an overflowing load, e.g.
+/// a tendon of tens of kN pressing a section through an obstacle), or a non-zero one with
+/// respect to a value held fixed (only a non-finite seed can make one), breaks the Jacobian:
+/// a NaN on the row's diagonal marks it, the factorization refuses it, and Newton reports the
+/// step as not converged instead of writing an entry outside the band or into the wrong
+/// column.
+#[inline]
+fn put_entry(put: &mut impl FnMut(usize, usize, f64), row: usize, col: Option<usize>, d: f64) {
+    if d == 0.0 {
+        return;
+    }
+    match col {
+        Some(c) if d.is_finite() => put(row, c, d),
+        _ => put(row, row, f64::NAN),
     }
 }
