@@ -159,7 +159,36 @@ INPUT_CASES = [
     ("obstacles-number", lambda d: d.with_obstacles(3), "obstacles"),
     ("shape-title", lambda d: plot_shape(_sol(d), title=np.zeros((2, 2))), "title"),
     ("table-path", lambda d: softrod.io.check_table_path(3), "path"),
+    # Counts and springs that once allocated or overflowed (found by the function fuzz).
+    (
+        "restarts-huge",
+        lambda d: softrod.calibrate(d, _synthetic(d), "c_b", restarts=10**12),
+        "restarts",
+    ),
+    (
+        "restarts-over",
+        lambda d: softrod.calibrate(d, _synthetic(d), "c_b", restarts=10_001),
+        "restarts",
+    ),
+    ("restarts-seed", lambda d: softrod.calibrate(d, _synthetic(d), "c_b", seed=-1), "seed"),
+    ("experiment-huge", lambda d: _synthetic(d, experiment=2**70), "experiment"),
+    ("experiment-text", lambda d: _synthetic(d, experiment="9" * 30), "experiment"),
+    ("experiment-float", lambda d: _synthetic(d, experiment=[0.0, 1e300]), "experiment"),
+    (
+        "spring-huge",
+        lambda d: softrod.identify_stiffness(d, _synthetic(d), n_high=1e300),
+        "n_high / r_high",
+    ),
+    (
+        "spring-tiny",
+        lambda d: softrod.identify_stiffness(d, _synthetic(d), m_high=1e-300),
+        "m_high / R_high",
+    ),
 ]
+
+
+def _synthetic(design, **kwargs):
+    return softrod.synthesize_dataset(design, [[0.0] * 3, [2e4, 0.0, 0.0]], **kwargs)
 
 
 def _sol(design):

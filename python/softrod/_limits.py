@@ -18,6 +18,7 @@ MAX_TABLE_POINTS = 10_000  # points of a tabulated law (axial table, PCC k_theta
 MAX_SECTION_STEPS = 100_000  # integration steps of one section
 MAX_DESIGN_STEPS = 1_000_000  # integration steps of a whole design (nodes of its shape)
 MAX_ITERATIONS = 100_000  # Newton iterations, load steps, optimiser evaluations
+MAX_RESTARTS = 10_000  # extra starting points of a calibration (each one a whole fit)
 MAX_ROWS = 10_000_000  # rows of a batch, a dataset, a schedule or a pressure grid
 MAX_DYNAMIC_STEPS = 10_000_000  # time steps of one simulation run
 MAX_SAVED_SAMPLES = 2_000_000  # samples a trajectory keeps
@@ -43,6 +44,7 @@ LIMITS = {
     "steps per section": MAX_SECTION_STEPS,
     "steps per design": MAX_DESIGN_STEPS,
     "iterations": MAX_ITERATIONS,
+    "restarts": MAX_RESTARTS,
     "rows": MAX_ROWS,
     "time steps": MAX_DYNAMIC_STEPS,
     "saved samples": MAX_SAVED_SAMPLES,

@@ -42,6 +42,7 @@ from ._limits import (  # noqa: F401 - the limits are part of this module's inte
     MAX_NAME_LENGTH,
     MAX_OBSTACLES,
     MAX_QUANTITY_LENGTH,
+    MAX_RESTARTS,
     MAX_ROWS,
     MAX_SAVED_SAMPLES,
     MAX_SECTION_STEPS,

@@ -695,23 +695,32 @@ def _same_id(a, b) -> bool:
 def _labels(a: np.ndarray, name: str, ints: bool) -> np.ndarray:
     """Experiment ids as int64 when all are integers, else str; mounting always str."""
     if ints and a.dtype.kind in "iu":
-        return a.astype(np.int64)
+        return _integer_ids(a.tolist(), name)
     if ints and a.dtype.kind == "f":
         if np.all(np.isfinite(a)) and np.all(a == np.round(a)):
-            return a.astype(np.int64)
+            return _integer_ids(a.tolist(), name)
         raise _fail(name, "non-integer numbers", "ids must be integers or strings")
     if a.dtype.kind == "b":
         raise _fail(name, "booleans", "must be integers or strings")
     values = [v.item() if isinstance(v, np.generic) else v for v in a.tolist()]
     if ints and all(isinstance(v, int) and not isinstance(v, bool) for v in values):
-        return np.asarray(values, dtype=np.int64)
+        return _integer_ids(values, name)
     if (
         ints
         and values
         and all(isinstance(v, str) and re.fullmatch(r"-?(0|[1-9][0-9]*)", v) for v in values)
     ):
-        return np.asarray([int(v) for v in values], dtype=np.int64)
+        return _integer_ids([int(v) for v in values], name)
     return np.asarray([str(v).strip() for v in values], dtype=str)
+
+
+def _integer_ids(values: list, name: str) -> np.ndarray:
+    """Integer ids as int64, each within +-2^53 (integers beyond are not exact as floats, the
+    type a CSV reader may give them)."""
+    big = [v for v in values if abs(v) > V.MAX_ABS_INT]
+    if big:
+        raise _fail(name, big[0], f"integer ids must lie within +-2^53 ({V.MAX_ABS_INT})")
+    return np.asarray(values, dtype=np.int64)
 
 
 # --- locating rows in messages ----------------------------------------------------------------

@@ -63,7 +63,15 @@ from .result import (
     record,
     result_json,
 )
-from .solve import METHODS, RESTART_SPREAD, Settings, default_bounds, run_starts, start_points
+from .solve import (
+    METHODS,
+    RESTART_SPREAD,
+    Settings,
+    check_restarts,
+    default_bounds,
+    run_starts,
+    start_points,
+)
 from .solve import starts_table as _starts_table
 
 if TYPE_CHECKING:
@@ -374,6 +382,7 @@ def calibrate(
     V.choice(method, METHODS, "method")
     threads = V.threads(threads)
     V.integer(max_evaluations, "max_evaluations", minimum=1, maximum=V.MAX_ITERATIONS)
+    check_restarts(restarts, seed)
     design0 = load_design(design)
     if model == "pcc":
         require_free_tip(design0, "calibrate(model='pcc')")

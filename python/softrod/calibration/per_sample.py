@@ -95,6 +95,9 @@ N_HIGH = 1.0  # N
 R_HIGH = 5e-3  # m
 M_HIGH = 0.05  # N m
 ROT_HIGH = 0.1  # rad
+# The springs c_t, c_r a user may set: squared, times residuals up to metres, they must stay
+# far inside float range (the defaults are 200 N/m and 0.5 N m/rad).
+SPRING_RANGE = (1e-20, 1e20)
 
 # Stopping (per sample): a step (accepted or not) below XTOL in every log sigma (relative
 # change of sigma), a tip residual below RESIDUAL_TOL (m; the shooting solve is exact to
@@ -761,6 +764,15 @@ def _problem(design, dataset, *, use_rotation, n_high, r_high, m_high, R_high, o
     threads = V.threads(threads)
     c_t = _positive(n_high, "n_high", "force") / _positive(r_high, "r_high", "length")  # eq. 20
     c_r = _positive(m_high, "m_high", "moment") / _positive(R_high, "R_high", "angle")
+    for name, c, unit in (("n_high / r_high", c_t, "N/m"), ("m_high / R_high", c_r, "N m/rad")):
+        if not SPRING_RANGE[0] <= c <= SPRING_RANGE[1]:
+            raise design_error(
+                name,
+                f"{c:g} {unit}",
+                f"the virtual spring of eq. 20 must lie within {SPRING_RANGE[0]:g} ... "
+                f"{SPRING_RANGE[1]:g} (beyond, the least-squares sums overflow or vanish)",
+                InputError,
+            )
     if not isinstance(use_rotation, bool):
         raise design_error("use_rotation", use_rotation, "must be True or False", InputError)
     rotation = dataset.tip_rotation if use_rotation else None

@@ -261,16 +261,24 @@ def _rms(r: np.ndarray) -> float:
     return float(np.sqrt(np.mean(r.reshape(-1, 3) ** 2) * 3)) if r.size else math.nan
 
 
+def check_restarts(restarts, seed) -> tuple[int, int]:
+    """``restarts`` (0 ... MAX_RESTARTS: each is a whole fit) and the ``seed`` of their
+    starting points (numpy's generators take any integer >= 0); checked before any work."""
+    restarts = V.integer(
+        restarts, "restarts", minimum=0, maximum=V.MAX_RESTARTS, hint=" (extra starting points)"
+    )
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise V.fail("seed", seed, "must be an integer >= 0 (it makes the restarts repeatable)")
+    return restarts, int(seed)
+
+
 def start_points(params, theta0, bounds: Bounds, restarts, seed) -> np.ndarray:
     """The starting values, then ``restarts`` points drawn with ``seed``: uniformly within a
     parameter's bounds (log-uniformly for positive ones), or, for a positive parameter
     without bounds, log-uniformly within RESTART_SPREAD of its value."""
-    if isinstance(restarts, bool) or not isinstance(restarts, (int, np.integer)) or restarts < 0:
-        raise V.fail("restarts", restarts, "must be an integer >= 0 (extra starting points)")
+    restarts, seed = check_restarts(restarts, seed)
     if restarts == 0:
         return theta0[None, :]
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise V.fail("seed", seed, "must be an integer >= 0 (it makes the restarts repeatable)")
     bounded = bounds.given
     for p, b in zip(params, bounded, strict=True):
         if not (b or p.positive):

@@ -75,7 +75,7 @@ from .fit import _bounds, _evaluations, _scales, _split, _split_params
 from .params import DYNAMIC_KINDS, KINDS, SIGMA_KINDS, Parameter, design_changes, parse_parameter
 from .problem import ModelAdapter, Observations, Prediction, Problem, Registered, Residual
 from .result import display_table, error_tables, fit_summary, record, report_points
-from .solve import METHODS, Settings, run_starts, start_points, starts_table
+from .solve import METHODS, Settings, check_restarts, run_starts, start_points, starts_table
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -835,6 +835,7 @@ def calibrate_system(
     V.choice(method, METHODS, "method")
     threads = V.threads(threads)
     V.integer(max_evaluations, "max_evaluations", minimum=1, maximum=V.MAX_ITERATIONS)
+    check_restarts(restarts, seed)
     if not isinstance(system, System):
         system = load_system(system)
     for i, rod in enumerate(system.rods):

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import click
 
+from .._limits import MAX_RESTARTS
 from ..errors import InputError, design_error
 from ._common import (
     PLOT_SUFFIXES,
@@ -67,7 +68,7 @@ _restarts_option = click.option(
     "--restarts",
     default=0,
     show_default=True,
-    type=click.IntRange(min=0),
+    type=click.IntRange(min=0, max=MAX_RESTARTS),
     help="Extra fits from random starting points (within --bounds, or within a factor 3 of "
     "a positive parameter's value); the best fit wins.",
 )

@@ -1,0 +1,216 @@
+//! The linearised dynamics (crate::linearise): natural frequencies of a straight cantilever
+//! against the closed forms (bending, axial, torsion), convergence with the number of nodes,
+//! the static consistency of K and B with the exact Jacobians, M symmetric positive
+//! definite, D = tau K for an unstressed rod.
+
+use crate::common;
+use common::*;
+use nalgebra::DMatrix;
+use softrod_core::jacobian::{point_jacobian, Input, Probe};
+use softrod_core::linearise::linearise;
+use softrod_core::ode::Loads;
+use softrod_core::spec::DesignSpec;
+use softrod_core::spec::Frame;
+use softrod_core::statics::{solve, SolverOptions};
+use softrod_core::Rod;
+
+const L: f64 = 0.5;
+const EI: f64 = 0.02;
+const EA: f64 = 400.0;
+const GA: f64 = 1e6; // nearly shear-rigid: the Euler-Bernoulli limit
+const GJ: f64 = 0.015;
+const MASS: f64 = 0.1; // kg over L
+const ROT: [f64; 3] = [1e-9, 1e-9, 2e-6]; // rho I tiny (no rotary inertia in bending), rho J for torsion
+
+fn cantilever(steps: usize, g: f64) -> DesignSpec {
+    let mut s = direct_section("rod", L, EA, GA, EI, GJ, MASS, steps);
+    s.rotary_inertia = Some(ROT);
+    design(vec![s], IDENTITY, g)
+}
+
+/// Undamped frequencies (rad/s), ascending: eigenvalues of M^-1 K.
+fn frequencies(m: &DMatrix<f64>, k: &DMatrix<f64>) -> Vec<f64> {
+    let a = m.clone().try_inverse().unwrap() * k;
+    let mut w: Vec<f64> = a
+        .complex_eigenvalues()
+        .iter()
+        .map(|l| l.re.max(0.0).sqrt())
+        .collect();
+    w.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    w
+}
+
+/// Straight cantilever without gravity: bending (two equal families), axial and torsional
+/// frequencies against the closed forms of the Euler-Bernoulli beam and the bar.
+#[test]
+fn cantilever_frequencies_match_closed_forms() {
+    let rod = Rod::new(cantilever(64, 0.0)).unwrap();
+    let ld = loads(&[]);
+    let sol = solve(&rod, &ld, None, &SolverOptions::default()).unwrap();
+    let rho_a = MASS / L;
+    let beam = |beta_l: f64| beta_l * beta_l * (EI / (rho_a * L.powi(4))).sqrt();
+    let axial = std::f64::consts::FRAC_PI_2 * (EA / (rho_a * L * L)).sqrt();
+    let torsion = std::f64::consts::FRAC_PI_2 * (GJ / (ROT[2] * L * L)).sqrt();
+    let mut errors = Vec::new();
+    for nodes in [4, 8, 16] {
+        let sys = linearise(&rod, &ld, &sol, nodes).unwrap();
+        let w = frequencies(&sys.mass, &sys.stiffness);
+        let want = [beam(1.875_104_068_711_961), beam(4.694_091_132_974_175)];
+        // Bending modes come in pairs (EI1 = EI2): w[0], w[1] the first, w[2], w[3] the second.
+        let err1 = (w[0] / want[0] - 1.0)
+            .abs()
+            .max((w[1] / want[0] - 1.0).abs());
+        let err2 = (w[2] / want[1] - 1.0)
+            .abs()
+            .max((w[3] / want[1] - 1.0).abs());
+        let find = |target: f64| {
+            w.iter()
+                .map(|x| (x / target - 1.0).abs())
+                .fold(f64::INFINITY, f64::min)
+        };
+        let (ea, et) = (find(axial), find(torsion));
+        println!("{nodes} nodes: bending 1 {err1:.2e}, bending 2 {err2:.2e}, axial {ea:.2e}, torsion {et:.2e}");
+        errors.push([err1, err2, ea, et]);
+    }
+    // Between the nodes the rod takes its static shapes under node loads: cubic in bending
+    // (Hermite-like, frequencies converge as n^-4) and linear in extension and torsion (n^-2).
+    let order = |k: usize, a: usize| (errors[a][k] / errors[a + 1][k]).log2();
+    for a in 0..2 {
+        assert!(
+            order(0, a) > 3.5 && order(1, a) > 3.5,
+            "bending order {a}: {errors:?}"
+        );
+        assert!((order(2, a) - 2.0).abs() < 0.2 && (order(3, a) - 2.0).abs() < 0.2);
+    }
+    // At 16 nodes: bending to 1e-5 (the RK4 error of K and the Simpson quadrature of M on 64
+    // steps are both far below), extension and torsion to 5e-4 (linear shapes).
+    assert!(errors[2][0] < 1e-5 && errors[2][1] < 1e-5, "{errors:?}");
+    assert!(errors[2][2] < 5e-4 && errors[2][3] < 5e-4, "{errors:?}");
+}
+
+/// K^-1 reproduces the exact static responses: the tip rows of K^-1 B are the Jacobian of
+/// the tip pose with respect to pressures and tip loads (crate::jacobian).
+#[test]
+fn static_response_of_the_linear_system_is_exact() {
+    let rod = Rod::new(p002_actuator(tilted(), 9.81, 12)).unwrap();
+    let ld = Loads {
+        pressures: vec![35e3, 12e3, 50e3],
+        tip_force: [0.02, -0.01, 0.03],
+        tip_moment: [0.0; 3],
+        stiffness_scale: [1.0; 3],
+        tensions: vec![],
+        tip_frame: Frame::World,
+    };
+    let sol = solve(&rod, &ld, None, &SolverOptions::default()).unwrap();
+    let sys = linearise(&rod, &ld, &sol, 9).unwrap();
+    let response = sys.stiffness.clone().try_inverse().unwrap() * &sys.input;
+    let inputs = [
+        Input::Pressure(0),
+        Input::Pressure(1),
+        Input::Pressure(2),
+        Input::TipForce(0),
+        Input::TipForce(1),
+        Input::TipForce(2),
+        Input::TipMoment(0),
+        Input::TipMoment(1),
+        Input::TipMoment(2),
+    ];
+    let jac = point_jacobian(&rod, &ld, &sol, &inputs, &Probe::tip(&rod)).unwrap();
+    let nq = sys.mass.nrows();
+    for (k, _) in inputs.iter().enumerate() {
+        let col = [jac.d_position[k], jac.d_rotation[k]].concat();
+        let scale = col.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let err = (0..6)
+            .map(|r| (response[(nq - 6 + r, k)] - col[r]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        // Both from the same dual passes; an inverse of a 54 x 54 flexibility: round-off.
+        assert!(err <= 1e-8 * scale, "input {k}: {err:.2e} of {scale:.2e}");
+    }
+    // M symmetric positive definite.
+    let asym = (&sys.mass - sys.mass.transpose()).amax() / sys.mass.amax();
+    assert!(asym < 1e-10, "{asym}");
+    assert!(sys.mass.clone().cholesky().is_some());
+}
+
+/// A tendon's input column (after the pressures and tip loads): its static response is the
+/// exact tension derivative of the equilibrium, at a pulled and at a slack tendon.
+#[test]
+fn static_response_of_tension_columns_is_exact() {
+    let mut spec = p002_actuator(tilted(), 9.81, 12);
+    for sec in &mut spec.sections[..2] {
+        sec.tendons = vec![
+            softrod_core::spec::TendonSpec {
+                channel: 0,
+                distance: 0.006,
+                angle: 1.0,
+                distance_end: None,
+                angle_end: None,
+            },
+            softrod_core::spec::TendonSpec {
+                channel: 1,
+                distance: 0.006,
+                angle: 3.0,
+                distance_end: None,
+                angle_end: None,
+            },
+        ];
+    }
+    let rod = Rod::new(spec).unwrap();
+    let ld = Loads {
+        tensions: vec![1.5, 0.0],
+        ..loads(&[35e3, 12e3, 50e3])
+    };
+    let sol = solve(&rod, &ld, None, &SolverOptions::default()).unwrap();
+    let sys = linearise(&rod, &ld, &sol, 9).unwrap();
+    assert_eq!(sys.input.ncols(), 3 + 6 + 2);
+    let response = sys.stiffness.clone().try_inverse().unwrap() * &sys.input;
+    let inputs = [Input::Tension(0), Input::Tension(1)];
+    let jac = point_jacobian(&rod, &ld, &sol, &inputs, &Probe::tip(&rod)).unwrap();
+    let nq = sys.mass.nrows();
+    for k in 0..2 {
+        let col = [jac.d_position[k], jac.d_rotation[k]].concat();
+        let scale = col.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(scale > 0.0);
+        let err = (0..6)
+            .map(|r| (response[(nq - 6 + r, 9 + k)] - col[r]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        // Both from the same dual passes; an inverse of a 54 x 54 flexibility: round-off.
+        assert!(err <= 1e-8 * scale, "tendon {k}: {err:.2e} of {scale:.2e}");
+    }
+}
+
+/// Kelvin-Voigt damping B = tau K on an unstressed straight rod: D = tau K (the material
+/// stiffness is all of K there), up to the quadrature of D.
+#[test]
+fn damping_is_tau_times_stiffness_without_prestress() {
+    let mut spec = cantilever(64, 0.0);
+    spec.dynamics.damping_time = 0.01;
+    let rod = Rod::new(spec).unwrap();
+    let ld = loads(&[]);
+    let sol = solve(&rod, &ld, None, &SolverOptions::default()).unwrap();
+    let sys = linearise(&rod, &ld, &sol, 8).unwrap();
+    // Compare in the modal coordinates of the lowest modes (the well-resolved ones).
+    let tk = &sys.stiffness * 0.01;
+    let w = frequencies(&sys.mass, &sys.stiffness);
+    let a = sys.mass.clone().try_inverse().unwrap() * &sys.damping;
+    let b = sys.mass.clone().try_inverse().unwrap() * &tk;
+    let ea = a.complex_eigenvalues();
+    let eb = b.complex_eigenvalues();
+    let mut ra: Vec<f64> = ea.iter().map(|c| c.re).collect();
+    let mut rb: Vec<f64> = eb.iter().map(|c| c.re).collect();
+    ra.sort_by(|x, y| x.partial_cmp(y).unwrap());
+    rb.sort_by(|x, y| x.partial_cmp(y).unwrap());
+    for i in 0..6 {
+        let rel = (ra[i] / rb[i] - 1.0).abs();
+        // Simpson's rule on both D and K's own shapes: agreement to ~1e-6 (measured).
+        assert!(
+            rel < 1e-4,
+            "mode {i}: {} vs {} ({rel:.2e}), w {}",
+            ra[i],
+            rb[i],
+            w[i]
+        );
+    }
+}
