@@ -22,14 +22,16 @@ import contextlib
 import inspect
 import os
 import sys
+import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
 from .errors import InputError, design_error
 
-__all__ = ["check_progress", "interactive", "reporter"]
+__all__ = ["check_progress", "chunks", "interactive", "reporter"]
 
 ENV = "SOFTROD_PROGRESS"
+CHUNK_WALL_S = 0.2  # wall time of work between two progress reports of a stepped run
 
 
 def interactive() -> bool:
@@ -139,3 +141,22 @@ def reporter(
             bar.update(task, completed=completed, text=text)
 
         yield advance
+
+
+def chunks(
+    n: int, first: int = 32, smallest: int = 8, largest: int = 100_000, multiple: int = 1
+) -> Iterator[tuple[int, int]]:
+    """The index ranges ``(start, stop)`` that cover the steps ``0 ... n`` of a stepped run,
+    each sized from the wall time the caller spent on the one before for about CHUNK_WALL_S
+    of work (within ``smallest ... largest``, a multiple of ``multiple`` but for the last):
+    a long run reports its progress often and samples its inputs a chunk at a time (memory
+    stays bounded), a quick one is not slowed by many small calls into the core."""
+    start, size = 0, first
+    while start < n:
+        stop = min(n, start + size)
+        t = time.perf_counter()
+        yield start, stop
+        spent = time.perf_counter() - t
+        size = min(max(int(size * CHUNK_WALL_S / max(spent, 1e-6)), smallest), largest)
+        size = max(multiple, size // multiple * multiple)
+        start = stop

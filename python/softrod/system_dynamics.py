@@ -23,7 +23,6 @@ import numpy as np
 from . import _core
 from . import _validate as V
 from .dynamics.simulate import (
-    _CHUNK_WALL_S,
     DEFAULT_ENERGY_TOL,
     _seconds,
     _solver_options,
@@ -34,7 +33,7 @@ from .dynamics.simulate import (
 from .errors import InputError
 from .io import as_path, atomic_path, check_target, write_table
 from .io import is_file as _is_file
-from .progress import reporter
+from .progress import chunks, reporter
 from .statics import _pressures, _tensions
 from .stiffness_map import StiffnessMap
 from .system import System, _platform_args, check_rods, load_system
@@ -729,15 +728,12 @@ class SystemSimulation:
             fs = fs or [self._force] * steps
             ms = ms or [self._moment] * steps
             loads = list(zip(fs, ms, strict=True))
-        # In chunks of about _CHUNK_WALL_S of work, as a lone rod's run, so that a long run
-        # shows its progress; the core carries its state across calls exactly.
+        # In chunks of about CHUNK_WALL_S of work (progress.chunks), as a lone rod's run, so
+        # that a long run shows its progress; the core carries its state across calls exactly.
         parts = []
         wall0 = _time.perf_counter()
-        start, chunk = 0, 8
         with reporter(progress, "simulate_system", steps * self.dt, simulated_time) as report:
-            while start < steps:
-                stop = min(steps, start + chunk)
-                t_chunk = _time.perf_counter()
+            for start, stop in chunks(steps, first=8, smallest=4):
                 parts.append(
                     self._sim.run(
                         commands[start:stop],
@@ -745,9 +741,6 @@ class SystemSimulation:
                         platform_loads=None if loads is None else loads[start:stop],
                     )
                 )
-                spent = _time.perf_counter() - t_chunk
-                chunk = int(np.clip(chunk * _CHUNK_WALL_S / max(spent, 1e-6), 4, 100_000))
-                start = stop
                 if report is not None:
                     report(stop * self.dt, steps * self.dt, _time.perf_counter() - wall0)
         self._pressures = commands[-1]

@@ -31,7 +31,7 @@ from ..constraints import coerce as coerce_constraint
 from ..datasets import parse_marker_sites
 from ..design import Design
 from ..errors import InputError, design_error
-from ..progress import reporter
+from ..progress import chunks, reporter
 from .schedule import PressureSchedule
 from .trajectory import ENERGY_PARTS, Trajectory
 
@@ -56,7 +56,6 @@ METHOD = (
 )
 SCHEMES = ("bdf-alpha", "midpoint")
 DEFAULT_ENERGY_TOL = 0.02  # softrod_core::dynamics::DEFAULT_ENERGY_TOL
-_CHUNK_WALL_S = 0.2  # wall time per chunk between progress reports
 
 logger = logging.getLogger(__name__)
 
@@ -642,11 +641,8 @@ class Simulation:
                 schedule.kind == "step",
             )
         wall0 = _time.perf_counter()
-        start, chunk = 0, 32
         with reporter(progress, "simulate", duration, simulated_time) as report:
-            while start < n:
-                stop = min(n, start + chunk)
-                t_chunk = _time.perf_counter()
+            for start, stop in chunks(n):
                 # Commands and loads are sampled chunk by chunk: memory stays bounded.
                 times = t0 + dt * np.arange(start + 1, stop + 1)
                 commands = commands_at(times)
@@ -665,10 +661,6 @@ class Simulation:
                         None if poses is None else np.ascontiguousarray(poses),
                     )
                 )
-                spent = _time.perf_counter() - t_chunk
-                # Size the next chunk for about _CHUNK_WALL_S of work.
-                chunk = int(np.clip(chunk * _CHUNK_WALL_S / max(spent, 1e-6), 8, 100_000))
-                start = stop
                 if report is not None:
                     report(self.time - t0, duration, _time.perf_counter() - wall0)
         wall = _time.perf_counter() - wall0
@@ -1220,11 +1212,8 @@ def tracked_trajectory(
         table = (schedule.times.tolist(), schedule.pressures.tolist(), schedule.kind == "step")
     parts = [first]
     wall0 = _time.perf_counter()
-    start, chunk = 0, 32
     with reporter(progress, "trajectory sensitivities", t_end, simulated_time) as report:
-        while start < n:
-            stop = min(n, start + chunk)
-            t_chunk = _time.perf_counter()
+        for start, stop in chunks(n):
             times = dt * np.arange(start + 1, stop + 1)
             commands = np.zeros((times.size, 0)) if schedule is None else schedule.sample(times)
             rows = None if tensions is None else tensions[start + 1 : stop + 1]
@@ -1238,10 +1227,6 @@ def tracked_trajectory(
                     None if rows is None else np.ascontiguousarray(rows, dtype=float),
                 )
             )
-            # Chunks of about _CHUNK_WALL_S of work, as Simulation.run's.
-            spent = _time.perf_counter() - t_chunk
-            chunk = int(np.clip(chunk * _CHUNK_WALL_S / max(spent, 1e-6), 8, 100_000))
-            start = stop
             if report is not None:
                 report(stop * dt, t_end, _time.perf_counter() - wall0)
     keys = ["time", "tip_position", "marker_position", "d_tip_position", "d_marker_position"]

@@ -18,13 +18,13 @@ import numpy as np
 
 from ..catalog import load_design
 from ..errors import InputError, design_error
+from ..progress import chunks
 from .model import pcc_model
 
 __all__ = ["PCC_METHOD", "simulate_pcc"]
 
 PCC_METHOD = "implicit midpoint rule with Newton on the exact Jacobian (paper 003 Lagrangian)"
 SHAPE_POINTS = 24  # centreline samples per section of a stored shape (an arc: smooth)
-_CHUNK_WALL_S = 0.2  # wall time per chunk between progress reports
 
 
 def simulate_pcc(
@@ -68,19 +68,16 @@ def simulate_pcc(
     every = save_every if not shape_keep.any() or np.all(keep[shape_keep]) else 1
     parts: list[dict] = []
     wall0 = _time.perf_counter()
-    start, chunk = 0, max(every, 256 - 256 % every)
     pressure_now = schedule.sample([0.0])[0]
-    while start < n:
-        stop = min(n, start + chunk)
+    first = max(every, 256 - 256 % every)
+    for start, stop in chunks(n, first=first, smallest=64, largest=1_000_000, multiple=every):
         # Commands sampled chunk by chunk: memory stays bounded by the chunk size.
         rows = np.ascontiguousarray(schedule.sample(dt * np.arange(start, stop + 1)))
         rows[0] = pressure_now  # the supply continues from the pressures reached
         kind, a, b = state
-        t_chunk = _time.perf_counter()
         out = model.simulate(
             dt, rows, kind, q0=a, q_dot0=b, save_every=every, tol=tol, max_iter=max_iter
         )
-        spent = _time.perf_counter() - t_chunk
         step_of_row = start + np.rint(out["time"] / dt).astype(int)
         if parts:  # row 0 repeats the previous chunk's last step
             out = {k: v[1:] if isinstance(v, np.ndarray) else v for k, v in out.items()}
@@ -89,9 +86,6 @@ def simulate_pcc(
         parts.append(out)
         state = ("model", list(out["x"][-1]), list(out["x_dot"][-1]))
         pressure_now = out["pressure"][-1]
-        scale = _CHUNK_WALL_S / max(spent, 1e-6)
-        chunk = int(np.clip(chunk * scale, 64, 1_000_000)) // every * every or every
-        start = stop
         if progress is not None:
             progress(stop * dt, t_end, _time.perf_counter() - wall0)
     wall = _time.perf_counter() - wall0
