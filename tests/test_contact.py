@@ -349,7 +349,7 @@ def test_cli_solve_reports_the_contacts(run):
 def test_static_calibration_through_contact_recovers_the_material():
     """Static parameter sensitivities carry contact (the penalty is a line load of the
     shooting ODE, the rounded end's force a term of the tip balance; checked against
-    central differences in crates/softrod-core/tests/sensitivity.rs): a noise-free round
+    central differences in crates/softrod-core/tests/suite/sensitivity.rs): a noise-free round
     trip on the finger pressed onto the table recovers E and the chamber area factor,
     with tip and two markers observed. Pressures from 0 to 40 kPa: the softened finger
     hangs free at 0 kPa and rests on the table from 5 kPa on (asserted), so the fit must see

@@ -3,7 +3,7 @@ the workspace sweep, bounds as a property), exact Jacobians against finite diffe
 whole solves, linearised frequencies against the ring-down of the dynamic simulation, the
 closed-loop example with an error bound from the linearised model, and the command line.
 
-The core's own tests (crates/softrod-core/tests/inverse.rs, linearise.rs) cover the
+The core's own tests (crates/softrod-core/tests/suite/inverse.rs, linearise.rs) cover the
 algorithms on synthetic designs: 200-sample round trip, redundant channels, orientation
 targets, points along the rod, frequencies of a cantilever against closed forms.
 """

@@ -94,7 +94,7 @@ def test_repository_paths_exist_and_nothing_points_outside(path):
         "(cite papers by authors, title, venue, year and DOI: docs/references.md)"
     )
     # A path may be relative to the repository or to any folder above the file (a crate's
-    # own `tests/common.rs`); a glob (`docs/calibration*.md`) is not checked.
+    # own `tests/suite/common.rs`); a glob (`docs/calibration*.md`) is not checked.
     bases = [p for p in path.parents if p == ROOT or ROOT in p.parents]
     missing = set()
     for m in REPO_PATH.finditer(text):

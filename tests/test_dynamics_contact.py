@@ -125,7 +125,7 @@ def test_dynamic_sensitivities_carry_contact():
     # The rod rests on the plane from the start (its static start touches): the tracked
     # derivatives of the resting tip with respect to the mass are those of the static
     # contact solution, against central differences of the statics (the trajectory's
-    # own checks are crates/softrod-core/tests/dynamics_sensitivity.rs).
+    # own checks are crates/softrod-core/tests/suite/dynamics_sensitivity.rs).
     design = load_design(cantilever([plane(-10.0)]))
     sim = Simulation(design, dt=2e-3)
     sim._sim.track_sensitivities([("mass", [0])])

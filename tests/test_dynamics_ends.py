@@ -2,7 +2,7 @@
 constrained statics, a moving pose is followed and its reaction recorded and kept by the
 files, save/restore, the design file's constraint as the default, bad input by name, and
 hypothesis over kinds and poses. (Frequencies against Euler-Bernoulli, the exact step
-Jacobian and the energy books are in crates/softrod-core/tests/dynamics_ends.rs.)
+Jacobian and the energy books are in crates/softrod-core/tests/suite/dynamics_ends.rs.)
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ DT = 2 * math.pi / OMEGA / 50
 # The damped runs below: tau = 0.5 / omega, a damping ratio of 0.25 on the first mode.
 TAU = 0.5 / OMEGA
 TIP = [L, 0.0, 0.0]
-# Horizontal mounting: d3 = +x, d1 = +z, d2 = -y (crates/softrod-core/tests/common.rs's HORIZONTAL).
+# Horizontal mounting: d3 = +x, d1 = +z, d2 = -y (crates/softrod-core/tests/suite/common.rs's HORIZONTAL).
 HORIZONTAL = [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]]
 
 

@@ -4,7 +4,7 @@ on the moving rod"): ``simulate(..., markers=)``, ``Simulation(markers=)`` and
 shape's nodes where they sit there, survive the tables and files, work with a held tip and
 with obstacles, and bad markers are refused by name before any work. (The continuous
 extension between nodes, its third order and the exact derivatives are Rust tests in
-crates/softrod-core/tests/dynamics_markers.rs and dynamics_sensitivity.rs.)
+crates/softrod-core/tests/suite/dynamics_markers.rs and dynamics_sensitivity.rs.)
 """
 
 from __future__ import annotations

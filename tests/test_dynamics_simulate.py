@@ -3,7 +3,7 @@ the energy books and check, exact state restore, designs without chambers, the C
 
 The physics checks against closed forms and references (Timoshenko frequencies, Kelvin-Voigt
 decay, energy conservation, convergence order, every law settling on statics, Jacobians vs
-finite differences) are Rust tests in crates/softrod-core/tests/dynamics*.rs; these check the
+finite differences) are Rust tests in crates/softrod-core/tests/suite/dynamics*.rs; these check the
 Python entry points end to end.
 """
 
@@ -52,7 +52,7 @@ def test_long_run_holds_the_static_equilibrium_during_each_pulse(long_run):
     # the static equilibrium at those pressures: the dynamic discretisation's own
     # (collocation statics, the state Simulation starts from), to 1e-6 L. solve_statics
     # (RK4 shooting, 16 steps) differs from it by the two discretisations' O(h^4) errors,
-    # which shrink together at fourth order (crates/softrod-core/tests/collocation.rs):
+    # which shrink together at fourth order (crates/softrod-core/tests/suite/collocation.rs):
     # 1.2e-5 L here at 3.6 bar, where the arm bends through ~90 degrees.
     tr = long_run
     i = np.searchsorted(tr.time, 115.9)

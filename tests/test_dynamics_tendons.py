@@ -2,7 +2,7 @@
 ``simulate`` and ``Simulation`` beside the pressures, follower tip loads, their energy
 books, and the input rules (docs/dynamics.md, "Tendons and follower loads"). The core's
 precise checks (settling on collocation statics to 1e-9 L, exact step Jacobians, energy
-balance) are in crates/softrod-core/tests/dynamics_tendons.rs."""
+balance) are in crates/softrod-core/tests/suite/dynamics_tendons.rs."""
 
 import math
 

@@ -3,7 +3,7 @@ constraints" and "Systems of rods"): a clamped-clamped rod under a large line lo
 two-rod parallel mechanism against scipy's collocation BVP solver, reactions that balance
 the loads, the design-file keys, bad inputs, the bundled system, and hypothesis on the new
 entry points. (The small-load clamped-clamped beam against the linear Timoshenko solution,
-the Euler loads and the exact Jacobians are in crates/softrod-core/tests/end_constraints.rs.)
+the Euler loads and the exact Jacobians are in crates/softrod-core/tests/suite/end_constraints.rs.)
 """
 
 from __future__ import annotations

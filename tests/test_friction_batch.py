@@ -5,7 +5,7 @@ own load path from the unloaded rod, bitwise equal to ``solve_statics`` of that 
 included; failed rows kept as in any batch; a frictionless batch unchanged;
 ``friction_steps`` reaching the batch (API, ``softrod sweep --friction-steps``); what is
 refused by name; and a hypothesis property (any rows, any thread count: batch == single).
-The core's own checks are in crates/softrod-core/tests/friction_batch.rs."""
+The core's own checks are in crates/softrod-core/tests/suite/friction_batch.rs."""
 
 from __future__ import annotations
 

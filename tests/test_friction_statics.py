@@ -2,7 +2,7 @@
 quasi-static load path with elastic-slip friction and a return map, through the bundled
 finger pressed onto a table. The analytic checks (a bar pulled on a frictional bed against
 the rigid-plastic and elastic-slip closed forms, loading then unloading, global balance,
-mu = 0 against the frictionless solve) are in crates/softrod-core/tests/friction.rs; here:
+mu = 0 against the frictionless solve) are in crates/softrod-core/tests/suite/friction.rs; here:
 the entry point, path dependence through ``history``, increment convergence, the Coulomb
 bound, what is refused and why, and a property test."""
 
@@ -113,7 +113,7 @@ def test_coarse_paths_reach_the_pressed_finger(rough, steps):
     smoothing zone, and Newton reaches the next equilibrium only in sub-increments of about
     1.6e-4 of the path (every request halves that far there): finer than 1/1024 of a third,
     where the halving stopped. Now no request halves less finely than the default path
-    does (crates/softrod-core/tests/friction.rs has the same check in Rust)."""
+    does (crates/softrod-core/tests/suite/friction.rs has the same check in Rust)."""
     sol = solve_statics(rough, [25e3], options=SolverOptions(friction_steps=steps))
     assert balance_error(sol) < 1e-9 * max(1.0, rough.mass * G)
     assert sol.contact.total_force[0][2] > 0  # pressed on the table
@@ -147,7 +147,7 @@ def test_zero_friction_on_the_frictional_path_is_the_frictionless_solve(finger):
     with a Jacobian of order one for this free finger): positions agree to about
     1e-10 L and base forces to 1e-10 F_s (measured 8e-12 L and 3e-15 N; the frictional
     path ends with another Newton sequence than the frictionless cold start, so not
-    bitwise; crates/softrod-core/tests/friction.rs checks 1e-12 on the bar)."""
+    bitwise; crates/softrod-core/tests/suite/friction.rs checks 1e-12 on the bar)."""
     fs = 1.03e-3 / 0.08**2  # F_s = EI_min / L^2 of the finger (EI_min = 1.03e-3 N m^2), N
     two = finger.with_obstacles(
         [

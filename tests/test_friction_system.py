@@ -1,6 +1,6 @@
 """Coulomb friction in a system of rods (docs/contact.md, "Friction in the statics",
 "Systems of rods"): two bundled fingers pressing onto their table, their tips clamped to one
-platform. The core's tests (crates/softrod-core/tests/friction_system.rs) check the
+platform. The core's tests (crates/softrod-core/tests/suite/friction_system.rs) check the
 physics against the lone bar's closed forms and the frictionless system; these check the
 Python API: the path and its continuation, batches, the CLI, and bad input."""
 

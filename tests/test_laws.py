@@ -3,7 +3,7 @@
 Design-file validation of [sections.law] and [sections.partition] (every bad value raises
 DesignError/InputError naming the field as it is written in the file), and the laws' physics
 through ``solve_statics``: paper 002's models M0-M3 (Table IV) on its vertical actuator, paper
-004's partition (eq. 31). The Rust tests (crates/softrod-core/tests/laws.rs) cover the same
+004's partition (eq. 31). The Rust tests (crates/softrod-core/tests/suite/laws.rs) cover the same
 physics in more depth, plus Jacobians and convergence orders.
 """
 

@@ -241,7 +241,7 @@ def test_bad_mesh_files_and_keys_are_refused(tmp_path):
 def test_a_rod_on_an_icosphere_file_balances_and_approaches_the_sphere(tmp_path):
     # A beam pushed at its tip onto a ball (tests/test_contact.py), the ball as an STL
     # icosphere of 1280 triangles: within the facets' error of the sphere's reaction
-    # (crates/softrod-core/tests/mesh_contact.rs derives and checks the convergence).
+    # (crates/softrod-core/tests/suite/mesh_contact.rs derives and checks the convergence).
     import tomli_w
 
     v, f = icosphere(3)
@@ -259,7 +259,7 @@ def test_a_rod_on_an_icosphere_file_balances_and_approaches_the_sphere(tmp_path)
         assert 0 < sol.contact.max_penetration <= 1e-4
         results.append(f_c[2])
     # Level 3: measured 1.8e-4 relative (9.1e-6 N of 0.0516 N in
-    # crates/softrod-core/tests/mesh_contact.rs).
+    # crates/softrod-core/tests/suite/mesh_contact.rs).
     assert abs(results[1] - results[0]) < 1e-3 * results[0]
 
 

@@ -2,7 +2,7 @@
 (``stiff_flop_pcc``): three chamber pairs (two chambers on one channel) against six channels,
 weightless statics against closed forms, and the six-fold symmetry.
 
-Closed forms (derived in crates/softrod-core/tests/pcc_chambers.rs and docs/pcc.md): with
+Closed forms (derived in crates/softrod-core/tests/suite/pcc_chambers.rs and docs/pcc.md): with
 F_k = p_k A_k at c_k = r (cos phi_k, sin phi_k) and the resultant b = sum F_k c_k,
 - chamber model (virtual work p A delta l): L = L0 + sum F / k_L and theta = |b| / k_theta
   exactly, bending towards phi = angle(-b), away from the chambers;

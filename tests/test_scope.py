@@ -491,7 +491,7 @@ def test_precurved_rod_in_dynamics_settles_on_its_statics(law):
     static = solve_statics(d, [p])
     # Starting at rest under p it stays there (the run starts from its own statics): the tip
     # stays on the shooting statics up to the two discretisations' O(h^4) difference,
-    # 1e-6 of the length (crates/softrod-core/tests/dynamics_scope.rs checks the moving
+    # 1e-6 of the length (crates/softrod-core/tests/suite/dynamics_scope.rs checks the moving
     # case to 1e-9 L against the collocation statics).
     assert np.abs(traj.tip_position - static.tip_position).max() < 1e-6 * L
     # and that statics is the precurved one, not the straight rod's.

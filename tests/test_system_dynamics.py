@@ -1,5 +1,5 @@
 """Dynamics of a system of rods and its platform through the Python API (the physics is
-tested in crates/softrod-core/tests/dynamics_system.rs; here the wiring, units, results,
+tested in crates/softrod-core/tests/suite/dynamics_system.rs; here the wiring, units, results,
 save/restore and refusals; docs/dynamics.md, "Systems of rods")."""
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """``softrod.system_trajectory_sensitivities``: the exact forward sensitivities of a
 system's motion (platform pose and markers) with respect to model parameters, against
 central differences of whole ``simulate_system`` runs (docs/dynamics.md, "Systems of
-rods"; the core's own checks are crates/softrod-core/tests/dynamics_system_sensitivity.rs)."""
+rods"; the core's own checks are crates/softrod-core/tests/suite/dynamics_system_sensitivity.rs)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """``softrod.trajectory_sensitivities``: the exact forward sensitivities of a rod's motion
 (tip and markers) with respect to named model parameters, against central differences of
 whole ``simulate`` runs (docs/dynamics.md, "Parameter sensitivities of the motion"; the
-core's own checks are crates/softrod-core/tests/dynamics_sensitivity.rs), the run itself
+core's own checks are crates/softrod-core/tests/suite/dynamics_sensitivity.rs), the run itself
 against ``simulate``'s, and the refusals by name."""
 
 from __future__ import annotations

@@ -242,7 +242,7 @@ fn bad_constrained_batch_inputs_are_refused_by_name() {
     assert!(rows.is_empty());
 }
 
-/// Two actuators side by side holding a platform (as tests/end_constraints.rs's).
+/// Two actuators side by side holding a platform (as tests/suite/end_constraints.rs's).
 fn system(rod: &Rod) -> (Vec<SystemRod<'_>>, Platform) {
     let gap = 0.02;
     let rods = [-gap, gap]

@@ -53,7 +53,7 @@ fn collocation_and_shooting_converge_together_at_fourth_order() {
 
 #[test]
 fn collocation_matches_the_elastica() {
-    // The tip-load table (elliptic integrals) with EA = GA = 1e8 EI/L^2 (tests/published.rs
+    // The tip-load table (elliptic integrals) with EA = GA = 1e8 EI/L^2 (tests/suite/published.rs
     // explains why that leaves < 1e-7 L), 64 intervals: Gauss collocation errs by ~(h/L)^4
     // alpha^2 / 4320 ~ 1e-11 here.
     let table = validation_table("cantilever_tip_load.csv");
@@ -158,7 +158,7 @@ fn long_soft_rods_are_solved_by_collocation() {
 // "Collocation" and "Validity and stability").
 
 /// An upright column (L = 1 m, EI = 1 N m^2, GJ = 2 EI, extension and shear 1e10 EI/L^2 as
-/// in tests/stability.rs), clamped at the base.
+/// in tests/suite/stability.rs), clamped at the base.
 fn upright_column(steps: usize, line_mass: f64, g: f64) -> Rod {
     let k = 1e10;
     Rod::new(design(

@@ -268,7 +268,7 @@ pub fn tilted() -> [[f64; 3]; 3] {
 }
 
 // Exact (dual-number) Jacobians of the shooting residual against central finite differences
-// of the plain residual (tests/jacobian.rs: the linear law; tests/laws.rs: every law).
+// of the plain residual (tests/suite/jacobian.rs: the linear law; tests/suite/laws.rs: every law).
 
 /// Finite-difference step, relative to max(1, |x_j|) (the unknowns are scaled to be of
 /// order 1). Central differences err by h^2 |r'''| / 6 (truncation, ~1e-12 here) plus
@@ -277,8 +277,8 @@ pub fn tilted() -> [[f64; 3]; 3] {
 pub const FD_STEP: f64 = 1e-6;
 /// Column-wise agreement, relative to the larger of the column's norm and 1e-3 (a column
 /// of an O(1)-scaled Jacobian can be near zero only by accident). Measured: at most
-/// 1.2e-9 over all points and designs of tests/jacobian.rs (printed with --nocapture;
-/// tests/laws.rs prints its own), so 1e-7 leaves an 80x margin for round-off while still
+/// 1.2e-9 over all points and designs of tests/suite/jacobian.rs (printed with --nocapture;
+/// tests/suite/laws.rs prints its own), so 1e-7 leaves an 80x margin for round-off while still
 /// catching a missing derivative term: e.g. the tip body's lever R(L) c, whose derivative
 /// is ~1e-2 of a column for paper 002's marker, or a law's (the carried stretch's initial
 /// value, d(EA)/dF of the table, the v3 in stretch-dependent bending).
@@ -520,7 +520,7 @@ pub fn two_tendons(mut spec: DesignSpec, helical: bool, stretch_bending: bool) -
     spec
 }
 
-/// The hanging actuator with `two_tendons` (as tests/tendons.rs' arm), c_b 1.31 on the body,
+/// The hanging actuator with `two_tendons` (as tests/suite/tendons.rs' arm), c_b 1.31 on the body,
 /// damping time `tau`.
 pub fn tendon_arm(helical: bool, stretch_bending: bool, steps: usize, tau: f64) -> DesignSpec {
     let mut spec = two_tendons(
@@ -564,7 +564,7 @@ pub fn pam_arm_section(length: f64, mass: f64, steps: usize) -> SectionSpec {
     sec
 }
 
-/// Paper 000's arm (tests/dynamics_scope.rs, tests/dynamics_sensitivity.rs) moulded curved: the reference curvature and
+/// Paper 000's arm (tests/suite/dynamics_scope.rs, tests/suite/dynamics_sensitivity.rs) moulded curved: the reference curvature and
 /// stretch given by a table along s, a helix (constant values, `helix`) or an arc whose
 /// curvature grows along the arm.
 pub fn tabulated_arm(helix: bool) -> DesignSpec {

@@ -816,7 +816,7 @@ fn bad_obstacles_are_refused_with_field_and_rule() {
     d.obstacles = vec![cap];
     rejects(d, "obstacles[0].end", "must differ from start");
     // Friction: statics::solve refuses it and says why (the frictional load path is
-    // statics::friction::solve, tests/friction.rs).
+    // statics::friction::solve, tests/suite/friction.rs).
     let rod = Rod::new(with(&|o| o.friction = 0.3)).unwrap();
     match solve(&rod, &loads(&[]), None, &SolverOptions::default()) {
         Err(SoftrodError::InvalidParameter { field, rule, .. }) => {
@@ -826,7 +826,7 @@ fn bad_obstacles_are_refused_with_field_and_rule() {
         other => panic!("{other:?}"),
     }
     // Solvers without contact refuse obstacles instead of ignoring them (the dynamics
-    // carries contact: tests/dynamics_contact.rs).
+    // carries contact: tests/suite/dynamics_contact.rs).
     let rod = Rod::new(good.clone()).unwrap();
     let sol = solve(&rod, &loads(&[]), None, &SolverOptions::default()).unwrap();
     match softrod_core::linearise::linearise(&rod, &loads(&[]), &sol, 4) {

@@ -133,7 +133,7 @@ fn damped_runs_settle_on_statics_for_every_law() {
 fn step_jacobian_matches_finite_differences_for_every_law() {
     // The full collocation residual of the next step, at a point off the solution (after
     // 10 steps towards P, perturbed), against central differences: as in
-    // tests/dynamics.rs, to 1e-6 of each row's scale (truncation ~h^2, round-off ~1e-16/h).
+    // tests/suite/dynamics.rs, to 1e-6 of each row's scale (truncation ~h^2, round-off ~1e-16/h).
     for (name, law, map) in laws() {
         let rod = Rod::new(actuator(law, 2)).unwrap();
         let mut sim =

@@ -1,7 +1,7 @@
 //! Markers on a moving rod (`Simulator::set_markers`, `marker_positions`): at a node the
 //! node itself, between nodes the collocation's continuous extension, whose order on an
 //! exact arc is measured here; their parameter derivatives are checked against central
-//! differences in tests/dynamics_sensitivity.rs.
+//! differences in tests/suite/dynamics_sensitivity.rs.
 
 use crate::common;
 
@@ -19,7 +19,7 @@ const KAPPA: f64 = PI / 2.0 / L;
 
 /// A straight rod (no gravity) under a pure tip moment M about d1, at rest in its static
 /// equilibrium on `steps` intervals: the exact shape is the arc of curvature KAPPA in the
-/// y-z plane (tests/exact.rs), which every step keeps.
+/// y-z plane (tests/suite/exact.rs), which every step keeps.
 fn arc(steps: usize) -> Simulator {
     arc_with(steps, Scheme::BdfAlpha)
 }

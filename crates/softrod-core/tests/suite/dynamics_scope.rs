@@ -1,8 +1,8 @@
 //! Issue 17 part A in dynamics: a constant reference shape (precurvature, pre-strain)
 //! enters the collocation dynamics through the laws, which act on the strains relative to
 //! it (linear, Ogden and EA(F) table axial laws, with and without stretch-dependent
-//! bending), as in the statics. (Tendons and follower loads are carried: tests/dynamics_tendons.rs;
-//! tapered sections and tabulated reference shapes: tests/dynamics_taper.rs.)
+//! bending), as in the statics. (Tendons and follower loads are carried: tests/suite/dynamics_tendons.rs;
+//! tapered sections and tabulated reference shapes: tests/suite/dynamics_taper.rs.)
 
 use crate::common;
 use common::*;
@@ -16,7 +16,7 @@ fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
-/// Paper 000's arm (as in tests/dynamics.rs), moulded curved and twisted.
+/// Paper 000's arm (as in tests/suite/dynamics.rs), moulded curved and twisted.
 fn precurved_arm() -> DesignSpec {
     let mut sec = pam_arm_section(0.22, 0.165, 16);
     sec.reference.curvature = [0.0, 3.0, 0.5];
@@ -79,7 +79,7 @@ fn precurved_arm_settles_on_the_statics() {
             "{name}: tip after 5 s vs collocation statics {d:.3e} m, vs shooting {ds:.3e} m; moved {:.3e} m",
             dist(&start, tip)
         );
-        // As tests/dynamics.rs: the slowest mode decays as exp(-5.8 t), so after 5 s the
+        // As tests/suite/dynamics.rs: the slowest mode decays as exp(-5.8 t), so after 5 s the
         // run sits on the discretisation's own statics to the solvers' tolerance (1e-9 L),
         // and on the shooting statics (an independent discretisation of the same law) to
         // their O(h^4) difference (1e-6 L). Bending that scaled the curvature instead of
@@ -133,7 +133,7 @@ fn undamped_precurved_arm_keeps_its_energy_balance_for_every_law() {
         }
         assert!(moved > 1e-4, "{name}: the pressures do work");
         // The implicit midpoint rule conserves a quadratic energy exactly and a nonlinear
-        // one to O(dt^2): 1 % of the energy moved, as tests/dynamics_taper.rs.
+        // one to O(dt^2): 1 % of the energy moved, as tests/suite/dynamics_taper.rs.
         assert!(worst <= 1e-2 * moved, "{name}: balance {worst} of {moved}");
     }
 }

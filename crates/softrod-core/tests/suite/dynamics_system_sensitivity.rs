@@ -103,7 +103,7 @@ fn options() -> DynOptions {
     DynOptions {
         dt: DT,
         // Far below the default so that the finite differences are not noise (as the
-        // lone rod's test, tests/dynamics_sensitivity.rs): the converged states' error is
+        // lone rod's test, tests/suite/dynamics_sensitivity.rs): the converged states' error is
         // ~ tol of the unknowns' scales.
         tol: 1e-13,
         ..DynOptions::default()
@@ -255,7 +255,7 @@ fn system_trajectory_sensitivities_match_central_differences() {
         // per unit relative change. The bound, 1e-5 of the largest derivative plus 1e-7 m
         // per unit (per relative change for parameters of more than one unit), leaves
         // two orders of magnitude above both (the lone rod's test's bound and reasoning,
-        // tests/dynamics_sensitivity.rs).
+        // tests/suite/dynamics_sensitivity.rs).
         let h = 1e-4 * value;
         let (up, _) = run(&moved(&BASE, j, h), &[]);
         let (down, _) = run(&moved(&BASE, j, -h), &[]);

@@ -46,7 +46,7 @@ fn settle(rod: &Rod, p: &[f64], n: usize) -> (f64, f64) {
 
 #[test]
 fn damped_tapered_actuator_settles_on_the_collocation_statics() {
-    // As tests/dynamics_laws.rs (tau = 0.05 s, 3 s at P): the rest state of the dynamic
+    // As tests/suite/dynamics_laws.rs (tau = 0.05 s, 3 s at P): the rest state of the dynamic
     // discretisation is collocation statics, solved independently: 1e-9 L.
     // The linear law and stretch-dependent bending (statics refuses a taper with the Ogden
     // law or an EA(F) table already: Rod::new).
@@ -81,7 +81,7 @@ fn damped_tapered_actuator_settles_on_the_collocation_statics() {
 
 #[test]
 fn damped_tabulated_arms_settle_on_the_collocation_statics() {
-    // As tests/dynamics_scope.rs: the slowest mode decays as exp(-5.8 t); after 5 s the
+    // As tests/suite/dynamics_scope.rs: the slowest mode decays as exp(-5.8 t); after 5 s the
     // run sits on the discretisation's own statics to 1e-9 L.
     let p = [150e3, 0.0, 60e3];
     for helix in [true, false] {
@@ -135,7 +135,7 @@ fn step_jacobian_after_steps(name: &str, rod: Rod, p: &[f64]) {
 
 #[test]
 fn step_jacobian_matches_finite_differences_for_taper_and_tables() {
-    // As tests/dynamics_laws.rs: to 1e-6 of each row's scale.
+    // As tests/suite/dynamics_laws.rs: to 1e-6 of each row's scale.
     step_jacobian_after_steps("tapered", Rod::new(tapered(2, 0.05)).unwrap(), &P);
     let mut arm = tabulated_arm(false);
     arm.sections[0].steps = 3;

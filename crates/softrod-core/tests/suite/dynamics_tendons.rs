@@ -58,7 +58,7 @@ fn start(rod: &Rod, p: &[f64], t: &[f64], opts: DynOptions) -> Simulator {
 }
 
 /// From rest, slack, to tensions T (and pressures P) held for 3 s with tau = 0.05 s: as
-/// tests/dynamics_laws.rs, the run settles on collocation statics with the same tensions to
+/// tests/suite/dynamics_laws.rs, the run settles on collocation statics with the same tensions to
 /// 1e-9 L, and on the shooting statics to the two discretisations' difference.
 #[test]
 fn damped_tendon_runs_settle_on_statics() {

@@ -28,7 +28,7 @@ const STEPS: usize = 8;
 /// Lateral distance between the two bars, m.
 const GAP: f64 = 0.2;
 
-/// The bar of tests/friction.rs on its bed, its base moved to y = `y`.
+/// The bar of tests/suite/friction.rs on its bed, its base moved to y = `y`.
 fn bar_at(mu: f64, y: f64) -> DesignSpec {
     let mut d = bar_on_bed(mu);
     d.mounting.base_position = [0.0, y, 0.0];
@@ -226,7 +226,7 @@ fn frictional_system_balances_and_keeps_a_locked_in_tension_after_release() {
             let dx = released.platform_position[0] - L;
             println!("mu {mu}, rod {i}: locked-in tension {locked:.4e} N, platform {dx:.3e} m");
             if mu > 0.0 {
-                // The lone bar's bound (tests/friction.rs): the elastic slip moves each
+                // The lone bar's bound (tests/suite/friction.rs): the elastic slip moves each
                 // zone boundary by about ell = sqrt(EA / k_t), changing N by mu q ell.
                 let ell = (EA / K).sqrt();
                 assert!((locked - 0.5 * share).abs() <= mu * Q * ell, "{locked}");
@@ -246,7 +246,7 @@ fn frictional_system_balances_and_keeps_a_locked_in_tension_after_release() {
 /// their plane, then pulled along and across by the platform: the dual-number Jacobian
 /// at a trial point of that increment against central differences along the solver's
 /// increments (the platform's rotation on the group). As for the lone rod
-/// (tests/friction.rs), the point is moved 1 % off the laid one so that every contact
+/// (tests/suite/friction.rs), the point is moved 1 % off the laid one so that every contact
 /// point's trial state is strictly in stick or slip, away from the Coulomb cone's kink.
 #[test]
 fn frictional_system_jacobian_matches_central_differences() {

@@ -8,7 +8,7 @@ use softrod_core::spec::{DesignSpec, LineLoadSpec, TipSpec};
 use softrod_core::statics::SolverOptions;
 use softrod_core::Rod;
 
-/// The shared check (tests/common.rs) at the default solver options.
+/// The shared check (tests/suite/common.rs) at the default solver options.
 fn check_against_fd(name: &str, rod: &Rod, ld: &Loads) {
     check_jacobian_against_fd(name, rod, ld, &SolverOptions::default(), 0x5EED_0F50_F70D);
 }

@@ -776,8 +776,8 @@ fn partition_bending_stiffness_grows_with_the_stretch() {
 // 7. Exact Jacobians against finite differences, for every law
 // ---------------------------------------------------------------------------------------
 
-/// The shared check (tests/common.rs: FD step, tolerances, points) with this file's tight
-/// Newton tolerance. The linear-law designs of tests/jacobian.rs measure 1.2e-9; a missing
+/// The shared check (tests/suite/common.rs: FD step, tolerances, points) with this file's tight
+/// Newton tolerance. The linear-law designs of tests/suite/jacobian.rs measure 1.2e-9; a missing
 /// derivative term of any law (e.g. the carried stretch's initial value, d(EA)/dF of the
 /// table, the v3 in stretch-dependent bending) changes a column by far more than FD_TOL =
 /// 1e-7. Measured here: see --nocapture.
@@ -935,7 +935,7 @@ fn jacobian_matches_fd_for_paper_004_partition_and_table() {
 // 8. Order of the integrator with the carried Ogden stretch and stretch-dependent bending
 // ---------------------------------------------------------------------------------------
 
-/// RK4 is fourth order: fitted slope within ORDER_SLACK of 4, as tests/convergence.rs
+/// RK4 is fourth order: fitted slope within ORDER_SLACK of 4, as tests/suite/convergence.rs
 /// (which measures 3.96-3.98 for the linear law and allows 0.3 for pre-asymptotic
 /// behaviour). Measured here: see --nocapture.
 const ORDER_SLACK: f64 = 0.3;

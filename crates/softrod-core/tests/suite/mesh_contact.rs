@@ -46,7 +46,7 @@ fn patch(z: f64) -> (Vec<[f64; 3]>, Vec<[usize; 3]>) {
 }
 
 /// A 1 m horizontal cantilever (EI = 10 N m^2, q = 1 N/m) clamped c above a plane, as in
-/// tests/contact.rs, with the plane as `table`.
+/// tests/suite/contact.rs, with the plane as `table`.
 fn cantilever_over(table: ObstacleSpec) -> DesignSpec {
     let sec = direct_section("beam", 1.0, 1e8, 1e8, 10.0, 10.0, 1.0 / G, 400);
     let mut d = design(vec![sec], HORIZONTAL, G);
@@ -100,7 +100,7 @@ fn a_two_triangle_plane_is_the_plane() {
 }
 
 /// A 0.5 m cantilever (EI = 1 N m^2, weightless) pushed down at its tip by 0.1 N onto a
-/// ball of radius 50 mm whose top lies 2 mm below the tip (tests/contact.rs), the ball as a
+/// ball of radius 50 mm whose top lies 2 mm below the tip (tests/suite/contact.rs), the ball as a
 /// sphere obstacle or an icosphere of 20 * 4^level triangles. The icosphere lies between the
 /// sphere and the ball of its smallest face distance r_in, so its distance differs from the
 /// sphere's by at most delta = R - r_in (0 to delta): the tip's support moves by at most
@@ -193,7 +193,7 @@ fn an_icosphere_converges_to_the_sphere() {
 /// A cantilever (0.2 m, EI = 0.01 N m^2, 0.1 kg/m) released straight 10 mm above a table
 /// given as a closed box mesh (its top 10 mm below the base), with Kelvin-Voigt damping
 /// tau = 0.05 s, falls, lands and settles: after 2 s (the slowest mode's envelope is down
-/// to 1e-17, tests/dynamics_contact.rs) it lies on the static equilibrium of the same
+/// to 1e-17, tests/suite/dynamics_contact.rs) it lies on the static equilibrium of the same
 /// discretisation to 1e-9 L, and the clamp and the table carry the weight to 1e-9 W.
 #[test]
 fn dropped_rod_settles_on_a_mesh_table() {

@@ -27,7 +27,7 @@ const SOLVER_TOL: f64 = 1e-13;
 /// these smooth laws; solve error / step ~1e-8 relative).
 const H: f64 = 1e-5;
 /// Column-wise agreement relative to the column's norm, as for the lone rod
-/// (tests/sensitivity.rs): a derivative missing a term (the platform's weight, a rod's
+/// (tests/suite/sensitivity.rs): a derivative missing a term (the platform's weight, a rod's
 /// share of the balance, the marker's own d_theta) is off by percent or more.
 const COLUMN_TOL: f64 = 1e-6;
 /// Plus an absolute allowance for nearly zero columns: two solves agree to ~1e-14 m,

@@ -1,4 +1,4 @@
-//! The frictional bars of the friction tests (tests/friction.rs, tests/friction_system.rs):
+//! The frictional bars of the friction tests (tests/suite/friction.rs, tests/suite/friction_system.rs):
 //! a 1 m bar lying on a frictional bed under its weight, and a round bar on a plane.
 
 // Each test crate uses a part of these.
