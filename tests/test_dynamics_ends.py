@@ -26,7 +26,8 @@ DT = 2 * math.pi / OMEGA / 50
 # The damped runs below: tau = 0.5 / omega, a damping ratio of 0.25 on the first mode.
 TAU = 0.5 / OMEGA
 TIP = [L, 0.0, 0.0]
-# Horizontal mounting: d3 = +x, d1 = +z, d2 = -y (crates/softrod-core/tests/suite/common.rs's HORIZONTAL).
+# Horizontal mounting: d3 = +x, d1 = +z, d2 = -y (HORIZONTAL of
+# crates/softrod-core/tests/suite/common.rs).
 HORIZONTAL = [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]]
 
 

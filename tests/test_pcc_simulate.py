@@ -1,9 +1,10 @@
 """softrod.simulate(model="pcc"): the PCC model of paper 003 through the rod's entry point.
 
 The PCC physics (energy conservation, the linearised elongation as a second-order system,
-mass matrix and Jacobian vs finite differences) is checked in crates/softrod-core/tests/suite/pcc.rs;
-these tests check that ``simulate`` drives the same core correctly and returns a Trajectory
-consistent with itself, with ``run_pcc``, with statics and with the rod's pressure supply.
+mass matrix and Jacobian vs finite differences) is checked in
+crates/softrod-core/tests/suite/pcc.rs; these tests check that ``simulate`` drives the same
+core correctly and returns a Trajectory consistent with itself, with ``run_pcc``, with
+statics and with the rod's pressure supply.
 """
 
 import numpy as np

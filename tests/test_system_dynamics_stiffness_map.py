@@ -261,3 +261,30 @@ def test_pressures_outside_the_table_are_refused_naming_the_rod():
         sim.run(lambda t: [[0, 0, 0], [0, 0, 0 if t < 0.005 else 70e3]], 0.01)
     assert e.value.field == "rods[1].pressures[2]"
     assert sim.time == pytest.approx(0.004, rel=1e-12)
+
+
+def test_a_state_restores_only_with_the_same_maps():
+    # The state holds the motion, not the material: restored into a simulation whose maps
+    # differ it would continue another model's run as if it were this one's, so it is refused
+    # (the maps' numbers are part of the state's fingerprint), for systems and single rods.
+    system = one_mapped()
+    sim = softrod.SystemSimulation(system, ZERO, stiffness_maps=[table_map(), None])
+    state = sim.save()
+    other = softrod.SystemSimulation(
+        system, ZERO, stiffness_maps=[StiffnessMap.constant((1.0, 1.0, 1.0), 3), None]
+    )
+    with pytest.raises(InputError, match="stiffness maps") as info:
+        other.restore(state)
+    assert info.value.field == "state"
+    same = softrod.SystemSimulation(system, ZERO, stiffness_maps=[table_map(), None])
+    same.restore(state)  # the same numbers: accepted
+    sim.copy().restore(state)
+
+    design = system.rods[0].design
+    rod = softrod.Simulation(design, [0.0] * 3, stiffness_map=table_map())
+    rod_state = rod.state()
+    unit = StiffnessMap.constant((1.0, 1.0, 1.0), 3)
+    with pytest.raises(InputError, match="another stiffness map"):
+        softrod.Simulation(design, [0.0] * 3, stiffness_map=unit).restore(rod_state)
+    rod.copy().restore(rod_state)
+    softrod.Simulation(design, [0.0] * 3, stiffness_map=table_map()).restore(rod_state)

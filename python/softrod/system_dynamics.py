@@ -431,8 +431,8 @@ class SystemTrajectory:
 class SystemSimulationState:
     """A :class:`SystemSimulation`'s complete state at ``time`` (s): ``data`` (read-only
     numbers) for :meth:`SystemSimulation.restore`, ``system`` (its name) and
-    ``fingerprint`` (a digest of the rods' designs, attachments and platform: a state only
-    restores into the same system)."""
+    ``fingerprint`` (a digest of the rods' designs, attachments, stiffness maps and platform:
+    a state only restores into the same system)."""
 
     system: str
     fingerprint: str
@@ -440,10 +440,13 @@ class SystemSimulationState:
     data: np.ndarray = field(repr=False)
 
 
-def _system_fingerprint(system: System, inertia: np.ndarray | None = None) -> str:
+def _system_fingerprint(
+    system: System, inertia: np.ndarray | None = None, sigma: list | None = None
+) -> str:
     """A digest of what a saved state or file belongs to: every rod's design document and
     attachment, the platform's nominal pose, mass, centre of mass and inertia (default: the
-    system's)."""
+    system's), and the stiffness maps' numbers the core evaluates (``sigma``, per rod, of
+    :func:`_sigma_maps`; None: no maps)."""
     if inertia is None:
         inertia = system.platform.inertia
     doc = {
@@ -466,6 +469,8 @@ def _system_fingerprint(system: System, inertia: np.ndarray | None = None) -> st
             )
         ],
     }
+    if sigma is not None:
+        doc["sigma"] = sigma
     text = json.dumps(doc, sort_keys=True)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
@@ -597,7 +602,7 @@ class SystemSimulation:
         )
         self.stiffness_maps: tuple[StiffnessMap | None, ...] = tuple(maps)
         self._pressures = ps
-        self._fingerprint = _system_fingerprint(system, inertia)
+        self._fingerprint = _system_fingerprint(system, inertia, sigma)
         # As a single rod's static start: a coarse step may hold an unstable start.
         _report_stability(self._sim.start_stable, on_unstable, "the system's initial static state")
 
@@ -631,7 +636,7 @@ class SystemSimulation:
 
     def restore(self, state: SystemSimulationState) -> None:
         """Continue from a state saved by :meth:`save` of a simulation of the same system
-        (its rods' designs, attachments and platform, inertia included)."""
+        (its rods' designs, attachments, stiffness maps and platform, inertia included)."""
         if not isinstance(state, SystemSimulationState):
             raise V.fail(
                 "state", type(state).__name__, "must be a SystemSimulationState", InputError
@@ -641,8 +646,8 @@ class SystemSimulation:
                 "state",
                 repr(state),
                 f"was saved from system {state.system!r}, not from this simulation's "
-                f"{self.system.name!r} (or from another version of it: rods, attachments or "
-                "platform differ)",
+                f"{self.system.name!r} (or from another version of it: rods, attachments, "
+                "stiffness maps or platform differ)",
                 InputError,
             )
         self._sim.restore(np.ascontiguousarray(state.data, dtype=float))

@@ -79,9 +79,12 @@ def _no_stiffness_map(design: Design) -> None:
         )
 
 
-def _fingerprint(design: Design) -> str:
-    """A digest of the design's SI document: a saved state only restores into the same."""
-    text = json.dumps(design.spec, sort_keys=True)
+def _fingerprint(design: Design, sigma: dict | None = None) -> str:
+    """A digest of the design's SI document and of the stiffness map's numbers the core
+    evaluates (``sigma``, :func:`core_sigma`'s arguments; none: the design alone): a saved
+    state only restores into the same model."""
+    doc = design.spec if not sigma else {"design": design.spec, "sigma": sigma}
+    text = json.dumps(doc, sort_keys=True)
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:16]
 
 
@@ -185,7 +188,8 @@ class SimulationState:
     ``tip_reaction_moment`` (3,) N, N m (the wrench a held tip's constraint applies, world;
     zero for a free tip); ``marker_position`` (K, 3) m (the simulation's markers, world;
     None without markers); ``design`` and
-    ``fingerprint`` (the design it belongs to); ``data`` (read-only float array).
+    ``fingerprint`` (the design and stiffness map it belongs to); ``data`` (read-only float
+    array).
     """
 
     design: str
@@ -382,13 +386,14 @@ class Simulation:
         V.choice(initial, ("static", "straight", "reference"), "initial")
         on_unstable = _policy("on_unstable", on_unstable)
         opts = _solver_options(scheme, alpha, tol, max_iter, error_tol, energy_tol)
+        sigma = _sigma_args(self.design, stiffness_map)
         self._sim = _core.Simulator(
             json.dumps(self.design.spec, allow_nan=False),
             p,
             initial,
             _seconds(dt, "dt"),
             **opts,
-            **_sigma_args(self.design, stiffness_map),
+            **sigma,
             **(
                 {}
                 if _tip_loads0 is None
@@ -398,6 +403,7 @@ class Simulation:
             **_hold_args(held),
         )
         self.initial = initial
+        self._fingerprint = _fingerprint(self.design, sigma)
         self.options = opts
         self._markers = None
         self._set_sites(sites)
@@ -416,17 +422,24 @@ class Simulation:
         return self._sim.start_stable
 
     @classmethod
-    def _wrap(cls, design: Design, sim, initial: str, options: dict, markers) -> Simulation:
+    def _wrap(
+        cls, design: Design, sim, initial: str, options: dict, markers, fingerprint: str
+    ) -> Simulation:
         obj = cls.__new__(cls)
         obj.design, obj._sim, obj.initial, obj.options = design, sim, initial, options
-        obj._markers = markers
+        obj._markers, obj._fingerprint = markers, fingerprint
         return obj
 
     def copy(self) -> Simulation:
         """An independent simulation starting from this one's current state (exact), with
         the same markers."""
         return Simulation._wrap(
-            self.design, self._sim.copy(), self.initial, dict(self.options), self._markers
+            self.design,
+            self._sim.copy(),
+            self.initial,
+            dict(self.options),
+            self._markers,
+            self._fingerprint,
         )
 
     @property
@@ -519,7 +532,7 @@ class Simulation:
         ro = lambda a: _ro(np.asarray(a, dtype=float))  # noqa: E731
         return SimulationState(
             design=self.design.name,
-            fingerprint=_fingerprint(self.design),
+            fingerprint=self._fingerprint,
             time=float(d["time"][0]),
             pressure=ro(d["pressure"][0]),
             tip_force=ro(d["tip_force"]),
@@ -550,12 +563,13 @@ class Simulation:
             raise design_error(
                 "state", type(state).__name__, "must be a SimulationState", InputError
             )
-        if state.fingerprint != _fingerprint(self.design):
+        if state.fingerprint != self._fingerprint:
             raise design_error(
                 "state",
                 repr(state),
                 f"was taken from design {state.design!r}, not from this simulation's "
-                f"{self.design.name!r} (or from another version of it)",
+                f"{self.design.name!r} (or from another version of it, or with another "
+                "stiffness map)",
                 InputError,
             )
         self._sim.restore(np.ascontiguousarray(state.data, dtype=float))
