@@ -204,3 +204,35 @@ def test_step_length_rejects_bad_values():
 def test_section_steps_override_step_length():
     d = load_design(SPA).replace({"numerics": {"step_length": "5 mm"}, "sections[1].steps": 4})
     assert [s["steps"] for s in d.spec["sections"]] == [2, 4, 2]
+
+
+def test_documents_copy_deep_and_plain():
+    """Design.document and replace() copy document data deeply (softrod._frozen.thaw, the
+    fast copy of an inline mesh's thousands of numbers): an edit of the copy, or of a value
+    after it was given to replace(), never reaches the design; frozen parts come back as
+    plain dicts and lists, and other values (numpy arrays) are deep-copied."""
+    from softrod._frozen import freeze, thaw
+
+    d = load_design(SPA)
+    doc = d.document
+    doc["sections"][0]["length"] = "1 m"
+    assert d.document != doc and d.document == load_design(SPA).document
+    value = {
+        "kind": "plane",
+        "point": ["0 mm", "0 mm", "-90 mm"],
+        "normal": [0, 0, 1],
+        "stiffness": "1e7 N/m^2",
+        "tolerance": "0.2 mm",
+    }
+    moved = d.with_obstacles([value])
+    value["point"][2] = "+90 mm"
+    assert moved.document["obstacles"][0]["point"][2] == "-90 mm"
+    frozen = freeze({"a": [[1.0, 2], ("x", None)], "b": {"c": True}})
+    plain = thaw(frozen)
+    assert plain == frozen and type(plain) is dict and type(plain["a"]) is list
+    assert type(plain["a"][0]) is list and type(plain["a"][1]) is tuple
+    plain["a"][0][0] = 5.0
+    assert frozen["a"][0][0] == 1.0
+    arr = np.zeros(2)
+    copied = thaw({"x": arr})["x"]
+    assert copied is not arr and np.array_equal(copied, arr)

@@ -77,3 +77,21 @@ def freeze(obj: Any) -> Any:
     if isinstance(obj, tuple):
         return tuple(freeze(v) for v in obj)
     return obj
+
+
+def thaw(obj: Any) -> Any:
+    """A plain, editable deep copy of document data (dicts, lists, tuples of plain scalars,
+    frozen or not): what ``copy.deepcopy`` gives, without its memo, so a document with an
+    inline mesh (thousands of numbers) copies in milliseconds. Anything else is deep-copied."""
+    t = type(obj)
+    if t in _PLAIN:
+        return obj
+    if isinstance(obj, dict):
+        return {k: thaw(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        if all(type(v) in _PLAIN for v in obj):
+            return list(obj)
+        return [thaw(v) for v in obj]
+    if t is tuple:
+        return tuple(thaw(v) for v in obj)
+    return copy.deepcopy(obj)

@@ -539,27 +539,30 @@ def unit_factor(unit: str, kind: str, field: str, cls: type[DesignError] = Input
 # --- structure -----------------------------------------------------------------------------------
 
 
+_SCALARS = frozenset({int, float, str, bool, type(None)})
+
+
 def check_depth(
     obj: object, field: str, cls: type[DesignError] = InputError, limit: int = MAX_DEPTH
 ) -> None:
     """Refuse tables and arrays nested deeper than ``limit`` (iteratively: a hostile document
     can never raise RecursionError here)."""
     stack = [(obj, 0)]
-    seen = 0
     while stack:
         item, depth = stack.pop()
         if depth > limit:
             rule = f"nests tables/arrays deeper than {limit} levels"
             raise fail(field, "deeply nested data", rule, cls)
-        if isinstance(item, Mapping):
-            children = item.values()
-        elif isinstance(item, (list, tuple)):
+        if isinstance(item, (list, tuple)):  # before Mapping: an abstract, slower check
             children = item
+        elif isinstance(item, Mapping):
+            children = item.values()
         else:
             continue
         for c in children:
-            seen += 1
-            if isinstance(c, (Mapping, list, tuple)):
+            # Scalars first, by exact type: a document's thousands of numbers (an inline
+            # mesh) skip the abstract Mapping check.
+            if type(c) not in _SCALARS and isinstance(c, (list, tuple, Mapping)):
                 stack.append((c, depth + 1))
 
 

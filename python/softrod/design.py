@@ -26,7 +26,7 @@ import numpy as np
 
 from . import _core
 from . import _validate as V
-from ._frozen import freeze
+from ._frozen import freeze, thaw
 from .constraints import from_tip_table
 from .errors import DesignError, InputError, design_error
 from .io import as_path
@@ -843,6 +843,27 @@ def _obstacles(obstacles: Any) -> list[dict]:
     return out
 
 
+def _plain_rows(raw: list, kind: type) -> np.ndarray | None:
+    """``raw`` as an (n, 3) array when every entry is a triple of plain Python numbers of
+    ``kind`` (int: ints; float: ints or floats), each within 2^53 and finite: the fast path
+    of a mesh written inline (thousands of numbers); None otherwise, and the caller checks
+    entry by entry to name the first bad one."""
+    allowed = (int,) if kind is int else (int, float)
+    if not all(
+        type(row) in (list, tuple) and len(row) == 3 and all(type(x) in allowed for x in row)
+        for row in raw
+    ):
+        return None
+    try:
+        a = np.array(raw, dtype=np.int64 if kind is int else float)
+    except OverflowError:  # an int beyond int64
+        return None
+    if kind is int:
+        return a if np.abs(a).max() <= V.MAX_ABS_INT else None
+    ints = [x for row in raw for x in row if type(x) is int and abs(x) > V.MAX_ABS_INT]
+    return a if not ints and np.isfinite(a).all() else None
+
+
 def _mesh(ob: Mapping, k: int) -> dict:
     """A mesh obstacle's ``vertices`` (m, world frame) and ``faces``: from ``file`` (STL or
     OBJ, relative to the design file's folder, in the length unit ``units``: required, as
@@ -907,8 +928,11 @@ def _mesh(ob: Mapping, k: int) -> dict:
         if len(raw) > 3 * MAX_MESH_TRIANGLES:
             rule = f"has too many vertices: at most {3 * MAX_MESH_TRIANGLES}"
             raise V.fail(f"{where}.vertices", f"{len(raw)} vertices", rule, DesignError)
+        vertices = None if scale is None else _plain_rows(raw, float)
+        if vertices is not None:
+            vertices = vertices * scale
         rows = []
-        for i, v in enumerate(raw):
+        for i, v in enumerate(raw if vertices is None else ()):
             field = f"{where}.vertices[{i}]"
             if scale is None:
                 rows.append(_qvec(v, "length", field))
@@ -916,7 +940,8 @@ def _mesh(ob: Mapping, k: int) -> dict:
                 if not isinstance(v, (list, tuple)) or len(v) != 3:
                     raise V.fail(field, v, "must be a list of 3 numbers", DesignError)
                 rows.append([number(x, f"{field}[{j}]") * scale for j, x in enumerate(v)])
-        vertices = np.array(rows, dtype=float)
+        if vertices is None:
+            vertices = np.array(rows, dtype=float)
         rawf = _require(ob, "faces", where)
         if not isinstance(rawf, list) or not rawf:
             raise V.fail(
@@ -928,15 +953,17 @@ def _mesh(ob: Mapping, k: int) -> dict:
         if len(rawf) > MAX_MESH_TRIANGLES:
             rule = f"a mesh obstacle may have at most {MAX_MESH_TRIANGLES} triangles"
             raise V.fail(f"{where}.faces", f"{len(rawf)} triangles", rule, DesignError)
-        faces = []
-        for i, f in enumerate(rawf):
-            field = f"{where}.faces[{i}]"
-            if not isinstance(f, (list, tuple)) or len(f) != 3:
-                raise V.fail(field, f, "must be a list of 3 vertex indices", DesignError)
-            faces.append(
-                [_integer(x, f"{field}[{j}]", 0, len(vertices) - 1) for j, x in enumerate(f)]
-            )
-        faces = np.array(faces, dtype=np.int64)
+        faces = _plain_rows(rawf, int)
+        if faces is None or faces.min() < 0 or faces.max() >= len(vertices):
+            rows = []
+            for i, f in enumerate(rawf):
+                field = f"{where}.faces[{i}]"
+                if not isinstance(f, (list, tuple)) or len(f) != 3:
+                    raise V.fail(field, f, "must be a list of 3 vertex indices", DesignError)
+                rows.append(
+                    [_integer(x, f"{field}[{j}]", 0, len(vertices) - 1) for j, x in enumerate(f)]
+                )
+            faces = np.array(rows, dtype=np.int64)
     rotation = np.eye(3)
     if "rotation" in ob:
         rot = ob["rotation"]
@@ -1178,7 +1205,7 @@ class Design:
         """The parsed design file (units as written) as a new deep copy on each read: a
         plain dict to read, serialise or edit and pass to :func:`load_design`; editing it
         leaves this design unchanged (:meth:`replace` makes a changed copy)."""
-        return copy.deepcopy(self._document)
+        return thaw(self._document)
 
     def sections(self) -> list[dict]:
         """Compiled section properties (SI): stiffness matrices, line mass, chambers."""
@@ -1200,7 +1227,7 @@ class Design:
         V.check_depth(changes, "changes", DesignError)
         doc = self.document
         for path, value in changes.items():
-            _set_path(doc, path, copy.deepcopy(value))
+            _set_path(doc, path, thaw(value))
         return _build(doc, self.source)
 
     def with_obstacles(self, obstacles: list[Mapping[str, Any]]) -> Design:
@@ -1573,7 +1600,7 @@ def read_design(design: str | Path | Mapping[str, Any] | Design) -> Design:
         return design
     if isinstance(design, Mapping):
         V.check_depth(design, "design", DesignError)
-        return _build(copy.deepcopy(dict(design)), None)
+        return _build(thaw(dict(design)), None)
     if not isinstance(design, (str, os.PathLike)):
         raise design_error(
             "design",
