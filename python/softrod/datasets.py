@@ -694,12 +694,13 @@ def _same_id(a, b) -> bool:
 
 def _labels(a: np.ndarray, name: str, ints: bool) -> np.ndarray:
     """Experiment ids as int64 when all are integers, else str; mounting always str."""
-    if ints and a.dtype.kind in "iu":
-        return _integer_ids(a.tolist(), name)
-    if ints and a.dtype.kind == "f":
-        if np.all(np.isfinite(a)) and np.all(a == np.round(a)):
-            return _integer_ids(a.tolist(), name)
-        raise _fail(name, "non-integer numbers", "ids must be integers or strings")
+    if ints and a.dtype.kind in "iuf":
+        if a.dtype.kind == "f" and not (np.all(np.isfinite(a)) and np.all(a == np.round(a))):
+            raise _fail(name, "non-integer numbers", "ids must be integers or strings")
+        big = np.flatnonzero(np.abs(a.astype(float)) > V.MAX_ABS_INT)
+        if big.size:
+            raise _fail(name, a[big[0]].item(), _ID_RULE)
+        return a.astype(np.int64)
     if a.dtype.kind == "b":
         raise _fail(name, "booleans", "must be integers or strings")
     values = [v.item() if isinstance(v, np.generic) else v for v in a.tolist()]
@@ -714,12 +715,15 @@ def _labels(a: np.ndarray, name: str, ints: bool) -> np.ndarray:
     return np.asarray([str(v).strip() for v in values], dtype=str)
 
 
+# Integer ids beyond 2^53 are not exact as floats (the type a CSV reader may give them).
+_ID_RULE = f"integer ids must lie within +-2^53 ({V.MAX_ABS_INT})"
+
+
 def _integer_ids(values: list, name: str) -> np.ndarray:
-    """Integer ids as int64, each within +-2^53 (integers beyond are not exact as floats, the
-    type a CSV reader may give them)."""
+    """Python integer ids as int64, each within +-2^53."""
     big = [v for v in values if abs(v) > V.MAX_ABS_INT]
     if big:
-        raise _fail(name, big[0], f"integer ids must lie within +-2^53 ({V.MAX_ABS_INT})")
+        raise _fail(name, big[0], _ID_RULE)
     return np.asarray(values, dtype=np.int64)
 
 
