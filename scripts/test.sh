@@ -1,12 +1,31 @@
 #!/usr/bin/env bash
 # Every test of softrod from a fresh clone: installs the package with its test and docs extras
-# (this builds the Rust extension), then runs the Rust tests, the Python tests (the docs' examples,
-# the API reference build and the stub check included) and the format/lint checks. Needs
-# Python >= 3.10 with pip, and Rust (https://rustup.rs).
+# (this builds the Rust extension) and runs the Python tests (the docs' examples, the API
+# reference build and the stub check included) and ruff; beside them, cargo fmt, clippy and the
+# Rust tests. Exits non-zero when anything failed. Needs Python >= 3.10 with pip, and Rust
+# (https://rustup.rs).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 command -v cargo >/dev/null || { echo "error: cargo not found; install Rust (https://rustup.rs)" >&2; exit 1; }
 PY=${PYTHON:-python3}
+# The Rust side (format, clippy, the Rust tests) runs in the background beside the Python side
+# (install, which builds the extension in release, then ruff and pytest): the core's compiles are
+# single-threaded, so on two cores the two sides together take about the time of the longer one.
+# Cargo locks each profile's directory separately, so the release build and the debug/check
+# builds do not wait for each other. The Rust side's output is printed when the Python tests end.
+rust_log=$(mktemp "${TMPDIR:-/tmp}/softrod-rust-side.XXXXXX")
+echo "== Rust side (cargo fmt --check, clippy, cargo test) started in the background; its output follows the Python tests"
+(
+    set -e
+    echo "== format and lint (Rust)"
+    cargo fmt --all --check
+    cargo clippy --quiet -p softrod-core -p softrod-py --all-targets -- -D warnings
+    echo "== Rust tests"
+    cargo test -p softrod-core --quiet
+) >"$rust_log" 2>&1 &
+rust_pid=$!
+# Stopped or failed early (Ctrl-C, a failed install): do not leave the Rust side running.
+trap 'kill "$rust_pid" 2>/dev/null || true' EXIT
 # The viewer's browser test drives Debian's Chromium (never a downloaded browser). Install it
 # when it is missing (~20 s, ~500 MB): as root with apt-get, else through sudo when that works
 # without a password; otherwise say so, and that test is skipped with the reason.
@@ -24,12 +43,18 @@ if ! command -v chromium >/dev/null 2>&1; then
 fi
 echo "== installing softrod with its test and docs extras (builds the Rust core)"
 "$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,docs]"
-echo "== format and lint"
-cargo fmt --all --check
-cargo clippy --quiet -p softrod-core -p softrod-py --all-targets -- -D warnings
+echo "== format and lint (Python)"
 "$PY" -m ruff format --check python tests benchmarks examples
 "$PY" -m ruff check python tests benchmarks examples
-echo "== Rust tests"
-cargo test -p softrod-core --quiet
 echo "== Python tests"
-"$PY" -m pytest -q --hypothesis-profile=reproducible
+python_rc=0
+"$PY" -m pytest -q --hypothesis-profile=reproducible || python_rc=$?
+rust_rc=0
+wait "$rust_pid" || rust_rc=$?
+cat "$rust_log"
+rm -f "$rust_log"
+if [ "$python_rc" != 0 ] || [ "$rust_rc" != 0 ]; then
+    echo "error: the Python side exited with $python_rc, the Rust side with $rust_rc (0 = passed)" >&2
+    exit 1
+fi
+echo "== all passed: Rust side and Python side"
