@@ -122,8 +122,16 @@ def machine() -> dict:
         "scipy": scipy.__version__,
         "softrod": softrod.__version__,
         "git_commit": commit,
+        "core_debug_assertions": core_checked(),
         "load_average_before": load_average(),
     }
+
+
+def core_checked() -> bool:
+    """Whether the installed core checks debug assertions and integer overflow (the test
+    command's ``checked`` build, or a debug build): slower than the release build that the
+    timings are meant for."""
+    return bool(getattr(softrod._core, "_debug_assertions", False))
 
 
 def result_header(benchmark: str, quick: bool, info: dict, **extra) -> dict:
@@ -171,6 +179,12 @@ def bench_main(
         "--quick)",
     )
     args = parser.parse_args(argv)
+    if core_checked():
+        print(
+            "warning: softrod's core is a checked build (debug assertions and overflow checks, "
+            "as scripts/test.sh installs it): these timings are slower than the release build's. "
+            "For release timings: pip install -e '.[bench]'"
+        )
     result = run(args)
     out = args.output or RESULTS / (f"{name}_quick.json" if args.quick else f"{name}.json")
     write_json(out, result)

@@ -8,11 +8,15 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 command -v cargo >/dev/null || { echo "error: cargo not found; install Rust (https://rustup.rs)" >&2; exit 1; }
 PY=${PYTHON:-python3}
-# The Rust side (format, clippy, the Rust tests) runs in the background beside the Python side
-# (install, which builds the extension in release, then ruff and pytest): the core's compiles are
-# single-threaded, so on two cores the two sides together take about the time of the longer one.
-# Cargo locks each profile's directory separately, so the release build and the debug/check
-# builds do not wait for each other. The Rust side's output is printed when the Python tests end.
+# Both the extension and the Rust tests are built in the `checked` profile (Cargo.toml: the
+# release build with debug assertions and overflow checks), so the core compiles once: the
+# Rust tests select softrod-py too, which gives the shared dependencies the same features as
+# the extension's build. The Rust side (format, clippy, the Rust tests) runs in the background
+# beside the Python side (install, ruff, pytest): the compiles are mostly single-threaded, so
+# on two cores the sides overlap. Cargo locks each profile's directory: clippy runs beside the
+# install, the Rust tests wait for the core the install compiles (or compile it first, and the
+# install finds it built). The Rust side's output is printed when the Python tests end.
+export MATURIN_PEP517_ARGS="--profile checked"
 rust_log=$(mktemp "${TMPDIR:-/tmp}/softrod-rust-side.XXXXXX")
 echo "== Rust side (cargo fmt --check, clippy, cargo test) started in the background; its output follows the Python tests"
 (
@@ -21,7 +25,7 @@ echo "== Rust side (cargo fmt --check, clippy, cargo test) started in the backgr
     cargo fmt --all --check
     cargo clippy --quiet -p softrod-core -p softrod-py --all-targets -- -D warnings
     echo "== Rust tests"
-    cargo test -p softrod-core --quiet
+    cargo test --profile checked -p softrod-core -p softrod-py --quiet
 ) >"$rust_log" 2>&1 &
 rust_pid=$!
 # Stopped or failed early (Ctrl-C, a failed install): do not leave the Rust side running.
@@ -41,7 +45,7 @@ if ! command -v chromium >/dev/null 2>&1; then
         echo "note: Chromium is not installed and this user can neither apt-get nor sudo: the browser test will be skipped (install Debian's chromium to run it)"
     fi
 fi
-echo "== installing softrod with its test and docs extras (builds the Rust core)"
+echo "== installing softrod with its test and docs extras (builds the Rust core, checked profile)"
 "$PY" -m pip install --quiet --disable-pip-version-check -e ".[test,docs]"
 echo "== format and lint (Python)"
 "$PY" -m ruff format --check python tests benchmarks examples

@@ -16,6 +16,7 @@ __all__ = [
     "SystemFrictionState",
     "SystemSimulator",
     "__version__",
+    "_debug_assertions",
     "_panic_inside_guard",
     "linearise_at",
     "point_jacobian_of",
@@ -26,6 +27,7 @@ __all__ = [
     "rod_system_sensitivity_batch",
 ]
 __version__: str
+_debug_assertions: bool
 
 # numpy arrays in and out; the stub names no numpy types so that checking it stays fast
 # (the Python layer above states the shapes and units).

@@ -837,5 +837,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     pcc::register(m)?;
     system_dynamics::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // Whether this build checks debug assertions and integer overflow (the test command's
+    // `checked` profile, or a debug build): benchmarks record it and warn, as such a build is
+    // slower than the release build.
+    m.add("_debug_assertions", cfg!(debug_assertions))?;
     Ok(())
 }
