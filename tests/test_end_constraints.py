@@ -359,19 +359,8 @@ FREE_TIP_ENTRIES = {
     "workspace": lambda d, ds: softrod.workspace(d),
     "linearise": lambda d, ds: softrod.linearise(d, [0.0, 0.0, 0.0]),
     "model='pcc'": lambda d, ds: solve_statics(d, [0.0, 0.0, 0.0], model="pcc"),
-    "StaticSolution.jacobian": lambda d, ds: solve_statics(d, [0.0, 0.0, 0.0]).jacobian(),
 }
-
-
-def test_jacobian_of_a_tip_held_by_the_call_is_refused():
-    """A tip pinned by solve_statics' argument (the design's tip is free) has no Jacobian
-    either: the core's is the free tip's, which would be a wrong answer here."""
-    pin = softrod.TipConstraint.pinned(["5 mm", "0 mm", "-125 mm"])
-    sol = solve_statics("spa_three_chamber_130mm", [0.0, 0.0, 0.0], tip_constraint=pin)
-    with pytest.raises(InputError) as exc:
-        sol.jacobian()
-    assert exc.value.field == "tip_constraint"
-    assert exc.value.value == "pinned"
+# StaticSolution.jacobian takes a held tip (tests/test_jacobian_six_unknowns.py).
 
 
 @pytest.mark.parametrize("entry", sorted(FREE_TIP_ENTRIES))

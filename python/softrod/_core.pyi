@@ -371,6 +371,9 @@ def point_jacobian_of(
     s: float,
     params: Sequence[tuple[str, Sequence[int]]],
     tensions: Sequence[float] | None = None,
+    tip_kind: str = "free",
+    tip_position: _Vec3 | None = None,
+    tip_rotation: Sequence[Sequence[float]] | None = None,
 ) -> dict[str, Any]: ...
 def linearise_at(
     rod: Rod,

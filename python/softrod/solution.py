@@ -33,6 +33,12 @@ class Jacobian:
     tensions (6, t) per N of each tendon channel (at a slack tendon the derivative of
     pulling it); params (6, k) per unit of each named parameter (tip only),
     ``param_names`` their names.
+
+    reaction: for an equilibrium whose tip is pinned or clamped, the derivatives of the
+    wrench the constraint applies to the tip (world frame; rows force x, y, z in N, then
+    moment in N m, zero rows for a pin) with respect to the same inputs, a dict with the
+    keys "pressures", "tip_force", "tip_moment", "tensions" (and "params" when asked);
+    None for a free tip.
     """
 
     point: float
@@ -44,6 +50,7 @@ class Jacobian:
     params: np.ndarray | None = None
     param_names: tuple[str, ...] = ()
     tensions: np.ndarray = field(default_factory=lambda: np.zeros((6, 0)))
+    reaction: dict[str, np.ndarray] | None = None
 
 
 @dataclass(frozen=True)
@@ -197,6 +204,9 @@ class StaticSolution:
     #: Contacts with the design's obstacles (:class:`Contact`); None without obstacles.
     contact: Contact | None = field(default=None, repr=False)
     friction_state: Any = field(default=None, repr=False)
+    #: The held tip's prescribed pose, (kind, position m, rotation) as the binding takes
+    #: it; None for a free tip (its Jacobian differentiates the held equilibrium).
+    tip_hold: tuple | None = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         parts = _inputs(self.design.name, self.pressures, self.tensions)
@@ -279,7 +289,9 @@ class StaticSolution:
         respect to the pressures, the tip force and moment, the tendon tensions and, at the
         tip, the named calibration parameters (``params``: names such as "E" or
         "c_b[body]", as in :func:`softrod.calibrate`); docs/control.md. Implicit
-        differentiation of the shooting residual: no finite differences."""
+        differentiation of the shooting residual: no finite differences. Also for a pinned
+        or clamped tip (the held equilibrium's derivatives, with those of the tip's reaction
+        in ``reaction``), follower loads and obstacles without friction."""
         from .units import to_si
 
         if not self.converged:
@@ -303,16 +315,18 @@ class StaticSolution:
                 "derivative there (docs/contact.md, 'Friction in the statics')",
                 InputError,
             )
+        held: dict[str, Any] = {}
         if self.tip_constraint != "free":
-            # The core differentiates the free tip's residual: for a held tip (six base
-            # unknowns, the held pose) its numbers would be a free tip's, not this solution's.
-            raise design_error(
-                "tip_constraint",
-                self.tip_constraint,
-                "StaticSolution.jacobian solves a free tip only (docs/scope.md): the "
-                "Jacobian of a pinned or clamped tip's equilibrium is not implemented",
-                InputError,
-            )
+            if self.tip_hold is None:
+                raise design_error(
+                    "solution.tip_hold",
+                    None,
+                    f"a {self.tip_constraint} tip's Jacobian needs the held pose the "
+                    "solution was solved at (solve_statics keeps it)",
+                    InputError,
+                )
+            kind, position, rotation = self.tip_hold
+            held = {"tip_kind": kind, "tip_position": position, "tip_rotation": rotation}
         design = self.design
         s = design.length if point is None else to_si(point, "length", "point", InputError)
         pairs, names = _param_pairs(design, params)
@@ -326,7 +340,9 @@ class StaticSolution:
             float(s),
             pairs,
             tensions=[float(t) for t in self.tensions],
+            **held,
         )
+        reaction = out.get("reaction")
         return Jacobian(
             point=float(s),
             position=np.array(out["position"]),
@@ -337,6 +353,7 @@ class StaticSolution:
             params=out.get("params"),
             param_names=tuple(names),
             tensions=out["tensions"],
+            reaction=None if reaction is None else {k: np.array(v) for k, v in reaction.items()},
         )
 
     def _tip_load(self, kind: str):

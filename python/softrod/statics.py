@@ -548,6 +548,7 @@ def solve_statics(
         tip_reaction_moment=_reaction(out, "tip_reaction_moment"),
         contact=Contact.from_core(out["contact"]) if "contact" in out else None,
         friction_state=out.get("friction_state"),
+        tip_hold=None if constraint.kind == "free" else constraint.core_args(),
     )
 
 

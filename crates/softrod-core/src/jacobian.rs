@@ -12,6 +12,11 @@
 //! g(x, a) and the state at a probe point with their partial derivatives; by the implicit
 //! function theorem on g = 0, dx/da = -g_x^-1 g_a and every output y moves as
 //! dy/da = y_a + y_x dx/da. No finite differences.
+//!
+//! [`point_jacobian6`] does the same with six unknowns (the base force and moment) and the
+//! residual of a held tip, or of a free tip under follower loads or on obstacles; the tip
+//! loads then enter the tip's balance as dual directions, and a held tip's reaction is one
+//! more output.
 
 use crate::error::{Result, SoftrodError};
 use crate::jet::Jet;
@@ -19,8 +24,9 @@ use crate::ode::{
     advance, integrate_with, Coeffs, Loads, NodeAt, SectionKnobs, State, TendonCoeff,
 };
 use crate::rod::Rod;
+use crate::statics::constraint::{reaction_under, tip_residual_under, TipConstraint};
 use crate::statics::{Problem, Solution};
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use nalgebra::{DMatrix, Matrix3, Matrix6, Vector3, Vector6};
 
 /// An input a derivative is taken with respect to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -120,10 +126,21 @@ pub(crate) fn dual_coeffs<const N: usize>(
     loads: &Loads,
     inputs: &[Input],
 ) -> Vec<Coeffs<Jet<N>>> {
+    dual_coeffs_from::<N>(rod, loads, inputs, 3)
+}
+
+/// [`dual_coeffs`] with the inputs seeded as directions `first + k` (after `first` shooting
+/// unknowns: 3, or 6 with the base force among them).
+fn dual_coeffs_from<const N: usize>(
+    rod: &Rod,
+    loads: &Loads,
+    inputs: &[Input],
+    first: usize,
+) -> Vec<Coeffs<Jet<N>>> {
     let mut p: Vec<Jet<N>> = loads.pressures.iter().map(|&v| Jet::from(v)).collect();
     for (k, a) in inputs.iter().enumerate() {
         if let Input::Pressure(c) = a {
-            p[*c].eps[3 + k] = 1.0;
+            p[*c].eps[first + k] = 1.0;
         }
     }
     let sigma = loads.stiffness_scale.map(Jet::from);
@@ -140,7 +157,7 @@ pub(crate) fn dual_coeffs<const N: usize>(
                 &sigma,
                 &knobs,
             );
-            seed_tensions(rod, i, loads, inputs, &mut coeffs);
+            seed_tensions(rod, i, loads, inputs, first, &mut coeffs);
             coeffs
         })
         .collect()
@@ -155,16 +172,17 @@ fn seed_tensions<const N: usize>(
     i: usize,
     loads: &Loads,
     inputs: &[Input],
+    first: usize,
     coeffs: &mut Coeffs<Jet<N>>,
 ) {
     for (k, a) in inputs.iter().enumerate() {
         let Input::Tension(t) = a else { continue };
         for route in rod.sections[i].tendons.iter().filter(|r| r.channel == *t) {
             match coeffs.tendons.iter_mut().find(|c| c.route == *route) {
-                Some(c) => c.tension.eps[3 + k] = 1.0,
+                Some(c) => c.tension.eps[first + k] = 1.0,
                 None => {
                     let mut tension = Jet::from(loads.tensions[*t]);
-                    tension.eps[3 + k] = 1.0;
+                    tension.eps[first + k] = 1.0;
                     coeffs.tendons.push(TendonCoeff {
                         tension,
                         route: *route,
@@ -419,4 +437,168 @@ pub fn as_matrix(j: &PointJacobian) -> DMatrix<f64> {
             j.d_rotation[k][i - 3]
         }
     })
+}
+
+/// The point Jacobian of an equilibrium with six shooting unknowns (the base force and
+/// moment, scaled): a tip held by `constraint` (pinned or clamped, the converged solution of
+/// `crate::statics::constraint::solve_constrained`), or a free tip under follower loads or
+/// pressed on obstacles (frictionless), where n(0) is unknown too. The same implicit
+/// differentiation as [`point_jacobian`] with that tip's residual
+/// (`constraint::tip_residual_under`): the pressures and tensions enter through the
+/// coefficients, the tip force and moment through the tip's balance (the free tip's six
+/// rows; a pinned tip's moment rows; a clamped tip's residual has none, so its shape does
+/// not depend on them). For a held tip, also the derivatives of the reaction the
+/// constraint applies to the tip (world frame; zero moment when pinned).
+pub fn point_jacobian6(
+    rod: &Rod,
+    loads: &Loads,
+    constraint: &TipConstraint,
+    sol: &Solution,
+    inputs: &[Input],
+    probe: &Probe,
+) -> Result<HeldJacobian> {
+    check_inputs(rod, inputs)?;
+    let x: [f64; 6] = <[f64; 6]>::try_from(sol.x.as_slice()).map_err(|_| {
+        SoftrodError::invalid(
+            "solution",
+            format!("{} shooting unknowns", sol.x.len()),
+            "six shooting unknowns (base force and moment) are needed here: a held tip's \
+             equilibrium, or a free tip's under follower loads or with obstacles",
+        )
+    })?;
+    let problem = Problem::new(rod, loads, 1.0);
+    let held = !matches!(constraint, TipConstraint::Free);
+    let run = |chunk: &[Input]| -> Pass6 {
+        match chunk.len() {
+            0 => pass6::<6>(&problem, rod, loads, constraint, &x, chunk, probe),
+            1 => pass6::<7>(&problem, rod, loads, constraint, &x, chunk, probe),
+            2 => pass6::<8>(&problem, rod, loads, constraint, &x, chunk, probe),
+            _ => pass6::<9>(&problem, rod, loads, constraint, &x, chunk, probe),
+        }
+    };
+    let mut chunks = inputs.chunks(3);
+    let mut p = run(chunks.next().unwrap_or(&[]));
+    for chunk in chunks {
+        let more = run(chunk);
+        p.g_a.extend(more.g_a);
+        p.y_a.extend(more.y_a);
+        p.q_a.extend(more.q_a);
+    }
+    let lu = p.g_x.lu();
+    let rot: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| p.y[3 + 3 * i + j]));
+    let pinned = matches!(constraint, TipConstraint::Pinned { .. });
+    let mut out = HeldJacobian {
+        point: PointJacobian {
+            position: [p.y[0], p.y[1], p.y[2]],
+            rotation: rot,
+            d_position: Vec::with_capacity(inputs.len()),
+            d_rotation: Vec::with_capacity(inputs.len()),
+        },
+        reaction_force: vec![],
+        reaction_moment: vec![],
+    };
+    for ((ga, ya), qa) in p.g_a.iter().zip(&p.y_a).zip(&p.q_a) {
+        let dx = lu
+            .solve(&-Vector6::from_column_slice(ga))
+            .filter(|d| d.iter().all(|v| v.is_finite()))
+            .ok_or_else(|| singular(sol))?;
+        let dy: [f64; 12] =
+            std::array::from_fn(|i| ya[i] + (0..6).map(|j| p.y_x[i][j] * dx[j]).sum::<f64>());
+        out.point.d_position.push([dy[0], dy[1], dy[2]]);
+        let dr = std::array::from_fn(|i| std::array::from_fn(|j| dy[3 + 3 * i + j]));
+        out.point.d_rotation.push(small_rotation(&rot, &dr));
+        if held {
+            let dq: [f64; 6] =
+                std::array::from_fn(|i| qa[i] + (0..6).map(|j| p.q_x[i][j] * dx[j]).sum::<f64>());
+            out.reaction_force.push([dq[0], dq[1], dq[2]]);
+            // A pin carries no moment: its moment balance is a residual row (zero).
+            out.reaction_moment.push(if pinned {
+                [0.0; 3]
+            } else {
+                [dq[3], dq[4], dq[5]]
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// [`point_jacobian6`]'s result: the point's derivatives, and for a held tip those of its
+/// reaction, one per input (empty for a free tip).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeldJacobian {
+    pub point: PointJacobian,
+    /// d F_r / d a_k (world frame), N per unit of the input.
+    pub reaction_force: Vec<[f64; 3]>,
+    /// d M_r / d a_k (world frame), N m per unit of the input; zero for a pinned tip.
+    pub reaction_moment: Vec<[f64; 3]>,
+}
+
+/// One pass of [`point_jacobian6`]: the residual's, the probe's and the reaction's partial
+/// derivatives in the six unknowns and the chunk's inputs.
+struct Pass6 {
+    g_x: Matrix6<f64>,
+    g_a: Vec<[f64; 6]>,
+    /// Position (3) then rotation (9, row-major) at the probe.
+    y: [f64; 12],
+    y_x: [[f64; 6]; 12],
+    y_a: Vec<[f64; 12]>,
+    /// The tip's reaction (force, moment), whose value is not needed.
+    q_x: [[f64; 6]; 6],
+    q_a: Vec<[f64; 6]>,
+}
+
+/// The pass in `Jet<N>` for at most N - 6 inputs.
+fn pass6<const N: usize>(
+    problem: &Problem,
+    rod: &Rod,
+    loads: &Loads,
+    constraint: &TipConstraint,
+    x: &[f64; 6],
+    inputs: &[Input],
+    probe: &Probe,
+) -> Pass6 {
+    debug_assert!(inputs.len() + 6 <= N);
+    let coeffs = dual_coeffs_from::<N>(rod, loads, inputs, 6);
+    let xd: [Jet<N>; 6] = std::array::from_fn(|i| Jet::variable(x[i], i));
+    // n(0) is an unknown: the tip loads enter through the tip's balance only.
+    let mut f_tip = loads.tip_force.map(Jet::<N>::from);
+    let mut m_tip = loads.tip_moment.map(Jet::<N>::from);
+    for (k, a) in inputs.iter().enumerate() {
+        match a {
+            Input::TipForce(j) => f_tip[*j].eps[6 + k] = 1.0,
+            Input::TipMoment(j) => m_tip[*j].eps[6 + k] = 1.0,
+            _ => {}
+        }
+    }
+    let mut point = None;
+    let tip = integrate_with(
+        rod,
+        &coeffs,
+        problem.base_state(&xd),
+        &mut |node: NodeAt, y| {
+            if point.is_none() && node.section == probe.section && node.step == probe.step {
+                point = Some(advance(rod, &coeffs, node, y, probe.offset));
+            }
+            false
+        },
+    );
+    let g = tip_residual_under(problem, constraint, &tip, &f_tip, &m_tip);
+    let (qf, qm) = reaction_under(problem, &tip, &f_tip, &m_tip);
+    let q = [qf[0], qf[1], qf[2], qm[0], qm[1], qm[2]];
+    let y = flatten(&point.unwrap_or(tip));
+    Pass6 {
+        g_x: Matrix6::from_fn(|i, j| g[i].eps[j]),
+        g_a: (0..inputs.len())
+            .map(|k| std::array::from_fn(|i| g[i].eps[6 + k]))
+            .collect(),
+        y: y.map(|v| v.re),
+        y_x: std::array::from_fn(|i| std::array::from_fn(|j| y[i].eps[j])),
+        y_a: (0..inputs.len())
+            .map(|k| std::array::from_fn(|i| y[i].eps[6 + k]))
+            .collect(),
+        q_x: std::array::from_fn(|i| std::array::from_fn(|j| q[i].eps[j])),
+        q_a: (0..inputs.len())
+            .map(|k| std::array::from_fn(|i| q[i].eps[6 + k]))
+            .collect(),
+    }
 }

@@ -6,11 +6,12 @@ use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget, WarmStart};
-use softrod_core::jacobian::{point_jacobian, Input, Probe};
+use softrod_core::jacobian::{point_jacobian, point_jacobian6, HeldJacobian, Input, Probe};
 use softrod_core::linearise::linearise;
 use softrod_core::ode::Loads;
-use softrod_core::sensitivity::{tip_sensitivity, validate_params, Param, ParamKind};
+use softrod_core::sensitivity::{constrained_pose_sensitivity, validate_params, Param, ParamKind};
 use softrod_core::statics;
+use softrod_core::statics::constraint::{solve_constrained, TipConstraint};
 use softrod_core::{Rod, SoftrodError};
 use std::sync::Mutex;
 
@@ -216,9 +217,12 @@ fn parse_params(py: Python<'_>, params: Vec<(String, Vec<usize>)>) -> PyResult<V
 /// The exact Jacobian of the pose at arc length `s` of the equilibrium under `pressures`
 /// and tip loads (warm start `x`): (6, k) arrays, rows position then small rotation, for
 /// the pressures, tip force, tip moment and (at the tip only) the named parameters, at the
-/// given tendon `tensions` (N; None: slack).
+/// given tendon `tensions` (N; None: slack). `tip_kind` "pinned" (with `tip_position`) or
+/// "clamped" (and `tip_rotation`) for an equilibrium whose tip is held (`x` then has 6
+/// values), which adds "reaction": the same blocks for the reaction wrench the constraint
+/// applies to the tip (rows force, N, then moment, N m; world frame).
 #[pyfunction]
-#[pyo3(signature = (rod, pressures, tip_force, tip_moment, stiffness_scale, x, s, params, tensions=None))]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, stiffness_scale, x, s, params, tensions=None, tip_kind="free", tip_position=None, tip_rotation=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn point_jacobian_of<'py>(
     py: Python<'py>,
@@ -231,9 +235,13 @@ pub fn point_jacobian_of<'py>(
     s: f64,
     params: Vec<(String, Vec<usize>)>,
     tensions: Option<Vec<f64>>,
+    tip_kind: &str,
+    tip_position: Option<[f64; 3]>,
+    tip_rotation: Option<[[f64; 3]; 3]>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let params = parse_params(py, params)?;
+        let held = crate::ends::constraint(py, tip_kind, tip_position, tip_rotation)?;
         let rod = &rod.rod;
         // The equilibrium the caller holds was checked when it was solved.
         let checked = options(py, 1e-10, 25, true, 200, (1.0 / 3.0, 3.0), "ignore")?;
@@ -249,12 +257,27 @@ pub fn point_jacobian_of<'py>(
         let result = py.detach(|| -> softrod_core::Result<_> {
             validate_params(rod, &params)?;
             let probe = Probe::at(rod, s)?;
-            let sol = statics::solve(rod, &loads, Some(&x), &checked)?;
+            let free = matches!(held, TipConstraint::Free);
+            let sol = if free {
+                statics::solve(rod, &loads, Some(&x), &checked)?
+            } else {
+                solve_constrained(rod, &loads, &held, Some(&x), &checked)?.solution
+            };
             let mut inputs: Vec<Input> = (0..nc).map(Input::Pressure).collect();
             inputs.extend((0..3).map(Input::TipForce));
             inputs.extend((0..3).map(Input::TipMoment));
             inputs.extend((0..rod.n_tendons).map(Input::Tension));
-            let jac = point_jacobian(rod, &loads, &sol, &inputs, &probe)?;
+            // Six unknowns (a held tip, or the base force unknown under follower loads or
+            // with obstacles): the implicit differentiation of that residual.
+            let jac = if free && sol.x.len() == 3 {
+                HeldJacobian {
+                    point: point_jacobian(rod, &loads, &sol, &inputs, &probe)?,
+                    reaction_force: vec![],
+                    reaction_moment: vec![],
+                }
+            } else {
+                point_jacobian6(rod, &loads, &held, &sol, &inputs, &probe)?
+            };
             let sens = if params.is_empty() {
                 None
             } else {
@@ -265,36 +288,74 @@ pub fn point_jacobian_of<'py>(
                         "parameter derivatives are available at the tip only",
                     ));
                 }
-                Some(tip_sensitivity(rod, &loads, &sol, &params)?)
+                Some(constrained_pose_sensitivity(
+                    rod,
+                    &loads,
+                    &held,
+                    &sol,
+                    &params,
+                    &[],
+                )?)
             };
             Ok((jac, sens))
         });
         let (jac, sens) = result.map_err(|e| to_py_err(py, e, Context::Input))?;
-        let block = |from: usize, count: usize| {
-            nalgebra::DMatrix::from_fn(6, count, |i, k| {
-                if i < 3 {
-                    jac.d_position[from + k][i]
-                } else {
-                    jac.d_rotation[from + k][i - 3]
-                }
-            })
+        let point = &jac.point;
+        let block = |rows: &dyn Fn(usize) -> [f64; 6], from: usize, count: usize| {
+            nalgebra::DMatrix::from_fn(6, count, |i, k| rows(from + k)[i])
+        };
+        let pose = |k: usize| -> [f64; 6] {
+            let (p, r) = (point.d_position[k], point.d_rotation[k]);
+            [p[0], p[1], p[2], r[0], r[1], r[2]]
         };
         let d = PyDict::new(py);
-        d.set_item("position", jac.position.to_vec())?;
-        d.set_item("rotation", jac.rotation.map(|r| r.to_vec()).to_vec())?;
-        d.set_item("pressures", matrix(py, &block(0, nc))?)?;
-        d.set_item("tip_force", matrix(py, &block(nc, 3))?)?;
-        d.set_item("tip_moment", matrix(py, &block(nc + 3, 3))?)?;
-        d.set_item("tensions", matrix(py, &block(nc + 6, rod.n_tendons))?)?;
+        d.set_item("position", point.position.to_vec())?;
+        d.set_item("rotation", point.rotation.map(|r| r.to_vec()).to_vec())?;
+        d.set_item("pressures", matrix(py, &block(&pose, 0, nc))?)?;
+        d.set_item("tip_force", matrix(py, &block(&pose, nc, 3))?)?;
+        d.set_item("tip_moment", matrix(py, &block(&pose, nc + 3, 3))?)?;
+        d.set_item(
+            "tensions",
+            matrix(py, &block(&pose, nc + 6, rod.n_tendons))?,
+        )?;
+        let held_tip = !jac.reaction_force.is_empty();
+        let reaction = PyDict::new(py);
+        if held_tip {
+            let wrench = |k: usize| -> [f64; 6] {
+                let (f, m) = (jac.reaction_force[k], jac.reaction_moment[k]);
+                [f[0], f[1], f[2], m[0], m[1], m[2]]
+            };
+            reaction.set_item("pressures", matrix(py, &block(&wrench, 0, nc))?)?;
+            reaction.set_item("tip_force", matrix(py, &block(&wrench, nc, 3))?)?;
+            reaction.set_item("tip_moment", matrix(py, &block(&wrench, nc + 3, 3))?)?;
+            reaction.set_item(
+                "tensions",
+                matrix(py, &block(&wrench, nc + 6, rod.n_tendons))?,
+            )?;
+        }
         if let Some(sens) = sens {
             let m = nalgebra::DMatrix::from_fn(6, sens.position.len(), |i, k| {
                 if i < 3 {
                     sens.position[k][i]
                 } else {
-                    softrod_core::jacobian::small_rotation(&jac.rotation, &sens.rotation[k])[i - 3]
+                    softrod_core::jacobian::small_rotation(&point.rotation, &sens.rotation[k])
+                        [i - 3]
                 }
             });
             d.set_item("params", matrix(py, &m)?)?;
+            if held_tip {
+                let r = nalgebra::DMatrix::from_fn(6, sens.reaction_force.len(), |i, k| {
+                    if i < 3 {
+                        sens.reaction_force[k][i]
+                    } else {
+                        sens.reaction_moment[k][i - 3]
+                    }
+                });
+                reaction.set_item("params", matrix(py, &r)?)?;
+            }
+        }
+        if held_tip {
+            d.set_item("reaction", reaction)?;
         }
         Ok(d)
     })

@@ -873,6 +873,58 @@ pub(crate) fn tip_residual<D: RodScalar, const N: usize>(
     std::array::from_fn(|k| held[k])
 }
 
+/// [`tip_residual`] with 6 unknowns under the tip loads `f_tip` and `m_tip` (the design's
+/// tip frame, unscaled: the problem's load factor must be 1) in any scalar, so that they
+/// can carry derivatives (`crate::jacobian::point_jacobian6`). A pinned tip's moment rows
+/// are the tip's moment balance; a clamped tip's residual has no load in it.
+pub(crate) fn tip_residual_under<D: RodScalar>(
+    p: &Problem,
+    constraint: &TipConstraint,
+    tip: &State<D>,
+    f_tip: &[D; 3],
+    m_tip: &[D; 3],
+) -> [D; 6] {
+    let w = p.tip_weight().map(D::from);
+    let balance = || -> [D; 6] { p.tip_balance(tip, &w, f_tip, m_tip) };
+    let l = p.rod.length;
+    let held = |position: &[f64; 3], second: [D; 3]| -> [D; 6] {
+        std::array::from_fn(|k| {
+            if k < 3 {
+                (tip.r[k] - position[k]) * (1.0 / l)
+            } else {
+                second[k - 3]
+            }
+        })
+    };
+    match constraint {
+        TipConstraint::Free => balance(),
+        TipConstraint::Pinned { position } => {
+            let b = balance();
+            held(position, [b[3], b[4], b[5]])
+        }
+        TipConstraint::Clamped { position, rotation } => held(
+            position,
+            orientation_error(&tmatmul(&rotation.map(|r| r.map(D::from)), &tip.rot)),
+        ),
+    }
+}
+
+/// [`reaction`] under the tip loads `f_tip` and `m_tip` in any scalar (as
+/// [`tip_residual_under`]).
+pub(crate) fn reaction_under<D: RodScalar>(
+    p: &Problem,
+    tip: &State<D>,
+    f_tip: &[D; 3],
+    m_tip: &[D; 3],
+) -> ([D; 3], [D; 3]) {
+    let w = p.tip_weight().map(D::from);
+    let b: [D; 6] = p.tip_balance(tip, &w, f_tip, m_tip);
+    (
+        std::array::from_fn(|k| b[k] * p.fs),
+        std::array::from_fn(|k| b[k + 3] * p.ms),
+    )
+}
+
 pub(crate) const IDENTITY: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
 
 impl Equations for Level<'_> {

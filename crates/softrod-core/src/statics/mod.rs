@@ -397,7 +397,7 @@ impl<'a> Problem<'a> {
     }
 
     /// Tip-body weight (world), scaled by the load factor.
-    fn tip_weight(&self) -> [f64; 3] {
+    pub(crate) fn tip_weight(&self) -> [f64; 3] {
         let mt = self.rod.spec.tip.mass;
         self.rod.gravity.map(|g| self.factor * mt * g)
     }
@@ -435,7 +435,7 @@ impl<'a> Problem<'a> {
     /// Scaled tip balance for a tip weight W and tip loads F, M (in the solve's tip frame;
     /// any of them may carry a load derivative): the moment m(L) - (R(L) c) x W - M, and
     /// with 6 unknowns first the force n(L) - W - F.
-    fn tip_balance<D: RodScalar, const N: usize>(
+    pub(crate) fn tip_balance<D: RodScalar, const N: usize>(
         &self,
         tip: &State<D>,
         w: &[D; 3],

@@ -860,3 +860,87 @@ fn platform_systems_buckle_at_their_euler_loads() {
         }
     }
 }
+
+/// The held tip's point Jacobian (`jacobian::point_jacobian6`) against central differences
+/// of whole held solves: the pose at mid-length and the reaction, for a pressure and a tip
+/// moment, pinned and clamped; the held tip's own position does not move.
+#[test]
+fn held_point_jacobian_matches_central_differences_of_held_solves() {
+    use softrod_core::jacobian::{point_jacobian6, Input, Probe};
+    let rod = Rod::new(p002_actuator(tilted(), 9.81, 20)).unwrap();
+    let ld = loads(&[30e3, 5e3, 0.0]);
+    let free = solve_with_shape(&rod, &ld, None, &opts()).unwrap().0;
+    let aside = [free.tip.r[0] + 0.008, free.tip.r[1], free.tip.r[2] - 0.004];
+    let tip = Probe::tip(&rod);
+    let inputs = [Input::Pressure(0), Input::TipMoment(1)];
+    // Steps: 50 Pa and 1e-4 N m, central differences of solves to tol 1e-12: truncation
+    // O(h^2) ~ 1e-9 relative, round-off ~1e-12 * scale / h; 1e-5 relative, plus an absolute
+    // floor for entries that vanish.
+    let steps = [50.0, 1e-4];
+    for c in [
+        TipConstraint::Pinned { position: aside },
+        TipConstraint::Clamped {
+            position: aside,
+            rotation: free.tip.rot,
+        },
+    ] {
+        let sol = solve_constrained(&rod, &ld, &c, None, &opts()).unwrap();
+        // A node near mid-length (the shapes report nodes).
+        let s_mid = sol.shape.s[sol.shape.s.len() / 2];
+        let mid = Probe::at(&rod, s_mid).unwrap();
+        let jac = point_jacobian6(&rod, &ld, &c, &sol.solution, &inputs, &mid).unwrap();
+        let at_tip = point_jacobian6(&rod, &ld, &c, &sol.solution, &inputs, &tip).unwrap();
+        let solve = |k: usize, h: f64| {
+            let mut l = ld.clone();
+            match inputs[k] {
+                Input::Pressure(j) => l.pressures[j] += h,
+                Input::TipMoment(j) => l.tip_moment[j] += h,
+                _ => unreachable!(),
+            }
+            solve_constrained(&rod, &l, &c, Some(&sol.solution.x), &opts()).unwrap()
+        };
+        for k in 0..inputs.len() {
+            let h = steps[k];
+            let (hi, lo) = (solve(k, h), solve(k, -h));
+            // The position at that node.
+            let node = |s: &softrod_core::statics::constraint::ConstrainedSolution| {
+                let i = s
+                    .shape
+                    .s
+                    .iter()
+                    .position(|&x| x == s_mid)
+                    .expect("the same nodes");
+                s.shape.position[i]
+            };
+            let (ph, pl) = (node(&hi), node(&lo));
+            for i in 0..3 {
+                let fd = (ph[i] - pl[i]) / (2.0 * h);
+                let d = jac.point.d_position[k][i];
+                assert!(
+                    (fd - d).abs() < 1e-5 * d.abs() + 1e-12 / h.min(1.0),
+                    "{}: d r_mid[{i}] / d input {k}: {d} vs {fd}",
+                    c.name()
+                );
+                let fd_f = (hi.tip_reaction_force[i] - lo.tip_reaction_force[i]) / (2.0 * h);
+                let d_f = jac.reaction_force[k][i];
+                assert!(
+                    (fd_f - d_f).abs() < 1e-5 * d_f.abs() + 1e-9,
+                    "{}: d F_r[{i}] / d input {k}: {d_f} vs {fd_f}",
+                    c.name()
+                );
+                let fd_m = (hi.tip_reaction_moment[i] - lo.tip_reaction_moment[i]) / (2.0 * h);
+                let d_m = jac.reaction_moment[k][i];
+                assert!(
+                    (fd_m - d_m).abs() < 1e-5 * d_m.abs() + 1e-9,
+                    "{}: d M_r[{i}] / d input {k}: {d_m} vs {fd_m}",
+                    c.name()
+                );
+                // The held tip stays where it is held.
+                assert!(at_tip.point.d_position[k][i].abs() < 1e-12 / h.min(1.0));
+            }
+        }
+        // Not zeros by construction: the pressure moves the mid-length and the reaction.
+        assert!(jac.point.d_position[0].iter().any(|v| v.abs() > 1e-8));
+        assert!(jac.reaction_force[0].iter().any(|v| v.abs() > 1e-7));
+    }
+}
