@@ -19,7 +19,7 @@
 //! more output.
 
 use crate::error::{Result, SoftrodError};
-use crate::jet::Jet;
+use crate::jet::{Coeff, Jet, StateScalar};
 use crate::ode::{
     advance, integrate_with, Coeffs, Loads, NodeAt, SectionKnobs, State, TendonCoeff,
 };
@@ -220,13 +220,7 @@ fn pass_n<const N: usize>(
             y0.n[*j].eps[3 + k] = 1.0;
         }
     }
-    let mut point = None;
-    let tip = integrate_with(rod, &coeffs, y0, &mut |node: NodeAt, y| {
-        if point.is_none() && node.section == probe.section && node.step == probe.step {
-            point = Some(advance(rod, &coeffs, node, y, probe.offset));
-        }
-        false
-    });
+    let (tip, point) = integrate_to(rod, &coeffs, y0, probe);
     let mut g = problem.residual_of_tip(&tip);
     let ms = rod.force_scale * rod.length;
     for (k, a) in inputs.iter().enumerate() {
@@ -235,7 +229,7 @@ fn pass_n<const N: usize>(
             g[*j].eps[3 + k] -= 1.0 / ms;
         }
     }
-    let y = flatten(&point.unwrap_or(tip));
+    let y = flatten(&point);
     Pass {
         s: probe.s,
         g: g.map(|v| v.re),
@@ -298,19 +292,26 @@ pub(crate) fn value_with(
     x: &[f64; 3],
     probe: &Probe,
 ) -> ([f64; 3], State<f64>, State<f64>) {
+    let (tip, point) = integrate_to(rod, &problem.coeffs, problem.base_state(x), probe);
+    (problem.residual_of_tip(&tip), point, tip)
+}
+
+/// Integrate from `y0` to the tip, reading the state at `probe` on the way: (tip, state at
+/// the probe).
+fn integrate_to<C: Coeff, D: StateScalar<C>>(
+    rod: &Rod,
+    coeffs: &[Coeffs<C>],
+    y0: State<D>,
+    probe: &Probe,
+) -> (State<D>, State<D>) {
     let mut point = None;
-    let tip = integrate_with(
-        rod,
-        &problem.coeffs,
-        problem.base_state(x),
-        &mut |node, y| {
-            if point.is_none() && node.section == probe.section && node.step == probe.step {
-                point = Some(advance(rod, &problem.coeffs, node, y, probe.offset));
-            }
-            false
-        },
-    );
-    (problem.residual_of_tip(&tip), point.unwrap_or(tip), tip)
+    let tip = integrate_with(rod, coeffs, y0, &mut |node: NodeAt, y| {
+        if point.is_none() && node.section == probe.section && node.step == probe.step {
+            point = Some(advance(rod, coeffs, node, y, probe.offset));
+        }
+        false
+    });
+    (tip, point.unwrap_or(tip))
 }
 
 /// Total derivatives of the probe's position and rotation with respect to each input at a
@@ -570,22 +571,11 @@ fn pass6<const N: usize>(
             _ => {}
         }
     }
-    let mut point = None;
-    let tip = integrate_with(
-        rod,
-        &coeffs,
-        problem.base_state(&xd),
-        &mut |node: NodeAt, y| {
-            if point.is_none() && node.section == probe.section && node.step == probe.step {
-                point = Some(advance(rod, &coeffs, node, y, probe.offset));
-            }
-            false
-        },
-    );
+    let (tip, point) = integrate_to(rod, &coeffs, problem.base_state(&xd), probe);
     let g = tip_residual_under(problem, constraint, &tip, &f_tip, &m_tip);
     let (qf, qm) = reaction_under(problem, &tip, &f_tip, &m_tip);
     let q = [qf[0], qf[1], qf[2], qm[0], qm[1], qm[2]];
-    let y = flatten(&point.unwrap_or(tip));
+    let y = flatten(&point);
     Pass6 {
         g_x: Matrix6::from_fn(|i, j| g[i].eps[j]),
         g_a: (0..inputs.len())

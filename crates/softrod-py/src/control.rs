@@ -334,24 +334,19 @@ pub fn point_jacobian_of<'py>(
             )?;
         }
         if let Some(sens) = sens {
-            let m = nalgebra::DMatrix::from_fn(6, sens.position.len(), |i, k| {
-                if i < 3 {
-                    sens.position[k][i]
-                } else {
-                    softrod_core::jacobian::small_rotation(&point.rotation, &sens.rotation[k])
-                        [i - 3]
-                }
-            });
-            d.set_item("params", matrix(py, &m)?)?;
+            let pose = |k: usize| -> [f64; 6] {
+                let p = sens.position[k];
+                let r = softrod_core::jacobian::small_rotation(&point.rotation, &sens.rotation[k]);
+                [p[0], p[1], p[2], r[0], r[1], r[2]]
+            };
+            let count = sens.position.len();
+            d.set_item("params", matrix(py, &block(&pose, 0, count))?)?;
             if held_tip {
-                let r = nalgebra::DMatrix::from_fn(6, sens.reaction_force.len(), |i, k| {
-                    if i < 3 {
-                        sens.reaction_force[k][i]
-                    } else {
-                        sens.reaction_moment[k][i - 3]
-                    }
-                });
-                reaction.set_item("params", matrix(py, &r)?)?;
+                let wrench = |k: usize| -> [f64; 6] {
+                    let (f, m) = (sens.reaction_force[k], sens.reaction_moment[k]);
+                    [f[0], f[1], f[2], m[0], m[1], m[2]]
+                };
+                reaction.set_item("params", matrix(py, &block(&wrench, 0, count))?)?;
             }
         }
         if held_tip {
