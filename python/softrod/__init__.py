@@ -107,6 +107,7 @@ _EXPORTS = {
     "Contact": ".statics",
     "SolverOptions": ".statics",
     "StaticSolution": ".statics",
+    "Jacobian": ".solution",
     "solve_statics": ".statics",
     "solve_statics_batch": ".statics",
     "StiffnessMap": ".stiffness_map",
@@ -199,6 +200,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
     from .mesh_io import read_mesh, write_stl
     from .presets import Preset, list_presets
     from .sensitivities import system_trajectory_sensitivities, trajectory_sensitivities
+    from .solution import Jacobian
     from .statics import (
         BatchSolution,
         Contact,
@@ -244,6 +246,7 @@ __all__ = [
     "InvalidStateError",
     "InverseProblem",
     "InverseSolution",
+    "Jacobian",
     "LinearSystem",
     "Preset",
     "SoftrodError",
