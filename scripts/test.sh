@@ -28,8 +28,17 @@ echo "== Rust side (cargo fmt --check, clippy, cargo test) started in the backgr
     cargo test --profile checked -p softrod-core -p softrod-py --quiet
 ) >"$rust_log" 2>&1 &
 rust_pid=$!
-# Stopped or failed early (Ctrl-C, a failed install): do not leave the Rust side running.
-trap 'kill "$rust_pid" 2>/dev/null || true' EXIT
+# Stopped or failed early (Ctrl-C, a failed install): do not leave the Rust side running, and
+# show what it printed so far (the log is removed once it has been printed at the end).
+stop_rust_side() {
+    kill "$rust_pid" 2>/dev/null || true
+    if [ -f "$rust_log" ]; then
+        echo "== Rust side stopped early; its output so far:"
+        cat "$rust_log"
+        rm -f "$rust_log"
+    fi
+}
+trap stop_rust_side EXIT
 # The viewer's browser test drives Debian's Chromium (never a downloaded browser). Install it
 # when it is missing (~20 s, ~500 MB): as root with apt-get, else through sudo when that works
 # without a password; otherwise say so, and that test is skipped with the reason.
