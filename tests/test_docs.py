@@ -41,14 +41,20 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 
-# Wall-clock budget per file (s). Generous against the measured times (see the report of
-# `pytest tests/test_docs.py --durations=0`): it catches an example that grew into a
-# benchmark, not a slower or busier machine.
-# CPU seconds (this process's threads and its example subprocesses), not wall time: what a
-# page's examples cost does not change when the machine is busy, so the budget guards the
-# suite's length without failing on a loaded machine (a wall-clock budget failed at load 8).
+# CPU budget per file (s). It catches an example that grew into a benchmark, not a slower or
+# busier machine, so it sits at about three times the measured cost (see the report of
+# `pytest tests/test_docs.py --durations=0`).
+# CPU seconds (this process's threads and its example subprocesses), not wall time: a
+# wall-clock budget failed at load 8. CPU seconds still vary between machines: the CI
+# machine (2 cores, the Rust tests running beside pytest, a checked core) measured 1.6 times
+# what a quiet developer machine does (calibration.md: 21.7 against 13.5 CPU s).
 DEFAULT_BUDGET_S = 20.0
-BUDGET_S = {"README.md": 40.0, "calibration-per-sample.md": 45.0, "dynamics.md": 40.0}
+BUDGET_S = {
+    "README.md": 40.0,
+    "calibration.md": 40.0,
+    "calibration-per-sample.md": 45.0,
+    "dynamics.md": 40.0,
+}
 
 
 def _cpu_seconds() -> float:
