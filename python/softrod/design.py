@@ -1196,6 +1196,16 @@ class Design:
         return self._rod.mass
 
     @property
+    def mapped_sections(self) -> list[str]:
+        """Names of the sections whose stiffness a stiffness map scales (``[sections.law]
+        stiffness_map = true``, docs/stiffness-map.md); empty when there are none."""
+        return [
+            sec["name"]
+            for sec in self.spec["sections"]
+            if (sec.get("law") or {}).get("stiffness_map", False)
+        ]
+
+    @property
     def tip_mass(self) -> float:
         """Mass of the rigid tip body, kg."""
         return self.spec["tip"]["mass"]

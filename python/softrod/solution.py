@@ -37,8 +37,14 @@ class Jacobian:
     reaction: for an equilibrium whose tip is pinned or clamped, the derivatives of the
     wrench the constraint applies to the tip (world frame; rows force x, y, z in N, then
     moment in N m, zero rows for a pin) with respect to the same inputs, a dict with the
-    keys "pressures", "tip_force", "tip_moment", "tensions" (and "params" when asked);
-    None for a free tip.
+    keys "pressures", "tip_force", "tip_moment", "tensions" (and "params" when asked,
+    "stiffness_scale" for a mapped design); None for a free tip.
+
+    stiffness_scale: for a design with a stiffness-mapped section (docs/stiffness-map.md),
+    (6, 3) per unit of each factor sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) at
+    fixed pressures; None otherwise. The pressures' block is then the total derivative:
+    the partial one plus ``stiffness_scale @ d sigma / d p`` (the map's
+    :meth:`~softrod.StiffnessMap.derivative`).
     """
 
     point: float
@@ -51,6 +57,7 @@ class Jacobian:
     param_names: tuple[str, ...] = ()
     tensions: np.ndarray = field(default_factory=lambda: np.zeros((6, 0)))
     reaction: dict[str, np.ndarray] | None = None
+    stiffness_scale: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -207,6 +214,9 @@ class StaticSolution:
     #: The held tip's prescribed pose, (kind, position m, rotation) as the binding takes
     #: it; None for a free tip (its Jacobian differentiates the held equilibrium).
     tip_hold: tuple | None = field(default=None, repr=False)
+    #: The :class:`~softrod.StiffnessMap` that gave ``stiffness_scale`` (None when the design
+    #: has no mapped section): its derivative enters the pressures' Jacobian.
+    stiffness_map: Any = field(default=None, repr=False, compare=False)
 
     def __repr__(self) -> str:
         parts = _inputs(self.design.name, self.pressures, self.tensions)
@@ -330,6 +340,7 @@ class StaticSolution:
         design = self.design
         s = design.length if point is None else to_si(point, "length", "point", InputError)
         pairs, names = _param_pairs(design, params)
+        dsigma = self._stiffness_map_derivative()
         out = _core.point_jacobian_of(
             design._rod,
             [float(p) for p in self.pressures],
@@ -343,18 +354,43 @@ class StaticSolution:
             **held,
         )
         reaction = out.get("reaction")
+        reaction = None if reaction is None else {k: np.array(v) for k, v in reaction.items()}
+        pressures = np.array(out["pressures"])
+        if dsigma is not None:
+            # sigma(p) moves with the pressures: d/dp = partial at fixed sigma + d/dsigma
+            # dsigma/dp (the core's blocks are partial derivatives).
+            pressures = pressures + out["stiffness_scale"] @ dsigma
+            if reaction is not None:
+                reaction["pressures"] = reaction["pressures"] + reaction["stiffness_scale"] @ dsigma
         return Jacobian(
             point=float(s),
             position=np.array(out["position"]),
             rotation=np.array(out["rotation"]),
-            pressures=out["pressures"],
+            pressures=pressures,
             tip_force=out["tip_force"],
             tip_moment=out["tip_moment"],
             params=out.get("params"),
             param_names=tuple(names),
             tensions=out["tensions"],
-            reaction=None if reaction is None else {k: np.array(v) for k, v in reaction.items()},
+            reaction=reaction,
+            stiffness_scale=out.get("stiffness_scale"),
         )
+
+    def _stiffness_map_derivative(self) -> np.ndarray | None:
+        """d sigma / d p (3, channels) of a mapped design's solution, None without a mapped
+        section; InputError when the map is unknown or gives no derivative."""
+        if not self.design.mapped_sections:
+            return None
+        if self.stiffness_map is None:
+            raise design_error(
+                "solution.stiffness_map",
+                None,
+                "a mapped design's pressure Jacobian needs the stiffness map the solution was "
+                "solved with (solve_statics and solve_system keep it): sigma(p) moves with the "
+                "pressures",
+                InputError,
+            )
+        return self.stiffness_map.derivative(np.asarray(self.pressures, dtype=float))
 
     def _tip_load(self, kind: str):
         """The tip force or moment the solution was solved under: from the base wrench

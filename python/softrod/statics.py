@@ -278,17 +278,9 @@ def _options(options: SolverOptions | None) -> SolverOptions:
     return options
 
 
-def _mapped_sections(design: Design) -> list[str]:
-    return [
-        sec["name"]
-        for sec in design.spec["sections"]
-        if (sec.get("law") or {}).get("stiffness_map", False)
-    ]
-
-
 def _stiffness_map(design: Design, stiffness_map) -> StiffnessMap | None:
     """The map to use, or None for a design without mapped sections."""
-    mapped = _mapped_sections(design)
+    mapped = design.mapped_sections
     if stiffness_map is None:
         if design.stiffness_map is not None:
             return design.stiffness_map  # the design file's [stiffness_map]
@@ -539,6 +531,7 @@ def solve_statics(
         load_steps=out["load_steps"],
         shooting_unknowns=np.array(out["x"]),
         stiffness_scale=sigma,
+        stiffness_map=smap,
         stable=None if out["stable"] is None else bool(out["stable"]),
         violations=tuple(out["violations"]),
         tip_loads=(tuple(tf), tuple(tm)),

@@ -232,6 +232,7 @@ class StiffnessMap:
         spans = ", ".join(
             f"p{k} in [{a[0] / 1e3:g}, {a[-1] / 1e3:g}] kPa" for k, a in enumerate(grid)
         )
+        pchip = None
         if method == "pchip":
             # Tensor-product PCHIP in the Rust core (softrod_core::interp): a few us per row.
             pchip = _core.GridPchip([a.tolist() for a in grid], values.ravel().tolist(), 3)
@@ -265,6 +266,7 @@ class StiffnessMap:
             _values=values,
             _method=method,
             _outside=outside,
+            _data={"pchip": pchip},
         )
 
     @classmethod
@@ -429,15 +431,37 @@ class StiffnessMap:
         return m
 
     @classmethod
-    def from_callable(cls, fn: Callable[[np.ndarray], Any], n_channels: int) -> StiffnessMap:
+    def from_callable(
+        cls,
+        fn: Callable[[np.ndarray], Any],
+        n_channels: int,
+        *,
+        derivative: Callable[[np.ndarray], Any] | None = None,
+    ) -> StiffnessMap:
         """sigma = fn(P): P an (m, n_channels) float array of gauge pressures in Pa (a
-        read-only copy), the result an (m, 3) array."""
+        read-only copy), the result an (m, 3) array. ``derivative``: optional
+        dfn(P) -> (m, 3, n_channels), d sigma / d p per Pa, which a mapped design's
+        pressure Jacobian needs (:meth:`derivative`); softrod does not check it against
+        ``fn``."""
         if not callable(fn):
             raise design_error(
                 "fn", fn, "must be callable: fn(P (m, channels) Pa) -> (m, 3)", InputError
             )
+        if derivative is not None and not callable(derivative):
+            raise design_error(
+                "derivative",
+                derivative,
+                "must be callable: dfn(P (m, channels) Pa) -> (m, 3, channels) per Pa, or None",
+                InputError,
+            )
         n = _channels(n_channels, 0)
-        return cls(_kind="callable", _n_channels=n, _fn=fn, _describe=f"callable {_name(fn)}")
+        return cls(
+            _kind="callable",
+            _n_channels=n,
+            _fn=fn,
+            _describe=f"callable {_name(fn)}",
+            _data={"derivative": derivative},
+        )
 
     @classmethod
     def from_regressor(cls, model: Any, n_channels: int, pressure_unit: str = "Pa") -> StiffnessMap:
@@ -642,6 +666,128 @@ class StiffnessMap:
         sigma = self._fn(p) if p.shape[0] else np.empty((0, 3))
         sigma = _check_output(sigma, p)
         return sigma[0] if single else sigma
+
+    def derivative(self, pressures: Any) -> np.ndarray:
+        """d sigma / d p at gauge pressures (m, n_channels) in Pa: (m, 3, n_channels), per Pa
+        (a 1-D row of n_channels pressures gives (3, n_channels)). It turns a mapped
+        design's Jacobian at fixed sigma into the total derivative with respect to the
+        pressures (``StaticSolution.jacobian``).
+
+        Exact for a constant map (zero), a table (PCHIP: forward mode through the core's
+        interpolation; linear: the slope of the cell), networks (forward mode through the
+        layers) and a callable built with ``derivative=``. A pressure outside a clamped table
+        has zero derivative along that channel; on a table's edge the derivative is the
+        one-sided one from inside (the map is not defined beyond an edge with
+        ``outside="raise"``). InputError where sigma has no derivative: a kink (a linear
+        table's interior node where the two cells' slopes differ, the edge of a clamped
+        table where the inner slope is not zero, a relu network's hinge), or where the map
+        cannot give one (a regressor, a callable without ``derivative=``)."""
+        p = V.real_array(pressures, "pressures", what="gauge pressures (Pa)")
+        single = p.ndim == 1 and p.shape[0] == self._n_channels
+        if single:
+            p = p[None, :]
+        _check_pressure_rows(
+            p,
+            self._n_channels,
+            f"the stiffness map takes an (m, {self._n_channels}) array of gauge pressures (Pa)",
+        )
+        finite = np.isfinite(p).all(axis=1)
+        if not finite.all():
+            r = int(np.argmin(finite))
+            raise design_error(f"pressures[{r}]", p[r].tolist(), "must be finite (Pa)", InputError)
+        self(p)  # the map's own checks: inside a raising table, a valid sigma
+        c = self._n_channels
+        if self._kind == "constant":
+            d = np.zeros((p.shape[0], 3, c))
+        elif self._kind == "table":
+            d = self._table_derivative(p)
+        elif self._kind == "mlp":
+            d = np.stack([_forward_derivative(net, p) for net in self._data["networks"]], axis=1)
+        elif self._data is not None and self._data.get("derivative") is not None:
+            d = _float_array(
+                self._data["derivative"](p.copy()),
+                "stiffness_map",
+                "derivative",
+                "the derivative= callable must return numbers",
+            )
+            if d.shape != (p.shape[0], 3, c) or not np.isfinite(d).all():
+                raise design_error(
+                    "stiffness_map",
+                    f"derivative of shape {d.shape}",
+                    f"the derivative= callable must return finite (m, 3, {c}) d sigma / d p "
+                    "(per Pa)",
+                    InputError,
+                )
+        else:
+            raise design_error(
+                "stiffness_map",
+                self,
+                f"a {self._kind} map gives no derivative d sigma / d p, which the pressures' "
+                "Jacobian of a mapped design needs: build the map from a table or networks, or "
+                "with StiffnessMap.from_callable(fn, n_channels, derivative=dfn)",
+                InputError,
+            )
+        return d[0] if single else d
+
+    def _table_derivative(self, p: np.ndarray) -> np.ndarray:
+        """d sigma / d p of a table map (module docs of :meth:`derivative`)."""
+        grid, m, c = self._axes, p.shape[0], self._n_channels
+        lo = np.array([a[0] for a in grid])
+        hi = np.array([a[-1] for a in grid])
+        slack = _EDGE_SLACK * (hi - lo)
+        q = np.minimum(np.maximum(p, lo), hi)
+        if self._method == "pchip":
+            d = np.asarray(self._data["pchip"].gradient(np.ascontiguousarray(q)), dtype=float)
+        else:
+            d = np.empty((m, 3, c))
+            for k, a in enumerate(grid):
+                # Multilinear: linear along channel k within a cell, so the cell's secant is
+                # the derivative. At an interior node both cells' slopes must agree.
+                i = np.clip(np.searchsorted(a, q[:, k], side="right") - 1, 0, len(a) - 2)
+                d[:, :, k] = self._cell_slope(q, k, i)
+                j = (
+                    np.argmin(np.abs(q[:, k, None] - a[None, 1:-1]), axis=1) + 1
+                    if len(a) > 2
+                    else i
+                )
+                node = (len(a) > 2) & np.isclose(q[:, k], a[j], rtol=0.0, atol=slack[k])
+                if node.any():
+                    below = self._cell_slope(q[node], k, j[node] - 1)
+                    above = self._cell_slope(q[node], k, j[node])
+                    kink = ~np.isclose(below, above, rtol=1e-9, atol=0.0).all(axis=1)
+                    if kink.any():
+                        r = int(np.flatnonzero(node)[np.argmax(kink)])
+                        raise design_error(
+                            f"pressures[{r}]",
+                            p[r].tolist(),
+                            f"channel {k} = {p[r, k]:g} Pa is a node of the linear stiffness "
+                            "table where the slopes of the two cells differ: sigma has no "
+                            "derivative there (build the map with method='pchip', which is "
+                            "continuously differentiable)",
+                            InputError,
+                        )
+        if self._outside == "clamp":
+            beyond = (p < lo - slack) | (p > hi + slack)
+            edge = ~beyond & ((p <= lo + slack) | (p >= hi - slack))
+            for r, k in np.argwhere(edge):
+                if np.any(d[r, :, k] != 0.0):
+                    raise design_error(
+                        f"pressures[{r}]",
+                        p[r].tolist(),
+                        f"channel {k} = {p[r, k]:g} Pa is the edge of the clamped stiffness "
+                        "table, where sigma stops changing: it has no derivative there (extend "
+                        "the table past the pressures you differentiate at)",
+                        InputError,
+                    )
+            d[np.broadcast_to(beyond[:, None, :], d.shape)] = 0.0
+        return d
+
+    def _cell_slope(self, q: np.ndarray, k: int, i: np.ndarray) -> np.ndarray:
+        """(m, 3): the secant of sigma along channel k across cell i (per row)."""
+        a = self._axes[k]
+        left, right = q.copy(), q.copy()
+        left[:, k], right[:, k] = a[i], a[i + 1]
+        return (self._fn(right) - self._fn(left)) / (a[i + 1] - a[i])[:, None]
 
     def __repr__(self) -> str:
         plural = "s" if self._n_channels != 1 else ""
@@ -873,6 +1019,44 @@ def _forward(net: dict, p: np.ndarray) -> np.ndarray:
             x = act(x)
     out = np.ascontiguousarray(x[:, 0])
     return np.exp(out * net["target_scale"] + net["target_mean"])
+
+
+def _forward_derivative(net: dict, p: np.ndarray) -> np.ndarray:
+    """d sigma_k / d p (m, c) per Pa at pressures p (m, c): forward mode through the layers
+    of :func:`_forward` (the Jacobian of each layer's output with respect to the pressures,
+    carried along). A relu hinge (a pre-activation exactly 0) has no derivative: InputError."""
+    x = (p - net["input_mean"]) / net["input_scale"]
+    # dx (m, width, c): d layer output / d p.
+    dx = np.broadcast_to(np.diag(1.0 / net["input_scale"]), (p.shape[0], p.shape[1], p.shape[1]))
+    last = len(net["weights"]) - 1
+    for i, (w, b) in enumerate(zip(net["weights"], net["biases"], strict=True)):
+        z = x @ w + b
+        dz = np.einsum("mjc,jk->mkc", dx, w)
+        if i == last:
+            x, dx = z, dz
+            break
+        if net["activation"] == "tanh":
+            x = np.tanh(z)
+            slope = 1.0 - x * x
+        elif net["activation"] == "logistic":
+            x = 1.0 / (1.0 + np.exp(-z))
+            slope = x * (1.0 - x)
+        else:
+            hinge = z == 0.0
+            if hinge.any():
+                r = int(np.argwhere(hinge)[0][0])
+                raise design_error(
+                    f"pressures[{r}]",
+                    p[r].tolist(),
+                    "puts a relu unit of the stiffness network exactly on its hinge, where "
+                    "sigma has no derivative",
+                    InputError,
+                )
+            x = np.maximum(z, 0.0)
+            slope = (z > 0.0).astype(float)
+        dx = dz * slope[:, :, None]
+    sigma = np.exp(x[:, 0] * net["target_scale"] + net["target_mean"])
+    return (sigma * net["target_scale"])[:, None] * dx[:, 0, :]
 
 
 def _row_product(x: np.ndarray, w: np.ndarray) -> np.ndarray:

@@ -50,7 +50,6 @@ from .statics import (
     _UNIT_SCALE,
     SolverOptions,
     _frictional,
-    _mapped_sections,
     _options,
     _policy,
     _pressures,
@@ -537,7 +536,9 @@ def solve_system(
         )
     _report_stability(out["stable"], on_unstable, f"the system {system.name!r}'s equilibrium")
     sols = []
-    for rod, entry, o, sg in zip(system.rods, entries, out["rods"], sigmas, strict=True):
+    for rod, entry, o, sg, smap in zip(
+        system.rods, entries, out["rods"], sigmas, maps, strict=True
+    ):
         sols.append(
             StaticSolution(
                 design=rod.design,
@@ -556,6 +557,7 @@ def solve_system(
                 load_steps=o["load_steps"],
                 shooting_unknowns=np.array(o["x"]),
                 stiffness_scale=_UNIT_SCALE if sg is None else sg,
+                stiffness_map=smap,
                 stable=out["stable"],
                 violations=tuple(o["violations"]),
                 tip_loads=(tuple(entry[3]), tuple(entry[4])),
@@ -1031,7 +1033,7 @@ def check_rods(
     for i, (rod, smap) in enumerate(zip(system.rods, given, strict=True)):
         d = rod.design
         if smap is None and d.stiffness_map is None:
-            mapped = _mapped_sections(d)
+            mapped = d.mapped_sections
             if mapped:
                 hint = (
                     "give it a map in stiffness_maps= (one softrod.StiffnessMap or None per "

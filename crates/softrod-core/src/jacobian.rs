@@ -8,7 +8,9 @@
 //! the tip force or moment). Pressures enter through the coefficients (chamber forces and
 //! moments, and with swelling the stiffnesses, paper 002 eq. 22), so the coefficients are
 //! built from dual pressures (`Coeffs::build_with`); the tip force enters the known base
-//! force n(0) and the tip moment the residual. The pass returns the shooting residual
+//! force n(0) and the tip moment the residual. A mapped design's stiffness factors sigma
+//! enter the coefficients too (`Input::StiffnessScale`): sigma depends on the pressures
+//! through the map, whose derivative the caller composes with these columns. The pass returns the shooting residual
 //! g(x, a) and the state at a probe point with their partial derivatives; by the implicit
 //! function theorem on g = 0, dx/da = -g_x^-1 g_a and every output y moves as
 //! dy/da = y_a + y_x dx/da. No finite differences.
@@ -39,6 +41,10 @@ pub enum Input {
     TipMoment(usize),
     /// Tension of a tendon channel, N.
     Tension(usize),
+    /// A factor of the stiffness scaling sigma = (sigma_ext, sigma_bend_x, sigma_bend_y) of
+    /// the mapped sections (docs/stiffness-map.md), 1: with the map's derivative d sigma /
+    /// d p, the pressures' total derivative on a mapped design.
+    StiffnessScale(usize),
 }
 
 /// Where the state is read: at a node, or a partial step after it.
@@ -143,7 +149,12 @@ fn dual_coeffs_from<const N: usize>(
             p[*c].eps[first + k] = 1.0;
         }
     }
-    let sigma = loads.stiffness_scale.map(Jet::from);
+    let mut sigma = loads.stiffness_scale.map(Jet::<N>::from);
+    for (k, a) in inputs.iter().enumerate() {
+        if let Input::StiffnessScale(j) = a {
+            sigma[*j].eps[first + k] = 1.0;
+        }
+    }
     (0..rod.sections.len())
         .map(|i| {
             let knobs = SectionKnobs::of(&rod.sections[i]).lift();
@@ -413,14 +424,14 @@ pub fn check_inputs(rod: &Rod, inputs: &[Input]) -> Result<()> {
         let bad = match a {
             Input::Pressure(c) => *c >= rod.n_channels,
             Input::Tension(t) => *t >= rod.n_tendons,
-            Input::TipForce(j) | Input::TipMoment(j) => *j >= 3,
+            Input::TipForce(j) | Input::TipMoment(j) | Input::StiffnessScale(j) => *j >= 3,
         };
         if bad {
             return Err(SoftrodError::invalid(
                 format!("inputs[{k}]"),
                 format!("{a:?}"),
                 format!(
-                    "pressure channels are 0..{}, tendon channels 0..{} and load components 0..3",
+                    "pressure channels are 0..{}, tendon channels 0..{}, load and stiffness scale components 0..3",
                     rod.n_channels, rod.n_tendons
                 ),
             ));

@@ -220,7 +220,10 @@ fn parse_params(py: Python<'_>, params: Vec<(String, Vec<usize>)>) -> PyResult<V
 /// given tendon `tensions` (N; None: slack). `tip_kind` "pinned" (with `tip_position`) or
 /// "clamped" (and `tip_rotation`) for an equilibrium whose tip is held (`x` then has 6
 /// values), which adds "reaction": the same blocks for the reaction wrench the constraint
-/// applies to the tip (rows force, N, then moment, N m; world frame).
+/// applies to the tip (rows force, N, then moment, N m; world frame). A design with a
+/// stiffness-mapped section adds "stiffness_scale": the partial derivatives with respect to
+/// the three factors sigma at fixed pressures (the pressures' blocks are partial too: the
+/// caller adds the map's part, d/dsigma times d sigma / d p).
 #[pyfunction]
 #[pyo3(signature = (rod, pressures, tip_force, tip_moment, stiffness_scale, x, s, params, tensions=None, tip_kind="free", tip_position=None, tip_rotation=None))]
 #[allow(clippy::too_many_arguments)]
@@ -254,6 +257,7 @@ pub fn point_jacobian_of<'py>(
             tip_frame: rod.spec.tip.frame,
         };
         let nc = rod.n_channels;
+        let mapped = softrod_core::statics::system::mapped_section(rod).is_some();
         let result = py.detach(|| -> softrod_core::Result<_> {
             validate_params(rod, &params)?;
             let probe = Probe::at(rod, s)?;
@@ -267,6 +271,9 @@ pub fn point_jacobian_of<'py>(
             inputs.extend((0..3).map(Input::TipForce));
             inputs.extend((0..3).map(Input::TipMoment));
             inputs.extend((0..rod.n_tendons).map(Input::Tension));
+            if mapped {
+                inputs.extend((0..3).map(Input::StiffnessScale));
+            }
             // Six unknowns (a held tip, or the base force unknown under follower loads or
             // with obstacles): the implicit differentiation of that residual.
             let jac = if free && sol.x.len() == 3 {
@@ -318,6 +325,10 @@ pub fn point_jacobian_of<'py>(
             "tensions",
             matrix(py, &block(&pose, nc + 6, rod.n_tendons))?,
         )?;
+        let sigma_at = nc + 6 + rod.n_tendons;
+        if mapped {
+            d.set_item("stiffness_scale", matrix(py, &block(&pose, sigma_at, 3))?)?;
+        }
         let held_tip = !jac.reaction_force.is_empty();
         let reaction = PyDict::new(py);
         if held_tip {
@@ -332,6 +343,9 @@ pub fn point_jacobian_of<'py>(
                 "tensions",
                 matrix(py, &block(&wrench, nc + 6, rod.n_tendons))?,
             )?;
+            if mapped {
+                reaction.set_item("stiffness_scale", matrix(py, &block(&wrench, sigma_at, 3))?)?;
+            }
         }
         if let Some(sens) = sens {
             let pose = |k: usize| -> [f64; 6] {

@@ -2,7 +2,7 @@
 //! It converts types, maps errors to the exception classes of `softrod.errors`, and
 //! releases the GIL for long calls. No physics lives here.
 
-use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
+use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::batch::{constrained_sensitivity_batch, BatchInputs, BatchRow};
@@ -788,20 +788,7 @@ impl PyGridPchip {
         points: PyReadonlyArray2<'py, f64>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         guarded(py, || {
-            let pts = points.as_array();
-            let dims = self.grid.dims();
-            if pts.shape()[1] != dims {
-                return Err(to_py_err(
-                    py,
-                    SoftrodError::invalid(
-                        "points",
-                        format!("shape {:?}", pts.shape()),
-                        format!("must have {dims} columns"),
-                    ),
-                    Context::Input,
-                ));
-            }
-            let rows: Vec<Vec<f64>> = pts.rows().into_iter().map(|r| r.to_vec()).collect();
+            let rows = self.rows(py, &points)?;
             let grid = &self.grid;
             let width = grid.width();
             let out: Vec<Vec<f64>> = py.detach(|| {
@@ -815,6 +802,51 @@ impl PyGridPchip {
             });
             Ok(PyArray2::from_vec2(py, &out)?)
         })
+    }
+
+    /// The derivatives of the interpolant at every row of an (m, dims) array of points
+    /// inside the grid: (m, width, dims), d value / d coordinate
+    /// (`GridPchip::gradient`).
+    fn gradient<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArray3<f64>>> {
+        guarded(py, || {
+            let rows = self.rows(py, &points)?;
+            let grid = &self.grid;
+            let (width, dims) = (grid.width(), grid.dims());
+            let out: Vec<Vec<Vec<f64>>> = py.detach(|| {
+                rows.iter()
+                    .map(|p| {
+                        let mut o = vec![vec![0.0; dims]; width];
+                        grid.gradient(p, &mut o);
+                        o
+                    })
+                    .collect()
+            });
+            Ok(PyArray3::from_vec3(py, &out)?)
+        })
+    }
+}
+
+impl PyGridPchip {
+    /// The rows of an (m, dims) array of points, its column count checked.
+    fn rows(&self, py: Python<'_>, points: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<Vec<f64>>> {
+        let pts = points.as_array();
+        let dims = self.grid.dims();
+        if pts.shape()[1] != dims {
+            return Err(to_py_err(
+                py,
+                SoftrodError::invalid(
+                    "points",
+                    format!("shape {:?}", pts.shape()),
+                    format!("must have {dims} columns"),
+                ),
+                Context::Input,
+            ));
+        }
+        Ok(pts.rows().into_iter().map(|r| r.to_vec()).collect())
     }
 }
 

@@ -309,27 +309,36 @@ fn point_along_the_rod() {
 }
 
 /// Exact d tip / d (pressures, tip force, tip moment) against central differences of whole
-/// solves, for the linear law and paper 002's M3 law, at the tip and mid-body.
+/// solves, for the linear law and paper 002's M3 law, at the tip and mid-body; the linear
+/// law's actuator also stiffness-mapped (sigma away from 1), with d / d sigma.
 #[test]
 fn pressure_and_load_jacobians_match_finite_differences() {
     let tight = SolverOptions {
         tol: 1e-13,
         ..Default::default()
     };
-    let specs = std::iter::once(p002_actuator(tilted(), 9.81, 12))
-        .chain(other_laws().into_iter().map(|(_, s)| s));
-    for spec in specs {
+    let mut mapped = p002_actuator(tilted(), 9.81, 12);
+    for sec in &mut mapped.sections {
+        sec.law.stiffness_map = true;
+    }
+    let specs = [
+        (p002_actuator(tilted(), 9.81, 12), [1.0; 3]),
+        (mapped, [0.9, 1.2, 0.8]),
+    ]
+    .into_iter()
+    .chain(other_laws().into_iter().map(|(_, s)| (s, [1.0; 3])));
+    for (spec, sigma) in specs {
         let rod = Rod::new(spec).unwrap();
         let base = Loads {
             pressures: vec![35e3, 12e3, 50e3],
             tip_force: [0.02, -0.01, 0.03],
             tip_moment: [1e-3, 2e-3, -1e-3],
-            stiffness_scale: [1.0; 3],
+            stiffness_scale: sigma,
             tensions: vec![],
             tip_frame: Frame::World,
         };
         let sol = solve(&rod, &base, None, &tight).unwrap();
-        let inputs = [
+        let mut inputs = vec![
             Input::Pressure(0),
             Input::Pressure(1),
             Input::Pressure(2),
@@ -340,11 +349,14 @@ fn pressure_and_load_jacobians_match_finite_differences() {
             Input::TipMoment(1),
             Input::TipMoment(2),
         ];
+        if sigma != [1.0; 3] {
+            inputs.extend((0..3).map(Input::StiffnessScale));
+        }
         for probe in [Probe::tip(&rod), Probe::at(&rod, 0.07).unwrap()] {
             let jac = point_jacobian(&rod, &base, &sol, &inputs, &probe).unwrap();
             for (k, a) in inputs.iter().enumerate() {
-                // Steps: 1 Pa, 1e-4 N, 1e-5 N m: truncation ~h^2 y''' relative 1e-9, solve
-                // noise 1e-13 / h ~ 1e-9 of a column.
+                // Steps: 1 Pa, 1e-4 N, 1e-5 N m, 1e-4 of sigma (an O(1) factor): truncation
+                // ~h^2 y''' relative 1e-8, solve noise 1e-13 / h ~ 1e-9 of a column.
                 type Setter = Box<dyn Fn(&mut Loads, f64)>;
                 let (h, set): (f64, Setter) = match *a {
                     Input::Pressure(c) => {
@@ -356,6 +368,10 @@ fn pressure_and_load_jacobians_match_finite_differences() {
                     Input::TipMoment(j) => {
                         (1e-5, Box::new(move |l: &mut Loads, d| l.tip_moment[j] += d))
                     }
+                    Input::StiffnessScale(j) => (
+                        1e-4,
+                        Box::new(move |l: &mut Loads, d| l.stiffness_scale[j] += d),
+                    ),
                     Input::Tension(_) => unreachable!("no tendons on this rod"),
                 };
                 let eval = |d: f64| {
