@@ -108,6 +108,7 @@ _EXPORTS = {
     "SolverOptions": ".statics",
     "StaticSolution": ".statics",
     "Jacobian": ".solution",
+    "SystemJacobian": ".solution",
     "solve_statics": ".statics",
     "solve_statics_batch": ".statics",
     "StiffnessMap": ".stiffness_map",
@@ -200,7 +201,7 @@ if TYPE_CHECKING:  # static analysers and IDEs see the eager imports
     from .mesh_io import read_mesh, write_stl
     from .presets import Preset, list_presets
     from .sensitivities import system_trajectory_sensitivities, trajectory_sensitivities
-    from .solution import Jacobian
+    from .solution import Jacobian, SystemJacobian
     from .statics import (
         BatchSolution,
         Contact,
@@ -256,6 +257,7 @@ __all__ = [
     "StiffnessIdentification",
     "StiffnessMap",
     "System",
+    "SystemJacobian",
     "SystemRod",
     "SystemSolution",
     "SystemBatchSolution",

@@ -25,6 +25,7 @@ __all__ = [
     "solve_rod_system",
     "solve_rod_system_batch",
     "rod_system_sensitivity_batch",
+    "system_jacobian_of",
 ]
 __version__: str
 _debug_assertions: bool
@@ -404,6 +405,23 @@ def solve_constrained_tip(
     tensions: Sequence[float] | None = None,
     friction_steps: int = ...,
     history: FrictionState | None = None,
+) -> dict[str, Any]: ...
+def system_jacobian_of(
+    rods: Sequence[
+        tuple[
+            Rod,
+            Sequence[float],
+            Sequence[float],
+            _Vec3,
+            _Vec3,
+            _Vec3,
+            Sequence[Sequence[float]],
+        ]
+    ],
+    platform: tuple[_Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3],
+    x: Sequence[float],
+    inputs: Sequence[tuple[str, int, int]],
+    stiffness_scale: Sequence[_Vec3 | None] | None = None,
 ) -> dict[str, Any]: ...
 def solve_rod_system(
     rods: Sequence[

@@ -61,6 +61,41 @@ class Jacobian:
 
 
 @dataclass(frozen=True)
+class SystemJacobian:
+    """Exact derivatives of a system's equilibrium (:meth:`SystemSolution.jacobian`, SI).
+    Rows of the pose blocks: the platform origin's position x, y, z (m), then the platform's
+    small rotation theta_x, theta_y, theta_z (rad, world frame: dR = [dtheta]x R).
+
+    pressures (6, sum of the rods' channels) per Pa: rod 0's channels, then rod 1's, ...
+    (``pressure_columns`` names them: "rod0_p0", ...); tensions (6, sum of the rods' tendon
+    channels) per N ("rod0_t0", ...); platform_force (6, 3) per N and platform_moment
+    (6, 3) per N m of the external load on the platform (world frame, the moment about the
+    platform origin): together the platform's compliance.
+
+    base: the derivatives of every rod's base force (N) and moment (N m) (world frame, the
+    rods' ``base_force`` and ``base_moment``), (n_rods, 6, k) per block, keyed
+    "pressures", "tensions", "platform_force" and "platform_moment": what force sensing
+    from loads measured at the bases needs.
+
+    stiffness_scale: per rod, for a rod with a stiffness-mapped section, the (6, 3)
+    derivatives with respect to its factors sigma at fixed pressures (None for other rods);
+    ``base["stiffness_scale"]`` likewise (n_rods, 6, 3). The pressures' blocks already hold
+    the part through each map (docs/stiffness-map.md).
+    """
+
+    position: np.ndarray
+    rotation: np.ndarray
+    pressures: np.ndarray
+    tensions: np.ndarray
+    platform_force: np.ndarray
+    platform_moment: np.ndarray
+    base: dict[str, Any]
+    pressure_columns: tuple[str, ...] = ()
+    tension_columns: tuple[str, ...] = ()
+    stiffness_scale: tuple[np.ndarray | None, ...] = ()
+
+
+@dataclass(frozen=True)
 class Contact:
     """The contacts of a static solution with the design's obstacles (docs/contact.md),
     per node of the solution (n nodes) and per obstacle (k obstacles), SI, world frame.

@@ -45,7 +45,7 @@ from .errors import ConvergenceError, DesignError, InputError
 from .io import as_path
 from .io import exists as _exists
 from .io import is_file as _is_file
-from .solution import Contact, StaticSolution, _mm
+from .solution import Contact, StaticSolution, SystemJacobian, _frictional_obstacle, _mm
 from .statics import (
     _UNIT_SCALE,
     SolverOptions,
@@ -289,6 +289,9 @@ class SystemSolution:
     unknowns: np.ndarray = field(repr=False)
     stable: bool | None = None
     friction_state: Any = field(default=None, repr=False)
+    #: The binding's arguments the system was solved with (rods, platform, each rod's
+    #: sigma): what :meth:`jacobian` differentiates. None where the solve failed.
+    solved_with: tuple | None = field(default=None, repr=False, compare=False)
 
     def __repr__(self) -> str:
         if not self.converged:
@@ -299,6 +302,84 @@ class SystemSolution:
         return (
             f"SystemSolution({self.system.name!r}, platform at {_mm(self.platform_position)}, "
             f"tilt {tilt:.2f} deg, stable {self.stable}, {self.iterations} iterations)"
+        )
+
+    def jacobian(self) -> SystemJacobian:
+        """The exact derivatives of the platform's pose and of every rod's base wrench with
+        respect to every rod's pressures and tendon tensions and to the platform's force and
+        moment (:class:`SystemJacobian`; docs/control.md, "Jacobians of a system"): implicit
+        differentiation of the system's residual, no finite differences. A rod with a
+        stiffness-mapped section adds the part through its map (the map must give a
+        derivative, docs/stiffness-map.md). Refused: a solve that did not converge, a
+        frictional equilibrium (its derivatives depend on the load path)."""
+        if not self.converged or self.solved_with is None:
+            raise V.fail(
+                "solution", "converged = False", "must be a converged SystemSolution", InputError
+            )
+        if self.friction_state is not None:
+            i = next(i for i, r in enumerate(self.rods) if r.friction_state is not None)
+            k = _frictional_obstacle(self.rods[i].design)
+            raise V.fail(
+                f"rods[{i}].design.obstacles[{k}].friction",
+                self.rods[i].design.spec["obstacles"][k]["friction"],
+                "SystemSolution.jacobian is not available for a frictional equilibrium: it "
+                "depends on the load path, and the stick/slip switch has no derivative there "
+                "(docs/contact.md, 'Friction in the statics')",
+                InputError,
+            )
+        entries, platform, sigmas = self.solved_with
+        rods = self.system.rods
+        inputs: list[tuple[str, int, int]] = []
+        p_cols, t_cols = [], []
+        for i, rod in enumerate(rods):
+            inputs += [("pressure", i, c) for c in range(rod.design.n_channels)]
+            p_cols += [f"rod{i}_p{c}" for c in range(rod.design.n_channels)]
+        for i, rod in enumerate(rods):
+            inputs += [("tension", i, c) for c in range(rod.design.n_tendons)]
+            t_cols += [f"rod{i}_t{c}" for c in range(rod.design.n_tendons)]
+        inputs += [("platform_force", 0, j) for j in range(3)]
+        inputs += [("platform_moment", 0, j) for j in range(3)]
+        mapped = [i for i, rod in enumerate(rods) if rod.design.mapped_sections]
+        for i in mapped:
+            inputs += [("stiffness_scale", i, k) for k in range(3)]
+        out = _core.system_jacobian_of(
+            entries, platform, self.unknowns.tolist(), inputs, stiffness_scale=sigmas
+        )
+        pose, base = np.asarray(out["pose"]), np.asarray(out["base"])
+        edges = np.cumsum([0, len(p_cols), len(t_cols), 3, 3])
+        blocks = ("pressures", "tensions", "platform_force", "platform_moment")
+        spans = list(zip(blocks, edges[:-1], edges[1:], strict=True))
+        own = {b: pose[:, a:z].copy() for b, a, z in spans}
+        at_base = {b: base[:, :, a:z].copy() for b, a, z in spans}
+        sigma_pose: list[np.ndarray | None] = [None] * len(rods)
+        sigma_base: list[np.ndarray | None] = [None] * len(rods)
+        widths = np.cumsum([0] + [rod.design.n_channels for rod in rods])
+        for q, i in enumerate(mapped):
+            at = edges[-1] + 3 * q
+            sigma_pose[i], sigma_base[i] = pose[:, at : at + 3], base[:, :, at : at + 3]
+            smap = self.rods[i].stiffness_map
+            if smap is None:
+                raise V.fail(
+                    f"rods[{i}].stiffness_map",
+                    None,
+                    "a mapped rod's pressure Jacobian needs the stiffness map it was solved "
+                    "with (solve_system keeps it): sigma(p) moves with the pressures",
+                    InputError,
+                )
+            # sigma_i(p_i) moves with rod i's pressures: add d/dsigma_i dsigma_i/dp_i.
+            dsigma = smap.derivative(np.asarray(self.rods[i].pressures, dtype=float))
+            cols = slice(widths[i], widths[i + 1])
+            own["pressures"][:, cols] += sigma_pose[i] @ dsigma
+            at_base["pressures"][:, :, cols] += sigma_base[i] @ dsigma
+        at_base["stiffness_scale"] = tuple(sigma_base)
+        return SystemJacobian(
+            position=np.array(out["position"]),
+            rotation=np.array(out["rotation"]),
+            base=at_base,
+            pressure_columns=tuple(p_cols),
+            tension_columns=tuple(t_cols),
+            stiffness_scale=tuple(sigma_pose),
+            **own,
         )
 
     def plot(self, path: str | os.PathLike | None = None, *, title: str | None = None) -> Figure:
@@ -581,6 +662,11 @@ def solve_system(
         unknowns=np.array(out["x"]),
         stable=out["stable"],
         friction_state=out.get("friction_state"),
+        solved_with=(
+            entries,
+            platform,
+            [None if sg is None else sg.tolist() for sg in sigmas],
+        ),
     )
 
 

@@ -19,6 +19,11 @@
 //! residual of a held tip, or of a free tip under follower loads or on obstacles; the tip
 //! loads then enter the tip's balance as dual directions, and a held tip's reaction is one
 //! more output.
+//!
+//! [`system`] differentiates a system of rods holding one platform with respect to its
+//! inputs.
+
+pub mod system;
 
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Coeff, Jet, StateScalar};

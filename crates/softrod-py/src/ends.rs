@@ -11,6 +11,7 @@ use pyo3::types::PyDict;
 use softrod_core::batch::{
     solve_system_batch, system_sensitivity_batch, BatchRow, SystemBatchInputs, SystemBatchRow,
 };
+use softrod_core::jacobian::system::{system_jacobian, SystemInput};
 use softrod_core::marker::Marker;
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::system::{SystemMarker, SystemParam};
@@ -304,27 +305,7 @@ fn solve_rod_system<'py>(
                 ),
             )));
         }
-        let system: Vec<SystemRod> = rods
-            .iter()
-            .zip(&sigma)
-            .enumerate()
-            .map(|(i, ((r, p, t, f, m, o, a), s))| {
-                Ok(SystemRod {
-                    rod: &r.rod,
-                    loads: Loads {
-                        pressures: p.clone(),
-                        tensions: t.clone(),
-                        tip_force: *f,
-                        tip_moment: *m,
-                        tip_frame: r.rod.spec.tip.frame,
-                        stiffness_scale: rod_sigma(i, &r.rod, *s)?,
-                    },
-                    attachment: *o,
-                    attachment_rotation: *a,
-                })
-            })
-            .collect::<Result<_, SoftrodError>>()
-            .map_err(input)?;
+        let system = system_rods(&rods, &sigma).map_err(input)?;
         let pf = platform_of(platform);
         let history = history.map(|h| h.path.clone());
         let frictional =
@@ -379,6 +360,120 @@ fn solve_rod_system<'py>(
         d.set_item("residual", out.residual)?;
         d.set_item("load_steps", out.load_steps)?;
         d.set_item("stable", out.stable)?;
+        Ok(d)
+    })
+}
+
+/// The core's rods of a system from the binding's entries and each rod's sigma (None: no
+/// mapped section).
+fn system_rods<'a>(
+    rods: &'a [RodEntry<'_>],
+    sigma: &[Option<[f64; 3]>],
+) -> Result<Vec<SystemRod<'a>>, SoftrodError> {
+    rods.iter()
+        .zip(sigma)
+        .enumerate()
+        .map(|(i, ((r, p, t, f, m, o, a), s))| {
+            Ok(SystemRod {
+                rod: &r.rod,
+                loads: Loads {
+                    pressures: p.clone(),
+                    tensions: t.clone(),
+                    tip_force: *f,
+                    tip_moment: *m,
+                    tip_frame: r.rod.spec.tip.frame,
+                    stiffness_scale: rod_sigma(i, &r.rod, *s)?,
+                },
+                attachment: *o,
+                attachment_rotation: *a,
+            })
+        })
+        .collect()
+}
+
+/// The exact derivatives of a frictionless system's equilibrium at the unknowns `x` (a
+/// converged `solve_rod_system`'s "x", solved again from there) with respect to `inputs`:
+/// (kind, rod, index) with kind "pressure", "tension" or "stiffness_scale" (of rod `rod`)
+/// or "platform_force", "platform_moment" (rod ignored). Returns "position" (3),
+/// "rotation" (3, 3) of the platform, "pose" (6, K): its position (m) and small rotation
+/// (rad, world) per unit of each input, and "base" (n, 6, K): every rod's base force (N)
+/// and moment (N m) per unit (`softrod_core::jacobian::system`).
+#[pyfunction]
+#[pyo3(signature = (rods, platform, x, inputs, stiffness_scale=None))]
+fn system_jacobian_of<'py>(
+    py: Python<'py>,
+    rods: Vec<RodEntry<'py>>,
+    platform: PlatformEntry,
+    x: Vec<f64>,
+    inputs: Vec<(String, usize, usize)>,
+    stiffness_scale: Option<Vec<Option<[f64; 3]>>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    guarded(py, || {
+        let input = |e: SoftrodError| to_py_err(py, e, Context::Input);
+        let sigma = stiffness_scale.unwrap_or_else(|| vec![None; rods.len()]);
+        if sigma.len() != rods.len() {
+            return Err(input(SoftrodError::invalid(
+                "stiffness_scale",
+                format!("{} entries", sigma.len()),
+                format!("must be a list of {} entries, one per rod", rods.len()),
+            )));
+        }
+        let inputs: Vec<SystemInput> = inputs
+            .iter()
+            .enumerate()
+            .map(|(k, (kind, rod, index))| {
+                let (rod, index) = (*rod, *index);
+                Ok(match kind.as_str() {
+                    "pressure" => SystemInput::Pressure { rod, channel: index },
+                    "tension" => SystemInput::Tension { rod, channel: index },
+                    "stiffness_scale" => SystemInput::StiffnessScale { rod, factor: index },
+                    "platform_force" => SystemInput::PlatformForce(index),
+                    "platform_moment" => SystemInput::PlatformMoment(index),
+                    other => {
+                        return Err(SoftrodError::invalid(
+                            format!("inputs[{k}]"),
+                            other,
+                            "kinds: pressure, tension, stiffness_scale, platform_force, platform_moment",
+                        ))
+                    }
+                })
+            })
+            .collect::<Result<_, SoftrodError>>()
+            .map_err(input)?;
+        let system = system_rods(&rods, &sigma).map_err(input)?;
+        let pf = platform_of(platform);
+        // The equilibrium the caller holds was checked when it was solved.
+        let opts = options(py, 1e-10, 25, true, 200, (1.0 / 3.0, 3.0), "ignore")?;
+        let jac = py
+            .detach(|| {
+                let sol = solve_system(&system, &pf, Some(&x), &opts)?;
+                system_jacobian(&system, &pf, &sol, &inputs)
+            })
+            .map_err(input)?;
+        let k = inputs.len();
+        let n = rods.len();
+        let pose: Vec<f64> = (0..6)
+            .flat_map(|r| {
+                jac.d_position
+                    .iter()
+                    .zip(&jac.d_rotation)
+                    .map(move |(p, w)| if r < 3 { p[r] } else { w[r - 3] })
+            })
+            .collect();
+        let mut base = vec![0.0; n * 6 * k];
+        for (c, (f, m)) in jac.d_base_force.iter().zip(&jac.d_base_moment).enumerate() {
+            for i in 0..n {
+                for r in 0..3 {
+                    base[(i * 6 + r) * k + c] = f[i][r];
+                    base[(i * 6 + 3 + r) * k + c] = m[i][r];
+                }
+            }
+        }
+        let d = PyDict::new(py);
+        d.set_item("position", jac.position.to_vec())?;
+        d.set_item("rotation", jac.rotation.map(|r| r.to_vec()).to_vec())?;
+        d.set_item("pose", PyArray1::from_vec(py, pose).reshape([6, k])?)?;
+        d.set_item("base", PyArray1::from_vec(py, base).reshape([n, 6, k])?)?;
         Ok(d)
     })
 }
@@ -710,6 +805,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(rod_system_sensitivity_batch, m)?)?;
     m.add_function(wrap_pyfunction!(solve_constrained_tip, m)?)?;
     m.add_function(wrap_pyfunction!(solve_rod_system, m)?)?;
+    m.add_function(wrap_pyfunction!(system_jacobian_of, m)?)?;
     m.add_class::<PySystemFrictionState>()?;
     Ok(())
 }

@@ -201,7 +201,10 @@ pub fn locate_system_markers(
 }
 
 /// The unknowns of `sol` checked against the system.
-fn unknowns<'s>(rods: &[SystemRod], sol: &'s SystemSolution) -> Result<&'s [f64]> {
+pub(crate) fn system_unknowns<'s>(
+    rods: &[SystemRod],
+    sol: &'s SystemSolution,
+) -> Result<&'s [f64]> {
     let n = rods.len();
     if sol.x.len() != 6 * n + 6 || sol.rods.len() != n {
         return Err(SoftrodError::invalid(
@@ -231,7 +234,7 @@ pub fn system_marker_positions(
     sol: &SystemSolution,
     markers: &[SystemMarkerAt],
 ) -> Result<Vec<[f64; 3]>> {
-    let x = unknowns(rods, sol)?;
+    let x = system_unknowns(rods, sol)?;
     let (p, rp) = (sol.platform_position, sol.platform_rotation);
     let mut out = vec![[f64::NAN; 3]; markers.len()];
     for (k, mk) in markers.iter().enumerate() {
@@ -265,7 +268,7 @@ pub fn system_sensitivity(
     markers: &[SystemMarkerAt],
 ) -> Result<SystemSensitivity> {
     validate(rods, platform)?;
-    let x = unknowns(rods, sol)?;
+    let x = system_unknowns(rods, sol)?;
     if sol.friction.is_some() {
         return Err(SoftrodError::invalid(
             "solution",

@@ -2,11 +2,15 @@
 //! platform's pose and markers on the platform and on the rods against central finite
 //! differences of full system solves with the parameter changed in the designs; a one-rod
 //! system against the lone free rod's derivatives (an independent code path); the batch
-//! against single solves; refusals by name.
+//! against single solves; refusals by name. And the derivatives with respect to the
+//! system's inputs (`jacobian::system`): the platform's pose and the rods' base wrenches
+//! against central differences and a one-rod system against the lone rod's tip Jacobian.
 
 use crate::common;
 use common::*;
 use softrod_core::batch::{system_sensitivity_batch, SystemBatchInputs};
+use softrod_core::jacobian::system::{system_jacobian, SystemInput};
+use softrod_core::jacobian::{point_jacobian, Input, Probe};
 use softrod_core::marker::Marker;
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::system::{
@@ -442,4 +446,211 @@ fn bad_system_parameters_and_markers_are_refused_by_name() {
     )
     .unwrap_err();
     assert_eq!(field(e), "rods[1]");
+}
+
+/// What a finite difference of the input Jacobian reads of a solved system: the platform
+/// position and rotation (9, flattened) and every rod's base force and moment.
+fn pose_and_base(sol: &SystemSolution) -> Vec<f64> {
+    let mut out = sol.platform_position.to_vec();
+    out.extend(sol.platform_rotation.iter().flatten());
+    for r in &sol.rods {
+        out.extend(r.solution.base_force);
+        out.extend(r.solution.base_moment);
+    }
+    out
+}
+
+/// `jacobian::system::system_jacobian`: the platform's pose and the rods' base wrenches
+/// against central differences of whole system solves, for pressures on either rod and the
+/// platform's force and moment.
+#[test]
+fn system_input_jacobian_matches_central_differences() {
+    let specs = [hanging_at(-GAP), hanging_at(GAP)];
+    let lds = [loads(&[20e3, 0.0, 0.0]), loads(&[0.0, 15e3, 5e3])];
+    let (r0, r1) = (
+        Rod::new(specs[0].clone()).unwrap(),
+        Rod::new(specs[1].clone()).unwrap(),
+    );
+    let pf = platform();
+    let system = rods(&r0, &r1, [&lds[0], &lds[1]]);
+    let sol = solve_system(&system, &pf, None, &opts()).unwrap();
+    let inputs = [
+        SystemInput::Pressure { rod: 0, channel: 1 },
+        SystemInput::Pressure { rod: 1, channel: 0 },
+        SystemInput::Pressure { rod: 1, channel: 2 },
+        SystemInput::PlatformForce(0),
+        SystemInput::PlatformForce(2),
+        SystemInput::PlatformMoment(1),
+    ];
+    let jac = system_jacobian(&system, &pf, &sol, &inputs).unwrap();
+    let r0t = sol.platform_rotation;
+    let mut worst: f64 = 0.0;
+    for (k, a) in inputs.iter().enumerate() {
+        // Steps: 1 Pa (pressures of ~1e4 Pa), 1e-4 N and 1e-6 N m (loads of ~1e-2 N and
+        // its moments): truncation ~(h / scale)^2, far below COLUMN_TOL; the solves' error
+        // over 2h stays near 1e-8 of a column.
+        let step = match a {
+            SystemInput::PlatformForce(_) => 1e-4,
+            SystemInput::PlatformMoment(_) => 1e-6,
+            _ => 1.0,
+        };
+        let at = |h: f64| {
+            let (mut l, mut f) = (lds.clone(), pf);
+            match *a {
+                SystemInput::Pressure { rod, channel } => l[rod].pressures[channel] += h,
+                SystemInput::PlatformForce(j) => f.force[j] += h,
+                SystemInput::PlatformMoment(j) => f.moment[j] += h,
+                _ => unreachable!("not among the inputs"),
+            }
+            let sys = rods(&r0, &r1, [&l[0], &l[1]]);
+            pose_and_base(&solve_system(&sys, &f, Some(&sol.x), &opts()).unwrap())
+        };
+        let (hi, lo) = (at(step), at(-step));
+        let fd: Vec<f64> = hi
+            .iter()
+            .zip(&lo)
+            .map(|(a, b)| (a - b) / (2.0 * step))
+            .collect();
+        // dR R^T from the rotation's difference: its skew part is [d psi]x.
+        let dr: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| fd[3 + 3 * i + j]));
+        let w = softrod_core::jacobian::small_rotation(&r0t, &dr);
+        let mut checks: Vec<(&str, Vec<f64>, Vec<f64>)> = vec![
+            (
+                "platform position",
+                fd[0..3].to_vec(),
+                jac.d_position[k].to_vec(),
+            ),
+            ("platform rotation", w.to_vec(), jac.d_rotation[k].to_vec()),
+        ];
+        for i in 0..2 {
+            let at = 12 + 6 * i;
+            checks.push((
+                "base force",
+                fd[at..at + 3].to_vec(),
+                jac.d_base_force[k][i].to_vec(),
+            ));
+            checks.push((
+                "base moment",
+                fd[at + 3..at + 6].to_vec(),
+                jac.d_base_moment[k][i].to_vec(),
+            ));
+        }
+        for (what, f, e) in checks {
+            let n = f.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let err = f
+                .iter()
+                .zip(&e)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+                .sqrt()
+                / (n + NOISE / (COLUMN_TOL * step));
+            println!("d {what} / d {a:?}: |fd| {n:.3e}, rel. error {err:.2e}");
+            worst = worst.max(err);
+        }
+    }
+    assert!(
+        worst < COLUMN_TOL,
+        "worst relative column error {worst:.2e}"
+    );
+}
+
+/// A one-rod system whose massless platform sits on the tip is the lone free rod with the
+/// platform's load as its tip load: the platform's derivatives with respect to the
+/// pressures and the platform force are the free rod's tip Jacobian
+/// (`jacobian::point_jacobian`, another residual and another code path).
+#[test]
+fn one_rod_system_input_jacobian_equals_the_free_rods() {
+    let rod = Rod::new(hanging_at(0.0)).unwrap();
+    let force = [3e-3, 1e-3, -5e-3];
+    let mut free_loads = loads(&[18e3, 4e3, 0.0]);
+    free_loads.tip_force = force;
+    let free = solve(&rod, &free_loads, None, &opts()).unwrap();
+    let lone_inputs = [
+        Input::Pressure(0),
+        Input::Pressure(1),
+        Input::TipForce(0),
+        Input::TipForce(2),
+    ];
+    let lone = point_jacobian(&rod, &free_loads, &free, &lone_inputs, &Probe::tip(&rod)).unwrap();
+    let pf = Platform {
+        position: free.tip.r,
+        rotation: free.tip.rot,
+        force,
+        moment: [0.0; 3],
+        mass: 0.0,
+        com_offset: [0.0; 3],
+        gravity: [0.0, 0.0, -9.81],
+    };
+    let system = vec![SystemRod {
+        rod: &rod,
+        loads: loads(&[18e3, 4e3, 0.0]),
+        attachment: [0.0; 3],
+        attachment_rotation: IDENTITY,
+    }];
+    let sol = solve_system(&system, &pf, None, &opts()).unwrap();
+    let inputs = [
+        SystemInput::Pressure { rod: 0, channel: 0 },
+        SystemInput::Pressure { rod: 0, channel: 1 },
+        SystemInput::PlatformForce(0),
+        SystemInput::PlatformForce(2),
+    ];
+    let jac = system_jacobian(&system, &pf, &sol, &inputs).unwrap();
+    for k in 0..inputs.len() {
+        // Two exact derivatives of the same equilibrium (each solved to 1e-13): they agree
+        // to the solves' error relative to the column, far below 1e-8.
+        let scale = norm(&lone.d_position[k]).max(1e-12);
+        assert!(
+            dist(&jac.d_position[k], &lone.d_position[k]) < 1e-8 * scale,
+            "{k}: position"
+        );
+        let wscale = norm(&lone.d_rotation[k]).max(1e-12);
+        assert!(
+            dist(&jac.d_rotation[k], &lone.d_rotation[k]) < 1e-8 * wscale,
+            "{k}: rotation"
+        );
+    }
+}
+
+#[test]
+fn system_input_jacobian_refuses_unknown_inputs_by_name() {
+    let spec = hanging_at(0.0);
+    let rod = Rod::new(spec).unwrap();
+    let system = vec![SystemRod {
+        rod: &rod,
+        loads: loads(&[0.0; 3]),
+        attachment: [0.0; 3],
+        attachment_rotation: IDENTITY,
+    }];
+    let mut pf = platform();
+    pf.position = [0.0, 0.0, -0.134];
+    pf.force = [0.0; 3];
+    let sol = solve_system(&system, &pf, None, &opts()).unwrap();
+    for (bad, rule) in [
+        (
+            SystemInput::Pressure { rod: 1, channel: 0 },
+            "the system has 1 rods",
+        ),
+        (
+            SystemInput::Pressure { rod: 0, channel: 3 },
+            "pressure channels 0..3",
+        ),
+        (
+            SystemInput::Tension { rod: 0, channel: 0 },
+            "tendon channels 0..0",
+        ),
+        (
+            SystemInput::StiffnessScale { rod: 0, factor: 3 },
+            "stiffness factors 0..3",
+        ),
+        (SystemInput::PlatformMoment(3), "components 0..3"),
+    ] {
+        let inputs = [SystemInput::PlatformForce(0), bad];
+        match system_jacobian(&system, &pf, &sol, &inputs) {
+            Err(SoftrodError::InvalidParameter { field, rule: r, .. }) => {
+                assert_eq!(field, "inputs[1]");
+                assert!(r.contains(rule), "{r}");
+            }
+            other => panic!("{bad:?}: {other:?}"),
+        }
+    }
 }
