@@ -194,6 +194,10 @@ def test_constant_stiffness_scaling_factors(m3, tmp_path):
     assert res.stiffness_scale == pytest.approx([0.8, 1.3, 0.9], rel=EXACT)
     again = softrod.solve_statics_batch(res.design, p, stiffness_map=res.stiffness_map)
     assert np.abs(again.tip_position - sol.tip_position).max() < 1e-9
+    # The unpressurised reference of the error tables carries the fitted sigma too (the
+    # calibrated design maps its sections; sigma = 1 would hang it differently).
+    rest = softrod.solve_statics(res.design, [0, 0, 0], stiffness_map=res.stiffness_map)
+    assert np.abs(res.reference - rest.tip_position).max() < 1e-9
     with pytest.raises(InputError, match="per-solve"):
         res.to_toml(tmp_path / "x.toml")
     assert not (tmp_path / "x.toml").exists()

@@ -290,6 +290,36 @@ def test_mapped_design_without_map_raises():
         assert "body" in str(info.value)  # names the mapped section
 
 
+def test_no_entry_point_takes_sigma_as_one_for_a_mapped_design():
+    """Below the public solvers too: calibrate without a map or sigma parameters, the PCC
+    model (which has its own stiffness), and the binding's solves and batches called without
+    sigma refuse a mapped design by name instead of solving it with sigma = 1."""
+    import softrod
+    from softrod import _core
+
+    design = mapped_spa()
+    data = softrod.load_dataset("spa130_synthetic").subset(range(4))
+    with pytest.raises(InputError, match="never assumed to be 1") as info:
+        softrod.calibrate(design, data, "c_b", progress=False)
+    assert info.value.field == "design.stiffness_map"
+    # A design the PCC model cannot carry: a DesignError, as for its other refusals.
+    with pytest.raises(softrod.DesignError, match="PCC model") as info:
+        solve_statics(design, [2e4, 0, 0], model="pcc")
+    assert info.value.field == "sections[1].law.stiffness_map"
+    rod, zero = design._rod, [0.0, 0.0, 0.0]
+    for call in (
+        lambda: rod.solve([2e4, 0, 0], zero, zero),
+        lambda: rod.solve_batch(np.zeros((2, 3)), zero, zero),
+        lambda: rod.sensitivity_batch(np.zeros((2, 3)), zero, zero, []),
+        lambda: _core.solve_constrained_tip(
+            rod, [0, 0, 0], zero, zero, "pinned", position=[0.0, 0.0, -0.13]
+        ),
+    ):
+        with pytest.raises(InputError, match="never assumed to be 1") as info:
+            call()
+        assert info.value.field == "stiffness_scale"
+
+
 def test_map_with_wrong_channel_count_or_type_raises():
     design = mapped_spa()
     with pytest.raises(InputError, match="2 pressure channel") as info:

@@ -2,7 +2,7 @@
 platform pose and of its rods' base wrenches with respect to every rod's pressures and
 tensions and the platform's load (docs/control.md, "Jacobians of a system"). Every block is
 checked against central differences of whole system solves; the core's tests add a one-rod
-system against the lone rod's Jacobian (tests/suite/system_sensitivity.rs)."""
+system against the lone rod's Jacobian (crates/softrod-core/tests/suite/system_sensitivity.rs)."""
 
 from __future__ import annotations
 

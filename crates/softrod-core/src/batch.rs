@@ -260,6 +260,10 @@ impl<'a> Rows<'a> {
             stiffness_scale: [1.0; 3],
         };
         let unknowns = n_unknowns(rod, &template);
+        if stiffness_scale.is_none() && count > 0 {
+            // Every row's sigma of a mapped rod, never 1 by default.
+            crate::statics::system::lone_sigma("stiffness_scale", rod, None)?;
+        }
         for (name, v, k) in [
             ("stiffness_scale", stiffness_scale, 3),
             ("x0", guesses, unknowns),

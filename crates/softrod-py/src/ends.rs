@@ -82,7 +82,7 @@ pub(crate) fn constraint(
 /// increments from the unloaded rod or from `history`, a `FrictionState` of this design
 /// with the same kind of tip), and the dict has "friction_state".
 #[pyfunction]
-#[pyo3(signature = (rod, pressures, tip_force, tip_moment, kind, position=None, rotation=None, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise", tensions=None, friction_steps=softrod_core::statics::friction::DEFAULT_FRICTION_STEPS, history=None))]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, kind, position=None, rotation=None, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=None, on_invalid="raise", tensions=None, friction_steps=softrod_core::statics::friction::DEFAULT_FRICTION_STEPS, history=None))]
 #[allow(clippy::too_many_arguments)]
 fn solve_constrained_tip<'py>(
     py: Python<'py>,
@@ -99,7 +99,7 @@ fn solve_constrained_tip<'py>(
     continuation: bool,
     max_load_steps: usize,
     stretch_range: (f64, f64),
-    stiffness_scale: [f64; 3],
+    stiffness_scale: Option<[f64; 3]>,
     on_invalid: &str,
     tensions: Option<Vec<f64>>,
     friction_steps: usize,

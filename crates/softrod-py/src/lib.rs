@@ -357,7 +357,8 @@ impl PyRod {
     /// With an obstacle's friction > 0 the solve follows the frictional load path
     /// (`statics::friction`) in `friction_steps` increments from the unloaded rod or from
     /// `history` (a `FrictionState` of this design), and the dict has "friction_state".
-    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=[1.0, 1.0, 1.0], on_invalid="raise", tensions=None, friction_steps=statics::friction::DEFAULT_FRICTION_STEPS, history=None))]
+    /// `stiffness_scale`: sigma of the mapped sections (None: a design without one).
+    #[pyo3(signature = (pressures, tip_force, tip_moment, guess=None, tol=1e-10, max_iter=25, continuation=true, max_load_steps=200, stretch_range=(1.0 / 3.0, 3.0), stiffness_scale=None, on_invalid="raise", tensions=None, friction_steps=statics::friction::DEFAULT_FRICTION_STEPS, history=None))]
     #[allow(clippy::too_many_arguments)]
     fn solve<'py>(
         &self,
@@ -371,7 +372,7 @@ impl PyRod {
         continuation: bool,
         max_load_steps: usize,
         stretch_range: (f64, f64),
-        stiffness_scale: [f64; 3],
+        stiffness_scale: Option<[f64; 3]>,
         on_invalid: &str,
         tensions: Option<Vec<f64>>,
         friction_steps: usize,

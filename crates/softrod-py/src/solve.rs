@@ -22,7 +22,8 @@ pub(crate) struct One<'py> {
     pub tensions: Option<Vec<f64>>,
     pub tip_force: [f64; 3],
     pub tip_moment: [f64; 3],
-    pub stiffness_scale: [f64; 3],
+    /// sigma of the mapped sections; None: ones, refused for a design with one.
+    pub stiffness_scale: Option<[f64; 3]>,
     pub guess: Option<Vec<f64>>,
     pub friction_steps: usize,
     pub history: Option<PyRef<'py, PyFrictionState>>,
@@ -44,13 +45,16 @@ pub(crate) fn solve_one<'py>(
     friction::check_history_wanted(rod, input.history.is_some())
         .map_err(|e| to_py_err(py, e, Context::Input))?;
     let history = input.history.map(|h| h.path.clone());
+    let sigma =
+        softrod_core::statics::system::lone_sigma("stiffness_scale", rod, input.stiffness_scale)
+            .map_err(|e| to_py_err(py, e, Context::Input))?;
     let loads = Loads {
         pressures: input.pressures,
         tensions: input.tensions.unwrap_or_default(),
         tip_force: input.tip_force,
         tip_moment: input.tip_moment,
         tip_frame: rod.spec.tip.frame,
-        stiffness_scale: input.stiffness_scale,
+        stiffness_scale: sigma,
     };
     let (steps, guess) = (input.friction_steps, input.guess);
     let (out, contact) = py

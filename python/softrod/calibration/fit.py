@@ -645,6 +645,15 @@ def _adapter(model, dynamic, design0, dataset, names, options, threads, dt, expe
         from .per_sample import stiffness_mapped_design
 
         design0 = stiffness_mapped_design(design0)[0]
+    elif design0.mapped_sections and design0.stiffness_map is None:
+        raise V.fail(
+            "design.stiffness_map",
+            None,
+            f"section(s) {', '.join(design0.mapped_sections)} of design {design0.name!r} set "
+            "[sections.law] stiffness_map = true but the design references no map: reference "
+            "one (design.with_stiffness_map(path), or [stiffness_map] file in the design file) "
+            f"or fit constant factors ({', '.join(SIGMA_KINDS)}); sigma is never assumed to be 1",
+        )
     for p in params:  # the core checks each parameter against the design
         design0._rod.sensitivity_batch(
             np.zeros((0, design0.n_channels)), [0.0] * 3, [0.0] * 3, [p.core()]

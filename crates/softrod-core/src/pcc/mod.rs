@@ -213,6 +213,18 @@ impl PccModel {
     pub fn new(spec: &DesignSpec) -> Result<Self> {
         let rod = Rod::new(spec.clone())?;
         crate::scope::check_statics_only(&rod, "the PCC model")?;
+        if let Some(k) = crate::statics::system::mapped_section(&rod) {
+            // sigma(p) scales the Cosserat section's stiffness (paper 001); the PCC model has
+            // its own (k_L, k_theta, k_phi), so a mapped design would silently lose its map.
+            return Err(SoftrodError::invalid(
+                format!("sections[{k}].law.stiffness_map"),
+                true,
+                "a stiffness-mapped section (sigma(p) scales the rod model's section \
+                 stiffness) is not carried by the PCC model, which has its own stiffness \
+                 parameters (k_L, k_theta, k_phi): solve the rod model, or a design without \
+                 mapped sections",
+            ));
+        }
         let pspec = spec.pcc.clone().unwrap_or_default();
         pspec.validate()?;
         let tau = spec.dynamics.damping_time;

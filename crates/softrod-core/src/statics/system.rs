@@ -167,27 +167,37 @@ pub fn mapped_section(rod: &Rod) -> Option<usize> {
     rod.sections.iter().position(|s| s.law.stiffness_map)
 }
 
+/// A lone rod's sigma: `given` (checked: finite and > 0, named `field`), or, where none is
+/// given, 1 for a rod without stiffness-mapped sections; a rod with a mapped section and no
+/// sigma is refused: sigma is never assumed to be 1.
+pub fn lone_sigma(field: &str, rod: &Rod, given: Option<[f64; 3]>) -> Result<[f64; 3]> {
+    match (given, mapped_section(rod)) {
+        (Some(s), _) => {
+            check_sigma(field, &s)?;
+            Ok(s)
+        }
+        (None, None) => Ok([1.0; 3]),
+        (None, Some(k)) => Err(unmapped_sigma(field, k)),
+    }
+}
+
+/// The refusal of a mapped rod (`sections[k]`) without its sigma.
+fn unmapped_sigma(field: &str, k: usize) -> SoftrodError {
+    SoftrodError::invalid(
+        field,
+        "None",
+        format!(
+            "sections[{k}] is stiffness-mapped ([sections.law] stiffness_map): give sigma (3 \
+             factors > 0, from the stiffness map); sigma is never assumed to be 1"
+        ),
+    )
+}
+
 /// Rod `i`'s sigma in a system: `given` (checked: finite and > 0), or, where none is given,
 /// 1 for a rod without stiffness-mapped sections, on which sigma acts nowhere. A rod with a
 /// mapped section and no sigma is refused: sigma is never assumed to be 1.
 pub fn rod_sigma(i: usize, rod: &Rod, given: Option<[f64; 3]>) -> Result<[f64; 3]> {
-    let field = format!("rods[{i}].stiffness_scale");
-    match (given, mapped_section(rod)) {
-        (Some(s), _) => {
-            check_sigma(&field, &s)?;
-            Ok(s)
-        }
-        (None, None) => Ok([1.0; 3]),
-        (None, Some(k)) => Err(SoftrodError::invalid(
-            field,
-            "None",
-            format!(
-                "sections[{k}] of rods[{i}] is stiffness-mapped ([sections.law] \
-                 stiffness_map): give the rod's sigma (3 factors > 0, from its stiffness \
-                 map); sigma is never assumed to be 1"
-            ),
-        )),
-    }
+    lone_sigma(&format!("rods[{i}].stiffness_scale"), rod, given)
 }
 
 /// The system's own inputs: 1..=MAX_RODS rods, finite attachments and platform, proper

@@ -217,11 +217,14 @@ class RodStatic(ModelAdapter):
         return clone.predict(values, rows, False)
 
     def reference(self, design: Design, theta) -> Prediction:
-        """The model's unpressurised tip (and markers) of every row's mounting."""
+        """The model's unpressurised tip (and markers) of every row's mounting, with the
+        fitted constant sigma where sigma factors are parameters (the calibrated design
+        maps its sections but carries no map)."""
         out = Prediction.empty(len(self.p), 0, len(self.markers), False)
+        sigma = self.sigma(theta, np.arange(1))[0] if self.sigma_index else None
         for changes, idx in self.groups:
             d = design.replace(changes) if changes else design
-            rest = rest_prediction(d, self.markers, 1, self.options)
+            rest = rest_prediction(d, self.markers, 1, self.options, sigma=sigma)
             out.tip[idx] = rest.tip[0]
             if out.markers is not None:
                 out.markers[idx] = rest.markers[0]
@@ -238,19 +241,23 @@ class RodStatic(ModelAdapter):
         )
 
 
-def rest_prediction(design: Design, markers, m: int, options=None) -> Prediction:
+def rest_prediction(
+    design: Design, markers, m: int, options=None, sigma: np.ndarray | None = None
+) -> Prediction:
     """The unpressurised equilibrium's tip and markers (the core's (s, offset) pairs) of
-    ``design`` (its tip loads and constraint, slack tendons, its stiffness map at zero
-    pressure), repeated for ``m`` rows."""
+    ``design`` (its tip loads and constraint, slack tendons, and ``sigma`` (3,) or else its
+    stiffness map at zero pressure), repeated for ``m`` rows."""
     out = Prediction.empty(m, 0, len(markers), False)
     zero = np.zeros((1, design.n_channels))
     smap = design.stiffness_map
+    if sigma is None and smap is not None:
+        sigma = smap(zero)[0]
     res = design._rod.sensitivity_batch(
         zero,
         design.spec["tip"]["force"],
         design.spec["tip"]["moment"],
         [],
-        stiffness_scale=None if smap is None else np.ascontiguousarray(smap(zero)),
+        stiffness_scale=None if sigma is None else np.ascontiguousarray([sigma], dtype=float),
         markers=markers,
         # Slack tendons (zero tension), given explicitly: a rod without chambers counts
         # its batch rows by its tension rows.
