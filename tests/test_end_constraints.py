@@ -357,10 +357,10 @@ FREE_TIP_ENTRIES = {
     "simulate(model='pcc')": lambda d, ds: softrod.simulate(d, [0.0, 0.0, 0.0], 0.01, model="pcc"),
     "solve_inverse": lambda d, ds: softrod.solve_inverse(d, "0,5,-130 mm"),
     "workspace": lambda d, ds: softrod.workspace(d),
-    "linearise": lambda d, ds: softrod.linearise(d, [0.0, 0.0, 0.0]),
     "model='pcc'": lambda d, ds: solve_statics(d, [0.0, 0.0, 0.0], model="pcc"),
 }
-# StaticSolution.jacobian takes a held tip (tests/test_jacobian_six_unknowns.py).
+# StaticSolution.jacobian takes a held tip (tests/test_jacobian_six_unknowns.py), linearise a
+# clamped one and refuses a pinned one before any work (tests/test_linearise_clamped.py).
 
 
 @pytest.mark.parametrize("entry", sorted(FREE_TIP_ENTRIES))

@@ -385,6 +385,9 @@ def linearise_at(
     x: Sequence[float] | None,
     nodes: int,
     tensions: Sequence[float] | None = None,
+    tip_kind: str = "free",
+    tip_position: _Vec3 | None = None,
+    tip_rotation: Sequence[Sequence[float]] | None = None,
 ) -> dict[str, Any]: ...
 def solve_constrained_tip(
     rod: Rod,

@@ -142,7 +142,7 @@ pub(crate) fn dual_coeffs<const N: usize>(
 
 /// [`dual_coeffs`] with the inputs seeded as directions `first + k` (after `first` shooting
 /// unknowns: 3, or 6 with the base force among them).
-fn dual_coeffs_from<const N: usize>(
+pub(crate) fn dual_coeffs_from<const N: usize>(
     rod: &Rod,
     loads: &Loads,
     inputs: &[Input],

@@ -33,12 +33,13 @@
 
 use crate::dynamics::section_inertia_at;
 use crate::error::{Result, SoftrodError};
-use crate::jacobian::{dual_coeffs, singular, Input};
+use crate::jacobian::{dual_coeffs_from, singular, Input};
 use crate::jet::Jet;
 use crate::ode::{advance, integrate_with, resolve_stretch, strains, Coeffs, Loads, NodeAt, State};
 use crate::rod::{inverse3, Rod, Section};
+use crate::statics::constraint::{tip_residual_under, TipConstraint};
 use crate::statics::{Problem, Solution};
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3};
 
 /// Most nodes of a linearisation (6 coordinates each).
 pub const MAX_NODES: usize = 200;
@@ -87,6 +88,26 @@ pub fn choose_nodes(rod: &Rod, n: usize) -> Result<Vec<(usize, usize, f64)>> {
     Ok((1..=n).map(|k| all[(k * t).div_ceil(n) - 1]).collect())
 }
 
+/// `n` nodes spread evenly over the integration nodes inside the rod, for a clamped tip (the
+/// tip is not a coordinate): the k-th at step k T / (n + 1) of the T steps, so that they
+/// sit symmetrically between the two clamped ends.
+pub fn choose_inner_nodes(rod: &Rod, n: usize) -> Result<Vec<(usize, usize, f64)>> {
+    let all = step_nodes(rod);
+    let t = all.len();
+    if n == 0 || n > (t - 1).min(MAX_NODES) {
+        return Err(SoftrodError::invalid(
+            "nodes",
+            n,
+            format!(
+                "must lie in 1..={} with a clamped tip (the design has {t} integration steps, \
+                 the tip's not a coordinate; raise numerics steps for more)",
+                (t - 1).min(MAX_NODES)
+            ),
+        ));
+    }
+    Ok((1..=n).map(|k| all[k * t / (n + 1) - 1]).collect())
+}
+
 /// What one pass records on one step interval [a, b]: pose and strains at both ends
 /// (strains as right limit at a and left limit at b, since point loads make them jump).
 struct Interval<D> {
@@ -101,8 +122,40 @@ struct Interval<D> {
     strain_b: [D; 6],
 }
 
-const NJ: usize = 9; // x (3), point force (3), point moment (3)
-type J9 = Jet<NJ>;
+/// The tip the equilibrium is linearised with: free (three shooting unknowns, the base
+/// moment; `Jet<9>` carries them and a node's point force and moment) or clamped (six, the
+/// base force too; `Jet<12>`), whose tip is not a coordinate (it does not move).
+#[derive(Clone, Copy)]
+enum Tip<'a> {
+    Free,
+    Clamped(&'a TipConstraint),
+}
+
+impl Tip<'_> {
+    fn unknowns(&self) -> usize {
+        match self {
+            Tip::Free => 3,
+            Tip::Clamped(_) => 6,
+        }
+    }
+
+    /// The shooting residual at the tip (3 or 6 rows) under the dead tip loads of `loads`.
+    fn residual<const N: usize>(
+        &self,
+        problem: &Problem,
+        loads: &Loads,
+        tip: &State<Jet<N>>,
+    ) -> Vec<Jet<N>> {
+        match self {
+            Tip::Free => problem.residual_of_tip::<Jet<N>, 3>(tip).to_vec(),
+            Tip::Clamped(held) => {
+                let f = loads.tip_force.map(Jet::from);
+                let m = loads.tip_moment.map(Jet::from);
+                tip_residual_under(problem, held, tip, &f, &m).to_vec()
+            }
+        }
+    }
+}
 
 /// Strains at local arc length `s` of section `sec` (zero in a rigid one).
 fn strain6<D: crate::jet::StateScalar<f64>>(
@@ -119,24 +172,34 @@ fn strain6<D: crate::jet::StateScalar<f64>>(
 }
 
 /// One pass with a point force and moment at node `at` (section, step) seeded as directions
-/// 3..9 and x as 0..3: the residual and every interval.
-fn load_pass(
+/// nx..nx + 6 after the nx shooting unknowns x: the residual and every interval.
+fn load_pass<const N: usize>(
     problem: &Problem,
     rod: &Rod,
-    x: &[f64; 3],
+    loads: &Loads,
+    x: &[f64],
     at: (usize, usize),
-) -> ([J9; 3], Vec<Interval<J9>>) {
-    let xd: [J9; 3] = std::array::from_fn(|i| Jet::variable(x[i], i));
+    tip: Tip,
+) -> (Vec<Jet<N>>, Vec<Interval<Jet<N>>>) {
+    let nx = x.len();
+    let xd: Vec<Jet<N>> = x
+        .iter()
+        .enumerate()
+        .map(|(i, v)| Jet::variable(*v, i))
+        .collect();
     let mut y0 = problem.base_state(&xd);
-    for j in 0..3 {
-        // The point force is carried by everything inboard: n(0) grows by it.
-        y0.n[j].eps[3 + j] = 1.0;
+    if nx == 3 {
+        for j in 0..3 {
+            // The point force is carried by everything inboard: n(0) grows by it. (With six
+            // unknowns n(0) is one of them.)
+            y0.n[j].eps[nx + j] = 1.0;
+        }
     }
-    let mut intervals: Vec<Interval<J9>> = Vec::new();
-    type Open = (usize, f64, State<J9>, [J9; 6], State<J9>, [J9; 6]);
-    let mut open: Option<Open> = None;
+    let mut intervals: Vec<Interval<Jet<N>>> = Vec::new();
+    type Open<D> = (usize, f64, State<D>, [D; 6], State<D>, [D; 6]);
+    let mut open: Option<Open<Jet<N>>> = None;
     let coeffs = &problem.coeffs;
-    let tip = integrate_with(rod, coeffs, y0, &mut |node: NodeAt, y| {
+    let end = integrate_with(rod, coeffs, y0, &mut |node: NodeAt, y| {
         let sec = &rod.sections[node.section];
         let c = &coeffs[node.section];
         if node.step > 0 {
@@ -157,8 +220,8 @@ fn load_pass(
         let mut changed = false;
         if (node.section, node.step) == at {
             for j in 0..3 {
-                y.n[j].eps[3 + j] -= 1.0;
-                y.m[j].eps[6 + j] -= 1.0;
+                y.n[j].eps[nx + j] -= 1.0;
+                y.m[j].eps[nx + 3 + j] -= 1.0;
             }
             resolve_stretch(y, c);
             changed = true;
@@ -183,12 +246,12 @@ fn load_pass(
         }
         changed
     });
-    (problem.residual_of_tip::<J9, 3>(&tip), intervals)
+    (tip.residual(problem, loads, &end), intervals)
 }
 
 /// Pose (dr, dtheta) derivative of a state with respect to the directions, given the
 /// rotation's value: dtheta from [dtheta]x = dR R^T.
-fn pose6(y: &State<J9>, dir: usize) -> [f64; 6] {
+fn pose6<const N: usize>(y: &State<Jet<N>>, dir: usize) -> [f64; 6] {
     let rot: [[f64; 3]; 3] = y.rot.map(|r| r.map(|v| v.re));
     let d_rot: [[f64; 3]; 3] = y.rot.map(|r| r.map(|v| v.eps[dir]));
     let w = crate::jacobian::small_rotation(&rot, &d_rot);
@@ -208,6 +271,57 @@ pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Re
     crate::scope::dead_loads_only(rod, loads, "the linearisation")?;
     let x = crate::jacobian::unknowns3(sol)?;
     let nodes = choose_nodes(rod, n_nodes)?;
+    linearise_at_nodes::<9>(rod, loads, sol, &x, &nodes, Tip::Free)
+}
+
+/// Linearise the dynamics at the converged equilibrium `sol` of `loads` whose tip is held
+/// by `constraint` (clamped: the tip does not move, so its pose is not a coordinate; the
+/// `n_nodes` nodes spread over the rest of the rod, `choose_inner_nodes`). The stiffness is
+/// the held rod's (six shooting unknowns, the tip's pose residual), the tip body adds no
+/// mass, and a tip load goes whole into the clamp (zero input columns).
+pub fn linearise_held(
+    rod: &Rod,
+    loads: &Loads,
+    constraint: &TipConstraint,
+    sol: &Solution,
+    n_nodes: usize,
+) -> Result<LinearSystem> {
+    crate::scope::dead_loads_only(rod, loads, "the linearisation")?;
+    if !matches!(constraint, TipConstraint::Clamped { .. }) {
+        return Err(SoftrodError::invalid(
+            "tip_constraint",
+            if matches!(constraint, TipConstraint::Free) {
+                "free"
+            } else {
+                "pinned"
+            },
+            "the held linearisation takes a clamped tip (a pinned tip keeps three rotational \
+             coordinates, which it does not implement yet); a free tip: linearise",
+        ));
+    }
+    let x: [f64; 6] = <[f64; 6]>::try_from(sol.x.as_slice()).map_err(|_| {
+        SoftrodError::invalid(
+            "solution",
+            format!("{} shooting unknowns", sol.x.len()),
+            "a clamped tip's equilibrium (six shooting unknowns) is needed here",
+        )
+    })?;
+    let nodes = choose_inner_nodes(rod, n_nodes)?;
+    linearise_at_nodes::<12>(rod, loads, sol, &x, &nodes, Tip::Clamped(constraint))
+}
+
+/// The linearisation with nodes `nodes` and the `tip` of `x`'s unknowns, in `Jet<N>` (N =
+/// unknowns + 6).
+fn linearise_at_nodes<const N: usize>(
+    rod: &Rod,
+    loads: &Loads,
+    sol: &Solution,
+    x: &[f64],
+    nodes: &[(usize, usize, f64)],
+    tip: Tip,
+) -> Result<LinearSystem> {
+    let nx = tip.unknowns();
+    debug_assert_eq!(nx + 6, N);
     let n = nodes.len();
     let nq = 6 * n;
     let problem = Problem::new(rod, loads, 1.0);
@@ -220,29 +334,29 @@ pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Re
     let mut phi: Vec<[DMatrix<f64>; 3]> = Vec::new();
     let mut psi: Vec<[DMatrix<f64>; 3]> = Vec::new();
     for (k, &(sec, step, _)) in nodes.iter().enumerate() {
-        let (g, intervals) = load_pass(&problem, rod, &x, (sec, step));
-        let gx = Matrix3::from_fn(|i, j| g[i].eps[j]);
+        let (g, intervals) = load_pass::<N>(&problem, rod, loads, x, (sec, step), tip);
+        let gx = DMatrix::from_fn(nx, nx, |i, j| g[i].eps[j]);
         let lu = gx.lu();
         // dx / d load_j for the 6 load directions.
-        let mut dx = [[0.0; 3]; 6];
-        for j in 0..6 {
-            let rhs = Vector3::from_fn(|i, _| -g[i].eps[3 + j]);
+        let mut dx = vec![vec![0.0; nx]; 6];
+        for (j, dxj) in dx.iter_mut().enumerate() {
+            let rhs = DVector::from_fn(nx, |i, _| -g[i].eps[nx + j]);
             let d = lu
                 .solve(&rhs)
                 .filter(|d| d.iter().all(|v| v.is_finite()))
                 .ok_or_else(|| singular(sol))?;
-            dx[j] = [d[0], d[1], d[2]];
+            dxj.copy_from_slice(d.as_slice());
         }
         let total6 = |partial: &dyn Fn(usize) -> [f64; 6]| -> [[f64; 6]; 6] {
-            let px: [[f64; 6]; 3] = std::array::from_fn(partial);
+            let px: Vec<[f64; 6]> = (0..nx).map(partial).collect();
             std::array::from_fn(|j| {
-                let pj = partial(3 + j);
-                std::array::from_fn(|r| pj[r] + (0..3).map(|i| px[i][r] * dx[j][i]).sum::<f64>())
+                let pj = partial(nx + j);
+                std::array::from_fn(|r| pj[r] + (0..nx).map(|i| px[i][r] * dx[j][i]).sum::<f64>())
             })
         };
         if k == 0 {
             for iv in &intervals {
-                let value = |st: &State<J9>| st.rot.map(|r| r.map(|v| v.re));
+                let value = |st: &State<Jet<N>>| st.rot.map(|r| r.map(|v| v.re));
                 intervals_meta.push((
                     iv.section,
                     iv.a,
@@ -322,18 +436,18 @@ pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Re
         }
     }
     // The tip body: mass m_t at c_w = R(L) c from the tip node, inertia along the tip frame.
-    let tip = &rod.spec.tip;
+    let body = &rod.spec.tip;
     let last = intervals_meta.last().expect("at least one interval");
     let rot_l = last.3[2];
     let cw: [f64; 3] =
-        std::array::from_fn(|i| (0..3).map(|k| rot_l[i][k] * tip.com_offset[k]).sum());
+        std::array::from_fn(|i| (0..3).map(|k| rot_l[i][k] * body.com_offset[k]).sum());
     let skew = Matrix3::new(0.0, -cw[2], cw[1], cw[2], 0.0, -cw[0], -cw[1], cw[0], 0.0);
     let jw = Matrix3::from_fn(|i, j| {
         (0..3)
-            .map(|k| rot_l[i][k] * tip.inertia[k] * rot_l[j][k])
+            .map(|k| rot_l[i][k] * body.inertia[k] * rot_l[j][k])
             .sum()
     });
-    let mt = tip.mass;
+    let mt = body.mass;
     let tip_block = {
         let mut b = DMatrix::<f64>::zeros(6, 6);
         let ct = -skew * mt;
@@ -353,13 +467,16 @@ pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Re
     let sym = |a: DMatrix<f64>| (&a + a.transpose()) * 0.5;
     let mut mass = sym(&kt * gm * &stiffness);
     let damping = sym(&kt * gd * &stiffness);
-    let o = nq - 6;
-    for i in 0..6 {
-        for j in 0..6 {
-            mass[(o + i, o + j)] += tip_block[(i, j)];
+    if let Tip::Free = tip {
+        // The tip body rides on the tip node; a clamped one does not move.
+        let o = nq - 6;
+        for i in 0..6 {
+            for j in 0..6 {
+                mass[(o + i, o + j)] += tip_block[(i, j)];
+            }
         }
     }
-    let input = input_matrix(rod, loads, sol, &nodes, &stiffness)?;
+    let input = input_matrix::<N>(rod, loads, sol, x, nodes, &stiffness, tip)?;
     Ok(LinearSystem {
         nodes: nodes.iter().map(|n| n.2).collect(),
         mass,
@@ -395,16 +512,19 @@ fn damping_matrix(rod: &Rod, c: &Coeffs<f64>, sec: usize, s: f64, tau: f64) -> D
 }
 
 /// Columns of B: K dq/dp for the pressures and the tensions; unit generalised forces at the
-/// tip node for the tip force and moment. Column order: pressures, tip force, tip moment,
-/// tensions.
-fn input_matrix(
+/// tip node for the tip force and moment (zero for a clamped tip: the clamp takes them).
+/// Column order: pressures, tip force, tip moment, tensions.
+fn input_matrix<const N: usize>(
     rod: &Rod,
     loads: &Loads,
     sol: &Solution,
+    x: &[f64],
     nodes: &[(usize, usize, f64)],
     stiffness: &DMatrix<f64>,
+    tip: Tip,
 ) -> Result<DMatrix<f64>> {
     let (nc, nt) = (rod.n_channels, rod.n_tendons);
+    let nx = tip.unknowns();
     let nq = 6 * nodes.len();
     // dq per input: the pressures, then the tensions.
     let mut dq = DMatrix::<f64>::zeros(nq, nc + nt);
@@ -418,11 +538,15 @@ fn input_matrix(
     };
     for chunk in (0..nc + nt).collect::<Vec<_>>().chunks(6) {
         let inputs: Vec<Input> = chunk.iter().map(|&u| input(u)).collect();
-        let coeffs = dual_coeffs::<9>(rod, loads, &inputs);
-        let xd: [J9; 3] = std::array::from_fn(|i| Jet::variable(sol.x[i], i));
+        let coeffs = dual_coeffs_from::<N>(rod, loads, &inputs, nx);
+        let xd: Vec<Jet<N>> = x
+            .iter()
+            .enumerate()
+            .map(|(i, v)| Jet::variable(*v, i))
+            .collect();
         let y0 = problem.base_state(&xd);
-        let mut at_nodes: Vec<State<J9>> = Vec::with_capacity(nodes.len());
-        let tip = integrate_with(rod, &coeffs, y0, &mut |node: NodeAt, y| {
+        let mut at_nodes: Vec<State<Jet<N>>> = Vec::with_capacity(nodes.len());
+        let end = integrate_with(rod, &coeffs, y0, &mut |node: NodeAt, y| {
             if node.step > 0
                 && nodes
                     .iter()
@@ -432,23 +556,19 @@ fn input_matrix(
             }
             false
         });
-        let g = problem.residual_of_tip::<J9, 3>(&tip);
-        let lu = Matrix3::from_fn(|i, j| g[i].eps[j]).lu();
+        let g = tip.residual(&problem, loads, &end);
+        let lu = DMatrix::from_fn(nx, nx, |i, j| g[i].eps[j]).lu();
         for (q, &c) in chunk.iter().enumerate() {
-            let rhs = Vector3::from_fn(|i, _| -g[i].eps[3 + q]);
+            let rhs = DVector::from_fn(nx, |i, _| -g[i].eps[nx + q]);
             let dx = lu
                 .solve(&rhs)
                 .filter(|d| d.iter().all(|v| v.is_finite()))
                 .ok_or_else(|| singular(sol))?;
             for (a, st) in at_nodes.iter().enumerate() {
-                let total = |dir_p: usize| -> [f64; 6] {
-                    let p = pose6(st, dir_p);
-                    let px: [[f64; 6]; 3] = std::array::from_fn(|i| pose6(st, i));
-                    std::array::from_fn(|r| p[r] + (0..3).map(|i| px[i][r] * dx[i]).sum::<f64>())
-                };
-                let d = total(3 + q);
+                let p = pose6(st, nx + q);
+                let px: Vec<[f64; 6]> = (0..nx).map(|i| pose6(st, i)).collect();
                 for r in 0..6 {
-                    dq[(6 * a + r, c)] = d[r];
+                    dq[(6 * a + r, c)] = p[r] + (0..nx).map(|i| px[i][r] * dx[i]).sum::<f64>();
                 }
             }
         }
@@ -463,8 +583,10 @@ fn input_matrix(
             b[(r, nc + 6 + t)] = bp[(r, nc + t)];
         }
     }
-    for j in 0..6 {
-        b[(nq - 6 + j, nc + j)] = 1.0;
+    if let Tip::Free = tip {
+        for j in 0..6 {
+            b[(nq - 6 + j, nc + j)] = 1.0;
+        }
     }
     Ok(b)
 }

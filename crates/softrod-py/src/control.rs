@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget, WarmStart};
 use softrod_core::jacobian::{point_jacobian, point_jacobian6, HeldJacobian, Input, Probe};
-use softrod_core::linearise::linearise;
+use softrod_core::linearise::{linearise, linearise_held};
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{constrained_pose_sensitivity, validate_params, Param, ParamKind};
 use softrod_core::statics;
@@ -372,8 +372,10 @@ pub fn point_jacobian_of<'py>(
 
 /// The linearised dynamics at the equilibrium under `pressures` and tip loads (warm start
 /// `x`) with `nodes` nodes: dict of mass, damping, stiffness, input (numpy) and nodes (m).
+/// `tip_kind` "clamped" (with `tip_position` and `tip_rotation`) linearises the equilibrium
+/// with the tip clamped there (`linearise::linearise_held`: the tip is no coordinate).
 #[pyfunction]
-#[pyo3(signature = (rod, pressures, tip_force, tip_moment, x, nodes, tensions=None))]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, x, nodes, tensions=None, tip_kind="free", tip_position=None, tip_rotation=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn linearise_at<'py>(
     py: Python<'py>,
@@ -384,8 +386,12 @@ pub fn linearise_at<'py>(
     x: Option<Vec<f64>>,
     nodes: usize,
     tensions: Option<Vec<f64>>,
+    tip_kind: &str,
+    tip_position: Option<[f64; 3]>,
+    tip_rotation: Option<[[f64; 3]; 3]>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
+        let held = crate::ends::constraint(py, tip_kind, tip_position, tip_rotation)?;
         let rod = &rod.rod;
         let checked = options(py, 1e-10, 25, true, 200, (1.0 / 3.0, 3.0), "ignore")?;
         let loads = Loads {
@@ -405,8 +411,13 @@ pub fn linearise_at<'py>(
                     "has sections with law.stiffness_map: its sigma(p) is evaluated outside the core, so the linearisation is not available",
                 ));
             }
-            let sol = statics::solve(rod, &loads, x.as_deref(), &checked)?;
-            let sys = linearise(rod, &loads, &sol, nodes)?;
+            if let TipConstraint::Free = held {
+                let sol = statics::solve(rod, &loads, x.as_deref(), &checked)?;
+                let sys = linearise(rod, &loads, &sol, nodes)?;
+                return Ok((sol, sys));
+            }
+            let sol = solve_constrained(rod, &loads, &held, x.as_deref(), &checked)?.solution;
+            let sys = linearise_held(rod, &loads, &held, &sol, nodes)?;
             Ok((sol, sys))
         });
         let (sol, sys) = result.map_err(|e| to_py_err(py, e, Context::Input))?;

@@ -24,7 +24,8 @@ from .. import _core
 from .. import _validate as V
 from .._validate import integer
 from ..catalog import load_design
-from ..constraints import require_free_tip
+from ..constraints import TipConstraint
+from ..constraints import coerce as coerce_constraint
 from ..design import Design
 from ..errors import InputError, design_error
 from ..solution import Jacobian, StaticSolution
@@ -87,7 +88,9 @@ class LinearSystem:
     world frame) of the nodes at arc lengths ``nodes`` (the last is the tip); u = changes of
     the chamber pressures (Pa), of the tip force (N) and moment (N m) and of the tendon
     tensions (N), named in ``input_names`` (p0 ..., F_x ... M_z, t0 ...). ``equilibrium``
-    is the static solution it was taken at.
+    is the static solution it was taken at. ``tip_constraint``: "free", or "clamped" (the
+    tip does not move: it is no coordinate, the nodes lie between the clamps, and the tip
+    load's input columns are zero).
     """
 
     design: Design
@@ -99,10 +102,19 @@ class LinearSystem:
     input: np.ndarray
     input_names: tuple[str, ...]
     equilibrium: StaticSolution = field(repr=False)
+    tip_constraint: str = "free"
 
     @property
     def tip_rows(self) -> slice:
-        """Rows of q holding the tip's displacement and rotation."""
+        """Rows of q holding the tip's displacement and rotation (a free tip only)."""
+        if self.tip_constraint != "free":
+            raise design_error(
+                "tip_constraint",
+                self.tip_constraint,
+                "a clamped tip does not move, so it has no rows in q; read a node's rows "
+                "(6 k .. 6 k + 6 for nodes[k])",
+                InputError,
+            )
         n = self.mass.shape[0]
         return slice(n - 6, n)
 
@@ -121,8 +133,9 @@ class LinearSystem:
         T (K - w^2 M + i w D)^-1 B."""
         # 1e12 rad/s is far beyond any mode of a rod; w^2 M then stays finite.
         omega = V.real(omega, "omega", minimum=0.0, maximum=1e12)
+        rows = self.tip_rows  # a clamped tip has none: refused before any work
         z = self.stiffness - omega**2 * self.mass + 1j * omega * self.damping
-        return np.linalg.solve(z, self.input)[self.tip_rows]
+        return np.linalg.solve(z, self.input)[rows]
 
     def modes(self, count: int | None = None) -> Modes:
         """The ``count`` lowest modes (default all)."""
@@ -194,25 +207,42 @@ def linearise(
     tip_moment: ArrayLike | None = None,
     initial: StaticSolution | None = None,
     tensions: ArrayLike | None = None,
+    tip_constraint: TipConstraint | str | dict | None = None,
 ) -> LinearSystem:
     """The linearised dynamics of ``design`` about its equilibrium under ``pressures`` (Pa;
     default zero), the tendon ``tensions`` (N; default slack) and the tip loads (default the
     design's), or about ``initial`` when it is given (a :class:`StaticSolution`; its
-    pressures, tensions and loads are used). ``nodes``: how
-    many nodes carry the coordinates (spread over the integration nodes, the tip last)."""
+    pressures, tensions, loads and tip constraint are used). ``nodes``: how many nodes carry
+    the coordinates (spread over the integration nodes, the tip last). ``tip_constraint``
+    (as in :func:`solve_statics`; default the design's ``[tip] constraint``): a clamped tip
+    is linearised held (it does not move, so it is no coordinate: the nodes spread between
+    the clamps, and a tip load's input columns are zero); a pinned tip is refused."""
     from ..statics import _pressures, _vec3, solve_statics
 
     if isinstance(design, StaticSolution):
         initial, design = design, design.design
     design = load_design(design)
-    require_free_tip(design, "linearise")
     nodes = integer(nodes, "nodes", minimum=1, maximum=200)
+    held_by = initial.tip_constraint if isinstance(initial, StaticSolution) else None
+    if held_by is None:
+        given = coerce_constraint(tip_constraint) if tip_constraint is not None else None
+        held_by = (given or design.tip_constraint or TipConstraint()).kind
+    if held_by == "pinned":  # before any work
+        raise design_error(
+            "tip_constraint",
+            "pinned",
+            "linearise takes a free or a clamped tip; a pinned tip keeps three rotational "
+            "coordinates, which it does not implement yet",
+            InputError,
+        )
     if initial is None:
         p = _pressures(design, np.zeros(design.n_channels) if pressures is None else pressures)
         tip = design.spec["tip"]
         tf = _vec3(tip_force, "force", "tip_force", tip["force"])
         tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
-        initial = solve_statics(design, p, tip_force=tf, tip_moment=tm, tensions=tensions)
+        initial = solve_statics(
+            design, p, tip_force=tf, tip_moment=tm, tensions=tensions, tip_constraint=tip_constraint
+        )
         t = [float(v) for v in initial.tensions]
     else:
         if not isinstance(initial, StaticSolution):
@@ -234,6 +264,7 @@ def linearise(
             "tensions": tensions,
             "tip_force": tip_force,
             "tip_moment": tip_moment,
+            "tip_constraint": tip_constraint,
         }
         for name, value in given.items():
             if value is not None:
@@ -248,6 +279,18 @@ def linearise(
         t = [float(v) for v in initial.tensions]
         tf = [float(v) for v in initial._tip_load("force")]
         tm = [float(v) for v in initial._tip_load("moment")]
+    held: dict = {}
+    if initial.tip_constraint != "free":
+        if initial.tip_hold is None:
+            raise design_error(
+                "initial.tip_hold",
+                None,
+                f"a {initial.tip_constraint} tip's linearisation needs the held pose the "
+                "equilibrium was solved at (solve_statics keeps it)",
+                InputError,
+            )
+        kind, position, rotation = initial.tip_hold
+        held = {"tip_kind": kind, "tip_position": position, "tip_rotation": rotation}
     out = _core.linearise_at(
         design._rod,
         p,
@@ -256,6 +299,7 @@ def linearise(
         [float(v) for v in initial.shooting_unknowns],
         nodes,
         tensions=t,
+        **held,
     )
     names = (
         tuple(f"p{c}" for c in range(design.n_channels))
@@ -272,4 +316,5 @@ def linearise(
         input=out["input"],
         input_names=names,
         equilibrium=initial,
+        tip_constraint=initial.tip_constraint,
     )

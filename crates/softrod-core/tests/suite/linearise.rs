@@ -1,16 +1,18 @@
 //! The linearised dynamics (crate::linearise): natural frequencies of a straight cantilever
 //! against the closed forms (bending, axial, torsion), convergence with the number of nodes,
 //! the static consistency of K and B with the exact Jacobians, M symmetric positive
-//! definite, D = tau K for an unstressed rod.
+//! definite, D = tau K for an unstressed rod; the same for a clamped tip (clamped-clamped
+//! beam and bar frequencies, the held equilibrium's Jacobians).
 
 use crate::common;
 use common::*;
 use nalgebra::DMatrix;
-use softrod_core::jacobian::{point_jacobian, Input, Probe};
-use softrod_core::linearise::linearise;
+use softrod_core::jacobian::{point_jacobian, point_jacobian6, Input, Probe};
+use softrod_core::linearise::{linearise, linearise_held};
 use softrod_core::ode::Loads;
 use softrod_core::spec::DesignSpec;
 use softrod_core::spec::Frame;
+use softrod_core::statics::constraint::{solve_constrained, TipConstraint};
 use softrod_core::statics::{solve, SolverOptions};
 use softrod_core::Rod;
 
@@ -212,5 +214,159 @@ fn damping_is_tau_times_stiffness_without_prestress() {
             rb[i],
             w[i]
         );
+    }
+}
+
+/// The cantilever of `cantilever_frequencies_match_closed_forms` clamped at its tip too
+/// (where the unloaded rod's tip is, so the clamp carries no prestress): bending, axial and
+/// torsional frequencies of the clamped-clamped beam and bar against their closed forms,
+/// and the same convergence orders. The tip is no coordinate; the nodes sit between the
+/// clamps (`choose_inner_nodes`).
+#[test]
+fn clamped_clamped_frequencies_match_closed_forms() {
+    let rod = Rod::new(cantilever(64, 0.0)).unwrap();
+    let ld = loads(&[]);
+    let free = solve(&rod, &ld, None, &SolverOptions::default()).unwrap();
+    let clamp = TipConstraint::Clamped {
+        position: free.tip.r,
+        rotation: free.tip.rot,
+    };
+    let sol = solve_constrained(&rod, &ld, &clamp, None, &SolverOptions::default())
+        .unwrap()
+        .solution;
+    let rho_a = MASS / L;
+    let beam = |beta_l: f64| beta_l * beta_l * (EI / (rho_a * L.powi(4))).sqrt();
+    let axial = std::f64::consts::PI * (EA / (rho_a * L * L)).sqrt();
+    let torsion = std::f64::consts::PI * (GJ / (ROT[2] * L * L)).sqrt();
+    let mut errors = Vec::new();
+    // 3, 7 and 15 inner nodes: spacings of 16, 8 and 4 steps.
+    for nodes in [3, 7, 15] {
+        let sys = linearise_held(&rod, &ld, &clamp, &sol, nodes).unwrap();
+        assert_eq!(sys.mass.nrows(), 6 * nodes);
+        assert!(sys.nodes.iter().all(|s| *s > 0.0 && *s < L));
+        let w = frequencies(&sys.mass, &sys.stiffness);
+        let want = [beam(4.730_040_744_862_704), beam(7.853_204_624_095_838)];
+        let err1 = (w[0] / want[0] - 1.0)
+            .abs()
+            .max((w[1] / want[0] - 1.0).abs());
+        let err2 = (w[2] / want[1] - 1.0)
+            .abs()
+            .max((w[3] / want[1] - 1.0).abs());
+        let find = |target: f64| {
+            w.iter()
+                .map(|x| (x / target - 1.0).abs())
+                .fold(f64::INFINITY, f64::min)
+        };
+        let (ea, et) = (find(axial), find(torsion));
+        println!("{nodes} nodes: bending 1 {err1:.2e}, bending 2 {err2:.2e}, axial {ea:.2e}, torsion {et:.2e}");
+        errors.push([err1, err2, ea, et]);
+        // A tip load goes whole into the clamp: its input columns are zero.
+        assert!((0..6).all(|j| sys.input.column(j).amax() == 0.0));
+    }
+    // Cubic static shapes in bending (n^-4), linear in extension and torsion (n^-2), as for
+    // the cantilever.
+    let order = |k: usize, a: usize| (errors[a][k] / errors[a + 1][k]).log2();
+    for a in 0..2 {
+        assert!(
+            order(0, a) > 3.5 && order(1, a) > 3.5,
+            "bending order {a}: {errors:?}"
+        );
+        assert!(
+            (order(2, a) - 2.0).abs() < 0.2 && (order(3, a) - 2.0).abs() < 0.2,
+            "{errors:?}"
+        );
+    }
+    // At 15 nodes (16 intervals of h = L / 16) the size of the errors too: the static shapes
+    // are the finite elements' own (cubic Hermite in bending, linear in extension and
+    // torsion, with consistent masses), whose frequencies lie above the exact ones by
+    // (beta h)^4 / 1440 and (k h)^2 / 24 (k = pi / L) to leading order. Half as much again
+    // for the next order; the RK4 error of K and Simpson's rule for M on 64 steps are far
+    // below.
+    let h = L / 16.0;
+    for (k, beta_l) in [(0, 4.730_040_744_862_704), (1, 7.853_204_624_095_838)] {
+        let fe = (beta_l * h / L).powi(4) / 1440.0;
+        assert!(
+            errors[2][k] < 1.5 * fe,
+            "bending {k}: {:.2e} vs {fe:.2e}",
+            errors[2][k]
+        );
+    }
+    let fe = (std::f64::consts::PI * h / L).powi(2) / 24.0;
+    assert!(
+        errors[2][2] < 1.5 * fe && errors[2][3] < 1.5 * fe,
+        "{errors:?} vs {fe:.2e}"
+    );
+}
+
+/// K^-1 B of a clamped SPA under pressure and gravity: every node's rows are the exact
+/// pressure Jacobian of the held equilibrium at that node (`jacobian::point_jacobian6`),
+/// so the stiffness and the input columns carry the clamp's prestress.
+#[test]
+fn static_response_of_the_clamped_linear_system_is_exact() {
+    let rod = Rod::new(p002_actuator(tilted(), 9.81, 12)).unwrap();
+    let ld = Loads {
+        pressures: vec![35e3, 12e3, 50e3],
+        tip_force: [0.0; 3],
+        tip_moment: [0.0; 3],
+        stiffness_scale: [1.0; 3],
+        tensions: vec![],
+        tip_frame: Frame::World,
+    };
+    let free = solve(&rod, &ld, None, &SolverOptions::default()).unwrap();
+    // Held 6 mm aside of where it would be: the clamp carries load.
+    let clamp = TipConstraint::Clamped {
+        position: [free.tip.r[0] + 6e-3, free.tip.r[1], free.tip.r[2]],
+        rotation: free.tip.rot,
+    };
+    let sol = solve_constrained(&rod, &ld, &clamp, None, &SolverOptions::default())
+        .unwrap()
+        .solution;
+    let sys = linearise_held(&rod, &ld, &clamp, &sol, 5).unwrap();
+    let response = sys.stiffness.clone().try_inverse().unwrap() * &sys.input;
+    let inputs = [Input::Pressure(0), Input::Pressure(1), Input::Pressure(2)];
+    for (a, s) in sys.nodes.iter().enumerate() {
+        let jac = point_jacobian6(
+            &rod,
+            &ld,
+            &clamp,
+            &sol,
+            &inputs,
+            &Probe::at(&rod, *s).unwrap(),
+        )
+        .unwrap()
+        .point;
+        for (k, _) in inputs.iter().enumerate() {
+            let col = [jac.d_position[k], jac.d_rotation[k]].concat();
+            let scale = col.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let err = (0..6)
+                .map(|r| (response[(6 * a + r, k)] - col[r]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            // The same implicit differentiation by another pass; a 30 x 30 inverse.
+            assert!(
+                err <= 1e-8 * scale,
+                "node {a}, input {k}: {err:.2e} of {scale:.2e}"
+            );
+        }
+    }
+    let asym = (&sys.mass - sys.mass.transpose()).amax() / sys.mass.amax();
+    assert!(asym < 1e-10, "{asym}");
+    assert!(sys.mass.clone().cholesky().is_some());
+    // A pinned tip is refused by name.
+    let pin = TipConstraint::Pinned {
+        position: clamp_position(&clamp),
+    };
+    match linearise_held(&rod, &ld, &pin, &sol, 5) {
+        Err(softrod_core::SoftrodError::InvalidParameter { field, .. }) => {
+            assert_eq!(field, "tip_constraint")
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+fn clamp_position(c: &TipConstraint) -> [f64; 3] {
+    match c {
+        TipConstraint::Clamped { position, .. } | TipConstraint::Pinned { position } => *position,
+        TipConstraint::Free => unreachable!("held"),
     }
 }
