@@ -649,6 +649,15 @@ class StiffnessMap:
         """sigma (m, 3) for gauge pressures (m, n_channels) in Pa; a 1-D row of n_channels
         pressures gives sigma (3,). Raises InputError for a bad shape, non-finite pressures, a
         pressure outside a table (``outside="raise"``) or a sigma that is not finite and > 0."""
+        p, single = self._rows(pressures)
+        p.setflags(write=False)
+        sigma = self._fn(p) if p.shape[0] else np.empty((0, 3))
+        sigma = _check_output(sigma, p)
+        return sigma[0] if single else sigma
+
+    def _rows(self, pressures: Any) -> tuple[np.ndarray, bool]:
+        """Gauge pressures as a finite (m, n_channels) array (Pa), and whether a single 1-D
+        row was given; InputError naming the field and the row otherwise."""
         p = V.real_array(pressures, "pressures", what="gauge pressures (Pa)")
         single = p.ndim == 1 and p.shape[0] == self._n_channels
         if single:
@@ -662,10 +671,7 @@ class StiffnessMap:
         if not finite.all():
             r = int(np.argmin(finite))
             raise design_error(f"pressures[{r}]", p[r].tolist(), "must be finite (Pa)", InputError)
-        p.setflags(write=False)
-        sigma = self._fn(p) if p.shape[0] else np.empty((0, 3))
-        sigma = _check_output(sigma, p)
-        return sigma[0] if single else sigma
+        return p, single
 
     def derivative(self, pressures: Any) -> np.ndarray:
         """d sigma / d p at gauge pressures (m, n_channels) in Pa: (m, 3, n_channels), per Pa
@@ -682,19 +688,7 @@ class StiffnessMap:
         table's interior node where the two cells' slopes differ, the edge of a clamped
         table where the inner slope is not zero, a relu network's hinge), or where the map
         cannot give one (a regressor, a callable without ``derivative=``)."""
-        p = V.real_array(pressures, "pressures", what="gauge pressures (Pa)")
-        single = p.ndim == 1 and p.shape[0] == self._n_channels
-        if single:
-            p = p[None, :]
-        _check_pressure_rows(
-            p,
-            self._n_channels,
-            f"the stiffness map takes an (m, {self._n_channels}) array of gauge pressures (Pa)",
-        )
-        finite = np.isfinite(p).all(axis=1)
-        if not finite.all():
-            r = int(np.argmin(finite))
-            raise design_error(f"pressures[{r}]", p[r].tolist(), "must be finite (Pa)", InputError)
+        p, single = self._rows(pressures)
         self(p)  # the map's own checks: inside a raising table, a valid sigma
         c = self._n_channels
         if self._kind == "constant":

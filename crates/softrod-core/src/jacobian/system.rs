@@ -26,9 +26,8 @@ use super::{dual_coeffs_from, Input};
 use crate::error::{Result, SoftrodError};
 use crate::jet::Jet;
 use crate::ode::integrate;
-use crate::sensitivity::system::system_unknowns;
-use crate::statics::system::{validate, Level, Platform, SystemRod, SystemSolution};
-use crate::statics::Problem;
+use crate::sensitivity::system::system_tangent;
+use crate::statics::system::{Platform, SystemRod, SystemSolution};
 use nalgebra::DVector;
 
 /// An input of a system a derivative is taken with respect to.
@@ -121,27 +120,15 @@ pub fn system_jacobian(
     sol: &SystemSolution,
     inputs: &[SystemInput],
 ) -> Result<SystemJacobian> {
-    validate(rods, platform)?;
     check_system_inputs(rods, inputs)?;
-    let x = system_unknowns(rods, sol)?;
-    if sol.friction.is_some() {
-        return Err(SoftrodError::invalid(
-            "solution",
-            "a frictional equilibrium",
-            "friction makes the equilibrium depend on its load path, and the stick/slip switch has no derivative: its Jacobian is not defined (obstacles without friction have one)",
-        ));
-    }
-    let n = rods.len();
-    let dim = 6 * n + 6;
-    let level = Level::full(
+    let (level, x, lu) = system_tangent(
         rods,
         platform,
-        rods.iter()
-            .map(|r| Problem::new(r.rod, &r.loads, 1.0))
-            .collect(),
-    );
-    let (_, jac) = level.jacobian(x, None);
-    let lu = jac.lu();
+        sol,
+        "and the stick/slip switch has no derivative: its Jacobian is not defined (obstacles without friction have one)",
+    )?;
+    let n = rods.len();
+    let dim = 6 * n + 6;
     let (p0, r0) = level.platform(x);
     // d_a R, one column per input.
     let mut d_res = vec![vec![0.0; dim]; inputs.len()];

@@ -27,7 +27,8 @@ use crate::marker::Marker;
 use crate::ode::Coeffs;
 use crate::statics::system::{validate, Level, Platform, SystemRod, SystemSolution};
 use crate::statics::Problem;
-use nalgebra::DVector;
+use nalgebra::linalg::LU;
+use nalgebra::{DVector, Dyn};
 
 /// One calibration parameter of a system.
 #[derive(Debug, Clone, PartialEq)]
@@ -228,6 +229,36 @@ fn rod_markers(n: usize, markers: &[SystemMarkerAt]) -> Vec<(Vec<usize>, Vec<Mar
     out
 }
 
+/// What the implicit differentiation of a converged frictionless system starts from: its
+/// level under the full loads, its unknowns and the LU factors of the exact Jacobian Newton
+/// uses. A frictional equilibrium is refused (`why`: what its derivatives would depend on).
+#[allow(clippy::type_complexity)]
+pub(crate) fn system_tangent<'a, 's>(
+    rods: &'a [SystemRod<'_>],
+    platform: &Platform,
+    sol: &'s SystemSolution,
+    why: &str,
+) -> Result<(Level<'a>, &'s [f64], LU<f64, Dyn, Dyn>)> {
+    validate(rods, platform)?;
+    let x = system_unknowns(rods, sol)?;
+    if sol.friction.is_some() {
+        return Err(SoftrodError::invalid(
+            "solution",
+            "a frictional equilibrium",
+            format!("friction makes the equilibrium depend on its load path, {why}"),
+        ));
+    }
+    let level = Level::full(
+        rods,
+        platform,
+        rods.iter()
+            .map(|r| Problem::new(r.rod, &r.loads, 1.0))
+            .collect(),
+    );
+    let (_, jac) = level.jacobian(x, None);
+    Ok((level, x, jac.lu()))
+}
+
 /// Positions of the markers of a converged system (world frame, m).
 pub fn system_marker_positions(
     rods: &[SystemRod],
@@ -267,26 +298,14 @@ pub fn system_sensitivity(
     params: &[SystemParam],
     markers: &[SystemMarkerAt],
 ) -> Result<SystemSensitivity> {
-    validate(rods, platform)?;
-    let x = system_unknowns(rods, sol)?;
-    if sol.friction.is_some() {
-        return Err(SoftrodError::invalid(
-            "solution",
-            "a frictional equilibrium",
-            "friction makes the equilibrium depend on its load path, not on the parameters at one point: its derivatives are not defined here (calibrate on frictionless obstacles)",
-        ));
-    }
-    let n = rods.len();
-    let dim = 6 * n + 6;
-    let level = Level::full(
+    let (level, x, lu) = system_tangent(
         rods,
         platform,
-        rods.iter()
-            .map(|r| Problem::new(r.rod, &r.loads, 1.0))
-            .collect(),
-    );
-    let (_, jac) = level.jacobian(x, None);
-    let lu = jac.lu();
+        sol,
+        "not on the parameters at one point: its derivatives are not defined here (calibrate on frictionless obstacles)",
+    )?;
+    let n = rods.len();
+    let dim = 6 * n + 6;
     let (p0, r0) = level.platform(x);
     let per_rod = rod_markers(n, markers);
     // d_x of each rod marker: rod i integrated with its own unknowns seeded.
