@@ -30,6 +30,11 @@
 //!
 //! This construction uses only the static model and the section inertia, so it does not
 //! depend on how the dynamic solver discretises space and time.
+//!
+//! A clamped tip ([`linearise_held`]) changes only the static model: six shooting unknowns
+//! (the base force too) and the held tip's pose residual in the implicit differentiation,
+//! the nodes between the clamps (the tip is no coordinate), no tip-body mass and zero
+//! tip-load columns.
 
 use crate::dynamics::section_inertia_at;
 use crate::error::{Result, SoftrodError};
