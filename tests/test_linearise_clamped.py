@@ -46,6 +46,14 @@ def test_clamped_static_response_is_the_held_jacobian(held):
     # The same from the solved equilibrium.
     again = linearise(sol, nodes=6)
     np.testing.assert_allclose(again.stiffness, system.stiffness, rtol=1e-9, atol=0.0)
+    # A node's frequency response at w = 0 is its static response, at any node index.
+    for k in (2, -1):
+        np.testing.assert_allclose(
+            system.frequency_response(0.0, node=k).real,
+            response[6 * (k % 6) : 6 * (k % 6) + 6],
+            rtol=1e-12,
+            atol=1e-12 * np.abs(response).max(),
+        )
 
 
 def test_clamping_the_tip_raises_the_frequencies(held):
@@ -66,6 +74,10 @@ def test_clamped_linearisation_refusals_name_the_field(held):
         with pytest.raises(InputError) as info:
             call()
         assert info.value.field == "tip_constraint"
+    for bad in (4, -5, 1.0, True, "0"):
+        with pytest.raises(InputError) as info:
+            system.frequency_response(10.0, node=bad)
+        assert info.value.field == "node"
     # A pinned tip, given or in the design file: refused before any work.
     pin = TipConstraint.pinned(clamp.position)
     pinned_design = design.replace(

@@ -112,7 +112,7 @@ class LinearSystem:
                 "tip_constraint",
                 self.tip_constraint,
                 "a clamped tip does not move, so it has no rows in q; read a node's rows "
-                "(6 k .. 6 k + 6 for nodes[k])",
+                "(6 k .. 6 k + 6 for nodes[k]; frequency_response(w, node=k))",
                 InputError,
             )
         n = self.mass.shape[0]
@@ -128,12 +128,18 @@ class LinearSystem:
         b = np.vstack([np.zeros_like(self.input), minv @ self.input])
         return a, b
 
-    def frequency_response(self, omega: float) -> np.ndarray:
+    def frequency_response(self, omega: float, *, node: int | None = None) -> np.ndarray:
         """The tip pose (6 rows) per unit input at angular frequency ``omega`` (rad/s):
-        T (K - w^2 M + i w D)^-1 B."""
+        T (K - w^2 M + i w D)^-1 B. ``node``: the pose of ``nodes[node]`` instead (an index,
+        negative from the end); a clamped tip does not move, so there a node is needed."""
         # 1e12 rad/s is far beyond any mode of a rod; w^2 M then stays finite.
         omega = V.real(omega, "omega", minimum=0.0, maximum=1e12)
-        rows = self.tip_rows  # a clamped tip has none: refused before any work
+        if node is None:
+            rows = self.tip_rows  # a clamped tip has none: refused before any work
+        else:
+            n = len(self.nodes)
+            k = V.integer(node, "node", minimum=-n, maximum=n - 1, hint=f" (the {n} nodes)")
+            rows = slice(6 * (k % n), 6 * (k % n) + 6)
         z = self.stiffness - omega**2 * self.mass + 1j * omega * self.damping
         return np.linalg.solve(z, self.input)[rows]
 
