@@ -180,3 +180,7 @@ def test_frictionless_obstacles_are_taken_and_refusals_name_the_field():
     with pytest.raises(InputError) as info:
         failed.jacobian()
     assert info.value.field == "solution"
+    bare = dataclasses.replace(sol, solved_with=None)
+    with pytest.raises(InputError) as info:
+        bare.jacobian()
+    assert info.value.field == "solution.solved_with"

@@ -312,9 +312,17 @@ class SystemSolution:
         stiffness-mapped section adds the part through its map (the map must give a
         derivative, docs/stiffness-map.md). Refused: a solve that did not converge, a
         frictional equilibrium (its derivatives depend on the load path)."""
-        if not self.converged or self.solved_with is None:
+        if not self.converged:
             raise V.fail(
                 "solution", "converged = False", "must be a converged SystemSolution", InputError
+            )
+        if self.solved_with is None:
+            raise V.fail(
+                "solution.solved_with",
+                None,
+                "the Jacobian differentiates the system as it was solved (solve_system keeps "
+                "its arguments in solved_with)",
+                InputError,
             )
         if self.friction_state is not None:
             i = next(i for i, r in enumerate(self.rods) if r.friction_state is not None)
