@@ -19,6 +19,13 @@
    pressure box (2646 solves): ``softrod.workspace`` on 2 cores and on 1, median of 5 runs
    each (alternating), at the design file's steps.
 
+3. **Jacobians and linearisations** (no target; what they cost): `StaticSolution.jacobian()`
+   of a free tip and of a tip clamped 6 mm aside of it (the reaction's derivatives too),
+   `SystemSolution.jacobian()` of the bundled two-rod platform (six pressures and the
+   platform's load), and `linearise` with a free tip (12 nodes) and a clamped one (11
+   nodes), the last two from a solved equilibrium. Median wall time of repeated calls, one
+   core.
+
 The machine's load average before and after is recorded: on a shared machine wall times
 stretch with the load, CPU times much less.
 """
@@ -130,6 +137,35 @@ def _workspace(design, runs: int) -> dict:
     return out
 
 
+def _derivatives(design, calls: int) -> dict:
+    """Median wall times (ms) of the Jacobians and linearisations of section 3."""
+    p = [30e3, 5e3, 45e3]
+    free = softrod.solve_statics(design, p)
+    clamp = softrod.TipConstraint.clamped(free.tip_position + [0.006, 0, 0], free.tip_rotation)
+    held = softrod.solve_statics(design, p, tip_constraint=clamp)
+    pcr = softrod.solve_system("two_spa_platform", [[20e3, 5e3, 3e3], [2e3, 15e3, 10e3]])
+
+    def timed(fn, n: int) -> float:
+        fn()  # warm-up (imports, caches)
+        times = []
+        with gc_disabled():
+            for _ in range(n):
+                t0 = time.perf_counter_ns()
+                fn()
+                times.append((time.perf_counter_ns() - t0) * 1e-9)
+        return median(times) * 1e3
+
+    return {
+        "jacobian_free_tip_ms": timed(free.jacobian, calls),
+        "jacobian_clamped_tip_ms": timed(held.jacobian, calls),
+        "system_jacobian_ms": timed(pcr.jacobian, calls),
+        "linearise_free_12_nodes_ms": timed(lambda: softrod.linearise(free, nodes=12), calls // 5),
+        "linearise_clamped_11_nodes_ms": timed(
+            lambda: softrod.linearise(held, nodes=11), calls // 5
+        ),
+    }
+
+
 def run(args) -> dict:
     t_start = time.perf_counter()
     info = machine()
@@ -141,6 +177,7 @@ def run(args) -> dict:
     result["inverse_design_steps"] = _inverse(design, n, warm)
     result["inverse_13mm_steps"] = _inverse(coarse, n, warm)
     result["workspace"] = _workspace(design, 2 if args.quick else 5)
+    result["derivatives"] = _derivatives(design, 20 if args.quick else 200)
     info["load_average_after"] = load_average()
     result["wall_time_s"] = time.perf_counter() - t_start
     for key in ("inverse_design_steps", "inverse_13mm_steps"):
@@ -156,6 +193,11 @@ def run(args) -> dict:
     print(
         f"workspace: {w['solves']} solves, 2 cores {w['two_cores_median_s']:.3f} s, "
         f"1 core {w['one_core_median_s']:.3f} s"
+    )
+    d = result["derivatives"]
+    print(
+        "derivatives (median ms): "
+        + ", ".join(f"{k.removesuffix('_ms')} {v:.3f}" for k, v in d.items())
     )
     print(f"load average before {info['load_average_before']}, after {info['load_average_after']}")
     return result
