@@ -6,6 +6,8 @@ in crates/softrod-core/tests/suite/linearise.rs."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from softrod import InputError, TipConstraint, linearise, load_design, solve_statics
@@ -93,3 +95,6 @@ def test_clamped_linearisation_refusals_name_the_field(held):
     with pytest.raises(InputError) as info:
         linearise(sol, nodes=4, tip_constraint=clamp)  # the equilibrium fixes it
     assert info.value.field == "tip_constraint"
+    with pytest.raises(InputError) as info:  # a held equilibrium that lost its pose
+        linearise(dataclasses.replace(sol, tip_hold=None), nodes=4)
+    assert info.value.field == "initial.tip_hold"

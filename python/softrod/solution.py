@@ -360,18 +360,7 @@ class StaticSolution:
                 "derivative there (docs/contact.md, 'Friction in the statics')",
                 InputError,
             )
-        held: dict[str, Any] = {}
-        if self.tip_constraint != "free":
-            if self.tip_hold is None:
-                raise design_error(
-                    "solution.tip_hold",
-                    None,
-                    f"a {self.tip_constraint} tip's Jacobian needs the held pose the "
-                    "solution was solved at (solve_statics keeps it)",
-                    InputError,
-                )
-            kind, position, rotation = self.tip_hold
-            held = {"tip_kind": kind, "tip_position": position, "tip_rotation": rotation}
+        held = self._held_args("solution", "Jacobian")
         design = self.design
         s = design.length if point is None else to_si(point, "length", "point", InputError)
         pairs, names = _param_pairs(design, params)
@@ -410,6 +399,23 @@ class StaticSolution:
             reaction=reaction,
             stiffness_scale=out.get("stiffness_scale"),
         )
+
+    def _held_args(self, field: str, what: str) -> dict[str, Any]:
+        """The binding's keyword arguments of a held tip's prescribed pose (``tip_kind``,
+        ``tip_position``, ``tip_rotation``; none for a free tip). InputError naming
+        ``{field}.tip_hold`` when a held solution has lost it."""
+        if self.tip_constraint == "free":
+            return {}
+        if self.tip_hold is None:
+            raise design_error(
+                f"{field}.tip_hold",
+                None,
+                f"a {self.tip_constraint} tip's {what} needs the held pose the equilibrium "
+                "was solved at (solve_statics keeps it)",
+                InputError,
+            )
+        kind, position, rotation = self.tip_hold
+        return {"tip_kind": kind, "tip_position": position, "tip_rotation": rotation}
 
     def _stiffness_map_derivative(self) -> np.ndarray | None:
         """d sigma / d p (3, channels) of a mapped design's solution, None without a mapped

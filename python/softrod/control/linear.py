@@ -285,18 +285,7 @@ def linearise(
         t = [float(v) for v in initial.tensions]
         tf = [float(v) for v in initial._tip_load("force")]
         tm = [float(v) for v in initial._tip_load("moment")]
-    held: dict = {}
-    if initial.tip_constraint != "free":
-        if initial.tip_hold is None:
-            raise design_error(
-                "initial.tip_hold",
-                None,
-                f"a {initial.tip_constraint} tip's linearisation needs the held pose the "
-                "equilibrium was solved at (solve_statics keeps it)",
-                InputError,
-            )
-        kind, position, rotation = initial.tip_hold
-        held = {"tip_kind": kind, "tip_position": position, "tip_rotation": rotation}
+    held = initial._held_args("initial", "linearisation")
     out = _core.linearise_at(
         design._rod,
         p,
