@@ -360,7 +360,7 @@ FREE_TIP_ENTRIES = {
     "model='pcc'": lambda d, ds: solve_statics(d, [0.0, 0.0, 0.0], model="pcc"),
 }
 # StaticSolution.jacobian takes a held tip (tests/test_jacobian_six_unknowns.py), linearise a
-# clamped one and refuses a pinned one before any work (tests/test_linearise_clamped.py).
+# clamped or pinned one (tests/test_linearise_held.py).
 
 
 @pytest.mark.parametrize("entry", sorted(FREE_TIP_ENTRIES))

@@ -31,10 +31,13 @@
 //! This construction uses only the static model and the section inertia, so it does not
 //! depend on how the dynamic solver discretises space and time.
 //!
-//! A clamped tip ([`linearise_held`]) changes only the static model: six shooting unknowns
-//! (the base force too) and the held tip's pose residual in the implicit differentiation,
-//! the nodes between the clamps (the tip is no coordinate), no tip-body mass and zero
-//! tip-load columns.
+//! A held tip ([`linearise_held`]) changes the static model: six shooting unknowns (the base
+//! force too) and the held tip's residual in the implicit differentiation. A clamped tip is
+//! no coordinate (the nodes lie between the clamps), adds no tip-body mass and has zero
+//! tip-load columns. A pinned tip keeps its three small rotations as coordinates (the tip
+//! node is the last, its displacement rows are not coordinates): the generalised loads
+//! there are the three moments only, the tip body adds its inertia about the pin, and the
+//! tip force columns are zero (the pin takes it).
 
 use crate::dynamics::section_inertia_at;
 use crate::error::{Result, SoftrodError};
@@ -50,10 +53,10 @@ use nalgebra::{DMatrix, DVector, Matrix3};
 pub const MAX_NODES: usize = 200;
 
 /// The linearised system about an equilibrium (SI; q = (dr_1, dtheta_1, ..., dr_n,
-/// dtheta_n)).
+/// dtheta_n); with a pinned tip the last node, the tip, has only dtheta_n).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinearSystem {
-    /// Arc length of every node, m (the last is the tip).
+    /// Arc length of every node, m (the last is the tip, except with a clamped tip).
     pub nodes: Vec<f64>,
     pub mass: DMatrix<f64>,
     pub damping: DMatrix<f64>,
@@ -128,20 +131,25 @@ struct Interval<D> {
 }
 
 /// The tip the equilibrium is linearised with: free (three shooting unknowns, the base
-/// moment; `Jet<9>` carries them and a node's point force and moment) or clamped (six, the
-/// base force too; `Jet<12>`), whose tip is not a coordinate (it does not move).
+/// moment; `Jet<9>` carries them and a node's point force and moment) or held (six, the base
+/// force too; `Jet<12>`): clamped, so the tip is not a coordinate (it does not move), or
+/// pinned, so only its rotation is.
 #[derive(Clone, Copy)]
 enum Tip<'a> {
     Free,
-    Clamped(&'a TipConstraint),
+    Held(&'a TipConstraint),
 }
 
 impl Tip<'_> {
     fn unknowns(&self) -> usize {
         match self {
             Tip::Free => 3,
-            Tip::Clamped(_) => 6,
+            Tip::Held(_) => 6,
         }
+    }
+
+    fn pinned(&self) -> bool {
+        matches!(self, Tip::Held(TipConstraint::Pinned { .. }))
     }
 
     /// The shooting residual at the tip (3 or 6 rows) under the dead tip loads of `loads`.
@@ -153,12 +161,50 @@ impl Tip<'_> {
     ) -> Vec<Jet<N>> {
         match self {
             Tip::Free => problem.residual_of_tip::<Jet<N>, 3>(tip).to_vec(),
-            Tip::Clamped(held) => {
+            Tip::Held(held) => {
                 let f = loads.tip_force.map(Jet::from);
                 let m = loads.tip_moment.map(Jet::from);
                 tip_residual_under(problem, held, tip, &f, &m).to_vec()
             }
         }
+    }
+}
+
+/// Which pose rows (dr, dtheta) of each node are coordinates of q: all six, but the
+/// rotation only at a pinned tip (the last node). A coordinate's generalised load is its
+/// work conjugate: a point force for dr, a point moment for dtheta.
+struct Layout {
+    rows: Vec<std::ops::Range<usize>>,
+    offset: Vec<usize>,
+    size: usize,
+}
+
+impl Layout {
+    fn new(n_nodes: usize, tip: Tip) -> Self {
+        let rows: Vec<_> = (0..n_nodes)
+            .map(|k| {
+                if k + 1 == n_nodes && tip.pinned() {
+                    3..6
+                } else {
+                    0..6
+                }
+            })
+            .collect();
+        let mut offset = Vec::with_capacity(n_nodes);
+        let mut size = 0;
+        for r in &rows {
+            offset.push(size);
+            size += r.len();
+        }
+        Layout { rows, offset, size }
+    }
+
+    /// (node, pose row, coordinate index) of every coordinate, in order.
+    fn coordinates(&self) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
+        self.rows
+            .iter()
+            .enumerate()
+            .flat_map(move |(k, r)| r.clone().map(move |j| (k, j, self.offset[k] + j - r.start)))
     }
 }
 
@@ -280,10 +326,13 @@ pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Re
 }
 
 /// Linearise the dynamics at the converged equilibrium `sol` of `loads` whose tip is held
-/// by `constraint` (clamped: the tip does not move, so its pose is not a coordinate; the
-/// `n_nodes` nodes spread over the rest of the rod, `choose_inner_nodes`). The stiffness is
-/// the held rod's (six shooting unknowns, the tip's pose residual), the tip body adds no
-/// mass, and a tip load goes whole into the clamp (zero input columns).
+/// by `constraint`. The stiffness is the held rod's (six shooting unknowns, the tip's
+/// residual). Clamped: the tip does not move, so its pose is not a coordinate; the `n_nodes`
+/// nodes spread over the rest of the rod (`choose_inner_nodes`), the tip body adds no mass,
+/// and a tip load goes whole into the clamp (zero input columns). Pinned: the nodes are
+/// spread as for a free tip (`choose_nodes`, the tip last), the tip's three small rotations
+/// are its only coordinates, the tip body adds its inertia about the pin, and a tip force
+/// goes into the pin (zero columns; the tip moment's are unit moments at the tip).
 pub fn linearise_held(
     rod: &Rod,
     loads: &Loads,
@@ -292,27 +341,25 @@ pub fn linearise_held(
     n_nodes: usize,
 ) -> Result<LinearSystem> {
     crate::scope::dead_loads_only(rod, loads, "the linearisation")?;
-    if !matches!(constraint, TipConstraint::Clamped { .. }) {
+    if let TipConstraint::Free = constraint {
         return Err(SoftrodError::invalid(
             "tip_constraint",
-            if matches!(constraint, TipConstraint::Free) {
-                "free"
-            } else {
-                "pinned"
-            },
-            "the held linearisation takes a clamped tip (a pinned tip keeps three rotational \
-             coordinates, which it does not implement yet); a free tip: linearise",
+            "free",
+            "the held linearisation takes a clamped or pinned tip; a free tip: linearise",
         ));
     }
     let x: [f64; 6] = <[f64; 6]>::try_from(sol.x.as_slice()).map_err(|_| {
         SoftrodError::invalid(
             "solution",
             format!("{} shooting unknowns", sol.x.len()),
-            "a clamped tip's equilibrium (six shooting unknowns) is needed here",
+            "a held tip's equilibrium (six shooting unknowns) is needed here",
         )
     })?;
-    let nodes = choose_inner_nodes(rod, n_nodes)?;
-    linearise_at_nodes::<12>(rod, loads, sol, &x, &nodes, Tip::Clamped(constraint))
+    let nodes = match constraint {
+        TipConstraint::Pinned { .. } => choose_nodes(rod, n_nodes)?,
+        _ => choose_inner_nodes(rod, n_nodes)?,
+    };
+    linearise_at_nodes::<12>(rod, loads, sol, &x, &nodes, Tip::Held(constraint))
 }
 
 /// The linearisation with nodes `nodes` and the `tip` of `x`'s unknowns, in `Jet<N>` (N =
@@ -327,11 +374,12 @@ fn linearise_at_nodes<const N: usize>(
 ) -> Result<LinearSystem> {
     let nx = tip.unknowns();
     debug_assert_eq!(nx + 6, N);
-    let n = nodes.len();
-    let nq = 6 * n;
+    let layout = Layout::new(nodes.len(), tip);
+    let nq = layout.size;
     let problem = Problem::new(rod, loads, 1.0);
-    // Per load node k: derivatives of every interval quantity w.r.t. its 6 load components.
-    // phi[interval][end] is (6, nq) for the pose and psi for the strains.
+    // Per load node k: derivatives of every interval quantity w.r.t. its load components
+    // (the coordinates' conjugates). phi[interval][end] is (6, nq) for the pose and psi for
+    // the strains.
     let mut flex = DMatrix::<f64>::zeros(nq, nq);
     // Per interval: section, [a, b] and the rotation at a, the midpoint and b.
     type Meta = (usize, f64, f64, [[[f64; 3]; 3]; 3]);
@@ -382,24 +430,24 @@ fn linearise_at_nodes<const N: usize>(
             for (e, (st, sn)) in ends.iter().enumerate() {
                 let dpose = total6(&|dir| pose6(st, dir));
                 let dstrain = total6(&|dir| std::array::from_fn(|r| sn[r].eps[dir]));
-                for j in 0..6 {
+                for (_, j, col) in layout.coordinates().filter(|c| c.0 == k) {
                     for r in 0..6 {
-                        phi[m][e][(r, 6 * k + j)] = dpose[j][r];
-                        psi[m][e][(r, 6 * k + j)] = dstrain[j][r];
+                        phi[m][e][(r, col)] = dpose[j][r];
+                        psi[m][e][(r, col)] = dstrain[j][r];
                     }
                 }
             }
         }
-        // Flexibility rows: the node poses (the end of the interval that ends at each node).
-        for (a, &(_, _, s_a)) in nodes.iter().enumerate() {
+        // Flexibility rows: the node poses (the end of the interval that ends at each node)
+        // that are coordinates.
+        for (a, r, row) in layout.coordinates() {
+            let s_a = nodes[a].2;
             let m = intervals
                 .iter()
                 .position(|iv| (iv.b - s_a).abs() <= 1e-12 * rod.length)
                 .expect("every node ends an interval");
-            for j in 0..6 {
-                for r in 0..6 {
-                    flex[(6 * a + r, 6 * k + j)] = phi[m][2][(r, 6 * k + j)];
-                }
+            for (_, _, col) in layout.coordinates().filter(|c| c.0 == k) {
+                flex[(row, col)] = phi[m][2][(r, col)];
             }
         }
     }
@@ -472,16 +520,20 @@ fn linearise_at_nodes<const N: usize>(
     let sym = |a: DMatrix<f64>| (&a + a.transpose()) * 0.5;
     let mut mass = sym(&kt * gm * &stiffness);
     let damping = sym(&kt * gd * &stiffness);
-    if let Tip::Free = tip {
-        // The tip body rides on the tip node; a clamped one does not move.
-        let o = nq - 6;
-        for i in 0..6 {
-            for j in 0..6 {
-                mass[(o + i, o + j)] += tip_block[(i, j)];
-            }
+    // The tip body rides on the tip node: all of it on a free tip, its rotation about a pin
+    // (the block's rotational part, J_w - m_t [c_w]x^2), none on a clamp.
+    let held = match tip {
+        Tip::Free => 0..6,
+        _ if tip.pinned() => 3..6,
+        _ => 0..0,
+    };
+    let o = nq - held.len();
+    for (a, i) in held.clone().enumerate() {
+        for (b, j) in held.clone().enumerate() {
+            mass[(o + a, o + b)] += tip_block[(i, j)];
         }
     }
-    let input = input_matrix::<N>(rod, loads, sol, x, nodes, &stiffness, tip)?;
+    let input = input_matrix::<N>(rod, loads, sol, x, nodes, &layout, &stiffness, tip)?;
     Ok(LinearSystem {
         nodes: nodes.iter().map(|n| n.2).collect(),
         mass,
@@ -517,20 +569,22 @@ fn damping_matrix(rod: &Rod, c: &Coeffs<f64>, sec: usize, s: f64, tau: f64) -> D
 }
 
 /// Columns of B: K dq/dp for the pressures and the tensions; unit generalised forces at the
-/// tip node for the tip force and moment (zero for a clamped tip: the clamp takes them).
-/// Column order: pressures, tip force, tip moment, tensions.
+/// tip node for the tip force and moment (zero for a clamped tip: the clamp takes them; a
+/// pin takes the force). Column order: pressures, tip force, tip moment, tensions.
+#[allow(clippy::too_many_arguments)]
 fn input_matrix<const N: usize>(
     rod: &Rod,
     loads: &Loads,
     sol: &Solution,
     x: &[f64],
     nodes: &[(usize, usize, f64)],
+    layout: &Layout,
     stiffness: &DMatrix<f64>,
     tip: Tip,
 ) -> Result<DMatrix<f64>> {
     let (nc, nt) = (rod.n_channels, rod.n_tendons);
     let nx = tip.unknowns();
-    let nq = 6 * nodes.len();
+    let nq = layout.size;
     // dq per input: the pressures, then the tensions.
     let mut dq = DMatrix::<f64>::zeros(nq, nc + nt);
     let problem = Problem::new(rod, loads, 1.0);
@@ -572,8 +626,8 @@ fn input_matrix<const N: usize>(
             for (a, st) in at_nodes.iter().enumerate() {
                 let p = pose6(st, nx + q);
                 let px: Vec<[f64; 6]> = (0..nx).map(|i| pose6(st, i)).collect();
-                for r in 0..6 {
-                    dq[(6 * a + r, c)] = p[r] + (0..nx).map(|i| px[i][r] * dx[i]).sum::<f64>();
+                for (_, r, row) in layout.coordinates().filter(|c| c.0 == a) {
+                    dq[(row, c)] = p[r] + (0..nx).map(|i| px[i][r] * dx[i]).sum::<f64>();
                 }
             }
         }
@@ -588,9 +642,12 @@ fn input_matrix<const N: usize>(
             b[(r, nc + 6 + t)] = bp[(r, nc + t)];
         }
     }
-    if let Tip::Free = tip {
-        for j in 0..6 {
-            b[(nq - 6 + j, nc + j)] = 1.0;
+    // The tip load's own columns: unit loads conjugate to the tip's coordinates (none on a
+    // clamp, the moment on a pin).
+    let last = nodes.len() - 1;
+    if !matches!(tip, Tip::Held(TipConstraint::Clamped { .. })) {
+        for (_, j, row) in layout.coordinates().filter(|c| c.0 == last) {
+            b[(row, nc + j)] = 1.0;
         }
     }
     Ok(b)

@@ -372,8 +372,9 @@ pub fn point_jacobian_of<'py>(
 
 /// The linearised dynamics at the equilibrium under `pressures` and tip loads (warm start
 /// `x`) with `nodes` nodes: dict of mass, damping, stiffness, input (numpy) and nodes (m).
-/// `tip_kind` "clamped" (with `tip_position` and `tip_rotation`) linearises the equilibrium
-/// with the tip clamped there (`linearise::linearise_held`: the tip is no coordinate).
+/// `tip_kind` "clamped" or "pinned" (with `tip_position`, and `tip_rotation` for a clamp)
+/// linearises the equilibrium with the tip held there (`linearise::linearise_held`: a
+/// clamped tip is no coordinate, a pinned one keeps its rotation).
 #[pyfunction]
 #[pyo3(signature = (rod, pressures, tip_force, tip_moment, x, nodes, tensions=None, tip_kind="free", tip_position=None, tip_rotation=None))]
 #[allow(clippy::too_many_arguments)]

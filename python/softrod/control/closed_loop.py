@@ -504,8 +504,8 @@ def predicted_circle_error(
     w = 2 * math.pi / period
 
     def tip_response(omega):
-        z = system.stiffness - omega**2 * system.mass + 1j * omega * system.damping
-        return np.linalg.solve(z, system.input[:, :nc])[system.tip_rows][:3]
+        # The tip position's rows (a held tip's are zeros or refused, by name).
+        return system.frequency_response(omega)[:3, :nc]
 
     h0 = tip_response(0.0).real
     plant = tip_response(w) @ np.linalg.pinv(h0) * np.exp(-1j * w / (2 * rate))

@@ -25,7 +25,6 @@ from .. import _validate as V
 from .._validate import integer
 from ..catalog import load_design
 from ..constraints import TipConstraint
-from ..constraints import coerce as coerce_constraint
 from ..design import Design
 from ..errors import InputError, design_error
 from ..solution import Jacobian, StaticSolution
@@ -55,8 +54,9 @@ class Modes:
     damping_ratio (k,): modal damping phi^T D phi / (2 w phi^T M phi) (exact for Kelvin-Voigt
     damping without prestress, where D = tau K; first order otherwise);
     damped_frequency (k,) Hz: the imaginary part of the exact pole of each mode (NaN when it
-    is overdamped); shapes (k, n, 6): node displacements and small rotations, normalised to
-    the largest entry 1; nodes (n,) m; poles: every eigenvalue of the first-order system, 1/s.
+    is overdamped); shapes (k, n, 6): node displacements and small rotations (a pinned tip's
+    displacement zero), normalised to the largest entry 1; nodes (n,) m; poles: every
+    eigenvalue of the first-order system, 1/s.
     """
 
     frequency: np.ndarray
@@ -88,9 +88,11 @@ class LinearSystem:
     world frame) of the nodes at arc lengths ``nodes`` (the last is the tip); u = changes of
     the chamber pressures (Pa), of the tip force (N) and moment (N m) and of the tendon
     tensions (N), named in ``input_names`` (p0 ..., F_x ... M_z, t0 ...). ``equilibrium``
-    is the static solution it was taken at. ``tip_constraint``: "free", or "clamped" (the
+    is the static solution it was taken at. ``tip_constraint``: "free"; "clamped" (the
     tip does not move: it is no coordinate, the nodes lie between the clamps, and the tip
-    load's input columns are zero).
+    load's input columns are zero); or "pinned" (the tip, the last node, keeps only its
+    rotation dtheta_n: q has 6 n - 3 rows, and the tip force's input columns are zero).
+    :meth:`node_rows` reads any node's six rows out of a vector or matrix over q.
     """
 
     design: Design
@@ -106,8 +108,9 @@ class LinearSystem:
 
     @property
     def tip_rows(self) -> slice:
-        """Rows of q holding the tip's displacement and rotation (a free tip only)."""
-        if self.tip_constraint != "free":
+        """Rows of q holding the tip's coordinates: its displacement and rotation (a free
+        tip), its rotation only (a pinned tip: the last three rows)."""
+        if self.tip_constraint == "clamped":
             raise design_error(
                 "tip_constraint",
                 self.tip_constraint,
@@ -116,7 +119,25 @@ class LinearSystem:
                 InputError,
             )
         n = self.mass.shape[0]
-        return slice(n - 6, n)
+        return slice(n - (3 if self.tip_constraint == "pinned" else 6), n)
+
+    def node_rows(self, x: np.ndarray, node: int) -> np.ndarray:
+        """The six pose rows (dr, dtheta) of ``nodes[node]`` (an index, negative from the
+        end) of ``x``, a vector or matrix over q (its first axis). A pinned tip's
+        displacement rows, which are not coordinates, are zeros."""
+        n = len(self.nodes)
+        k = V.integer(node, "node", minimum=-n, maximum=n - 1, hint=f" (the {n} nodes)") % n
+        x = np.asarray(x)
+        if x.shape[:1] != self.mass.shape[:1]:
+            raise design_error(
+                "x",
+                f"shape {x.shape}",
+                f"must run over the {self.mass.shape[0]} coordinates of q along its first axis",
+                InputError,
+            )
+        if self.tip_constraint == "pinned" and k == n - 1:
+            return np.concatenate([np.zeros((3, *x.shape[1:]), x.dtype), x[6 * k : 6 * k + 3]])
+        return x[6 * k : 6 * k + 6]
 
     def state_space(self) -> tuple[np.ndarray, np.ndarray]:
         """(A, B) of x' = A x + B u with x = (q, q')."""
@@ -131,17 +152,18 @@ class LinearSystem:
     def frequency_response(self, omega: float, *, node: int | None = None) -> np.ndarray:
         """The tip pose (6 rows) per unit input at angular frequency ``omega`` (rad/s):
         T (K - w^2 M + i w D)^-1 B. ``node``: the pose of ``nodes[node]`` instead (an index,
-        negative from the end); a clamped tip does not move, so there a node is needed."""
+        negative from the end); a clamped tip does not move, so there a node is needed. A
+        pinned tip's displacement rows are zeros."""
         # 1e12 rad/s is far beyond any mode of a rod; w^2 M then stays finite.
         omega = V.real(omega, "omega", minimum=0.0, maximum=1e12)
         if node is None:
-            rows = self.tip_rows  # a clamped tip has none: refused before any work
+            _ = self.tip_rows  # a clamped tip has none: refused before any work
+            node = -1
         else:
             n = len(self.nodes)
-            k = V.integer(node, "node", minimum=-n, maximum=n - 1, hint=f" (the {n} nodes)")
-            rows = slice(6 * (k % n), 6 * (k % n) + 6)
+            node = V.integer(node, "node", minimum=-n, maximum=n - 1, hint=f" (the {n} nodes)")
         z = self.stiffness - omega**2 * self.mass + 1j * omega * self.damping
-        return np.linalg.solve(z, self.input)[rows]
+        return self.node_rows(np.linalg.solve(z, self.input), node)
 
     def modes(self, count: int | None = None) -> Modes:
         """The ``count`` lowest modes (default all)."""
@@ -186,7 +208,9 @@ class LinearSystem:
             if z < 1 and len(upper):
                 expect = complex(-z * w, w * math.sqrt(max(0.0, 1 - z * z)))
                 damped[i] = upper[np.argmin(abs(upper - expect))].imag / (2 * math.pi)
-        shapes = vecs.T.reshape(k, -1, 6)
+        shapes = np.stack(
+            [self.node_rows(vecs, j) for j in range(len(self.nodes))], axis=1
+        ).transpose(2, 1, 0)  # (k, n, 6)
         scale = np.abs(shapes).reshape(k, -1).max(axis=1)
         shapes = shapes / scale[:, None, None]
         # Sign: the largest entry positive.
@@ -220,27 +244,17 @@ def linearise(
     design's), or about ``initial`` when it is given (a :class:`StaticSolution`; its
     pressures, tensions, loads and tip constraint are used). ``nodes``: how many nodes carry
     the coordinates (spread over the integration nodes, the tip last). ``tip_constraint``
-    (as in :func:`solve_statics`; default the design's ``[tip] constraint``): a clamped tip
-    is linearised held (it does not move, so it is no coordinate: the nodes spread between
-    the clamps, and a tip load's input columns are zero); a pinned tip is refused."""
+    (as in :func:`solve_statics`; default the design's ``[tip] constraint``) linearises the
+    held equilibrium: a clamped tip does not move, so it is no coordinate (the nodes spread
+    between the clamps, and a tip load's input columns are zero); a pinned tip keeps its
+    three small rotations as coordinates (its displacement rows are not in q, and the tip
+    force's input columns are zero)."""
     from ..statics import _pressures, _vec3, solve_statics
 
     if isinstance(design, StaticSolution):
         initial, design = design, design.design
     design = load_design(design)
     nodes = integer(nodes, "nodes", minimum=1, maximum=200)
-    held_by = initial.tip_constraint if isinstance(initial, StaticSolution) else None
-    if held_by is None:
-        given = coerce_constraint(tip_constraint) if tip_constraint is not None else None
-        held_by = (given or design.tip_constraint or TipConstraint()).kind
-    if held_by == "pinned":  # before any work
-        raise design_error(
-            "tip_constraint",
-            "pinned",
-            "linearise takes a free or a clamped tip; a pinned tip keeps three rotational "
-            "coordinates, which it does not implement yet",
-            InputError,
-        )
     if initial is None:
         p = _pressures(design, np.zeros(design.n_channels) if pressures is None else pressures)
         tip = design.spec["tip"]

@@ -2,7 +2,9 @@
 //! against the closed forms (bending, axial, torsion), convergence with the number of nodes,
 //! the static consistency of K and B with the exact Jacobians, M symmetric positive
 //! definite, D = tau K for an unstressed rod; the same for a clamped tip (clamped-clamped
-//! beam and bar frequencies, the held equilibrium's Jacobians).
+//! beam and bar frequencies, the held equilibrium's Jacobians) and a pinned one
+//! (clamped-pinned beam, fixed-fixed bar, torsion free at the pin; the tip body's inertia
+//! about the pin).
 
 use crate::common;
 use common::*;
@@ -347,11 +349,8 @@ fn static_response_of_the_clamped_linear_system_is_exact() {
     let asym = (&sys.mass - sys.mass.transpose()).amax() / sys.mass.amax();
     assert!(asym < 1e-10, "{asym}");
     assert!(sys.mass.clone().cholesky().is_some());
-    // A pinned tip is refused by name.
-    let pin = TipConstraint::Pinned {
-        position: clamp_position(&clamp),
-    };
-    match linearise_held(&rod, &ld, &pin, &sol, 5) {
+    // A free tip is refused by name (it is `linearise`'s).
+    match linearise_held(&rod, &ld, &TipConstraint::Free, &sol, 5) {
         Err(softrod_core::SoftrodError::InvalidParameter { field, .. }) => {
             assert_eq!(field, "tip_constraint")
         }
@@ -359,9 +358,177 @@ fn static_response_of_the_clamped_linear_system_is_exact() {
     }
 }
 
-fn clamp_position(c: &TipConstraint) -> [f64; 3] {
-    match c {
-        TipConstraint::Clamped { position, .. } | TipConstraint::Pinned { position } => *position,
-        TipConstraint::Free => unreachable!("held"),
+const CLAMPED_PINNED: [f64; 2] = [3.926_602_312_047_919, 7.068_582_745_628_732];
+
+/// The cantilever of `cantilever_frequencies_match_closed_forms` pinned at its tip (where
+/// the unloaded rod's tip is): the clamped-pinned beam (tan beta L = tanh beta L), the bar
+/// fixed at both ends in extension (pi), and torsion free at the pin (pi / 2), with the
+/// cantilever's convergence orders. The nodes are spread as for a free tip, the tip last,
+/// and the tip keeps its three small rotations only.
+#[test]
+fn clamped_pinned_frequencies_match_closed_forms() {
+    let rod = Rod::new(cantilever(64, 0.0)).unwrap();
+    let ld = loads(&[]);
+    let free = solve(&rod, &ld, None, &SolverOptions::default()).unwrap();
+    let pin = TipConstraint::Pinned {
+        position: free.tip.r,
+    };
+    let sol = solve_constrained(&rod, &ld, &pin, None, &SolverOptions::default())
+        .unwrap()
+        .solution;
+    let rho_a = MASS / L;
+    let beam = |beta_l: f64| beta_l * beta_l * (EI / (rho_a * L.powi(4))).sqrt();
+    let axial = std::f64::consts::PI * (EA / (rho_a * L * L)).sqrt();
+    let torsion = std::f64::consts::FRAC_PI_2 * (GJ / (ROT[2] * L * L)).sqrt();
+    let mut errors = Vec::new();
+    for nodes in [4, 8, 16] {
+        let sys = linearise_held(&rod, &ld, &pin, &sol, nodes).unwrap();
+        assert_eq!(sys.mass.nrows(), 6 * nodes - 3);
+        assert!((sys.nodes[nodes - 1] - L).abs() < 1e-12);
+        let w = frequencies(&sys.mass, &sys.stiffness);
+        let want = CLAMPED_PINNED.map(beam);
+        errors.push(mode_errors(nodes, &w, want, axial, torsion));
+        // A tip force goes into the pin (zero columns); a tip moment is a unit load on the
+        // tip's rotations.
+        assert!((0..3).all(|j| sys.input.column(j).amax() == 0.0));
+        for j in 0..3 {
+            let col = sys.input.column(3 + j);
+            assert_eq!(col[6 * nodes - 6 + j], 1.0);
+            assert_eq!(col.amax(), 1.0);
+        }
+    }
+    let order = |k: usize, a: usize| (errors[a][k] / errors[a + 1][k]).log2();
+    for a in 0..2 {
+        assert!(
+            order(0, a) > 3.5 && order(1, a) > 3.5,
+            "bending order {a}: {errors:?}"
+        );
+        assert!(
+            (order(2, a) - 2.0).abs() < 0.2 && (order(3, a) - 2.0).abs() < 0.2,
+            "{errors:?}"
+        );
+    }
+    // At 16 nodes (h = L / 16) within 1.5 times the finite elements' leading terms, as for the
+    // clamped tip: (beta h)^4 / 1440 in bending, (k h)^2 / 24 in extension (k = pi / L) and
+    // torsion (k = pi / 2L).
+    let h = L / 16.0;
+    for (k, beta_l) in CLAMPED_PINNED.iter().enumerate() {
+        let fe = (beta_l * h / L).powi(4) / 1440.0;
+        assert!(
+            errors[2][k] < 1.5 * fe,
+            "bending {k}: {:.2e} vs {fe:.2e}",
+            errors[2][k]
+        );
+    }
+    let fe = |k: f64| (k * h).powi(2) / 24.0;
+    let pi = std::f64::consts::PI;
+    assert!(errors[2][2] < 1.5 * fe(pi / L), "{errors:?}");
+    assert!(errors[2][3] < 1.5 * fe(pi / (2.0 * L)), "{errors:?}");
+}
+
+/// K^-1 B of a pinned SPA under pressure and gravity, with a heavy tip body off the axis
+/// (its weight's moment arm is part of K): every node's rows are the exact pressure and
+/// tip-moment Jacobian of the held equilibrium there (at the tip its rotation rows).
+#[test]
+fn static_response_of_the_pinned_linear_system_is_exact() {
+    let mut spec = p002_actuator(tilted(), 9.81, 12);
+    spec.tip.mass = 0.01;
+    spec.tip.com_offset = [0.004, -0.002, 0.01];
+    let rod = Rod::new(spec).unwrap();
+    let ld = loads(&[35e3, 12e3, 50e3]);
+    let free = solve(&rod, &ld, None, &SolverOptions::default()).unwrap();
+    let pin = TipConstraint::Pinned {
+        position: [free.tip.r[0] + 6e-3, free.tip.r[1], free.tip.r[2]],
+    };
+    let sol = solve_constrained(&rod, &ld, &pin, None, &SolverOptions::default())
+        .unwrap()
+        .solution;
+    let n = 5;
+    let sys = linearise_held(&rod, &ld, &pin, &sol, n).unwrap();
+    let response = sys.stiffness.clone().try_inverse().unwrap() * &sys.input;
+    let inputs = [
+        Input::Pressure(0),
+        Input::Pressure(1),
+        Input::Pressure(2),
+        Input::TipMoment(0),
+        Input::TipMoment(1),
+        Input::TipMoment(2),
+    ];
+    let columns = [0, 1, 2, 6, 7, 8];
+    for (a, s) in sys.nodes.iter().enumerate() {
+        let probe = Probe::at(&rod, *s).unwrap();
+        let jac = point_jacobian6(&rod, &ld, &pin, &sol, &inputs, &probe)
+            .unwrap()
+            .point;
+        // The tip's rows are its rotation; an inner node's are its pose.
+        let (rows, first) = if a + 1 == n {
+            (3..6, 6 * a)
+        } else {
+            (0..6, 6 * a)
+        };
+        for (k, &c) in columns.iter().enumerate() {
+            let col = [jac.d_position[k], jac.d_rotation[k]].concat();
+            let scale = col.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let err = rows
+                .clone()
+                .enumerate()
+                .map(|(i, r)| (response[(first + i, c)] - col[r]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            // The same implicit differentiation by another pass; a 27 x 27 inverse.
+            assert!(
+                err <= 1e-8 * scale,
+                "node {a}, input {k}: {err:.2e} of {scale:.2e}"
+            );
+        }
+    }
+    let asym = (&sys.mass - sys.mass.transpose()).amax() / sys.mass.amax();
+    assert!(asym < 1e-10, "{asym}");
+    assert!(sys.mass.clone().cholesky().is_some());
+}
+
+/// Without gravity a tip body does not change the equilibrium, so it changes only the mass
+/// matrix: on a pinned tip by its inertia about the pin, J_c + m (|c|^2 I - c c^T) by the
+/// parallel-axis theorem (the straight rod's tip frame is the world's), at the tip's rows.
+#[test]
+fn pinned_tip_body_adds_its_inertia_about_the_pin() {
+    let mass_with = |body: bool| {
+        let mut spec = cantilever(32, 0.0);
+        if body {
+            spec.tip.mass = 0.05;
+            spec.tip.com_offset = [0.01, -0.02, 0.03];
+            spec.tip.inertia = [2e-5, 3e-5, 4e-5];
+        }
+        let rod = Rod::new(spec).unwrap();
+        let ld = loads(&[]);
+        let free = solve(&rod, &ld, None, &SolverOptions::default()).unwrap();
+        let pin = TipConstraint::Pinned {
+            position: free.tip.r,
+        };
+        let sol = solve_constrained(&rod, &ld, &pin, None, &SolverOptions::default())
+            .unwrap()
+            .solution;
+        linearise_held(&rod, &ld, &pin, &sol, 4).unwrap().mass
+    };
+    let diff = mass_with(true) - mass_with(false);
+    let (m, c, j) = (0.05, [0.01, -0.02, 0.03], [2e-5, 3e-5, 4e-5]);
+    let c2: f64 = c.iter().map(|v| v * v).sum();
+    let o = diff.nrows() - 3;
+    for a in 0..diff.nrows() {
+        for b in 0..diff.ncols() {
+            let want = if a >= o && b >= o {
+                let (i, k) = (a - o, b - o);
+                let delta = if i == k { 1.0 } else { 0.0 };
+                j[i] * delta + m * (c2 * delta - c[i] * c[k])
+            } else {
+                0.0
+            };
+            // The rest of M is the same computation twice (bitwise but for the symmetrising).
+            assert!(
+                (diff[(a, b)] - want).abs() < 1e-15,
+                "({a}, {b}): {} vs {want}",
+                diff[(a, b)]
+            );
+        }
     }
 }
