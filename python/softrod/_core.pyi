@@ -26,6 +26,7 @@ __all__ = [
     "solve_rod_system_batch",
     "rod_system_sensitivity_batch",
     "system_jacobian_of",
+    "system_linearise_of",
 ]
 __version__: str
 _debug_assertions: bool
@@ -35,6 +36,13 @@ _debug_assertions: bool
 _ArrayLike = Any
 _Array = Any
 _Vec3 = Sequence[float]
+# A system's rod for the binding: (rod, pressures, tensions, tip force, tip moment,
+# attachment offset, attachment rotation); and its platform: (position, rotation, force,
+# moment, mass, com offset, gravity).
+_SystemRodEntry = tuple[
+    Rod, Sequence[float], Sequence[float], _Vec3, _Vec3, _Vec3, Sequence[Sequence[float]]
+]
+_PlatformEntry = tuple[_Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3]
 
 @final
 class FrictionState:
@@ -296,7 +304,7 @@ class SystemSimulator:
         rods: Sequence[
             tuple[Rod, Sequence[float], Sequence[float], _Vec3, Sequence[Sequence[float]]]
         ],
-        platform: tuple[_Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3],
+        platform: _PlatformEntry,
         inertia: Sequence[Sequence[float]],
         dt: float,
         alpha: float,
@@ -410,35 +418,24 @@ def solve_constrained_tip(
     history: FrictionState | None = None,
 ) -> dict[str, Any]: ...
 def system_jacobian_of(
-    rods: Sequence[
-        tuple[
-            Rod,
-            Sequence[float],
-            Sequence[float],
-            _Vec3,
-            _Vec3,
-            _Vec3,
-            Sequence[Sequence[float]],
-        ]
-    ],
-    platform: tuple[_Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3],
+    rods: Sequence[_SystemRodEntry],
+    platform: _PlatformEntry,
     x: Sequence[float],
     inputs: Sequence[tuple[str, int, int]],
     stiffness_scale: Sequence[_Vec3 | None] | None = None,
 ) -> dict[str, Any]: ...
+def system_linearise_of(
+    rods: Sequence[_SystemRodEntry],
+    platform: _PlatformEntry,
+    x: Sequence[float],
+    inputs: Sequence[tuple[str, int, int]],
+    nodes: int,
+    platform_inertia: Sequence[Sequence[float]],
+    stiffness_scale: Sequence[_Vec3 | None] | None = None,
+) -> dict[str, Any]: ...
 def solve_rod_system(
-    rods: Sequence[
-        tuple[
-            Rod,
-            Sequence[float],
-            Sequence[float],
-            _Vec3,
-            _Vec3,
-            _Vec3,
-            Sequence[Sequence[float]],
-        ]
-    ],
-    platform: tuple[_Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3],
+    rods: Sequence[_SystemRodEntry],
+    platform: _PlatformEntry,
     guess: Sequence[float] | None = None,
     tol: float = 1e-10,
     max_iter: int = 25,
@@ -471,7 +468,7 @@ def solve_constrained_tip_batch(
 ) -> dict[str, Any]: ...
 def solve_rod_system_batch(
     rods: Sequence[tuple[Rod, _Vec3, _Vec3, _Vec3, Sequence[Sequence[float]]]],
-    platform: tuple[_Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3],
+    platform: _PlatformEntry,
     pressures: _ArrayLike,
     tensions: _ArrayLike | None = None,
     threads: int = 0,
@@ -486,7 +483,7 @@ def solve_rod_system_batch(
 ) -> dict[str, Any]: ...
 def rod_system_sensitivity_batch(
     rods: Sequence[tuple[Rod, _Vec3, _Vec3, _Vec3, Sequence[Sequence[float]]]],
-    platform: tuple[_Vec3, Sequence[Sequence[float]], _Vec3, _Vec3, float, _Vec3, _Vec3],
+    platform: _PlatformEntry,
     pressures: _ArrayLike,
     params: Sequence[tuple[str, Sequence[tuple[int, Sequence[int]]]]],
     tensions: _ArrayLike | None = None,

@@ -65,6 +65,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from ._types import Units
+    from .control.linear import SystemLinearSystem
 
 _SCHEMA = {
     "": {"units", "system", "platform", "rods"},
@@ -190,6 +191,10 @@ def platform_inertia(value: Any, field: str, cls: type[DesignError] = DesignErro
     return j
 
 
+# For methods whose argument shadows the name.
+_inertia_of = platform_inertia
+
+
 @dataclass(frozen=True)
 class System:
     """A parallel mechanism: rods clamped at their bases (their designs' mountings) and at
@@ -312,44 +317,10 @@ class SystemSolution:
         stiffness-mapped section adds the part through its map (the map must give a
         derivative, docs/stiffness-map.md). Refused: a solve that did not converge, a
         frictional equilibrium (its derivatives depend on the load path)."""
-        if not self.converged:
-            raise V.fail(
-                "solution", "converged = False", "must be a converged SystemSolution", InputError
-            )
-        if self.solved_with is None:
-            raise V.fail(
-                "solution.solved_with",
-                None,
-                "the Jacobian differentiates the system as it was solved (solve_system keeps "
-                "its arguments in solved_with)",
-                InputError,
-            )
-        if self.friction_state is not None:
-            i = next(i for i, r in enumerate(self.rods) if r.friction_state is not None)
-            k = _frictional_obstacle(self.rods[i].design)
-            raise V.fail(
-                f"rods[{i}].design.obstacles[{k}].friction",
-                self.rods[i].design.spec["obstacles"][k]["friction"],
-                "SystemSolution.jacobian is not available for a frictional equilibrium: it "
-                "depends on the load path, and the stick/slip switch has no derivative there "
-                "(docs/contact.md, 'Friction in the statics')",
-                InputError,
-            )
-        entries, platform, sigmas = self.solved_with
+        entries, platform, sigmas, inputs, names, mapped = self._differentiated("jacobian")
+        p_cols = [n for n in names if "_p" in n]
+        t_cols = [n for n in names if "_t" in n]
         rods = self.system.rods
-        inputs: list[tuple[str, int, int]] = []
-        p_cols, t_cols = [], []
-        for i, rod in enumerate(rods):
-            inputs += [("pressure", i, c) for c in range(rod.design.n_channels)]
-            p_cols += [f"rod{i}_p{c}" for c in range(rod.design.n_channels)]
-        for i, rod in enumerate(rods):
-            inputs += [("tension", i, c) for c in range(rod.design.n_tendons)]
-            t_cols += [f"rod{i}_t{c}" for c in range(rod.design.n_tendons)]
-        inputs += [("platform_force", 0, j) for j in range(3)]
-        inputs += [("platform_moment", 0, j) for j in range(3)]
-        mapped = [i for i, rod in enumerate(rods) if rod.design.mapped_sections]
-        for i in mapped:
-            inputs += [("stiffness_scale", i, k) for k in range(3)]
         out = _core.system_jacobian_of(
             entries, platform, self.unknowns.tolist(), inputs, stiffness_scale=sigmas
         )
@@ -365,17 +336,8 @@ class SystemSolution:
         for q, i in enumerate(mapped):
             at = edges[-1] + 3 * q
             sigma_pose[i], sigma_base[i] = pose[:, at : at + 3], base[:, :, at : at + 3]
-            smap = self.rods[i].stiffness_map
-            if smap is None:
-                raise V.fail(
-                    f"rods[{i}].stiffness_map",
-                    None,
-                    "a mapped rod's pressure Jacobian needs the stiffness map it was solved "
-                    "with (solve_system keeps it): sigma(p) moves with the pressures",
-                    InputError,
-                )
             # sigma_i(p_i) moves with rod i's pressures: add d/dsigma_i dsigma_i/dp_i.
-            dsigma = smap.derivative(np.asarray(self.rods[i].pressures, dtype=float))
+            dsigma = self._map_derivative(i)
             cols = slice(widths[i], widths[i + 1])
             own["pressures"][:, cols] += sigma_pose[i] @ dsigma
             at_base["pressures"][:, :, cols] += sigma_base[i] @ dsigma
@@ -389,6 +351,117 @@ class SystemSolution:
             stiffness_scale=tuple(sigma_pose),
             **own,
         )
+
+    def linearise(self, *, nodes: int = 8, platform_inertia: Any = None) -> SystemLinearSystem:
+        """The linearised dynamics M q'' + D q' + K q = B u about this equilibrium, with its
+        modes (:class:`softrod.SystemLinearSystem`; docs/control.md, "Modes of a system"):
+        ``nodes`` nodes inside every rod plus the platform's pose; ``platform_inertia``
+        (kg m^2 about the platform's centre of mass, platform frame; three principal values
+        or a 3x3 tensor; None: the system's ``[platform] inertia``). K is the system's exact
+        tangent (the implicit function theorem on its residual), M and D those of the rods'
+        static deflection shapes plus the platform and every rod's tip body as rigid bodies;
+        B has a column per rod pressure and tension and per component of the platform's
+        force and moment. A rod with a stiffness-mapped section adds its map's part to its
+        pressure columns (the map must give a derivative). Refused as by :meth:`jacobian`
+        (a failed solve, friction), and rods with obstacles or follower loads, naming the
+        field."""
+        from .control.linear import SystemLinearSystem
+
+        nodes = V.integer(nodes, "nodes", minimum=1, maximum=200)
+        inertia = (
+            self.system.platform.inertia
+            if platform_inertia is None
+            else _inertia_of(platform_inertia, "platform_inertia", InputError)
+        )
+        entries, platform, sigmas, inputs, names, mapped = self._differentiated("linearise")
+        out = _core.system_linearise_of(
+            entries,
+            platform,
+            self.unknowns.tolist(),
+            inputs,
+            nodes,
+            np.asarray(inertia, dtype=float).tolist(),
+            stiffness_scale=sigmas,
+        )
+        b = np.asarray(out["input"])
+        width = len(names)
+        widths = np.cumsum([0] + [rod.design.n_channels for rod in self.system.rods])
+        for q, i in enumerate(mapped):
+            # sigma_i(p_i) moves with rod i's pressures: add B_sigma dsigma_i/dp_i.
+            dsigma = self._map_derivative(i)
+            b[:, widths[i] : widths[i + 1]] += b[:, width + 3 * q : width + 3 * q + 3] @ dsigma
+        return SystemLinearSystem(
+            system=self.system,
+            nodes=tuple(np.asarray(v) for v in out["nodes"]),
+            mass=out["mass"],
+            damping=out["damping"],
+            stiffness=out["stiffness"],
+            input=b[:, :width].copy(),
+            input_names=names,
+            equilibrium=self,
+        )
+
+    def _differentiated(self, method: str) -> tuple:
+        """What the implicit differentiation of this equilibrium needs: the binding's
+        arguments it was solved with (rods, platform, sigmas), the inputs (every rod's
+        pressures, then tensions, the platform's force and moment, then the mapped rods'
+        sigma factors), the names of all but the sigma columns, and the mapped rods.
+        InputError naming the field for a failed solve, one without its arguments, or a
+        frictional one."""
+        if not self.converged:
+            raise V.fail(
+                "solution", "converged = False", "must be a converged SystemSolution", InputError
+            )
+        if self.solved_with is None:
+            raise V.fail(
+                "solution.solved_with",
+                None,
+                f"SystemSolution.{method} differentiates the system as it was solved "
+                "(solve_system keeps its arguments in solved_with)",
+                InputError,
+            )
+        if self.friction_state is not None:
+            i = next(i for i, r in enumerate(self.rods) if r.friction_state is not None)
+            k = _frictional_obstacle(self.rods[i].design)
+            raise V.fail(
+                f"rods[{i}].design.obstacles[{k}].friction",
+                self.rods[i].design.spec["obstacles"][k]["friction"],
+                f"SystemSolution.{method} is not available for a frictional equilibrium: it "
+                "depends on the load path, and the stick/slip switch has no derivative there "
+                "(docs/contact.md, 'Friction in the statics')",
+                InputError,
+            )
+        entries, platform, sigmas = self.solved_with
+        rods = self.system.rods
+        inputs: list[tuple[str, int, int]] = []
+        names: list[str] = []
+        for i, rod in enumerate(rods):
+            inputs += [("pressure", i, c) for c in range(rod.design.n_channels)]
+            names += [f"rod{i}_p{c}" for c in range(rod.design.n_channels)]
+        for i, rod in enumerate(rods):
+            inputs += [("tension", i, c) for c in range(rod.design.n_tendons)]
+            names += [f"rod{i}_t{c}" for c in range(rod.design.n_tendons)]
+        inputs += [("platform_force", 0, j) for j in range(3)]
+        inputs += [("platform_moment", 0, j) for j in range(3)]
+        names += ["F_x", "F_y", "F_z", "M_x", "M_y", "M_z"]
+        mapped = [i for i, rod in enumerate(rods) if rod.design.mapped_sections]
+        for i in mapped:
+            inputs += [("stiffness_scale", i, k) for k in range(3)]
+        return entries, platform, sigmas, inputs, tuple(names), mapped
+
+    def _map_derivative(self, i: int) -> np.ndarray:
+        """d sigma / d p (3, channels) of mapped rod i at its pressures; InputError naming
+        ``rods[i].stiffness_map`` when the solution lost its map."""
+        smap = self.rods[i].stiffness_map
+        if smap is None:
+            raise V.fail(
+                f"rods[{i}].stiffness_map",
+                None,
+                "a mapped rod's pressure derivatives need the stiffness map it was solved "
+                "with (solve_system keeps it): sigma(p) moves with the pressures",
+                InputError,
+            )
+        return smap.derivative(np.asarray(self.rods[i].pressures, dtype=float))
 
     def plot(self, path: str | os.PathLike | None = None, *, title: str | None = None) -> Figure:
         """Front (x-z) and side (y-z) views of the equilibrium

@@ -32,6 +32,7 @@ use crate::ode::{
 };
 use crate::rod::Rod;
 use crate::statics::constraint::{reaction_under, tip_residual_under, TipConstraint};
+use crate::statics::tangent::singular_jacobian;
 use crate::statics::{Problem, Solution};
 use nalgebra::{DMatrix, Matrix3, Matrix6, Vector3, Vector6};
 
@@ -355,12 +356,12 @@ pub(crate) fn unknowns3(sol: &Solution) -> Result<[f64; 3]> {
 
 /// Error for a singular shooting Jacobian (the equilibrium is at a limit point).
 pub(crate) fn singular(sol: &Solution) -> SoftrodError {
-    SoftrodError::NotConverged {
-        iterations: sol.iterations,
-        residual: sol.residual,
-        load_factor: 1.0,
-        reason: "the shooting Jacobian is singular at this equilibrium (a limit point), so its derivatives are undefined".into(),
-    }
+    singular_jacobian(
+        sol.iterations,
+        sol.residual,
+        "the shooting Jacobian",
+        "derivatives",
+    )
 }
 
 /// The small rotation w (world) with d R = [w]x R, from d R and R: [w]x = dR R^T.

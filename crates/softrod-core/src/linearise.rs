@@ -39,6 +39,8 @@
 //! there are the three moments only, the tip body adds its inertia about the pin, and the
 //! tip force columns are zero (the pin takes it).
 
+pub mod system;
+
 use crate::dynamics::section_inertia_at;
 use crate::error::{Result, SoftrodError};
 use crate::jacobian::{dual_coeffs_from, singular, Input};
@@ -46,6 +48,7 @@ use crate::jet::Jet;
 use crate::ode::{advance, integrate_with, resolve_stretch, strains, Coeffs, Loads, NodeAt, State};
 use crate::rod::{inverse3, Rod, Section};
 use crate::statics::constraint::{tip_residual_under, TipConstraint};
+use crate::statics::tangent::solve_tangent;
 use crate::statics::{Problem, Solution};
 use nalgebra::{DMatrix, DVector, Matrix3};
 
@@ -223,15 +226,13 @@ fn strain6<D: crate::jet::StateScalar<f64>>(
 }
 
 /// One pass with a point force and moment at node `at` (section, step) seeded as directions
-/// nx..nx + 6 after the nx shooting unknowns x: the residual and every interval.
+/// nx..nx + 6 after the nx shooting unknowns x: the tip state and every interval.
 fn load_pass<const N: usize>(
     problem: &Problem,
     rod: &Rod,
-    loads: &Loads,
     x: &[f64],
     at: (usize, usize),
-    tip: Tip,
-) -> (Vec<Jet<N>>, Vec<Interval<Jet<N>>>) {
+) -> (State<Jet<N>>, Vec<Interval<Jet<N>>>) {
     let nx = x.len();
     let xd: Vec<Jet<N>> = x
         .iter()
@@ -297,7 +298,7 @@ fn load_pass<const N: usize>(
         }
         changed
     });
-    (tip.residual(problem, loads, &end), intervals)
+    (end, intervals)
 }
 
 /// Pose (dr, dtheta) derivative of a state with respect to the directions, given the
@@ -381,23 +382,19 @@ fn linearise_at_nodes<const N: usize>(
     // (the coordinates' conjugates). phi[interval][end] is (6, nq) for the pose and psi for
     // the strains.
     let mut flex = DMatrix::<f64>::zeros(nq, nq);
-    // Per interval: section, [a, b] and the rotation at a, the midpoint and b.
-    type Meta = (usize, f64, f64, [[[f64; 3]; 3]; 3]);
     let mut intervals_meta: Vec<Meta> = Vec::new();
     let mut phi: Vec<[DMatrix<f64>; 3]> = Vec::new();
     let mut psi: Vec<[DMatrix<f64>; 3]> = Vec::new();
     for (k, &(sec, step, _)) in nodes.iter().enumerate() {
-        let (g, intervals) = load_pass::<N>(&problem, rod, loads, x, (sec, step), tip);
+        let (end, intervals) = load_pass::<N>(&problem, rod, x, (sec, step));
+        let g = tip.residual(&problem, loads, &end);
         let gx = DMatrix::from_fn(nx, nx, |i, j| g[i].eps[j]);
         let lu = gx.lu();
         // dx / d load_j for the 6 load directions.
         let mut dx = vec![vec![0.0; nx]; 6];
         for (j, dxj) in dx.iter_mut().enumerate() {
             let rhs = DVector::from_fn(nx, |i, _| -g[i].eps[nx + j]);
-            let d = lu
-                .solve(&rhs)
-                .filter(|d| d.iter().all(|v| v.is_finite()))
-                .ok_or_else(|| singular(sol))?;
+            let d = solve_tangent(&lu, &rhs, || singular(sol))?;
             dxj.copy_from_slice(d.as_slice());
         }
         let total6 = |partial: &dyn Fn(usize) -> [f64; 6]| -> [[f64; 6]; 6] {
@@ -453,11 +450,56 @@ fn linearise_at_nodes<const N: usize>(
     }
     let stiffness = flex.clone().try_inverse().ok_or_else(|| singular(sol))?;
     // Mass and damping in load coordinates, then K^T (.) K.
+    let (gm, gd) = interval_gram(rod, &problem, &intervals_meta, &phi, &psi, nq);
+    // The tip body: mass m_t at c_w = R(L) c from the tip node, inertia along the tip frame.
+    let rot_l = intervals_meta.last().expect("at least one interval").3[2];
+    let tip_block = tip_body_block(rod, &rot_l, [0.0; 3]);
+    let kt = stiffness.transpose();
+    // K^T G K is symmetric; symmetrise away the round-off of the product.
+    let sym = |a: DMatrix<f64>| (&a + a.transpose()) * 0.5;
+    let mut mass = sym(&kt * gm * &stiffness);
+    let damping = sym(&kt * gd * &stiffness);
+    // The tip body rides on the tip node: all of it on a free tip, its rotation about a pin
+    // (the block's rotational part, J_w - m_t [c_w]x^2), none on a clamp.
+    let held = match tip {
+        Tip::Free => 0..6,
+        _ if tip.pinned() => 3..6,
+        _ => 0..0,
+    };
+    let o = nq - held.len();
+    for (a, i) in held.clone().enumerate() {
+        for (b, j) in held.clone().enumerate() {
+            mass[(o + a, o + b)] += tip_block[(i, j)];
+        }
+    }
+    let input = input_matrix::<N>(rod, loads, sol, x, nodes, &layout, &stiffness, tip)?;
+    Ok(LinearSystem {
+        nodes: nodes.iter().map(|n| n.2).collect(),
+        mass,
+        damping,
+        stiffness,
+        input,
+    })
+}
+
+/// Per interval of a rod: section, [a, b] and the rotation at a, the midpoint and b.
+type Meta = (usize, f64, f64, [[[f64; 3]; 3]; 3]);
+
+/// The mass and damping Gram matrices int Phi^T M_s Phi ds and int Psi^T B Psi ds of one
+/// rod in load coordinates (nq columns), by Simpson's rule on its intervals (exact on rigid
+/// parts, whose motion is linear in s).
+fn interval_gram(
+    rod: &Rod,
+    problem: &Problem,
+    meta: &[Meta],
+    phi: &[[DMatrix<f64>; 3]],
+    psi: &[[DMatrix<f64>; 3]],
+    nq: usize,
+) -> (DMatrix<f64>, DMatrix<f64>) {
     let tau = rod.spec.dynamics.damping_time;
     let mut gm = DMatrix::<f64>::zeros(nq, nq);
     let mut gd = DMatrix::<f64>::zeros(nq, nq);
-    for (m, &(sec, a, b, rots)) in intervals_meta.iter().enumerate() {
-        // Simpson's rule on [a, b] (exact on rigid parts, whose motion is linear in s).
+    for (m, &(sec, a, b, rots)) in meta.iter().enumerate() {
         let w = [(b - a) / 6.0, 4.0 * (b - a) / 6.0, (b - a) / 6.0];
         let local = [a, 0.5 * (a + b), b].map(|s| s - rod.sections[sec].s_start);
         let mass_at = |rot: &[[f64; 3]; 3], s: f64| -> DMatrix<f64> {
@@ -488,59 +530,46 @@ fn linearise_at_nodes<const N: usize>(
             gd += psi[m][e].transpose() * &bmat * &psi[m][e] * w[e];
         }
     }
-    // The tip body: mass m_t at c_w = R(L) c from the tip node, inertia along the tip frame.
+    (gm, gd)
+}
+
+/// The rigid-body mass matrix (6 x 6, world) of the rod's tip body about a point at
+/// `lever` (world) from the tip, for that point's displacement and small rotation: mass
+/// m_t at c_w = lever + R(L) c, inertia along the tip frame `rot_l`:
+/// [[m I, -m [c_w]x], [m [c_w]x, J_w - m [c_w]x^2]].
+fn tip_body_block(rod: &Rod, rot_l: &[[f64; 3]; 3], lever: [f64; 3]) -> DMatrix<f64> {
     let body = &rod.spec.tip;
-    let last = intervals_meta.last().expect("at least one interval");
-    let rot_l = last.3[2];
-    let cw: [f64; 3] =
-        std::array::from_fn(|i| (0..3).map(|k| rot_l[i][k] * body.com_offset[k]).sum());
-    let skew = Matrix3::new(0.0, -cw[2], cw[1], cw[2], 0.0, -cw[0], -cw[1], cw[0], 0.0);
+    let cw: [f64; 3] = std::array::from_fn(|i| {
+        lever[i]
+            + (0..3)
+                .map(|k| rot_l[i][k] * body.com_offset[k])
+                .sum::<f64>()
+    });
     let jw = Matrix3::from_fn(|i, j| {
         (0..3)
             .map(|k| rot_l[i][k] * body.inertia[k] * rot_l[j][k])
             .sum()
     });
-    let mt = body.mass;
-    let tip_block = {
-        let mut b = DMatrix::<f64>::zeros(6, 6);
-        let ct = -skew * mt;
-        let rr = jw - skew * skew * mt;
-        for i in 0..3 {
-            b[(i, i)] = mt;
-            for j in 0..3 {
-                b[(i, 3 + j)] = ct[(i, j)];
-                b[(3 + i, j)] = -ct[(i, j)];
-                b[(3 + i, 3 + j)] = rr[(i, j)];
-            }
-        }
-        b
-    };
-    let kt = stiffness.transpose();
-    // K^T G K is symmetric; symmetrise away the round-off of the product.
-    let sym = |a: DMatrix<f64>| (&a + a.transpose()) * 0.5;
-    let mut mass = sym(&kt * gm * &stiffness);
-    let damping = sym(&kt * gd * &stiffness);
-    // The tip body rides on the tip node: all of it on a free tip, its rotation about a pin
-    // (the block's rotational part, J_w - m_t [c_w]x^2), none on a clamp.
-    let held = match tip {
-        Tip::Free => 0..6,
-        _ if tip.pinned() => 3..6,
-        _ => 0..0,
-    };
-    let o = nq - held.len();
-    for (a, i) in held.clone().enumerate() {
-        for (b, j) in held.clone().enumerate() {
-            mass[(o + a, o + b)] += tip_block[(i, j)];
+    rigid_block(body.mass, &cw, &jw)
+}
+
+/// The mass matrix (6 x 6) of a rigid body of mass `m` whose centre of mass lies at `c`
+/// from the reference point, with inertia `jw` about its centre of mass (world), for the
+/// point's displacement and small rotation: [[m I, -m [c]x], [m [c]x, J_w - m [c]x^2]].
+fn rigid_block(m: f64, c: &[f64; 3], jw: &Matrix3<f64>) -> DMatrix<f64> {
+    let skew = Matrix3::new(0.0, -c[2], c[1], c[2], 0.0, -c[0], -c[1], c[0], 0.0);
+    let mut b = DMatrix::<f64>::zeros(6, 6);
+    let ct = -skew * m;
+    let rr = jw - skew * skew * m;
+    for i in 0..3 {
+        b[(i, i)] = m;
+        for j in 0..3 {
+            b[(i, 3 + j)] = ct[(i, j)];
+            b[(3 + i, j)] = -ct[(i, j)];
+            b[(3 + i, 3 + j)] = rr[(i, j)];
         }
     }
-    let input = input_matrix::<N>(rod, loads, sol, x, nodes, &layout, &stiffness, tip)?;
-    Ok(LinearSystem {
-        nodes: nodes.iter().map(|n| n.2).collect(),
-        mass,
-        damping,
-        stiffness,
-        input,
-    })
+    b
 }
 
 /// Kelvin-Voigt damping of a section at local arc length `s` in the body frame (6 x 6): the
@@ -619,10 +648,7 @@ fn input_matrix<const N: usize>(
         let lu = DMatrix::from_fn(nx, nx, |i, j| g[i].eps[j]).lu();
         for (q, &c) in chunk.iter().enumerate() {
             let rhs = DVector::from_fn(nx, |i, _| -g[i].eps[nx + q]);
-            let dx = lu
-                .solve(&rhs)
-                .filter(|d| d.iter().all(|v| v.is_finite()))
-                .ok_or_else(|| singular(sol))?;
+            let dx = solve_tangent(&lu, &rhs, || singular(sol))?;
             for (a, st) in at_nodes.iter().enumerate() {
                 let p = pose6(st, nx + q);
                 let px: Vec<[f64; 6]> = (0..nx).map(|i| pose6(st, i)).collect();

@@ -33,6 +33,7 @@ use crate::marker::{check_markers, Marker, NODE_SNAP};
 use crate::ode::{advance, integrate, resolve_stretch, Coeffs, Loads, NodeAt, SectionKnobs, State};
 use crate::rod::{AxialLaw, Rod};
 use crate::statics::constraint::{reaction, tip_residual, TipConstraint};
+use crate::statics::tangent::{singular_jacobian, solve_tangent};
 use crate::statics::{Problem, Solution};
 use nalgebra::{DMatrix, DVector};
 
@@ -605,15 +606,14 @@ fn sensitivity_n<const N: usize>(
             .collect();
         for q in 0..chunk.len() {
             let rhs = DVector::from_fn(N, |i, _| -r_t[i].eps[q]);
-            let dx = lu
-                .solve(&rhs)
-                .filter(|d| d.iter().all(|v| v.is_finite()))
-                .ok_or_else(|| SoftrodError::NotConverged {
-                    iterations: sol.iterations,
-                    residual: sol.residual,
-                    load_factor: 1.0,
-                    reason: "the shooting Jacobian is singular at this equilibrium, so its parameter derivatives are undefined".into(),
-                })?;
+            let dx = solve_tangent(&lu, &rhs, || {
+                singular_jacobian(
+                    sol.iterations,
+                    sol.residual,
+                    "the shooting Jacobian",
+                    "parameter derivatives",
+                )
+            })?;
             let total =
                 |d: &Dual, dx_: &Jet<N>| d.eps[q] + (0..N).map(|k| dx_.eps[k] * dx[k]).sum::<f64>();
             out.position

@@ -15,7 +15,10 @@ use softrod_core::statics::constraint::{solve_constrained, TipConstraint};
 use softrod_core::{Rod, SoftrodError};
 use std::sync::Mutex;
 
-fn matrix<'py>(py: Python<'py>, m: &nalgebra::DMatrix<f64>) -> PyResult<Bound<'py, PyAny>> {
+pub(crate) fn matrix<'py>(
+    py: Python<'py>,
+    m: &nalgebra::DMatrix<f64>,
+) -> PyResult<Bound<'py, PyAny>> {
     // nalgebra is column-major; numpy wants rows.
     let (r, c) = m.shape();
     let flat: Vec<f64> = (0..r)

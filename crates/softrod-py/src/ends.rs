@@ -12,6 +12,7 @@ use softrod_core::batch::{
     solve_system_batch, system_sensitivity_batch, BatchRow, SystemBatchInputs, SystemBatchRow,
 };
 use softrod_core::jacobian::system::{system_jacobian, SystemInput};
+use softrod_core::linearise::system::linearise_system;
 use softrod_core::marker::Marker;
 use softrod_core::ode::Loads;
 use softrod_core::sensitivity::system::{SystemMarker, SystemParam};
@@ -391,6 +392,99 @@ fn system_rods<'a>(
         .collect()
 }
 
+/// Every rod's stiffness factors sigma (None: none given), one entry per rod.
+fn rod_sigmas(
+    given: Option<Vec<Option<[f64; 3]>>>,
+    n: usize,
+) -> Result<Vec<Option<[f64; 3]>>, SoftrodError> {
+    let sigma = given.unwrap_or_else(|| vec![None; n]);
+    if sigma.len() != n {
+        return Err(SoftrodError::invalid(
+            "stiffness_scale",
+            format!("{} entries", sigma.len()),
+            format!("must be a list of {n} entries, one per rod"),
+        ));
+    }
+    Ok(sigma)
+}
+
+/// A system's inputs from (kind, rod, index): kind "pressure", "tension" or
+/// "stiffness_scale" (of rod `rod`), or "platform_force", "platform_moment" (rod ignored).
+fn system_inputs(inputs: &[(String, usize, usize)]) -> Result<Vec<SystemInput>, SoftrodError> {
+    inputs
+        .iter()
+        .enumerate()
+        .map(|(k, (kind, rod, index))| {
+            let (rod, index) = (*rod, *index);
+            Ok(match kind.as_str() {
+                "pressure" => SystemInput::Pressure {
+                    rod,
+                    channel: index,
+                },
+                "tension" => SystemInput::Tension {
+                    rod,
+                    channel: index,
+                },
+                "stiffness_scale" => SystemInput::StiffnessScale { rod, factor: index },
+                "platform_force" => SystemInput::PlatformForce(index),
+                "platform_moment" => SystemInput::PlatformMoment(index),
+                other => return Err(SoftrodError::invalid(
+                    format!("inputs[{k}]"),
+                    other,
+                    "kinds: pressure, tension, stiffness_scale, platform_force, platform_moment",
+                )),
+            })
+        })
+        .collect()
+}
+
+/// The linearised dynamics of a frictionless system at the unknowns `x` (a converged
+/// `solve_rod_system`'s "x", solved again from there) with `nodes` nodes inside every rod,
+/// the platform's `platform_inertia` (kg m^2, about its centre of mass, platform frame) and
+/// one input column per entry of `inputs` (as `system_jacobian_of` takes them). Returns
+/// "mass", "damping", "stiffness", "input" (numpy) and "nodes" (one array per rod, m)
+/// (`softrod_core::linearise::system`).
+#[pyfunction]
+#[pyo3(signature = (rods, platform, x, inputs, nodes, platform_inertia, stiffness_scale=None))]
+#[allow(clippy::too_many_arguments)]
+fn system_linearise_of<'py>(
+    py: Python<'py>,
+    rods: Vec<RodEntry<'py>>,
+    platform: PlatformEntry,
+    x: Vec<f64>,
+    inputs: Vec<(String, usize, usize)>,
+    nodes: usize,
+    platform_inertia: [[f64; 3]; 3],
+    stiffness_scale: Option<Vec<Option<[f64; 3]>>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    guarded(py, || {
+        let input = |e: SoftrodError| to_py_err(py, e, Context::Input);
+        let sigma = rod_sigmas(stiffness_scale, rods.len()).map_err(input)?;
+        let inputs = system_inputs(&inputs).map_err(input)?;
+        let system = system_rods(&rods, &sigma).map_err(input)?;
+        let pf = platform_of(platform);
+        let opts = options(py, 1e-10, 25, true, 200, (1.0 / 3.0, 3.0), "ignore")?;
+        let lin = py
+            .detach(|| {
+                let sol = solve_system(&system, &pf, Some(&x), &opts)?;
+                linearise_system(&system, &pf, &platform_inertia, &sol, nodes, &inputs)
+            })
+            .map_err(input)?;
+        let d = PyDict::new(py);
+        d.set_item("mass", crate::control::matrix(py, &lin.mass)?)?;
+        d.set_item("damping", crate::control::matrix(py, &lin.damping)?)?;
+        d.set_item("stiffness", crate::control::matrix(py, &lin.stiffness)?)?;
+        d.set_item("input", crate::control::matrix(py, &lin.input)?)?;
+        let per_rod: Vec<Bound<'py, PyArray1<f64>>> = lin
+            .nodes
+            .into_iter()
+            .map(|v| PyArray1::from_vec(py, v))
+            .collect();
+        d.set_item("nodes", per_rod)?;
+        Ok(d)
+    })
+}
+
 /// The exact derivatives of a frictionless system's equilibrium at the unknowns `x` (a
 /// converged `solve_rod_system`'s "x", solved again from there) with respect to `inputs`:
 /// (kind, rod, index) with kind "pressure", "tension" or "stiffness_scale" (of rod `rod`)
@@ -410,36 +504,8 @@ fn system_jacobian_of<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let input = |e: SoftrodError| to_py_err(py, e, Context::Input);
-        let sigma = stiffness_scale.unwrap_or_else(|| vec![None; rods.len()]);
-        if sigma.len() != rods.len() {
-            return Err(input(SoftrodError::invalid(
-                "stiffness_scale",
-                format!("{} entries", sigma.len()),
-                format!("must be a list of {} entries, one per rod", rods.len()),
-            )));
-        }
-        let inputs: Vec<SystemInput> = inputs
-            .iter()
-            .enumerate()
-            .map(|(k, (kind, rod, index))| {
-                let (rod, index) = (*rod, *index);
-                Ok(match kind.as_str() {
-                    "pressure" => SystemInput::Pressure { rod, channel: index },
-                    "tension" => SystemInput::Tension { rod, channel: index },
-                    "stiffness_scale" => SystemInput::StiffnessScale { rod, factor: index },
-                    "platform_force" => SystemInput::PlatformForce(index),
-                    "platform_moment" => SystemInput::PlatformMoment(index),
-                    other => {
-                        return Err(SoftrodError::invalid(
-                            format!("inputs[{k}]"),
-                            other,
-                            "kinds: pressure, tension, stiffness_scale, platform_force, platform_moment",
-                        ))
-                    }
-                })
-            })
-            .collect::<Result<_, SoftrodError>>()
-            .map_err(input)?;
+        let sigma = rod_sigmas(stiffness_scale, rods.len()).map_err(input)?;
+        let inputs = system_inputs(&inputs).map_err(input)?;
         let system = system_rods(&rods, &sigma).map_err(input)?;
         let pf = platform_of(platform);
         // The equilibrium the caller holds was checked when it was solved.
@@ -806,6 +872,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(solve_constrained_tip, m)?)?;
     m.add_function(wrap_pyfunction!(solve_rod_system, m)?)?;
     m.add_function(wrap_pyfunction!(system_jacobian_of, m)?)?;
+    m.add_function(wrap_pyfunction!(system_linearise_of, m)?)?;
     m.add_class::<PySystemFrictionState>()?;
     Ok(())
 }

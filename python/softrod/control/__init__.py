@@ -27,7 +27,7 @@ from .inverse import (
     solve_inverse,
     tension_bounds,
 )
-from .linear import Jacobian, LinearSystem, Modes, jacobian, linearise
+from .linear import Jacobian, LinearSystem, Modes, SystemLinearSystem, jacobian, linearise
 from .workspace import Workspace, workspace
 
 __all__ = [
@@ -38,6 +38,7 @@ __all__ = [
     "LinearSystem",
     "Measurement",
     "Modes",
+    "SystemLinearSystem",
     "TargetPath",
     "TrackingController",
     "Workspace",

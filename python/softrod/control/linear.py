@@ -8,7 +8,7 @@ are dense linear algebra (scipy) on them. docs/control.md explains the discretis
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -29,7 +29,7 @@ from ..design import Design
 from ..errors import InputError, design_error
 from ..solution import Jacobian, StaticSolution
 
-__all__ = ["Jacobian", "LinearSystem", "Modes", "jacobian", "linearise"]
+__all__ = ["Jacobian", "LinearSystem", "Modes", "SystemLinearSystem", "jacobian", "linearise"]
 
 INPUT_NAMES_LOADS = ("F_x", "F_y", "F_z", "M_x", "M_y", "M_z")
 
@@ -80,8 +80,34 @@ class Modes:
         )
 
 
+class _SecondOrder:
+    """What every M q'' + D q' + K q = B u has: its first-order form and its response."""
+
+    mass: np.ndarray
+    damping: np.ndarray
+    stiffness: np.ndarray
+    input: np.ndarray
+
+    def state_space(self) -> tuple[np.ndarray, np.ndarray]:
+        """(A, B) of x' = A x + B u with x = (q, q')."""
+        n = self.mass.shape[0]
+        minv = np.linalg.inv(self.mass)
+        a = np.block(
+            [[np.zeros((n, n)), np.eye(n)], [-minv @ self.stiffness, -minv @ self.damping]]
+        )
+        b = np.vstack([np.zeros_like(self.input), minv @ self.input])
+        return a, b
+
+    def _response(self, omega: float) -> np.ndarray:
+        """(K - w^2 M + i w D)^-1 B: every coordinate per unit input at ``omega`` (rad/s)."""
+        # 1e12 rad/s is far beyond any mode of a rod; w^2 M then stays finite.
+        omega = V.real(omega, "omega", minimum=0.0, maximum=1e12)
+        z = self.stiffness - omega**2 * self.mass + 1j * omega * self.damping
+        return np.linalg.solve(z, self.input)
+
+
 @dataclass(frozen=True)
-class LinearSystem:
+class LinearSystem(_SecondOrder):
     """The linearised dynamics M q'' + D q' + K q = B u about a static equilibrium (SI).
 
     q = (dr_1, dtheta_1, ..., dr_n, dtheta_n): displacement (m) and small rotation (rad,
@@ -127,105 +153,97 @@ class LinearSystem:
         displacement rows, which are not coordinates, are zeros."""
         n = len(self.nodes)
         k = V.integer(node, "node", minimum=-n, maximum=n - 1, hint=f" (the {n} nodes)") % n
-        x = np.asarray(x)
-        if x.shape[:1] != self.mass.shape[:1]:
-            raise design_error(
-                "x",
-                f"shape {x.shape}",
-                f"must run over the {self.mass.shape[0]} coordinates of q along its first axis",
-                InputError,
-            )
+        x = _over_q(self, x)
         if self.tip_constraint == "pinned" and k == n - 1:
             return np.concatenate([np.zeros((3, *x.shape[1:]), x.dtype), x[6 * k : 6 * k + 3]])
         return x[6 * k : 6 * k + 6]
-
-    def state_space(self) -> tuple[np.ndarray, np.ndarray]:
-        """(A, B) of x' = A x + B u with x = (q, q')."""
-        n = self.mass.shape[0]
-        minv = np.linalg.inv(self.mass)
-        a = np.block(
-            [[np.zeros((n, n)), np.eye(n)], [-minv @ self.stiffness, -minv @ self.damping]]
-        )
-        b = np.vstack([np.zeros_like(self.input), minv @ self.input])
-        return a, b
 
     def frequency_response(self, omega: float, *, node: int | None = None) -> np.ndarray:
         """The tip pose (6 rows) per unit input at angular frequency ``omega`` (rad/s):
         T (K - w^2 M + i w D)^-1 B. ``node``: the pose of ``nodes[node]`` instead (an index,
         negative from the end); a clamped tip does not move, so there a node is needed. A
         pinned tip's displacement rows are zeros."""
-        # 1e12 rad/s is far beyond any mode of a rod; w^2 M then stays finite.
-        omega = V.real(omega, "omega", minimum=0.0, maximum=1e12)
+        V.real(omega, "omega", minimum=0.0, maximum=1e12)
         if node is None:
             _ = self.tip_rows  # a clamped tip has none: refused before any work
             node = -1
         else:
             n = len(self.nodes)
             node = V.integer(node, "node", minimum=-n, maximum=n - 1, hint=f" (the {n} nodes)")
-        z = self.stiffness - omega**2 * self.mass + 1j * omega * self.damping
-        return self.node_rows(np.linalg.solve(z, self.input), node)
+        return self.node_rows(self._response(omega), node)
 
     def modes(self, count: int | None = None) -> Modes:
         """The ``count`` lowest modes (default all)."""
-        if count is not None:
-            n = self.mass.shape[0]
-            count = V.integer(count, "count", minimum=1, maximum=n, hint=f" (the {n} coordinates)")
-        from threadpoolctl import threadpool_limits
-
-        # Dense eigenproblems of a few hundred unknowns: one BLAS thread is fastest (and
-        # several oversubscribe a shared machine).
-        with threadpool_limits(1):
-            return self._modes(count)
-
-    def _modes(self, count: int | None) -> Modes:
-        import scipy.linalg
-
-        w2, vecs = scipy.linalg.eig(self.stiffness, self.mass)
-        w2 = w2.real
-        order = np.argsort(w2)
-        w2, vecs = w2[order], vecs[:, order].real
-        if np.any(w2 <= 0):
-            raise design_error(
-                "equilibrium",
-                "K",
-                "has a non-positive eigenvalue: the equilibrium is not stable, so it has no modes",
-                InputError,
-            )
-        omega = np.sqrt(w2)
-        k = len(omega) if count is None else int(count)
-        omega, vecs = omega[:k], vecs[:, :k]
-        zeta = np.array(
-            [
-                (v @ self.damping @ v) / (2 * w * (v @ self.mass @ v))
-                for v, w in zip(vecs.T, omega, strict=True)
-            ]
+        return _modes(
+            self,
+            count,
+            [lambda x, k=k: self.node_rows(x, k) for k in range(len(self.nodes))],
+            self.nodes,
         )
-        a, _ = self.state_space()
-        poles = np.linalg.eigvals(a)
-        damped = np.full(k, np.nan)
-        upper = poles[poles.imag > 0]
-        for i, (w, z) in enumerate(zip(omega, zeta, strict=True)):
-            if z < 1 and len(upper):
-                expect = complex(-z * w, w * math.sqrt(max(0.0, 1 - z * z)))
-                damped[i] = upper[np.argmin(abs(upper - expect))].imag / (2 * math.pi)
-        shapes = np.stack(
-            [self.node_rows(vecs, j) for j in range(len(self.nodes))], axis=1
-        ).transpose(2, 1, 0)  # (k, n, 6)
-        scale = np.abs(shapes).reshape(k, -1).max(axis=1)
-        shapes = shapes / scale[:, None, None]
-        # Sign: the largest entry positive.
-        flat = shapes.reshape(k, -1)
-        sign = np.sign(flat[np.arange(k), np.abs(flat).argmax(axis=1)])
-        shapes = shapes * sign[:, None, None]
-        return Modes(
-            frequency=omega / (2 * math.pi),
-            omega=omega,
-            damping_ratio=zeta,
-            damped_frequency=damped,
-            shapes=shapes,
-            nodes=self.nodes,
-            poles=poles[np.argsort(abs(poles))],
+
+
+def _modes(system, count: int | None, rows_of: Sequence, nodes: np.ndarray) -> Modes:
+    """The ``count`` lowest modes of a linear system (``mass``, ``stiffness``, ``damping``,
+    ``state_space()``); ``rows_of[j](x)`` reads the six rows of point j from a matrix over
+    q, the points at arc lengths ``nodes``."""
+    if count is not None:
+        n = system.mass.shape[0]
+        count = V.integer(count, "count", minimum=1, maximum=n, hint=f" (the {n} coordinates)")
+    from threadpoolctl import threadpool_limits
+
+    # Dense eigenproblems of a few hundred unknowns: one BLAS thread is fastest (and
+    # several oversubscribe a shared machine).
+    with threadpool_limits(1):
+        return _eigen_modes(system, count, rows_of, nodes)
+
+
+def _eigen_modes(system, count: int | None, rows_of: Sequence, nodes: np.ndarray) -> Modes:
+    import scipy.linalg
+
+    w2, vecs = scipy.linalg.eig(system.stiffness, system.mass)
+    w2 = w2.real
+    order = np.argsort(w2)
+    w2, vecs = w2[order], vecs[:, order].real
+    if np.any(w2 <= 0):
+        raise design_error(
+            "equilibrium",
+            "K",
+            "has a non-positive eigenvalue: the equilibrium is not stable, so it has no modes",
+            InputError,
         )
+    omega = np.sqrt(w2)
+    k = len(omega) if count is None else int(count)
+    omega, vecs = omega[:k], vecs[:, :k]
+    zeta = np.array(
+        [
+            (v @ system.damping @ v) / (2 * w * (v @ system.mass @ v))
+            for v, w in zip(vecs.T, omega, strict=True)
+        ]
+    )
+    a, _ = system.state_space()
+    poles = np.linalg.eigvals(a)
+    damped = np.full(k, np.nan)
+    upper = poles[poles.imag > 0]
+    for i, (w, z) in enumerate(zip(omega, zeta, strict=True)):
+        if z < 1 and len(upper):
+            expect = complex(-z * w, w * math.sqrt(max(0.0, 1 - z * z)))
+            damped[i] = upper[np.argmin(abs(upper - expect))].imag / (2 * math.pi)
+    shapes = np.stack([rows(vecs) for rows in rows_of], axis=1).transpose(2, 1, 0)  # (k, n, 6)
+    scale = np.abs(shapes).reshape(k, -1).max(axis=1)
+    shapes = shapes / scale[:, None, None]
+    # Sign: the largest entry positive.
+    flat = shapes.reshape(k, -1)
+    sign = np.sign(flat[np.arange(k), np.abs(flat).argmax(axis=1)])
+    shapes = shapes * sign[:, None, None]
+    return Modes(
+        frequency=omega / (2 * math.pi),
+        omega=omega,
+        damping_ratio=zeta,
+        damped_frequency=damped,
+        shapes=shapes,
+        nodes=nodes,
+        poles=poles[np.argsort(abs(poles))],
+    )
 
 
 def linearise(
@@ -327,3 +345,82 @@ def linearise(
         equilibrium=initial,
         tip_constraint=initial.tip_constraint,
     )
+
+
+@dataclass(frozen=True)
+class SystemLinearSystem(_SecondOrder):
+    """The linearised dynamics M q'' + D q' + K q = B u of a system of rods (a parallel
+    continuum robot) about its equilibrium (SI; :meth:`softrod.SystemSolution.linearise`).
+
+    q: every rod's inner nodes, rod by rod (six rows each: displacement, m, and small
+    rotation, rad, world), then the platform's origin (its displacement and its small
+    rotation, the last six rows: ``platform_rows``). A rod's tip is no coordinate: it moves
+    with the platform. u: changes of every rod's pressures (Pa), then of every rod's
+    tendon tensions (N), then of the platform's force (N) and moment (N m), named in
+    ``input_names`` (rod0_p0 ..., rod0_t0 ..., F_x ... M_z). ``nodes``: the arc lengths of
+    each rod's nodes (one array per rod, m). ``equilibrium`` is the system's solution it
+    was taken at.
+    """
+
+    system: Any
+    nodes: tuple[np.ndarray, ...]
+    mass: np.ndarray
+    damping: np.ndarray
+    stiffness: np.ndarray
+    input: np.ndarray
+    input_names: tuple[str, ...]
+    equilibrium: Any = field(repr=False)
+
+    @property
+    def platform_rows(self) -> slice:
+        """Rows of q holding the platform's displacement and small rotation."""
+        n = self.mass.shape[0]
+        return slice(n - 6, n)
+
+    def node_rows(self, x: np.ndarray, rod: int, node: int) -> np.ndarray:
+        """The six pose rows of node ``node`` of rod ``rod`` (indices, negative from the
+        end) of ``x``, a vector or matrix over q (its first axis)."""
+        nr = len(self.nodes)
+        i = V.integer(rod, "rod", minimum=-nr, maximum=nr - 1, hint=f" (the {nr} rods)") % nr
+        n = len(self.nodes[i])
+        k = V.integer(node, "node", minimum=-n, maximum=n - 1, hint=f" (rod {i}'s {n} nodes)") % n
+        x = _over_q(self, x)
+        start = 6 * (sum(len(v) for v in self.nodes[:i]) + k)
+        return x[start : start + 6]
+
+    def frequency_response(
+        self, omega: float, *, rod: int | None = None, node: int = -1
+    ) -> np.ndarray:
+        """The platform's pose (6 rows) per unit input at angular frequency ``omega``
+        (rad/s): T (K - w^2 M + i w D)^-1 B. ``rod`` (and ``node``, default its last): the
+        pose of that rod's node instead."""
+        response = self._response(omega)
+        if rod is None:
+            return response[self.platform_rows]
+        return self.node_rows(response, rod, node)
+
+    def modes(self, count: int | None = None) -> Modes:
+        """The ``count`` lowest modes (default all). ``shapes`` (k, points, 6) has a row per
+        node, rod by rod, then the platform's (its origin), and ``nodes`` the arc length of
+        each of those rows (m), NaN for the platform's."""
+        rows_of = [
+            (lambda x, i=i, k=k: self.node_rows(x, i, k))
+            for i, v in enumerate(self.nodes)
+            for k in range(len(v))
+        ]
+        rows_of.append(lambda x: _over_q(self, x)[self.platform_rows])
+        nodes = np.concatenate([*self.nodes, [np.nan]])
+        return _modes(self, count, rows_of, nodes)
+
+
+def _over_q(system: _SecondOrder, x: np.ndarray) -> np.ndarray:
+    """``x`` as an array whose first axis runs over q; InputError naming ``x`` otherwise."""
+    x = np.asarray(x)
+    if x.shape[:1] != system.mass.shape[:1]:
+        raise design_error(
+            "x",
+            f"shape {x.shape}",
+            f"must run over the {system.mass.shape[0]} coordinates of q along its first axis",
+            InputError,
+        )
+    return x

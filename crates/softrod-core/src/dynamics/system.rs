@@ -881,7 +881,7 @@ const SYSTEM_STATE_VERSION: f64 = 2.0;
 /// First number of a saved system state ("softsys" in a number).
 const SYSTEM_STATE_MAGIC: f64 = 50_770_219.0;
 
-fn check_inertia(j: &[[f64; 3]; 3]) -> Result<()> {
+pub(crate) fn check_inertia(j: &[[f64; 3]; 3]) -> Result<()> {
     for (i, row) in j.iter().enumerate() {
         for (k, v) in row.iter().enumerate() {
             if !v.is_finite() {

@@ -26,8 +26,8 @@ use super::{dual_coeffs_from, Input};
 use crate::error::{Result, SoftrodError};
 use crate::jet::Jet;
 use crate::ode::integrate;
-use crate::sensitivity::system::system_tangent;
 use crate::statics::system::{Platform, SystemRod, SystemSolution};
+use crate::statics::tangent::{singular_jacobian, solve_tangent, system_tangent};
 use nalgebra::DVector;
 
 /// An input of a system a derivative is taken with respect to.
@@ -48,7 +48,7 @@ pub enum SystemInput {
 
 impl SystemInput {
     /// The rod this input acts on and its input in that rod's terms (None: the platform).
-    fn on_rod(&self) -> Option<(usize, Input)> {
+    pub(crate) fn on_rod(&self) -> Option<(usize, Input)> {
         match *self {
             SystemInput::Pressure { rod, channel } => Some((rod, Input::Pressure(channel))),
             SystemInput::Tension { rod, channel } => Some((rod, Input::Tension(channel))),
@@ -178,15 +178,14 @@ pub fn system_jacobian(
     };
     for column in &d_res {
         let rhs = DVector::from_fn(dim, |r, _| -column[r]);
-        let dx = lu
-            .solve(&rhs)
-            .filter(|d| d.iter().all(|v| v.is_finite()))
-            .ok_or_else(|| SoftrodError::NotConverged {
-                iterations: sol.iterations,
-                residual: sol.residual,
-                load_factor: 1.0,
-                reason: "the system's Jacobian is singular at this equilibrium (a limit point), so its derivatives are undefined".into(),
-            })?;
+        let dx = solve_tangent(&lu, &rhs, || {
+            singular_jacobian(
+                sol.iterations,
+                sol.residual,
+                "the system's Jacobian",
+                "derivatives",
+            )
+        })?;
         out.d_position
             .push(std::array::from_fn(|c| dx[6 * n + c] * level.ls));
         out.d_rotation

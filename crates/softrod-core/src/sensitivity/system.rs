@@ -25,10 +25,10 @@ use crate::error::{Result, SoftrodError};
 use crate::jet::Jet;
 use crate::marker::Marker;
 use crate::ode::Coeffs;
-use crate::statics::system::{validate, Level, Platform, SystemRod, SystemSolution};
+use crate::statics::system::{Platform, SystemRod, SystemSolution};
+use crate::statics::tangent::{singular_jacobian, solve_tangent, system_tangent, system_unknowns};
 use crate::statics::Problem;
-use nalgebra::linalg::LU;
-use nalgebra::{DVector, Dyn};
+use nalgebra::DVector;
 
 /// One calibration parameter of a system.
 #[derive(Debug, Clone, PartialEq)]
@@ -201,22 +201,6 @@ pub fn locate_system_markers(
         .collect()
 }
 
-/// The unknowns of `sol` checked against the system.
-pub(crate) fn system_unknowns<'s>(
-    rods: &[SystemRod],
-    sol: &'s SystemSolution,
-) -> Result<&'s [f64]> {
-    let n = rods.len();
-    if sol.x.len() != 6 * n + 6 || sol.rods.len() != n {
-        return Err(SoftrodError::invalid(
-            "solution",
-            format!("{} unknowns", sol.x.len()),
-            format!("is not a solution of this system of {n} rods (6 unknowns per rod and the platform's 6)"),
-        ));
-    }
-    Ok(&sol.x)
-}
-
 /// The rods' markers of `markers`, rod by rod: (index in `markers`, its place).
 fn rod_markers(n: usize, markers: &[SystemMarkerAt]) -> Vec<(Vec<usize>, Vec<MarkerAt>)> {
     let mut out = vec![(vec![], vec![]); n];
@@ -227,36 +211,6 @@ fn rod_markers(n: usize, markers: &[SystemMarkerAt]) -> Vec<(Vec<usize>, Vec<Mar
         }
     }
     out
-}
-
-/// What the implicit differentiation of a converged frictionless system starts from: its
-/// level under the full loads, its unknowns and the LU factors of the exact Jacobian Newton
-/// uses. A frictional equilibrium is refused (`why`: what its derivatives would depend on).
-#[allow(clippy::type_complexity)]
-pub(crate) fn system_tangent<'a, 's>(
-    rods: &'a [SystemRod<'_>],
-    platform: &Platform,
-    sol: &'s SystemSolution,
-    why: &str,
-) -> Result<(Level<'a>, &'s [f64], LU<f64, Dyn, Dyn>)> {
-    validate(rods, platform)?;
-    let x = system_unknowns(rods, sol)?;
-    if sol.friction.is_some() {
-        return Err(SoftrodError::invalid(
-            "solution",
-            "a frictional equilibrium",
-            format!("friction makes the equilibrium depend on its load path, {why}"),
-        ));
-    }
-    let level = Level::full(
-        rods,
-        platform,
-        rods.iter()
-            .map(|r| Problem::new(r.rod, &r.loads, 1.0))
-            .collect(),
-    );
-    let (_, jac) = level.jacobian(x, None);
-    Ok((level, x, jac.lu()))
 }
 
 /// Positions of the markers of a converged system (world frame, m).
@@ -394,15 +348,14 @@ pub fn system_sensitivity(
         dres[6 * n..].copy_from_slice(&level.balance_rows(&f, &m));
         for q in 0..chunk.len() {
             let rhs = DVector::from_fn(dim, |i, _| -dres[i].eps[q]);
-            let dx = lu
-                .solve(&rhs)
-                .filter(|d| d.iter().all(|v| v.is_finite()))
-                .ok_or_else(|| SoftrodError::NotConverged {
-                    iterations: sol.iterations,
-                    residual: sol.residual,
-                    load_factor: 1.0,
-                    reason: "the system's Jacobian is singular at this equilibrium, so its parameter derivatives are undefined".into(),
-                })?;
+            let dx = solve_tangent(&lu, &rhs, || {
+                singular_jacobian(
+                    sol.iterations,
+                    sol.residual,
+                    "the system's Jacobian",
+                    "parameter derivatives",
+                )
+            })?;
             let dp: [f64; 3] = std::array::from_fn(|k| dx[6 * n + k] * level.ls);
             let psi = [dx[6 * n + 3], dx[6 * n + 4], dx[6 * n + 5]];
             let spin = |v: &[f64; 3]| -> [f64; 3] {

@@ -36,6 +36,7 @@ pub mod constraint;
 pub mod contact;
 pub mod friction;
 pub mod system;
+pub(crate) mod tangent;
 
 use crate::error::{Result, SoftrodError};
 use crate::jet::{Jet, RodScalar};
