@@ -22,9 +22,9 @@
 3. **Jacobians and linearisations** (no target; what they cost): `StaticSolution.jacobian()`
    of a free tip and of a tip clamped 6 mm aside of it (the reaction's derivatives too),
    `SystemSolution.jacobian()` of the bundled two-rod platform (six pressures and the
-   platform's load), and `linearise` with a free tip (12 nodes) and a clamped one (11
-   nodes), the last two from a solved equilibrium. Median wall time of repeated calls, one
-   core.
+   platform's load), `linearise` with a free tip (12 nodes), a clamped one (11 nodes) and a
+   pinned one (12 nodes), from a solved equilibrium, and `SystemSolution.linearise()` of
+   the two-rod platform (8 nodes per rod). Median wall time of repeated calls, one core.
 
 The machine's load average before and after is recorded: on a shared machine wall times
 stretch with the load, CPU times much less.
@@ -143,6 +143,8 @@ def _derivatives(design, calls: int) -> dict:
     free = softrod.solve_statics(design, p)
     clamp = softrod.TipConstraint.clamped(free.tip_position + [0.006, 0, 0], free.tip_rotation)
     held = softrod.solve_statics(design, p, tip_constraint=clamp)
+    pin = softrod.TipConstraint.pinned(free.tip_position + [0.006, 0, 0])
+    pinned = softrod.solve_statics(design, p, tip_constraint=pin)
     pcr = softrod.solve_system("two_spa_platform", [[20e3, 5e3, 3e3], [2e3, 15e3, 10e3]])
 
     def timed(fn, n: int) -> float:
@@ -163,6 +165,10 @@ def _derivatives(design, calls: int) -> dict:
         "linearise_clamped_11_nodes_ms": timed(
             lambda: softrod.linearise(held, nodes=11), calls // 5
         ),
+        "linearise_pinned_12_nodes_ms": timed(
+            lambda: softrod.linearise(pinned, nodes=12), calls // 5
+        ),
+        "system_linearise_8_nodes_ms": timed(lambda: pcr.linearise(nodes=8), calls // 5),
     }
 
 

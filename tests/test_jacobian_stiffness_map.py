@@ -16,6 +16,7 @@ from softrod import (
     SolverOptions,
     StiffnessMap,
     TipConstraint,
+    linearise,
     load_design,
     solve_statics,
 )
@@ -236,3 +237,46 @@ def test_mapped_jacobian_refuses_without_a_derivative_or_the_map():
     with pytest.raises(InputError) as info:
         bare.jacobian()
     assert info.value.field == "solution.stiffness_map"
+
+
+@pytest.mark.parametrize("tip", ["free", "clamped"])
+def test_mapped_linearisation_carries_the_maps_part(tip):
+    """softrod.linearise of a mapped design: the static response K^-1 B at every node is the
+    mapped equilibrium's pressure Jacobian there (with d sigma / d p; checked against whole
+    solves above). Two exact derivatives of one equilibrium: 1e-6 of the column."""
+    design = mapped_spa()
+    axes, values = smooth_table()
+    smap = StiffnessMap.from_table(axes, values)
+    held = None
+    if tip == "clamped":
+        free = solve_statics(design, P, stiffness_map=smap, options=OPTS)
+        held = TipConstraint.clamped(
+            free.tip_position + np.array([0.006, 0.0, 0.0]), free.tip_rotation
+        )
+    sol = solve_statics(design, P, stiffness_map=smap, tip_constraint=held, options=OPTS)
+    lin = linearise(sol, nodes=5)
+    assert lin.input.shape[1] == len(lin.input_names)
+    response = np.linalg.solve(lin.stiffness, lin.input)
+    for k, s in enumerate(lin.nodes):
+        jac = sol.jacobian(point=float(s))
+        rows = lin.node_rows(response, k)
+        for c in range(3):
+            scale = np.linalg.norm(jac.pressures[:, c])
+            assert np.linalg.norm(rows[:, c] - jac.pressures[:, c]) < 1e-6 * scale
+    # The same from the design and its map.
+    again = linearise(design, P, nodes=5, stiffness_map=smap, tip_constraint=held)
+    np.testing.assert_allclose(
+        again.input, lin.input, rtol=1e-6, atol=1e-9 * np.abs(lin.input).max()
+    )
+
+
+def test_mapped_linearisation_refuses_without_the_map():
+    design = mapped_spa()
+    axes, values = smooth_table()
+    sol = solve_statics(design, P, stiffness_map=StiffnessMap.from_table(axes, values))
+    with pytest.raises(InputError) as info:
+        linearise(dataclasses.replace(sol, stiffness_map=None), nodes=4)
+    assert info.value.field == "solution.stiffness_map"
+    with pytest.raises(InputError) as info:
+        linearise(design, P, nodes=4)  # a mapped design without a map: sigma is never 1
+    assert info.value.field == "stiffness_map"

@@ -396,6 +396,7 @@ def linearise_at(
     tip_kind: str = "free",
     tip_position: _Vec3 | None = None,
     tip_rotation: Sequence[Sequence[float]] | None = None,
+    stiffness_scale: _Vec3 | None = None,
 ) -> dict[str, Any]: ...
 def solve_constrained_tip(
     rod: Rod,

@@ -65,7 +65,9 @@ pub struct LinearSystem {
     pub damping: DMatrix<f64>,
     pub stiffness: DMatrix<f64>,
     /// Columns: pressures (Pa, one per channel), tip force (N, x y z), tip moment (N m),
-    /// tensions (N, one per tendon channel).
+    /// tensions (N, one per tendon channel), and for a rod with a stiffness-mapped section
+    /// its factors sigma (1; at fixed pressures: the caller adds them times d sigma / d p to
+    /// the pressures' columns).
     pub input: DMatrix<f64>,
 }
 
@@ -597,9 +599,10 @@ fn damping_matrix(rod: &Rod, c: &Coeffs<f64>, sec: usize, s: f64, tau: f64) -> D
     b
 }
 
-/// Columns of B: K dq/dp for the pressures and the tensions; unit generalised forces at the
-/// tip node for the tip force and moment (zero for a clamped tip: the clamp takes them; a
-/// pin takes the force). Column order: pressures, tip force, tip moment, tensions.
+/// Columns of B: K dq/dp for the pressures, the tensions and a mapped rod's factors sigma;
+/// unit generalised forces at the tip node for the tip force and moment (zero for a clamped
+/// tip: the clamp takes them; a pin takes the force). Column order: pressures, tip force,
+/// tip moment, tensions, sigma (three, for a rod with a stiffness-mapped section).
 #[allow(clippy::too_many_arguments)]
 fn input_matrix<const N: usize>(
     rod: &Rod,
@@ -612,19 +615,28 @@ fn input_matrix<const N: usize>(
     tip: Tip,
 ) -> Result<DMatrix<f64>> {
     let (nc, nt) = (rod.n_channels, rod.n_tendons);
+    // A stiffness-mapped rod's factors sigma: the caller composes them with its map's
+    // d sigma / d p (the pressures' columns are partial derivatives at fixed sigma).
+    let ns = if rod.sections.iter().any(|s| s.law.stiffness_map) {
+        3
+    } else {
+        0
+    };
     let nx = tip.unknowns();
     let nq = layout.size;
-    // dq per input: the pressures, then the tensions.
-    let mut dq = DMatrix::<f64>::zeros(nq, nc + nt);
+    // dq per input: the pressures, the tensions, the factors sigma.
+    let mut dq = DMatrix::<f64>::zeros(nq, nc + nt + ns);
     let problem = Problem::new(rod, loads, 1.0);
     let input = |u: usize| {
         if u < nc {
             Input::Pressure(u)
-        } else {
+        } else if u < nc + nt {
             Input::Tension(u - nc)
+        } else {
+            Input::StiffnessScale(u - nc - nt)
         }
     };
-    for chunk in (0..nc + nt).collect::<Vec<_>>().chunks(6) {
+    for chunk in (0..nc + nt + ns).collect::<Vec<_>>().chunks(6) {
         let inputs: Vec<Input> = chunk.iter().map(|&u| input(u)).collect();
         let coeffs = dual_coeffs_from::<N>(rod, loads, &inputs, nx);
         let xd: Vec<Jet<N>> = x
@@ -659,12 +671,12 @@ fn input_matrix<const N: usize>(
         }
     }
     let bp = stiffness * dq;
-    let mut b = DMatrix::<f64>::zeros(nq, nc + 6 + nt);
+    let mut b = DMatrix::<f64>::zeros(nq, nc + 6 + nt + ns);
     for r in 0..nq {
         for c in 0..nc {
             b[(r, c)] = bp[(r, c)];
         }
-        for t in 0..nt {
+        for t in 0..nt + ns {
             b[(r, nc + 6 + t)] = bp[(r, nc + t)];
         }
     }

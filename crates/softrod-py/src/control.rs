@@ -1,8 +1,8 @@
 //! Binding of the control tools of the core (`softrod_core::{inverse, jacobian, linearise}`):
 //! type conversion and error mapping only.
 
-use crate::{guarded, options, to_py_err, Context, PyRod};
-use numpy::{PyArray1, PyArrayMethods};
+use crate::{guarded, matrix, options, to_py_err, Context, PyRod};
+use numpy::PyArray1;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use softrod_core::inverse::{solve_inverse, InverseOptions, InverseTarget, WarmStart};
@@ -14,18 +14,6 @@ use softrod_core::statics;
 use softrod_core::statics::constraint::{solve_constrained, TipConstraint};
 use softrod_core::{Rod, SoftrodError};
 use std::sync::Mutex;
-
-pub(crate) fn matrix<'py>(
-    py: Python<'py>,
-    m: &nalgebra::DMatrix<f64>,
-) -> PyResult<Bound<'py, PyAny>> {
-    // nalgebra is column-major; numpy wants rows.
-    let (r, c) = m.shape();
-    let flat: Vec<f64> = (0..r)
-        .flat_map(|i| (0..c).map(move |j| m[(i, j)]))
-        .collect();
-    Ok(PyArray1::from_vec(py, flat).reshape([r, c])?.into_any())
-}
 
 /// An inverse problem of one design with fixed bounds, weights, point and tip loads, solved
 /// for a target at a time (GIL released). See `softrod.InverseProblem`.
@@ -377,9 +365,11 @@ pub fn point_jacobian_of<'py>(
 /// `x`) with `nodes` nodes: dict of mass, damping, stiffness, input (numpy) and nodes (m).
 /// `tip_kind` "clamped" or "pinned" (with `tip_position`, and `tip_rotation` for a clamp)
 /// linearises the equilibrium with the tip held there (`linearise::linearise_held`: a
-/// clamped tip is no coordinate, a pinned one keeps its rotation).
+/// clamped tip is no coordinate, a pinned one keeps its rotation). `stiffness_scale`: sigma
+/// of a stiffness-mapped design (required there; its input has three more columns, d / d
+/// sigma).
 #[pyfunction]
-#[pyo3(signature = (rod, pressures, tip_force, tip_moment, x, nodes, tensions=None, tip_kind="free", tip_position=None, tip_rotation=None))]
+#[pyo3(signature = (rod, pressures, tip_force, tip_moment, x, nodes, tensions=None, tip_kind="free", tip_position=None, tip_rotation=None, stiffness_scale=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn linearise_at<'py>(
     py: Python<'py>,
@@ -393,28 +383,25 @@ pub fn linearise_at<'py>(
     tip_kind: &str,
     tip_position: Option<[f64; 3]>,
     tip_rotation: Option<[[f64; 3]; 3]>,
+    stiffness_scale: Option<[f64; 3]>,
 ) -> PyResult<Bound<'py, PyDict>> {
     guarded(py, || {
         let held = crate::ends::constraint(py, tip_kind, tip_position, tip_rotation)?;
         let rod = &rod.rod;
         let checked = options(py, 1e-10, 25, true, 200, (1.0 / 3.0, 3.0), "ignore")?;
+        let sigma =
+            softrod_core::statics::system::lone_sigma("stiffness_scale", rod, stiffness_scale)
+                .map_err(|e| to_py_err(py, e, Context::Input))?;
         let loads = Loads {
             pressures,
             tip_force,
             tip_moment,
-            stiffness_scale: [1.0; 3],
+            stiffness_scale: sigma,
             tensions: tensions.unwrap_or_else(|| vec![0.0; rod.n_tendons]),
             tip_frame: rod.spec.tip.frame,
         };
         let result = py.detach(|| -> softrod_core::Result<_> {
             rod.check_tensions(&loads.tensions)?;
-            if rod.sections.iter().any(|s| s.law.stiffness_map) {
-                return Err(SoftrodError::invalid(
-                    "design",
-                    &rod.spec.name,
-                    "has sections with law.stiffness_map: its sigma(p) is evaluated outside the core, so the linearisation is not available",
-                ));
-            }
             if let TipConstraint::Free = held {
                 let sol = statics::solve(rod, &loads, x.as_deref(), &checked)?;
                 let sys = linearise(rod, &loads, &sol, nodes)?;

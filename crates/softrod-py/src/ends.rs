@@ -471,10 +471,10 @@ fn system_linearise_of<'py>(
             })
             .map_err(input)?;
         let d = PyDict::new(py);
-        d.set_item("mass", crate::control::matrix(py, &lin.mass)?)?;
-        d.set_item("damping", crate::control::matrix(py, &lin.damping)?)?;
-        d.set_item("stiffness", crate::control::matrix(py, &lin.stiffness)?)?;
-        d.set_item("input", crate::control::matrix(py, &lin.input)?)?;
+        d.set_item("mass", crate::matrix(py, &lin.mass)?)?;
+        d.set_item("damping", crate::matrix(py, &lin.damping)?)?;
+        d.set_item("stiffness", crate::matrix(py, &lin.stiffness)?)?;
+        d.set_item("input", crate::matrix(py, &lin.input)?)?;
         let per_rod: Vec<Bound<'py, PyArray1<f64>>> = lin
             .nodes
             .into_iter()

@@ -211,6 +211,19 @@ fn parse_spec(py: Python<'_>, spec_json: &str) -> PyResult<DesignSpec> {
     })
 }
 
+/// A matrix as a (rows, columns) numpy array.
+pub(crate) fn matrix<'py>(
+    py: Python<'py>,
+    m: &nalgebra::DMatrix<f64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    // nalgebra is column-major; numpy wants rows.
+    let (r, c) = m.shape();
+    let flat: Vec<f64> = (0..r)
+        .flat_map(|i| (0..c).map(move |j| m[(i, j)]))
+        .collect();
+    Ok(PyArray1::from_vec(py, flat).reshape([r, c])?.into_any())
+}
+
 pub(crate) fn array2<'py>(py: Python<'py>, rows: &[[f64; 3]]) -> PyResult<Bound<'py, PyAny>> {
     let flat: Vec<f64> = rows.iter().flatten().copied().collect();
     Ok(PyArray1::from_vec(py, flat)

@@ -28,6 +28,7 @@ from ..constraints import TipConstraint
 from ..design import Design
 from ..errors import InputError, design_error
 from ..solution import Jacobian, StaticSolution
+from ..stiffness_map import StiffnessMap
 
 __all__ = ["Jacobian", "LinearSystem", "Modes", "SystemLinearSystem", "jacobian", "linearise"]
 
@@ -256,6 +257,7 @@ def linearise(
     initial: StaticSolution | None = None,
     tensions: ArrayLike | None = None,
     tip_constraint: TipConstraint | str | dict | None = None,
+    stiffness_map: StiffnessMap | None = None,
 ) -> LinearSystem:
     """The linearised dynamics of ``design`` about its equilibrium under ``pressures`` (Pa;
     default zero), the tendon ``tensions`` (N; default slack) and the tip loads (default the
@@ -266,7 +268,9 @@ def linearise(
     held equilibrium: a clamped tip does not move, so it is no coordinate (the nodes spread
     between the clamps, and a tip load's input columns are zero); a pinned tip keeps its
     three small rotations as coordinates (its displacement rows are not in q, and the tip
-    force's input columns are zero)."""
+    force's input columns are zero). ``stiffness_map``: as in :func:`solve_statics`, for a
+    design with a stiffness-mapped section (default the design's map); its pressure
+    columns then carry the map's part, d sigma / d p (the map must give a derivative)."""
     from ..statics import _pressures, _vec3, solve_statics
 
     if isinstance(design, StaticSolution):
@@ -279,7 +283,13 @@ def linearise(
         tf = _vec3(tip_force, "force", "tip_force", tip["force"])
         tm = _vec3(tip_moment, "moment", "tip_moment", tip["moment"])
         initial = solve_statics(
-            design, p, tip_force=tf, tip_moment=tm, tensions=tensions, tip_constraint=tip_constraint
+            design,
+            p,
+            tip_force=tf,
+            tip_moment=tm,
+            tensions=tensions,
+            tip_constraint=tip_constraint,
+            stiffness_map=stiffness_map,
         )
         t = [float(v) for v in initial.tensions]
     else:
@@ -303,6 +313,7 @@ def linearise(
             "tip_force": tip_force,
             "tip_moment": tip_moment,
             "tip_constraint": tip_constraint,
+            "stiffness_map": stiffness_map,
         }
         for name, value in given.items():
             if value is not None:
@@ -318,6 +329,9 @@ def linearise(
         tf = [float(v) for v in initial._tip_load("force")]
         tm = [float(v) for v in initial._tip_load("moment")]
     held = initial._held_args("initial", "linearisation")
+    dsigma = initial._stiffness_map_derivative()  # before any work: refused without one
+    if dsigma is not None:
+        held["stiffness_scale"] = [float(v) for v in initial.stiffness_scale]
     out = _core.linearise_at(
         design._rod,
         p,
@@ -333,6 +347,13 @@ def linearise(
         + INPUT_NAMES_LOADS
         + tuple(f"t{k}" for k in range(design.n_tendons))
     )
+    b = np.asarray(out["input"])
+    if dsigma is not None:
+        # sigma(p) moves with the pressures: the core's last three columns are d / d sigma
+        # at fixed pressures; add them times d sigma / d p to the pressures' columns.
+        nc = design.n_channels
+        b[:, :nc] += b[:, len(names) :] @ dsigma
+        b = b[:, : len(names)].copy()
     return LinearSystem(
         design=design,
         pressures=np.array(p),
@@ -340,7 +361,7 @@ def linearise(
         mass=out["mass"],
         damping=out["damping"],
         stiffness=out["stiffness"],
-        input=out["input"],
+        input=b,
         input_names=names,
         equilibrium=initial,
         tip_constraint=initial.tip_constraint,
