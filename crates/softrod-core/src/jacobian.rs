@@ -364,6 +364,22 @@ pub(crate) fn singular(sol: &Solution) -> SoftrodError {
     )
 }
 
+/// Pose (dr, dtheta) derivative of a state with respect to the directions, given the
+/// rotation's value: dtheta from [dtheta]x = dR R^T.
+pub(crate) fn pose_derivative<const N: usize>(y: &State<Jet<N>>, dir: usize) -> [f64; 6] {
+    let rot: [[f64; 3]; 3] = y.rot.map(|r| r.map(|v| v.re));
+    let d_rot: [[f64; 3]; 3] = y.rot.map(|r| r.map(|v| v.eps[dir]));
+    let w = small_rotation(&rot, &d_rot);
+    [
+        y.r[0].eps[dir],
+        y.r[1].eps[dir],
+        y.r[2].eps[dir],
+        w[0],
+        w[1],
+        w[2],
+    ]
+}
+
 /// The small rotation w (world) with d R = [w]x R, from d R and R: [w]x = dR R^T.
 pub fn small_rotation(rot: &[[f64; 3]; 3], d_rot: &[[f64; 3]; 3]) -> [f64; 3] {
     let w = |i: usize, j: usize| -> f64 { (0..3).map(|k| d_rot[i][k] * rot[j][k]).sum() };

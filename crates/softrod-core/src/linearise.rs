@@ -43,7 +43,7 @@ pub mod system;
 
 use crate::dynamics::section_inertia_at;
 use crate::error::{Result, SoftrodError};
-use crate::jacobian::{dual_coeffs_from, singular, Input};
+use crate::jacobian::{dual_coeffs_from, pose_derivative, singular, Input};
 use crate::jet::Jet;
 use crate::ode::{advance, integrate_with, resolve_stretch, strains, Coeffs, Loads, NodeAt, State};
 use crate::rod::{inverse3, Rod, Section};
@@ -303,22 +303,6 @@ fn load_pass<const N: usize>(
     (end, intervals)
 }
 
-/// Pose (dr, dtheta) derivative of a state with respect to the directions, given the
-/// rotation's value: dtheta from [dtheta]x = dR R^T.
-fn pose6<const N: usize>(y: &State<Jet<N>>, dir: usize) -> [f64; 6] {
-    let rot: [[f64; 3]; 3] = y.rot.map(|r| r.map(|v| v.re));
-    let d_rot: [[f64; 3]; 3] = y.rot.map(|r| r.map(|v| v.eps[dir]));
-    let w = crate::jacobian::small_rotation(&rot, &d_rot);
-    [
-        y.r[0].eps[dir],
-        y.r[1].eps[dir],
-        y.r[2].eps[dir],
-        w[0],
-        w[1],
-        w[2],
-    ]
-}
-
 /// Linearise the dynamics at the converged equilibrium `sol` of `loads` with `n_nodes`
 /// nodes (see the module docs).
 pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Result<LinearSystem> {
@@ -427,7 +411,7 @@ fn linearise_at_nodes<const N: usize>(
                 (&iv.end, &iv.strain_b),
             ];
             for (e, (st, sn)) in ends.iter().enumerate() {
-                let dpose = total6(&|dir| pose6(st, dir));
+                let dpose = total6(&|dir| pose_derivative(st, dir));
                 let dstrain = total6(&|dir| std::array::from_fn(|r| sn[r].eps[dir]));
                 for (_, j, col) in layout.coordinates().filter(|c| c.0 == k) {
                     for r in 0..6 {
@@ -662,8 +646,8 @@ fn input_matrix<const N: usize>(
             let rhs = DVector::from_fn(nx, |i, _| -g[i].eps[nx + q]);
             let dx = solve_tangent(&lu, &rhs, || singular(sol))?;
             for (a, st) in at_nodes.iter().enumerate() {
-                let p = pose6(st, nx + q);
-                let px: Vec<[f64; 6]> = (0..nx).map(|i| pose6(st, i)).collect();
+                let p = pose_derivative(st, nx + q);
+                let px: Vec<[f64; 6]> = (0..nx).map(|i| pose_derivative(st, i)).collect();
                 for (_, r, row) in layout.coordinates().filter(|c| c.0 == a) {
                     dq[(row, c)] = p[r] + (0..nx).map(|i| px[i][r] * dx[i]).sum::<f64>();
                 }

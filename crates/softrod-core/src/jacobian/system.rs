@@ -22,13 +22,13 @@
 //! A frictional equilibrium is refused: it depends on its load path, and the return map's
 //! stick/slip switch has no derivative there.
 
-use super::{dual_coeffs_from, Input};
+use super::{dual_coeffs_from, pose_derivative, Input};
 use crate::error::{Result, SoftrodError};
 use crate::jet::Jet;
-use crate::ode::integrate;
-use crate::statics::system::{Platform, SystemRod, SystemSolution};
+use crate::ode::{integrate_with, NodeAt, State};
+use crate::statics::system::{Level, Platform, SystemRod, SystemSolution};
 use crate::statics::tangent::{singular_jacobian, solve_tangent, system_tangent};
-use nalgebra::DVector;
+use nalgebra::DMatrix;
 
 /// An input of a system a derivative is taken with respect to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -128,46 +128,9 @@ pub fn system_jacobian(
         "and the stick/slip switch has no derivative: its Jacobian is not defined (obstacles without friction have one)",
     )?;
     let n = rods.len();
-    let dim = 6 * n + 6;
     let (p0, r0) = level.platform(x);
-    // d_a R, one column per input.
-    let mut d_res = vec![vec![0.0; dim]; inputs.len()];
-    for (k, a) in inputs.iter().enumerate() {
-        let unit = |j: usize| -> [f64; 3] { std::array::from_fn(|c| f64::from(c == j)) };
-        let rows = match *a {
-            SystemInput::PlatformForce(j) => level.balance_rows(&unit(j), &[0.0; 3]),
-            SystemInput::PlatformMoment(j) => level.balance_rows(&[0.0; 3], &unit(j)),
-            _ => continue,
-        };
-        d_res[k][6 * n..].copy_from_slice(&rows);
-    }
-    let pd = p0.map(Jet::<CHUNK>::from);
-    let rd = r0.map(|row| row.map(Jet::<CHUNK>::from));
-    for (i, sr) in rods.iter().enumerate() {
-        let mine: Vec<(usize, Input)> = inputs
-            .iter()
-            .enumerate()
-            .filter_map(|(k, a)| match a.on_rod() {
-                Some((r, input)) if r == i => Some((k, input)),
-                _ => None,
-            })
-            .collect();
-        let pr = &level.problems[i];
-        for chunk in mine.chunks(CHUNK) {
-            let chunk_inputs: Vec<Input> = chunk.iter().map(|(_, a)| *a).collect();
-            let coeffs = dual_coeffs_from::<CHUNK>(sr.rod, &sr.loads, &chunk_inputs, 0);
-            let xi: Vec<Jet<CHUNK>> = x[6 * i..6 * i + 6].iter().map(|v| Jet::from(*v)).collect();
-            let tip = integrate(sr.rod, &coeffs, pr.base_state(&xi), None);
-            let (rows, f, m) = level.rod_terms(i, &tip, &pd, &rd);
-            let balance = level.balance_rows(&f, &m);
-            for (q, (k, _)) in chunk.iter().enumerate() {
-                for r in 0..6 {
-                    d_res[*k][6 * i + r] = rows[r].eps[q];
-                    d_res[*k][6 * n + r] = balance[r].eps[q];
-                }
-            }
-        }
-    }
+    let no_nodes = vec![vec![]; n];
+    let (d_res, _) = input_residuals(rods, &level, x, inputs, &no_nodes);
     let mut out = SystemJacobian {
         position: p0,
         rotation: r0,
@@ -176,8 +139,8 @@ pub fn system_jacobian(
         d_base_force: Vec::with_capacity(inputs.len()),
         d_base_moment: Vec::with_capacity(inputs.len()),
     };
-    for column in &d_res {
-        let rhs = DVector::from_fn(dim, |r, _| -column[r]);
+    for column in d_res.column_iter() {
+        let rhs = -column.into_owned();
         let dx = solve_tangent(&lu, &rhs, || {
             singular_jacobian(
                 sol.iterations,
@@ -205,4 +168,79 @@ pub fn system_jacobian(
         );
     }
     Ok(out)
+}
+
+/// What each input changes at fixed unknowns: its column of d_a R (the system residual,
+/// `dim` rows), and for a rod's input the pose derivatives (dr, dtheta) of that rod's states
+/// at its nodes `nodes[i]` (section, step, s) in that order (empty for a platform load). A
+/// rod's pressures and tensions enter its coefficients: one dual integration of that rod
+/// per chunk of its inputs (its six rows and its wrench on the platform, at the fixed
+/// platform pose); the platform's load enters the balance rows linearly.
+#[allow(clippy::type_complexity)]
+pub(crate) fn input_residuals(
+    rods: &[SystemRod],
+    level: &Level,
+    x: &[f64],
+    inputs: &[SystemInput],
+    nodes: &[Vec<(usize, usize, f64)>],
+) -> (DMatrix<f64>, Vec<Vec<[f64; 6]>>) {
+    let n = rods.len();
+    let (p0, r0) = level.platform(x);
+    let mut d_res = DMatrix::<f64>::zeros(6 * n + 6, inputs.len());
+    let mut at_nodes: Vec<Vec<[f64; 6]>> = vec![vec![]; inputs.len()];
+    for (k, a) in inputs.iter().enumerate() {
+        let unit = |j: usize| -> [f64; 3] { std::array::from_fn(|c| f64::from(c == j)) };
+        let rows = match *a {
+            SystemInput::PlatformForce(j) => level.balance_rows(&unit(j), &[0.0; 3]),
+            SystemInput::PlatformMoment(j) => level.balance_rows(&[0.0; 3], &unit(j)),
+            _ => continue,
+        };
+        for r in 0..6 {
+            d_res[(6 * n + r, k)] = rows[r];
+        }
+    }
+    let pd = p0.map(Jet::<CHUNK>::from);
+    let rd = r0.map(|row| row.map(Jet::<CHUNK>::from));
+    for (i, sr) in rods.iter().enumerate() {
+        let mine: Vec<(usize, Input)> = inputs
+            .iter()
+            .enumerate()
+            .filter_map(|(k, a)| match a.on_rod() {
+                Some((r, input)) if r == i => Some((k, input)),
+                _ => None,
+            })
+            .collect();
+        let pr = &level.problems[i];
+        for chunk in mine.chunks(CHUNK) {
+            let chunk_inputs: Vec<Input> = chunk.iter().map(|(_, a)| *a).collect();
+            let coeffs = dual_coeffs_from::<CHUNK>(sr.rod, &sr.loads, &chunk_inputs, 0);
+            let xi: Vec<Jet<CHUNK>> = x[6 * i..6 * i + 6].iter().map(|v| Jet::from(*v)).collect();
+            let mut states: Vec<State<Jet<CHUNK>>> = Vec::with_capacity(nodes[i].len());
+            let tip = integrate_with(
+                sr.rod,
+                &coeffs,
+                pr.base_state(&xi),
+                &mut |node: NodeAt, y| {
+                    if node.step > 0
+                        && nodes[i]
+                            .iter()
+                            .any(|nd| (nd.0, nd.1) == (node.section, node.step))
+                    {
+                        states.push(*y);
+                    }
+                    false
+                },
+            );
+            let (rows, f, m) = level.rod_terms(i, &tip, &pd, &rd);
+            let balance = level.balance_rows(&f, &m);
+            for (q, (k, _)) in chunk.iter().enumerate() {
+                for r in 0..6 {
+                    d_res[(6 * i + r, *k)] = rows[r].eps[q];
+                    d_res[(6 * n + r, *k)] = balance[r].eps[q];
+                }
+                at_nodes[*k] = states.iter().map(|st| pose_derivative(st, q)).collect();
+            }
+        }
+    }
+    (d_res, at_nodes)
 }

@@ -20,17 +20,17 @@
 //! platform.
 
 use super::{
-    choose_inner_nodes, interval_gram, load_pass, pose6, rigid_block, tip_body_block, Interval,
-    Meta,
+    choose_inner_nodes, interval_gram, load_pass, pose_derivative, rigid_block, tip_body_block,
+    Interval, Meta,
 };
 use crate::error::{Result, SoftrodError};
-use crate::jacobian::dual_coeffs_from;
-use crate::jacobian::system::{check_system_inputs, SystemInput};
+use crate::jacobian::system::{check_system_inputs, input_residuals, SystemInput};
 use crate::jet::Jet;
-use crate::ode::{integrate_with, NodeAt, State};
-use crate::statics::system::{Platform, SystemRod, SystemSolution};
+use crate::ode::State;
+use crate::statics::system::{Level, Platform, SystemRod, SystemSolution};
 use crate::statics::tangent::{singular_jacobian, solve_tangent, system_tangent};
-use nalgebra::{DMatrix, DVector, Matrix3};
+use nalgebra::linalg::LU;
+use nalgebra::{DMatrix, DVector, Dyn, Matrix3};
 
 /// The linearised system of rods and platform (SI). q = (rod 0's nodes, rod 1's, ..., the
 /// platform), 6 coordinates each.
@@ -72,7 +72,7 @@ fn end_derivatives(
     let mut p = DMatrix::zeros(6, k);
     let mut s = DMatrix::zeros(6, k);
     for (c, dir) in dirs.enumerate() {
-        let pose = pose6(st, dir);
+        let pose = pose_derivative(st, dir);
         for r in 0..6 {
             p[(r, c)] = pose[r];
             s[(r, c)] = strain[r].eps[dir];
@@ -332,94 +332,40 @@ pub fn linearise_system(
 }
 
 /// The static response dq/du of the coordinates to each input (B = K dq/du: the input's
-/// generalised load).
+/// generalised load): the input's own change of its rod's node poses
+/// (`jacobian::system::input_residuals`), plus every rod's shape change through its base
+/// unknowns and the platform's pose, by the implicit function theorem.
 #[allow(clippy::too_many_arguments)]
 fn input_columns(
     rods: &[SystemRod],
-    level: &crate::statics::system::Level,
+    level: &Level,
     x: &[f64],
     nodes: &[Vec<(usize, usize, f64)>],
     shapes: &[RodShapes],
     offsets: &[usize],
     inputs: &[SystemInput],
-    lu: &nalgebra::linalg::LU<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    lu: &LU<f64, Dyn, Dyn>,
     singular: impl Fn() -> SoftrodError + Copy,
 ) -> Result<DMatrix<f64>> {
-    const CHUNK: usize = 6;
     let n = rods.len();
-    let dim = 6 * n + 6;
     let nq = offsets[n - 1] + 6 * nodes[n - 1].len() + 6;
-    let (p0, r0) = level.platform(x);
-    let pd = p0.map(Jet::<CHUNK>::from);
-    let rd = r0.map(|row| row.map(Jet::<CHUNK>::from));
+    let (d_res, own) = input_residuals(rods, level, x, inputs, nodes);
     let mut dq = DMatrix::<f64>::zeros(nq, inputs.len());
-    // d_a R per input and the rod's own partials of its node poses.
-    let mut d_res = DMatrix::<f64>::zeros(dim, inputs.len());
     for (k, a) in inputs.iter().enumerate() {
-        let unit = |j: usize| -> [f64; 3] { std::array::from_fn(|c| f64::from(c == j)) };
-        let rows = match *a {
-            SystemInput::PlatformForce(j) => level.balance_rows(&unit(j), &[0.0; 3]),
-            SystemInput::PlatformMoment(j) => level.balance_rows(&[0.0; 3], &unit(j)),
-            _ => continue,
-        };
-        for r in 0..6 {
-            d_res[(6 * n + r, k)] = rows[r];
-        }
-    }
-    for (i, sr) in rods.iter().enumerate() {
-        let mine: Vec<(usize, crate::jacobian::Input)> = inputs
-            .iter()
-            .enumerate()
-            .filter_map(|(k, a)| match a.on_rod() {
-                Some((r, input)) if r == i => Some((k, input)),
-                _ => None,
-            })
-            .collect();
-        let pr = &level.problems[i];
-        for chunk in mine.chunks(CHUNK) {
-            let chunk_inputs: Vec<_> = chunk.iter().map(|(_, a)| *a).collect();
-            let coeffs = dual_coeffs_from::<CHUNK>(sr.rod, &sr.loads, &chunk_inputs, 0);
-            let xi: Vec<Jet<CHUNK>> = x[6 * i..6 * i + 6].iter().map(|v| Jet::from(*v)).collect();
-            let mut at_nodes: Vec<State<Jet<CHUNK>>> = Vec::with_capacity(nodes[i].len());
-            let tip = integrate_with(
-                sr.rod,
-                &coeffs,
-                pr.base_state(&xi),
-                &mut |node: NodeAt, y| {
-                    if node.step > 0
-                        && nodes[i]
-                            .iter()
-                            .any(|nd| (nd.0, nd.1) == (node.section, node.step))
-                    {
-                        at_nodes.push(*y);
-                    }
-                    false
-                },
-            );
-            let (rows, f, m) = level.rod_terms(i, &tip, &pd, &rd);
-            let balance = level.balance_rows(&f, &m);
-            for (q, (k, _)) in chunk.iter().enumerate() {
+        if let Some((i, _)) = a.on_rod() {
+            for (m, p) in own[k].iter().enumerate() {
                 for r in 0..6 {
-                    d_res[(6 * i + r, *k)] = rows[r].eps[q];
-                    d_res[(6 * n + r, *k)] = balance[r].eps[q];
-                }
-                for (a, st) in at_nodes.iter().enumerate() {
-                    let p = pose6(st, q);
-                    for r in 0..6 {
-                        dq[(offsets[i] + 6 * a + r, *k)] = p[r];
-                    }
+                    dq[(offsets[i] + 6 * m + r, k)] = p[r];
                 }
             }
         }
-    }
-    for k in 0..inputs.len() {
         let dx = solve_tangent(lu, &(-d_res.column(k).into_owned()), singular)?;
         for (i, sh) in shapes.iter().enumerate() {
             let dx_i = dx.rows(6 * i, 6);
-            for (a, &m) in sh.at_node.iter().enumerate() {
-                let d = &sh.pose_x[m][2] * dx_i;
+            for (m, &iv) in sh.at_node.iter().enumerate() {
+                let d = &sh.pose_x[iv][2] * dx_i;
                 for r in 0..6 {
-                    dq[(offsets[i] + 6 * a + r, k)] += d[r];
+                    dq[(offsets[i] + 6 * m + r, k)] += d[r];
                 }
             }
         }
