@@ -351,3 +351,36 @@ def test_compare_unknown_protocol(run):
     result = run("compare", "paper001")
     assert result.exit_code == 2
     assert "paper002" in result.stderr
+
+
+def test_modes_lists_the_linearisations_modes(run, tmp_path):
+    """``softrod modes``: the table, the JSON (the same numbers as softrod.linearise's modes)
+    and the written table; a pinned design file is linearised pinned."""
+    result = run("modes", SPA, "-p", "30kPa,5kPa,45kPa", "--count", 4)
+    assert result.exit_code == 0, result.output
+    assert "frequency (Hz)" in result.stdout and "tip free; 12 nodes" in result.stdout
+    result = run("modes", SPA, "-p", "30kPa,5kPa,45kPa", "--count", 4, "--nodes", 8, "--json")
+    out = json.loads(result.stdout)
+    want = softrod.linearise(SPA, [30e3, 5e3, 45e3], nodes=8).modes(4)
+    np.testing.assert_array_equal(out["frequency_Hz"], want.frequency)
+    assert out["tip_constraint"] == "free" and out["nodes"] == 8
+    path = tmp_path / "modes.csv"
+    assert run("modes", SPA, "--count", 3, "--output", path).exit_code == 0
+    frame = pd.read_csv(path)
+    assert list(frame.columns) == ["mode", "frequency_Hz", "damping_ratio", "damped_frequency_Hz"]
+    assert len(frame) == 3
+    design = softrod.load_design(SPA)
+    tip = solve_statics(design, [0, 0, 0]).tip_position * 1e3
+    pinned = design.replace(
+        {"tip": {"constraint": "pinned", "position": [f"{float(v)!r} mm" for v in tip]}}
+    )
+    file = pinned.save(tmp_path / "pinned.toml")
+    result = run("modes", file, "--count", 2, "--json")
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["tip_constraint"] == "pinned"
+
+
+def test_modes_refusals_name_the_option(run):
+    assert_clean_error(run("modes", SPA, "--count", 500), 2, "--count")
+    assert_clean_error(run("modes", SPA, "-p", "30kPa,0"), 2, "--pressure")
+    assert_clean_error(run("modes", SPA, "--nodes", 0), 2, "--nodes")

@@ -7,7 +7,7 @@ design or a system in the browser, invert statics, map the workspace and track a
 One module per command group: ``statics`` (solve, sweep, demo), ``compare``, ``calibrate``
 (calibrate, calibrate-axial, calibrate-system, identify), ``simulate``, ``system``
 (solve-system, simulate-system), ``pcc`` (compare-pcc, pcc-identify), ``designs``, ``view``
-(view, view-system), ``control`` (inverse, workspace, track); shared parsing, error
+(view, view-system), ``control`` (inverse, workspace, modes, track); shared parsing, error
 handling and output helpers in ``_common``.
 
 Units at the boundary: quantities carry their units ("30kPa", "0.3bar", "-1 N", "2 ms"),
@@ -37,7 +37,7 @@ import click
 from .. import __version__
 from .calibrate import calibrate, calibrate_axial, calibrate_system_cmd, identify
 from .compare import compare
-from .control import inverse, track, workspace_cmd
+from .control import inverse, modes, track, workspace_cmd
 from .designs import designs
 from .pcc import compare_pcc_cmd, pcc_identify
 from .simulate import simulate_cmd
@@ -156,6 +156,7 @@ for _command in (
     view_system_cmd,
     inverse,
     workspace_cmd,
+    modes,
     track,
 ):
     main.add_command(_command)

@@ -1,6 +1,6 @@
-"""``softrod inverse``, ``softrod workspace`` and ``softrod track``: control tools
-(docs/control.md). Heavy modules are imported inside the commands so that ``softrod --help``
-stays fast."""
+"""``softrod inverse``, ``softrod workspace``, ``softrod modes`` and ``softrod track``:
+control tools (docs/control.md). Heavy modules are imported inside the commands so that
+``softrod --help`` stays fast."""
 
 from __future__ import annotations
 
@@ -301,3 +301,106 @@ def track(design, path_file, bounds, rate, kp, ki, output, plot, as_json):
         f"{d.name}: tracked {path_file.name} for {path.time[-1]:.3g} s at "
         f"{rate:g} Hz; tip error RMS {rms:.3f} mm, max {worst:.3f} mm"
     )
+
+
+@click.command("modes")
+@click.argument("design")
+@click.option(
+    "--pressure",
+    "-p",
+    metavar="P1,P2,...",
+    help="Gauge pressure per channel of the equilibrium, comma-separated, e.g. 30kPa,0,0 "
+    "(units required, zero needs none). Default: 0 on every channel.",
+)
+@click.option(
+    "--tension",
+    "-t",
+    metavar="T1,T2,...",
+    help="Tendon tension per tendon channel (>= 0), e.g. 2N,0. Default: every tendon slack.",
+)
+@click.option(
+    "--nodes",
+    default=12,
+    show_default=True,
+    type=click.IntRange(min=1, max=200),
+    help="Nodes carrying the coordinates (at most the design's integration steps).",
+)
+@click.option(
+    "--count",
+    default=6,
+    show_default=True,
+    type=click.IntRange(min=1),
+    help="How many of the lowest modes to list.",
+)
+@click.option(
+    "--output",
+    "-o",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the modes to a table (.csv or .parquet).",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print the modes as JSON.")
+@_handle_errors
+def modes(design, pressure, tension, nodes, count, output, as_json):
+    """Natural frequencies and damping of DESIGN about its equilibrium under --pressure: the
+    linearised dynamics' lowest modes (docs/control.md, 'Linearised dynamics and modes'),
+    with the design's tip loads and [tip] constraint."""
+    from ..catalog import load_design
+    from ..control import linearise
+    from ..errors import InputError, design_error
+    from ..io import check_table_path, write_table
+    from .statics import _parse_pressures, _parse_tensions
+
+    d = load_design(design)
+    if output is not None:
+        check_table_path(output)
+    p = _parse_pressures(pressure, d)
+    system = linearise(d, p, nodes=nodes, tensions=_parse_tensions(tension, d))
+    n = system.mass.shape[0]
+    if count > n:
+        raise design_error(
+            "--count", count, f"must be at most the {n} coordinates of {nodes} nodes", InputError
+        )
+    found = system.modes(count)
+    frame = found.to_frame()
+    if output is not None:
+        write_table(frame, output)
+    if as_json:
+        click.echo(
+            json.dumps(
+                {
+                    "design": d.name,
+                    "pressures_kPa": [v / 1e3 for v in p],
+                    "tip_constraint": system.tip_constraint,
+                    "nodes": nodes,
+                    "frequency_Hz": found.frequency.tolist(),
+                    "damping_ratio": found.damping_ratio.tolist(),
+                    # NaN (an overdamped mode) is not JSON: null.
+                    "damped_frequency_Hz": [
+                        None if v != v else float(v) for v in found.damped_frequency
+                    ],
+                },
+                indent=2,
+            )
+        )
+        return
+    from rich.table import Table
+
+    console = _stdout()
+    console.print(
+        f"design {d.name}; pressures [{', '.join(f'{v / 1e3:g}' for v in p)}] kPa; "
+        f"tip {system.tip_constraint}; {nodes} nodes"
+    )
+    table = Table()
+    table.add_column("mode", justify="right")
+    table.add_column("frequency (Hz)", justify="right")
+    table.add_column("damping ratio", justify="right")
+    table.add_column("damped frequency (Hz)", justify="right")
+    for k in range(count):
+        damped = found.damped_frequency[k]
+        table.add_row(
+            str(k + 1),
+            f"{found.frequency[k]:.4g}",
+            f"{found.damping_ratio[k]:.3g}",
+            "overdamped" if damped != damped else f"{damped:.4g}",
+        )
+    console.print(table)
