@@ -19,6 +19,10 @@ echo "== paper 002's experiments: $out/compare_paper002_fig{5,6,7}.png"
 "${SOFTROD[@]}" compare --experiments i --figure "$out/compare_paper002_fig6.png" >/dev/null
 "${SOFTROD[@]}" compare --experiments ii --figure "$out/compare_paper002_fig7.png" >/dev/null
 
+echo "== mode shapes of the 130 mm actuator: $out/modes_spa130.png"
+"${SOFTROD[@]}" modes spa_three_chamber_130mm -p 30kPa,5kPa,45kPa --count 4 \
+    --figure "$out/modes_spa130.png" >/dev/null
+
 echo "== PCC model vs rod: $out/pcc_*.png"
 "$PY" examples/pcc_vs_cosserat.py "$out" >/dev/null
 echo "done"

@@ -364,8 +364,9 @@ def test_modes_lists_the_linearisations_modes(run, tmp_path):
     want = softrod.linearise(SPA, [30e3, 5e3, 45e3], nodes=8).modes(4)
     np.testing.assert_array_equal(out["frequency_Hz"], want.frequency)
     assert out["tip_constraint"] == "free" and out["nodes"] == 8
-    path = tmp_path / "modes.csv"
-    assert run("modes", SPA, "--count", 3, "--output", path).exit_code == 0
+    path, picture = tmp_path / "modes.csv", tmp_path / "modes.png"
+    assert run("modes", SPA, "--count", 3, "--output", path, "--figure", picture).exit_code == 0
+    assert picture.read_bytes()[:8] == PNG_SIGNATURE
     frame = pd.read_csv(path)
     assert list(frame.columns) == ["mode", "frequency_Hz", "damping_ratio", "damped_frequency_Hz"]
     assert len(frame) == 3
@@ -384,3 +385,4 @@ def test_modes_refusals_name_the_option(run):
     assert_clean_error(run("modes", SPA, "--count", 500), 2, "--count")
     assert_clean_error(run("modes", SPA, "-p", "30kPa,0"), 2, "--pressure")
     assert_clean_error(run("modes", SPA, "--nodes", 0), 2, "--nodes")
+    assert_clean_error(run("modes", SPA, "--figure", "modes.txt"), 2, "--figure")

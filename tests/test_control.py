@@ -478,3 +478,51 @@ def test_cli_track_a_short_path(run, tmp_path):
 
     df = pd.read_csv(out)
     assert {"time_s", "error_mm", "tip_x_mm", "target_x_mm"} <= set(df.columns)
+
+
+def test_plot_modes_draws_each_mode_and_marks_a_twist(spa, tmp_path):
+    """LinearSystem.plot_modes: one polyline per mode from the base through every node in
+    both views, labelled with its frequency; the straight actuator's torsion (its nodes do
+    not translate) is marked a twist and drawn on the shape; refusals by name, no file."""
+    import matplotlib.pyplot as plt
+
+    lin = softrod.linearise(spa, [0, 0, 0], nodes=12)
+    modes = lin.modes(4)
+    path = tmp_path / "modes.png"
+    fig = lin.plot_modes(4, path)
+    try:
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        labels = [t.get_text() for t in fig.legends[0].get_texts()]
+        assert labels[0] == "equilibrium"
+        assert labels[1] == f"mode 1: {modes.frequency[0]:.3g} Hz"
+        twists = [k for k in range(4) if np.abs(modes.shapes[k, :, :3]).max() == 0.0]
+        assert twists and all(labels[k + 1].endswith("(twist)") for k in twists)
+        front, side = (
+            [ln for ln in ax.lines if len(ln.get_xdata()) == 13]  # base + 12 nodes
+            for ax in fig.axes
+        )
+        assert len(front) == len(side) == 4
+        eq = lin.equilibrium
+        rest = np.array([np.interp(lin.nodes, eq.s, eq.position[:, c]) for c in range(3)]).T
+        for k in range(4):
+            drawn = np.column_stack(
+                [front[k].get_xdata(), side[k].get_xdata(), front[k].get_ydata()]
+            )[1:]
+            moved = np.abs(drawn - rest * 1e3).max()
+            # The largest node displacement is drawn at 15 % of the length (mm); a twist not
+            # at all.
+            want = 0.0 if k in twists else 0.15 * spa.length * 1e3
+            assert moved == pytest.approx(want, abs=1e-9)
+    finally:
+        plt.close(fig)
+    for bad, field in ((0, "count"), (9, "count"), (1.5, "count"), ("3", "count")):
+        with pytest.raises(InputError) as info:
+            lin.plot_modes(bad)
+        assert info.value.field == field
+    with pytest.raises(InputError) as info:
+        lin.plot_modes(2, title=3)
+    assert info.value.field == "title"
+    with pytest.raises(InputError) as info:
+        lin.plot_modes(2, tmp_path / "modes.unknown")
+    assert info.value.field == "path"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["modes.png"]

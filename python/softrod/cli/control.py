@@ -338,9 +338,14 @@ def track(design, path_file, bounds, rate, kp, ki, output, plot, as_json):
     type=click.Path(dir_okay=False, path_type=Path),
     help="Write the modes to a table (.csv or .parquet).",
 )
+@click.option(
+    "--figure",
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="Write the mode shapes (at most the 8 lowest), front and side views (.png, .pdf or .svg).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the modes as JSON.")
 @_handle_errors
-def modes(design, pressure, tension, nodes, count, output, as_json):
+def modes(design, pressure, tension, nodes, count, output, figure, as_json):
     """Natural frequencies and damping of DESIGN about its equilibrium under --pressure: the
     linearised dynamics' lowest modes (docs/control.md, 'Linearised dynamics and modes'),
     with the design's tip loads and [tip] constraint."""
@@ -353,6 +358,8 @@ def modes(design, pressure, tension, nodes, count, output, as_json):
     d = load_design(design)
     if output is not None:
         check_table_path(output)
+    if figure is not None:
+        _check_output(figure, "--figure", (".png", ".pdf", ".svg"), "a figure")
     p = _parse_pressures(pressure, d)
     system = linearise(d, p, nodes=nodes, tensions=_parse_tensions(tension, d))
     n = system.mass.shape[0]
@@ -364,6 +371,13 @@ def modes(design, pressure, tension, nodes, count, output, as_json):
     frame = found.to_frame()
     if output is not None:
         write_table(frame, output)
+    if figure is not None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        plt.close(system.plot_modes(min(count, 8), figure))
     if as_json:
         click.echo(
             json.dumps(

@@ -11,7 +11,10 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    import os
+
     import pandas as pd
+    from matplotlib.figure import Figure
 
     from .._types import ArrayLike, DesignLike, Quantity
 
@@ -172,6 +175,21 @@ class LinearSystem(_SecondOrder):
             n = len(self.nodes)
             node = V.integer(node, "node", minimum=-n, maximum=n - 1, hint=f" (the {n} nodes)")
         return self.node_rows(self._response(omega), node)
+
+    def plot_modes(
+        self,
+        count: int = 3,
+        path: str | os.PathLike | None = None,
+        *,
+        title: str | None = None,
+    ) -> Figure:
+        """The ``count`` lowest mode shapes (at most 8) over the equilibrium, front (x-z)
+        and side (y-z) views, each labelled with its frequency
+        (:func:`softrod.control.mode_plots.plot_modes`). Written to ``path`` when given;
+        returns the Figure."""
+        from .mode_plots import plot_modes
+
+        return plot_modes(self, count, path, title=title)
 
     def modes(self, count: int | None = None) -> Modes:
         """The ``count`` lowest modes (default all)."""
