@@ -23,6 +23,14 @@ echo "== mode shapes of the 130 mm actuator: $out/modes_spa130.png"
 "${SOFTROD[@]}" modes spa_three_chamber_130mm -p 30kPa,5kPa,45kPa --count 4 \
     --figure "$out/modes_spa130.png" >/dev/null
 
+echo "== mode shapes of the two-rod platform: $out/modes_two_spa_platform.png"
+"$PY" -c "
+import matplotlib; matplotlib.use('Agg')
+import softrod
+sol = softrod.solve_system('two_spa_platform', [[20e3, 5e3, 3e3], [2e3, 15e3, 10e3]])
+sol.linearise(nodes=6).plot_modes(3, '$out/modes_two_spa_platform.png')
+"
+
 echo "== PCC model vs rod: $out/pcc_*.png"
 "$PY" examples/pcc_vs_cosserat.py "$out" >/dev/null
 echo "done"

@@ -164,3 +164,57 @@ def test_refusals_name_the_field(platform):
     with pytest.raises(InputError) as info:
         walled_sol.linearise(nodes=3)
     assert info.value.field.startswith("rods[")
+
+
+def test_plot_modes_moves_the_rods_tips_with_the_platform(platform, tmp_path):
+    """SystemLinearSystem.plot_modes: per mode and view, each rod's line from its base
+    through its nodes ends on the platform's outline (its tip moves with the platform); the
+    largest drawn displacement is 15 % of the rods' mean length; refusals by name."""
+    import matplotlib.pyplot as plt
+
+    system, sol = platform
+    lin = sol.linearise(nodes=4)
+    modes = lin.modes(3)
+    path = tmp_path / "modes.svg"
+    fig = lin.plot_modes(3, path)
+    try:
+        assert path.read_text().lstrip().startswith("<?xml")
+        labels = [t.get_text() for t in fig.legends[0].get_texts()]
+        assert labels == ["equilibrium"] + [
+            f"mode {k + 1}: {modes.frequency[k]:.3g} Hz" for k in range(3)
+        ]
+        length = np.mean([r.design.length for r in system.rods]) * 1e3
+        # Each rod at rest: its nodes, then its tip (mm).
+        rest = [
+            np.vstack(
+                [
+                    np.array([np.interp(v, r.s, r.position[:, c]) for c in range(3)]).T,
+                    r.position[-1],
+                ]
+            )
+            * 1e3
+            for r, v in zip(sol.rods, lin.nodes, strict=True)
+        ]
+        moved = np.zeros(3)
+        for ax, (a, b) in zip(fig.axes, ((0, 2), (1, 2)), strict=True):
+            drawn = [ln for ln in ax.lines if ln.get_marker() == "o"]
+            assert len(drawn) == 3 * 3  # two rods and the platform per mode
+            for k in range(3):
+                lines = [np.column_stack(ln.get_data()) for ln in drawn[3 * k : 3 * k + 3]]
+                left, right, outline = lines
+                assert len(left) == len(right) == 4 + 2  # base, 4 nodes, tip
+                np.testing.assert_allclose(outline, [left[-1], right[-1]], atol=1e-9)
+                for line, at_rest in zip((left, right), rest, strict=True):
+                    shift = np.abs(line[1:] - at_rest[:, (a, b)]).max()
+                    moved[k] = max(moved[k], shift)
+        # The largest displacement of each mode is drawn at 15 % of the mean length.
+        np.testing.assert_allclose(moved, 0.15 * length, rtol=1e-9)
+    finally:
+        plt.close(fig)
+    with pytest.raises(InputError) as info:
+        lin.plot_modes(0)
+    assert info.value.field == "count"
+    with pytest.raises(InputError) as info:
+        lin.plot_modes(2, tmp_path / "modes.nope")
+    assert info.value.field == "path"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["modes.svg"]

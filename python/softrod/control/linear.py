@@ -438,6 +438,22 @@ class SystemLinearSystem(_SecondOrder):
             return response[self.platform_rows]
         return self.node_rows(response, rod, node)
 
+    def plot_modes(
+        self,
+        count: int = 3,
+        path: str | os.PathLike | None = None,
+        *,
+        title: str | None = None,
+    ) -> Figure:
+        """The ``count`` lowest mode shapes (at most 8) over the equilibrium, front (x-z)
+        and side (y-z) views: every rod through its nodes to its tip, which moves with the
+        platform, and the platform's outline
+        (:func:`softrod.control.mode_plots.plot_system_modes`). Written to ``path`` when
+        given; returns the Figure."""
+        from .mode_plots import plot_system_modes
+
+        return plot_system_modes(self, count, path, title=title)
+
     def modes(self, count: int | None = None) -> Modes:
         """The ``count`` lowest modes (default all). ``shapes`` (k, points, 6) has a row per
         node, rod by rod, then the platform's (its origin), and ``nodes`` the arc length of
