@@ -146,6 +146,7 @@ def test_refusals_name_the_field(platform):
         ({"rod": 2}, "rod"),
         ({"rod": 0, "node": 3}, "node"),
         ({"rod": 0, "node": 1.0}, "node"),
+        ({"node": 2}, "rod"),
     ):
         with pytest.raises(InputError) as info:
             lin.frequency_response(1.0, **kwargs)

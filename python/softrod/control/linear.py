@@ -428,15 +428,25 @@ class SystemLinearSystem(_SecondOrder):
         return x[start : start + 6]
 
     def frequency_response(
-        self, omega: float, *, rod: int | None = None, node: int = -1
+        self, omega: float, *, rod: int | None = None, node: int | None = None
     ) -> np.ndarray:
         """The platform's pose (6 rows) per unit input at angular frequency ``omega``
         (rad/s): T (K - w^2 M + i w D)^-1 B. ``rod`` (and ``node``, default its last): the
-        pose of that rod's node instead."""
-        response = self._response(omega)
+        pose of that rod's node instead; a ``node`` without its ``rod`` is refused."""
+        V.real(omega, "omega", minimum=0.0, maximum=1e12)
         if rod is None:
-            return response[self.platform_rows]
-        return self.node_rows(response, rod, node)
+            if node is not None:
+                raise design_error(
+                    "rod",
+                    None,
+                    f"node={node!r} needs the rod it is on (rod=...); without both the "
+                    "response is the platform's",
+                    InputError,
+                )
+            return self._response(omega)[self.platform_rows]
+        node = -1 if node is None else node
+        self.node_rows(np.zeros(self.mass.shape[0]), rod, node)  # before any work
+        return self.node_rows(self._response(omega), rod, node)
 
     def plot_modes(
         self,
