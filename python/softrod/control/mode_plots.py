@@ -5,7 +5,7 @@ mode's displaced nodes in a front (x-z) and a side (y-z) view."""
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
@@ -14,7 +14,18 @@ from .. import _validate as V
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from .linear import LinearSystem, SystemLinearSystem
+
+# The figures read a linearisation by its fields: softrod.control.linear calls them from its
+# plot_modes methods, so this module does not import it (no cycle).
+class Linearised(Protocol):
+    """What the figures read of a LinearSystem or SystemLinearSystem."""
+
+    mass: np.ndarray
+    nodes: Any
+    equilibrium: Any
+
+    def modes(self, count: int | None = None) -> Any: ...
+
 
 _VIEWS = (("front view (x-z)", 0, 2), ("side view (y-z)", 1, 2))
 #: Each mode is drawn with its largest node displacement at this fraction of the rod's
@@ -27,7 +38,7 @@ TWIST = 1e-3
 
 
 def plot_modes(
-    system: LinearSystem,
+    system: Linearised,
     count: int = 3,
     path: str | os.PathLike | None = None,
     *,
@@ -65,7 +76,7 @@ def plot_modes(
 
 
 def plot_system_modes(
-    system: SystemLinearSystem,
+    system: Linearised,
     count: int = 3,
     path: str | os.PathLike | None = None,
     *,
