@@ -131,3 +131,24 @@ def test_progress_reports_the_simulated_time(design):
     )
     assert seen and np.all(np.diff(seen) > 0)
     assert seen[-1] == pytest.approx(T_END, rel=1e-12)
+
+
+def test_progress_of_a_run_longer_than_t_end_rises_to_its_length(design):
+    """t_end = 4 ms at dt = 5 ms is one whole step: the run (and its reports) end at 5 ms,
+    never past the total they report (found by the long fuzz run: (5 ms, 4 ms) before)."""
+    seen = []
+    out = softrod.trajectory_sensitivities(
+        design,
+        [30e3, 0.0, 0.0],
+        "4 ms",
+        ["c_b"],
+        dt="5 ms",
+        progress=lambda done, total, wall: seen.append((done, total)),
+    )
+    assert out["time"][-1] == pytest.approx(5e-3, rel=1e-12)
+    assert seen == [pytest.approx((5e-3, 5e-3), rel=1e-12)]
+    reports = []
+    softrod.simulate(
+        design, [30e3, 0.0, 0.0], "4 ms", dt="5 ms", progress=lambda d, t, w: reports.append((d, t))
+    )
+    assert reports == [pytest.approx((5e-3, 5e-3), rel=1e-12)]

@@ -10,8 +10,8 @@
   off) everywhere.
 - ``True``: always a bar; ``False``: never.
 - a callable: called instead of drawing a bar, with the arguments each function documents
-  (e.g. ``simulate`` calls ``progress(t_done, t_end, wall_s)``); one that cannot take them
-  is refused before the work starts.
+  (e.g. ``simulate`` calls ``progress(t_done, t_run, wall_s)``, t_run the run's length);
+  one that cannot take them is refused before the work starts.
 
 Bars are drawn with rich, imported only when one is shown.
 """

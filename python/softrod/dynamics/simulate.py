@@ -655,7 +655,10 @@ class Simulation:
                 schedule.kind == "step",
             )
         wall0 = _time.perf_counter()
-        with reporter(progress, "simulate", duration, simulated_time) as report:
+        # The run takes n whole steps: it ends at n dt >= duration, and its reports rise
+        # to that.
+        span = n * dt
+        with reporter(progress, "simulate", span, simulated_time) as report:
             for start, stop in chunks(n):
                 # Commands and loads are sampled chunk by chunk: memory stays bounded.
                 times = t0 + dt * np.arange(start + 1, stop + 1)
@@ -676,7 +679,7 @@ class Simulation:
                     )
                 )
                 if report is not None:
-                    report(self.time - t0, duration, _time.perf_counter() - wall0)
+                    report(self.time - t0, span, _time.perf_counter() - wall0)
         wall = _time.perf_counter() - wall0
         logger.info(
             "simulate %s: %d steps of %g s in %.3g s (%.3g x real time)",
@@ -1015,7 +1018,8 @@ def simulate(
       its markers (None keeps them). Rod model only.
     - ``energy``: also record the energy and its books (J).
     - ``progress``: None (a bar in interactive sessions), True, False, or a callable called
-      after each chunk of steps as progress(t_done, t_end, wall_s); see
+      after each chunk of steps as progress(t_done, t_run, wall_s), t_run the run's length
+      (its ceil(t_end / dt) steps: t_end itself when dt divides it); see
       :mod:`softrod.progress`.
     - ``on_unstable``: what a 'static' start at an unstable equilibrium does (the static
       solver's stability test, as :func:`~softrod.solve_statics`): "warn" (default,
@@ -1226,7 +1230,8 @@ def tracked_trajectory(
         table = (schedule.times.tolist(), schedule.pressures.tolist(), schedule.kind == "step")
     parts = [first]
     wall0 = _time.perf_counter()
-    with reporter(progress, "trajectory sensitivities", t_end, simulated_time) as report:
+    span = n * dt  # the run's length: n whole steps, n dt >= t_end
+    with reporter(progress, "trajectory sensitivities", span, simulated_time) as report:
         for start, stop in chunks(n):
             times = dt * np.arange(start + 1, stop + 1)
             commands = np.zeros((times.size, 0)) if schedule is None else schedule.sample(times)
@@ -1242,6 +1247,6 @@ def tracked_trajectory(
                 )
             )
             if report is not None:
-                report(stop * dt, t_end, _time.perf_counter() - wall0)
+                report(stop * dt, span, _time.perf_counter() - wall0)
     keys = ["time", "tip_position", "marker_position", "d_tip_position", "d_marker_position"]
     return {key: np.concatenate([p[key] for p in parts]) for key in keys if key in parts[-1]}
