@@ -51,7 +51,17 @@ def _is_trajectory(obj) -> bool:
 
 
 # The two views of plot_system: (horizontal axis, vertical axis) indices into (x, y, z).
-_VIEWS = (("front view (x-z)", 0, 2), ("side view (y-z)", 1, 2))
+VIEWS = (("front view (x-z)", 0, 2), ("side view (y-z)", 1, 2))
+
+
+def style_views(axes) -> None:
+    """Title, labels (mm), equal aspect and grid of the front (x-z) and side (y-z) views."""
+    for ax, (name, a, _) in zip(axes, VIEWS, strict=True):
+        ax.set_title(name)
+        ax.set_xlabel(f"{'xyz'[a]} (mm)")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("z (mm)")
 
 
 def platform_tilt_deg(rotation: np.ndarray) -> np.ndarray:
@@ -122,7 +132,7 @@ def plot_system(
         outline = tips if len(tips) < 3 else np.vstack([tips, tips[:1]])
         tilt = float(platform_tilt_deg(sol.platform_rotation))
         label = labels[k] if labels is not None else f"{_pressure_text(sol)} (tilt {tilt:.1f} deg)"
-        for ax, (_, a, b) in zip(axes, _VIEWS, strict=True):
+        for ax, (_, a, b) in zip(axes, VIEWS, strict=True):
             for r in sol.rods:
                 ax.plot(r.position[:, a] * 1e3, r.position[:, b] * 1e3, color=colours[k], lw=2)
             ax.plot(
@@ -135,13 +145,9 @@ def plot_system(
             )
     bases = np.array([r.position[0] for r in sols[0].rods]) * 1e3
     extra = _draw_contacts(axes, sols, colours)
-    for ax, (name, a, b) in zip(axes, _VIEWS, strict=True):
+    for ax, (_, a, b) in zip(axes, VIEWS, strict=True):
         ax.plot(bases[:, a], bases[:, b], "s", color="black", ms=7)
-        ax.set_title(name)
-        ax.set_xlabel(f"{'xyz'[a]} (mm)")
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.grid(alpha=0.3)
-    axes[0].set_ylabel("z (mm)")
+    style_views(axes)
     # The legend below the views: long labels never cover the rods.
     handles, _ = axes[0].get_legend_handles_labels()
     fig.legend(handles=handles + extra, loc="lower center", ncol=1, fontsize=8, frameon=False)
@@ -173,7 +179,7 @@ def _draw_contacts(axes, sols, colours) -> list:
     points = np.concatenate([r.position for sol in sols for r in sol.rods]) * 1e3
     near, extra = _near_obstacles(specs, points) if specs else ([], np.zeros((0, 3)))
     drawn = False
-    for ax, (_, a, b) in zip(axes, _VIEWS, strict=True):
+    for ax, (_, a, b) in zip(axes, VIEWS, strict=True):
         for ob in near:
             if ob["kind"] == "plane":
                 n = np.asarray(ob["normal"], float)

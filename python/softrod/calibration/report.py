@@ -240,7 +240,7 @@ def _error_box_figure(samples, length_mm: float | None, point: str = "tip"):
     return fig
 
 
-_VIEWS = ((0, 1, "top view (x-y)"), (0, 2, "side view (x-z)"))
+VIEWS = ((0, 1, "top view (x-y)"), (0, 2, "side view (x-z)"))
 
 
 def _map_views(fig, axes, points: np.ndarray, values: np.ndarray, label: str, **kw) -> None:
@@ -255,7 +255,7 @@ def _map_views(fig, axes, points: np.ndarray, values: np.ndarray, label: str, **
 
         norm = Normalize(float(values.min()), float(values.max()))
     sc = None
-    for ax, (i, j, name) in zip(axes, _VIEWS, strict=True):
+    for ax, (i, j, name) in zip(axes, VIEWS, strict=True):
         if values.size:
             sc = ax.scatter(
                 points[:, i], points[:, j], c=values, cmap="viridis", norm=norm, s=16, **kw
@@ -278,7 +278,7 @@ def _residual_figure(meas: np.ndarray, samples, point: str = "tip"):
     ok = ~failed
     _map_views(fig, axes, meas[ok], err[ok], f"Euclidean {point} error (mm)")
     if failed.any():
-        for ax, (i, j, _) in zip(axes, _VIEWS, strict=True):
+        for ax, (i, j, _) in zip(axes, VIEWS, strict=True):
             ax.scatter(
                 meas[failed, i],
                 meas[failed, j],

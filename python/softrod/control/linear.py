@@ -171,9 +171,7 @@ class LinearSystem(_SecondOrder):
         if node is None:
             _ = self.tip_rows  # a clamped tip has none: refused before any work
             node = -1
-        else:
-            n = len(self.nodes)
-            node = V.integer(node, "node", minimum=-n, maximum=n - 1, hint=f" (the {n} nodes)")
+        self.node_rows(np.zeros(self.mass.shape[0]), node)  # the index, before any work
         return self.node_rows(self._response(omega), node)
 
     def plot_modes(

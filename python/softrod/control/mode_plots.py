@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 import numpy as np
 
 from .. import _validate as V
+from ..system_plots import VIEWS, style_views
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -27,7 +28,6 @@ class Linearised(Protocol):
     def modes(self, count: int | None = None) -> Any: ...
 
 
-_VIEWS = (("front view (x-z)", 0, 2), ("side view (y-z)", 1, 2))
 #: Each mode is drawn with its largest node displacement at this fraction of the rod's
 #: length: visible, and small enough that the picture stays a small motion about the shape.
 AMPLITUDE = 0.15
@@ -157,7 +157,7 @@ def _draw(
     modes = system.modes(count)
     fig, axes = plt.subplots(1, 2, figsize=(9.5, 5.4), sharey=True)
     colours = plt.cm.viridis(np.linspace(0.0, 0.85, max(count, 2)))
-    for ax, (_, a, b) in zip(axes, _VIEWS, strict=True):
+    for ax, (_, a, b) in zip(axes, VIEWS, strict=True):
         for j, line in enumerate(rest):
             ax.plot(
                 line[:, a] * 1e3,
@@ -172,7 +172,7 @@ def _draw(
         twist = moved < TWIST * length * np.abs(shape[:, 3:]).max()
         scale = 0.0 if twist else AMPLITUDE * length / moved
         label = f"mode {k + 1}: {modes.frequency[k]:.3g} Hz" + (" (twist)" if twist else "")
-        for ax, (_, a, b) in zip(axes, _VIEWS, strict=True):
+        for ax, (_, a, b) in zip(axes, VIEWS, strict=True):
             for j, line in enumerate(chains(shape, scale)):
                 ax.plot(
                     line[:, a] * 1e3,
@@ -183,16 +183,12 @@ def _draw(
                     ms=4,
                     label=label if ax is axes[0] and j == 0 else None,
                 )
-    for ax, (name, a, b) in zip(axes, _VIEWS, strict=True):
+    for ax, (_, a, b) in zip(axes, VIEWS, strict=True):
         for point in bases:
             ax.plot(point[a] * 1e3, point[b] * 1e3, "s", color="black", ms=7)
         for point in held:
             ax.plot(point[a] * 1e3, point[b] * 1e3, "^", color="black", ms=8)
-        ax.set_title(name)
-        ax.set_xlabel(f"{'xyz'[a]} (mm)")
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.grid(alpha=0.3)
-    axes[0].set_ylabel("z (mm)")
+    style_views(axes)
     # The legend below the views: long labels never cover the rod.
     handles, _ = axes[0].get_legend_handles_labels()
     fig.legend(handles=handles, loc="lower center", ncol=min(count + 1, 4), fontsize=8)

@@ -768,3 +768,15 @@ pub fn param(name: &str, sections: &[usize]) -> Param {
         sections: sections.to_vec(),
     }
 }
+
+/// Undamped frequencies (rad/s), ascending: eigenvalues of M^-1 K.
+pub fn frequencies(m: &nalgebra::DMatrix<f64>, k: &nalgebra::DMatrix<f64>) -> Vec<f64> {
+    let a = m.clone().try_inverse().unwrap() * k;
+    let mut w: Vec<f64> = a
+        .complex_eigenvalues()
+        .iter()
+        .map(|l| l.re.max(0.0).sqrt())
+        .collect();
+    w.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    w
+}

@@ -8,7 +8,6 @@
 
 use crate::common;
 use common::*;
-use nalgebra::DMatrix;
 use softrod_core::jacobian::{point_jacobian, point_jacobian6, Input, Probe};
 use softrod_core::linearise::{linearise, linearise_held};
 use softrod_core::ode::Loads;
@@ -30,18 +29,6 @@ fn cantilever(steps: usize, g: f64) -> DesignSpec {
     let mut s = direct_section("rod", L, EA, GA, EI, GJ, MASS, steps);
     s.rotary_inertia = Some(ROT);
     design(vec![s], IDENTITY, g)
-}
-
-/// Undamped frequencies (rad/s), ascending: eigenvalues of M^-1 K.
-fn frequencies(m: &DMatrix<f64>, k: &DMatrix<f64>) -> Vec<f64> {
-    let a = m.clone().try_inverse().unwrap() * k;
-    let mut w: Vec<f64> = a
-        .complex_eigenvalues()
-        .iter()
-        .map(|l| l.re.max(0.0).sqrt())
-        .collect();
-    w.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    w
 }
 
 /// Relative errors of the first two bending frequencies (modes in pairs: EI1 = EI2, so

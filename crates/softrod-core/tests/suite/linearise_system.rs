@@ -45,18 +45,6 @@ fn scaled_difference(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
     worst
 }
 
-/// Undamped frequencies (rad/s), ascending.
-fn frequencies(m: &DMatrix<f64>, k: &DMatrix<f64>) -> Vec<f64> {
-    let a = m.clone().try_inverse().unwrap() * k;
-    let mut w: Vec<f64> = a
-        .complex_eigenvalues()
-        .iter()
-        .map(|l| l.re.max(0.0).sqrt())
-        .collect();
-    w.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    w
-}
-
 /// A one-rod system whose platform sits at the free rod's tip (attachment at its origin,
 /// frames aligned) and carries what the lone rod's tip body carries: the same equilibrium,
 /// the same coordinates (the lone rod's n nodes are the system's n - 1 inner nodes and the
