@@ -431,15 +431,6 @@ def test_jacobian_is_taken_at_the_solved_tensions():
     assert np.abs(slack.pressures[:3, 0] - jac.pressures[:3, 0]).max() > 1e-3 * np.abs(fd).max()
 
 
-def test_control_refuses_follower_loads():
-    """The linearisation carries dead loads only (StaticSolution.jacobian takes follower
-    loads: tests/test_jacobian_six_unknowns.py)."""
-    design = rod(chambers=[{"radius": "2 mm", "distance": "4 mm", "angle": "0 deg", "channel": 0}])
-    design["tip"] = {"force": ["0.02 N", 0, 0], "frame": "body"}
-    with pytest.raises(InputError, match=r"tip\.frame.*dead"):
-        softrod.linearise(load_design(design), [10e3])
-
-
 def test_follower_force_cantilever_against_the_elastica():
     """A tip force that follows the body (F along the tip's d1) on a nearly inextensible,
     unshearable cantilever against the planar elastica solved independently by scipy's

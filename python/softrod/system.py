@@ -362,9 +362,10 @@ class SystemSolution:
         static deflection shapes plus the platform and every rod's tip body as rigid bodies;
         B has a column per rod pressure and tension and per component of the platform's
         force and moment. A rod with a stiffness-mapped section adds its map's part to its
-        pressure columns (the map must give a derivative). Refused as by :meth:`jacobian`
-        (a failed solve, friction), and rods with obstacles or follower loads, naming the
-        field."""
+        pressure columns (the map must give a derivative). Rods on obstacles (without
+        friction) bring the contact's penalty stiffness into K, follower line loads their
+        non-symmetric part (docs/control.md, "Follower loads and obstacles"). Refused as by
+        :meth:`jacobian`: a failed solve, friction."""
         from .control.linear import SystemLinearSystem
 
         nodes = V.integer(nodes, "nodes", minimum=1, maximum=200)

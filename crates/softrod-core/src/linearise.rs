@@ -47,6 +47,7 @@ use crate::jacobian::{dual_coeffs_from, pose_derivative, singular, Input};
 use crate::jet::Jet;
 use crate::ode::{advance, integrate_with, resolve_stretch, strains, Coeffs, Loads, NodeAt, State};
 use crate::rod::{inverse3, Rod, Section};
+use crate::spec::Frame;
 use crate::statics::constraint::{tip_residual_under, TipConstraint};
 use crate::statics::tangent::solve_tangent;
 use crate::statics::{Problem, Solution};
@@ -135,29 +136,36 @@ struct Interval<D> {
     strain_b: [D; 6],
 }
 
-/// The tip the equilibrium is linearised with: free (three shooting unknowns, the base
-/// moment; `Jet<9>` carries them and a node's point force and moment) or held (six, the base
-/// force too; `Jet<12>`): clamped, so the tip is not a coordinate (it does not move), or
-/// pinned, so only its rotation is.
+/// The tip the equilibrium is linearised with: free under dead loads without obstacles
+/// (three shooting unknowns, the base moment; `Jet<9>` carries them and a node's point
+/// force and moment), or with six unknowns (the base force too; `Jet<12>`): a free tip
+/// under follower loads or pressed on obstacles (`TipConstraint::Free`: the base force
+/// depends on the shape), or a held one: clamped, so the tip is not a coordinate (it does
+/// not move), or pinned, so only its rotation is.
 #[derive(Clone, Copy)]
 enum Tip<'a> {
     Free,
-    Held(&'a TipConstraint),
+    Six(&'a TipConstraint),
 }
 
 impl Tip<'_> {
     fn unknowns(&self) -> usize {
         match self {
             Tip::Free => 3,
-            Tip::Held(_) => 6,
+            Tip::Six(_) => 6,
         }
     }
 
     fn pinned(&self) -> bool {
-        matches!(self, Tip::Held(TipConstraint::Pinned { .. }))
+        matches!(self, Tip::Six(TipConstraint::Pinned { .. }))
     }
 
-    /// The shooting residual at the tip (3 or 6 rows) under the dead tip loads of `loads`.
+    fn clamped(&self) -> bool {
+        matches!(self, Tip::Six(TipConstraint::Clamped { .. }))
+    }
+
+    /// The shooting residual at the tip (3 or 6 rows) under the tip loads of `loads` (in
+    /// the design's tip frame: a follower load turns with the tip).
     fn residual<const N: usize>(
         &self,
         problem: &Problem,
@@ -166,10 +174,10 @@ impl Tip<'_> {
     ) -> Vec<Jet<N>> {
         match self {
             Tip::Free => problem.residual_of_tip::<Jet<N>, 3>(tip).to_vec(),
-            Tip::Held(held) => {
+            Tip::Six(constraint) => {
                 let f = loads.tip_force.map(Jet::from);
                 let m = loads.tip_moment.map(Jet::from);
-                tip_residual_under(problem, held, tip, &f, &m).to_vec()
+                tip_residual_under(problem, constraint, tip, &f, &m).to_vec()
             }
         }
     }
@@ -304,11 +312,27 @@ fn load_pass<const N: usize>(
 }
 
 /// Linearise the dynamics at the converged equilibrium `sol` of `loads` with `n_nodes`
-/// nodes (see the module docs).
+/// nodes (see the module docs). Under follower loads or on obstacles the base force is a
+/// shooting unknown too (six, as `sol` has them) and the tip's balance is its residual: a
+/// follower load turns with the rod, so K is not symmetric (no potential: a follower
+/// compression can make the equilibrium flutter, as Beck's column does), and the penalty
+/// of the contact law adds its stiffness. A frictional equilibrium is refused: the
+/// stick/slip switch has no derivative.
 pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Result<LinearSystem> {
-    crate::scope::dead_loads_only(rod, loads, "the linearisation")?;
-    let x = crate::jacobian::unknowns3(sol)?;
+    refuse_friction(sol)?;
     let nodes = choose_nodes(rod, n_nodes)?;
+    if loads.base_force_unknown(rod) {
+        let x = six_unknowns(sol, "a free tip under follower loads or on obstacles")?;
+        return linearise_at_nodes::<12>(
+            rod,
+            loads,
+            sol,
+            &x,
+            &nodes,
+            Tip::Six(&TipConstraint::Free),
+        );
+    }
+    let x = crate::jacobian::unknowns3(sol)?;
     linearise_at_nodes::<9>(rod, loads, sol, &x, &nodes, Tip::Free)
 }
 
@@ -319,7 +343,8 @@ pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Re
 /// and a tip load goes whole into the clamp (zero input columns). Pinned: the nodes are
 /// spread as for a free tip (`choose_nodes`, the tip last), the tip's three small rotations
 /// are its only coordinates, the tip body adds its inertia about the pin, and a tip force
-/// goes into the pin (zero columns; the tip moment's are unit moments at the tip).
+/// goes into the pin (zero columns; the tip moment's are unit moments at the tip). Follower
+/// loads and frictionless obstacles enter as in [`linearise`].
 pub fn linearise_held(
     rod: &Rod,
     loads: &Loads,
@@ -327,7 +352,6 @@ pub fn linearise_held(
     sol: &Solution,
     n_nodes: usize,
 ) -> Result<LinearSystem> {
-    crate::scope::dead_loads_only(rod, loads, "the linearisation")?;
     if let TipConstraint::Free = constraint {
         return Err(SoftrodError::invalid(
             "tip_constraint",
@@ -335,18 +359,39 @@ pub fn linearise_held(
             "the held linearisation takes a clamped or pinned tip; a free tip: linearise",
         ));
     }
-    let x: [f64; 6] = <[f64; 6]>::try_from(sol.x.as_slice()).map_err(|_| {
-        SoftrodError::invalid(
-            "solution",
-            format!("{} shooting unknowns", sol.x.len()),
-            "a held tip's equilibrium (six shooting unknowns) is needed here",
-        )
-    })?;
+    refuse_friction(sol)?;
+    let x = six_unknowns(sol, "a held tip's equilibrium")?;
     let nodes = match constraint {
         TipConstraint::Pinned { .. } => choose_nodes(rod, n_nodes)?,
         _ => choose_inner_nodes(rod, n_nodes)?,
     };
-    linearise_at_nodes::<12>(rod, loads, sol, &x, &nodes, Tip::Held(constraint))
+    linearise_at_nodes::<12>(rod, loads, sol, &x, &nodes, Tip::Six(constraint))
+}
+
+/// The six shooting unknowns of `sol`, which must be `what`.
+fn six_unknowns(sol: &Solution, what: &str) -> Result<[f64; 6]> {
+    <[f64; 6]>::try_from(sol.x.as_slice()).map_err(|_| {
+        SoftrodError::invalid(
+            "solution",
+            format!("{} shooting unknowns", sol.x.len()),
+            format!("{what} (six shooting unknowns, the base force and moment) is needed here"),
+        )
+    })
+}
+
+/// A frictional equilibrium has no linearisation: its friction depends on the load path
+/// and the stick/slip switch has no derivative.
+fn refuse_friction(sol: &Solution) -> Result<()> {
+    if sol.friction.is_some() {
+        return Err(SoftrodError::invalid(
+            "solution",
+            "a frictional equilibrium",
+            "friction makes the equilibrium depend on its load path and the stick/slip \
+             switch has no derivative, so it has no linearisation (obstacles without \
+             friction have one)",
+        ));
+    }
+    Ok(())
 }
 
 /// The linearisation with nodes `nodes` and the `tip` of `x`'s unknowns, in `Jet<N>` (N =
@@ -447,10 +492,12 @@ fn linearise_at_nodes<const N: usize>(
     let damping = sym(&kt * gd * &stiffness);
     // The tip body rides on the tip node: all of it on a free tip, its rotation about a pin
     // (the block's rotational part, J_w - m_t [c_w]x^2), none on a clamp.
-    let held = match tip {
-        Tip::Free => 0..6,
-        _ if tip.pinned() => 3..6,
-        _ => 0..0,
+    let held = if tip.pinned() {
+        3..6
+    } else if tip.clamped() {
+        0..0
+    } else {
+        0..6
     };
     let o = nq - held.len();
     for (a, i) in held.clone().enumerate() {
@@ -458,7 +505,7 @@ fn linearise_at_nodes<const N: usize>(
             mass[(o + a, o + b)] += tip_block[(i, j)];
         }
     }
-    let input = input_matrix::<N>(rod, loads, sol, x, nodes, &layout, &stiffness, tip)?;
+    let input = input_matrix::<N>(rod, loads, sol, x, nodes, &layout, &stiffness, tip, &rot_l)?;
     Ok(LinearSystem {
         nodes: nodes.iter().map(|n| n.2).collect(),
         mass,
@@ -585,7 +632,8 @@ fn damping_matrix(rod: &Rod, c: &Coeffs<f64>, sec: usize, s: f64, tau: f64) -> D
 
 /// Columns of B: K dq/dp for the pressures, the tensions and a mapped rod's factors sigma;
 /// unit generalised forces at the tip node for the tip force and moment (zero for a clamped
-/// tip: the clamp takes them; a pin takes the force). Column order: pressures, tip force,
+/// tip: the clamp takes them; a pin takes the force), turned by the tip's rotation `rot_l`
+/// for a follower tip load (its components are the tip frame's). Column order: pressures, tip force,
 /// tip moment, tensions, sigma (three, for a rod with a stiffness-mapped section).
 #[allow(clippy::too_many_arguments)]
 fn input_matrix<const N: usize>(
@@ -597,6 +645,7 @@ fn input_matrix<const N: usize>(
     layout: &Layout,
     stiffness: &DMatrix<f64>,
     tip: Tip,
+    rot_l: &[[f64; 3]; 3],
 ) -> Result<DMatrix<f64>> {
     let (nc, nt) = (rod.n_channels, rod.n_tendons);
     // A stiffness-mapped rod's factors sigma: the caller composes them with its map's
@@ -665,11 +714,20 @@ fn input_matrix<const N: usize>(
         }
     }
     // The tip load's own columns: unit loads conjugate to the tip's coordinates (none on a
-    // clamp, the moment on a pin).
+    // clamp, the moment on a pin), world components; a follower tip load's components are
+    // the tip frame's, so its unit load is a column of R(L).
     let last = nodes.len() - 1;
-    if !matches!(tip, Tip::Held(TipConstraint::Clamped { .. })) {
+    if !tip.clamped() {
+        let follower = loads.tip_frame == Frame::Body;
         for (_, j, row) in layout.coordinates().filter(|c| c.0 == last) {
-            b[(row, nc + j)] = 1.0;
+            let (i, k) = (j % 3, j - j % 3);
+            for c in 0..3 {
+                b[(row, nc + k + c)] = match (follower, i == c) {
+                    (true, _) => rot_l[i][c],
+                    (false, true) => 1.0,
+                    (false, false) => 0.0,
+                };
+            }
         }
     }
     Ok(b)

@@ -102,6 +102,14 @@ class _SecondOrder:
         b = np.vstack([np.zeros_like(self.input), minv @ self.input])
         return a, b
 
+    def poles(self) -> np.ndarray:
+        """Every eigenvalue of the first-order system x' = A x (1/s; :meth:`state_space`),
+        largest real part first: a pole with a positive real part grows (divergence when
+        it is real, flutter when it comes in a complex pair)."""
+        a, _ = self.state_space()
+        p = np.linalg.eigvals(a)
+        return p[np.lexsort((-np.abs(p.imag), -p.real))]
+
     def _response(self, omega: float) -> np.ndarray:
         """(K - w^2 M + i w D)^-1 B: every coordinate per unit input at ``omega`` (rad/s)."""
         # 1e12 rad/s is far beyond any mode of a rod; w^2 M then stays finite.
@@ -122,7 +130,9 @@ class LinearSystem(_SecondOrder):
     tip does not move: it is no coordinate, the nodes lie between the clamps, and the tip
     load's input columns are zero); or "pinned" (the tip, the last node, keeps only its
     rotation dtheta_n: q has 6 n - 3 rows, and the tip force's input columns are zero).
-    :meth:`node_rows` reads any node's six rows out of a vector or matrix over q.
+    :meth:`node_rows` reads any node's six rows out of a vector or matrix over q;
+    :meth:`poles` gives the first-order system's poles (under follower loads K is not
+    symmetric, and a pole may grow: flutter).
     """
 
     design: Design
@@ -217,7 +227,38 @@ def _modes(system, count: int | None, rows_of: Sequence, nodes: np.ndarray) -> M
 def _eigen_modes(system, count: int | None, rows_of: Sequence, nodes: np.ndarray) -> Modes:
     import scipy.linalg
 
+    a, _ = system.state_space()
+    poles = np.linalg.eigvals(a)
+    # A pole in the right half-plane grows: no modes to report. The bound sits far above
+    # the round-off of the eigenvalues of a non-symmetric matrix (1e-8 relative measured on
+    # Beck's column at 16 nodes) and far below the growth of an instability just past its
+    # onset (Beck's column 0.1 % beyond its flutter load: 3e-2 relative).
+    growing = poles.real > 1e-6 * np.abs(poles)
+    if np.any(growing):
+        worst = poles[growing][np.argmax(poles[growing].real)]
+        kind = "flutter, a growing oscillation" if worst.imag != 0 else "divergence"
+        raise design_error(
+            "equilibrium",
+            f"pole {worst.real:.4g} {worst.imag:+.4g}j 1/s",
+            f"grows ({kind}): the equilibrium is dynamically unstable, so it has no modes "
+            "(follower loads can make a statically stable equilibrium flutter, as Beck's "
+            "column does above 20.05 EI/L^2); poles() lists every growth rate",
+            InputError,
+        )
     w2, vecs = scipy.linalg.eig(system.stiffness, system.mass)
+    # Under follower loads K is not symmetric, and damping can keep a system stable whose
+    # undamped modes have merged (a complex pair of omega^2): it has no undamped modes then.
+    merged = np.abs(w2.imag) > 1e-6 * np.abs(w2)
+    if np.any(merged):
+        worst = w2[merged][np.argmin(np.abs(w2[merged]))]
+        raise design_error(
+            "equilibrium",
+            f"omega^2 = {worst.real:.4g} {worst.imag:+.4g}j s^-2",
+            "has complex undamped eigenvalues omega^2 (a follower load merged two modes; "
+            "without its damping the equilibrium would flutter), so it has no undamped "
+            "modes; poles() gives the damped system's",
+            InputError,
+        )
     w2 = w2.real
     order = np.argsort(w2)
     w2, vecs = w2[order], vecs[:, order].real
@@ -237,8 +278,6 @@ def _eigen_modes(system, count: int | None, rows_of: Sequence, nodes: np.ndarray
             for v, w in zip(vecs.T, omega, strict=True)
         ]
     )
-    a, _ = system.state_space()
-    poles = np.linalg.eigvals(a)
     damped = np.full(k, np.nan)
     upper = poles[poles.imag > 0]
     for i, (w, z) in enumerate(zip(omega, zeta, strict=True)):
@@ -293,6 +332,19 @@ def linearise(
         initial, design = design, design.design
     design = load_design(design)
     nodes = integer(nodes, "nodes", minimum=1, maximum=200)
+    frictional = [
+        k for k, o in enumerate(design.spec.get("obstacles", [])) if float(o.get("friction", 0)) > 0
+    ]
+    if frictional:
+        k = frictional[0]
+        raise design_error(
+            f"obstacles[{k}].friction",
+            design.spec["obstacles"][k]["friction"],
+            "a frictional equilibrium has no linearisation: it depends on the load path, and "
+            "the stick/slip switch has no derivative (obstacles without friction have one; "
+            "docs/control.md, 'Follower loads and obstacles')",
+            InputError,
+        )
     if initial is None:
         p = _pressures(design, np.zeros(design.n_channels) if pressures is None else pressures)
         tip = design.spec["tip"]

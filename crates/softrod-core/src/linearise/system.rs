@@ -115,10 +115,6 @@ pub fn linearise_system(
 ) -> Result<SystemLinear> {
     check_system_inputs(rods, inputs)?;
     crate::dynamics::system::check_inertia(platform_inertia)?;
-    for (i, r) in rods.iter().enumerate() {
-        crate::scope::dead_loads_only(r.rod, &r.loads, "the linearisation")
-            .map_err(|e| on_rod(e, i))?;
-    }
     let nodes: Vec<Vec<(usize, usize, f64)>> = rods
         .iter()
         .enumerate()
