@@ -805,11 +805,18 @@ def sensitivity_cases(draw):
 
 @st.composite
 def control_cases(draw):
-    """The control entry points on the actuator (three channels) and Till's tendon robot
-    (four tendons): inverse statics one-off and warm, linearisation, target paths and
-    tracking controllers, with hostile targets, bounds, weights, starts and options."""
+    """The control entry points on the actuator (three channels), Till's tendon robot (four
+    tendons) and the finger pressed onto its table (a chamber, a tendon, contact): inverse
+    statics one-off and warm, linearisation, target paths and tracking controllers, with
+    hostile targets, bounds, weights, starts and options."""
     design, n, n_tendons = draw(
-        st.sampled_from([("spa_three_chamber_130mm", 3, 0), ("till_tendon_robot", 0, 4)])
+        st.sampled_from(
+            [
+                ("spa_three_chamber_130mm", 3, 0),
+                ("till_tendon_robot", 0, 4),
+                ("prebent_finger_on_table", 1, 1),
+            ]
+        )
     )
     target = st.one_of(
         st.sampled_from(

@@ -345,6 +345,7 @@ pub struct PointJacobian {
 
 /// The three shooting unknowns of a solution with dead loads.
 pub(crate) fn unknowns3(sol: &Solution) -> Result<[f64; 3]> {
+    shooting_derivable(sol)?;
     <[f64; 3]>::try_from(sol.x.as_slice()).map_err(|_| {
         SoftrodError::invalid(
             "solution",
@@ -352,6 +353,28 @@ pub(crate) fn unknowns3(sol: &Solution) -> Result<[f64; 3]> {
             "a solution with dead loads (3 shooting unknowns) is needed here",
         )
     })
+}
+
+/// The exact derivatives are taken by shooting passes from the solution's unknowns x. A rod
+/// that statics solved by collocation (single shooting cannot resolve it: a growth exponent
+/// beyond `SHOOTING_GROWTH_LIMIT`, docs/model.md "Collocation") would diverge from its
+/// equilibrium along such a pass, and its derivatives would be wrong: refused by name.
+pub(crate) fn shooting_derivable(sol: &Solution) -> Result<()> {
+    if sol.collocation.is_some() {
+        return Err(SoftrodError::invalid(
+            "solution",
+            "solved by collocation",
+            format!(
+                "single shooting cannot resolve this rod (int_0^L sqrt(|n| / EI) ds > {}: a \
+                 long, soft rod under its own weight; docs/model.md, 'Collocation'), and its \
+                 exact derivatives (Jacobians, parameter sensitivities, the linearisation, the \
+                 inverse) are taken by shooting passes, which would leave its equilibrium: \
+                 not available for such rods yet",
+                crate::statics::collocation::SHOOTING_GROWTH_LIMIT
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Error for a singular shooting Jacobian (the equilibrium is at a limit point).

@@ -34,7 +34,7 @@ use crate::ode::{advance, integrate, resolve_stretch, Coeffs, Loads, NodeAt, Sec
 use crate::rod::{AxialLaw, Rod};
 use crate::statics::constraint::{reaction, tip_residual, TipConstraint};
 use crate::statics::tangent::{singular_jacobian, solve_tangent};
-use crate::statics::{Problem, Solution};
+use crate::statics::{Problem, Shape, Solution};
 use nalgebra::{DMatrix, DVector};
 
 pub mod system;
@@ -392,12 +392,44 @@ pub fn marker_positions(
         return vec![];
     }
     let p = Problem::new(rod, loads, 1.0);
+    if let Some(shape) = &sol.collocation {
+        // Solved by collocation: shooting from x would leave the equilibrium; each marker
+        // is read from its node's state, over at most one step.
+        return markers
+            .iter()
+            .map(|mk| marker_position(&from_node(rod, &p.coeffs, shape, mk), &mk.offset))
+            .collect();
+    }
     let (_, states) = integrate_markers(rod, &p.coeffs, p.base_state(&sol.x), markers);
     states
         .iter()
         .zip(markers)
         .map(|(y, mk)| marker_position(y, &mk.offset))
         .collect()
+}
+
+/// The state at marker `mk` of a collocation solution's `shape`: its node's state (force,
+/// moment, pose), advanced over the marker's partial step with the section's law.
+fn from_node(rod: &Rod, coeffs: &[Coeffs<f64>], shape: &Shape, mk: &MarkerAt) -> State<f64> {
+    let j = mk.node;
+    let mut y = State {
+        r: shape.position[j],
+        rot: shape.rotation[j],
+        n: shape.force[j],
+        m: shape.moment[j],
+        aux: [1.0, 1.0],
+    };
+    if mk.h == 0.0 {
+        return y;
+    }
+    // The carried stretch of the marker's section at that node.
+    resolve_stretch(&mut y, &coeffs[mk.section]);
+    let node = NodeAt {
+        section: mk.section,
+        step: mk.step,
+        s: mk.s_node,
+    };
+    advance(rod, coeffs, node, &y, mk.h)
 }
 
 /// Derivatives of the tip pose and of the marker positions with respect to each parameter.
@@ -546,6 +578,7 @@ fn sensitivity_n<const N: usize>(
     params: &[Param],
     markers: &[MarkerAt],
 ) -> Result<TipSensitivity> {
+    crate::jacobian::shooting_derivable(sol)?;
     let p = Problem::new(rod, loads, 1.0);
     // J = d_x R and d_x y in one pass with x seeded.
     let xd: [Jet<N>; N] = std::array::from_fn(|i| Jet::variable(sol.x[i], i));

@@ -490,3 +490,121 @@ fn two_right_sides_solve_as_two_solves() {
         }
     }
 }
+
+/// What is derived from a collocation solution: markers are read from its nodes' states
+/// (within the discretisation's error of a finer solve's nodes; before, they were shot
+/// from the base unknowns and landed anywhere), and exact derivatives, taken by shooting
+/// passes that would leave the equilibrium, are refused by name (the Jacobian, the
+/// linearisation, parameter sensitivities, single or in a batch).
+#[test]
+fn collocation_solutions_give_markers_and_refuse_derivatives() {
+    use softrod_core::batch::{sensitivity_batch, BatchInputs};
+    use softrod_core::jacobian::{point_jacobian, Input, Probe};
+    use softrod_core::linearise::linearise;
+    use softrod_core::marker::Marker;
+    use softrod_core::sensitivity::ParamKind;
+    use softrod_core::sensitivity::{locate_markers, marker_positions, tip_sensitivity, Param};
+
+    let warn = SolverOptions {
+        on_invalid: Policy::Warn,
+        ..SolverOptions::default()
+    };
+    let length = 1.0;
+    let (coarse, fine) = (
+        soft_rod(length, HORIZONTAL, 32),
+        soft_rod(length, HORIZONTAL, 64),
+    );
+    let ld = loads(&[]);
+    let sol = solve(&coarse, &ld, None, &warn).unwrap();
+    let reference = solve(&fine, &ld, None, &warn).unwrap();
+    assert!(sol.collocation.is_some() && reference.collocation.is_some());
+    // At the coarse grid's nodes and halfway between them (the fine grid's nodes), with an
+    // offset in the cross-section.
+    let offset = [0.01, -0.005, 0.0];
+    let h = length / 32.0;
+    let ss: Vec<f64> = [0.25, 0.5, 0.5 + 0.5 * h, 1.0 - 0.5 * h, 1.0]
+        .iter()
+        .map(|x| x * length)
+        .collect();
+    let markers: Vec<Marker> = ss.iter().map(|&s| Marker { s, offset }).collect();
+    let got = marker_positions(
+        &coarse,
+        &ld,
+        &sol,
+        &locate_markers(&coarse, &markers).unwrap(),
+    );
+    let want = marker_positions(
+        &fine,
+        &ld,
+        &reference,
+        &locate_markers(&fine, &markers).unwrap(),
+    );
+    let sh = shape(&coarse, &ld, &sol);
+    for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+        // Both grids' errors are O(h^4): the tip differs by below 1e-3 L
+        // (long_soft_rods_are_solved_by_collocation); every marker within the same.
+        assert!(dist(g, w) < 1e-3 * length, "marker {k}: {g:?} vs {w:?}");
+    }
+    // A marker at a node is that node's pose exactly.
+    let j = 16; // s = 0.5 L
+    let at: [f64; 3] = std::array::from_fn(|i| {
+        sh.position[j][i]
+            + (0..3)
+                .map(|c| sh.rotation[j][i][c] * offset[c])
+                .sum::<f64>()
+    });
+    assert_eq!(got[1], at);
+
+    let refused = |e: SoftrodError, what: &str| {
+        let text = e.to_string();
+        assert!(
+            text.contains("solution") && text.contains("collocation"),
+            "{what}: {text}"
+        );
+    };
+    let inputs = [Input::TipForce(1)];
+    refused(
+        point_jacobian(&coarse, &ld, &sol, &inputs, &Probe::tip(&coarse)).unwrap_err(),
+        "point_jacobian",
+    );
+    refused(linearise(&coarse, &ld, &sol, 8).unwrap_err(), "linearise");
+    let e = Param {
+        kind: ParamKind::YoungsModulus,
+        sections: vec![0],
+    };
+    refused(
+        tip_sensitivity(&coarse, &ld, &sol, std::slice::from_ref(&e)).unwrap_err(),
+        "tip_sensitivity",
+    );
+    // A batch row (the same rod with a chamber at zero pressure: a batch needs an input).
+    let mat = MaterialSpec {
+        youngs_modulus: 100e3,
+        shear_modulus: 100e3 / 3.0,
+        density: 1000.0,
+    };
+    let chambered = Rod::new(design(
+        vec![geometry_section(
+            "rod",
+            length,
+            0.0125,
+            0.0,
+            mat,
+            vec![chamber(2e-3, 5e-3, 0.0, 0)],
+            32,
+        )],
+        HORIZONTAL,
+        9.81,
+    ))
+    .unwrap();
+    let batch = BatchInputs {
+        pressures: &[0.0],
+        tensions: None,
+        stiffness_scale: None,
+        tip_force: [0.0; 3],
+        tip_moment: [0.0; 3],
+    };
+    refused(
+        sensitivity_batch(&chambered, &batch, None, &[e], &markers, &warn, 1).unwrap_err(),
+        "sensitivity_batch",
+    );
+}

@@ -825,14 +825,12 @@ fn bad_obstacles_are_refused_with_field_and_rule() {
         }
         other => panic!("{other:?}"),
     }
-    // Solvers without contact refuse obstacles instead of ignoring them (the dynamics
-    // carries contact: tests/suite/dynamics_contact.rs).
-    let rod = Rod::new(good.clone()).unwrap();
-    let sol = solve(&rod, &loads(&[]), None, &SolverOptions::default()).unwrap();
-    match softrod_core::linearise::linearise(&rod, &loads(&[]), &sol, 4) {
+    // Models without contact refuse obstacles instead of ignoring them (the dynamics and
+    // the linearisation carry contact: tests/suite/dynamics_contact.rs, linearise_loads.rs).
+    match softrod_core::pcc::PccModel::new(&good) {
         Err(SoftrodError::InvalidParameter { field, .. }) => assert_eq!(field, "obstacles"),
         Err(e) => panic!("{e}"),
-        Ok(_) => panic!("the linearisation accepted obstacles"),
+        Ok(_) => panic!("the PCC model accepted obstacles"),
     }
 }
 
