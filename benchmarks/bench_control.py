@@ -24,7 +24,10 @@
    `SystemSolution.jacobian()` of the bundled two-rod platform (six pressures and the
    platform's load), `linearise` with a free tip (12 nodes), a clamped one (11 nodes) and a
    pinned one (12 nodes), from a solved equilibrium, and `SystemSolution.linearise()` of
-   the two-rod platform (8 nodes per rod). Median wall time of repeated calls, one core.
+   the two-rod platform (8 nodes per rod). With six shooting unknowns and the free tip's
+   balance: `linearise` under a follower tip force (the actuator, 12 nodes) and of the
+   bundled finger pressed onto its table at 20 kPa (contact, 10 nodes). Median wall time of
+   repeated calls, one core.
 
 The machine's load average before and after is recorded: on a shared machine wall times
 stretch with the load, CPU times much less.
@@ -146,6 +149,9 @@ def _derivatives(design, calls: int) -> dict:
     pin = softrod.TipConstraint.pinned(free.tip_position + [0.006, 0, 0])
     pinned = softrod.solve_statics(design, p, tip_constraint=pin)
     pcr = softrod.solve_system("two_spa_platform", [[20e3, 5e3, 3e3], [2e3, 15e3, 10e3]])
+    turning = design.replace({"tip.frame": "body", "tip.force": ["20 mN", "-10 mN", "-30 mN"]})
+    follower = softrod.solve_statics(turning, p)
+    finger = softrod.solve_statics("prebent_finger_on_table", [20e3])
 
     def timed(fn, n: int) -> float:
         fn()  # warm-up (imports, caches)
@@ -169,6 +175,12 @@ def _derivatives(design, calls: int) -> dict:
             lambda: softrod.linearise(pinned, nodes=12), calls // 5
         ),
         "system_linearise_8_nodes_ms": timed(lambda: pcr.linearise(nodes=8), calls // 5),
+        "linearise_follower_12_nodes_ms": timed(
+            lambda: softrod.linearise(follower, nodes=12), calls // 5
+        ),
+        "linearise_finger_contact_10_nodes_ms": timed(
+            lambda: softrod.linearise(finger, nodes=10), calls // 5
+        ),
     }
 
 

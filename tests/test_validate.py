@@ -341,3 +341,21 @@ def test_staged_outputs_are_all_or_none(tmp_path):
         raise RuntimeError("the second output failed")
     assert a.read_text() == "old" and not b.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt"]
+
+
+def test_integers_beyond_the_float_range_are_refused_by_name():
+    """An int too large for a float (10**400) makes numpy and float() raise OverflowError,
+    which the array readers take as 'not a number' like any other bad value (found by the
+    long fuzz run: Trajectory.marker_error(measured_time=10**400) raised it raw)."""
+    from softrod.pcc import fit_longitudinal_stiffness
+
+    huge = 10**400
+    traj = softrod.simulate(
+        "spa_three_chamber_130mm", [2e4, 0, 0], "4 ms", dt="2 ms", markers=[(0.065, [0, 0, 0])]
+    )
+    with pytest.raises(InputError) as info:
+        traj.marker_error([huge], [[[0.0, 0.0, 0.0]]])
+    assert info.value.field == "measured_time"
+    with pytest.raises(InputError) as info:
+        fit_longitudinal_stiffness([huge, 1.0, 2.0], [0.0, 1e-3, 2e-3], area=1e-4)
+    assert info.value.field == "pressure"

@@ -795,7 +795,7 @@ def _channels(n: Any, minimum: int) -> int:
 def _sigma_row(sigma: Any, field: str) -> list[float]:
     try:
         s = [float(x) for x in sigma]
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise design_error(
             field, sigma, "must be 3 numbers (sigma_ext, sigma_bend_x, sigma_bend_y)", InputError
         ) from None
@@ -843,7 +843,7 @@ def _float_array(value: Any, field: str, shown: Any, rule: str) -> np.ndarray:
     when it is not numeric."""
     try:
         return np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise design_error(field, shown, f"{rule}: {exc}", InputError) from None
 
 

@@ -110,7 +110,7 @@ def _read_only(obj: Any, names: tuple[str, ...]) -> None:
         value = getattr(obj, name)
         try:
             frozen = np.array(value, dtype=float)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             continue
         frozen.flags.writeable = False
         object.__setattr__(obj, name, frozen)

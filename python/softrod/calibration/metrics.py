@@ -64,7 +64,7 @@ TABLE_COLUMNS = (
 def _float_array(value, field: str) -> np.ndarray:
     try:
         return np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise design_error(
             field, type(value).__name__, f"must be an array of numbers: {exc}", InputError
         ) from None

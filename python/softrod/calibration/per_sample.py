@@ -743,7 +743,7 @@ def _initial(initial, m: int, bounds) -> np.ndarray:
         return np.ones((m, 3))
     try:
         s = np.array(initial, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise design_error("initial", initial, "must be numbers", InputError) from None
     if s.shape not in ((3,), (m, 3)):
         raise design_error(

@@ -78,7 +78,7 @@ def _per_sample_array(value, field: str, m: int, rule: str) -> np.ndarray:
     """(m,) or (m, k) floats as (m, k)."""
     try:
         arr = np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise design_error(field, type(value).__name__, f"{rule}: {exc}", InputError) from None
     if arr.ndim == 1:
         arr = arr[:, None]
@@ -101,7 +101,7 @@ def _correlation(correlation, param_names) -> tuple[np.ndarray, list[str]]:
         param_names = list(correlation.columns)
     try:
         r = np.array(correlation, dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise design_error(
             "correlation", type(correlation).__name__, f"must be numbers: {exc}", InputError
         ) from None

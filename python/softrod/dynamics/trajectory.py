@@ -109,7 +109,8 @@ def _array(value, name: str, shape: tuple, what: str) -> np.ndarray:
     """A float copy of ``value`` with ``shape`` (None entries: any size)."""
     try:
         a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
+        # OverflowError: an integer beyond the float range (1e400 as an int).
         raise _fail(name, type(value).__name__, f"must be an array of numbers: {what}") from None
     ok = a.ndim == len(shape) and all(
         w is None or w == h for w, h in zip(shape, a.shape, strict=False)

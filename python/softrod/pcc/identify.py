@@ -159,7 +159,12 @@ def _arrays(*named) -> list[np.ndarray]:
     out = []
     n = None
     for name, value in named:
-        arr = np.asarray(value, dtype=float).ravel()
+        try:
+            arr = np.asarray(value, dtype=float).ravel()
+        except (TypeError, ValueError, OverflowError):
+            raise design_error(
+                name, type(value).__name__, "must be an array of numbers", InputError
+            ) from None
         if arr.size < 3 or not np.all(np.isfinite(arr)):
             raise design_error(name, f"{arr.size} values", "needs >= 3 finite samples", InputError)
         if n is not None and arr.size != n:

@@ -127,7 +127,7 @@ def run_pcc(
             q0, qd0 = initial
             q0 = [float(v) for v in np.ravel(q0)]
             qd0 = [float(v) for v in np.ravel(qd0)]
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise design_error(
                 "initial", initial, "must be 'rest', 'static' or a pair (q, q_dot)", InputError
             ) from None
