@@ -780,3 +780,28 @@ pub fn frequencies(m: &nalgebra::DMatrix<f64>, k: &nalgebra::DMatrix<f64>) -> Ve
     w.sort_by(|a, b| a.partial_cmp(b).unwrap());
     w
 }
+
+/// The tip rows of K^-1 B of a free tip's linearisation against the point Jacobian `jac` of
+/// the same equilibrium, column by column (the first jac.d_position.len() inputs of B): both
+/// come from the same dual passes, so they agree to the round-off of inverting the dense
+/// flexibility (1e-8 of the column).
+pub fn assert_tip_response(
+    what: &str,
+    sys: &softrod_core::linearise::LinearSystem,
+    jac: &softrod_core::jacobian::PointJacobian,
+) {
+    let response = sys.stiffness.clone().try_inverse().unwrap() * &sys.input;
+    let nq = sys.mass.nrows();
+    for (k, (dp, dw)) in jac.d_position.iter().zip(&jac.d_rotation).enumerate() {
+        let col = [*dp, *dw].concat();
+        let scale = col.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let err = (0..6)
+            .map(|r| (response[(nq - 6 + r, k)] - col[r]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            err <= 1e-8 * scale,
+            "{what}, input {k}: {err:.2e} of {scale:.2e}"
+        );
+    }
+}
