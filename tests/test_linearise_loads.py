@@ -19,9 +19,10 @@ from softrod import InputError, linearise, load_design, solve_statics
 L, EI, MASS = 0.5, 0.02, 0.1
 
 
-def beck(p: float) -> softrod.Design:
-    """Beck's column: an upright, undamped cantilever nearly rigid in extension and shear
-    under a follower compressive tip force p EI / L^2 along its tangent."""
+def beck(p: float, damping_time: float = 0.0) -> softrod.Design:
+    """Beck's column: an upright cantilever nearly rigid in extension and shear under a
+    follower compressive tip force p EI / L^2 along its tangent; undamped unless
+    ``damping_time`` (s, Kelvin-Voigt) is given."""
     return load_design(
         {
             "design": {"name": "beck_column", "citation": "Beck, ZAMP 3, 1952"},
@@ -39,7 +40,7 @@ def beck(p: float) -> softrod.Design:
                 }
             ],
             "tip": {"force": [0, 0, f"{-p * EI / L**2} N"], "frame": "body"},
-            "dynamics": {"damping_time": "0 s"},
+            "dynamics": {"damping_time": f"{damping_time} s"},
         }
     )
 
@@ -63,6 +64,31 @@ def test_beck_column_flutters_above_its_critical_load():
     assert top.real > 0 and top.imag != 0
     # The static solve cannot see it: the straight column is its equilibrium.
     assert np.abs(above.equilibrium.tip_position[:2]).max() < 1e-12
+
+
+def test_kelvin_voigt_damping_lowers_becks_flutter_load():
+    """Ziegler's destabilisation paradox, seen in poles(): a little Kelvin-Voigt damping
+    makes the column flutter far below the undamped 20.05, at a load that does not depend on
+    how small the damping is (tau = 1e-4 and 1e-3 s agree to 1e-3: the vanishing-damping
+    limit; measured 10.939 and 10.939). Undamped, the column at p = 12 stays on the
+    imaginary axis (as below 20.05 above)."""
+
+    def growth(p: float, tau: float) -> float:
+        poles = linearise(beck(p, tau), nodes=8).poles()
+        return poles[np.abs(poles) < 100].real.max()  # the two lowest bending pairs
+
+    def onset(tau: float) -> float:
+        lo, hi = 10.0, 12.0
+        assert growth(lo, tau) < 0 < growth(hi, tau)
+        for _ in range(12):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if growth(mid, tau) > 0 else (mid, hi)
+        return 0.5 * (lo + hi)
+
+    assert abs(growth(12.0, 0.0)) < 1e-6 * 20  # undamped: |Re| at round-off of |pole| ~ 20
+    light, lighter = onset(1e-3), onset(1e-4)
+    assert abs(light / lighter - 1) < 1e-3, (light, lighter)
+    assert light < 0.6 * 20.05
 
 
 def test_follower_static_response_is_the_jacobian():
