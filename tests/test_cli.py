@@ -1,6 +1,7 @@
 """The ``softrod`` command line, driven through click's CliRunner."""
 
 import json
+import math
 
 import numpy as np
 import pandas as pd
@@ -379,6 +380,25 @@ def test_modes_lists_the_linearisations_modes(run, tmp_path):
     result = run("modes", file, "--count", 2, "--json")
     assert result.exit_code == 0, result.output
     assert json.loads(result.stdout)["tip_constraint"] == "pinned"
+
+
+def test_modes_of_a_fluttering_design_show_what_grows(run, tmp_path):
+    """Beck's column (tests/test_linearise_loads.py) above its flutter load: the command
+    exits 2 with the refusal naming the equilibrium, after a line with the growing pole's
+    rate and frequency (the same as LinearSystem.poles()); below it, the table, whose
+    header says the tip load follows the tip."""
+    from test_linearise_loads import beck
+
+    for p, code in ((19.5, 0), (20.5, 2)):
+        file = beck(p).save(tmp_path / f"beck_{p}.toml")
+        result = run("modes", file, "--count", 2)
+        assert result.exit_code == code, result.output
+    assert (
+        "tip free (follower tip load); 12 nodes" in run("modes", tmp_path / "beck_19.5.toml").stdout
+    )
+    top = softrod.linearise(beck(20.5)).poles()[0]
+    assert f"{top.real:.4g} 1/s at {abs(top.imag) / (2 * math.pi):.4g} Hz" in result.stderr
+    assert "equilibrium" in result.stderr and "flutter" in result.stderr
 
 
 def test_modes_refusals_name_the_option(run):

@@ -5,6 +5,7 @@ control tools (docs/control.md). Heavy modules are imported inside the commands 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import click
@@ -303,6 +304,20 @@ def track(design, path_file, bounds, rate, kp, ki, output, plot, as_json):
     )
 
 
+def _print_growing_poles(poles) -> None:
+    """The linearisation's growing poles (positive real part; one of each complex pair) on
+    stderr: growth rate in 1/s and frequency in Hz, fastest first, at most four."""
+    from rich.console import Console
+
+    growing = [z for z in poles if z.real > 1e-6 * abs(z) and z.imag >= 0][:4]
+    if not growing:  # merged undamped modes that damping keeps stable: the error says so
+        return
+    text = "; ".join(f"{z.real:.4g} 1/s at {z.imag / (2 * math.pi):.4g} Hz" for z in growing)
+    Console(stderr=True, highlight=False, soft_wrap=True).print(
+        f"growing poles of the linearisation (growth rate, frequency): {text}"
+    )
+
+
 @click.command("modes")
 @click.argument("design")
 @click.option(
@@ -367,7 +382,12 @@ def modes(design, pressure, tension, nodes, count, output, figure, as_json):
         raise design_error(
             "--count", count, f"must be at most the {n} coordinates of {nodes} nodes", InputError
         )
-    found = system.modes(count)
+    try:
+        found = system.modes(count)
+    except InputError as exc:
+        if exc.field == "equilibrium":  # unstable: show what grows before the error line
+            _print_growing_poles(system.poles())
+        raise
     frame = found.to_frame()
     if output is not None:
         write_table(frame, output)
@@ -400,9 +420,10 @@ def modes(design, pressure, tension, nodes, count, output, figure, as_json):
     from rich.table import Table
 
     console = _stdout()
+    follower = " (follower tip load)" if d.spec["tip"].get("frame") == "body" else ""
     console.print(
         f"design {d.name}; pressures [{', '.join(f'{v / 1e3:g}' for v in p)}] kPa; "
-        f"tip {system.tip_constraint}; {nodes} nodes"
+        f"tip {system.tip_constraint}{follower}; {nodes} nodes"
     )
     table = Table()
     table.add_column("mode", justify="right")
