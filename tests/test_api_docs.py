@@ -53,3 +53,7 @@ def test_site_builds_strictly_and_shows_every_public_name(tmp_path):
     for name in public_names():
         assert f'id="softrod.{name}"' in page, name
     assert ":func:" not in page and ":class:" not in page  # Sphinx roles became code spans
+    # The linearisations' first-order form and poles live on their shared base class.
+    for cls in ("LinearSystem", "SystemLinearSystem"):
+        for method in ("state_space", "poles", "modes"):
+            assert f'id="softrod.{cls}.{method}"' in page, (cls, method)
