@@ -451,8 +451,9 @@ pub fn solve_batch(
 /// derivatives of its tip pose and marker positions with respect to `params` (see
 /// [`crate::sensitivity`]; with no parameters, the positions only). `guesses`, when given,
 /// holds a warm start x (one per unknown per row, e.g. the previous iteration's
-/// `BatchRow::x`; NaN rows start cold). A row whose derivatives cannot be formed (singular
-/// shooting Jacobian) is reported failed; failed rows have NaN marker positions.
+/// `BatchRow::x`; NaN rows start cold). A row whose derivatives cannot be formed (a
+/// singular shooting or collocation Jacobian: a limit point) is reported failed; failed
+/// rows have NaN marker positions.
 pub fn sensitivity_batch(
     rod: &Rod,
     inputs: &BatchInputs,
@@ -467,9 +468,6 @@ pub fn sensitivity_batch(
     let located = locate_markers(rod, markers)?;
     let rows = Rows::new(rod, opts, inputs, guesses)?;
     let n = rows.unknowns;
-    // A row solved by collocation has no derivatives yet (`jacobian::shooting_derivable`):
-    // the whole batch is refused with that reason, not reported as failed rows.
-    let refused = std::sync::Mutex::new(None);
     let mut out = rows.run(rod, opts, threads, &|loads, sol, row| {
         if params.is_empty() {
             row.markers = marker_positions(rod, loads, sol, &located);
@@ -480,18 +478,9 @@ pub fn sensitivity_batch(
                 row.markers = marker_positions(rod, loads, sol, &located);
                 row.sensitivity = Some(s);
             }
-            Err(e) => {
-                if sol.collocation.is_some() {
-                    let mut first = refused.lock().unwrap_or_else(|p| p.into_inner());
-                    first.get_or_insert(e);
-                }
-                *row = BatchRow::failed(n, sol.iterations, sol.residual);
-            }
+            Err(_) => *row = BatchRow::failed(n, sol.iterations, sol.residual),
         }
     })?;
-    if let Some(e) = refused.into_inner().unwrap_or_else(|p| p.into_inner()) {
-        return Err(e);
-    }
     for row in out.iter_mut().filter(|r| !r.converged) {
         row.markers = vec![[f64::NAN; 3]; markers.len()];
     }

@@ -1722,6 +1722,36 @@ impl Factorization {
         self.band.n()
     }
 
+    /// The implicit function theorem's step: the unknowns `z` with dz/da in the dual parts
+    /// of their first `dirs` directions, dz/da = -G_z^-1 d_a G, from the residual's partial
+    /// derivatives d_a G in the dual parts of `r` (evaluated at `z`, where this factors
+    /// G_z). None when a derivative is not finite.
+    pub fn implicit_step<const N: usize>(
+        &self,
+        z: &[f64],
+        r: &[Jet<N>],
+        dirs: usize,
+    ) -> Option<Vec<Jet<N>>> {
+        let mut zd: Vec<Jet<N>> = z.iter().map(|&x| Jet::<N>::from(x)).collect();
+        let mut rhs = vec![0.0; z.len()];
+        let mut dz = vec![0.0; z.len()];
+        let mut scratch = vec![0.0; self.scratch_len()];
+        for q in 0..dirs {
+            for (x, ri) in rhs.iter_mut().zip(r) {
+                *x = ri.eps[q];
+            }
+            // `solve` solves J dz = -r.
+            self.solve(&rhs, &mut dz, &mut scratch);
+            if !dz.iter().all(|x| x.is_finite()) {
+                return None;
+            }
+            for (x, d) in zd.iter_mut().zip(&dz) {
+                x.eps[q] = *d;
+            }
+        }
+        Some(zd)
+    }
+
     #[inline(always)]
     fn solve2_impl(&self, r: &[f64], dz: &mut [f64], rhs: &mut [f64]) {
         if self.contact {
@@ -2164,7 +2194,7 @@ impl Problem<'_> {
     /// Physical state of node j (0..=N) from scaled unknowns in any scalar.
     // Inlined into the sensitivities' AVX2 step (`dynamics::sensitivity`).
     #[inline(always)]
-    fn node_with<D: RodScalar>(&self, z: &[D], j: usize) -> [D; NY] {
+    pub(crate) fn node_with<D: RodScalar>(&self, z: &[D], j: usize) -> [D; NY] {
         if j == 0 {
             let mut y = [D::from(0.0); NY];
             for k in 0..4 {

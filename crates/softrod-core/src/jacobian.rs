@@ -31,6 +31,7 @@ use crate::ode::{
     advance, integrate_with, Coeffs, Loads, NodeAt, SectionKnobs, State, TendonCoeff,
 };
 use crate::rod::Rod;
+use crate::sensitivity::MarkerAt;
 use crate::statics::constraint::{reaction_under, tip_residual_under, TipConstraint};
 use crate::statics::tangent::singular_jacobian;
 use crate::statics::{Problem, Solution};
@@ -97,6 +98,25 @@ impl Probe {
             step,
             offset,
         })
+    }
+
+    /// The probe as a marker on the centreline: a collocation solution's state there is
+    /// read from its node (`crate::sensitivity::advance_from_node`).
+    pub(crate) fn on_centreline(&self, rod: &Rod) -> MarkerAt {
+        let sec = &rod.sections[self.section];
+        MarkerAt {
+            node: rod.sections[..self.section]
+                .iter()
+                .map(|s| s.steps)
+                .sum::<usize>()
+                + self.step,
+            section: self.section,
+            step: self.step,
+            s_node: sec.s_start + self.step as f64 * sec.length / sec.steps as f64,
+            h: self.offset,
+            section_start: self.step == 0,
+            offset: [0.0; 3],
+        }
     }
 
     /// The tip.
@@ -355,10 +375,13 @@ pub(crate) fn unknowns3(sol: &Solution) -> Result<[f64; 3]> {
     })
 }
 
-/// The exact derivatives are taken by shooting passes from the solution's unknowns x. A rod
-/// that statics solved by collocation (single shooting cannot resolve it: a growth exponent
-/// beyond `SHOOTING_GROWTH_LIMIT`, docs/model.md "Collocation") would diverge from its
-/// equilibrium along such a pass, and its derivatives would be wrong: refused by name.
+/// The linearisation and the inverse take their derivatives by shooting passes from the
+/// solution's unknowns x. A rod that statics solved by collocation (single shooting cannot
+/// resolve it: a growth exponent beyond `SHOOTING_GROWTH_LIMIT`, docs/model.md
+/// "Collocation") would diverge from its equilibrium along such a pass, and its
+/// derivatives would be wrong: refused by name. (Its Jacobians and parameter
+/// sensitivities differentiate the collocation equations instead,
+/// `crate::statics::collocation::derivatives`.)
 pub(crate) fn shooting_derivable(sol: &Solution) -> Result<()> {
     if sol.collocation.is_some() {
         return Err(SoftrodError::invalid(
@@ -366,10 +389,10 @@ pub(crate) fn shooting_derivable(sol: &Solution) -> Result<()> {
             "solved by collocation",
             format!(
                 "single shooting cannot resolve this rod (int_0^L sqrt(|n| / EI) ds > {}: a \
-                 long, soft rod under its own weight; docs/model.md, 'Collocation'), and its \
-                 exact derivatives (Jacobians, parameter sensitivities, the linearisation, the \
-                 inverse) are taken by shooting passes, which would leave its equilibrium: \
-                 not available for such rods yet",
+                 long, soft rod under its own weight; docs/model.md, 'Collocation'), and the \
+                 linearisation and the inverse take their derivatives by shooting passes, \
+                 which would leave its equilibrium: not available for such rods yet (its \
+                 Jacobian and parameter sensitivities are)",
                 crate::statics::collocation::SHOOTING_GROWTH_LIMIT
             ),
         ));
@@ -445,6 +468,13 @@ pub fn point_jacobian(
 ) -> Result<PointJacobian> {
     check_inputs(rod, inputs)?;
     crate::scope::dead_loads_only(rod, loads, "the point Jacobian")?;
+    if sol.collocation.is_some() {
+        // Implicit differentiation of the collocation equations: a shooting pass from x
+        // would leave this equilibrium.
+        return crate::statics::collocation::derivatives::point_jacobian(
+            rod, loads, sol, inputs, probe,
+        );
+    }
     let x = unknowns3(sol)?;
     let p = pass(rod, loads, &x, inputs, probe);
     let (dy, _) = total_derivatives(&p).ok_or_else(|| singular(sol))?;

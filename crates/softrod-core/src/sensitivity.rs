@@ -269,14 +269,17 @@ pub(crate) fn check_params(rod: &Rod, params: &[Param]) -> Result<()> {
 /// section's carried stretch is set there first).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MarkerAt {
-    node: usize,
-    section: usize,
+    /// The integration node at or before the marker (0: the base).
+    pub(crate) node: usize,
+    pub(crate) section: usize,
     /// Steps done in `section` at the node, and the node's arc length.
-    step: usize,
-    s_node: f64,
-    h: f64,
-    section_start: bool,
-    offset: [f64; 3],
+    pub(crate) step: usize,
+    pub(crate) s_node: f64,
+    /// The distance from the node (0: at the node).
+    pub(crate) h: f64,
+    pub(crate) section_start: bool,
+    /// In the cross-section frame, m.
+    pub(crate) offset: [f64; 3],
 }
 
 /// Check the markers against the rod and locate them on its integration grid. Errors name
@@ -392,12 +395,12 @@ pub fn marker_positions(
         return vec![];
     }
     let p = Problem::new(rod, loads, 1.0);
-    if let Some(shape) = &sol.collocation {
+    if let Some(c) = &sol.collocation {
         // Solved by collocation: shooting from x would leave the equilibrium; each marker
         // is read from its node's state, over at most one step.
         return markers
             .iter()
-            .map(|mk| marker_position(&from_node(rod, &p.coeffs, shape, mk), &mk.offset))
+            .map(|mk| marker_position(&from_node(rod, &p.coeffs, &c.shape, mk), &mk.offset))
             .collect();
     }
     let (_, states) = integrate_markers(rod, &p.coeffs, p.base_state(&sol.x), markers);
@@ -412,13 +415,26 @@ pub fn marker_positions(
 /// moment, pose), advanced over the marker's partial step with the section's law.
 fn from_node(rod: &Rod, coeffs: &[Coeffs<f64>], shape: &Shape, mk: &MarkerAt) -> State<f64> {
     let j = mk.node;
-    let mut y = State {
+    let y = State {
         r: shape.position[j],
         rot: shape.rotation[j],
         n: shape.force[j],
         m: shape.moment[j],
         aux: [1.0, 1.0],
     };
+    advance_from_node(rod, coeffs, y, mk)
+}
+
+/// The state at marker `mk` from the state `y` at its node (in any scalar: the exact
+/// derivatives of a collocation solution read their markers the same way,
+/// `crate::statics::collocation::derivatives`): `y` itself at a node, else advanced over
+/// the marker's partial step with the section's law.
+pub(crate) fn advance_from_node<C: Coeff, D: StateScalar<C>>(
+    rod: &Rod,
+    coeffs: &[Coeffs<C>],
+    mut y: State<D>,
+    mk: &MarkerAt,
+) -> State<D> {
     if mk.h == 0.0 {
         return y;
     }
@@ -578,7 +594,16 @@ fn sensitivity_n<const N: usize>(
     params: &[Param],
     markers: &[MarkerAt],
 ) -> Result<TipSensitivity> {
-    crate::jacobian::shooting_derivable(sol)?;
+    if sol.collocation.is_some() {
+        // Implicit differentiation of the collocation equations: a shooting pass from x
+        // would leave this equilibrium (only a free tip's equilibrium is solved so).
+        if let TipConstraint::Free = constraint {
+            return crate::statics::collocation::derivatives::pose_sensitivity(
+                rod, loads, sol, params, markers,
+            );
+        }
+        crate::jacobian::shooting_derivable(sol)?;
+    }
     let p = Problem::new(rod, loads, 1.0);
     // J = d_x R and d_x y in one pass with x seeded.
     let xd: [Jet<N>; N] = std::array::from_fn(|i| Jet::variable(sol.x[i], i));

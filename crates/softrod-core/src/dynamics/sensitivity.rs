@@ -713,24 +713,7 @@ fn solve_exact<const N: usize>(
 ) -> Option<Vec<Jet<N>>> {
     let zc: Vec<Jet<N>> = z.iter().map(|&x| Jet::<N>::from(x)).collect();
     let r = problem.residual_with(models, hist, &zc);
-    let mut zd = zc;
-    let mut rhs = vec![0.0; z.len()];
-    let mut dz = vec![0.0; z.len()];
-    let mut scratch = vec![0.0; fac.scratch_len()];
-    for q in 0..n_par {
-        for (x, ri) in rhs.iter_mut().zip(&r) {
-            *x = ri.eps[q];
-        }
-        // The factorization solves J dz = -r.
-        fac.solve(&rhs, &mut dz, &mut scratch);
-        if !dz.iter().all(|x| x.is_finite()) {
-            return None;
-        }
-        for (x, d) in zd.iter_mut().zip(&dz) {
-            x.eps[q] = *d;
-        }
-    }
-    Some(zd)
+    fac.implicit_step(z, &r, n_par)
 }
 
 /// The same with an approximate (kept) matrix M: iterative refinement

@@ -7,11 +7,13 @@ use crate::collocation::{
     SectionModel, TipBody, IM, IN, IQ, NF, NY,
 };
 use crate::error::{Result, SoftrodError};
-use crate::jet::Jet;
+use crate::jet::{Coeff, Jet};
 use crate::ode::Coeffs;
 use crate::rod::Rod;
 use crate::statics::{rotation_variations, Jacobi, SolverOptions, MIN_STABLE_STEP};
 use nalgebra::{Matrix3, SMatrix};
+
+pub mod derivatives;
 
 /// A static equilibrium solved by collocation.
 #[derive(Debug, Clone, PartialEq)]
@@ -39,14 +41,21 @@ pub fn static_models(
     let coeffs: Vec<Coeffs<f64>> = (0..rod.sections.len())
         .map(|i| static_coeffs(rod, i, loads, factor))
         .collect();
-    grid.build_models(rod, &coeffs, |c, _, slot| {
+    models_of(rod, grid, &coeffs)
+}
+
+/// Static section models (no inertia, no damping, c0 = 0) from the sections' coefficients,
+/// in any coefficient scalar (dual ones for [`derivatives`]).
+fn models_of<C: Coeff>(rod: &Rod, grid: &Grid, coeffs: &[Coeffs<C>]) -> Vec<SectionModel<C>> {
+    let zero = C::from(0.0);
+    grid.build_models(rod, coeffs, |c, _, slot| {
         SectionModel::new(
             c,
             rod.sections[slot.section].rigid,
-            0.0,
-            [0.0; 3],
+            zero,
+            [zero; 3],
             None,
-            0.0,
+            zero,
             0.0,
         )
     })

@@ -136,13 +136,21 @@ pub struct Solution {
     /// Validity-range violations (with `Policy::Warn`; empty otherwise): the worst fibre
     /// stretch outside `strain_limits`, pressures outside the design's operating range.
     pub violations: Vec<SoftrodError>,
-    /// The shape, when the solve used collocation (`crate::collocation`): re-integrating
-    /// from `x` by shooting is what that rod's conditioning forbids.
-    pub collocation: Option<std::sync::Arc<Shape>>,
+    /// The shape and unknowns, when the solve used collocation (`crate::collocation`):
+    /// re-integrating from `x` by shooting is what that rod's conditioning forbids.
+    pub collocation: Option<std::sync::Arc<Collocated>>,
     /// The frictional statics' path state at this equilibrium (`friction`): its loads and
     /// every contact point's friction memory, from which a further path may start. None
     /// for a frictionless solve.
     pub friction: Option<std::sync::Arc<friction::FrictionPath>>,
+}
+
+/// An equilibrium solved by collocation: its shape, and its scaled collocation unknowns,
+/// from which its exact derivatives are taken (`collocation::derivatives`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Collocated {
+    pub shape: Shape,
+    pub z: Vec<f64>,
 }
 
 /// The rod's shape at every integration node.
@@ -1387,10 +1395,14 @@ fn by_collocation(
         m: shape.moment[last],
         aux: [1.0, 1.0],
     };
-    let shape = std::sync::Arc::new(shape);
+    let x = vec![sol.z[3], sol.z[4], sol.z[5]];
+    let collocated = std::sync::Arc::new(Collocated {
+        shape: shape.clone(),
+        z: sol.z,
+    });
     Ok((
         Solution {
-            x: vec![sol.z[3], sol.z[4], sol.z[5]],
+            x,
             base_force,
             base_moment,
             tip,
@@ -1399,10 +1411,10 @@ fn by_collocation(
             load_steps: sol.load_steps,
             stable: sol.stable,
             violations,
-            collocation: Some(shape.clone()),
+            collocation: Some(collocated),
             friction: None,
         },
-        Some((*shape).clone()),
+        Some(shape),
     ))
 }
 
@@ -1737,8 +1749,8 @@ pub fn conclude_at(
 
 /// The shape of a converged solution at every integration node.
 pub fn shape(rod: &Rod, loads: &Loads, sol: &Solution) -> Shape {
-    if let Some(sh) = &sol.collocation {
-        return (**sh).clone();
+    if let Some(c) = &sol.collocation {
+        return c.shape.clone();
     }
     let p = Problem::for_solution(rod, loads, sol);
     let mut out = Shape::default();

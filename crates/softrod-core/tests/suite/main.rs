@@ -7,6 +7,7 @@ mod bars;
 mod batch;
 mod batch_ends;
 mod collocation;
+mod collocation_derivatives;
 mod common;
 mod contact;
 mod convergence;
