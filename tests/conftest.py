@@ -114,7 +114,11 @@ def ring_down_frequency(trajectory, t_start, axis=0):
     def model(t, a, s, w, ph, c):
         return a * np.exp(-s * t) * np.cos(w * t + ph) + c
 
-    p, _ = curve_fit(model, t[m], x[m], p0=[2 * xx.std(), 1.0, w0, 0.0, x[m].mean()], maxfev=20000)
+    # Time from t_start: the amplitude is then that at t_start, whatever t_start is (a fit in
+    # absolute time scales it by e^(s t_start) and overflows the exponential for late starts).
+    p, _ = curve_fit(
+        model, t[m] - t_start, x[m], p0=[2 * xx.std(), 1.0, w0, 0.0, x[m].mean()], maxfev=20000
+    )
     return p[2] / (2 * np.pi), p[1]
 
 

@@ -375,13 +375,13 @@ pub(crate) fn unknowns3(sol: &Solution) -> Result<[f64; 3]> {
     })
 }
 
-/// The linearisation and the inverse take their derivatives by shooting passes from the
-/// solution's unknowns x. A rod that statics solved by collocation (single shooting cannot
-/// resolve it: a growth exponent beyond `SHOOTING_GROWTH_LIMIT`, docs/model.md
-/// "Collocation") would diverge from its equilibrium along such a pass, and its
-/// derivatives would be wrong: refused by name. (Its Jacobians and parameter
-/// sensitivities differentiate the collocation equations instead,
-/// `crate::statics::collocation::derivatives`.)
+/// The inverse takes its derivatives by shooting passes from the solution's unknowns x. A
+/// rod that statics solved by collocation (single shooting cannot resolve it: a growth
+/// exponent beyond `SHOOTING_GROWTH_LIMIT`, docs/model.md "Collocation") would diverge from
+/// its equilibrium along such a pass, and its derivatives would be wrong: refused by name.
+/// (Its Jacobians, parameter sensitivities and linearisation differentiate the collocation
+/// equations instead: `crate::statics::collocation::derivatives`,
+/// `crate::linearise::collocation`.)
 pub(crate) fn shooting_derivable(sol: &Solution) -> Result<()> {
     if sol.collocation.is_some() {
         return Err(SoftrodError::invalid(
@@ -390,9 +390,9 @@ pub(crate) fn shooting_derivable(sol: &Solution) -> Result<()> {
             format!(
                 "single shooting cannot resolve this rod (int_0^L sqrt(|n| / EI) ds > {}: a \
                  long, soft rod under its own weight; docs/model.md, 'Collocation'), and the \
-                 linearisation and the inverse take their derivatives by shooting passes, \
-                 which would leave its equilibrium: not available for such rods yet (its \
-                 Jacobian and parameter sensitivities are)",
+                 inverse takes its derivatives by shooting passes, which would leave its \
+                 equilibrium: not available for such rods yet (its Jacobian, parameter \
+                 sensitivities and linearisation are)",
                 crate::statics::collocation::SHOOTING_GROWTH_LIMIT
             ),
         ));

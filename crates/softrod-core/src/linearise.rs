@@ -29,7 +29,9 @@
 //! (`section_inertia_at`, `Coeffs::at`), as the dynamics evaluates them at its stages.
 //!
 //! This construction uses only the static model and the section inertia, so it does not
-//! depend on how the dynamic solver discretises space and time.
+//! depend on how the dynamic solver discretises space and time. An equilibrium that statics
+//! solved by collocation (a long, soft rod) gets the same responses from the collocation
+//! equations ([`collocation`]).
 //!
 //! A held tip ([`linearise_held`]) changes the static model: six shooting unknowns (the base
 //! force too) and the held tip's residual in the implicit differentiation. A clamped tip is
@@ -39,6 +41,7 @@
 //! there are the three moments only, the tip body adds its inertia about the pin, and the
 //! tip force columns are zero (the pin takes it).
 
+mod collocation;
 pub mod system;
 
 use crate::dynamics::section_inertia_at;
@@ -134,6 +137,29 @@ struct Interval<D> {
     strain_a: [D; 6],
     strain_m: [D; 6],
     strain_b: [D; 6],
+}
+
+impl<const N: usize> Interval<Jet<N>> {
+    /// Section, [a, b] and the rotations' values at a, the midpoint and b.
+    fn meta(&self) -> Meta {
+        let value = |st: &State<Jet<N>>| st.rot.map(|r| r.map(|v| v.re));
+        (
+            self.section,
+            self.a,
+            self.b,
+            [value(&self.start), value(&self.mid), value(&self.end)],
+        )
+    }
+
+    /// The start, midpoint and end with their strains.
+    #[allow(clippy::type_complexity)]
+    fn ends(&self) -> [(&State<Jet<N>>, &[Jet<N>; 6]); 3] {
+        [
+            (&self.start, &self.strain_a),
+            (&self.mid, &self.strain_m),
+            (&self.end, &self.strain_b),
+        ]
+    }
 }
 
 /// The tip the equilibrium is linearised with: free under dead loads without obstacles
@@ -321,6 +347,13 @@ fn load_pass<const N: usize>(
 pub fn linearise(rod: &Rod, loads: &Loads, sol: &Solution, n_nodes: usize) -> Result<LinearSystem> {
     refuse_friction(sol)?;
     let nodes = choose_nodes(rod, n_nodes)?;
+    if sol.collocation.is_some() {
+        // Solved by collocation (a free tip under dead loads): the responses come from the
+        // collocation equations, since shooting passes from x would leave the equilibrium.
+        let layout = Layout::new(nodes.len(), Tip::Free);
+        let responses = collocation::responses(rod, loads, sol, &nodes, &layout)?;
+        return assemble(rod, loads, sol, &nodes, &layout, Tip::Free, responses);
+    }
     if loads.base_force_unknown(rod) {
         let x = six_unknowns(sol, "a free tip under follower loads or on obstacles")?;
         return linearise_at_nodes::<12>(
@@ -394,6 +427,62 @@ fn refuse_friction(sol: &Solution) -> Result<()> {
     Ok(())
 }
 
+/// The static model's responses a linearisation is assembled from ([`assemble`]), in load
+/// coordinates (one column per coordinate's conjugate load, [`Layout`]).
+struct Responses {
+    /// The flexibility C (nq x nq): every coordinate's derivative with respect to every
+    /// coordinate's conjugate load.
+    flex: DMatrix<f64>,
+    /// Per integration interval: section, [a, b] and the rotations at a, the midpoint, b.
+    meta: Vec<Meta>,
+    /// The pose (phi) and strain (psi) derivatives (6 x nq) at every interval's start
+    /// (right limit), midpoint and end (left limit).
+    phi: Vec<[DMatrix<f64>; 3]>,
+    psi: Vec<[DMatrix<f64>; 3]>,
+    /// The coordinates' derivatives (nq x inputs) with respect to the pressures, the
+    /// tensions and a mapped rod's factors sigma ([`Inputs`]).
+    dq: DMatrix<f64>,
+}
+
+/// The inputs whose response columns B carries as K dq/du: the pressures, the tensions and,
+/// for a rod with a stiffness-mapped section, its three factors sigma.
+struct Inputs {
+    nc: usize,
+    nt: usize,
+    ns: usize,
+}
+
+impl Inputs {
+    fn of(rod: &Rod) -> Self {
+        // A stiffness-mapped rod's factors sigma: the caller composes them with its map's
+        // d sigma / d p (the pressures' columns are partial derivatives at fixed sigma).
+        let ns = if rod.sections.iter().any(|s| s.law.stiffness_map) {
+            3
+        } else {
+            0
+        };
+        Inputs {
+            nc: rod.n_channels,
+            nt: rod.n_tendons,
+            ns,
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.nc + self.nt + self.ns
+    }
+
+    fn input(&self, u: usize) -> Input {
+        if u < self.nc {
+            Input::Pressure(u)
+        } else if u < self.nc + self.nt {
+            Input::Tension(u - self.nc)
+        } else {
+            Input::StiffnessScale(u - self.nc - self.nt)
+        }
+    }
+}
+
 /// The linearisation with nodes `nodes` and the `tip` of `x`'s unknowns, in `Jet<N>` (N =
 /// unknowns + 6).
 fn linearise_at_nodes<const N: usize>(
@@ -404,16 +493,31 @@ fn linearise_at_nodes<const N: usize>(
     nodes: &[(usize, usize, f64)],
     tip: Tip,
 ) -> Result<LinearSystem> {
+    let layout = Layout::new(nodes.len(), tip);
+    let responses = shooting_responses::<N>(rod, loads, sol, x, nodes, &layout, tip)?;
+    assemble(rod, loads, sol, nodes, &layout, tip, responses)
+}
+
+/// [`Responses`] by shooting passes from the unknowns `x`: one pass per node with its point
+/// force and moment seeded, the implicit function theorem on the shooting residual.
+fn shooting_responses<const N: usize>(
+    rod: &Rod,
+    loads: &Loads,
+    sol: &Solution,
+    x: &[f64],
+    nodes: &[(usize, usize, f64)],
+    layout: &Layout,
+    tip: Tip,
+) -> Result<Responses> {
     let nx = tip.unknowns();
     debug_assert_eq!(nx + 6, N);
-    let layout = Layout::new(nodes.len(), tip);
     let nq = layout.size;
     let problem = Problem::new(rod, loads, 1.0);
     // Per load node k: derivatives of every interval quantity w.r.t. its load components
     // (the coordinates' conjugates). phi[interval][end] is (6, nq) for the pose and psi for
     // the strains.
     let mut flex = DMatrix::<f64>::zeros(nq, nq);
-    let mut intervals_meta: Vec<Meta> = Vec::new();
+    let mut meta: Vec<Meta> = Vec::new();
     let mut phi: Vec<[DMatrix<f64>; 3]> = Vec::new();
     let mut psi: Vec<[DMatrix<f64>; 3]> = Vec::new();
     for (k, &(sec, step, _)) in nodes.iter().enumerate() {
@@ -436,54 +540,101 @@ fn linearise_at_nodes<const N: usize>(
             })
         };
         if k == 0 {
-            for iv in &intervals {
-                let value = |st: &State<Jet<N>>| st.rot.map(|r| r.map(|v| v.re));
-                intervals_meta.push((
-                    iv.section,
-                    iv.a,
-                    iv.b,
-                    [value(&iv.start), value(&iv.mid), value(&iv.end)],
-                ));
-                let z = || DMatrix::zeros(6, nq);
-                phi.push([z(), z(), z()]);
-                psi.push([z(), z(), z()]);
-            }
+            meta = intervals.iter().map(Interval::meta).collect();
+            (phi, psi) = zero_fields(meta.len(), nq);
         }
         for (m, iv) in intervals.iter().enumerate() {
-            let ends = [
-                (&iv.start, &iv.strain_a),
-                (&iv.mid, &iv.strain_m),
-                (&iv.end, &iv.strain_b),
-            ];
-            for (e, (st, sn)) in ends.iter().enumerate() {
+            for (e, (st, sn)) in iv.ends().iter().enumerate() {
                 let dpose = total6(&|dir| pose_derivative(st, dir));
                 let dstrain = total6(&|dir| std::array::from_fn(|r| sn[r].eps[dir]));
-                for (_, j, col) in layout.coordinates().filter(|c| c.0 == k) {
-                    for r in 0..6 {
-                        phi[m][e][(r, col)] = dpose[j][r];
-                        psi[m][e][(r, col)] = dstrain[j][r];
-                    }
-                }
+                record(layout, k, &dpose, &dstrain, &mut phi[m][e], &mut psi[m][e]);
             }
         }
-        // Flexibility rows: the node poses (the end of the interval that ends at each node)
-        // that are coordinates.
-        for (a, r, row) in layout.coordinates() {
-            let s_a = nodes[a].2;
-            let m = intervals
-                .iter()
-                .position(|iv| (iv.b - s_a).abs() <= 1e-12 * rod.length)
-                .expect("every node ends an interval");
-            for (_, _, col) in layout.coordinates().filter(|c| c.0 == k) {
-                flex[(row, col)] = phi[m][2][(r, col)];
-            }
+        fill_flexibility(rod, nodes, layout, k, &meta, &phi, &mut flex);
+    }
+    let dq = shooting_input_response::<N>(rod, loads, sol, x, nodes, layout, tip)?;
+    Ok(Responses {
+        flex,
+        meta,
+        phi,
+        psi,
+        dq,
+    })
+}
+
+/// Zero pose and strain derivative fields for `n` intervals and `nq` coordinates.
+type Fields = Vec<[DMatrix<f64>; 3]>;
+fn zero_fields(n: usize, nq: usize) -> (Fields, Fields) {
+    let z = || [(); 3].map(|_| DMatrix::zeros(6, nq));
+    ((0..n).map(|_| z()).collect(), (0..n).map(|_| z()).collect())
+}
+
+/// Store load node `k`'s pose and strain derivatives (`dpose[j]`, `dstrain[j]` for its load
+/// component j) in the columns of its coordinates.
+fn record(
+    layout: &Layout,
+    k: usize,
+    dpose: &[[f64; 6]; 6],
+    dstrain: &[[f64; 6]; 6],
+    phi: &mut DMatrix<f64>,
+    psi: &mut DMatrix<f64>,
+) {
+    for (_, j, col) in layout.coordinates().filter(|c| c.0 == k) {
+        for r in 0..6 {
+            phi[(r, col)] = dpose[j][r];
+            psi[(r, col)] = dstrain[j][r];
         }
     }
-    let stiffness = flex.clone().try_inverse().ok_or_else(|| singular(sol))?;
+}
+
+/// The flexibility's columns of load node `k`: the node poses (the end of the interval that
+/// ends at each node) that are coordinates.
+fn fill_flexibility(
+    rod: &Rod,
+    nodes: &[(usize, usize, f64)],
+    layout: &Layout,
+    k: usize,
+    meta: &[Meta],
+    phi: &[[DMatrix<f64>; 3]],
+    flex: &mut DMatrix<f64>,
+) {
+    for (a, r, row) in layout.coordinates() {
+        let s_a = nodes[a].2;
+        let m = meta
+            .iter()
+            .position(|iv| (iv.2 - s_a).abs() <= 1e-12 * rod.length)
+            .expect("every node ends an interval");
+        for (_, _, col) in layout.coordinates().filter(|c| c.0 == k) {
+            flex[(row, col)] = phi[m][2][(r, col)];
+        }
+    }
+}
+
+/// The linear system from the static model's responses: K = C^-1, M and D in load
+/// coordinates turned by K, the tip body, and B.
+fn assemble(
+    rod: &Rod,
+    loads: &Loads,
+    sol: &Solution,
+    nodes: &[(usize, usize, f64)],
+    layout: &Layout,
+    tip: Tip,
+    responses: Responses,
+) -> Result<LinearSystem> {
+    let nq = layout.size;
+    let Responses {
+        flex,
+        meta,
+        phi,
+        psi,
+        dq,
+    } = responses;
+    let stiffness = flex.try_inverse().ok_or_else(|| singular(sol))?;
+    let problem = Problem::new(rod, loads, 1.0);
     // Mass and damping in load coordinates, then K^T (.) K.
-    let (gm, gd) = interval_gram(rod, &problem, &intervals_meta, &phi, &psi, nq);
+    let (gm, gd) = interval_gram(rod, &problem, &meta, &phi, &psi, nq);
     // The tip body: mass m_t at c_w = R(L) c from the tip node, inertia along the tip frame.
-    let rot_l = intervals_meta.last().expect("at least one interval").3[2];
+    let rot_l = meta.last().expect("at least one interval").3[2];
     let tip_block = tip_body_block(rod, &rot_l, [0.0; 3]);
     let kt = stiffness.transpose();
     // K^T G K is symmetric; symmetrise away the round-off of the product.
@@ -505,7 +656,7 @@ fn linearise_at_nodes<const N: usize>(
             mass[(o + a, o + b)] += tip_block[(i, j)];
         }
     }
-    let input = input_matrix::<N>(rod, loads, sol, x, nodes, &layout, &stiffness, tip, &rot_l)?;
+    let input = input_matrix(rod, loads, nodes, layout, &stiffness, &dq, tip, &rot_l);
     Ok(LinearSystem {
         nodes: nodes.iter().map(|n| n.2).collect(),
         mass,
@@ -630,48 +781,25 @@ fn damping_matrix(rod: &Rod, c: &Coeffs<f64>, sec: usize, s: f64, tau: f64) -> D
     b
 }
 
-/// Columns of B: K dq/dp for the pressures, the tensions and a mapped rod's factors sigma;
-/// unit generalised forces at the tip node for the tip force and moment (zero for a clamped
-/// tip: the clamp takes them; a pin takes the force), turned by the tip's rotation `rot_l`
-/// for a follower tip load (its components are the tip frame's). Column order: pressures, tip force,
-/// tip moment, tensions, sigma (three, for a rod with a stiffness-mapped section).
-#[allow(clippy::too_many_arguments)]
-fn input_matrix<const N: usize>(
+/// The coordinates' derivatives with respect to the pressures, the tensions and a mapped
+/// rod's factors sigma ([`Inputs`]), by shooting passes with those inputs seeded (after the
+/// unknowns x) and the implicit function theorem on the tip's residual.
+fn shooting_input_response<const N: usize>(
     rod: &Rod,
     loads: &Loads,
     sol: &Solution,
     x: &[f64],
     nodes: &[(usize, usize, f64)],
     layout: &Layout,
-    stiffness: &DMatrix<f64>,
     tip: Tip,
-    rot_l: &[[f64; 3]; 3],
 ) -> Result<DMatrix<f64>> {
-    let (nc, nt) = (rod.n_channels, rod.n_tendons);
-    // A stiffness-mapped rod's factors sigma: the caller composes them with its map's
-    // d sigma / d p (the pressures' columns are partial derivatives at fixed sigma).
-    let ns = if rod.sections.iter().any(|s| s.law.stiffness_map) {
-        3
-    } else {
-        0
-    };
+    let inputs = Inputs::of(rod);
     let nx = tip.unknowns();
-    let nq = layout.size;
-    // dq per input: the pressures, the tensions, the factors sigma.
-    let mut dq = DMatrix::<f64>::zeros(nq, nc + nt + ns);
+    let mut dq = DMatrix::<f64>::zeros(layout.size, inputs.len());
     let problem = Problem::new(rod, loads, 1.0);
-    let input = |u: usize| {
-        if u < nc {
-            Input::Pressure(u)
-        } else if u < nc + nt {
-            Input::Tension(u - nc)
-        } else {
-            Input::StiffnessScale(u - nc - nt)
-        }
-    };
-    for chunk in (0..nc + nt + ns).collect::<Vec<_>>().chunks(6) {
-        let inputs: Vec<Input> = chunk.iter().map(|&u| input(u)).collect();
-        let coeffs = dual_coeffs_from::<N>(rod, loads, &inputs, nx);
+    for chunk in (0..inputs.len()).collect::<Vec<_>>().chunks(6) {
+        let seeded: Vec<Input> = chunk.iter().map(|&u| inputs.input(u)).collect();
+        let coeffs = dual_coeffs_from::<N>(rod, loads, &seeded, nx);
         let xd: Vec<Jet<N>> = x
             .iter()
             .enumerate()
@@ -703,6 +831,28 @@ fn input_matrix<const N: usize>(
             }
         }
     }
+    Ok(dq)
+}
+
+/// Columns of B: K dq/du for the pressures, the tensions and a mapped rod's factors sigma
+/// (`dq`, [`Inputs`]); unit generalised forces at the tip node for the tip force and moment
+/// (zero for a clamped tip: the clamp takes them; a pin takes the force), turned by the
+/// tip's rotation `rot_l` for a follower tip load (its components are the tip frame's).
+/// Column order: pressures, tip force, tip moment, tensions, sigma (three, for a rod with a
+/// stiffness-mapped section).
+#[allow(clippy::too_many_arguments)]
+fn input_matrix(
+    rod: &Rod,
+    loads: &Loads,
+    nodes: &[(usize, usize, f64)],
+    layout: &Layout,
+    stiffness: &DMatrix<f64>,
+    dq: &DMatrix<f64>,
+    tip: Tip,
+    rot_l: &[[f64; 3]; 3],
+) -> DMatrix<f64> {
+    let Inputs { nc, nt, ns } = Inputs::of(rod);
+    let nq = layout.size;
     let bp = stiffness * dq;
     let mut b = DMatrix::<f64>::zeros(nq, nc + 6 + nt + ns);
     for r in 0..nq {
@@ -730,5 +880,5 @@ fn input_matrix<const N: usize>(
             }
         }
     }
-    Ok(b)
+    b
 }

@@ -602,7 +602,12 @@ fn sensitivity_n<const N: usize>(
                 rod, loads, sol, params, markers,
             );
         }
-        crate::jacobian::shooting_derivable(sol)?;
+        return Err(SoftrodError::invalid(
+            "solution",
+            "solved by collocation (a free tip)",
+            "a held tip's derivatives need the held equilibrium: pass the solution of \
+             solve_constrained",
+        ));
     }
     let p = Problem::new(rod, loads, 1.0);
     // J = d_x R and d_x y in one pass with x seeded.

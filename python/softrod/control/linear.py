@@ -58,9 +58,9 @@ class Modes:
     damping_ratio (k,): modal damping phi^T D phi / (2 w phi^T M phi) (exact for Kelvin-Voigt
     damping without prestress, where D = tau K; first order otherwise);
     damped_frequency (k,) Hz: the imaginary part of the exact pole of each mode (NaN when it
-    is overdamped); shapes (k, n, 6): node displacements and small rotations (a pinned tip's
-    displacement zero), normalised to the largest entry 1; nodes (n,) m; poles: every
-    eigenvalue of the first-order system, 1/s.
+    is overdamped; poles and modes are matched one to one); shapes (k, n, 6): node
+    displacements and small rotations (a pinned tip's displacement zero), normalised to the
+    largest entry 1; nodes (n,) m; poles: every eigenvalue of the first-order system, 1/s.
     """
 
     frequency: np.ndarray
@@ -226,6 +226,7 @@ def _modes(system, count: int | None, rows_of: Sequence, nodes: np.ndarray) -> M
 
 def _eigen_modes(system, count: int | None, rows_of: Sequence, nodes: np.ndarray) -> Modes:
     import scipy.linalg
+    import scipy.optimize
 
     a, _ = system.state_space()
     poles = np.linalg.eigvals(a)
@@ -278,12 +279,16 @@ def _eigen_modes(system, count: int | None, rows_of: Sequence, nodes: np.ndarray
             for v, w in zip(vecs.T, omega, strict=True)
         ]
     )
+    # Each underdamped mode's exact pole: the poles nearest to the first-order estimates,
+    # each pole given to one mode only (a nearest-pole search gave both modes of a
+    # degenerate pair, e.g. a round rod's two bending planes, the same pole).
     damped = np.full(k, np.nan)
     upper = poles[poles.imag > 0]
-    for i, (w, z) in enumerate(zip(omega, zeta, strict=True)):
-        if z < 1 and len(upper):
-            expect = complex(-z * w, w * math.sqrt(max(0.0, 1 - z * z)))
-            damped[i] = upper[np.argmin(abs(upper - expect))].imag / (2 * math.pi)
+    under = np.flatnonzero(zeta < 1)
+    if len(under) and len(upper):
+        expect = -zeta[under] * omega[under] + 1j * omega[under] * np.sqrt(1 - zeta[under] ** 2)
+        rows, cols = scipy.optimize.linear_sum_assignment(abs(expect[:, None] - upper[None, :]))
+        damped[under[rows]] = upper[cols].imag / (2 * math.pi)
     shapes = np.stack([rows(vecs) for rows in rows_of], axis=1).transpose(2, 1, 0)  # (k, n, 6)
     scale = np.abs(shapes).reshape(k, -1).max(axis=1)
     shapes = shapes / scale[:, None, None]

@@ -35,6 +35,7 @@ mod inverse_tendons;
 mod jacobian;
 mod laws;
 mod linearise;
+mod linearise_collocation;
 mod linearise_loads;
 mod linearise_system;
 mod mesh_contact;

@@ -15,8 +15,9 @@
 //! (`crate::sensitivity::advance_from_node`), so every derivative is that of the value
 //! the solution reports. The shooting passes of `crate::jacobian` and
 //! `crate::sensitivity` would leave such an equilibrium (they integrate from its base
-//! unknowns). The linearisation and the inverse still need shooting passes and refuse
-//! these solutions (`crate::jacobian::shooting_derivable`).
+//! unknowns). The linearisation builds on the same equations (`crate::linearise::
+//! collocation`); the inverse still needs shooting passes and refuses these solutions
+//! (`crate::jacobian::shooting_derivable`).
 
 use super::{models_of, static_models, static_tip};
 use crate::collocation::{rotation, Factorization, Grid, Problem, SectionModel, IM, IN, NF};
@@ -36,10 +37,10 @@ const DIRS: usize = 4;
 type Dual = Jet<DIRS>;
 
 /// The collocation equations of a solution at its unknowns, with G_z factored.
-struct Implicit<'a> {
+pub(crate) struct Implicit<'a> {
     rod: &'a Rod,
     loads: &'a Loads,
-    grid: Grid,
+    pub(crate) grid: Grid,
     models: Vec<SectionModel>,
     hist: Vec<[f64; NF]>,
     z: &'a [f64],
@@ -47,14 +48,14 @@ struct Implicit<'a> {
 }
 
 /// The dual unknowns of one set of directions, with the node positions they give.
-struct DualSolution {
-    z: Vec<Dual>,
-    node_r: Vec<[Dual; 3]>,
+pub(crate) struct DualSolution<const N: usize> {
+    z: Vec<Jet<N>>,
+    node_r: Vec<[Jet<N>; 3]>,
 }
 
 impl<'a> Implicit<'a> {
     /// The equations of `sol` (a collocation solution of `loads`) factored at its unknowns.
-    fn of(rod: &'a Rod, loads: &'a Loads, sol: &'a Solution) -> Result<Self> {
+    pub(crate) fn of(rod: &'a Rod, loads: &'a Loads, sol: &'a Solution) -> Result<Self> {
         let z = match &sol.collocation {
             Some(c) => c.z.as_slice(),
             None => {
@@ -80,27 +81,28 @@ impl<'a> Implicit<'a> {
         })
     }
 
-    fn problem(&self) -> Problem<'_> {
+    pub(crate) fn problem(&self) -> Problem<'_> {
         full_load(self.rod, self.loads, &self.grid, &self.models, &self.hist)
     }
 
     /// dz/da for the first `dirs` directions of `coeffs` (the sections' coefficients
-    /// with those directions seeded), plus `tip` terms (residual row of the tip's balance,
-    /// direction, d row / d a) for inputs that enter only there.
-    fn solve(
+    /// with those directions seeded), plus `terms` (residual row, direction, d row / d a)
+    /// for inputs that enter the equations directly (a tip load the tip's balance, a
+    /// point load the node recurrence).
+    pub(crate) fn solve<const N: usize>(
         &self,
-        coeffs: &[Coeffs<Dual>],
-        tip: &[(usize, usize, f64)],
+        coeffs: &[Coeffs<Jet<N>>],
+        terms: &[(usize, usize, f64)],
         dirs: usize,
         sol: &Solution,
-    ) -> Result<DualSolution> {
+    ) -> Result<DualSolution<N>> {
         let p = self.problem();
         let models = models_of(self.rod, &self.grid, coeffs);
-        let hist = vec![[Dual::from(0.0); NF]; self.hist.len()];
-        let zc: Vec<Dual> = self.z.iter().map(|&x| Dual::from(x)).collect();
+        let hist = vec![[Jet::<N>::from(0.0); NF]; self.hist.len()];
+        let zc: Vec<Jet<N>> = self.z.iter().map(|&x| Jet::<N>::from(x)).collect();
         let mut r = p.residual_with(&models, &hist, &zc);
-        for &(row, dir, d) in tip {
-            r[p.tip_rows() + row].eps[dir] += d;
+        for &(row, dir, d) in terms {
+            r[row].eps[dir] += d;
         }
         let z = self
             .fac
@@ -110,17 +112,31 @@ impl<'a> Implicit<'a> {
         Ok(DualSolution { z, node_r })
     }
 
-    /// The state (pose, force, moment) at `mk`, read as the solution's value is.
-    fn state_at(&self, d: &DualSolution, coeffs: &[Coeffs<Dual>], mk: &MarkerAt) -> State<Dual> {
-        let y = self.problem().node_with(&d.z, mk.node);
-        let node = State {
-            r: d.node_r[mk.node],
+    /// The state (pose, force, moment) at node j (0..=N) of the dual unknowns `d`: the
+    /// left limit where a point load acts there.
+    pub(crate) fn node_state<const N: usize>(
+        &self,
+        d: &DualSolution<N>,
+        j: usize,
+    ) -> State<Jet<N>> {
+        let y = self.problem().node_with(&d.z, j);
+        State {
+            r: d.node_r[j],
             rot: rotation(&y[..4]),
             n: [y[IN], y[IN + 1], y[IN + 2]],
             m: [y[IM], y[IM + 1], y[IM + 2]],
-            aux: [Dual::from(1.0); 2],
-        };
-        advance_from_node(self.rod, coeffs, node, mk)
+            aux: [Jet::<N>::from(1.0); 2],
+        }
+    }
+
+    /// The state at `mk`, read as the solution's value is.
+    fn state_at<const N: usize>(
+        &self,
+        d: &DualSolution<N>,
+        coeffs: &[Coeffs<Jet<N>>],
+        mk: &MarkerAt,
+    ) -> State<Jet<N>> {
+        advance_from_node(self.rod, coeffs, self.node_state(d, mk.node), mk)
     }
 }
 
@@ -159,9 +175,9 @@ pub(crate) fn point_jacobian(
 ) -> Result<PointJacobian> {
     let imp = Implicit::of(rod, loads, sol)?;
     let mk = probe.on_centreline(rod);
-    let (fs, ms) = {
+    let (fs, ms, rows) = {
         let p = imp.problem();
-        (p.fs, p.ms)
+        (p.fs, p.ms, p.tip_rows())
     };
     let mut out = PointJacobian {
         position: [0.0; 3],
@@ -182,8 +198,8 @@ pub(crate) fn point_jacobian(
             .enumerate()
             .filter_map(|(q, a)| match a {
                 // Tip rows: (n(L) - ... - F) / F_s, then (m(L) - ... - M) / M_s.
-                Input::TipForce(j) => Some((*j, q, -1.0 / fs)),
-                Input::TipMoment(j) => Some((3 + *j, q, -1.0 / ms)),
+                Input::TipForce(j) => Some((rows + *j, q, -1.0 / fs)),
+                Input::TipMoment(j) => Some((rows + 3 + *j, q, -1.0 / ms)),
                 _ => None,
             })
             .collect();
