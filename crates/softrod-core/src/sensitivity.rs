@@ -479,6 +479,32 @@ pub(crate) fn seeded<const N: usize>(
     seeded_in(rod, stiffness_scale, chunk.iter().enumerate())
 }
 
+/// The sections' coefficients under `loads` with the parameters of `chunk` seeded as dual
+/// directions 0..chunk.len() ([`seeded`]), and the knobs they were built from.
+#[allow(clippy::type_complexity)]
+pub(crate) fn seeded_coeffs<const N: usize>(
+    rod: &Rod,
+    loads: &Loads,
+    chunk: &[Param],
+) -> (Vec<Coeffs<Jet<N>>>, Vec<SectionKnobs<Jet<N>>>) {
+    let (knobs, sigma) = seeded::<N>(rod, &loads.stiffness_scale, chunk);
+    let coeffs = (0..rod.sections.len())
+        .map(|i| {
+            Coeffs::build_with(
+                rod,
+                i,
+                &loads.pressures,
+                &loads.tensions,
+                &rod.gravity,
+                Jet::<N>::from(1.0),
+                &sigma,
+                &knobs[i],
+            )
+        })
+        .collect();
+    (coeffs, knobs)
+}
+
 /// [`seeded`] with each parameter's dual direction given: `(q, param)` seeds `param` as
 /// direction q < N (a system's parameter that acts on some rods only skips the others).
 pub(crate) fn seeded_in<'p, const N: usize>(
@@ -633,21 +659,7 @@ fn sensitivity_n<const N: usize>(
         .map(|(y, mk)| marker_position(y, &mk.offset))
         .collect();
     for chunk in params.chunks(CHUNK) {
-        let (knobs, sigma) = seeded(rod, &loads.stiffness_scale, chunk);
-        let coeffs: Vec<Coeffs<Dual>> = (0..rod.sections.len())
-            .map(|i| {
-                Coeffs::build_with(
-                    rod,
-                    i,
-                    &loads.pressures,
-                    &loads.tensions,
-                    &rod.gravity,
-                    Dual::from(1.0),
-                    &sigma,
-                    &knobs[i],
-                )
-            })
-            .collect();
+        let (coeffs, knobs) = seeded_coeffs::<CHUNK>(rod, loads, chunk);
         let x: Vec<Dual> = sol.x.iter().map(|v| Dual::from(*v)).collect();
         let mut base = p.base_state(&x);
         // The base force carries the rod's whole weight (n(0) = F_tip + m_t g + int f ds):

@@ -27,7 +27,7 @@ use crate::jet::Jet;
 use crate::ode::{Coeffs, Loads, State};
 use crate::rod::Rod;
 use crate::sensitivity::{
-    advance_from_node, marker_position, seeded, MarkerAt, Param, TipSensitivity,
+    advance_from_node, marker_position, seeded_coeffs, MarkerAt, Param, TipSensitivity,
 };
 use crate::statics::tangent::singular_jacobian;
 use crate::statics::Solution;
@@ -235,21 +235,7 @@ pub(crate) fn pose_sensitivity(
         reaction_moment: vec![],
     };
     for chunk in params.chunks(DIRS) {
-        let (knobs, sigma) = seeded::<DIRS>(rod, &loads.stiffness_scale, chunk);
-        let coeffs: Vec<Coeffs<Dual>> = (0..rod.sections.len())
-            .map(|i| {
-                Coeffs::build_with(
-                    rod,
-                    i,
-                    &loads.pressures,
-                    &loads.tensions,
-                    &rod.gravity,
-                    Dual::from(1.0),
-                    &sigma,
-                    &knobs[i],
-                )
-            })
-            .collect();
+        let (coeffs, _) = seeded_coeffs::<DIRS>(rod, loads, chunk);
         let d = imp.solve(&coeffs, &[], chunk.len(), sol)?;
         let y = imp.state_at(&d, &coeffs, &tip);
         let marks: Vec<[Dual; 3]> = markers
