@@ -1206,6 +1206,16 @@ class Design:
         ]
 
     @property
+    def frictional_obstacle(self) -> int | None:
+        """Index of the first ``[[obstacles]]`` entry with Coulomb friction (friction > 0),
+        or None: such a design's statics follow a load path (docs/contact.md, "Friction in
+        the statics")."""
+        for k, o in enumerate(self.spec.get("obstacles", [])):
+            if float(o.get("friction", 0.0)) > 0:
+                return k
+        return None
+
+    @property
     def tip_mass(self) -> float:
         """Mass of the rigid tip body, kg."""
         return self.spec["tip"]["mass"]

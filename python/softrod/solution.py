@@ -351,7 +351,7 @@ class StaticSolution:
                 InputError,
             )
         if self.friction_state is not None:
-            k = _frictional_obstacle(self.design)
+            k = self.design.frictional_obstacle or 0
             raise design_error(
                 f"obstacles[{k}].friction",
                 self.design.spec["obstacles"][k]["friction"],
@@ -595,11 +595,3 @@ class BatchSolution:
             units=units,
             metadata=self.metadata,
         )
-
-
-def _frictional_obstacle(design: Design) -> int:
-    """Index of the design's first obstacle with friction > 0 (0 if none)."""
-    for k, o in enumerate(design.spec.get("obstacles", [])):
-        if float(o.get("friction", 0.0)) > 0:
-            return k
-    return 0

@@ -399,7 +399,7 @@ def solve_statics(
     on_unstable = _policy("on_unstable", on_unstable)
     on_invalid = _policy("on_invalid", on_invalid)
     design = load_design(design)
-    friction_at = _frictional(design)
+    friction_at = design.frictional_obstacle
     state = _history(history, design, friction_at)
     if friction_at is not None and initial is not None:
         raise design_error(
@@ -543,14 +543,6 @@ def solve_statics(
         friction_state=out.get("friction_state"),
         tip_hold=None if constraint.kind == "free" else constraint.core_args(),
     )
-
-
-def _frictional(design: Design) -> int | None:
-    """Index of the design's first obstacle with friction > 0, or None."""
-    for k, o in enumerate(design.spec.get("obstacles", [])):
-        if float(o.get("friction", 0.0)) > 0:
-            return k
-    return None
 
 
 def _history(history, design: Design, friction_at: int | None):
@@ -814,7 +806,7 @@ def _batch_metadata(design, options, tf, tm, smap, constraint=_FREE_TIP) -> dict
             held["rotation"] = [list(r) for r in constraint.rotation]
         extra["tip_constraint"] = held
     solver = _options(options).as_kwargs()
-    if _frictional(design) is not None:
+    if design.frictional_obstacle is not None:
         solver["friction_steps"] = int(_options(options).friction_steps)
     return provenance(
         "softrod.solve_statics_batch",

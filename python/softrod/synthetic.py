@@ -25,7 +25,7 @@ from .datasets import (
 )
 from .design import Design
 from .errors import ConvergenceError, InputError
-from .statics import _frictional, _options, batch_pressures, solve_statics_batch
+from .statics import _options, batch_pressures, solve_statics_batch
 from .units import vector_to_si
 
 if TYPE_CHECKING:
@@ -90,7 +90,7 @@ def synthesize_dataset(
     seed = noise_seed(noise_mm, seed)
     p = batch_pressures(design, pressures)
     sites = parse_marker_sites(markers, design.length)  # checked before any solve
-    rough = _frictional(design)
+    rough = design.frictional_obstacle
     if sites is not None and rough is not None:
         # Refused before the (frictional) batch runs: the markers are read off the
         # sensitivity solve, which has no load path (docs/contact.md).
@@ -263,7 +263,7 @@ def synthesize_system_dataset(
     if not tip and sites is None:
         raise _fail("tip", False, "leaves nothing to record: give markers or keep the tip")
     for i, rod in enumerate(system.rods):
-        rough = _frictional(rod.design)
+        rough = rod.design.frictional_obstacle
         if rough is not None:
             raise _fail(
                 f"system.rods[{i}].design.obstacles[{rough}].friction",

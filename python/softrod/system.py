@@ -45,11 +45,10 @@ from .errors import ConvergenceError, DesignError, InputError
 from .io import as_path
 from .io import exists as _exists
 from .io import is_file as _is_file
-from .solution import Contact, StaticSolution, SystemJacobian, _frictional_obstacle, _mm
+from .solution import Contact, StaticSolution, SystemJacobian, _mm
 from .statics import (
     _UNIT_SCALE,
     SolverOptions,
-    _frictional,
     _options,
     _policy,
     _pressures,
@@ -423,7 +422,7 @@ class SystemSolution:
             )
         if self.friction_state is not None:
             i = next(i for i, r in enumerate(self.rods) if r.friction_state is not None)
-            k = _frictional_obstacle(self.rods[i].design)
+            k = self.rods[i].design.frictional_obstacle or 0
             raise V.fail(
                 f"rods[{i}].design.obstacles[{k}].friction",
                 self.rods[i].design.spec["obstacles"][k]["friction"],
@@ -1127,7 +1126,7 @@ def solve_system_batch(
     if sigma is not None:
         meta["stiffness_maps"] = [None if smap is None else repr(smap) for smap in maps]
     contact = out["contact"]
-    if any(_frictional(r.design) is not None for r in system.rods):
+    if any(r.design.frictional_obstacle is not None for r in system.rods):
         meta["friction_steps"] = int(opts.friction_steps)  # every row's load path
     return SystemBatchSolution(
         system=system,

@@ -39,7 +39,7 @@ from ..catalog import load_design
 from ..constraints import require_free_tip
 from ..datasets import Dataset
 from ..errors import InputError, design_error
-from ..statics import SolverOptions, _frictional, solve_statics_batch
+from ..statics import SolverOptions, solve_statics_batch
 from ..stiffness_map import SIGMA_NAMES, StiffnessMap
 from .fit import calibrate
 from .metrics import tip_error_table
@@ -547,7 +547,7 @@ def compare_hybrid(
             InputError,
         )
     mapped, _ = stiffness_mapped_design(design, hybrid.identification.sections)
-    rough = _frictional(mapped)
+    rough = mapped.frictional_obstacle
     if rough is not None and isinstance(constant, str) and constant == "fit":
         # The constant-stiffness fit is a calibration, whose solves are frictionless: said
         # here, before the hybrid's and the literature's frictional batches run.

@@ -60,7 +60,7 @@ from ..errors import (
 )
 from ..progress import reporter
 from ..schema import PLATFORM_BODY
-from ..statics import SolverOptions, _frictional, _options
+from ..statics import SolverOptions, _options
 from ..system import (
     System,
     _batch_entries,
@@ -839,7 +839,7 @@ def calibrate_system(
     if not isinstance(system, System):
         system = load_system(system)
     for i, rod in enumerate(system.rods):
-        if _frictional(rod.design) is not None:
+        if rod.design.frictional_obstacle is not None:
             raise V.fail(
                 f"system.rods[{i}].design",
                 rod.design.name,

@@ -79,7 +79,7 @@ def _friction_options(design, friction_steps: int | None):
 
     if friction_steps is None:
         return None
-    if not any(float(o.get("friction", 0.0)) > 0 for o in design.document.get("obstacles", [])):
+    if design.frictional_obstacle is None:
         raise click.BadParameter(
             f"{friction_steps}: the design has no obstacle with friction > 0, so its "
             "solve has no load increments",

@@ -272,11 +272,7 @@ def _system_friction_options(sysm, friction_steps: int | None):
 
     if friction_steps is None:
         return None
-    if not any(
-        float(o.get("friction", 0.0)) > 0
-        for r in sysm.rods
-        for o in r.design.document.get("obstacles", [])
-    ):
+    if all(r.design.frictional_obstacle is None for r in sysm.rods):
         raise click.BadParameter(
             f"{friction_steps}: no rod of the system has an obstacle with friction > 0, so "
             "its solve has no load increments",

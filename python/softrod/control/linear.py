@@ -331,13 +331,13 @@ def linearise(
     force's input columns are zero). ``stiffness_map``: as in :func:`solve_statics`, for a
     design with a stiffness-mapped section (default the design's map); its pressure
     columns then carry the map's part, d sigma / d p (the map must give a derivative)."""
-    from ..statics import _frictional, _pressures, _vec3, solve_statics
+    from ..statics import _pressures, _vec3, solve_statics
 
     if isinstance(design, StaticSolution):
         initial, design = design, design.design
     design = load_design(design)
     nodes = integer(nodes, "nodes", minimum=1, maximum=200)
-    k = _frictional(design)
+    k = design.frictional_obstacle
     if k is not None:
         raise design_error(
             f"obstacles[{k}].friction",

@@ -174,9 +174,7 @@ class Viewer(Served):
         # a bad one is named at once, never at the first solve with a server left running.
         self._options = None if options is None else _options(options)
         #: An obstacle with friction: every solve continues the load path from the shape shown.
-        self.frictional = any(
-            float(o.get("friction", 0.0)) > 0 for o in d.spec.get("obstacles", [])
-        )
+        self.frictional = d.frictional_obstacle is not None
         _stiffness_map(d, stiffness_map)
         self._stiffness_map = stiffness_map
         self.looks = geo.section_looks(d)

@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from ..errors import ConvergenceError, InputError, InvalidStateError, design_error
-from ..statics import SolverOptions, _frictional, _options, _pressures, _tensions
+from ..statics import SolverOptions, _options, _pressures, _tensions
 from ..system import System, SystemSolution, check_rods, load_system, solve_system
 from . import geometry as geo
 from .app import (
@@ -62,7 +62,7 @@ class SystemViewer(Served):
         # Everything is checked here, as solve_system checks it, before the server starts.
         check_rods(sysm)
         self._options = None if options is None else _options(options)
-        self.frictional = any(_frictional(r.design) is not None for r in sysm.rods)
+        self.frictional = any(r.design.frictional_obstacle is not None for r in sysm.rods)
         designs = [r.design for r in sysm.rods]
         chambered = [d for d in designs if d.n_channels]
         tendoned = [d for d in designs if d.n_tendons]
