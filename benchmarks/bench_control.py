@@ -26,8 +26,11 @@
    pinned one (12 nodes), from a solved equilibrium, and `SystemSolution.linearise()` of
    the two-rod platform (8 nodes per rod). With six shooting unknowns and the free tip's
    balance: `linearise` under a follower tip force (the actuator, 12 nodes) and of the
-   bundled finger pressed onto its table at 20 kPa (contact, 10 nodes). Median wall time of
-   repeated calls, one core.
+   bundled finger pressed onto its table at 20 kPa (contact, 10 nodes). A long, soft arm
+   that statics solves by collocation (1 m, 64 steps, EI = 1e-3 N m^2, 100 g, hanging, one
+   chamber at 3 kPa): its `jacobian()` and `linearise` (16 nodes), by implicit
+   differentiation of the collocation equations. Median wall time of repeated calls, one
+   core.
 
 The machine's load average before and after is recorded: on a shared machine wall times
 stretch with the load, CPU times much less.
@@ -56,6 +59,26 @@ from common import (  # noqa: E402
 )
 
 DESIGN = "spa_three_chamber_130mm"
+#: A 1 m arm, soft in bending: single shooting's growth exponent is about 20 (> 12), so
+#: statics solves it by collocation (docs/model.md, "Collocation").
+LONG_SOFT_ARM = {
+    "design": {"name": "long_soft_arm", "citation": "collocation benchmark"},
+    "mounting": {"orientation": "hanging", "gravity": "9.81 m/s^2"},
+    "sections": [
+        {
+            "name": "arm",
+            "length": "1 m",
+            "mass": "100 g",
+            "outer_radius": "10 mm",
+            "EA": "1e4 N",
+            "GA": "1e4 N",
+            "EI": "1e-3 N*m^2",
+            "GJ": "1e-3 N*m^2",
+            "steps": 64,
+            "chambers": [{"radius": "2 mm", "distance": "4 mm", "angle": "0 deg", "channel": 0}],
+        }
+    ],
+}
 BOUNDS = (0.0, 70e3)
 STEP = 0.5e-3  # m per call
 RADIUS = 10e-3  # m
@@ -152,6 +175,7 @@ def _derivatives(design, calls: int) -> dict:
     turning = design.replace({"tip.frame": "body", "tip.force": ["20 mN", "-10 mN", "-30 mN"]})
     follower = softrod.solve_statics(turning, p)
     finger = softrod.solve_statics("prebent_finger_on_table", [20e3])
+    long_arm = softrod.solve_statics(LONG_SOFT_ARM, [3e3])
 
     def timed(fn, n: int) -> float:
         fn()  # warm-up (imports, caches)
@@ -180,6 +204,10 @@ def _derivatives(design, calls: int) -> dict:
         ),
         "linearise_finger_contact_10_nodes_ms": timed(
             lambda: softrod.linearise(finger, nodes=10), calls // 5
+        ),
+        "jacobian_collocation_arm_ms": timed(long_arm.jacobian, calls // 5),
+        "linearise_collocation_arm_16_nodes_ms": timed(
+            lambda: softrod.linearise(long_arm, nodes=16), calls // 5
         ),
     }
 
