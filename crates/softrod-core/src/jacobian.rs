@@ -23,6 +23,7 @@
 //! [`system`] differentiates a system of rods holding one platform with respect to its
 //! inputs.
 
+mod collocation;
 pub mod system;
 
 use crate::error::{Result, SoftrodError};
@@ -380,8 +381,8 @@ pub(crate) fn unknowns3(sol: &Solution) -> Result<[f64; 3]> {
 /// exponent beyond `SHOOTING_GROWTH_LIMIT`, docs/model.md "Collocation") would diverge from
 /// its equilibrium along such a pass, and its derivatives would be wrong: refused by name.
 /// (Its Jacobians, parameter sensitivities and linearisation differentiate the collocation
-/// equations instead: `crate::statics::collocation::derivatives`,
-/// `crate::linearise::collocation`.)
+/// equations instead: [`collocation`],
+/// `crate::sensitivity::collocation`, `crate::linearise::collocation`.)
 pub(crate) fn shooting_derivable(sol: &Solution) -> Result<()> {
     if sol.collocation.is_some() {
         return Err(SoftrodError::invalid(
@@ -471,9 +472,7 @@ pub fn point_jacobian(
     if sol.collocation.is_some() {
         // Implicit differentiation of the collocation equations: a shooting pass from x
         // would leave this equilibrium.
-        return crate::statics::collocation::derivatives::point_jacobian(
-            rod, loads, sol, inputs, probe,
-        );
+        return collocation::point_jacobian(rod, loads, sol, inputs, probe);
     }
     let x = unknowns3(sol)?;
     let p = pass(rod, loads, &x, inputs, probe);

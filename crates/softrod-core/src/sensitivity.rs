@@ -37,6 +37,7 @@ use crate::statics::tangent::{singular_jacobian, solve_tangent};
 use crate::statics::{Problem, Shape, Solution};
 use nalgebra::{DMatrix, DVector};
 
+mod collocation;
 pub mod system;
 
 /// Parameters per dual integration.
@@ -282,6 +283,23 @@ pub struct MarkerAt {
     pub(crate) offset: [f64; 3],
 }
 
+impl MarkerAt {
+    /// The tip: the last node, no offset.
+    pub(crate) fn tip(rod: &Rod) -> Self {
+        let last = rod.sections.len() - 1;
+        let sec = &rod.sections[last];
+        MarkerAt {
+            node: rod.sections.iter().map(|s| s.steps).sum(),
+            section: last,
+            step: sec.steps,
+            s_node: rod.length,
+            h: 0.0,
+            section_start: false,
+            offset: [0.0; 3],
+        }
+    }
+}
+
 /// Check the markers against the rod and locate them on its integration grid. Errors name
 /// `markers[k]`.
 pub fn locate_markers(rod: &Rod, markers: &[Marker]) -> Result<Vec<MarkerAt>> {
@@ -427,7 +445,7 @@ fn from_node(rod: &Rod, coeffs: &[Coeffs<f64>], shape: &Shape, mk: &MarkerAt) ->
 
 /// The state at marker `mk` from the state `y` at its node (in any scalar: the exact
 /// derivatives of a collocation solution read their markers the same way,
-/// `crate::statics::collocation::derivatives`): `y` itself at a node, else advanced over
+/// `crate::sensitivity::collocation`): `y` itself at a node, else advanced over
 /// the marker's partial step with the section's law.
 pub(crate) fn advance_from_node<C: Coeff, D: StateScalar<C>>(
     rod: &Rod,
@@ -624,9 +642,7 @@ fn sensitivity_n<const N: usize>(
         // Implicit differentiation of the collocation equations: a shooting pass from x
         // would leave this equilibrium (only a free tip's equilibrium is solved so).
         if let TipConstraint::Free = constraint {
-            return crate::statics::collocation::derivatives::pose_sensitivity(
-                rod, loads, sol, params, markers,
-            );
+            return collocation::pose_sensitivity(rod, loads, sol, params, markers);
         }
         return Err(SoftrodError::invalid(
             "solution",

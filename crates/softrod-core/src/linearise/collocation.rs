@@ -2,7 +2,7 @@
 //! solved (a long, soft rod whose single shooting is ill-conditioned: docs/model.md,
 //! "Collocation"), from the collocation equations themselves rather than shooting passes
 //! (which would leave such an equilibrium): the implicit function theorem on G(z, a) = 0
-//! (`crate::statics::collocation::derivatives`) with a point force and moment at a node as
+//! (`crate::statics::collocation::implicit`) with a point force and moment at a node as
 //! the directions a. A point load at interior node j is a jump of the internal force and
 //! moment there (n(s_j+) = n(s_j-) - F, m likewise), so it enters the equations of the
 //! interval that starts at j, whose start value becomes Y_j - (0, F, M): d G / d F is
@@ -19,7 +19,7 @@ use crate::jacobian::{dual_coeffs_from, pose_derivative};
 use crate::jet::Jet;
 use crate::ode::{advance, resolve_stretch, Loads, NodeAt};
 use crate::rod::Rod;
-use crate::statics::collocation::derivatives::Implicit;
+use crate::statics::collocation::implicit::Implicit;
 use crate::statics::{Problem, Solution};
 use nalgebra::DMatrix;
 

@@ -13,7 +13,7 @@ use crate::rod::Rod;
 use crate::statics::{rotation_variations, Jacobi, SolverOptions, MIN_STABLE_STEP};
 use nalgebra::{Matrix3, SMatrix};
 
-pub mod derivatives;
+pub mod implicit;
 
 /// A static equilibrium solved by collocation.
 #[derive(Debug, Clone, PartialEq)]

@@ -146,7 +146,7 @@ pub struct Solution {
 }
 
 /// An equilibrium solved by collocation: its shape, and its scaled collocation unknowns,
-/// from which its exact derivatives are taken (`collocation::derivatives`).
+/// from which its exact derivatives are taken (`collocation::implicit`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Collocated {
     pub shape: Shape,
