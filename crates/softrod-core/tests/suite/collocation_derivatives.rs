@@ -14,7 +14,7 @@ use softrod_core::ode::Loads;
 use softrod_core::sensitivity::{
     locate_markers, marker_positions, pose_sensitivity, validate_params, Param, ParamKind,
 };
-use softrod_core::spec::{DesignSpec, MaterialSpec, ReferenceSpec, ReferenceTable};
+use softrod_core::spec::{DesignSpec, MaterialSpec};
 use softrod_core::statics::{solve, Solution, SolverOptions};
 use softrod_core::validity::Policy;
 use softrod_core::Rod;
@@ -285,28 +285,14 @@ fn collocation_sensitivities_match_finite_differences() {
     );
 }
 
-/// The same on a section whose models vary along s (one per stage point): paper 000's 1 m
-/// arm, made heavier (2 kg), its chambers moving inwards along it (a taper of the chamber
-/// distances) and a tabulated precurvature, hanging (dynamics_taper.rs,
-/// `long_tapered_tabulated_arm_goes_to_collocation_statics`).
+/// The same on a section whose models vary along s (one per stage point), hanging
+/// (`common::long_tapered_tabulated_arm`).
 #[test]
 fn collocation_sensitivities_of_a_tapered_tabulated_arm() {
-    let mut sec = pam_arm_section(L, 2.0, 40);
-    for c in &mut sec.chambers {
-        c.distance_end = Some(0.0125);
-    }
-    sec.reference = ReferenceSpec {
-        table: Some(ReferenceTable {
-            s: vec![0.0, 0.5, 1.0],
-            curvature: vec![[0.0, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 1.0, 0.0]],
-            strain: vec![[0.0, 0.0, 1.0]; 3],
-        }),
-        ..Default::default()
-    };
     let hanging = [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]];
     check_sensitivities(
         "tapered arm",
-        design(vec![sec], hanging, 9.81),
+        design(vec![long_tapered_tabulated_arm()], hanging, 9.81),
         loads(&[30e3, 0.0, 0.0]),
         &["mass", "c_e", "c_b", "area_scale"],
     );

@@ -564,6 +564,26 @@ pub fn pam_arm_section(length: f64, mass: f64, steps: usize) -> SectionSpec {
     sec
 }
 
+/// Paper 000's 1 m arm made heavier (2 kg: single shooting's growth exponent
+/// int sqrt(|n| / EI) ds is ~14, beyond 12, so statics solves it by collocation), 40 steps,
+/// its chambers moving inwards along it (a taper of the chamber distances to 12.5 mm) and a
+/// tabulated precurvature growing to 1 1/m: a section whose models vary per stage point.
+pub fn long_tapered_tabulated_arm() -> SectionSpec {
+    let mut sec = pam_arm_section(1.0, 2.0, 40);
+    for c in &mut sec.chambers {
+        c.distance_end = Some(0.0125);
+    }
+    sec.reference = ReferenceSpec {
+        table: Some(ReferenceTable {
+            s: vec![0.0, 0.5, 1.0],
+            curvature: vec![[0.0, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 1.0, 0.0]],
+            strain: vec![[0.0, 0.0, 1.0]; 3],
+        }),
+        ..Default::default()
+    };
+    sec
+}
+
 /// Paper 000's arm (tests/suite/dynamics_scope.rs, tests/suite/dynamics_sensitivity.rs) moulded curved: the reference curvature and
 /// stretch given by a table along s, a helix (constant values, `helix`) or an arc whose
 /// curvature grows along the arm.

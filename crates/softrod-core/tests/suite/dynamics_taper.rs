@@ -10,7 +10,7 @@
 use crate::common;
 use common::*;
 use softrod_core::dynamics::{DynOptions, Initial, Scheme, Simulator};
-use softrod_core::spec::{LawSpec, ReferenceSpec, ReferenceTable};
+use softrod_core::spec::{LawSpec, ReferenceSpec};
 use softrod_core::statics::collocation::solve_static;
 use softrod_core::statics::{solve, SolverOptions};
 use softrod_core::Rod;
@@ -182,20 +182,7 @@ fn undamped_midpoint_run_of_a_tapered_rod_keeps_its_energy_balance() {
 /// distances) and a tabulated precurvature; `solve` answers with collocation's solution.
 #[test]
 fn long_tapered_tabulated_arm_goes_to_collocation_statics() {
-    // 2 kg: shooting's growth exponent int sqrt(|n| / EI) ds is ~14 (> 12).
-    let mut sec = pam_arm_section(1.0, 2.0, 40);
-    for c in &mut sec.chambers {
-        c.distance_end = Some(0.0125);
-    }
-    sec.reference = ReferenceSpec {
-        table: Some(ReferenceTable {
-            s: vec![0.0, 0.5, 1.0],
-            curvature: vec![[0.0, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 1.0, 0.0]],
-            strain: vec![[0.0, 0.0, 1.0]; 3],
-        }),
-        ..Default::default()
-    };
-    let rod = Rod::new(design(vec![sec], HANGING, 9.81)).unwrap();
+    let rod = Rod::new(design(vec![long_tapered_tabulated_arm()], HANGING, 9.81)).unwrap();
     assert!(rod.sections[0].tapered && rod.sections[0].reference.is_varying());
     let p = [30e3, 0.0, 0.0];
     let tight = SolverOptions {
