@@ -32,6 +32,11 @@
    differentiation of the collocation equations. Median wall time of repeated calls, one
    core.
 
+4. **Inverse of the long, soft arm** (collocation iterates, docs/control.md "Long, soft
+   rods"): cold `solve_inverse` of the tip where the arm hangs at 3 kPa (from 0 Pa), and
+   `InverseProblem.solve` warm-started from the previous answer along the tips of 3.0-4.0
+   kPa (0.1 kPa apart, about 1 mm of tip motion per call). Median wall times, one core.
+
 The machine's load average before and after is recorded: on a shared machine wall times
 stretch with the load, CPU times much less.
 """
@@ -212,6 +217,33 @@ def _derivatives(design, calls: int) -> dict:
     }
 
 
+def _collocation_inverse(calls: int) -> dict:
+    """Median wall times (ms) of section 4, and the iterations per warm call."""
+    design = softrod.load_design(LONG_SOFT_ARM)
+    bounds = [(0.0, 2e4)]
+    target = softrod.solve_statics(design, [3e3]).tip_position
+    path = [softrod.solve_statics(design, [p]).tip_position for p in np.linspace(3.1e3, 4e3, 10)]
+    cold = []
+    warm = []
+    iterations = []
+    problem = softrod.InverseProblem(design, pressure_bounds=bounds)
+    with gc_disabled():
+        for _ in range(calls):
+            t0 = time.perf_counter_ns()
+            prev = softrod.solve_inverse(design, target, pressure_bounds=bounds)
+            cold.append((time.perf_counter_ns() - t0) * 1e-6)
+            for goal in path:
+                t0 = time.perf_counter_ns()
+                prev = problem.solve(goal, initial=prev)
+                warm.append((time.perf_counter_ns() - t0) * 1e-6)
+                iterations.append(prev.iterations)
+    return {
+        "cold_ms": median(cold),
+        "warm_ms": median(warm),
+        "warm_iterations_mean": float(np.mean(iterations)),
+    }
+
+
 def run(args) -> dict:
     t_start = time.perf_counter()
     info = machine()
@@ -224,6 +256,7 @@ def run(args) -> dict:
     result["inverse_13mm_steps"] = _inverse(coarse, n, warm)
     result["workspace"] = _workspace(design, 2 if args.quick else 5)
     result["derivatives"] = _derivatives(design, 20 if args.quick else 200)
+    result["collocation_inverse"] = _collocation_inverse(2 if args.quick else 10)
     info["load_average_after"] = load_average()
     result["wall_time_s"] = time.perf_counter() - t_start
     for key in ("inverse_design_steps", "inverse_13mm_steps"):
@@ -244,6 +277,11 @@ def run(args) -> dict:
     print(
         "derivatives (median ms): "
         + ", ".join(f"{k.removesuffix('_ms')} {v:.3f}" for k, v in d.items())
+    )
+    c = result["collocation_inverse"]
+    print(
+        f"long soft arm inverse: cold {c['cold_ms']:.2f} ms, warm {c['warm_ms']:.2f} ms "
+        f"({c['warm_iterations_mean']:.1f} iterations per warm call)"
     )
     print(f"load average before {info['load_average_before']}, after {info['load_average_after']}")
     return result

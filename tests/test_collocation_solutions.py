@@ -1,11 +1,9 @@
 """What is derived from an equilibrium that statics solved by collocation (a long, soft rod
 whose single shooting cannot be resolved: docs/model.md, "Collocation"): motion-capture
-markers are read from the solution's own nodes; the Jacobian and the parameter
-sensitivities differentiate the collocation equations, so such a rod calibrates; the
-linearisation, whose derivatives are taken by shooting passes that would leave such an
-equilibrium, is refused by name instead of being returned wrong
-(crates/softrod-core/tests/suite/collocation.rs and collocation_derivatives.rs check the
-core's side)."""
+markers are read from the solution's own nodes; the Jacobian, the parameter sensitivities
+(so calibration), the linearisation and the inverse differentiate the collocation equations
+(crates/softrod-core/tests/suite/collocation.rs, collocation_derivatives.rs,
+linearise_collocation.rs and inverse_collocation.rs check the core's side)."""
 
 from __future__ import annotations
 
@@ -14,7 +12,7 @@ import pytest
 import softrod
 from conftest import ring_down_frequency
 from softrod import (
-    InputError,
+    InverseProblem,
     linearise,
     load_design,
     solve_inverse,
@@ -63,13 +61,31 @@ def test_markers_are_read_from_the_collocation_nodes():
         np.testing.assert_allclose(data.markers[row, 1], mid, rtol=0, atol=1e-12)
 
 
-def test_the_inverse_of_a_collocation_rod_is_refused():
+def test_the_inverse_of_a_collocation_rod_finds_the_pressure():
+    """Before, refused. The tip where the arm hangs at 3 kPa: the inverse from 0 Pa (one
+    chamber, a position target a forward solve put there) returns 3 kPa, to 1e-6 of the
+    range (the tip is reached to 1e-10 L; 1e-6 of the range moves it by about 1e-7 L, so
+    a looser answer could not pass). An InverseProblem then follows the tip along the
+    pressure path to 4 kPa with warm starts from each answer's equilibrium: a few
+    iterations per call, and each answer is its pressure's forward solve."""
     design = load_design(long_soft_arm())
     target = solve_statics(design, [3e3]).tip_position
-    with pytest.raises(InputError) as info:
-        solve_inverse(design, target, pressure_bounds=[(0, 2e4)])
-    assert info.value.field == "solution"
-    assert "collocation" in str(info.value)
+    inv = solve_inverse(design, target, pressure_bounds=[(0, 2e4)])
+    assert inv.reached
+    assert inv.pressures[0] == pytest.approx(3e3, abs=1e-6 * 2e4)
+    np.testing.assert_allclose(inv.tip_position, target, rtol=0, atol=1e-9)
+
+    problem = InverseProblem(design, pressure_bounds=[(0, 2e4)])
+    prev = inv
+    for p in np.linspace(3.1e3, 4e3, 10):
+        goal = solve_statics(design, [p]).tip_position
+        prev = problem.solve(goal, initial=prev)
+        assert prev.reached
+        assert prev.pressures[0] == pytest.approx(p, abs=1e-6 * 2e4)
+        assert prev.iterations <= 4
+    np.testing.assert_allclose(
+        solve_statics(design, prev.pressures).tip_position, prev.tip_position, atol=1e-9
+    )
 
 
 def test_a_long_soft_arm_rings_as_its_linearisation_says():

@@ -491,6 +491,8 @@ pub(crate) fn box_qp(h: &DMatrix<f64>, b: &DVector<f64>, lo: &[f64], hi: &[f64])
 /// Where an iterate stands: pressures, unknowns, residual, probe values.
 struct Iterate {
     p: Vec<f64>,
+    /// The shooting unknowns (a collocation iterate: its base moment z[3..6], as in
+    /// `Solution::x`).
     x: [f64; 3],
     g: [f64; 3],
     y: [f64; 12],
@@ -499,6 +501,8 @@ struct Iterate {
     /// `y` when the iterate is exact: g within the statics tolerance).
     y_corr: [f64; 12],
     exact: bool,
+    /// A collocation iterate's converged solution (its unknowns z: the next solve's start).
+    sol: Option<Solution>,
 }
 
 /// Largest equilibrium defect (scaled residual, relative to max(1, |x|)) an intermediate
@@ -515,6 +519,9 @@ fn inf(v: &[f64]) -> f64 {
 #[derive(Debug, Clone, PartialEq)]
 pub struct WarmStart {
     pub x: [f64; 3],
+    /// On a rod that collocation solves, the previous answer's solution: its collocation
+    /// unknowns z start the first solve (`x` alone does not determine them).
+    pub solution: Option<Solution>,
     /// The converged equilibrium this warm start describes: inputs (pressures, then
     /// tensions) and the probe's state
     /// (when the start pressures equal these, no pass is needed to begin).
@@ -526,7 +533,11 @@ pub struct WarmStart {
 /// iterate) and the reduced Jacobian dy/dp, refined by Broyden updates as steps are taken.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Linearisation {
-    pub pass: Pass,
+    /// The shooting pass (None at a collocation iterate: its dy/dp comes from the
+    /// collocation equations, and every iterate is a converged equilibrium).
+    pub pass: Option<Pass>,
+    /// Arc length of the probe, m.
+    pub s: f64,
     pub dy: Vec<[f64; 12]>,
 }
 
@@ -535,6 +546,11 @@ impl InverseSolution {
     pub fn warm_start(&self) -> WarmStart {
         WarmStart {
             x: std::array::from_fn(|i| self.solution.x[i]),
+            solution: self
+                .solution
+                .collocation
+                .is_some()
+                .then(|| self.solution.clone()),
             equilibrium: Some((
                 [&self.pressures[..], &self.tensions[..]].concat(),
                 self.point,
@@ -557,6 +573,11 @@ pub fn solve_inverse(
     validate(rod, loads, target, opts)?;
     crate::scope::dead_loads_only(rod, loads, "inverse statics")?;
     let probe = Probe::at(rod, target.s)?;
+    // The equilibria: single shooting (joint Newton on (x, p), chord steps), or for a long,
+    // soft rod collocation, where every iterate is a converged equilibrium solved from the
+    // last one's unknowns and differentiated through the collocation equations. The choice
+    // depends on the dead loads only, so it holds for every iterate.
+    let by_collocation = statics::solved_by_collocation(rod, loads);
     // Inputs: the pressure channels, then the tendon channels ("pressures" p below).
     let n_p = rod.n_channels;
     let nc = n_p + rod.n_tendons;
@@ -620,20 +641,90 @@ pub fn solve_inverse(
             point,
             y_corr: y,
             exact: true,
+            sol: None,
         }
     };
-    let iterate_at = |p: Vec<f64>, guess: Option<&[f64; 3]>| -> Result<Iterate> {
+    // A collocation iterate's linearisation: the probe's state and dy/dp from the implicit
+    // function theorem on the collocation equations (`jacobian::collocation`).
+    let colloc_lin = |p: &[f64], sol: &Solution| -> Result<(State<f64>, Linearisation)> {
+        let (point, jac) = crate::jacobian::collocation::point_state_jacobian(
+            rod,
+            &with_p(p),
+            sol,
+            &inputs,
+            &probe,
+        )?;
+        let dy = (0..nc)
+            .map(|c| {
+                // dR = [d theta]x R, flattened as `flatten` does.
+                let w = jac.d_rotation[c];
+                let skew = [[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]];
+                let mut d = [0.0; 12];
+                d[..3].copy_from_slice(&jac.d_position[c]);
+                for j in 0..3 {
+                    for k in 0..3 {
+                        d[3 + 3 * j + k] = (0..3).map(|l| skew[j][l] * point.rot[l][k]).sum();
+                    }
+                }
+                d
+            })
+            .collect();
+        Ok((
+            point,
+            Linearisation {
+                pass: None,
+                s: target.s,
+                dy,
+            },
+        ))
+    };
+    // A collocation iterate: the equilibrium at p, Newton from `from`'s unknowns (else the
+    // straight rod, then load continuation), with its linearisation.
+    let colloc_at = |p: Vec<f64>, from: Option<&Solution>| -> Result<(Iterate, Linearisation)> {
+        let ld = with_p(&p);
+        let z = from
+            .and_then(|s| s.collocation.as_ref())
+            .map(|c| c.z.as_slice());
+        let sol = statics::solve(rod, &ld, z, &inner)?;
+        if sol.collocation.is_none() {
+            return Err(SoftrodError::Internal(
+                "a collocation rod's equilibrium solved by shooting".into(),
+            ));
+        }
+        let (point, lin) = colloc_lin(&p, &sol)?;
+        let y = flatten(&point);
+        let it = Iterate {
+            p,
+            x: std::array::from_fn(|i| sol.x[i]),
+            g: [0.0; 3],
+            y,
+            point,
+            y_corr: y,
+            exact: true,
+            sol: Some(sol),
+        };
+        Ok((it, lin))
+    };
+    // The equilibrium at p from a warm start (shooting: the unknowns `guess`; collocation:
+    // the solution `from`), with a collocation iterate's linearisation.
+    let iterate_at = |p: Vec<f64>,
+                      guess: Option<&[f64; 3]>,
+                      from: Option<&Solution>|
+     -> Result<(Iterate, Option<Linearisation>)> {
+        if by_collocation {
+            return colloc_at(p, from).map(|(it, lin)| (it, Some(lin)));
+        }
         let ld = with_p(&p);
         let problem = Problem::new(rod, &ld, 1.0);
         if let Some(x) = guess {
             // A warm start is usually the equilibrium already: one f64 pass tells.
             let it = exact_at(p.clone(), *x, &problem);
             if inf(&it.g) <= eq_tol(x) {
-                return Ok(it);
+                return Ok((it, None));
             }
         }
         let sol = statics::solve(rod, &ld, guess.map(|g| &g[..]), &inner)?;
-        Ok(exact_at(p, unknowns3(&sol)?, &problem))
+        Ok((exact_at(p, unknowns3(&sol)?, &problem), None))
     };
     // Chord Newton on the equilibrium at fixed pressures with the LU of a nearby g_x
     // (f64 passes only); a full statics solve if that does not converge.
@@ -668,6 +759,75 @@ pub fn solve_inverse(
             let sol = statics::solve(rod, &ld, Some(&it.x), &inner)?;
             Ok(exact_at(it.p, unknowns3(&sol)?, &problem))
         };
+    // A shooting iterate at the trial pressures p_t: the linearised equilibrium x + dx with
+    // dx = -g_x^-1 (g + g_p dp), accepted when its defect is within LOOSE (probe values
+    // corrected to first order), else chord Newton steps with this g_x, else (with a fresh
+    // linearisation) a full solve. None: the step is too long for this linearisation.
+    let shooting_trial = |it: &Iterate,
+                          p_t: &[f64],
+                          pass: &Pass,
+                          lu: &nalgebra::LU<f64, nalgebra::U3, nalgebra::U3>,
+                          fresh: bool|
+     -> Result<Option<Iterate>> {
+        let mut rhs = Vector3::from_column_slice(&it.g);
+        for c in 0..nc {
+            rhs += Vector3::from_column_slice(&pass.g_a[c]) * (p_t[c] - it.p[c]);
+        }
+        let dx = lu.solve(&-rhs).unwrap_or_else(Vector3::zeros);
+        let mut x_t = [it.x[0] + dx[0], it.x[1] + dx[1], it.x[2] + dx[2]];
+        let ld_t = with_p(p_t);
+        let prob_t = Problem::new(rod, &ld_t, 1.0);
+        let mut trial = None;
+        let mut last = f64::INFINITY;
+        for _ in 0..8 {
+            let (g, point, _) = value_with(&prob_t, rod, &x_t, &probe);
+            let n = inf(&g);
+            if !n.is_finite() || n > 0.5 * last {
+                break;
+            }
+            if n <= LOOSE * inf(&x_t).max(1.0) {
+                trial = Some((g, point, n <= eq_tol(&x_t)));
+                break;
+            }
+            last = n;
+            let d = lu
+                .solve(&-Vector3::from_column_slice(&g))
+                .unwrap_or_else(Vector3::zeros);
+            for k in 0..3 {
+                x_t[k] += d[k];
+            }
+        }
+        if trial.is_none() && fresh {
+            // A long step: solve the equilibrium properly (Newton, continuation).
+            if let Ok(sol) = statics::solve(rod, &ld_t, Some(&x_t), &inner) {
+                x_t = unknowns3(&sol)?;
+                let (g, point, _) = value_with(&prob_t, rod, &x_t, &probe);
+                trial = Some((g, point, true));
+            }
+        }
+        let Some((g, point, exact)) = trial else {
+            return Ok(None);
+        };
+        let y = flatten(&point);
+        let y_corr = if exact {
+            y
+        } else {
+            let d = lu
+                .solve(&-Vector3::from_column_slice(&g))
+                .unwrap_or_else(Vector3::zeros);
+            std::array::from_fn(|i| y[i] + (0..3).map(|j| pass.y_x[i][j] * d[j]).sum::<f64>())
+        };
+        Ok(Some(Iterate {
+            p: p_t.to_vec(),
+            x: x_t,
+            g,
+            y,
+            point,
+            y_corr,
+            exact,
+            sol: None,
+        }))
+    };
     // Start: the equilibrium at the clipped start pressures; from a cold start, the best of
     // it, the box's centre and (up to 4 channels) its corners, so that the local method
     // starts in the right basin of a non-convex distance.
@@ -679,11 +839,16 @@ pub fn solve_inverse(
         .map(|(c, v)| v.clamp(lo[c], hi[c]))
         .collect();
     let guess = warm.map(|w| &w.x);
+    let warm_solution = warm.and_then(|w| w.solution.as_ref());
     let known = warm.and_then(|w| {
-        w.equilibrium
-            .as_ref()
-            .filter(|(p, _)| *p == p0 && w.x.iter().all(|v| v.is_finite()))
+        w.equilibrium.as_ref().filter(|(p, _)| {
+            *p == p0
+                && w.x.iter().all(|v| v.is_finite())
+                && (!by_collocation || w.solution.is_some())
+        })
     });
+    // A collocation iterate's linearisation comes with it (taken at the iterate itself).
+    let mut start_lin = None;
     let mut it = match known {
         // The previous answer: converged and checked there, at these very pressures.
         Some((_, point)) => {
@@ -696,9 +861,14 @@ pub fn solve_inverse(
                 point: *point,
                 y_corr: y,
                 exact: true,
+                sol: warm_solution.cloned(),
             }
         }
-        None => iterate_at(p0, guess)?,
+        None => {
+            let (it, lin) = iterate_at(p0, guess, warm_solution)?;
+            start_lin = lin;
+            it
+        }
     };
     if guess.is_none() {
         let mut candidates: Vec<Vec<f64>> = vec![(0..nc).map(|c| 0.5 * (lo[c] + hi[c])).collect()];
@@ -713,16 +883,18 @@ pub fn solve_inverse(
         }
         let mut best = cost_of(&it.y, &it.p, eps);
         for cand in candidates {
-            if let Ok(c) = iterate_at(cand, None) {
+            if let Ok((c, lin)) = iterate_at(cand, None, None) {
                 let cost = cost_of(&c.y, &c.p, eps);
                 if cost < best {
                     best = cost;
                     it = c;
+                    start_lin = lin;
                 }
             }
         }
     }
-    let mut passes = 0usize;
+    // Dual passes (shooting) or implicit-function solves (collocation).
+    let mut passes = usize::from(start_lin.is_some());
     let mut mu = 0.0f64;
     let mut iterations = 0;
     let mut stationary = false;
@@ -745,16 +917,23 @@ pub fn solve_inverse(
     let mut since = (0.0f64, 0.0f64);
     // The linearisation in use: fresh from a pass at the current iterate, or kept from an
     // earlier iterate (or the previous call) while its chord steps contract well.
-    let mut lin: Option<Linearisation> = warm
-        .and_then(|w| w.linearisation.clone())
-        .filter(|l| l.pass.g_a.len() == nc && l.pass.s == target.s);
-    let mut fresh = false;
+    // A collocation iterate's linearisation is always taken at the iterate (fresh).
+    let mut lin: Option<Linearisation> = match start_lin {
+        Some(l) => Some(l),
+        None => warm.and_then(|w| w.linearisation.clone()).filter(|l| {
+            l.dy.len() == nc
+                && l.s == target.s
+                && l.pass.is_none() == by_collocation
+                && (!by_collocation || known.is_some())
+        }),
+    };
+    let mut fresh = by_collocation && lin.is_some();
     let mut need_fresh = lin.is_none();
     let mut moved = false;
     while iterations < opts.max_iter {
         if eps == 0.0 && task.reached(&it.y_corr, opts.tol) {
-            if let Some(l) = &lin {
-                it = make_exact(it, &l.pass.g_x.lu())?;
+            if let Some(pass) = lin.as_ref().and_then(|l| l.pass.as_ref()) {
+                it = make_exact(it, &pass.g_x.lu())?;
             }
             if task.reached(&it.y, opts.tol) {
                 break;
@@ -762,33 +941,48 @@ pub fn solve_inverse(
         }
         iterations += 1;
         if need_fresh || lin.is_none() {
-            let ld = with_p(&it.p);
-            let problem = Problem::new(rod, &ld, 1.0);
-            let pass = pass_with(&problem, rod, &ld, &it.x, &inputs, &probe);
             passes += 1;
-            let Some((dy, _)) = total_derivatives(&pass) else {
-                return Err(SoftrodError::NotConverged {
-                    iterations,
-                    residual: inf(&it.g),
-                    load_factor: 1.0,
-                    reason: "the shooting Jacobian became singular during the inverse (a limit point of the equilibrium)".into(),
+            if let Some(sol) = it.sol.as_ref() {
+                lin = Some(colloc_lin(&it.p, sol)?.1);
+            } else {
+                let ld = with_p(&it.p);
+                let problem = Problem::new(rod, &ld, 1.0);
+                let pass = pass_with(&problem, rod, &ld, &it.x, &inputs, &probe);
+                let Some((dy, _)) = total_derivatives(&pass) else {
+                    return Err(SoftrodError::NotConverged {
+                        iterations,
+                        residual: inf(&it.g),
+                        load_factor: 1.0,
+                        reason: "the shooting Jacobian became singular during the inverse (a limit point of the equilibrium)".into(),
+                    });
+                };
+                lin = Some(Linearisation {
+                    pass: Some(pass),
+                    s: target.s,
+                    dy,
                 });
-            };
-            lin = Some(Linearisation { pass, dy });
+            }
             fresh = true;
             need_fresh = false;
         }
         let current = lin.as_ref().expect("a linearisation is set above");
-        let pass = &current.pass;
+        // The shooting pass and its g_x factored (none at a collocation iterate).
+        let shooting = current.pass.as_ref().map(|pass| (pass, pass.g_x.lu()));
         let dy = current.dy.clone();
-        let lu = pass.g_x.lu();
         // Value and Jacobian of e in scaled pressures; the equilibrium defect g of the
-        // iterate is folded in through the linearised equilibrium.
-        let dx0 = lu
-            .solve(&-Vector3::from_column_slice(&it.g))
-            .unwrap_or_else(Vector3::zeros);
-        let y_lin: [f64; 12] =
-            std::array::from_fn(|i| it.y[i] + (0..3).map(|j| pass.y_x[i][j] * dx0[j]).sum::<f64>());
+        // iterate is folded in through the linearised equilibrium (a collocation iterate
+        // is converged).
+        let y_lin: [f64; 12] = match &shooting {
+            Some((pass, lu)) => {
+                let dx0 = lu
+                    .solve(&-Vector3::from_column_slice(&it.g))
+                    .unwrap_or_else(Vector3::zeros);
+                std::array::from_fn(|i| {
+                    it.y[i] + (0..3).map(|j| pass.y_x[i][j] * dx0[j]).sum::<f64>()
+                })
+            }
+            None => it.y,
+        };
         let e = DVector::from_vec(task.residual(&y_lin, false));
         let m = e.len();
         let columns: Vec<Vec<f64>> = (0..nc)
@@ -931,61 +1125,25 @@ pub fn solve_inverse(
             let p_t: Vec<f64> = (0..nc)
                 .map(|c| (it.p[c] + dz[c] * range[c]).clamp(lo[c], hi[c]))
                 .collect();
-            let mut rhs = Vector3::from_column_slice(&it.g);
-            for c in 0..nc {
-                rhs += Vector3::from_column_slice(&pass.g_a[c]) * (p_t[c] - it.p[c]);
-            }
-            let dx = lu.solve(&-rhs).unwrap_or_else(Vector3::zeros);
-            let mut x_t = [it.x[0] + dx[0], it.x[1] + dx[1], it.x[2] + dx[2]];
-            // The equilibrium at p_t: accept the linearised x_t when its defect is within
-            // LOOSE (probe values corrected to first order), else chord Newton steps with
-            // this g_x, else a full solve.
-            let ld_t = with_p(&p_t);
-            let prob_t = Problem::new(rod, &ld_t, 1.0);
-            let mut trial = None;
-            let mut last = f64::INFINITY;
-            for _ in 0..8 {
-                let (g, point, _) = value_with(&prob_t, rod, &x_t, &probe);
-                let n = inf(&g);
-                if !n.is_finite() || n > 0.5 * last {
-                    break;
-                }
-                if n <= LOOSE * inf(&x_t).max(1.0) {
-                    trial = Some((g, point, n <= eq_tol(&x_t)));
-                    break;
-                }
-                last = n;
-                let d = lu
-                    .solve(&-Vector3::from_column_slice(&g))
-                    .unwrap_or_else(Vector3::zeros);
-                for k in 0..3 {
-                    x_t[k] += d[k];
-                }
-            }
-            if trial.is_none() && fresh {
-                // A long step: solve the equilibrium properly (Newton, continuation).
-                if let Ok(sol) = statics::solve(rod, &ld_t, Some(&x_t), &inner) {
-                    x_t = unknowns3(&sol)?;
-                    let (g, point, _) = value_with(&prob_t, rod, &x_t, &probe);
-                    trial = Some((g, point, true));
-                }
-            }
-            let Some((g_t, point_t, exact_t)) = trial else {
+            let trial = match &shooting {
+                Some((pass, lu)) => shooting_trial(&it, &p_t, pass, lu, fresh)?.map(|t| (t, None)),
+                // The equilibrium at p_t from this iterate's unknowns: its linearisation
+                // is the next iteration's, fresh.
+                None => colloc_at(p_t.clone(), it.sol.as_ref())
+                    .ok()
+                    .map(|(t, lin)| (t, Some(lin))),
+            };
+            let Some((trial, trial_lin)) = trial else {
                 if !fresh {
                     break; // the kept linearisation is too old: take a fresh one
                 }
                 mu = (mu * 4.0).max(1e-3 * scale);
                 continue;
             };
-            let y_t = flatten(&point_t);
-            let y_corr_t = if exact_t {
-                y_t
-            } else {
-                let d = lu
-                    .solve(&-Vector3::from_column_slice(&g_t))
-                    .unwrap_or_else(Vector3::zeros);
-                std::array::from_fn(|i| y_t[i] + (0..3).map(|j| pass.y_x[i][j] * d[j]).sum::<f64>())
-            };
+            if trial_lin.is_some() {
+                passes += 1;
+            }
+            let y_corr_t = trial.y_corr;
             let cost_t = cost_of(&y_corr_t, &p_t, eps);
             if cost_t.is_finite() && cost_t < cost {
                 let rho = (cost - cost_t) / pred;
@@ -1022,18 +1180,16 @@ pub fn solve_inverse(
                         }
                     }
                 }
-                it = Iterate {
-                    p: p_t,
-                    x: x_t,
-                    g: g_t,
-                    y: y_t,
-                    point: point_t,
-                    y_corr: y_corr_t,
-                    exact: exact_t,
-                };
+                it = trial;
                 accepted = true;
                 moved = true;
                 fresh = false;
+                if let Some(l) = trial_lin {
+                    // Taken at the new iterate: exact there.
+                    lin = Some(l);
+                    fresh = true;
+                    need_fresh = false;
+                }
                 break;
             }
             if !fresh {
@@ -1068,12 +1224,13 @@ pub fn solve_inverse(
             break;
         }
     }
-    if let Some(l) = &lin {
-        it = make_exact(it, &l.pass.g_x.lu())?;
+    if let Some(pass) = lin.as_ref().and_then(|l| l.pass.as_ref()) {
+        it = make_exact(it, &pass.g_x.lu())?;
     }
     if known.is_some() && !moved {
         // The answer is the warm start's own equilibrium: check it rather than trust it.
-        it = iterate_at(it.p.clone(), Some(&it.x))?;
+        let sol = it.sol.take();
+        it = iterate_at(it.p.clone(), Some(&it.x), sol.as_ref())?.0;
     }
     let reached = task.reached(&it.y, opts.tol);
     if !reached && !stationary && eps == 0.0 && iterations >= opts.max_iter {
@@ -1087,8 +1244,17 @@ pub fn solve_inverse(
             ),
         });
     }
-    // The answer as a static solve concludes it: validity rules and stability.
-    let solution = statics::conclude_at(rod, &with_p(&it.p), it.x, iterations, &opts.statics)?;
+    // The answer as a static solve concludes it: validity rules and stability (a
+    // collocation iterate: Newton from its converged unknowns, then the same checks).
+    let solution = match &it.sol {
+        Some(sol) => statics::solve(
+            rod,
+            &with_p(&it.p),
+            sol.collocation.as_ref().map(|c| c.z.as_slice()),
+            &opts.statics,
+        )?,
+        None => statics::conclude_at(rod, &with_p(&it.p), it.x, iterations, &opts.statics)?,
+    };
     let distance = (0..3)
         .map(|i| (it.y[i] - target.position[i]).powi(2))
         .sum::<f64>()

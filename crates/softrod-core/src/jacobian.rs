@@ -23,7 +23,7 @@
 //! [`system`] differentiates a system of rods holding one platform with respect to its
 //! inputs.
 
-mod collocation;
+pub(crate) mod collocation;
 pub mod system;
 
 use crate::error::{Result, SoftrodError};
@@ -376,26 +376,15 @@ pub(crate) fn unknowns3(sol: &Solution) -> Result<[f64; 3]> {
     })
 }
 
-/// The inverse takes its derivatives by shooting passes from the solution's unknowns x. A
-/// rod that statics solved by collocation (single shooting cannot resolve it: a growth
-/// exponent beyond `SHOOTING_GROWTH_LIMIT`, docs/model.md "Collocation") would diverge from
-/// its equilibrium along such a pass, and its derivatives would be wrong: refused by name.
-/// (Its Jacobians, parameter sensitivities and linearisation differentiate the collocation
-/// equations instead: [`collocation`],
-/// `crate::sensitivity::collocation`, `crate::linearise::collocation`.)
+/// Shooting passes from the solution's unknowns x would leave an equilibrium that
+/// collocation solved (single shooting cannot resolve such a rod: docs/model.md,
+/// "Collocation"): its readers differentiate the collocation equations instead
+/// ([`collocation`], `crate::sensitivity::collocation`, `crate::linearise::collocation`, the
+/// inverse's collocation iterates), so reaching a shooting pass with one is a defect.
 pub(crate) fn shooting_derivable(sol: &Solution) -> Result<()> {
     if sol.collocation.is_some() {
-        return Err(SoftrodError::invalid(
-            "solution",
-            "solved by collocation",
-            format!(
-                "single shooting cannot resolve this rod (int_0^L sqrt(|n| / EI) ds > {}: a \
-                 long, soft rod under its own weight; docs/model.md, 'Collocation'), and the \
-                 inverse takes its derivatives by shooting passes, which would leave its \
-                 equilibrium: not available for such rods yet (its Jacobian, parameter \
-                 sensitivities and linearisation are)",
-                crate::statics::collocation::SHOOTING_GROWTH_LIMIT
-            ),
+        return Err(SoftrodError::Internal(
+            "a shooting pass from an equilibrium that collocation solved".into(),
         ));
     }
     Ok(())

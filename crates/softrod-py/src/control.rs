@@ -135,6 +135,7 @@ impl PyInverse {
                 Some(w) if w.x == x => w,
                 other => WarmStart {
                     x,
+                    solution: None,
                     equilibrium: None,
                     linearisation: other.and_then(|w| w.linearisation),
                 },

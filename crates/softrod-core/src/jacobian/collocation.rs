@@ -7,8 +7,8 @@
 //! so the derivative is that of the value the solution reports.
 
 use super::{dual_coeffs_from, small_rotation, Input, PointJacobian, Probe};
-use crate::error::Result;
-use crate::ode::Loads;
+use crate::error::{Result, SoftrodError};
+use crate::ode::{Loads, State};
 use crate::rod::Rod;
 use crate::sensitivity::advance_from_node;
 use crate::statics::collocation::implicit::Implicit;
@@ -25,6 +25,17 @@ pub(crate) fn point_jacobian(
     inputs: &[Input],
     probe: &Probe,
 ) -> Result<PointJacobian> {
+    point_state_jacobian(rod, loads, sol, inputs, probe).map(|(_, j)| j)
+}
+
+/// [`point_jacobian`] and the point's state (pose, internal force and moment).
+pub(crate) fn point_state_jacobian(
+    rod: &Rod,
+    loads: &Loads,
+    sol: &Solution,
+    inputs: &[Input],
+    probe: &Probe,
+) -> Result<(State<f64>, PointJacobian)> {
     let imp = Implicit::of(rod, loads, sol)?;
     let mk = probe.on_centreline(rod);
     let (fs, ms, rows) = {
@@ -37,6 +48,7 @@ pub(crate) fn point_jacobian(
         d_position: Vec::with_capacity(inputs.len()),
         d_rotation: Vec::with_capacity(inputs.len()),
     };
+    let mut state = None;
     // One evaluation even without inputs: it gives the point's value.
     let chunks: Vec<&[Input]> = if inputs.is_empty() {
         vec![&[]]
@@ -57,6 +69,13 @@ pub(crate) fn point_jacobian(
             .collect();
         let d = imp.solve(&coeffs, &tip, chunk.len(), sol)?;
         let y = advance_from_node(rod, &coeffs, imp.node_state(&d, mk.node), &mk);
+        state = Some(State {
+            r: y.r.map(|v| v.re),
+            rot: y.rot.map(|row| row.map(|v| v.re)),
+            n: y.n.map(|v| v.re),
+            m: y.m.map(|v| v.re),
+            aux: y.aux.map(|v| v.re),
+        });
         out.position = y.r.map(|v| v.re);
         out.rotation = y.rot.map(|row| row.map(|v| v.re));
         for q in 0..chunk.len() {
@@ -65,5 +84,6 @@ pub(crate) fn point_jacobian(
             out.d_rotation.push(small_rotation(&out.rotation, &d_rot));
         }
     }
-    Ok(out)
+    let state = state.ok_or_else(|| SoftrodError::Internal("no evaluation of the point".into()))?;
+    Ok((state, out))
 }

@@ -1130,7 +1130,9 @@ fn better(a: Option<Attempt>, b: Attempt) -> Attempt {
 }
 
 /// Solve the static equilibrium. `guess` is a previous solution's `x` (warm start; ignored
-/// unless it has this solve's number of unknowns and is finite).
+/// unless it has this solve's number of unknowns and is finite), or for a rod that
+/// collocation solves ([`solved_by_collocation`]) a previous solution's collocation
+/// unknowns `z` (`Solution::collocation`).
 pub fn solve(
     rod: &Rod,
     loads: &Loads,
@@ -1193,6 +1195,21 @@ pub(crate) fn check_inputs_any_friction(
     Ok(violations)
 }
 
+/// Whether statics solves `rod` under `loads` by collocation rather than single shooting.
+/// Single shooting's sensitivity grows like exp(int sqrt(|n| / EI) ds): long, soft rods
+/// under their own weight go to collocation (docs/model.md, "Collocation"), which carries
+/// reference shapes (constant or tabulated) and tapers; rods with tendons or follower loads
+/// stay with shooting (`scope::check_statics_only_with`). Contact needs the position in the
+/// state, which collocation does not carry: rods with obstacles are shot (docs/contact.md).
+/// The growth depends on the dead loads only (not on pressures or tensions), so an inverse
+/// problem keeps one method for all its iterates.
+pub fn solved_by_collocation(rod: &Rod, loads: &Loads) -> bool {
+    collocation::shooting_ill_conditioned(rod, loads)
+        && !loads.base_force_unknown(rod)
+        && rod.obstacles.is_none()
+        && crate::scope::check_statics_only_with(rod, "collocation", true, false).is_ok()
+}
+
 fn solve_inner(
     rod: &Rod,
     loads: &Loads,
@@ -1201,18 +1218,8 @@ fn solve_inner(
     want_shape: bool,
 ) -> Attempt {
     let violations = check_inputs(rod, loads, opts)?;
-    // Single shooting's sensitivity grows like exp(int sqrt(|n| / EI) ds): long, soft rods
-    // under their own weight go to collocation (docs/model.md, "Collocation"), which
-    // carries reference shapes (constant or tabulated) and tapers; rods with tendons or
-    // follower loads stay with shooting (`scope::check_statics_only_with`).
-    // Contact needs the position in the state, which collocation does not carry: rods
-    // with obstacles are shot (docs/contact.md).
-    if collocation::shooting_ill_conditioned(rod, loads)
-        && !loads.base_force_unknown(rod)
-        && rod.obstacles.is_none()
-        && crate::scope::check_statics_only_with(rod, "collocation", true, false).is_ok()
-    {
-        return by_collocation(rod, loads, opts, violations);
+    if solved_by_collocation(rod, loads) {
+        return by_collocation(rod, loads, guess, opts, violations);
     }
     if loads.base_force_unknown(rod) {
         let start = match guess {
@@ -1342,11 +1349,13 @@ fn solve_n<const N: usize, const M: usize>(
 fn by_collocation(
     rod: &Rod,
     loads: &Loads,
+    guess: Option<&[f64]>,
     opts: &SolverOptions,
     violations: Vec<SoftrodError>,
 ) -> Attempt {
     let mut violations = violations;
-    let sol = collocation::solve_static(rod, loads, None, opts)?;
+    // A shooting `x` as the guess has the wrong length and is ignored there.
+    let sol = collocation::solve_static(rod, loads, guess, opts)?;
     let (base_force, base_moment) = collocation::base_wrench(rod, &sol.z);
     let ev = &sol.evaluated;
     let grid = crate::collocation::Grid::new(rod);

@@ -491,15 +491,13 @@ fn two_right_sides_solve_as_two_solves() {
     }
 }
 
-/// What is derived from a collocation solution: markers are read from its nodes' states
-/// (within the discretisation's error of a finer solve's nodes; before, they were shot
-/// from the base unknowns and landed anywhere), and the inverse, whose derivatives are
-/// taken by shooting passes that would leave the equilibrium, is refused by name (the
-/// Jacobian, the parameter sensitivities and the linearisation differentiate the
-/// collocation equations: collocation_derivatives.rs, linearise_collocation.rs).
+/// Markers on a collocation solution are read from its nodes' states (within the
+/// discretisation's error of a finer solve's nodes; before, they were shot from the base
+/// unknowns and landed anywhere). (Its derivatives and the inverse differentiate the
+/// collocation equations: collocation_derivatives.rs, linearise_collocation.rs,
+/// inverse_collocation.rs.)
 #[test]
-fn collocation_solutions_give_markers_and_refuse_the_inverse() {
-    use softrod_core::inverse::{solve_inverse, InverseOptions};
+fn collocation_solutions_give_markers() {
     use softrod_core::marker::Marker;
     use softrod_core::sensitivity::{locate_markers, marker_positions};
 
@@ -552,42 +550,4 @@ fn collocation_solutions_give_markers_and_refuse_the_inverse() {
                 .sum::<f64>()
     });
     assert_eq!(got[1], at);
-
-    // The same arm with a chamber, its tip asked to where it hangs at 5 kPa.
-    let mat = MaterialSpec {
-        youngs_modulus: 100e3,
-        shear_modulus: 100e3 / 3.0,
-        density: 1000.0,
-    };
-    let chambered = Rod::new(design(
-        vec![geometry_section(
-            "rod",
-            length,
-            0.0125,
-            0.0,
-            mat,
-            vec![chamber(2e-3, 5e-3, 0.0, 0)],
-            32,
-        )],
-        HORIZONTAL,
-        9.81,
-    ))
-    .unwrap();
-    let there = solve(&chambered, &loads(&[5e3]), None, &warn).unwrap();
-    assert!(there.collocation.is_some());
-    let mut opts = InverseOptions::new(vec![[0.0, 2e4]]);
-    opts.statics = warn;
-    let e = solve_inverse(
-        &chambered,
-        &loads(&[0.0]),
-        &tip_target(&chambered, there.tip.r),
-        &opts,
-        None,
-    )
-    .unwrap_err()
-    .to_string();
-    assert!(
-        e.contains("solution") && e.contains("collocation") && e.contains("inverse"),
-        "{e}"
-    );
 }

@@ -31,6 +31,7 @@ mod friction;
 mod friction_batch;
 mod friction_system;
 mod inverse;
+mod inverse_collocation;
 mod inverse_tendons;
 mod jacobian;
 mod laws;
