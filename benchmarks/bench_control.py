@@ -66,24 +66,7 @@ from common import (  # noqa: E402
 DESIGN = "spa_three_chamber_130mm"
 #: A 1 m arm, soft in bending: single shooting's growth exponent is about 20 (> 12), so
 #: statics solves it by collocation (docs/model.md, "Collocation").
-LONG_SOFT_ARM = {
-    "design": {"name": "long_soft_arm", "citation": "collocation benchmark"},
-    "mounting": {"orientation": "hanging", "gravity": "9.81 m/s^2"},
-    "sections": [
-        {
-            "name": "arm",
-            "length": "1 m",
-            "mass": "100 g",
-            "outer_radius": "10 mm",
-            "EA": "1e4 N",
-            "GA": "1e4 N",
-            "EI": "1e-3 N*m^2",
-            "GJ": "1e-3 N*m^2",
-            "steps": 64,
-            "chambers": [{"radius": "2 mm", "distance": "4 mm", "angle": "0 deg", "channel": 0}],
-        }
-    ],
-}
+LONG_SOFT_ARM = "long_soft_arm_1m"
 BOUNDS = (0.0, 70e3)
 STEP = 0.5e-3  # m per call
 RADIUS = 10e-3  # m

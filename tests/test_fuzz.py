@@ -810,15 +810,13 @@ def control_cases(draw):
     soft arm that statics solves by collocation (one chamber): inverse statics one-off and
     warm, linearisation, target paths and tracking controllers, with hostile targets,
     bounds, weights, starts and options."""
-    from test_collocation_solutions import long_soft_arm
-
     design, n, n_tendons = draw(
         st.sampled_from(
             [
                 ("spa_three_chamber_130mm", 3, 0),
                 ("till_tendon_robot", 0, 4),
                 ("prebent_finger_on_table", 1, 1),
-                (long_soft_arm(), 1, 0),
+                ("long_soft_arm_1m", 1, 0),
             ]
         )
     )

@@ -252,6 +252,11 @@ class StaticSolution:
     #: The :class:`~softrod.StiffnessMap` that gave ``stiffness_scale`` (None when the design
     #: has no mapped section): its derivative enters the pressures' Jacobian.
     stiffness_map: Any = field(default=None, repr=False, compare=False)
+    #: The scaled collocation unknowns z of an equilibrium that statics solved by
+    #: collocation (docs/model.md, "Collocation"), None otherwise: the warm start of
+    #: ``initial=``, :meth:`jacobian` and ``linearise`` (``shooting_unknowns`` holds only
+    #: its base moment there, which does not determine z).
+    collocation_unknowns: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __repr__(self) -> str:
         parts = _inputs(self.design.name, self.pressures, self.tensions)
@@ -296,7 +301,8 @@ class StaticSolution:
         )
 
     def _warm_start(self, model: str) -> list[float]:
-        """The shooting unknowns that warm-start another solve (statics' ``initial``)."""
+        """The unknowns that warm-start another solve (statics' ``initial``): the
+        collocation unknowns of a collocation solution, else the shooting unknowns."""
         x = np.asarray(self.shooting_unknowns, dtype=float)
         if not self.converged or not np.all(np.isfinite(x)):
             raise V.fail(
@@ -304,7 +310,15 @@ class StaticSolution:
                 "a solution with converged = False",
                 "cannot warm-start a solve: pass a converged solution (or none)",
             )
-        return x.tolist()
+        return self._unknowns()
+
+    def _unknowns(self) -> list[float]:
+        """The unknowns the binding re-solves this equilibrium from (for its derivatives):
+        one Newton step from a converged collocation solution's z (its shooting unknowns
+        alone would start a cold collocation solve), else the shooting unknowns."""
+        if self.collocation_unknowns is not None:
+            return [float(v) for v in self.collocation_unknowns]
+        return [float(v) for v in self.shooting_unknowns]
 
     @property
     def tip_position(self) -> np.ndarray:
@@ -371,7 +385,7 @@ class StaticSolution:
             [float(v) for v in self._tip_load("force")],
             [float(v) for v in self._tip_load("moment")],
             [float(v) for v in self.stiffness_scale],
-            [float(v) for v in self.shooting_unknowns],
+            self._unknowns(),
             float(s),
             pairs,
             tensions=[float(t) for t in self.tensions],

@@ -530,6 +530,7 @@ def solve_statics(
         residual=out["residual"],
         load_steps=out["load_steps"],
         shooting_unknowns=np.array(out["x"]),
+        collocation_unknowns=out["collocation_unknowns"],
         stiffness_scale=sigma,
         stiffness_map=smap,
         stable=None if out["stable"] is None else bool(out["stable"]),

@@ -150,6 +150,10 @@ impl PyInverse {
             d.set_item("pressures", out.pressures)?;
             d.set_item("tensions", out.tensions)?;
             d.set_item("x", out.solution.x.to_vec())?;
+            d.set_item(
+                "collocation_unknowns",
+                crate::collocation_unknowns(py, &out.solution),
+            )?;
             d.set_item("point_position", out.point.r.to_vec())?;
             d.set_item("point_rotation", out.point.rot.map(|r| r.to_vec()).to_vec())?;
             d.set_item("tip_position", out.solution.tip.r.to_vec())?;
@@ -255,7 +259,7 @@ pub fn point_jacobian_of<'py>(
             let probe = Probe::at(rod, s)?;
             let free = matches!(held, TipConstraint::Free);
             let sol = if free {
-                statics::solve(rod, &loads, Some(&x), &checked)?
+                statics::solution_at(rod, &loads, &x, &checked)?
             } else {
                 solve_constrained(rod, &loads, &held, Some(&x), &checked)?.solution
             };
@@ -404,7 +408,10 @@ pub fn linearise_at<'py>(
         let result = py.detach(|| -> softrod_core::Result<_> {
             rod.check_tensions(&loads.tensions)?;
             if let TipConstraint::Free = held {
-                let sol = statics::solve(rod, &loads, x.as_deref(), &checked)?;
+                let sol = match x.as_deref() {
+                    Some(x) => statics::solution_at(rod, &loads, x, &checked)?,
+                    None => statics::solve(rod, &loads, None, &checked)?,
+                };
                 let sys = linearise(rod, &loads, &sol, nodes)?;
                 return Ok((sol, sys));
             }

@@ -277,6 +277,9 @@ fn solution_dict<'py>(
     d.set_item("v", array2(py, &sh.v)?)?;
     d.set_item("u", array2(py, &sh.u)?)?;
     d.set_item("x", sol.x.to_vec())?;
+    // A collocation solution's unknowns z: the warm start that re-solving it for its
+    // derivatives needs (its `x`, the base moment, does not determine them).
+    d.set_item("collocation_unknowns", collocation_unknowns(py, sol))?;
     d.set_item("iterations", sol.iterations)?;
     d.set_item("residual", sol.residual)?;
     d.set_item("load_steps", sol.load_steps)?;
@@ -289,6 +292,16 @@ fn solution_dict<'py>(
             .collect::<Vec<_>>(),
     )?;
     Ok(d)
+}
+
+/// The collocation unknowns z of a solution that collocation solved, else None.
+pub(crate) fn collocation_unknowns<'py>(
+    py: Python<'py>,
+    sol: &statics::Solution,
+) -> Option<Bound<'py, PyArray1<f64>>> {
+    sol.collocation
+        .as_ref()
+        .map(|c| PyArray1::from_slice(py, &c.z))
 }
 
 pub(crate) fn array3<'py>(py: Python<'py>, mats: &[[[f64; 3]; 3]]) -> PyResult<Bound<'py, PyAny>> {

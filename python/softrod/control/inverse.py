@@ -261,6 +261,9 @@ class InverseSolution:
     tensions: np.ndarray = field(default_factory=lambda: np.zeros(0))
     tension_active: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
     tension_bounds: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)), repr=False)
+    #: The collocation unknowns z of the equilibrium when statics solves this design by
+    #: collocation (a long, soft rod), None otherwise: :meth:`statics` starts there.
+    collocation_unknowns: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     def __repr__(self) -> str:
         parts = _inputs(self.design.name, self.pressures, self.tensions)
@@ -269,9 +272,12 @@ class InverseSolution:
         return f"InverseSolution({', '.join(parts)})"
 
     def _warm_start(self, model: str) -> list[float]:
-        """This equilibrium's shooting unknowns, to warm-start a solve (statics' ``initial``)."""
+        """This equilibrium's unknowns, to warm-start a solve (statics' ``initial``): its
+        collocation unknowns when collocation solved it, else its shooting unknowns."""
         if model != "cosserat":
             raise V.fail("initial", "an InverseSolution", "warm-starts the Cosserat model only")
+        if self.collocation_unknowns is not None:
+            return [float(v) for v in self.collocation_unknowns]
         return [float(v) for v in self.shooting_unknowns]
 
     def statics(self) -> StaticSolution:
@@ -538,6 +544,7 @@ class InverseProblem:
             iterations=int(out["iterations"]),
             passes=int(out["passes"]),
             shooting_unknowns=np.array(out["x"]),
+            collocation_unknowns=out["collocation_unknowns"],
             tip_force=self.tip_force,
             tip_moment=self.tip_moment,
             stable=bool(out["stable"]),

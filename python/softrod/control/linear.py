@@ -407,7 +407,7 @@ def linearise(
         p,
         tf,
         tm,
-        [float(v) for v in initial.shooting_unknowns],
+        initial._unknowns(),
         nodes,
         tensions=t,
         **held,

@@ -90,6 +90,48 @@ fn static_tip(rod: &Rod, loads: &crate::ode::Loads, factor: f64) -> TipBody {
     }
 }
 
+/// The equilibrium at the unknowns `z` as they are (a converged solution's, which its
+/// holder passes back to take its derivatives): evaluated with its stability and its
+/// largest scaled residual, without moving z, so that everything read from it is that
+/// solution's own value (a Newton step would move it within the tolerance). z must be
+/// converged by the solver's own test: the Newton correction at z within `tol` of its size.
+/// None when it is not, or does not fit the rod's grid, or is not finite (the caller then
+/// solves from it).
+pub fn at_unknowns(
+    rod: &Rod,
+    loads: &crate::ode::Loads,
+    z: &[f64],
+    tol: f64,
+) -> Option<StaticSolution> {
+    let grid = Grid::new(rod);
+    if z.len() != grid.unknowns() || !z.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let hist = vec![[0.0; NF]; 2 * grid.len() + 1];
+    let models = static_models(rod, &grid, loads, 1.0);
+    let mut p = Problem::new(rod, &grid, &models, 0.0, &hist, static_tip(rod, loads, 1.0));
+    p.gravity = rod.gravity;
+    let mut r = vec![0.0; z.len()];
+    p.residual(z, &mut r, None);
+    let fac = p.factorize(z)?;
+    let mut dz = vec![0.0; z.len()];
+    let mut scratch = vec![0.0; fac.scratch_len()];
+    fac.solve(&r, &mut dz, &mut scratch);
+    let norm = crate::collocation::inf_norm(&dz);
+    let converged = norm <= tol * crate::collocation::inf_norm(z).max(1.0); // false for NaN
+    if !converged {
+        return None;
+    }
+    Some(StaticSolution {
+        evaluated: p.evaluate(z),
+        stable: stability(&p, z),
+        z: z.to_vec(),
+        residual: crate::collocation::inf_norm(&r),
+        iterations: 0,
+        load_steps: 0,
+    })
+}
+
 /// Static equilibrium by collocation (the dt -> infinity limit of the dynamic
 /// discretisation): Newton from `guess` (scaled unknowns of an earlier solution, or None
 /// for the straight rod), then, if that fails, load continuation from the unloaded

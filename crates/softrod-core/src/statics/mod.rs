@@ -1353,9 +1353,41 @@ fn by_collocation(
     opts: &SolverOptions,
     violations: Vec<SoftrodError>,
 ) -> Attempt {
-    let mut violations = violations;
     // A shooting `x` as the guess has the wrong length and is ignored there.
     let sol = collocation::solve_static(rod, loads, guess, opts)?;
+    conclude_collocated(rod, loads, sol, opts, violations)
+}
+
+/// The equilibrium a caller holds, from its unknowns, to take its derivatives: a
+/// collocation solution's unknowns z as they are (`collocation::at_unknowns`: no Newton
+/// step, so its values are the solution's own, and no cold collocation solve, which its
+/// shooting unknowns alone would start), else a solve warm-started from `unknowns`.
+/// Either is checked as a solve's answer is.
+pub fn solution_at(
+    rod: &Rod,
+    loads: &Loads,
+    unknowns: &[f64],
+    opts: &SolverOptions,
+) -> Result<Solution> {
+    if solved_by_collocation(rod, loads) {
+        let violations = check_inputs(rod, loads, opts)?;
+        if let Some(sol) = collocation::at_unknowns(rod, loads, unknowns, opts.tol) {
+            return conclude_collocated(rod, loads, sol, opts, violations).map(|(s, _)| s);
+        }
+    }
+    solve(rod, loads, Some(unknowns), opts)
+}
+
+/// A collocation solution concluded as a solve's answer: every node through the validity
+/// rules, the shape, the base wrench.
+fn conclude_collocated(
+    rod: &Rod,
+    loads: &Loads,
+    sol: collocation::StaticSolution,
+    opts: &SolverOptions,
+    violations: Vec<SoftrodError>,
+) -> Attempt {
+    let mut violations = violations;
     let (base_force, base_moment) = collocation::base_wrench(rod, &sol.z);
     let ev = &sol.evaluated;
     let grid = crate::collocation::Grid::new(rod);

@@ -551,3 +551,36 @@ fn collocation_solutions_give_markers() {
     });
     assert_eq!(got[1], at);
 }
+
+/// The equilibrium a caller holds, from its unknowns (`statics::solution_at`, which the
+/// binding uses before taking a solution's derivatives): a collocation solution's own z is
+/// taken as it is (no Newton step: the tip is the solution's, bit for bit); a z that is not
+/// converged by the solver's own test (the Newton correction there beyond tol) is solved
+/// from instead, and lands on the equilibrium (within the tolerance), not on the z given.
+#[test]
+fn solution_at_takes_a_converged_collocation_solution_as_it_is() {
+    use softrod_core::statics::solution_at;
+
+    let warn = SolverOptions {
+        on_invalid: Policy::Warn,
+        ..SolverOptions::default()
+    };
+    let rod = soft_rod(1.0, HORIZONTAL, 32);
+    let ld = loads(&[]);
+    let sol = solve(&rod, &ld, None, &warn).unwrap();
+    let z = sol.collocation.as_ref().unwrap().z.clone();
+    let again = solution_at(&rod, &ld, &z, &warn).unwrap();
+    assert_eq!(again.tip.r, sol.tip.r);
+    assert_eq!(again.tip.rot, sol.tip.rot);
+    assert_eq!(again.iterations, 0);
+    assert_eq!(again.collocation.as_ref().unwrap().z, z);
+    assert_eq!(again.stable, sol.stable);
+
+    // A moved z (1e-6 on every unknown: 1e4 times the tolerance) is not an equilibrium.
+    let moved: Vec<f64> = z.iter().map(|v| v + 1e-6).collect();
+    let fixed = solution_at(&rod, &ld, &moved, &warn).unwrap();
+    assert!(fixed.iterations > 0);
+    // Both solves converge to 1e-10 of the (order-one) scaled unknowns: the tips agree to a
+    // few 1e-10 L.
+    assert!(dist(&fixed.tip.r, &sol.tip.r) < 1e-9, "{:?}", fixed.tip.r);
+}
