@@ -47,7 +47,8 @@ def test_the_inverse_of_a_collocation_rod_finds_the_pressure():
     range (the tip is reached to 1e-10 L; 1e-6 of the range moves it by about 1e-7 L, so
     a looser answer could not pass). An InverseProblem then follows the tip along the
     pressure path to 4 kPa with warm starts from each answer's equilibrium: a few
-    iterations per call, and each answer is its pressure's forward solve."""
+    iterations per call, and each answer is its pressure's forward solve; and from a
+    static solution."""
     design = load_design(ARM)
     target = solve_statics(design, [3e3]).tip_position
     inv = solve_inverse(design, target, pressure_bounds=[(0, 2e4)])
@@ -66,6 +67,13 @@ def test_the_inverse_of_a_collocation_rod_finds_the_pressure():
     np.testing.assert_allclose(
         solve_statics(design, prev.pressures).tip_position, prev.tip_position, atol=1e-9
     )
+    # From a static solution: its collocation unknowns start the equilibrium (the core's
+    # test checks that they are taken as they are).
+    start = solve_statics(design, [3e3])
+    goal = solve_statics(design, [3.2e3]).tip_position
+    from_static = problem.solve(goal, initial=start)
+    assert from_static.reached and from_static.iterations <= 4
+    assert from_static.pressures[0] == pytest.approx(3.2e3, abs=1e-6 * 2e4)
 
 
 def test_a_long_soft_arm_rings_as_its_linearisation_says():

@@ -369,6 +369,7 @@ class InverseSolver:
         orientation: Sequence[Sequence[float]] | None = None,
         x: _Vec3 | None = None,
         reference: Sequence[float] | None = None,
+        z: Sequence[float] | None = None,
     ) -> dict[str, Any]: ...
 
 def point_jacobian_of(

@@ -541,6 +541,31 @@ pub struct Linearisation {
     pub dy: Vec<[f64; 12]>,
 }
 
+impl WarmStart {
+    /// The `solution` of a warm start at the start `loads` from collocation unknowns `z`
+    /// (a `StaticSolution`'s, for a rod that collocation solves): the equilibrium there,
+    /// taken as it is where the solver's convergence test passes (`statics::solution_at`).
+    /// None for a rod that shooting solves, or a `z` that does not fit its grid (a cold
+    /// start then). Errors are those of the inputs.
+    pub fn collocation_start(
+        rod: &Rod,
+        loads: &Loads,
+        z: &[f64],
+        statics_opts: &SolverOptions,
+    ) -> Result<Option<Solution>> {
+        if !statics::solved_by_collocation(rod, loads)
+            || z.len() != crate::collocation::Grid::new(rod).unknowns()
+        {
+            return Ok(None);
+        }
+        let inner = SolverOptions {
+            on_invalid: Policy::Ignore,
+            ..*statics_opts
+        };
+        statics::solution_at(rod, loads, z, &inner).map(Some)
+    }
+}
+
 impl InverseSolution {
     /// A warm start for the next target of the same problem.
     pub fn warm_start(&self) -> WarmStart {

@@ -88,9 +88,11 @@ impl PyInverse {
     }
 
     /// Solve for `position` (m) and optionally `orientation` from the start `pressures`
-    /// (Pa) and `tensions` (N) and, for a warm start, its shooting unknowns `x`.
-    /// `reference` replaces the regularisation's centre for this call. Returns a dict (SI).
-    #[pyo3(signature = (position, pressures, tensions, orientation=None, x=None, reference=None))]
+    /// (Pa) and `tensions` (N) and, for a warm start, its shooting unknowns `x` (and `z`,
+    /// the collocation unknowns of a start that collocation solved, when the start is not
+    /// this solver's last answer). `reference` replaces the regularisation's centre for
+    /// this call. Returns a dict (SI).
+    #[pyo3(signature = (position, pressures, tensions, orientation=None, x=None, reference=None, z=None))]
     #[allow(clippy::too_many_arguments)]
     fn solve<'py>(
         &self,
@@ -101,6 +103,7 @@ impl PyInverse {
         orientation: Option<[[f64; 3]; 3]>,
         x: Option<[f64; 3]>,
         reference: Option<Vec<f64>>,
+        z: Option<Vec<f64>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         guarded(py, || {
             let target = InverseTarget {
@@ -131,17 +134,29 @@ impl PyInverse {
             };
             let rod = &self.rod;
             let last = self.last.lock().ok().and_then(|g| g.clone());
-            let warm = x.map(|x| match last {
-                Some(w) if w.x == x => w,
-                other => WarmStart {
-                    x,
-                    solution: None,
-                    equilibrium: None,
-                    linearisation: other.and_then(|w| w.linearisation),
-                },
-            });
             let out = py
-                .detach(|| solve_inverse(rod, &loads, &target, opts, warm.as_ref()))
+                .detach(|| {
+                    let warm = match x {
+                        None => None,
+                        Some(x) => Some(match last {
+                            Some(w) if w.x == x => w,
+                            other => WarmStart {
+                                x,
+                                // A start that collocation solved: its equilibrium from its z
+                                // (a cold start if z is not converged there).
+                                solution: match &z {
+                                    Some(z) => {
+                                        WarmStart::collocation_start(rod, &loads, z, &opts.statics)?
+                                    }
+                                    None => None,
+                                },
+                                equilibrium: None,
+                                linearisation: other.and_then(|w| w.linearisation),
+                            },
+                        }),
+                    };
+                    solve_inverse(rod, &loads, &target, opts, warm.as_ref())
+                })
                 .map_err(|e| to_py_err(py, e, Context::Input))?;
             if let Ok(mut g) = self.last.lock() {
                 *g = Some(out.warm_start());

@@ -435,8 +435,9 @@ class InverseProblem:
         rotation [d1 d2 d3]).
 
         ``initial``: a previous :class:`InverseSolution` or :class:`StaticSolution` (warm
-        start: its pressures, tensions and shooting unknowns), or the start inputs: the
-        pressures (Pa) followed by the tensions (N), one per channel.
+        start: its pressures, tensions and its equilibrium's unknowns, the collocation
+        unknowns of a long, soft rod's included), or the start inputs: the pressures (Pa)
+        followed by the tensions (N), one per channel.
         """
         # The fast path of a warm loop: a plain float array (not a masked one, whose hidden
         # values tolist() turns into None).
@@ -471,6 +472,7 @@ class InverseProblem:
                 InputError,
             )
         x = None
+        z = None
         nc, nt = self.design.n_channels, self.design.n_tendons
         if initial is None:
             u0 = self._least
@@ -482,6 +484,9 @@ class InverseProblem:
             x = np.asarray(initial.shooting_unknowns, dtype=float).tolist()
             if not all(map(math.isfinite, x)):
                 x = None
+            elif initial.collocation_unknowns is not None:
+                # A long, soft rod: its equilibrium starts from z (x does not determine it).
+                z = initial.collocation_unknowns.tolist()
         else:
             u0 = V.real_array(initial, "initial", what="pressures (Pa) and tensions (N)")
         # (math.isfinite over a list: a warm call's checks cost microseconds at 10 kHz.)
@@ -510,6 +515,7 @@ class InverseProblem:
             orientation=None if rot is None else rot.tolist(),
             x=x,
             reference=reference,
+            z=z,
         )
         if out["violations"]:
             import warnings

@@ -317,3 +317,62 @@ fn collocation_inverse_reaches_orientations_and_points_between_nodes() {
         assert!(inv.iterations <= 8, "{name}: {} iterations", inv.iterations);
     }
 }
+
+/// A warm start from a static solution (not an answer of the inverse): its collocation
+/// unknowns give the start's equilibrium as it is (no iteration: the same z), and the
+/// inverse from there reaches a nearby target in a few iterations without the cold start's
+/// candidates. A rod that shooting solves, or a z of another grid, gives no such start.
+#[test]
+fn collocation_warm_start_from_a_static_solution() {
+    use softrod_core::inverse::WarmStart;
+
+    let rod = arm();
+    let opts = options();
+    let p0 = [0.3 * P_MAX, 0.5 * P_MAX, 0.2 * P_MAX];
+    let start = forward(&rod, &p0);
+    let z = &start.collocation.as_ref().unwrap().z;
+    let sol = WarmStart::collocation_start(&rod, &loads(&p0), z, &opts.statics)
+        .unwrap()
+        .expect("a collocation rod's start");
+    assert_eq!(sol.iterations, 0);
+    assert_eq!(&sol.collocation.as_ref().unwrap().z, z);
+    assert_eq!(sol.tip.r, start.tip.r);
+    assert!(
+        WarmStart::collocation_start(&rod, &loads(&p0), &z[1..], &opts.statics)
+            .unwrap()
+            .is_none()
+    );
+    let short = Rod::new(p002_actuator(HORIZONTAL, 9.81, 16)).unwrap();
+    assert!(
+        WarmStart::collocation_start(&short, &loads(&[0.0; 3]), z, &opts.statics)
+            .unwrap()
+            .is_none()
+    );
+
+    let p = [0.32 * P_MAX, 0.48 * P_MAX, 0.22 * P_MAX];
+    let goal = forward(&rod, &p).tip.r;
+    let warm = WarmStart {
+        x: std::array::from_fn(|i| start.x[i]),
+        solution: Some(sol),
+        equilibrium: None,
+        linearisation: None,
+    };
+    let inv = solve_inverse(
+        &rod,
+        &loads(&p0),
+        &tip_target(&rod, goal),
+        &opts,
+        Some(&warm),
+    )
+    .unwrap();
+    assert!(inv.reached, "{}", inv.distance);
+    assert!(inv.iterations <= 4, "{}", inv.iterations);
+    check_pressures(
+        "from a static solution",
+        &rod,
+        rod.length,
+        false,
+        &p,
+        &inv.pressures,
+    );
+}
