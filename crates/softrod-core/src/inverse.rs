@@ -51,6 +51,13 @@
 //! projected Newton step (Bertsekas): the inputs held at a bound by the gradient stay, the
 //! others step with J^T J + M on their face where it is positive definite.
 //!
+//! Long, soft rods that statics solves by collocation (`statics::solved_by_collocation`,
+//! which depends on the dead loads only) have no three unknowns x to iterate on jointly:
+//! there every iterate is a converged collocation equilibrium (a solve started from the
+//! last iterate's unknowns z), its Jacobian J = de/dp comes from the collocation equations
+//! at that solution (`crate::jacobian::collocation`, the implicit function theorem with the
+//! banded G_z), so each one is fresh and each cost exact; the LM loop is the same.
+//!
 //! The returned equilibrium is always converged and concluded as a static solve's answer (`statics::conclude_at`): checked
 //! against the validity rules (`crate::validity`), with its stability (`Solution::stable`)
 //! for the caller to refuse an unstable one.
