@@ -313,9 +313,10 @@ class StaticSolution:
         return self._unknowns()
 
     def _unknowns(self) -> list[float]:
-        """The unknowns the binding re-solves this equilibrium from (for its derivatives):
-        one Newton step from a converged collocation solution's z (its shooting unknowns
-        alone would start a cold collocation solve), else the shooting unknowns."""
+        """The unknowns the binding takes this equilibrium from (for its derivatives): a
+        collocation solution's z, taken as it is where the solver's convergence test passes
+        there (its shooting unknowns alone would start a cold collocation solve), else the
+        shooting unknowns (a warm solve)."""
         if self.collocation_unknowns is not None:
             return [float(v) for v in self.collocation_unknowns]
         return [float(v) for v in self.shooting_unknowns]
